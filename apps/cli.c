@@ -1,0 +1,247 @@
+#include "cli.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "consph/io.h"
+
+int cli_error(const cli_command *cmd, const char *fmt, ...)
+{
+    va_list ap;
+    va_start(ap, fmt);
+    fprintf(stderr, "consph %s: ", cmd->name);
+    vfprintf(stderr, fmt, ap);
+    fputc('\n', stderr);
+    va_end(ap);
+    return CLI_EXIT_USAGE;
+}
+
+int cli_choice_index(const char *choices, const char *value)
+{
+    size_t len = strlen(value);
+    int idx = 0;
+    const char *s = choices;
+    while (*s) {
+        const char *e = strchr(s, ',');
+        size_t n = e ? (size_t)(e - s) : strlen(s);
+        if (n == len && strncmp(s, value, n) == 0) return idx;
+        if (!e) break;
+        s = e + 1;
+        ++idx;
+    }
+    return -1;
+}
+
+const char *cli_choice_name(const char *choices, int index, char *buf, size_t size)
+{
+    const char *s = choices;
+    for (int k = 0; k < index && s; ++k) {
+        s = strchr(s, ',');
+        if (s) ++s;
+    }
+    buf[0] = '\0';
+    if (!s) return buf;
+    const char *e = strchr(s, ',');
+    size_t n = e ? (size_t)(e - s) : strlen(s);
+    if (n >= size) n = size - 1;
+    memcpy(buf, s, n);
+    buf[n] = '\0';
+    return buf;
+}
+
+static const char *type_word(const cli_opt *o)
+{
+    switch (o->type) {
+    case CLI_INT:
+    case CLI_INT_LIST:
+        return "integer";
+    default:
+        return "number";
+    }
+}
+
+static void describe_range(const cli_opt *o, char *buf, size_t size)
+{
+    if (o->type == CLI_INT || o->type == CLI_INT_LIST)
+        snprintf(buf, size, "%s %.0f..%.0f", type_word(o), o->min, o->max);
+    else
+        snprintf(buf, size, "%s in [%g, %g]", type_word(o), o->min, o->max);
+}
+
+static int parse_number(const cli_command *cmd, const cli_opt *o, const char *text, double *out)
+{
+    char range[128];
+    describe_range(o, range, sizeof range);
+    char *end = NULL;
+    errno = 0;
+    double v;
+    if (o->type == CLI_INT || o->type == CLI_INT_LIST) {
+        long long iv = strtoll(text, &end, 10);
+        v = (double)iv;
+    } else {
+        v = strtod(text, &end);
+    }
+    if (end == text || *end != '\0' || errno == ERANGE || !isfinite(v))
+        return cli_error(cmd, "option %s: '%s' is not a valid %s; allowed: %s", o->name, text,
+                         type_word(o), range);
+    if (v < o->min || v > o->max)
+        return cli_error(cmd, "option %s: %s is out of range; allowed: %s", o->name, text, range);
+    *out = v;
+    return 0;
+}
+
+static int parse_value(const cli_command *cmd, cli_opt *o, const char *text)
+{
+    double v;
+    switch (o->type) {
+    case CLI_FLAG:
+        *(int *)o->dest = 1;
+        return 0;
+    case CLI_INT:
+        if (parse_number(cmd, o, text, &v)) return CLI_EXIT_USAGE;
+        *(long *)o->dest = (long)v;
+        return 0;
+    case CLI_DOUBLE:
+        if (parse_number(cmd, o, text, &v)) return CLI_EXIT_USAGE;
+        *(double *)o->dest = v;
+        return 0;
+    case CLI_STRING:
+        if (!*text) return cli_error(cmd, "option %s: empty value", o->name);
+        *(const char **)o->dest = text;
+        return 0;
+    case CLI_CHOICE: {
+        int idx = cli_choice_index(o->choices, text);
+        if (idx < 0)
+            return cli_error(cmd, "option %s: unknown value '%s'; allowed: %s", o->name, text,
+                             o->choices);
+        *(int *)o->dest = idx;
+        return 0;
+    }
+    case CLI_INT_LIST:
+    case CLI_DOUBLE_LIST: {
+        cli_list *l = o->dest;
+        l->n = 0;
+        char buf[4096];
+        if (strlen(text) >= sizeof buf) return cli_error(cmd, "option %s: list too long", o->name);
+        strcpy(buf, text);
+        char *save = NULL;
+        for (char *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+            if (l->n == CLI_LIST_MAX)
+                return cli_error(cmd, "option %s: at most %d values", o->name, CLI_LIST_MAX);
+            if (parse_number(cmd, o, tok, &l->v[l->n])) return CLI_EXIT_USAGE;
+            l->n++;
+        }
+        if (l->n == 0 || text[strlen(text) - 1] == ',' || text[0] == ',')
+            return cli_error(cmd, "option %s: '%s' is not a comma-separated list of %ss", o->name,
+                             text, type_word(o));
+        return 0;
+    }
+    case CLI_OUT_PATH: {
+        if (o->choices) {
+            const char *dot = strrchr(text, '.');
+            if (!dot || cli_choice_index(o->choices, dot) < 0)
+                return cli_error(cmd, "option %s: '%s' has an unsupported extension; allowed: %s",
+                                 o->name, text, o->choices);
+        }
+        if (consph_path_writable(text) != 0)
+            return cli_error(cmd, "option %s: cannot write '%s': %s", o->name, text,
+                             consph_last_error());
+        *(const char **)o->dest = text;
+        return 0;
+    }
+    }
+    return cli_error(cmd, "option %s: internal error (unknown type)", o->name);
+}
+
+void cli_print_help(const cli_command *cmd)
+{
+    printf("usage: %s\n\n%s\n", cmd->usage, cmd->summary);
+    if (cmd->nopts) printf("\noptions:\n");
+    for (int k = 0; k < cmd->nopts; ++k) {
+        const cli_opt *o = &cmd->opts[k];
+        char head[96];
+        snprintf(head, sizeof head, "%s%s%s", o->name, o->metavar ? " " : "",
+                 o->metavar ? o->metavar : "");
+        printf("  %-26s %s", head, o->help);
+        char range[128];
+        switch (o->type) {
+        case CLI_CHOICE:
+            printf(" (one of: %s)", o->choices);
+            break;
+        case CLI_INT:
+        case CLI_DOUBLE:
+        case CLI_INT_LIST:
+        case CLI_DOUBLE_LIST:
+            describe_range(o, range, sizeof range);
+            printf(" (%s%s)", o->type >= CLI_INT_LIST ? "comma-separated, each " : "", range);
+            break;
+        case CLI_OUT_PATH:
+            if (o->choices) printf(" (extension: %s)", o->choices);
+            break;
+        default:
+            break;
+        }
+        printf("\n");
+    }
+    printf("  %-26s %s\n", "--help", "show this help and exit");
+    if (cmd->details) printf("\n%s\n", cmd->details);
+}
+
+int cli_parse(cli_command *cmd, int argc, char **argv)
+{
+    int npos = 0;
+    for (int k = 0; k < cmd->nopts; ++k) cmd->opts[k].given = 0;
+    for (int a = 1; a < argc; ++a) {
+        const char *arg = argv[a];
+        if (strcmp(arg, "--help") == 0 || strcmp(arg, "-h") == 0) {
+            cli_print_help(cmd);
+            return 1;
+        }
+        if (strncmp(arg, "--", 2) != 0) {
+            if (npos < cmd->npositional) {
+                cmd->positional[npos++] = arg;
+                continue;
+            }
+            return cli_error(cmd, "unexpected argument '%s'; see 'consph %s --help'", arg,
+                             cmd->name);
+        }
+        char name[64];
+        const char *eq = strchr(arg, '=');
+        size_t nlen = eq ? (size_t)(eq - arg) : strlen(arg);
+        if (nlen >= sizeof name) nlen = sizeof name - 1;
+        memcpy(name, arg, nlen);
+        name[nlen] = '\0';
+        cli_opt *o = NULL;
+        for (int k = 0; k < cmd->nopts; ++k)
+            if (strcmp(cmd->opts[k].name, name) == 0) o = &cmd->opts[k];
+        if (!o) {
+            char allowed[2048] = "";
+            for (int k = 0; k < cmd->nopts; ++k) {
+                strncat(allowed, cmd->opts[k].name, sizeof allowed - strlen(allowed) - 3);
+                strncat(allowed, ", ", sizeof allowed - strlen(allowed) - 1);
+            }
+            strncat(allowed, "--help", sizeof allowed - strlen(allowed) - 1);
+            return cli_error(cmd, "unknown option '%s'; allowed: %s", name, allowed);
+        }
+        if (o->given) return cli_error(cmd, "option %s given twice", o->name);
+        o->given = 1;
+        if (o->type == CLI_FLAG) {
+            if (eq) return cli_error(cmd, "option %s takes no value", o->name);
+            *(int *)o->dest = 1;
+            continue;
+        }
+        const char *value = eq ? eq + 1 : NULL;
+        if (!value) {
+            if (a + 1 >= argc) return cli_error(cmd, "option %s needs a value", o->name);
+            value = argv[++a];
+        }
+        int rc = parse_value(cmd, o, value);
+        if (rc) return rc;
+    }
+    for (int k = npos; k < cmd->npositional; ++k) cmd->positional[k] = NULL;
+    return 0;
+}

@@ -1,0 +1,64 @@
+/* Declarative option parsing for the consph CLI. Every rejection prints one line naming the
+ * command, the option and the allowed values, and the caller exits with status 2. */
+#ifndef CONSPH_APPS_CLI_H
+#define CONSPH_APPS_CLI_H
+
+#include <stddef.h>
+
+#define CLI_LIST_MAX 64
+#define CLI_EXIT_USAGE 2
+
+typedef enum cli_type {
+    CLI_FLAG,        /* int: set to 1 */
+    CLI_INT,         /* long: integer in [min, max] */
+    CLI_DOUBLE,      /* double: finite in [min, max] */
+    CLI_STRING,      /* const char *: any non-empty text */
+    CLI_CHOICE,      /* int: index into the comma-separated `choices` */
+    CLI_INT_LIST,    /* cli_list: comma-separated integers in [min, max] */
+    CLI_DOUBLE_LIST, /* cli_list: comma-separated finite numbers in [min, max] */
+    CLI_OUT_PATH     /* const char *: a path whose directory exists and is writable */
+} cli_type;
+
+typedef struct cli_list {
+    int n;
+    double v[CLI_LIST_MAX];
+} cli_list;
+
+typedef struct cli_opt {
+    const char *name; /* "--nx" */
+    cli_type type;
+    void *dest;
+    const char *metavar; /* shown in help, e.g. "N" */
+    const char *help;
+    const char *choices; /* CLI_CHOICE: "a,b,c"; CLI_OUT_PATH: allowed extensions ".vtu,.csv" */
+    double min, max;     /* numeric bounds (inclusive) */
+    int given;           /* set by cli_parse */
+} cli_opt;
+
+typedef struct cli_command {
+    const char *name;    /* "layout" */
+    const char *summary; /* one line */
+    const char *usage;   /* "consph layout --kind K --dim D --nx N [options]" */
+    const char *details; /* free text printed after the options in --help (may be NULL) */
+    cli_opt *opts;
+    int nopts;
+    int npositional; /* positional arguments accepted (0 or more) */
+    const char **positional;
+} cli_command;
+
+/* Parses argv[1..argc) (argv[0] is the command name). Returns 0 on success, 1 when help was
+ * printed (exit 0), CLI_EXIT_USAGE after printing an error. */
+int cli_parse(cli_command *cmd, int argc, char **argv);
+void cli_print_help(const cli_command *cmd);
+/* Prints "consph CMD: message" to stderr and returns CLI_EXIT_USAGE. */
+int cli_error(const cli_command *cmd, const char *fmt, ...)
+#if defined(__GNUC__)
+    __attribute__((format(printf, 2, 3)))
+#endif
+    ;
+/* Index of `value` in the comma-separated `choices`, or -1. */
+int cli_choice_index(const char *choices, const char *value);
+/* Copies choice number `index` of `choices` into buf. */
+const char *cli_choice_name(const char *choices, int index, char *buf, size_t size);
+
+#endif

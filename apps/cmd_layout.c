@@ -1,0 +1,189 @@
+/* consph layout: generate a particle arrangement, print its statistics, write it as .vtu/.csv. */
+#include <stdio.h>
+#include <string.h>
+
+#include "cli.h"
+#include "commands.h"
+#include "consph/io.h"
+#include "consph/kernels.h"
+#include "consph/layout.h"
+
+/* Larger sets exhaust memory long before anything useful happens. */
+#define LAYOUT_CLI_MAX_PARTICLES 100000000.0
+
+static const char layout_details[] =
+    "kinds (unit box [0,1)^D, Δs = 1/N, N^D particles):\n"
+    "  lattice       cell-centred lattice x = (i + 1/2) Δs (001's UP arrangement)\n"
+    "  random        lattice + ε κ Δs per coordinate, κ uniform in [-0.25, 0.25] (002 §6.2);\n"
+    "                reproducible for a given --seed\n"
+    "  quasi-random  Halton points (bases 2, 3, 5; sequence indices 1..N^D, index 0 skipped)\n"
+    "                filling the box (003 §6.2); spacing (V/N)^(1/D)\n"
+    "  packed        001's PP arrangement: the lattice perturbed by up to --perturb Δs per\n"
+    "                coordinate, then relaxed by the particle packing of Negi & Ramachandran\n"
+    "                (2021) until max|rho/rho0 - 1| < --tol or --max-iter steps; needs a\n"
+    "                periodic box\n"
+    "\n"
+    "Every kind adds the per-particle field 'volume' = box volume / particle count. The printed\n"
+    "statistics use the summation density rho_i = sum_j m W_ij with m = Δs^D (rho0 = 1) and the\n"
+    "kernel --kernel with h = --hdx Δs, the minimum pair distance, the nearest-neighbour\n"
+    "distances and the distance of each particle from the nearest lattice node (in units of Δs).\n"
+    "\n"
+    "output: .vtu (VTK XML unstructured grid, ASCII) or .csv, chosen by the extension of --out.\n"
+    "The CSV starts with '#' comment lines (dim, n, spacing, box, periodic), then the header row\n"
+    "x,y[,z],volume and one row per particle.\n"
+    "\n"
+    "exit status: 0 success, 1 failure while running, 2 bad usage (nothing is written)";
+
+static int opt_given(const cli_opt *opts, int nopts, const char *name)
+{
+    for (int k = 0; k < nopts; ++k)
+        if (strcmp(opts[k].name, name) == 0) return opts[k].given;
+    return 0;
+}
+
+static void print_report(const consph_packing_report *r, double tol)
+{
+    int converged = r->rho_spread_final < tol;
+    printf("packing: %d iterations in %.3f s, max|rho/rho0-1| %.3e -> %.3e (tol %.1e, %s)\n",
+           r->iterations, r->seconds, r->rho_spread_initial, r->rho_spread_final, tol,
+           converged ? "converged" : "NOT converged: --max-iter reached");
+    if (r->nhistory > 0) {
+        printf("  %9s  %s\n", "iteration", "max|rho/rho0-1|");
+        for (int k = 0; k < r->nhistory; ++k)
+            printf("  %9d  %.3e\n", r->history_iter[k], r->history_spread[k]);
+    }
+}
+
+int cmd_layout(int argc, char **argv)
+{
+    int kind_index = -1, periodic_index = 0;
+    long dim = 0, nx = 0, seed = 1, max_iter = 2000, history_every = 100;
+    double eps = 0.2, hdx = 1.2, tol = 1e-4, perturb = 0.25;
+    const char *kernel = "quintic", *out = NULL;
+    cli_opt opts[] = {
+        {"--kind", CLI_CHOICE, &kind_index, "K", "particle arrangement (required)",
+         consph_layout_names(), 0, 0, 0},
+        {"--dim", CLI_INT, &dim, "D", "dimension (required)", NULL, 1, 3, 0},
+        {"--nx", CLI_INT, &nx, "N", "particles per axis, N^D in all (required)", NULL, 1, 100000,
+         0},
+        {"--periodic", CLI_CHOICE, &periodic_index, "P",
+         "whether the unit box is periodic on every axis (default yes)", "yes,no", 0, 0, 0},
+        {"--seed", CLI_INT, &seed, "S", "random seed, for random and packed (default 1)", NULL, 0,
+         9007199254740991.0, 0},
+        {"--eps", CLI_DOUBLE, &eps, "E", "random: perturbation factor ε (default 0.2)", NULL, 0.0,
+         2.0, 0},
+        {"--kernel", CLI_STRING, &kernel, "K",
+         "kernel for the density statistics and the packing (default quintic)", NULL, 0, 0, 0},
+        {"--hdx", CLI_DOUBLE, &hdx, "R", "h/Δs for that kernel (default 1.2)", NULL, 0.01, 10.0, 0},
+        {"--perturb", CLI_DOUBLE, &perturb, "A",
+         "packed: initial perturbation amplitude in Δs (default 0.25)", NULL, 0.0, 0.5, 0},
+        {"--tol", CLI_DOUBLE, &tol, "T", "packed: stop once max|rho/rho0-1| < T (default 1e-4)",
+         NULL, 1e-15, 1.0, 0},
+        {"--max-iter", CLI_INT, &max_iter, "M", "packed: iteration cap (default 2000)", NULL, 0,
+         100000000, 0},
+        {"--history-every", CLI_INT, &history_every, "K",
+         "packed: print the density spread every K iterations, 0 never (default 100)", NULL, 0,
+         100000000, 0},
+        {"--out", CLI_OUT_PATH, &out, "FILE", "write the particles; format by extension",
+         ".vtu,.csv", 0, 0, 0},
+    };
+    cli_command cmd = {
+        "layout",
+        "Generate a particle arrangement in the unit box, print its count, minimum spacing and\n"
+        "density spread, and optionally write it.",
+        "consph layout --kind K --dim D --nx N [options]",
+        layout_details,
+        opts,
+        (int)(sizeof opts / sizeof opts[0]),
+        0,
+        NULL,
+    };
+    const int nopts = cmd.nopts;
+    int rc = cli_parse(&cmd, argc, argv);
+    if (rc == 1) return 0;
+    if (rc) return rc;
+
+    if (!opt_given(opts, nopts, "--kind"))
+        return cli_error(&cmd, "option --kind is required; allowed: %s", consph_layout_names());
+    if (!opt_given(opts, nopts, "--dim"))
+        return cli_error(&cmd, "option --dim is required; allowed: integer 1..3");
+    if (!opt_given(opts, nopts, "--nx"))
+        return cli_error(&cmd, "option --nx is required; allowed: integer 1..100000");
+    consph_layout_kind kind = (consph_layout_kind)kind_index;
+    double total = 1.0;
+    for (long a = 0; a < dim; ++a) total *= (double)nx;
+    if (total > LAYOUT_CLI_MAX_PARTICLES)
+        return cli_error(&cmd,
+                         "option --nx: %ld^%ld = %.0f particles is too many; allowed: at most "
+                         "%.0f particles in all",
+                         nx, dim, total, LAYOUT_CLI_MAX_PARTICLES);
+    if (opt_given(opts, nopts, "--seed") && kind != CONSPH_LAYOUT_RANDOM &&
+        kind != CONSPH_LAYOUT_PACKED)
+        return cli_error(&cmd, "option --seed applies only to --kind random or packed");
+    if (opt_given(opts, nopts, "--eps") && kind != CONSPH_LAYOUT_RANDOM)
+        return cli_error(&cmd, "option --eps applies only to --kind random");
+    static const char *const packed_only[] = {"--perturb", "--tol", "--max-iter",
+                                              "--history-every"};
+    for (size_t k = 0; k < sizeof packed_only / sizeof packed_only[0]; ++k)
+        if (opt_given(opts, nopts, packed_only[k]) && kind != CONSPH_LAYOUT_PACKED)
+            return cli_error(&cmd, "option %s applies only to --kind packed", packed_only[k]);
+    consph_kernel_id kernel_id;
+    if (consph_kernel_lookup(kernel, &kernel_id) != CONSPH_OK)
+        return cli_error(&cmd, "option --kernel: unknown value '%s'; allowed: %s", kernel,
+                         consph_kernel_names());
+    int periodic = periodic_index == 0;
+    if (kind == CONSPH_LAYOUT_PACKED && !periodic)
+        return cli_error(&cmd, "option --periodic: --kind packed needs a periodic box; allowed: "
+                               "yes");
+
+    consph_layout_params lp = consph_layout_defaults(kind, (int)dim, (size_t)nx);
+    lp.box = consph_box_unit((int)dim, periodic);
+    lp.seed = (uint64_t)seed;
+    lp.eps = eps;
+    lp.packing.kernel = kernel;
+    lp.packing.hdx = hdx;
+    lp.packing.perturb = perturb;
+    lp.packing.tol = tol;
+    lp.packing.max_iter = (int)max_iter;
+    lp.packing.history_every = (int)history_every;
+
+    consph_particles p;
+    consph_packing_report report;
+    rc = consph_layout_generate(&lp, &p, &report);
+    if (rc) {
+        fprintf(stderr, "consph layout: %s\n", consph_last_error());
+        return rc == CONSPH_EINVAL ? CLI_EXIT_USAGE : 1;
+    }
+    printf("kind %s, dim %ld, nx %ld, particles %zu, spacing %.6g, unit box%s\n",
+           consph_layout_name(kind), dim, nx, p.n, p.spacing, periodic ? " periodic" : "");
+    if (kind == CONSPH_LAYOUT_PACKED) print_report(&report, tol);
+
+    consph_layout_stats st;
+    consph_layout_nn_stats nst;
+    rc = consph_layout_stats_compute(&p, kernel, hdx, &st);
+    if (!rc) rc = consph_layout_nn_stats_compute(&p, &nst);
+    if (rc) {
+        fprintf(stderr, "consph layout: %s\n", consph_last_error());
+        consph_packing_report_free(&report);
+        consph_particles_free(&p);
+        return 1;
+    }
+    printf("min spacing %.6g (%.4f Δs)\n", st.min_spacing, st.min_spacing / p.spacing);
+    printf("density (%s, h/Δs %g): max|rho/rho0-1| %.3e, mean rho %.9f\n", kernel, hdx,
+           st.rho_spread, st.rho_mean);
+    printf("nearest-neighbour distance / Δs: min %.4f mean %.4f max %.4f std %.4f\n", nst.nn_min,
+           nst.nn_mean, nst.nn_max, nst.nn_std);
+    printf("distance to the nearest lattice node / Δs: mean %.4f max %.4f\n", nst.disp_mean,
+           nst.disp_max);
+    if (out) {
+        rc = consph_write_particles(out, &p);
+        if (rc) {
+            fprintf(stderr, "consph layout: %s\n", consph_last_error());
+        } else {
+            printf("wrote %s\n", out);
+        }
+    }
+    consph_packing_report_free(&report);
+    consph_particles_free(&p);
+    return rc ? 1 : 0;
+}

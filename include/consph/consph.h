@@ -1,0 +1,11 @@
+/* consph: consistent, convergent SPH. Include this for the whole public API. */
+#ifndef CONSPH_CONSPH_H
+#define CONSPH_CONSPH_H
+
+#include "consph/core.h"
+#include "consph/kernels.h"
+#include "consph/nnps.h"
+#include "consph/layout.h"
+#include "consph/io.h"
+
+#endif

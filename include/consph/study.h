@@ -1,0 +1,154 @@
+/* consph study: what a convergence study needs besides the operators — manufactured fields with
+ * exact derivatives, error norms, the least-squares order of convergence with its standard
+ * error, the error bounds and resolution scaling law of 003, and 001's total-force ratio. */
+#ifndef CONSPH_STUDY_H
+#define CONSPH_STUDY_H
+
+#include "consph/core.h"
+#include "consph/layout.h"
+#include "consph/ops.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---- Order of convergence (001 footnote 2) ------------------------------------------------- */
+
+/* Least-squares fit log(err) = c - order * log(resolution) over the points with err > 0.
+ * A positive order means the error falls as the resolution grows. */
+typedef struct consph_order_fit {
+    double order;
+    double order_stderr; /* standard error of the slope (0 when only two points) */
+    double intercept;
+    int npoints;
+} consph_order_fit;
+int consph_fit_order(const double *resolution, const double *err, int n, consph_order_fit *fit);
+
+/* ---- Error norms ---------------------------------------------------------------------------- */
+
+/* Per-particle error e_i = |g_i - g_o,i| (Euclidean over components) over the particles with
+ * mask[i] != 0 (mask NULL: all). l1 = Σ e_i / Σ |g_o,i| (001 eq. 7 with the |.| of catalogue
+ * A9, NaN when Σ|g_o| = 0), l2 = sqrt(mean e²) (002 eq. 44), linf = max e (002 eq. 45),
+ * mae = mean e (003 eq. 58). Arrays are component-major with stride n between components. */
+typedef struct consph_error_norms {
+    double l1, l2, linf, mae;
+    size_t count;
+} consph_error_norms;
+int consph_error_norms_compute(const double *approx, const double *exact, size_t n, int ncomp,
+                               const unsigned char *mask, consph_error_norms *out);
+
+/* 001 Tables 3/5: F_T/F_max = Σ_i F_i / max_i |F_i| of the x-components (catalogue A9). */
+double consph_total_force_ratio(const double *fx, size_t n, const unsigned char *mask);
+
+/* ---- Manufactured fields -------------------------------------------------------------------- */
+
+typedef enum consph_mfield_id {
+    CONSPH_MFIELD_SIN2PI,     /* sin(2π Σ x_a): 001 eq. 6 made periodic on the unit cell */
+    CONSPH_MFIELD_SINPI,      /* sin(π Σ x_a): 001 eq. 6 as printed (anti-periodic on [0,1)) */
+    CONSPH_MFIELD_SINPROD,    /* Π sin(π x_a): 003 eqs. 53-54 */
+    CONSPH_MFIELD_CONST,      /* 1 */
+    CONSPH_MFIELD_LINEAR,     /* 1 + 2x - 3y + 0.5z */
+    CONSPH_MFIELD_QUADRATIC,  /* x² + 3xy - y² + 2z² - yz (x² + 3xy - y² in 2D) */
+    CONSPH_MFIELD_CUBIC,      /* x³ - 2xy² + y³ + xz² */
+    CONSPH_MFIELD_TGV,        /* vector, 001 eq. 12: (-cos2πx sin2πy, sin2πx cos2πy), div 0 */
+    CONSPH_MFIELD_SIN2PI_VEC, /* vector: every component sin(2π Σ x_a) (001 E1.8, periodic) */
+    CONSPH_MFIELD_SINPI_VEC,  /* vector: every component sin(π Σ x_a) (001 E1.8 as printed) */
+    CONSPH_MFIELD_DELTA,      /* scalar nascent Gaussian δ of width sigma at x0 (003 eq. 73) */
+    CONSPH_MFIELD_COUNT
+} consph_mfield_id;
+
+typedef struct consph_mfield_params {
+    double sigma;              /* DELTA: width */
+    double x0[CONSPH_MAX_DIM]; /* DELTA: centre */
+} consph_mfield_params;
+
+/* Value and derivatives at one point. Scalars use comp 0 only; vectors have dim components. */
+typedef struct consph_mfield_value {
+    int ncomp;
+    double f[CONSPH_MAX_DIM];
+    double grad[CONSPH_MAX_DIM][CONSPH_MAX_DIM]; /* grad[c][a] = ∂f_c/∂x_a */
+    double hess[CONSPH_MAX_DIM][CONSPH_MAX_DIM]; /* ∂²f_0/∂x_a∂x_b (component 0) */
+    double lap[CONSPH_MAX_DIM];                  /* ∇² f_c */
+    double div;                                  /* vector fields: Σ_a ∂f_a/∂x_a */
+} consph_mfield_value;
+
+const char *consph_mfield_name(consph_mfield_id id);
+const char *consph_mfield_description(consph_mfield_id id);
+int consph_mfield_lookup(const char *name, consph_mfield_id *id);
+const char *consph_mfield_names(void);
+int consph_mfield_is_vector(consph_mfield_id id);
+/* Whether the field is periodic on the unit box (so it may be used on a periodic unit cell). */
+int consph_mfield_periodic_on_unit(consph_mfield_id id);
+consph_mfield_params consph_mfield_defaults(int dim);
+void consph_mfield_eval(consph_mfield_id id, int dim, const consph_mfield_params *prm,
+                        const double *x, consph_mfield_value *v);
+
+/* ---- 003: error bounds and the scaling-law resolution policy -------------------------------- */
+
+#define CONSPH_EULER_GAMMA 0.57721566490153286
+
+/* A_W^(n) = (2/π)^n ... kernel factor of 003 eqs. 63-65 from its definition A_W^(2) = 4π h² W_max,
+ * A_W^(3) = (32π/3) h³ W_max (support radius h). kernel: a name understood by kernels.h with
+ * support h; returns NaN for other kernels or dims. */
+double consph_bound_kernel_factor(const char *kernel, int dim);
+/* 003 eqs. 56/57 (Wendland C4) and 64/65 (general A_W): bound on ‖Sf − If‖∞ for the test
+ * functions Π sin(πx_a), with 𝒩 neighbours and smoothing length h (support h). */
+double consph_bound_interpolation(double a_w, int dim, double nnbr, double h);
+/* 003 eqs. 81/82: bound for the nascent δ of width sigma (Wendland C4). */
+double consph_bound_delta(int dim, double nnbr, double h, double sigma);
+/* 003 §6.2 scaling law: h = N^(-1/6), 𝒩 = 2.81 N^0.675. */
+double consph_scaling_h(double n);
+double consph_scaling_nnbr(double n);
+
+/* ---- One operator-accuracy measurement: `consph approx` and the static studies ----------- */
+
+typedef enum consph_h_policy {
+    CONSPH_H_HDX,    /* h = hdx · Δs (001, 002) */
+    CONSPH_H_SCALING /* 003 §6.2: h = N^(-1/6) (unit box), independent of the layout spacing */
+} consph_h_policy;
+
+/* What to measure. Resolution is set per call (nx particles per axis). */
+typedef struct consph_approx_spec {
+    consph_op_spec op;
+    consph_kernel_id kernel;
+    double hdx; /* h/Δs, in the kernel's own convention of h */
+    consph_h_policy h_policy;
+    consph_layout_params layout; /* kind, dim, box, seed, eps, packing; nx is overridden */
+    consph_mfield_id field;
+    consph_mfield_params field_params;
+    consph_volume_kind volume;
+    /* Particles compared: all (0), or only those whose support lies inside the box on every
+     * non-periodic axis (1, the default used when a non-periodic axis exists). */
+    int interior_only;
+} consph_approx_spec;
+
+/* One row of `consph approx`: the CSV columns nx,n,h,nbr_mean,l1,l2,linf,mae,ft_over_fmax,
+ * seconds,fallbacks. */
+typedef struct consph_approx_row {
+    size_t nx;
+    size_t n;
+    double h;
+    double nbr_mean; /* mean neighbours within the support, self excluded */
+    consph_error_norms err;
+    double ft_over_fmax; /* Σ F_x / max |F_x| of the output's first component */
+    double seconds;      /* operator time, layout and neighbour search excluded */
+    size_t fallbacks;
+    double layout_seconds;
+} consph_approx_row;
+
+/* Defaults: op function/standard/none, quintic, hdx 1.2, lattice 2D unit
+ * periodic, field sin2pi, volumes 1/ΣW (001 eq. 5). */
+consph_approx_spec consph_approx_defaults(int dim);
+/* Checks the spec (field kind vs op, dims, periodicity of the field on a periodic box). */
+int consph_approx_check(const consph_approx_spec *spec);
+/* Runs one resolution. */
+int consph_approx_run(const consph_approx_spec *spec, size_t nx, consph_approx_row *row);
+/* The exact answer of spec->op at one point, ncomp_out components, given the particle density
+ * rho_i (for the forms that approximate ∇p/ρ). */
+void consph_approx_exact(const consph_approx_spec *spec, const double *x, double rho_i,
+                         double *out);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

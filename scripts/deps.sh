@@ -1,0 +1,31 @@
+#!/usr/bin/env bash
+# Installs what consph needs to build and test, on Debian, when run as root; otherwise says what is missing.
+set -euo pipefail
+need=()
+command -v cmake >/dev/null || need+=(cmake)
+command -v gcc   >/dev/null || need+=(gcc)
+command -v make  >/dev/null || need+=(make)
+# Optional: the VTK reader that checks our .vtu files, and gnuplot for study figures.
+opt=()
+/usr/bin/python3 -c 'import vtk' >/dev/null 2>&1 || opt+=(python3-vtk9)
+/usr/bin/python3 -c 'import numpy' >/dev/null 2>&1 || opt+=(python3-numpy)
+command -v gnuplot >/dev/null || opt+=(gnuplot-nox)
+[ ${#need[@]} -eq 0 ] && [ ${#opt[@]} -eq 0 ] && exit 0
+if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
+  export DEBIAN_FRONTEND=noninteractive
+  stamp=/var/lib/apt/periodic/consph-update-stamp
+  if ! apt-get install -y --no-install-recommends "${need[@]}" "${opt[@]}" >/tmp/consph-apt.log 2>&1; then
+    apt-get update >>/tmp/consph-apt.log 2>&1 || true
+    apt-get install -y --no-install-recommends "${need[@]}" >>/tmp/consph-apt.log 2>&1 || {
+      echo "consph: could not install required packages: ${need[*]} (see /tmp/consph-apt.log)" >&2; exit 1; }
+    [ ${#opt[@]} -eq 0 ] || apt-get install -y --no-install-recommends "${opt[@]}" >>/tmp/consph-apt.log 2>&1 ||
+      echo "consph: optional packages not installed: ${opt[*]} (tests that need them are skipped)" >&2
+  fi
+  : >"$stamp" 2>/dev/null || true
+else
+  if [ ${#need[@]} -gt 0 ]; then
+    echo "consph: missing required tools: ${need[*]}; install them with: sudo apt-get install ${need[*]}" >&2
+    exit 1
+  fi
+  echo "consph: optional packages missing (tests that need them are skipped): ${opt[*]}" >&2
+fi

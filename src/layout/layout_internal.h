@@ -1,0 +1,63 @@
+/* Helpers shared by the files of the layout module; not part of the public API. */
+#ifndef CONSPH_LAYOUT_INTERNAL_H
+#define CONSPH_LAYOUT_INTERNAL_H
+
+#include <math.h>
+
+#include "consph/kernels.h"
+#include "consph/layout.h"
+#include "consph/nnps.h"
+
+#ifdef CONSPH_HAVE_OPENMP
+#include <omp.h>
+#endif
+
+static inline int layout_thread_id(void)
+{
+#ifdef CONSPH_HAVE_OPENMP
+    return omp_get_thread_num();
+#else
+    return 0;
+#endif
+}
+
+/* Brings x back into [lo, lo + len) on a periodic axis. The final test catches the case where
+ * x - lo is a tiny negative number and adding len rounds to exactly len. */
+static inline double layout_wrap(double x, double lo, double len)
+{
+    double s = fmod(x - lo, len);
+    if (s < 0.0) s += len;
+    if (!(s < len)) s = 0.0;
+    return lo + s;
+}
+
+/* One neighbour buffer per OpenMP thread, so that queries in a parallel loop never share one. */
+typedef struct layout_nbr_pool {
+    int count;
+    consph_nbrs *nbrs;
+} layout_nbr_pool;
+
+int consph_layout_pool_init(layout_nbr_pool *pool);
+void consph_layout_pool_free(layout_nbr_pool *pool);
+
+/* Summation density rho_i = m sum_j W(r_ij) (self included) for every particle the search
+ * structure was built from. When nn_dist is non-NULL it also receives the distance from each
+ * particle to its nearest other particle (or periodic image) within the search radius, +inf
+ * when there is none. Gather form: independent of the number of threads. */
+int consph_layout_density(const consph_nnps *grid, const consph_kernel *kernel, size_t n,
+                          double mass, layout_nbr_pool *pool, double *rho, double *nn_dist);
+
+/* Adds amplitude·Δs·(2U - 1), U uniform in [0, 1) from the generator seeded with lp->seed, to
+ * every coordinate (particle by particle, axis by axis) and wraps on periodic axes. */
+void consph_layout_perturb(const consph_layout_params *lp, consph_particles *p, double ds,
+                           double amplitude);
+
+/* max_i |rho_i / rho0 - 1|. */
+double consph_layout_spread(const double *rho, size_t n, double rho0);
+
+/* The packing iteration of the packed kind: relaxes the positions already in `p` (a perturbed
+ * lattice of spacing p->spacing in a periodic box). */
+int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
+                       consph_packing_report *report);
+
+#endif

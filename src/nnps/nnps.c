@@ -1,0 +1,462 @@
+/* Cell-linked lists over cell-sorted particles.
+ *
+ * The box is cut into nc[a] cells per axis of edge h[a] >= radius / cells_per_radius. A build
+ * bins the particles with a stable counting sort (cell start offsets + a permutation) and keeps
+ * a copy of the positions in cell order, so a query reads each cell as one contiguous run and a
+ * row of adjacent cells as one run too. Memory is O(N + cells) whatever the neighbour count.
+ *
+ * Unused axes (a >= dim) are padded as one non-periodic cell, so one loop nest serves 1D-3D.
+ *
+ * A query visits the unwrapped cell indices u = c + o, |o| <= reach, in a fixed order (axis 2
+ * outermost, axis 0 innermost, ascending); on a periodic axis u maps to cell u mod nc with the
+ * image shift floor(u / nc) * L, so distinct u are distinct images and none is counted twice.
+ * Rows and cells that cannot reach within the radius are skipped (the walk covers a sphere,
+ * not a cube); this changes which cells are read, never the order of what is returned. */
+#include "nnps_internal.h"
+
+#include <float.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+
+#define NNPS_MAX_IMAGES_PER_AXIS 1.0e6
+/* Fastest in bench_nnps at 10^6 particles, ~50 and ~1000 neighbours (see the report). */
+static const int default_cells_per_radius[CONSPH_MAX_DIM + 1] = {0, 2, 2, 2};
+/* The cell count is capped near this many cells per particle (plus a constant) so that a tiny
+ * radius cannot make the structure huge; cells then grow and hold more particles. */
+#define NNPS_CELLS_PER_PARTICLE 4.0
+#define NNPS_CELLS_EXTRA 1024.0
+/* Cells are made this much wider than radius / cells_per_radius, so that cells_per_radius
+ * cells still span the radius plus the rounding slack below. */
+#define NNPS_CELL_WIDEN 1.0e-9
+/* Builds parallelise the per-particle loops above this size. */
+#define NNPS_PARALLEL_MIN 20000
+
+struct consph_nnps {
+    consph_box box;
+    int dim;
+    int cells_per_radius;
+    double radius, radius2;
+    /* Grid, padded to three axes. slack[a] bounds how far rounding can put a particle outside
+     * the cell it was binned into; geometric pruning widens cells by it. */
+    int64_t nc[CONSPH_MAX_DIM];
+    int64_t reach[CONSPH_MAX_DIM];
+    int periodic[CONSPH_MAX_DIM];
+    double lo[CONSPH_MAX_DIM], hi[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM];
+    double h[CONSPH_MAX_DIM], inv_h[CONSPH_MAX_DIM], slack[CONSPH_MAX_DIM];
+    double slack_max;
+    size_t ncells;
+    /* cell_start[c] .. cell_start[c+1] are the sorted slots of cell c. */
+    size_t *cell_start;
+    size_t cell_start_cap;
+    /* order[s] = particle in sorted slot s; xs[a][s] its (wrapped) coordinate. */
+    size_t *order;
+    size_t *cell_of; /* build work: cell of each particle, in particle order */
+    double *xs[CONSPH_MAX_DIM];
+    size_t particle_cap;
+    size_t n;
+    const consph_particles *p;
+};
+
+consph_nnps *consph_nnps_create(const consph_box *box, double radius, int cells_per_radius)
+{
+    if (!box) {
+        consph_fail(CONSPH_EINVAL, "neighbour search needs a box");
+        return NULL;
+    }
+    if (consph_box_check(box)) return NULL;
+    if (!(radius > 0.0) || !isfinite(radius)) {
+        consph_fail(CONSPH_EINVAL, "search radius must be finite and > 0, got %g", radius);
+        return NULL;
+    }
+    if (cells_per_radius < 0 || cells_per_radius > 16) {
+        consph_fail(CONSPH_EINVAL, "cells per radius must be 0 (default) or 1..16, got %d",
+                    cells_per_radius);
+        return NULL;
+    }
+    for (int a = 0; a < box->dim; ++a) {
+        if (box->periodic[a] && radius > NNPS_MAX_IMAGES_PER_AXIS * consph_box_length(box, a)) {
+            consph_fail(CONSPH_EINVAL,
+                        "search radius %g exceeds %g lengths of periodic axis %d of the box",
+                        radius, NNPS_MAX_IMAGES_PER_AXIS, a);
+            return NULL;
+        }
+    }
+    consph_nnps *g = consph_calloc(1, sizeof *g);
+    if (!g) return NULL;
+    g->box = *box;
+    g->dim = box->dim;
+    g->cells_per_radius = cells_per_radius ? cells_per_radius : default_cells_per_radius[box->dim];
+    g->radius = radius;
+    g->radius2 = radius * radius;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
+        g->nc[a] = 1;
+        g->len[a] = g->h[a] = g->inv_h[a] = 1.0;
+    }
+    for (int a = 0; a < g->dim; ++a) {
+        g->periodic[a] = box->periodic[a] != 0;
+        g->lo[a] = box->lo[a];
+        g->hi[a] = box->hi[a];
+        g->len[a] = box->hi[a] - box->lo[a];
+        /* Rounding in binning and in lo + u*h is a few ulps of the largest coordinate met,
+         * which is at most max(|lo|, |hi|) + L + R for unwrapped image coordinates. */
+        g->slack[a] =
+            64.0 * DBL_EPSILON * (fmax(fabs(box->lo[a]), fabs(box->hi[a])) + g->len[a] + radius);
+        if (g->slack[a] > g->slack_max) g->slack_max = g->slack[a];
+    }
+    return g;
+}
+
+void consph_nnps_free(consph_nnps *g)
+{
+    if (!g) return;
+    free(g->cell_start);
+    free(g->order);
+    free(g->cell_of);
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(g->xs[a]);
+    free(g);
+}
+
+double consph_nnps_radius(const consph_nnps *g)
+{
+    return g->radius;
+}
+
+int consph_nnps_cells_per_radius(const consph_nnps *g)
+{
+    return g->cells_per_radius;
+}
+
+size_t consph_nnps_cells(const consph_nnps *g)
+{
+    return g->ncells;
+}
+
+size_t consph_nnps_bytes(const consph_nnps *g)
+{
+    size_t per_particle = 2 * sizeof(size_t) + (size_t)g->dim * sizeof(double);
+    return sizeof *g + g->cell_start_cap * sizeof(size_t) + g->particle_cap * per_particle;
+}
+
+/* Picks the cell counts for n particles: edge >= radius / cells_per_radius, total capped. */
+static void setup_grid(consph_nnps *g, size_t n)
+{
+    double v[CONSPH_MAX_DIM] = {1.0, 1.0, 1.0};
+    for (int a = 0; a < g->dim; ++a) {
+        double want = floor(g->len[a] * g->cells_per_radius / g->radius * (1.0 - NNPS_CELL_WIDEN));
+        v[a] = fmin(fmax(want, 1.0), 1073741824.0);
+    }
+    const double max_cells = NNPS_CELLS_PER_PARTICLE * (double)n + NNPS_CELLS_EXTRA;
+    double total = v[0] * v[1] * v[2];
+    if (total > max_cells) {
+        double f = pow(max_cells / total, 1.0 / g->dim);
+        for (int a = 0; a < g->dim; ++a) v[a] = fmax(1.0, floor(v[a] * f));
+    }
+    /* Flooring at 1 can leave the product above the cap; halve the longest axis until not. */
+    while (v[0] * v[1] * v[2] > max_cells) {
+        int big = 0;
+        for (int a = 1; a < g->dim; ++a)
+            if (v[a] > v[big]) big = a;
+        v[big] = ceil(v[big] / 2.0);
+    }
+    g->ncells = 1;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
+        g->nc[a] = (int64_t)v[a];
+        g->ncells *= (size_t)g->nc[a];
+        if (a >= g->dim) {
+            g->reach[a] = 0;
+            continue;
+        }
+        g->h[a] = g->len[a] / v[a];
+        g->inv_h[a] = v[a] / g->len[a];
+        /* Cells to walk so that every point within radius (plus the slack on both particles)
+         * is covered; at most the box on a non-periodic axis, any number of periods on a
+         * periodic one (bounded at create). */
+        double k = ceil((g->radius + 2.0 * g->slack[a]) / g->h[a]);
+        if (!g->periodic[a]) k = fmin(k, v[a] - 1.0);
+        g->reach[a] = (int64_t)k;
+    }
+}
+
+/* Cell of a (wrapped, on periodic axes) coordinate along axis a, clamped into the grid. */
+static inline int64_t cell_index(const consph_nnps *g, int a, double x)
+{
+    double v = (x - g->lo[a]) * g->inv_h[a];
+    if (!(v >= 0.0)) return 0;
+    if (v >= (double)g->nc[a]) return g->nc[a] - 1;
+    return (int64_t)v;
+}
+
+static inline double stored_coord(const consph_nnps *g, int a, double x)
+{
+    return g->periodic[a] ? nnps_wrap(x, g->lo[a], g->hi[a], g->len[a]) : x;
+}
+
+static int grow(void **ptr, size_t count, size_t size)
+{
+    if (count > SIZE_MAX / size)
+        return consph_fail(CONSPH_ENOMEM, "neighbour search arrays of %zu entries are too large",
+                           count);
+    void *q = realloc(*ptr, count * size);
+    if (!q)
+        return consph_fail(CONSPH_ENOMEM, "out of memory for the neighbour search (%zu entries)",
+                           count);
+    *ptr = q;
+    return CONSPH_OK;
+}
+
+static int reserve_arrays(consph_nnps *g, size_t n)
+{
+    if (g->ncells + 1 > g->cell_start_cap) {
+        if (grow((void **)&g->cell_start, g->ncells + 1, sizeof(size_t))) return CONSPH_ENOMEM;
+        g->cell_start_cap = g->ncells + 1;
+    }
+    if (n > g->particle_cap) {
+        if (grow((void **)&g->order, n, sizeof(size_t))) return CONSPH_ENOMEM;
+        if (grow((void **)&g->cell_of, n, sizeof(size_t))) return CONSPH_ENOMEM;
+        for (int a = 0; a < g->dim; ++a)
+            if (grow((void **)&g->xs[a], n, sizeof(double))) return CONSPH_ENOMEM;
+        g->particle_cap = n;
+    }
+    return CONSPH_OK;
+}
+
+int consph_nnps_build(consph_nnps *g, const consph_particles *p)
+{
+    g->p = NULL;
+    g->n = 0;
+    if (!p || p->dim != g->dim)
+        return consph_fail(CONSPH_EINVAL,
+                           "particle dimension %d does not match the search box (%d)",
+                           p ? p->dim : 0, g->dim);
+    const size_t n = p->n;
+    setup_grid(g, n);
+    if (reserve_arrays(g, n)) {
+        g->ncells = 0;
+        return CONSPH_ENOMEM;
+    }
+    const int dim = g->dim;
+    size_t *cell_of = g->cell_of;
+
+#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i) {
+        size_t c = 0;
+        for (int a = dim - 1; a >= 0; --a)
+            c = c * (size_t)g->nc[a] + (size_t)cell_index(g, a, stored_coord(g, a, p->x[a][i]));
+        cell_of[i] = c;
+    }
+
+    /* Stable counting sort, serial: it is a small fraction of a query sweep (see bench_nnps),
+     * and a serial pass makes the order trivially independent of the thread count. */
+    size_t *start = g->cell_start;
+    const size_t ncells = g->ncells;
+    memset(start, 0, (ncells + 1) * sizeof *start);
+    for (size_t i = 0; i < n; ++i) ++start[cell_of[i] + 1];
+    for (size_t c = 0; c < ncells; ++c) start[c + 1] += start[c];
+    for (size_t i = 0; i < n; ++i) g->order[start[cell_of[i]]++] = i;
+    /* The scatter advanced each start to the next cell's start; shift back. */
+    for (size_t c = ncells; c > 0; --c) start[c] = start[c - 1];
+    start[0] = 0;
+
+    const size_t *order = g->order;
+    for (int a = 0; a < dim; ++a) {
+        double *xs = g->xs[a];
+        const double *x = p->x[a];
+#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
+        for (size_t s = 0; s < n; ++s) xs[s] = stored_coord(g, a, x[order[s]]);
+    }
+    g->p = p;
+    g->n = n;
+    return CONSPH_OK;
+}
+
+int consph_nnps_sort(consph_nnps *g, consph_particles *p, size_t *perm_out)
+{
+    int status = consph_nnps_build(g, p);
+    if (status) return status;
+    if (p->n == 0) return CONSPH_OK;
+    status = consph_particles_permute(p, g->order);
+    if (status) return status;
+    if (perm_out) memcpy(perm_out, g->order, p->n * sizeof *perm_out);
+    /* A rebuild of the permuted set would bin particle s into the cell of old particle
+     * order[s]: cells ascend with s, the stable sort keeps them in place, and the sorted
+     * coordinates and cell starts are unchanged. So the rebuild reduces to this. */
+    for (size_t s = 0; s < p->n; ++s) g->order[s] = s;
+    return CONSPH_OK;
+}
+
+/* Integer floor division for a positive divisor; u is nearly always inside [0, d) or one
+ * period off, and a hardware division per row would cost more than the row's distances. */
+static inline int64_t floor_div(int64_t u, int64_t d)
+{
+    if (u >= 0 && u < d) return 0;
+    if (u < 0 && u >= -d) return -1;
+    if (u >= d && u < 2 * d) return 1;
+    int64_t q = u / d;
+    return (u % d != 0 && u < 0) ? q - 1 : q;
+}
+
+/* Unwrapped cell indices [*ua, *ub] along axis a whose slack-widened extent comes within rr of
+ * x, limited to c +- reach (and to the grid on a non-periodic axis). Empty when *ua > *ub. */
+static inline void axis_range(const consph_nnps *g, int a, double x, int64_t c, double rr,
+                              int64_t *ua, int64_t *ub)
+{
+    double fa = floor((x - rr - g->slack[a] - g->lo[a]) * g->inv_h[a]);
+    double fb = floor((x + rr + g->slack[a] - g->lo[a]) * g->inv_h[a]);
+    if (!g->periodic[a]) {
+        /* Boundary cells also hold everything beyond the box: clamping the range keeps them. */
+        double last = (double)(g->nc[a] - 1);
+        fa = fmin(fmax(fa, 0.0), last);
+        fb = fmin(fmax(fb, 0.0), last);
+    }
+    /* fmax/fmin drop a NaN (from a NaN query point) in favour of the reach bound. */
+    fa = fmax(fa, (double)(c - g->reach[a]));
+    fb = fmin(fb, (double)(c + g->reach[a]));
+    *ua = (int64_t)fa;
+    *ub = (int64_t)fb;
+}
+
+/* Distance along axis a from x to unwrapped cell u, widened by the slack; boundary cells of a
+ * non-periodic axis extend to infinity. */
+static inline double axis_gap(const consph_nnps *g, int a, double x, int64_t u)
+{
+    double lo = g->lo[a] + (double)u * g->h[a] - g->slack[a];
+    double hi = g->lo[a] + (double)(u + 1) * g->h[a] + g->slack[a];
+    if (!g->periodic[a]) {
+        if (u == 0) lo = -INFINITY;
+        if (u == g->nc[a] - 1) hi = INFINITY;
+    }
+    if (x < lo) return lo - x;
+    if (x > hi) return x - hi;
+    return 0.0;
+}
+
+/* Appends the slots [s0, s1) within the radius of q (already shifted by the image); the buffer
+ * has room for all of them, so every candidate is written and the count advances only for
+ * hits. r holds r^2 until the final pass. */
+static inline size_t scan_run(const consph_nnps *g, int dim, size_t s0, size_t s1, const double *q,
+                              consph_nbrs *out, size_t n)
+{
+    const size_t *order = g->order;
+    const double r2max = g->radius2;
+    size_t *oj = out->j;
+    double *orr = out->r;
+    double *o0 = out->dx[0], *o1 = out->dx[1], *o2 = out->dx[2];
+    const double *x0 = g->xs[0], *x1 = g->xs[1], *x2 = g->xs[2];
+    const double q0 = q[0], q1 = q[1], q2 = q[2];
+    if (dim == 3) {
+        for (size_t s = s0; s < s1; ++s) {
+            double d0 = q0 - x0[s], d1 = q1 - x1[s], d2 = q2 - x2[s];
+            double r2 = d0 * d0 + d1 * d1 + d2 * d2;
+            oj[n] = order[s];
+            o0[n] = d0;
+            o1[n] = d1;
+            o2[n] = d2;
+            orr[n] = r2;
+            n += r2 < r2max;
+        }
+    } else if (dim == 2) {
+        for (size_t s = s0; s < s1; ++s) {
+            double d0 = q0 - x0[s], d1 = q1 - x1[s];
+            double r2 = d0 * d0 + d1 * d1;
+            oj[n] = order[s];
+            o0[n] = d0;
+            o1[n] = d1;
+            orr[n] = r2;
+            n += r2 < r2max;
+        }
+    } else {
+        for (size_t s = s0; s < s1; ++s) {
+            double d0 = q0 - x0[s];
+            double r2 = d0 * d0;
+            oj[n] = order[s];
+            o0[n] = d0;
+            orr[n] = r2;
+            n += r2 < r2max;
+        }
+    }
+    return n;
+}
+
+static size_t query_at(const consph_nnps *g, const double *xin, consph_nbrs *out)
+{
+    out->n = 0;
+    if (!g->p || g->n == 0) return 0;
+    const int dim = g->dim;
+    double x[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+    int64_t c[CONSPH_MAX_DIM] = {0, 0, 0};
+    for (int a = 0; a < dim; ++a) {
+        x[a] = stored_coord(g, a, xin[a]);
+        c[a] = cell_index(g, a, x[a]);
+    }
+    const size_t *start = g->cell_start;
+    const double rp = g->radius + g->slack_max;
+    const double rp2 = rp * rp;
+    size_t n = 0;
+    double q[CONSPH_MAX_DIM];
+    int64_t u2a, u2b;
+    axis_range(g, 2, x[2], c[2], rp, &u2a, &u2b);
+    for (int64_t u2 = u2a; u2 <= u2b; ++u2) {
+        double g2 = axis_gap(g, 2, x[2], u2);
+        double rem2 = rp2 - g2 * g2;
+        if (!(rem2 > 0.0)) continue;
+        int64_t m2 = g->periodic[2] ? floor_div(u2, g->nc[2]) : 0;
+        int64_t cell2 = u2 - m2 * g->nc[2];
+        q[2] = x[2] - (double)m2 * g->len[2];
+        int64_t u1a, u1b;
+        axis_range(g, 1, x[1], c[1], sqrt(rem2), &u1a, &u1b);
+        for (int64_t u1 = u1a; u1 <= u1b; ++u1) {
+            double g1 = axis_gap(g, 1, x[1], u1);
+            double rem1 = rem2 - g1 * g1;
+            if (!(rem1 > 0.0)) continue;
+            int64_t m1 = g->periodic[1] ? floor_div(u1, g->nc[1]) : 0;
+            int64_t cell1 = u1 - m1 * g->nc[1];
+            q[1] = x[1] - (double)m1 * g->len[1];
+            const size_t row =
+                (size_t)g->nc[0] * ((size_t)cell1 + (size_t)g->nc[1] * (size_t)cell2);
+            int64_t u0a, u0b;
+            axis_range(g, 0, x[0], c[0], sqrt(rem1), &u0a, &u0b);
+            /* Split the row where it wraps: each piece is a run of adjacent cells with one
+             * image shift, hence one contiguous range of sorted slots. */
+            for (int64_t u0 = u0a; u0 <= u0b;) {
+                int64_t m0 = g->periodic[0] ? floor_div(u0, g->nc[0]) : 0;
+                int64_t cell0 = u0 - m0 * g->nc[0];
+                int64_t last = m0 * g->nc[0] + g->nc[0] - 1;
+                int64_t end = u0b < last ? u0b : last;
+                size_t s0 = start[row + (size_t)cell0];
+                size_t s1 = start[row + (size_t)(cell0 + (end - u0)) + 1];
+                if (s1 > s0) {
+                    q[0] = x[0] - (double)m0 * g->len[0];
+                    if (nnps_nbrs_reserve(out, n + (s1 - s0))) {
+                        out->n = 0;
+                        return (size_t)-1;
+                    }
+                    n = scan_run(g, dim, s0, s1, q, out, n);
+                }
+                u0 = end + 1;
+            }
+        }
+    }
+    double *r = out->r;
+    for (size_t k = 0; k < n; ++k) r[k] = sqrt(r[k]);
+    out->n = n;
+    return n;
+}
+
+size_t consph_nnps_query(const consph_nnps *g, const double *x, consph_nbrs *out)
+{
+    return query_at(g, x, out);
+}
+
+size_t consph_nnps_query_particle(const consph_nnps *g, size_t i, consph_nbrs *out)
+{
+    out->n = 0;
+    if (!g->p || i >= g->n) {
+        consph_fail(CONSPH_EINVAL, "particle %zu is not in the searched set (%zu particles)", i,
+                    g->p ? g->n : 0);
+        return (size_t)-1;
+    }
+    double x[CONSPH_MAX_DIM];
+    for (int a = 0; a < g->dim; ++a) x[a] = g->p->x[a][i];
+    return query_at(g, x, out);
+}

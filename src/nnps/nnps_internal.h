@@ -1,0 +1,26 @@
+/* Helpers shared by the cell search and the brute-force reference, so that both compute the
+ * same wrapped coordinates and the same separations bit for bit. */
+#ifndef CONSPH_NNPS_INTERNAL_H
+#define CONSPH_NNPS_INTERNAL_H
+
+#include "consph/nnps.h"
+
+#include <math.h>
+
+/* Maps a coordinate on a periodic axis into [lo, hi). Points already inside are returned
+ * unchanged; the few that rounding pushes onto hi or below lo go to lo, which is the same
+ * point modulo the period up to round-off. NaN stays NaN (it never becomes a neighbour). */
+static inline double nnps_wrap(double x, double lo, double hi, double len)
+{
+    if (x >= lo && x < hi) return x;
+    if (isnan(x)) return x;
+    double w = x - floor((x - lo) / len) * len;
+    if (!(w >= lo && w < hi)) w = lo;
+    return w;
+}
+
+/* Makes room for `need` neighbours; all CONSPH_MAX_DIM separation arrays are kept so that a
+ * buffer can be reused across structures of different dimension. */
+int nnps_nbrs_reserve(consph_nbrs *nb, size_t need);
+
+#endif

@@ -1,0 +1,475 @@
+/* Correction matrices, one pass each, cached per particle in the context.
+ *
+ * Sign conventions (catalogue §A0): x_ij = x_i - x_j (the search's dx), x_ji = -x_ij,
+ * ∇W_ij = dwr * x_ij. A matrix that ops_invert rejects is replaced by its fallback (the
+ * identity: the operator becomes the uncorrected one) and flagged. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ops/ops_internal.h"
+
+size_t ops_mat_size(ops_mat m, int dim)
+{
+    size_t d = (size_t)dim, P = (size_t)ops_npairs(dim);
+    switch (m) {
+    case OPS_MAT_BONET:
+    case OPS_MAT_FATEHI:
+    case OPS_MAT_FATEHI_C:
+    case OPS_MAT_IAD:
+        return d * d;
+    case OPS_MAT_LIU:
+        return (d + 1) * (d + 1);
+    case OPS_MAT_KORZ:
+    case OPS_MAT_CSPM2:
+        return P * P;
+    case OPS_MAT_MSPH:
+        return (1 + d + P) * (1 + d + P);
+    case OPS_MAT_COUNT:
+        break;
+    }
+    return 0;
+}
+
+static const char *mat_label[OPS_MAT_COUNT] = {
+    [OPS_MAT_BONET] = "Bonet-Lok B",
+    [OPS_MAT_LIU] = "Liu/FPM L",
+    [OPS_MAT_FATEHI] = "Fatehi B-hat",
+    [OPS_MAT_FATEHI_C] = "Fatehi_c B-hat",
+    [OPS_MAT_KORZ] = "Korzilius Gamma",
+    [OPS_MAT_CSPM2] = "CSPM second-derivative",
+    [OPS_MAT_MSPH] = "MSPH",
+    [OPS_MAT_IAD] = "IAD",
+};
+
+typedef struct mat_job {
+    const consph_op_ctx *ctx;
+    ops_mat m;
+    int dim, P;
+    size_t size;
+    double *out;
+    unsigned char *bad;
+    double *cond;
+    const double *bonet; /* B_i, for the matrices built on it */
+    const unsigned char *bonet_bad;
+} mat_job;
+
+/* Coefficient of x^l x^k H_lk in the second-order Taylor term: 1/2 on the diagonal, 1 off it
+ * (the symmetric pair is counted once); 000 eq. 32's (1 - δ_lk/2). */
+static inline double taylor_c(int l, int k)
+{
+    return l == k ? 0.5 : 1.0;
+}
+
+static void set_identity(double *a, int n)
+{
+    for (int r = 0; r < n; ++r)
+        for (int c = 0; c < n; ++c) a[r * n + c] = r == c ? 1.0 : 0.0;
+}
+
+/* Inverts a (n×n) into out, or stores the identity and flags the particle. */
+static void finish_inverse(const mat_job *job, size_t i, int n, const double *a)
+{
+    double *out = job->out + i * job->size;
+    double cond = 0.0;
+    if (ops_invert(n, a, out, job->ctx->cond_max, &cond)) {
+        job->bad[i] = 0;
+        job->cond[i] = cond;
+    } else {
+        set_identity(out, n);
+        job->bad[i] = 1;
+        job->cond[i] = 0.0;
+    }
+}
+
+static void visit_bonet(mat_job *job, const ops_nbhd *nb)
+{
+    const int d = job->dim;
+    const double *vol = job->ctx->volume;
+    double M[9] = {0};
+    for (size_t p = 0; p < nb->n; ++p) {
+        double s = -vol[nb->j[p]] * nb->dwr[p];
+        for (int a = 0; a < d; ++a)
+            for (int b = 0; b < d; ++b) M[a * d + b] += s * nb->dx[a][p] * nb->dx[b][p];
+    }
+    finish_inverse(job, nb->i, d, M);
+}
+
+static void visit_liu(mat_job *job, const ops_nbhd *nb)
+{
+    const int d = job->dim, n = d + 1;
+    const double *vol = job->ctx->volume;
+    double L[16] = {0};
+    for (size_t p = 0; p < nb->n; ++p) {
+        double om = vol[nb->j[p]], w = om * nb->w[p], g = om * nb->dwr[p];
+        double x[3];
+        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
+        /* rows: test functions W, ∂^α W; columns: 1, (x_j - x_i)^β */
+        L[0] += w;
+        for (int b = 0; b < d; ++b) L[1 + b] -= w * x[b];
+        for (int a = 0; a < d; ++a) {
+            L[(1 + a) * n] += g * x[a];
+            for (int b = 0; b < d; ++b) L[(1 + a) * n + 1 + b] -= g * x[a] * x[b];
+        }
+    }
+    finish_inverse(job, nb->i, n, L);
+}
+
+static void visit_iad(mat_job *job, const ops_nbhd *nb)
+{
+    const int d = job->dim;
+    const double *vol = job->ctx->volume;
+    double A[9] = {0};
+    for (size_t p = 0; p < nb->n; ++p) {
+        double s = vol[nb->j[p]] * nb->w[p];
+        for (int a = 0; a < d; ++a)
+            for (int b = 0; b < d; ++b) A[a * d + b] += s * nb->dx[a][p] * nb->dx[b][p];
+    }
+    /* IAD's matrix is a second moment, not a correction of ∇W: its fallback is the F2 gradient,
+     * which the operator applies where the flag is set. */
+    size_t i = nb->i;
+    double cond = 0.0;
+    if (ops_invert(d, A, job->out + i * job->size, job->ctx->cond_max, &cond)) {
+        job->bad[i] = 0;
+        job->cond[i] = cond;
+    } else {
+        memset(job->out + i * job->size, 0, job->size * sizeof(double));
+        job->bad[i] = 1;
+        job->cond[i] = 0.0;
+    }
+}
+
+/* Fatehi-Manzari B̂ (002 eq. 40) in the catalogue's index form (§A7): with
+ * T4^{αβημ} = Σ ω r e^α e^β e^η ∂^μW, S3^{ημγ} = Σ ω e^η e^γ ∂^μW, R3^{αβδ} = Σ ω x^α x^β ∂^δW and
+ * Q^{αβημ} = T4 + S3^{ημγ} B^{γδ} R3^{αβδ}, solve B̂^{ημ} Q^{αβημ} = -δ^{αβ} for symmetric B̂
+ * (P unknowns, one equation per symmetric pair αβ). */
+static void visit_fatehi(mat_job *job, const ops_nbhd *nb)
+{
+    const int d = job->dim, P = job->P;
+    const double *vol = job->ctx->volume;
+    size_t i = nb->i;
+    double *out = job->out + i * job->size;
+    if (job->bonet_bad[i]) {
+        set_identity(out, d);
+        job->bad[i] = 1;
+        job->cond[i] = 0.0;
+        return;
+    }
+    int pl[OPS_MAX_P], pk[OPS_MAX_P];
+    for (int p = 0; p < P; ++p) ops_pair_index(d, p, &pl[p], &pk[p]);
+    double T4[OPS_MAX_P * OPS_MAX_P] = {0}, S3[27] = {0}, R3[27] = {0};
+    for (size_t q = 0; q < nb->n; ++q) {
+        double r = nb->r[q];
+        if (!(r > 0.0)) continue;
+        double x[3];
+        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
+        double om = vol[nb->j[q]], dwr = nb->dwr[q];
+        /* r e e e ∂W = dwr x x x x / r², e e ∂W = dwr x x x / r², x x ∂W = dwr x x x */
+        double s4 = om * dwr / (r * r), s3 = s4, r3 = om * dwr;
+        for (int a = 0; a < P; ++a) {
+            double xab = x[pl[a]] * x[pk[a]];
+            for (int b = 0; b < P; ++b) T4[a * P + b] += s4 * xab * x[pl[b]] * x[pk[b]];
+        }
+        for (int a = 0; a < d; ++a)
+            for (int b = 0; b < d; ++b) {
+                double xab = x[a] * x[b];
+                for (int c = 0; c < d; ++c) {
+                    S3[(a * d + b) * d + c] += s3 * xab * x[c];
+                    R3[(a * d + b) * d + c] += r3 * xab * x[c];
+                }
+            }
+    }
+    const double *B = job->bonet + i * (size_t)(d * d);
+    double A[OPS_MAX_P * OPS_MAX_P], rhs[OPS_MAX_P];
+    for (int a = 0; a < P; ++a) {
+        int al = pl[a], be = pk[a];
+        rhs[a] = al == be ? -1.0 : 0.0;
+        for (int b = 0; b < P; ++b) {
+            int eta = pl[b], mu = pk[b];
+            double q = T4[a * P + b];
+            for (int g = 0; g < d; ++g)
+                for (int dl = 0; dl < d; ++dl)
+                    q += S3[(eta * d + mu) * d + g] * B[g * d + dl] * R3[(al * d + be) * d + dl];
+            /* B̂ symmetric: the off-diagonal unknown appears twice in the contraction. */
+            A[a * P + b] = (eta == mu ? 1.0 : 2.0) * q;
+        }
+    }
+    double Ainv[OPS_MAX_P * OPS_MAX_P], cond = 0.0;
+    if (!ops_invert(P, A, Ainv, job->ctx->cond_max, &cond)) {
+        set_identity(out, d);
+        job->bad[i] = 1;
+        job->cond[i] = 0.0;
+        return;
+    }
+    for (int b = 0; b < P; ++b) {
+        double v = 0.0;
+        for (int a = 0; a < P; ++a) v += Ainv[b * P + a] * rhs[a];
+        out[pl[b] * d + pk[b]] = v;
+        out[pk[b] * d + pl[b]] = v;
+    }
+    job->bad[i] = 0;
+    job->cond[i] = cond;
+}
+
+/* 001 eq. 13 (= C.13): B̂ = -(L2 + L3·(B L1))^{-1} with L1^θ = Σ ω r² ∂^θW,
+ * L2^{ημ} = Σ ω x^η ∂^μW, L3^{ημα} = Σ ω e^η ∂^μW e^α (catalogue §A7; the traced form). */
+static void visit_fatehi_c(mat_job *job, const ops_nbhd *nb)
+{
+    const int d = job->dim;
+    const double *vol = job->ctx->volume;
+    size_t i = nb->i;
+    double *out = job->out + i * job->size;
+    if (job->bonet_bad[i]) {
+        set_identity(out, d);
+        job->bad[i] = 1;
+        job->cond[i] = 0.0;
+        return;
+    }
+    double L1[3] = {0}, L2[9] = {0}, L3[27] = {0};
+    for (size_t q = 0; q < nb->n; ++q) {
+        double r = nb->r[q];
+        if (!(r > 0.0)) continue;
+        double x[3];
+        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
+        double g = vol[nb->j[q]] * nb->dwr[q], g3 = g / (r * r);
+        for (int a = 0; a < d; ++a) {
+            L1[a] += g * r * r * x[a];
+            for (int b = 0; b < d; ++b) {
+                L2[a * d + b] += g * x[a] * x[b];
+                for (int c = 0; c < d; ++c) L3[(a * d + b) * d + c] += g3 * x[a] * x[b] * x[c];
+            }
+        }
+    }
+    const double *B = job->bonet + i * (size_t)(d * d);
+    double BL1[3] = {0}, M[9];
+    for (int a = 0; a < d; ++a)
+        for (int t = 0; t < d; ++t) BL1[a] += B[a * d + t] * L1[t];
+    for (int a = 0; a < d; ++a)
+        for (int b = 0; b < d; ++b) {
+            double v = L2[a * d + b];
+            for (int c = 0; c < d; ++c) v += L3[(a * d + b) * d + c] * BL1[c];
+            M[a * d + b] = -v;
+        }
+    finish_inverse(job, i, d, M);
+}
+
+/* The CSPM second-derivative matrix (000 eq. 32), B_{(sm),(lk)} = (1 - δ_lk/2) Σ ω x^l x^k
+ * ∂_s∂_m W, and Korzilius' Γ̃ (001 eq. 15 with the fixes of catalogue §A7: x_ji, B itself,
+ * ζ = [x², 2xy, y²]) which subtracts (Σ ω ∂∂W x_ji^T) B (½ Σ ω ∇W ζ^T) from it. */
+static void visit_second(mat_job *job, const ops_nbhd *nb)
+{
+    const int d = job->dim, P = job->P;
+    const int korz = job->m == OPS_MAT_KORZ;
+    const double *vol = job->ctx->volume;
+    size_t i = nb->i;
+    if (korz && job->bonet_bad[i]) {
+        set_identity(job->out + i * job->size, P);
+        job->bad[i] = 1;
+        job->cond[i] = 0.0;
+        return;
+    }
+    int pl[OPS_MAX_P], pk[OPS_MAX_P];
+    double cq[OPS_MAX_P];
+    for (int p = 0; p < P; ++p) {
+        ops_pair_index(d, p, &pl[p], &pk[p]);
+        cq[p] = taylor_c(pl[p], pk[p]);
+    }
+    double A[OPS_MAX_P * OPS_MAX_P] = {0};
+    double Hx[OPS_MAX_P * 3] = {0}; /* Σ ω ∂∂W_p x_ji^α */
+    double Gz[3 * OPS_MAX_P] = {0}; /* Σ ω ∂^α W c_q x^l x^k */
+    for (size_t q = 0; q < nb->n; ++q) {
+        double r = nb->r[q], om = vol[nb->j[q]];
+        double x[3];
+        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
+        double dwr = nb->dwr[q];
+        double aee = r > 0.0 ? (nb->d2w[q] - dwr) / (r * r) : 0.0;
+        double zeta[OPS_MAX_P], H[OPS_MAX_P];
+        for (int p = 0; p < P; ++p) {
+            zeta[p] = cq[p] * x[pl[p]] * x[pk[p]];
+            H[p] = aee * x[pl[p]] * x[pk[p]] + (pl[p] == pk[p] ? dwr : 0.0);
+        }
+        for (int a = 0; a < P; ++a)
+            for (int b = 0; b < P; ++b) A[a * P + b] += om * H[a] * zeta[b];
+        if (korz) {
+            for (int a = 0; a < P; ++a)
+                for (int b = 0; b < d; ++b) Hx[a * d + b] -= om * H[a] * x[b];
+            for (int a = 0; a < d; ++a)
+                for (int b = 0; b < P; ++b) Gz[a * P + b] += om * dwr * x[a] * zeta[b];
+        }
+    }
+    if (korz) {
+        const double *B = job->bonet + i * (size_t)(d * d);
+        double BG[3 * OPS_MAX_P] = {0};
+        for (int a = 0; a < d; ++a)
+            for (int b = 0; b < P; ++b)
+                for (int c = 0; c < d; ++c) BG[a * P + b] += B[a * d + c] * Gz[c * P + b];
+        for (int a = 0; a < P; ++a)
+            for (int b = 0; b < P; ++b)
+                for (int c = 0; c < d; ++c) A[a * P + b] -= Hx[a * d + c] * BG[c * P + b];
+    }
+    finish_inverse(job, i, P, A);
+}
+
+/* MSPH (000 §3.3): unknowns [f, ∂f, ∂∂f (l <= k)], test functions [W, ∂W, ∂∂W], columns
+ * [1, x_ji, (1 - δ_lk/2) x_ji^l x_ji^k], so the unknowns are the derivatives themselves. */
+static void visit_msph(mat_job *job, const ops_nbhd *nb)
+{
+    const int d = job->dim, P = job->P, n = 1 + d + P;
+    const double *vol = job->ctx->volume;
+    int pl[OPS_MAX_P], pk[OPS_MAX_P];
+    double cq[OPS_MAX_P];
+    for (int p = 0; p < P; ++p) {
+        ops_pair_index(d, p, &pl[p], &pk[p]);
+        cq[p] = taylor_c(pl[p], pk[p]);
+    }
+    double A[OPS_MAX_MSPH * OPS_MAX_MSPH] = {0};
+    for (size_t q = 0; q < nb->n; ++q) {
+        double r = nb->r[q], om = vol[nb->j[q]];
+        double x[3];
+        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
+        double dwr = nb->dwr[q];
+        double aee = r > 0.0 ? (nb->d2w[q] - dwr) / (r * r) : 0.0;
+        double T[OPS_MAX_MSPH], C[OPS_MAX_MSPH];
+        T[0] = om * nb->w[q];
+        C[0] = 1.0;
+        for (int a = 0; a < d; ++a) {
+            T[1 + a] = om * dwr * x[a];
+            C[1 + a] = -x[a];
+        }
+        for (int p = 0; p < P; ++p) {
+            double xx = x[pl[p]] * x[pk[p]];
+            T[1 + d + p] = om * (aee * xx + (pl[p] == pk[p] ? dwr : 0.0));
+            C[1 + d + p] = cq[p] * xx;
+        }
+        for (int a = 0; a < n; ++a)
+            for (int b = 0; b < n; ++b) A[a * n + b] += T[a] * C[b];
+    }
+    finish_inverse(job, nb->i, n, A);
+}
+
+static void visit_matrix(void *vjob, const ops_nbhd *nb)
+{
+    mat_job *job = vjob;
+    switch (job->m) {
+    case OPS_MAT_BONET:
+        visit_bonet(job, nb);
+        break;
+    case OPS_MAT_LIU:
+        visit_liu(job, nb);
+        break;
+    case OPS_MAT_IAD:
+        visit_iad(job, nb);
+        break;
+    case OPS_MAT_FATEHI:
+        visit_fatehi(job, nb);
+        break;
+    case OPS_MAT_FATEHI_C:
+        visit_fatehi_c(job, nb);
+        break;
+    case OPS_MAT_KORZ:
+    case OPS_MAT_CSPM2:
+        visit_second(job, nb);
+        break;
+    case OPS_MAT_MSPH:
+        visit_msph(job, nb);
+        break;
+    case OPS_MAT_COUNT:
+        break;
+    }
+}
+
+static unsigned mat_needs(ops_mat m)
+{
+    switch (m) {
+    case OPS_MAT_LIU:
+    case OPS_MAT_MSPH:
+        return OPS_NEED_W | OPS_NEED_DW | OPS_NEED_D2W;
+    case OPS_MAT_IAD:
+        return OPS_NEED_W;
+    case OPS_MAT_KORZ:
+    case OPS_MAT_CSPM2:
+        return OPS_NEED_DW | OPS_NEED_D2W;
+    default:
+        return OPS_NEED_DW;
+    }
+}
+
+const double *ops_matrix(consph_op_ctx *ctx, ops_mat m, ops_call *call)
+{
+    struct consph_ops_cache *c = ctx->cache;
+    call->used |= 1u << m;
+    if (c->mat[m]) return c->mat[m];
+    mat_job job;
+    memset(&job, 0, sizeof job);
+    job.ctx = ctx;
+    job.m = m;
+    job.dim = ctx->dim;
+    job.P = ops_npairs(ctx->dim);
+    job.size = ops_mat_size(m, ctx->dim);
+    if (m == OPS_MAT_FATEHI || m == OPS_MAT_FATEHI_C || m == OPS_MAT_KORZ) {
+        job.bonet = ops_matrix(ctx, OPS_MAT_BONET, call);
+        if (!job.bonet) return NULL;
+        job.bonet_bad = c->bad[OPS_MAT_BONET];
+    }
+    double *out = consph_calloc(ctx->n * job.size, sizeof(double));
+    unsigned char *bad = consph_calloc(ctx->n, 1);
+    double *cond = consph_calloc(ctx->n, sizeof(double));
+    if (!out || !bad || !cond) {
+        free(out);
+        free(bad);
+        free(cond);
+        return NULL;
+    }
+    job.out = out;
+    job.bad = bad;
+    job.cond = cond;
+    /* MSPH needs W'' at r = 0 through dwr's limit; mat_needs asks for it. */
+    int st = ops_run(ctx, mat_needs(m), visit_matrix, &job, &call->pairs);
+    if (st != CONSPH_OK) {
+        free(out);
+        free(bad);
+        free(cond);
+        char why[512];
+        snprintf(why, sizeof why, "%s", consph_last_error());
+        consph_fail(st, "%s matrices: %s", mat_label[m], why);
+        return NULL;
+    }
+    size_t nbad = 0;
+    double mx = 0.0;
+    for (size_t i = 0; i < ctx->n; ++i) {
+        nbad += bad[i] != 0;
+        if (cond[i] > mx) mx = cond[i];
+    }
+    free(cond);
+    c->mat[m] = out;
+    c->bad[m] = bad;
+    c->nbad[m] = nbad;
+    c->max_cond[m] = mx;
+    return out;
+}
+
+static const double *public_matrix(consph_op_ctx *ctx, ops_mat m, const unsigned char **bad)
+{
+    ops_call call = {0, 0};
+    const double *a = ops_matrix(ctx, m, &call);
+    if (bad) *bad = a ? ctx->cache->bad[m] : NULL;
+    return a;
+}
+
+const double *consph_op_bonet(consph_op_ctx *ctx, const unsigned char **bad)
+{
+    return public_matrix(ctx, OPS_MAT_BONET, bad);
+}
+const double *consph_op_liu(consph_op_ctx *ctx, const unsigned char **bad)
+{
+    return public_matrix(ctx, OPS_MAT_LIU, bad);
+}
+const double *consph_op_fatehi(consph_op_ctx *ctx, const unsigned char **bad)
+{
+    return public_matrix(ctx, OPS_MAT_FATEHI, bad);
+}
+const double *consph_op_fatehi_c(consph_op_ctx *ctx, const unsigned char **bad)
+{
+    return public_matrix(ctx, OPS_MAT_FATEHI_C, bad);
+}

@@ -1,0 +1,155 @@
+/* Consistency diagnostics (discrete moments, catalogue §A2), the M0 histogram (003 Figs. 2-3)
+ * and the 1D boundary-integral derivatives (000 §3.4). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ops/ops_internal.h"
+
+typedef struct moment_job {
+    const consph_op_ctx *ctx;
+    double *m0, *m1, *g0, *g1;
+} moment_job;
+
+static void visit_moments(void *vjob, const ops_nbhd *nb)
+{
+    moment_job *job = vjob;
+    const int d = job->ctx->dim;
+    const double *vol = job->ctx->volume;
+    const size_t i = nb->i, N = job->ctx->n;
+    double m0 = 0.0, m1[3] = {0}, g0[3] = {0}, g1[9] = {0};
+    for (size_t p = 0; p < nb->n; ++p) {
+        double om = vol[nb->j[p]], w = om * nb->w[p], g = om * nb->dwr[p];
+        double x[3];
+        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
+        m0 += w;
+        for (int a = 0; a < d; ++a) {
+            /* x_j - x_i = -x_ij */
+            m1[a] -= w * x[a];
+            g0[a] += g * x[a];
+            for (int b = 0; b < d; ++b) g1[a * d + b] -= g * x[a] * x[b];
+        }
+    }
+    if (job->m0) job->m0[i] = m0;
+    for (int a = 0; a < d; ++a) {
+        if (job->m1) job->m1[a * N + i] = m1[a];
+        if (job->g0) job->g0[a * N + i] = g0[a];
+        if (job->g1)
+            for (int b = 0; b < d; ++b) job->g1[(size_t)(a * d + b) * N + i] = g1[a * d + b];
+    }
+}
+
+int consph_op_moments(consph_op_ctx *ctx, double *m0, double *m1, double *g0, double *g1,
+                      consph_op_report *rep)
+{
+    double t0 = consph_wtime();
+    moment_job job = {ctx, m0, m1, g0, g1};
+    ops_call call = {0, 0};
+    int st = ops_run(ctx, OPS_NEED_W | OPS_NEED_DW, visit_moments, &job, &call.pairs);
+    if (st == CONSPH_OK) ops_report_fill(ctx, &call, t0, rep);
+    return st;
+}
+
+int consph_histogram(const double *v, size_t n, double lo, double hi, int nbins, size_t *counts,
+                     size_t *below, size_t *above, double *mean, double *stddev)
+{
+    if (nbins < 1 || !(hi > lo) || !isfinite(lo) || !isfinite(hi))
+        return consph_fail(CONSPH_EINVAL, "histogram needs nbins >= 1 and finite lo < hi");
+    size_t nb = 0, na = 0, nfin = 0;
+    memset(counts, 0, (size_t)nbins * sizeof(size_t));
+    const double scale = (double)nbins / (hi - lo);
+    for (size_t i = 0; i < n; ++i) {
+        double x = v[i];
+        if (isnan(x)) continue;
+        if (isfinite(x)) ++nfin;
+        if (x < lo) {
+            ++nb;
+        } else if (x >= hi) {
+            ++na;
+        } else {
+            int b = (int)((x - lo) * scale);
+            if (b >= nbins) b = nbins - 1; /* rounding at the top edge */
+            ++counts[b];
+        }
+    }
+    if (below) *below = nb;
+    if (above) *above = na;
+    if (mean || stddev) {
+        double mu = 0.0, sd = 0.0;
+        if (nfin) {
+            double *t = consph_calloc(n, sizeof(double));
+            if (!t) return CONSPH_ENOMEM;
+            for (size_t i = 0; i < n; ++i) t[i] = isfinite(v[i]) ? v[i] : 0.0;
+            mu = consph_sum(t, n) / (double)nfin;
+            for (size_t i = 0; i < n; ++i) t[i] = isfinite(v[i]) ? (v[i] - mu) * (v[i] - mu) : 0.0;
+            sd = sqrt(consph_sum(t, n) / (double)nfin);
+            free(t);
+        }
+        if (mean) *mean = mu;
+        if (stddev) *stddev = sd;
+    }
+    return CONSPH_OK;
+}
+
+typedef struct boundary_job {
+    const consph_op_ctx *ctx;
+    const double *f;
+    double A, B, fA, fB;
+    double *d1, *d2;
+} boundary_job;
+
+/* 000 eqs. 45-46. The interval's end points are particles 1 and N of the paper; here they are
+ * not in the particle set (they carry no volume), so every particle of the set is an interior b
+ * and the sums run over all of them. */
+static void visit_boundary(void *vjob, const ops_nbhd *nb)
+{
+    boundary_job *job = vjob;
+    const consph_op_ctx *ctx = job->ctx;
+    const double *vol = ctx->volume, *f = job->f;
+    const size_t i = nb->i;
+    const double fa = f[i], xa = ctx->p->x[0][i];
+    double gamma = 0.0, s1 = 0.0, s2 = 0.0;
+    for (size_t p = 0; p < nb->n; ++p) {
+        size_t j = nb->j[p];
+        double om = vol[j];
+        gamma += om * nb->w[p];
+        /* dW_ab/dx_a = W'(r) (x_a - x_b)/r */
+        double dw = nb->dwr[p] * nb->dx[0][p];
+        /* eq. 45 with the catalogue's fix: the sum carries dW_ab/dx_a */
+        s1 += om * f[j] * dw;
+        /* eq. 46: ((f_b - f_a)/(x_b - x_a)) dW_ab/dx_a, x_b - x_a = -dx; skipped at r = 0 */
+        if (nb->r[p] > 0.0) s2 += om * (f[j] - fa) / (-nb->dx[0][p]) * dw;
+    }
+    double wB = consph_kernel_w(&ctx->kernel, fabs(xa - job->B));
+    double wA = consph_kernel_w(&ctx->kernel, fabs(xa - job->A));
+    if (job->d1) job->d1[i] = (job->fB * wB - job->fA * wA + s1) / gamma;
+    if (job->d2) {
+        double bnd = (fa - job->fB) / (xa - job->B) * wB - (fa - job->fA) / (xa - job->A) * wA;
+        job->d2[i] = 2.0 * (bnd + s2) / gamma;
+    }
+}
+
+int consph_op_boundary_1d(consph_op_ctx *ctx, const double *in, double fA, double fB, double *d1,
+                          double *d2, consph_op_report *rep)
+{
+    double t0 = consph_wtime();
+    if (ctx->dim != 1)
+        return consph_fail(CONSPH_EINVAL, "boundary-integral derivatives are 1D only (got %dD)",
+                           ctx->dim);
+    const consph_box *box = &ctx->p->box;
+    if (box->periodic[0])
+        return consph_fail(CONSPH_EINVAL,
+                           "boundary-integral derivatives need a non-periodic interval");
+    for (size_t i = 0; i < ctx->n; ++i) {
+        double x = ctx->p->x[0][i];
+        if (!(x > box->lo[0] && x < box->hi[0]))
+            return consph_fail(CONSPH_EINVAL,
+                               "particle %zu at x = %g is not inside the open interval (%g, %g)", i,
+                               x, box->lo[0], box->hi[0]);
+    }
+    boundary_job job = {ctx, in, box->lo[0], box->hi[0], fA, fB, d1, d2};
+    ops_call call = {0, 0};
+    int st = ops_run(ctx, OPS_NEED_W | OPS_NEED_DW, visit_boundary, &job, &call.pairs);
+    if (st == CONSPH_OK) ops_report_fill(ctx, &call, t0, rep);
+    return st;
+}

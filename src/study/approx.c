@@ -1,0 +1,201 @@
+/* One operator-accuracy measurement: generate particles, evaluate an operator on a manufactured
+ * field, compare with the exact answer. Shared by `consph approx` and the static studies. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "consph/study.h"
+
+consph_approx_spec consph_approx_defaults(int dim)
+{
+    consph_approx_spec s;
+    memset(&s, 0, sizeof s);
+    s.op.op = CONSPH_OP_FUNCTION;
+    s.op.form = CONSPH_FORM_STANDARD;
+    s.op.corr = CONSPH_CORR_NONE;
+    s.kernel = CONSPH_KERNEL_QUINTIC;
+    s.hdx = 1.2;
+    s.h_policy = CONSPH_H_HDX;
+    s.layout = consph_layout_defaults(CONSPH_LAYOUT_LATTICE, dim, 10);
+    s.field = CONSPH_MFIELD_SIN2PI;
+    s.field_params = consph_mfield_defaults(dim);
+    s.volume = CONSPH_VOLUME_NUMBER;
+    s.interior_only = 1;
+    return s;
+}
+
+/* The forms of 001 Table 2 approximate ∇p/ϱ with ϱ = ρ, not ∇p. */
+static int divides_by_rho(consph_op_form form)
+{
+    return form == CONSPH_FORM_ASYM || form == CONSPH_FORM_SYM1 || form == CONSPH_FORM_SYM2 ||
+           form == CONSPH_FORM_SYM_S1;
+}
+
+int consph_approx_check(const consph_approx_spec *s)
+{
+    int dim = s->layout.dim;
+    int rc = consph_op_check(s->op.op, s->op.form, s->op.corr, dim);
+    if (rc) return rc;
+    int vector_in = s->op.op == CONSPH_OP_DIV;
+    if (vector_in != consph_mfield_is_vector(s->field))
+        return consph_fail(CONSPH_EINVAL, "field '%s' is a %s field but op '%s' takes a %s",
+                           consph_mfield_name(s->field),
+                           consph_mfield_is_vector(s->field) ? "vector" : "scalar",
+                           consph_op_name(s->op.op), vector_in ? "vector" : "scalar");
+    if (s->field == CONSPH_MFIELD_TGV && dim < 2)
+        return consph_fail(CONSPH_EINVAL, "field 'tgv' needs dimension 2 or 3");
+    int any_periodic = 0;
+    for (int a = 0; a < dim; ++a) any_periodic |= s->layout.box.periodic[a];
+    if (any_periodic && !consph_mfield_periodic_on_unit(s->field))
+        return consph_fail(CONSPH_EINVAL,
+                           "field '%s' is not periodic on the unit box; use a non-periodic box "
+                           "or a periodic field (sin2pi, const, tgv, sin2pi-vec)",
+                           consph_mfield_name(s->field));
+    if (!(s->hdx > 0) || !isfinite(s->hdx))
+        return consph_fail(CONSPH_EINVAL, "h/dx must be positive, got %g", s->hdx);
+    return consph_box_check(&s->layout.box);
+}
+
+void consph_approx_exact(const consph_approx_spec *s, const double *x, double rho_i, double *out)
+{
+    int dim = s->layout.dim;
+    consph_mfield_value v;
+    consph_mfield_eval(s->field, dim, &s->field_params, x, &v);
+    switch (s->op.op) {
+    case CONSPH_OP_FUNCTION:
+        out[0] = v.f[0];
+        break;
+    case CONSPH_OP_GRAD:
+        for (int a = 0; a < dim; ++a)
+            out[a] = divides_by_rho(s->op.form) ? v.grad[0][a] / rho_i : v.grad[0][a];
+        break;
+    case CONSPH_OP_DIV:
+        out[0] = v.div;
+        break;
+    case CONSPH_OP_LAPLACIAN:
+        out[0] = v.lap[0];
+        break;
+    case CONSPH_OP_HESSIAN: {
+        int k = 0;
+        for (int a = 0; a < dim; ++a)
+            for (int b = a; b < dim; ++b) out[k++] = v.hess[a][b];
+        break;
+    }
+    case CONSPH_OP_COUNT:
+        break;
+    }
+}
+
+static double mean_neighbours(const consph_nnps *g, size_t n)
+{
+    size_t total = 0;
+    int failed = 0;
+#pragma omp parallel reduction(+ : total) reduction(| : failed)
+    {
+        consph_nbrs nb;
+        memset(&nb, 0, sizeof nb);
+#pragma omp for schedule(static)
+        for (size_t i = 0; i < n; ++i) {
+            size_t c = consph_nnps_query_particle(g, i, &nb);
+            if (c == (size_t)-1)
+                failed = 1;
+            else
+                total += c - 1; /* self excluded */
+        }
+        consph_nbrs_free(&nb);
+    }
+    if (failed) return NAN;
+    return n ? (double)total / (double)n : 0.0;
+}
+
+int consph_approx_run(const consph_approx_spec *s, size_t nx, consph_approx_row *row)
+{
+    memset(row, 0, sizeof *row);
+    int rc = consph_approx_check(s);
+    if (rc) return rc;
+    const int dim = s->layout.dim;
+    consph_layout_params lp = s->layout;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < dim ? nx : 1;
+
+    consph_particles p;
+    consph_nnps *g = NULL;
+    consph_op_ctx ctx;
+    int have_ctx = 0;
+    double *in = NULL, *out = NULL, *exact = NULL;
+    unsigned char *mask = NULL;
+    double t0 = consph_wtime();
+    rc = consph_layout_generate(&lp, &p, NULL);
+    if (rc) return rc;
+    row->layout_seconds = consph_wtime() - t0;
+    const size_t n = p.n;
+    row->nx = nx;
+    row->n = n;
+
+    double h;
+    if (s->h_policy == CONSPH_H_SCALING) {
+        /* 003 states h = N^(-1/6) for the unit box; scale with the box for other sizes. */
+        double vol = consph_box_volume(&p.box);
+        h = consph_scaling_h((double)n) * pow(vol, 1.0 / dim);
+    } else {
+        h = s->hdx * p.spacing;
+    }
+    row->h = h;
+    consph_kernel k;
+    rc = consph_kernel_init(&k, s->kernel, dim, h);
+    if (rc) goto done;
+    g = consph_nnps_create(&p.box, k.radius, 0);
+    if (!g) {
+        rc = CONSPH_ENOMEM;
+        goto done;
+    }
+    rc = consph_nnps_sort(g, &p, NULL);
+    if (rc) goto done;
+    rc = consph_op_ctx_init(&ctx, &p, g, &k, s->volume);
+    if (rc) goto done;
+    have_ctx = 1;
+
+    int nin = consph_op_ncomp_in(s->op.op, dim), nout = consph_op_ncomp_out(s->op.op, dim);
+    in = consph_calloc(n * (size_t)nin, sizeof(double));
+    out = consph_calloc(n * (size_t)nout, sizeof(double));
+    exact = consph_calloc(n * (size_t)nout, sizeof(double));
+    mask = consph_calloc(n, 1);
+    if (!in || !out || !exact || !mask) {
+        rc = CONSPH_ENOMEM;
+        goto done;
+    }
+    for (size_t i = 0; i < n; ++i) {
+        double x[CONSPH_MAX_DIM] = {0, 0, 0}, e[CONSPH_MAX_DIM * CONSPH_MAX_DIM];
+        for (int a = 0; a < dim; ++a) x[a] = p.x[a][i];
+        consph_mfield_value v;
+        consph_mfield_eval(s->field, dim, &s->field_params, x, &v);
+        for (int c = 0; c < nin; ++c) in[(size_t)c * n + i] = v.f[c];
+        consph_approx_exact(s, x, ctx.rho[i], e);
+        for (int c = 0; c < nout; ++c) exact[(size_t)c * n + i] = e[c];
+        int inside = 1;
+        if (s->interior_only)
+            for (int a = 0; a < dim; ++a)
+                if (!p.box.periodic[a] &&
+                    (x[a] - p.box.lo[a] < k.radius || p.box.hi[a] - x[a] < k.radius))
+                    inside = 0;
+        mask[i] = (unsigned char)inside;
+    }
+    consph_op_report rep;
+    rc = consph_apply(&ctx, s->op.op, s->op.form, s->op.corr, in, out, &rep);
+    if (rc) goto done;
+    row->seconds = rep.seconds;
+    row->fallbacks = rep.fallbacks;
+    rc = consph_error_norms_compute(out, exact, n, nout, mask, &row->err);
+    if (rc) goto done;
+    row->ft_over_fmax = consph_total_force_ratio(out, n, mask);
+    row->nbr_mean = mean_neighbours(g, n);
+
+done:
+    free(in);
+    free(out);
+    free(exact);
+    free(mask);
+    if (have_ctx) consph_op_ctx_free(&ctx);
+    consph_nnps_free(g);
+    consph_particles_free(&p);
+    return rc;
+}
