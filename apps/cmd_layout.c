@@ -58,7 +58,7 @@ int cmd_layout(int argc, char **argv)
 {
     int kind_index = -1, periodic_index = 0;
     long dim = 0, nx = 0, seed = 1, max_iter = 2000, history_every = 100;
-    double eps = 0.2, hdx = 1.2, tol = 1e-4, perturb = 0.25;
+    double eps = 0.2, hdx = 1.2, tol = 1e-4, perturb = 0.5;
     const char *kernel = "quintic", *out = NULL;
     cli_opt opts[] = {
         {"--kind", CLI_CHOICE, &kind_index, "K", "particle arrangement (required)",
@@ -76,7 +76,7 @@ int cmd_layout(int argc, char **argv)
          "kernel for the density statistics and the packing (default quintic)", NULL, 0, 0, 0},
         {"--hdx", CLI_DOUBLE, &hdx, "R", "h/Δs for that kernel (default 1.2)", NULL, 0.01, 10.0, 0},
         {"--perturb", CLI_DOUBLE, &perturb, "A",
-         "packed: initial perturbation amplitude in Δs (default 0.25)", NULL, 0.0, 0.5, 0},
+         "packed: initial perturbation amplitude in Δs (default 0.5)", NULL, 0.0, 0.5, 0},
         {"--tol", CLI_DOUBLE, &tol, "T", "packed: stop once max|rho/rho0-1| < T (default 1e-4)",
          NULL, 1e-15, 1.0, 0},
         {"--max-iter", CLI_INT, &max_iter, "M", "packed: iteration cap (default 2000)", NULL, 0,

@@ -16,6 +16,7 @@ static const subcommand subcommands[] = {
     {"kernel", cmd_kernel, "tabulate one kernel: q, W, dW/dr, d2W/dr2"},
     {"layout", cmd_layout, "generate a particle arrangement and write it as .vtu or .csv"},
     {"approx", cmd_approx, "measure an operator's accuracy and order of convergence"},
+    {"study", cmd_study, "run a convergence study that reproduces a paper's figure or table"},
 };
 #define NSUB (sizeof subcommands / sizeof subcommands[0])
 

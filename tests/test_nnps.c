@@ -497,15 +497,15 @@ static void test_sort(void)
         CHECK(sum > 20 * n, "%dD sort test: mean neighbour count %g too small", dim,
               (double)sum / n);
         /* In cell order a particle's neighbours lie in runs of consecutive indices (in a random
-         * order nearly every entry starts a run). */
+         * order nearly every entry starts a run; sorted, 2D gives ~1/3 and 3D ~1/2). */
         size_t runs = 0, entries = 0;
         for (size_t i = 0; i < n; i += 7) {
             consph_nnps_query_particle(fresh, i, &b);
             for (size_t k = 0; k < b.n; ++k) runs += k == 0 || b.j[k] != b.j[k - 1] + 1;
             entries += b.n;
         }
-        CHECK(runs * 2 < entries, "%dD: sorted neighbours form %zu runs in %zu entries", dim, runs,
-              entries);
+        CHECK(runs * 3 < entries * 2, "%dD: sorted neighbours form %zu runs in %zu entries", dim,
+              runs, entries);
         check_all_particles(&p, radius, 0, dim == 2 ? "sorted 2D" : "sorted 3D");
         consph_nbrs_free(&a);
         consph_nbrs_free(&b);
@@ -567,6 +567,9 @@ static void test_thread_independence(void)
         differ += !same_lists(&a, &b, 3);
         failed += a.n != counts[q] || (a.n > 1 && a.dx[0][1] != first_dx[q]);
     }
+#ifdef _OPENMP
+    omp_set_num_threads(saved);
+#endif
     CHECK(differ == 0, "%ld lists differ between 1-thread and multi-thread builds", differ);
     CHECK(failed == 0, "%ld parallel queries differ from serial ones", failed);
     consph_nbrs_free(&a);

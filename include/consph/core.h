@@ -80,6 +80,8 @@ void consph_particles_free(consph_particles *p);
 double *consph_particles_field(consph_particles *p, const char *name, int ncomp);
 /* Returns the field or NULL when absent; never creates. */
 const consph_field *consph_particles_find(const consph_particles *p, const char *name);
+/* Deep copy of src into dst (initialised here). */
+int consph_particles_copy(consph_particles *dst, const consph_particles *src);
 /* Applies the permutation new[i] = old[perm[i]] to positions and every field. */
 int consph_particles_permute(consph_particles *p, const size_t *perm);
 

@@ -30,7 +30,7 @@ typedef enum consph_layout_kind {
 typedef struct consph_packing_params {
     const char *kernel; /* kernel name for the density estimate (default "quintic") */
     double hdx;         /* h / Δs (default 1.2) */
-    double perturb;     /* initial perturbation amplitude in units of Δs (default 0.25) */
+    double perturb;     /* initial perturbation amplitude in units of Δs (default 0.5) */
     int max_iter;       /* iteration cap (default 2000) */
     double tol;         /* stop once max |rho/rho0 - 1| < tol (default 1e-4) */
     int history_every;  /* record the density spread every this many iterations (0: never) */
@@ -55,6 +55,7 @@ typedef struct consph_packing_report {
     int *history_iter;
     double *history_spread;
     double seconds;
+    int polish_start; /* iteration at which the density-polishing stage began, -1 if never */
 } consph_packing_report;
 
 void consph_packing_report_free(consph_packing_report *r);

@@ -50,7 +50,8 @@ size_t consph_nnps_query(const consph_nnps *g, const double *x, consph_nbrs *out
 size_t consph_nnps_query_particle(const consph_nnps *g, size_t i, consph_nbrs *out);
 
 double consph_nnps_radius(const consph_nnps *g);
-/* The cells per radius in use (the default resolved when 0 was asked for). */
+/* The cells per radius used by the last build. When 0 was asked for, each build picks it from
+ * the mean neighbour count (coarser cells for few neighbours, finer for many). */
 int consph_nnps_cells_per_radius(const consph_nnps *g);
 /* Total cells and bytes held by the structure (for memory reports). */
 size_t consph_nnps_cells(const consph_nnps *g);

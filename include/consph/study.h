@@ -4,6 +4,8 @@
 #ifndef CONSPH_STUDY_H
 #define CONSPH_STUDY_H
 
+#include <stdio.h>
+
 #include "consph/core.h"
 #include "consph/layout.h"
 #include "consph/ops.h"
@@ -141,12 +143,41 @@ typedef struct consph_approx_row {
 consph_approx_spec consph_approx_defaults(int dim);
 /* Checks the spec (field kind vs op, dims, periodicity of the field on a periodic box). */
 int consph_approx_check(const consph_approx_spec *spec);
-/* Runs one resolution. */
+/* Runs one resolution: generates spec->layout with nx particles per axis, then measures. */
 int consph_approx_run(const consph_approx_spec *spec, size_t nx, consph_approx_row *row);
+/* Measures on given particles (copied; the box and periodicity are the particles' own). `nx` is
+ * only reported. */
+int consph_approx_run_particles(const consph_approx_spec *spec, const consph_particles *p,
+                                size_t nx, consph_approx_row *row);
 /* The exact answer of spec->op at one point, ncomp_out components, given the particle density
  * rho_i (for the forms that approximate ∇p/ρ). */
 void consph_approx_exact(const consph_approx_spec *spec, const double *x, double rho_i,
                          double *out);
+
+/* ---- Studies: declared in files (docs/studies.md), run by `consph study` ------------------- */
+
+typedef struct consph_study consph_study;
+
+/* Reads and validates the syntax of a study file; CONSPH_EFORMAT naming file and line. */
+int consph_study_load(const char *path, consph_study **out);
+void consph_study_free(consph_study *s);
+const char *consph_study_name(const consph_study *s);
+const char *consph_study_title(const consph_study *s);
+/* Checks every figure and series (names and values) without running anything. */
+int consph_study_validate(const consph_study *s, int quick);
+/* A rough run-time estimate in seconds: neighbour pairs of every run times a per-pair cost
+ * measured on a small run of the study's own first series. */
+double consph_study_estimate(const consph_study *s, int quick);
+
+typedef struct consph_study_options {
+    int quick;           /* the reduced resolutions (quick.* keys) */
+    const char *out_dir; /* results go to out_dir/<study>/ */
+    FILE *log;           /* progress lines (NULL: silent) */
+} consph_study_options;
+
+/* Runs every figure; writes FIGURE.csv, FIGURE.md, FIGURE.gp (+ .svg when gnuplot is
+ * installed) per figure and README.md per study, each atomically. */
+int consph_study_run(const consph_study *s, const consph_study_options *opt);
 
 #ifdef __cplusplus
 }

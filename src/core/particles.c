@@ -124,3 +124,23 @@ int consph_particles_permute(consph_particles *p, const size_t *perm)
     free(tmp);
     return CONSPH_OK;
 }
+
+int consph_particles_copy(consph_particles *dst, const consph_particles *src)
+{
+    int rc = consph_particles_init(dst, src->dim, src->n, &src->box);
+    if (rc) return rc;
+    dst->spacing = src->spacing;
+    for (int a = 0; a < src->dim; ++a) memcpy(dst->x[a], src->x[a], src->n * sizeof(double));
+    for (int f = 0; f < src->nfields; ++f) {
+        const consph_field *sf = &src->fields[f];
+        double *d = consph_particles_field(dst, sf->name, sf->ncomp);
+        if (!d) {
+            consph_particles_free(dst);
+            return CONSPH_ENOMEM;
+        }
+        for (int c = 0; c < sf->ncomp; ++c)
+            memcpy(d + (size_t)c * dst->cap, sf->data + (size_t)c * src->cap,
+                   src->n * sizeof(double));
+    }
+    return CONSPH_OK;
+}

@@ -1,24 +1,49 @@
-/* The packed (PP) arrangement of 001 B1.0: a perturbed lattice relaxed by the particle packing
- * of Negi & Ramachandran (2021, CPC 265:108008), the paper 001 cites as [51].
+/* The packed (PP) arrangement of 001 B1.0: "particles slightly perturbed from a uniform mesh ...
+ * allowed to settle into a distribution with a nearly constant density using a particle packing
+ * algorithm [51]" ([51] = Negi & Ramachandran 2021, CPC 265:108008).
  *
- * Each particle feels the "background pressure" force of that paper and a viscous damping,
+ * Initial state: the cell-centred lattice with every coordinate moved by perturb·Δs·(2U - 1),
+ * U uniform in [0, 1) drawn from the seeded generator.
  *
- *     du_i/dt = -(p_b/m) sum_j V_i V_j ∇_i W_ij - ν u_i,   dx_i/dt = u_i,
+ * Stage 1, the packing of [51] as its authors implement it (PySPH tools/particle_packing.py,
+ * class ParticlePacking, for the free particles): damped motion under the "background pressure"
+ * force and a short-range repulsion,
  *
- * with V_i = m/rho_i from the summation density rho_i = m sum_j W_ij. The force is repulsive and
- * vanishes when every particle sees a balanced neighbourhood, so the damped motion settles into a
- * state of nearly uniform summation density. The paper's geometry machinery (boundary nodes,
- * frozen layers, the short-range repulsion against boundary nodes) does nothing in a periodic box
- * without boundaries and is left out.
+ *     du_i/dt = -(p_b/m) sum_j V_i V_j ∇_i W_ij + sum_{j: r_ij < 1.5c} g(r_ij) x_ij - ν u_i,
+ *     g(r) = 12 k (3c^2/r^5 - 2c/r^4) where positive, r floored at h/2,
  *
- * Parameters, taken from the authors' implementation (PySPH tools/particle_packing.py,
- * ParticlePacking defaults) where it has them: p_b = 1 with rho0 = 1 (so c = sqrt(p_b/rho0) = 1);
- * ν = 0.2/Δs in 1D and 2D and 0.5/Δs in 3D; time step Δt = 0.1 h / c. Integration is explicit
- * Euler as in that implementation (EulerIntegrator), except that the position is advanced with
- * the updated velocity (symplectic Euler), which keeps the oscillatory modes stable.
- * The initial state is the cell-centred lattice with every coordinate moved by
- * perturb·Δs·(2U - 1), U uniform in [0, 1) (the seed picks U). The iteration stops as soon as
- * max_i |rho_i/rho0 - 1| < tol, or after max_iter steps.
+ * V_i = m/rho_i from the summation density rho_i = m sum_j W_ij, m = rho0 Δs^d. This stage always
+ * uses the quintic spline with h = 1.2Δs, the setting of [51] and of 001, whatever kernel the
+ * caller names: the caller's kernel is "the kernel for the density estimate" (stage 2 and the
+ * stopping test), and kernels with many neighbours would pair particles here (the quintic at
+ * h = 2Δs does). Parameters are that implementation's defaults: p_b = 1 with rho0 = 1
+ * (c0 = sqrt(p_b/rho0) = 1),
+ * ν = 0.2/Δs (1D, 2D) or 0.5/Δs (3D), k = 0.004Δs (1D, 2D) or 0.006Δs (3D), c = (2/3)·0.95Δs
+ * (repulsion range 0.95Δs), Δt = 0.1 h/c0 = 0.12Δs. The boundary-node machinery of [51] has nothing
+ * to do in a periodic box and is left out. Integration is the damped explicit Euler step of that
+ * implementation except that x is advanced with the new velocity (symplectic Euler).
+ * This stage turns the perturbed lattice into a glass; with perturb = 0.5 its geometry matches
+ * the author's packed files (catalogue Z7: mean distance to the nearest lattice node ≈ 0.34Δs).
+ * (With perturb <= 0.25 the square lattice is restored instead: it is a stable equilibrium.)
+ * Its own equilibrium is not uniform density, though: the spread stalls near 3e-3.
+ *
+ * Stage 2, density polishing (ours; the catalogue asks for max|rho/rho0 - 1| < tol, which stage
+ * 1 cannot reach): once stage 1 stalls (its best spread has not improved by 10% for 200 steps,
+ * or half of max_iter is spent), the background-pressure force is replaced by the gradient of
+ * the density error E = (K/2) sum_i (rho_i/rho0 - 1)^2 with the caller's kernel,
+ *
+ *     du_i/dt = -(K/rho0^2) m sum_j (e_i + e_j) ∇_i W_ij + repulsion - ν u_i,  e = rho/rho0 - 1,
+ *
+ * i.e. weakly compressible SPH with the linear equation of state p = K(rho/rho0 - 1) and no
+ * background pressure, damped; velocities restart from zero. Being a damped gradient flow of E
+ * it cannot clump particles (that raises E). K = 300 p_b puts the sound speed at
+ * sqrt(K/rho0) ≈ 17 c0; the step is Δt = 0.1 (R/3)/c0 with R the kernel's support radius (for
+ * the quintic, whose support is 3h, this is stage 1's 0.1 h/c0), a Courant number 1.7 on the
+ * support radius, inside the stability limit of the symplectic step (measured unstable near
+ * K = 1000 for the quintic at h = 1.2Δs in 2D; scaling Δt with h rather than with the support
+ * made Wendland kernels, whose support is 2h, unstable).
+ *
+ * The iteration stops as soon as max_i |rho_i/rho0 - 1| < tol, or after max_iter steps.
  *
  * Reproducibility: every loop is a gather (particle i reads its neighbours and writes only its
  * own entries), neighbours come in the fixed order of consph_nnps, and the only reductions are
@@ -28,13 +53,17 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#include <stdio.h>
 
 #include "layout/layout_internal.h"
 
 static const double packing_rho0 = 1.0;
 static const double packing_pb = 1.0;
-static const double packing_dt_factor = 0.1; /* Δt = factor · h / c */
+static const double packing_dt_factor = 0.1;  /* Δt = factor · h / c0 */
+static const double packing_polish_k = 300.0; /* K / p_b of stage 2 */
+/* Stage 1 has stalled when its best spread has not improved by this factor for this many
+ * steps. */
+static const double packing_stall_gain = 0.9;
+static const int packing_stall_steps = 200;
 /* Re-sort the particles into cell order every this many steps: often enough that neighbours
  * stay close in memory, rarely enough that the permutations cost nothing. */
 static const int packing_sort_every = 25;
@@ -44,8 +73,9 @@ typedef struct pack_work {
     int dim;
     double *u[CONSPH_MAX_DIM]; /* velocity */
     double *acc[CONSPH_MAX_DIM];
-    double *rho;
-    size_t *origin; /* lattice index of the particle now stored at i */
+    double *rho;       /* summation density with the caller's kernel */
+    double *rho_glass; /* with the stage-1 kernel; NULL when it is the caller's */
+    size_t *origin;    /* lattice index of the particle now stored at i */
     size_t *origin_tmp;
     size_t *perm;
     double *scratch;
@@ -58,6 +88,7 @@ static void work_free(pack_work *w)
         free(w->acc[a]);
     }
     free(w->rho);
+    free(w->rho_glass);
     free(w->origin);
     free(w->origin_tmp);
     free(w->perm);
@@ -65,7 +96,7 @@ static void work_free(pack_work *w)
     memset(w, 0, sizeof *w);
 }
 
-static int work_alloc(pack_work *w, size_t n, int dim)
+static int work_alloc(pack_work *w, size_t n, int dim, int need_glass_rho)
 {
     memset(w, 0, sizeof *w);
     w->n = n;
@@ -76,6 +107,7 @@ static int work_alloc(pack_work *w, size_t n, int dim)
         ok &= (w->acc[a] = consph_calloc(n, sizeof(double))) != NULL;
     }
     ok &= (w->rho = consph_calloc(n, sizeof(double))) != NULL;
+    if (need_glass_rho) ok &= (w->rho_glass = consph_calloc(n, sizeof(double))) != NULL;
     ok &= (w->origin = consph_calloc(n, sizeof(size_t))) != NULL;
     ok &= (w->origin_tmp = consph_calloc(n, sizeof(size_t))) != NULL;
     ok &= (w->perm = consph_calloc(n, sizeof(size_t))) != NULL;
@@ -126,20 +158,71 @@ static int check_packing(const consph_layout_params *lp, consph_kernel_id *id)
     return consph_kernel_lookup(pp->kernel ? pp->kernel : "quintic", id);
 }
 
-/* The short-range repulsion of the authors' implementation (RepulsionForce): for r < range,
- * a_i += 12 k (3c^2/r^5 - 2c/r^4) x_ij where positive, r floored at h/2. */
+/* The short-range repulsion of stage 1 and 2. */
 typedef struct repulsion {
     double k, c, range, r_floor;
 } repulsion;
 
-/* Acceleration a_i = -(p_b/m) sum_j V_i V_j ∇_i W_ij; ∇_i W_ij = W'(r) x_ij / r. */
-static int compute_acceleration(const consph_nnps *grid, const consph_kernel *k, double mass,
-                                const repulsion *rp, pack_work *w, layout_nbr_pool *pool, int polish, double rho_mean)
+static inline double repulsion_coef(const repulsion *rp, double r)
 {
-    double polish_gain = getenv("PG") ? atof(getenv("PG")) : 1.0;
-    int polish_rep = getenv("PREP") ? atoi(getenv("PREP")) : 1;
+    double rc = r > rp->r_floor ? r : rp->r_floor;
+    double inv = 1.0 / rc, inv4 = inv * inv * inv * inv;
+    double g = 12.0 * rp->k * (3.0 * rp->c * rp->c * inv4 * inv - 2.0 * rp->c * inv4);
+    /* The force acts along x_ij with magnitude g·rc, also where r was floored. */
+    return g > 0.0 ? g * rc / r : 0.0;
+}
+
+typedef struct force_params {
+    const consph_kernel *glass;  /* stage 1: quintic, h = 1.2Δs */
+    const consph_kernel *target; /* the caller's kernel: stopping test and stage 2 */
+    double mass;
+    int polish; /* 0: stage 1, background pressure; 1: stage 2, density-error gradient */
+    repulsion rep;
+} force_params;
+
+/* rho (caller's kernel) and, when it differs, rho_glass (stage-1 kernel) in one neighbour pass;
+ * rho_glass is needed only in stage 1. */
+static int compute_density(const consph_nnps *grid, const force_params *fp, pack_work *w,
+                           layout_nbr_pool *pool)
+{
+    double *rho_glass = fp->polish ? NULL : w->rho_glass;
+    if (!rho_glass)
+        return consph_layout_density(grid, fp->target, w->n, fp->mass, pool, w->rho, NULL);
+    int failed = 0;
+#pragma omp parallel num_threads(pool->count)
+    {
+        consph_nbrs *nb = &pool->nbrs[layout_thread_id()];
+#pragma omp for schedule(static)
+        for (size_t i = 0; i < w->n; ++i) {
+            size_t count = consph_nnps_query_particle(grid, i, nb);
+            if (count == (size_t)-1) {
+#pragma omp atomic write
+                failed = 1;
+                continue;
+            }
+            double wt = 0.0, wg = 0.0;
+            for (size_t q = 0; q < count; ++q) {
+                wt += consph_kernel_w(fp->target, nb->r[q]);
+                wg += consph_kernel_w(fp->glass, nb->r[q]);
+            }
+            w->rho[i] = fp->mass * wt;
+            rho_glass[i] = fp->mass * wg;
+        }
+    }
+    if (failed) return consph_fail(CONSPH_ENOMEM, "layout packed: neighbour query out of memory");
+    return CONSPH_OK;
+}
+
+/* Stage 1: a_i = -(p_b/m) V_i sum_j V_j ∇_i W_ij + repulsion, with ∇_i W_ij = W'(r) x_ij / r.
+ * Stage 2: a_i = -(K/rho0^2) m sum_j (e_i + e_j) ∇_i W_ij + repulsion. */
+static int compute_acceleration(const consph_nnps *grid, const force_params *fp, pack_work *w,
+                                layout_nbr_pool *pool)
+{
     int failed = 0;
     const int dim = w->dim;
+    const consph_kernel *k = fp->polish ? fp->target : fp->glass;
+    const double *rho = (fp->polish || !w->rho_glass) ? w->rho : w->rho_glass;
+    const double mass = fp->mass, rho0 = packing_rho0;
 #pragma omp parallel num_threads(pool->count)
     {
         consph_nbrs *nb = &pool->nbrs[layout_thread_id()];
@@ -153,35 +236,22 @@ static int compute_acceleration(const consph_nnps *grid, const consph_kernel *k,
             }
             double sum[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
             double rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+            const double ei = rho[i] / rho0 - 1.0;
             for (size_t q = 0; q < count; ++q) {
                 double r = nb->r[q];
                 if (!(r > 0.0)) continue;
-                double vj = mass / w->rho[nb->j[q]];
-                double f = vj * consph_kernel_dw(k, r) / r;
+                double rho_j = rho[nb->j[q]];
+                double weight = fp->polish ? ei + (rho_j / rho0 - 1.0) : mass / rho_j;
+                double f = weight * consph_kernel_dw(k, r) / r;
                 for (int a = 0; a < dim; ++a) sum[a] += f * nb->dx[a][q];
-                if (r < rp->range) {
-                    double rc = fmax(r, rp->r_floor);
-                    double g = 12.0 * rp->k *
-                               (3.0 * rp->c * rp->c / pow(rc, 5) - 2.0 * rp->c / pow(rc, 4)) *
-                               (rc / r);
-                    if (g > 0.0)
-                        for (int a = 0; a < dim; ++a) rep[a] += g * nb->dx[a][q];
+                if (r < fp->rep.range) {
+                    double g = repulsion_coef(&fp->rep, r);
+                    for (int a = 0; a < dim; ++a) rep[a] += g * nb->dx[a][q];
                 }
             }
-            double coef = -packing_pb * (mass / w->rho[i]) / mass;
+            double coef = fp->polish ? -packing_polish_k * packing_pb / (rho0 * rho0) * mass
+                                     : -packing_pb * (mass / rho[i]) / mass;
             for (int a = 0; a < dim; ++a) w->acc[a][i] = coef * sum[a] + rep[a];
-            if (polish) {
-                double ei = w->rho[i] / rho_mean - 1.0;
-                double g[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
-                for (size_t q = 0; q < count; ++q) {
-                    double r = nb->r[q];
-                    if (!(r > 0.0)) continue;
-                    double ej = w->rho[nb->j[q]] / rho_mean - 1.0;
-                    double f = (ei + ej) * consph_kernel_dw(k, r) / r;
-                    for (int a = 0; a < dim; ++a) g[a] += f * nb->dx[a][q];
-                }
-                for (int a = 0; a < dim; ++a) w->acc[a][i] = -polish_gain * mass * g[a] + (polish_rep ? rep[a] : 0.0);
-            }
         }
     }
     if (failed) return consph_fail(CONSPH_ENOMEM, "layout packed: neighbour query out of memory");
@@ -230,18 +300,24 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
     const double t0 = consph_wtime();
     const int dim = lp->dim;
     const double ds = p->spacing;
-    consph_kernel k;
-    rc = consph_kernel_init(&k, id, dim, pp->hdx * ds);
+    consph_kernel target, glass;
+    rc = consph_kernel_init(&target, id, dim, pp->hdx * ds);
+    if (!rc) rc = consph_kernel_init(&glass, CONSPH_KERNEL_QUINTIC, dim, 1.2 * ds);
     if (rc) return rc;
-    const double mass = packing_rho0 * pow(ds, dim);
-    const double c = sqrt(packing_pb / packing_rho0);
-    const double dt = packing_dt_factor * k.h / c;
+    const int same_kernel = id == CONSPH_KERNEL_QUINTIC && pp->hdx == 1.2;
+    force_params fp;
+    fp.glass = &glass;
+    fp.target = &target;
+    fp.mass = packing_rho0 * pow(ds, dim);
+    fp.polish = 0;
+    fp.rep.k = (dim == 3 ? 0.006 : 0.004) * ds;
+    fp.rep.c = (2.0 / 3.0) * 0.95 * ds;
+    fp.rep.range = 1.5 * fp.rep.c;
+    fp.rep.r_floor = 0.5 * glass.h;
+    const double c0 = sqrt(packing_pb / packing_rho0);
+    const double dt_glass = packing_dt_factor * glass.h / c0;
+    const double dt_polish = packing_dt_factor * (target.radius / 3.0) / c0;
     const double nu = (dim == 3 ? 0.5 : 0.2) / ds;
-    repulsion rep;
-    rep.k = (dim == 3 ? 0.006 : 0.004) * ds;
-    rep.c = (2.0 / 3.0) * 0.95 * ds;
-    rep.range = 1.5 * rep.c;
-    rep.r_floor = 0.5 * k.h;
 
     consph_layout_perturb(lp, p, ds, pp->perturb);
 
@@ -254,16 +330,16 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
     }
 
     pack_work w;
-    rc = work_alloc(&w, p->n, dim);
+    rc = work_alloc(&w, p->n, dim, !same_kernel);
     if (rc) return rc;
     layout_nbr_pool pool = {0, NULL};
-    consph_nnps *grid = consph_nnps_create(&p->box, k.radius, 0);
+    consph_nnps *grid = consph_nnps_create(&p->box, fmax(glass.radius, target.radius), 0);
     if (!grid) rc = CONSPH_ENOMEM;
     if (!rc) rc = consph_layout_pool_init(&pool);
 
-    int iter = 0, polish = 0, best_iter = 0, stall = getenv("STALL") ? atoi(getenv("STALL")) : 200;
-    double best = INFINITY;
-    double spread = INFINITY;
+    int iter = 0, best_iter = 0;
+    double best = INFINITY, spread = INFINITY;
+    if (report) report->polish_start = -1;
     for (; rc == CONSPH_OK; ++iter) {
         if (iter % packing_sort_every == 0) {
             rc = consph_nnps_sort(grid, p, w.perm);
@@ -273,7 +349,7 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
             rc = consph_nnps_build(grid, p);
             if (rc) break;
         }
-        rc = consph_layout_density(grid, &k, w.n, mass, &pool, w.rho, NULL);
+        rc = compute_density(grid, &fp, &w, &pool);
         if (rc) break;
         spread = consph_layout_spread(w.rho, w.n, packing_rho0);
         if (!isfinite(spread)) {
@@ -285,11 +361,23 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
         if (report && pp->history_every > 0 && (iter % pp->history_every == 0 || done))
             record_history(report, hist_cap, iter, spread);
         if (done) break;
-        if (!polish && spread < best * (1.0 - (getenv("IMP") ? atof(getenv("IMP")) : 0.01))) { best = spread; best_iter = iter; }
-        if (!polish && iter - best_iter > stall) { polish = 1; fprintf(stderr, "polish at %d\n", iter); }
-        rc = compute_acceleration(grid, &k, mass, &rep, &w, &pool, polish, getenv("RBAR") ? consph_sum(w.rho, w.n) / (double)w.n : 1.0);
+        if (!fp.polish) {
+            /* Stage 1 acts on the stage-1 density, so its progress is judged on that. */
+            double glass_spread =
+                w.rho_glass ? consph_layout_spread(w.rho_glass, w.n, packing_rho0) : spread;
+            if (glass_spread < packing_stall_gain * best) {
+                best = glass_spread;
+                best_iter = iter;
+            }
+            if (iter - best_iter >= packing_stall_steps || 2 * iter >= pp->max_iter) {
+                fp.polish = 1;
+                for (int a = 0; a < dim; ++a) memset(w.u[a], 0, w.n * sizeof(double));
+                if (report) report->polish_start = iter;
+            }
+        }
+        rc = compute_acceleration(grid, &fp, &w, &pool);
         if (rc) break;
-        advance(p, &w, dt, nu);
+        advance(p, &w, fp.polish ? dt_polish : dt_glass, nu);
     }
     if (!rc) rc = restore_lattice_order(p, &w);
     if (!rc && report) {

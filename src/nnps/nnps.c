@@ -18,10 +18,25 @@
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef __SSE2__
+#include <emmintrin.h>
+#endif
 
 #define NNPS_MAX_IMAGES_PER_AXIS 1.0e6
-/* Fastest in bench_nnps at 10^6 particles, ~50 and ~1000 neighbours (see the report). */
-static const int default_cells_per_radius[CONSPH_MAX_DIM + 1] = {0, 2, 2, 2};
+/* The default cells per radius grows with the mean neighbour count: finer cells waste fewer
+ * distance evaluations on the corners of the walked region but cost more runs of cells per
+ * query. Thresholds from timing every query with 1, 2 and 3 cells per radius (random
+ * particles in the unit periodic box, 10^5 single-threaded at 20-3000 neighbours and 10^6 in
+ * bench_nnps --sweep): in 2D 1 was fastest up to ~50 neighbours (tied with 2 at 50), 2 at
+ * ~100, 3 from ~200 on (10% ahead of 2 at 1000); in 3D 1 up to ~100 (30% ahead of 2 at 50),
+ * 2 at 200-400, 3 from 1000 on (5-8% ahead of 2). In 1D a query is one run of cells whatever
+ * the count; 1, 2, 4 and 8 were within 20%, finer slightly faster. */
+static int default_cells_per_radius(int dim, double mean_neighbours)
+{
+    if (dim == 1) return 4;
+    if (dim == 2) return mean_neighbours < 75.0 ? 1 : mean_neighbours < 150.0 ? 2 : 3;
+    return mean_neighbours < 150.0 ? 1 : mean_neighbours < 700.0 ? 2 : 3;
+}
 /* The cell count is capped near this many cells per particle (plus a constant) so that a tiny
  * radius cannot make the structure huge; cells then grow and hold more particles. */
 #define NNPS_CELLS_PER_PARTICLE 4.0
@@ -35,7 +50,8 @@ static const int default_cells_per_radius[CONSPH_MAX_DIM + 1] = {0, 2, 2, 2};
 struct consph_nnps {
     consph_box box;
     int dim;
-    int cells_per_radius;
+    int cells_per_radius_asked; /* 0: choose at each build from the mean neighbour count */
+    int cells_per_radius;       /* in use since the last build */
     double radius, radius2;
     /* Grid, padded to three axes. slack[a] bounds how far rounding can put a particle outside
      * the cell it was binned into; geometric pruning widens cells by it. */
@@ -86,7 +102,8 @@ consph_nnps *consph_nnps_create(const consph_box *box, double radius, int cells_
     if (!g) return NULL;
     g->box = *box;
     g->dim = box->dim;
-    g->cells_per_radius = cells_per_radius ? cells_per_radius : default_cells_per_radius[box->dim];
+    g->cells_per_radius_asked = cells_per_radius;
+    g->cells_per_radius = cells_per_radius ? cells_per_radius : 1;
     g->radius = radius;
     g->radius2 = radius * radius;
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
@@ -142,9 +159,17 @@ size_t consph_nnps_bytes(const consph_nnps *g)
 static void setup_grid(consph_nnps *g, size_t n)
 {
     double v[CONSPH_MAX_DIM] = {1.0, 1.0, 1.0};
+    if (g->cells_per_radius_asked == 0) {
+        const double pi = 3.14159265358979323846;
+        const double unit_ball[CONSPH_MAX_DIM + 1] = {0.0, 2.0, pi, 4.0 * pi / 3.0};
+        double volume = 1.0;
+        for (int a = 0; a < g->dim; ++a) volume *= g->len[a];
+        double mean = (double)n * unit_ball[g->dim] * pow(g->radius, g->dim) / volume;
+        g->cells_per_radius = default_cells_per_radius(g->dim, mean);
+    }
     for (int a = 0; a < g->dim; ++a) {
         double want = floor(g->len[a] * g->cells_per_radius / g->radius * (1.0 - NNPS_CELL_WIDEN));
-        v[a] = fmin(fmax(want, 1.0), 1073741824.0);
+        v[a] = fmin(fmax(want, 1.0), 1073741824.0); /* 2^30: exact and far from overflow */
     }
     const double max_cells = NNPS_CELLS_PER_PARTICLE * (double)n + NNPS_CELLS_EXTRA;
     double total = v[0] * v[1] * v[2];
@@ -306,12 +331,14 @@ static inline void axis_range(const consph_nnps *g, int a, double x, int64_t c, 
     if (!g->periodic[a]) {
         /* Boundary cells also hold everything beyond the box: clamping the range keeps them. */
         double last = (double)(g->nc[a] - 1);
-        fa = fmin(fmax(fa, 0.0), last);
-        fb = fmin(fmax(fb, 0.0), last);
+        fa = fa > 0.0 ? (fa < last ? fa : last) : 0.0;
+        fb = fb > 0.0 ? (fb < last ? fb : last) : 0.0;
     }
-    /* fmax/fmin drop a NaN (from a NaN query point) in favour of the reach bound. */
-    fa = fmax(fa, (double)(c - g->reach[a]));
-    fb = fmin(fb, (double)(c + g->reach[a]));
+    /* Written so that a NaN (from a NaN query point) gives way to the reach bound; fmin and
+     * fmax would do the same but are library calls on baseline x86-64. */
+    double lo_bound = (double)(c - g->reach[a]), hi_bound = (double)(c + g->reach[a]);
+    fa = fa > lo_bound ? fa : lo_bound;
+    fb = fb < hi_bound ? fb : hi_bound;
     *ua = (int64_t)fa;
     *ub = (int64_t)fb;
 }
@@ -378,6 +405,17 @@ static inline size_t scan_run(const consph_nnps *g, int dim, size_t s0, size_t s
     return n;
 }
 
+/* r = sqrt(r^2) in place. Packed square roots are correctly rounded like sqrt(), so the result
+ * is the same; the scalar libm call (kept for errno) costs a tenth of a small query. */
+static inline void take_square_roots(double *r, size_t n)
+{
+    size_t k = 0;
+#ifdef __SSE2__
+    for (; k + 2 <= n; k += 2) _mm_storeu_pd(r + k, _mm_sqrt_pd(_mm_loadu_pd(r + k)));
+#endif
+    for (; k < n; ++k) r[k] = sqrt(r[k]);
+}
+
 static size_t query_at(const consph_nnps *g, const double *xin, consph_nbrs *out)
 {
     out->n = 0;
@@ -427,7 +465,7 @@ static size_t query_at(const consph_nnps *g, const double *xin, consph_nbrs *out
                 size_t s1 = start[row + (size_t)(cell0 + (end - u0)) + 1];
                 if (s1 > s0) {
                     q[0] = x[0] - (double)m0 * g->len[0];
-                    if (nnps_nbrs_reserve(out, n + (s1 - s0))) {
+                    if (n + (s1 - s0) > out->cap && nnps_nbrs_reserve(out, n + (s1 - s0))) {
                         out->n = 0;
                         return (size_t)-1;
                     }
@@ -437,8 +475,7 @@ static size_t query_at(const consph_nnps *g, const double *xin, consph_nbrs *out
             }
         }
     }
-    double *r = out->r;
-    for (size_t k = 0; k < n; ++k) r[k] = sqrt(r[k]);
+    take_square_roots(out->r, n);
     out->n = n;
     return n;
 }

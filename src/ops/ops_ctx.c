@@ -3,9 +3,6 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef CONSPH_HAVE_OPENMP
-#include <omp.h>
-#endif
 
 #include "ops/ops_internal.h"
 

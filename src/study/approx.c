@@ -113,20 +113,38 @@ int consph_approx_run(const consph_approx_spec *s, size_t nx, consph_approx_row 
     memset(row, 0, sizeof *row);
     int rc = consph_approx_check(s);
     if (rc) return rc;
-    const int dim = s->layout.dim;
     consph_layout_params lp = s->layout;
-    for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < dim ? nx : 1;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
+    consph_particles p;
+    double t0 = consph_wtime();
+    rc = consph_layout_generate(&lp, &p, NULL);
+    if (rc) return rc;
+    double layout_seconds = consph_wtime() - t0;
+    rc = consph_approx_run_particles(s, &p, nx, row);
+    row->layout_seconds = layout_seconds;
+    consph_particles_free(&p);
+    return rc;
+}
 
+int consph_approx_run_particles(const consph_approx_spec *s, const consph_particles *src, size_t nx,
+                                consph_approx_row *row)
+{
+    memset(row, 0, sizeof *row);
+    int rc = consph_approx_check(s);
+    if (rc) return rc;
+    const int dim = s->layout.dim;
+    if (src->dim != dim)
+        return consph_fail(CONSPH_EINVAL, "particles have dimension %d, the study %d", src->dim,
+                           dim);
     consph_particles p;
     consph_nnps *g = NULL;
     consph_op_ctx ctx;
     int have_ctx = 0;
     double *in = NULL, *out = NULL, *exact = NULL;
     unsigned char *mask = NULL;
-    double t0 = consph_wtime();
-    rc = consph_layout_generate(&lp, &p, NULL);
+    /* A copy, because the neighbour search sorts the particles into cell order. */
+    rc = consph_particles_copy(&p, src);
     if (rc) return rc;
-    row->layout_seconds = consph_wtime() - t0;
     const size_t n = p.n;
     row->nx = nx;
     row->n = n;

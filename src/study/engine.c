@@ -1,0 +1,969 @@
+/* Runs the figures of a study file and writes their CSV, markdown and gnuplot outputs. */
+#include <errno.h>
+#include <math.h>
+#include <stdarg.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "consph/io.h"
+#include "study/study_internal.h"
+
+#define MAX_SWEEP 64
+
+typedef enum fig_kind { KIND_APPROX, KIND_M0, KIND_APPC } fig_kind;
+
+/* Everything needed to run one series, parsed from its keys. */
+typedef struct series_plan {
+    consph_approx_spec spec;
+    const char *kernel_name;
+    int sweep_hdx; /* 0: sweep nx, 1: sweep hdx at fixed nx */
+    int nvalues;
+    double values[MAX_SWEEP];
+    size_t nx_fixed;
+    int bound; /* 0 none, 1 interp, 2 delta */
+} series_plan;
+
+typedef struct series_result {
+    consph_approx_row rows[MAX_SWEEP];
+    double bound[MAX_SWEEP];
+    int nrows;
+} series_result;
+
+/* ---- small helpers ---- */
+
+static int key_error(const consph_study *s, const study_figure *f, const study_series *r,
+                     const char *key, const char *fmt, ...)
+{
+    char msg[512];
+    va_list ap;
+    va_start(ap, fmt);
+    vsnprintf(msg, sizeof msg, fmt, ap);
+    va_end(ap);
+    return consph_fail(CONSPH_EFORMAT, "%s:%d: figure '%s', series '%s': key '%s': %s", s->path,
+                       study_line(s, f, r, key), f->id, r ? r->label : "-", key, msg);
+}
+
+static int get_double(const consph_study *s, const study_figure *f, const study_series *r,
+                      const char *key, double def, double lo, double hi, double *out)
+{
+    const char *v = study_get(s, f, r, key);
+    if (!v) {
+        *out = def;
+        return CONSPH_OK;
+    }
+    char *end;
+    errno = 0;
+    double d = strtod(v, &end);
+    if (end == v || *end || errno || !isfinite(d) || d < lo || d > hi)
+        return key_error(s, f, r, key, "'%s' is not a number in [%g, %g]", v, lo, hi);
+    *out = d;
+    return CONSPH_OK;
+}
+
+static int get_list(const consph_study *s, const study_figure *f, const study_series *r,
+                    const char *key, double lo, double hi, double *vals, int *n)
+{
+    const char *v = study_get(s, f, r, key);
+    *n = 0;
+    if (!v) return CONSPH_OK;
+    char buf[2048];
+    snprintf(buf, sizeof buf, "%s", v);
+    char *save = NULL;
+    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+        char *end;
+        double d = strtod(t, &end);
+        while (*end == ' ') ++end;
+        if (end == t || *end || !isfinite(d) || d < lo || d > hi)
+            return key_error(s, f, r, key, "'%s' is not a list of numbers in [%g, %g]", v, lo, hi);
+        if (*n == MAX_SWEEP) return key_error(s, f, r, key, "more than %d values", MAX_SWEEP);
+        vals[(*n)++] = d;
+    }
+    return CONSPH_OK;
+}
+
+static int get_choice(const consph_study *s, const study_figure *f, const study_series *r,
+                      const char *key, const char *const *choices, int def, int *out)
+{
+    const char *v = study_get(s, f, r, key);
+    if (!v) {
+        *out = def;
+        return CONSPH_OK;
+    }
+    char allowed[256] = "";
+    for (int k = 0; choices[k]; ++k) {
+        if (strcmp(v, choices[k]) == 0) {
+            *out = k;
+            return CONSPH_OK;
+        }
+        snprintf(allowed + strlen(allowed), sizeof allowed - strlen(allowed), "%s%s", k ? ", " : "",
+                 choices[k]);
+    }
+    return key_error(s, f, r, key, "unknown value '%s'; allowed: %s", v, allowed);
+}
+
+static fig_kind figure_kind(const consph_study *s, const study_figure *f)
+{
+    const char *k = study_get(s, f, NULL, "kind");
+    if (k && strcmp(k, "m0") == 0) return KIND_M0;
+    if (k && strcmp(k, "appc") == 0) return KIND_APPC;
+    return KIND_APPROX;
+}
+
+static int build_plan(const consph_study *s, const study_figure *f, const study_series *r,
+                      int quick, series_plan *pl)
+{
+    static const char *const kinds[] = {"approx", "m0", "appc", NULL};
+    static const char *const ops[] = {"function", "grad", "div", "laplacian", "hessian", NULL};
+    static const char *const default_form[] = {"standard", "f4", "div", "coupled", "korzilius"};
+    static const char *const policies[] = {"hdx", "scaling", NULL};
+    static const char *const layouts[] = {"lattice", "random", "quasi-random", "packed", NULL};
+    static const char *const yesno[] = {"yes", "no", NULL};
+    static const char *const masks[] = {"interior", "all", NULL};
+    static const char *const sweeps[] = {"nx", "hdx", NULL};
+    static const char *const bounds[] = {"none", "interp", "delta", NULL};
+    static const char *const norms[] = {"l1", "l2", "linf", "mae", NULL};
+    static const char *const xs[] = {"nx", "nbr", "sqrtN", NULL};
+    const char *volumes[CONSPH_VOLUME_COUNT + 1];
+    for (int v = 0; v < CONSPH_VOLUME_COUNT; ++v)
+        volumes[v] = consph_volume_name((consph_volume_kind)v);
+    volumes[CONSPH_VOLUME_COUNT] = NULL;
+
+    memset(pl, 0, sizeof *pl);
+    int rc, ikind, iop, ipol, ilay, iper, imask, isweep, ibound, ivol, dummy;
+    double dim, hdx, match, eps, seed, sigma, tol, iters;
+    if ((rc = get_choice(s, f, r, "kind", kinds, 0, &ikind))) return rc;
+    if ((rc = get_choice(s, f, r, "op", ops, 0, &iop))) return rc;
+    if ((rc = get_choice(s, f, r, "h_policy", policies, 0, &ipol))) return rc;
+    if ((rc = get_choice(s, f, r, "layout", layouts, 0, &ilay))) return rc;
+    if ((rc = get_choice(s, f, r, "periodic", yesno, 0, &iper))) return rc;
+    if ((rc = get_choice(s, f, r, "mask", masks, 0, &imask))) return rc;
+    if ((rc = get_choice(s, f, r, "sweep", sweeps, 0, &isweep))) return rc;
+    if ((rc = get_choice(s, f, r, "bound", bounds, 0, &ibound))) return rc;
+    if ((rc = get_choice(s, f, r, "norm", norms, 0, &dummy))) return rc;
+    if ((rc = get_choice(s, f, r, "x", xs, 0, &dummy))) return rc;
+    if ((rc = get_choice(s, f, r, "volume", volumes, ikind == KIND_M0 ? 2 : 1, &ivol))) return rc;
+    if ((rc = get_double(s, f, r, "dim", ikind == KIND_APPC ? 1 : 2, 1, 3, &dim))) return rc;
+    if (dim != floor(dim)) return key_error(s, f, r, "dim", "must be 1, 2 or 3");
+    if ((rc = get_double(s, f, r, "hdx", 1.2, 0.01, 100, &hdx))) return rc;
+    if ((rc = get_double(s, f, r, "match_support", 0, 0, 100, &match))) return rc;
+    if ((rc = get_double(s, f, r, "eps", 0.2, 0, 2, &eps))) return rc;
+    if ((rc = get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) return rc;
+    if ((rc = get_double(s, f, r, "sigma", 0.1, 1e-9, 10, &sigma))) return rc;
+    if ((rc = get_double(s, f, r, "pack_tol", 1e-4, 1e-12, 1, &tol))) return rc;
+    if ((rc = get_double(s, f, r, "pack_iter", 2000, 1, 1e7, &iters))) return rc;
+
+    consph_approx_spec *sp = &pl->spec;
+    *sp = consph_approx_defaults((int)dim);
+    const char *form = study_get(s, f, r, "form");
+    const char *corr = study_get(s, f, r, "corr");
+    if (consph_op_parse(ops[iop], form ? form : default_form[iop], corr ? corr : "none", (int)dim,
+                        &sp->op) != CONSPH_OK)
+        return key_error(s, f, r, "form", "%s", consph_last_error());
+    pl->kernel_name = study_get(s, f, r, "kernel");
+    if (!pl->kernel_name) pl->kernel_name = "quintic";
+    if (ikind != KIND_APPC && consph_kernel_lookup(pl->kernel_name, &sp->kernel) != CONSPH_OK)
+        return key_error(s, f, r, "kernel", "%s", consph_last_error());
+    if (match > 0) hdx *= match / consph_kernel_info_get(sp->kernel)->support;
+    sp->hdx = hdx;
+    sp->h_policy = ipol ? CONSPH_H_SCALING : CONSPH_H_HDX;
+    sp->layout = consph_layout_defaults((consph_layout_kind)ilay, (int)dim, 10);
+    sp->layout.eps = eps;
+    sp->layout.seed = (uint64_t)seed;
+    sp->layout.packing.tol = tol;
+    sp->layout.packing.max_iter = (int)iters;
+    sp->layout.box = consph_box_unit((int)dim, iper == 0);
+    const char *field = study_get(s, f, r, "field");
+    if (!field) field = iop == 2 ? "tgv" : "sin2pi";
+    if (consph_mfield_lookup(field, &sp->field) != CONSPH_OK)
+        return key_error(s, f, r, "field", "%s", consph_last_error());
+    sp->field_params.sigma = sigma;
+    sp->volume = (consph_volume_kind)ivol;
+    sp->interior_only = imask == 0;
+    pl->bound = ibound;
+    if (ikind == KIND_APPROX && consph_approx_check(sp) != CONSPH_OK)
+        return key_error(s, f, r, "op", "%s", consph_last_error());
+
+    double nxs[MAX_SWEEP];
+    int nnx = 0;
+    if (quick) {
+        if ((rc = get_list(s, f, r, "quick.nx", 2, 1e5, nxs, &nnx))) return rc;
+    }
+    if (nnx == 0 && (rc = get_list(s, f, r, "nx", 2, 1e5, nxs, &nnx))) return rc;
+    if (nnx == 0) return key_error(s, f, r, "nx", "no resolutions given");
+    pl->sweep_hdx = isweep == 1 || ikind == KIND_APPC;
+    if (pl->sweep_hdx) {
+        const char *key = ikind == KIND_APPC ? "hdelta.values" : "hdx.values";
+        char qkey[64];
+        snprintf(qkey, sizeof qkey, "quick.%s", key);
+        if (quick && (rc = get_list(s, f, r, qkey, 1e-3, 100, pl->values, &pl->nvalues))) return rc;
+        if (pl->nvalues == 0 && (rc = get_list(s, f, r, key, 1e-3, 100, pl->values, &pl->nvalues)))
+            return rc;
+        if (pl->nvalues == 0) return key_error(s, f, r, key, "no values given");
+        pl->nx_fixed = (size_t)nxs[0];
+    } else {
+        memcpy(pl->values, nxs, sizeof(double) * (size_t)nnx);
+        pl->nvalues = nnx;
+    }
+    return CONSPH_OK;
+}
+
+/* ---- layout cache: packed layouts are expensive and shared between series ---- */
+
+typedef struct cached_layout {
+    consph_layout_params lp;
+    consph_particles p;
+    double seconds;
+    int used;
+} cached_layout;
+
+#define CACHE_SIZE 16
+typedef struct layout_cache {
+    cached_layout e[CACHE_SIZE];
+    int next;
+} layout_cache;
+
+static int same_layout(const consph_layout_params *a, const consph_layout_params *b)
+{
+    if (a->kind != b->kind || a->dim != b->dim || a->seed != b->seed) return 0;
+    for (int d = 0; d < a->dim; ++d)
+        if (a->nx[d] != b->nx[d] || a->box.periodic[d] != b->box.periodic[d]) return 0;
+    if (a->kind == CONSPH_LAYOUT_RANDOM && a->eps != b->eps) return 0;
+    if (a->kind == CONSPH_LAYOUT_PACKED &&
+        (a->packing.tol != b->packing.tol || a->packing.max_iter != b->packing.max_iter ||
+         a->packing.hdx != b->packing.hdx || strcmp(a->packing.kernel, b->packing.kernel)))
+        return 0;
+    return 1;
+}
+
+static int cache_get(layout_cache *c, const consph_layout_params *lp, const consph_particles **p,
+                     double *seconds)
+{
+    for (int k = 0; k < CACHE_SIZE; ++k)
+        if (c->e[k].used && same_layout(&c->e[k].lp, lp)) {
+            *p = &c->e[k].p;
+            *seconds = 0.0;
+            return CONSPH_OK;
+        }
+    cached_layout *e = &c->e[c->next];
+    c->next = (c->next + 1) % CACHE_SIZE;
+    if (e->used) consph_particles_free(&e->p);
+    e->used = 0;
+    double t0 = consph_wtime();
+    int rc = consph_layout_generate(lp, &e->p, NULL);
+    if (rc) return rc;
+    e->lp = *lp;
+    e->used = 1;
+    e->seconds = consph_wtime() - t0;
+    *p = &e->p;
+    *seconds = e->seconds;
+    return CONSPH_OK;
+}
+
+static void cache_free(layout_cache *c)
+{
+    for (int k = 0; k < CACHE_SIZE; ++k)
+        if (c->e[k].used) consph_particles_free(&c->e[k].p);
+}
+
+/* ---- output helpers ---- */
+
+static int mkdir_p(const char *path)
+{
+    char buf[1024];
+    snprintf(buf, sizeof buf, "%s", path);
+    for (char *c = buf + 1; *c; ++c) {
+        if (*c != '/') continue;
+        *c = '\0';
+        if (mkdir(buf, 0777) != 0 && errno != EEXIST)
+            return consph_fail(CONSPH_EIO, "cannot create directory '%s': %s", buf,
+                               strerror(errno));
+        *c = '/';
+    }
+    if (mkdir(buf, 0777) != 0 && errno != EEXIST)
+        return consph_fail(CONSPH_EIO, "cannot create directory '%s': %s", buf, strerror(errno));
+    return CONSPH_OK;
+}
+
+static double norm_value(const consph_approx_row *r, const char *norm)
+{
+    if (strcmp(norm, "l2") == 0) return r->err.l2;
+    if (strcmp(norm, "linf") == 0) return r->err.linf;
+    if (strcmp(norm, "mae") == 0) return r->err.mae;
+    return r->err.l1;
+}
+
+static double x_value(const consph_approx_row *r, const char *x, int dim)
+{
+    if (strcmp(x, "nbr") == 0) return r->nbr_mean + 1.0;
+    if (strcmp(x, "sqrtN") == 0) return pow((double)r->n, 1.0 / dim);
+    return (double)r->nx;
+}
+
+static const char *get_or(const consph_study *s, const study_figure *f, const study_series *r,
+                          const char *key, const char *def)
+{
+    const char *v = study_get(s, f, r, key);
+    return v ? v : def;
+}
+
+/* A CSV-safe copy of a label (no commas or quotes). */
+static const char *csv_label(const char *label, char *buf, size_t size)
+{
+    snprintf(buf, size, "%s", label);
+    for (char *c = buf; *c; ++c)
+        if (*c == ',' || *c == '"') *c = ';';
+    return buf;
+}
+
+static int have_gnuplot(void)
+{
+    static int cached = -1;
+    if (cached < 0) cached = system("command -v gnuplot >/dev/null 2>&1") == 0;
+    return cached;
+}
+
+/* Runs gnuplot on a script in `dir`; a failure is reported, not fatal. */
+static void run_gnuplot(const char *dir, const char *script, FILE *log)
+{
+    if (!have_gnuplot()) return;
+    char cmd[2048];
+    snprintf(cmd, sizeof cmd, "cd '%s' && gnuplot '%s' >/dev/null 2>&1", dir, script);
+    if (system(cmd) != 0 && log) fprintf(log, "  (gnuplot failed on %s/%s)\n", dir, script);
+}
+
+/* ---- approx figures ---- */
+
+static int has_key(const study_kvlist *l, const char *key)
+{
+    for (int k = 0; k < l->n; ++k)
+        if (strcmp(l->items[k].key, key) == 0) return 1;
+    return 0;
+}
+
+static void paper_columns(const consph_study *s, const study_figure *f, const study_series *r,
+                          char *buf, size_t size)
+{
+    buf[0] = '\0';
+    /* Every paper.* key not printed in its own column. */
+    const study_kvlist *lists[2] = {&f->keys, &r->keys};
+    for (int l = 0; l < 2; ++l)
+        for (int k = 0; k < lists[l]->n; ++k) {
+            const char *key = lists[l]->items[k].key;
+            if (strncmp(key, "paper.", 6) != 0) continue;
+            if (!strcmp(key, "paper.order") || !strcmp(key, "paper.l1") ||
+                !strcmp(key, "paper.ft") || !strcmp(key, "paper.error"))
+                continue;
+            if (l == 0 && has_key(&r->keys, key)) continue;
+            snprintf(buf + strlen(buf), size - strlen(buf), "%s%s = %s", buf[0] ? "; " : "",
+                     key + 6, study_get(s, f, r, key));
+        }
+}
+
+static int write_approx_outputs(const consph_study *s, const study_figure *f,
+                                const series_plan *plans, const series_result *res, const char *dir,
+                                int quick, FILE *log)
+{
+    const char *norm = get_or(s, f, NULL, "norm", "l1");
+    const char *xname = get_or(s, f, NULL, "x", "nx");
+    int sweep_hdx = plans[0].sweep_hdx;
+    int dim = plans[0].spec.layout.dim;
+    char path[1200], label[256];
+
+    /* CSV: one row per measurement. */
+    snprintf(path, sizeof path, "%s/%s.csv", dir, f->id);
+    consph_outfile of;
+    int rc = consph_outfile_open(&of, path);
+    if (rc) return rc;
+    fprintf(of.fp, "series,sweep,kernel,hdx,form,corr,layout,field,nx,n,h,nbr_mean,l1,l2,linf,"
+                   "mae,ft_over_fmax,seconds,fallbacks,bound\n");
+    for (int k = 0; k < f->nseries; ++k) {
+        const series_plan *pl = &plans[k];
+        for (int j = 0; j < res[k].nrows; ++j) {
+            const consph_approx_row *w = &res[k].rows[j];
+            fprintf(of.fp,
+                    "%s,%g,%s,%g,%s,%s,%s,%s,%zu,%zu,%.10g,%.6g,%.6e,%.6e,%.6e,%.6e,%.6e,%.6g,"
+                    "%zu,%.6e\n",
+                    csv_label(f->series[k].label, label, sizeof label), pl->values[j],
+                    pl->kernel_name, sweep_hdx ? pl->values[j] : pl->spec.hdx,
+                    consph_form_name(pl->spec.op.form), consph_corr_name(pl->spec.op.corr),
+                    consph_layout_name(pl->spec.layout.kind), consph_mfield_name(pl->spec.field),
+                    w->nx, w->n, w->h, w->nbr_mean, w->err.l1, w->err.l2, w->err.linf, w->err.mae,
+                    w->ft_over_fmax, w->seconds, w->fallbacks, res[k].bound[j]);
+        }
+    }
+    if ((rc = consph_outfile_commit(&of))) return rc;
+
+    /* Markdown report. */
+    snprintf(path, sizeof path, "%s/%s.md", dir, f->id);
+    if ((rc = consph_outfile_open(&of, path))) return rc;
+    FILE *o = of.fp;
+    fprintf(o, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
+    const char *note = study_get(s, f, NULL, "note");
+    if (note) fprintf(o, "%s\n\n", note);
+    const consph_approx_spec *sp = &plans[0].spec;
+    fprintf(o,
+            "Run: %s resolutions; op `%s`, layout `%s`, dim %d, periodic %s, field `%s`, "
+            "volumes `%s`, compared particles: %s. Norm fitted: `%s`.\n\n",
+            quick ? "quick" : "full (paper)", consph_op_name(sp->op.op),
+            consph_layout_name(sp->layout.kind), dim, sp->layout.box.periodic[0] ? "yes" : "no",
+            consph_mfield_name(sp->field), consph_volume_name(sp->volume),
+            sp->interior_only ? "interior (full support)" : "all", norm);
+    if (!sweep_hdx) {
+        fprintf(o,
+                "| series | order (%s) | paper order | %s at finest | paper %s | F_T/F_max | "
+                "paper F_T/F_max | fallbacks | other published values |\n",
+                norm, norm, norm);
+        fprintf(o, "|---|---|---|---|---|---|---|---|---|\n");
+        for (int k = 0; k < f->nseries; ++k) {
+            const series_result *sr = &res[k];
+            const study_series *r = &f->series[k];
+            double xs[MAX_SWEEP], ys[MAX_SWEEP];
+            size_t fb = 0;
+            for (int j = 0; j < sr->nrows; ++j) {
+                xs[j] = (double)sr->rows[j].nx;
+                ys[j] = norm_value(&sr->rows[j], norm);
+                fb += sr->rows[j].fallbacks;
+            }
+            consph_order_fit fit;
+            char ord[64] = "n/a";
+            if (consph_fit_order(xs, ys, sr->nrows, &fit) == CONSPH_OK)
+                snprintf(ord, sizeof ord, "%.2f ± %.2f", fit.order, fit.order_stderr);
+            const consph_approx_row *last = &sr->rows[sr->nrows - 1];
+            char other[512];
+            paper_columns(s, f, r, other, sizeof other);
+            fprintf(o, "| %s | %s | %s | %.3e (nx=%zu) | %s | %.2e | %s | %zu | %s |\n", r->label,
+                    ord, get_or(s, f, r, "paper.order", "—"), norm_value(last, norm), last->nx,
+                    get_or(s, f, r, "paper.l1", get_or(s, f, r, "paper.error", "—")),
+                    last->ft_over_fmax, get_or(s, f, r, "paper.ft", "—"), fb, other);
+        }
+        fprintf(o, "\n");
+    }
+    fprintf(o, "<details><summary>every measurement</summary>\n\n");
+    fprintf(o,
+            "| series | %s | nx | N | h | neighbours | l1 | l2 | linf | mae | F_T/F_max | "
+            "seconds | fallbacks |%s\n",
+            sweep_hdx ? "h/Δs" : "sweep", plans[0].bound ? " bound |" : "");
+    fprintf(o, "|---|---|---|---|---|---|---|---|---|---|---|---|---|%s\n",
+            plans[0].bound ? "---|" : "");
+    for (int k = 0; k < f->nseries; ++k)
+        for (int j = 0; j < res[k].nrows; ++j) {
+            const consph_approx_row *w = &res[k].rows[j];
+            fprintf(o,
+                    "| %s | %g | %zu | %zu | %.4g | %.1f | %.3e | %.3e | %.3e | %.3e | %.2e | "
+                    "%.3g | %zu |",
+                    f->series[k].label, plans[k].values[j], w->nx, w->n, w->h, w->nbr_mean,
+                    w->err.l1, w->err.l2, w->err.linf, w->err.mae, w->ft_over_fmax, w->seconds,
+                    w->fallbacks);
+            if (plans[0].bound) fprintf(o, " %.4g |", res[k].bound[j]);
+            fprintf(o, "\n");
+        }
+    fprintf(o, "\n</details>\n\n");
+    if (have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
+    if ((rc = consph_outfile_commit(&of))) return rc;
+
+    /* Plot data, one gnuplot index block per series, and the script. */
+    snprintf(path, sizeof path, "%s/%s.dat", dir, f->id);
+    if ((rc = consph_outfile_open(&of, path))) return rc;
+    for (int k = 0; k < f->nseries; ++k) {
+        fprintf(of.fp, "# %s\n", f->series[k].label);
+        for (int j = 0; j < res[k].nrows; ++j)
+            fprintf(of.fp, "%.10g %.10g %.10g\n", x_value(&res[k].rows[j], xname, dim),
+                    norm_value(&res[k].rows[j], norm), res[k].bound[j]);
+        fprintf(of.fp, "\n\n");
+    }
+    if ((rc = consph_outfile_commit(&of))) return rc;
+    snprintf(path, sizeof path, "%s/%s.gp", dir, f->id);
+    if ((rc = consph_outfile_open(&of, path))) return rc;
+    o = of.fp;
+    fprintf(o, "set terminal svg size 900,640 dynamic\nset output '%s.svg'\n", f->id);
+    fprintf(o,
+            "set title \"%s\" noenhanced\nset logscale xy\nset grid\nset key outside right "
+            "noenhanced\n",
+            get_or(s, f, NULL, "title", f->id));
+    fprintf(o, "set xlabel '%s'\nset ylabel '%s error'\n",
+            strcmp(xname, "nbr") == 0 ? "neighbours" : "particles per axis", norm);
+    /* A slope -2 guide through the first series' first point (second-order convergence). */
+    if (!sweep_hdx && res[0].nrows > 0) {
+        double x0 = x_value(&res[0].rows[0], xname, dim), y0 = norm_value(&res[0].rows[0], norm);
+        if (y0 > 0) fprintf(o, "ref(x) = %.10g*(x/%.10g)**(-2)\n", y0, x0);
+    }
+    fprintf(o, "plot");
+    for (int k = 0; k < f->nseries; ++k)
+        fprintf(o, "%s '%s.dat' index %d using 1:2 with linespoints title '%s'",
+                k ? ", \\\n    " : " ", f->id, k, f->series[k].label);
+    if (plans[0].bound)
+        fprintf(o, ", \\\n    '%s.dat' index 0 using 1:3 with lines dashtype 2 title 'bound'",
+                f->id);
+    if (!sweep_hdx && res[0].nrows > 0 && norm_value(&res[0].rows[0], norm) > 0)
+        fprintf(o, ", \\\n    ref(x) with lines dashtype 3 lc rgb 'gray' title 'slope -2'");
+    fprintf(o, "\n");
+    if ((rc = consph_outfile_commit(&of))) return rc;
+    snprintf(label, sizeof label, "%s.gp", f->id);
+    run_gnuplot(dir, label, log);
+    return CONSPH_OK;
+}
+
+static int run_approx_figure(const consph_study *s, const study_figure *f, int quick,
+                             layout_cache *cache, const char *dir, FILE *log)
+{
+    series_plan *plans = calloc((size_t)f->nseries, sizeof *plans);
+    series_result *res = calloc((size_t)f->nseries, sizeof *res);
+    int rc = (!plans || !res) ? consph_fail(CONSPH_ENOMEM, "out of memory") : CONSPH_OK;
+    for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k)
+        rc = build_plan(s, f, &f->series[k], quick, &plans[k]);
+    for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
+        series_plan *pl = &plans[k];
+        for (int j = 0; rc == CONSPH_OK && j < pl->nvalues; ++j) {
+            consph_approx_spec sp = pl->spec;
+            size_t nx = pl->sweep_hdx ? pl->nx_fixed : (size_t)pl->values[j];
+            if (pl->sweep_hdx) sp.hdx = pl->values[j];
+            consph_layout_params lp = sp.layout;
+            for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
+            const consph_particles *p;
+            double lsec;
+            rc = cache_get(cache, &lp, &p, &lsec);
+            if (rc) break;
+            consph_approx_row *w = &res[k].rows[j];
+            rc = consph_approx_run_particles(&sp, p, nx, w);
+            if (rc) {
+                consph_fail(rc, "figure '%s', series '%s', nx %zu: %s", f->id, f->series[k].label,
+                            nx, consph_last_error());
+                break;
+            }
+            w->layout_seconds = lsec;
+            double b = NAN;
+            if (pl->bound) {
+                double nn = sp.h_policy == CONSPH_H_SCALING ? consph_scaling_nnbr((double)w->n)
+                                                            : w->nbr_mean;
+                if (pl->bound == 1)
+                    b = consph_bound_interpolation(
+                        consph_bound_kernel_factor(pl->kernel_name, sp.layout.dim), sp.layout.dim,
+                        nn, w->h);
+                else
+                    b = consph_bound_delta(sp.layout.dim, nn, w->h, sp.field_params.sigma);
+            }
+            res[k].bound[j] = b;
+            res[k].nrows = j + 1;
+            if (log)
+                fprintf(log, "  %-28s %s=%-6g N=%-8zu nbr=%-8.1f l1=%.3e mae=%.3e (%.2fs%s)\n",
+                        f->series[k].label, pl->sweep_hdx ? "h/dx" : "nx", pl->values[j], w->n,
+                        w->nbr_mean, w->err.l1, w->err.mae, w->seconds,
+                        lsec > 0.5 ? ", layout generated" : "");
+        }
+    }
+    if (rc == CONSPH_OK) rc = write_approx_outputs(s, f, plans, res, dir, quick, log);
+    free(plans);
+    free(res);
+    return rc;
+}
+
+/* ---- m0 figures: distributions of the volume estimate M0 (003 Figs. 2-3) ---- */
+
+static double smoothing_length(const consph_approx_spec *sp, const consph_particles *p)
+{
+    if (sp->h_policy == CONSPH_H_SCALING)
+        return consph_scaling_h((double)p->n) * pow(consph_box_volume(&p->box), 1.0 / p->dim);
+    return sp->hdx * p->spacing;
+}
+
+typedef struct m0_row {
+    size_t nx, n;
+    double h, nbr, mean, std, mean_in, std_in, peak;
+    size_t *counts;
+} m0_row;
+
+static int m0_measure(const series_plan *pl, const consph_particles *src, size_t nx, int nbins,
+                      double lo, double hi, m0_row *row)
+{
+    consph_particles p;
+    int rc = consph_particles_copy(&p, src);
+    if (rc) return rc;
+    consph_kernel k;
+    consph_nnps *g = NULL;
+    consph_op_ctx ctx;
+    int have_ctx = 0;
+    double *m0 = NULL, *inner = NULL;
+    row->nx = nx;
+    row->n = p.n;
+    row->h = smoothing_length(&pl->spec, &p);
+    if ((rc = consph_kernel_init(&k, pl->spec.kernel, p.dim, row->h))) goto done;
+    if (!(g = consph_nnps_create(&p.box, k.radius, 0))) {
+        rc = CONSPH_ENOMEM;
+        goto done;
+    }
+    if ((rc = consph_nnps_sort(g, &p, NULL))) goto done;
+    if ((rc = consph_op_ctx_init(&ctx, &p, g, &k, pl->spec.volume))) goto done;
+    have_ctx = 1;
+    m0 = consph_calloc(p.n, sizeof(double));
+    inner = consph_calloc(p.n, sizeof(double));
+    if (!m0 || !inner) {
+        rc = CONSPH_ENOMEM;
+        goto done;
+    }
+    consph_op_report rep;
+    if ((rc = consph_op_moments(&ctx, m0, NULL, NULL, NULL, &rep))) goto done;
+    row->nbr = (double)rep.pairs / (double)p.n - 1.0;
+    if ((rc = consph_histogram(m0, p.n, lo, hi, nbins, row->counts, NULL, NULL, &row->mean,
+                               &row->std)))
+        goto done;
+    size_t m = 0;
+    for (size_t i = 0; i < p.n; ++i) {
+        int in = 1;
+        for (int a = 0; a < p.dim; ++a)
+            if (!p.box.periodic[a] &&
+                (p.x[a][i] - p.box.lo[a] < k.radius || p.box.hi[a] - p.x[a][i] < k.radius))
+                in = 0;
+        if (in) inner[m++] = m0[i];
+    }
+    row->mean_in = row->std_in = NAN;
+    size_t one_bin;
+    if (m)
+        rc = consph_histogram(inner, m, lo, hi, 1, &one_bin, NULL, NULL, &row->mean_in,
+                              &row->std_in);
+    int best = 0;
+    for (int b = 1; b < nbins; ++b)
+        if (row->counts[b] > row->counts[best]) best = b;
+    row->peak = lo + (best + 0.5) * (hi - lo) / nbins;
+done:
+    free(m0);
+    free(inner);
+    if (have_ctx) consph_op_ctx_free(&ctx);
+    consph_nnps_free(g);
+    consph_particles_free(&p);
+    return rc;
+}
+
+static int run_m0_figure(const consph_study *s, const study_figure *f, int quick,
+                         layout_cache *cache, const char *dir, FILE *log)
+{
+    const study_series *r = &f->series[0];
+    series_plan pl;
+    int rc = build_plan(s, f, r, quick, &pl);
+    if (rc) return rc;
+    double nbins_d, lo = 0.9, hi = 1.1;
+    if ((rc = get_double(s, f, r, "bins", 60, 2, 10000, &nbins_d))) return rc;
+    const char *range = study_get(s, f, r, "range");
+    if (range && (sscanf(range, "%lf:%lf", &lo, &hi) != 2 || !(hi > lo)))
+        return key_error(s, f, r, "range", "'%s' is not lo:hi with lo < hi", range);
+    int nbins = (int)nbins_d;
+    m0_row rows[MAX_SWEEP];
+    memset(rows, 0, sizeof rows);
+    int nrows = 0;
+    for (int j = 0; rc == CONSPH_OK && j < pl.nvalues; ++j) {
+        size_t nx = (size_t)pl.values[j];
+        consph_layout_params lp = pl.spec.layout;
+        for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
+        const consph_particles *p;
+        double lsec;
+        if ((rc = cache_get(cache, &lp, &p, &lsec))) break;
+        rows[j].counts = consph_calloc((size_t)nbins, sizeof(size_t));
+        if (!rows[j].counts) {
+            rc = CONSPH_ENOMEM;
+            break;
+        }
+        nrows = j + 1;
+        if ((rc = m0_measure(&pl, p, nx, nbins, lo, hi, &rows[j]))) break;
+        if (log)
+            fprintf(log, "  nx=%-6zu N=%-8zu nbr=%-9.1f M0 mean %.6f std %.3e (interior %.3e)\n",
+                    nx, rows[j].n, rows[j].nbr, rows[j].mean, rows[j].std, rows[j].std_in);
+    }
+    char path[1200], name[256];
+    consph_outfile of;
+    if (rc == CONSPH_OK) {
+        snprintf(path, sizeof path, "%s/%s.csv", dir, f->id);
+        rc = consph_outfile_open(&of, path);
+    }
+    if (rc == CONSPH_OK) {
+        fprintf(of.fp, "nx,n,h,nbr_mean,m0_mean,m0_std,m0_mean_interior,m0_std_interior,m0_peak\n");
+        for (int j = 0; j < nrows; ++j)
+            fprintf(of.fp, "%zu,%zu,%.10g,%.6g,%.10g,%.6e,%.10g,%.6e,%.6g\n", rows[j].nx, rows[j].n,
+                    rows[j].h, rows[j].nbr, rows[j].mean, rows[j].std, rows[j].mean_in,
+                    rows[j].std_in, rows[j].peak);
+        rc = consph_outfile_commit(&of);
+    }
+    if (rc == CONSPH_OK) {
+        snprintf(path, sizeof path, "%s/%s.dat", dir, f->id);
+        rc = consph_outfile_open(&of, path);
+    }
+    if (rc == CONSPH_OK) {
+        for (int j = 0; j < nrows; ++j) {
+            fprintf(of.fp, "# nx = %zu: M0, fraction of particles per unit M0\n", rows[j].nx);
+            for (int b = 0; b < nbins; ++b) {
+                double w = (hi - lo) / nbins;
+                fprintf(of.fp, "%.8g %.8g\n", lo + (b + 0.5) * w,
+                        (double)rows[j].counts[b] / ((double)rows[j].n * w));
+            }
+            fprintf(of.fp, "\n\n");
+        }
+        rc = consph_outfile_commit(&of);
+    }
+    if (rc == CONSPH_OK) {
+        snprintf(path, sizeof path, "%s/%s.md", dir, f->id);
+        rc = consph_outfile_open(&of, path);
+    }
+    if (rc == CONSPH_OK) {
+        FILE *o = of.fp;
+        fprintf(o, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
+        const char *note = study_get(s, f, NULL, "note");
+        if (note) fprintf(o, "%s\n\n", note);
+        fprintf(o, "Run: %s resolutions; kernel `%s`, layout `%s`, dim %d, volumes `%s`, h %s.\n\n",
+                quick ? "quick" : "full (paper)", pl.kernel_name,
+                consph_layout_name(pl.spec.layout.kind), pl.spec.layout.dim,
+                consph_volume_name(pl.spec.volume),
+                pl.spec.h_policy == CONSPH_H_SCALING ? "= N^(-1/6)" : "= hdx·Δs");
+        fprintf(o, "| nx | N | h | neighbours | mean M0 | σ(M0) all | mean M0 interior | σ(M0) "
+                   "interior | peak |\n|---|---|---|---|---|---|---|---|---|\n");
+        double xs[MAX_SWEEP], ys[MAX_SWEEP];
+        for (int j = 0; j < nrows; ++j) {
+            fprintf(o, "| %zu | %zu | %.4g | %.1f | %.6f | %.3e | %.6f | %.3e | %.4f |\n",
+                    rows[j].nx, rows[j].n, rows[j].h, rows[j].nbr, rows[j].mean, rows[j].std,
+                    rows[j].mean_in, rows[j].std_in, rows[j].peak);
+            xs[j] = rows[j].nbr;
+            ys[j] = rows[j].std_in;
+        }
+        consph_order_fit fit;
+        if (consph_fit_order(xs, ys, nrows, &fit) == CONSPH_OK)
+            fprintf(o,
+                    "\nFitted σ(M0, interior) ∝ 𝒩^-p with p = %.2f ± %.2f (Zhu et al., quoted by "
+                    "003/000: p = 1 for low-discrepancy sets, 1/2 for random ones).\n\n",
+                    fit.order, fit.order_stderr);
+        if (have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
+        rc = consph_outfile_commit(&of);
+    }
+    if (rc == CONSPH_OK) {
+        snprintf(path, sizeof path, "%s/%s.gp", dir, f->id);
+        rc = consph_outfile_open(&of, path);
+    }
+    if (rc == CONSPH_OK) {
+        FILE *o = of.fp;
+        fprintf(o, "set terminal svg size 900,640 dynamic\nset output '%s.svg'\n", f->id);
+        fprintf(o,
+                "set title \"%s\" noenhanced\nset grid\nset xlabel 'M0'\nset ylabel "
+                "'particles (density)'\nset key outside right\nplot",
+                get_or(s, f, NULL, "title", f->id));
+        for (int j = 0; j < nrows; ++j)
+            fprintf(o, "%s '%s.dat' index %d using 1:2 with lines title 'N = %zu'",
+                    j ? ", \\\n    " : " ", f->id, j, rows[j].n);
+        fprintf(o, "\n");
+        rc = consph_outfile_commit(&of);
+        snprintf(name, sizeof name, "%s.gp", f->id);
+        if (rc == CONSPH_OK) run_gnuplot(dir, name, log);
+    }
+    for (int j = 0; j < nrows; ++j) free(rows[j].counts);
+    return rc;
+}
+
+/* ---- appc: 003 App. C, the closed-form discrete error of a 1D Gaussian sum ---- */
+
+/* The untruncated Gaussian of 003 eq. C.1, cut where it falls below 1e-21 of its peak. */
+#define APPC_CUT 7.0
+
+static double appc_sum(const consph_particles *p, size_t i, const consph_nnps *g, double h,
+                       const double *f, consph_nbrs *nb)
+{
+    size_t c = consph_nnps_query_particle(g, i, nb);
+    double s = 0.0;
+    for (size_t k = 0; k < c; ++k) {
+        double q = nb->r[k] / h;
+        s += f[nb->j[k]] * p->spacing * exp(-q * q) / (sqrt(M_PI) * h);
+    }
+    return s;
+}
+
+static int run_appc_figure(const consph_study *s, const study_figure *f, int quick, const char *dir,
+                           FILE *log)
+{
+    series_plan pl;
+    int rc = build_plan(s, f, &f->series[0], quick, &pl);
+    if (rc) return rc;
+    size_t nx = pl.nx_fixed;
+    double closed[MAX_SWEEP], per[MAX_SWEEP], lin[MAX_SWEEP];
+    for (int j = 0; rc == CONSPH_OK && j < pl.nvalues; ++j) {
+        double hd = pl.values[j];
+        closed[j] = 0.0;
+        for (int m = 1; m < 60; ++m) closed[j] += 2.0 * exp(-M_PI * M_PI * m * m * hd * hd);
+        /* f = 1 on a periodic lattice: every image within the cut is summed. */
+        for (int periodic = 1; periodic >= 0 && rc == CONSPH_OK; --periodic) {
+            consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_LATTICE, 1, nx);
+            lp.box = consph_box_unit(1, periodic);
+            consph_particles p;
+            if ((rc = consph_layout_generate(&lp, &p, NULL))) break;
+            double h = hd * p.spacing;
+            consph_nnps *g = consph_nnps_create(&p.box, APPC_CUT * h, 0);
+            double *fv = consph_calloc(p.n, sizeof(double));
+            consph_nbrs nb;
+            memset(&nb, 0, sizeof nb);
+            if (!g || !fv || consph_nnps_build(g, &p) != CONSPH_OK) {
+                rc = CONSPH_ENOMEM;
+            } else if (periodic) {
+                for (size_t i = 0; i < p.n; ++i) fv[i] = 1.0;
+                per[j] = appc_sum(&p, 0, g, h, fv, &nb) - 1.0;
+            } else {
+                /* f = α + βx at the central particle, whose cut support lies inside the box. */
+                for (size_t i = 0; i < p.n; ++i) fv[i] = 1.0 + 2.0 * p.x[0][i];
+                size_t c = p.n / 2;
+                if (APPC_CUT * h >= 0.5)
+                    rc = consph_fail(CONSPH_EINVAL, "appc: h too large");
+                else
+                    lin[j] = appc_sum(&p, c, g, h, fv, &nb) / fv[c] - 1.0;
+            }
+            consph_nbrs_free(&nb);
+            free(fv);
+            consph_nnps_free(g);
+            consph_particles_free(&p);
+        }
+        if (log && rc == CONSPH_OK)
+            fprintf(log, "  h/Δ=%-5g closed form %.6e, periodic f=1 %.6e, linear f %.6e\n", hd,
+                    closed[j], per[j], lin[j]);
+    }
+    if (rc) return rc;
+    char path[1200];
+    consph_outfile of;
+    snprintf(path, sizeof path, "%s/%s.csv", dir, f->id);
+    if ((rc = consph_outfile_open(&of, path))) return rc;
+    fprintf(of.fp, "h_over_delta,closed_form,periodic_const,linear_centre\n");
+    for (int j = 0; j < pl.nvalues; ++j)
+        fprintf(of.fp, "%g,%.10e,%.10e,%.10e\n", pl.values[j], closed[j], per[j], lin[j]);
+    if ((rc = consph_outfile_commit(&of))) return rc;
+    snprintf(path, sizeof path, "%s/%s.md", dir, f->id);
+    if ((rc = consph_outfile_open(&of, path))) return rc;
+    fprintf(of.fp, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
+    const char *note = study_get(s, f, NULL, "note");
+    if (note) fprintf(of.fp, "%s\n\n", note);
+    fprintf(of.fp,
+            "Lattice of %zu particles on [0,1), Gaussian exp(-x²/h²)/(√π h) summed to "
+            "%g h. Relative error of the SPH sum against 003 eq. C.4.\n\n",
+            nx, APPC_CUT);
+    fprintf(of.fp, "| h/Δ | closed form 2Σexp(-π²j²h²/Δ²) | ours, f = 1 periodic | ours, f = α+βx "
+                   "| |ours − closed| |\n|---|---|---|---|---|\n");
+    for (int j = 0; j < pl.nvalues; ++j)
+        fprintf(of.fp, "| %g | %.6e | %.6e | %.6e | %.1e |\n", pl.values[j], closed[j], per[j],
+                lin[j], fmax(fabs(per[j] - closed[j]), fabs(lin[j] - closed[j])));
+    fprintf(of.fp, "\n");
+    return consph_outfile_commit(&of);
+}
+
+/* ---- study level ---- */
+
+int consph_study_validate(const consph_study *s, int quick)
+{
+    for (int k = 0; k < s->nfigs; ++k)
+        for (int r = 0; r < s->figs[k].nseries; ++r) {
+            series_plan pl;
+            int rc = build_plan(s, &s->figs[k], &s->figs[k].series[r], quick, &pl);
+            if (rc) return rc;
+        }
+    return CONSPH_OK;
+}
+
+/* Neighbour pairs of one run, from geometry (the support volume in particle spacings). */
+static double pairs_estimate(const series_plan *pl, double nx)
+{
+    int d = pl->spec.layout.dim;
+    double n = pow(nx, d);
+    double support = consph_kernel_info_get(pl->spec.kernel)->support;
+    double unit_ball = d == 1 ? 2.0 : d == 2 ? M_PI : 4.0 * M_PI / 3.0;
+    double radius_dx = pl->spec.h_policy == CONSPH_H_SCALING ? support * consph_scaling_h(n) * nx
+                                                             : support * pl->spec.hdx;
+    return n * (1.0 + unit_ball * pow(radius_dx, d));
+}
+
+double consph_study_estimate(const consph_study *s, int quick)
+{
+    double pairs = 0.0, packed_particles = 0.0;
+    series_plan first;
+    int have_first = 0;
+    for (int k = 0; k < s->nfigs; ++k) {
+        if (figure_kind(s, &s->figs[k]) == KIND_APPC) continue;
+        for (int r = 0; r < s->figs[k].nseries; ++r) {
+            series_plan pl;
+            if (build_plan(s, &s->figs[k], &s->figs[k].series[r], quick, &pl)) return NAN;
+            if (!have_first) {
+                first = pl;
+                have_first = 1;
+            }
+            for (int j = 0; j < pl.nvalues; ++j) {
+                series_plan one = pl;
+                double nx = pl.sweep_hdx ? (double)pl.nx_fixed : pl.values[j];
+                if (pl.sweep_hdx) one.spec.hdx = pl.values[j];
+                pairs += pairs_estimate(&one, nx);
+                if (pl.spec.layout.kind == CONSPH_LAYOUT_PACKED)
+                    packed_particles += pow(nx, pl.spec.layout.dim);
+            }
+        }
+    }
+    if (!have_first) return 0.0;
+    /* Calibrate on a small run of the first series (about 2500 particles). */
+    double nx_cal = first.spec.layout.dim == 1 ? 2500 : first.spec.layout.dim == 2 ? 50 : 14;
+    consph_approx_row row;
+    double t0 = consph_wtime();
+    if (consph_approx_run(&first.spec, (size_t)nx_cal, &row) != CONSPH_OK) return NAN;
+    double total = consph_wtime() - t0;
+    double per_pair = (total - row.layout_seconds) / pairs_estimate(&first, nx_cal);
+    double per_packed = 0.0;
+    if (packed_particles > 0) {
+        consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED, 2, 40);
+        consph_particles p;
+        t0 = consph_wtime();
+        if (consph_layout_generate(&lp, &p, NULL) == CONSPH_OK) {
+            per_packed = (consph_wtime() - t0) / (double)p.n;
+            consph_particles_free(&p);
+        }
+    }
+    return pairs * per_pair + packed_particles * per_packed;
+}
+
+int consph_study_run(const consph_study *s, const consph_study_options *opt)
+{
+    int rc = consph_study_validate(s, opt->quick);
+    if (rc) return rc;
+    char dir[1024];
+    snprintf(dir, sizeof dir, "%s/%s", opt->out_dir, consph_study_name(s));
+    if ((rc = mkdir_p(dir))) return rc;
+    layout_cache *cache = calloc(1, sizeof *cache);
+    if (!cache) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    FILE *log = opt->log;
+    for (int k = 0; rc == CONSPH_OK && k < s->nfigs; ++k) {
+        const study_figure *f = &s->figs[k];
+        if (log) fprintf(log, "[%s] %s\n", f->id, get_or(s, f, NULL, "title", ""));
+        double t0 = consph_wtime();
+        switch (figure_kind(s, f)) {
+        case KIND_M0:
+            rc = run_m0_figure(s, f, opt->quick, cache, dir, log);
+            break;
+        case KIND_APPC:
+            rc = run_appc_figure(s, f, opt->quick, dir, log);
+            break;
+        default:
+            rc = run_approx_figure(s, f, opt->quick, cache, dir, log);
+            break;
+        }
+        if (log && rc == CONSPH_OK)
+            fprintf(log, "  -> %s/%s.md (%.1f s)\n", dir, f->id, consph_wtime() - t0);
+    }
+    cache_free(cache);
+    free(cache);
+    if (rc) return rc;
+    /* The study's README: title, then every figure's report in order. */
+    char path[1200];
+    consph_outfile of;
+    snprintf(path, sizeof path, "%s/README.md", dir);
+    if ((rc = consph_outfile_open(&of, path))) return rc;
+    fprintf(of.fp, "# %s: %s\n\n", consph_study_name(s), consph_study_title(s));
+    const char *note = study_get(s, NULL, NULL, "note");
+    if (note) fprintf(of.fp, "%s\n\n", note);
+    fprintf(of.fp, "Generated by `consph study %s%s` (consph %s).\n\n", consph_study_name(s),
+            opt->quick ? " --quick" : "", CONSPH_VERSION);
+    for (int k = 0; k < s->nfigs; ++k) {
+        char md[1200], buf[4096];
+        snprintf(md, sizeof md, "%s/%s.md", dir, s->figs[k].id);
+        FILE *in = fopen(md, "r");
+        if (!in) continue;
+        size_t got;
+        while ((got = fread(buf, 1, sizeof buf, in)) > 0) fwrite(buf, 1, got, of.fp);
+        fclose(in);
+    }
+    return consph_outfile_commit(&of);
+}
