@@ -1,0 +1,46 @@
+#!/usr/bin/env bash
+# `make install` contents: library, headers, pkg-config file and CMake package, each usable by a
+# program outside the tree.
+set -u
+consph=$1 src=$2
+build=$(dirname "$consph")
+command -v pkg-config >/dev/null || { echo "pkg-config not installed: skipped"; exit 77; }
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+fail=0
+bad() { echo "FAIL: $*"; fail=1; }
+cmake --install "$build" --prefix "$tmp/prefix" >"$tmp/install.log" 2>&1 || { cat "$tmp/install.log"; bad "cmake --install"; }
+for f in include/consph/consph.h include/consph/ops.h include/consph/study.h bin/consph; do
+  [ -e "$tmp/prefix/$f" ] || bad "not installed: $f"
+done
+ls "$tmp"/prefix/lib*/libconsph.a >/dev/null 2>&1 || bad "static library not installed"
+ls "$tmp"/prefix/lib*/libconsph.so >/dev/null 2>&1 || bad "shared library not installed"
+ls "$tmp"/prefix/share/consph/studies/*.study >/dev/null 2>&1 || bad "studies not installed"
+cat >"$tmp/use.c" <<'C'
+#include <consph/consph.h>
+#include <stdio.h>
+int main(void)
+{
+    consph_kernel k;
+    if (consph_kernel_init(&k, CONSPH_KERNEL_CUBIC, 1, 1.0) != CONSPH_OK) return 1;
+    printf("%.12f\n", consph_kernel_w(&k, 0.0)); /* sigma_1 = 2/3 */
+    return 0;
+}
+C
+pc=$(ls -d "$tmp"/prefix/lib*/pkgconfig | head -1)
+PKG_CONFIG_PATH=$pc cc "$tmp/use.c" -o "$tmp/use_pc" $(PKG_CONFIG_PATH=$pc pkg-config --cflags --libs --static consph) \
+  >"$tmp/cc.log" 2>&1 || { cat "$tmp/cc.log"; bad "compile with pkg-config"; }
+[ "$(LD_LIBRARY_PATH=$(dirname "$pc") "$tmp/use_pc" 2>/dev/null)" = "0.666666666667" ] || bad "pkg-config program output"
+mkdir -p "$tmp/proj"
+cat >"$tmp/proj/CMakeLists.txt" <<'CM'
+cmake_minimum_required(VERSION 3.16)
+project(use C)
+find_package(consph REQUIRED)
+add_executable(use ../use.c)
+target_link_libraries(use consph::consph)
+CM
+cmake -S "$tmp/proj" -B "$tmp/proj/b" -DCMAKE_PREFIX_PATH="$tmp/prefix" >"$tmp/cm.log" 2>&1 &&
+  cmake --build "$tmp/proj/b" >>"$tmp/cm.log" 2>&1 || { cat "$tmp/cm.log"; bad "find_package(consph)"; }
+[ "$("$tmp/proj/b/use" 2>/dev/null)" = "0.666666666667" ] || bad "CMake package program output"
+[ $fail = 0 ] && echo "cli_install: 1 passed, 0 failed" || echo "cli_install: 0 passed, 1 failed"
+exit $fail
