@@ -19,9 +19,12 @@ static const char layout_details[] =
     "  quasi-random  Halton points (bases 2, 3, 5; sequence indices 1..N^D, index 0 skipped)\n"
     "                filling the box (003 §6.2); spacing (V/N)^(1/D)\n"
     "  packed        001's PP arrangement: the lattice perturbed by up to --perturb Δs per\n"
-    "                coordinate, then relaxed by the particle packing of Negi & Ramachandran\n"
-    "                (2021) until max|rho/rho0 - 1| < --tol or --max-iter steps; needs a\n"
-    "                periodic box\n"
+    "                coordinate, relaxed into a glass by the particle packing of Negi &\n"
+    "                Ramachandran (2021) (background pressure, short-range repulsion and\n"
+    "                damping with the quintic at h = 1.2Δs), then polished by a damped descent\n"
+    "                of sum_i (rho_i/rho0 - 1)^2 with --kernel and --hdx, until\n"
+    "                max|rho/rho0 - 1| < --tol or --max-iter steps. Needs a periodic box.\n"
+    "                Perturbations below about 0.35 relax back to the lattice instead of a glass.\n"
     "\n"
     "Every kind adds the per-particle field 'volume' = box volume / particle count. The printed\n"
     "statistics use the summation density rho_i = sum_j m W_ij with m = Δs^D (rho0 = 1) and the\n"
@@ -47,6 +50,11 @@ static void print_report(const consph_packing_report *r, double tol)
     printf("packing: %d iterations in %.3f s, max|rho/rho0-1| %.3e -> %.3e (tol %.1e, %s)\n",
            r->iterations, r->seconds, r->rho_spread_initial, r->rho_spread_final, tol,
            converged ? "converged" : "NOT converged: --max-iter reached");
+    if (r->polish_start >= 0)
+        printf("  glass stage: iterations 0..%d; density polishing from iteration %d\n",
+               r->polish_start, r->polish_start);
+    else
+        printf("  glass stage only (the tolerance was met before density polishing)\n");
     if (r->nhistory > 0) {
         printf("  %9s  %s\n", "iteration", "max|rho/rho0-1|");
         for (int k = 0; k < r->nhistory; ++k)
@@ -73,7 +81,8 @@ int cmd_layout(int argc, char **argv)
         {"--eps", CLI_DOUBLE, &eps, "E", "random: perturbation factor ε (default 0.2)", NULL, 0.0,
          2.0, 0},
         {"--kernel", CLI_STRING, &kernel, "K",
-         "kernel for the density statistics and the packing (default quintic)", NULL, 0, 0, 0},
+         "kernel of the density statistics and of the packed density target (default quintic)",
+         NULL, 0, 0, 0},
         {"--hdx", CLI_DOUBLE, &hdx, "R", "h/Δs for that kernel (default 1.2)", NULL, 0.01, 10.0, 0},
         {"--perturb", CLI_DOUBLE, &perturb, "A",
          "packed: initial perturbation amplitude in Δs (default 0.5)", NULL, 0.0, 0.5, 0},
@@ -131,6 +140,11 @@ int cmd_layout(int argc, char **argv)
     if (consph_kernel_lookup(kernel, &kernel_id) != CONSPH_OK)
         return cli_error(&cmd, "option --kernel: unknown value '%s'; allowed: %s", kernel,
                          consph_kernel_names());
+    if (kind == CONSPH_LAYOUT_PACKED && consph_kernel_info_get(kernel_id)->tensor)
+        return cli_error(&cmd,
+                         "option --kernel: '%s' is a tensor-product remeshing kernel; --kind "
+                         "packed needs a radial kernel",
+                         kernel);
     int periodic = periodic_index == 0;
     if (kind == CONSPH_LAYOUT_PACKED && !periodic)
         return cli_error(&cmd, "option --periodic: --kind packed needs a periodic box; allowed: "

@@ -10,6 +10,14 @@
  * Arrays are component-major: component c of particle i is a[c * n + i], n = ctx->n, for the
  * input (a scalar, or a dim-vector for the divergence) and for the output.
  *
+ * What each form returns: the pressure-gradient forms asym, sym1, sym2 and sym_s1 approximate
+ * ∇p/ρ as 001 Table 2 writes them (ϱ = ρ = m/ω); every other gradient form approximates ∇f.
+ * "cspm" is Shepard for the function and F4 for the gradient (the same operators, catalogue
+ * §A4-§A5), and 000 eqs. 31-32 for the second derivatives, which take F' from F4 and so are
+ * exact on quadratics only where the neighbourhood is point-symmetric. The correction "fatehi"
+ * exists for the form "fatehi" only, where it gives the S4 scheme of 002 (exact on quadratics);
+ * "fatehi_c" is 001's traced variant (exact only on the trace, e.g. ∇²|x|²).
+ *
  * Correction matrices (Bonet-Lok B, Liu/FPM L, Fatehi B̂, Korzilius Γ̃, CSPM, MSPH, IAD) are
  * computed in a pass of their own on first use and cached in the context (O(N·d²) memory). A
  * matrix whose condition estimate exceeds ctx->cond_max (or that is singular or not finite) is
@@ -47,6 +55,7 @@ typedef enum consph_op_form {
     CONSPH_FORM_SHEPARD,   /* "shepard": Shepard/CSPM function, 000 eq. 28 */
     CONSPH_FORM_FPM,       /* "fpm": Liu-Liu FPM, 000 eqs. 33-36 = 001 eq. A.5 */
     CONSPH_FORM_MSPH,      /* "msph": Zhang-Batra MSPH, 000 §3.3 (f, ∇f, ∂²f together) */
+    CONSPH_FORM_CSHEPARD,  /* "cshepard": consistent Shepard, 000 eqs. 59-64 */
     CONSPH_FORM_F1,        /* "f1": Σ ω_j u_j ∇W_ij, 002 eq. 2 */
     CONSPH_FORM_F2,        /* "f2": Σ ω_j (u_j - u_i) ∇W_ij, 002 eq. 3 */
     CONSPH_FORM_F3,        /* "f3": Σ ω_j (u_j + u_i) ∇W_ij, 002 eq. 4 */
@@ -135,7 +144,10 @@ typedef struct consph_op_ctx {
     double *mass;
     double *rho;
     double *volume;
-    double cond_max; /* fallback threshold on the condition estimate (default 1e8) */
+    double cond_max;     /* fallback threshold on the condition estimate (default 1e8); matrices
+                            already cached keep the threshold they were built with until refresh */
+    size_t parallel_min; /* passes over fewer particles run on one thread (default 2048): a
+                            parallel region costs more than it saves on tiny sets */
     struct consph_ops_cache *cache;
 } consph_op_ctx;
 
@@ -193,6 +205,15 @@ const double *consph_op_fatehi_c(consph_op_ctx *ctx, const unsigned char **bad);
  * NULL. */
 int consph_op_boundary_1d(consph_op_ctx *ctx, const double *in, double fA, double fB, double *d1,
                           double *d2, consph_op_report *rep);
+
+/* Consistent-Shepard factors c̃ (000 eqs. 62-63): the power iteration c̃ <- A c̃ / s with
+ * (A c̃)_a = Σ_b ω_b c̃_b W_ab, from c̃ = 1, where s makes Σ_a ω_a c̃_a = Σ_a ω_a (the paper leaves
+ * the norm open; s tends to the dominant eigenvalue of A, which is close to but not exactly 1).
+ * Stops when max_a |Δc̃_a| < tol or after max_iter sweeps; writes n values to ctilde (may be
+ * NULL) and the sweeps run. The function form "cshepard" uses tol 1e-10, max_iter 2000 and
+ * caches the result. */
+int consph_op_cshepard_factors(consph_op_ctx *ctx, double tol, int max_iter, double *ctilde,
+                               int *iterations, double *lambda);
 
 /* ---- consistency diagnostics (catalogue §A2, §A9) ---- */
 

@@ -43,7 +43,13 @@ int consph_layout_density(const consph_nnps *grid, const consph_kernel *kernel, 
             double w = 0.0, nearest = INFINITY;
             for (size_t q = 0; q < count; ++q) {
                 double r = nb->r[q];
-                if (rho) w += consph_kernel_w(kernel, r);
+                if (rho && kernel->tensor) {
+                    double dx[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+                    for (int a = 0; a < kernel->dim; ++a) dx[a] = nb->dx[a][q];
+                    w += consph_kernel_w_vec(kernel, dx);
+                } else if (rho) {
+                    w += consph_kernel_w(kernel, r);
+                }
                 if (nn_dist && r < nearest && (r > 0.0 || nb->j[q] != i)) nearest = r;
             }
             if (rho) rho[i] = mass * w;

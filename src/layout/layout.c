@@ -46,7 +46,12 @@ consph_layout_params consph_layout_defaults(consph_layout_kind kind, int dim, si
     lp.kind = kind;
     lp.dim = dim;
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < dim ? nx : 1;
-    lp.box = consph_box_unit(dim, 1);
+    /* An invalid dim is kept for consph_layout_generate to reject; the box must not be built
+     * with it (consph_box_unit would index past its arrays). */
+    if (dim >= 1 && dim <= CONSPH_MAX_DIM)
+        lp.box = consph_box_unit(dim, 1);
+    else
+        lp.box.dim = dim;
     lp.seed = 1;
     lp.eps = 0.2;
     lp.packing.kernel = "quintic";

@@ -15,19 +15,21 @@
  * V_i = m/rho_i from the summation density rho_i = m sum_j W_ij, m = rho0 Δs^d. This stage always
  * uses the quintic spline with h = 1.2Δs, the setting of [51] and of 001, whatever kernel the
  * caller names: the caller's kernel is "the kernel for the density estimate" (stage 2 and the
- * stopping test), and kernels with many neighbours would pair particles here (the quintic at
- * h = 2Δs does). Parameters are that implementation's defaults: p_b = 1 with rho0 = 1
- * (c0 = sqrt(p_b/rho0) = 1),
- * ν = 0.2/Δs (1D, 2D) or 0.5/Δs (3D), k = 0.004Δs (1D, 2D) or 0.006Δs (3D), c = (2/3)·0.95Δs
- * (repulsion range 0.95Δs), Δt = 0.1 h/c0 = 0.12Δs. The boundary-node machinery of [51] has nothing
- * to do in a periodic box and is left out. Integration is the damped explicit Euler step of that
+ * stopping test), and kernels with many neighbours pair particles in this stage (the quintic
+ * at h = 2Δs did: nearest-neighbour distances down to 0.13Δs). Parameters are the defaults of
+ * that implementation: p_b = 1 with rho0 = 1 (c0 = sqrt(p_b/rho0) = 1); ν = 0.2/Δs in 1D and 2D,
+ * 0.5/Δs in 3D; k = 0.004Δs in 1D and 2D, 0.006Δs in 3D; c = (2/3)·0.95Δs (repulsion range
+ * 0.95Δs); Δt = 0.1 h/c0 = 0.12Δs. The boundary-node machinery of [51] has nothing to do in a
+ * periodic box and is left out. Integration is the damped explicit Euler step of that
  * implementation except that x is advanced with the new velocity (symplectic Euler).
- * This stage turns the perturbed lattice into a glass; with perturb = 0.5 its geometry matches
+ * This stage turns the perturbed lattice into a glass: with perturb = 0.5 its geometry matches
  * the author's packed files (catalogue Z7: mean distance to the nearest lattice node ≈ 0.34Δs).
- * (With perturb <= 0.25 the square lattice is restored instead: it is a stable equilibrium.)
- * Its own equilibrium is not uniform density, though: the spread stalls near 3e-3.
+ * Smaller perturbations relax back towards the square lattice, which is a stable equilibrium
+ * of these forces (measured at nx = 50: mean distance to the node 0.02Δs at perturb = 0.25,
+ * 0.09Δs at 0.3, 0.18Δs at 0.35, 0.34Δs at 0.5). The equilibrium of stage 1 is not uniform
+ * density, though: its spread stalls at a few 1e-3.
  *
- * Stage 2, density polishing (ours; the catalogue asks for max|rho/rho0 - 1| < tol, which stage
+ * Stage 2, density polishing (ours: the packing is asked for max|rho/rho0 - 1| < tol, which stage
  * 1 cannot reach): once stage 1 stalls (its best spread has not improved by 10% for 200 steps,
  * or half of max_iter is spent), the background-pressure force is replaced by the gradient of
  * the density error E = (K/2) sum_i (rho_i/rho0 - 1)^2 with the caller's kernel,
@@ -155,7 +157,14 @@ static int check_packing(const consph_layout_params *lp, consph_kernel_id *id)
     if (pp->history_every < 0)
         return consph_fail(CONSPH_EINVAL, "layout packed: history_every = %d is negative",
                            pp->history_every);
-    return consph_kernel_lookup(pp->kernel ? pp->kernel : "quintic", id);
+    int rc = consph_kernel_lookup(pp->kernel ? pp->kernel : "quintic", id);
+    if (rc) return rc;
+    if (consph_kernel_info_get(*id)->tensor)
+        return consph_fail(CONSPH_EINVAL,
+                           "layout packed: kernel '%s' is a tensor-product remeshing kernel; the "
+                           "packing needs a radial kernel",
+                           pp->kernel);
+    return CONSPH_OK;
 }
 
 /* The short-range repulsion of stage 1 and 2. */
@@ -262,16 +271,18 @@ static int compute_acceleration(const consph_nnps *grid, const force_params *fp,
 static void advance(consph_particles *p, pack_work *w, double dt, double nu)
 {
     const double damp = 1.0 - nu * dt;
-    for (int a = 0; a < w->dim; ++a) {
-        double lo = p->box.lo[a], len = consph_box_length(&p->box, a);
-        double *x = p->x[a], *u = w->u[a];
-        const double *acc = w->acc[a];
-#pragma omp parallel for schedule(static)
-        for (size_t i = 0; i < w->n; ++i) {
-            u[i] = damp * u[i] + dt * acc[i];
-            x[i] = layout_wrap(x[i] + dt * u[i], lo, len);
-        }
+    const int dim = w->dim;
+    double lo[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM];
+    for (int a = 0; a < dim; ++a) {
+        lo[a] = p->box.lo[a];
+        len[a] = consph_box_length(&p->box, a);
     }
+#pragma omp parallel for schedule(static)
+    for (size_t i = 0; i < w->n; ++i)
+        for (int a = 0; a < dim; ++a) {
+            w->u[a][i] = damp * w->u[a][i] + dt * w->acc[a][i];
+            p->x[a][i] = layout_wrap(p->x[a][i] + dt * w->u[a][i], lo[a], len[a]);
+        }
 }
 
 static int record_history(consph_packing_report *r, int cap, int iter, double spread)

@@ -1,6 +1,7 @@
 /* The operator context (particles, search, kernel, volumes), the parallel particle pass and the
  * cache of correction matrices. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -74,18 +75,28 @@ int ops_run(const consph_op_ctx *ctx, unsigned need, ops_visit_fn visit, void *j
     const size_t n = ctx->n;
     int status = CONSPH_OK;
     size_t total = 0;
-#pragma omp parallel
+    /* consph_fail records per thread: a worker's message is copied out here. */
+    char why[256] = "";
+#pragma omp parallel if (n >= ctx->parallel_min)
     {
         pass_scratch s;
         memset(&s, 0, sizeof s);
         int my_status = CONSPH_OK;
+        char my_why[256] = "";
         size_t my_pairs = 0;
 #pragma omp for schedule(dynamic, 128)
         for (size_t i = 0; i < n; ++i) {
             if (my_status != CONSPH_OK) continue;
             size_t m = consph_nnps_query_particle(ctx->nnps, i, &s.nb);
-            if (m == (size_t)-1 || scratch_reserve(&s, m) != CONSPH_OK) {
+            if (m == (size_t)-1) {
+                my_status = CONSPH_EINVAL;
+                snprintf(my_why, sizeof my_why, "neighbour query of particle %zu failed: %s", i,
+                         consph_last_error());
+                continue;
+            }
+            if (scratch_reserve(&s, m) != CONSPH_OK) {
                 my_status = CONSPH_ENOMEM;
+                snprintf(my_why, sizeof my_why, "out of memory for %zu neighbours", m);
                 continue;
             }
             eval_kernel(&ctx->kernel, need, m, s.nb.r, s.w, s.dwr, s.d2w);
@@ -104,13 +115,16 @@ int ops_run(const consph_op_ctx *ctx, unsigned need, ops_visit_fn visit, void *j
 #pragma omp critical(consph_ops_run)
         {
             total += my_pairs;
-            if (my_status != CONSPH_OK && status == CONSPH_OK) status = my_status;
+            /* Several threads may fail; keep the lowest status so the message is reproducible. */
+            if (my_status != CONSPH_OK && (status == CONSPH_OK || my_status < status)) {
+                status = my_status;
+                memcpy(why, my_why, sizeof why);
+            }
         }
         scratch_free(&s);
     }
     if (pairs) *pairs += total;
-    if (status != CONSPH_OK)
-        return consph_fail(status, "operator pass: out of memory for neighbour buffers");
+    if (status != CONSPH_OK) return consph_fail(status, "operator pass: %s", why);
     return CONSPH_OK;
 }
 
@@ -190,6 +204,10 @@ static void cache_clear(struct consph_ops_cache *c)
         c->nbad[m] = 0;
         c->max_cond[m] = 0.0;
     }
+    free(c->ctilde);
+    c->ctilde = NULL;
+    c->ctilde_lambda = 0.0;
+    c->ctilde_iterations = 0;
 }
 
 int consph_op_ctx_init(consph_op_ctx *ctx, const consph_particles *p, const consph_nnps *nnps,
@@ -219,6 +237,7 @@ int consph_op_ctx_init(consph_op_ctx *ctx, const consph_particles *p, const cons
     ctx->dim = p->dim;
     ctx->n = p->n;
     ctx->cond_max = 1e8;
+    ctx->parallel_min = 2048;
     ctx->mass = consph_calloc(p->n, sizeof(double));
     ctx->rho = consph_calloc(p->n, sizeof(double));
     ctx->volume = consph_calloc(p->n, sizeof(double));

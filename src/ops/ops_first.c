@@ -2,8 +2,10 @@
  *
  * Every form that uses the kernel gradient takes it through one corrected-gradient rule,
  * g̃_ij^α = c_i^α W_ij + M_i^{αβ} ∇^β W_ij, with (c, M) = (0, I) uncorrected, (0, B_i) for the
- * Bonet-Lok correction and the gradient rows of L_i^{-1} for the Liu correction (001 App. A),
- * so a correction costs the same arithmetic in every pair loop and no branch. */
+ * Bonet-Lok correction and the gradient rows of L_i^{-1} for the Liu correction (001 App. A).
+ * The rule is linear in (W, ∇W), so the gradient forms sum Σ s_j ∇W_ij and Σ s_j W_ij over the
+ * pairs and apply it once per particle; the divergence and sym_s1 (whose rule involves the
+ * neighbour's matrix) apply it per pair. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -22,6 +24,7 @@ typedef struct first_job {
     const double *mat; /* B, L^{-1}, IAD A^{-1} or MSPH inverse, per particle */
     size_t mat_size;
     const unsigned char *bad;
+    const double *ctilde; /* consistent-Shepard factors */
 } first_job;
 
 /* (c, M) of the corrected-gradient rule for particle i. */
@@ -61,10 +64,20 @@ static void visit_function(first_job *job, const ops_nbhd *nb)
     const double *vol = job->ctx->volume, *f = job->in;
     const size_t i = nb->i;
     double s = 0.0, s0 = 0.0;
-    for (size_t p = 0; p < nb->n; ++p) {
-        double ww = vol[nb->j[p]] * nb->w[p];
-        s += ww * f[nb->j[p]];
-        s0 += ww;
+    if (job->ctilde) {
+        /* consistent Shepard: the volumes ω_b/c_b = ω_b c̃_b of 000 eq. 61 */
+        const double *c = job->ctilde;
+        for (size_t p = 0; p < nb->n; ++p) {
+            double ww = vol[nb->j[p]] * c[nb->j[p]] * nb->w[p];
+            s += ww * f[nb->j[p]];
+            s0 += ww;
+        }
+    } else {
+        for (size_t p = 0; p < nb->n; ++p) {
+            double ww = vol[nb->j[p]] * nb->w[p];
+            s += ww * f[nb->j[p]];
+            s0 += ww;
+        }
     }
     /* 000 eq. 28: the Shepard (= CSPM) function divides by M0 = Σ ω W, which the self term
      * keeps positive. */
@@ -110,6 +123,60 @@ static void visit_taylor(first_job *job, const ops_nbhd *nb)
         for (int p = 0; p < P; ++p) job->out_hess[p * N + i] = sol[1 + d + p];
 }
 
+#if defined(__GNUC__)
+#define OPS_INLINE static inline __attribute__((always_inline))
+#else
+#define OPS_INLINE static inline
+#endif
+
+/* Σ_j s_j ∇W_ij and Σ_j s_j W_ij with s_j = ω_j (f_j - shift) (sym2: m_j (f_j/ρ_j² + c)), for a
+ * dimension known at compile time; with_w only for the Liu correction. The correction is
+ * linear in ∇W, so it is applied to these sums once per particle instead of once per pair. */
+OPS_INLINE void grad_sums(const int d, const int sym2, const int with_w, const ops_nbhd *nb,
+                          const double *vol, const double *mass, const double *rho, const double *f,
+                          double shift, double *sg, double *sw)
+{
+    double g0 = 0.0, g1 = 0.0, g2 = 0.0, aw = 0.0;
+    const double *dx0 = nb->dx[0], *dx1 = nb->dx[1], *dx2 = nb->dx[2];
+    for (size_t p = 0; p < nb->n; ++p) {
+        const size_t j = nb->j[p];
+        double s = sym2 ? mass[j] * (f[j] / (rho[j] * rho[j]) + shift) : vol[j] * (f[j] - shift);
+        double t = s * nb->dwr[p];
+        g0 += t * dx0[p];
+        if (d > 1) g1 += t * dx1[p];
+        if (d > 2) g2 += t * dx2[p];
+        if (with_w) aw += s * nb->w[p];
+    }
+    sg[0] = g0;
+    sg[1] = g1;
+    sg[2] = g2;
+    *sw = aw;
+}
+
+static void grad_sums_any(int d, int sym2, int with_w, const ops_nbhd *nb, const double *vol,
+                          const double *mass, const double *rho, const double *f, double shift,
+                          double *sg, double *sw)
+{
+#define GRAD_SUMS(D, S, W) grad_sums(D, S, W, nb, vol, mass, rho, f, shift, sg, sw)
+    if (d == 1) {
+        if (sym2)
+            with_w ? GRAD_SUMS(1, 1, 1) : GRAD_SUMS(1, 1, 0);
+        else
+            with_w ? GRAD_SUMS(1, 0, 1) : GRAD_SUMS(1, 0, 0);
+    } else if (d == 2) {
+        if (sym2)
+            with_w ? GRAD_SUMS(2, 1, 1) : GRAD_SUMS(2, 1, 0);
+        else
+            with_w ? GRAD_SUMS(2, 0, 1) : GRAD_SUMS(2, 0, 0);
+    } else {
+        if (sym2)
+            with_w ? GRAD_SUMS(3, 1, 1) : GRAD_SUMS(3, 1, 0);
+        else
+            with_w ? GRAD_SUMS(3, 0, 1) : GRAD_SUMS(3, 0, 0);
+    }
+#undef GRAD_SUMS
+}
+
 static void visit_gradient(first_job *job, const ops_nbhd *nb)
 {
     const int d = job->dim;
@@ -119,50 +186,33 @@ static void visit_gradient(first_job *job, const ops_nbhd *nb)
     const double fi = f[i];
     double c[3], M[9], acc[3] = {0, 0, 0};
     grad_rule(job, i, c, M);
-    /* The form is fixed for the whole call; each case is its own tight pair loop. */
     switch (job->form) {
     case CONSPH_FORM_F1:
     case CONSPH_FORM_F2:
     case CONSPH_FORM_F3:
     case CONSPH_FORM_F4:
     case CONSPH_FORM_CSPM:
-    case CONSPH_FORM_ASYM: {
-        /* F1 (002 eq. 2) sums u_j; F2/F4/CSPM/asym sum (u_j - u_i); F3 sums (u_j + u_i). */
-        double shift = job->form == CONSPH_FORM_F1 ? 0.0 : job->form == CONSPH_FORM_F3 ? -fi : fi;
-        for (size_t p = 0; p < nb->n; ++p) {
-            double x[3], g[3];
-            for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-            corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
-            double s = vol[nb->j[p]] * (f[nb->j[p]] - shift);
-            for (int a = 0; a < d; ++a) acc[a] += s * g[a];
-        }
-        if (job->form == CONSPH_FORM_ASYM)
-            for (int a = 0; a < d; ++a) acc[a] /= rho[i];
-        break;
-    }
-    case CONSPH_FORM_SYM1: {
-        /* (p_j + p_i)/(ρ_i ρ_j) m_j ∇W_ij (001 Table 2) */
-        for (size_t p = 0; p < nb->n; ++p) {
-            size_t j = nb->j[p];
-            double x[3], g[3];
-            for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-            corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
-            double s = mass[j] * (f[j] + fi) / (rho[i] * rho[j]);
-            for (int a = 0; a < d; ++a) acc[a] += s * g[a];
-        }
-        break;
-    }
+    case CONSPH_FORM_ASYM:
+    case CONSPH_FORM_SYM1:
     case CONSPH_FORM_SYM2: {
-        /* m_j (p_j/ρ_j² + p_i/ρ_i²) ∇W_ij (001 Table 2, first expression) */
-        double pi_rho2 = fi / (rho[i] * rho[i]);
-        for (size_t p = 0; p < nb->n; ++p) {
-            size_t j = nb->j[p];
-            double x[3], g[3];
-            for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-            corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
-            double s = mass[j] * (f[j] / (rho[j] * rho[j]) + pi_rho2);
-            for (int a = 0; a < d; ++a) acc[a] += s * g[a];
+        /* F1 (002 eq. 2) sums u_j; F2/F4/CSPM/asym (u_j - u_i); F3 and sym1 (u_j + u_i);
+         * asym is (p_j - p_i)/ρ_i ω_j ∇W, sym1 (p_j + p_i)/(ρ_i ρ_j) m_j ∇W = ω_j (p_j + p_i)/ρ_i
+         * ∇W and sym2 m_j (p_j/ρ_j² + p_i/ρ_i²) ∇W (001 Table 2). */
+        const consph_op_form form = job->form;
+        const int sym2 = form == CONSPH_FORM_SYM2;
+        double shift = form == CONSPH_FORM_F1                               ? 0.0
+                       : form == CONSPH_FORM_F3 || form == CONSPH_FORM_SYM1 ? -fi
+                       : sym2                                               ? fi / (rho[i] * rho[i])
+                                                                            : fi;
+        double sg[3], sw;
+        grad_sums_any(d, sym2, job->corr == CONSPH_CORR_LC, nb, vol, mass, rho, f, shift, sg, &sw);
+        for (int a = 0; a < d; ++a) {
+            double v = c[a] * sw;
+            for (int b = 0; b < d; ++b) v += M[a * d + b] * sg[b];
+            acc[a] = v;
         }
+        if (form == CONSPH_FORM_ASYM || form == CONSPH_FORM_SYM1)
+            for (int a = 0; a < d; ++a) acc[a] /= rho[i];
         break;
     }
     case CONSPH_FORM_SYM_S1: {
@@ -235,6 +285,7 @@ static void visit_first(void *vjob, const ops_nbhd *nb)
     switch (job->form) {
     case CONSPH_FORM_STANDARD:
     case CONSPH_FORM_SHEPARD:
+    case CONSPH_FORM_CSHEPARD:
         visit_function(job, nb);
         break;
     case CONSPH_FORM_FPM:
@@ -255,6 +306,7 @@ static unsigned first_needs(consph_op_form form, consph_op_corr corr)
     switch (form) {
     case CONSPH_FORM_STANDARD:
     case CONSPH_FORM_SHEPARD:
+    case CONSPH_FORM_CSHEPARD:
         return OPS_NEED_W;
     case CONSPH_FORM_IAD:
         return OPS_NEED_W | OPS_NEED_DW;
@@ -294,6 +346,9 @@ static int run_first(consph_op_ctx *ctx, consph_op_form form, consph_op_corr cor
         if (form == CONSPH_FORM_SYM_S1) job.corr = CONSPH_CORR_LC;
     } else if (form == CONSPH_FORM_MSPH) {
         m = OPS_MAT_MSPH;
+    } else if (form == CONSPH_FORM_CSHEPARD) {
+        int st = ops_ctilde(ctx, call, &job.ctilde);
+        if (st != CONSPH_OK) return st;
     } else if (form == CONSPH_FORM_IAD) {
         m = OPS_MAT_IAD;
     } else if (corr == CONSPH_CORR_BC) {

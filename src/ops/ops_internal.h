@@ -50,6 +50,9 @@ struct consph_ops_cache {
     unsigned char *bad[OPS_MAT_COUNT]; /* 1 where the particle fell back */
     size_t nbad[OPS_MAT_COUNT];
     double max_cond[OPS_MAT_COUNT]; /* over accepted matrices */
+    double *ctilde;                 /* consistent-Shepard factors c̃ (NULL until needed) */
+    double ctilde_lambda;           /* the last normalisation, -> the eigenvalue */
+    int ctilde_iterations;
 };
 
 /* Bookkeeping of one operator call: matrices used and pairs visited. */
@@ -83,6 +86,9 @@ void ops_pair_index(int dim, int p, int *l, int *k);
 /* The F4 (Bonet-Lok) gradient of the scalar `in` at every particle, into g (component-major,
  * dim components); falls back to F2 where B fell back. */
 int ops_grad_f4(consph_op_ctx *ctx, const double *in, double *g, ops_call *call);
+
+/* The consistent-Shepard factors, computed with the context's defaults on first use. */
+int ops_ctilde(consph_op_ctx *ctx, ops_call *call, const double **ctilde);
 
 /* The operator families behind consph_apply (ops_first.c, ops_second.c). */
 int ops_first(consph_op_ctx *ctx, consph_op op, consph_op_form form, consph_op_corr corr,

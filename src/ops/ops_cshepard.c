@@ -1,0 +1,101 @@
+/* Consistent Shepard interpolation (Reinhardt et al.; 000 §4.2, eqs. 59-64).
+ *
+ * The factors c̃ solve c̃_a = Σ_b c̃_b ω_b W_ab (eq. 62), an eigenproblem that the paper solves by
+ * power iteration (eq. 63) without naming the norm. The dominant eigenvalue of A is close to,
+ * but not exactly, 1 on a real particle set (catalogue §A4.5 ⚠), so the iteration fixes the
+ * scale by Σ_a ω_a c̃_a = Σ_a ω_a and the interpolant (eqs. 60, 61, 64) is written with the
+ * normalisation it implies at the fixed point, Σ_b ω_b c̃_b W_ab = λ c̃_a:
+ *     f_a = Σ_b ω_b c̃_b f_b W_ab / Σ_b ω_b c̃_b W_ab,
+ * which reproduces constants exactly whether or not the iteration has fully converged. */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "ops/ops_internal.h"
+
+typedef struct power_job {
+    const consph_op_ctx *ctx;
+    const double *c;
+    double *y;
+} power_job;
+
+static void visit_power(void *vjob, const ops_nbhd *nb)
+{
+    power_job *job = vjob;
+    const double *vol = job->ctx->volume, *c = job->c;
+    double s = 0.0;
+    for (size_t p = 0; p < nb->n; ++p) s += vol[nb->j[p]] * c[nb->j[p]] * nb->w[p];
+    job->y[nb->i] = s;
+}
+
+static int power_iteration(consph_op_ctx *ctx, double tol, int max_iter, double *c, int *iters,
+                           double *lambda, size_t *pairs)
+{
+    const size_t n = ctx->n;
+    double *y = consph_calloc(n, sizeof(double)), *t = consph_calloc(n, sizeof(double));
+    if (!y || !t) {
+        free(y);
+        free(t);
+        return CONSPH_ENOMEM;
+    }
+    for (size_t i = 0; i < n; ++i) c[i] = 1.0;
+    const double vtot = consph_sum(ctx->volume, n);
+    int it = 0, st = CONSPH_OK;
+    double s = 1.0;
+    while (it < max_iter) {
+        power_job job = {ctx, c, y};
+        st = ops_run(ctx, OPS_NEED_W, visit_power, &job, pairs);
+        if (st != CONSPH_OK) break;
+        ++it;
+        for (size_t i = 0; i < n; ++i) t[i] = ctx->volume[i] * y[i];
+        s = consph_sum(t, n) / vtot;
+        double change = 0.0;
+        for (size_t i = 0; i < n; ++i) {
+            double v = y[i] / s;
+            double d = fabs(v - c[i]);
+            if (!(d <= change)) change = d;
+            c[i] = v;
+        }
+        if (!isfinite(change)) {
+            st = consph_fail(CONSPH_ENUMERIC, "consistent Shepard: non-finite factors");
+            break;
+        }
+        if (change < tol) break;
+    }
+    free(y);
+    free(t);
+    if (iters) *iters = it;
+    if (lambda) *lambda = s;
+    return st;
+}
+
+int consph_op_cshepard_factors(consph_op_ctx *ctx, double tol, int max_iter, double *ctilde,
+                               int *iterations, double *lambda)
+{
+    if (!(tol > 0.0) || max_iter < 1)
+        return consph_fail(CONSPH_EINVAL, "consistent Shepard: need tol > 0 and max_iter >= 1");
+    double *c = ctilde ? ctilde : consph_calloc(ctx->n, sizeof(double));
+    if (!c) return CONSPH_ENOMEM;
+    size_t pairs = 0;
+    int st = power_iteration(ctx, tol, max_iter, c, iterations, lambda, &pairs);
+    if (!ctilde) free(c);
+    return st;
+}
+
+int ops_ctilde(consph_op_ctx *ctx, ops_call *call, const double **ctilde)
+{
+    struct consph_ops_cache *cache = ctx->cache;
+    if (!cache->ctilde) {
+        double *c = consph_calloc(ctx->n, sizeof(double));
+        if (!c) return CONSPH_ENOMEM;
+        int st = power_iteration(ctx, 1e-10, 2000, c, &cache->ctilde_iterations,
+                                 &cache->ctilde_lambda, &call->pairs);
+        if (st != CONSPH_OK) {
+            free(c);
+            return st;
+        }
+        cache->ctilde = c;
+    }
+    *ctilde = cache->ctilde;
+    return CONSPH_OK;
+}
