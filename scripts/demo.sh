@@ -12,4 +12,9 @@ say "Unperturbed periodic lattice (001's UP), 2D" "$consph" layout --kind lattic
 say "Randomly perturbed lattice (002, eps = 0.4)" "$consph" layout --kind random --dim 2 --nx 50 --eps 0.4 --out "$out/random.csv"
 say "Quasi-random Halton fill (003)" "$consph" layout --kind quasi-random --dim 2 --nx 50 --out "$out/quasi.vtu"
 say "Packed, perturbed periodic particles (001's PP)" "$consph" layout --kind packed --dim 2 --nx 50 --out "$out/packed.vtu"
-printf '\nParticle files are in %s (open the .vtu files in ParaView).\n' "$out"
+
+say "Second-order convergence of the Bonet-corrected gradient on packed particles (001 Table 3: order 1.99)" \
+  "$consph" approx --op grad --form asym --corr bc --layout packed --nx 16,24,32,48
+say "... and the uncorrected symmetric form sym2: on packed particles its error stops falling once the disorder term dominates (001 measures order -0.76 from 50² to 500²; compare the last rows)" \
+  "$consph" approx --op grad --form sym2 --layout packed --nx 16,24,32,48
+printf "\nParticle files are in %s (open the .vtu files in ParaView).\n" "$out"

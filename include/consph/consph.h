@@ -7,5 +7,7 @@
 #include "consph/nnps.h"
 #include "consph/layout.h"
 #include "consph/io.h"
+#include "consph/ops.h"
+#include "consph/study.h"
 
 #endif
