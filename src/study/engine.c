@@ -269,6 +269,48 @@ static void cache_free(layout_cache *c)
 
 /* ---- output helpers ---- */
 
+static int has_key(const study_kvlist *l, const char *key)
+{
+    for (int k = 0; k < l->n; ++k)
+        if (strcmp(l->items[k].key, key) == 0) return 1;
+    return 0;
+}
+
+/* A figure's own note: the study's note is printed once, in the study README. */
+static const char *figure_note(const study_figure *f)
+{
+    for (int k = 0; k < f->keys.n; ++k)
+        if (strcmp(f->keys.items[k].key, "note") == 0) return f->keys.items[k].value;
+    return NULL;
+}
+
+/* Every published value (paper.*) of every series, for figures whose tables have no paper
+ * columns. */
+static void published_values(const consph_study *s, const study_figure *f, FILE *o)
+{
+    int any = 0;
+    for (int r = 0; r < f->nseries; ++r) {
+        const study_series *ser = &f->series[r];
+        const study_kvlist *lists[3] = {&s->keys, &f->keys, &ser->keys};
+        char line[1024] = "";
+        for (int l = 0; l < 3; ++l)
+            for (int k = 0; k < lists[l]->n; ++k) {
+                const char *key = lists[l]->items[k].key;
+                if (strncmp(key, "paper.", 6) != 0) continue;
+                if (l < 2 && has_key(&ser->keys, key)) continue;
+                if (l == 0 && has_key(&f->keys, key)) continue;
+                size_t len = strlen(line);
+                snprintf(line + len, sizeof line - len, "%s%s = %s", len ? "; " : "", key + 6,
+                         lists[l]->items[k].value);
+            }
+        if (!line[0]) continue;
+        if (!any) fprintf(o, "Published values (as the paper prints them):\n\n");
+        any = 1;
+        fprintf(o, "- %s: %s\n", ser->label, line);
+    }
+    if (any) fprintf(o, "\n");
+}
+
 static int mkdir_p(const char *path)
 {
     char buf[1024];
@@ -335,13 +377,6 @@ static void run_gnuplot(const char *dir, const char *script, FILE *log)
 
 /* ---- approx figures ---- */
 
-static int has_key(const study_kvlist *l, const char *key)
-{
-    for (int k = 0; k < l->n; ++k)
-        if (strcmp(l->items[k].key, key) == 0) return 1;
-    return 0;
-}
-
 static void paper_columns(const consph_study *s, const study_figure *f, const study_series *r,
                           char *buf, size_t size)
 {
@@ -400,7 +435,7 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     if ((rc = consph_outfile_open(&of, path))) return rc;
     FILE *o = of.fp;
     fprintf(o, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
-    const char *note = study_get(s, f, NULL, "note");
+    const char *note = figure_note(f);
     if (note) fprintf(o, "%s\n\n", note);
     const consph_approx_spec *sp = &plans[0].spec;
     fprintf(o,
@@ -440,6 +475,7 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
         }
         fprintf(o, "\n");
     }
+    if (sweep_hdx) published_values(s, f, o);
     fprintf(o, "<details><summary>every measurement</summary>\n\n");
     fprintf(o,
             "| series | %s | nx | N | h | neighbours | l1 | l2 | linf | mae | F_T/F_max | "
@@ -706,7 +742,7 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
     if (rc == CONSPH_OK) {
         FILE *o = of.fp;
         fprintf(o, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
-        const char *note = study_get(s, f, NULL, "note");
+        const char *note = figure_note(f);
         if (note) fprintf(o, "%s\n\n", note);
         fprintf(o, "Run: %s resolutions; kernel `%s`, layout `%s`, dim %d, volumes `%s`, h %s.\n\n",
                 quick ? "quick" : "full (paper)", pl.kernel_name,
@@ -729,6 +765,7 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
                     "\nFitted σ(M0, interior) ∝ 𝒩^-p with p = %.2f ± %.2f (Zhu et al., quoted by "
                     "003/000: p = 1 for low-discrepancy sets, 1/2 for random ones).\n\n",
                     fit.order, fit.order_stderr);
+        published_values(s, f, o);
         if (have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
         rc = consph_outfile_commit(&of);
     }
@@ -830,7 +867,7 @@ static int run_appc_figure(const consph_study *s, const study_figure *f, int qui
     snprintf(path, sizeof path, "%s/%s.md", dir, f->id);
     if ((rc = consph_outfile_open(&of, path))) return rc;
     fprintf(of.fp, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
-    const char *note = study_get(s, f, NULL, "note");
+    const char *note = figure_note(f);
     if (note) fprintf(of.fp, "%s\n\n", note);
     fprintf(of.fp,
             "Lattice of %zu particles on [0,1), Gaussian exp(-x²/h²)/(√π h) summed to "
@@ -842,6 +879,7 @@ static int run_appc_figure(const consph_study *s, const study_figure *f, int qui
         fprintf(of.fp, "| %g | %.6e | %.6e | %.6e | %.1e |\n", pl.values[j], closed[j], per[j],
                 lin[j], fmax(fabs(per[j] - closed[j]), fabs(lin[j] - closed[j])));
     fprintf(of.fp, "\n");
+    published_values(s, f, of.fp);
     return consph_outfile_commit(&of);
 }
 
@@ -873,6 +911,9 @@ static double pairs_estimate(const series_plan *pl, double nx)
 double consph_study_estimate(const consph_study *s, int quick)
 {
     double pairs = 0.0, packed_particles = 0.0;
+    /* Packed layouts are generated once per (dim, nx, seed) and shared through the cache. */
+    double seen[256][3];
+    int nseen = 0;
     series_plan first;
     int have_first = 0;
     for (int k = 0; k < s->nfigs; ++k) {
@@ -889,8 +930,15 @@ double consph_study_estimate(const consph_study *s, int quick)
                 double nx = pl.sweep_hdx ? (double)pl.nx_fixed : pl.values[j];
                 if (pl.sweep_hdx) one.spec.hdx = pl.values[j];
                 pairs += pairs_estimate(&one, nx);
-                if (pl.spec.layout.kind == CONSPH_LAYOUT_PACKED)
-                    packed_particles += pow(nx, pl.spec.layout.dim);
+                if (pl.spec.layout.kind == CONSPH_LAYOUT_PACKED) {
+                    double key[3] = {pl.spec.layout.dim, nx, (double)pl.spec.layout.seed};
+                    int dup = 0;
+                    for (int q = 0; q < nseen && !dup; ++q) dup = !memcmp(seen[q], key, sizeof key);
+                    if (!dup) {
+                        if (nseen < 256) memcpy(seen[nseen++], key, sizeof key);
+                        packed_particles += pow(nx, pl.spec.layout.dim);
+                    }
+                }
             }
         }
     }
