@@ -9,7 +9,8 @@ consph_box consph_box_unit(int dim, int periodic)
     consph_box b;
     memset(&b, 0, sizeof b);
     b.dim = dim;
-    for (int a = 0; a < dim; ++a) {
+    /* An invalid dim is kept for consph_box_check to report; the arrays are never overrun. */
+    for (int a = 0; a < dim && a < CONSPH_MAX_DIM; ++a) {
         b.lo[a] = 0.0;
         b.hi[a] = 1.0;
         b.periodic[a] = periodic != 0;
