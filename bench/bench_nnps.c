@@ -5,7 +5,9 @@
  *
  * Columns: build_s = first build of the unsorted set (includes allocation), sort_s =
  * consph_nnps_sort (build + permute), rebuild_s = build of the sorted set (the per-step cost),
- * query_s = every particle's neighbours, MiB_g = consph_nnps_bytes, MiB_rss = peak RSS.
+ * query_s = every particle's neighbours, traverse_s = the same through the inline traversal
+ * (runs per cell + consph_nnps_gather, as the operators use it), MiB_g = consph_nnps_bytes,
+ * MiB_rss = peak RSS.
  * --sweep times cells_per_radius 1, 2 and 3 (to choose the default); --brute-n compares the
  * cell search with the O(N^2) reference at M particles (0 skips). */
 #include "consph/nnps.h"
@@ -73,6 +75,56 @@ static double query_all(const consph_nnps *g, size_t n, size_t *counts, size_t *
     return t;
 }
 
+/* Every particle's neighbours through the inline traversal (the runs of each cell, shared by
+ * its particles, and consph_nnps_gather with x_ij and r), as the operators find them; returns
+ * seconds and stores the summed count, which must equal the query's. */
+static double traverse_all(const consph_nnps *g, size_t *total, int *failed)
+{
+    consph_nnps_slots v;
+    if (consph_nnps_slots_get(g, &v)) {
+        *failed = 1;
+        return 0.0;
+    }
+    size_t sum = 0;
+    int bad = 0;
+    double t0 = consph_wtime();
+#pragma omp parallel reduction(+ : sum)
+    {
+        consph_nnps_runs runs;
+        memset(&runs, 0, sizeof runs);
+        size_t cap = 0, *slot = NULL;
+        double *dx[CONSPH_MAX_DIM] = {NULL, NULL, NULL}, *r = NULL;
+#pragma omp for schedule(dynamic, 16)
+        for (size_t c = 0; c < v.ncells; ++c) {
+            if (v.cell_start[c] == v.cell_start[c + 1]) continue;
+            if (consph_nnps_cell_runs(g, c, &runs) == (size_t)-1) {
+#pragma omp atomic write
+                bad = 1;
+                continue;
+            }
+            size_t need = runs.candidates + CONSPH_NNPS_GATHER_SLACK;
+            if (need > cap) {
+                cap = 2 * need;
+                slot = realloc(slot, cap * sizeof *slot);
+                for (int a = 0; a < v.dim; ++a) dx[a] = realloc(dx[a], cap * sizeof(double));
+                r = realloc(r, cap * sizeof *r);
+            }
+            for (size_t s = v.cell_start[c]; s < v.cell_start[c + 1]; ++s) {
+                double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+                for (int a = 0; a < v.dim; ++a) xi[a] = v.x[a][s];
+                sum += consph_nnps_gather(&v, &runs, xi, slot, dx, r);
+            }
+        }
+        free(slot);
+        for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(dx[a]);
+        free(r);
+        consph_nnps_runs_free(&runs);
+    }
+    *total = sum;
+    *failed = bad;
+    return consph_wtime() - t0;
+}
+
 static int run_case(int dim, size_t n, double nbrs, int cpr)
 {
     consph_box box = consph_box_unit(dim, 1);
@@ -103,11 +155,16 @@ static int run_case(int dim, size_t n, double nbrs, int cpr)
     size_t total;
     int failed;
     double t_query = query_all(g, n, counts, &total, &failed);
-    printf("%3d %6.0f %3d %9zu %9.3g %9zu %8.3f %8.3f %9.3f %9.3f %8.1f %12zu %9.1f %9.1f%s\n", dim,
-           nbrs, consph_nnps_cells_per_radius(g), n, radius, consph_nnps_cells(g), t_build, t_sort,
-           t_rebuild, t_query, (double)total / (double)n, total,
+    size_t total_traversed;
+    int failed_traversal;
+    double t_traverse = traverse_all(g, &total_traversed, &failed_traversal);
+    failed |= failed_traversal || total_traversed != total;
+    printf("%3d %6.0f %3d %9zu %9.3g %9zu %8.3f %8.3f %9.3f %9.3f %10.3f %8.1f %12zu %9.1f "
+           "%9.1f%s\n",
+           dim, nbrs, consph_nnps_cells_per_radius(g), n, radius, consph_nnps_cells(g), t_build,
+           t_sort, t_rebuild, t_query, t_traverse, (double)total / (double)n, total,
            (double)consph_nnps_bytes(g) / 1048576.0, (double)consph_peak_rss() / 1048576.0,
-           failed ? "  QUERY FAILED" : "");
+           failed ? "  QUERY OR TRAVERSAL FAILED" : "");
     fflush(stdout);
     free(counts);
     consph_nnps_free(g);
@@ -186,7 +243,7 @@ int main(int argc, char **argv)
            "particles after sorting\n",
            consph_num_threads());
     printf("dim   nbrs cpr         N    radius     cells  build_s   sort_s rebuild_s   query_s "
-           "mean_nbr    sum_count     MiB_g   MiB_rss\n");
+           "traverse_s mean_nbr    sum_count     MiB_g   MiB_rss\n");
     int status = 0;
     for (int d = 0; d < ndims; ++d) {
         for (int b = 0; b < nnbrs; ++b) {

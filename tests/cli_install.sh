@@ -5,6 +5,8 @@ set -u
 consph=$1 src=$2
 build=$(dirname "$consph")
 command -v pkg-config >/dev/null || { echo "pkg-config not installed: skipped"; exit 77; }
+# A sanitizer-instrumented library cannot be linked by a plain program: nothing to learn there.
+[ "${CONSPH_SANITIZED:-0}" = 1 ] && { echo "sanitizer build: skipped"; exit 77; }
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 fail=0

@@ -90,6 +90,14 @@ static inline double consph_kernel_d2w(const consph_kernel *k, double r)
     double q = r * k->inv_h;
     return q < k->support ? k->norm * k->inv_h * k->inv_h * k->d2f(q) : 0.0;
 }
+/* W, W'(r)/r and W''(r) at m distances r[p] >= 0 by the radial formula: the values of
+ * consph_kernel_w, consph_kernel_dw(k, r)/r and consph_kernel_d2w bit for bit, except that at
+ * r = 0 the middle one is its limit W''(0) (so that ∇W = (W'/r) x_ij is 0 there and the Hessian
+ * (W'' - W'/r) e e + (W'/r) I stays continuous). Any output may be NULL; outputs must not overlap
+ * r or each other. The library's shape functions are inlined into one loop per kernel, which
+ * vectorises for the polynomial kernels: much cheaper per value than the function pointers. */
+void consph_kernel_eval_batch(const consph_kernel *k, size_t m, const double *r, double *w,
+                              double *dwr, double *d2w);
 /* W of a separation vector, valid for radial and tensor-product kernels alike. */
 double consph_kernel_w_vec(const consph_kernel *k, const double *dx);
 

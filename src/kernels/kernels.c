@@ -4,7 +4,12 @@
  * The shape functions are plain static functions of q so that consph_kernel_init can pick one
  * triple per (kernel, dimension) and the evaluation path carries no branch on the kernel. Each
  * returns 0 for q at or beyond its support, so a caller that forgets the cut still gets the
- * compactly supported kernel. */
+ * compactly supported kernel.
+ *
+ * The polynomial ones compute every piece and then select, instead of branching: selects
+ * vectorise when consph_kernel_eval_batch inlines them into its loops, and a branch on q
+ * mispredicts on neighbour lists. A piece that does not apply is either not selected or adds
+ * an exact zero (x - 6·0 = x), so the values are those of the branching form bit for bit. */
 #include "consph/kernels.h"
 
 #include <math.h>
@@ -13,72 +18,73 @@
 
 #define PI 3.14159265358979323846
 
+/* GCC does not if-convert the selects below while floating-point operations may trap (it sinks
+ * each piece into its arm first), so the batch loops would not vectorise. No code here reads the
+ * floating-point exception flags, and the option changes no value (it permits no
+ * reassociation). */
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC optimize("no-trapping-math")
+#endif
+
+#if defined(__GNUC__)
+#define SHAPE static inline __attribute__((always_inline))
+#else
+#define SHAPE static inline
+#endif
+
+/* t where t > 0, else 0 (also for NaN). */
+SHAPE double positive(double t)
+{
+    return t > 0.0 ? t : 0.0;
+}
+
 /* ---- cubic spline, support 2 (001 Table 1 "CS"; formula from Monaghan 1992 / PySPH) ---- */
-static double cubic_f(double q)
+SHAPE double cubic_f(double q)
 {
-    if (q < 1.0) return 1.0 - q * q * (1.5 - 0.75 * q);
-    if (q < 2.0) {
-        double t = 2.0 - q;
-        return 0.25 * t * t * t;
-    }
-    return 0.0;
+    double inner = 1.0 - q * q * (1.5 - 0.75 * q);
+    double t = 2.0 - q, outer = 0.25 * t * t * t;
+    return q < 1.0 ? inner : q < 2.0 ? outer : 0.0;
 }
-static double cubic_df(double q)
+SHAPE double cubic_df(double q)
 {
-    if (q < 1.0) return q * (-3.0 + 2.25 * q);
-    if (q < 2.0) {
-        double t = 2.0 - q;
-        return -0.75 * t * t;
-    }
-    return 0.0;
+    double inner = q * (-3.0 + 2.25 * q);
+    double t = 2.0 - q, outer = -0.75 * t * t;
+    return q < 1.0 ? inner : q < 2.0 ? outer : 0.0;
 }
-static double cubic_d2f(double q)
+SHAPE double cubic_d2f(double q)
 {
-    if (q < 1.0) return -3.0 + 4.5 * q;
-    if (q < 2.0) return 1.5 * (2.0 - q);
-    return 0.0;
+    double inner = -3.0 + 4.5 * q, outer = 1.5 * (2.0 - q);
+    return q < 1.0 ? inner : q < 2.0 ? outer : 0.0;
 }
 
 /* ---- quintic spline, support 3 (001 Table 1 "QS") ---- */
-static double pow5(double t)
+SHAPE double pow5(double t)
 {
     double t2 = t * t;
     return t2 * t2 * t;
 }
-static double pow4(double t)
+SHAPE double pow4(double t)
 {
     double t2 = t * t;
     return t2 * t2;
 }
-static double quintic_f(double q)
+/* (3-q)^5 - 6 (2-q)_+^5 + 15 (1-q)_+^5: the terms of the outer pieces vanish exactly. */
+SHAPE double quintic_f(double q)
 {
-    if (q >= 3.0) return 0.0;
-    double w = pow5(3.0 - q);
-    if (q < 2.0) w -= 6.0 * pow5(2.0 - q);
-    if (q < 1.0) w += 15.0 * pow5(1.0 - q);
-    return w;
+    double w = pow5(3.0 - q) - 6.0 * pow5(positive(2.0 - q)) + 15.0 * pow5(positive(1.0 - q));
+    return q >= 3.0 ? 0.0 : w;
 }
-static double quintic_df(double q)
+SHAPE double quintic_df(double q)
 {
-    if (q >= 3.0) return 0.0;
-    double w = -5.0 * pow4(3.0 - q);
-    if (q < 2.0) w += 30.0 * pow4(2.0 - q);
-    if (q < 1.0) w -= 75.0 * pow4(1.0 - q);
-    return w;
+    double w =
+        -5.0 * pow4(3.0 - q) + 30.0 * pow4(positive(2.0 - q)) - 75.0 * pow4(positive(1.0 - q));
+    return q >= 3.0 ? 0.0 : w;
 }
-static double quintic_d2f(double q)
+SHAPE double quintic_d2f(double q)
 {
-    if (q >= 3.0) return 0.0;
-    double t3 = 3.0 - q, w = 20.0 * t3 * t3 * t3;
-    if (q < 2.0) {
-        double t2 = 2.0 - q;
-        w -= 120.0 * t2 * t2 * t2;
-    }
-    if (q < 1.0) {
-        double t1 = 1.0 - q;
-        w += 300.0 * t1 * t1 * t1;
-    }
-    return w;
+    double t3 = 3.0 - q, t2 = positive(2.0 - q), t1 = positive(1.0 - q);
+    double w = 20.0 * t3 * t3 * t3 - 120.0 * t2 * t2 * t2 + 300.0 * t1 * t1 * t1;
+    return q >= 3.0 ? 0.0 : w;
 }
 
 /* ---- Gaussian exp(-q^2), truncated at q = 3 (001 Table 1 "G") ---- */
@@ -151,210 +157,202 @@ static double supergauss3_d2f(double q)
 }
 
 /* ---- Lucy quartic (1-q)^3 (1+3q), support 1 (003 eq. 59) ---- */
-static double lucy_f(double q)
+SHAPE double lucy_f(double q)
 {
-    if (q >= 1.0) return 0.0;
-    double t = 1.0 - q;
-    return t * t * t * (1.0 + 3.0 * q);
+    double t = 1.0 - q, v = t * t * t * (1.0 + 3.0 * q);
+    return q >= 1.0 ? 0.0 : v;
 }
-static double lucy_df(double q)
+SHAPE double lucy_df(double q)
 {
-    if (q >= 1.0) return 0.0;
-    double t = 1.0 - q;
-    return -12.0 * q * t * t;
+    double t = 1.0 - q, v = -12.0 * q * t * t;
+    return q >= 1.0 ? 0.0 : v;
 }
-static double lucy_d2f(double q)
+SHAPE double lucy_d2f(double q)
 {
-    if (q >= 1.0) return 0.0;
-    return 12.0 * (1.0 - q) * (3.0 * q - 1.0);
+    double v = 12.0 * (1.0 - q) * (3.0 * q - 1.0);
+    return q >= 1.0 ? 0.0 : v;
 }
 
 /* ---- Wendland, support 2 (001 "WQ_2/4/6" = PySPH WendlandQuintic, ...C4, ...C6), t = 1 - q/2.
  * 2D and 3D share one polynomial; 1D uses PySPH's own 1D Wendland functions (psi_{1,k}), which
  * is also why their edge order in 1D is 3/5/7 rather than 4/6/8. ---- */
-static double wc2_f(double q)
+SHAPE double wc2_f(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q;
-    return pow4(t) * (2.0 * q + 1.0);
+    double v = pow4(t) * (2.0 * q + 1.0);
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc2_df(double q)
+SHAPE double wc2_df(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q;
-    return -5.0 * q * t * t * t;
+    double v = -5.0 * q * t * t * t;
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc2_d2f(double q)
+SHAPE double wc2_d2f(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q;
-    return 5.0 * t * t * (2.0 * q - 1.0);
+    double v = 5.0 * t * t * (2.0 * q - 1.0);
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc4_f(double q)
+SHAPE double wc4_f(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q, t2 = t * t;
-    return t2 * t2 * t2 * (1.0 + q * (3.0 + q * (35.0 / 12.0)));
+    double v = t2 * t2 * t2 * (1.0 + q * (3.0 + q * (35.0 / 12.0)));
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc4_df(double q)
+SHAPE double wc4_df(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q;
-    return -(14.0 / 3.0) * q * pow5(t) * (1.0 + 2.5 * q);
+    double v = -(14.0 / 3.0) * q * pow5(t) * (1.0 + 2.5 * q);
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc4_d2f(double q)
+SHAPE double wc4_d2f(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q;
-    return -(14.0 / 3.0) * pow4(t) * (1.0 + q * (2.0 - 8.75 * q));
+    double v = -(14.0 / 3.0) * pow4(t) * (1.0 + q * (2.0 - 8.75 * q));
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc6_f(double q)
+SHAPE double wc6_f(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t4 = pow4(1.0 - 0.5 * q);
-    return t4 * t4 * (1.0 + q * (4.0 + q * (6.25 + 4.0 * q)));
+    double v = t4 * t4 * (1.0 + q * (4.0 + q * (6.25 + 4.0 * q)));
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc6_df(double q)
+SHAPE double wc6_df(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q, t3 = t * t * t;
-    return -5.5 * q * t3 * pow4(t) * (1.0 + q * (3.5 + 4.0 * q));
+    double v = -5.5 * q * t3 * pow4(t) * (1.0 + q * (3.5 + 4.0 * q));
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc6_d2f(double q)
+SHAPE double wc6_d2f(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q, t2 = t * t;
-    return -5.5 * t2 * t2 * t2 * (1.0 + q * (3.0 - q * (3.75 + 20.0 * q)));
+    double v = -5.5 * t2 * t2 * t2 * (1.0 + q * (3.0 - q * (3.75 + 20.0 * q)));
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc2_1d_f(double q)
+SHAPE double wc2_1d_f(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q;
-    return t * t * t * (1.5 * q + 1.0);
+    double v = t * t * t * (1.5 * q + 1.0);
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc2_1d_df(double q)
+SHAPE double wc2_1d_df(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q;
-    return -3.0 * q * t * t;
+    double v = -3.0 * q * t * t;
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc2_1d_d2f(double q)
+SHAPE double wc2_1d_d2f(double q)
 {
-    if (q >= 2.0) return 0.0;
-    return 3.0 * (1.0 - 0.5 * q) * (1.5 * q - 1.0);
+    double v = 3.0 * (1.0 - 0.5 * q) * (1.5 * q - 1.0);
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc4_1d_f(double q)
+SHAPE double wc4_1d_f(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q;
-    return pow5(t) * (1.0 + q * (2.5 + 2.0 * q));
+    double v = pow5(t) * (1.0 + q * (2.5 + 2.0 * q));
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc4_1d_df(double q)
+SHAPE double wc4_1d_df(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q;
-    return -3.5 * q * pow4(t) * (1.0 + 2.0 * q);
+    double v = -3.5 * q * pow4(t) * (1.0 + 2.0 * q);
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc4_1d_d2f(double q)
+SHAPE double wc4_1d_d2f(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q;
-    return -3.5 * t * t * t * (1.0 + q * (1.5 - 6.0 * q));
+    double v = -3.5 * t * t * t * (1.0 + q * (1.5 - 6.0 * q));
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc6_1d_f(double q)
+SHAPE double wc6_1d_f(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q, t3 = t * t * t;
-    return t3 * pow4(t) * (1.0 + q * (3.5 + q * (4.75 + 2.625 * q)));
+    double v = t3 * pow4(t) * (1.0 + q * (3.5 + q * (4.75 + 2.625 * q)));
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc6_1d_df(double q)
+SHAPE double wc6_1d_df(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q, t2 = t * t;
-    return -q * t2 * t2 * t2 * (4.5 + q * (13.5 + 13.125 * q));
+    double v = -q * t2 * t2 * t2 * (4.5 + q * (13.5 + 13.125 * q));
+    return q >= 2.0 ? 0.0 : v;
 }
-static double wc6_1d_d2f(double q)
+SHAPE double wc6_1d_d2f(double q)
 {
-    if (q >= 2.0) return 0.0;
     double t = 1.0 - 0.5 * q;
-    return -pow5(t) * (4.5 + q * (11.25 - q * (14.625 + 59.0625 * q)));
+    double v = -pow5(t) * (4.5 + q * (11.25 - q * (14.625 + 59.0625 * q)));
+    return q >= 2.0 ? 0.0 : v;
 }
 
 /* ---- Wendland, support 1 (002 eq. 47; 003 eqs. 55, 61, 62), t = 1 - q; same polynomial in
  * every dimension, the 1D constants are the catalogue's [I] values. ---- */
-static double wc2h_f(double q)
+SHAPE double wc2h_f(double q)
 {
-    if (q >= 1.0) return 0.0;
-    return pow4(1.0 - q) * (1.0 + 4.0 * q);
+    double v = pow4(1.0 - q) * (1.0 + 4.0 * q);
+    return q >= 1.0 ? 0.0 : v;
 }
-static double wc2h_df(double q)
+SHAPE double wc2h_df(double q)
 {
-    if (q >= 1.0) return 0.0;
     double t = 1.0 - q;
-    return -20.0 * q * t * t * t;
+    double v = -20.0 * q * t * t * t;
+    return q >= 1.0 ? 0.0 : v;
 }
-static double wc2h_d2f(double q)
+SHAPE double wc2h_d2f(double q)
 {
-    if (q >= 1.0) return 0.0;
     double t = 1.0 - q;
-    return 20.0 * t * t * (4.0 * q - 1.0);
+    double v = 20.0 * t * t * (4.0 * q - 1.0);
+    return q >= 1.0 ? 0.0 : v;
 }
-static double wc4h_f(double q)
+SHAPE double wc4h_f(double q)
 {
-    if (q >= 1.0) return 0.0;
     double t = 1.0 - q, t2 = t * t;
-    return t2 * t2 * t2 * (1.0 + q * (6.0 + q * (35.0 / 3.0)));
+    double v = t2 * t2 * t2 * (1.0 + q * (6.0 + q * (35.0 / 3.0)));
+    return q >= 1.0 ? 0.0 : v;
 }
-static double wc4h_df(double q)
+SHAPE double wc4h_df(double q)
 {
-    if (q >= 1.0) return 0.0;
-    return -(56.0 / 3.0) * q * pow5(1.0 - q) * (1.0 + 5.0 * q);
+    double v = -(56.0 / 3.0) * q * pow5(1.0 - q) * (1.0 + 5.0 * q);
+    return q >= 1.0 ? 0.0 : v;
 }
-static double wc4h_d2f(double q)
+SHAPE double wc4h_d2f(double q)
 {
-    if (q >= 1.0) return 0.0;
-    return -(56.0 / 3.0) * pow4(1.0 - q) * (1.0 + q * (4.0 - 35.0 * q));
+    double v = -(56.0 / 3.0) * pow4(1.0 - q) * (1.0 + q * (4.0 - 35.0 * q));
+    return q >= 1.0 ? 0.0 : v;
 }
-static double wc6h_f(double q)
+SHAPE double wc6h_f(double q)
 {
-    if (q >= 1.0) return 0.0;
     double t4 = pow4(1.0 - q);
-    return t4 * t4 * (1.0 + q * (8.0 + q * (25.0 + 32.0 * q)));
+    double v = t4 * t4 * (1.0 + q * (8.0 + q * (25.0 + 32.0 * q)));
+    return q >= 1.0 ? 0.0 : v;
 }
-static double wc6h_df(double q)
+SHAPE double wc6h_df(double q)
 {
-    if (q >= 1.0) return 0.0;
     double t = 1.0 - q, t3 = t * t * t;
-    return -22.0 * q * t3 * pow4(t) * (1.0 + q * (7.0 + 16.0 * q));
+    double v = -22.0 * q * t3 * pow4(t) * (1.0 + q * (7.0 + 16.0 * q));
+    return q >= 1.0 ? 0.0 : v;
 }
-static double wc6h_d2f(double q)
+SHAPE double wc6h_d2f(double q)
 {
-    if (q >= 1.0) return 0.0;
     double t = 1.0 - q, t2 = t * t;
-    return -22.0 * t2 * t2 * t2 * (1.0 + q * (6.0 - q * (15.0 + 160.0 * q)));
+    double v = -22.0 * t2 * t2 * t2 * (1.0 + q * (6.0 - q * (15.0 + 160.0 * q)));
+    return q >= 1.0 ? 0.0 : v;
 }
-
 /* ---- M4' remeshing kernel, support 2 (001 eq. 32); a 1D profile used as a tensor product ---- */
-static double m4_f(double q)
+SHAPE double m4_f(double q)
 {
-    if (q < 1.0) return 1.0 - q * q * (2.5 - 1.5 * q);
-    if (q < 2.0) {
-        double t = 2.0 - q;
-        return 0.5 * (1.0 - q) * t * t;
-    }
-    return 0.0;
+    double inner = 1.0 - q * q * (2.5 - 1.5 * q);
+    double t = 2.0 - q, outer = 0.5 * (1.0 - q) * t * t;
+    return q < 1.0 ? inner : q < 2.0 ? outer : 0.0;
 }
-static double m4_df(double q)
+SHAPE double m4_df(double q)
 {
-    if (q < 1.0) return q * (-5.0 + 4.5 * q);
-    if (q < 2.0) return -0.5 * (2.0 - q) * (4.0 - 3.0 * q);
-    return 0.0;
+    double inner = q * (-5.0 + 4.5 * q), outer = -0.5 * (2.0 - q) * (4.0 - 3.0 * q);
+    return q < 1.0 ? inner : q < 2.0 ? outer : 0.0;
 }
-static double m4_d2f(double q)
+SHAPE double m4_d2f(double q)
 {
-    if (q < 1.0) return -5.0 + 9.0 * q;
-    if (q < 2.0) return 5.0 - 3.0 * q;
-    return 0.0;
+    double inner = -5.0 + 9.0 * q, outer = 5.0 - 3.0 * q;
+    return q < 1.0 ? inner : q < 2.0 ? outer : 0.0;
 }
 
 typedef struct shape_set {
@@ -586,4 +584,101 @@ double consph_kernel_w_vec(const consph_kernel *k, const double *dx)
     double r2 = 0.0;
     for (int a = 0; a < k->dim; ++a) r2 += dx[a] * dx[a];
     return consph_kernel_w(k, sqrt(r2));
+}
+
+/* The loops of consph_kernel_eval_batch for one shape triple; inlined with constant shape
+ * functions, each loop is straight-line code that vectorises. Every value is computed and then
+ * selected, so no lane branches on q. */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline void
+eval_batch(const consph_kernel *k, size_t m, const double *restrict r, double *restrict w,
+           double *restrict dwr, double *restrict d2w, consph_shape_fn f, consph_shape_fn df,
+           consph_shape_fn d2f)
+{
+    const double inv_h = k->inv_h, support = k->support, norm = k->norm;
+    const double norm1 = norm * inv_h, norm2 = norm * inv_h * inv_h;
+    if (w)
+        for (size_t p = 0; p < m; ++p) {
+            double q = r[p] * inv_h, v = norm * f(q);
+            w[p] = q < support ? v : 0.0;
+        }
+    if (dwr) {
+        const double at_zero = norm2 * d2f(0.0);
+        for (size_t p = 0; p < m; ++p) {
+            double rp = r[p], q = rp * inv_h;
+            /* The division is done in every lane (by 1 at r = 0) and the result selected. */
+            double v = norm1 * df(q) / (rp > 0.0 ? rp : 1.0);
+            dwr[p] = !(q < support) ? 0.0 : rp > 0.0 ? v : at_zero;
+        }
+    }
+    if (d2w)
+        for (size_t p = 0; p < m; ++p) {
+            double q = r[p] * inv_h, v = norm2 * d2f(q);
+            d2w[p] = q < support ? v : 0.0;
+        }
+}
+
+/* The batch loops are straight vector code, so wider vectors pay in proportion; a generic
+ * x86-64 build also carries an AVX2 copy chosen at load time (the same operations in the same
+ * order, hence the same values; no FMA is enabled, so nothing is contracted). */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
+    !defined(__AVX2__)
+#define KERNEL_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define KERNEL_CLONES
+#endif
+
+KERNEL_CLONES
+void consph_kernel_eval_batch(const consph_kernel *k, size_t m, const double *r, double *w,
+                              double *dwr, double *d2w)
+{
+    /* The shape triple is matched by address, so a kernel whose pointers were replaced by the
+     * caller still gets its own functions (through the generic loop below). */
+#define BATCH_CASE(P)                                                                              \
+    if (k->f == P##_f && k->df == P##_df && k->d2f == P##_d2f) {                                   \
+        eval_batch(k, m, r, w, dwr, d2w, P##_f, P##_df, P##_d2f);                                  \
+        return;                                                                                    \
+    }
+    switch (k->id) {
+    case CONSPH_KERNEL_CUBIC:
+        BATCH_CASE(cubic);
+        break;
+    case CONSPH_KERNEL_QUINTIC:
+        BATCH_CASE(quintic);
+        break;
+    case CONSPH_KERNEL_LUCY:
+        BATCH_CASE(lucy);
+        break;
+    case CONSPH_KERNEL_WENDLAND_C2:
+        BATCH_CASE(wc2);
+        BATCH_CASE(wc2_1d);
+        break;
+    case CONSPH_KERNEL_WENDLAND_C4:
+        BATCH_CASE(wc4);
+        BATCH_CASE(wc4_1d);
+        break;
+    case CONSPH_KERNEL_WENDLAND_C6:
+        BATCH_CASE(wc6);
+        BATCH_CASE(wc6_1d);
+        break;
+    case CONSPH_KERNEL_WENDLAND_C2_H:
+        BATCH_CASE(wc2h);
+        break;
+    case CONSPH_KERNEL_WENDLAND_C4_H:
+        BATCH_CASE(wc4h);
+        break;
+    case CONSPH_KERNEL_WENDLAND_C6_H:
+        BATCH_CASE(wc6h);
+        break;
+    case CONSPH_KERNEL_M4:
+        BATCH_CASE(m4);
+        break;
+    default:
+        /* Gaussians: exp() does not vectorise without -ffast-math; the calls dominate anyway. */
+        break;
+    }
+#undef BATCH_CASE
+    eval_batch(k, m, r, w, dwr, d2w, k->f, k->df, k->d2f);
 }

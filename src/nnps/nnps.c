@@ -11,16 +11,17 @@
  * outermost, axis 0 innermost, ascending); on a periodic axis u maps to cell u mod nc with the
  * image shift floor(u / nc) * L, so distinct u are distinct images and none is counted twice.
  * Rows and cells that cannot reach within the radius are skipped (the walk covers a sphere,
- * not a cube); this changes which cells are read, never the order of what is returned. */
+ * not a cube); this changes which cells are read, never the order of what is returned.
+ *
+ * The same walk from a whole cell gives the runs of candidate slots shared by its particles
+ * (the inline traversal of nnps.h); the hit test over runs, shared with the query, is in
+ * gather.c. */
 #include "nnps_internal.h"
 
 #include <float.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef __SSE2__
-#include <emmintrin.h>
-#endif
 
 #define NNPS_MAX_IMAGES_PER_AXIS 1.0e6
 /* The default cells per radius grows with the mean neighbour count: finer cells waste fewer
@@ -71,6 +72,7 @@ struct consph_nnps {
     double *xs[CONSPH_MAX_DIM];
     size_t particle_cap;
     size_t n;
+    int identity; /* order[s] == s for every slot: the set is in cell order */
     const consph_particles *p;
 };
 
@@ -152,7 +154,10 @@ size_t consph_nnps_cells(const consph_nnps *g)
 size_t consph_nnps_bytes(const consph_nnps *g)
 {
     size_t per_particle = 2 * sizeof(size_t) + (size_t)g->dim * sizeof(double);
-    return sizeof *g + g->cell_start_cap * sizeof(size_t) + g->particle_cap * per_particle;
+    size_t padding =
+        g->particle_cap ? (size_t)g->dim * CONSPH_NNPS_GATHER_SLACK * sizeof(double) : 0;
+    return sizeof *g + g->cell_start_cap * sizeof(size_t) + g->particle_cap * per_particle +
+           padding;
 }
 
 /* Picks the cell counts for n particles: edge >= radius / cells_per_radius, total capped. */
@@ -240,7 +245,8 @@ static int reserve_arrays(consph_nnps *g, size_t n)
         if (grow((void **)&g->order, n, sizeof(size_t))) return CONSPH_ENOMEM;
         if (grow((void **)&g->cell_of, n, sizeof(size_t))) return CONSPH_ENOMEM;
         for (int a = 0; a < g->dim; ++a)
-            if (grow((void **)&g->xs[a], n, sizeof(double))) return CONSPH_ENOMEM;
+            if (grow((void **)&g->xs[a], n + CONSPH_NNPS_GATHER_SLACK, sizeof(double)))
+                return CONSPH_ENOMEM;
         g->particle_cap = n;
     }
     return CONSPH_OK;
@@ -284,11 +290,16 @@ int consph_nnps_build(consph_nnps *g, const consph_particles *p)
     start[0] = 0;
 
     const size_t *order = g->order;
+    g->identity = 1;
+    for (size_t s = 0; s < n && g->identity; ++s) g->identity = order[s] == s;
     for (int a = 0; a < dim; ++a) {
         double *xs = g->xs[a];
         const double *x = p->x[a];
 #pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
         for (size_t s = 0; s < n; ++s) xs[s] = stored_coord(g, a, x[order[s]]);
+        /* The gather's vector paths read whole blocks past a run's end; NaN is never a hit. */
+        if (n)
+            for (size_t s = n; s < n + CONSPH_NNPS_GATHER_SLACK; ++s) xs[s] = NAN;
     }
     g->p = p;
     g->n = n;
@@ -307,6 +318,7 @@ int consph_nnps_sort(consph_nnps *g, consph_particles *p, size_t *perm_out)
      * order[s]: cells ascend with s, the stable sort keeps them in place, and the sorted
      * coordinates and cell starts are unchanged. So the rebuild reduces to this. */
     for (size_t s = 0; s < p->n; ++s) g->order[s] = s;
+    g->identity = 1;
     return CONSPH_OK;
 }
 
@@ -358,102 +370,148 @@ static inline double axis_gap(const consph_nnps *g, int a, double x, int64_t u)
     return 0.0;
 }
 
-/* Appends the slots [s0, s1) within the radius of q (already shifted by the image); the buffer
- * has room for all of them, so every candidate is written and the count advances only for
- * hits. r holds r^2 until the final pass. */
-static inline size_t scan_run(const consph_nnps *g, int dim, size_t s0, size_t s1, const double *q,
-                              consph_nbrs *out, size_t n)
+/* Where a walk starts: a point (a query, pruned by the distance from the point to each cell) or
+ * a whole cell (the runs shared by every particle binned there, pruned by the distance between
+ * cells). A cell walk visits every cell that a walk from any of its points visits, in the same
+ * order: both enumerate unwrapped cells in ascending (u2, u1, u0), and the cell-to-cell gap
+ * never exceeds the point-to-cell gap (it is widened by twice the slack of both cells). */
+typedef struct walk_origin {
+    int from_cell;
+    double x[CONSPH_MAX_DIM];
+    int64_t c[CONSPH_MAX_DIM];
+} walk_origin;
+
+/* Gap along axis a between cells c and u: (|u - c| - 1) h less the slack of both cells, less
+ * twice the slack again, so that it stays below the point-to-cell gap of axis_gap of any point
+ * binned into c despite rounding. */
+static inline double cell_gap(const consph_nnps *g, int a, int64_t c, int64_t u)
 {
-    const size_t *order = g->order;
-    const double r2max = g->radius2;
-    size_t *oj = out->j;
-    double *orr = out->r;
-    double *o0 = out->dx[0], *o1 = out->dx[1], *o2 = out->dx[2];
-    const double *x0 = g->xs[0], *x1 = g->xs[1], *x2 = g->xs[2];
-    const double q0 = q[0], q1 = q[1], q2 = q[2];
-    if (dim == 3) {
-        for (size_t s = s0; s < s1; ++s) {
-            double d0 = q0 - x0[s], d1 = q1 - x1[s], d2 = q2 - x2[s];
-            double r2 = d0 * d0 + d1 * d1 + d2 * d2;
-            oj[n] = order[s];
-            o0[n] = d0;
-            o1[n] = d1;
-            o2[n] = d2;
-            orr[n] = r2;
-            n += r2 < r2max;
-        }
-    } else if (dim == 2) {
-        for (size_t s = s0; s < s1; ++s) {
-            double d0 = q0 - x0[s], d1 = q1 - x1[s];
-            double r2 = d0 * d0 + d1 * d1;
-            oj[n] = order[s];
-            o0[n] = d0;
-            o1[n] = d1;
-            orr[n] = r2;
-            n += r2 < r2max;
-        }
+    int64_t k = u > c ? u - c : c - u;
+    double gap = (double)(k - 1) * g->h[a] - 4.0 * g->slack[a];
+    return k > 1 && gap > 0.0 ? gap : 0.0;
+}
+
+/* Cells along axis a to walk within rr of the origin (see axis_range for a point). */
+static inline void walk_range(const consph_nnps *g, int a, const walk_origin *o, double rr,
+                              int64_t *ua, int64_t *ub)
+{
+    if (!o->from_cell) {
+        axis_range(g, a, o->x[a], o->c[a], rr, ua, ub);
+        return;
+    }
+    int64_t c = o->c[a], lo = c - g->reach[a], hi = c + g->reach[a];
+    if (!g->periodic[a]) {
+        lo = lo > 0 ? lo : 0;
+        hi = hi < g->nc[a] - 1 ? hi : g->nc[a] - 1;
+    }
+    while (lo < c && !(cell_gap(g, a, c, lo) < rr)) ++lo;
+    while (hi > c && !(cell_gap(g, a, c, hi) < rr)) --hi;
+    *ua = lo;
+    *ub = hi;
+}
+
+static inline double walk_gap(const consph_nnps *g, int a, const walk_origin *o, int64_t u)
+{
+    return o->from_cell ? cell_gap(g, a, o->c[a], u) : axis_gap(g, a, o->x[a], u);
+}
+
+/* Where a walk's runs go: appended to a run list, or, for a query, gathered into a neighbour
+ * buffer in batches of runs (a query keeps no run list). */
+#define NNPS_QUERY_BATCH 64
+typedef struct walk_sink {
+    consph_nnps_runs *runs;
+    /* query: */
+    const consph_nnps_slots *slots;
+    const double *xi;
+    consph_nbrs *nbrs;
+    size_t n;
+    consph_nnps_run *batch; /* NNPS_QUERY_BATCH entries */
+    size_t nbatch, batch_candidates;
+} walk_sink;
+
+static int runs_reserve(consph_nnps_runs *r, size_t need)
+{
+    if (need <= r->cap) return CONSPH_OK;
+    size_t cap = r->cap ? r->cap : 32;
+    while (cap < need) cap *= 2;
+    consph_nnps_run *run = realloc(r->run, cap * sizeof *run);
+    if (!run) return consph_fail(CONSPH_ENOMEM, "out of memory for %zu runs of cells", cap);
+    r->run = run;
+    r->cap = cap;
+    return CONSPH_OK;
+}
+
+/* Gathers the batched runs of a query into its neighbour buffer. */
+static int sink_flush(walk_sink *k)
+{
+    if (k->nbatch == 0) return CONSPH_OK;
+    consph_nbrs *out = k->nbrs;
+    size_t need = k->n + k->batch_candidates + CONSPH_NNPS_GATHER_SLACK;
+    if (need > out->cap && nnps_nbrs_reserve(out, need)) return CONSPH_ENOMEM;
+    const size_t n0 = k->n;
+    k->n = nnps_gather_runs(nnps_best_isa(), k->slots, k->batch, k->nbatch, k->xi, out->j, out->dx,
+                            out->r, n0);
+    if (k->slots->particle)
+        for (size_t p = n0; p < k->n; ++p) out->j[p] = k->slots->particle[out->j[p]];
+    k->nbatch = 0;
+    k->batch_candidates = 0;
+    return CONSPH_OK;
+}
+
+static inline int sink_run(walk_sink *k, size_t s0, size_t s1, const double *shift)
+{
+    consph_nnps_run *run;
+    if (k->runs) {
+        consph_nnps_runs *r = k->runs;
+        if (r->n == r->cap && runs_reserve(r, r->n + 1)) return CONSPH_ENOMEM;
+        run = &r->run[r->n++];
+        r->candidates += s1 - s0;
     } else {
-        for (size_t s = s0; s < s1; ++s) {
-            double d0 = q0 - x0[s];
-            double r2 = d0 * d0;
-            oj[n] = order[s];
-            o0[n] = d0;
-            orr[n] = r2;
-            n += r2 < r2max;
-        }
+        if (k->nbatch == NNPS_QUERY_BATCH && sink_flush(k)) return CONSPH_ENOMEM;
+        run = &k->batch[k->nbatch++];
+        k->batch_candidates += s1 - s0;
     }
-    return n;
+    run->s0 = s0;
+    run->s1 = s1;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) run->shift[a] = shift[a];
+    return CONSPH_OK;
 }
 
-/* r = sqrt(r^2) in place. Packed square roots are correctly rounded like sqrt(), so the result
- * is the same; the scalar libm call (kept for errno) costs a tenth of a small query. */
-static inline void take_square_roots(double *r, size_t n)
-{
-    size_t k = 0;
-#ifdef __SSE2__
-    for (; k + 2 <= n; k += 2) _mm_storeu_pd(r + k, _mm_sqrt_pd(_mm_loadu_pd(r + k)));
+/* Visits the unwrapped cells u = c + o, |o| <= reach, in a fixed order (axis 2 outermost, axis
+ * 0 innermost, ascending), skipping rows and cells that cannot come within the radius, and
+ * hands each row to the sink as runs of adjacent cells with one image shift. */
+#if defined(__GNUC__)
+__attribute__((always_inline))
 #endif
-    for (; k < n; ++k) r[k] = sqrt(r[k]);
-}
-
-static size_t query_at(const consph_nnps *g, const double *xin, consph_nbrs *out)
+static inline int
+walk(const consph_nnps *g, const walk_origin *o, walk_sink *sink)
 {
-    out->n = 0;
-    if (!g->p || g->n == 0) return 0;
-    const int dim = g->dim;
-    double x[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
-    int64_t c[CONSPH_MAX_DIM] = {0, 0, 0};
-    for (int a = 0; a < dim; ++a) {
-        x[a] = stored_coord(g, a, xin[a]);
-        c[a] = cell_index(g, a, x[a]);
-    }
     const size_t *start = g->cell_start;
     const double rp = g->radius + g->slack_max;
     const double rp2 = rp * rp;
-    size_t n = 0;
-    double q[CONSPH_MAX_DIM];
+    double shift[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
     int64_t u2a, u2b;
-    axis_range(g, 2, x[2], c[2], rp, &u2a, &u2b);
+    walk_range(g, 2, o, rp, &u2a, &u2b);
     for (int64_t u2 = u2a; u2 <= u2b; ++u2) {
-        double g2 = axis_gap(g, 2, x[2], u2);
+        double g2 = walk_gap(g, 2, o, u2);
         double rem2 = rp2 - g2 * g2;
         if (!(rem2 > 0.0)) continue;
         int64_t m2 = g->periodic[2] ? floor_div(u2, g->nc[2]) : 0;
         int64_t cell2 = u2 - m2 * g->nc[2];
-        q[2] = x[2] - (double)m2 * g->len[2];
+        shift[2] = (double)m2 * g->len[2];
         int64_t u1a, u1b;
-        axis_range(g, 1, x[1], c[1], sqrt(rem2), &u1a, &u1b);
+        walk_range(g, 1, o, sqrt(rem2), &u1a, &u1b);
         for (int64_t u1 = u1a; u1 <= u1b; ++u1) {
-            double g1 = axis_gap(g, 1, x[1], u1);
+            double g1 = walk_gap(g, 1, o, u1);
             double rem1 = rem2 - g1 * g1;
             if (!(rem1 > 0.0)) continue;
             int64_t m1 = g->periodic[1] ? floor_div(u1, g->nc[1]) : 0;
             int64_t cell1 = u1 - m1 * g->nc[1];
-            q[1] = x[1] - (double)m1 * g->len[1];
+            shift[1] = (double)m1 * g->len[1];
             const size_t row =
                 (size_t)g->nc[0] * ((size_t)cell1 + (size_t)g->nc[1] * (size_t)cell2);
             int64_t u0a, u0b;
-            axis_range(g, 0, x[0], c[0], sqrt(rem1), &u0a, &u0b);
+            walk_range(g, 0, o, sqrt(rem1), &u0a, &u0b);
             /* Split the row where it wraps: each piece is a run of adjacent cells with one
              * image shift, hence one contiguous range of sorted slots. */
             for (int64_t u0 = u0a; u0 <= u0b;) {
@@ -464,20 +522,106 @@ static size_t query_at(const consph_nnps *g, const double *xin, consph_nbrs *out
                 size_t s0 = start[row + (size_t)cell0];
                 size_t s1 = start[row + (size_t)(cell0 + (end - u0)) + 1];
                 if (s1 > s0) {
-                    q[0] = x[0] - (double)m0 * g->len[0];
-                    if (n + (s1 - s0) > out->cap && nnps_nbrs_reserve(out, n + (s1 - s0))) {
-                        out->n = 0;
-                        return (size_t)-1;
-                    }
-                    n = scan_run(g, dim, s0, s1, q, out, n);
+                    shift[0] = (double)m0 * g->len[0];
+                    if (sink_run(sink, s0, s1, shift)) return CONSPH_ENOMEM;
                 }
                 u0 = end + 1;
             }
         }
     }
-    take_square_roots(out->r, n);
-    out->n = n;
-    return n;
+    return CONSPH_OK;
+}
+
+static void slots_view(const consph_nnps *g, consph_nnps_slots *v)
+{
+    v->dim = g->dim;
+    v->n = g->n;
+    v->ncells = g->ncells;
+    v->cell_start = g->cell_start;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) v->x[a] = a < g->dim ? g->xs[a] : NULL;
+    v->particle = g->identity ? NULL : g->order;
+    v->radius2 = g->radius2;
+}
+
+int consph_nnps_slots_get(const consph_nnps *g, consph_nnps_slots *v)
+{
+    memset(v, 0, sizeof *v);
+    if (!g->p) return consph_fail(CONSPH_EINVAL, "neighbour search has not been built");
+    slots_view(g, v);
+    return CONSPH_OK;
+}
+
+void consph_nnps_runs_free(consph_nnps_runs *runs)
+{
+    free(runs->run);
+    memset(runs, 0, sizeof *runs);
+}
+
+size_t consph_nnps_cell_runs(const consph_nnps *g, size_t c, consph_nnps_runs *out)
+{
+    out->n = 0;
+    out->candidates = 0;
+    if (!g->p || c >= g->ncells) {
+        consph_fail(CONSPH_EINVAL, "cell %zu is not in the search grid (%zu cells)", c,
+                    g->p ? g->ncells : 0);
+        return (size_t)-1;
+    }
+    walk_origin o = {1, {0.0, 0.0, 0.0}, {0, 0, 0}};
+    size_t rest = c;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
+        o.c[a] = (int64_t)(rest % (size_t)g->nc[a]);
+        rest /= (size_t)g->nc[a];
+    }
+    walk_sink sink = {out, NULL, NULL, NULL, 0, NULL, 0, 0};
+    if (walk(g, &o, &sink)) {
+        out->n = 0;
+        out->candidates = 0;
+        return (size_t)-1;
+    }
+    return out->n;
+}
+
+size_t consph_nnps_point_runs(const consph_nnps *g, const double *x, consph_nnps_runs *out)
+{
+    out->n = 0;
+    out->candidates = 0;
+    if (!g->p) {
+        consph_fail(CONSPH_EINVAL, "neighbour search has not been built");
+        return (size_t)-1;
+    }
+    walk_origin o = {0, {0.0, 0.0, 0.0}, {0, 0, 0}};
+    for (int a = 0; a < g->dim; ++a) {
+        o.x[a] = stored_coord(g, a, x[a]);
+        o.c[a] = cell_index(g, a, o.x[a]);
+    }
+    walk_sink sink = {out, NULL, NULL, NULL, 0, NULL, 0, 0};
+    if (g->n && walk(g, &o, &sink)) {
+        out->n = 0;
+        out->candidates = 0;
+        return (size_t)-1;
+    }
+    return out->n;
+}
+
+static size_t query_at(const consph_nnps *g, const double *xin, consph_nbrs *out)
+{
+    out->n = 0;
+    if (!g->p || g->n == 0) return 0;
+    walk_origin o = {0, {0.0, 0.0, 0.0}, {0, 0, 0}};
+    for (int a = 0; a < g->dim; ++a) {
+        o.x[a] = stored_coord(g, a, xin[a]);
+        o.c[a] = cell_index(g, a, o.x[a]);
+    }
+    consph_nnps_slots v;
+    slots_view(g, &v);
+    consph_nnps_run batch[NNPS_QUERY_BATCH];
+    walk_sink sink = {NULL, &v, o.x, out, 0, batch, 0, 0};
+    if (walk(g, &o, &sink) || sink_flush(&sink)) {
+        out->n = 0;
+        return (size_t)-1;
+    }
+    out->n = sink.n;
+    return sink.n;
 }
 
 size_t consph_nnps_query(const consph_nnps *g, const double *x, consph_nbrs *out)

@@ -19,6 +19,16 @@ static inline double nnps_wrap(double x, double lo, double hi, double len)
     return w;
 }
 
+/* Implementations of the hit test (gather.c); each gives the same result bit for bit. */
+enum { NNPS_ISA_C, NNPS_ISA_SSE2, NNPS_ISA_AVX2 };
+/* The fastest implementation this machine runs. */
+int nnps_best_isa(void);
+/* consph_nnps_gather with a given implementation (one this machine runs; NNPS_ISA_C always
+ * is) over nruns runs, appending from entry n; returns the new count. Exposed for tests. */
+size_t nnps_gather_runs(int isa, const consph_nnps_slots *v, const consph_nnps_run *run,
+                        size_t nruns, const double *xi, size_t *slot, double *const *dx, double *r,
+                        size_t n);
+
 /* Makes room for `need` neighbours; all CONSPH_MAX_DIM separation arrays are kept so that a
  * buffer can be reused across structures of different dimension. */
 int nnps_nbrs_reserve(consph_nbrs *nb, size_t need);

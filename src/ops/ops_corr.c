@@ -83,16 +83,29 @@ static void finish_inverse(const mat_job *job, size_t i, int n, const double *a)
     }
 }
 
+/* Σ -ω ∇W ⊗ x_ij for a dimension known at compile time, so the d² sums stay in registers. */
+OPS_INLINE void bonet_sums(const int d, const ops_nbhd *nb, const double *vol, double *M)
+{
+    double m[9] = {0};
+    for (size_t p = 0; p < nb->n; ++p) {
+        double s = -vol[nb->j[p]] * nb->dwr[p];
+        for (int a = 0; a < d; ++a)
+            for (int b = 0; b < d; ++b) m[a * d + b] += s * nb->dx[a][p] * nb->dx[b][p];
+    }
+    for (int e = 0; e < d * d; ++e) M[e] = m[e];
+}
+
 static void visit_bonet(mat_job *job, const ops_nbhd *nb)
 {
     const int d = job->dim;
     const double *vol = job->ctx->volume;
     double M[9] = {0};
-    for (size_t p = 0; p < nb->n; ++p) {
-        double s = -vol[nb->j[p]] * nb->dwr[p];
-        for (int a = 0; a < d; ++a)
-            for (int b = 0; b < d; ++b) M[a * d + b] += s * nb->dx[a][p] * nb->dx[b][p];
-    }
+    if (d == 1)
+        bonet_sums(1, nb, vol, M);
+    else if (d == 2)
+        bonet_sums(2, nb, vol, M);
+    else
+        bonet_sums(3, nb, vol, M);
     finish_inverse(job, nb->i, d, M);
 }
 

@@ -44,7 +44,7 @@ static int power_iteration(consph_op_ctx *ctx, double tol, int max_iter, double 
     double s = 1.0;
     while (it < max_iter) {
         power_job job = {ctx, c, y};
-        st = ops_run(ctx, OPS_NEED_W, visit_power, &job, pairs);
+        st = ops_run(ctx, OPS_NEED_W | OPS_SKIP_DX, visit_power, &job, pairs);
         if (st != CONSPH_OK) break;
         ++it;
         for (size_t i = 0; i < n; ++i) t[i] = ctx->volume[i] * y[i];

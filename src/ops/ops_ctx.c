@@ -1,132 +1,11 @@
-/* The operator context (particles, search, kernel, volumes), the parallel particle pass and the
- * cache of correction matrices. */
+/* The operator context (particles, search, kernel, volumes) and the cache of correction
+ * matrices; the particle pass is in ops_pass.c. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "ops/ops_internal.h"
-
-/* ---- the pass driver ---- */
-
-typedef struct pass_scratch {
-    consph_nbrs nb;
-    size_t cap;
-    double *w, *dwr, *d2w;
-} pass_scratch;
-
-static int scratch_reserve(pass_scratch *s, size_t need)
-{
-    if (need <= s->cap) return CONSPH_OK;
-    size_t cap = s->cap ? s->cap : 64;
-    while (cap < need) cap *= 2;
-    double *w = realloc(s->w, cap * sizeof(double));
-    if (w) s->w = w;
-    double *dwr = realloc(s->dwr, cap * sizeof(double));
-    if (dwr) s->dwr = dwr;
-    double *d2w = realloc(s->d2w, cap * sizeof(double));
-    if (d2w) s->d2w = d2w;
-    if (!w || !dwr || !d2w) return CONSPH_ENOMEM;
-    s->cap = cap;
-    return CONSPH_OK;
-}
-
-static void scratch_free(pass_scratch *s)
-{
-    consph_nbrs_free(&s->nb);
-    free(s->w);
-    free(s->dwr);
-    free(s->d2w);
-}
-
-/* Kernel values of every pair of one neighbourhood. The kernel is chosen once, in
- * consph_kernel_init, as a triple of shape functions; here each pair costs one indirect call
- * per value needed and no branch on the kernel kind. */
-static void eval_kernel(const consph_kernel *k, unsigned need, size_t m, const double *r, double *w,
-                        double *dwr, double *d2w)
-{
-    const double inv_h = k->inv_h, support = k->support, norm = k->norm;
-    const double norm1 = norm * inv_h, norm2 = norm * inv_h * inv_h;
-    const consph_shape_fn f = k->f, df = k->df, d2f = k->d2f;
-    if (need & OPS_NEED_W)
-        for (size_t p = 0; p < m; ++p) {
-            double q = r[p] * inv_h;
-            w[p] = q < support ? norm * f(q) : 0.0;
-        }
-    if (need & (OPS_NEED_DW | OPS_NEED_D2W))
-        for (size_t p = 0; p < m; ++p) {
-            double q = r[p] * inv_h;
-            if (!(q < support))
-                dwr[p] = 0.0;
-            else if (r[p] > 0.0)
-                dwr[p] = norm1 * df(q) / r[p];
-            else
-                dwr[p] = norm2 * d2f(0.0);
-        }
-    if (need & OPS_NEED_D2W)
-        for (size_t p = 0; p < m; ++p) {
-            double q = r[p] * inv_h;
-            d2w[p] = q < support ? norm2 * d2f(q) : 0.0;
-        }
-}
-
-int ops_run(const consph_op_ctx *ctx, unsigned need, ops_visit_fn visit, void *job, size_t *pairs)
-{
-    const size_t n = ctx->n;
-    int status = CONSPH_OK;
-    size_t total = 0;
-    /* consph_fail records per thread: a worker's message is copied out here. */
-    char why[256] = "";
-#pragma omp parallel if (n >= ctx->parallel_min)
-    {
-        pass_scratch s;
-        memset(&s, 0, sizeof s);
-        int my_status = CONSPH_OK;
-        char my_why[256] = "";
-        size_t my_pairs = 0;
-#pragma omp for schedule(dynamic, 128)
-        for (size_t i = 0; i < n; ++i) {
-            if (my_status != CONSPH_OK) continue;
-            size_t m = consph_nnps_query_particle(ctx->nnps, i, &s.nb);
-            if (m == (size_t)-1) {
-                my_status = CONSPH_EINVAL;
-                snprintf(my_why, sizeof my_why, "neighbour query of particle %zu failed: %s", i,
-                         consph_last_error());
-                continue;
-            }
-            if (scratch_reserve(&s, m) != CONSPH_OK) {
-                my_status = CONSPH_ENOMEM;
-                snprintf(my_why, sizeof my_why, "out of memory for %zu neighbours", m);
-                continue;
-            }
-            eval_kernel(&ctx->kernel, need, m, s.nb.r, s.w, s.dwr, s.d2w);
-            ops_nbhd nb;
-            nb.i = i;
-            nb.n = m;
-            nb.j = s.nb.j;
-            for (int a = 0; a < CONSPH_MAX_DIM; ++a) nb.dx[a] = s.nb.dx[a];
-            nb.r = s.nb.r;
-            nb.w = s.w;
-            nb.dwr = s.dwr;
-            nb.d2w = s.d2w;
-            visit(job, &nb);
-            my_pairs += m;
-        }
-#pragma omp critical(consph_ops_run)
-        {
-            total += my_pairs;
-            /* Several threads may fail; keep the lowest status so the message is reproducible. */
-            if (my_status != CONSPH_OK && (status == CONSPH_OK || my_status < status)) {
-                status = my_status;
-                memcpy(why, my_why, sizeof why);
-            }
-        }
-        scratch_free(&s);
-    }
-    if (pairs) *pairs += total;
-    if (status != CONSPH_OK) return consph_fail(status, "operator pass: %s", why);
-    return CONSPH_OK;
-}
 
 /* ---- volumes ---- */
 
@@ -175,7 +54,7 @@ static int compute_volumes(consph_op_ctx *ctx)
     for (size_t i = 0; i < n; ++i) ctx->mass[i] = fmass ? fmass->data[i] : m0;
     density_job job = {ctx, ctx->rho, NULL};
     if (ctx->volume_kind == CONSPH_VOLUME_SUMMATION) job.mass = ctx->mass;
-    int st = ops_run(ctx, OPS_NEED_W, visit_density, &job, NULL);
+    int st = ops_run(ctx, OPS_NEED_W | OPS_SKIP_DX, visit_density, &job, NULL);
     if (st != CONSPH_OK) return st;
     for (size_t i = 0; i < n; ++i) {
         if (ctx->volume_kind == CONSPH_VOLUME_SUMMATION) {

@@ -11,10 +11,9 @@ typedef struct moment_job {
     double *m0, *m1, *g0, *g1;
 } moment_job;
 
-static void visit_moments(void *vjob, const ops_nbhd *nb)
+/* The moments of one neighbourhood for a dimension known at compile time. */
+OPS_INLINE void moment_sums(const int d, const moment_job *job, const ops_nbhd *nb)
 {
-    moment_job *job = vjob;
-    const int d = job->ctx->dim;
     const double *vol = job->ctx->volume;
     const size_t i = nb->i, N = job->ctx->n;
     double m0 = 0.0, m1[3] = {0}, g0[3] = {0}, g1[9] = {0};
@@ -37,6 +36,17 @@ static void visit_moments(void *vjob, const ops_nbhd *nb)
         if (job->g1)
             for (int b = 0; b < d; ++b) job->g1[(size_t)(a * d + b) * N + i] = g1[a * d + b];
     }
+}
+
+static void visit_moments(void *vjob, const ops_nbhd *nb)
+{
+    const moment_job *job = vjob;
+    if (job->ctx->dim == 1)
+        moment_sums(1, job, nb);
+    else if (job->ctx->dim == 2)
+        moment_sums(2, job, nb);
+    else
+        moment_sums(3, job, nb);
 }
 
 int consph_op_moments(consph_op_ctx *ctx, double *m0, double *m1, double *g0, double *g1,

@@ -72,6 +72,8 @@ static void visit_function(first_job *job, const ops_nbhd *nb)
             s += ww * f[nb->j[p]];
             s0 += ww;
         }
+    } else if (job->form == CONSPH_FORM_STANDARD) {
+        for (size_t p = 0; p < nb->n; ++p) s += vol[nb->j[p]] * nb->w[p] * f[nb->j[p]];
     } else {
         for (size_t p = 0; p < nb->n; ++p) {
             double ww = vol[nb->j[p]] * nb->w[p];
@@ -122,12 +124,6 @@ static void visit_taylor(first_job *job, const ops_nbhd *nb)
     if (msph && job->out_hess)
         for (int p = 0; p < P; ++p) job->out_hess[p * N + i] = sol[1 + d + p];
 }
-
-#if defined(__GNUC__)
-#define OPS_INLINE static inline __attribute__((always_inline))
-#else
-#define OPS_INLINE static inline
-#endif
 
 /* Σ_j s_j ∇W_ij and Σ_j s_j W_ij with s_j = ω_j (f_j - shift) (sym2: m_j (f_j/ρ_j² + c)), for a
  * dimension known at compile time; with_w only for the Liu correction. The correction is
@@ -307,7 +303,7 @@ static unsigned first_needs(consph_op_form form, consph_op_corr corr)
     case CONSPH_FORM_STANDARD:
     case CONSPH_FORM_SHEPARD:
     case CONSPH_FORM_CSHEPARD:
-        return OPS_NEED_W;
+        return OPS_NEED_W | OPS_SKIP_DX;
     case CONSPH_FORM_IAD:
         return OPS_NEED_W | OPS_NEED_DW;
     case CONSPH_FORM_FPM:

@@ -9,8 +9,16 @@
 #define OPS_MAX_P 6
 #define OPS_MAX_MSPH 10
 
-/* What a pass needs evaluated per pair. */
-enum { OPS_NEED_W = 1u, OPS_NEED_DW = 2u, OPS_NEED_D2W = 4u };
+/* For pair loops instantiated with a compile-time dimension. */
+#if defined(__GNUC__)
+#define OPS_INLINE static inline __attribute__((always_inline))
+#else
+#define OPS_INLINE static inline
+#endif
+
+/* What a pass needs evaluated per pair; OPS_SKIP_DX: the visitor reads no separation (nb->dx
+ * is then NULL), which spares their stores. */
+enum { OPS_NEED_W = 1u, OPS_NEED_DW = 2u, OPS_NEED_D2W = 4u, OPS_SKIP_DX = 8u };
 
 /* One particle's neighbourhood with the kernel values of each pair, as a pass visits it.
  * dwr = W'(r)/r, so ∇W_ij = dwr * x_ij; at r = 0 it holds the limit W''(0), which keeps the

@@ -20,6 +20,7 @@ static double norm1(int n, const double *a)
 int ops_invert(int n, const double *a, double *ainv, double cond_max, double *cond)
 {
     double rs[MAXN], cs[MAXN], m[MAXN * MAXN], inv[MAXN * MAXN];
+    if (n < 1 || n > MAXN) return 0;
     /* Correction matrices mix entries of different units (W, x W, ∇W, x ∇W, ...). Scaling rows
      * and columns to unit max-norm removes the units, so one threshold serves every matrix and
      * every h; it also improves the pivoting. */
