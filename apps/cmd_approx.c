@@ -1,14 +1,21 @@
 /* consph approx: accuracy of one operator on a manufactured field over a set of resolutions. */
 #include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
 #include "commands.h"
+#include "consph/io.h"
 #include "consph/study.h"
 
 #define OP_CHOICES "function,grad,div,laplacian,hessian"
 #define FORMAT_CHOICES "table,csv,json"
+/* --volume: the volume kinds of ops.h, then two names for particle files (box volume / N given
+ * to every particle, and 1/ΣW as in 001 eq. 5). */
+#define VOLUME_EXTRA ",lattice,shepard"
+#define BOX_ALLOWED "x0:x1,y0:y1[,z0:z1] with finite x0 < x1"
+#define PERIODIC_ALLOWED "yes, no, or the periodic axes (e.g. x, xy, x,z)"
 
 static const char *const norm_names[4] = {"l1", "l2", "linf", "mae"};
 
@@ -31,28 +38,191 @@ static void print_csv_header(void)
     printf("nx,n,h,nbr_mean,l1,l2,linf,mae,ft_over_fmax,seconds,fallbacks\n");
 }
 
-static void print_csv_row(const consph_approx_row *r)
+/* nx is printed as %.6g: an integer for layouts (nx <= 100000), N^(1/dim) for files. */
+static void print_csv_row(const consph_approx_row *r, double nx)
 {
-    printf("%zu,%zu,%.10g,%.6g,%.6e,%.6e,%.6e,%.6e,%.6e,%.6g,%zu\n", r->nx, r->n, r->h, r->nbr_mean,
+    printf("%.6g,%zu,%.10g,%.6g,%.6e,%.6e,%.6e,%.6e,%.6e,%.6g,%zu\n", nx, r->n, r->h, r->nbr_mean,
            r->err.l1, r->err.l2, r->err.linf, r->err.mae, r->ft_over_fmax, r->seconds,
            r->fallbacks);
 }
 
-static void fit_norm(const consph_approx_row *rows, int nrows, int k, consph_order_fit *fit)
+static void fit_norm(const consph_approx_row *rows, const double *res, int nrows, int k,
+                     consph_order_fit *fit)
 {
-    double res[CLI_LIST_MAX], err[CLI_LIST_MAX];
-    for (int r = 0; r < nrows; ++r) {
-        res[r] = (double)rows[r].nx;
-        err[r] = norm_of(&rows[r], k);
-    }
+    double err[CLI_LIST_MAX];
+    for (int r = 0; r < nrows; ++r) err[r] = norm_of(&rows[r], k);
     if (consph_fit_order(res, err, nrows, fit) != CONSPH_OK) fit->order = NAN;
+}
+
+/* A particle file given with --particles, read before anything runs. */
+typedef struct input_file {
+    const char *path;
+    consph_particles p;
+    consph_read_report rep;
+    consph_volume_kind volume;
+    char volume_text[96];
+    double nx; /* N^(1/dim): the resolution the order fit sees */
+    int periodic_given;
+} input_file;
+
+/* "yes"/"all", "no"/"none", or axis letters (commas allowed): periodic[a] for every axis. */
+static int parse_periodic(const char *text, int periodic[CONSPH_MAX_DIM])
+{
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) periodic[a] = 0;
+    if (!strcmp(text, "yes") || !strcmp(text, "all")) {
+        for (int a = 0; a < CONSPH_MAX_DIM; ++a) periodic[a] = 1;
+        return 0;
+    }
+    if (!strcmp(text, "no") || !strcmp(text, "none")) return 0;
+    int any = 0;
+    for (const char *c = text; *c; ++c) {
+        if (*c == ',') continue;
+        int a = *c == 'x' ? 0 : *c == 'y' ? 1 : *c == 'z' ? 2 : -1;
+        if (a < 0 || periodic[a]) return -1;
+        periodic[a] = 1;
+        any = 1;
+    }
+    return any ? 0 : -1;
+}
+
+/* "x0:x1,y0:y1[,z0:z1]" */
+static int parse_box(const char *text, consph_box *box)
+{
+    memset(box, 0, sizeof *box);
+    char buf[512];
+    if (strlen(text) >= sizeof buf) return -1;
+    strcpy(buf, text);
+    char *save = NULL;
+    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+        char *colon = strchr(t, ':'), *end;
+        if (box->dim == CONSPH_MAX_DIM || !colon) return -1;
+        *colon = '\0';
+        double lo = strtod(t, &end);
+        if (end == t || *end) return -1;
+        double hi = strtod(colon + 1, &end);
+        if (end == colon + 1 || *end || !isfinite(lo) || !isfinite(hi) || !(lo < hi)) return -1;
+        box->lo[box->dim] = lo;
+        box->hi[box->dim] = hi;
+        box->dim++;
+    }
+    if (box->dim == 0 || text[strlen(text) - 1] == ',') return -1;
+    return 0;
+}
+
+/* N^(1/dim), exact when N is a perfect power, so that a file reports the nx of the layout it
+ * was made from. */
+static double resolution_of(size_t n, int dim)
+{
+    double r = pow((double)n, 1.0 / dim);
+    double k = floor(r + 0.5);
+    double kd = 1.0;
+    for (int a = 0; a < dim; ++a) kd *= k;
+    return kd == (double)n ? k : r;
+}
+
+static void json_string(const char *s)
+{
+    putchar('"');
+    for (; *s; ++s) {
+        if (*s == '"' || *s == '\\')
+            printf("\\%c", *s);
+        else if ((unsigned char)*s < 32)
+            printf("\\u%04x", (unsigned char)*s);
+        else
+            putchar(*s);
+    }
+    putchar('"');
+}
+
+static void describe_file(FILE *o, const input_file *f)
+{
+    const consph_particles *p = &f->p;
+    static const char axis[] = "xyz";
+    fprintf(o, "# %s: %zu particles (%s%s%s), box", f->path, p->n,
+            f->rep.format == CONSPH_FORMAT_CSV ? "csv" : "vtu", f->rep.encoding[0] ? " " : "",
+            f->rep.encoding);
+    for (int a = 0; a < p->dim; ++a)
+        fprintf(o, "%s[%g, %g]", a ? "x" : " ", p->box.lo[a], p->box.hi[a]);
+    fprintf(o, " (%s), periodic ", f->rep.box_from_file ? "from the file" : "--box");
+    int any = 0;
+    for (int a = 0; a < p->dim; ++a)
+        if (p->box.periodic[a]) fprintf(o, "%c", axis[a]), any = 1;
+    fprintf(o, "%s (%s), spacing %g (%s), volumes %s", any ? "" : "none",
+            f->rep.periodic_from_file ? "from the file"
+            : f->periodic_given       ? "--periodic"
+                                      : "none in the file",
+            p->spacing, f->rep.spacing_from_file ? "from the file" : "(V/N)^(1/dim)",
+            f->volume_text);
+    if (f->rep.wrapped)
+        fprintf(o, ", %zu particle%s wrapped into the periodic box", f->rep.wrapped,
+                f->rep.wrapped == 1 ? "" : "s");
+    fprintf(o, "\n");
+}
+
+/* The volume rule for one file: --volume when given, else the file's volumes, else 1/ΣW. */
+static int choose_volume(const cli_command *cmd, input_file *f, int volume_idx, int given)
+{
+    consph_particles *p = &f->p;
+    int has = f->rep.volumes != CONSPH_VOLUMES_NONE;
+    const char *origin = consph_volume_origin_name(f->rep.volumes);
+    if (!given) {
+        f->volume = has ? CONSPH_VOLUME_GIVEN : CONSPH_VOLUME_NUMBER;
+        snprintf(f->volume_text, sizeof f->volume_text, "%s",
+                 has ? (f->rep.volumes == CONSPH_VOLUMES_COLUMN ? "given (file column 'volume')"
+                                                                : "given (file columns m/rho)")
+                     : "number (1/sum W, 001 eq. 5: no volumes in the file)");
+        return 0;
+    }
+    if (volume_idx == CONSPH_VOLUME_COUNT) { /* lattice */
+        double *vol = consph_particles_field(p, "volume", 1);
+        if (!vol) return cli_error(cmd, "%s: %s", f->path, consph_last_error());
+        double v = consph_box_volume(&p->box) / (double)p->n;
+        for (size_t i = 0; i < p->n; ++i) vol[i] = v;
+        f->volume = CONSPH_VOLUME_GIVEN;
+        snprintf(f->volume_text, sizeof f->volume_text, "given (--volume lattice: box volume / N)");
+        return 0;
+    }
+    if (volume_idx == CONSPH_VOLUME_COUNT + 1) volume_idx = CONSPH_VOLUME_NUMBER; /* shepard */
+    if (volume_idx == CONSPH_VOLUME_GIVEN && !has)
+        return cli_error(cmd,
+                         "option --volume: given needs volumes, but %s has no volume (or m and "
+                         "rho) column; allowed: lattice, shepard, number, summation",
+                         f->path);
+    f->volume = (consph_volume_kind)volume_idx;
+    snprintf(f->volume_text, sizeof f->volume_text, "%s (--volume%s%s)",
+             consph_volume_name(f->volume), volume_idx == CONSPH_VOLUME_GIVEN ? ": " : "",
+             volume_idx == CONSPH_VOLUME_GIVEN ? origin : "");
+    return 0;
+}
+
+/* Fields of period 1 repeat on a periodic axis only when its length is a whole number. */
+static int check_field_period(const cli_command *cmd, const input_file *f, consph_mfield_id field)
+{
+    if (field == CONSPH_MFIELD_CONST) return 0;
+    static const char axis[] = "xyz";
+    for (int a = 0; a < f->p.dim; ++a) {
+        double len = consph_box_length(&f->p.box, a);
+        if (f->p.box.periodic[a] && fabs(len - floor(len + 0.5)) > 1e-12 * fmax(1.0, len))
+            return cli_error(cmd,
+                             "option --periodic: %s: field '%s' has period 1 but the periodic "
+                             "axis %c has length %g; allowed: a non-periodic axis, or a box of "
+                             "whole-number length",
+                             f->path, consph_mfield_name(field), axis[a], len);
+    }
+    return 0;
+}
+
+static void free_inputs(input_file *in, int n)
+{
+    for (int k = 0; k < n; ++k) consph_particles_free(&in[k].p);
+    free(in);
 }
 
 int cmd_approx(int argc, char **argv)
 {
-    int op_idx = 0, fmt = 0, hpol = 0, layout_idx = 0, periodic_idx = 0, mask_idx = 0,
-        volume_idx = 1;
+    int op_idx = 0, fmt = 0, hpol = 0, layout_idx = 0, mask_idx = 0, volume_idx = 1;
     const char *form = NULL, *corr = "none", *kernel = "quintic", *field = NULL;
+    const char *particles = NULL, *box_text = NULL, *periodic_text = "yes";
     double hdx = 1.2, eps = 0.2, sigma = 0.1, tol = 1e-4;
     long dim = 2, seed = 1, max_iter = 2000;
     cli_list nx = {0, {0}};
@@ -61,6 +231,7 @@ int cmd_approx(int argc, char **argv)
         if (v) strcat(volume_choices, ",");
         strcat(volume_choices, consph_volume_name((consph_volume_kind)v));
     }
+    strcat(volume_choices, VOLUME_EXTRA);
     cli_opt opts[] = {
         {"--op", CLI_CHOICE, &op_idx, "OP", "operator", OP_CHOICES, 0, 0, 0},
         {"--form", CLI_STRING, &form, "FORM",
@@ -77,21 +248,30 @@ int cmd_approx(int argc, char **argv)
          "hdx: h = R dx; scaling: h = N^(-1/6) as in 003 section 6.2", "hdx,scaling", 0, 0, 0},
         {"--layout", CLI_CHOICE, &layout_idx, "L", "particle layout (default lattice)",
          "lattice,random,quasi-random,packed", 0, 0, 0},
-        {"--dim", CLI_INT, &dim, "D", "dimension (default 2)", NULL, 1, 3, 0},
+        {"--dim", CLI_INT, &dim, "D",
+         "dimension (default 2; with --particles: the files', checked when given)", NULL, 1, 3, 0},
         {"--nx", CLI_INT_LIST, &nx, "N,N,...", "particles per axis, one row each", NULL, 2, 100000,
          0},
+        {"--particles", CLI_STRING, &particles, "FILE,FILE,...",
+         "particle files (.csv or .vtu) instead of --layout/--nx, one row each in this order; nx "
+         "is reported as N^(1/dim)",
+         NULL, 0, 0, 0},
+        {"--box", CLI_STRING, &box_text, "x0:x1,y0:y1[,z0:z1]",
+         "with --particles: the domain (default: the box the file carries)", NULL, 0, 0, 0},
         {"--field", CLI_STRING, &field, "NAME",
          "manufactured field (default sin2pi, or tgv for div); allowed: see --help text", NULL, 0,
          0, 0},
-        {"--periodic", CLI_CHOICE, &periodic_idx, "yes|no",
-         "periodic unit box (default yes); with no, only particles with full support are compared "
-         "unless --mask all",
-         "yes,no", 0, 0, 0},
+        {"--periodic", CLI_STRING, &periodic_text, "yes|no|AXES",
+         "periodic axes: yes (all, the default for layouts), no, or letters such as x or xy; with "
+         "--particles the default is the file's; with no, only particles with full support are "
+         "compared unless --mask all",
+         NULL, 0, 0, 0},
         {"--mask", CLI_CHOICE, &mask_idx, "M", "particles compared on a non-periodic box",
          "interior,all", 0, 0, 0},
         {"--volume", CLI_CHOICE, &volume_idx, "V",
          "particle volumes: summation (m/rho), number (1/sum W, 001 eq. 5, default), given "
-         "(layout volume)",
+         "(layout or file volume), lattice (box volume / N), shepard (= number); with "
+         "--particles the default is the file's volume (or m/rho) column, else shepard",
          volume_choices, 0, 0, 0},
         {"--eps", CLI_DOUBLE, &eps, "E", "random layout: perturbation factor (default 0.2)", NULL,
          0, 2, 0},
@@ -105,7 +285,16 @@ int cmd_approx(int argc, char **argv)
          "table (with fitted orders), csv (stable columns) or json (rows and orders)",
          FORMAT_CHOICES, 0, 0, 0},
     };
-    char details[1024];
+    enum {
+        O_OP = 0,
+        O_DIM = 7,
+        O_NX = 8,
+        O_PARTICLES = 9,
+        O_BOX = 10,
+        O_PERIODIC = 12,
+        O_VOLUME = 14
+    };
+    char details[1536];
     snprintf(details, sizeof details,
              "CSV columns: nx,n,h,nbr_mean,l1,l2,linf,mae,ft_over_fmax,seconds,fallbacks\n"
              "  l1 = sum|g-g_o|/sum|g_o| (001 eq. 7, see docs/deviations.md), l2 and linf (002 "
@@ -113,12 +302,18 @@ int cmd_approx(int argc, char **argv)
              "(001 Tables 3, 5),\n  seconds = operator time, fallbacks = particles whose "
              "correction matrix was rejected.\n"
              "Orders: least-squares slope of log(error) against log(nx), with standard error.\n"
-             "Fields: %s.",
+             "Fields: %s.\n"
+             "Particle files: CSV with a header row x,y[,z] (optional volume, m, rho columns) or "
+             "VTK .vtu (ascii, binary, appended, zlib), as 'consph layout --out' writes them; "
+             "the box and periodicity come from the file (CSV '# box'/'# periodic' comments, VTU "
+             "FieldData) unless --box/--periodic are given. A bad file gets one line naming the "
+             "file, the line and the problem, and exit status 2.",
              consph_mfield_names());
     cli_command cmd = {"approx",
                        "Measure an operator's accuracy on a manufactured field at several "
                        "resolutions.",
-                       "consph approx --op OP [--form FORM] [--corr CORR] --nx N,N,... [options]",
+                       "consph approx --op OP [--form FORM] [--corr CORR] (--nx N,N,... | "
+                       "--particles FILE,FILE,...) [options]",
                        details,
                        opts,
                        (int)(sizeof opts / sizeof opts[0]),
@@ -126,24 +321,118 @@ int cmd_approx(int argc, char **argv)
                        NULL};
     int rc = cli_parse(&cmd, argc, argv);
     if (rc) return rc == 1 ? 0 : rc;
-    if (!opts[0].given) return cli_error(&cmd, "option --op is required; allowed: " OP_CHOICES);
-    if (!opts[8].given) return cli_error(&cmd, "option --nx is required (e.g. --nx 50,100,200)");
+    if (!opts[O_OP].given) return cli_error(&cmd, "option --op is required; allowed: " OP_CHOICES);
+    const int from_files = opts[O_PARTICLES].given;
+    if (!from_files && !opts[O_NX].given)
+        return cli_error(&cmd, "option --nx is required (e.g. --nx 50,100,200), or --particles "
+                               "FILE,FILE,...");
+    if (from_files) {
+        static const char *const layout_only[] = {"--layout", "--nx",       "--eps",
+                                                  "--seed",   "--pack-tol", "--pack-iter"};
+        for (size_t k = 0; k < sizeof layout_only / sizeof layout_only[0]; ++k)
+            for (int o = 0; o < cmd.nopts; ++o)
+                if (opts[o].given && !strcmp(opts[o].name, layout_only[k]))
+                    return cli_error(&cmd,
+                                     "option %s: not with --particles (the files are the "
+                                     "particles)",
+                                     layout_only[k]);
+    } else if (opts[O_BOX].given) {
+        return cli_error(&cmd, "option --box: only with --particles (layouts fill the unit box)");
+    }
+    int periodic[CONSPH_MAX_DIM];
+    if (parse_periodic(periodic_text, periodic) != 0)
+        return cli_error(&cmd, "option --periodic: unknown value '%s'; allowed: " PERIODIC_ALLOWED,
+                         periodic_text);
+    consph_box given_box;
+    if (box_text && parse_box(box_text, &given_box) != 0)
+        return cli_error(&cmd, "option --box: '%s' is not a box; allowed: " BOX_ALLOWED, box_text);
+    if (!from_files && volume_idx == CONSPH_VOLUME_COUNT) volume_idx = CONSPH_VOLUME_GIVEN;
+    if (!from_files && volume_idx == CONSPH_VOLUME_COUNT + 1) volume_idx = CONSPH_VOLUME_NUMBER;
+
+    /* Every file is read, and every bad one rejected, before anything is measured. */
+    input_file *in = NULL;
+    int nin = 0;
+    static char list[4096]; /* holds the file names, which the reports quote */
+    if (from_files) {
+        size_t len = strlen(particles);
+        if (len >= sizeof list || particles[len - 1] == ',' || particles[0] == ',')
+            return cli_error(
+                &cmd, "option --particles: '%s' is not a comma-separated list of files", particles);
+        strcpy(list, particles);
+        in = calloc(CLI_LIST_MAX, sizeof *in);
+        if (!in) return cli_error(&cmd, "out of memory");
+    }
+    rc = CLI_EXIT_USAGE;
+    char *save = NULL;
+    for (char *t = from_files ? strtok_r(list, ",", &save) : NULL; t;
+         t = strtok_r(NULL, ",", &save)) {
+        if (nin == CLI_LIST_MAX) {
+            cli_error(&cmd, "option --particles: at most %d files", CLI_LIST_MAX);
+            goto out;
+        }
+        input_file *f = &in[nin];
+        f->path = t;
+        f->periodic_given = opts[O_PERIODIC].given;
+        consph_particle_format pf;
+        if (consph_particle_format_from_path(t, &pf) != CONSPH_OK) {
+            cli_error(&cmd, "option --particles: %s", consph_last_error());
+            goto out;
+        }
+        consph_read_options ro;
+        memset(&ro, 0, sizeof ro);
+        ro.dim = opts[O_DIM].given ? (int)dim : 0;
+        if (box_text) {
+            ro.have_box = 1;
+            ro.box = given_box;
+        }
+        if (opts[O_PERIODIC].given) {
+            ro.have_periodic = 1;
+            for (int a = 0; a < CONSPH_MAX_DIM; ++a) ro.periodic[a] = periodic[a];
+        }
+        if (consph_read_particles(t, &ro, &f->p, &f->rep) != CONSPH_OK) {
+            fprintf(stderr, "consph approx: %s\n", consph_last_error());
+            goto out;
+        }
+        ++nin;
+        if (f->p.dim != in[0].p.dim) {
+            cli_error(&cmd, "option --particles: %s is %dD but %s is %dD", t, f->p.dim, in[0].path,
+                      in[0].p.dim);
+            goto out;
+        }
+        int all = !strcmp(periodic_text, "yes") || !strcmp(periodic_text, "all");
+        for (int a = f->p.dim; a < CONSPH_MAX_DIM && opts[O_PERIODIC].given && !all; ++a)
+            if (periodic[a]) {
+                cli_error(&cmd, "option --periodic: axis %c, but the particles are %dD", "xyz"[a],
+                          f -> p.dim);
+                goto out;
+            }
+        if (choose_volume(&cmd, f, volume_idx, opts[O_VOLUME].given)) goto out;
+        f->nx = resolution_of(f->p.n, f->p.dim);
+    }
+    if (from_files) dim = in[0].p.dim;
 
     static const char *default_form[] = {"standard", "f4", "div", "coupled", "korzilius"};
     consph_approx_spec s = consph_approx_defaults((int)dim);
     char opname[32];
     cli_choice_name(OP_CHOICES, op_idx, opname, sizeof opname);
     if (!form) form = default_form[op_idx];
-    if (consph_op_parse(opname, form, corr, (int)dim, &s.op) != CONSPH_OK)
-        return cli_error(&cmd, "%s", consph_last_error());
-    if (consph_kernel_lookup(kernel, &s.kernel) != CONSPH_OK)
-        return cli_error(&cmd, "option --kernel: %s", consph_last_error());
-    if (consph_kernel_info_get(s.kernel)->tensor)
-        return cli_error(&cmd, "option --kernel: '%s' is a remeshing kernel, not an SPH kernel",
-                         kernel);
+    if (consph_op_parse(opname, form, corr, (int)dim, &s.op) != CONSPH_OK) {
+        cli_error(&cmd, "%s", consph_last_error());
+        goto out;
+    }
+    if (consph_kernel_lookup(kernel, &s.kernel) != CONSPH_OK) {
+        cli_error(&cmd, "option --kernel: %s", consph_last_error());
+        goto out;
+    }
+    if (consph_kernel_info_get(s.kernel)->tensor) {
+        cli_error(&cmd, "option --kernel: '%s' is a remeshing kernel, not an SPH kernel", kernel);
+        goto out;
+    }
     if (!field) field = op_idx == 2 ? "tgv" : "sin2pi";
-    if (consph_mfield_lookup(field, &s.field) != CONSPH_OK)
-        return cli_error(&cmd, "option --field: %s", consph_last_error());
+    if (consph_mfield_lookup(field, &s.field) != CONSPH_OK) {
+        cli_error(&cmd, "option --field: %s", consph_last_error());
+        goto out;
+    }
     s.hdx = hdx;
     s.h_policy = hpol ? CONSPH_H_SCALING : CONSPH_H_HDX;
     s.layout = consph_layout_defaults((consph_layout_kind)layout_idx, (int)dim, 10);
@@ -151,43 +440,87 @@ int cmd_approx(int argc, char **argv)
     s.layout.eps = eps;
     s.layout.packing.tol = tol;
     s.layout.packing.max_iter = (int)max_iter;
-    s.layout.box = consph_box_unit((int)dim, periodic_idx == 0);
+    s.layout.box = consph_box_unit((int)dim, 0);
+    for (int a = 0; a < dim; ++a) s.layout.box.periodic[a] = periodic[a];
     s.field_params.sigma = sigma;
     s.volume = (consph_volume_kind)volume_idx;
     s.interior_only = mask_idx == 0;
-    if (consph_approx_check(&s) != CONSPH_OK) return cli_error(&cmd, "%s", consph_last_error());
+    if (!from_files && consph_approx_check(&s) != CONSPH_OK) {
+        cli_error(&cmd, "%s", consph_last_error());
+        goto out;
+    }
+    for (int k = 0; k < nin; ++k) {
+        consph_approx_spec fs = s;
+        fs.layout.box = in[k].p.box;
+        fs.volume = in[k].volume;
+        if (check_field_period(&cmd, &in[k], s.field)) goto out;
+        if (consph_approx_check(&fs) != CONSPH_OK) {
+            cli_error(&cmd, "%s: %s", in[k].path, consph_last_error());
+            goto out;
+        }
+    }
 
+    int nrows = from_files ? nin : nx.n;
     consph_approx_row rows[CLI_LIST_MAX];
-    const char *pnames[2] = {"yes", "no"};
+    double res[CLI_LIST_MAX];
+    char pdesc[8] = "";
+    for (int a = 0, k = 0; a < dim; ++a)
+        if (periodic[a]) pdesc[k++] = "xyz"[a];
     if (fmt == 0) {
-        printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), layout %s, "
-               "dim %ld, periodic %s, field %s, volume %s\n",
-               opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
-               hpol ? "h = N^-1/6" : "h = hdx*dx", consph_layout_name(s.layout.kind), dim,
-               pnames[periodic_idx], field, consph_volume_name(s.volume));
+        if (from_files)
+            printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), particles "
+                   "from %d file%s, dim %ld, field %s\n",
+                   opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
+                   hpol ? "h = N^-1/6" : "h = hdx*dx", nin, nin == 1 ? "" : "s", dim, field);
+        else
+            printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), layout %s, "
+                   "dim %ld, periodic %s, field %s, volume %s\n",
+                   opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
+                   hpol ? "h = N^-1/6" : "h = hdx*dx", consph_layout_name(s.layout.kind), dim,
+                   !pdesc[0]                      ? "no"
+                   : strlen(pdesc) == (size_t)dim ? "yes"
+                                                  : pdesc,
+                   field, consph_volume_name(s.volume));
+        for (int k = 0; k < nin; ++k) describe_file(stdout, &in[k]);
         printf("%6s %10s %10s %8s %11s %11s %11s %11s %11s %9s %9s\n", "nx", "n", "h", "nbr", "l1",
                "l2", "linf", "mae", "ft/fmax", "seconds", "fallback");
-    } else if (fmt == 1) {
-        print_csv_header();
+    } else {
+        /* CSV and JSON keep their columns; what was read from each file goes to stderr. */
+        for (int k = 0; k < nin; ++k) describe_file(stderr, &in[k]);
+        if (fmt == 1) print_csv_header();
     }
-    for (int r = 0; r < nx.n; ++r) {
-        if (consph_approx_run(&s, (size_t)nx.v[r], &rows[r]) != CONSPH_OK) {
-            fprintf(stderr, "consph approx: nx = %.0f: %s\n", nx.v[r], consph_last_error());
-            return 1;
+    rc = 1;
+    for (int r = 0; r < nrows; ++r) {
+        if (from_files) {
+            consph_approx_spec fs = s;
+            fs.layout.box = in[r].p.box;
+            fs.volume = in[r].volume;
+            if (consph_approx_run_particles(&fs, &in[r].p, (size_t)floor(in[r].nx + 0.5),
+                                            &rows[r]) != CONSPH_OK) {
+                fprintf(stderr, "consph approx: %s: %s\n", in[r].path, consph_last_error());
+                goto out;
+            }
+            res[r] = in[r].nx;
+        } else {
+            if (consph_approx_run(&s, (size_t)nx.v[r], &rows[r]) != CONSPH_OK) {
+                fprintf(stderr, "consph approx: nx = %.0f: %s\n", nx.v[r], consph_last_error());
+                goto out;
+            }
+            res[r] = (double)rows[r].nx;
         }
         const consph_approx_row *w = &rows[r];
         if (fmt == 0)
-            printf("%6zu %10zu %10.4g %8.2f %11.4e %11.4e %11.4e %11.4e %11.3e %9.3g %9zu\n", w->nx,
-                   w->n, w->h, w->nbr_mean, w->err.l1, w->err.l2, w->err.linf, w->err.mae,
+            printf("%6.6g %10zu %10.4g %8.2f %11.4e %11.4e %11.4e %11.4e %11.3e %9.3g %9zu\n",
+                   res[r], w->n, w->h, w->nbr_mean, w->err.l1, w->err.l2, w->err.linf, w->err.mae,
                    w->ft_over_fmax, w->seconds, w->fallbacks);
         else if (fmt == 1)
-            print_csv_row(w);
+            print_csv_row(w, res[r]);
         fflush(stdout);
     }
     if (fmt == 0) {
         for (int k = 0; k < 4; ++k) {
             consph_order_fit fit;
-            fit_norm(rows, nx.n, k, &fit);
+            fit_norm(rows, res, nrows, k, &fit);
             if (isnan(fit.order))
                 printf("order (%s): n/a\n", norm_names[k]);
             else
@@ -195,23 +528,36 @@ int cmd_approx(int argc, char **argv)
         }
     } else if (fmt == 2) {
         printf("{\n  \"op\": \"%s\", \"form\": \"%s\", \"corr\": \"%s\", \"kernel\": \"%s\", "
-               "\"hdx\": %g, \"h_policy\": \"%s\", \"layout\": \"%s\", \"dim\": %ld, "
-               "\"periodic\": %s, \"field\": \"%s\", \"volume\": \"%s\",\n  \"rows\": [\n",
+               "\"hdx\": %g, \"h_policy\": \"%s\", \"layout\": \"%s\", \"dim\": %ld, ",
                opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
-               hpol ? "scaling" : "hdx", consph_layout_name(s.layout.kind), dim,
-               periodic_idx == 0 ? "true" : "false", field, consph_volume_name(s.volume));
-        for (int r = 0; r < nx.n; ++r) {
+               hpol ? "scaling" : "hdx", from_files ? "files" : consph_layout_name(s.layout.kind),
+               dim);
+        if (from_files)
+            printf("\"field\": \"%s\",\n", field);
+        else
+            printf("\"periodic\": %s, \"field\": \"%s\", \"volume\": \"%s\",\n",
+                   pdesc[0] ? "true" : "false", field, consph_volume_name(s.volume));
+        printf("  \"rows\": [\n");
+        for (int r = 0; r < nrows; ++r) {
             const consph_approx_row *w = &rows[r];
-            printf("    {\"nx\": %zu, \"n\": %zu, \"h\": %.10g, \"nbr_mean\": %.6g, \"l1\": %.6e, "
+            printf("    {");
+            if (from_files) {
+                printf("\"file\": ");
+                json_string(in[r].path);
+                printf(", \"volume\": \"%s\", \"volumes\": ", consph_volume_name(in[r].volume));
+                json_string(in[r].volume_text);
+                printf(", \"wrapped\": %zu, ", in[r].rep.wrapped);
+            }
+            printf("\"nx\": %.10g, \"n\": %zu, \"h\": %.10g, \"nbr_mean\": %.6g, \"l1\": %.6e, "
                    "\"l2\": %.6e, \"linf\": %.6e, \"mae\": %.6e, \"ft_over_fmax\": %.6e, "
                    "\"seconds\": %.6g, \"fallbacks\": %zu}%s\n",
-                   w->nx, w->n, w->h, w->nbr_mean, w->err.l1, w->err.l2, w->err.linf, w->err.mae,
-                   w->ft_over_fmax, w->seconds, w->fallbacks, r + 1 < nx.n ? "," : "");
+                   res[r], w->n, w->h, w->nbr_mean, w->err.l1, w->err.l2, w->err.linf, w->err.mae,
+                   w->ft_over_fmax, w->seconds, w->fallbacks, r + 1 < nrows ? "," : "");
         }
         printf("  ],\n  \"order\": {");
         for (int k = 0; k < 4; ++k) {
             consph_order_fit fit;
-            fit_norm(rows, nx.n, k, &fit);
+            fit_norm(rows, res, nrows, k, &fit);
             if (isnan(fit.order))
                 printf("%s\"%s\": null", k ? ", " : "", norm_names[k]);
             else
@@ -220,5 +566,8 @@ int cmd_approx(int argc, char **argv)
         }
         printf("}\n}\n");
     }
-    return 0;
+    rc = 0;
+out:
+    if (in) free_inputs(in, nin);
+    return rc;
 }

@@ -1,5 +1,8 @@
-/* consph layout: generate a particle arrangement, print its statistics, write it as .vtu/.csv. */
+/* consph layout: generate a particle arrangement (or read one with --in), print its statistics,
+ * write it as .vtu/.csv. */
+#include <math.h>
 #include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "cli.h"
@@ -35,6 +38,12 @@ static const char layout_details[] =
     "The CSV starts with '#' comment lines (dim, n, spacing, box, periodic), then the header row\n"
     "x,y[,z],volume and one row per particle.\n"
     "\n"
+    "--in FILE reads particles instead of generating them (CSV with a header row x,y[,z] and\n"
+    "optional volume, m, rho columns, or .vtu: ascii, binary, appended, zlib), prints the same\n"
+    "statistics and, with --out, writes them in the other format: a converter. The box and\n"
+    "periodicity are the file's (consph's '#' header or VTU field data) unless --box and\n"
+    "--periodic are given; the spacing is the file's, else (box volume / N)^(1/D).\n"
+    "\n"
     "exit status: 0 success, 1 failure while running, 2 bad usage (nothing is written)";
 
 static int opt_given(const cli_opt *opts, int nopts, const char *name)
@@ -42,6 +51,104 @@ static int opt_given(const cli_opt *opts, int nopts, const char *name)
     for (int k = 0; k < nopts; ++k)
         if (strcmp(opts[k].name, name) == 0) return opts[k].given;
     return 0;
+}
+
+/* "x0:x1,y0:y1[,z0:z1]" */
+static int parse_box(const char *text, consph_box *box)
+{
+    memset(box, 0, sizeof *box);
+    char buf[512];
+    size_t len = strlen(text);
+    if (!len || len >= sizeof buf || text[len - 1] == ',') return -1;
+    strcpy(buf, text);
+    char *save = NULL;
+    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+        char *colon = strchr(t, ':'), *end;
+        if (box->dim == CONSPH_MAX_DIM || !colon) return -1;
+        *colon = '\0';
+        double lo = strtod(t, &end);
+        if (end == t || *end) return -1;
+        double hi = strtod(colon + 1, &end);
+        if (end == colon + 1 || *end || !isfinite(lo) || !isfinite(hi) || !(lo < hi)) return -1;
+        box->lo[box->dim] = lo;
+        box->hi[box->dim] = hi;
+        box->dim++;
+    }
+    return box->dim ? 0 : -1;
+}
+
+/* Statistics of any particle set, as printed for generated layouts. */
+static int print_stats(const consph_particles *p, const char *kernel, double hdx)
+{
+    consph_layout_stats st;
+    consph_layout_nn_stats nst;
+    int rc = consph_layout_stats_compute(p, kernel, hdx, &st);
+    if (!rc) rc = consph_layout_nn_stats_compute(p, &nst);
+    if (rc) {
+        fprintf(stderr, "consph layout: %s\n", consph_last_error());
+        return rc;
+    }
+    printf("min spacing %.6g (%.4f Δs)\n", st.min_spacing, st.min_spacing / p->spacing);
+    printf("density (%s, h/Δs %g): max|rho/rho0-1| %.3e, mean rho %.9f\n", kernel, hdx,
+           st.rho_spread, st.rho_mean);
+    printf("nearest-neighbour distance / Δs: min %.4f mean %.4f max %.4f std %.4f\n", nst.nn_min,
+           nst.nn_mean, nst.nn_max, nst.nn_std);
+    printf("distance to the nearest lattice node / Δs: mean %.4f max %.4f\n", nst.disp_mean,
+           nst.disp_max);
+    return CONSPH_OK;
+}
+
+/* consph layout --in FILE [--out FILE2]: read, summarise, convert. */
+static int layout_from_file(const cli_command *cmd, const char *in, const char *out, long dim,
+                            const char *box_text, int periodic_given, int periodic,
+                            const char *kernel, double hdx)
+{
+    consph_read_options ro;
+    memset(&ro, 0, sizeof ro);
+    ro.dim = (int)dim;
+    if (box_text) {
+        if (parse_box(box_text, &ro.box))
+            return cli_error(cmd,
+                             "option --box: '%s' is not a box; allowed: x0:x1,y0:y1[,z0:z1] with "
+                             "finite x0 < x1",
+                             box_text);
+        ro.have_box = 1;
+    }
+    if (periodic_given) {
+        ro.have_periodic = 1;
+        for (int a = 0; a < CONSPH_MAX_DIM; ++a) ro.periodic[a] = periodic;
+    }
+    consph_particle_format fmt;
+    if (out && consph_particle_format_from_path(out, &fmt) != CONSPH_OK)
+        return cli_error(cmd, "option --out: %s", consph_last_error());
+    consph_particles p;
+    consph_read_report rep;
+    if (consph_read_particles(in, &ro, &p, &rep) != CONSPH_OK) {
+        fprintf(stderr, "consph layout: %s\n", consph_last_error());
+        return CLI_EXIT_USAGE;
+    }
+    static const char axis[] = "xyz";
+    printf("read %s (%s%s%s): %zu particles, dim %d, spacing %.6g%s, box", in,
+           rep.format == CONSPH_FORMAT_CSV ? "csv" : "vtu", rep.encoding[0] ? " " : "",
+           rep.encoding, p.n, p.dim, p.spacing, rep.spacing_from_file ? "" : " ((V/N)^(1/D))");
+    for (int a = 0; a < p.dim; ++a) printf("%s[%g, %g]", a ? "x" : " ", p.box.lo[a], p.box.hi[a]);
+    printf("%s, periodic ", rep.box_from_file ? "" : " (--box)");
+    int any = 0;
+    for (int a = 0; a < p.dim; ++a)
+        if (p.box.periodic[a]) any = 1, putchar(axis[a]);
+    printf("%s, volumes %s", any ? "" : "none", consph_volume_origin_name(rep.volumes));
+    if (rep.wrapped) printf(", %zu wrapped into the periodic box", rep.wrapped);
+    printf("\n");
+    int rc = print_stats(&p, kernel, hdx);
+    if (rc == CONSPH_OK && out) {
+        rc = consph_write_particles(out, &p);
+        if (rc)
+            fprintf(stderr, "consph layout: %s\n", consph_last_error());
+        else
+            printf("wrote %s\n", out);
+    }
+    consph_particles_free(&p);
+    return rc ? 1 : 0;
 }
 
 static void print_report(const consph_packing_report *r, double tol)
@@ -67,7 +174,7 @@ int cmd_layout(int argc, char **argv)
     int kind_index = -1, periodic_index = 0;
     long dim = 0, nx = 0, seed = 1, max_iter = 2000, history_every = 100;
     double eps = 0.2, hdx = 1.2, tol = 1e-4, perturb = 0.5;
-    const char *kernel = "quintic", *out = NULL;
+    const char *kernel = "quintic", *out = NULL, *in = NULL, *box_text = NULL;
     cli_opt opts[] = {
         {"--kind", CLI_CHOICE, &kind_index, "K", "particle arrangement (required)",
          consph_layout_names(), 0, 0, 0},
@@ -95,12 +202,17 @@ int cmd_layout(int argc, char **argv)
          100000000, 0},
         {"--out", CLI_OUT_PATH, &out, "FILE", "write the particles; format by extension",
          ".vtu,.csv", 0, 0, 0},
+        {"--in", CLI_STRING, &in, "FILE",
+         "read particles (.csv or .vtu) instead of generating them; with --out: convert", NULL, 0,
+         0, 0},
+        {"--box", CLI_STRING, &box_text, "x0:x1,y0:y1[,z0:z1]",
+         "with --in: the domain (default: the file's box)", NULL, 0, 0, 0},
     };
     cli_command cmd = {
         "layout",
         "Generate a particle arrangement in the unit box, print its count, minimum spacing and\n"
         "density spread, and optionally write it.",
-        "consph layout --kind K --dim D --nx N [options]",
+        "consph layout --kind K --dim D --nx N [options] | consph layout --in FILE [--out FILE2]",
         layout_details,
         opts,
         (int)(sizeof opts / sizeof opts[0]),
@@ -112,6 +224,24 @@ int cmd_layout(int argc, char **argv)
     if (rc == 1) return 0;
     if (rc) return rc;
 
+    if (opt_given(opts, nopts, "--in")) {
+        static const char *const generator_only[] = {"--kind",     "--nx",           "--seed",
+                                                     "--eps",      "--perturb",      "--tol",
+                                                     "--max-iter", "--history-every"};
+        for (size_t k = 0; k < sizeof generator_only / sizeof generator_only[0]; ++k)
+            if (opt_given(opts, nopts, generator_only[k]))
+                return cli_error(&cmd, "option %s: not with --in (the file is the particles)",
+                                 generator_only[k]);
+        consph_kernel_id kid;
+        if (consph_kernel_lookup(kernel, &kid) != CONSPH_OK || consph_kernel_info_get(kid)->tensor)
+            return cli_error(&cmd, "option --kernel: '%s' is not a radial kernel; allowed: %s",
+                             kernel, consph_kernel_names());
+        return layout_from_file(&cmd, in, out, opt_given(opts, nopts, "--dim") ? dim : 0, box_text,
+                                opt_given(opts, nopts, "--periodic"), periodic_index == 0, kernel,
+                                hdx);
+    }
+    if (box_text)
+        return cli_error(&cmd, "option --box: only with --in (layouts fill the unit box)");
     if (!opt_given(opts, nopts, "--kind"))
         return cli_error(&cmd, "option --kind is required; allowed: %s", consph_layout_names());
     if (!opt_given(opts, nopts, "--dim"))
@@ -172,23 +302,11 @@ int cmd_layout(int argc, char **argv)
            consph_layout_name(kind), dim, nx, p.n, p.spacing, periodic ? " periodic" : "");
     if (kind == CONSPH_LAYOUT_PACKED) print_report(&report, tol);
 
-    consph_layout_stats st;
-    consph_layout_nn_stats nst;
-    rc = consph_layout_stats_compute(&p, kernel, hdx, &st);
-    if (!rc) rc = consph_layout_nn_stats_compute(&p, &nst);
-    if (rc) {
-        fprintf(stderr, "consph layout: %s\n", consph_last_error());
+    if (print_stats(&p, kernel, hdx) != CONSPH_OK) {
         consph_packing_report_free(&report);
         consph_particles_free(&p);
         return 1;
     }
-    printf("min spacing %.6g (%.4f Δs)\n", st.min_spacing, st.min_spacing / p.spacing);
-    printf("density (%s, h/Δs %g): max|rho/rho0-1| %.3e, mean rho %.9f\n", kernel, hdx,
-           st.rho_spread, st.rho_mean);
-    printf("nearest-neighbour distance / Δs: min %.4f mean %.4f max %.4f std %.4f\n", nst.nn_min,
-           nst.nn_mean, nst.nn_max, nst.nn_std);
-    printf("distance to the nearest lattice node / Δs: mean %.4f max %.4f\n", nst.disp_mean,
-           nst.disp_max);
     if (out) {
         rc = consph_write_particles(out, &p);
         if (rc) {

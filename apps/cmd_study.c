@@ -7,6 +7,7 @@
 
 #include "cli.h"
 #include "commands.h"
+#include "consph/io.h"
 #include "consph/study.h"
 
 static int is_dir(const char *p)
@@ -66,11 +67,143 @@ static int list_studies(const cli_command *cmd)
     return rc;
 }
 
+/* The particle files of --particles, read (and every bad one rejected) before the study runs. */
+typedef struct study_inputs {
+    int n;
+    char *names[CLI_LIST_MAX];
+    consph_particles sets[CLI_LIST_MAX];
+} study_inputs;
+
+static void free_inputs(study_inputs *in)
+{
+    for (int k = 0; k < in->n; ++k) {
+        consph_particles_free(&in->sets[k]);
+        free(in->names[k]);
+    }
+    in->n = 0;
+}
+
+static int parse_box(const char *text, consph_box *box)
+{
+    memset(box, 0, sizeof *box);
+    char buf[512];
+    if (!*text || strlen(text) >= sizeof buf || text[strlen(text) - 1] == ',') return -1;
+    strcpy(buf, text);
+    char *save = NULL;
+    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+        char *colon = strchr(t, ':'), *end;
+        if (box->dim == CONSPH_MAX_DIM || !colon) return -1;
+        *colon = '\0';
+        double lo = strtod(t, &end);
+        if (end == t || *end) return -1;
+        double hi = strtod(colon + 1, &end);
+        if (end == colon + 1 || *end || !(lo < hi) || hi - lo > 1e300) return -1;
+        box->lo[box->dim] = lo;
+        box->hi[box->dim] = hi;
+        box->dim++;
+    }
+    return box->dim ? 0 : -1;
+}
+
+static int parse_periodic(const char *text, int periodic[CONSPH_MAX_DIM])
+{
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) periodic[a] = 0;
+    if (!strcmp(text, "yes") || !strcmp(text, "all")) {
+        for (int a = 0; a < CONSPH_MAX_DIM; ++a) periodic[a] = 1;
+        return 0;
+    }
+    if (!strcmp(text, "no") || !strcmp(text, "none")) return 0;
+    int any = 0;
+    for (const char *c = text; *c; ++c) {
+        if (*c == ',') continue;
+        int a = *c == 'x' ? 0 : *c == 'y' ? 1 : *c == 'z' ? 2 : -1;
+        if (a < 0 || periodic[a]) return -1;
+        periodic[a] = any = 1;
+    }
+    return any ? 0 : -1;
+}
+
+/* Reads every file of `list`. A file without volumes gets box volume / N, used by figures that
+ * ask for `volume = given`; the others compute their own. */
+static int read_inputs(const cli_command *cmd, const char *list, const char *box_text,
+                       const char *periodic_text, study_inputs *in)
+{
+    consph_read_options ro;
+    memset(&ro, 0, sizeof ro);
+    if (box_text) {
+        if (parse_box(box_text, &ro.box))
+            return cli_error(cmd,
+                             "option --box: '%s' is not a box; allowed: x0:x1,y0:y1[,z0:z1] "
+                             "with finite x0 < x1",
+                             box_text);
+        ro.have_box = 1;
+    }
+    if (periodic_text) {
+        if (parse_periodic(periodic_text, ro.periodic))
+            return cli_error(cmd,
+                             "option --periodic: unknown value '%s'; allowed: yes, no, or the "
+                             "periodic axes (e.g. x, xy, x,z)",
+                             periodic_text);
+        ro.have_periodic = 1;
+    }
+    size_t len = strlen(list);
+    if (list[0] == ',' || list[len - 1] == ',')
+        return cli_error(cmd, "option --particles: '%s' is not a comma-separated list of files",
+                         list);
+    const char *t = list;
+    while (*t) {
+        const char *comma = strchr(t, ',');
+        size_t n = comma ? (size_t)(comma - t) : strlen(t);
+        if (in->n == CLI_LIST_MAX) {
+            free_inputs(in);
+            return cli_error(cmd, "option --particles: at most %d files", CLI_LIST_MAX);
+        }
+        char *name = malloc(n + 1);
+        if (!name) {
+            free_inputs(in);
+            return cli_error(cmd, "out of memory");
+        }
+        memcpy(name, t, n);
+        name[n] = '\0';
+        in->names[in->n] = name;
+        consph_particle_format pf;
+        consph_read_report rep;
+        if (consph_particle_format_from_path(name, &pf) != CONSPH_OK) {
+            cli_error(cmd, "option --particles: %s", consph_last_error());
+            free(name);
+            free_inputs(in);
+            return CLI_EXIT_USAGE;
+        }
+        if (consph_read_particles(name, &ro, &in->sets[in->n], &rep) != CONSPH_OK) {
+            fprintf(stderr, "consph study: %s\n", consph_last_error());
+            free(name);
+            free_inputs(in);
+            return CLI_EXIT_USAGE;
+        }
+        consph_particles *p = &in->sets[in->n++];
+        const char *vol = consph_volume_origin_name(rep.volumes);
+        if (rep.volumes == CONSPH_VOLUMES_NONE) {
+            double *v = consph_particles_field(p, "volume", 1);
+            if (!v) {
+                free_inputs(in);
+                return cli_error(cmd, "%s: %s", name, consph_last_error());
+            }
+            for (size_t i = 0; i < p->n; ++i) v[i] = consph_box_volume(&p->box) / (double)p->n;
+            vol = "none in the file: box volume / N where a figure asks for given volumes";
+        }
+        printf("particles %s: %zu, %dD, volumes %s", name, p->n, p->dim, vol);
+        if (rep.wrapped) printf("; %zu wrapped into the periodic box", rep.wrapped);
+        printf("\n");
+        t += n + (comma ? 1 : 0);
+    }
+    return 0;
+}
+
 int cmd_study(int argc, char **argv)
 {
     int quick = 0, list = 0, estimate_only = 0;
     const char *out = "out/studies";
-    const char *name = NULL;
+    const char *name = NULL, *particles = NULL, *box_text = NULL, *periodic_text = NULL;
     cli_opt opts[] = {
         {"--list", CLI_FLAG, &list, NULL, "list the available studies and exit", NULL, 0, 0, 0},
         {"--quick", CLI_FLAG, &quick, NULL,
@@ -79,13 +212,22 @@ int cmd_study(int argc, char **argv)
          0, 0},
         {"--estimate", CLI_FLAG, &estimate_only, NULL, "print the run-time estimate and exit", NULL,
          0, 0, 0},
+        {"--particles", CLI_STRING, &particles, "FILE,FILE,...",
+         "particle files (.csv or .vtu) in place of every figure's layout: one row per file, in "
+         "order, at nx = N^(1/dim); an h/dx sweep runs on the last file",
+         NULL, 0, 0, 0},
+        {"--box", CLI_STRING, &box_text, "x0:x1,y0:y1[,z0:z1]",
+         "with --particles: the domain (default: the box each file carries)", NULL, 0, 0, 0},
+        {"--periodic", CLI_STRING, &periodic_text, "yes|no|AXES",
+         "with --particles: periodic axes (default: each file's own)", NULL, 0, 0, 0},
     };
     const char *positional[1] = {NULL};
     cli_command cmd = {"study",
                        "Run a convergence study declared in studies/NAME.study: per figure or "
                        "table a CSV, a markdown report with the paper's numbers beside ours, and "
                        "a gnuplot figure.",
-                       "consph study NAME [--quick] [--out DIR] | consph study --list",
+                       "consph study NAME [--quick] [--out DIR] [--particles FILE,...] | consph "
+                       "study --list",
                        "NAME is a study name (see --list) or a path to a .study file; the study "
                        "directory is $CONSPH_STUDIES, ./studies or the source tree's studies/.\n"
                        "Without --quick the paper's resolutions are used and a run-time "
@@ -113,11 +255,37 @@ int cmd_study(int argc, char **argv)
                              path);
         fclose(probe);
     }
+    if (!particles && (box_text || periodic_text))
+        return cli_error(&cmd, "option %s: only with --particles",
+                         box_text ? "--box" : "--periodic");
     consph_study *s;
     if (consph_study_load(path, &s) != CONSPH_OK) return cli_error(&cmd, "%s", consph_last_error());
     if (consph_study_validate(s, quick) != CONSPH_OK) {
         consph_study_free(s);
         return cli_error(&cmd, "%s", consph_last_error());
+    }
+    if (particles) {
+        /* Files are read whole before the study starts: a bad one writes nothing. */
+        static study_inputs in;
+        rc = read_inputs(&cmd, particles, box_text, periodic_text, &in);
+        if (rc) {
+            consph_study_free(s);
+            return rc;
+        }
+        printf("study %s: %s (on %d particle file%s)\n", consph_study_name(s),
+               consph_study_title(s), in.n, in.n == 1 ? "" : "s");
+        consph_study_options o = {quick, out, stdout};
+        double t0 = consph_wtime();
+        rc = consph_study_run_particles(s, &o, in.sets, (const char *const *)in.names, in.n);
+        if (rc != CONSPH_OK)
+            fprintf(stderr, "consph study: %s\n", consph_last_error());
+        else
+            printf("done in %.1f s: %s/%s/README.md\n", consph_wtime() - t0, out,
+                   consph_study_name(s));
+        free_inputs(&in);
+        consph_study_free(s);
+        if (rc == CONSPH_OK) return 0;
+        return rc == CONSPH_EFORMAT || rc == CONSPH_EINVAL ? 2 : 1;
     }
     printf("study %s: %s (%s resolutions)\n", consph_study_name(s), consph_study_title(s),
            quick ? "quick" : "paper");

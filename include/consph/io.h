@@ -37,6 +37,72 @@ int consph_particle_format_from_path(const char *path, consph_particle_format *f
  * array per field and the box as FieldData. */
 int consph_write_particles(const char *path, const consph_particles *p);
 
+/* ---- Reading particle files -------------------------------------------------------------- */
+
+/* What the caller knows before reading. Zero-initialise, then set what is known; a known value
+ * overrides (box, periodicity) or is checked against (dim) what the file says. */
+typedef struct consph_read_options {
+    int dim;           /* expected dimension 1..3; 0: the file's own */
+    int have_box;      /* 1: use box.lo/box.hi instead of the file's box */
+    consph_box box;    /* box.dim axes; its periodic flags are ignored (see have_periodic) */
+    int have_periodic; /* 1: use periodic[] instead of the file's periodicity */
+    int periodic[CONSPH_MAX_DIM];
+} consph_read_options;
+
+/* Where the "volume" field of read particles came from. */
+typedef enum consph_volume_origin {
+    CONSPH_VOLUMES_NONE,    /* the file has no volumes: the caller picks a rule */
+    CONSPH_VOLUMES_COLUMN,  /* a `volume` column (CSV) or PointData array (VTU) */
+    CONSPH_VOLUMES_MASS_RHO /* volume = m / rho from `m` and `rho` columns */
+} consph_volume_origin;
+
+/* What a read found, for the caller to report. */
+typedef struct consph_read_report {
+    consph_particle_format format;
+    char encoding[48];      /* VTU: "ascii", "binary", "appended raw", ... (+ ", zlib"); CSV: "" */
+    int box_from_file;      /* the box came from the file (else from the options) */
+    int periodic_from_file; /* periodicity from the file (else options, or none) */
+    int spacing_from_file;  /* p->spacing from the file (else (box volume / N)^(1/dim)) */
+    size_t wrapped;         /* particles moved into the box along periodic axes */
+    consph_volume_origin volumes;
+    int has_mass; /* a "mass" field from an `m` (or `mass`) column */
+} consph_read_report;
+
+/* Reads a particle file into `p` (initialised here), streaming it: memory is O(N). The format is
+ * chosen by the extension (.csv or .vtu) and checked against the content.
+ *
+ * CSV: optional '#' comment lines first (consph writes `# dim D`, `# n N`, `# spacing S`,
+ * `# box lo:hi lo:hi ...`, `# periodic 0|1 ...`; each is read when present), then a header row
+ * naming the columns: x,y[,z] are required (their number is the dimension); `volume`, `m` (or
+ * `mass`) and `rho` are used when present; other columns are kept as fields (a run name_0,
+ * name_1, ... becomes one field with that many components). Then one row per particle.
+ * VTU: VTK XML UnstructuredGrid, one Piece, with data arrays in ascii, binary (base64) or
+ * appended (raw or base64) form, header_type UInt32 or UInt64, either byte order, uncompressed
+ * or vtkZLibDataCompressor; FieldData arrays `box`, `periodic` and `spacing` as consph writes
+ * them are read when present; PointData arrays become fields as CSV columns do.
+ *
+ * Then, for both: the dimension must match opt->dim when given; the box comes from the options
+ * or the file (CONSPH_EINVAL when neither has one); a particle outside the box on a non-periodic
+ * axis is an error, on a periodic axis it is wrapped (counted in rep->wrapped); two particles at
+ * the same position are an error naming both; volume, m and rho must be positive; spacing
+ * defaults to (V/N)^(1/dim). The result carries the field "volume" when the file has volumes
+ * (a column, or m/rho) and "mass" when it has masses.
+ *
+ * Every rejection is one message naming the file and the line (VTU: the line of the element)
+ * and the problem: CONSPH_EIO (cannot open or read), CONSPH_EFORMAT (content),
+ * CONSPH_EINVAL (the content disagrees with the options, or no box), CONSPH_ENOMEM.
+ * `rep` may be NULL. */
+int consph_read_particles(const char *path, const consph_read_options *opt, consph_particles *p,
+                          consph_read_report *rep);
+
+/* The same from a buffer in memory; `name` is used in messages. */
+int consph_read_particles_mem(const char *name, consph_particle_format fmt, const void *data,
+                              size_t size, const consph_read_options *opt, consph_particles *p,
+                              consph_read_report *rep);
+
+/* "file column 'volume'", "m/rho columns" or "none": for reports. */
+const char *consph_volume_origin_name(consph_volume_origin origin);
+
 #ifdef __cplusplus
 }
 #endif

@@ -178,6 +178,13 @@ typedef struct consph_study_options {
 /* Runs every figure; writes FIGURE.csv, FIGURE.md, FIGURE.gp (+ .svg when gnuplot is
  * installed) per figure and README.md per study, each atomically. */
 int consph_study_run(const consph_study *s, const consph_study_options *opt);
+/* Runs `s` like consph_study_run, with the particle sets in place of every layout: a figure
+ * sweeping nx gets one row per set, in order, reported at nx = N^(1/dim); a figure sweeping h/Δs
+ * runs on the last set; App. C figures (no particles) run as usual. Every figure that uses
+ * particles must have their dimension, and its field must be periodic on their box where the
+ * box is periodic; this is checked before anything is written (CONSPH_EINVAL). */
+int consph_study_run_particles(const consph_study *s, const consph_study_options *opt,
+                               const consph_particles *sets, const char *const *names, int nsets);
 
 #ifdef __cplusplus
 }

@@ -28,8 +28,25 @@ typedef struct series_plan {
 typedef struct series_result {
     consph_approx_row rows[MAX_SWEEP];
     double bound[MAX_SWEEP];
+    double nx[MAX_SWEEP]; /* the resolution fitted: nx, or N^(1/dim) for particle files */
     int nrows;
 } series_result;
+
+/* Particle files that replace the generated layouts (consph study --particles). */
+typedef struct study_files {
+    const consph_particles *sets;
+    const char *const *names;
+    int n;
+} study_files;
+
+/* N^(1/dim), exact when N is a perfect power, so that a file made by `consph layout --nx K`
+ * reports nx = K. */
+static double resolution_of(const consph_particles *p)
+{
+    double r = pow((double)p->n, 1.0 / p->dim), k = floor(r + 0.5), kd = 1.0;
+    for (int a = 0; a < p->dim; ++a) kd *= k;
+    return kd == (double)p->n ? k : r;
+}
 
 /* ---- small helpers ---- */
 
@@ -336,11 +353,11 @@ static double norm_value(const consph_approx_row *r, const char *norm)
     return r->err.l1;
 }
 
-static double x_value(const consph_approx_row *r, const char *x, int dim)
+static double x_value(const consph_approx_row *r, double nx, const char *x, int dim)
 {
     if (strcmp(x, "nbr") == 0) return r->nbr_mean + 1.0;
     if (strcmp(x, "sqrtN") == 0) return pow((double)r->n, 1.0 / dim);
-    return (double)r->nx;
+    return nx;
 }
 
 static const char *get_or(const consph_study *s, const study_figure *f, const study_series *r,
@@ -398,7 +415,7 @@ static void paper_columns(const consph_study *s, const study_figure *f, const st
 
 static int write_approx_outputs(const consph_study *s, const study_figure *f,
                                 const series_plan *plans, const series_result *res, const char *dir,
-                                int quick, FILE *log)
+                                int quick, const study_files *files, FILE *log)
 {
     const char *norm = get_or(s, f, NULL, "norm", "l1");
     const char *xname = get_or(s, f, NULL, "x", "nx");
@@ -417,15 +434,23 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
         const series_plan *pl = &plans[k];
         for (int j = 0; j < res[k].nrows; ++j) {
             const consph_approx_row *w = &res[k].rows[j];
+            char layout_text[256], layout[256];
+            if (files)
+                snprintf(layout_text, sizeof layout_text, "file:%s",
+                         files->names[pl->sweep_hdx ? files->n - 1 : j]);
+            else
+                snprintf(layout_text, sizeof layout_text, "%s",
+                         consph_layout_name(pl->spec.layout.kind));
+            csv_label(layout_text, layout, sizeof layout);
             fprintf(of.fp,
                     "%s,%g,%s,%g,%s,%s,%s,%s,%zu,%zu,%.10g,%.6g,%.6e,%.6e,%.6e,%.6e,%.6e,%.6g,"
                     "%zu,%.6e\n",
                     csv_label(f->series[k].label, label, sizeof label), pl->values[j],
                     pl->kernel_name, sweep_hdx ? pl->values[j] : pl->spec.hdx,
-                    consph_form_name(pl->spec.op.form), consph_corr_name(pl->spec.op.corr),
-                    consph_layout_name(pl->spec.layout.kind), consph_mfield_name(pl->spec.field),
-                    w->nx, w->n, w->h, w->nbr_mean, w->err.l1, w->err.l2, w->err.linf, w->err.mae,
-                    w->ft_over_fmax, w->seconds, w->fallbacks, res[k].bound[j]);
+                    consph_form_name(pl->spec.op.form), consph_corr_name(pl->spec.op.corr), layout,
+                    consph_mfield_name(pl->spec.field), w->nx, w->n, w->h, w->nbr_mean, w->err.l1,
+                    w->err.l2, w->err.linf, w->err.mae, w->ft_over_fmax, w->seconds, w->fallbacks,
+                    res[k].bound[j]);
         }
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
@@ -442,9 +467,17 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
             "Run: %s resolutions; op `%s`, layout `%s`, dim %d, periodic %s, field `%s`, "
             "volumes `%s`, compared particles: %s. Norm fitted: `%s`.\n\n",
             quick ? "quick" : "full (paper)", consph_op_name(sp->op.op),
-            consph_layout_name(sp->layout.kind), dim, sp->layout.box.periodic[0] ? "yes" : "no",
+            files ? "particle files" : consph_layout_name(sp->layout.kind), dim,
+            (files ? files->sets[0].box.periodic[0] : sp->layout.box.periodic[0]) ? "yes" : "no",
             consph_mfield_name(sp->field), consph_volume_name(sp->volume),
             sp->interior_only ? "interior (full support)" : "all", norm);
+    if (files) {
+        fprintf(o, "Particles from files (`consph study --particles`)%s:",
+                sweep_hdx ? "; the h/Δs sweep runs on the last one" : ", one row each");
+        for (int j = 0; j < files->n; ++j)
+            fprintf(o, "%s `%s` (N = %zu)", j ? "," : "", files->names[j], files->sets[j].n);
+        fprintf(o, ".\n\n");
+    }
     if (!sweep_hdx) {
         fprintf(o,
                 "| series | order (%s) | paper order | %s at finest | paper %s | F_T/F_max | "
@@ -457,7 +490,7 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
             double xs[MAX_SWEEP], ys[MAX_SWEEP];
             size_t fb = 0;
             for (int j = 0; j < sr->nrows; ++j) {
-                xs[j] = (double)sr->rows[j].nx;
+                xs[j] = sr->nx[j];
                 ys[j] = norm_value(&sr->rows[j], norm);
                 fb += sr->rows[j].fallbacks;
             }
@@ -505,7 +538,8 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     for (int k = 0; k < f->nseries; ++k) {
         fprintf(of.fp, "# %s\n", f->series[k].label);
         for (int j = 0; j < res[k].nrows; ++j)
-            fprintf(of.fp, "%.10g %.10g %.10g\n", x_value(&res[k].rows[j], xname, dim),
+            fprintf(of.fp, "%.10g %.10g %.10g\n",
+                    x_value(&res[k].rows[j], res[k].nx[j], xname, dim),
                     norm_value(&res[k].rows[j], norm), res[k].bound[j]);
         fprintf(of.fp, "\n\n");
     }
@@ -522,7 +556,8 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
             strcmp(xname, "nbr") == 0 ? "neighbours" : "particles per axis", norm);
     /* A slope -2 guide through the first series' first point (second-order convergence). */
     if (!sweep_hdx && res[0].nrows > 0) {
-        double x0 = x_value(&res[0].rows[0], xname, dim), y0 = norm_value(&res[0].rows[0], norm);
+        double x0 = x_value(&res[0].rows[0], res[0].nx[0], xname, dim),
+               y0 = norm_value(&res[0].rows[0], norm);
         if (y0 > 0) fprintf(o, "ref(x) = %.10g*(x/%.10g)**(-2)\n", y0, x0);
     }
     fprintf(o, "plot");
@@ -542,7 +577,8 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
 }
 
 static int run_approx_figure(const consph_study *s, const study_figure *f, int quick,
-                             layout_cache *cache, const char *dir, FILE *log)
+                             layout_cache *cache, const char *dir, const study_files *files,
+                             FILE *log)
 {
     series_plan *plans = calloc((size_t)f->nseries, sizeof *plans);
     series_result *res = calloc((size_t)f->nseries, sizeof *res);
@@ -551,16 +587,29 @@ static int run_approx_figure(const consph_study *s, const study_figure *f, int q
         rc = build_plan(s, f, &f->series[k], quick, &plans[k]);
     for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
         series_plan *pl = &plans[k];
+        /* Files replace the nx sweep, one row each; an h/Δs sweep runs on the last file. */
+        if (files && !pl->sweep_hdx) {
+            pl->nvalues = files->n;
+            for (int j = 0; j < files->n; ++j) pl->values[j] = resolution_of(&files->sets[j]);
+        }
         for (int j = 0; rc == CONSPH_OK && j < pl->nvalues; ++j) {
             consph_approx_spec sp = pl->spec;
             size_t nx = pl->sweep_hdx ? pl->nx_fixed : (size_t)pl->values[j];
             if (pl->sweep_hdx) sp.hdx = pl->values[j];
-            consph_layout_params lp = sp.layout;
-            for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
             const consph_particles *p;
-            double lsec;
-            rc = cache_get(cache, &lp, &p, &lsec);
-            if (rc) break;
+            double lsec = 0.0;
+            if (files) {
+                p = &files->sets[pl->sweep_hdx ? files->n - 1 : j];
+                res[k].nx[j] = resolution_of(p);
+                nx = (size_t)floor(res[k].nx[j] + 0.5);
+                sp.layout.box = p->box;
+            } else {
+                consph_layout_params lp = sp.layout;
+                for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
+                rc = cache_get(cache, &lp, &p, &lsec);
+                if (rc) break;
+                res[k].nx[j] = (double)nx;
+            }
             consph_approx_row *w = &res[k].rows[j];
             rc = consph_approx_run_particles(&sp, p, nx, w);
             if (rc) {
@@ -589,7 +638,7 @@ static int run_approx_figure(const consph_study *s, const study_figure *f, int q
                         lsec > 0.5 ? ", layout generated" : "");
         }
     }
-    if (rc == CONSPH_OK) rc = write_approx_outputs(s, f, plans, res, dir, quick, log);
+    if (rc == CONSPH_OK) rc = write_approx_outputs(s, f, plans, res, dir, quick, files, log);
     free(plans);
     free(res);
     return rc;
@@ -672,7 +721,7 @@ done:
 }
 
 static int run_m0_figure(const consph_study *s, const study_figure *f, int quick,
-                         layout_cache *cache, const char *dir, FILE *log)
+                         layout_cache *cache, const char *dir, const study_files *files, FILE *log)
 {
     const study_series *r = &f->series[0];
     series_plan pl;
@@ -687,13 +736,19 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
     m0_row rows[MAX_SWEEP];
     memset(rows, 0, sizeof rows);
     int nrows = 0;
+    if (files) pl.nvalues = files->n;
     for (int j = 0; rc == CONSPH_OK && j < pl.nvalues; ++j) {
         size_t nx = (size_t)pl.values[j];
-        consph_layout_params lp = pl.spec.layout;
-        for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
         const consph_particles *p;
-        double lsec;
-        if ((rc = cache_get(cache, &lp, &p, &lsec))) break;
+        if (files) {
+            p = &files->sets[j];
+            nx = (size_t)floor(resolution_of(p) + 0.5);
+        } else {
+            consph_layout_params lp = pl.spec.layout;
+            for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
+            double lsec;
+            if ((rc = cache_get(cache, &lp, &p, &lsec))) break;
+        }
         rows[j].counts = consph_calloc((size_t)nbins, sizeof(size_t));
         if (!rows[j].counts) {
             rc = CONSPH_ENOMEM;
@@ -746,8 +801,8 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
         if (note) fprintf(o, "%s\n\n", note);
         fprintf(o, "Run: %s resolutions; kernel `%s`, layout `%s`, dim %d, volumes `%s`, h %s.\n\n",
                 quick ? "quick" : "full (paper)", pl.kernel_name,
-                consph_layout_name(pl.spec.layout.kind), pl.spec.layout.dim,
-                consph_volume_name(pl.spec.volume),
+                files ? "particle files" : consph_layout_name(pl.spec.layout.kind),
+                pl.spec.layout.dim, consph_volume_name(pl.spec.volume),
                 pl.spec.h_policy == CONSPH_H_SCALING ? "= N^(-1/6)" : "= hdx·Δs");
         fprintf(o, "| nx | N | h | neighbours | mean M0 | σ(M0) all | mean M0 interior | σ(M0) "
                    "interior | peak |\n|---|---|---|---|---|---|---|---|---|\n");
@@ -963,10 +1018,61 @@ double consph_study_estimate(const consph_study *s, int quick)
     return pairs * per_pair + packed_particles * per_packed;
 }
 
-int consph_study_run(const consph_study *s, const consph_study_options *opt)
+/* Period-1 fields repeat on a periodic axis only when its length is a whole number. */
+static int check_field_period(const consph_approx_spec *sp, const consph_box *box)
+{
+    if (sp->field == CONSPH_MFIELD_CONST || !consph_mfield_periodic_on_unit(sp->field))
+        return CONSPH_OK;
+    for (int a = 0; a < box->dim; ++a) {
+        double len = consph_box_length(box, a);
+        if (box->periodic[a] && fabs(len - floor(len + 0.5)) > 1e-12 * fmax(1.0, len))
+            return consph_fail(CONSPH_EINVAL,
+                               "field '%s' has period 1 but the periodic axis %c has length %g",
+                               consph_mfield_name(sp->field), "xyz"[a], len);
+    }
+    return CONSPH_OK;
+}
+
+/* Every figure that runs on particles must take the files: same dimension, a field that fits
+ * their box. Checked before anything is written. */
+static int validate_files(const consph_study *s, int quick, const study_files *files)
+{
+    if (files->n < 1 || files->n > MAX_SWEEP)
+        return consph_fail(CONSPH_EINVAL, "%d particle files; allowed: 1 to %d", files->n,
+                           MAX_SWEEP);
+    for (int k = 0; k < s->nfigs; ++k) {
+        const study_figure *f = &s->figs[k];
+        fig_kind kind = figure_kind(s, f);
+        if (kind == KIND_APPC) continue;
+        for (int r = 0; r < f->nseries; ++r) {
+            series_plan pl;
+            int rc = build_plan(s, f, &f->series[r], quick, &pl);
+            if (rc) return rc;
+            for (int j = 0; j < files->n; ++j) {
+                const consph_particles *p = &files->sets[j];
+                if (p->dim != pl.spec.layout.dim)
+                    return consph_fail(CONSPH_EINVAL,
+                                       "figure '%s' is %dD, but the particles of %s are %dD", f->id,
+                                       pl.spec.layout.dim, files->names[j], p->dim);
+                if (kind != KIND_APPROX) continue;
+                consph_approx_spec sp = pl.spec;
+                sp.layout.box = p->box;
+                if (consph_approx_check(&sp) != CONSPH_OK ||
+                    check_field_period(&sp, &p->box) != CONSPH_OK)
+                    return consph_fail(CONSPH_EINVAL, "figure '%s', series '%s', %s: %s", f->id,
+                                       f->series[r].label, files->names[j], consph_last_error());
+            }
+        }
+    }
+    return CONSPH_OK;
+}
+
+static int study_run(const consph_study *s, const consph_study_options *opt,
+                     const study_files *files)
 {
     int rc = consph_study_validate(s, opt->quick);
     if (rc) return rc;
+    if (files && (rc = validate_files(s, opt->quick, files))) return rc;
     char dir[1024];
     snprintf(dir, sizeof dir, "%s/%s", opt->out_dir, consph_study_name(s));
     if ((rc = mkdir_p(dir))) return rc;
@@ -979,13 +1085,13 @@ int consph_study_run(const consph_study *s, const consph_study_options *opt)
         double t0 = consph_wtime();
         switch (figure_kind(s, f)) {
         case KIND_M0:
-            rc = run_m0_figure(s, f, opt->quick, cache, dir, log);
+            rc = run_m0_figure(s, f, opt->quick, cache, dir, files, log);
             break;
         case KIND_APPC:
             rc = run_appc_figure(s, f, opt->quick, dir, log);
             break;
         default:
-            rc = run_approx_figure(s, f, opt->quick, cache, dir, log);
+            rc = run_approx_figure(s, f, opt->quick, cache, dir, files, log);
             break;
         }
         if (log && rc == CONSPH_OK)
@@ -1002,8 +1108,8 @@ int consph_study_run(const consph_study *s, const consph_study_options *opt)
     fprintf(of.fp, "# %s: %s\n\n", consph_study_name(s), consph_study_title(s));
     const char *note = study_get(s, NULL, NULL, "note");
     if (note) fprintf(of.fp, "%s\n\n", note);
-    fprintf(of.fp, "Generated by `consph study %s%s` (consph %s).\n\n", consph_study_name(s),
-            opt->quick ? " --quick" : "", CONSPH_VERSION);
+    fprintf(of.fp, "Generated by `consph study %s%s%s` (consph %s).\n\n", consph_study_name(s),
+            opt->quick ? " --quick" : "", files ? " --particles ..." : "", CONSPH_VERSION);
     for (int k = 0; k < s->nfigs; ++k) {
         char md[1200], buf[4096];
         snprintf(md, sizeof md, "%s/%s.md", dir, s->figs[k].id);
@@ -1014,4 +1120,16 @@ int consph_study_run(const consph_study *s, const consph_study_options *opt)
         fclose(in);
     }
     return consph_outfile_commit(&of);
+}
+
+int consph_study_run(const consph_study *s, const consph_study_options *opt)
+{
+    return study_run(s, opt, NULL);
+}
+
+int consph_study_run_particles(const consph_study *s, const consph_study_options *opt,
+                               const consph_particles *sets, const char *const *names, int nsets)
+{
+    study_files files = {sets, names, nsets};
+    return study_run(s, opt, &files);
 }
