@@ -7,6 +7,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "consph/core.h"
 #include "consph/io.h"
 
 int cli_error(const cli_command *cmd, const char *fmt, ...)
@@ -244,4 +245,47 @@ int cli_parse(cli_command *cmd, int argc, char **argv)
     }
     for (int k = npos; k < cmd->npositional; ++k) cmd->positional[k] = NULL;
     return 0;
+}
+
+int cli_parse_box(const char *text, consph_box *box)
+{
+    memset(box, 0, sizeof *box);
+    char buf[512];
+    size_t len = strlen(text);
+    if (!len || len >= sizeof buf || text[len - 1] == ',') return -1;
+    strcpy(buf, text);
+    char *save = NULL;
+    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+        char *colon = strchr(t, ':'), *end;
+        if (box->dim == CONSPH_MAX_DIM || !colon) return -1;
+        *colon = '\0';
+        double lo = strtod(t, &end);
+        if (end == t || *end) return -1;
+        double hi = strtod(colon + 1, &end);
+        if (end == colon + 1 || *end || !isfinite(lo) || !isfinite(hi) || !(lo < hi) ||
+            !isfinite(hi - lo))
+            return -1;
+        box->lo[box->dim] = lo;
+        box->hi[box->dim] = hi;
+        box->dim++;
+    }
+    return box->dim ? 0 : -1;
+}
+
+int cli_parse_periodic(const char *text, int periodic[3])
+{
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) periodic[a] = 0;
+    if (!strcmp(text, "yes") || !strcmp(text, "all")) {
+        for (int a = 0; a < CONSPH_MAX_DIM; ++a) periodic[a] = 1;
+        return 0;
+    }
+    if (!strcmp(text, "no") || !strcmp(text, "none")) return 0;
+    int any = 0;
+    for (const char *c = text; *c; ++c) {
+        if (*c == ',') continue;
+        int a = *c == 'x' ? 0 : *c == 'y' ? 1 : *c == 'z' ? 2 : -1;
+        if (a < 0 || periodic[a]) return -1;
+        periodic[a] = any = 1;
+    }
+    return any ? 0 : -1;
 }

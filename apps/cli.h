@@ -61,4 +61,11 @@ int cli_choice_index(const char *choices, const char *value);
 /* Copies choice number `index` of `choices` into buf. */
 const char *cli_choice_name(const char *choices, int index, char *buf, size_t size);
 
+struct consph_box;
+/* "x0:x1,y0:y1[,z0:z1]" into box->lo/hi/dim (finite bounds, lo < hi, finite length); 0 or -1. */
+int cli_parse_box(const char *text, struct consph_box *box);
+/* "yes"/"all", "no"/"none", or axis letters such as "x", "xy", "x,z": periodic[a] for axis a;
+ * 0 or -1. */
+int cli_parse_periodic(const char *text, int periodic[3]);
+
 #endif

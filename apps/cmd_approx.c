@@ -65,50 +65,6 @@ typedef struct input_file {
     int periodic_given;
 } input_file;
 
-/* "yes"/"all", "no"/"none", or axis letters (commas allowed): periodic[a] for every axis. */
-static int parse_periodic(const char *text, int periodic[CONSPH_MAX_DIM])
-{
-    for (int a = 0; a < CONSPH_MAX_DIM; ++a) periodic[a] = 0;
-    if (!strcmp(text, "yes") || !strcmp(text, "all")) {
-        for (int a = 0; a < CONSPH_MAX_DIM; ++a) periodic[a] = 1;
-        return 0;
-    }
-    if (!strcmp(text, "no") || !strcmp(text, "none")) return 0;
-    int any = 0;
-    for (const char *c = text; *c; ++c) {
-        if (*c == ',') continue;
-        int a = *c == 'x' ? 0 : *c == 'y' ? 1 : *c == 'z' ? 2 : -1;
-        if (a < 0 || periodic[a]) return -1;
-        periodic[a] = 1;
-        any = 1;
-    }
-    return any ? 0 : -1;
-}
-
-/* "x0:x1,y0:y1[,z0:z1]" */
-static int parse_box(const char *text, consph_box *box)
-{
-    memset(box, 0, sizeof *box);
-    char buf[512];
-    if (strlen(text) >= sizeof buf) return -1;
-    strcpy(buf, text);
-    char *save = NULL;
-    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
-        char *colon = strchr(t, ':'), *end;
-        if (box->dim == CONSPH_MAX_DIM || !colon) return -1;
-        *colon = '\0';
-        double lo = strtod(t, &end);
-        if (end == t || *end) return -1;
-        double hi = strtod(colon + 1, &end);
-        if (end == colon + 1 || *end || !isfinite(lo) || !isfinite(hi) || !(lo < hi)) return -1;
-        box->lo[box->dim] = lo;
-        box->hi[box->dim] = hi;
-        box->dim++;
-    }
-    if (box->dim == 0 || text[strlen(text) - 1] == ',') return -1;
-    return 0;
-}
-
 /* N^(1/dim), exact when N is a perfect power, so that a file reports the nx of the layout it
  * was made from. */
 static double resolution_of(size_t n, int dim)
@@ -340,11 +296,11 @@ int cmd_approx(int argc, char **argv)
         return cli_error(&cmd, "option --box: only with --particles (layouts fill the unit box)");
     }
     int periodic[CONSPH_MAX_DIM];
-    if (parse_periodic(periodic_text, periodic) != 0)
+    if (cli_parse_periodic(periodic_text, periodic) != 0)
         return cli_error(&cmd, "option --periodic: unknown value '%s'; allowed: " PERIODIC_ALLOWED,
                          periodic_text);
     consph_box given_box;
-    if (box_text && parse_box(box_text, &given_box) != 0)
+    if (box_text && cli_parse_box(box_text, &given_box) != 0)
         return cli_error(&cmd, "option --box: '%s' is not a box; allowed: " BOX_ALLOWED, box_text);
     if (!from_files && volume_idx == CONSPH_VOLUME_COUNT) volume_idx = CONSPH_VOLUME_GIVEN;
     if (!from_files && volume_idx == CONSPH_VOLUME_COUNT + 1) volume_idx = CONSPH_VOLUME_NUMBER;

@@ -53,30 +53,6 @@ static int opt_given(const cli_opt *opts, int nopts, const char *name)
     return 0;
 }
 
-/* "x0:x1,y0:y1[,z0:z1]" */
-static int parse_box(const char *text, consph_box *box)
-{
-    memset(box, 0, sizeof *box);
-    char buf[512];
-    size_t len = strlen(text);
-    if (!len || len >= sizeof buf || text[len - 1] == ',') return -1;
-    strcpy(buf, text);
-    char *save = NULL;
-    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
-        char *colon = strchr(t, ':'), *end;
-        if (box->dim == CONSPH_MAX_DIM || !colon) return -1;
-        *colon = '\0';
-        double lo = strtod(t, &end);
-        if (end == t || *end) return -1;
-        double hi = strtod(colon + 1, &end);
-        if (end == colon + 1 || *end || !isfinite(lo) || !isfinite(hi) || !(lo < hi)) return -1;
-        box->lo[box->dim] = lo;
-        box->hi[box->dim] = hi;
-        box->dim++;
-    }
-    return box->dim ? 0 : -1;
-}
-
 /* Statistics of any particle set, as printed for generated layouts. */
 static int print_stats(const consph_particles *p, const char *kernel, double hdx)
 {
@@ -107,7 +83,7 @@ static int layout_from_file(const cli_command *cmd, const char *in, const char *
     memset(&ro, 0, sizeof ro);
     ro.dim = (int)dim;
     if (box_text) {
-        if (parse_box(box_text, &ro.box))
+        if (cli_parse_box(box_text, &ro.box))
             return cli_error(cmd,
                              "option --box: '%s' is not a box; allowed: x0:x1,y0:y1[,z0:z1] with "
                              "finite x0 < x1",

@@ -83,46 +83,6 @@ static void free_inputs(study_inputs *in)
     in->n = 0;
 }
 
-static int parse_box(const char *text, consph_box *box)
-{
-    memset(box, 0, sizeof *box);
-    char buf[512];
-    if (!*text || strlen(text) >= sizeof buf || text[strlen(text) - 1] == ',') return -1;
-    strcpy(buf, text);
-    char *save = NULL;
-    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
-        char *colon = strchr(t, ':'), *end;
-        if (box->dim == CONSPH_MAX_DIM || !colon) return -1;
-        *colon = '\0';
-        double lo = strtod(t, &end);
-        if (end == t || *end) return -1;
-        double hi = strtod(colon + 1, &end);
-        if (end == colon + 1 || *end || !(lo < hi) || hi - lo > 1e300) return -1;
-        box->lo[box->dim] = lo;
-        box->hi[box->dim] = hi;
-        box->dim++;
-    }
-    return box->dim ? 0 : -1;
-}
-
-static int parse_periodic(const char *text, int periodic[CONSPH_MAX_DIM])
-{
-    for (int a = 0; a < CONSPH_MAX_DIM; ++a) periodic[a] = 0;
-    if (!strcmp(text, "yes") || !strcmp(text, "all")) {
-        for (int a = 0; a < CONSPH_MAX_DIM; ++a) periodic[a] = 1;
-        return 0;
-    }
-    if (!strcmp(text, "no") || !strcmp(text, "none")) return 0;
-    int any = 0;
-    for (const char *c = text; *c; ++c) {
-        if (*c == ',') continue;
-        int a = *c == 'x' ? 0 : *c == 'y' ? 1 : *c == 'z' ? 2 : -1;
-        if (a < 0 || periodic[a]) return -1;
-        periodic[a] = any = 1;
-    }
-    return any ? 0 : -1;
-}
-
 /* Reads every file of `list`. A file without volumes gets box volume / N, used by figures that
  * ask for `volume = given`; the others compute their own. */
 static int read_inputs(const cli_command *cmd, const char *list, const char *box_text,
@@ -131,7 +91,7 @@ static int read_inputs(const cli_command *cmd, const char *list, const char *box
     consph_read_options ro;
     memset(&ro, 0, sizeof ro);
     if (box_text) {
-        if (parse_box(box_text, &ro.box))
+        if (cli_parse_box(box_text, &ro.box))
             return cli_error(cmd,
                              "option --box: '%s' is not a box; allowed: x0:x1,y0:y1[,z0:z1] "
                              "with finite x0 < x1",
@@ -139,7 +99,7 @@ static int read_inputs(const cli_command *cmd, const char *list, const char *box
         ro.have_box = 1;
     }
     if (periodic_text) {
-        if (parse_periodic(periodic_text, ro.periodic))
+        if (cli_parse_periodic(periodic_text, ro.periodic))
             return cli_error(cmd,
                              "option --periodic: unknown value '%s'; allowed: yes, no, or the "
                              "periodic axes (e.g. x, xy, x,z)",

@@ -27,9 +27,9 @@ static int check_count = 0;
         ++check_count;                                                                             \
         if (!(fabs(check_a_ - check_b_) <= (tol))) {                                               \
             ++check_failures;                                                                      \
-            fprintf(stderr, "%s:%d: %s = %.17g vs %s = %.17g (|diff| %.3g > tol %.3g): ",          \
-                    __FILE__, __LINE__, #a, check_a_, #b, check_b_, fabs(check_a_ - check_b_),    \
-                    (double)(tol));                                                                \
+            fprintf(                                                                               \
+                stderr, "%s:%d: %s = %.17g vs %s = %.17g (|diff| %.3g > tol %.3g): ", __FILE__,    \
+                __LINE__, #a, check_a_, #b, check_b_, fabs(check_a_ - check_b_), (double)(tol));   \
             fprintf(stderr, __VA_ARGS__);                                                          \
             fputc('\n', stderr);                                                                   \
         }                                                                                          \

@@ -27,38 +27,6 @@ typedef struct first_job {
     const double *ctilde; /* consistent-Shepard factors */
 } first_job;
 
-/* (c, M) of the corrected-gradient rule for particle i. */
-static void grad_rule(const first_job *job, size_t i, double c[3], double M[9])
-{
-    const int d = job->dim;
-    for (int a = 0; a < d; ++a) {
-        c[a] = 0.0;
-        for (int b = 0; b < d; ++b) M[a * d + b] = a == b ? 1.0 : 0.0;
-    }
-    if (job->corr == CONSPH_CORR_BC) {
-        memcpy(M, job->mat + i * job->mat_size, (size_t)(d * d) * sizeof(double));
-    } else if (job->corr == CONSPH_CORR_LC) {
-        const double *L = job->mat + i * job->mat_size;
-        const int n = d + 1;
-        for (int a = 0; a < d; ++a) {
-            c[a] = L[(1 + a) * n];
-            for (int b = 0; b < d; ++b) M[a * d + b] = L[(1 + a) * n + 1 + b];
-        }
-    }
-}
-
-static inline void corrected_grad(int d, const double c[3], const double M[9], double w, double dwr,
-                                  const double x[3], double g[3])
-{
-    double gr[3];
-    for (int b = 0; b < d; ++b) gr[b] = dwr * x[b];
-    for (int a = 0; a < d; ++a) {
-        double v = c[a] * w;
-        for (int b = 0; b < d; ++b) v += M[a * d + b] * gr[b];
-        g[a] = v;
-    }
-}
-
 static void visit_function(first_job *job, const ops_nbhd *nb)
 {
     const double *vol = job->ctx->volume, *f = job->in;
@@ -181,7 +149,7 @@ static void visit_gradient(first_job *job, const ops_nbhd *nb)
     const size_t i = nb->i, N = ctx->n;
     const double fi = f[i];
     double c[3], M[9], acc[3] = {0, 0, 0};
-    grad_rule(job, i, c, M);
+    ops_grad_rule(job->dim, job->corr, job->mat, job->mat_size, i, c, M);
     switch (job->form) {
     case CONSPH_FORM_F1:
     case CONSPH_FORM_F2:
@@ -219,7 +187,7 @@ static void visit_gradient(first_job *job, const ops_nbhd *nb)
             size_t j = nb->j[p];
             double x[3], g[3];
             for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-            corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
+            ops_corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
             const double *Lj = job->mat + j * job->mat_size;
             double s = 0.5 * mass[j] * (f[j] + fi) / (rho[j] * rho[i]);
             for (int a = 0; a < d; ++a) {
@@ -261,13 +229,13 @@ static void visit_div(first_job *job, const ops_nbhd *nb)
     const double *vol = job->ctx->volume, *u = job->in;
     const size_t i = nb->i, N = job->ctx->n;
     double c[3], M[9], acc = 0.0, ui[3];
-    grad_rule(job, i, c, M);
+    ops_grad_rule(job->dim, job->corr, job->mat, job->mat_size, i, c, M);
     for (int a = 0; a < d; ++a) ui[a] = u[a * N + i];
     for (size_t p = 0; p < nb->n; ++p) {
         size_t j = nb->j[p];
         double x[3], g[3];
         for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-        corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
+        ops_corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
         double s = 0.0;
         for (int a = 0; a < d; ++a) s += (u[a * N + j] - ui[a]) * g[a];
         acc += vol[j] * s;

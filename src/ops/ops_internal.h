@@ -3,6 +3,8 @@
 #ifndef CONSPH_OPS_INTERNAL_H
 #define CONSPH_OPS_INTERNAL_H
 
+#include <string.h>
+
 #include "consph/ops.h"
 
 /* d(d+1)/2 second-derivative components, at most 6; MSPH has 1 + d + d(d+1)/2 <= 10 unknowns. */
@@ -97,6 +99,41 @@ int ops_grad_f4(consph_op_ctx *ctx, const double *in, double *g, ops_call *call)
 
 /* The consistent-Shepard factors, computed with the context's defaults on first use. */
 int ops_ctilde(consph_op_ctx *ctx, ops_call *call, const double **ctilde);
+
+/* The corrected-gradient rule shared by every corrected form: g̃_ij = c W_ij + M ∇W_ij, with
+ * (c, M) = (0, I) uncorrected, (0, B_i) for Bonet-Lok and the gradient rows of L_i^{-1} for
+ * Liu. `mat` holds the per-particle matrices, mat_size doubles apart. */
+static inline void ops_grad_rule(int d, consph_op_corr corr, const double *mat, size_t mat_size,
+                                 size_t i, double c[3], double M[9])
+{
+    for (int a = 0; a < d; ++a) {
+        c[a] = 0.0;
+        for (int b = 0; b < d; ++b) M[a * d + b] = a == b ? 1.0 : 0.0;
+    }
+    if (corr == CONSPH_CORR_BC) {
+        memcpy(M, mat + i * mat_size, (size_t)(d * d) * sizeof(double));
+    } else if (corr == CONSPH_CORR_LC) {
+        const double *L = mat + i * mat_size;
+        const int n = d + 1;
+        for (int a = 0; a < d; ++a) {
+            c[a] = L[(1 + a) * n];
+            for (int b = 0; b < d; ++b) M[a * d + b] = L[(1 + a) * n + 1 + b];
+        }
+    }
+}
+
+/* g = c w + M (dwr x): one corrected kernel gradient, dwr = W'/r, x = x_ij. */
+static inline void ops_corrected_grad(int d, const double c[3], const double M[9], double w,
+                                      double dwr, const double x[3], double g[3])
+{
+    double gr[3];
+    for (int b = 0; b < d; ++b) gr[b] = dwr * x[b];
+    for (int a = 0; a < d; ++a) {
+        double v = c[a] * w;
+        for (int b = 0; b < d; ++b) v += M[a * d + b] * gr[b];
+        g[a] = v;
+    }
+}
 
 /* The operator families behind consph_apply (ops_first.c, ops_second.c). */
 int ops_first(consph_op_ctx *ctx, consph_op op, consph_op_form form, consph_op_corr corr,

@@ -24,38 +24,6 @@ typedef struct second_job {
     size_t mat_size;
 } second_job;
 
-/* Same corrected-gradient rule as ops_first.c: g̃ = c W + M ∇W. */
-static void grad_rule(const second_job *job, size_t i, double c[3], double M[9])
-{
-    const int d = job->dim;
-    for (int a = 0; a < d; ++a) {
-        c[a] = 0.0;
-        for (int b = 0; b < d; ++b) M[a * d + b] = a == b ? 1.0 : 0.0;
-    }
-    if (job->corr == CONSPH_CORR_BC) {
-        memcpy(M, job->mat + i * job->mat_size, (size_t)(d * d) * sizeof(double));
-    } else if (job->corr == CONSPH_CORR_LC) {
-        const double *L = job->mat + i * job->mat_size;
-        const int n = d + 1;
-        for (int a = 0; a < d; ++a) {
-            c[a] = L[(1 + a) * n];
-            for (int b = 0; b < d; ++b) M[a * d + b] = L[(1 + a) * n + 1 + b];
-        }
-    }
-}
-
-static inline void corrected_grad(int d, const double c[3], const double M[9], double w, double dwr,
-                                  const double x[3], double g[3])
-{
-    double gr[3];
-    for (int b = 0; b < d; ++b) gr[b] = dwr * x[b];
-    for (int a = 0; a < d; ++a) {
-        double v = c[a] * w;
-        for (int b = 0; b < d; ++b) v += M[a * d + b] * gr[b];
-        g[a] = v;
-    }
-}
-
 /* G_i = B_i Σ ω (u_j - u_i) ∇W_ij (F4; F2 where B fell back, since B is then the identity). */
 static void inner_gradient(const second_job *job, const ops_nbhd *nb, double G[3])
 {
@@ -80,7 +48,7 @@ static void visit_s1(second_job *job, const ops_nbhd *nb)
     const double *vol = job->ctx->volume, *G = job->G;
     const size_t i = nb->i, N = job->ctx->n;
     double c[3], M[9], Gi[3];
-    grad_rule(job, i, c, M);
+    ops_grad_rule(job->dim, job->corr, job->mat, job->mat_size, i, c, M);
     /* s1 (002 eq. 7) sums G_j, s1_diff/coupled (eq. 8) G_j - G_i, s1_sum (eq. 9) G_j + G_i. */
     double sign = job->form == CONSPH_FORM_S1 ? 0.0 : job->form == CONSPH_FORM_S1_SUM ? -1.0 : 1.0;
     for (int a = 0; a < d; ++a) Gi[a] = sign * G[a * N + i];
@@ -89,7 +57,7 @@ static void visit_s1(second_job *job, const ops_nbhd *nb)
         size_t j = nb->j[p];
         double x[3], g[3];
         for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-        corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
+        ops_corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
         double s = 0.0;
         for (int a = 0; a < d; ++a) s += (G[a * N + j] - Gi[a]) * g[a];
         acc += vol[j] * s;
@@ -125,14 +93,14 @@ static void visit_cleary(second_job *job, const ops_nbhd *nb)
     const int tvf = job->form == CONSPH_FORM_TVF;
     const double ui = u[i], oi2 = vol[i] * vol[i];
     double c[3], M[9], acc = 0.0;
-    grad_rule(job, i, c, M);
+    ops_grad_rule(job->dim, job->corr, job->mat, job->mat_size, i, c, M);
     for (size_t p = 0; p < nb->n; ++p) {
         double r = nb->r[p];
         if (!(r > 0.0)) continue;
         size_t j = nb->j[p];
         double x[3], g[3];
         for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-        corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
+        ops_corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
         double gx = 0.0;
         for (int a = 0; a < d; ++a) gx += g[a] * x[a];
         double wgt = tvf ? oi2 + vol[j] * vol[j] : 2.0 * vol[j];
