@@ -405,7 +405,7 @@ static void paper_columns(const consph_study *s, const study_figure *f, const st
             const char *key = lists[l]->items[k].key;
             if (strncmp(key, "paper.", 6) != 0) continue;
             if (!strcmp(key, "paper.order") || !strcmp(key, "paper.l1") ||
-                !strcmp(key, "paper.ft") || !strcmp(key, "paper.error"))
+                !strcmp(key, "paper.ft") || !strcmp(key, "paper.error") || !strcmp(key, "paper.tr"))
                 continue;
             if (l == 0 && has_key(&r->keys, key)) continue;
             snprintf(buf + strlen(buf), size - strlen(buf), "%s%s = %s", buf[0] ? "; " : "",
@@ -481,9 +481,13 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     if (!sweep_hdx) {
         fprintf(o,
                 "| series | order (%s) | paper order | %s at finest | paper %s | F_T/F_max | "
-                "paper F_T/F_max | fallbacks | other published values |\n",
+                "paper F_T/F_max | T_r | paper T_r | fallbacks | other published values |\n",
                 norm, norm, norm);
-        fprintf(o, "|---|---|---|---|---|---|---|---|---|\n");
+        fprintf(o, "|---|---|---|---|---|---|---|---|---|---|---|\n");
+        /* T_r: operator time at the finest resolution relative to the first series (001's
+         * tables use the same idea with their own reference). */
+        const series_result *first = &res[0];
+        double t_first = first->nrows ? first->rows[first->nrows - 1].seconds : NAN;
         for (int k = 0; k < f->nseries; ++k) {
             const series_result *sr = &res[k];
             const study_series *r = &f->series[k];
@@ -501,10 +505,11 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
             const consph_approx_row *last = &sr->rows[sr->nrows - 1];
             char other[512];
             paper_columns(s, f, r, other, sizeof other);
-            fprintf(o, "| %s | %s | %s | %.3e (nx=%zu) | %s | %.2e | %s | %zu | %s |\n", r->label,
-                    ord, get_or(s, f, r, "paper.order", "—"), norm_value(last, norm), last->nx,
-                    get_or(s, f, r, "paper.l1", get_or(s, f, r, "paper.error", "—")),
-                    last->ft_over_fmax, get_or(s, f, r, "paper.ft", "—"), fb, other);
+            fprintf(o, "| %s | %s | %s | %.3e (nx=%zu) | %s | %.2e | %s | %.2f | %s | %zu | %s |\n",
+                    r->label, ord, get_or(s, f, r, "paper.order", "—"), norm_value(last, norm),
+                    last->nx, get_or(s, f, r, "paper.l1", get_or(s, f, r, "paper.error", "—")),
+                    last->ft_over_fmax, get_or(s, f, r, "paper.ft", "—"), last->seconds / t_first,
+                    get_or(s, f, r, "paper.tr", "—"), fb, other);
         }
         fprintf(o, "\n");
     }
