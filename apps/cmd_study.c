@@ -4,6 +4,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "commands.h"
@@ -25,6 +26,36 @@ static const char *studies_dir(void)
     if (is_dir(CONSPH_SOURCE_DIR "/studies")) return CONSPH_SOURCE_DIR "/studies";
     if (is_dir(CONSPH_DATA_DIR "/studies")) return CONSPH_DATA_DIR "/studies";
     return NULL;
+}
+
+/* Whether `dir` exists as a writable directory or could be created: its nearest existing
+ * ancestor must be a writable directory. */
+static int dir_creatable(const char *dir, char *why, size_t size)
+{
+    char path[2048];
+    snprintf(path, sizeof path, "%s", dir);
+    for (;;) {
+        struct stat st;
+        if (stat(path, &st) == 0) {
+            if (!S_ISDIR(st.st_mode)) {
+                snprintf(why, size, "'%s' is not a directory", path);
+                return 0;
+            }
+            if (access(path, W_OK | X_OK) != 0) {
+                snprintf(why, size, "directory '%s' is not writable", path);
+                return 0;
+            }
+            return 1;
+        }
+        char *slash = strrchr(path, '/');
+        if (!slash) {
+            snprintf(path, sizeof path, ".");
+        } else if (slash == path) {
+            path[1] = '\0';
+        } else {
+            *slash = '\0';
+        }
+    }
 }
 
 static int compare_names(const void *a, const void *b)
@@ -199,6 +230,10 @@ int cmd_study(int argc, char **argv)
     int rc = cli_parse(&cmd, argc, argv);
     if (rc) return rc == 1 ? 0 : rc;
     if (list) return list_studies(&cmd);
+    char why[2200];
+    if (!*out || !dir_creatable(out, why, sizeof why))
+        return cli_error(&cmd, "option --out: cannot write results under '%s': %s", out,
+                         *out ? why : "empty path");
     name = positional[0];
     if (!name) return cli_error(&cmd, "a study NAME is required; see 'consph study --list'");
     char path[2048];

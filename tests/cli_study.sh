@@ -37,5 +37,10 @@ printf 'study = broken\n[figure a]\nnx = 10\nop = grad\nform = nosuch\n' >"$tmp/
 grep -q "broken.study:5" "$tmp/err" || bad "bad form message lacks the line: $(cat "$tmp/err")"
 [ -e "$tmp/o2" ] && bad "a rejected study created output"
 "$consph" study no-such-study >/dev/null 2>&1; [ $? = 2 ] || bad "unknown study name"
+# An output directory that cannot be created is refused before anything runs.
+: >"$tmp/plainfile"
+"$consph" study "$src/tests/data/engine.study" --quick --out "$tmp/plainfile/results" >/dev/null 2>"$tmp/err"; rc=$?
+[ $rc = 2 ] || bad "unwritable --out: exit $rc"
+grep -q "option --out: cannot write results under" "$tmp/err" || bad "unwritable --out message: $(cat "$tmp/err")"
 [ $fail = 0 ] && echo "cli_study: 1 passed, 0 failed" || echo "cli_study: 0 passed, 1 failed"
 exit $fail
