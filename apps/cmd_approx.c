@@ -462,6 +462,12 @@ int cmd_approx(int argc, char **argv)
                 fprintf(stderr, "consph approx: nx = %.0f: %s\n", nx.v[r], consph_last_error());
                 goto out;
             }
+            if (rows[r].layout_spread > tol)
+                fprintf(stderr,
+                        "consph approx: warning: nx = %.0f: packing stopped at --pack-iter %ld "
+                        "with max|rho/rho0-1| = %.3g above --pack-tol %g; the particles are "
+                        "less uniform than asked\n",
+                        nx.v[r], max_iter, rows[r].layout_spread, tol);
             res[r] = (double)rows[r].nx;
         }
         const consph_approx_row *w = &rows[r];

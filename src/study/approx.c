@@ -117,11 +117,16 @@ int consph_approx_run(const consph_approx_spec *s, size_t nx, consph_approx_row 
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
     consph_particles p;
     double t0 = consph_wtime();
-    rc = consph_layout_generate(&lp, &p, NULL);
+    consph_packing_report pack;
+    memset(&pack, 0, sizeof pack);
+    rc = consph_layout_generate(&lp, &p, &pack);
+    double spread = lp.kind == CONSPH_LAYOUT_PACKED ? pack.rho_spread_final : NAN;
+    consph_packing_report_free(&pack);
     if (rc) return rc;
     double layout_seconds = consph_wtime() - t0;
     rc = consph_approx_run_particles(s, &p, nx, row);
     row->layout_seconds = layout_seconds;
+    row->layout_spread = spread;
     consph_particles_free(&p);
     return rc;
 }
@@ -148,6 +153,7 @@ int consph_approx_run_particles(const consph_approx_spec *s, const consph_partic
     const size_t n = p.n;
     row->nx = nx;
     row->n = n;
+    row->layout_spread = NAN;
 
     double h;
     if (s->h_policy == CONSPH_H_SCALING) {

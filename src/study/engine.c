@@ -255,7 +255,7 @@ static int same_layout(const consph_layout_params *a, const consph_layout_params
 }
 
 static int cache_get(layout_cache *c, const consph_layout_params *lp, const consph_particles **p,
-                     double *seconds)
+                     double *seconds, FILE *log)
 {
     for (int k = 0; k < CACHE_SIZE; ++k)
         if (c->e[k].used && same_layout(&c->e[k].lp, lp)) {
@@ -268,7 +268,16 @@ static int cache_get(layout_cache *c, const consph_layout_params *lp, const cons
     if (e->used) consph_particles_free(&e->p);
     e->used = 0;
     double t0 = consph_wtime();
-    int rc = consph_layout_generate(lp, &e->p, NULL);
+    consph_packing_report pack;
+    memset(&pack, 0, sizeof pack);
+    int rc = consph_layout_generate(lp, &e->p, &pack);
+    if (rc == CONSPH_OK && lp->kind == CONSPH_LAYOUT_PACKED && log &&
+        pack.rho_spread_final > lp->packing.tol)
+        fprintf(log,
+                "  warning: packing %zu^%d stopped at pack_iter %d with max|rho/rho0-1| = %.3g "
+                "above pack_tol %g\n",
+                lp->nx[0], lp->dim, lp->packing.max_iter, pack.rho_spread_final, lp->packing.tol);
+    consph_packing_report_free(&pack);
     if (rc) return rc;
     e->lp = *lp;
     e->used = 1;
@@ -611,7 +620,7 @@ static int run_approx_figure(const consph_study *s, const study_figure *f, int q
             } else {
                 consph_layout_params lp = sp.layout;
                 for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
-                rc = cache_get(cache, &lp, &p, &lsec);
+                rc = cache_get(cache, &lp, &p, &lsec, log);
                 if (rc) break;
                 res[k].nx[j] = (double)nx;
             }
@@ -752,7 +761,7 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
             consph_layout_params lp = pl.spec.layout;
             for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
             double lsec;
-            if ((rc = cache_get(cache, &lp, &p, &lsec))) break;
+            if ((rc = cache_get(cache, &lp, &p, &lsec, log))) break;
         }
         rows[j].counts = consph_calloc((size_t)nbins, sizeof(size_t));
         if (!rows[j].counts) {
