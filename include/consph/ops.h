@@ -55,7 +55,9 @@ typedef enum consph_op_form {
     CONSPH_FORM_SHEPARD,   /* "shepard": Shepard/CSPM function, 000 eq. 28 */
     CONSPH_FORM_FPM,       /* "fpm": Liu-Liu FPM, 000 eqs. 33-36 = 001 eq. A.5 */
     CONSPH_FORM_MSPH,      /* "msph": Zhang-Batra MSPH, 000 §3.3 (f, ∇f, ∂²f together) */
-    CONSPH_FORM_CSHEPARD,  /* "cshepard": consistent Shepard, 000 eqs. 59-64 */
+    CONSPH_FORM_CSHEPARD,  /* "cshepard": consistent Shepard, 000 eqs. 59-64; gradient 000 eqs.
+                              65-67 with ξ_a = Σ_b ω_b c̃_b ∇W̃_ab (catalogue Part C 000-5), so
+                              ∇(const) = 0 exactly */
     CONSPH_FORM_F1,        /* "f1": Σ ω_j u_j ∇W_ij, 002 eq. 2 */
     CONSPH_FORM_F2,        /* "f2": Σ ω_j (u_j - u_i) ∇W_ij, 002 eq. 3 */
     CONSPH_FORM_F3,        /* "f3": Σ ω_j (u_j + u_i) ∇W_ij, 002 eq. 4 */

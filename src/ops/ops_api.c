@@ -87,6 +87,7 @@ static const op_rule rules[] = {
     {CONSPH_OP_GRAD, CONSPH_FORM_IAD, N},
     {CONSPH_OP_GRAD, CONSPH_FORM_FPM, N},
     {CONSPH_OP_GRAD, CONSPH_FORM_MSPH, N},
+    {CONSPH_OP_GRAD, CONSPH_FORM_CSHEPARD, N},
     {CONSPH_OP_DIV, CONSPH_FORM_DIV, N | BC | LC},
     {CONSPH_OP_LAPLACIAN, CONSPH_FORM_S1, N},
     {CONSPH_OP_LAPLACIAN, CONSPH_FORM_S1_DIFF, N},
@@ -271,6 +272,8 @@ int consph_apply(consph_op_ctx *ctx, consph_op op, consph_op_form form, consph_o
     ops_call call = {0, 0};
     if (op == CONSPH_OP_LAPLACIAN || op == CONSPH_OP_HESSIAN)
         st = ops_second(ctx, op, form, corr, in, out, &call);
+    else if (op == CONSPH_OP_GRAD && form == CONSPH_FORM_CSHEPARD)
+        st = ops_grad_cshepard(ctx, in, out, &call);
     else
         st = ops_first(ctx, op, form, corr, in, out, &call);
     if (st == CONSPH_OK) ops_report_fill(ctx, &call, t0, rep);

@@ -1,4 +1,4 @@
-/* Consistent Shepard interpolation (Reinhardt et al.; 000 §4.2, eqs. 59-64).
+/* Consistent Shepard interpolation and its gradient (Reinhardt et al.; 000 §4.2, eqs. 59-67).
  *
  * The factors c̃ solve c̃_a = Σ_b c̃_b ω_b W_ab (eq. 62), an eigenproblem that the paper solves by
  * power iteration (eq. 63) without naming the norm. The dominant eigenvalue of A is close to,
@@ -98,4 +98,77 @@ int ops_ctilde(consph_op_ctx *ctx, ops_call *call, const double **ctilde)
     }
     *ctilde = cache->ctilde;
     return CONSPH_OK;
+}
+
+/* ---- gradient, 000 eqs. 65-68 ----
+ *
+ * c̃_a in eqs. 65-66 is taken as eq. 62 writes it, S_a = Σ_b ω_b c̃_b W_ab (the denominator of
+ * the function form above): eq. 66, ∇c̃_a = Σ_b ω_b c̃_b ∇W_ab, is the gradient of exactly that
+ * sum, whereas the iterate c̃_a equals it only up to the eigenvalue λ ≠ 1. With S_a, eq. 65 is
+ * the exact derivative (c̃_b held fixed) of the weights W̃_ab = W_ab / S_a that the function
+ * form uses, and the volumes ω_b/c_b of eq. 67 are ω_b c̃_b (c_b = 1/c̃_b, eq. 61).
+ *
+ * Eq. 68's ξ_a = Σ_b m_b (1/ρ_b² + 1/ρ_a²) ∇W̃_ab does not have the units of eq. 67's first
+ * sum divided by A (catalogue Part C 000-5). We take ξ_a = Σ_b (ω_b/c_b) ∇W̃_ab, the same sum
+ * with A = 1, so the gradient of a constant vanishes identically: the purpose 000 gives the
+ * zero-order fix. Eq. 67 then reads ∇A_a = Σ_b ω_b c̃_b (A_b - A_a) ∇W̃_ab, which is how it is
+ * summed (the difference makes the constant case exactly zero, not zero up to rounding). */
+
+typedef struct cgrad_job {
+    const consph_op_ctx *ctx;
+    const double *c;  /* c̃ */
+    const double *in; /* A */
+    double *s;        /* S_a = Σ ω c̃ W, n values */
+    double *gs;       /* ∇S_a, dim components */
+    double *out;      /* ∇A, dim components */
+} cgrad_job;
+
+static void visit_cshepard_sum(void *vjob, const ops_nbhd *nb)
+{
+    cgrad_job *job = vjob;
+    const int d = job->ctx->dim;
+    const size_t n = job->ctx->n, i = nb->i;
+    const double *vol = job->ctx->volume, *c = job->c;
+    double s = 0.0, g[3] = {0.0, 0.0, 0.0};
+    for (size_t p = 0; p < nb->n; ++p) {
+        const size_t j = nb->j[p];
+        const double vc = vol[j] * c[j];
+        s += vc * nb->w[p];
+        for (int a = 0; a < d; ++a) g[a] += vc * nb->dwr[p] * nb->dx[a][p];
+    }
+    job->s[i] = s;
+    for (int a = 0; a < d; ++a) job->gs[(size_t)a * n + i] = g[a];
+}
+
+static void visit_cshepard_grad(void *vjob, const ops_nbhd *nb)
+{
+    cgrad_job *job = vjob;
+    const int d = job->ctx->dim;
+    const size_t n = job->ctx->n, i = nb->i;
+    const double *vol = job->ctx->volume, *c = job->c, *A = job->in;
+    /* the self term keeps S_a > 0 */
+    const double inv_s = 1.0 / job->s[i], Ai = A[i];
+    double q[3], g[3] = {0.0, 0.0, 0.0};
+    for (int a = 0; a < d; ++a) q[a] = job->gs[(size_t)a * n + i] * inv_s;
+    for (size_t p = 0; p < nb->n; ++p) {
+        const size_t j = nb->j[p];
+        const double vcA = vol[j] * c[j] * (A[j] - Ai);
+        for (int a = 0; a < d; ++a) g[a] += vcA * (nb->dwr[p] * nb->dx[a][p] - nb->w[p] * q[a]);
+    }
+    for (int a = 0; a < d; ++a) job->out[(size_t)a * n + i] = g[a] * inv_s;
+}
+
+int ops_grad_cshepard(consph_op_ctx *ctx, const double *in, double *out, ops_call *call)
+{
+    const double *c = NULL;
+    int st = ops_ctilde(ctx, call, &c);
+    if (st != CONSPH_OK) return st;
+    double *s = consph_calloc(ctx->n * (size_t)(1 + ctx->dim), sizeof(double));
+    if (!s) return CONSPH_ENOMEM;
+    cgrad_job job = {ctx, c, in, s, s + ctx->n, out};
+    st = ops_run(ctx, OPS_NEED_W | OPS_NEED_DW, visit_cshepard_sum, &job, &call->pairs);
+    if (st == CONSPH_OK)
+        st = ops_run(ctx, OPS_NEED_W | OPS_NEED_DW, visit_cshepard_grad, &job, &call->pairs);
+    free(s);
+    return st;
 }

@@ -135,6 +135,9 @@ static inline void ops_corrected_grad(int d, const double c[3], const double M[9
     }
 }
 
+/* The consistent-Shepard gradient (000 eqs. 65-67, ops_cshepard.c). */
+int ops_grad_cshepard(consph_op_ctx *ctx, const double *in, double *out, ops_call *call);
+
 /* The operator families behind consph_apply (ops_first.c, ops_second.c). */
 int ops_first(consph_op_ctx *ctx, consph_op op, consph_op_form form, consph_op_corr corr,
               const double *in, double *out, ops_call *call);
