@@ -180,7 +180,7 @@ int cmd_approx(int argc, char **argv)
     const char *form = NULL, *corr = "none", *kernel = "quintic", *field = NULL;
     const char *particles = NULL, *box_text = NULL, *periodic_text = "yes";
     double hdx = 1.2, eps = 0.2, sigma = 0.1, tol = 1e-4;
-    long dim = 2, seed = 1, max_iter = 2000;
+    long dim = 2, seed = 1, max_iter = 5000;
     cli_list nx = {0, {0}};
     char volume_choices[128] = "";
     for (int v = 0; v < CONSPH_VOLUME_COUNT; ++v) {
@@ -235,7 +235,7 @@ int cmd_approx(int argc, char **argv)
         {"--sigma", CLI_DOUBLE, &sigma, "S", "delta field: width (default 0.1)", NULL, 1e-6, 10, 0},
         {"--pack-tol", CLI_DOUBLE, &tol, "T", "packed layout: density tolerance (default 1e-4)",
          NULL, 1e-12, 1, 0},
-        {"--pack-iter", CLI_INT, &max_iter, "M", "packed layout: iteration cap (default 2000)",
+        {"--pack-iter", CLI_INT, &max_iter, "M", "packed layout: iteration cap (default 5000)",
          NULL, 1, 1e7, 0},
         {"--format", CLI_CHOICE, &fmt, "F",
          "table (with fitted orders), csv (stable columns) or json (rows and orders)",

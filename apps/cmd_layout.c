@@ -148,7 +148,7 @@ static void print_report(const consph_packing_report *r, double tol)
 int cmd_layout(int argc, char **argv)
 {
     int kind_index = -1, periodic_index = 0;
-    long dim = 0, nx = 0, seed = 1, max_iter = 2000, history_every = 100;
+    long dim = 0, nx = 0, seed = 1, max_iter = 5000, history_every = 100;
     double eps = 0.2, hdx = 1.2, tol = 1e-4, perturb = 0.5;
     const char *kernel = "quintic", *out = NULL, *in = NULL, *box_text = NULL;
     cli_opt opts[] = {
@@ -171,7 +171,7 @@ int cmd_layout(int argc, char **argv)
          "packed: initial perturbation amplitude in Δs (default 0.5)", NULL, 0.0, 0.5, 0},
         {"--tol", CLI_DOUBLE, &tol, "T", "packed: stop once max|rho/rho0-1| < T (default 1e-4)",
          NULL, 1e-15, 1.0, 0},
-        {"--max-iter", CLI_INT, &max_iter, "M", "packed: iteration cap (default 2000)", NULL, 0,
+        {"--max-iter", CLI_INT, &max_iter, "M", "packed: iteration cap (default 5000)", NULL, 0,
          100000000, 0},
         {"--history-every", CLI_INT, &history_every, "K",
          "packed: print the density spread every K iterations, 0 never (default 100)", NULL, 0,

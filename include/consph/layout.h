@@ -31,7 +31,7 @@ typedef struct consph_packing_params {
     const char *kernel; /* kernel name for the density estimate (default "quintic") */
     double hdx;         /* h / Δs (default 1.2) */
     double perturb;     /* initial perturbation amplitude in units of Δs (default 0.5) */
-    int max_iter;       /* iteration cap (default 2000) */
+    int max_iter;       /* iteration cap (default 5000; 500² in 2D needs about 1900) */
     double tol;         /* stop once max |rho/rho0 - 1| < tol (default 1e-4) */
     int history_every;  /* record the density spread every this many iterations (0: never) */
 } consph_packing_params;

@@ -57,7 +57,7 @@ consph_layout_params consph_layout_defaults(consph_layout_kind kind, int dim, si
     lp.packing.kernel = "quintic";
     lp.packing.hdx = 1.2;
     lp.packing.perturb = 0.5;
-    lp.packing.max_iter = 2000;
+    lp.packing.max_iter = 5000;
     lp.packing.tol = 1e-4;
     lp.packing.history_every = 50;
     return lp;

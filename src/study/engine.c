@@ -169,7 +169,7 @@ static int build_plan(const consph_study *s, const study_figure *f, const study_
     if ((rc = get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) return rc;
     if ((rc = get_double(s, f, r, "sigma", 0.1, 1e-9, 10, &sigma))) return rc;
     if ((rc = get_double(s, f, r, "pack_tol", 1e-4, 1e-12, 1, &tol))) return rc;
-    if ((rc = get_double(s, f, r, "pack_iter", 2000, 1, 1e7, &iters))) return rc;
+    if ((rc = get_double(s, f, r, "pack_iter", 5000, 1, 1e7, &iters))) return rc;
 
     consph_approx_spec *sp = &pl->spec;
     *sp = consph_approx_defaults((int)dim);
