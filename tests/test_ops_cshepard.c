@@ -9,6 +9,7 @@
 #endif
 
 #include "check.h"
+#include "layout_fixture.h"
 #include "consph/consph.h"
 #include "consph/ops.h"
 
@@ -30,19 +31,6 @@ typedef struct world {
     consph_nnps *g;
     consph_op_ctx ctx;
 } world;
-
-static int generate_layout(const consph_layout_params *lp, consph_particles *p)
-{
-#ifdef _OPENMP
-    int saved = omp_get_max_threads();
-    omp_set_num_threads(1);
-#endif
-    int st = consph_layout_generate(lp, p, NULL);
-#ifdef _OPENMP
-    omp_set_num_threads(saved);
-#endif
-    return st;
-}
 
 static int world_init(world *w, consph_layout_kind kind, size_t nx, double hdx)
 {

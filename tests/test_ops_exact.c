@@ -16,23 +16,9 @@
 #endif
 
 #include "check.h"
+#include "layout_fixture.h"
 #include "consph/consph.h"
 #include "consph/ops.h"
-
-/* The layout is input, not under test: it is generated on one thread, because the packing's
- * many short parallel regions crawl when the machine is oversubscribed. */
-static int generate_layout(const consph_layout_params *lp, consph_particles *p)
-{
-#ifdef _OPENMP
-    int saved = omp_get_max_threads();
-    omp_set_num_threads(1);
-#endif
-    int st = consph_layout_generate(lp, p, NULL);
-#ifdef _OPENMP
-    omp_set_num_threads(saved);
-#endif
-    return st;
-}
 
 typedef struct setup {
     consph_particles p;
