@@ -20,37 +20,15 @@ static double u_val(double x, double y)
 {
     return sin(TWO_PI * (x + y));
 }
+/* Summation volumes, seed 5, in 2D. */
+static int world_setup2d(world *w, consph_layout_kind kind, size_t nx, double hdx)
+{
+    return world_setup(w, kind, 2, nx, hdx, CONSPH_VOLUME_SUMMATION, 5);
+}
+
 static double u_dx(double x, double y)
 {
     return TWO_PI * cos(TWO_PI * (x + y));
-}
-
-typedef struct world {
-    consph_particles p;
-    consph_kernel k;
-    consph_nnps *g;
-    consph_op_ctx ctx;
-} world;
-
-static int world_init(world *w, consph_layout_kind kind, size_t nx, double hdx)
-{
-    memset(w, 0, sizeof *w);
-    consph_layout_params lp = consph_layout_defaults(kind, 2, nx);
-    lp.eps = 0.4;
-    lp.seed = 5;
-    if (generate_layout(&lp, &w->p) != CONSPH_OK) return 0;
-    if (consph_kernel_init(&w->k, CONSPH_KERNEL_QUINTIC, 2, hdx / (double)nx) != CONSPH_OK)
-        return 0;
-    w->g = consph_nnps_create(&w->p.box, w->k.radius, 0);
-    if (!w->g || consph_nnps_sort(w->g, &w->p, NULL) != CONSPH_OK) return 0;
-    return consph_op_ctx_init(&w->ctx, &w->p, w->g, &w->k, CONSPH_VOLUME_SUMMATION) == CONSPH_OK;
-}
-
-static void world_free(world *w)
-{
-    consph_op_ctx_free(&w->ctx);
-    consph_nnps_free(w->g);
-    consph_particles_free(&w->p);
 }
 
 static void fill(const world *w, double *f)
@@ -91,7 +69,7 @@ static void separation(const consph_particles *p, size_t i, size_t j, double x[2
 static void test_brute_force(void)
 {
     world w;
-    int ok = world_init(&w, CONSPH_LAYOUT_RANDOM, 14, 1.2);
+    int ok = world_setup2d(&w, CONSPH_LAYOUT_RANDOM, 14, 1.2);
     CHECK(ok, "setup: %s", consph_last_error());
     if (ok) {
         const size_t n = w.p.n;
@@ -148,7 +126,7 @@ static void test_brute_force(void)
 static void test_constant(void)
 {
     world w;
-    int ok = world_init(&w, CONSPH_LAYOUT_RANDOM, 30, 1.2);
+    int ok = world_setup2d(&w, CONSPH_LAYOUT_RANDOM, 30, 1.2);
     CHECK(ok, "setup: %s", consph_last_error());
     if (ok) {
         const size_t n = w.p.n;
@@ -176,7 +154,7 @@ static void test_convergence(void)
     for (int r = 0; r < 3; ++r) {
         world w;
         err[r] = NAN;
-        int ok = world_init(&w, CONSPH_LAYOUT_LATTICE, nx[r], 1.2);
+        int ok = world_setup2d(&w, CONSPH_LAYOUT_LATTICE, nx[r], 1.2);
         CHECK(ok, "setup nx %zu: %s", nx[r], consph_last_error());
         if (ok) {
             double *f = malloc(w.p.n * sizeof(double)), *out = malloc(2 * w.p.n * sizeof(double));
@@ -195,7 +173,7 @@ static void test_convergence(void)
           o2);
 
     world w;
-    int ok = world_init(&w, CONSPH_LAYOUT_RANDOM, 30, 1.2);
+    int ok = world_setup2d(&w, CONSPH_LAYOUT_RANDOM, 30, 1.2);
     CHECK(ok, "setup random: %s", consph_last_error());
     if (ok) {
         double *f = malloc(w.p.n * sizeof(double)), *out = malloc(2 * w.p.n * sizeof(double));
@@ -214,7 +192,7 @@ static void test_threads(void)
 {
 #ifdef _OPENMP
     world w;
-    int ok = world_init(&w, CONSPH_LAYOUT_RANDOM, 24, 1.2);
+    int ok = world_setup2d(&w, CONSPH_LAYOUT_RANDOM, 24, 1.2);
     CHECK(ok, "setup: %s", consph_last_error());
     if (ok) {
         const size_t n = w.p.n;

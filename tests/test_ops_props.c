@@ -36,33 +36,10 @@ static void fill_field(const consph_particles *p, double *f, int ncomp)
     }
 }
 
-typedef struct world {
-    consph_particles p;
-    consph_kernel k;
-    consph_nnps *g;
-    consph_op_ctx ctx;
-} world;
-
 static int world_layout(world *w, consph_layout_kind kind, int dim, size_t nx, double hdx,
                         consph_volume_kind vk)
 {
-    memset(w, 0, sizeof *w);
-    consph_layout_params lp = consph_layout_defaults(kind, dim, nx);
-    lp.eps = 0.4;
-    lp.seed = 3;
-    if (generate_layout(&lp, &w->p) != CONSPH_OK) return 0;
-    if (consph_kernel_init(&w->k, CONSPH_KERNEL_QUINTIC, dim, hdx / (double)nx) != CONSPH_OK)
-        return 0;
-    w->g = consph_nnps_create(&w->p.box, w->k.radius, 0);
-    if (!w->g || consph_nnps_sort(w->g, &w->p, NULL) != CONSPH_OK) return 0;
-    return consph_op_ctx_init(&w->ctx, &w->p, w->g, &w->k, vk) == CONSPH_OK;
-}
-
-static void world_free(world *w)
-{
-    consph_op_ctx_free(&w->ctx);
-    consph_nnps_free(w->g);
-    consph_particles_free(&w->p);
+    return world_setup(w, kind, dim, nx, hdx, vk, 3);
 }
 
 /* |Σ_i m_i F_i| relative to Σ_i |m_i F_i|, per component, with consph_sum. */
