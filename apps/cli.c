@@ -289,3 +289,19 @@ int cli_parse_periodic(const char *text, int periodic[3])
     }
     return any ? 0 : -1;
 }
+
+int cli_bad_box(const cli_command *cmd, const char *text)
+{
+    return cli_error(cmd,
+                     "option --box: '%s' is not a box; allowed: x0:x1,y0:y1[,z0:z1] with finite "
+                     "x0 < x1",
+                     text);
+}
+
+int cli_bad_periodic(const cli_command *cmd, const char *text)
+{
+    return cli_error(cmd,
+                     "option --periodic: unknown value '%s'; allowed: yes, no, or the periodic "
+                     "axes (e.g. x, xy, x,z)",
+                     text);
+}

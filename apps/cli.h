@@ -67,5 +67,9 @@ int cli_parse_box(const char *text, struct consph_box *box);
 /* "yes"/"all", "no"/"none", or axis letters such as "x", "xy", "x,z": periodic[a] for axis a;
  * 0 or -1. */
 int cli_parse_periodic(const char *text, int periodic[3]);
+/* The rejections of those two, one line each naming the option and the allowed values;
+ * return CLI_EXIT_USAGE. */
+int cli_bad_box(const cli_command *cmd, const char *text);
+int cli_bad_periodic(const cli_command *cmd, const char *text);
 
 #endif

@@ -14,8 +14,6 @@
 /* --volume: the volume kinds of ops.h, then two names for particle files (box volume / N given
  * to every particle, and 1/ΣW as in 001 eq. 5). */
 #define VOLUME_EXTRA ",lattice,shepard"
-#define BOX_ALLOWED "x0:x1,y0:y1[,z0:z1] with finite x0 < x1"
-#define PERIODIC_ALLOWED "yes, no, or the periodic axes (e.g. x, xy, x,z)"
 
 static const char *const norm_names[4] = {"l1", "l2", "linf", "mae"};
 
@@ -297,11 +295,9 @@ int cmd_approx(int argc, char **argv)
     }
     int periodic[CONSPH_MAX_DIM];
     if (cli_parse_periodic(periodic_text, periodic) != 0)
-        return cli_error(&cmd, "option --periodic: unknown value '%s'; allowed: " PERIODIC_ALLOWED,
-                         periodic_text);
+        return cli_bad_periodic(&cmd, periodic_text);
     consph_box given_box;
-    if (box_text && cli_parse_box(box_text, &given_box) != 0)
-        return cli_error(&cmd, "option --box: '%s' is not a box; allowed: " BOX_ALLOWED, box_text);
+    if (box_text && cli_parse_box(box_text, &given_box) != 0) return cli_bad_box(&cmd, box_text);
     if (!from_files && volume_idx == CONSPH_VOLUME_COUNT) volume_idx = CONSPH_VOLUME_GIVEN;
     if (!from_files && volume_idx == CONSPH_VOLUME_COUNT + 1) volume_idx = CONSPH_VOLUME_NUMBER;
 

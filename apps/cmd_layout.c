@@ -83,11 +83,7 @@ static int layout_from_file(const cli_command *cmd, const char *in, const char *
     memset(&ro, 0, sizeof ro);
     ro.dim = (int)dim;
     if (box_text) {
-        if (cli_parse_box(box_text, &ro.box))
-            return cli_error(cmd,
-                             "option --box: '%s' is not a box; allowed: x0:x1,y0:y1[,z0:z1] with "
-                             "finite x0 < x1",
-                             box_text);
+        if (cli_parse_box(box_text, &ro.box)) return cli_bad_box(cmd, box_text);
         ro.have_box = 1;
     }
     if (periodic_given) {

@@ -122,19 +122,12 @@ static int read_inputs(const cli_command *cmd, const char *list, const char *box
     consph_read_options ro;
     memset(&ro, 0, sizeof ro);
     if (box_text) {
-        if (cli_parse_box(box_text, &ro.box))
-            return cli_error(cmd,
-                             "option --box: '%s' is not a box; allowed: x0:x1,y0:y1[,z0:z1] "
-                             "with finite x0 < x1",
-                             box_text);
+        if (cli_parse_box(box_text, &ro.box)) return cli_bad_box(cmd, box_text);
         ro.have_box = 1;
     }
     if (periodic_text) {
         if (cli_parse_periodic(periodic_text, ro.periodic))
-            return cli_error(cmd,
-                             "option --periodic: unknown value '%s'; allowed: yes, no, or the "
-                             "periodic axes (e.g. x, xy, x,z)",
-                             periodic_text);
+            return cli_bad_periodic(cmd, periodic_text);
         ro.have_periodic = 1;
     }
     size_t len = strlen(list);
