@@ -187,7 +187,7 @@ static void visit_gradient(first_job *job, const ops_nbhd *nb)
             size_t j = nb->j[p];
             double x[3], g[3];
             for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-            ops_corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
+            ops_corrected_grad(d, job->corr, c, M, nb, p, x, g);
             const double *Lj = job->mat + j * job->mat_size;
             double s = 0.5 * mass[j] * (f[j] + fi) / (rho[j] * rho[i]);
             for (int a = 0; a < d; ++a) {
@@ -235,7 +235,7 @@ static void visit_div(first_job *job, const ops_nbhd *nb)
         size_t j = nb->j[p];
         double x[3], g[3];
         for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-        ops_corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
+        ops_corrected_grad(d, job->corr, c, M, nb, p, x, g);
         double s = 0.0;
         for (int a = 0; a < d; ++a) s += (u[a * N + j] - ui[a]) * g[a];
         acc += vol[j] * s;

@@ -23,6 +23,7 @@
 enum { OPS_NEED_W = 1u, OPS_NEED_DW = 2u, OPS_NEED_D2W = 4u, OPS_SKIP_DX = 8u };
 
 /* One particle's neighbourhood with the kernel values of each pair, as a pass visits it.
+ * w, dwr and d2w are NULL unless the pass was asked for them (OPS_NEED_*).
  * dwr = W'(r)/r, so ∇W_ij = dwr * x_ij; at r = 0 it holds the limit W''(0), which keeps the
  * kernel Hessian (W'' - W'/r) e e + (W'/r) I continuous and ∇W = dwr * x_ij = 0 there. */
 typedef struct ops_nbhd {
@@ -122,10 +123,15 @@ static inline void ops_grad_rule(int d, consph_op_corr corr, const double *mat, 
     }
 }
 
-/* g = c w + M (dwr x): one corrected kernel gradient, dwr = W'/r, x = x_ij. */
-static inline void ops_corrected_grad(int d, const double c[3], const double M[9], double w,
-                                      double dwr, const double x[3], double g[3])
+/* g = c W + M (dwr x) for pair p of nb, x = x_ij. Only the Liu rule has a W term (c != 0), and
+ * a pass evaluates W only for visitors that ask for it (OPS_NEED_W), so W is read for Liu
+ * alone: reading it otherwise would multiply 0 by whatever the scratch held, NaN included. */
+static inline void ops_corrected_grad(int d, consph_op_corr corr, const double c[3],
+                                      const double M[9], const ops_nbhd *nb, size_t p,
+                                      const double x[3], double g[3])
 {
+    const double dwr = nb->dwr[p];
+    const double w = corr == CONSPH_CORR_LC ? nb->w[p] : 0.0;
     double gr[3];
     for (int b = 0; b < d; ++b) gr[b] = dwr * x[b];
     for (int a = 0; a < d; ++a) {

@@ -130,9 +130,11 @@ int ops_run(const consph_op_ctx *ctx, unsigned need, ops_visit_fn visit, void *j
                 for (int a = 0; a < CONSPH_MAX_DIM; ++a)
                     nb.dx[a] = with_dx && a < dim ? sc.dx[a] : NULL;
                 nb.r = sc.r;
-                nb.w = sc.w;
-                nb.dwr = sc.dwr;
-                nb.d2w = sc.d2w;
+                /* Values the visitor did not ask for were not evaluated: hand out no pointer to
+                 * them, so that reading one faults at once instead of summing stale scratch. */
+                nb.w = need & OPS_NEED_W ? sc.w : NULL;
+                nb.dwr = need & (OPS_NEED_DW | OPS_NEED_D2W) ? sc.dwr : NULL;
+                nb.d2w = need & OPS_NEED_D2W ? sc.d2w : NULL;
                 visit(job, &nb);
                 my_pairs += m;
             }

@@ -57,7 +57,7 @@ static void visit_s1(second_job *job, const ops_nbhd *nb)
         size_t j = nb->j[p];
         double x[3], g[3];
         for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-        ops_corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
+        ops_corrected_grad(d, job->corr, c, M, nb, p, x, g);
         double s = 0.0;
         for (int a = 0; a < d; ++a) s += (G[a * N + j] - Gi[a]) * g[a];
         acc += vol[j] * s;
@@ -100,7 +100,7 @@ static void visit_cleary(second_job *job, const ops_nbhd *nb)
         size_t j = nb->j[p];
         double x[3], g[3];
         for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-        ops_corrected_grad(d, c, M, nb->w[p], nb->dwr[p], x, g);
+        ops_corrected_grad(d, job->corr, c, M, nb, p, x, g);
         double gx = 0.0;
         for (int a = 0; a < d; ++a) gx += g[a] * x[a];
         double wgt = tvf ? oi2 + vol[j] * vol[j] : 2.0 * vol[j];
