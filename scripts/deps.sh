@@ -10,6 +10,8 @@ opt=()
 /usr/bin/python3 -c 'import vtk' >/dev/null 2>&1 || opt+=(python3-vtk9)
 /usr/bin/python3 -c 'import numpy' >/dev/null 2>&1 || opt+=(python3-numpy)
 command -v gnuplot >/dev/null || opt+=(gnuplot-nox)
+# Optional: the memory checker that `make check` runs every operator under.
+command -v valgrind >/dev/null || opt+=(valgrind)
 [ ${#need[@]} -eq 0 ] && [ ${#opt[@]} -eq 0 ] && exit 0
 if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
   export DEBIAN_FRONTEND=noninteractive

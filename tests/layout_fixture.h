@@ -35,19 +35,27 @@ typedef struct world {
     consph_op_ctx ctx;
 } world;
 
-static inline int world_setup(world *w, consph_layout_kind kind, int dim, size_t nx, double hdx,
-                              consph_volume_kind vk, uint64_t seed)
+/* The world on the particles of `lp` (any box and periodicity), h = hdx/nx[0]. */
+static inline int world_setup_params(world *w, const consph_layout_params *lp, double hdx,
+                                     consph_volume_kind vk)
 {
     memset(w, 0, sizeof *w);
-    consph_layout_params lp = consph_layout_defaults(kind, dim, nx);
-    lp.eps = 0.4;
-    lp.seed = seed;
-    if (generate_layout(&lp, &w->p) != CONSPH_OK) return 0;
-    if (consph_kernel_init(&w->k, CONSPH_KERNEL_QUINTIC, dim, hdx / (double)nx) != CONSPH_OK)
+    if (generate_layout(lp, &w->p) != CONSPH_OK) return 0;
+    if (consph_kernel_init(&w->k, CONSPH_KERNEL_QUINTIC, lp->dim, hdx / (double)lp->nx[0]) !=
+        CONSPH_OK)
         return 0;
     w->g = consph_nnps_create(&w->p.box, w->k.radius, 0);
     if (!w->g || consph_nnps_sort(w->g, &w->p, NULL) != CONSPH_OK) return 0;
     return consph_op_ctx_init(&w->ctx, &w->p, w->g, &w->k, vk) == CONSPH_OK;
+}
+
+static inline int world_setup(world *w, consph_layout_kind kind, int dim, size_t nx, double hdx,
+                              consph_volume_kind vk, uint64_t seed)
+{
+    consph_layout_params lp = consph_layout_defaults(kind, dim, nx);
+    lp.eps = 0.4;
+    lp.seed = seed;
+    return world_setup_params(w, &lp, hdx, vk);
 }
 
 static inline void world_free(world *w)
