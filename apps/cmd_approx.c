@@ -17,20 +17,6 @@
 
 static const char *const norm_names[4] = {"l1", "l2", "linf", "mae"};
 
-static double norm_of(const consph_approx_row *r, int k)
-{
-    switch (k) {
-    case 0:
-        return r->err.l1;
-    case 1:
-        return r->err.l2;
-    case 2:
-        return r->err.linf;
-    default:
-        return r->err.mae;
-    }
-}
-
 static void print_csv_header(void)
 {
     printf("nx,n,h,nbr_mean,l1,l2,linf,mae,ft_over_fmax,seconds,fallbacks\n");
@@ -44,14 +30,6 @@ static void print_csv_row(const consph_approx_row *r, double nx)
            r->fallbacks);
 }
 
-static void fit_norm(const consph_approx_row *rows, const double *res, int nrows, int k,
-                     consph_order_fit *fit)
-{
-    double err[CLI_LIST_MAX];
-    for (int r = 0; r < nrows; ++r) err[r] = norm_of(&rows[r], k);
-    if (consph_fit_order(res, err, nrows, fit) != CONSPH_OK) fit->order = NAN;
-}
-
 /* A particle file given with --particles, read before anything runs. */
 typedef struct input_file {
     const char *path;
@@ -62,6 +40,48 @@ typedef struct input_file {
     double nx; /* N^(1/dim): the resolution the order fit sees */
     int periodic_given;
 } input_file;
+
+/* Exit status of a run whose error is not finite (documented in --help and README). */
+#define EXIT_NONFINITE 3
+
+/* The verdict on every norm's order; a non-finite or degenerate row is reported once, on
+ * stderr, naming the series and the resolution. Returns EXIT_NONFINITE for a non-finite row. */
+static int fit_orders(const consph_approx_row *rows, const double *res, int nrows,
+                      const char *series, const input_file *files, const char *pm,
+                      consph_series_order fits[4])
+{
+    int rc = 0, warned = 0;
+    for (int k = 0; k < 4; ++k) {
+        consph_series_order *so = &fits[k];
+        if (consph_series_fit(rows, res, nrows, norm_names[k], 3, pm, so) == CONSPH_ENOMEM) {
+            so->status = CONSPH_SERIES_NO_FIT;
+            snprintf(so->text, sizeof so->text, "n/a (out of memory)");
+        }
+        if (warned || so->row < 0) continue;
+        /* A file's row is named by the file: several files can share one nx. */
+        const char *file = files ? files[so->row].path : NULL;
+        if (so->status == CONSPH_SERIES_NONFINITE) {
+            fprintf(stderr, "consph approx: error: %s%s%s: %s (exit status %d)\n", series,
+                    file ? ", " : "", file ? file : "", so->why, EXIT_NONFINITE);
+            rc = EXIT_NONFINITE;
+            warned = 1;
+        } else if (so->status == CONSPH_SERIES_DEGENERATE) {
+            fprintf(stderr, "consph approx: warning: %s%s%s: %s\n", series, file ? ", " : "",
+                    file ? file : "", so->why);
+            warned = 1;
+        }
+    }
+    return rc;
+}
+
+/* JSON has no NaN or infinity: a non-finite value is written as null. */
+static void json_number(const char *fmt, double v)
+{
+    if (isfinite(v))
+        printf(fmt, v);
+    else
+        printf("null");
+}
 
 /* N^(1/dim), exact when N is a perfect power, so that a file reports the nx of the layout it
  * was made from. */
@@ -248,14 +268,18 @@ int cmd_approx(int argc, char **argv)
         O_PERIODIC = 12,
         O_VOLUME = 14
     };
-    char details[1536];
+    char details[2048];
     snprintf(details, sizeof details,
              "CSV columns: nx,n,h,nbr_mean,l1,l2,linf,mae,ft_over_fmax,seconds,fallbacks\n"
              "  l1 = sum|g-g_o|/sum|g_o| (001 eq. 7, see docs/deviations.md), l2 and linf (002 "
              "eqs. 44-45),\n  mae = mean|g-g_o| (003 eq. 58), ft_over_fmax = sum F_x / max|F_x| "
              "(001 Tables 3, 5),\n  seconds = operator time, fallbacks = particles whose "
              "correction matrix was rejected.\n"
-             "Orders: least-squares slope of log(error) against log(nx), with standard error.\n"
+             "Orders: least-squares slope of log(error) against log(nx), with its standard "
+             "error from three resolutions on (n/a with two); 'n/a (why)' where no order can be "
+             "fitted, e.g. no neighbours within the support (a warning on stderr).\n"
+             "Exit status: 0 done, 1 a run failed, 2 bad input, 3 an error is not finite (a "
+             "wrong result; stderr names the operator and the resolution or file).\n"
              "Fields: %s.\n"
              "Particle files: CSV with a header row x,y[,z] (optional volume, m, rho columns) or "
              "VTK .vtu (ascii, binary, appended, zlib), as 'consph layout --out' writes them; "
@@ -475,15 +499,14 @@ int cmd_approx(int argc, char **argv)
             print_csv_row(w, res[r]);
         fflush(stdout);
     }
+    char series[96];
+    snprintf(series, sizeof series, "%s %s %s", opname, consph_form_name(s.op.form),
+             consph_corr_name(s.op.corr));
+    consph_series_order fits[4];
+    const int fit_rc =
+        fit_orders(rows, res, nrows, series, from_files ? in : NULL, fmt == 0 ? "+-" : "±", fits);
     if (fmt == 0) {
-        for (int k = 0; k < 4; ++k) {
-            consph_order_fit fit;
-            fit_norm(rows, res, nrows, k, &fit);
-            if (isnan(fit.order))
-                printf("order (%s): n/a\n", norm_names[k]);
-            else
-                printf("order (%s): %.3f +- %.3f\n", norm_names[k], fit.order, fit.order_stderr);
-        }
+        for (int k = 0; k < 4; ++k) printf("order (%s): %s\n", norm_names[k], fits[k].text);
     } else if (fmt == 2) {
         printf("{\n  \"op\": \"%s\", \"form\": \"%s\", \"corr\": \"%s\", \"kernel\": \"%s\", "
                "\"hdx\": %g, \"h_policy\": \"%s\", \"layout\": \"%s\", \"dim\": %ld, ",
@@ -506,23 +529,35 @@ int cmd_approx(int argc, char **argv)
                 json_string(in[r].volume_text);
                 printf(", \"wrapped\": %zu, ", in[r].rep.wrapped);
             }
-            printf("\"nx\": %.10g, \"n\": %zu, \"h\": %.10g, \"nbr_mean\": %.6g, \"l1\": %.6e, "
-                   "\"l2\": %.6e, \"linf\": %.6e, \"mae\": %.6e, \"ft_over_fmax\": %.6e, "
-                   "\"seconds\": %.6g, \"fallbacks\": %zu}%s\n",
-                   res[r], w->n, w->h, w->nbr_mean, w->err.l1, w->err.l2, w->err.linf, w->err.mae,
-                   w->ft_over_fmax, w->seconds, w->fallbacks, r + 1 < nrows ? "," : "");
+            printf("\"nx\": %.10g, \"n\": %zu, \"h\": %.10g, \"nbr_mean\": ", res[r], w->n, w->h);
+            json_number("%.6g", w->nbr_mean);
+            const double cols[] = {w->err.l1, w->err.l2, w->err.linf, w->err.mae, w->ft_over_fmax};
+            static const char *const names[] = {"l1", "l2", "linf", "mae", "ft_over_fmax"};
+            for (int c = 0; c < 5; ++c) {
+                printf(", \"%s\": ", names[c]);
+                json_number("%.6e", cols[c]);
+            }
+            printf(", \"seconds\": ");
+            json_number("%.6g", w->seconds);
+            printf(", \"fallbacks\": %zu}%s\n", w->fallbacks, r + 1 < nrows ? "," : "");
         }
         printf("  ],\n  \"order\": {");
         for (int k = 0; k < 4; ++k) {
-            consph_order_fit fit;
-            fit_norm(rows, res, nrows, k, &fit);
-            if (isnan(fit.order))
-                printf("%s\"%s\": null", k ? ", " : "", norm_names[k]);
-            else
-                printf("%s\"%s\": {\"order\": %.6f, \"stderr\": %.6f}", k ? ", " : "",
-                       norm_names[k], fit.order, fit.order_stderr);
+            const consph_order_fit *fit = &fits[k].fit;
+            printf("%s\"%s\": ", k ? ", " : "", norm_names[k]);
+            if (fits[k].status != CONSPH_SERIES_ORDER) {
+                printf("null");
+                continue;
+            }
+            printf("{\"order\": %.6f, \"stderr\": ", fit->order);
+            json_number("%.6f", fit->order_stderr);
+            printf("}");
         }
         printf("}\n}\n");
+    }
+    if (fit_rc) {
+        rc = fit_rc;
+        goto out;
     }
     rc = 0;
 out:

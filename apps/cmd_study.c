@@ -183,6 +183,12 @@ static int read_inputs(const cli_command *cmd, const char *list, const char *box
     return 0;
 }
 
+/* Exit status of a failed run: 2 bad input, 3 a non-finite result (as consph approx), else 1. */
+static int run_status(int rc)
+{
+    return rc == CONSPH_EFORMAT || rc == CONSPH_EINVAL ? 2 : rc == CONSPH_ENUMERIC ? 3 : 1;
+}
+
 int cmd_study(int argc, char **argv)
 {
     int quick = 0, list = 0, estimate_only = 0;
@@ -215,7 +221,9 @@ int cmd_study(int argc, char **argv)
                        "NAME is a study name (see --list) or a path to a .study file; the study "
                        "directory is $CONSPH_STUDIES, ./studies or the source tree's studies/.\n"
                        "Without --quick the paper's resolutions are used and a run-time "
-                       "estimate is printed first. File format: docs/studies.md.",
+                       "estimate is printed first. File format: docs/studies.md.\n"
+                       "Exit status: 0 done, 1 a run failed, 2 bad input, 3 an error is not "
+                       "finite (stderr names the figure, series and resolution).",
                        opts,
                        (int)(sizeof opts / sizeof opts[0]),
                        1,
@@ -273,7 +281,7 @@ int cmd_study(int argc, char **argv)
         free_inputs(&in);
         consph_study_free(s);
         if (rc == CONSPH_OK) return 0;
-        return rc == CONSPH_EFORMAT || rc == CONSPH_EINVAL ? 2 : 1;
+        return run_status(rc);
     }
     printf("study %s: %s (%s resolutions)\n", consph_study_name(s), consph_study_title(s),
            quick ? "quick" : "paper");
@@ -294,7 +302,7 @@ int cmd_study(int argc, char **argv)
     if (rc != CONSPH_OK) {
         fprintf(stderr, "consph study: %s\n", consph_last_error());
         consph_study_free(s);
-        return rc == CONSPH_EFORMAT || rc == CONSPH_EINVAL ? 2 : 1;
+        return run_status(rc);
     }
     printf("done in %.1f s: %s/%s/README.md\n", consph_wtime() - t0, out, consph_study_name(s));
     consph_study_free(s);

@@ -20,11 +20,17 @@ extern "C" {
  * A positive order means the error falls as the resolution grows. */
 typedef struct consph_order_fit {
     double order;
-    double order_stderr; /* standard error of the slope (0 when only two points) */
+    double order_stderr; /* standard error of the slope (NaN with two points: none can be had) */
     double intercept;
     int npoints;
 } consph_order_fit;
+/* CONSPH_ENUMERIC when fewer than two errors are positive, the resolutions are all equal, or
+ * any error or resolution is not finite (a wrong result is never left out silently). */
 int consph_fit_order(const double *resolution, const double *err, int n, consph_order_fit *fit);
+/* "2.013 ± 0.004" (digits decimals, `pm` between), "2.013 ± n/a" without a standard error, "n/a"
+ * without an order; returns buf. */
+const char *consph_order_text(const consph_order_fit *fit, int digits, const char *pm, char *buf,
+                              size_t size);
 
 /* ---- Error norms ---------------------------------------------------------------------------- */
 
@@ -140,6 +146,33 @@ typedef struct consph_approx_row {
      * compared with the tolerance (it stops at its iteration cap otherwise); NaN otherwise. */
     double layout_spread;
 } consph_approx_row;
+
+/* The error norm named "l1", "l2", "linf" or "mae" of a row (l1 for any other name). */
+double consph_approx_norm(const consph_approx_row *row, const char *norm);
+
+/* The verdict on the order of a series of rows, as every report states it. */
+typedef enum consph_series_status {
+    CONSPH_SERIES_ORDER,      /* fitted (text: the order, with its standard error from 3 rows) */
+    CONSPH_SERIES_NONFINITE,  /* a row's error is not finite: a wrong result, an error */
+    CONSPH_SERIES_DEGENERATE, /* a row where no particle has a neighbour or every one fell back:
+                                 the error measures no operator; a warning, no order */
+    CONSPH_SERIES_NO_FIT      /* no order can be fitted (text says why): l1 of a zero field,
+                                 fewer than two non-zero errors, a single resolution */
+} consph_series_status;
+
+typedef struct consph_series_order {
+    consph_series_status status;
+    int row;              /* the row the status is about, -1 when none */
+    consph_order_fit fit; /* order NaN unless fitted */
+    char text[160]; /* for a report's order column: "1.86 ± 0.02", "1.86 ± n/a", "n/a (why)" */
+    char why[192];  /* NONFINITE, DEGENERATE: "nx = 20: ...", naming the resolution */
+} consph_series_order;
+
+/* Fits the order of `norm` over rows measured at resolutions res[k] (digits and pm as in
+ * consph_order_text). Returns CONSPH_ENUMERIC (message = why) for a non-finite row, which the
+ * caller reports with the series' name and turns into a failure; CONSPH_OK otherwise. */
+int consph_series_fit(const consph_approx_row *rows, const double *res, int nrows, const char *norm,
+                      int digits, const char *pm, consph_series_order *out);
 
 /* Defaults: op function/standard/none, quintic, hdx 1.2, lattice 2D unit
  * periodic, field sin2pi, volumes 1/ΣW (001 eq. 5). */

@@ -356,10 +356,7 @@ static int mkdir_p(const char *path)
 
 static double norm_value(const consph_approx_row *r, const char *norm)
 {
-    if (strcmp(norm, "l2") == 0) return r->err.l2;
-    if (strcmp(norm, "linf") == 0) return r->err.linf;
-    if (strcmp(norm, "mae") == 0) return r->err.mae;
-    return r->err.l1;
+    return consph_approx_norm(r, norm);
 }
 
 static double x_value(const consph_approx_row *r, double nx, const char *x, int dim)
@@ -464,9 +461,37 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
 
+    /* Every series' order verdict; a non-finite row fails the figure once its files are
+     * written, a degenerate one is a warning. */
+    consph_series_order *fits = calloc((size_t)f->nseries, sizeof *fits);
+    if (!fits) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    char failure[1024] = "";
+    for (int k = 0; k < f->nseries; ++k) {
+        consph_series_order *so = &fits[k];
+        if (consph_series_fit(res[k].rows, res[k].nx, res[k].nrows, norm, 2, "±", so) ==
+            CONSPH_ENOMEM) {
+            free(fits);
+            return consph_fail(CONSPH_ENOMEM, "out of memory");
+        }
+        /* The sweep value or file beside the row's nx, which alone may not tell rows apart. */
+        char where[320] = "";
+        if (so->row >= 0 && sweep_hdx)
+            snprintf(where, sizeof where, " (h/dx = %g)", plans[k].values[so->row]);
+        else if (so->row >= 0 && files)
+            snprintf(where, sizeof where, " (file %s)", files->names[so->row]);
+        if (so->status == CONSPH_SERIES_NONFINITE && !failure[0])
+            snprintf(failure, sizeof failure, "figure '%s', series '%s': %s%s", f->id,
+                     f->series[k].label, so->why, where);
+        if (so->status == CONSPH_SERIES_DEGENERATE && log)
+            fprintf(log, "  warning: series '%s': %s%s\n", f->series[k].label, so->why, where);
+    }
+
     /* Markdown report. */
     snprintf(path, sizeof path, "%s/%s.md", dir, f->id);
-    if ((rc = consph_outfile_open(&of, path))) return rc;
+    if ((rc = consph_outfile_open(&of, path))) {
+        free(fits);
+        return rc;
+    }
     FILE *o = of.fp;
     fprintf(o, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
     const char *note = figure_note(f);
@@ -500,17 +525,9 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
         for (int k = 0; k < f->nseries; ++k) {
             const series_result *sr = &res[k];
             const study_series *r = &f->series[k];
-            double xs[MAX_SWEEP], ys[MAX_SWEEP];
             size_t fb = 0;
-            for (int j = 0; j < sr->nrows; ++j) {
-                xs[j] = sr->nx[j];
-                ys[j] = norm_value(&sr->rows[j], norm);
-                fb += sr->rows[j].fallbacks;
-            }
-            consph_order_fit fit;
-            char ord[64] = "n/a";
-            if (consph_fit_order(xs, ys, sr->nrows, &fit) == CONSPH_OK)
-                snprintf(ord, sizeof ord, "%.2f ± %.2f", fit.order, fit.order_stderr);
+            for (int j = 0; j < sr->nrows; ++j) fb += sr->rows[j].fallbacks;
+            const char *ord = fits[k].text;
             const consph_approx_row *last = &sr->rows[sr->nrows - 1];
             char other[512];
             paper_columns(s, f, r, other, sizeof other);
@@ -544,6 +561,7 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
         }
     fprintf(o, "\n</details>\n\n");
     if (have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
+    free(fits);
     if ((rc = consph_outfile_commit(&of))) return rc;
 
     /* Plot data, one gnuplot index block per series, and the script. */
@@ -587,6 +605,7 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     if ((rc = consph_outfile_commit(&of))) return rc;
     snprintf(label, sizeof label, "%s.gp", f->id);
     run_gnuplot(dir, label, log);
+    if (failure[0]) return consph_fail(CONSPH_ENUMERIC, "%s", failure);
     return CONSPH_OK;
 }
 
@@ -829,11 +848,12 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
             ys[j] = rows[j].std_in;
         }
         consph_order_fit fit;
+        char ptext[64];
         if (consph_fit_order(xs, ys, nrows, &fit) == CONSPH_OK)
             fprintf(o,
-                    "\nFitted σ(M0, interior) ∝ 𝒩^-p with p = %.2f ± %.2f (Zhu et al., quoted by "
+                    "\nFitted σ(M0, interior) ∝ 𝒩^-p with p = %s (Zhu et al., quoted by "
                     "003/000: p = 1 for low-discrepancy sets, 1/2 for random ones).\n\n",
-                    fit.order, fit.order_stderr);
+                    consph_order_text(&fit, 2, "±", ptext, sizeof ptext));
         published_values(s, f, o);
         if (have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
         rc = consph_outfile_commit(&of);
