@@ -305,3 +305,18 @@ int cli_bad_periodic(const cli_command *cmd, const char *text)
                      "axes (e.g. x, xy, x,z)",
                      text);
 }
+
+/* Larger sets exhaust memory long before anything useful happens. */
+#define CLI_MAX_PARTICLES 100000000.0
+
+int cli_check_nx(const cli_command *cmd, long nx, long dim)
+{
+    double total = 1.0;
+    for (long a = 0; a < dim; ++a) total *= (double)nx;
+    if (total > CLI_MAX_PARTICLES)
+        return cli_error(cmd,
+                         "option --nx: %ld^%ld = %.0f particles is too many; allowed: at most "
+                         "%.0f particles in all",
+                         nx, dim, total, CLI_MAX_PARTICLES);
+    return 0;
+}

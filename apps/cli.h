@@ -71,5 +71,8 @@ int cli_parse_periodic(const char *text, int periodic[3]);
  * return CLI_EXIT_USAGE. */
 int cli_bad_box(const cli_command *cmd, const char *text);
 int cli_bad_periodic(const cli_command *cmd, const char *text);
+/* 0 when nx^dim particles can be held; otherwise the rejection naming --nx (CLI_EXIT_USAGE), so
+ * that a size the machine cannot hold fails up front instead of at allocation. */
+int cli_check_nx(const cli_command *cmd, long nx, long dim);
 
 #endif

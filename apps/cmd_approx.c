@@ -317,6 +317,8 @@ int cmd_approx(int argc, char **argv)
     } else if (opts[O_BOX].given) {
         return cli_error(&cmd, "option --box: only with --particles (layouts fill the unit box)");
     }
+    for (int r = 0; !from_files && r < nx.n; ++r)
+        if ((rc = cli_check_nx(&cmd, (long)nx.v[r], dim))) return rc;
     int periodic[CONSPH_MAX_DIM];
     if (cli_parse_periodic(periodic_text, periodic) != 0)
         return cli_bad_periodic(&cmd, periodic_text);

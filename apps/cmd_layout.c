@@ -11,9 +11,6 @@
 #include "consph/kernels.h"
 #include "consph/layout.h"
 
-/* Larger sets exhaust memory long before anything useful happens. */
-#define LAYOUT_CLI_MAX_PARTICLES 100000000.0
-
 static const char layout_details[] =
     "kinds (unit box [0,1)^D, Δs = 1/N, N^D particles):\n"
     "  lattice       cell-centred lattice x = (i + 1/2) Δs (001's UP arrangement)\n"
@@ -221,13 +218,7 @@ int cmd_layout(int argc, char **argv)
     if (!opt_given(opts, nopts, "--nx"))
         return cli_error(&cmd, "option --nx is required; allowed: integer 1..100000");
     consph_layout_kind kind = (consph_layout_kind)kind_index;
-    double total = 1.0;
-    for (long a = 0; a < dim; ++a) total *= (double)nx;
-    if (total > LAYOUT_CLI_MAX_PARTICLES)
-        return cli_error(&cmd,
-                         "option --nx: %ld^%ld = %.0f particles is too many; allowed: at most "
-                         "%.0f particles in all",
-                         nx, dim, total, LAYOUT_CLI_MAX_PARTICLES);
+    if ((rc = cli_check_nx(&cmd, nx, dim))) return rc;
     if (opt_given(opts, nopts, "--seed") && kind != CONSPH_LAYOUT_RANDOM &&
         kind != CONSPH_LAYOUT_PACKED)
         return cli_error(&cmd, "option --seed applies only to --kind random or packed");
