@@ -320,3 +320,32 @@ int cli_check_nx(const cli_command *cmd, long nx, long dim)
                          nx, dim, total, CLI_MAX_PARTICLES);
     return 0;
 }
+
+void cli_note_read_defaults(const cli_command *cmd, const char *path, const consph_particles *p,
+                            const consph_read_report *rep, int box_given, int periodic_given)
+{
+    /* The reader takes the box and periodicity from the options, else from the file, else (for
+     * the periodicity) none: say so when nothing set it, since it changes every result. */
+    const int box_assumed = !box_given && !rep->box_from_file;
+    const int periodic_assumed = !periodic_given && !rep->periodic_from_file;
+    if (!box_assumed && !periodic_assumed) return;
+    char box[160] = "";
+    size_t len = 0;
+    for (int a = 0; a < p->dim && len < sizeof box; ++a)
+        len += (size_t)snprintf(box + len, sizeof box - len, "%s[%g, %g]", a ? "x" : "",
+                                p->box.lo[a], p->box.hi[a]);
+    static const char axis[] = "xyz";
+    char per[8] = "";
+    for (int a = 0, k = 0; a < p->dim; ++a)
+        if (p->box.periodic[a]) per[k++] = axis[a];
+    fprintf(stderr,
+            "consph %s: note: %s gives no %s%s%s: using box %s (%s), periodic %s (%s); --box "
+            "x0:x1,... and --periodic yes|no|AXES set them\n",
+            cmd->name, path, box_assumed ? "box" : "",
+            box_assumed && periodic_assumed ? " and no " : "",
+            periodic_assumed ? "periodicity ('# periodic' line or VTU field 'periodic')" : "", box,
+            box_assumed ? "assumed"
+            : box_given ? "--box"
+                        : "from the file",
+            per[0] ? per : "none", periodic_assumed ? "assumed" : "--periodic");
+}

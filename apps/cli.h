@@ -75,4 +75,13 @@ int cli_bad_periodic(const cli_command *cmd, const char *text);
  * that a size the machine cannot hold fails up front instead of at allocation. */
 int cli_check_nx(const cli_command *cmd, long nx, long dim);
 
+struct consph_particles;
+struct consph_read_report;
+/* After a particle file was read: one line on stderr saying which box and periodicity were
+ * assumed, and which options set them, when neither the options (box_given, periodic_given)
+ * nor the file did; nothing otherwise. */
+void cli_note_read_defaults(const cli_command *cmd, const char *path,
+                            const struct consph_particles *p, const struct consph_read_report *rep,
+                            int box_given, int periodic_given);
+
 #endif

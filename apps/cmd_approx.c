@@ -441,6 +441,10 @@ int cmd_approx(int argc, char **argv)
     int nrows = from_files ? nin : nx.n;
     consph_approx_row rows[CLI_LIST_MAX];
     double res[CLI_LIST_MAX];
+    /* After every check: a rejection stays the one line on stderr. */
+    for (int k = 0; k < nin; ++k)
+        cli_note_read_defaults(&cmd, in[k].path, &in[k].p, &in[k].rep, box_text != NULL,
+                               in[k].periodic_given);
     char pdesc[8] = "";
     for (int a = 0, k = 0; a < dim; ++a)
         if (periodic[a]) pdesc[k++] = "xyz"[a];

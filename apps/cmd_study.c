@@ -165,6 +165,7 @@ static int read_inputs(const cli_command *cmd, const char *list, const char *box
             return CLI_EXIT_USAGE;
         }
         consph_particles *p = &in->sets[in->n++];
+        cli_note_read_defaults(cmd, name, p, &rep, box_text != NULL, periodic_text != NULL);
         const char *vol = consph_volume_origin_name(rep.volumes);
         if (rep.volumes == CONSPH_VOLUMES_NONE) {
             double *v = consph_particles_field(p, "volume", 1);
