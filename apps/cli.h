@@ -61,6 +61,9 @@ int cli_choice_index(const char *choices, const char *value);
 /* Copies choice number `index` of `choices` into buf. */
 const char *cli_choice_name(const char *choices, int index, char *buf, size_t size);
 
+/* 1 when the comma-separated `text` has no empty item (not "", ",a", "a,", "a,,b"), else 0. */
+int cli_list_items_nonempty(const char *text);
+
 struct consph_box;
 /* "x0:x1,y0:y1[,z0:z1]" into box->lo/hi/dim (finite bounds, lo < hi, finite length); 0 or -1. */
 int cli_parse_box(const char *text, struct consph_box *box);
@@ -71,5 +74,8 @@ int cli_parse_periodic(const char *text, int periodic[3]);
  * return CLI_EXIT_USAGE. */
 int cli_bad_box(const cli_command *cmd, const char *text);
 int cli_bad_periodic(const cli_command *cmd, const char *text);
+/* Once the dimension is known: rejects --periodic `text` (bad, or naming an axis past `dim`) with
+ * one line and CLI_EXIT_USAGE; 0 when it fits. "yes" fits every dimension. */
+int cli_check_periodic_dim(const cli_command *cmd, const char *text, int dim);
 
 #endif

@@ -57,6 +57,23 @@ grep -q '^packing: ' "$work/stdout" || bad "packed: no packing line"
 [ "$(grep -cE '^ +(0|50|100|150|200) +[0-9.e+-]+$' "$work/stdout")" -ge 5 ] ||
     bad "packed: spread history missing: $(cat "$work/stdout")"
 
+# The report never contradicts itself: a run that stops on --max-iter (0 included) does not say
+# the tolerance was met, and one whose tolerance was met is not called "NOT converged".
+for args in "--max-iter 0" "--max-iter 1" "--max-iter 0 --perturb 0" "--max-iter 300 --tol 1e-2"; do
+    # shellcheck disable=SC2086
+    "$bin" layout --kind packed --dim 2 --nx 8 $args --history-every 0 >"$work/stdout" 2>&1 ||
+        bad "packed $args failed: $(cat "$work/stdout")"
+    if grep -q "NOT converged" "$work/stdout"; then
+        ! grep -q "tolerance was met" "$work/stdout" || bad "packed $args: says both NOT converged and tolerance met"
+    else
+        grep -q "converged" "$work/stdout" || bad "packed $args: no convergence verdict"
+        ! grep -q -- "--max-iter was reached" "$work/stdout" || bad "packed $args: converged yet --max-iter reached"
+    fi
+done
+"$bin" layout --kind packed --dim 2 --nx 8 --max-iter 0 >"$work/stdout" 2>&1
+grep -q "^packing: 0 iterations" "$work/stdout" && grep -q "no packing step" "$work/stdout" ||
+    bad "packed --max-iter 0: not reported as no packing step: $(cat "$work/stdout")"
+
 # 3D CSV header.
 "$bin" layout --kind lattice --dim 3 --nx 3 --out "$work/l3.csv" >/dev/null 2>&1 || bad "3D lattice"
 [ "$(grep -v '^#' "$work/l3.csv" | head -n 1)" = "x,y,z,volume" ] || bad "3D csv header"
