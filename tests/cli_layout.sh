@@ -85,6 +85,38 @@ for opt in --kind --dim --nx --periodic --seed --eps --kernel --hdx --perturb --
     grep -q -- "$opt" "$work/help" || bad "--help does not mention $opt"
 done
 
+# --- interrupted writes ----------------------------------------------------------------
+# A signal that stops a large write leaves neither the temporary file nor the output, and the
+# process still ends as killed by that signal (status 128 + signal number).
+interrupt_write() { # interrupt_write SIGNAL STATUS
+    local sig=$1 want=$2 dir="$work/sig-$1" pid status n try
+    for try in 1 2 3; do
+        rm -rf "$dir" && mkdir "$dir"
+        # Job control, so that the background job does not start with SIGINT ignored.
+        set -m
+        "$bin" layout --kind lattice --dim 2 --nx 1500 --out "$dir/big.csv" >/dev/null 2>&1 &
+        pid=$!
+        set +m
+        # Wait until the temporary file has data in it, then signal at once.
+        for n in $(seq 6000); do
+            [ -n "$(find "$dir" -name 'big.csv.tmp.*' -size +0 2>/dev/null)" ] && break
+            kill -0 "$pid" 2>/dev/null || break
+            sleep 0.01
+        done
+        kill -s "$sig" "$pid" 2>/dev/null
+        wait "$pid"
+        status=$?
+        # Finished before the signal arrived: inconclusive, try again.
+        [ "$status" -eq 0 ] && [ -f "$dir/big.csv" ] && continue
+        [ "$status" -eq "$want" ] || bad "SIG$sig during a write: exit status $status, expected $want"
+        [ -z "$(ls -A "$dir")" ] || bad "SIG$sig during a write left: $(ls -A "$dir")"
+        return
+    done
+    bad "SIG$sig: the write finished before the signal every time"
+}
+interrupt_write INT 130
+interrupt_write TERM 143
+
 # --- bad input: status 2, one line naming the option, nothing written ----------------------
 expect_usage_error() {
     local option=$1
