@@ -42,6 +42,9 @@ static void usage(FILE *out)
 static void prefer_passive_wait(char **argv)
 {
     if (getenv("OMP_WAIT_POLICY") || getenv("GOMP_SPINCOUNT")) return;
+    /* Under valgrind the new image would run outside it (or not at all). */
+    const char *preload = getenv("LD_PRELOAD");
+    if (preload && strstr(preload, "vgpreload")) return;
     if (setenv("OMP_WAIT_POLICY", "passive", 1) != 0) return;
     execv("/proc/self/exe", argv);
     /* No /proc: run on with libgomp's default, and say so truthfully in --version. */

@@ -35,6 +35,9 @@ grep -q "OMP_WAIT_POLICY unset" /tmp/cli_main.$$.out || { echo "FAIL: GOMP_SPINC
 expect 0 "re-executed run" -- env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT "$consph" kernel cubic --dim 2 --points 3 --format csv
 [ "$(wc -l </tmp/cli_main.$$.out)" -ge 3 ] || { echo "FAIL: re-executed kernel table: $(cat /tmp/cli_main.$$.out)"; fail=1; }
 expect 2 "re-executed bad usage" -- env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT "$consph" kernel cubic --dim 7
+if command -v valgrind >/dev/null; then
+    expect 0 "under valgrind" -- env -u OMP_WAIT_POLICY -u GOMP_SPINCOUNT valgrind -q --error-exitcode=3 "$consph" --version
+fi
 rm -f /tmp/cli_main.$$.out /tmp/cli_main.$$.err
 [ $fail = 0 ] && echo "cli_main: 1 passed, 0 failed" || echo "cli_main: 0 passed, 1 failed"
 exit $fail
