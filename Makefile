@@ -44,18 +44,18 @@ format:
 format-check:
 	clang-format --dry-run --Werror $$(git ls-files '*.c' '*.h')
 
-# libFuzzer targets of the particle readers (fuzz/fuzz_*.c), built with clang's fuzzer, ASan and
-# UBSan over the sources they reach, then run one after the other for FUZZ_TIME seconds each
+# libFuzzer targets of the particle readers and of the CLI option parsers (fuzz/fuzz_*.c), built
+# with clang's fuzzer, ASan and UBSan over the sources they reach, then run one after the other for FUZZ_TIME seconds each
 # from the seed corpus fuzz/corpus/<target>/. New inputs go to $(FUZZ_BUILD)/corpus-<target>/;
 # a crash stops the run and leaves $(FUZZ_BUILD)/crash-<target>-*: copy it into
 # fuzz/regressions/<target>/, where `make check` replays it from then on.
 FUZZ_BUILD   ?= build-fuzz
 FUZZ_TIME    ?= 60
 FUZZ_CC      ?= clang
-FUZZ_TARGETS ?= csv vtu inflate
+FUZZ_TARGETS ?= csv vtu inflate cli
 FUZZ_FLAGS   ?= -g -O1 -std=c11 -D_DEFAULT_SOURCE -fsanitize=fuzzer,address,undefined \
-                -fno-sanitize-recover=undefined -Iinclude -Isrc
-FUZZ_SOURCES  = $(wildcard src/core/*.c src/io/*.c)
+                -fno-sanitize-recover=undefined -Iinclude -Isrc -Iapps
+FUZZ_SOURCES  = $(wildcard src/core/*.c src/io/*.c) apps/cli.c
 
 fuzz:
 	@command -v $(FUZZ_CC) >/dev/null || { echo "make fuzz needs clang with libFuzzer (Debian: clang, libclang-rt-dev)" >&2; exit 1; }

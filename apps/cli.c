@@ -126,20 +126,28 @@ static int parse_value(const cli_command *cmd, cli_opt *o, const char *text)
     case CLI_DOUBLE_LIST: {
         cli_list *l = o->dest;
         l->n = 0;
-        char buf[4096];
-        if (strlen(text) >= sizeof buf) return cli_error(cmd, "option %s: list too long", o->name);
-        strcpy(buf, text);
-        char *save = NULL;
-        for (char *tok = strtok_r(buf, ",", &save); tok; tok = strtok_r(NULL, ",", &save)) {
+        char range[128], item[128];
+        describe_range(o, range, sizeof range);
+        if (!cli_list_items_nonempty(text))
+            return cli_error(cmd,
+                             "option %s: '%s' has an empty item; allowed: comma-separated, each %s",
+                             o->name, text, range);
+        /* Split by hand: strtok would skip the empty item of "10,,20". */
+        for (const char *t = text;; ++t) {
+            const char *comma = strchr(t, ',');
+            size_t n = comma ? (size_t)(comma - t) : strlen(t);
             if (l->n == CLI_LIST_MAX)
                 return cli_error(cmd, "option %s: at most %d values", o->name, CLI_LIST_MAX);
-            if (parse_number(cmd, o, tok, &l->v[l->n])) return CLI_EXIT_USAGE;
+            if (n >= sizeof item)
+                return cli_error(cmd, "option %s: item %d is too long; allowed: %s", o->name,
+                                 l->n + 1, range);
+            memcpy(item, t, n);
+            item[n] = '\0';
+            if (parse_number(cmd, o, item, &l->v[l->n])) return CLI_EXIT_USAGE;
             l->n++;
+            if (!comma) return 0;
+            t = comma;
         }
-        if (l->n == 0 || text[strlen(text) - 1] == ',' || text[0] == ',')
-            return cli_error(cmd, "option %s: '%s' is not a comma-separated list of %ss", o->name,
-                             text, type_word(o));
-        return 0;
     }
     case CLI_OUT_PATH: {
         if (o->choices) {
@@ -247,12 +255,19 @@ int cli_parse(cli_command *cmd, int argc, char **argv)
     return 0;
 }
 
+int cli_list_items_nonempty(const char *text)
+{
+    size_t len = strlen(text);
+    return len && text[0] != ',' && text[len - 1] != ',' && !strstr(text, ",,");
+}
+
 int cli_parse_box(const char *text, consph_box *box)
 {
     memset(box, 0, sizeof *box);
     char buf[512];
     size_t len = strlen(text);
-    if (!len || len >= sizeof buf || text[len - 1] == ',') return -1;
+    /* strtok below would skip an empty item: ",0:1" and "0:1,,0:1" are not boxes. */
+    if (len >= sizeof buf || !cli_list_items_nonempty(text)) return -1;
     strcpy(buf, text);
     char *save = NULL;
     for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
@@ -280,6 +295,7 @@ int cli_parse_periodic(const char *text, int periodic[3])
         return 0;
     }
     if (!strcmp(text, "no") || !strcmp(text, "none")) return 0;
+    if (!cli_list_items_nonempty(text)) return -1;
     int any = 0;
     for (const char *c = text; *c; ++c) {
         if (*c == ',') continue;
@@ -348,4 +364,17 @@ void cli_note_read_defaults(const cli_command *cmd, const char *path, const cons
             : box_given ? "--box"
                         : "from the file",
             per[0] ? per : "none", periodic_assumed ? "assumed" : "--periodic");
+}
+int cli_check_periodic_dim(const cli_command *cmd, const char *text, int dim)
+{
+    int periodic[CONSPH_MAX_DIM];
+    if (cli_parse_periodic(text, periodic)) return cli_bad_periodic(cmd, text);
+    if (!strcmp(text, "yes") || !strcmp(text, "all")) return 0;
+    for (int a = dim; a < CONSPH_MAX_DIM; ++a)
+        if (periodic[a])
+            return cli_error(cmd,
+                             "option --periodic: axis %c, but the particles are %dD; allowed: "
+                             "yes, no, or axes among %.*s",
+                             "xyz"[a], dim, dim, "xyz");
+    return 0;
 }

@@ -61,6 +61,9 @@ int cli_choice_index(const char *choices, const char *value);
 /* Copies choice number `index` of `choices` into buf. */
 const char *cli_choice_name(const char *choices, int index, char *buf, size_t size);
 
+/* 1 when the comma-separated `text` has no empty item (not "", ",a", "a,", "a,,b"), else 0. */
+int cli_list_items_nonempty(const char *text);
+
 struct consph_box;
 /* "x0:x1,y0:y1[,z0:z1]" into box->lo/hi/dim (finite bounds, lo < hi, finite length); 0 or -1. */
 int cli_parse_box(const char *text, struct consph_box *box);
@@ -83,5 +86,8 @@ struct consph_read_report;
 void cli_note_read_defaults(const cli_command *cmd, const char *path,
                             const struct consph_particles *p, const struct consph_read_report *rep,
                             int box_given, int periodic_given);
+/* Once the dimension is known: rejects --periodic `text` (bad, or naming an axis past `dim`) with
+ * one line and CLI_EXIT_USAGE; 0 when it fits. "yes" fits every dimension. */
+int cli_check_periodic_dim(const cli_command *cmd, const char *text, int dim);
 
 #endif

@@ -322,6 +322,7 @@ int cmd_approx(int argc, char **argv)
     int periodic[CONSPH_MAX_DIM];
     if (cli_parse_periodic(periodic_text, periodic) != 0)
         return cli_bad_periodic(&cmd, periodic_text);
+    if (!from_files && (rc = cli_check_periodic_dim(&cmd, periodic_text, (int)dim))) return rc;
     consph_box given_box;
     if (box_text && cli_parse_box(box_text, &given_box) != 0) return cli_bad_box(&cmd, box_text);
     if (!from_files && volume_idx == CONSPH_VOLUME_COUNT) volume_idx = CONSPH_VOLUME_GIVEN;
@@ -333,7 +334,7 @@ int cmd_approx(int argc, char **argv)
     static char list[4096]; /* holds the file names, which the reports quote */
     if (from_files) {
         size_t len = strlen(particles);
-        if (len >= sizeof list || particles[len - 1] == ',' || particles[0] == ',')
+        if (len >= sizeof list || !cli_list_items_nonempty(particles))
             return cli_error(
                 &cmd, "option --particles: '%s' is not a comma-separated list of files", particles);
         strcpy(list, particles);
@@ -377,13 +378,8 @@ int cmd_approx(int argc, char **argv)
                       in[0].p.dim);
             goto out;
         }
-        int all = !strcmp(periodic_text, "yes") || !strcmp(periodic_text, "all");
-        for (int a = f->p.dim; a < CONSPH_MAX_DIM && opts[O_PERIODIC].given && !all; ++a)
-            if (periodic[a]) {
-                cli_error(&cmd, "option --periodic: axis %c, but the particles are %dD", "xyz"[a],
-                          f -> p.dim);
-                goto out;
-            }
+        if (opts[O_PERIODIC].given && cli_check_periodic_dim(&cmd, periodic_text, f->p.dim))
+            goto out;
         if (choose_volume(&cmd, f, volume_idx, opts[O_VOLUME].given)) goto out;
         f->nx = resolution_of(f->p.n, f->p.dim);
     }

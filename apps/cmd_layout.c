@@ -126,11 +126,14 @@ static void print_report(const consph_packing_report *r, double tol)
     printf("packing: %d iterations in %.3f s, max|rho/rho0-1| %.3e -> %.3e (tol %.1e, %s)\n",
            r->iterations, r->seconds, r->rho_spread_initial, r->rho_spread_final, tol,
            converged ? "converged" : "NOT converged: --max-iter reached");
-    if (r->polish_start >= 0)
+    if (r->iterations == 0)
+        printf("  no packing step (--max-iter 0): the initial arrangement, unrelaxed\n");
+    else if (r->polish_start >= 0)
         printf("  glass stage: iterations 0..%d; density polishing from iteration %d\n",
                r->polish_start, r->polish_start);
     else
-        printf("  glass stage only (the tolerance was met before density polishing)\n");
+        printf("  glass stage only (%s before density polishing)\n",
+               converged ? "the tolerance was met" : "--max-iter was reached");
     if (r->nhistory > 0) {
         printf("  %9s  %s\n", "iteration", "max|rho/rho0-1|");
         for (int k = 0; k < r->nhistory; ++k)

@@ -130,8 +130,7 @@ static int read_inputs(const cli_command *cmd, const char *list, const char *box
             return cli_bad_periodic(cmd, periodic_text);
         ro.have_periodic = 1;
     }
-    size_t len = strlen(list);
-    if (list[0] == ',' || list[len - 1] == ',')
+    if (!cli_list_items_nonempty(list))
         return cli_error(cmd, "option --particles: '%s' is not a comma-separated list of files",
                          list);
     const char *t = list;
@@ -165,6 +164,10 @@ static int read_inputs(const cli_command *cmd, const char *list, const char *box
             return CLI_EXIT_USAGE;
         }
         consph_particles *p = &in->sets[in->n++];
+        if (periodic_text && cli_check_periodic_dim(cmd, periodic_text, p->dim)) {
+            free_inputs(in);
+            return CLI_EXIT_USAGE;
+        }
         cli_note_read_defaults(cmd, name, p, &rep, box_text != NULL, periodic_text != NULL);
         const char *vol = consph_volume_origin_name(rep.volumes);
         if (rep.volumes == CONSPH_VOLUMES_NONE) {

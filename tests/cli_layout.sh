@@ -57,6 +57,23 @@ grep -q '^packing: ' "$work/stdout" || bad "packed: no packing line"
 [ "$(grep -cE '^ +(0|50|100|150|200) +[0-9.e+-]+$' "$work/stdout")" -ge 5 ] ||
     bad "packed: spread history missing: $(cat "$work/stdout")"
 
+# The report never contradicts itself: a run that stops on --max-iter (0 included) does not say
+# the tolerance was met, and one whose tolerance was met is not called "NOT converged".
+for args in "--max-iter 0" "--max-iter 1" "--max-iter 0 --perturb 0" "--max-iter 300 --tol 1e-2"; do
+    # shellcheck disable=SC2086
+    "$bin" layout --kind packed --dim 2 --nx 8 $args --history-every 0 >"$work/stdout" 2>&1 ||
+        bad "packed $args failed: $(cat "$work/stdout")"
+    if grep -q "NOT converged" "$work/stdout"; then
+        ! grep -q "tolerance was met" "$work/stdout" || bad "packed $args: says both NOT converged and tolerance met"
+    else
+        grep -q "converged" "$work/stdout" || bad "packed $args: no convergence verdict"
+        ! grep -q -- "--max-iter was reached" "$work/stdout" || bad "packed $args: converged yet --max-iter reached"
+    fi
+done
+"$bin" layout --kind packed --dim 2 --nx 8 --max-iter 0 >"$work/stdout" 2>&1
+grep -q "^packing: 0 iterations" "$work/stdout" && grep -q "no packing step" "$work/stdout" ||
+    bad "packed --max-iter 0: not reported as no packing step: $(cat "$work/stdout")"
+
 # 3D CSV header.
 "$bin" layout --kind lattice --dim 3 --nx 3 --out "$work/l3.csv" >/dev/null 2>&1 || bad "3D lattice"
 [ "$(grep -v '^#' "$work/l3.csv" | head -n 1)" = "x,y,z,volume" ] || bad "3D csv header"
@@ -67,6 +84,38 @@ for opt in --kind --dim --nx --periodic --seed --eps --kernel --hdx --perturb --
     --history-every --out; do
     grep -q -- "$opt" "$work/help" || bad "--help does not mention $opt"
 done
+
+# --- interrupted writes ----------------------------------------------------------------
+# A signal that stops a large write leaves neither the temporary file nor the output, and the
+# process still ends as killed by that signal (status 128 + signal number).
+interrupt_write() { # interrupt_write SIGNAL STATUS
+    local sig=$1 want=$2 dir="$work/sig-$1" pid status n try
+    for try in 1 2 3; do
+        rm -rf "$dir" && mkdir "$dir"
+        # Job control, so that the background job does not start with SIGINT ignored.
+        set -m
+        "$bin" layout --kind lattice --dim 2 --nx 1500 --out "$dir/big.csv" >/dev/null 2>&1 &
+        pid=$!
+        set +m
+        # Wait until the temporary file has data in it, then signal at once.
+        for n in $(seq 6000); do
+            [ -n "$(find "$dir" -name 'big.csv.tmp.*' -size +0 2>/dev/null)" ] && break
+            kill -0 "$pid" 2>/dev/null || break
+            sleep 0.01
+        done
+        kill -s "$sig" "$pid" 2>/dev/null
+        wait "$pid"
+        status=$?
+        # Finished before the signal arrived: inconclusive, try again.
+        [ "$status" -eq 0 ] && [ -f "$dir/big.csv" ] && continue
+        [ "$status" -eq "$want" ] || bad "SIG$sig during a write: exit status $status, expected $want"
+        [ -z "$(ls -A "$dir")" ] || bad "SIG$sig during a write left: $(ls -A "$dir")"
+        return
+    done
+    bad "SIG$sig: the write finished before the signal every time"
+}
+interrupt_write INT 130
+interrupt_write TERM 143
 
 # --- bad input: status 2, one line naming the option, nothing written ----------------------
 expect_usage_error() {

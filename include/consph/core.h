@@ -93,7 +93,14 @@ double consph_sum_strided(const double *a, size_t n, size_t stride);
 
 /* Wall-clock seconds since an arbitrary origin. */
 double consph_wtime(void);
-/* Threads an OpenMP parallel region would use (1 without OpenMP). */
+/* Threads an OpenMP parallel region would use (1 without OpenMP).
+ *
+ * Thread count and a loaded machine: by default libgomp spins at every barrier before sleeping,
+ * and when other processes keep the cores busy, the spinning threads take the time the working
+ * ones need (2 threads on a loaded 2-core machine ran a study 4-5x slower than 1 thread).
+ * libgomp reads OMP_WAIT_POLICY and GOMP_SPINCOUNT only when it is loaded, so a program cannot
+ * change this once running: set OMP_WAIT_POLICY=passive in the environment that starts it (the
+ * consph CLI re-executes itself with it when neither variable is set), or use fewer threads. */
 int consph_num_threads(void);
 /* Peak resident set size of this process in bytes (0 when unknown). */
 size_t consph_peak_rss(void);

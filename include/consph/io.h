@@ -12,7 +12,9 @@
 extern "C" {
 #endif
 
-/* An output file being written: write to `fp`, then commit (rename into place) or abort. */
+/* An output file being written: write to `fp`, then commit (fsync, rename into place) or abort.
+ * While one is open, SIGINT, SIGTERM and SIGHUP, where their action is still the default, remove
+ * its temporary file before ending the process as they would have. */
 typedef struct consph_outfile {
     FILE *fp;
     char *path;

@@ -3,15 +3,20 @@
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 static _Thread_local char last_error[1024];
 
 int consph_fail(int code, const char *fmt, ...)
 {
+    /* Callers pass consph_last_error() back as an argument to add context ("%s: %s", file,
+     * consph_last_error()); formatting straight into last_error would read it while writing it. */
+    char msg[sizeof last_error];
     va_list ap;
     va_start(ap, fmt);
-    vsnprintf(last_error, sizeof last_error, fmt, ap);
+    vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
+    memcpy(last_error, msg, sizeof msg);
     return code;
 }
 

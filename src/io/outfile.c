@@ -1,10 +1,87 @@
 #include "consph/io.h"
 
 #include <errno.h>
+#include <fcntl.h>
+#include <signal.h>
+#include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <unistd.h>
+
+/* Temporary files being written, so that SIGINT/SIGTERM/SIGHUP do not leave a half-written
+ * file of hundreds of megabytes behind. The handler may only use async-signal-safe calls, so the
+ * registry is fixed storage: a slot's path is copied in before its state becomes TMP_LIVE, and
+ * the handler unlinks only live slots. */
+#define TMP_SLOTS 16
+#define TMP_PATH_MAX 4096
+enum { TMP_FREE, TMP_CLAIMED, TMP_LIVE };
+static atomic_int tmp_state[TMP_SLOTS];
+static char tmp_paths[TMP_SLOTS][TMP_PATH_MAX];
+static const int tmp_signals[] = {SIGINT, SIGTERM, SIGHUP};
+
+static void remove_tmp_on_signal(int sig)
+{
+    int saved = errno;
+    for (int k = 0; k < TMP_SLOTS; ++k)
+        if (atomic_load(&tmp_state[k]) == TMP_LIVE) unlink(tmp_paths[k]);
+    errno = saved;
+    /* SA_RESETHAND has restored the default action: the signal, delivered once this handler
+     * returns, ends the process with the status it would have had without the handler. */
+    raise(sig);
+}
+
+/* Installs the handler on the signals whose action is still the default (once per process):
+ * an application's own handlers are left alone. */
+static void install_signal_cleanup(void)
+{
+    static atomic_flag installed = ATOMIC_FLAG_INIT;
+    if (atomic_flag_test_and_set(&installed)) return;
+    for (size_t k = 0; k < sizeof tmp_signals / sizeof tmp_signals[0]; ++k) {
+        struct sigaction old, sa;
+        if (sigaction(tmp_signals[k], NULL, &old) != 0 || old.sa_handler != SIG_DFL) continue;
+        memset(&sa, 0, sizeof sa);
+        sa.sa_handler = remove_tmp_on_signal;
+        sigemptyset(&sa.sa_mask);
+        sa.sa_flags = SA_RESETHAND;
+        sigaction(tmp_signals[k], &sa, NULL);
+    }
+}
+
+/* A path too long for a slot, or more than TMP_SLOTS files at once, is written without the
+ * signal cleanup; everything else about it is unchanged. */
+static void register_tmp(const char *path)
+{
+    if (strlen(path) >= TMP_PATH_MAX) return;
+    install_signal_cleanup();
+    for (int k = 0; k < TMP_SLOTS; ++k) {
+        int expected = TMP_FREE;
+        if (atomic_compare_exchange_strong(&tmp_state[k], &expected, TMP_CLAIMED)) {
+            strcpy(tmp_paths[k], path);
+            atomic_store(&tmp_state[k], TMP_LIVE);
+            return;
+        }
+    }
+}
+
+static void unregister_tmp(const char *path)
+{
+    for (int k = 0; k < TMP_SLOTS; ++k)
+        if (atomic_load(&tmp_state[k]) == TMP_LIVE && strcmp(tmp_paths[k], path) == 0) {
+            atomic_store(&tmp_state[k], TMP_FREE);
+            return;
+        }
+}
+
+/* Makes a completed rename durable; a file system that cannot sync a directory loses nothing
+ * the rename had not already risked, so its failure is not an error. */
+static void sync_dir(const char *dir)
+{
+    int fd = open(dir, O_RDONLY | O_DIRECTORY);
+    if (fd < 0) return;
+    fsync(fd);
+    close(fd);
+}
 
 static char *dup_str(const char *s)
 {
@@ -59,6 +136,8 @@ int consph_outfile_open(consph_outfile *of, const char *path)
     }
     /* Same directory as the target so the final rename is atomic. */
     snprintf(of->tmp_path, len + 32, "%s.tmp.%ld", path, (long)getpid());
+    /* Registered before it exists: a signal between fopen and registration would leave it. */
+    register_tmp(of->tmp_path);
     of->fp = fopen(of->tmp_path, "wb");
     if (!of->fp) {
         int e = errno;
@@ -71,6 +150,9 @@ int consph_outfile_open(consph_outfile *of, const char *path)
 int consph_outfile_commit(consph_outfile *of)
 {
     int bad = ferror(of->fp);
+    /* The data must be on disk before the rename makes it the file: otherwise a crash soon after
+     * can leave a complete-looking name with empty or partial content. */
+    if (fflush(of->fp) != 0 || fsync(fileno(of->fp)) != 0) bad = 1;
     if (fclose(of->fp) != 0) bad = 1;
     of->fp = NULL;
     if (bad) {
@@ -87,6 +169,10 @@ int consph_outfile_commit(consph_outfile *of)
         consph_outfile_abort(of);
         return consph_fail(CONSPH_EIO, "%s", msg);
     }
+    unregister_tmp(of->tmp_path);
+    char *dir = dir_of(of->path);
+    if (dir) sync_dir(dir);
+    free(dir);
     free(of->path);
     free(of->tmp_path);
     memset(of, 0, sizeof *of);
@@ -99,7 +185,10 @@ void consph_outfile_abort(consph_outfile *of)
         fclose(of->fp);
         of->fp = NULL;
     }
-    if (of->tmp_path) remove(of->tmp_path);
+    if (of->tmp_path) {
+        remove(of->tmp_path);
+        unregister_tmp(of->tmp_path);
+    }
     free(of->path);
     free(of->tmp_path);
     memset(of, 0, sizeof *of);
