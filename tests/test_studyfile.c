@@ -1,6 +1,6 @@
 /* The study-file parser on hostile input (issue 12): names that become file names, duplicate
- * sections, bytes a line cannot hold; and a replay of the study fuzz corpus and of every crash
- * kept in fuzz/regressions/study/. */
+ * sections, bytes a line cannot hold; the timing repeats behind T_r; and a replay of the study
+ * fuzz corpus and of every crash kept in fuzz/regressions/study/. */
 #include <dirent.h>
 #include <stdlib.h>
 #include <string.h>
@@ -71,6 +71,25 @@ static void test_bytes(void)
     CHECK(parse(crlf, strlen(crlf)) == CONSPH_OK, "CRLF: %s", consph_last_error());
 }
 
+/* Timing repeats (T_r's median) change the seconds and nothing else. */
+static void test_timing_runs(void)
+{
+    consph_approx_spec sp = consph_approx_defaults(2);
+    CHECK(sp.timing_runs == 1, "default timing_runs %d", sp.timing_runs);
+    CHECK(consph_op_parse("grad", "asym", "bc", 2, &sp.op) == CONSPH_OK, "%s", consph_last_error());
+    sp.layout = consph_layout_defaults(CONSPH_LAYOUT_RANDOM, 2, 10);
+    sp.layout.box = consph_box_unit(2, 1);
+    consph_approx_row one, five;
+    CHECK(consph_approx_run(&sp, 16, &one) == CONSPH_OK, "%s", consph_last_error());
+    sp.timing_runs = 5;
+    CHECK(consph_approx_run(&sp, 16, &five) == CONSPH_OK, "%s", consph_last_error());
+    CHECK(memcmp(&one.err, &five.err, sizeof one.err) == 0, "errors differ with timing runs");
+    CHECK(one.ft_over_fmax == five.ft_over_fmax && one.nbr_mean == five.nbr_mean &&
+              one.fallbacks == five.fallbacks && one.h == five.h && one.n == five.n,
+          "row differs with timing runs");
+    CHECK(five.seconds > 0 && isfinite(five.seconds), "median time %g", five.seconds);
+}
+
 static unsigned char *load(const char *path, size_t *size)
 {
     FILE *fp = fopen(path, "rb");
@@ -136,6 +155,7 @@ int main(void)
     test_names();
     test_duplicates();
     test_bytes();
+    test_timing_runs();
     test_fuzz_replay();
     return check_summary("test_studyfile");
 }
