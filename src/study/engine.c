@@ -739,15 +739,21 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     if ((rc = consph_outfile_open(&of, path))) return rc;
     o = of.fp;
     rc = gp_head(o, f->id, get_or(s, f, NULL, "title", f->id));
-    fprintf(o, "set logscale xy\nset xlabel '%s'\nset ylabel '%s error'\n",
+    fprintf(o, "set logscale xy\nset format y '%%g'\nset xlabel '%s'\nset ylabel '%s error'\n",
             strcmp(xname, "nbr") == 0 ? "neighbours" : "particles per axis", norm);
-    /* A slope -2 guide through the first series' first point (second-order convergence in the
-     * particle spacing): meaningless against neighbours, across h/Δs, or when h is not
-     * proportional to the spacing (003's h = N^(-1/6)). */
+    /* A slope -2 guide (second-order convergence in the particle spacing), half a step below
+     * the lowest first point so that it does not hide a series that converges at that rate.
+     * Meaningless against neighbours, across h/Δs, or when h is not proportional to the
+     * spacing (003's h = N^(-1/6)). */
+    double y0 = INFINITY;
+    for (int k = 0; k < f->nseries; ++k) {
+        double y = res[k].nrows ? norm_value(&res[k].rows[0], norm) : NAN;
+        if (y > 0 && y < y0) y0 = y;
+    }
     int guide = !sweep_hdx && res[0].nrows > 0 && strcmp(xname, "nbr") != 0 &&
-                plans[0].spec.h_policy == CONSPH_H_HDX && norm_value(&res[0].rows[0], norm) > 0;
+                plans[0].spec.h_policy == CONSPH_H_HDX && isfinite(y0);
     if (guide)
-        fprintf(o, "ref(x) = %.10g*(x/%.10g)**(-2)\n", norm_value(&res[0].rows[0], norm),
+        fprintf(o, "ref(x) = %.10g*(x/%.10g)**(-2)\n", 0.5 * y0,
                 x_value(&res[0].rows[0], res[0].nx[0], xname, dim));
     /* The paper's value of each series as a marked point at the paper's finest resolution. */
     int paper_pt[MAX_SERIES_POINTS] = {0};
@@ -774,7 +780,9 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     if (plans[0].bound)
         fprintf(o, ", \\\n    '%s.dat' index 0 using 1:3 with lines dashtype 2 title 'bound'",
                 f->id);
-    if (guide) fprintf(o, ", \\\n    ref(x) with lines dashtype 3 lc rgb 'gray' title 'slope -2'");
+    if (guide)
+        fprintf(o, ", \\\n    ref(x) with lines dashtype 2 lw 2 lc rgb 'gray40' title 'slope -2 "
+                   "(second order)'");
     fprintf(o, "\n");
     if (rc) {
         consph_outfile_abort(&of);
