@@ -141,18 +141,20 @@ grep -q '^003-appc ' "$tmp/log" && grep -q '^local ' "$tmp/log" || bad "--list w
 # ---- what the reports say ----
 # The paper's value is drawn as a point at the paper's finest resolution; an order further than
 # 0.3 from the paper's is flagged; F_T/F_max is blank for a function; no slope guide when
-# h = N^(-1/6).
+# h = N^(-1/6); T_r (a median of 5 timings) only where the paper publishes one.
 grep -q '^\$paper0 << EOD' "$d/grad.gp" && grep -q '^32 0.001$' "$d/grad.gp" || bad "grad.gp lacks the paper's point"
 grep -q "title 'paper (series colour)'" "$d/grad.gp" || bad "grad.gp: the paper's point has no key entry"
 grep -q '⚠' "$d/grad.md" && bad "asym_bc (1.9 against 2.0) flagged"
 mini "$tmp/rep.study" "report" 'h_policy = scaling
 kernel = wendland-c4:h
-paper.order = 5'
+paper.order = 5
+paper.tr = 1.0'
 "$consph" study "$tmp/rep.study" --quick --out "$tmp/rep" >"$tmp/log" 2>&1 || bad "report study: $(cat "$tmp/log")"
 grep -q '^| s1 | [-0-9.]* ± [0-9.]* ⚠ | 5 |' "$tmp/rep/rep/a.md" || bad "order 5 in the paper not flagged: $(grep '^| s1' "$tmp/rep/rep/a.md")"
 grep -q 'differs from the paper.s by more than 0.3' "$tmp/rep/rep/a.md" || bad "flag not explained"
 grep -q '^| s1 | .* (nx=12) | — |  |  | 1.00 |' "$tmp/rep/rep/a.md" || bad "F_T/F_max not blank for a function: $(grep '^| s1' "$tmp/rep/rep/a.md")"
 grep -q 'slope' "$tmp/rep/rep/a.gp" && bad "slope guide drawn for h = N^(-1/6)"
 grep -q 'median of 5' "$tmp/rep/rep/a.md" || bad "T_r is not said to be a median"
+grep -q 'T_r' "$d/grad.md" && bad "T_r shown for a figure whose paper publishes none"
 [ $fail = 0 ] && echo "cli_study: 1 passed, 0 failed" || echo "cli_study: 0 passed, 1 failed"
 exit $fail

@@ -580,6 +580,15 @@ static int paper_point(const consph_study *s, const study_figure *f, const study
     return 1;
 }
 
+/* Whether the figure's table has T_r: where a series publishes it (paper.tr, 001 Tables 3 and
+ * 5). It costs TR_TIMINGS operator applications at each series' finest resolution. */
+static int reports_tr(const consph_study *s, const study_figure *f)
+{
+    for (int k = 0; k < f->nseries; ++k)
+        if (study_get(s, f, &f->series[k], "paper.tr")) return 1;
+    return 0;
+}
+
 static int write_approx_outputs(const consph_study *s, const study_figure *f,
                                 const series_plan *plans, const series_result *res, const char *dir,
                                 int quick, const study_files *files)
@@ -646,13 +655,14 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
         fprintf(o, ".\n\n");
     }
     if (!sweep_hdx) {
+        /* T_r (001 Tables 3, 5): operator time at the finest resolution relative to the first
+         * series, shown only where the paper publishes it. */
+        int tr = reports_tr(s, f);
         fprintf(o,
                 "| series | order (%s) | paper order | %s at finest | paper %s | F_T/F_max | "
-                "paper F_T/F_max | T_r | paper T_r | fallbacks | other published values |\n",
-                norm, norm, norm);
-        fprintf(o, "|---|---|---|---|---|---|---|---|---|---|---|\n");
-        /* T_r: operator time at the finest resolution relative to the first series (001's
-         * tables use the same idea with their own reference). */
+                "paper F_T/F_max |%s fallbacks | other published values |\n",
+                norm, norm, norm, tr ? " T_r | paper T_r |" : "");
+        fprintf(o, "|---|---|---|---|---|---|---|%s---|---|\n", tr ? "---|---|" : "");
         const series_result *first = &res[0];
         double t_first = first->nrows ? first->rows[first->nrows - 1].seconds : NAN;
         /* A function interpolation exerts no force: F_T/F_max is meaningless there. */
@@ -682,22 +692,27 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
             char other[512], ft[32] = "";
             paper_columns(s, f, r, other, sizeof other);
             if (!no_force) snprintf(ft, sizeof ft, "%.2e", last->ft_over_fmax);
-            fprintf(o, "| %s | %s | %s | %.3e (nx=%zu) | %s | %s | %s | %.2f | %s | %zu | %s |\n",
-                    r->label, ord, get_or(s, f, r, "paper.order", "—"), norm_value(last, norm),
-                    last->nx, get_or(s, f, r, "paper.l1", get_or(s, f, r, "paper.error", "—")), ft,
-                    no_force ? "" : get_or(s, f, r, "paper.ft", "—"), last->seconds / t_first,
-                    get_or(s, f, r, "paper.tr", "—"), fb, other);
+            fprintf(o, "| %s | %s | %s | %.3e (nx=%zu) | %s | %s | %s |", r->label, ord,
+                    get_or(s, f, r, "paper.order", "—"), norm_value(last, norm), last->nx,
+                    get_or(s, f, r, "paper.l1", get_or(s, f, r, "paper.error", "—")), ft,
+                    no_force ? "" : get_or(s, f, r, "paper.ft", "—"));
+            if (tr)
+                fprintf(o, " %.2f | %s |", last->seconds / t_first,
+                        get_or(s, f, r, "paper.tr", "—"));
+            fprintf(o, " %zu | %s |\n", fb, other);
         }
         fprintf(o, "\n");
         if (flagged)
             fprintf(o, "⚠ the fitted order differs from the paper's by more than %.1f%s.\n\n",
                     ORDER_TOLERANCE,
                     quick ? " (a quick run fits coarser resolutions than the paper's)" : "");
-        fprintf(o,
-                "T_r: operator time at the finest resolution (median of %d runs) relative to the "
-                "first series.%s\n\n",
-                TR_TIMINGS,
-                no_force ? " F_T/F_max is left blank: a function interpolation has no force." : "");
+        if (tr)
+            fprintf(o,
+                    "T_r: operator time at the finest resolution (median of %d runs) relative to "
+                    "the first series.\n\n",
+                    TR_TIMINGS);
+        if (no_force)
+            fprintf(o, "F_T/F_max is left blank: a function interpolation exerts no force.\n\n");
     }
     if (sweep_hdx) published_values(s, f, o);
     fprintf(o, "<details><summary>every measurement</summary>\n\n");
@@ -796,6 +811,7 @@ static int run_approx_figure(const consph_study *s, const study_figure *f, int q
                              layout_cache *cache, const char *dir, const study_files *files,
                              FILE *log)
 {
+    int tr = reports_tr(s, f);
     series_plan *plans = calloc((size_t)f->nseries, sizeof *plans);
     series_result *res = calloc((size_t)f->nseries, sizeof *res);
     int rc = (!plans || !res) ? consph_fail(CONSPH_ENOMEM, "out of memory") : CONSPH_OK;
@@ -813,7 +829,7 @@ static int run_approx_figure(const consph_study *s, const study_figure *f, int q
             size_t nx = pl->sweep_hdx ? pl->nx_fixed : (size_t)pl->values[j];
             if (pl->sweep_hdx) sp.hdx = pl->values[j];
             /* T_r compares the finest resolutions: a median there, single timings elsewhere. */
-            if (!pl->sweep_hdx && j == pl->nvalues - 1) sp.timing_runs = TR_TIMINGS;
+            if (tr && !pl->sweep_hdx && j == pl->nvalues - 1) sp.timing_runs = TR_TIMINGS;
             const consph_particles *p;
             double lsec = 0.0;
             if (files) {
