@@ -71,7 +71,7 @@ static int dir_creatable(const char *dir, char *why, size_t size)
         struct stat st;
         if (stat(path, &st) == 0) {
             if (!S_ISDIR(st.st_mode)) {
-                snprintf(why, size, "'%s' is not a directory", path);
+                snprintf(why, size, "'%.200s' is not a directory", path);
                 return 0;
             }
             size_t len = strlen(path);
@@ -79,7 +79,7 @@ static int dir_creatable(const char *dir, char *why, size_t size)
             int fd = mkstemp(path);
             if (fd < 0) {
                 path[len] = '\0';
-                snprintf(why, size, "cannot create files in '%s': %s", path, strerror(errno));
+                snprintf(why, size, "cannot create files in '%.200s': %s", path, strerror(errno));
                 return 0;
             }
             close(fd);
