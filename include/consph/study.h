@@ -187,7 +187,8 @@ typedef struct consph_study_options {
 } consph_study_options;
 
 /* Runs every figure; writes FIGURE.csv, FIGURE.md, FIGURE.gp (+ .svg when gnuplot is
- * installed) per figure and README.md per study, each atomically. */
+ * installed) per figure and README.md per study, each atomically. A figure gnuplot fails to
+ * draw is an error (CONSPH_EIO, no SVG); a failed run removes the directories it created. */
 int consph_study_run(const consph_study *s, const consph_study_options *opt);
 /* Runs `s` like consph_study_run, with the particle sets in place of every layout: a figure
  * sweeping nx gets one row per set, in order, reported at nx = N^(1/dim); a figure sweeping h/Δs
