@@ -1,5 +1,7 @@
 /* consph study: run a study declared in studies/NAME.study (docs/studies.md). */
 #include <dirent.h>
+#include <errno.h>
+#include <limits.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -11,40 +13,77 @@
 #include "consph/io.h"
 #include "consph/study.h"
 
+/* Longest --out accepted: DIR/STUDY/FIGURE.svg.tmp.PID must stay under PATH_MAX. */
+#define OUT_DIR_MAX 3800
+
 static int is_dir(const char *p)
 {
     struct stat st;
     return stat(p, &st) == 0 && S_ISDIR(st.st_mode);
 }
 
-/* Where study files live: $CONSPH_STUDIES, ./studies, the source tree, the install tree. */
-static const char *studies_dir(void)
+/* Where study files live, in order of precedence: $CONSPH_STUDIES, ./studies, the source
+ * tree, the install tree. A directory only provides the studies it holds, so a local
+ * ./studies with other files does not hide the built-in ones. */
+static int study_dirs(const char **dirs)
 {
-    const char *env = getenv("CONSPH_STUDIES");
-    if (env && is_dir(env)) return env;
-    if (is_dir("studies")) return "studies";
-    if (is_dir(CONSPH_SOURCE_DIR "/studies")) return CONSPH_SOURCE_DIR "/studies";
-    if (is_dir(CONSPH_DATA_DIR "/studies")) return CONSPH_DATA_DIR "/studies";
-    return NULL;
+    const char *cand[] = {getenv("CONSPH_STUDIES"), "studies", CONSPH_SOURCE_DIR "/studies",
+                          CONSPH_DATA_DIR "/studies"};
+    int n = 0;
+    for (size_t k = 0; k < sizeof cand / sizeof cand[0]; ++k)
+        if (cand[k] && *cand[k] && is_dir(cand[k])) dirs[n++] = cand[k];
+    return n;
+}
+
+/* DIR/NAME.study from the first study directory that has it. */
+static int find_study(const char *name, char *path, size_t size)
+{
+    const char *dirs[4];
+    int n = study_dirs(dirs);
+    for (int k = 0; k < n; ++k) {
+        snprintf(path, size, "%s/%s.study", dirs[k], name);
+        struct stat st;
+        if (stat(path, &st) == 0 && S_ISREG(st.st_mode)) return 1;
+    }
+    return 0;
 }
 
 /* Whether `dir` exists as a writable directory or could be created: its nearest existing
- * ancestor must be a writable directory. */
+ * ancestor must be a directory in which a file can really be created (access() says yes to
+ * root on /proc), and the path must leave room for the study's own names. */
 static int dir_creatable(const char *dir, char *why, size_t size)
 {
-    char path[2048];
+    if (strlen(dir) > OUT_DIR_MAX) {
+        snprintf(why, size, "longer than %d characters", OUT_DIR_MAX);
+        return 0;
+    }
+    for (const char *c = dir; *c;) {
+        size_t n = strcspn(c, "/");
+        if (n > NAME_MAX) {
+            snprintf(why, size, "a path component is longer than %d characters", NAME_MAX);
+            return 0;
+        }
+        c += n + (c[n] == '/');
+    }
+    char path[OUT_DIR_MAX + 64];
     snprintf(path, sizeof path, "%s", dir);
     for (;;) {
         struct stat st;
         if (stat(path, &st) == 0) {
             if (!S_ISDIR(st.st_mode)) {
-                snprintf(why, size, "'%s' is not a directory", path);
+                snprintf(why, size, "'%.200s' is not a directory", path);
                 return 0;
             }
-            if (access(path, W_OK | X_OK) != 0) {
-                snprintf(why, size, "directory '%s' is not writable", path);
+            size_t len = strlen(path);
+            snprintf(path + len, sizeof path - len, "/.consph-probe-XXXXXX");
+            int fd = mkstemp(path);
+            if (fd < 0) {
+                path[len] = '\0';
+                snprintf(why, size, "cannot create files in '%.200s': %s", path, strerror(errno));
                 return 0;
             }
+            close(fd);
+            unlink(path);
             return 1;
         }
         char *slash = strrchr(path, '/');
@@ -58,42 +97,61 @@ static int dir_creatable(const char *dir, char *why, size_t size)
     }
 }
 
-static int compare_names(const void *a, const void *b)
+typedef struct study_entry {
+    char *name, *file;
+} study_entry;
+
+static int compare_entries(const void *a, const void *b)
 {
-    return strcmp(*(char *const *)a, *(char *const *)b);
+    return strcmp(((const study_entry *)a)->name, ((const study_entry *)b)->name);
 }
 
 static int list_studies(const cli_command *cmd)
 {
-    const char *dir = studies_dir();
-    if (!dir) return cli_error(cmd, "no studies directory found (set CONSPH_STUDIES)");
-    DIR *d = opendir(dir);
-    if (!d) return cli_error(cmd, "cannot read '%s'", dir);
-    char *names[512];
+    const char *dirs[4];
+    int ndirs = study_dirs(dirs);
+    if (!ndirs) return cli_error(cmd, "no studies directory found (set CONSPH_STUDIES)");
+    /* Every study once, from the first directory that has it. */
+    study_entry found[512];
     int n = 0;
-    struct dirent *e;
-    while ((e = readdir(d)) && n < 512) {
-        size_t len = strlen(e->d_name);
-        if (len > 6 && strcmp(e->d_name + len - 6, ".study") == 0) {
-            names[n] = malloc(strlen(dir) + len + 2);
-            if (!names[n]) break;
-            sprintf(names[n], "%s/%s", dir, e->d_name);
+    for (int k = 0; k < ndirs; ++k) {
+        DIR *d = opendir(dirs[k]);
+        if (!d) continue;
+        struct dirent *e;
+        while ((e = readdir(d)) && n < 512) {
+            size_t len = strlen(e->d_name);
+            if (len <= 6 || strcmp(e->d_name + len - 6, ".study") != 0) continue;
+            int seen = 0;
+            for (int q = 0; q < n && !seen; ++q)
+                seen = strncmp(found[q].name, e->d_name, len - 6) == 0 &&
+                       found[q].name[len - 6] == '\0';
+            if (seen) continue;
+            found[n].name = malloc(len - 5);
+            found[n].file = malloc(strlen(dirs[k]) + len + 2);
+            if (!found[n].name || !found[n].file) {
+                free(found[n].name);
+                free(found[n].file);
+                break;
+            }
+            snprintf(found[n].name, len - 5, "%s", e->d_name);
+            sprintf(found[n].file, "%s/%s", dirs[k], e->d_name);
             ++n;
         }
+        closedir(d);
     }
-    closedir(d);
-    qsort(names, (size_t)n, sizeof names[0], compare_names);
+    qsort(found, (size_t)n, sizeof found[0], compare_entries);
     int rc = 0;
     for (int k = 0; k < n; ++k) {
         consph_study *s;
-        if (consph_study_load(names[k], &s) != CONSPH_OK) {
+        if (consph_study_load(found[k].file, &s) != CONSPH_OK) {
             fprintf(stderr, "consph study: %s\n", consph_last_error());
             rc = 1;
         } else {
             printf("%-16s %s\n", consph_study_name(s), consph_study_title(s));
             consph_study_free(s);
         }
-        free(names[k]);
+        free(found[k].file);
+        free(found[k].name);
     }
     return rc;
 }
@@ -222,8 +280,9 @@ int cmd_study(int argc, char **argv)
                        "a gnuplot figure.",
                        "consph study NAME [--quick] [--out DIR] [--particles FILE,...] | consph "
                        "study --list",
-                       "NAME is a study name (see --list) or a path to a .study file; the study "
-                       "directory is $CONSPH_STUDIES, ./studies or the source tree's studies/.\n"
+                       "NAME is a study name (see --list) or a path to a .study file; NAME.study "
+                       "is taken from the first of $CONSPH_STUDIES, ./studies and the built-in "
+                       "studies that has it.\n"
                        "Without --quick the paper's resolutions are used and a run-time "
                        "estimate is printed first. File format: docs/studies.md.\n"
                        "Exit status: 0 done, 1 a run failed, 2 bad input, 3 an error is not "
@@ -237,23 +296,19 @@ int cmd_study(int argc, char **argv)
     if (list) return list_studies(&cmd);
     char why[2200];
     if (!*out || !dir_creatable(out, why, sizeof why))
-        return cli_error(&cmd, "option --out: cannot write results under '%s': %s", out,
-                         *out ? why : "empty path");
+        return cli_error(&cmd, "option --out: cannot write results under '%.200s%s': %s", out,
+                         strlen(out) > 200 ? "..." : "", *out ? why : "empty path");
     name = positional[0];
     if (!name) return cli_error(&cmd, "a study NAME is required; see 'consph study --list'");
     char path[2048];
     size_t len = strlen(name);
     if (len > 6 && strcmp(name + len - 6, ".study") == 0) {
         snprintf(path, sizeof path, "%s", name);
-    } else {
-        const char *dir = studies_dir();
-        if (!dir) return cli_error(&cmd, "no studies directory found (set CONSPH_STUDIES)");
-        snprintf(path, sizeof path, "%s/%s.study", dir, name);
-        FILE *probe = fopen(path, "r");
-        if (!probe)
-            return cli_error(&cmd, "unknown study '%s' (no %s); see 'consph study --list'", name,
-                             path);
-        fclose(probe);
+    } else if (!find_study(name, path, sizeof path)) {
+        return cli_error(&cmd,
+                         "unknown study '%s' (no %s.study in $CONSPH_STUDIES, ./studies or "
+                         "the built-in studies); see 'consph study --list'",
+                         name, name);
     }
     if (!particles && (box_text || periodic_text))
         return cli_error(&cmd, "option %s: only with --particles",
@@ -264,9 +319,9 @@ int cmd_study(int argc, char **argv)
         consph_study_free(s);
         return cli_error(&cmd, "%s", consph_last_error());
     }
+    /* Files are read whole before the study starts: a bad one writes nothing. */
+    static study_inputs in;
     if (particles) {
-        /* Files are read whole before the study starts: a bad one writes nothing. */
-        static study_inputs in;
         rc = read_inputs(&cmd, particles, box_text, periodic_text, &in);
         if (rc) {
             consph_study_free(s);
@@ -274,39 +329,34 @@ int cmd_study(int argc, char **argv)
         }
         printf("study %s: %s (on %d particle file%s)\n", consph_study_name(s),
                consph_study_title(s), in.n, in.n == 1 ? "" : "s");
-        consph_study_options o = {quick, out, stdout};
-        double t0 = consph_wtime();
-        rc = consph_study_run_particles(s, &o, in.sets, (const char *const *)in.names, in.n);
-        if (rc != CONSPH_OK)
-            fprintf(stderr, "consph study: %s\n", consph_last_error());
-        else
-            printf("done in %.1f s: %s/%s/README.md\n", consph_wtime() - t0, out,
-                   consph_study_name(s));
-        free_inputs(&in);
-        consph_study_free(s);
-        if (rc == CONSPH_OK) return 0;
-        return run_status(rc);
+    } else {
+        printf("study %s: %s (%s resolutions)\n", consph_study_name(s), consph_study_title(s),
+               quick ? "quick" : "paper");
     }
-    printf("study %s: %s (%s resolutions)\n", consph_study_name(s), consph_study_title(s),
-           quick ? "quick" : "paper");
     if (!quick || estimate_only) {
-        double est = consph_study_estimate(s, quick);
+        double est = particles ? consph_study_estimate_particles(s, quick, in.sets, in.n)
+                               : consph_study_estimate(s, quick);
         printf("estimated run time: %.0f s (%.1f min; rough: neighbour pairs x measured cost per "
                "pair)\n",
                est, est / 60.0);
         fflush(stdout);
     }
-    if (estimate_only) {
-        consph_study_free(s);
-        return 0;
-    }
     consph_study_options o = {quick, out, stdout};
     double t0 = consph_wtime();
-    rc = consph_study_run(s, &o);
+    rc = CONSPH_OK;
+    if (!estimate_only)
+        rc = particles
+                 ? consph_study_run_particles(s, &o, in.sets, (const char *const *)in.names, in.n)
+                 : consph_study_run(s, &o);
+    free_inputs(&in);
     if (rc != CONSPH_OK) {
         fprintf(stderr, "consph study: %s\n", consph_last_error());
         consph_study_free(s);
         return run_status(rc);
+    }
+    if (estimate_only) {
+        consph_study_free(s);
+        return 0;
     }
     printf("done in %.1f s: %s/%s/README.md\n", consph_wtime() - t0, out, consph_study_name(s));
     consph_study_free(s);

@@ -42,5 +42,119 @@ grep -q "broken.study:5" "$tmp/err" || bad "bad form message lacks the line: $(c
 "$consph" study "$src/tests/data/engine.study" --quick --out "$tmp/plainfile/results" >/dev/null 2>"$tmp/err"; rc=$?
 [ $rc = 2 ] || bad "unwritable --out: exit $rc"
 grep -q "option --out: cannot write results under" "$tmp/err" || bad "unwritable --out message: $(cat "$tmp/err")"
+# ---- study files are data, never code (issue 12) ----
+# A small study: NAME from the file name, a figure titled TITLE with two series.
+mini() { # mini FILE TITLE [EXTRA-LINES]
+  printf 'study = %s\n[figure a]\ntitle = %s\nnx = 8,12\n%s\n[series s1]\n[series s2]\ncorr = none\n' \
+    "$(basename "$1" .study)" "$2" "${3:-}" >"$1"
+}
+# Backquotes, both quotes, $, @ and backslashes in every string that reaches gnuplot run nothing.
+mkdir -p "$tmp/inj"
+{
+  echo 'study = evil'
+  echo "title = study \`touch $tmp/mark1\` it's"
+  echo '[figure a]'
+  echo "title = it's \"q\" \`touch $tmp/mark2\` \$(touch $tmp/mark3) @x \\ back\\"
+  echo 'nx = 8,12'
+  echo "series.title = a'b \`touch $tmp/mark4\`,c\"d\\"
+} >"$tmp/inj/evil.study"
+"$consph" study "$tmp/inj/evil.study" --quick --out "$tmp/inj/out" >"$tmp/log" 2>&1; rc=$?
+ls "$tmp"/mark* >/dev/null 2>&1 && bad "a title in a study file ran a shell command"
+if command -v gnuplot >/dev/null; then
+  [ $rc = 0 ] || bad "quoted titles: exit $rc: $(cat "$tmp/log")"
+  [ -s "$tmp/inj/out/evil/a.svg" ] || bad "quoted titles: no SVG drawn"
+  grep -q "title 'title=a''b" "$tmp/inj/out/evil/a.gp" || bad "apostrophe not doubled in a.gp"
+fi
+# A control character (a newline cannot occur inside a line) is refused with file and line.
+printf 'study = cr\n[figure a]\ntitle = a\rb\nnx = 8\n' >"$tmp/inj/cr.study"
+"$consph" study "$tmp/inj/cr.study" --quick --out "$tmp/inj/out" >/dev/null 2>"$tmp/err"; rc=$?
+[ $rc = 2 ] && grep -q 'cr.study:3: control character' "$tmp/err" || bad "control character: exit $rc, $(cat "$tmp/err")"
+# Figure ids are plain names: no way out of --out.
+mkdir -p "$tmp/ids/a/b"
+printf 'study = esc\n[figure ../../../escaped]\nnx = 8\n' >"$tmp/ids/a/b/esc.study"
+"$consph" study "$tmp/ids/a/b/esc.study" --quick --out "$tmp/ids/a/b/out" >/dev/null 2>"$tmp/err"; rc=$?
+[ $rc = 2 ] || bad "figure ../../../escaped: exit $rc"
+grep -q "esc.study:2: figure name '../../../escaped' is not a plain name" "$tmp/err" || bad "figure id message: $(cat "$tmp/err")"
+find "$tmp" -name 'escaped*' | grep -q . && bad "a figure id wrote outside --out"
+for id in .hidden 'a/b' 'a b' 'x$y'; do
+  printf 'study = ids\n[figure %s]\nnx = 8\n' "$id" >"$tmp/ids/ids.study"
+  "$consph" study "$tmp/ids/ids.study" --quick --out "$tmp/ids/out" >/dev/null 2>"$tmp/err"; rc=$?
+  [ $rc = 2 ] && grep -q 'ids.study:2:' "$tmp/err" || bad "figure id '$id': exit $rc, $(cat "$tmp/err")"
+done
+printf 'study = ids\n[figure a]\nnx = 8\n[series x/y]\n' >"$tmp/ids/ids.study"
+"$consph" study "$tmp/ids/ids.study" --quick --out "$tmp/ids/out" >/dev/null 2>"$tmp/err"; rc=$?
+[ $rc = 2 ] && grep -q "ids.study:4: series name 'x/y'" "$tmp/err" || bad "series id x/y: exit $rc, $(cat "$tmp/err")"
+[ -e "$tmp/ids/out" ] && bad "a rejected study file created output"
+# study = must match the file name; a figure or series defined twice is an error naming both lines.
+printf 'study = other\n[figure a]\nnx = 8\n' >"$tmp/ids/named.study"
+"$consph" study "$tmp/ids/named.study" --quick --out "$tmp/ids/out" >/dev/null 2>"$tmp/err"; rc=$?
+[ $rc = 2 ] && grep -q "named.study:1: study = other, but the file name says 'named'" "$tmp/err" || bad "study name mismatch: exit $rc, $(cat "$tmp/err")"
+printf 'study = dup\n[figure a]\nnx = 8\n[figure b]\nnx = 8\n[figure a]\nnx = 12\n' >"$tmp/ids/dup.study"
+"$consph" study "$tmp/ids/dup.study" --quick --out "$tmp/ids/out" >/dev/null 2>"$tmp/err"; rc=$?
+[ $rc = 2 ] && grep -q "dup.study:6: figure 'a' already defined on line 2" "$tmp/err" || bad "duplicate figure: exit $rc, $(cat "$tmp/err")"
+printf 'study = dup\n[figure a]\nnx = 8\n[series s]\n[series s]\n' >"$tmp/ids/dup.study"
+"$consph" study "$tmp/ids/dup.study" --quick --out "$tmp/ids/out" >/dev/null 2>"$tmp/err"; rc=$?
+[ $rc = 2 ] && grep -q "dup.study:5: series 's' of figure 'a' already defined on line 4" "$tmp/err" || bad "duplicate series: exit $rc, $(cat "$tmp/err")"
+
+# ---- a figure that fails to draw is an error, and a failed run leaves nothing behind ----
+mkdir -p "$tmp/fake"
+printf '#!/bin/sh\necho "fake gnuplot fails" >&2\nexit 1\n' >"$tmp/fake/gnuplot"
+chmod +x "$tmp/fake/gnuplot"
+mini "$tmp/fig.study" "plain"
+PATH="$tmp/fake:$PATH" "$consph" study "$tmp/fig.study" --quick --out "$tmp/new/deeper" >/dev/null 2>"$tmp/err"; rc=$?
+[ $rc != 0 ] || bad "a figure gnuplot could not draw: exit 0"
+grep -q "gnuplot could not draw .*a.svg" "$tmp/err" || bad "gnuplot failure message: $(cat "$tmp/err")"
+[ -e "$tmp/new" ] && bad "a failed run left $(find "$tmp/new" | tr '\n' ' ')"
+# Into an existing directory: the run fails, no SVG (empty or not), no temporary file.
+mkdir -p "$tmp/keep"
+PATH="$tmp/fake:$PATH" "$consph" study "$tmp/fig.study" --quick --out "$tmp/keep" >/dev/null 2>&1 && bad "failing gnuplot into an existing dir: exit 0"
+[ -d "$tmp/keep" ] || bad "a failed run removed a directory it did not create"
+find "$tmp/keep" -name '*.svg*' | grep -q . && bad "a failed drawing left an SVG"
+# Without gnuplot: a warning, no SVG, and the report does not link one.
+PATH=/nonexistent "$consph" study "$tmp/fig.study" --quick --out "$tmp/nognu" >/dev/null 2>"$tmp/err"; rc=$?
+[ $rc = 0 ] || bad "no gnuplot: exit $rc: $(cat "$tmp/err")"
+grep -q "warning: gnuplot not found" "$tmp/err" || bad "no gnuplot: no warning: $(cat "$tmp/err")"
+[ -e "$tmp/nognu/fig/a.svg" ] && bad "no gnuplot: an SVG file exists"
+grep -q 'a\.svg' "$tmp/nognu/fig/README.md" && bad "no gnuplot: README links an SVG"
+[ -s "$tmp/nognu/fig/a.gp" ] || bad "no gnuplot: the script a.gp is missing"
+
+# ---- --out is checked before any work ----
+"$consph" study "$tmp/fig.study" --quick --out /proc >"$tmp/log" 2>"$tmp/err"; rc=$?
+[ $rc = 2 ] && grep -q "option --out: cannot write results under '/proc'" "$tmp/err" || bad "--out /proc: exit $rc, $(cat "$tmp/err")"
+long=$tmp/$(head -c 5000 /dev/zero | tr '\0' x)
+"$consph" study "$tmp/fig.study" --quick --out "$long" >"$tmp/log" 2>"$tmp/err"; rc=$?
+[ $rc = 2 ] && grep -q "option --out: .*longer than" "$tmp/err" || bad "5000-character --out: exit $rc, $(cat "$tmp/err")"
+grep -q '^\[a\]' "$tmp/log" && bad "5000-character --out: the study ran before the rejection"
+[ "$(wc -l <"$tmp/err")" = 1 ] || bad "5000-character --out: more than one line"
+
+# ---- --estimate with --particles; a ./studies folder does not hide the built-in studies ----
+"$consph" layout --kind lattice --dim 2 --nx 12 --out "$tmp/p12.csv" >/dev/null || bad "layout for --particles"
+"$consph" study "$tmp/fig.study" --particles "$tmp/p12.csv" --estimate --out "$tmp/est" >"$tmp/log" 2>&1; rc=$?
+[ $rc = 0 ] && grep -q '^estimated run time:' "$tmp/log" || bad "--estimate --particles: exit $rc, $(cat "$tmp/log")"
+[ -e "$tmp/est" ] && bad "--estimate --particles ran the study"
+mkdir -p "$tmp/cwd/studies" && : >"$tmp/cwd/studies/notes.txt"
+mini "$tmp/cwd/studies/local.study" "a local study"
+(cd "$tmp/cwd" && env -u CONSPH_STUDIES "$consph" study --list) >"$tmp/log" 2>&1 || bad "--list with ./studies: $(cat "$tmp/log")"
+grep -q '^003-appc ' "$tmp/log" && grep -q '^local ' "$tmp/log" || bad "--list with ./studies: $(cat "$tmp/log")"
+(cd "$tmp/cwd" && env -u CONSPH_STUDIES "$consph" study 003-appc --quick --out "$tmp/cwd/o") >"$tmp/log" 2>&1 || bad "built-in study hidden by ./studies: $(cat "$tmp/log")"
+
+# ---- what the reports say ----
+# The paper's value is drawn as a point at the paper's finest resolution; an order further than
+# 0.3 from the paper's is flagged; F_T/F_max is blank for a function; no slope guide when
+# h = N^(-1/6); T_r (a median of 5 timings) only where the paper publishes one.
+grep -q '^\$paper0 << EOD' "$d/grad.gp" && grep -q '^32 0.001$' "$d/grad.gp" || bad "grad.gp lacks the paper's point"
+grep -q "title 'paper (series colour)'" "$d/grad.gp" || bad "grad.gp: the paper's point has no key entry"
+grep -q '⚠' "$d/grad.md" && bad "asym_bc (1.9 against 2.0) flagged"
+mini "$tmp/rep.study" "report" 'h_policy = scaling
+kernel = wendland-c4:h
+paper.order = 5
+paper.tr = 1.0'
+"$consph" study "$tmp/rep.study" --quick --out "$tmp/rep" >"$tmp/log" 2>&1 || bad "report study: $(cat "$tmp/log")"
+grep -q '^| s1 | [-0-9.]* ± [0-9.]* ⚠ | 5 |' "$tmp/rep/rep/a.md" || bad "order 5 in the paper not flagged: $(grep '^| s1' "$tmp/rep/rep/a.md")"
+grep -q 'differs from the paper.s by more than 0.3' "$tmp/rep/rep/a.md" || bad "flag not explained"
+grep -q '^| s1 | .* (nx=12) | — |  |  | 1.00 |' "$tmp/rep/rep/a.md" || bad "F_T/F_max not blank for a function: $(grep '^| s1' "$tmp/rep/rep/a.md")"
+grep -q 'slope' "$tmp/rep/rep/a.gp" && bad "slope guide drawn for h = N^(-1/6)"
+grep -q 'median of 5' "$tmp/rep/rep/a.md" || bad "T_r is not said to be a median"
+grep -q 'T_r' "$d/grad.md" && bad "T_r shown for a figure whose paper publishes none"
 [ $fail = 0 ] && echo "cli_study: 1 passed, 0 failed" || echo "cli_study: 0 passed, 1 failed"
 exit $fail

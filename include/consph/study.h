@@ -128,7 +128,12 @@ typedef struct consph_approx_spec {
     /* Particles compared: all (0), or only those whose support lies inside the box on every
      * non-periodic axis (1, the default used when a non-periodic axis exists). */
     int interior_only;
+    /* Operator applications timed (1 to CONSPH_APPROX_MAX_TIMINGS, default 1): the row's
+     * seconds is their median. The extra ones run after the measurement, each on a fresh
+     * correction cache, and change no other value. */
+    int timing_runs;
 } consph_approx_spec;
+#define CONSPH_APPROX_MAX_TIMINGS 15
 
 /* One row of `consph approx`: the CSV columns nx,n,h,nbr_mean,l1,l2,linf,mae,ft_over_fmax,
  * seconds,fallbacks. */
@@ -204,6 +209,9 @@ int consph_study_validate(const consph_study *s, int quick);
 /* A rough run-time estimate in seconds: neighbour pairs of every run times a per-pair cost
  * measured on a small run of the study's own first series. */
 double consph_study_estimate(const consph_study *s, int quick);
+/* The same for consph_study_run_particles on these sets (NaN for 0 or more than 64 sets). */
+double consph_study_estimate_particles(const consph_study *s, int quick,
+                                       const consph_particles *sets, int nsets);
 
 typedef struct consph_study_options {
     int quick;           /* the reduced resolutions (quick.* keys) */
@@ -212,7 +220,8 @@ typedef struct consph_study_options {
 } consph_study_options;
 
 /* Runs every figure; writes FIGURE.csv, FIGURE.md, FIGURE.gp (+ .svg when gnuplot is
- * installed) per figure and README.md per study, each atomically. */
+ * installed) per figure and README.md per study, each atomically. A figure gnuplot fails to
+ * draw is an error (CONSPH_EIO, no SVG); a failed run removes the directories it created. */
 int consph_study_run(const consph_study *s, const consph_study_options *opt);
 /* Runs `s` like consph_study_run, with the particle sets in place of every layout: a figure
  * sweeping nx gets one row per set, in order, reported at nx = N^(1/dim); a figure sweeping h/Δs

@@ -1,16 +1,24 @@
 /* Runs the figures of a study file and writes their CSV, markdown and gnuplot outputs. */
+#include <dirent.h>
 #include <errno.h>
+#include <fcntl.h>
 #include <math.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
 
 #include "consph/io.h"
 #include "study/study_internal.h"
 
 #define MAX_SWEEP 64
+/* Room for any output path: the CLI refuses --out directories that would not fit. */
+#define STUDY_PATH_MAX 4096
+/* Timings behind T_r (the operator at a series' finest resolution) and their median. */
+#define TR_TIMINGS 5
 
 typedef enum fig_kind { KIND_APPROX, KIND_M0, KIND_APPC } fig_kind;
 
@@ -337,21 +345,60 @@ static void published_values(const consph_study *s, const study_figure *f, FILE 
     if (any) fprintf(o, "\n");
 }
 
-static int mkdir_p(const char *path)
+/* DIR/NAME.EXT into buf (STUDY_PATH_MAX bytes), refused rather than truncated. */
+static int out_path(char *buf, const char *dir, const char *name, const char *ext)
 {
-    char buf[1024];
-    snprintf(buf, sizeof buf, "%s", path);
-    for (char *c = buf + 1; *c; ++c) {
-        if (*c != '/') continue;
-        *c = '\0';
-        if (mkdir(buf, 0777) != 0 && errno != EEXIST)
+    int n = snprintf(buf, STUDY_PATH_MAX, "%s/%s%s", dir, name, ext);
+    if (n < 0 || n >= STUDY_PATH_MAX)
+        return consph_fail(CONSPH_EINVAL, "output path '%s/%s%s' is too long", dir, name, ext);
+    return CONSPH_OK;
+}
+
+/* Creates `path` and its missing parents; *created is the length of the shortest prefix of
+ * path this call created (0: none), so that a failed run can remove what it made. */
+static int mkdir_p(const char *path, size_t *created)
+{
+    char buf[STUDY_PATH_MAX];
+    *created = 0;
+    if (snprintf(buf, sizeof buf, "%s", path) >= (int)sizeof buf)
+        return consph_fail(CONSPH_EINVAL, "output path '%s' is too long", path);
+    size_t len = strlen(buf);
+    for (size_t k = 1; k <= len; ++k) {
+        if (buf[k] != '/' && buf[k] != '\0') continue;
+        char c = buf[k];
+        buf[k] = '\0';
+        if (mkdir(buf, 0777) == 0) {
+            if (!*created) *created = k;
+        } else if (errno != EEXIST) {
             return consph_fail(CONSPH_EIO, "cannot create directory '%s': %s", buf,
                                strerror(errno));
-        *c = '/';
+        }
+        buf[k] = c;
     }
-    if (mkdir(buf, 0777) != 0 && errno != EEXIST)
-        return consph_fail(CONSPH_EIO, "cannot create directory '%s': %s", buf, strerror(errno));
     return CONSPH_OK;
+}
+
+/* After a failed run: the directories it created go, with what it wrote into them. */
+static void remove_created(const char *dir, size_t created)
+{
+    if (!created) return;
+    DIR *d = opendir(dir);
+    if (d) {
+        struct dirent *e;
+        char path[STUDY_PATH_MAX];
+        while ((e = readdir(d)))
+            if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..") &&
+                out_path(path, dir, e->d_name, "") == CONSPH_OK)
+                remove(path);
+        closedir(d);
+    }
+    char buf[STUDY_PATH_MAX];
+    snprintf(buf, sizeof buf, "%s", dir);
+    for (size_t k = strlen(buf); k >= created; --k) {
+        if (buf[k] != '/' && buf[k] != '\0') continue;
+        buf[k] = '\0';
+        if (rmdir(buf) != 0 && errno != ENOENT) break;
+    }
 }
 
 static double norm_value(const consph_approx_row *r, const char *norm)
@@ -389,13 +436,89 @@ static int have_gnuplot(void)
     return cached;
 }
 
-/* Runs gnuplot on a script in `dir`; a failure is reported, not fatal. */
-static void run_gnuplot(const char *dir, const char *script, FILE *log)
+/* Writes `text` to a gnuplot script as a single-quoted string, the one form gnuplot never
+ * interprets (no backquote commands, macros or escapes; '' is a quote). Every user string that
+ * meets gnuplot goes through here; control characters cannot be quoted and are refused. */
+static int gp_put(FILE *o, const char *text)
 {
-    if (!have_gnuplot()) return;
-    char cmd[2048];
-    snprintf(cmd, sizeof cmd, "cd '%s' && gnuplot '%s' >/dev/null 2>&1", dir, script);
-    if (system(cmd) != 0 && log) fprintf(log, "  (gnuplot failed on %s/%s)\n", dir, script);
+    for (const char *c = text; *c; ++c)
+        if ((unsigned char)*c < 0x20 || *c == 0x7f)
+            return consph_fail(CONSPH_EFORMAT,
+                               "'%s' cannot go into a gnuplot script (control character 0x%02x)",
+                               text, (unsigned char)*c);
+    fputc('\'', o);
+    for (const char *c = text; *c; ++c) {
+        if (*c == '\'') fputc('\'', o);
+        fputc(*c, o);
+    }
+    fputc('\'', o);
+    return CONSPH_OK;
+}
+
+/* The head of every figure script: SVG into `outfile` (ID.svg unless the caller sets it, so the
+ * script also runs by hand) and a title. */
+static int gp_head(FILE *o, const char *id, const char *title)
+{
+    fprintf(o,
+            "set terminal svg size 900,640 dynamic\nif (!exists('outfile')) outfile = '%s.svg'\n"
+            "set output outfile\nset title ",
+            id);
+    int rc = gp_put(o, title);
+    fprintf(o, " noenhanced\nset grid\nset key outside right noenhanced\n");
+    return rc;
+}
+
+/* Draws DIR/ID.gp into DIR/ID.svg through a temporary file, so that a figure either is drawn
+ * whole or leaves no SVG; gnuplot failing is an error. Without gnuplot: a warning, once. */
+static int render_figure(const char *dir, const char *id)
+{
+    static int warned;
+    if (!have_gnuplot()) {
+        if (!warned)
+            fprintf(stderr,
+                    "consph study: warning: gnuplot not found, so figures are left as "
+                    "FIGURE.gp scripts without SVG (Debian: apt-get install gnuplot-nox)\n");
+        warned = 1;
+        return CONSPH_OK;
+    }
+    char tmp[STUDY_PATH_MAX], final[STUDY_PATH_MAX], script[STUDY_PATH_MAX / 4],
+        setout[STUDY_PATH_MAX / 4];
+    char tmp_name[STUDY_PATH_MAX / 4];
+    snprintf(tmp_name, sizeof tmp_name, "%s.svg.tmp.%ld", id, (long)getpid());
+    snprintf(script, sizeof script, "%s.gp", id);
+    int rc = out_path(tmp, dir, tmp_name, "");
+    if (rc == CONSPH_OK) rc = out_path(final, dir, id, ".svg");
+    if (rc) return rc;
+    FILE *mem = fmemopen(setout, sizeof setout, "w");
+    if (!mem) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    fprintf(mem, "outfile = ");
+    rc = gp_put(mem, tmp_name);
+    fclose(mem);
+    if (rc) return rc;
+    fflush(NULL);
+    /* fork and exec rather than system(): the output directory never passes through a shell. */
+    pid_t pid = fork();
+    if (pid < 0) return consph_fail(CONSPH_EIO, "cannot start gnuplot: %s", strerror(errno));
+    if (pid == 0) {
+        int null = open("/dev/null", O_WRONLY);
+        if (null >= 0) {
+            dup2(null, 1);
+            dup2(null, 2);
+        }
+        if (chdir(dir) == 0) execlp("gnuplot", "gnuplot", "-e", setout, script, (char *)NULL);
+        _exit(127);
+    }
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) continue;
+    struct stat st;
+    int drawn =
+        WIFEXITED(status) && WEXITSTATUS(status) == 0 && stat(tmp, &st) == 0 && st.st_size > 0;
+    if (drawn && rename(tmp, final) == 0) return CONSPH_OK;
+    remove(tmp);
+    return consph_fail(CONSPH_EIO,
+                       "gnuplot could not draw %s (exit status %d); run 'gnuplot %s' there to see "
+                       "why",
+                       final, WIFEXITED(status) ? WEXITSTATUS(status) : -1, script);
 }
 
 /* ---- approx figures ---- */
@@ -419,6 +542,50 @@ static void paper_columns(const consph_study *s, const study_figure *f, const st
         }
 }
 
+/* A published value that is a plain number (many are prose: "~2 (SOC)"). */
+static int paper_number(const consph_study *s, const study_figure *f, const study_series *r,
+                        const char *key, double *out)
+{
+    const char *v = study_get(s, f, r, key);
+    if (!v) return 0;
+    char *end;
+    double d = strtod(v, &end);
+    if (end == v || *end || !isfinite(d)) return 0;
+    *out = d;
+    return 1;
+}
+
+/* Orders further than this from the paper's are flagged in the report. */
+#define ORDER_TOLERANCE 0.3
+/* Series whose published value is drawn (the rest still appear in the report). */
+#define MAX_SERIES_POINTS 64
+
+/* Where the paper's error of series r goes on the plot: at the last resolution of the full
+ * (paper) `nx` list, when the abscissa is a resolution and the paper gives the fitted norm
+ * (paper.l1 for l1, or paper.error) as a positive number. */
+static int paper_point(const consph_study *s, const study_figure *f, const study_series *r,
+                       const char *xname, const char *norm, double *x, double *y)
+{
+    if (strcmp(xname, "nbr") == 0) return 0;
+    if (!(strcmp(norm, "l1") == 0 && paper_number(s, f, r, "paper.l1", y)) &&
+        !paper_number(s, f, r, "paper.error", y))
+        return 0;
+    double nxs[MAX_SWEEP];
+    int n = 0;
+    if (get_list(s, f, r, "nx", 2, 1e5, nxs, &n) != CONSPH_OK || n == 0 || !(*y > 0)) return 0;
+    *x = nxs[n - 1];
+    return 1;
+}
+
+/* Whether the figure's table has T_r: where a series publishes it (paper.tr, 001 Tables 3 and
+ * 5). It costs TR_TIMINGS operator applications at each series' finest resolution. */
+static int reports_tr(const consph_study *s, const study_figure *f)
+{
+    for (int k = 0; k < f->nseries; ++k)
+        if (study_get(s, f, &f->series[k], "paper.tr")) return 1;
+    return 0;
+}
+
 static int write_approx_outputs(const consph_study *s, const study_figure *f,
                                 const series_plan *plans, const series_result *res, const char *dir,
                                 int quick, const study_files *files, FILE *log)
@@ -427,12 +594,12 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     const char *xname = get_or(s, f, NULL, "x", "nx");
     int sweep_hdx = plans[0].sweep_hdx;
     int dim = plans[0].spec.layout.dim;
-    char path[1200], label[256];
+    char path[STUDY_PATH_MAX], label[256];
 
     /* CSV: one row per measurement. */
-    snprintf(path, sizeof path, "%s/%s.csv", dir, f->id);
     consph_outfile of;
-    int rc = consph_outfile_open(&of, path);
+    int rc = out_path(path, dir, f->id, ".csv");
+    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
     if (rc) return rc;
     fprintf(of.fp, "series,sweep,kernel,hdx,form,corr,layout,field,nx,n,h,nbr_mean,l1,l2,linf,"
                    "mae,ft_over_fmax,seconds,fallbacks,bound\n");
@@ -487,8 +654,7 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     }
 
     /* Markdown report. */
-    snprintf(path, sizeof path, "%s/%s.md", dir, f->id);
-    if ((rc = consph_outfile_open(&of, path))) {
+    if ((rc = out_path(path, dir, f->id, ".md")) || (rc = consph_outfile_open(&of, path))) {
         free(fits);
         return rc;
     }
@@ -513,31 +679,56 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
         fprintf(o, ".\n\n");
     }
     if (!sweep_hdx) {
+        /* T_r (001 Tables 3, 5): operator time at the finest resolution relative to the first
+         * series, shown only where the paper publishes it. */
+        int tr = reports_tr(s, f);
         fprintf(o,
                 "| series | order (%s) | paper order | %s at finest | paper %s | F_T/F_max | "
-                "paper F_T/F_max | T_r | paper T_r | fallbacks | other published values |\n",
-                norm, norm, norm);
-        fprintf(o, "|---|---|---|---|---|---|---|---|---|---|---|\n");
-        /* T_r: operator time at the finest resolution relative to the first series (001's
-         * tables use the same idea with their own reference). */
+                "paper F_T/F_max |%s fallbacks | other published values |\n",
+                norm, norm, norm, tr ? " T_r | paper T_r |" : "");
+        fprintf(o, "|---|---|---|---|---|---|---|%s---|---|\n", tr ? "---|---|" : "");
         const series_result *first = &res[0];
         double t_first = first->nrows ? first->rows[first->nrows - 1].seconds : NAN;
+        /* A function interpolation exerts no force: F_T/F_max is meaningless there. */
+        int no_force = sp->op.op == CONSPH_OP_FUNCTION;
+        int flagged = 0;
         for (int k = 0; k < f->nseries; ++k) {
             const series_result *sr = &res[k];
             const study_series *r = &f->series[k];
             size_t fb = 0;
             for (int j = 0; j < sr->nrows; ++j) fb += sr->rows[j].fallbacks;
-            const char *ord = fits[k].text;
+            char ord[sizeof fits[k].text + 8];
+            double paper;
+            int off = fits[k].status == CONSPH_SERIES_ORDER &&
+                      paper_number(s, f, r, "paper.order", &paper) &&
+                      fabs(fits[k].fit.order - paper) > ORDER_TOLERANCE;
+            snprintf(ord, sizeof ord, "%s%s", fits[k].text, off ? " ⚠" : "");
+            flagged |= off;
             const consph_approx_row *last = &sr->rows[sr->nrows - 1];
-            char other[512];
+            char other[512], ft[32] = "";
             paper_columns(s, f, r, other, sizeof other);
-            fprintf(o, "| %s | %s | %s | %.3e (nx=%zu) | %s | %.2e | %s | %.2f | %s | %zu | %s |\n",
-                    r->label, ord, get_or(s, f, r, "paper.order", "—"), norm_value(last, norm),
-                    last->nx, get_or(s, f, r, "paper.l1", get_or(s, f, r, "paper.error", "—")),
-                    last->ft_over_fmax, get_or(s, f, r, "paper.ft", "—"), last->seconds / t_first,
-                    get_or(s, f, r, "paper.tr", "—"), fb, other);
+            if (!no_force) snprintf(ft, sizeof ft, "%.2e", last->ft_over_fmax);
+            fprintf(o, "| %s | %s | %s | %.3e (nx=%zu) | %s | %s | %s |", r->label, ord,
+                    get_or(s, f, r, "paper.order", "—"), norm_value(last, norm), last->nx,
+                    get_or(s, f, r, "paper.l1", get_or(s, f, r, "paper.error", "—")), ft,
+                    no_force ? "" : get_or(s, f, r, "paper.ft", "—"));
+            if (tr)
+                fprintf(o, " %.2f | %s |", last->seconds / t_first,
+                        get_or(s, f, r, "paper.tr", "—"));
+            fprintf(o, " %zu | %s |\n", fb, other);
         }
         fprintf(o, "\n");
+        if (flagged)
+            fprintf(o, "⚠ the fitted order differs from the paper's by more than %.1f%s.\n\n",
+                    ORDER_TOLERANCE,
+                    quick ? " (a quick run fits coarser resolutions than the paper's)" : "");
+        if (tr)
+            fprintf(o,
+                    "T_r: operator time at the finest resolution (median of %d runs) relative to "
+                    "the first series.\n\n",
+                    TR_TIMINGS);
+        if (no_force)
+            fprintf(o, "F_T/F_max is left blank: a function interpolation exerts no force.\n\n");
     }
     if (sweep_hdx) published_values(s, f, o);
     fprintf(o, "<details><summary>every measurement</summary>\n\n");
@@ -565,7 +756,7 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     if ((rc = consph_outfile_commit(&of))) return rc;
 
     /* Plot data, one gnuplot index block per series, and the script. */
-    snprintf(path, sizeof path, "%s/%s.dat", dir, f->id);
+    if ((rc = out_path(path, dir, f->id, ".dat"))) return rc;
     if ((rc = consph_outfile_open(&of, path))) return rc;
     for (int k = 0; k < f->nseries; ++k) {
         fprintf(of.fp, "# %s\n", f->series[k].label);
@@ -576,35 +767,61 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
         fprintf(of.fp, "\n\n");
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
-    snprintf(path, sizeof path, "%s/%s.gp", dir, f->id);
+    if ((rc = out_path(path, dir, f->id, ".gp"))) return rc;
     if ((rc = consph_outfile_open(&of, path))) return rc;
     o = of.fp;
-    fprintf(o, "set terminal svg size 900,640 dynamic\nset output '%s.svg'\n", f->id);
-    fprintf(o,
-            "set title \"%s\" noenhanced\nset logscale xy\nset grid\nset key outside right "
-            "noenhanced\n",
-            get_or(s, f, NULL, "title", f->id));
-    fprintf(o, "set xlabel '%s'\nset ylabel '%s error'\n",
+    rc = gp_head(o, f->id, get_or(s, f, NULL, "title", f->id));
+    fprintf(o, "set logscale xy\nset format y '%%g'\nset xlabel '%s'\nset ylabel '%s error'\n",
             strcmp(xname, "nbr") == 0 ? "neighbours" : "particles per axis", norm);
-    /* A slope -2 guide through the first series' first point (second-order convergence). */
-    if (!sweep_hdx && res[0].nrows > 0) {
-        double x0 = x_value(&res[0].rows[0], res[0].nx[0], xname, dim),
-               y0 = norm_value(&res[0].rows[0], norm);
-        if (y0 > 0) fprintf(o, "ref(x) = %.10g*(x/%.10g)**(-2)\n", y0, x0);
+    /* A slope -2 guide (second-order convergence in the particle spacing), half a step below
+     * the lowest first point so that it does not hide a series that converges at that rate.
+     * Meaningless against neighbours, across h/Δs, or when h is not proportional to the
+     * spacing (003's h = N^(-1/6)). */
+    double y0 = INFINITY;
+    for (int k = 0; k < f->nseries; ++k) {
+        double y = res[k].nrows ? norm_value(&res[k].rows[0], norm) : NAN;
+        if (y > 0 && y < y0) y0 = y;
+    }
+    int guide = !sweep_hdx && res[0].nrows > 0 && strcmp(xname, "nbr") != 0 &&
+                plans[0].spec.h_policy == CONSPH_H_HDX && isfinite(y0);
+    if (guide)
+        fprintf(o, "ref(x) = %.10g*(x/%.10g)**(-2)\n", 0.5 * y0,
+                x_value(&res[0].rows[0], res[0].nx[0], xname, dim));
+    /* The paper's value of each series as a marked point at the paper's finest resolution. */
+    int paper_pt[MAX_SERIES_POINTS] = {0};
+    for (int k = 0; k < f->nseries && k < MAX_SERIES_POINTS; ++k) {
+        double px, py;
+        if (sweep_hdx || !paper_point(s, f, &f->series[k], xname, norm, &px, &py)) continue;
+        fprintf(o, "$paper%d << EOD\n%.10g %.10g\nEOD\n", k, px, py);
+        paper_pt[k] = 1;
     }
     fprintf(o, "plot");
-    for (int k = 0; k < f->nseries; ++k)
-        fprintf(o, "%s '%s.dat' index %d using 1:2 with linespoints title '%s'",
-                k ? ", \\\n    " : " ", f->id, k, f->series[k].label);
+    for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
+        fprintf(o, "%s '%s.dat' index %d using 1:2 with linespoints lc %d title ",
+                k ? ", \\\n    " : " ", f->id, k, k + 1);
+        rc = gp_put(o, f->series[k].label);
+    }
+    /* One key entry for every paper point: the colour says which series. */
+    int keyed = 0;
+    for (int k = 0; k < f->nseries && k < MAX_SERIES_POINTS; ++k) {
+        if (!paper_pt[k]) continue;
+        fprintf(o, ", \\\n    $paper%d with points pt 6 ps 2 lw 2 lc %d %s", k, k + 1,
+                keyed ? "notitle" : "title 'paper (series colour)'");
+        keyed = 1;
+    }
     if (plans[0].bound)
         fprintf(o, ", \\\n    '%s.dat' index 0 using 1:3 with lines dashtype 2 title 'bound'",
                 f->id);
-    if (!sweep_hdx && res[0].nrows > 0 && norm_value(&res[0].rows[0], norm) > 0)
-        fprintf(o, ", \\\n    ref(x) with lines dashtype 3 lc rgb 'gray' title 'slope -2'");
+    if (guide)
+        fprintf(o, ", \\\n    ref(x) with lines dashtype 2 lw 2 lc rgb 'gray40' title 'slope -2 "
+                   "(second order)'");
     fprintf(o, "\n");
+    if (rc) {
+        consph_outfile_abort(&of);
+        return rc;
+    }
     if ((rc = consph_outfile_commit(&of))) return rc;
-    snprintf(label, sizeof label, "%s.gp", f->id);
-    run_gnuplot(dir, label, log);
+    if ((rc = render_figure(dir, f->id))) return rc;
     if (failure[0]) return consph_fail(CONSPH_ENUMERIC, "%s", failure);
     return CONSPH_OK;
 }
@@ -613,6 +830,7 @@ static int run_approx_figure(const consph_study *s, const study_figure *f, int q
                              layout_cache *cache, const char *dir, const study_files *files,
                              FILE *log)
 {
+    int tr = reports_tr(s, f);
     series_plan *plans = calloc((size_t)f->nseries, sizeof *plans);
     series_result *res = calloc((size_t)f->nseries, sizeof *res);
     int rc = (!plans || !res) ? consph_fail(CONSPH_ENOMEM, "out of memory") : CONSPH_OK;
@@ -629,6 +847,8 @@ static int run_approx_figure(const consph_study *s, const study_figure *f, int q
             consph_approx_spec sp = pl->spec;
             size_t nx = pl->sweep_hdx ? pl->nx_fixed : (size_t)pl->values[j];
             if (pl->sweep_hdx) sp.hdx = pl->values[j];
+            /* T_r compares the finest resolutions: a median there, single timings elsewhere. */
+            if (tr && !pl->sweep_hdx && j == pl->nvalues - 1) sp.timing_runs = TR_TIMINGS;
             const consph_particles *p;
             double lsec = 0.0;
             if (files) {
@@ -793,12 +1013,10 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
             fprintf(log, "  nx=%-6zu N=%-8zu nbr=%-9.1f M0 mean %.6f std %.3e (interior %.3e)\n",
                     nx, rows[j].n, rows[j].nbr, rows[j].mean, rows[j].std, rows[j].std_in);
     }
-    char path[1200], name[256];
+    char path[STUDY_PATH_MAX];
     consph_outfile of;
-    if (rc == CONSPH_OK) {
-        snprintf(path, sizeof path, "%s/%s.csv", dir, f->id);
-        rc = consph_outfile_open(&of, path);
-    }
+    if (rc == CONSPH_OK) rc = out_path(path, dir, f->id, ".csv");
+    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
     if (rc == CONSPH_OK) {
         fprintf(of.fp, "nx,n,h,nbr_mean,m0_mean,m0_std,m0_mean_interior,m0_std_interior,m0_peak\n");
         for (int j = 0; j < nrows; ++j)
@@ -807,10 +1025,8 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
                     rows[j].std_in, rows[j].peak);
         rc = consph_outfile_commit(&of);
     }
-    if (rc == CONSPH_OK) {
-        snprintf(path, sizeof path, "%s/%s.dat", dir, f->id);
-        rc = consph_outfile_open(&of, path);
-    }
+    if (rc == CONSPH_OK) rc = out_path(path, dir, f->id, ".dat");
+    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
     if (rc == CONSPH_OK) {
         for (int j = 0; j < nrows; ++j) {
             fprintf(of.fp, "# nx = %zu: M0, fraction of particles per unit M0\n", rows[j].nx);
@@ -823,10 +1039,8 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
         }
         rc = consph_outfile_commit(&of);
     }
-    if (rc == CONSPH_OK) {
-        snprintf(path, sizeof path, "%s/%s.md", dir, f->id);
-        rc = consph_outfile_open(&of, path);
-    }
+    if (rc == CONSPH_OK) rc = out_path(path, dir, f->id, ".md");
+    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
     if (rc == CONSPH_OK) {
         FILE *o = of.fp;
         fprintf(o, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
@@ -858,24 +1072,21 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
         if (have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
         rc = consph_outfile_commit(&of);
     }
-    if (rc == CONSPH_OK) {
-        snprintf(path, sizeof path, "%s/%s.gp", dir, f->id);
-        rc = consph_outfile_open(&of, path);
-    }
+    if (rc == CONSPH_OK) rc = out_path(path, dir, f->id, ".gp");
+    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
     if (rc == CONSPH_OK) {
         FILE *o = of.fp;
-        fprintf(o, "set terminal svg size 900,640 dynamic\nset output '%s.svg'\n", f->id);
-        fprintf(o,
-                "set title \"%s\" noenhanced\nset grid\nset xlabel 'M0'\nset ylabel "
-                "'particles (density)'\nset key outside right\nplot",
-                get_or(s, f, NULL, "title", f->id));
+        rc = gp_head(o, f->id, get_or(s, f, NULL, "title", f->id));
+        fprintf(o, "set xlabel 'M0'\nset ylabel 'particles (density)'\nplot");
         for (int j = 0; j < nrows; ++j)
             fprintf(o, "%s '%s.dat' index %d using 1:2 with lines title 'N = %zu'",
                     j ? ", \\\n    " : " ", f->id, j, rows[j].n);
         fprintf(o, "\n");
-        rc = consph_outfile_commit(&of);
-        snprintf(name, sizeof name, "%s.gp", f->id);
-        if (rc == CONSPH_OK) run_gnuplot(dir, name, log);
+        if (rc)
+            consph_outfile_abort(&of);
+        else
+            rc = consph_outfile_commit(&of);
+        if (rc == CONSPH_OK) rc = render_figure(dir, f->id);
     }
     for (int j = 0; j < nrows; ++j) free(rows[j].counts);
     return rc;
@@ -945,15 +1156,15 @@ static int run_appc_figure(const consph_study *s, const study_figure *f, int qui
                     closed[j], per[j], lin[j]);
     }
     if (rc) return rc;
-    char path[1200];
+    char path[STUDY_PATH_MAX];
     consph_outfile of;
-    snprintf(path, sizeof path, "%s/%s.csv", dir, f->id);
+    if ((rc = out_path(path, dir, f->id, ".csv"))) return rc;
     if ((rc = consph_outfile_open(&of, path))) return rc;
     fprintf(of.fp, "h_over_delta,closed_form,periodic_const,linear_centre\n");
     for (int j = 0; j < pl.nvalues; ++j)
         fprintf(of.fp, "%g,%.10e,%.10e,%.10e\n", pl.values[j], closed[j], per[j], lin[j]);
     if ((rc = consph_outfile_commit(&of))) return rc;
-    snprintf(path, sizeof path, "%s/%s.md", dir, f->id);
+    if ((rc = out_path(path, dir, f->id, ".md"))) return rc;
     if ((rc = consph_outfile_open(&of, path))) return rc;
     fprintf(of.fp, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
     const char *note = figure_note(f);
@@ -997,7 +1208,9 @@ static double pairs_estimate(const series_plan *pl, double nx)
     return n * (1.0 + unit_ball * pow(radius_dx, d));
 }
 
-double consph_study_estimate(const consph_study *s, int quick)
+/* Particle files replace the nx sweeps (one run per file at its N^(1/dim)) and need no
+ * packing. */
+static double estimate(const consph_study *s, int quick, const study_files *files)
 {
     double pairs = 0.0, packed_particles = 0.0;
     /* Packed layouts are generated once per (dim, nx, seed) and shared through the cache. */
@@ -1010,6 +1223,13 @@ double consph_study_estimate(const consph_study *s, int quick)
         for (int r = 0; r < s->figs[k].nseries; ++r) {
             series_plan pl;
             if (build_plan(s, &s->figs[k], &s->figs[k].series[r], quick, &pl)) return NAN;
+            if (files) {
+                if (!pl.sweep_hdx) pl.nvalues = files->n;
+                for (int j = 0; j < pl.nvalues && !pl.sweep_hdx; ++j)
+                    pl.values[j] = resolution_of(&files->sets[j]);
+                pl.nx_fixed = (size_t)floor(resolution_of(&files->sets[files->n - 1]) + 0.5);
+                pl.spec.layout.kind = CONSPH_LAYOUT_LATTICE;
+            }
             if (!have_first) {
                 first = pl;
                 have_first = 1;
@@ -1050,6 +1270,19 @@ double consph_study_estimate(const consph_study *s, int quick)
         }
     }
     return pairs * per_pair + packed_particles * per_packed;
+}
+
+double consph_study_estimate(const consph_study *s, int quick)
+{
+    return estimate(s, quick, NULL);
+}
+
+double consph_study_estimate_particles(const consph_study *s, int quick,
+                                       const consph_particles *sets, int nsets)
+{
+    if (nsets < 1 || nsets > MAX_SWEEP) return NAN;
+    study_files files = {sets, NULL, nsets};
+    return estimate(s, quick, &files);
 }
 
 /* Period-1 fields repeat on a periodic axis only when its length is a whole number. */
@@ -1101,15 +1334,10 @@ static int validate_files(const consph_study *s, int quick, const study_files *f
     return CONSPH_OK;
 }
 
-static int study_run(const consph_study *s, const consph_study_options *opt,
-                     const study_files *files)
+static int run_figures(const consph_study *s, const consph_study_options *opt,
+                       const study_files *files, const char *dir)
 {
-    int rc = consph_study_validate(s, opt->quick);
-    if (rc) return rc;
-    if (files && (rc = validate_files(s, opt->quick, files))) return rc;
-    char dir[1024];
-    snprintf(dir, sizeof dir, "%s/%s", opt->out_dir, consph_study_name(s));
-    if ((rc = mkdir_p(dir))) return rc;
+    int rc = CONSPH_OK;
     layout_cache *cache = calloc(1, sizeof *cache);
     if (!cache) return consph_fail(CONSPH_ENOMEM, "out of memory");
     FILE *log = opt->log;
@@ -1133,20 +1361,26 @@ static int study_run(const consph_study *s, const consph_study_options *opt,
     }
     cache_free(cache);
     free(cache);
-    if (rc) return rc;
-    /* The study's README: title, then every figure's report in order. */
-    char path[1200];
+    return rc;
+}
+
+/* The study's README: title, then every figure's report in order. */
+static int write_readme(const consph_study *s, const consph_study_options *opt,
+                        const study_files *files, const char *dir)
+{
+    char path[STUDY_PATH_MAX];
     consph_outfile of;
-    snprintf(path, sizeof path, "%s/README.md", dir);
-    if ((rc = consph_outfile_open(&of, path))) return rc;
+    int rc = out_path(path, dir, "README", ".md");
+    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
+    if (rc) return rc;
     fprintf(of.fp, "# %s: %s\n\n", consph_study_name(s), consph_study_title(s));
     const char *note = study_get(s, NULL, NULL, "note");
     if (note) fprintf(of.fp, "%s\n\n", note);
     fprintf(of.fp, "Generated by `consph study %s%s%s` (consph %s).\n\n", consph_study_name(s),
             opt->quick ? " --quick" : "", files ? " --particles ..." : "", CONSPH_VERSION);
     for (int k = 0; k < s->nfigs; ++k) {
-        char md[1200], buf[4096];
-        snprintf(md, sizeof md, "%s/%s.md", dir, s->figs[k].id);
+        char md[STUDY_PATH_MAX], buf[4096];
+        if (out_path(md, dir, s->figs[k].id, ".md") != CONSPH_OK) continue;
         FILE *in = fopen(md, "r");
         if (!in) continue;
         size_t got;
@@ -1154,6 +1388,22 @@ static int study_run(const consph_study *s, const consph_study_options *opt,
         fclose(in);
     }
     return consph_outfile_commit(&of);
+}
+
+static int study_run(const consph_study *s, const consph_study_options *opt,
+                     const study_files *files)
+{
+    int rc = consph_study_validate(s, opt->quick);
+    if (rc) return rc;
+    if (files && (rc = validate_files(s, opt->quick, files))) return rc;
+    char dir[STUDY_PATH_MAX];
+    size_t created = 0;
+    if ((rc = out_path(dir, opt->out_dir, consph_study_name(s), ""))) return rc;
+    rc = mkdir_p(dir, &created);
+    if (rc == CONSPH_OK) rc = run_figures(s, opt, files, dir);
+    if (rc == CONSPH_OK) rc = write_readme(s, opt, files, dir);
+    if (rc) remove_created(dir, created);
+    return rc;
 }
 
 int consph_study_run(const consph_study *s, const consph_study_options *opt)

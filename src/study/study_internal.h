@@ -43,4 +43,15 @@ const char *study_get(const consph_study *s, const study_figure *f, const study_
 int study_line(const consph_study *s, const study_figure *f, const study_series *r,
                const char *key);
 
+/* Longest line of a study file, and longest figure id or series label. */
+#define STUDY_LINE_MAX 4095
+#define STUDY_NAME_MAX 64
+
+/* Parses a study held in memory (`path` names it in messages); no file-name check. The entry
+ * point of consph_study_load and of the study fuzz target. */
+int study_parse(const char *path, const char *data, size_t size, consph_study **out);
+/* Whether `name` is a plain name: letters, digits, '-', '_', '.', not starting with '.', at most
+ * STUDY_NAME_MAX characters; `series` also allows '=' and inner spaces ("F1 eta=1.5"). */
+int study_plain_name(const char *name, int series);
+
 #endif

@@ -213,81 +213,156 @@ static int expand_series(study_figure *f)
     return CONSPH_OK;
 }
 
-int consph_study_load(const char *path, consph_study **out)
+int study_plain_name(const char *name, int series)
+{
+    size_t n = strlen(name);
+    if (n == 0 || n > STUDY_NAME_MAX || name[0] == '.' || name[0] == ' ' || name[n - 1] == ' ')
+        return 0;
+    for (const char *c = name; *c; ++c)
+        if (!isalnum((unsigned char)*c) && *c != '-' && *c != '_' && *c != '.' &&
+            !(series && (*c == ' ' || *c == '=')))
+            return 0;
+    return 1;
+}
+
+/* Index of figure `id`, or -1. */
+static int find_figure(const consph_study *s, const char *id)
+{
+    for (int k = 0; k < s->nfigs; ++k)
+        if (strcmp(s->figs[k].id, id) == 0) return k;
+    return -1;
+}
+
+static int find_series(const study_figure *f, const char *label)
+{
+    for (int k = 0; k < f->nseries; ++k)
+        if (strcmp(f->series[k].label, label) == 0) return k;
+    return -1;
+}
+
+/* One section header `[KIND NAME]` (brackets stripped into `t`). */
+static int parse_section(consph_study *s, char *t, const char *path, int line, study_figure **fig,
+                         study_series **ser)
+{
+    char *close = strchr(t, ']');
+    if (!close || close[1])
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: malformed section header", path, line);
+    *close = '\0';
+    char *inner = trim(t + 1);
+    char *space = inner;
+    while (*space && !isspace((unsigned char)*space)) ++space;
+    char *name = trim(space);
+    if (*space) *space = '\0';
+    int is_fig = strcmp(inner, "figure") == 0, is_ser = strcmp(inner, "series") == 0;
+    if (!is_fig && !is_ser)
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: unknown section '[%s]'; allowed: figure, series",
+                           path, line, inner);
+    if (!*name)
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: section '[%s]' needs a name", path, line, inner);
+    /* Figure ids name output files; series labels go into tables and plot keys. */
+    if (!study_plain_name(name, is_ser))
+        return consph_fail(CONSPH_EFORMAT,
+                           "%s:%d: %s name '%s' is not a plain name (letters, digits, '-', '_', "
+                           "'.'%s; not starting with '.'; at most %d characters)",
+                           path, line, inner, name, is_ser ? ", '=' and inner spaces" : "",
+                           STUDY_NAME_MAX);
+    if (is_fig) {
+        int prev = find_figure(s, name);
+        if (prev >= 0)
+            return consph_fail(CONSPH_EFORMAT, "%s:%d: figure '%s' already defined on line %d",
+                               path, line, name, s->figs[prev].line);
+        *ser = NULL;
+        if (!(*fig = add_figure(s, name, line))) return consph_fail(CONSPH_ENOMEM, "out of memory");
+        return CONSPH_OK;
+    }
+    if (!*fig)
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: [series] before any [figure]", path, line);
+    int prev = find_series(*fig, name);
+    if (prev >= 0)
+        return consph_fail(CONSPH_EFORMAT,
+                           "%s:%d: series '%s' of figure '%s' already defined on line %d", path,
+                           line, name, (*fig)->id, (*fig)->series[prev].line);
+    if (!(*ser = add_series(*fig, name, line))) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    return CONSPH_OK;
+}
+
+/* One logical line, comments and surrounding blanks included. */
+static int parse_line(consph_study *s, char *buf, const char *path, int line, study_figure **fig,
+                      study_series **ser)
+{
+    char *hash = strchr(buf, '#');
+    if (hash) *hash = '\0';
+    char *t = trim(buf);
+    if (!*t) return CONSPH_OK;
+    for (const char *c = t; *c; ++c)
+        if ((unsigned char)*c < 0x20 && *c != '\t')
+            return consph_fail(CONSPH_EFORMAT, "%s:%d: control character 0x%02x", path, line,
+                               (unsigned char)*c);
+    if (*t == '[') return parse_section(s, t, path, line, fig, ser);
+    char *eq = strchr(t, '=');
+    if (!eq) return consph_fail(CONSPH_EFORMAT, "%s:%d: expected 'key = value'", path, line);
+    *eq = '\0';
+    char *key = trim(t), *value = trim(eq + 1);
+    if (!key_known(key))
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: unknown key '%s' (see docs/studies.md)", path,
+                           line, key);
+    if (!*value)
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: key '%s' has no value", path, line, key);
+    if (strcmp(key, "study") == 0 && *fig)
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: 'study' belongs before the first [figure]", path,
+                           line);
+    if (strcmp(key, "study") == 0 && !study_plain_name(value, 0))
+        return consph_fail(CONSPH_EFORMAT,
+                           "%s:%d: study name '%s' is not a plain name (letters, digits, '-', "
+                           "'_', '.'; not starting with '.')",
+                           path, line, value);
+    study_kvlist *l = *ser ? &(*ser)->keys : *fig ? &(*fig)->keys : &s->keys;
+    int rc = kv_add(l, key, value, line);
+    if (rc) consph_fail(rc, "%s:%d: %s", path, line, consph_last_error());
+    return rc;
+}
+
+/* The file name without directories and without ".study" (NULL when it has no such suffix). */
+static char *name_from_path(const char *path)
+{
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    size_t n = strlen(base);
+    if (n <= 6 || strcmp(base + n - 6, ".study") != 0) return NULL;
+    return dup_range(base, n - 6);
+}
+
+int study_parse(const char *path, const char *data, size_t size, consph_study **out)
 {
     *out = NULL;
-    FILE *fp = fopen(path, "r");
-    if (!fp) return consph_fail(CONSPH_EIO, "cannot read '%s': %s", path, strerror(errno));
     consph_study *s = calloc(1, sizeof *s);
-    if (!s) {
-        fclose(fp);
+    if (!s || !(s->path = dup_range(path, strlen(path)))) {
+        free(s);
         return consph_fail(CONSPH_ENOMEM, "out of memory");
     }
-    s->path = dup_range(path, strlen(path));
-    char buf[4096];
+    char buf[STUDY_LINE_MAX + 1];
     int line = 0, rc = CONSPH_OK;
     study_figure *fig = NULL;
     study_series *ser = NULL;
-    while (rc == CONSPH_OK && fgets(buf, sizeof buf, fp)) {
+    size_t pos = 0;
+    while (rc == CONSPH_OK && pos < size) {
         ++line;
-        char *hash = strchr(buf, '#');
-        if (hash) *hash = '\0';
-        char *t = trim(buf);
-        if (!*t) continue;
-        if (*t == '[') {
-            char *close = strchr(t, ']');
-            if (!close || close[1]) {
-                rc = consph_fail(CONSPH_EFORMAT, "%s:%d: malformed section header", path, line);
-                break;
-            }
-            *close = '\0';
-            char *inner = trim(t + 1);
-            char *space = inner;
-            while (*space && !isspace((unsigned char)*space)) ++space;
-            char *name = trim(space);
-            if (*space) *space = '\0';
-            if (!*name) {
-                rc = consph_fail(CONSPH_EFORMAT, "%s:%d: section '[%s]' needs a name", path, line,
-                                 inner);
-            } else if (strcmp(inner, "figure") == 0) {
-                fig = add_figure(s, name, line);
-                ser = NULL;
-                if (!fig) rc = consph_fail(CONSPH_ENOMEM, "out of memory");
-            } else if (strcmp(inner, "series") == 0) {
-                if (!fig)
-                    rc = consph_fail(CONSPH_EFORMAT, "%s:%d: [series] before any [figure]", path,
-                                     line);
-                else if (!(ser = add_series(fig, name, line)))
-                    rc = consph_fail(CONSPH_ENOMEM, "out of memory");
-            } else {
-                rc = consph_fail(CONSPH_EFORMAT,
-                                 "%s:%d: unknown section '[%s]'; allowed: figure, series", path,
-                                 line, inner);
-            }
-            continue;
+        const char *nl = memchr(data + pos, '\n', size - pos);
+        size_t len = nl ? (size_t)(nl - (data + pos)) : size - pos;
+        if (memchr(data + pos, '\0', len)) {
+            rc = consph_fail(CONSPH_EFORMAT, "%s:%d: NUL byte", path, line);
+        } else if (len > STUDY_LINE_MAX) {
+            rc = consph_fail(CONSPH_EFORMAT, "%s:%d: line longer than %d characters", path, line,
+                             STUDY_LINE_MAX);
+        } else {
+            memcpy(buf, data + pos, len);
+            buf[len] = '\0';
+            rc = parse_line(s, buf, path, line, &fig, &ser);
         }
-        char *eq = strchr(t, '=');
-        if (!eq) {
-            rc = consph_fail(CONSPH_EFORMAT, "%s:%d: expected 'key = value'", path, line);
-            break;
-        }
-        *eq = '\0';
-        char *key = trim(t), *value = trim(eq + 1);
-        if (!key_known(key)) {
-            rc = consph_fail(CONSPH_EFORMAT, "%s:%d: unknown key '%s' (see docs/studies.md)", path,
-                             line, key);
-            break;
-        }
-        if (!*value) {
-            rc = consph_fail(CONSPH_EFORMAT, "%s:%d: key '%s' has no value", path, line, key);
-            break;
-        }
-        study_kvlist *l = ser ? &ser->keys : fig ? &fig->keys : &s->keys;
-        rc = kv_add(l, key, value, line);
-        if (rc) consph_fail(rc, "%s:%d: %s", path, line, consph_last_error());
+        pos += len + 1;
     }
-    fclose(fp);
-    if (rc == CONSPH_OK && !study_get(s, NULL, NULL, "study"))
+    const char *name = study_get(s, NULL, NULL, "study");
+    if (rc == CONSPH_OK && !name)
         rc = consph_fail(CONSPH_EFORMAT, "%s: no 'study = NAME' line", path);
     if (rc == CONSPH_OK && s->nfigs == 0)
         rc = consph_fail(CONSPH_EFORMAT, "%s: no [figure] section", path);
@@ -298,6 +373,41 @@ int consph_study_load(const char *path, consph_study **out)
     }
     *out = s;
     return CONSPH_OK;
+}
+
+int consph_study_load(const char *path, consph_study **out)
+{
+    *out = NULL;
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return consph_fail(CONSPH_EIO, "cannot read '%s': %s", path, strerror(errno));
+    /* Study files are small; a bound keeps a mistaken path from filling memory. */
+    enum { MAX_SIZE = 1 << 20 };
+    char *data = malloc(MAX_SIZE + 1);
+    size_t size = data ? fread(data, 1, MAX_SIZE + 1, fp) : 0;
+    int err = ferror(fp);
+    fclose(fp);
+    if (!data) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    int rc = CONSPH_OK;
+    if (err)
+        rc = consph_fail(CONSPH_EIO, "cannot read '%s'", path);
+    else if (size > MAX_SIZE)
+        rc = consph_fail(CONSPH_EFORMAT, "%s: larger than %d bytes", path, MAX_SIZE);
+    else
+        rc = study_parse(path, data, size, out);
+    free(data);
+    if (rc) return rc;
+    /* The name given to `consph study` finds the file, so the two must agree. */
+    char *expect = name_from_path(path);
+    const char *name = consph_study_name(*out);
+    if (expect && strcmp(expect, name) != 0)
+        rc = consph_fail(CONSPH_EFORMAT, "%s:%d: study = %s, but the file name says '%s'", path,
+                         study_line(*out, NULL, NULL, "study"), name, expect);
+    free(expect);
+    if (rc) {
+        consph_study_free(*out);
+        *out = NULL;
+    }
+    return rc;
 }
 
 void consph_study_free(consph_study *s)

@@ -1,0 +1,161 @@
+/* The study-file parser on hostile input (issue 12): names that become file names, duplicate
+ * sections, bytes a line cannot hold; the timing repeats behind T_r; and a replay of the study
+ * fuzz corpus and of every crash kept in fuzz/regressions/study/. */
+#include <dirent.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "../fuzz/fuzz_study.h"
+#include "check.h"
+
+/* Parses `text`; returns the status and leaves the message in consph_last_error(). */
+static int parse(const char *text, size_t size)
+{
+    consph_study *s = NULL;
+    int rc = study_parse("t.study", text, size, &s);
+    consph_study_free(s);
+    return rc;
+}
+
+static void expect_error(const char *text, const char *message)
+{
+    int rc = parse(text, strlen(text));
+    CHECK(rc == CONSPH_EFORMAT, "'%s' accepted", text);
+    CHECK(strstr(consph_last_error(), message) != NULL, "'%s': message '%s' lacks '%s'", text,
+          consph_last_error(), message);
+}
+
+static void test_names(void)
+{
+    static const char ok[] = "study = a\n[figure f-1_x.2]\nnx = 8\n[series F1 eta=1.5]\n";
+    CHECK(parse(ok, strlen(ok)) == CONSPH_OK, "plain names rejected: %s", consph_last_error());
+    expect_error("study = a\n[figure ../../escaped]\nnx = 8\n", "t.study:2: figure name");
+    expect_error("study = a\n[figure .hidden]\nnx = 8\n", "t.study:2: figure name");
+    expect_error("study = a\n[figure a b]\nnx = 8\n", "t.study:2: figure name");
+    expect_error("study = a\n[figure a]\n[series x/y]\n", "t.study:3: series name 'x/y'");
+    expect_error("study = a\n[figure a]\n[series it's]\n", "t.study:3: series name");
+    expect_error("study = ../a\n[figure a]\nnx = 8\n", "t.study:1: study name '../a'");
+    char longname[STUDY_NAME_MAX + 32];
+    snprintf(longname, sizeof longname, "study = a\n[figure %0*d]\n", STUDY_NAME_MAX + 1, 0);
+    expect_error(longname, "t.study:2: figure name");
+}
+
+static void test_duplicates(void)
+{
+    expect_error("study = a\n[figure a]\nnx = 8\n[figure a]\nnx = 9\n",
+                 "t.study:4: figure 'a' already defined on line 2");
+    expect_error("study = a\n[figure a]\n[series s]\n[series s]\n",
+                 "t.study:4: series 's' of figure 'a' already defined on line 3");
+    expect_error("study = a\n[figure a]\nnx = 8\nstudy = b\n", "t.study:4: 'study' belongs");
+}
+
+static void test_bytes(void)
+{
+    static const char nul[] = "study = a\n[figure a]\ntitle = x\0y\nnx = 8\n";
+    CHECK(parse(nul, sizeof nul - 1) == CONSPH_EFORMAT, "a NUL byte accepted");
+    CHECK(strstr(consph_last_error(), "t.study:3: NUL byte") != NULL, "%s", consph_last_error());
+    expect_error("study = a\n[figure a]\ntitle = x\033[31m\nnx = 8\n",
+                 "t.study:3: control character 0x1b");
+    /* A line longer than the limit is refused whole instead of being split into two lines. */
+    size_t n = STUDY_LINE_MAX + 64;
+    char *text = malloc(n + 64);
+    CHECK(text != NULL, "malloc");
+    if (!text) return;
+    int k = snprintf(text, n + 64, "study = a\n[figure a]\nnx = 8\ntitle = ");
+    memset(text + k, 'x', n - (size_t)k);
+    snprintf(text + n, 64, "\n");
+    expect_error(text, "t.study:4: line longer than");
+    free(text);
+    /* Windows line ends are blanks, not control characters. */
+    static const char crlf[] = "study = a\r\n[figure a]\r\nnx = 8\r\n";
+    CHECK(parse(crlf, strlen(crlf)) == CONSPH_OK, "CRLF: %s", consph_last_error());
+}
+
+/* Timing repeats (T_r's median) change the seconds and nothing else. */
+static void test_timing_runs(void)
+{
+    consph_approx_spec sp = consph_approx_defaults(2);
+    CHECK(sp.timing_runs == 1, "default timing_runs %d", sp.timing_runs);
+    CHECK(consph_op_parse("grad", "asym", "bc", 2, &sp.op) == CONSPH_OK, "%s", consph_last_error());
+    sp.layout = consph_layout_defaults(CONSPH_LAYOUT_RANDOM, 2, 10);
+    sp.layout.box = consph_box_unit(2, 1);
+    consph_approx_row one, five;
+    CHECK(consph_approx_run(&sp, 16, &one) == CONSPH_OK, "%s", consph_last_error());
+    sp.timing_runs = 5;
+    CHECK(consph_approx_run(&sp, 16, &five) == CONSPH_OK, "%s", consph_last_error());
+    CHECK(memcmp(&one.err, &five.err, sizeof one.err) == 0, "errors differ with timing runs");
+    CHECK(one.ft_over_fmax == five.ft_over_fmax && one.nbr_mean == five.nbr_mean &&
+              one.fallbacks == five.fallbacks && one.h == five.h && one.n == five.n,
+          "row differs with timing runs");
+    CHECK(five.seconds > 0 && isfinite(five.seconds), "median time %g", five.seconds);
+}
+
+static unsigned char *load(const char *path, size_t *size)
+{
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return NULL;
+    unsigned char *data = NULL;
+    if (fseek(fp, 0, SEEK_END) == 0) {
+        long len = ftell(fp);
+        rewind(fp);
+        data = len >= 0 ? malloc((size_t)len + 1) : NULL;
+        *size = data ? fread(data, 1, (size_t)len, fp) : 0;
+    }
+    fclose(fp);
+    return data;
+}
+
+/* The seed corpus (the shipped studies) and every kept crash through the fuzz entry point. */
+static void test_fuzz_replay(void)
+{
+    /* This file is tests/test_studyfile.c in the source tree. */
+    char root[1024];
+    snprintf(root, sizeof root, "%s", __FILE__);
+    char *tests = strstr(root, "/tests/test_studyfile.c");
+    if (tests)
+        *tests = '\0';
+    else
+        snprintf(root, sizeof root, "..");
+    static const char *const dirs[] = {"fuzz/corpus/study", "fuzz/regressions/study"};
+    int replayed = 0;
+    for (int k = 0; k < 2; ++k) {
+        char dir[1200];
+        snprintf(dir, sizeof dir, "%s/%s", root, dirs[k]);
+        DIR *d = opendir(dir);
+        CHECK(d || k == 1, "seed corpus %s missing", dir);
+        if (!d) continue;
+        struct dirent *e;
+        while ((e = readdir(d))) {
+            if (e->d_name[0] == '.') continue;
+            char path[2400];
+            snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+            size_t size = 0;
+            unsigned char *data = load(path, &size);
+            if (!data) continue;
+            consph_fuzz_study(data, size);
+            /* The shipped studies themselves parse and validate. */
+            if (k == 0) {
+                consph_study *s;
+                CHECK(study_parse(path, (const char *)data, size, &s) == CONSPH_OK, "%s",
+                      consph_last_error());
+                CHECK(s && consph_study_validate(s, 1) == CONSPH_OK, "%s", consph_last_error());
+                consph_study_free(s);
+            }
+            free(data);
+            ++replayed;
+        }
+        closedir(d);
+    }
+    CHECK(replayed >= 11, "replayed %d study files", replayed);
+    printf("replayed %d study fuzz corpus and regression files\n", replayed);
+}
+
+int main(void)
+{
+    test_names();
+    test_duplicates();
+    test_bytes();
+    test_timing_runs();
+    test_fuzz_replay();
+    return check_summary("test_studyfile");
+}
