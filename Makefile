@@ -62,7 +62,7 @@ fuzz:
 	@mkdir -p $(FUZZ_BUILD)
 	@for t in $(FUZZ_TARGETS); do \
 	  echo "building $(FUZZ_BUILD)/fuzz_$$t"; \
-	  $(FUZZ_CC) $(FUZZ_FLAGS) fuzz/fuzz_$$t.c $(FUZZ_SOURCES) -lm -o $(FUZZ_BUILD)/fuzz_$$t || exit 1; \
+	  $(FUZZ_CC) $(FUZZ_FLAGS) fuzz/fuzz_$$t.c $(FUZZ_SOURCES) -lm -lz -o $(FUZZ_BUILD)/fuzz_$$t || exit 1; \
 	done
 	@for t in $(FUZZ_TARGETS); do \
 	  mkdir -p $(FUZZ_BUILD)/corpus-$$t; \
