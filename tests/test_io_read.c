@@ -549,6 +549,28 @@ static void test_inflate(void)
     }
 }
 
+/* A stream that inflates to well past the output limit stops there with an error (it once
+ * spun forever asking zlib for output with no room left). */
+static void test_inflate_limit(void)
+{
+    char path[1200];
+    size_t size;
+    snprintf(path, sizeof path, "%s/fuzz/corpus/inflate/best.z", source_dir);
+    unsigned char *z = load(path, &size);
+    CHECK(z != NULL, "%s", path);
+    if (!z) return;
+    for (size_t maxout = 0; maxout < 40 * 12; maxout += 97) {
+        unsigned char *out = NULL;
+        size_t outlen = 0, outcap = 0;
+        const char *why;
+        int rc = consph_rd_inflate(z, size, &out, &outlen, &outcap, maxout, &why);
+        CHECK(rc != 0 && strstr(why, "more data") && outlen <= maxout, "limit %zu: %s", maxout,
+              rc ? why : "accepted");
+        free(out);
+    }
+    free(z);
+}
+
 /* Every file of the seed corpora and of fuzz/regressions/<target>/ through the fuzz entry
  * points: a crash found once stays fixed. */
 static void test_fuzz_replay(void)
@@ -601,6 +623,7 @@ int main(void)
     test_bad_vtu();
     test_files();
     test_inflate();
+    test_inflate_limit();
     test_fuzz_replay();
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp_dir);

@@ -41,10 +41,9 @@ int consph_rd_inflate(const unsigned char *in, size_t inlen, unsigned char **out
      * fits exactly. */
     size_t limit = maxout + 1;
     int rc = Z_OK;
-    while (rc != Z_STREAM_END) {
+    while (rc != Z_STREAM_END && *outlen < limit) {
         size_t room = *outcap - *outlen;
         if (room == 0) {
-            if (*outlen == limit) break;
             size_t want = *outlen + (inlen > 4096 ? 4 * inlen : 4096);
             if (grow(out, outcap, want < limit ? want : limit, limit)) {
                 *why = "out of memory";
