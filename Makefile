@@ -66,7 +66,7 @@ fuzz:
 	@for t in $(FUZZ_TARGETS); do \
 	  echo "building $(FUZZ_BUILD)/fuzz_$$t"; \
 	  srcs="$(FUZZ_SOURCES)"; [ $$t = study ] && srcs="$(FUZZ_SOURCES_ALL)"; \
-	  $(FUZZ_CC) $(FUZZ_FLAGS) fuzz/fuzz_$$t.c $$srcs -lm -o $(FUZZ_BUILD)/fuzz_$$t || exit 1; \
+	  $(FUZZ_CC) $(FUZZ_FLAGS) fuzz/fuzz_$$t.c $$srcs -lm -lz -o $(FUZZ_BUILD)/fuzz_$$t || exit 1; \
 	done
 	@for t in $(FUZZ_TARGETS); do \
 	  mkdir -p $(FUZZ_BUILD)/corpus-$$t; \

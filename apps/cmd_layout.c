@@ -31,7 +31,9 @@ static const char layout_details[] =
     "kernel --kernel with h = --hdx Δs, the minimum pair distance, the nearest-neighbour\n"
     "distances and the distance of each particle from the nearest lattice node (in units of Δs).\n"
     "\n"
-    "output: .vtu (VTK XML unstructured grid, ASCII) or .csv, chosen by the extension of --out.\n"
+    "output: .vtu (VTK XML unstructured grid) or .csv, chosen by the extension of --out. A .vtu\n"
+    "holds its arrays as --vtu-encoding says: zlib (default; binary appended data in\n"
+    "zlib-compressed blocks, as ParaView saves), binary (the same uncompressed) or ascii (text).\n"
     "The CSV starts with '#' comment lines (dim, n, spacing, box, periodic), then the header row\n"
     "x,y[,z],volume and one row per particle.\n"
     "\n"
@@ -74,7 +76,7 @@ static int print_stats(const consph_particles *p, const char *kernel, double hdx
 /* consph layout --in FILE [--out FILE2]: read, summarise, convert. */
 static int layout_from_file(const cli_command *cmd, const char *in, const char *out, long dim,
                             const char *box_text, int periodic_given, int periodic,
-                            const char *kernel, double hdx)
+                            const char *kernel, double hdx, consph_vtu_encoding enc)
 {
     consph_read_options ro;
     memset(&ro, 0, sizeof ro);
@@ -110,7 +112,7 @@ static int layout_from_file(const cli_command *cmd, const char *in, const char *
     printf("\n");
     int rc = print_stats(&p, kernel, hdx);
     if (rc == CONSPH_OK && out) {
-        rc = consph_write_particles(out, &p);
+        rc = consph_write_particles_enc(out, &p, enc);
         if (rc)
             fprintf(stderr, "consph layout: %s\n", consph_last_error());
         else
@@ -143,7 +145,7 @@ static void print_report(const consph_packing_report *r, double tol)
 
 int cmd_layout(int argc, char **argv)
 {
-    int kind_index = -1, periodic_index = 0;
+    int kind_index = -1, periodic_index = 0, encoding_index = CONSPH_VTU_DEFAULT;
     long dim = 0, nx = 0, seed = 1, max_iter = 5000, history_every = 100;
     double eps = 0.2, hdx = 1.2, tol = 1e-4, perturb = 0.5;
     const char *kernel = "quintic", *out = NULL, *in = NULL, *box_text = NULL;
@@ -174,6 +176,8 @@ int cmd_layout(int argc, char **argv)
          100000000, 0},
         {"--out", CLI_OUT_PATH, &out, "FILE", "write the particles; format by extension",
          ".vtu,.csv", 0, 0, 0},
+        {"--vtu-encoding", CLI_CHOICE, &encoding_index, "E",
+         "how a .vtu --out stores its arrays (default zlib)", consph_vtu_encoding_names(), 0, 0, 0},
         {"--in", CLI_STRING, &in, "FILE",
          "read particles (.csv or .vtu) instead of generating them; with --out: convert", NULL, 0,
          0, 0},
@@ -196,6 +200,12 @@ int cmd_layout(int argc, char **argv)
     if (rc == 1) return 0;
     if (rc) return rc;
 
+    consph_particle_format out_fmt = CONSPH_FORMAT_CSV;
+    if (out) consph_particle_format_from_path(out, &out_fmt);
+    if (opt_given(opts, nopts, "--vtu-encoding") && (!out || out_fmt != CONSPH_FORMAT_VTU))
+        return cli_error(&cmd,
+                         "option --vtu-encoding: only with a .vtu --out; allowed: --out FILE.vtu");
+    consph_vtu_encoding enc = (consph_vtu_encoding)encoding_index;
     if (opt_given(opts, nopts, "--in")) {
         static const char *const generator_only[] = {"--kind",     "--nx",           "--seed",
                                                      "--eps",      "--perturb",      "--tol",
@@ -210,7 +220,7 @@ int cmd_layout(int argc, char **argv)
                              kernel, consph_kernel_names());
         return layout_from_file(&cmd, in, out, opt_given(opts, nopts, "--dim") ? dim : 0, box_text,
                                 opt_given(opts, nopts, "--periodic"), periodic_index == 0, kernel,
-                                hdx);
+                                hdx, enc);
     }
     if (box_text)
         return cli_error(&cmd, "option --box: only with --in (layouts fill the unit box)");
@@ -274,7 +284,7 @@ int cmd_layout(int argc, char **argv)
         return 1;
     }
     if (out) {
-        rc = consph_write_particles(out, &p);
+        rc = consph_write_particles_enc(out, &p, enc);
         if (rc) {
             fprintf(stderr, "consph layout: %s\n", consph_last_error());
         } else {

@@ -101,7 +101,8 @@ static inline int consph_fuzz_vtu(const uint8_t *data, size_t size)
     return consph_fuzz_read(CONSPH_FORMAT_VTU, data, size);
 }
 
-/* The zlib decoder of the VTU reader on its own: arbitrary bytes as one compressed block. */
+/* The VTU reader's zlib wrapper on its own (output limit, buffer growth, error reasons):
+ * arbitrary bytes as one compressed block. */
 static inline int consph_fuzz_inflate(const uint8_t *data, size_t size)
 {
     unsigned char *out = NULL;

@@ -5,6 +5,8 @@ need=()
 command -v cmake >/dev/null || need+=(cmake)
 command -v gcc   >/dev/null || need+=(gcc)
 command -v make  >/dev/null || need+=(make)
+# zlib: the compressed blocks of .vtu files (CMake's find_package(ZLIB) needs the header).
+[ -f /usr/include/zlib.h ] || need+=(zlib1g-dev)
 # Optional: the VTK reader that checks our .vtu files, and gnuplot for study figures.
 opt=()
 /usr/bin/python3 -c 'import vtk' >/dev/null 2>&1 || opt+=(python3-vtk9)

@@ -12,7 +12,8 @@ trap 'rm -rf "$tmp"' EXIT
 fail=0
 bad() { echo "FAIL: $*"; fail=1; }
 cmake --install "$build" --prefix "$tmp/prefix" >"$tmp/install.log" 2>&1 || { cat "$tmp/install.log"; bad "cmake --install"; }
-for f in include/consph/consph.h include/consph/ops.h include/consph/study.h bin/consph; do
+for f in include/consph/consph.h include/consph/ops.h include/consph/study.h bin/consph \
+  share/doc/consph/LICENSE; do
   [ -e "$tmp/prefix/$f" ] || bad "not installed: $f"
 done
 ls "$tmp"/prefix/lib*/libconsph.a >/dev/null 2>&1 || bad "static library not installed"

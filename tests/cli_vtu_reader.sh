@@ -1,11 +1,29 @@
 #!/usr/bin/env bash
 # Writes .vtu files with `consph layout` and reads them back with VTK's own XML reader
-# (vtkXMLUnstructuredGridReader): point count, coordinates of a few points, the "volume" array.
+# (vtkXMLUnstructuredGridReader): point count, coordinates of a few points, the "volume" array,
+# the vertex cells; every --vtu-encoding (ascii, binary, zlib) to the last bit.
 # Exit 77 (skipped) when the Python VTK module is not installed (Debian package python3-vtk9).
 # Usage: cli_vtu_reader.sh <path-to-consph> <source-dir>
 set -u
 bin=$1
 py=/usr/bin/python3
+# A bad --vtu-encoding, or one for a file that is not .vtu: exit 2, one line naming the option
+# and what is allowed, no file (checked before the skip: it needs no VTK).
+bad_dir=$(mktemp -d)
+for args in "--out $bad_dir/b.vtu --vtu-encoding gzip" "--out $bad_dir/b.csv --vtu-encoding zlib" \
+    "--vtu-encoding ascii"; do
+    # shellcheck disable=SC2086
+    "$bin" layout --kind lattice --dim 2 --nx 4 $args >"$bad_dir/out" 2>"$bad_dir/err"
+    rc=$?
+    if [ $rc -ne 2 ] || [ "$(wc -l <"$bad_dir/err")" -ne 1 ] ||
+        ! grep -q -- "--vtu-encoding.*allowed: " "$bad_dir/err" || [ -e "$bad_dir/b.vtu" ] ||
+        [ -e "$bad_dir/b.csv" ]; then
+        echo "FAIL: layout $args: exit $rc, stderr: $(cat "$bad_dir/err")" >&2
+        rm -rf "$bad_dir"
+        exit 1
+    fi
+done
+rm -rf "$bad_dir"
 if ! "$py" -c 'import vtk' >/dev/null 2>&1; then
     echo "python3 VTK module not available; skipping" >&2
     exit 77
@@ -17,8 +35,13 @@ export OMP_NUM_THREADS=1
 "$bin" layout --kind lattice --dim 2 --nx 5 --out "$work/lattice2.vtu" >/dev/null || exit 1
 "$bin" layout --kind lattice --dim 3 --nx 4 --out "$work/lattice3.vtu" >/dev/null || exit 1
 "$bin" layout --kind quasi-random --dim 2 --nx 6 --out "$work/halton.vtu" >/dev/null || exit 1
-"$bin" layout --kind random --dim 2 --nx 6 --seed 4 --eps 0.4 --out "$work/random.vtu" \
-    --periodic no >/dev/null || exit 1
+for enc in ascii binary zlib; do
+    "$bin" layout --kind random --dim 2 --nx 6 --seed 4 --eps 0.4 --out "$work/random_$enc.vtu" \
+        --periodic no --vtu-encoding $enc >/dev/null || exit 1
+done
+# More values than one zlib block of the writer (2^18 bytes) in the points and volume arrays.
+"$bin" layout --kind random --dim 3 --nx 40 --seed 2 --out "$work/big.vtu" >/dev/null || exit 1
+"$bin" layout --kind random --dim 3 --nx 40 --seed 2 --out "$work/big.csv" >/dev/null || exit 1
 "$bin" layout --kind random --dim 2 --nx 6 --seed 4 --eps 0.4 --out "$work/random.csv" \
     --periodic no >/dev/null || exit 1
 
@@ -82,16 +105,33 @@ for idx, expect in [(0, (0.5, 1 / 3)), (1, (0.25, 2 / 3)), (2, (0.75, 1 / 9))]:
     check(close(p[0], expect[0]) and close(p[1], expect[1], 1e-15),
           f"halton point {idx}: {p[:2]} != {expect}")
 
-# The .vtu and the .csv of the same random layout hold the same coordinates to the last bit.
-g = read("random.vtu")
-rows = [l for l in open(f"{work}/random.csv") if not l.startswith("#")][1:]
-check(g.GetNumberOfPoints() == len(rows) == 36, "random: point count")
-for i, row in enumerate(rows):
-    x, y, v = (float(t) for t in row.split(","))
-    p = g.GetPoint(i)
-    if p[0] != x or p[1] != y:
-        check(False, f"random point {i}: vtu {p[:2]} != csv {(x, y)}")
-        break
+# The .vtu (in every encoding) and the .csv of the same random layout hold the same coordinates
+# and volumes to the last bit, and one vertex cell per particle.
+def same_as_csv(vtu, csv, count, dim):
+    g = read(vtu)
+    rows = [l for l in open(f"{work}/{csv}") if not l.startswith("#")][1:]
+    check(g.GetNumberOfPoints() == len(rows) == count, f"{vtu}: point count")
+    check(g.GetNumberOfCells() == count, f"{vtu}: cell count")
+    vol = g.GetPointData().GetArray("volume")
+    check(vol is not None, f"{vtu}: no 'volume' array")
+    for i, row in enumerate(rows):
+        t = [float(t) for t in row.split(",")]
+        p = g.GetPoint(i)
+        if list(p[:dim]) != t[:dim] or any(c != 0.0 for c in p[dim:]):
+            check(False, f"{vtu} point {i}: vtu {p} != csv {t[:dim]}")
+            break
+        if vol is not None and vol.GetValue(i) != t[dim]:
+            check(False, f"{vtu} volume {i}: vtu {vol.GetValue(i)!r} != csv {t[dim]!r}")
+            break
+    for i in sorted({0, 1, count // 2, count - 1}):
+        c = g.GetCell(i)
+        check(c.GetCellType() == vtk.VTK_VERTEX and c.GetNumberOfPoints() == 1 and
+              c.GetPointId(0) == i, f"{vtu}: cell {i} is not the vertex of point {i}")
+
+
+for enc in ("ascii", "binary", "zlib"):
+    same_as_csv(f"random_{enc}.vtu", "random.csv", 36, 2)
+same_as_csv("big.vtu", "big.csv", 64000, 3)
 
 if failures:
     for f in failures:

@@ -10,6 +10,10 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
 #include "../fuzz/fuzz_targets.h"
 #include "check.h"
 #include "consph/io.h"
@@ -135,6 +139,72 @@ static void test_round_trip(void)
             }
             consph_particles_free(&p);
         }
+}
+
+/* The bytes of a file written with `threads` OpenMP threads (NULL on failure). */
+static unsigned char *write_with_threads(const char *path, const consph_particles *p,
+                                         consph_vtu_encoding enc, int threads, size_t *size)
+{
+#ifdef _OPENMP
+    int saved = omp_get_max_threads();
+    omp_set_num_threads(threads);
+#else
+    (void)threads;
+#endif
+    int rc = consph_write_particles_enc(path, p, enc);
+#ifdef _OPENMP
+    omp_set_num_threads(saved);
+#endif
+    CHECK(rc == CONSPH_OK, "%s: %s", path, consph_last_error());
+    return rc == CONSPH_OK ? load(path, size) : NULL;
+}
+
+/* Every VTU encoding reads back bitwise, at sizes around the writer's zlib block of 2^18 bytes
+ * (32768 doubles: one value, exactly one full block, a partial last block, more blocks than
+ * one compression batch), and the file does not depend on the thread count. */
+static void test_vtu_encodings(void)
+{
+    static const struct {
+        int dim;
+        size_t n;
+    } sizes[] = {{1, 1}, {2, 32768}, {3, 12000}, {3, 200003}};
+    static const char *const read_as[] = {"ascii", "appended raw", "appended raw, zlib"};
+    for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; ++k)
+        for (int enc = CONSPH_VTU_ASCII; enc <= CONSPH_VTU_ZLIB; ++enc) {
+            consph_particles p, q;
+            make_set(&p, sizes[k].dim, sizes[k].n, (unsigned)(100 + k));
+            char path[512];
+            snprintf(path, sizeof path, "%s/enc_%s_%zu.vtu", tmp_dir,
+                     consph_vtu_encoding_name((consph_vtu_encoding)enc), k);
+            size_t size1 = 0, size2 = 0;
+            unsigned char *two = NULL;
+            if (enc != CONSPH_VTU_ASCII)
+                two = write_with_threads(path, &p, (consph_vtu_encoding)enc, 2, &size2);
+            unsigned char *one = write_with_threads(path, &p, (consph_vtu_encoding)enc, 1, &size1);
+            if (two)
+                CHECK(one && size1 == size2 && !memcmp(one, two, size1),
+                      "%s: the file differs between 1 and 2 threads", path);
+            free(one);
+            free(two);
+            consph_read_report rep;
+            int rc = consph_read_particles(path, NULL, &q, &rep);
+            CHECK(rc == CONSPH_OK, "%s: %s", path, consph_last_error());
+            if (rc == CONSPH_OK) {
+                CHECK(same_particles(&p, &q, 1), "%s: round trip not bitwise", path);
+                CHECK(strcmp(rep.encoding, read_as[enc]) == 0, "%s read as '%s'", path,
+                      rep.encoding);
+                consph_particles_free(&q);
+            }
+            consph_particles_free(&p);
+        }
+    consph_particles p;
+    make_set(&p, 2, 10, 1);
+    char path[512];
+    snprintf(path, sizeof path, "%s/bad_enc.vtu", tmp_dir);
+    CHECK(consph_write_particles_enc(path, &p, (consph_vtu_encoding)7) == CONSPH_EINVAL &&
+              strstr(consph_last_error(), "ascii,binary,zlib") && access(path, F_OK) != 0,
+          "unknown encoding: %s", consph_last_error());
+    consph_particles_free(&p);
 }
 
 /* The fixtures of fuzz/corpus/vtu written by VTK: 5 points, double coordinates, a Float64
@@ -479,6 +549,28 @@ static void test_inflate(void)
     }
 }
 
+/* A stream that inflates to well past the output limit stops there with an error (it once
+ * spun forever asking zlib for output with no room left). */
+static void test_inflate_limit(void)
+{
+    char path[1200];
+    size_t size;
+    snprintf(path, sizeof path, "%s/fuzz/corpus/inflate/best.z", source_dir);
+    unsigned char *z = load(path, &size);
+    CHECK(z != NULL, "%s", path);
+    if (!z) return;
+    for (size_t maxout = 0; maxout < 40 * 12; maxout += 97) {
+        unsigned char *out = NULL;
+        size_t outlen = 0, outcap = 0;
+        const char *why;
+        int rc = consph_rd_inflate(z, size, &out, &outlen, &outcap, maxout, &why);
+        CHECK(rc != 0 && strstr(why, "more data") && outlen <= maxout, "limit %zu: %s", maxout,
+              rc ? why : "accepted");
+        free(out);
+    }
+    free(z);
+}
+
 /* Every file of the seed corpora and of fuzz/regressions/<target>/ through the fuzz entry
  * points: a crash found once stays fixed. */
 static void test_fuzz_replay(void)
@@ -524,12 +616,14 @@ int main(void)
         return 1;
     }
     test_round_trip();
+    test_vtu_encodings();
     test_vtk_fixtures();
     test_bad_csv();
     test_good_csv();
     test_bad_vtu();
     test_files();
     test_inflate();
+    test_inflate_limit();
     test_fuzz_replay();
     char cmd[600];
     snprintf(cmd, sizeof cmd, "rm -rf '%s'", tmp_dir);

@@ -117,7 +117,7 @@ int consph_rd_streq_nocase(const char *a, const char *b);
 int consph_rd_csv(rd_src *s, const consph_read_options *opt, rd_set *set);
 int consph_rd_vtu(rd_src *s, const consph_read_options *opt, rd_set *set);
 
-/* ---- zlib (RFC 1950/1951) decompression of one stream ---- */
+/* ---- zlib (RFC 1950) streams, through the system zlib ---- */
 
 /* Inflates the zlib stream in[0..inlen) into *out (grown with realloc as needed, capacity in
  * *outcap), appending at most `maxout` bytes; *outlen receives the count. Returns 0, or a
