@@ -259,7 +259,7 @@ static void test_sinkhorn_limit(void)
     double *y = random_points(&rng, 9, 1, 0.2, 1.5), *wy = random_points(&rng, 9, 1, 0.2, 1.0);
     consph_measure a = {1, 6, {x}, wx}, b = {1, 9, {y}, wy};
     for (int p = 1; p <= 2; ++p) {
-        double exact = wdist(&a, &b, method(CONSPH_OT_EXACT, p), NULL), prev = INFINITY;
+        double exact = wdist(&a, &b, method(CONSPH_OT_EXACT, p), NULL), prev = INFINITY, last = 0;
         double eps[] = {1e-1, 1e-2, 1e-3, 1e-4};
         for (int e = 0; e < 4; ++e) {
             consph_ot_options o = method(CONSPH_OT_SINKHORN, p);
@@ -272,11 +272,13 @@ static void test_sinkhorn_limit(void)
                   r.iterations, r.marginal_error, r.eps_abs);
             CHECK(fabs(s - exact) <= r.error, "1D p=%d eps=%g: %.12g vs exact %.12g, bound %g", p,
                   eps[e], s, exact, r.error);
-            CHECK(fabs(s - exact) <= prev, "1D p=%d: error grew to %g at eps=%g", p,
-                  fabs(s - exact), eps[e]);
-            prev = fabs(s - exact);
+            /* The error itself need not fall monotonically; the bound, ~ε·H, must. */
+            CHECK(r.error < 0.5 * prev, "1D p=%d: bound %g at eps=%g, %g before", p, r.error,
+                  eps[e], prev);
+            prev = r.error;
+            last = fabs(s - exact);
         }
-        CHECK(prev < 1e-3 * exact, "1D p=%d: sinkhorn at eps=1e-4 is %g from exact", p, prev);
+        CHECK(last < 1e-3 * exact, "1D p=%d: sinkhorn at eps=1e-4 is %g from exact", p, last);
     }
     free(x);
     free(wx);

@@ -126,13 +126,13 @@ int ot_sinkhorn(const ot_points *a, const ot_points *b, const consph_ot_options 
     for (;;) {
         int last = eps <= eps_final;
         if (last) eps = eps_final;
-        /* Below `enough` the marginal term of the error bound, C_max·δ/2, is under 1% of the
+        /* Below `enough` the marginal term of the error bound, C_max·δ/2, is under 10% of the
          * entropic term ε·H: iterating on cannot make the bound tighter. Sinkhorn approaches
          * non-unique optimal plans (common for W1) sublinearly, so this ends most W1 runs. The
          * same rule ends each ε stage: it tightens with ε, so every stage hands the next
          * potentials accurate to its own scale, and a loose stage tolerance instead leaves an
          * error the small-ε stages correct only by ~ε per iteration. */
-        double want = fmax(opt->tol, 0.02 * eps * hmin / cmax);
+        double want = fmax(opt->tol, 0.2 * eps * hmin / cmax);
         double omega = OMEGA, best = INFINITY;
         converged = 0;
         /* A stage only warm-starts the next one, so it gets a bounded share of the

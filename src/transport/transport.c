@@ -103,10 +103,11 @@ int ot_points_make(const consph_measure *mu, const char *which, ot_points *pts)
         pts->w[k++] = wi;
     }
     double total = consph_sum(pts->w, kept);
-    if (!(total > 0.0) || !isfinite(total))
-        return ot_points_free(pts),
-               consph_fail(CONSPH_EINVAL, "the %s measure: total weight %g is not usable", which,
+    if (!(total > 0.0) || !isfinite(total)) {
+        ot_points_free(pts);
+        return consph_fail(CONSPH_EINVAL, "the %s measure: total weight %g is not usable", which,
                            total);
+    }
     for (size_t i = 0; i < kept; ++i) pts->w[i] /= total;
     return CONSPH_OK;
 }
@@ -261,6 +262,7 @@ static int sliced(const ot_points *a, const ot_points *b, const consph_ot_option
         return consph_fail(CONSPH_ENOMEM, "out of memory in the sliced distance");
     }
     double mean = consph_sum(val, (size_t)k) / k;
+    /* The directions are spent; their storage takes the squared deviations. */
     for (int d = 0; d < k; ++d) theta[d] = (val[d] - mean) * (val[d] - mean);
     double var = k > 1 ? consph_sum(theta, (size_t)k) / (k - 1) : 0.0;
     double se_pow = sqrt(var / k);
