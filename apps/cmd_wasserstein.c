@@ -189,6 +189,9 @@ int cmd_wasserstein(int argc, char **argv)
     rc = load(&cmd, positional[0], &ro, &in[0]);
     if (!rc && !uniform) rc = load(&cmd, positional[1], &ro, &in[1]);
     int dim = in[0].p.dim;
+    if (!rc && !uniform && in[1].p.dim != dim)
+        rc = cli_error(&cmd, "%s is %dD but %s is %dD (the measures must share a dimension)",
+                       in[0].path, dim, in[1].path, in[1].p.dim);
     for (int k = 0; k < 2 - uniform && !rc && smooth_name; ++k)
         rc = smooth(&cmd, kid, hdx, cells, &in[k]);
     if (!rc && uniform) {
@@ -202,9 +205,6 @@ int cmd_wasserstein(int argc, char **argv)
     }
     double grid_error = (in[0].gridded ? in[0].grid.half_diagonal : 0.0) +
                         (in[1].gridded ? in[1].grid.half_diagonal : 0.0);
-    if (!rc && in[1].p.dim != dim)
-        rc = cli_error(&cmd, "%s is %dD but %s is %dD (the measures must share a dimension)",
-                       in[0].path, dim, in[1].path, in[1].p.dim);
     consph_ot_options o = consph_ot_defaults();
     o.method = opts[O_METHOD].given ? (consph_ot_method)method
                                     : (dim == 1 ? CONSPH_OT_EXACT : CONSPH_OT_SLICED);
