@@ -7,5 +7,6 @@ int cmd_kernel(int argc, char **argv);
 int cmd_layout(int argc, char **argv);
 int cmd_approx(int argc, char **argv);
 int cmd_study(int argc, char **argv);
+int cmd_wasserstein(int argc, char **argv);
 
 #endif

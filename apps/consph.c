@@ -19,6 +19,7 @@ static const subcommand subcommands[] = {
     {"layout", cmd_layout, "generate a particle arrangement and write it as .vtu or .csv"},
     {"approx", cmd_approx, "measure an operator's accuracy and order of convergence"},
     {"study", cmd_study, "run a convergence study that reproduces a paper's figure or table"},
+    {"wasserstein", cmd_wasserstein, "Wasserstein distance between two particle files"},
 };
 #define NSUB (sizeof subcommands / sizeof subcommands[0])
 
