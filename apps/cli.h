@@ -7,6 +7,8 @@
 
 #define CLI_LIST_MAX 64
 #define CLI_EXIT_USAGE 2
+/* A run whose measured error is not finite: a wrong result (approx and study, in --help). */
+#define CLI_EXIT_NONFINITE 3
 
 typedef enum cli_type {
     CLI_FLAG,        /* int: set to 1 */

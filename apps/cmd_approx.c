@@ -41,11 +41,8 @@ typedef struct input_file {
     int periodic_given;
 } input_file;
 
-/* Exit status of a run whose error is not finite (documented in --help and README). */
-#define EXIT_NONFINITE 3
-
 /* The verdict on every norm's order; a non-finite or degenerate row is reported once, on
- * stderr, naming the series and the resolution. Returns EXIT_NONFINITE for a non-finite row. */
+ * stderr, naming the series and the resolution. Returns CLI_EXIT_NONFINITE for a non-finite row. */
 static int fit_orders(const consph_approx_row *rows, const double *res, int nrows,
                       const char *series, const input_file *files, const char *pm,
                       consph_series_order fits[4])
@@ -62,8 +59,8 @@ static int fit_orders(const consph_approx_row *rows, const double *res, int nrow
         const char *file = files ? files[so->row].path : NULL;
         if (so->status == CONSPH_SERIES_NONFINITE) {
             fprintf(stderr, "consph approx: error: %s%s%s: %s (exit status %d)\n", series,
-                    file ? ", " : "", file ? file : "", so->why, EXIT_NONFINITE);
-            rc = EXIT_NONFINITE;
+                    file ? ", " : "", file ? file : "", so->why, CLI_EXIT_NONFINITE);
+            rc = CLI_EXIT_NONFINITE;
             warned = 1;
         } else if (so->status == CONSPH_SERIES_DEGENERATE) {
             fprintf(stderr, "consph approx: warning: %s%s%s: %s\n", series, file ? ", " : "",

@@ -248,7 +248,9 @@ static int read_inputs(const cli_command *cmd, const char *list, const char *box
 /* Exit status of a failed run: 2 bad input, 3 a non-finite result (as consph approx), else 1. */
 static int run_status(int rc)
 {
-    return rc == CONSPH_EFORMAT || rc == CONSPH_EINVAL ? 2 : rc == CONSPH_ENUMERIC ? 3 : 1;
+    return rc == CONSPH_EFORMAT || rc == CONSPH_EINVAL ? CLI_EXIT_USAGE
+           : rc == CONSPH_ENUMERIC                     ? CLI_EXIT_NONFINITE
+                                                       : 1;
 }
 
 int cmd_study(int argc, char **argv)
