@@ -5,6 +5,7 @@
 #include "consph/core.h"
 #include "consph/kernels.h"
 #include "consph/nnps.h"
+#include "consph/pass.h"
 #include "consph/layout.h"
 #include "consph/io.h"
 #include "consph/ops.h"

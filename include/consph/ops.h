@@ -34,6 +34,7 @@
 #include "consph/core.h"
 #include "consph/kernels.h"
 #include "consph/nnps.h"
+#include "consph/pass.h"
 
 #ifdef __cplusplus
 extern "C" {
@@ -157,6 +158,9 @@ typedef struct consph_op_ctx {
  * a radial kernel, and computes the volumes. */
 int consph_op_ctx_init(consph_op_ctx *ctx, const consph_particles *p, const consph_nnps *nnps,
                        const consph_kernel *kernel, consph_volume_kind volume_kind);
+/* The same over a system's particles, search and kernel (the system must outlive the context). */
+int consph_op_ctx_init_sys(consph_op_ctx *ctx, const consph_sys *sys,
+                           consph_volume_kind volume_kind);
 void consph_op_ctx_free(consph_op_ctx *ctx);
 /* Recomputes volumes and drops every cached matrix; call after the particles moved (and the
  * nnps was rebuilt). */

@@ -7,6 +7,21 @@
 
 #include "ops/ops_internal.h"
 
+/* ---- the pass over the context's particles ---- */
+
+int ops_run(const consph_op_ctx *ctx, unsigned need, ops_visit_fn visit, void *job, size_t *pairs)
+{
+    /* A view, not a copy: the context's particles and search are the system's. */
+    consph_sys sys;
+    memset(&sys, 0, sizeof sys);
+    sys.p = (consph_particles *)ctx->p;
+    sys.nnps = (consph_nnps *)ctx->nnps;
+    sys.kernel = ctx->kernel;
+    sys.parallel_min = ctx->parallel_min;
+    const consph_pass pass = {"operator", need, visit};
+    return consph_pass_run_counted(&sys, &pass, job, pairs);
+}
+
 /* ---- volumes ---- */
 
 typedef struct density_job {
@@ -180,4 +195,13 @@ void ops_report_fill(const consph_op_ctx *ctx, const ops_call *call, double t0,
     }
     rep->fallbacks = count;
     rep->seconds = consph_wtime() - t0;
+}
+
+int consph_op_ctx_init_sys(consph_op_ctx *ctx, const consph_sys *sys,
+                           consph_volume_kind volume_kind)
+{
+    if (!sys) return consph_fail(CONSPH_EINVAL, "operator context needs a system");
+    int rc = consph_op_ctx_init(ctx, sys->p, sys->nnps, &sys->kernel, volume_kind);
+    if (rc == CONSPH_OK) ctx->parallel_min = sys->parallel_min;
+    return rc;
 }

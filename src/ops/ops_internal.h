@@ -1,11 +1,12 @@
-/* Shared machinery of the operators: the particle pass driver, the correction-matrix cache and
- * a small dense solver with a condition estimate. */
+/* Shared machinery of the operators: the pass over the context's particles, the correction-matrix
+ * cache and a small dense solver with a condition estimate. */
 #ifndef CONSPH_OPS_INTERNAL_H
 #define CONSPH_OPS_INTERNAL_H
 
 #include <string.h>
 
 #include "consph/ops.h"
+#include "consph/pass.h"
 
 /* d(d+1)/2 second-derivative components, at most 6; MSPH has 1 + d + d(d+1)/2 <= 10 unknowns. */
 #define OPS_MAX_P 6
@@ -18,29 +19,18 @@
 #define OPS_INLINE static inline
 #endif
 
-/* What a pass needs evaluated per pair; OPS_SKIP_DX: the visitor reads no separation (nb->dx
- * is then NULL), which spares their stores. */
-enum { OPS_NEED_W = 1u, OPS_NEED_DW = 2u, OPS_NEED_D2W = 4u, OPS_SKIP_DX = 8u };
+/* What a pass needs evaluated per pair (include/consph/pass.h). */
+enum {
+    OPS_NEED_W = CONSPH_PASS_W,
+    OPS_NEED_DW = CONSPH_PASS_DW,
+    OPS_NEED_D2W = CONSPH_PASS_D2W,
+    OPS_SKIP_DX = CONSPH_PASS_NO_DX
+};
 
-/* One particle's neighbourhood with the kernel values of each pair, as a pass visits it.
- * w, dwr and d2w are NULL unless the pass was asked for them (OPS_NEED_*).
- * dwr = W'(r)/r, so ∇W_ij = dwr * x_ij; at r = 0 it holds the limit W''(0), which keeps the
- * kernel Hessian (W'' - W'/r) e e + (W'/r) I continuous and ∇W = dwr * x_ij = 0 there. */
-typedef struct ops_nbhd {
-    size_t i, n;
-    const size_t *j;
-    const double *dx[CONSPH_MAX_DIM]; /* x_i - x_j */
-    const double *r;
-    const double *w;
-    const double *dwr;
-    const double *d2w;
-} ops_nbhd;
+typedef consph_nbhd ops_nbhd;
+typedef consph_visit_fn ops_visit_fn;
 
-/* Called once per particle, possibly from several threads at once: sums over nb and writes
- * results for particle nb->i only. */
-typedef void (*ops_visit_fn)(void *job, const ops_nbhd *nb);
-
-/* Runs `visit` over every particle in parallel; adds the pairs visited to *pairs. */
+/* Runs `visit` over every particle of the context's system; adds the pairs visited to *pairs. */
 int ops_run(const consph_op_ctx *ctx, unsigned need, ops_visit_fn visit, void *job, size_t *pairs);
 
 /* Cached per-particle matrices. */

@@ -1,0 +1,318 @@
+/* The pass driver: every destination particle's neighbourhood with its kernel values, handed to
+ * a visit (include/consph/pass.h), and the system it runs over.
+ *
+ * The pass walks the search's cells rather than querying particle by particle: the runs of
+ * candidate slots are found once per cell (consph_nnps_cell_runs) and shared by its particles,
+ * the hits come from the search's own test (consph_nnps_gather), and the kernel values come from
+ * one vectorised batch per particle (consph_kernel_eval_batch). Each particle's neighbours are
+ * those of consph_nnps_query_particle, in the same order and with the same separations and kernel
+ * values bit for bit, so a visit sums exactly what it summed over a query. Particles are
+ * independent and written only by their own visit, so results do not depend on how the cells
+ * are shared out among threads. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "consph/pass.h"
+
+/* Cells per dynamic chunk: at the default cells per radius a 2D cell holds ~13 particles at
+ * h = 1.2Δs with the quintic kernel, a 3D one ~6. */
+#define PASS_CELLS_PER_CHUNK 16
+
+typedef struct pass_scratch {
+    consph_nnps_runs runs;
+    size_t cap;
+    size_t *slot, *j;
+    double *dx[CONSPH_MAX_DIM];
+    double *r, *w, *dwr, *d2w;
+} pass_scratch;
+
+static void scratch_free(pass_scratch *sc)
+{
+    consph_nnps_runs_free(&sc->runs);
+    free(sc->slot);
+    free(sc->j);
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(sc->dx[a]);
+    free(sc->r);
+    free(sc->w);
+    free(sc->dwr);
+    free(sc->d2w);
+    memset(sc, 0, sizeof *sc);
+}
+
+static int grow(void **p, size_t count, size_t size)
+{
+    void *q = realloc(*p, count * size);
+    if (!q) return CONSPH_ENOMEM;
+    *p = q;
+    return CONSPH_OK;
+}
+
+static int scratch_reserve(pass_scratch *sc, size_t need)
+{
+    if (need <= sc->cap) return CONSPH_OK;
+    size_t cap = sc->cap ? sc->cap : 256;
+    while (cap < need) cap *= 2;
+    int st = grow((void **)&sc->slot, cap, sizeof(size_t));
+    st = st ? st : grow((void **)&sc->j, cap, sizeof(size_t));
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+        st = st ? st : grow((void **)&sc->dx[a], cap, sizeof(double));
+    st = st ? st : grow((void **)&sc->r, cap, sizeof(double));
+    st = st ? st : grow((void **)&sc->w, cap, sizeof(double));
+    st = st ? st : grow((void **)&sc->dwr, cap, sizeof(double));
+    st = st ? st : grow((void **)&sc->d2w, cap, sizeof(double));
+    if (st == CONSPH_OK) sc->cap = cap;
+    return st;
+}
+
+static int pass_fail(const consph_pass *pass, int status, const char *why)
+{
+    return consph_fail(status, "pass '%s': %s", pass->name ? pass->name : "unnamed", why);
+}
+
+int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs)
+{
+    char why[256];
+    if (!s || !s->p || !s->nnps || !pass || !pass->visit)
+        return consph_fail(CONSPH_EINVAL, "pass: needs a system and a pass with a visit");
+    const size_t n = s->p->n;
+    const unsigned need = pass->need;
+    const consph_kernel *kernel = &s->kernel;
+    consph_nnps_slots v;
+    if (n == 0) return CONSPH_OK;
+    if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK)
+        return pass_fail(pass, CONSPH_EINVAL, consph_last_error());
+    if (v.n != n) {
+        snprintf(why, sizeof why,
+                 "the neighbour search holds %zu particles, the system %zu; update the system", v.n,
+                 n);
+        return pass_fail(pass, CONSPH_EINVAL, why);
+    }
+    if (kernel->tensor && (need & (CONSPH_PASS_DW | CONSPH_PASS_D2W))) {
+        snprintf(why, sizeof why,
+                 "kernel '%s' is a tensor-product kernel, which has W only; this pass needs its "
+                 "derivatives",
+                 kernel->name);
+        return pass_fail(pass, CONSPH_EINVAL, why);
+    }
+    /* A tensor-product kernel is a function of the separation vector, not of r. */
+    const int tensor = kernel->tensor && (need & CONSPH_PASS_W);
+    const int dim = v.dim, with_dx = !(need & CONSPH_PASS_NO_DX) || tensor;
+    const unsigned char *dest = s->dest;
+    int status = CONSPH_OK;
+    size_t total = 0;
+    /* consph_fail records per thread: a worker's message is copied out here. */
+    why[0] = '\0';
+#pragma omp parallel if (n >= s->parallel_min)
+    {
+        pass_scratch sc;
+        memset(&sc, 0, sizeof sc);
+        int my_status = CONSPH_OK;
+        char my_why[256] = "";
+        size_t my_pairs = 0;
+#pragma omp for schedule(dynamic, PASS_CELLS_PER_CHUNK)
+        for (size_t c = 0; c < v.ncells; ++c) {
+            const size_t first = v.cell_start[c], last = v.cell_start[c + 1];
+            if (first == last || my_status != CONSPH_OK) continue;
+            if (dest) {
+                size_t s_dest = first;
+                while (s_dest < last && !dest[consph_nnps_slot_particle(&v, s_dest)]) ++s_dest;
+                if (s_dest == last) continue;
+            }
+            if (consph_nnps_cell_runs(s->nnps, c, &sc.runs) == (size_t)-1) {
+                my_status = CONSPH_ENOMEM;
+                snprintf(my_why, sizeof my_why, "runs of cell %zu: %s", c, consph_last_error());
+                continue;
+            }
+            if (scratch_reserve(&sc, sc.runs.candidates + CONSPH_NNPS_GATHER_SLACK) != CONSPH_OK) {
+                my_status = CONSPH_ENOMEM;
+                snprintf(my_why, sizeof my_why, "out of memory for %zu candidate neighbours",
+                         sc.runs.candidates);
+                continue;
+            }
+            for (size_t sl = first; sl < last; ++sl) {
+                const size_t i = consph_nnps_slot_particle(&v, sl);
+                if (dest && !dest[i]) continue;
+                double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+                for (int a = 0; a < dim; ++a) xi[a] = v.x[a][sl];
+                const size_t m =
+                    consph_nnps_gather(&v, &sc.runs, xi, sc.slot, with_dx ? sc.dx : NULL, sc.r);
+                const size_t *j = sc.slot;
+                if (v.particle) {
+                    for (size_t p = 0; p < m; ++p) sc.j[p] = v.particle[sc.slot[p]];
+                    j = sc.j;
+                }
+                if (tensor) {
+                    for (size_t p = 0; p < m; ++p) {
+                        double d[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+                        for (int a = 0; a < dim; ++a) d[a] = sc.dx[a][p];
+                        sc.w[p] = consph_kernel_w_vec(kernel, d);
+                    }
+                } else {
+                    /* Whole vectors: the batch's scalar remainder loop would cost more than the
+                     * few extra values (r = 0 is a valid distance; the extra values are
+                     * unused). */
+                    const size_t m4 = (m + 3) & ~(size_t)3;
+                    for (size_t p = m; p < m4; ++p) sc.r[p] = 0.0;
+                    consph_kernel_eval_batch(kernel, m4, sc.r, need & CONSPH_PASS_W ? sc.w : NULL,
+                                             need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? sc.dwr
+                                                                                       : NULL,
+                                             need & CONSPH_PASS_D2W ? sc.d2w : NULL);
+                }
+                consph_nbhd nb;
+                nb.i = i;
+                nb.n = m;
+                nb.j = j;
+                for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+                    nb.dx[a] = with_dx && a < dim ? sc.dx[a] : NULL;
+                nb.r = sc.r;
+                /* Values the pass did not ask for were not evaluated: hand out no pointer to
+                 * them, so that reading one faults at once instead of summing stale scratch. */
+                nb.w = need & CONSPH_PASS_W ? sc.w : NULL;
+                nb.dwr = need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? sc.dwr : NULL;
+                nb.d2w = need & CONSPH_PASS_D2W ? sc.d2w : NULL;
+                pass->visit(job, &nb);
+                my_pairs += m;
+            }
+        }
+#pragma omp critical(consph_pass_run)
+        {
+            total += my_pairs;
+            /* Several threads may fail; keep the lowest status so the message is reproducible. */
+            if (my_status != CONSPH_OK && (status == CONSPH_OK || my_status < status)) {
+                status = my_status;
+                memcpy(why, my_why, sizeof why);
+            }
+        }
+        scratch_free(&sc);
+    }
+    if (pairs) *pairs += total;
+    if (status != CONSPH_OK) return pass_fail(pass, status, why);
+    return CONSPH_OK;
+}
+
+int consph_pass_run(const consph_sys *s, const consph_pass *pass, void *job)
+{
+    return consph_pass_run_counted(s, pass, job, NULL);
+}
+
+/* ---- the system ---- */
+
+int consph_sys_wrap(consph_sys *s, consph_particles *p, consph_nnps *nnps,
+                    const consph_kernel *kernel)
+{
+    memset(s, 0, sizeof *s);
+    if (!p || !nnps || !kernel)
+        return consph_fail(CONSPH_EINVAL,
+                           "system: needs particles, a neighbour search and a kernel");
+    if (kernel->dim != p->dim)
+        return consph_fail(CONSPH_EINVAL,
+                           "system: the kernel is bound to %dD, the particles are %dD", kernel->dim,
+                           p->dim);
+    if (consph_nnps_radius(nnps) < kernel->radius * (1.0 - 1e-12))
+        return consph_fail(
+            CONSPH_EINVAL,
+            "system: neighbour search radius %g is below the kernel support radius %g",
+            consph_nnps_radius(nnps), kernel->radius);
+    s->p = p;
+    s->nnps = nnps;
+    s->kernel = *kernel;
+    s->parallel_min = 2048;
+    return CONSPH_OK;
+}
+
+int consph_sys_init(consph_sys *s, const consph_particles *src, const consph_kernel *kernel,
+                    double radius)
+{
+    memset(s, 0, sizeof *s);
+    if (!src || !kernel) return consph_fail(CONSPH_EINVAL, "system: needs particles and a kernel");
+    if (kernel->dim != src->dim)
+        return consph_fail(CONSPH_EINVAL,
+                           "system: the kernel is bound to %dD, the particles are %dD", kernel->dim,
+                           src->dim);
+    consph_particles *p = consph_calloc(1, sizeof *p);
+    size_t *origin = consph_calloc(src->n ? src->n : 1, sizeof(size_t));
+    if (!p || !origin) {
+        free(p);
+        free(origin);
+        return CONSPH_ENOMEM;
+    }
+    int rc = consph_particles_copy(p, src);
+    if (rc) {
+        free(p);
+        free(origin);
+        return rc;
+    }
+    s->p = p;
+    s->origin = origin;
+    s->owned = 1;
+    s->kernel = *kernel;
+    s->parallel_min = 2048;
+    s->nnps = consph_nnps_create(&p->box, radius > kernel->radius ? radius : kernel->radius, 0);
+    if (!s->nnps) {
+        consph_sys_free(s);
+        return CONSPH_ENOMEM;
+    }
+    for (size_t i = 0; i < p->n; ++i) origin[i] = i;
+    rc = consph_sys_update(s, 1);
+    if (rc) consph_sys_free(s);
+    return rc;
+}
+
+int consph_sys_update(consph_sys *s, int resort)
+{
+    if (!resort) return consph_nnps_build(s->nnps, s->p);
+    const size_t n = s->p->n;
+    size_t *perm = consph_calloc(n ? n : 1, sizeof(size_t));
+    if (!perm) return CONSPH_ENOMEM;
+    int rc = consph_nnps_sort(s->nnps, s->p, perm);
+    if (rc == CONSPH_OK && (s->origin || s->dest)) {
+        /* Carry origin and mask through the same permutation, new[i] = old[perm[i]]. */
+        size_t *o2 = s->origin ? consph_calloc(n ? n : 1, sizeof(size_t)) : NULL;
+        unsigned char *d2 = s->dest ? consph_calloc(n ? n : 1, 1) : NULL;
+        if ((s->origin && !o2) || (s->dest && !d2)) {
+            rc = CONSPH_ENOMEM;
+        } else {
+            for (size_t i = 0; i < n; ++i) {
+                if (o2) o2[i] = s->origin[perm[i]];
+                if (d2) d2[i] = s->dest[perm[i]];
+            }
+            if (o2) memcpy(s->origin, o2, n * sizeof(size_t));
+            if (d2) memcpy(s->dest, d2, n);
+        }
+        free(o2);
+        free(d2);
+    }
+    free(perm);
+    return rc;
+}
+
+int consph_sys_set_dest(consph_sys *s, const unsigned char *dest)
+{
+    if (!dest) {
+        free(s->dest);
+        s->dest = NULL;
+        return CONSPH_OK;
+    }
+    const size_t n = s->p->n;
+    if (!s->dest) {
+        s->dest = consph_calloc(n ? n : 1, 1);
+        if (!s->dest) return CONSPH_ENOMEM;
+    }
+    memcpy(s->dest, dest, n);
+    return CONSPH_OK;
+}
+
+void consph_sys_free(consph_sys *s)
+{
+    if (!s) return;
+    if (s->owned) {
+        consph_nnps_free(s->nnps);
+        if (s->p) consph_particles_free(s->p);
+        free(s->p);
+        free(s->origin);
+    }
+    free(s->dest);
+    memset(s, 0, sizeof *s);
+}
