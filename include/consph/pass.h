@@ -79,8 +79,9 @@ typedef struct consph_sys {
 } consph_sys;
 
 /* Copies src, sorts the copy into cell order and builds a neighbour search of radius
- * max(radius, kernel->radius) on it. The kernel must be radial unless every pass run on the
- * system asks for W alone. */
+ * max(radius, kernel->radius) on it (kernel->radius·sqrt(dim) for a tensor-product kernel, whose
+ * support is a cube: consph_sys_wrap asks the same of the caller's search). The kernel must be
+ * radial unless every pass run on the system asks for W alone. */
 int consph_sys_init(consph_sys *s, const consph_particles *src, const consph_kernel *kernel,
                     double radius);
 /* A system over particles and a search the caller owns and has built (nothing is copied or

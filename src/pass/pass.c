@@ -199,6 +199,14 @@ int consph_pass_run(const consph_sys *s, const consph_pass *pass, void *job)
 
 /* ---- the system ---- */
 
+/* The distance within which the kernel can be non-zero. A tensor-product kernel is non-zero on
+ * the cube |x_a| < radius, whose corners lie sqrt(dim) times farther out than its radius: a
+ * search of its radius alone would drop the pairs in the corners. */
+static double kernel_reach(const consph_kernel *kernel)
+{
+    return kernel->tensor ? kernel->radius * sqrt((double)kernel->dim) : kernel->radius;
+}
+
 int consph_sys_wrap(consph_sys *s, consph_particles *p, consph_nnps *nnps,
                     const consph_kernel *kernel)
 {
@@ -210,11 +218,11 @@ int consph_sys_wrap(consph_sys *s, consph_particles *p, consph_nnps *nnps,
         return consph_fail(CONSPH_EINVAL,
                            "system: the kernel is bound to %dD, the particles are %dD", kernel->dim,
                            p->dim);
-    if (consph_nnps_radius(nnps) < kernel->radius * (1.0 - 1e-12))
+    if (consph_nnps_radius(nnps) < kernel_reach(kernel) * (1.0 - 1e-12))
         return consph_fail(
             CONSPH_EINVAL,
             "system: neighbour search radius %g is below the kernel support radius %g",
-            consph_nnps_radius(nnps), kernel->radius);
+            consph_nnps_radius(nnps), kernel_reach(kernel));
     s->p = p;
     s->nnps = nnps;
     s->kernel = *kernel;
@@ -249,7 +257,8 @@ int consph_sys_init(consph_sys *s, const consph_particles *src, const consph_ker
     s->owned = 1;
     s->kernel = *kernel;
     s->parallel_min = 2048;
-    s->nnps = consph_nnps_create(&p->box, radius > kernel->radius ? radius : kernel->radius, 0);
+    const double reach = kernel_reach(kernel);
+    s->nnps = consph_nnps_create(&p->box, radius > reach ? radius : reach, 0);
     if (!s->nnps) {
         consph_sys_free(s);
         return CONSPH_ENOMEM;
@@ -262,6 +271,8 @@ int consph_sys_init(consph_sys *s, const consph_particles *src, const consph_ker
 
 int consph_sys_update(consph_sys *s, int resort)
 {
+    if (!s || !s->p || !s->nnps)
+        return consph_fail(CONSPH_EINVAL, "system update: needs an initialised system");
     if (!resort) return consph_nnps_build(s->nnps, s->p);
     const size_t n = s->p->n;
     size_t *perm = consph_calloc(n ? n : 1, sizeof(size_t));
@@ -290,6 +301,8 @@ int consph_sys_update(consph_sys *s, int resort)
 
 int consph_sys_set_dest(consph_sys *s, const unsigned char *dest)
 {
+    if (!s || !s->p)
+        return consph_fail(CONSPH_EINVAL, "system destination mask: needs an initialised system");
     if (!dest) {
         free(s->dest);
         s->dest = NULL;
