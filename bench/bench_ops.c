@@ -2,8 +2,8 @@
  *
  * Cases: 2D 500² and 3D 100³ random particles (ε = 0.4) in the periodic unit box, quintic
  * kernel with h = 1.2Δs. For each: the bare neighbour query (consph_nnps_query_particle into a
- * buffer, summing r so it cannot be optimised away), the same neighbours through the inline
- * traversal the operators use (runs per cell + consph_nnps_gather), the plain summation
+ * buffer, summing r so it cannot be optimised away), the same neighbours through the pass layer
+ * the operators run on (consph_pass_run asking only r), the plain summation
  * Σ ω_j f_j W_ij
  * (function/standard) and the Bonet-corrected pressure gradient asym_bc, whose first call also
  * builds the B matrices (reported separately). Each on 1 thread and on all threads.
@@ -59,43 +59,23 @@ static size_t query_only(const consph_nnps *g, size_t n, size_t *pairs)
     return positive;
 }
 
-/* The same neighbours through the inline traversal the operators use (runs per cell shared by
- * its particles, consph_nnps_gather with r), reading every distance. */
-static size_t traverse_only(const consph_nnps *g, size_t *pairs)
+/* The same neighbours through the pass layer the operators run on (runs per cell shared by its
+ * particles, consph_nnps_gather with r, no kernel values), reading every distance. */
+static void visit_positive(void *job, const consph_nbhd *nb)
 {
-    consph_nnps_slots v;
-    size_t total = 0, positive = 0;
+    size_t c = 0;
+    for (size_t k = 0; k < nb->n; ++k) c += nb->r[k] > 0.0;
+    ((size_t *)job)[nb->i] = c;
+}
+
+static size_t pass_only(const consph_sys *s, size_t *positive, size_t *pairs)
+{
+    const consph_pass pass = {"distances", CONSPH_PASS_NO_DX, visit_positive};
+    size_t total = 0;
     *pairs = 0;
-    if (consph_nnps_slots_get(g, &v)) return 0;
-#pragma omp parallel reduction(+ : total, positive)
-    {
-        consph_nnps_runs runs;
-        memset(&runs, 0, sizeof runs);
-        size_t cap = 0, *slot = NULL;
-        double *r = NULL;
-#pragma omp for schedule(dynamic, 16)
-        for (size_t c = 0; c < v.ncells; ++c) {
-            if (v.cell_start[c] == v.cell_start[c + 1]) continue;
-            if (consph_nnps_cell_runs(g, c, &runs) == (size_t)-1) continue;
-            if (runs.candidates + CONSPH_NNPS_GATHER_SLACK > cap) {
-                cap = 2 * (runs.candidates + CONSPH_NNPS_GATHER_SLACK);
-                slot = realloc(slot, cap * sizeof *slot);
-                r = realloc(r, cap * sizeof *r);
-            }
-            for (size_t s = v.cell_start[c]; s < v.cell_start[c + 1]; ++s) {
-                double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
-                for (int a = 0; a < v.dim; ++a) xi[a] = v.x[a][s];
-                size_t m = consph_nnps_gather(&v, &runs, xi, slot, NULL, r);
-                for (size_t p = 0; p < m; ++p) positive += r[p] > 0.0;
-                total += m;
-            }
-        }
-        free(slot);
-        free(r);
-        consph_nnps_runs_free(&runs);
-    }
-    *pairs = total;
-    return positive;
+    if (consph_pass_run_counted(s, &pass, positive, pairs) != CONSPH_OK) return 0;
+    for (size_t i = 0; i < s->p->n; ++i) total += positive[i];
+    return total;
 }
 
 /* CPU seconds of the whole process: on a shared machine this, not the wall time, says what a
@@ -127,22 +107,27 @@ static int bench_case(const char *label, int dim, size_t nx, int reps)
 {
     consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_RANDOM, dim, nx);
     lp.eps = 0.4;
-    consph_particles p;
-    if (consph_layout_generate(&lp, &p, NULL) != CONSPH_OK) return 1;
+    consph_particles src;
+    if (consph_layout_generate(&lp, &src, NULL) != CONSPH_OK) return 1;
     consph_kernel k;
     consph_kernel_init(&k, CONSPH_KERNEL_QUINTIC, dim, 1.2 / (double)nx);
-    consph_nnps *g = consph_nnps_create(&p.box, k.radius, 0);
-    if (!g || consph_nnps_sort(g, &p, NULL) != CONSPH_OK) return 1;
-    const size_t n = p.n;
+    consph_sys sys;
+    int rc = consph_sys_init(&sys, &src, &k, 0.0);
+    consph_particles_free(&src);
+    if (rc != CONSPH_OK) return 1;
+    const consph_particles *p = sys.p;
+    const consph_nnps *g = sys.nnps;
+    const size_t n = p->n;
     double *f = malloc(n * sizeof(double)), *out = malloc((size_t)dim * n * sizeof(double));
-    for (size_t i = 0; i < n; ++i) f[i] = p.x[0][i] * p.x[0][i] + (dim > 1 ? p.x[1][i] : 0.0);
+    size_t *positive = malloc(n * sizeof(size_t));
+    for (size_t i = 0; i < n; ++i) f[i] = p->x[0][i] * p->x[0][i] + (dim > 1 ? p->x[1][i] : 0.0);
     int tmax = max_threads();
     int tlist[2] = {1, tmax};
     int nt = tmax > 1 ? 2 : 1;
     for (int t = 0; t < nt; ++t) {
         set_threads(tlist[t]);
         consph_op_ctx ctx;
-        if (consph_op_ctx_init(&ctx, &p, g, &k, CONSPH_VOLUME_SUMMATION) != CONSPH_OK) return 1;
+        if (consph_op_ctx_init_sys(&ctx, &sys, CONSPH_VOLUME_SUMMATION) != CONSPH_OK) return 1;
         row r = {"query only", tlist[t], 0.0, 0.0, 0};
         double t0 = consph_wtime(), c0 = cpu_seconds();
         for (int k2 = 0; k2 < reps; ++k2) {
@@ -155,12 +140,12 @@ static int bench_case(const char *label, int dim, size_t nx, int reps)
         r.cpu = cpu_seconds() - c0;
         print_row(label, &r);
 
-        row tr = {"traversal only", tlist[t], 0.0, 0.0, 0};
+        row tr = {"pass, distances only", tlist[t], 0.0, 0.0, 0};
         t0 = consph_wtime();
         c0 = cpu_seconds();
         for (int k2 = 0; k2 < reps; ++k2) {
             size_t pairs;
-            volatile size_t sink = traverse_only(g, &pairs);
+            volatile size_t sink = pass_only(&sys, positive, &pairs);
             (void)sink;
             tr.pairs += pairs;
         }
@@ -201,8 +186,8 @@ static int bench_case(const char *label, int dim, size_t nx, int reps)
     set_threads(tmax);
     free(f);
     free(out);
-    consph_nnps_free(g);
-    consph_particles_free(&p);
+    free(positive);
+    consph_sys_free(&sys);
     return 0;
 }
 

@@ -31,28 +31,37 @@ typedef struct errs {
     double d1_max, d2_max, d1_mid, d2_mid;
 } errs;
 
+/* A system over the layout's particles. */
+static int make_sys(const consph_layout_params *lp, const consph_kernel *k, consph_sys *sys)
+{
+    consph_particles p;
+    if (consph_layout_generate(lp, &p, NULL) != CONSPH_OK) return 0;
+    int ok = consph_sys_init(sys, &p, k, 0.0) == CONSPH_OK;
+    consph_particles_free(&p);
+    return ok;
+}
+
 static int run(size_t n, errs *e)
 {
     consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_LATTICE, 1, n);
     lp.box = consph_box_unit(1, 0);
-    consph_particles p;
-    if (consph_layout_generate(&lp, &p, NULL) != CONSPH_OK) return 0;
     const double ds = 1.0 / (double)n;
     consph_kernel k;
     consph_kernel_init(&k, CONSPH_KERNEL_QUINTIC, 1, 0.5 * sqrt(ds));
-    consph_nnps *g = consph_nnps_create(&p.box, k.radius, 0);
+    consph_sys sys;
     consph_op_ctx ctx;
-    int ok = g && consph_nnps_build(g, &p) == CONSPH_OK &&
-             consph_op_ctx_init(&ctx, &p, g, &k, CONSPH_VOLUME_GIVEN) == CONSPH_OK;
+    int have_sys = make_sys(&lp, &k, &sys);
+    int ok = have_sys && consph_op_ctx_init_sys(&ctx, &sys, CONSPH_VOLUME_GIVEN) == CONSPH_OK;
     if (ok) {
+        const consph_particles *p = sys.p;
         double *u = malloc(n * sizeof(double)), *d1 = malloc(n * sizeof(double)),
                *d2 = malloc(n * sizeof(double));
-        for (size_t i = 0; i < n; ++i) u[i] = f(p.x[0][i]);
+        for (size_t i = 0; i < n; ++i) u[i] = f(p->x[0][i]);
         consph_op_report rep;
         ok = consph_op_boundary_1d(&ctx, u, f(0.0), f(1.0), d1, d2, &rep) == CONSPH_OK;
         memset(e, 0, sizeof *e);
         for (size_t i = 0; ok && i < n; ++i) {
-            double x = p.x[0][i];
+            double x = p->x[0][i];
             double e1 = fabs(d1[i] - df(x)), e2 = fabs(d2[i] - d2f(x));
             e->d1_max = fmax(e->d1_max, e1);
             e->d2_max = fmax(e->d2_max, e2);
@@ -66,8 +75,7 @@ static int run(size_t n, errs *e)
         free(d2);
         consph_op_ctx_free(&ctx);
     }
-    consph_nnps_free(g);
-    consph_particles_free(&p);
+    if (have_sys) consph_sys_free(&sys);
     return ok;
 }
 
@@ -90,21 +98,19 @@ int main(void)
     CHECK(e[3].d1_max < 0.05 && e[3].d2_max < 0.5, "finest errors %.3e %.3e", e[3].d1_max,
           e[3].d2_max);
     /* Rejected inputs: periodic interval, wrong dimension. */
-    consph_particles p;
     consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_LATTICE, 1, 20);
-    consph_layout_generate(&lp, &p, NULL); /* periodic by default */
     consph_kernel k;
     consph_kernel_init(&k, CONSPH_KERNEL_QUINTIC, 1, 0.06);
-    consph_nnps *g = consph_nnps_create(&p.box, k.radius, 0);
-    consph_nnps_build(g, &p);
+    consph_sys sys;
     consph_op_ctx ctx;
-    CHECK(consph_op_ctx_init(&ctx, &p, g, &k, CONSPH_VOLUME_GIVEN) == CONSPH_OK, "ctx");
+    CHECK(make_sys(&lp, &k, &sys) /* periodic by default */ &&
+              consph_op_ctx_init_sys(&ctx, &sys, CONSPH_VOLUME_GIVEN) == CONSPH_OK,
+          "ctx: %s", consph_last_error());
     double u[20], d1[20];
     for (int i = 0; i < 20; ++i) u[i] = 1.0;
     CHECK(consph_op_boundary_1d(&ctx, u, 1.0, 1.0, d1, NULL, NULL) == CONSPH_EINVAL,
           "periodic interval must be rejected");
     consph_op_ctx_free(&ctx);
-    consph_nnps_free(g);
-    consph_particles_free(&p);
+    consph_sys_free(&sys);
     return check_summary("test_ops_boundary");
 }

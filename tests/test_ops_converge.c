@@ -100,21 +100,23 @@ static const triple triples[] = {
 static int run(size_t nx, double *err)
 {
     consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_LATTICE, 2, nx);
-    consph_particles p;
-    if (consph_layout_generate(&lp, &p, NULL) != CONSPH_OK) return 0;
+    consph_particles src;
+    if (consph_layout_generate(&lp, &src, NULL) != CONSPH_OK) return 0;
     consph_kernel k;
     consph_kernel_init(&k, CONSPH_KERNEL_QUINTIC, 2, 0.5 * sqrt(1.0 / (double)nx));
-    consph_nnps *g = consph_nnps_create(&p.box, k.radius, 0);
+    consph_sys sys;
     consph_op_ctx ctx;
-    int ok = g && consph_nnps_sort(g, &p, NULL) == CONSPH_OK &&
-             consph_op_ctx_init(&ctx, &p, g, &k, CONSPH_VOLUME_SUMMATION) == CONSPH_OK;
+    int have_sys = consph_sys_init(&sys, &src, &k, 0.0) == CONSPH_OK;
+    consph_particles_free(&src);
+    int ok = have_sys && consph_op_ctx_init_sys(&ctx, &sys, CONSPH_VOLUME_SUMMATION) == CONSPH_OK;
     if (ok) {
-        const size_t n = p.n;
+        const consph_particles *p = sys.p;
+        const size_t n = p->n;
         double *in = malloc(2 * n * sizeof(double)), *out = malloc(3 * n * sizeof(double));
         for (size_t t = 0; t < NTRIPLES && ok; ++t) {
             const triple *tr = &triples[t];
             for (size_t i = 0; i < n; ++i) {
-                double x = p.x[0][i], y = p.x[1][i];
+                double x = p->x[0][i], y = p->x[1][i];
                 in[i] = u_val(x, y);
                 /* divergence input: (u, u(y, x)) */
                 if (tr->op == CONSPH_OP_DIV) in[n + i] = u_val(y, x);
@@ -122,7 +124,7 @@ static int run(size_t nx, double *err)
             ok = consph_apply(&ctx, tr->op, tr->form, tr->corr, in, out, NULL) == CONSPH_OK;
             double worst = 0.0;
             for (size_t i = 0; ok && i < n; ++i) {
-                double x = p.x[0][i], y = p.x[1][i], gr[2], gs[2], h[3], ex[3];
+                double x = p->x[0][i], y = p->x[1][i], gr[2], gs[2], h[3], ex[3];
                 int ne = 1;
                 u_grad(x, y, gr);
                 u_hess(x, y, h);
@@ -160,8 +162,7 @@ static int run(size_t nx, double *err)
         free(out);
         consph_op_ctx_free(&ctx);
     }
-    consph_nnps_free(g);
-    consph_particles_free(&p);
+    if (have_sys) consph_sys_free(&sys);
     return ok;
 }
 

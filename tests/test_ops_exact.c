@@ -21,9 +21,9 @@
 #include "consph/ops.h"
 
 typedef struct setup {
-    consph_particles p;
+    consph_sys sys;
+    const consph_particles *p; /* sys.p */
     consph_kernel k;
-    consph_nnps *g;
     consph_op_ctx ctx;
     unsigned char *inner; /* support fully inside the box */
     const char *label;
@@ -39,21 +39,23 @@ static int make_setup(setup *s, consph_layout_kind kind, int dim, size_t nx, con
     lp.seed = 7;
     /* Exactness does not need a converged packing, only a glass-like disorder. */
     lp.packing.max_iter = 300;
-    if (generate_layout(&lp, &s->p) != CONSPH_OK) return 0;
+    consph_particles src;
+    if (generate_layout(&lp, &src) != CONSPH_OK) return 0;
     consph_kernel_id id;
-    if (consph_kernel_lookup(kname, &id) != CONSPH_OK) return 0;
-    if (consph_kernel_init(&s->k, id, dim, hdx / (double)nx) != CONSPH_OK) return 0;
-    s->g = consph_nnps_create(&s->p.box, s->k.radius, 0);
-    if (!s->g || consph_nnps_sort(s->g, &s->p, NULL) != CONSPH_OK) return 0;
-    if (consph_op_ctx_init(&s->ctx, &s->p, s->g, &s->k, CONSPH_VOLUME_SUMMATION) != CONSPH_OK)
-        return 0;
-    s->inner = calloc(s->p.n, 1);
+    int ok = consph_kernel_lookup(kname, &id) == CONSPH_OK &&
+             consph_kernel_init(&s->k, id, dim, hdx / (double)nx) == CONSPH_OK &&
+             consph_sys_init(&s->sys, &src, &s->k, 0.0) == CONSPH_OK;
+    consph_particles_free(&src);
+    if (!ok) return 0;
+    s->p = s->sys.p;
+    if (consph_op_ctx_init_sys(&s->ctx, &s->sys, CONSPH_VOLUME_SUMMATION) != CONSPH_OK) return 0;
+    s->inner = calloc(s->p->n, 1);
     size_t count = 0;
-    for (size_t i = 0; i < s->p.n; ++i) {
+    for (size_t i = 0; i < s->p->n; ++i) {
         int in = 1;
         for (int a = 0; a < dim; ++a) {
-            double x = s->p.x[a][i];
-            if (x < s->p.box.lo[a] + s->k.radius || x > s->p.box.hi[a] - s->k.radius) in = 0;
+            double x = s->p->x[a][i];
+            if (x < s->p->box.lo[a] + s->k.radius || x > s->p->box.hi[a] - s->k.radius) in = 0;
         }
         s->inner[i] = (unsigned char)in;
         count += in;
@@ -64,8 +66,7 @@ static int make_setup(setup *s, consph_layout_kind kind, int dim, size_t nx, con
 static void free_setup(setup *s)
 {
     consph_op_ctx_free(&s->ctx);
-    consph_nnps_free(s->g);
-    consph_particles_free(&s->p);
+    consph_sys_free(&s->sys);
     free(s->inner);
 }
 
@@ -94,10 +95,10 @@ static void poly_grad(const poly *q, int d, const double *x, double *g)
 
 static void fill(const setup *s, const poly *q, double *f)
 {
-    int d = s->p.dim;
-    for (size_t i = 0; i < s->p.n; ++i) {
+    int d = s->p->dim;
+    for (size_t i = 0; i < s->p->n; ++i) {
         double x[3];
-        for (int a = 0; a < d; ++a) x[a] = s->p.x[a][i];
+        for (int a = 0; a < d; ++a) x[a] = s->p->x[a][i];
         f[i] = poly_value(q, d, x);
     }
 }
@@ -106,8 +107,8 @@ static void fill(const setup *s, const poly *q, double *f)
 static double max_err(setup *s, consph_op op, consph_op_form form, consph_op_corr corr,
                       const poly *q)
 {
-    const int d = s->p.dim;
-    const size_t n = s->p.n;
+    const int d = s->p->dim;
+    const size_t n = s->p->n;
     int nin = consph_op_ncomp_in(op, d), nout = consph_op_ncomp_out(op, d);
     double *in = calloc(n * (size_t)nin, sizeof(double));
     double *out = calloc(n * (size_t)nout, sizeof(double));
@@ -115,7 +116,7 @@ static double max_err(setup *s, consph_op op, consph_op_form form, consph_op_cor
         /* u_a = q + a x_a: ∇·u = Σ_a (∂_a q + a) */
         for (size_t i = 0; i < n; ++i) {
             double x[3];
-            for (int a = 0; a < d; ++a) x[a] = s->p.x[a][i];
+            for (int a = 0; a < d; ++a) x[a] = s->p->x[a][i];
             for (int a = 0; a < d; ++a) in[(size_t)a * n + i] = poly_value(q, d, x) + a * x[a];
         }
     } else {
@@ -130,7 +131,7 @@ static double max_err(setup *s, consph_op op, consph_op_form form, consph_op_cor
     for (size_t i = 0; i < n; ++i) {
         if (!s->inner[i]) continue;
         double x[3], g[3], ex[6] = {0};
-        for (int a = 0; a < d; ++a) x[a] = s->p.x[a][i];
+        for (int a = 0; a < d; ++a) x[a] = s->p->x[a][i];
         poly_grad(q, d, x, g);
         int ne = nout;
         switch (op) {
@@ -179,7 +180,7 @@ static void check_exact(setup *s, consph_op op, consph_op_form form, consph_op_c
 
 static void run_case(setup *s)
 {
-    const int d = s->p.dim;
+    const int d = s->p->dim;
     poly cst = {0}, lin = {0};
     cst.c0 = 1.7;
     lin.c0 = 0.3;
@@ -260,14 +261,14 @@ static void run_case(setup *s)
                 "|x|^2");
     printf("%s: %zu particles; errors on quadratics: fatehi_c %.3e, cspm %.3e; on linear: "
            "sym2_lc %.3e, f2 %.3e\n",
-           s->label, s->p.n, fc_worst, cspm_worst, e_sym2, e_f2);
+           s->label, s->p->n, fc_worst, cspm_worst, e_sym2, e_f2);
 }
 
 /* On an unperturbed lattice every neighbourhood is point-symmetric: the odd moments vanish and
  * the CSPM second derivatives become exact on quadratics. */
 static void lattice_case(setup *s)
 {
-    const int d = s->p.dim;
+    const int d = s->p->dim;
     poly q = {0};
     q.c0 = 0.5;
     q.b[0] = 1.0;

@@ -87,26 +87,20 @@ void consph_approx_exact(const consph_approx_spec *s, const double *x, double rh
     }
 }
 
-static double mean_neighbours(const consph_nnps *g, size_t n)
+static void visit_none(void *job, const consph_nbhd *nb)
 {
-    size_t total = 0;
-    int failed = 0;
-#pragma omp parallel reduction(+ : total) reduction(| : failed)
-    {
-        consph_nbrs nb;
-        memset(&nb, 0, sizeof nb);
-#pragma omp for schedule(static)
-        for (size_t i = 0; i < n; ++i) {
-            size_t c = consph_nnps_query_particle(g, i, &nb);
-            if (c == (size_t)-1)
-                failed = 1;
-            else
-                total += c - 1; /* self excluded */
-        }
-        consph_nbrs_free(&nb);
-    }
-    if (failed) return NAN;
-    return n ? (double)total / (double)n : 0.0;
+    (void)job;
+    (void)nb;
+}
+
+/* The mean neighbour count, self excluded: a pass that only counts its pairs. */
+static double mean_neighbours(const consph_sys *sys)
+{
+    const consph_pass count = {"neighbour count", CONSPH_PASS_NO_DX, visit_none};
+    const size_t n = sys->p->n;
+    size_t pairs = 0;
+    if (consph_pass_run_counted(sys, &count, NULL, &pairs) != CONSPH_OK) return NAN;
+    return n ? (double)(pairs - n) / (double)n : 0.0;
 }
 
 static int compare_doubles(const void *a, const void *b)
@@ -170,16 +164,13 @@ int consph_approx_run_particles(const consph_approx_spec *s, const consph_partic
     if (src->dim != dim)
         return consph_fail(CONSPH_EINVAL, "particles have dimension %d, the study %d", src->dim,
                            dim);
-    consph_particles p;
-    consph_nnps *g = NULL;
+    consph_sys sys;
+    int have_sys = 0;
     consph_op_ctx ctx;
     int have_ctx = 0;
     double *in = NULL, *out = NULL, *exact = NULL;
     unsigned char *mask = NULL;
-    /* A copy, because the neighbour search sorts the particles into cell order. */
-    rc = consph_particles_copy(&p, src);
-    if (rc) return rc;
-    const size_t n = p.n;
+    const size_t n = src->n;
     row->nx = nx;
     row->n = n;
     row->layout_spread = NAN;
@@ -187,23 +178,21 @@ int consph_approx_run_particles(const consph_approx_spec *s, const consph_partic
     double h;
     if (s->h_policy == CONSPH_H_SCALING) {
         /* 003 states h = N^(-1/6) for the unit box; scale with the box for other sizes. */
-        double vol = consph_box_volume(&p.box);
+        double vol = consph_box_volume(&src->box);
         h = consph_scaling_h((double)n) * pow(vol, 1.0 / dim);
     } else {
-        h = s->hdx * p.spacing;
+        h = s->hdx * src->spacing;
     }
     row->h = h;
     consph_kernel k;
     rc = consph_kernel_init(&k, s->kernel, dim, h);
     if (rc) goto done;
-    g = consph_nnps_create(&p.box, k.radius, 0);
-    if (!g) {
-        rc = CONSPH_ENOMEM;
-        goto done;
-    }
-    rc = consph_nnps_sort(g, &p, NULL);
+    /* The system works on a copy in cell order. */
+    rc = consph_sys_init(&sys, src, &k, 0.0);
     if (rc) goto done;
-    rc = consph_op_ctx_init(&ctx, &p, g, &k, s->volume);
+    have_sys = 1;
+    const consph_particles *p = sys.p;
+    rc = consph_op_ctx_init_sys(&ctx, &sys, s->volume);
     if (rc) goto done;
     have_ctx = 1;
 
@@ -218,7 +207,7 @@ int consph_approx_run_particles(const consph_approx_spec *s, const consph_partic
     }
     for (size_t i = 0; i < n; ++i) {
         double x[CONSPH_MAX_DIM] = {0, 0, 0}, e[CONSPH_MAX_DIM * CONSPH_MAX_DIM];
-        for (int a = 0; a < dim; ++a) x[a] = p.x[a][i];
+        for (int a = 0; a < dim; ++a) x[a] = p->x[a][i];
         consph_mfield_value v;
         consph_mfield_eval(s->field, dim, &s->field_params, x, &v);
         for (int c = 0; c < nin; ++c) in[(size_t)c * n + i] = v.f[c];
@@ -227,8 +216,8 @@ int consph_approx_run_particles(const consph_approx_spec *s, const consph_partic
         int inside = 1;
         if (s->interior_only)
             for (int a = 0; a < dim; ++a)
-                if (!p.box.periodic[a] &&
-                    (x[a] - p.box.lo[a] < k.radius || p.box.hi[a] - x[a] < k.radius))
+                if (!p->box.periodic[a] &&
+                    (x[a] - p->box.lo[a] < k.radius || p->box.hi[a] - x[a] < k.radius))
                     inside = 0;
         mask[i] = (unsigned char)inside;
     }
@@ -240,7 +229,7 @@ int consph_approx_run_particles(const consph_approx_spec *s, const consph_partic
     rc = consph_error_norms_compute(out, exact, n, nout, mask, &row->err);
     if (rc) goto done;
     row->ft_over_fmax = consph_total_force_ratio(out, n, mask);
-    row->nbr_mean = mean_neighbours(g, n);
+    row->nbr_mean = mean_neighbours(&sys);
     if (s->timing_runs > 1) rc = time_operator(s, &ctx, in, out, &row->seconds);
 
 done:
@@ -249,7 +238,6 @@ done:
     free(exact);
     free(mask);
     if (have_ctx) consph_op_ctx_free(&ctx);
-    consph_nnps_free(g);
-    consph_particles_free(&p);
+    if (have_sys) consph_sys_free(&sys);
     return rc;
 }

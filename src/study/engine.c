@@ -915,43 +915,40 @@ typedef struct m0_row {
 static int m0_measure(const series_plan *pl, const consph_particles *src, size_t nx, int nbins,
                       double lo, double hi, m0_row *row)
 {
-    consph_particles p;
-    int rc = consph_particles_copy(&p, src);
-    if (rc) return rc;
     consph_kernel k;
-    consph_nnps *g = NULL;
+    consph_sys sys;
+    int have_sys = 0;
     consph_op_ctx ctx;
     int have_ctx = 0;
     double *m0 = NULL, *inner = NULL;
+    int rc;
     row->nx = nx;
-    row->n = p.n;
-    row->h = smoothing_length(&pl->spec, &p);
-    if ((rc = consph_kernel_init(&k, pl->spec.kernel, p.dim, row->h))) goto done;
-    if (!(g = consph_nnps_create(&p.box, k.radius, 0))) {
-        rc = CONSPH_ENOMEM;
-        goto done;
-    }
-    if ((rc = consph_nnps_sort(g, &p, NULL))) goto done;
-    if ((rc = consph_op_ctx_init(&ctx, &p, g, &k, pl->spec.volume))) goto done;
+    row->n = src->n;
+    row->h = smoothing_length(&pl->spec, src);
+    if ((rc = consph_kernel_init(&k, pl->spec.kernel, src->dim, row->h))) goto done;
+    if ((rc = consph_sys_init(&sys, src, &k, 0.0))) goto done;
+    have_sys = 1;
+    const consph_particles *p = sys.p;
+    if ((rc = consph_op_ctx_init_sys(&ctx, &sys, pl->spec.volume))) goto done;
     have_ctx = 1;
-    m0 = consph_calloc(p.n, sizeof(double));
-    inner = consph_calloc(p.n, sizeof(double));
+    m0 = consph_calloc(p->n, sizeof(double));
+    inner = consph_calloc(p->n, sizeof(double));
     if (!m0 || !inner) {
         rc = CONSPH_ENOMEM;
         goto done;
     }
     consph_op_report rep;
     if ((rc = consph_op_moments(&ctx, m0, NULL, NULL, NULL, &rep))) goto done;
-    row->nbr = (double)rep.pairs / (double)p.n - 1.0;
-    if ((rc = consph_histogram(m0, p.n, lo, hi, nbins, row->counts, NULL, NULL, &row->mean,
+    row->nbr = (double)rep.pairs / (double)p->n - 1.0;
+    if ((rc = consph_histogram(m0, p->n, lo, hi, nbins, row->counts, NULL, NULL, &row->mean,
                                &row->std)))
         goto done;
     size_t m = 0;
-    for (size_t i = 0; i < p.n; ++i) {
+    for (size_t i = 0; i < p->n; ++i) {
         int in = 1;
-        for (int a = 0; a < p.dim; ++a)
-            if (!p.box.periodic[a] &&
-                (p.x[a][i] - p.box.lo[a] < k.radius || p.box.hi[a] - p.x[a][i] < k.radius))
+        for (int a = 0; a < p->dim; ++a)
+            if (!p->box.periodic[a] &&
+                (p->x[a][i] - p->box.lo[a] < k.radius || p->box.hi[a] - p->x[a][i] < k.radius))
                 in = 0;
         if (in) inner[m++] = m0[i];
     }
@@ -968,8 +965,7 @@ done:
     free(m0);
     free(inner);
     if (have_ctx) consph_op_ctx_free(&ctx);
-    consph_nnps_free(g);
-    consph_particles_free(&p);
+    if (have_sys) consph_sys_free(&sys);
     return rc;
 }
 
@@ -1097,16 +1093,36 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
 /* The untruncated Gaussian of 003 eq. C.1, cut where it falls below 1e-21 of its peak. */
 #define APPC_CUT 7.0
 
-static double appc_sum(const consph_particles *p, size_t i, const consph_nnps *g, double h,
-                       const double *f, consph_nbrs *nb)
+typedef struct appc_job {
+    const double *f; /* per particle, in system order */
+    double h, spacing, sum;
+} appc_job;
+
+static void appc_visit(void *job, const consph_nbhd *nb)
 {
-    size_t c = consph_nnps_query_particle(g, i, nb);
+    appc_job *a = job;
     double s = 0.0;
-    for (size_t k = 0; k < c; ++k) {
-        double q = nb->r[k] / h;
-        s += f[nb->j[k]] * p->spacing * exp(-q * q) / (sqrt(M_PI) * h);
+    for (size_t k = 0; k < nb->n; ++k) {
+        double q = nb->r[k] / a->h;
+        s += a->f[nb->j[k]] * a->spacing * exp(-q * q) / (sqrt(M_PI) * a->h);
     }
-    return s;
+    a->sum = s;
+}
+
+/* The Gaussian sum at the one particle that was `at` in the generated set: a pass over a
+ * destination mask of that particle, reading only the distances (the Gaussian is evaluated
+ * untruncated, not through the system's kernel, which only sets the search). */
+static int appc_sum(consph_sys *sys, size_t at, appc_job *job)
+{
+    const size_t n = sys->p->n;
+    unsigned char *dest = consph_calloc(n, 1);
+    if (!dest) return CONSPH_ENOMEM;
+    for (size_t i = 0; i < n; ++i) dest[i] = sys->origin[i] == at;
+    int rc = consph_sys_set_dest(sys, dest);
+    free(dest);
+    const consph_pass pass = {"appc Gaussian sum", CONSPH_PASS_NO_DX, appc_visit};
+    job->sum = NAN;
+    return rc ? rc : consph_pass_run(sys, &pass, job);
 }
 
 static int run_appc_figure(const consph_study *s, const study_figure *f, int quick, const char *dir,
@@ -1128,27 +1144,30 @@ static int run_appc_figure(const consph_study *s, const study_figure *f, int qui
             consph_particles p;
             if ((rc = consph_layout_generate(&lp, &p, NULL))) break;
             double h = hd * p.spacing;
-            consph_nnps *g = consph_nnps_create(&p.box, APPC_CUT * h, 0);
-            double *fv = consph_calloc(p.n, sizeof(double));
-            consph_nbrs nb;
-            memset(&nb, 0, sizeof nb);
-            if (!g || !fv || consph_nnps_build(g, &p) != CONSPH_OK) {
-                rc = CONSPH_ENOMEM;
-            } else if (periodic) {
+            consph_kernel k;
+            consph_sys sys;
+            memset(&sys, 0, sizeof sys);
+            double *fv = NULL;
+            appc_job job = {NULL, h, p.spacing, NAN};
+            rc = consph_kernel_init(&k, CONSPH_KERNEL_GAUSSIAN, 1, h);
+            if (rc == CONSPH_OK) rc = consph_sys_init(&sys, &p, &k, APPC_CUT * h);
+            if (rc == CONSPH_OK && !(fv = consph_calloc(p.n, sizeof(double)))) rc = CONSPH_ENOMEM;
+            if (rc == CONSPH_OK && periodic) {
                 for (size_t i = 0; i < p.n; ++i) fv[i] = 1.0;
-                per[j] = appc_sum(&p, 0, g, h, fv, &nb) - 1.0;
-            } else {
+                job.f = fv;
+                if ((rc = appc_sum(&sys, 0, &job)) == CONSPH_OK) per[j] = job.sum - 1.0;
+            } else if (rc == CONSPH_OK) {
                 /* f = α + βx at the central particle, whose cut support lies inside the box. */
-                for (size_t i = 0; i < p.n; ++i) fv[i] = 1.0 + 2.0 * p.x[0][i];
                 size_t c = p.n / 2;
+                for (size_t i = 0; i < p.n; ++i) fv[i] = 1.0 + 2.0 * sys.p->x[0][i];
+                job.f = fv;
                 if (APPC_CUT * h >= 0.5)
                     rc = consph_fail(CONSPH_EINVAL, "appc: h too large");
-                else
-                    lin[j] = appc_sum(&p, c, g, h, fv, &nb) / fv[c] - 1.0;
+                else if ((rc = appc_sum(&sys, c, &job)) == CONSPH_OK)
+                    lin[j] = job.sum / (1.0 + 2.0 * p.x[0][c]) - 1.0;
             }
-            consph_nbrs_free(&nb);
             free(fv);
-            consph_nnps_free(g);
+            consph_sys_free(&sys);
             consph_particles_free(&p);
         }
         if (log && rc == CONSPH_OK)
