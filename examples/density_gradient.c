@@ -15,7 +15,8 @@
 
 typedef struct job {
     const double *f;
-    double mass, vol, *rho, *grad, *shepard; /* grad, shepard: 2 per particle */
+    double mass, vol, *rho, *grad, *shepard; /* grad, shepard: 2 components, component-major */
+    size_t stride;                           /* of a field's components: the particles' cap */
 } job;
 
 static void visit(void *data, const consph_nbhd *nb)
@@ -36,10 +37,10 @@ static void visit(void *data, const consph_nbhd *nb)
     /* G = Mᵀ ∇f for a linear field: solve with the transpose. */
     const double det = m[0][0] * m[1][1] - m[0][1] * m[1][0];
     jb->rho[i] = rho;
-    jb->grad[2 * i] = (m[1][1] * g[0] - m[1][0] * g[1]) / det;
-    jb->grad[2 * i + 1] = (m[0][0] * g[1] - m[0][1] * g[0]) / det;
-    jb->shepard[2 * i] = g[0] / s;
-    jb->shepard[2 * i + 1] = g[1] / s;
+    jb->grad[i] = (m[1][1] * g[0] - m[1][0] * g[1]) / det;
+    jb->grad[jb->stride + i] = (m[0][0] * g[1] - m[0][1] * g[0]) / det;
+    jb->shepard[i] = g[0] / s;
+    jb->shepard[jb->stride + i] = g[1] / s;
 }
 
 int main(void)
@@ -66,7 +67,8 @@ int main(void)
     double *shep = consph_particles_field(sys.p, "grad_f_shepard", 2);
     if (!f || !rho || !grad || !shep) return 1;
     for (size_t i = 0; i < n; ++i) f[i] = 1.0 + gx * p->x[0][i] + gy * p->x[1][i];
-    job jb = {f, rho0 * vol, vol, rho, grad, shep};
+    const size_t c = p->cap;
+    job jb = {f, rho0 * vol, vol, rho, grad, shep, c};
     const consph_pass pass = {"density + gradient", CONSPH_PASS_W | CONSPH_PASS_DW, visit};
     if (consph_pass_run(&sys, &pass, &jb)) {
         fprintf(stderr, "density_gradient: %s\n", consph_last_error());
@@ -78,8 +80,8 @@ int main(void)
         const double x = p->x[0][i], y = p->x[1][i], r = k.radius;
         if (x < r || x > 1.0 - r || y < r || y > 1.0 - r) continue;
         spread = fmax(spread, fabs(rho[i] / rho0 - 1.0));
-        err = fmax(err, fmax(fabs(grad[2 * i] - gx), fabs(grad[2 * i + 1] - gy)));
-        err_shep = fmax(err_shep, fmax(fabs(shep[2 * i] - gx), fabs(shep[2 * i + 1] - gy)));
+        err = fmax(err, fmax(fabs(grad[i] - gx), fabs(grad[c + i] - gy)));
+        err_shep = fmax(err_shep, fmax(fabs(shep[i] - gx), fabs(shep[c + i] - gy)));
     }
     printf("particles %zu\ndensity_spread %.3e\ngradient_error %.3e\nshepard_gradient_error %.3e\n",
            n, spread, err, err_shep);
