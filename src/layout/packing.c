@@ -182,89 +182,65 @@ static inline double repulsion_coef(const repulsion *rp, double r)
 }
 
 typedef struct force_params {
-    const consph_kernel *glass;  /* stage 1: quintic, h = 1.2Δs */
-    const consph_kernel *target; /* the caller's kernel: stopping test and stage 2 */
+    const consph_sys *glass_sys;  /* stage 1: quintic, h = 1.2Δs */
+    const consph_sys *target_sys; /* the caller's kernel: stopping test and stage 2 */
     double mass;
     int polish; /* 0: stage 1, background pressure; 1: stage 2, density-error gradient */
     repulsion rep;
 } force_params;
 
-/* rho (caller's kernel) and, when it differs, rho_glass (stage-1 kernel) in one neighbour pass;
- * rho_glass is needed only in stage 1. */
-static int compute_density(const consph_nnps *grid, const force_params *fp, pack_work *w,
-                           layout_nbr_pool *pool)
+/* rho (caller's kernel) and, when it differs, rho_glass (stage-1 kernel); rho_glass is needed only
+ * in stage 1. */
+static int compute_density(const force_params *fp, pack_work *w)
 {
-    double *rho_glass = fp->polish ? NULL : w->rho_glass;
-    if (!rho_glass)
-        return consph_layout_density(grid, fp->target, w->n, fp->mass, pool, w->rho, NULL);
-    int failed = 0;
-#pragma omp parallel num_threads(pool->count)
-    {
-        consph_nbrs *nb = &pool->nbrs[layout_thread_id()];
-#pragma omp for schedule(static)
-        for (size_t i = 0; i < w->n; ++i) {
-            size_t count = consph_nnps_query_particle(grid, i, nb);
-            if (count == (size_t)-1) {
-#pragma omp atomic write
-                failed = 1;
-                continue;
-            }
-            double wt = 0.0, wg = 0.0;
-            for (size_t q = 0; q < count; ++q) {
-                wt += consph_kernel_w(fp->target, nb->r[q]);
-                wg += consph_kernel_w(fp->glass, nb->r[q]);
-            }
-            w->rho[i] = fp->mass * wt;
-            rho_glass[i] = fp->mass * wg;
-        }
-    }
-    if (failed) return consph_fail(CONSPH_ENOMEM, "layout packed: neighbour query out of memory");
-    return CONSPH_OK;
+    int rc = consph_layout_density(fp->target_sys, fp->mass, w->rho, NULL);
+    if (!rc && !fp->polish && w->rho_glass)
+        rc = consph_layout_density(fp->glass_sys, fp->mass, w->rho_glass, NULL);
+    return rc;
 }
 
-/* Stage 1: a_i = -(p_b/m) V_i sum_j V_j ∇_i W_ij + repulsion, with ∇_i W_ij = W'(r) x_ij / r.
+typedef struct accel_job {
+    const force_params *fp;
+    pack_work *w;
+    const double *rho;
+} accel_job;
+
+/* Stage 1: a_i = -(p_b/m) V_i sum_j V_j ∇_i W_ij + repulsion, with ∇_i W_ij = (W'/r) x_ij.
  * Stage 2: a_i = -(K/rho0^2) m sum_j (e_i + e_j) ∇_i W_ij + repulsion. */
-static int compute_acceleration(const consph_nnps *grid, const force_params *fp, pack_work *w,
-                                layout_nbr_pool *pool)
+static void accel_visit(void *job, const consph_nbhd *nb)
 {
-    int failed = 0;
+    const accel_job *jb = job;
+    const force_params *fp = jb->fp;
+    pack_work *w = jb->w;
+    const double *rho = jb->rho;
     const int dim = w->dim;
-    const consph_kernel *k = fp->polish ? fp->target : fp->glass;
-    const double *rho = (fp->polish || !w->rho_glass) ? w->rho : w->rho_glass;
     const double mass = fp->mass, rho0 = packing_rho0;
-#pragma omp parallel num_threads(pool->count)
-    {
-        consph_nbrs *nb = &pool->nbrs[layout_thread_id()];
-#pragma omp for schedule(static)
-        for (size_t i = 0; i < w->n; ++i) {
-            size_t count = consph_nnps_query_particle(grid, i, nb);
-            if (count == (size_t)-1) {
-#pragma omp atomic write
-                failed = 1;
-                continue;
-            }
-            double sum[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
-            double rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
-            const double ei = rho[i] / rho0 - 1.0;
-            for (size_t q = 0; q < count; ++q) {
-                double r = nb->r[q];
-                if (!(r > 0.0)) continue;
-                double rho_j = rho[nb->j[q]];
-                double weight = fp->polish ? ei + (rho_j / rho0 - 1.0) : mass / rho_j;
-                double f = weight * consph_kernel_dw(k, r) / r;
-                for (int a = 0; a < dim; ++a) sum[a] += f * nb->dx[a][q];
-                if (r < fp->rep.range) {
-                    double g = repulsion_coef(&fp->rep, r);
-                    for (int a = 0; a < dim; ++a) rep[a] += g * nb->dx[a][q];
-                }
-            }
-            double coef = fp->polish ? -packing_polish_k * packing_pb / (rho0 * rho0) * mass
-                                     : -packing_pb * (mass / rho[i]) / mass;
-            for (int a = 0; a < dim; ++a) w->acc[a][i] = coef * sum[a] + rep[a];
+    const size_t i = nb->i;
+    double sum[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+    double rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+    const double ei = rho[i] / rho0 - 1.0;
+    for (size_t q = 0; q < nb->n; ++q) {
+        double r = nb->r[q];
+        if (!(r > 0.0)) continue;
+        double rho_j = rho[nb->j[q]];
+        double weight = fp->polish ? ei + (rho_j / rho0 - 1.0) : mass / rho_j;
+        double f = weight * nb->dwr[q];
+        for (int a = 0; a < dim; ++a) sum[a] += f * nb->dx[a][q];
+        if (r < fp->rep.range) {
+            double g = repulsion_coef(&fp->rep, r);
+            for (int a = 0; a < dim; ++a) rep[a] += g * nb->dx[a][q];
         }
     }
-    if (failed) return consph_fail(CONSPH_ENOMEM, "layout packed: neighbour query out of memory");
-    return CONSPH_OK;
+    double coef = fp->polish ? -packing_polish_k * packing_pb / (rho0 * rho0) * mass
+                             : -packing_pb * (mass / rho[i]) / mass;
+    for (int a = 0; a < dim; ++a) w->acc[a][i] = coef * sum[a] + rep[a];
+}
+
+static int compute_acceleration(const force_params *fp, pack_work *w)
+{
+    accel_job job = {fp, w, (fp->polish || !w->rho_glass) ? w->rho : w->rho_glass};
+    const consph_pass pass = {"packing force", CONSPH_PASS_DW, accel_visit};
+    return consph_pass_run(fp->polish ? fp->target_sys : fp->glass_sys, &pass, &job);
 }
 
 /* Damped symplectic Euler step, then wrap into the periodic box. */
@@ -317,8 +293,6 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
     if (rc) return rc;
     const int same_kernel = id == CONSPH_KERNEL_QUINTIC && pp->hdx == 1.2;
     force_params fp;
-    fp.glass = &glass;
-    fp.target = &target;
     fp.mass = packing_rho0 * pow(ds, dim);
     fp.polish = 0;
     fp.rep.k = (dim == 3 ? 0.006 : 0.004) * ds;
@@ -343,10 +317,14 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
     pack_work w;
     rc = work_alloc(&w, p->n, dim, !same_kernel);
     if (rc) return rc;
-    layout_nbr_pool pool = {0, NULL};
     consph_nnps *grid = consph_nnps_create(&p->box, fmax(glass.radius, target.radius), 0);
+    consph_sys glass_sys, target_sys;
     if (!grid) rc = CONSPH_ENOMEM;
-    if (!rc) rc = consph_layout_pool_init(&pool);
+    /* Both systems share the particles and the search, rebuilt in place every step. */
+    if (!rc) rc = consph_sys_wrap(&glass_sys, p, grid, &glass);
+    if (!rc) rc = consph_sys_wrap(&target_sys, p, grid, &target);
+    fp.glass_sys = &glass_sys;
+    fp.target_sys = &target_sys;
 
     int iter = 0, best_iter = 0;
     double best = INFINITY, spread = INFINITY;
@@ -360,7 +338,7 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
             rc = consph_nnps_build(grid, p);
             if (rc) break;
         }
-        rc = compute_density(grid, &fp, &w, &pool);
+        rc = compute_density(&fp, &w);
         if (rc) break;
         spread = consph_layout_spread(w.rho, w.n, packing_rho0);
         if (!isfinite(spread)) {
@@ -386,7 +364,7 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
                 if (report) report->polish_start = iter;
             }
         }
-        rc = compute_acceleration(grid, &fp, &w, &pool);
+        rc = compute_acceleration(&fp, &w);
         if (rc) break;
         advance(p, &w, fp.polish ? dt_polish : dt_glass, nu);
     }
@@ -397,7 +375,6 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
         report->seconds = consph_wtime() - t0;
     }
     consph_nnps_free(grid);
-    consph_layout_pool_free(&pool);
     work_free(&w);
     return rc;
 }
