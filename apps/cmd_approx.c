@@ -195,7 +195,7 @@ int cmd_approx(int argc, char **argv)
     const char *form = NULL, *corr = "none", *kernel = "quintic", *field = NULL;
     const char *particles = NULL, *box_text = NULL, *periodic_text = "yes";
     double hdx = 1.2, eps = 0.2, sigma = 0.1, tol = 1e-4;
-    long dim = 2, seed = 1, max_iter = 5000;
+    long dim = 2, seed = 1, max_iter = 0; /* 0: the layout kind's default */
     cli_list nx = {0, {0}};
     char volume_choices[128] = "";
     for (int v = 0; v < CONSPH_VOLUME_COUNT; ++v) {
@@ -218,7 +218,7 @@ int cmd_approx(int argc, char **argv)
         {"--h-policy", CLI_CHOICE, &hpol, "P",
          "hdx: h = R dx; scaling: h = N^(-1/6) as in 003 section 6.2", "hdx,scaling", 0, 0, 0},
         {"--layout", CLI_CHOICE, &layout_idx, "L", "particle layout (default lattice)",
-         "lattice,random,quasi-random,packed", 0, 0, 0},
+         consph_layout_names(), 0, 0, 0},
         {"--dim", CLI_INT, &dim, "D",
          "dimension (default 2; with --particles: the files', checked when given)", NULL, 1, 3, 0},
         {"--nx", CLI_INT_LIST, &nx, "N,N,...", "particles per axis, one row each", NULL, 2, 100000,
@@ -248,10 +248,11 @@ int cmd_approx(int argc, char **argv)
          0, 2, 0},
         {"--seed", CLI_INT, &seed, "S", "random/packed layout seed (default 1)", NULL, 0, 1e15, 0},
         {"--sigma", CLI_DOUBLE, &sigma, "S", "delta field: width (default 0.1)", NULL, 1e-6, 10, 0},
-        {"--pack-tol", CLI_DOUBLE, &tol, "T", "packed layout: density tolerance (default 1e-4)",
-         NULL, 1e-12, 1, 0},
-        {"--pack-iter", CLI_INT, &max_iter, "M", "packed layout: iteration cap (default 5000)",
-         NULL, 1, 1e7, 0},
+        {"--pack-tol", CLI_DOUBLE, &tol, "T",
+         "packed-polished layout: density tolerance (default 1e-4)", NULL, 1e-12, 1, 0},
+        {"--pack-iter", CLI_INT, &max_iter, "M",
+         "packed layouts: iteration cap (default 40000 packed, 5000 packed-polished)", NULL, 1, 1e7,
+         0},
         {"--format", CLI_CHOICE, &fmt, "F",
          "table (with fitted orders), csv (stable columns) or json (rows and orders)",
          FORMAT_CHOICES, 0, 0, 0},
@@ -410,7 +411,7 @@ int cmd_approx(int argc, char **argv)
     s.layout.seed = (uint64_t)seed;
     s.layout.eps = eps;
     s.layout.packing.tol = tol;
-    s.layout.packing.max_iter = (int)max_iter;
+    if (max_iter > 0) s.layout.packing.max_iter = (int)max_iter;
     s.layout.box = consph_box_unit((int)dim, 0);
     for (int a = 0; a < dim; ++a) s.layout.box.periodic[a] = periodic[a];
     s.field_params.sigma = sigma;
@@ -481,12 +482,17 @@ int cmd_approx(int argc, char **argv)
                 fprintf(stderr, "consph approx: nx = %.0f: %s\n", nx.v[r], consph_last_error());
                 goto out;
             }
-            if (rows[r].layout_spread > tol)
+            if (s.layout.kind == CONSPH_LAYOUT_PACKED_POLISHED && rows[r].layout_spread > tol)
                 fprintf(stderr,
-                        "consph approx: warning: nx = %.0f: packing stopped at --pack-iter %ld "
+                        "consph approx: warning: nx = %.0f: packing stopped at --pack-iter %d "
                         "with max|rho/rho0-1| = %.3g above --pack-tol %g; the particles are "
                         "less uniform than asked\n",
-                        nx.v[r], max_iter, rows[r].layout_spread, tol);
+                        nx.v[r], s.layout.packing.max_iter, rows[r].layout_spread, tol);
+            if (s.layout.kind == CONSPH_LAYOUT_PACKED && !rows[r].layout_converged)
+                fprintf(stderr,
+                        "consph approx: warning: nx = %.0f: packing stopped at --pack-iter %d "
+                        "before the particles stopped moving (max|rho/rho0-1| = %.3g)\n",
+                        nx.v[r], s.layout.packing.max_iter, rows[r].layout_spread);
             res[r] = (double)rows[r].nx;
         }
         const consph_approx_row *w = &rows[r];

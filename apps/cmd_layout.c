@@ -18,13 +18,18 @@ static const char layout_details[] =
     "                reproducible for a given --seed\n"
     "  quasi-random  Halton points (bases 2, 3, 5; sequence indices 1..N^D, index 0 skipped)\n"
     "                filling the box (003 §6.2); spacing (V/N)^(1/D)\n"
-    "  packed        001's PP arrangement: the lattice perturbed by up to --perturb Δs per\n"
-    "                coordinate, relaxed into a glass by the particle packing of Negi &\n"
-    "                Ramachandran (2021) (background pressure, short-range repulsion and\n"
-    "                damping with the quintic at h = 1.2Δs), then polished by a damped descent\n"
-    "                of sum_i (rho_i/rho0 - 1)^2 with --kernel and --hdx, until\n"
-    "                max|rho/rho0 - 1| < --tol or --max-iter steps. Needs a periodic box.\n"
-    "                Perturbations below about 0.35 relax back to the lattice instead of a glass.\n"
+    "  packed        001's PP arrangement as [51] (Negi & Ramachandran 2021) and its authors'\n"
+    "                code (PySPH particle_packing.py) make it: the lattice perturbed by up to\n"
+    "                --perturb Δs per coordinate, relaxed by damped motion under a background\n"
+    "                pressure and a short-range repulsion with --kernel and --hdx (quintic,\n"
+    "                1.2), explicit Euler steps, until the particles stop moving: every 50\n"
+    "                steps, from the 11th test on, 100 max|u| Δt / h <= --move-tol; or\n"
+    "                --max-iter steps (default 40000). Needs a periodic box.\n"
+    "  packed-polished  consph's two-stage relaxation: that packing (with the quintic at\n"
+    "                h = 1.2Δs, symplectic steps) until it stalls, then a damped descent of\n"
+    "                sum_i (rho_i/rho0 - 1)^2 with --kernel and --hdx, until\n"
+    "                max|rho/rho0 - 1| < --tol or --max-iter steps (default 5000).\n"
+    "                For both, perturbations below about 0.35 relax back to the lattice.\n"
     "\n"
     "Every kind adds the per-particle field 'volume' = box volume / particle count. The printed\n"
     "statistics use the summation density rho_i = sum_j m W_ij with m = Δs^D (rho0 = 1) and the\n"
@@ -122,14 +127,21 @@ static int layout_from_file(const cli_command *cmd, const char *in, const char *
     return rc ? 1 : 0;
 }
 
-static void print_report(const consph_packing_report *r, double tol)
+static void print_report(const consph_packing_report *r, const consph_layout_params *lp)
 {
-    int converged = r->rho_spread_final < tol;
-    printf("packing: %d iterations in %.3f s, max|rho/rho0-1| %.3e -> %.3e (tol %.1e, %s)\n",
-           r->iterations, r->seconds, r->rho_spread_initial, r->rho_spread_final, tol,
-           converged ? "converged" : "NOT converged: --max-iter reached");
+    const int converged = r->converged, polished = lp->kind == CONSPH_LAYOUT_PACKED_POLISHED;
+    printf("packing: %d iterations in %.3f s, max|rho/rho0-1| %.3e -> %.3e", r->iterations,
+           r->seconds, r->rho_spread_initial, r->rho_spread_final);
+    if (polished)
+        printf(" (tol %.1e, %s)\n", lp->packing.tol,
+               converged ? "converged" : "NOT converged: --max-iter reached");
+    else
+        printf(" (100 max|u| dt/h %.3g, move-tol %.1e, %s)\n", r->move_final, lp->packing.move_tol,
+               converged ? "converged" : "NOT converged: --max-iter reached");
     if (r->iterations == 0)
         printf("  no packing step (--max-iter 0): the initial arrangement, unrelaxed\n");
+    else if (!polished)
+        printf("  the single stage of [51]\n");
     else if (r->polish_start >= 0)
         printf("  glass stage: iterations 0..%d; density polishing from iteration %d\n",
                r->polish_start, r->polish_start);
@@ -146,8 +158,8 @@ static void print_report(const consph_packing_report *r, double tol)
 int cmd_layout(int argc, char **argv)
 {
     int kind_index = -1, periodic_index = 0, encoding_index = CONSPH_VTU_DEFAULT;
-    long dim = 0, nx = 0, seed = 1, max_iter = 5000, history_every = 100;
-    double eps = 0.2, hdx = 1.2, tol = 1e-4, perturb = 0.5;
+    long dim = 0, nx = 0, seed = 1, max_iter = 0, history_every = 100;
+    double eps = 0.2, hdx = 1.2, tol = 1e-4, move_tol = 1e-2, perturb = 0.5;
     const char *kernel = "quintic", *out = NULL, *in = NULL, *box_text = NULL;
     cli_opt opts[] = {
         {"--kind", CLI_CHOICE, &kind_index, "K", "particle arrangement (required)",
@@ -157,23 +169,28 @@ int cmd_layout(int argc, char **argv)
          0},
         {"--periodic", CLI_CHOICE, &periodic_index, "P",
          "whether the unit box is periodic on every axis (default yes)", "yes,no", 0, 0, 0},
-        {"--seed", CLI_INT, &seed, "S", "random seed, for random and packed (default 1)", NULL, 0,
-         9007199254740991.0, 0},
+        {"--seed", CLI_INT, &seed, "S", "random seed, for random and the packed kinds (default 1)",
+         NULL, 0, 9007199254740991.0, 0},
         {"--eps", CLI_DOUBLE, &eps, "E", "random: perturbation factor ε (default 0.2)", NULL, 0.0,
          2.0, 0},
         {"--kernel", CLI_STRING, &kernel, "K",
-         "kernel of the density statistics and of the packed density target (default quintic)",
+         "kernel of the density statistics, of packed's packing and of packed-polished's density "
+         "target (default quintic)",
          NULL, 0, 0, 0},
         {"--hdx", CLI_DOUBLE, &hdx, "R", "h/Δs for that kernel (default 1.2)", NULL, 0.01, 10.0, 0},
         {"--perturb", CLI_DOUBLE, &perturb, "A",
-         "packed: initial perturbation amplitude in Δs (default 0.5)", NULL, 0.0, 0.5, 0},
-        {"--tol", CLI_DOUBLE, &tol, "T", "packed: stop once max|rho/rho0-1| < T (default 1e-4)",
-         NULL, 1e-15, 1.0, 0},
-        {"--max-iter", CLI_INT, &max_iter, "M", "packed: iteration cap (default 5000)", NULL, 0,
+         "packed kinds: initial perturbation amplitude in Δs (default 0.5)", NULL, 0.0, 0.5, 0},
+        {"--tol", CLI_DOUBLE, &tol, "T",
+         "packed-polished: stop once max|rho/rho0-1| < T (default 1e-4)", NULL, 1e-15, 1.0, 0},
+        {"--move-tol", CLI_DOUBLE, &move_tol, "T",
+         "packed: stop once 100 max|u| dt/h <= T at a test (default 1e-2, as [51]'s code)", NULL,
+         1e-15, 100.0, 0},
+        {"--max-iter", CLI_INT, &max_iter, "M",
+         "packed kinds: iteration cap (default 40000 packed, 5000 packed-polished)", NULL, 0,
          100000000, 0},
         {"--history-every", CLI_INT, &history_every, "K",
-         "packed: print the density spread every K iterations, 0 never (default 100)", NULL, 0,
-         100000000, 0},
+         "packed kinds: print the density spread every K iterations, 0 never (default 100)", NULL,
+         0, 100000000, 0},
         {"--out", CLI_OUT_PATH, &out, "FILE", "write the particles; format by extension",
          ".vtu,.csv", 0, 0, 0},
         {"--vtu-encoding", CLI_CHOICE, &encoding_index, "E",
@@ -207,9 +224,9 @@ int cmd_layout(int argc, char **argv)
                          "option --vtu-encoding: only with a .vtu --out; allowed: --out FILE.vtu");
     consph_vtu_encoding enc = (consph_vtu_encoding)encoding_index;
     if (opt_given(opts, nopts, "--in")) {
-        static const char *const generator_only[] = {"--kind",     "--nx",           "--seed",
-                                                     "--eps",      "--perturb",      "--tol",
-                                                     "--max-iter", "--history-every"};
+        static const char *const generator_only[] = {"--kind",     "--nx",       "--seed",
+                                                     "--eps",      "--perturb",  "--tol",
+                                                     "--move-tol", "--max-iter", "--history-every"};
         for (size_t k = 0; k < sizeof generator_only / sizeof generator_only[0]; ++k)
             if (opt_given(opts, nopts, generator_only[k]))
                 return cli_error(&cmd, "option %s: not with --in (the file is the particles)",
@@ -232,29 +249,36 @@ int cmd_layout(int argc, char **argv)
         return cli_error(&cmd, "option --nx is required; allowed: integer 1..100000");
     consph_layout_kind kind = (consph_layout_kind)kind_index;
     if ((rc = cli_check_nx(&cmd, nx, dim))) return rc;
-    if (opt_given(opts, nopts, "--seed") && kind != CONSPH_LAYOUT_RANDOM &&
-        kind != CONSPH_LAYOUT_PACKED)
-        return cli_error(&cmd, "option --seed applies only to --kind random or packed");
+    const int packed = kind == CONSPH_LAYOUT_PACKED || kind == CONSPH_LAYOUT_PACKED_POLISHED;
+    if (opt_given(opts, nopts, "--seed") && kind != CONSPH_LAYOUT_RANDOM && !packed)
+        return cli_error(&cmd,
+                         "option --seed applies only to --kind random, packed or packed-polished");
     if (opt_given(opts, nopts, "--eps") && kind != CONSPH_LAYOUT_RANDOM)
         return cli_error(&cmd, "option --eps applies only to --kind random");
-    static const char *const packed_only[] = {"--perturb", "--tol", "--max-iter",
-                                              "--history-every"};
+    static const char *const packed_only[] = {"--perturb", "--max-iter", "--history-every"};
     for (size_t k = 0; k < sizeof packed_only / sizeof packed_only[0]; ++k)
-        if (opt_given(opts, nopts, packed_only[k]) && kind != CONSPH_LAYOUT_PACKED)
-            return cli_error(&cmd, "option %s applies only to --kind packed", packed_only[k]);
+        if (opt_given(opts, nopts, packed_only[k]) && !packed)
+            return cli_error(&cmd, "option %s applies only to --kind packed or packed-polished",
+                             packed_only[k]);
+    if (opt_given(opts, nopts, "--tol") && kind != CONSPH_LAYOUT_PACKED_POLISHED)
+        return cli_error(&cmd, "option --tol applies only to --kind packed-polished");
+    if (opt_given(opts, nopts, "--move-tol") && kind != CONSPH_LAYOUT_PACKED)
+        return cli_error(&cmd, "option --move-tol applies only to --kind packed");
     consph_kernel_id kernel_id;
     if (consph_kernel_lookup(kernel, &kernel_id) != CONSPH_OK)
         return cli_error(&cmd, "option --kernel: unknown value '%s'; allowed: %s", kernel,
                          consph_kernel_names());
-    if (kind == CONSPH_LAYOUT_PACKED && consph_kernel_info_get(kernel_id)->tensor)
+    if (packed && consph_kernel_info_get(kernel_id)->tensor)
         return cli_error(&cmd,
                          "option --kernel: '%s' is a tensor-product remeshing kernel; --kind "
-                         "packed needs a radial kernel",
-                         kernel);
+                         "%s needs a radial kernel",
+                         kernel, consph_layout_name(kind));
     int periodic = periodic_index == 0;
-    if (kind == CONSPH_LAYOUT_PACKED && !periodic)
-        return cli_error(&cmd, "option --periodic: --kind packed needs a periodic box; allowed: "
-                               "yes");
+    if (packed && !periodic)
+        return cli_error(&cmd,
+                         "option --periodic: --kind %s needs a periodic box; allowed: "
+                         "yes",
+                         consph_layout_name(kind));
 
     consph_layout_params lp = consph_layout_defaults(kind, (int)dim, (size_t)nx);
     lp.box = consph_box_unit((int)dim, periodic);
@@ -264,7 +288,8 @@ int cmd_layout(int argc, char **argv)
     lp.packing.hdx = hdx;
     lp.packing.perturb = perturb;
     lp.packing.tol = tol;
-    lp.packing.max_iter = (int)max_iter;
+    lp.packing.move_tol = move_tol;
+    if (opt_given(opts, nopts, "--max-iter")) lp.packing.max_iter = (int)max_iter;
     lp.packing.history_every = (int)history_every;
 
     consph_particles p;
@@ -276,7 +301,7 @@ int cmd_layout(int argc, char **argv)
     }
     printf("kind %s, dim %ld, nx %ld, particles %zu, spacing %.6g, unit box%s\n",
            consph_layout_name(kind), dim, nx, p.n, p.spacing, periodic ? " periodic" : "");
-    if (kind == CONSPH_LAYOUT_PACKED) print_report(&report, tol);
+    if (packed) print_report(&report, &lp);
 
     if (print_stats(&p, kernel, hdx) != CONSPH_OK) {
         consph_packing_report_free(&report);

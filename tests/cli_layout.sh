@@ -15,9 +15,10 @@ bad() {
 }
 
 # --- every kind, both formats ------------------------------------------------------------
-for kind in lattice random quasi-random packed; do
+for kind in lattice random quasi-random packed packed-polished; do
     extra=()
-    [ "$kind" = packed ] && extra=(--max-iter 300 --tol 1e-2 --history-every 100)
+    [ "$kind" = packed ] && extra=(--max-iter 300 --history-every 100)
+    [ "$kind" = packed-polished ] && extra=(--max-iter 300 --tol 1e-2 --history-every 100)
     for ext in csv vtu; do
         out="$work/$kind.$ext"
         if ! "$bin" layout --kind "$kind" --dim 2 --nx 8 "${extra[@]}" --out "$out" \
@@ -59,9 +60,11 @@ grep -q '^packing: ' "$work/stdout" || bad "packed: no packing line"
 
 # The report never contradicts itself: a run that stops on --max-iter (0 included) does not say
 # the tolerance was met, and one whose tolerance was met is not called "NOT converged".
-for args in "--max-iter 0" "--max-iter 1" "--max-iter 0 --perturb 0" "--max-iter 300 --tol 1e-2"; do
+for args in "packed --max-iter 0" "packed --max-iter 1" "packed --max-iter 0 --perturb 0" \
+    "packed --move-tol 1e-2" "packed-polished --max-iter 0" "packed-polished --max-iter 1" \
+    "packed-polished --max-iter 0 --perturb 0" "packed-polished --max-iter 300 --tol 1e-2"; do
     # shellcheck disable=SC2086
-    "$bin" layout --kind packed --dim 2 --nx 8 $args --history-every 0 >"$work/stdout" 2>&1 ||
+    "$bin" layout --kind $args --dim 2 --nx 8 --history-every 0 >"$work/stdout" 2>&1 ||
         bad "packed $args failed: $(cat "$work/stdout")"
     if grep -q "NOT converged" "$work/stdout"; then
         ! grep -q "tolerance was met" "$work/stdout" || bad "packed $args: says both NOT converged and tolerance met"
@@ -73,6 +76,11 @@ done
 "$bin" layout --kind packed --dim 2 --nx 8 --max-iter 0 >"$work/stdout" 2>&1
 grep -q "^packing: 0 iterations" "$work/stdout" && grep -q "no packing step" "$work/stdout" ||
     bad "packed --max-iter 0: not reported as no packing step: $(cat "$work/stdout")"
+# packed stops by [51]'s rule, after a test (every 50 steps: 50k + 1 steps), and says so.
+"$bin" layout --kind packed --dim 2 --nx 8 --history-every 0 >"$work/stdout" 2>&1 ||
+    bad "packed default failed: $(cat "$work/stdout")"
+grep -qE '^packing: [0-9]*[05]1 iterations .*move-tol 1.0e-02, converged\)' "$work/stdout" ||
+    bad "packed: no stop by the rule: $(cat "$work/stdout")"
 
 # 3D CSV header.
 "$bin" layout --kind lattice --dim 3 --nx 3 --out "$work/l3.csv" >/dev/null 2>&1 || bad "3D lattice"
@@ -144,6 +152,9 @@ expect_usage_error --eps --kind lattice --dim 2 --nx 8 --eps 0.2 --out p.vtu
 expect_usage_error --eps --kind random --dim 2 --nx 8 --eps 3 --out p.vtu
 expect_usage_error --tol --kind random --dim 2 --nx 8 --tol 1e-3 --out p.vtu
 expect_usage_error --periodic --kind packed --dim 2 --nx 8 --periodic no --out p.vtu
+expect_usage_error --periodic --kind packed-polished --dim 2 --nx 8 --periodic no --out p.vtu
+expect_usage_error --tol --kind packed --dim 2 --nx 8 --tol 1e-3 --out p.vtu
+expect_usage_error --move-tol --kind packed-polished --dim 2 --nx 8 --move-tol 1e-3 --out p.vtu
 expect_usage_error --periodic --kind lattice --dim 2 --nx 8 --periodic maybe --out p.vtu
 expect_usage_error --kernel --kind packed --dim 2 --nx 8 --kernel nonsense --out p.vtu
 expect_usage_error --kernel --kind packed --dim 2 --nx 8 --kernel m4 --hdx 1 --out p.vtu

@@ -53,11 +53,13 @@ roundtrip lattice 2 "8 12" "" ""
 roundtrip random 2 "8 12" "--seed 3 --eps 0.4" "--seed 3 --eps 0.4"
 roundtrip random 2 "8 12" "--periodic no" "--periodic no"
 roundtrip quasi-random 2 "8 12" "" ""
-roundtrip packed 2 "8 12" "--tol 1e-2" "--pack-tol 1e-2"
+roundtrip packed 2 "8 12" "" ""
+roundtrip packed-polished 2 "8 12" "--tol 1e-2" "--pack-tol 1e-2"
 roundtrip lattice 3 "5 6" "" ""
 roundtrip random 3 "5 6" "" ""
 roundtrip quasi-random 3 "5 6" "--periodic no" "--periodic no"
-roundtrip packed 3 "5 6" "--tol 1e-2" "--pack-tol 1e-2"
+roundtrip packed 3 "5 6" "" ""
+roundtrip packed-polished 3 "5 6" "--tol 1e-2" "--pack-tol 1e-2"
 
 # Without the file's volumes (--volume shepard = number, the layouts' default): also the same.
 "$bin" approx --op laplacian --form fatehi --corr fatehi --field quadratic --layout random \

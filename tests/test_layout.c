@@ -297,9 +297,9 @@ static void test_stats(void)
     consph_particles_free(&p);
 }
 
-static void test_packed_2d(void)
+static void test_polished_2d(void)
 {
-    consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED, 2, 20);
+    consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED_POLISHED, 2, 20);
     lp.seed = 5;
     lp.packing.max_iter = 4000;
     lp.packing.tol = 1e-4;
@@ -308,7 +308,7 @@ static void test_packed_2d(void)
     consph_packing_report rep, rep2, rep3;
     set_threads(1);
     CHECK(consph_layout_generate(&lp, &p, &rep) == CONSPH_OK, "packed: %s", consph_last_error());
-    printf("packed 20^2: %d iterations (polishing from %d), %.2f s, spread %.3e -> %.3e\n",
+    printf("packed-polished 20^2: %d iterations (polishing from %d), %.2f s, spread %.3e -> %.3e\n",
            rep.iterations, rep.polish_start, rep.seconds, rep.rho_spread_initial,
            rep.rho_spread_final);
     CHECK(rep.rho_spread_initial > 0.1, "perturbed start is far from uniform: %g",
@@ -327,7 +327,8 @@ static void test_packed_2d(void)
                "independent density evaluation agrees with the report");
     consph_layout_nn_stats ns;
     CHECK(consph_layout_nn_stats_compute(&p, &ns) == CONSPH_OK, "nn stats packed");
-    printf("packed 20^2: NN min %.3f mean %.3f max %.3f std %.3f; lattice displacement mean %.3f "
+    printf("packed-polished 20^2: NN min %.3f mean %.3f max %.3f std %.3f; lattice displacement "
+           "mean %.3f "
            "max %.3f\n",
            ns.nn_min, ns.nn_mean, ns.nn_max, ns.nn_std, ns.disp_mean, ns.disp_max);
     /* Glass-like, as the author's packed files (catalogue Z7: NN min 0.79-0.86, mean
@@ -384,9 +385,9 @@ static void test_packed_2d(void)
     CHECK(rep.history_iter == NULL && p.x[0] == NULL, "nothing allocated after an error");
 }
 
-static void test_packed_3d(void)
+static void test_polished_3d(void)
 {
-    consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED, 3, 8);
+    consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED_POLISHED, 3, 8);
     lp.seed = 2;
     /* A short cap: polishing starts by iteration 250 at the latest. */
     lp.packing.max_iter = 500;
@@ -396,7 +397,7 @@ static void test_packed_3d(void)
     consph_packing_report rep;
     set_threads(1);
     CHECK(consph_layout_generate(&lp, &p, &rep) == CONSPH_OK, "packed 3D: %s", consph_last_error());
-    printf("packed 8^3: %d iterations (polishing from %d), %.2f s, spread %.3e -> %.3e\n",
+    printf("packed-polished 8^3: %d iterations (polishing from %d), %.2f s, spread %.3e -> %.3e\n",
            rep.iterations, rep.polish_start, rep.seconds, rep.rho_spread_initial,
            rep.rho_spread_final);
     CHECK(rep.rho_spread_final < 1e-3, "3D reaches the tolerance 1e-3: %g", rep.rho_spread_final);
@@ -416,6 +417,110 @@ static void test_packed_3d(void)
     consph_packing_report_free(&rep2);
 }
 
+/* packed, [51]'s single stage: its stopping rule is a test every 50 steps (after steps 1, 51,
+ * 101, ...: the step count at a stop is 50k + 1) of 100 max|u| Δt / h <= move_tol, honoured from
+ * the 11th test on. */
+static void test_packed_rule(void)
+{
+    consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED, 2, 20);
+    lp.packing.history_every = 0;
+    consph_particles p, q;
+    consph_packing_report rep, rep2;
+    set_threads(1);
+    CHECK(consph_layout_generate(&lp, &p, &rep) == CONSPH_OK, "packed: %s", consph_last_error());
+    printf("packed 20^2: %d steps, 100 max|u|dt/h %.3g, spread %.3e -> %.3e\n", rep.iterations,
+           rep.move_final, rep.rho_spread_initial, rep.rho_spread_final);
+    CHECK(rep.converged && rep.move_final <= lp.packing.move_tol, "stopped by the rule: %d, %g",
+          rep.converged, rep.move_final);
+    CHECK(rep.iterations % 50 == 1 && rep.iterations >= 501 && rep.iterations < lp.packing.max_iter,
+          "stopped right after a test, the 11th or a later one: %d steps", rep.iterations);
+    CHECK(rep.polish_start == -1, "a single stage");
+    /* The test 50 steps earlier failed: a cap just before the stop ends there, unconverged, with
+     * the motion above the tolerance (same steps: the run is deterministic). */
+    lp.packing.max_iter = rep.iterations - 1;
+    CHECK(consph_layout_generate(&lp, &q, &rep2) == CONSPH_OK, "capped packed");
+    CHECK(!rep2.converged && rep2.iterations == lp.packing.max_iter, "cap before the stop: %d, %d",
+          rep2.converged, rep2.iterations);
+    CHECK(rep2.move_final > lp.packing.move_tol, "the previous test failed: %g", rep2.move_final);
+    consph_particles_free(&q);
+    consph_packing_report_free(&rep2);
+    /* A tolerance every test meets: the rule still waits for the 11th test (after step 501). */
+    lp.packing.max_iter = 40000;
+    lp.packing.move_tol = 100.0;
+    CHECK(consph_layout_generate(&lp, &q, &rep2) == CONSPH_OK, "loose packed");
+    CHECK(rep2.converged && rep2.iterations == 501, "11 tests before stopping: %d steps",
+          rep2.iterations);
+    consph_particles_free(&p);
+    consph_particles_free(&q);
+    consph_packing_report_free(&rep);
+    consph_packing_report_free(&rep2);
+
+    lp.packing.move_tol = 0.0;
+    CHECK(consph_layout_generate(&lp, &p, &rep) == CONSPH_EINVAL, "move_tol 0 rejected");
+    CHECK(strstr(consph_last_error(), "move_tol"), "message: %s", consph_last_error());
+}
+
+/* The geometry the packing is built to give, from a start perturbed by up to Δs/2 per coordinate
+ * (mean distance to the lattice node ≈ 0.38Δs): the background pressure evens out the number
+ * density from a spread of ~0.4 to the level of the published packed files (~1e-2); the
+ * repulsion, which acts only below 0.95Δs, keeps pairs apart (the files: NN min 0.79-0.86Δs);
+ * and at perturbation 0.5 the particles settle into a glass, not back on the lattice (node
+ * distance well above 0). A sign error in either force clumps particles; a missing background
+ * pressure leaves the spread near its start; wrong damping never satisfies the rule. */
+static void test_packed_geometry(void)
+{
+    consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED, 2, 32);
+    lp.seed = 3;
+    lp.packing.history_every = 0;
+    consph_particles p;
+    consph_packing_report rep;
+    set_threads(1);
+    CHECK(consph_layout_generate(&lp, &p, &rep) == CONSPH_OK, "packed 32: %s", consph_last_error());
+    CHECK(rep.converged, "packed 32 converged in %d steps", rep.iterations);
+    CHECK(rep.rho_spread_initial > 0.2, "the start is far from uniform: %g",
+          rep.rho_spread_initial);
+    CHECK(rep.rho_spread_final < 0.03 && rep.rho_spread_final > 1e-4,
+          "spread at the level of [51]'s packing, not of a density polish: %g",
+          rep.rho_spread_final);
+    CHECK(inside_box(&p), "packed particles inside the box");
+    consph_layout_stats st;
+    CHECK(consph_layout_stats_compute(&p, "quintic", 1.2, &st) == CONSPH_OK, "stats packed 32");
+    CHECK_NEAR(st.rho_spread, rep.rho_spread_final, 1e-12, "the report's spread is the layout's");
+    CHECK_NEAR(st.rho_mean, 1.0, 1e-3, "mean density rho0: %g", st.rho_mean);
+    consph_layout_nn_stats ns;
+    CHECK(consph_layout_nn_stats_compute(&p, &ns) == CONSPH_OK, "nn stats packed 32");
+    printf("packed 32^2: %d steps; NN min %.3f mean %.3f std %.3f; node distance mean %.3f\n",
+           rep.iterations, ns.nn_min, ns.nn_mean, ns.nn_std, ns.disp_mean);
+    CHECK(ns.nn_min > 0.8, "no close pairs: NN min %.3f", ns.nn_min);
+    CHECK(ns.nn_mean > 0.93 && ns.nn_mean < 1.0, "NN mean %.3f", ns.nn_mean);
+    CHECK(ns.disp_mean > 0.25, "a glass, not the lattice: node distance %.3f", ns.disp_mean);
+    consph_particles_free(&p);
+    consph_packing_report_free(&rep);
+}
+
+/* More particles than a pass's parallel_min (2048), so that both the passes and the step run
+ * on two threads. */
+static void test_packed_threads(void)
+{
+    consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED, 2, 48);
+    lp.packing.max_iter = 80;
+    lp.packing.history_every = 0;
+    consph_particles p, q;
+    consph_packing_report rep, rep2;
+    set_threads(1);
+    CHECK(consph_layout_generate(&lp, &p, &rep) == CONSPH_OK, "80 steps, 1 thread");
+    set_threads(2);
+    CHECK(consph_layout_generate(&lp, &q, &rep2) == CONSPH_OK, "80 steps, 2 threads");
+    set_threads(1);
+    CHECK(same_positions(&p, &q) && rep.rho_spread_final == rep2.rho_spread_final &&
+              rep.move_final == rep2.move_final,
+          "packed is independent of the number of threads");
+    consph_particles_free(&p);
+    consph_particles_free(&q);
+    consph_packing_report_free(&rep);
+    consph_packing_report_free(&rep2);
+}
+
 int main(void)
 {
     test_names();
@@ -423,7 +528,10 @@ int main(void)
     test_random();
     test_quasi_random();
     test_stats();
-    test_packed_2d();
-    test_packed_3d();
+    test_polished_2d();
+    test_polished_3d();
+    test_packed_rule();
+    test_packed_geometry();
+    test_packed_threads();
     return check_summary("test_layout");
 }

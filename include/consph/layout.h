@@ -5,7 +5,11 @@
  * random        lattice plus eps·Δs·κ per coordinate, κ uniform in [-0.25, 0.25] (002 §6.2).
  * quasi-random  a low-discrepancy Halton fill of the box (003 §6.2).
  * packed        the perturbed-periodic (PP) arrangement of 001: a perturbed lattice relaxed
- *               by a particle-packing iteration until the summation density is nearly uniform.
+ *               by the particle packing of [51] (Negi & Ramachandran 2021) as its authors'
+ *               implementation runs it, with its stopping rule (the particles have stopped
+ *               moving).
+ * packed-polished  the same start relaxed by that packing until it stalls, then by a damped
+ *               descent of the density error until max|rho/rho0 - 1| < tol (consph's own).
  *
  * Every layout sets p->spacing = Δs (for quasi-random: (V/N)^(1/dim)) and adds the field
  * "volume" = box volume / N. */
@@ -23,16 +27,20 @@ typedef enum consph_layout_kind {
     CONSPH_LAYOUT_RANDOM,
     CONSPH_LAYOUT_QUASI_RANDOM,
     CONSPH_LAYOUT_PACKED,
+    CONSPH_LAYOUT_PACKED_POLISHED,
     CONSPH_LAYOUT_COUNT
 } consph_layout_kind;
 
 /* Parameters of the packing iteration. */
 typedef struct consph_packing_params {
-    const char *kernel; /* kernel name for the density estimate (default "quintic") */
+    const char *kernel; /* packed: the packing's kernel; packed-polished: the kernel of the
+                           density target (default "quintic") */
     double hdx;         /* h / Δs (default 1.2) */
     double perturb;     /* initial perturbation amplitude in units of Δs (default 0.5) */
-    int max_iter;       /* iteration cap (default 5000; 500² in 2D needs about 1900) */
-    double tol;         /* stop once max |rho/rho0 - 1| < tol (default 1e-4) */
+    int max_iter;       /* iteration cap (default 5000) */
+    double tol;         /* packed-polished: stop once max |rho/rho0 - 1| < tol (default 1e-4) */
+    double move_tol;    /* packed: stop once 100 max_i |u_i| Δt / h <= move_tol at a test
+                           (every 50 steps, from the 11th test on; default 1e-2, [51]'s code) */
     int history_every;  /* record the density spread every this many iterations (0: never) */
 } consph_packing_params;
 
@@ -55,7 +63,9 @@ typedef struct consph_packing_report {
     int *history_iter;
     double *history_spread;
     double seconds;
-    int polish_start; /* iteration at which the density-polishing stage began, -1 if never */
+    int polish_start;  /* iteration at which the density-polishing stage began, -1 if never */
+    int converged;     /* the stopping rule was met before max_iter */
+    double move_final; /* packed: 100 max|u| Δt / h at the last test (NaN before the first) */
 } consph_packing_report;
 
 void consph_packing_report_free(consph_packing_report *r);
@@ -68,7 +78,7 @@ const char *consph_layout_names(void);
 consph_layout_params consph_layout_defaults(consph_layout_kind kind, int dim, size_t nx);
 
 /* Generates the layout into `p` (initialised here). `report` may be NULL; it is filled only for
- * the packed kind. */
+ * the packed kinds. */
 int consph_layout_generate(const consph_layout_params *lp, consph_particles *p,
                            consph_packing_report *report);
 

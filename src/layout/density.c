@@ -1,63 +1,47 @@
-/* Summation density and nearest-neighbour distances over a neighbour search, shared by the
- * packing iteration and the layout statistics. */
+/* Summation density and nearest-neighbour distances as one pass, shared by the packing
+ * iteration and the layout statistics. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "layout/layout_internal.h"
 
-int consph_layout_pool_init(layout_nbr_pool *pool)
+typedef struct density_job {
+    double mass;
+    double *rho, *nn_dist;
+} density_job;
+
+static void density_visit(void *job, const consph_nbhd *nb)
 {
-    pool->count = consph_num_threads();
-    if (pool->count < 1) pool->count = 1;
-    pool->nbrs = consph_calloc((size_t)pool->count, sizeof(consph_nbrs));
-    if (!pool->nbrs) {
-        pool->count = 0;
-        return CONSPH_ENOMEM;
+    const density_job *d = job;
+    if (d->rho) {
+        double w = 0.0;
+        for (size_t q = 0; q < nb->n; ++q) w += nb->w[q];
+        d->rho[nb->i] = d->mass * w;
     }
-    return CONSPH_OK;
-}
-
-void consph_layout_pool_free(layout_nbr_pool *pool)
-{
-    for (int t = 0; t < pool->count; ++t) consph_nbrs_free(&pool->nbrs[t]);
-    free(pool->nbrs);
-    memset(pool, 0, sizeof *pool);
-}
-
-int consph_layout_density(const consph_nnps *grid, const consph_kernel *kernel, size_t n,
-                          double mass, layout_nbr_pool *pool, double *rho, double *nn_dist)
-{
-    int failed = 0;
-#pragma omp parallel num_threads(pool->count)
-    {
-        consph_nbrs *nb = &pool->nbrs[layout_thread_id()];
-#pragma omp for schedule(static)
-        for (size_t i = 0; i < n; ++i) {
-            size_t count = consph_nnps_query_particle(grid, i, nb);
-            if (count == (size_t)-1) {
-#pragma omp atomic write
-                failed = 1;
-                continue;
-            }
-            double w = 0.0, nearest = INFINITY;
-            for (size_t q = 0; q < count; ++q) {
-                double r = nb->r[q];
-                if (rho && kernel->tensor) {
-                    double dx[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
-                    for (int a = 0; a < kernel->dim; ++a) dx[a] = nb->dx[a][q];
-                    w += consph_kernel_w_vec(kernel, dx);
-                } else if (rho) {
-                    w += consph_kernel_w(kernel, r);
-                }
-                if (nn_dist && r < nearest && (r > 0.0 || nb->j[q] != i)) nearest = r;
-            }
-            if (rho) rho[i] = mass * w;
-            if (nn_dist) nn_dist[i] = nearest;
+    if (d->nn_dist) {
+        /* i's own entry is the one at r = 0 with j = i; a coincident other particle is not. */
+        double nearest = INFINITY;
+        for (size_t q = 0; q < nb->n; ++q) {
+            double r = nb->r[q];
+            if (r < nearest && (r > 0.0 || nb->j[q] != nb->i)) nearest = r;
         }
+        d->nn_dist[nb->i] = nearest;
     }
-    if (failed) return consph_fail(CONSPH_ENOMEM, "layout: neighbour query ran out of memory");
-    return CONSPH_OK;
+}
+
+int consph_layout_density(const consph_sys *s, double mass, double *rho, double *nn_dist)
+{
+    density_job job = {mass, rho, nn_dist};
+    const consph_pass pass = {"layout density", (rho ? CONSPH_PASS_W : 0u) | CONSPH_PASS_NO_DX,
+                              density_visit};
+    return consph_pass_run(s, &pass, &job);
+}
+
+int consph_layout_probe_kernel(int dim, double radius, consph_kernel *k)
+{
+    return consph_kernel_init(k, CONSPH_KERNEL_QUINTIC, dim,
+                              radius / consph_kernel_info_get(CONSPH_KERNEL_QUINTIC)->support);
 }
 
 double consph_layout_spread(const double *rho, size_t n, double rho0)

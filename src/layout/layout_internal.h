@@ -7,19 +7,7 @@
 #include "consph/kernels.h"
 #include "consph/layout.h"
 #include "consph/nnps.h"
-
-#ifdef CONSPH_HAVE_OPENMP
-#include <omp.h>
-#endif
-
-static inline int layout_thread_id(void)
-{
-#ifdef CONSPH_HAVE_OPENMP
-    return omp_get_thread_num();
-#else
-    return 0;
-#endif
-}
+#include "consph/pass.h"
 
 /* Brings x back into [lo, lo + len) on a periodic axis. The final test catches the case where
  * x - lo is a tiny negative number and adding len rounds to exactly len. */
@@ -31,21 +19,16 @@ static inline double layout_wrap(double x, double lo, double len)
     return lo + s;
 }
 
-/* One neighbour buffer per OpenMP thread, so that queries in a parallel loop never share one. */
-typedef struct layout_nbr_pool {
-    int count;
-    consph_nbrs *nbrs;
-} layout_nbr_pool;
+/* Summation density rho_i = mass sum_j W(r_ij) (self included) for every destination particle
+ * of the system, with its kernel. When nn_dist is non-NULL it also receives the distance from each
+ * particle to its nearest other particle (or periodic image) within the search radius, +inf when
+ * there is none; with rho NULL no kernel value is evaluated. One pass: independent of the number
+ * of threads. */
+int consph_layout_density(const consph_sys *s, double mass, double *rho, double *nn_dist);
 
-int consph_layout_pool_init(layout_nbr_pool *pool);
-void consph_layout_pool_free(layout_nbr_pool *pool);
-
-/* Summation density rho_i = m sum_j W(r_ij) (self included) for every particle the search
- * structure was built from. When nn_dist is non-NULL it also receives the distance from each
- * particle to its nearest other particle (or periodic image) within the search radius, +inf
- * when there is none. Gather form: independent of the number of threads. */
-int consph_layout_density(const consph_nnps *grid, const consph_kernel *kernel, size_t n,
-                          double mass, layout_nbr_pool *pool, double *rho, double *nn_dist);
+/* A kernel of support radius `radius`, for systems whose passes ask for no kernel value (a
+ * system needs a kernel no wider than its search). */
+int consph_layout_probe_kernel(int dim, double radius, consph_kernel *k);
 
 /* Adds amplitude·Δs·(2U - 1), U uniform in [0, 1) from the generator seeded with lp->seed, to
  * every coordinate (particle by particle, axis by axis) and wraps on periodic axes. */

@@ -32,18 +32,22 @@ static double box_diagonal(const consph_box *b)
  * image; in a closed box a lone particle keeps +inf). */
 static int nearest_distances(const consph_particles *p, double radius, double *nn)
 {
-    layout_nbr_pool pool;
-    int rc = consph_layout_pool_init(&pool);
-    if (rc) return rc;
+    int rc = CONSPH_OK;
     double diag = box_diagonal(&p->box);
     for (;;) {
+        consph_kernel probe;
+        rc = consph_layout_probe_kernel(p->dim, radius, &probe);
+        if (rc) break;
         consph_nnps *grid = consph_nnps_create(&p->box, radius, 0);
         if (!grid) {
             rc = CONSPH_ENOMEM;
             break;
         }
         rc = consph_nnps_build(grid, p);
-        if (!rc) rc = consph_layout_density(grid, NULL, p->n, 0.0, &pool, NULL, nn);
+        consph_sys s;
+        /* The passes only read the particles. */
+        if (!rc) rc = consph_sys_wrap(&s, (consph_particles *)p, grid, &probe);
+        if (!rc) rc = consph_layout_density(&s, 0.0, NULL, nn);
         consph_nnps_free(grid);
         if (rc) break;
         int missing = 0;
@@ -51,7 +55,6 @@ static int nearest_distances(const consph_particles *p, double radius, double *n
         if (!missing || radius > diag) break;
         radius *= 2.0;
     }
-    consph_layout_pool_free(&pool);
     return rc;
 }
 
@@ -76,14 +79,12 @@ int consph_layout_stats_compute(const consph_particles *p, const char *kernel, d
 
     double *rho = consph_calloc(p->n, sizeof(double));
     double *nn = consph_calloc(p->n, sizeof(double));
-    layout_nbr_pool pool = {0, NULL};
     consph_nnps *grid = NULL;
+    consph_sys sys;
     if (!rho || !nn) {
         rc = CONSPH_ENOMEM;
         goto done;
     }
-    rc = consph_layout_pool_init(&pool);
-    if (rc) goto done;
     grid = consph_nnps_create(&p->box, k.radius, 0);
     if (!grid) {
         rc = CONSPH_ENOMEM;
@@ -91,7 +92,9 @@ int consph_layout_stats_compute(const consph_particles *p, const char *kernel, d
     }
     rc = consph_nnps_build(grid, p);
     if (rc) goto done;
-    rc = consph_layout_density(grid, &k, p->n, mass, &pool, rho, nn);
+    rc = consph_sys_wrap(&sys, (consph_particles *)p, grid, &k);
+    if (rc) goto done;
+    rc = consph_layout_density(&sys, mass, rho, nn);
     if (rc) goto done;
     st->n = p->n;
     st->rho_spread = consph_layout_spread(rho, p->n, rho0);
@@ -107,7 +110,6 @@ int consph_layout_stats_compute(const consph_particles *p, const char *kernel, d
     st->min_spacing = dmin;
 done:
     consph_nnps_free(grid);
-    consph_layout_pool_free(&pool);
     free(rho);
     free(nn);
     return rc;

@@ -143,13 +143,17 @@ int consph_approx_run(const consph_approx_spec *s, size_t nx, consph_approx_row 
     consph_packing_report pack;
     memset(&pack, 0, sizeof pack);
     rc = consph_layout_generate(&lp, &p, &pack);
-    double spread = lp.kind == CONSPH_LAYOUT_PACKED ? pack.rho_spread_final : NAN;
+    double spread = lp.kind == CONSPH_LAYOUT_PACKED || lp.kind == CONSPH_LAYOUT_PACKED_POLISHED
+                        ? pack.rho_spread_final
+                        : NAN;
+    const int converged = pack.converged;
     consph_packing_report_free(&pack);
     if (rc) return rc;
     double layout_seconds = consph_wtime() - t0;
     rc = consph_approx_run_particles(s, &p, nx, row);
     row->layout_seconds = layout_seconds;
     row->layout_spread = spread;
+    row->layout_converged = converged;
     consph_particles_free(&p);
     return rc;
 }

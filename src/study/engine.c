@@ -143,7 +143,8 @@ static int build_plan(const consph_study *s, const study_figure *f, const study_
     static const char *const ops[] = {"function", "grad", "div", "laplacian", "hessian", NULL};
     static const char *const default_form[] = {"standard", "f4", "div", "coupled", "korzilius"};
     static const char *const policies[] = {"hdx", "scaling", NULL};
-    static const char *const layouts[] = {"lattice", "random", "quasi-random", "packed", NULL};
+    static const char *const layouts[] = {"lattice", "random",          "quasi-random",
+                                          "packed",  "packed-polished", NULL};
     static const char *const yesno[] = {"yes", "no", NULL};
     static const char *const masks[] = {"interior", "all", NULL};
     static const char *const sweeps[] = {"nx", "hdx", NULL};
@@ -177,7 +178,8 @@ static int build_plan(const consph_study *s, const study_figure *f, const study_
     if ((rc = get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) return rc;
     if ((rc = get_double(s, f, r, "sigma", 0.1, 1e-9, 10, &sigma))) return rc;
     if ((rc = get_double(s, f, r, "pack_tol", 1e-4, 1e-12, 1, &tol))) return rc;
-    if ((rc = get_double(s, f, r, "pack_iter", 5000, 1, 1e7, &iters))) return rc;
+    const int iters_def = consph_layout_defaults((consph_layout_kind)ilay, 2, 10).packing.max_iter;
+    if ((rc = get_double(s, f, r, "pack_iter", iters_def, 1, 1e7, &iters))) return rc;
 
     consph_approx_spec *sp = &pl->spec;
     *sp = consph_approx_defaults((int)dim);
@@ -255,9 +257,10 @@ static int same_layout(const consph_layout_params *a, const consph_layout_params
     for (int d = 0; d < a->dim; ++d)
         if (a->nx[d] != b->nx[d] || a->box.periodic[d] != b->box.periodic[d]) return 0;
     if (a->kind == CONSPH_LAYOUT_RANDOM && a->eps != b->eps) return 0;
-    if (a->kind == CONSPH_LAYOUT_PACKED &&
+    if ((a->kind == CONSPH_LAYOUT_PACKED || a->kind == CONSPH_LAYOUT_PACKED_POLISHED) &&
         (a->packing.tol != b->packing.tol || a->packing.max_iter != b->packing.max_iter ||
-         a->packing.hdx != b->packing.hdx || strcmp(a->packing.kernel, b->packing.kernel)))
+         a->packing.move_tol != b->packing.move_tol || a->packing.hdx != b->packing.hdx ||
+         strcmp(a->packing.kernel, b->packing.kernel)))
         return 0;
     return 1;
 }
@@ -279,12 +282,17 @@ static int cache_get(layout_cache *c, const consph_layout_params *lp, const cons
     consph_packing_report pack;
     memset(&pack, 0, sizeof pack);
     int rc = consph_layout_generate(lp, &e->p, &pack);
-    if (rc == CONSPH_OK && lp->kind == CONSPH_LAYOUT_PACKED && log &&
+    if (rc == CONSPH_OK && lp->kind == CONSPH_LAYOUT_PACKED_POLISHED && log &&
         pack.rho_spread_final > lp->packing.tol)
         fprintf(log,
                 "  warning: packing %zu^%d stopped at pack_iter %d with max|rho/rho0-1| = %.3g "
                 "above pack_tol %g\n",
                 lp->nx[0], lp->dim, lp->packing.max_iter, pack.rho_spread_final, lp->packing.tol);
+    if (rc == CONSPH_OK && lp->kind == CONSPH_LAYOUT_PACKED && log && !pack.converged)
+        fprintf(log,
+                "  warning: packing %zu^%d stopped at pack_iter %d before the particles stopped "
+                "moving (100 max|u| dt/h = %.3g above %g)\n",
+                lp->nx[0], lp->dim, lp->packing.max_iter, pack.move_final, lp->packing.move_tol);
     consph_packing_report_free(&pack);
     if (rc) return rc;
     e->lp = *lp;
@@ -1258,7 +1266,8 @@ static double estimate(const consph_study *s, int quick, const study_files *file
                 double nx = pl.sweep_hdx ? (double)pl.nx_fixed : pl.values[j];
                 if (pl.sweep_hdx) one.spec.hdx = pl.values[j];
                 pairs += pairs_estimate(&one, nx);
-                if (pl.spec.layout.kind == CONSPH_LAYOUT_PACKED) {
+                if (pl.spec.layout.kind == CONSPH_LAYOUT_PACKED ||
+                    pl.spec.layout.kind == CONSPH_LAYOUT_PACKED_POLISHED) {
                     double key[3] = {pl.spec.layout.dim, nx, (double)pl.spec.layout.seed};
                     int dup = 0;
                     for (int q = 0; q < nseen && !dup; ++q) dup = !memcmp(seen[q], key, sizeof key);
