@@ -78,6 +78,10 @@ typedef struct consph_sys {
     int owned;           /* 1 when p, nnps, origin and dest belong to the system */
 } consph_sys;
 
+/* The distance within which the kernel can be non-zero: the radius a system's search needs
+ * (kernel->radius, or kernel->radius·sqrt(dim) for a tensor-product kernel). */
+double consph_sys_reach(const consph_kernel *kernel);
+
 /* Copies src, sorts the copy into cell order and builds a neighbour search of radius
  * max(radius, kernel->radius) on it (kernel->radius·sqrt(dim) for a tensor-product kernel, whose
  * support is a cube: consph_sys_wrap asks the same of the caller's search). The kernel must be

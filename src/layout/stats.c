@@ -85,7 +85,7 @@ int consph_layout_stats_compute(const consph_particles *p, const char *kernel, d
         rc = CONSPH_ENOMEM;
         goto done;
     }
-    grid = consph_nnps_create(&p->box, k.radius, 0);
+    grid = consph_nnps_create(&p->box, consph_sys_reach(&k), 0);
     if (!grid) {
         rc = CONSPH_ENOMEM;
         goto done;

@@ -199,10 +199,10 @@ int consph_pass_run(const consph_sys *s, const consph_pass *pass, void *job)
 
 /* ---- the system ---- */
 
-/* The distance within which the kernel can be non-zero. A tensor-product kernel is non-zero on
- * the cube |x_a| < radius, whose corners lie sqrt(dim) times farther out than its radius: a
- * search of its radius alone would drop the pairs in the corners. */
-static double kernel_reach(const consph_kernel *kernel)
+/* A tensor-product kernel is non-zero on the cube |x_a| < radius, whose corners lie sqrt(dim)
+ * times farther out than its radius: a search of its radius alone would drop the pairs in the
+ * corners. */
+double consph_sys_reach(const consph_kernel *kernel)
 {
     return kernel->tensor ? kernel->radius * sqrt((double)kernel->dim) : kernel->radius;
 }
@@ -218,11 +218,11 @@ int consph_sys_wrap(consph_sys *s, consph_particles *p, consph_nnps *nnps,
         return consph_fail(CONSPH_EINVAL,
                            "system: the kernel is bound to %dD, the particles are %dD", kernel->dim,
                            p->dim);
-    if (consph_nnps_radius(nnps) < kernel_reach(kernel) * (1.0 - 1e-12))
+    if (consph_nnps_radius(nnps) < consph_sys_reach(kernel) * (1.0 - 1e-12))
         return consph_fail(
             CONSPH_EINVAL,
             "system: neighbour search radius %g is below the kernel support radius %g",
-            consph_nnps_radius(nnps), kernel_reach(kernel));
+            consph_nnps_radius(nnps), consph_sys_reach(kernel));
     s->p = p;
     s->nnps = nnps;
     s->kernel = *kernel;
@@ -257,7 +257,7 @@ int consph_sys_init(consph_sys *s, const consph_particles *src, const consph_ker
     s->owned = 1;
     s->kernel = *kernel;
     s->parallel_min = 2048;
-    const double reach = kernel_reach(kernel);
+    const double reach = consph_sys_reach(kernel);
     s->nnps = consph_nnps_create(&p->box, radius > reach ? radius : reach, 0);
     if (!s->nnps) {
         consph_sys_free(s);
