@@ -83,29 +83,17 @@ static void finish_inverse(const mat_job *job, size_t i, int n, const double *a)
     }
 }
 
-/* Σ -ω ∇W ⊗ x_ij for a dimension known at compile time, so the d² sums stay in registers. */
-OPS_INLINE void bonet_sums(const int d, const ops_nbhd *nb, const double *vol, double *M)
-{
-    double m[9] = {0};
-    for (size_t p = 0; p < nb->n; ++p) {
-        double s = -vol[nb->j[p]] * nb->dwr[p];
-        for (int a = 0; a < d; ++a)
-            for (int b = 0; b < d; ++b) m[a * d + b] += s * nb->dx[a][p] * nb->dx[b][p];
-    }
-    for (int e = 0; e < d * d; ++e) M[e] = m[e];
-}
-
 static void visit_bonet(mat_job *job, const ops_nbhd *nb)
 {
     const int d = job->dim;
     const double *vol = job->ctx->volume;
     double M[9] = {0};
     if (d == 1)
-        bonet_sums(1, nb, vol, M);
+        term_bonet_moment(1, nb, vol, M);
     else if (d == 2)
-        bonet_sums(2, nb, vol, M);
+        term_bonet_moment(2, nb, vol, M);
     else
-        bonet_sums(3, nb, vol, M);
+        term_bonet_moment(3, nb, vol, M);
     finish_inverse(job, nb->i, d, M);
 }
 
@@ -113,18 +101,18 @@ static void visit_liu(mat_job *job, const ops_nbhd *nb)
 {
     const int d = job->dim, n = d + 1;
     const double *vol = job->ctx->volume;
-    double L[16] = {0};
-    for (size_t p = 0; p < nb->n; ++p) {
-        double om = vol[nb->j[p]], w = om * nb->w[p], g = om * nb->dwr[p];
-        double x[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-        /* rows: test functions W, ∂^α W; columns: 1, (x_j - x_i)^β */
-        L[0] += w;
-        for (int b = 0; b < d; ++b) L[1 + b] -= w * x[b];
-        for (int a = 0; a < d; ++a) {
-            L[(1 + a) * n] += g * x[a];
-            for (int b = 0; b < d; ++b) L[(1 + a) * n + 1 + b] -= g * x[a] * x[b];
-        }
+    double L[16], m1[3], g0[3], g1[9];
+    if (d == 1)
+        term_moments(1, 1, 1, nb, vol, &L[0], m1, g0, g1);
+    else if (d == 2)
+        term_moments(2, 1, 1, nb, vol, &L[0], m1, g0, g1);
+    else
+        term_moments(3, 1, 1, nb, vol, &L[0], m1, g0, g1);
+    /* rows: test functions W, ∂^α W; columns: 1, (x_j - x_i)^β */
+    for (int b = 0; b < d; ++b) L[1 + b] = m1[b];
+    for (int a = 0; a < d; ++a) {
+        L[(1 + a) * n] = g0[a];
+        for (int b = 0; b < d; ++b) L[(1 + a) * n + 1 + b] = g1[a * d + b];
     }
     finish_inverse(job, nb->i, n, L);
 }
@@ -134,11 +122,7 @@ static void visit_iad(mat_job *job, const ops_nbhd *nb)
     const int d = job->dim;
     const double *vol = job->ctx->volume;
     double A[9] = {0};
-    for (size_t p = 0; p < nb->n; ++p) {
-        double s = vol[nb->j[p]] * nb->w[p];
-        for (int a = 0; a < d; ++a)
-            for (int b = 0; b < d; ++b) A[a * d + b] += s * nb->dx[a][p] * nb->dx[b][p];
-    }
+    term_iad_moment(d, nb, vol, A);
     /* IAD's matrix is a second moment, not a correction of ∇W: its fallback is the F2 gradient,
      * which the operator applies where the flag is set. */
     size_t i = nb->i;
@@ -172,27 +156,7 @@ static void visit_fatehi(mat_job *job, const ops_nbhd *nb)
     int pl[OPS_MAX_P], pk[OPS_MAX_P];
     for (int p = 0; p < P; ++p) ops_pair_index(d, p, &pl[p], &pk[p]);
     double T4[OPS_MAX_P * OPS_MAX_P] = {0}, S3[27] = {0}, R3[27] = {0};
-    for (size_t q = 0; q < nb->n; ++q) {
-        double r = nb->r[q];
-        if (!(r > 0.0)) continue;
-        double x[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-        double om = vol[nb->j[q]], dwr = nb->dwr[q];
-        /* r e e e ∂W = dwr x x x x / r², e e ∂W = dwr x x x / r², x x ∂W = dwr x x x */
-        double s4 = om * dwr / (r * r), s3 = s4, r3 = om * dwr;
-        for (int a = 0; a < P; ++a) {
-            double xab = x[pl[a]] * x[pk[a]];
-            for (int b = 0; b < P; ++b) T4[a * P + b] += s4 * xab * x[pl[b]] * x[pk[b]];
-        }
-        for (int a = 0; a < d; ++a)
-            for (int b = 0; b < d; ++b) {
-                double xab = x[a] * x[b];
-                for (int c = 0; c < d; ++c) {
-                    S3[(a * d + b) * d + c] += s3 * xab * x[c];
-                    R3[(a * d + b) * d + c] += r3 * xab * x[c];
-                }
-            }
-    }
+    term_fatehi_moments(d, P, pl, pk, nb, vol, T4, S3, R3);
     const double *B = job->bonet + i * (size_t)(d * d);
     double A[OPS_MAX_P * OPS_MAX_P], rhs[OPS_MAX_P];
     for (int a = 0; a < P; ++a) {
@@ -240,20 +204,7 @@ static void visit_fatehi_c(mat_job *job, const ops_nbhd *nb)
         return;
     }
     double L1[3] = {0}, L2[9] = {0}, L3[27] = {0};
-    for (size_t q = 0; q < nb->n; ++q) {
-        double r = nb->r[q];
-        if (!(r > 0.0)) continue;
-        double x[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-        double g = vol[nb->j[q]] * nb->dwr[q], g3 = g / (r * r);
-        for (int a = 0; a < d; ++a) {
-            L1[a] += g * r * r * x[a];
-            for (int b = 0; b < d; ++b) {
-                L2[a * d + b] += g * x[a] * x[b];
-                for (int c = 0; c < d; ++c) L3[(a * d + b) * d + c] += g3 * x[a] * x[b] * x[c];
-            }
-        }
-    }
+    term_fatehi_c_moments(d, nb, vol, L1, L2, L3);
     const double *B = job->bonet + i * (size_t)(d * d);
     double BL1[3] = {0}, M[9];
     for (int a = 0; a < d; ++a)
@@ -291,26 +242,7 @@ static void visit_second(mat_job *job, const ops_nbhd *nb)
     double A[OPS_MAX_P * OPS_MAX_P] = {0};
     double Hx[OPS_MAX_P * 3] = {0}; /* Σ ω ∂∂W_p x_ji^α */
     double Gz[3 * OPS_MAX_P] = {0}; /* Σ ω ∂^α W c_q x^l x^k */
-    for (size_t q = 0; q < nb->n; ++q) {
-        double r = nb->r[q], om = vol[nb->j[q]];
-        double x[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-        double dwr = nb->dwr[q];
-        double aee = r > 0.0 ? (nb->d2w[q] - dwr) / (r * r) : 0.0;
-        double zeta[OPS_MAX_P], H[OPS_MAX_P];
-        for (int p = 0; p < P; ++p) {
-            zeta[p] = cq[p] * x[pl[p]] * x[pk[p]];
-            H[p] = aee * x[pl[p]] * x[pk[p]] + (pl[p] == pk[p] ? dwr : 0.0);
-        }
-        for (int a = 0; a < P; ++a)
-            for (int b = 0; b < P; ++b) A[a * P + b] += om * H[a] * zeta[b];
-        if (korz) {
-            for (int a = 0; a < P; ++a)
-                for (int b = 0; b < d; ++b) Hx[a * d + b] -= om * H[a] * x[b];
-            for (int a = 0; a < d; ++a)
-                for (int b = 0; b < P; ++b) Gz[a * P + b] += om * dwr * x[a] * zeta[b];
-        }
-    }
+    term_second_moment(d, P, pl, pk, cq, korz, nb, vol, A, Hx, Gz);
     if (korz) {
         const double *B = job->bonet + i * (size_t)(d * d);
         double BG[3 * OPS_MAX_P] = {0};
@@ -337,27 +269,7 @@ static void visit_msph(mat_job *job, const ops_nbhd *nb)
         cq[p] = taylor_c(pl[p], pk[p]);
     }
     double A[OPS_MAX_MSPH * OPS_MAX_MSPH] = {0};
-    for (size_t q = 0; q < nb->n; ++q) {
-        double r = nb->r[q], om = vol[nb->j[q]];
-        double x[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-        double dwr = nb->dwr[q];
-        double aee = r > 0.0 ? (nb->d2w[q] - dwr) / (r * r) : 0.0;
-        double T[OPS_MAX_MSPH], C[OPS_MAX_MSPH];
-        T[0] = om * nb->w[q];
-        C[0] = 1.0;
-        for (int a = 0; a < d; ++a) {
-            T[1 + a] = om * dwr * x[a];
-            C[1 + a] = -x[a];
-        }
-        for (int p = 0; p < P; ++p) {
-            double xx = x[pl[p]] * x[pk[p]];
-            T[1 + d + p] = om * (aee * xx + (pl[p] == pk[p] ? dwr : 0.0));
-            C[1 + d + p] = cq[p] * xx;
-        }
-        for (int a = 0; a < n; ++a)
-            for (int b = 0; b < n; ++b) A[a * n + b] += T[a] * C[b];
-    }
+    term_msph_moment(d, P, pl, pk, cq, nb, vol, A);
     finish_inverse(job, nb->i, n, A);
 }
 

@@ -33,13 +33,7 @@ typedef struct density_job {
 static void visit_density(void *vjob, const ops_nbhd *nb)
 {
     density_job *job = vjob;
-    double s = 0.0;
-    if (job->mass) {
-        for (size_t p = 0; p < nb->n; ++p) s += job->mass[nb->j[p]] * nb->w[p];
-    } else {
-        for (size_t p = 0; p < nb->n; ++p) s += nb->w[p];
-    }
-    job->sum[nb->i] = s;
+    term_wsum(nb, job->mass, NULL, NULL, NULL, &job->sum[nb->i]);
 }
 
 static int compute_volumes(consph_op_ctx *ctx)
