@@ -68,19 +68,29 @@ static void set_identity(double *a, int n)
         for (int c = 0; c < n; ++c) a[r * n + c] = r == c ? 1.0 : 0.0;
 }
 
+/* Inverts a (n×n) into out, or stores the identity (cond 0) and returns 0. */
+static int invert_or_identity(int n, const double *a, double *out, double cond_max, double *cond)
+{
+    *cond = 0.0;
+    if (ops_invert(n, a, out, cond_max, cond)) return 1;
+    set_identity(out, n);
+    *cond = 0.0;
+    return 0;
+}
+
+int consph_bonet_finalise(int d, const double *moment, double cond_max, double *B, double *cond)
+{
+    double c;
+    int ok = invert_or_identity(d, moment, B, cond_max, &c);
+    if (cond) *cond = c;
+    return ok;
+}
+
 /* Inverts a (n×n) into out, or stores the identity and flags the particle. */
 static void finish_inverse(const mat_job *job, size_t i, int n, const double *a)
 {
-    double *out = job->out + i * job->size;
-    double cond = 0.0;
-    if (ops_invert(n, a, out, job->ctx->cond_max, &cond)) {
-        job->bad[i] = 0;
-        job->cond[i] = cond;
-    } else {
-        set_identity(out, n);
-        job->bad[i] = 1;
-        job->cond[i] = 0.0;
-    }
+    job->bad[i] =
+        !invert_or_identity(n, a, job->out + i * job->size, job->ctx->cond_max, &job->cond[i]);
 }
 
 static void visit_bonet(mat_job *job, const ops_nbhd *nb)
@@ -88,12 +98,7 @@ static void visit_bonet(mat_job *job, const ops_nbhd *nb)
     const int d = job->dim;
     const double *vol = job->ctx->volume;
     double M[9] = {0};
-    if (d == 1)
-        term_bonet_moment(1, nb, vol, M);
-    else if (d == 2)
-        term_bonet_moment(2, nb, vol, M);
-    else
-        term_bonet_moment(3, nb, vol, M);
+    term_bonet_moment_any(d, nb, vol, M);
     finish_inverse(job, nb->i, d, M);
 }
 
@@ -397,4 +402,80 @@ const double *consph_op_fatehi(consph_op_ctx *ctx, const unsigned char **bad)
 const double *consph_op_fatehi_c(consph_op_ctx *ctx, const unsigned char **bad)
 {
     return public_matrix(ctx, OPS_MAT_FATEHI_C, bad);
+}
+
+/* ---- correction tensors written by a pass ---- */
+
+static const struct {
+    const char *name;
+    ops_mat m;
+} adoptable[] = {
+    {"bonet", OPS_MAT_BONET},       {"liu", OPS_MAT_LIU},        {"fatehi", OPS_MAT_FATEHI},
+    {"fatehi_c", OPS_MAT_FATEHI_C}, {"korzilius", OPS_MAT_KORZ},
+};
+
+void ops_cache_drop(struct consph_ops_cache *c, ops_mat m)
+{
+    free(c->mat[m]);
+    free(c->bad[m]);
+    c->mat[m] = NULL;
+    c->bad[m] = NULL;
+    c->nbad[m] = 0;
+    c->max_cond[m] = 0.0;
+}
+
+int consph_op_ctx_adopt(consph_op_ctx *ctx, const char *name)
+{
+    int k = -1;
+    for (size_t t = 0; t < sizeof adoptable / sizeof adoptable[0]; ++t)
+        if (name && strcmp(name, adoptable[t].name) == 0) k = (int)t;
+    if (k < 0)
+        return consph_fail(CONSPH_EINVAL,
+                           "adopt: unknown tensor '%s' (allowed: bonet, liu, fatehi, fatehi_c, "
+                           "korzilius)",
+                           name ? name : "(null)");
+    const ops_mat m = adoptable[k].m;
+    const size_t size = ops_mat_size(m, ctx->dim), n = ctx->n, cap = ctx->p->cap;
+    const consph_field *f = consph_particles_find(ctx->p, name);
+    if (!f || f->ncomp != (int)size)
+        return consph_fail(CONSPH_EINVAL, "adopt: needs a particle field '%s' of %zu components",
+                           name, size);
+    char cname[CONSPH_FIELD_NAME_MAX + 8];
+    snprintf(cname, sizeof cname, "%s_cond", name);
+    const consph_field *fc = consph_particles_find(ctx->p, cname);
+    if (fc && fc->ncomp != 1)
+        return consph_fail(CONSPH_EINVAL, "adopt: field '%s' must have 1 component", cname);
+    double *mat = consph_calloc(n * size, sizeof(double));
+    unsigned char *bad = consph_calloc(n, 1);
+    if (!mat || !bad) {
+        free(mat);
+        free(bad);
+        return CONSPH_ENOMEM;
+    }
+    /* The field is component-major (stride cap), the cache one matrix per particle. */
+    for (size_t c = 0; c < size; ++c)
+        for (size_t i = 0; i < n; ++i) mat[i * size + c] = f->data[c * cap + i];
+    size_t nbad = 0;
+    double mx = 0.0;
+    if (fc) {
+        for (size_t i = 0; i < n; ++i) {
+            const double cond = fc->data[i];
+            bad[i] = !(cond > 0.0);
+            nbad += bad[i];
+            if (cond > mx) mx = cond;
+        }
+    }
+    struct consph_ops_cache *cache = ctx->cache;
+    ops_cache_drop(cache, m);
+    /* Matrices built on B must be rebuilt on the adopted one. */
+    if (m == OPS_MAT_BONET) {
+        ops_cache_drop(cache, OPS_MAT_FATEHI);
+        ops_cache_drop(cache, OPS_MAT_FATEHI_C);
+        ops_cache_drop(cache, OPS_MAT_KORZ);
+    }
+    cache->mat[m] = mat;
+    cache->bad[m] = bad;
+    cache->nbad[m] = nbad;
+    cache->max_cond[m] = mx;
+    return CONSPH_OK;
 }

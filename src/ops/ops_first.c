@@ -94,11 +94,7 @@ static void visit_gradient(first_job *job, const ops_nbhd *nb)
         double sg[3], sw;
         term_grad_sums_any(d, sym2 ? TERM_GRAD_SYM2 : TERM_GRAD_DIFF, job->corr == CONSPH_CORR_LC,
                            nb, vol, mass, rho, f, shift, sg, &sw);
-        for (int a = 0; a < d; ++a) {
-            double v = c[a] * sw;
-            for (int b = 0; b < d; ++b) v += M[a * d + b] * sg[b];
-            acc[a] = v;
-        }
+        term_apply_rule(d, c, M, sg, sw, acc);
         if (form == CONSPH_FORM_ASYM || form == CONSPH_FORM_SYM1)
             for (int a = 0; a < d; ++a) acc[a] /= rho[i];
         break;

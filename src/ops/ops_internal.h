@@ -48,6 +48,11 @@ struct consph_ops_cache {
     double *ctilde;                 /* consistent-Shepard factors c̃ (NULL until needed) */
     double ctilde_lambda;           /* the last normalisation, -> the eigenvalue */
     int ctilde_iterations;
+    /* Set by consph_op_ctx_init_sys: mass, rho and volume are fields of these particles, not
+     * arrays of the context; mass_given records whether "mass" was there before the context
+     * created it (otherwise it holds the default mass, recomputed on refresh). */
+    consph_particles *fields_of;
+    int mass_given;
 };
 
 /* Bookkeeping of one operator call: matrices used and pairs visited. */
@@ -56,6 +61,8 @@ typedef struct ops_call {
     size_t pairs;
 } ops_call;
 
+/* Frees matrix m of the cache (it is recomputed on next use). */
+void ops_cache_drop(struct consph_ops_cache *c, ops_mat m);
 /* Entries per particle of matrix m in `dim` dimensions. */
 size_t ops_mat_size(ops_mat m, int dim);
 /* The matrix, computing and caching it on first use (recording the pass's pairs in call). */

@@ -31,11 +31,8 @@ static void inner_gradient(const second_job *job, const ops_nbhd *nb, double G[3
     const double *u = job->in;
     double s[3], sw;
     term_grad_sums_any(d, TERM_GRAD_DIFF, 0, nb, job->ctx->volume, NULL, NULL, u, u[nb->i], s, &sw);
-    const double *B = job->bonet + nb->i * (size_t)(d * d);
-    for (int a = 0; a < d; ++a) {
-        G[a] = 0.0;
-        for (int b = 0; b < d; ++b) G[a] += B[a * d + b] * s[b];
-    }
+    const double zero[3] = {0.0, 0.0, 0.0};
+    term_apply_rule(d, zero, job->bonet + nb->i * (size_t)(d * d), s, 0.0, G);
 }
 
 static void visit_s1(second_job *job, const ops_nbhd *nb)

@@ -69,6 +69,17 @@ static inline void term_corrected_grad(int d, consph_op_corr corr, const double 
     }
 }
 
+/* The rule applied to a particle's sums (term_grad_sums): out = c sw + M sg. */
+static inline void term_apply_rule(int d, const double c[3], const double M[9], const double sg[3],
+                                   double sw, double out[3])
+{
+    for (int a = 0; a < d; ++a) {
+        double v = c[a] * sw;
+        for (int b = 0; b < d; ++b) v += M[a * d + b] * sg[b];
+        out[a] = v;
+    }
+}
+
 /* Loads x = x_ij of pair q and returns (W'' - W'/r)/r² (0 at r = 0), the radial part of the
  * kernel Hessian ∂_l∂_k W = aee x^l x^k + dwr δ_lk. */
 static inline double term_pair_hess(int d, const consph_nbhd *nb, size_t q, double x[3])
@@ -362,6 +373,18 @@ TERM_INLINE void term_bonet_moment(const int d, const consph_nbhd *nb, const dou
                                    double *moment)
 {
     term_moments(d, 0, 0, nb, vol, NULL, NULL, NULL, moment);
+}
+
+/* term_bonet_moment for a dimension known only at run time. */
+static inline void term_bonet_moment_any(int d, const consph_nbhd *nb, const double *vol,
+                                         double *moment)
+{
+    if (d == 1)
+        term_bonet_moment(1, nb, vol, moment);
+    else if (d == 2)
+        term_bonet_moment(2, nb, vol, moment);
+    else
+        term_bonet_moment(3, nb, vol, moment);
 }
 
 /* IAD (000 eq. 51): A = Σ ω x_ij ⊗ x_ij W; A zero on entry. */
