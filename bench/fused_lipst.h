@@ -68,7 +68,7 @@ static inline void fused_lipst_visit1(void *vjob, const consph_nbhd *nb)
         term_apply_rule(d, zero, B, sg, sw, out);
         for (int b = 0; b < d; ++b) job->G[(size_t)(a * d + b) * n + i] = out[b];
     }
-    job->divu[i] = term_corrected_div(d, CONSPH_CORR_BC, zero, B, nb, job->vol, job->u, n, ui);
+    job->divu[i] = term_corrected_div_any(d, CONSPH_CORR_BC, zero, B, nb, job->vol, job->u, n, ui);
 }
 
 static inline void fused_lipst_visit2(void *vjob, const consph_nbhd *nb)
@@ -83,7 +83,7 @@ static inline void fused_lipst_visit2(void *vjob, const consph_nbhd *nb)
         const double *Ga = job->G + (size_t)a * d * n;
         for (int b = 0; b < d; ++b) Gi[b] = Ga[b * n + i];
         job->lapu[a * n + i] =
-            term_corrected_div(d, CONSPH_CORR_BC, zero, B, nb, job->vol, Ga, n, Gi);
+            term_corrected_div_any(d, CONSPH_CORR_BC, zero, B, nb, job->vol, Ga, n, Gi);
     }
 }
 

@@ -133,7 +133,7 @@ static void visit_div(first_job *job, const ops_nbhd *nb)
     double c[3], M[9], ui[3];
     term_grad_rule(job->dim, job->corr, job->mat, job->mat_size, i, c, M);
     for (int a = 0; a < d; ++a) ui[a] = u[a * N + i];
-    job->out[i] = term_corrected_div(d, job->corr, c, M, nb, job->ctx->volume, u, N, ui);
+    job->out[i] = term_corrected_div_any(d, job->corr, c, M, nb, job->ctx->volume, u, N, ui);
 }
 
 static void visit_first(void *vjob, const ops_nbhd *nb)

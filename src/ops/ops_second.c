@@ -45,7 +45,7 @@ static void visit_s1(second_job *job, const ops_nbhd *nb)
     /* s1 (002 eq. 7) sums G_j, s1_diff/coupled (eq. 8) G_j - G_i, s1_sum (eq. 9) G_j + G_i. */
     double sign = job->form == CONSPH_FORM_S1 ? 0.0 : job->form == CONSPH_FORM_S1_SUM ? -1.0 : 1.0;
     for (int a = 0; a < d; ++a) Gi[a] = sign * G[a * N + i];
-    job->out[i] = term_corrected_div(d, job->corr, c, M, nb, job->ctx->volume, G, N, Gi);
+    job->out[i] = term_corrected_div_any(d, job->corr, c, M, nb, job->ctx->volume, G, N, Gi);
 }
 
 static void visit_s2(second_job *job, const ops_nbhd *nb)

@@ -232,10 +232,11 @@ static inline void term_iad_rhs(int d, const consph_nbhd *nb, const double *vol,
 /* ---- divergence and second derivatives ---- */
 
 /* The corrected divergence Σ_j ω_j (u_j - shift)·g̃_ij of the d-vector u (stride N), g̃ from
- * (c, M): the div form (shift = u_i) and the s1 family's outer sum over G (shift 0, G_i, -G_i). */
-static inline double term_corrected_div(int d, consph_op_corr corr, const double c[3],
-                                        const double M[9], const consph_nbhd *nb, const double *vol,
-                                        const double *u, size_t N, const double shift[3])
+ * (c, M), for a dimension known at compile time: the div form (shift = u_i) and the s1 family's
+ * outer sum over G (shift 0, G_i, -G_i). */
+TERM_INLINE double term_corrected_div(const int d, consph_op_corr corr, const double c[3],
+                                      const double M[9], const consph_nbhd *nb, const double *vol,
+                                      const double *u, size_t N, const double shift[3])
 {
     double acc = 0.0;
     for (size_t p = 0; p < nb->n; ++p) {
@@ -248,6 +249,17 @@ static inline double term_corrected_div(int d, consph_op_corr corr, const double
         acc += vol[j] * s;
     }
     return acc;
+}
+
+/* term_corrected_div for a dimension known only at run time. */
+static inline double term_corrected_div_any(int d, consph_op_corr corr, const double c[3],
+                                            const double M[9], const consph_nbhd *nb,
+                                            const double *vol, const double *u, size_t N,
+                                            const double shift[3])
+{
+    if (d == 1) return term_corrected_div(1, corr, c, M, nb, vol, u, N, shift);
+    if (d == 2) return term_corrected_div(2, corr, c, M, nb, vol, u, N, shift);
+    return term_corrected_div(3, corr, c, M, nb, vol, u, N, shift);
 }
 
 /* Σ_j ω_j (u_j - shift) ∇²W_ij (002 eqs. 10-12). ∇²W = W'' + (d - 1) W'/r; at r = 0 dwr holds
