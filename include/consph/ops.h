@@ -24,6 +24,19 @@
  * never inverted: that particle falls back to the uncorrected operator (the correction replaced
  * by the identity; for IAD the F2 gradient), and the report counts the particles that fell back.
  *
+ * Named particle fields (a system's particles, include/consph/pass.h), so that a scheme computing
+ * these in a pass it already runs hands them to the operators instead of paying a pass for each:
+ *   "mass", "rho", "volume"  scalars. A context made by consph_op_ctx_init_sys keeps m, ρ and ω
+ *                            in these fields of the system's particles (ctx->mass etc. point at
+ *                            them; "mass" is read as given when present, else created and filled
+ *                            with the default mass); passes read them there.
+ *   "bonet"      B_i, d² components          "liu"       L_i^{-1}, (d+1)² components
+ *   "fatehi"     B̂_i (002 eq. 40), d²        "fatehi_c"  B̂_i (001 eq. 13), d²
+ *   "korzilius"  Γ̃_i^{-1}, P² (P = d(d+1)/2)
+ *   "<name>_cond" (optional, 1 component): the condition estimate, 0 where the particle fell back.
+ * A tensor's component a*k + b (k its row length) is its row-major entry (a, b), the layout of
+ * consph_op_bonet & co; consph_op_ctx_adopt takes a tensor from its field into the context.
+ *
  * A context is not safe for concurrent consph_apply calls from several threads (the cache is
  * filled lazily); each call is itself parallel. */
 #ifndef CONSPH_OPS_H
@@ -158,9 +171,20 @@ typedef struct consph_op_ctx {
  * a radial kernel, and computes the volumes. */
 int consph_op_ctx_init(consph_op_ctx *ctx, const consph_particles *p, const consph_nnps *nnps,
                        const consph_kernel *kernel, consph_volume_kind volume_kind);
-/* The same over a system's particles, search and kernel (the system must outlive the context). */
+/* The same over a system's particles, search and kernel (the system must outlive the context);
+ * mass, rho and volume become fields of the system's particles (header comment). */
 int consph_op_ctx_init_sys(consph_op_ctx *ctx, const consph_sys *sys,
                            consph_volume_kind volume_kind);
+/* Takes the correction tensor `name` ("bonet", "liu", "fatehi", "fatehi_c" or "korzilius") from
+ * the particle field of that name, as a pass wrote it, instead of computing it: operators that
+ * use it read the adopted values until the next refresh. With a field "<name>_cond", particles
+ * where it is 0 count as fallbacks in reports and the largest value is the report's max_cond.
+ * Adopting "bonet" drops the cached matrices built on it (fatehi, fatehi_c, korzilius). */
+int consph_op_ctx_adopt(consph_op_ctx *ctx, const char *name);
+/* B_i from its moment Σ_j -ω_j ∇W_ij ⊗ x_ij (d×d row-major, the sum of a pass) with the rule the
+ * context uses: the inverse when its condition estimate is finite and <= cond_max (returns 1,
+ * *cond the estimate), otherwise the identity (returns 0, *cond = 0). cond may be NULL. */
+int consph_bonet_finalise(int d, const double *moment, double cond_max, double *B, double *cond);
 void consph_op_ctx_free(consph_op_ctx *ctx);
 /* Recomputes volumes and drops every cached matrix; call after the particles moved (and the
  * nnps was rebuilt). */

@@ -68,31 +68,29 @@ static void set_identity(double *a, int n)
         for (int c = 0; c < n; ++c) a[r * n + c] = r == c ? 1.0 : 0.0;
 }
 
+/* Inverts a (n×n) into out, or stores the identity (cond 0) and returns 0. */
+static int invert_or_identity(int n, const double *a, double *out, double cond_max, double *cond)
+{
+    *cond = 0.0;
+    if (ops_invert(n, a, out, cond_max, cond)) return 1;
+    set_identity(out, n);
+    *cond = 0.0;
+    return 0;
+}
+
+int consph_bonet_finalise(int d, const double *moment, double cond_max, double *B, double *cond)
+{
+    double c;
+    int ok = invert_or_identity(d, moment, B, cond_max, &c);
+    if (cond) *cond = c;
+    return ok;
+}
+
 /* Inverts a (n×n) into out, or stores the identity and flags the particle. */
 static void finish_inverse(const mat_job *job, size_t i, int n, const double *a)
 {
-    double *out = job->out + i * job->size;
-    double cond = 0.0;
-    if (ops_invert(n, a, out, job->ctx->cond_max, &cond)) {
-        job->bad[i] = 0;
-        job->cond[i] = cond;
-    } else {
-        set_identity(out, n);
-        job->bad[i] = 1;
-        job->cond[i] = 0.0;
-    }
-}
-
-/* Σ -ω ∇W ⊗ x_ij for a dimension known at compile time, so the d² sums stay in registers. */
-OPS_INLINE void bonet_sums(const int d, const ops_nbhd *nb, const double *vol, double *M)
-{
-    double m[9] = {0};
-    for (size_t p = 0; p < nb->n; ++p) {
-        double s = -vol[nb->j[p]] * nb->dwr[p];
-        for (int a = 0; a < d; ++a)
-            for (int b = 0; b < d; ++b) m[a * d + b] += s * nb->dx[a][p] * nb->dx[b][p];
-    }
-    for (int e = 0; e < d * d; ++e) M[e] = m[e];
+    job->bad[i] =
+        !invert_or_identity(n, a, job->out + i * job->size, job->ctx->cond_max, &job->cond[i]);
 }
 
 static void visit_bonet(mat_job *job, const ops_nbhd *nb)
@@ -100,12 +98,7 @@ static void visit_bonet(mat_job *job, const ops_nbhd *nb)
     const int d = job->dim;
     const double *vol = job->ctx->volume;
     double M[9] = {0};
-    if (d == 1)
-        bonet_sums(1, nb, vol, M);
-    else if (d == 2)
-        bonet_sums(2, nb, vol, M);
-    else
-        bonet_sums(3, nb, vol, M);
+    term_bonet_moment_any(d, nb, vol, M);
     finish_inverse(job, nb->i, d, M);
 }
 
@@ -113,18 +106,18 @@ static void visit_liu(mat_job *job, const ops_nbhd *nb)
 {
     const int d = job->dim, n = d + 1;
     const double *vol = job->ctx->volume;
-    double L[16] = {0};
-    for (size_t p = 0; p < nb->n; ++p) {
-        double om = vol[nb->j[p]], w = om * nb->w[p], g = om * nb->dwr[p];
-        double x[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-        /* rows: test functions W, ∂^α W; columns: 1, (x_j - x_i)^β */
-        L[0] += w;
-        for (int b = 0; b < d; ++b) L[1 + b] -= w * x[b];
-        for (int a = 0; a < d; ++a) {
-            L[(1 + a) * n] += g * x[a];
-            for (int b = 0; b < d; ++b) L[(1 + a) * n + 1 + b] -= g * x[a] * x[b];
-        }
+    double L[16], m1[3], g0[3], g1[9];
+    if (d == 1)
+        term_moments(1, 1, 1, nb, vol, &L[0], m1, g0, g1);
+    else if (d == 2)
+        term_moments(2, 1, 1, nb, vol, &L[0], m1, g0, g1);
+    else
+        term_moments(3, 1, 1, nb, vol, &L[0], m1, g0, g1);
+    /* rows: test functions W, ∂^α W; columns: 1, (x_j - x_i)^β */
+    for (int b = 0; b < d; ++b) L[1 + b] = m1[b];
+    for (int a = 0; a < d; ++a) {
+        L[(1 + a) * n] = g0[a];
+        for (int b = 0; b < d; ++b) L[(1 + a) * n + 1 + b] = g1[a * d + b];
     }
     finish_inverse(job, nb->i, n, L);
 }
@@ -134,11 +127,7 @@ static void visit_iad(mat_job *job, const ops_nbhd *nb)
     const int d = job->dim;
     const double *vol = job->ctx->volume;
     double A[9] = {0};
-    for (size_t p = 0; p < nb->n; ++p) {
-        double s = vol[nb->j[p]] * nb->w[p];
-        for (int a = 0; a < d; ++a)
-            for (int b = 0; b < d; ++b) A[a * d + b] += s * nb->dx[a][p] * nb->dx[b][p];
-    }
+    term_iad_moment(d, nb, vol, A);
     /* IAD's matrix is a second moment, not a correction of ∇W: its fallback is the F2 gradient,
      * which the operator applies where the flag is set. */
     size_t i = nb->i;
@@ -172,27 +161,7 @@ static void visit_fatehi(mat_job *job, const ops_nbhd *nb)
     int pl[OPS_MAX_P], pk[OPS_MAX_P];
     for (int p = 0; p < P; ++p) ops_pair_index(d, p, &pl[p], &pk[p]);
     double T4[OPS_MAX_P * OPS_MAX_P] = {0}, S3[27] = {0}, R3[27] = {0};
-    for (size_t q = 0; q < nb->n; ++q) {
-        double r = nb->r[q];
-        if (!(r > 0.0)) continue;
-        double x[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-        double om = vol[nb->j[q]], dwr = nb->dwr[q];
-        /* r e e e ∂W = dwr x x x x / r², e e ∂W = dwr x x x / r², x x ∂W = dwr x x x */
-        double s4 = om * dwr / (r * r), s3 = s4, r3 = om * dwr;
-        for (int a = 0; a < P; ++a) {
-            double xab = x[pl[a]] * x[pk[a]];
-            for (int b = 0; b < P; ++b) T4[a * P + b] += s4 * xab * x[pl[b]] * x[pk[b]];
-        }
-        for (int a = 0; a < d; ++a)
-            for (int b = 0; b < d; ++b) {
-                double xab = x[a] * x[b];
-                for (int c = 0; c < d; ++c) {
-                    S3[(a * d + b) * d + c] += s3 * xab * x[c];
-                    R3[(a * d + b) * d + c] += r3 * xab * x[c];
-                }
-            }
-    }
+    term_fatehi_moments(d, P, pl, pk, nb, vol, T4, S3, R3);
     const double *B = job->bonet + i * (size_t)(d * d);
     double A[OPS_MAX_P * OPS_MAX_P], rhs[OPS_MAX_P];
     for (int a = 0; a < P; ++a) {
@@ -240,20 +209,7 @@ static void visit_fatehi_c(mat_job *job, const ops_nbhd *nb)
         return;
     }
     double L1[3] = {0}, L2[9] = {0}, L3[27] = {0};
-    for (size_t q = 0; q < nb->n; ++q) {
-        double r = nb->r[q];
-        if (!(r > 0.0)) continue;
-        double x[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-        double g = vol[nb->j[q]] * nb->dwr[q], g3 = g / (r * r);
-        for (int a = 0; a < d; ++a) {
-            L1[a] += g * r * r * x[a];
-            for (int b = 0; b < d; ++b) {
-                L2[a * d + b] += g * x[a] * x[b];
-                for (int c = 0; c < d; ++c) L3[(a * d + b) * d + c] += g3 * x[a] * x[b] * x[c];
-            }
-        }
-    }
+    term_fatehi_c_moments(d, nb, vol, L1, L2, L3);
     const double *B = job->bonet + i * (size_t)(d * d);
     double BL1[3] = {0}, M[9];
     for (int a = 0; a < d; ++a)
@@ -291,26 +247,7 @@ static void visit_second(mat_job *job, const ops_nbhd *nb)
     double A[OPS_MAX_P * OPS_MAX_P] = {0};
     double Hx[OPS_MAX_P * 3] = {0}; /* Σ ω ∂∂W_p x_ji^α */
     double Gz[3 * OPS_MAX_P] = {0}; /* Σ ω ∂^α W c_q x^l x^k */
-    for (size_t q = 0; q < nb->n; ++q) {
-        double r = nb->r[q], om = vol[nb->j[q]];
-        double x[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-        double dwr = nb->dwr[q];
-        double aee = r > 0.0 ? (nb->d2w[q] - dwr) / (r * r) : 0.0;
-        double zeta[OPS_MAX_P], H[OPS_MAX_P];
-        for (int p = 0; p < P; ++p) {
-            zeta[p] = cq[p] * x[pl[p]] * x[pk[p]];
-            H[p] = aee * x[pl[p]] * x[pk[p]] + (pl[p] == pk[p] ? dwr : 0.0);
-        }
-        for (int a = 0; a < P; ++a)
-            for (int b = 0; b < P; ++b) A[a * P + b] += om * H[a] * zeta[b];
-        if (korz) {
-            for (int a = 0; a < P; ++a)
-                for (int b = 0; b < d; ++b) Hx[a * d + b] -= om * H[a] * x[b];
-            for (int a = 0; a < d; ++a)
-                for (int b = 0; b < P; ++b) Gz[a * P + b] += om * dwr * x[a] * zeta[b];
-        }
-    }
+    term_second_moment(d, P, pl, pk, cq, korz, nb, vol, A, Hx, Gz);
     if (korz) {
         const double *B = job->bonet + i * (size_t)(d * d);
         double BG[3 * OPS_MAX_P] = {0};
@@ -337,27 +274,7 @@ static void visit_msph(mat_job *job, const ops_nbhd *nb)
         cq[p] = taylor_c(pl[p], pk[p]);
     }
     double A[OPS_MAX_MSPH * OPS_MAX_MSPH] = {0};
-    for (size_t q = 0; q < nb->n; ++q) {
-        double r = nb->r[q], om = vol[nb->j[q]];
-        double x[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-        double dwr = nb->dwr[q];
-        double aee = r > 0.0 ? (nb->d2w[q] - dwr) / (r * r) : 0.0;
-        double T[OPS_MAX_MSPH], C[OPS_MAX_MSPH];
-        T[0] = om * nb->w[q];
-        C[0] = 1.0;
-        for (int a = 0; a < d; ++a) {
-            T[1 + a] = om * dwr * x[a];
-            C[1 + a] = -x[a];
-        }
-        for (int p = 0; p < P; ++p) {
-            double xx = x[pl[p]] * x[pk[p]];
-            T[1 + d + p] = om * (aee * xx + (pl[p] == pk[p] ? dwr : 0.0));
-            C[1 + d + p] = cq[p] * xx;
-        }
-        for (int a = 0; a < n; ++a)
-            for (int b = 0; b < n; ++b) A[a * n + b] += T[a] * C[b];
-    }
+    term_msph_moment(d, P, pl, pk, cq, nb, vol, A);
     finish_inverse(job, nb->i, n, A);
 }
 
@@ -485,4 +402,80 @@ const double *consph_op_fatehi(consph_op_ctx *ctx, const unsigned char **bad)
 const double *consph_op_fatehi_c(consph_op_ctx *ctx, const unsigned char **bad)
 {
     return public_matrix(ctx, OPS_MAT_FATEHI_C, bad);
+}
+
+/* ---- correction tensors written by a pass ---- */
+
+static const struct {
+    const char *name;
+    ops_mat m;
+} adoptable[] = {
+    {"bonet", OPS_MAT_BONET},       {"liu", OPS_MAT_LIU},        {"fatehi", OPS_MAT_FATEHI},
+    {"fatehi_c", OPS_MAT_FATEHI_C}, {"korzilius", OPS_MAT_KORZ},
+};
+
+void ops_cache_drop(struct consph_ops_cache *c, ops_mat m)
+{
+    free(c->mat[m]);
+    free(c->bad[m]);
+    c->mat[m] = NULL;
+    c->bad[m] = NULL;
+    c->nbad[m] = 0;
+    c->max_cond[m] = 0.0;
+}
+
+int consph_op_ctx_adopt(consph_op_ctx *ctx, const char *name)
+{
+    int k = -1;
+    for (size_t t = 0; t < sizeof adoptable / sizeof adoptable[0]; ++t)
+        if (name && strcmp(name, adoptable[t].name) == 0) k = (int)t;
+    if (k < 0)
+        return consph_fail(CONSPH_EINVAL,
+                           "adopt: unknown tensor '%s' (allowed: bonet, liu, fatehi, fatehi_c, "
+                           "korzilius)",
+                           name ? name : "(null)");
+    const ops_mat m = adoptable[k].m;
+    const size_t size = ops_mat_size(m, ctx->dim), n = ctx->n, cap = ctx->p->cap;
+    const consph_field *f = consph_particles_find(ctx->p, name);
+    if (!f || f->ncomp != (int)size)
+        return consph_fail(CONSPH_EINVAL, "adopt: needs a particle field '%s' of %zu components",
+                           name, size);
+    char cname[CONSPH_FIELD_NAME_MAX + 8];
+    snprintf(cname, sizeof cname, "%s_cond", name);
+    const consph_field *fc = consph_particles_find(ctx->p, cname);
+    if (fc && fc->ncomp != 1)
+        return consph_fail(CONSPH_EINVAL, "adopt: field '%s' must have 1 component", cname);
+    double *mat = consph_calloc(n * size, sizeof(double));
+    unsigned char *bad = consph_calloc(n, 1);
+    if (!mat || !bad) {
+        free(mat);
+        free(bad);
+        return CONSPH_ENOMEM;
+    }
+    /* The field is component-major (stride cap), the cache one matrix per particle. */
+    for (size_t c = 0; c < size; ++c)
+        for (size_t i = 0; i < n; ++i) mat[i * size + c] = f->data[c * cap + i];
+    size_t nbad = 0;
+    double mx = 0.0;
+    if (fc) {
+        for (size_t i = 0; i < n; ++i) {
+            const double cond = fc->data[i];
+            bad[i] = !(cond > 0.0);
+            nbad += bad[i];
+            if (cond > mx) mx = cond;
+        }
+    }
+    struct consph_ops_cache *cache = ctx->cache;
+    ops_cache_drop(cache, m);
+    /* Matrices built on B must be rebuilt on the adopted one. */
+    if (m == OPS_MAT_BONET) {
+        ops_cache_drop(cache, OPS_MAT_FATEHI);
+        ops_cache_drop(cache, OPS_MAT_FATEHI_C);
+        ops_cache_drop(cache, OPS_MAT_KORZ);
+    }
+    cache->mat[m] = mat;
+    cache->bad[m] = bad;
+    cache->nbad[m] = nbad;
+    cache->max_cond[m] = mx;
+    return CONSPH_OK;
 }

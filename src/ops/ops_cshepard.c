@@ -22,10 +22,7 @@ typedef struct power_job {
 static void visit_power(void *vjob, const ops_nbhd *nb)
 {
     power_job *job = vjob;
-    const double *vol = job->ctx->volume, *c = job->c;
-    double s = 0.0;
-    for (size_t p = 0; p < nb->n; ++p) s += vol[nb->j[p]] * c[nb->j[p]] * nb->w[p];
-    job->y[nb->i] = s;
+    term_wsum(nb, job->ctx->volume, job->c, NULL, NULL, &job->y[nb->i]);
 }
 
 static int power_iteration(consph_op_ctx *ctx, double tol, int max_iter, double *c, int *iters,
@@ -128,14 +125,8 @@ static void visit_cshepard_sum(void *vjob, const ops_nbhd *nb)
     cgrad_job *job = vjob;
     const int d = job->ctx->dim;
     const size_t n = job->ctx->n, i = nb->i;
-    const double *vol = job->ctx->volume, *c = job->c;
-    double s = 0.0, g[3] = {0.0, 0.0, 0.0};
-    for (size_t p = 0; p < nb->n; ++p) {
-        const size_t j = nb->j[p];
-        const double vc = vol[j] * c[j];
-        s += vc * nb->w[p];
-        for (int a = 0; a < d; ++a) g[a] += vc * nb->dwr[p] * nb->dx[a][p];
-    }
+    double s, g[3];
+    term_grad_sums_any(d, TERM_GRAD_PROD, 1, nb, job->ctx->volume, NULL, NULL, job->c, 0.0, g, &s);
     job->s[i] = s;
     for (int a = 0; a < d; ++a) job->gs[(size_t)a * n + i] = g[a];
 }
@@ -145,16 +136,11 @@ static void visit_cshepard_grad(void *vjob, const ops_nbhd *nb)
     cgrad_job *job = vjob;
     const int d = job->ctx->dim;
     const size_t n = job->ctx->n, i = nb->i;
-    const double *vol = job->ctx->volume, *c = job->c, *A = job->in;
     /* the self term keeps S_a > 0 */
-    const double inv_s = 1.0 / job->s[i], Ai = A[i];
+    const double inv_s = 1.0 / job->s[i];
     double q[3], g[3] = {0.0, 0.0, 0.0};
     for (int a = 0; a < d; ++a) q[a] = job->gs[(size_t)a * n + i] * inv_s;
-    for (size_t p = 0; p < nb->n; ++p) {
-        const size_t j = nb->j[p];
-        const double vcA = vol[j] * c[j] * (A[j] - Ai);
-        for (int a = 0; a < d; ++a) g[a] += vcA * (nb->dwr[p] * nb->dx[a][p] - nb->w[p] * q[a]);
-    }
+    term_cshepard_grad(d, nb, job->ctx->volume, job->c, job->in, q, g);
     for (int a = 0; a < d; ++a) job->out[(size_t)a * n + i] = g[a] * inv_s;
 }
 

@@ -33,20 +33,16 @@ typedef struct density_job {
 static void visit_density(void *vjob, const ops_nbhd *nb)
 {
     density_job *job = vjob;
-    double s = 0.0;
-    if (job->mass) {
-        for (size_t p = 0; p < nb->n; ++p) s += job->mass[nb->j[p]] * nb->w[p];
-    } else {
-        for (size_t p = 0; p < nb->n; ++p) s += nb->w[p];
-    }
-    job->sum[nb->i] = s;
+    term_wsum(nb, job->mass, NULL, NULL, NULL, &job->sum[nb->i]);
 }
 
 static int compute_volumes(consph_op_ctx *ctx)
 {
     const size_t n = ctx->n;
     const consph_particles *p = ctx->p;
-    const consph_field *fmass = consph_particles_find(p, "mass");
+    /* On a system the context created "mass" itself when it was absent. */
+    const consph_field *fmass =
+        ctx->cache->fields_of && !ctx->cache->mass_given ? NULL : consph_particles_find(p, "mass");
     if (fmass && fmass->ncomp != 1)
         return consph_fail(CONSPH_EINVAL, "field 'mass' has %d components, not 1", fmass->ncomp);
     if (ctx->volume_kind == CONSPH_VOLUME_GIVEN) {
@@ -88,16 +84,33 @@ static int compute_volumes(consph_op_ctx *ctx)
 
 /* ---- context ---- */
 
+/* The scalar field `name` of p, created when absent. */
+static int scalar_field(consph_particles *p, const char *name, double **out)
+{
+    const int existed = consph_particles_find(p, name) != NULL;
+    *out = consph_particles_field(p, name, 1);
+    if (*out) return CONSPH_OK;
+    /* a clash of components or a full set; otherwise the allocation failed */
+    return existed || p->nfields == CONSPH_MAX_FIELDS ? CONSPH_EINVAL : CONSPH_ENOMEM;
+}
+
+/* Points mass, rho and volume at the fields of p, creating those that are absent. */
+static int bind_fields(consph_op_ctx *ctx, consph_particles *p)
+{
+    double *m, *r, *v;
+    int st = scalar_field(p, "mass", &m);
+    if (st == CONSPH_OK) st = scalar_field(p, "rho", &r);
+    if (st == CONSPH_OK) st = scalar_field(p, "volume", &v);
+    if (st != CONSPH_OK) return st;
+    ctx->mass = m;
+    ctx->rho = r;
+    ctx->volume = v;
+    return CONSPH_OK;
+}
+
 static void cache_clear(struct consph_ops_cache *c)
 {
-    for (int m = 0; m < OPS_MAT_COUNT; ++m) {
-        free(c->mat[m]);
-        free(c->bad[m]);
-        c->mat[m] = NULL;
-        c->bad[m] = NULL;
-        c->nbad[m] = 0;
-        c->max_cond[m] = 0.0;
-    }
+    for (int m = 0; m < OPS_MAT_COUNT; ++m) ops_cache_drop(c, (ops_mat)m);
     free(c->ctilde);
     c->ctilde = NULL;
     c->ctilde_lambda = 0.0;
@@ -147,11 +160,13 @@ int consph_op_ctx_init(consph_op_ctx *ctx, const consph_particles *p, const cons
 
 void consph_op_ctx_free(consph_op_ctx *ctx)
 {
+    if (!ctx->cache || !ctx->cache->fields_of) {
+        free(ctx->mass);
+        free(ctx->rho);
+        free(ctx->volume);
+    }
     if (ctx->cache) cache_clear(ctx->cache);
     free(ctx->cache);
-    free(ctx->mass);
-    free(ctx->rho);
-    free(ctx->volume);
     memset(ctx, 0, sizeof *ctx);
 }
 
@@ -162,6 +177,11 @@ int consph_op_ctx_refresh(consph_op_ctx *ctx)
                            "particle count changed from %zu to %zu; create a new context", ctx->n,
                            ctx->p->n);
     cache_clear(ctx->cache);
+    if (ctx->cache->fields_of) {
+        /* Fields stay where they are when particles are sorted, but not when they grow. */
+        int st = bind_fields(ctx, ctx->cache->fields_of);
+        if (st != CONSPH_OK) return st;
+    }
     return compute_volumes(ctx);
 }
 
@@ -201,7 +221,23 @@ int consph_op_ctx_init_sys(consph_op_ctx *ctx, const consph_sys *sys,
                            consph_volume_kind volume_kind)
 {
     if (!sys) return consph_fail(CONSPH_EINVAL, "operator context needs a system");
+    const int mass_given = consph_particles_find(sys->p, "mass") != NULL;
     int rc = consph_op_ctx_init(ctx, sys->p, sys->nnps, &sys->kernel, volume_kind);
-    if (rc == CONSPH_OK) ctx->parallel_min = sys->parallel_min;
-    return rc;
+    if (rc != CONSPH_OK) return rc;
+    ctx->parallel_min = sys->parallel_min;
+    /* The context computed into its own arrays; from now on the system's fields are the
+     * arrays, so a pass reads the same ω, m and ρ the operators do. */
+    double *own[3] = {ctx->mass, ctx->rho, ctx->volume};
+    rc = bind_fields(ctx, sys->p);
+    if (rc != CONSPH_OK) {
+        consph_op_ctx_free(ctx); /* still owns own[] */
+        return rc;
+    }
+    memcpy(ctx->mass, own[0], ctx->n * sizeof(double));
+    memcpy(ctx->rho, own[1], ctx->n * sizeof(double));
+    memcpy(ctx->volume, own[2], ctx->n * sizeof(double));
+    for (int k = 0; k < 3; ++k) free(own[k]);
+    ctx->cache->fields_of = sys->p;
+    ctx->cache->mass_given = mass_given;
+    return CONSPH_OK;
 }

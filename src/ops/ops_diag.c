@@ -12,23 +12,11 @@ typedef struct moment_job {
 } moment_job;
 
 /* The moments of one neighbourhood for a dimension known at compile time. */
-OPS_INLINE void moment_sums(const int d, const moment_job *job, const ops_nbhd *nb)
+TERM_INLINE void moment_sums(const int d, const moment_job *job, const ops_nbhd *nb)
 {
-    const double *vol = job->ctx->volume;
     const size_t i = nb->i, N = job->ctx->n;
-    double m0 = 0.0, m1[3] = {0}, g0[3] = {0}, g1[9] = {0};
-    for (size_t p = 0; p < nb->n; ++p) {
-        double om = vol[nb->j[p]], w = om * nb->w[p], g = om * nb->dwr[p];
-        double x[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-        m0 += w;
-        for (int a = 0; a < d; ++a) {
-            /* x_j - x_i = -x_ij */
-            m1[a] -= w * x[a];
-            g0[a] += g * x[a];
-            for (int b = 0; b < d; ++b) g1[a * d + b] -= g * x[a] * x[b];
-        }
-    }
+    double m0, m1[3], g0[3], g1[9];
+    term_moments(d, 1, 1, nb, job->ctx->volume, &m0, m1, g0, g1);
     if (job->m0) job->m0[i] = m0;
     for (int a = 0; a < d; ++a) {
         if (job->m1) job->m1[a * N + i] = m1[a];
@@ -115,21 +103,10 @@ static void visit_boundary(void *vjob, const ops_nbhd *nb)
 {
     boundary_job *job = vjob;
     const consph_op_ctx *ctx = job->ctx;
-    const double *vol = ctx->volume, *f = job->f;
     const size_t i = nb->i;
-    const double fa = f[i], xa = ctx->p->x[0][i];
-    double gamma = 0.0, s1 = 0.0, s2 = 0.0;
-    for (size_t p = 0; p < nb->n; ++p) {
-        size_t j = nb->j[p];
-        double om = vol[j];
-        gamma += om * nb->w[p];
-        /* dW_ab/dx_a = W'(r) (x_a - x_b)/r */
-        double dw = nb->dwr[p] * nb->dx[0][p];
-        /* eq. 45 with the catalogue's fix: the sum carries dW_ab/dx_a */
-        s1 += om * f[j] * dw;
-        /* eq. 46: ((f_b - f_a)/(x_b - x_a)) dW_ab/dx_a, x_b - x_a = -dx; skipped at r = 0 */
-        if (nb->r[p] > 0.0) s2 += om * (f[j] - fa) / (-nb->dx[0][p]) * dw;
-    }
+    const double fa = job->f[i], xa = ctx->p->x[0][i];
+    double gamma, s1, s2;
+    term_boundary_1d(nb, ctx->volume, job->f, &gamma, &s1, &s2);
     double wB = consph_kernel_w(&ctx->kernel, fabs(xa - job->B));
     double wA = consph_kernel_w(&ctx->kernel, fabs(xa - job->A));
     if (job->d1) job->d1[i] = (job->fB * wB - job->fA * wA + s1) / gamma;

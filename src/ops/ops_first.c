@@ -29,26 +29,10 @@ typedef struct first_job {
 
 static void visit_function(first_job *job, const ops_nbhd *nb)
 {
-    const double *vol = job->ctx->volume, *f = job->in;
     const size_t i = nb->i;
     double s = 0.0, s0 = 0.0;
-    if (job->ctilde) {
-        /* consistent Shepard: the volumes ω_b/c_b = ω_b c̃_b of 000 eq. 61 */
-        const double *c = job->ctilde;
-        for (size_t p = 0; p < nb->n; ++p) {
-            double ww = vol[nb->j[p]] * c[nb->j[p]] * nb->w[p];
-            s += ww * f[nb->j[p]];
-            s0 += ww;
-        }
-    } else if (job->form == CONSPH_FORM_STANDARD) {
-        for (size_t p = 0; p < nb->n; ++p) s += vol[nb->j[p]] * nb->w[p] * f[nb->j[p]];
-    } else {
-        for (size_t p = 0; p < nb->n; ++p) {
-            double ww = vol[nb->j[p]] * nb->w[p];
-            s += ww * f[nb->j[p]];
-            s0 += ww;
-        }
-    }
+    /* consistent Shepard: the volumes ω_b/c_b = ω_b c̃_b of 000 eq. 61 */
+    term_wsum(nb, job->ctx->volume, job->ctilde, job->in, &s, &s0);
     /* 000 eq. 28: the Shepard (= CSPM) function divides by M0 = Σ ω W, which the self term
      * keeps positive. */
     job->out[i] = job->form == CONSPH_FORM_STANDARD ? s : s / s0;
@@ -61,24 +45,11 @@ static void visit_taylor(first_job *job, const ops_nbhd *nb)
     const int d = job->dim, P = ops_npairs(d);
     const int msph = job->form == CONSPH_FORM_MSPH;
     const int n = msph ? 1 + d + P : 1 + d;
-    const double *vol = job->ctx->volume, *f = job->in;
     const size_t i = nb->i, N = job->ctx->n;
     int pl[OPS_MAX_P], pk[OPS_MAX_P];
     for (int p = 0; p < P; ++p) ops_pair_index(d, p, &pl[p], &pk[p]);
     double rhs[OPS_MAX_MSPH] = {0};
-    for (size_t q = 0; q < nb->n; ++q) {
-        double x[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-        double of = vol[nb->j[q]] * f[nb->j[q]], dwr = nb->dwr[q];
-        rhs[0] += of * nb->w[q];
-        for (int a = 0; a < d; ++a) rhs[1 + a] += of * dwr * x[a];
-        if (msph) {
-            double r = nb->r[q];
-            double aee = r > 0.0 ? (nb->d2w[q] - dwr) / (r * r) : 0.0;
-            for (int p = 0; p < P; ++p)
-                rhs[1 + d + p] += of * (aee * x[pl[p]] * x[pk[p]] + (pl[p] == pk[p] ? dwr : 0.0));
-        }
-    }
+    term_taylor_rhs(d, msph, P, pl, pk, nb, job->ctx->volume, job->in, rhs);
     const double *Ainv = job->mat + i * job->mat_size;
     double sol[OPS_MAX_MSPH];
     for (int a = 0; a < n; ++a) {
@@ -93,54 +64,6 @@ static void visit_taylor(first_job *job, const ops_nbhd *nb)
         for (int p = 0; p < P; ++p) job->out_hess[p * N + i] = sol[1 + d + p];
 }
 
-/* Σ_j s_j ∇W_ij and Σ_j s_j W_ij with s_j = ω_j (f_j - shift) (sym2: m_j (f_j/ρ_j² + c)), for a
- * dimension known at compile time; with_w only for the Liu correction. The correction is
- * linear in ∇W, so it is applied to these sums once per particle instead of once per pair. */
-OPS_INLINE void grad_sums(const int d, const int sym2, const int with_w, const ops_nbhd *nb,
-                          const double *vol, const double *mass, const double *rho, const double *f,
-                          double shift, double *sg, double *sw)
-{
-    double g0 = 0.0, g1 = 0.0, g2 = 0.0, aw = 0.0;
-    const double *dx0 = nb->dx[0], *dx1 = nb->dx[1], *dx2 = nb->dx[2];
-    for (size_t p = 0; p < nb->n; ++p) {
-        const size_t j = nb->j[p];
-        double s = sym2 ? mass[j] * (f[j] / (rho[j] * rho[j]) + shift) : vol[j] * (f[j] - shift);
-        double t = s * nb->dwr[p];
-        g0 += t * dx0[p];
-        if (d > 1) g1 += t * dx1[p];
-        if (d > 2) g2 += t * dx2[p];
-        if (with_w) aw += s * nb->w[p];
-    }
-    sg[0] = g0;
-    sg[1] = g1;
-    sg[2] = g2;
-    *sw = aw;
-}
-
-static void grad_sums_any(int d, int sym2, int with_w, const ops_nbhd *nb, const double *vol,
-                          const double *mass, const double *rho, const double *f, double shift,
-                          double *sg, double *sw)
-{
-#define GRAD_SUMS(D, S, W) grad_sums(D, S, W, nb, vol, mass, rho, f, shift, sg, sw)
-    if (d == 1) {
-        if (sym2)
-            with_w ? GRAD_SUMS(1, 1, 1) : GRAD_SUMS(1, 1, 0);
-        else
-            with_w ? GRAD_SUMS(1, 0, 1) : GRAD_SUMS(1, 0, 0);
-    } else if (d == 2) {
-        if (sym2)
-            with_w ? GRAD_SUMS(2, 1, 1) : GRAD_SUMS(2, 1, 0);
-        else
-            with_w ? GRAD_SUMS(2, 0, 1) : GRAD_SUMS(2, 0, 0);
-    } else {
-        if (sym2)
-            with_w ? GRAD_SUMS(3, 1, 1) : GRAD_SUMS(3, 1, 0);
-        else
-            with_w ? GRAD_SUMS(3, 0, 1) : GRAD_SUMS(3, 0, 0);
-    }
-#undef GRAD_SUMS
-}
-
 static void visit_gradient(first_job *job, const ops_nbhd *nb)
 {
     const int d = job->dim;
@@ -149,7 +72,7 @@ static void visit_gradient(first_job *job, const ops_nbhd *nb)
     const size_t i = nb->i, N = ctx->n;
     const double fi = f[i];
     double c[3], M[9], acc[3] = {0, 0, 0};
-    ops_grad_rule(job->dim, job->corr, job->mat, job->mat_size, i, c, M);
+    term_grad_rule(job->dim, job->corr, job->mat, job->mat_size, i, c, M);
     switch (job->form) {
     case CONSPH_FORM_F1:
     case CONSPH_FORM_F2:
@@ -169,12 +92,9 @@ static void visit_gradient(first_job *job, const ops_nbhd *nb)
                        : sym2                                               ? fi / (rho[i] * rho[i])
                                                                             : fi;
         double sg[3], sw;
-        grad_sums_any(d, sym2, job->corr == CONSPH_CORR_LC, nb, vol, mass, rho, f, shift, sg, &sw);
-        for (int a = 0; a < d; ++a) {
-            double v = c[a] * sw;
-            for (int b = 0; b < d; ++b) v += M[a * d + b] * sg[b];
-            acc[a] = v;
-        }
+        term_grad_sums_any(d, sym2 ? TERM_GRAD_SYM2 : TERM_GRAD_DIFF, job->corr == CONSPH_CORR_LC,
+                           nb, vol, mass, rho, f, shift, sg, &sw);
+        term_apply_rule(d, c, M, sg, sw, acc);
         if (form == CONSPH_FORM_ASYM || form == CONSPH_FORM_SYM1)
             for (int a = 0; a < d; ++a) acc[a] /= rho[i];
         break;
@@ -182,36 +102,18 @@ static void visit_gradient(first_job *job, const ops_nbhd *nb)
     case CONSPH_FORM_SYM_S1: {
         /* 001 eq. 10 with the catalogue's ½ (Part C 001-7): m_j (p_j + p_i)/(ρ_j ρ_i)
          * ½(L_i∇W_ij - L_j∇W_ji), where L_j∇W_ji applies j's Liu rows to (W, ∇W_ji = -∇W_ij). */
-        const int n = d + 1;
-        for (size_t p = 0; p < nb->n; ++p) {
-            size_t j = nb->j[p];
-            double x[3], g[3];
-            for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-            ops_corrected_grad(d, job->corr, c, M, nb, p, x, g);
-            const double *Lj = job->mat + j * job->mat_size;
-            double s = 0.5 * mass[j] * (f[j] + fi) / (rho[j] * rho[i]);
-            for (int a = 0; a < d; ++a) {
-                double gji = Lj[(1 + a) * n] * nb->w[p];
-                for (int b = 0; b < d; ++b) gji -= Lj[(1 + a) * n + 1 + b] * nb->dwr[p] * x[b];
-                acc[a] += s * (g[a] - gji);
-            }
-        }
+        term_sym_s1(d, job->corr, c, M, nb, mass, rho, f, job->mat, job->mat_size, acc);
         break;
     }
     case CONSPH_FORM_IAD: {
         /* 000 eqs. 50-52: A^{-1} Σ ω (f_j - f_i) x_ji W; F2 where A was rejected. */
         if (job->bad[i]) {
-            for (size_t p = 0; p < nb->n; ++p) {
-                double s = vol[nb->j[p]] * (f[nb->j[p]] - fi) * nb->dwr[p];
-                for (int a = 0; a < d; ++a) acc[a] += s * nb->dx[a][p];
-            }
+            double sw;
+            term_grad_sums_any(d, TERM_GRAD_DIFF, 0, nb, vol, mass, rho, f, fi, acc, &sw);
             break;
         }
         double I[3] = {0, 0, 0};
-        for (size_t p = 0; p < nb->n; ++p) {
-            double s = -vol[nb->j[p]] * (f[nb->j[p]] - fi) * nb->w[p];
-            for (int a = 0; a < d; ++a) I[a] += s * nb->dx[a][p];
-        }
+        term_iad_rhs(d, nb, vol, f, fi, I);
         const double *Ainv = job->mat + i * job->mat_size;
         for (int a = 0; a < d; ++a)
             for (int b = 0; b < d; ++b) acc[a] += Ainv[a * d + b] * I[b];
@@ -226,21 +128,12 @@ static void visit_gradient(first_job *job, const ops_nbhd *nb)
 static void visit_div(first_job *job, const ops_nbhd *nb)
 {
     const int d = job->dim;
-    const double *vol = job->ctx->volume, *u = job->in;
+    const double *u = job->in;
     const size_t i = nb->i, N = job->ctx->n;
-    double c[3], M[9], acc = 0.0, ui[3];
-    ops_grad_rule(job->dim, job->corr, job->mat, job->mat_size, i, c, M);
+    double c[3], M[9], ui[3];
+    term_grad_rule(job->dim, job->corr, job->mat, job->mat_size, i, c, M);
     for (int a = 0; a < d; ++a) ui[a] = u[a * N + i];
-    for (size_t p = 0; p < nb->n; ++p) {
-        size_t j = nb->j[p];
-        double x[3], g[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-        ops_corrected_grad(d, job->corr, c, M, nb, p, x, g);
-        double s = 0.0;
-        for (int a = 0; a < d; ++a) s += (u[a * N + j] - ui[a]) * g[a];
-        acc += vol[j] * s;
-    }
-    job->out[i] = acc;
+    job->out[i] = term_corrected_div_any(d, job->corr, c, M, nb, job->ctx->volume, u, N, ui);
 }
 
 static void visit_first(void *vjob, const ops_nbhd *nb)

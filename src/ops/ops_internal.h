@@ -1,5 +1,5 @@
 /* Shared machinery of the operators: the pass over the context's particles, the correction-matrix
- * cache and a small dense solver with a condition estimate. */
+ * cache and a small dense solver with a condition estimate. The pair sums are in terms.h. */
 #ifndef CONSPH_OPS_INTERNAL_H
 #define CONSPH_OPS_INTERNAL_H
 
@@ -7,17 +7,11 @@
 
 #include "consph/ops.h"
 #include "consph/pass.h"
+#include "ops/terms.h"
 
 /* d(d+1)/2 second-derivative components, at most 6; MSPH has 1 + d + d(d+1)/2 <= 10 unknowns. */
 #define OPS_MAX_P 6
 #define OPS_MAX_MSPH 10
-
-/* For pair loops instantiated with a compile-time dimension. */
-#if defined(__GNUC__)
-#define OPS_INLINE static inline __attribute__((always_inline))
-#else
-#define OPS_INLINE static inline
-#endif
 
 /* What a pass needs evaluated per pair (include/consph/pass.h). */
 enum {
@@ -54,6 +48,11 @@ struct consph_ops_cache {
     double *ctilde;                 /* consistent-Shepard factors c̃ (NULL until needed) */
     double ctilde_lambda;           /* the last normalisation, -> the eigenvalue */
     int ctilde_iterations;
+    /* Set by consph_op_ctx_init_sys: mass, rho and volume are fields of these particles, not
+     * arrays of the context; mass_given records whether "mass" was there before the context
+     * created it (otherwise it holds the default mass, recomputed on refresh). */
+    consph_particles *fields_of;
+    int mass_given;
 };
 
 /* Bookkeeping of one operator call: matrices used and pairs visited. */
@@ -62,6 +61,8 @@ typedef struct ops_call {
     size_t pairs;
 } ops_call;
 
+/* Frees matrix m of the cache (it is recomputed on next use). */
+void ops_cache_drop(struct consph_ops_cache *c, ops_mat m);
 /* Entries per particle of matrix m in `dim` dimensions. */
 size_t ops_mat_size(ops_mat m, int dim);
 /* The matrix, computing and caching it on first use (recording the pass's pairs in call). */
@@ -90,46 +91,6 @@ int ops_grad_f4(consph_op_ctx *ctx, const double *in, double *g, ops_call *call)
 
 /* The consistent-Shepard factors, computed with the context's defaults on first use. */
 int ops_ctilde(consph_op_ctx *ctx, ops_call *call, const double **ctilde);
-
-/* The corrected-gradient rule shared by every corrected form: g̃_ij = c W_ij + M ∇W_ij, with
- * (c, M) = (0, I) uncorrected, (0, B_i) for Bonet-Lok and the gradient rows of L_i^{-1} for
- * Liu. `mat` holds the per-particle matrices, mat_size doubles apart. */
-static inline void ops_grad_rule(int d, consph_op_corr corr, const double *mat, size_t mat_size,
-                                 size_t i, double c[3], double M[9])
-{
-    for (int a = 0; a < d; ++a) {
-        c[a] = 0.0;
-        for (int b = 0; b < d; ++b) M[a * d + b] = a == b ? 1.0 : 0.0;
-    }
-    if (corr == CONSPH_CORR_BC) {
-        memcpy(M, mat + i * mat_size, (size_t)(d * d) * sizeof(double));
-    } else if (corr == CONSPH_CORR_LC) {
-        const double *L = mat + i * mat_size;
-        const int n = d + 1;
-        for (int a = 0; a < d; ++a) {
-            c[a] = L[(1 + a) * n];
-            for (int b = 0; b < d; ++b) M[a * d + b] = L[(1 + a) * n + 1 + b];
-        }
-    }
-}
-
-/* g = c W + M (dwr x) for pair p of nb, x = x_ij. Only the Liu rule has a W term (c != 0), and
- * a pass evaluates W only for visitors that ask for it (OPS_NEED_W), so W is read for Liu
- * alone: reading it otherwise would multiply 0 by whatever the scratch held, NaN included. */
-static inline void ops_corrected_grad(int d, consph_op_corr corr, const double c[3],
-                                      const double M[9], const ops_nbhd *nb, size_t p,
-                                      const double x[3], double g[3])
-{
-    const double dwr = nb->dwr[p];
-    const double w = corr == CONSPH_CORR_LC ? nb->w[p] : 0.0;
-    double gr[3];
-    for (int b = 0; b < d; ++b) gr[b] = dwr * x[b];
-    for (int a = 0; a < d; ++a) {
-        double v = c[a] * w;
-        for (int b = 0; b < d; ++b) v += M[a * d + b] * gr[b];
-        g[a] = v;
-    }
-}
 
 /* The consistent-Shepard gradient (000 eqs. 65-67, ops_cshepard.c). */
 int ops_grad_cshepard(consph_op_ctx *ctx, const double *in, double *out, ops_call *call);

@@ -28,85 +28,45 @@ typedef struct second_job {
 static void inner_gradient(const second_job *job, const ops_nbhd *nb, double G[3])
 {
     const int d = job->dim;
-    const double *vol = job->ctx->volume, *u = job->in;
-    const double ui = u[nb->i];
-    double s[3] = {0, 0, 0};
-    for (size_t p = 0; p < nb->n; ++p) {
-        double t = vol[nb->j[p]] * (u[nb->j[p]] - ui) * nb->dwr[p];
-        for (int a = 0; a < d; ++a) s[a] += t * nb->dx[a][p];
-    }
-    const double *B = job->bonet + nb->i * (size_t)(d * d);
-    for (int a = 0; a < d; ++a) {
-        G[a] = 0.0;
-        for (int b = 0; b < d; ++b) G[a] += B[a * d + b] * s[b];
-    }
+    const double *u = job->in;
+    double s[3], sw;
+    term_grad_sums_any(d, TERM_GRAD_DIFF, 0, nb, job->ctx->volume, NULL, NULL, u, u[nb->i], s, &sw);
+    const double zero[3] = {0.0, 0.0, 0.0};
+    term_apply_rule(d, zero, job->bonet + nb->i * (size_t)(d * d), s, 0.0, G);
 }
 
 static void visit_s1(second_job *job, const ops_nbhd *nb)
 {
     const int d = job->dim;
-    const double *vol = job->ctx->volume, *G = job->G;
+    const double *G = job->G;
     const size_t i = nb->i, N = job->ctx->n;
     double c[3], M[9], Gi[3];
-    ops_grad_rule(job->dim, job->corr, job->mat, job->mat_size, i, c, M);
+    term_grad_rule(job->dim, job->corr, job->mat, job->mat_size, i, c, M);
     /* s1 (002 eq. 7) sums G_j, s1_diff/coupled (eq. 8) G_j - G_i, s1_sum (eq. 9) G_j + G_i. */
     double sign = job->form == CONSPH_FORM_S1 ? 0.0 : job->form == CONSPH_FORM_S1_SUM ? -1.0 : 1.0;
     for (int a = 0; a < d; ++a) Gi[a] = sign * G[a * N + i];
-    double acc = 0.0;
-    for (size_t p = 0; p < nb->n; ++p) {
-        size_t j = nb->j[p];
-        double x[3], g[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-        ops_corrected_grad(d, job->corr, c, M, nb, p, x, g);
-        double s = 0.0;
-        for (int a = 0; a < d; ++a) s += (G[a * N + j] - Gi[a]) * g[a];
-        acc += vol[j] * s;
-    }
-    job->out[i] = acc;
+    job->out[i] = term_corrected_div_any(d, job->corr, c, M, nb, job->ctx->volume, G, N, Gi);
 }
 
 static void visit_s2(second_job *job, const ops_nbhd *nb)
 {
-    const int d = job->dim;
-    const double *vol = job->ctx->volume, *u = job->in;
+    const double *u = job->in;
     const size_t i = nb->i;
-    /* ∇²W = W'' + (d - 1) W'/r; at r = 0 dwr holds W''(0), giving d W''(0). */
     double shift = job->form == CONSPH_FORM_S2       ? 0.0
                    : job->form == CONSPH_FORM_S2_SUM ? -u[i]
                                                      : u[i];
-    double acc = 0.0;
-    for (size_t p = 0; p < nb->n; ++p) {
-        size_t j = nb->j[p];
-        double lap = nb->d2w[p] + (double)(d - 1) * nb->dwr[p];
-        acc += vol[j] * (u[j] - shift) * lap;
-    }
-    job->out[i] = acc;
+    job->out[i] = term_s2(job->dim, nb, job->ctx->volume, u, shift);
 }
 
 /* Cleary/Brookshaw (002 eq. 13) and tvf (001 Table 4), with the kernel gradient corrected. */
 static void visit_cleary(second_job *job, const ops_nbhd *nb)
 {
-    const int d = job->dim;
     const consph_op_ctx *ctx = job->ctx;
-    const double *vol = ctx->volume, *u = job->in;
-    const size_t i = nb->i;
     const int tvf = job->form == CONSPH_FORM_TVF;
-    const double ui = u[i], oi2 = vol[i] * vol[i];
-    double c[3], M[9], acc = 0.0;
-    ops_grad_rule(job->dim, job->corr, job->mat, job->mat_size, i, c, M);
-    for (size_t p = 0; p < nb->n; ++p) {
-        double r = nb->r[p];
-        if (!(r > 0.0)) continue;
-        size_t j = nb->j[p];
-        double x[3], g[3];
-        for (int a = 0; a < d; ++a) x[a] = nb->dx[a][p];
-        ops_corrected_grad(d, job->corr, c, M, nb, p, x, g);
-        double gx = 0.0;
-        for (int a = 0; a < d; ++a) gx += g[a] * x[a];
-        double wgt = tvf ? oi2 + vol[j] * vol[j] : 2.0 * vol[j];
-        acc += wgt * (ui - u[j]) * gx / (r * r);
-    }
-    job->out[i] = tvf ? acc / ctx->mass[i] : acc;
+    double c[3], M[9];
+    term_grad_rule(job->dim, job->corr, job->mat, job->mat_size, nb->i, c, M);
+    double acc = term_cleary(job->dim, tvf, job->corr, c, M, nb, ctx->volume, job->in);
+    job->out[nb->i] = tvf ? acc / ctx->mass[nb->i] : acc;
 }
 
 /* Fatehi (001 eq. C.8), S4 (002 eq. 41, corr fatehi) and fatehi_c (001 eq. C.10): all are
@@ -114,9 +74,7 @@ static void visit_cleary(second_job *job, const ops_nbhd *nb)
 static void visit_fatehi(second_job *job, const ops_nbhd *nb)
 {
     const int d = job->dim;
-    const double *vol = job->ctx->volume, *u = job->in;
     const size_t i = nb->i;
-    const double ui = u[i];
     double G[3], Bh[9];
     inner_gradient(job, nb, G);
     if (job->mat)
@@ -124,20 +82,7 @@ static void visit_fatehi(second_job *job, const ops_nbhd *nb)
     else
         for (int a = 0; a < d; ++a)
             for (int b = 0; b < d; ++b) Bh[a * d + b] = a == b ? 1.0 : 0.0;
-    double acc = 0.0;
-    for (size_t p = 0; p < nb->n; ++p) {
-        double r = nb->r[p];
-        if (!(r > 0.0)) continue;
-        double x[3], xG = 0.0, xBx = 0.0;
-        for (int a = 0; a < d; ++a) {
-            x[a] = nb->dx[a][p];
-            xG += x[a] * G[a];
-        }
-        for (int a = 0; a < d; ++a)
-            for (int b = 0; b < d; ++b) xBx += x[a] * Bh[a * d + b] * x[b];
-        acc += 2.0 * vol[nb->j[p]] * nb->dwr[p] * ((ui - u[nb->j[p]]) - xG) * xBx / (r * r);
-    }
-    job->out[i] = acc;
+    job->out[i] = term_fatehi_lap(d, nb, job->ctx->volume, job->in, G, Bh);
 }
 
 /* Korzilius (001 eq. 14 with the catalogue's fixes) and CSPM (000 eqs. 31-32) second
@@ -146,26 +91,12 @@ static void visit_fatehi(second_job *job, const ops_nbhd *nb)
 static void visit_hessian(second_job *job, const ops_nbhd *nb)
 {
     const int d = job->dim, P = ops_npairs(d);
-    const double *vol = job->ctx->volume, *u = job->in;
     const size_t i = nb->i, N = job->ctx->n;
-    const double ui = u[i];
     int pl[OPS_MAX_P], pk[OPS_MAX_P];
     for (int p = 0; p < P; ++p) ops_pair_index(d, p, &pl[p], &pk[p]);
     double G[3], rhs[OPS_MAX_P] = {0};
     inner_gradient(job, nb, G);
-    for (size_t q = 0; q < nb->n; ++q) {
-        double r = nb->r[q], x[3], xG = 0.0;
-        for (int a = 0; a < d; ++a) {
-            x[a] = nb->dx[a][q];
-            xG += x[a] * G[a];
-        }
-        double dwr = nb->dwr[q];
-        double aee = r > 0.0 ? (nb->d2w[q] - dwr) / (r * r) : 0.0;
-        /* x_ji·G = -x_ij·G */
-        double s = vol[nb->j[q]] * ((u[nb->j[q]] - ui) + xG);
-        for (int p = 0; p < P; ++p)
-            rhs[p] += s * (aee * x[pl[p]] * x[pk[p]] + (pl[p] == pk[p] ? dwr : 0.0));
-    }
+    term_hessian_rhs(d, P, pl, pk, nb, job->ctx->volume, job->in, G, rhs);
     const double *Ainv = job->mat + i * job->mat_size;
     double H[OPS_MAX_P];
     for (int a = 0; a < P; ++a) {
