@@ -194,7 +194,7 @@ int cmd_approx(int argc, char **argv)
     int op_idx = 0, fmt = 0, hpol = 0, layout_idx = 0, mask_idx = 0, volume_idx = 1;
     const char *form = NULL, *corr = "none", *kernel = "quintic", *field = NULL;
     const char *particles = NULL, *box_text = NULL, *periodic_text = "yes";
-    double hdx = 1.2, eps = 0.2, sigma = 0.1, tol = 1e-4;
+    double hdx = 1.2, eps = 0.2, sigma = 0.1, tol = 1e-4, beta = 0.0;
     long dim = 2, seed = 1, max_iter = 0; /* 0: the layout kind's default */
     cli_list nx = {0, {0}};
     char volume_choices[128] = "";
@@ -216,7 +216,10 @@ int cmd_approx(int argc, char **argv)
         {"--hdx", CLI_DOUBLE, &hdx, "R", "h/dx in the kernel's convention of h (default 1.2)", NULL,
          0.05, 100, 0},
         {"--h-policy", CLI_CHOICE, &hpol, "P",
-         "hdx: h = R dx; scaling: h = N^(-1/6) as in 003 section 6.2", "hdx,scaling", 0, 0, 0},
+         "hdx: h = R dx; scaling: h = N^(-1/6) as in 003 section 6.2; zhu: h = R dx at the first "
+         "row, then neighbours grow as N^(1/2) (Zhu et al., h ∝ N^(-1/(2 dim))); beta: h = R dx "
+         "at the first row, then N ∝ h^(-B) as in 004 (neighbours ∝ N^(1 - dim/B))",
+         "hdx,scaling,zhu,beta", 0, 0, 0},
         {"--layout", CLI_CHOICE, &layout_idx, "L", "particle layout (default lattice)",
          consph_layout_names(), 0, 0, 0},
         {"--dim", CLI_INT, &dim, "D",
@@ -256,6 +259,8 @@ int cmd_approx(int argc, char **argv)
         {"--format", CLI_CHOICE, &fmt, "F",
          "table (with fitted orders), csv (stable columns) or json (rows and orders)",
          FORMAT_CHOICES, 0, 0, 0},
+        {"--beta", CLI_DOUBLE, &beta, "B", "the exponent of --h-policy beta, > dim", NULL, 0, 1e3,
+         0},
     };
     enum {
         O_OP = 0,
@@ -264,7 +269,8 @@ int cmd_approx(int argc, char **argv)
         O_PARTICLES = 9,
         O_BOX = 10,
         O_PERIODIC = 12,
-        O_VOLUME = 14
+        O_VOLUME = 14,
+        O_BETA = 21
     };
     char details[2048];
     snprintf(details, sizeof details,
@@ -406,7 +412,21 @@ int cmd_approx(int argc, char **argv)
         goto out;
     }
     s.hdx = hdx;
-    s.h_policy = hpol ? CONSPH_H_SCALING : CONSPH_H_HDX;
+    s.h_policy = (consph_h_policy)hpol;
+    s.beta = beta;
+    if (opts[O_BETA].given != (s.h_policy == CONSPH_H_BETA)) {
+        cli_error(&cmd, "option --beta: give it with --h-policy beta, and only then");
+        goto out;
+    }
+    if (s.h_policy == CONSPH_H_BETA && !(beta > dim)) {
+        cli_error(&cmd,
+                  "option --beta: must exceed the dimension %ld (004: N ∝ h^-β with β > n), "
+                  "got %g",
+                  dim, beta);
+        goto out;
+    }
+    /* zhu and beta agree with hdx at the first row. */
+    s.n_ref = from_files ? (double)in[0].p.n : pow(nx.v[0], (double)dim);
     s.layout = consph_layout_defaults((consph_layout_kind)layout_idx, (int)dim, 10);
     s.layout.seed = (uint64_t)seed;
     s.layout.eps = eps;
@@ -442,17 +462,23 @@ int cmd_approx(int argc, char **argv)
     char pdesc[8] = "";
     for (int a = 0, k = 0; a < dim; ++a)
         if (periodic[a]) pdesc[k++] = "xyz"[a];
+    char hdesc[96];
+    if (s.h_policy == CONSPH_H_ZHU || s.h_policy == CONSPH_H_BETA)
+        snprintf(hdesc, sizeof hdesc, "h = hdx*dx at N = %.0f, then h ~ N^(-1/%g)", s.n_ref,
+                 s.h_policy == CONSPH_H_ZHU ? 2.0 * (double)dim : beta);
+    else
+        snprintf(hdesc, sizeof hdesc, "%s", hpol ? "h = N^-1/6" : "h = hdx*dx");
     if (fmt == 0) {
         if (from_files)
             printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), particles "
                    "from %d file%s, dim %ld, field %s\n",
                    opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
-                   hpol ? "h = N^-1/6" : "h = hdx*dx", nin, nin == 1 ? "" : "s", dim, field);
+                   hdesc, nin, nin == 1 ? "" : "s", dim, field);
         else
             printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), layout %s, "
                    "dim %ld, periodic %s, field %s, volume %s\n",
                    opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
-                   hpol ? "h = N^-1/6" : "h = hdx*dx", consph_layout_name(s.layout.kind), dim,
+                   hdesc, consph_layout_name(s.layout.kind), dim,
                    !pdesc[0]                      ? "no"
                    : strlen(pdesc) == (size_t)dim ? "yes"
                                                   : pdesc,
@@ -516,8 +542,8 @@ int cmd_approx(int argc, char **argv)
         printf("{\n  \"op\": \"%s\", \"form\": \"%s\", \"corr\": \"%s\", \"kernel\": \"%s\", "
                "\"hdx\": %g, \"h_policy\": \"%s\", \"layout\": \"%s\", \"dim\": %ld, ",
                opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
-               hpol ? "scaling" : "hdx", from_files ? "files" : consph_layout_name(s.layout.kind),
-               dim);
+               consph_h_policy_name(s.h_policy),
+               from_files ? "files" : consph_layout_name(s.layout.kind), dim);
         if (from_files)
             printf("\"field\": \"%s\",\n", field);
         else

@@ -110,10 +110,22 @@ double consph_scaling_nnbr(double n);
 
 /* ---- One operator-accuracy measurement: `consph approx` and the static studies ----------- */
 
+/* How h follows the resolution. For zhu and beta, h = hdx·Δs_ref·(N/N_ref)^(-1/β) with
+ * Δs_ref = (V/N_ref)^(1/d): the policy agrees with hdx at the reference count N_ref (the first
+ * resolution of a sweep) and from there lets the neighbour count 𝒩 ∝ N h^d grow as
+ * N^(1 - d/β). */
 typedef enum consph_h_policy {
-    CONSPH_H_HDX,    /* h = hdx · Δs (001, 002) */
-    CONSPH_H_SCALING /* 003 §6.2: h = N^(-1/6) (unit box), independent of the layout spacing */
+    CONSPH_H_HDX,     /* "hdx": h = hdx · Δs (001, 002): 𝒩 fixed */
+    CONSPH_H_SCALING, /* "scaling": 003 §6.2, h = N^(-1/6) (unit box; scaled by V^(1/d)) */
+    CONSPH_H_ZHU,     /* "zhu": Zhu et al. as 000 eq. 14 states it for 3D, 𝒩 ∝ N^(1/2), taken
+                         as 𝒩 ∝ N^(1/2) in every dimension: β = 2d (h ∝ N^(-1/6) in 3D) */
+    CONSPH_H_BETA,    /* "beta": 004's global law N ∝ h^(-β) with β > d given by the user */
+    CONSPH_H_COUNT
 } consph_h_policy;
+
+const char *consph_h_policy_name(consph_h_policy policy);
+/* CONSPH_EINVAL listing the allowed names when unknown. */
+int consph_h_policy_lookup(const char *name, consph_h_policy *policy);
 
 /* What to measure. Resolution is set per call (nx particles per axis). */
 typedef struct consph_approx_spec {
@@ -121,6 +133,8 @@ typedef struct consph_approx_spec {
     consph_kernel_id kernel;
     double hdx; /* h/Δs, in the kernel's own convention of h */
     consph_h_policy h_policy;
+    double beta;  /* the exponent of CONSPH_H_BETA, > dim */
+    double n_ref; /* the particle count where zhu and beta give h = hdx·Δs (0: the run's own) */
     consph_layout_params layout; /* kind, dim, box, seed, eps, packing; nx is overridden */
     consph_mfield_id field;
     consph_mfield_params field_params;
@@ -186,6 +200,9 @@ int consph_series_fit(const consph_approx_row *rows, const double *res, int nrow
 consph_approx_spec consph_approx_defaults(int dim);
 /* Checks the spec (field kind vs op, dims, periodicity of the field on a periodic box). */
 int consph_approx_check(const consph_approx_spec *spec);
+/* The smoothing length spec->h_policy gives n particles in a box of the given volume whose
+ * nominal spacing is `spacing` (used by hdx only). */
+double consph_approx_h(const consph_approx_spec *spec, size_t n, double box_volume, double spacing);
 /* Runs one resolution: generates spec->layout with nx particles per axis, then measures. */
 int consph_approx_run(const consph_approx_spec *spec, size_t nx, consph_approx_row *row);
 /* Measures on given particles (copied; the box and periodicity are the particles' own). `nx` is

@@ -25,6 +25,48 @@ consph_approx_spec consph_approx_defaults(int dim)
     return s;
 }
 
+static const char *const h_policy_names[CONSPH_H_COUNT] = {"hdx", "scaling", "zhu", "beta"};
+
+const char *consph_h_policy_name(consph_h_policy policy)
+{
+    return (int)policy >= 0 && policy < CONSPH_H_COUNT ? h_policy_names[policy] : "?";
+}
+
+int consph_h_policy_lookup(const char *name, consph_h_policy *policy)
+{
+    for (int k = 0; k < CONSPH_H_COUNT; ++k)
+        if (name && strcmp(name, h_policy_names[k]) == 0) {
+            *policy = (consph_h_policy)k;
+            return CONSPH_OK;
+        }
+    return consph_fail(CONSPH_EINVAL, "unknown h policy '%s' (allowed: hdx, scaling, zhu, beta)",
+                       name ? name : "");
+}
+
+/* The exponent β of N ∝ h^(-β). */
+static double policy_beta(const consph_approx_spec *s, int dim)
+{
+    return s->h_policy == CONSPH_H_ZHU ? 2.0 * dim : s->beta;
+}
+
+double consph_approx_h(const consph_approx_spec *s, size_t n, double box_volume, double spacing)
+{
+    const int dim = s->layout.dim;
+    switch (s->h_policy) {
+    case CONSPH_H_SCALING:
+        /* 003 states h = N^(-1/6) for the unit box; scale with the box for other sizes. */
+        return consph_scaling_h((double)n) * pow(box_volume, 1.0 / dim);
+    case CONSPH_H_ZHU:
+    case CONSPH_H_BETA: {
+        const double nref = s->n_ref > 0 ? s->n_ref : (double)n;
+        const double ds_ref = pow(box_volume / nref, 1.0 / dim);
+        return s->hdx * ds_ref * pow((double)n / nref, -1.0 / policy_beta(s, dim));
+    }
+    default:
+        return s->hdx * spacing;
+    }
+}
+
 /* The forms of 001 Table 2 approximate ∇p/ϱ with ϱ = ρ, not ∇p. */
 static int divides_by_rho(consph_op_form form)
 {
@@ -54,6 +96,15 @@ int consph_approx_check(const consph_approx_spec *s)
                            consph_mfield_name(s->field));
     if (!(s->hdx > 0) || !isfinite(s->hdx))
         return consph_fail(CONSPH_EINVAL, "h/dx must be positive, got %g", s->hdx);
+    if ((int)s->h_policy < 0 || s->h_policy >= CONSPH_H_COUNT)
+        return consph_fail(CONSPH_EINVAL, "unknown h policy %d", (int)s->h_policy);
+    /* 004: N ∝ h^(-β) with β > n, so that 𝒩 ∝ N^(1 - n/β) grows while 𝒩/N -> 0. */
+    if (s->h_policy == CONSPH_H_BETA && !(s->beta > dim && isfinite(s->beta)))
+        return consph_fail(CONSPH_EINVAL, "h policy 'beta' needs beta > dim = %d, got %g", dim,
+                           s->beta);
+    if (!(s->n_ref >= 0) || !isfinite(s->n_ref))
+        return consph_fail(CONSPH_EINVAL, "reference particle count must be >= 0, got %g",
+                           s->n_ref);
     return consph_box_check(&s->layout.box);
 }
 
@@ -179,14 +230,7 @@ int consph_approx_run_particles(const consph_approx_spec *s, const consph_partic
     row->n = n;
     row->layout_spread = NAN;
 
-    double h;
-    if (s->h_policy == CONSPH_H_SCALING) {
-        /* 003 states h = N^(-1/6) for the unit box; scale with the box for other sizes. */
-        double vol = consph_box_volume(&src->box);
-        h = consph_scaling_h((double)n) * pow(vol, 1.0 / dim);
-    } else {
-        h = s->hdx * src->spacing;
-    }
+    const double h = consph_approx_h(s, n, consph_box_volume(&src->box), src->spacing);
     row->h = h;
     consph_kernel k;
     rc = consph_kernel_init(&k, s->kernel, dim, h);

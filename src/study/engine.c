@@ -136,13 +136,35 @@ static fig_kind figure_kind(const consph_study *s, const study_figure *f)
     return KIND_APPROX;
 }
 
+/* How h was chosen, for the reports. */
+static const char *h_policy_text(const consph_approx_spec *sp, char *buf, size_t size)
+{
+    const int d = sp->layout.dim;
+    switch (sp->h_policy) {
+    case CONSPH_H_SCALING:
+        return "= N^(-1/6)";
+    case CONSPH_H_ZHU:
+        snprintf(buf, size, "= hdx·Δs at N = %.0f, then ∝ N^(-1/%d) (zhu: neighbours ∝ N^(1/2))",
+                 sp->n_ref, 2 * d);
+        return buf;
+    case CONSPH_H_BETA:
+        snprintf(buf, size,
+                 "= hdx·Δs at N = %.0f, then ∝ N^(-1/%g) (004: N ∝ h^(-β), neighbours ∝ "
+                 "N^%.3g)",
+                 sp->n_ref, sp->beta, 1.0 - d / sp->beta);
+        return buf;
+    default:
+        return "= hdx·Δs";
+    }
+}
+
 static int build_plan(const consph_study *s, const study_figure *f, const study_series *r,
                       int quick, series_plan *pl)
 {
     static const char *const kinds[] = {"approx", "m0", "appc", NULL};
     static const char *const ops[] = {"function", "grad", "div", "laplacian", "hessian", NULL};
     static const char *const default_form[] = {"standard", "f4", "div", "coupled", "korzilius"};
-    static const char *const policies[] = {"hdx", "scaling", NULL};
+    static const char *const policies[] = {"hdx", "scaling", "zhu", "beta", NULL};
     static const char *const layouts[] = {"lattice", "random",          "quasi-random",
                                           "packed",  "packed-polished", NULL};
     static const char *const yesno[] = {"yes", "no", NULL};
@@ -158,7 +180,7 @@ static int build_plan(const consph_study *s, const study_figure *f, const study_
 
     memset(pl, 0, sizeof *pl);
     int rc, ikind, iop, ipol, ilay, iper, imask, isweep, ibound, ivol, dummy;
-    double dim, hdx, match, eps, seed, sigma, tol, iters;
+    double dim, hdx, match, eps, seed, sigma, tol, iters, beta;
     if ((rc = get_choice(s, f, r, "kind", kinds, 0, &ikind))) return rc;
     if ((rc = get_choice(s, f, r, "op", ops, 0, &iop))) return rc;
     if ((rc = get_choice(s, f, r, "h_policy", policies, 0, &ipol))) return rc;
@@ -174,6 +196,10 @@ static int build_plan(const consph_study *s, const study_figure *f, const study_
     if (dim != floor(dim)) return key_error(s, f, r, "dim", "must be 1, 2 or 3");
     if ((rc = get_double(s, f, r, "hdx", 1.2, 0.01, 100, &hdx))) return rc;
     if ((rc = get_double(s, f, r, "match_support", 0, 0, 100, &match))) return rc;
+    if ((rc = get_double(s, f, r, "beta", 0, 0, 1e3, &beta))) return rc;
+    if (ipol == CONSPH_H_BETA && !(beta > dim))
+        return key_error(s, f, r, "beta", "h_policy = beta needs beta > dim = %g (004: β > n)",
+                         dim);
     if ((rc = get_double(s, f, r, "eps", 0.2, 0, 2, &eps))) return rc;
     if ((rc = get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) return rc;
     if ((rc = get_double(s, f, r, "sigma", 0.1, 1e-9, 10, &sigma))) return rc;
@@ -194,7 +220,8 @@ static int build_plan(const consph_study *s, const study_figure *f, const study_
         return key_error(s, f, r, "kernel", "%s", consph_last_error());
     if (match > 0) hdx *= match / consph_kernel_info_get(sp->kernel)->support;
     sp->hdx = hdx;
-    sp->h_policy = ipol ? CONSPH_H_SCALING : CONSPH_H_HDX;
+    sp->h_policy = (consph_h_policy)ipol;
+    sp->beta = beta;
     sp->layout = consph_layout_defaults((consph_layout_kind)ilay, (int)dim, 10);
     sp->layout.eps = eps;
     sp->layout.seed = (uint64_t)seed;
@@ -233,6 +260,8 @@ static int build_plan(const consph_study *s, const study_figure *f, const study_
         memcpy(pl->values, nxs, sizeof(double) * (size_t)nnx);
         pl->nvalues = nnx;
     }
+    /* zhu and beta agree with hdx at the first resolution. */
+    sp->n_ref = pow(pl->sweep_hdx ? (double)pl->nx_fixed : pl->values[0], dim);
     return CONSPH_OK;
 }
 
@@ -679,6 +708,10 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
             (files ? files->sets[0].box.periodic[0] : sp->layout.box.periodic[0]) ? "yes" : "no",
             consph_mfield_name(sp->field), consph_volume_name(sp->volume),
             sp->interior_only ? "interior (full support)" : "all", norm);
+    if (sp->h_policy == CONSPH_H_ZHU || sp->h_policy == CONSPH_H_BETA) {
+        char htext[160];
+        fprintf(o, "Smoothing length: h %s.\n\n", h_policy_text(sp, htext, sizeof htext));
+    }
     if (files) {
         fprintf(o, "Particles from files (`consph study --particles`)%s:",
                 sweep_hdx ? "; the h/Δs sweep runs on the last one" : ", one row each");
@@ -850,6 +883,7 @@ static int run_approx_figure(const consph_study *s, const study_figure *f, int q
         if (files && !pl->sweep_hdx) {
             pl->nvalues = files->n;
             for (int j = 0; j < files->n; ++j) pl->values[j] = resolution_of(&files->sets[j]);
+            pl->spec.n_ref = (double)files->sets[0].n;
         }
         for (int j = 0; rc == CONSPH_OK && j < pl->nvalues; ++j) {
             consph_approx_spec sp = pl->spec;
@@ -909,9 +943,7 @@ static int run_approx_figure(const consph_study *s, const study_figure *f, int q
 
 static double smoothing_length(const consph_approx_spec *sp, const consph_particles *p)
 {
-    if (sp->h_policy == CONSPH_H_SCALING)
-        return consph_scaling_h((double)p->n) * pow(consph_box_volume(&p->box), 1.0 / p->dim);
-    return sp->hdx * p->spacing;
+    return consph_approx_h(sp, p->n, consph_box_volume(&p->box), p->spacing);
 }
 
 typedef struct m0_row {
@@ -1047,6 +1079,7 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
     if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
     if (rc == CONSPH_OK) {
         FILE *o = of.fp;
+        char htext[160];
         fprintf(o, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
         const char *note = figure_note(f);
         if (note) fprintf(o, "%s\n\n", note);
@@ -1054,7 +1087,7 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
                 quick ? "quick" : "full (paper)", pl.kernel_name,
                 files ? "particle files" : consph_layout_name(pl.spec.layout.kind),
                 pl.spec.layout.dim, consph_volume_name(pl.spec.volume),
-                pl.spec.h_policy == CONSPH_H_SCALING ? "= N^(-1/6)" : "= hdx·Δs");
+                h_policy_text(&pl.spec, htext, sizeof htext));
         fprintf(o, "| nx | N | h | neighbours | mean M0 | σ(M0) all | mean M0 interior | σ(M0) "
                    "interior | peak |\n|---|---|---|---|---|---|---|---|---|\n");
         double xs[MAX_SWEEP], ys[MAX_SWEEP];
@@ -1230,8 +1263,8 @@ static double pairs_estimate(const series_plan *pl, double nx)
     double n = pow(nx, d);
     double support = consph_kernel_info_get(pl->spec.kernel)->support;
     double unit_ball = d == 1 ? 2.0 : d == 2 ? M_PI : 4.0 * M_PI / 3.0;
-    double radius_dx = pl->spec.h_policy == CONSPH_H_SCALING ? support * consph_scaling_h(n) * nx
-                                                             : support * pl->spec.hdx;
+    /* h/Δs in the unit box, Δs = 1/nx. */
+    double radius_dx = support * consph_approx_h(&pl->spec, (size_t)n, 1.0, 1.0 / nx) * nx;
     return n * (1.0 + unit_ball * pow(radius_dx, d));
 }
 
