@@ -80,5 +80,23 @@ sed -i 's/^beta = 5$/beta = 1.5/' "$tmp/studies/pol.study"
 CONSPH_STUDIES=$tmp/studies "$consph" study pol --quick --out "$tmp/out2" >"$tmp/o" 2>"$tmp/e"
 [ $? = 2 ] || bad "study beta 1.5 in 2D: exit not 2"
 grep -q "beta" "$tmp/e" || bad "study beta 1.5: message '$(cat "$tmp/e")'"
+# A cauchy figure (004): exact transport is 1D only.
+cat >"$tmp/studies/cau.study" <<'S'
+study = cau
+title = cauchy
+kind = cauchy
+[figure f]
+dim = 2
+ot_method = exact
+nx = 8,16
+[series P]
+measure = particles
+S
+CONSPH_STUDIES=$tmp/studies "$consph" study cau --quick --out "$tmp/out3" >"$tmp/o" 2>"$tmp/e"
+[ $? = 2 ] || bad "cauchy exact in 2D: exit not 2"
+grep -q "ot_method" "$tmp/e" || bad "cauchy exact in 2D: message '$(cat "$tmp/e")'"
+sed -i 's/^ot_method = exact$/ot_method = sinkhorn/' "$tmp/studies/cau.study"
+CONSPH_STUDIES=$tmp/studies "$consph" study cau --quick --out "$tmp/out3" >"$tmp/o" 2>&1 || bad "cauchy sinkhorn exit $?: $(tail -2 "$tmp/o")"
+awk -F, 'NR == 2 { exit !($3 == "sinkhorn" && $11 > 0 && $12 > 0) }' "$tmp/out3/cau/f.csv" || bad "cauchy sinkhorn row: $(sed -n 2p "$tmp/out3/cau/f.csv")"
 [ $fail = 0 ] && echo "cli_policies: 1 passed, 0 failed" || echo "cli_policies: 0 passed, 1 failed"
 exit $fail

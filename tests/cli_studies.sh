@@ -143,6 +143,16 @@ if have "$f"; then
     m = a > m ? a : m; m = b > m ? b : m } END { print (NR > 1 ? m + 0 : "") }' "$f")
   check "003-appc max |ours - closed form|" "$v" "v < 1e-12"
 fi
+# 004-cauchy: exact W1 between successive perturbed 1D lattices falls like Δs (rate 1), and the
+# sliced W2 rows carry a positive Monte Carlo error.
+f=$d/004-cauchy/w1_1d.csv
+if have "$f"; then
+  check "004-cauchy 1D particle W1 rate" "$(csv_order "$f" particles nx1 distance)" "v > 0.9 && v < 1.1"
+  check_all "004-cauchy 1D W1 falls between successive resolutions" \
+    "$(awk -F, '$1 == "particles" && NR > 2 { print (p > $11) } $1 == "particles" { p = $11 }' "$f")" "v == 1"
+fi
+f=$d/004-cauchy/sw2_2d.csv
+have "$f" && check_all "004-cauchy sliced W2 errors" "$(awk -F, 'NR > 1 { print $12 }' "$f")" "v > 0"
 
 echo "cli_studies: $pass passed, $fail failed"
 [ $fail = 0 ]

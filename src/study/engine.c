@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "consph/io.h"
+#include "consph/transport.h"
 #include "study/study_internal.h"
 
 #define MAX_SWEEP 64
@@ -20,7 +21,7 @@
 /* Timings behind T_r (the operator at a series' finest resolution) and their median. */
 #define TR_TIMINGS 5
 
-typedef enum fig_kind { KIND_APPROX, KIND_M0, KIND_APPC } fig_kind;
+typedef enum fig_kind { KIND_APPROX, KIND_M0, KIND_APPC, KIND_CAUCHY } fig_kind;
 
 /* Everything needed to run one series, parsed from its keys. */
 typedef struct series_plan {
@@ -133,6 +134,7 @@ static fig_kind figure_kind(const consph_study *s, const study_figure *f)
     const char *k = study_get(s, f, NULL, "kind");
     if (k && strcmp(k, "m0") == 0) return KIND_M0;
     if (k && strcmp(k, "appc") == 0) return KIND_APPC;
+    if (k && strcmp(k, "cauchy") == 0) return KIND_CAUCHY;
     return KIND_APPROX;
 }
 
@@ -161,7 +163,7 @@ static const char *h_policy_text(const consph_approx_spec *sp, char *buf, size_t
 static int build_plan(const consph_study *s, const study_figure *f, const study_series *r,
                       int quick, series_plan *pl)
 {
-    static const char *const kinds[] = {"approx", "m0", "appc", NULL};
+    static const char *const kinds[] = {"approx", "m0", "appc", "cauchy", NULL};
     static const char *const ops[] = {"function", "grad", "div", "laplacian", "hessian", NULL};
     static const char *const default_form[] = {"standard", "f4", "div", "coupled", "korzilius"};
     static const char *const policies[] = {"hdx", "scaling", "zhu", "beta", NULL};
@@ -1395,6 +1397,218 @@ static int validate_files(const consph_study *s, int quick, const study_files *f
     return CONSPH_OK;
 }
 
+/* ---- cauchy: 004's convergence in the Wasserstein distance, W(μ_N(j-1), μ_N(j)) ---- */
+
+typedef struct cauchy_row {
+    size_t nx0, nx1, n0, n1;
+    double h0, h1, distance, error;
+} cauchy_row;
+
+/* The measure of one resolution: the particles themselves (equal or given masses), or the
+ * kernel-smoothed density Σ m_b W(x − x_b, h) on a grid of `grid` cells per axis, h from the
+ * series' policy. */
+typedef struct cauchy_measure {
+    consph_measure mu;
+    consph_grid_measure g;
+    double *scratch;
+    double h;
+    int smoothed;
+} cauchy_measure;
+
+static void cauchy_measure_free(cauchy_measure *m)
+{
+    if (m->smoothed) consph_grid_measure_free(&m->g);
+    free(m->scratch);
+    memset(m, 0, sizeof *m);
+}
+
+static int cauchy_measure_make(const series_plan *pl, const consph_particles *p, int smoothed,
+                               size_t grid, cauchy_measure *m)
+{
+    memset(m, 0, sizeof *m);
+    int rc = consph_measure_from_particles(p, &m->mu, &m->scratch, NULL);
+    m->h = consph_approx_h(&pl->spec, p->n, consph_box_volume(&p->box), p->spacing);
+    if (rc || !smoothed) return rc;
+    consph_kernel k;
+    if ((rc = consph_kernel_init(&k, pl->spec.kernel, p->dim, m->h))) return rc;
+    if ((rc = consph_grid_measure_sph(&p->box, grid, &m->mu, &k, &m->g))) return rc;
+    m->smoothed = 1;
+    m->mu = m->g.mu;
+    return CONSPH_OK;
+}
+
+static int write_cauchy(const consph_study *s, const study_figure *f, int quick,
+                        const study_files *files, const char *dir, const series_plan *plans,
+                        cauchy_row (*rows)[MAX_SWEEP], const int *nrows, char (*fit_text)[64],
+                        const char *const *method_of, const int *measure_of, const int *p_of);
+
+static int run_cauchy_figure(const consph_study *s, const study_figure *f, int quick,
+                             layout_cache *cache, const char *dir, const study_files *files,
+                             FILE *log)
+{
+    static const char *const measures[] = {"particles", "smoothed", NULL};
+    static const char *const methods[] = {"exact", "sliced", "sinkhorn", NULL};
+    const int nseries = f->nseries < MAX_SERIES_POINTS ? f->nseries : MAX_SERIES_POINTS;
+    int nrows[MAX_SERIES_POINTS] = {0};
+    char fit_text[MAX_SERIES_POINTS][64];
+    const char *method_of[MAX_SERIES_POINTS];
+    int measure_of[MAX_SERIES_POINTS], p_of[MAX_SERIES_POINTS];
+    cauchy_row(*rows)[MAX_SWEEP] = calloc((size_t)nseries + 1, sizeof *rows);
+    series_plan *plans = calloc((size_t)nseries + 1, sizeof *plans);
+    int rc = rows && plans ? CONSPH_OK : consph_fail(CONSPH_ENOMEM, "out of memory");
+    for (int k = 0; rc == CONSPH_OK && k < nseries; ++k) {
+        const study_series *r = &f->series[k];
+        series_plan *pl = &plans[k];
+        if ((rc = build_plan(s, f, r, quick, pl))) break;
+        const int dim = pl->spec.layout.dim;
+        int imeas, imeth;
+        double pw, dirs, grid, seed;
+        if ((rc = get_choice(s, f, r, "measure", measures, 0, &imeas))) break;
+        if ((rc = get_choice(s, f, r, "ot_method", methods, dim == 1 ? 0 : 1, &imeth))) break;
+        if ((rc = get_double(s, f, r, "ot_p", 1, 1, 2, &pw))) break;
+        if ((rc = get_double(s, f, r, "directions", 64, 1, 1e5, &dirs))) break;
+        if ((rc = get_double(s, f, r, "grid",
+                             dim == 1   ? 4096
+                             : dim == 2 ? 128
+                                        : 32,
+                             2, 1e6, &grid)))
+            break;
+        if ((rc = get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) break;
+        if (pw != floor(pw)) {
+            rc = key_error(s, f, r, "ot_p", "must be 1 or 2");
+            break;
+        }
+        if (imeth == 0 && dim != 1) {
+            rc = key_error(s, f, r, "ot_method", "exact is 1D only; use sliced or sinkhorn");
+            break;
+        }
+        consph_ot_options opt = consph_ot_defaults();
+        opt.method = (consph_ot_method)imeth;
+        opt.p = (int)pw;
+        opt.directions = (int)dirs;
+        opt.seed = (uint64_t)seed;
+        method_of[k] = methods[imeth];
+        measure_of[k] = imeas;
+        p_of[k] = opt.p;
+        if (files) {
+            pl->nvalues = files->n;
+            for (int j = 0; j < files->n; ++j) pl->values[j] = resolution_of(&files->sets[j]);
+            pl->spec.n_ref = (double)files->sets[0].n;
+        }
+        cauchy_measure prev, cur;
+        memset(&prev, 0, sizeof prev);
+        size_t prev_nx = 0, prev_n = 0;
+        for (int j = 0; rc == CONSPH_OK && j < pl->nvalues; ++j) {
+            size_t nx = (size_t)pl->values[j];
+            const consph_particles *p;
+            if (files) {
+                p = &files->sets[j];
+                nx = (size_t)floor(resolution_of(p) + 0.5);
+            } else {
+                consph_layout_params lp = pl->spec.layout;
+                for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
+                double lsec;
+                if ((rc = cache_get(cache, &lp, &p, &lsec, log))) break;
+            }
+            if ((rc = cauchy_measure_make(pl, p, imeas, (size_t)grid, &cur))) break;
+            if (j > 0) {
+                consph_ot_result res;
+                rc = consph_wasserstein(&prev.mu, &cur.mu, &opt, &res);
+                if (rc) {
+                    consph_fail(rc, "figure '%s', series '%s', nx %zu: %s", f->id, r->label, nx,
+                                consph_last_error());
+                } else {
+                    cauchy_row *w = &rows[k][nrows[k]++];
+                    *w = (cauchy_row){prev_nx, nx,    prev_n,       p->n,
+                                      prev.h,  cur.h, res.distance, res.error};
+                    if (log)
+                        fprintf(log, "  %-12s nx %zu -> %zu  W%d = %.6e ± %.1e\n", r->label,
+                                prev_nx, nx, opt.p, res.distance, res.error);
+                }
+            }
+            cauchy_measure_free(&prev);
+            prev = cur;
+            memset(&cur, 0, sizeof cur);
+            prev_nx = nx;
+            prev_n = p->n;
+        }
+        cauchy_measure_free(&prev);
+        cauchy_measure_free(&cur);
+        if (rc) break;
+        double xs[MAX_SWEEP], ys[MAX_SWEEP];
+        for (int j = 0; j < nrows[k]; ++j) {
+            xs[j] = (double)rows[k][j].nx1;
+            ys[j] = rows[k][j].distance;
+        }
+        consph_order_fit fit;
+        if (nrows[k] >= 2 && consph_fit_order(xs, ys, nrows[k], &fit) == CONSPH_OK)
+            consph_order_text(&fit, 2, "±", fit_text[k], sizeof fit_text[k]);
+        else
+            snprintf(fit_text[k], sizeof fit_text[k], "n/a (needs three resolutions)");
+    }
+    if (rc == CONSPH_OK)
+        rc = write_cauchy(s, f, quick, files, dir, plans, rows, nrows, fit_text, method_of,
+                          measure_of, p_of);
+    free(rows);
+    free(plans);
+    return rc;
+}
+
+static int write_cauchy(const consph_study *s, const study_figure *f, int quick,
+                        const study_files *files, const char *dir, const series_plan *plans,
+                        cauchy_row (*rows)[MAX_SWEEP], const int *nrows, char (*fit_text)[64],
+                        const char *const *method_of, const int *measure_of, const int *p_of)
+{
+    static const char *const measures[] = {"particles", "smoothed", NULL};
+    const int nseries = f->nseries < MAX_SERIES_POINTS ? f->nseries : MAX_SERIES_POINTS;
+    int rc;
+    char path[STUDY_PATH_MAX];
+    consph_outfile of;
+    if ((rc = out_path(path, dir, f->id, ".csv"))) return rc;
+    if ((rc = consph_outfile_open(&of, path))) return rc;
+    fprintf(of.fp, "series,measure,method,p,nx0,nx1,n0,n1,h0,h1,distance,error\n");
+    for (int k = 0; k < nseries; ++k)
+        for (int j = 0; j < nrows[k]; ++j) {
+            const cauchy_row *w = &rows[k][j];
+            char label[128];
+            fprintf(of.fp, "%s,%s,%s,%d,%zu,%zu,%zu,%zu,%.10g,%.10g,%.6e,%.3e\n",
+                    csv_label(f->series[k].label, label, sizeof label), measures[measure_of[k]],
+                    method_of[k], p_of[k], w->nx0, w->nx1, w->n0, w->n1, w->h0, w->h1, w->distance,
+                    w->error);
+        }
+    if ((rc = consph_outfile_commit(&of))) return rc;
+    if ((rc = out_path(path, dir, f->id, ".md"))) return rc;
+    if ((rc = consph_outfile_open(&of, path))) return rc;
+    FILE *o = of.fp;
+    fprintf(o, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
+    const char *note = figure_note(f);
+    if (note) fprintf(o, "%s\n\n", note);
+    fprintf(o,
+            "Run: %s resolutions; layout `%s`, dim %d. Each row is the Wasserstein distance "
+            "between successive resolutions (a Cauchy sequence when it falls); the rate p is "
+            "the fit of W ∝ nx^-p.\n\n",
+            quick ? "quick" : "full",
+            files ? "particle files" : consph_layout_name(plans[0].spec.layout.kind),
+            plans[0].spec.layout.dim);
+    for (int k = 0; k < nseries; ++k) {
+        char htext[160];
+        fprintf(o, "### %s: %s measure, %s W%d, kernel `%s`, h %s\n\n", f->series[k].label,
+                measures[measure_of[k]], method_of[k], p_of[k], plans[k].kernel_name,
+                h_policy_text(&plans[k].spec, htext, sizeof htext));
+        fprintf(
+            o,
+            "| nx | nx' | N | N' | h | h' | W | its error |\n|---|---|---|---|---|---|---|---|\n");
+        for (int j = 0; j < nrows[k]; ++j) {
+            const cauchy_row *w = &rows[k][j];
+            fprintf(o, "| %zu | %zu | %zu | %zu | %.4g | %.4g | %.4e | %.1e |\n", w->nx0, w->nx1,
+                    w->n0, w->n1, w->h0, w->h1, w->distance, w->error);
+        }
+        fprintf(o, "\nRate: %s\n\n", fit_text[k]);
+    }
+    published_values(s, f, o);
+    return consph_outfile_commit(&of);
+}
+
 static int run_figures(const consph_study *s, const consph_study_options *opt,
                        const study_files *files, const char *dir)
 {
@@ -1412,6 +1626,9 @@ static int run_figures(const consph_study *s, const consph_study_options *opt,
             break;
         case KIND_APPC:
             rc = run_appc_figure(s, f, opt->quick, dir, log);
+            break;
+        case KIND_CAUCHY:
+            rc = run_cauchy_figure(s, f, opt->quick, cache, dir, files, log);
             break;
         default:
             rc = run_approx_figure(s, f, opt->quick, cache, dir, files, log);
