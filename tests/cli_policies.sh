@@ -98,5 +98,20 @@ grep -q "ot_method" "$tmp/e" || bad "cauchy exact in 2D: message '$(cat "$tmp/e"
 sed -i 's/^ot_method = exact$/ot_method = sinkhorn/' "$tmp/studies/cau.study"
 CONSPH_STUDIES=$tmp/studies "$consph" study cau --quick --out "$tmp/out3" >"$tmp/o" 2>&1 || bad "cauchy sinkhorn exit $?: $(tail -2 "$tmp/o")"
 awk -F, 'NR == 2 { exit !($3 == "sinkhorn" && $11 > 0 && $12 > 0) }' "$tmp/out3/cau/f.csv" || bad "cauchy sinkhorn row: $(sed -n 2p "$tmp/out3/cau/f.csv")"
+# With particle files, zhu is anchored at the first file (h = 1.2 Δs there), in m0 figures too.
+"$consph" layout --kind quasi-random --dim 2 --nx 20 --out "$tmp/q20.csv" >/dev/null || bad "layout q20"
+"$consph" layout --kind quasi-random --dim 2 --nx 30 --out "$tmp/q30.csv" >/dev/null || bad "layout q30"
+cat >"$tmp/studies/m0z.study" <<'S'
+study = m0z
+title = m0 zhu
+kind = m0
+h_policy = zhu
+[figure m]
+dim = 2
+nx = 8,16
+[series m0]
+S
+CONSPH_STUDIES=$tmp/studies "$consph" study m0z --particles "$tmp/q20.csv,$tmp/q30.csv" --out "$tmp/out4" >"$tmp/o" 2>&1 || bad "m0 zhu with files exit $?: $(tail -2 "$tmp/o")"
+awk -F, 'NR == 2 { exit !($3 > 0.0599999 && $3 < 0.0600001) }' "$tmp/out4/m0z/m.csv" || bad "m0 zhu with files: first h $(awk -F, 'NR == 2 { print $3 }' "$tmp/out4/m0z/m.csv"), want 1.2/20"
 [ $fail = 0 ] && echo "cli_policies: 1 passed, 0 failed" || echo "cli_policies: 0 passed, 1 failed"
 exit $fail

@@ -359,6 +359,32 @@ static const char *figure_note(const study_figure *f)
 
 /* Every published value (paper.*) of every series, for figures whose tables have no paper
  * columns. */
+/* Particle files replace a plan's nx sweep, one resolution each; zhu and beta are anchored at
+ * the first file. */
+static void plan_take_files(series_plan *pl, const study_files *files)
+{
+    pl->nvalues = files->n;
+    for (int j = 0; j < files->n; ++j) pl->values[j] = resolution_of(&files->sets[j]);
+    pl->spec.n_ref = (double)files->sets[0].n;
+}
+
+/* The particles of resolution j of an nx sweep, and their nx: file j, or the plan's layout at
+ * nx = values[j] from the cache. */
+static int plan_particles(const series_plan *pl, int j, const study_files *files,
+                          layout_cache *cache, FILE *log, const consph_particles **p, size_t *nx)
+{
+    if (files) {
+        *p = &files->sets[j];
+        *nx = (size_t)floor(resolution_of(*p) + 0.5);
+        return CONSPH_OK;
+    }
+    *nx = (size_t)pl->values[j];
+    consph_layout_params lp = pl->spec.layout;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? *nx : 1;
+    double lsec;
+    return cache_get(cache, &lp, p, &lsec, log);
+}
+
 static void published_values(const consph_study *s, const study_figure *f, FILE *o)
 {
     int any = 0;
@@ -882,11 +908,7 @@ static int run_approx_figure(const consph_study *s, const study_figure *f, int q
     for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
         series_plan *pl = &plans[k];
         /* Files replace the nx sweep, one row each; an h/Δs sweep runs on the last file. */
-        if (files && !pl->sweep_hdx) {
-            pl->nvalues = files->n;
-            for (int j = 0; j < files->n; ++j) pl->values[j] = resolution_of(&files->sets[j]);
-            pl->spec.n_ref = (double)files->sets[0].n;
-        }
+        if (files && !pl->sweep_hdx) plan_take_files(pl, files);
         for (int j = 0; rc == CONSPH_OK && j < pl->nvalues; ++j) {
             consph_approx_spec sp = pl->spec;
             size_t nx = pl->sweep_hdx ? pl->nx_fixed : (size_t)pl->values[j];
@@ -1027,19 +1049,11 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
     m0_row rows[MAX_SWEEP];
     memset(rows, 0, sizeof rows);
     int nrows = 0;
-    if (files) pl.nvalues = files->n;
+    if (files) plan_take_files(&pl, files);
     for (int j = 0; rc == CONSPH_OK && j < pl.nvalues; ++j) {
-        size_t nx = (size_t)pl.values[j];
+        size_t nx;
         const consph_particles *p;
-        if (files) {
-            p = &files->sets[j];
-            nx = (size_t)floor(resolution_of(p) + 0.5);
-        } else {
-            consph_layout_params lp = pl.spec.layout;
-            for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
-            double lsec;
-            if ((rc = cache_get(cache, &lp, &p, &lsec, log))) break;
-        }
+        if ((rc = plan_particles(&pl, j, files, cache, log, &p, &nx))) break;
         rows[j].counts = consph_calloc((size_t)nbins, sizeof(size_t));
         if (!rows[j].counts) {
             rc = CONSPH_ENOMEM;
@@ -1490,26 +1504,14 @@ static int run_cauchy_figure(const consph_study *s, const study_figure *f, int q
         method_of[k] = methods[imeth];
         measure_of[k] = imeas;
         p_of[k] = opt.p;
-        if (files) {
-            pl->nvalues = files->n;
-            for (int j = 0; j < files->n; ++j) pl->values[j] = resolution_of(&files->sets[j]);
-            pl->spec.n_ref = (double)files->sets[0].n;
-        }
+        if (files) plan_take_files(pl, files);
         cauchy_measure prev, cur;
         memset(&prev, 0, sizeof prev);
         size_t prev_nx = 0, prev_n = 0;
         for (int j = 0; rc == CONSPH_OK && j < pl->nvalues; ++j) {
-            size_t nx = (size_t)pl->values[j];
+            size_t nx;
             const consph_particles *p;
-            if (files) {
-                p = &files->sets[j];
-                nx = (size_t)floor(resolution_of(p) + 0.5);
-            } else {
-                consph_layout_params lp = pl->spec.layout;
-                for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
-                double lsec;
-                if ((rc = cache_get(cache, &lp, &p, &lsec, log))) break;
-            }
+            if ((rc = plan_particles(pl, j, files, cache, log, &p, &nx))) break;
             if ((rc = cauchy_measure_make(pl, p, imeas, (size_t)grid, &cur))) break;
             if (j > 0) {
                 consph_ot_result res;
