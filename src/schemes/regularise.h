@@ -1,0 +1,69 @@
+/* Particle regularisation of the Lagrangian schemes of 001: iterative particle shifting (IPST,
+ * Huang et al., 001 eqs. 19-21), the non-iterative shifting of Sun et al. (δ+-SPH; 001's L-PST-C
+ * and TV-C) and remeshing to the lattice with M4 (001 eqs. 32-33, L-RR-C).
+ *
+ * Every function runs on a system made by consph_sys_init whose particles carry the field
+ * "volume" (the numerical volume ω used in the sums, refreshed by the caller before the call
+ * unless the function says otherwise). Periodic axes wrap. None of them re-sorts the particles:
+ * the caller re-sorts at the start of a time step only, so arrays it holds in particle order
+ * (gradients for the Taylor update of 001 eq. 22) stay valid across the call. Results do not
+ * depend on the thread count. */
+#ifndef CONSPH_SCHEMES_REGULARISE_H
+#define CONSPH_SCHEMES_REGULARISE_H
+
+#include "consph/pass.h"
+
+/* ---- moving particles ---- */
+
+/* x_i += dr_i (dr component-major with stride p->cap, d components), wrapping periodic axes into
+ * the box, then rebuilds the search (consph_sys_update(s, 0)). CONSPH_ENUMERIC naming the
+ * particle when a position becomes non-finite or leaves a non-periodic box. */
+int reg_move(consph_sys *s, const double *dr);
+
+/* ---- IPST (001 eqs. 19-21) ---- */
+typedef struct reg_ipst_params {
+    double h;        /* smoothing length */
+    double chi0;     /* χ_o: h^d Σ_j W_ij on the unperturbed lattice (reg_chi0) */
+    double tol;      /* ε of eq. 21 */
+    int max_iter;    /* at most this many shifts (001: 10) */
+} reg_ipst_params;
+
+typedef struct reg_ipst_report {
+    int iterations;     /* shifts applied */
+    double chi_err;     /* |max χ - χ_o| after the last shift */
+    double max_shift;   /* largest |total displacement| of a particle, in units of h */
+} reg_ipst_report;
+
+/* χ_o for the kernel on the unperturbed lattice of spacing ds in the kernel's dimension:
+ * h^d Σ_j W(|x_j|) over lattice points (catalogue Z5: 1.4399190 for quintic, h = 1.2 ds, 2D). */
+double reg_chi0(const consph_kernel *k, double ds);
+
+/* Shifts the particles by eq. 19 until eq. 21 holds or max_iter shifts were made, recomputing
+ * the volumes ω = 1/Σ_j W_ij (written into "volume") at every iteration, and adds the total
+ * displacement of each particle to dr_total (d × cap, zeroed by the caller). */
+int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ipst_report *rep);
+
+/* ---- non-iterative shifting of Sun et al. (δ+-SPH) ---- */
+typedef struct reg_pst_params {
+    double h, ds;  /* smoothing length and initial spacing Δs */
+    double cfl;    /* CFL number of the run's time step rule */
+    double mach;   /* U_max / c_o */
+    double R, n;   /* the anti-clumping term (Sun et al.: 0.2 and 4) */
+    double max_shift; /* cap on |δr| in units of h as the original paper sets it (<= 0: none) */
+} reg_pst_params;
+
+/* δr_i of Sun et al. into dr (d × cap), from the volumes in "volume"; moves nothing. */
+int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr);
+
+/* ---- remeshing (001 eqs. 32-33) ---- */
+
+/* Remeshes in place: interpolates `nf` named fields of the particles of `s` (each with its own
+ * number of components) at the lattice points `lattice` (d × cap, one point per particle slot,
+ * spacing ds) with the normalised M4 sum of eq. 33, q per axis = |x_a|/ds (tensor product,
+ * catalogue Part C 001.20), then puts every particle on its lattice point with the interpolated
+ * values and rebuilds the search. A lattice point with no particle within reach keeps the value
+ * of the particle in its slot and is counted in *orphans (may be NULL). */
+int reg_remesh_m4(consph_sys *s, const double *lattice, double ds, const char *const *fields,
+                  int nf, size_t *orphans);
+
+#endif
