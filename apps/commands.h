@@ -8,5 +8,6 @@ int cmd_layout(int argc, char **argv);
 int cmd_approx(int argc, char **argv);
 int cmd_study(int argc, char **argv);
 int cmd_wasserstein(int argc, char **argv);
+int cmd_run(int argc, char **argv);
 
 #endif

@@ -20,6 +20,7 @@ static const subcommand subcommands[] = {
     {"approx", cmd_approx, "measure an operator's accuracy and order of convergence"},
     {"study", cmd_study, "run a convergence study that reproduces a paper's figure or table"},
     {"wasserstein", cmd_wasserstein, "Wasserstein distance between two particle files"},
+    {"run", cmd_run, "run a weakly-compressible SPH simulation (taylor-green)"},
 };
 #define NSUB (sizeof subcommands / sizeof subcommands[0])
 

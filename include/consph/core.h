@@ -102,6 +102,8 @@ double consph_wtime(void);
  * change this once running: set OMP_WAIT_POLICY=passive in the environment that starts it (the
  * consph CLI re-executes itself with it when neither variable is set), or use fewer threads. */
 int consph_num_threads(void);
+/* Threads of the parallel regions that follow (n > 0; no effect without OpenMP). */
+void consph_set_num_threads(int n);
 /* Peak resident set size of this process in bytes (0 when unknown). */
 size_t consph_peak_rss(void);
 

@@ -40,6 +40,15 @@ double consph_wtime(void)
     return (double)ts.tv_sec + 1e-9 * (double)ts.tv_nsec;
 }
 
+void consph_set_num_threads(int n)
+{
+#ifdef CONSPH_HAVE_OPENMP
+    if (n > 0) omp_set_num_threads(n);
+#else
+    (void)n;
+#endif
+}
+
 int consph_num_threads(void)
 {
 #ifdef CONSPH_HAVE_OPENMP

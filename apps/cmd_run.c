@@ -1,0 +1,215 @@
+/* consph run PROBLEM: one WCSPH simulation (include/consph/solver.h). */
+#include <errno.h>
+#include <signal.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#include "cli.h"
+#include "commands.h"
+#include "consph/io.h"
+#include "consph/layout.h"
+#include "consph/solver.h"
+
+static const char run_details[] =
+    "Defaults follow 001 (Negi & Ramachandran): quintic spline, h/Δs 1.2, U 1, c_o 10 U,\n"
+    "Re 100, RK2 (explicit midpoint), Δt = 0.3 h/(U + c_o), packed particles for the\n"
+    "Lagrangian schemes and the lattice for l-rr-c and the Eulerian ones; IPST every 10\n"
+    "steps, at most 10 iterations, ε 1e-3. docs/schemes.md records every choice.\n"
+    "\n"
+    "With --out DIR: DIR/run.pvd indexing snap_NNNNNN.vtu (every --snapshot-every steps and\n"
+    "the last), DIR/log.csv (one row per step), DIR/summary.json, and DIR/checkpoint.ckpt\n"
+    "every --checkpoint-every steps. SIGINT/SIGTERM finish the step, write a checkpoint\n"
+    "and exit 130/143; --restart DIR/checkpoint.ckpt continues bit for bit.\n"
+    "\n"
+    "exit status: 0 done, 1 failure, 2 bad usage, 3 the run diverged (the message names\n"
+    "the step, the particle, its position and the quantity), 130/143 stopped by a signal";
+
+static int make_dir(const cli_command *cmd, const char *dir)
+{
+    struct stat st;
+    if (stat(dir, &st) == 0) {
+        if (!S_ISDIR(st.st_mode))
+            return cli_error(cmd, "option --out: '%s' is not a directory", dir);
+        return 0;
+    }
+    if (mkdir(dir, 0777) != 0)
+        return cli_error(cmd, "option --out: cannot create directory '%s': %s", dir,
+                         strerror(errno));
+    return 0;
+}
+
+int cmd_run(int argc, char **argv)
+{
+    consph_run_params prm;
+    consph_run_params_default(&prm);
+    const char *scheme = "l-ipst-c", *out = NULL, *restart = NULL, *integrator = NULL;
+    long nx = 50, steps = 0, snap_every = 0, ckpt_every = 0, threads = 0, seed = 1;
+    long ipst_every = 10, ipst_iter = 10;
+    double hdx = 1.2, c0 = 0.0, re = 100.0, tf = 0.5, dt = 0.0, U = 1.0, delta = 0.1;
+    double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3;
+    int layout = 0, kernel = 0, format = 0, eos = 0;
+    char layout_choices[256], kernel_choices[512];
+    snprintf(layout_choices, sizeof layout_choices, "default,%s", consph_layout_names());
+    snprintf(kernel_choices, sizeof kernel_choices, "%s", consph_kernel_names());
+    kernel = cli_choice_index(kernel_choices, "quintic");
+    cli_opt opts[] = {
+        {"--scheme", CLI_STRING, &scheme, "S", "scheme", NULL, 0, 0, 0},
+        {"--nx", CLI_INT, &nx, "N", "particles per side", NULL, 4, 100000, 0},
+        {"--layout", CLI_CHOICE, &layout, "L", "initial particles (default: the scheme's)",
+         layout_choices, 0, 0, 0},
+        {"--seed", CLI_INT, &seed, "S", "seed of random and packed layouts", NULL, 0, 1e9, 0},
+        {"--hdx", CLI_DOUBLE, &hdx, "R", "h/Δs", NULL, 0.5, 4, 0},
+        {"--kernel", CLI_CHOICE, &kernel, "K", "kernel (radial)", kernel_choices, 0, 0, 0},
+        {"--c0", CLI_DOUBLE, &c0, "C", "speed of sound (0: 10 U)", NULL, 0, 1e6, 0},
+        {"--re", CLI_DOUBLE, &re, "RE", "Reynolds number", NULL, 1e-6, 1e12, 0},
+        {"--u", CLI_DOUBLE, &U, "U", "velocity scale", NULL, 1e-12, 1e6, 0},
+        {"--eos", CLI_CHOICE, &eos, "E", "equation of state", "default,tait,linear", 0, 0, 0},
+        {"--delta", CLI_DOUBLE, &delta, "D", "δ of the diffusive term D = δ h c_o", NULL, 0, 10, 0},
+        {"--tf", CLI_DOUBLE, &tf, "T", "final time", NULL, 1e-12, 1e6, 0},
+        {"--steps", CLI_INT, &steps, "K", "number of steps (instead of --tf)", NULL, 1, 1e12, 0},
+        {"--dt", CLI_DOUBLE, &dt, "DT", "fixed time step (0: cfl h/(U + c_o))", NULL, 0, 1e6, 0},
+        {"--cfl", CLI_DOUBLE, &cfl, "C", "factor of the time-step rule", NULL, 1e-6, 2, 0},
+        {"--h-dt", CLI_DOUBLE, &h_dt, "H", "h of the time-step rule (0: this run's)", NULL, 0, 1e6,
+         0},
+        {"--integrator", CLI_STRING, &integrator, "I", "rk2, euler or kdk (default: the scheme's)",
+         NULL, 0, 0, 0},
+        {"--ipst-every", CLI_INT, &ipst_every, "K", "IPST every K steps (0: never)", NULL, 0, 1e9,
+         0},
+        {"--ipst-iter", CLI_INT, &ipst_iter, "M", "at most M IPST iterations", NULL, 0, 1000, 0},
+        {"--ipst-tol", CLI_DOUBLE, &ipst_tol, "EPS", "ε of 001 eq. 21", NULL, 1e-15, 1, 0},
+        {"--out", CLI_STRING, &out, "DIR", "write snapshots, log, summary, checkpoints here", NULL,
+         0, 0, 0},
+        {"--snapshot-every", CLI_INT, &snap_every, "K",
+         "a snapshot every K steps (0: first and "
+         "last)",
+         NULL, 0, 1e12, 0},
+        {"--checkpoint-every", CLI_INT, &ckpt_every, "K", "a checkpoint every K steps", NULL, 0,
+         1e12, 0},
+        {"--restart", CLI_STRING, &restart, "FILE", "continue from a checkpoint", NULL, 0, 0, 0},
+        {"--format", CLI_CHOICE, &format, "F", "result on stdout", "table,json", 0, 0, 0},
+        {"--threads", CLI_INT, &threads, "T", "threads (0: OpenMP's default)", NULL, 0, 4096, 0},
+    };
+    const char *positional[1] = {NULL};
+    cli_command cmd = {"run",
+                       "run a weakly-compressible SPH simulation",
+                       "consph run PROBLEM --scheme S --nx N [options]   (PROBLEM: taylor-green)",
+                       run_details,
+                       opts,
+                       (int)(sizeof opts / sizeof opts[0]),
+                       1,
+                       positional};
+    int rc = cli_parse(&cmd, argc, argv);
+    if (rc) return rc == 1 ? 0 : rc;
+    if (!positional[0] && !restart)
+        return cli_error(&cmd, "a problem is required (allowed: %s)", consph_problem_names());
+    if (threads > 0) consph_set_num_threads((int)threads);
+
+    consph_solver *s = NULL;
+    int st;
+    if (restart) {
+        for (int k = 0; k < cmd.nopts; ++k)
+            if (opts[k].given && strcmp(opts[k].name, "--restart") &&
+                strcmp(opts[k].name, "--out") && strcmp(opts[k].name, "--format") &&
+                strcmp(opts[k].name, "--threads") && strcmp(opts[k].name, "--snapshot-every") &&
+                strcmp(opts[k].name, "--checkpoint-every"))
+                return cli_error(
+                    &cmd,
+                    "option %s cannot change a restarted run (allowed with --restart: "
+                    "--out, --format, --threads, --snapshot-every, --checkpoint-every)",
+                    opts[k].name);
+        if (positional[0]) return cli_error(&cmd, "give no problem with --restart");
+        st = consph_run_restart(&s, restart);
+        if (st != CONSPH_OK) {
+            fprintf(stderr, "consph run: option --restart: %s\n", consph_last_error());
+            return CLI_EXIT_USAGE;
+        }
+    } else {
+        if (strlen(positional[0]) >= sizeof prm.problem)
+            return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s)", positional[0],
+                             consph_problem_names());
+        snprintf(prm.problem, sizeof prm.problem, "%s", positional[0]);
+        if (strlen(scheme) >= sizeof prm.scheme)
+            return cli_error(&cmd, "option --scheme: '%.40s' is unknown (allowed: %s)", scheme,
+                             consph_scheme_names());
+        snprintf(prm.scheme, sizeof prm.scheme, "%s", scheme);
+        if (integrator) {
+            if (strlen(integrator) >= sizeof prm.integrator)
+                return cli_error(&cmd, "option --integrator: '%.40s' is unknown (allowed: %s)",
+                                 integrator, consph_integrator_names());
+            snprintf(prm.integrator, sizeof prm.integrator, "%s", integrator);
+        }
+        char name[64];
+        prm.nx = (int)nx;
+        prm.layout = layout == 0 ? -1 : 0;
+        if (layout > 0) {
+            consph_layout_kind kind;
+            cli_choice_name(layout_choices, layout, name, sizeof name);
+            consph_layout_lookup(name, &kind);
+            prm.layout = (int)kind;
+        }
+        cli_choice_name(kernel_choices, kernel, name, sizeof name);
+        consph_kernel_lookup(name, &prm.kernel);
+        prm.seed = (unsigned long)seed;
+        prm.hdx = hdx;
+        prm.c0 = c0;
+        prm.re = re;
+        prm.U = U;
+        prm.eos = eos == 0 ? CONSPH_EOS_DEFAULT : eos == 1 ? CONSPH_EOS_TAIT : CONSPH_EOS_LINEAR;
+        prm.delta = delta;
+        prm.tf = steps > 0 ? 0.0 : tf;
+        prm.steps = steps;
+        prm.dt = dt;
+        prm.cfl = cfl;
+        prm.h_dt = h_dt;
+        prm.ipst_every = (int)ipst_every;
+        prm.ipst_max_iter = (int)ipst_iter;
+        prm.ipst_tol = ipst_tol;
+        if (consph_run_params_check(&prm) != CONSPH_OK) {
+            fprintf(stderr, "consph run: %s\n", consph_last_error());
+            return CLI_EXIT_USAGE;
+        }
+    }
+    if (out && (rc = make_dir(&cmd, out)) != 0) {
+        consph_solver_free(s);
+        return rc;
+    }
+    if (!s && (st = consph_solver_create(&s, &prm)) != CONSPH_OK) {
+        fprintf(stderr, "consph run: %s\n", consph_last_error());
+        return 1;
+    }
+    consph_run_output ro = {out, snap_every, ckpt_every, 1, 1};
+    consph_run_summary sum;
+    int sig = 0;
+    st = consph_run(s, &ro, &sum, &sig);
+    consph_solver_free(s);
+    if (st == CONSPH_ENUMERIC) {
+        fprintf(stderr, "consph run: %s\n", consph_last_error());
+        return CLI_EXIT_NONFINITE;
+    }
+    if (st != CONSPH_OK) {
+        fprintf(stderr, "consph run: %s\n", consph_last_error());
+        return 1;
+    }
+    if (sig) {
+        fprintf(stderr, "consph run: stopped by signal %d at step %ld (t = %.6g)%s%s%s\n", sig,
+                sum.steps, sum.t, out ? "; checkpoint " : "", out ? out : "",
+                out ? "/checkpoint.ckpt" : "");
+        return 128 + sig;
+    }
+    if (format == 1) {
+        consph_run_summary_json(stdout, &sum);
+    } else {
+        printf("%s %s, %s, n = %zu, %ld steps of dt = %.6g to t = %.6g, c_o = %g\n", sum.problem,
+               sum.scheme, sum.integrator, sum.n, sum.steps, sum.dt, sum.t, sum.c0);
+        printf("L1(u) %.6e  L1(p) %.6e  (001 eq. 26)   Linf(u) %.6e  Linf(p) %.6e\n", sum.l1_u,
+               sum.l1_p, sum.linf_u, sum.linf_p);
+        printf("momentum (%.3e, %.3e)  angular %.3e  F_T/F_max %.3e  max|div u| %.3e\n",
+               sum.momentum[0], sum.momentum[1], sum.angular_momentum, sum.ft_fmax, sum.max_divu);
+        printf("%.3f s, %.3e s per particle-step, %d passes per stage (minimum %d)\n", sum.seconds,
+               sum.steps ? sum.seconds / ((double)sum.steps * (double)sum.n) : 0.0,
+               sum.passes_per_stage, sum.passes_min);
+    }
+    return 0;
+}

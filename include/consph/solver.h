@@ -1,0 +1,159 @@
+/* consph solver: weakly-compressible SPH (001, Negi & Ramachandran) on the pass layer.
+ *
+ * A run is a problem (domain, initial state, exact solution: data), a scheme (the passes of its
+ * right-hand side, its regularisation, its time-step rule, selected by name) and an integrator
+ * (explicit midpoint RK2 as 001 uses, forward Euler, kick-drift-kick). Each particle carries its
+ * position, velocity "u", the fluid density "rhof" (ϱ, evolved, 001 eq. 17), the pressure "p"
+ * from the equation of state, and the numerical volume "volume" (ω = 1/Σ_j W_ij, so that the
+ * summation density ρ = m/ω is kept apart from ϱ, 001 §5.1).
+ *
+ * Errors (001 eq. 26): L1 of a quantity is Σ_steps Δt · (1/N) Σ_i |f_i - f_o(x_i, t)|, summed
+ * over the steps after t = 0, with f the velocity magnitude |u| or the pressure p; L∞ is the
+ * largest |f_i - f_o| at the final time. Sums over particles are blocked and combined in a fixed
+ * tree (consph_sum), so results do not depend on the thread count. */
+#ifndef CONSPH_SOLVER_H
+#define CONSPH_SOLVER_H
+
+#include <stddef.h>
+
+#include "consph/core.h"
+#include "consph/kernels.h"
+#include "consph/layout.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef enum consph_eos_kind {
+    CONSPH_EOS_DEFAULT = -1, /* the scheme's own */
+    CONSPH_EOS_TAIT = 0,     /* 001 eq. 18: p = ρ_o c_o²/γ ((ϱ/ρ_o)^γ - 1) */
+    CONSPH_EOS_LINEAR = 1    /* 001 eq. 28: p = c_o² (ϱ - ρ_o) */
+} consph_eos_kind;
+
+/* Everything a run is made from. consph_run_params_default fills 001's Taylor-Green values. */
+typedef struct consph_run_params {
+    char problem[32];    /* "taylor-green" */
+    char scheme[32];     /* consph_scheme_names() */
+    char integrator[16]; /* "" (the scheme's), "rk2", "euler", "kdk" */
+    int nx;              /* particles per side */
+    int layout;          /* consph_layout_kind, or -1 for the scheme's (packed or lattice) */
+    unsigned long seed;  /* for random and packed layouts */
+    double hdx;          /* h/Δs */
+    consph_kernel_id kernel;
+    double U;    /* velocity scale */
+    double c0;   /* speed of sound; 0: 10 U */
+    double re;   /* Reynolds number (ν = U L / Re, L = 1) */
+    double rho0; /* reference density ρ_o */
+    double gamma;
+    consph_eos_kind eos;
+    double delta;      /* δ of the diffusive terms D = δ h c_o (catalogue Part C 001.11) */
+    double tf;         /* final time (used when steps = 0) */
+    long steps;        /* number of steps (0: up to tf) */
+    double dt;         /* fixed time step (0: the rule cfl · h_dt/(U + c_o)) */
+    double cfl;        /* 0.3 (001 §5.2) */
+    double h_dt;       /* h in the time-step rule (0: this run's h); studies pass the finest h */
+    int ipst_every;    /* IPST every this many steps (001: 10) */
+    int ipst_max_iter; /* at most this many shifts (001: 10) */
+    double ipst_tol;   /* ε of 001 eq. 21 */
+} consph_run_params;
+
+void consph_run_params_default(consph_run_params *prm);
+
+/* Names, for help and messages: "l-ipst-c,l-ipst-f,..." and "taylor-green". */
+const char *consph_scheme_names(void);
+const char *consph_problem_names(void);
+const char *consph_integrator_names(void);
+/* CONSPH_EINVAL naming the option and the allowed values when something is out of range; run
+ * before any work. */
+int consph_run_params_check(const consph_run_params *prm);
+
+/* What a run measured. */
+typedef struct consph_run_summary {
+    char scheme[32], problem[32], integrator[16];
+    size_t n;
+    int dim;
+    long steps;
+    double t, dt, h, c0;
+    double l1_u, l1_p;     /* 001 eq. 26, integrated over time */
+    double linf_u, linf_p; /* at the final time */
+    double ke;             /* kinetic energy ½ Σ m |u|², m = ρ_o ω at t = 0 */
+    double momentum[3], angular_momentum;
+    double ft_fmax; /* Σ_i F_i / max_i |F_i| of the x-components, F = the acceleration */
+    double max_divu;
+    double seconds; /* wall time of the time steps (set-up excluded) */
+    size_t pairs;   /* pair evaluations of the time steps */
+    int passes_per_stage, passes_min;
+    long regularisations; /* IPST/PST/remesh steps applied */
+} consph_run_summary;
+
+/* ---- the solver ---- */
+typedef struct consph_solver consph_solver;
+
+/* Builds particles and initial state from the parameters (checked first). */
+int consph_solver_create(consph_solver **out, const consph_run_params *prm);
+/* Restores a solver from a checkpoint's metadata and particles (consph_solver_checkpoint_meta);
+ * takes ownership of nothing. */
+int consph_solver_restore(consph_solver **out, const char *meta, const consph_particles *p,
+                          const double *history, size_t nhistory);
+void consph_solver_free(consph_solver *s);
+
+/* One time step. A non-finite value stops it with CONSPH_ENUMERIC and a message naming the
+ * step, the particle (its index in the initial particle set), its position and the quantity. */
+int consph_solver_step(consph_solver *s);
+/* 1 when the run reached its final time or step count. */
+int consph_solver_done(const consph_solver *s);
+
+long consph_solver_step_count(const consph_solver *s);
+double consph_solver_time(const consph_solver *s);
+double consph_solver_dt(const consph_solver *s);
+const consph_run_params *consph_solver_params(const consph_solver *s);
+/* The particles (current order; the field "id" holds each one's index in the initial set),
+ * with the fields "u", "p", "rhof", "volume" and, for the output, "u_exact", "p_exact" and
+ * "vorticity" refreshed by consph_solver_output_fields. */
+const consph_particles *consph_solver_particles(const consph_solver *s);
+int consph_solver_output_fields(consph_solver *s);
+
+/* The per-step diagnostics of the log: t, L1 and L∞ of |u| and p at this instant, kinetic
+ * energy, momentum, angular momentum, F_T/F_max, max |∇·u|. */
+typedef struct consph_step_diag {
+    long step;
+    double t, l1_u, linf_u, l1_p, linf_p, ke, mom[3], ang, ft_fmax, max_divu;
+} consph_step_diag;
+int consph_solver_diag(const consph_solver *s, consph_step_diag *d);
+int consph_solver_summary(const consph_solver *s, consph_run_summary *sum);
+
+/* The metadata text and history a checkpoint of this solver holds (malloc'd). */
+int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **history,
+                                  size_t *nhistory);
+
+/* ---- a whole run, with its files ---- */
+
+/* Where and how often a run writes. In `dir`: snapshots snap_NNNNNN.vtu (every field of the
+ * particles) indexed by run.pvd (a ParaView time series), log.csv (one row per step: the
+ * consph_step_diag columns and dt), summary.json, and checkpoint.ckpt. Every file is written to
+ * a temporary name and renamed when complete. */
+typedef struct consph_run_output {
+    const char *dir;       /* NULL: no files */
+    long snapshot_every;   /* a snapshot every this many steps (0: the first and the last) */
+    long checkpoint_every; /* a checkpoint every this many steps (0: none) */
+    int progress;          /* a progress line on stderr when it is a terminal */
+    int signals;           /* SIGINT/SIGTERM: finish the step, checkpoint, stop */
+} consph_run_output;
+
+/* Steps the solver to its end. Returns CONSPH_OK; CONSPH_ENUMERIC when it diverged (the
+ * message names step, particle, position and quantity; the snapshots written so far stay);
+ * another code on a failure; with *stopped_by set to the signal that stopped it (0 when
+ * none). *sum is filled in every case. */
+int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summary *sum,
+               int *stopped_by);
+/* Restores a solver from a checkpoint file. */
+int consph_run_restart(consph_solver **s, const char *checkpoint);
+
+#include <stdio.h>
+/* The summary as one JSON object (non-finite values as null). */
+void consph_run_summary_json(FILE *fp, const consph_run_summary *sum);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

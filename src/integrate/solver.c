@@ -1,0 +1,594 @@
+/* The solver: set-up from parameters, time stepping (explicit midpoint RK2, forward Euler,
+ * kick-drift-kick), the equation of state, diagnostics, and the state a checkpoint holds. */
+#include <ctype.h>
+#include <inttypes.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "schemes/regularise.h"
+#include "schemes/solver_internal.h"
+
+void consph_run_params_default(consph_run_params *prm)
+{
+    memset(prm, 0, sizeof *prm);
+    snprintf(prm->problem, sizeof prm->problem, "taylor-green");
+    snprintf(prm->scheme, sizeof prm->scheme, "l-ipst-c");
+    prm->nx = 50;
+    prm->layout = -1;
+    prm->seed = 1;
+    prm->hdx = 1.2;
+    prm->kernel = CONSPH_KERNEL_QUINTIC;
+    prm->U = 1.0;
+    prm->c0 = 0.0;
+    prm->re = 100.0;
+    prm->rho0 = 1.0;
+    prm->gamma = 7.0;
+    prm->eos = CONSPH_EOS_DEFAULT;
+    prm->delta = 0.1;
+    prm->tf = 0.5;
+    prm->cfl = 0.3;
+    prm->ipst_every = 10;
+    prm->ipst_max_iter = 10;
+    prm->ipst_tol = 1e-3;
+}
+
+const char *consph_integrator_names(void)
+{
+    return "rk2,euler,kdk";
+}
+
+static int integrator_lookup(const char *name, int *integ)
+{
+    static const char *const names[] = {"rk2", "euler", "kdk"};
+    for (int k = 0; k < 3; ++k)
+        if (strcmp(name, names[k]) == 0) {
+            *integ = k;
+            return 1;
+        }
+    return 0;
+}
+
+static const char *integrator_name(int integ)
+{
+    return integ == INTEG_RK2 ? "rk2" : integ == INTEG_EULER ? "euler" : "kdk";
+}
+
+int consph_run_params_check(const consph_run_params *prm)
+{
+    int integ;
+    if (!problem_find(prm->problem))
+        return consph_fail(CONSPH_EINVAL, "problem '%s' is unknown (allowed: %s)", prm->problem,
+                           consph_problem_names());
+    if (!scheme_find(prm->scheme))
+        return consph_fail(CONSPH_EINVAL, "--scheme '%s' is unknown (allowed: %s)", prm->scheme,
+                           consph_scheme_names());
+    if (prm->integrator[0] && !integrator_lookup(prm->integrator, &integ))
+        return consph_fail(CONSPH_EINVAL, "--integrator '%s' is unknown (allowed: %s)",
+                           prm->integrator, consph_integrator_names());
+    if (prm->nx < 4 || prm->nx > 100000)
+        return consph_fail(CONSPH_EINVAL, "--nx must be an integer in [4, 100000], not %d",
+                           prm->nx);
+    if (prm->layout < -1 || prm->layout >= CONSPH_LAYOUT_COUNT)
+        return consph_fail(CONSPH_EINVAL, "--layout must be one of %s", consph_layout_names());
+    if (!(prm->hdx >= 0.5 && prm->hdx <= 4.0))
+        return consph_fail(CONSPH_EINVAL, "--hdx must be in [0.5, 4], not %g", prm->hdx);
+    if ((int)prm->kernel < 0 || prm->kernel >= CONSPH_KERNEL_COUNT ||
+        prm->kernel == CONSPH_KERNEL_M4)
+        return consph_fail(CONSPH_EINVAL, "--kernel must be a radial kernel (any of %s except m4)",
+                           consph_kernel_names());
+    if (!(prm->U > 0.0 && isfinite(prm->U)))
+        return consph_fail(CONSPH_EINVAL, "--u must be a positive number");
+    if (!(prm->c0 >= 0.0 && isfinite(prm->c0)))
+        return consph_fail(CONSPH_EINVAL, "--c0 must be >= 0 (0: 10 U), not %g", prm->c0);
+    if (!(prm->re > 0.0 && isfinite(prm->re)))
+        return consph_fail(CONSPH_EINVAL, "--re must be a positive number, not %g", prm->re);
+    if (!(prm->rho0 > 0.0 && isfinite(prm->rho0)) || !(prm->gamma >= 1.0 && prm->gamma <= 20.0))
+        return consph_fail(CONSPH_EINVAL, "rho0 must be > 0 and gamma in [1, 20]");
+    if (prm->eos < CONSPH_EOS_DEFAULT || prm->eos > CONSPH_EOS_LINEAR)
+        return consph_fail(CONSPH_EINVAL, "--eos must be one of default,tait,linear");
+    if (!(prm->delta >= 0.0 && prm->delta <= 10.0))
+        return consph_fail(CONSPH_EINVAL, "--delta must be in [0, 10], not %g", prm->delta);
+    if (!(prm->tf >= 0.0 && isfinite(prm->tf)) || prm->steps < 0 ||
+        (prm->steps == 0 && !(prm->tf > 0.0)))
+        return consph_fail(CONSPH_EINVAL,
+                           "--tf must be a positive time or --steps a positive count");
+    if (!(prm->dt >= 0.0 && isfinite(prm->dt)))
+        return consph_fail(CONSPH_EINVAL, "--dt must be >= 0 (0: the 001 rule), not %g", prm->dt);
+    if (!(prm->cfl > 0.0 && prm->cfl <= 2.0))
+        return consph_fail(CONSPH_EINVAL, "--cfl must be in (0, 2], not %g", prm->cfl);
+    if (!(prm->h_dt >= 0.0 && isfinite(prm->h_dt)))
+        return consph_fail(CONSPH_EINVAL, "--h-dt must be >= 0, not %g", prm->h_dt);
+    if (prm->ipst_every < 0 || prm->ipst_max_iter < 0 || prm->ipst_max_iter > 1000 ||
+        !(prm->ipst_tol > 0.0))
+        return consph_fail(CONSPH_EINVAL, "--ipst-every and --ipst-iter must be >= 0 and "
+                                          "--ipst-tol > 0");
+    return CONSPH_OK;
+}
+
+double *sv_field(consph_solver *s, const char *name, int ncomp)
+{
+    return consph_particles_field(s->sys.p, name, ncomp);
+}
+
+void solver_eos(consph_solver *s)
+{
+    consph_particles *p = s->sys.p;
+    double *rhof = sv_field(s, SF_RHOF, 1), *pr = sv_field(s, SF_P, 1);
+    const double c2 = s->c0 * s->c0, r0 = s->prm.rho0, g = s->prm.gamma;
+    const size_t n = p->n;
+    if (s->scheme->evolve_p) {
+        for (size_t i = 0; i < n; ++i) rhof[i] = pr[i] / c2 + r0; /* eq. 31 */
+    } else if (s->eos == CONSPH_EOS_LINEAR) {
+        for (size_t i = 0; i < n; ++i) pr[i] = c2 * (rhof[i] - r0);
+    } else {
+        for (size_t i = 0; i < n; ++i) pr[i] = r0 * c2 / g * (pow(rhof[i] / r0, g) - 1.0);
+    }
+}
+
+void solver_taylor_update(consph_solver *s, const double *dr)
+{
+    consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    double *u = sv_field(s, SF_U, d), *q = sv_field(s, s->scheme->evolve_p ? SF_P : SF_RHOF, 1);
+    const double *G = sv_field(s, SF_GRADU, d * d), *gq = sv_field(s, SF_GRADQ, d);
+    for (size_t i = 0; i < n; ++i) {
+        double dq = 0.0;
+        for (int b = 0; b < d; ++b) dq += dr[b * cap + i] * gq[b * cap + i];
+        q[i] += dq;
+        for (int a = 0; a < d; ++a) {
+            double v = 0.0;
+            for (int b = 0; b < d; ++b) v += dr[b * cap + i] * G[(size_t)(a * d + b) * cap + i];
+            u[a * cap + i] += v;
+        }
+    }
+    solver_eos(s);
+}
+
+static double exact_rho(const consph_solver *s, double pr)
+{
+    const double c2 = s->c0 * s->c0, r0 = s->prm.rho0, g = s->prm.gamma;
+    if (s->scheme->evolve_p || s->eos == CONSPH_EOS_LINEAR) return pr / c2 + r0;
+    return r0 * pow(1.0 + g * pr / (r0 * c2), 1.0 / g); /* eq. 18 inverted */
+}
+
+/* The derived quantities, from the parameters (set-up and restore share them). */
+int derive_solver(consph_solver *s)
+{
+    const consph_run_params *prm = &s->prm;
+    s->scheme = scheme_find(prm->scheme);
+    s->prob = problem_find(prm->problem);
+    if (!integrator_lookup(prm->integrator[0] ? prm->integrator : s->scheme->integrator, &s->integ))
+        return consph_fail(CONSPH_EINVAL, "unknown integrator");
+    s->dim = 2;
+    s->ds = (s->prob->hi - s->prob->lo) / prm->nx;
+    s->h = prm->hdx * s->ds;
+    s->c0 = prm->c0 > 0.0 ? prm->c0 : 10.0 * prm->U;
+    s->nu = prm->U * (s->prob->hi - s->prob->lo) / prm->re;
+    s->mass = prm->rho0 * pow(s->ds, s->dim);
+    s->D = prm->delta * s->h * s->c0; /* catalogue Part C 001.11: δ h c_o */
+    s->eos = prm->eos == CONSPH_EOS_DEFAULT ? s->scheme->eos : prm->eos;
+    s->dt = prm->dt > 0.0 ? prm->dt
+                          : prm->cfl * (prm->h_dt > 0.0 ? prm->h_dt : s->h) / (prm->U + s->c0);
+    s->tf = prm->tf;
+    s->nsteps = prm->steps;
+    s->volumes_fixed = !s->scheme->moves;
+    consph_kernel k;
+    int st = consph_kernel_init(&k, prm->kernel, s->dim, s->h);
+    if (st != CONSPH_OK) return st;
+    s->chi0 = reg_chi0(&k, s->ds);
+    return CONSPH_OK;
+}
+
+static consph_box problem_box(const problem_def *pb)
+{
+    consph_box box = consph_box_unit(2, 1);
+    for (int a = 0; a < 2; ++a) {
+        box.lo[a] = pb->lo;
+        box.hi[a] = pb->hi;
+    }
+    return box;
+}
+
+static int hist_push(consph_solver *s, const consph_step_diag *g)
+{
+    if (s->nhist == s->caphist) {
+        size_t cap = s->caphist ? 2 * s->caphist : 256;
+        double *h = realloc(s->hist, cap * HIST_COLS * sizeof(double));
+        if (!h) return consph_fail(CONSPH_ENOMEM, "out of memory for the run history");
+        s->hist = h;
+        s->caphist = cap;
+    }
+    double row[HIST_COLS] = {(double)g->step, g->t,       g->l1_u,     g->linf_u, g->l1_p,
+                             g->linf_p,       g->ke,      g->mom[0],   g->mom[1], g->mom[2],
+                             g->ang,          g->ft_fmax, g->max_divu, s->dt};
+    memcpy(s->hist + s->nhist * HIST_COLS, row, sizeof row);
+    ++s->nhist;
+    return CONSPH_OK;
+}
+
+static int initial_rates(consph_solver *s)
+{
+    if (s->volumes_fixed) {
+        int st = kit_volumes(&s->sys, &s->pairs);
+        if (st != CONSPH_OK) return st;
+    }
+    size_t pairs = s->pairs;
+    int st = s->scheme->rhs(s);
+    s->pairs = pairs; /* set-up, not time stepping */
+    return st;
+}
+
+int consph_solver_create(consph_solver **out, const consph_run_params *prm)
+{
+    *out = NULL;
+    int st = consph_run_params_check(prm);
+    if (st != CONSPH_OK) return st;
+    consph_solver *s = consph_calloc(1, sizeof *s);
+    if (!s) return CONSPH_ENOMEM;
+    s->prm = *prm;
+    st = derive_solver(s);
+    consph_layout_kind kind =
+        prm->layout >= 0 ? (consph_layout_kind)prm->layout : s->scheme->layout;
+    consph_layout_params lp = consph_layout_defaults(kind, s->dim, (size_t)prm->nx);
+    lp.box = problem_box(s->prob);
+    lp.seed = prm->seed;
+    lp.packing.hdx = prm->hdx;
+    consph_particles src = {0}, lat = {0};
+    if (st == CONSPH_OK) st = consph_layout_generate(&lp, &src, NULL);
+    consph_kernel k;
+    if (st == CONSPH_OK) st = consph_kernel_init(&k, prm->kernel, s->dim, s->h);
+    if (st == CONSPH_OK) st = consph_sys_init(&s->sys, &src, &k, 0.0);
+    if (st == CONSPH_OK && !strcmp(s->scheme->name, "l-rr-c")) {
+        consph_layout_params ll = lp;
+        ll.kind = CONSPH_LAYOUT_LATTICE;
+        st = consph_layout_generate(&ll, &lat, NULL);
+    }
+    if (st == CONSPH_OK) {
+        consph_particles *p = s->sys.p;
+        const size_t n = p->n, cap = p->cap;
+        double *id = sv_field(s, SF_ID, 1), *u = sv_field(s, SF_U, s->dim);
+        double *pr = sv_field(s, SF_P, 1), *rhof = sv_field(s, SF_RHOF, 1);
+        double *xl = lat.n ? sv_field(s, SF_LATTICE, s->dim) : NULL;
+        if (!id || !u || !pr || !rhof || (lat.n && !xl)) st = CONSPH_ENOMEM;
+        for (size_t i = 0; st == CONSPH_OK && i < n; ++i) {
+            double x[3] = {p->x[0][i], p->x[1][i], 0.0}, ue[3], pe;
+            s->prob->exact(prm, 0.0, x, ue, &pe);
+            id[i] = (double)s->sys.origin[i];
+            for (int a = 0; a < s->dim; ++a) u[a * cap + i] = ue[a];
+            pr[i] = pe;
+            rhof[i] = exact_rho(s, pe);
+            if (xl)
+                for (int a = 0; a < s->dim; ++a) xl[a * cap + i] = lat.x[a][s->sys.origin[i]];
+        }
+    }
+    consph_particles_free(&src);
+    consph_particles_free(&lat);
+    consph_step_diag g;
+    if (st == CONSPH_OK) st = initial_rates(s);
+    if (st == CONSPH_OK) st = consph_solver_diag(s, &g);
+    if (st == CONSPH_OK) st = hist_push(s, &g);
+    if (st != CONSPH_OK) {
+        consph_solver_free(s);
+        return st;
+    }
+    *out = s;
+    return CONSPH_OK;
+}
+
+void consph_solver_free(consph_solver *s)
+{
+    if (!s) return;
+    consph_sys_free(&s->sys);
+    free(s->hist);
+    free(s);
+}
+
+/* ---- time stepping ---- */
+
+static void wrap_positions(consph_solver *s)
+{
+    consph_particles *p = s->sys.p;
+    for (int a = 0; a < s->dim; ++a) {
+        if (!p->box.periodic[a]) continue;
+        const double lo = p->box.lo[a], L = p->box.hi[a] - lo;
+        double *x = p->x[a];
+        for (size_t i = 0; i < p->n; ++i) {
+            if (x[i] < lo || x[i] >= lo + L) {
+                x[i] -= L * floor((x[i] - lo) / L);
+                if (x[i] >= lo + L) x[i] = lo; /* rounding of a tiny negative offset */
+            }
+        }
+    }
+}
+
+/* y = y0 + c k for the evolved fields (positions when the scheme moves particles). */
+static int advance(consph_solver *s, double c)
+{
+    consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    const char *qn = s->scheme->evolve_p ? SF_P : SF_RHOF;
+    double *u = sv_field(s, SF_U, d), *q = sv_field(s, qn, 1);
+    const double *u0 = sv_field(s, SF_U0, d), *q0 = sv_field(s, SF_Q0, 1);
+    const double *au = sv_field(s, SF_AU, d), *aq = sv_field(s, SF_AQ, 1);
+    for (size_t i = 0; i < n; ++i) {
+        q[i] = q0[i] + c * aq[i];
+        for (int a = 0; a < d; ++a) u[a * cap + i] = u0[a * cap + i] + c * au[a * cap + i];
+    }
+    if (s->scheme->moves) {
+        const double *x0 = sv_field(s, SF_X0, d), *ax = sv_field(s, SF_AX, d);
+        for (int a = 0; a < d; ++a)
+            for (size_t i = 0; i < n; ++i) p->x[a][i] = x0[a * cap + i] + c * ax[a * cap + i];
+        wrap_positions(s);
+        int st = consph_sys_update(&s->sys, 0);
+        if (st != CONSPH_OK) return st;
+    }
+    solver_eos(s);
+    return CONSPH_OK;
+}
+
+static int save_start(consph_solver *s)
+{
+    consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    double *u0 = sv_field(s, SF_U0, d), *q0 = sv_field(s, SF_Q0, 1);
+    double *x0 = s->scheme->moves ? sv_field(s, SF_X0, d) : NULL;
+    const double *u = sv_field(s, SF_U, d);
+    const double *q = sv_field(s, s->scheme->evolve_p ? SF_P : SF_RHOF, 1);
+    if (!u0 || !q0 || (s->scheme->moves && !x0)) return CONSPH_ENOMEM;
+    memcpy(q0, q, n * sizeof(double));
+    for (int a = 0; a < d; ++a) {
+        memcpy(u0 + a * cap, u + a * cap, n * sizeof(double));
+        if (x0) memcpy(x0 + a * cap, p->x[a], n * sizeof(double));
+    }
+    return CONSPH_OK;
+}
+
+/* Names the first non-finite value: the particle by its initial index, its position, the
+ * quantity. */
+static int check_finite(consph_solver *s)
+{
+    consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    const double *u = sv_field(s, SF_U, d), *rf = sv_field(s, SF_RHOF, 1);
+    const double *pr = sv_field(s, SF_P, 1), *id = sv_field(s, SF_ID, 1);
+    for (size_t i = 0; i < n; ++i) {
+        const char *what = NULL;
+        for (int a = 0; a < d && !what; ++a)
+            if (!isfinite(p->x[a][i]))
+                what = a == 0 ? "x" : "y";
+            else if (!isfinite(u[a * cap + i]))
+                what = a == 0 ? "velocity u" : "velocity v";
+        if (!what && !isfinite(rf[i])) what = "density rhof";
+        if (!what && !isfinite(pr[i])) what = "pressure p";
+        if (what)
+            return consph_fail(CONSPH_ENUMERIC,
+                               "diverged at step %ld (t = %.6g): particle %.0f at (%.6g, %.6g) "
+                               "has a non-finite %s",
+                               s->step, s->t, id[i], p->x[0][i], p->x[1][i], what);
+    }
+    return CONSPH_OK;
+}
+
+int consph_solver_step(consph_solver *s)
+{
+    if (consph_solver_done(s)) return consph_fail(CONSPH_EINVAL, "the run is complete");
+    double t0 = consph_wtime();
+    double dt = s->dt;
+    if (s->nsteps == 0 && s->t + dt > s->tf) dt = s->tf - s->t; /* land on tf */
+    const double full = s->dt;
+    s->dt = dt;
+    int st = CONSPH_OK;
+    if (s->scheme->moves) st = consph_sys_update(&s->sys, 1);
+    if (st == CONSPH_OK) st = save_start(s);
+    if (st == CONSPH_OK) st = s->scheme->rhs(s);
+    if (s->integ == INTEG_RK2) {
+        if (st == CONSPH_OK) st = advance(s, 0.5 * dt);
+        if (st == CONSPH_OK) st = s->scheme->rhs(s);
+        if (st == CONSPH_OK) st = advance(s, dt);
+    } else if (s->integ == INTEG_EULER) {
+        if (st == CONSPH_OK) st = advance(s, dt);
+    } else {
+        /* kick-drift-kick: the half kick moves u0 and q0 on, the drift uses the kicked
+         * velocity, the second kick adds the rates at the drifted positions */
+        consph_particles *p = s->sys.p;
+        const int d = s->dim;
+        const size_t n = p->n, cap = p->cap;
+        if (st == CONSPH_OK) {
+            double *u0 = sv_field(s, SF_U0, d), *q0 = sv_field(s, SF_Q0, 1);
+            const double *au = sv_field(s, SF_AU, d), *aq = sv_field(s, SF_AQ, 1);
+            double *ax = s->scheme->moves ? sv_field(s, SF_AX, d) : NULL;
+            for (size_t i = 0; i < n; ++i) {
+                q0[i] += 0.5 * dt * aq[i];
+                for (int a = 0; a < d; ++a) {
+                    u0[a * cap + i] += 0.5 * dt * au[a * cap + i];
+                    if (ax) ax[a * cap + i] += 0.5 * dt * au[a * cap + i];
+                }
+            }
+            double *u = sv_field(s, SF_U, d);
+            for (int a = 0; a < d; ++a) memcpy(u + a * cap, u0 + a * cap, n * sizeof(double));
+            if (ax) {
+                const double *x0 = sv_field(s, SF_X0, d);
+                for (int a = 0; a < d; ++a)
+                    for (size_t i = 0; i < n; ++i)
+                        p->x[a][i] = x0[a * cap + i] + dt * ax[a * cap + i];
+                wrap_positions(s);
+                st = consph_sys_update(&s->sys, 0);
+            }
+            double *q = sv_field(s, s->scheme->evolve_p ? SF_P : SF_RHOF, 1);
+            memcpy(q, q0, n * sizeof(double));
+            if (st == CONSPH_OK) solver_eos(s);
+        }
+        if (st == CONSPH_OK) st = s->scheme->rhs(s);
+        if (st == CONSPH_OK && s->scheme->moves) {
+            /* advance() would move the particles again: keep them, kick u and q only */
+            const double *u0 = sv_field(s, SF_U0, d), *q0 = sv_field(s, SF_Q0, 1);
+            const double *au = sv_field(s, SF_AU, d), *aq = sv_field(s, SF_AQ, 1);
+            double *u = sv_field(s, SF_U, d);
+            double *q = sv_field(s, s->scheme->evolve_p ? SF_P : SF_RHOF, 1);
+            for (size_t i = 0; i < n; ++i) {
+                q[i] = q0[i] + 0.5 * dt * aq[i];
+                for (int a = 0; a < d; ++a)
+                    u[a * cap + i] = u0[a * cap + i] + 0.5 * dt * au[a * cap + i];
+            }
+            solver_eos(s);
+        } else if (st == CONSPH_OK) {
+            st = advance(s, 0.5 * dt);
+        }
+    }
+    if (st == CONSPH_OK) {
+        s->t = s->nsteps == 0 && dt < full ? s->tf : s->t + dt;
+        ++s->step;
+    }
+    if (st == CONSPH_OK && s->scheme->regularise) st = s->scheme->regularise(s);
+    if (st == CONSPH_OK) st = check_finite(s);
+    consph_step_diag g;
+    if (st == CONSPH_OK) st = consph_solver_diag(s, &g);
+    if (st == CONSPH_OK) {
+        s->l1_u_acc += dt * g.l1_u;
+        s->l1_p_acc += dt * g.l1_p;
+        st = hist_push(s, &g);
+    }
+    s->dt = full;
+    s->seconds += consph_wtime() - t0;
+    return st;
+}
+
+int consph_solver_done(const consph_solver *s)
+{
+    return s->nsteps > 0 ? s->step >= s->nsteps : s->t >= s->tf;
+}
+
+long consph_solver_step_count(const consph_solver *s)
+{
+    return s->step;
+}
+double consph_solver_time(const consph_solver *s)
+{
+    return s->t;
+}
+double consph_solver_dt(const consph_solver *s)
+{
+    return s->dt;
+}
+const consph_run_params *consph_solver_params(const consph_solver *s)
+{
+    return &s->prm;
+}
+const consph_particles *consph_solver_particles(const consph_solver *s)
+{
+    return s->sys.p;
+}
+
+/* ---- diagnostics ---- */
+
+static double max_abs(const double *a, size_t n)
+{
+    double m = 0.0;
+    for (size_t i = 0; i < n; ++i) m = fmax(m, fabs(a[i]));
+    return m;
+}
+
+int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
+{
+    consph_solver *s = (consph_solver *)cs; /* fields are looked up, not created */
+    const consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    memset(g, 0, sizeof *g);
+    g->step = s->step;
+    g->t = s->t;
+    const consph_field *fu = consph_particles_find(p, SF_U), *fp = consph_particles_find(p, SF_P);
+    const consph_field *fr = consph_particles_find(p, SF_RHOF);
+    const consph_field *fg = consph_particles_find(p, SF_GRADP);
+    const consph_field *fd = consph_particles_find(p, SF_DIVU);
+    if (!fu || !fp || !fr || !fg || !fd) return consph_fail(CONSPH_EINVAL, "solver state missing");
+    double *w = malloc(8 * (n ? n : 1) * sizeof(double));
+    if (!w) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    double *eu = w, *ep = w + n, *ke = w + 2 * n, *mx = w + 3 * n, *my = w + 4 * n, *an = w + 5 * n,
+           *fx = w + 6 * n, *dv = w + 7 * n;
+    const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]), yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
+    for (size_t i = 0; i < n; ++i) {
+        double x[3] = {p->x[0][i], p->x[1][i], 0.0}, ue[3], pe;
+        s->prob->exact(&s->prm, s->t, x, ue, &pe);
+        const double ux = fu->data[i], uy = fu->data[cap + i];
+        eu[i] = fabs(hypot(ux, uy) - hypot(ue[0], ue[1]));
+        ep[i] = fabs(fp->data[i] - pe);
+        ke[i] = 0.5 * s->mass * (ux * ux + uy * uy);
+        mx[i] = s->mass * ux;
+        my[i] = s->mass * uy;
+        an[i] = s->mass * ((x[0] - xc) * uy - (x[1] - yc) * ux);
+        fx[i] = -fg->data[i] / fr->data[i];
+        dv[i] = fd->data[i];
+    }
+    const double inv_n = n ? 1.0 / (double)n : 0.0;
+    g->l1_u = consph_sum(eu, n) * inv_n;
+    g->l1_p = consph_sum(ep, n) * inv_n;
+    g->linf_u = max_abs(eu, n);
+    g->linf_p = max_abs(ep, n);
+    g->ke = consph_sum(ke, n);
+    g->mom[0] = consph_sum(mx, n);
+    g->mom[1] = consph_sum(my, n);
+    g->ang = consph_sum(an, n);
+    double fmax = max_abs(fx, n);
+    g->ft_fmax = fmax > 0.0 ? consph_sum(fx, n) / fmax : 0.0;
+    g->max_divu = max_abs(dv, n);
+    (void)d;
+    free(w);
+    return CONSPH_OK;
+}
+
+int consph_solver_summary(const consph_solver *s, consph_run_summary *sum)
+{
+    memset(sum, 0, sizeof *sum);
+    snprintf(sum->scheme, sizeof sum->scheme, "%s", s->scheme->name);
+    snprintf(sum->problem, sizeof sum->problem, "%s", s->prob->name);
+    snprintf(sum->integrator, sizeof sum->integrator, "%s", integrator_name(s->integ));
+    sum->n = s->sys.p->n;
+    sum->dim = s->dim;
+    sum->steps = s->step;
+    sum->t = s->t;
+    sum->dt = s->dt;
+    sum->h = s->h;
+    sum->c0 = s->c0;
+    sum->l1_u = s->l1_u_acc;
+    sum->l1_p = s->l1_p_acc;
+    const double *last = s->hist + (s->nhist - 1) * HIST_COLS;
+    sum->linf_u = last[3];
+    sum->linf_p = last[5];
+    sum->ke = last[6];
+    for (int a = 0; a < 3; ++a) sum->momentum[a] = last[7 + a];
+    sum->angular_momentum = last[10];
+    sum->ft_fmax = last[11];
+    sum->max_divu = last[12];
+    sum->seconds = s->seconds;
+    sum->pairs = s->pairs;
+    sum->passes_per_stage = s->passes;
+    sum->passes_min = s->scheme->passes_min;
+    sum->regularisations = s->regs;
+    return CONSPH_OK;
+}
+
+int consph_solver_output_fields(consph_solver *s)
+{
+    consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    double *ue = sv_field(s, SF_UEX, d), *pe = sv_field(s, SF_PEX, 1);
+    double *w = sv_field(s, SF_VORT, 1);
+    const double *G = sv_field(s, SF_GRADU, d * d);
+    if (!ue || !pe || !w || !G) return CONSPH_ENOMEM;
+    for (size_t i = 0; i < n; ++i) {
+        double x[3] = {p->x[0][i], p->x[1][i], 0.0}, u[3];
+        s->prob->exact(&s->prm, s->t, x, u, &pe[i]);
+        for (int a = 0; a < d; ++a) ue[a * cap + i] = u[a];
+        /* ∂v/∂x - ∂u/∂y from the last stage's G (Bonet-corrected) */
+        w[i] = G[(size_t)(1 * d + 0) * cap + i] - G[(size_t)(0 * d + 1) * cap + i];
+    }
+    return CONSPH_OK;
+}

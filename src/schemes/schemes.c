@@ -1,0 +1,227 @@
+/* The schemes of 001 §5 as table entries: the rates of each from the kit's fused passes, and
+ * its regularisation (docs/schemes.md records every choice with its source).
+ *
+ * Every rate is a per-particle combination of the kit's derivatives:
+ *   du/dt = -∇p/ϱ + ν∇²u  [- (u·∇)u Eulerian]  [+ (δu·∇)u TV-C]
+ *   dϱ/dt = -ϱ∇·u  [+ D∇²ϱ]  [- u·∇ϱ E-C]  [+ δu·∇ϱ TV-C]
+ *   dp/dt = -ϱ c_o² ∇·u + D∇²p   (PE-IPST-C, eq. 30; ϱ from eq. 31)
+ *   dx/dt = u  [+ δu TV-C]  (0 Eulerian)
+ * with ∇p asym_bc, ∇u f4 (asym_bc per component), ∇·u div_bc and the Laplacians of Table 6. */
+#include <math.h>
+#include <string.h>
+
+#include "schemes/regularise.h"
+#include "schemes/solver_internal.h"
+
+enum {
+    T_EULER = 1u << 0,    /* -(u·∇)u, and -u·∇ϱ unless T_NO_ADV_Q */
+    T_NO_ADV_Q = 1u << 1, /* EWCSPH: the continuity equation drops -u·∇ϱ (Nasar et al.) */
+    T_DIFFUSE = 1u << 2,  /* D∇²q (δ-SPH term, eq. 27) */
+    T_TV = 1u << 3        /* the shifting velocity δu of TV-C (eqs. 34-35) */
+};
+
+static int rates(consph_solver *s, kit_lap lap, unsigned terms)
+{
+    consph_sys *sys = &s->sys;
+    consph_particles *p = sys->p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    int st = CONSPH_OK;
+    s->passes = 0;
+    if (!s->volumes_fixed) {
+        st = kit_volumes(sys, &s->pairs);
+        if (st != CONSPH_OK) return st;
+        s->passes = 1;
+    }
+    const char *q = s->scheme->evolve_p ? SF_P : SF_RHOF;
+    kit_req rq = {KIT_GRADP | KIT_LAPU | KIT_DIVU, lap, q, 1e8};
+    if (terms & T_DIFFUSE) rq.want |= KIT_LAPQ;
+    if ((terms & T_TV) || ((terms & T_EULER) && !(terms & T_NO_ADV_Q))) rq.want |= KIT_GRADQ;
+    st = kit_derivatives(sys, &rq, &s->pairs, &s->passes);
+    if (st != CONSPH_OK) return st;
+    double *du = NULL;
+    if (terms & T_TV) {
+        /* δu = δr/Δt from the shifting of Sun et al. (001 §5.4 item 4 uses [33]'s PST) */
+        du = sv_field(s, SF_SHIFT, d);
+        if (!du) return CONSPH_ENOMEM;
+        reg_pst_params pp = {s->h, s->ds, s->prm.cfl, s->prm.U / s->c0, 0.2, 4.0, 0.0};
+        st = reg_pst_shift(sys, &pp, du);
+        if (st != CONSPH_OK) return st;
+        ++s->passes;
+    }
+    const double *u = sv_field(s, SF_U, d), *rhof = sv_field(s, SF_RHOF, 1);
+    const double *gradp = sv_field(s, SF_GRADP, d), *G = sv_field(s, SF_GRADU, d * d);
+    const double *lapu = sv_field(s, SF_LAPU, d), *divu = sv_field(s, SF_DIVU, 1);
+    const double *gradq = (rq.want & KIT_GRADQ) ? sv_field(s, SF_GRADQ, d) : NULL;
+    const double *lapq = (rq.want & KIT_LAPQ) ? sv_field(s, SF_LAPQ, 1) : NULL;
+    double *ax = s->scheme->moves ? sv_field(s, SF_AX, d) : NULL;
+    double *au = sv_field(s, SF_AU, d), *aq = sv_field(s, SF_AQ, 1);
+    if (!u || !rhof || !gradp || !G || !lapu || !divu || !au || !aq || (s->scheme->moves && !ax))
+        return CONSPH_ENOMEM;
+    const double nu = s->nu, D = s->D, c2 = s->c0 * s->c0, inv_dt = 1.0 / s->dt;
+    const int evolve_p = s->scheme->evolve_p;
+#pragma omp parallel for schedule(static) if (n > sys->parallel_min)
+    for (size_t i = 0; i < n; ++i) {
+        double ui[3], dui[3] = {0.0, 0.0, 0.0};
+        for (int a = 0; a < d; ++a) ui[a] = u[a * cap + i];
+        if (du)
+            for (int a = 0; a < d; ++a) dui[a] = du[a * cap + i] * inv_dt;
+        for (int a = 0; a < d; ++a) {
+            double v = -gradp[a * cap + i] / rhof[i] + nu * lapu[a * cap + i];
+            for (int b = 0; b < d; ++b) {
+                double g = G[(size_t)(a * d + b) * cap + i];
+                if (terms & T_EULER) v -= ui[b] * g;
+                if (terms & T_TV) v += dui[b] * g;
+            }
+            au[a * cap + i] = v;
+            if (ax) ax[a * cap + i] = ui[a] + dui[a];
+        }
+        double r = evolve_p ? -rhof[i] * c2 * divu[i] : -rhof[i] * divu[i];
+        if (lapq) r += D * lapq[i];
+        if (gradq)
+            for (int a = 0; a < d; ++a) {
+                double gq = gradq[a * cap + i];
+                if ((terms & T_EULER) && !(terms & T_NO_ADV_Q)) r -= ui[a] * gq;
+                if (terms & T_TV) r += dui[a] * gq;
+            }
+        aq[i] = r;
+    }
+    return CONSPH_OK;
+}
+
+static int rhs_l_c(consph_solver *s)
+{
+    return rates(s, KIT_LAP_COUPLED, 0);
+}
+static int rhs_l_f(consph_solver *s)
+{
+    return rates(s, KIT_LAP_FATEHI_C, 0);
+}
+static int rhs_l_k(consph_solver *s)
+{
+    return rates(s, KIT_LAP_KORZILIUS, 0);
+}
+static int rhs_pe_c(consph_solver *s)
+{
+    return rates(s, KIT_LAP_COUPLED, T_DIFFUSE);
+}
+static int rhs_tv_c(consph_solver *s)
+{
+    return rates(s, KIT_LAP_COUPLED, T_DIFFUSE | T_TV);
+}
+static int rhs_e_c(consph_solver *s)
+{
+    return rates(s, KIT_LAP_COUPLED, T_DIFFUSE | T_EULER);
+}
+static int rhs_ewcsph(consph_solver *s)
+{
+    return rates(s, KIT_LAP_COUPLED, T_EULER | T_NO_ADV_Q);
+}
+
+/* The gradients of u and of the evolved scalar at the positions before a shift (the Taylor
+ * update of eq. 22 uses them), with fresh volumes. */
+static int gradients_for_shift(consph_solver *s)
+{
+    int passes = 0;
+    int st = kit_volumes(&s->sys, &s->pairs);
+    kit_req rq = {KIT_GRADU | KIT_GRADQ, KIT_LAP_COUPLED, s->scheme->evolve_p ? SF_P : SF_RHOF,
+                  1e8};
+    return st == CONSPH_OK ? kit_derivatives(&s->sys, &rq, &s->pairs, &passes) : st;
+}
+
+static int zeroed_shift(consph_solver *s, double **dr)
+{
+    *dr = sv_field(s, SF_SHIFT, s->dim);
+    if (!*dr) return CONSPH_ENOMEM;
+    for (int a = 0; a < s->dim; ++a)
+        memset(*dr + (size_t)a * s->sys.p->cap, 0, s->sys.p->n * sizeof(double));
+    return CONSPH_OK;
+}
+
+/* IPST every ipst_every steps (001 §5.1.1). */
+static int regularise_ipst(consph_solver *s)
+{
+    if (s->prm.ipst_every <= 0 || s->step % s->prm.ipst_every != 0) return CONSPH_OK;
+    double *dr;
+    int st = gradients_for_shift(s);
+    if (st == CONSPH_OK) st = zeroed_shift(s, &dr);
+    if (st != CONSPH_OK) return st;
+    reg_ipst_params ip = {s->h, s->chi0, s->prm.ipst_tol, s->prm.ipst_max_iter};
+    reg_ipst_report rep;
+    st = reg_ipst(&s->sys, &ip, dr, &rep);
+    if (st != CONSPH_OK) return st;
+    solver_taylor_update(s, dr);
+    ++s->regs;
+    return CONSPH_OK;
+}
+
+/* The non-iterative shifting of Sun et al. every step (L-PST-C). */
+static int regularise_pst(consph_solver *s)
+{
+    double *dr;
+    int st = gradients_for_shift(s);
+    if (st == CONSPH_OK) st = zeroed_shift(s, &dr);
+    if (st != CONSPH_OK) return st;
+    reg_pst_params pp = {s->h, s->ds, s->prm.cfl, s->prm.U / s->c0, 0.2, 4.0, 0.0};
+    st = reg_pst_shift(&s->sys, &pp, dr);
+    if (st == CONSPH_OK) st = reg_move(&s->sys, dr);
+    if (st != CONSPH_OK) return st;
+    solver_taylor_update(s, dr);
+    ++s->regs;
+    return CONSPH_OK;
+}
+
+/* M4 remeshing to the lattice after every step (L-RR-C, eqs. 32-33). */
+static int regularise_remesh(consph_solver *s)
+{
+    const char *fields[2] = {SF_U, s->scheme->evolve_p ? SF_P : SF_RHOF};
+    const double *lat = sv_field(s, SF_LATTICE, s->dim);
+    if (!lat) return CONSPH_ENOMEM;
+    size_t orphans = 0;
+    int st = reg_remesh_m4(&s->sys, lat, s->ds, fields, 2, &orphans);
+    if (st != CONSPH_OK) return st;
+    solver_eos(s);
+    ++s->regs;
+    return CONSPH_OK;
+}
+
+static const scheme_def schemes[] = {
+    {"l-ipst-c", "001 §5.1.1: Lagrangian, asym_bc ∇p, div_bc, coupled_bc viscosity, IPST", 1, 0,
+     CONSPH_LAYOUT_PACKED, CONSPH_EOS_TAIT, "rk2", 3, rhs_l_c, regularise_ipst},
+    {"l-ipst-f", "001 §5.1.1: L-IPST-C with the Fatehi_c viscosity (eq. 13)", 1, 0,
+     CONSPH_LAYOUT_PACKED, CONSPH_EOS_TAIT, "rk2", 3, rhs_l_f, regularise_ipst},
+    {"l-ipst-k", "001 §5.1.1: L-IPST-C with the Korzilius viscosity (eqs. 14-15)", 1, 0,
+     CONSPH_LAYOUT_PACKED, CONSPH_EOS_TAIT, "rk2", 3, rhs_l_k, regularise_ipst},
+    {"l-pst-c", "001 §5.4: L-IPST-C with Sun et al.'s non-iterative PST every step (eq. 29)", 1, 0,
+     CONSPH_LAYOUT_PACKED, CONSPH_EOS_TAIT, "rk2", 3, rhs_l_c, regularise_pst},
+    {"pe-ipst-c", "001 §5.4: pressure evolution (eqs. 30-31), linear EOS, IPST", 1, 1,
+     CONSPH_LAYOUT_PACKED, CONSPH_EOS_LINEAR, "rk2", 3, rhs_pe_c, regularise_ipst},
+    {"l-rr-c", "001 §5.4: Lagrangian with M4 remeshing to the lattice every step (eqs. 32-33)", 1,
+     0, CONSPH_LAYOUT_LATTICE, CONSPH_EOS_TAIT, "rk2", 3, rhs_l_c, regularise_remesh},
+    {"tv-c",
+     "001 §5.4: transport velocity δu from Sun et al.'s PST (eqs. 34-35), δ-term, linear "
+     "EOS",
+     1, 0, CONSPH_LAYOUT_PACKED, CONSPH_EOS_LINEAR, "rk2", 4, rhs_tv_c, NULL},
+    {"e-c", "001 §5.4: Eulerian (eq. 36, keeps -u·∇ϱ), δ-term, linear EOS", 0, 0,
+     CONSPH_LAYOUT_LATTICE, CONSPH_EOS_LINEAR, "rk2", 2, rhs_e_c, NULL},
+    {"ewcsph", "Nasar et al. 2019 as 001 runs it: Eulerian, drops -u·∇ϱ, ϱ from p (Tait)", 0, 0,
+     CONSPH_LAYOUT_LATTICE, CONSPH_EOS_TAIT, "rk2", 2, rhs_ewcsph, NULL},
+};
+
+const scheme_def *scheme_find(const char *name)
+{
+    for (size_t k = 0; k < sizeof schemes / sizeof schemes[0]; ++k)
+        if (strcmp(schemes[k].name, name) == 0) return &schemes[k];
+    return NULL;
+}
+
+/* Kept in table order; test_solver checks that every name resolves and the table has no other. */
+const char *consph_scheme_names(void)
+{
+    return "l-ipst-c,l-ipst-f,l-ipst-k,l-pst-c,pe-ipst-c,l-rr-c,tv-c,e-c,ewcsph";
+}
+
+size_t scheme_count(void)
+{
+    return sizeof schemes / sizeof schemes[0];
+}

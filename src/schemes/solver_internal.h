@@ -1,0 +1,138 @@
+/* The solver's insides: its state, the scheme table, the derivative kit the schemes' right-hand
+ * sides are made of, the problems and the integrators.
+ *
+ * State lives in named fields of the system's particles, so that re-sorting the particles into
+ * cell order at the start of a step carries everything with them (and a checkpoint of the
+ * particle set is the whole state). Field names are the SF_* macros below. */
+#ifndef CONSPH_SCHEMES_SOLVER_INTERNAL_H
+#define CONSPH_SCHEMES_SOLVER_INTERNAL_H
+
+#include "consph/pass.h"
+#include "consph/solver.h"
+
+/* Field names. */
+#define SF_U "u"           /* velocity, d */
+#define SF_RHOF "rhof"     /* fluid density ϱ */
+#define SF_P "p"           /* pressure */
+#define SF_VOL "volume"    /* ω = 1/Σ W */
+#define SF_ID "id"         /* index in the initial particle set (as a double, exact) */
+#define SF_LATTICE "x_lat" /* L-RR-C: the lattice point of the slot, d */
+/* integrator: the state at the start of the step and the rates */
+#define SF_X0 "x0"
+#define SF_U0 "u0"
+#define SF_Q0 "q0"
+#define SF_AX "ax" /* dx/dt, d */
+#define SF_AU "au" /* du/dt, d */
+#define SF_AQ "aq" /* rate of the evolved scalar (ϱ, or p for pressure evolution) */
+/* derivatives (kit) */
+#define SF_BONET "bonet" /* B_i, d² */
+#define SF_GRADP "gradp" /* ∇p (asym, bc), d */
+#define SF_GRADU "gradu" /* G[a d + b] = ∂_b u_a (asym, bc), d² */
+#define SF_DIVU "divu"   /* ∇·u (div, bc) */
+#define SF_GRADQ "gradq" /* ∇ of the diffused scalar (ϱ or p), d */
+#define SF_LAPU "lapu"   /* ∇²u, d */
+#define SF_LAPQ "lapq"   /* ∇² of the diffused scalar */
+#define SF_SHIFT "shift" /* δr of a shifting step, d */
+/* output */
+#define SF_UEX "u_exact"
+#define SF_PEX "p_exact"
+#define SF_VORT "vorticity"
+
+/* ---- the derivative kit: fused passes over the system ---- */
+typedef enum kit_lap {
+    KIT_LAP_COUPLED,  /* coupled_bc, 001 Table 4 with Bonet (= s1_diff from G) */
+    KIT_LAP_FATEHI_C, /* Fatehi_c, 001 eq. 13 */
+    KIT_LAP_KORZILIUS /* Korzilius, 001 eqs. 14-15 with the catalogue's fixes */
+} kit_lap;
+
+enum {
+    KIT_GRADP = 1u << 0, /* ∇p */
+    KIT_GRADU = 1u << 1, /* G = ∇u */
+    KIT_DIVU = 1u << 2,  /* ∇·u */
+    KIT_GRADQ = 1u << 3, /* ∇q of the scalar field named by kit_req.q */
+    KIT_LAPU = 1u << 4,  /* ∇²u with kit_req.lap (needs G) */
+    KIT_LAPQ = 1u << 5   /* ∇²q, coupled_bc (needs ∇q) */
+};
+
+typedef struct kit_req {
+    unsigned want; /* KIT_* */
+    kit_lap lap;   /* the viscous Laplacian */
+    const char *q; /* SF_RHOF or SF_P: the scalar of KIT_GRADQ/KIT_LAPQ */
+    double cond_max;
+} kit_req;
+
+/* ω_i = 1/Σ_j W_ij into SF_VOL (one pass); adds pairs to *pairs. */
+int kit_volumes(consph_sys *s, size_t *pairs);
+/* The requested derivatives in at most two passes (gradients and divergence in the first,
+ * Laplacians in the second); adds pairs to *pairs, passes to *passes. */
+int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes);
+
+/* ---- schemes ---- */
+typedef struct scheme_def {
+    const char *name;
+    const char *summary; /* paper and equations */
+    int moves;           /* particles are advected (Lagrangian, TV) */
+    int evolve_p;        /* the evolved scalar is p (ϱ from eq. 31) instead of ϱ */
+    consph_layout_kind layout;
+    consph_eos_kind eos;
+    const char *integrator;
+    int passes_min; /* passes per stage the equations need at least */
+    /* Rates into SF_AX (when moves), SF_AU and SF_AQ at the current state. */
+    int (*rhs)(consph_solver *s);
+    /* After a full step (NULL: none). */
+    int (*regularise)(consph_solver *s);
+} scheme_def;
+
+const scheme_def *scheme_find(const char *name);
+size_t scheme_count(void);
+
+/* ---- problems: data ---- */
+typedef struct problem_def {
+    const char *name;
+    const char *summary;
+    /* exact (or initial, at t = 0) velocity and pressure at x */
+    void (*exact)(const consph_run_params *prm, double t, const double x[3], double u[3],
+                  double *p);
+    int has_exact; /* the exact solution holds for t > 0 */
+    double lo, hi; /* the periodic square [lo, hi)² */
+} problem_def;
+
+const problem_def *problem_find(const char *name);
+
+/* ---- the solver ---- */
+struct consph_solver {
+    consph_run_params prm;
+    const scheme_def *scheme;
+    const problem_def *prob;
+    int integ; /* INTEG_* */
+    consph_sys sys;
+    int dim;
+    double h, ds, nu, c0, mass, D; /* D = δ h c_o */
+    consph_eos_kind eos;
+    double t, dt, tf;
+    long step, nsteps; /* nsteps: the step count to reach (0: run to tf) */
+    double l1_u_acc, l1_p_acc;
+    double seconds;
+    size_t pairs;
+    int passes; /* passes of the last stage */
+    long regs;
+    int volumes_fixed; /* particles never move: ω computed once */
+    double chi0;
+    /* per-step history for the log (HIST_COLS doubles per step) */
+    double *hist;
+    size_t nhist, caphist;
+};
+
+enum { INTEG_RK2, INTEG_EULER, INTEG_KDK };
+#define HIST_COLS 14 /* step t l1_u linf_u l1_p linf_p ke mx my mz ang ft_fmax max_divu dt */
+
+/* Shared by the schemes. */
+double *sv_field(consph_solver *s, const char *name, int ncomp);
+void solver_eos(consph_solver *s); /* p from ϱ, or ϱ from p (evolve_p) */
+/* Taylor update of 001 eq. 22/29 after a shift dr (SF_SHIFT): u, the evolved scalar, from the
+ * gradients the kit left (SF_GRADU, SF_GRADQ), then the EOS. */
+void solver_taylor_update(consph_solver *s, const double *dr);
+/* The quantities derived from s->prm (scheme, problem, h, Δs, c_o, ν, Δt, ...). */
+int derive_solver(consph_solver *s);
+
+#endif
