@@ -122,6 +122,63 @@ int consph_read_particles_mem(const char *name, consph_particle_format fmt, cons
 /* "file column 'volume'", "m/rho columns" or "none": for reports. */
 const char *consph_volume_origin_name(consph_volume_origin origin);
 
+
+/* ---- Runs: checkpoints, ParaView time series, stop requests, progress ---------------------- */
+
+/* A checkpoint holds everything a run needs to continue bit for bit: a text block of the run's
+ * own metadata (key=value lines, written and parsed by the solver), a particle set (positions,
+ * box, periodicity, spacing and every named field, in the stored order, as raw IEEE doubles)
+ * and an array of doubles (the run's history). It is one zlib-compressed file with a magic,
+ * a version and a CRC-32 of the content, written atomically (consph_outfile). */
+int consph_checkpoint_write(const char *path, const char *meta, const consph_particles *p,
+                            const double *history, size_t nhistory);
+/* Reads a checkpoint written by consph_checkpoint_write: *meta (NUL-terminated) and *history
+ * are malloc'd (free them; *history is NULL when nhistory is 0), p is initialised here. A file
+ * that is not a checkpoint, is truncated, fails its CRC or holds inconsistent sizes is
+ * CONSPH_EFORMAT with a message naming the file and what is wrong; nothing is returned then. */
+int consph_checkpoint_read(const char *path, char **meta, consph_particles *p, double **history,
+                           size_t *nhistory);
+
+/* A ParaView .pvd index of snapshot files, rewritten atomically after each added entry so it
+ * is always complete. Entry file names are written relative to the index's directory. */
+typedef struct consph_pvd {
+    char *path;
+    size_t n, cap;
+    double *time;
+    char **file;
+} consph_pvd;
+int consph_pvd_init(consph_pvd *pvd, const char *path);
+/* Adds (time, file) and rewrites the index; `file` is a plain name in the index's directory. */
+int consph_pvd_add(consph_pvd *pvd, double time, const char *file);
+/* Drops the entries with time > t (a restarted run rewrites what follows its checkpoint). */
+int consph_pvd_truncate(consph_pvd *pvd, double t);
+/* Loads an existing index written by consph_pvd_add (for a restarted run). */
+int consph_pvd_load(consph_pvd *pvd, const char *path);
+void consph_pvd_free(consph_pvd *pvd);
+
+/* Stop requests: installs handlers for SIGINT and SIGTERM that only record the signal, so a run
+ * can finish its step, write a checkpoint and exit 128 + signal. A second signal of the same kind
+ * ends the process at once (removing temporary files as consph_outfile does). */
+int consph_stop_install(void);
+/* The signal received since consph_stop_install (0: none). */
+int consph_stop_requested(void);
+/* Restores the previous handlers. */
+void consph_stop_uninstall(void);
+
+/* A one-line progress display on stderr: step, t, steps/s and ETA, redrawn with a carriage
+ * return at most a few times a second, and only when stderr is a terminal (nothing otherwise). */
+typedef struct consph_progress {
+    int enabled;
+    double t0, last;
+    long step0;
+} consph_progress;
+void consph_progress_start(consph_progress *pr, long step0);
+/* t_end <= 0: unknown; steps_end <= 0: unknown (ETA from whichever is known). */
+void consph_progress_update(consph_progress *pr, long step, double t, long steps_end,
+                            double t_end);
+/* Clears the line. */
+void consph_progress_end(consph_progress *pr);
+
 #ifdef __cplusplus
 }
 #endif
