@@ -40,23 +40,6 @@ static void find_source_dir(void)
         snprintf(source_dir, sizeof source_dir, "..");
 }
 
-static unsigned char *load(const char *path, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f) return NULL;
-    fseek(f, 0, SEEK_END);
-    long n = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    unsigned char *b = malloc((size_t)n + 1);
-    if (b && fread(b, 1, (size_t)n, f) != (size_t)n) {
-        free(b);
-        b = NULL;
-    }
-    fclose(f);
-    *size = (size_t)n;
-    return b;
-}
-
 static int same_particles(const consph_particles *a, const consph_particles *b, int vtu)
 {
     if (a->dim != b->dim || a->n != b->n) return 0;
@@ -156,7 +139,7 @@ static unsigned char *write_with_threads(const char *path, const consph_particle
     omp_set_num_threads(saved);
 #endif
     CHECK(rc == CONSPH_OK, "%s: %s", path, consph_last_error());
-    return rc == CONSPH_OK ? load(path, size) : NULL;
+    return rc == CONSPH_OK ? check_load_file(path, size) : NULL;
 }
 
 /* Every VTU encoding reads back bitwise, at sizes around the writer's zlib block of 2^18 bytes
@@ -390,7 +373,7 @@ static char *file_text(const char *name, size_t *size)
 {
     char path[1200];
     snprintf(path, sizeof path, "%s/fuzz/corpus/vtu/%s", source_dir, name);
-    char *t = (char *)load(path, size);
+    char *t = (char *)check_load_file(path, size);
     if (t) t[*size] = '\0';
     return t;
 }
@@ -525,7 +508,7 @@ static void test_inflate(void)
         char path[1200];
         size_t size;
         snprintf(path, sizeof path, "%s/fuzz/corpus/inflate/%s", source_dir, names[k]);
-        unsigned char *z = load(path, &size);
+        unsigned char *z = check_load_file(path, &size);
         CHECK(z != NULL, "%s", path);
         if (!z) continue;
         unsigned char *out = NULL;
@@ -556,7 +539,7 @@ static void test_inflate_limit(void)
     char path[1200];
     size_t size;
     snprintf(path, sizeof path, "%s/fuzz/corpus/inflate/best.z", source_dir);
-    unsigned char *z = load(path, &size);
+    unsigned char *z = check_load_file(path, &size);
     CHECK(z != NULL, "%s", path);
     if (!z) return;
     for (size_t maxout = 0; maxout < 40 * 12; maxout += 97) {
@@ -593,7 +576,7 @@ static void test_fuzz_replay(void)
                 char path[2400];
                 snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
                 size_t size;
-                unsigned char *data = load(path, &size);
+                unsigned char *data = check_load_file(path, &size);
                 if (!data) continue;
                 if (t == 0) consph_fuzz_csv(data, size);
                 if (t == 1) consph_fuzz_vtu(data, size);

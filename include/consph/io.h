@@ -122,20 +122,21 @@ int consph_read_particles_mem(const char *name, consph_particle_format fmt, cons
 /* "file column 'volume'", "m/rho columns" or "none": for reports. */
 const char *consph_volume_origin_name(consph_volume_origin origin);
 
-
 /* ---- Runs: checkpoints, ParaView time series, stop requests, progress ---------------------- */
 
 /* A checkpoint holds everything a run needs to continue bit for bit: a text block of the run's
  * own metadata (key=value lines, written and parsed by the solver), a particle set (positions,
  * box, periodicity, spacing and every named field, in the stored order, as raw IEEE doubles)
  * and an array of doubles (the run's history). It is one zlib-compressed file with a magic,
- * a version and a CRC-32 of the content, written atomically (consph_outfile). */
+ * a version and a CRC-32 of the content, written atomically (consph_outfile); the format is in
+ * docs/solver-files.md. `meta` may be NULL (empty); `history` may be NULL when nhistory is 0. */
 int consph_checkpoint_write(const char *path, const char *meta, const consph_particles *p,
                             const double *history, size_t nhistory);
 /* Reads a checkpoint written by consph_checkpoint_write: *meta (NUL-terminated) and *history
  * are malloc'd (free them; *history is NULL when nhistory is 0), p is initialised here. A file
  * that is not a checkpoint, is truncated, fails its CRC or holds inconsistent sizes is
- * CONSPH_EFORMAT with a message naming the file and what is wrong; nothing is returned then. */
+ * CONSPH_EFORMAT with a message naming the file and what is wrong; nothing is returned then.
+ * Sizes in the file are checked against its length before any allocation. */
 int consph_checkpoint_read(const char *path, char **meta, consph_particles *p, double **history,
                            size_t *nhistory);
 
@@ -147,35 +148,45 @@ typedef struct consph_pvd {
     double *time;
     char **file;
 } consph_pvd;
+/* Only records the path: nothing is written until the first add or truncate. */
 int consph_pvd_init(consph_pvd *pvd, const char *path);
-/* Adds (time, file) and rewrites the index; `file` is a plain name in the index's directory. */
+/* Adds (time, file) and rewrites the index. `file` must be a plain name in the index's directory
+ * (no '/', '\\', quotes, '&', '<', '>' or control characters) and `time` finite and not before
+ * the last entry's; a file already listed is CONSPH_EINVAL unless it is the last entry with the
+ * same time (then the index is only rewritten). On failure the index is unchanged. */
 int consph_pvd_add(consph_pvd *pvd, double time, const char *file);
 /* Drops the entries with time > t (a restarted run rewrites what follows its checkpoint). */
 int consph_pvd_truncate(consph_pvd *pvd, double t);
-/* Loads an existing index written by consph_pvd_add (for a restarted run). */
+/* Loads an existing index written by consph_pvd_add (for a restarted run); pvd is initialised
+ * here. Anything but the exact lines consph_pvd_add writes is CONSPH_EFORMAT (file and line). */
 int consph_pvd_load(consph_pvd *pvd, const char *path);
 void consph_pvd_free(consph_pvd *pvd);
 
 /* Stop requests: installs handlers for SIGINT and SIGTERM that only record the signal, so a run
  * can finish its step, write a checkpoint and exit 128 + signal. A second signal of the same kind
- * ends the process at once (removing temporary files as consph_outfile does). */
+ * ends the process at once (removing temporary files as consph_outfile does). Installing again
+ * while installed only forgets the signals received. */
 int consph_stop_install(void);
 /* The signal received since consph_stop_install (0: none). */
 int consph_stop_requested(void);
 /* Restores the previous handlers. */
 void consph_stop_uninstall(void);
 
-/* A one-line progress display on stderr: step, t, steps/s and ETA, redrawn with a carriage
- * return at most a few times a second, and only when stderr is a terminal (nothing otherwise). */
+/* A one-line progress display on stderr, `step N  t=T  R steps/s  ETA mm:ss`, redrawn with a
+ * carriage return at most 4 times a second, and only when stderr is a terminal (nothing
+ * otherwise, so logs and pipes stay clean). Fields are the display's own state. */
 typedef struct consph_progress {
     int enabled;
-    double t0, last;
+    double t0, last; /* wall clock at start and at the last redraw */
     long step0;
+    int have_first; /* the first update's step, simulated time and wall clock, for the ETA */
+    long step_first;
+    double t_first, wall_first;
 } consph_progress;
 void consph_progress_start(consph_progress *pr, long step0);
-/* t_end <= 0: unknown; steps_end <= 0: unknown (ETA from whichever is known). */
-void consph_progress_update(consph_progress *pr, long step, double t, long steps_end,
-                            double t_end);
+/* steps_end > 0: the run ends at that step (ETA from the step rate); else t_end > 0: it ends at
+ * simulated time t_end (ETA from the rate of t since the first update); else no ETA. */
+void consph_progress_update(consph_progress *pr, long step, double t, long steps_end, double t_end);
 /* Clears the line. */
 void consph_progress_end(consph_progress *pr);
 

@@ -1,4 +1,5 @@
 #include "consph/io.h"
+#include "io/outfile_internal.h"
 
 #include <errno.h>
 #include <fcntl.h>
@@ -20,23 +21,29 @@ static atomic_int tmp_state[TMP_SLOTS];
 static char tmp_paths[TMP_SLOTS][TMP_PATH_MAX];
 static const int tmp_signals[] = {SIGINT, SIGTERM, SIGHUP};
 
-static void remove_tmp_on_signal(int sig)
+void consph_outfile_remove_temps(void)
 {
     int saved = errno;
     for (int k = 0; k < TMP_SLOTS; ++k)
         if (atomic_load(&tmp_state[k]) == TMP_LIVE) unlink(tmp_paths[k]);
     errno = saved;
+}
+
+static void remove_tmp_on_signal(int sig)
+{
+    consph_outfile_remove_temps();
     /* SA_RESETHAND has restored the default action: the signal, delivered once this handler
      * returns, ends the process with the status it would have had without the handler. */
     raise(sig);
 }
 
-/* Installs the handler on the signals whose action is still the default (once per process):
- * an application's own handlers are left alone. */
+/* Installs the handler on the signals whose action is the default: an application's own
+ * handlers are left alone. Checked at every open, not once per process, because an action can
+ * return to the default later (consph_stop_uninstall restores it after a run), and a file
+ * opened then must still be cleaned up. Two threads installing the same handler at once is
+ * harmless. */
 static void install_signal_cleanup(void)
 {
-    static atomic_flag installed = ATOMIC_FLAG_INIT;
-    if (atomic_flag_test_and_set(&installed)) return;
     for (size_t k = 0; k < sizeof tmp_signals / sizeof tmp_signals[0]; ++k) {
         struct sigaction old, sa;
         if (sigaction(tmp_signals[k], NULL, &old) != 0 || old.sa_handler != SIG_DFL) continue;

@@ -1,0 +1,497 @@
+/* Checkpoints of a run: one file that gives back, bit for bit, the metadata text, the particle
+ * set and the history array a run needs to continue as if never interrupted.
+ *
+ * File layout (every integer an unsigned little-endian value; docs/solver-files.md):
+ *
+ *   offset  size  content
+ *        0     8  magic "CONSPHCK"
+ *        8     4  format version (1)
+ *       12     4  CRC-32 (zlib's crc32, ISO-HDLC) of the uncompressed payload
+ *       16     8  uncompressed payload size U
+ *       24     8  compressed size C; the file is exactly 32 + C bytes
+ *       32     C  the payload as one zlib (RFC 1950) stream
+ *
+ * Payload, all integers u64, all reals IEEE-754 binary64, both little-endian:
+ *   meta length, meta bytes (no NUL)
+ *   dim, n, then per axis lo, hi, periodic (0 or 1), then spacing
+ *   nfields, then per field: name length, name bytes, ncomp
+ *   positions: x[0][0..n), ..., x[dim-1][0..n)
+ *   fields in stored order, each component-major: comp 0 of particles 0..n, comp 1, ...
+ *   nhistory, history[0..nhistory)
+ * and nothing after.
+ *
+ * Doubles travel as their 64-bit patterns (never through a floating-point register), so NaN
+ * payloads and -0.0 come back as written. A reader trusts no size: each one is checked against
+ * the bytes that remain in the payload before anything is allocated, and the payload itself is
+ * inflated in growing steps, so a file that claims a huge size cannot make the reader allocate
+ * more than its content really expands to. */
+#include <limits.h>
+#include <stdint.h>
+#include <stdlib.h>
+#include <string.h>
+#include <zlib.h>
+
+#include "consph/io.h"
+#include "io/read_internal.h"
+
+#define CK_MAGIC "CONSPHCK"
+#define CK_VERSION 1u
+#define CK_HEADER 32
+/* Payload bytes gathered before each deflate call: large enough that zlib's per-call cost is
+ * nothing, small enough that the writer never holds a copy of the particle set. */
+#define CK_CHUNK ((size_t)1 << 16)
+/* The most a zlib stream can expand: 1032:1 for deflate (zlib's technical notes), plus room for
+ * the stream's own header. A claimed size beyond this cannot be the file's content. */
+#define CK_MAX_RATIO 1032u
+
+static void put_u32(unsigned char *b, uint32_t v)
+{
+    for (int k = 0; k < 4; ++k) b[k] = (unsigned char)(v >> (8 * k));
+}
+
+static void put_u64(unsigned char *b, uint64_t v)
+{
+    for (int k = 0; k < 8; ++k) b[k] = (unsigned char)(v >> (8 * k));
+}
+
+static uint32_t get_u32(const unsigned char *b)
+{
+    uint32_t v = 0;
+    for (int k = 3; k >= 0; --k) v = (v << 8) | b[k];
+    return v;
+}
+
+static uint64_t get_u64(const unsigned char *b)
+{
+    uint64_t v = 0;
+    for (int k = 7; k >= 0; --k) v = (v << 8) | b[k];
+    return v;
+}
+
+/* ---- writing: the payload is built in chunks, each deflated and checksummed as it fills ---- */
+
+typedef struct ck_writer {
+    FILE *fp;
+    z_stream z;
+    unsigned char in[CK_CHUNK];
+    unsigned char out[CK_CHUNK];
+    size_t fill;
+    uint64_t usize, csize;
+    uint32_t crc;
+    int failed;
+} ck_writer;
+
+static void ck_deflate(ck_writer *w, int flush)
+{
+    w->crc = (uint32_t)crc32(w->crc, w->in, (uInt)w->fill);
+    w->usize += w->fill;
+    w->z.next_in = w->in;
+    w->z.avail_in = (uInt)w->fill;
+    int rc;
+    do {
+        w->z.next_out = w->out;
+        w->z.avail_out = (uInt)sizeof w->out;
+        rc = deflate(&w->z, flush);
+        size_t got = sizeof w->out - w->z.avail_out;
+        if (rc == Z_STREAM_ERROR || (got && fwrite(w->out, 1, got, w->fp) != got)) {
+            w->failed = 1;
+            return;
+        }
+        w->csize += got;
+    } while (w->z.avail_out == 0 || (flush == Z_FINISH && rc != Z_STREAM_END));
+    w->fill = 0;
+}
+
+static void ck_put(ck_writer *w, const void *data, size_t len)
+{
+    const unsigned char *b = data;
+    while (len && !w->failed) {
+        size_t take = CK_CHUNK - w->fill < len ? CK_CHUNK - w->fill : len;
+        memcpy(w->in + w->fill, b, take);
+        w->fill += take;
+        b += take;
+        len -= take;
+        if (w->fill == CK_CHUNK) ck_deflate(w, Z_NO_FLUSH);
+    }
+}
+
+static void ck_put_u64(ck_writer *w, uint64_t v)
+{
+    unsigned char b[8];
+    put_u64(b, v);
+    ck_put(w, b, 8);
+}
+
+static void ck_put_f64(ck_writer *w, double v)
+{
+    uint64_t bits;
+    memcpy(&bits, &v, 8);
+    ck_put_u64(w, bits);
+}
+
+static void ck_put_doubles(ck_writer *w, const double *v, size_t n)
+{
+    for (size_t i = 0; i < n && !w->failed; ++i) ck_put_f64(w, v[i]);
+}
+
+static int check_particles(const char *path, const consph_particles *p)
+{
+    if (p->dim < 1 || p->dim > CONSPH_MAX_DIM)
+        return consph_fail(CONSPH_EINVAL, "checkpoint '%s': dimension %d is not 1, 2 or 3", path,
+                           p->dim);
+    if (p->n > p->cap)
+        return consph_fail(CONSPH_EINVAL, "checkpoint '%s': %zu particles but room for %zu", path,
+                           p->n, p->cap);
+    if (p->nfields < 0 || p->nfields > CONSPH_MAX_FIELDS)
+        return consph_fail(CONSPH_EINVAL, "checkpoint '%s': %d fields (at most %d)", path,
+                           p->nfields, CONSPH_MAX_FIELDS);
+    for (int f = 0; f < p->nfields; ++f) {
+        const consph_field *fl = &p->fields[f];
+        if (fl->ncomp < 1 || !memchr(fl->name, '\0', sizeof fl->name) || !fl->name[0])
+            return consph_fail(CONSPH_EINVAL, "checkpoint '%s': field %d has no name or ncomp %d",
+                               path, f, fl->ncomp);
+    }
+    return CONSPH_OK;
+}
+
+int consph_checkpoint_write(const char *path, const char *meta, const consph_particles *p,
+                            const double *history, size_t nhistory)
+{
+    if (!meta) meta = "";
+    if (nhistory && !history)
+        return consph_fail(CONSPH_EINVAL, "checkpoint '%s': %zu history values but no array", path,
+                           nhistory);
+    int rc = check_particles(path, p);
+    if (rc) return rc;
+    ck_writer *w = calloc(1, sizeof *w);
+    if (!w) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    if (deflateInit(&w->z, Z_BEST_SPEED) != Z_OK) {
+        free(w);
+        return consph_fail(CONSPH_ENOMEM, "out of memory");
+    }
+    consph_outfile of;
+    rc = consph_outfile_open(&of, path);
+    if (rc) {
+        deflateEnd(&w->z);
+        free(w);
+        return rc;
+    }
+    w->fp = of.fp;
+    w->crc = (uint32_t)crc32(0L, Z_NULL, 0);
+    unsigned char head[CK_HEADER] = {0};
+    if (fwrite(head, 1, sizeof head, w->fp) != sizeof head) w->failed = 1;
+
+    size_t mlen = strlen(meta);
+    ck_put_u64(w, mlen);
+    ck_put(w, meta, mlen);
+    ck_put_u64(w, (uint64_t)p->dim);
+    ck_put_u64(w, (uint64_t)p->n);
+    for (int a = 0; a < p->dim; ++a) {
+        ck_put_f64(w, p->box.lo[a]);
+        ck_put_f64(w, p->box.hi[a]);
+        ck_put_u64(w, p->box.periodic[a] ? 1 : 0);
+    }
+    ck_put_f64(w, p->spacing);
+    ck_put_u64(w, (uint64_t)p->nfields);
+    for (int f = 0; f < p->nfields; ++f) {
+        size_t nlen = strlen(p->fields[f].name);
+        ck_put_u64(w, nlen);
+        ck_put(w, p->fields[f].name, nlen);
+        ck_put_u64(w, (uint64_t)p->fields[f].ncomp);
+    }
+    for (int a = 0; a < p->dim; ++a) ck_put_doubles(w, p->x[a], p->n);
+    for (int f = 0; f < p->nfields; ++f)
+        for (int c = 0; c < p->fields[f].ncomp; ++c)
+            ck_put_doubles(w, p->fields[f].data + (size_t)c * p->cap, p->n);
+    ck_put_u64(w, nhistory);
+    ck_put_doubles(w, history, nhistory);
+    if (!w->failed) ck_deflate(w, Z_FINISH);
+    deflateEnd(&w->z);
+
+    /* The reader inflates through consph_rd_inflate, which takes at most 4 GiB of input: a
+     * larger checkpoint could be written but never read, so it is refused now. */
+    if (!w->failed && w->csize > UINT_MAX) {
+        consph_outfile_abort(&of);
+        rc = consph_fail(CONSPH_EINVAL, "checkpoint '%s': compressed size %llu exceeds 4 GiB", path,
+                         (unsigned long long)w->csize);
+        free(w);
+        return rc;
+    }
+    memcpy(head, CK_MAGIC, 8);
+    put_u32(head + 8, CK_VERSION);
+    put_u32(head + 12, w->crc);
+    put_u64(head + 16, w->usize);
+    put_u64(head + 24, w->csize);
+    if (!w->failed &&
+        (fseek(w->fp, 0, SEEK_SET) != 0 || fwrite(head, 1, sizeof head, w->fp) != sizeof head))
+        w->failed = 1;
+    int failed = w->failed;
+    free(w);
+    if (failed) {
+        consph_outfile_abort(&of);
+        return consph_fail(CONSPH_EIO, "checkpoint '%s': write error", path);
+    }
+    return consph_outfile_commit(&of);
+}
+
+/* ---- reading ---- */
+
+typedef struct ck_reader {
+    const char *path;
+    const unsigned char *b;
+    size_t len, pos;
+} ck_reader;
+
+static int bad(const ck_reader *r, const char *what)
+{
+    return consph_fail(CONSPH_EFORMAT, "checkpoint '%s': %s", r->path, what);
+}
+
+static size_t left(const ck_reader *r)
+{
+    return r->len - r->pos;
+}
+
+static int take_u64(ck_reader *r, uint64_t *v, const char *what)
+{
+    *v = 0;
+    if (left(r) < 8) {
+        char msg[128];
+        snprintf(msg, sizeof msg, "payload ends before the %s", what);
+        return bad(r, msg);
+    }
+    *v = get_u64(r->b + r->pos);
+    r->pos += 8;
+    return CONSPH_OK;
+}
+
+static int take_f64(ck_reader *r, double *v, const char *what)
+{
+    uint64_t bits;
+    int rc = take_u64(r, &bits, what);
+    if (!rc) memcpy(v, &bits, 8);
+    return rc;
+}
+
+/* `count` doubles into v, after checking they are there. */
+static int take_doubles(ck_reader *r, double *v, size_t count, const char *what)
+{
+    if (left(r) / 8 < count) {
+        char msg[128];
+        snprintf(msg, sizeof msg, "payload ends inside the %s", what);
+        return bad(r, msg);
+    }
+    for (size_t i = 0; i < count; ++i) {
+        uint64_t bits = get_u64(r->b + r->pos + 8 * i);
+        memcpy(&v[i], &bits, 8);
+    }
+    r->pos += 8 * count;
+    return CONSPH_OK;
+}
+
+/* A length-prefixed byte string of at most `max` bytes without NUL, copied into a new buffer. */
+static int take_str(ck_reader *r, uint64_t max, char **out, const char *what)
+{
+    uint64_t len;
+    int rc = take_u64(r, &len, what);
+    if (rc) return rc;
+    char msg[160];
+    if (len > max || len > left(r)) {
+        snprintf(msg, sizeof msg, "%s length %llu exceeds %s", what, (unsigned long long)len,
+                 len > left(r) ? "the payload" : "its limit");
+        return bad(r, msg);
+    }
+    if (memchr(r->b + r->pos, '\0', (size_t)len)) {
+        snprintf(msg, sizeof msg, "%s holds a NUL byte", what);
+        return bad(r, msg);
+    }
+    *out = malloc((size_t)len + 1);
+    if (!*out) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    memcpy(*out, r->b + r->pos, (size_t)len);
+    (*out)[len] = '\0';
+    r->pos += (size_t)len;
+    return CONSPH_OK;
+}
+
+/* The particle header and data. Sizes are checked against what remains before p exists. */
+static int take_particles(ck_reader *r, consph_particles *p)
+{
+    uint64_t dim, n, nfields, periodic[CONSPH_MAX_DIM];
+    consph_box box;
+    memset(&box, 0, sizeof box);
+    double spacing;
+    int rc = take_u64(r, &dim, "dimension");
+    if (rc) return rc;
+    if (dim < 1 || dim > CONSPH_MAX_DIM) return bad(r, "dimension is not 1, 2 or 3");
+    box.dim = (int)dim;
+    if ((rc = take_u64(r, &n, "particle count"))) return rc;
+    for (int a = 0; a < box.dim; ++a) {
+        if ((rc = take_f64(r, &box.lo[a], "box")) || (rc = take_f64(r, &box.hi[a], "box")) ||
+            (rc = take_u64(r, &periodic[a], "box")))
+            return rc;
+        if (periodic[a] > 1) return bad(r, "periodicity flag is not 0 or 1");
+        box.periodic[a] = (int)periodic[a];
+    }
+    if (consph_box_check(&box)) return bad(r, "invalid box");
+    if ((rc = take_f64(r, &spacing, "spacing"))) return rc;
+    if ((rc = take_u64(r, &nfields, "field count"))) return rc;
+    if (nfields > CONSPH_MAX_FIELDS) return bad(r, "more fields than consph allows");
+    char names[CONSPH_MAX_FIELDS][CONSPH_FIELD_NAME_MAX];
+    int ncomp[CONSPH_MAX_FIELDS];
+    /* Columns of n doubles each: positions, then every field component. */
+    uint64_t columns = dim;
+    for (uint64_t f = 0; f < nfields; ++f) {
+        char *name = NULL;
+        if ((rc = take_str(r, CONSPH_FIELD_NAME_MAX - 1, &name, "field name"))) return rc;
+        int empty = !name[0];
+        strcpy(names[f], name);
+        free(name);
+        if (empty) return bad(r, "empty field name");
+        for (uint64_t g = 0; g < f; ++g)
+            if (strcmp(names[g], names[f]) == 0) return bad(r, "two fields of the same name");
+        uint64_t nc;
+        if ((rc = take_u64(r, &nc, "field components"))) return rc;
+        if (nc < 1 || nc > INT_MAX || nc > left(r))
+            return bad(r, "impossible field component count");
+        ncomp[f] = (int)nc;
+        columns += nc;
+    }
+    /* The data and the history count must fit in what remains: this bounds n by the payload,
+     * so a hostile n never reaches an allocation. */
+    if (left(r) < 8 || n > (left(r) - 8) / 8 / columns)
+        return bad(r, "particle count larger than the payload holds");
+    rc = consph_particles_init(p, box.dim, (size_t)n, &box);
+    if (rc) return rc;
+    p->spacing = spacing;
+    for (int a = 0; a < p->dim && !rc; ++a) rc = take_doubles(r, p->x[a], p->n, "positions");
+    for (uint64_t f = 0; f < nfields && !rc; ++f) {
+        double *d = consph_particles_field(p, names[f], ncomp[f]);
+        rc = d ? take_doubles(r, d, p->n * (size_t)ncomp[f], "field data") : CONSPH_ENOMEM;
+    }
+    if (rc) consph_particles_free(p);
+    return rc;
+}
+
+static int parse_payload(ck_reader *r, char **meta, consph_particles *p, double **history,
+                         size_t *nhistory)
+{
+    /* Metadata is text the size of a few lines; the payload bounds it. */
+    int rc = take_str(r, UINT64_MAX, meta, "metadata");
+    if (rc) return rc;
+    if ((rc = take_particles(r, p))) goto fail_meta;
+    uint64_t nh;
+    if ((rc = take_u64(r, &nh, "history count"))) goto fail_p;
+    if (nh > left(r) / 8) {
+        rc = bad(r, "history count larger than the payload holds");
+        goto fail_p;
+    }
+    if (nh) {
+        *history = malloc((size_t)nh * sizeof(double));
+        if (!*history) {
+            rc = consph_fail(CONSPH_ENOMEM, "out of memory");
+            goto fail_p;
+        }
+        take_doubles(r, *history, (size_t)nh, "history");
+    }
+    if (left(r) != 0) {
+        rc = bad(r, "bytes after the history");
+        free(*history);
+        *history = NULL;
+        goto fail_p;
+    }
+    *nhistory = (size_t)nh;
+    return CONSPH_OK;
+fail_p:
+    consph_particles_free(p);
+fail_meta:
+    free(*meta);
+    *meta = NULL;
+    return rc;
+}
+
+int consph_checkpoint_read(const char *path, char **meta, consph_particles *p, double **history,
+                           size_t *nhistory)
+{
+    *meta = NULL;
+    *history = NULL;
+    *nhistory = 0;
+    memset(p, 0, sizeof *p);
+    ck_reader r = {path, NULL, 0, 0};
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return consph_fail(CONSPH_EIO, "cannot open checkpoint '%s'", path);
+    unsigned char head[CK_HEADER];
+    size_t got = fread(head, 1, sizeof head, fp);
+    int rc = CONSPH_OK;
+    unsigned char *comp = NULL, *payload = NULL;
+    char msg[160];
+    if (got < 8 || memcmp(head, CK_MAGIC, 8) != 0) {
+        rc = bad(&r, "not a consph checkpoint (bad magic)");
+        goto done;
+    }
+    if (got < sizeof head) {
+        rc = bad(&r, "truncated header");
+        goto done;
+    }
+    uint32_t version = get_u32(head + 8), crc = get_u32(head + 12);
+    uint64_t usize = get_u64(head + 16), csize = get_u64(head + 24);
+    if (version != CK_VERSION) {
+        snprintf(msg, sizeof msg, "format version %lu, this build reads version %u",
+                 (unsigned long)version, CK_VERSION);
+        rc = bad(&r, msg);
+        goto done;
+    }
+    if (fseek(fp, 0, SEEK_END) != 0) {
+        rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
+        goto done;
+    }
+    long fsize = ftell(fp);
+    if (fsize < 0) {
+        rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
+        goto done;
+    }
+    if ((uint64_t)fsize - CK_HEADER != csize) {
+        snprintf(msg, sizeof msg, "%s: %llu bytes of compressed payload, the header says %llu",
+                 (uint64_t)fsize - CK_HEADER < csize ? "truncated" : "trailing bytes",
+                 (unsigned long long)((uint64_t)fsize - CK_HEADER), (unsigned long long)csize);
+        rc = bad(&r, msg);
+        goto done;
+    }
+    if (csize == 0 || csize > UINT_MAX || usize / CK_MAX_RATIO > csize) {
+        rc = bad(&r, "impossible payload sizes in the header");
+        goto done;
+    }
+    comp = malloc((size_t)csize);
+    if (!comp) {
+        rc = consph_fail(CONSPH_ENOMEM, "out of memory");
+        goto done;
+    }
+    if (fseek(fp, CK_HEADER, SEEK_SET) != 0 || fread(comp, 1, (size_t)csize, fp) != csize) {
+        rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
+        goto done;
+    }
+    size_t plen = 0, pcap = 0;
+    const char *why;
+    if (consph_rd_inflate(comp, (size_t)csize, &payload, &plen, &pcap, (size_t)usize, &why)) {
+        rc = bad(&r, why);
+        goto done;
+    }
+    if (plen != usize) {
+        rc = bad(&r, "payload shorter than the header says");
+        goto done;
+    }
+    uLong c = crc32(0L, Z_NULL, 0);
+    for (size_t off = 0; off < plen; off += UINT_MAX)
+        c = crc32(c, payload + off, (uInt)(plen - off < UINT_MAX ? plen - off : UINT_MAX));
+    if ((uint32_t)c != crc) {
+        rc = bad(&r, "CRC-32 mismatch (corrupt payload)");
+        goto done;
+    }
+    r.b = payload;
+    r.len = plen;
+    rc = parse_payload(&r, meta, p, history, nhistory);
+done:
+    fclose(fp);
+    free(comp);
+    free(payload);
+    return rc;
+}
