@@ -273,6 +273,18 @@ static void test_move(void)
     CHECK(strstr(consph_last_error(), want) != NULL, "message names the particle: %s",
           consph_last_error());
     CHECK(!memcmp(x0, s.p->x[0], n * sizeof(double)), "a refused move moved particles");
+    /* On a non-periodic axis a particle may not leave the box. */
+    dr[cap + 5] = 0.0;
+    s.p->box.periodic[0] = 0;
+    dr[hi] = 1.0;
+    CHECK(reg_move(&s, dr) == CONSPH_ENUMERIC, "leaving a non-periodic box is refused");
+    CHECK(!memcmp(x0, s.p->x[0], n * sizeof(double)), "a refused move moved particles");
+    s.p->box.periodic[0] = 1;
+    /* Parameters outside their range name themselves. */
+    reg_ipst_params bad = ipst_params(&s);
+    bad.tol = 0.0;
+    CHECK(reg_ipst(&s, &bad, dr, NULL) == CONSPH_EINVAL && strstr(consph_last_error(), "tol"),
+          "tol = 0 refused: %s", consph_last_error());
     free(x0);
     free(dr);
     consph_sys_free(&s);
