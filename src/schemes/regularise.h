@@ -22,37 +22,41 @@ int reg_move(consph_sys *s, const double *dr);
 
 /* ---- IPST (001 eqs. 19-21) ---- */
 typedef struct reg_ipst_params {
-    double h;        /* smoothing length */
-    double chi0;     /* χ_o: h^d Σ_j W_ij on the unperturbed lattice (reg_chi0) */
-    double tol;      /* ε of eq. 21 */
-    int max_iter;    /* at most this many shifts (001: 10) */
+    double h;     /* smoothing length */
+    double chi0;  /* χ_o: h^d Σ_j W_ij on the unperturbed lattice (reg_chi0) */
+    double tol;   /* ε of eq. 21 */
+    int max_iter; /* at most this many shifts (001: 10) */
 } reg_ipst_params;
 
 typedef struct reg_ipst_report {
-    int iterations;     /* shifts applied */
-    double chi_err;     /* |max χ - χ_o| after the last shift */
-    double max_shift;   /* largest |total displacement| of a particle, in units of h */
+    int iterations;   /* shifts applied */
+    double chi_err;   /* |max χ - χ_o| after the last shift */
+    double max_shift; /* largest |total displacement| of a particle, in units of h */
 } reg_ipst_report;
 
 /* χ_o for the kernel on the unperturbed lattice of spacing ds in the kernel's dimension:
  * h^d Σ_j W(|x_j|) over lattice points (catalogue Z5: 1.4399190 for quintic, h = 1.2 ds, 2D). */
 double reg_chi0(const consph_kernel *k, double ds);
 
-/* Shifts the particles by eq. 19 until eq. 21 holds or max_iter shifts were made, recomputing
- * the volumes ω = 1/Σ_j W_ij (written into "volume") at every iteration, and adds the total
- * displacement of each particle to dr_total (d × cap, zeroed by the caller). */
+/* Shifts the particles by eq. 19 (away from crowded neighbours) until eq. 21 holds or max_iter
+ * shifts were made, testing eq. 21 before each shift (a set that meets it is not moved),
+ * recomputing the volumes ω = 1/Σ_j W_ij (written into "volume") at every iteration, and adds
+ * the total displacement of each particle to dr_total (d × cap, zeroed by the caller). Refuses a
+ * system with a destination mask. */
 int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ipst_report *rep);
 
 /* ---- non-iterative shifting of Sun et al. (δ+-SPH) ---- */
 typedef struct reg_pst_params {
-    double h, ds;  /* smoothing length and initial spacing Δs */
-    double cfl;    /* CFL number of the run's time step rule */
-    double mach;   /* U_max / c_o */
-    double R, n;   /* the anti-clumping term (Sun et al.: 0.2 and 4) */
-    double max_shift; /* cap on |δr| in units of h as the original paper sets it (<= 0: none) */
+    double h, ds;     /* smoothing length and initial spacing Δs */
+    double cfl;       /* CFL number of the run's time step rule */
+    double mach;      /* U_max / c_o */
+    double R, n;      /* the anti-clumping term (Sun et al.: 0.2 and 4) */
+    double max_shift; /* cap on |δr| in units of h: a longer δr is shortened to it, keeping its
+                         direction (<= 0: none; the paper's value is open, docs/schemes.md) */
 } reg_pst_params;
 
-/* δr_i of Sun et al. into dr (d × cap), from the volumes in "volume"; moves nothing. */
+/* δr_i = -cfl·mach·(2h)² Σ_j [1 + R (W_ij/W(ds))^n] ∇W_ij V_j of Sun et al. into dr (d × cap),
+ * V_j from the field "volume"; 0 for particles outside a destination mask. Moves nothing. */
 int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr);
 
 /* ---- remeshing (001 eqs. 32-33) ---- */
@@ -61,8 +65,9 @@ int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr);
  * number of components) at the lattice points `lattice` (d × cap, one point per particle slot,
  * spacing ds) with the normalised M4 sum of eq. 33, q per axis = |x_a|/ds (tensor product,
  * catalogue Part C 001.20), then puts every particle on its lattice point with the interpolated
- * values and rebuilds the search. A lattice point with no particle within reach keeps the value
- * of the particle in its slot and is counted in *orphans (may be NULL). */
+ * values and rebuilds the search. A lattice point whose M4 weights sum to 0 (no particle within
+ * reach) keeps the values of the particle in its slot and is counted in *orphans (may be NULL).
+ * Refuses a system with a destination mask, as reg_ipst does. */
 int reg_remesh_m4(consph_sys *s, const double *lattice, double ds, const char *const *fields,
                   int nf, size_t *orphans);
 

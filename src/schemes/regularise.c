@@ -1,0 +1,386 @@
+/* Particle regularisation: IPST (001 eqs. 19-21), the shifting of Sun et al. (δ+-SPH) and M4
+ * remeshing (001 eqs. 32-33). Every pair sum is a pass; the choices and their sources are in
+ * docs/schemes.md, section "Regularisation". */
+#include "schemes/regularise.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "layout/layout_internal.h"
+
+/* ---- moving particles ---- */
+
+/* Names particle i for a message: its index in the system and, when the system keeps it, the
+ * index it had in the particles the system was made from. */
+static int fail_particle(const consph_sys *s, size_t i, const char *what, int axis, double x)
+{
+    if (s->origin)
+        return consph_fail(CONSPH_ENUMERIC,
+                           "reg_move: particle %zu (input particle %zu): coordinate %d = %g %s", i,
+                           s->origin[i], axis, x, what);
+    return consph_fail(CONSPH_ENUMERIC, "reg_move: particle %zu: coordinate %d = %g %s", i, axis, x,
+                       what);
+}
+
+int reg_move(consph_sys *s, const double *dr)
+{
+    if (!s || !s->p || !dr) return consph_fail(CONSPH_EINVAL, "reg_move: needs a system and dr");
+    consph_particles *p = s->p;
+    const size_t n = p->n, cap = p->cap;
+    const consph_box *b = &p->box;
+    /* Every new position is checked before any is written, so a refusal moves nothing. */
+    for (int a = 0; a < p->dim; ++a)
+        for (size_t i = 0; i < n; ++i) {
+            double x = p->x[a][i] + dr[(size_t)a * cap + i];
+            if (!isfinite(x)) return fail_particle(s, i, "is not finite after the shift", a, x);
+            if (!b->periodic[a] && (x < b->lo[a] || x > b->hi[a]))
+                return fail_particle(s, i, "leaves the non-periodic box", a, x);
+        }
+    for (int a = 0; a < p->dim; ++a) {
+        const double len = b->hi[a] - b->lo[a];
+        for (size_t i = 0; i < n; ++i) {
+            double x = p->x[a][i] + dr[(size_t)a * cap + i];
+            p->x[a][i] = b->periodic[a] ? layout_wrap(x, b->lo[a], len) : x;
+        }
+    }
+    return consph_sys_update(s, 0);
+}
+
+/* ---- IPST ---- */
+
+double reg_chi0(const consph_kernel *k, double ds)
+{
+    if (!k || !(ds > 0.0) || !isfinite(ds) || k->tensor) {
+        consph_fail(CONSPH_EINVAL, "reg_chi0: needs a radial kernel and a spacing ds > 0");
+        return NAN;
+    }
+    /* A periodic lattice a little wider than the support: the sum at any of its points is the
+     * sum over the infinite lattice, computed by the same density pass IPST uses. */
+    const int d = k->dim;
+    const size_t m = (size_t)ceil(2.0 * consph_sys_reach(k) / ds) + 1;
+    size_t n = 1;
+    for (int a = 0; a < d; ++a) n *= m;
+    consph_box box = consph_box_unit(d, 1);
+    for (int a = 0; a < d; ++a) box.hi[a] = (double)m * ds;
+    consph_particles p;
+    if (consph_particles_init(&p, d, n, &box)) return NAN;
+    for (size_t i = 0; i < n; ++i)
+        for (size_t a = 0, r = i; a < (size_t)d; ++a, r /= m) p.x[a][i] = (double)(r % m) * ds;
+    consph_sys sys;
+    double chi = NAN;
+    double *sumw = NULL;
+    if (consph_sys_init(&sys, &p, k, 0.0) == CONSPH_OK) {
+        if ((sumw = consph_calloc(n, sizeof(double))) &&
+            consph_layout_density(&sys, 1.0, sumw, NULL) == CONSPH_OK)
+            chi = pow(k->h, d) * sumw[0];
+        consph_sys_free(&sys);
+    }
+    free(sumw);
+    consph_particles_free(&p);
+    return chi;
+}
+
+typedef struct ipst_job {
+    double h;
+    const double *vol;
+    double *step; /* d × cap */
+    size_t cap;
+    int dim;
+} ipst_job;
+
+/* Eq. 19: δx_i = h Σ_j (x_ij/r_ij) W_ij ω_j. A neighbour at r = 0 (i itself, or a coincident
+ * particle) has no direction and adds nothing. */
+static void ipst_visit(void *job, const consph_nbhd *nb)
+{
+    const ipst_job *a = job;
+    double acc[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+    for (size_t q = 0; q < nb->n; ++q) {
+        const double r = nb->r[q];
+        if (!(r > 0.0)) continue;
+        const double f = nb->w[q] * a->vol[nb->j[q]] / r;
+        for (int c = 0; c < a->dim; ++c) acc[c] += f * nb->dx[c][q];
+    }
+    for (int c = 0; c < a->dim; ++c) a->step[(size_t)c * a->cap + nb->i] = a->h * acc[c];
+}
+
+/* Writes ω = 1/Σ_j W_ij into vol and returns max_i h^d Σ_j W_ij (NaN when any sum is NaN). */
+static int ipst_volumes(const consph_sys *s, double h, double *sumw, double *vol, double *chi_max)
+{
+    int rc = consph_layout_density(s, 1.0, sumw, NULL);
+    if (rc) return rc;
+    const double hd = pow(h, s->p->dim);
+    double mx = -INFINITY;
+    for (size_t i = 0; i < s->p->n; ++i) {
+        vol[i] = 1.0 / sumw[i];
+        double chi = hd * sumw[i];
+        if (isnan(chi)) mx = NAN;
+        if (chi > mx) mx = chi;
+    }
+    *chi_max = mx;
+    return CONSPH_OK;
+}
+
+int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ipst_report *rep)
+{
+    if (!s || !s->p || !prm || !dr_total)
+        return consph_fail(CONSPH_EINVAL, "IPST: needs a system, parameters and dr_total");
+    if (!(prm->h > 0.0) || !isfinite(prm->h) || !(prm->chi0 > 0.0) || !isfinite(prm->chi0) ||
+        !(prm->tol > 0.0) || prm->max_iter < 0)
+        return consph_fail(CONSPH_EINVAL,
+                           "IPST: needs h > 0, chi0 > 0, tol > 0 and max_iter >= 0 (got h = %g, "
+                           "chi0 = %g, tol = %g, max_iter = %d)",
+                           prm->h, prm->chi0, prm->tol, prm->max_iter);
+    if (s->dest)
+        return consph_fail(CONSPH_EINVAL,
+                           "IPST: the system has a destination mask; IPST shifts every particle");
+    consph_particles *p = s->p;
+    const size_t n = p->n, cap = p->cap;
+    const int d = p->dim;
+    double *vol = consph_particles_field(p, "volume", 1);
+    if (!vol) return CONSPH_EINVAL;
+    double *sumw = consph_calloc(n ? n : 1, sizeof(double));
+    double *step = consph_calloc((size_t)d * cap, sizeof(double));
+    double *total = consph_calloc((size_t)d * cap, sizeof(double));
+    int rc = (sumw && step && total) ? CONSPH_OK : CONSPH_ENOMEM;
+    ipst_job job = {prm->h, vol, step, cap, d};
+    const consph_pass pass = {"IPST shift (001 eq. 19)", CONSPH_PASS_W, ipst_visit};
+    int iterations = 0;
+    double chi_max = NAN;
+    while (rc == CONSPH_OK) {
+        /* The volumes are those of the current positions; the last refresh leaves "volume"
+         * matching the positions the call returns. */
+        if ((rc = ipst_volumes(s, prm->h, sumw, vol, &chi_max))) break;
+        if (fabs(chi_max - prm->chi0) < prm->tol || iterations == prm->max_iter) break;
+        if ((rc = consph_pass_run(s, &pass, &job))) break;
+        if ((rc = reg_move(s, step))) break;
+        for (size_t k = 0; k < (size_t)d * cap; ++k) total[k] += step[k];
+        ++iterations;
+    }
+    if (rc == CONSPH_OK) {
+        double mx = 0.0;
+        for (size_t i = 0; i < n; ++i) {
+            double r2 = 0.0;
+            for (int a = 0; a < d; ++a) {
+                double v = total[(size_t)a * cap + i];
+                dr_total[(size_t)a * cap + i] += v;
+                r2 += v * v;
+            }
+            if (r2 > mx) mx = r2;
+        }
+        if (rep) {
+            rep->iterations = iterations;
+            rep->chi_err = fabs(chi_max - prm->chi0);
+            rep->max_shift = sqrt(mx) / prm->h;
+        }
+    }
+    free(sumw);
+    free(step);
+    free(total);
+    return rc;
+}
+
+/* ---- shifting of Sun et al. ---- */
+
+typedef struct pst_job {
+    double coef;    /* -CFL·Ma·(2h)² */
+    double inv_wds; /* 1/W(Δs) */
+    double R, n;
+    double cap_len; /* largest |δr|, +inf for none */
+    const double *vol;
+    double *dr;
+    size_t cap;
+    int dim;
+} pst_job;
+
+/* δr_i = -CFL·Ma·(2h)² Σ_j [1 + R (W_ij/W(Δs))^n] ∇W_ij V_j, capped in length. The self term
+ * has ∇W = 0. */
+static void pst_visit(void *job, const consph_nbhd *nb)
+{
+    const pst_job *a = job;
+    double acc[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+    for (size_t q = 0; q < nb->n; ++q) {
+        const double f =
+            (1.0 + a->R * pow(nb->w[q] * a->inv_wds, a->n)) * nb->dwr[q] * a->vol[nb->j[q]];
+        for (int c = 0; c < a->dim; ++c) acc[c] += f * nb->dx[c][q];
+    }
+    double len2 = 0.0;
+    for (int c = 0; c < a->dim; ++c) {
+        acc[c] *= a->coef;
+        len2 += acc[c] * acc[c];
+    }
+    const double len = sqrt(len2);
+    const double scale = len > a->cap_len ? a->cap_len / len : 1.0;
+    for (int c = 0; c < a->dim; ++c) a->dr[(size_t)c * a->cap + nb->i] = scale * acc[c];
+}
+
+int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr)
+{
+    if (!s || !s->p || !prm || !dr)
+        return consph_fail(CONSPH_EINVAL, "PST: needs a system, parameters and dr");
+    if (!(prm->h > 0.0) || !(prm->ds > 0.0) || !isfinite(prm->h) || !isfinite(prm->ds) ||
+        !(prm->cfl >= 0.0) || !(prm->mach >= 0.0) || !isfinite(prm->cfl) || !isfinite(prm->mach) ||
+        !(prm->R >= 0.0) || !(prm->n > 0.0) || isnan(prm->max_shift))
+        return consph_fail(CONSPH_EINVAL,
+                           "PST: needs h > 0, ds > 0, cfl >= 0, mach >= 0, R >= 0 and n > 0 (got "
+                           "h = %g, ds = %g, cfl = %g, mach = %g, R = %g, n = %g)",
+                           prm->h, prm->ds, prm->cfl, prm->mach, prm->R, prm->n);
+    const consph_field *fv = consph_particles_find(s->p, "volume");
+    if (!fv || fv->ncomp != 1)
+        return consph_fail(CONSPH_EINVAL, "PST: the particles have no one-component field "
+                                          "\"volume\"");
+    const double wds = consph_kernel_w(&s->kernel, prm->ds);
+    if (!(wds > 0.0))
+        return consph_fail(CONSPH_EINVAL,
+                           "PST: the kernel '%s' is zero at ds = %g; W(ds) normalises the "
+                           "anti-clumping term",
+                           s->kernel.name, prm->ds);
+    const size_t cap = s->p->cap;
+    /* Particles outside a destination mask get no shift. */
+    memset(dr, 0, (size_t)s->p->dim * cap * sizeof(double));
+    const double twoh = 2.0 * prm->h;
+    pst_job job = {-prm->cfl * prm->mach * twoh * twoh,
+                   1.0 / wds,
+                   prm->R,
+                   prm->n,
+                   prm->max_shift > 0.0 ? prm->max_shift * prm->h : INFINITY,
+                   fv->data,
+                   dr,
+                   cap,
+                   s->p->dim};
+    const consph_pass pass = {"PST of Sun et al.", CONSPH_PASS_W | CONSPH_PASS_DW, pst_visit};
+    return consph_pass_run(s, &pass, &job);
+}
+
+/* ---- remeshing ---- */
+
+typedef struct remesh_job {
+    const size_t *origin; /* of the joint system: < n lattice point, else n + particle */
+    size_t n, cap;
+    int nf;
+    const consph_field *const *f; /* the particles' fields */
+    const size_t *off;            /* first row of field k in out */
+    double *out;                  /* rows of n values, one per component */
+    unsigned char *orphan;
+} remesh_job;
+
+/* Eq. 33 at lattice point k: Σ_j φ_j M4_kj / Σ_j M4_kj over the particles (the other lattice
+ * points of the joint system are skipped). */
+static void remesh_visit(void *job, const consph_nbhd *nb)
+{
+    const remesh_job *a = job;
+    const size_t k = a->origin[nb->i];
+    double wsum = 0.0;
+    for (int f = 0; f < a->nf; ++f)
+        for (int c = 0; c < a->f[f]->ncomp; ++c) a->out[(a->off[f] + (size_t)c) * a->n + k] = 0.0;
+    for (size_t q = 0; q < nb->n; ++q) {
+        const size_t o = a->origin[nb->j[q]];
+        const double w = nb->w[q];
+        if (o < a->n || w == 0.0) continue;
+        const size_t j = o - a->n;
+        wsum += w;
+        for (int f = 0; f < a->nf; ++f)
+            for (int c = 0; c < a->f[f]->ncomp; ++c)
+                a->out[(a->off[f] + (size_t)c) * a->n + k] +=
+                    w * a->f[f]->data[(size_t)c * a->cap + j];
+    }
+    a->orphan[k] = wsum == 0.0;
+    if (wsum == 0.0) return;
+    for (int f = 0; f < a->nf; ++f)
+        for (int c = 0; c < a->f[f]->ncomp; ++c) a->out[(a->off[f] + (size_t)c) * a->n + k] /= wsum;
+}
+
+static int remesh_check(const consph_sys *s, const double *lattice, double ds,
+                        const char *const *fields, int nf, const consph_field **f, size_t *off,
+                        size_t *rows)
+{
+    if (!s || !s->p || !lattice || (nf > 0 && !fields) || nf < 0 || nf > CONSPH_MAX_FIELDS)
+        return consph_fail(CONSPH_EINVAL, "remesh: needs a system, the lattice and 0..%d fields",
+                           CONSPH_MAX_FIELDS);
+    if (!(ds > 0.0) || !isfinite(ds))
+        return consph_fail(CONSPH_EINVAL, "remesh: spacing ds = %g must be positive", ds);
+    if (s->dest)
+        return consph_fail(CONSPH_EINVAL,
+                           "remesh: the system has a destination mask; remeshing moves every "
+                           "particle");
+    const consph_particles *p = s->p;
+    *rows = 0;
+    for (int k = 0; k < nf; ++k) {
+        f[k] = fields[k] ? consph_particles_find(p, fields[k]) : NULL;
+        if (!f[k])
+            return consph_fail(CONSPH_EINVAL, "remesh: the particles have no field '%s'",
+                               fields[k] ? fields[k] : "(null)");
+        off[k] = *rows;
+        *rows += (size_t)f[k]->ncomp;
+    }
+    const consph_box *b = &p->box;
+    for (int a = 0; a < p->dim; ++a)
+        for (size_t i = 0; i < p->n; ++i) {
+            double x = lattice[(size_t)a * p->cap + i];
+            if (!isfinite(x) || (b->periodic[a] && (x < b->lo[a] || x >= b->hi[a])))
+                return consph_fail(CONSPH_EINVAL,
+                                   "remesh: lattice point %zu has coordinate %d = %g, outside "
+                                   "[%g, %g) on a periodic axis or not finite",
+                                   i, a, x, b->lo[a], b->hi[a]);
+        }
+    return CONSPH_OK;
+}
+
+int reg_remesh_m4(consph_sys *s, const double *lattice, double ds, const char *const *fields,
+                  int nf, size_t *orphans)
+{
+    const consph_field *f[CONSPH_MAX_FIELDS];
+    size_t off[CONSPH_MAX_FIELDS], rows = 0;
+    int rc = remesh_check(s, lattice, ds, fields, nf, f, off, &rows);
+    if (rc) return rc;
+    consph_particles *p = s->p;
+    const size_t n = p->n, cap = p->cap;
+    const int d = p->dim;
+    /* The lattice points and the particles in one system: the lattice points receive the sums,
+     * the particles are their sources. */
+    consph_particles joint;
+    if ((rc = consph_particles_init(&joint, d, 2 * n, &p->box))) return rc;
+    for (int a = 0; a < d; ++a) {
+        memcpy(joint.x[a], lattice + (size_t)a * cap, n * sizeof(double));
+        memcpy(joint.x[a] + n, p->x[a], n * sizeof(double));
+    }
+    consph_kernel k;
+    consph_sys sys;
+    memset(&sys, 0, sizeof sys);
+    double *out = consph_calloc(rows * n + 1, sizeof(double));
+    unsigned char *mask = consph_calloc(2 * n + 1, 1);
+    unsigned char *orphan = consph_calloc(n + 1, 1);
+    if (!out || !mask || !orphan) rc = CONSPH_ENOMEM;
+    if (!rc) rc = consph_kernel_init(&k, CONSPH_KERNEL_M4, d, ds);
+    if (!rc) rc = consph_sys_init(&sys, &joint, &k, 0.0);
+    if (!rc) {
+        sys.parallel_min = s->parallel_min;
+        for (size_t i = 0; i < 2 * n; ++i) mask[i] = sys.origin[i] < n;
+        rc = consph_sys_set_dest(&sys, mask);
+    }
+    if (!rc) {
+        remesh_job job = {sys.origin, n, cap, nf, f, off, out, orphan};
+        const consph_pass pass = {"remesh M4 (001 eq. 33)", CONSPH_PASS_W, remesh_visit};
+        rc = consph_pass_run(&sys, &pass, &job);
+    }
+    if (!rc) {
+        size_t count = 0;
+        for (size_t i = 0; i < n; ++i) count += orphan[i];
+        for (int q = 0; q < nf; ++q)
+            for (int c = 0; c < f[q]->ncomp; ++c) {
+                double *dst = f[q]->data + (size_t)c * cap;
+                const double *src = out + (off[q] + (size_t)c) * n;
+                for (size_t i = 0; i < n; ++i)
+                    if (!orphan[i]) dst[i] = src[i];
+            }
+        for (int a = 0; a < d; ++a) memcpy(p->x[a], lattice + (size_t)a * cap, n * sizeof(double));
+        if (orphans) *orphans = count;
+        rc = consph_sys_update(s, 0);
+    }
+    consph_sys_free(&sys);
+    consph_particles_free(&joint);
+    free(out);
+    free(mask);
+    free(orphan);
+    return rc;
+}
