@@ -21,7 +21,9 @@ static const char run_details[] =
     "With --out DIR: DIR/run.pvd indexing snap_NNNNNN.vtu (every --snapshot-every steps and\n"
     "the last), DIR/log.csv (one row per step), DIR/summary.json, and DIR/checkpoint.ckpt\n"
     "every --checkpoint-every steps. SIGINT/SIGTERM finish the step, write a checkpoint\n"
-    "and exit 130/143; --restart DIR/checkpoint.ckpt continues bit for bit.\n"
+    "and exit 130/143; --restart DIR/checkpoint.ckpt continues bit for bit (the output\n"
+    "options are not in the checkpoint: give --out, --snapshot-every and --checkpoint-every\n"
+    "again).\n"
     "\n"
     "exit status: 0 done, 1 failure, 2 bad usage, 3 the run diverged (the message names\n"
     "the step, the particle, its position and the quantity), 130/143 stopped by a signal";

@@ -44,7 +44,7 @@ static int rates(consph_solver *s, kit_lap lap, unsigned terms)
         /* δu = δr/Δt from the shifting of Sun et al. (001 §5.4 item 4 uses [33]'s PST) */
         du = sv_field(s, SF_SHIFT, d);
         if (!du) return CONSPH_ENOMEM;
-        reg_pst_params pp = {s->h, s->ds, s->prm.cfl, s->prm.U / s->c0, 0.2, 4.0, 0.0};
+        reg_pst_params pp = {s->h, s->ds, s->dt * s->c0 / s->h, s->prm.U / s->c0, 0.2, 4.0, 0.0};
         st = reg_pst_shift(sys, &pp, du);
         if (st != CONSPH_OK) return st;
         ++s->passes;
@@ -162,7 +162,7 @@ static int regularise_pst(consph_solver *s)
     int st = gradients_for_shift(s);
     if (st == CONSPH_OK) st = zeroed_shift(s, &dr);
     if (st != CONSPH_OK) return st;
-    reg_pst_params pp = {s->h, s->ds, s->prm.cfl, s->prm.U / s->c0, 0.2, 4.0, 0.0};
+    reg_pst_params pp = {s->h, s->ds, s->dt * s->c0 / s->h, s->prm.U / s->c0, 0.2, 4.0, 0.0};
     st = reg_pst_shift(&s->sys, &pp, dr);
     if (st == CONSPH_OK) st = reg_move(&s->sys, dr);
     if (st != CONSPH_OK) return st;
