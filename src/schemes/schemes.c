@@ -185,33 +185,118 @@ static int regularise_remesh(consph_solver *s)
     return CONSPH_OK;
 }
 
-static const scheme_def schemes[] = {
-    {"l-ipst-c", "001 §5.1.1: Lagrangian, asym_bc ∇p, div_bc, coupled_bc viscosity, IPST", 1, 0,
-     CONSPH_LAYOUT_PACKED, CONSPH_EOS_TAIT, "rk2", 3, rhs_l_c, regularise_ipst},
-    {"l-ipst-f", "001 §5.1.1: L-IPST-C with the Fatehi_c viscosity (eq. 13)", 1, 0,
-     CONSPH_LAYOUT_PACKED, CONSPH_EOS_TAIT, "rk2", 3, rhs_l_f, regularise_ipst},
-    {"l-ipst-k", "001 §5.1.1: L-IPST-C with the Korzilius viscosity (eqs. 14-15)", 1, 0,
-     CONSPH_LAYOUT_PACKED, CONSPH_EOS_TAIT, "rk2", 3, rhs_l_k, regularise_ipst},
-    {"l-pst-c", "001 §5.4: L-IPST-C with Sun et al.'s non-iterative PST every step (eq. 29)", 1, 0,
-     CONSPH_LAYOUT_PACKED, CONSPH_EOS_TAIT, "rk2", 3, rhs_l_c, regularise_pst},
-    {"pe-ipst-c", "001 §5.4: pressure evolution (eqs. 30-31), linear EOS, IPST", 1, 1,
-     CONSPH_LAYOUT_PACKED, CONSPH_EOS_LINEAR, "rk2", 3, rhs_pe_c, regularise_ipst},
-    {"l-rr-c", "001 §5.4: Lagrangian with M4 remeshing to the lattice every step (eqs. 32-33)", 1,
-     0, CONSPH_LAYOUT_LATTICE, CONSPH_EOS_TAIT, "rk2", 3, rhs_l_c, regularise_remesh},
-    {"tv-c",
-     "001 §5.4: transport velocity δu from Sun et al.'s PST (eqs. 34-35), δ-term, linear "
-     "EOS",
-     1, 0, CONSPH_LAYOUT_PACKED, CONSPH_EOS_LINEAR, "rk2", 4, rhs_tv_c, NULL},
-    {"e-c", "001 §5.4: Eulerian (eq. 36, keeps -u·∇ϱ), δ-term, linear EOS", 0, 0,
-     CONSPH_LAYOUT_LATTICE, CONSPH_EOS_LINEAR, "rk2", 2, rhs_e_c, NULL},
-    {"ewcsph", "Nasar et al. 2019 as 001 runs it: Eulerian, drops -u·∇ϱ, ϱ from p (Tait)", 0, 0,
-     CONSPH_LAYOUT_LATTICE, CONSPH_EOS_TAIT, "rk2", 2, rhs_ewcsph, NULL},
+const scheme_def scheme_l_ipst_c = {
+    .name = "l-ipst-c",
+    .summary = "001 §5.1.1: Lagrangian, asym_bc ∇p, div_bc, coupled_bc viscosity, IPST",
+    .moves = 1,
+    .evolve_p = 0,
+    .layout = CONSPH_LAYOUT_PACKED,
+    .eos = CONSPH_EOS_TAIT,
+    .integrator = "rk2",
+    .passes_min = 3,
+    .rhs = rhs_l_c,
+    .regularise = regularise_ipst};
+const scheme_def scheme_l_ipst_f = {.name = "l-ipst-f",
+                                    .summary =
+                                        "001 §5.1.1: L-IPST-C with the Fatehi_c viscosity (eq. 13)",
+                                    .moves = 1,
+                                    .evolve_p = 0,
+                                    .layout = CONSPH_LAYOUT_PACKED,
+                                    .eos = CONSPH_EOS_TAIT,
+                                    .integrator = "rk2",
+                                    .passes_min = 3,
+                                    .rhs = rhs_l_f,
+                                    .regularise = regularise_ipst};
+const scheme_def scheme_l_ipst_k = {
+    .name = "l-ipst-k",
+    .summary = "001 §5.1.1: L-IPST-C with the Korzilius viscosity (eqs. 14-15)",
+    .moves = 1,
+    .evolve_p = 0,
+    .layout = CONSPH_LAYOUT_PACKED,
+    .eos = CONSPH_EOS_TAIT,
+    .integrator = "rk2",
+    .passes_min = 3,
+    .rhs = rhs_l_k,
+    .regularise = regularise_ipst};
+const scheme_def scheme_l_pst_c = {
+    .name = "l-pst-c",
+    .summary = "001 §5.4: L-IPST-C with Sun et al.'s non-iterative PST every step (eq. 29)",
+    .moves = 1,
+    .evolve_p = 0,
+    .layout = CONSPH_LAYOUT_PACKED,
+    .eos = CONSPH_EOS_TAIT,
+    .integrator = "rk2",
+    .passes_min = 3,
+    .rhs = rhs_l_c,
+    .regularise = regularise_pst};
+const scheme_def scheme_pe_ipst_c = {
+    .name = "pe-ipst-c",
+    .summary = "001 §5.4: pressure evolution (eqs. 30-31), linear EOS, IPST",
+    .moves = 1,
+    .evolve_p = 1,
+    .layout = CONSPH_LAYOUT_PACKED,
+    .eos = CONSPH_EOS_LINEAR,
+    .integrator = "rk2",
+    .passes_min = 3,
+    .rhs = rhs_pe_c,
+    .regularise = regularise_ipst};
+const scheme_def scheme_l_rr_c = {
+    .name = "l-rr-c",
+    .summary = "001 §5.4: Lagrangian with M4 remeshing to the lattice every step (eqs. 32-33)",
+    .moves = 1,
+    .evolve_p = 0,
+    .layout = CONSPH_LAYOUT_LATTICE,
+    .eos = CONSPH_EOS_TAIT,
+    .integrator = "rk2",
+    .passes_min = 3,
+    .rhs = rhs_l_c,
+    .regularise = regularise_remesh};
+const scheme_def scheme_tv_c = {
+    .name = "tv-c",
+    .summary =
+        "001 §5.4: transport velocity δu from Sun et al.'s PST (eqs. 34-35), δ-term, linear EOS",
+    .moves = 1,
+    .evolve_p = 0,
+    .layout = CONSPH_LAYOUT_PACKED,
+    .eos = CONSPH_EOS_LINEAR,
+    .integrator = "rk2",
+    .passes_min = 4,
+    .rhs = rhs_tv_c,
+    .regularise = NULL};
+const scheme_def scheme_e_c = {.name = "e-c",
+                               .summary =
+                                   "001 §5.4: Eulerian (eq. 36, keeps -u·∇ϱ), δ-term, linear EOS",
+                               .moves = 0,
+                               .evolve_p = 0,
+                               .layout = CONSPH_LAYOUT_LATTICE,
+                               .eos = CONSPH_EOS_LINEAR,
+                               .integrator = "rk2",
+                               .passes_min = 2,
+                               .rhs = rhs_e_c,
+                               .regularise = NULL};
+const scheme_def scheme_ewcsph = {
+    .name = "ewcsph",
+    .summary = "Nasar et al. 2019 as 001 runs it: Eulerian, drops -u·∇ϱ, ϱ from p (Tait)",
+    .moves = 0,
+    .evolve_p = 0,
+    .layout = CONSPH_LAYOUT_LATTICE,
+    .eos = CONSPH_EOS_TAIT,
+    .integrator = "rk2",
+    .passes_min = 2,
+    .rhs = rhs_ewcsph,
+    .regularise = NULL};
+
+/* The table, in the order consph_scheme_names lists; a scheme family in its own file adds its
+ * rows here (their definitions are declared in solver_internal.h). */
+static const scheme_def *const schemes[] = {
+    &scheme_l_ipst_c, &scheme_l_ipst_f, &scheme_l_ipst_k, &scheme_l_pst_c, &scheme_pe_ipst_c,
+    &scheme_l_rr_c,   &scheme_tv_c,     &scheme_e_c,      &scheme_ewcsph,
 };
 
 const scheme_def *scheme_find(const char *name)
 {
     for (size_t k = 0; k < sizeof schemes / sizeof schemes[0]; ++k)
-        if (strcmp(schemes[k].name, name) == 0) return &schemes[k];
+        if (strcmp(schemes[k]->name, name) == 0) return schemes[k];
     return NULL;
 }
 
