@@ -114,6 +114,10 @@ double *sv_field(consph_solver *s, const char *name, int ncomp)
 
 void solver_eos(consph_solver *s)
 {
+    if (s->scheme->closure) {
+        s->scheme->closure(s);
+        return;
+    }
     consph_particles *p = s->sys.p;
     double *rhof = sv_field(s, SF_RHOF, 1), *pr = sv_field(s, SF_P, 1);
     const double c2 = s->c0 * s->c0, r0 = s->prm.rho0, g = s->prm.gamma;

@@ -81,6 +81,10 @@ typedef struct scheme_def {
     int (*rhs)(consph_solver *s);
     /* After a full step (NULL: none). */
     int (*regularise)(consph_solver *s);
+    /* After every stage, in place of 001's closure (p from ϱ by the EOS, or ϱ from p by
+     * eq. 31 for evolve_p): a scheme whose density is a summation, or whose pressure is
+     * evolved with its own relation, sets its state here (NULL: 001's). */
+    void (*closure)(consph_solver *s);
 } scheme_def;
 
 const scheme_def *scheme_find(const char *name);
