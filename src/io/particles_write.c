@@ -180,7 +180,9 @@ static int write_zlib(FILE *fp, const consph_particles *p, const vtu_array *a, u
 {
     uint64_t nbytes = (uint64_t)p->n * (uint64_t)a->ncomp * a->esize;
     uint64_t nblocks = (nbytes + VTU_BLOCK - 1) / VTU_BLOCK;
-    uint64_t *head = malloc((size_t)(3 + nblocks) * sizeof *head);
+    /* zeroed: the block sizes are placeholders until rewritten below, and a placeholder of
+     * heap garbage would still reach the file system (valgrind flags it) */
+    uint64_t *head = calloc((size_t)(3 + nblocks), sizeof *head);
     if (!head) return consph_fail(CONSPH_ENOMEM, "out of memory");
     head[0] = nblocks;
     head[1] = VTU_BLOCK;
