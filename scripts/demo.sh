@@ -26,5 +26,5 @@ say "... and the uncorrected symmetric form sym2: on packed particles its error 
 say "Taylor-Green convergence (001 Table 9 at 20, 30, 40 particles per side, t = 0.1, c_o = 80): L-IPST-C against E-C and EWCSPH; about a minute" \
   "$consph" study "$(dirname "$0")/../studies/demo-tgv.study" --quick --out "$out"
 printf '\n'
-sed -n '/^| series/,/^$/p' "$out/demo-tgv/tgv.md"
+sed -n '/^| series/,/^$/{p;/^$/q;}' "$out/demo-tgv/tgv.md"
 printf "\nThe Taylor-Green report is %s/demo-tgv/README.md, its figure %s/demo-tgv/tgv.svg (L1 of\nvelocity and pressure against resolution, 001 eq. 26). Particle files are in %s (open the\n.vtu files in ParaView).\n" "$out" "$out" "$out"
