@@ -284,10 +284,11 @@ static int write_report(const consph_study *s, const study_figure *f, int quick,
         flagged |= order_cell(s, f, r, "paper.order_u", ou, tu, cu, sizeof cu);
         flagged |= order_cell(s, f, r, "paper.order_p", op, tp, cp, sizeof cp);
         fprintf(o,
-                "| %s | %s | %g | %.3e (nx=%g) | %s | %s | %s | %.3e | %s | %s | %s | %.2e | %s | "
-                "%.2f | %s |\n",
+                "| %s | %s | %g | %.3e (nx=%g%s) | %s | %s | %s | %.3e | %s | %s | %s | %.2e | %s "
+                "| %.2f | %s |\n",
                 r->label, plans[k].prm.scheme, last->sum.c0, last->sum.l1_u,
-                plans[k].nx[plans[k].nnx - 1], study_get_or(s, f, r, "paper.l1_u", "—"), cu,
+                plans[k].nx[plans[k].nnx - 1], last->status ? ", diverged" : "",
+                study_get_or(s, f, r, "paper.l1_u", "—"), cu,
                 study_get_or(s, f, r, "paper.order_u", "—"), last->sum.l1_p,
                 study_get_or(s, f, r, "paper.l1_p", "—"), cp,
                 study_get_or(s, f, r, "paper.order_p", "—"), last->sum.ft_fmax,
