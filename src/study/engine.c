@@ -15,13 +15,10 @@
 #include "consph/transport.h"
 #include "study/study_internal.h"
 
-#define MAX_SWEEP 64
-/* Room for any output path: the CLI refuses --out directories that would not fit. */
-#define STUDY_PATH_MAX 4096
 /* Timings behind T_r (the operator at a series' finest resolution) and their median. */
 #define TR_TIMINGS 5
 
-typedef enum fig_kind { KIND_APPROX, KIND_M0, KIND_APPC, KIND_CAUCHY } fig_kind;
+typedef enum fig_kind { KIND_APPROX, KIND_M0, KIND_APPC, KIND_CAUCHY, KIND_RUN } fig_kind;
 
 /* Everything needed to run one series, parsed from its keys. */
 typedef struct series_plan {
@@ -59,8 +56,8 @@ static double resolution_of(const consph_particles *p)
 
 /* ---- small helpers ---- */
 
-static int key_error(const consph_study *s, const study_figure *f, const study_series *r,
-                     const char *key, const char *fmt, ...)
+int study_key_error(const consph_study *s, const study_figure *f, const study_series *r,
+                    const char *key, const char *fmt, ...)
 {
     char msg[512];
     va_list ap;
@@ -71,8 +68,8 @@ static int key_error(const consph_study *s, const study_figure *f, const study_s
                        study_line(s, f, r, key), f->id, r ? r->label : "-", key, msg);
 }
 
-static int get_double(const consph_study *s, const study_figure *f, const study_series *r,
-                      const char *key, double def, double lo, double hi, double *out)
+int study_get_double(const consph_study *s, const study_figure *f, const study_series *r,
+                     const char *key, double def, double lo, double hi, double *out)
 {
     const char *v = study_get(s, f, r, key);
     if (!v) {
@@ -83,13 +80,13 @@ static int get_double(const consph_study *s, const study_figure *f, const study_
     errno = 0;
     double d = strtod(v, &end);
     if (end == v || *end || errno || !isfinite(d) || d < lo || d > hi)
-        return key_error(s, f, r, key, "'%s' is not a number in [%g, %g]", v, lo, hi);
+        return study_key_error(s, f, r, key, "'%s' is not a number in [%g, %g]", v, lo, hi);
     *out = d;
     return CONSPH_OK;
 }
 
-static int get_list(const consph_study *s, const study_figure *f, const study_series *r,
-                    const char *key, double lo, double hi, double *vals, int *n)
+int study_get_list(const consph_study *s, const study_figure *f, const study_series *r,
+                   const char *key, double lo, double hi, double *vals, int *n)
 {
     const char *v = study_get(s, f, r, key);
     *n = 0;
@@ -102,15 +99,16 @@ static int get_list(const consph_study *s, const study_figure *f, const study_se
         double d = strtod(t, &end);
         while (*end == ' ') ++end;
         if (end == t || *end || !isfinite(d) || d < lo || d > hi)
-            return key_error(s, f, r, key, "'%s' is not a list of numbers in [%g, %g]", v, lo, hi);
-        if (*n == MAX_SWEEP) return key_error(s, f, r, key, "more than %d values", MAX_SWEEP);
+            return study_key_error(s, f, r, key, "'%s' is not a list of numbers in [%g, %g]", v, lo,
+                                   hi);
+        if (*n == MAX_SWEEP) return study_key_error(s, f, r, key, "more than %d values", MAX_SWEEP);
         vals[(*n)++] = d;
     }
     return CONSPH_OK;
 }
 
-static int get_choice(const consph_study *s, const study_figure *f, const study_series *r,
-                      const char *key, const char *const *choices, int def, int *out)
+int study_get_choice(const consph_study *s, const study_figure *f, const study_series *r,
+                     const char *key, const char *const *choices, int def, int *out)
 {
     const char *v = study_get(s, f, r, key);
     if (!v) {
@@ -126,7 +124,7 @@ static int get_choice(const consph_study *s, const study_figure *f, const study_
         snprintf(allowed + strlen(allowed), sizeof allowed - strlen(allowed), "%s%s", k ? ", " : "",
                  choices[k]);
     }
-    return key_error(s, f, r, key, "unknown value '%s'; allowed: %s", v, allowed);
+    return study_key_error(s, f, r, key, "unknown value '%s'; allowed: %s", v, allowed);
 }
 
 static fig_kind figure_kind(const consph_study *s, const study_figure *f)
@@ -135,6 +133,7 @@ static fig_kind figure_kind(const consph_study *s, const study_figure *f)
     if (k && strcmp(k, "m0") == 0) return KIND_M0;
     if (k && strcmp(k, "appc") == 0) return KIND_APPC;
     if (k && strcmp(k, "cauchy") == 0) return KIND_CAUCHY;
+    if (k && strcmp(k, "run") == 0) return KIND_RUN;
     return KIND_APPROX;
 }
 
@@ -183,31 +182,32 @@ static int build_plan(const consph_study *s, const study_figure *f, const study_
     memset(pl, 0, sizeof *pl);
     int rc, ikind, iop, ipol, ilay, iper, imask, isweep, ibound, ivol, dummy;
     double dim, hdx, match, eps, seed, sigma, tol, iters, beta;
-    if ((rc = get_choice(s, f, r, "kind", kinds, 0, &ikind))) return rc;
-    if ((rc = get_choice(s, f, r, "op", ops, 0, &iop))) return rc;
-    if ((rc = get_choice(s, f, r, "h_policy", policies, 0, &ipol))) return rc;
-    if ((rc = get_choice(s, f, r, "layout", layouts, 0, &ilay))) return rc;
-    if ((rc = get_choice(s, f, r, "periodic", yesno, 0, &iper))) return rc;
-    if ((rc = get_choice(s, f, r, "mask", masks, 0, &imask))) return rc;
-    if ((rc = get_choice(s, f, r, "sweep", sweeps, 0, &isweep))) return rc;
-    if ((rc = get_choice(s, f, r, "bound", bounds, 0, &ibound))) return rc;
-    if ((rc = get_choice(s, f, r, "norm", norms, 0, &dummy))) return rc;
-    if ((rc = get_choice(s, f, r, "x", xs, 0, &dummy))) return rc;
-    if ((rc = get_choice(s, f, r, "volume", volumes, ikind == KIND_M0 ? 2 : 1, &ivol))) return rc;
-    if ((rc = get_double(s, f, r, "dim", ikind == KIND_APPC ? 1 : 2, 1, 3, &dim))) return rc;
-    if (dim != floor(dim)) return key_error(s, f, r, "dim", "must be 1, 2 or 3");
-    if ((rc = get_double(s, f, r, "hdx", 1.2, 0.01, 100, &hdx))) return rc;
-    if ((rc = get_double(s, f, r, "match_support", 0, 0, 100, &match))) return rc;
-    if ((rc = get_double(s, f, r, "beta", 0, 0, 1e3, &beta))) return rc;
+    if ((rc = study_get_choice(s, f, r, "kind", kinds, 0, &ikind))) return rc;
+    if ((rc = study_get_choice(s, f, r, "op", ops, 0, &iop))) return rc;
+    if ((rc = study_get_choice(s, f, r, "h_policy", policies, 0, &ipol))) return rc;
+    if ((rc = study_get_choice(s, f, r, "layout", layouts, 0, &ilay))) return rc;
+    if ((rc = study_get_choice(s, f, r, "periodic", yesno, 0, &iper))) return rc;
+    if ((rc = study_get_choice(s, f, r, "mask", masks, 0, &imask))) return rc;
+    if ((rc = study_get_choice(s, f, r, "sweep", sweeps, 0, &isweep))) return rc;
+    if ((rc = study_get_choice(s, f, r, "bound", bounds, 0, &ibound))) return rc;
+    if ((rc = study_get_choice(s, f, r, "norm", norms, 0, &dummy))) return rc;
+    if ((rc = study_get_choice(s, f, r, "x", xs, 0, &dummy))) return rc;
+    if ((rc = study_get_choice(s, f, r, "volume", volumes, ikind == KIND_M0 ? 2 : 1, &ivol)))
+        return rc;
+    if ((rc = study_get_double(s, f, r, "dim", ikind == KIND_APPC ? 1 : 2, 1, 3, &dim))) return rc;
+    if (dim != floor(dim)) return study_key_error(s, f, r, "dim", "must be 1, 2 or 3");
+    if ((rc = study_get_double(s, f, r, "hdx", 1.2, 0.01, 100, &hdx))) return rc;
+    if ((rc = study_get_double(s, f, r, "match_support", 0, 0, 100, &match))) return rc;
+    if ((rc = study_get_double(s, f, r, "beta", 0, 0, 1e3, &beta))) return rc;
     if (ipol == CONSPH_H_BETA && !(beta > dim))
-        return key_error(s, f, r, "beta", "h_policy = beta needs beta > dim = %g (004: β > n)",
-                         dim);
-    if ((rc = get_double(s, f, r, "eps", 0.2, 0, 2, &eps))) return rc;
-    if ((rc = get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) return rc;
-    if ((rc = get_double(s, f, r, "sigma", 0.1, 1e-9, 10, &sigma))) return rc;
-    if ((rc = get_double(s, f, r, "pack_tol", 1e-4, 1e-12, 1, &tol))) return rc;
+        return study_key_error(s, f, r, "beta",
+                               "h_policy = beta needs beta > dim = %g (004: β > n)", dim);
+    if ((rc = study_get_double(s, f, r, "eps", 0.2, 0, 2, &eps))) return rc;
+    if ((rc = study_get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) return rc;
+    if ((rc = study_get_double(s, f, r, "sigma", 0.1, 1e-9, 10, &sigma))) return rc;
+    if ((rc = study_get_double(s, f, r, "pack_tol", 1e-4, 1e-12, 1, &tol))) return rc;
     const int iters_def = consph_layout_defaults((consph_layout_kind)ilay, 2, 10).packing.max_iter;
-    if ((rc = get_double(s, f, r, "pack_iter", iters_def, 1, 1e7, &iters))) return rc;
+    if ((rc = study_get_double(s, f, r, "pack_iter", iters_def, 1, 1e7, &iters))) return rc;
 
     consph_approx_spec *sp = &pl->spec;
     *sp = consph_approx_defaults((int)dim);
@@ -215,11 +215,11 @@ static int build_plan(const consph_study *s, const study_figure *f, const study_
     const char *corr = study_get(s, f, r, "corr");
     if (consph_op_parse(ops[iop], form ? form : default_form[iop], corr ? corr : "none", (int)dim,
                         &sp->op) != CONSPH_OK)
-        return key_error(s, f, r, "form", "%s", consph_last_error());
+        return study_key_error(s, f, r, "form", "%s", consph_last_error());
     pl->kernel_name = study_get(s, f, r, "kernel");
     if (!pl->kernel_name) pl->kernel_name = "quintic";
     if (ikind != KIND_APPC && consph_kernel_lookup(pl->kernel_name, &sp->kernel) != CONSPH_OK)
-        return key_error(s, f, r, "kernel", "%s", consph_last_error());
+        return study_key_error(s, f, r, "kernel", "%s", consph_last_error());
     if (match > 0) hdx *= match / consph_kernel_info_get(sp->kernel)->support;
     sp->hdx = hdx;
     sp->h_policy = (consph_h_policy)ipol;
@@ -233,30 +233,32 @@ static int build_plan(const consph_study *s, const study_figure *f, const study_
     const char *field = study_get(s, f, r, "field");
     if (!field) field = iop == 2 ? "tgv" : "sin2pi";
     if (consph_mfield_lookup(field, &sp->field) != CONSPH_OK)
-        return key_error(s, f, r, "field", "%s", consph_last_error());
+        return study_key_error(s, f, r, "field", "%s", consph_last_error());
     sp->field_params.sigma = sigma;
     sp->volume = (consph_volume_kind)ivol;
     sp->interior_only = imask == 0;
     pl->bound = ibound;
     if (ikind == KIND_APPROX && consph_approx_check(sp) != CONSPH_OK)
-        return key_error(s, f, r, "op", "%s", consph_last_error());
+        return study_key_error(s, f, r, "op", "%s", consph_last_error());
 
     double nxs[MAX_SWEEP];
     int nnx = 0;
     if (quick) {
-        if ((rc = get_list(s, f, r, "quick.nx", 2, 1e5, nxs, &nnx))) return rc;
+        if ((rc = study_get_list(s, f, r, "quick.nx", 2, 1e5, nxs, &nnx))) return rc;
     }
-    if (nnx == 0 && (rc = get_list(s, f, r, "nx", 2, 1e5, nxs, &nnx))) return rc;
-    if (nnx == 0) return key_error(s, f, r, "nx", "no resolutions given");
+    if (nnx == 0 && (rc = study_get_list(s, f, r, "nx", 2, 1e5, nxs, &nnx))) return rc;
+    if (nnx == 0) return study_key_error(s, f, r, "nx", "no resolutions given");
     pl->sweep_hdx = isweep == 1 || ikind == KIND_APPC;
     if (pl->sweep_hdx) {
         const char *key = ikind == KIND_APPC ? "hdelta.values" : "hdx.values";
         char qkey[64];
         snprintf(qkey, sizeof qkey, "quick.%s", key);
-        if (quick && (rc = get_list(s, f, r, qkey, 1e-3, 100, pl->values, &pl->nvalues))) return rc;
-        if (pl->nvalues == 0 && (rc = get_list(s, f, r, key, 1e-3, 100, pl->values, &pl->nvalues)))
+        if (quick && (rc = study_get_list(s, f, r, qkey, 1e-3, 100, pl->values, &pl->nvalues)))
             return rc;
-        if (pl->nvalues == 0) return key_error(s, f, r, key, "no values given");
+        if (pl->nvalues == 0 &&
+            (rc = study_get_list(s, f, r, key, 1e-3, 100, pl->values, &pl->nvalues)))
+            return rc;
+        if (pl->nvalues == 0) return study_key_error(s, f, r, key, "no values given");
         pl->nx_fixed = (size_t)nxs[0];
     } else {
         memcpy(pl->values, nxs, sizeof(double) * (size_t)nnx);
@@ -350,11 +352,18 @@ static int has_key(const study_kvlist *l, const char *key)
 }
 
 /* A figure's own note: the study's note is printed once, in the study README. */
-static const char *figure_note(const study_figure *f)
+const char *study_figure_note(const study_figure *f)
 {
     for (int k = 0; k < f->keys.n; ++k)
         if (strcmp(f->keys.items[k].key, "note") == 0) return f->keys.items[k].value;
     return NULL;
+}
+
+void study_report_head(FILE *o, const consph_study *s, const study_figure *f)
+{
+    fprintf(o, "## %s: %s\n\n", f->id, study_get_or(s, f, NULL, "title", f->id));
+    const char *note = study_figure_note(f);
+    if (note) fprintf(o, "%s\n\n", note);
 }
 
 /* Every published value (paper.*) of every series, for figures whose tables have no paper
@@ -385,7 +394,7 @@ static int plan_particles(const series_plan *pl, int j, const study_files *files
     return cache_get(cache, &lp, p, &lsec, log);
 }
 
-static void published_values(const consph_study *s, const study_figure *f, FILE *o)
+void study_published_values(const consph_study *s, const study_figure *f, FILE *o)
 {
     int any = 0;
     for (int r = 0; r < f->nseries; ++r) {
@@ -411,12 +420,19 @@ static void published_values(const consph_study *s, const study_figure *f, FILE 
 }
 
 /* DIR/NAME.EXT into buf (STUDY_PATH_MAX bytes), refused rather than truncated. */
-static int out_path(char *buf, const char *dir, const char *name, const char *ext)
+int study_out_path(char *buf, const char *dir, const char *name, const char *ext)
 {
     int n = snprintf(buf, STUDY_PATH_MAX, "%s/%s%s", dir, name, ext);
     if (n < 0 || n >= STUDY_PATH_MAX)
         return consph_fail(CONSPH_EINVAL, "output path '%s/%s%s' is too long", dir, name, ext);
     return CONSPH_OK;
+}
+
+int study_open_output(consph_outfile *of, const char *dir, const char *id, const char *ext)
+{
+    char path[STUDY_PATH_MAX];
+    int rc = study_out_path(path, dir, id, ext);
+    return rc ? rc : consph_outfile_open(of, path);
 }
 
 /* Creates `path` and its missing parents; *created is the length of the shortest prefix of
@@ -453,7 +469,7 @@ static void remove_created(const char *dir, size_t created)
         char path[STUDY_PATH_MAX];
         while ((e = readdir(d)))
             if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..") &&
-                out_path(path, dir, e->d_name, "") == CONSPH_OK)
+                study_out_path(path, dir, e->d_name, "") == CONSPH_OK)
                 remove(path);
         closedir(d);
     }
@@ -478,15 +494,15 @@ static double x_value(const consph_approx_row *r, double nx, const char *x, int 
     return nx;
 }
 
-static const char *get_or(const consph_study *s, const study_figure *f, const study_series *r,
-                          const char *key, const char *def)
+const char *study_get_or(const consph_study *s, const study_figure *f, const study_series *r,
+                         const char *key, const char *def)
 {
     const char *v = study_get(s, f, r, key);
     return v ? v : def;
 }
 
 /* A CSV-safe copy of a label (no commas or quotes). */
-static const char *csv_label(const char *label, char *buf, size_t size)
+const char *study_csv_label(const char *label, char *buf, size_t size)
 {
     snprintf(buf, size, "%s", label);
     for (char *c = buf; *c; ++c)
@@ -494,7 +510,7 @@ static const char *csv_label(const char *label, char *buf, size_t size)
     return buf;
 }
 
-static int have_gnuplot(void)
+int study_have_gnuplot(void)
 {
     static int cached = -1;
     if (cached < 0) cached = system("command -v gnuplot >/dev/null 2>&1") == 0;
@@ -504,7 +520,7 @@ static int have_gnuplot(void)
 /* Writes `text` to a gnuplot script as a single-quoted string, the one form gnuplot never
  * interprets (no backquote commands, macros or escapes; '' is a quote). Every user string that
  * meets gnuplot goes through here; control characters cannot be quoted and are refused. */
-static int gp_put(FILE *o, const char *text)
+int study_gp_put(FILE *o, const char *text)
 {
     for (const char *c = text; *c; ++c)
         if ((unsigned char)*c < 0x20 || *c == 0x7f)
@@ -522,23 +538,23 @@ static int gp_put(FILE *o, const char *text)
 
 /* The head of every figure script: SVG into `outfile` (ID.svg unless the caller sets it, so the
  * script also runs by hand) and a title. */
-static int gp_head(FILE *o, const char *id, const char *title)
+int study_gp_head(FILE *o, const char *id, const char *title)
 {
     fprintf(o,
             "set terminal svg size 900,640 dynamic\nif (!exists('outfile')) outfile = '%s.svg'\n"
             "set output outfile\nset title ",
             id);
-    int rc = gp_put(o, title);
+    int rc = study_gp_put(o, title);
     fprintf(o, " noenhanced\nset grid\nset key outside right noenhanced\n");
     return rc;
 }
 
 /* Draws DIR/ID.gp into DIR/ID.svg through a temporary file, so that a figure either is drawn
  * whole or leaves no SVG; gnuplot failing is an error. Without gnuplot: a warning, once. */
-static int render_figure(const char *dir, const char *id)
+int study_render_figure(const char *dir, const char *id)
 {
     static int warned;
-    if (!have_gnuplot()) {
+    if (!study_have_gnuplot()) {
         if (!warned)
             fprintf(stderr,
                     "consph study: warning: gnuplot not found, so figures are left as "
@@ -551,13 +567,13 @@ static int render_figure(const char *dir, const char *id)
     char tmp_name[STUDY_PATH_MAX / 4];
     snprintf(tmp_name, sizeof tmp_name, "%s.svg.tmp.%ld", id, (long)getpid());
     snprintf(script, sizeof script, "%s.gp", id);
-    int rc = out_path(tmp, dir, tmp_name, "");
-    if (rc == CONSPH_OK) rc = out_path(final, dir, id, ".svg");
+    int rc = study_out_path(tmp, dir, tmp_name, "");
+    if (rc == CONSPH_OK) rc = study_out_path(final, dir, id, ".svg");
     if (rc) return rc;
     FILE *mem = fmemopen(setout, sizeof setout, "w");
     if (!mem) return consph_fail(CONSPH_ENOMEM, "out of memory");
     fprintf(mem, "outfile = ");
-    rc = gp_put(mem, tmp_name);
+    rc = study_gp_put(mem, tmp_name);
     fclose(mem);
     if (rc) return rc;
     fflush(NULL);
@@ -608,8 +624,8 @@ static void paper_columns(const consph_study *s, const study_figure *f, const st
 }
 
 /* A published value that is a plain number (many are prose: "~2 (SOC)"). */
-static int paper_number(const consph_study *s, const study_figure *f, const study_series *r,
-                        const char *key, double *out)
+int study_paper_number(const consph_study *s, const study_figure *f, const study_series *r,
+                       const char *key, double *out)
 {
     const char *v = study_get(s, f, r, key);
     if (!v) return 0;
@@ -620,8 +636,6 @@ static int paper_number(const consph_study *s, const study_figure *f, const stud
     return 1;
 }
 
-/* Orders further than this from the paper's are flagged in the report. */
-#define ORDER_TOLERANCE 0.3
 /* Series whose published value is drawn (the rest still appear in the report). */
 #define MAX_SERIES_POINTS 64
 
@@ -632,12 +646,13 @@ static int paper_point(const consph_study *s, const study_figure *f, const study
                        const char *xname, const char *norm, double *x, double *y)
 {
     if (strcmp(xname, "nbr") == 0) return 0;
-    if (!(strcmp(norm, "l1") == 0 && paper_number(s, f, r, "paper.l1", y)) &&
-        !paper_number(s, f, r, "paper.error", y))
+    if (!(strcmp(norm, "l1") == 0 && study_paper_number(s, f, r, "paper.l1", y)) &&
+        !study_paper_number(s, f, r, "paper.error", y))
         return 0;
     double nxs[MAX_SWEEP];
     int n = 0;
-    if (get_list(s, f, r, "nx", 2, 1e5, nxs, &n) != CONSPH_OK || n == 0 || !(*y > 0)) return 0;
+    if (study_get_list(s, f, r, "nx", 2, 1e5, nxs, &n) != CONSPH_OK || n == 0 || !(*y > 0))
+        return 0;
     *x = nxs[n - 1];
     return 1;
 }
@@ -655,16 +670,15 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
                                 const series_plan *plans, const series_result *res, const char *dir,
                                 int quick, const study_files *files, FILE *log)
 {
-    const char *norm = get_or(s, f, NULL, "norm", "l1");
-    const char *xname = get_or(s, f, NULL, "x", "nx");
+    const char *norm = study_get_or(s, f, NULL, "norm", "l1");
+    const char *xname = study_get_or(s, f, NULL, "x", "nx");
     int sweep_hdx = plans[0].sweep_hdx;
     int dim = plans[0].spec.layout.dim;
-    char path[STUDY_PATH_MAX], label[256];
+    char label[256];
 
     /* CSV: one row per measurement. */
     consph_outfile of;
-    int rc = out_path(path, dir, f->id, ".csv");
-    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
+    int rc = study_open_output(&of, dir, f->id, ".csv");
     if (rc) return rc;
     fprintf(of.fp, "series,sweep,kernel,hdx,form,corr,layout,field,nx,n,h,nbr_mean,l1,l2,linf,"
                    "mae,ft_over_fmax,seconds,fallbacks,bound\n");
@@ -679,11 +693,11 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
             else
                 snprintf(layout_text, sizeof layout_text, "%s",
                          consph_layout_name(pl->spec.layout.kind));
-            csv_label(layout_text, layout, sizeof layout);
+            study_csv_label(layout_text, layout, sizeof layout);
             fprintf(of.fp,
                     "%s,%g,%s,%g,%s,%s,%s,%s,%zu,%zu,%.10g,%.6g,%.6e,%.6e,%.6e,%.6e,%.6e,%.6g,"
                     "%zu,%.6e\n",
-                    csv_label(f->series[k].label, label, sizeof label), pl->values[j],
+                    study_csv_label(f->series[k].label, label, sizeof label), pl->values[j],
                     pl->kernel_name, sweep_hdx ? pl->values[j] : pl->spec.hdx,
                     consph_form_name(pl->spec.op.form), consph_corr_name(pl->spec.op.corr), layout,
                     consph_mfield_name(pl->spec.field), w->nx, w->n, w->h, w->nbr_mean, w->err.l1,
@@ -719,14 +733,12 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     }
 
     /* Markdown report. */
-    if ((rc = out_path(path, dir, f->id, ".md")) || (rc = consph_outfile_open(&of, path))) {
+    if ((rc = study_open_output(&of, dir, f->id, ".md"))) {
         free(fits);
         return rc;
     }
     FILE *o = of.fp;
-    fprintf(o, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
-    const char *note = figure_note(f);
-    if (note) fprintf(o, "%s\n\n", note);
+    study_report_head(o, s, f);
     const consph_approx_spec *sp = &plans[0].spec;
     fprintf(o,
             "Run: %s resolutions; op `%s`, layout `%s`, dim %d, periodic %s, field `%s`, "
@@ -769,7 +781,7 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
             char ord[sizeof fits[k].text + 8];
             double paper;
             int off = fits[k].status == CONSPH_SERIES_ORDER &&
-                      paper_number(s, f, r, "paper.order", &paper) &&
+                      study_paper_number(s, f, r, "paper.order", &paper) &&
                       fabs(fits[k].fit.order - paper) > ORDER_TOLERANCE;
             snprintf(ord, sizeof ord, "%s%s", fits[k].text, off ? " ⚠" : "");
             flagged |= off;
@@ -778,12 +790,12 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
             paper_columns(s, f, r, other, sizeof other);
             if (!no_force) snprintf(ft, sizeof ft, "%.2e", last->ft_over_fmax);
             fprintf(o, "| %s | %s | %s | %.3e (nx=%zu) | %s | %s | %s |", r->label, ord,
-                    get_or(s, f, r, "paper.order", "—"), norm_value(last, norm), last->nx,
-                    get_or(s, f, r, "paper.l1", get_or(s, f, r, "paper.error", "—")), ft,
-                    no_force ? "" : get_or(s, f, r, "paper.ft", "—"));
+                    study_get_or(s, f, r, "paper.order", "—"), norm_value(last, norm), last->nx,
+                    study_get_or(s, f, r, "paper.l1", study_get_or(s, f, r, "paper.error", "—")),
+                    ft, no_force ? "" : study_get_or(s, f, r, "paper.ft", "—"));
             if (tr)
                 fprintf(o, " %.2f | %s |", last->seconds / t_first,
-                        get_or(s, f, r, "paper.tr", "—"));
+                        study_get_or(s, f, r, "paper.tr", "—"));
             fprintf(o, " %zu | %s |\n", fb, other);
         }
         fprintf(o, "\n");
@@ -799,7 +811,7 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
         if (no_force)
             fprintf(o, "F_T/F_max is left blank: a function interpolation exerts no force.\n\n");
     }
-    if (sweep_hdx) published_values(s, f, o);
+    if (sweep_hdx) study_published_values(s, f, o);
     fprintf(o, "<details><summary>every measurement</summary>\n\n");
     fprintf(o,
             "| series | %s | nx | N | h | neighbours | l1 | l2 | linf | mae | F_T/F_max | "
@@ -820,13 +832,12 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
             fprintf(o, "\n");
         }
     fprintf(o, "\n</details>\n\n");
-    if (have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
+    if (study_have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
     free(fits);
     if ((rc = consph_outfile_commit(&of))) return rc;
 
     /* Plot data, one gnuplot index block per series, and the script. */
-    if ((rc = out_path(path, dir, f->id, ".dat"))) return rc;
-    if ((rc = consph_outfile_open(&of, path))) return rc;
+    if ((rc = study_open_output(&of, dir, f->id, ".dat"))) return rc;
     for (int k = 0; k < f->nseries; ++k) {
         fprintf(of.fp, "# %s\n", f->series[k].label);
         for (int j = 0; j < res[k].nrows; ++j)
@@ -836,10 +847,9 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
         fprintf(of.fp, "\n\n");
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
-    if ((rc = out_path(path, dir, f->id, ".gp"))) return rc;
-    if ((rc = consph_outfile_open(&of, path))) return rc;
+    if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
     o = of.fp;
-    rc = gp_head(o, f->id, get_or(s, f, NULL, "title", f->id));
+    rc = study_gp_head(o, f->id, study_get_or(s, f, NULL, "title", f->id));
     fprintf(o, "set logscale xy\nset format y '%%g'\nset xlabel '%s'\nset ylabel '%s error'\n",
             strcmp(xname, "nbr") == 0 ? "neighbours" : "particles per axis", norm);
     /* A slope -2 guide (second-order convergence in the particle spacing), half a step below
@@ -868,7 +878,7 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
         fprintf(o, "%s '%s.dat' index %d using 1:2 with linespoints lc %d title ",
                 k ? ", \\\n    " : " ", f->id, k, k + 1);
-        rc = gp_put(o, f->series[k].label);
+        rc = study_gp_put(o, f->series[k].label);
     }
     /* One key entry for every paper point: the colour says which series. */
     int keyed = 0;
@@ -890,7 +900,7 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
         return rc;
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
-    if ((rc = render_figure(dir, f->id))) return rc;
+    if ((rc = study_render_figure(dir, f->id))) return rc;
     if (failure[0]) return consph_fail(CONSPH_ENUMERIC, "%s", failure);
     return CONSPH_OK;
 }
@@ -1041,10 +1051,10 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
     int rc = build_plan(s, f, r, quick, &pl);
     if (rc) return rc;
     double nbins_d, lo = 0.9, hi = 1.1;
-    if ((rc = get_double(s, f, r, "bins", 60, 2, 10000, &nbins_d))) return rc;
+    if ((rc = study_get_double(s, f, r, "bins", 60, 2, 10000, &nbins_d))) return rc;
     const char *range = study_get(s, f, r, "range");
     if (range && (sscanf(range, "%lf:%lf", &lo, &hi) != 2 || !(hi > lo)))
-        return key_error(s, f, r, "range", "'%s' is not lo:hi with lo < hi", range);
+        return study_key_error(s, f, r, "range", "'%s' is not lo:hi with lo < hi", range);
     int nbins = (int)nbins_d;
     m0_row rows[MAX_SWEEP];
     memset(rows, 0, sizeof rows);
@@ -1065,10 +1075,8 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
             fprintf(log, "  nx=%-6zu N=%-8zu nbr=%-9.1f M0 mean %.6f std %.3e (interior %.3e)\n",
                     nx, rows[j].n, rows[j].nbr, rows[j].mean, rows[j].std, rows[j].std_in);
     }
-    char path[STUDY_PATH_MAX];
     consph_outfile of;
-    if (rc == CONSPH_OK) rc = out_path(path, dir, f->id, ".csv");
-    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
+    if (rc == CONSPH_OK) rc = study_open_output(&of, dir, f->id, ".csv");
     if (rc == CONSPH_OK) {
         fprintf(of.fp, "nx,n,h,nbr_mean,m0_mean,m0_std,m0_mean_interior,m0_std_interior,m0_peak\n");
         for (int j = 0; j < nrows; ++j)
@@ -1077,8 +1085,7 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
                     rows[j].std_in, rows[j].peak);
         rc = consph_outfile_commit(&of);
     }
-    if (rc == CONSPH_OK) rc = out_path(path, dir, f->id, ".dat");
-    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
+    if (rc == CONSPH_OK) rc = study_open_output(&of, dir, f->id, ".dat");
     if (rc == CONSPH_OK) {
         for (int j = 0; j < nrows; ++j) {
             fprintf(of.fp, "# nx = %zu: M0, fraction of particles per unit M0\n", rows[j].nx);
@@ -1091,14 +1098,11 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
         }
         rc = consph_outfile_commit(&of);
     }
-    if (rc == CONSPH_OK) rc = out_path(path, dir, f->id, ".md");
-    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
+    if (rc == CONSPH_OK) rc = study_open_output(&of, dir, f->id, ".md");
     if (rc == CONSPH_OK) {
         FILE *o = of.fp;
         char htext[160];
-        fprintf(o, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
-        const char *note = figure_note(f);
-        if (note) fprintf(o, "%s\n\n", note);
+        study_report_head(o, s, f);
         fprintf(o, "Run: %s resolutions; kernel `%s`, layout `%s`, dim %d, volumes `%s`, h %s.\n\n",
                 quick ? "quick" : "full (paper)", pl.kernel_name,
                 files ? "particle files" : consph_layout_name(pl.spec.layout.kind),
@@ -1121,15 +1125,14 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
                     "\nFitted σ(M0, interior) ∝ 𝒩^-p with p = %s (Zhu et al., quoted by "
                     "003/000: p = 1 for low-discrepancy sets, 1/2 for random ones).\n\n",
                     consph_order_text(&fit, 2, "±", ptext, sizeof ptext));
-        published_values(s, f, o);
-        if (have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
+        study_published_values(s, f, o);
+        if (study_have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
         rc = consph_outfile_commit(&of);
     }
-    if (rc == CONSPH_OK) rc = out_path(path, dir, f->id, ".gp");
-    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
+    if (rc == CONSPH_OK) rc = study_open_output(&of, dir, f->id, ".gp");
     if (rc == CONSPH_OK) {
         FILE *o = of.fp;
-        rc = gp_head(o, f->id, get_or(s, f, NULL, "title", f->id));
+        rc = study_gp_head(o, f->id, study_get_or(s, f, NULL, "title", f->id));
         fprintf(o, "set xlabel 'M0'\nset ylabel 'particles (density)'\nplot");
         for (int j = 0; j < nrows; ++j)
             fprintf(o, "%s '%s.dat' index %d using 1:2 with lines title 'N = %zu'",
@@ -1139,7 +1142,7 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
             consph_outfile_abort(&of);
         else
             rc = consph_outfile_commit(&of);
-        if (rc == CONSPH_OK) rc = render_figure(dir, f->id);
+        if (rc == CONSPH_OK) rc = study_render_figure(dir, f->id);
     }
     for (int j = 0; j < nrows; ++j) free(rows[j].counts);
     return rc;
@@ -1232,19 +1235,14 @@ static int run_appc_figure(const consph_study *s, const study_figure *f, int qui
                     closed[j], per[j], lin[j]);
     }
     if (rc) return rc;
-    char path[STUDY_PATH_MAX];
     consph_outfile of;
-    if ((rc = out_path(path, dir, f->id, ".csv"))) return rc;
-    if ((rc = consph_outfile_open(&of, path))) return rc;
+    if ((rc = study_open_output(&of, dir, f->id, ".csv"))) return rc;
     fprintf(of.fp, "h_over_delta,closed_form,periodic_const,linear_centre\n");
     for (int j = 0; j < pl.nvalues; ++j)
         fprintf(of.fp, "%g,%.10e,%.10e,%.10e\n", pl.values[j], closed[j], per[j], lin[j]);
     if ((rc = consph_outfile_commit(&of))) return rc;
-    if ((rc = out_path(path, dir, f->id, ".md"))) return rc;
-    if ((rc = consph_outfile_open(&of, path))) return rc;
-    fprintf(of.fp, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
-    const char *note = figure_note(f);
-    if (note) fprintf(of.fp, "%s\n\n", note);
+    if ((rc = study_open_output(&of, dir, f->id, ".md"))) return rc;
+    study_report_head(of.fp, s, f);
     fprintf(of.fp,
             "Lattice of %zu particles on [0,1), Gaussian exp(-x²/h²)/(√π h) summed to "
             "%g h. Relative error of the SPH sum against 003 eq. C.4.\n\n",
@@ -1255,7 +1253,7 @@ static int run_appc_figure(const consph_study *s, const study_figure *f, int qui
         fprintf(of.fp, "| %g | %.6e | %.6e | %.6e | %.1e |\n", pl.values[j], closed[j], per[j],
                 lin[j], fmax(fabs(per[j] - closed[j]), fabs(lin[j] - closed[j])));
     fprintf(of.fp, "\n");
-    published_values(s, f, of.fp);
+    study_published_values(s, f, of.fp);
     return consph_outfile_commit(&of);
 }
 
@@ -1263,12 +1261,18 @@ static int run_appc_figure(const consph_study *s, const study_figure *f, int qui
 
 int consph_study_validate(const consph_study *s, int quick)
 {
-    for (int k = 0; k < s->nfigs; ++k)
+    for (int k = 0; k < s->nfigs; ++k) {
+        if (figure_kind(s, &s->figs[k]) == KIND_RUN) {
+            int rc = study_run_validate(s, &s->figs[k], quick);
+            if (rc) return rc;
+            continue;
+        }
         for (int r = 0; r < s->figs[k].nseries; ++r) {
             series_plan pl;
             int rc = build_plan(s, &s->figs[k], &s->figs[k].series[r], quick, &pl);
             if (rc) return rc;
         }
+    }
     return CONSPH_OK;
 }
 
@@ -1294,7 +1298,13 @@ static double estimate(const consph_study *s, int quick, const study_files *file
     int nseen = 0;
     series_plan first;
     int have_first = 0;
+    double run_seconds = 0.0;
     for (int k = 0; k < s->nfigs; ++k) {
+        if (figure_kind(s, &s->figs[k]) == KIND_RUN) {
+            double steps;
+            run_seconds += study_run_estimate(s, &s->figs[k], quick, &steps);
+            continue;
+        }
         if (figure_kind(s, &s->figs[k]) == KIND_APPC) continue;
         for (int r = 0; r < s->figs[k].nseries; ++r) {
             series_plan pl;
@@ -1328,7 +1338,7 @@ static double estimate(const consph_study *s, int quick, const study_files *file
             }
         }
     }
-    if (!have_first) return 0.0;
+    if (!have_first) return run_seconds;
     /* Calibrate on a small run of the first series (about 2500 particles). */
     double nx_cal = first.spec.layout.dim == 1 ? 2500 : first.spec.layout.dim == 2 ? 50 : 14;
     consph_approx_row row;
@@ -1346,7 +1356,7 @@ static double estimate(const consph_study *s, int quick, const study_files *file
             consph_particles_free(&p);
         }
     }
-    return pairs * per_pair + packed_particles * per_packed;
+    return run_seconds + pairs * per_pair + packed_particles * per_packed;
 }
 
 double consph_study_estimate(const consph_study *s, int quick)
@@ -1388,6 +1398,11 @@ static int validate_files(const consph_study *s, int quick, const study_files *f
         const study_figure *f = &s->figs[k];
         fig_kind kind = figure_kind(s, f);
         if (kind == KIND_APPC) continue;
+        if (kind == KIND_RUN)
+            return consph_fail(CONSPH_EINVAL,
+                               "figure '%s' runs the solver, which makes its own particles; "
+                               "--particles does not apply",
+                               f->id);
         for (int r = 0; r < f->nseries; ++r) {
             series_plan pl;
             int rc = build_plan(s, f, &f->series[r], quick, &pl);
@@ -1477,23 +1492,23 @@ static int run_cauchy_figure(const consph_study *s, const study_figure *f, int q
         const int dim = pl->spec.layout.dim;
         int imeas, imeth;
         double pw, dirs, grid, seed;
-        if ((rc = get_choice(s, f, r, "measure", measures, 0, &imeas))) break;
-        if ((rc = get_choice(s, f, r, "ot_method", methods, dim == 1 ? 0 : 1, &imeth))) break;
-        if ((rc = get_double(s, f, r, "ot_p", 1, 1, 2, &pw))) break;
-        if ((rc = get_double(s, f, r, "directions", 64, 1, 1e5, &dirs))) break;
-        if ((rc = get_double(s, f, r, "grid",
-                             dim == 1   ? 4096
-                             : dim == 2 ? 128
-                                        : 32,
-                             2, 1e6, &grid)))
+        if ((rc = study_get_choice(s, f, r, "measure", measures, 0, &imeas))) break;
+        if ((rc = study_get_choice(s, f, r, "ot_method", methods, dim == 1 ? 0 : 1, &imeth))) break;
+        if ((rc = study_get_double(s, f, r, "ot_p", 1, 1, 2, &pw))) break;
+        if ((rc = study_get_double(s, f, r, "directions", 64, 1, 1e5, &dirs))) break;
+        if ((rc = study_get_double(s, f, r, "grid",
+                                   dim == 1   ? 4096
+                                   : dim == 2 ? 128
+                                              : 32,
+                                   2, 1e6, &grid)))
             break;
-        if ((rc = get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) break;
+        if ((rc = study_get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) break;
         if (pw != floor(pw)) {
-            rc = key_error(s, f, r, "ot_p", "must be 1 or 2");
+            rc = study_key_error(s, f, r, "ot_p", "must be 1 or 2");
             break;
         }
         if (imeth == 0 && dim != 1) {
-            rc = key_error(s, f, r, "ot_method", "exact is 1D only; use sliced or sinkhorn");
+            rc = study_key_error(s, f, r, "ot_method", "exact is 1D only; use sliced or sinkhorn");
             break;
         }
         consph_ot_options opt = consph_ot_defaults();
@@ -1564,27 +1579,22 @@ static int write_cauchy(const consph_study *s, const study_figure *f, int quick,
     static const char *const measures[] = {"particles", "smoothed", NULL};
     const int nseries = f->nseries < MAX_SERIES_POINTS ? f->nseries : MAX_SERIES_POINTS;
     int rc;
-    char path[STUDY_PATH_MAX];
     consph_outfile of;
-    if ((rc = out_path(path, dir, f->id, ".csv"))) return rc;
-    if ((rc = consph_outfile_open(&of, path))) return rc;
+    if ((rc = study_open_output(&of, dir, f->id, ".csv"))) return rc;
     fprintf(of.fp, "series,measure,method,p,nx0,nx1,n0,n1,h0,h1,distance,error\n");
     for (int k = 0; k < nseries; ++k)
         for (int j = 0; j < nrows[k]; ++j) {
             const cauchy_row *w = &rows[k][j];
             char label[128];
             fprintf(of.fp, "%s,%s,%s,%d,%zu,%zu,%zu,%zu,%.10g,%.10g,%.6e,%.3e\n",
-                    csv_label(f->series[k].label, label, sizeof label), measures[measure_of[k]],
-                    method_of[k], p_of[k], w->nx0, w->nx1, w->n0, w->n1, w->h0, w->h1, w->distance,
-                    w->error);
+                    study_csv_label(f->series[k].label, label, sizeof label),
+                    measures[measure_of[k]], method_of[k], p_of[k], w->nx0, w->nx1, w->n0, w->n1,
+                    w->h0, w->h1, w->distance, w->error);
         }
     if ((rc = consph_outfile_commit(&of))) return rc;
-    if ((rc = out_path(path, dir, f->id, ".md"))) return rc;
-    if ((rc = consph_outfile_open(&of, path))) return rc;
+    if ((rc = study_open_output(&of, dir, f->id, ".md"))) return rc;
     FILE *o = of.fp;
-    fprintf(o, "## %s: %s\n\n", f->id, get_or(s, f, NULL, "title", f->id));
-    const char *note = figure_note(f);
-    if (note) fprintf(o, "%s\n\n", note);
+    study_report_head(o, s, f);
     fprintf(o,
             "Run: %s resolutions; layout `%s`, dim %d. Each row is the Wasserstein distance "
             "between successive resolutions (a Cauchy sequence when it falls); the rate p is "
@@ -1607,7 +1617,7 @@ static int write_cauchy(const consph_study *s, const study_figure *f, int quick,
         }
         fprintf(o, "\nRate: %s\n\n", fit_text[k]);
     }
-    published_values(s, f, o);
+    study_published_values(s, f, o);
     return consph_outfile_commit(&of);
 }
 
@@ -1620,7 +1630,7 @@ static int run_figures(const consph_study *s, const consph_study_options *opt,
     FILE *log = opt->log;
     for (int k = 0; rc == CONSPH_OK && k < s->nfigs; ++k) {
         const study_figure *f = &s->figs[k];
-        if (log) fprintf(log, "[%s] %s\n", f->id, get_or(s, f, NULL, "title", ""));
+        if (log) fprintf(log, "[%s] %s\n", f->id, study_get_or(s, f, NULL, "title", ""));
         double t0 = consph_wtime();
         switch (figure_kind(s, f)) {
         case KIND_M0:
@@ -1631,6 +1641,9 @@ static int run_figures(const consph_study *s, const consph_study_options *opt,
             break;
         case KIND_CAUCHY:
             rc = run_cauchy_figure(s, f, opt->quick, cache, dir, files, log);
+            break;
+        case KIND_RUN:
+            rc = study_run_figure(s, f, opt->quick, dir, log);
             break;
         default:
             rc = run_approx_figure(s, f, opt->quick, cache, dir, files, log);
@@ -1650,7 +1663,7 @@ static int write_readme(const consph_study *s, const consph_study_options *opt,
 {
     char path[STUDY_PATH_MAX];
     consph_outfile of;
-    int rc = out_path(path, dir, "README", ".md");
+    int rc = study_out_path(path, dir, "README", ".md");
     if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
     if (rc) return rc;
     fprintf(of.fp, "# %s: %s\n\n", consph_study_name(s), consph_study_title(s));
@@ -1660,7 +1673,7 @@ static int write_readme(const consph_study *s, const consph_study_options *opt,
             opt->quick ? " --quick" : "", files ? " --particles ..." : "", CONSPH_VERSION);
     for (int k = 0; k < s->nfigs; ++k) {
         char md[STUDY_PATH_MAX], buf[4096];
-        if (out_path(md, dir, s->figs[k].id, ".md") != CONSPH_OK) continue;
+        if (study_out_path(md, dir, s->figs[k].id, ".md") != CONSPH_OK) continue;
         FILE *in = fopen(md, "r");
         if (!in) continue;
         size_t got;
@@ -1678,7 +1691,7 @@ static int study_run(const consph_study *s, const consph_study_options *opt,
     if (files && (rc = validate_files(s, opt->quick, files))) return rc;
     char dir[STUDY_PATH_MAX];
     size_t created = 0;
-    if ((rc = out_path(dir, opt->out_dir, consph_study_name(s), ""))) return rc;
+    if ((rc = study_out_path(dir, opt->out_dir, consph_study_name(s), ""))) return rc;
     rc = mkdir_p(dir, &created);
     if (rc == CONSPH_OK) rc = run_figures(s, opt, files, dir);
     if (rc == CONSPH_OK) rc = write_readme(s, opt, files, dir);

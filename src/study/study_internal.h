@@ -54,4 +54,60 @@ int study_parse(const char *path, const char *data, size_t size, consph_study **
  * STUDY_NAME_MAX characters; `series` also allows '=' and inner spaces ("F1 eta=1.5"). */
 int study_plain_name(const char *name, int series);
 
+/* ---- shared by the figure kinds (engine.c, runstudy.c) ---- */
+
+#include <stdio.h>
+
+#define MAX_SWEEP 64
+/* Room for any output path: the CLI refuses --out directories that would not fit. */
+#define STUDY_PATH_MAX 4096
+/* Orders further than this from the paper's are flagged in the report. */
+#define ORDER_TOLERANCE 0.3
+
+/* CONSPH_EFORMAT naming file:line, figure, series and key. */
+int study_key_error(const consph_study *s, const study_figure *f, const study_series *r,
+                    const char *key, const char *fmt, ...);
+/* A key's value checked against a range (def when absent), a list of numbers, or one of
+ * `choices` (NULL-terminated; *out is its index). */
+int study_get_double(const consph_study *s, const study_figure *f, const study_series *r,
+                     const char *key, double def, double lo, double hi, double *out);
+int study_get_list(const consph_study *s, const study_figure *f, const study_series *r,
+                   const char *key, double lo, double hi, double *vals, int *n);
+int study_get_choice(const consph_study *s, const study_figure *f, const study_series *r,
+                     const char *key, const char *const *choices, int def, int *out);
+const char *study_get_or(const consph_study *s, const study_figure *f, const study_series *r,
+                         const char *key, const char *def);
+/* A published value that is a plain number. */
+int study_paper_number(const consph_study *s, const study_figure *f, const study_series *r,
+                       const char *key, double *out);
+/* Every paper.* value of every series, as a list. */
+void study_published_values(const consph_study *s, const study_figure *f, FILE *o);
+const char *study_figure_note(const study_figure *f);
+/* The head of a figure's report: "## ID: title" and the figure's note. */
+void study_report_head(FILE *o, const consph_study *s, const study_figure *f);
+/* DIR/NAME.EXT into buf (STUDY_PATH_MAX bytes), refused rather than truncated. */
+int study_out_path(char *buf, const char *dir, const char *name, const char *ext);
+/* Opens DIR/ID.EXT as a consph_outfile (written to a temporary name, renamed on commit). */
+#include "consph/io.h"
+int study_open_output(consph_outfile *of, const char *dir, const char *id, const char *ext);
+const char *study_csv_label(const char *label, char *buf, size_t size);
+/* gnuplot: whether installed, a quoted string, the head of a script, and drawing ID.gp into
+ * ID.svg. */
+int study_have_gnuplot(void);
+int study_gp_put(FILE *o, const char *text);
+int study_gp_head(FILE *o, const char *id, const char *title);
+int study_render_figure(const char *dir, const char *id);
+
+/* ---- kind = run: solver runs over resolutions (runstudy.c) ---- */
+
+/* Checks every key of a run figure's series. */
+int study_run_validate(const consph_study *s, const study_figure *f, int quick);
+/* Runs the figure and writes FIGURE.csv, .md, .dat, .gp and .svg into dir. */
+int study_run_figure(const consph_study *s, const study_figure *f, int quick, const char *dir,
+                     FILE *log);
+/* Particle-steps of the figure's runs, and the seconds they should take (calibrated on a short
+ * run of its first series). */
+double study_run_estimate(const consph_study *s, const study_figure *f, int quick,
+                          double *particle_steps);
+
 #endif

@@ -108,7 +108,10 @@ static const char *const known_keys[] = {"study",      "title",    "paper",     
                                          "nx",         "quick.nx", "hdx.values", "quick.hdx.values",
                                          "x",          "norm",     "bound",      "bins",
                                          "range",      "pack_tol", "pack_iter",  "hdelta.values",
-                                         "paper.",     "series.",  NULL};
+                                         "problem",    "scheme",   "c0",         "re",
+                                         "tf",         "quick.tf", "steps",      "quick.steps",
+                                         "dt_rule",    "tr_ref",   "paper.",     "series.",
+                                         NULL};
 
 static int key_known(const char *key)
 {

@@ -1,0 +1,463 @@
+/* Study kind `run`: the solver over a sweep of resolutions (001 Tables 8, 9, Fig. 20). Each
+ * series is one scheme; each resolution one run of consph_run without files. The report gives
+ * L1(u) and L1(p) (001 eq. 26) per nx, their fitted orders with standard errors, F_T/F_max at
+ * the finest nx, T_r against a named series, and the paper's values beside ours. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "consph/io.h"
+#include "consph/solver.h"
+#include "study/study_internal.h"
+
+typedef struct run_plan {
+    consph_run_params prm; /* nx and h_dt are set per run */
+    int nnx;
+    double nx[MAX_SWEEP];
+    int dt_finest; /* 001: Δt from h of the finest resolution of the sweep, for every run */
+} run_plan;
+
+typedef struct run_row {
+    consph_run_summary sum;
+    int status; /* CONSPH_OK, or CONSPH_ENUMERIC for a run that diverged */
+    char why[256];
+} run_row;
+
+/* Whether `name` is one of the comma-separated `names`. */
+static int name_in(const char *name, const char *names)
+{
+    size_t n = strlen(name);
+    for (const char *c = names; *c;) {
+        const char *e = strchr(c, ',');
+        size_t len = e ? (size_t)(e - c) : strlen(c);
+        if (len == n && strncmp(c, name, n) == 0) return 1;
+        if (!e) break;
+        c = e + 1;
+    }
+    return 0;
+}
+
+/* A key naming one of `names` into dst (size 32). */
+static int get_name(const consph_study *s, const study_figure *f, const study_series *r,
+                    const char *key, const char *def, const char *names, char *dst)
+{
+    const char *v = study_get_or(s, f, r, key, def);
+    if (!v) return study_key_error(s, f, r, key, "not given; allowed: %s", names);
+    if (!name_in(v, names) || strlen(v) >= 32)
+        return study_key_error(s, f, r, key, "unknown value '%s'; allowed: %s", v, names);
+    snprintf(dst, 32, "%s", v);
+    return CONSPH_OK;
+}
+
+/* `quick.KEY` in a quick run when set, else KEY. */
+static const char *quick_key(const consph_study *s, const study_figure *f, const study_series *r,
+                             int quick, const char *key, char *buf, size_t size)
+{
+    snprintf(buf, size, "quick.%s", key);
+    return quick && study_get(s, f, r, buf) ? buf : key;
+}
+
+static int plan_build(const consph_study *s, const study_figure *f, const study_series *r,
+                      int quick, run_plan *pl)
+{
+    static const char *const rules[] = {"finest", "own", NULL};
+    memset(pl, 0, sizeof *pl);
+    consph_run_params *p = &pl->prm;
+    consph_run_params_default(p);
+    int rc, rule;
+    char qk[32];
+    double seed, steps;
+    if ((rc = get_name(s, f, r, "problem", "taylor-green", consph_problem_names(), p->problem)))
+        return rc;
+    if ((rc = get_name(s, f, r, "scheme", NULL, consph_scheme_names(), p->scheme))) return rc;
+    const char *layout = study_get_or(s, f, r, "layout", "default");
+    consph_layout_kind kind;
+    if (strcmp(layout, "default") == 0)
+        p->layout = -1;
+    else if (consph_layout_lookup(layout, &kind) == CONSPH_OK)
+        p->layout = (int)kind;
+    else
+        return study_key_error(s, f, r, "layout", "unknown value '%s'; allowed: default,%s", layout,
+                               consph_layout_names());
+    const char *kernel = study_get(s, f, r, "kernel");
+    if (kernel && consph_kernel_lookup(kernel, &p->kernel) != CONSPH_OK)
+        return study_key_error(s, f, r, "kernel", "%s", consph_last_error());
+    if ((rc = study_get_double(s, f, r, "hdx", p->hdx, 0.5, 4, &p->hdx))) return rc;
+    if ((rc = study_get_double(s, f, r, "c0", p->c0, 0, 1e6, &p->c0))) return rc;
+    if ((rc = study_get_double(s, f, r, "re", p->re, 1e-6, 1e12, &p->re))) return rc;
+    if ((rc = study_get_double(s, f, r, "seed", (double)p->seed, 0, 1e9, &seed))) return rc;
+    p->seed = (unsigned long)seed;
+    const char *k = quick_key(s, f, r, quick, "tf", qk, sizeof qk);
+    if ((rc = study_get_double(s, f, r, k, p->tf, 1e-12, 1e6, &p->tf))) return rc;
+    k = quick_key(s, f, r, quick, "steps", qk, sizeof qk);
+    if ((rc = study_get_double(s, f, r, k, 0, 0, 1e9, &steps))) return rc;
+    if (steps != floor(steps)) return study_key_error(s, f, r, k, "must be a whole number");
+    p->steps = (long)steps;
+    if ((rc = study_get_choice(s, f, r, "dt_rule", rules, 0, &rule))) return rc;
+    pl->dt_finest = rule == 0;
+    k = quick_key(s, f, r, quick, "nx", qk, sizeof qk);
+    if ((rc = study_get_list(s, f, r, k, 4, 1e5, pl->nx, &pl->nnx))) return rc;
+    if (pl->nnx == 0) return study_key_error(s, f, r, "nx", "no resolutions given");
+    for (int j = 0; j < pl->nnx; ++j)
+        if (pl->nx[j] != floor(pl->nx[j]) || (j && !(pl->nx[j] > pl->nx[j - 1])))
+            return study_key_error(s, f, r, k, "resolutions must be whole and increasing");
+    p->nx = (int)pl->nx[pl->nnx - 1];
+    if (consph_run_params_check(p) != CONSPH_OK)
+        return study_key_error(s, f, r, "scheme", "%s", consph_last_error());
+    return CONSPH_OK;
+}
+
+/* The series T_r is relative to: `tr_ref` names it (001 Table 9 is relative to EWCSPH), else
+ * the first. */
+static int tr_reference(const consph_study *s, const study_figure *f, int *ref)
+{
+    const char *v = study_get(s, f, NULL, "tr_ref");
+    *ref = 0;
+    if (!v) return CONSPH_OK;
+    for (int k = 0; k < f->nseries; ++k)
+        if (strcmp(f->series[k].label, v) == 0) {
+            *ref = k;
+            return CONSPH_OK;
+        }
+    return study_key_error(s, f, NULL, "tr_ref", "no series '%s' in this figure", v);
+}
+
+/* The abscissa of the figure: 0 nx, 1 the wall time (001 Fig. 20). */
+static int x_axis(const consph_study *s, const study_figure *f, int *x)
+{
+    static const char *const xs[] = {"nx", "seconds", NULL};
+    return study_get_choice(s, f, NULL, "x", xs, 0, x);
+}
+
+int study_run_validate(const consph_study *s, const study_figure *f, int quick)
+{
+    int rc, dummy;
+    for (int k = 0; k < f->nseries; ++k) {
+        run_plan pl;
+        if ((rc = plan_build(s, f, &f->series[k], quick, &pl))) return rc;
+    }
+    if ((rc = tr_reference(s, f, &dummy))) return rc;
+    return x_axis(s, f, &dummy);
+}
+
+/* Steps of a run at resolution nx (an estimate: h = hdx/nx on taylor-green's unit box). */
+static double steps_of(const run_plan *pl, double nx)
+{
+    const consph_run_params *p = &pl->prm;
+    if (p->steps > 0) return (double)p->steps;
+    double c0 = p->c0 > 0 ? p->c0 : 10.0 * p->U;
+    double h = p->hdx / (pl->dt_finest ? pl->nx[pl->nnx - 1] : nx);
+    return ceil(p->tf / (p->cfl * h / (p->U + c0)));
+}
+
+double study_run_estimate(const consph_study *s, const study_figure *f, int quick,
+                          double *particle_steps)
+{
+    run_plan first, pl;
+    double made = 0.0;
+    *particle_steps = 0.0;
+    for (int k = 0; k < f->nseries; ++k) {
+        if (plan_build(s, f, &f->series[k], quick, &pl) != CONSPH_OK) return NAN;
+        if (k == 0) first = pl;
+        for (int j = 0; j < pl.nnx; ++j) {
+            *particle_steps += pl.nx[j] * pl.nx[j] * steps_of(&pl, pl.nx[j]);
+            made += pl.nx[j] * pl.nx[j];
+        }
+    }
+    if (f->nseries == 0) return 0.0;
+    /* Calibration: 16² particles, 20 steps of the first series, set-up (packing) timed apart. */
+    consph_run_params p = first.prm;
+    p.nx = 16;
+    p.steps = 20;
+    p.h_dt = 0.0;
+    consph_solver *sv = NULL;
+    consph_run_summary sum;
+    int stopped;
+    double t0 = consph_wtime();
+    if (consph_solver_create(&sv, &p) != CONSPH_OK) return NAN;
+    double per_made = (consph_wtime() - t0) / 256.0;
+    int rc = consph_run(sv, NULL, &sum, &stopped);
+    consph_solver_free(sv);
+    if (rc != CONSPH_OK || sum.steps <= 0) return NAN;
+    return *particle_steps * sum.seconds / (256.0 * (double)sum.steps) + made * per_made;
+}
+
+static int run_one(const run_plan *pl, int j, double h_dt, run_row *row)
+{
+    consph_run_params p = pl->prm;
+    p.nx = (int)pl->nx[j];
+    p.h_dt = h_dt;
+    consph_solver *sv = NULL;
+    int rc = consph_solver_create(&sv, &p);
+    if (rc) return rc;
+    int stopped = 0;
+    rc = consph_run(sv, NULL, &row->sum, &stopped);
+    consph_solver_free(sv);
+    row->status = rc;
+    /* A diverged run is a result of the study, reported, not the end of it. */
+    if (rc == CONSPH_ENUMERIC) {
+        snprintf(row->why, sizeof row->why, "%s", consph_last_error());
+        return CONSPH_OK;
+    }
+    return rc;
+}
+
+/* The order of L1(u) (which = 0) or L1(p) over the runs that finished, as text. */
+static double fit_text(const run_plan *pl, const run_row *rows, int which, char *buf, size_t size)
+{
+    double xs[MAX_SWEEP], ys[MAX_SWEEP];
+    int n = 0;
+    for (int j = 0; j < pl->nnx; ++j) {
+        if (rows[j].status != CONSPH_OK) continue;
+        xs[n] = pl->nx[j];
+        ys[n++] = which ? rows[j].sum.l1_p : rows[j].sum.l1_u;
+    }
+    consph_order_fit fit;
+    if (consph_fit_order(xs, ys, n, &fit) != CONSPH_OK) {
+        snprintf(buf, size, "n/a");
+        return NAN;
+    }
+    consph_order_text(&fit, 2, "±", buf, size);
+    return fit.order;
+}
+
+/* An order cell: ours, flagged when it differs from a numeric paper value by more than the
+ * tolerance. */
+static int order_cell(const consph_study *s, const study_figure *f, const study_series *r,
+                      const char *key, double ours, const char *text, char *buf, size_t size)
+{
+    double paper;
+    int off = isfinite(ours) && study_paper_number(s, f, r, key, &paper) &&
+              fabs(ours - paper) > ORDER_TOLERANCE;
+    snprintf(buf, size, "%s%s", text, off ? " ⚠" : "");
+    return off;
+}
+
+static int write_report(const consph_study *s, const study_figure *f, int quick, const char *dir,
+                        const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref)
+{
+    char label[128];
+    consph_outfile of;
+    int rc = study_open_output(&of, dir, f->id, ".csv");
+    if (rc) return rc;
+    fprintf(of.fp, "series,scheme,c0,nx,n,steps,t,dt,h,l1_u,l1_p,linf_u,linf_p,ft_over_fmax,"
+                   "seconds,pairs,regularisations,status\n");
+    for (int k = 0; k < f->nseries; ++k)
+        for (int j = 0; j < plans[k].nnx; ++j) {
+            const consph_run_summary *w = &rows[k][j].sum;
+            fprintf(of.fp,
+                    "%s,%s,%g,%g,%zu,%ld,%.10g,%.6e,%.10g,%.6e,%.6e,%.6e,%.6e,%.6e,%.6g,%zu,%ld,"
+                    "%s\n",
+                    study_csv_label(f->series[k].label, label, sizeof label), w->scheme, w->c0,
+                    plans[k].nx[j], w->n, w->steps, w->t, w->dt, w->h, w->l1_u, w->l1_p, w->linf_u,
+                    w->linf_p, w->ft_fmax, w->seconds, w->pairs, w->regularisations,
+                    rows[k][j].status == CONSPH_OK ? "ok" : "diverged");
+        }
+    if ((rc = consph_outfile_commit(&of))) return rc;
+
+    if ((rc = study_open_output(&of, dir, f->id, ".md"))) return rc;
+    FILE *o = of.fp;
+    study_report_head(o, s, f);
+    const consph_run_params *p0 = &plans[0].prm;
+    fprintf(o, "Run: %s resolutions; problem `%s`, Re %g, h/Δs %g, layout %s; ",
+            quick ? "quick" : "full (paper)", p0->problem, p0->re, p0->hdx,
+            p0->layout < 0 ? "the scheme's own" : consph_layout_name(p0->layout));
+    if (p0->steps > 0)
+        fprintf(o, "%ld steps; ", p0->steps);
+    else
+        fprintf(o, "to t = %g; ", p0->tf);
+    fprintf(o, "Δt = %g h/(U + c_o) with h %s. L1 is 001 eq. 26 (integrated over time).\n\n",
+            p0->cfl,
+            plans[0].dt_finest ? "of the finest resolution of the sweep (as 001)" : "of each run");
+    fprintf(o, "| series | scheme | c_o | L1(u) at finest | paper L1(u) | order u | paper | "
+               "L1(p) at finest | paper L1(p) | order p | paper | F_T/F_max | paper | T_r | "
+               "paper T_r |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    const run_row *rref = &rows[ref][plans[ref].nnx - 1];
+    int flagged = 0;
+    for (int k = 0; k < f->nseries; ++k) {
+        const study_series *r = &f->series[k];
+        const run_row *last = &rows[k][plans[k].nnx - 1];
+        char tu[64], tp[64], cu[80], cp[80];
+        double ou = fit_text(&plans[k], rows[k], 0, tu, sizeof tu);
+        double op = fit_text(&plans[k], rows[k], 1, tp, sizeof tp);
+        flagged |= order_cell(s, f, r, "paper.order_u", ou, tu, cu, sizeof cu);
+        flagged |= order_cell(s, f, r, "paper.order_p", op, tp, cp, sizeof cp);
+        fprintf(o,
+                "| %s | %s | %g | %.3e (nx=%g%s) | %s | %s | %s | %.3e | %s | %s | %s | %.2e | %s "
+                "| %.2f | %s |\n",
+                r->label, plans[k].prm.scheme, last->sum.c0, last->sum.l1_u,
+                plans[k].nx[plans[k].nnx - 1], last->status ? ", diverged" : "",
+                study_get_or(s, f, r, "paper.l1_u", "—"), cu,
+                study_get_or(s, f, r, "paper.order_u", "—"), last->sum.l1_p,
+                study_get_or(s, f, r, "paper.l1_p", "—"), cp,
+                study_get_or(s, f, r, "paper.order_p", "—"), last->sum.ft_fmax,
+                study_get_or(s, f, r, "paper.ft", "—"), last->sum.seconds / rref->sum.seconds,
+                study_get_or(s, f, r, "paper.tr", "—"));
+    }
+    fprintf(o, "\n");
+    if (flagged)
+        fprintf(o, "⚠ the fitted order differs from the paper's by more than %.1f%s.\n\n",
+                ORDER_TOLERANCE,
+                quick ? " (a quick run fits coarser resolutions and shorter times than the "
+                        "paper's)"
+                      : "");
+    fprintf(o,
+            "T_r: wall time of the time steps at the finest resolution relative to series '%s' "
+            "(set-up and packing excluded).\n\n",
+            f->series[ref].label);
+    for (int k = 0; k < f->nseries; ++k)
+        for (int j = 0; j < plans[k].nnx; ++j)
+            if (rows[k][j].status != CONSPH_OK)
+                fprintf(o, "- %s, nx %g diverged, left out of the fit: %s\n", f->series[k].label,
+                        plans[k].nx[j], rows[k][j].why);
+    fprintf(o, "<details><summary>every run</summary>\n\n| series | nx | N | steps | Δt | h | "
+               "L1(u) | L1(p) | L∞(u) | L∞(p) | F_T/F_max | seconds | regularisations "
+               "|\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for (int k = 0; k < f->nseries; ++k)
+        for (int j = 0; j < plans[k].nnx; ++j) {
+            const consph_run_summary *w = &rows[k][j].sum;
+            fprintf(o,
+                    "| %s | %g | %zu | %ld | %.4g | %.4g | %.3e | %.3e | %.3e | %.3e | %.2e | "
+                    "%.3g | %ld |\n",
+                    f->series[k].label, plans[k].nx[j], w->n, w->steps, w->dt, w->h, w->l1_u,
+                    w->l1_p, w->linf_u, w->linf_p, w->ft_fmax, w->seconds, w->regularisations);
+        }
+    fprintf(o, "\n</details>\n\n");
+    study_published_values(s, f, o);
+    if (study_have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
+    return consph_outfile_commit(&of);
+}
+
+/* One panel: column `col` of the data (2: L1(u), 3: L1(p)) against column `xcol`, with the
+ * paper's value `paper_key` at the paper's finest nx and, against nx, a slope -2 guide. */
+static int gp_panel(FILE *o, const consph_study *s, const study_figure *f, const run_plan *plans,
+                    run_row (*rows)[MAX_SWEEP], int xcol, int col, const char *paper_key,
+                    const char *ylabel)
+{
+    int rc = CONSPH_OK;
+    fprintf(o, "set ylabel '%s'\n", ylabel);
+    double y0 = INFINITY, x0 = NAN;
+    for (int k = 0; k < f->nseries; ++k) {
+        double y = col == 2 ? rows[k][0].sum.l1_u : rows[k][0].sum.l1_p;
+        if (rows[k][0].status == CONSPH_OK && y > 0 && y < y0) {
+            y0 = y;
+            x0 = plans[k].nx[0];
+        }
+        double nxs[MAX_SWEEP], py;
+        int n = 0;
+        if (xcol == 1 && study_paper_number(s, f, &f->series[k], paper_key, &py) && py > 0 &&
+            study_get_list(s, f, &f->series[k], "nx", 4, 1e5, nxs, &n) == CONSPH_OK && n)
+            fprintf(o, "$paper%d_%d << EOD\n%.10g %.10g\nEOD\n", col, k, nxs[n - 1], py);
+    }
+    int guide = xcol == 1 && isfinite(y0);
+    if (guide) fprintf(o, "ref(x) = %.10g*(x/%.10g)**(-2)\n", 0.5 * y0, x0);
+    fprintf(o, "plot");
+    for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
+        fprintf(o, "%s '%s.dat' index %d using %d:%d with linespoints lc %d title ",
+                k ? ", \\\n    " : " ", f->id, k, xcol, col, k + 1);
+        rc = study_gp_put(o, f->series[k].label);
+    }
+    int keyed = 0;
+    for (int k = 0; xcol == 1 && k < f->nseries; ++k) {
+        double py;
+        if (!study_paper_number(s, f, &f->series[k], paper_key, &py) || !(py > 0)) continue;
+        fprintf(o, ", \\\n    $paper%d_%d with points pt 6 ps 2 lw 2 lc %d %s", col, k, k + 1,
+                keyed ? "notitle" : "title 'paper (series colour)'");
+        keyed = 1;
+    }
+    if (guide)
+        fprintf(o, ", \\\n    ref(x) with lines dashtype 2 lw 2 lc rgb 'gray40' title 'slope -2'");
+    fprintf(o, "\n");
+    return rc;
+}
+
+static int write_plot(const consph_study *s, const study_figure *f, const char *dir,
+                      const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x)
+{
+    consph_outfile of;
+    int rc = study_open_output(&of, dir, f->id, ".dat");
+    if (rc) return rc;
+    for (int k = 0; k < f->nseries; ++k) {
+        fprintf(of.fp, "# %s: nx l1_u l1_p seconds\n", f->series[k].label);
+        for (int j = 0; j < plans[k].nnx; ++j)
+            if (rows[k][j].status == CONSPH_OK)
+                fprintf(of.fp, "%g %.10g %.10g %.10g\n", plans[k].nx[j], rows[k][j].sum.l1_u,
+                        rows[k][j].sum.l1_p, rows[k][j].sum.seconds);
+        fprintf(of.fp, "\n\n");
+    }
+    if ((rc = consph_outfile_commit(&of))) return rc;
+    if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
+    FILE *o = of.fp;
+    const char *title = study_get_or(s, f, NULL, "title", f->id);
+    rc = study_gp_head(o, f->id, title);
+    fprintf(o, "set logscale xy\nset format y '%%g'\n");
+    if (x == 1) {
+        fprintf(o, "set xlabel 'wall time of the time steps (s)'\n");
+        if (rc == CONSPH_OK)
+            rc = gp_panel(o, s, f, plans, rows, 4, 2, "paper.l1_u", "L1(u), 001 eq. 26");
+    } else {
+        fprintf(o, "set xlabel 'particles per axis'\nset multiplot layout 1,2 title ");
+        if (rc == CONSPH_OK) rc = study_gp_put(o, title);
+        /* One key, for both panels, where the falling curves leave room. */
+        fprintf(o, " noenhanced\nset key inside bottom left noenhanced font ',10'\n"
+                   "set title 'velocity'\n");
+        if (rc == CONSPH_OK)
+            rc = gp_panel(o, s, f, plans, rows, 1, 2, "paper.l1_u", "L1(u), 001 eq. 26");
+        fprintf(o, "unset key\nset title 'pressure'\n");
+        if (rc == CONSPH_OK)
+            rc = gp_panel(o, s, f, plans, rows, 1, 3, "paper.l1_p", "L1(p), 001 eq. 26");
+        fprintf(o, "unset multiplot\n");
+    }
+    if (rc) {
+        consph_outfile_abort(&of);
+        return rc;
+    }
+    if ((rc = consph_outfile_commit(&of))) return rc;
+    return study_render_figure(dir, f->id);
+}
+
+int study_run_figure(const consph_study *s, const study_figure *f, int quick, const char *dir,
+                     FILE *log)
+{
+    int ref, x, rc = study_run_validate(s, f, quick);
+    if (rc == CONSPH_OK) rc = tr_reference(s, f, &ref);
+    if (rc == CONSPH_OK) rc = x_axis(s, f, &x);
+    if (rc) return rc;
+    run_plan *plans = calloc((size_t)f->nseries, sizeof *plans);
+    run_row(*rows)[MAX_SWEEP] = calloc((size_t)f->nseries, sizeof *rows);
+    if (!plans || !rows) rc = consph_fail(CONSPH_ENOMEM, "out of memory");
+    double particle_steps = 0.0;
+    for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
+        rc = plan_build(s, f, &f->series[k], quick, &plans[k]);
+        for (int j = 0; rc == CONSPH_OK && j < plans[k].nnx; ++j)
+            particle_steps += plans[k].nx[j] * plans[k].nx[j] * steps_of(&plans[k], plans[k].nx[j]);
+    }
+    if (log && rc == CONSPH_OK)
+        fprintf(log, "  %d series, about %.2g particle-steps\n", f->nseries, particle_steps);
+    for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
+        const run_plan *pl = &plans[k];
+        /* The finest first: its h sets Δt of the whole sweep (dt_rule = finest). */
+        double h_dt = 0.0;
+        for (int j = pl->nnx - 1; rc == CONSPH_OK && j >= 0; --j) {
+            run_row *w = &rows[k][j];
+            rc = run_one(pl, j, h_dt, w);
+            if (rc) {
+                consph_fail(rc, "figure '%s', series '%s', nx %g: %s", f->id, f->series[k].label,
+                            pl->nx[j], consph_last_error());
+                break;
+            }
+            if (pl->dt_finest && j == pl->nnx - 1) h_dt = w->sum.h;
+            if (log)
+                fprintf(log,
+                        "  %-24s nx=%-5g N=%-7zu steps=%-7ld L1(u)=%.3e L1(p)=%.3e (%.2fs)%s\n",
+                        f->series[k].label, pl->nx[j], w->sum.n, w->sum.steps, w->sum.l1_u,
+                        w->sum.l1_p, w->sum.seconds, w->status ? " diverged" : "");
+        }
+    }
+    if (rc == CONSPH_OK) rc = write_report(s, f, quick, dir, plans, rows, ref);
+    if (rc == CONSPH_OK) rc = write_plot(s, f, dir, plans, rows, x);
+    free(plans);
+    free(rows);
+    return rc;
+}

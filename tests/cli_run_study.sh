@@ -1,0 +1,95 @@
+#!/usr/bin/env bash
+# Study kind `run` (docs/studies.md): a tiny Taylor-Green sweep of e-c and ewcsph through the
+# solver, its report and files; bad run studies are refused with file:line and exit 2; the
+# 001 run studies (Tables 8, 9, Fig. 20) and the demo study are valid. cli_studies.sh leaves the
+# run studies out: their quick runs take minutes.
+# Usage: bash cli_run_study.sh PATH-TO-CONSPH SOURCE-DIR
+set -u
+consph=$1 src=$2
+fail=0
+bad() { echo "FAIL: $*"; fail=1; }
+tmp=$(mktemp -d)
+trap 'rm -rf "$tmp"' EXIT
+export OMP_WAIT_POLICY=${OMP_WAIT_POLICY:-passive}
+
+cat >"$tmp/tiny.study" <<'STUDY'
+study = tiny
+title = tiny Taylor-Green sweep
+[figure conv]
+kind = run
+problem = taylor-green
+layout = lattice
+c0 = 80
+nx = 12,16,24
+tf = 0.02
+dt_rule = finest
+tr_ref = EWCSPH
+[series E-C]
+scheme = e-c
+paper.order_u = 1.94
+[series EWCSPH]
+scheme = ewcsph
+paper.order_u = 1.57
+STUDY
+"$consph" study "$tmp/tiny.study" --quick --out "$tmp/out" >"$tmp/log" 2>&1
+rc=$?
+[ $rc = 0 ] || { cat "$tmp/log"; bad "tiny run study: exit $rc"; }
+d=$tmp/out/tiny
+for f in README.md conv.csv conv.md conv.dat conv.gp; do
+  [ -s "$d/$f" ] || bad "missing $f"
+done
+ls "$d" | grep -q '\.tmp\.' && bad "temporary file left behind"
+head -1 "$d/conv.csv" | grep -q '^series,scheme,c0,nx,n,steps,t,dt,h,l1_u,l1_p,linf_u,linf_p,ft_over_fmax,seconds,pairs,regularisations,status$' || bad "conv.csv header"
+[ "$(tail -n +2 "$d/conv.csv" | grep -c ',ok$')" = 6 ] || bad "conv.csv: not 6 finished runs"
+# The report has both fitted orders with their standard errors for each series, the paper's
+# order beside ours, and T_r relative to the named series.
+for s in E-C EWCSPH; do
+  row=$(grep "^| $s | " "$d/conv.md")
+  [ "$(echo "$row" | grep -o '[-0-9.]* ± [0-9.]*' | wc -l)" = 2 ] || bad "$s: orders of u and p with standard errors missing: $row"
+done
+grep -q '^| E-C | e-c | 80 | .* | 1.94 |' "$d/conv.md" || bad "paper order of E-C not beside ours"
+awk -F'|' '$2 == " EWCSPH " { exit !($15 + 0 == 1) }' "$d/conv.md" || bad "T_r of the reference series is not 1"
+# E-C converges in velocity (second order in 001; above 1.5 on this tiny sweep).
+order=$(awk -F'|' '$2 == " E-C " { split($7, a, " "); print a[1] }' "$d/conv.md")
+awk -v o="$order" 'BEGIN { exit !(o > 1.5) }' || bad "E-C velocity order $order, want > 1.5"
+# dt_rule = finest: every run steps with 0.3 h/(U + c_o) of the finest resolution, h = 1.2/24.
+awk -F, 'NR > 1 { d = $8 / (0.3 * 0.05 / 81) - 1; if (d > 1e-6 || d < -1e-6) bad = 1 } END { exit bad }' "$d/conv.csv" || bad "dt is not the finest resolution's"
+# On the lattice the Eulerian schemes exert no net force (001 Table 9: about 1e-14).
+awk -F, 'NR > 1 { f = $14 < 0 ? -$14 : $14; if (!(f < 1e-10)) bad = 1 } END { exit bad }' "$d/conv.csv" || bad "F_T/F_max of e-c/ewcsph on the lattice not at round-off"
+
+# Bad run studies: exit 2, one line naming file and line, nothing written.
+refuse() { # refuse DESCRIPTION LINE-NUMBER EXPECTED-TEXT STUDY-TEXT
+  printf '%s\n' "$4" >"$tmp/broken.study"
+  "$consph" study "$tmp/broken.study" --quick --out "$tmp/o2" >/dev/null 2>"$tmp/err"; local rc=$?
+  [ $rc = 2 ] || bad "$1: exit $rc"
+  grep -q "broken.study:$2.*$3" "$tmp/err" || bad "$1: message $(cat "$tmp/err")"
+  [ "$(wc -l <"$tmp/err")" = 1 ] || bad "$1: more than one line"
+  [ -e "$tmp/o2" ] && bad "$1: a rejected study created output"
+}
+head='study = broken
+[figure a]
+kind = run
+nx = 12,16'
+refuse "misspelt key" 5 "unknown key 'schme'" "$head
+schme = e-c"
+refuse "unknown scheme" 5 "unknown value 'e-x'; allowed: .*ewcsph" "$head
+scheme = e-x"
+refuse "unknown dt_rule" 6 "dt_rule.*allowed: finest, own" "$head
+scheme = e-c
+dt_rule = coarsest"
+refuse "tr_ref naming no series" 6 "no series 'X'" "$head
+scheme = e-c
+tr_ref = X"
+refuse "decreasing nx" 4 "whole and increasing" "study = broken
+[figure a]
+kind = run
+nx = 16,12
+scheme = e-c"
+
+# The shipped run studies are valid and estimate their cost without running.
+for s in 001-table8 001-table9 001-fig20 demo-tgv; do
+  CONSPH_STUDIES=$src/studies "$consph" study "$s" --estimate >"$tmp/est" 2>&1 || bad "$s --estimate: $(cat "$tmp/est")"
+  grep -q '^estimated run time: [0-9]' "$tmp/est" || bad "$s: no estimate"
+done
+[ $fail = 0 ] && echo "cli_run_study: ok"
+exit $fail
