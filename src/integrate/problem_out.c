@@ -86,8 +86,9 @@ static int draw_vorticity(const char *dir)
     return st;
 }
 
-/* The vorticity averaged over the particles of each cell of an nx × nx grid (a cell with none is
- * NaN, which gnuplot leaves blank), as a gnuplot matrix, and the script that draws it. */
+/* The vorticity averaged over the particles of each cell of an nx × nx grid (an empty cell: over
+ * its 3 × 3 neighbourhood; NaN, which gnuplot leaves blank, if that is empty too), as a gnuplot
+ * matrix, and the script that draws it. */
 static int write_vorticity(consph_solver *s, const char *dir)
 {
     int st = consph_solver_output_fields(s);
@@ -117,9 +118,19 @@ static int write_vorticity(consph_solver *s, const char *dir)
     if (st == CONSPH_OK) {
         for (int cy = 0; cy < nx; ++cy)
             for (int cx = 0; cx < nx; ++cx) {
-                const size_t k = (size_t)cy * nx + cx;
-                if (cnt[k] > 0.0)
-                    fprintf(of.fp, "%.6e", sum[k] / cnt[k]);
+                double sw = 0.0, n = 0.0;
+                /* an empty cell (particles leave gaps where they are advected apart) takes the
+                 * particles of the 3 × 3 cells around it, wrapped periodically */
+                for (int r = 0; r < 2 && n == 0.0; ++r)
+                    for (int oy = -r; oy <= r; ++oy)
+                        for (int ox = -r; ox <= r; ++ox) {
+                            const size_t k =
+                                (size_t)((cy + oy + nx) % nx) * nx + (size_t)((cx + ox + nx) % nx);
+                            sw += sum[k];
+                            n += cnt[k];
+                        }
+                if (n > 0.0)
+                    fprintf(of.fp, "%.6e", sw / n);
                 else
                     fputs("NaN", of.fp);
                 fputc(cx + 1 < nx ? ' ' : '\n', of.fp);

@@ -518,6 +518,7 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
     const consph_field *fr = consph_particles_find(p, SF_RHOF);
     const consph_field *fg = consph_particles_find(p, SF_GRADP);
     const consph_field *fd = consph_particles_find(p, SF_DIVU);
+    const consph_field *fm = consph_particles_find(p, SF_MASS);
     if (!fu || !fp || !fr || !fg || !fd) return consph_fail(CONSPH_EINVAL, "solver state missing");
     double *w = malloc(8 * (n ? n : 1) * sizeof(double));
     if (!w) return consph_fail(CONSPH_ENOMEM, "out of memory");
@@ -530,10 +531,11 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
         const double ux = fu->data[i], uy = fu->data[cap + i];
         eu[i] = fabs(hypot(ux, uy) - hypot(ue[0], ue[1]));
         ep[i] = fabs(fp->data[i] - pe);
-        ke[i] = 0.5 * s->mass * (ux * ux + uy * uy);
-        mx[i] = s->mass * ux;
-        my[i] = s->mass * uy;
-        an[i] = s->mass * ((x[0] - xc) * uy - (x[1] - yc) * ux);
+        const double m = fm ? fm->data[i] : s->mass;
+        ke[i] = 0.5 * m * (ux * ux + uy * uy);
+        mx[i] = m * ux;
+        my[i] = m * uy;
+        an[i] = m * ((x[0] - xc) * uy - (x[1] - yc) * ux);
         fx[i] = -fg->data[i] / fr->data[i];
         dv[i] = fd->data[i];
     }

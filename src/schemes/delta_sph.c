@@ -5,9 +5,9 @@
  *
  * One density: ρ is evolved and gives both the pressure (EOS) and the volumes V_j = m/ρ_j of
  * every sum (001 §5.2: these schemes make no distinction between ϱ and ρ), so "volume" holds
- * m/ρ, set before each right-hand side. With x_ij = x_i - x_j, ∇W_ij = dwr x_ij, u_ji = u_j - u_i:
- *   dρ_i/dt = -ρ_i Σ u_ji·∇W_ij V_j + δ h c_o Σ ψ_ij·∇W_ij V_j             (Marrone eq. 5a)
- *             ψ_ij = 2 (ρ_j - ρ_i) x_ji/r² - (⟨∇ρ⟩^L_i + ⟨∇ρ⟩^L_j)
+ * m/ρ, set before each right-hand side; the masses m_i = ρ_i(0) Δs^d (field "mass"). With x_ij =
+ * x_i - x_j, ∇W_ij = dwr x_ij, u_ji = u_j - u_i: dρ_i/dt = -ρ_i Σ u_ji·∇W_ij V_j + δ h c_o Σ
+ * ψ_ij·∇W_ij V_j             (Marrone eq. 5a) ψ_ij = 2 (ρ_j - ρ_i) x_ji/r² - (⟨∇ρ⟩^L_i + ⟨∇ρ⟩^L_j)
  *   du_i/dt = -(1/ρ_i) Σ (p_i + p_j) ∇W_ij V_j                                  (sym1)
  *             + (α h c_o + 2(d + 2) ν) (ρ_o/ρ_i) Σ π_ij ∇W_ij V_j,  π_ij = u_ji·x_ji/r²
  * ⟨∇ρ⟩^L the renormalised gradient L_i Σ (ρ_j - ρ_i) ∇W_ij V_j, L_i = (Σ x_ji ⊗ ∇W_ij V_j)^-1.
@@ -132,10 +132,15 @@ static int delta_rates(consph_solver *s, int shift)
     consph_particles *p = sys->p;
     const int d = s->dim;
     const size_t n = p->n, cap = p->cap;
-    double *vol = sv_field(s, SF_VOL, 1);
+    const int first = consph_particles_find(p, SF_MASS) == NULL;
+    double *vol = sv_field(s, SF_VOL, 1), *m = sv_field(s, SF_MASS, 1);
     const double *rho = sv_field(s, SF_RHOF, 1);
-    if (!vol || !rho) return CONSPH_ENOMEM;
-    for (size_t i = 0; i < n; ++i) vol[i] = s->mass / rho[i];
+    if (!vol || !rho || !m) return CONSPH_ENOMEM;
+    /* m_i = ρ_i(0) Δs^d, so that V_i = m_i/ρ_i starts at the particle's volume Δs^d whatever
+     * the initial pressure (Gresho-Chan's ρ is 5 % above ρ_o); a checkpoint carries the field */
+    if (first)
+        for (size_t i = 0; i < n; ++i) m[i] = rho[i] * s->mass / s->prm.rho0;
+    for (size_t i = 0; i < n; ++i) vol[i] = m[i] / rho[i];
     s->passes = 0;
     double *du = NULL;
     int st = CONSPH_OK;

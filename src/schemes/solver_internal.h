@@ -16,6 +16,7 @@
 #define SF_P "p"           /* pressure */
 #define SF_VOL "volume"    /* ω = 1/Σ W */
 #define SF_ID "id"         /* index in the initial particle set (as a double, exact) */
+#define SF_MASS "mass"     /* per-particle mass of a scheme that has one (else ρ_o Δs^d) */
 #define SF_LATTICE "x_lat" /* L-RR-C: the lattice point of the slot, d */
 /* integrator: the state at the start of the step and the rates */
 #define SF_X0 "x0"
