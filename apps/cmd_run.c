@@ -1,5 +1,6 @@
 /* consph run PROBLEM: one WCSPH simulation (include/consph/solver.h). */
 #include <errno.h>
+#include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -17,11 +18,15 @@ static const char run_details[] =
     "Re 100, RK2 (explicit midpoint), Δt = 0.3 h/(U + c_o), packed particles for the\n"
     "Lagrangian schemes and the lattice for l-rr-c and the Eulerian ones; IPST every 10\n"
     "steps, at most 10 iterations, ε 1e-3. docs/schemes.md records every choice.\n"
+    "gresho-chan (001 eq. 37): ν 0, t_f 3, lattice; shear-layer (001 eqs. 38-39): ν 1e-4,\n"
+    "t_f 1, lattice, no exact solution (errors n/a); an option given overrides these.\n"
     "\n"
     "With --out DIR: DIR/run.pvd indexing snap_NNNNNN.vtu (every --snapshot-every steps and\n"
     "the last), DIR/log.csv (one row per step), DIR/summary.json, and DIR/checkpoint.ckpt\n"
-    "every --checkpoint-every steps. SIGINT/SIGTERM finish the step, write a checkpoint\n"
-    "and exit 130/143; --restart DIR/checkpoint.ckpt continues bit for bit (the output\n"
+    "every --checkpoint-every steps; gresho-chan adds DIR/profile.csv (u_φ(r) and the exact\n"
+    "one), shear-layer DIR/vorticity.png (with gnuplot; vorticity.gp draws it later).\n"
+    "SIGINT/SIGTERM finish the step, write a checkpoint and exit 130/143;\n"
+    "--restart DIR/checkpoint.ckpt continues bit for bit (the output\n"
     "options are not in the checkpoint: give --out, --snapshot-every and --checkpoint-every\n"
     "again).\n"
     "\n"
@@ -42,6 +47,22 @@ static int make_dir(const cli_command *cmd, const char *dir)
     return 0;
 }
 
+/* An error against the exact solution, or n/a where the problem has none (the shear layer). */
+static void error_text(char *buf, size_t size, double v)
+{
+    if (isfinite(v))
+        snprintf(buf, size, "%.6e", v);
+    else
+        snprintf(buf, size, "n/a");
+}
+
+static int given(const cli_command *cmd, const char *name)
+{
+    for (int k = 0; k < cmd->nopts; ++k)
+        if (!strcmp(cmd->opts[k].name, name)) return cmd->opts[k].given;
+    return 0;
+}
+
 int cmd_run(int argc, char **argv)
 {
     consph_run_params prm;
@@ -50,7 +71,7 @@ int cmd_run(int argc, char **argv)
     long nx = 50, steps = 0, snap_every = 0, ckpt_every = 0, threads = 0, seed = 1;
     long ipst_every = 10, ipst_iter = 10;
     double hdx = 1.2, c0 = 0.0, re = 100.0, tf = 0.5, dt = 0.0, U = 1.0, delta = 0.1;
-    double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3;
+    double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3, nu = 0.0, alpha = 0.0;
     int layout = 0, kernel = 0, format = 0, eos = 0;
     char layout_choices[256], kernel_choices[512];
     snprintf(layout_choices, sizeof layout_choices, "default,%s", consph_layout_names());
@@ -65,11 +86,15 @@ int cmd_run(int argc, char **argv)
         {"--hdx", CLI_DOUBLE, &hdx, "R", "h/Δs", NULL, 0.5, 4, 0},
         {"--kernel", CLI_CHOICE, &kernel, "K", "kernel (radial)", kernel_choices, 0, 0, 0},
         {"--c0", CLI_DOUBLE, &c0, "C", "speed of sound (0: 10 U)", NULL, 0, 1e6, 0},
-        {"--re", CLI_DOUBLE, &re, "RE", "Reynolds number", NULL, 1e-6, 1e12, 0},
+        {"--re", CLI_DOUBLE, &re, "RE", "Reynolds number (ν = U L/Re)", NULL, 1e-6, 1e12, 0},
+        {"--nu", CLI_DOUBLE, &nu, "NU", "kinematic viscosity instead of --re (0: inviscid)", NULL,
+         0, 1e6, 0},
+        {"--alpha", CLI_DOUBLE, &alpha, "A", "artificial viscosity α of the δ-SPH family", NULL, 0,
+         10, 0},
         {"--u", CLI_DOUBLE, &U, "U", "velocity scale", NULL, 1e-12, 1e6, 0},
         {"--eos", CLI_CHOICE, &eos, "E", "equation of state", "default,tait,linear", 0, 0, 0},
         {"--delta", CLI_DOUBLE, &delta, "D", "δ of the diffusive term D = δ h c_o", NULL, 0, 10, 0},
-        {"--tf", CLI_DOUBLE, &tf, "T", "final time", NULL, 1e-12, 1e6, 0},
+        {"--tf", CLI_DOUBLE, &tf, "T", "final time (default: the problem's)", NULL, 1e-12, 1e6, 0},
         {"--steps", CLI_INT, &steps, "K", "number of steps (instead of --tf)", NULL, 1, 1e12, 0},
         {"--dt", CLI_DOUBLE, &dt, "DT", "fixed time step (0: cfl h/(U + c_o))", NULL, 0, 1e6, 0},
         {"--cfl", CLI_DOUBLE, &cfl, "C", "factor of the time-step rule", NULL, 1e-6, 2, 0},
@@ -96,7 +121,8 @@ int cmd_run(int argc, char **argv)
     const char *positional[1] = {NULL};
     cli_command cmd = {"run",
                        "run a weakly-compressible SPH simulation",
-                       "consph run PROBLEM --scheme S --nx N [options]   (PROBLEM: taylor-green)",
+                       "consph run PROBLEM --scheme S --nx N [options]   (PROBLEM: taylor-green, "
+                       "gresho-chan, shear-layer)",
                        run_details,
                        opts,
                        (int)(sizeof opts / sizeof opts[0]),
@@ -128,10 +154,11 @@ int cmd_run(int argc, char **argv)
             return CLI_EXIT_USAGE;
         }
     } else {
-        if (strlen(positional[0]) >= sizeof prm.problem)
+        if (given(&cmd, "--re") && given(&cmd, "--nu"))
+            return cli_error(&cmd, "options --re and --nu both set the viscosity: give one");
+        if (consph_run_params_problem(&prm, positional[0]) != CONSPH_OK)
             return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s)", positional[0],
                              consph_problem_names());
-        snprintf(prm.problem, sizeof prm.problem, "%s", positional[0]);
         if (strlen(scheme) >= sizeof prm.scheme)
             return cli_error(&cmd, "option --scheme: '%.40s' is unknown (allowed: %s)", scheme,
                              consph_scheme_names());
@@ -144,7 +171,8 @@ int cmd_run(int argc, char **argv)
         }
         char name[64];
         prm.nx = (int)nx;
-        prm.layout = layout == 0 ? -1 : 0;
+        /* the problem's defaults (consph_run_params_problem) stay unless an option is given */
+        if (given(&cmd, "--layout")) prm.layout = -1;
         if (layout > 0) {
             consph_layout_kind kind;
             cli_choice_name(layout_choices, layout, name, sizeof name);
@@ -155,12 +183,18 @@ int cmd_run(int argc, char **argv)
         consph_kernel_lookup(name, &prm.kernel);
         prm.seed = (unsigned long)seed;
         prm.hdx = hdx;
-        prm.c0 = c0;
+        if (given(&cmd, "--c0")) prm.c0 = c0;
         prm.re = re;
+        if (given(&cmd, "--re")) prm.nu = -1.0;
+        if (given(&cmd, "--nu")) prm.nu = nu;
+        prm.alpha = alpha;
         prm.U = U;
         prm.eos = eos == 0 ? CONSPH_EOS_DEFAULT : eos == 1 ? CONSPH_EOS_TAIT : CONSPH_EOS_LINEAR;
         prm.delta = delta;
-        prm.tf = steps > 0 ? 0.0 : tf;
+        if (steps > 0)
+            prm.tf = 0.0;
+        else if (given(&cmd, "--tf"))
+            prm.tf = tf;
         prm.steps = steps;
         prm.dt = dt;
         prm.cfl = cfl;
@@ -205,8 +239,11 @@ int cmd_run(int argc, char **argv)
     } else {
         printf("%s %s, %s, n = %zu, %ld steps of dt = %.6g to t = %.6g, c_o = %g\n", sum.problem,
                sum.scheme, sum.integrator, sum.n, sum.steps, sum.dt, sum.t, sum.c0);
-        printf("L1(u) %.6e  L1(p) %.6e  (001 eq. 26)   Linf(u) %.6e  Linf(p) %.6e\n", sum.l1_u,
-               sum.l1_p, sum.linf_u, sum.linf_p);
+        char e[4][32];
+        const double ev[4] = {sum.l1_u, sum.l1_p, sum.linf_u, sum.linf_p};
+        for (int k = 0; k < 4; ++k) error_text(e[k], sizeof e[k], ev[k]);
+        printf("L1(u) %s  L1(p) %s  (001 eq. 26)   Linf(u) %s  Linf(p) %s\n", e[0], e[1], e[2],
+               e[3]);
         printf("momentum (%.3e, %.3e)  angular %.3e  F_T/F_max %.3e  max|div u| %.3e\n",
                sum.momentum[0], sum.momentum[1], sum.angular_momentum, sum.ft_fmax, sum.max_divu);
         printf("%.3f s, %.3e s per particle-step, %d passes per stage (minimum %d)\n", sum.seconds,

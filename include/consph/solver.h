@@ -9,8 +9,10 @@
  *
  * Errors (001 eq. 26): L1 of a quantity is Σ_steps Δt · (1/N) Σ_i |f_i - f_o(x_i, t)|, summed
  * over the steps after t = 0, with f the velocity magnitude |u| or the pressure p; L∞ is the
- * largest |f_i - f_o| at the final time. Sums over particles are blocked and combined in a fixed
- * tree (consph_sum), so results do not depend on the thread count. */
+ * largest |f_i - f_o| at the final time; a problem with no exact solution after t = 0 (the shear
+ * layer) reports its errors as NaN (n/a, JSON null), which is not a failure. Sums over particles
+ * are blocked and combined in a fixed tree (consph_sum), so results do not depend on the thread
+ * count. */
 #ifndef CONSPH_SOLVER_H
 #define CONSPH_SOLVER_H
 
@@ -42,11 +44,13 @@ typedef struct consph_run_params {
     consph_kernel_id kernel;
     double U;    /* velocity scale */
     double c0;   /* speed of sound; 0: 10 U */
-    double re;   /* Reynolds number (ν = U L / Re, L = 1) */
+    double re;   /* Reynolds number (ν = U L / Re, L = the box side) */
+    double nu;   /* kinematic viscosity; < 0: from re (ν = U L / Re); 0: inviscid */
     double rho0; /* reference density ρ_o */
     double gamma;
     consph_eos_kind eos;
     double delta;      /* δ of the diffusive terms D = δ h c_o (catalogue Part C 001.11) */
+    double alpha;      /* artificial viscosity α of the δ-SPH family (Marrone et al. 2011) */
     double tf;         /* final time (used when steps = 0) */
     long steps;        /* number of steps (0: up to tf) */
     double dt;         /* fixed time step (0: the rule cfl · h_dt/(U + c_o)) */
@@ -58,8 +62,12 @@ typedef struct consph_run_params {
 } consph_run_params;
 
 void consph_run_params_default(consph_run_params *prm);
+/* Sets prm->problem and the problem's own defaults (final time, ν, c_o, layout; docs/schemes.md
+ * gives their sources): taylor-green keeps consph_run_params_default's. CONSPH_EINVAL naming the
+ * allowed problems for an unknown name. */
+int consph_run_params_problem(consph_run_params *prm, const char *problem);
 
-/* Names, for help and messages: "l-ipst-c,l-ipst-f,..." and "taylor-green". */
+/* Names, for help and messages: "l-ipst-c,l-ipst-f,..." and "taylor-green,...". */
 const char *consph_scheme_names(void);
 const char *consph_problem_names(void);
 const char *consph_integrator_names(void);

@@ -169,6 +169,7 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
         snprintf(msg, sizeof msg, "%s", consph_last_error());
         int wst = write_log(s, &f);
         if (wst == CONSPH_OK && st == CONSPH_OK && !*stopped_by) wst = write_summary(sum, &f);
+        if (wst == CONSPH_OK && st == CONSPH_OK && !*stopped_by) wst = problem_outputs(s, out->dir);
         if (st == CONSPH_OK)
             st = wst;
         else

@@ -16,6 +16,7 @@
 #define SF_P "p"           /* pressure */
 #define SF_VOL "volume"    /* ω = 1/Σ W */
 #define SF_ID "id"         /* index in the initial particle set (as a double, exact) */
+#define SF_MASS "mass"     /* per-particle mass of a scheme that has one (else ρ_o Δs^d) */
 #define SF_LATTICE "x_lat" /* L-RR-C: the lattice point of the slot, d */
 /* integrator: the state at the start of the step and the rates */
 #define SF_X0 "x0"
@@ -91,6 +92,8 @@ const scheme_def *scheme_find(const char *name);
 /* The schemes of 001 §5.1 and §5.4 (schemes.c). */
 extern const scheme_def scheme_l_ipst_c, scheme_l_ipst_f, scheme_l_ipst_k, scheme_l_pst_c,
     scheme_pe_ipst_c, scheme_l_rr_c, scheme_tv_c, scheme_e_c, scheme_ewcsph;
+/* The δ-SPH family (delta_sph.c). */
+extern const scheme_def scheme_delta_sph, scheme_delta_plus_sph, scheme_delta_plus_sph_d;
 size_t scheme_count(void);
 
 /* ---- problems: data ---- */
@@ -100,11 +103,19 @@ typedef struct problem_def {
     /* exact (or initial, at t = 0) velocity and pressure at x */
     void (*exact)(const consph_run_params *prm, double t, const double x[3], double u[3],
                   double *p);
-    int has_exact; /* the exact solution holds for t > 0 */
+    int has_exact; /* the exact solution holds for t > 0 (else errors are NaN: n/a) */
     double lo, hi; /* the periodic square [lo, hi)² */
+    /* defaults that consph_run_params_problem sets: final time, ν (< 0: U L/Re) and c_o (0:
+     * 10 U) */
+    double tf, nu, c0;
+    int layout;          /* consph_layout_kind, or -1: the scheme's */
+    int radial;          /* a vortex centred in the box: the run writes profile.csv, u_φ(r) */
+    int vorticity_image; /* the run draws the final vorticity (vorticity.png) */
 } problem_def;
 
 const problem_def *problem_find(const char *name);
+/* The problem's files in dir at the final time (problem_out.c): profile.csv, vorticity.*. */
+int problem_outputs(consph_solver *s, const char *dir);
 
 /* ---- the solver ---- */
 struct consph_solver {

@@ -1,0 +1,239 @@
+/* The δ-SPH family: δ-SPH (Antuono et al. 2010, Marrone et al. 2011), δ+-SPH (Sun et al. 2017,
+ * 2019) and δ+-SPH with the conservative correction of 001 App. D. docs/schemes.md records
+ * every choice with its source (PySPH 1.0b1's wc/basic.py, wc/viscosity.py and
+ * wc/kernel_correction.py are the readable reference for the constants).
+ *
+ * One density: ρ is evolved and gives both the pressure (EOS) and the volumes V_j = m/ρ_j of
+ * every sum (001 §5.2: these schemes make no distinction between ϱ and ρ), so "volume" holds
+ * m/ρ, set before each right-hand side; the masses m_i = ρ_i(0) Δs^d (field "mass"). With x_ij =
+ * x_i - x_j, ∇W_ij = dwr x_ij, u_ji = u_j - u_i: dρ_i/dt = -ρ_i Σ u_ji·∇W_ij V_j + δ h c_o Σ
+ * ψ_ij·∇W_ij V_j             (Marrone eq. 5a) ψ_ij = 2 (ρ_j - ρ_i) x_ji/r² - (⟨∇ρ⟩^L_i + ⟨∇ρ⟩^L_j)
+ *   du_i/dt = -(1/ρ_i) Σ (p_i + p_j) ∇W_ij V_j                                  (sym1)
+ *             + (α h c_o + 2(d + 2) ν) (ρ_o/ρ_i) Σ π_ij ∇W_ij V_j,  π_ij = u_ji·x_ji/r²
+ * ⟨∇ρ⟩^L the renormalised gradient L_i Σ (ρ_j - ρ_i) ∇W_ij V_j, L_i = (Σ x_ji ⊗ ∇W_ij V_j)^-1.
+ * δ+-SPH moves the particles with u + δu, δu = δr/Δt from Sun's shifting (reg_pst_shift), and
+ * adds the shifting terms ∇f·δu (001 eq. D.1) to the rates of f = ρ and f = u in Sun et al.
+ * 2019's form ∇·(f δu) - f ∇·δu, the first as the sum Σ (f_j δu_j + f_i δu_i)·∇W_ij V_j, the
+ * second as the difference f_i Σ (δu_j - δu_i)·∇W_ij V_j; δ+-SPH-D uses 001's eq. D.5 instead,
+ * δu_i·Σ (f_j - f_i) ∇W_ij V_j, which is ∇f·δu_i to first order. */
+#include <math.h>
+#include <string.h>
+
+#include "ops/terms.h"
+#include "schemes/regularise.h"
+#include "schemes/solver_internal.h"
+
+#define SF_GRADRHO_L "gradrho_l" /* ⟨∇ρ⟩^L, d */
+
+enum { SHIFT_NONE, SHIFT_SUN, SHIFT_APP_D };
+
+typedef struct delta_job {
+    int d, shift;
+    size_t cap;
+    const double *vol, *rho, *p, *u, *du;
+    double *L, *gradrho;
+    double *au, *aq, *ax, *gradp, *divu, *gradu;
+    double h_c0_delta, visc; /* δ h c_o and (α h c_o + 2(d+2)ν) ρ_o */
+} delta_job;
+
+/* Pass 1: L_i and the renormalised density gradient. */
+static void visit_renorm(void *vjob, const consph_nbhd *nb)
+{
+    const delta_job *job = vjob;
+    const int d = job->d;
+    const size_t i = nb->i, cap = job->cap;
+    double moment[9], L[9], sg[3], sw, g[3];
+    const double zero[3] = {0.0, 0.0, 0.0};
+    term_bonet_moment_any(d, nb, job->vol, moment);
+    consph_bonet_finalise(d, moment, 1e8, L, NULL);
+    term_grad_sums_any(d, TERM_GRAD_DIFF, 0, nb, job->vol, NULL, NULL, job->rho, job->rho[i], sg,
+                       &sw);
+    term_apply_rule(d, zero, L, sg, sw, g);
+    for (int e = 0; e < d * d; ++e) job->L[(size_t)e * cap + i] = L[e];
+    for (int a = 0; a < d; ++a) job->gradrho[a * cap + i] = g[a];
+}
+
+/* Pass 2: every rate. */
+static void visit_rates(void *vjob, const consph_nbhd *nb)
+{
+    const delta_job *job = vjob;
+    const int d = job->d;
+    const size_t i = nb->i, cap = job->cap;
+    const double *u = job->u, *rho = job->rho, *vol = job->vol, *gr = job->gradrho;
+    const double rhoi = rho[i], pi = job->p[i];
+    double ui[3] = {0.0, 0.0, 0.0}, dui[3] = {0.0, 0.0, 0.0};
+    for (int a = 0; a < d; ++a) ui[a] = u[a * cap + i];
+    if (job->du)
+        for (int a = 0; a < d; ++a) dui[a] = job->du[a * cap + i];
+    double divu = 0.0, diff = 0.0, shq = 0.0, gp[3] = {0}, visc[3] = {0}, shu[3] = {0};
+    double G[9] = {0};
+    for (size_t q = 0; q < nb->n; ++q) {
+        const double r = nb->r[q];
+        if (!(r > 0.0)) continue;
+        const size_t j = nb->j[q];
+        const double Vj = vol[j], dwr = nb->dwr[q], r2 = r * r;
+        double x[3], gw[3], uji[3];
+        double ux = 0.0, psig = 0.0;
+        for (int a = 0; a < d; ++a) {
+            x[a] = nb->dx[a][q];
+            gw[a] = dwr * x[a];
+            uji[a] = u[a * cap + j] - ui[a];
+            ux += uji[a] * x[a];
+        }
+        const double drho = rho[j] - rhoi;
+        for (int a = 0; a < d; ++a) {
+            /* ψ_ij with x_ji = -x_ij */
+            const double psi = -2.0 * drho * x[a] / r2 - (gr[a * cap + i] + gr[a * cap + j]);
+            psig += psi * gw[a];
+            divu += Vj * uji[a] * gw[a];
+            gp[a] += Vj * (pi + job->p[j]) * gw[a];
+            /* π_ij = u_ji·x_ji/r² = -u_ji·x_ij/r² */
+            visc[a] -= Vj * ux / r2 * gw[a];
+            for (int b = 0; b < d; ++b) G[a * d + b] += Vj * uji[a] * gw[b];
+        }
+        diff += Vj * psig;
+        if (job->shift == SHIFT_SUN) {
+            /* Σ V_j [(f_j δu_j + f_i δu_i) - f_i (δu_j - δu_i)]·∇W_ij
+             *   = Σ V_j [(f_j - f_i) δu_j·∇W_ij + 2 f_i δu_i·∇W_ij] */
+            double sj = 0.0, si = 0.0;
+            for (int a = 0; a < d; ++a) {
+                sj += job->du[a * cap + j] * gw[a];
+                si += dui[a] * gw[a];
+            }
+            shq += Vj * (drho * sj + 2.0 * rhoi * si);
+            for (int a = 0; a < d; ++a) shu[a] += Vj * (uji[a] * sj + 2.0 * ui[a] * si);
+        } else if (job->shift == SHIFT_APP_D) {
+            /* 001 eq. D.5: Σ V_j (f_j - f_i) δu_i·∇W_ij */
+            double si = 0.0;
+            for (int a = 0; a < d; ++a) si += dui[a] * gw[a];
+            shq += Vj * drho * si;
+            for (int a = 0; a < d; ++a) shu[a] += Vj * uji[a] * si;
+        }
+    }
+    const double *L = job->L + 0;
+    for (int a = 0; a < d; ++a) {
+        job->au[a * cap + i] = -gp[a] / rhoi + job->visc / rhoi * visc[a] + shu[a];
+        job->gradp[a * cap + i] = gp[a];
+        if (job->ax) job->ax[a * cap + i] = ui[a] + dui[a];
+        /* ∂_b u_a renormalised with L_i, for the vorticity of the output */
+        for (int b = 0; b < d; ++b) {
+            double v = 0.0;
+            for (int c = 0; c < d; ++c) v += L[(size_t)(b * d + c) * cap + i] * G[a * d + c];
+            job->gradu[(size_t)(a * d + b) * cap + i] = v;
+        }
+    }
+    job->divu[i] = divu;
+    job->aq[i] = -rhoi * divu + job->h_c0_delta * diff + shq;
+}
+
+static int delta_rates(consph_solver *s, int shift)
+{
+    consph_sys *sys = &s->sys;
+    consph_particles *p = sys->p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    const int first = consph_particles_find(p, SF_MASS) == NULL;
+    double *vol = sv_field(s, SF_VOL, 1), *m = sv_field(s, SF_MASS, 1);
+    const double *rho = sv_field(s, SF_RHOF, 1);
+    if (!vol || !rho || !m) return CONSPH_ENOMEM;
+    /* m_i = ρ_i(0) Δs^d, so that V_i = m_i/ρ_i starts at the particle's volume Δs^d whatever
+     * the initial pressure (Gresho-Chan's ρ is 5 % above ρ_o); a checkpoint carries the field */
+    if (first)
+        for (size_t i = 0; i < n; ++i) m[i] = rho[i] * s->mass / s->prm.rho0;
+    for (size_t i = 0; i < n; ++i) vol[i] = m[i] / rho[i];
+    s->passes = 0;
+    double *du = NULL;
+    int st = CONSPH_OK;
+    if (shift != SHIFT_NONE) {
+        /* δu = δr/Δt with Sun's δr (the CFL form of 001's L-PST-C and TV-C) */
+        du = sv_field(s, SF_SHIFT, d);
+        if (!du) return CONSPH_ENOMEM;
+        reg_pst_params pp = {s->h, s->ds, s->dt * s->c0 / s->h, s->prm.U / s->c0, 0.2, 4.0, 0.0};
+        st = reg_pst_shift(sys, &pp, du);
+        if (st != CONSPH_OK) return st;
+        ++s->passes;
+        const double inv_dt = 1.0 / s->dt;
+        for (int a = 0; a < d; ++a)
+            for (size_t i = 0; i < n; ++i) du[a * cap + i] *= inv_dt;
+    }
+    delta_job job = {.d = d,
+                     .shift = shift,
+                     .cap = cap,
+                     .vol = vol,
+                     .rho = rho,
+                     .p = sv_field(s, SF_P, 1),
+                     .u = sv_field(s, SF_U, d),
+                     .du = du,
+                     .L = sv_field(s, SF_BONET, d * d),
+                     .gradrho = sv_field(s, SF_GRADRHO_L, d),
+                     .au = sv_field(s, SF_AU, d),
+                     .aq = sv_field(s, SF_AQ, 1),
+                     .ax = sv_field(s, SF_AX, d),
+                     .gradp = sv_field(s, SF_GRADP, d),
+                     .divu = sv_field(s, SF_DIVU, 1),
+                     .gradu = sv_field(s, SF_GRADU, d * d),
+                     .h_c0_delta = s->D,
+                     .visc = (s->prm.alpha * s->h * s->c0 + 2.0 * (d + 2) * s->nu) * s->prm.rho0};
+    if (!job.p || !job.u || !job.L || !job.gradrho || !job.au || !job.aq || !job.ax || !job.gradp ||
+        !job.divu || !job.gradu)
+        return CONSPH_ENOMEM;
+    const consph_pass renorm = {"delta-SPH: renormalised density gradient", CONSPH_PASS_DW,
+                                visit_renorm};
+    const consph_pass rates = {"delta-SPH: rates", CONSPH_PASS_DW, visit_rates};
+    st = consph_pass_run_counted(sys, &renorm, &job, &s->pairs);
+    if (st != CONSPH_OK) return st;
+    st = consph_pass_run_counted(sys, &rates, &job, &s->pairs);
+    if (st != CONSPH_OK) return st;
+    s->passes += 2;
+    return CONSPH_OK;
+}
+
+static int rhs_delta(consph_solver *s)
+{
+    return delta_rates(s, SHIFT_NONE);
+}
+static int rhs_delta_plus(consph_solver *s)
+{
+    return delta_rates(s, SHIFT_SUN);
+}
+static int rhs_delta_plus_d(consph_solver *s)
+{
+    return delta_rates(s, SHIFT_APP_D);
+}
+
+const scheme_def scheme_delta_sph = {
+    .name = "delta-sph",
+    .summary = "Antuono et al. 2010 / Marrone et al. 2011: δ-diffusion with the renormalised "
+               "density gradient, sym1 pressure, artificial viscosity α, linear EOS",
+    .moves = 1,
+    .evolve_p = 0,
+    .layout = CONSPH_LAYOUT_PACKED,
+    .eos = CONSPH_EOS_LINEAR,
+    .integrator = "rk2",
+    .passes_min = 2,
+    .rhs = rhs_delta,
+    .regularise = NULL};
+const scheme_def scheme_delta_plus_sph = {
+    .name = "delta-plus-sph",
+    .summary = "Sun et al. 2017/2019: δ-SPH moved with u + δu (Sun's shifting), shifting terms "
+               "∇·(f δu) - f ∇·δu in Sun's sum and difference forms",
+    .moves = 1,
+    .evolve_p = 0,
+    .layout = CONSPH_LAYOUT_PACKED,
+    .eos = CONSPH_EOS_LINEAR,
+    .integrator = "rk2",
+    .passes_min = 3,
+    .rhs = rhs_delta_plus,
+    .regularise = NULL};
+const scheme_def scheme_delta_plus_sph_d = {
+    .name = "delta-plus-sph-d",
+    .summary = "δ+-SPH with the correction of 001 App. D: shifting terms δu_i·Σ (f_j - f_i) "
+               "∇W_ij V_j (eq. D.5)",
+    .moves = 1,
+    .evolve_p = 0,
+    .layout = CONSPH_LAYOUT_PACKED,
+    .eos = CONSPH_EOS_LINEAR,
+    .integrator = "rk2",
+    .passes_min = 3,
+    .rhs = rhs_delta_plus_d,
+    .regularise = NULL};
