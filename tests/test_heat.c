@@ -17,8 +17,10 @@ static const double *field(const consph_particles *p, const char *name)
 /* Catalogue Z8: 002 eq. 43 at t = 0.1 (2000 terms there; ours stop at a 1e-14 term bound). */
 static void test_series(void)
 {
-    static const double z8[][3] = {{0.5, 0.5, 0.1550614991},  {0.5, 0.25, 0.0457762399},
-                                   {0.5, 0.75, 0.4195832981}, {0.25, 0.5, 0.1096450375},
+    static const double z8[][3] = {{0.5, 0.5, 0.1550614991},
+                                   {0.5, 0.25, 0.0457762399},
+                                   {0.5, 0.75, 0.4195832981},
+                                   {0.25, 0.5, 0.1096450375},
                                    {0.5, 0.9, 0.7144595078}};
     for (size_t k = 0; k < sizeof z8 / sizeof z8[0]; ++k) {
         int terms = 0;

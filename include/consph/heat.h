@@ -50,9 +50,9 @@ typedef enum consph_heat_walls {
 typedef struct consph_heat_params {
     consph_heat_lap laplacian;
     consph_heat_walls walls;
-    int nx;             /* particles per side, walls included (>= 4) */
-    double eta;         /* h/Δ (002: 1.5 ... 3.5) */
-    double eps;         /* perturbation ε of the interior particles (002: 0, 0.2, 0.4), in [0, 1] */
+    int nx;     /* particles per side, walls included (>= 4) */
+    double eta; /* h/Δ (002: 1.5 ... 3.5) */
+    double eps; /* perturbation ε of the interior particles (002: 0, 0.2, 0.4), in [0, 1] */
     unsigned long seed; /* of κ */
     double tf;          /* final time (002: 0.1) */
     long steps;         /* > 0: exactly this many steps of Δt instead of running to tf */
@@ -85,11 +85,11 @@ typedef struct consph_heat_summary {
     long steps;
     double t, dt, dt_last; /* the regular step and the last one */
     double delta, h, eta, eps, d_min;
-    double l2, linf, ec; /* 002 eqs. 44-46 at t */
-    size_t fallbacks;    /* interior particles whose B or B̂ was rejected (S4) */
-    double seconds;      /* wall time of the time steps (set-up excluded) */
+    double l2, linf, ec;  /* 002 eqs. 44-46 at t */
+    size_t fallbacks;     /* interior particles whose B or B̂ was rejected (S4) */
+    double seconds;       /* wall time of the time steps (set-up excluded) */
     double setup_seconds; /* particles, search and (S4) the correction matrices */
-    size_t pairs;        /* pair evaluations of the time steps */
+    size_t pairs;         /* pair evaluations of the time steps */
 } consph_heat_summary;
 
 typedef struct consph_heat consph_heat;
@@ -118,8 +118,7 @@ void consph_heat_summary_json(FILE *fp, const consph_heat_summary *sum);
  * last), log.csv (one row per step: step, t, dt, the mean temperature, and l2, linf, ec where a
  * snapshot was written, nan elsewhere) and summary.json. dir NULL: no files. *sum is filled
  * in every case. */
-int consph_heat_run(consph_heat *h, const char *dir, long snapshot_every,
-                    consph_heat_summary *sum);
+int consph_heat_run(consph_heat *h, const char *dir, long snapshot_every, consph_heat_summary *sum);
 
 #ifdef __cplusplus
 }

@@ -56,8 +56,7 @@ int runfiles_csv(runfiles *f, const char *name, const char *header, const double
     return consph_outfile_commit(&of);
 }
 
-int runfiles_text(runfiles *f, const char *name, void (*fn)(FILE *, const void *),
-                  const void *arg)
+int runfiles_text(runfiles *f, const char *name, void (*fn)(FILE *, const void *), const void *arg)
 {
     const char *path = runfiles_join(f, name);
     if (!path) return consph_fail(CONSPH_ENOMEM, "out of memory");

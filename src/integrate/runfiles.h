@@ -27,8 +27,7 @@ int runfiles_snapshot(runfiles *f, const consph_particles *p, long step, double 
 int runfiles_csv(runfiles *f, const char *name, const char *header, const double *rows,
                  size_t nrows, int ncols);
 /* DIR/name written by fn(fp, arg). */
-int runfiles_text(runfiles *f, const char *name, void (*fn)(FILE *, const void *),
-                  const void *arg);
+int runfiles_text(runfiles *f, const char *name, void (*fn)(FILE *, const void *), const void *arg);
 void runfiles_free(runfiles *f);
 
 /* "  \"key\": value," (null when not finite; no comma when last). */

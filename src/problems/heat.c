@@ -503,8 +503,7 @@ static void summary_json(FILE *fp, const void *sum)
     consph_heat_summary_json(fp, sum);
 }
 
-int consph_heat_run(consph_heat *h, const char *dir, long snapshot_every,
-                    consph_heat_summary *sum)
+int consph_heat_run(consph_heat *h, const char *dir, long snapshot_every, consph_heat_summary *sum)
 {
     runfiles f = {.dir = dir};
     heat_log lg = {NULL, 0, 0};
@@ -517,7 +516,8 @@ int consph_heat_run(consph_heat *h, const char *dir, long snapshot_every,
     while (st == CONSPH_OK && !consph_heat_done(h)) {
         st = consph_heat_step(h);
         if (st != CONSPH_OK || !dir) continue;
-        const int snap = consph_heat_done(h) || (snapshot_every > 0 && h->step % snapshot_every == 0);
+        const int snap =
+            consph_heat_done(h) || (snapshot_every > 0 && h->step % snapshot_every == 0);
         st = log_row(h, &lg, snap);
         if (st == CONSPH_OK && snap) st = heat_snapshot(h, &f, &lg);
     }

@@ -21,7 +21,7 @@
 /* Timings behind T_r (the operator at a series' finest resolution) and their median. */
 #define TR_TIMINGS 5
 
-typedef enum fig_kind { KIND_APPROX, KIND_M0, KIND_APPC, KIND_CAUCHY } fig_kind;
+typedef enum fig_kind { KIND_APPROX, KIND_M0, KIND_APPC, KIND_CAUCHY, KIND_HEAT } fig_kind;
 
 /* Everything needed to run one series, parsed from its keys. */
 typedef struct series_plan {
@@ -135,6 +135,7 @@ static fig_kind figure_kind(const consph_study *s, const study_figure *f)
     if (k && strcmp(k, "m0") == 0) return KIND_M0;
     if (k && strcmp(k, "appc") == 0) return KIND_APPC;
     if (k && strcmp(k, "cauchy") == 0) return KIND_CAUCHY;
+    if (k && strcmp(k, "heat") == 0) return KIND_HEAT;
     return KIND_APPROX;
 }
 
@@ -163,7 +164,7 @@ static const char *h_policy_text(const consph_approx_spec *sp, char *buf, size_t
 static int build_plan(const consph_study *s, const study_figure *f, const study_series *r,
                       int quick, series_plan *pl)
 {
-    static const char *const kinds[] = {"approx", "m0", "appc", "cauchy", NULL};
+    static const char *const kinds[] = {"approx", "m0", "appc", "cauchy", "heat", NULL};
     static const char *const ops[] = {"function", "grad", "div", "laplacian", "hessian", NULL};
     static const char *const default_form[] = {"standard", "f4", "div", "coupled", "korzilius"};
     static const char *const policies[] = {"hdx", "scaling", "zhu", "beta", NULL};
@@ -1294,7 +1295,12 @@ static double estimate(const consph_study *s, int quick, const study_files *file
     int nseen = 0;
     series_plan first;
     int have_first = 0;
+    double heat_seconds = 0.0;
     for (int k = 0; k < s->nfigs; ++k) {
+        if (figure_kind(s, &s->figs[k]) == KIND_HEAT) {
+            heat_seconds += study_heat_seconds(s, &s->figs[k], quick);
+            continue;
+        }
         if (figure_kind(s, &s->figs[k]) == KIND_APPC) continue;
         for (int r = 0; r < s->figs[k].nseries; ++r) {
             series_plan pl;
@@ -1328,7 +1334,7 @@ static double estimate(const consph_study *s, int quick, const study_files *file
             }
         }
     }
-    if (!have_first) return 0.0;
+    if (!have_first) return heat_seconds;
     /* Calibrate on a small run of the first series (about 2500 particles). */
     double nx_cal = first.spec.layout.dim == 1 ? 2500 : first.spec.layout.dim == 2 ? 50 : 14;
     consph_approx_row row;
@@ -1346,7 +1352,7 @@ static double estimate(const consph_study *s, int quick, const study_files *file
             consph_particles_free(&p);
         }
     }
-    return pairs * per_pair + packed_particles * per_packed;
+    return pairs * per_pair + packed_particles * per_packed + heat_seconds;
 }
 
 double consph_study_estimate(const consph_study *s, int quick)
@@ -1387,7 +1393,7 @@ static int validate_files(const consph_study *s, int quick, const study_files *f
     for (int k = 0; k < s->nfigs; ++k) {
         const study_figure *f = &s->figs[k];
         fig_kind kind = figure_kind(s, f);
-        if (kind == KIND_APPC) continue;
+        if (kind == KIND_APPC || kind == KIND_HEAT) continue;
         for (int r = 0; r < f->nseries; ++r) {
             series_plan pl;
             int rc = build_plan(s, f, &f->series[r], quick, &pl);
@@ -1632,6 +1638,9 @@ static int run_figures(const consph_study *s, const consph_study_options *opt,
         case KIND_CAUCHY:
             rc = run_cauchy_figure(s, f, opt->quick, cache, dir, files, log);
             break;
+        case KIND_HEAT:
+            rc = study_heat_figure(s, f, opt->quick, dir, log);
+            break;
         default:
             rc = run_approx_figure(s, f, opt->quick, cache, dir, files, log);
             break;
@@ -1696,4 +1705,59 @@ int consph_study_run_particles(const consph_study *s, const consph_study_options
 {
     study_files files = {sets, names, nsets};
     return study_run(s, opt, &files);
+}
+
+/* ---- helpers shared with the figure kinds in their own files (study_internal.h) ---- */
+
+int study_out_path(char *buf, const char *dir, const char *name, const char *ext)
+{
+    return out_path(buf, dir, name, ext);
+}
+
+int study_get_double(const consph_study *s, const study_figure *f, const study_series *r,
+                     const char *key, double def, double lo, double hi, double *out)
+{
+    return get_double(s, f, r, key, def, lo, hi, out);
+}
+
+int study_get_list(const consph_study *s, const study_figure *f, const study_series *r,
+                   const char *key, double lo, double hi, double *vals, int *n)
+{
+    return get_list(s, f, r, key, lo, hi, vals, n);
+}
+
+int study_key_error(const consph_study *s, const study_figure *f, const study_series *r,
+                    const char *key, const char *msg)
+{
+    return key_error(s, f, r, key, "%s", msg);
+}
+
+const char *study_csv_label(const char *label, char *buf, size_t size)
+{
+    return csv_label(label, buf, size);
+}
+
+int study_gp_head(FILE *o, const char *id, const char *title)
+{
+    return gp_head(o, id, title);
+}
+
+int study_gp_put(FILE *o, const char *text)
+{
+    return gp_put(o, text);
+}
+
+int study_have_gnuplot(void)
+{
+    return have_gnuplot();
+}
+
+int study_render_figure(const char *dir, const char *id)
+{
+    return render_figure(dir, id);
+}
+
+const char *study_figure_note(const study_figure *f)
+{
+    return figure_note(f);
 }

@@ -54,4 +54,32 @@ int study_parse(const char *path, const char *data, size_t size, consph_study **
  * STUDY_NAME_MAX characters; `series` also allows '=' and inner spaces ("F1 eta=1.5"). */
 int study_plain_name(const char *name, int series);
 
+/* Helpers of the engine (engine.c) for the figure kinds that live in their own files. */
+#define STUDY_MAX_SWEEP 64
+#include <stdio.h>
+int study_out_path(char *buf, const char *dir, const char *name, const char *ext);
+int study_get_double(const consph_study *s, const study_figure *f, const study_series *r,
+                     const char *key, double def, double lo, double hi, double *out);
+/* A comma-separated list (at most STUDY_MAX_SWEEP values); *n = 0 when the key is absent. */
+int study_get_list(const consph_study *s, const study_figure *f, const study_series *r,
+                   const char *key, double lo, double hi, double *vals, int *n);
+/* CONSPH_EFORMAT naming the file, line, figure, series and key. */
+int study_key_error(const consph_study *s, const study_figure *f, const study_series *r,
+                    const char *key, const char *msg);
+const char *study_csv_label(const char *label, char *buf, size_t size);
+/* The head of a figure's gnuplot script, and a user string quoted for gnuplot. */
+int study_gp_head(FILE *o, const char *id, const char *title);
+int study_gp_put(FILE *o, const char *text);
+int study_have_gnuplot(void);
+/* DIR/ID.gp into DIR/ID.svg (a warning, once, without gnuplot). */
+int study_render_figure(const char *dir, const char *id);
+/* The figure's own note key, or NULL. */
+const char *study_figure_note(const study_figure *f);
+
+/* kind = heat (heat_study.c): 002's heat-conduction runs, S3 against S4 (docs/heat.md). */
+int study_heat_figure(const consph_study *s, const study_figure *f, int quick, const char *dir,
+                      FILE *log);
+/* The estimated run time of a heat figure in seconds, calibrated on a small run. */
+double study_heat_seconds(const consph_study *s, const study_figure *f, int quick);
+
 #endif

@@ -108,6 +108,7 @@ static const char *const known_keys[] = {"study",      "title",    "paper",     
                                          "nx",         "quick.nx", "hdx.values", "quick.hdx.values",
                                          "x",          "norm",     "bound",      "bins",
                                          "range",      "pack_tol", "pack_iter",  "hdelta.values",
+                                         "laplacian",  "walls",    "tf",         "report",
                                          "paper.",     "series.",  NULL};
 
 static int key_known(const char *key)
