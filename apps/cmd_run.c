@@ -165,7 +165,7 @@ int cmd_run(int argc, char **argv)
     };
     const char *positional[1] = {NULL};
     cli_command cmd = {"run",
-                       "run a weakly-compressible SPH simulation",
+                       "run a simulation: weakly-compressible SPH, or 002's heat problem",
                        "consph run PROBLEM --scheme S --nx N [options]   (PROBLEM: taylor-green)\n"
                        "       consph run heat --laplacian s3|s4 --nx N --eta H/Δ [options]",
                        run_details,
@@ -225,8 +225,9 @@ int cmd_run(int argc, char **argv)
             return CLI_EXIT_USAGE;
         }
     } else {
-        if (strlen(positional[0]) >= sizeof prm.problem)
-            return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s)", positional[0],
+        if (strlen(positional[0]) >= sizeof prm.problem ||
+            cli_choice_index(consph_problem_names(), positional[0]) < 0)
+            return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s, heat)", positional[0],
                              consph_problem_names());
         snprintf(prm.problem, sizeof prm.problem, "%s", positional[0]);
         if (strlen(scheme) >= sizeof prm.scheme)

@@ -283,16 +283,18 @@ int study_heat_figure(const consph_study *s, const study_figure *f, int quick, c
     return rc;
 }
 
-/* Pair evaluations per step scale as N (1 + π η²) (S4 sums twice per pair); calibrated on one
- * small run. */
+/* Pair evaluations per step scale as N (1 + π η²); S3 costs about 0.8 of S4 per pair (measured
+ * at 80², η = 3.5); calibrated on one small S4 run. */
 double study_heat_seconds(const consph_study *s, const study_figure *f, int quick)
 {
     static double per_pair_step = 0.0;
     if (per_pair_step == 0.0) {
         consph_heat_params prm;
         consph_heat_params_default(&prm);
+        /* S4 at the figures' largest η, long enough to dwarf the set-up */
         prm.nx = 40;
-        prm.steps = 50;
+        prm.eta = 3.5;
+        prm.steps = 200;
         consph_heat *h = NULL;
         consph_heat_summary sum;
         if (consph_heat_create(&h, &prm) != CONSPH_OK) return NAN;
@@ -311,7 +313,7 @@ double study_heat_seconds(const consph_study *s, const study_figure *f, int quic
             double steps = pl.prm.tf / (pl.prm.courant * d * d) + 1.0;
             double pairs = nx * nx * (1.0 + M_PI * pl.prm.eta * pl.prm.eta);
             total += (timing && quick ? 3.0 : 1.0) * steps * pairs * per_pair_step *
-                     (pl.prm.laplacian == CONSPH_HEAT_S4 ? 1.0 : 0.6);
+                     (pl.prm.laplacian == CONSPH_HEAT_S4 ? 1.0 : 0.8);
         }
     }
     return total;
