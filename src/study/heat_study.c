@@ -207,10 +207,10 @@ static int write_report(const consph_study *s, const study_figure *f, const heat
                     w->sum.seconds, w->sum.setup_seconds, w->sum.l2, paper);
         }
         fprintf(o,
-                "\nTimes: wall clock of one run (set-up and time steps, no files), the best of "
-                "%s; relative to the first series. 002 ran on one core of a 3 GHz Core 2 "
-                "E8400; only the ratios compare.\n\n",
-                quick ? "3 runs" : "1 run");
+                "\nTimes: wall clock of %s (set-up and time steps, no files), relative to the "
+                "first series. 002 ran on one core of a 3 GHz Core 2 E8400; only the ratios "
+                "compare.\n\n",
+                quick ? "the fastest of 3 runs" : "one run");
         return consph_outfile_commit(&of);
     }
     fprintf(o, "| series | order L2 | order L∞ | order EC | L2 at the finest Δ | paper |\n"
