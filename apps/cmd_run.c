@@ -1,4 +1,5 @@
-/* consph run PROBLEM: one WCSPH simulation (include/consph/solver.h). */
+/* consph run PROBLEM: one WCSPH simulation (include/consph/solver.h), or 002's heat-conduction
+ * problem (include/consph/heat.h). */
 #include <errno.h>
 #include <math.h>
 #include <signal.h>
@@ -9,6 +10,7 @@
 
 #include "cli.h"
 #include "commands.h"
+#include "consph/heat.h"
 #include "consph/io.h"
 #include "consph/layout.h"
 #include "consph/solver.h"
@@ -29,6 +31,13 @@ static const char run_details[] =
     "--restart DIR/checkpoint.ckpt continues bit for bit (the output\n"
     "options are not in the checkpoint: give --out, --snapshot-every and --checkpoint-every\n"
     "again).\n"
+    "\n"
+    "consph run heat (002 section 6, docs/heat.md): dT/dt = ∇²T on the unit square,\n"
+    "nx × nx particles on the grid vertices (walls included, Δ = 1/(nx - 1)), Dirichlet\n"
+    "walls as source-only particles, Wendland C2 with support h = eta Δ, forward Euler with\n"
+    "Δt = 0.2 d_min², the last step landing on --tf. Options: --laplacian s3|s4 --nx N\n"
+    "--eta H/Δ [--eps E] [--seed S] [--tf T] [--steps K] [--walls sin|linear] [--out DIR]\n"
+    "[--snapshot-every K] [--format table|json] [--threads T]; the others are WCSPH's.\n"
     "\n"
     "exit status: 0 done, 1 failure, 2 bad usage, 3 the run diverged (the message names\n"
     "the step, the particle, its position and the quantity), 130/143 stopped by a signal";
@@ -56,10 +65,57 @@ static void error_text(char *buf, size_t size, double v)
         snprintf(buf, size, "n/a");
 }
 
-static int given(const cli_command *cmd, const char *name)
+/* The options the heat problem shares with the WCSPH runs. */
+static int heat_option(const char *name)
+{
+    static const char *const shared[] = {"--nx",  "--seed",           "--tf",     "--steps",
+                                         "--out", "--snapshot-every", "--format", "--threads"};
+    for (size_t k = 0; k < sizeof shared / sizeof shared[0]; ++k)
+        if (strcmp(name, shared[k]) == 0) return 1;
+    return 0;
+}
+
+static int option_given(const cli_command *cmd, const char *name)
 {
     for (int k = 0; k < cmd->nopts; ++k)
-        if (!strcmp(cmd->opts[k].name, name)) return cmd->opts[k].given;
+        if (cmd->opts[k].given && strcmp(cmd->opts[k].name, name) == 0) return 1;
+    return 0;
+}
+
+static int run_heat(const cli_command *cmd, const consph_heat_params *hp, const char *out,
+                    long snap_every, int format)
+{
+    if (consph_heat_params_check(hp) != CONSPH_OK) {
+        fprintf(stderr, "consph run: %s\n", consph_last_error());
+        return CLI_EXIT_USAGE;
+    }
+    int rc;
+    if (out && (rc = make_dir(cmd, out)) != 0) return rc;
+    consph_heat *h = NULL;
+    if (consph_heat_create(&h, hp) != CONSPH_OK) {
+        fprintf(stderr, "consph run: %s\n", consph_last_error());
+        return 1;
+    }
+    consph_heat_summary sum;
+    int st = consph_heat_run(h, out, snap_every, &sum);
+    consph_heat_free(h);
+    if (st != CONSPH_OK) {
+        fprintf(stderr, "consph run: %s\n", consph_last_error());
+        return st == CONSPH_ENUMERIC ? CLI_EXIT_NONFINITE : 1;
+    }
+    if (format == 1) {
+        consph_heat_summary_json(stdout, &sum);
+    } else {
+        printf("heat %s, walls %s, nx = %d (Δ = %.6g), n = %zu (%zu interior), h/Δ = %g, "
+               "ε = %g\n",
+               sum.laplacian, sum.walls, sum.nx, sum.delta, sum.n, sum.n_interior, sum.eta,
+               sum.eps);
+        printf("%ld steps of dt = %.6g (last %.6g, d_min = %.6g) to t = %.6g\n", sum.steps, sum.dt,
+               sum.dt_last, sum.d_min, sum.t);
+        printf("L2 %.6e  Linf %.6e  EC %.6e  (002 eqs. 44-46)\n", sum.l2, sum.linf, sum.ec);
+        printf("%.3f s (set-up %.3f s), %zu correction fallbacks\n", sum.seconds, sum.setup_seconds,
+               sum.fallbacks);
+    }
     return 0;
 }
 
@@ -72,7 +128,8 @@ int cmd_run(int argc, char **argv)
     long ipst_every = 10, ipst_iter = 10;
     double hdx = 1.2, c0 = 0.0, re = 100.0, tf = 0.5, dt = 0.0, U = 1.0, delta = 0.1;
     double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3, nu = 0.0, alpha = 0.0;
-    int layout = 0, kernel = 0, format = 0, eos = 0;
+    int layout = 0, kernel = 0, format = 0, eos = 0, heat_lap = 1, heat_walls = 0;
+    double heat_eta = 2.0, heat_eps = 0.0;
     char layout_choices[256], kernel_choices[512];
     snprintf(layout_choices, sizeof layout_choices, "default,%s", consph_layout_names());
     snprintf(kernel_choices, sizeof kernel_choices, "%s", consph_kernel_names());
@@ -117,12 +174,19 @@ int cmd_run(int argc, char **argv)
         {"--restart", CLI_STRING, &restart, "FILE", "continue from a checkpoint", NULL, 0, 0, 0},
         {"--format", CLI_CHOICE, &format, "F", "result on stdout", "table,json", 0, 0, 0},
         {"--threads", CLI_INT, &threads, "T", "threads (0: OpenMP's default)", NULL, 0, 4096, 0},
+        {"--laplacian", CLI_CHOICE, &heat_lap, "L", "heat: the Laplacian (002 S3 or S4)", "s3,s4",
+         0, 0, 0},
+        {"--eta", CLI_DOUBLE, &heat_eta, "H/Δ", "heat: h/Δ", NULL, 1, 10, 0},
+        {"--eps", CLI_DOUBLE, &heat_eps, "E", "heat: perturbation ε of the interior (002 §6.2)",
+         NULL, 0, 1, 0},
+        {"--walls", CLI_CHOICE, &heat_walls, "W", "heat: boundary data", "sin,linear", 0, 0, 0},
     };
     const char *positional[1] = {NULL};
     cli_command cmd = {"run",
-                       "run a weakly-compressible SPH simulation",
+                       "run a simulation: weakly-compressible SPH, or 002's heat problem",
                        "consph run PROBLEM --scheme S --nx N [options]   (PROBLEM: taylor-green, "
-                       "gresho-chan, shear-layer)",
+                       "gresho-chan, shear-layer)\n"
+                       "       consph run heat --laplacian s3|s4 --nx N --eta H/Δ [options]",
                        run_details,
                        opts,
                        (int)(sizeof opts / sizeof opts[0]),
@@ -131,8 +195,34 @@ int cmd_run(int argc, char **argv)
     int rc = cli_parse(&cmd, argc, argv);
     if (rc) return rc == 1 ? 0 : rc;
     if (!positional[0] && !restart)
-        return cli_error(&cmd, "a problem is required (allowed: %s)", consph_problem_names());
+        return cli_error(&cmd, "a problem is required (allowed: %s, heat)", consph_problem_names());
     if (threads > 0) consph_set_num_threads((int)threads);
+    const int heat = positional[0] && strcmp(positional[0], "heat") == 0;
+    for (int k = 0; k < cmd.nopts; ++k) {
+        if (!opts[k].given) continue;
+        const int heat_only = strncmp(opts[k].help, "heat: ", 6) == 0;
+        if (heat_only && !heat)
+            return cli_error(&cmd, "option %s is for the problem heat only", opts[k].name);
+        if (heat && !heat_only && !heat_option(opts[k].name))
+            return cli_error(&cmd,
+                             "option %s is not an option of the problem heat (allowed: "
+                             "--laplacian, --nx, --eta, --eps, --seed, --tf, --steps, --walls, "
+                             "--out, --snapshot-every, --format, --threads)",
+                             opts[k].name);
+    }
+    if (heat) {
+        consph_heat_params hp;
+        consph_heat_params_default(&hp);
+        hp.laplacian = (consph_heat_lap)heat_lap;
+        hp.walls = (consph_heat_walls)heat_walls;
+        if (option_given(&cmd, "--nx")) hp.nx = (int)nx;
+        hp.eta = heat_eta;
+        hp.eps = heat_eps;
+        hp.seed = (unsigned long)seed;
+        if (option_given(&cmd, "--tf")) hp.tf = tf;
+        hp.steps = steps;
+        return run_heat(&cmd, &hp, out, snap_every, format);
+    }
 
     consph_solver *s = NULL;
     int st;
@@ -154,10 +244,10 @@ int cmd_run(int argc, char **argv)
             return CLI_EXIT_USAGE;
         }
     } else {
-        if (given(&cmd, "--re") && given(&cmd, "--nu"))
+        if (option_given(&cmd, "--re") && option_given(&cmd, "--nu"))
             return cli_error(&cmd, "options --re and --nu both set the viscosity: give one");
         if (consph_run_params_problem(&prm, positional[0]) != CONSPH_OK)
-            return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s)", positional[0],
+            return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s, heat)", positional[0],
                              consph_problem_names());
         if (strlen(scheme) >= sizeof prm.scheme)
             return cli_error(&cmd, "option --scheme: '%.40s' is unknown (allowed: %s)", scheme,
@@ -172,7 +262,7 @@ int cmd_run(int argc, char **argv)
         char name[64];
         prm.nx = (int)nx;
         /* the problem's defaults (consph_run_params_problem) stay unless an option is given */
-        if (given(&cmd, "--layout")) prm.layout = -1;
+        if (option_given(&cmd, "--layout")) prm.layout = -1;
         if (layout > 0) {
             consph_layout_kind kind;
             cli_choice_name(layout_choices, layout, name, sizeof name);
@@ -183,17 +273,17 @@ int cmd_run(int argc, char **argv)
         consph_kernel_lookup(name, &prm.kernel);
         prm.seed = (unsigned long)seed;
         prm.hdx = hdx;
-        if (given(&cmd, "--c0")) prm.c0 = c0;
+        if (option_given(&cmd, "--c0")) prm.c0 = c0;
         prm.re = re;
-        if (given(&cmd, "--re")) prm.nu = -1.0;
-        if (given(&cmd, "--nu")) prm.nu = nu;
+        if (option_given(&cmd, "--re")) prm.nu = -1.0;
+        if (option_given(&cmd, "--nu")) prm.nu = nu;
         prm.alpha = alpha;
         prm.U = U;
         prm.eos = eos == 0 ? CONSPH_EOS_DEFAULT : eos == 1 ? CONSPH_EOS_TAIT : CONSPH_EOS_LINEAR;
         prm.delta = delta;
         if (steps > 0)
             prm.tf = 0.0;
-        else if (given(&cmd, "--tf"))
+        else if (option_given(&cmd, "--tf"))
             prm.tf = tf;
         prm.steps = steps;
         prm.dt = dt;

@@ -7,99 +7,56 @@
 #include <string.h>
 
 #include "consph/io.h"
+#include "integrate/runfiles.h"
 #include "schemes/solver_internal.h"
-
-static void json_num(FILE *fp, const char *key, double v, int last)
-{
-    if (isfinite(v))
-        fprintf(fp, "  \"%s\": %.17g%s\n", key, v, last ? "" : ",");
-    else
-        fprintf(fp, "  \"%s\": null%s\n", key, last ? "" : ",");
-}
 
 void consph_run_summary_json(FILE *fp, const consph_run_summary *s)
 {
     fprintf(fp, "{\n  \"problem\": \"%s\",\n  \"scheme\": \"%s\",\n  \"integrator\": \"%s\",\n",
             s->problem, s->scheme, s->integrator);
     fprintf(fp, "  \"n\": %zu,\n  \"dim\": %d,\n  \"steps\": %ld,\n", s->n, s->dim, s->steps);
-    json_num(fp, "t", s->t, 0);
-    json_num(fp, "dt", s->dt, 0);
-    json_num(fp, "h", s->h, 0);
-    json_num(fp, "c0", s->c0, 0);
-    json_num(fp, "l1_u", s->l1_u, 0);
-    json_num(fp, "l1_p", s->l1_p, 0);
-    json_num(fp, "linf_u", s->linf_u, 0);
-    json_num(fp, "linf_p", s->linf_p, 0);
-    json_num(fp, "kinetic_energy", s->ke, 0);
-    json_num(fp, "momentum_x", s->momentum[0], 0);
-    json_num(fp, "momentum_y", s->momentum[1], 0);
-    json_num(fp, "angular_momentum", s->angular_momentum, 0);
-    json_num(fp, "ft_fmax", s->ft_fmax, 0);
-    json_num(fp, "max_divu", s->max_divu, 0);
-    json_num(fp, "seconds", s->seconds, 0);
+    runfiles_json_num(fp, "t", s->t, 0);
+    runfiles_json_num(fp, "dt", s->dt, 0);
+    runfiles_json_num(fp, "h", s->h, 0);
+    runfiles_json_num(fp, "c0", s->c0, 0);
+    runfiles_json_num(fp, "l1_u", s->l1_u, 0);
+    runfiles_json_num(fp, "l1_p", s->l1_p, 0);
+    runfiles_json_num(fp, "linf_u", s->linf_u, 0);
+    runfiles_json_num(fp, "linf_p", s->linf_p, 0);
+    runfiles_json_num(fp, "kinetic_energy", s->ke, 0);
+    runfiles_json_num(fp, "momentum_x", s->momentum[0], 0);
+    runfiles_json_num(fp, "momentum_y", s->momentum[1], 0);
+    runfiles_json_num(fp, "angular_momentum", s->angular_momentum, 0);
+    runfiles_json_num(fp, "ft_fmax", s->ft_fmax, 0);
+    runfiles_json_num(fp, "max_divu", s->max_divu, 0);
+    runfiles_json_num(fp, "seconds", s->seconds, 0);
     fprintf(fp, "  \"pairs\": %zu,\n  \"passes_per_stage\": %d,\n  \"passes_min\": %d,\n", s->pairs,
             s->passes_per_stage, s->passes_min);
     fprintf(fp, "  \"regularisations\": %ld\n}\n", s->regularisations);
 }
 
-typedef struct run_files {
-    const consph_run_output *out;
-    char *path; /* scratch for joined paths */
-    size_t cap;
-    consph_pvd pvd;
-    int have_pvd;
-} run_files;
-
-static const char *join(run_files *f, const char *name)
+static int write_log(const consph_solver *s, runfiles *f)
 {
-    size_t need = strlen(f->out->dir) + strlen(name) + 2;
-    if (need > f->cap) {
-        char *p = realloc(f->path, need);
-        if (!p) return NULL;
-        f->path = p;
-        f->cap = need;
-    }
-    snprintf(f->path, f->cap, "%s/%s", f->out->dir, name);
-    return f->path;
+    return runfiles_csv(f, "log.csv",
+                        "step,t,l1_u,linf_u,l1_p,linf_p,kinetic_energy,momentum_x,momentum_y,"
+                        "momentum_z,angular_momentum,ft_fmax,max_divu,dt",
+                        s->hist, s->nhist, HIST_COLS);
 }
 
-static int write_log(const consph_solver *s, run_files *f)
+static int write_snapshot(consph_solver *s, runfiles *f)
 {
-    const char *path = join(f, "log.csv");
-    if (!path) return consph_fail(CONSPH_ENOMEM, "out of memory");
-    consph_outfile of;
-    int st = consph_outfile_open(&of, path);
-    if (st != CONSPH_OK) return st;
-    fprintf(of.fp, "step,t,l1_u,linf_u,l1_p,linf_p,kinetic_energy,momentum_x,momentum_y,"
-                   "momentum_z,angular_momentum,ft_fmax,max_divu,dt\n");
-    for (size_t r = 0; r < s->nhist; ++r) {
-        const double *row = s->hist + r * HIST_COLS;
-        fprintf(of.fp, "%.0f", row[0]);
-        for (int c = 1; c < HIST_COLS; ++c) fprintf(of.fp, ",%.10e", row[c]);
-        fputc('\n', of.fp);
-    }
-    return consph_outfile_commit(&of);
-}
-
-static int write_snapshot(consph_solver *s, run_files *f)
-{
-    char name[64];
-    snprintf(name, sizeof name, "snap_%06ld.vtu", s->step);
     int st = consph_solver_output_fields(s);
-    const char *path = join(f, name);
-    if (!path) return consph_fail(CONSPH_ENOMEM, "out of memory");
-    if (st == CONSPH_OK) st = consph_write_particles(path, s->sys.p);
-    if (st == CONSPH_OK) st = consph_pvd_add(&f->pvd, s->t, name);
+    if (st == CONSPH_OK) st = runfiles_snapshot(f, s->sys.p, s->step, s->t);
     return st == CONSPH_OK ? write_log(s, f) : st;
 }
 
-static int write_checkpoint(const consph_solver *s, run_files *f)
+static int write_checkpoint(const consph_solver *s, runfiles *f)
 {
     char *meta = NULL;
     double *hist = NULL;
     size_t nh = 0;
     int st = consph_solver_checkpoint_meta(s, &meta, &hist, &nh);
-    const char *path = st == CONSPH_OK ? join(f, "checkpoint.ckpt") : NULL;
+    const char *path = st == CONSPH_OK ? runfiles_join(f, "checkpoint.ckpt") : NULL;
     if (st == CONSPH_OK && !path) st = consph_fail(CONSPH_ENOMEM, "out of memory");
     if (st == CONSPH_OK) st = consph_checkpoint_write(path, meta, s->sys.p, hist, nh);
     free(meta);
@@ -107,26 +64,25 @@ static int write_checkpoint(const consph_solver *s, run_files *f)
     return st == CONSPH_OK ? write_log(s, f) : st;
 }
 
-static int write_summary(const consph_run_summary *sum, run_files *f)
+static void summary_json(FILE *fp, const void *sum)
 {
-    const char *path = join(f, "summary.json");
-    if (!path) return consph_fail(CONSPH_ENOMEM, "out of memory");
-    consph_outfile of;
-    int st = consph_outfile_open(&of, path);
-    if (st != CONSPH_OK) return st;
-    consph_run_summary_json(of.fp, sum);
-    return consph_outfile_commit(&of);
+    consph_run_summary_json(fp, sum);
+}
+
+static int write_summary(const consph_run_summary *sum, runfiles *f)
+{
+    return runfiles_text(f, "summary.json", summary_json, sum);
 }
 
 int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summary *sum,
                int *stopped_by)
 {
-    run_files f = {.out = out};
+    runfiles f = {.dir = out ? out->dir : NULL};
     const int files = out && out->dir;
     int st = CONSPH_OK;
     *stopped_by = 0;
     if (files) {
-        const char *pvd = join(&f, "run.pvd");
+        const char *pvd = runfiles_join(&f, "run.pvd");
         if (!pvd) st = consph_fail(CONSPH_ENOMEM, "out of memory");
         /* a restarted run keeps the index up to its checkpoint and rewrites what follows */
         if (st == CONSPH_OK && s->step > 0 && consph_pvd_load(&f.pvd, pvd) == CONSPH_OK) {
@@ -134,8 +90,7 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
             st = consph_pvd_truncate(&f.pvd, s->t);
         } else if (st == CONSPH_OK) {
             consph_clear_error();
-            st = consph_pvd_init(&f.pvd, pvd);
-            f.have_pvd = st == CONSPH_OK;
+            st = runfiles_pvd_init(&f);
             if (st == CONSPH_OK && s->step == 0) st = write_snapshot(s, &f);
         }
     }
@@ -175,8 +130,7 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
         else
             consph_fail(st, "%s", msg);
     }
-    if (f.have_pvd) consph_pvd_free(&f.pvd);
-    free(f.path);
+    runfiles_free(&f);
     return st;
 }
 

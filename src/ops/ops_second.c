@@ -28,11 +28,7 @@ typedef struct second_job {
 static void inner_gradient(const second_job *job, const ops_nbhd *nb, double G[3])
 {
     const int d = job->dim;
-    const double *u = job->in;
-    double s[3], sw;
-    term_grad_sums_any(d, TERM_GRAD_DIFF, 0, nb, job->ctx->volume, NULL, NULL, u, u[nb->i], s, &sw);
-    const double zero[3] = {0.0, 0.0, 0.0};
-    term_apply_rule(d, zero, job->bonet + nb->i * (size_t)(d * d), s, 0.0, G);
+    term_f4_grad(d, nb, job->ctx->volume, job->in, job->bonet + nb->i * (size_t)(d * d), G);
 }
 
 static void visit_s1(second_job *job, const ops_nbhd *nb)

@@ -194,6 +194,17 @@ static inline void term_grad_sums_any(int d, int mode, int with_w, const consph_
 #undef TERM_GS
 }
 
+/* F4 (002 eq. 5): G_i = B_i Σ_j ω_j (u_j - u_i) ∇W_ij, B the particle's Bonet matrix (d×d; F2
+ * where B fell back to the identity). The inner gradient of S4, Korzilius and CSPM. */
+static inline void term_f4_grad(int d, const consph_nbhd *nb, const double *vol, const double *u,
+                                const double B[9], double G[3])
+{
+    const double zero[3] = {0.0, 0.0, 0.0};
+    double s[3], sw;
+    term_grad_sums_any(d, TERM_GRAD_DIFF, 0, nb, vol, NULL, NULL, u, u[nb->i], s, &sw);
+    term_apply_rule(d, zero, B, s, 0.0, G);
+}
+
 /* Dilts-symmetrised sym1 (001 eq. 10 with the catalogue's ½): Σ m_j (f_j + f_i)/(ρ_j ρ_i)
  * ½(g̃_ij - L_j∇W_ji), g̃_ij from (c, M), L_j∇W_ji j's Liu rows applied to (W, ∇W_ji = -∇W_ij);
  * added to acc. */

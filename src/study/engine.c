@@ -18,7 +18,14 @@
 /* Timings behind T_r (the operator at a series' finest resolution) and their median. */
 #define TR_TIMINGS 5
 
-typedef enum fig_kind { KIND_APPROX, KIND_M0, KIND_APPC, KIND_CAUCHY, KIND_RUN } fig_kind;
+typedef enum fig_kind {
+    KIND_APPROX,
+    KIND_M0,
+    KIND_APPC,
+    KIND_CAUCHY,
+    KIND_RUN,
+    KIND_HEAT
+} fig_kind;
 
 /* Everything needed to run one series, parsed from its keys. */
 typedef struct series_plan {
@@ -134,6 +141,7 @@ static fig_kind figure_kind(const consph_study *s, const study_figure *f)
     if (k && strcmp(k, "appc") == 0) return KIND_APPC;
     if (k && strcmp(k, "cauchy") == 0) return KIND_CAUCHY;
     if (k && strcmp(k, "run") == 0) return KIND_RUN;
+    if (k && strcmp(k, "heat") == 0) return KIND_HEAT;
     return KIND_APPROX;
 }
 
@@ -162,7 +170,7 @@ static const char *h_policy_text(const consph_approx_spec *sp, char *buf, size_t
 static int build_plan(const consph_study *s, const study_figure *f, const study_series *r,
                       int quick, series_plan *pl)
 {
-    static const char *const kinds[] = {"approx", "m0", "appc", "cauchy", NULL};
+    static const char *const kinds[] = {"approx", "m0", "appc", "cauchy", "heat", NULL};
     static const char *const ops[] = {"function", "grad", "div", "laplacian", "hessian", NULL};
     static const char *const default_form[] = {"standard", "f4", "div", "coupled", "korzilius"};
     static const char *const policies[] = {"hdx", "scaling", "zhu", "beta", NULL};
@@ -1300,6 +1308,10 @@ static double estimate(const consph_study *s, int quick, const study_files *file
     int have_first = 0;
     double run_seconds = 0.0;
     for (int k = 0; k < s->nfigs; ++k) {
+        if (figure_kind(s, &s->figs[k]) == KIND_HEAT) {
+            run_seconds += study_heat_seconds(s, &s->figs[k], quick);
+            continue;
+        }
         if (figure_kind(s, &s->figs[k]) == KIND_RUN) {
             double steps;
             run_seconds += study_run_estimate(s, &s->figs[k], quick, &steps);
@@ -1397,7 +1409,7 @@ static int validate_files(const consph_study *s, int quick, const study_files *f
     for (int k = 0; k < s->nfigs; ++k) {
         const study_figure *f = &s->figs[k];
         fig_kind kind = figure_kind(s, f);
-        if (kind == KIND_APPC) continue;
+        if (kind == KIND_APPC || kind == KIND_HEAT) continue;
         if (kind == KIND_RUN)
             return consph_fail(CONSPH_EINVAL,
                                "figure '%s' runs the solver, which makes its own particles; "
@@ -1644,6 +1656,9 @@ static int run_figures(const consph_study *s, const consph_study_options *opt,
             break;
         case KIND_RUN:
             rc = study_run_figure(s, f, opt->quick, dir, log);
+            break;
+        case KIND_HEAT:
+            rc = study_heat_figure(s, f, opt->quick, dir, log);
             break;
         default:
             rc = run_approx_figure(s, f, opt->quick, cache, dir, files, log);

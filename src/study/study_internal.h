@@ -109,5 +109,12 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
  * run of its first series). */
 double study_run_estimate(const consph_study *s, const study_figure *f, int quick,
                           double *particle_steps);
+#define STUDY_MAX_SWEEP MAX_SWEEP
+
+/* ---- kind = heat (heat_study.c): 002's heat-conduction runs, S3 against S4 (docs/heat.md) ---- */
+int study_heat_figure(const consph_study *s, const study_figure *f, int quick, const char *dir,
+                      FILE *log);
+/* The estimated run time of a heat figure in seconds, calibrated on a small run. */
+double study_heat_seconds(const consph_study *s, const study_figure *f, int quick);
 
 #endif

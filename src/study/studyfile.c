@@ -110,8 +110,8 @@ static const char *const known_keys[] = {"study",      "title",    "paper",     
                                          "range",      "pack_tol", "pack_iter",  "hdelta.values",
                                          "problem",    "scheme",   "c0",         "re",
                                          "tf",         "quick.tf", "steps",      "quick.steps",
-                                         "dt_rule",    "tr_ref",   "paper.",     "series.",
-                                         NULL};
+                                         "dt_rule",    "tr_ref",   "laplacian",  "walls",
+                                         "report",     "paper.",   "series.",    NULL};
 
 static int key_known(const char *key)
 {

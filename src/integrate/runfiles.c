@@ -1,0 +1,85 @@
+/* The files every run writes (runfiles.h). */
+#include "integrate/runfiles.h"
+
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+const char *runfiles_join(runfiles *f, const char *name)
+{
+    size_t need = strlen(f->dir) + strlen(name) + 2;
+    if (need > f->cap) {
+        char *p = realloc(f->path, need);
+        if (!p) return NULL;
+        f->path = p;
+        f->cap = need;
+    }
+    snprintf(f->path, f->cap, "%s/%s", f->dir, name);
+    return f->path;
+}
+
+int runfiles_pvd_init(runfiles *f)
+{
+    const char *pvd = runfiles_join(f, "run.pvd");
+    if (!pvd) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    int st = consph_pvd_init(&f->pvd, pvd);
+    f->have_pvd = st == CONSPH_OK;
+    return st;
+}
+
+int runfiles_snapshot(runfiles *f, const consph_particles *p, long step, double t)
+{
+    char name[64];
+    snprintf(name, sizeof name, "snap_%06ld.vtu", step);
+    const char *path = runfiles_join(f, name);
+    if (!path) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    int st = consph_write_particles(path, p);
+    if (st == CONSPH_OK) st = consph_pvd_add(&f->pvd, t, name);
+    return st;
+}
+
+int runfiles_csv(runfiles *f, const char *name, const char *header, const double *rows,
+                 size_t nrows, int ncols)
+{
+    const char *path = runfiles_join(f, name);
+    if (!path) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    consph_outfile of;
+    int st = consph_outfile_open(&of, path);
+    if (st != CONSPH_OK) return st;
+    fprintf(of.fp, "%s\n", header);
+    for (size_t r = 0; r < nrows; ++r) {
+        const double *row = rows + r * (size_t)ncols;
+        fprintf(of.fp, "%.0f", row[0]);
+        for (int c = 1; c < ncols; ++c) fprintf(of.fp, ",%.10e", row[c]);
+        fputc('\n', of.fp);
+    }
+    return consph_outfile_commit(&of);
+}
+
+int runfiles_text(runfiles *f, const char *name, void (*fn)(FILE *, const void *), const void *arg)
+{
+    const char *path = runfiles_join(f, name);
+    if (!path) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    consph_outfile of;
+    int st = consph_outfile_open(&of, path);
+    if (st != CONSPH_OK) return st;
+    fn(of.fp, arg);
+    return consph_outfile_commit(&of);
+}
+
+void runfiles_free(runfiles *f)
+{
+    if (f->have_pvd) consph_pvd_free(&f->pvd);
+    f->have_pvd = 0;
+    free(f->path);
+    f->path = NULL;
+    f->cap = 0;
+}
+
+void runfiles_json_num(FILE *fp, const char *key, double v, int last)
+{
+    if (isfinite(v))
+        fprintf(fp, "  \"%s\": %.17g%s\n", key, v, last ? "" : ",");
+    else
+        fprintf(fp, "  \"%s\": null%s\n", key, last ? "" : ",");
+}

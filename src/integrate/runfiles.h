@@ -1,0 +1,36 @@
+/* The files of a run, shared by every solver (the WCSPH run of run.c, the heat run of
+ * src/problems/heat.c): paths in the output directory, snapshots indexed by run.pvd, the per-step
+ * log and the JSON summary, each written to a temporary name and renamed when complete. */
+#ifndef CONSPH_INTEGRATE_RUNFILES_H
+#define CONSPH_INTEGRATE_RUNFILES_H
+
+#include <stdio.h>
+
+#include "consph/io.h"
+
+typedef struct runfiles {
+    const char *dir;
+    char *path; /* scratch for joined paths */
+    size_t cap;
+    consph_pvd pvd;
+    int have_pvd;
+} runfiles;
+
+/* DIR/name in the scratch buffer (valid until the next call), NULL when out of memory. */
+const char *runfiles_join(runfiles *f, const char *name);
+/* A new index DIR/run.pvd. */
+int runfiles_pvd_init(runfiles *f);
+/* DIR/snap_NNNNNN.vtu with every field of p, added to the index at time t. */
+int runfiles_snapshot(runfiles *f, const consph_particles *p, long step, double t);
+/* DIR/name as a CSV: the header line, then nrows rows of ncols doubles, the first printed as
+ * an integer (the step). */
+int runfiles_csv(runfiles *f, const char *name, const char *header, const double *rows,
+                 size_t nrows, int ncols);
+/* DIR/name written by fn(fp, arg). */
+int runfiles_text(runfiles *f, const char *name, void (*fn)(FILE *, const void *), const void *arg);
+void runfiles_free(runfiles *f);
+
+/* "  \"key\": value," (null when not finite; no comma when last). */
+void runfiles_json_num(FILE *fp, const char *key, double v, int last);
+
+#endif

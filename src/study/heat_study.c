@@ -1,0 +1,320 @@
+/* Study figures of kind `heat` (docs/studies.md, docs/heat.md): 002's heat-conduction runs
+ * (include/consph/heat.h), one series per (Laplacian, η), an nx sweep each. Errors are reported
+ * against Δ = 1/(nx - 1) with the fitted order in Δ of L2, L∞ and EC; a figure with
+ * `report = time` instead compares the run times of its series with the first one (002 §6.3). */
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "consph/heat.h"
+#include "consph/io.h"
+#include "study/study_internal.h"
+
+typedef struct heat_plan {
+    consph_heat_params prm;
+    int nvalues;
+    double nx[STUDY_MAX_SWEEP];
+} heat_plan;
+
+typedef struct heat_row {
+    consph_heat_summary sum;
+    double total; /* set-up plus time steps, the best of the timed repeats */
+} heat_row;
+
+static int heat_plan_build(const consph_study *s, const study_figure *f, const study_series *r,
+                           int quick, heat_plan *pl)
+{
+    memset(pl, 0, sizeof *pl);
+    consph_heat_params_default(&pl->prm);
+    const char *lap = study_get(s, f, r, "laplacian"), *walls = study_get(s, f, r, "walls");
+    if (lap && consph_heat_lap_lookup(lap, &pl->prm.laplacian) != CONSPH_OK)
+        return study_key_error(s, f, r, "laplacian", "unknown value; allowed: s3, s4");
+    if (walls && consph_heat_walls_lookup(walls, &pl->prm.walls) != CONSPH_OK)
+        return study_key_error(s, f, r, "walls", "unknown value; allowed: sin, linear");
+    double seed;
+    int rc;
+    if ((rc = study_get_double(s, f, r, "hdx", 2.0, 1.0, 10.0, &pl->prm.eta))) return rc;
+    if ((rc = study_get_double(s, f, r, "eps", 0.0, 0.0, 1.0, &pl->prm.eps))) return rc;
+    if ((rc = study_get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) return rc;
+    if ((rc = study_get_double(s, f, r, "tf", 0.1, 1e-9, 1e3, &pl->prm.tf))) return rc;
+    pl->prm.seed = (unsigned long)seed;
+    if (quick && (rc = study_get_list(s, f, r, "quick.nx", 4, 20000, pl->nx, &pl->nvalues)))
+        return rc;
+    if (pl->nvalues == 0 && (rc = study_get_list(s, f, r, "nx", 4, 20000, pl->nx, &pl->nvalues)))
+        return rc;
+    if (pl->nvalues == 0) return study_key_error(s, f, r, "nx", "no resolutions given");
+    return CONSPH_OK;
+}
+
+/* DIR/ID.EXT opened for an atomic write. */
+static int open_out(consph_outfile *of, const char *dir, const char *id, const char *ext)
+{
+    char path[4096];
+    int rc = study_out_path(path, dir, id, ext);
+    return rc ? rc : consph_outfile_open(of, path);
+}
+
+static int run_one(const heat_plan *pl, int j, int repeats, heat_row *row)
+{
+    consph_heat_params prm = pl->prm;
+    prm.nx = (int)pl->nx[j];
+    row->total = INFINITY;
+    for (int k = 0; k < repeats; ++k) {
+        consph_heat *h = NULL;
+        consph_heat_summary sum;
+        int st = consph_heat_create(&h, &prm);
+        if (st == CONSPH_OK) st = consph_heat_run(h, NULL, 0, &sum);
+        consph_heat_free(h);
+        if (st != CONSPH_OK) return st;
+        /* the repeats differ in their times only: keep the fastest */
+        if (sum.seconds + sum.setup_seconds < row->total) {
+            row->sum = sum;
+            row->total = sum.seconds + sum.setup_seconds;
+        }
+    }
+    return CONSPH_OK;
+}
+
+/* Every paper.* key of a series, "key = value; ..." */
+static void paper_text(const study_figure *f, const study_series *r, char *buf, size_t size)
+{
+    buf[0] = '\0';
+    const study_kvlist *lists[2] = {&f->keys, &r->keys};
+    for (int l = 0; l < 2; ++l)
+        for (int k = 0; k < lists[l]->n; ++k) {
+            const study_kv *kv = &lists[l]->items[k];
+            if (strncmp(kv->key, "paper.", 6) != 0) continue;
+            size_t len = strlen(buf);
+            snprintf(buf + len, size - len, "%s%s", len ? "; " : "", kv->value);
+        }
+}
+
+static int write_csv(const study_figure *f, const heat_plan *plans,
+                     heat_row (*rows)[STUDY_MAX_SWEEP], const char *dir)
+{
+    char label[256];
+    consph_outfile of;
+    int rc = open_out(&of, dir, f->id, ".csv");
+    if (rc) return rc;
+    fprintf(of.fp, "series,laplacian,walls,eta,eps,seed,nx,n,delta,h,d_min,steps,dt,t,l2,linf,ec,"
+                   "seconds,setup_seconds,fallbacks\n");
+    for (int k = 0; k < f->nseries; ++k)
+        for (int j = 0; j < plans[k].nvalues; ++j) {
+            const consph_heat_summary *w = &rows[k][j].sum;
+            fprintf(of.fp,
+                    "%s,%s,%s,%g,%g,%lu,%d,%zu,%.10g,%.10g,%.10g,%ld,%.10g,%.10g,%.6e,%.6e,%.6e,"
+                    "%.6g,%.6g,%zu\n",
+                    study_csv_label(f->series[k].label, label, sizeof label), w->laplacian,
+                    w->walls, w->eta, w->eps, plans[k].prm.seed, w->nx, w->n, w->delta, w->h,
+                    w->d_min, w->steps, w->dt, w->t, w->l2, w->linf, w->ec, w->seconds,
+                    w->setup_seconds, w->fallbacks);
+        }
+    return consph_outfile_commit(&of);
+}
+
+/* Three panels (L2, L∞, EC against Δ), one line per series; data in ID.dat, one block each. */
+static int write_plot(const consph_study *s, const study_figure *f, const heat_plan *plans,
+                      heat_row (*rows)[STUDY_MAX_SWEEP], const char *dir)
+{
+    consph_outfile of;
+    int rc = open_out(&of, dir, f->id, ".dat");
+    if (rc) return rc;
+    for (int k = 0; k < f->nseries; ++k) {
+        fprintf(of.fp, "# %s: delta l2 linf ec\n", f->series[k].label);
+        for (int j = 0; j < plans[k].nvalues; ++j) {
+            const consph_heat_summary *w = &rows[k][j].sum;
+            fprintf(of.fp, "%.10g %.6e %.6e %.6e\n", w->delta, w->l2, w->linf, w->ec);
+        }
+        fprintf(of.fp, "\n\n");
+    }
+    if ((rc = consph_outfile_commit(&of))) return rc;
+    if ((rc = open_out(&of, dir, f->id, ".gp"))) return rc;
+    FILE *o = of.fp;
+    const char *title = study_get(s, f, NULL, "title");
+    rc = study_gp_head(o, f->id, title ? title : f->id);
+    static const char *const names[3] = {"L2 (002 eq. 44)", "Linf (eq. 45)", "EC (eq. 46)"};
+    fprintf(o, "set terminal svg size 1500,560 dynamic\nset output outfile\nunset title\n"
+               "set multiplot layout 1,3 title ");
+    if (rc == CONSPH_OK) rc = study_gp_put(o, title ? title : f->id);
+    fprintf(o, " noenhanced\nset logscale xy\nset format y '%%.0e'\nset xlabel 'Δ = 1/(nx-1)'\n"
+               "set key bottom right noenhanced font ',9'\n");
+    for (int c = 0; rc == CONSPH_OK && c < 3; ++c) {
+        fprintf(o, "set ylabel '%s'\n%s\nplot", names[c], c ? "unset key" : "");
+        for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
+            /* S3 dashed, S4 solid; the colour follows η */
+            fprintf(o, "%s '%s.dat' index %d using 1:%d with linespoints dashtype %d lc %d title ",
+                    k ? ", \\\n    " : " ", f->id, k, c + 2,
+                    plans[k].prm.laplacian == CONSPH_HEAT_S3 ? 2 : 1,
+                    1 + (int)lround((plans[k].prm.eta - 1.0) * 2.0));
+            rc = study_gp_put(o, f->series[k].label);
+        }
+        fprintf(o, "\n");
+    }
+    fprintf(o, "unset multiplot\n");
+    if (rc) {
+        consph_outfile_abort(&of);
+        return rc;
+    }
+    if ((rc = consph_outfile_commit(&of))) return rc;
+    return study_render_figure(dir, f->id);
+}
+
+static void order_of(const heat_plan *pl, const heat_row *rows, int norm, char *buf, size_t size)
+{
+    double res[STUDY_MAX_SWEEP], err[STUDY_MAX_SWEEP];
+    for (int j = 0; j < pl->nvalues; ++j) {
+        res[j] = 1.0 / rows[j].sum.delta;
+        err[j] = norm == 0 ? rows[j].sum.l2 : norm == 1 ? rows[j].sum.linf : rows[j].sum.ec;
+    }
+    consph_order_fit fit;
+    if (consph_fit_order(res, err, pl->nvalues, &fit) != CONSPH_OK) {
+        snprintf(buf, size, "n/a");
+        return;
+    }
+    consph_order_text(&fit, 2, "±", buf, size);
+}
+
+static int write_report(const consph_study *s, const study_figure *f, const heat_plan *plans,
+                        heat_row (*rows)[STUDY_MAX_SWEEP], int timing, int quick, const char *dir)
+{
+    char paper[1024];
+    consph_outfile of;
+    int rc = open_out(&of, dir, f->id, ".md");
+    if (rc) return rc;
+    FILE *o = of.fp;
+    const char *title = study_get(s, f, NULL, "title");
+    fprintf(o, "## %s: %s\n\n", f->id, title ? title : f->id);
+    const char *note = study_figure_note(f);
+    if (note) fprintf(o, "%s\n\n", note);
+    fprintf(o,
+            "Run: %s resolutions. 002's heat problem (docs/heat.md): nx × nx particles on the grid "
+            "vertices, walls included (Δ = 1/(nx − 1)), walls as source-only particles, "
+            "`wendland-c2:h` with h = η Δ, forward Euler with Δt = 0.2 d_min² to t = %g. Orders "
+            "are least-squares slopes in 1/Δ (positive: the error falls).\n\n",
+            quick ? "quick" : "full", plans[0].prm.tf);
+    if (!timing && study_have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
+    if (timing) {
+        fprintf(o,
+                "| series | nx | N | steps | time (s) | relative to %s | steps (s) | set-up (s) "
+                "| L2 | paper |\n|---|---|---|---|---|---|---|---|---|---|\n",
+                f->series[0].label);
+        const double ref = rows[0][plans[0].nvalues - 1].total;
+        for (int k = 0; k < f->nseries; ++k) {
+            const heat_row *w = &rows[k][plans[k].nvalues - 1];
+            paper_text(f, &f->series[k], paper, sizeof paper);
+            fprintf(o, "| %s | %d | %zu | %ld | %.3f | %.2f | %.3f | %.3f | %.3e | %s |\n",
+                    f->series[k].label, w->sum.nx, w->sum.n, w->sum.steps, w->total, w->total / ref,
+                    w->sum.seconds, w->sum.setup_seconds, w->sum.l2, paper);
+        }
+        fprintf(o,
+                "\nTimes: wall clock of %s (set-up and time steps, no files), relative to the "
+                "first series. 002 ran on one core of a 3 GHz Core 2 E8400; only the ratios "
+                "compare.\n\n",
+                quick ? "the fastest of 3 runs" : "one run");
+        return consph_outfile_commit(&of);
+    }
+    fprintf(o, "| series | order L2 | order L∞ | order EC | L2 at the finest Δ | paper |\n"
+               "|---|---|---|---|---|---|\n");
+    for (int k = 0; k < f->nseries; ++k) {
+        char ol2[64], oli[64], oec[64];
+        order_of(&plans[k], rows[k], 0, ol2, sizeof ol2);
+        order_of(&plans[k], rows[k], 1, oli, sizeof oli);
+        order_of(&plans[k], rows[k], 2, oec, sizeof oec);
+        paper_text(f, &f->series[k], paper, sizeof paper);
+        fprintf(o, "| %s | %s | %s | %s | %.3e | %s |\n", f->series[k].label, ol2, oli, oec,
+                rows[k][plans[k].nvalues - 1].sum.l2, paper);
+    }
+    fprintf(o, "\n| series | nx | Δ | N | steps | L2 | L∞ | EC | s |\n"
+               "|---|---|---|---|---|---|---|---|---|\n");
+    for (int k = 0; k < f->nseries; ++k)
+        for (int j = 0; j < plans[k].nvalues; ++j) {
+            const consph_heat_summary *w = &rows[k][j].sum;
+            fprintf(o, "| %s | %d | %.4g | %zu | %ld | %.3e | %.3e | %.3e | %.2f |\n",
+                    f->series[k].label, w->nx, w->delta, w->n, w->steps, w->l2, w->linf, w->ec,
+                    rows[k][j].total);
+        }
+    fprintf(o, "\n");
+    return consph_outfile_commit(&of);
+}
+
+int study_heat_figure(const consph_study *s, const study_figure *f, int quick, const char *dir,
+                      FILE *log)
+{
+    if (f->nseries < 1) return study_key_error(s, f, NULL, "kind", "a heat figure needs series");
+    const char *report = study_get(s, f, NULL, "report");
+    const int timing = report && strcmp(report, "time") == 0;
+    if (report && !timing)
+        return study_key_error(s, f, NULL, "report", "unknown value; allowed: time");
+    heat_plan *plans = calloc((size_t)f->nseries, sizeof *plans);
+    heat_row(*rows)[STUDY_MAX_SWEEP] = calloc((size_t)f->nseries, sizeof *rows);
+    int rc = plans && rows ? CONSPH_OK : consph_fail(CONSPH_ENOMEM, "out of memory");
+    for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k)
+        rc = heat_plan_build(s, f, &f->series[k], quick, &plans[k]);
+    for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k)
+        for (int j = 0; rc == CONSPH_OK && j < plans[k].nvalues; ++j) {
+            /* a time comparison runs only the finest resolution, best of 3 when it is cheap */
+            if (timing && j < plans[k].nvalues - 1) continue;
+            rc = run_one(&plans[k], j, timing && quick ? 3 : 1, &rows[k][j]);
+            const consph_heat_summary *w = &rows[k][j].sum;
+            if (rc == CONSPH_OK && !(isfinite(w->l2) && isfinite(w->linf) && isfinite(w->ec)))
+                rc = consph_fail(CONSPH_ENUMERIC, "error not finite");
+            if (rc != CONSPH_OK) {
+                char msg[512];
+                snprintf(msg, sizeof msg, "%s", consph_last_error());
+                rc = consph_fail(rc, "figure '%s', series '%s', nx %g: %s", f->id,
+                                 f->series[k].label, plans[k].nx[j], msg);
+            } else if (log) {
+                fprintf(log, "  %s nx %d: L2 %.3e  (%.2f s)\n", f->series[k].label, w->nx, w->l2,
+                        rows[k][j].total);
+            }
+        }
+    if (timing)
+        for (int k = 0; k < f->nseries; ++k) {
+            /* the report reads the finest row only */
+            rows[k][0] = rows[k][plans[k].nvalues - 1];
+            plans[k].nx[0] = plans[k].nx[plans[k].nvalues - 1];
+            plans[k].nvalues = 1;
+        }
+    if (rc == CONSPH_OK) rc = write_csv(f, plans, rows, dir);
+    if (rc == CONSPH_OK && !timing) rc = write_plot(s, f, plans, rows, dir);
+    if (rc == CONSPH_OK) rc = write_report(s, f, plans, rows, timing, quick, dir);
+    free(plans);
+    free(rows);
+    return rc;
+}
+
+/* Pair evaluations per step scale as N (1 + π η²); S3 costs about 0.8 of S4 per pair (measured
+ * at 80², η = 3.5); calibrated on one small S4 run. */
+double study_heat_seconds(const consph_study *s, const study_figure *f, int quick)
+{
+    static double per_pair_step = 0.0;
+    if (per_pair_step == 0.0) {
+        consph_heat_params prm;
+        consph_heat_params_default(&prm);
+        /* S4 at the figures' largest η, long enough to dwarf the set-up */
+        prm.nx = 40;
+        prm.eta = 3.5;
+        prm.steps = 200;
+        consph_heat *h = NULL;
+        consph_heat_summary sum;
+        if (consph_heat_create(&h, &prm) != CONSPH_OK) return NAN;
+        consph_heat_run(h, NULL, 0, &sum);
+        consph_heat_free(h);
+        per_pair_step = sum.seconds / (double)sum.pairs;
+    }
+    const char *report = study_get(s, f, NULL, "report");
+    const int timing = report && strcmp(report, "time") == 0;
+    double total = 0.0;
+    for (int k = 0; k < f->nseries; ++k) {
+        heat_plan pl;
+        if (heat_plan_build(s, f, &f->series[k], quick, &pl) != CONSPH_OK) return NAN;
+        for (int j = timing ? pl.nvalues - 1 : 0; j < pl.nvalues; ++j) {
+            double nx = pl.nx[j], d = 1.0 / (nx - 1.0);
+            double steps = pl.prm.tf / (pl.prm.courant * d * d) + 1.0;
+            double pairs = nx * nx * (1.0 + M_PI * pl.prm.eta * pl.prm.eta);
+            total += (timing && quick ? 3.0 : 1.0) * steps * pairs * per_pair_step *
+                     (pl.prm.laplacian == CONSPH_HEAT_S4 ? 1.0 : 0.8);
+        }
+    }
+    return total;
+}
