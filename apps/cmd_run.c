@@ -50,7 +50,7 @@ int cmd_run(int argc, char **argv)
     long nx = 50, steps = 0, snap_every = 0, ckpt_every = 0, threads = 0, seed = 1;
     long ipst_every = 10, ipst_iter = 10;
     double hdx = 1.2, c0 = 0.0, re = 100.0, tf = 0.5, dt = 0.0, U = 1.0, delta = 0.1;
-    double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3;
+    double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3, alpha = 0.1;
     int layout = 0, kernel = 0, format = 0, eos = 0;
     char layout_choices[256], kernel_choices[512];
     snprintf(layout_choices, sizeof layout_choices, "default,%s", consph_layout_names());
@@ -80,6 +80,8 @@ int cmd_run(int argc, char **argv)
         {"--ipst-every", CLI_INT, &ipst_every, "K", "IPST every K steps (0: never)", NULL, 0, 1e9,
          0},
         {"--ipst-iter", CLI_INT, &ipst_iter, "M", "at most M IPST iterations", NULL, 0, 1000, 0},
+        {"--alpha", CLI_DOUBLE, &alpha, "A", "α of Monaghan's artificial viscosity (wcsph)", NULL,
+         0, 10, 0},
         {"--ipst-tol", CLI_DOUBLE, &ipst_tol, "EPS", "ε of 001 eq. 21", NULL, 1e-15, 1, 0},
         {"--out", CLI_STRING, &out, "DIR", "write snapshots, log, summary, checkpoints here", NULL,
          0, 0, 0},
@@ -168,6 +170,7 @@ int cmd_run(int argc, char **argv)
         prm.ipst_every = (int)ipst_every;
         prm.ipst_max_iter = (int)ipst_iter;
         prm.ipst_tol = ipst_tol;
+        prm.av_alpha = alpha;
         if (consph_run_params_check(&prm) != CONSPH_OK) {
             fprintf(stderr, "consph run: %s\n", consph_last_error());
             return CLI_EXIT_USAGE;

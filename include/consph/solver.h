@@ -55,6 +55,7 @@ typedef struct consph_run_params {
     int ipst_every;    /* IPST every this many steps (001: 10) */
     int ipst_max_iter; /* at most this many shifts (001: 10) */
     double ipst_tol;   /* ε of 001 eq. 21 */
+    double av_alpha;   /* α of Monaghan's artificial viscosity (wcsph) */
 } consph_run_params;
 
 void consph_run_params_default(consph_run_params *prm);

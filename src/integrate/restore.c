@@ -28,11 +28,11 @@ int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **
         "seed=%lu\nhdx=%a\nkernel=%d\nU=%a\nc0=%a\nre=%a\nrho0=%a\ngamma=%a\neos=%d\n"
         "delta=%a\ntf=%a\nsteps=%ld\ndt=%a\ncfl=%a\nh_dt=%a\nipst_every=%d\nipst_max_iter=%d\n"
         "ipst_tol=%a\nt=%a\nstep=%ld\nl1_u_acc=%a\nl1_p_acc=%a\nseconds=%a\npairs=%zu\n"
-        "regs=%ld\npasses=%d\n",
+        "regs=%ld\npasses=%d\nav_alpha=%a\n",
         p->problem, p->scheme, p->integrator, p->nx, p->layout, p->seed, p->hdx, (int)p->kernel,
         p->U, p->c0, p->re, p->rho0, p->gamma, (int)p->eos, p->delta, p->tf, p->steps, p->dt,
         p->cfl, p->h_dt, p->ipst_every, p->ipst_max_iter, p->ipst_tol, s->t, s->step, s->l1_u_acc,
-        s->l1_p_acc, s->seconds, s->pairs, s->regs, s->passes);
+        s->l1_p_acc, s->seconds, s->pairs, s->regs, s->passes, p->av_alpha);
     if (len < 0 || len >= META_MAX) {
         free(m);
         free(h);
@@ -110,6 +110,7 @@ static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const
     D("cfl", p->cfl)
     D("h_dt", p->h_dt)
     D("ipst_tol", p->ipst_tol)
+    D("av_alpha", p->av_alpha)
     D("t", s->t)
     D("l1_u_acc", s->l1_u_acc)
     D("l1_p_acc", s->l1_p_acc)
@@ -146,8 +147,8 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
         ++nkeys;
         line = nl ? nl + 1 : line + len;
     }
-    if (st == CONSPH_OK && nkeys != 32)
-        st = consph_fail(CONSPH_EFORMAT, "checkpoint metadata: %d keys, expected 32", nkeys);
+    if (st == CONSPH_OK && nkeys != 33)
+        st = consph_fail(CONSPH_EFORMAT, "checkpoint metadata: %d keys, expected 33", nkeys);
     if (st == CONSPH_OK) st = consph_run_params_check(p);
     if (st == CONSPH_OK) st = derive_solver(s);
     if (st == CONSPH_OK &&

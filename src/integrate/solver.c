@@ -32,6 +32,7 @@ void consph_run_params_default(consph_run_params *prm)
     prm->ipst_every = 10;
     prm->ipst_max_iter = 10;
     prm->ipst_tol = 1e-3;
+    prm->av_alpha = 0.1; /* PySPH's WCSPHScheme default */
 }
 
 const char *consph_integrator_names(void)
@@ -104,6 +105,8 @@ int consph_run_params_check(const consph_run_params *prm)
         !(prm->ipst_tol > 0.0))
         return consph_fail(CONSPH_EINVAL, "--ipst-every and --ipst-iter must be >= 0 and "
                                           "--ipst-tol > 0");
+    if (!(prm->av_alpha >= 0.0 && prm->av_alpha <= 10.0))
+        return consph_fail(CONSPH_EINVAL, "--alpha must be in [0, 10], not %g", prm->av_alpha);
     return CONSPH_OK;
 }
 
