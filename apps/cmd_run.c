@@ -54,7 +54,12 @@ int cmd_run(int argc, char **argv)
     int layout = 0, kernel = 0, format = 0, eos = 0;
     char layout_choices[256], kernel_choices[512];
     snprintf(layout_choices, sizeof layout_choices, "default,%s", consph_layout_names());
-    snprintf(kernel_choices, sizeof kernel_choices, "%s", consph_kernel_names());
+    /* The choice list is comma-separated without blanks; consph_kernel_names() puts ", "
+     * between names, which made "quintic" no choice and the default silently the first one. */
+    size_t nk = 0;
+    for (const char *c = consph_kernel_names(); *c && nk + 1 < sizeof kernel_choices; ++c)
+        if (*c != ' ') kernel_choices[nk++] = *c;
+    kernel_choices[nk] = '\0';
     kernel = cli_choice_index(kernel_choices, "quintic");
     cli_opt opts[] = {
         {"--scheme", CLI_STRING, &scheme, "S", "scheme", NULL, 0, 0, 0},
