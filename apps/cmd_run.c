@@ -127,12 +127,17 @@ int cmd_run(int argc, char **argv)
     long nx = 50, steps = 0, snap_every = 0, ckpt_every = 0, threads = 0, seed = 1;
     long ipst_every = 10, ipst_iter = 10;
     double hdx = 1.2, c0 = 0.0, re = 100.0, tf = 0.5, dt = 0.0, U = 1.0, delta = 0.1;
-    double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3, nu = 0.0, alpha = 0.0;
+    double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3, nu = 0.0, alpha = -1.0;
     int layout = 0, kernel = 0, format = 0, eos = 0, heat_lap = 1, heat_walls = 0;
     double heat_eta = 2.0, heat_eps = 0.0;
     char layout_choices[256], kernel_choices[512];
     snprintf(layout_choices, sizeof layout_choices, "default,%s", consph_layout_names());
-    snprintf(kernel_choices, sizeof kernel_choices, "%s", consph_kernel_names());
+    /* The choice list is comma-separated without blanks; consph_kernel_names() puts ", "
+     * between names, which made "quintic" no choice and the default silently the first one. */
+    size_t nk = 0;
+    for (const char *c = consph_kernel_names(); *c && nk + 1 < sizeof kernel_choices; ++c)
+        if (*c != ' ') kernel_choices[nk++] = *c;
+    kernel_choices[nk] = '\0';
     kernel = cli_choice_index(kernel_choices, "quintic");
     cli_opt opts[] = {
         {"--scheme", CLI_STRING, &scheme, "S", "scheme", NULL, 0, 0, 0},
@@ -146,8 +151,8 @@ int cmd_run(int argc, char **argv)
         {"--re", CLI_DOUBLE, &re, "RE", "Reynolds number (ν = U L/Re)", NULL, 1e-6, 1e12, 0},
         {"--nu", CLI_DOUBLE, &nu, "NU", "kinematic viscosity instead of --re (0: inviscid)", NULL,
          0, 1e6, 0},
-        {"--alpha", CLI_DOUBLE, &alpha, "A", "artificial viscosity α of the δ-SPH family", NULL, 0,
-         10, 0},
+        {"--alpha", CLI_DOUBLE, &alpha, "A", "artificial viscosity α (default: wcsph 0.1, δ-SPH 0)",
+         NULL, 0, 10, 0},
         {"--u", CLI_DOUBLE, &U, "U", "velocity scale", NULL, 1e-12, 1e6, 0},
         {"--eos", CLI_CHOICE, &eos, "E", "equation of state", "default,tait,linear", 0, 0, 0},
         {"--delta", CLI_DOUBLE, &delta, "D", "δ of the diffusive term D = δ h c_o", NULL, 0, 10, 0},

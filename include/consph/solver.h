@@ -50,7 +50,8 @@ typedef struct consph_run_params {
     double gamma;
     consph_eos_kind eos;
     double delta;      /* δ of the diffusive terms D = δ h c_o (catalogue Part C 001.11) */
-    double alpha;      /* artificial viscosity α of the δ-SPH family (Marrone et al. 2011) */
+    double alpha;      /* artificial viscosity α (wcsph, δ-SPH family); < 0: the scheme's default
+                          (wcsph 0.1 as PySPH's WCSPHScheme, δ-SPH family 0) */
     double tf;         /* final time (used when steps = 0) */
     long steps;        /* number of steps (0: up to tf) */
     double dt;         /* fixed time step (0: the rule cfl · h_dt/(U + c_o)) */

@@ -28,7 +28,7 @@ void consph_run_params_default(consph_run_params *prm)
     prm->gamma = 7.0;
     prm->eos = CONSPH_EOS_DEFAULT;
     prm->delta = 0.1;
-    prm->alpha = 0.0;
+    prm->alpha = -1.0;
     prm->tf = 0.5;
     prm->cfl = 0.3;
     prm->ipst_every = 10;
@@ -89,7 +89,7 @@ int consph_run_params_check(const consph_run_params *prm)
     if (!(prm->nu < 0.0 || (prm->nu >= 0.0 && prm->nu <= 1e6)))
         return consph_fail(CONSPH_EINVAL, "--nu must be in [0, 1e6] (0: inviscid), not %g",
                            prm->nu);
-    if (!(prm->alpha >= 0.0 && prm->alpha <= 10.0))
+    if (!(prm->alpha == -1.0 || (prm->alpha >= 0.0 && prm->alpha <= 10.0)))
         return consph_fail(CONSPH_EINVAL, "--alpha must be in [0, 10], not %g", prm->alpha);
     if (!(prm->rho0 > 0.0 && isfinite(prm->rho0)) || !(prm->gamma >= 1.0 && prm->gamma <= 20.0))
         return consph_fail(CONSPH_EINVAL, "rho0 must be > 0 and gamma in [1, 20]");

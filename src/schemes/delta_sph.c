@@ -173,7 +173,9 @@ static int delta_rates(consph_solver *s, int shift)
                      .divu = sv_field(s, SF_DIVU, 1),
                      .gradu = sv_field(s, SF_GRADU, d * d),
                      .h_c0_delta = s->D,
-                     .visc = (s->prm.alpha * s->h * s->c0 + 2.0 * (d + 2) * s->nu) * s->prm.rho0};
+                     .visc = ((s->prm.alpha >= 0.0 ? s->prm.alpha : 0.0) * s->h * s->c0 +
+                              2.0 * (d + 2) * s->nu) *
+                             s->prm.rho0};
     if (!job.p || !job.u || !job.L || !job.gradrho || !job.au || !job.aq || !job.ax || !job.gradp ||
         !job.divu || !job.gradu)
         return CONSPH_ENOMEM;

@@ -289,9 +289,21 @@ const scheme_def scheme_ewcsph = {
 /* The table, in the order consph_scheme_names lists; a scheme family in its own file adds its
  * rows here (their definitions are declared in solver_internal.h). */
 static const scheme_def *const schemes[] = {
-    &scheme_l_ipst_c,  &scheme_l_ipst_f,  &scheme_l_ipst_k,       &scheme_l_pst_c,
-    &scheme_pe_ipst_c, &scheme_l_rr_c,    &scheme_tv_c,           &scheme_e_c,
-    &scheme_ewcsph,    &scheme_delta_sph, &scheme_delta_plus_sph, &scheme_delta_plus_sph_d,
+    &scheme_l_ipst_c,
+    &scheme_l_ipst_f,
+    &scheme_l_ipst_k,
+    &scheme_l_pst_c,
+    &scheme_pe_ipst_c,
+    &scheme_l_rr_c,
+    &scheme_tv_c,
+    &scheme_e_c,
+    &scheme_ewcsph,
+    &scheme_wcsph,
+    &scheme_tvf,
+    &scheme_edac,
+    &scheme_delta_sph,
+    &scheme_delta_plus_sph,
+    &scheme_delta_plus_sph_d,
 };
 
 const scheme_def *scheme_find(const char *name)
@@ -304,8 +316,8 @@ const scheme_def *scheme_find(const char *name)
 /* Kept in table order; test_solver checks that every name resolves and the table has no other. */
 const char *consph_scheme_names(void)
 {
-    return "l-ipst-c,l-ipst-f,l-ipst-k,l-pst-c,pe-ipst-c,l-rr-c,tv-c,e-c,ewcsph,delta-sph,"
-           "delta-plus-sph,delta-plus-sph-d";
+    return "l-ipst-c,l-ipst-f,l-ipst-k,l-pst-c,pe-ipst-c,l-rr-c,tv-c,e-c,ewcsph,wcsph,tvf,edac,"
+           "delta-sph,delta-plus-sph,delta-plus-sph-d";
 }
 
 size_t scheme_count(void)

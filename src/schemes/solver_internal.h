@@ -92,6 +92,8 @@ const scheme_def *scheme_find(const char *name);
 /* The schemes of 001 §5.1 and §5.4 (schemes.c). */
 extern const scheme_def scheme_l_ipst_c, scheme_l_ipst_f, scheme_l_ipst_k, scheme_l_pst_c,
     scheme_pe_ipst_c, scheme_l_rr_c, scheme_tv_c, scheme_e_c, scheme_ewcsph;
+/* The established weakly-compressible schemes (rival_wc.c). */
+extern const scheme_def scheme_wcsph, scheme_tvf, scheme_edac;
 /* The δ-SPH family (delta_sph.c). */
 extern const scheme_def scheme_delta_sph, scheme_delta_plus_sph, scheme_delta_plus_sph_d;
 size_t scheme_count(void);

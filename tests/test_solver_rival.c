@@ -1,0 +1,163 @@
+/* The established schemes (issue 15): tvf's momentum conservation on disordered particles,
+ * 20 finite steps of Taylor-Green for wcsph, tvf and edac, and edac against PySPH 1.0b1. */
+#include <math.h>
+#include <string.h>
+
+#include "check.h"
+#include "consph/solver.h"
+#include "schemes/solver_internal.h"
+
+static consph_run_params params(const char *scheme, int nx)
+{
+    consph_run_params p;
+    consph_run_params_default(&p);
+    snprintf(p.scheme, sizeof p.scheme, "%s", scheme);
+    p.nx = nx;
+    p.cfl = 0.25; /* PySPH's taylor_green: Δt = 0.25 h/(c_o + U) */
+    p.alpha = 0.0;
+    return p;
+}
+
+static int run_all(consph_solver *s)
+{
+    while (!consph_solver_done(s)) {
+        int st = consph_solver_step(s);
+        if (st != CONSPH_OK) return st;
+    }
+    return CONSPH_OK;
+}
+
+/* Every tvf pair force (pressure with p̃_ij, background pressure, viscosity, A-term) is
+ * antisymmetric in i, j and the particles share one mass, so Σ m u stays at its initial value
+ * (zero for Taylor-Green) to round-off, however disordered the particles. */
+static void test_tvf_momentum(void)
+{
+    consph_run_params p = params("tvf", 16);
+    p.layout = CONSPH_LAYOUT_RANDOM;
+    p.steps = 100;
+    p.tf = 0.0;
+    consph_solver *s = NULL;
+    CHECK(consph_solver_create(&s, &p) == CONSPH_OK, "create: %s", consph_last_error());
+    if (!s) return;
+    consph_run_summary s0, sum;
+    consph_solver_summary(s, &s0);
+    CHECK(run_all(s) == CONSPH_OK, "tvf: %s", consph_last_error());
+    consph_solver_summary(s, &sum);
+    /* Σ|m u| is about 0.6 m N = 2.3e-3 (N = 256); its round-off is near 1e-18 */
+    const double dx = sum.momentum[0] - s0.momentum[0], dy = sum.momentum[1] - s0.momentum[1];
+    CHECK(fabs(dx) < 1e-15 && fabs(dy) < 1e-15, "tvf momentum moved by (%g, %g) in 100 steps", dx,
+          dy);
+    consph_solver_free(s);
+}
+
+static void test_finite(void)
+{
+    const char *names[] = {"wcsph", "tvf", "edac"};
+    for (int k = 0; k < 3; ++k) {
+        consph_run_params p = params(names[k], 32);
+        p.alpha = 0.1;
+        p.steps = 20;
+        p.tf = 0.0;
+        consph_solver *s = NULL;
+        CHECK(consph_solver_create(&s, &p) == CONSPH_OK, "create: %s", consph_last_error());
+        if (!s) continue;
+        CHECK(run_all(s) == CONSPH_OK, "%s: %s", names[k], consph_last_error());
+        const consph_particles *q = consph_solver_particles(s);
+        int finite = 1;
+        for (int f = 0; f < q->nfields; ++f)
+            for (int c = 0; c < q->fields[f].ncomp; ++c)
+                for (size_t i = 0; i < q->n; ++i)
+                    finite &= isfinite(q->fields[f].data[(size_t)c * q->cap + i]) != 0;
+        for (size_t i = 0; i < q->n; ++i) finite &= isfinite(q->x[0][i]) && isfinite(q->x[1][i]);
+        CHECK(finite, "%s: a non-finite value after 20 steps", names[k]);
+        consph_solver_free(s);
+    }
+}
+
+/* 1 and 2 threads give the same particles bit for bit (the passes are gathers; every other
+ * loop is per particle). */
+static void test_threads(void)
+{
+    const char *names[] = {"wcsph", "tvf", "edac"};
+    for (int k = 0; k < 3; ++k) {
+        consph_solver *s[2] = {NULL, NULL};
+        for (int t = 0; t < 2; ++t) {
+            consph_run_params p = params(names[k], 20);
+            p.layout = CONSPH_LAYOUT_RANDOM;
+            p.alpha = 0.1;
+            p.steps = 10;
+            p.tf = 0.0;
+            consph_set_num_threads(t + 1);
+            CHECK(consph_solver_create(&s[t], &p) == CONSPH_OK, "create: %s", consph_last_error());
+            if (!s[t]) break;
+            s[t]->sys.parallel_min = 1; /* the pass layer is serial below parallel_min */
+            CHECK(run_all(s[t]) == CONSPH_OK, "%s: %s", names[k], consph_last_error());
+        }
+        consph_set_num_threads(1);
+        if (s[0] && s[1]) {
+            const consph_particles *a = consph_solver_particles(s[0]);
+            const consph_particles *b = consph_solver_particles(s[1]);
+            /* the state: positions, u, p, ϱ (every other field derives from it) */
+            int same = a->n == b->n && !memcmp(a->x[0], b->x[0], a->n * sizeof(double)) &&
+                       !memcmp(a->x[1], b->x[1], a->n * sizeof(double));
+            const char *state[] = {"u", "p", "rhof"};
+            for (int f = 0; same && f < 3; ++f) {
+                const consph_field *fa = consph_particles_find(a, state[f]);
+                const consph_field *fb = consph_particles_find(b, state[f]);
+                for (int c = 0; same && c < fa->ncomp; ++c)
+                    same = !memcmp(fa->data + (size_t)c * a->cap, fb->data + (size_t)c * b->cap,
+                                   a->n * sizeof(double));
+            }
+            CHECK(same, "%s: 1 and 2 threads differ", names[k]);
+        }
+        consph_solver_free(s[0]);
+        consph_solver_free(s[1]);
+    }
+}
+
+/* PySPH's velocity measure (taylor_green.py post_process): Σ| |u| - |u_e| | / Σ |u_e|. */
+static double l1_vmag(const consph_solver *s, double t)
+{
+    const consph_particles *q = consph_solver_particles(s);
+    const consph_field *fu = consph_particles_find(q, "u");
+    const double e = exp(-8.0 * M_PI * M_PI / 100.0 * t);
+    double num = 0.0, den = 0.0;
+    for (size_t i = 0; i < q->n; ++i) {
+        const double x = q->x[0][i], y = q->x[1][i];
+        const double ue = -e * cos(2 * M_PI * x) * sin(2 * M_PI * y);
+        const double ve = e * sin(2 * M_PI * x) * cos(2 * M_PI * y);
+        num += fabs(hypot(fu->data[i], fu->data[q->cap + i]) - hypot(ue, ve));
+        den += hypot(ue, ve);
+    }
+    return num / den;
+}
+
+/* PYSPH_EDAC32 was computed once by PySPH 1.0b1 (Debian python3-pysph 1.0~b1-5) with
+ *   python3 /usr/lib/python3/dist-packages/pysph/examples/taylor_green.py --scheme edac \
+ *       --nx 32 --hdx 1.2 --tf 0.5 --pfreq 100000 -d OUT
+ * and bench/pysph_errors.py OUT/taylor_green_00587.hdf5 0.5 100 0.0375 (its first number).
+ * consph gives 2.2407e-02 (5 % above). The tolerance is the largest gap bench/pysph.md measured
+ * on this measure (18 % at nx 50; 2 % at nx 100), rounded up to 20 %. */
+#define PYSPH_EDAC32 2.133827e-02
+#define PYSPH_TOL 0.2
+static void test_edac_pysph(void)
+{
+    consph_run_params p = params("edac", 32);
+    consph_solver *s = NULL;
+    CHECK(consph_solver_create(&s, &p) == CONSPH_OK, "create: %s", consph_last_error());
+    if (!s) return;
+    CHECK(run_all(s) == CONSPH_OK, "edac: %s", consph_last_error());
+    const double l1 = l1_vmag(s, consph_solver_time(s));
+    CHECK(fabs(l1 / PYSPH_EDAC32 - 1.0) < PYSPH_TOL, "edac nx 32: L1 |u| %.6e, PySPH %.6e", l1,
+          PYSPH_EDAC32);
+    consph_solver_free(s);
+}
+
+int main(void)
+{
+    test_tvf_momentum();
+    test_finite();
+    test_threads();
+    test_edac_pysph();
+    return check_summary("test_solver_rival");
+}
