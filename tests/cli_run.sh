@@ -80,10 +80,10 @@ done
 
 # --- SIGTERM: checkpoint, exit 143, restart completes identically ---
 # started directly (not through a function, whose subshell would take the signal)
-sigargs=(run taylor-green --scheme e-c --nx 24 --steps 3000 --snapshot-every 1000 --out)
+sigargs=(run taylor-green --scheme e-c --nx 16 --steps 3000 --snapshot-every 1000 --out)
 "$consph" "${sigargs[@]}" "$tmp/sig" >/dev/null 2>&1 &
 pid=$!
-sleep 1
+sleep 0.5
 kill -TERM $pid
 wait $pid
 rc=$?
