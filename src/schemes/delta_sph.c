@@ -145,16 +145,8 @@ static int delta_rates(consph_solver *s, int shift)
     double *du = NULL;
     int st = CONSPH_OK;
     if (shift != SHIFT_NONE) {
-        /* δu = δr/Δt with Sun's δr (the CFL form of 001's L-PST-C and TV-C) */
-        du = sv_field(s, SF_SHIFT, d);
-        if (!du) return CONSPH_ENOMEM;
-        reg_pst_params pp = {s->h, s->ds, s->dt * s->c0 / s->h, s->prm.U / s->c0, 0.2, 4.0, 0.0};
-        st = reg_pst_shift(sys, &pp, du);
+        st = solver_shift_velocity(s, &du);
         if (st != CONSPH_OK) return st;
-        ++s->passes;
-        const double inv_dt = 1.0 / s->dt;
-        for (int a = 0; a < d; ++a)
-            for (size_t i = 0; i < n; ++i) du[a * cap + i] *= inv_dt;
     }
     delta_job job = {.d = d,
                      .shift = shift,

@@ -20,6 +20,22 @@ enum {
     T_TV = 1u << 3        /* the shifting velocity δu of TV-C (eqs. 34-35) */
 };
 
+int solver_shift_velocity(consph_solver *s, double **du)
+{
+    const int d = s->dim;
+    const size_t n = s->sys.p->n, cap = s->sys.p->cap;
+    *du = sv_field(s, SF_SHIFT, d);
+    if (!*du) return CONSPH_ENOMEM;
+    reg_pst_params pp = {s->h, s->ds, s->dt * s->c0 / s->h, s->prm.U / s->c0, 0.2, 4.0, 0.0};
+    int st = reg_pst_shift(&s->sys, &pp, *du);
+    if (st != CONSPH_OK) return st;
+    ++s->passes;
+    const double inv_dt = 1.0 / s->dt;
+    for (int a = 0; a < d; ++a)
+        for (size_t i = 0; i < n; ++i) (*du)[a * cap + i] *= inv_dt;
+    return CONSPH_OK;
+}
+
 static int rates(consph_solver *s, kit_lap lap, unsigned terms)
 {
     consph_sys *sys = &s->sys;
@@ -41,13 +57,9 @@ static int rates(consph_solver *s, kit_lap lap, unsigned terms)
     if (st != CONSPH_OK) return st;
     double *du = NULL;
     if (terms & T_TV) {
-        /* δu = δr/Δt from the shifting of Sun et al. (001 §5.4 item 4 uses [33]'s PST) */
-        du = sv_field(s, SF_SHIFT, d);
-        if (!du) return CONSPH_ENOMEM;
-        reg_pst_params pp = {s->h, s->ds, s->dt * s->c0 / s->h, s->prm.U / s->c0, 0.2, 4.0, 0.0};
-        st = reg_pst_shift(sys, &pp, du);
+        /* 001 §5.4 item 4: the PST of [33] as a transport velocity */
+        st = solver_shift_velocity(s, &du);
         if (st != CONSPH_OK) return st;
-        ++s->passes;
     }
     const double *u = sv_field(s, SF_U, d), *rhof = sv_field(s, SF_RHOF, 1);
     const double *gradp = sv_field(s, SF_GRADP, d), *G = sv_field(s, SF_GRADU, d * d);
@@ -58,14 +70,14 @@ static int rates(consph_solver *s, kit_lap lap, unsigned terms)
     double *au = sv_field(s, SF_AU, d), *aq = sv_field(s, SF_AQ, 1);
     if (!u || !rhof || !gradp || !G || !lapu || !divu || !au || !aq || (s->scheme->moves && !ax))
         return CONSPH_ENOMEM;
-    const double nu = s->nu, D = s->D, c2 = s->c0 * s->c0, inv_dt = 1.0 / s->dt;
+    const double nu = s->nu, D = s->D, c2 = s->c0 * s->c0;
     const int evolve_p = s->scheme->evolve_p;
 #pragma omp parallel for schedule(static) if (n > sys->parallel_min)
     for (size_t i = 0; i < n; ++i) {
         double ui[3], dui[3] = {0.0, 0.0, 0.0};
         for (int a = 0; a < d; ++a) ui[a] = u[a * cap + i];
         if (du)
-            for (int a = 0; a < d; ++a) dui[a] = du[a * cap + i] * inv_dt;
+            for (int a = 0; a < d; ++a) dui[a] = du[a * cap + i];
         for (int a = 0; a < d; ++a) {
             double v = -gradp[a * cap + i] / rhof[i] + nu * lapu[a * cap + i];
             for (int b = 0; b < d; ++b) {

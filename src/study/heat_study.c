@@ -47,13 +47,6 @@ static int heat_plan_build(const consph_study *s, const study_figure *f, const s
 }
 
 /* DIR/ID.EXT opened for an atomic write. */
-static int open_out(consph_outfile *of, const char *dir, const char *id, const char *ext)
-{
-    char path[4096];
-    int rc = study_out_path(path, dir, id, ext);
-    return rc ? rc : consph_outfile_open(of, path);
-}
-
 static int run_one(const heat_plan *pl, int j, int repeats, heat_row *row)
 {
     consph_heat_params prm = pl->prm;
@@ -94,7 +87,7 @@ static int write_csv(const study_figure *f, const heat_plan *plans,
 {
     char label[256];
     consph_outfile of;
-    int rc = open_out(&of, dir, f->id, ".csv");
+    int rc = study_open_output(&of, dir, f->id, ".csv");
     if (rc) return rc;
     fprintf(of.fp, "series,laplacian,walls,eta,eps,seed,nx,n,delta,h,d_min,steps,dt,t,l2,linf,ec,"
                    "seconds,setup_seconds,fallbacks\n");
@@ -117,7 +110,7 @@ static int write_plot(const consph_study *s, const study_figure *f, const heat_p
                       heat_row (*rows)[STUDY_MAX_SWEEP], const char *dir)
 {
     consph_outfile of;
-    int rc = open_out(&of, dir, f->id, ".dat");
+    int rc = study_open_output(&of, dir, f->id, ".dat");
     if (rc) return rc;
     for (int k = 0; k < f->nseries; ++k) {
         fprintf(of.fp, "# %s: delta l2 linf ec\n", f->series[k].label);
@@ -128,7 +121,7 @@ static int write_plot(const consph_study *s, const study_figure *f, const heat_p
         fprintf(of.fp, "\n\n");
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
-    if ((rc = open_out(&of, dir, f->id, ".gp"))) return rc;
+    if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
     FILE *o = of.fp;
     const char *title = study_get(s, f, NULL, "title");
     rc = study_gp_head(o, f->id, title ? title : f->id);
@@ -179,7 +172,7 @@ static int write_report(const consph_study *s, const study_figure *f, const heat
 {
     char paper[1024];
     consph_outfile of;
-    int rc = open_out(&of, dir, f->id, ".md");
+    int rc = study_open_output(&of, dir, f->id, ".md");
     if (rc) return rc;
     FILE *o = of.fp;
     const char *title = study_get(s, f, NULL, "title");
