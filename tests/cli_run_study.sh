@@ -57,6 +57,33 @@ awk -F, 'NR > 1 { d = $8 / (0.3 * 0.05 / 81) - 1; if (d > 1e-6 || d < -1e-6) bad
 # On the lattice the Eulerian schemes exert no net force (001 Table 9: about 1e-14).
 awk -F, 'NR > 1 { f = $14 < 0 ? -$14 : $14; if (!(f < 1e-10)) bad = 1 } END { exit bad }' "$d/conv.csv" || bad "F_T/F_max of e-c/ewcsph on the lattice not at round-off"
 
+# One fixed time step as 001 Table 7 (dt, l1 = mean): every run takes that Δt and one step, T_r
+# of the reference is 1, and the one-step pressure error of EWCSPH is 001's 2.10e-5 (it does
+# not depend on the resolution; eq. 26 without its factor Δt).
+cat >"$tmp/one.study" <<'STUDY'
+study = one
+[figure t7]
+kind = run
+c0 = 10
+nx = 12,16
+steps = 1
+dt = 6.54e-5
+l1 = mean
+tr_ref = EWCSPH
+[series E-C]
+scheme = e-c
+[series EWCSPH]
+scheme = ewcsph
+STUDY
+"$consph" study "$tmp/one.study" --quick --out "$tmp/one" >"$tmp/log" 2>&1
+rc=$?
+[ $rc = 0 ] || { cat "$tmp/log"; bad "one-step study: exit $rc"; }
+c=$tmp/one/one/t7.csv
+awk -F, 'NR > 1 { if ($6 != 1 || $8 != 6.54e-05 || $18 != "ok") bad = 1; n++ } END { exit bad || n != 4 }' "$c" || bad "one-step study: not 4 runs of one step of 6.54e-5: $(cat "$c")"
+awk -F'|' '$2 == " EWCSPH " { exit !($15 + 0 == 1) }' "$tmp/one/one/t7.md" || bad "one-step study: T_r of the reference is not 1"
+awk -F, '$1 == "EWCSPH" { if (!($11 > 1.9e-5 && $11 < 2.3e-5)) bad = 1 } END { exit bad }' "$c" || bad "one-step EWCSPH L1(p) not 2.1e-5: $(cat "$c")"
+grep -q 'Δt = 6.54e-05 fixed' "$tmp/one/one/t7.md" || bad "one-step study: fixed Δt not reported"
+
 # Bad run studies: exit 2, one line naming file and line, nothing written.
 refuse() { # refuse DESCRIPTION LINE-NUMBER EXPECTED-TEXT STUDY-TEXT
   printf '%s\n' "$4" >"$tmp/broken.study"
@@ -80,6 +107,12 @@ dt_rule = coarsest"
 refuse "tr_ref naming no series" 6 "no series 'X'" "$head
 scheme = e-c
 tr_ref = X"
+refuse "negative dt" 6 "key 'dt': '-1' is not a number in \\[0," "$head
+scheme = e-c
+dt = -1"
+refuse "unknown l1" 6 "l1.*allowed: integral, mean" "$head
+scheme = e-c
+l1 = sum"
 refuse "decreasing nx" 4 "whole and increasing" "study = broken
 [figure a]
 kind = run
@@ -87,7 +120,7 @@ nx = 16,12
 scheme = e-c"
 
 # The shipped run studies are valid and estimate their cost without running.
-for s in 001-table8 001-table9 001-fig20 demo-tgv; do
+for s in 001-table7 001-table8 001-table9 001-fig20 001-gresho 001-shear-layer demo-tgv; do
   CONSPH_STUDIES=$src/studies "$consph" study "$s" --estimate >"$tmp/est" 2>&1 || bad "$s --estimate: $(cat "$tmp/est")"
   grep -q '^estimated run time: [0-9]' "$tmp/est" || bad "$s: no estimate"
 done

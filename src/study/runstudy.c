@@ -16,6 +16,7 @@ typedef struct run_plan {
     int nnx;
     double nx[MAX_SWEEP];
     int dt_finest; /* 001: Δt from h of the finest resolution of the sweep, for every run */
+    int l1_mean;   /* L1 divided by the time run: the mean error, which 001 Table 7 reports */
 } run_plan;
 
 typedef struct run_row {
@@ -62,6 +63,7 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
                       int quick, run_plan *pl)
 {
     static const char *const rules[] = {"finest", "own", NULL};
+    static const char *const l1s[] = {"integral", "mean", NULL};
     memset(pl, 0, sizeof *pl);
     consph_run_params *p = &pl->prm;
     consph_run_params_default(p);
@@ -70,14 +72,16 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
     double seed, steps;
     if ((rc = get_name(s, f, r, "problem", "taylor-green", consph_problem_names(), p->problem)))
         return rc;
+    /* The problem's own defaults (Gresho-Chan: inviscid, t = 3, lattice); the keys below
+     * override them. */
+    if ((rc = consph_run_params_problem(p, p->problem))) return rc;
     if ((rc = get_name(s, f, r, "scheme", NULL, consph_scheme_names(), p->scheme))) return rc;
     const char *layout = study_get_or(s, f, r, "layout", "default");
     consph_layout_kind kind;
-    if (strcmp(layout, "default") == 0)
-        p->layout = -1;
-    else if (consph_layout_lookup(layout, &kind) == CONSPH_OK)
+    /* "default": the problem's, else the scheme's */
+    if (strcmp(layout, "default") != 0 && consph_layout_lookup(layout, &kind) == CONSPH_OK)
         p->layout = (int)kind;
-    else
+    else if (strcmp(layout, "default") != 0)
         return study_key_error(s, f, r, "layout", "unknown value '%s'; allowed: default,%s", layout,
                                consph_layout_names());
     const char *kernel = study_get(s, f, r, "kernel");
@@ -86,6 +90,7 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
     if ((rc = study_get_double(s, f, r, "hdx", p->hdx, 0.5, 4, &p->hdx))) return rc;
     if ((rc = study_get_double(s, f, r, "c0", p->c0, 0, 1e6, &p->c0))) return rc;
     if ((rc = study_get_double(s, f, r, "re", p->re, 1e-6, 1e12, &p->re))) return rc;
+    if (study_get(s, f, r, "re")) p->nu = -1.0; /* ν from the Re given, not the problem's */
     if ((rc = study_get_double(s, f, r, "seed", (double)p->seed, 0, 1e9, &seed))) return rc;
     p->seed = (unsigned long)seed;
     const char *k = quick_key(s, f, r, quick, "tf", qk, sizeof qk);
@@ -94,8 +99,10 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
     if ((rc = study_get_double(s, f, r, k, 0, 0, 1e9, &steps))) return rc;
     if (steps != floor(steps)) return study_key_error(s, f, r, k, "must be a whole number");
     p->steps = (long)steps;
+    if ((rc = study_get_double(s, f, r, "dt", 0, 0, 1e3, &p->dt))) return rc;
     if ((rc = study_get_choice(s, f, r, "dt_rule", rules, 0, &rule))) return rc;
     pl->dt_finest = rule == 0;
+    if ((rc = study_get_choice(s, f, r, "l1", l1s, 0, &pl->l1_mean))) return rc;
     k = quick_key(s, f, r, quick, "nx", qk, sizeof qk);
     if ((rc = study_get_list(s, f, r, k, 4, 1e5, pl->nx, &pl->nnx))) return rc;
     if (pl->nnx == 0) return study_key_error(s, f, r, "nx", "no resolutions given");
@@ -146,6 +153,7 @@ static double steps_of(const run_plan *pl, double nx)
 {
     const consph_run_params *p = &pl->prm;
     if (p->steps > 0) return (double)p->steps;
+    if (p->dt > 0) return ceil(p->tf / p->dt);
     double c0 = p->c0 > 0 ? p->c0 : 10.0 * p->U;
     double h = p->hdx / (pl->dt_finest ? pl->nx[pl->nnx - 1] : nx);
     return ceil(p->tf / (p->cfl * h / (p->U + c0)));
@@ -195,6 +203,10 @@ static int run_one(const run_plan *pl, int j, double h_dt, run_row *row)
     rc = consph_run(sv, NULL, &row->sum, &stopped);
     consph_solver_free(sv);
     row->status = rc;
+    if (pl->l1_mean && row->sum.t > 0) {
+        row->sum.l1_u /= row->sum.t;
+        row->sum.l1_p /= row->sum.t;
+    }
     /* A diverged run is a result of the study, reported, not the end of it. */
     if (rc == CONSPH_ENUMERIC) {
         snprintf(row->why, sizeof row->why, "%s", consph_last_error());
@@ -234,6 +246,34 @@ static int order_cell(const consph_study *s, const study_figure *f, const study_
     return off;
 }
 
+/* Where 001 reports only whether a scheme completes (Gresho-Chan, the shear layer), a series'
+ * `paper.outcome` asks for ours beside it: completed, or the resolutions that diverged and the
+ * time the finest one reached. */
+static void outcome_table(FILE *o, const consph_study *s, const study_figure *f,
+                          const run_plan *plans, run_row (*rows)[MAX_SWEEP])
+{
+    int any = 0;
+    for (int k = 0; k < f->nseries; ++k)
+        any |= study_get(s, f, &f->series[k], "paper.outcome") != NULL;
+    if (!any) return;
+    fprintf(o, "\n| series | ours | paper |\n|---|---|---|\n");
+    for (int k = 0; k < f->nseries; ++k) {
+        const run_plan *pl = &plans[k];
+        const run_row *last = &rows[k][pl->nnx - 1];
+        fprintf(o, "| %s | ", f->series[k].label);
+        int bad = 0;
+        for (int j = 0; j < pl->nnx; ++j)
+            if (rows[k][j].status != CONSPH_OK)
+                fprintf(o, "%s%g", bad++ ? ", " : "diverged at nx ", pl->nx[j]);
+        if (bad)
+            fprintf(o, " (the finest at t = %.3g)", last->sum.t);
+        else
+            fprintf(o, "completed (t = %g)", last->sum.t);
+        fprintf(o, " | %s |\n", study_get_or(s, f, &f->series[k], "paper.outcome", "—"));
+    }
+    fprintf(o, "\n");
+}
+
 static int write_report(const consph_study *s, const study_figure *f, int quick, const char *dir,
                         const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref)
 {
@@ -260,16 +300,28 @@ static int write_report(const consph_study *s, const study_figure *f, int quick,
     FILE *o = of.fp;
     study_report_head(o, s, f);
     const consph_run_params *p0 = &plans[0].prm;
-    fprintf(o, "Run: %s resolutions; problem `%s`, Re %g, h/Δs %g, layout %s; ",
-            quick ? "quick" : "full (paper)", p0->problem, p0->re, p0->hdx,
+    fprintf(o, "Run: %s resolutions; problem `%s`, ", quick ? "quick" : "full (paper)",
+            p0->problem);
+    if (p0->nu >= 0)
+        fprintf(o, "ν %g, ", p0->nu);
+    else
+        fprintf(o, "Re %g, ", p0->re);
+    fprintf(o, "h/Δs %g, layout %s; ", p0->hdx,
             p0->layout < 0 ? "the scheme's own" : consph_layout_name(p0->layout));
     if (p0->steps > 0)
         fprintf(o, "%ld steps; ", p0->steps);
     else
         fprintf(o, "to t = %g; ", p0->tf);
-    fprintf(o, "Δt = %g h/(U + c_o) with h %s. L1 is 001 eq. 26 (integrated over time).\n\n",
-            p0->cfl,
-            plans[0].dt_finest ? "of the finest resolution of the sweep (as 001)" : "of each run");
+    if (p0->dt > 0)
+        fprintf(o, "Δt = %g fixed. ", p0->dt);
+    else
+        fprintf(o, "Δt = %g h/(U + c_o) with h %s. ", p0->cfl,
+                plans[0].dt_finest ? "of the finest resolution of the sweep (as 001)"
+                                   : "of each run");
+    fprintf(o, "%s\n\n",
+            plans[0].l1_mean ? "L1 is 001 eq. 26 divided by the time run (the "
+                               "time-averaged mean absolute error)."
+                             : "L1 is 001 eq. 26 (integrated over time).");
     fprintf(o, "| series | scheme | c_o | L1(u) at finest | paper L1(u) | order u | paper | "
                "L1(p) at finest | paper L1(p) | order p | paper | F_T/F_max | paper | T_r | "
                "paper T_r |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -311,6 +363,7 @@ static int write_report(const consph_study *s, const study_figure *f, int quick,
             if (rows[k][j].status != CONSPH_OK)
                 fprintf(o, "- %s, nx %g diverged, left out of the fit: %s\n", f->series[k].label,
                         plans[k].nx[j], rows[k][j].why);
+    outcome_table(o, s, f, plans, rows);
     fprintf(o, "<details><summary>every run</summary>\n\n| series | nx | N | steps | Δt | h | "
                "L1(u) | L1(p) | L∞(u) | L∞(p) | F_T/F_max | seconds | regularisations "
                "|\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
