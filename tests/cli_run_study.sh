@@ -84,6 +84,27 @@ awk -F'|' '$2 == " EWCSPH " { exit !($15 + 0 == 1) }' "$tmp/one/one/t7.md" || ba
 awk -F, '$1 == "EWCSPH" { if (!($11 > 1.9e-5 && $11 < 2.3e-5)) bad = 1 } END { exit bad }' "$c" || bad "one-step EWCSPH L1(p) not 2.1e-5: $(cat "$c")"
 grep -q 'Δt = 6.54e-05 fixed' "$tmp/one/one/t7.md" || bad "one-step study: fixed Δt not reported"
 
+# A problem without an exact solution (shear layer): the study finishes, the outcome table puts
+# ours beside paper.outcome, and no figure is attempted (no errors to plot).
+cat >"$tmp/kh.study" <<'STUDY'
+study = kh
+[figure shear]
+kind = run
+problem = shear-layer
+nx = 12
+steps = 5
+[series E-C]
+scheme = e-c
+paper.outcome = completes
+STUDY
+"$consph" study "$tmp/kh.study" --quick --out "$tmp/kh" >"$tmp/log" 2>&1
+rc=$?
+[ $rc = 0 ] || { cat "$tmp/log"; bad "shear-layer study: exit $rc"; }
+grep -q '^| E-C | completed (t = [0-9.e-]*) | completes |$' "$tmp/kh/kh/shear.md" || bad "shear-layer study: no outcome row"
+grep -q '^No figure' "$tmp/kh/kh/shear.md" || bad "shear-layer study: report does not say why there is no figure"
+[ -e "$tmp/kh/kh/shear.gp" ] && bad "shear-layer study: a plot of no points"
+grep -q ', ν 0.0001,' "$tmp/kh/kh/shear.md" || bad "shear-layer study: the problem's ν is not used"
+
 # Bad run studies: exit 2, one line naming file and line, nothing written.
 refuse() { # refuse DESCRIPTION LINE-NUMBER EXPECTED-TEXT STUDY-TEXT
   printf '%s\n' "$4" >"$tmp/broken.study"

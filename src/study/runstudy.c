@@ -246,6 +246,16 @@ static int order_cell(const consph_study *s, const study_figure *f, const study_
     return off;
 }
 
+/* Whether a finished run has an error to plot: a problem without an exact solution (the shear
+ * layer) has none, and gnuplot refuses a plot without points. */
+static int plottable(const study_figure *f, const run_plan *plans, run_row (*rows)[MAX_SWEEP])
+{
+    for (int k = 0; k < f->nseries; ++k)
+        for (int j = 0; j < plans[k].nnx; ++j)
+            if (rows[k][j].status == CONSPH_OK && isfinite(rows[k][j].sum.l1_u)) return 1;
+    return 0;
+}
+
 /* Where 001 reports only whether a scheme completes (Gresho-Chan, the shear layer), a series'
  * `paper.outcome` asks for ours beside it: completed, or the resolutions that diverged and the
  * time the finest one reached. */
@@ -378,7 +388,10 @@ static int write_report(const consph_study *s, const study_figure *f, int quick,
         }
     fprintf(o, "\n</details>\n\n");
     study_published_values(s, f, o);
-    if (study_have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
+    if (!plottable(f, plans, rows))
+        fprintf(o, "No figure: the problem has no exact solution, so no errors to plot.\n\n");
+    else if (study_have_gnuplot())
+        fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
     return consph_outfile_commit(&of);
 }
 
@@ -509,7 +522,7 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
         }
     }
     if (rc == CONSPH_OK) rc = write_report(s, f, quick, dir, plans, rows, ref);
-    if (rc == CONSPH_OK) rc = write_plot(s, f, dir, plans, rows, x);
+    if (rc == CONSPH_OK && plottable(f, plans, rows)) rc = write_plot(s, f, dir, plans, rows, x);
     free(plans);
     free(rows);
     return rc;
