@@ -105,6 +105,28 @@ grep -q '^No figure' "$tmp/kh/kh/shear.md" || bad "shear-layer study: report doe
 [ -e "$tmp/kh/kh/shear.gp" ] && bad "shear-layer study: a plot of no points"
 grep -q ', ν 0.0001,' "$tmp/kh/kh/shear.md" || bad "shear-layer study: the problem's ν is not used"
 
+# x = radius (001 Figs. 15-16): u_φ(r) of every particle at the end, beside eq. 37's u_φ = 5r
+# inside r = 0.2; after 5 steps L-IPST-C has barely moved from it.
+cat >"$tmp/gc.study" <<'STUDY'
+study = gc
+[figure prof]
+kind = run
+x = radius
+problem = gresho-chan
+nx = 16
+steps = 5
+[series L-IPST-C]
+scheme = l-ipst-c
+STUDY
+"$consph" study "$tmp/gc.study" --quick --out "$tmp/gc" >"$tmp/log" 2>&1
+rc=$?
+[ $rc = 0 ] || { cat "$tmp/log"; bad "radius study: exit $rc"; }
+p=$tmp/gc/gc/prof-profile.dat
+awk '!/^#/ && NF == 3 { n++; d = $2 - $3; if (d < 0) d = -d; if (d > m) m = d
+     if ($1 < 0.2 && ($3 - 5 * $1 > 1e-7 || 5 * $1 - $3 > 1e-7)) bad = 1 }
+     END { exit bad || n != 256 || !(m < 0.05) }' "$p" || bad "radius study: not 256 particles on eq. 37's profile: $(head -3 "$p")"
+grep -q "prof-profile.dat' index 0 using 1:2" "$tmp/gc/gc/prof.gp" || bad "radius study: no u_φ(r) plot"
+
 # Bad run studies: exit 2, one line naming file and line, nothing written.
 refuse() { # refuse DESCRIPTION LINE-NUMBER EXPECTED-TEXT STUDY-TEXT
   printf '%s\n' "$4" >"$tmp/broken.study"

@@ -23,6 +23,8 @@ typedef struct run_row {
     consph_run_summary sum;
     int status; /* CONSPH_OK, or CONSPH_ENUMERIC for a run that diverged */
     char why[256];
+    double *prof; /* x = radius: r, u_φ, exact u_φ per particle at the end, nprof of them */
+    size_t nprof;
 } run_row;
 
 /* Whether `name` is one of the comma-separated `names`. */
@@ -130,10 +132,11 @@ static int tr_reference(const consph_study *s, const study_figure *f, int *ref)
     return study_key_error(s, f, NULL, "tr_ref", "no series '%s' in this figure", v);
 }
 
-/* The abscissa of the figure: 0 nx, 1 the wall time (001 Fig. 20). */
+/* The abscissa of the figure: 0 nx, 1 the wall time (001 Fig. 20), 2 the radius (u_φ(r) of a
+ * centred vortex at the end of the finest run, 001 Figs. 15-16). */
 static int x_axis(const consph_study *s, const study_figure *f, int *x)
 {
-    static const char *const xs[] = {"nx", "seconds", NULL};
+    static const char *const xs[] = {"nx", "seconds", "radius", NULL};
     return study_get_choice(s, f, NULL, "x", xs, 0, x);
 }
 
@@ -191,7 +194,32 @@ double study_run_estimate(const consph_study *s, const study_figure *f, int quic
     return *particle_steps * sum.seconds / (256.0 * (double)sum.steps) + made * per_made;
 }
 
-static int run_one(const run_plan *pl, int j, double h_dt, run_row *row)
+/* u_φ(r) about the centre of the box, with the exact u_φ, per particle at the end of a run. */
+static int keep_profile(consph_solver *sv, run_row *row)
+{
+    int rc = consph_solver_output_fields(sv);
+    if (rc) return rc;
+    const consph_particles *p = consph_solver_particles(sv);
+    const consph_field *fu = consph_particles_find(p, "u");
+    const consph_field *fe = consph_particles_find(p, "u_exact");
+    if (!fu || !fe || p->dim != 2)
+        return consph_fail(CONSPH_EINVAL, "x = radius needs a 2D run with u and u_exact");
+    row->prof = malloc(3 * p->n * sizeof *row->prof);
+    if (!row->prof) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    row->nprof = p->n;
+    const size_t cap = p->cap;
+    const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]), yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
+    for (size_t i = 0; i < p->n; ++i) {
+        const double x = p->x[0][i] - xc, y = p->x[1][i] - yc, r = hypot(x, y);
+        const double *u = fu->data, *e = fe->data;
+        row->prof[3 * i] = r;
+        row->prof[3 * i + 1] = r > 0.0 ? (x * u[cap + i] - y * u[i]) / r : 0.0;
+        row->prof[3 * i + 2] = r > 0.0 ? (x * e[cap + i] - y * e[i]) / r : 0.0;
+    }
+    return CONSPH_OK;
+}
+
+static int run_one(const run_plan *pl, int j, double h_dt, int profile, run_row *row)
 {
     consph_run_params p = pl->prm;
     p.nx = (int)pl->nx[j];
@@ -201,6 +229,7 @@ static int run_one(const run_plan *pl, int j, double h_dt, run_row *row)
     if (rc) return rc;
     int stopped = 0;
     rc = consph_run(sv, NULL, &row->sum, &stopped);
+    if (rc == CONSPH_OK && profile) rc = keep_profile(sv, row);
     consph_solver_free(sv);
     row->status = rc;
     if (pl->l1_mean && row->sum.t > 0) {
@@ -438,6 +467,52 @@ static int gp_panel(FILE *o, const consph_study *s, const study_figure *f, const
     return rc;
 }
 
+/* x = radius: FIGURE-profile.dat (per series a block of r, u_φ, exact u_φ per particle of the
+ * finest run) and u_φ against r, the exact profile in black. */
+static int write_profile_plot(const consph_study *s, const study_figure *f, const char *dir,
+                              const run_plan *plans, run_row (*rows)[MAX_SWEEP])
+{
+    char name[160];
+    snprintf(name, sizeof name, "%s-profile", f->id);
+    consph_outfile of;
+    int rc = study_open_output(&of, dir, name, ".dat");
+    if (rc) return rc;
+    for (int k = 0; k < f->nseries; ++k) {
+        const run_row *w = &rows[k][plans[k].nnx - 1];
+        fprintf(of.fp, "# %s: r u_phi u_phi_exact\n", f->series[k].label);
+        for (size_t i = 0; i < w->nprof; ++i)
+            fprintf(of.fp, "%.8g %.8g %.8g\n", w->prof[3 * i], w->prof[3 * i + 1],
+                    w->prof[3 * i + 2]);
+        fprintf(of.fp, "\n\n");
+    }
+    if ((rc = consph_outfile_commit(&of))) return rc;
+    if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
+    FILE *o = of.fp;
+    const char *title = study_get_or(s, f, NULL, "title", f->id);
+    rc = study_gp_head(o, f->id, title);
+    fprintf(o, "set xlabel 'r'\nset ylabel 'u_φ'\nset key outside right noenhanced\nplot");
+    int n = 0, first = 0;
+    for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
+        if (rows[k][plans[k].nnx - 1].nprof == 0) continue; /* diverged: no profile */
+        if (!n) first = k;
+        fprintf(o, "%s '%s.dat' index %d using 1:2 with points pt 7 ps 0.4 lc %d title ",
+                n++ ? ", \\\n    " : " ", name, k, k + 1);
+        rc = study_gp_put(o, f->series[k].label);
+    }
+    if (n)
+        fprintf(o,
+                ", \\\n    '%s.dat' index %d using 1:3 with points pt 7 ps 0.2 lc rgb 'black' "
+                "title 'exact'",
+                name, first);
+    fprintf(o, "\n");
+    if (rc || n == 0) {
+        consph_outfile_abort(&of);
+        return rc;
+    }
+    if ((rc = consph_outfile_commit(&of))) return rc;
+    return study_render_figure(dir, f->id);
+}
+
 static int write_plot(const consph_study *s, const study_figure *f, const char *dir,
                       const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x)
 {
@@ -453,6 +528,7 @@ static int write_plot(const consph_study *s, const study_figure *f, const char *
         fprintf(of.fp, "\n\n");
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
+    if (x == 2) return write_profile_plot(s, f, dir, plans, rows);
     if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
     FILE *o = of.fp;
     const char *title = study_get_or(s, f, NULL, "title", f->id);
@@ -507,7 +583,7 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
         double h_dt = 0.0;
         for (int j = pl->nnx - 1; rc == CONSPH_OK && j >= 0; --j) {
             run_row *w = &rows[k][j];
-            rc = run_one(pl, j, h_dt, w);
+            rc = run_one(pl, j, h_dt, x == 2 && j == pl->nnx - 1, w);
             if (rc) {
                 consph_fail(rc, "figure '%s', series '%s', nx %g: %s", f->id, f->series[k].label,
                             pl->nx[j], consph_last_error());
@@ -523,6 +599,8 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
     }
     if (rc == CONSPH_OK) rc = write_report(s, f, quick, dir, plans, rows, ref);
     if (rc == CONSPH_OK && plottable(f, plans, rows)) rc = write_plot(s, f, dir, plans, rows, x);
+    for (int k = 0; rows && k < f->nseries; ++k)
+        for (int j = 0; j < MAX_SWEEP; ++j) free(rows[k][j].prof);
     free(plans);
     free(rows);
     return rc;
