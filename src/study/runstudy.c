@@ -477,8 +477,10 @@ static int write_profile_plot(const consph_study *s, const study_figure *f, cons
     consph_outfile of;
     int rc = study_open_output(&of, dir, name, ".dat");
     if (rc) return rc;
+    /* Only series with a profile get a block: gnuplot does not count a block without data. */
     for (int k = 0; k < f->nseries; ++k) {
         const run_row *w = &rows[k][plans[k].nnx - 1];
+        if (w->nprof == 0) continue;
         fprintf(of.fp, "# %s: r u_phi u_phi_exact\n", f->series[k].label);
         for (size_t i = 0; i < w->nprof; ++i)
             fprintf(of.fp, "%.8g %.8g %.8g\n", w->prof[3 * i], w->prof[3 * i + 1],
@@ -491,19 +493,19 @@ static int write_profile_plot(const consph_study *s, const study_figure *f, cons
     const char *title = study_get_or(s, f, NULL, "title", f->id);
     rc = study_gp_head(o, f->id, title);
     fprintf(o, "set xlabel 'r'\nset ylabel 'u_φ'\nset key outside right noenhanced\nplot");
-    int n = 0, first = 0;
+    int n = 0;
     for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
         if (rows[k][plans[k].nnx - 1].nprof == 0) continue; /* diverged: no profile */
-        if (!n) first = k;
         fprintf(o, "%s '%s.dat' index %d using 1:2 with points pt 7 ps 0.4 lc %d title ",
-                n++ ? ", \\\n    " : " ", name, k, k + 1);
+                n ? ", \\\n    " : " ", name, n, k + 1);
+        ++n;
         rc = study_gp_put(o, f->series[k].label);
     }
     if (n)
         fprintf(o,
-                ", \\\n    '%s.dat' index %d using 1:3 with points pt 7 ps 0.2 lc rgb 'black' "
+                ", \\\n    '%s.dat' index 0 using 1:3 smooth unique with lines lw 2 lc rgb 'black' "
                 "title 'exact'",
-                name, first);
+                name);
     fprintf(o, "\n");
     if (rc || n == 0) {
         consph_outfile_abort(&of);
