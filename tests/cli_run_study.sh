@@ -57,6 +57,76 @@ awk -F, 'NR > 1 { d = $8 / (0.3 * 0.05 / 81) - 1; if (d > 1e-6 || d < -1e-6) bad
 # On the lattice the Eulerian schemes exert no net force (001 Table 9: about 1e-14).
 awk -F, 'NR > 1 { f = $14 < 0 ? -$14 : $14; if (!(f < 1e-10)) bad = 1 } END { exit bad }' "$d/conv.csv" || bad "F_T/F_max of e-c/ewcsph on the lattice not at round-off"
 
+# One fixed time step as 001 Table 7 (dt, l1 = mean): every run takes that Δt and one step, T_r
+# of the reference is 1, and the one-step pressure error of EWCSPH is 001's 2.10e-5 (it does
+# not depend on the resolution; eq. 26 without its factor Δt).
+cat >"$tmp/one.study" <<'STUDY'
+study = one
+[figure t7]
+kind = run
+c0 = 10
+nx = 12,16
+steps = 1
+dt = 6.54e-5
+l1 = mean
+tr_ref = EWCSPH
+[series E-C]
+scheme = e-c
+[series EWCSPH]
+scheme = ewcsph
+STUDY
+"$consph" study "$tmp/one.study" --quick --out "$tmp/one" >"$tmp/log" 2>&1
+rc=$?
+[ $rc = 0 ] || { cat "$tmp/log"; bad "one-step study: exit $rc"; }
+c=$tmp/one/one/t7.csv
+awk -F, 'NR > 1 { if ($6 != 1 || $8 != 6.54e-05 || $18 != "ok") bad = 1; n++ } END { exit bad || n != 4 }' "$c" || bad "one-step study: not 4 runs of one step of 6.54e-5: $(cat "$c")"
+awk -F'|' '$2 == " EWCSPH " { exit !($15 + 0 == 1) }' "$tmp/one/one/t7.md" || bad "one-step study: T_r of the reference is not 1"
+awk -F, '$1 == "EWCSPH" { if (!($11 > 1.9e-5 && $11 < 2.3e-5)) bad = 1 } END { exit bad }' "$c" || bad "one-step EWCSPH L1(p) not 2.1e-5: $(cat "$c")"
+grep -q 'Δt = 6.54e-05 fixed' "$tmp/one/one/t7.md" || bad "one-step study: fixed Δt not reported"
+
+# A problem without an exact solution (shear layer): the study finishes, the outcome table puts
+# ours beside paper.outcome, and no figure is attempted (no errors to plot).
+cat >"$tmp/kh.study" <<'STUDY'
+study = kh
+[figure shear]
+kind = run
+problem = shear-layer
+nx = 12
+steps = 5
+[series E-C]
+scheme = e-c
+paper.outcome = completes
+STUDY
+"$consph" study "$tmp/kh.study" --quick --out "$tmp/kh" >"$tmp/log" 2>&1
+rc=$?
+[ $rc = 0 ] || { cat "$tmp/log"; bad "shear-layer study: exit $rc"; }
+grep -q '^| E-C | completed (t = [0-9.e-]*) | completes |$' "$tmp/kh/kh/shear.md" || bad "shear-layer study: no outcome row"
+grep -q '^No figure' "$tmp/kh/kh/shear.md" || bad "shear-layer study: report does not say why there is no figure"
+[ -e "$tmp/kh/kh/shear.gp" ] && bad "shear-layer study: a plot of no points"
+grep -q ', ν 0.0001,' "$tmp/kh/kh/shear.md" || bad "shear-layer study: the problem's ν is not used"
+
+# x = radius (001 Figs. 15-16): u_φ(r) of every particle at the end, beside eq. 37's u_φ = 5r
+# inside r = 0.2; after 5 steps L-IPST-C has barely moved from it.
+cat >"$tmp/gc.study" <<'STUDY'
+study = gc
+[figure prof]
+kind = run
+x = radius
+problem = gresho-chan
+nx = 16
+steps = 5
+[series L-IPST-C]
+scheme = l-ipst-c
+STUDY
+"$consph" study "$tmp/gc.study" --quick --out "$tmp/gc" >"$tmp/log" 2>&1
+rc=$?
+[ $rc = 0 ] || { cat "$tmp/log"; bad "radius study: exit $rc"; }
+p=$tmp/gc/gc/prof-profile.dat
+awk '!/^#/ && NF == 3 { n++; d = $2 - $3; if (d < 0) d = -d; if (d > m) m = d
+     if ($1 < 0.2 && ($3 - 5 * $1 > 1e-7 || 5 * $1 - $3 > 1e-7)) bad = 1 }
+     END { exit bad || n != 256 || !(m < 0.05) }' "$p" || bad "radius study: not 256 particles on eq. 37's profile: $(head -3 "$p")"
+grep -q "prof-profile.dat' index 0 using 1:2" "$tmp/gc/gc/prof.gp" || bad "radius study: no u_φ(r) plot"
+
 # Bad run studies: exit 2, one line naming file and line, nothing written.
 refuse() { # refuse DESCRIPTION LINE-NUMBER EXPECTED-TEXT STUDY-TEXT
   printf '%s\n' "$4" >"$tmp/broken.study"
@@ -80,6 +150,12 @@ dt_rule = coarsest"
 refuse "tr_ref naming no series" 6 "no series 'X'" "$head
 scheme = e-c
 tr_ref = X"
+refuse "negative dt" 6 "key 'dt': '-1' is not a number in \\[0," "$head
+scheme = e-c
+dt = -1"
+refuse "unknown l1" 6 "l1.*allowed: integral, mean" "$head
+scheme = e-c
+l1 = sum"
 refuse "decreasing nx" 4 "whole and increasing" "study = broken
 [figure a]
 kind = run
@@ -87,7 +163,7 @@ nx = 16,12
 scheme = e-c"
 
 # The shipped run studies are valid and estimate their cost without running.
-for s in 001-table8 001-table9 001-fig20 demo-tgv; do
+for s in 001-table7 001-table8 001-table9 001-fig20 001-gresho 001-shear-layer demo-tgv; do
   CONSPH_STUDIES=$src/studies "$consph" study "$s" --estimate >"$tmp/est" 2>&1 || bad "$s --estimate: $(cat "$tmp/est")"
   grep -q '^estimated run time: [0-9]' "$tmp/est" || bad "$s: no estimate"
 done

@@ -16,12 +16,15 @@ typedef struct run_plan {
     int nnx;
     double nx[MAX_SWEEP];
     int dt_finest; /* 001: Δt from h of the finest resolution of the sweep, for every run */
+    int l1_mean;   /* L1 divided by the time run: the mean error, which 001 Table 7 reports */
 } run_plan;
 
 typedef struct run_row {
     consph_run_summary sum;
     int status; /* CONSPH_OK, or CONSPH_ENUMERIC for a run that diverged */
     char why[256];
+    double *prof; /* x = radius: r, u_φ, exact u_φ per particle at the end, nprof of them */
+    size_t nprof;
 } run_row;
 
 /* Whether `name` is one of the comma-separated `names`. */
@@ -62,6 +65,7 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
                       int quick, run_plan *pl)
 {
     static const char *const rules[] = {"finest", "own", NULL};
+    static const char *const l1s[] = {"integral", "mean", NULL};
     memset(pl, 0, sizeof *pl);
     consph_run_params *p = &pl->prm;
     consph_run_params_default(p);
@@ -70,14 +74,16 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
     double seed, steps;
     if ((rc = get_name(s, f, r, "problem", "taylor-green", consph_problem_names(), p->problem)))
         return rc;
+    /* The problem's own defaults (Gresho-Chan: inviscid, t = 3, lattice); the keys below
+     * override them. */
+    if ((rc = consph_run_params_problem(p, p->problem))) return rc;
     if ((rc = get_name(s, f, r, "scheme", NULL, consph_scheme_names(), p->scheme))) return rc;
     const char *layout = study_get_or(s, f, r, "layout", "default");
     consph_layout_kind kind;
-    if (strcmp(layout, "default") == 0)
-        p->layout = -1;
-    else if (consph_layout_lookup(layout, &kind) == CONSPH_OK)
+    /* "default": the problem's, else the scheme's */
+    if (strcmp(layout, "default") != 0 && consph_layout_lookup(layout, &kind) == CONSPH_OK)
         p->layout = (int)kind;
-    else
+    else if (strcmp(layout, "default") != 0)
         return study_key_error(s, f, r, "layout", "unknown value '%s'; allowed: default,%s", layout,
                                consph_layout_names());
     const char *kernel = study_get(s, f, r, "kernel");
@@ -86,6 +92,7 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
     if ((rc = study_get_double(s, f, r, "hdx", p->hdx, 0.5, 4, &p->hdx))) return rc;
     if ((rc = study_get_double(s, f, r, "c0", p->c0, 0, 1e6, &p->c0))) return rc;
     if ((rc = study_get_double(s, f, r, "re", p->re, 1e-6, 1e12, &p->re))) return rc;
+    if (study_get(s, f, r, "re")) p->nu = -1.0; /* ν from the Re given, not the problem's */
     if ((rc = study_get_double(s, f, r, "seed", (double)p->seed, 0, 1e9, &seed))) return rc;
     p->seed = (unsigned long)seed;
     const char *k = quick_key(s, f, r, quick, "tf", qk, sizeof qk);
@@ -94,8 +101,10 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
     if ((rc = study_get_double(s, f, r, k, 0, 0, 1e9, &steps))) return rc;
     if (steps != floor(steps)) return study_key_error(s, f, r, k, "must be a whole number");
     p->steps = (long)steps;
+    if ((rc = study_get_double(s, f, r, "dt", 0, 0, 1e3, &p->dt))) return rc;
     if ((rc = study_get_choice(s, f, r, "dt_rule", rules, 0, &rule))) return rc;
     pl->dt_finest = rule == 0;
+    if ((rc = study_get_choice(s, f, r, "l1", l1s, 0, &pl->l1_mean))) return rc;
     k = quick_key(s, f, r, quick, "nx", qk, sizeof qk);
     if ((rc = study_get_list(s, f, r, k, 4, 1e5, pl->nx, &pl->nnx))) return rc;
     if (pl->nnx == 0) return study_key_error(s, f, r, "nx", "no resolutions given");
@@ -123,10 +132,11 @@ static int tr_reference(const consph_study *s, const study_figure *f, int *ref)
     return study_key_error(s, f, NULL, "tr_ref", "no series '%s' in this figure", v);
 }
 
-/* The abscissa of the figure: 0 nx, 1 the wall time (001 Fig. 20). */
+/* The abscissa of the figure: 0 nx, 1 the wall time (001 Fig. 20), 2 the radius (u_φ(r) of a
+ * centred vortex at the end of the finest run, 001 Figs. 15-16). */
 static int x_axis(const consph_study *s, const study_figure *f, int *x)
 {
-    static const char *const xs[] = {"nx", "seconds", NULL};
+    static const char *const xs[] = {"nx", "seconds", "radius", NULL};
     return study_get_choice(s, f, NULL, "x", xs, 0, x);
 }
 
@@ -146,6 +156,7 @@ static double steps_of(const run_plan *pl, double nx)
 {
     const consph_run_params *p = &pl->prm;
     if (p->steps > 0) return (double)p->steps;
+    if (p->dt > 0) return ceil(p->tf / p->dt);
     double c0 = p->c0 > 0 ? p->c0 : 10.0 * p->U;
     double h = p->hdx / (pl->dt_finest ? pl->nx[pl->nnx - 1] : nx);
     return ceil(p->tf / (p->cfl * h / (p->U + c0)));
@@ -183,7 +194,32 @@ double study_run_estimate(const consph_study *s, const study_figure *f, int quic
     return *particle_steps * sum.seconds / (256.0 * (double)sum.steps) + made * per_made;
 }
 
-static int run_one(const run_plan *pl, int j, double h_dt, run_row *row)
+/* u_φ(r) about the centre of the box, with the exact u_φ, per particle at the end of a run. */
+static int keep_profile(consph_solver *sv, run_row *row)
+{
+    int rc = consph_solver_output_fields(sv);
+    if (rc) return rc;
+    const consph_particles *p = consph_solver_particles(sv);
+    const consph_field *fu = consph_particles_find(p, "u");
+    const consph_field *fe = consph_particles_find(p, "u_exact");
+    if (!fu || !fe || p->dim != 2)
+        return consph_fail(CONSPH_EINVAL, "x = radius needs a 2D run with u and u_exact");
+    row->prof = malloc(3 * p->n * sizeof *row->prof);
+    if (!row->prof) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    row->nprof = p->n;
+    const size_t cap = p->cap;
+    const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]), yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
+    for (size_t i = 0; i < p->n; ++i) {
+        const double x = p->x[0][i] - xc, y = p->x[1][i] - yc, r = hypot(x, y);
+        const double *u = fu->data, *e = fe->data;
+        row->prof[3 * i] = r;
+        row->prof[3 * i + 1] = r > 0.0 ? (x * u[cap + i] - y * u[i]) / r : 0.0;
+        row->prof[3 * i + 2] = r > 0.0 ? (x * e[cap + i] - y * e[i]) / r : 0.0;
+    }
+    return CONSPH_OK;
+}
+
+static int run_one(const run_plan *pl, int j, double h_dt, int profile, run_row *row)
 {
     consph_run_params p = pl->prm;
     p.nx = (int)pl->nx[j];
@@ -193,8 +229,13 @@ static int run_one(const run_plan *pl, int j, double h_dt, run_row *row)
     if (rc) return rc;
     int stopped = 0;
     rc = consph_run(sv, NULL, &row->sum, &stopped);
+    if (rc == CONSPH_OK && profile) rc = keep_profile(sv, row);
     consph_solver_free(sv);
     row->status = rc;
+    if (pl->l1_mean && row->sum.t > 0) {
+        row->sum.l1_u /= row->sum.t;
+        row->sum.l1_p /= row->sum.t;
+    }
     /* A diverged run is a result of the study, reported, not the end of it. */
     if (rc == CONSPH_ENUMERIC) {
         snprintf(row->why, sizeof row->why, "%s", consph_last_error());
@@ -234,6 +275,44 @@ static int order_cell(const consph_study *s, const study_figure *f, const study_
     return off;
 }
 
+/* Whether a finished run has an error to plot: a problem without an exact solution (the shear
+ * layer) has none, and gnuplot refuses a plot without points. */
+static int plottable(const study_figure *f, const run_plan *plans, run_row (*rows)[MAX_SWEEP])
+{
+    for (int k = 0; k < f->nseries; ++k)
+        for (int j = 0; j < plans[k].nnx; ++j)
+            if (rows[k][j].status == CONSPH_OK && isfinite(rows[k][j].sum.l1_u)) return 1;
+    return 0;
+}
+
+/* Where 001 reports only whether a scheme completes (Gresho-Chan, the shear layer), a series'
+ * `paper.outcome` asks for ours beside it: completed, or the resolutions that diverged and the
+ * time the finest one reached. */
+static void outcome_table(FILE *o, const consph_study *s, const study_figure *f,
+                          const run_plan *plans, run_row (*rows)[MAX_SWEEP])
+{
+    int any = 0;
+    for (int k = 0; k < f->nseries; ++k)
+        any |= study_get(s, f, &f->series[k], "paper.outcome") != NULL;
+    if (!any) return;
+    fprintf(o, "\n| series | ours | paper |\n|---|---|---|\n");
+    for (int k = 0; k < f->nseries; ++k) {
+        const run_plan *pl = &plans[k];
+        const run_row *last = &rows[k][pl->nnx - 1];
+        fprintf(o, "| %s | ", f->series[k].label);
+        int bad = 0;
+        for (int j = 0; j < pl->nnx; ++j)
+            if (rows[k][j].status != CONSPH_OK)
+                fprintf(o, "%s%g", bad++ ? ", " : "diverged at nx ", pl->nx[j]);
+        if (bad)
+            fprintf(o, " (the finest at t = %.3g)", last->sum.t);
+        else
+            fprintf(o, "completed (t = %g)", last->sum.t);
+        fprintf(o, " | %s |\n", study_get_or(s, f, &f->series[k], "paper.outcome", "—"));
+    }
+    fprintf(o, "\n");
+}
+
 static int write_report(const consph_study *s, const study_figure *f, int quick, const char *dir,
                         const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref)
 {
@@ -260,16 +339,28 @@ static int write_report(const consph_study *s, const study_figure *f, int quick,
     FILE *o = of.fp;
     study_report_head(o, s, f);
     const consph_run_params *p0 = &plans[0].prm;
-    fprintf(o, "Run: %s resolutions; problem `%s`, Re %g, h/Δs %g, layout %s; ",
-            quick ? "quick" : "full (paper)", p0->problem, p0->re, p0->hdx,
+    fprintf(o, "Run: %s resolutions; problem `%s`, ", quick ? "quick" : "full (paper)",
+            p0->problem);
+    if (p0->nu >= 0)
+        fprintf(o, "ν %g, ", p0->nu);
+    else
+        fprintf(o, "Re %g, ", p0->re);
+    fprintf(o, "h/Δs %g, layout %s; ", p0->hdx,
             p0->layout < 0 ? "the scheme's own" : consph_layout_name(p0->layout));
     if (p0->steps > 0)
         fprintf(o, "%ld steps; ", p0->steps);
     else
         fprintf(o, "to t = %g; ", p0->tf);
-    fprintf(o, "Δt = %g h/(U + c_o) with h %s. L1 is 001 eq. 26 (integrated over time).\n\n",
-            p0->cfl,
-            plans[0].dt_finest ? "of the finest resolution of the sweep (as 001)" : "of each run");
+    if (p0->dt > 0)
+        fprintf(o, "Δt = %g fixed. ", p0->dt);
+    else
+        fprintf(o, "Δt = %g h/(U + c_o) with h %s. ", p0->cfl,
+                plans[0].dt_finest ? "of the finest resolution of the sweep (as 001)"
+                                   : "of each run");
+    fprintf(o, "%s\n\n",
+            plans[0].l1_mean ? "L1 is 001 eq. 26 divided by the time run (the "
+                               "time-averaged mean absolute error)."
+                             : "L1 is 001 eq. 26 (integrated over time).");
     fprintf(o, "| series | scheme | c_o | L1(u) at finest | paper L1(u) | order u | paper | "
                "L1(p) at finest | paper L1(p) | order p | paper | F_T/F_max | paper | T_r | "
                "paper T_r |\n|---|---|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -311,6 +402,7 @@ static int write_report(const consph_study *s, const study_figure *f, int quick,
             if (rows[k][j].status != CONSPH_OK)
                 fprintf(o, "- %s, nx %g diverged, left out of the fit: %s\n", f->series[k].label,
                         plans[k].nx[j], rows[k][j].why);
+    outcome_table(o, s, f, plans, rows);
     fprintf(o, "<details><summary>every run</summary>\n\n| series | nx | N | steps | Δt | h | "
                "L1(u) | L1(p) | L∞(u) | L∞(p) | F_T/F_max | seconds | regularisations "
                "|\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -325,7 +417,10 @@ static int write_report(const consph_study *s, const study_figure *f, int quick,
         }
     fprintf(o, "\n</details>\n\n");
     study_published_values(s, f, o);
-    if (study_have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
+    if (!plottable(f, plans, rows))
+        fprintf(o, "No figure: the problem has no exact solution, so no errors to plot.\n\n");
+    else if (study_have_gnuplot())
+        fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
     return consph_outfile_commit(&of);
 }
 
@@ -372,6 +467,54 @@ static int gp_panel(FILE *o, const consph_study *s, const study_figure *f, const
     return rc;
 }
 
+/* x = radius: FIGURE-profile.dat (per series a block of r, u_φ, exact u_φ per particle of the
+ * finest run) and u_φ against r, the exact profile in black. */
+static int write_profile_plot(const consph_study *s, const study_figure *f, const char *dir,
+                              const run_plan *plans, run_row (*rows)[MAX_SWEEP])
+{
+    char name[160];
+    snprintf(name, sizeof name, "%s-profile", f->id);
+    consph_outfile of;
+    int rc = study_open_output(&of, dir, name, ".dat");
+    if (rc) return rc;
+    /* Only series with a profile get a block: gnuplot does not count a block without data. */
+    for (int k = 0; k < f->nseries; ++k) {
+        const run_row *w = &rows[k][plans[k].nnx - 1];
+        if (w->nprof == 0) continue;
+        fprintf(of.fp, "# %s: r u_phi u_phi_exact\n", f->series[k].label);
+        for (size_t i = 0; i < w->nprof; ++i)
+            fprintf(of.fp, "%.8g %.8g %.8g\n", w->prof[3 * i], w->prof[3 * i + 1],
+                    w->prof[3 * i + 2]);
+        fprintf(of.fp, "\n\n");
+    }
+    if ((rc = consph_outfile_commit(&of))) return rc;
+    if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
+    FILE *o = of.fp;
+    const char *title = study_get_or(s, f, NULL, "title", f->id);
+    rc = study_gp_head(o, f->id, title);
+    fprintf(o, "set xlabel 'r'\nset ylabel 'u_φ'\nset key outside right noenhanced\nplot");
+    int n = 0;
+    for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
+        if (rows[k][plans[k].nnx - 1].nprof == 0) continue; /* diverged: no profile */
+        fprintf(o, "%s '%s.dat' index %d using 1:2 with points pt 7 ps 0.4 lc %d title ",
+                n ? ", \\\n    " : " ", name, n, k + 1);
+        ++n;
+        rc = study_gp_put(o, f->series[k].label);
+    }
+    if (n)
+        fprintf(o,
+                ", \\\n    '%s.dat' index 0 using 1:3 smooth unique with lines lw 2 lc rgb 'black' "
+                "title 'exact'",
+                name);
+    fprintf(o, "\n");
+    if (rc || n == 0) {
+        consph_outfile_abort(&of);
+        return rc;
+    }
+    if ((rc = consph_outfile_commit(&of))) return rc;
+    return study_render_figure(dir, f->id);
+}
+
 static int write_plot(const consph_study *s, const study_figure *f, const char *dir,
                       const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x)
 {
@@ -387,6 +530,7 @@ static int write_plot(const consph_study *s, const study_figure *f, const char *
         fprintf(of.fp, "\n\n");
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
+    if (x == 2) return write_profile_plot(s, f, dir, plans, rows);
     if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
     FILE *o = of.fp;
     const char *title = study_get_or(s, f, NULL, "title", f->id);
@@ -441,7 +585,7 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
         double h_dt = 0.0;
         for (int j = pl->nnx - 1; rc == CONSPH_OK && j >= 0; --j) {
             run_row *w = &rows[k][j];
-            rc = run_one(pl, j, h_dt, w);
+            rc = run_one(pl, j, h_dt, x == 2 && j == pl->nnx - 1, w);
             if (rc) {
                 consph_fail(rc, "figure '%s', series '%s', nx %g: %s", f->id, f->series[k].label,
                             pl->nx[j], consph_last_error());
@@ -456,7 +600,9 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
         }
     }
     if (rc == CONSPH_OK) rc = write_report(s, f, quick, dir, plans, rows, ref);
-    if (rc == CONSPH_OK) rc = write_plot(s, f, dir, plans, rows, x);
+    if (rc == CONSPH_OK && plottable(f, plans, rows)) rc = write_plot(s, f, dir, plans, rows, x);
+    for (int k = 0; rows && k < f->nseries; ++k)
+        for (int j = 0; j < MAX_SWEEP; ++j) free(rows[k][j].prof);
     free(plans);
     free(rows);
     return rc;

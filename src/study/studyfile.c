@@ -111,7 +111,8 @@ static const char *const known_keys[] = {"study",      "title",    "paper",     
                                          "problem",    "scheme",   "c0",         "re",
                                          "tf",         "quick.tf", "steps",      "quick.steps",
                                          "dt_rule",    "tr_ref",   "laplacian",  "walls",
-                                         "report",     "paper.",   "series.",    NULL};
+                                         "report",     "paper.",   "series.",    "dt",
+                                         "l1",         NULL};
 
 static int key_known(const char *key)
 {
