@@ -55,13 +55,6 @@ typedef struct mat_job {
     const unsigned char *bonet_bad;
 } mat_job;
 
-/* Coefficient of x^l x^k H_lk in the second-order Taylor term: 1/2 on the diagonal, 1 off it
- * (the symmetric pair is counted once); 000 eq. 32's (1 - δ_lk/2). */
-static inline double taylor_c(int l, int k)
-{
-    return l == k ? 0.5 : 1.0;
-}
-
 static void set_identity(double *a, int n)
 {
     for (int r = 0; r < n; ++r)
@@ -208,18 +201,8 @@ static void visit_fatehi_c(mat_job *job, const ops_nbhd *nb)
         job->cond[i] = 0.0;
         return;
     }
-    double L1[3] = {0}, L2[9] = {0}, L3[27] = {0};
-    term_fatehi_c_moments(d, nb, vol, L1, L2, L3);
-    const double *B = job->bonet + i * (size_t)(d * d);
-    double BL1[3] = {0}, M[9];
-    for (int a = 0; a < d; ++a)
-        for (int t = 0; t < d; ++t) BL1[a] += B[a * d + t] * L1[t];
-    for (int a = 0; a < d; ++a)
-        for (int b = 0; b < d; ++b) {
-            double v = L2[a * d + b];
-            for (int c = 0; c < d; ++c) v += L3[(a * d + b) * d + c] * BL1[c];
-            M[a * d + b] = -v;
-        }
+    double M[9];
+    term_fatehi_c_matrix(d, nb, vol, job->bonet + i * (size_t)(d * d), M);
     finish_inverse(job, i, d, M);
 }
 
@@ -242,22 +225,13 @@ static void visit_second(mat_job *job, const ops_nbhd *nb)
     double cq[OPS_MAX_P];
     for (int p = 0; p < P; ++p) {
         ops_pair_index(d, p, &pl[p], &pk[p]);
-        cq[p] = taylor_c(pl[p], pk[p]);
+        cq[p] = term_taylor_c(pl[p], pk[p]);
     }
     double A[OPS_MAX_P * OPS_MAX_P] = {0};
     double Hx[OPS_MAX_P * 3] = {0}; /* Σ ω ∂∂W_p x_ji^α */
     double Gz[3 * OPS_MAX_P] = {0}; /* Σ ω ∂^α W c_q x^l x^k */
     term_second_moment(d, P, pl, pk, cq, korz, nb, vol, A, Hx, Gz);
-    if (korz) {
-        const double *B = job->bonet + i * (size_t)(d * d);
-        double BG[3 * OPS_MAX_P] = {0};
-        for (int a = 0; a < d; ++a)
-            for (int b = 0; b < P; ++b)
-                for (int c = 0; c < d; ++c) BG[a * P + b] += B[a * d + c] * Gz[c * P + b];
-        for (int a = 0; a < P; ++a)
-            for (int b = 0; b < P; ++b)
-                for (int c = 0; c < d; ++c) A[a * P + b] -= Hx[a * d + c] * BG[c * P + b];
-    }
+    if (korz) term_korzilius_correct(d, P, Hx, Gz, job->bonet + i * (size_t)(d * d), A);
     finish_inverse(job, i, P, A);
 }
 
@@ -271,7 +245,7 @@ static void visit_msph(mat_job *job, const ops_nbhd *nb)
     double cq[OPS_MAX_P];
     for (int p = 0; p < P; ++p) {
         ops_pair_index(d, p, &pl[p], &pk[p]);
-        cq[p] = taylor_c(pl[p], pk[p]);
+        cq[p] = term_taylor_c(pl[p], pk[p]);
     }
     double A[OPS_MAX_MSPH * OPS_MAX_MSPH] = {0};
     term_msph_moment(d, P, pl, pk, cq, nb, vol, A);

@@ -470,6 +470,30 @@ static inline void term_fatehi_c_moments(int d, const consph_nbhd *nb, const dou
     }
 }
 
+/* fatehi_c's matrix before inversion (001 eq. 13 = C.13): M = -(L2 + L3·(B L1)), the moments of
+ * term_fatehi_c_moments and the Bonet matrix B; B̂ = M^{-1}. */
+static inline void term_fatehi_c_matrix(int d, const consph_nbhd *nb, const double *vol,
+                                        const double B[9], double M[9])
+{
+    double L1[3] = {0}, L2[9] = {0}, L3[27] = {0}, BL1[3] = {0};
+    term_fatehi_c_moments(d, nb, vol, L1, L2, L3);
+    for (int a = 0; a < d; ++a)
+        for (int t = 0; t < d; ++t) BL1[a] += B[a * d + t] * L1[t];
+    for (int a = 0; a < d; ++a)
+        for (int b = 0; b < d; ++b) {
+            double v = L2[a * d + b];
+            for (int c = 0; c < d; ++c) v += L3[(a * d + b) * d + c] * BL1[c];
+            M[a * d + b] = -v;
+        }
+}
+
+/* Coefficient of x^l x^k H_lk in the second-order Taylor term: 1/2 on the diagonal, 1 off it
+ * (the symmetric pair is counted once); 000 eq. 32's (1 - δ_lk/2). */
+static inline double term_taylor_c(int l, int k)
+{
+    return l == k ? 0.5 : 1.0;
+}
+
 /* The CSPM second-derivative matrix (000 eq. 32) A = Σ ω ∂∂W ζ^T, ζ_q = cq_q x^l x^k, and with
  * korz Korzilius' Hx = Σ ω ∂∂W x_ji^T and Gz = Σ ω ∇W ζ^T (001 eq. 15); all zero on entry. */
 static inline void term_second_moment(int d, int P, const int *pl, const int *pk, const double *cq,
@@ -494,6 +518,20 @@ static inline void term_second_moment(int d, int P, const int *pl, const int *pk
                 for (int b = 0; b < P; ++b) Gz[a * P + b] += om * dwr * x[a] * zeta[b];
         }
     }
+}
+
+/* Korzilius' Γ̃ (001 eq. 15 with the fixes of catalogue §A7): subtracts Hx B Gz, from the sums
+ * of term_second_moment with korz, from its CSPM matrix A. */
+static inline void term_korzilius_correct(int d, int P, const double *Hx, const double *Gz,
+                                          const double B[9], double *A)
+{
+    double BG[3 * 6] = {0};
+    for (int a = 0; a < d; ++a)
+        for (int b = 0; b < P; ++b)
+            for (int c = 0; c < d; ++c) BG[a * P + b] += B[a * d + c] * Gz[c * P + b];
+    for (int a = 0; a < P; ++a)
+        for (int b = 0; b < P; ++b)
+            for (int c = 0; c < d; ++c) A[a * P + b] -= Hx[a * d + c] * BG[c * P + b];
 }
 
 /* MSPH (000 §3.3): A = Σ T C^T with test functions T = ω [W, ∂W, ∂∂W] and columns

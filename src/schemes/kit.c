@@ -95,21 +95,12 @@ static void set_identity(double *a, int n)
         for (int c = 0; c < n; ++c) a[r * n + c] = r == c ? 1.0 : 0.0;
 }
 
-/* Fatehi_c's B̂ (001 eq. 13 = C.13): -(L2 + L3·(B L1))^{-1}. */
+/* Fatehi_c's B̂ (001 eq. 13 = C.13). */
 static void fatehi_c_matrix(int d, const consph_nbhd *nb, const double *vol, const double B[9],
                             double cond_max, double Bh[9])
 {
-    double L1[3] = {0}, L2[9] = {0}, L3[27] = {0}, BL1[3] = {0}, M[9] = {0};
-    term_fatehi_c_moments(d, nb, vol, L1, L2, L3);
-    for (int a = 0; a < d; ++a)
-        for (int t = 0; t < d; ++t) BL1[a] += B[a * d + t] * L1[t];
-    for (int a = 0; a < d; ++a)
-        for (int b = 0; b < d; ++b) {
-            double v = L2[a * d + b];
-            for (int c = 0; c < d; ++c) v += L3[(a * d + b) * d + c] * BL1[c];
-            M[a * d + b] = -v;
-        }
-    double cond;
+    double M[9] = {0}, cond;
+    term_fatehi_c_matrix(d, nb, vol, B, M);
     if (!ops_invert(d, M, Bh, cond_max, &cond)) set_identity(Bh, d);
 }
 
@@ -118,16 +109,10 @@ static void korzilius_matrix(int d, int P, const int *pl, const int *pk, const c
                              const double *vol, const double B[9], double cond_max, double *Ainv)
 {
     double cq[OPS_MAX_P];
-    for (int p = 0; p < P; ++p) cq[p] = pl[p] == pk[p] ? 0.5 : 1.0;
+    for (int p = 0; p < P; ++p) cq[p] = term_taylor_c(pl[p], pk[p]);
     double A[OPS_MAX_P * OPS_MAX_P] = {0}, Hx[OPS_MAX_P * 3] = {0}, Gz[3 * OPS_MAX_P] = {0};
     term_second_moment(d, P, pl, pk, cq, 1, nb, vol, A, Hx, Gz);
-    double BG[3 * OPS_MAX_P] = {0};
-    for (int a = 0; a < d; ++a)
-        for (int b = 0; b < P; ++b)
-            for (int c = 0; c < d; ++c) BG[a * P + b] += B[a * d + c] * Gz[c * P + b];
-    for (int a = 0; a < P; ++a)
-        for (int b = 0; b < P; ++b)
-            for (int c = 0; c < d; ++c) A[a * P + b] -= Hx[a * d + c] * BG[c * P + b];
+    term_korzilius_correct(d, P, Hx, Gz, B, A);
     double cond;
     if (!ops_invert(P, A, Ainv, cond_max, &cond)) set_identity(Ainv, P);
 }
