@@ -36,7 +36,7 @@ typedef enum consph_eos_kind {
 typedef struct consph_run_params {
     char problem[32];    /* "taylor-green" */
     char scheme[32];     /* consph_scheme_names() */
-    char integrator[16]; /* "" (the scheme's), "rk2", "euler", "kdk" */
+    char integrator[16]; /* "" (the scheme's), "rk2", "euler", "kdk", "pec" */
     int nx;              /* particles per side */
     int layout;          /* consph_layout_kind, or -1 for the scheme's (packed or lattice) */
     unsigned long seed;  /* for random and packed layouts */

@@ -38,13 +38,15 @@ void consph_run_params_default(consph_run_params *prm)
 
 const char *consph_integrator_names(void)
 {
-    return "rk2,euler,kdk";
+    return "rk2,euler,kdk,pec";
 }
+
+static const char *const integrator_table[] = {"rk2", "euler", "kdk", "pec"}; /* INTEG_* order */
 
 static int integrator_lookup(const char *name, int *integ)
 {
-    static const char *const names[] = {"rk2", "euler", "kdk"};
-    for (int k = 0; k < 3; ++k)
+    const char *const *names = integrator_table;
+    for (int k = 0; k < 4; ++k)
         if (strcmp(name, names[k]) == 0) {
             *integ = k;
             return 1;
@@ -54,7 +56,7 @@ static int integrator_lookup(const char *name, int *integ)
 
 static const char *integrator_name(int integ)
 {
-    return integ == INTEG_RK2 ? "rk2" : integ == INTEG_EULER ? "euler" : "kdk";
+    return integrator_table[integ];
 }
 
 int consph_run_params_check(const consph_run_params *prm)
@@ -186,6 +188,11 @@ int derive_solver(consph_solver *s)
     s->tf = prm->tf;
     s->nsteps = prm->steps;
     s->volumes_fixed = !s->scheme->moves;
+    /* A regularisation changes the state after the last evaluation, so its rates are stale at
+     * the next step's start: those schemes evaluate afresh (pec is then rk2). Kick-drift-kick
+     * needs the drift velocity rebuilt from the reused rates, which the transport hook does. */
+    s->reuse_rates = !s->scheme->regularise &&
+                     (s->integ == INTEG_PEC || (s->integ == INTEG_KDK && s->scheme->transport));
     consph_kernel k;
     int st = consph_kernel_init(&k, prm->kernel, s->dim, s->h);
     if (st != CONSPH_OK) return st;
@@ -330,6 +337,7 @@ static int advance(consph_solver *s, double c)
         for (int a = 0; a < d; ++a) u[a * cap + i] = u0[a * cap + i] + c * au[a * cap + i];
     }
     if (s->scheme->moves) {
+        if (s->scheme->transport) s->scheme->transport(s, c);
         const double *x0 = sv_field(s, SF_X0, d), *ax = sv_field(s, SF_AX, d);
         for (int a = 0; a < d; ++a)
             for (size_t i = 0; i < n; ++i) p->x[a][i] = x0[a * cap + i] + c * ax[a * cap + i];
@@ -386,6 +394,53 @@ static int check_finite(consph_solver *s)
     return CONSPH_OK;
 }
 
+/* Kick-drift-kick: the half kick moves u0 and q0 on, the drift uses the kicked velocity (with
+ * the scheme's transport correction), the second kick adds the rates at the drifted positions. */
+static int kick_drift_kick(consph_solver *s, double dt)
+{
+    consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    const int moves = s->scheme->moves;
+    double *u0 = sv_field(s, SF_U0, d), *q0 = sv_field(s, SF_Q0, 1);
+    const double *au = sv_field(s, SF_AU, d), *aq = sv_field(s, SF_AQ, 1);
+    double *ax = moves ? sv_field(s, SF_AX, d) : NULL;
+    double *u = sv_field(s, SF_U, d), *q = sv_field(s, s->scheme->evolve_p ? SF_P : SF_RHOF, 1);
+    if (!u0 || !q0 || !au || !aq || !u || !q || (moves && !ax)) return CONSPH_ENOMEM;
+    for (size_t i = 0; i < n; ++i) {
+        q0[i] += 0.5 * dt * aq[i];
+        for (int a = 0; a < d; ++a) u0[a * cap + i] += 0.5 * dt * au[a * cap + i];
+    }
+    for (int a = 0; a < d; ++a) memcpy(u + a * cap, u0 + a * cap, n * sizeof(double));
+    int st = CONSPH_OK;
+    if (moves) {
+        if (s->scheme->transport) {
+            s->scheme->transport(s, 0.5 * dt);
+        } else {
+            /* rates evaluated at this step's start: dx/dt there plus the half kick */
+            for (int a = 0; a < d; ++a)
+                for (size_t i = 0; i < n; ++i) ax[a * cap + i] += 0.5 * dt * au[a * cap + i];
+        }
+        const double *x0 = sv_field(s, SF_X0, d);
+        for (int a = 0; a < d; ++a)
+            for (size_t i = 0; i < n; ++i) p->x[a][i] = x0[a * cap + i] + dt * ax[a * cap + i];
+        wrap_positions(s);
+        st = consph_sys_update(&s->sys, 0);
+    }
+    memcpy(q, q0, n * sizeof(double));
+    if (st == CONSPH_OK) solver_eos(s);
+    if (st == CONSPH_OK) st = s->scheme->rhs(s);
+    if (st != CONSPH_OK) return st;
+    if (!moves) return advance(s, 0.5 * dt);
+    /* advance() would move the particles again: keep them, kick u and q only */
+    for (size_t i = 0; i < n; ++i) {
+        q[i] = q0[i] + 0.5 * dt * aq[i];
+        for (int a = 0; a < d; ++a) u[a * cap + i] = u0[a * cap + i] + 0.5 * dt * au[a * cap + i];
+    }
+    solver_eos(s);
+    return CONSPH_OK;
+}
+
 int consph_solver_step(consph_solver *s)
 {
     if (consph_solver_done(s)) return consph_fail(CONSPH_EINVAL, "the run is complete");
@@ -397,60 +452,16 @@ int consph_solver_step(consph_solver *s)
     int st = CONSPH_OK;
     if (s->scheme->moves) st = consph_sys_update(&s->sys, 1);
     if (st == CONSPH_OK) st = save_start(s);
-    if (st == CONSPH_OK) st = s->scheme->rhs(s);
-    if (s->integ == INTEG_RK2) {
+    /* pec and kdk start from the rates the previous step left (the set-up's for the first) */
+    if (st == CONSPH_OK && !s->reuse_rates) st = s->scheme->rhs(s);
+    if (s->integ == INTEG_RK2 || s->integ == INTEG_PEC) {
         if (st == CONSPH_OK) st = advance(s, 0.5 * dt);
         if (st == CONSPH_OK) st = s->scheme->rhs(s);
         if (st == CONSPH_OK) st = advance(s, dt);
     } else if (s->integ == INTEG_EULER) {
         if (st == CONSPH_OK) st = advance(s, dt);
-    } else {
-        /* kick-drift-kick: the half kick moves u0 and q0 on, the drift uses the kicked
-         * velocity, the second kick adds the rates at the drifted positions */
-        consph_particles *p = s->sys.p;
-        const int d = s->dim;
-        const size_t n = p->n, cap = p->cap;
-        if (st == CONSPH_OK) {
-            double *u0 = sv_field(s, SF_U0, d), *q0 = sv_field(s, SF_Q0, 1);
-            const double *au = sv_field(s, SF_AU, d), *aq = sv_field(s, SF_AQ, 1);
-            double *ax = s->scheme->moves ? sv_field(s, SF_AX, d) : NULL;
-            for (size_t i = 0; i < n; ++i) {
-                q0[i] += 0.5 * dt * aq[i];
-                for (int a = 0; a < d; ++a) {
-                    u0[a * cap + i] += 0.5 * dt * au[a * cap + i];
-                    if (ax) ax[a * cap + i] += 0.5 * dt * au[a * cap + i];
-                }
-            }
-            double *u = sv_field(s, SF_U, d);
-            for (int a = 0; a < d; ++a) memcpy(u + a * cap, u0 + a * cap, n * sizeof(double));
-            if (ax) {
-                const double *x0 = sv_field(s, SF_X0, d);
-                for (int a = 0; a < d; ++a)
-                    for (size_t i = 0; i < n; ++i)
-                        p->x[a][i] = x0[a * cap + i] + dt * ax[a * cap + i];
-                wrap_positions(s);
-                st = consph_sys_update(&s->sys, 0);
-            }
-            double *q = sv_field(s, s->scheme->evolve_p ? SF_P : SF_RHOF, 1);
-            memcpy(q, q0, n * sizeof(double));
-            if (st == CONSPH_OK) solver_eos(s);
-        }
-        if (st == CONSPH_OK) st = s->scheme->rhs(s);
-        if (st == CONSPH_OK && s->scheme->moves) {
-            /* advance() would move the particles again: keep them, kick u and q only */
-            const double *u0 = sv_field(s, SF_U0, d), *q0 = sv_field(s, SF_Q0, 1);
-            const double *au = sv_field(s, SF_AU, d), *aq = sv_field(s, SF_AQ, 1);
-            double *u = sv_field(s, SF_U, d);
-            double *q = sv_field(s, s->scheme->evolve_p ? SF_P : SF_RHOF, 1);
-            for (size_t i = 0; i < n; ++i) {
-                q[i] = q0[i] + 0.5 * dt * aq[i];
-                for (int a = 0; a < d; ++a)
-                    u[a * cap + i] = u0[a * cap + i] + 0.5 * dt * au[a * cap + i];
-            }
-            solver_eos(s);
-        } else if (st == CONSPH_OK) {
-            st = advance(s, 0.5 * dt);
-        }
+    } else if (st == CONSPH_OK) {
+        st = kick_drift_kick(s, dt);
     }
     if (st == CONSPH_OK) {
         s->t = s->nsteps == 0 && dt < full ? s->tf : s->t + dt;

@@ -3,13 +3,15 @@
  *
  *   wcsph  Monaghan's WCSPH: dϱ/dt = Σ m_j u_ij·∇W_ij, Tait EOS, the symmetric pressure force
  *          -Σ m_j (p_i/ϱ_i² + p_j/ϱ_j² + Π_ij)∇W_ij with Monaghan's Π_ij, the laminar
- *          viscosity of Morris/Cleary, XSPH advection (ε = 0.5); explicit midpoint.
+ *          viscosity of Morris/Cleary, XSPH advection (ε = 0.5); PySPH's predict-evaluate-
+ *          correct (pec: one evaluation per step).
  *   tvf    Adami, Hu & Adams 2013: ϱ = m Σ W, p = p_o(ϱ/ϱ_o - 1), forces weighted by
  *          (V_i² + V_j²) with the density-weighted p̃_ij, the A = ϱ u(ũ - u) stress, and the
- *          background pressure p_b driving the transport velocity ũ; kick-drift-kick.
+ *          background pressure p_b driving the transport velocity ũ; kick-drift-kick with
+ *          one evaluation per step.
  *   edac   Ramachandran & Puri 2019: tvf's momentum with p - p̄_i (the neighbour average) and
  *          the evolved pressure dp/dt = Σ ϱ_i/ϱ_j c² m_j u_ij·∇W_ij + EDAC diffusion ν_edac;
- *          explicit midpoint.
+ *          predict-evaluate-correct.
  *
  * Every pair force of tvf and edac is antisymmetric in i and j (the weights V_i² + V_j², p̃_ij,
  * η_ij and A_i + A_j are symmetric and ∇W_ij is odd), so they conserve linear momentum to
@@ -237,9 +239,7 @@ static int rhs_wcsph(consph_solver *s)
     return consph_pass_run_counted(&s->sys, &pass, &job, &s->pairs);
 }
 
-/* Density pass, then the rates; ũ = u + c Δt a_b with c = 1 for the midpoint rule (edac, as
- * PySPH's EDACTVFStep ends its step) and ½ for kick-drift-kick (tvf: the integrator adds the
- * other ½ Δt a to the velocity). */
+/* Density pass, then the rates; the transport velocity follows from them in tv_transport. */
 static int rhs_tv(consph_solver *s, int kind)
 {
     rival_job job;
@@ -251,19 +251,28 @@ static int rhs_tv(consph_solver *s, int kind)
     if (st == CONSPH_OK) st = consph_pass_run_counted(&s->sys, &rates, &job, &s->pairs);
     if (st != CONSPH_OK) return st;
     s->passes = 2;
-    const int d = s->dim;
-    const size_t n = s->sys.p->n, cap = job.cap;
-    const double c = (kind == RV_TVF ? 0.5 : 1.0) * s->dt;
-    double *rhof = sv_field(s, SF_RHOF, 1), *du = sv_field(s, SF_TVDU, d);
-    if (!rhof || !du) return CONSPH_ENOMEM;
-    for (size_t i = 0; i < n; ++i) {
-        rhof[i] = job.rhos[i];
-        for (int a = 0; a < d; ++a) {
-            du[a * cap + i] = c * job.auhat[a * cap + i];
-            job.ax[a * cap + i] = job.u[a * cap + i] + du[a * cap + i];
-        }
-    }
+    double *rhof = sv_field(s, SF_RHOF, 1);
+    if (!rhof) return CONSPH_ENOMEM;
+    memcpy(rhof, job.rhos, s->sys.p->n * sizeof(double));
     return CONSPH_OK;
+}
+
+/* ũ = u + c ã with the background-pressure acceleration ã of the last right-hand side, after
+ * the velocity update: tvf's kick-drift-kick drifts with c = Δt/2 (Adami et al.; PySPH's
+ * TransportVelocityStep), edac's predictor and corrector with c = Δt/2 and Δt (PySPH's
+ * EDACTVFStep). The next right-hand side's A-term reads this ũ - u. */
+static void tv_transport(consph_solver *s, double c)
+{
+    const int d = s->dim;
+    const size_t n = s->sys.p->n, cap = s->sys.p->cap;
+    const double *u = sv_field(s, SF_U, d), *ab = sv_field(s, SF_UHAT, d);
+    double *du = sv_field(s, SF_TVDU, d), *ax = sv_field(s, SF_AX, d);
+    if (!u || !ab || !du || !ax) return; /* created by the first right-hand side */
+    for (int a = 0; a < d; ++a)
+        for (size_t i = 0; i < n; ++i) {
+            du[a * cap + i] = c * ab[a * cap + i];
+            ax[a * cap + i] = u[a * cap + i] + du[a * cap + i];
+        }
 }
 
 static int rhs_tvf(consph_solver *s)
@@ -293,7 +302,7 @@ const scheme_def scheme_wcsph = {
     .evolve_p = 0,
     .layout = CONSPH_LAYOUT_LATTICE,
     .eos = CONSPH_EOS_TAIT,
-    .integrator = "rk2",
+    .integrator = "pec",
     .passes_min = 1,
     .rhs = rhs_wcsph,
     .regularise = NULL};
@@ -309,7 +318,8 @@ const scheme_def scheme_tvf = {
     .passes_min = 2,
     .rhs = rhs_tvf,
     .regularise = NULL,
-    .closure = closure_summation};
+    .closure = closure_summation,
+    .transport = tv_transport};
 const scheme_def scheme_edac = {
     .name = "edac",
     .summary = "Ramachandran & Puri 2019: EDAC pressure evolution with TVF and p - p_avg",
@@ -317,8 +327,9 @@ const scheme_def scheme_edac = {
     .evolve_p = 1,
     .layout = CONSPH_LAYOUT_LATTICE,
     .eos = CONSPH_EOS_LINEAR,
-    .integrator = "rk2",
+    .integrator = "pec",
     .passes_min = 2,
     .rhs = rhs_edac,
     .regularise = NULL,
-    .closure = closure_summation};
+    .closure = closure_summation,
+    .transport = tv_transport};

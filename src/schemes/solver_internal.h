@@ -86,6 +86,12 @@ typedef struct scheme_def {
      * eq. 31 for evolve_p): a scheme whose density is a summation, or whose pressure is
      * evolved with its own relation, sets its state here (NULL: 001's). */
     void (*closure)(consph_solver *s);
+    /* The advection velocity SF_AX from the current velocity and the last rates, for a drift
+     * whose rates are weighted by c (c Δt-scaled: Δt/2 or Δt), called by the integrator after
+     * each velocity update of a moving scheme (NULL: SF_AX as the right-hand side left it). A
+     * scheme whose drift velocity is u plus a lagged correction (a transport velocity) says so
+     * here, which also lets kick-drift-kick reuse the rates of the previous step. */
+    void (*transport)(consph_solver *s, double c);
 } scheme_def;
 
 const scheme_def *scheme_find(const char *name);
@@ -137,13 +143,14 @@ struct consph_solver {
     int passes; /* passes of the last stage */
     long regs;
     int volumes_fixed; /* particles never move: ω computed once */
+    int reuse_rates;   /* pec/kdk: the rates left by the previous step are this step's first */
     double chi0;
     /* per-step history for the log (HIST_COLS doubles per step) */
     double *hist;
     size_t nhist, caphist;
 };
 
-enum { INTEG_RK2, INTEG_EULER, INTEG_KDK };
+enum { INTEG_RK2, INTEG_EULER, INTEG_KDK, INTEG_PEC };
 #define HIST_COLS 14 /* step t l1_u linf_u l1_p linf_p ke mx my mz ang ft_fmax max_divu dt */
 
 /* Shared by the schemes. */
