@@ -128,7 +128,7 @@ int cmd_run(int argc, char **argv)
     long ipst_every = 10, ipst_iter = 10;
     double hdx = 1.2, c0 = 0.0, re = 100.0, tf = 0.5, dt = 0.0, U = 1.0, delta = 0.1;
     double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3, nu = 0.0, alpha = -1.0;
-    int layout = 0, kernel = 0, format = 0, eos = 0, heat_lap = 1, heat_walls = 0;
+    int layout = 0, kernel = 0, format = 0, eos = 0, heat_lap = 1, heat_walls = 0, rho_init = 0;
     double heat_eta = 2.0, heat_eps = 0.0;
     char layout_choices[256], kernel_choices[512];
     snprintf(layout_choices, sizeof layout_choices, "default,%s", consph_layout_names());
@@ -155,6 +155,9 @@ int cmd_run(int argc, char **argv)
          NULL, 0, 10, 0},
         {"--u", CLI_DOUBLE, &U, "U", "velocity scale", NULL, 1e-12, 1e6, 0},
         {"--eos", CLI_CHOICE, &eos, "E", "equation of state", "default,tait,linear", 0, 0, 0},
+        {"--rho-init", CLI_CHOICE, &rho_init, "R",
+         "initial density: eos (from the exact p) or rho0 (ρ_o, so p starts at 0)", "eos,rho0", 0,
+         0, 0},
         {"--delta", CLI_DOUBLE, &delta, "D", "δ of the diffusive term D = δ h c_o", NULL, 0, 10, 0},
         {"--tf", CLI_DOUBLE, &tf, "T", "final time (default: the problem's)", NULL, 1e-12, 1e6, 0},
         {"--steps", CLI_INT, &steps, "K", "number of steps (instead of --tf)", NULL, 1, 1e12, 0},
@@ -286,6 +289,7 @@ int cmd_run(int argc, char **argv)
         prm.U = U;
         prm.eos = eos == 0 ? CONSPH_EOS_DEFAULT : eos == 1 ? CONSPH_EOS_TAIT : CONSPH_EOS_LINEAR;
         prm.delta = delta;
+        prm.rho_init = rho_init == 1 ? CONSPH_RHO_INIT_RHO0 : CONSPH_RHO_INIT_EOS;
         if (steps > 0)
             prm.tf = 0.0;
         else if (option_given(&cmd, "--tf"))

@@ -135,9 +135,14 @@ static void test_restart(const char *scheme, int layout)
     }
     /* a damaged record is refused */
     consph_solver *c = NULL;
-    CHECK(consph_solver_restore(&c, "format=consph-solver-1\nnx=x\n", consph_solver_particles(a),
+    CHECK(consph_solver_restore(&c, "format=consph-solver-2\nnx=x\n", consph_solver_particles(a),
                                 NULL, 0) == CONSPH_EFORMAT,
           "bad metadata accepted");
+    /* one of an earlier format is refused by name: its integrators were other than today's */
+    CHECK(consph_solver_restore(&c, "format=consph-solver-1\nnx=8\n", consph_solver_particles(a),
+                                NULL, 0) == CONSPH_EFORMAT &&
+              strstr(consph_last_error(), "'consph-solver-1' is not"),
+          "an earlier checkpoint format accepted, or not named: %s", consph_last_error());
     consph_solver_free(a);
     consph_solver_free(b);
 }

@@ -32,6 +32,14 @@ typedef enum consph_eos_kind {
     CONSPH_EOS_LINEAR = 1    /* 001 eq. 28: p = c_o² (ϱ - ρ_o) */
 } consph_eos_kind;
 
+/* The initial density of a scheme whose pressure comes from its evolved density by the EOS. */
+typedef enum consph_rho_init {
+    CONSPH_RHO_INIT_EOS = 0, /* ϱ from the exact pressure, the EOS inverted (001 §5.2) */
+    CONSPH_RHO_INIT_RHO0 = 1 /* ϱ = ρ_o, so p = EOS(ρ_o) = 0 whatever the exact pressure: how
+                                PySPH's and 001's Taylor-Green scripts start their one-density
+                                schemes (docs/schemes.md, the δ-SPH family) */
+} consph_rho_init;
+
 /* Everything a run is made from. consph_run_params_default fills 001's Taylor-Green values. */
 typedef struct consph_run_params {
     char problem[32];    /* "taylor-green" */
@@ -60,6 +68,7 @@ typedef struct consph_run_params {
     int ipst_every;    /* IPST every this many steps (001: 10) */
     int ipst_max_iter; /* at most this many shifts (001: 10) */
     double ipst_tol;   /* ε of 001 eq. 21 */
+    int rho_init;      /* consph_rho_init */
 } consph_run_params;
 
 void consph_run_params_default(consph_run_params *prm);

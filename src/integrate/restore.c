@@ -10,6 +10,9 @@
 #include "schemes/solver_internal.h"
 
 #define META_MAX 4096
+/* 2: wcsph/edac default to pec and tvf's kdk reuses its rates, and rho_init was added; a
+ * version-1 checkpoint would continue under other integrators than it started with. */
+#define CHECKPOINT_FORMAT "consph-solver-2"
 
 int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **history,
                                   size_t *nhistory)
@@ -24,16 +27,16 @@ int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **
     }
     int len = snprintf(
         m, META_MAX,
-        "format=consph-solver-1\nproblem=%s\nscheme=%s\nintegrator=%s\nnx=%d\nlayout=%d\n"
+        "format=" CHECKPOINT_FORMAT "\nproblem=%s\nscheme=%s\nintegrator=%s\nnx=%d\nlayout=%d\n"
         "seed=%lu\nhdx=%a\nkernel=%d\nU=%a\nc0=%a\nre=%a\nnu=%a\nalpha=%a\nrho0=%a\ngamma=%a\neos=%"
         "d\n"
         "delta=%a\ntf=%a\nsteps=%ld\ndt=%a\ncfl=%a\nh_dt=%a\nipst_every=%d\nipst_max_iter=%d\n"
         "ipst_tol=%a\nt=%a\nstep=%ld\nl1_u_acc=%a\nl1_p_acc=%a\nseconds=%a\npairs=%zu\n"
-        "regs=%ld\npasses=%d\n",
+        "regs=%ld\npasses=%d\nrho_init=%d\n",
         p->problem, p->scheme, p->integrator, p->nx, p->layout, p->seed, p->hdx, (int)p->kernel,
         p->U, p->c0, p->re, p->nu, p->alpha, p->rho0, p->gamma, (int)p->eos, p->delta, p->tf,
         p->steps, p->dt, p->cfl, p->h_dt, p->ipst_every, p->ipst_max_iter, p->ipst_tol, s->t,
-        s->step, s->l1_u_acc, s->l1_p_acc, s->seconds, s->pairs, s->regs, s->passes);
+        s->step, s->l1_u_acc, s->l1_p_acc, s->seconds, s->pairs, s->regs, s->passes, p->rho_init);
     if (len < 0 || len >= META_MAX) {
         free(m);
         free(h);
@@ -83,7 +86,7 @@ static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const
     if (!strcmp(k, name)) return read_double(v, &dst);
 #define L(name, dst, type)                                                                         \
     if (!strcmp(k, name)) return read_long(v, &l) ? (dst = (type)l, 1) : 0;
-    if (!strcmp(k, "format")) return !strcmp(v, "consph-solver-1");
+    if (!strcmp(k, "format")) return !strcmp(v, CHECKPOINT_FORMAT);
     if (!strcmp(k, "problem")) return read_string(v, p->problem, sizeof p->problem);
     if (!strcmp(k, "scheme")) return read_string(v, p->scheme, sizeof p->scheme);
     if (!strcmp(k, "integrator")) return read_string(v, p->integrator, sizeof p->integrator);
@@ -99,6 +102,7 @@ static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const
     L("pairs", s->pairs, size_t)
     L("regs", s->regs, long)
     L("passes", s->passes, int)
+    L("rho_init", p->rho_init, int)
     D("hdx", p->hdx)
     D("U", p->U)
     D("c0", p->c0)
@@ -144,13 +148,20 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
         memcpy(buf, line, len);
         buf[len] = '\0';
         char *eq = strchr(buf, '=');
+        if (eq && !strncmp(buf, "format=", 7) && strcmp(eq + 1, CHECKPOINT_FORMAT)) {
+            st = consph_fail(CONSPH_EFORMAT,
+                             "checkpoint format '%.40s' is not this consph's (%s); start the run "
+                             "again",
+                             eq + 1, CHECKPOINT_FORMAT);
+            break;
+        }
         if (!eq || (*eq = '\0', !meta_set(p, s, buf, eq + 1)))
             st = consph_fail(CONSPH_EFORMAT, "checkpoint metadata: bad line '%.60s'", buf);
         ++nkeys;
         line = nl ? nl + 1 : line + len;
     }
-    if (st == CONSPH_OK && nkeys != 34)
-        st = consph_fail(CONSPH_EFORMAT, "checkpoint metadata: %d keys, expected 34", nkeys);
+    if (st == CONSPH_OK && nkeys != 35)
+        st = consph_fail(CONSPH_EFORMAT, "checkpoint metadata: %d keys, expected 35", nkeys);
     if (st == CONSPH_OK) st = consph_run_params_check(p);
     if (st == CONSPH_OK) st = derive_solver(s);
     if (st == CONSPH_OK &&

@@ -113,6 +113,15 @@ int consph_run_params_check(const consph_run_params *prm)
         !(prm->ipst_tol > 0.0))
         return consph_fail(CONSPH_EINVAL, "--ipst-every and --ipst-iter must be >= 0 and "
                                           "--ipst-tol > 0");
+    if (prm->rho_init != CONSPH_RHO_INIT_EOS && prm->rho_init != CONSPH_RHO_INIT_RHO0)
+        return consph_fail(CONSPH_EINVAL, "--rho-init must be one of eos,rho0");
+    const scheme_def *sd = scheme_find(prm->scheme);
+    /* ρ_o means something only where ϱ is evolved and gives p by the EOS */
+    if (prm->rho_init == CONSPH_RHO_INIT_RHO0 && (sd->evolve_p || sd->closure))
+        return consph_fail(CONSPH_EINVAL,
+                           "--rho-init rho0 needs a scheme whose pressure comes from its evolved "
+                           "density by the EOS, not '%s' (allowed: eos)",
+                           prm->scheme);
     return CONSPH_OK;
 }
 
@@ -277,13 +286,14 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
             id[i] = (double)s->sys.origin[i];
             for (int a = 0; a < s->dim; ++a) u[a * cap + i] = ue[a];
             pr[i] = pe;
-            rhof[i] = exact_rho(s, pe);
+            rhof[i] = prm->rho_init == CONSPH_RHO_INIT_RHO0 ? prm->rho0 : exact_rho(s, pe);
             if (xl)
                 for (int a = 0; a < s->dim; ++a) xl[a * cap + i] = lat.x[a][s->sys.origin[i]];
         }
     }
     consph_particles_free(&src);
     consph_particles_free(&lat);
+    if (st == CONSPH_OK && prm->rho_init == CONSPH_RHO_INIT_RHO0) solver_eos(s);
     consph_step_diag g;
     if (st == CONSPH_OK) st = initial_rates(s);
     if (st == CONSPH_OK) st = consph_solver_diag(s, &g);

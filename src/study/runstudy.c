@@ -66,6 +66,7 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
 {
     static const char *const rules[] = {"finest", "own", NULL};
     static const char *const l1s[] = {"integral", "mean", NULL};
+    static const char *const rho_inits[] = {"eos", "rho0", NULL}; /* consph_rho_init order */
     memset(pl, 0, sizeof *pl);
     consph_run_params *p = &pl->prm;
     consph_run_params_default(p);
@@ -105,6 +106,7 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
     if ((rc = study_get_choice(s, f, r, "dt_rule", rules, 0, &rule))) return rc;
     pl->dt_finest = rule == 0;
     if ((rc = study_get_choice(s, f, r, "l1", l1s, 0, &pl->l1_mean))) return rc;
+    if ((rc = study_get_choice(s, f, r, "rho_init", rho_inits, 0, &p->rho_init))) return rc;
     k = quick_key(s, f, r, quick, "nx", qk, sizeof qk);
     if ((rc = study_get_list(s, f, r, k, 4, 1e5, pl->nx, &pl->nnx))) return rc;
     if (pl->nnx == 0) return study_key_error(s, f, r, "nx", "no resolutions given");
