@@ -610,3 +610,29 @@ int consph_solver_output_fields(consph_solver *s)
     }
     return CONSPH_OK;
 }
+
+/* ---- the history (the columns of hist_push) ---- */
+
+size_t consph_solver_history_size(const consph_solver *s)
+{
+    return s->nhist;
+}
+
+int consph_solver_history_row(const consph_solver *s, size_t k, consph_step_diag *d)
+{
+    if (k >= s->nhist) return consph_fail(CONSPH_EINVAL, "history row %zu of %zu", k, s->nhist);
+    const double *h = s->hist + k * HIST_COLS;
+    memset(d, 0, sizeof *d);
+    d->step = (long)h[0];
+    d->t = h[1];
+    d->l1_u = h[2];
+    d->linf_u = h[3];
+    d->l1_p = h[4];
+    d->linf_p = h[5];
+    d->ke = h[6];
+    for (int a = 0; a < 3; ++a) d->mom[a] = h[7 + a];
+    d->ang = h[10];
+    d->ft_fmax = h[11];
+    d->max_divu = h[12];
+    return CONSPH_OK;
+}
