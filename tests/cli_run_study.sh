@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Study kind `run` (docs/studies.md): a tiny Taylor-Green sweep of e-c and ewcsph through the
 # solver, its report and files; bad run studies are refused with file:line and exit 2; the
-# 001 run studies (Tables 8, 9, Fig. 20) and the demo study are valid. cli_studies.sh leaves the
+# 001 run studies (Tables 8, 9, Fig. 20) and the demo study are valid; x = radius and x = time
+# (momentum histories) on a few hundred particles. cli_studies.sh leaves the
 # run studies out: their quick runs take minutes.
 # Usage: bash cli_run_study.sh PATH-TO-CONSPH SOURCE-DIR
 set -u
@@ -127,6 +128,50 @@ awk '!/^#/ && NF == 3 { n++; d = $2 - $3; if (d < 0) d = -d; if (d > m) m = d
      END { exit bad || n != 256 || !(m < 0.05) }' "$p" || bad "radius study: not 256 particles on eq. 37's profile: $(head -3 "$p")"
 grep -q "prof-profile.dat' index 0 using 1:2" "$tmp/gc/gc/prof.gp" || bad "radius study: no u_φ(r) plot"
 
+# x = time (001 Figs. 15-17): the momentum history of each series' finest run, a row per step
+# from t = 0 with finite values; a series that diverges (E-C with a time step 10x too large)
+# stops at its last finite step; the report's drifts are those of the data.
+cat >"$tmp/gm.study" <<'STUDY'
+study = gm
+[figure mom]
+kind = run
+x = time
+y = momentum_x, angular_momentum
+problem = gresho-chan
+nx = 16
+steps = 20
+[series L-IPST-C]
+scheme = l-ipst-c
+paper.outcome = completes
+[series E-C]
+scheme = e-c
+dt = 0.02
+STUDY
+"$consph" study "$tmp/gm.study" --quick --out "$tmp/gm" >"$tmp/log" 2>&1
+rc=$?
+[ $rc = 0 ] || { cat "$tmp/log"; bad "time study: exit $rc"; }
+g=$tmp/gm/gm
+h=$g/mom-history.dat
+[ -s "$h" ] || bad "time study: no mom-history.dat"
+# rows and the time reached per block, every value a finite number, t increasing from 0
+awk '/^# / { b++; next } NF == 0 { next }
+     { if (NF != 4) bad = 1
+       for (i = 1; i <= 4; i++) if ($i !~ /^-?[0-9.]+(e[-+][0-9]+)?$/) bad = 1
+       if (n[b] == 0 && $1 != 0) bad = 1
+       if (n[b] > 0 && !($1 > t)) bad = 1
+       t = $1; n[b]++ }
+     END { if (bad || b != 2) exit 1; print n[1], n[2] }' "$h" >"$tmp/rows" || bad "time study: history not 2 blocks of finite rows from t = 0 with t increasing: $(head -3 "$h")"
+read -r n1 n2 <"$tmp/rows"
+s1=$(awk -F, '$1 == "L-IPST-C" { print $6 }' "$g/mom.csv")
+s2=$(awk -F, '$1 == "E-C" && $18 == "diverged" { print $6 }' "$g/mom.csv")
+[ "$n1" = 21 ] && [ "$s1" = 20 ] || bad "time study: L-IPST-C has $n1 history rows for $s1 steps, want 21 for 20"
+# the diverging step leaves no row: a row per finite step 0 .. steps - 1
+[ -n "$s2" ] && [ "$n2" = "$s2" ] && [ "$n2" -lt 21 ] || bad "time study: E-C did not diverge with a row per finite step ($n2 rows, $s2 steps)"
+grep -q "mom-history.dat' index 0 using 1:2" "$g/mom.gp" && grep -q "mom-history.dat' index 1 using 1:4" "$g/mom.gp" || bad "time study: not a panel of M_x and one of L"
+# max |L(t) - L(0)| of L-IPST-C in the report is that of the data (to the 4 digits printed)
+dl=$(awk '/^# / { b++; next } b == 1 && NF == 4 { if (n++ == 0) l0 = $4; d = $4 - l0; if (d < 0) d = -d; if (d > m) m = d } END { printf "%.3e", m }' "$h")
+grep -q "^| L-IPST-C | 20 | [0-9.]* | [0-9.e+-]* | [0-9.]* | $dl | [0-9.e+-]* | completes |$" "$g/mom.md" || bad "time study: no momentum row of L-IPST-C with max |ΔL| $dl: $(grep '^| L-IPST-C | 20' "$g/mom.md")"
+
 # Bad run studies: exit 2, one line naming file and line, nothing written.
 refuse() { # refuse DESCRIPTION LINE-NUMBER EXPECTED-TEXT STUDY-TEXT
   printf '%s\n' "$4" >"$tmp/broken.study"
@@ -156,6 +201,13 @@ dt = -1"
 refuse "unknown l1" 6 "l1.*allowed: integral, mean" "$head
 scheme = e-c
 l1 = sum"
+refuse "unknown y" 7 "key 'y'.*unknown value 'energy'; allowed: momentum_x, momentum_y, angular_momentum" "$head
+scheme = e-c
+x = time
+y = momentum_x, energy"
+refuse "y without x = time" 6 "key 'y'.*only with x = time" "$head
+scheme = e-c
+y = momentum_x"
 refuse "decreasing nx" 4 "whole and increasing" "study = broken
 [figure a]
 kind = run

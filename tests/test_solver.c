@@ -97,6 +97,18 @@ static void test_momentum(const char *scheme)
     CHECK(fabs(sum.momentum[0]) < 1e-14 && fabs(sum.momentum[1]) < 1e-14,
           "%s: momentum (%g, %g) after 100 steps", scheme, sum.momentum[0], sum.momentum[1]);
     CHECK(fabs(sum.ft_fmax) < 1e-11, "%s: F_T/F_max %g", scheme, sum.ft_fmax);
+    /* The history: step 0 and every step, the last row the summary's. */
+    CHECK(consph_solver_history_size(s) == 101, "%s: %zu history rows after 100 steps", scheme,
+          consph_solver_history_size(s));
+    consph_step_diag d = {0};
+    for (size_t k = 0; k < consph_solver_history_size(s); ++k) {
+        CHECK(consph_solver_history_row(s, k, &d) == CONSPH_OK && d.step == (long)k,
+              "%s: history row %zu is step %ld", scheme, k, d.step);
+    }
+    CHECK(d.t == sum.t && d.mom[0] == sum.momentum[0] && d.mom[1] == sum.momentum[1] &&
+              d.ang == sum.angular_momentum && d.ke == sum.ke,
+          "%s: last history row is not the summary", scheme);
+    CHECK(consph_solver_history_row(s, 101, &d) == CONSPH_EINVAL, "%s: row past the end", scheme);
     consph_solver_free(s);
 }
 
@@ -210,6 +222,13 @@ static void test_divergence(void)
     const char *m = consph_last_error();
     CHECK(strstr(m, "diverged at step") && strstr(m, "particle") && strstr(m, "non-finite"),
           "message: %s", m);
+    /* The history ends at the last finite step: the diverging one leaves no row. */
+    consph_step_diag d;
+    size_t nh = consph_solver_history_size(s);
+    CHECK(nh == (size_t)consph_solver_step_count(s) &&
+              consph_solver_history_row(s, nh - 1, &d) == CONSPH_OK && isfinite(d.ang) &&
+              isfinite(d.mom[0]) && d.step == (long)nh - 1,
+          "history of %zu rows after the stop at step %ld", nh, consph_solver_step_count(s));
     consph_solver_free(s);
 }
 

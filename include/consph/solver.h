@@ -138,6 +138,13 @@ typedef struct consph_step_diag {
     double t, l1_u, linf_u, l1_p, linf_p, ke, mom[3], ang, ft_fmax, max_divu;
 } consph_step_diag;
 int consph_solver_diag(const consph_solver *s, consph_step_diag *d);
+/* The run's history, as log.csv holds it: one row per step taken, the initial state (step 0)
+ * first, so a run of n steps has n + 1 rows; a run that diverged ends at its last finite step.
+ * consph_solver_history_row fills *d with row k (its step, t, errors, momentum and angular
+ * momentum about the box centre as consph_solver_diag computed them then); CONSPH_EINVAL for
+ * k >= consph_solver_history_size(s). */
+size_t consph_solver_history_size(const consph_solver *s);
+int consph_solver_history_row(const consph_solver *s, size_t k, consph_step_diag *d);
 int consph_solver_summary(const consph_solver *s, consph_run_summary *sum);
 
 /* The metadata text and history a checkpoint of this solver holds (malloc'd). */

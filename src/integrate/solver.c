@@ -597,14 +597,16 @@ int consph_solver_summary(const consph_solver *s, consph_run_summary *sum)
     sum->c0 = s->c0;
     sum->l1_u = s->l1_u_acc;
     sum->l1_p = s->l1_p_acc;
-    const double *last = s->hist + (s->nhist - 1) * HIST_COLS;
-    sum->linf_u = last[3];
-    sum->linf_p = last[5];
-    sum->ke = last[6];
-    for (int a = 0; a < 3; ++a) sum->momentum[a] = last[7 + a];
-    sum->angular_momentum = last[10];
-    sum->ft_fmax = last[11];
-    sum->max_divu = last[12];
+    consph_step_diag last;
+    int st = consph_solver_history_row(s, s->nhist - 1, &last);
+    if (st != CONSPH_OK) return st;
+    sum->linf_u = last.linf_u;
+    sum->linf_p = last.linf_p;
+    sum->ke = last.ke;
+    for (int a = 0; a < 3; ++a) sum->momentum[a] = last.mom[a];
+    sum->angular_momentum = last.ang;
+    sum->ft_fmax = last.ft_fmax;
+    sum->max_divu = last.max_divu;
     sum->seconds = s->seconds;
     sum->pairs = s->pairs;
     sum->passes_per_stage = s->passes;
@@ -629,5 +631,31 @@ int consph_solver_output_fields(consph_solver *s)
         /* ∂v/∂x - ∂u/∂y from the last stage's G (Bonet-corrected) */
         w[i] = G[(size_t)(1 * d + 0) * cap + i] - G[(size_t)(0 * d + 1) * cap + i];
     }
+    return CONSPH_OK;
+}
+
+/* ---- the history (the columns of hist_push) ---- */
+
+size_t consph_solver_history_size(const consph_solver *s)
+{
+    return s->nhist;
+}
+
+int consph_solver_history_row(const consph_solver *s, size_t k, consph_step_diag *d)
+{
+    if (k >= s->nhist) return consph_fail(CONSPH_EINVAL, "history row %zu of %zu", k, s->nhist);
+    const double *h = s->hist + k * HIST_COLS;
+    memset(d, 0, sizeof *d);
+    d->step = (long)h[0];
+    d->t = h[1];
+    d->l1_u = h[2];
+    d->linf_u = h[3];
+    d->l1_p = h[4];
+    d->linf_p = h[5];
+    d->ke = h[6];
+    for (int a = 0; a < 3; ++a) d->mom[a] = h[7 + a];
+    d->ang = h[10];
+    d->ft_fmax = h[11];
+    d->max_divu = h[12];
     return CONSPH_OK;
 }

@@ -23,9 +23,31 @@ typedef struct run_row {
     consph_run_summary sum;
     int status; /* CONSPH_OK, or CONSPH_ENUMERIC for a run that diverged */
     char why[256];
-    double *prof; /* x = radius: r, u_φ, exact u_φ per particle at the end, nprof of them */
-    size_t nprof;
+    /* The finest run's curve (curve_kinds[x]): x = radius, r, u_φ and the exact u_φ per particle
+     * at the end; x = time, t, M_x, M_y and L per step. ncurve rows. */
+    double *curve;
+    size_t ncurve;
 } run_row;
+
+/* The abscissae of a figure (key x). */
+enum { X_NX, X_SECONDS, X_RADIUS, X_TIME };
+
+/* A figure of each series' finest run, one block of rows per series in FIGURE-SUFFIX.dat. */
+typedef struct curve_kind {
+    const char *suffix, *columns, *xlabel, *style;
+    int ncols;
+    int digits; /* a drift of L of 1e-6 relative must show in the history */
+} curve_kind;
+
+static const curve_kind curve_kinds[] = {
+    [X_RADIUS] = {"profile", "r u_phi u_phi_exact", "r", "points pt 7 ps 0.4", 3, 8},
+    [X_TIME] = {"history", "t momentum_x momentum_y angular_momentum", "t", "lines lw 1.5", 4, 12},
+};
+
+/* x = time: the quantities of `y`, one panel each, and their columns in the history. */
+static const char *const y_names[] = {"momentum_x", "momentum_y", "angular_momentum", NULL};
+static const char *const y_labels[] = {"M_x = Σ m u_x", "M_y = Σ m u_y", "L = Σ m (x u_y - y u_x)"};
+#define MAX_PANELS 3
 
 /* Whether `name` is one of the comma-separated `names`. */
 static int name_in(const char *name, const char *names)
@@ -134,12 +156,40 @@ static int tr_reference(const consph_study *s, const study_figure *f, int *ref)
     return study_key_error(s, f, NULL, "tr_ref", "no series '%s' in this figure", v);
 }
 
-/* The abscissa of the figure: 0 nx, 1 the wall time (001 Fig. 20), 2 the radius (u_φ(r) of a
- * centred vortex at the end of the finest run, 001 Figs. 15-16). */
+/* The abscissa of the figure: nx, the wall time (001 Fig. 20), the radius (u_φ(r) of a
+ * centred vortex at the end of the finest run, 001 Figs. 15-16) or the time (the momentum
+ * histories of the finest run, 001 Figs. 15-17). */
 static int x_axis(const consph_study *s, const study_figure *f, int *x)
 {
-    static const char *const xs[] = {"nx", "seconds", "radius", NULL};
-    return study_get_choice(s, f, NULL, "x", xs, 0, x);
+    static const char *const xs[] = {"nx", "seconds", "radius", "time", NULL};
+    return study_get_choice(s, f, NULL, "x", xs, X_NX, x);
+}
+
+/* The panels of an x = time figure: `y`, one or more of y_names separated by commas (default
+ * momentum_x), each once; *ys gets their indices. `y` with another x is an error. */
+static int y_panels(const consph_study *s, const study_figure *f, int x, int *ys, int *ny)
+{
+    const char *v = study_get(s, f, NULL, "y");
+    *ny = 0;
+    if (v && x != X_TIME) return study_key_error(s, f, NULL, "y", "only with x = time");
+    if (!v) v = y_names[0];
+    for (const char *c = v; *c;) {
+        while (*c == ' ' || *c == '\t') ++c;
+        size_t len = strcspn(c, ",");
+        while (len && (c[len - 1] == ' ' || c[len - 1] == '\t')) --len;
+        int k = 0;
+        while (y_names[k] && !(strlen(y_names[k]) == len && strncmp(c, y_names[k], len) == 0)) ++k;
+        if (!y_names[k])
+            return study_key_error(s, f, NULL, "y",
+                                   "unknown value '%.*s'; allowed: %s, %s, %s (comma-separated)",
+                                   (int)len, c, y_names[0], y_names[1], y_names[2]);
+        for (int j = 0; j < *ny; ++j)
+            if (ys[j] == k) return study_key_error(s, f, NULL, "y", "'%s' named twice", y_names[k]);
+        ys[(*ny)++] = k;
+        c += strcspn(c, ",");
+        if (*c) ++c;
+    }
+    return CONSPH_OK;
 }
 
 int study_run_validate(const consph_study *s, const study_figure *f, int quick)
@@ -149,8 +199,10 @@ int study_run_validate(const consph_study *s, const study_figure *f, int quick)
         run_plan pl;
         if ((rc = plan_build(s, f, &f->series[k], quick, &pl))) return rc;
     }
+    int x, ys[MAX_PANELS];
     if ((rc = tr_reference(s, f, &dummy))) return rc;
-    return x_axis(s, f, &dummy);
+    if ((rc = x_axis(s, f, &x))) return rc;
+    return y_panels(s, f, x, ys, &dummy);
 }
 
 /* Steps of a run at resolution nx (an estimate: h = hdx/nx on taylor-green's unit box). */
@@ -206,22 +258,43 @@ static int keep_profile(consph_solver *sv, run_row *row)
     const consph_field *fe = consph_particles_find(p, "u_exact");
     if (!fu || !fe || p->dim != 2)
         return consph_fail(CONSPH_EINVAL, "x = radius needs a 2D run with u and u_exact");
-    row->prof = malloc(3 * p->n * sizeof *row->prof);
-    if (!row->prof) return consph_fail(CONSPH_ENOMEM, "out of memory");
-    row->nprof = p->n;
+    row->curve = malloc(3 * p->n * sizeof *row->curve);
+    if (!row->curve) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    row->ncurve = p->n;
     const size_t cap = p->cap;
     const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]), yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
     for (size_t i = 0; i < p->n; ++i) {
         const double x = p->x[0][i] - xc, y = p->x[1][i] - yc, r = hypot(x, y);
         const double *u = fu->data, *e = fe->data;
-        row->prof[3 * i] = r;
-        row->prof[3 * i + 1] = r > 0.0 ? (x * u[cap + i] - y * u[i]) / r : 0.0;
-        row->prof[3 * i + 2] = r > 0.0 ? (x * e[cap + i] - y * e[i]) / r : 0.0;
+        row->curve[3 * i] = r;
+        row->curve[3 * i + 1] = r > 0.0 ? (x * u[cap + i] - y * u[i]) / r : 0.0;
+        row->curve[3 * i + 2] = r > 0.0 ? (x * e[cap + i] - y * e[i]) / r : 0.0;
     }
     return CONSPH_OK;
 }
 
-static int run_one(const run_plan *pl, int j, double h_dt, int profile, run_row *row)
+/* t, M_x, M_y and L of every step the run took (a diverged run's up to its last finite step). */
+static int keep_history(const consph_solver *sv, run_row *row)
+{
+    const size_t n = consph_solver_history_size(sv);
+    row->curve = malloc(4 * (n ? n : 1) * sizeof *row->curve);
+    if (!row->curve) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    row->ncurve = n;
+    for (size_t k = 0; k < n; ++k) {
+        consph_step_diag d;
+        int rc = consph_solver_history_row(sv, k, &d);
+        if (rc) return rc;
+        double *c = row->curve + 4 * k;
+        c[0] = d.t;
+        c[1] = d.mom[0];
+        c[2] = d.mom[1];
+        c[3] = d.ang;
+    }
+    return CONSPH_OK;
+}
+
+/* One run; `curve` (X_RADIUS, X_TIME, else none) keeps that curve of it. */
+static int run_one(const run_plan *pl, int j, double h_dt, int curve, run_row *row)
 {
     consph_run_params p = pl->prm;
     p.nx = (int)pl->nx[j];
@@ -231,7 +304,12 @@ static int run_one(const run_plan *pl, int j, double h_dt, int profile, run_row 
     if (rc) return rc;
     int stopped = 0;
     rc = consph_run(sv, NULL, &row->sum, &stopped);
-    if (rc == CONSPH_OK && profile) rc = keep_profile(sv, row);
+    if (rc == CONSPH_OK && curve == X_RADIUS) rc = keep_profile(sv, row);
+    /* A diverged run's history is kept too: it shows how it got there. */
+    if ((rc == CONSPH_OK || rc == CONSPH_ENUMERIC) && curve == X_TIME) {
+        int hr = keep_history(sv, row);
+        if (hr) rc = hr;
+    }
     consph_solver_free(sv);
     row->status = rc;
     if (pl->l1_mean && row->sum.t > 0) {
@@ -277,11 +355,15 @@ static int order_cell(const consph_study *s, const study_figure *f, const study_
     return off;
 }
 
-/* Whether a finished run has an error to plot: a problem without an exact solution (the shear
- * layer) has none, and gnuplot refuses a plot without points. */
-static int plottable(const study_figure *f, const run_plan *plans, run_row (*rows)[MAX_SWEEP])
+/* Whether the figure has points: a history (x = time) always has its initial state; against
+ * nx, a finished run's error, which a problem without an exact solution (the shear layer) has
+ * not, and gnuplot refuses a plot without points. */
+static int plottable(const study_figure *f, const run_plan *plans, run_row (*rows)[MAX_SWEEP],
+                     int x)
 {
-    for (int k = 0; k < f->nseries; ++k)
+    for (int k = 0; x == X_TIME && k < f->nseries; ++k)
+        if (rows[k][plans[k].nnx - 1].ncurve) return 1;
+    for (int k = 0; x != X_TIME && k < f->nseries; ++k)
         for (int j = 0; j < plans[k].nnx; ++j)
             if (rows[k][j].status == CONSPH_OK && isfinite(rows[k][j].sum.l1_u)) return 1;
     return 0;
@@ -315,8 +397,33 @@ static void outcome_table(FILE *o, const consph_study *s, const study_figure *f,
     fprintf(o, "\n");
 }
 
+/* x = time: per series the largest drift of M_x and of L from their initial values over the
+ * finest run's steps (001 Figs. 15-17 plot both against time), beside paper.outcome. */
+static void momentum_table(FILE *o, const consph_study *s, const study_figure *f,
+                           const run_plan *plans, run_row (*rows)[MAX_SWEEP])
+{
+    fprintf(o, "Momentum drift over the steps of the finest run (to the last finite step of a "
+               "diverged run); L about the box centre.\n\n| series | steps | t reached | max "
+               "\\|M_x(t) − M_x(0)\\| | L(0) | max \\|L(t) − L(0)\\| | relative to \\|L(0)\\| | "
+               "paper |\n|---|---|---|---|---|---|---|---|\n");
+    for (int k = 0; k < f->nseries; ++k) {
+        const run_row *w = &rows[k][plans[k].nnx - 1];
+        if (w->ncurve == 0) continue;
+        const double *c = w->curve, *end = c + 4 * (w->ncurve - 1);
+        double dm = 0.0, dl = 0.0;
+        for (const double *r = c; r <= end; r += 4) {
+            dm = fmax(dm, fabs(r[1] - c[1]));
+            dl = fmax(dl, fabs(r[3] - c[3]));
+        }
+        fprintf(o, "| %s | %zu | %.4g%s | %.3e | %.6g | %.3e | %.3e | %s |\n", f->series[k].label,
+                w->ncurve - 1, end[0], w->status ? " (diverged)" : "", dm, c[3], dl,
+                dl / fabs(c[3]), study_get_or(s, f, &f->series[k], "paper.outcome", "—"));
+    }
+    fprintf(o, "\n");
+}
+
 static int write_report(const consph_study *s, const study_figure *f, int quick, const char *dir,
-                        const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref)
+                        const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref, int x)
 {
     char label[128];
     consph_outfile of;
@@ -405,6 +512,7 @@ static int write_report(const consph_study *s, const study_figure *f, int quick,
                 fprintf(o, "- %s, nx %g diverged, left out of the fit: %s\n", f->series[k].label,
                         plans[k].nx[j], rows[k][j].why);
     outcome_table(o, s, f, plans, rows);
+    if (x == X_TIME) momentum_table(o, s, f, plans, rows);
     fprintf(o, "<details><summary>every run</summary>\n\n| series | nx | N | steps | Δt | h | "
                "L1(u) | L1(p) | L∞(u) | L∞(p) | F_T/F_max | seconds | regularisations "
                "|\n|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
@@ -419,7 +527,7 @@ static int write_report(const consph_study *s, const study_figure *f, int quick,
         }
     fprintf(o, "\n</details>\n\n");
     study_published_values(s, f, o);
-    if (!plottable(f, plans, rows))
+    if (!plottable(f, plans, rows, x))
         fprintf(o, "No figure: the problem has no exact solution, so no errors to plot.\n\n");
     else if (study_have_gnuplot())
         fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
@@ -469,24 +577,49 @@ static int gp_panel(FILE *o, const consph_study *s, const study_figure *f, const
     return rc;
 }
 
-/* x = radius: FIGURE-profile.dat (per series a block of r, u_φ, exact u_φ per particle of the
- * finest run) and u_φ against r, the exact profile in black. */
-static int write_profile_plot(const consph_study *s, const study_figure *f, const char *dir,
-                              const run_plan *plans, run_row (*rows)[MAX_SWEEP])
+/* x = time: the y range of the series that completed, so that the last steps of a diverging
+ * one, orders of magnitude off, do not flatten the others (its line leaves the frame). */
+static void y_range(FILE *o, const study_figure *f, const run_plan *plans,
+                    run_row (*rows)[MAX_SWEEP], int col)
 {
-    char name[160];
-    snprintf(name, sizeof name, "%s-profile", f->id);
-    consph_outfile of;
-    int rc = study_open_output(&of, dir, name, ".dat");
-    if (rc) return rc;
-    /* Only series with a profile get a block: gnuplot does not count a block without data. */
+    double lo = INFINITY, hi = -INFINITY;
     for (int k = 0; k < f->nseries; ++k) {
         const run_row *w = &rows[k][plans[k].nnx - 1];
-        if (w->nprof == 0) continue;
-        fprintf(of.fp, "# %s: r u_phi u_phi_exact\n", f->series[k].label);
-        for (size_t i = 0; i < w->nprof; ++i)
-            fprintf(of.fp, "%.8g %.8g %.8g\n", w->prof[3 * i], w->prof[3 * i + 1],
-                    w->prof[3 * i + 2]);
+        for (size_t i = 0; w->status == CONSPH_OK && i < w->ncurve; ++i) {
+            lo = fmin(lo, w->curve[4 * i + (size_t)col - 1]);
+            hi = fmax(hi, w->curve[4 * i + (size_t)col - 1]);
+        }
+    }
+    if (!(lo <= hi)) {
+        fprintf(o, "set autoscale y\n");
+        return;
+    }
+    const double pad = hi > lo ? 0.05 * (hi - lo) : fmax(1e-12, 1e-6 * fabs(hi));
+    fprintf(o, "set yrange [%.12g:%.12g]\n", lo - pad, hi + pad);
+}
+
+/* x = radius or time: FIGURE-SUFFIX.dat, per series with a curve a block of its rows, and
+ * one panel per quantity: u_φ against r with the exact profile in black (x = radius), or each
+ * quantity of `y` against t (x = time). */
+static int write_curve_plot(const consph_study *s, const study_figure *f, const char *dir,
+                            const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x)
+{
+    const curve_kind *ck = &curve_kinds[x];
+    int ys[MAX_PANELS], ny, rc = y_panels(s, f, x, ys, &ny);
+    if (rc) return rc;
+    char name[160];
+    snprintf(name, sizeof name, "%s-%s", f->id, ck->suffix);
+    consph_outfile of;
+    if ((rc = study_open_output(&of, dir, name, ".dat"))) return rc;
+    /* Only series with a curve get a block: gnuplot does not count a block without data. */
+    for (int k = 0; k < f->nseries; ++k) {
+        const run_row *w = &rows[k][plans[k].nnx - 1];
+        if (w->ncurve == 0) continue;
+        fprintf(of.fp, "# %s: %s\n", f->series[k].label, ck->columns);
+        for (size_t i = 0; i < w->ncurve; ++i)
+            for (int c = 0; c < ck->ncols; ++c)
+                fprintf(of.fp, "%.*g%s", ck->digits, w->curve[(size_t)ck->ncols * i + (size_t)c],
+                        c + 1 < ck->ncols ? " " : "\n");
         fprintf(of.fp, "\n\n");
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
@@ -494,21 +627,43 @@ static int write_profile_plot(const consph_study *s, const study_figure *f, cons
     FILE *o = of.fp;
     const char *title = study_get_or(s, f, NULL, "title", f->id);
     rc = study_gp_head(o, f->id, title);
-    fprintf(o, "set xlabel 'r'\nset ylabel 'u_φ'\nset key outside right noenhanced\nplot");
-    int n = 0;
-    for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
-        if (rows[k][plans[k].nnx - 1].nprof == 0) continue; /* diverged: no profile */
-        fprintf(o, "%s '%s.dat' index %d using 1:2 with points pt 7 ps 0.4 lc %d title ",
-                n ? ", \\\n    " : " ", name, n, k + 1);
-        ++n;
-        rc = study_gp_put(o, f->series[k].label);
+    fprintf(o, "set xlabel '%s'\n%s", ck->xlabel,
+            x == X_TIME ? "set autoscale xfix\nset format y '%.6g'\n" : "");
+    if (ny > 1) {
+        fprintf(o, "set multiplot layout %d,1 title ", ny);
+        if (rc == CONSPH_OK) rc = study_gp_put(o, title);
+        /* Panels of one width whether or not they carry the key. */
+        fprintf(
+            o, " noenhanced\nunset title\nset lmargin at screen 0.14\nset rmargin at screen 0.8\n");
     }
-    if (n)
-        fprintf(o,
-                ", \\\n    '%s.dat' index 0 using 1:3 smooth unique with lines lw 2 lc rgb 'black' "
-                "title 'exact'",
-                name);
-    fprintf(o, "\n");
+    int n = 0;
+    for (int panel = 0; rc == CONSPH_OK && panel < ny; ++panel) {
+        /* x = radius draws u_φ (column 2); x = time the panel's quantity (y_names order). */
+        const int col = x == X_TIME ? 2 + ys[panel] : 2;
+        fprintf(o, "set ylabel '%s'\n%s", x == X_TIME ? y_labels[ys[panel]] : "u_φ",
+                panel ? "unset key\n" : "");
+        if (x == X_TIME) y_range(o, f, plans, rows, col);
+        fprintf(o, "plot");
+        n = 0;
+        for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
+            if (rows[k][plans[k].nnx - 1].ncurve == 0)
+                continue; /* x = radius: a diverged run has none */
+            fprintf(o, "%s '%s.dat' index %d using 1:%d with %s lc %d ", n ? ", \\\n    " : " ",
+                    name, n, col, ck->style, k + 1);
+            /* gnuplot's colours repeat after 8: lines past them are dashed */
+            if (x == X_TIME) fprintf(o, "dt %d ", 1 + k / 8);
+            fprintf(o, "title ");
+            ++n;
+            rc = study_gp_put(o, f->series[k].label);
+        }
+        if (n && x == X_RADIUS)
+            fprintf(o,
+                    ", \\\n    '%s.dat' index 0 using 1:3 smooth unique with lines lw 2 lc rgb "
+                    "'black' title 'exact'",
+                    name);
+        fprintf(o, "\n");
+    }
+    if (ny > 1) fprintf(o, "unset multiplot\n");
     if (rc || n == 0) {
         consph_outfile_abort(&of);
         return rc;
@@ -532,13 +687,13 @@ static int write_plot(const consph_study *s, const study_figure *f, const char *
         fprintf(of.fp, "\n\n");
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
-    if (x == 2) return write_profile_plot(s, f, dir, plans, rows);
+    if (x >= X_RADIUS) return write_curve_plot(s, f, dir, plans, rows, x);
     if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
     FILE *o = of.fp;
     const char *title = study_get_or(s, f, NULL, "title", f->id);
     rc = study_gp_head(o, f->id, title);
     fprintf(o, "set logscale xy\nset format y '%%g'\n");
-    if (x == 1) {
+    if (x == X_SECONDS) {
         fprintf(o, "set xlabel 'wall time of the time steps (s)'\n");
         if (rc == CONSPH_OK)
             rc = gp_panel(o, s, f, plans, rows, 4, 2, "paper.l1_u", "L1(u), 001 eq. 26");
@@ -587,7 +742,7 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
         double h_dt = 0.0;
         for (int j = pl->nnx - 1; rc == CONSPH_OK && j >= 0; --j) {
             run_row *w = &rows[k][j];
-            rc = run_one(pl, j, h_dt, x == 2 && j == pl->nnx - 1, w);
+            rc = run_one(pl, j, h_dt, j == pl->nnx - 1 ? x : X_NX, w);
             if (rc) {
                 consph_fail(rc, "figure '%s', series '%s', nx %g: %s", f->id, f->series[k].label,
                             pl->nx[j], consph_last_error());
@@ -601,10 +756,10 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
                         w->sum.l1_p, w->sum.seconds, w->status ? " diverged" : "");
         }
     }
-    if (rc == CONSPH_OK) rc = write_report(s, f, quick, dir, plans, rows, ref);
-    if (rc == CONSPH_OK && plottable(f, plans, rows)) rc = write_plot(s, f, dir, plans, rows, x);
+    if (rc == CONSPH_OK) rc = write_report(s, f, quick, dir, plans, rows, ref, x);
+    if (rc == CONSPH_OK && plottable(f, plans, rows, x)) rc = write_plot(s, f, dir, plans, rows, x);
     for (int k = 0; rows && k < f->nseries; ++k)
-        for (int j = 0; j < MAX_SWEEP; ++j) free(rows[k][j].prof);
+        for (int j = 0; j < MAX_SWEEP; ++j) free(rows[k][j].curve);
     free(plans);
     free(rows);
     return rc;

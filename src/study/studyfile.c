@@ -112,7 +112,7 @@ static const char *const known_keys[] = {"study",      "title",    "paper",     
                                          "tf",         "quick.tf", "steps",      "quick.steps",
                                          "dt_rule",    "tr_ref",   "laplacian",  "walls",
                                          "report",     "paper.",   "series.",    "dt",
-                                         "l1",         "rho_init", NULL};
+                                         "l1",         "rho_init", "y",          NULL};
 
 static int key_known(const char *key)
 {
