@@ -8,6 +8,8 @@
  *    together, and passes see the new neighbourhoods;
  *  - a tensor-product kernel (M4) sums W over its whole square support, and a pass asking for its
  *    derivatives is refused with a message;
+ *  - consph_sys_scratch hands out a buffer of the size asked for, grown on demand, with its
+ *    contents kept while no larger one is asked for, and freed with the system;
  *  - bad arguments are refused. */
 #include "check.h"
 #include "consph/layout.h"
@@ -499,6 +501,30 @@ static void test_bad_arguments(void)
     consph_particles_free(&src);
 }
 
+static void test_scratch(void)
+{
+    consph_particles src;
+    consph_sys s;
+    const int ok = make_sys(&s, &src, 2, 8, 1, 3, CONSPH_KERNEL_QUINTIC, 1.2);
+    CHECK(ok, "system for the scratch");
+    if (!ok) return;
+    double *a = consph_sys_scratch(&s, 10);
+    CHECK(a != NULL, "scratch of 10 values");
+    if (!a) return;
+    for (int k = 0; k < 10; ++k) a[k] = k + 0.5;
+    CHECK(consph_sys_scratch(&s, 4) == a, "a smaller request reuses the buffer");
+    double *b = consph_sys_scratch(&s, 100000);
+    CHECK(b != NULL, "scratch grown to 100000 values");
+    if (!b) return;
+    int kept = 1;
+    for (int k = 0; k < 10; ++k) kept &= b[k] == k + 0.5;
+    CHECK(kept, "growing keeps the values written");
+    b[99999] = 1.0; /* the whole size is writable (the sanitizer build checks) */
+    consph_sys_free(&s);
+    CHECK(s.scratch == NULL && s.scratch_cap == 0, "consph_sys_free releases the scratch");
+    consph_particles_free(&src);
+}
+
 int main(void)
 {
     test_brute();
@@ -506,6 +532,7 @@ int main(void)
     test_threads();
     test_update();
     test_tensor();
+    test_scratch();
     test_bad_arguments();
     return check_summary("test_pass");
 }

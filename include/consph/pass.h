@@ -76,6 +76,8 @@ typedef struct consph_sys {
     size_t parallel_min; /* passes over fewer particles run on one thread (default 2048): a
                             parallel region costs more than it saves on tiny sets */
     int owned;           /* 1 when p, nnps, origin and dest belong to the system */
+    double *scratch;     /* consph_sys_scratch's buffer, always the system's own */
+    size_t scratch_cap;
 } consph_sys;
 
 /* The distance within which the kernel can be non-zero: the radius a system's search needs
@@ -99,6 +101,12 @@ int consph_sys_update(consph_sys *s, int resort);
  * with NULL. */
 int consph_sys_set_dest(consph_sys *s, const unsigned char *dest);
 void consph_sys_free(consph_sys *s);
+/* A buffer of at least `count` doubles that the system owns, for per-particle values that a job
+ * derives from the state before a pass (a value per particle computed once instead of once per
+ * pair) without adding a particle field, which would appear in every snapshot. The contents
+ * are undefined on return, kept until the next call, and do not follow a re-sort. NULL (with an
+ * error) when out of memory. */
+double *consph_sys_scratch(consph_sys *s, size_t count);
 
 /* Runs the pass over every destination particle. */
 int consph_pass_run(const consph_sys *s, const consph_pass *pass, void *job);

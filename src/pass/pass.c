@@ -317,9 +317,23 @@ int consph_sys_set_dest(consph_sys *s, const unsigned char *dest)
     return CONSPH_OK;
 }
 
+double *consph_sys_scratch(consph_sys *s, size_t count)
+{
+    if (count <= s->scratch_cap) return s->scratch;
+    double *q = realloc(s->scratch, count * sizeof(double));
+    if (!q) {
+        consph_fail(CONSPH_ENOMEM, "out of memory for %zu values of system scratch", count);
+        return NULL;
+    }
+    s->scratch = q;
+    s->scratch_cap = count;
+    return q;
+}
+
 void consph_sys_free(consph_sys *s)
 {
     if (!s) return;
+    free(s->scratch);
     if (s->owned) {
         consph_nnps_free(s->nnps);
         if (s->p) consph_particles_free(s->p);

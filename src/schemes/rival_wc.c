@@ -34,6 +34,7 @@ typedef struct rival_job {
     size_t cap;
     double m, h, h2, rho0, c0, cexp, nu, alpha, pb, p0, nu_edac;
     const double *u, *rho, *p, *tvdu;
+    const double *cs; /* wcsph with α > 0: Tait's sound speed of each particle */
     double *numd, *pavg, *rhos, *pw, *au, *aq, *ax, *auhat;
     double *gradp, *divu, *gradu; /* for the diagnostics and the vorticity output */
 } rival_job;
@@ -48,12 +49,6 @@ static void put_diag(const rival_job *job, size_t i, const double fp[3], double 
     for (int a = 0; a < d; ++a) job->gradp[a * cap + i] = -job->rho[i] * fp[a];
     for (int e = 0; e < d * d; ++e) job->gradu[(size_t)e * cap + i] = G[e];
     job->divu[i] = div;
-}
-
-static void add_gradu(int d, double G[9], double vj, const double uij[3], const double gw[3])
-{
-    for (int a = 0; a < d; ++a)
-        for (int b = 0; b < d; ++b) G[a * d + b] -= vj * uij[a] * gw[b];
 }
 
 /* ---- summation density, EOS, neighbour-average pressure (tvf, edac) ---- */
@@ -73,15 +68,55 @@ static void visit_density(void *vjob, const consph_nbhd *nb)
     }
 }
 
-/* ---- the tvf / edac rates ---- */
-static void visit_tv(void *vjob, const consph_nbhd *nb)
+/* GCC does not if-convert a select of computed values while floating-point operations may
+ * trap (it sinks them into the selected arm), so the loops below would not vectorise. Nothing
+ * here reads the exception flags, and the option changes no value (it permits no
+ * reassociation). */
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC push_options
+#pragma GCC optimize("no-trapping-math")
+#endif
+
+/* Neighbours per block of the rate visits: the per-pair terms of a block are computed in
+ * loops over the block that vectorise (their divisions above all), then summed in neighbour
+ * order, so every sum adds the same terms in the same order as a pair-by-pair loop. */
+#define RV_BLOCK 64
+
+/* The term loops are straight vector code, divisions above all, so wider vectors pay in
+ * proportion: a generic x86-64 build also carries an AVX2 copy of the visits chosen at load time
+ * (the same operations in the same order, hence the same values; no FMA is enabled, so nothing
+ * is contracted), as consph_kernel_eval_batch does. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
+    !defined(__AVX2__)
+#define RV_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define RV_CLONES
+#endif
+
+#if defined(__GNUC__)
+#define RV_INLINE static inline __attribute__((always_inline))
+#else
+#define RV_INLINE static inline
+#endif
+
+/* The block's j-indexed values, copied contiguous so that the term loops are plain vector
+ * code. */
+RV_INLINE void rv_gather(int d, size_t cap, const double *f, const size_t *j, size_t n,
+                         double (*out)[RV_BLOCK])
 {
-    const rival_job *job = vjob;
-    const int d = job->d;
+    for (int a = 0; a < d; ++a)
+        for (size_t k = 0; k < n; ++k) out[a][k] = f[a * cap + j[k]];
+}
+
+/* ---- the tvf / edac rates ---- */
+RV_INLINE void visit_tv_d(const rival_job *job, const consph_nbhd *nb, const int d, const int edac)
+{
     const size_t i = nb->i, cap = job->cap;
     const double *u = job->u, *du = job->tvdu;
     const double rhoi = job->rho[i], pi = job->p[i], Vi = 1.0 / job->numd[i];
-    const double pav = job->kind == RV_EDAC ? job->pavg[i] : 0.0;
+    const double pav = edac ? job->pavg[i] : 0.0;
+    const double m = job->m, h2 = job->h2, nu = job->nu, pb = job->pb;
+    const double nu_edac = job->nu_edac, c0 = job->c0;
     double ui[3] = {0.0, 0.0, 0.0}, dui[3] = {0.0, 0.0, 0.0};
     for (int a = 0; a < d; ++a) {
         ui[a] = u[a * cap + i];
@@ -89,93 +124,170 @@ static void visit_tv(void *vjob, const consph_nbhd *nb)
     }
     double f[3] = {0.0, 0.0, 0.0}, fb[3] = {0.0, 0.0, 0.0}, fp[3] = {0.0, 0.0, 0.0}, ap = 0.0;
     double G[9] = {0.0}, div = 0.0;
-    for (size_t k = 0; k < nb->n; ++k) {
-        const size_t j = nb->j[k];
-        if (j == i) continue; /* ∇W_ii = 0: no force on itself */
-        const double rhoj = job->rho[j], pj = job->p[j], Vj = 1.0 / job->numd[j];
-        const double w2 = Vi * Vi + Vj * Vj, dwr = nb->dwr[k];
-        double xij[3] = {0.0, 0.0, 0.0}, uij[3] = {0.0, 0.0, 0.0}, gw[3] = {0.0, 0.0, 0.0};
-        double xdw = 0.0, udw = 0.0;
-        for (int a = 0; a < d; ++a) {
-            xij[a] = nb->dx[a][k];
-            gw[a] = dwr * xij[a];
-            uij[a] = ui[a] - u[a * cap + j];
-            xdw += xij[a] * gw[a];
-            udw += uij[a] * gw[a];
+    for (size_t k0 = 0; k0 < nb->n; k0 += RV_BLOCK) {
+        const size_t nk = nb->n - k0 < RV_BLOCK ? nb->n - k0 : RV_BLOCK;
+        const size_t *jb = nb->j + k0;
+        double rhoj[RV_BLOCK], pj[RV_BLOCK], nd[RV_BLOCK], uj[3][RV_BLOCK], duj[3][RV_BLOCK];
+        double tf[3][RV_BLOCK], tp[3][RV_BLOCK], tb[3][RV_BLOCK], tg[9][RV_BLOCK];
+        double tdiv[RV_BLOCK], ta1[RV_BLOCK], ta2[RV_BLOCK];
+        rv_gather(1, 0, job->rho, jb, nk, &rhoj);
+        rv_gather(1, 0, job->p, jb, nk, &pj);
+        rv_gather(1, 0, job->numd, jb, nk, &nd);
+        rv_gather(d, cap, u, jb, nk, uj);
+        rv_gather(d, cap, du, jb, nk, duj);
+        for (size_t k = 0; k < nk; ++k) {
+            /* the particle itself gets terms too (∇W_ii = 0); they are not summed */
+            const double Vj = 1.0 / nd[k];
+            const double w2 = Vi * Vi + Vj * Vj, dwr = nb->dwr[k0 + k];
+            double xij[3] = {0.0, 0.0, 0.0}, uij[3] = {0.0, 0.0, 0.0}, gw[3] = {0.0, 0.0, 0.0};
+            double xdw = 0.0, udw = 0.0;
+            for (int a = 0; a < d; ++a) {
+                xij[a] = nb->dx[a][k0 + k];
+                gw[a] = dwr * xij[a];
+                uij[a] = ui[a] - uj[a][k];
+                xdw += xij[a] * gw[a];
+                udw += uij[a] * gw[a];
+            }
+            const double r2 = nb->r[k0 + k] * nb->r[k0 + k];
+            /* Adami et al. eq. 7 (p̃_ij), with p - p̄_i in edac (Ramachandran & Puri eq. 25) */
+            const double pij = (rhoj[k] * (pi - pav) + rhoi * (pj[k] - pav)) / (rhoi + rhoj[k]);
+            const double eta = 2.0 * nu * rhoi * rhoj[k] / (rhoi + rhoj[k]);
+            const double visc = w2 * eta * xdw / (r2 + h2);
+            for (int a = 0; a < d; ++a) {
+                double A = 0.0; /* ½(A_i + A_j)·∇W, A = ϱ u (ũ - u) */
+                for (int b = 0; b < d; ++b)
+                    A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj[k] * uj[a][k] * duj[b][k]) * gw[b];
+                tf[a][k] = -pij * w2 * gw[a] + visc * uij[a] + w2 * A;
+                tp[a][k] = -pij * w2 * gw[a] / m;
+                tb[a][k] = -pb * w2 * gw[a];
+            }
+            const double vj = m / rhoj[k];
+            for (int a = 0; a < d; ++a)
+                for (int b = 0; b < d; ++b) tg[a * d + b][k] = vj * uij[a] * gw[b];
+            tdiv[k] = vj * udw;
+            if (edac) {
+                /* Ramachandran & Puri eq. 22: the continuity-like term and EDAC diffusion */
+                const double etae = 2.0 * nu_edac * rhoi * rhoj[k] / (rhoi + rhoj[k]);
+                ta1[k] = rhoi / rhoj[k] * c0 * c0 * m * udw;
+                ta2[k] = w2 * etae * xdw / (r2 + h2) * (pi - pj[k]) / m;
+            }
         }
-        const double r2 = nb->r[k] * nb->r[k];
-        /* Adami et al. eq. 7 (p̃_ij), with p - p̄_i in edac (Ramachandran & Puri eq. 25) */
-        const double pij = (rhoj * (pi - pav) + rhoi * (pj - pav)) / (rhoi + rhoj);
-        const double eta = 2.0 * job->nu * rhoi * rhoj / (rhoi + rhoj);
-        const double visc = w2 * eta * xdw / (r2 + job->h2);
-        for (int a = 0; a < d; ++a) {
-            double A = 0.0; /* ½(A_i + A_j)·∇W, A = ϱ u (ũ - u) */
-            for (int b = 0; b < d; ++b)
-                A +=
-                    0.5 * (rhoi * ui[a] * dui[b] + rhoj * u[a * cap + j] * du[b * cap + j]) * gw[b];
-            f[a] += -pij * w2 * gw[a] + visc * uij[a] + w2 * A;
-            fp[a] += -pij * w2 * gw[a] / job->m;
-            fb[a] += -job->pb * w2 * gw[a];
-        }
-        add_gradu(d, G, job->m / rhoj, uij, gw);
-        div -= job->m / rhoj * udw;
-        if (job->kind == RV_EDAC) {
-            /* Ramachandran & Puri eq. 22: the continuity-like term and EDAC diffusion */
-            const double etae = 2.0 * job->nu_edac * rhoi * rhoj / (rhoi + rhoj);
-            ap += rhoi / rhoj * job->c0 * job->c0 * job->m * udw;
-            ap += w2 * etae * xdw / (r2 + job->h2) * (pi - pj) / job->m;
+        for (size_t k = 0; k < nk; ++k) {
+            if (jb[k] == i) continue; /* ∇W_ii = 0: no force on itself */
+            for (int a = 0; a < d; ++a) {
+                f[a] += tf[a][k];
+                fp[a] += tp[a][k];
+                fb[a] += tb[a][k];
+            }
+            for (int e = 0; e < d * d; ++e) G[e] -= tg[e][k];
+            div -= tdiv[k];
+            if (edac) {
+                ap += ta1[k];
+                ap += ta2[k];
+            }
         }
     }
     for (int a = 0; a < d; ++a) {
-        job->au[a * cap + i] = f[a] / job->m;
-        job->auhat[a * cap + i] = fb[a] / job->m;
+        job->au[a * cap + i] = f[a] / m;
+        job->auhat[a * cap + i] = fb[a] / m;
     }
     job->aq[i] = ap;
     put_diag(job, i, fp, div, G);
 }
 
-/* ---- wcsph ---- */
-static void visit_wcsph(void *vjob, const consph_nbhd *nb)
+RV_CLONES static void visit_tv(void *vjob, const consph_nbhd *nb)
 {
     const rival_job *job = vjob;
-    const int d = job->d;
+    const int edac = job->kind == RV_EDAC;
+    if (job->d == 2 && edac)
+        visit_tv_d(job, nb, 2, 1);
+    else if (job->d == 2)
+        visit_tv_d(job, nb, 2, 0);
+    else
+        visit_tv_d(job, nb, job->d, edac);
+}
+
+/* ---- wcsph ---- */
+RV_INLINE void visit_wcsph_d(const rival_job *job, const consph_nbhd *nb, const int d)
+{
     const size_t i = nb->i, cap = job->cap;
-    const double *u = job->u, m = job->m;
+    const double *u = job->u, m = job->m, h = job->h, h2 = job->h2, nu = job->nu;
     const double rhoi = job->rho[i], pi = job->p[i], ti = pi / (rhoi * rhoi);
+    const double alpha = job->alpha;
+    const int av = alpha > 0.0;
+    const double ci = av ? job->cs[i] : 0.0;
     double ui[3] = {0.0, 0.0, 0.0};
     for (int a = 0; a < d; ++a) ui[a] = u[a * cap + i];
     double f[3] = {0.0, 0.0, 0.0}, xs[3] = {0.0, 0.0, 0.0}, fp[3] = {0.0, 0.0, 0.0}, drho = 0.0;
     double G[9] = {0.0};
-    for (size_t k = 0; k < nb->n; ++k) {
-        const size_t j = nb->j[k];
-        if (j == i) continue;
-        const double rhoj = job->rho[j], tj = job->p[j] / (rhoj * rhoj), dwr = nb->dwr[k];
-        const double r2 = nb->r[k] * nb->r[k], rhob = 0.5 * (rhoi + rhoj);
-        double uij[3] = {0.0, 0.0, 0.0}, gw[3] = {0.0, 0.0, 0.0}, ux = 0.0, udw = 0.0, xdw = 0.0;
-        for (int a = 0; a < d; ++a) {
-            const double xa = nb->dx[a][k];
-            uij[a] = ui[a] - u[a * cap + j];
-            gw[a] = dwr * xa;
-            ux += uij[a] * xa;
-            udw += uij[a] * gw[a];
-            xdw += xa * gw[a];
+    for (size_t k0 = 0; k0 < nb->n; k0 += RV_BLOCK) {
+        const size_t nk = nb->n - k0 < RV_BLOCK ? nb->n - k0 : RV_BLOCK;
+        const size_t *jb = nb->j + k0;
+        double rhoj[RV_BLOCK], pj[RV_BLOCK], uj[3][RV_BLOCK], ux[RV_BLOCK], r2[RV_BLOCK];
+        double tij[RV_BLOCK], pij[RV_BLOCK], gw[3][RV_BLOCK], uij[3][RV_BLOCK];
+        double tf[3][RV_BLOCK], tp[3][RV_BLOCK], tx[3][RV_BLOCK], tg[9][RV_BLOCK];
+        double td[RV_BLOCK];
+        rv_gather(1, 0, job->rho, jb, nk, &rhoj);
+        rv_gather(1, 0, job->p, jb, nk, &pj);
+        rv_gather(d, cap, u, jb, nk, uj);
+        for (size_t k = 0; k < nk; ++k) {
+            /* the particle itself gets terms too (∇W_ii = 0); they are not summed */
+            const double dwr = nb->dwr[k0 + k];
+            double uxk = 0.0;
+            tij[k] = pj[k] / (rhoj[k] * rhoj[k]);
+            r2[k] = nb->r[k0 + k] * nb->r[k0 + k];
+            for (int a = 0; a < d; ++a) {
+                const double xa = nb->dx[a][k0 + k];
+                uij[a][k] = ui[a] - uj[a][k];
+                gw[a][k] = dwr * xa;
+                uxk += uij[a][k] * xa;
+            }
+            ux[k] = uxk;
+            pij[k] = 0.0;
         }
-        double pi_ij = 0.0; /* Monaghan 1992 eq. 4.2 (β = 0), on approach only */
-        if (ux < 0.0 && job->alpha > 0.0) {
-            const double ci = job->c0 * pow(rhoi / job->rho0, job->cexp);
-            const double cj = job->c0 * pow(rhoj / job->rho0, job->cexp);
-            const double mu = job->h * ux / (r2 + job->h2);
-            pi_ij = -job->alpha * 0.5 * (ci + cj) * mu / rhob;
+        if (av) {
+            double cj[RV_BLOCK];
+            rv_gather(1, 0, job->cs, jb, nk, &cj);
+            for (size_t k = 0; k < nk; ++k) {
+                /* Monaghan 1992 eq. 4.2 (β = 0), on approach only; computed for every pair
+                 * and selected, since the sign of u_ij·x_ij is a coin toss to the branch
+                 * predictor */
+                const double mu = h * ux[k] / (r2[k] + h2), rhob = 0.5 * (rhoi + rhoj[k]);
+                const double v = -alpha * 0.5 * (ci + cj[k]) * mu / rhob;
+                pij[k] = ux[k] < 0.0 ? v : 0.0;
+            }
         }
-        /* Morris et al. 1997 / Cleary's laminar viscosity */
-        const double visc = m * 4.0 * job->nu * xdw / ((rhoi + rhoj) * (r2 + job->h2));
-        for (int a = 0; a < d; ++a) {
-            f[a] += -m * (ti + tj + pi_ij) * gw[a] + visc * uij[a];
-            fp[a] += -m * (ti + tj) * gw[a];
-            xs[a] -= 0.5 * m * nb->w[k] / rhob * uij[a]; /* XSPH, ε = 0.5 */
+        for (size_t k = 0; k < nk; ++k) {
+            const double rhob = 0.5 * (rhoi + rhoj[k]);
+            double udw = 0.0, xdw = 0.0;
+            for (int a = 0; a < d; ++a) {
+                const double xa = nb->dx[a][k0 + k];
+                udw += uij[a][k] * gw[a][k];
+                xdw += xa * gw[a][k];
+            }
+            /* Morris et al. 1997 / Cleary's laminar viscosity */
+            const double visc = m * 4.0 * nu * xdw / ((rhoi + rhoj[k]) * (r2[k] + h2));
+            const double wk = nb->w[k0 + k];
+            for (int a = 0; a < d; ++a) {
+                tf[a][k] = -m * (ti + tij[k] + pij[k]) * gw[a][k] + visc * uij[a][k];
+                tp[a][k] = -m * (ti + tij[k]) * gw[a][k];
+                tx[a][k] = 0.5 * m * wk / rhob * uij[a][k]; /* XSPH, ε = 0.5 */
+            }
+            td[k] = m * udw;
+            const double vj = m / rhoj[k];
+            for (int a = 0; a < d; ++a)
+                for (int b = 0; b < d; ++b) tg[a * d + b][k] = vj * uij[a][k] * gw[b][k];
         }
-        drho += m * udw;
-        add_gradu(d, G, m / rhoj, uij, gw);
+        for (size_t k = 0; k < nk; ++k) {
+            if (jb[k] == i) continue;
+            for (int a = 0; a < d; ++a) {
+                f[a] += tf[a][k];
+                fp[a] += tp[a][k];
+                xs[a] -= tx[a][k];
+            }
+            drho += td[k];
+            for (int e = 0; e < d * d; ++e) G[e] -= tg[e][k];
+        }
     }
     for (int a = 0; a < d; ++a) {
         job->au[a * cap + i] = f[a];
@@ -184,6 +296,19 @@ static void visit_wcsph(void *vjob, const consph_nbhd *nb)
     job->aq[i] = drho;
     put_diag(job, i, fp, -drho / rhoi, G);
 }
+
+RV_CLONES static void visit_wcsph(void *vjob, const consph_nbhd *nb)
+{
+    const rival_job *job = vjob;
+    if (job->d == 2)
+        visit_wcsph_d(job, nb, 2);
+    else
+        visit_wcsph_d(job, nb, job->d);
+}
+
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC pop_options
+#endif
 
 static int job_fields(consph_solver *s, rival_job *job, int kind)
 {
@@ -216,7 +341,19 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         return CONSPH_ENOMEM;
     if (kind == RV_WCSPH) {
         job->rho = sv_field(s, SF_RHOF, 1);
-        return job->rho ? CONSPH_OK : CONSPH_ENOMEM;
+        if (!job->rho) return CONSPH_ENOMEM;
+        if (job->alpha > 0.0) {
+            /* Tait's c_o (ϱ/ϱ_o)^((γ-1)/2) once per particle for Monaghan's Π_ij: a pow() per
+             * approaching pair cost more than the rest of the pair. */
+            const size_t n = s->sys.p->n;
+            double *cs = consph_sys_scratch(&s->sys, n ? n : 1);
+            if (!cs) return CONSPH_ENOMEM;
+            const double *rho = job->rho, c0 = job->c0, rho0 = job->rho0, cexp = job->cexp;
+#pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
+            for (size_t i = 0; i < n; ++i) cs[i] = c0 * pow(rho[i] / rho0, cexp);
+            job->cs = cs;
+        }
+        return CONSPH_OK;
     }
     job->rhos = sv_field(s, SF_RHOS, 1);
     job->rho = job->rhos;

@@ -1,0 +1,50 @@
+#!/usr/bin/env bash
+# Checks that a speed-up changed no result: runs every scheme with two consph binaries (say one
+# built from main and one from the branch) and compares summary.json (all but "seconds"),
+# log.csv and every snapshot byte for byte.
+#   bench/bitcheck.sh REF_CONSPH NEW_CONSPH [WORKDIR]
+# Cases, each at 1 and 2 threads (nx 48: 2304 particles, above the 2048 at which passes go
+# parallel): Taylor-Green 20 steps (the Lagrangian schemes from their packed start, IPST every
+# 10 steps), Gresho-Chan and the shear layer 10 steps on the lattice; and for wcsph, tvf and edac
+# h/Δs 2 (more than 64 neighbours: several blocks per visit), α = 0, and the cubic spline with
+# α = 0.5. Takes a few minutes on 2 cores. Exit status 1 when anything differs.
+set -uo pipefail
+ref=${1:?usage: bitcheck.sh REF_CONSPH NEW_CONSPH [WORKDIR]}
+new=${2:?usage: bitcheck.sh REF_CONSPH NEW_CONSPH [WORKDIR]}
+work=${3:-$(mktemp -d)}
+schemes="l-ipst-c l-ipst-f l-ipst-k l-pst-c pe-ipst-c l-rr-c tv-c e-c ewcsph wcsph tvf edac delta-sph delta-plus-sph delta-plus-sph-d"
+
+run_all() { # BIN DIR
+  local bin=$1 dir=$2 s th
+  for s in $schemes; do
+    for th in 1 2; do
+      "$bin" run taylor-green --scheme "$s" --nx 48 --steps 20 --threads $th --out "$dir/tg-$s-$th" >/dev/null 2>&1 || echo "run failed: tg $s $th"
+      "$bin" run gresho-chan --scheme "$s" --nx 48 --steps 10 --threads $th --layout lattice --out "$dir/gc-$s-$th" >/dev/null 2>&1 || echo "run failed: gc $s $th"
+      "$bin" run shear-layer --scheme "$s" --nx 48 --steps 10 --threads $th --out "$dir/sl-$s-$th" >/dev/null 2>&1 || echo "run failed: sl $s $th"
+    done
+  done
+  for s in wcsph tvf edac; do
+    for th in 1 2; do
+      "$bin" run taylor-green --scheme $s --nx 48 --hdx 2 --steps 10 --threads $th --out "$dir/h2-$s-$th" >/dev/null 2>&1 || echo "run failed: h2 $s $th"
+      "$bin" run taylor-green --scheme $s --nx 48 --alpha 0 --steps 10 --threads $th --out "$dir/a0-$s-$th" >/dev/null 2>&1 || echo "run failed: a0 $s $th"
+      "$bin" run taylor-green --scheme $s --nx 48 --kernel cubic --alpha 0.5 --steps 10 --threads $th --out "$dir/cu-$s-$th" >/dev/null 2>&1 || echo "run failed: cu $s $th"
+    done
+  done
+}
+
+run_all "$ref" "$work/ref"
+run_all "$new" "$work/new"
+bad=0 cases=0
+for d in "$work"/ref/*/; do
+  n=$(basename "$d")
+  cases=$((cases + 1))
+  if ! diff <(grep -v '"seconds"' "$d/summary.json") <(grep -v '"seconds"' "$work/new/$n/summary.json" 2>/dev/null) >/dev/null; then
+    echo "differs: $n summary.json"
+    bad=1
+  fi
+  for f in "$d"/*.vtu "$d"/*.csv; do
+    cmp -s "$f" "$work/new/$n/$(basename "$f")" || { echo "differs: $n $(basename "$f")"; bad=1; }
+  done
+done
+echo "bitcheck: $cases cases in $work, $([ $bad = 0 ] && echo identical || echo DIFFERENT)"
+exit $bad
