@@ -12,6 +12,7 @@ set -uo pipefail
 ref=${1:?usage: bitcheck.sh REF_CONSPH NEW_CONSPH [WORKDIR]}
 new=${2:?usage: bitcheck.sh REF_CONSPH NEW_CONSPH [WORKDIR]}
 work=${3:-$(mktemp -d)}
+mkdir -p "$work/ref" "$work/new" || exit 2
 schemes="l-ipst-c l-ipst-f l-ipst-k l-pst-c pe-ipst-c l-rr-c tv-c e-c ewcsph wcsph tvf edac delta-sph delta-plus-sph delta-plus-sph-d"
 
 run_all() { # BIN DIR

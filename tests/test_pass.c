@@ -525,6 +525,41 @@ static void test_scratch(void)
     consph_particles_free(&src);
 }
 
+/* Re-sorting moves every array of the particles through one permutation; above a few thousand
+ * particles the arrays are shared out among the threads. Each must come out as a[perm[i]] for
+ * 1 and 2 threads alike. */
+static void test_permute_threads(void)
+{
+    const size_t n = 6000;
+    const consph_box box = consph_box_unit(2, 1);
+    size_t *perm = malloc(n * sizeof *perm);
+    for (size_t i = 0; i < n; ++i)
+        perm[i] = (i * 2654435761u + 17) % n; /* a bijection: 2654435761 is prime to n */
+    int ok = 1;
+    for (int t = 1; t <= 2; ++t) {
+        consph_particles p = {0};
+        CHECK(consph_particles_init(&p, 2, n, &box) == CONSPH_OK, "init");
+        double *f1 = consph_particles_field(&p, "a", 1), *f3 = consph_particles_field(&p, "b", 3);
+        for (size_t i = 0; i < n; ++i) {
+            p.x[0][i] = (double)i;
+            p.x[1][i] = -(double)i;
+            f1[i] = 0.5 * (double)i;
+            for (int c = 0; c < 3; ++c) f3[(size_t)c * p.cap + i] = (double)(c * n + i);
+        }
+        consph_set_num_threads(t);
+        CHECK(consph_particles_permute(&p, perm) == CONSPH_OK, "permute");
+        consph_set_num_threads(1);
+        for (size_t i = 0; i < n; ++i) {
+            const double j = (double)perm[i];
+            ok &= p.x[0][i] == j && p.x[1][i] == -j && f1[i] == 0.5 * j;
+            for (int c = 0; c < 3; ++c) ok &= f3[(size_t)c * p.cap + i] == (double)(c * n) + j;
+        }
+        CHECK(ok, "%d thread(s): an array was not permuted as a[perm[i]]", t);
+        consph_particles_free(&p);
+    }
+    free(perm);
+}
+
 int main(void)
 {
     test_brute();
@@ -533,6 +568,7 @@ int main(void)
     test_update();
     test_tensor();
     test_scratch();
+    test_permute_threads();
     test_bad_arguments();
     return check_summary("test_pass");
 }

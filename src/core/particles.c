@@ -114,16 +114,36 @@ static int permute_array(double *a, size_t n, const size_t *perm, double *tmp)
     return CONSPH_OK;
 }
 
+/* The arrays are independent copies, shared out among the threads from this many particles on
+ * (a solver re-sorts its whole state, tens of arrays, every step). */
+#define PERMUTE_PARALLEL_MIN 4096
+
 int consph_particles_permute(consph_particles *p, const size_t *perm)
 {
-    double *tmp = consph_calloc(p->n, sizeof(double));
-    if (!tmp) return CONSPH_ENOMEM;
-    for (int a = 0; a < p->dim; ++a) permute_array(p->x[a], p->n, perm, tmp);
+    int narr = p->dim;
+    for (int f = 0; f < p->nfields; ++f) narr += p->fields[f].ncomp;
+    double **arr = consph_calloc((size_t)narr, sizeof(double *));
+    if (!arr) return CONSPH_ENOMEM;
+    int k = 0;
+    for (int a = 0; a < p->dim; ++a) arr[k++] = p->x[a];
     for (int f = 0; f < p->nfields; ++f)
         for (int c = 0; c < p->fields[f].ncomp; ++c)
-            permute_array(p->fields[f].data + (size_t)c * p->cap, p->n, perm, tmp);
-    free(tmp);
-    return CONSPH_OK;
+            arr[k++] = p->fields[f].data + (size_t)c * p->cap;
+    int st = CONSPH_OK;
+#pragma omp parallel if (p->n >= PERMUTE_PARALLEL_MIN)
+    {
+        double *tmp = consph_calloc(p->n ? p->n : 1, sizeof(double));
+        if (!tmp) {
+#pragma omp atomic write
+            st = CONSPH_ENOMEM;
+        }
+#pragma omp for schedule(dynamic, 1)
+        for (int a = 0; a < narr; ++a)
+            if (tmp) permute_array(arr[a], p->n, perm, tmp);
+        free(tmp);
+    }
+    free(arr);
+    return st;
 }
 
 int consph_particles_copy(consph_particles *dst, const consph_particles *src)

@@ -141,10 +141,13 @@ void solver_eos(consph_solver *s)
     const double c2 = s->c0 * s->c0, r0 = s->prm.rho0, g = s->prm.gamma;
     const size_t n = p->n;
     if (s->scheme->evolve_p) {
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
         for (size_t i = 0; i < n; ++i) rhof[i] = pr[i] / c2 + r0; /* eq. 31 */
     } else if (s->eos == CONSPH_EOS_LINEAR) {
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
         for (size_t i = 0; i < n; ++i) pr[i] = c2 * (rhof[i] - r0);
     } else {
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
         for (size_t i = 0; i < n; ++i) pr[i] = r0 * c2 / g * (pow(rhof[i] / r0, g) - 1.0);
     }
 }
@@ -342,6 +345,7 @@ static int advance(consph_solver *s, double c)
     double *u = sv_field(s, SF_U, d), *q = sv_field(s, qn, 1);
     const double *u0 = sv_field(s, SF_U0, d), *q0 = sv_field(s, SF_Q0, 1);
     const double *au = sv_field(s, SF_AU, d), *aq = sv_field(s, SF_AQ, 1);
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
         q[i] = q0[i] + c * aq[i];
         for (int a = 0; a < d; ++a) u[a * cap + i] = u0[a * cap + i] + c * au[a * cap + i];
@@ -549,6 +553,7 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
     double *eu = w, *ep = w + n, *ke = w + 2 * n, *mx = w + 3 * n, *my = w + 4 * n, *an = w + 5 * n,
            *fx = w + 6 * n;
     const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]), yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
         const double x[3] = {p->x[0][i], p->x[1][i], 0.0};
         const double ux = fu->data[i], uy = fu->data[cap + i];

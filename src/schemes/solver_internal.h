@@ -151,6 +151,10 @@ struct consph_solver {
 };
 
 enum { INTEG_RK2, INTEG_EULER, INTEG_KDK, INTEG_PEC };
+/* Per-particle loops of the integrator and the diagnostics run on the threads from this many
+ * particles on (each particle is written by one iteration, so the bits do not depend on the
+ * thread count). */
+#define SOLVER_PARALLEL_MIN 4096
 #define HIST_COLS 14 /* step t l1_u linf_u l1_p linf_p ke mx my mz ang ft_fmax max_divu dt */
 
 /* Shared by the schemes. */
