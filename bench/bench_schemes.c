@@ -54,8 +54,9 @@ int main(int argc, char **argv)
         for (char *t = strtok(argv[1], ","); t && nnx < 8; t = strtok(NULL, ","))
             nxs[nnx++] = atoi(t);
     }
-    printf("# Taylor-Green, quintic, h = 1.2 Δs, c_o = 10, lattice start, %ld steps (RK2: two "
-           "stages per step)\n",
+    printf("# Taylor-Green, quintic, h = 1.2 Δs, c_o = 10, lattice start, %ld steps, each "
+           "scheme's default integrator (rk2: two evaluations per step; pec and kdk of wcsph, "
+           "edac and tvf: one)\n",
            steps);
     printf("%-10s %5s %2s %6s %10s %12s %7s %7s %9s\n", "scheme", "nx", "th", "steps", "s/(p·step)",
            "pairs/s/core", "passes", "min", "peak MiB");
