@@ -24,7 +24,7 @@
 #define SF_NUMD "numden" /* V_i = Σ_j W_ij (tvf, edac) */
 #define SF_RHOS "rhos"   /* ϱ_i = m V_i, the summation density of the last right-hand side */
 #define SF_PAVG "pavg"   /* p̄_i: the average p over the neighbours of i (edac) */
-#define SF_TVDU "tvdu"   /* ũ - u of the last right-hand side, which the A-term uses, d */
+#define SF_TVDU "tvdu"   /* ũ - u of the last drift (tv_transport), which the A-term uses, d */
 #define SF_UHAT "auhat"  /* the background-pressure acceleration, d */
 
 enum { RV_WCSPH, RV_TVF, RV_EDAC };
