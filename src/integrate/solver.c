@@ -314,6 +314,7 @@ void consph_solver_free(consph_solver *s)
     if (!s) return;
     consph_sys_free(&s->sys);
     free(s->hist);
+    free(s->diag_buf);
     free(s);
 }
 
@@ -335,8 +336,8 @@ static void wrap_positions(consph_solver *s)
     }
 }
 
-/* y = y0 + c k for the evolved fields (positions when the scheme moves particles). */
-static int advance(consph_solver *s, double c)
+/* u = u0 + c du/dt and the evolved scalar q = q0 + c dq/dt. */
+static void advance_fields(consph_solver *s, double c)
 {
     consph_particles *p = s->sys.p;
     const int d = s->dim;
@@ -350,13 +351,29 @@ static int advance(consph_solver *s, double c)
         q[i] = q0[i] + c * aq[i];
         for (int a = 0; a < d; ++a) u[a * cap + i] = u0[a * cap + i] + c * au[a * cap + i];
     }
+}
+
+/* x = x0 + c dx/dt, wrapped into the periodic box, and the search rebuilt on it. */
+static int drift(consph_solver *s, double c)
+{
+    consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    const double *x0 = sv_field(s, SF_X0, d), *ax = sv_field(s, SF_AX, d);
+    if (!x0 || !ax) return CONSPH_ENOMEM;
+    for (int a = 0; a < d; ++a)
+        for (size_t i = 0; i < n; ++i) p->x[a][i] = x0[a * cap + i] + c * ax[a * cap + i];
+    wrap_positions(s);
+    return consph_sys_update(&s->sys, 0);
+}
+
+/* y = y0 + c k for the evolved fields (positions when the scheme moves particles). */
+static int advance(consph_solver *s, double c)
+{
+    advance_fields(s, c);
     if (s->scheme->moves) {
         if (s->scheme->transport) s->scheme->transport(s, c);
-        const double *x0 = sv_field(s, SF_X0, d), *ax = sv_field(s, SF_AX, d);
-        for (int a = 0; a < d; ++a)
-            for (size_t i = 0; i < n; ++i) p->x[a][i] = x0[a * cap + i] + c * ax[a * cap + i];
-        wrap_positions(s);
-        int st = consph_sys_update(&s->sys, 0);
+        int st = drift(s, c);
         if (st != CONSPH_OK) return st;
     }
     solver_eos(s);
@@ -435,22 +452,14 @@ static int kick_drift_kick(consph_solver *s, double dt)
             for (int a = 0; a < d; ++a)
                 for (size_t i = 0; i < n; ++i) ax[a * cap + i] += 0.5 * dt * au[a * cap + i];
         }
-        const double *x0 = sv_field(s, SF_X0, d);
-        for (int a = 0; a < d; ++a)
-            for (size_t i = 0; i < n; ++i) p->x[a][i] = x0[a * cap + i] + dt * ax[a * cap + i];
-        wrap_positions(s);
-        st = consph_sys_update(&s->sys, 0);
+        st = drift(s, dt);
     }
     memcpy(q, q0, n * sizeof(double));
     if (st == CONSPH_OK) solver_eos(s);
     if (st == CONSPH_OK) st = s->scheme->rhs(s);
     if (st != CONSPH_OK) return st;
-    if (!moves) return advance(s, 0.5 * dt);
-    /* advance() would move the particles again: keep them, kick u and q only */
-    for (size_t i = 0; i < n; ++i) {
-        q[i] = q0[i] + 0.5 * dt * aq[i];
-        for (int a = 0; a < d; ++a) u[a * cap + i] = u0[a * cap + i] + 0.5 * dt * au[a * cap + i];
-    }
+    /* the second kick; the particles stay where the drift put them */
+    advance_fields(s, 0.5 * dt);
     solver_eos(s);
     return CONSPH_OK;
 }
@@ -548,8 +557,14 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
     /* Without an exact solution after t = 0 the errors are not computed (they are n/a): the
      * exact() of such a problem is its initial state, evaluated for nothing. */
     const int errors = s->prob->has_exact || s->t == 0.0;
-    double *w = malloc(7 * (n ? n : 1) * sizeof(double));
-    if (!w) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    /* kept between calls: a fresh allocation every step costs page faults on a hot path */
+    if (s->diag_cap < 7 * n) {
+        double *nw = realloc(s->diag_buf, 7 * (n ? n : 1) * sizeof(double));
+        if (!nw) return consph_fail(CONSPH_ENOMEM, "out of memory");
+        s->diag_buf = nw;
+        s->diag_cap = 7 * n;
+    }
+    double *w = s->diag_buf;
     double *eu = w, *ep = w + n, *ke = w + 2 * n, *mx = w + 3 * n, *my = w + 4 * n, *an = w + 5 * n,
            *fx = w + 6 * n;
     const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]), yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
@@ -588,7 +603,6 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
     g->ft_fmax = fmax > 0.0 ? consph_sum(fx, n) / fmax : 0.0;
     g->max_divu = max_abs(fd->data, n);
     (void)d;
-    free(w);
     return CONSPH_OK;
 }
 
