@@ -6,9 +6,34 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "consph/core.h"
 #include "consph/io.h"
+
+static consph_fdstream stdout_stream = {STDOUT_FILENO, 0};
+static int stdout_wrapped;
+
+void cli_stdout_init(void)
+{
+    FILE *f = consph_fdstream_open(&stdout_stream, "w");
+    /* Without it stdout stays as it was: a failed write is still caught, its reason may not be. */
+    if (!f) return;
+    setvbuf(f, NULL, isatty(STDOUT_FILENO) ? _IOLBF : _IOFBF, BUFSIZ);
+    fflush(stdout);
+    stdout = f;
+    stdout_wrapped = 1;
+}
+
+int cli_finish_stdout(const char *command, int status)
+{
+    errno = 0;
+    if (fflush(stdout) == 0 && !ferror(stdout)) return status;
+    int e = stdout_wrapped && stdout_stream.err ? stdout_stream.err : errno;
+    fprintf(stderr, "consph%s%s: cannot write standard output: %s\n", command ? " " : "",
+            command ? command : "", e ? strerror(e) : "a write failed");
+    return status ? status : 1;
+}
 
 int cli_error(const cli_command *cmd, const char *fmt, ...)
 {

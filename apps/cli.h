@@ -48,6 +48,14 @@ typedef struct cli_command {
     const char **positional;
 } cli_command;
 
+/* Makes stdout a stream that keeps the reason of its first failed write (consph_fdstream), for
+ * cli_finish_stdout; line-buffered on a terminal, as before. Call once, before any output. */
+void cli_stdout_init(void);
+/* Flushes stdout. When any write to it failed, prints "consph[ COMMAND]: cannot write standard
+ * output: REASON" and returns 1 if `status` was 0; otherwise returns `status`, so that a command
+ * that already failed keeps its own exit status. `command` may be NULL. */
+int cli_finish_stdout(const char *command, int status);
+
 /* Parses argv[1..argc) (argv[0] is the command name). Returns 0 on success, 1 when help was
  * printed (exit 0), CLI_EXIT_USAGE after printing an error. */
 int cli_parse(cli_command *cmd, int argc, char **argv);

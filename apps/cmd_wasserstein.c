@@ -289,9 +289,5 @@ int cmd_wasserstein(int argc, char **argv)
                 max_iter);
     unload(&in[0]);
     unload(&in[1]);
-    if (fflush(stdout) != 0 || ferror(stdout)) {
-        fprintf(stderr, "consph: writing to standard output failed\n");
-        return 1;
-    }
     return 0;
 }

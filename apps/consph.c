@@ -4,6 +4,7 @@
 #include <string.h>
 #include <unistd.h>
 
+#include "cli.h"
 #include "commands.h"
 #include "consph/core.h"
 
@@ -56,6 +57,9 @@ static void prefer_passive_wait(char **argv)
 int main(int argc, char **argv)
 {
     prefer_passive_wait(argv);
+    /* Every path that writes to stdout ends in cli_finish_stdout: output lost to a full disk or
+     * a closed pipe must not exit 0. */
+    cli_stdout_init();
     if (argc < 2) {
         usage(stderr);
         return 2;
@@ -63,18 +67,18 @@ int main(int argc, char **argv)
     if (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0 ||
         strcmp(argv[1], "help") == 0) {
         usage(stdout);
-        return 0;
+        return cli_finish_stdout(NULL, 0);
     }
     if (strcmp(argv[1], "--version") == 0) {
         const char *policy = getenv("OMP_WAIT_POLICY");
         printf("consph %s\n", CONSPH_VERSION);
         printf("threads %d, OMP_WAIT_POLICY %s\n", consph_num_threads(),
                policy ? policy : "unset (libgomp default)");
-        return 0;
+        return cli_finish_stdout(NULL, 0);
     }
     for (size_t k = 0; k < NSUB; ++k)
         if (strcmp(argv[1], subcommands[k].name) == 0)
-            return subcommands[k].run(argc - 1, argv + 1);
+            return cli_finish_stdout(subcommands[k].name, subcommands[k].run(argc - 1, argv + 1));
     fprintf(stderr, "consph: unknown command '%s'; allowed:", argv[1]);
     for (size_t k = 0; k < NSUB; ++k) fprintf(stderr, " %s", subcommands[k].name);
     fprintf(stderr, "\n");

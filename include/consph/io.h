@@ -12,18 +12,37 @@
 extern "C" {
 #endif
 
+/* A buffered FILE on the descriptor `fd` that keeps in `err` the errno of its first failed write
+ * or seek. glibc's own FILE discards the buffer of a failed write and lets later flushes succeed,
+ * so by the time a caller checks ferror() the reason (a full disk, a closed pipe) is gone.
+ * fclose leaves `fd` open. The struct must stay in place while its FILE is open. */
+typedef struct consph_fdstream {
+    int fd;
+    int err;
+} consph_fdstream;
+
+/* The FILE (mode as fopen's, "w" or "wb"), or NULL with errno set. */
+FILE *consph_fdstream_open(consph_fdstream *s, const char *mode);
+
 /* An output file being written: write to `fp`, then commit (fsync, rename into place) or abort.
  * While one is open, SIGINT, SIGTERM and SIGHUP, where their action is still the default, remove
- * its temporary file before ending the process as they would have. */
+ * its temporary file before ending the process as they would have. A failed write makes commit
+ * fail with a message naming the file and the reason. The struct must not be moved while open
+ * (`fp` writes through `stream`). */
 typedef struct consph_outfile {
     FILE *fp;
     char *path;
     char *tmp_path;
+    consph_fdstream stream;
 } consph_outfile;
 
 int consph_outfile_open(consph_outfile *of, const char *path);
 int consph_outfile_commit(consph_outfile *of);
 void consph_outfile_abort(consph_outfile *of);
+/* Sets the message "cannot write 'PATH': REASON" for a write into `of` that failed with errno
+ * `err` (0: the reason its stream recorded) and returns CONSPH_EIO; for writers that detect the
+ * failure before commit. Call before consph_outfile_abort, which forgets the path. */
+int consph_outfile_fail(const consph_outfile *of, int err);
 
 /* Checks that `path` could be created (its directory exists and is writable) without creating
  * anything; for validating options before long work. */

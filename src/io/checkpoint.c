@@ -228,8 +228,12 @@ int consph_checkpoint_write(const char *path, const char *meta, const consph_par
     int failed = w->failed;
     free(w);
     if (failed) {
+        /* Without a failed write, deflate or the rewind to the header failed. */
+        rc = ferror(of.fp)
+                 ? consph_outfile_fail(&of, 0)
+                 : consph_fail(CONSPH_EIO, "checkpoint '%s': compression or seek failed", path);
         consph_outfile_abort(&of);
-        return consph_fail(CONSPH_EIO, "checkpoint '%s': write error", path);
+        return rc;
     }
     return consph_outfile_commit(&of);
 }

@@ -1,3 +1,4 @@
+#define _GNU_SOURCE /* fopencookie */
 #include "consph/io.h"
 #include "io/outfile_internal.h"
 
@@ -110,6 +111,45 @@ static char *dir_of(const char *path)
     return d;
 }
 
+static ssize_t fdstream_write(void *cookie, const char *buf, size_t size)
+{
+    consph_fdstream *s = cookie;
+    for (size_t done = 0; done < size;) {
+        ssize_t w = write(s->fd, buf + done, size - done);
+        if (w < 0 && errno == EINTR) continue;
+        if (w <= 0) {
+            if (!s->err) s->err = w < 0 ? errno : EIO;
+            return -1;
+        }
+        done += (size_t)w;
+    }
+    return (ssize_t)size;
+}
+
+/* A failed seek is not recorded: its caller sees it, and it is not why a write failed. */
+static int fdstream_seek(void *cookie, off64_t *offset, int whence)
+{
+    const consph_fdstream *s = cookie;
+    off_t at = lseek(s->fd, (off_t)*offset, whence);
+    if (at < 0) return -1;
+    *offset = at;
+    return 0;
+}
+
+FILE *consph_fdstream_open(consph_fdstream *s, const char *mode)
+{
+    s->err = 0;
+    cookie_io_functions_t io = {
+        .read = NULL, .write = fdstream_write, .seek = fdstream_seek, .close = NULL};
+    return fopencookie(s, mode, io);
+}
+
+int consph_outfile_fail(const consph_outfile *of, int err)
+{
+    if (!err) err = of->stream.err ? of->stream.err : EIO;
+    return consph_fail(CONSPH_EIO, "cannot write '%s': %s", of->path, strerror(err));
+}
+
 int consph_path_writable(const char *path)
 {
     if (!path || !*path) return consph_fail(CONSPH_EINVAL, "empty path");
@@ -143,9 +183,18 @@ int consph_outfile_open(consph_outfile *of, const char *path)
     }
     /* Same directory as the target so the final rename is atomic. */
     snprintf(of->tmp_path, len + 32, "%s.tmp.%ld", path, (long)getpid());
-    /* Registered before it exists: a signal between fopen and registration would leave it. */
+    /* Registered before it exists: a signal between open and registration would leave it. */
     register_tmp(of->tmp_path);
-    of->fp = fopen(of->tmp_path, "wb");
+    /* O_CLOEXEC: a child (gnuplot) must not keep a temporary file open. */
+    of->stream.fd = open(of->tmp_path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    if (of->stream.fd >= 0) {
+        of->fp = consph_fdstream_open(&of->stream, "wb");
+        if (!of->fp) {
+            int e = errno;
+            close(of->stream.fd);
+            errno = e;
+        }
+    }
     if (!of->fp) {
         int e = errno;
         consph_outfile_abort(of);
@@ -156,25 +205,25 @@ int consph_outfile_open(consph_outfile *of, const char *path)
 
 int consph_outfile_commit(consph_outfile *of)
 {
-    int bad = ferror(of->fp);
+    int e = 0;
+    if (fflush(of->fp) != 0 || ferror(of->fp)) e = of->stream.err ? of->stream.err : EIO;
     /* The data must be on disk before the rename makes it the file: otherwise a crash soon after
      * can leave a complete-looking name with empty or partial content. */
-    if (fflush(of->fp) != 0 || fsync(fileno(of->fp)) != 0) bad = 1;
-    if (fclose(of->fp) != 0) bad = 1;
+    else if (fsync(of->stream.fd) != 0)
+        e = errno;
+    if (fclose(of->fp) != 0 && !e) e = of->stream.err ? of->stream.err : EIO;
+    if (close(of->stream.fd) != 0 && !e) e = errno;
     of->fp = NULL;
-    if (bad) {
-        int e = errno;
-        remove(of->tmp_path);
+    if (e) {
+        int rc = consph_outfile_fail(of, e);
         consph_outfile_abort(of);
-        return consph_fail(CONSPH_EIO, "write error: %s", strerror(e));
+        return rc;
     }
     if (rename(of->tmp_path, of->path) != 0) {
-        int e = errno;
-        char msg[256];
-        snprintf(msg, sizeof msg, "cannot rename into '%s': %s", of->path, strerror(e));
-        remove(of->tmp_path);
+        e = errno;
+        int rc = consph_fail(CONSPH_EIO, "cannot rename into '%s': %s", of->path, strerror(e));
         consph_outfile_abort(of);
-        return consph_fail(CONSPH_EIO, "%s", msg);
+        return rc;
     }
     unregister_tmp(of->tmp_path);
     char *dir = dir_of(of->path);
@@ -190,6 +239,7 @@ void consph_outfile_abort(consph_outfile *of)
 {
     if (of->fp) {
         fclose(of->fp);
+        close(of->stream.fd);
         of->fp = NULL;
     }
     if (of->tmp_path) {

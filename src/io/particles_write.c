@@ -337,6 +337,8 @@ int consph_write_particles_enc(const char *path, const consph_particles *p, cons
     else
         rc = write_vtu(of.fp, p, enc);
     if (rc) {
+        /* The writers' own "write error" lacks the file and the reason. */
+        if (ferror(of.fp)) rc = consph_outfile_fail(&of, 0);
         consph_outfile_abort(&of);
         return rc;
     }
