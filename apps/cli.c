@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "consph/core.h"
@@ -44,6 +45,58 @@ int cli_error(const cli_command *cmd, const char *fmt, ...)
     fputc('\n', stderr);
     va_end(ap);
     return CLI_EXIT_USAGE;
+}
+
+int cli_dir_writable(const char *dir, char *why, size_t size)
+{
+    size_t cap = strlen(dir) + 64;
+    char *path = malloc(cap);
+    if (!path) {
+        snprintf(why, size, "out of memory");
+        return 0;
+    }
+    snprintf(path, cap, "%s", *dir ? dir : ".");
+    int ok = 0;
+    for (;;) {
+        struct stat st;
+        if (stat(path, &st) == 0) {
+            if (!S_ISDIR(st.st_mode)) {
+                snprintf(why, size, "'%.200s' is not a directory", path);
+                break;
+            }
+            size_t len = strlen(path);
+            snprintf(path + len, cap - len, "/.consph-probe-XXXXXX");
+            int fd = mkstemp(path), e = fd < 0 ? errno : 0;
+            if (fd >= 0) {
+                static const char block[4096];
+                ssize_t w = write(fd, block, sizeof block);
+                if (w != (ssize_t)sizeof block) e = w < 0 ? errno : ENOSPC;
+                if (close(fd) != 0 && !e) e = errno;
+                unlink(path);
+            }
+            path[len] = '\0';
+            if (e) snprintf(why, size, "cannot create files in '%.200s': %s", path, strerror(e));
+            ok = !e;
+            break;
+        }
+        char *slash = strrchr(path, '/');
+        if (!slash)
+            snprintf(path, cap, ".");
+        else if (slash == path)
+            path[1] = '\0';
+        else
+            *slash = '\0';
+    }
+    free(path);
+    return ok;
+}
+
+int cli_check_out_dir(const cli_command *cmd, const char *option, const char *dir)
+{
+    char why[512];
+    if (cli_dir_writable(dir, why, sizeof why)) return 0;
+    return cli_error(cmd, "option %s: cannot write results under '%.200s%s': %s", option, dir,
+                     strlen(dir) > 200 ? "..." : "", why);
 }
 
 int cli_choice_index(const char *choices, const char *value)
@@ -184,6 +237,14 @@ static int parse_value(const cli_command *cmd, cli_opt *o, const char *text)
         if (consph_path_writable(text) != 0)
             return cli_error(cmd, "option %s: cannot write '%s': %s", o->name, text,
                              consph_last_error());
+        /* The directory is probed too: consph_path_writable trusts access(). */
+        const char *slash = strrchr(text, '/');
+        size_t dlen = !slash ? 0 : slash == text ? 1 : (size_t)(slash - text);
+        char why[512], *dir = dlen ? strndup(text, dlen) : strdup(".");
+        if (!dir) return cli_error(cmd, "option %s: out of memory", o->name);
+        int ok = cli_dir_writable(dir, why, sizeof why);
+        free(dir);
+        if (!ok) return cli_error(cmd, "option %s: cannot write '%s': %s", o->name, text, why);
         *(const char **)o->dest = text;
         return 0;
     }

@@ -56,6 +56,15 @@ void cli_stdout_init(void);
  * that already failed keeps its own exit status. `command` may be NULL. */
 int cli_finish_stdout(const char *command, int status);
 
+/* 1 when files can be written in `dir`, or, when it does not exist yet, in its nearest existing
+ * ancestor; else 0 with the reason in `why`. A file is really created, written (a block, so that
+ * a full disk fails here rather than after the work) and removed: access() says yes to root on
+ * /proc, and a read-only or full file system shows only on writing. */
+int cli_dir_writable(const char *dir, char *why, size_t size);
+/* cli_dir_writable for the directory `dir` given to `option`: 0, or the rejection naming the
+ * option (CLI_EXIT_USAGE). */
+int cli_check_out_dir(const cli_command *cmd, const char *option, const char *dir);
+
 /* Parses argv[1..argc) (argv[0] is the command name). Returns 0 on success, 1 when help was
  * printed (exit 0), CLI_EXIT_USAGE after printing an error. */
 int cli_parse(cli_command *cmd, int argc, char **argv);

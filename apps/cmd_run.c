@@ -204,6 +204,8 @@ int cmd_run(int argc, char **argv)
     if (rc) return rc == 1 ? 0 : rc;
     if (!positional[0] && !restart)
         return cli_error(&cmd, "a problem is required (allowed: %s, heat)", consph_problem_names());
+    /* Before the packing, the restart or the run, not at their first write. */
+    if (out && (rc = cli_check_out_dir(&cmd, "--out", out)) != 0) return rc;
     if (threads > 0) consph_set_num_threads((int)threads);
     const int heat = positional[0] && strcmp(positional[0], "heat") == 0;
     for (int k = 0; k < cmd.nopts; ++k) {

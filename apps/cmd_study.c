@@ -48,9 +48,8 @@ static int find_study(const char *name, char *path, size_t size)
     return 0;
 }
 
-/* Whether `dir` exists as a writable directory or could be created: its nearest existing
- * ancestor must be a directory in which a file can really be created (access() says yes to
- * root on /proc), and the path must leave room for the study's own names. */
+/* Whether `dir` exists as a writable directory or could be created (cli_dir_writable), and the
+ * path leaves room for the study's own names. */
 static int dir_creatable(const char *dir, char *why, size_t size)
 {
     if (strlen(dir) > OUT_DIR_MAX) {
@@ -65,36 +64,7 @@ static int dir_creatable(const char *dir, char *why, size_t size)
         }
         c += n + (c[n] == '/');
     }
-    char path[OUT_DIR_MAX + 64];
-    snprintf(path, sizeof path, "%s", dir);
-    for (;;) {
-        struct stat st;
-        if (stat(path, &st) == 0) {
-            if (!S_ISDIR(st.st_mode)) {
-                snprintf(why, size, "'%.200s' is not a directory", path);
-                return 0;
-            }
-            size_t len = strlen(path);
-            snprintf(path + len, sizeof path - len, "/.consph-probe-XXXXXX");
-            int fd = mkstemp(path);
-            if (fd < 0) {
-                path[len] = '\0';
-                snprintf(why, size, "cannot create files in '%.200s': %s", path, strerror(errno));
-                return 0;
-            }
-            close(fd);
-            unlink(path);
-            return 1;
-        }
-        char *slash = strrchr(path, '/');
-        if (!slash) {
-            snprintf(path, sizeof path, ".");
-        } else if (slash == path) {
-            path[1] = '\0';
-        } else {
-            *slash = '\0';
-        }
-    }
+    return cli_dir_writable(dir, why, size);
 }
 
 typedef struct study_entry {
