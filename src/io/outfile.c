@@ -3,12 +3,14 @@
 #include "io/outfile_internal.h"
 
 #include <errno.h>
+#include <dirent.h>
 #include <fcntl.h>
 #include <signal.h>
 #include <stdatomic.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
 #include <unistd.h>
 
 /* Temporary files being written, so that SIGINT/SIGTERM/SIGHUP do not leave a half-written
@@ -22,11 +24,57 @@ static atomic_int tmp_state[TMP_SLOTS];
 static char tmp_paths[TMP_SLOTS][TMP_PATH_MAX];
 static const int tmp_signals[] = {SIGINT, SIGTERM, SIGHUP};
 
+/* A directory being filled (a study's), removed with its files on a signal, and its parents
+ * back to the first one created (the one whose path is made_keep characters long). */
+static char made_dir[TMP_PATH_MAX];
+static size_t made_keep;
+static atomic_int made_state;
+
+/* The files in made_dir, then made_dir and the parents that were created, with
+ * async-signal-safe calls only (no opendir: it allocates). */
+static void remove_made_dir(void)
+{
+    int fd = open(made_dir, O_RDONLY | O_DIRECTORY | O_NOFOLLOW);
+    if (fd >= 0) {
+        char buf[4096];
+        ssize_t got;
+        while ((got = getdents64(fd, buf, sizeof buf)) > 0) {
+            for (ssize_t at = 0; at < got;) {
+                const struct dirent64 *e = (const struct dirent64 *)(buf + at);
+                if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..")) unlinkat(fd, e->d_name, 0);
+                at += e->d_reclen;
+            }
+        }
+        close(fd);
+    }
+    char path[TMP_PATH_MAX];
+    memcpy(path, made_dir, sizeof path);
+    for (size_t k = strlen(path); k >= made_keep && k > 0; --k) {
+        if (path[k] != '/' && path[k] != '\0') continue;
+        path[k] = '\0';
+        if (rmdir(path) != 0 && errno != ENOENT) break;
+    }
+}
+
+/* Children writing a temporary file for us (gnuplot), 0 where free. */
+#define CHILD_SLOTS 4
+static atomic_int child_pids[CHILD_SLOTS];
+
 void consph_outfile_remove_temps(void)
 {
     int saved = errno;
+    /* SIGKILL, not SIGTERM: a child that ignored SIGTERM would hang the waitpid below, and its
+     * output is about to be removed anyway. Waited for so that it writes nothing after the
+     * unlinks and does not outlive us. */
+    for (int k = 0; k < CHILD_SLOTS; ++k) {
+        pid_t pid = (pid_t)atomic_exchange(&child_pids[k], 0);
+        if (pid <= 0) continue;
+        kill(pid, SIGKILL);
+        while (waitpid(pid, NULL, 0) < 0 && errno == EINTR) continue;
+    }
     for (int k = 0; k < TMP_SLOTS; ++k)
         if (atomic_load(&tmp_state[k]) == TMP_LIVE) unlink(tmp_paths[k]);
+    if (atomic_exchange(&made_state, TMP_FREE) == TMP_LIVE) remove_made_dir();
     errno = saved;
 }
 
@@ -58,7 +106,7 @@ static void install_signal_cleanup(void)
 
 /* A path too long for a slot, or more than TMP_SLOTS files at once, is written without the
  * signal cleanup; everything else about it is unchanged. */
-static void register_tmp(const char *path)
+void consph_tmp_register(const char *path)
 {
     if (strlen(path) >= TMP_PATH_MAX) return;
     install_signal_cleanup();
@@ -72,7 +120,7 @@ static void register_tmp(const char *path)
     }
 }
 
-static void unregister_tmp(const char *path)
+void consph_tmp_unregister(const char *path)
 {
     for (int k = 0; k < TMP_SLOTS; ++k)
         if (atomic_load(&tmp_state[k]) == TMP_LIVE && strcmp(tmp_paths[k], path) == 0) {
@@ -89,6 +137,62 @@ static void sync_dir(const char *dir)
     if (fd < 0) return;
     fsync(fd);
     close(fd);
+}
+
+void consph_made_dir_register(const char *dir, size_t created)
+{
+    int expected = TMP_FREE;
+    if (!created || strlen(dir) >= TMP_PATH_MAX ||
+        !atomic_compare_exchange_strong(&made_state, &expected, TMP_CLAIMED))
+        return;
+    install_signal_cleanup();
+    strcpy(made_dir, dir);
+    made_keep = created;
+    atomic_store(&made_state, TMP_LIVE);
+}
+
+void consph_made_dir_unregister(void)
+{
+    int expected = TMP_LIVE;
+    atomic_compare_exchange_strong(&made_state, &expected, TMP_FREE);
+}
+
+void consph_child_register(pid_t pid)
+{
+    install_signal_cleanup();
+    for (int k = 0; k < CHILD_SLOTS; ++k) {
+        int expected = 0;
+        if (atomic_compare_exchange_strong(&child_pids[k], &expected, (int)pid)) return;
+    }
+}
+
+void consph_child_unregister(pid_t pid)
+{
+    for (int k = 0; k < CHILD_SLOTS; ++k) {
+        int expected = (int)pid;
+        if (atomic_compare_exchange_strong(&child_pids[k], &expected, 0)) return;
+    }
+}
+
+void consph_cleanup_signals_block(sigset_t *old)
+{
+    sigset_t set;
+    sigemptyset(&set);
+    for (size_t k = 0; k < sizeof tmp_signals / sizeof tmp_signals[0]; ++k)
+        sigaddset(&set, tmp_signals[k]);
+    sigprocmask(SIG_BLOCK, &set, old);
+}
+
+void consph_cleanup_signals_default(void)
+{
+    /* Only handlers: an ignored signal (nohup, a background job) stays ignored, as exec keeps it.
+     */
+    for (size_t k = 0; k < sizeof tmp_signals / sizeof tmp_signals[0]; ++k) {
+        struct sigaction old;
+        if (sigaction(tmp_signals[k], NULL, &old) == 0 && old.sa_handler != SIG_IGN &&
+            old.sa_handler != SIG_DFL)
+            signal(tmp_signals[k], SIG_DFL);
+    }
 }
 
 static char *dup_str(const char *s)
@@ -184,9 +288,10 @@ int consph_outfile_open(consph_outfile *of, const char *path)
     /* Same directory as the target so the final rename is atomic. */
     snprintf(of->tmp_path, len + 32, "%s.tmp.%ld", path, (long)getpid());
     /* Registered before it exists: a signal between open and registration would leave it. */
-    register_tmp(of->tmp_path);
-    /* O_CLOEXEC: a child (gnuplot) must not keep a temporary file open. */
-    of->stream.fd = open(of->tmp_path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0666);
+    consph_tmp_register(of->tmp_path);
+    /* O_CLOEXEC: a child (gnuplot) must not keep a temporary file open. O_NOFOLLOW: a link
+     * planted at the temporary name must not redirect the write. */
+    of->stream.fd = open(of->tmp_path, O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOFOLLOW, 0666);
     if (of->stream.fd >= 0) {
         of->fp = consph_fdstream_open(&of->stream, "wb");
         if (!of->fp) {
@@ -225,7 +330,7 @@ int consph_outfile_commit(consph_outfile *of)
         consph_outfile_abort(of);
         return rc;
     }
-    unregister_tmp(of->tmp_path);
+    consph_tmp_unregister(of->tmp_path);
     char *dir = dir_of(of->path);
     if (dir) sync_dir(dir);
     free(dir);
@@ -244,7 +349,7 @@ void consph_outfile_abort(consph_outfile *of)
     }
     if (of->tmp_path) {
         remove(of->tmp_path);
-        unregister_tmp(of->tmp_path);
+        consph_tmp_unregister(of->tmp_path);
     }
     free(of->path);
     free(of->tmp_path);

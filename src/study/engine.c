@@ -3,6 +3,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <signal.h>
 #include <stdarg.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -13,6 +14,7 @@
 
 #include "consph/io.h"
 #include "consph/transport.h"
+#include "io/outfile_internal.h"
 #include "study/study_internal.h"
 
 /* Timings behind T_r (the operator at a series' finest resolution) and their median. */
@@ -585,10 +587,16 @@ int study_render_figure(const char *dir, const char *id)
     fclose(mem);
     if (rc) return rc;
     fflush(NULL);
+    /* SIGINT/SIGTERM while gnuplot draws: the child is killed and its output removed with the
+     * other temporary files (src/io/outfile.c). */
+    consph_tmp_register(tmp);
+    sigset_t mask;
+    consph_cleanup_signals_block(&mask);
     /* fork and exec rather than system(): the output directory never passes through a shell. */
     pid_t pid = fork();
-    if (pid < 0) return consph_fail(CONSPH_EIO, "cannot start gnuplot: %s", strerror(errno));
     if (pid == 0) {
+        consph_cleanup_signals_default();
+        sigprocmask(SIG_SETMASK, &mask, NULL);
         int null = open("/dev/null", O_WRONLY);
         if (null >= 0) {
             dup2(null, 1);
@@ -597,13 +605,25 @@ int study_render_figure(const char *dir, const char *id)
         if (chdir(dir) == 0) execlp("gnuplot", "gnuplot", "-e", setout, script, (char *)NULL);
         _exit(127);
     }
+    int fork_errno = errno;
+    if (pid > 0) consph_child_register(pid);
+    sigprocmask(SIG_SETMASK, &mask, NULL);
+    if (pid < 0) {
+        consph_tmp_unregister(tmp);
+        return consph_fail(CONSPH_EIO, "cannot start gnuplot: %s", strerror(fork_errno));
+    }
     int status = 0;
     while (waitpid(pid, &status, 0) < 0 && errno == EINTR) continue;
+    consph_child_unregister(pid);
     struct stat st;
     int drawn =
         WIFEXITED(status) && WEXITSTATUS(status) == 0 && stat(tmp, &st) == 0 && st.st_size > 0;
-    if (drawn && rename(tmp, final) == 0) return CONSPH_OK;
+    if (drawn && rename(tmp, final) == 0) {
+        consph_tmp_unregister(tmp);
+        return CONSPH_OK;
+    }
     remove(tmp);
+    consph_tmp_unregister(tmp);
     return consph_fail(CONSPH_EIO,
                        "gnuplot could not draw %s (exit status %d); run 'gnuplot %s' there to see "
                        "why",
@@ -1707,10 +1727,19 @@ static int study_run(const consph_study *s, const consph_study_options *opt,
     char dir[STUDY_PATH_MAX];
     size_t created = 0;
     if ((rc = study_out_path(dir, opt->out_dir, consph_study_name(s), ""))) return rc;
+    struct stat st;
+    if (lstat(dir, &st) == 0 && S_ISLNK(st.st_mode))
+        return consph_fail(CONSPH_EINVAL,
+                           "'%s' is a symbolic link, which would take the results out of the "
+                           "output directory; allowed: a directory, or nothing, at that name",
+                           dir);
     rc = mkdir_p(dir, &created);
+    /* A signal removes what was made as a failure does (remove_created). */
+    if (rc == CONSPH_OK) consph_made_dir_register(dir, created);
     if (rc == CONSPH_OK) rc = run_figures(s, opt, files, dir);
     if (rc == CONSPH_OK) rc = write_readme(s, opt, files, dir);
     if (rc) remove_created(dir, created);
+    consph_made_dir_unregister();
     return rc;
 }
 

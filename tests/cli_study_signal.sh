@@ -1,0 +1,101 @@
+#!/usr/bin/env bash
+# A study stopped by SIGTERM or SIGINT while gnuplot draws (issue 23, item 6): the gnuplot child
+# is killed and reaped, its temporary SVG goes, and the study directory the run created goes too
+# (as after a failure), with exit status 128 + signal; a directory that existed before stays,
+# without temporaries. gnuplot is a fake first on PATH that starts its output and then sleeps, so
+# the signal always arrives mid-drawing. A symbolic link at OUT/NAME is refused (exit 2) without
+# writing through it.
+# Usage: cli_study_signal.sh <path-to-consph> <source-dir>
+set -u
+bin=$1
+work=$(mktemp -d)
+pids=$work/gnuplot.pids
+cleanup() {
+    # Only the fake gnuplots this test started, should one have been left running.
+    [ -f "$pids" ] && while read -r q; do kill "$q" 2>/dev/null; done <"$pids"
+    rm -rf "$work"
+}
+trap cleanup EXIT
+pass=0
+fail=0
+bad() {
+    echo "FAIL: $*"
+    fail=$((fail + 1))
+}
+mkdir "$work/bin"
+cat >"$work/bin/gnuplot" <<'EOF'
+#!/bin/sh
+# consph runs `gnuplot -e "outfile = 'NAME'" SCRIPT.gp` in the figure's directory.
+case "$3" in *.gp) ;; *) exit 0 ;; esac
+out=${2#outfile = \'}
+out=${out%\'}
+printf '<svg' >"$out"
+echo $$ >>"$FAKE_GNUPLOT_PIDS"
+exec sleep 60
+EOF
+chmod +x "$work/bin/gnuplot"
+export FAKE_GNUPLOT_PIDS=$pids
+# stop SIGNAL STATUS OUT KEEP: a study into OUT, SIGNAL once gnuplot draws; KEEP 1 when
+# OUT/001-fig2 existed before (it must stay), 0 when the run created it (it must go).
+stop() {
+    local sig=$1 want=$2 out=$3 keep=$4
+    : >"$pids"
+    # Job control: a background job of a script would otherwise ignore SIGINT.
+    set -m
+    PATH="$work/bin:$PATH" "$bin" study 001-fig2 --quick --out "$out" >/dev/null 2>&1 &
+    local p=$!
+    set +m
+    for _ in $(seq 200); do
+        [ -s "$pids" ] && break
+        sleep 0.05
+    done
+    [ -s "$pids" ] || { bad "$sig: gnuplot never started"; kill "$p"; wait "$p"; return; }
+    kill -"$sig" "$p"
+    { wait "$p"; } 2>/dev/null
+    local rc=$? q left
+    q=$(cat "$pids")
+    left=$(find "$out" -name '*.tmp*' 2>/dev/null)
+    if [ $rc != "$want" ]; then
+        bad "$sig: exit $rc, want $want"
+    elif kill -0 "$q" 2>/dev/null; then
+        bad "$sig: gnuplot $q still running"
+    elif [ -n "$left" ]; then
+        bad "$sig: temporaries left: $left"
+    elif [ "$keep" = 0 ] && [ -e "$out/001-fig2" ]; then
+        bad "$sig: the study directory it created is left: $(ls "$out/001-fig2")"
+    elif [ "$keep" = 1 ] && [ ! -d "$out/001-fig2" ]; then
+        bad "$sig: the study directory that existed before is gone"
+    else
+        pass=$((pass + 1))
+    fi
+}
+mkdir "$work/a" "$work/b"
+stop TERM 143 "$work/a" 0
+stop INT 130 "$work/a" 0
+stop HUP 129 "$work/a" 0
+# Nested: out/new/ is created too, and goes.
+stop TERM 143 "$work/b/new" 0
+[ -e "$work/b/new" ] && bad "TERM: created parent $work/b/new left" || pass=$((pass + 1))
+mkdir -p "$work/a/001-fig2"
+stop TERM 143 "$work/a" 1
+
+# A link at OUT/NAME would take the results elsewhere: refused, nothing written through it.
+mkdir "$work/out" "$work/elsewhere"
+ln -s "$work/elsewhere" "$work/out/001-fig2"
+for target in "$work/elsewhere" "$work/nowhere"; do
+    o=$work/out
+    [ "$target" = "$work/nowhere" ] && { mkdir "$work/o2"; ln -s "$target" "$work/o2/001-fig2"; o=$work/o2; }
+    "$bin" study 001-fig2 --quick --out "$o" >/dev/null 2>"$work/err"
+    rc=$?
+    if [ $rc != 2 ]; then
+        bad "link to $target: exit $rc, want 2"
+    elif ! grep -qF "'$o/001-fig2' is a symbolic link" "$work/err"; then
+        bad "link to $target: message does not name it: $(cat "$work/err")"
+    elif [ -n "$(ls -A "$work/elsewhere")" ] || [ -e "$work/nowhere" ]; then
+        bad "link to $target: written through the link"
+    else
+        pass=$((pass + 1))
+    fi
+done
+echo "cli_study_signal: $pass passed, $fail failed"
+[ $fail = 0 ]
