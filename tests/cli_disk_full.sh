@@ -9,25 +9,15 @@ bin=$1
 disk=$(mktemp -d)
 mount -t tmpfs -o size=64k consph_test "$disk" 2>/dev/null ||
     { rmdir "$disk"; echo "cli_disk_full: cannot mount a tmpfs, skipped"; exit 77; }
-errf=$(mktemp)
-trap 'umount "$disk"; rmdir "$disk"; rm -f "$errf"' EXIT
-pass=0
-fail=0
-bad() {
-    echo "FAIL: $*"
-    fail=$((fail + 1))
-}
+work=$(mktemp -d)
+trap 'umount "$disk"; rmdir "$disk"; rm -rf "$work"' EXIT
+. "$(dirname "${BASH_SOURCE[0]}")/lib_cli.sh"
 # fills FILE -- command...: exit 1, the message names FILE, nothing left on the disk.
 fills() {
     local file=$1
     shift 2
-    "$@" >/dev/null 2>"$errf"
-    local rc=$? err
-    err=$(cat "$errf")
-    if [ $rc != 1 ]; then
-        bad "$*: exit $rc, want 1: $err"
-    elif ! grep -qF "cannot write '$file': No space left on device" <<<"$err"; then
-        bad "$*: message '$err' does not name '$file' and the reason"
+    if ! failing 1 "cannot write '$file': No space left on device" /dev/null -- "$@"; then
+        :
     elif [ -n "$(find "$disk" -type f)" ]; then
         bad "$*: left $(find "$disk" -type f)"
     else
@@ -43,5 +33,4 @@ fills "$disk/p.csv" -- "$bin" layout --kind lattice --dim 2 --nx 200 --out "$dis
 mkdir "$disk/run"
 fills "$disk/run/snap_000000.vtu" -- "$bin" run taylor-green --scheme wcsph --nx 40 --steps 2 \
     --out "$disk/run"
-echo "cli_disk_full: $pass passed, $fail failed"
-[ $fail = 0 ]
+summary cli_disk_full

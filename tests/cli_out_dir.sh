@@ -16,12 +16,7 @@ cleanup() {
     rm -rf "$work"
 }
 trap cleanup EXIT
-pass=0
-fail=0
-bad() {
-    echo "FAIL: $*"
-    fail=$((fail + 1))
-}
+. "$(dirname "${BASH_SOURCE[0]}")/lib_cli.sh"
 "$bin" run taylor-green --scheme wcsph --nx 8 --steps 2 --checkpoint-every 1 --out "$work/ck" \
     >/dev/null || bad "setup: checkpoint run"
 ckpt=$work/ck/checkpoint.ckpt
@@ -38,15 +33,9 @@ refused() {
         "study 003-appc --quick --out $d/s")
     for c in "${cmds[@]}"; do
         # shellcheck disable=SC2086 # the words of c are the arguments; no path has a space
-        "$bin" $c >/dev/null 2>"$work/err"
-        local rc=$?
-        if [ $rc != 2 ]; then
-            bad "consph $c: exit $rc, want 2: $(cat "$work/err")"
-        elif [ "$(wc -l <"$work/err")" != 1 ] || ! grep -q "option --out: cannot write" "$work/err"; then
-            bad "consph $c: message does not name --out: $(cat "$work/err")"
-        else
-            pass=$((pass + 1))
-        fi
+        failing 2 "option --out: cannot write" /dev/null -- "$bin" $c || continue
+        [ "$(wc -l <"$work/err")" = 1 ] && pass=$((pass + 1)) ||
+            bad "consph $c: more than one line: $(cat "$work/err")"
     done
 }
 [ -d /proc/self ] && refused /proc/self
@@ -77,5 +66,4 @@ mkdir "$work/ok"
 "$bin" layout --kind lattice --dim 2 --nx 8 --out "$work/ok/p.csv" >/dev/null &&
     [ "$(ls -A "$work/ok")" = p.csv ] && pass=$((pass + 1)) ||
     bad "layout into a writable directory: $(ls -A "$work/ok")"
-echo "cli_out_dir: $pass passed, $fail failed"
-[ $fail = 0 ]
+summary cli_out_dir

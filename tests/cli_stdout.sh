@@ -9,26 +9,15 @@ bin=$1
 [ -w /dev/full ] || { echo "cli_stdout: no /dev/full, skipped"; exit 77; }
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
-pass=0
-fail=0
-bad() {
-    echo "FAIL: $*"
-    fail=$((fail + 1))
-}
+. "$(dirname "${BASH_SOURCE[0]}")/lib_cli.sh"
 # full NAME -- command...: exit 1 and the message, naming the command (NAME "" for consph's own).
 full() {
     local name=$1
     shift 2
-    "$@" >/dev/full 2>"$work/err"
-    local rc=$?
     local want="consph${name:+ $name}: cannot write standard output: No space left on device"
-    if [ $rc != 1 ]; then
-        bad "$* >/dev/full: exit $rc, want 1"
-    elif ! grep -qxF "$want" "$work/err"; then
-        bad "$* >/dev/full: message '$(cat "$work/err")', want '$want'"
-    else
-        pass=$((pass + 1))
-    fi
+    failing 1 "$want" /dev/full -- "$@" || return
+    # That line alone.
+    [ "$(cat "$work/err")" = "$want" ] && pass=$((pass + 1)) || bad "$*: stderr '$(cat "$work/err")'"
 }
 "$bin" layout --kind lattice --dim 1 --nx 16 --out "$work/a.csv" >/dev/null || bad "layout setup"
 full "" -- "$bin" --help
@@ -53,12 +42,8 @@ full study -- "$bin" study --list
 full study -- "$bin" study 003-appc --quick --out "$work"
 full wasserstein -- "$bin" wasserstein "$work/a.csv" "$work/a.csv"
 # Bad usage keeps its status 2 and its own message.
-"$bin" approx --op nosuch >/dev/full 2>"$work/err"
-rc=$?
-[ $rc = 2 ] && grep -q -- "--op" "$work/err" && pass=$((pass + 1)) ||
-    bad "approx --op nosuch >/dev/full: exit $rc, want 2: $(cat "$work/err")"
+failing 2 "option --op" /dev/full -- "$bin" approx --op nosuch && pass=$((pass + 1))
 # A working stdout is unchanged: exit 0, the output there, nothing on stderr.
 "$bin" --version >"$work/out" 2>"$work/err" && grep -q "^consph [0-9]" "$work/out" &&
     [ ! -s "$work/err" ] && pass=$((pass + 1)) || bad "--version to a file"
-echo "cli_stdout: $pass passed, $fail failed"
-[ $fail = 0 ]
+summary cli_stdout

@@ -1,0 +1,30 @@
+# Helpers sourced by CLI tests (not a test itself: CTest runs tests/cli_*.sh): the pass/fail
+# counters, the check of a command that must fail, and the summary line. Needs $work, a scratch
+# directory the test removes.
+pass=0
+fail=0
+bad() {
+    echo "FAIL: $*"
+    fail=$((fail + 1))
+}
+# failing STATUS TEXT STDOUT -- command...: runs the command with its stdout to STDOUT and its
+# stderr to $work/err; 0 when it exited STATUS and the stderr holds TEXT (a fixed string), else
+# 1 after saying why.
+failing() {
+    local want=$1 text=$2 to=$3
+    shift 4
+    "$@" >"$to" 2>"$work/err"
+    local rc=$?
+    if [ $rc != "$want" ]; then
+        bad "$* >$to: exit $rc, want $want: $(cat "$work/err")"
+        return 1
+    fi
+    grep -qF -- "$text" "$work/err" && return 0
+    bad "$* >$to: message '$(cat "$work/err")' lacks '$text'"
+    return 1
+}
+# summary NAME: the counts; the exit status of the test.
+summary() {
+    echo "$1: $pass passed, $fail failed"
+    [ $fail = 0 ]
+}
