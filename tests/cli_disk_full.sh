@@ -12,13 +12,14 @@ mount -t tmpfs -o size=64k consph_test "$disk" 2>/dev/null ||
 work=$(mktemp -d)
 trap 'umount "$disk"; rmdir "$disk"; rm -rf "$work"' EXIT
 . "$(dirname "${BASH_SOURCE[0]}")/lib_cli.sh"
-# fills FILE -- command...: exit 1, the message names FILE, nothing left on the disk.
+# fills FILE -- command...: exit 1, the message names FILE, neither FILE nor a temporary left
+# (files committed before it stay).
 fills() {
     local file=$1
     shift 2
     if ! failing 1 "cannot write '$file': No space left on device" /dev/null -- "$@"; then
         :
-    elif [ -n "$(find "$disk" -type f)" ]; then
+    elif [ -e "$file" ] || [ -n "$(find "$disk" -name '*.tmp*')" ]; then
         bad "$*: left $(find "$disk" -type f)"
     else
         pass=$((pass + 1))
@@ -33,4 +34,15 @@ fills "$disk/p.csv" -- "$bin" layout --kind lattice --dim 2 --nx 200 --out "$dis
 mkdir "$disk/run"
 fills "$disk/run/snap_000000.vtu" -- "$bin" run taylor-green --scheme wcsph --nx 40 --steps 2 \
     --out "$disk/run"
+# The snapshot at step 0 fits, the first checkpoint does not.
+mkdir "$disk/run"
+fills "$disk/run/checkpoint.ckpt" -- "$bin" run taylor-green --scheme wcsph --nx 20 --steps 3 \
+    --checkpoint-every 1 --snapshot-every 1000 --out "$disk/run"
+# Which of the study's files fills the disk depends on whether gnuplot draws SVGs.
+mkdir "$disk/st"
+if failing 1 "cannot write '$disk/st/003-m0/" /dev/null -- "$bin" study 003-m0 --quick \
+    --out "$disk/st"; then
+    grep -q "': No space left on device$" "$work/err" && [ ! -e "$disk/st/003-m0" ] &&
+        pass=$((pass + 1)) || bad "study: $(cat "$work/err"), left $(find "$disk/st")"
+fi
 summary cli_disk_full
