@@ -2,8 +2,8 @@
 #include "consph/io.h"
 #include "io/outfile_internal.h"
 
-#include <errno.h>
 #include <dirent.h>
+#include <errno.h>
 #include <fcntl.h>
 #include <signal.h>
 #include <stdatomic.h>
@@ -185,8 +185,7 @@ void consph_cleanup_signals_block(sigset_t *old)
 
 void consph_cleanup_signals_default(void)
 {
-    /* Only handlers: an ignored signal (nohup, a background job) stays ignored, as exec keeps it.
-     */
+    /* Handlers only: a signal ignored (nohup, a background job) stays so, as exec keeps it. */
     for (size_t k = 0; k < sizeof tmp_signals / sizeof tmp_signals[0]; ++k) {
         struct sigaction old;
         if (sigaction(tmp_signals[k], NULL, &old) == 0 && old.sa_handler != SIG_IGN &&
@@ -310,17 +309,16 @@ int consph_outfile_open(consph_outfile *of, const char *path)
 
 int consph_outfile_commit(consph_outfile *of)
 {
-    int e = 0;
-    if (fflush(of->fp) != 0 || ferror(of->fp)) e = of->stream.err ? of->stream.err : EIO;
+    /* bad: a write failed, its reason in the stream; e: a failure of fsync or close. */
+    int e = 0, bad = fflush(of->fp) != 0 || ferror(of->fp);
     /* The data must be on disk before the rename makes it the file: otherwise a crash soon after
      * can leave a complete-looking name with empty or partial content. */
-    else if (fsync(of->stream.fd) != 0)
-        e = errno;
-    if (fclose(of->fp) != 0 && !e) e = of->stream.err ? of->stream.err : EIO;
+    if (!bad && fsync(of->stream.fd) != 0) e = errno;
+    if (fclose(of->fp) != 0) bad = 1;
     if (close(of->stream.fd) != 0 && !e) e = errno;
     of->fp = NULL;
-    if (e) {
-        int rc = consph_outfile_fail(of, e);
+    if (bad || e) {
+        int rc = consph_outfile_fail(of, bad ? 0 : e);
         consph_outfile_abort(of);
         return rc;
     }
