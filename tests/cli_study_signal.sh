@@ -4,7 +4,7 @@
 # (as after a failure), with exit status 128 + signal; a directory that existed before stays,
 # without temporaries. gnuplot is a fake first on PATH that starts its output and then sleeps, so
 # the signal always arrives mid-drawing. A symbolic link at OUT/NAME is refused (exit 2) without
-# writing through it.
+# writing through it. The same for the gnuplot of a shear-layer run stopped by SIGTERM.
 # Usage: cli_study_signal.sh <path-to-consph> <source-dir>
 set -u
 bin=$1
@@ -20,10 +20,15 @@ trap cleanup EXIT
 mkdir "$work/bin"
 cat >"$work/bin/gnuplot" <<'EOF'
 #!/bin/sh
-# consph runs `gnuplot -e "outfile = 'NAME'" SCRIPT.gp` in the figure's directory.
-case "$3" in *.gp) ;; *) exit 0 ;; esac
-out=${2#outfile = \'}
-out=${out%\'}
+# A study runs `gnuplot -e "outfile = 'NAME'" SCRIPT.gp` in the figure's directory, a
+# shear-layer run `gnuplot vorticity.gp` (which sets its output to vorticity.png.tmp).
+if [ "$1" = vorticity.gp ]; then
+    out=vorticity.png.tmp
+else
+    case "$3" in *.gp) ;; *) exit 0 ;; esac
+    out=${2#outfile = \'}
+    out=${out%\'}
+fi
 printf '<svg' >"$out"
 echo $$ >>"$FAKE_GNUPLOT_PIDS"
 exec sleep 60
@@ -73,6 +78,32 @@ stop TERM 143 "$work/b/new" 0
 [ -e "$work/b/new" ] && bad "TERM: created parent $work/b/new left" || pass=$((pass + 1))
 mkdir -p "$work/a/001-fig2"
 stop TERM 143 "$work/a" 1
+
+# consph run draws the shear layer's vorticity after its last step, where SIGTERM ends it at
+# once: gnuplot and vorticity.png.tmp must go with it.
+: >"$pids"
+set -m
+PATH="$work/bin:$PATH" "$bin" run shear-layer --scheme wcsph --nx 8 --steps 1 --out "$work/rv" \
+    >/dev/null 2>&1 &
+p=$!
+set +m
+for _ in $(seq 200); do
+    [ -s "$pids" ] && break
+    sleep 0.05
+done
+kill -TERM "$p"
+{ wait "$p"; } 2>/dev/null
+rc=$?
+q=$(cat "$pids")
+if [ $rc != 143 ]; then
+    bad "run, SIGTERM while gnuplot draws: exit $rc, want 143"
+elif [ -n "$q" ] && kill -0 "$q" 2>/dev/null; then
+    bad "run: gnuplot $q still running"
+elif [ -e "$work/rv/vorticity.png.tmp" ]; then
+    bad "run: vorticity.png.tmp left"
+else
+    pass=$((pass + 1))
+fi
 
 # A link at OUT/NAME would take the results elsewhere: refused, nothing written through it.
 mkdir "$work/out" "$work/elsewhere"

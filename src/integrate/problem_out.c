@@ -5,6 +5,7 @@
 #include <errno.h>
 #include <fcntl.h>
 #include <math.h>
+#include <signal.h>
 #include <spawn.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -13,6 +14,7 @@
 #include <sys/wait.h>
 
 #include "consph/io.h"
+#include "io/outfile_internal.h"
 #include "schemes/solver_internal.h"
 
 static char *join(const char *dir, const char *name)
@@ -55,32 +57,51 @@ static int write_profile(consph_solver *s, const char *dir)
  * and data stay for later. */
 static int draw_vorticity(const char *dir)
 {
+    char *tmp = join(dir, "vorticity.png.tmp"), *fin = join(dir, "vorticity.png");
     posix_spawn_file_actions_t fa;
-    if (posix_spawn_file_actions_init(&fa) != 0) return CONSPH_OK;
+    posix_spawnattr_t attr;
+    int st = !tmp || !fin ? consph_fail(CONSPH_ENOMEM, "out of memory") : CONSPH_OK;
+    if (st != CONSPH_OK || posix_spawn_file_actions_init(&fa) != 0) {
+        free(tmp);
+        free(fin);
+        return st;
+    }
     posix_spawn_file_actions_addchdir_np(&fa, dir);
     posix_spawn_file_actions_addopen(&fa, 1, "/dev/null", O_WRONLY, 0);
     posix_spawn_file_actions_addopen(&fa, 2, "/dev/null", O_WRONLY, 0);
     char *argv[] = {"gnuplot", "vorticity.gp", NULL};
     extern char **environ;
     pid_t pid;
-    int rc = posix_spawnp(&pid, "gnuplot", &fa, NULL, argv, environ);
+    /* A signal that ends us kills gnuplot and removes its output with our temporaries
+     * (outfile_internal.h); blocked until the child is registered, and unblocked in it. */
+    consph_tmp_register(tmp);
+    sigset_t mask;
+    consph_cleanup_signals_block(&mask);
+    int rc = posix_spawnattr_init(&attr);
+    if (rc == 0) {
+        posix_spawnattr_setsigmask(&attr, &mask);
+        posix_spawnattr_setflags(&attr, POSIX_SPAWN_SETSIGMASK);
+        rc = posix_spawnp(&pid, "gnuplot", &fa, &attr, argv, environ);
+        posix_spawnattr_destroy(&attr);
+    }
+    if (rc == 0) consph_child_register(pid);
+    sigprocmask(SIG_SETMASK, &mask, NULL);
     posix_spawn_file_actions_destroy(&fa);
-    if (rc != 0) return CONSPH_OK; /* no gnuplot */
     int status = 0;
-    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) continue;
-    char *tmp = join(dir, "vorticity.png.tmp"), *fin = join(dir, "vorticity.png");
-    int st = CONSPH_OK;
+    if (rc == 0) {
+        while (waitpid(pid, &status, 0) < 0 && errno == EINTR) continue;
+        consph_child_unregister(pid);
+    }
     struct stat sb;
-    if (!tmp || !fin)
-        st = consph_fail(CONSPH_ENOMEM, "out of memory");
-    else if (WIFEXITED(status) && WEXITSTATUS(status) == 127)
-        st = CONSPH_OK; /* the child could not exec gnuplot */
+    if (rc != 0 || (WIFEXITED(status) && WEXITSTATUS(status) == 127))
+        st = CONSPH_OK; /* no gnuplot, or the child could not exec it */
     else if (!(WIFEXITED(status) && WEXITSTATUS(status) == 0 && stat(tmp, &sb) == 0 &&
                sb.st_size > 0) ||
              rename(tmp, fin) != 0)
         st = consph_fail(CONSPH_EIO, "gnuplot could not draw %s; run 'gnuplot vorticity.gp' there",
                          fin);
-    if (tmp && st != CONSPH_OK) remove(tmp);
+    if (st != CONSPH_OK) remove(tmp);
+    consph_tmp_unregister(tmp);
     free(tmp);
     free(fin);
     return st;
