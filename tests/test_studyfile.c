@@ -155,6 +155,9 @@ static void test_validation(void)
     expect_invalid("study = a\n[figure f]\nkind = run\nnx = 8\nquick.tf = 1\nquick.steps = 3\n"
                    "[series s]\nscheme = e-c\n",
                    "key 'quick.steps': conflicts with 'quick.tf' (line 5)");
+    expect_invalid("study = a\n[figure f]\nlayout = packed\nperiodic = no\nnx = 8\n",
+                   "t.study:4: figure 'f', series 'f': key 'periodic': layout packed needs a "
+                   "periodic box");
     CHECK(validate("study = a\n[figure f]\nnx = 8, 16\n") == CONSPH_OK, "%s", consph_last_error());
 }
 

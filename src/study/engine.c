@@ -213,6 +213,10 @@ static int build_plan(const consph_study *s, const study_figure *f, const study_
     if (ipol == CONSPH_H_BETA && !(beta > dim))
         return study_key_error(s, f, r, "beta",
                                "h_policy = beta needs beta > dim = %g (004: β > n)", dim);
+    if ((ilay == CONSPH_LAYOUT_PACKED || ilay == CONSPH_LAYOUT_PACKED_POLISHED) && iper != 0 &&
+        ikind != KIND_APPC)
+        return study_key_error(s, f, r, "periodic", "layout %s needs a periodic box; allowed: yes",
+                               layouts[ilay]);
     if ((rc = study_get_double(s, f, r, "eps", 0.2, 0, 2, &eps))) return rc;
     if ((rc = study_get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) return rc;
     if ((rc = study_get_double(s, f, r, "sigma", 0.1, 1e-9, 10, &sigma))) return rc;
