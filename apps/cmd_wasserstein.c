@@ -39,6 +39,9 @@ static const char wasserstein_details[] =
     "grid_error (the midpoint rule's error in the cell masses comes on top).\n"
     "\n"
     "A file without a box of its own (a CSV without the '# box' header) needs --box.\n"
+    "Options of one method are refused with another, as they would do nothing: --directions\n"
+    "and --seed are sliced's (in 2D/3D: 1D sliced is exact), --eps, --tol and --max-iter\n"
+    "sinkhorn's; --grid needs --smooth or B = uniform, --hdx needs --smooth.\n"
     "\n"
     "exit status: 0 success, 1 failure while running, 2 bad usage or input";
 
@@ -99,6 +102,55 @@ static const char *error_kind(consph_ot_method m)
                                    : "bound: entropic bias + marginal violation";
 }
 
+/* The options, in the order of cmd_wasserstein's table. */
+enum {
+    O_METHOD,
+    O_P,
+    O_DIRECTIONS,
+    O_SEED,
+    O_EPS,
+    O_TOL,
+    O_MAX_ITER,
+    O_BOX,
+    O_SMOOTH,
+    O_HDX,
+    O_GRID,
+    O_FORMAT
+};
+
+/* Options read by one method only: given with another, they would do nothing. */
+static int check_method_options(const cli_command *cmd, const cli_opt *opts, consph_ot_method m,
+                                int method_given, int dim)
+{
+    static const struct {
+        int opt;
+        consph_ot_method method;
+    } only[] = {{O_DIRECTIONS, CONSPH_OT_SLICED},
+                {O_SEED, CONSPH_OT_SLICED},
+                {O_EPS, CONSPH_OT_SINKHORN},
+                {O_TOL, CONSPH_OT_SINKHORN},
+                {O_MAX_ITER, CONSPH_OT_SINKHORN}};
+    char here[16], needs[16];
+    cli_choice_name(METHOD_CHOICES, (int)m, here, sizeof here);
+    for (size_t k = 0; k < sizeof only / sizeof only[0]; ++k) {
+        const cli_opt *o = &opts[only[k].opt];
+        if (!o->given) continue;
+        cli_choice_name(METHOD_CHOICES, (int)only[k].method, needs, sizeof needs);
+        if (only[k].method != m)
+            return cli_error(cmd,
+                             "option %s: only with --method %s; the method here is %s%s, which "
+                             "does not read it",
+                             o->name, needs, here, method_given ? "" : " (the default)");
+        /* 1D sliced is the exact distance: no direction is drawn. */
+        if (m == CONSPH_OT_SLICED && dim == 1)
+            return cli_error(cmd,
+                             "option %s: the particles are 1D, where every direction is +-1 and "
+                             "the sliced distance is the exact one: it does nothing",
+                             o->name);
+    }
+    return 0;
+}
+
 int cmd_wasserstein(int argc, char **argv)
 {
     int method = 0, format = FORMAT_TABLE;
@@ -108,20 +160,6 @@ int cmd_wasserstein(int argc, char **argv)
     long cells = 0;
     double hdx = 1.2;
     const char *positional[2] = {NULL, NULL};
-    enum {
-        O_METHOD,
-        O_P,
-        O_DIRECTIONS,
-        O_SEED,
-        O_EPS,
-        O_TOL,
-        O_MAX_ITER,
-        O_BOX,
-        O_SMOOTH,
-        O_HDX,
-        O_GRID,
-        O_FORMAT
-    };
     cli_opt opts[] = {
         {"--method", CLI_CHOICE, &method, "M",
          "exact (1D), sliced or sinkhorn (default exact in 1D, sliced otherwise)", METHOD_CHOICES,
@@ -176,6 +214,9 @@ int cmd_wasserstein(int argc, char **argv)
         ro.have_box = 1;
     }
     int uniform = strcmp(positional[1], "uniform") == 0;
+    if (opts[O_GRID].given && !smooth_name && !uniform)
+        return cli_error(&cmd, "option --grid: only with --smooth KERNEL or B = uniform (the "
+                               "particles themselves are compared)");
     consph_kernel_id kid = 0;
     if (smooth_name && consph_kernel_lookup(smooth_name, &kid) != CONSPH_OK)
         return cli_error(&cmd, "option --smooth: %s", consph_last_error());
@@ -192,6 +233,15 @@ int cmd_wasserstein(int argc, char **argv)
     if (!rc && !uniform && in[1].p.dim != dim)
         rc = cli_error(&cmd, "%s is %dD but %s is %dD (the measures must share a dimension)",
                        in[0].path, dim, in[1].path, in[1].p.dim);
+    consph_ot_options o = consph_ot_defaults();
+    o.method = opts[O_METHOD].given ? (consph_ot_method)method
+                                    : (dim == 1 ? CONSPH_OT_EXACT : CONSPH_OT_SLICED);
+    if (!rc && o.method == CONSPH_OT_EXACT && dim != 1)
+        rc = cli_error(&cmd,
+                       "option --method: exact is 1D only and the particles are %dD; "
+                       "allowed here: sliced, sinkhorn",
+                       dim);
+    if (!rc) rc = check_method_options(&cmd, opts, o.method, opts[O_METHOD].given, dim);
     for (int k = 0; k < 2 - uniform && !rc && smooth_name; ++k)
         rc = smooth(&cmd, kid, hdx, cells, &in[k]);
     if (!rc && uniform) {
@@ -205,14 +255,6 @@ int cmd_wasserstein(int argc, char **argv)
     }
     double grid_error = (in[0].gridded ? in[0].grid.half_diagonal : 0.0) +
                         (in[1].gridded ? in[1].grid.half_diagonal : 0.0);
-    consph_ot_options o = consph_ot_defaults();
-    o.method = opts[O_METHOD].given ? (consph_ot_method)method
-                                    : (dim == 1 ? CONSPH_OT_EXACT : CONSPH_OT_SLICED);
-    if (!rc && o.method == CONSPH_OT_EXACT && dim != 1)
-        rc = cli_error(&cmd,
-                       "option --method: exact is 1D only and the particles are %dD; "
-                       "allowed here: sliced, sinkhorn",
-                       dim);
     if (rc) {
         unload(&in[0]);
         unload(&in[1]);

@@ -99,10 +99,12 @@ awk -v r="$raw" -v s="$smo" 'BEGIN { exit !(s < r / 3) }' && ok ||
     bad "smoothing a perturbed lattice: W1 $smo, unsmoothed $raw"
 
 # ---- 2. threads ---------------------------------------------------------------------------
-for m in sliced sinkhorn; do
-    a=$(OMP_NUM_THREADS=1 "$bin" wasserstein "$work/r.csv" "$work/rs.csv" --method $m --eps 1e-2 \
+for m in sliced "sinkhorn --eps 1e-2"; do
+    # shellcheck disable=SC2086
+    a=$(OMP_NUM_THREADS=1 "$bin" wasserstein "$work/r.csv" "$work/rs.csv" --method $m \
         --format json | sed 's/"seconds".*//')
-    b=$(OMP_NUM_THREADS=2 "$bin" wasserstein "$work/r.csv" "$work/rs.csv" --method $m --eps 1e-2 \
+    # shellcheck disable=SC2086
+    b=$(OMP_NUM_THREADS=2 "$bin" wasserstein "$work/r.csv" "$work/rs.csv" --method $m \
         --format json | sed 's/"seconds".*//')
     [ -n "$a" ] && [ "$a" = "$b" ] && ok || bad "$m differs between 1 and 2 threads"
 done
@@ -139,6 +141,17 @@ rejects "$work/l.csv $work/l.csv --smooth cubic" "option --grid: needed"
 rejects "$work/l.csv $work/l.csv --hdx 2" "only with --smooth"
 rejects "$work/l.csv uniform --grid 10 --smooth nosuch" "allowed: cubic"
 rejects "$work/l.csv uniform --grid 0" "1..100000000"
+# Options the chosen method does not read are refused, naming the option and the method
+# (issue 23 item 9); l.csv is 1D (default exact), r.csv 2D (default sliced).
+rejects "$work/r.csv $work/rs.csv --method sliced --eps 1e-2" "option --eps: only with --method sinkhorn; the method here is sliced,"
+rejects "$work/r.csv $work/rs.csv --tol 1e-3" "option --tol: only with --method sinkhorn; the method here is sliced (the default)"
+rejects "$work/r.csv $work/rs.csv --max-iter 10" "option --max-iter: only with --method sinkhorn"
+rejects "$work/r.csv $work/rs.csv --method sinkhorn --directions 8" "option --directions: only with --method sliced; the method here is sinkhorn"
+rejects "$work/r.csv $work/rs.csv --method sinkhorn --seed 3" "option --seed: only with --method sliced"
+rejects "$work/l.csv $work/shift.vtu --directions 8" "option --directions: only with --method sliced; the method here is exact (the default)"
+rejects "$work/l.csv $work/shift.vtu --method exact --eps 1e-2" "option --eps: only with --method sinkhorn; the method here is exact,"
+rejects "$work/l.csv $work/shift.vtu --method sliced --seed 2" "option --seed: the particles are 1D"
+rejects "$work/l.csv $work/shift.vtu --grid 10" "option --grid: only with --smooth KERNEL or B = uniform"
 
 echo "cli_wasserstein: $pass passed, $fail failed"
 [ $fail -eq 0 ]
