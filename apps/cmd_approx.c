@@ -288,8 +288,9 @@ int cmd_approx(int argc, char **argv)
              "Particle files: CSV with a header row x,y[,z] (optional volume, m, rho columns) or "
              "VTK .vtu (ascii, binary, appended, zlib), as 'consph layout --out' writes them; "
              "the box and periodicity come from the file (CSV '# box'/'# periodic' comments, VTU "
-             "FieldData) unless --box/--periodic are given. A bad file gets one line naming the "
-             "file, the line and the problem, and exit status 2.",
+             "FieldData) unless --box/--periodic are given; the spacing must lie in [1e-50, "
+             "1e50]. A bad file gets one line naming the file, the line and the problem, and "
+             "exit status 2. Packed layouts need --periodic yes.",
              consph_mfield_names());
     cli_command cmd = {"approx",
                        "Measure an operator's accuracy on a manufactured field at several "
@@ -327,6 +328,14 @@ int cmd_approx(int argc, char **argv)
     if (cli_parse_periodic(periodic_text, periodic) != 0)
         return cli_bad_periodic(&cmd, periodic_text);
     if (!from_files && (rc = cli_check_periodic_dim(&cmd, periodic_text, (int)dim))) return rc;
+    /* The packing needs a periodic box (001's PP arrangement), as `consph layout` says. */
+    const int packed =
+        layout_idx == CONSPH_LAYOUT_PACKED || layout_idx == CONSPH_LAYOUT_PACKED_POLISHED;
+    for (int a = 0; !from_files && packed && a < dim; ++a)
+        if (!periodic[a])
+            return cli_error(&cmd,
+                             "option --periodic: --layout %s needs a periodic box; allowed: yes",
+                             consph_layout_name((consph_layout_kind)layout_idx));
     consph_box given_box;
     if (box_text && cli_parse_box(box_text, &given_box) != 0) return cli_bad_box(&cmd, box_text);
     if (!from_files && volume_idx == CONSPH_VOLUME_COUNT) volume_idx = CONSPH_VOLUME_GIVEN;

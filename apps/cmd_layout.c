@@ -46,7 +46,9 @@ static const char layout_details[] =
     "optional volume, m, rho columns, or .vtu: ascii, binary, appended, zlib), prints the same\n"
     "statistics and, with --out, writes them in the other format: a converter. The box and\n"
     "periodicity are the file's (consph's '#' header or VTU field data) unless --box and\n"
-    "--periodic are given; the spacing is the file's, else (box volume / N)^(1/D).\n"
+    "--periodic are given; the spacing is the file's, else (box volume / N)^(1/D), and must\n"
+    "lie in [1e-50, 1e50] (kernels divide by h^(D+2)). A lone particle in a box that is not\n"
+    "periodic has no neighbour: its spacing statistics print as n/a.\n"
     "\n"
     "exit status: 0 success, 1 failure while running, 2 bad usage (nothing is written)";
 
@@ -68,11 +70,21 @@ static int print_stats(const consph_particles *p, const char *kernel, double hdx
         fprintf(stderr, "consph layout: %s\n", consph_last_error());
         return rc;
     }
-    printf("min spacing %.6g (%.4f Δs)\n", st.min_spacing, st.min_spacing / p->spacing);
+    /* One particle in a box that is not periodic has no neighbour, so no spacing: n/a, not inf
+     * and nan. The file is valid and its density and lattice distance are defined, so this is
+     * no error (periodic, its images are its neighbours). */
+    const int alone = !isfinite(st.min_spacing) || !isfinite(nst.nn_min);
+    if (alone)
+        printf("min spacing n/a (%zu particle, no pair)\n", p->n);
+    else
+        printf("min spacing %.6g (%.4f Δs)\n", st.min_spacing, st.min_spacing / p->spacing);
     printf("density (%s, h/Δs %g): max|rho/rho0-1| %.3e, mean rho %.9f\n", kernel, hdx,
            st.rho_spread, st.rho_mean);
-    printf("nearest-neighbour distance / Δs: min %.4f mean %.4f max %.4f std %.4f\n", nst.nn_min,
-           nst.nn_mean, nst.nn_max, nst.nn_std);
+    if (alone)
+        printf("nearest-neighbour distance / Δs: n/a (no neighbour)\n");
+    else
+        printf("nearest-neighbour distance / Δs: min %.4f mean %.4f max %.4f std %.4f\n",
+               nst.nn_min, nst.nn_mean, nst.nn_max, nst.nn_std);
     printf("distance to the nearest lattice node / Δs: mean %.4f max %.4f\n", nst.disp_mean,
            nst.disp_max);
     return CONSPH_OK;

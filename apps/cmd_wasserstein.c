@@ -3,6 +3,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "cli.h"
 #include "commands.h"
@@ -39,6 +40,15 @@ static const char wasserstein_details[] =
     "grid_error (the midpoint rule's error in the cell masses comes on top).\n"
     "\n"
     "A file without a box of its own (a CSV without the '# box' header) needs --box.\n"
+    "Options of one method are refused with another, as they would do nothing: --directions\n"
+    "and --seed are sliced's (in 2D/3D: 1D sliced is exact), --eps, --tol and --max-iter\n"
+    "sinkhorn's; --grid needs --smooth or B = uniform, --hdx needs --smooth.\n"
+    "\n"
+    "Before any work the memory and time are estimated from the sizes: a comparison that\n"
+    "needs more than 4 GiB (CONSPH_MEMORY_LIMIT=BYTES[K|M|G] sets this cap) or the memory the\n"
+    "machine has available is refused (exit 2, naming --grid or the files, the estimate and\n"
+    "the limit); one that may pass 10 s (Sinkhorn: 100 iterations) is announced on stderr,\n"
+    "and on a terminal a progress line follows the smoothing and the Sinkhorn iterations.\n"
     "\n"
     "exit status: 0 success, 1 failure while running, 2 bad usage or input";
 
@@ -78,15 +88,174 @@ static void unload(input *in)
     free(in->scratch);
 }
 
+/* The memory a comparison may take unless CONSPH_MEMORY_LIMIT says otherwise: a figure that
+ * fits ordinary workstations; the machine's available memory lowers it further. */
+#define MEMORY_CAP (4.0 * 1024 * 1024 * 1024)
+
+/* What the machine can give now: MemAvailable, else the free physical pages; +inf if unknown. */
+static double memory_available(void)
+{
+    FILE *f = fopen("/proc/meminfo", "r");
+    char line[256];
+    double kb = -1.0;
+    while (f && fgets(line, sizeof line, f))
+        if (sscanf(line, "MemAvailable: %lf kB", &kb) == 1) break;
+    if (f) fclose(f);
+    if (kb >= 0.0) return kb * 1024.0;
+    long pages = sysconf(_SC_AVPHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    return pages > 0 && size > 0 ? (double)pages * (double)size : INFINITY;
+}
+
+/* CONSPH_MEMORY_LIMIT: bytes, with an optional K, M or G (binary); 0 when unset, -1 when bad. */
+static double memory_cap_from_env(void)
+{
+    const char *v = getenv("CONSPH_MEMORY_LIMIT");
+    if (!v || !*v) return 0.0;
+    char *end;
+    double x = strtod(v, &end);
+    double unit = *end == 'K' ? 1024.0 : *end == 'M' ? 1048576.0 : *end == 'G' ? 1073741824.0 : 1.0;
+    if (unit > 1.0) ++end;
+    if (end == v || *end || !(x > 0.0) || !isfinite(x)) return -1.0;
+    return x * unit;
+}
+
+static const char *bytes_text(double b, char *buf, size_t size)
+{
+    if (b >= 1e9)
+        snprintf(buf, size, "%.1f GB", b / 1e9);
+    else if (b >= 1e6)
+        snprintf(buf, size, "%.1f MB", b / 1e6);
+    else
+        snprintf(buf, size, "%.0f kB", b / 1e3);
+    return buf;
+}
+
+/* A progress line on stderr, only on a terminal (as consph run's): logs see real messages. */
+typedef struct progress {
+    int enabled, shown;
+    double t0, last;
+    const char *what;
+} progress;
+
+static void progress_line(progress *pr, const char *fmt, double a, double b, double c)
+{
+    double now = consph_wtime();
+    if (!pr->enabled || now - pr->last < 0.5) return;
+    pr->last = now;
+    pr->shown = 1;
+    fprintf(stderr, "\r%s: ", pr->what);
+    fprintf(stderr, fmt, a, b, c);
+    fprintf(stderr, ", %.0f s\033[K", now - pr->t0);
+    fflush(stderr);
+}
+
+static void grid_progress(void *ctx, double done, double total)
+{
+    progress *pr = ctx;
+    double elapsed = consph_wtime() - pr->t0;
+    progress_line(pr, "%.0f%% of %.3g cells, about %.0f s left", 100.0 * done / total, total,
+                  done > 0 ? elapsed * (total - done) / done : NAN);
+}
+
+static void sinkhorn_progress(void *ctx, long iteration, double eps_abs, double marginal_error)
+{
+    progress_line(ctx, "iteration %.0f, eps %.3g, marginal violation %.2e", (double)iteration,
+                  eps_abs, marginal_error);
+}
+
+static void progress_begin(progress *pr, const char *what)
+{
+    pr->enabled = isatty(STDERR_FILENO) == 1;
+    pr->shown = 0;
+    pr->t0 = consph_wtime();
+    pr->last = pr->t0;
+    pr->what = what;
+}
+
+static void progress_end(progress *pr)
+{
+    if (pr->shown) fprintf(stderr, "\r\033[K");
+    pr->shown = 0;
+}
+
+/* Memory and time of the whole comparison, before any of it: what cannot fit is refused (naming
+ * --grid when grids are involved, else the files), long work is announced. */
+static int check_cost(const cli_command *cmd, const consph_ot_options *o, int dim, const input *in,
+                      int uniform, int smoothing, long cells)
+{
+    const int threads = consph_num_threads();
+    const double gridn = pow((double)cells, dim);
+    double grid_bytes = 0.0, grid_seconds = 0.0, n[2];
+    for (int k = 0; k < 2; ++k) {
+        int gridded = k == 1 ? uniform || smoothing : smoothing;
+        n[k] = gridded ? gridn : (double)in[k].mu.n;
+        if (!gridded) continue;
+        consph_ot_estimate g = consph_grid_measure_estimate(
+            dim, (size_t)cells, k == 1 && uniform ? 0 : in[k].p.n, threads);
+        grid_bytes += g.bytes;
+        grid_seconds += g.seconds;
+    }
+    consph_ot_estimate t = consph_wasserstein_estimate(o, dim, n[0], n[1], threads);
+    const double bytes = grid_bytes + t.bytes, available = memory_available();
+    double cap = memory_cap_from_env();
+    if (cap < 0)
+        return cli_error(cmd,
+                         "CONSPH_MEMORY_LIMIT='%s' is not a size; allowed: bytes with an "
+                         "optional K, M or G, e.g. 2G",
+                         getenv("CONSPH_MEMORY_LIMIT"));
+    if (cap == 0.0) cap = MEMORY_CAP;
+    const double limit = fmin(cap, available);
+    char need[32], grids[32], trans[32], lim[32], capt[32], avail[32];
+    bytes_text(bytes, need, sizeof need);
+    bytes_text(grid_bytes, grids, sizeof grids);
+    bytes_text(t.bytes, trans, sizeof trans);
+    bytes_text(limit, lim, sizeof lim);
+    bytes_text(cap, capt, sizeof capt);
+    bytes_text(available, avail, sizeof avail);
+    if (bytes > limit && grid_bytes > 0)
+        return cli_error(cmd,
+                         "option --grid: %ld cells per axis (%.3g cells in %dD) need about %s "
+                         "(grids %s, transport %s on %d threads); the limit is %s (the cap %s, "
+                         "CONSPH_MEMORY_LIMIT, or the %s available, whichever is less); allowed: "
+                         "a smaller --grid",
+                         cells, gridn, dim, need, grids, trans, threads, lim, capt, avail);
+    if (bytes > limit)
+        return cli_error(cmd,
+                         "%s and %s: %.0f and %.0f points need about %s on %d threads; the limit "
+                         "is %s (the cap %s, CONSPH_MEMORY_LIMIT, or the %s available, whichever "
+                         "is less)",
+                         in[0].path, in[1].path, n[0], n[1], need, threads, lim, capt, avail);
+    /* Announced when it may pass ten seconds: Sinkhorn's iteration count is not known ahead
+     * (W1 often takes thousands), so its estimate is per iteration with the cap's total. */
+    const int sinkhorn = o->method == CONSPH_OT_SINKHORN;
+    const double typical = grid_seconds + (sinkhorn ? 100.0 : 1.0) * t.seconds;
+    if (typical >= 10.0) {
+        fprintf(stderr, "consph wasserstein: estimate (rough, %d thread%s): memory %s", threads,
+                threads == 1 ? "" : "s", need);
+        if (grid_seconds > 0) fprintf(stderr, ", grids %.0f s", grid_seconds);
+        if (sinkhorn)
+            fprintf(stderr, ", %.3g s per Sinkhorn iteration (%.0f s at --max-iter %ld)", t.seconds,
+                    t.seconds * (double)o->max_iter, o->max_iter);
+        else
+            fprintf(stderr, ", transport %.0f s", t.seconds);
+        fprintf(stderr, "%s\n", isatty(STDERR_FILENO) ? "" : "; progress is shown on a terminal");
+    }
+    return 0;
+}
+
 /* Replaces the particle measure by its SPH density Σ m_b W(x − x_b, h) on a grid over the
  * particles' box, h = hdx × the file's spacing. */
 static int smooth(const cli_command *cmd, const consph_kernel_id kid, double hdx, long cells,
-                  input *in)
+                  input *in, progress *pr)
 {
     consph_kernel k;
-    if (consph_kernel_init(&k, kid, in->p.dim, hdx * in->p.spacing) != CONSPH_OK ||
-        consph_grid_measure_sph(&in->p.box, (size_t)cells, &in->mu, &k, &in->grid) != CONSPH_OK)
-        return cli_error(cmd, "%s: %s", in->path, consph_last_error());
+    int rc = consph_kernel_init(&k, kid, in->p.dim, hdx * in->p.spacing);
+    progress_begin(pr, in->path);
+    if (rc == CONSPH_OK)
+        rc = consph_grid_measure_sph_progress(&in->p.box, (size_t)cells, &in->mu, &k, &in->grid,
+                                              grid_progress, pr);
+    progress_end(pr);
+    if (rc != CONSPH_OK) return cli_error(cmd, "%s: %s", in->path, consph_last_error());
     in->gridded = 1;
     in->mu = in->grid.mu;
     return 0;
@@ -99,6 +268,55 @@ static const char *error_kind(consph_ot_method m)
                                    : "bound: entropic bias + marginal violation";
 }
 
+/* The options, in the order of cmd_wasserstein's table. */
+enum {
+    O_METHOD,
+    O_P,
+    O_DIRECTIONS,
+    O_SEED,
+    O_EPS,
+    O_TOL,
+    O_MAX_ITER,
+    O_BOX,
+    O_SMOOTH,
+    O_HDX,
+    O_GRID,
+    O_FORMAT
+};
+
+/* Options read by one method only: given with another, they would do nothing. */
+static int check_method_options(const cli_command *cmd, const cli_opt *opts, consph_ot_method m,
+                                int method_given, int dim)
+{
+    static const struct {
+        int opt;
+        consph_ot_method method;
+    } only[] = {{O_DIRECTIONS, CONSPH_OT_SLICED},
+                {O_SEED, CONSPH_OT_SLICED},
+                {O_EPS, CONSPH_OT_SINKHORN},
+                {O_TOL, CONSPH_OT_SINKHORN},
+                {O_MAX_ITER, CONSPH_OT_SINKHORN}};
+    char here[16], needs[16];
+    cli_choice_name(METHOD_CHOICES, (int)m, here, sizeof here);
+    for (size_t k = 0; k < sizeof only / sizeof only[0]; ++k) {
+        const cli_opt *o = &opts[only[k].opt];
+        if (!o->given) continue;
+        cli_choice_name(METHOD_CHOICES, (int)only[k].method, needs, sizeof needs);
+        if (only[k].method != m)
+            return cli_error(cmd,
+                             "option %s: only with --method %s; the method here is %s%s, which "
+                             "does not read it",
+                             o->name, needs, here, method_given ? "" : " (the default)");
+        /* 1D sliced is the exact distance: no direction is drawn. */
+        if (m == CONSPH_OT_SLICED && dim == 1)
+            return cli_error(cmd,
+                             "option %s: the particles are 1D, where every direction is +-1 and "
+                             "the sliced distance is the exact one: it does nothing",
+                             o->name);
+    }
+    return 0;
+}
+
 int cmd_wasserstein(int argc, char **argv)
 {
     int method = 0, format = FORMAT_TABLE;
@@ -108,20 +326,6 @@ int cmd_wasserstein(int argc, char **argv)
     long cells = 0;
     double hdx = 1.2;
     const char *positional[2] = {NULL, NULL};
-    enum {
-        O_METHOD,
-        O_P,
-        O_DIRECTIONS,
-        O_SEED,
-        O_EPS,
-        O_TOL,
-        O_MAX_ITER,
-        O_BOX,
-        O_SMOOTH,
-        O_HDX,
-        O_GRID,
-        O_FORMAT
-    };
     cli_opt opts[] = {
         {"--method", CLI_CHOICE, &method, "M",
          "exact (1D), sliced or sinkhorn (default exact in 1D, sliced otherwise)", METHOD_CHOICES,
@@ -176,6 +380,9 @@ int cmd_wasserstein(int argc, char **argv)
         ro.have_box = 1;
     }
     int uniform = strcmp(positional[1], "uniform") == 0;
+    if (opts[O_GRID].given && !smooth_name && !uniform)
+        return cli_error(&cmd, "option --grid: only with --smooth KERNEL or B = uniform (the "
+                               "particles themselves are compared)");
     consph_kernel_id kid = 0;
     if (smooth_name && consph_kernel_lookup(smooth_name, &kid) != CONSPH_OK)
         return cli_error(&cmd, "option --smooth: %s", consph_last_error());
@@ -192,8 +399,25 @@ int cmd_wasserstein(int argc, char **argv)
     if (!rc && !uniform && in[1].p.dim != dim)
         rc = cli_error(&cmd, "%s is %dD but %s is %dD (the measures must share a dimension)",
                        in[0].path, dim, in[1].path, in[1].p.dim);
+    consph_ot_options o = consph_ot_defaults();
+    o.method = opts[O_METHOD].given ? (consph_ot_method)method
+                                    : (dim == 1 ? CONSPH_OT_EXACT : CONSPH_OT_SLICED);
+    if (!rc && o.method == CONSPH_OT_EXACT && dim != 1)
+        rc = cli_error(&cmd,
+                       "option --method: exact is 1D only and the particles are %dD; "
+                       "allowed here: sliced, sinkhorn",
+                       dim);
+    o.p = (int)p;
+    o.directions = (int)directions;
+    o.seed = (uint64_t)seed;
+    o.eps = eps;
+    o.tol = tol;
+    o.max_iter = max_iter;
+    if (!rc) rc = check_method_options(&cmd, opts, o.method, opts[O_METHOD].given, dim);
+    if (!rc) rc = check_cost(&cmd, &o, dim, in, uniform, smooth_name != NULL, cells);
+    progress pr;
     for (int k = 0; k < 2 - uniform && !rc && smooth_name; ++k)
-        rc = smooth(&cmd, kid, hdx, cells, &in[k]);
+        rc = smooth(&cmd, kid, hdx, cells, &in[k], &pr);
     if (!rc && uniform) {
         in[1].path = "uniform";
         in[1].p.dim = dim;
@@ -205,30 +429,21 @@ int cmd_wasserstein(int argc, char **argv)
     }
     double grid_error = (in[0].gridded ? in[0].grid.half_diagonal : 0.0) +
                         (in[1].gridded ? in[1].grid.half_diagonal : 0.0);
-    consph_ot_options o = consph_ot_defaults();
-    o.method = opts[O_METHOD].given ? (consph_ot_method)method
-                                    : (dim == 1 ? CONSPH_OT_EXACT : CONSPH_OT_SLICED);
-    if (!rc && o.method == CONSPH_OT_EXACT && dim != 1)
-        rc = cli_error(&cmd,
-                       "option --method: exact is 1D only and the particles are %dD; "
-                       "allowed here: sliced, sinkhorn",
-                       dim);
     if (rc) {
         unload(&in[0]);
         unload(&in[1]);
         return rc;
     }
-    o.p = (int)p;
-    o.directions = (int)directions;
-    o.seed = (uint64_t)seed;
-    o.eps = eps;
-    o.tol = tol;
-    o.max_iter = max_iter;
-
     consph_ot_result res;
+    if (o.method == CONSPH_OT_SINKHORN) {
+        o.progress = sinkhorn_progress;
+        o.progress_ctx = &pr;
+    }
+    progress_begin(&pr, "sinkhorn");
     double t0 = consph_wtime();
     rc = consph_wasserstein(&in[0].mu, &in[1].mu, &o, &res);
     double seconds = consph_wtime() - t0;
+    progress_end(&pr);
     if (rc) {
         fprintf(stderr, "consph wasserstein: %s\n", consph_last_error());
         unload(&in[0]);

@@ -21,5 +21,20 @@ grep -q "warning: nx = 12: packing stopped at --pack-iter 20" "$tmp/perr" || bad
 grep -q warning "$tmp/p.csv" && bad "warning on stdout"
 "$consph" approx --op function --layout packed --nx 12 --format csv >/dev/null 2>"$tmp/perr2" || bad "packed default exit $?"
 grep -q warning "$tmp/perr2" && bad "warning although the packing converged: $(cat "$tmp/perr2")"
+# Refused before any work with exit 2 where `layout` refuses too (issue 23 item 12): a packed
+# layout in a box that is not periodic, and particle files whose spacing no kernel can hold.
+for per in no x; do
+  "$consph" approx --op grad --layout packed --periodic $per --nx 10 >"$tmp/o" 2>"$tmp/e"; rc=$?
+  [ $rc = 2 ] || bad "packed --periodic $per: exit $rc"
+  grep -q "option --periodic: --layout packed needs a periodic box" "$tmp/e" || bad "packed --periodic $per: $(cat "$tmp/e")"
+  [ -s "$tmp/o" ] && bad "packed --periodic $per: work started: $(cat "$tmp/o")"
+done
+printf 'x,y\n1e-161,1e-161\n2e-161,1e-161\n1e-161,2e-161\n2e-161,2e-161\n' >"$tmp/tiny.csv"
+for box in 0:1e-160,0:1e-160 0:1e60,0:1e60; do
+  "$consph" approx --op grad --particles "$tmp/tiny.csv" --box $box >"$tmp/o" 2>"$tmp/e"; rc=$?
+  [ $rc = 2 ] || bad "box $box: exit $rc"
+  grep -q "tiny.csv: the given box is too large or too small.*allowed: spacing in" "$tmp/e" || bad "box $box: $(cat "$tmp/e")"
+  [ -s "$tmp/o" ] && bad "box $box: work started"
+done
 [ $fail = 0 ] && echo "cli_approx: 1 passed, 0 failed" || echo "cli_approx: 0 passed, 1 failed"
 exit $fail

@@ -160,4 +160,15 @@ expect_usage_error --kernel --kind packed --dim 2 --nx 8 --kernel nonsense --out
 expect_usage_error --kernel --kind packed --dim 2 --nx 8 --kernel m4 --hdx 1 --out p.vtu
 expect_usage_error --nx --kind lattice --dim 3 --nx 5000 --out p.vtu
 
+# One particle without periodic images has no spacing: n/a, not inf and -nan (issue 23 item 12).
+printf 'x,y\n0.5,0.5\n' >"$work/one.csv"
+"$bin" layout --in "$work/one.csv" --box 0:1,0:1 >"$work/one.out" 2>&1 || bad "one particle: exit $?"
+grep -qi 'nan\|inf' "$work/one.out" && bad "one particle: $(cat "$work/one.out")"
+grep -q '^min spacing n/a' "$work/one.out" || bad "one particle: no n/a: $(cat "$work/one.out")"
+grep -q '^nearest-neighbour distance / Δs: n/a' "$work/one.out" || bad "one particle nn: $(cat "$work/one.out")"
+"$bin" layout --in "$work/one.csv" --box 0:1,0:1 --periodic yes | grep -q '^min spacing 1 ' || bad "one periodic particle"
+printf 'x,y\n1e-161,1e-161\n2e-161,2e-161\n' >"$work/tiny.csv"
+"$bin" layout --in "$work/tiny.csv" --box 0:1e-160,0:1e-160 >"$work/o" 2>"$work/e"; rc=$?
+[ $rc = 2 ] && grep -q 'allowed: spacing in' "$work/e" || bad "tiny box: exit $rc $(cat "$work/e")"
+
 exit $fail

@@ -37,6 +37,23 @@ printf 'study = broken\n[figure a]\nnx = 10\nop = grad\nform = nosuch\n' >"$tmp/
 grep -q "broken.study:5" "$tmp/err" || bad "bad form message lacks the line: $(cat "$tmp/err")"
 [ -e "$tmp/o2" ] && bad "a rejected study created output"
 "$consph" study no-such-study >/dev/null 2>&1; [ $? = 2 ] || bad "unknown study name"
+# Keys that would be ignored, lists with holes, conflicting keys (issue 23 item 10): exit 2
+# naming file:line, before any work. Each case: the body after the study line, the line expected.
+while IFS='|' read -r body where; do
+  printf "study = broken\n$body" >"$tmp/broken.study"
+  "$consph" study "$tmp/broken.study" --quick --out "$tmp/o3" >/dev/null 2>"$tmp/err"; rc=$?
+  [ $rc = 2 ] || bad "$body: exit $rc"
+  grep -q "broken.study:$where" "$tmp/err" || bad "$body: message $(cat "$tmp/err")"
+  [ -e "$tmp/o3" ] && bad "$body: created output"
+done <<'CASES'
+[figure a]\nkind = run\nnx = 8\n[series s]\nscheme = e-c\ntr_ref = s\n|7: key 'tr_ref' is one per figure
+[figure a]\nkind = run\nop = grad\nnx = 8\n[series s]\nscheme = e-c\n|4: key 'op' does not apply
+[figure a]\nkind = heat\nnx = 8\nscheme = e-c\n|5: key 'scheme' does not apply
+[figure a]\nkind = run\nnx = 8\nsteps = 5\ntf = 0.1\n[series s]\nscheme = e-c\n|5: .*'steps': conflicts with 'tf' (line 6)
+[figure a]\nnx = 8,,16\n|3: .*'8,,16' is not a list
+[figure a]\nnx = 8\nseries.kernel = cubic,cubic\n|4: series.kernel: value 'cubic' given twice
+[figure a]\nkind = run\nnx = 8\n[series s]\nc0 = 10\n|5: .*key 'scheme': not given
+CASES
 # An output directory that cannot be created is refused before anything runs.
 : >"$tmp/plainfile"
 "$consph" study "$src/tests/data/engine.study" --quick --out "$tmp/plainfile/results" >/dev/null 2>"$tmp/err"; rc=$?
@@ -56,14 +73,14 @@ mkdir -p "$tmp/inj"
   echo '[figure a]'
   echo "title = it's \"q\" \`touch $tmp/mark2\` \$(touch $tmp/mark3) @x \\ back\\"
   echo 'nx = 8,12'
-  echo "series.title = a'b \`touch $tmp/mark4\`,c\"d\\"
+  echo "series.paper.note = a'b \`touch $tmp/mark4\`,c\"d\\"
 } >"$tmp/inj/evil.study"
 "$consph" study "$tmp/inj/evil.study" --quick --out "$tmp/inj/out" >"$tmp/log" 2>&1; rc=$?
 ls "$tmp"/mark* >/dev/null 2>&1 && bad "a title in a study file ran a shell command"
 if command -v gnuplot >/dev/null; then
   [ $rc = 0 ] || bad "quoted titles: exit $rc: $(cat "$tmp/log")"
   [ -s "$tmp/inj/out/evil/a.svg" ] || bad "quoted titles: no SVG drawn"
-  grep -q "title 'title=a''b" "$tmp/inj/out/evil/a.gp" || bad "apostrophe not doubled in a.gp"
+  grep -q "title 'paper.note=a''b" "$tmp/inj/out/evil/a.gp" || bad "apostrophe not doubled in a.gp"
 fi
 # A control character (a newline cannot occur inside a line) is refused with file and line.
 printf 'study = cr\n[figure a]\ntitle = a\rb\nnx = 8\n' >"$tmp/inj/cr.study"

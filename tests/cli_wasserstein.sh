@@ -99,10 +99,12 @@ awk -v r="$raw" -v s="$smo" 'BEGIN { exit !(s < r / 3) }' && ok ||
     bad "smoothing a perturbed lattice: W1 $smo, unsmoothed $raw"
 
 # ---- 2. threads ---------------------------------------------------------------------------
-for m in sliced sinkhorn; do
-    a=$(OMP_NUM_THREADS=1 "$bin" wasserstein "$work/r.csv" "$work/rs.csv" --method $m --eps 1e-2 \
+for m in sliced "sinkhorn --eps 1e-2"; do
+    # shellcheck disable=SC2086
+    a=$(OMP_NUM_THREADS=1 "$bin" wasserstein "$work/r.csv" "$work/rs.csv" --method $m \
         --format json | sed 's/"seconds".*//')
-    b=$(OMP_NUM_THREADS=2 "$bin" wasserstein "$work/r.csv" "$work/rs.csv" --method $m --eps 1e-2 \
+    # shellcheck disable=SC2086
+    b=$(OMP_NUM_THREADS=2 "$bin" wasserstein "$work/r.csv" "$work/rs.csv" --method $m \
         --format json | sed 's/"seconds".*//')
     [ -n "$a" ] && [ "$a" = "$b" ] && ok || bad "$m differs between 1 and 2 threads"
 done
@@ -139,6 +141,35 @@ rejects "$work/l.csv $work/l.csv --smooth cubic" "option --grid: needed"
 rejects "$work/l.csv $work/l.csv --hdx 2" "only with --smooth"
 rejects "$work/l.csv uniform --grid 10 --smooth nosuch" "allowed: cubic"
 rejects "$work/l.csv uniform --grid 0" "1..100000000"
+# Options the chosen method does not read are refused, naming the option and the method
+# (issue 23 item 9); l.csv is 1D (default exact), r.csv 2D (default sliced).
+rejects "$work/r.csv $work/rs.csv --method sliced --eps 1e-2" "option --eps: only with --method sinkhorn; the method here is sliced,"
+rejects "$work/r.csv $work/rs.csv --tol 1e-3" "option --tol: only with --method sinkhorn; the method here is sliced (the default)"
+rejects "$work/r.csv $work/rs.csv --max-iter 10" "option --max-iter: only with --method sinkhorn"
+rejects "$work/r.csv $work/rs.csv --method sinkhorn --directions 8" "option --directions: only with --method sliced; the method here is sinkhorn"
+rejects "$work/r.csv $work/rs.csv --method sinkhorn --seed 3" "option --seed: only with --method sliced"
+rejects "$work/l.csv $work/shift.vtu --directions 8" "option --directions: only with --method sliced; the method here is exact (the default)"
+rejects "$work/l.csv $work/shift.vtu --method exact --eps 1e-2" "option --eps: only with --method sinkhorn; the method here is exact,"
+rejects "$work/l.csv $work/shift.vtu --method sliced --seed 2" "option --seed: the particles are 1D"
+rejects "$work/l.csv $work/shift.vtu --grid 10" "option --grid: only with --smooth KERNEL or B = uniform"
+
+# ---- 4. costs (issue 23 item 13) ----------------------------------------------------------
+# What cannot fit in memory is refused before any work, naming --grid (or the files), the
+# estimate and the limit; CONSPH_MEMORY_LIMIT lowers the cap. Issue 23's case: 2D against a
+# uniform grid of 10000² cells, 8 to 11 GB on 1 or 2 threads, over the 4 GiB cap.
+rejects "$work/r.csv uniform --grid 10000" "option --grid: 10000 cells per axis (1e+08 cells in 2D) need about .* GB.*the limit is"
+CONSPH_MEMORY_LIMIT=1M rejects "$work/r.csv uniform --grid 300" "option --grid: 300 cells per axis .*the limit is 1.0 MB"
+CONSPH_MEMORY_LIMIT=2K rejects "$work/r.csv $work/rs.csv" "r.csv and .*rs.csv: 64 and 64 points need about"
+CONSPH_MEMORY_LIMIT=lots rejects "$work/r.csv $work/rs.csv" "CONSPH_MEMORY_LIMIT='lots' is not a size"
+# Long work is announced on stderr with its estimate (Sinkhorn: per iteration and at the cap),
+# stdout unchanged: 1600 against 1024 points.
+"$bin" layout --kind random --dim 2 --nx 40 --eps 0.4 --out "$work/r40.csv" >/dev/null || bad "layout 40"
+"$bin" layout --kind random --dim 2 --nx 32 --eps 0.4 --out "$work/r32.csv" >/dev/null || bad "layout 32"
+OMP_NUM_THREADS=1 "$bin" wasserstein "$work/r40.csv" "$work/r32.csv" --method sinkhorn --max-iter 1 \
+    --format json >"$work/out" 2>"$work/err"
+grep -q '^consph wasserstein: estimate (rough, 1 thread): memory .*, [0-9.e+-]* s per Sinkhorn iteration ([0-9]* s at --max-iter 1); progress is shown on a terminal$' "$work/err" &&
+    ok || bad "no estimate before a long Sinkhorn: $(cat "$work/err")"
+grep -q '"distance"' "$work/out" && ok || bad "the estimated run wrote no result"
 
 echo "cli_wasserstein: $pass passed, $fail failed"
 [ $fail -eq 0 ]

@@ -71,6 +71,123 @@ static void test_bytes(void)
     CHECK(parse(crlf, strlen(crlf)) == CONSPH_OK, "CRLF: %s", consph_last_error());
 }
 
+/* Keys no figure would read, lists with holes or repeats, and series without end (issue 23
+ * item 10): each refused with its file:line. */
+static void test_ignored_keys(void)
+{
+    /* Keys read once per figure are refused in a series. */
+    expect_error(
+        "study = a\n[figure f]\nkind = run\nnx = 8\n[series s]\nscheme = e-c\ntr_ref = s\n",
+        "t.study:7: key 'tr_ref' is one per figure");
+    expect_error("study = a\n[figure f]\nkind = heat\nnx = 8\n[series s]\nreport = time\n",
+                 "t.study:6: key 'report' is one per figure");
+    expect_error("study = a\n[figure f]\nnx = 8\n[series s]\nnorm = l2\n",
+                 "t.study:5: key 'norm' is one per figure");
+    /* Keys of another kind of figure. */
+    expect_error("study = a\n[figure f]\nkind = run\nop = grad\nnx = 8\n[series s]\nscheme = e-c\n",
+                 "t.study:4: key 'op' does not apply to figure 'f' (kind run)");
+    expect_error("study = a\n[figure f]\nkind = heat\nnx = 8\n[series s]\nscheme = e-c\n",
+                 "t.study:6: key 'scheme' does not apply to figure 'f' (kind heat)");
+    expect_error("study = a\nkind = run\n[figure f]\nseries.op = grad,div\nnx = 8\n",
+                 "t.study:4: key 'series.op' does not apply");
+    expect_error("study = a\nscheme = e-c\n[figure f]\nnx = 8\n",
+                 "t.study:2: key 'scheme' does not apply to any figure of this study");
+    expect_error("study = a\n[figure f]\nkind = m0\nnx = 8\n[series a]\n[series b]\n",
+                 "t.study:6: figure 'f' (kind m0) has one series");
+    /* series.KEY: only on a figure without [series] sections, and only keys a series sets. */
+    expect_error("study = a\nseries.kernel = cubic,quintic\n[figure f]\nnx = 8\n",
+                 "t.study:2: key 'series.kernel' belongs on a [figure]");
+    expect_error("study = a\n[figure f]\nnx = 8\nseries.kernel = cubic,quintic\n[series s]\n",
+                 "t.study:4: series.kernel on figure 'f', which has [series] sections (line 5)");
+    expect_error("study = a\n[figure f]\nnx = 8\nseries.norm = l1,l2\n",
+                 "t.study:4: 'series.norm': 'norm' is not a key a series may set");
+    expect_error("study = a\n[figure f]\nnx = 8\nseries.bogus = 1,2\n",
+                 "t.study:4: 'series.bogus': 'bogus' is not a key");
+    /* Lists: no holes, no repeats (identical labels), a bounded number of series. */
+    expect_error("study = a\n[figure f]\nnx = 8\nseries.kernel = cubic,,quintic\n",
+                 "t.study:4: series.kernel: value 2 is empty");
+    expect_error("study = a\n[figure f]\nnx = 8\nseries.kernel = cubic, quintic,cubic\n",
+                 "t.study:4: series.kernel: value 'cubic' given twice (values 1 and 3)");
+    char big[4096];
+    int k = snprintf(big, sizeof big, "study = a\n[figure f]\nnx = 8\nseries.hdx = 1");
+    for (int j = 1; j < 64; ++j) k += snprintf(big + k, sizeof big - (size_t)k, ",1.%02d", j);
+    k += snprintf(big + k, sizeof big - (size_t)k, "\nseries.seed = 1");
+    for (int j = 2; j <= 5; ++j) k += snprintf(big + k, sizeof big - (size_t)k, ",%d", j);
+    snprintf(big + k, sizeof big - (size_t)k, "\n");
+    expect_error(big, "t.study:5: the series.KEY lists of figure 'f' make more than 256 series");
+    k = snprintf(big, sizeof big, "study = a\n[figure f]\nnx = 8\n");
+    for (int j = 0; j <= STUDY_MAX_SERIES && k < (int)sizeof big - 16; ++j)
+        k += snprintf(big + k, sizeof big - (size_t)k, "[series %d]\n", j);
+    if (k < (int)sizeof big - 16) expect_error(big, "series in figure 'f'");
+}
+
+/* Parses and validates `text` (quick); returns the status. */
+static int validate(const char *text)
+{
+    consph_study *s = NULL;
+    int rc = study_parse("t.study", text, strlen(text), &s);
+    if (rc == CONSPH_OK) rc = consph_study_validate(s, 1);
+    consph_study_free(s);
+    return rc;
+}
+
+static void expect_invalid(const char *text, const char *message)
+{
+    CHECK(validate(text) == CONSPH_EFORMAT, "'%s' accepted", text);
+    CHECK(strstr(consph_last_error(), message) != NULL, "'%s': message '%s' lacks '%s'", text,
+          consph_last_error(), message);
+}
+
+static void test_validation(void)
+{
+    expect_invalid("study = a\n[figure f]\nnx = 8,,16\n", "t.study:3: figure 'f', series 'f': "
+                                                          "key 'nx': '8,,16' is not a list");
+    expect_invalid("study = a\n[figure f]\nnx = 8,16,\n", "key 'nx': '8,16,' is not a list");
+    expect_invalid(
+        "study = a\n[figure f]\nkind = run\nquick.nx = 8,,16\n[series s]\nscheme = e-c\n",
+        "t.study:4:");
+    /* A missing required key is reported at its series, not at line 0. */
+    expect_invalid("study = a\n[figure f]\nkind = run\nnx = 8\n[series s]\nc0 = 10\n",
+                   "t.study:5: figure 'f', series 's': key 'scheme': not given");
+    expect_invalid("study = a\n[figure f]\nkind = run\nnx = 8\ntf = 1\n[series s]\nscheme = e-c\n"
+                   "steps = 10\n",
+                   "t.study:8: figure 'f', series 's': key 'steps': conflicts with 'tf' (line 5)");
+    expect_invalid("study = a\n[figure f]\nkind = run\nnx = 8\nquick.tf = 1\nquick.steps = 3\n"
+                   "[series s]\nscheme = e-c\n",
+                   "key 'quick.steps': conflicts with 'quick.tf' (line 5)");
+    expect_invalid("study = a\n[figure f]\nlayout = packed\nperiodic = no\nnx = 8\n",
+                   "t.study:4: figure 'f', series 'f': key 'periodic': layout packed needs a "
+                   "periodic box");
+    CHECK(validate("study = a\n[figure f]\nnx = 8, 16\n") == CONSPH_OK, "%s", consph_last_error());
+}
+
+/* Every shipped study loads and validates, quick and full: the refusals above must not refuse
+ * what the studies/ directory uses. */
+static void test_shipped_studies(const char *root)
+{
+    char dir[1100];
+    snprintf(dir, sizeof dir, "%s/studies", root);
+    DIR *d = opendir(dir);
+    CHECK(d != NULL, "%s missing", dir);
+    if (!d) return;
+    int n = 0;
+    struct dirent *e;
+    while ((e = readdir(d))) {
+        size_t len = strlen(e->d_name);
+        if (len < 7 || strcmp(e->d_name + len - 6, ".study") != 0) continue;
+        char path[2400];
+        snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+        consph_study *s = NULL;
+        CHECK(consph_study_load(path, &s) == CONSPH_OK, "%s", consph_last_error());
+        for (int quick = 0; s && quick < 2; ++quick)
+            CHECK(consph_study_validate(s, quick) == CONSPH_OK, "%s", consph_last_error());
+        consph_study_free(s);
+        ++n;
+    }
+    closedir(d);
+    CHECK(n >= 20, "%d shipped studies", n);
+}
+
 /* Timing repeats (T_r's median) change the seconds and nothing else. */
 static void test_timing_runs(void)
 {
@@ -106,16 +223,8 @@ static unsigned char *load(const char *path, size_t *size)
 }
 
 /* The seed corpus (the shipped studies) and every kept crash through the fuzz entry point. */
-static void test_fuzz_replay(void)
+static void test_fuzz_replay(const char *root)
 {
-    /* This file is tests/test_studyfile.c in the source tree. */
-    char root[1024];
-    snprintf(root, sizeof root, "%s", __FILE__);
-    char *tests = strstr(root, "/tests/test_studyfile.c");
-    if (tests)
-        *tests = '\0';
-    else
-        snprintf(root, sizeof root, "..");
     static const char *const dirs[] = {"fuzz/corpus/study", "fuzz/regressions/study"};
     int replayed = 0;
     for (int k = 0; k < 2; ++k) {
@@ -156,6 +265,17 @@ int main(void)
     test_duplicates();
     test_bytes();
     test_timing_runs();
-    test_fuzz_replay();
+    /* This file is tests/test_studyfile.c in the source tree. */
+    char root[1024];
+    snprintf(root, sizeof root, "%s", __FILE__);
+    char *tests = strstr(root, "/tests/test_studyfile.c");
+    if (tests)
+        *tests = '\0';
+    else
+        snprintf(root, sizeof root, "..");
+    test_ignored_keys();
+    test_validation();
+    test_fuzz_replay(root);
+    test_shipped_studies(root);
     return check_summary("test_studyfile");
 }

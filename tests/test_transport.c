@@ -353,6 +353,88 @@ static void test_rejections(void)
     CHECK(consph_wasserstein(&a, &a, &o, &r) == CONSPH_EINVAL, "p = 3 accepted");
 }
 
+typedef struct seen {
+    long calls, last_iteration;
+    double last_done, last_total;
+} seen;
+
+static void count_iterations(void *ctx, long iteration, double eps_abs, double marginal_error)
+{
+    seen *s = ctx;
+    CHECK(iteration == s->last_iteration + 1 && eps_abs > 0 && marginal_error >= 0,
+          "sinkhorn progress: iteration %ld after %ld", iteration, s->last_iteration);
+    s->last_iteration = iteration;
+    s->calls++;
+}
+
+static void count_cells(void *ctx, double done, double total)
+{
+    seen *s = ctx;
+    CHECK(done > s->last_done && done <= total, "grid progress: %g of %g after %g", done, total,
+          s->last_done);
+    s->last_done = done;
+    s->last_total = total;
+    s->calls++;
+}
+
+/* The estimates behind `consph wasserstein`'s memory refusal and time note (issue 23 item 13),
+ * and progress callbacks that report every iteration and block of cells without changing a
+ * bit of the result. */
+static void test_estimates_and_progress(void)
+{
+    consph_ot_options sl = method(CONSPH_OT_SLICED, 2), sk = method(CONSPH_OT_SINKHORN, 2);
+    /* 2D, 1600 particles against the uniform grid of 10000² cells: the 10.9 GB of issue 23 with
+     * 2 threads (grid copy and one projection buffer per thread). */
+    consph_ot_estimate e = consph_wasserstein_estimate(&sl, 2, 1600, 1e8, 2);
+    CHECK(e.bytes > 8e9 && e.bytes < 1.2e10, "sliced estimate %g bytes", e.bytes);
+    consph_ot_estimate e1 = consph_wasserstein_estimate(&sl, 2, 1600, 1e8, 1);
+    CHECK(e1.bytes < e.bytes && e1.seconds > e.seconds, "threads: %g %g", e1.bytes, e1.seconds);
+    consph_ot_estimate g = consph_grid_measure_estimate(2, 10000, 0, 1);
+    CHECK(fabs(g.bytes - 2.4e9) < 1e6, "grid bytes %g", g.bytes);
+    consph_ot_estimate gs = consph_grid_measure_estimate(3, 500, 1728, 2);
+    CHECK(gs.seconds > 120, "3D smoothing on a 500³ grid estimated at %g s", gs.seconds);
+    /* Sinkhorn: O(N + M) memory, O(N M) per iteration (README's 1600 vs 6400). */
+    consph_ot_estimate s1 = consph_wasserstein_estimate(&sk, 2, 1600, 6400, 1);
+    CHECK(s1.bytes < 1e6 && s1.seconds > 0.1 && s1.seconds < 10, "sinkhorn %g B %g s", s1.bytes,
+          s1.seconds);
+
+    consph_rng rng;
+    consph_rng_seed(&rng, 5);
+    enum { NA = 40, NB = 50 };
+    double xa[2][NA], xb[2][NB];
+    for (int a = 0; a < 2; ++a) {
+        for (int i = 0; i < NA; ++i) xa[a][i] = consph_rng_uniform(&rng);
+        for (int i = 0; i < NB; ++i) xb[a][i] = consph_rng_uniform(&rng);
+    }
+    consph_measure ma = {2, NA, {xa[0], xa[1]}, NULL}, mb = {2, NB, {xb[0], xb[1]}, NULL};
+    consph_ot_result plain, watched;
+    wdist(&ma, &mb, sk, &plain);
+    seen s = {0, 0, 0, 0};
+    sk.progress = count_iterations;
+    sk.progress_ctx = &s;
+    wdist(&ma, &mb, sk, &watched);
+    CHECK(s.calls == watched.iterations && s.calls > 0, "%ld progress calls, %ld iterations",
+          s.calls, watched.iterations);
+    CHECK(memcmp(&plain, &watched, sizeof plain) == 0, "progress changed the Sinkhorn result");
+
+    consph_box box = consph_box_unit(2, 1);
+    consph_kernel k;
+    consph_kernel_id id;
+    CHECK(consph_kernel_lookup("quintic", &id) == CONSPH_OK, "quintic");
+    CHECK(consph_kernel_init(&k, id, 2, 0.15) == CONSPH_OK, "kernel init");
+    consph_grid_measure g0, g1;
+    CHECK(consph_grid_measure_sph(&box, 300, &ma, &k, &g0) == CONSPH_OK, "%s", consph_last_error());
+    seen c = {0, 0, 0, 0};
+    CHECK(consph_grid_measure_sph_progress(&box, 300, &ma, &k, &g1, count_cells, &c) == CONSPH_OK,
+          "%s", consph_last_error());
+    CHECK(c.calls > 1 && c.last_done == 90000 && c.last_total == 90000, "%ld grid reports",
+          c.calls);
+    CHECK(memcmp(g0.mu.w, g1.mu.w, g0.mu.n * sizeof *g0.mu.w) == 0,
+          "progress changed the smoothed density");
+    consph_grid_measure_free(&g0);
+    consph_grid_measure_free(&g1);
+}
+
 int main(void)
 {
     test_gaussians();
@@ -363,5 +445,6 @@ int main(void)
     test_sinkhorn_limit();
     test_threads();
     test_rejections();
+    test_estimates_and_progress();
     return check_summary("test_transport");
 }

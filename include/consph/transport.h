@@ -61,6 +61,10 @@ typedef struct consph_ot_options {
     double eps;     /* sinkhorn: final ε relative to the largest cost C_max, in (0, 1] */
     double tol;     /* sinkhorn: stop when the L1 marginal violation is below tol */
     long max_iter;  /* sinkhorn: iteration cap over all ε stages */
+    /* sinkhorn: called after every iteration (NULL: never), for a progress display, with the
+     * iteration, the current absolute ε and the L1 marginal violation; it changes nothing. */
+    void (*progress)(void *ctx, long iteration, double eps_abs, double marginal_error);
+    void *progress_ctx;
 } consph_ot_options;
 
 /* The defaults: exact, p = 1, 64 directions, seed 1, eps 1e-3, tol 1e-6, 20000 iterations. */
@@ -87,6 +91,18 @@ typedef struct consph_ot_result {
  * range; CONSPH_ENOMEM. Results do not depend on the number of threads. */
 int consph_wasserstein(const consph_measure *a, const consph_measure *b,
                        const consph_ot_options *opt, consph_ot_result *res);
+
+/* What a call will cost, estimated before it is made from the sizes alone: the bytes it
+ * allocates at its peak, and rough seconds on `threads` threads from rates measured on 2 shared
+ * cores (docs/wasserstein.md). For sinkhorn `seconds` is one iteration: how many it takes
+ * depends on the data (up to max_iter). The point counts na, nb are doubles: a grid asked for
+ * may hold more points than a size_t. */
+typedef struct consph_ot_estimate {
+    double bytes;
+    double seconds;
+} consph_ot_estimate;
+consph_ot_estimate consph_wasserstein_estimate(const consph_ot_options *opt, int dim, double na,
+                                               double nb, int threads);
 
 /* Exact W_p^p between two 1D weighted point sets (weights normalised here). */
 int consph_wasserstein_1d_pow(const double *xa, const double *wa, size_t na, const double *xb,
@@ -116,6 +132,16 @@ int consph_grid_measure_density(const consph_box *box, size_t cells, consph_dens
  * with the minimum image. This is the kernel-smoothed measure of 004. */
 int consph_grid_measure_sph(const consph_box *box, size_t cells, const consph_measure *mu,
                             const consph_kernel *k, consph_grid_measure *g);
+/* As consph_grid_measure_sph, calling progress(ctx, cells done, cells) now and then (NULL:
+ * never); the result is the same. */
+int consph_grid_measure_sph_progress(const consph_box *box, size_t cells, const consph_measure *mu,
+                                     const consph_kernel *k, consph_grid_measure *g,
+                                     void (*progress)(void *ctx, double done, double total),
+                                     void *ctx);
+/* The cost of a grid of cells^dim cells: its bytes, and the seconds of filling it with the SPH
+ * density of `particles` points (0: a density function, O(grid)). */
+consph_ot_estimate consph_grid_measure_estimate(int dim, size_t cells, size_t particles,
+                                                int threads);
 void consph_grid_measure_free(consph_grid_measure *g);
 
 #ifdef __cplusplus

@@ -105,6 +105,9 @@ int consph_rd_getc_slow(rd_src *s)
 
 /* Longer lines are not particle rows: refuse them before they exhaust memory. */
 #define RD_MAX_LINE ((size_t)16 << 20)
+/* The particle spacing a file may have: h^(dim+2) of any h/Δs up to 100 stays a normal double. */
+#define READ_SPACING_MIN 1e-50
+#define READ_SPACING_MAX 1e50
 
 char *consph_rd_line(rd_src *s, size_t *len)
 {
@@ -421,11 +424,15 @@ int consph_rd_finish(rd_set *set, const consph_read_options *opt, consph_particl
     double spacing = set->have_spacing ? set->spacing : pow(volume / (double)n, 1.0 / dim);
     for (int a = 0; a < dim; ++a)
         if (!isfinite(consph_box_length(&box, a))) volume = INFINITY;
-    if (!(isfinite(volume) && volume > 0 && isfinite(spacing) && spacing > 0))
+    /* Kernels divide by h^(dim+2) (Laplacians in 3D: h^5): a spacing far from 1 overflows them
+     * after the work has begun, so it is refused here. */
+    if (!(isfinite(volume) && volume > 0 && isfinite(spacing) && spacing >= READ_SPACING_MIN &&
+          spacing <= READ_SPACING_MAX))
         return consph_fail(box_from_file ? CONSPH_EFORMAT : CONSPH_EINVAL,
                            "%s: %s box is too large or too small for double precision (volume "
-                           "%g, spacing %g)",
-                           name, box_from_file ? "the file's" : "the given", volume, spacing);
+                           "%g, spacing %g; allowed: spacing in [%g, %g])",
+                           name, box_from_file ? "the file's" : "the given", volume, spacing,
+                           READ_SPACING_MIN, READ_SPACING_MAX);
 
     /* Volumes, masses and densities, when present, must be positive scalars. */
     int fvol = find_field(set, "volume"), fm = find_field(set, "m"),

@@ -73,8 +73,11 @@ int study_key_error(const consph_study *s, const study_figure *f, const study_se
     va_start(ap, fmt);
     vsnprintf(msg, sizeof msg, fmt, ap);
     va_end(ap);
+    /* A key that is not set (a required one) is reported where it is missing. */
+    int line = study_line(s, f, r, key);
+    if (!line) line = r ? r->line : f->line;
     return consph_fail(CONSPH_EFORMAT, "%s:%d: figure '%s', series '%s': key '%s': %s", s->path,
-                       study_line(s, f, r, key), f->id, r ? r->label : "-", key, msg);
+                       line, f->id, r ? r->label : "-", key, msg);
 }
 
 int study_get_double(const consph_study *s, const study_figure *f, const study_series *r,
@@ -100,18 +103,18 @@ int study_get_list(const consph_study *s, const study_figure *f, const study_ser
     const char *v = study_get(s, f, r, key);
     *n = 0;
     if (!v) return CONSPH_OK;
-    char buf[2048];
-    snprintf(buf, sizeof buf, "%s", v);
-    char *save = NULL;
-    for (char *t = strtok_r(buf, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+    /* Every element, empty ones included: `8,,16` is refused as the CLI refuses `10,,20`. */
+    for (const char *t = v;; ++t) {
         char *end;
         double d = strtod(t, &end);
-        while (*end == ' ') ++end;
-        if (end == t || *end || !isfinite(d) || d < lo || d > hi)
+        while (*end == ' ' || *end == '\t') ++end;
+        if (end == t || (*end && *end != ',') || !isfinite(d) || d < lo || d > hi)
             return study_key_error(s, f, r, key, "'%s' is not a list of numbers in [%g, %g]", v, lo,
                                    hi);
         if (*n == MAX_SWEEP) return study_key_error(s, f, r, key, "more than %d values", MAX_SWEEP);
         vals[(*n)++] = d;
+        if (!*end) break;
+        t = end;
     }
     return CONSPH_OK;
 }
@@ -212,6 +215,10 @@ static int build_plan(const consph_study *s, const study_figure *f, const study_
     if (ipol == CONSPH_H_BETA && !(beta > dim))
         return study_key_error(s, f, r, "beta",
                                "h_policy = beta needs beta > dim = %g (004: β > n)", dim);
+    if ((ilay == CONSPH_LAYOUT_PACKED || ilay == CONSPH_LAYOUT_PACKED_POLISHED) && iper != 0 &&
+        ikind != KIND_APPC)
+        return study_key_error(s, f, r, "periodic", "layout %s needs a periodic box; allowed: yes",
+                               layouts[ilay]);
     if ((rc = study_get_double(s, f, r, "eps", 0.2, 0, 2, &eps))) return rc;
     if ((rc = study_get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) return rc;
     if ((rc = study_get_double(s, f, r, "sigma", 0.1, 1e-9, 10, &sigma))) return rc;

@@ -123,6 +123,12 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
     k = quick_key(s, f, r, quick, "steps", qk, sizeof qk);
     if ((rc = study_get_double(s, f, r, k, 0, 0, 1e9, &steps))) return rc;
     if (steps != floor(steps)) return study_key_error(s, f, r, k, "must be a whole number");
+    /* A step count replaces the final time: both given, one would be ignored. */
+    char qt[16];
+    const char *tk = quick_key(s, f, r, quick, "tf", qt, sizeof qt);
+    if (study_get(s, f, r, k) && study_get(s, f, r, tk))
+        return study_key_error(s, f, r, k, "conflicts with '%s' (line %d); give one of them", tk,
+                               study_line(s, f, r, tk));
     p->steps = (long)steps;
     if ((rc = study_get_double(s, f, r, "dt", 0, 0, 1e3, &p->dt))) return rc;
     if ((rc = study_get_choice(s, f, r, "dt_rule", rules, 0, &rule))) return rc;

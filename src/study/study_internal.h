@@ -46,6 +46,9 @@ int study_line(const consph_study *s, const study_figure *f, const study_series 
 /* Longest line of a study file, and longest figure id or series label. */
 #define STUDY_LINE_MAX 4095
 #define STUDY_NAME_MAX 64
+/* Series of one figure: each is a run per resolution, so a typo in a list must not start
+ * thousands (the shipped studies have at most 30). */
+#define STUDY_MAX_SERIES 256
 
 /* Parses a study held in memory (`path` names it in messages); no file-name check. The entry
  * point of consph_study_load and of the study fuzz target. */

@@ -97,33 +97,125 @@ int study_line(const consph_study *s, const study_figure *f, const study_series 
     return kv ? kv->line : 0;
 }
 
-/* Every key a study file may set; names ending in '.' are prefixes. */
-static const char *const known_keys[] = {"study",      "title",    "paper",      "note",
-                                         "kind",       "op",       "form",       "corr",
-                                         "kernel",     "hdx",      "h_policy",   "match_support",
-                                         "beta",       "measure",  "ot_method",  "ot_p",
-                                         "directions", "grid",     "layout",     "dim",
-                                         "eps",        "seed",     "periodic",   "field",
-                                         "sigma",      "volume",   "mask",       "sweep",
-                                         "nx",         "quick.nx", "hdx.values", "quick.hdx.values",
-                                         "x",          "norm",     "bound",      "bins",
-                                         "range",      "pack_tol", "pack_iter",  "hdelta.values",
-                                         "problem",    "scheme",   "c0",         "re",
-                                         "tf",         "quick.tf", "steps",      "quick.steps",
-                                         "dt_rule",    "tr_ref",   "laplacian",  "walls",
-                                         "report",     "paper.",   "series.",    "dt",
-                                         "l1",         "rho_init", "y",          NULL};
+/* The figure kinds (`kind`), as bits of key_rule.kinds. */
+enum {
+    K_APPROX = 1,
+    K_M0 = 2,
+    K_APPC = 4,
+    K_CAUCHY = 8,
+    K_RUN = 16,
+    K_HEAT = 32,
+    K_ALL = 63,
+    K_LAYOUT = K_APPROX | K_M0 | K_CAUCHY /* the kinds measuring generated layouts */
+};
+static const char *const kind_names[] = {"approx", "m0", "appc", "cauchy", "run", "heat", NULL};
 
-static int key_known(const char *key)
+/* Where a key may be set: before the first section, on a [figure], in a [series]. Keys read
+ * once per figure (its title, axes, report) mean nothing in a series. */
+enum { AT_STUDY = 1, AT_FIGURE = 2, AT_SERIES = 4, AT_HEAD = 3, AT_ANY = 7 };
+
+typedef struct key_rule {
+    const char *name; /* ending in '.': a prefix */
+    int kinds, at;
+} key_rule;
+
+/* Every key a study file may set, the figure kinds that read it and where (docs/studies.md):
+ * a key no figure reads would be ignored without a word. */
+static const key_rule key_rules[] = {{"study", K_ALL, AT_STUDY},
+                                     {"title", K_ALL, AT_HEAD},
+                                     {"paper", K_ALL, AT_HEAD},
+                                     {"note", K_ALL, AT_HEAD},
+                                     {"kind", K_ALL, AT_HEAD},
+                                     {"op", K_APPROX, AT_ANY},
+                                     {"form", K_APPROX, AT_ANY},
+                                     {"corr", K_APPROX, AT_ANY},
+                                     {"field", K_APPROX, AT_ANY},
+                                     {"sigma", K_APPROX, AT_ANY},
+                                     {"mask", K_APPROX, AT_ANY},
+                                     {"bound", K_APPROX, AT_ANY},
+                                     {"sweep", K_APPROX, AT_ANY},
+                                     {"hdx.values", K_APPROX, AT_ANY},
+                                     {"quick.hdx.values", K_APPROX, AT_ANY},
+                                     {"norm", K_APPROX, AT_HEAD},
+                                     {"x", K_APPROX | K_RUN, AT_HEAD},
+                                     {"kernel", K_LAYOUT | K_RUN, AT_ANY},
+                                     {"hdx", K_LAYOUT | K_RUN | K_HEAT, AT_ANY},
+                                     {"h_policy", K_LAYOUT, AT_ANY},
+                                     {"match_support", K_LAYOUT, AT_ANY},
+                                     {"beta", K_LAYOUT, AT_ANY},
+                                     {"layout", K_LAYOUT | K_RUN, AT_ANY},
+                                     {"dim", K_LAYOUT | K_APPC, AT_ANY},
+                                     {"eps", K_LAYOUT | K_HEAT, AT_ANY},
+                                     {"seed", K_LAYOUT | K_RUN | K_HEAT, AT_ANY},
+                                     {"periodic", K_LAYOUT, AT_ANY},
+                                     {"volume", K_LAYOUT, AT_ANY},
+                                     {"pack_tol", K_LAYOUT, AT_ANY},
+                                     {"pack_iter", K_LAYOUT, AT_ANY},
+                                     {"nx", K_ALL, AT_ANY},
+                                     {"quick.nx", K_ALL, AT_ANY},
+                                     {"hdelta.values", K_APPC, AT_ANY},
+                                     {"bins", K_M0, AT_ANY},
+                                     {"range", K_M0, AT_ANY},
+                                     {"measure", K_CAUCHY, AT_ANY},
+                                     {"ot_method", K_CAUCHY, AT_ANY},
+                                     {"ot_p", K_CAUCHY, AT_ANY},
+                                     {"directions", K_CAUCHY, AT_ANY},
+                                     {"grid", K_CAUCHY, AT_ANY},
+                                     {"problem", K_RUN, AT_ANY},
+                                     {"scheme", K_RUN, AT_ANY},
+                                     {"c0", K_RUN, AT_ANY},
+                                     {"re", K_RUN, AT_ANY},
+                                     {"tf", K_RUN | K_HEAT, AT_ANY},
+                                     {"quick.tf", K_RUN, AT_ANY},
+                                     {"steps", K_RUN, AT_ANY},
+                                     {"quick.steps", K_RUN, AT_ANY},
+                                     {"dt", K_RUN, AT_ANY},
+                                     {"dt_rule", K_RUN, AT_ANY},
+                                     {"l1", K_RUN, AT_ANY},
+                                     {"rho_init", K_RUN, AT_ANY},
+                                     {"tr_ref", K_RUN, AT_HEAD},
+                                     {"y", K_RUN, AT_HEAD},
+                                     {"laplacian", K_HEAT, AT_ANY},
+                                     {"walls", K_HEAT, AT_ANY},
+                                     {"report", K_HEAT, AT_HEAD},
+                                     {"paper.", K_ALL, AT_ANY},
+                                     {"series.", K_ALL, AT_FIGURE},
+                                     {NULL, 0, 0}};
+
+static const key_rule *key_rule_of(const char *key)
 {
-    for (int k = 0; known_keys[k]; ++k) {
-        size_t n = strlen(known_keys[k]);
-        if (known_keys[k][n - 1] == '.') {
-            if (strncmp(key, known_keys[k], n) == 0 && key[n]) return 1;
-        } else if (strcmp(key, known_keys[k]) == 0) {
-            return 1;
+    for (const key_rule *k = key_rules; k->name; ++k) {
+        size_t n = strlen(k->name);
+        if (k->name[n - 1] == '.') {
+            if (strncmp(key, k->name, n) == 0 && key[n]) return k;
+        } else if (strcmp(key, k->name) == 0) {
+            return k;
         }
     }
+    return NULL;
+}
+
+/* The kinds of a rule as text ("approx, m0"). */
+static const char *kinds_text(int kinds, char *buf, size_t size)
+{
+    buf[0] = '\0';
+    for (int k = 0; kind_names[k]; ++k)
+        if (kinds & (1 << k)) {
+            if (buf[0]) append(buf, size, ", ");
+            append(buf, size, kind_names[k]);
+        }
+    return buf;
+}
+
+/* The kind bit of a figure (its `kind`, else the study's, else approx); 0 when unknown (the
+ * engine names the allowed values). */
+static int figure_kind_bit(const consph_study *s, const study_figure *f)
+{
+    const study_kv *kv = kv_find(&f->keys, "kind");
+    if (!kv) kv = kv_find(&s->keys, "kind");
+    if (!kv) return K_APPROX;
+    for (int k = 0; kind_names[k]; ++k)
+        if (strcmp(kv->value, kind_names[k]) == 0) return 1 << k;
     return 0;
 }
 
@@ -159,42 +251,101 @@ static study_series *add_series(study_figure *f, const char *label, int line)
     return r->label ? r : NULL;
 }
 
+/* The idx-th comma-separated element of `list`, trimmed, into buf (size STUDY_NAME_MAX + 1);
+ * -1 when longer. */
+static int list_element(const char *list, int idx, char *buf)
+{
+    const char *v = list;
+    for (int k = 0; k < idx; ++k) v = strchr(v, ',') + 1;
+    size_t len = strcspn(v, ",");
+    while (len && isspace((unsigned char)*v)) ++v, --len;
+    while (len && isspace((unsigned char)v[len - 1])) --len;
+    if (len > STUDY_NAME_MAX) return -1;
+    memcpy(buf, v, len);
+    buf[len] = '\0';
+    return 0;
+}
+
+/* Checks one series.KEY list: no empty element (the CLI refuses `10,,20` too), none repeated
+ * (two series would get one label) and at most STUDY_MAX_SERIES; *count gets its length. */
+static int check_series_list(const char *path, const study_kv *kv, int *count)
+{
+    *count = 1;
+    for (const char *c = kv->value; *c; ++c) *count += *c == ',';
+    if (*count > STUDY_MAX_SERIES)
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: %s: %d values; at most %d series per figure",
+                           path, kv->line, kv->key, *count, STUDY_MAX_SERIES);
+    char a[STUDY_NAME_MAX + 1], b[STUDY_NAME_MAX + 1];
+    for (int i = 0; i < *count; ++i) {
+        if (list_element(kv->value, i, a) || !a[0])
+            return consph_fail(CONSPH_EFORMAT,
+                               "%s:%d: %s: value %d is %s; allowed: comma-separated values of at "
+                               "most %d characters",
+                               path, kv->line, kv->key, i + 1, a[0] ? "too long" : "empty",
+                               STUDY_NAME_MAX);
+        for (int j = 0; j < i; ++j) {
+            list_element(kv->value, j, b);
+            if (strcmp(a, b) == 0)
+                return consph_fail(CONSPH_EFORMAT,
+                                   "%s:%d: %s: value '%s' given twice (values %d and %d); each "
+                                   "value is one series",
+                                   path, kv->line, kv->key, a, j + 1, i + 1);
+        }
+    }
+    return CONSPH_OK;
+}
+
 /* A figure without [series] sections gets one series per combination of its series.KEY lists
  * (or a single series named after the figure). */
-static int expand_series(study_figure *f)
+static int expand_series(const char *path, study_figure *f)
 {
-    if (f->nseries) return CONSPH_OK;
     const study_kv *lists[8];
     int nl = 0;
-    for (int k = 0; k < f->keys.n && nl < 8; ++k)
-        if (strncmp(f->keys.items[k].key, "series.", 7) == 0) lists[nl++] = &f->keys.items[k];
+    for (int k = 0; k < f->keys.n; ++k) {
+        const study_kv *kv = &f->keys.items[k];
+        if (strncmp(kv->key, "series.", 7) != 0) continue;
+        /* [series] sections name their series themselves: a list beside them would be lost. */
+        if (f->nseries)
+            return consph_fail(CONSPH_EFORMAT,
+                               "%s:%d: %s on figure '%s', which has [series] sections (line %d); "
+                               "use one or the other",
+                               path, kv->line, kv->key, f->id, f->series[0].line);
+        if (nl == 8)
+            return consph_fail(CONSPH_EFORMAT, "%s:%d: more than 8 series.KEY lists on figure '%s'",
+                               path, kv->line, f->id);
+        lists[nl++] = kv;
+    }
+    if (f->nseries) return CONSPH_OK;
     if (nl == 0) return add_series(f, f->id, f->line) ? CONSPH_OK : CONSPH_ENOMEM;
     int count[8], idx[8] = {0};
     int total = 1;
     for (int l = 0; l < nl; ++l) {
-        count[l] = 1;
-        for (const char *c = lists[l]->value; *c; ++c) count[l] += *c == ',';
+        int rc = check_series_list(path, lists[l], &count[l]);
+        if (rc) return rc;
         total *= count[l];
+        if (total > STUDY_MAX_SERIES)
+            return consph_fail(
+                CONSPH_EFORMAT,
+                "%s:%d: the series.KEY lists of figure '%s' make more than %d series "
+                "(every combination is one)",
+                path, lists[l]->line, f->id, STUDY_MAX_SERIES);
     }
     for (int t = 0; t < total; ++t) {
         char label[256] = "";
-        char values[8][96];
+        char values[8][STUDY_NAME_MAX + 1];
         for (int l = 0; l < nl; ++l) {
-            /* The idx[l]-th comma-separated value. */
-            const char *v = lists[l]->value;
-            for (int k = 0; k < idx[l]; ++k) v = strchr(v, ',') + 1;
-            const char *e = strchr(v, ',');
-            size_t len = e ? (size_t)(e - v) : strlen(v);
-            if (len >= sizeof values[l]) len = sizeof values[l] - 1;
-            memcpy(values[l], v, len);
-            values[l][len] = '\0';
-            char *tv = trim(values[l]);
-            memmove(values[l], tv, strlen(tv) + 1);
+            list_element(lists[l]->value, idx[l], values[l]);
             if (l) append(label, sizeof label, " ");
             append(label, sizeof label, lists[l]->key + 7);
             append(label, sizeof label, "=");
             append(label, sizeof label, values[l]);
         }
+        /* A label cut short could equal another. */
+        if (strlen(label) + 1 >= sizeof label)
+            return consph_fail(CONSPH_EFORMAT,
+                               "%s:%d: the series label '%s...' of figure '%s' is longer than %zu "
+                               "characters",
+                               path, lists[0]->line, label, f->id, sizeof label - 2);
         study_series *r = add_series(f, label, lists[0]->line);
         if (!r) return CONSPH_ENOMEM;
         for (int l = 0; l < nl; ++l) {
@@ -206,6 +357,47 @@ static int expand_series(study_figure *f)
             idx[l] = 0;
         }
     }
+    return CONSPH_OK;
+}
+
+/* A key set where no figure reads it: on a figure (or series) of a kind that does not, or on
+ * the study when no figure is of a kind that does. */
+static int key_applies(const consph_study *s, const study_kv *kv, int kinds, const char *where)
+{
+    const char *key = strncmp(kv->key, "series.", 7) == 0 ? kv->key + 7 : kv->key;
+    const key_rule *rule = key_rule_of(key);
+    if (!rule || (rule->kinds & kinds)) return CONSPH_OK;
+    char buf[64], have[64];
+    return consph_fail(CONSPH_EFORMAT,
+                       "%s:%d: key '%s' does not apply to %s (kind %s); it applies to kind %s",
+                       s->path, kv->line, kv->key, where, kinds_text(kinds, have, sizeof have),
+                       kinds_text(rule->kinds, buf, sizeof buf));
+}
+
+static int check_kinds(const consph_study *s)
+{
+    int all = 0, rc;
+    char where[160];
+    for (int k = 0; k < s->nfigs; ++k) {
+        const study_figure *f = &s->figs[k];
+        int kb = figure_kind_bit(s, f);
+        if (!kb) return CONSPH_OK;
+        all |= kb;
+        snprintf(where, sizeof where, "figure '%s'", f->id);
+        for (int j = 0; j < f->keys.n; ++j)
+            if ((rc = key_applies(s, &f->keys.items[j], kb, where))) return rc;
+        for (int r = 0; r < f->nseries; ++r)
+            for (int j = 0; j < f->series[r].keys.n; ++j)
+                if ((rc = key_applies(s, &f->series[r].keys.items[j], kb, where))) return rc;
+        /* These kinds measure their first series only. */
+        if ((kb & (K_M0 | K_APPC)) && f->nseries > 1)
+            return consph_fail(CONSPH_EFORMAT,
+                               "%s:%d: figure '%s' (kind %s) has one series; a second is not "
+                               "measured",
+                               s->path, f->series[1].line, f->id, kinds_text(kb, where, 16));
+    }
+    for (int j = 0; j < s->keys.n; ++j)
+        if ((rc = key_applies(s, &s->keys.items[j], all, "any figure of this study"))) return rc;
     return CONSPH_OK;
 }
 
@@ -273,6 +465,9 @@ static int parse_section(consph_study *s, char *t, const char *path, int line, s
     }
     if (!*fig)
         return consph_fail(CONSPH_EFORMAT, "%s:%d: [series] before any [figure]", path, line);
+    if ((*fig)->nseries == STUDY_MAX_SERIES)
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: more than %d series in figure '%s'", path, line,
+                           STUDY_MAX_SERIES, (*fig)->id);
     int prev = find_series(*fig, name);
     if (prev >= 0)
         return consph_fail(CONSPH_EFORMAT,
@@ -299,7 +494,8 @@ static int parse_line(consph_study *s, char *buf, const char *path, int line, st
     if (!eq) return consph_fail(CONSPH_EFORMAT, "%s:%d: expected 'key = value'", path, line);
     *eq = '\0';
     char *key = trim(t), *value = trim(eq + 1);
-    if (!key_known(key))
+    const key_rule *rule = key_rule_of(key);
+    if (!rule)
         return consph_fail(CONSPH_EFORMAT, "%s:%d: unknown key '%s' (see docs/studies.md)", path,
                            line, key);
     if (!*value)
@@ -312,6 +508,20 @@ static int parse_line(consph_study *s, char *buf, const char *path, int line, st
                            "%s:%d: study name '%s' is not a plain name (letters, digits, '-', "
                            "'_', '.'; not starting with '.')",
                            path, line, value);
+    const int at = *ser ? AT_SERIES : *fig ? AT_FIGURE : AT_STUDY;
+    if (at == AT_SERIES && !(rule->at & AT_SERIES))
+        return consph_fail(CONSPH_EFORMAT,
+                           "%s:%d: key '%s' is one per figure: set it on [figure %s], not in "
+                           "[series %s]",
+                           path, line, key, (*fig)->id, (*ser)->label);
+    if (at == AT_STUDY && !(rule->at & AT_STUDY))
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: key '%s' belongs on a [figure]", path, line,
+                           key);
+    const key_rule *inner = rule->at == AT_FIGURE ? key_rule_of(key + 7) : NULL;
+    if (rule->at == AT_FIGURE && (!inner || !(inner->at & AT_SERIES) || inner->at == AT_FIGURE))
+        return consph_fail(CONSPH_EFORMAT,
+                           "%s:%d: '%s': '%s' is not a key a series may set (see docs/studies.md)",
+                           path, line, key, key + 7);
     study_kvlist *l = *ser ? &(*ser)->keys : *fig ? &(*fig)->keys : &s->keys;
     int rc = kv_add(l, key, value, line);
     if (rc) consph_fail(rc, "%s:%d: %s", path, line, consph_last_error());
@@ -362,7 +572,8 @@ int study_parse(const char *path, const char *data, size_t size, consph_study **
         rc = consph_fail(CONSPH_EFORMAT, "%s: no 'study = NAME' line", path);
     if (rc == CONSPH_OK && s->nfigs == 0)
         rc = consph_fail(CONSPH_EFORMAT, "%s: no [figure] section", path);
-    for (int k = 0; rc == CONSPH_OK && k < s->nfigs; ++k) rc = expand_series(&s->figs[k]);
+    for (int k = 0; rc == CONSPH_OK && k < s->nfigs; ++k) rc = expand_series(path, &s->figs[k]);
+    if (rc == CONSPH_OK) rc = check_kinds(s);
     if (rc) {
         consph_study_free(s);
         return rc;

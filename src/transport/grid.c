@@ -70,8 +70,31 @@ int consph_grid_measure_density(const consph_box *box, size_t cells, consph_dens
     return CONSPH_OK;
 }
 
+consph_ot_estimate consph_grid_measure_estimate(int dim, size_t cells, size_t particles,
+                                                int threads)
+{
+    double n = pow((double)cells, dim);
+    consph_ot_estimate e = {8.0 * (dim + 1) * n + 8.0 * (dim + 1) * (double)particles,
+                            n * (double)(particles ? particles : 1) * OT_RATE_GRID_PAIR /
+                                (threads > 0 ? threads : 1)};
+    return e;
+}
+
 int consph_grid_measure_sph(const consph_box *box, size_t cells, const consph_measure *mu,
                             const consph_kernel *k, consph_grid_measure *g)
+{
+    return consph_grid_measure_sph_progress(box, cells, mu, k, g, NULL, NULL);
+}
+
+/* Cell-particle pairs per progress report (a tenth of a second): a block of cells is one parallel
+ * loop, so reports come from the calling thread between blocks and each cell's sum is the same
+ * as in one loop. */
+#define GRID_PROGRESS_PAIRS 2e6
+
+int consph_grid_measure_sph_progress(const consph_box *box, size_t cells, const consph_measure *mu,
+                                     const consph_kernel *k, consph_grid_measure *g,
+                                     void (*progress)(void *ctx, double done, double total),
+                                     void *ctx)
 {
     if (k->dim != mu->dim || box->dim != mu->dim)
         return consph_fail(CONSPH_EINVAL, "kernel %dD, box %dD, particles %dD (they must agree)",
@@ -92,20 +115,26 @@ int consph_grid_measure_sph(const consph_box *box, size_t cells, const consph_me
     /* A gather into each grid point, particles in their fixed order: thread-independent. A
      * brute-force loop over particles (O(grid · N)) keeps this independent of the neighbour
      * search's cell sizes; the distance test skips the kernel outside its support. */
+    long block = n > 0 ? n : 1;
+    if (progress && pts.n > 0) block = (long)fmax(64.0, GRID_PROGRESS_PAIRS / (double)pts.n);
+    for (long i0 = 0; i0 < n; i0 += block) {
+        const long i1 = n - i0 > block ? i0 + block : n;
 #pragma omp parallel for schedule(static)
-    for (long i = 0; i < n; ++i) {
-        double s = 0.0, dx[CONSPH_MAX_DIM];
-        for (size_t b = 0; b < pts.n; ++b) {
-            double r2 = 0.0;
-            for (int a = 0; a < dim; ++a) {
-                double d = g->mu.x[a][i] - pts.x[b * (size_t)dim + (size_t)a];
-                if (box->periodic[a]) d -= len[a] * nearbyint(d / len[a]);
-                dx[a] = d;
-                r2 += d * d;
+        for (long i = i0; i < i1; ++i) {
+            double s = 0.0, dx[CONSPH_MAX_DIM];
+            for (size_t b = 0; b < pts.n; ++b) {
+                double r2 = 0.0;
+                for (int a = 0; a < dim; ++a) {
+                    double d = g->mu.x[a][i] - pts.x[b * (size_t)dim + (size_t)a];
+                    if (box->periodic[a]) d -= len[a] * nearbyint(d / len[a]);
+                    dx[a] = d;
+                    r2 += d * d;
+                }
+                if (r2 < k->radius * k->radius) s += pts.w[b] * consph_kernel_w_vec(k, dx);
             }
-            if (r2 < k->radius * k->radius) s += pts.w[b] * consph_kernel_w_vec(k, dx);
+            w[i] = s;
         }
-        w[i] = s;
+        if (progress) progress(ctx, (double)i1, (double)n);
     }
     ot_points_free(&pts);
     return CONSPH_OK;

@@ -148,6 +148,7 @@ int ot_sinkhorn(const ot_points *a, const ot_points *b, const consph_ot_options 
              * r_i = a_i exp((f_i − fnew_i)/ε). */
             for (size_t i = 0; i < na; ++i) tmp[i] = fabs(a->w[i] * expm1((f[i] - fnew[i]) / eps));
             delta = consph_sum(tmp, na);
+            if (opt->progress) opt->progress(opt->progress_ctx, it, eps, delta);
             if (delta <= want) {
                 converged = 1;
                 break;

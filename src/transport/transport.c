@@ -333,3 +333,34 @@ int consph_wasserstein(const consph_measure *ma, const consph_measure *mb,
     ot_points_free(&b);
     return rc;
 }
+
+/* Bytes of one projected_pow: projections and weights of both sets, and the sort buffer. */
+static double projection_bytes(double na, double nb)
+{
+    return 8.0 * 2.0 * (na + nb) + 16.0 * fmax(na, nb);
+}
+
+consph_ot_estimate consph_wasserstein_estimate(const consph_ot_options *opt, int dim, double na,
+                                               double nb, int threads)
+{
+    consph_ot_estimate e = {0.0, 0.0};
+    const double n = na + nb, nmax = fmax(na, nb);
+    const double t = threads > 0 ? threads : 1;
+    /* Every method first copies both measures (ot_points). */
+    e.bytes = 8.0 * (dim + 1) * n;
+    const double sort = n * (log2(nmax > 2 ? nmax : 2) + 1.0) * OT_RATE_SORT;
+    if (opt->method == CONSPH_OT_EXACT || (opt->method == CONSPH_OT_SLICED && dim == 1)) {
+        e.bytes += projection_bytes(na, nb);
+        e.seconds = sort;
+    } else if (opt->method == CONSPH_OT_SLICED) {
+        const int k = opt->directions > 0 ? opt->directions : 1;
+        /* Each thread projects and sorts one direction at a time. */
+        e.bytes += 8.0 * (CONSPH_MAX_DIM + 1) * k + (t < k ? t : k) * projection_bytes(na, nb);
+        e.seconds = k * sort / (t < k ? t : k);
+    } else {
+        e.bytes += 8.0 * (4.0 * na + 3.0 * nb + nmax);
+        /* Two half steps over every pair. */
+        e.seconds = 2.0 * na * nb * OT_RATE_SINKHORN_PAIR / t;
+    }
+    return e;
+}
