@@ -507,7 +507,7 @@ static int check_valid(consph_solver *s, const consph_step_diag *g)
     if (g->ke > ke0 * (1.0 + CONSPH_VALID_KE_GROWTH)) {
         snprintf(what, sizeof what,
                  "is the fastest (|u| = %.4g) as the kinetic energy %.6g exceeds its initial "
-                 "%.6g by %.3g, above the bound %g (the problem supplies no energy)",
+                 "%.6g by %.4g, above the bound %g (the problem supplies no energy)",
                  sqrt(fast.v), g->ke, ke0, g->ke / ke0 - 1.0, CONSPH_VALID_KE_GROWTH);
         return stop_at(s, fast.i, what);
     }
