@@ -460,7 +460,8 @@ static void worst_take(worst *w, size_t i, double v, const double *id)
 
 /* The weakly-compressible model's validity (docs/schemes.md, "Validity of a run"), checked after
  * every step once the values are known to be finite: the Mach number |u_i|/c_o, the compression
- * |ϱ_i/ρ_o − 1| (and |p_i|/(ρ_o c_o²) where p is evolved apart from ϱ), and the kinetic energy
+ * of the quantity the pressure comes from, |ϱ_i/ρ_o − 1| or, where p is evolved, |p_i|/(ρ_o c_o²)
+ * (edac's ϱ is a summation density that only weights its sums), and the kinetic energy
  * of the step's diagnostics g against the initial one (no problem here has an energy source).
  * Maxima over the particles with ties to the smallest id: the verdict and the particle named do
  * not depend on the thread count or the particle order. */
@@ -477,8 +478,10 @@ static int check_valid(consph_solver *s, const consph_step_diag *g)
         double u2 = 0.0;
         for (int a = 0; a < d; ++a) u2 += u[a * cap + i] * u[a * cap + i];
         worst_take(&fast, i, u2, id);
-        worst_take(&dense, i, fabs(rf[i] / r0 - 1.0), id);
-        if (s->scheme->evolve_p) worst_take(&press, i, fabs(pr[i]) / pc, id);
+        if (s->scheme->evolve_p)
+            worst_take(&press, i, fabs(pr[i]) / pc, id);
+        else
+            worst_take(&dense, i, fabs(rf[i] / r0 - 1.0), id);
     }
     if (n == 0) return CONSPH_OK;
     char what[192];
