@@ -473,15 +473,13 @@ static int check_valid(consph_solver *s, const consph_step_diag *g)
     const double *u = sv_field(s, SF_U, d), *rf = sv_field(s, SF_RHOF, 1);
     const double *pr = sv_field(s, SF_P, 1), *id = sv_field(s, SF_ID, 1);
     const double r0 = s->prm.rho0, pc = r0 * s->c0 * s->c0;
-    worst fast = {0, -1.0}, dense = {0, -1.0}, press = {0, -1.0};
+    const int ep = s->scheme->evolve_p;
+    worst fast = {0, -1.0}, comp = {0, -1.0};
     for (size_t i = 0; i < n; ++i) {
         double u2 = 0.0;
         for (int a = 0; a < d; ++a) u2 += u[a * cap + i] * u[a * cap + i];
         worst_take(&fast, i, u2, id);
-        if (s->scheme->evolve_p)
-            worst_take(&press, i, fabs(pr[i]) / pc, id);
-        else
-            worst_take(&dense, i, fabs(rf[i] / r0 - 1.0), id);
+        worst_take(&comp, i, ep ? fabs(pr[i]) / pc : fabs(rf[i] / r0 - 1.0), id);
     }
     if (n == 0) return CONSPH_OK;
     char what[192];
@@ -492,19 +490,12 @@ static int check_valid(consph_solver *s, const consph_step_diag *g)
                  mach, CONSPH_VALID_MACH, sqrt(fast.v), s->c0);
         return stop_at(s, fast.i, what);
     }
-    if (press.v > CONSPH_VALID_COMPRESSION) {
+    if (comp.v > CONSPH_VALID_COMPRESSION) {
         snprintf(what, sizeof what,
-                 "has pressure |p|/(rho_o c_o^2) = %.4g, above the bound %g of the "
-                 "weakly-compressible range (p = %.4g)",
-                 press.v, CONSPH_VALID_COMPRESSION, pr[press.i]);
-        return stop_at(s, press.i, what);
-    }
-    if (dense.v > CONSPH_VALID_COMPRESSION) {
-        snprintf(what, sizeof what,
-                 "has density |rhof/rho_o - 1| = %.4g, above the bound %g of the "
-                 "weakly-compressible range (rhof = %.4g)",
-                 dense.v, CONSPH_VALID_COMPRESSION, rf[dense.i]);
-        return stop_at(s, dense.i, what);
+                 "has %s = %.4g, above the bound %g of the weakly-compressible range (%s = %.4g)",
+                 ep ? "pressure |p|/(rho_o c_o^2)" : "density |rhof/rho_o - 1|", comp.v,
+                 CONSPH_VALID_COMPRESSION, ep ? "p" : "rhof", ep ? pr[comp.i] : rf[comp.i]);
+        return stop_at(s, comp.i, what);
     }
     const double ke0 = s->hist[6]; /* row 0: the initial state */
     if (g->ke > ke0 * (1.0 + CONSPH_VALID_KE_GROWTH)) {
