@@ -117,7 +117,7 @@ void consph_solver_free(consph_solver *s);
 
 /* The bounds of a weakly-compressible run's validity (docs/schemes.md, "Validity of a run"),
  * checked after every step: the Mach number max_i |u_i|/c_o, the compression max_i |ϱ_i/ρ_o − 1|
- * (max_i |p_i|/(ρ_o c_o²) for a scheme that evolves p instead), and the kinetic energy's growth
+ * (every scheme but edac, whose p is evolved with no EOS), and the kinetic energy's growth
  * KE(t)/KE(0) − 1 (no problem here has an energy source). */
 #define CONSPH_VALID_MACH 1.0
 #define CONSPH_VALID_COMPRESSION 0.3

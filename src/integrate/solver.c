@@ -460,9 +460,9 @@ static void worst_take(worst *w, size_t i, double v, const double *id)
 
 /* The weakly-compressible model's validity (docs/schemes.md, "Validity of a run"), checked after
  * every step once the values are known to be finite: the Mach number |u_i|/c_o, the compression
- * of the quantity the pressure comes from, |ϱ_i/ρ_o − 1| or, where p is evolved, |p_i|/(ρ_o c_o²)
- * (edac's ϱ is a summation density that only weights its sums), and the kinetic energy
- * of the step's diagnostics g against the initial one (no problem here has an energy source).
+ * |ϱ_i/ρ_o − 1| (for pe-ipst-c, which evolves p, ϱ = p/c_o² + ρ_o by eq. 31: the same bound on
+ * p/(ρ_o c_o²)), and the kinetic energy of the step's diagnostics g against the initial one (no
+ * problem here has an energy source).
  * Maxima over the particles with ties to the smallest id: the verdict and the particle named do
  * not depend on the thread count or the particle order. */
 static int check_valid(consph_solver *s, const consph_step_diag *g)
@@ -472,14 +472,16 @@ static int check_valid(consph_solver *s, const consph_step_diag *g)
     const size_t n = p->n, cap = p->cap;
     const double *u = sv_field(s, SF_U, d), *rf = sv_field(s, SF_RHOF, 1);
     const double *pr = sv_field(s, SF_P, 1), *id = sv_field(s, SF_ID, 1);
-    const double r0 = s->prm.rho0, pc = r0 * s->c0 * s->c0;
-    const int ep = s->scheme->evolve_p;
+    const double r0 = s->prm.rho0;
+    /* edac evolves p on its own, with no EOS: its ϱ is a summation density that only weights
+     * its sums, and a uniform drift of p moves nothing (its force takes p - p̄) */
+    const int compressible = !(s->scheme->evolve_p && s->scheme->closure);
     worst fast = {0, -1.0}, comp = {0, -1.0};
     for (size_t i = 0; i < n; ++i) {
         double u2 = 0.0;
         for (int a = 0; a < d; ++a) u2 += u[a * cap + i] * u[a * cap + i];
         worst_take(&fast, i, u2, id);
-        worst_take(&comp, i, ep ? fabs(pr[i]) / pc : fabs(rf[i] / r0 - 1.0), id);
+        if (compressible) worst_take(&comp, i, fabs(rf[i] / r0 - 1.0), id);
     }
     if (n == 0) return CONSPH_OK;
     char what[192];
@@ -492,9 +494,9 @@ static int check_valid(consph_solver *s, const consph_step_diag *g)
     }
     if (comp.v > CONSPH_VALID_COMPRESSION) {
         snprintf(what, sizeof what,
-                 "has %s = %.4g, above the bound %g of the weakly-compressible range (%s = %.4g)",
-                 ep ? "pressure |p|/(rho_o c_o^2)" : "density |rhof/rho_o - 1|", comp.v,
-                 CONSPH_VALID_COMPRESSION, ep ? "p" : "rhof", ep ? pr[comp.i] : rf[comp.i]);
+                 "has density |rhof/rho_o - 1| = %.4g, above the bound %g of the "
+                 "weakly-compressible range (rhof = %.4g, p = %.4g)",
+                 comp.v, CONSPH_VALID_COMPRESSION, rf[comp.i], pr[comp.i]);
         return stop_at(s, comp.i, what);
     }
     const double ke0 = s->hist[6]; /* row 0: the initial state */
