@@ -37,6 +37,14 @@ for s in l-ipst-c l-ipst-f l-ipst-k l-pst-c pe-ipst-c l-rr-c tv-c e-c ewcsph wcs
     grep -q "warning: dt = 10 is above the acoustic stability bound 0.3 h/(U + c_o) = " "$tmp/err" ||
         bad "$s dt 10: no warning naming the bound: $(cat "$tmp/err")"
 done
+# the viscous bound: ν = 10 makes the default Δt 29 times 0.125 h²/ν; the run goes on
+"$consph" run taylor-green --scheme e-c --nx 16 --nu 10 --steps 1 >/dev/null 2>"$tmp/err" ||
+    bad "nu 10, one step: exit $?: $(cat "$tmp/err")"
+grep -q "warning: dt = 0.00204545 is above the viscous stability bound 0.125 h^2/nu = 7.03125e-05 (h = 0.075, nu = 10)" "$tmp/err" ||
+    bad "nu 10: no warning naming the viscous bound: $(cat "$tmp/err")"
+# the default Δt is at the acoustic bound, not above it: no warning
+"$consph" run taylor-green --scheme e-c --nx 16 --steps 1 >/dev/null 2>"$tmp/err" || bad "default: exit $?"
+[ -s "$tmp/err" ] && bad "default dt: a warning: $(cat "$tmp/err")"
 # the issue's case: tvf with dt 1e6 ended at (0, 0) with KE 6e22 and exit 0
 expect_stop "tvf dt 1e6" "Mach number" taylor-green --scheme tvf --nx 8 --dt 1e6 --steps 5
 
