@@ -209,18 +209,28 @@ static void test_every_scheme(void)
     }
 }
 
+/* A solver of `scheme` on 16² with the fixed Δt `dt`, stepped until it stops or reaches tf
+ * (steps = 0) or `steps`; its status in *st, NULL (and a failed check) if it cannot be made. */
+static consph_solver *run_until_stop(const char *scheme, double dt, double tf, long steps, int *st)
+{
+    consph_run_params p = params(scheme, 16);
+    p.dt = dt;
+    p.tf = tf;
+    p.steps = steps;
+    consph_solver *s = make(&p);
+    *st = s ? CONSPH_OK : CONSPH_EINVAL;
+    while (s && *st == CONSPH_OK && !consph_solver_done(s)) *st = consph_solver_step(s);
+    return s;
+}
+
 /* A time step far beyond stability stops the run where it leaves the model (here the kinetic
  * energy of the unforced problem grows past 1.1 times its initial value); the message names
  * step, particle, quantity and bound. */
 static void test_divergence(void)
 {
-    consph_run_params p = params("e-c", 16);
-    p.dt = 0.05;
-    p.tf = 5.0;
-    consph_solver *s = make(&p);
+    int st;
+    consph_solver *s = run_until_stop("e-c", 0.05, 5.0, 0, &st);
     if (!s) return;
-    int st = CONSPH_OK;
-    while (st == CONSPH_OK && !consph_solver_done(s)) st = consph_solver_step(s);
     CHECK(st == CONSPH_ENUMERIC, "no divergence stop (status %d)", st);
     const char *m = consph_last_error();
     CHECK(strstr(m, "diverged at step 2 ") && strstr(m, "particle") &&
@@ -235,10 +245,7 @@ static void test_divergence(void)
           "history of %zu rows after the stop at step %ld", nh, consph_solver_step_count(s));
     consph_solver_free(s);
     /* A step that overflows at once is named by the first non-finite value. */
-    p.dt = 1e200;
-    p.steps = 1;
-    if (!(s = make(&p))) return;
-    st = consph_solver_step(s);
+    if (!(s = run_until_stop("e-c", 1e200, 0.0, 1, &st))) return;
     m = consph_last_error();
     CHECK(st == CONSPH_ENUMERIC && strstr(m, "diverged at step 1 ") && strstr(m, "non-finite"),
           "dt 1e200: status %d, message %s", st, m);
@@ -249,12 +256,9 @@ static void test_divergence(void)
  * its |u|/c_o is the value given. */
 static void test_mach_named(void)
 {
-    consph_run_params p = params("wcsph", 16);
-    p.dt = 10.0;
-    p.steps = 1;
-    consph_solver *s = make(&p);
+    int st;
+    consph_solver *s = run_until_stop("wcsph", 10.0, 0.0, 1, &st);
     if (!s) return;
-    int st = consph_solver_step(s);
     const char *m = consph_last_error();
     double id = -1, x = 0, y = 0, mach = 0;
     CHECK(st == CONSPH_ENUMERIC &&
