@@ -15,6 +15,9 @@
 #include "consph/layout.h"
 #include "consph/solver.h"
 
+#define STR_(x) #x
+#define STR(x) STR_(x)
+
 static const char run_details[] =
     "Defaults follow 001 (Negi & Ramachandran): quintic spline, h/Δs 1.2, U 1, c_o 10 U,\n"
     "Re 100, RK2 (explicit midpoint), Δt = 0.3 h/(U + c_o), packed particles for the\n"
@@ -39,8 +42,21 @@ static const char run_details[] =
     "--eta H/Δ [--eps E] [--seed S] [--tf T] [--steps K] [--walls sin|linear] [--out DIR]\n"
     "[--snapshot-every K] [--format table|json] [--threads T]; the others are WCSPH's.\n"
     "\n"
-    "exit status: 0 done, 1 failure, 2 bad usage, 3 the run diverged (the message names\n"
-    "the step, the particle, its position and the quantity), 130/143 stopped by a signal";
+    /* the bounds are the solver's constants; clang-format would break these lines apart */
+    /* clang-format off */
+    "A run stops (exit 3) when it leaves the weakly-compressible model: a non-finite value,\n"
+    "Mach number |u|/c_o above " STR(CONSPH_VALID_MACH) ", |rhof/rho_o - 1| above "
+    STR(CONSPH_VALID_COMPRESSION) " (not for edac,\n"
+    "whose p has no EOS), or kinetic energy above (1 + " STR(CONSPH_VALID_KE_GROWTH)
+    ") times its initial value (no\n"
+    "problem here has an energy source). A Δt above " STR(CONSPH_DT_ACOUSTIC) " h/(U + c_o) or "
+    STR(CONSPH_DT_VISCOUS) " h²/ν is\n"
+    "warned about. docs/schemes.md, \"Validity of a run\", says why these bounds.\n"
+    "\n"
+    "exit status: 0 done, 1 failure, 2 bad usage, 3 the run diverged or left the model's\n"
+    "validity (the message names the step, t, the particle, its position, the quantity, its\n"
+    "value and the bound), 130/143 stopped by a signal";
+/* clang-format on */
 
 static int make_dir(const cli_command *cmd, const char *dir)
 {
@@ -316,6 +332,12 @@ int cmd_run(int argc, char **argv)
         fprintf(stderr, "consph run: %s\n", consph_last_error());
         return 1;
     }
+    char warn[256];
+    if (consph_solver_dt_warning(s, warn, sizeof warn))
+        fprintf(stderr,
+                "consph run: warning: %s; the run may stop where it leaves the model's "
+                "validity\n",
+                warn);
     consph_run_output ro = {out, snap_every, ckpt_every, 1, 1};
     consph_run_summary sum;
     int sig = 0;

@@ -1,5 +1,6 @@
 /* The WCSPH solver (issue 14): conservation on the lattice, restart and thread-count
- * independence bit for bit, every scheme runs, the divergence stop, L-IPST-C's velocity order. */
+ * independence bit for bit, every scheme runs, the divergence and validity stops, L-IPST-C's
+ * velocity order. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -208,27 +209,80 @@ static void test_every_scheme(void)
     }
 }
 
-/* A time step far beyond stability diverges and the message names step, particle, quantity. */
+/* A solver of `scheme` on 16² with the fixed Δt `dt`, stepped until it stops or reaches tf
+ * (steps = 0) or `steps`; its status in *st, NULL (and a failed check) if it cannot be made. */
+static consph_solver *run_until_stop(const char *scheme, double dt, double tf, long steps, int *st)
+{
+    consph_run_params p = params(scheme, 16);
+    p.dt = dt;
+    p.tf = tf;
+    p.steps = steps;
+    consph_solver *s = make(&p);
+    *st = s ? CONSPH_OK : CONSPH_EINVAL;
+    while (s && *st == CONSPH_OK && !consph_solver_done(s)) *st = consph_solver_step(s);
+    return s;
+}
+
+/* A time step far beyond stability stops the run where it leaves the model (here the kinetic
+ * energy of the unforced problem grows past 1.1 times its initial value); the message names
+ * step, particle, quantity and bound. */
 static void test_divergence(void)
 {
-    consph_run_params p = params("e-c", 16);
-    p.dt = 0.05;
-    p.tf = 5.0;
-    consph_solver *s = make(&p);
+    int st;
+    consph_solver *s = run_until_stop("e-c", 0.05, 5.0, 0, &st);
     if (!s) return;
-    int st = CONSPH_OK;
-    while (st == CONSPH_OK && !consph_solver_done(s)) st = consph_solver_step(s);
     CHECK(st == CONSPH_ENUMERIC, "no divergence stop (status %d)", st);
     const char *m = consph_last_error();
-    CHECK(strstr(m, "diverged at step") && strstr(m, "particle") && strstr(m, "non-finite"),
+    CHECK(strstr(m, "diverged at step 2 ") && strstr(m, "particle") &&
+              strstr(m, "kinetic energy") && strstr(m, "above the bound 0.1 "),
           "message: %s", m);
-    /* The history ends at the last finite step: the diverging one leaves no row. */
+    /* The history ends at the last valid step: the stopping one leaves no row. */
     consph_step_diag d;
     size_t nh = consph_solver_history_size(s);
     CHECK(nh == (size_t)consph_solver_step_count(s) &&
               consph_solver_history_row(s, nh - 1, &d) == CONSPH_OK && isfinite(d.ang) &&
               isfinite(d.mom[0]) && d.step == (long)nh - 1,
           "history of %zu rows after the stop at step %ld", nh, consph_solver_step_count(s));
+    consph_solver_free(s);
+    /* A step that overflows at once is named by the first non-finite value. */
+    if (!(s = run_until_stop("e-c", 1e200, 0.0, 1, &st))) return;
+    m = consph_last_error();
+    CHECK(st == CONSPH_ENUMERIC && strstr(m, "diverged at step 1 ") && strstr(m, "non-finite"),
+          "dt 1e200: status %d, message %s", st, m);
+    consph_solver_free(s);
+}
+
+/* The particle a Mach stop names is the fastest one, at the position the message gives, and
+ * its |u|/c_o is the value given. */
+static void test_mach_named(void)
+{
+    int st;
+    consph_solver *s = run_until_stop("wcsph", 10.0, 0.0, 1, &st);
+    if (!s) return;
+    const char *m = consph_last_error();
+    double id = -1, x = 0, y = 0, mach = 0;
+    CHECK(st == CONSPH_ENUMERIC &&
+              sscanf(m,
+                     "diverged at step 1 (t = 10): particle %lf at (%lf, %lf) moves at Mach "
+                     "number |u|/c_o = %lf",
+                     &id, &x, &y, &mach) == 4,
+          "status %d, message %s", st, m);
+    const consph_particles *q = consph_solver_particles(s);
+    const consph_field *fu = consph_particles_find(q, SF_U), *fi = consph_particles_find(q, SF_ID);
+    double fastest = 0.0, named = -1.0, nx = 0, ny = 0;
+    for (size_t i = 0; fu && fi && i < q->n; ++i) {
+        double v = hypot(fu->data[i], fu->data[q->cap + i]);
+        fastest = fmax(fastest, v);
+        if (fi->data[i] == id) {
+            named = v;
+            nx = q->x[0][i];
+            ny = q->x[1][i];
+        }
+    }
+    CHECK(named == fastest && named > 10.0, "named particle %g: |u| %g, fastest %g", id, named,
+          fastest);
+    CHECK(fabs(named / 10.0 - mach) <= 1e-3 * mach && fabs(nx - x) <= 1e-5 && fabs(ny - y) <= 1e-5,
+          "message %s: particle at (%.9g, %.9g), Mach %.9g", m, nx, ny, named / 10.0);
     consph_solver_free(s);
 }
 
@@ -277,6 +331,7 @@ int main(void)
     test_threads("e-c", -1);
     test_every_scheme();
     test_divergence();
+    test_mach_named();
     test_order();
     return check_summary("test_solver");
 }

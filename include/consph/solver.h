@@ -115,9 +115,25 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
                           const double *history, size_t nhistory);
 void consph_solver_free(consph_solver *s);
 
-/* One time step. A non-finite value stops it with CONSPH_ENUMERIC and a message naming the
- * step, the particle (its index in the initial particle set), its position and the quantity. */
+/* The bounds of a weakly-compressible run's validity (docs/schemes.md, "Validity of a run"),
+ * checked after every step: the Mach number max_i |u_i|/c_o, the compression max_i |ϱ_i/ρ_o − 1|
+ * (every scheme but edac, whose p is evolved with no EOS), and the kinetic energy's growth
+ * KE(t)/KE(0) − 1 (no problem here has an energy source). */
+#define CONSPH_VALID_MACH 1.0
+#define CONSPH_VALID_COMPRESSION 0.3
+#define CONSPH_VALID_KE_GROWTH 0.1
+/* The stability bounds of Δt: acoustic CONSPH_DT_ACOUSTIC h/(U + c_o) (001's rule of the
+ * default Δt) and viscous CONSPH_DT_VISCOUS h²/ν (Morris et al. 1997), h of this run. */
+#define CONSPH_DT_ACOUSTIC 0.3
+#define CONSPH_DT_VISCOUS 0.125
+
+/* One time step. A non-finite value, or a state beyond a CONSPH_VALID_* bound, stops it with
+ * CONSPH_ENUMERIC and a message naming the step, t, the particle (its index in the initial
+ * particle set), its position, the quantity, its value and the bound. */
 int consph_solver_step(consph_solver *s);
+/* 1 and a sentence naming the bound, its value and the run's Δt in buf when Δt exceeds a
+ * CONSPH_DT_* bound (a warning: the run may then stop at a CONSPH_VALID_* bound); 0 when not. */
+int consph_solver_dt_warning(const consph_solver *s, char *buf, size_t size);
 /* 1 when the run reached its final time or step count. */
 int consph_solver_done(const consph_solver *s);
 

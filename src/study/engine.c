@@ -935,9 +935,10 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
         return rc;
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
-    if ((rc = study_render_figure(dir, f->id))) return rc;
+    /* before drawing: gnuplot may refuse the non-finite points, and its failure would then
+     * hide this one, which names figure, series and resolution */
     if (failure[0]) return consph_fail(CONSPH_ENUMERIC, "%s", failure);
-    return CONSPH_OK;
+    return study_render_figure(dir, f->id);
 }
 
 static int run_approx_figure(const consph_study *s, const study_figure *f, int quick,

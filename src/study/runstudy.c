@@ -23,6 +23,7 @@ typedef struct run_row {
     consph_run_summary sum;
     int status; /* CONSPH_OK, or CONSPH_ENUMERIC for a run that diverged */
     char why[256];
+    char dt_warning[256]; /* Δt above its stability bound (consph_solver_dt_warning), or "" */
     /* The finest run's curve (curve_kinds[x]): x = radius, r, u_φ and the exact u_φ per particle
      * at the end; x = time, t, M_x, M_y and L per step. ncurve rows. */
     double *curve;
@@ -308,6 +309,8 @@ static int run_one(const run_plan *pl, int j, double h_dt, int curve, run_row *r
     consph_solver *sv = NULL;
     int rc = consph_solver_create(&sv, &p);
     if (rc) return rc;
+    if (!consph_solver_dt_warning(sv, row->dt_warning, sizeof row->dt_warning))
+        row->dt_warning[0] = '\0';
     int stopped = 0;
     rc = consph_run(sv, NULL, &row->sum, &stopped);
     if (rc == CONSPH_OK && curve == X_RADIUS) rc = keep_profile(sv, row);
@@ -341,6 +344,10 @@ static double fit_text(const run_plan *pl, const run_row *rows, int which, char 
         ys[n++] = which ? rows[j].sum.l1_p : rows[j].sum.l1_u;
     }
     consph_order_fit fit;
+    if (n < 2 && n < pl->nnx) {
+        snprintf(buf, size, "n/a (%d of %d runs completed)", n, pl->nnx);
+        return NAN;
+    }
     if (consph_fit_order(xs, ys, n, &fit) != CONSPH_OK) {
         snprintf(buf, size, "n/a");
         return NAN;
@@ -760,6 +767,7 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
                         "  %-24s nx=%-5g N=%-7zu steps=%-7ld L1(u)=%.3e L1(p)=%.3e (%.2fs)%s\n",
                         f->series[k].label, pl->nx[j], w->sum.n, w->sum.steps, w->sum.l1_u,
                         w->sum.l1_p, w->sum.seconds, w->status ? " diverged" : "");
+            if (log && w->dt_warning[0]) fprintf(log, "  warning: %s\n", w->dt_warning);
         }
     }
     if (rc == CONSPH_OK) rc = write_report(s, f, quick, dir, plans, rows, ref, x);
