@@ -56,6 +56,24 @@ static int make_dir(const cli_command *cmd, const char *dir)
     return 0;
 }
 
+/* --out DIR made, and free of another run's files: those of an earlier run are refused (or, with
+ * --overwrite, removed) for a new run (run_id NULL); a restart needs its own run's directory. */
+static int prepare_out(const cli_command *cmd, const char *dir, const char *run_id, int overwrite)
+{
+    int rc = make_dir(cmd, dir);
+    if (rc) return rc;
+    int st = consph_run_dir_check(dir, run_id, overwrite);
+    if (st == CONSPH_OK) return 0;
+    if (st == CONSPH_EIO || st == CONSPH_ENOMEM) {
+        fprintf(stderr, "consph run: option --out: %s\n", consph_last_error());
+        return 1;
+    }
+    return cli_error(cmd, "option --out: %s%s", consph_last_error(),
+                     run_id || st != CONSPH_EINVAL
+                         ? ""
+                         : "; give --overwrite to remove them (only those), or another directory");
+}
+
 /* An error against the exact solution, or n/a where the problem has none (the shear layer). */
 static void error_text(char *buf, size_t size, double v)
 {
@@ -68,8 +86,9 @@ static void error_text(char *buf, size_t size, double v)
 /* The options the heat problem shares with the WCSPH runs. */
 static int heat_option(const char *name)
 {
-    static const char *const shared[] = {"--nx",  "--seed",           "--tf",     "--steps",
-                                         "--out", "--snapshot-every", "--format", "--threads"};
+    static const char *const shared[] = {"--nx",     "--seed",    "--tf",
+                                         "--steps",  "--out",     "--snapshot-every",
+                                         "--format", "--threads", "--overwrite"};
     for (size_t k = 0; k < sizeof shared / sizeof shared[0]; ++k)
         if (strcmp(name, shared[k]) == 0) return 1;
     return 0;
@@ -83,14 +102,14 @@ static int option_given(const cli_command *cmd, const char *name)
 }
 
 static int run_heat(const cli_command *cmd, const consph_heat_params *hp, const char *out,
-                    long snap_every, int format)
+                    long snap_every, int format, int overwrite)
 {
     if (consph_heat_params_check(hp) != CONSPH_OK) {
         fprintf(stderr, "consph run: %s\n", consph_last_error());
         return CLI_EXIT_USAGE;
     }
     int rc;
-    if (out && (rc = make_dir(cmd, out)) != 0) return rc;
+    if (out && (rc = prepare_out(cmd, out, NULL, overwrite)) != 0) return rc;
     consph_heat *h = NULL;
     if (consph_heat_create(&h, hp) != CONSPH_OK) {
         fprintf(stderr, "consph run: %s\n", consph_last_error());
@@ -129,6 +148,7 @@ int cmd_run(int argc, char **argv)
     double hdx = 1.2, c0 = 0.0, re = 100.0, tf = 0.5, dt = 0.0, U = 1.0, delta = 0.1;
     double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3, nu = 0.0, alpha = -1.0;
     int layout = 0, kernel = 0, format = 0, eos = 0, heat_lap = 1, heat_walls = 0, rho_init = 0;
+    int overwrite = 0;
     double heat_eta = 2.0, heat_eps = 0.0;
     char layout_choices[256], kernel_choices[512];
     snprintf(layout_choices, sizeof layout_choices, "default,%s", consph_layout_names());
@@ -179,6 +199,8 @@ int cmd_run(int argc, char **argv)
          NULL, 0, 1e12, 0},
         {"--checkpoint-every", CLI_INT, &ckpt_every, "K", "a checkpoint every K steps", NULL, 0,
          1e12, 0},
+        {"--overwrite", CLI_FLAG, &overwrite, NULL,
+         "remove the files of an earlier run in --out first (only those)", NULL, 0, 0, 0},
         {"--restart", CLI_STRING, &restart, "FILE", "continue from a checkpoint", NULL, 0, 0, 0},
         {"--format", CLI_CHOICE, &format, "F", "result on stdout", "table,json", 0, 0, 0},
         {"--threads", CLI_INT, &threads, "T", "threads (0: OpenMP's default)", NULL, 0, 4096, 0},
@@ -215,9 +237,20 @@ int cmd_run(int argc, char **argv)
             return cli_error(&cmd,
                              "option %s is not an option of the problem heat (allowed: "
                              "--laplacian, --nx, --eta, --eps, --seed, --tf, --steps, --walls, "
-                             "--out, --snapshot-every, --format, --threads)",
+                             "--out, --snapshot-every, --overwrite, --format, --threads)",
                              opts[k].name);
     }
+    /* options that would do nothing in this combination are refused, not ignored */
+    if (option_given(&cmd, "--steps") && option_given(&cmd, "--tf"))
+        return cli_error(&cmd, "options --steps and --tf both set the end of the run: give one");
+    static const char *const need_out[] = {"--snapshot-every", "--checkpoint-every", "--overwrite"};
+    for (size_t k = 0; k < sizeof need_out / sizeof need_out[0]; ++k)
+        if (!out && option_given(&cmd, need_out[k]))
+            return cli_error(&cmd, "option %s acts on the files of --out DIR: give --out",
+                             need_out[k]);
+    if (restart && overwrite)
+        return cli_error(&cmd, "option --overwrite is for a new run: --restart continues its own "
+                               "run's files (give another --out to continue elsewhere)");
     if (heat) {
         consph_heat_params hp;
         consph_heat_params_default(&hp);
@@ -229,7 +262,7 @@ int cmd_run(int argc, char **argv)
         hp.seed = (unsigned long)seed;
         if (option_given(&cmd, "--tf")) hp.tf = tf;
         hp.steps = steps;
-        return run_heat(&cmd, &hp, out, snap_every, format);
+        return run_heat(&cmd, &hp, out, snap_every, format, overwrite);
     }
 
     consph_solver *s = NULL;
@@ -251,9 +284,25 @@ int cmd_run(int argc, char **argv)
             fprintf(stderr, "consph run: option --restart: %s\n", consph_last_error());
             return CLI_EXIT_USAGE;
         }
+        if (out && (rc = prepare_out(&cmd, out, consph_solver_run_id(s), 0)) != 0) {
+            consph_solver_free(s);
+            return rc;
+        }
     } else {
         if (option_given(&cmd, "--re") && option_given(&cmd, "--nu"))
             return cli_error(&cmd, "options --re and --nu both set the viscosity: give one");
+        if (dt > 0.0 && (option_given(&cmd, "--cfl") || option_given(&cmd, "--h-dt")))
+            return cli_error(&cmd,
+                             "option %s sets the time-step rule, which --dt %g replaces: "
+                             "give one",
+                             option_given(&cmd, "--cfl") ? "--cfl" : "--h-dt", dt);
+        static const char *const ipst[] = {"--ipst-every", "--ipst-iter", "--ipst-tol"};
+        for (size_t k = 0; k < sizeof ipst / sizeof ipst[0]; ++k)
+            if (option_given(&cmd, ipst[k]) && !consph_scheme_uses_ipst(scheme))
+                return cli_error(&cmd,
+                                 "option %s acts on the IPST schemes only (l-ipst-c, l-ipst-f, "
+                                 "l-ipst-k, pe-ipst-c), not --scheme %.40s",
+                                 ipst[k], scheme);
         if (consph_run_params_problem(&prm, positional[0]) != CONSPH_OK)
             return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s, heat)", positional[0],
                              consph_problem_names());
@@ -305,10 +354,7 @@ int cmd_run(int argc, char **argv)
             fprintf(stderr, "consph run: %s\n", consph_last_error());
             return CLI_EXIT_USAGE;
         }
-    }
-    if (out && (rc = make_dir(&cmd, out)) != 0) {
-        consph_solver_free(s);
-        return rc;
+        if (out && (rc = prepare_out(&cmd, out, NULL, overwrite)) != 0) return rc;
     }
     if (!s && (st = consph_solver_create(&s, &prm)) != CONSPH_OK) {
         fprintf(stderr, "consph run: %s\n", consph_last_error());

@@ -6,6 +6,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
+#include <unistd.h>
 
 #include "schemes/regularise.h"
 #include "schemes/solver_internal.h"
@@ -251,6 +253,30 @@ static int initial_rates(consph_solver *s)
     return st;
 }
 
+/* Random where /dev/urandom is readable, else from the clock and the process id: it has only to
+ * differ between the runs that could share an output directory. */
+static void new_run_id(char *id)
+{
+    uint64_t v = 0;
+    FILE *fp = fopen("/dev/urandom", "rb");
+    if (fp) {
+        if (fread(&v, 1, sizeof v, fp) != sizeof v) v = 0;
+        fclose(fp);
+    }
+    if (v == 0) {
+        double w = consph_wtime();
+        uint64_t bits;
+        memcpy(&bits, &w, sizeof bits);
+        v = (bits ^ ((uint64_t)getpid() << 32) ^ (uint64_t)time(NULL)) * 0x9E3779B97F4A7C15u;
+    }
+    snprintf(id, CONSPH_RUN_ID_LEN + 1, "%016" PRIx64, v);
+}
+
+const char *consph_solver_run_id(const consph_solver *s)
+{
+    return s->run_id;
+}
+
 int consph_solver_create(consph_solver **out, const consph_run_params *prm)
 {
     *out = NULL;
@@ -259,6 +285,7 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
     consph_solver *s = consph_calloc(1, sizeof *s);
     if (!s) return CONSPH_ENOMEM;
     s->prm = *prm;
+    new_run_id(s->run_id);
     st = derive_solver(s);
     consph_layout_kind kind =
         prm->layout >= 0 ? (consph_layout_kind)prm->layout : s->scheme->layout;

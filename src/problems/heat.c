@@ -10,6 +10,7 @@
 #include "consph/kernels.h"
 #include "consph/ops.h"
 #include "consph/pass.h"
+#include "consph/solver.h"
 #include "integrate/runfiles.h"
 #include "ops/terms.h"
 
@@ -509,7 +510,8 @@ int consph_heat_run(consph_heat *h, const char *dir, long snapshot_every, consph
     heat_log lg = {NULL, 0, 0};
     int st = CONSPH_OK;
     if (dir) {
-        st = runfiles_pvd_init(&f);
+        st = consph_run_dir_check(dir, NULL, 0);
+        if (st == CONSPH_OK) st = runfiles_pvd_init(&f);
         if (st == CONSPH_OK) st = log_row(h, &lg, 1);
         if (st == CONSPH_OK) st = heat_snapshot(h, &f, &lg);
     }

@@ -150,6 +150,7 @@ struct consph_solver {
     size_t nhist, caphist;
     double *diag_buf; /* the per-particle terms of consph_solver_diag, 7 per particle */
     size_t diag_cap;
+    char run_id[CONSPH_RUN_ID_LEN + 1]; /* new at set-up, kept by checkpoints */
 };
 
 enum { INTEG_RK2, INTEG_EULER, INTEG_KDK, INTEG_PEC };
