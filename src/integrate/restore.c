@@ -210,9 +210,12 @@ static int meta_parse(consph_solver *s, const char *meta)
 static int state_check(const consph_solver *s)
 {
     const consph_run_params *p = &s->prm;
-    if (!(isfinite(s->t) && s->t >= 0.0) || (p->steps == 0 && s->t > p->tf))
-        return consph_fail(CONSPH_EFORMAT, "metadata: key 't' = %g is not a time in [0, %s]", s->t,
-                           p->steps == 0 ? "tf" : "inf)");
+    /* the end of the run: tf, or steps of dt (summed, hence the rounding slack) */
+    const double t_end = p->steps > 0 ? (double)p->steps * s->dt * (1.0 + 1e-9) : p->tf;
+    if (!(isfinite(s->t) && s->t >= 0.0 && s->t <= t_end))
+        return consph_fail(CONSPH_EFORMAT,
+                           "metadata: key 't' = %g is not a time of the run, in [0, %.17g]", s->t,
+                           t_end);
     if (p->steps > 0 && s->step > p->steps)
         return consph_fail(CONSPH_EFORMAT, "metadata: key 'step' = %ld is past steps = %ld",
                            s->step, p->steps);

@@ -167,8 +167,9 @@ int consph_run_dir_check(const char *dir, const char *run_id, int overwrite)
             } else if (st == CONSPH_EFORMAT || st == CONSPH_EIO) {
                 char msg[512];
                 snprintf(msg, sizeof msg, "%s", consph_last_error());
-                st = consph_fail(st, "the run's index, which a restart continues, does not read "
-                                     "back (it is not replaced): %s",
+                st = consph_fail(st,
+                                 "the run's index, which a restart continues, does not read "
+                                 "back (it is not replaced): %s",
                                  msg);
             }
         }
