@@ -166,7 +166,8 @@ int cmd_run(int argc, char **argv)
     kernel = cli_choice_index(kernel_choices, "quintic");
     cli_opt opts[] = {
         {"--scheme", CLI_STRING, &scheme, "S", "scheme", NULL, 0, 0, 0},
-        {"--nx", CLI_INT, &nx, "N", "particles per side", NULL, 4, 100000, 0},
+        {"--nx", CLI_INT, &nx, "N", "particles per side (at most 10000, and memory)", NULL, 4, 1e9,
+         0},
         {"--layout", CLI_CHOICE, &layout, "L", "initial particles (default: the scheme's)",
          layout_choices, 0, 0, 0},
         {"--seed", CLI_INT, &seed, "S", "seed of random and packed layouts", NULL, 0, 1e9, 0},

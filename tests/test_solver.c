@@ -263,6 +263,28 @@ static void test_meta_refused(void)
     consph_solver_free(a);
 }
 
+/* The size cap of a run (issue 23 item 7): the stated limit, and the memory estimate against a
+ * given memory, each refusal naming --nx, the estimate and the limit. */
+static void test_size_cap(void)
+{
+    const double gib = 1073741824.0;
+    CHECK(run_nx_fits(10000, 0.0) == CONSPH_OK, "nx 10000 with memory unknown: %s",
+          consph_last_error());
+    CHECK(run_nx_fits(10001, 0.0) == CONSPH_EINVAL && strstr(consph_last_error(), "--nx") &&
+              strstr(consph_last_error(), "[4, 10000]") && strstr(consph_last_error(), "GiB"),
+          "nx 10001: %s", consph_last_error());
+    /* 4000² particles at 1 KiB: 15.3 GiB, more than 8 GiB, less than 16 */
+    CHECK(run_nx_fits(4000, 8 * gib) == CONSPH_EINVAL && strstr(consph_last_error(), "--nx 4000") &&
+              strstr(consph_last_error(), "15.3 GiB") && strstr(consph_last_error(), "(8 GiB)"),
+          "nx 4000 in 8 GiB: %s", consph_last_error());
+    CHECK(run_nx_fits(4000, 16 * gib) == CONSPH_OK, "nx 4000 in 16 GiB: %s", consph_last_error());
+    CHECK(run_nx_fits(3, 16 * gib) == CONSPH_EINVAL, "nx 3 accepted");
+    /* the parameter check applies it, so studies and the library get it before any set-up */
+    consph_run_params p = params("e-c", 100000);
+    CHECK(consph_run_params_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "--nx"),
+          "params nx 100000: %s", consph_last_error());
+}
+
 static void test_threads(const char *scheme, int layout)
 {
     consph_run_params p = params(scheme, 24);
@@ -378,6 +400,7 @@ int main(void)
     test_restart("l-ipst-c", CONSPH_LAYOUT_RANDOM);
     test_restart("e-c", -1);
     test_meta_refused();
+    test_size_cap();
     test_threads("l-ipst-c", CONSPH_LAYOUT_RANDOM);
     test_threads("e-c", -1);
     test_every_scheme();
