@@ -4,6 +4,7 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 /* The names of the files a run writes, the problems' extras included. */
 static const char *const run_file_names[] = {
@@ -115,4 +116,21 @@ void runfiles_json_num(FILE *fp, const char *key, double v, int last)
         fprintf(fp, "  \"%s\": %.17g%s\n", key, v, last ? "" : ",");
     else
         fprintf(fp, "  \"%s\": null%s\n", key, last ? "" : ",");
+}
+
+double runfiles_machine_memory(void)
+{
+    const long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    return pages > 0 && size > 0 ? (double)pages * (double)size : 0.0;
+}
+
+int runfiles_memory_check(int nx, double bytes_each, double memory)
+{
+    const double n = (double)nx * (double)nx, need = n * bytes_each;
+    if (memory > 0.0 && need > memory)
+        return consph_fail(CONSPH_EINVAL,
+                           "--nx %d: %.4g particles need about %.3g GiB (%.0f bytes each), more "
+                           "than this machine's memory (%.3g GiB)",
+                           nx, n, need / 1073741824.0, bytes_each, memory / 1073741824.0);
+    return CONSPH_OK;
 }

@@ -9,6 +9,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "integrate/runfiles.h"
 #include "schemes/regularise.h"
 #include "schemes/solver_internal.h"
 
@@ -75,20 +76,12 @@ int run_nx_fits(int nx, double memory)
                            "(%.4g particles, about %.3g GiB)",
                            CONSPH_RUN_NX_MAX, (double)CONSPH_RUN_NX_MAX * CONSPH_RUN_NX_MAX, nx, n,
                            need / 1073741824.0);
-    if (memory > 0.0 && need > memory)
-        return consph_fail(CONSPH_EINVAL,
-                           "--nx %d: %.4g particles need about %.3g GiB (%.0f bytes each), more "
-                           "than this machine's memory (%.3g GiB)",
-                           nx, n, need / 1073741824.0, RUN_BYTES_PER_PARTICLE,
-                           memory / 1073741824.0);
-    return CONSPH_OK;
+    return runfiles_memory_check(nx, RUN_BYTES_PER_PARTICLE, memory);
 }
 
 int consph_run_nx_check(int nx)
 {
-    const long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
-    /* an unknown memory size leaves the stated limit alone */
-    return run_nx_fits(nx, pages > 0 && size > 0 ? (double)pages * (double)size : 0.0);
+    return run_nx_fits(nx, runfiles_machine_memory());
 }
 
 int consph_run_params_check(const consph_run_params *prm)
