@@ -1,8 +1,10 @@
 #!/usr/bin/env bash
-# consph run --out DIR reused (issue 23 items 5 and 9): a new run refuses a directory holding
-# another run's files unless --overwrite, which removes exactly those; a restart continues only
-# its own run's directory (run.id) and refuses a run.pvd that does not read back; options that
-# would do nothing in their combination are refused. Every refusal: exit 2, DIR untouched.
+# consph run's refusals before any work (issue 23 items 5, 7 and 9): a new run refuses an --out
+# DIR holding another run's files unless --overwrite, which removes exactly those; a restart
+# continues only its own run's directory (run.id) and refuses a run.pvd that does not read back;
+# options that would do nothing in their combination are refused; a size past the stated limit
+# or the machine's memory is refused naming --nx, the estimate and the limit (in a study too,
+# with file:line). Every refusal: exit 2, DIR untouched. test_solver checks the memory rule.
 # Usage: bash cli_run_dir.sh PATH-TO-CONSPH
 set -u
 consph=$1
@@ -20,7 +22,8 @@ expect_refused() {
     shift 3
     local before
     before=$(state "$dir")
-    "$consph" "$@" >"$tmp/out" 2>"$tmp/err"
+    # within seconds: the pre-change consph spent them allocating a size it could not hold
+    timeout 20 "$consph" "$@" >"$tmp/out" 2>"$tmp/err"
     local rc=$?
     [ $rc -eq 2 ] || bad "$what: exit $rc, expected 2"
     grep -q -- "$pattern" "$tmp/err" || bad "$what: message '$(cat "$tmp/err")' lacks '$pattern'"
@@ -84,6 +87,25 @@ expect_refused "--h-dt with --dt" "option --h-dt .*--dt" "$tmp/e" \
 expect_refused "--ipst-every without IPST" "option --ipst-every .*IPST schemes only" "$tmp/e" \
     run taylor-green --scheme e-c --steps 2 --ipst-every 5
 run --steps 2 --dt 0.001 >/dev/null || bad "--dt alone refused"
+
+# --- size: the stated limit, the machine's memory, a study's key ---
+expect_refused "--nx 100000" "--nx must be an integer in \[4, 10000\].*not 100000 (1e+10 particles, about .* GiB)" \
+    "$tmp/e" run taylor-green --nx 100000 --steps 1 --out "$tmp/e"
+expect_refused "--nx 20000" "--nx must be an integer in \[4, 10000\].*not 20000" "$tmp/e" \
+    run taylor-green --scheme e-c --nx 20000 --steps 1
+expect_refused "--nx 10001" "--nx .*10001" "$tmp/e" run gresho-chan --nx 10001 --steps 1 --out "$tmp/e"
+# run heat: its estimate (512 bytes per particle) against this machine's memory, where the
+# 20000² particles cannot fit (191 GiB)
+mem_kib=$(awk '/^MemTotal:/ { print $2 }' /proc/meminfo 2>/dev/null)
+if [ -n "$mem_kib" ] && [ "$mem_kib" -lt 190000000 ]; then
+    expect_refused "heat --nx 20000" "option --nx 20000: 4e+08 particles need about 191 GiB" "$tmp/e" \
+        run heat --nx 20000 --out "$tmp/e"
+fi
+printf '%s\n' "study = big" "title = a quick resolution that cannot be held" "[figure conv]" \
+    "kind = run" "problem = taylor-green" "layout = lattice" "nx = 12,16" "quick.nx = 16,100000" \
+    "steps = 1" "[series E-C]" "scheme = e-c" >"$tmp/big.study"
+expect_refused "study quick.nx = 100000" "big.study:8: .*quick.nx.*--nx must be an integer in \[4, 10000\]" \
+    "$tmp/e" study "$tmp/big.study" --quick --out "$tmp/e"
 
 [ $fail -eq 0 ] && echo "cli_run_dir: ok"
 exit $fail

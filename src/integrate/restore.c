@@ -256,12 +256,12 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
     if (st == CONSPH_OK &&
         (nhistory == 0 || nhistory % HIST_COLS != 0 || nhistory / HIST_COLS != (size_t)s->step + 1))
         st = consph_fail(CONSPH_EFORMAT,
-                         "checkpoint: history of %zu values does not hold %ld "
+                         "history of %zu values does not hold %ld "
                          "steps",
                          nhistory, s->step + 1);
     if (st == CONSPH_OK && (particles->dim != 2 || particles->n != (size_t)p->nx * (size_t)p->nx))
-        st = consph_fail(CONSPH_EFORMAT, "checkpoint: %zu particles in %dD do not match nx = %d",
-                         particles->n, particles->dim, p->nx);
+        st = consph_fail(CONSPH_EFORMAT, "%zu particles in %dD do not match nx = %d", particles->n,
+                         particles->dim, p->nx);
     consph_kernel k;
     if (st == CONSPH_OK) st = consph_kernel_init(&k, p->kernel, s->dim, s->h);
     if (st == CONSPH_OK) st = consph_sys_init(&s->sys, particles, &k, 0.0);
@@ -269,8 +269,7 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
         static const char *const need[] = {SF_U, SF_RHOF, SF_P, SF_VOL, SF_ID};
         for (size_t f = 0; f < sizeof need / sizeof need[0] && st == CONSPH_OK; ++f)
             if (!consph_particles_find(s->sys.p, need[f]))
-                st = consph_fail(CONSPH_EFORMAT, "checkpoint: the particles lack field '%s'",
-                                 need[f]);
+                st = consph_fail(CONSPH_EFORMAT, "the particles lack field '%s'", need[f]);
     }
     if (st == CONSPH_OK) {
         s->hist = malloc(nhistory * sizeof(double));
