@@ -215,7 +215,11 @@ static void test_meta_refused(void)
         {"run", "run=xyz", "key 'run'"},
         {"run", NULL, "key 'run' is missing"},
         {"format", "format=consph-solver-2", "'consph-solver-2' is not this consph's"},
-        {"hdx", "hdx=nan", "--hdx"},
+        {"hdx", "hdx=nan", "key 'hdx': --hdx"},
+        {"h_dt", "h_dt=-0x1p+0", "key 'h_dt': --h-dt"},
+        {"U", "U=0x0p+0", "key 'U': --u"},
+        {"scheme", "scheme=sph", "key 'scheme': --scheme 'sph' is unknown"},
+        {"rho0", "rho0=-0x1p+0", "key 'rho0': rho0 must be"},
         {"bogus", "", "unknown key 'junk'"},
     };
     char buf[8192];

@@ -1,6 +1,7 @@
 /* What a checkpoint holds of a solver besides its particles: the parameters and the scalars of
  * the run as "key=value" lines, doubles in C99 hexadecimal (%a) so they read back bit for bit,
  * and the per-step history. Parsing is strict: every key known, every value checked. */
+#include <ctype.h>
 #include <errno.h>
 #include <inttypes.h>
 #include <limits.h>
@@ -205,6 +206,24 @@ static int meta_parse(consph_solver *s, const char *meta)
     return CONSPH_OK;
 }
 
+/* The key a message of consph_run_params_check is about: it begins with the option ("--h-dt
+ * must ...", key h_dt) or the parameter's own name ("rho0 must ...", "problem '...'"). */
+static const char *param_key(const char *msg)
+{
+    for (size_t k = 0; k < META_NKEYS; ++k) {
+        char opt[40] = "--";
+        size_t n = 2;
+        for (const char *c = meta_keys[k]; *c && n + 1 < sizeof opt; ++c)
+            opt[n++] = *c == '_' ? '-' : (char)tolower((unsigned char)*c);
+        opt[n] = '\0';
+        const size_t klen = strlen(meta_keys[k]);
+        if ((!strncmp(msg, opt, n) && (msg[n] == ' ' || msg[n] == '\'')) ||
+            (!strncmp(msg, meta_keys[k], klen) && msg[klen] == ' '))
+            return meta_keys[k];
+    }
+    return "?";
+}
+
 /* The run's state against what a run can reach; the parameters were checked already and the
  * solver derived from them (s->prob). */
 static int state_check(const consph_solver *s)
@@ -246,10 +265,9 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
     memset(p, 0, sizeof *p);
     int st = meta_parse(s, meta);
     if (st == CONSPH_OK && consph_run_params_check(p) != CONSPH_OK) {
-        /* the message names the option; its key is the option's name without "--" */
         char msg[512];
         snprintf(msg, sizeof msg, "%s", consph_last_error());
-        st = consph_fail(CONSPH_EFORMAT, "metadata: the run parameters are not valid: %s", msg);
+        st = consph_fail(CONSPH_EFORMAT, "metadata: key '%s': %s", param_key(msg), msg);
     }
     if (st == CONSPH_OK) st = derive_solver(s);
     if (st == CONSPH_OK) st = state_check(s);
