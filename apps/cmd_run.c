@@ -33,14 +33,19 @@ static const char run_details[] =
     "SIGINT/SIGTERM finish the step, write a checkpoint and exit 130/143;\n"
     "--restart DIR/checkpoint.ckpt continues bit for bit (the output\n"
     "options are not in the checkpoint: give --out, --snapshot-every and --checkpoint-every\n"
-    "again).\n"
+    "again). A DIR holding another run's files is refused: a new run needs --overwrite (which\n"
+    "removes those files, nothing else), a restart its own run's DIR (DIR/run.id) or a new one.\n"
+    "Options that would do nothing are refused: --steps with --tf, --cfl or --h-dt with --dt,\n"
+    "--ipst-* for a scheme without IPST, --snapshot-every/--checkpoint-every/--overwrite\n"
+    "without --out.\n"
     "\n"
     "consph run heat (002 section 6, docs/heat.md): dT/dt = ∇²T on the unit square,\n"
     "nx × nx particles on the grid vertices (walls included, Δ = 1/(nx - 1)), Dirichlet\n"
     "walls as source-only particles, Wendland C2 with support h = eta Δ, forward Euler with\n"
     "Δt = 0.2 d_min², the last step landing on --tf. Options: --laplacian s3|s4 --nx N\n"
     "--eta H/Δ [--eps E] [--seed S] [--tf T] [--steps K] [--walls sin|linear] [--out DIR]\n"
-    "[--snapshot-every K] [--format table|json] [--threads T]; the others are WCSPH's.\n"
+    "[--snapshot-every K] [--overwrite] [--format table|json] [--threads T]; the others are "
+    "WCSPH's.\n"
     "\n"
     /* the bounds are the solver's constants; clang-format would break these lines apart */
     /* clang-format off */
@@ -72,6 +77,24 @@ static int make_dir(const cli_command *cmd, const char *dir)
     return 0;
 }
 
+/* --out DIR made, and free of another run's files: those of an earlier run are refused (or, with
+ * --overwrite, removed) for a new run (run_id NULL); a restart needs its own run's directory. */
+static int prepare_out(const cli_command *cmd, const char *dir, const char *run_id, int overwrite)
+{
+    int rc = make_dir(cmd, dir);
+    if (rc) return rc;
+    int st = consph_run_dir_check(dir, run_id, overwrite);
+    if (st == CONSPH_OK) return 0;
+    if (st == CONSPH_EIO || st == CONSPH_ENOMEM) {
+        fprintf(stderr, "consph run: option --out: %s\n", consph_last_error());
+        return 1;
+    }
+    return cli_error(cmd, "option --out: %s%s", consph_last_error(),
+                     run_id || st != CONSPH_EINVAL
+                         ? ""
+                         : "; give --overwrite to remove them (only those), or another directory");
+}
+
 /* An error against the exact solution, or n/a where the problem has none (the shear layer). */
 static void error_text(char *buf, size_t size, double v)
 {
@@ -84,8 +107,9 @@ static void error_text(char *buf, size_t size, double v)
 /* The options the heat problem shares with the WCSPH runs. */
 static int heat_option(const char *name)
 {
-    static const char *const shared[] = {"--nx",  "--seed",           "--tf",     "--steps",
-                                         "--out", "--snapshot-every", "--format", "--threads"};
+    static const char *const shared[] = {"--nx",     "--seed",    "--tf",
+                                         "--steps",  "--out",     "--snapshot-every",
+                                         "--format", "--threads", "--overwrite"};
     for (size_t k = 0; k < sizeof shared / sizeof shared[0]; ++k)
         if (strcmp(name, shared[k]) == 0) return 1;
     return 0;
@@ -99,14 +123,14 @@ static int option_given(const cli_command *cmd, const char *name)
 }
 
 static int run_heat(const cli_command *cmd, const consph_heat_params *hp, const char *out,
-                    long snap_every, int format)
+                    long snap_every, int format, int overwrite)
 {
     if (consph_heat_params_check(hp) != CONSPH_OK) {
         fprintf(stderr, "consph run: %s\n", consph_last_error());
         return CLI_EXIT_USAGE;
     }
     int rc;
-    if (out && (rc = make_dir(cmd, out)) != 0) return rc;
+    if (out && (rc = prepare_out(cmd, out, NULL, overwrite)) != 0) return rc;
     consph_heat *h = NULL;
     if (consph_heat_create(&h, hp) != CONSPH_OK) {
         fprintf(stderr, "consph run: %s\n", consph_last_error());
@@ -145,6 +169,7 @@ int cmd_run(int argc, char **argv)
     double hdx = 1.2, c0 = 0.0, re = 100.0, tf = 0.5, dt = 0.0, U = 1.0, delta = 0.1;
     double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3, nu = 0.0, alpha = -1.0;
     int layout = 0, kernel = 0, format = 0, eos = 0, heat_lap = 1, heat_walls = 0, rho_init = 0;
+    int overwrite = 0;
     double heat_eta = 2.0, heat_eps = 0.0;
     char layout_choices[256], kernel_choices[512];
     snprintf(layout_choices, sizeof layout_choices, "default,%s", consph_layout_names());
@@ -157,7 +182,8 @@ int cmd_run(int argc, char **argv)
     kernel = cli_choice_index(kernel_choices, "quintic");
     cli_opt opts[] = {
         {"--scheme", CLI_STRING, &scheme, "S", "scheme", NULL, 0, 0, 0},
-        {"--nx", CLI_INT, &nx, "N", "particles per side", NULL, 4, 100000, 0},
+        {"--nx", CLI_INT, &nx, "N", "particles per side (at most 10000, and memory)", NULL, 4, 1e9,
+         0},
         {"--layout", CLI_CHOICE, &layout, "L", "initial particles (default: the scheme's)",
          layout_choices, 0, 0, 0},
         {"--seed", CLI_INT, &seed, "S", "seed of random and packed layouts", NULL, 0, 1e9, 0},
@@ -195,6 +221,8 @@ int cmd_run(int argc, char **argv)
          NULL, 0, 1e12, 0},
         {"--checkpoint-every", CLI_INT, &ckpt_every, "K", "a checkpoint every K steps", NULL, 0,
          1e12, 0},
+        {"--overwrite", CLI_FLAG, &overwrite, NULL,
+         "remove the files of an earlier run in --out first (only those)", NULL, 0, 0, 0},
         {"--restart", CLI_STRING, &restart, "FILE", "continue from a checkpoint", NULL, 0, 0, 0},
         {"--format", CLI_CHOICE, &format, "F", "result on stdout", "table,json", 0, 0, 0},
         {"--threads", CLI_INT, &threads, "T", "threads (0: OpenMP's default)", NULL, 0, 4096, 0},
@@ -233,9 +261,20 @@ int cmd_run(int argc, char **argv)
             return cli_error(&cmd,
                              "option %s is not an option of the problem heat (allowed: "
                              "--laplacian, --nx, --eta, --eps, --seed, --tf, --steps, --walls, "
-                             "--out, --snapshot-every, --format, --threads)",
+                             "--out, --snapshot-every, --overwrite, --format, --threads)",
                              opts[k].name);
     }
+    /* options that would do nothing in this combination are refused, not ignored */
+    if (option_given(&cmd, "--steps") && option_given(&cmd, "--tf"))
+        return cli_error(&cmd, "options --steps and --tf both set the end of the run: give one");
+    static const char *const need_out[] = {"--snapshot-every", "--checkpoint-every", "--overwrite"};
+    for (size_t k = 0; k < sizeof need_out / sizeof need_out[0]; ++k)
+        if (!out && option_given(&cmd, need_out[k]))
+            return cli_error(&cmd, "option %s acts on the files of --out DIR: give --out",
+                             need_out[k]);
+    if (restart && overwrite)
+        return cli_error(&cmd, "option --overwrite is for a new run: --restart continues its own "
+                               "run's files (give another --out to continue elsewhere)");
     if (heat) {
         consph_heat_params hp;
         consph_heat_params_default(&hp);
@@ -247,7 +286,7 @@ int cmd_run(int argc, char **argv)
         hp.seed = (unsigned long)seed;
         if (option_given(&cmd, "--tf")) hp.tf = tf;
         hp.steps = steps;
-        return run_heat(&cmd, &hp, out, snap_every, format);
+        return run_heat(&cmd, &hp, out, snap_every, format, overwrite);
     }
 
     consph_solver *s = NULL;
@@ -269,9 +308,25 @@ int cmd_run(int argc, char **argv)
             fprintf(stderr, "consph run: option --restart: %s\n", consph_last_error());
             return CLI_EXIT_USAGE;
         }
+        if (out && (rc = prepare_out(&cmd, out, consph_solver_run_id(s), 0)) != 0) {
+            consph_solver_free(s);
+            return rc;
+        }
     } else {
         if (option_given(&cmd, "--re") && option_given(&cmd, "--nu"))
             return cli_error(&cmd, "options --re and --nu both set the viscosity: give one");
+        if (dt > 0.0 && (option_given(&cmd, "--cfl") || option_given(&cmd, "--h-dt")))
+            return cli_error(&cmd,
+                             "option %s sets the time-step rule, which --dt %g replaces: "
+                             "give one",
+                             option_given(&cmd, "--cfl") ? "--cfl" : "--h-dt", dt);
+        static const char *const ipst[] = {"--ipst-every", "--ipst-iter", "--ipst-tol"};
+        for (size_t k = 0; k < sizeof ipst / sizeof ipst[0]; ++k)
+            if (option_given(&cmd, ipst[k]) && !consph_scheme_uses_ipst(scheme))
+                return cli_error(&cmd,
+                                 "option %s acts on the IPST schemes only (l-ipst-c, l-ipst-f, "
+                                 "l-ipst-k, pe-ipst-c), not --scheme %.40s",
+                                 ipst[k], scheme);
         if (consph_run_params_problem(&prm, positional[0]) != CONSPH_OK)
             return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s, heat)", positional[0],
                              consph_problem_names());
@@ -323,10 +378,7 @@ int cmd_run(int argc, char **argv)
             fprintf(stderr, "consph run: %s\n", consph_last_error());
             return CLI_EXIT_USAGE;
         }
-    }
-    if (out && (rc = make_dir(&cmd, out)) != 0) {
-        consph_solver_free(s);
-        return rc;
+        if (out && (rc = prepare_out(&cmd, out, NULL, overwrite)) != 0) return rc;
     }
     if (!s && (st = consph_solver_create(&s, &prm)) != CONSPH_OK) {
         fprintf(stderr, "consph run: %s\n", consph_last_error());

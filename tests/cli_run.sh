@@ -63,9 +63,10 @@ PY
 # --- checkpoint and restart: bit for bit ---
 for scheme in l-ipst-c e-c; do
     layout=random
-    [ $scheme = e-c ] && layout=lattice
-    run --scheme $scheme --layout $layout --steps 24 --ipst-every 5 --out "$tmp/full-$scheme" >/dev/null || bad "$scheme full run"
-    run --scheme $scheme --layout $layout --steps 24 --ipst-every 5 --checkpoint-every 12 --out "$tmp/ck-$scheme" >/dev/null ||
+    ipst="--ipst-every 5" # e-c has no IPST, and consph refuses options that do nothing
+    [ $scheme = e-c ] && layout=lattice && ipst=
+    run --scheme $scheme --layout $layout --steps 24 $ipst --out "$tmp/full-$scheme" >/dev/null || bad "$scheme full run"
+    run --scheme $scheme --layout $layout --steps 24 $ipst --checkpoint-every 12 --out "$tmp/ck-$scheme" >/dev/null ||
         bad "$scheme checkpointed run"
     [ -s "$tmp/ck-$scheme/checkpoint.ckpt" ] || bad "$scheme: no checkpoint"
     "$consph" run --restart "$tmp/ck-$scheme/checkpoint.ckpt" --out "$tmp/re-$scheme" >/dev/null ||

@@ -9,6 +9,7 @@
 #endif
 
 #include "check.h"
+#include "consph/io.h"
 #include "consph/solver.h"
 #include "schemes/solver_internal.h"
 
@@ -158,6 +159,135 @@ static void test_restart(const char *scheme, int layout)
           "an earlier checkpoint format accepted, or not named: %s", consph_last_error());
     consph_solver_free(a);
     consph_solver_free(b);
+}
+
+/* meta with line `key=...` replaced by `repl` (NULL: removed), into buf. */
+static void meta_edit(char *buf, size_t size, const char *meta, const char *key, const char *repl)
+{
+    size_t klen = strlen(key), n = 0;
+    buf[0] = '\0';
+    for (const char *line = meta; *line;) {
+        const char *nl = strchr(line, '\n');
+        size_t len = nl ? (size_t)(nl - line) + 1 : strlen(line);
+        const int hit = !strncmp(line, key, klen) && line[klen] == '=';
+        if (!hit)
+            n += (size_t)snprintf(buf + n, size - n, "%.*s", (int)len, line);
+        else if (repl)
+            n += (size_t)snprintf(buf + n, size - n, "%s\n", repl);
+        line += len;
+    }
+}
+
+/* A tampered metadata text is refused with a message naming the key (issue 23 item 11); through
+ * a checkpoint file with a valid CRC, the message names the file too. */
+static void test_meta_refused(void)
+{
+    consph_run_params p = params("e-c", 8);
+    p.steps = 6;
+    p.tf = 0.0;
+    consph_solver *a = make(&p);
+    if (!a) return;
+    char *meta = NULL;
+    double *hist = NULL;
+    size_t nh = 0;
+    CHECK(run_steps(a, 3) == CONSPH_OK &&
+              consph_solver_checkpoint_meta(a, &meta, &hist, &nh) == CONSPH_OK,
+          "meta: %s", consph_last_error());
+    if (!meta) {
+        consph_solver_free(a);
+        return;
+    }
+    static const struct {
+        const char *key, *repl, *expect;
+    } cases[] = {
+        {"rho_init", NULL, "key 'rho_init' is missing"},
+        {"rho_init", "nx=8", "key 'nx' given twice"},
+        {"t", "t=nan", "key 't'"},
+        {"t", "t=inf", "key 't'"},
+        {"t", "t=-1", "key 't'"},
+        {"t", "t=0x1p+10", "key 't'"}, /* past tf */
+        {"step", "step=-1", "key 'step'"},
+        {"step", "step=7", "key 'step'"},    /* past steps = 6 */
+        {"nx", "nx=4294967304", "key 'nx'"}, /* 2^32 + 8: 8 as an int */
+        {"seed", "seed=-1", "key 'seed'"},
+        {"pairs", "pairs=-5", "key 'pairs'"},
+        {"seconds", "seconds=-1", "key 'seconds'"},
+        {"l1_u_acc", "l1_u_acc=nan", "key 'l1_u_acc'"},
+        {"run", "run=xyz", "key 'run'"},
+        {"run", NULL, "key 'run' is missing"},
+        {"format", "format=consph-solver-2", "'consph-solver-2' is not this consph's"},
+        {"hdx", "hdx=nan", "key 'hdx': --hdx"},
+        {"h_dt", "h_dt=-0x1p+0", "key 'h_dt': --h-dt"},
+        {"U", "U=0x0p+0", "key 'U': --u"},
+        {"scheme", "scheme=sph", "key 'scheme': --scheme 'sph' is unknown"},
+        {"rho0", "rho0=-0x1p+0", "key 'rho0': rho0 must be"},
+        {"bogus", "", "unknown key 'junk'"},
+    };
+    char buf[8192];
+    for (size_t k = 0; k < sizeof cases / sizeof cases[0]; ++k) {
+        if (!strcmp(cases[k].key, "bogus"))
+            snprintf(buf, sizeof buf, "%sjunk=1\n", meta);
+        else
+            meta_edit(buf, sizeof buf, meta, cases[k].key, cases[k].repl);
+        consph_solver *b = NULL;
+        int st = consph_solver_restore(&b, buf, consph_solver_particles(a), hist, nh);
+        CHECK(st == CONSPH_EFORMAT && strstr(consph_last_error(), cases[k].expect),
+              "%s=%s: status %d, message '%s'", cases[k].key, cases[k].repl ? cases[k].repl : "-",
+              st, consph_last_error());
+        consph_solver_free(b);
+    }
+    /* CRLF line endings: named as such, not as a format mismatch */
+    size_t n = 0;
+    for (const char *c = meta; *c && n + 2 < sizeof buf; ++c) {
+        if (*c == '\n') buf[n++] = '\r';
+        buf[n++] = *c;
+    }
+    buf[n] = '\0';
+    consph_solver *b = NULL;
+    CHECK(consph_solver_restore(&b, buf, consph_solver_particles(a), hist, nh) == CONSPH_EFORMAT &&
+              strstr(consph_last_error(), "carriage return") &&
+              strstr(consph_last_error(), "key 'format'"),
+          "CRLF: %s", consph_last_error());
+    consph_solver_free(b);
+    /* the same through a file: the file and the key are named */
+    char dir[] = "/tmp/consph_meta_XXXXXX", path[64];
+    if (mkdtemp(dir)) {
+        snprintf(path, sizeof path, "%s/checkpoint.ckpt", dir);
+        meta_edit(buf, sizeof buf, meta, "rho_init", NULL);
+        CHECK(consph_checkpoint_write(path, buf, consph_solver_particles(a), hist, nh) == CONSPH_OK,
+              "write: %s", consph_last_error());
+        CHECK(consph_run_restart(&b, path) == CONSPH_EFORMAT && strstr(consph_last_error(), path) &&
+                  strstr(consph_last_error(), "'rho_init'"),
+              "restart from a file: %s", consph_last_error());
+        consph_solver_free(b);
+        remove(path);
+        remove(dir);
+    }
+    free(meta);
+    free(hist);
+    consph_solver_free(a);
+}
+
+/* The size cap of a run (issue 23 item 7): the stated limit, and the memory estimate against a
+ * given memory, each refusal naming --nx, the estimate and the limit. */
+static void test_size_cap(void)
+{
+    const double gib = 1073741824.0;
+    CHECK(run_nx_fits(10000, 0.0) == CONSPH_OK, "nx 10000 with memory unknown: %s",
+          consph_last_error());
+    CHECK(run_nx_fits(10001, 0.0) == CONSPH_EINVAL && strstr(consph_last_error(), "--nx") &&
+              strstr(consph_last_error(), "[4, 10000]") && strstr(consph_last_error(), "GiB"),
+          "nx 10001: %s", consph_last_error());
+    /* 4000² particles at 1 KiB: 15.3 GiB, more than 8 GiB, less than 16 */
+    CHECK(run_nx_fits(4000, 8 * gib) == CONSPH_EINVAL && strstr(consph_last_error(), "--nx 4000") &&
+              strstr(consph_last_error(), "15.3 GiB") && strstr(consph_last_error(), "(8 GiB)"),
+          "nx 4000 in 8 GiB: %s", consph_last_error());
+    CHECK(run_nx_fits(4000, 16 * gib) == CONSPH_OK, "nx 4000 in 16 GiB: %s", consph_last_error());
+    CHECK(run_nx_fits(3, 16 * gib) == CONSPH_EINVAL, "nx 3 accepted");
+    /* the parameter check applies it, so studies and the library get it before any set-up */
+    consph_run_params p = params("e-c", 100000);
+    CHECK(consph_run_params_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "--nx"),
+          "params nx 100000: %s", consph_last_error());
 }
 
 static void test_threads(const char *scheme, int layout)
@@ -327,6 +457,8 @@ int main(void)
     test_momentum("e-c");
     test_restart("l-ipst-c", CONSPH_LAYOUT_RANDOM);
     test_restart("e-c", -1);
+    test_meta_refused();
+    test_size_cap();
     test_threads("l-ipst-c", CONSPH_LAYOUT_RANDOM);
     test_threads("e-c", -1);
     test_every_scheme();

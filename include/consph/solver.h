@@ -79,11 +79,20 @@ int consph_run_params_problem(consph_run_params *prm, const char *problem);
 
 /* Names, for help and messages: "l-ipst-c,l-ipst-f,..." and "taylor-green,...". */
 const char *consph_scheme_names(void);
+/* 1 when the scheme `name` shifts its particles by IPST (the ipst_* parameters act), else 0. */
+int consph_scheme_uses_ipst(const char *name);
 const char *consph_problem_names(void);
 const char *consph_integrator_names(void);
 /* CONSPH_EINVAL naming the option and the allowed values when something is out of range; run
  * before any work. */
 int consph_run_params_check(const consph_run_params *prm);
+/* The most particles per side of a run (10^8 particles, as consph layout and approx allow). */
+#define CONSPH_RUN_NX_MAX 10000
+/* CONSPH_OK when an nx × nx run can be held: nx in [4, CONSPH_RUN_NX_MAX] and its memory
+ * estimate (1 KiB per particle, about twice the measured peak) within this machine's physical
+ * memory; else CONSPH_EINVAL, the message naming --nx, the estimate and the limit. Called by
+ * consph_run_params_check, so before any set-up. */
+int consph_run_nx_check(int nx);
 
 /* What a run measured. */
 typedef struct consph_run_summary {
@@ -187,8 +196,22 @@ typedef struct consph_run_output {
  * none). *sum is filled in every case. */
 int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summary *sum,
                int *stopped_by);
-/* Restores a solver from a checkpoint file. */
+/* Restores a solver from a checkpoint file; a refusal names the file and the metadata key. */
 int consph_run_restart(consph_solver **s, const char *checkpoint);
+
+/* A run's identifier: CONSPH_RUN_ID_LEN hexadecimal digits drawn when the solver is set up,
+ * kept by its checkpoints and written to DIR/run.id by consph_run, so that a restart can tell
+ * its own output directory from another run's. */
+#define CONSPH_RUN_ID_LEN 16
+const char *consph_solver_run_id(const consph_solver *s);
+/* Whether the run `run_id` (NULL: a new run) may write its files in dir (a missing dir may).
+ * A new run needs a directory holding none of the files a run writes (run.pvd, log.csv,
+ * summary.json, checkpoint.ckpt, run.id, snap_N.vtu, profile.csv, vorticity.*, their temporary
+ * files); with overwrite those files, and nothing else, are removed first. A restarted run
+ * needs a directory without such files, or one whose run.id names run_id and whose run.pvd, if
+ * any, reads back. CONSPH_EINVAL names the directory and what is there (CONSPH_EFORMAT the
+ * file that does not read back, CONSPH_EIO a file that could not be removed). */
+int consph_run_dir_check(const char *dir, const char *run_id, int overwrite);
 
 #include <stdio.h>
 /* The summary as one JSON object (non-finite values as null). */

@@ -1,10 +1,13 @@
 /* A whole run: the time loop with its files (snapshots and their .pvd index, the per-step log,
  * the JSON summary, checkpoints), stop signals and the progress line. */
+#include <dirent.h>
+#include <errno.h>
 #include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "consph/io.h"
 #include "integrate/runfiles.h"
@@ -74,6 +77,107 @@ static int write_summary(const consph_run_summary *sum, runfiles *f)
     return runfiles_text(f, "summary.json", summary_json, sum);
 }
 
+static void run_id_text(FILE *fp, const void *id)
+{
+    fprintf(fp, "%s\n", (const char *)id);
+}
+
+/* The run identifier of DIR/run.id into id ("" when the file is missing or not one). */
+static void read_run_id(runfiles *f, char *id)
+{
+    id[0] = '\0';
+    const char *path = runfiles_join(f, "run.id");
+    FILE *fp = path ? fopen(path, "r") : NULL;
+    if (!fp) return;
+    char line[64];
+    if (fgets(line, sizeof line, fp) && strlen(line) == CONSPH_RUN_ID_LEN + 1 &&
+        line[CONSPH_RUN_ID_LEN] == '\n') {
+        line[CONSPH_RUN_ID_LEN] = '\0';
+        strcpy(id, line);
+    }
+    fclose(fp);
+}
+
+/* The run files in dir: how many, the first few names, whether run.pvd is one; with `remove`,
+ * each is unlinked. */
+typedef struct dir_scan {
+    size_t count;
+    char names[160];
+    int have_pvd;
+} dir_scan;
+
+static int scan_dir(const char *dir, runfiles *f, int remove, dir_scan *sc)
+{
+    memset(sc, 0, sizeof *sc);
+    DIR *d = opendir(dir);
+    if (!d) {
+        if (errno == ENOENT) return CONSPH_OK;
+        return consph_fail(CONSPH_EIO, "cannot list the directory '%s': %s", dir, strerror(errno));
+    }
+    int st = CONSPH_OK;
+    const struct dirent *e;
+    while (st == CONSPH_OK && (e = readdir(d)) != NULL) {
+        if (!runfiles_is_run_file(e->d_name)) continue;
+        size_t len = strlen(sc->names);
+        if (sc->count < 3)
+            snprintf(sc->names + len, sizeof sc->names - len, "%s%.40s", sc->count ? ", " : "",
+                     e->d_name);
+        ++sc->count;
+        if (!strcmp(e->d_name, "run.pvd")) sc->have_pvd = 1;
+        if (!remove) continue;
+        const char *path = runfiles_join(f, e->d_name);
+        if (!path)
+            st = consph_fail(CONSPH_ENOMEM, "out of memory");
+        else if (unlink(path) != 0 && errno != ENOENT)
+            st = consph_fail(CONSPH_EIO, "cannot remove '%s': %s", path, strerror(errno));
+    }
+    closedir(d);
+    return st;
+}
+
+int consph_run_dir_check(const char *dir, const char *run_id, int overwrite)
+{
+    if (overwrite && run_id)
+        return consph_fail(CONSPH_EINVAL, "a restarted run continues its own files: it does not "
+                                          "overwrite a directory");
+    runfiles f = {.dir = dir};
+    dir_scan sc;
+    int st = scan_dir(dir, &f, overwrite, &sc);
+    if (st == CONSPH_OK && sc.count && !overwrite) {
+        char what[240];
+        snprintf(what, sizeof what, "%s%s (%zu file%s)", sc.names, sc.count > 3 ? ", ..." : "",
+                 sc.count, sc.count == 1 ? "" : "s");
+        char id[CONSPH_RUN_ID_LEN + 1];
+        read_run_id(&f, id);
+        if (!run_id)
+            st = consph_fail(CONSPH_EINVAL, "'%s' already holds the files of a run: %s", dir, what);
+        else if (strcmp(id, run_id))
+            st = consph_fail(CONSPH_EINVAL,
+                             "'%s' holds the files of another run (%s%s): %s; the checkpoint's "
+                             "run is %s",
+                             dir, id[0] ? "run " : "no valid run.id", id, what, run_id);
+        else if (sc.have_pvd) {
+            /* a restart continues this index: one that does not read back is an error, not a
+             * file to replace */
+            consph_pvd pvd;
+            const char *path = runfiles_join(&f, "run.pvd");
+            st = path ? consph_pvd_load(&pvd, path) : consph_fail(CONSPH_ENOMEM, "out of memory");
+            if (st == CONSPH_OK) {
+                consph_pvd_free(&pvd);
+            } else if (st == CONSPH_EFORMAT || st == CONSPH_EIO) {
+                char msg[512];
+                snprintf(msg, sizeof msg, "%s", consph_last_error());
+                st = consph_fail(st,
+                                 "the run's index, which a restart continues, does not read "
+                                 "back (it is not replaced): %s",
+                                 msg);
+            }
+        }
+    }
+    free(f.path);
+    return st;
+}
+
 int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summary *sum,
                int *stopped_by)
 {
@@ -82,14 +186,16 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
     int st = CONSPH_OK;
     *stopped_by = 0;
     if (files) {
-        const char *pvd = runfiles_join(&f, "run.pvd");
-        if (!pvd) st = consph_fail(CONSPH_ENOMEM, "out of memory");
+        st = consph_run_dir_check(out->dir, s->step > 0 ? s->run_id : NULL, 0);
+        if (st == CONSPH_OK) st = runfiles_text(&f, "run.id", run_id_text, s->run_id);
+        const char *pvd = st == CONSPH_OK ? runfiles_join(&f, "run.pvd") : NULL;
+        if (st == CONSPH_OK && !pvd) st = consph_fail(CONSPH_ENOMEM, "out of memory");
         /* a restarted run keeps the index up to its checkpoint and rewrites what follows */
-        if (st == CONSPH_OK && s->step > 0 && consph_pvd_load(&f.pvd, pvd) == CONSPH_OK) {
-            f.have_pvd = 1;
-            st = consph_pvd_truncate(&f.pvd, s->t);
+        if (st == CONSPH_OK && s->step > 0 && access(pvd, F_OK) == 0) {
+            st = consph_pvd_load(&f.pvd, pvd);
+            f.have_pvd = st == CONSPH_OK;
+            if (st == CONSPH_OK) st = consph_pvd_truncate(&f.pvd, s->t);
         } else if (st == CONSPH_OK) {
-            consph_clear_error();
             st = runfiles_pvd_init(&f);
             if (st == CONSPH_OK && s->step == 0) st = write_snapshot(s, &f);
         }
@@ -144,6 +250,11 @@ int consph_run_restart(consph_solver **s, const char *checkpoint)
     int st = consph_checkpoint_read(checkpoint, &meta, &p, &hist, &nh);
     if (st != CONSPH_OK) return st;
     st = consph_solver_restore(s, meta, &p, hist, nh);
+    if (st != CONSPH_OK && st != CONSPH_ENOMEM) {
+        char msg[512];
+        snprintf(msg, sizeof msg, "%s", consph_last_error());
+        consph_fail(st, "checkpoint '%s': %s", checkpoint, msg);
+    }
     free(meta);
     free(hist);
     consph_particles_free(&p);

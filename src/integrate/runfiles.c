@@ -4,6 +4,40 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
+
+/* The names of the files a run writes, the problems' extras included. */
+static const char *const run_file_names[] = {
+    "run.pvd",     "log.csv",       "summary.json",  "checkpoint.ckpt", "run.id",
+    "profile.csv", "vorticity.png", "vorticity.dat", "vorticity.gp",
+};
+
+static int all_digits(const char *s, size_t len)
+{
+    if (len == 0) return 0;
+    for (size_t k = 0; k < len; ++k)
+        if (s[k] < '0' || s[k] > '9') return 0;
+    return 1;
+}
+
+/* A run's own name: one of the list, or snap_DIGITS.vtu. */
+static int run_name(const char *name, size_t len)
+{
+    for (size_t k = 0; k < sizeof run_file_names / sizeof run_file_names[0]; ++k)
+        if (strlen(run_file_names[k]) == len && !strncmp(name, run_file_names[k], len)) return 1;
+    return len > 9 && !strncmp(name, "snap_", 5) && !strncmp(name + len - 4, ".vtu", 4) &&
+           all_digits(name + 5, len - 9);
+}
+
+int runfiles_is_run_file(const char *name)
+{
+    size_t len = strlen(name);
+    if (run_name(name, len)) return 1;
+    /* the temporary files of consph_outfile (NAME.tmp.PID) and of the vorticity image */
+    const char *tmp = strstr(name, ".tmp");
+    if (!tmp || !run_name(name, (size_t)(tmp - name))) return 0;
+    return tmp[4] == '\0' || (tmp[4] == '.' && all_digits(tmp + 5, strlen(tmp + 5)));
+}
 
 const char *runfiles_join(runfiles *f, const char *name)
 {
@@ -82,4 +116,21 @@ void runfiles_json_num(FILE *fp, const char *key, double v, int last)
         fprintf(fp, "  \"%s\": %.17g%s\n", key, v, last ? "" : ",");
     else
         fprintf(fp, "  \"%s\": null%s\n", key, last ? "" : ",");
+}
+
+double runfiles_machine_memory(void)
+{
+    const long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    return pages > 0 && size > 0 ? (double)pages * (double)size : 0.0;
+}
+
+int runfiles_memory_check(int nx, double bytes_each, double memory)
+{
+    const double n = (double)nx * (double)nx, need = n * bytes_each;
+    if (memory > 0.0 && need > memory)
+        return consph_fail(CONSPH_EINVAL,
+                           "--nx %d: %.4g particles need about %.3g GiB (%.0f bytes each), more "
+                           "than this machine's memory (%.3g GiB)",
+                           nx, n, need / 1073741824.0, bytes_each, memory / 1073741824.0);
+    return CONSPH_OK;
 }

@@ -29,6 +29,15 @@ int runfiles_csv(runfiles *f, const char *name, const char *header, const double
 /* DIR/name written by fn(fp, arg). */
 int runfiles_text(runfiles *f, const char *name, void (*fn)(FILE *, const void *), const void *arg);
 void runfiles_free(runfiles *f);
+/* 1 when `name` is a file a run writes (or its temporary file), so one that a new run in the
+ * same directory would mix with its own, and that overwriting may remove. */
+int runfiles_is_run_file(const char *name);
+
+/* This machine's physical memory in bytes (0 when unknown). */
+double runfiles_machine_memory(void);
+/* CONSPH_OK when nx × nx particles of bytes_each fit in `memory` bytes (0: unknown, always);
+ * else CONSPH_EINVAL naming --nx, the estimate and the memory. */
+int runfiles_memory_check(int nx, double bytes_each, double memory);
 
 /* "  \"key\": value," (null when not finite; no comma when last). */
 void runfiles_json_num(FILE *fp, const char *key, double v, int last);

@@ -332,6 +332,12 @@ const char *consph_scheme_names(void)
            "delta-sph,delta-plus-sph,delta-plus-sph-d";
 }
 
+int consph_scheme_uses_ipst(const char *name)
+{
+    const scheme_def *sd = scheme_find(name);
+    return sd && sd->regularise == regularise_ipst;
+}
+
 size_t scheme_count(void)
 {
     return sizeof schemes / sizeof schemes[0];

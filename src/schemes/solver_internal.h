@@ -150,9 +150,12 @@ struct consph_solver {
     size_t nhist, caphist;
     double *diag_buf; /* the per-particle terms of consph_solver_diag, 7 per particle */
     size_t diag_cap;
+    char run_id[CONSPH_RUN_ID_LEN + 1]; /* new at set-up, kept by checkpoints */
 };
 
 enum { INTEG_RK2, INTEG_EULER, INTEG_KDK, INTEG_PEC };
+/* consph_run_nx_check against `memory` bytes (0: unknown) instead of this machine's. */
+int run_nx_fits(int nx, double memory);
 /* Per-particle loops of the integrator and the diagnostics run on the threads from this many
  * particles on (each particle is written by one iteration, so the bits do not depend on the
  * thread count). */

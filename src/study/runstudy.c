@@ -143,6 +143,8 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
         if (pl->nx[j] != floor(pl->nx[j]) || (j && !(pl->nx[j] > pl->nx[j - 1])))
             return study_key_error(s, f, r, k, "resolutions must be whole and increasing");
     p->nx = (int)pl->nx[pl->nnx - 1];
+    if (consph_run_nx_check(p->nx) != CONSPH_OK)
+        return study_key_error(s, f, r, k, "%s", consph_last_error());
     if (consph_run_params_check(p) != CONSPH_OK)
         return study_key_error(s, f, r, "scheme", "%s", consph_last_error());
     return CONSPH_OK;
