@@ -1,0 +1,118 @@
+#!/usr/bin/env bash
+# The hostile tester's matrix of issue "Hardening II": each case is a command line that a user
+# might type, the exit status it must give, and what else must hold (a message, a file left or
+# not). Prints one row per case and the totals; exits 1 if any case misbehaves.
+#   bash scripts/hostile.sh build/consph
+# Cases write only under a temporary directory; a case that runs past its limit misbehaves.
+set -u
+BIN=$(readlink -f "${1:?usage: hostile.sh CONSPH}")
+W=$(mktemp -d)
+trap 'rm -rf "$W"' EXIT
+cd "$W" || exit 1
+pass=0
+fail=0
+# check EXPECTED_RC 'PATTERN in stderr or -' DESCRIPTION -- COMMAND...
+check() {
+    local want=$1 pat=$2 what=$3
+    shift 4
+    local rc
+    timeout 120 "$@" >out.txt 2>err.txt
+    rc=$?
+    local ok=1
+    [ "$rc" = "$want" ] || ok=0
+    if [ "$ok" = 1 ] && [ "$pat" != - ] && ! grep -Eq -- "$pat" err.txt; then ok=0; fi
+    if [ "$ok" = 1 ]; then
+        pass=$((pass + 1))
+        printf 'ok    %-58s exit %s\n' "$what" "$rc"
+    else
+        fail=$((fail + 1))
+        printf 'WRONG %-58s exit %s (want %s): %s\n' "$what" "$rc" "$want" \
+            "$(head -c 160 err.txt | tr '\n' ' ')"
+    fi
+}
+
+# 1. Runs that leave the weakly-compressible model stop with exit 3
+check 3 'step' "1: tvf nx 8 dt 1e6" -- "$BIN" run taylor-green --scheme tvf --nx 8 --dt 1e6 --steps 5
+for s in l-ipst-c l-ipst-f l-ipst-k l-pst-c pe-ipst-c l-rr-c tv-c e-c ewcsph wcsph tvf edac \
+    delta-sph delta-plus-sph delta-plus-sph-d; do
+    check 3 'step' "1: $s nx 8 dt 10 steps 5" -- "$BIN" run taylor-green --scheme "$s" --nx 8 \
+        --dt 10 --steps 5
+done
+check 3 'step' "1: wcsph nx 16 dt 0.01 tf 2 (4.4x default dt)" -- "$BIN" run taylor-green \
+    --scheme wcsph --nx 16 --dt 0.01 --tf 2
+check 0 - "1: a valid run still passes" -- "$BIN" run taylor-green --scheme l-ipst-c --nx 16 \
+    --steps 20
+
+# 3. A failed write on standard output is never exit 0
+for cmd in "approx --op grad --nx 10" "layout --kind lattice --dim 2 --nx 10" \
+    "run taylor-green --nx 8 --steps 2" "run taylor-green --nx 8 --steps 2 --format json" \
+    "run heat --laplacian s4 --nx 8 --eta 1.5 --steps 2" "study --list" "--help" "--version" \
+    "run --help" "approx --help" "kernels" "kernel quintic --dim 2"; do
+    # shellcheck disable=SC2086
+    check 1 'writ|space' "3: $cmd > /dev/full" -- sh -c "\"\$0\" $cmd >/dev/full" "$BIN"
+done
+
+# 5. A used --out is refused unless told to overwrite
+"$BIN" run taylor-green --nx 8 --steps 4 --checkpoint-every 2 --out used >/dev/null 2>&1
+check 2 'used|--out' "5: run into a used --out" -- "$BIN" run taylor-green --nx 8 --steps 2 --out used
+
+# 7. No size the machine cannot hold
+check 2 'nx' "7: run --nx 100000" -- "$BIN" run taylor-green --nx 100000 --steps 1
+
+# 8. An unwritable --out is refused first, with exit 2
+check 2 'out' "8: run --out /proc/1" -- "$BIN" run taylor-green --nx 8 --steps 2 --out /proc/1
+check 2 'out' "8: run heat --out /proc/1" -- "$BIN" run heat --laplacian s4 --nx 8 --eta 1.5 \
+    --steps 2 --out /proc/1
+check 2 'out' "8: study --out /proc/1" -- "$BIN" study 003-m0 --quick --out /proc/1
+check 2 'out' "8: layout --out /proc/1.vtu" -- "$BIN" layout --kind packed --dim 2 --nx 10 \
+    --out /proc/1/consph.vtu
+
+# 9. Options that would be ignored are refused
+check 2 'tf' "9: run --steps with --tf" -- "$BIN" run taylor-green --nx 8 --steps 2 --tf 1
+check 2 'out' "9: --checkpoint-every without --out" -- "$BIN" run taylor-green --nx 8 --steps 2 \
+    --checkpoint-every 1
+check 2 'out' "9: --snapshot-every without --out" -- "$BIN" run taylor-green --nx 8 --steps 2 \
+    --snapshot-every 1
+"$BIN" layout --kind lattice --dim 2 --nx 8 --out a.csv >/dev/null 2>&1
+"$BIN" layout --kind lattice --dim 2 --nx 16 --out b.csv >/dev/null 2>&1
+check 2 'eps' "9: wasserstein --method sliced --eps" -- "$BIN" wasserstein a.csv b.csv \
+    --method sliced --eps 0.1
+
+# 10. Study files: what would be ignored or misread is refused with file:line
+study() { # NAME EXTRA-FIGURE-LINES EXTRA-SERIES-LINES: a tiny run study
+    printf 'study = %s\ntitle = t\n[figure conv]\nkind = run\nproblem = taylor-green\nlayout = lattice\nc0 = 80\nnx = 8,12\ntf = 0.01\n%b[series E-C]\nscheme = e-c\n%b' "$1" "$2" "$3" >"$1.study"
+}
+study s_ok '' ''
+check 0 - "10: a valid tiny run study" -- "$BIN" study s_ok.study --quick --out so
+study s_trref '' 'tr_ref = E-C\n'
+check 2 'study:[0-9]+' "10: tr_ref inside [series]" -- "$BIN" study s_trref.study --quick --out st
+study s_op 'op = grad\n' ''
+check 2 'study:[0-9]+' "10: op on a run figure" -- "$BIN" study s_op.study --quick --out sop
+study s_steps 'steps = 3\n' ''
+check 2 'study:[0-9]+' "10: steps and tf together" -- "$BIN" study s_steps.study --quick --out sst
+printf 'study = s_list\ntitle = t\n[figure conv]\nkind = run\nproblem = taylor-green\nlayout = lattice\nc0 = 80\nnx = 8,,12\ntf = 0.01\n[series E-C]\nscheme = e-c\n' >s_list.study
+check 2 'study:[0-9]+' "10: nx = 8,,12" -- "$BIN" study s_list.study --quick --out sl
+printf 'study = s_noscheme\ntitle = t\n[figure conv]\nkind = run\nproblem = taylor-green\nlayout = lattice\nc0 = 80\nnx = 8,12\ntf = 0.01\n[series E-C]\npaper.order_u = 2\n' >s_noscheme.study
+check 2 'study:[1-9]' "10: a series without scheme (line > 0)" -- "$BIN" study s_noscheme.study \
+    --quick --out sn
+
+# 11. Restarts: only into the checkpoint's own run
+"$BIN" run taylor-green --nx 8 --steps 4 --checkpoint-every 2 --out runa >/dev/null 2>&1
+"$BIN" run taylor-green --nx 8 --steps 4 --out runb >/dev/null 2>&1
+check 2 'runb|--out' "5: restart into another run's --out" -- "$BIN" run \
+    --restart runa/checkpoint.ckpt --out runb
+
+# 12. Bad input is exit 2, not 1 and not 0
+check 2 'periodic' "12: approx --layout packed --periodic no" -- "$BIN" approx --op grad \
+    --layout packed --periodic no --nx 10
+printf 'x,y\n0.5,0.5\n' >one.csv
+# one particle has no spacing: n/a, not inf or nan (the file is valid, so exit 0)
+check 0 - "12: layout --in with one particle prints no inf/nan" -- sh -c \
+    '"$0" layout --in one.csv --box 0:1,0:1 >l.txt && ! grep -Eiq "nan|inf" l.txt' "$BIN"
+
+# 13. Work that cannot fit is refused up front
+check 2 'grid' "13: wasserstein A uniform --grid 100000" -- "$BIN" wasserstein a.csv uniform \
+    --grid 100000 --directions 2
+
+echo "hostile matrix: $pass passed, $fail failed"
+[ "$fail" = 0 ]
