@@ -33,7 +33,10 @@ static void usage(FILE *out)
     fprintf(out, "commands:\n");
     for (size_t k = 0; k < NSUB; ++k)
         fprintf(out, "  %-10s %s\n", subcommands[k].name, subcommands[k].summary);
-    fprintf(out, "\nexit status: 0 success, 1 failure while running, 2 bad usage or input\n");
+    fprintf(out,
+            "\nexit status: 0 success, 1 failure while running (a failed write included), 2 bad\n"
+            "usage or input, 3 a non-finite result or a run that left its model's validity,\n"
+            "130/143 stopped by SIGINT/SIGTERM\n");
 }
 
 /* libgomp spins for a while at every barrier before sleeping. On a machine whose cores are busy
