@@ -32,11 +32,13 @@ int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **
         "d\n"
         "delta=%a\ntf=%a\nsteps=%ld\ndt=%a\ncfl=%a\nh_dt=%a\nipst_every=%d\nipst_max_iter=%d\n"
         "ipst_tol=%a\nt=%a\nstep=%ld\nl1_u_acc=%a\nl1_p_acc=%a\nseconds=%a\npairs=%zu\n"
-        "regs=%ld\npasses=%d\nrho_init=%d\n",
+        "regs=%ld\npasses=%d\nrho_init=%d\nerror=%d\nerror_times=%d\nauth_u_acc=%a\n"
+        "auth_p_acc=%a\nauth_n=%d\nauth_next=%d\n",
         p->problem, p->scheme, p->integrator, p->nx, p->layout, p->seed, p->hdx, (int)p->kernel,
         p->U, p->c0, p->re, p->nu, p->alpha, p->rho0, p->gamma, (int)p->eos, p->delta, p->tf,
         p->steps, p->dt, p->cfl, p->h_dt, p->ipst_every, p->ipst_max_iter, p->ipst_tol, s->t,
-        s->step, s->l1_u_acc, s->l1_p_acc, s->seconds, s->pairs, s->regs, s->passes, p->rho_init);
+        s->step, s->l1_u_acc, s->l1_p_acc, s->seconds, s->pairs, s->regs, s->passes, p->rho_init,
+        p->error, p->error_times, s->auth_u_acc, s->auth_p_acc, s->auth_n, s->auth_next);
     if (len < 0 || len >= META_MAX) {
         free(m);
         free(h);
@@ -103,6 +105,10 @@ static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const
     L("regs", s->regs, long)
     L("passes", s->passes, int)
     L("rho_init", p->rho_init, int)
+    L("error", p->error, int)
+    L("error_times", p->error_times, int)
+    L("auth_n", s->auth_n, int)
+    L("auth_next", s->auth_next, int)
     D("hdx", p->hdx)
     D("U", p->U)
     D("c0", p->c0)
@@ -120,6 +126,8 @@ static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const
     D("t", s->t)
     D("l1_u_acc", s->l1_u_acc)
     D("l1_p_acc", s->l1_p_acc)
+    D("auth_u_acc", s->auth_u_acc)
+    D("auth_p_acc", s->auth_p_acc)
     D("seconds", s->seconds)
 #undef D
 #undef L
@@ -160,8 +168,8 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
         ++nkeys;
         line = nl ? nl + 1 : line + len;
     }
-    if (st == CONSPH_OK && nkeys != 35)
-        st = consph_fail(CONSPH_EFORMAT, "checkpoint metadata: %d keys, expected 35", nkeys);
+    if (st == CONSPH_OK && nkeys != 41)
+        st = consph_fail(CONSPH_EFORMAT, "checkpoint metadata: %d keys, expected 41", nkeys);
     if (st == CONSPH_OK) st = consph_run_params_check(p);
     if (st == CONSPH_OK) st = derive_solver(s);
     if (st == CONSPH_OK &&

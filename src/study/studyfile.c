@@ -98,21 +98,23 @@ int study_line(const consph_study *s, const study_figure *f, const study_series 
 }
 
 /* Every key a study file may set; names ending in '.' are prefixes. */
-static const char *const known_keys[] = {"study",      "title",    "paper",      "note",
-                                         "kind",       "op",       "form",       "corr",
-                                         "kernel",     "hdx",      "h_policy",   "match_support",
-                                         "beta",       "measure",  "ot_method",  "ot_p",
-                                         "directions", "grid",     "layout",     "dim",
-                                         "eps",        "seed",     "periodic",   "field",
-                                         "sigma",      "volume",   "mask",       "sweep",
-                                         "nx",         "quick.nx", "hdx.values", "quick.hdx.values",
-                                         "x",          "norm",     "bound",      "bins",
-                                         "range",      "pack_tol", "pack_iter",  "hdelta.values",
-                                         "problem",    "scheme",   "c0",         "re",
-                                         "tf",         "quick.tf", "steps",      "quick.steps",
-                                         "dt_rule",    "tr_ref",   "laplacian",  "walls",
-                                         "report",     "paper.",   "series.",    "dt",
-                                         "l1",         "rho_init", "y",          NULL};
+static const char *const known_keys[] = {
+    "study",       "title",    "paper",      "note",
+    "kind",        "op",       "form",       "corr",
+    "kernel",      "hdx",      "h_policy",   "match_support",
+    "beta",        "measure",  "ot_method",  "ot_p",
+    "directions",  "grid",     "layout",     "dim",
+    "eps",         "seed",     "periodic",   "field",
+    "sigma",       "volume",   "mask",       "sweep",
+    "nx",          "quick.nx", "hdx.values", "quick.hdx.values",
+    "x",           "norm",     "bound",      "bins",
+    "range",       "pack_tol", "pack_iter",  "hdelta.values",
+    "problem",     "scheme",   "c0",         "re",
+    "tf",          "quick.tf", "steps",      "quick.steps",
+    "dt_rule",     "tr_ref",   "laplacian",  "walls",
+    "report",      "paper.",   "series.",    "dt",
+    "l1",          "rho_init", "y",          "error",
+    "error_times", NULL};
 
 static int key_known(const char *key)
 {
