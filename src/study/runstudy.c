@@ -439,8 +439,27 @@ static void momentum_table(FILE *o, const consph_study *s, const study_figure *f
     fprintf(o, "\n");
 }
 
+/* The figure's title; a quick run's says what it ran, since the title names the paper's final
+ * time and its resolutions are not the paper's. */
+static const char *run_title(const consph_study *s, const study_figure *f, int quick,
+                             const run_plan *pl, char *buf, size_t size)
+{
+    const char *title = study_get_or(s, f, NULL, "title", f->id);
+    if (!quick) return title;
+    size_t len = (size_t)snprintf(buf, size, "%s [quick run: ", title);
+    if (len < size && pl->prm.steps > 0)
+        len += (size_t)snprintf(buf + len, size - len, "%ld steps", pl->prm.steps);
+    else if (len < size)
+        len += (size_t)snprintf(buf + len, size - len, "to t = %g", pl->prm.tf);
+    for (int j = 0; j < pl->nnx && len < size; ++j)
+        len += (size_t)snprintf(buf + len, size - len, "%s%g", j ? ", " : ", nx ", pl->nx[j]);
+    if (len < size) snprintf(buf + len, size - len, "]");
+    return len < size ? buf : title;
+}
+
 static int write_report(const consph_study *s, const study_figure *f, int quick, const char *dir,
-                        const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref, int x)
+                        const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref, int x,
+                        const char *title)
 {
     char label[128];
     consph_outfile of;
@@ -469,10 +488,11 @@ static int write_report(const consph_study *s, const study_figure *f, int quick,
 
     if ((rc = study_open_output(&of, dir, f->id, ".md"))) return rc;
     FILE *o = of.fp;
-    study_report_head(o, s, f);
+    study_report_head_as(o, s, f, title);
     const consph_run_params *p0 = &plans[0].prm;
-    fprintf(o, "Run: %s resolutions; problem `%s`, ", quick ? "quick" : "full (paper)",
-            p0->problem);
+    fprintf(o, "Run: %s resolutions (nx", quick ? "quick" : "full (paper)");
+    for (int j = 0; j < plans[0].nnx; ++j) fprintf(o, "%s%g", j ? ", " : " ", plans[0].nx[j]);
+    fprintf(o, "); problem `%s`, ", p0->problem);
     if (p0->nu >= 0)
         fprintf(o, "ν %g, ", p0->nu);
     else
@@ -640,7 +660,8 @@ static void y_range(FILE *o, const study_figure *f, const run_plan *plans,
  * one panel per quantity: u_φ against r with the exact profile in black (x = radius), or each
  * quantity of `y` against t (x = time). */
 static int write_curve_plot(const consph_study *s, const study_figure *f, const char *dir,
-                            const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x)
+                            const char *title, const run_plan *plans, run_row (*rows)[MAX_SWEEP],
+                            int x)
 {
     const curve_kind *ck = &curve_kinds[x];
     int ys[MAX_PANELS], ny, rc = y_panels(s, f, x, ys, &ny);
@@ -663,7 +684,6 @@ static int write_curve_plot(const consph_study *s, const study_figure *f, const 
     if ((rc = consph_outfile_commit(&of))) return rc;
     if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
     FILE *o = of.fp;
-    const char *title = study_get_or(s, f, NULL, "title", f->id);
     rc = study_gp_head(o, f->id, title);
     fprintf(o, "set xlabel '%s'\n%s", ck->xlabel,
             x == X_TIME ? "set autoscale xfix\nset format y '%.6g'\n" : "");
@@ -711,7 +731,7 @@ static int write_curve_plot(const consph_study *s, const study_figure *f, const 
 }
 
 static int write_plot(const consph_study *s, const study_figure *f, const char *dir,
-                      const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x)
+                      const char *title, const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x)
 {
     consph_outfile of;
     int rc = study_open_output(&of, dir, f->id, ".dat");
@@ -725,16 +745,17 @@ static int write_plot(const consph_study *s, const study_figure *f, const char *
         fprintf(of.fp, "\n\n");
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
-    if (x >= X_RADIUS) return write_curve_plot(s, f, dir, plans, rows, x);
+    if (x >= X_RADIUS) return write_curve_plot(s, f, dir, title, plans, rows, x);
     if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
     FILE *o = of.fp;
-    const char *title = study_get_or(s, f, NULL, "title", f->id);
     rc = study_gp_head(o, f->id, title);
     fprintf(o, "set logscale xy\nset format y '%%g'\n");
     if (x == X_SECONDS) {
         fprintf(o, "set xlabel 'wall time of the time steps (s)'\n");
         if (rc == CONSPH_OK)
-            rc = gp_panel(o, s, f, plans, rows, 4, 2, "paper.l1_u", "L1(u), 001 eq. 26");
+            rc = gp_panel(o, s, f, plans, rows, 4, 2, "paper.l1_u",
+                          AUTHORS(&plans[0]) ? "L1(u), the measure of 001 authors"
+                                             : "L1(u), 001 eq. 26");
     } else {
         fprintf(o, "set xlabel 'particles per axis'\nset multiplot layout 1,2 title ");
         if (rc == CONSPH_OK) rc = study_gp_put(o, title);
@@ -742,10 +763,14 @@ static int write_plot(const consph_study *s, const study_figure *f, const char *
         fprintf(o, " noenhanced\nset key inside bottom left noenhanced font ',10'\n"
                    "set title 'velocity'\n");
         if (rc == CONSPH_OK)
-            rc = gp_panel(o, s, f, plans, rows, 1, 2, "paper.l1_u", "L1(u), 001 eq. 26");
+            rc = gp_panel(o, s, f, plans, rows, 1, 2, "paper.l1_u",
+                          AUTHORS(&plans[0]) ? "L1(u), the measure of 001 authors"
+                                             : "L1(u), 001 eq. 26");
         fprintf(o, "unset key\nset title 'pressure'\n");
         if (rc == CONSPH_OK)
-            rc = gp_panel(o, s, f, plans, rows, 1, 3, "paper.l1_p", "L1(p), 001 eq. 26");
+            rc = gp_panel(o, s, f, plans, rows, 1, 3, "paper.l1_p",
+                          AUTHORS(&plans[0]) ? "L1(p), the measure of 001 authors"
+                                             : "L1(p), 001 eq. 26");
         fprintf(o, "unset multiplot\n");
     }
     if (rc) {
@@ -794,8 +819,11 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
                         w->sum.l1_p, w->sum.seconds, w->status ? " diverged" : "");
         }
     }
-    if (rc == CONSPH_OK) rc = write_report(s, f, quick, dir, plans, rows, ref, x);
-    if (rc == CONSPH_OK && plottable(f, plans, rows, x)) rc = write_plot(s, f, dir, plans, rows, x);
+    char tbuf[640];
+    const char *title = rc == CONSPH_OK ? run_title(s, f, quick, &plans[0], tbuf, sizeof tbuf) : "";
+    if (rc == CONSPH_OK) rc = write_report(s, f, quick, dir, plans, rows, ref, x, title);
+    if (rc == CONSPH_OK && plottable(f, plans, rows, x))
+        rc = write_plot(s, f, dir, title, plans, rows, x);
     for (int k = 0; rows && k < f->nseries; ++k)
         for (int j = 0; j < MAX_SWEEP; ++j) free(rows[k][j].curve);
     free(plans);
