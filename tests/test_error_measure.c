@@ -2,7 +2,9 @@
  * runs the reported mean over the output times equals the normalised errors computed here by
  * hand from the particles at those times (the exact solution written out again, not consph's);
  * --tf runs land on the output times, t = 0 included; --steps runs sample each output step
- * once; a restart continues the measure bit for bit; an eq26 run is not touched by it. */
+ * once; a restart continues the measure bit for bit; an eq26 run is not touched by it.
+ * Item 3: F_T/F_max is the authors' Σ m a_x / max |a_x| of the whole acceleration du/dt with
+ * m = ρ_o Δs², by hand from the particles; at round-off on the lattice for E-C. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -177,8 +179,53 @@ static void test_eq26(void)
     consph_solver_free(s);
 }
 
+/* Σ_i m a_x,i / max_i |a_x,i| from the particles' "au", m = ρ_o Δs². */
+static double ft_by_hand(const consph_solver *s)
+{
+    const consph_particles *p = consph_solver_particles(s);
+    const consph_field *fa = consph_particles_find(p, "au");
+    const consph_run_params *prm = consph_solver_params(s);
+    const double m = prm->rho0 / ((double)prm->nx * prm->nx); /* unit box */
+    double sum = 0, amax = 0;
+    for (size_t i = 0; fa && i < p->n; ++i) {
+        sum += m * fa->data[i];
+        if (fabs(fa->data[i]) > amax) amax = fabs(fa->data[i]);
+    }
+    return sum / amax;
+}
+
+static void test_ft_fmax(void)
+{
+    static const char *const schemes[] = {"l-ipst-c", "e-c"};
+    for (int k = 0; k < 2; ++k) {
+        consph_run_params p = params();
+        snprintf(p.scheme, sizeof p.scheme, "%s", schemes[k]);
+        p.nx = 20;
+        p.error = CONSPH_ERROR_EQ26;
+        p.steps = 5;
+        p.tf = 0.0;
+        consph_solver *s = NULL;
+        CHECK(consph_solver_create(&s, &p) == CONSPH_OK, "create: %s", consph_last_error());
+        if (!s) continue;
+        while (!consph_solver_done(s)) consph_solver_step(s);
+        consph_step_diag d;
+        CHECK(consph_solver_diag(s, &d) == CONSPH_OK, "diag");
+        const double ft = ft_by_hand(s);
+        CHECK(fabs(d.ft_fmax - ft) <= 1e-8 * fabs(ft) + 1e-18, "%s: F_T/F_max %.17g, by hand %.17g",
+              schemes[k], d.ft_fmax, ft);
+        if (k == 1)
+            CHECK(fabs(d.ft_fmax) < 1e-14, "e-c on the lattice: F_T/F_max %g, not round-off",
+                  d.ft_fmax);
+        else
+            CHECK(fabs(d.ft_fmax) > 1e-9 && fabs(d.ft_fmax) < 1e-1,
+                  "l-ipst-c packed: F_T/F_max %g (1/N of an O(1) unweighted ratio)", d.ft_fmax);
+        consph_solver_free(s);
+    }
+}
+
 int main(void)
 {
+    test_ft_fmax();
     test_tf();
     test_steps();
     test_restart();

@@ -113,7 +113,8 @@ typedef struct consph_run_summary {
     double linf_u, linf_p; /* at the final time */
     double ke;             /* kinetic energy ½ Σ m |u|², m = ρ_o ω at t = 0 */
     double momentum[3], angular_momentum;
-    double ft_fmax; /* Σ_i F_i / max_i |F_i| of the x-components, F = the acceleration */
+    double ft_fmax; /* Σ_i m_i a_i / max_i |a_i| of the x-components, a = du/dt (the whole
+                       acceleration), m = the particle mass (ρ_o Δs²): 001's authors' F_T/F_max */
     double max_divu;
     double seconds; /* wall time of the time steps (set-up excluded) */
     size_t pairs;   /* pair evaluations of the time steps */

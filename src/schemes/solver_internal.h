@@ -152,7 +152,7 @@ struct consph_solver {
     /* per-step history for the log (HIST_COLS doubles per step) */
     double *hist;
     size_t nhist, caphist;
-    double *diag_buf; /* the per-particle terms of consph_solver_diag, 7 per particle */
+    double *diag_buf; /* the per-particle terms of consph_solver_diag, 8 per particle */
     size_t diag_cap;
 };
 
