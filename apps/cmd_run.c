@@ -266,6 +266,9 @@ int cmd_run(int argc, char **argv)
     } else {
         if (option_given(&cmd, "--re") && option_given(&cmd, "--nu"))
             return cli_error(&cmd, "options --re and --nu both set the viscosity: give one");
+        if (option_given(&cmd, "--error-times") && error != 1)
+            return cli_error(&cmd, "option --error-times counts the output times of --error "
+                                   "authors: give --error authors too");
         if (consph_run_params_problem(&prm, positional[0]) != CONSPH_OK)
             return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s, heat)", positional[0],
                              consph_problem_names());

@@ -30,6 +30,8 @@ rc=$?
     bad "--error l2: exit $rc, $(cat "$tmp/err")"
 $run --error authors --error-times 1 >/dev/null 2>"$tmp/err"
 [ $? = 2 ] || bad "--error-times 1 accepted"
+$run --error-times 5 >/dev/null 2>"$tmp/err"
+[ $? = 2 ] && grep -q -- '--error authors' "$tmp/err" || bad "--error-times without --error authors: $(cat "$tmp/err")"
 
 # 2. a run study with the authors' measure, quick
 cat >"$tmp/tiny.study" <<'STUDY'
