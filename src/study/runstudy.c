@@ -1,6 +1,7 @@
 /* Study kind `run`: the solver over a sweep of resolutions (001 Tables 8, 9, Fig. 20). Each
  * series is one scheme; each resolution one run of consph_run without files. The report gives
- * L1(u) and L1(p) (001 eq. 26) per nx, their fitted orders with standard errors, F_T/F_max at
+ * L1(u) and L1(p) (001 eq. 26, or with error = authors the measure of 001's authors and eq. 26
+ * beside it) per nx, their fitted orders with standard errors, F_T/F_max at
  * the finest nx, T_r against a named series, and the paper's values beside ours. */
 #include <math.h>
 #include <stdio.h>
