@@ -39,6 +39,12 @@ static const char run_details[] =
     "--ipst-* for a scheme without IPST, --snapshot-every/--checkpoint-every/--overwrite\n"
     "without --out.\n"
     "\n"
+    "--error authors adds 001's own measure (its authors' post-processing, docs/schemes.md):\n"
+    "the mean over --error-times N output times in [0, t_f], t = 0 included, of\n"
+    "mean||u| - |u_e|| / mean|u_e| and mean|p - p_e| / max|p_e|; with --tf the steps are\n"
+    "shortened to land on those times (as PySPH's output_at_times), with --steps K the output\n"
+    "times are the ends of steps round(k K/(N - 1)). eq. 26 is printed beside it.\n"
+    "\n"
     "consph run heat (002 section 6, docs/heat.md): dT/dt = ∇²T on the unit square,\n"
     "nx × nx particles on the grid vertices (walls included, Δ = 1/(nx - 1)), Dirichlet\n"
     "walls as source-only particles, Wendland C2 with support h = eta Δ, forward Euler with\n"
@@ -165,7 +171,8 @@ int cmd_run(int argc, char **argv)
     consph_run_params_default(&prm);
     const char *scheme = "l-ipst-c", *out = NULL, *restart = NULL, *integrator = NULL;
     long nx = 50, steps = 0, snap_every = 0, ckpt_every = 0, threads = 0, seed = 1;
-    long ipst_every = 10, ipst_iter = 10;
+    long ipst_every = 10, ipst_iter = 10, error_times = 50;
+    int error = 0;
     double hdx = 1.2, c0 = 0.0, re = 100.0, tf = 0.5, dt = 0.0, U = 1.0, delta = 0.1;
     double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3, nu = 0.0, alpha = -1.0;
     int layout = 0, kernel = 0, format = 0, eos = 0, heat_lap = 1, heat_walls = 0, rho_init = 0;
@@ -200,6 +207,11 @@ int cmd_run(int argc, char **argv)
         {"--rho-init", CLI_CHOICE, &rho_init, "R",
          "initial density: eos (from the exact p) or rho0 (ρ_o, so p starts at 0)", "eos,rho0", 0,
          0, 0},
+        {"--error", CLI_CHOICE, &error, "E",
+         "error measure: eq26 (001 eq. 26) or authors (001's post-processing, beside eq. 26)",
+         "eq26,authors", 0, 0, 0},
+        {"--error-times", CLI_INT, &error_times, "N", "--error authors: output times in [0, t_f]",
+         NULL, 2, 1000000, 0},
         {"--delta", CLI_DOUBLE, &delta, "D", "δ of the diffusive term D = δ h c_o", NULL, 0, 10, 0},
         {"--tf", CLI_DOUBLE, &tf, "T", "final time (default: the problem's)", NULL, 1e-12, 1e6, 0},
         {"--steps", CLI_INT, &steps, "K", "number of steps (instead of --tf)", NULL, 1, 1e12, 0},
@@ -327,6 +339,9 @@ int cmd_run(int argc, char **argv)
                                  "option %s acts on the IPST schemes only (l-ipst-c, l-ipst-f, "
                                  "l-ipst-k, pe-ipst-c), not --scheme %.40s",
                                  ipst[k], scheme);
+        if (option_given(&cmd, "--error-times") && error != 1)
+            return cli_error(&cmd, "option --error-times counts the output times of --error "
+                                   "authors: give --error authors too");
         if (consph_run_params_problem(&prm, positional[0]) != CONSPH_OK)
             return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s, heat)", positional[0],
                              consph_problem_names());
@@ -363,6 +378,8 @@ int cmd_run(int argc, char **argv)
         prm.eos = eos == 0 ? CONSPH_EOS_DEFAULT : eos == 1 ? CONSPH_EOS_TAIT : CONSPH_EOS_LINEAR;
         prm.delta = delta;
         prm.rho_init = rho_init == 1 ? CONSPH_RHO_INIT_RHO0 : CONSPH_RHO_INIT_EOS;
+        prm.error = error == 1 ? CONSPH_ERROR_AUTHORS : CONSPH_ERROR_EQ26;
+        prm.error_times = (int)error_times;
         if (steps > 0)
             prm.tf = 0.0;
         else if (option_given(&cmd, "--tf"))
@@ -417,6 +434,13 @@ int cmd_run(int argc, char **argv)
         char e[4][32];
         const double ev[4] = {sum.l1_u, sum.l1_p, sum.linf_u, sum.linf_p};
         for (int k = 0; k < 4; ++k) error_text(e[k], sizeof e[k], ev[k]);
+        if (sum.error == CONSPH_ERROR_AUTHORS) {
+            char a[2][32];
+            error_text(a[0], sizeof a[0], sum.l1n_u);
+            error_text(a[1], sizeof a[1], sum.l1n_p);
+            printf("L1(u) %s  L1(p) %s  (001's authors: mean over %d output times)\n", a[0], a[1],
+                   sum.error_samples);
+        }
         printf("L1(u) %s  L1(p) %s  (001 eq. 26)   Linf(u) %s  Linf(p) %s\n", e[0], e[1], e[2],
                e[3]);
         printf("momentum (%.3e, %.3e)  angular %.3e  F_T/F_max %.3e  max|div u| %.3e\n",

@@ -40,6 +40,18 @@ typedef enum consph_rho_init {
                                 schemes (docs/schemes.md, the δ-SPH family) */
 } consph_rho_init;
 
+/* The error measure (docs/schemes.md, "Errors and diagnostics"). eq26: 001 eq. 26 only, the
+ * steps as the time-step rule gives them. authors: also the measure of 001's post-processing
+ * (pypr/convergence_sph, taylor_green.py, TaylorGreen.post_process) averaged over
+ * error_times output times equally spaced in [0, t_f], t = 0 included: at each,
+ * mean| |u| - |u_e| | / mean |u_e| and mean |p - p_e| / max |p_e|. With --tf the steps are
+ * shortened to land on those times, as PySPH's solver does for output_at_times; with --steps
+ * no step is shortened and the output times are the ends of steps round(k S/(N - 1)). */
+typedef enum consph_error_kind {
+    CONSPH_ERROR_EQ26 = 0,
+    CONSPH_ERROR_AUTHORS = 1
+} consph_error_kind;
+
 /* Everything a run is made from. consph_run_params_default fills 001's Taylor-Green values. */
 typedef struct consph_run_params {
     char problem[32];    /* "taylor-green" */
@@ -69,6 +81,8 @@ typedef struct consph_run_params {
     int ipst_max_iter; /* at most this many shifts (001: 10) */
     double ipst_tol;   /* ε of 001 eq. 21 */
     int rho_init;      /* consph_rho_init */
+    int error;         /* consph_error_kind: what the run reports as its L1 beside eq. 26 */
+    int error_times;   /* the authors' measure: this many output times in [0, t_f] (001's: 50) */
 } consph_run_params;
 
 void consph_run_params_default(consph_run_params *prm);
@@ -102,10 +116,14 @@ typedef struct consph_run_summary {
     long steps;
     double t, dt, h, c0;
     double l1_u, l1_p;     /* 001 eq. 26, integrated over time */
+    int error;             /* consph_error_kind of the run */
+    double l1n_u, l1n_p;   /* the authors' measure (error = authors; NaN otherwise) */
+    int error_samples;     /* output times it averages (0 with eq26) */
     double linf_u, linf_p; /* at the final time */
     double ke;             /* kinetic energy ½ Σ m |u|², m = ρ_o ω at t = 0 */
     double momentum[3], angular_momentum;
-    double ft_fmax; /* Σ_i F_i / max_i |F_i| of the x-components, F = the acceleration */
+    double ft_fmax; /* Σ_i m_i a_i / max_i |a_i| of the x-components, a = du/dt (the whole
+                       acceleration), m = the particle mass (ρ_o Δs²): 001's authors' F_T/F_max */
     double max_divu;
     double seconds; /* wall time of the time steps (set-up excluded) */
     size_t pairs;   /* pair evaluations of the time steps */

@@ -37,12 +37,13 @@ int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **
         "d\n"
         "delta=%a\ntf=%a\nsteps=%ld\ndt=%a\ncfl=%a\nh_dt=%a\nipst_every=%d\nipst_max_iter=%d\n"
         "ipst_tol=%a\nt=%a\nstep=%ld\nl1_u_acc=%a\nl1_p_acc=%a\nseconds=%a\npairs=%zu\n"
-        "regs=%ld\npasses=%d\nrho_init=%d\nrun=%s\n",
+        "regs=%ld\npasses=%d\nrho_init=%d\nrun=%s\nerror=%d\nerror_times=%d\n"
+        "auth_u_acc=%a\nauth_p_acc=%a\nauth_n=%d\nauth_next=%d\n",
         p->problem, p->scheme, p->integrator, p->nx, p->layout, p->seed, p->hdx, (int)p->kernel,
         p->U, p->c0, p->re, p->nu, p->alpha, p->rho0, p->gamma, (int)p->eos, p->delta, p->tf,
         p->steps, p->dt, p->cfl, p->h_dt, p->ipst_every, p->ipst_max_iter, p->ipst_tol, s->t,
         s->step, s->l1_u_acc, s->l1_p_acc, s->seconds, s->pairs, s->regs, s->passes, p->rho_init,
-        s->run_id);
+        s->run_id, p->error, p->error_times, s->auth_u_acc, s->auth_p_acc, s->auth_n, s->auth_next);
     if (len < 0 || len >= META_MAX) {
         free(m);
         free(h);
@@ -57,14 +58,15 @@ int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **
 
 /* Every key of the metadata, each exactly once (a missing key would read as 0). */
 static const char *const meta_keys[] = {
-    "format",   "problem", "scheme", "integrator", "nx",
-    "layout",   "seed",    "hdx",    "kernel",     "U",
-    "c0",       "re",      "nu",     "alpha",      "rho0",
-    "gamma",    "eos",     "delta",  "tf",         "steps",
-    "dt",       "cfl",     "h_dt",   "ipst_every", "ipst_max_iter",
-    "ipst_tol", "t",       "step",   "l1_u_acc",   "l1_p_acc",
-    "seconds",  "pairs",   "regs",   "passes",     "rho_init",
-    "run"};
+    "format",   "problem",  "scheme",      "integrator", "nx",
+    "layout",   "seed",     "hdx",         "kernel",     "U",
+    "c0",       "re",       "nu",          "alpha",      "rho0",
+    "gamma",    "eos",      "delta",       "tf",         "steps",
+    "dt",       "cfl",      "h_dt",        "ipst_every", "ipst_max_iter",
+    "ipst_tol", "t",        "step",        "l1_u_acc",   "l1_p_acc",
+    "seconds",  "pairs",    "regs",        "passes",     "rho_init",
+    "run",      "error",    "error_times", "auth_u_acc", "auth_p_acc",
+    "auth_n",   "auth_next"};
 #define META_NKEYS (sizeof meta_keys / sizeof meta_keys[0])
 
 static int meta_key_index(const char *k)
@@ -133,6 +135,10 @@ static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const
     L("regs", s->regs, long, 0, LONG_MAX)
     L("passes", s->passes, int, 0, INT_MAX)
     L("rho_init", p->rho_init, int, INT_MIN, INT_MAX)
+    L("error", p->error, int, INT_MIN, INT_MAX)
+    L("error_times", p->error_times, int, INT_MIN, INT_MAX)
+    L("auth_n", s->auth_n, int, 0, INT_MAX)
+    L("auth_next", s->auth_next, int, 0, INT_MAX)
     D("hdx", p->hdx)
     D("U", p->U)
     D("c0", p->c0)
@@ -150,6 +156,8 @@ static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const
     D("t", s->t)
     D("l1_u_acc", s->l1_u_acc)
     D("l1_p_acc", s->l1_p_acc)
+    D("auth_u_acc", s->auth_u_acc)
+    D("auth_p_acc", s->auth_p_acc)
     D("seconds", s->seconds)
 #undef D
 #undef L
@@ -249,6 +257,15 @@ static int state_check(const consph_solver *s)
                                s->prob->has_exact ? "a finite value >= 0"
                                                   : "nan (the problem has no exact solution)");
     }
+    const double auth[2] = {s->auth_u_acc, s->auth_p_acc};
+    for (int k = 0; k < 2; ++k)
+        if (isinf(auth[k]) || auth[k] < 0.0)
+            return consph_fail(CONSPH_EFORMAT, "metadata: key '%s' = %g is not a sum of errors",
+                               k ? "auth_p_acc" : "auth_u_acc", auth[k]);
+    if (s->auth_n > p->error_times + 1 || s->auth_next > p->error_times + 1)
+        return consph_fail(CONSPH_EFORMAT,
+                           "metadata: keys 'auth_n' = %d, 'auth_next' = %d: past error_times = %d",
+                           s->auth_n, s->auth_next, p->error_times);
     if (!(isfinite(s->seconds) && s->seconds >= 0.0))
         return consph_fail(CONSPH_EFORMAT, "metadata: key 'seconds' = %g is not a time >= 0",
                            s->seconds);

@@ -37,6 +37,8 @@ void consph_run_params_default(consph_run_params *prm)
     prm->ipst_every = 10;
     prm->ipst_max_iter = 10;
     prm->ipst_tol = 1e-3;
+    prm->error = CONSPH_ERROR_EQ26;
+    prm->error_times = 50;
 }
 
 const char *consph_integrator_names(void)
@@ -139,6 +141,12 @@ int consph_run_params_check(const consph_run_params *prm)
                                           "--ipst-tol > 0");
     if (prm->rho_init != CONSPH_RHO_INIT_EOS && prm->rho_init != CONSPH_RHO_INIT_RHO0)
         return consph_fail(CONSPH_EINVAL, "--rho-init must be one of eos,rho0");
+    if (prm->error != CONSPH_ERROR_EQ26 && prm->error != CONSPH_ERROR_AUTHORS)
+        return consph_fail(CONSPH_EINVAL, "--error must be one of eq26,authors");
+    if (prm->error_times < 2 || prm->error_times > 1000000)
+        return consph_fail(CONSPH_EINVAL,
+                           "--error-times must be an integer in [2, 1000000], not %d",
+                           prm->error_times);
     const scheme_def *sd = scheme_find(prm->scheme);
     /* ρ_o means something only where ϱ is evolved and gives p by the EOS */
     if (prm->rho_init == CONSPH_RHO_INIT_RHO0 && (sd->evolve_p || sd->closure))
@@ -263,6 +271,76 @@ static int hist_push(consph_solver *s, const consph_step_diag *g)
     return CONSPH_OK;
 }
 
+/* ---- the authors' error measure (consph_error_kind) ---- */
+
+static double max_abs(const double *a, size_t n)
+{
+    double m = 0.0;
+    for (size_t i = 0; i < n; ++i) m = fmax(m, fabs(a[i]));
+    return m;
+}
+
+/* Output time k with --tf; the last is t_f itself, not a rounding of it. */
+static double auth_time(const consph_solver *s, int k)
+{
+    const int last = s->prm.error_times - 1;
+    return k >= last ? s->tf : s->tf * (double)k / (double)last;
+}
+
+/* With --steps: the step whose end is output time k. */
+static long auth_step(const consph_solver *s, int k)
+{
+    return lround((double)s->nsteps * (double)k / (double)(s->prm.error_times - 1));
+}
+
+/* Adds this instant's normalised errors of 001's post-processing to the sums. Runs right after
+ * consph_solver_diag, whose buffer is large enough. */
+static int auth_sample(consph_solver *s)
+{
+    const consph_particles *p = s->sys.p;
+    const size_t n = p->n, cap = p->cap;
+    const double *u = sv_field(s, SF_U, s->dim), *pr = sv_field(s, SF_P, 1);
+    if (!u || !pr || s->diag_cap < 4 * n) return consph_fail(CONSPH_EINVAL, "solver state missing");
+    double eu_n = NAN, ep_n = NAN;
+    if (s->prob->has_exact || s->t == 0.0) {
+        double *eu = s->diag_buf, *mu = eu + n, *ep = eu + 2 * n, *pe = eu + 3 * n;
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
+        for (size_t i = 0; i < n; ++i) {
+            const double x[3] = {p->x[0][i], p->x[1][i], 0.0};
+            double ue[3];
+            s->prob->exact(&s->prm, s->t, x, ue, &pe[i]);
+            mu[i] = hypot(ue[0], ue[1]);
+            eu[i] = fabs(hypot(u[i], u[cap + i]) - mu[i]);
+            ep[i] = fabs(pr[i] - pe[i]);
+        }
+        /* mean/mean for u, mean/max for p: taylor_green.py, post_process */
+        eu_n = consph_sum(eu, n) / consph_sum(mu, n);
+        ep_n = consph_sum(ep, n) / (double)n / max_abs(pe, n);
+    }
+    s->auth_u_acc += eu_n;
+    s->auth_p_acc += ep_n;
+    ++s->auth_n;
+    return CONSPH_OK;
+}
+
+/* After a step: samples when it ended on the next output time. `landed`: a --tf run's step was
+ * cut to end on it. */
+static int auth_after_step(consph_solver *s, int landed)
+{
+    int hit = 0;
+    if (s->nsteps == 0) {
+        hit = landed;
+        s->auth_next += hit;
+    } else {
+        /* several output times may round to one step: it is sampled once */
+        while (s->auth_next < s->prm.error_times && auth_step(s, s->auth_next) <= s->step) {
+            hit |= auth_step(s, s->auth_next) == s->step;
+            ++s->auth_next;
+        }
+    }
+    return hit ? auth_sample(s) : CONSPH_OK;
+}
+
 static int initial_rates(consph_solver *s)
 {
     if (s->volumes_fixed) {
@@ -350,6 +428,10 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
     if (st == CONSPH_OK) st = initial_rates(s);
     if (st == CONSPH_OK) st = consph_solver_diag(s, &g);
     if (st == CONSPH_OK) st = hist_push(s, &g);
+    if (st == CONSPH_OK && prm->error == CONSPH_ERROR_AUTHORS) {
+        st = auth_sample(s); /* t = 0 is the first output time */
+        s->auth_next = 1;
+    }
     if (st != CONSPH_OK) {
         consph_solver_free(s);
         return st;
@@ -603,7 +685,18 @@ int consph_solver_step(consph_solver *s)
     if (consph_solver_done(s)) return consph_fail(CONSPH_EINVAL, "the run is complete");
     double t0 = consph_wtime();
     double dt = s->dt;
-    if (s->nsteps == 0 && s->t + dt > s->tf) dt = s->tf - s->t; /* land on tf */
+    /* the authors' measure lands on its output times as PySPH's output_at_times does, with
+     * its tolerance against a vanishing step just short of one */
+    const int auth_tf =
+        s->prm.error == CONSPH_ERROR_AUTHORS && s->nsteps == 0 && s->auth_next < s->prm.error_times;
+    const double target = auth_tf ? auth_time(s, s->auth_next) : s->tf;
+    int landed = 0;
+    if (auth_tf && s->t + dt > target - 1e-9 * dt) {
+        dt = target - s->t;
+        landed = 1;
+    } else if (s->nsteps == 0 && s->t + dt > s->tf) {
+        dt = s->tf - s->t; /* land on tf */
+    }
     const double full = s->dt;
     s->dt = dt;
     int st = CONSPH_OK;
@@ -621,7 +714,10 @@ int consph_solver_step(consph_solver *s)
         st = kick_drift_kick(s, dt);
     }
     if (st == CONSPH_OK) {
-        s->t = s->nsteps == 0 && dt < full ? s->tf : s->t + dt;
+        if (auth_tf)
+            s->t = landed ? target : s->t + dt;
+        else
+            s->t = s->nsteps == 0 && dt < full ? s->tf : s->t + dt;
         ++s->step;
     }
     if (st == CONSPH_OK && s->scheme->regularise) st = s->scheme->regularise(s);
@@ -634,6 +730,7 @@ int consph_solver_step(consph_solver *s)
         s->l1_p_acc += dt * g.l1_p;
         st = hist_push(s, &g);
     }
+    if (st == CONSPH_OK && s->prm.error == CONSPH_ERROR_AUTHORS) st = auth_after_step(s, landed);
     s->dt = full;
     s->seconds += consph_wtime() - t0;
     return st;
@@ -688,13 +785,6 @@ const consph_particles *consph_solver_particles(const consph_solver *s)
 
 /* ---- diagnostics ---- */
 
-static double max_abs(const double *a, size_t n)
-{
-    double m = 0.0;
-    for (size_t i = 0; i < n; ++i) m = fmax(m, fabs(a[i]));
-    return m;
-}
-
 int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
 {
     consph_solver *s = (consph_solver *)cs; /* fields are looked up, not created */
@@ -706,23 +796,23 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
     g->t = s->t;
     const consph_field *fu = consph_particles_find(p, SF_U), *fp = consph_particles_find(p, SF_P);
     const consph_field *fr = consph_particles_find(p, SF_RHOF);
-    const consph_field *fg = consph_particles_find(p, SF_GRADP);
+    const consph_field *fa = consph_particles_find(p, SF_AU);
     const consph_field *fd = consph_particles_find(p, SF_DIVU);
     const consph_field *fm = consph_particles_find(p, SF_MASS);
-    if (!fu || !fp || !fr || !fg || !fd) return consph_fail(CONSPH_EINVAL, "solver state missing");
+    if (!fu || !fp || !fr || !fa || !fd) return consph_fail(CONSPH_EINVAL, "solver state missing");
     /* Without an exact solution after t = 0 the errors are not computed (they are n/a): the
      * exact() of such a problem is its initial state, evaluated for nothing. */
     const int errors = s->prob->has_exact || s->t == 0.0;
     /* kept between calls: a fresh allocation every step costs page faults on a hot path */
-    if (s->diag_cap < 7 * n) {
-        double *nw = realloc(s->diag_buf, 7 * (n ? n : 1) * sizeof(double));
+    if (s->diag_cap < 8 * n) {
+        double *nw = realloc(s->diag_buf, 8 * (n ? n : 1) * sizeof(double));
         if (!nw) return consph_fail(CONSPH_ENOMEM, "out of memory");
         s->diag_buf = nw;
-        s->diag_cap = 7 * n;
+        s->diag_cap = 8 * n;
     }
     double *w = s->diag_buf;
     double *eu = w, *ep = w + n, *ke = w + 2 * n, *mx = w + 3 * n, *my = w + 4 * n, *an = w + 5 * n,
-           *fx = w + 6 * n;
+           *fx = w + 6 * n, *ax = w + 7 * n;
     const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]), yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
@@ -739,7 +829,10 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
         mx[i] = m * ux;
         my[i] = m * uy;
         an[i] = m * ((x[0] - xc) * uy - (x[1] - yc) * ux);
-        fx[i] = -fg->data[i] / fr->data[i];
+        /* 001's authors sum m·a of the whole acceleration (taylor_green.py, post_process:
+         * sum(m*au)); the maximum is of the acceleration itself (docs/schemes.md) */
+        ax[i] = fa->data[i];
+        fx[i] = m * ax[i];
     }
     const double inv_n = n ? 1.0 / (double)n : 0.0;
     if (errors) {
@@ -755,7 +848,7 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
     g->mom[0] = consph_sum(mx, n);
     g->mom[1] = consph_sum(my, n);
     g->ang = consph_sum(an, n);
-    double fmax = max_abs(fx, n);
+    double fmax = max_abs(ax, n);
     g->ft_fmax = fmax > 0.0 ? consph_sum(fx, n) / fmax : 0.0;
     g->max_divu = max_abs(fd->data, n);
     (void)d;
@@ -777,6 +870,10 @@ int consph_solver_summary(const consph_solver *s, consph_run_summary *sum)
     sum->c0 = s->c0;
     sum->l1_u = s->l1_u_acc;
     sum->l1_p = s->l1_p_acc;
+    sum->error = s->prm.error;
+    sum->error_samples = s->auth_n;
+    sum->l1n_u = s->auth_n ? s->auth_u_acc / s->auth_n : NAN;
+    sum->l1n_p = s->auth_n ? s->auth_p_acc / s->auth_n : NAN;
     consph_step_diag last;
     int st = consph_solver_history_row(s, s->nhist - 1, &last);
     if (st != CONSPH_OK) return st;

@@ -138,6 +138,10 @@ struct consph_solver {
     double t, dt, tf;
     long step, nsteps; /* nsteps: the step count to reach (0: run to tf) */
     double l1_u_acc, l1_p_acc;
+    /* the authors' measure: sums of the normalised errors at the output times reached, their
+     * count, and the index of the next output time */
+    double auth_u_acc, auth_p_acc;
+    int auth_n, auth_next;
     double seconds;
     size_t pairs;
     int passes; /* passes of the last stage */
@@ -148,7 +152,7 @@ struct consph_solver {
     /* per-step history for the log (HIST_COLS doubles per step) */
     double *hist;
     size_t nhist, caphist;
-    double *diag_buf; /* the per-particle terms of consph_solver_diag, 7 per particle */
+    double *diag_buf; /* the per-particle terms of consph_solver_diag, 8 per particle */
     size_t diag_cap;
     char run_id[CONSPH_RUN_ID_LEN + 1]; /* new at set-up, kept by checkpoints */
 };

@@ -378,7 +378,27 @@ const char *study_figure_note(const study_figure *f)
 
 void study_report_head(FILE *o, const consph_study *s, const study_figure *f)
 {
-    fprintf(o, "## %s: %s\n\n", f->id, study_get_or(s, f, NULL, "title", f->id));
+    study_report_head_as(o, s, f, study_get_or(s, f, NULL, "title", f->id));
+}
+
+/* The figure's title; with --particles the layout it names (e.g. "unperturbed lattice (UP)")
+ * is not what ran, and it says so. */
+static const char *files_title(const consph_study *s, const study_figure *f, int files, char *buf,
+                               size_t size)
+{
+    const char *title = study_get_or(s, f, NULL, "title", f->id);
+    if (!files) return title;
+    int len = snprintf(buf, size,
+                       "%s [this run: particles from files (--particles), not the layout the "
+                       "title names]",
+                       title);
+    return len > 0 && (size_t)len < size ? buf : title;
+}
+
+void study_report_head_as(FILE *o, const consph_study *s, const study_figure *f, const char *title)
+{
+    (void)s;
+    fprintf(o, "## %s: %s\n\n", f->id, title);
     const char *note = study_figure_note(f);
     if (note) fprintf(o, "%s\n\n", note);
 }
@@ -773,12 +793,17 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
         return rc;
     }
     FILE *o = of.fp;
-    study_report_head(o, s, f);
+    char tbuf[640];
+    const char *title = files_title(s, f, files != NULL, tbuf, sizeof tbuf);
+    study_report_head_as(o, s, f, title);
     const consph_approx_spec *sp = &plans[0].spec;
     fprintf(o,
             "Run: %s resolutions; op `%s`, layout `%s`, dim %d, periodic %s, field `%s`, "
             "volumes `%s`, compared particles: %s. Norm fitted: `%s`.\n\n",
-            quick ? "quick" : "full (paper)", consph_op_name(sp->op.op),
+            files   ? "the files'"
+            : quick ? "quick"
+                    : "full (paper)",
+            consph_op_name(sp->op.op),
             files ? "particle files" : consph_layout_name(sp->layout.kind), dim,
             (files ? files->sets[0].box.periodic[0] : sp->layout.box.periodic[0]) ? "yes" : "no",
             consph_mfield_name(sp->field), consph_volume_name(sp->volume),
@@ -884,7 +909,7 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     if ((rc = consph_outfile_commit(&of))) return rc;
     if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
     o = of.fp;
-    rc = study_gp_head(o, f->id, study_get_or(s, f, NULL, "title", f->id));
+    rc = study_gp_head(o, f->id, title);
     fprintf(o, "set logscale xy\nset format y '%%g'\nset xlabel '%s'\nset ylabel '%s error'\n",
             strcmp(xname, "nbr") == 0 ? "neighbours" : "particles per axis", norm);
     /* A slope -2 guide (second-order convergence in the particle spacing), half a step below
@@ -1134,14 +1159,17 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
         }
         rc = consph_outfile_commit(&of);
     }
+    char tbuf[640];
     if (rc == CONSPH_OK) rc = study_open_output(&of, dir, f->id, ".md");
     if (rc == CONSPH_OK) {
         FILE *o = of.fp;
         char htext[160];
-        study_report_head(o, s, f);
+        study_report_head_as(o, s, f, files_title(s, f, files != NULL, tbuf, sizeof tbuf));
         fprintf(o, "Run: %s resolutions; kernel `%s`, layout `%s`, dim %d, volumes `%s`, h %s.\n\n",
-                quick ? "quick" : "full (paper)", pl.kernel_name,
-                files ? "particle files" : consph_layout_name(pl.spec.layout.kind),
+                files   ? "the files'"
+                : quick ? "quick"
+                        : "full (paper)",
+                pl.kernel_name, files ? "particle files" : consph_layout_name(pl.spec.layout.kind),
                 pl.spec.layout.dim, consph_volume_name(pl.spec.volume),
                 h_policy_text(&pl.spec, htext, sizeof htext));
         fprintf(o, "| nx | N | h | neighbours | mean M0 | σ(M0) all | mean M0 interior | σ(M0) "
@@ -1168,7 +1196,7 @@ static int run_m0_figure(const consph_study *s, const study_figure *f, int quick
     if (rc == CONSPH_OK) rc = study_open_output(&of, dir, f->id, ".gp");
     if (rc == CONSPH_OK) {
         FILE *o = of.fp;
-        rc = study_gp_head(o, f->id, study_get_or(s, f, NULL, "title", f->id));
+        rc = study_gp_head(o, f->id, files_title(s, f, files != NULL, tbuf, sizeof tbuf));
         fprintf(o, "set xlabel 'M0'\nset ylabel 'particles (density)'\nplot");
         for (int j = 0; j < nrows; ++j)
             fprintf(o, "%s '%s.dat' index %d using 1:2 with lines title 'N = %zu'",

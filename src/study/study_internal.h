@@ -88,6 +88,8 @@ void study_published_values(const consph_study *s, const study_figure *f, FILE *
 const char *study_figure_note(const study_figure *f);
 /* The head of a figure's report: "## ID: title" and the figure's note. */
 void study_report_head(FILE *o, const consph_study *s, const study_figure *f);
+/* The same with a title of the caller's (one that says what this run was). */
+void study_report_head_as(FILE *o, const consph_study *s, const study_figure *f, const char *title);
 /* DIR/NAME.EXT into buf (STUDY_PATH_MAX bytes), refused rather than truncated. */
 int study_out_path(char *buf, const char *dir, const char *name, const char *ext);
 /* Opens DIR/ID.EXT as a consph_outfile (written to a temporary name, renamed on commit). */
