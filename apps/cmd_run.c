@@ -36,8 +36,11 @@ static const char run_details[] =
     "again). A DIR holding another run's files is refused: a new run needs --overwrite (which\n"
     "removes those files, nothing else), a restart its own run's DIR (DIR/run.id) or a new one.\n"
     "Options that would do nothing are refused: --steps with --tf, --cfl or --h-dt with --dt,\n"
-    "--ipst-* for a scheme without IPST, --snapshot-every/--checkpoint-every/--overwrite\n"
-    "without --out.\n"
+    "--snapshot-every/--checkpoint-every/--overwrite without --out, a scheme parameter the\n"
+    "scheme does not read (--alpha: wcsph and the δ-SPH family; --delta: pe-ipst-c, tv-c, e-c\n"
+    "and the δ-SPH family; --eos other than default: not pe-ipst-c, tvf, edac; --ipst-*: the\n"
+    "IPST schemes), --seed for a layout that draws no random numbers (lattice, quasi-random;\n"
+    "the problem's or scheme's default included) and heat's --seed without --eps.\n"
     "\n"
     "--error authors adds 001's own measure (its authors' post-processing, docs/schemes.md):\n"
     "the mean over --error-times N output times in [0, t_f], t = 0 included, of\n"
@@ -126,6 +129,45 @@ static int option_given(const cli_command *cmd, const char *name)
     for (int k = 0; k < cmd->nopts; ++k)
         if (cmd->opts[k].given && strcmp(cmd->opts[k].name, name) == 0) return 1;
     return 0;
+}
+
+/* Options setting a parameter that this run's scheme or layout does not read would do nothing:
+ * refused, naming where they act (consph_scheme_reads, consph_layout_uses_seed). --eos default is
+ * the scheme's own EOS, so it is no setting. */
+static int unread_options(const cli_command *cmd, const consph_run_params *prm, int eos_default)
+{
+    static const struct {
+        const char *name;
+        unsigned param;
+    } scheme_opts[] = {{"--alpha", CONSPH_PARAM_ALPHA},    {"--delta", CONSPH_PARAM_DELTA},
+                       {"--eos", CONSPH_PARAM_EOS},        {"--ipst-every", CONSPH_PARAM_IPST},
+                       {"--ipst-iter", CONSPH_PARAM_IPST}, {"--ipst-tol", CONSPH_PARAM_IPST}};
+    char list[512];
+    for (size_t k = 0; k < sizeof scheme_opts / sizeof scheme_opts[0]; ++k) {
+        const unsigned param = scheme_opts[k].param;
+        if (!option_given(cmd, scheme_opts[k].name) || (param == CONSPH_PARAM_EOS && eos_default) ||
+            consph_scheme_reads(prm->scheme, param))
+            continue;
+        return cli_error(cmd, "option %s does nothing for --scheme %s (it acts on: %s)",
+                         scheme_opts[k].name, prm->scheme,
+                         consph_scheme_readers(param, list, sizeof list));
+    }
+    const int layout = consph_run_params_layout(prm);
+    if (!option_given(cmd, "--seed") || layout < 0 ||
+        consph_layout_uses_seed((consph_layout_kind)layout))
+        return 0;
+    size_t len = 0;
+    list[0] = '\0';
+    for (int k = 0; k < CONSPH_LAYOUT_COUNT; ++k)
+        if (consph_layout_uses_seed((consph_layout_kind)k))
+            len += (size_t)snprintf(list + len, sizeof list - len, "%s%s", len ? ", " : "",
+                                    consph_layout_name((consph_layout_kind)k));
+    return cli_error(cmd,
+                     "option --seed does nothing for --layout %s (%s), which draws no random "
+                     "numbers (it acts on: %s)",
+                     consph_layout_name((consph_layout_kind)layout),
+                     option_given(cmd, "--layout") ? "given" : "the problem's or scheme's default",
+                     list);
 }
 
 static int run_heat(const cli_command *cmd, const consph_heat_params *hp, const char *out,
@@ -287,6 +329,9 @@ int cmd_run(int argc, char **argv)
     if (restart && overwrite)
         return cli_error(&cmd, "option --overwrite is for a new run: --restart continues its own "
                                "run's files (give another --out to continue elsewhere)");
+    if (heat && option_given(&cmd, "--seed") && !(heat_eps > 0.0))
+        return cli_error(&cmd, "option --seed does nothing for heat without --eps (> 0): the "
+                               "seed draws only the perturbation of the interior");
     if (heat) {
         consph_heat_params hp;
         consph_heat_params_default(&hp);
@@ -332,13 +377,6 @@ int cmd_run(int argc, char **argv)
                              "option %s sets the time-step rule, which --dt %g replaces: "
                              "give one",
                              option_given(&cmd, "--cfl") ? "--cfl" : "--h-dt", dt);
-        static const char *const ipst[] = {"--ipst-every", "--ipst-iter", "--ipst-tol"};
-        for (size_t k = 0; k < sizeof ipst / sizeof ipst[0]; ++k)
-            if (option_given(&cmd, ipst[k]) && !consph_scheme_uses_ipst(scheme))
-                return cli_error(&cmd,
-                                 "option %s acts on the IPST schemes only (l-ipst-c, l-ipst-f, "
-                                 "l-ipst-k, pe-ipst-c), not --scheme %.40s",
-                                 ipst[k], scheme);
         if (option_given(&cmd, "--error-times") && error != 1)
             return cli_error(&cmd, "option --error-times counts the output times of --error "
                                    "authors: give --error authors too");
@@ -395,6 +433,7 @@ int cmd_run(int argc, char **argv)
             fprintf(stderr, "consph run: %s\n", consph_last_error());
             return CLI_EXIT_USAGE;
         }
+        if ((rc = unread_options(&cmd, &prm, eos == 0)) != 0) return rc;
         if (out && (rc = prepare_out(&cmd, out, NULL, overwrite)) != 0) return rc;
     }
     if (!s && (st = consph_solver_create(&s, &prm)) != CONSPH_OK) {

@@ -70,9 +70,10 @@ for nx in $NXS; do
         fi
         rm -rf "$cs"
         # PySPH's example starts every particle at rho0 (p = 0 for wcsph's Tait EOS)
+        # and sets α = 0, which only wcsph reads (consph refuses --alpha for tvf and edac)
         init=""
-        [ "$s" = wcsph ] && init="--rho-init rho0"
-        "$CONSPH" run taylor-green --scheme "$s" --nx "$nx" --cfl 0.25 --alpha 0 --tf 0.5 \
+        [ "$s" = wcsph ] && init="--rho-init rho0 --alpha 0"
+        "$CONSPH" run taylor-green --scheme "$s" --nx "$nx" --cfl 0.25 --tf 0.5 \
             $init --out "$cs" > "$cs.log"
         "$CONSPH" layout --in "$(last "$cs" 'snap_*.vtu')" --out "$cs/last.csv" > /dev/null
         set -- $(errors "$(last "$py" 'taylor_green_*.hdf5')" "$nx") $(errors "$cs/last.csv" "$nx")
@@ -102,7 +103,9 @@ timed_once() {
         OMP_NUM_THREADS=$4 "$PYTHON" "$TG" --scheme "$2" --nx "$3" --hdx 1.2 --tf 1000 \
             --max-steps "$5" --disable-output $omp -d "$WORK/t_py" > "$WORK/t_py.log" 2>&1
     else
-        "$CONSPH" run taylor-green --scheme "$2" --nx "$3" --cfl 0.25 --alpha 0 --steps "$5" \
+        al=""
+        [ "$2" = wcsph ] && al="--alpha 0"
+        "$CONSPH" run taylor-green --scheme "$2" --nx "$3" --cfl 0.25 $al --steps "$5" \
             --threads "$4" > /dev/null
     fi
     t1=$(now)

@@ -84,7 +84,7 @@ expect_refused "--cfl with --dt" "option --cfl .*--dt" "$tmp/e" \
     run taylor-green --steps 2 --dt 0.001 --cfl 0.2
 expect_refused "--h-dt with --dt" "option --h-dt .*--dt" "$tmp/e" \
     run taylor-green --steps 2 --dt 0.001 --h-dt 0.02
-expect_refused "--ipst-every without IPST" "option --ipst-every .*IPST schemes only" "$tmp/e" \
+expect_refused "--ipst-every without IPST" "option --ipst-every does nothing for --scheme e-c (it acts on: l-ipst-c" "$tmp/e" \
     run taylor-green --scheme e-c --steps 2 --ipst-every 5
 run --steps 2 --dt 0.001 >/dev/null || bad "--dt alone refused"
 

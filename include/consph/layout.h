@@ -73,6 +73,8 @@ void consph_packing_report_free(consph_packing_report *r);
 const char *consph_layout_name(consph_layout_kind kind);
 int consph_layout_lookup(const char *name, consph_layout_kind *kind);
 const char *consph_layout_names(void);
+/* 1 when the kind draws random numbers (its seed acts: random, packed, packed-polished). */
+int consph_layout_uses_seed(consph_layout_kind kind);
 
 /* Default parameters: unit periodic box, seed 1, eps 0.2, packing defaults. */
 consph_layout_params consph_layout_defaults(consph_layout_kind kind, int dim, size_t nx);

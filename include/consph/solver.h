@@ -95,6 +95,22 @@ int consph_run_params_problem(consph_run_params *prm, const char *problem);
 const char *consph_scheme_names(void);
 /* 1 when the scheme `name` shifts its particles by IPST (the ipst_* parameters act), else 0. */
 int consph_scheme_uses_ipst(const char *name);
+/* The parameters of consph_run_params that only some schemes read: an option or key setting one
+ * for a scheme that does not read it would do nothing, so callers refuse it. */
+typedef enum consph_scheme_param {
+    CONSPH_PARAM_ALPHA = 1u << 0, /* alpha: artificial viscosity */
+    CONSPH_PARAM_DELTA = 1u << 1, /* delta: the diffusive term D = δ h c_o */
+    CONSPH_PARAM_EOS = 1u << 2,   /* eos: p from the evolved ϱ (not edac, pe-ipst-c, tvf) */
+    CONSPH_PARAM_IPST = 1u << 3   /* ipst_every, ipst_max_iter, ipst_tol */
+} consph_scheme_param;
+/* 1 when the scheme `name` reads `param` (one consph_scheme_param), else 0 (also for an unknown
+ * name). */
+int consph_scheme_reads(const char *name, unsigned param);
+/* The schemes that read `param`, comma-separated in table order, into buf (truncated to size);
+ * returns buf. */
+const char *consph_scheme_readers(unsigned param, char *buf, size_t size);
+/* The layout the run starts from: prm->layout, else the scheme's (-1 for an unknown scheme). */
+int consph_run_params_layout(const consph_run_params *prm);
 const char *consph_problem_names(void);
 const char *consph_integrator_names(void);
 /* CONSPH_EINVAL naming the option and the allowed values when something is out of range; run
@@ -228,7 +244,8 @@ const char *consph_solver_run_id(const consph_solver *s);
  * files); with overwrite those files, and nothing else, are removed first. A restarted run
  * needs a directory without such files, or one whose run.id names run_id and whose run.pvd, if
  * any, reads back. CONSPH_EINVAL names the directory and what is there (CONSPH_EFORMAT the
- * file that does not read back, CONSPH_EIO a file that could not be removed). */
+ * file that does not read back, or an entry named like a run's file that is a directory,
+ * checked before anything is removed; CONSPH_EIO a file that could not be removed). */
 int consph_run_dir_check(const char *dir, const char *run_id, int overwrite);
 
 #include <stdio.h>

@@ -7,6 +7,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 #include <unistd.h>
 
 #include "consph/io.h"
@@ -124,6 +125,22 @@ static int scan_dir(const char *dir, runfiles *f, int remove, dir_scan *sc)
     const struct dirent *e;
     while (st == CONSPH_OK && (e = readdir(d)) != NULL) {
         if (!runfiles_is_run_file(e->d_name)) continue;
+        const char *path = runfiles_join(f, e->d_name);
+        struct stat sb;
+        if (!path) {
+            st = consph_fail(CONSPH_ENOMEM, "out of memory");
+            break;
+        }
+        /* the run would fail at its first write there, and --overwrite removes files only:
+         * refused before any work */
+        if (lstat(path, &sb) == 0 && S_ISDIR(sb.st_mode)) {
+            st = consph_fail(CONSPH_EFORMAT,
+                             "'%s' is a directory named like a run's file: no run can write it "
+                             "and --overwrite removes files only; move it away or choose "
+                             "another directory",
+                             path);
+            break;
+        }
         size_t len = strlen(sc->names);
         if (sc->count < 3)
             snprintf(sc->names + len, sizeof sc->names - len, "%s%.40s", sc->count ? ", " : "",
@@ -131,10 +148,7 @@ static int scan_dir(const char *dir, runfiles *f, int remove, dir_scan *sc)
         ++sc->count;
         if (!strcmp(e->d_name, "run.pvd")) sc->have_pvd = 1;
         if (!remove) continue;
-        const char *path = runfiles_join(f, e->d_name);
-        if (!path)
-            st = consph_fail(CONSPH_ENOMEM, "out of memory");
-        else if (unlink(path) != 0 && errno != ENOENT)
+        if (unlink(path) != 0 && errno != ENOENT)
             st = consph_fail(CONSPH_EIO, "cannot remove '%s': %s", path, strerror(errno));
     }
     closedir(d);
@@ -148,7 +162,9 @@ int consph_run_dir_check(const char *dir, const char *run_id, int overwrite)
                                           "overwrite a directory");
     runfiles f = {.dir = dir};
     dir_scan sc;
-    int st = scan_dir(dir, &f, overwrite, &sc);
+    /* every entry is checked before the first is removed: nothing half-removed */
+    int st = scan_dir(dir, &f, 0, &sc);
+    if (st == CONSPH_OK && overwrite) st = scan_dir(dir, &f, 1, &sc);
     if (st == CONSPH_OK && sc.count && !overwrite) {
         char what[240];
         snprintf(what, sizeof what, "%s%s (%zu file%s)", sc.names, sc.count > 3 ? ", ..." : "",

@@ -86,6 +86,13 @@ int consph_run_nx_check(int nx)
     return run_nx_fits(nx, runfiles_machine_memory());
 }
 
+int consph_run_params_layout(const consph_run_params *prm)
+{
+    const scheme_def *sd = scheme_find(prm->scheme);
+    if (prm->layout >= 0) return prm->layout;
+    return sd ? (int)sd->layout : -1;
+}
+
 int consph_run_params_check(const consph_run_params *prm)
 {
     int integ;

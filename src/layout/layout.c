@@ -27,6 +27,14 @@ const char *consph_layout_names(void)
     return "lattice,random,quasi-random,packed,packed-polished";
 }
 
+int consph_layout_uses_seed(consph_layout_kind kind)
+{
+    /* random perturbs the lattice, the packed kinds perturb it before packing; the lattice and
+     * Halton's points are deterministic */
+    return kind == CONSPH_LAYOUT_RANDOM || kind == CONSPH_LAYOUT_PACKED ||
+           kind == CONSPH_LAYOUT_PACKED_POLISHED;
+}
+
 int consph_layout_lookup(const char *name, consph_layout_kind *kind)
 {
     if (name)

@@ -441,6 +441,7 @@ const scheme_def scheme_wcsph = {
     .eos = CONSPH_EOS_TAIT,
     .integrator = "pec",
     .passes_min = 1,
+    .reads = CONSPH_PARAM_ALPHA,
     .rhs = rhs_wcsph,
     .regularise = NULL};
 const scheme_def scheme_tvf = {

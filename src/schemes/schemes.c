@@ -8,6 +8,7 @@
  *   dx/dt = u  [+ δu TV-C]  (0 Eulerian)
  * with ∇p asym_bc, ∇u f4 (asym_bc per component), ∇·u div_bc and the Laplacians of Table 6. */
 #include <math.h>
+#include <stdio.h>
 #include <string.h>
 
 #include "schemes/regularise.h"
@@ -250,6 +251,7 @@ const scheme_def scheme_pe_ipst_c = {
     .eos = CONSPH_EOS_LINEAR,
     .integrator = "rk2",
     .passes_min = 3,
+    .reads = CONSPH_PARAM_DELTA,
     .rhs = rhs_pe_c,
     .regularise = regularise_ipst};
 const scheme_def scheme_l_rr_c = {
@@ -273,6 +275,7 @@ const scheme_def scheme_tv_c = {
     .eos = CONSPH_EOS_LINEAR,
     .integrator = "rk2",
     .passes_min = 4,
+    .reads = CONSPH_PARAM_DELTA,
     .rhs = rhs_tv_c,
     .regularise = NULL};
 const scheme_def scheme_e_c = {.name = "e-c",
@@ -284,6 +287,7 @@ const scheme_def scheme_e_c = {.name = "e-c",
                                .eos = CONSPH_EOS_LINEAR,
                                .integrator = "rk2",
                                .passes_min = 2,
+                               .reads = CONSPH_PARAM_DELTA,
                                .rhs = rhs_e_c,
                                .regularise = NULL};
 const scheme_def scheme_ewcsph = {
@@ -334,8 +338,36 @@ const char *consph_scheme_names(void)
 
 int consph_scheme_uses_ipst(const char *name)
 {
+    return consph_scheme_reads(name, CONSPH_PARAM_IPST);
+}
+
+int consph_scheme_reads(const char *name, unsigned param)
+{
     const scheme_def *sd = scheme_find(name);
-    return sd && sd->regularise == regularise_ipst;
+    if (!sd) return 0;
+    switch (param) {
+    case CONSPH_PARAM_EOS:
+        /* solver_eos and the initial density are the only readers; a closure or an evolved p
+         * replaces both */
+        return !sd->evolve_p && !sd->closure;
+    case CONSPH_PARAM_IPST:
+        return sd->regularise == regularise_ipst;
+    default:
+        return (sd->reads & param) != 0;
+    }
+}
+
+const char *consph_scheme_readers(unsigned param, char *buf, size_t size)
+{
+    size_t len = 0;
+    if (size) buf[0] = '\0';
+    for (size_t k = 0; k < scheme_count() && len < size; ++k)
+        if (consph_scheme_reads(schemes[k]->name, param)) {
+            int w = snprintf(buf + len, size - len, "%s%s", len ? ", " : "", schemes[k]->name);
+            if (w < 0) break;
+            len += (size_t)w;
+        }
+    return buf;
 }
 
 size_t scheme_count(void)

@@ -78,6 +78,9 @@ typedef struct scheme_def {
     consph_eos_kind eos;
     const char *integrator;
     int passes_min; /* passes per stage the equations need at least */
+    /* CONSPH_PARAM_ALPHA and CONSPH_PARAM_DELTA when its rates use α or δ (the EOS and IPST
+     * follow from evolve_p, closure and regularise: consph_scheme_reads) */
+    unsigned reads;
     /* Rates into SF_AX (when moves), SF_AU and SF_AQ at the current state. */
     int (*rhs)(consph_solver *s);
     /* After a full step (NULL: none). */
