@@ -156,18 +156,12 @@ static int unread_options(const cli_command *cmd, const consph_run_params *prm, 
     if (!option_given(cmd, "--seed") || layout < 0 ||
         consph_layout_uses_seed((consph_layout_kind)layout))
         return 0;
-    size_t len = 0;
-    list[0] = '\0';
-    for (int k = 0; k < CONSPH_LAYOUT_COUNT; ++k)
-        if (consph_layout_uses_seed((consph_layout_kind)k))
-            len += (size_t)snprintf(list + len, sizeof list - len, "%s%s", len ? ", " : "",
-                                    consph_layout_name((consph_layout_kind)k));
     return cli_error(cmd,
                      "option --seed does nothing for --layout %s (%s), which draws no random "
                      "numbers (it acts on: %s)",
                      consph_layout_name((consph_layout_kind)layout),
                      option_given(cmd, "--layout") ? "given" : "the problem's or scheme's default",
-                     list);
+                     consph_layout_seeded_names(list, sizeof list));
 }
 
 static int run_heat(const cli_command *cmd, const consph_heat_params *hp, const char *out,

@@ -77,6 +77,38 @@ check 2 'out' "9: --snapshot-every without --out" -- "$BIN" run taylor-green --n
 "$BIN" layout --kind lattice --dim 2 --nx 16 --out b.csv >/dev/null 2>&1
 check 2 'eps' "9: wasserstein --method sliced --eps" -- "$BIN" wasserstein a.csv b.csv \
     --method sliced --eps 0.1
+# a parameter the scheme does not read (the scheme table's 'reads'), a seed with no randomness
+check 2 'alpha.*tvf' "9: run --scheme tvf --alpha" -- "$BIN" run taylor-green --scheme tvf --nx 8 \
+    --steps 2 --alpha 0.3
+check 2 'alpha.*edac' "9: run --scheme edac --alpha 0" -- "$BIN" run taylor-green --scheme edac \
+    --nx 8 --steps 2 --alpha 0
+check 2 'delta.*l-ipst-c' "9: run --scheme l-ipst-c --delta" -- "$BIN" run taylor-green --nx 8 \
+    --steps 2 --delta 0.2
+check 2 'delta.*ewcsph' "9: run --scheme ewcsph --delta" -- "$BIN" run taylor-green \
+    --scheme ewcsph --nx 8 --steps 2 --delta 0.2
+check 2 'eos.*edac' "9: run --scheme edac --eos tait" -- "$BIN" run taylor-green --scheme edac \
+    --nx 8 --steps 2 --eos tait
+check 2 'eos.*pe-ipst-c' "9: run --scheme pe-ipst-c --eos linear" -- "$BIN" run taylor-green \
+    --scheme pe-ipst-c --nx 8 --steps 2 --eos linear
+check 2 'eos.*tvf' "9: run --scheme tvf --eos tait" -- "$BIN" run taylor-green --scheme tvf \
+    --nx 8 --steps 2 --eos tait
+check 2 'seed.*lattice' "9: run --scheme e-c --seed (lattice)" -- "$BIN" run taylor-green \
+    --scheme e-c --nx 8 --steps 2 --seed 7
+check 2 'seed.*lattice' "9: run gresho-chan --seed (lattice)" -- "$BIN" run gresho-chan --nx 8 \
+    --steps 2 --seed 7
+check 2 'seed.*quasi-random' "9: run --layout quasi-random --seed" -- "$BIN" run taylor-green \
+    --layout quasi-random --nx 8 --steps 2 --seed 7
+check 2 'seed.*eps' "9: run heat --seed without --eps" -- "$BIN" run heat --nx 8 --steps 2 \
+    --seed 7
+check 0 - "9: run --scheme wcsph --alpha 0 still runs" -- "$BIN" run taylor-green --scheme wcsph \
+    --nx 8 --steps 2 --alpha 0
+check 0 - "9: run --layout random --seed 7 still runs" -- "$BIN" run taylor-green \
+    --layout random --nx 8 --steps 2 --seed 7
+mkdir -p dirent/snap_000001.vtu
+echo kept >dirent/log.csv
+check 2 'is a directory' "9: --overwrite over a directory snap_000001.vtu/" -- sh -c \
+    '"$0" run taylor-green --nx 8 --steps 2 --out dirent --overwrite; rc=$?; \
+     [ -f dirent/log.csv ] || rc=9; exit $rc' "$BIN"
 
 # 10. Study files: what would be ignored or misread is refused with file:line
 study() { # NAME EXTRA-FIGURE-LINES EXTRA-SERIES-LINES: a tiny run study
@@ -90,6 +122,12 @@ study s_op 'op = grad\n' ''
 check 2 'study:[0-9]+' "10: op on a run figure" -- "$BIN" study s_op.study --quick --out sop
 study s_steps 'steps = 3\n' ''
 check 2 'study:[0-9]+' "10: steps and tf together" -- "$BIN" study s_steps.study --quick --out sst
+study s_seed '' 'seed = 3\n'
+check 2 'study:[0-9]+.*seed' "10: seed in a lattice series" -- "$BIN" study s_seed.study --quick \
+    --out ssd
+printf 'study = s_fseed\ntitle = t\nseed = 3\n[figure conv]\nkind = run\nproblem = taylor-green\nlayout = lattice\nc0 = 80\nnx = 8,12\ntf = 0.01\n[series E-C]\nscheme = e-c\n' >s_fseed.study
+check 0 - "10: a study-level seed, lattice series (a default)" -- "$BIN" study s_fseed.study \
+    --quick --out sfs
 printf 'study = s_list\ntitle = t\n[figure conv]\nkind = run\nproblem = taylor-green\nlayout = lattice\nc0 = 80\nnx = 8,,12\ntf = 0.01\n[series E-C]\nscheme = e-c\n' >s_list.study
 check 2 'study:[0-9]+' "10: nx = 8,,12" -- "$BIN" study s_list.study --quick --out sl
 printf 'study = s_noscheme\ntitle = t\n[figure conv]\nkind = run\nproblem = taylor-green\nlayout = lattice\nc0 = 80\nnx = 8,12\ntf = 0.01\n[series E-C]\npaper.order_u = 2\n' >s_noscheme.study

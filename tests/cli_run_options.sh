@@ -96,4 +96,20 @@ fi
 failing 2 "is a directory named like a run's file" "$work/out" -- \
     "$consph" run heat --nx 8 --steps 2 --out "$work/d" --overwrite && pass=$((pass + 1))
 
+# a study: a series' own seed for a layout without randomness is refused with file:line; the
+# study's or a figure's seed is a default for every series and stays allowed
+printf '%s\n' "study = seeds" "title = t" "seed = 2" "[figure conv]" "kind = run" \
+    "problem = taylor-green" "nx = 8" "steps = 1" "[series A]" "scheme = e-c" "[series B]" \
+    "scheme = l-ipst-c" "layout = random" "seed = 5" >"$work/seeds.study"
+"$consph" study "$work/seeds.study" --out "$work/s1" >/dev/null 2>"$work/err" &&
+    pass=$((pass + 1)) || bad "study with a study-level seed refused: $(cat "$work/err")"
+printf '%s\n' "[series C]" "scheme = e-c" "seed = 5" >>"$work/seeds.study"
+failing 2 "seeds.study:17: figure 'conv', series 'C': key 'seed': does nothing for the layout lattice" \
+    "$work/out" -- "$consph" study "$work/seeds.study" --out "$work/s2" && pass=$((pass + 1))
+[ ! -e "$work/s2" ] || bad "the refused study wrote $work/s2"
+printf '%s\n' "study = hseeds" "title = t" "kind = heat" "seed = 3" "[figure f]" "nx = 6" \
+    "[series A]" "laplacian = s3" "[series B]" "laplacian = s3" "seed = 4" >"$work/hseeds.study"
+failing 2 "hseeds.study:11: figure 'f', series 'B': key 'seed': does nothing without eps > 0" \
+    "$work/out" -- "$consph" study "$work/hseeds.study" --out "$work/s3" && pass=$((pass + 1))
+
 summary cli_run_options

@@ -75,6 +75,8 @@ int consph_layout_lookup(const char *name, consph_layout_kind *kind);
 const char *consph_layout_names(void);
 /* 1 when the kind draws random numbers (its seed acts: random, packed, packed-polished). */
 int consph_layout_uses_seed(consph_layout_kind kind);
+/* Those kinds' names, ", "-separated, into buf (truncated to size), for messages; returns buf. */
+const char *consph_layout_seeded_names(char *buf, size_t size);
 
 /* Default parameters: unit periodic box, seed 1, eps 0.2, packing defaults. */
 consph_layout_params consph_layout_defaults(consph_layout_kind kind, int dim, size_t nx);

@@ -3,6 +3,7 @@
 #include "consph/layout.h"
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -33,6 +34,16 @@ int consph_layout_uses_seed(consph_layout_kind kind)
      * Halton's points are deterministic */
     return kind == CONSPH_LAYOUT_RANDOM || kind == CONSPH_LAYOUT_PACKED ||
            kind == CONSPH_LAYOUT_PACKED_POLISHED;
+}
+
+const char *consph_layout_seeded_names(char *buf, size_t size)
+{
+    size_t len = 0;
+    if (size) buf[0] = '\0';
+    for (int k = 0; k < CONSPH_LAYOUT_COUNT && len < size; ++k)
+        if (consph_layout_uses_seed((consph_layout_kind)k))
+            len += (size_t)snprintf(buf + len, size - len, "%s%s", len ? ", " : "", kind_names[k]);
+    return buf;
 }
 
 int consph_layout_lookup(const char *name, consph_layout_kind *kind)

@@ -38,6 +38,9 @@ static int heat_plan_build(const consph_study *s, const study_figure *f, const s
     if ((rc = study_get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) return rc;
     if ((rc = study_get_double(s, f, r, "tf", 0.1, 1e-9, 1e3, &pl->prm.tf))) return rc;
     pl->prm.seed = (unsigned long)seed;
+    if (study_series_sets(s, f, r, "seed") && !(pl->prm.eps > 0.0))
+        return study_key_error(s, f, r, "seed",
+                               "does nothing without eps > 0 (it draws only the perturbation)");
     if (quick && (rc = study_get_list(s, f, r, "quick.nx", 4, 20000, pl->nx, &pl->nvalues)))
         return rc;
     if (pl->nvalues == 0 && (rc = study_get_list(s, f, r, "nx", 4, 20000, pl->nx, &pl->nvalues)))

@@ -159,6 +159,15 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
         return study_key_error(s, f, r, k, "%s", consph_last_error());
     if (consph_run_params_check(p) != CONSPH_OK)
         return study_key_error(s, f, r, "scheme", "%s", consph_last_error());
+    /* as consph run's --seed; a figure's or the study's seed is a default and stays allowed */
+    const int lk = consph_run_params_layout(p);
+    char seeded[128];
+    if (study_series_sets(s, f, r, "seed") && !consph_layout_uses_seed((consph_layout_kind)lk))
+        return study_key_error(s, f, r, "seed",
+                               "does nothing for the layout %s, which draws no random numbers "
+                               "(it acts on: %s)",
+                               consph_layout_name((consph_layout_kind)lk),
+                               consph_layout_seeded_names(seeded, sizeof seeded));
     return CONSPH_OK;
 }
 

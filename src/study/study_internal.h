@@ -39,6 +39,10 @@ struct consph_study {
 /* The value of `key` seen from a series (series, then figure, then study), or NULL. */
 const char *study_get(const consph_study *s, const study_figure *f, const study_series *r,
                       const char *key);
+/* 1 when the series r itself sets key (not its figure or the study, whose keys are defaults for
+ * series that may not read them). */
+int study_series_sets(const consph_study *s, const study_figure *f, const study_series *r,
+                      const char *key);
 /* Line of the definition found by study_get (0 when absent). */
 int study_line(const consph_study *s, const study_figure *f, const study_series *r,
                const char *key);

@@ -97,6 +97,12 @@ int study_line(const consph_study *s, const study_figure *f, const study_series 
     return kv ? kv->line : 0;
 }
 
+int study_series_sets(const consph_study *s, const study_figure *f, const study_series *r,
+                      const char *key)
+{
+    return r && lookup(s, f, r, key) != lookup(s, f, NULL, key);
+}
+
 /* The figure kinds (`kind`), as bits of key_rule.kinds. */
 enum {
     K_APPROX = 1,
