@@ -1352,13 +1352,9 @@ int consph_study_validate(const consph_study *s, int quick)
 /* Neighbour pairs of one run, from geometry (the support volume in particle spacings). */
 static double pairs_estimate(const series_plan *pl, double nx)
 {
-    int d = pl->spec.layout.dim;
-    double n = pow(nx, d);
-    double support = consph_kernel_info_get(pl->spec.kernel)->support;
-    double unit_ball = d == 1 ? 2.0 : d == 2 ? M_PI : 4.0 * M_PI / 3.0;
-    /* h/Δs in the unit box, Δs = 1/nx. */
-    double radius_dx = support * consph_approx_h(&pl->spec, (size_t)n, 1.0, 1.0 / nx) * nx;
-    return n * (1.0 + unit_ball * pow(radius_dx, d));
+    double n = pow(nx, pl->spec.layout.dim);
+    /* The unit box, Δs = 1/nx. */
+    return n * (1.0 + consph_approx_neighbours(&pl->spec, (size_t)n, 1.0, 1.0 / nx));
 }
 
 /* Particle files replace the nx sweeps (one run per file at its N^(1/dim)) and need no
