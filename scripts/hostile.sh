@@ -102,16 +102,16 @@ cauchy() { # NAME DIM NX EXTRA-FIGURE-LINES EXTRA-SERIES-LINES: a tiny cauchy st
 cauchy c_ok 2 8,16 'grid = 16\ndirections = 8\n' 'measure = smoothed\n'
 check 0 - "10: a valid tiny cauchy study" -- "$BIN" study c_ok.study --out cok
 cauchy c_exact 1 50,100 'ot_method = exact\ndirections = 16\n' ''
-check 2 'c_exact.study:7: .*directions.*ot_method here is exact' "10: cauchy directions with exact" \
+check 2 'c_exact.study:9: .*directions.*ot_method here is exact' "10: cauchy directions with exact" \
     -- "$BIN" study c_exact.study --out cex
 cauchy c_sink 2 8,16 'ot_method = sinkhorn\n' 'directions = 8\n'
-check 2 'c_sink.study:9: .*directions.*sinkhorn' "10: cauchy directions with sinkhorn" -- \
+check 2 'c_sink.study:10: .*directions.*sinkhorn' "10: cauchy directions with sinkhorn" -- \
     "$BIN" study c_sink.study --out csk
 cauchy c_1d 1 50,100 'ot_method = sliced\ndirections = 8\n' ''
-check 2 'c_1d.study:7: .*directions.*1D' "10: cauchy directions with 1D sliced" -- \
+check 2 'c_1d.study:9: .*directions.*1D' "10: cauchy directions with 1D sliced" -- \
     "$BIN" study c_1d.study --out c1d
 cauchy c_grid 2 8,16 '' 'grid = 64\n'
-check 2 'c_grid.study:8: .*grid.*measure here is particles' "10: cauchy grid with particles" -- \
+check 2 'c_grid.study:9: .*grid.*measure here is particles' "10: cauchy grid with particles" -- \
     "$BIN" study c_grid.study --out cgr
 
 # 11. Restarts: only into the checkpoint's own run
@@ -133,10 +133,10 @@ check 2 'grid' "13: wasserstein A uniform --grid 100000" -- "$BIN" wasserstein a
     --grid 100000 --directions 2
 
 cauchy c_mem 2 8,16 '' 'measure = smoothed\ngrid = 100000\n'
-check 2 'c_mem.study:9: .*grid.*GB.*the limit is' "13: cauchy smoothed grid 100000 in 2D" -- \
+check 2 'c_mem.study:10: .*grid.*GB.*the limit is' "13: cauchy smoothed grid 100000 in 2D" -- \
     "$BIN" study c_mem.study --out cme
 cauchy c_nx 3 8,400 '' ''
-check 2 'c_nx.study:6: .*nx.*GB.*the limit is' "13: cauchy 3D nx 400 particles" -- \
+check 2 'c_nx.study:7: .*nx.*GB.*the limit is' "13: cauchy 3D nx 400 particles" -- \
     "$BIN" study c_nx.study --out cnx
 check 2 'option --hdx: 100 .*--nx 10.*the limit is' "13: approx 3D gaussian hdx 100 nx 10" -- \
     "$BIN" approx --op grad --dim 3 --kernel gaussian --hdx 100 --nx 10
