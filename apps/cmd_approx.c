@@ -151,13 +151,9 @@ static int check_cost(const cli_command *cmd, const consph_approx_spec *s, const
         seconds += c.seconds;
         if (c.bytes > worst) worst = c.bytes, worst_nbr = c.neighbours, at = r;
     }
-    double cap, available;
-    const double limit = consph_memory_limit(&cap, &available);
-    if (limit < 0)
-        return cli_error(cmd,
-                         "CONSPH_MEMORY_LIMIT='%s' is not a size; allowed: bytes with an "
-                         "optional K, M or G, e.g. 2G",
-                         getenv("CONSPH_MEMORY_LIMIT"));
+    double limit, cap, available;
+    if (consph_memory_limit(&limit, &cap, &available))
+        return cli_error(cmd, "%s", consph_last_error());
     char where[256];
     if (from_files)
         snprintf(where, sizeof where, "%.200s", in[at].path);

@@ -166,13 +166,9 @@ static int check_cost(const cli_command *cmd, const consph_ot_options *o, int di
     }
     consph_ot_estimate t = consph_wasserstein_estimate(o, dim, n[0], n[1], threads);
     const double bytes = grid_bytes + t.bytes;
-    double cap, available;
-    const double limit = consph_memory_limit(&cap, &available);
-    if (limit < 0)
-        return cli_error(cmd,
-                         "CONSPH_MEMORY_LIMIT='%s' is not a size; allowed: bytes with an "
-                         "optional K, M or G, e.g. 2G",
-                         getenv("CONSPH_MEMORY_LIMIT"));
+    double limit, cap, available;
+    if (consph_memory_limit(&limit, &cap, &available))
+        return cli_error(cmd, "%s", consph_last_error());
     char need[32], grids[32], trans[32], lim[32], capt[32], avail[32];
     bytes_text(bytes, need, sizeof need);
     bytes_text(grid_bytes, grids, sizeof grids);

@@ -87,9 +87,9 @@ int consph_ot_param_read(consph_ot_method method, int dim, consph_ot_param param
 
 /* The bytes a computation may allocate: the cap (CONSPH_MEMORY_LIMIT=BYTES[K|M|G], else 4 GiB,
  * a figure that fits ordinary workstations) or the memory the machine has available now,
- * whichever is less. Returns -1 when CONSPH_MEMORY_LIMIT is set but not a size; *cap and
- * *available (either may be NULL) get the two figures. */
-double consph_memory_limit(double *cap, double *available);
+ * whichever is less, in *limit; *cap and *available (either may be NULL) get the two figures.
+ * CONSPH_EINVAL, with the message, when CONSPH_MEMORY_LIMIT is set but not a size. */
+int consph_memory_limit(double *limit, double *cap, double *available);
 
 typedef struct consph_ot_result {
     double distance; /* W_p (exact), SW_p (sliced), or (⟨π_ε, C⟩)^(1/p) (sinkhorn) */

@@ -1641,13 +1641,9 @@ static int cauchy_check_cost(const consph_study *s, const study_figure *f, const
             worst_seconds = grid_seconds + t.seconds;
         }
     }
-    double cap, available;
-    const double limit = consph_memory_limit(&cap, &available);
-    if (limit < 0)
-        return consph_fail(CONSPH_EINVAL,
-                           "%s: figure '%s': CONSPH_MEMORY_LIMIT='%s' is not a size; allowed: "
-                           "bytes with an optional K, M or G, e.g. 2G",
-                           s->path, f->id, getenv("CONSPH_MEMORY_LIMIT"));
+    double limit, cap, available;
+    int rc = consph_memory_limit(&limit, &cap, &available);
+    if (rc) return consph_fail(rc, "%s: figure '%s': %s", s->path, f->id, consph_last_error());
     if (worst <= limit) return CONSPH_OK;
     return study_key_error(s, f, r, c->measure ? "grid" : "nx",
                            "a comparison needs about %.3g GB (grids %.3g GB; about %.3g s on %d "

@@ -48,7 +48,7 @@ static double memory_available(void)
     return pages > 0 && size > 0 ? (double)pages * (double)size : INFINITY;
 }
 
-double consph_memory_limit(double *cap, double *available)
+int consph_memory_limit(double *limit, double *cap, double *available)
 {
     double c = 4.0 * 1024 * 1024 * 1024;
     const char *v = getenv("CONSPH_MEMORY_LIMIT");
@@ -60,13 +60,18 @@ double consph_memory_limit(double *cap, double *available)
                       : *end == 'G' ? 1073741824.0
                                     : 1.0;
         if (unit > 1.0) ++end;
-        if (end == v || *end || !(x > 0.0) || !isfinite(x)) return -1.0;
+        if (end == v || *end || !(x > 0.0) || !isfinite(x))
+            return consph_fail(CONSPH_EINVAL,
+                               "CONSPH_MEMORY_LIMIT='%s' is not a size; allowed: bytes with an "
+                               "optional K, M or G, e.g. 2G",
+                               v);
         c = x * unit;
     }
     const double a = memory_available();
     if (cap) *cap = c;
     if (available) *available = a;
-    return fmin(c, a);
+    *limit = fmin(c, a);
+    return CONSPH_OK;
 }
 
 const char *consph_mass_origin_name(consph_mass_origin origin)
