@@ -8,6 +8,7 @@
 #include "commands.h"
 #include "consph/io.h"
 #include "consph/study.h"
+#include "consph/transport.h"
 
 #define OP_CHOICES "function,grad,div,laplacian,hessian"
 #define FORMAT_CHOICES "table,csv,json"
@@ -131,6 +132,50 @@ static void describe_file(FILE *o, const input_file *f)
 }
 
 /* The volume rule for one file: --volume when given, else the file's volumes, else 1/ΣW. */
+/* Memory and time from the particle count and the neighbours the kernel's support holds at that
+ * h, before any work: a size the machine cannot hold is refused naming --hdx and --nx (or the
+ * file), one that may pass ten seconds is announced on stderr. */
+static int check_cost(const cli_command *cmd, const consph_approx_spec *s, const input_file *in,
+                      int from_files, int nrows, const double *nx, const char *kernel, double hdx,
+                      long dim)
+{
+    const int threads = consph_num_threads();
+    double seconds = 0.0, worst = 0.0, worst_nbr = 0.0;
+    int at = 0;
+    for (int r = 0; r < nrows; ++r) {
+        const size_t n = from_files ? in[r].p.n : (size_t)pow(nx[r], (double)dim);
+        consph_approx_cost c = from_files
+                                   ? consph_approx_estimate(s, n, consph_box_volume(&in[r].p.box),
+                                                            in[r].p.spacing, threads)
+                                   : consph_approx_estimate(s, n, 1.0, 1.0 / nx[r], threads);
+        seconds += c.seconds;
+        if (c.bytes > worst) worst = c.bytes, worst_nbr = c.neighbours, at = r;
+    }
+    double limit, cap, available;
+    if (consph_memory_limit(&limit, &cap, &available))
+        return cli_error(cmd, "%s", consph_last_error());
+    char where[256];
+    if (from_files)
+        snprintf(where, sizeof where, "%.200s", in[at].path);
+    else
+        snprintf(where, sizeof where, "--nx %.0f", nx[at]);
+    if (worst > limit)
+        return cli_error(cmd,
+                         "option --hdx: %g with kernel %s in %ldD gives about %.3g neighbours per "
+                         "particle at %s, which need about %.3g GB (72 bytes a neighbour on %d "
+                         "threads); the limit is %.3g GB (the cap %.3g GB, CONSPH_MEMORY_LIMIT, "
+                         "or the %.3g GB available, whichever is less); allowed: a smaller --hdx",
+                         hdx, kernel, dim, worst_nbr, where, worst / 1e9, threads, limit / 1e9,
+                         cap / 1e9, available / 1e9);
+    if (seconds > 10.0)
+        fprintf(stderr,
+                "consph approx: estimate (rough): about %.0f s for %.3g neighbours per particle "
+                "at %s (at %.0e neighbour pairs per second, measured on 2 cores); memory %.3g "
+                "GB\n",
+                seconds, worst_nbr, where, CONSPH_APPROX_PAIRS_PER_SECOND, worst / 1e9);
+    return 0;
+}
+
 static int choose_volume(const cli_command *cmd, input_file *f, int volume_idx, int given)
 {
     consph_particles *p = &f->p;
@@ -272,7 +317,7 @@ int cmd_approx(int argc, char **argv)
         O_VOLUME = 14,
         O_BETA = 21
     };
-    char details[2048];
+    char details[3072];
     snprintf(details, sizeof details,
              "CSV columns: nx,n,h,nbr_mean,l1,l2,linf,mae,ft_over_fmax,seconds,fallbacks\n"
              "  l1 = sum|g-g_o|/sum|g_o| (001 eq. 7, see docs/deviations.md), l2 and linf (002 "
@@ -282,6 +327,12 @@ int cmd_approx(int argc, char **argv)
              "Orders: least-squares slope of log(error) against log(nx), with its standard "
              "error from three resolutions on (n/a with two); 'n/a (why)' where no order can be "
              "fitted, e.g. no neighbours within the support (a warning on stderr).\n"
+             "Cost: before any work each resolution's neighbours per particle are estimated "
+             "from h (--hdx, --h-policy), the kernel's support and the dimension (periodic "
+             "images included); a run needing more than the memory limit (72 bytes a neighbour "
+             "per thread; 4 GiB, CONSPH_MEMORY_LIMIT=BYTES[K|M|G], or the memory available) is "
+             "refused (exit 2, naming --hdx and --nx), one estimated past 10 s (at 2e7 "
+             "neighbour pairs per second, measured on 2 cores) is announced on stderr.\n"
              "Exit status: 0 done, 1 a run failed, 2 bad input, 3 an error is not finite (a "
              "wrong result; stderr names the operator and the resolution or file).\n"
              "Fields: %s.\n"
@@ -462,6 +513,7 @@ int cmd_approx(int argc, char **argv)
     }
 
     int nrows = from_files ? nin : nx.n;
+    if (check_cost(&cmd, &s, in, from_files, nrows, nx.v, kernel, hdx, dim)) goto out;
     consph_approx_row rows[CLI_LIST_MAX];
     double res[CLI_LIST_MAX];
     /* After every check: a rejection stays the one line on stderr. */

@@ -88,37 +88,6 @@ static void unload(input *in)
     free(in->scratch);
 }
 
-/* The memory a comparison may take unless CONSPH_MEMORY_LIMIT says otherwise: a figure that
- * fits ordinary workstations; the machine's available memory lowers it further. */
-#define MEMORY_CAP (4.0 * 1024 * 1024 * 1024)
-
-/* What the machine can give now: MemAvailable, else the free physical pages; +inf if unknown. */
-static double memory_available(void)
-{
-    FILE *f = fopen("/proc/meminfo", "r");
-    char line[256];
-    double kb = -1.0;
-    while (f && fgets(line, sizeof line, f))
-        if (sscanf(line, "MemAvailable: %lf kB", &kb) == 1) break;
-    if (f) fclose(f);
-    if (kb >= 0.0) return kb * 1024.0;
-    long pages = sysconf(_SC_AVPHYS_PAGES), size = sysconf(_SC_PAGESIZE);
-    return pages > 0 && size > 0 ? (double)pages * (double)size : INFINITY;
-}
-
-/* CONSPH_MEMORY_LIMIT: bytes, with an optional K, M or G (binary); 0 when unset, -1 when bad. */
-static double memory_cap_from_env(void)
-{
-    const char *v = getenv("CONSPH_MEMORY_LIMIT");
-    if (!v || !*v) return 0.0;
-    char *end;
-    double x = strtod(v, &end);
-    double unit = *end == 'K' ? 1024.0 : *end == 'M' ? 1048576.0 : *end == 'G' ? 1073741824.0 : 1.0;
-    if (unit > 1.0) ++end;
-    if (end == v || *end || !(x > 0.0) || !isfinite(x)) return -1.0;
-    return x * unit;
-}
-
 static const char *bytes_text(double b, char *buf, size_t size)
 {
     if (b >= 1e9)
@@ -196,15 +165,10 @@ static int check_cost(const cli_command *cmd, const consph_ot_options *o, int di
         grid_seconds += g.seconds;
     }
     consph_ot_estimate t = consph_wasserstein_estimate(o, dim, n[0], n[1], threads);
-    const double bytes = grid_bytes + t.bytes, available = memory_available();
-    double cap = memory_cap_from_env();
-    if (cap < 0)
-        return cli_error(cmd,
-                         "CONSPH_MEMORY_LIMIT='%s' is not a size; allowed: bytes with an "
-                         "optional K, M or G, e.g. 2G",
-                         getenv("CONSPH_MEMORY_LIMIT"));
-    if (cap == 0.0) cap = MEMORY_CAP;
-    const double limit = fmin(cap, available);
+    const double bytes = grid_bytes + t.bytes;
+    double limit, cap, available;
+    if (consph_memory_limit(&limit, &cap, &available))
+        return cli_error(cmd, "%s", consph_last_error());
     char need[32], grids[32], trans[32], lim[32], capt[32], avail[32];
     bytes_text(bytes, need, sizeof need);
     bytes_text(grid_bytes, grids, sizeof grids);
@@ -290,29 +254,28 @@ static int check_method_options(const cli_command *cmd, const cli_opt *opts, con
 {
     static const struct {
         int opt;
-        consph_ot_method method;
-    } only[] = {{O_DIRECTIONS, CONSPH_OT_SLICED},
-                {O_SEED, CONSPH_OT_SLICED},
-                {O_EPS, CONSPH_OT_SINKHORN},
-                {O_TOL, CONSPH_OT_SINKHORN},
-                {O_MAX_ITER, CONSPH_OT_SINKHORN}};
+        consph_ot_param param;
+    } only[] = {{O_DIRECTIONS, CONSPH_OT_PARAM_DIRECTIONS},
+                {O_SEED, CONSPH_OT_PARAM_SEED},
+                {O_EPS, CONSPH_OT_PARAM_EPS},
+                {O_TOL, CONSPH_OT_PARAM_TOL},
+                {O_MAX_ITER, CONSPH_OT_PARAM_MAX_ITER}};
     char here[16], needs[16];
     cli_choice_name(METHOD_CHOICES, (int)m, here, sizeof here);
     for (size_t k = 0; k < sizeof only / sizeof only[0]; ++k) {
         const cli_opt *o = &opts[only[k].opt];
-        if (!o->given) continue;
-        cli_choice_name(METHOD_CHOICES, (int)only[k].method, needs, sizeof needs);
-        if (only[k].method != m)
+        if (!o->given || consph_ot_param_read(m, dim, only[k].param)) continue;
+        const consph_ot_method reader = consph_ot_param_method(only[k].param);
+        cli_choice_name(METHOD_CHOICES, (int)reader, needs, sizeof needs);
+        if (reader != m)
             return cli_error(cmd,
                              "option %s: only with --method %s; the method here is %s%s, which "
                              "does not read it",
                              o->name, needs, here, method_given ? "" : " (the default)");
-        /* 1D sliced is the exact distance: no direction is drawn. */
-        if (m == CONSPH_OT_SLICED && dim == 1)
-            return cli_error(cmd,
-                             "option %s: the particles are 1D, where every direction is +-1 and "
-                             "the sliced distance is the exact one: it does nothing",
-                             o->name);
+        return cli_error(cmd,
+                         "option %s: the particles are 1D, where every direction is +-1 and "
+                         "the sliced distance is the exact one: it does nothing",
+                         o->name);
     }
     return 0;
 }

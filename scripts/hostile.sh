@@ -133,6 +133,24 @@ check 2 'study:[0-9]+' "10: nx = 8,,12" -- "$BIN" study s_list.study --quick --o
 printf 'study = s_noscheme\ntitle = t\n[figure conv]\nkind = run\nproblem = taylor-green\nlayout = lattice\nc0 = 80\nnx = 8,12\ntf = 0.01\n[series E-C]\npaper.order_u = 2\n' >s_noscheme.study
 check 2 'study:[1-9]' "10: a series without scheme (line > 0)" -- "$BIN" study s_noscheme.study \
     --quick --out sn
+cauchy() { # NAME DIM NX EXTRA-FIGURE-LINES EXTRA-SERIES-LINES: a tiny cauchy study
+    printf 'study = %s\ntitle = t\nkind = cauchy\nlayout = random\n[figure w]\ndim = %s\nnx = %s\n%b[series s]\n%b' \
+        "$1" "$2" "$3" "$4" "$5" >"$1.study"
+}
+cauchy c_ok 2 8,16 'grid = 16\ndirections = 8\n' 'measure = smoothed\n'
+check 0 - "10: a valid tiny cauchy study" -- "$BIN" study c_ok.study --out cok
+cauchy c_exact 1 50,100 'ot_method = exact\ndirections = 16\n' ''
+check 2 'c_exact.study:9: .*directions.*ot_method here is exact' "10: cauchy directions with exact" \
+    -- "$BIN" study c_exact.study --out cex
+cauchy c_sink 2 8,16 'ot_method = sinkhorn\n' 'directions = 8\n'
+check 2 'c_sink.study:10: .*directions.*sinkhorn' "10: cauchy directions with sinkhorn" -- \
+    "$BIN" study c_sink.study --out csk
+cauchy c_1d 1 50,100 'ot_method = sliced\ndirections = 8\n' ''
+check 2 'c_1d.study:9: .*directions.*1D' "10: cauchy directions with 1D sliced" -- \
+    "$BIN" study c_1d.study --out c1d
+cauchy c_grid 2 8,16 '' 'grid = 64\n'
+check 2 'c_grid.study:9: .*grid.*measure here is particles' "10: cauchy grid with particles" -- \
+    "$BIN" study c_grid.study --out cgr
 
 # 11. Restarts: only into the checkpoint's own run
 "$BIN" run taylor-green --nx 8 --steps 4 --checkpoint-every 2 --out runa >/dev/null 2>&1
@@ -152,5 +170,15 @@ check 0 - "12: layout --in with one particle prints no inf/nan" -- sh -c \
 check 2 'grid' "13: wasserstein A uniform --grid 100000" -- "$BIN" wasserstein a.csv uniform \
     --grid 100000 --directions 2
 
+cauchy c_mem 2 8,16 '' 'measure = smoothed\ngrid = 100000\n'
+check 2 'c_mem.study:10: .*grid.*GB.*the limit is' "13: cauchy smoothed grid 100000 in 2D" -- \
+    "$BIN" study c_mem.study --out cme
+cauchy c_nx 3 8,400 '' ''
+check 2 'c_nx.study:7: .*nx.*GB.*the limit is' "13: cauchy 3D nx 400 particles" -- \
+    "$BIN" study c_nx.study --out cnx
+check 2 'option --hdx: 100 .*--nx 10.*the limit is' "13: approx 3D gaussian hdx 100 nx 10" -- \
+    "$BIN" approx --op grad --dim 3 --kernel gaussian --hdx 100 --nx 10
+check 124 'estimate \(rough\): about [0-9]+ s' "13: approx 3D gaussian hdx 30 announced" -- \
+    timeout 3 "$BIN" approx --op grad --dim 3 --kernel gaussian --hdx 30 --nx 10
 echo "hostile matrix: $pass passed, $fail failed"
 [ "$fail" = 0 ]

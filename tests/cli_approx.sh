@@ -36,5 +36,18 @@ for box in 0:1e-160,0:1e-160 0:1e60,0:1e60; do
   grep -q "tiny.csv: the given box is too large or too small.*allowed: spacing in" "$tmp/e" || bad "box $box: $(cat "$tmp/e")"
   [ -s "$tmp/o" ] && bad "box $box: work started"
 done
+# The cost comes from the neighbours the support holds, not only the particle count: 1000
+# particles at hdx 100 in 3D hold ~1e8 neighbours each, refused before any work naming --hdx and
+# --nx, the estimate and the limit; one that may pass 10 s is announced before it starts.
+timeout 20 "$consph" approx --op grad --dim 3 --kernel gaussian --hdx 100 --nx 10 >"$tmp/o" 2>"$tmp/e"; rc=$?
+[ $rc = 2 ] || bad "hdx 100 3D: exit $rc"
+grep -q "option --hdx: 100 with kernel gaussian in 3D gives about 1.13e+08 neighbours per particle at --nx 10, which need about .* GB.*the limit is" "$tmp/e" || bad "hdx 100 3D: $(cat "$tmp/e")"
+[ -s "$tmp/o" ] && bad "hdx 100 3D: work started"
+CONSPH_MEMORY_LIMIT=1M timeout 20 "$consph" approx --op grad --hdx 40 --nx 10 >"$tmp/o" 2>"$tmp/e"; rc=$?
+[ $rc = 2 ] && grep -q "option --hdx: 40 .*the limit is 0.00105 GB" "$tmp/e" || bad "CONSPH_MEMORY_LIMIT=1M: exit $rc: $(cat "$tmp/e")"
+timeout 3 "$consph" approx --op grad --dim 3 --kernel gaussian --hdx 30 --nx 10 >/dev/null 2>"$tmp/e"
+grep -q "^consph approx: estimate (rough): about [0-9]* s for 3.05e+06 neighbours per particle at --nx 10" "$tmp/e" || bad "no estimate for a long run: $(cat "$tmp/e")"
+"$consph" approx --op grad --nx 12,16 >/dev/null 2>"$tmp/e" || bad "small run exit $?"
+[ -s "$tmp/e" ] && bad "small run: stderr $(cat "$tmp/e")"
 [ $fail = 0 ] && echo "cli_approx: 1 passed, 0 failed" || echo "cli_approx: 0 passed, 1 failed"
 exit $fail

@@ -161,6 +161,48 @@ static void test_validation(void)
     CHECK(validate("study = a\n[figure f]\nnx = 8, 16\n") == CONSPH_OK, "%s", consph_last_error());
 }
 
+/* Keys of a cauchy figure that its method or measure does not read are refused at their line;
+ * a figure-level one that some series reads is kept. Then the memory, before any work. */
+static void test_cauchy_keys(void)
+{
+    expect_invalid("study = a\nkind = cauchy\n[figure f]\ndim = 1\not_method = exact\n"
+                   "directions = 16\nnx = 50,100\n",
+                   "t.study:6: figure 'f', series 'f': key 'directions': only with ot_method = "
+                   "sliced; ot_method here is exact");
+    expect_invalid("study = a\nkind = cauchy\n[figure f]\ndim = 2\not_method = sinkhorn\n"
+                   "nx = 8,16\n[series s]\ndirections = 4\n",
+                   "t.study:8: figure 'f', series 's': key 'directions': only with ot_method = "
+                   "sliced; ot_method here is sinkhorn");
+    expect_invalid("study = a\nkind = cauchy\n[figure f]\ndim = 1\not_method = sliced\n"
+                   "directions = 16\nnx = 50,100\n",
+                   "t.study:6: figure 'f', series 'f': key 'directions': the figure is 1D");
+    expect_invalid("study = a\nkind = cauchy\n[figure f]\ndim = 2\nnx = 8,16\n[series p]\n"
+                   "grid = 16\n",
+                   "t.study:7: figure 'f', series 'p': key 'grid': only with measure = smoothed");
+    /* Study level: every cauchy series there compares particles. */
+    expect_invalid("study = a\nkind = cauchy\ngrid = 16\n[figure f]\ndim = 2\nnx = 8,16\n",
+                   "t.study:3: figure 'f', series 'f': key 'grid': only with measure = smoothed");
+    CHECK(validate("study = a\nkind = cauchy\n[figure f]\ndim = 2\nnx = 8,16\ngrid = 16\n"
+                   "directions = 8\n[series p]\n[series s]\nmeasure = smoothed\n") == CONSPH_OK,
+          "%s", consph_last_error());
+    const char *old = getenv("CONSPH_MEMORY_LIMIT");
+    setenv("CONSPH_MEMORY_LIMIT", "1M", 1);
+    expect_invalid("study = a\nkind = cauchy\n[figure f]\ndim = 2\nnx = 8,16\n[series s]\n"
+                   "measure = smoothed\ngrid = 1000\n",
+                   "t.study:8: figure 'f', series 's': key 'grid': a comparison needs about");
+    expect_invalid("study = a\nkind = cauchy\n[figure f]\ndim = 1\nnx = 50,100000\n",
+                   "t.study:5: figure 'f', series 'f': key 'nx': a comparison needs about");
+    setenv("CONSPH_MEMORY_LIMIT", "lots", 1);
+    CHECK(validate("study = a\nkind = cauchy\n[figure f]\ndim = 1\nnx = 50,100\n") ==
+                  CONSPH_EINVAL &&
+              strstr(consph_last_error(), "CONSPH_MEMORY_LIMIT='lots' is not a size"),
+          "%s", consph_last_error());
+    if (old)
+        setenv("CONSPH_MEMORY_LIMIT", old, 1);
+    else
+        unsetenv("CONSPH_MEMORY_LIMIT");
+}
+
 /* Every shipped study loads and validates, quick and full: the refusals above must not refuse
  * what the studies/ directory uses. */
 static void test_shipped_studies(const char *root)
@@ -275,6 +317,7 @@ int main(void)
         snprintf(root, sizeof root, "..");
     test_ignored_keys();
     test_validation();
+    test_cauchy_keys();
     test_fuzz_replay(root);
     test_shipped_studies(root);
     return check_summary("test_studyfile");

@@ -203,6 +203,20 @@ int consph_approx_check(const consph_approx_spec *spec);
 /* The smoothing length spec->h_policy gives n particles in a box of the given volume whose
  * nominal spacing is `spacing` (used by hdx only). */
 double consph_approx_h(const consph_approx_spec *spec, size_t n, double box_volume, double spacing);
+/* The mean neighbours per particle expected from geometry: the kernel's support ball at that h,
+ * in particle spacings (periodic images included, so it may pass n). */
+double consph_approx_neighbours(const consph_approx_spec *spec, size_t n, double box_volume,
+                                double spacing);
+/* What one resolution will cost, before it runs: every pass holds one scratch entry (72 bytes)
+ * per neighbour of the particle at hand on each of `threads` threads, and a pair costs about
+ * 1/CONSPH_APPROX_PAIRS_PER_SECOND seconds (volumes and operator together: measured 2.1e7 for
+ * grad in 3D with the gaussian, 3.8e7 in 2D with the quintic, on 2 shared cores). */
+#define CONSPH_APPROX_PAIRS_PER_SECOND 2.0e7
+typedef struct consph_approx_cost {
+    double neighbours, bytes, seconds;
+} consph_approx_cost;
+consph_approx_cost consph_approx_estimate(const consph_approx_spec *spec, size_t n,
+                                          double box_volume, double spacing, int threads);
 /* Runs one resolution: generates spec->layout with nx particles per axis, then measures. */
 int consph_approx_run(const consph_approx_spec *spec, size_t nx, consph_approx_row *row);
 /* Measures on given particles (copied; the box and periodicity are the particles' own). `nx` is

@@ -70,6 +70,27 @@ typedef struct consph_ot_options {
 /* The defaults: exact, p = 1, 64 directions, seed 1, eps 1e-3, tol 1e-6, 20000 iterations. */
 consph_ot_options consph_ot_defaults(void);
 
+/* The tuning parameters, each read by one method only. One given to a method that does not read
+ * it would do nothing, so the CLI's options and the study files' keys are refused there. */
+typedef enum consph_ot_param {
+    CONSPH_OT_PARAM_DIRECTIONS,
+    CONSPH_OT_PARAM_SEED,
+    CONSPH_OT_PARAM_EPS,
+    CONSPH_OT_PARAM_TOL,
+    CONSPH_OT_PARAM_MAX_ITER
+} consph_ot_param;
+/* The method that reads `param`. */
+consph_ot_method consph_ot_param_method(consph_ot_param param);
+/* 1 when `method` in `dim` dimensions reads `param`: sliced draws no direction in 1D, where
+ * every direction is +-1 and the sliced distance is the exact one. */
+int consph_ot_param_read(consph_ot_method method, int dim, consph_ot_param param);
+
+/* The bytes a computation may allocate: the cap (CONSPH_MEMORY_LIMIT=BYTES[K|M|G], else 4 GiB,
+ * a figure that fits ordinary workstations) or the memory the machine has available now,
+ * whichever is less, in *limit; *cap and *available (either may be NULL) get the two figures.
+ * CONSPH_EINVAL, with the message, when CONSPH_MEMORY_LIMIT is set but not a size. */
+int consph_memory_limit(double *limit, double *cap, double *available);
+
 typedef struct consph_ot_result {
     double distance; /* W_p (exact), SW_p (sliced), or (⟨π_ε, C⟩)^(1/p) (sinkhorn) */
     /* The method's own error estimate on `distance`: 0 for exact (round-off only); for sliced

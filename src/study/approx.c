@@ -67,6 +67,26 @@ double consph_approx_h(const consph_approx_spec *s, size_t n, double box_volume,
     }
 }
 
+double consph_approx_neighbours(const consph_approx_spec *s, size_t n, double box_volume,
+                                double spacing)
+{
+    const int d = s->layout.dim;
+    const double unit_ball = d == 1 ? 2.0 : d == 2 ? M_PI : 4.0 * M_PI / 3.0;
+    const double radius =
+        consph_kernel_info_get(s->kernel)->support * consph_approx_h(s, n, box_volume, spacing);
+    return unit_ball * pow(radius / spacing, d);
+}
+
+consph_approx_cost consph_approx_estimate(const consph_approx_spec *s, size_t n, double box_volume,
+                                          double spacing, int threads)
+{
+    consph_approx_cost c;
+    c.neighbours = consph_approx_neighbours(s, n, box_volume, spacing);
+    c.bytes = 72.0 * (c.neighbours + 1.0) * (threads > 0 ? threads : 1);
+    c.seconds = (double)n * (c.neighbours + 1.0) / CONSPH_APPROX_PAIRS_PER_SECOND;
+    return c;
+}
+
 /* The forms of 001 Table 2 approximate ∇p/ϱ with ϱ = ρ, not ∇p. */
 static int divides_by_rho(consph_op_form form)
 {

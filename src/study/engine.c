@@ -1323,7 +1323,10 @@ static int run_appc_figure(const consph_study *s, const study_figure *f, int qui
 
 /* ---- study level ---- */
 
-int consph_study_validate(const consph_study *s, int quick)
+static int cauchy_validate(const consph_study *s, int quick, const study_files *files,
+                           double *seconds);
+
+static int study_validate(const consph_study *s, int quick, const study_files *files)
 {
     for (int k = 0; k < s->nfigs; ++k) {
         if (figure_kind(s, &s->figs[k]) == KIND_RUN) {
@@ -1337,19 +1340,21 @@ int consph_study_validate(const consph_study *s, int quick)
             if (rc) return rc;
         }
     }
-    return CONSPH_OK;
+    double seconds = 0.0;
+    return cauchy_validate(s, quick, files, &seconds);
+}
+
+int consph_study_validate(const consph_study *s, int quick)
+{
+    return study_validate(s, quick, NULL);
 }
 
 /* Neighbour pairs of one run, from geometry (the support volume in particle spacings). */
 static double pairs_estimate(const series_plan *pl, double nx)
 {
-    int d = pl->spec.layout.dim;
-    double n = pow(nx, d);
-    double support = consph_kernel_info_get(pl->spec.kernel)->support;
-    double unit_ball = d == 1 ? 2.0 : d == 2 ? M_PI : 4.0 * M_PI / 3.0;
-    /* h/Δs in the unit box, Δs = 1/nx. */
-    double radius_dx = support * consph_approx_h(&pl->spec, (size_t)n, 1.0, 1.0 / nx) * nx;
-    return n * (1.0 + unit_ball * pow(radius_dx, d));
+    double n = pow(nx, pl->spec.layout.dim);
+    /* The unit box, Δs = 1/nx. */
+    return n * (1.0 + consph_approx_neighbours(&pl->spec, (size_t)n, 1.0, 1.0 / nx));
 }
 
 /* Particle files replace the nx sweeps (one run per file at its N^(1/dim)) and need no
@@ -1406,6 +1411,9 @@ static double estimate(const consph_study *s, int quick, const study_files *file
             }
         }
     }
+    /* The transport of cauchy figures, from consph_wasserstein_estimate's rates. */
+    double ot_seconds = 0.0;
+    if (cauchy_validate(s, quick, files, &ot_seconds) == CONSPH_OK) run_seconds += ot_seconds;
     if (!have_first) return run_seconds;
     /* Calibrate on a small run of the first series (about 2500 particles). */
     double nx_cal = first.spec.layout.dim == 1 ? 2500 : first.spec.layout.dim == 2 ? 50 : 14;
@@ -1539,12 +1547,169 @@ static int write_cauchy(const consph_study *s, const study_figure *f, int quick,
                         cauchy_row (*rows)[MAX_SWEEP], const int *nrows, char (*fit_text)[64],
                         const char *const *method_of, const int *measure_of, const int *p_of);
 
+static const char *const cauchy_measures[] = {"particles", "smoothed", NULL};
+static const char *const cauchy_methods[] = {"exact", "sliced", "sinkhorn", NULL};
+
+/* The keys of one cauchy series. */
+typedef struct cauchy_keys {
+    consph_ot_options opt;
+    int measure; /* 0 particles, 1 smoothed */
+    double grid;
+} cauchy_keys;
+
+static int cauchy_read_keys(const consph_study *s, const study_figure *f, const study_series *r,
+                            int dim, cauchy_keys *c)
+{
+    double pw, dirs, seed;
+    int imeth, rc;
+    if ((rc = study_get_choice(s, f, r, "measure", cauchy_measures, 0, &c->measure))) return rc;
+    if ((rc = study_get_choice(s, f, r, "ot_method", cauchy_methods, dim == 1 ? 0 : 1, &imeth)))
+        return rc;
+    if ((rc = study_get_double(s, f, r, "ot_p", 1, 1, 2, &pw))) return rc;
+    if ((rc = study_get_double(s, f, r, "directions", 64, 1, 1e5, &dirs))) return rc;
+    if ((rc = study_get_double(s, f, r, "grid",
+                               dim == 1   ? 4096
+                               : dim == 2 ? 128
+                                          : 32,
+                               2, 1e6, &c->grid)))
+        return rc;
+    if ((rc = study_get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) return rc;
+    if (pw != floor(pw)) return study_key_error(s, f, r, "ot_p", "must be 1 or 2");
+    if (imeth == 0 && dim != 1)
+        return study_key_error(s, f, r, "ot_method", "exact is 1D only; use sliced or sinkhorn");
+    c->opt = consph_ot_defaults();
+    c->opt.method = (consph_ot_method)imeth;
+    c->opt.p = (int)pw;
+    c->opt.directions = (int)dirs;
+    c->opt.seed = (uint64_t)seed;
+    return CONSPH_OK;
+}
+
+/* Whether the series reads `key` (directions: sliced in 2D/3D; grid: smoothed measures), and
+ * why not in `why`. The seed is not among them: the random layouts read it too. */
+static int cauchy_reads(const cauchy_keys *c, int dim, const char *key, char *why, size_t size)
+{
+    if (strcmp(key, "grid") == 0) {
+        snprintf(why, size,
+                 "only with measure = smoothed; measure here is particles, which "
+                 "compares the particles themselves");
+        return c->measure == 1;
+    }
+    if (consph_ot_param_read(c->opt.method, dim, CONSPH_OT_PARAM_DIRECTIONS)) return 1;
+    if (c->opt.method == CONSPH_OT_SLICED)
+        snprintf(why, size,
+                 "the figure is 1D, where every direction is +-1 and the sliced "
+                 "distance is the exact one: it does nothing");
+    else
+        snprintf(why, size,
+                 "only with ot_method = sliced; ot_method here is %s, which does not "
+                 "read it",
+                 cauchy_methods[c->opt.method]);
+    return 0;
+}
+
+/* The memory of a series' largest comparison (two measures of the last two resolutions, their
+ * grids, the transport), against consph_memory_limit, before any work: the message names
+ * `grid` for smoothed measures, else `nx`. */
+static int cauchy_check_cost(const consph_study *s, const study_figure *f, const study_series *r,
+                             const series_plan *pl, const cauchy_keys *c, const study_files *files,
+                             double *seconds)
+{
+    const int dim = pl->spec.layout.dim, threads = consph_num_threads();
+    const int nres = files ? files->n : pl->nvalues;
+    double worst = 0.0, worst_seconds = 0.0, worst_grids = 0.0;
+    for (int j = 1; j < nres; ++j) {
+        double n[2], grid_bytes = 0.0, grid_seconds = 0.0;
+        for (int q = 0; q < 2; ++q) {
+            double np =
+                files ? (double)files->sets[j - 1 + q].n
+                      : pow(pl->sweep_hdx ? (double)pl->nx_fixed : pl->values[j - 1 + q], dim);
+            n[q] = c->measure ? pow(c->grid, dim) : np;
+            if (!c->measure) continue;
+            consph_ot_estimate g =
+                consph_grid_measure_estimate(dim, (size_t)c->grid, (size_t)np, threads);
+            grid_bytes += g.bytes;
+            grid_seconds += g.seconds;
+        }
+        consph_ot_estimate t = consph_wasserstein_estimate(&c->opt, dim, n[0], n[1], threads);
+        /* Sinkhorn's estimate is per iteration: 100, as the CLI's announcement assumes. */
+        *seconds +=
+            grid_seconds / 2.0 + (c->opt.method == CONSPH_OT_SINKHORN ? 100.0 : 1.0) * t.seconds;
+        if (grid_bytes + t.bytes > worst) {
+            worst = grid_bytes + t.bytes;
+            worst_grids = grid_bytes;
+            worst_seconds = grid_seconds + t.seconds;
+        }
+    }
+    double limit, cap, available;
+    int rc = consph_memory_limit(&limit, &cap, &available);
+    if (rc) return consph_fail(rc, "%s: figure '%s': %s", s->path, f->id, consph_last_error());
+    if (worst <= limit) return CONSPH_OK;
+    return study_key_error(s, f, r, c->measure ? "grid" : "nx",
+                           "a comparison needs about %.3g GB (grids %.3g GB; about %.3g s on %d "
+                           "threads); the limit is %.3g GB (the cap %.3g GB, CONSPH_MEMORY_LIMIT, "
+                           "or the %.3g GB available, whichever is less); allowed: a smaller %s",
+                           worst / 1e9, worst_grids / 1e9, worst_seconds, threads, limit / 1e9,
+                           cap / 1e9, available / 1e9, c->measure ? "grid" : "nx");
+}
+
+/* A cauchy key set where no series that sees it reads it would do nothing: refused at its
+ * line. A figure- or study-level one read by some series is kept. Then the cost. */
+static int cauchy_validate(const consph_study *s, int quick, const study_files *files,
+                           double *seconds)
+{
+    static const char *const keys[] = {"directions", "grid"};
+    /* One entry per definition: its line, whether a series reads it, the first that does not. */
+    struct {
+        int line, read;
+        const study_figure *f;
+        const study_series *r;
+        char why[192];
+    } defs[64];
+    for (int q = 0; q < 2; ++q) {
+        int ndefs = 0;
+        for (int k = 0; k < s->nfigs; ++k) {
+            const study_figure *f = &s->figs[k];
+            if (figure_kind(s, f) != KIND_CAUCHY) continue;
+            for (int i = 0; i < f->nseries; ++i) {
+                const study_series *r = &f->series[i];
+                series_plan pl;
+                cauchy_keys c;
+                int rc = build_plan(s, f, r, quick, &pl);
+                if (!rc) rc = cauchy_read_keys(s, f, r, pl.spec.layout.dim, &c);
+                if (!rc && q == 0) rc = cauchy_check_cost(s, f, r, &pl, &c, files, seconds);
+                if (rc) return rc;
+                const int line = study_line(s, f, r, keys[q]);
+                if (!line) continue;
+                int at = 0;
+                while (at < ndefs && defs[at].line != line) ++at;
+                if (at == ndefs) {
+                    if (ndefs == 64) continue;
+                    defs[ndefs].line = line;
+                    defs[ndefs].read = 0;
+                    defs[ndefs++].f = NULL;
+                }
+                char why[192];
+                if (cauchy_reads(&c, pl.spec.layout.dim, keys[q], why, sizeof why))
+                    defs[at].read = 1;
+                else if (!defs[at].f) {
+                    defs[at].f = f;
+                    defs[at].r = r;
+                    memcpy(defs[at].why, why, sizeof why);
+                }
+            }
+        }
+        for (int at = 0; at < ndefs; ++at)
+            if (!defs[at].read)
+                return study_key_error(s, defs[at].f, defs[at].r, keys[q], "%s", defs[at].why);
+    }
+    return CONSPH_OK;
+}
+
 static int run_cauchy_figure(const consph_study *s, const study_figure *f, int quick,
                              layout_cache *cache, const char *dir, const study_files *files,
                              FILE *log)
 {
-    static const char *const measures[] = {"particles", "smoothed", NULL};
-    static const char *const methods[] = {"exact", "sliced", "sinkhorn", NULL};
     const int nseries = f->nseries < MAX_SERIES_POINTS ? f->nseries : MAX_SERIES_POINTS;
     int nrows[MAX_SERIES_POINTS] = {0};
     char fit_text[MAX_SERIES_POINTS][64];
@@ -1558,33 +1723,12 @@ static int run_cauchy_figure(const consph_study *s, const study_figure *f, int q
         series_plan *pl = &plans[k];
         if ((rc = build_plan(s, f, r, quick, pl))) break;
         const int dim = pl->spec.layout.dim;
-        int imeas, imeth;
-        double pw, dirs, grid, seed;
-        if ((rc = study_get_choice(s, f, r, "measure", measures, 0, &imeas))) break;
-        if ((rc = study_get_choice(s, f, r, "ot_method", methods, dim == 1 ? 0 : 1, &imeth))) break;
-        if ((rc = study_get_double(s, f, r, "ot_p", 1, 1, 2, &pw))) break;
-        if ((rc = study_get_double(s, f, r, "directions", 64, 1, 1e5, &dirs))) break;
-        if ((rc = study_get_double(s, f, r, "grid",
-                                   dim == 1   ? 4096
-                                   : dim == 2 ? 128
-                                              : 32,
-                                   2, 1e6, &grid)))
-            break;
-        if ((rc = study_get_double(s, f, r, "seed", 1, 0, 1e15, &seed))) break;
-        if (pw != floor(pw)) {
-            rc = study_key_error(s, f, r, "ot_p", "must be 1 or 2");
-            break;
-        }
-        if (imeth == 0 && dim != 1) {
-            rc = study_key_error(s, f, r, "ot_method", "exact is 1D only; use sliced or sinkhorn");
-            break;
-        }
-        consph_ot_options opt = consph_ot_defaults();
-        opt.method = (consph_ot_method)imeth;
-        opt.p = (int)pw;
-        opt.directions = (int)dirs;
-        opt.seed = (uint64_t)seed;
-        method_of[k] = methods[imeth];
+        cauchy_keys c;
+        if ((rc = cauchy_read_keys(s, f, r, dim, &c))) break;
+        const int imeas = c.measure, imeth = (int)c.opt.method;
+        const double grid = c.grid;
+        const consph_ot_options opt = c.opt;
+        method_of[k] = cauchy_methods[imeth];
         measure_of[k] = imeas;
         p_of[k] = opt.p;
         if (files) plan_take_files(pl, files);
@@ -1757,7 +1901,7 @@ static int write_readme(const consph_study *s, const consph_study_options *opt,
 static int study_run(const consph_study *s, const consph_study_options *opt,
                      const study_files *files)
 {
-    int rc = consph_study_validate(s, opt->quick);
+    int rc = study_validate(s, opt->quick, files);
     if (rc) return rc;
     if (files && (rc = validate_files(s, opt->quick, files))) return rc;
     char dir[STUDY_PATH_MAX];

@@ -1,7 +1,9 @@
 /* Exact 1D and sliced Wasserstein distances, and the conversions shared by every method. */
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "transport/transport_internal.h"
 
@@ -17,6 +19,59 @@ consph_ot_options consph_ot_defaults(void)
     o.tol = 1e-6;
     o.max_iter = 20000;
     return o;
+}
+
+consph_ot_method consph_ot_param_method(consph_ot_param param)
+{
+    return param == CONSPH_OT_PARAM_DIRECTIONS || param == CONSPH_OT_PARAM_SEED
+               ? CONSPH_OT_SLICED
+               : CONSPH_OT_SINKHORN;
+}
+
+int consph_ot_param_read(consph_ot_method method, int dim, consph_ot_param param)
+{
+    if (consph_ot_param_method(param) != method) return 0;
+    return !(method == CONSPH_OT_SLICED && dim == 1);
+}
+
+/* What the machine can give now: MemAvailable, else the free physical pages; +inf if unknown. */
+static double memory_available(void)
+{
+    FILE *f = fopen("/proc/meminfo", "r");
+    char line[256];
+    double kb = -1.0;
+    while (f && fgets(line, sizeof line, f))
+        if (sscanf(line, "MemAvailable: %lf kB", &kb) == 1) break;
+    if (f) fclose(f);
+    if (kb >= 0.0) return kb * 1024.0;
+    long pages = sysconf(_SC_AVPHYS_PAGES), size = sysconf(_SC_PAGESIZE);
+    return pages > 0 && size > 0 ? (double)pages * (double)size : INFINITY;
+}
+
+int consph_memory_limit(double *limit, double *cap, double *available)
+{
+    double c = 4.0 * 1024 * 1024 * 1024;
+    const char *v = getenv("CONSPH_MEMORY_LIMIT");
+    if (v && *v) {
+        char *end;
+        double x = strtod(v, &end);
+        double unit = *end == 'K'   ? 1024.0
+                      : *end == 'M' ? 1048576.0
+                      : *end == 'G' ? 1073741824.0
+                                    : 1.0;
+        if (unit > 1.0) ++end;
+        if (end == v || *end || !(x > 0.0) || !isfinite(x))
+            return consph_fail(CONSPH_EINVAL,
+                               "CONSPH_MEMORY_LIMIT='%s' is not a size; allowed: bytes with an "
+                               "optional K, M or G, e.g. 2G",
+                               v);
+        c = x * unit;
+    }
+    const double a = memory_available();
+    if (cap) *cap = c;
+    if (available) *available = a;
+    *limit = fmin(c, a);
+    return CONSPH_OK;
 }
 
 const char *consph_mass_origin_name(consph_mass_origin origin)
