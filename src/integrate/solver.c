@@ -811,15 +811,15 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
      * exact() of such a problem is its initial state, evaluated for nothing. */
     const int errors = s->prob->has_exact || s->t == 0.0;
     /* kept between calls: a fresh allocation every step costs page faults on a hot path */
-    if (s->diag_cap < 8 * n) {
-        double *nw = realloc(s->diag_buf, 8 * (n ? n : 1) * sizeof(double));
+    if (s->diag_cap < 7 * n) {
+        double *nw = realloc(s->diag_buf, 7 * (n ? n : 1) * sizeof(double));
         if (!nw) return consph_fail(CONSPH_ENOMEM, "out of memory");
         s->diag_buf = nw;
-        s->diag_cap = 8 * n;
+        s->diag_cap = 7 * n;
     }
     double *w = s->diag_buf;
     double *eu = w, *ep = w + n, *ke = w + 2 * n, *mx = w + 3 * n, *my = w + 4 * n, *an = w + 5 * n,
-           *fx = w + 6 * n, *ax = w + 7 * n;
+           *fx = w + 6 * n;
     const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]), yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
@@ -838,8 +838,7 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
         an[i] = m * ((x[0] - xc) * uy - (x[1] - yc) * ux);
         /* 001's authors sum m·a of the whole acceleration (taylor_green.py, post_process:
          * sum(m*au)); the maximum is of the acceleration itself (docs/schemes.md) */
-        ax[i] = fa->data[i];
-        fx[i] = m * ax[i];
+        fx[i] = m * fa->data[i];
     }
     const double inv_n = n ? 1.0 / (double)n : 0.0;
     if (errors) {
@@ -855,7 +854,7 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
     g->mom[0] = consph_sum(mx, n);
     g->mom[1] = consph_sum(my, n);
     g->ang = consph_sum(an, n);
-    double fmax = max_abs(ax, n);
+    double fmax = max_abs(fa->data, n); /* component 0: a_x */
     g->ft_fmax = fmax > 0.0 ? consph_sum(fx, n) / fmax : 0.0;
     g->max_divu = max_abs(fd->data, n);
     (void)d;
