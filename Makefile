@@ -58,7 +58,7 @@ FUZZ_TARGETS ?= csv vtu inflate cli study
 FUZZ_FLAGS   ?= -g -O1 -std=c11 -D_DEFAULT_SOURCE -fsanitize=fuzzer,address,undefined \
                 -fno-sanitize-recover=undefined -Iinclude -Isrc -Iapps
 FUZZ_SOURCES  = $(wildcard src/core/*.c src/io/*.c) apps/cli.c
-FUZZ_SOURCES_ALL = $(wildcard src/*/*.c)
+FUZZ_SOURCES_ALL = $(wildcard src/*/*.c src/*/*/*.c)
 
 fuzz:
 	@command -v $(FUZZ_CC) >/dev/null || { echo "make fuzz needs clang with libFuzzer (Debian: clang, libclang-rt-dev)" >&2; exit 1; }

@@ -1,4 +1,4 @@
-/* Particle regularisation (src/schemes/regularise.c): χ_o, IPST, the shifting of Sun et al.,
+/* Particle regularisation (src/regularise/regularise.c): χ_o, IPST, the shifting of Sun et al.,
  * reg_move and M4 remeshing, each against a property it must have. */
 #include <math.h>
 #include <stdlib.h>
@@ -10,7 +10,7 @@
 #include "check.h"
 #include "consph/layout.h"
 #include "layout/layout_internal.h"
-#include "schemes/regularise.h"
+#include "regularise/regularise.h"
 
 static const double hdx = 1.2;
 

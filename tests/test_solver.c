@@ -11,7 +11,7 @@
 #include "check.h"
 #include "consph/io.h"
 #include "consph/solver.h"
-#include "schemes/solver_internal.h"
+#include "solver/solver_internal.h"
 
 static void set_threads(int t)
 {

@@ -6,7 +6,7 @@
 
 #include "check.h"
 #include "consph/solver.h"
-#include "schemes/solver_internal.h"
+#include "solver/solver_internal.h"
 
 static consph_run_params params(const char *scheme, int nx)
 {

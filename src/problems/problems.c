@@ -3,7 +3,7 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "schemes/solver_internal.h"
+#include "solver/solver_internal.h"
 
 /* Taylor-Green vortex, 001 eq. 25, on the periodic unit square: b = -8π²/Re. */
 static void taylor_green(const consph_run_params *prm, double t, const double x[3], double u[3],

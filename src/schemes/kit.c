@@ -12,7 +12,7 @@
 #include <string.h>
 
 #include "ops/ops_internal.h"
-#include "schemes/solver_internal.h"
+#include "solver/solver_internal.h"
 
 typedef struct kit_job {
     const kit_req *rq;

@@ -19,7 +19,7 @@
 #include <math.h>
 #include <string.h>
 
-#include "schemes/solver_internal.h"
+#include "solver/solver_internal.h"
 
 #define SF_NUMD "numden" /* V_i = Σ_j W_ij (tvf, edac) */
 #define SF_RHOS "rhos"   /* ϱ_i = m V_i, the summation density of the last right-hand side */

@@ -20,8 +20,8 @@
 #include <string.h>
 
 #include "ops/terms.h"
-#include "schemes/regularise.h"
-#include "schemes/solver_internal.h"
+#include "regularise/regularise.h"
+#include "solver/solver_internal.h"
 
 #define SF_GRADRHO_L "gradrho_l" /* ⟨∇ρ⟩^L, d */
 

@@ -1,7 +1,7 @@
 /* Particle regularisation: IPST (001 eqs. 19-21), the shifting of Sun et al. (δ+-SPH) and M4
  * remeshing (001 eqs. 32-33). Every pair sum is a pass; the choices and their sources are in
  * docs/schemes.md, section "Regularisation". */
-#include "schemes/regularise.h"
+#include "regularise/regularise.h"
 
 #include <math.h>
 #include <stdlib.h>

@@ -8,8 +8,8 @@
  * the caller re-sorts at the start of a time step only, so arrays it holds in particle order
  * (gradients for the Taylor update of 001 eq. 22) stay valid across the call. Results do not
  * depend on the thread count. */
-#ifndef CONSPH_SCHEMES_REGULARISE_H
-#define CONSPH_SCHEMES_REGULARISE_H
+#ifndef CONSPH_REGULARISE_H
+#define CONSPH_REGULARISE_H
 
 #include "consph/pass.h"
 

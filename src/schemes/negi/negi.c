@@ -11,8 +11,8 @@
 #include <stdio.h>
 #include <string.h>
 
-#include "schemes/regularise.h"
-#include "schemes/solver_internal.h"
+#include "regularise/regularise.h"
+#include "solver/solver_internal.h"
 
 enum {
     T_EULER = 1u << 0,    /* -(u·∇)u, and -u·∇ϱ unless T_NO_ADV_Q */

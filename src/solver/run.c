@@ -11,8 +11,8 @@
 #include <unistd.h>
 
 #include "consph/io.h"
-#include "integrate/runfiles.h"
-#include "schemes/solver_internal.h"
+#include "solver/runfiles.h"
+#include "solver/solver_internal.h"
 
 void consph_run_summary_json(FILE *fp, const consph_run_summary *s)
 {

@@ -4,8 +4,8 @@
  * State lives in named fields of the system's particles, so that re-sorting the particles into
  * cell order at the start of a step carries everything with them (and a checkpoint of the
  * particle set is the whole state). Field names are the SF_* macros below. */
-#ifndef CONSPH_SCHEMES_SOLVER_INTERNAL_H
-#define CONSPH_SCHEMES_SOLVER_INTERNAL_H
+#ifndef CONSPH_SOLVER_SOLVER_INTERNAL_H
+#define CONSPH_SOLVER_SOLVER_INTERNAL_H
 
 #include "consph/pass.h"
 #include "consph/solver.h"
@@ -98,12 +98,12 @@ typedef struct scheme_def {
 } scheme_def;
 
 const scheme_def *scheme_find(const char *name);
-/* The schemes of 001 §5.1 and §5.4 (schemes.c). */
+/* The schemes of 001 §5.1 and §5.4 (src/schemes/negi/negi.c). */
 extern const scheme_def scheme_l_ipst_c, scheme_l_ipst_f, scheme_l_ipst_k, scheme_l_pst_c,
     scheme_pe_ipst_c, scheme_l_rr_c, scheme_tv_c, scheme_e_c, scheme_ewcsph;
-/* The established weakly-compressible schemes (rival_wc.c). */
+/* The established weakly-compressible schemes (src/schemes/pysph/pysph.c). */
 extern const scheme_def scheme_wcsph, scheme_tvf, scheme_edac;
-/* The δ-SPH family (delta_sph.c). */
+/* The δ-SPH family (src/schemes/delta/delta.c). */
 extern const scheme_def scheme_delta_sph, scheme_delta_plus_sph, scheme_delta_plus_sph_d;
 size_t scheme_count(void);
 

@@ -1,8 +1,8 @@
 /* The files of a run, shared by every solver (the WCSPH run of run.c, the heat run of
- * src/problems/heat.c): paths in the output directory, snapshots indexed by run.pvd, the per-step
+ * src/heat/heat.c): paths in the output directory, snapshots indexed by run.pvd, the per-step
  * log and the JSON summary, each written to a temporary name and renamed when complete. */
-#ifndef CONSPH_INTEGRATE_RUNFILES_H
-#define CONSPH_INTEGRATE_RUNFILES_H
+#ifndef CONSPH_SOLVER_RUNFILES_H
+#define CONSPH_SOLVER_RUNFILES_H
 
 #include <stdio.h>
 

@@ -9,9 +9,9 @@
 #include <time.h>
 #include <unistd.h>
 
-#include "integrate/runfiles.h"
-#include "schemes/regularise.h"
-#include "schemes/solver_internal.h"
+#include "solver/runfiles.h"
+#include "regularise/regularise.h"
+#include "solver/solver_internal.h"
 
 void consph_run_params_default(consph_run_params *prm)
 {

@@ -1,5 +1,5 @@
 /* The files every run writes (runfiles.h). */
-#include "integrate/runfiles.h"
+#include "solver/runfiles.h"
 
 #include <math.h>
 #include <stdlib.h>

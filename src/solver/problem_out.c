@@ -15,7 +15,7 @@
 
 #include "consph/io.h"
 #include "io/outfile_internal.h"
-#include "schemes/solver_internal.h"
+#include "solver/solver_internal.h"
 
 static char *join(const char *dir, const char *name)
 {

@@ -10,7 +10,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#include "schemes/solver_internal.h"
+#include "solver/solver_internal.h"
 
 #define META_MAX 4096
 /* 2: wcsph/edac default to pec and tvf's kdk reuses its rates, and rho_init was added; a

@@ -11,7 +11,7 @@
 #include "consph/ops.h"
 #include "consph/pass.h"
 #include "consph/solver.h"
-#include "integrate/runfiles.h"
+#include "solver/runfiles.h"
 #include "ops/terms.h"
 
 #define HEAT_DIM 2
