@@ -3,6 +3,8 @@
 # built from main and one from the branch) and compares summary.json (all but "seconds"),
 # log.csv and every snapshot byte for byte.
 #   bench/bitcheck.sh REF_CONSPH NEW_CONSPH [WORKDIR]
+# REF_CONSPH may instead be the "ref" directory of an earlier bitcheck's WORKDIR, whose results
+# are then reused (the reference binary's runs are the same every time).
 # Cases, each at 1 and 2 threads (nx 48: 2304 particles, above the 2048 at which passes go
 # parallel): Taylor-Green 20 steps (the Lagrangian schemes from their packed start, IPST every
 # 10 steps), Gresho-Chan and the shear layer 10 steps on the lattice; and for wcsph, tvf and edac
@@ -12,7 +14,13 @@ set -uo pipefail
 ref=${1:?usage: bitcheck.sh REF_CONSPH NEW_CONSPH [WORKDIR]}
 new=${2:?usage: bitcheck.sh REF_CONSPH NEW_CONSPH [WORKDIR]}
 work=${3:-$(mktemp -d)}
-mkdir -p "$work/ref" "$work/new" || exit 2
+mkdir -p "$work/new" || exit 2
+if [ -d "$ref" ]; then
+  refdir=$ref
+else
+  refdir=$work/ref
+  mkdir -p "$refdir" || exit 2
+fi
 schemes="l-ipst-c l-ipst-f l-ipst-k l-pst-c pe-ipst-c l-rr-c tv-c e-c ewcsph wcsph tvf edac delta-sph delta-plus-sph delta-plus-sph-d"
 
 run_all() { # BIN DIR
@@ -36,10 +44,10 @@ run_all() { # BIN DIR
   done
 }
 
-run_all "$ref" "$work/ref"
+[ -d "$ref" ] || run_all "$ref" "$refdir"
 run_all "$new" "$work/new"
 bad=0 cases=0
-for d in "$work"/ref/*/; do
+for d in "$refdir"/*/; do
   n=$(basename "$d")
   cases=$((cases + 1))
   if ! diff <(grep -v '"seconds"' "$d/summary.json") <(grep -v '"seconds"' "$work/new/$n/summary.json" 2>/dev/null) >/dev/null; then
