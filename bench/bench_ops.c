@@ -199,7 +199,7 @@ int main(int argc, char **argv)
     int st = 0;
     st |= bench_case(quick ? "2D 200^2" : "2D 500^2", 2, quick ? 200 : 500, 3);
     st |= bench_case(quick ? "3D 40^3" : "3D 100^3", 3, quick ? 40 : 100, 1);
-    printf("goal (issue #3): 3e8 pair evaluations/s/core for function standard; pairs/cpu_s is "
+    printf("goal: 3e8 pair evaluations/s/core for function standard; pairs/cpu_s is "
            "the per-core rate on a shared machine\n");
     if (st) fprintf(stderr, "bench_ops: %s\n", consph_last_error());
     return st;

@@ -1,4 +1,4 @@
-/* Cost of every scheme of issue 14 on Taylor-Green: seconds per particle-step, pair evaluations
+/* Cost of every scheme on Taylor-Green: seconds per particle-step, pair evaluations
  * per second per core, passes per stage beside the minimum the scheme's equations need, and the
  * peak memory, at nx = 100 and 250 with 1 and 2 threads.
  *

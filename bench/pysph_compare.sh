@@ -1,5 +1,5 @@
 #!/bin/sh
-# consph against PySPH 1.0b1 on Taylor-Green (issue 15, "Agreement with PySPH"): the same scheme,
+# consph against PySPH 1.0b1 on Taylor-Green: the same scheme,
 # particles and parameters in both codes (lattice, Re 100, c_o 10, quintic, h/Δs 1.2, t = 0.5,
 # Δt = 0.25 h/(c_o + U)), PySPH's three error measures computed from both outputs by
 # bench/pysph_errors.py, and the time per particle-step of both codes from the difference of two

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # `make demo`: the quick Taylor-Green convergence of L-IPST-C against E-C and EWCSPH (001 Table 9
 # cut to 20-40 particles per side and t = 0.1: the error table with measured orders, and the SVG
-# figure), after a short tour of the foundation — the kernel catalogue, one kernel tabulated,
+# figure), after a short tour of the foundation — the list of kernels, one kernel tabulated,
 # the particle layouts and a second-order operator. Writes into out/demo/.
 set -euo pipefail
 consph=${1:-build/consph}

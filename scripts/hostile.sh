@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# The hostile tester's matrix of issue "Hardening II": each case is a command line that a user
+# The hostile tester's matrix: each case is a command line that a user
 # might type, the exit status it must give, and what else must hold (a message, a file left or
 # not). Prints one row per case and the totals; exits 1 if any case misbehaves.
 #   bash scripts/hostile.sh build/consph

@@ -21,7 +21,7 @@ grep -q "warning: nx = 12: packing stopped at --pack-iter 20" "$tmp/perr" || bad
 grep -q warning "$tmp/p.csv" && bad "warning on stdout"
 "$consph" approx --op function --layout packed --nx 12 --format csv >/dev/null 2>"$tmp/perr2" || bad "packed default exit $?"
 grep -q warning "$tmp/perr2" && bad "warning although the packing converged: $(cat "$tmp/perr2")"
-# Refused before any work with exit 2 where `layout` refuses too (issue 23 item 12): a packed
+# Refused before any work with exit 2 where `layout` refuses too: a packed
 # layout in a box that is not periodic, and particle files whose spacing no kernel can hold.
 for per in no x; do
   "$consph" approx --op grad --layout packed --periodic $per --nx 10 >"$tmp/o" 2>"$tmp/e"; rc=$?

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A disk that fills during a write (issue 23, item 4): the command exits 1 with one line naming
+# A disk that fills during a write: the command exits 1 with one line naming
 # the file and the reason, "cannot write 'PATH': No space left on device", and leaves neither the
 # file nor a temporary. The disk is a 64 KiB tmpfs, so this needs root (mount); skipped without.
 # Usage: cli_disk_full.sh <path-to-consph> <source-dir>

@@ -45,7 +45,7 @@ grep -q "warning: dt = 0.00204545 is above the viscous stability bound 0.125 h^2
 # the default Δt is at the acoustic bound, not above it: no warning
 "$consph" run taylor-green --scheme e-c --nx 16 --steps 1 >/dev/null 2>"$tmp/err" || bad "default: exit $?"
 [ -s "$tmp/err" ] && bad "default dt: a warning: $(cat "$tmp/err")"
-# the issue's case: tvf with dt 1e6 ended at (0, 0) with KE 6e22 and exit 0
+# the case that prompted this check: tvf with dt 1e6 ended at (0, 0) with KE 6e22 and exit 0
 expect_stop "tvf dt 1e6" "Mach number" taylor-green --scheme tvf --nx 8 --dt 1e6 --steps 5
 
 # --- kinetic energy: wcsph at 4.4 times its default Δt gained energy step by step (1e142 at

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# Issue 24 items 1 and 7: `consph run --error authors` reports the measure of 001's authors
+# `consph run --error authors` reports the measure of 001's authors
 # beside eq. 26 (table and JSON; the default run's JSON has no such keys); a bad --error is
 # refused with exit 2 naming the allowed values; a run study with `error = authors` reports both
 # (eq. 26 columns in its table and CSV); a quick study's title says the t_f and resolutions it

@@ -160,7 +160,7 @@ expect_usage_error --kernel --kind packed --dim 2 --nx 8 --kernel nonsense --out
 expect_usage_error --kernel --kind packed --dim 2 --nx 8 --kernel m4 --hdx 1 --out p.vtu
 expect_usage_error --nx --kind lattice --dim 3 --nx 5000 --out p.vtu
 
-# One particle without periodic images has no spacing: n/a, not inf and -nan (issue 23 item 12).
+# One particle without periodic images has no spacing: n/a, not inf and -nan.
 printf 'x,y\n0.5,0.5\n' >"$work/one.csv"
 "$bin" layout --in "$work/one.csv" --box 0:1,0:1 >"$work/one.out" 2>&1 || bad "one particle: exit $?"
 grep -qi 'nan\|inf' "$work/one.out" && bad "one particle: $(cat "$work/one.out")"

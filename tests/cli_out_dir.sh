@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# An output directory that cannot be written is refused before any work (issue 23, item 8):
+# An output directory that cannot be written is refused before any work:
 # `run` (WCSPH, heat, restart), `layout` and `study` exit 2 with one line naming --out, for
 # directories that exist but take no files (/proc/self, /sys/kernel: for root too, where
 # access() says yes), a path under a regular file, a directory without write permission

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# consph approx/study --particles (issue 9).
+# consph approx/study --particles.
 # 1. Round trip: `consph layout ... --out FILE` then `consph approx --particles FILE` prints the
 #    same numbers, to the last printed digit, as the equivalent `--layout` run (every column but
 #    seconds), for every layout kind in 2D and 3D, through CSV and VTU.

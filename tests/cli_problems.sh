@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# consph run on the problems of issue 15: gresho-chan writes profile.csv (u_φ(r) against eq. 37)
+# consph run on gresho-chan and shear-layer: gresho-chan writes profile.csv (u_φ(r) against eq. 37)
 # and its momentum histories in log.csv; shear-layer reports its errors as n/a / null and exits 0,
 # and draws vorticity.png with gnuplot when it is installed; bad viscosity options exit 2.
 # Usage: bash cli_problems.sh PATH-TO-CONSPH

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# consph run with the established schemes (issue 15): every kernel name is a --kernel choice,
+# consph run with the established schemes: every kernel name is a --kernel choice,
 # the default kernel is the quintic (a run without --kernel equals one with --kernel quintic and
 # differs from --kernel cubic), --alpha is range-checked, and wcsph/tvf/edac run from the CLI
 # and restart bit for bit.

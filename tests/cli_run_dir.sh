@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# consph run's refusals before any work (issue 23 items 5, 7 and 9): a new run refuses an --out
+# consph run's refusals before any work: a new run refuses an --out
 # DIR holding another run's files unless --overwrite, which removes exactly those; a restart
 # continues only its own run's directory (run.id) and refuses a run.pvd that does not read back;
 # options that would do nothing in their combination are refused; a size past the stated limit

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A failed write on standard output is never exit 0 (issue 23, item 3): every command, its
+# A failed write on standard output is never exit 0: every command, its
 # --help, and consph's own --help and --version, run with stdout on /dev/full (every write fails
 # with ENOSPC), exit 1 with one line "consph[ COMMAND]: cannot write standard output: No space
 # left on device"; a command that fails for its own reason keeps its status (2 for bad usage).

@@ -20,10 +20,10 @@ order=$(grep '^| asym_bc ' "$d/grad.md" | cut -d'|' -f3 | awk '{print $1}')
 awk -v o="$order" 'BEGIN{exit !(o > 1.7 && o < 2.3)}' || bad "asym_bc order $order not within 0.3 of 2"
 grep -q '| asym_bc | .* | 2.0 |' "$d/grad.md" || bad "paper order not printed beside ours"
 # The sweep over h/dx gives 3 rows per kernel, and the density error of quintic at h/dx=1.2 on the
-# lattice is catalogue Z4's 5.62e-5.
+# lattice is the 5.62e-5 of docs/reference-values.md.
 [ "$(grep -c '^kernel=' "$d/density.csv")" = 6 ] || bad "density rows"
 z4=$(awk -F, '$1=="kernel=quintic" && $2==1.2 {print $13}' "$d/density.csv")
-awk -v e="$z4" 'BEGIN{exit !(e > 5.5e-5 && e < 5.75e-5)}' || bad "quintic h/dx=1.2 density error $z4, catalogue Z4 5.62e-5"
+awk -v e="$z4" 'BEGIN{exit !(e > 5.5e-5 && e < 5.75e-5)}' || bad "quintic h/dx=1.2 density error $z4, lattice sum 5.62e-5"
 # App. C: our sums agree with the closed form to 1e-12.
 awk -F, 'NR>1 { d=$3-$2; if (d<0) d=-d; e=$4-$2; if (e<0) e=-e; if (d>1e-12 || e>1e-12) exit 1 }' "$d/appc.csv" || bad "appc differs from closed form"
 # Bad study files: exit 2, one line naming the file and line.
@@ -37,7 +37,7 @@ printf 'study = broken\n[figure a]\nnx = 10\nop = grad\nform = nosuch\n' >"$tmp/
 grep -q "broken.study:5" "$tmp/err" || bad "bad form message lacks the line: $(cat "$tmp/err")"
 [ -e "$tmp/o2" ] && bad "a rejected study created output"
 "$consph" study no-such-study >/dev/null 2>&1; [ $? = 2 ] || bad "unknown study name"
-# Keys that would be ignored, lists with holes, conflicting keys (issue 23 item 10): exit 2
+# Keys that would be ignored, lists with holes, conflicting keys: exit 2
 # naming file:line, before any work. Each case: the body after the study line, the line expected.
 while IFS='|' read -r body where; do
   printf "study = broken\n$body" >"$tmp/broken.study"
@@ -59,7 +59,7 @@ CASES
 "$consph" study "$src/tests/data/engine.study" --quick --out "$tmp/plainfile/results" >/dev/null 2>"$tmp/err"; rc=$?
 [ $rc = 2 ] || bad "unwritable --out: exit $rc"
 grep -q "option --out: cannot write results under" "$tmp/err" || bad "unwritable --out message: $(cat "$tmp/err")"
-# ---- study files are data, never code (issue 12) ----
+# ---- study files are data, never code ----
 # A small study: NAME from the file name, a figure titled TITLE with two series.
 mini() { # mini FILE TITLE [EXTRA-LINES]
   printf 'study = %s\n[figure a]\ntitle = %s\nnx = 8,12\n%s\n[series s1]\n[series s2]\ncorr = none\n' \

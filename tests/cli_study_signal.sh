@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# A study stopped by SIGTERM or SIGINT while gnuplot draws (issue 23, item 6): the gnuplot child
+# A study stopped by SIGTERM or SIGINT while gnuplot draws: the gnuplot child
 # is killed and reaped, its temporary SVG goes, and the study directory the run created goes too
 # (as after a failure), with exit status 128 + signal; a directory that existed before stays,
 # without temporaries. gnuplot is a fake first on PATH that starts its output and then sleeps, so

@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# consph wasserstein (issue 17) on particle files:
+# consph wasserstein on particle files:
 # 1. Known answers: a 1D lattice and its translate (W1 = W2 = |shift|, CSV against VTU); masses
 #    from the m column, from volume*rho, and equal weights (each changes the answer as it must);
 #    a 2D translate by Sinkhorn (within its own bound) and by the sliced distance (SW2 = |s|/√2
@@ -141,8 +141,8 @@ rejects "$work/l.csv $work/l.csv --smooth cubic" "option --grid: needed"
 rejects "$work/l.csv $work/l.csv --hdx 2" "only with --smooth"
 rejects "$work/l.csv uniform --grid 10 --smooth nosuch" "allowed: cubic"
 rejects "$work/l.csv uniform --grid 0" "1..100000000"
-# Options the chosen method does not read are refused, naming the option and the method
-# (issue 23 item 9); l.csv is 1D (default exact), r.csv 2D (default sliced).
+# Options the chosen method does not read are refused, naming the option and the method;
+# l.csv is 1D (default exact), r.csv 2D (default sliced).
 rejects "$work/r.csv $work/rs.csv --method sliced --eps 1e-2" "option --eps: only with --method sinkhorn; the method here is sliced,"
 rejects "$work/r.csv $work/rs.csv --tol 1e-3" "option --tol: only with --method sinkhorn; the method here is sliced (the default)"
 rejects "$work/r.csv $work/rs.csv --max-iter 10" "option --max-iter: only with --method sinkhorn"
@@ -153,9 +153,9 @@ rejects "$work/l.csv $work/shift.vtu --method exact --eps 1e-2" "option --eps: o
 rejects "$work/l.csv $work/shift.vtu --method sliced --seed 2" "option --seed: the particles are 1D"
 rejects "$work/l.csv $work/shift.vtu --grid 10" "option --grid: only with --smooth KERNEL or B = uniform"
 
-# ---- 4. costs (issue 23 item 13) ----------------------------------------------------------
+# ---- 4. costs ----------------------------------------------------------------------------
 # What cannot fit in memory is refused before any work, naming --grid (or the files), the
-# estimate and the limit; CONSPH_MEMORY_LIMIT lowers the cap. Issue 23's case: 2D against a
+# estimate and the limit; CONSPH_MEMORY_LIMIT lowers the cap. The case behind it: 2D against a
 # uniform grid of 10000² cells, 8 to 11 GB on 1 or 2 threads, over the 4 GiB cap.
 rejects "$work/r.csv uniform --grid 10000" "option --grid: 10000 cells per axis (1e+08 cells in 2D) need about .* GB.*the limit is"
 CONSPH_MEMORY_LIMIT=1M rejects "$work/r.csv uniform --grid 300" "option --grid: 300 cells per axis .*the limit is 1.0 MB"

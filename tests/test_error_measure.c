@@ -1,4 +1,4 @@
-/* The error measure of 001's authors (--error authors, issue 24 item 1): on small Taylor-Green
+/* The error measure of 001's authors (--error authors): on small Taylor-Green
  * runs the reported mean over the output times equals the normalised errors computed here by
  * hand from the particles at those times (the exact solution written out again, not consph's);
  * --tf runs land on the output times, t = 0 included; --steps runs sample each output step

@@ -1,7 +1,8 @@
 /* The heat-conduction solver of 002 §6 (include/consph/heat.h): the exact series against the
- * catalogue's reference values (Z8), S4's exactness on the steady state T = y (002 eq. 40: exact
- * for quadratics), S4 against S3 at η = 1.5, Dirichlet walls that never change, the time steps
- * landing on t = 0.1, and results independent of the thread count. */
+ * reference values of docs/reference-values.md ("Heat exact solution"), S4's exactness on the
+ * steady state T = y (002 eq. 40: exact for quadratics), S4 against S3 at η = 1.5, Dirichlet walls
+ * that never change, the time steps landing on t = 0.1, and results independent of the thread
+ * count. */
 #include <math.h>
 #include <string.h>
 
@@ -14,7 +15,8 @@ static const double *field(const consph_particles *p, const char *name)
     return f ? f->data : NULL;
 }
 
-/* Catalogue Z8: 002 eq. 43 at t = 0.1 (2000 terms there; ours stop at a 1e-14 term bound). */
+/* docs/reference-values.md, "Heat exact solution": 002 eq. 43 at t = 0.1 (2000 terms there; ours
+ * stop at a 1e-14 term bound). */
 static void test_series(void)
 {
     static const double z8[][3] = {{0.5, 0.5, 0.1550614991},
@@ -28,7 +30,7 @@ static void test_series(void)
         CHECK_NEAR(T, z8[k][2], 1e-9, "T(%g, %g, 0.1)", z8[k][0], z8[k][1]);
         CHECK(terms > 0 && terms < 20, "%d terms", terms);
     }
-    /* the steady state sinh(πy)/sinh(π) sin(πx) at late times (Z8: 0.1992684077 at the centre) */
+    /* the steady state sinh(πy)/sinh(π) sin(πx) at late times (0.1992684077 at the centre) */
     CHECK_NEAR(consph_heat_exact(CONSPH_HEAT_WALLS_SIN, 1.0, 0.5, 0.5, 50.0, NULL), 0.1992684077,
                1e-9, "steady state");
     /* walls and the initial state */
@@ -123,7 +125,7 @@ static void test_s4_beats_s3(void)
     CHECK(s4.l2 < 0.1 * s3.l2, "l2 S4 %.3e vs S3 %.3e", s4.l2, s3.l2);
     CHECK(s4.linf < s3.linf, "linf S4 %.3e vs S3 %.3e", s4.linf, s3.linf);
     CHECK(wb3 == 0 && wb4 == 0, "wall values changed (%d, %d)", wb3, wb4);
-    /* the run lands on t = 0.1: Δ = 1/19, Δt = 0.2Δ², 180 full steps and a shorter one (Z9) */
+    /* the run lands on t = 0.1: Δ = 1/19, Δt = 0.2Δ², 180 full steps and a shorter one */
     CHECK(s4.t == 0.1, "t = %.17g", s4.t);
     CHECK(s4.steps == 181, "%ld steps", s4.steps);
     CHECK_NEAR(s4.dt, 0.2 / (19.0 * 19.0), 1e-15, "dt");

@@ -1,6 +1,6 @@
 /* Particle readers: bitwise round trips through the writers, the .vtu encodings VTK writes
  * (fixtures made by VTK 9.1's vtkXMLUnstructuredGridWriter in fuzz/corpus/vtu/), every bad-file
- * case of issue 9 with its message, the zlib decoder, and a replay of the fuzz corpus and of
+ * case with its message, the zlib decoder, and a replay of the fuzz corpus and of
  * every crash kept in fuzz/regressions/ through the fuzz entry points. */
 #include <dirent.h>
 #include <math.h>

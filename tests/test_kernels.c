@@ -2,7 +2,7 @@
  * constants are not trusted), derivatives against finite differences, the edge smoothness beta
  * measured from the shape near the support edge, continuity at the spline breakpoints, the M4
  * tensor product and its polynomial reproduction, name lookup and argument validation.
- * Prints the table of |∫W dV - 1| that the issue note quotes. */
+ * Prints the table of |∫W dV - 1|. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
@@ -110,7 +110,8 @@ static double truncated_tail(consph_kernel_id id, int d)
     return c * ((1.0 + 0.5 * d) * gauss_tail_moment(d - 1) - gauss_tail_moment(d + 1));
 }
 
-/* Catalogue Z1: integrals of the truncated kernels, and the precision they are given to. */
+/* docs/reference-values.md, "Kernel integrals": integrals of the truncated kernels, and the
+ * precision they are given to. */
 static const double z1_gaussian[3] = {0.9999779, 0.9998766, 0.9995602};
 static const double z1_supergauss[3] = {1.000187, 1.000987, 1.003320};
 
@@ -125,9 +126,10 @@ static void test_normalisation(double err_table[CONSPH_KERNEL_COUNT][3])
             const char *name = k.name;
             if (id == CONSPH_KERNEL_GAUSSIAN || id == CONSPH_KERNEL_SUPER_GAUSSIAN) {
                 const double *z1 = id == CONSPH_KERNEL_GAUSSIAN ? z1_gaussian : z1_supergauss;
-                /* Z1 rounds to 7 (Gaussian) and 6 (super-Gaussian) decimals. */
+                /* They are rounded to 7 (Gaussian) and 6 (super-Gaussian) decimals. */
                 double tol = id == CONSPH_KERNEL_GAUSSIAN ? 5e-8 : 5e-7;
-                CHECK_NEAR(integral, z1[d - 1], tol, "%s %dD truncated integral vs Z1", name, d);
+                CHECK_NEAR(integral, z1[d - 1], tol, "%s %dD truncated integral vs reference", name,
+                           d);
                 CHECK_NEAR(integral + truncated_tail(id, d), 1.0, 1e-10,
                            "%s %dD untruncated integral", name, d);
             } else {
@@ -247,7 +249,7 @@ static void test_beta(void)
                 CHECK(info && beta == info->beta_001, "%s %dD: beta differs from info", k.name, d);
             }
         }
-    /* The values the catalogue (§A1.9) assigns under 001's definition. */
+    /* The values under 001's definition (after its eq. 3; docs/deviations.md). */
     const int expected[CONSPH_KERNEL_COUNT] = {3, 5, 0, 0, 3, 4, 6, 8, 4, 6, 8, 2};
     for (int id = 0; id < CONSPH_KERNEL_COUNT; ++id) {
         const consph_kernel_info *info = consph_kernel_info_get(id);

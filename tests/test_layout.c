@@ -226,7 +226,7 @@ static void test_quasi_random(void)
 static void test_stats(void)
 {
     /* Lattice with the quintic at h = 1.2Δs: every particle has the infinite-lattice density,
-     * whose error is |rho - 1| = 5.62e-5 (catalogue Z4; the density is below 1). */
+     * whose error is |rho - 1| = 5.62e-5 (docs/reference-values.md; the density is below 1). */
     consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_LATTICE, 2, 20);
     consph_particles p;
     consph_layout_stats st;
@@ -331,7 +331,7 @@ static void test_polished_2d(void)
            "mean %.3f "
            "max %.3f\n",
            ns.nn_min, ns.nn_mean, ns.nn_max, ns.nn_std, ns.disp_mean, ns.disp_max);
-    /* Glass-like, as the author's packed files (catalogue Z7: NN min 0.79-0.86, mean
+    /* Glass-like, as the authors' packed files (docs/reference-values.md: NN min 0.79-0.86, mean
      * 0.96-1.00; displacement mean 0.33-0.37): not a lattice, and no close pairs. */
     CHECK(ns.nn_min > 0.8, "no close pairs: NN min %.3f", ns.nn_min);
     CHECK(ns.nn_mean > 0.93 && ns.nn_mean < 1.0, "NN mean %.3f", ns.nn_mean);

@@ -1,5 +1,5 @@
 /* Every operator converges to the exact derivative of a smooth periodic field on an unperturbed
- * periodic lattice when h -> 0 with Δs/h -> 0 (catalogue §A10: kernel error O(h²) plus a
+ * periodic lattice when h -> 0 with Δs/h -> 0 (000 §2.3, 001 eq. 3: kernel error O(h²) plus a
  * discretisation error that vanishes with Δs/h).
  *
  * This catches sign, factor and index slips that exactness tests cannot see in the forms that

@@ -1,4 +1,4 @@
-/* The consistent-Shepard gradient (000 eqs. 65-67, ξ of catalogue Part C 000-5): agreement with
+/* The consistent-Shepard gradient (000 eqs. 65-67, ξ as in docs/deviations.md): agreement with
  * a brute-force O(N²) evaluation of the printed sums, the gradient of a constant, convergence on
  * a lattice, a bounded error on random particles, and independence of the thread count. */
 #include <math.h>

@@ -1,4 +1,5 @@
-/* Polynomial exactness of the consistent operators (catalogue Part D step 1, E2.5, Z11) on
+/* Polynomial exactness of the consistent operators (002's claims: F4 exact for linear
+ * fields, S4 for quadratics; docs/reference-values.md, "Second-derivative exactness") on
  * disordered particles: random (ε = 0.4) and packed layouts, quintic h = 1.2Δs and Wendland C4
  * with support h = 3.5Δs.
  *
@@ -212,7 +213,7 @@ static void run_case(setup *s)
     double e_f2 = max_err(s, CONSPH_OP_GRAD, CONSPH_FORM_F2, CONSPH_CORR_NONE, &lin);
     CHECK(e_f2 > 1e-6, "%s: F2 unexpectedly exact on linear (%.3e)", s->label, e_f2);
 
-    /* quadratics (Z11): ∇² of x², xy, y² and x² + 3xy - y² (and 3D analogues) */
+    /* quadratics: ∇² of x², xy, y² and x² + 3xy - y² (and 3D analogues) */
     poly quads[4];
     memset(quads, 0, sizeof quads);
     quads[0].H[0] = 2.0;                           /* x² */
@@ -242,7 +243,7 @@ static void run_case(setup *s)
         if (e > fc_worst) fc_worst = e;
     }
     /* 001 eq. 13 is the traced condition: exact only for ∇²(x² + y² + ...), so on x², y² and
-     * xy its error is O(1e-2) (Z11: 3e-2, 5e-2), far from round-off. */
+     * xy its error is O(1e-2) (docs/reference-values.md: 3e-2, 5e-2), far from round-off. */
     if (d > 1) /* in 1D the trace is the whole condition */
         CHECK(fc_worst > 1e-4, "%s: fatehi_c error on quadratics only %.3e", s->label, fc_worst);
     /* CSPM second derivatives (000 eqs. 31-32) take F' from eq. 29, which is exact only on

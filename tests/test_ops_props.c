@@ -1,6 +1,6 @@
 /* Structural properties of the operators: conservation of the symmetric forms, independence of
  * the thread count, the ill-conditioned fallback, name lookups, and the moment diagnostics on a
- * lattice against the catalogue's reference values (Z4). */
+ * lattice against the lattice sums of docs/reference-values.md. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -297,7 +297,8 @@ static void test_names(void)
 }
 
 /* On the unperturbed periodic lattice with ω = Δs², M0 - 1 is the lattice summation error of
- * catalogue Z4 (QS, h/Δs = 1.2: 5.62e-5), the odd moments vanish and Σ ω x_ji ⊗ ∇W = (1 + ε) I. */
+ * docs/reference-values.md (QS, h/Δs = 1.2: 5.62e-5), the odd moments vanish and
+ * Σ ω x_ji ⊗ ∇W = (1 + ε) I. */
 static void test_moments(void)
 {
     world w;
@@ -319,7 +320,7 @@ static void test_moments(void)
             eoff = fmax(eoff, fmax(fabs(g1[n + i]), fabs(g1[2 * n + i])));
             ediag = fmax(ediag, fabs(g1[i] - g1[3 * n + i]));
         }
-        CHECK(e0 < 5e-8, "|M0 - 1| differs from Z4's 5.62e-5 by %.3e", e0);
+        CHECK(e0 < 5e-8, "|M0 - 1| differs from the lattice sum 5.62e-5 by %.3e", e0);
         CHECK(e1 < 1e-15 && eg0 < 1e-12 && eoff < 1e-14 && ediag < 1e-14,
               "lattice moments: m1 %.3e g0 %.3e offdiag %.3e diag spread %.3e", e1, eg0, eoff,
               ediag);

@@ -1,4 +1,4 @@
-/* A failed write names the file and the reason (issue 23, item 4): consph_fdstream keeps the
+/* A failed write names the file and the reason: consph_fdstream keeps the
  * errno of the first failed write although glibc drops it, and consph_outfile_commit reports
  * "cannot write 'PATH': REASON", leaving neither the file nor its temporary behind. The disk is
  * made full by pointing the stream's descriptor at /dev/full, which fails every write with

@@ -1,4 +1,4 @@
-/* The problems of issue 15 and the δ-SPH family: every scheme runs 20 steps of Taylor-Green,
+/* The problems and the δ-SPH family: every scheme runs 20 steps of Taylor-Green,
  * Gresho-Chan and the shear layer at nx = 32 with finite values or stops with the divergence
  * message; Gresho-Chan starts from 001 eq. 37; the problems' defaults (inviscid Gresho-Chan);
  * errors of the shear layer are n/a; δ-SPH conserves momentum; thread-count independence. */

@@ -77,7 +77,7 @@ static void test_chi0(void)
     consph_kernel k;
     const double ds = 1.0 / 50.0;
     CHECK(consph_kernel_init(&k, CONSPH_KERNEL_QUINTIC, 2, hdx * ds) == CONSPH_OK, "kernel");
-    CHECK_NEAR(reg_chi0(&k, ds), 1.4399190, 1e-6, "catalogue Z5");
+    CHECK_NEAR(reg_chi0(&k, ds), 1.4399190, 1e-6, "chi_o, docs/reference-values.md");
     CHECK(isnan(reg_chi0(&k, 0.0)), "ds = 0 is refused");
 }
 

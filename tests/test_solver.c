@@ -1,4 +1,4 @@
-/* The WCSPH solver (issue 14): conservation on the lattice, restart and thread-count
+/* The WCSPH solver: conservation on the lattice, restart and thread-count
  * independence bit for bit, every scheme runs, the divergence and validity stops, L-IPST-C's
  * velocity order. */
 #include <math.h>
@@ -178,7 +178,7 @@ static void meta_edit(char *buf, size_t size, const char *meta, const char *key,
     }
 }
 
-/* A tampered metadata text is refused with a message naming the key (issue 23 item 11); through
+/* A tampered metadata text is refused with a message naming the key; through
  * a checkpoint file with a valid CRC, the message names the file too. */
 static void test_meta_refused(void)
 {
@@ -268,7 +268,7 @@ static void test_meta_refused(void)
     consph_solver_free(a);
 }
 
-/* The size cap of a run (issue 23 item 7): the stated limit, and the memory estimate against a
+/* The size cap of a run: the stated limit, and the memory estimate against a
  * given memory, each refusal naming --nx, the estimate and the limit. */
 static void test_size_cap(void)
 {

@@ -1,4 +1,4 @@
-/* The established schemes (issue 15): tvf's momentum conservation on disordered particles,
+/* The established schemes wcsph, tvf and edac: tvf's momentum conservation on disordered particles,
  * 20 finite steps of Taylor-Green for wcsph, tvf and edac, and edac against PySPH 1.0b1. */
 #include <math.h>
 #include <stdlib.h>

@@ -88,7 +88,8 @@ static void test_fields(void)
     CHECK(consph_mfield_lookup("nope", &id) == CONSPH_EINVAL, "unknown field");
 }
 
-/* 003 Table 2 (as corrected in catalogue Z1) and the bounds of Z2. */
+/* 003 Table 2 (as computed from 003 eq. 51, which corrects two entries) and the bounds of
+ * docs/reference-values.md. */
 static void test_bounds(void)
 {
     struct {
@@ -116,7 +117,7 @@ static void test_bounds(void)
         double aw = consph_bound_kernel_factor("wendland-c4:h", d);
         double b = consph_bound_interpolation(aw, d, consph_scaling_nnbr(z2[k].n),
                                               consph_scaling_h(z2[k].n));
-        CHECK_NEAR(b, z2[k].bound, 6e-4 * z2[k].bound + 5e-4, "Z2 bound %dD N=%g", d, z2[k].n);
+        CHECK_NEAR(b, z2[k].bound, 6e-4 * z2[k].bound + 5e-4, "bound %dD N=%g", d, z2[k].n);
     }
     CHECK_NEAR(consph_scaling_nnbr(1e6), 31528.7, 0.1, "scaling law 1000^2");
     CHECK_NEAR(consph_scaling_h(1e6), 0.1, 1e-12, "h = N^-1/6");

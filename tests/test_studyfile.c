@@ -1,4 +1,4 @@
-/* The study-file parser on hostile input (issue 12): names that become file names, duplicate
+/* The study-file parser on hostile input: names that become file names, duplicate
  * sections, bytes a line cannot hold; the timing repeats behind T_r; and a replay of the study
  * fuzz corpus and of every crash kept in fuzz/regressions/study/. */
 #include <dirent.h>
@@ -71,8 +71,8 @@ static void test_bytes(void)
     CHECK(parse(crlf, strlen(crlf)) == CONSPH_OK, "CRLF: %s", consph_last_error());
 }
 
-/* Keys no figure would read, lists with holes or repeats, and series without end (issue 23
- * item 10): each refused with its file:line. */
+/* Keys no figure would read, lists with holes or repeats, and series without end: each refused with
+ * its file:line. */
 static void test_ignored_keys(void)
 {
     /* Keys read once per figure are refused in a series. */

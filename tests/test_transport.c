@@ -377,14 +377,14 @@ static void count_cells(void *ctx, double done, double total)
     s->calls++;
 }
 
-/* The estimates behind `consph wasserstein`'s memory refusal and time note (issue 23 item 13),
+/* The estimates behind `consph wasserstein`'s memory refusal and time note,
  * and progress callbacks that report every iteration and block of cells without changing a
  * bit of the result. */
 static void test_estimates_and_progress(void)
 {
     consph_ot_options sl = method(CONSPH_OT_SLICED, 2), sk = method(CONSPH_OT_SINKHORN, 2);
-    /* 2D, 1600 particles against the uniform grid of 10000² cells: the 10.9 GB of issue 23 with
-     * 2 threads (grid copy and one projection buffer per thread). */
+    /* 2D, 1600 particles against the uniform grid of 10000² cells: the 10.9 GB that prompted the
+     * refusal, with 2 threads (grid copy and one projection buffer per thread). */
     consph_ot_estimate e = consph_wasserstein_estimate(&sl, 2, 1600, 1e8, 2);
     CHECK(e.bytes > 8e9 && e.bytes < 1.2e10, "sliced estimate %g bytes", e.bytes);
     consph_ot_estimate e1 = consph_wasserstein_estimate(&sl, 2, 1600, 1e8, 1);

@@ -2,7 +2,7 @@
  *
  * Convention: q = r/h and W(r, h) = sigma_d / h^d * f(q), with support radius `support`·h.
  * dW/dr = sigma_d / h^(d+1) * f'(q), d2W/dr2 = sigma_d / h^(d+2) * f''(q).
- * The meaning of h differs between papers (catalogue §A0): the Wendland kernels exist in both
+ * The meaning of h differs between papers (docs/deviations.md): the Wendland kernels exist in both
  * conventions, support 2h (001/PySPH, names "wendland-cN") and support h (002/003, names
  * "wendland-cN:h"). */
 #ifndef CONSPH_KERNELS_H

@@ -1,7 +1,8 @@
 /* consph layout: particle arrangements in a box.
  *
  * lattice       the unperturbed periodic (UP) Cartesian arrangement, cell-centred:
- *               x = lo + (i + 1/2) Δs (001 B1.0).
+ *               x = lo + (i + 1/2) Δs (001 §3's UP, cell-centred as in its authors'
+ *               later tool).
  * random        lattice plus eps·Δs·κ per coordinate, κ uniform in [-0.25, 0.25] (002 §6.2).
  * quasi-random  a low-discrepancy Halton fill of the box (003 §6.2).
  * packed        the perturbed-periodic (PP) arrangement of 001: a perturbed lattice relaxed
@@ -98,9 +99,9 @@ int consph_layout_stats_compute(const consph_particles *p, const char *kernel, d
                                 consph_layout_stats *st);
 
 /* The geometry of a particle set in units of its spacing Δs (p->spacing, or (V/N)^(1/dim) when
- * 0), the quantities catalogue Z7 lists for the author's packed files: the nearest-neighbour
- * distance of every particle (periodic aware) and the distance of every particle from the
- * nearest node of the cell-centred lattice lo + (i + 1/2) Δs. */
+ * 0), the quantities docs/reference-values.md lists for the authors' packed files: the
+ * nearest-neighbour distance of every particle (periodic aware) and the distance of every particle
+ * from the nearest node of the cell-centred lattice lo + (i + 1/2) Δs. */
 typedef struct consph_layout_nn_stats {
     double nn_min, nn_mean, nn_max, nn_std; /* nearest-neighbour distance / Δs */
     double disp_mean, disp_max;             /* distance to the nearest lattice node / Δs */

@@ -1,7 +1,8 @@
 /* consph ops: SPH particle operators (function, gradient, divergence, Laplacian and second
- * derivatives), their correction matrices and consistency diagnostics (catalogue §A2-§A7, §A9).
+ * derivatives), their correction matrices and consistency diagnostics (000 §2-§4, 001 §2-§4
+ * and App. A-C, 002 §2-§5, 003 §2).
  *
- * Conventions (catalogue §A0): x_ij = x_i - x_j, r = |x_ij|, e_ij = x_ij / r,
+ * Conventions (001 App. C, 002 eq. 15): x_ij = x_i - x_j, r = |x_ij|, e_ij = x_ij / r,
  * ∇W_ij = ∇_i W(|x_i - x_j|) = W'(r) e_ij, ω_j the volume of particle j. Every operator is a
  * gather: particle i sums over the neighbours j returned by consph_nnps_query_particle (which
  * include i itself at r = 0) and writes only to i, so results do not depend on the number of
@@ -12,11 +13,11 @@
  *
  * What each form returns: the pressure-gradient forms asym, sym1, sym2 and sym_s1 approximate
  * ∇p/ρ as 001 Table 2 writes them (ϱ = ρ = m/ω); every other gradient form approximates ∇f.
- * "cspm" is Shepard for the function and F4 for the gradient (the same operators, catalogue
- * §A4-§A5), and 000 eqs. 31-32 for the second derivatives, which take F' from F4 and so are
- * exact on quadratics only where the neighbourhood is point-symmetric. The correction "fatehi"
- * exists for the form "fatehi" only, where it gives the S4 scheme of 002 (exact on quadratics);
- * "fatehi_c" is 001's traced variant (exact only on the trace, e.g. ∇²|x|²).
+ * "cspm" is Shepard for the function and F4 for the gradient (the same operators, 000 eqs.
+ * 28-30 and 002 eqs. 5-6), and 000 eqs. 31-32 for the second derivatives, which take F' from F4 and
+ * so are exact on quadratics only where the neighbourhood is point-symmetric. The correction
+ * "fatehi" exists for the form "fatehi" only, where it gives the S4 scheme of 002 (exact on
+ * quadratics); "fatehi_c" is 001's traced variant (exact only on the trace, e.g. ∇²|x|²).
  *
  * Correction matrices (Bonet-Lok B, Liu/FPM L, Fatehi B̂, Korzilius Γ̃, CSPM, MSPH, IAD) are
  * computed in a pass of their own on first use and cached in the context (O(N·d²) memory). A
@@ -70,8 +71,8 @@ typedef enum consph_op_form {
     CONSPH_FORM_FPM,       /* "fpm": Liu-Liu FPM, 000 eqs. 33-36 = 001 eq. A.5 */
     CONSPH_FORM_MSPH,      /* "msph": Zhang-Batra MSPH, 000 §3.3 (f, ∇f, ∂²f together) */
     CONSPH_FORM_CSHEPARD,  /* "cshepard": consistent Shepard, 000 eqs. 59-64; gradient 000 eqs.
-                              65-67 with ξ_a = Σ_b ω_b c̃_b ∇W̃_ab (catalogue Part C 000-5), so
-                              ∇(const) = 0 exactly */
+                              65-67 with ξ_a = Σ_b ω_b c̃_b ∇W̃_ab (eq. 68's ξ is dimensionally
+                              inconsistent), so ∇(const) = 0 exactly */
     CONSPH_FORM_F1,        /* "f1": Σ ω_j u_j ∇W_ij, 002 eq. 2 */
     CONSPH_FORM_F2,        /* "f2": Σ ω_j (u_j - u_i) ∇W_ij, 002 eq. 3 */
     CONSPH_FORM_F3,        /* "f3": Σ ω_j (u_j + u_i) ∇W_ij, 002 eq. 4 */
@@ -94,7 +95,7 @@ typedef enum consph_op_form {
     CONSPH_FORM_COUPLED,   /* "coupled": 001 Table 4 (= s1_diff with G from asym_bc) */
     CONSPH_FORM_FATEHI,    /* "fatehi": 001 eq. C.8; with corr fatehi it is S4, 002 eqs. 40-41 */
     CONSPH_FORM_FATEHI_C,  /* "fatehi_c": 001 eqs. 13/C.10 (traced B̂; not exact on quadratics) */
-    CONSPH_FORM_KORZILIUS, /* "korzilius": 001 eqs. 14-15 with the fixes of catalogue §A7 */
+    CONSPH_FORM_KORZILIUS, /* "korzilius": 001 eqs. 14-15 with the fixes of docs/deviations.md */
     CONSPH_FORM_COUNT
 } consph_op_form;
 
@@ -148,8 +149,8 @@ int consph_volume_lookup(const char *name, consph_volume_kind *kind);
 struct consph_ops_cache; /* correction matrices, private to src/ops */
 
 /* Everything an operator needs. Mass comes from the field "mass" when present, otherwise
- * m_i = ρ0 V_box / N with ρ0 = 1 (catalogue B1.0: m = ρ0 Δs²); for CONSPH_VOLUME_GIVEN without
- * a "mass" field, m_i = ρ0 ω_i. `mass`, `rho` and `volume` are owned by the context. */
+ * m_i = ρ0 V_box / N with ρ0 = 1 (m = ρ0 Δs², which 001 leaves unstated); for CONSPH_VOLUME_GIVEN
+ * without a "mass" field, m_i = ρ0 ω_i. `mass`, `rho` and `volume` are owned by the context. */
 typedef struct consph_op_ctx {
     const consph_particles *p;
     const consph_nnps *nnps;
@@ -231,8 +232,8 @@ const double *consph_op_fatehi_c(consph_op_ctx *ctx, const unsigned char **bad);
 /* Boundary-integral derivatives on an interval (000 §3.4, eqs. 45-46, 1D only). The particles
  * of ctx are the interior particles b != 1, N; the interval is [box.lo, box.hi] and fA, fB are
  * the values at its ends (particles 1 and N of the paper, which carry no volume). Eq. 45 with
- * the catalogue's fix (the sum carries dW_ab/dx_a) and Γ_a = Σ_b ω_b W_ab. d1 or d2 may be
- * NULL. */
+ * the kernel derivative the printed sum lacks (dW_ab/dx_a, as eq. 43 implies) and
+ * Γ_a = Σ_b ω_b W_ab. d1 or d2 may be NULL. */
 int consph_op_boundary_1d(consph_op_ctx *ctx, const double *in, double fA, double fB, double *d1,
                           double *d2, consph_op_report *rep);
 
@@ -245,7 +246,7 @@ int consph_op_boundary_1d(consph_op_ctx *ctx, const double *in, double fA, doubl
 int consph_op_cshepard_factors(consph_op_ctx *ctx, double tol, int max_iter, double *ctilde,
                                int *iterations, double *lambda);
 
-/* ---- consistency diagnostics (catalogue §A2, §A9) ---- */
+/* ---- consistency diagnostics (000 eqs. 15-16, 001 Tables 3, 5) ---- */
 
 /* Per-particle discrete moments; any output may be NULL.
  * m0: Σ_j ω_j W_ij (1 comp); m1: Σ_j ω_j (x_j - x_i) W_ij (dim comps);

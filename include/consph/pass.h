@@ -13,8 +13,8 @@
  * Several quantities are fused in one pass by summing them in the same visit over the shared
  * pair geometry.
  *
- * Conventions (catalogue §A0): x_ij = x_i - x_j, ∇W_ij = ∇_i W(|x_i - x_j|) = dwr·x_ij with
- * dwr = W'(r)/r; at r = 0, dwr holds the limit W''(0), which keeps the kernel Hessian
+ * Conventions (001 App. C, 002 eq. 15): x_ij = x_i - x_j, ∇W_ij = ∇_i W(|x_i - x_j|) = dwr·x_ij
+ * with dwr = W'(r)/r; at r = 0, dwr holds the limit W''(0), which keeps the kernel Hessian
  * (W'' - W'/r) e e + (W'/r) I continuous and ∇W = 0 there.
  *
  * Passes are gathers: a visit writes only to particle nb->i. Particles are visited in parallel,

@@ -1,4 +1,5 @@
-/* Every smoothing kernel of the seed papers (catalogue §A1): shape functions f, f', f'' of
+/* Every smoothing kernel of the seed papers (001 Table 1, 002 eq. 47,
+ * 003 eqs. 55, 59-62, 000 eq. 58, 001 eq. 32): shape functions f, f', f'' of
  * q = r/h per kernel and per dimension, their normalisations sigma_d and the name table.
  *
  * The shape functions are plain static functions of q so that consph_kernel_init can pick one
@@ -285,7 +286,7 @@ SHAPE double wc6_1d_d2f(double q)
 }
 
 /* ---- Wendland, support 1 (002 eq. 47; 003 eqs. 55, 61, 62), t = 1 - q; same polynomial in
- * every dimension, the 1D constants are the catalogue's [I] values. ---- */
+ * every dimension; the papers give no 1D constants, these normalise f in 1D. ---- */
 SHAPE double wc2h_f(double q)
 {
     double v = pow4(1.0 - q) * (1.0 + 4.0 * q);
@@ -385,9 +386,9 @@ static const shape_set shape_table[CONSPH_KERNEL_COUNT][CONSPH_MAX_DIM] = {
     [CONSPH_KERNEL_M4] = SAME3(m4),
 };
 
-/* Normalisations: catalogue §A1 (Z1), each re-derived by quadrature in tests/test_kernels.c.
- * beta_001 is 001's edge smoothness, as catalogue §A1.9 resolves it (001's Table 1 disagrees
- * with its own text). */
+/* Normalisations: the papers' (the 1D ones derived), each re-derived by quadrature in
+ * tests/test_kernels.c. beta_001 is 001's edge smoothness, as the text after its eq. 3 defines it
+ * (001's Table 1 disagrees with that text; docs/deviations.md). */
 #define INV_SQRT_PI 0.56418958354775628 /* pi^(-1/2) */
 #define INV_PI_3_2 0.17958712212516656  /* pi^(-3/2) */
 static const consph_kernel_info info_table[CONSPH_KERNEL_COUNT] = {
@@ -481,7 +482,7 @@ static const consph_kernel_info info_table[CONSPH_KERNEL_COUNT] = {
                                      .beta_001 = 8,
                                      .sigma = {15.0 / 8.0, 78.0 / (7.0 * PI),
                                                1365.0 / (64.0 * PI)}},
-    /* 001 writes M4 as radial; the catalogue (§A1.7) decides for the usual tensor product. */
+    /* 001 eq. 32 writes M4 as radial; we use the usual tensor product (docs/deviations.md). */
     [CONSPH_KERNEL_M4] = {.id = CONSPH_KERNEL_M4,
                           .name = "m4",
                           .description = "M4' interpolating remeshing kernel, tensor product "

@@ -1,5 +1,6 @@
 /* Statistics of a particle set: summation-density spread, minimum pair distance,
- * nearest-neighbour distances and displacement from the lattice (catalogue Z7). */
+ * nearest-neighbour distances and displacement from the lattice (the quantities of
+ * docs/reference-values.md, "Packed files"). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -73,7 +74,7 @@ int consph_layout_stats_compute(const consph_particles *p, const char *kernel, d
     consph_kernel k;
     rc = consph_kernel_init(&k, id, p->dim, hdx * ds);
     if (rc) return rc;
-    /* 001 B1.0: m = rho0 Δs^d with rho0 = 1. */
+    /* m = rho0 Δs^d with rho0 = 1 (001 gives neither; docs/deviations.md). */
     const double rho0 = 1.0;
     double mass = rho0 * pow(ds, p->dim);
 

@@ -65,9 +65,9 @@ typedef struct op_rule {
     unsigned corr; /* bit c: correction c is valid */
 } op_rule;
 
-/* The triples the seed papers define (catalogue §A4-§A7): corrections apply where a paper
- * applies them; forms that carry their own correction (f4, fpm, msph, cspm, iad, sym_s1,
- * fatehi_c, korzilius) take "none". */
+/* The triples the seed papers define (001 Tables 2 and 4, App. A; 002 §2, §5; 000 §3-§4):
+ * corrections apply where a paper applies them; forms that carry their own correction (f4, fpm,
+ * msph, cspm, iad, sym_s1, fatehi_c, korzilius) take "none". */
 static const op_rule rules[] = {
     {CONSPH_OP_FUNCTION, CONSPH_FORM_STANDARD, N},
     {CONSPH_OP_FUNCTION, CONSPH_FORM_SHEPARD, N},

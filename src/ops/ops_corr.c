@@ -1,6 +1,6 @@
 /* Correction matrices, one pass each, cached per particle in the context.
  *
- * Sign conventions (catalogue §A0): x_ij = x_i - x_j (the search's dx), x_ji = -x_ij,
+ * Sign conventions (001 App. C, 002 eq. 15): x_ij = x_i - x_j (the search's dx), x_ji = -x_ij,
  * ∇W_ij = dwr * x_ij. A matrix that ops_invert rejects is replaced by its fallback (the
  * identity: the operator becomes the uncorrected one) and flagged. */
 #include <math.h>
@@ -135,7 +135,8 @@ static void visit_iad(mat_job *job, const ops_nbhd *nb)
     }
 }
 
-/* Fatehi-Manzari B̂ (002 eq. 40) in the catalogue's index form (§A7): with
+/* Fatehi-Manzari B̂ (002 eq. 40) in index form (002 leaves the index placement
+ * implicit; every tensor below is fully symmetric, so it does not matter): with
  * T4^{αβημ} = Σ ω r e^α e^β e^η ∂^μW, S3^{ημγ} = Σ ω e^η e^γ ∂^μW, R3^{αβδ} = Σ ω x^α x^β ∂^δW and
  * Q^{αβημ} = T4 + S3^{ημγ} B^{γδ} R3^{αβδ}, solve B̂^{ημ} Q^{αβημ} = -δ^{αβ} for symmetric B̂
  * (P unknowns, one equation per symmetric pair αβ). */
@@ -188,7 +189,7 @@ static void visit_fatehi(mat_job *job, const ops_nbhd *nb)
 }
 
 /* 001 eq. 13 (= C.13): B̂ = -(L2 + L3·(B L1))^{-1} with L1^θ = Σ ω r² ∂^θW,
- * L2^{ημ} = Σ ω x^η ∂^μW, L3^{ημα} = Σ ω e^η ∂^μW e^α (catalogue §A7; the traced form). */
+ * L2^{ημ} = Σ ω x^η ∂^μW, L3^{ημα} = Σ ω e^η ∂^μW e^α (001 eq. C.12 traced over β = γ). */
 static void visit_fatehi_c(mat_job *job, const ops_nbhd *nb)
 {
     const int d = job->dim;
@@ -207,7 +208,7 @@ static void visit_fatehi_c(mat_job *job, const ops_nbhd *nb)
 }
 
 /* The CSPM second-derivative matrix (000 eq. 32), B_{(sm),(lk)} = (1 - δ_lk/2) Σ ω x^l x^k
- * ∂_s∂_m W, and Korzilius' Γ̃ (001 eq. 15 with the fixes of catalogue §A7: x_ji, B itself,
+ * ∂_s∂_m W, and Korzilius' Γ̃ (001 eq. 15 with the fixes of docs/deviations.md: x_ji, B itself,
  * ζ = [x², 2xy, y²]) which subtracts (Σ ω ∂∂W x_ji^T) B (½ Σ ω ∇W ζ^T) from it. */
 static void visit_second(mat_job *job, const ops_nbhd *nb)
 {

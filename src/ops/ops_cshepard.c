@@ -2,9 +2,9 @@
  *
  * The factors c̃ solve c̃_a = Σ_b c̃_b ω_b W_ab (eq. 62), an eigenproblem that the paper solves by
  * power iteration (eq. 63) without naming the norm. The dominant eigenvalue of A is close to,
- * but not exactly, 1 on a real particle set (catalogue §A4.5 ⚠), so the iteration fixes the
- * scale by Σ_a ω_a c̃_a = Σ_a ω_a and the interpolant (eqs. 60, 61, 64) is written with the
- * normalisation it implies at the fixed point, Σ_b ω_b c̃_b W_ab = λ c̃_a:
+ * but not exactly, 1 on a real particle set (000's "column stochastic" holds only roughly), so
+ * the iteration fixes the scale by Σ_a ω_a c̃_a = Σ_a ω_a and the interpolant (eqs. 60, 61, 64)
+ * is written with the normalisation it implies at the fixed point, Σ_b ω_b c̃_b W_ab = λ c̃_a:
  *     f_a = Σ_b ω_b c̃_b f_b W_ab / Σ_b ω_b c̃_b W_ab,
  * which reproduces constants exactly whether or not the iteration has fully converged. */
 #include <math.h>
@@ -106,7 +106,7 @@ int ops_ctilde(consph_op_ctx *ctx, ops_call *call, const double **ctilde)
  * form uses, and the volumes ω_b/c_b of eq. 67 are ω_b c̃_b (c_b = 1/c̃_b, eq. 61).
  *
  * Eq. 68's ξ_a = Σ_b m_b (1/ρ_b² + 1/ρ_a²) ∇W̃_ab does not have the units of eq. 67's first
- * sum divided by A (catalogue Part C 000-5). We take ξ_a = Σ_b (ω_b/c_b) ∇W̃_ab, the same sum
+ * sum divided by A as printed. We take ξ_a = Σ_b (ω_b/c_b) ∇W̃_ab, the same sum
  * with A = 1, so the gradient of a constant vanishes identically: the purpose 000 gives the
  * zero-order fix. Eq. 67 then reads ∇A_a = Σ_b ω_b c̃_b (A_b - A_a) ∇W̃_ab, which is how it is
  * summed (the difference makes the constant case exactly zero, not zero up to rounding). */

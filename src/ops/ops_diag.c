@@ -1,5 +1,5 @@
-/* Consistency diagnostics (discrete moments, catalogue §A2), the M0 histogram (003 Figs. 2-3)
- * and the 1D boundary-integral derivatives (000 §3.4). */
+/* Consistency diagnostics (discrete moments, 000 eqs. 15-16, 003 eqs. 11-12), the M0
+ * histogram (003 Figs. 2-3) and the 1D boundary-integral derivatives (000 §3.4). */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>

@@ -1,4 +1,5 @@
-/* Function interpolation, gradient and divergence operators (catalogue §A4-§A6).
+/* Function interpolation, gradient and divergence operators (001 eqs. 3, 8-11 and
+ * App. A; 002 eqs. 2-6; 000 §3).
  *
  * Every form that uses the kernel gradient takes it through one corrected-gradient rule,
  * g̃_ij^α = c_i^α W_ij + M_i^{αβ} ∇^β W_ij, with (c, M) = (0, I) uncorrected, (0, B_i) for the
@@ -100,7 +101,7 @@ static void visit_gradient(first_job *job, const ops_nbhd *nb)
         break;
     }
     case CONSPH_FORM_SYM_S1: {
-        /* 001 eq. 10 with the catalogue's ½ (Part C 001-7): m_j (p_j + p_i)/(ρ_j ρ_i)
+        /* 001 eq. 10 with the ½ it lacks as printed (docs/deviations.md): m_j (p_j + p_i)/(ρ_j ρ_i)
          * ½(L_i∇W_ij - L_j∇W_ji), where L_j∇W_ji applies j's Liu rows to (W, ∇W_ji = -∇W_ij). */
         term_sym_s1(d, job->corr, c, M, nb, mass, rho, f, job->mat, job->mat_size, acc);
         break;
@@ -195,7 +196,7 @@ static int run_first(consph_op_ctx *ctx, consph_op_form form, consph_op_corr cor
     ops_mat m = OPS_MAT_COUNT;
     if (form == CONSPH_FORM_F4 || form == CONSPH_FORM_CSPM) {
         /* F4 = F2 with B_i (002 eqs. 5-6); CSPM's A F' = b (000 eqs. 29-30) is the same
-         * operator, B = A^{-1} (catalogue §A5). */
+         * operator, B = A^{-1}. */
         job.corr = CONSPH_CORR_BC;
         m = OPS_MAT_BONET;
     } else if (form == CONSPH_FORM_FPM || form == CONSPH_FORM_SYM_S1) {

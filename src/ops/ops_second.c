@@ -1,4 +1,5 @@
-/* Laplacian and second-derivative operators (catalogue §A7).
+/* Laplacian and second-derivative operators (002 eqs. 7-13, 40-41; 001 eqs. 13-15, Table 4,
+ * App. C; 000 eqs. 31-32).
  *
  * Forms whose inner gradient is needed at the neighbours (S1, coupled) run an F4 pass first
  * and keep G (O(N·d)); forms that need it at i only (Fatehi, Korzilius, CSPM) compute G_i in
@@ -81,7 +82,7 @@ static void visit_fatehi(second_job *job, const ops_nbhd *nb)
     job->out[i] = term_fatehi_lap(d, nb, job->ctx->volume, job->in, G, Bh);
 }
 
-/* Korzilius (001 eq. 14 with the catalogue's fixes) and CSPM (000 eqs. 31-32) second
+/* Korzilius (001 eq. 14 with the fixes of docs/deviations.md) and CSPM (000 eqs. 31-32) second
  * derivatives share the right-hand side Σ ω ((u_j - u_i) - x_ji·G_i) ∂∂W_ij and differ in the
  * matrix. */
 static void visit_hessian(second_job *job, const ops_nbhd *nb)

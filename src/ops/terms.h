@@ -9,7 +9,7 @@
  * compared bit for bit across changes, so a term must not be "simplified" (reassociated) without
  * checking them.
  *
- * Conventions (catalogue §A0): x_ij = x_i - x_j = nb->dx, x_ji = -x_ij, ∇W_ij = dwr x_ij.
+ * Conventions (001 App. C, 002 eq. 15): x_ij = x_i - x_j = nb->dx, x_ji = -x_ij, ∇W_ij = dwr x_ij.
  * Arrays of d-vectors are component-major with stride N (component a of j is u[a * N + j]). */
 #ifndef CONSPH_OPS_TERMS_H
 #define CONSPH_OPS_TERMS_H
@@ -205,7 +205,7 @@ static inline void term_f4_grad(int d, const consph_nbhd *nb, const double *vol,
     term_apply_rule(d, zero, B, s, 0.0, G);
 }
 
-/* Dilts-symmetrised sym1 (001 eq. 10 with the catalogue's ½): Σ m_j (f_j + f_i)/(ρ_j ρ_i)
+/* Dilts-symmetrised sym1 (001 eq. 10 with the ½ it lacks as printed): Σ m_j (f_j + f_i)/(ρ_j ρ_i)
  * ½(g̃_ij - L_j∇W_ji), g̃_ij from (c, M), L_j∇W_ji j's Liu rows applied to (W, ∇W_ji = -∇W_ij);
  * added to acc. */
 static inline void term_sym_s1(int d, consph_op_corr corr, const double c[3], const double M[9],
@@ -357,7 +357,7 @@ static inline void term_hessian_rhs(int d, int P, const int *pl, const int *pk,
 
 /* ---- moments and correction matrices ---- */
 
-/* The discrete moments (catalogue §A2) for a dimension known at compile time: with_w gives
+/* The discrete moments (000 eqs. 15-16, 22) for a dimension known at compile time: with_w gives
  * m0 = Σ ω W and m1 = Σ ω x_ji W, with_g0 g0 = Σ ω ∇W; always g1 = Σ ω x_ji ⊗ ∇W
  * (g1[a d + b] = Σ -ω dwr x^a x^b). g1 is the Bonet moment whose inverse is B_i, and
  * [m0, m1; g0, g1] is Liu's L_i. Outputs are written, not added to. */
@@ -520,7 +520,7 @@ static inline void term_second_moment(int d, int P, const int *pl, const int *pk
     }
 }
 
-/* Korzilius' Γ̃ (001 eq. 15 with the fixes of catalogue §A7): subtracts Hx B Gz, from the sums
+/* Korzilius' Γ̃ (001 eq. 15 with the fixes of docs/deviations.md): subtracts Hx B Gz, from the sums
  * of term_second_moment with korz, from its CSPM matrix A. */
 static inline void term_korzilius_correct(int d, int P, const double *Hx, const double *Gz,
                                           const double B[9], double *A)
@@ -590,7 +590,7 @@ static inline void term_boundary_1d(const consph_nbhd *nb, const double *vol, co
         gamma += om * nb->w[p];
         /* dW_ab/dx_a = W'(r) (x_a - x_b)/r */
         double dw = nb->dwr[p] * nb->dx[0][p];
-        /* eq. 45 with the catalogue's fix: the sum carries dW_ab/dx_a */
+        /* eq. 45 as eq. 43 implies (the printed sum lacks dW_ab/dx_a) */
         s1 += om * f[j] * dw;
         /* eq. 46: ((f_b - f_a)/(x_b - x_a)) dW_ab/dx_a, x_b - x_a = -dx; skipped at r = 0 */
         if (nb->r[p] > 0.0) s2 += om * (f[j] - fa) / (-nb->dx[0][p]) * dw;

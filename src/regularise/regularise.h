@@ -35,7 +35,8 @@ typedef struct reg_ipst_report {
 } reg_ipst_report;
 
 /* χ_o for the kernel on the unperturbed lattice of spacing ds in the kernel's dimension:
- * h^d Σ_j W(|x_j|) over lattice points (catalogue Z5: 1.4399190 for quintic, h = 1.2 ds, 2D). */
+ * h^d Σ_j W(|x_j|) over lattice points (1.4399190 for quintic, h = 1.2 ds, 2D:
+ * docs/reference-values.md). */
 double reg_chi0(const consph_kernel *k, double ds);
 
 /* Shifts the particles by eq. 19 (away from crowded neighbours) until eq. 21 holds or max_iter
@@ -64,10 +65,10 @@ int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr);
 /* Remeshes in place: interpolates `nf` named fields of the particles of `s` (each with its own
  * number of components) at the lattice points `lattice` (d × cap, one point per particle slot,
  * spacing ds) with the normalised M4 sum of eq. 33, q per axis = |x_a|/ds (tensor product,
- * catalogue Part C 001.20), then puts every particle on its lattice point with the interpolated
- * values and rebuilds the search. A lattice point whose M4 weights sum to 0 (no particle within
- * reach) keeps the values of the particle in its slot and is counted in *orphans (may be NULL).
- * Refuses a system with a destination mask, as reg_ipst does. */
+ * not 001's radial form: docs/deviations.md), then puts every particle on its lattice point with
+ * the interpolated values and rebuilds the search. A lattice point whose M4 weights sum to 0 (no
+ * particle within reach) keeps the values of the particle in its slot and is counted in *orphans
+ * (may be NULL). Refuses a system with a destination mask, as reg_ipst does. */
 int reg_remesh_m4(consph_sys *s, const double *lattice, double ds, const char *const *fields,
                   int nf, size_t *orphans);
 
