@@ -1,7 +1,7 @@
 /* consph layout: particle arrangements in a box.
  *
  * lattice       the unperturbed periodic (UP) Cartesian arrangement, cell-centred:
- *               x = lo + (i + 1/2) Δs (001 §3's UP, cell-centred as in its authors'
+ *               x = lo + (i + 1/2) Δs (001 §3's UP, cell-centred as in its first author's
  *               later tool).
  * random        lattice plus eps·Δs·κ per coordinate, κ uniform in [-0.25, 0.25] (002 §6.2).
  * quasi-random  a low-discrepancy Halton fill of the box (003 §6.2).
