@@ -214,7 +214,9 @@ int cmd_run(int argc, char **argv)
     int layout = 0, kernel = 0, format = 0, eos = 0, heat_lap = 1, heat_walls = 0, rho_init = 0;
     int overwrite = 0;
     double heat_eta = 2.0, heat_eps = 0.0;
-    char layout_choices[256], kernel_choices[512];
+    char layout_choices[256], kernel_choices[512], integrator_help[160];
+    snprintf(integrator_help, sizeof integrator_help, "one of %s (default: the scheme's)",
+             consph_integrator_names());
     snprintf(layout_choices, sizeof layout_choices, "default,%s", consph_layout_names());
     /* The choice list is comma-separated without blanks; consph_kernel_names() puts ", "
      * between names, which made "quintic" no choice and the default silently the first one. */
@@ -255,8 +257,7 @@ int cmd_run(int argc, char **argv)
         {"--cfl", CLI_DOUBLE, &cfl, "C", "factor of the time-step rule", NULL, 1e-6, 2, 0},
         {"--h-dt", CLI_DOUBLE, &h_dt, "H", "h of the time-step rule (0: this run's)", NULL, 0, 1e6,
          0},
-        {"--integrator", CLI_STRING, &integrator, "I",
-         "rk2, euler, kdk or pec (default: the scheme's)", NULL, 0, 0, 0},
+        {"--integrator", CLI_STRING, &integrator, "I", integrator_help, NULL, 0, 0, 0},
         {"--ipst-every", CLI_INT, &ipst_every, "K", "IPST every K steps (0: never)", NULL, 0, 1e9,
          0},
         {"--ipst-iter", CLI_INT, &ipst_iter, "M", "at most M IPST iterations", NULL, 0, 1000, 0},

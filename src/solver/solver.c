@@ -1,5 +1,6 @@
-/* The solver: set-up from parameters, time stepping (explicit midpoint RK2, forward Euler,
- * kick-drift-kick), the equation of state, diagnostics, and the state a checkpoint holds. */
+/* The solver: set-up from parameters, time stepping (a step of the integrator's row over the
+ * state handed to it, src/integrators/), the equation of state, diagnostics, and the state a
+ * checkpoint holds. */
 #include <ctype.h>
 #include <inttypes.h>
 #include <math.h>
@@ -11,6 +12,7 @@
 
 #include "solver/runfiles.h"
 #include "regularise/regularise.h"
+#include "integrators/integrators.h"
 #include "solver/solver_internal.h"
 
 void consph_run_params_default(consph_run_params *prm)
@@ -39,29 +41,6 @@ void consph_run_params_default(consph_run_params *prm)
     prm->ipst_tol = 1e-3;
     prm->error = CONSPH_ERROR_EQ26;
     prm->error_times = 50;
-}
-
-const char *consph_integrator_names(void)
-{
-    return "rk2,euler,kdk,pec";
-}
-
-static const char *const integrator_table[] = {"rk2", "euler", "kdk", "pec"}; /* INTEG_* order */
-
-static int integrator_lookup(const char *name, int *integ)
-{
-    const char *const *names = integrator_table;
-    for (int k = 0; k < 4; ++k)
-        if (strcmp(name, names[k]) == 0) {
-            *integ = k;
-            return 1;
-        }
-    return 0;
-}
-
-static const char *integrator_name(int integ)
-{
-    return integrator_table[integ];
 }
 
 /* Measured peak resident memory per particle (2D, one thread, --out, 160 000 particles): 600
@@ -95,14 +74,13 @@ int consph_run_params_layout(const consph_run_params *prm)
 
 int consph_run_params_check(const consph_run_params *prm)
 {
-    int integ;
     if (!problem_find(prm->problem))
         return consph_fail(CONSPH_EINVAL, "problem '%s' is unknown (allowed: %s)", prm->problem,
                            consph_problem_names());
     if (!scheme_find(prm->scheme))
         return consph_fail(CONSPH_EINVAL, "--scheme '%s' is unknown (allowed: %s)", prm->scheme,
                            consph_scheme_names());
-    if (prm->integrator[0] && !integrator_lookup(prm->integrator, &integ))
+    if (prm->integrator[0] && !integ_find(prm->integrator))
         return consph_fail(CONSPH_EINVAL, "--integrator '%s' is unknown (allowed: %s)",
                            prm->integrator, consph_integrator_names());
     int st = consph_run_nx_check(prm->nx);
@@ -224,8 +202,8 @@ int derive_solver(consph_solver *s)
     const consph_run_params *prm = &s->prm;
     s->scheme = scheme_find(prm->scheme);
     s->prob = problem_find(prm->problem);
-    if (!integrator_lookup(prm->integrator[0] ? prm->integrator : s->scheme->integrator, &s->integ))
-        return consph_fail(CONSPH_EINVAL, "unknown integrator");
+    s->integ = integ_find(prm->integrator[0] ? prm->integrator : s->scheme->integrator);
+    if (!s->integ) return consph_fail(CONSPH_EINVAL, "unknown integrator");
     s->dim = 2;
     s->ds = (s->prob->hi - s->prob->lo) / prm->nx;
     s->h = prm->hdx * s->ds;
@@ -242,8 +220,10 @@ int derive_solver(consph_solver *s)
     /* A regularisation changes the state after the last evaluation, so its rates are stale at
      * the next step's start: those schemes evaluate afresh (pec is then rk2). Kick-drift-kick
      * needs the drift velocity rebuilt from the reused rates, which the transport hook does. */
-    s->reuse_rates = !s->scheme->regularise &&
-                     (s->integ == INTEG_PEC || (s->integ == INTEG_KDK && s->scheme->transport));
+    s->reuse_rates =
+        !s->scheme->regularise &&
+        (s->integ->reuses_rates == INTEG_REUSE_ALWAYS ||
+         (s->integ->reuses_rates == INTEG_REUSE_WITH_TRANSPORT && s->scheme->transport));
     consph_kernel k;
     int st = consph_kernel_init(&k, prm->kernel, s->dim, s->h);
     if (st != CONSPH_OK) return st;
@@ -405,7 +385,7 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
     consph_kernel k;
     if (st == CONSPH_OK) st = consph_kernel_init(&k, prm->kernel, s->dim, s->h);
     if (st == CONSPH_OK) st = consph_sys_init(&s->sys, &src, &k, 0.0);
-    if (st == CONSPH_OK && !strcmp(s->scheme->name, "l-rr-c")) {
+    if (st == CONSPH_OK && s->scheme->needs_lattice) {
         consph_layout_params ll = lp;
         ll.kind = CONSPH_LAYOUT_LATTICE;
         st = consph_layout_generate(&ll, &lat, NULL);
@@ -453,6 +433,7 @@ void consph_solver_free(consph_solver *s)
     consph_sys_free(&s->sys);
     free(s->hist);
     free(s->diag_buf);
+    free(s->integ_scratch);
     free(s);
 }
 
@@ -474,68 +455,80 @@ static void wrap_positions(consph_solver *s)
     }
 }
 
-/* u = u0 + c du/dt and the evolved scalar q = q0 + c dq/dt. */
-static void advance_fields(consph_solver *s, double c)
+/* The integrator's callbacks (integrators.h): the scheme's right-hand side, closure and
+ * transport hook, and the drift's wrap and search rebuild. */
+static int integ_rates(void *ctx)
 {
-    consph_particles *p = s->sys.p;
-    const int d = s->dim;
-    const size_t n = p->n, cap = p->cap;
-    const char *qn = s->scheme->evolve_p ? SF_P : SF_RHOF;
-    double *u = sv_field(s, SF_U, d), *q = sv_field(s, qn, 1);
-    const double *u0 = sv_field(s, SF_U0, d), *q0 = sv_field(s, SF_Q0, 1);
-    const double *au = sv_field(s, SF_AU, d), *aq = sv_field(s, SF_AQ, 1);
-#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
-    for (size_t i = 0; i < n; ++i) {
-        q[i] = q0[i] + c * aq[i];
-        for (int a = 0; a < d; ++a) u[a * cap + i] = u0[a * cap + i] + c * au[a * cap + i];
-    }
+    consph_solver *s = ctx;
+    return s->scheme->rhs(s);
 }
 
-/* x = x0 + c dx/dt, wrapped into the periodic box, and the search rebuilt on it. */
-static int drift(consph_solver *s, double c)
+static void integ_close(void *ctx)
 {
-    consph_particles *p = s->sys.p;
-    const int d = s->dim;
-    const size_t n = p->n, cap = p->cap;
-    const double *x0 = sv_field(s, SF_X0, d), *ax = sv_field(s, SF_AX, d);
-    if (!x0 || !ax) return CONSPH_ENOMEM;
-    for (int a = 0; a < d; ++a)
-        for (size_t i = 0; i < n; ++i) p->x[a][i] = x0[a * cap + i] + c * ax[a * cap + i];
+    solver_eos(ctx);
+}
+
+static void integ_transport(void *ctx, double c)
+{
+    consph_solver *s = ctx;
+    s->scheme->transport(s, c);
+}
+
+static int integ_moved(void *ctx)
+{
+    consph_solver *s = ctx;
     wrap_positions(s);
     return consph_sys_update(&s->sys, 0);
 }
 
-/* y = y0 + c k for the evolved fields (positions when the scheme moves particles). */
-static int advance(consph_solver *s, double c)
-{
-    advance_fields(s, c);
-    if (s->scheme->moves) {
-        if (s->scheme->transport) s->scheme->transport(s, c);
-        int st = drift(s, c);
-        if (st != CONSPH_OK) return st;
-    }
-    solver_eos(s);
-    return CONSPH_OK;
-}
-
-static int save_start(consph_solver *s)
+/* The integrator's view of the state. The start-of-step copies are created here on the first
+ * step, in the order u0, q0, x0 (the order of the particles' fields is that of the snapshots'
+ * arrays). The row's scratch lives outside the particles: it is dead between steps, so neither
+ * the re-sorting nor a snapshot or checkpoint needs it. */
+static int integ_state_of(consph_solver *s, integ_state *is)
 {
     consph_particles *p = s->sys.p;
-    const int d = s->dim;
-    const size_t n = p->n, cap = p->cap;
-    double *u0 = sv_field(s, SF_U0, d), *q0 = sv_field(s, SF_Q0, 1);
-    double *x0 = s->scheme->moves ? sv_field(s, SF_X0, d) : NULL;
-    const double *u = sv_field(s, SF_U, d);
-    const double *q = sv_field(s, s->scheme->evolve_p ? SF_P : SF_RHOF, 1);
-    if (!u0 || !q0 || (s->scheme->moves && !x0)) return CONSPH_ENOMEM;
-    memcpy(q0, q, n * sizeof(double));
-    for (int a = 0; a < d; ++a) {
-        memcpy(u0 + a * cap, u + a * cap, n * sizeof(double));
-        if (x0) memcpy(x0 + a * cap, p->x[a], n * sizeof(double));
+    const int d = s->dim, moves = s->scheme->moves;
+    memset(is, 0, sizeof *is);
+    is->dim = d;
+    is->n = p->n;
+    is->cap = p->cap;
+    is->u = sv_field(s, SF_U, d);
+    is->q = sv_field(s, s->scheme->evolve_p ? SF_P : SF_RHOF, 1);
+    is->u0 = sv_field(s, SF_U0, d);
+    is->q0 = sv_field(s, SF_Q0, 1);
+    is->x0 = moves ? sv_field(s, SF_X0, d) : NULL;
+    is->au = sv_field(s, SF_AU, d);
+    is->aq = sv_field(s, SF_AQ, 1);
+    is->ax = moves ? sv_field(s, SF_AX, d) : NULL;
+    if (!is->u || !is->q || !is->u0 || !is->q0 || !is->au || !is->aq ||
+        (moves && (!is->x0 || !is->ax)))
+        return CONSPH_ENOMEM;
+    for (int a = 0; a < d; ++a) is->x[a] = p->x[a];
+    const int ns = integ_scratch_count(s->integ);
+    if (ns > INTEG_SCRATCH_MAX)
+        return consph_fail(CONSPH_EINVAL, "integrator %s: %d scratch arrays, at most %d",
+                           s->integ->name, ns, INTEG_SCRATCH_MAX);
+    size_t off[INTEG_SCRATCH_MAX], total = 0;
+    for (int k = 0; k < ns; ++k) {
+        const integ_shape like = s->integ->scratch[k].like;
+        const int nc = like == INTEG_LIKE_Q ? 1 : (like == INTEG_LIKE_X && !moves) ? 0 : d;
+        off[k] = nc ? total : (size_t)-1;
+        total += (size_t)nc * p->cap;
     }
+    if (total && !s->integ_scratch) {
+        s->integ_scratch = malloc(total * sizeof(double));
+        if (!s->integ_scratch) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    }
+    for (int k = 0; k < ns; ++k)
+        is->scratch[k] = off[k] == (size_t)-1 ? NULL : s->integ_scratch + off[k];
+    is->ctx = s;
+    is->rates = integ_rates;
+    is->close = integ_close;
+    is->transport = s->scheme->transport ? integ_transport : NULL;
+    is->moved = integ_moved;
     return CONSPH_OK;
 }
-
 /* "(x, y)" (or with z) of particle i: every coordinate of the run's dimension. */
 static void position_text(const consph_solver *s, size_t i, char *buf, size_t size)
 {
@@ -648,45 +641,6 @@ static int check_valid(consph_solver *s, const consph_step_diag *g)
     return CONSPH_OK;
 }
 
-/* Kick-drift-kick: the half kick moves u0 and q0 on, the drift uses the kicked velocity (with
- * the scheme's transport correction), the second kick adds the rates at the drifted positions. */
-static int kick_drift_kick(consph_solver *s, double dt)
-{
-    consph_particles *p = s->sys.p;
-    const int d = s->dim;
-    const size_t n = p->n, cap = p->cap;
-    const int moves = s->scheme->moves;
-    double *u0 = sv_field(s, SF_U0, d), *q0 = sv_field(s, SF_Q0, 1);
-    const double *au = sv_field(s, SF_AU, d), *aq = sv_field(s, SF_AQ, 1);
-    double *ax = moves ? sv_field(s, SF_AX, d) : NULL;
-    double *u = sv_field(s, SF_U, d), *q = sv_field(s, s->scheme->evolve_p ? SF_P : SF_RHOF, 1);
-    if (!u0 || !q0 || !au || !aq || !u || !q || (moves && !ax)) return CONSPH_ENOMEM;
-    for (size_t i = 0; i < n; ++i) {
-        q0[i] += 0.5 * dt * aq[i];
-        for (int a = 0; a < d; ++a) u0[a * cap + i] += 0.5 * dt * au[a * cap + i];
-    }
-    for (int a = 0; a < d; ++a) memcpy(u + a * cap, u0 + a * cap, n * sizeof(double));
-    int st = CONSPH_OK;
-    if (moves) {
-        if (s->scheme->transport) {
-            s->scheme->transport(s, 0.5 * dt);
-        } else {
-            /* rates evaluated at this step's start: dx/dt there plus the half kick */
-            for (int a = 0; a < d; ++a)
-                for (size_t i = 0; i < n; ++i) ax[a * cap + i] += 0.5 * dt * au[a * cap + i];
-        }
-        st = drift(s, dt);
-    }
-    memcpy(q, q0, n * sizeof(double));
-    if (st == CONSPH_OK) solver_eos(s);
-    if (st == CONSPH_OK) st = s->scheme->rhs(s);
-    if (st != CONSPH_OK) return st;
-    /* the second kick; the particles stay where the drift put them */
-    advance_fields(s, 0.5 * dt);
-    solver_eos(s);
-    return CONSPH_OK;
-}
-
 int consph_solver_step(consph_solver *s)
 {
     if (consph_solver_done(s)) return consph_fail(CONSPH_EINVAL, "the run is complete");
@@ -708,18 +662,12 @@ int consph_solver_step(consph_solver *s)
     s->dt = dt;
     int st = CONSPH_OK;
     if (s->scheme->moves) st = consph_sys_update(&s->sys, 1);
-    if (st == CONSPH_OK) st = save_start(s);
+    integ_state is;
+    if (st == CONSPH_OK) st = integ_state_of(s, &is);
+    if (st == CONSPH_OK) integ_save_start(&is);
     /* pec and kdk start from the rates the previous step left (the set-up's for the first) */
     if (st == CONSPH_OK && !s->reuse_rates) st = s->scheme->rhs(s);
-    if (s->integ == INTEG_RK2 || s->integ == INTEG_PEC) {
-        if (st == CONSPH_OK) st = advance(s, 0.5 * dt);
-        if (st == CONSPH_OK) st = s->scheme->rhs(s);
-        if (st == CONSPH_OK) st = advance(s, dt);
-    } else if (s->integ == INTEG_EULER) {
-        if (st == CONSPH_OK) st = advance(s, dt);
-    } else if (st == CONSPH_OK) {
-        st = kick_drift_kick(s, dt);
-    }
+    if (st == CONSPH_OK) st = s->integ->step(&is, dt);
     if (st == CONSPH_OK) {
         if (auth_tf)
             s->t = landed ? target : s->t + dt;
@@ -866,7 +814,7 @@ int consph_solver_summary(const consph_solver *s, consph_run_summary *sum)
     memset(sum, 0, sizeof *sum);
     snprintf(sum->scheme, sizeof sum->scheme, "%s", s->scheme->name);
     snprintf(sum->problem, sizeof sum->problem, "%s", s->prob->name);
-    snprintf(sum->integrator, sizeof sum->integrator, "%s", integrator_name(s->integ));
+    snprintf(sum->integrator, sizeof sum->integrator, "%s", s->integ->name);
     sum->n = s->sys.p->n;
     sum->dim = s->dim;
     sum->steps = s->step;

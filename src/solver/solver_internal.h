@@ -18,7 +18,7 @@
 #define SF_ID "id"         /* index in the initial particle set (as a double, exact) */
 #define SF_MASS "mass"     /* per-particle mass of a scheme that has one (else ρ_o Δs^d) */
 #define SF_LATTICE "x_lat" /* L-RR-C: the lattice point of the slot, d */
-/* integrator: the state at the start of the step and the rates */
+/* the integrator's state (src/integrators/): the start of the step and the rates */
 #define SF_X0 "x0"
 #define SF_U0 "u0"
 #define SF_Q0 "q0"
@@ -77,6 +77,8 @@ typedef struct scheme_def {
     consph_layout_kind layout;
     consph_eos_kind eos;
     const char *integrator;
+    /* the set-up keeps each slot's lattice point (SF_LATTICE, for remeshing) */
+    int needs_lattice;
     int passes_min; /* passes per stage the equations need at least */
     /* CONSPH_PARAM_ALPHA and CONSPH_PARAM_DELTA when its rates use α or δ (the EOS and IPST
      * follow from evolve_p, closure and regularise: consph_scheme_reads) */
@@ -133,7 +135,8 @@ struct consph_solver {
     consph_run_params prm;
     const scheme_def *scheme;
     const problem_def *prob;
-    int integ; /* INTEG_* */
+    const struct integ_def *integ; /* the integrator's row (src/integrators/integrators.h) */
+    double *integ_scratch;         /* the row's scratch arrays, dead between steps */
     consph_sys sys;
     int dim;
     double h, ds, nu, c0, mass, D; /* D = δ h c_o */
@@ -160,7 +163,6 @@ struct consph_solver {
     char run_id[CONSPH_RUN_ID_LEN + 1]; /* new at set-up, kept by checkpoints */
 };
 
-enum { INTEG_RK2, INTEG_EULER, INTEG_KDK, INTEG_PEC };
 /* consph_run_nx_check against `memory` bytes (0: unknown) instead of this machine's. */
 int run_nx_fits(int nx, double memory);
 /* Per-particle loops of the integrator and the diagnostics run on the threads from this many

@@ -262,6 +262,7 @@ const scheme_def scheme_l_rr_c = {
     .layout = CONSPH_LAYOUT_LATTICE,
     .eos = CONSPH_EOS_TAIT,
     .integrator = "rk2",
+    .needs_lattice = 1,
     .passes_min = 3,
     .rhs = rhs_l_c,
     .regularise = regularise_remesh};

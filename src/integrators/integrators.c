@@ -1,0 +1,210 @@
+/* The integrators' table and their steps (the state and the callbacks: integrators.h). */
+#include <string.h>
+
+#include "consph/solver.h"
+#include "integrators/integrators.h"
+
+/* Per-particle loops run on the threads from this many particles on; each particle is written by
+ * one iteration, so the bits do not depend on the thread count. */
+#define INTEG_PARALLEL_MIN 4096
+
+void integ_save_start(const integ_state *st)
+{
+    const size_t n = st->n, cap = st->cap;
+    memcpy(st->q0, st->q, n * sizeof(double));
+    for (int a = 0; a < st->dim; ++a) {
+        memcpy(st->u0 + a * cap, st->u + a * cap, n * sizeof(double));
+        if (st->x0) memcpy(st->x0 + a * cap, st->x[a], n * sizeof(double));
+    }
+}
+
+/* u = u0 + c ku and q = q0 + c kq. */
+static void set_fields(const integ_state *st, double c, const double *ku, const double *kq)
+{
+    const int d = st->dim;
+    const size_t n = st->n, cap = st->cap;
+    double *u = st->u, *q = st->q;
+    const double *u0 = st->u0, *q0 = st->q0;
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i) {
+        q[i] = q0[i] + c * kq[i];
+        for (int a = 0; a < d; ++a) u[a * cap + i] = u0[a * cap + i] + c * ku[a * cap + i];
+    }
+}
+
+/* x = x0 + c kx, then wrapped and the search rebuilt by the solver. */
+static int drift(const integ_state *st, double c, const double *kx)
+{
+    const size_t n = st->n, cap = st->cap;
+    for (int a = 0; a < st->dim; ++a)
+        for (size_t i = 0; i < n; ++i) st->x[a][i] = st->x0[a * cap + i] + c * kx[a * cap + i];
+    return st->moved(st->ctx);
+}
+
+/* y = y0 + c k for the evolved fields with the last rates, then the closure. */
+static int advance(const integ_state *st, double c)
+{
+    set_fields(st, c, st->au, st->aq);
+    if (st->x0) {
+        if (st->transport) st->transport(st->ctx, c);
+        int rc = drift(st, c, st->ax);
+        if (rc != CONSPH_OK) return rc;
+    }
+    st->close(st->ctx);
+    return CONSPH_OK;
+}
+
+/* Explicit midpoint (001 §5.2): y½ = y0 + Δt/2 F(y0), y1 = y0 + Δt F(y½). Under pec the F(y0)
+ * is the previous step's F(y½), which makes PySPH's PECIntegrator. */
+static int step_midpoint(const integ_state *st, double dt)
+{
+    int rc = advance(st, 0.5 * dt);
+    if (rc == CONSPH_OK) rc = st->rates(st->ctx);
+    if (rc == CONSPH_OK) rc = advance(st, dt);
+    return rc;
+}
+
+static int step_euler(const integ_state *st, double dt)
+{
+    return advance(st, dt);
+}
+
+/* Kick-drift-kick: the half kick moves u0 and q0 on, the drift uses the kicked velocity (with the
+ * transport hook's correction), the second kick adds the rates at the drifted positions. */
+static int step_kdk(const integ_state *st, double dt)
+{
+    const int d = st->dim;
+    const size_t n = st->n, cap = st->cap;
+    double *u0 = st->u0, *q0 = st->q0, *ax = st->ax;
+    const double *au = st->au, *aq = st->aq;
+    for (size_t i = 0; i < n; ++i) {
+        q0[i] += 0.5 * dt * aq[i];
+        for (int a = 0; a < d; ++a) u0[a * cap + i] += 0.5 * dt * au[a * cap + i];
+    }
+    for (int a = 0; a < d; ++a) memcpy(st->u + a * cap, u0 + a * cap, n * sizeof(double));
+    int rc = CONSPH_OK;
+    if (st->x0) {
+        if (st->transport) {
+            st->transport(st->ctx, 0.5 * dt);
+        } else {
+            /* rates evaluated at this step's start: dx/dt there plus the half kick */
+            for (int a = 0; a < d; ++a)
+                for (size_t i = 0; i < n; ++i) ax[a * cap + i] += 0.5 * dt * au[a * cap + i];
+        }
+        rc = drift(st, dt, ax);
+    }
+    memcpy(st->q, q0, n * sizeof(double));
+    if (rc == CONSPH_OK) st->close(st->ctx);
+    if (rc == CONSPH_OK) rc = st->rates(st->ctx);
+    if (rc != CONSPH_OK) return rc;
+    /* the second kick; the particles stay where the drift put them */
+    set_fields(st, 0.5 * dt, au, aq);
+    st->close(st->ctx);
+    return CONSPH_OK;
+}
+
+/* Shu & Osher's third-order strong-stability-preserving Runge-Kutta (SSP-RK3, 3 stages), in
+ * increments from the step's start so that positions in a periodic box need no unwrapping:
+ *   y1 = y0 + Δt k1,  y2 = y0 + Δt/4 (k1 + k2),  y3 = y0 + Δt/6 (k1 + k2 + 4 k3),
+ * k_s the rates at y_{s-1} (the Shu-Osher convex combinations y2 = 3/4 y0 + 1/4 (y1 + Δt k2),
+ * y3 = 1/3 y0 + 2/3 (y2 + Δt k3) expanded). The scratch holds Σ b_s k_s of u, q and the drift
+ * velocity. The transport hook gets the time from the step's start to the stage's state (Δt,
+ * Δt/2, Δt), as the midpoint rule's (Δt/2, Δt). */
+static const integ_field ssprk3_scratch[] = {{"ssprk3_ku", INTEG_LIKE_U},
+                                             {"ssprk3_kq", INTEG_LIKE_Q},
+                                             {"ssprk3_kx", INTEG_LIKE_X},
+                                             {NULL, INTEG_LIKE_U}};
+
+/* k = k + w (au, aq), or k = (au, aq) when first. */
+static void ssprk3_gather(const integ_state *st, double *ku, double *kq, double w, int first)
+{
+    const int d = st->dim;
+    const size_t n = st->n, cap = st->cap;
+    const double *au = st->au, *aq = st->aq;
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i) {
+        kq[i] = first ? aq[i] : kq[i] + w * aq[i];
+        for (int a = 0; a < d; ++a)
+            ku[a * cap + i] = first ? au[a * cap + i] : ku[a * cap + i] + w * au[a * cap + i];
+    }
+}
+
+/* One stage's end: u, q = u0, q0 + c (ku, kq); the drift velocity (after the transport hook with
+ * time tc) gathered into kx with weight w, x = x0 + c kx; then the closure. */
+static int ssprk3_stage(const integ_state *st, double c, double tc, double w, int first)
+{
+    double *ku = st->scratch[0], *kq = st->scratch[1], *kx = st->scratch[2];
+    set_fields(st, c, ku, kq);
+    if (st->x0) {
+        if (st->transport) st->transport(st->ctx, tc);
+        const size_t n = st->n, cap = st->cap;
+        for (int a = 0; a < st->dim; ++a)
+            for (size_t i = 0; i < n; ++i) {
+                const size_t j = a * cap + i;
+                kx[j] = first ? st->ax[j] : kx[j] + w * st->ax[j];
+            }
+        int rc = drift(st, c, kx);
+        if (rc != CONSPH_OK) return rc;
+    }
+    st->close(st->ctx);
+    return CONSPH_OK;
+}
+
+static int step_ssprk3(const integ_state *st, double dt)
+{
+    double *ku = st->scratch[0], *kq = st->scratch[1];
+    ssprk3_gather(st, ku, kq, 1.0, 1);
+    int rc = ssprk3_stage(st, dt, dt, 1.0, 1);
+    if (rc == CONSPH_OK) rc = st->rates(st->ctx);
+    if (rc == CONSPH_OK) {
+        ssprk3_gather(st, ku, kq, 1.0, 0);
+        rc = ssprk3_stage(st, 0.25 * dt, 0.5 * dt, 1.0, 0);
+    }
+    if (rc == CONSPH_OK) rc = st->rates(st->ctx);
+    if (rc == CONSPH_OK) {
+        ssprk3_gather(st, ku, kq, 4.0, 0);
+        rc = ssprk3_stage(st, dt / 6.0, dt, 4.0, 0);
+    }
+    return rc;
+}
+
+/* The table: a new integrator is a step function above and one row here. */
+#define INTEGRATORS(X)                                                                             \
+    X("rk2", "explicit midpoint Runge-Kutta, two evaluations per step (001 §5.2)", 2, 2,           \
+      INTEG_REUSE_NEVER, NULL, step_midpoint)                                                      \
+    X("euler", "forward Euler", 1, 1, INTEG_REUSE_NEVER, NULL, step_euler)                         \
+    X("kdk",                                                                                       \
+      "kick-drift-kick (Adami et al. 2013; PySPH TransportVelocityStep); one evaluation per "      \
+      "step where the transport hook rebuilds the drift velocity from the reused rates",           \
+      2, 2, INTEG_REUSE_WITH_TRANSPORT, NULL, step_kdk)                                            \
+    X("pec",                                                                                       \
+      "PySPH's PECIntegrator: the midpoint rule predicting with the previous step's rates, one "   \
+      "evaluation per step",                                                                       \
+      2, 2, INTEG_REUSE_ALWAYS, NULL, step_midpoint)                                               \
+    X("ssprk3", "Shu & Osher's third-order strong-stability-preserving Runge-Kutta (SSP-RK3)", 3,  \
+      3, INTEG_REUSE_NEVER, ssprk3_scratch, step_ssprk3)
+
+#define INTEG_ROW(name, summary, order, stages, reuse, scratch, step)                              \
+    {name, summary, order, stages, reuse, scratch, step},
+static const integ_def integ_table[] = {INTEGRATORS(INTEG_ROW)};
+#define INTEG_NAME(name, ...) "," name
+static const char integ_names[] = INTEGRATORS(INTEG_NAME);
+
+const char *consph_integrator_names(void)
+{
+    return integ_names + 1; /* past the first comma */
+}
+
+const integ_def *integ_find(const char *name)
+{
+    for (size_t k = 0; k < sizeof integ_table / sizeof integ_table[0]; ++k)
+        if (strcmp(name, integ_table[k].name) == 0) return &integ_table[k];
+    return NULL;
+}
+
+int integ_scratch_count(const integ_def *row)
+{
+    int k = 0;
+    while (row->scratch && row->scratch[k].name) ++k;
+    return k;
+}
