@@ -33,7 +33,7 @@ static const consph_run_param param_table[] = {
      .def_text = dflt,                                                                             \
      .offset = offsetof(consph_run_params, nm),                                                    \
      .size = sizeof(((consph_run_params *)0)->nm)},
-#define PARAM_NUM(nm, ty, dflt, l, lopen, h, spec, specname, opt, key, rd, fl, own, meta, hlp)               \
+#define PARAM_NUM(nm, ty, dflt, l, lopen, h, spec, specname, opt, key, rd, fl, own, meta, hlp)     \
     {.name = #nm,                                                                                  \
      .type = CONSPH_PTYPE_##ty,                                                                    \
      .option = opt,                                                                                \
@@ -105,10 +105,14 @@ static double member_number(const consph_run_params *prm, const consph_run_param
 {
     const void *m = member_c(prm, d);
     switch (d->type) {
-    case CONSPH_PTYPE_LONG: return (double)*(const long *)m;
-    case CONSPH_PTYPE_ULONG: return (double)*(const unsigned long *)m;
-    case CONSPH_PTYPE_DOUBLE: return *(const double *)m;
-    default: return (double)*(const int *)m;
+    case CONSPH_PTYPE_LONG:
+        return (double)*(const long *)m;
+    case CONSPH_PTYPE_ULONG:
+        return (double)*(const unsigned long *)m;
+    case CONSPH_PTYPE_DOUBLE:
+        return *(const double *)m;
+    default:
+        return (double)*(const int *)m;
     }
 }
 
@@ -116,10 +120,18 @@ static void member_set_number(consph_run_params *prm, const consph_run_param *d,
 {
     void *m = member(prm, d);
     switch (d->type) {
-    case CONSPH_PTYPE_LONG: *(long *)m = (long)v; break;
-    case CONSPH_PTYPE_ULONG: *(unsigned long *)m = (unsigned long)v; break;
-    case CONSPH_PTYPE_DOUBLE: *(double *)m = v; break;
-    default: *(int *)m = (int)v; break;
+    case CONSPH_PTYPE_LONG:
+        *(long *)m = (long)v;
+        break;
+    case CONSPH_PTYPE_ULONG:
+        *(unsigned long *)m = (unsigned long)v;
+        break;
+    case CONSPH_PTYPE_DOUBLE:
+        *(double *)m = v;
+        break;
+    default:
+        *(int *)m = (int)v;
+        break;
     }
 }
 
@@ -196,9 +208,15 @@ const char *consph_run_param_allowed(const consph_run_param *d, char *buf, size_
         snprintf(buf, size, "%s%s", !strcmp(d->name, "integrator") ? "default," : "",
                  d->names ? d->names() : "any name");
         break;
-    case CONSPH_PTYPE_ENUM: snprintf(buf, size, "%s", d->choices); break;
-    case CONSPH_PTYPE_KERNEL: kernel_choices(buf, size); break;
-    case CONSPH_PTYPE_LAYOUT: snprintf(buf, size, "default,%s", consph_layout_names()); break;
+    case CONSPH_PTYPE_ENUM:
+        snprintf(buf, size, "%s", d->choices);
+        break;
+    case CONSPH_PTYPE_KERNEL:
+        kernel_choices(buf, size);
+        break;
+    case CONSPH_PTYPE_LAYOUT:
+        snprintf(buf, size, "default,%s", consph_layout_names());
+        break;
     default: {
         const int integer = d->type != CONSPH_PTYPE_DOUBLE;
         int w = d->hi == DBL_MAX
@@ -236,7 +254,8 @@ static int parse_double(const char *text, double *out)
     char *end;
     errno = 0;
     *out = strtod(text, &end);
-    return end != text && *end == '\0' && errno == 0 && isfinite(*out);
+    /* an underflow (ERANGE) still gives the subnormal or zero written, which the bounds judge */
+    return end != text && *end == '\0' && (errno == 0 || errno == ERANGE) && isfinite(*out);
 }
 
 int consph_run_param_set(consph_run_params *prm, const char *name, const char *text)
@@ -250,8 +269,8 @@ int consph_run_param_set(consph_run_params *prm, const char *name, const char *t
     case CONSPH_PTYPE_STRING: {
         const char *t = !strcmp(d->name, "integrator") && !strcmp(text, "default") ? "" : text;
         const size_t n = strlen(t);
-        if (n >= d->size || (d->names && (n || strcmp(d->name, "integrator")) &&
-                             !name_in(t, n, d->names())))
+        if (n >= d->size ||
+            (d->names && (n || strcmp(d->name, "integrator")) && !name_in(t, n, d->names())))
             return consph_fail(CONSPH_EINVAL, "%s '%.40s' is unknown (allowed: %s)", d->name, text,
                                allowed);
         memcpy(member(prm, d), t, n + 1);
@@ -315,8 +334,7 @@ int consph_run_param_set(consph_run_params *prm, const char *name, const char *t
     return CONSPH_OK;
 }
 
-int consph_run_param_format(const consph_run_params *prm, const char *name, char *buf,
-                            size_t size)
+int consph_run_param_format(const consph_run_params *prm, const char *name, char *buf, size_t size)
 {
     const consph_run_param *d = consph_run_param_find(name);
     if (!d) return consph_fail(CONSPH_EINVAL, "no run parameter is named '%.40s'", name);
@@ -358,9 +376,15 @@ int consph_run_param_format(const consph_run_params *prm, const char *name, char
         w = snprintf(buf, size, "%s", one);
         break;
     }
-    case CONSPH_PTYPE_INT: w = snprintf(buf, size, "%d", iv); break;
-    case CONSPH_PTYPE_LONG: w = snprintf(buf, size, "%ld", *(const long *)m); break;
-    case CONSPH_PTYPE_ULONG: w = snprintf(buf, size, "%lu", *(const unsigned long *)m); break;
+    case CONSPH_PTYPE_INT:
+        w = snprintf(buf, size, "%d", iv);
+        break;
+    case CONSPH_PTYPE_LONG:
+        w = snprintf(buf, size, "%ld", *(const long *)m);
+        break;
+    case CONSPH_PTYPE_ULONG:
+        w = snprintf(buf, size, "%lu", *(const unsigned long *)m);
+        break;
     default: {
         /* the shortest of 15 and 17 digits that reads back to the same double */
         const double v = *(const double *)m;
@@ -384,10 +408,18 @@ static int params_in_table(const consph_run_params *prm)
         const int iv = *(const int *)m;
         int ok;
         switch (d->type) {
-        case CONSPH_PTYPE_STRING: ok = memchr(m, '\0', d->size) != NULL; break;
-        case CONSPH_PTYPE_ENUM: ok = 1; break; /* below */
-        case CONSPH_PTYPE_KERNEL: ok = kernel_allowed(iv); break;
-        case CONSPH_PTYPE_LAYOUT: ok = iv >= -1 && iv < CONSPH_LAYOUT_COUNT; break;
+        case CONSPH_PTYPE_STRING:
+            ok = memchr(m, '\0', d->size) != NULL;
+            break;
+        case CONSPH_PTYPE_ENUM:
+            ok = 1;
+            break; /* below */
+        case CONSPH_PTYPE_KERNEL:
+            ok = kernel_allowed(iv);
+            break;
+        case CONSPH_PTYPE_LAYOUT:
+            ok = iv >= -1 && iv < CONSPH_LAYOUT_COUNT;
+            break;
         default:
             /* nx: consph_run_nx_check, which also weighs the memory */
             ok = (d->flags & CONSPH_PFLAG_NX) || number_allowed(d, member_number(prm, d));
@@ -451,13 +483,21 @@ int run_params_meta_write(const consph_run_params *prm, char *buf, size_t size, 
         const size_t room = size - used;
         int w;
         switch (d->type) {
-        case CONSPH_PTYPE_STRING: w = snprintf(o, room, "%s=%s\n", d->name, (const char *)m); break;
-        case CONSPH_PTYPE_LONG: w = snprintf(o, room, "%s=%ld\n", d->name, *(const long *)m); break;
+        case CONSPH_PTYPE_STRING:
+            w = snprintf(o, room, "%s=%s\n", d->name, (const char *)m);
+            break;
+        case CONSPH_PTYPE_LONG:
+            w = snprintf(o, room, "%s=%ld\n", d->name, *(const long *)m);
+            break;
         case CONSPH_PTYPE_ULONG:
             w = snprintf(o, room, "%s=%lu\n", d->name, *(const unsigned long *)m);
             break;
-        case CONSPH_PTYPE_DOUBLE: w = snprintf(o, room, "%s=%a\n", d->name, *(const double *)m); break;
-        default: w = snprintf(o, room, "%s=%d\n", d->name, *(const int *)m); break;
+        case CONSPH_PTYPE_DOUBLE:
+            w = snprintf(o, room, "%s=%a\n", d->name, *(const double *)m);
+            break;
+        default:
+            w = snprintf(o, room, "%s=%d\n", d->name, *(const int *)m);
+            break;
         }
         if (w < 0 || (size_t)w >= room) return -1;
         used += (size_t)w;
@@ -486,7 +526,9 @@ int run_params_meta_read(consph_run_params *prm, const char *k, const char *v)
     long l = strtol(v, &end, 10);
     if (end == v || *end || errno) return 0;
     switch (d->type) {
-    case CONSPH_PTYPE_LONG: *(long *)m = l; break;
+    case CONSPH_PTYPE_LONG:
+        *(long *)m = l;
+        break;
     case CONSPH_PTYPE_ULONG:
         if (l < 0) return 0;
         *(unsigned long *)m = (unsigned long)l;
