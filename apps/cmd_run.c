@@ -132,25 +132,20 @@ static int option_given(const cli_command *cmd, const char *name)
 }
 
 /* Options setting a parameter that this run's scheme or layout does not read would do nothing:
- * refused, naming where they act (consph_scheme_reads, consph_layout_uses_seed). --eos default is
- * the scheme's own EOS, so it is no setting. */
-static int unread_options(const cli_command *cmd, const consph_run_params *prm, int eos_default)
+ * refused, naming where they act (the table's `reads`: consph_scheme_reads;
+ * consph_layout_uses_seed). --eos default is the scheme's own EOS, so it is no setting. */
+static int unread_options(const cli_command *cmd, const consph_run_params *prm)
 {
-    static const struct {
-        const char *name;
-        unsigned param;
-    } scheme_opts[] = {{"--alpha", CONSPH_PARAM_ALPHA},    {"--delta", CONSPH_PARAM_DELTA},
-                       {"--eos", CONSPH_PARAM_EOS},        {"--ipst-every", CONSPH_PARAM_IPST},
-                       {"--ipst-iter", CONSPH_PARAM_IPST}, {"--ipst-tol", CONSPH_PARAM_IPST}};
     char list[512];
-    for (size_t k = 0; k < sizeof scheme_opts / sizeof scheme_opts[0]; ++k) {
-        const unsigned param = scheme_opts[k].param;
-        if (!option_given(cmd, scheme_opts[k].name) || (param == CONSPH_PARAM_EOS && eos_default) ||
-            consph_scheme_reads(prm->scheme, param))
+    for (int k = 0; k < consph_run_param_count(); ++k) {
+        const consph_run_param *d = consph_run_param_at(k);
+        if (!d->reads || !d->option || !option_given(cmd, d->option) ||
+            (d->reads == CONSPH_PARAM_EOS && !strcmp(d->name, "eos") &&
+             prm->eos == CONSPH_EOS_DEFAULT) ||
+            consph_scheme_reads(prm->scheme, d->reads))
             continue;
-        return cli_error(cmd, "option %s does nothing for --scheme %s (it acts on: %s)",
-                         scheme_opts[k].name, prm->scheme,
-                         consph_scheme_readers(param, list, sizeof list));
+        return cli_error(cmd, "option %s does nothing for --scheme %s (it acts on: %s)", d->option,
+                         prm->scheme, consph_scheme_readers(d->reads, list, sizeof list));
     }
     const int layout = consph_run_params_layout(prm);
     if (!option_given(cmd, "--seed") || layout < 0 ||
@@ -201,67 +196,73 @@ static int run_heat(const cli_command *cmd, const consph_heat_params *hp, const 
     return 0;
 }
 
+/* The table's parameters as options of consph run: the text of each, and its help line with
+ * what it allows and its default. */
+#define RUN_OPTS_MAX 64
+
+typedef struct param_opts {
+    const char *text[RUN_OPTS_MAX];
+    const consph_run_param *param[RUN_OPTS_MAX];
+    char help[RUN_OPTS_MAX][640];
+} param_opts;
+
+static int param_options(cli_opt *opts, param_opts *po, const consph_run_params *def)
+{
+    int n = 0;
+    for (int k = 0; k < consph_run_param_count() && n < RUN_OPTS_MAX; ++k) {
+        const consph_run_param *d = consph_run_param_at(k);
+        if (!d->option) continue;
+        char allowed[512], dflt[64];
+        consph_run_param_allowed(d, allowed, sizeof allowed);
+        if (consph_run_param_format(def, d->name, dflt, sizeof dflt) != CONSPH_OK) dflt[0] = '\0';
+        snprintf(po->help[n], sizeof po->help[n], "%s (%s; default %s)", d->help, allowed, dflt);
+        po->text[n] = NULL;
+        po->param[n] = d;
+        opts[n] =
+            (cli_opt){d->option, CLI_STRING, &po->text[n], d->metavar, po->help[n], NULL, 0, 0, 0};
+        ++n;
+    }
+    return n;
+}
+
+/* A message of consph_run_params_check begins with the parameter's name: the option in front. */
+static int params_refused(const cli_command *cmd)
+{
+    const char *msg = consph_last_error();
+    for (int k = 0; k < consph_run_param_count(); ++k) {
+        const consph_run_param *d = consph_run_param_at(k);
+        const size_t n = strlen(d->name);
+        if (d->option && !strncmp(msg, d->name, n) && msg[n] == ' ')
+            return cli_error(cmd, "option %s: %s", d->option, msg);
+    }
+    fprintf(stderr, "consph run: %s\n", msg);
+    return CLI_EXIT_USAGE;
+}
+
+/* Sets the parameter of every table option given, in table order. */
+static int params_given(const cli_command *cmd, const cli_opt *opts, const param_opts *po, int n,
+                        consph_run_params *prm)
+{
+    for (int k = 0; k < n; ++k)
+        if (opts[k].given &&
+            consph_run_param_set(prm, po->param[k]->name, po->text[k]) != CONSPH_OK)
+            return cli_error(cmd, "option %s: %s", opts[k].name, consph_last_error());
+    return 0;
+}
+
 int cmd_run(int argc, char **argv)
 {
     consph_run_params prm;
     consph_run_params_default(&prm);
-    const char *scheme = "l-ipst-c", *out = NULL, *restart = NULL, *integrator = NULL;
-    long nx = 50, steps = 0, snap_every = 0, ckpt_every = 0, threads = 0, seed = 1;
-    long ipst_every = 10, ipst_iter = 10, error_times = 50;
-    int error = 0;
-    double hdx = 1.2, c0 = 0.0, re = 100.0, tf = 0.5, dt = 0.0, U = 1.0, delta = 0.1;
-    double cfl = 0.3, h_dt = 0.0, ipst_tol = 1e-3, nu = 0.0, alpha = -1.0;
-    int layout = 0, kernel = 0, format = 0, eos = 0, heat_lap = 1, heat_walls = 0, rho_init = 0;
+    const char *out = NULL, *restart = NULL;
+    long snap_every = 0, ckpt_every = 0, threads = 0;
+    int format = 0, heat_lap = 1, heat_walls = 0;
     int overwrite = 0;
     double heat_eta = 2.0, heat_eps = 0.0;
-    char layout_choices[256], kernel_choices[512], integrator_help[160];
-    snprintf(integrator_help, sizeof integrator_help, "one of %s (default: the scheme's)",
-             consph_integrator_names());
-    snprintf(layout_choices, sizeof layout_choices, "default,%s", consph_layout_names());
-    /* The choice list is comma-separated without blanks; consph_kernel_names() puts ", "
-     * between names, which made "quintic" no choice and the default silently the first one. */
-    size_t nk = 0;
-    for (const char *c = consph_kernel_names(); *c && nk + 1 < sizeof kernel_choices; ++c)
-        if (*c != ' ') kernel_choices[nk++] = *c;
-    kernel_choices[nk] = '\0';
-    kernel = cli_choice_index(kernel_choices, "quintic");
-    cli_opt opts[] = {
-        {"--scheme", CLI_STRING, &scheme, "S", "scheme", NULL, 0, 0, 0},
-        {"--nx", CLI_INT, &nx, "N", "particles per side (at most 10000, and memory)", NULL, 4, 1e9,
-         0},
-        {"--layout", CLI_CHOICE, &layout, "L", "initial particles (default: the scheme's)",
-         layout_choices, 0, 0, 0},
-        {"--seed", CLI_INT, &seed, "S", "seed of random and packed layouts", NULL, 0, 1e9, 0},
-        {"--hdx", CLI_DOUBLE, &hdx, "R", "h/Δs", NULL, 0.5, 4, 0},
-        {"--kernel", CLI_CHOICE, &kernel, "K", "kernel (radial)", kernel_choices, 0, 0, 0},
-        {"--c0", CLI_DOUBLE, &c0, "C", "speed of sound (0: 10 U)", NULL, 0, 1e6, 0},
-        {"--re", CLI_DOUBLE, &re, "RE", "Reynolds number (ν = U L/Re)", NULL, 1e-6, 1e12, 0},
-        {"--nu", CLI_DOUBLE, &nu, "NU", "kinematic viscosity instead of --re (0: inviscid)", NULL,
-         0, 1e6, 0},
-        {"--alpha", CLI_DOUBLE, &alpha, "A", "artificial viscosity α (default: wcsph 0.1, δ-SPH 0)",
-         NULL, 0, 10, 0},
-        {"--u", CLI_DOUBLE, &U, "U", "velocity scale", NULL, 1e-12, 1e6, 0},
-        {"--eos", CLI_CHOICE, &eos, "E", "equation of state", "default,tait,linear", 0, 0, 0},
-        {"--rho-init", CLI_CHOICE, &rho_init, "R",
-         "initial density: eos (from the exact p) or rho0 (ρ_o, so p starts at 0)", "eos,rho0", 0,
-         0, 0},
-        {"--error", CLI_CHOICE, &error, "E",
-         "error measure: eq26 (001 eq. 26) or authors (001's post-processing, beside eq. 26)",
-         "eq26,authors", 0, 0, 0},
-        {"--error-times", CLI_INT, &error_times, "N", "--error authors: output times in [0, t_f]",
-         NULL, 2, 1000000, 0},
-        {"--delta", CLI_DOUBLE, &delta, "D", "δ of the diffusive term D = δ h c_o", NULL, 0, 10, 0},
-        {"--tf", CLI_DOUBLE, &tf, "T", "final time (default: the problem's)", NULL, 1e-12, 1e6, 0},
-        {"--steps", CLI_INT, &steps, "K", "number of steps (instead of --tf)", NULL, 1, 1e12, 0},
-        {"--dt", CLI_DOUBLE, &dt, "DT", "fixed time step (0: cfl h/(U + c_o))", NULL, 0, 1e6, 0},
-        {"--cfl", CLI_DOUBLE, &cfl, "C", "factor of the time-step rule", NULL, 1e-6, 2, 0},
-        {"--h-dt", CLI_DOUBLE, &h_dt, "H", "h of the time-step rule (0: this run's)", NULL, 0, 1e6,
-         0},
-        {"--integrator", CLI_STRING, &integrator, "I", integrator_help, NULL, 0, 0, 0},
-        {"--ipst-every", CLI_INT, &ipst_every, "K", "IPST every K steps (0: never)", NULL, 0, 1e9,
-         0},
-        {"--ipst-iter", CLI_INT, &ipst_iter, "M", "at most M IPST iterations", NULL, 0, 1000, 0},
-        {"--ipst-tol", CLI_DOUBLE, &ipst_tol, "EPS", "ε of 001 eq. 21", NULL, 1e-15, 1, 0},
+    static param_opts po;
+    cli_opt opts[RUN_OPTS_MAX + 16];
+    const int nparam = param_options(opts, &po, &prm);
+    const cli_opt others[] = {
         {"--out", CLI_STRING, &out, "DIR", "write snapshots, log, summary, checkpoints here", NULL,
          0, 0, 0},
         {"--snapshot-every", CLI_INT, &snap_every, "K",
@@ -282,6 +283,8 @@ int cmd_run(int argc, char **argv)
          NULL, 0, 1, 0},
         {"--walls", CLI_CHOICE, &heat_walls, "W", "heat: boundary data", "sin,linear", 0, 0, 0},
     };
+    const int nothers = (int)(sizeof others / sizeof others[0]);
+    for (int k = 0; k < nothers; ++k) opts[nparam + k] = others[k];
     const char *positional[1] = {NULL};
     cli_command cmd = {"run",
                        "run a simulation: weakly-compressible SPH, or 002's heat problem",
@@ -290,7 +293,7 @@ int cmd_run(int argc, char **argv)
                        "       consph run heat --laplacian s3|s4 --nx N --eta H/Δ [options]",
                        run_details,
                        opts,
-                       (int)(sizeof opts / sizeof opts[0]),
+                       nparam + nothers,
                        1,
                        positional};
     int rc = cli_parse(&cmd, argc, argv);
@@ -332,12 +335,28 @@ int cmd_run(int argc, char **argv)
         consph_heat_params_default(&hp);
         hp.laplacian = (consph_heat_lap)heat_lap;
         hp.walls = (consph_heat_walls)heat_walls;
-        if (option_given(&cmd, "--nx")) hp.nx = (int)nx;
+        /* the options heat shares read as the run's (their bounds), but --nx, whose bounds are
+         * heat's own (consph_heat_params_check) */
+        consph_run_params shared = prm;
+        for (int k = 0; k < nparam; ++k) {
+            if (!opts[k].given) continue;
+            if (!strcmp(opts[k].name, "--nx")) {
+                char *end;
+                errno = 0;
+                const long v = strtol(po.text[k], &end, 10);
+                if (end == po.text[k] || *end || errno || v < 4 || v > 1000000000L)
+                    return cli_error(&cmd, "option --nx: '%.40s' is not an integer in [4, 1e9]",
+                                     po.text[k]);
+                hp.nx = (int)v;
+            } else if (consph_run_param_set(&shared, po.param[k]->name, po.text[k]) != CONSPH_OK) {
+                return cli_error(&cmd, "option %s: %s", opts[k].name, consph_last_error());
+            }
+        }
         hp.eta = heat_eta;
         hp.eps = heat_eps;
-        hp.seed = (unsigned long)seed;
-        if (option_given(&cmd, "--tf")) hp.tf = tf;
-        hp.steps = steps;
+        hp.seed = shared.seed;
+        if (option_given(&cmd, "--tf")) hp.tf = shared.tf;
+        hp.steps = shared.steps;
         return run_heat(&cmd, &hp, out, snap_every, format, overwrite);
     }
 
@@ -367,68 +386,23 @@ int cmd_run(int argc, char **argv)
     } else {
         if (option_given(&cmd, "--re") && option_given(&cmd, "--nu"))
             return cli_error(&cmd, "options --re and --nu both set the viscosity: give one");
-        if (dt > 0.0 && (option_given(&cmd, "--cfl") || option_given(&cmd, "--h-dt")))
-            return cli_error(&cmd,
-                             "option %s sets the time-step rule, which --dt %g replaces: "
-                             "give one",
-                             option_given(&cmd, "--cfl") ? "--cfl" : "--h-dt", dt);
-        if (option_given(&cmd, "--error-times") && error != 1)
-            return cli_error(&cmd, "option --error-times counts the output times of --error "
-                                   "authors: give --error authors too");
         if (consph_run_params_problem(&prm, positional[0]) != CONSPH_OK)
             return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s, heat)", positional[0],
                              consph_problem_names());
-        if (strlen(scheme) >= sizeof prm.scheme)
-            return cli_error(&cmd, "option --scheme: '%.40s' is unknown (allowed: %s)", scheme,
-                             consph_scheme_names());
-        snprintf(prm.scheme, sizeof prm.scheme, "%s", scheme);
-        if (integrator) {
-            if (strlen(integrator) >= sizeof prm.integrator)
-                return cli_error(&cmd, "option --integrator: '%.40s' is unknown (allowed: %s)",
-                                 integrator, consph_integrator_names());
-            snprintf(prm.integrator, sizeof prm.integrator, "%s", integrator);
-        }
-        char name[64];
-        prm.nx = (int)nx;
         /* the problem's defaults (consph_run_params_problem) stay unless an option is given */
-        if (option_given(&cmd, "--layout")) prm.layout = -1;
-        if (layout > 0) {
-            consph_layout_kind kind;
-            cli_choice_name(layout_choices, layout, name, sizeof name);
-            consph_layout_lookup(name, &kind);
-            prm.layout = (int)kind;
-        }
-        cli_choice_name(kernel_choices, kernel, name, sizeof name);
-        consph_kernel_lookup(name, &prm.kernel);
-        prm.seed = (unsigned long)seed;
-        prm.hdx = hdx;
-        if (option_given(&cmd, "--c0")) prm.c0 = c0;
-        prm.re = re;
-        if (option_given(&cmd, "--re")) prm.nu = -1.0;
-        if (option_given(&cmd, "--nu")) prm.nu = nu;
-        prm.alpha = alpha;
-        prm.U = U;
-        prm.eos = eos == 0 ? CONSPH_EOS_DEFAULT : eos == 1 ? CONSPH_EOS_TAIT : CONSPH_EOS_LINEAR;
-        prm.delta = delta;
-        prm.rho_init = rho_init == 1 ? CONSPH_RHO_INIT_RHO0 : CONSPH_RHO_INIT_EOS;
-        prm.error = error == 1 ? CONSPH_ERROR_AUTHORS : CONSPH_ERROR_EQ26;
-        prm.error_times = (int)error_times;
-        if (steps > 0)
-            prm.tf = 0.0;
-        else if (option_given(&cmd, "--tf"))
-            prm.tf = tf;
-        prm.steps = steps;
-        prm.dt = dt;
-        prm.cfl = cfl;
-        prm.h_dt = h_dt;
-        prm.ipst_every = (int)ipst_every;
-        prm.ipst_max_iter = (int)ipst_iter;
-        prm.ipst_tol = ipst_tol;
-        if (consph_run_params_check(&prm) != CONSPH_OK) {
-            fprintf(stderr, "consph run: %s\n", consph_last_error());
-            return CLI_EXIT_USAGE;
-        }
-        if ((rc = unread_options(&cmd, &prm, eos == 0)) != 0) return rc;
+        if ((rc = params_given(&cmd, opts, &po, nparam, &prm)) != 0) return rc;
+        if (option_given(&cmd, "--re")) prm.nu = -1.0; /* ν from the Re given */
+        if (option_given(&cmd, "--steps")) prm.tf = 0.0;
+        if (prm.dt > 0.0 && (option_given(&cmd, "--cfl") || option_given(&cmd, "--h-dt")))
+            return cli_error(&cmd,
+                             "option %s sets the time-step rule, which --dt %g replaces: "
+                             "give one",
+                             option_given(&cmd, "--cfl") ? "--cfl" : "--h-dt", prm.dt);
+        if (option_given(&cmd, "--error-times") && prm.error != CONSPH_ERROR_AUTHORS)
+            return cli_error(&cmd, "option --error-times counts the output times of --error "
+                                   "authors: give --error authors too");
+        if (consph_run_params_check(&prm) != CONSPH_OK) return params_refused(&cmd);
+        if ((rc = unread_options(&cmd, &prm)) != 0) return rc;
         if (out && (rc = prepare_out(&cmd, out, NULL, overwrite)) != 0) return rc;
     }
     if (!s && (st = consph_solver_create(&s, &prm)) != CONSPH_OK) {

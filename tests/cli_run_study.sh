@@ -187,7 +187,7 @@ kind = run
 nx = 12,16'
 refuse "misspelt key" 5 "unknown key 'schme'" "$head
 schme = e-c"
-refuse "unknown scheme" 5 "unknown value 'e-x'; allowed: .*ewcsph" "$head
+refuse "unknown scheme" 5 "scheme 'e-x' is unknown (allowed: .*ewcsph" "$head
 scheme = e-x"
 refuse "unknown dt_rule" 6 "dt_rule.*allowed: finest, own" "$head
 scheme = e-c
@@ -195,7 +195,7 @@ dt_rule = coarsest"
 refuse "tr_ref naming no series" 6 "no series 'X'" "$head
 scheme = e-c
 tr_ref = X"
-refuse "negative dt" 6 "key 'dt': '-1' is not a number in \\[0," "$head
+refuse "negative dt" 6 "key 'dt': dt = -1 is out of range (allowed: \\[0," "$head
 scheme = e-c
 dt = -1"
 refuse "unknown l1" 6 "l1.*allowed: integral, mean" "$head

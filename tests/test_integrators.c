@@ -91,7 +91,7 @@ static void test_names(void)
     }
     consph_run_params p = params("rk4", 1e-3);
     CHECK(consph_run_params_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), names) &&
-              strstr(consph_last_error(), "--integrator"),
+              strstr(consph_last_error(), "integrator 'rk4'"),
           "rk4 not refused with the allowed names: %s", consph_last_error());
 }
 

@@ -185,7 +185,8 @@ static void test_defaults(void)
     consph_solver_free(s1);
     consph_solver_free(s2);
     q.nu = NAN;
-    CHECK(consph_run_params_check(&q) == CONSPH_EINVAL && strstr(consph_last_error(), "--nu"),
+    CHECK(consph_run_params_check(&q) == CONSPH_EINVAL &&
+              strstr(consph_last_error(), "nu = nan is out of range"),
           "nu NaN accepted");
 }
 

@@ -216,11 +216,11 @@ static void test_meta_refused(void)
         {"run", "run=xyz", "key 'run'"},
         {"run", NULL, "key 'run' is missing"},
         {"format", "format=consph-solver-2", "'consph-solver-2' is not this consph's"},
-        {"hdx", "hdx=nan", "key 'hdx': --hdx"},
-        {"h_dt", "h_dt=-0x1p+0", "key 'h_dt': --h-dt"},
-        {"U", "U=0x0p+0", "key 'U': --u"},
-        {"scheme", "scheme=sph", "key 'scheme': --scheme 'sph' is unknown"},
-        {"rho0", "rho0=-0x1p+0", "key 'rho0': rho0 must be"},
+        {"hdx", "hdx=nan", "key 'hdx': hdx = nan is out of range"},
+        {"h_dt", "h_dt=-0x1p+0", "key 'h_dt': h_dt = -1 is out of range"},
+        {"U", "U=0x0p+0", "key 'U': U = 0 is out of range"},
+        {"scheme", "scheme=sph", "key 'scheme': scheme 'sph' is unknown"},
+        {"rho0", "rho0=-0x1p+0", "key 'rho0': rho0 = -1 is out of range"},
         {"bogus", "", "unknown key 'junk'"},
     };
     char buf[8192];

@@ -303,7 +303,7 @@ static void test_rho_init(void)
         consph_run_params e = params(refuse[k], 20);
         e.rho_init = CONSPH_RHO_INIT_RHO0;
         CHECK(consph_run_params_check(&e) == CONSPH_EINVAL &&
-                  strstr(consph_last_error(), "--rho-init"),
+                  strstr(consph_last_error(), "rho_init rho0 needs"),
               "%s accepted --rho-init rho0", refuse[k]);
     }
     p.rho_init = 2;

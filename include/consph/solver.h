@@ -113,9 +113,64 @@ const char *consph_scheme_readers(unsigned param, char *buf, size_t size);
 int consph_run_params_layout(const consph_run_params *prm);
 const char *consph_problem_names(void);
 const char *consph_integrator_names(void);
-/* CONSPH_EINVAL naming the option and the allowed values when something is out of range; run
- * before any work. */
+/* CONSPH_EINVAL naming the parameter and the allowed values when something is out of range (the
+ * bounds of the parameter table, then the rules between parameters); run before any work. */
 int consph_run_params_check(const consph_run_params *prm);
+
+/* The parameter table (src/solver/params.def): one row per member of consph_run_params. */
+typedef enum consph_param_type {
+    CONSPH_PTYPE_INT,    /* int */
+    CONSPH_PTYPE_LONG,   /* long */
+    CONSPH_PTYPE_ULONG,  /* unsigned long */
+    CONSPH_PTYPE_DOUBLE, /* double */
+    CONSPH_PTYPE_STRING, /* char[]: a name of `names()` */
+    CONSPH_PTYPE_ENUM,   /* int-sized enum: one of `choices` */
+    CONSPH_PTYPE_KERNEL, /* consph_kernel_id by its name (radial kernels) */
+    CONSPH_PTYPE_LAYOUT  /* int: consph_layout_kind by its name, or "default" (-1) */
+} consph_param_type;
+
+enum {
+    CONSPH_PFLAG_QUICK = 1u << 0, /* a study's quick.KEY replaces KEY in a quick run */
+    CONSPH_PFLAG_NX = 1u << 1     /* bounded by consph_run_nx_check; a study sweeps a list */
+};
+
+typedef struct consph_run_param {
+    const char *name; /* the member, the checkpoint key, the name in library messages */
+    consph_param_type type;
+    const char *option;    /* consph run's option ("--ipst-iter"); NULL: none */
+    const char *study_key; /* the key of a run figure in a study file; NULL: none */
+    double lo, hi;         /* numbers: allowed lo..hi, lo excluded when lo_open; DBL_MAX: no hi */
+    int lo_open;
+    double special;           /* numbers: one more allowed value outside lo..hi (NaN: none), */
+    const char *special_name; /* given as text by this name ("re", "default", "none") */
+    const char *choices;      /* ENUM: comma-separated names, the k-th having value first + k */
+    int first;
+    const char *(*names)(void); /* STRING: the allowed names (NULL: any) */
+    unsigned reads;    /* consph_scheme_param bits of the schemes reading it (0: every run) */
+    unsigned flags;    /* CONSPH_PFLAG_* */
+    const char *owner; /* what reads it: "run", "problem", "scheme", "time step", ... */
+    const char *metavar, *help;
+    double def;           /* the default of a number or enum */
+    const char *def_text; /* the default of a string */
+    size_t offset, size;  /* the member in consph_run_params */
+} consph_run_param;
+
+/* The table's rows in order; k in [0, consph_run_param_count()) else NULL. */
+int consph_run_param_count(void);
+const consph_run_param *consph_run_param_at(int k);
+/* The row named `name` (the member), NULL when none. */
+const consph_run_param *consph_run_param_find(const char *name);
+/* Parses `text` as the parameter `name` and sets it in prm when it is of its type and allowed
+ * (numbers: in bounds; names: one of the allowed), else CONSPH_EINVAL with a message that names
+ * the parameter and the allowed values, prm unchanged. What consph run, a study file and a
+ * checkpoint's metadata set parameters with. */
+int consph_run_param_set(consph_run_params *prm, const char *name, const char *text);
+/* The value of `name` in prm as text that consph_run_param_set reads back to the same value
+ * (doubles to the bit). CONSPH_EINVAL for an unknown name or a buffer too small. */
+int consph_run_param_format(const consph_run_params *prm, const char *name, char *buf, size_t size);
+/* What the row allows, for help and messages: "[0.5, 4]", "(0, 2]", "[0, 10] or -1",
+ * "default,tait,linear", ... into buf; returns buf. */
+const char *consph_run_param_allowed(const consph_run_param *d, char *buf, size_t size);
 /* The most particles per side of a run (10^8 particles, as consph layout and approx allow). */
 #define CONSPH_RUN_NX_MAX 10000
 /* CONSPH_OK when an nx × nx run can be held: nx in [4, CONSPH_RUN_NX_MAX] and its memory

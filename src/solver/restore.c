@@ -1,7 +1,6 @@
 /* What a checkpoint holds of a solver besides its particles: the parameters and the scalars of
  * the run as "key=value" lines, doubles in C99 hexadecimal (%a) so they read back bit for bit,
  * and the per-step history. Parsing is strict: every key known, every value checked. */
-#include <ctype.h>
 #include <errno.h>
 #include <inttypes.h>
 #include <limits.h>
@@ -10,6 +9,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "solver/params.h"
 #include "solver/solver_internal.h"
 
 #define META_MAX 4096
@@ -30,20 +30,17 @@ int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **
         free(h);
         return consph_fail(CONSPH_ENOMEM, "out of memory");
     }
-    int len = snprintf(
-        m, META_MAX,
-        "format=" CHECKPOINT_FORMAT "\nproblem=%s\nscheme=%s\nintegrator=%s\nnx=%d\nlayout=%d\n"
-        "seed=%lu\nhdx=%a\nkernel=%d\nU=%a\nc0=%a\nre=%a\nnu=%a\nalpha=%a\nrho0=%a\ngamma=%a\neos=%"
-        "d\n"
-        "delta=%a\ntf=%a\nsteps=%ld\ndt=%a\ncfl=%a\nh_dt=%a\nipst_every=%d\nipst_max_iter=%d\n"
-        "ipst_tol=%a\nt=%a\nstep=%ld\nl1_u_acc=%a\nl1_p_acc=%a\nseconds=%a\npairs=%zu\n"
-        "regs=%ld\npasses=%d\nrho_init=%d\nrun=%s\nerror=%d\nerror_times=%d\n"
-        "auth_u_acc=%a\nauth_p_acc=%a\nauth_n=%d\nauth_next=%d\n",
-        p->problem, p->scheme, p->integrator, p->nx, p->layout, p->seed, p->hdx, (int)p->kernel,
-        p->U, p->c0, p->re, p->nu, p->alpha, p->rho0, p->gamma, (int)p->eos, p->delta, p->tf,
-        p->steps, p->dt, p->cfl, p->h_dt, p->ipst_every, p->ipst_max_iter, p->ipst_tol, s->t,
-        s->step, s->l1_u_acc, s->l1_p_acc, s->seconds, s->pairs, s->regs, s->passes, p->rho_init,
-        s->run_id, p->error, p->error_times, s->auth_u_acc, s->auth_p_acc, s->auth_n, s->auth_next);
+    int len = snprintf(m, META_MAX, "format=" CHECKPOINT_FORMAT "\n");
+    if (len > 0) len = run_params_meta_write(p, m, META_MAX, (size_t)len);
+    if (len > 0) {
+        const int w =
+            snprintf(m + len, META_MAX - (size_t)len,
+                     "t=%a\nstep=%ld\nl1_u_acc=%a\nl1_p_acc=%a\nseconds=%a\npairs=%zu\nregs=%ld\n"
+                     "passes=%d\nrun=%s\nauth_u_acc=%a\nauth_p_acc=%a\nauth_n=%d\nauth_next=%d\n",
+                     s->t, s->step, s->l1_u_acc, s->l1_p_acc, s->seconds, s->pairs, s->regs,
+                     s->passes, s->run_id, s->auth_u_acc, s->auth_p_acc, s->auth_n, s->auth_next);
+        len = w < 0 ? -1 : len + w;
+    }
     if (len < 0 || len >= META_MAX) {
         free(m);
         free(h);
@@ -56,23 +53,32 @@ int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **
     return CONSPH_OK;
 }
 
-/* Every key of the metadata, each exactly once (a missing key would read as 0). */
-static const char *const meta_keys[] = {
-    "format",   "problem",  "scheme",      "integrator", "nx",
-    "layout",   "seed",     "hdx",         "kernel",     "U",
-    "c0",       "re",       "nu",          "alpha",      "rho0",
-    "gamma",    "eos",      "delta",       "tf",         "steps",
-    "dt",       "cfl",      "h_dt",        "ipst_every", "ipst_max_iter",
-    "ipst_tol", "t",        "step",        "l1_u_acc",   "l1_p_acc",
-    "seconds",  "pairs",    "regs",        "passes",     "rho_init",
-    "run",      "error",    "error_times", "auth_u_acc", "auth_p_acc",
-    "auth_n",   "auth_next"};
-#define META_NKEYS (sizeof meta_keys / sizeof meta_keys[0])
+/* Every key of the metadata, each exactly once (a missing key would read as 0): the format, the
+ * parameters of the table (params.def) and the run's own state. Key index k: 0 the format,
+ * 1..count the parameters in table order, then state_keys. */
+static const char *const state_keys[] = {
+    "t",      "step", "l1_u_acc",   "l1_p_acc",   "seconds", "pairs",    "regs",
+    "passes", "run",  "auth_u_acc", "auth_p_acc", "auth_n",  "auth_next"};
+#define STATE_NKEYS (sizeof state_keys / sizeof state_keys[0])
+#define META_NKEYS_MAX 128
+
+static size_t meta_nkeys(void)
+{
+    return 1 + (size_t)consph_run_param_count() + STATE_NKEYS;
+}
+
+static const char *meta_key(size_t k)
+{
+    const size_t np = (size_t)consph_run_param_count();
+    if (k == 0) return "format";
+    if (k <= np) return consph_run_param_at((int)k - 1)->name;
+    return state_keys[k - 1 - np];
+}
 
 static int meta_key_index(const char *k)
 {
-    for (size_t i = 0; i < META_NKEYS; ++i)
-        if (!strcmp(k, meta_keys[i])) return (int)i;
+    for (size_t i = 0; i < meta_nkeys(); ++i)
+        if (!strcmp(k, meta_key(i))) return (int)i;
     return -1;
 }
 
@@ -93,13 +99,6 @@ static int read_long(const char *v, long *out, long lo, long hi)
     return end != v && *end == '\0' && errno == 0 && *out >= lo && *out <= hi;
 }
 
-static int read_string(const char *v, char *out, size_t size)
-{
-    if (strlen(v) >= size) return 0;
-    strcpy(out, v);
-    return 1;
-}
-
 /* 16 lower-case hexadecimal digits, as solver_new_run_id writes them. */
 static int read_run_id(const char *v, char *out)
 {
@@ -113,46 +112,20 @@ static int read_run_id(const char *v, char *out)
 static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const char *v)
 {
     long l;
+    if (!strcmp(k, "format")) return !strcmp(v, CHECKPOINT_FORMAT);
+    const int pk = run_params_meta_read(p, k, v);
+    if (pk >= 0) return pk;
 #define D(name, dst)                                                                               \
     if (!strcmp(k, name)) return read_double(v, &dst);
 #define L(name, dst, type, lo, hi)                                                                 \
     if (!strcmp(k, name)) return read_long(v, &l, lo, hi) ? (dst = (type)l, 1) : 0;
-    if (!strcmp(k, "format")) return !strcmp(v, CHECKPOINT_FORMAT);
-    if (!strcmp(k, "problem")) return read_string(v, p->problem, sizeof p->problem);
-    if (!strcmp(k, "scheme")) return read_string(v, p->scheme, sizeof p->scheme);
-    if (!strcmp(k, "integrator")) return read_string(v, p->integrator, sizeof p->integrator);
     if (!strcmp(k, "run")) return read_run_id(v, s->run_id);
-    L("nx", p->nx, int, INT_MIN, INT_MAX)
-    L("layout", p->layout, int, INT_MIN, INT_MAX)
-    L("seed", p->seed, unsigned long, 0, LONG_MAX)
-    L("kernel", p->kernel, consph_kernel_id, INT_MIN, INT_MAX)
-    L("eos", p->eos, consph_eos_kind, INT_MIN, INT_MAX)
-    L("steps", p->steps, long, LONG_MIN, LONG_MAX)
-    L("ipst_every", p->ipst_every, int, INT_MIN, INT_MAX)
-    L("ipst_max_iter", p->ipst_max_iter, int, INT_MIN, INT_MAX)
     L("step", s->step, long, 0, LONG_MAX)
     L("pairs", s->pairs, size_t, 0, LONG_MAX)
     L("regs", s->regs, long, 0, LONG_MAX)
     L("passes", s->passes, int, 0, INT_MAX)
-    L("rho_init", p->rho_init, int, INT_MIN, INT_MAX)
-    L("error", p->error, int, INT_MIN, INT_MAX)
-    L("error_times", p->error_times, int, INT_MIN, INT_MAX)
     L("auth_n", s->auth_n, int, 0, INT_MAX)
     L("auth_next", s->auth_next, int, 0, INT_MAX)
-    D("hdx", p->hdx)
-    D("U", p->U)
-    D("c0", p->c0)
-    D("re", p->re)
-    D("nu", p->nu)
-    D("alpha", p->alpha)
-    D("rho0", p->rho0)
-    D("gamma", p->gamma)
-    D("delta", p->delta)
-    D("tf", p->tf)
-    D("dt", p->dt)
-    D("cfl", p->cfl)
-    D("h_dt", p->h_dt)
-    D("ipst_tol", p->ipst_tol)
     D("t", s->t)
     D("l1_u_acc", s->l1_u_acc)
     D("l1_p_acc", s->l1_p_acc)
@@ -168,7 +141,9 @@ static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const
  * the message names the line and the key. */
 static int meta_parse(consph_solver *s, const char *meta)
 {
-    unsigned char seen[META_NKEYS] = {0};
+    unsigned char seen[META_NKEYS_MAX] = {0};
+    if (meta_nkeys() > META_NKEYS_MAX)
+        return consph_fail(CONSPH_EFORMAT, "metadata: more keys than %d", META_NKEYS_MAX);
     const char *line = meta;
     for (int lineno = 1; *line; ++lineno) {
         const char *nl = strchr(line, '\n');
@@ -208,28 +183,17 @@ static int meta_parse(consph_solver *s, const char *meta)
             return consph_fail(CONSPH_EFORMAT, "metadata line %d: key '%s': bad value '%.60s'",
                                lineno, buf, v);
     }
-    for (size_t k = 0; k < META_NKEYS; ++k)
+    for (size_t k = 0; k < meta_nkeys(); ++k)
         if (!seen[k])
-            return consph_fail(CONSPH_EFORMAT, "metadata: key '%s' is missing", meta_keys[k]);
+            return consph_fail(CONSPH_EFORMAT, "metadata: key '%s' is missing", meta_key(k));
     return CONSPH_OK;
 }
 
-/* The key a message of consph_run_params_check is about: it begins with the option ("--h-dt
- * must ...", key h_dt) or the parameter's own name ("rho0 must ...", "problem '...'"). */
+/* The key a message of consph_run_params_check is about (run_param_of_message). */
 static const char *param_key(const char *msg)
 {
-    for (size_t k = 0; k < META_NKEYS; ++k) {
-        char opt[40] = "--";
-        size_t n = 2;
-        for (const char *c = meta_keys[k]; *c && n + 1 < sizeof opt; ++c)
-            opt[n++] = *c == '_' ? '-' : (char)tolower((unsigned char)*c);
-        opt[n] = '\0';
-        const size_t klen = strlen(meta_keys[k]);
-        if ((!strncmp(msg, opt, n) && (msg[n] == ' ' || msg[n] == '\'')) ||
-            (!strncmp(msg, meta_keys[k], klen) && msg[klen] == ' '))
-            return meta_keys[k];
-    }
-    return "?";
+    const consph_run_param *d = run_param_of_message(msg);
+    return d ? d->name : "?";
 }
 
 /* The run's state against what a run can reach; the parameters were checked already and the

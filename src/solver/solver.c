@@ -15,34 +15,6 @@
 #include "integrators/integrators.h"
 #include "solver/solver_internal.h"
 
-void consph_run_params_default(consph_run_params *prm)
-{
-    memset(prm, 0, sizeof *prm);
-    snprintf(prm->problem, sizeof prm->problem, "taylor-green");
-    snprintf(prm->scheme, sizeof prm->scheme, "l-ipst-c");
-    prm->nx = 50;
-    prm->layout = -1;
-    prm->seed = 1;
-    prm->hdx = 1.2;
-    prm->kernel = CONSPH_KERNEL_QUINTIC;
-    prm->U = 1.0;
-    prm->c0 = 0.0;
-    prm->re = 100.0;
-    prm->nu = -1.0;
-    prm->rho0 = 1.0;
-    prm->gamma = 7.0;
-    prm->eos = CONSPH_EOS_DEFAULT;
-    prm->delta = 0.1;
-    prm->alpha = -1.0;
-    prm->tf = 0.5;
-    prm->cfl = 0.3;
-    prm->ipst_every = 10;
-    prm->ipst_max_iter = 10;
-    prm->ipst_tol = 1e-3;
-    prm->error = CONSPH_ERROR_EQ26;
-    prm->error_times = 50;
-}
-
 /* Measured peak resident memory per particle (2D, one thread, --out, 160 000 particles): 600
  * bytes for l-rr-c (which keeps a lattice copy), 340-400 for the others, packing included; the
  * estimate leaves room for the threads' buffers and the snapshot writer. */
@@ -70,76 +42,6 @@ int consph_run_params_layout(const consph_run_params *prm)
     const scheme_def *sd = scheme_find(prm->scheme);
     if (prm->layout >= 0) return prm->layout;
     return sd ? (int)sd->layout : -1;
-}
-
-int consph_run_params_check(const consph_run_params *prm)
-{
-    if (!problem_find(prm->problem))
-        return consph_fail(CONSPH_EINVAL, "problem '%s' is unknown (allowed: %s)", prm->problem,
-                           consph_problem_names());
-    if (!scheme_find(prm->scheme))
-        return consph_fail(CONSPH_EINVAL, "--scheme '%s' is unknown (allowed: %s)", prm->scheme,
-                           consph_scheme_names());
-    if (prm->integrator[0] && !integ_find(prm->integrator))
-        return consph_fail(CONSPH_EINVAL, "--integrator '%s' is unknown (allowed: %s)",
-                           prm->integrator, consph_integrator_names());
-    int st = consph_run_nx_check(prm->nx);
-    if (st != CONSPH_OK) return st;
-    if (prm->layout < -1 || prm->layout >= CONSPH_LAYOUT_COUNT)
-        return consph_fail(CONSPH_EINVAL, "--layout must be one of %s", consph_layout_names());
-    if (!(prm->hdx >= 0.5 && prm->hdx <= 4.0))
-        return consph_fail(CONSPH_EINVAL, "--hdx must be in [0.5, 4], not %g", prm->hdx);
-    if ((int)prm->kernel < 0 || prm->kernel >= CONSPH_KERNEL_COUNT ||
-        prm->kernel == CONSPH_KERNEL_M4)
-        return consph_fail(CONSPH_EINVAL, "--kernel must be a radial kernel (any of %s except m4)",
-                           consph_kernel_names());
-    if (!(prm->U > 0.0 && isfinite(prm->U)))
-        return consph_fail(CONSPH_EINVAL, "--u must be a positive number");
-    if (!(prm->c0 >= 0.0 && isfinite(prm->c0)))
-        return consph_fail(CONSPH_EINVAL, "--c0 must be >= 0 (0: 10 U), not %g", prm->c0);
-    if (!(prm->re > 0.0 && isfinite(prm->re)))
-        return consph_fail(CONSPH_EINVAL, "--re must be a positive number, not %g", prm->re);
-    if (!(prm->nu < 0.0 || (prm->nu >= 0.0 && prm->nu <= 1e6)))
-        return consph_fail(CONSPH_EINVAL, "--nu must be in [0, 1e6] (0: inviscid), not %g",
-                           prm->nu);
-    if (!(prm->alpha == -1.0 || (prm->alpha >= 0.0 && prm->alpha <= 10.0)))
-        return consph_fail(CONSPH_EINVAL, "--alpha must be in [0, 10], not %g", prm->alpha);
-    if (!(prm->rho0 > 0.0 && isfinite(prm->rho0)) || !(prm->gamma >= 1.0 && prm->gamma <= 20.0))
-        return consph_fail(CONSPH_EINVAL, "rho0 must be > 0 and gamma in [1, 20]");
-    if (prm->eos < CONSPH_EOS_DEFAULT || prm->eos > CONSPH_EOS_LINEAR)
-        return consph_fail(CONSPH_EINVAL, "--eos must be one of default,tait,linear");
-    if (!(prm->delta >= 0.0 && prm->delta <= 10.0))
-        return consph_fail(CONSPH_EINVAL, "--delta must be in [0, 10], not %g", prm->delta);
-    if (!(prm->tf >= 0.0 && isfinite(prm->tf)) || prm->steps < 0 ||
-        (prm->steps == 0 && !(prm->tf > 0.0)))
-        return consph_fail(CONSPH_EINVAL,
-                           "--tf must be a positive time or --steps a positive count");
-    if (!(prm->dt >= 0.0 && isfinite(prm->dt)))
-        return consph_fail(CONSPH_EINVAL, "--dt must be >= 0 (0: the 001 rule), not %g", prm->dt);
-    if (!(prm->cfl > 0.0 && prm->cfl <= 2.0))
-        return consph_fail(CONSPH_EINVAL, "--cfl must be in (0, 2], not %g", prm->cfl);
-    if (!(prm->h_dt >= 0.0 && isfinite(prm->h_dt)))
-        return consph_fail(CONSPH_EINVAL, "--h-dt must be >= 0, not %g", prm->h_dt);
-    if (prm->ipst_every < 0 || prm->ipst_max_iter < 0 || prm->ipst_max_iter > 1000 ||
-        !(prm->ipst_tol > 0.0))
-        return consph_fail(CONSPH_EINVAL, "--ipst-every and --ipst-iter must be >= 0 and "
-                                          "--ipst-tol > 0");
-    if (prm->rho_init != CONSPH_RHO_INIT_EOS && prm->rho_init != CONSPH_RHO_INIT_RHO0)
-        return consph_fail(CONSPH_EINVAL, "--rho-init must be one of eos,rho0");
-    if (prm->error != CONSPH_ERROR_EQ26 && prm->error != CONSPH_ERROR_AUTHORS)
-        return consph_fail(CONSPH_EINVAL, "--error must be one of eq26,authors");
-    if (prm->error_times < 2 || prm->error_times > 1000000)
-        return consph_fail(CONSPH_EINVAL,
-                           "--error-times must be an integer in [2, 1000000], not %d",
-                           prm->error_times);
-    const scheme_def *sd = scheme_find(prm->scheme);
-    /* ρ_o means something only where ϱ is evolved and gives p by the EOS */
-    if (prm->rho_init == CONSPH_RHO_INIT_RHO0 && (sd->evolve_p || sd->closure))
-        return consph_fail(CONSPH_EINVAL,
-                           "--rho-init rho0 needs a scheme whose pressure comes from its evolved "
-                           "density by the EOS, not '%s' (allowed: eos)",
-                           prm->scheme);
-    return CONSPH_OK;
 }
 
 double *sv_field(consph_solver *s, const char *name, int ncomp)

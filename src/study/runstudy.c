@@ -56,32 +56,6 @@ static const char *const y_names[] = {"momentum_x", "momentum_y", "angular_momen
 static const char *const y_labels[] = {"M_x = Σ m u_x", "M_y = Σ m u_y", "L = Σ m (x u_y - y u_x)"};
 #define MAX_PANELS 3
 
-/* Whether `name` is one of the comma-separated `names`. */
-static int name_in(const char *name, const char *names)
-{
-    size_t n = strlen(name);
-    for (const char *c = names; *c;) {
-        const char *e = strchr(c, ',');
-        size_t len = e ? (size_t)(e - c) : strlen(c);
-        if (len == n && strncmp(c, name, n) == 0) return 1;
-        if (!e) break;
-        c = e + 1;
-    }
-    return 0;
-}
-
-/* A key naming one of `names` into dst (size 32). */
-static int get_name(const consph_study *s, const study_figure *f, const study_series *r,
-                    const char *key, const char *def, const char *names, char *dst)
-{
-    const char *v = study_get_or(s, f, r, key, def);
-    if (!v) return study_key_error(s, f, r, key, "not given; allowed: %s", names);
-    if (!name_in(v, names) || strlen(v) >= 32)
-        return study_key_error(s, f, r, key, "unknown value '%s'; allowed: %s", v, names);
-    snprintf(dst, 32, "%s", v);
-    return CONSPH_OK;
-}
-
 /* `quick.KEY` in a quick run when set, else KEY. */
 static const char *quick_key(const consph_study *s, const study_figure *f, const study_series *r,
                              int quick, const char *key, char *buf, size_t size)
@@ -90,64 +64,49 @@ static const char *quick_key(const consph_study *s, const study_figure *f, const
     return quick && study_get(s, f, r, buf) ? buf : key;
 }
 
+/* The parameters of a run from the keys of the parameter table (consph_run_param_at: a key
+ * sets its parameter through consph_run_param_set), then the keys of the study itself. */
 static int plan_build(const consph_study *s, const study_figure *f, const study_series *r,
                       int quick, run_plan *pl)
 {
     static const char *const rules[] = {"finest", "own", NULL};
     static const char *const l1s[] = {"integral", "mean", NULL};
-    static const char *const rho_inits[] = {"eos", "rho0", NULL};  /* consph_rho_init order */
-    static const char *const errors[] = {"eq26", "authors", NULL}; /* consph_error_kind order */
     memset(pl, 0, sizeof *pl);
     consph_run_params *p = &pl->prm;
     consph_run_params_default(p);
     int rc, rule;
     char qk[32];
-    double seed, steps;
-    if ((rc = get_name(s, f, r, "problem", "taylor-green", consph_problem_names(), p->problem)))
-        return rc;
-    /* The problem's own defaults (Gresho-Chan: inviscid, t = 3, lattice); the keys below
-     * override them. */
+    /* The problem first: its own defaults (Gresho-Chan: inviscid, t = 3, lattice), which the
+     * keys below override. */
+    const char *v = study_get(s, f, r, "problem");
+    if (v && consph_run_param_set(p, "problem", v) != CONSPH_OK)
+        return study_key_error(s, f, r, "problem", "%s", consph_last_error());
     if ((rc = consph_run_params_problem(p, p->problem))) return rc;
-    if ((rc = get_name(s, f, r, "scheme", NULL, consph_scheme_names(), p->scheme))) return rc;
-    const char *layout = study_get_or(s, f, r, "layout", "default");
-    consph_layout_kind kind;
-    /* "default": the problem's, else the scheme's */
-    if (strcmp(layout, "default") != 0 && consph_layout_lookup(layout, &kind) == CONSPH_OK)
-        p->layout = (int)kind;
-    else if (strcmp(layout, "default") != 0)
-        return study_key_error(s, f, r, "layout", "unknown value '%s'; allowed: default,%s", layout,
-                               consph_layout_names());
-    const char *kernel = study_get(s, f, r, "kernel");
-    if (kernel && consph_kernel_lookup(kernel, &p->kernel) != CONSPH_OK)
-        return study_key_error(s, f, r, "kernel", "%s", consph_last_error());
-    if ((rc = study_get_double(s, f, r, "hdx", p->hdx, 0.5, 4, &p->hdx))) return rc;
-    if ((rc = study_get_double(s, f, r, "c0", p->c0, 0, 1e6, &p->c0))) return rc;
-    if ((rc = study_get_double(s, f, r, "re", p->re, 1e-6, 1e12, &p->re))) return rc;
+    if (!study_get(s, f, r, "scheme"))
+        return study_key_error(s, f, r, "scheme", "not given; allowed: %s", consph_scheme_names());
+    for (int j = 0; j < consph_run_param_count(); ++j) {
+        const consph_run_param *d = consph_run_param_at(j);
+        if (!d->study_key || !strcmp(d->name, "problem") || (d->flags & CONSPH_PFLAG_NX)) continue;
+        const char *k = d->flags & CONSPH_PFLAG_QUICK
+                            ? quick_key(s, f, r, quick, d->study_key, qk, sizeof qk)
+                            : d->study_key;
+        if (!(v = study_get(s, f, r, k))) continue;
+        /* "default": the problem's layout, else the scheme's */
+        if (d->type == CONSPH_PTYPE_LAYOUT && !strcmp(v, "default")) continue;
+        if (consph_run_param_set(p, d->name, v) != CONSPH_OK)
+            return study_key_error(s, f, r, k, "%s", consph_last_error());
+    }
     if (study_get(s, f, r, "re")) p->nu = -1.0; /* ν from the Re given, not the problem's */
-    if ((rc = study_get_double(s, f, r, "seed", (double)p->seed, 0, 1e9, &seed))) return rc;
-    p->seed = (unsigned long)seed;
-    const char *k = quick_key(s, f, r, quick, "tf", qk, sizeof qk);
-    if ((rc = study_get_double(s, f, r, k, p->tf, 1e-12, 1e6, &p->tf))) return rc;
-    k = quick_key(s, f, r, quick, "steps", qk, sizeof qk);
-    if ((rc = study_get_double(s, f, r, k, 0, 0, 1e9, &steps))) return rc;
-    if (steps != floor(steps)) return study_key_error(s, f, r, k, "must be a whole number");
     /* A step count replaces the final time: both given, one would be ignored. */
     char qt[16];
+    const char *k = quick_key(s, f, r, quick, "steps", qk, sizeof qk);
     const char *tk = quick_key(s, f, r, quick, "tf", qt, sizeof qt);
     if (study_get(s, f, r, k) && study_get(s, f, r, tk))
         return study_key_error(s, f, r, k, "conflicts with '%s' (line %d); give one of them", tk,
                                study_line(s, f, r, tk));
-    p->steps = (long)steps;
-    if ((rc = study_get_double(s, f, r, "dt", 0, 0, 1e3, &p->dt))) return rc;
     if ((rc = study_get_choice(s, f, r, "dt_rule", rules, 0, &rule))) return rc;
     pl->dt_finest = rule == 0;
     if ((rc = study_get_choice(s, f, r, "l1", l1s, 0, &pl->l1_mean))) return rc;
-    if ((rc = study_get_choice(s, f, r, "rho_init", rho_inits, 0, &p->rho_init))) return rc;
-    if ((rc = study_get_choice(s, f, r, "error", errors, 0, &p->error))) return rc;
-    double ntimes;
-    if ((rc = study_get_double(s, f, r, "error_times", p->error_times, 2, 1e6, &ntimes))) return rc;
-    if (ntimes != floor(ntimes)) return study_key_error(s, f, r, "error_times", "must be whole");
-    p->error_times = (int)ntimes;
     k = quick_key(s, f, r, quick, "nx", qk, sizeof qk);
     if ((rc = study_get_list(s, f, r, k, 4, 1e5, pl->nx, &pl->nnx))) return rc;
     if (pl->nnx == 0) return study_key_error(s, f, r, "nx", "no resolutions given");
@@ -159,15 +118,26 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
         return study_key_error(s, f, r, k, "%s", consph_last_error());
     if (consph_run_params_check(p) != CONSPH_OK)
         return study_key_error(s, f, r, "scheme", "%s", consph_last_error());
-    /* as consph run's --seed; a figure's or the study's seed is a default and stays allowed */
+    /* as consph run's options: a series' key setting a parameter its scheme does not read would
+     * do nothing; a figure's or the study's is a default for every series and stays allowed */
+    char list[512];
+    for (int j = 0; j < consph_run_param_count(); ++j) {
+        const consph_run_param *d = consph_run_param_at(j);
+        if (!d->reads || !d->study_key || !study_series_sets(s, f, r, d->study_key) ||
+            (!strcmp(d->name, "eos") && p->eos == CONSPH_EOS_DEFAULT) ||
+            consph_scheme_reads(p->scheme, d->reads))
+            continue;
+        return study_key_error(s, f, r, d->study_key,
+                               "does nothing for the scheme %s (it acts on: %s)", p->scheme,
+                               consph_scheme_readers(d->reads, list, sizeof list));
+    }
     const int lk = consph_run_params_layout(p);
-    char seeded[128];
     if (study_series_sets(s, f, r, "seed") && !consph_layout_uses_seed((consph_layout_kind)lk))
         return study_key_error(s, f, r, "seed",
                                "does nothing for the layout %s, which draws no random numbers "
                                "(it acts on: %s)",
                                consph_layout_name((consph_layout_kind)lk),
-                               consph_layout_seeded_names(seeded, sizeof seeded));
+                               consph_layout_seeded_names(list, sizeof list));
     return CONSPH_OK;
 }
 

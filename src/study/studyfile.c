@@ -5,6 +5,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "consph/solver.h"
 #include "study/study_internal.h"
 
 static char *dup_range(const char *a, size_t n)
@@ -144,15 +145,15 @@ static const key_rule key_rules[] = {{"study", K_ALL, AT_STUDY},
                                      {"quick.hdx.values", K_APPROX, AT_ANY},
                                      {"norm", K_APPROX, AT_HEAD},
                                      {"x", K_APPROX | K_RUN, AT_HEAD},
-                                     {"kernel", K_LAYOUT | K_RUN, AT_ANY},
-                                     {"hdx", K_LAYOUT | K_RUN | K_HEAT, AT_ANY},
+                                     {"kernel", K_LAYOUT, AT_ANY},
+                                     {"hdx", K_LAYOUT | K_HEAT, AT_ANY},
                                      {"h_policy", K_LAYOUT, AT_ANY},
                                      {"match_support", K_LAYOUT, AT_ANY},
                                      {"beta", K_LAYOUT, AT_ANY},
-                                     {"layout", K_LAYOUT | K_RUN, AT_ANY},
+                                     {"layout", K_LAYOUT, AT_ANY},
                                      {"dim", K_LAYOUT | K_APPC, AT_ANY},
                                      {"eps", K_LAYOUT | K_HEAT, AT_ANY},
-                                     {"seed", K_LAYOUT | K_RUN | K_HEAT, AT_ANY},
+                                     {"seed", K_LAYOUT | K_HEAT, AT_ANY},
                                      {"periodic", K_LAYOUT, AT_ANY},
                                      {"volume", K_LAYOUT, AT_ANY},
                                      {"pack_tol", K_LAYOUT, AT_ANY},
@@ -167,20 +168,9 @@ static const key_rule key_rules[] = {{"study", K_ALL, AT_STUDY},
                                      {"ot_p", K_CAUCHY, AT_ANY},
                                      {"directions", K_CAUCHY, AT_ANY},
                                      {"grid", K_CAUCHY, AT_ANY},
-                                     {"problem", K_RUN, AT_ANY},
-                                     {"scheme", K_RUN, AT_ANY},
-                                     {"c0", K_RUN, AT_ANY},
-                                     {"re", K_RUN, AT_ANY},
-                                     {"tf", K_RUN | K_HEAT, AT_ANY},
-                                     {"quick.tf", K_RUN, AT_ANY},
-                                     {"steps", K_RUN, AT_ANY},
-                                     {"quick.steps", K_RUN, AT_ANY},
-                                     {"dt", K_RUN, AT_ANY},
+                                     {"tf", K_HEAT, AT_ANY},
                                      {"dt_rule", K_RUN, AT_ANY},
                                      {"l1", K_RUN, AT_ANY},
-                                     {"rho_init", K_RUN, AT_ANY},
-                                     {"error", K_RUN, AT_ANY},
-                                     {"error_times", K_RUN, AT_ANY},
                                      {"tr_ref", K_RUN, AT_HEAD},
                                      {"y", K_RUN, AT_HEAD},
                                      {"laplacian", K_HEAT, AT_ANY},
@@ -190,17 +180,39 @@ static const key_rule key_rules[] = {{"study", K_ALL, AT_STUDY},
                                      {"series.", K_ALL, AT_FIGURE},
                                      {NULL, 0, 0}};
 
-static const key_rule *key_rule_of(const char *key)
+/* The run parameters' study keys (consph_run_param_at) are keys of run figures, and `quick.KEY`
+ * of those a quick run replaces. */
+static int run_param_key(const char *key)
 {
-    for (const key_rule *k = key_rules; k->name; ++k) {
+    for (int k = 0; k < consph_run_param_count(); ++k) {
+        const consph_run_param *d = consph_run_param_at(k);
+        if (!d->study_key) continue;
+        if (strcmp(key, d->study_key) == 0) return 1;
+        if ((d->flags & CONSPH_PFLAG_QUICK) && strncmp(key, "quick.", 6) == 0 &&
+            strcmp(key + 6, d->study_key) == 0)
+            return 1;
+    }
+    return 0;
+}
+
+/* The rule of `key` into *out: key_rules' row, with run figures added for a run parameter; 0
+ * when the key is unknown. */
+static int key_rule_of(const char *key, key_rule *out)
+{
+    const key_rule *found = NULL;
+    for (const key_rule *k = key_rules; k->name && !found; ++k) {
         size_t n = strlen(k->name);
         if (k->name[n - 1] == '.') {
-            if (strncmp(key, k->name, n) == 0 && key[n]) return k;
+            if (strncmp(key, k->name, n) == 0 && key[n]) found = k;
         } else if (strcmp(key, k->name) == 0) {
-            return k;
+            found = k;
         }
     }
-    return NULL;
+    const int run = run_param_key(key);
+    if (!found && !run) return 0;
+    *out = found ? *found : (key_rule){key, 0, AT_ANY};
+    if (run) out->kinds |= K_RUN;
+    return 1;
 }
 
 /* The kinds of a rule as text ("approx, m0"). */
@@ -373,7 +385,8 @@ static int expand_series(const char *path, study_figure *f)
 static int key_applies(const consph_study *s, const study_kv *kv, int kinds, const char *where)
 {
     const char *key = strncmp(kv->key, "series.", 7) == 0 ? kv->key + 7 : kv->key;
-    const key_rule *rule = key_rule_of(key);
+    key_rule rule_row;
+    const key_rule *rule = key_rule_of(key, &rule_row) ? &rule_row : NULL;
     if (!rule || (rule->kinds & kinds)) return CONSPH_OK;
     char buf[64], have[64];
     return consph_fail(CONSPH_EFORMAT,
@@ -502,7 +515,8 @@ static int parse_line(consph_study *s, char *buf, const char *path, int line, st
     if (!eq) return consph_fail(CONSPH_EFORMAT, "%s:%d: expected 'key = value'", path, line);
     *eq = '\0';
     char *key = trim(t), *value = trim(eq + 1);
-    const key_rule *rule = key_rule_of(key);
+    key_rule rule_row, inner_row;
+    const key_rule *rule = key_rule_of(key, &rule_row) ? &rule_row : NULL;
     if (!rule)
         return consph_fail(CONSPH_EFORMAT, "%s:%d: unknown key '%s' (see docs/studies.md)", path,
                            line, key);
@@ -525,7 +539,8 @@ static int parse_line(consph_study *s, char *buf, const char *path, int line, st
     if (at == AT_STUDY && !(rule->at & AT_STUDY))
         return consph_fail(CONSPH_EFORMAT, "%s:%d: key '%s' belongs on a [figure]", path, line,
                            key);
-    const key_rule *inner = rule->at == AT_FIGURE ? key_rule_of(key + 7) : NULL;
+    const key_rule *inner =
+        rule->at == AT_FIGURE && key_rule_of(key + 7, &inner_row) ? &inner_row : NULL;
     if (rule->at == AT_FIGURE && (!inner || !(inner->at & AT_SERIES) || inner->at == AT_FIGURE))
         return consph_fail(CONSPH_EFORMAT,
                            "%s:%d: '%s': '%s' is not a key a series may set (see docs/studies.md)",
