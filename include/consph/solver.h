@@ -116,13 +116,16 @@ const char *consph_integrator_names(void);
 /* CONSPH_EINVAL naming the option and the allowed values when something is out of range; run
  * before any work. */
 int consph_run_params_check(const consph_run_params *prm);
-/* The most particles per side of a run (10^8 particles, as consph layout and approx allow). */
+/* The most particles per side of a 2D run (10^8 particles, as consph layout and approx allow;
+ * a 3D run has at most as many particles: nx <= 464). */
 #define CONSPH_RUN_NX_MAX 10000
-/* CONSPH_OK when an nx × nx run can be held: nx in [4, CONSPH_RUN_NX_MAX] and its memory
- * estimate (1 KiB per particle, about twice the measured peak) within this machine's physical
- * memory; else CONSPH_EINVAL, the message naming --nx, the estimate and the limit. Called by
- * consph_run_params_check, so before any set-up. */
-int consph_run_nx_check(int nx);
+/* CONSPH_OK when a run of nx^dim particles can be held: nx in [4, CONSPH_RUN_NX_MAX] (3D: [4,
+ * 464]) and its memory estimate (2D: 1 KiB per particle, about twice the measured peak; 3D: 2
+ * KiB) within this machine's physical memory; else CONSPH_EINVAL, the message naming --nx, the
+ * estimate and the limit. Called by consph_run_params_check, so before any set-up. */
+int consph_run_nx_check(int nx, int dim);
+/* The dimension of a problem (2 or 3), 0 for an unknown name. */
+int consph_problem_dim(const char *problem);
 
 /* What a run measured. */
 typedef struct consph_run_summary {
