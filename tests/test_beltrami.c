@@ -2,15 +2,19 @@
  * satisfies the incompressible Navier-Stokes equations (checked by central differences at a few
  * points, independently of how problems.c writes it); every scheme runs it in 3D on the lattice
  * and conserves linear momentum to round-off; L-IPST-C's velocity error falls at order >= 1.8
- * (large c_o, fixed Δt, few steps); the table's problems have consistent boxes and the names
- * list is the table's. */
+ * (large c_o, fixed Δt, few steps); the regularisations (IPST, Sun's shifting, M4 remeshing)
+ * do their job in 3D; the table's problems have consistent boxes and the names list is the
+ * table's. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "check.h"
+#include "consph/layout.h"
 #include "consph/solver.h"
+#include "layout/layout_internal.h"
+#include "regularise/regularise.h"
 #include "solver/solver_internal.h"
 
 static consph_run_params params(const char *scheme, int nx, long steps)
@@ -84,7 +88,8 @@ static void test_exact_solution(void)
     prm.rho0 = 1.7;
     prm.nu = 0.02;
     const double k = 2.0 * M_PI, e = 1e-3;
-    const double pts[][3] = {{0.1, 0.2, 0.3}, {0.77, 0.05, 0.61}, {0.5, 0.9, 0.13}, {0.33, 0.41, 0.97}};
+    const double pts[][3] = {
+        {0.1, 0.2, 0.3}, {0.77, 0.05, 0.61}, {0.5, 0.9, 0.13}, {0.33, 0.41, 0.97}};
     for (size_t q = 0; q < sizeof pts / sizeof pts[0]; ++q)
         for (int ti = 0; ti < 2; ++ti) {
             const double t = 0.37 * ti, *x = pts[q];
@@ -115,8 +120,8 @@ static void test_exact_solution(void)
                 for (int b = 0; b < 3; ++b) r += u[b] * dfd(pb, &prm, t, x, a, b, e);
                 r += dfd(pb, &prm, t, x, 3, a, e) / prm.rho0;
                 r -= prm.nu * lap(pb, &prm, t, x, a, e);
-                CHECK_NEAR(r, 0.0, 1e-5 * scale * prm.U, "momentum residual %d, point %zu, t %g",
-                           a, q, t);
+                CHECK_NEAR(r, 0.0, 1e-5 * scale * prm.U, "momentum residual %d, point %zu, t %g", a,
+                           q, t);
             }
         }
     /* the pressure constant: p has zero mean over the cube (a 32³ midpoint rule is exact for
@@ -152,8 +157,8 @@ static void test_every_scheme_momentum(void)
         consph_solver_diag(s, &g);
         const consph_particles *pp = consph_solver_particles(s);
         const consph_field *fu = consph_particles_find(pp, SF_U);
-        CHECK(pp->dim == 3 && fu && fu->ncomp == 3 && pp->n == 512, "%s: dim %d, n %zu", t,
-              pp->dim, pp->n);
+        CHECK(pp->dim == 3 && fu && fu->ncomp == 3 && pp->n == 512, "%s: dim %d, n %zu", t, pp->dim,
+              pp->n);
         double mu = 0.0; /* Σ m|u|, m = ρ_o Δs³ */
         for (size_t i = 0; fu && i < pp->n; ++i) {
             double u2 = 0.0;
@@ -215,6 +220,127 @@ static void test_lipst_order(void)
     CHECK(order >= 1.8, "l-ipst-c 3D velocity order %.3f < 1.8", order);
 }
 
+/* ---- the regularisations in 3D ---- */
+
+/* A periodic unit-cube layout of nx³ particles (layout "random" with eps, or the lattice for
+ * eps = 0) in a system with the quintic at h = 1.2Δs and "volume" = 1/Σ_j W_ij. */
+static int make_sys3(consph_sys *s, size_t nx, double eps)
+{
+    consph_layout_params lp =
+        consph_layout_defaults(eps > 0.0 ? CONSPH_LAYOUT_RANDOM : CONSPH_LAYOUT_LATTICE, 3, nx);
+    lp.eps = eps;
+    lp.seed = 5;
+    consph_particles p;
+    if (consph_layout_generate(&lp, &p, NULL)) return 0;
+    consph_kernel k;
+    int ok = consph_kernel_init(&k, CONSPH_KERNEL_QUINTIC, 3, 1.2 * p.spacing) == CONSPH_OK &&
+             consph_sys_init(s, &p, &k, 0.0) == CONSPH_OK;
+    consph_particles_free(&p);
+    if (!ok) return 0;
+    double *vol = consph_particles_field(s->p, "volume", 1);
+    double *sumw = calloc(s->p->n, sizeof(double));
+    ok = vol && sumw && consph_layout_density(s, 1.0, sumw, NULL) == CONSPH_OK;
+    for (size_t i = 0; ok && i < s->p->n; ++i) vol[i] = 1.0 / sumw[i];
+    free(sumw);
+    return ok;
+}
+
+/* max_i Σ_j W_ij - min_i Σ_j W_ij: 0 on the lattice, the disorder the shifts reduce. */
+static double sumw_spread(const consph_sys *s)
+{
+    double *sumw = calloc(s->p->n, sizeof(double)), lo = INFINITY, hi = -INFINITY;
+    if (!sumw || consph_layout_density(s, 1.0, sumw, NULL)) {
+        free(sumw);
+        return NAN;
+    }
+    for (size_t i = 0; i < s->p->n; ++i) {
+        lo = fmin(lo, sumw[i]);
+        hi = fmax(hi, sumw[i]);
+    }
+    free(sumw);
+    return hi - lo;
+}
+
+static void test_regularise_3d(void)
+{
+    consph_sys s;
+    /* IPST (001 eqs. 19-21): χ_o of the 3D lattice, and the shifts even out a disordered set */
+    CHECK(make_sys3(&s, 8, 0.4), "system: %s", consph_last_error());
+    reg_ipst_params ip = {s.kernel.h, reg_chi0(&s.kernel, s.p->spacing), 1e-3, 10};
+    CHECK(ip.chi0 > 0.5 && ip.chi0 < 2.0, "chi0 in 3D %g", ip.chi0);
+    double *dr = calloc(3 * s.p->cap, sizeof(double));
+    const double spread0 = sumw_spread(&s);
+    reg_ipst_report rep = {-1, NAN, NAN};
+    CHECK(reg_ipst(&s, &ip, dr, &rep) == CONSPH_OK, "IPST: %s", consph_last_error());
+    const double spread1 = sumw_spread(&s);
+    printf("3D IPST: %d iterations, spread of sum W %.3e -> %.3e, max shift %.3f h\n",
+           rep.iterations, spread0, spread1, rep.max_shift);
+    CHECK(rep.iterations >= 1 && spread1 < 0.5 * spread0, "IPST in 3D: spread %g -> %g", spread0,
+          spread1);
+    consph_sys_free(&s);
+    /* Sun's shifting: nothing on the lattice (every sum cancels), and on a disordered set a
+     * step that reduces the spread */
+    reg_pst_params pp = {0.0, 0.0, 0.3, 0.1, 0.2, 4.0, 0.0};
+    for (int disordered = 0; disordered < 2; ++disordered) {
+        CHECK(make_sys3(&s, 8, disordered ? 0.4 : 0.0), "system: %s", consph_last_error());
+        pp.h = s.kernel.h;
+        pp.ds = s.p->spacing;
+        memset(dr, 0, 3 * s.p->cap * sizeof(double));
+        CHECK(reg_pst_shift(&s, &pp, dr) == CONSPH_OK, "PST: %s", consph_last_error());
+        double longest = 0.0;
+        for (size_t i = 0; i < s.p->n; ++i)
+            longest = fmax(longest, sqrt(dr[i] * dr[i] + dr[s.p->cap + i] * dr[s.p->cap + i] +
+                                         dr[2 * s.p->cap + i] * dr[2 * s.p->cap + i]));
+        const double before = sumw_spread(&s);
+        CHECK(reg_move(&s, dr) == CONSPH_OK, "move: %s", consph_last_error());
+        const double after = sumw_spread(&s);
+        printf("3D shifting (%s): max |dr| %.3e h, spread of sum W %.3e -> %.3e\n",
+               disordered ? "disordered" : "lattice", longest / pp.h, before, after);
+        if (disordered)
+            CHECK(longest > 1e-4 * pp.h && after < before, "PST in 3D: spread %g -> %g", before,
+                  after);
+        else
+            CHECK(longest < 1e-12 * pp.h, "PST moves the 3D lattice by %g h", longest / pp.h);
+        consph_sys_free(&s);
+    }
+    /* M4 remeshing (001 eqs. 32-33): particles of a lattice offset by (0.3, -0.2, 0.1)Δs carry
+     * a constant and a linear field; on the lattice they come back to round-off (away from the
+     * periodic seam, where the linear field jumps) */
+    CHECK(make_sys3(&s, 10, 0.0), "system: %s", consph_last_error());
+    const size_t n = s.p->n, cap = s.p->cap;
+    const double ds = s.p->spacing, off[3] = {0.3 * ds, -0.2 * ds, 0.1 * ds};
+    double *lat = calloc(3 * cap, sizeof(double));
+    for (int a = 0; a < 3; ++a)
+        for (size_t i = 0; i < n; ++i) {
+            lat[a * cap + i] = s.p->x[a][i];
+            s.p->x[a][i] = layout_wrap(s.p->x[a][i] + off[a], 0.0, 1.0);
+        }
+    double *c = consph_particles_field(s.p, "c", 1), *l = consph_particles_field(s.p, "lin", 1);
+    for (size_t i = 0; i < n; ++i) {
+        c[i] = 2.5;
+        l[i] = 1.0 + 3.0 * s.p->x[0][i] - 2.0 * s.p->x[1][i] + s.p->x[2][i];
+    }
+    CHECK(consph_sys_update(&s, 0) == CONSPH_OK, "update: %s", consph_last_error());
+    static const char *const fields[] = {"c", "lin"};
+    size_t orphans = 99;
+    CHECK(reg_remesh_m4(&s, lat, ds, fields, 2, &orphans) == CONSPH_OK, "remesh: %s",
+          consph_last_error());
+    c = consph_particles_field(s.p, "c", 1);
+    l = consph_particles_field(s.p, "lin", 1);
+    double ec = 0.0, el = 0.0;
+    for (size_t i = 0; i < n; ++i) {
+        const double x = s.p->x[0][i], y = s.p->x[1][i], z = s.p->x[2][i];
+        ec = fmax(ec, fabs(c[i] - 2.5));
+        if (fmin(fmin(x, y), z) < 3.0 * ds || fmax(fmax(x, y), z) > 1.0 - 3.0 * ds) continue;
+        el = fmax(el, fabs(l[i] - (1.0 + 3.0 * x - 2.0 * y + z)));
+    }
+    printf("3D remesh: constant error %.2e, linear error %.2e, %zu orphans\n", ec, el, orphans);
+    CHECK(orphans == 0 && ec <= 1e-14 && el <= 1e-13, "3D remesh: constant %g, linear %g", ec, el);
+    free(lat);
+    free(dr);
+    consph_sys_free(&s);
+}
+
 /* The names list is the table's, every problem's box is a box of its dimension. */
 static void test_table(void)
 {
@@ -226,8 +352,7 @@ static void test_table(void)
         CHECK(pb && (pb->dim == 2 || pb->dim == 3), "%s: not a problem of 2 or 3 dimensions", t);
         if (!pb) continue;
         CHECK(consph_problem_dim(t) == pb->dim, "%s: consph_problem_dim", t);
-        for (int a = 0; a < pb->dim; ++a)
-            CHECK(pb->hi[a] > pb->lo[a], "%s: axis %d empty", t, a);
+        for (int a = 0; a < pb->dim; ++a) CHECK(pb->hi[a] > pb->lo[a], "%s: axis %d empty", t, a);
     }
     CHECK(count == 4 && strstr(consph_problem_names(), "beltrami"), "names %s",
           consph_problem_names());
@@ -245,5 +370,6 @@ int main(void)
     test_exact_solution();
     test_every_scheme_momentum();
     test_lipst_order();
+    test_regularise_3d();
     return check_summary("test_beltrami");
 }
