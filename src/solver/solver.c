@@ -66,8 +66,9 @@ static const char *integrator_name(int integ)
 
 /* Measured peak resident memory per particle (2D, one thread, --out, 160 000 particles): 600
  * bytes for l-rr-c (which keeps a lattice copy), 340-400 for the others, packing included; the
- * estimate leaves room for the threads' buffers and the snapshot writer. In 3D the tensors have
- * 9 components instead of 4 and a particle has about 5 times the neighbours: RUN_BYTES_3D. */
+ * estimate leaves room for the threads' buffers and the snapshot writer. In 3D (tensors of 9
+ * components; lattice, one thread, --out, 32 768 particles): 930 bytes for l-rr-c, 790 for
+ * l-ipst-c, so RUN_BYTES_3D is again about twice the peak. */
 #define RUN_BYTES_PER_PARTICLE 1024.0
 #define RUN_BYTES_3D 2048.0
 
