@@ -24,7 +24,9 @@ static const char run_details[] =
     "Lagrangian schemes and the lattice for l-rr-c and the Eulerian ones; IPST every 10\n"
     "steps, at most 10 iterations, ε 1e-3. docs/schemes.md records every choice.\n"
     "gresho-chan (001 eq. 37): ν 0, t_f 3, lattice; shear-layer (001 eqs. 38-39): ν 1e-4,\n"
-    "t_f 1, lattice, no exact solution (errors n/a); an option given overrides these.\n"
+    "t_f 1, lattice, no exact solution (errors n/a); beltrami: the 3D ABC flow on the\n"
+    "periodic unit cube (A = B = C = U, k = 2π; nx^3 particles), defaults as taylor-green's;\n"
+    "an option given overrides these.\n"
     "\n"
     "With --out DIR: DIR/run.pvd indexing snap_NNNNNN.vtu (every --snapshot-every steps and\n"
     "the last), DIR/log.csv (one row per step), DIR/summary.json, and DIR/checkpoint.ckpt\n"
@@ -289,7 +291,7 @@ int cmd_run(int argc, char **argv)
     cli_command cmd = {"run",
                        "run a simulation: weakly-compressible SPH, or 002's heat problem",
                        "consph run PROBLEM --scheme S --nx N [options]   (PROBLEM: taylor-green, "
-                       "gresho-chan, shear-layer)\n"
+                       "gresho-chan, shear-layer, beltrami)\n"
                        "       consph run heat --laplacian s3|s4 --nx N --eta H/Δ [options]",
                        run_details,
                        opts,
@@ -451,8 +453,13 @@ int cmd_run(int argc, char **argv)
         }
         printf("L1(u) %s  L1(p) %s  (001 eq. 26)   Linf(u) %s  Linf(p) %s\n", e[0], e[1], e[2],
                e[3]);
-        printf("momentum (%.3e, %.3e)  angular %.3e  F_T/F_max %.3e  max|div u| %.3e\n",
-               sum.momentum[0], sum.momentum[1], sum.angular_momentum, sum.ft_fmax, sum.max_divu);
+        if (sum.dim == 3)
+            printf("momentum (%.3e, %.3e, %.3e)  ", sum.momentum[0], sum.momentum[1],
+                   sum.momentum[2]);
+        else
+            printf("momentum (%.3e, %.3e)  ", sum.momentum[0], sum.momentum[1]);
+        printf("angular %.3e  F_T/F_max %.3e  max|div u| %.3e\n", sum.angular_momentum, sum.ft_fmax,
+               sum.max_divu);
         printf("%.3f s, %.3e s per particle-step, %d passes per stage (minimum %d)\n", sum.seconds,
                sum.steps ? sum.seconds / ((double)sum.steps * (double)sum.n) : 0.0,
                sum.passes_per_stage, sum.passes_min);

@@ -215,7 +215,7 @@ nx = 16,12
 scheme = e-c"
 
 # The shipped run studies are valid and estimate their cost without running.
-for s in 001-table7 001-table8 001-table9 001-fig20 001-gresho 001-shear-layer demo-tgv; do
+for s in 001-table7 001-table8 001-table9 001-fig20 001-gresho 001-shear-layer demo-tgv beltrami-3d; do
   CONSPH_STUDIES=$src/studies "$consph" study "$s" --estimate >"$tmp/est" 2>&1 || bad "$s --estimate: $(cat "$tmp/est")"
   grep -q '^estimated run time: [0-9]' "$tmp/est" || bad "$s: no estimate"
 done

@@ -273,17 +273,19 @@ static void test_meta_refused(void)
 static void test_size_cap(void)
 {
     const double gib = 1073741824.0;
-    CHECK(run_nx_fits(10000, 0.0) == CONSPH_OK, "nx 10000 with memory unknown: %s",
+    CHECK(run_nx_fits(10000, 2, 0.0) == CONSPH_OK, "nx 10000 with memory unknown: %s",
           consph_last_error());
-    CHECK(run_nx_fits(10001, 0.0) == CONSPH_EINVAL && strstr(consph_last_error(), "--nx") &&
+    CHECK(run_nx_fits(10001, 2, 0.0) == CONSPH_EINVAL && strstr(consph_last_error(), "--nx") &&
               strstr(consph_last_error(), "[4, 10000]") && strstr(consph_last_error(), "GiB"),
           "nx 10001: %s", consph_last_error());
     /* 4000² particles at 1 KiB: 15.3 GiB, more than 8 GiB, less than 16 */
-    CHECK(run_nx_fits(4000, 8 * gib) == CONSPH_EINVAL && strstr(consph_last_error(), "--nx 4000") &&
-              strstr(consph_last_error(), "15.3 GiB") && strstr(consph_last_error(), "(8 GiB)"),
+    CHECK(run_nx_fits(4000, 2, 8 * gib) == CONSPH_EINVAL &&
+              strstr(consph_last_error(), "--nx 4000") && strstr(consph_last_error(), "15.3 GiB") &&
+              strstr(consph_last_error(), "(8 GiB)"),
           "nx 4000 in 8 GiB: %s", consph_last_error());
-    CHECK(run_nx_fits(4000, 16 * gib) == CONSPH_OK, "nx 4000 in 16 GiB: %s", consph_last_error());
-    CHECK(run_nx_fits(3, 16 * gib) == CONSPH_EINVAL, "nx 3 accepted");
+    CHECK(run_nx_fits(4000, 2, 16 * gib) == CONSPH_OK, "nx 4000 in 16 GiB: %s",
+          consph_last_error());
+    CHECK(run_nx_fits(3, 2, 16 * gib) == CONSPH_EINVAL, "nx 3 accepted");
     /* the parameter check applies it, so studies and the library get it before any set-up */
     consph_run_params p = params("e-c", 100000);
     CHECK(consph_run_params_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "--nx"),

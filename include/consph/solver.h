@@ -171,13 +171,16 @@ int consph_run_param_format(const consph_run_params *prm, const char *name, char
 /* What the row allows, for help and messages: "[0.5, 4]", "(0, 2]", "[0, 10] or -1",
  * "default,tait,linear", ... into buf; returns buf. */
 const char *consph_run_param_allowed(const consph_run_param *d, char *buf, size_t size);
-/* The most particles per side of a run (10^8 particles, as consph layout and approx allow). */
+/* The most particles per side of a 2D run (10^8 particles, as consph layout and approx allow;
+ * a 3D run has at most as many particles: nx <= 464). */
 #define CONSPH_RUN_NX_MAX 10000
-/* CONSPH_OK when an nx × nx run can be held: nx in [4, CONSPH_RUN_NX_MAX] and its memory
- * estimate (1 KiB per particle, about twice the measured peak) within this machine's physical
- * memory; else CONSPH_EINVAL, the message naming --nx, the estimate and the limit. Called by
- * consph_run_params_check, so before any set-up. */
-int consph_run_nx_check(int nx);
+/* CONSPH_OK when a run of nx^dim particles can be held: nx in [4, CONSPH_RUN_NX_MAX] (3D: [4,
+ * 464]) and its memory estimate (2D: 1 KiB per particle, about twice the measured peak; 3D: 2
+ * KiB) within this machine's physical memory; else CONSPH_EINVAL, the message naming --nx, the
+ * estimate and the limit. Called by consph_run_params_check, so before any set-up. */
+int consph_run_nx_check(int nx, int dim);
+/* The dimension of a problem (2 or 3), 0 for an unknown name. */
+int consph_problem_dim(const char *problem);
 
 /* What a run measured. */
 typedef struct consph_run_summary {

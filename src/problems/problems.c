@@ -62,26 +62,72 @@ static void shear_layer(const consph_run_params *prm, double t, const double x[3
     *p = 0.0;
 }
 
-/* name, summary, exact, has_exact, lo, hi, tf, nu, c0, layout, radial, vorticity_image */
+/* The Arnold-Beltrami-Childress flow on the periodic unit cube, with A = B = C = U and k = 2π/L
+ * (L = 1): u = (A sin kz + C cos ky, B sin kx + A cos kz, C sin ky + B cos kx) e^(-νk²t), a
+ * Beltrami field (∇×u = k u), so u·∇u = ∇(|u|²/2) and p = -ρ_o |u|²/2 + const solves the
+ * Navier-Stokes equations exactly (docs/schemes.md, "Problems"); the constant makes the mean of
+ * p over the cube zero: the mean of |u|² is (A² + B² + C²) e^(-2νk²t). */
+static void beltrami(const consph_run_params *prm, double t, const double x[3], double u[3],
+                     double *p)
+{
+    const double A = prm->U, B = prm->U, C = prm->U, k = 2.0 * M_PI;
+    const double nu = prm->nu >= 0.0 ? prm->nu : prm->U / prm->re; /* derive_solver's, L = 1 */
+    const double e = exp(-nu * k * k * t);
+    const double sx = sin(k * x[0]), cx = cos(k * x[0]), sy = sin(k * x[1]), cy = cos(k * x[1]);
+    const double sz = sin(k * x[2]), cz = cos(k * x[2]);
+    u[0] = (A * sz + C * cy) * e;
+    u[1] = (B * sx + A * cz) * e;
+    u[2] = (C * sy + B * cx) * e;
+    const double u2 = u[0] * u[0] + u[1] * u[1] + u[2] * u[2];
+    *p = -0.5 * prm->rho0 * (u2 - (A * A + B * B + C * C) * e * e);
+}
+
+/* clang-format off */
+/* The rows; a field left out is 0 (the third axis of a 2D box is never read). */
 static const problem_def problems[] = {
-    {"taylor-green", "001 eq. 25: Taylor-Green vortex, periodic unit square", taylor_green, 1, 0.0,
-     1.0, 0.5, -1.0, 0.0, -1, 0, 0},
-    {"gresho-chan", "001 eq. 37: Gresho-Chan vortex, inviscid, periodic 1x1 centred at 0",
-     gresho_chan, 1, -0.5, 0.5, 3.0, 0.0, 0.0, CONSPH_LAYOUT_LATTICE, 1, 0},
-    {"shear-layer", "001 eqs. 38-39: double shear layer, rho 30, delta 0.05, nu 1e-4", shear_layer,
-     0, 0.0, 1.0, 1.0, 1e-4, 0.0, CONSPH_LAYOUT_LATTICE, 0, 1},
+    {.name = "taylor-green",
+     .summary = "001 eq. 25: Taylor-Green vortex, periodic unit square",
+     .dim = 2, .lo = {0.0, 0.0}, .hi = {1.0, 1.0}, .periodic = {1, 1},
+     .exact = taylor_green, .has_exact = 1,
+     .tf = 0.5, .nu = -1.0, .c0 = 0.0, .layout = -1},
+    {.name = "gresho-chan",
+     .summary = "001 eq. 37: Gresho-Chan vortex, inviscid, periodic 1x1 centred at 0",
+     .dim = 2, .lo = {-0.5, -0.5}, .hi = {0.5, 0.5}, .periodic = {1, 1},
+     .exact = gresho_chan, .has_exact = 1,
+     .tf = 3.0, .nu = 0.0, .c0 = 0.0, .layout = CONSPH_LAYOUT_LATTICE, .radial = 1},
+    {.name = "shear-layer",
+     .summary = "001 eqs. 38-39: double shear layer, rho 30, delta 0.05, nu 1e-4",
+     .dim = 2, .lo = {0.0, 0.0}, .hi = {1.0, 1.0}, .periodic = {1, 1},
+     .exact = shear_layer, .has_exact = 0,
+     .tf = 1.0, .nu = 1e-4, .c0 = 0.0, .layout = CONSPH_LAYOUT_LATTICE, .vorticity_image = 1},
+    {.name = "beltrami",
+     .summary = "3D Arnold-Beltrami-Childress flow, A = B = C = U, k = 2 pi, periodic unit cube",
+     .dim = 3, .lo = {0.0, 0.0, 0.0}, .hi = {1.0, 1.0, 1.0}, .periodic = {1, 1, 1},
+     .exact = beltrami, .has_exact = 1,
+     .tf = 0.5, .nu = -1.0, .c0 = 0.0, .layout = -1},
 };
+/* clang-format on */
+enum { NPROBLEMS = sizeof problems / sizeof problems[0] };
 
 const problem_def *problem_find(const char *name)
 {
-    for (size_t k = 0; k < sizeof problems / sizeof problems[0]; ++k)
+    for (size_t k = 0; k < NPROBLEMS; ++k)
         if (strcmp(problems[k].name, name) == 0) return &problems[k];
     return NULL;
 }
 
 const char *consph_problem_names(void)
 {
-    return "taylor-green,gresho-chan,shear-layer";
+    static char names[NPROBLEMS * 32];
+    /* filled once, from the table; callers on several threads wait for the first */
+#pragma omp critical(consph_problem_names)
+    if (!names[0]) {
+        size_t len = 0;
+        for (size_t k = 0; k < NPROBLEMS; ++k)
+            len += (size_t)snprintf(names + len, sizeof names - len, "%s%s", k ? "," : "",
+                                    problems[k].name);
+    }
+    return names;
 }
 
 int consph_run_params_problem(consph_run_params *prm, const char *problem)

@@ -324,7 +324,8 @@ int consph_run_param_set(consph_run_params *prm, const char *name, const char *t
     }
     if (d->flags & CONSPH_PFLAG_NX) {
         if (!(v >= INT_MIN && v <= INT_MAX)) v = v < 0 ? INT_MIN : INT_MAX;
-        int st = consph_run_nx_check((int)v);
+        const int dim = consph_problem_dim(prm->problem);
+        int st = consph_run_nx_check((int)v, dim ? dim : 2);
         if (st != CONSPH_OK) return st;
     } else if (!number_allowed(d, v) || v == d->special) {
         return consph_fail(CONSPH_EINVAL, "%s = %.40s is out of range (allowed: %s)", d->name, text,
@@ -457,7 +458,8 @@ int consph_run_params_check(const consph_run_params *prm)
         !name_in(prm->integrator, strlen(prm->integrator), consph_integrator_names()))
         return consph_fail(CONSPH_EINVAL, "integrator '%s' is unknown (allowed: %s)",
                            prm->integrator, consph_integrator_names());
-    if ((st = consph_run_nx_check(prm->nx)) != CONSPH_OK) return st;
+    if ((st = consph_run_nx_check(prm->nx, consph_problem_dim(prm->problem))) != CONSPH_OK)
+        return st;
     /* rules between parameters */
     if (prm->steps == 0 && !(prm->tf > 0.0))
         return consph_fail(CONSPH_EINVAL,

@@ -1,6 +1,7 @@
 /* The outputs a problem adds to a run's directory at the final time: the velocity profile u_φ(r)
  * of a centred vortex (profile.csv) and, for the shear layer, the vorticity as a gnuplot pm3d
- * map (vorticity.dat, vorticity.gp and, when gnuplot is installed, vorticity.png). */
+ * map (vorticity.dat, vorticity.gp and, when gnuplot is installed, vorticity.png) of a 2D
+ * problem. */
 #define _GNU_SOURCE /* posix_spawn_file_actions_addchdir_np */
 #include <errno.h>
 #include <fcntl.h>
@@ -117,7 +118,7 @@ static int write_vorticity(consph_solver *s, const char *dir)
     const consph_particles *p = s->sys.p;
     const double *w = sv_field(s, SF_VORT, 1);
     const int nx = s->prm.nx;
-    const double lo = s->prob->lo, ds = (s->prob->hi - lo) / nx;
+    const double lo = s->prob->lo[0], hi = s->prob->hi[0], ds = (hi - lo) / nx;
     double *sum = calloc((size_t)nx * (size_t)nx * 2, sizeof(double)), wmax = 0.0;
     if (!w || !sum) {
         free(sum);
@@ -125,7 +126,8 @@ static int write_vorticity(consph_solver *s, const char *dir)
     }
     double *cnt = sum + (size_t)nx * (size_t)nx;
     for (size_t i = 0; i < p->n; ++i) {
-        int cx = (int)floor((p->x[0][i] - lo) / ds), cy = (int)floor((p->x[1][i] - lo) / ds);
+        int cx = (int)floor((p->x[0][i] - lo) / ds);
+        int cy = (int)floor((p->x[1][i] - s->prob->lo[1]) / ds);
         cx = cx < 0 ? 0 : cx >= nx ? nx - 1 : cx;
         cy = cy < 0 ? 0 : cy >= nx ? nx - 1 : cy;
         sum[(size_t)cy * nx + cx] += w[i];
@@ -173,8 +175,8 @@ static int write_vorticity(consph_solver *s, const char *dir)
             "set palette defined (-1 'blue', 0 'white', 1 'red')\nset cbrange [%.6g:%.6g]\n"
             "splot 'vorticity.dat' matrix using (%.17g + ($1 + 0.5) * %.17g):"
             "(%.17g + ($2 + 0.5) * %.17g):3 with pm3d notitle\n",
-            s->prob->name, s->scheme->name, nx, s->t, lo, s->prob->hi, lo, s->prob->hi, -wmax, wmax,
-            lo, ds, lo, ds);
+            s->prob->name, s->scheme->name, nx, s->t, lo, hi, s->prob->lo[1], s->prob->hi[1], -wmax,
+            wmax, lo, ds, s->prob->lo[1], ds);
     st = consph_outfile_commit(&of);
     return st == CONSPH_OK ? draw_vorticity(dir) : st;
 }
@@ -183,6 +185,7 @@ int problem_outputs(consph_solver *s, const char *dir)
 {
     int st = CONSPH_OK;
     if (s->prob->radial) st = write_profile(s, dir);
-    if (st == CONSPH_OK && s->prob->vorticity_image) st = write_vorticity(s, dir);
+    /* the map is of the scalar vorticity of a square box */
+    if (st == CONSPH_OK && s->prob->vorticity_image && s->dim == 2) st = write_vorticity(s, dir);
     return st;
 }

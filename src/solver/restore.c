@@ -258,7 +258,8 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
                          "history of %zu values does not hold %ld "
                          "steps",
                          nhistory, s->step + 1);
-    if (st == CONSPH_OK && (particles->dim != 2 || particles->n != (size_t)p->nx * (size_t)p->nx))
+    if (st == CONSPH_OK &&
+        (particles->dim != s->dim || (double)particles->n != pow((double)p->nx, s->dim)))
         st = consph_fail(CONSPH_EFORMAT, "%zu particles in %dD do not match nx = %d", particles->n,
                          particles->dim, p->nx);
     consph_kernel k;

@@ -36,6 +36,7 @@ void consph_run_summary_json(FILE *fp, const consph_run_summary *s)
     runfiles_json_num(fp, "kinetic_energy", s->ke, 0);
     runfiles_json_num(fp, "momentum_x", s->momentum[0], 0);
     runfiles_json_num(fp, "momentum_y", s->momentum[1], 0);
+    if (s->dim == 3) runfiles_json_num(fp, "momentum_z", s->momentum[2], 0);
     runfiles_json_num(fp, "angular_momentum", s->angular_momentum, 0);
     runfiles_json_num(fp, "ft_fmax", s->ft_fmax, 0);
     runfiles_json_num(fp, "max_divu", s->max_divu, 0);

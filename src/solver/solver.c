@@ -17,24 +17,41 @@
 
 /* Measured peak resident memory per particle (2D, one thread, --out, 160 000 particles): 600
  * bytes for l-rr-c (which keeps a lattice copy), 340-400 for the others, packing included; the
- * estimate leaves room for the threads' buffers and the snapshot writer. */
+ * estimate leaves room for the threads' buffers and the snapshot writer. In 3D (tensors of 9
+ * components; lattice, one thread, --out, 32 768 particles): 930 bytes for l-rr-c, 790 for
+ * l-ipst-c, so RUN_BYTES_3D is again about twice the peak. */
 #define RUN_BYTES_PER_PARTICLE 1024.0
+#define RUN_BYTES_3D 2048.0
 
-int run_nx_fits(int nx, double memory)
+int run_nx_fits(int nx, int dim, double memory)
 {
-    const double n = (double)nx * (double)nx, need = n * RUN_BYTES_PER_PARTICLE;
-    if (nx < 4 || nx > CONSPH_RUN_NX_MAX)
+    const double each = dim == 3 ? RUN_BYTES_3D : RUN_BYTES_PER_PARTICLE;
+    const double n = pow((double)nx, dim), need = n * each;
+    const double nmax = (double)CONSPH_RUN_NX_MAX * CONSPH_RUN_NX_MAX;
+    const int nx_max = dim == 3 ? (int)floor(cbrt(nmax) + 1e-9) : CONSPH_RUN_NX_MAX;
+    if (nx < 4 || nx > nx_max)
         return consph_fail(CONSPH_EINVAL,
-                           "--nx must be an integer in [4, %d] (at most %.0f particles), not %d "
-                           "(%.4g particles, about %.3g GiB)",
-                           CONSPH_RUN_NX_MAX, (double)CONSPH_RUN_NX_MAX * CONSPH_RUN_NX_MAX, nx, n,
-                           need / 1073741824.0);
-    return runfiles_memory_check(nx, RUN_BYTES_PER_PARTICLE, memory);
+                           "--nx must be an integer in [4, %d] (at most %.0f particles in %dD), "
+                           "not %d (%.4g particles, about %.3g GiB)",
+                           nx_max, nmax, dim, nx, n, need / 1073741824.0);
+    if (dim == 2) return runfiles_memory_check(nx, RUN_BYTES_PER_PARTICLE, memory);
+    if (memory > 0.0 && need > memory)
+        return consph_fail(CONSPH_EINVAL,
+                           "--nx %d: %.4g particles (nx^3) need about %.3g GiB (%.0f bytes each), "
+                           "more than this machine's memory (%.3g GiB)",
+                           nx, n, need / 1073741824.0, each, memory / 1073741824.0);
+    return CONSPH_OK;
 }
 
-int consph_run_nx_check(int nx)
+int consph_run_nx_check(int nx, int dim)
 {
-    return run_nx_fits(nx, runfiles_machine_memory());
+    return run_nx_fits(nx, dim, runfiles_machine_memory());
+}
+
+int consph_problem_dim(const char *problem)
+{
+    const problem_def *pb = problem_find(problem);
+    return pb ? pb->dim : 0;
 }
 
 int consph_run_params_layout(const consph_run_params *prm)
@@ -106,11 +123,11 @@ int derive_solver(consph_solver *s)
     s->prob = problem_find(prm->problem);
     s->integ = integ_find(prm->integrator[0] ? prm->integrator : s->scheme->integrator);
     if (!s->integ) return consph_fail(CONSPH_EINVAL, "unknown integrator");
-    s->dim = 2;
-    s->ds = (s->prob->hi - s->prob->lo) / prm->nx;
+    s->dim = s->prob->dim;
+    s->ds = (s->prob->hi[0] - s->prob->lo[0]) / prm->nx;
     s->h = prm->hdx * s->ds;
     s->c0 = prm->c0 > 0.0 ? prm->c0 : 10.0 * prm->U;
-    s->nu = prm->nu >= 0.0 ? prm->nu : prm->U * (s->prob->hi - s->prob->lo) / prm->re;
+    s->nu = prm->nu >= 0.0 ? prm->nu : prm->U * (s->prob->hi[0] - s->prob->lo[0]) / prm->re;
     s->mass = prm->rho0 * pow(s->ds, s->dim);
     s->D = prm->delta * s->h * s->c0; /* catalogue Part C 001.11: δ h c_o */
     s->eos = prm->eos == CONSPH_EOS_DEFAULT ? s->scheme->eos : prm->eos;
@@ -135,10 +152,11 @@ int derive_solver(consph_solver *s)
 
 static consph_box problem_box(const problem_def *pb)
 {
-    consph_box box = consph_box_unit(2, 1);
-    for (int a = 0; a < 2; ++a) {
-        box.lo[a] = pb->lo;
-        box.hi[a] = pb->hi;
+    consph_box box = consph_box_unit(pb->dim, 1);
+    for (int a = 0; a < pb->dim; ++a) {
+        box.lo[a] = pb->lo[a];
+        box.hi[a] = pb->hi[a];
+        box.periodic[a] = pb->periodic[a];
     }
     return box;
 }
@@ -161,6 +179,18 @@ static int hist_push(consph_solver *s, const consph_step_diag *g)
 }
 
 /* ---- the authors' error measure (consph_error_kind) ---- */
+
+/* x of particle i as the problems take it: every coordinate of the run, 0 beyond. */
+static void position_of(const consph_particles *p, size_t i, double x[3])
+{
+    for (int a = 0; a < 3; ++a) x[a] = a < p->dim ? p->x[a][i] : 0.0;
+}
+
+/* |u| over d components; in 2D hypot, as the 2D runs have always computed it. */
+static double speed(const double u[3], int d)
+{
+    return d == 2 ? hypot(u[0], u[1]) : sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+}
 
 static double max_abs(const double *a, size_t n)
 {
@@ -195,11 +225,12 @@ static int auth_sample(consph_solver *s)
         double *eu = s->diag_buf, *mu = eu + n, *ep = eu + 2 * n, *pe = eu + 3 * n;
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
         for (size_t i = 0; i < n; ++i) {
-            const double x[3] = {p->x[0][i], p->x[1][i], 0.0};
-            double ue[3];
+            double x[3], ue[3];
+            position_of(p, i, x);
             s->prob->exact(&s->prm, s->t, x, ue, &pe[i]);
-            mu[i] = hypot(ue[0], ue[1]);
-            eu[i] = fabs(hypot(u[i], u[cap + i]) - mu[i]);
+            mu[i] = speed(ue, s->dim);
+            const double ui[3] = {u[i], u[cap + i], s->dim == 3 ? u[2 * cap + i] : 0.0};
+            eu[i] = fabs(speed(ui, s->dim) - mu[i]);
             ep[i] = fabs(pr[i] - pe[i]);
         }
         /* mean/mean for u, mean/max for p: taylor_green.py, post_process */
@@ -280,6 +311,8 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
         prm->layout >= 0 ? (consph_layout_kind)prm->layout : s->scheme->layout;
     consph_layout_params lp = consph_layout_defaults(kind, s->dim, (size_t)prm->nx);
     lp.box = problem_box(s->prob);
+    for (int a = 1; a < s->dim; ++a) /* the spacing Δs of axis 0 on every axis */
+        lp.nx[a] = (size_t)lround((lp.box.hi[a] - lp.box.lo[a]) / s->ds);
     lp.seed = prm->seed;
     lp.packing.hdx = prm->hdx;
     consph_particles src = {0}, lat = {0};
@@ -300,7 +333,8 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
         double *xl = lat.n ? sv_field(s, SF_LATTICE, s->dim) : NULL;
         if (!id || !u || !pr || !rhof || (lat.n && !xl)) st = CONSPH_ENOMEM;
         for (size_t i = 0; st == CONSPH_OK && i < n; ++i) {
-            double x[3] = {p->x[0][i], p->x[1][i], 0.0}, ue[3], pe;
+            double x[3], ue[3], pe;
+            position_of(p, i, x);
             s->prob->exact(prm, 0.0, x, ue, &pe);
             id[i] = (double)s->sys.origin[i];
             for (int a = 0; a < s->dim; ++a) u[a * cap + i] = ue[a];
@@ -661,30 +695,36 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
      * exact() of such a problem is its initial state, evaluated for nothing. */
     const int errors = s->prob->has_exact || s->t == 0.0;
     /* kept between calls: a fresh allocation every step costs page faults on a hot path */
-    if (s->diag_cap < 7 * n) {
-        double *nw = realloc(s->diag_buf, 7 * (n ? n : 1) * sizeof(double));
+    const size_t cols = d == 3 ? 8 : 7; /* 3D: m u_z too */
+    if (s->diag_cap < cols * n) {
+        double *nw = realloc(s->diag_buf, cols * (n ? n : 1) * sizeof(double));
         if (!nw) return consph_fail(CONSPH_ENOMEM, "out of memory");
         s->diag_buf = nw;
-        s->diag_cap = 7 * n;
+        s->diag_cap = cols * n;
     }
     double *w = s->diag_buf;
     double *eu = w, *ep = w + n, *ke = w + 2 * n, *mx = w + 3 * n, *my = w + 4 * n, *an = w + 5 * n,
-           *fx = w + 6 * n;
+           *fx = w + 6 * n, *mz = d == 3 ? w + 7 * n : NULL;
     const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]), yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
-        const double x[3] = {p->x[0][i], p->x[1][i], 0.0};
+        double x[3];
+        position_of(p, i, x);
         const double ux = fu->data[i], uy = fu->data[cap + i];
+        const double uz = d == 3 ? fu->data[2 * cap + i] : 0.0, ui[3] = {ux, uy, uz};
         if (errors) {
             double ue[3], pe;
             s->prob->exact(&s->prm, s->t, x, ue, &pe);
-            eu[i] = fabs(hypot(ux, uy) - hypot(ue[0], ue[1]));
+            eu[i] = fabs(speed(ui, d) - speed(ue, d));
             ep[i] = fabs(fp->data[i] - pe);
         }
         const double m = fm ? fm->data[i] : s->mass;
-        ke[i] = 0.5 * m * (ux * ux + uy * uy);
+        ke[i] = 0.5 * m * (d == 3 ? ux * ux + uy * uy + uz * uz : ux * ux + uy * uy);
         mx[i] = m * ux;
         my[i] = m * uy;
+        if (mz) mz[i] = m * uz;
+        /* the z-component about the box centre's axis, in 3D as in 2D (a periodic box conserves
+         * no angular momentum; the column tracks the rotation of the planar flows) */
         an[i] = m * ((x[0] - xc) * uy - (x[1] - yc) * ux);
         /* 001's authors sum m·a of the whole acceleration (taylor_green.py, post_process:
          * sum(m*au)); the maximum is of the acceleration itself (docs/schemes.md) */
@@ -703,11 +743,11 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
     g->ke = consph_sum(ke, n);
     g->mom[0] = consph_sum(mx, n);
     g->mom[1] = consph_sum(my, n);
+    if (mz) g->mom[2] = consph_sum(mz, n);
     g->ang = consph_sum(an, n);
     double fmax = max_abs(fa->data, n); /* component 0: a_x */
     g->ft_fmax = fmax > 0.0 ? consph_sum(fx, n) / fmax : 0.0;
     g->max_divu = max_abs(fd->data, n);
-    (void)d;
     return CONSPH_OK;
 }
 
@@ -754,16 +794,25 @@ int consph_solver_output_fields(consph_solver *s)
     const int d = s->dim;
     const size_t n = p->n, cap = p->cap;
     double *ue = sv_field(s, SF_UEX, d), *pe = sv_field(s, SF_PEX, 1);
-    double *w = sv_field(s, SF_VORT, 1);
+    double *w = sv_field(s, SF_VORT, d == 3 ? 3 : 1); /* a scalar in 2D, a vector in 3D */
     const double *G = sv_field(s, SF_GRADU, d * d);
     if (!ue || !pe || !w || !G) return CONSPH_ENOMEM;
+#define GRAD(a, b) G[(size_t)((a)*d + (b)) * cap + i] /* ∂_b u_a */
     for (size_t i = 0; i < n; ++i) {
-        double x[3] = {p->x[0][i], p->x[1][i], 0.0}, u[3];
+        double x[3], u[3];
+        position_of(p, i, x);
         s->prob->exact(&s->prm, s->t, x, u, &pe[i]);
         for (int a = 0; a < d; ++a) ue[a * cap + i] = u[a];
-        /* ∂v/∂x - ∂u/∂y from the last stage's G (Bonet-corrected) */
-        w[i] = G[(size_t)(1 * d + 0) * cap + i] - G[(size_t)(0 * d + 1) * cap + i];
+        /* ∇×u from the last stage's G (Bonet-corrected); its z-component ∂v/∂x - ∂u/∂y is 2D's */
+        if (d == 3) {
+            w[i] = GRAD(2, 1) - GRAD(1, 2);
+            w[cap + i] = GRAD(0, 2) - GRAD(2, 0);
+            w[2 * cap + i] = GRAD(1, 0) - GRAD(0, 1);
+        } else {
+            w[i] = GRAD(1, 0) - GRAD(0, 1);
+        }
     }
+#undef GRAD
     return CONSPH_OK;
 }
 

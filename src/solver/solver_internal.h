@@ -110,16 +110,21 @@ extern const scheme_def scheme_delta_sph, scheme_delta_plus_sph, scheme_delta_pl
 size_t scheme_count(void);
 
 /* ---- problems: data ---- */
+/* A problem is a row of the table in src/problems/problems.c (its names list is generated from
+ * the rows). The run has the problem's dimension; nx particles span axis 0 and the spacing
+ * Δs = (hi[0] - lo[0])/nx is the same on every axis (round(L_a/Δs) particles along axis a). */
 typedef struct problem_def {
     const char *name;
     const char *summary;
-    /* exact (or initial, at t = 0) velocity and pressure at x */
+    int dim;             /* 2 or 3 */
+    double lo[3], hi[3]; /* the box [lo, hi) per axis (the first dim are used) */
+    int periodic[3];     /* per axis */
+    /* exact (or initial, at t = 0) velocity and pressure at x (u[2] = 0 in 2D) */
     void (*exact)(const consph_run_params *prm, double t, const double x[3], double u[3],
                   double *p);
     int has_exact; /* the exact solution holds for t > 0 (else errors are NaN: n/a) */
-    double lo, hi; /* the periodic square [lo, hi)² */
-    /* defaults that consph_run_params_problem sets: final time, ν (< 0: U L/Re) and c_o (0:
-     * 10 U) */
+    /* defaults that consph_run_params_problem sets: final time, ν (< 0: U L/Re, L = hi[0] -
+     * lo[0]) and c_o (0: 10 U) */
     double tf, nu, c0;
     int layout;          /* consph_layout_kind, or -1: the scheme's */
     int radial;          /* a vortex centred in the box: the run writes profile.csv, u_φ(r) */
@@ -164,7 +169,7 @@ struct consph_solver {
 };
 
 /* consph_run_nx_check against `memory` bytes (0: unknown) instead of this machine's. */
-int run_nx_fits(int nx, double memory);
+int run_nx_fits(int nx, int dim, double memory);
 /* Per-particle loops of the integrator and the diagnostics run on the threads from this many
  * particles on (each particle is written by one iteration, so the bits do not depend on the
  * thread count). */

@@ -114,7 +114,7 @@ static int plan_build(const consph_study *s, const study_figure *f, const study_
         if (pl->nx[j] != floor(pl->nx[j]) || (j && !(pl->nx[j] > pl->nx[j - 1])))
             return study_key_error(s, f, r, k, "resolutions must be whole and increasing");
     p->nx = (int)pl->nx[pl->nnx - 1];
-    if (consph_run_nx_check(p->nx) != CONSPH_OK)
+    if (consph_run_nx_check(p->nx, consph_problem_dim(p->problem)) != CONSPH_OK)
         return study_key_error(s, f, r, k, "%s", consph_last_error());
     if (consph_run_params_check(p) != CONSPH_OK)
         return study_key_error(s, f, r, "scheme", "%s", consph_last_error());
@@ -205,7 +205,13 @@ int study_run_validate(const consph_study *s, const study_figure *f, int quick)
     return y_panels(s, f, x, ys, &dummy);
 }
 
-/* Steps of a run at resolution nx (an estimate: h = hdx/nx on taylor-green's unit box). */
+/* Particles of a run at resolution nx: nx^d in the problem's dimension. */
+static double particles_of(const run_plan *pl, double nx)
+{
+    return consph_problem_dim(pl->prm.problem) == 3 ? nx * nx * nx : nx * nx;
+}
+
+/* Steps of a run at resolution nx (an estimate: h = hdx/nx on a unit box). */
 static double steps_of(const run_plan *pl, double nx)
 {
     const consph_run_params *p = &pl->prm;
@@ -226,14 +232,16 @@ double study_run_estimate(const consph_study *s, const study_figure *f, int quic
         if (plan_build(s, f, &f->series[k], quick, &pl) != CONSPH_OK) return NAN;
         if (k == 0) first = pl;
         for (int j = 0; j < pl.nnx; ++j) {
-            *particle_steps += pl.nx[j] * pl.nx[j] * steps_of(&pl, pl.nx[j]);
-            made += pl.nx[j] * pl.nx[j];
+            *particle_steps += particles_of(&pl, pl.nx[j]) * steps_of(&pl, pl.nx[j]);
+            made += particles_of(&pl, pl.nx[j]);
         }
     }
     if (f->nseries == 0) return 0.0;
-    /* Calibration: 16² particles, 20 steps of the first series, set-up (packing) timed apart. */
+    /* Calibration: 16² (3D: 8³) particles, 20 steps of the first series, set-up (packing) timed
+     * apart. */
     consph_run_params p = first.prm;
-    p.nx = 16;
+    p.nx = consph_problem_dim(p.problem) == 3 ? 8 : 16;
+    const double ncal = particles_of(&first, p.nx);
     p.steps = 20;
     p.h_dt = 0.0;
     consph_solver *sv = NULL;
@@ -241,11 +249,11 @@ double study_run_estimate(const consph_study *s, const study_figure *f, int quic
     int stopped;
     double t0 = consph_wtime();
     if (consph_solver_create(&sv, &p) != CONSPH_OK) return NAN;
-    double per_made = (consph_wtime() - t0) / 256.0;
+    double per_made = (consph_wtime() - t0) / ncal;
     int rc = consph_run(sv, NULL, &sum, &stopped);
     consph_solver_free(sv);
     if (rc != CONSPH_OK || sum.steps <= 0) return NAN;
-    return *particle_steps * sum.seconds / (256.0 * (double)sum.steps) + made * per_made;
+    return *particle_steps * sum.seconds / (ncal * (double)sum.steps) + made * per_made;
 }
 
 /* u_φ(r) about the centre of the box, with the exact u_φ, per particle at the end of a run. */
@@ -790,7 +798,8 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
     for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
         rc = plan_build(s, f, &f->series[k], quick, &plans[k]);
         for (int j = 0; rc == CONSPH_OK && j < plans[k].nnx; ++j)
-            particle_steps += plans[k].nx[j] * plans[k].nx[j] * steps_of(&plans[k], plans[k].nx[j]);
+            particle_steps +=
+                particles_of(&plans[k], plans[k].nx[j]) * steps_of(&plans[k], plans[k].nx[j]);
     }
     if (log && rc == CONSPH_OK)
         fprintf(log, "  %d series, about %.2g particle-steps\n", f->nseries, particle_steps);
