@@ -60,17 +60,17 @@ typedef enum field_role {
 /* One field: its name (an SF_* macro), components, role and, when a snapshot carries it, the
  * array name there (docs/solver-files.md lists them); NULL: not in snapshots. A field may be
  * declared by more than one list (the solver's and a scheme's) with the same shape; the one
- * that names an output names it. Lists end with FIELD_END. */
+ * that names an output names it (two different names are an error at set-up). Lists end with
+ * FIELD_END. */
 typedef struct field_decl {
     const char *name;
     field_shape shape;
     field_role role;
     const char *output;
 } field_decl;
-#define FIELD_END                                                                                  \
-    {                                                                                              \
-        NULL, FIELD_SCALAR, FIELD_STATE, NULL                                                      \
-    }
+/* clang-format off */
+#define FIELD_END {NULL, FIELD_SCALAR, FIELD_STATE, NULL}
+/* clang-format on */
 
 /* The solver's own fields (identity, velocity, pressure, density, what the diagnostics and the
  * output read) and the integrator's (state at the start of the step, rates). */

@@ -1,7 +1,6 @@
 /* Declared state: the solver, the integrator and each scheme list the fields they use
  * (solver_internal.h, field_decl); set-up creates them all, sv_field hands out only those, and a
  * snapshot writes the ones that name an output array (docs/solver-files.md, "Snapshot arrays"). */
-#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -24,8 +23,10 @@ const field_decl solver_fields[] = {
     {SF_PEX, FIELD_SCALAR, FIELD_DERIVED, "pressure_exact"},
     FIELD_END};
 
-/* The rates are carried from step to step (pec and kdk start a step from the last ones, so a
- * checkpoint holds them); the start-of-step copies live within a step only. */
+/* The integrator's (one list for rk2, euler, kdk and pec; an integrator table can hold its own
+ * and state_lists take it from there). The rates are carried from step to step (pec and kdk
+ * start a step from the last ones, so a checkpoint holds them); the start-of-step copies live
+ * within a step only. */
 const field_decl integrator_fields[] = {{SF_AX, FIELD_VECTOR, FIELD_DERIVED, NULL},
                                         {SF_AU, FIELD_VECTOR, FIELD_DERIVED, NULL},
                                         {SF_AQ, FIELD_SCALAR, FIELD_DERIVED, NULL},
