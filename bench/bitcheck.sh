@@ -1,7 +1,9 @@
 #!/usr/bin/env bash
 # Checks that a speed-up changed no result: runs every scheme with two consph binaries (say one
 # built from main and one from the branch) and compares summary.json (all but "seconds"),
-# log.csv and every snapshot byte for byte.
+# log.csv and run.pvd byte for byte, and every snapshot array by array, value for value
+# (bench/snapdiff.sh: the arrays renamed by the declared state are found under their old names;
+# arrays the reference wrote and the new binary no longer does are not compared).
 #   bench/bitcheck.sh REF_CONSPH NEW_CONSPH [WORKDIR]
 # REF_CONSPH may instead be the "ref" directory of an earlier bitcheck's WORKDIR, whose results
 # are then reused (the reference binary's runs are the same every time).
@@ -54,8 +56,14 @@ for d in "$refdir"/*/; do
     echo "differs: $n summary.json"
     bad=1
   fi
-  for f in "$d"/*.vtu "$d"/*.csv; do
+  for f in "$d"/*.csv "$d"/run.pvd; do
     cmp -s "$f" "$work/new/$n/$(basename "$f")" || { echo "differs: $n $(basename "$f")"; bad=1; }
+  done
+  for f in "$d"/*.vtu; do
+    g=$work/new/$n/$(basename "$f")
+    cmp -s "$f" "$g" && continue # the same binary's snapshot: nothing renamed
+    out=$(bash "$(dirname "$0")/snapdiff.sh" "$new" "$f" "$g" "$work/snapdiff") ||
+      { echo "differs: $n $(basename "$f"): $(echo "$out" | head -3)"; bad=1; }
   done
 done
 echo "bitcheck: $cases cases in $work, $([ $bad = 0 ] && echo identical || echo DIFFERENT)"

@@ -20,7 +20,9 @@ def read(path):
         names = lines[0].strip().split(",")
         data = np.loadtxt(lines[1:], delimiter=",", ndmin=2)
         col = {n: data[:, k] for k, n in enumerate(names)}
-        return col["x"], col["y"], col["u_0"], col["u_1"], col["p"]
+        if "velocity_0" in col:
+            return col["x"], col["y"], col["velocity_0"], col["velocity_1"], col["pressure"]
+        return col["x"], col["y"], col["u_0"], col["u_1"], col["p"]  # snapshots before the renaming
     from pysph.solver.utils import load
 
     a = load(path)["arrays"]["fluid"]

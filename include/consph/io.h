@@ -75,6 +75,35 @@ int consph_write_particles(const char *path, const consph_particles *p);
 int consph_write_particles_enc(const char *path, const consph_particles *p,
                                consph_vtu_encoding enc);
 
+/* What a .vtu holds beyond the positions, for a snapshot that a ParaView user reads: chosen
+ * fields under names of their own, each written as the VTK kind of its values, and the time. */
+typedef enum consph_array_kind {
+    CONSPH_ARRAY_SCALAR, /* 1 component */
+    CONSPH_ARRAY_VECTOR, /* dim components, written as 3 (z = 0 in 2D) */
+    CONSPH_ARRAY_TENSOR  /* dim × dim, row-major (component a·dim + b is T_ab), written as 3 × 3
+                          * with the rows and columns beyond dim zero */
+} consph_array_kind;
+
+typedef struct consph_vtu_array {
+    const char *name;  /* the PointData array's name: letters, digits, '_', '-', '.' */
+    const char *field; /* the field of the particle set it holds */
+    consph_array_kind kind;
+} consph_vtu_array;
+
+typedef struct consph_vtu_content {
+    const consph_vtu_array *arrays; /* NULL: every field under its own name */
+    int narrays;
+    int has_time; /* a FieldData array TimeValue holding `time` (how VTK's readers and
+                   * ParaView see the time of a single file) */
+    double time;
+} consph_vtu_content;
+
+/* A .vtu of `p` with the arrays and time of `c`, in encoding enc. A field missing from p, one
+ * whose components do not match its kind (1, dim or dim²), a name not allowed or given twice is
+ * CONSPH_EINVAL naming the array; `path` must end in .vtu. */
+int consph_write_vtu(const char *path, const consph_particles *p, const consph_vtu_content *c,
+                     consph_vtu_encoding enc);
+
 /* ---- Reading particle files -------------------------------------------------------------- */
 
 /* What the caller knows before reading. Zero-initialise, then set what is known; a known value
@@ -104,6 +133,8 @@ typedef struct consph_read_report {
     size_t wrapped;         /* particles moved into the box along periodic axes */
     consph_volume_origin volumes;
     int has_mass; /* a "mass" field from an `m` (or `mass`) column */
+    int has_time; /* VTU: a FieldData array TimeValue, whose value is `time` */
+    double time;
 } consph_read_report;
 
 /* Reads a particle file into `p` (initialised here), streaming it: memory is O(N). The format is
@@ -116,8 +147,8 @@ typedef struct consph_read_report {
  * name_1, ... becomes one field with that many components). Then one row per particle.
  * VTU: VTK XML UnstructuredGrid, one Piece, with data arrays in ascii, binary (base64) or
  * appended (raw or base64) form, header_type UInt32 or UInt64, either byte order, uncompressed
- * or vtkZLibDataCompressor; FieldData arrays `box`, `periodic` and `spacing` as consph writes
- * them are read when present; PointData arrays become fields as CSV columns do.
+ * or vtkZLibDataCompressor; FieldData arrays `box`, `periodic`, `spacing` and `TimeValue` as
+ * consph writes them are read when present; PointData arrays become fields as CSV columns do.
  *
  * Then, for both: the dimension must match opt->dim when given; the box comes from the options
  * or the file (CONSPH_EINVAL when neither has one); a particle outside the box on a non-periodic

@@ -553,6 +553,8 @@ int consph_rd_finish(rd_set *set, const consph_read_options *opt, consph_particl
         rep->wrapped = wrapped;
         rep->volumes = origin;
         rep->has_mass = fm >= 0;
+        rep->has_time = set->have_time;
+        rep->time = set->have_time ? set->time : 0.0;
     }
     return CONSPH_OK;
 }

@@ -1,3 +1,4 @@
+#include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
@@ -81,11 +82,15 @@ const char *consph_vtu_encoding_name(consph_vtu_encoding enc)
 typedef enum vtu_kind { VTU_POINTS, VTU_FIELD, VTU_CONNECTIVITY, VTU_OFFSETS, VTU_TYPES } vtu_kind;
 
 /* One DataArray of the Piece. Points and 2-component fields are written with 3 components
- * (VTK's points are 3D; ParaView shows 3-vectors as vectors), the extra ones zero. */
+ * (VTK's points are 3D; ParaView shows 3-vectors as vectors), the extra ones zero; a tensor of
+ * a snapshot (consph_vtu_content) as 9. */
 typedef struct vtu_array {
     vtu_kind kind;
     const consph_field *field;
-    int ncomp;      /* components written */
+    int ncomp;  /* components written */
+    int mapped; /* written component c holds the field's component src[c] (-1: zero); else
+                 * the field's component c, zero beyond its own */
+    int src[9];
     size_t esize;   /* bytes per value */
     off_t tag_pos;  /* where the offset placeholder is (appended encodings) */
     uint64_t start; /* offset of the array's data in the appended block */
@@ -94,7 +99,8 @@ typedef struct vtu_array {
 static double float_value(const consph_particles *p, const vtu_array *a, size_t i, int c)
 {
     if (a->kind == VTU_POINTS) return c < p->dim ? p->x[c][i] : 0.0;
-    return c < a->field->ncomp ? a->field->data[(size_t)c * p->cap + i] : 0.0;
+    const int k = a->mapped ? a->src[c] : c < a->field->ncomp ? c : -1;
+    return k >= 0 ? a->field->data[(size_t)k * p->cap + i] : 0.0;
 }
 
 /* Values first .. first+count-1 of the array (value k is component k % ncomp of particle
@@ -262,7 +268,78 @@ static int write_appended(FILE *fp, const consph_particles *p, vtu_array *arr, i
     return rc;
 }
 
-static int write_vtu(FILE *fp, const consph_particles *p, consph_vtu_encoding enc)
+/* A field array: every field's component as is (2 padded to 3), or as `kind`. */
+static vtu_array field_array(const consph_particles *p, const consph_field *fl, int as_kind,
+                             consph_array_kind kind)
+{
+    vtu_array a = {
+        .kind = VTU_FIELD, .field = fl, .ncomp = fl->ncomp == 2 ? 3 : fl->ncomp, .esize = 8};
+    if (!as_kind || kind == CONSPH_ARRAY_SCALAR) return a;
+    const int d = p->dim;
+    a.mapped = 1;
+    a.ncomp = kind == CONSPH_ARRAY_VECTOR ? 3 : 9;
+    for (int c = 0; c < a.ncomp; ++c) {
+        if (kind == CONSPH_ARRAY_VECTOR) {
+            a.src[c] = c < d ? c : -1;
+        } else {
+            const int row = c / 3, col = c % 3;
+            a.src[c] = row < d && col < d ? row * d + col : -1;
+        }
+    }
+    return a;
+}
+
+static int name_allowed(const char *name)
+{
+    if (!name[0]) return 0;
+    for (const char *c = name; *c; ++c)
+        if (!((*c >= 'a' && *c <= 'z') || (*c >= 'A' && *c <= 'Z') || (*c >= '0' && *c <= '9') ||
+              *c == '_' || *c == '-' || *c == '.'))
+            return 0;
+    return 1;
+}
+
+static int content_check(const consph_particles *p, const consph_vtu_content *c)
+{
+    static const char *const kinds[] = {"scalar", "vector", "tensor"};
+    if (c->has_time && !isfinite(c->time))
+        return consph_fail(CONSPH_EINVAL, "TimeValue %g is not a finite time", c->time);
+    if (!c->arrays) return CONSPH_OK;
+    if (c->narrays < 0 || c->narrays > CONSPH_MAX_FIELDS)
+        return consph_fail(CONSPH_EINVAL, "%d arrays; allowed: 0 to %d", c->narrays,
+                           CONSPH_MAX_FIELDS);
+    for (int k = 0; k < c->narrays; ++k) {
+        const consph_vtu_array *a = &c->arrays[k];
+        if (!a->name || !name_allowed(a->name) || !strcmp(a->name, "TimeValue"))
+            return consph_fail(CONSPH_EINVAL,
+                               "array %d: name '%s' not allowed (letters, digits, '_', '-', "
+                               "'.'; not TimeValue)",
+                               k, a->name ? a->name : "(null)");
+        for (int j = 0; j < k; ++j)
+            if (!strcmp(c->arrays[j].name, a->name))
+                return consph_fail(CONSPH_EINVAL, "array '%s' is given twice", a->name);
+        if ((unsigned)a->kind > CONSPH_ARRAY_TENSOR)
+            return consph_fail(CONSPH_EINVAL,
+                               "array '%s': unknown kind %d; allowed: scalar, "
+                               "vector, tensor",
+                               a->name, (int)a->kind);
+        const consph_field *fl = a->field ? consph_particles_find(p, a->field) : NULL;
+        if (!fl)
+            return consph_fail(CONSPH_EINVAL, "array '%s': the particles have no field '%s'",
+                               a->name, a->field ? a->field : "(null)");
+        const int want = a->kind == CONSPH_ARRAY_SCALAR   ? 1
+                         : a->kind == CONSPH_ARRAY_VECTOR ? p->dim
+                                                          : p->dim * p->dim;
+        if (fl->ncomp != want)
+            return consph_fail(CONSPH_EINVAL,
+                               "array '%s': field '%s' has %d components, a %s in %dD has %d",
+                               a->name, a->field, fl->ncomp, kinds[a->kind], p->dim, want);
+    }
+    return CONSPH_OK;
+}
+
+static int write_vtu(FILE *fp, const consph_particles *p, const consph_vtu_content *c,
+                     consph_vtu_encoding enc)
 {
     const consph_box *b = &p->box;
     const uint16_t one = 1;
@@ -285,26 +362,41 @@ static int write_vtu(FILE *fp, const consph_particles *p, consph_vtu_encoding en
     for (int a = 0; a < p->dim; ++a) fprintf(fp, " %d", b->periodic[a] ? 1 : 0);
     fprintf(fp,
             "</DataArray>\n<DataArray type=\"Float64\" Name=\"spacing\" NumberOfTuples=\"1\" "
-            "format=\"ascii\"> %.17g</DataArray>\n</FieldData>\n",
+            "format=\"ascii\"> %.17g</DataArray>\n",
             p->spacing);
+    if (c && c->has_time)
+        fprintf(fp,
+                "<DataArray type=\"Float64\" Name=\"TimeValue\" NumberOfTuples=\"1\" "
+                "format=\"ascii\"> %.17g</DataArray>\n",
+                c->time);
+    fprintf(fp, "</FieldData>\n");
     fprintf(fp, "<Piece NumberOfPoints=\"%zu\" NumberOfCells=\"%zu\">\n", p->n, p->n);
 
     vtu_array arr[CONSPH_MAX_FIELDS + 4];
     int narr = 0, rc = CONSPH_OK;
     fprintf(fp, "<PointData>\n");
-    for (int f = 0; f < p->nfields && !rc; ++f) {
-        const consph_field *fl = &p->fields[f];
-        arr[narr] = (vtu_array){VTU_FIELD, fl, fl->ncomp == 2 ? 3 : fl->ncomp, 8, 0, 0};
-        rc = write_array_tag(fp, p, &arr[narr++], fl->name, enc);
+    if (c && c->arrays) {
+        for (int k = 0; k < c->narrays && !rc; ++k) {
+            const consph_vtu_array *a = &c->arrays[k];
+            arr[narr] = field_array(p, consph_particles_find(p, a->field), 1, a->kind);
+            rc = write_array_tag(fp, p, &arr[narr++], a->name, enc);
+        }
+    } else {
+        for (int f = 0; f < p->nfields && !rc; ++f) {
+            const consph_field *fl = &p->fields[f];
+            arr[narr] = field_array(p, fl, 0, CONSPH_ARRAY_SCALAR);
+            rc = write_array_tag(fp, p, &arr[narr++], fl->name, enc);
+        }
     }
     fprintf(fp, "</PointData>\n<Points>\n");
-    arr[narr] = (vtu_array){VTU_POINTS, NULL, 3, 8, 0, 0};
+    arr[narr] = (vtu_array){.kind = VTU_POINTS, .ncomp = 3, .esize = 8};
     if (!rc) rc = write_array_tag(fp, p, &arr[narr++], NULL, enc);
     fprintf(fp, "</Points>\n<Cells>\n");
     /* One VTK_VERTEX cell per particle, so readers show points without a glyph filter. */
     static const char *const cell_name[] = {"connectivity", "offsets", "types"};
     for (int k = 0; k < 3 && !rc; ++k) {
-        arr[narr] = (vtu_array){(vtu_kind)(VTU_CONNECTIVITY + k), NULL, 1, k == 2 ? 1 : 8, 0, 0};
+        arr[narr] = (vtu_array){
+            .kind = (vtu_kind)(VTU_CONNECTIVITY + k), .ncomp = 1, .esize = k == 2 ? 1 : 8};
         rc = write_array_tag(fp, p, &arr[narr++], cell_name[k], enc);
     }
     fprintf(fp, "</Cells>\n</Piece>\n</UnstructuredGrid>\n");
@@ -316,12 +408,34 @@ static int write_vtu(FILE *fp, const consph_particles *p, consph_vtu_encoding en
     return write_appended(fp, p, arr, narr, enc);
 }
 
+static int write_particles(const char *path, const consph_particles *p, const consph_vtu_content *c,
+                           consph_vtu_encoding enc);
+
 int consph_write_particles(const char *path, const consph_particles *p)
 {
     return consph_write_particles_enc(path, p, CONSPH_VTU_DEFAULT);
 }
 
 int consph_write_particles_enc(const char *path, const consph_particles *p, consph_vtu_encoding enc)
+{
+    return write_particles(path, p, NULL, enc);
+}
+
+int consph_write_vtu(const char *path, const consph_particles *p, const consph_vtu_content *c,
+                     consph_vtu_encoding enc)
+{
+    consph_particle_format fmt;
+    int rc = consph_particle_format_from_path(path, &fmt);
+    if (rc) return rc;
+    if (fmt != CONSPH_FORMAT_VTU)
+        return consph_fail(CONSPH_EINVAL, "'%s': a snapshot with chosen arrays is a .vtu file",
+                           path);
+    rc = content_check(p, c);
+    return rc ? rc : write_particles(path, p, c, enc);
+}
+
+static int write_particles(const char *path, const consph_particles *p, const consph_vtu_content *c,
+                           consph_vtu_encoding enc)
 {
     if ((unsigned)enc > CONSPH_VTU_ZLIB)
         return consph_fail(CONSPH_EINVAL, "unknown VTU encoding %d; allowed: %s", (int)enc,
@@ -335,7 +449,7 @@ int consph_write_particles_enc(const char *path, const consph_particles *p, cons
     if (fmt == CONSPH_FORMAT_CSV)
         write_csv(of.fp, p);
     else
-        rc = write_vtu(of.fp, p, enc);
+        rc = write_vtu(of.fp, p, c, enc);
     if (rc) {
         /* The writers' own "write error" lacks the file and the reason. */
         if (ferror(of.fp)) rc = consph_outfile_fail(&of, 0);

@@ -89,6 +89,8 @@ typedef struct rd_set {
     int periodic[CONSPH_MAX_DIM];
     int have_spacing;
     double spacing;
+    int have_time; /* VTU: a FieldData TimeValue */
+    double time;
     int have_declared_n; /* CSV `# n`: checked against the rows read */
     size_t declared_n;
     char encoding[48];

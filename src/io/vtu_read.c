@@ -25,7 +25,7 @@
 #define VTU_MAX_BLOCK ((uint64_t)1 << 31)
 
 enum { TAG_START, TAG_END, TAG_EMPTY, TAG_EOF };
-enum { ROLE_SKIP, ROLE_POINTS, ROLE_FIELD, ROLE_BOX, ROLE_PERIODIC, ROLE_SPACING };
+enum { ROLE_SKIP, ROLE_POINTS, ROLE_FIELD, ROLE_BOX, ROLE_PERIODIC, ROLE_SPACING, ROLE_TIME };
 enum { FMT_ASCII, FMT_BINARY, FMT_APPENDED };
 enum { PH_HEAD, PH_DATA, PH_CHEAD, PH_CSIZES, PH_BLOCK, PH_DONE };
 
@@ -420,6 +420,7 @@ static int sink(vtu_ctx *c, vtu_array *a, double v)
     case ROLE_BOX:
     case ROLE_PERIODIC:
     case ROLE_SPACING:
+    case ROLE_TIME:
         if (k >= 8) return fail_array(c, a, "too many values");
         if (!isfinite(v)) return fail_array(c, a, "value %g is not a finite number", v);
         a->small[k] = v;
@@ -708,6 +709,11 @@ static int array_done(vtu_ctx *c, vtu_array *a)
             set->spacing = a->small[0];
         }
         break;
+    case ROLE_TIME:
+        if (n != 1) return fail_array(c, a, "%zu values; expected one time", n);
+        set->have_time = 1;
+        set->time = a->small[0];
+        break;
     default:
         break;
     }
@@ -797,10 +803,11 @@ static int describe_array(vtu_ctx *c, const xml_tag *t, const char *parent, vtu_
     } else if (!strcmp(parent, "PointData") && name) {
         a->role = ROLE_FIELD;
     } else if (!strcmp(parent, "FieldData") && name) {
-        a->role = !strcmp(name, "box")        ? ROLE_BOX
-                  : !strcmp(name, "periodic") ? ROLE_PERIODIC
-                  : !strcmp(name, "spacing")  ? ROLE_SPACING
-                                              : ROLE_SKIP;
+        a->role = !strcmp(name, "box")         ? ROLE_BOX
+                  : !strcmp(name, "periodic")  ? ROLE_PERIODIC
+                  : !strcmp(name, "spacing")   ? ROLE_SPACING
+                  : !strcmp(name, "TimeValue") ? ROLE_TIME
+                                               : ROLE_SKIP;
     } else {
         a->role = ROLE_SKIP;
     }

@@ -271,6 +271,10 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
             if (!consph_particles_find(s->sys.p, need[f]))
                 st = consph_fail(CONSPH_EFORMAT, "the particles lack field '%s'", need[f]);
     }
+    /* a checkpoint of an earlier version may lack a field its run had not needed yet (created
+     * zero, as that run would have) or carry one no longer declared (dropped) */
+    if (st == CONSPH_OK) st = state_create(s);
+    if (st == CONSPH_OK) st = state_undeclared(s, 1);
     if (st == CONSPH_OK) {
         s->hist = malloc(nhistory * sizeof(double));
         if (!s->hist) st = consph_fail(CONSPH_ENOMEM, "out of memory");

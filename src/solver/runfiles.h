@@ -20,8 +20,11 @@ typedef struct runfiles {
 const char *runfiles_join(runfiles *f, const char *name);
 /* A new index DIR/run.pvd. */
 int runfiles_pvd_init(runfiles *f);
-/* DIR/snap_NNNNNN.vtu with every field of p, added to the index at time t. */
+/* DIR/snap_NNNNNN.vtu with every field of p and the TimeValue t, added to the index at t. */
 int runfiles_snapshot(runfiles *f, const consph_particles *p, long step, double t);
+/* The same with the arrays of c (which must have a time). */
+int runfiles_snapshot_content(runfiles *f, const consph_particles *p, const consph_vtu_content *c,
+                              long step);
 /* DIR/name as a CSV: the header line, then nrows rows of ncols doubles, the first printed as
  * an integer (the step). */
 int runfiles_csv(runfiles *f, const char *name, const char *header, const double *rows,

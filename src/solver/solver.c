@@ -61,11 +61,6 @@ int consph_run_params_layout(const consph_run_params *prm)
     return sd ? (int)sd->layout : -1;
 }
 
-double *sv_field(consph_solver *s, const char *name, int ncomp)
-{
-    return consph_particles_field(s->sys.p, name, ncomp);
-}
-
 void solver_eos(consph_solver *s)
 {
     if (s->scheme->closure) {
@@ -325,6 +320,7 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
         ll.kind = CONSPH_LAYOUT_LATTICE;
         st = consph_layout_generate(&ll, &lat, NULL);
     }
+    if (st == CONSPH_OK) st = state_create(s);
     if (st == CONSPH_OK) {
         consph_particles *p = s->sys.p;
         const size_t n = p->n, cap = p->cap;
@@ -349,6 +345,7 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
     if (st == CONSPH_OK && prm->rho_init == CONSPH_RHO_INIT_RHO0) solver_eos(s);
     consph_step_diag g;
     if (st == CONSPH_OK) st = initial_rates(s);
+    if (st == CONSPH_OK) st = state_undeclared(s, 0);
     if (st == CONSPH_OK) st = consph_solver_diag(s, &g);
     if (st == CONSPH_OK) st = hist_push(s, &g);
     if (st == CONSPH_OK && prm->error == CONSPH_ERROR_AUTHORS) {

@@ -3,10 +3,13 @@
  *
  * State lives in named fields of the system's particles, so that re-sorting the particles into
  * cell order at the start of a step carries everything with them (and a checkpoint of the
- * particle set is the whole state). Field names are the SF_* macros below. */
+ * particle set is the whole state). Field names are the SF_* macros below; every field is
+ * declared (field_decl) by the solver, the integrator or the scheme, created at set-up, and a
+ * name nobody declared is an error (sv_field), never a new field. */
 #ifndef CONSPH_SOLVER_SOLVER_INTERNAL_H
 #define CONSPH_SOLVER_SOLVER_INTERNAL_H
 
+#include "consph/io.h"
 #include "consph/pass.h"
 #include "consph/solver.h"
 
@@ -38,6 +41,54 @@
 #define SF_UEX "u_exact"
 #define SF_PEX "p_exact"
 #define SF_VORT "vorticity"
+
+/* ---- declared state (src/solver/state.c) ---- */
+typedef enum field_shape {
+    FIELD_SCALAR, /* 1 component */
+    FIELD_VECTOR, /* d */
+    FIELD_TENSOR, /* d × d, row-major: component a d + b */
+    FIELD_CURL    /* the curl of a velocity: 1 in 2D (its z component), 3 in 3D */
+} field_shape;
+
+typedef enum field_role {
+    FIELD_STATE,   /* what the scheme evolves or carries from step to step */
+    FIELD_DERIVED, /* derivatives and sums a right-hand side leaves (read by diagnostics, the
+                    * output, or the next stage) */
+    FIELD_SCRATCH  /* the integrator's copies within a step: never written */
+} field_role;
+
+/* One field: its name (an SF_* macro), components, role and, when a snapshot carries it, the
+ * array name there (docs/solver-files.md lists them); NULL: not in snapshots. A field may be
+ * declared by more than one list (the solver's and a scheme's) with the same shape; the one
+ * that names an output names it (two different names are an error at set-up). Lists end with
+ * FIELD_END. */
+typedef struct field_decl {
+    const char *name;
+    field_shape shape;
+    field_role role;
+    const char *output;
+} field_decl;
+/* clang-format off */
+#define FIELD_END {NULL, FIELD_SCALAR, FIELD_STATE, NULL}
+/* clang-format on */
+
+/* The solver's own fields (identity, velocity, pressure, density, what the diagnostics and the
+ * output read) and the integrator's (state at the start of the step, rates). */
+extern const field_decl solver_fields[], integrator_fields[];
+/* Each family's, at the end of its file. */
+extern const field_decl negi_fields[], negi_remesh_fields[], wcsph_fields[], tv_fields[],
+    delta_fields[];
+
+/* Components of a shape in d dimensions. */
+int field_ncomp(field_shape shape, int d);
+/* Creates every declared field (zero) that the particles lack; CONSPH_EINVAL when two
+ * declarations of a name disagree. */
+int state_create(consph_solver *s);
+/* CONSPH_EINVAL naming the first field of the particles that nobody declared (a field created
+ * past sv_field); with `drop`, such fields are removed instead (a checkpoint of an older run). */
+int state_undeclared(consph_solver *s, int drop);
+/* The arrays of a snapshot, in declaration order, into arr (CONSPH_MAX_FIELDS entries). */
+int state_snapshot_arrays(const consph_solver *s, consph_vtu_array *arr, int *narr);
 
 /* ---- the derivative kit: fused passes over the system ---- */
 typedef enum kit_lap {
@@ -97,6 +148,9 @@ typedef struct scheme_def {
      * scheme whose drift velocity is u plus a lagged correction (a transport velocity) says so
      * here, which also lets kick-drift-kick reuse the rates of the previous step. */
     void (*transport)(consph_solver *s, double c);
+    /* The fields its rates, closure and regularisation use beyond the solver's and the
+     * integrator's (a list at the end of the family's file). */
+    const field_decl *fields;
 } scheme_def;
 
 const scheme_def *scheme_find(const char *name);
@@ -176,7 +230,8 @@ int run_nx_fits(int nx, int dim, double memory);
 #define SOLVER_PARALLEL_MIN 4096
 #define HIST_COLS 14 /* step t l1_u linf_u l1_p linf_p ke mx my mz ang ft_fmax max_divu dt */
 
-/* Shared by the schemes. */
+/* Shared by the schemes: the declared field `name` of ncomp components; NULL with CONSPH_EINVAL
+ * naming it and the scheme when it is not declared or has other components. */
 double *sv_field(consph_solver *s, const char *name, int ncomp);
 void solver_eos(consph_solver *s); /* p from ϱ, or ϱ from p (evolve_p) */
 /* Taylor update of 001 eq. 22/29 after a shift dr (SF_SHIFT): u, the evolved scalar, from the

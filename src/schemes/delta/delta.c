@@ -132,10 +132,10 @@ static int delta_rates(consph_solver *s, int shift)
     consph_particles *p = sys->p;
     const int d = s->dim;
     const size_t n = p->n, cap = p->cap;
-    const int first = consph_particles_find(p, SF_MASS) == NULL;
     double *vol = sv_field(s, SF_VOL, 1), *m = sv_field(s, SF_MASS, 1);
     const double *rho = sv_field(s, SF_RHOF, 1);
     if (!vol || !rho || !m) return CONSPH_ENOMEM;
+    const int first = n && !(m[0] > 0.0); /* set-up created the masses zero */
     /* m_i = ρ_i(0) Δs^d, so that V_i = m_i/ρ_i starts at the particle's volume Δs^d whatever
      * the initial pressure (Gresho-Chan's ρ is 5 % above ρ_o); a checkpoint carries the field */
     if (first)
@@ -207,7 +207,8 @@ const scheme_def scheme_delta_sph = {
     .passes_min = 2,
     .reads = CONSPH_PARAM_ALPHA | CONSPH_PARAM_DELTA,
     .rhs = rhs_delta,
-    .regularise = NULL};
+    .regularise = NULL,
+    .fields = delta_fields};
 const scheme_def scheme_delta_plus_sph = {
     .name = "delta-plus-sph",
     .summary = "Sun et al. 2017/2019: δ-SPH moved with u + δu (Sun's shifting), shifting terms "
@@ -220,7 +221,8 @@ const scheme_def scheme_delta_plus_sph = {
     .passes_min = 3,
     .reads = CONSPH_PARAM_ALPHA | CONSPH_PARAM_DELTA,
     .rhs = rhs_delta_plus,
-    .regularise = NULL};
+    .regularise = NULL,
+    .fields = delta_fields};
 const scheme_def scheme_delta_plus_sph_d = {
     .name = "delta-plus-sph-d",
     .summary = "δ+-SPH with the correction of 001 App. D: shifting terms δu_i·Σ (f_j - f_i) "
@@ -233,4 +235,17 @@ const scheme_def scheme_delta_plus_sph_d = {
     .passes_min = 3,
     .reads = CONSPH_PARAM_ALPHA | CONSPH_PARAM_DELTA,
     .rhs = rhs_delta_plus_d,
-    .regularise = NULL};
+    .regularise = NULL,
+    .fields = delta_fields};
+
+/* ---- fields: what these schemes declare beyond the solver's and the integrator's
+ * (solver_internal.h, field_decl; the snapshot names are in docs/solver-files.md) ---- */
+const field_decl delta_fields[] = {{SF_RHOF, FIELD_SCALAR, FIELD_STATE, "density"},
+                                   {SF_VOL, FIELD_SCALAR, FIELD_DERIVED, "volume"}, /* m/ρ */
+                                   {SF_MASS, FIELD_SCALAR, FIELD_STATE, "mass"},
+                                   {SF_BONET, FIELD_TENSOR, FIELD_DERIVED, NULL}, /* L_i */
+                                   {SF_GRADRHO_L, FIELD_VECTOR, FIELD_DERIVED, NULL},
+                                   {SF_GRADP, FIELD_VECTOR, FIELD_DERIVED, NULL},
+                                   {SF_SHIFT, FIELD_VECTOR, FIELD_DERIVED, NULL}, /* δu of δ+-SPH */
+                                   FIELD_END};
+/* ---- end of fields ---- */

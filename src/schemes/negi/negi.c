@@ -208,7 +208,8 @@ const scheme_def scheme_l_ipst_c = {
     .integrator = "rk2",
     .passes_min = 3,
     .rhs = rhs_l_c,
-    .regularise = regularise_ipst};
+    .regularise = regularise_ipst,
+    .fields = negi_fields};
 const scheme_def scheme_l_ipst_f = {.name = "l-ipst-f",
                                     .summary =
                                         "001 §5.1.1: L-IPST-C with the Fatehi_c viscosity (eq. 13)",
@@ -219,7 +220,8 @@ const scheme_def scheme_l_ipst_f = {.name = "l-ipst-f",
                                     .integrator = "rk2",
                                     .passes_min = 3,
                                     .rhs = rhs_l_f,
-                                    .regularise = regularise_ipst};
+                                    .regularise = regularise_ipst,
+                                    .fields = negi_fields};
 const scheme_def scheme_l_ipst_k = {
     .name = "l-ipst-k",
     .summary = "001 §5.1.1: L-IPST-C with the Korzilius viscosity (eqs. 14-15)",
@@ -230,7 +232,8 @@ const scheme_def scheme_l_ipst_k = {
     .integrator = "rk2",
     .passes_min = 3,
     .rhs = rhs_l_k,
-    .regularise = regularise_ipst};
+    .regularise = regularise_ipst,
+    .fields = negi_fields};
 const scheme_def scheme_l_pst_c = {
     .name = "l-pst-c",
     .summary = "001 §5.4: L-IPST-C with Sun et al.'s non-iterative PST every step (eq. 29)",
@@ -241,7 +244,8 @@ const scheme_def scheme_l_pst_c = {
     .integrator = "rk2",
     .passes_min = 3,
     .rhs = rhs_l_c,
-    .regularise = regularise_pst};
+    .regularise = regularise_pst,
+    .fields = negi_fields};
 const scheme_def scheme_pe_ipst_c = {
     .name = "pe-ipst-c",
     .summary = "001 §5.4: pressure evolution (eqs. 30-31), linear EOS, IPST",
@@ -253,7 +257,8 @@ const scheme_def scheme_pe_ipst_c = {
     .passes_min = 3,
     .reads = CONSPH_PARAM_DELTA,
     .rhs = rhs_pe_c,
-    .regularise = regularise_ipst};
+    .regularise = regularise_ipst,
+    .fields = negi_fields};
 const scheme_def scheme_l_rr_c = {
     .name = "l-rr-c",
     .summary = "001 §5.4: Lagrangian with M4 remeshing to the lattice every step (eqs. 32-33)",
@@ -265,7 +270,8 @@ const scheme_def scheme_l_rr_c = {
     .needs_lattice = 1,
     .passes_min = 3,
     .rhs = rhs_l_c,
-    .regularise = regularise_remesh};
+    .regularise = regularise_remesh,
+    .fields = negi_remesh_fields};
 const scheme_def scheme_tv_c = {
     .name = "tv-c",
     .summary =
@@ -278,7 +284,8 @@ const scheme_def scheme_tv_c = {
     .passes_min = 4,
     .reads = CONSPH_PARAM_DELTA,
     .rhs = rhs_tv_c,
-    .regularise = NULL};
+    .regularise = NULL,
+    .fields = negi_fields};
 const scheme_def scheme_e_c = {.name = "e-c",
                                .summary =
                                    "001 §5.4: Eulerian (eq. 36, keeps -u·∇ϱ), δ-term, linear EOS",
@@ -290,7 +297,8 @@ const scheme_def scheme_e_c = {.name = "e-c",
                                .passes_min = 2,
                                .reads = CONSPH_PARAM_DELTA,
                                .rhs = rhs_e_c,
-                               .regularise = NULL};
+                               .regularise = NULL,
+                               .fields = negi_fields};
 const scheme_def scheme_ewcsph = {
     .name = "ewcsph",
     .summary = "Nasar et al. 2019 as 001 runs it: Eulerian, drops -u·∇ϱ, ϱ from p (Tait)",
@@ -301,7 +309,8 @@ const scheme_def scheme_ewcsph = {
     .integrator = "rk2",
     .passes_min = 2,
     .rhs = rhs_ewcsph,
-    .regularise = NULL};
+    .regularise = NULL,
+    .fields = negi_fields};
 
 /* The table, in the order consph_scheme_names lists; a scheme family in its own file adds its
  * rows here (their definitions are declared in solver_internal.h). */
@@ -375,3 +384,22 @@ size_t scheme_count(void)
 {
     return sizeof schemes / sizeof schemes[0];
 }
+
+/* ---- fields: what these schemes declare beyond the solver's and the integrator's
+ * (solver_internal.h, field_decl; the snapshot names are in docs/solver-files.md) ---- */
+/* clang-format off */
+#define NEGI_FIELDS                                                                                \
+    {SF_RHOF, FIELD_SCALAR, FIELD_STATE, "density"},                                               \
+    {SF_VOL, FIELD_SCALAR, FIELD_DERIVED, "volume"}, /* ω = 1/Σ W (kit_volumes) */                \
+    {SF_BONET, FIELD_TENSOR, FIELD_DERIVED, NULL},                                                 \
+    {SF_GRADP, FIELD_VECTOR, FIELD_DERIVED, NULL},                                                 \
+    {SF_GRADQ, FIELD_VECTOR, FIELD_DERIVED, NULL},                                                 \
+    {SF_LAPU, FIELD_VECTOR, FIELD_DERIVED, NULL},                                                  \
+    {SF_LAPQ, FIELD_SCALAR, FIELD_DERIVED, NULL},                                                  \
+    {SF_SHIFT, FIELD_VECTOR, FIELD_DERIVED, NULL} /* δr of a shift, δu of TV-C */
+/* clang-format on */
+const field_decl negi_fields[] = {NEGI_FIELDS, FIELD_END};
+/* L-RR-C also keeps the lattice point each particle is remeshed to */
+const field_decl negi_remesh_fields[] = {
+    NEGI_FIELDS, {SF_LATTICE, FIELD_VECTOR, FIELD_STATE, NULL}, FIELD_END};
+/* ---- end of fields ---- */

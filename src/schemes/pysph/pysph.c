@@ -443,7 +443,8 @@ const scheme_def scheme_wcsph = {
     .passes_min = 1,
     .reads = CONSPH_PARAM_ALPHA,
     .rhs = rhs_wcsph,
-    .regularise = NULL};
+    .regularise = NULL,
+    .fields = wcsph_fields};
 const scheme_def scheme_tvf = {
     .name = "tvf",
     .summary = "Adami, Hu & Adams 2013: transport velocity with background pressure, summation "
@@ -457,7 +458,8 @@ const scheme_def scheme_tvf = {
     .rhs = rhs_tvf,
     .regularise = NULL,
     .closure = closure_summation,
-    .transport = tv_transport};
+    .transport = tv_transport,
+    .fields = tv_fields};
 const scheme_def scheme_edac = {
     .name = "edac",
     .summary = "Ramachandran & Puri 2019: EDAC pressure evolution with TVF and p - p_avg",
@@ -470,4 +472,21 @@ const scheme_def scheme_edac = {
     .rhs = rhs_edac,
     .regularise = NULL,
     .closure = closure_summation,
-    .transport = tv_transport};
+    .transport = tv_transport,
+    .fields = tv_fields};
+
+/* ---- fields: what these schemes declare beyond the solver's and the integrator's
+ * (solver_internal.h, field_decl; the snapshot names are in docs/solver-files.md). wcsph
+ * evolves its density; tvf's and edac's is the summation m Σ W of the last right-hand side. ---- */
+const field_decl wcsph_fields[] = {{SF_RHOF, FIELD_SCALAR, FIELD_STATE, "density"},
+                                   {SF_GRADP, FIELD_VECTOR, FIELD_DERIVED, NULL},
+                                   FIELD_END};
+const field_decl tv_fields[] = {{SF_RHOF, FIELD_SCALAR, FIELD_STATE, "summation_density"},
+                                {SF_GRADP, FIELD_VECTOR, FIELD_DERIVED, NULL},
+                                {SF_RHOS, FIELD_SCALAR, FIELD_DERIVED, NULL},
+                                {SF_NUMD, FIELD_SCALAR, FIELD_DERIVED, NULL},
+                                {SF_PAVG, FIELD_SCALAR, FIELD_DERIVED, NULL},
+                                {SF_TVDU, FIELD_VECTOR, FIELD_STATE, NULL},
+                                {SF_UHAT, FIELD_VECTOR, FIELD_DERIVED, NULL},
+                                FIELD_END};
+/* ---- end of fields ---- */
