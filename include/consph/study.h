@@ -232,6 +232,10 @@ void consph_approx_exact(const consph_approx_spec *spec, const double *x, double
 
 typedef struct consph_study consph_study;
 
+/* The figure kinds a study may use (a figure's `kind` key), comma-separated: "approx, m0, appc,
+ * cauchy, run, heat", generated from the kinds' registry (src/study/kinds/kinds.h). */
+const char *consph_study_kind_names(void);
+
 /* Reads and validates the syntax of a study file; CONSPH_EFORMAT naming file and line. */
 int consph_study_load(const char *path, consph_study **out);
 void consph_study_free(consph_study *s);
