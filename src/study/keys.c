@@ -9,7 +9,6 @@
 
 #include "study/study_internal.h"
 
-
 int study_key_error(const consph_study *s, const study_figure *f, const study_series *r,
                     const char *key, const char *fmt, ...)
 {
@@ -90,8 +89,6 @@ const char *study_get_or(const consph_study *s, const study_figure *f, const stu
     const char *v = study_get(s, f, r, key);
     return v ? v : def;
 }
-
-
 
 /* A published value that is a plain number (many are prose: "~2 (SOC)"). */
 int study_paper_number(const consph_study *s, const study_figure *f, const study_series *r,

@@ -12,11 +12,8 @@
  * reports nx = K. */
 double study_resolution_of(const consph_particles *p)
 {
-    double r = pow((double)p->n, 1.0 / p->dim), k = floor(r + 0.5), kd = 1.0;
-    for (int a = 0; a < p->dim; ++a) kd *= k;
-    return kd == (double)p->n ? k : r;
+    return consph_resolution_of(p->n, p->dim);
 }
-
 
 /* How h was chosen, for the reports. */
 const char *study_h_policy_text(const consph_approx_spec *sp, char *buf, size_t size)
@@ -40,8 +37,8 @@ const char *study_h_policy_text(const consph_approx_spec *sp, char *buf, size_t 
     }
 }
 
-int study_plan_build(const consph_study *s, const study_figure *f, const study_series *r,
-                      int quick, series_plan *pl)
+int study_plan_build(const consph_study *s, const study_figure *f, const study_series *r, int quick,
+                     series_plan *pl)
 {
     static const char *const ops[] = {"function", "grad", "div", "laplacian", "hessian", NULL};
     static const char *const default_form[] = {"standard", "f4", "div", "coupled", "korzilius"};
@@ -75,7 +72,8 @@ int study_plan_build(const consph_study *s, const study_figure *f, const study_s
     if ((rc = study_get_choice(s, f, r, "x", xs, 0, &dummy))) return rc;
     if ((rc = study_get_choice(s, f, r, "volume", volumes, kind == &study_kind_m0 ? 2 : 1, &ivol)))
         return rc;
-    if ((rc = study_get_double(s, f, r, "dim", kind == &study_kind_appc ? 1 : 2, 1, 3, &dim))) return rc;
+    if ((rc = study_get_double(s, f, r, "dim", kind == &study_kind_appc ? 1 : 2, 1, 3, &dim)))
+        return rc;
     if (dim != floor(dim)) return study_key_error(s, f, r, "dim", "must be 1, 2 or 3");
     if ((rc = study_get_double(s, f, r, "hdx", 1.2, 0.01, 100, &hdx))) return rc;
     if ((rc = study_get_double(s, f, r, "match_support", 0, 0, 100, &match))) return rc;
@@ -170,7 +168,6 @@ static int same_layout(const consph_layout_params *a, const consph_layout_params
     return 1;
 }
 
-
 int study_layout_get(layout_cache *c, const consph_layout_params *lp, const consph_particles **p,
                      double *seconds, FILE *log)
 {
@@ -229,7 +226,7 @@ void study_plan_take_files(series_plan *pl, const study_files *files)
 /* The particles of resolution j of an nx sweep, and their nx: file j, or the plan's layout at
  * nx = values[j] from the cache. */
 int study_plan_particles(const series_plan *pl, int j, const study_files *files,
-                          layout_cache *cache, FILE *log, const consph_particles **p, size_t *nx)
+                         layout_cache *cache, FILE *log, const consph_particles **p, size_t *nx)
 {
     if (files) {
         *p = &files->sets[j];
@@ -251,7 +248,6 @@ double study_pairs_estimate(const series_plan *pl, double nx)
     return n * (1.0 + consph_approx_neighbours(&pl->spec, (size_t)n, 1.0, 1.0 / nx));
 }
 
-
 /* Period-1 fields repeat on a periodic axis only when its length is a whole number. */
 int study_check_field_period(const consph_approx_spec *sp, const consph_box *box)
 {
@@ -266,4 +262,3 @@ int study_check_field_period(const consph_approx_spec *sp, const consph_box *box
     }
     return CONSPH_OK;
 }
-

@@ -39,7 +39,7 @@ void study_report_head(FILE *o, const consph_study *s, const study_figure *f)
 /* The figure's title; with --particles the layout it names (e.g. "unperturbed lattice (UP)")
  * is not what ran, and it says so. */
 const char *study_files_title(const consph_study *s, const study_figure *f, int files, char *buf,
-                               size_t size)
+                              size_t size)
 {
     const char *title = study_get_or(s, f, NULL, "title", f->id);
     if (!files) return title;
@@ -264,7 +264,6 @@ int study_render_figure(const char *dir, const char *id)
                        "why",
                        final, WIFEXITED(status) ? WEXITSTATUS(status) : -1, script);
 }
-
 
 /* The study's README: title, then every figure's report in order. */
 int study_write_readme(const consph_study *s, int quick, int files, const char *dir)

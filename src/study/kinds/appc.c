@@ -9,7 +9,6 @@
 #include "consph/pass.h"
 #include "study/kinds/kinds.h"
 
-
 /* The untruncated Gaussian of 003 eq. C.1, cut where it falls below 1e-21 of its peak. */
 #define APPC_CUT 7.0
 

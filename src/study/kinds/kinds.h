@@ -49,19 +49,19 @@ typedef struct layout_cache {
 #define MAX_SERIES_POINTS 64
 
 int study_plan_build(const consph_study *s, const study_figure *f, const study_series *r, int quick,
-               series_plan *pl);
+                     series_plan *pl);
 /* N^(1/dim), exact when N is a perfect power. */
 double study_resolution_of(const consph_particles *p);
 /* How h was chosen, for the reports. */
 const char *study_h_policy_text(const consph_approx_spec *sp, char *buf, size_t size);
 int study_layout_get(layout_cache *c, const consph_layout_params *lp, const consph_particles **p,
-              double *seconds, FILE *log);
+                     double *seconds, FILE *log);
 void study_layout_cache_free(layout_cache *c);
 /* Particle files replace a plan's nx sweep, one resolution each. */
 void study_plan_take_files(series_plan *pl, const study_files *files);
 /* The particles of resolution j of an nx sweep, and their nx. */
-int study_plan_particles(const series_plan *pl, int j, const study_files *files, layout_cache *cache,
-                   FILE *log, const consph_particles **p, size_t *nx);
+int study_plan_particles(const series_plan *pl, int j, const study_files *files,
+                         layout_cache *cache, FILE *log, const consph_particles **p, size_t *nx);
 /* Neighbour pairs of one run at nx particles per axis of the unit box, from geometry. */
 double study_pairs_estimate(const series_plan *pl, double nx);
 /* Period-1 fields repeat on a periodic axis only when its length is a whole number. */
@@ -73,7 +73,7 @@ int study_check_field_period(const consph_approx_spec *sp, const consph_box *box
 int study_kv_has(const study_kvlist *l, const char *key);
 /* The figure's title; with --particles it says that the layout it names is not what ran. */
 const char *study_files_title(const consph_study *s, const study_figure *f, int files, char *buf,
-                        size_t size);
+                              size_t size);
 /* "the files'", "quick" or "full (paper)": which resolutions ran, for a report's Run line. */
 const char *study_resolutions_text(int files, int quick);
 /* Commits `of`, or aborts it when rc is already an error; returns the first error. */

@@ -144,8 +144,8 @@ static int run_m0_figure(const study_job *job, const study_figure *f)
         char htext[160];
         study_report_head_as(o, s, f, study_files_title(s, f, files != NULL, tbuf, sizeof tbuf));
         fprintf(o, "Run: %s resolutions; kernel `%s`, layout `%s`, dim %d, volumes `%s`, h %s.\n\n",
-                study_resolutions_text(files != NULL, quick),
-                pl.kernel_name, files ? "particle files" : consph_layout_name(pl.spec.layout.kind),
+                study_resolutions_text(files != NULL, quick), pl.kernel_name,
+                files ? "particle files" : consph_layout_name(pl.spec.layout.kind),
                 pl.spec.layout.dim, consph_volume_name(pl.spec.volume),
                 study_h_policy_text(&pl.spec, htext, sizeof htext));
         fprintf(o, "| nx | N | h | neighbours | mean M0 | σ(M0) all | mean M0 interior | σ(M0) "

@@ -64,7 +64,7 @@ int run_write_report(const consph_study *s, const study_figure *f, int quick, co
                      const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref, int x,
                      const char *title);
 /* FIGURE.dat, .gp and .svg (and FIGURE-profile/-history.dat for x = radius or time). */
-int run_write_plot(const consph_study *s, const study_figure *f, const char *dir,
-                   const char *title, const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x);
+int run_write_plot(const consph_study *s, const study_figure *f, const char *dir, const char *title,
+                   const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x);
 
 #endif

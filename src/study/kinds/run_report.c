@@ -75,8 +75,7 @@ static int order_cell(const consph_study *s, const study_figure *f, const study_
 /* Whether the figure has points: a history (x = time) always has its initial state; against
  * nx, a finished run's error, which a problem without an exact solution (the shear layer) has
  * not, and gnuplot refuses a plot without points. */
-int run_plottable(const study_figure *f, const run_plan *plans, run_row (*rows)[MAX_SWEEP],
-                     int x)
+int run_plottable(const study_figure *f, const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x)
 {
     for (int k = 0; x == X_TIME && k < f->nseries; ++k)
         if (rows[k][plans[k].nnx - 1].ncurve) return 1;
@@ -141,8 +140,8 @@ static void momentum_table(FILE *o, const consph_study *s, const study_figure *f
 
 /* The figure's title; a quick run's says what it ran, since the title names the paper's final
  * time and its resolutions are not the paper's. */
-const char *run_title(const consph_study *s, const study_figure *f, int quick,
-                             const run_plan *pl, char *buf, size_t size)
+const char *run_title(const consph_study *s, const study_figure *f, int quick, const run_plan *pl,
+                      char *buf, size_t size)
 {
     const char *title = study_get_or(s, f, NULL, "title", f->id);
     if (!quick) return title;
@@ -158,8 +157,8 @@ const char *run_title(const consph_study *s, const study_figure *f, int quick,
 }
 
 int run_write_report(const consph_study *s, const study_figure *f, int quick, const char *dir,
-                        const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref, int x,
-                        const char *title)
+                     const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref, int x,
+                     const char *title)
 {
     char label[128];
     consph_outfile of;
@@ -430,8 +429,8 @@ static int write_curve_plot(const consph_study *s, const study_figure *f, const 
     return study_render_figure(dir, f->id);
 }
 
-int run_write_plot(const consph_study *s, const study_figure *f, const char *dir,
-                      const char *title, const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x)
+int run_write_plot(const consph_study *s, const study_figure *f, const char *dir, const char *title,
+                   const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x)
 {
     consph_outfile of;
     int rc = study_open_output(&of, dir, f->id, ".dat");
