@@ -174,16 +174,116 @@ static void free_inputs(consph_particle_input *in, int n)
     free(in);
 }
 
-/* A row's line of the table or CSV as soon as it is measured, and its packing warnings. */
-typedef struct row_printer {
-    int fmt;
+/* The writer of `consph approx`: the header, each row as it is measured (table or CSV, with
+ * its packing warnings), the orders, or the whole sweep as JSON. */
+typedef struct approx_writer {
+    int fmt; /* 0 table, 1 csv, 2 json */
     const consph_approx_sweep *sw;
+    const char *opname, *kernel, *field;
+    double hdx, beta;
+    int hpol;
+    long dim;
+    char pdesc[8]; /* the periodic axes */
+    int periodic_given;
     double tol;
-} row_printer;
+} approx_writer;
 
+static void write_head(const approx_writer *w)
+{
+    const consph_approx_spec *s = &w->sw->spec;
+    const consph_particle_input *in = w->sw->files;
+    const int nin = in ? w->sw->nrows : 0;
+    const long dim = w->dim;
+    char hdesc[96];
+    if (s->h_policy == CONSPH_H_ZHU || s->h_policy == CONSPH_H_BETA)
+        snprintf(hdesc, sizeof hdesc, "h = hdx*dx at N = %.0f, then h ~ N^(-1/%g)", s->n_ref,
+                 s->h_policy == CONSPH_H_ZHU ? 2.0 * (double)dim : w->beta);
+    else
+        snprintf(hdesc, sizeof hdesc, "%s", w->hpol ? "h = N^-1/6" : "h = hdx*dx");
+    if (w->fmt == 0) {
+        if (in)
+            printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), particles "
+                   "from %d file%s, dim %ld, field %s\n",
+                   w->opname, consph_form_name(s->op.form), consph_corr_name(s->op.corr), w->kernel,
+                   w->hdx, hdesc, nin, nin == 1 ? "" : "s", dim, w->field);
+        else
+            printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), layout %s, "
+                   "dim %ld, periodic %s, field %s, volume %s\n",
+                   w->opname, consph_form_name(s->op.form), consph_corr_name(s->op.corr), w->kernel,
+                   w->hdx, hdesc, consph_layout_name(s->layout.kind), dim,
+                   !w->pdesc[0]                      ? "no"
+                   : strlen(w->pdesc) == (size_t)dim ? "yes"
+                                                     : w->pdesc,
+                   w->field, consph_volume_name(s->volume));
+        for (int k = 0; k < nin; ++k) describe_file(stdout, &in[k], w->periodic_given);
+        printf("%6s %10s %10s %8s %11s %11s %11s %11s %11s %9s %9s\n", "nx", "n", "h", "nbr", "l1",
+               "l2", "linf", "mae", "ft/fmax", "seconds", "fallback");
+    } else {
+        /* CSV and JSON keep their columns; what was read from each file goes to stderr. */
+        for (int k = 0; k < nin; ++k) describe_file(stderr, &in[k], w->periodic_given);
+        if (w->fmt == 1) print_csv_header();
+    }
+}
+
+static void write_json(const approx_writer *w, const consph_approx_row *rows, const double *res,
+                       const consph_series_order fits[4])
+{
+    const consph_approx_spec *s = &w->sw->spec;
+    const consph_particle_input *in = w->sw->files;
+    const int nrows = w->sw->nrows;
+    printf("{\n  \"op\": \"%s\", \"form\": \"%s\", \"corr\": \"%s\", \"kernel\": \"%s\", "
+           "\"hdx\": %g, \"h_policy\": \"%s\", \"layout\": \"%s\", \"dim\": %ld, ",
+           w->opname, consph_form_name(s->op.form), consph_corr_name(s->op.corr), w->kernel, w->hdx,
+           consph_h_policy_name(s->h_policy), in ? "files" : consph_layout_name(s->layout.kind),
+           w->dim);
+    if (in)
+        printf("\"field\": \"%s\",\n", w->field);
+    else
+        printf("\"periodic\": %s, \"field\": \"%s\", \"volume\": \"%s\",\n",
+               w->pdesc[0] ? "true" : "false", w->field, consph_volume_name(s->volume));
+    printf("  \"rows\": [\n");
+    for (int r = 0; r < nrows; ++r) {
+        const consph_approx_row *row = &rows[r];
+        printf("    {");
+        if (in) {
+            printf("\"file\": ");
+            json_string(in[r].path);
+            printf(", \"volume\": \"%s\", \"volumes\": ", consph_volume_name(in[r].volume));
+            json_string(in[r].volume_text);
+            printf(", \"wrapped\": %zu, ", in[r].rep.wrapped);
+        }
+        printf("\"nx\": %.10g, \"n\": %zu, \"h\": %.10g, \"nbr_mean\": ", res[r], row->n, row->h);
+        json_number("%.6g", row->nbr_mean);
+        const double cols[] = {row->err.l1, row->err.l2, row->err.linf, row->err.mae,
+                               row->ft_over_fmax};
+        static const char *const names[] = {"l1", "l2", "linf", "mae", "ft_over_fmax"};
+        for (int c = 0; c < 5; ++c) {
+            printf(", \"%s\": ", names[c]);
+            json_number("%.6e", cols[c]);
+        }
+        printf(", \"seconds\": ");
+        json_number("%.6g", row->seconds);
+        printf(", \"fallbacks\": %zu}%s\n", row->fallbacks, r + 1 < nrows ? "," : "");
+    }
+    printf("  ],\n  \"order\": {");
+    for (int k = 0; k < 4; ++k) {
+        const consph_order_fit *fit = &fits[k].fit;
+        printf("%s\"%s\": ", k ? ", " : "", norm_names[k]);
+        if (fits[k].status != CONSPH_SERIES_ORDER) {
+            printf("null");
+            continue;
+        }
+        printf("{\"order\": %.6f, \"stderr\": ", fit->order);
+        json_number("%.6f", fit->order_stderr);
+        printf("}");
+    }
+    printf("}\n}\n");
+}
+
+/* A row's line of the table or CSV as soon as it is measured, and its packing warnings. */
 static void print_row(void *ctx, int r, const consph_approx_row *w, double res)
 {
-    const row_printer *pr = ctx;
+    const approx_writer *pr = ctx;
     const consph_approx_spec *s = &pr->sw->spec;
     if (!pr->sw->files && s->layout.kind == CONSPH_LAYOUT_PACKED_POLISHED &&
         w->layout_spread > pr->tol)
@@ -479,41 +579,13 @@ int cmd_approx(int argc, char **argv)
     for (int k = 0; k < nin; ++k)
         cli_note_read_defaults(&cmd, in[k].path, &in[k].p, &in[k].rep, box_text != NULL,
                                opts[O_PERIODIC].given);
-    char pdesc[8] = "";
+    approx_writer out = {
+        fmt, &sw, opname, kernel, field, hdx, beta, hpol, dim, "", opts[O_PERIODIC].given, tol};
     for (int a = 0, k = 0; a < dim; ++a)
-        if (periodic[a]) pdesc[k++] = "xyz"[a];
-    char hdesc[96];
-    if (s.h_policy == CONSPH_H_ZHU || s.h_policy == CONSPH_H_BETA)
-        snprintf(hdesc, sizeof hdesc, "h = hdx*dx at N = %.0f, then h ~ N^(-1/%g)", s.n_ref,
-                 s.h_policy == CONSPH_H_ZHU ? 2.0 * (double)dim : beta);
-    else
-        snprintf(hdesc, sizeof hdesc, "%s", hpol ? "h = N^-1/6" : "h = hdx*dx");
-    if (fmt == 0) {
-        if (from_files)
-            printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), particles "
-                   "from %d file%s, dim %ld, field %s\n",
-                   opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
-                   hdesc, nin, nin == 1 ? "" : "s", dim, field);
-        else
-            printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), layout %s, "
-                   "dim %ld, periodic %s, field %s, volume %s\n",
-                   opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
-                   hdesc, consph_layout_name(s.layout.kind), dim,
-                   !pdesc[0]                      ? "no"
-                   : strlen(pdesc) == (size_t)dim ? "yes"
-                                                  : pdesc,
-                   field, consph_volume_name(s.volume));
-        for (int k = 0; k < nin; ++k) describe_file(stdout, &in[k], opts[O_PERIODIC].given);
-        printf("%6s %10s %10s %8s %11s %11s %11s %11s %11s %9s %9s\n", "nx", "n", "h", "nbr", "l1",
-               "l2", "linf", "mae", "ft/fmax", "seconds", "fallback");
-    } else {
-        /* CSV and JSON keep their columns; what was read from each file goes to stderr. */
-        for (int k = 0; k < nin; ++k) describe_file(stderr, &in[k], opts[O_PERIODIC].given);
-        if (fmt == 1) print_csv_header();
-    }
+        if (periodic[a]) out.pdesc[k++] = "xyz"[a];
+    write_head(&out);
     rc = 1;
-    row_printer pr = {fmt, &sw, tol};
-    if (consph_approx_sweep_run(&sw, rows, res, print_row, &pr) != CONSPH_OK) {
+    if (consph_approx_sweep_run(&sw, rows, res, print_row, &out) != CONSPH_OK) {
         fprintf(stderr, "consph approx: %s\n", consph_last_error());
         goto out;
     }
@@ -526,52 +598,7 @@ int cmd_approx(int argc, char **argv)
     if (fmt == 0) {
         for (int k = 0; k < 4; ++k) printf("order (%s): %s\n", norm_names[k], fits[k].text);
     } else if (fmt == 2) {
-        printf("{\n  \"op\": \"%s\", \"form\": \"%s\", \"corr\": \"%s\", \"kernel\": \"%s\", "
-               "\"hdx\": %g, \"h_policy\": \"%s\", \"layout\": \"%s\", \"dim\": %ld, ",
-               opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
-               consph_h_policy_name(s.h_policy),
-               from_files ? "files" : consph_layout_name(s.layout.kind), dim);
-        if (from_files)
-            printf("\"field\": \"%s\",\n", field);
-        else
-            printf("\"periodic\": %s, \"field\": \"%s\", \"volume\": \"%s\",\n",
-                   pdesc[0] ? "true" : "false", field, consph_volume_name(s.volume));
-        printf("  \"rows\": [\n");
-        for (int r = 0; r < nrows; ++r) {
-            const consph_approx_row *w = &rows[r];
-            printf("    {");
-            if (from_files) {
-                printf("\"file\": ");
-                json_string(in[r].path);
-                printf(", \"volume\": \"%s\", \"volumes\": ", consph_volume_name(in[r].volume));
-                json_string(in[r].volume_text);
-                printf(", \"wrapped\": %zu, ", in[r].rep.wrapped);
-            }
-            printf("\"nx\": %.10g, \"n\": %zu, \"h\": %.10g, \"nbr_mean\": ", res[r], w->n, w->h);
-            json_number("%.6g", w->nbr_mean);
-            const double cols[] = {w->err.l1, w->err.l2, w->err.linf, w->err.mae, w->ft_over_fmax};
-            static const char *const names[] = {"l1", "l2", "linf", "mae", "ft_over_fmax"};
-            for (int c = 0; c < 5; ++c) {
-                printf(", \"%s\": ", names[c]);
-                json_number("%.6e", cols[c]);
-            }
-            printf(", \"seconds\": ");
-            json_number("%.6g", w->seconds);
-            printf(", \"fallbacks\": %zu}%s\n", w->fallbacks, r + 1 < nrows ? "," : "");
-        }
-        printf("  ],\n  \"order\": {");
-        for (int k = 0; k < 4; ++k) {
-            const consph_order_fit *fit = &fits[k].fit;
-            printf("%s\"%s\": ", k ? ", " : "", norm_names[k]);
-            if (fits[k].status != CONSPH_SERIES_ORDER) {
-                printf("null");
-                continue;
-            }
-            printf("{\"order\": %.6f, \"stderr\": ", fit->order);
-            json_number("%.6f", fit->order_stderr);
-            printf("}");
-        }
-        printf("}\n}\n");
+        write_json(&out, rows, res, fits);
     }
     if (fit_rc) {
         rc = fit_rc;
