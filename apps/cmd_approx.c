@@ -168,6 +168,40 @@ static int choose_volume(const cli_command *cmd, consph_particle_input *f, int v
     return 0;
 }
 
+/* Reads the files of --particles (consph_particle_input_read) into in[], checking that they
+ * share a dimension and applying --volume; a failure is one line on stderr. */
+static int read_files(const cli_command *cmd, const char *particles, const consph_read_options *ro,
+                      const char *periodic_text, int volume_idx, int volume_given,
+                      consph_particle_input *in, int *nin)
+{
+    static char list[4096]; /* holds the file names, which the reports quote */
+    if (strlen(particles) >= sizeof list || !cli_list_items_nonempty(particles))
+        return cli_error(cmd, "option --particles: '%s' is not a comma-separated list of files",
+                         particles);
+    strcpy(list, particles);
+    char *save = NULL;
+    for (char *t = strtok_r(list, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+        if (*nin == CLI_LIST_MAX)
+            return cli_error(cmd, "option --particles: at most %d files", CLI_LIST_MAX);
+        consph_particle_input *f = &in[*nin];
+        consph_particle_format pf;
+        if (consph_particle_format_from_path(t, &pf) != CONSPH_OK)
+            return cli_error(cmd, "option --particles: %s", consph_last_error());
+        if (consph_particle_input_read(t, ro, f) != CONSPH_OK) {
+            fprintf(stderr, "consph approx: %s\n", consph_last_error());
+            return CLI_EXIT_USAGE;
+        }
+        ++*nin;
+        if (f->p.dim != in[0].p.dim)
+            return cli_error(cmd, "option --particles: %s is %dD but %s is %dD", t, f->p.dim,
+                             in[0].path, in[0].p.dim);
+        if (periodic_text && cli_check_periodic_dim(cmd, periodic_text, f->p.dim))
+            return CLI_EXIT_USAGE;
+        if (choose_volume(cmd, f, volume_idx, volume_given)) return CLI_EXIT_USAGE;
+    }
+    return 0;
+}
+
 static void free_inputs(consph_particle_input *in, int n)
 {
     for (int k = 0; k < n; ++k) consph_particle_input_free(&in[k]);
@@ -467,30 +501,12 @@ int cmd_approx(int argc, char **argv)
     /* Every file is read, and every bad one rejected, before anything is measured. */
     consph_particle_input *in = NULL;
     int nin = 0;
-    static char list[4096]; /* holds the file names, which the reports quote */
     if (from_files) {
-        size_t len = strlen(particles);
-        if (len >= sizeof list || !cli_list_items_nonempty(particles))
-            return cli_error(
-                &cmd, "option --particles: '%s' is not a comma-separated list of files", particles);
-        strcpy(list, particles);
         in = calloc(CLI_LIST_MAX, sizeof *in);
         if (!in) return cli_error(&cmd, "out of memory");
     }
     rc = CLI_EXIT_USAGE;
-    char *save = NULL;
-    for (char *t = from_files ? strtok_r(list, ",", &save) : NULL; t;
-         t = strtok_r(NULL, ",", &save)) {
-        if (nin == CLI_LIST_MAX) {
-            cli_error(&cmd, "option --particles: at most %d files", CLI_LIST_MAX);
-            goto out;
-        }
-        consph_particle_input *f = &in[nin];
-        consph_particle_format pf;
-        if (consph_particle_format_from_path(t, &pf) != CONSPH_OK) {
-            cli_error(&cmd, "option --particles: %s", consph_last_error());
-            goto out;
-        }
+    if (from_files) {
         consph_read_options ro;
         memset(&ro, 0, sizeof ro);
         ro.dim = opts[O_DIM].given ? (int)dim : 0;
@@ -502,19 +518,9 @@ int cmd_approx(int argc, char **argv)
             ro.have_periodic = 1;
             for (int a = 0; a < CONSPH_MAX_DIM; ++a) ro.periodic[a] = periodic[a];
         }
-        if (consph_particle_input_read(t, &ro, f) != CONSPH_OK) {
-            fprintf(stderr, "consph approx: %s\n", consph_last_error());
+        if (read_files(&cmd, particles, &ro, opts[O_PERIODIC].given ? periodic_text : NULL,
+                       volume_idx, opts[O_VOLUME].given, in, &nin))
             goto out;
-        }
-        ++nin;
-        if (f->p.dim != in[0].p.dim) {
-            cli_error(&cmd, "option --particles: %s is %dD but %s is %dD", t, f->p.dim, in[0].path,
-                      in[0].p.dim);
-            goto out;
-        }
-        if (opts[O_PERIODIC].given && cli_check_periodic_dim(&cmd, periodic_text, f->p.dim))
-            goto out;
-        if (choose_volume(&cmd, f, volume_idx, opts[O_VOLUME].given)) goto out;
     }
     if (from_files) dim = in[0].p.dim;
 
