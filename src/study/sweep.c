@@ -80,8 +80,8 @@ consph_approx_sweep_cost consph_approx_sweep_estimate(const consph_approx_sweep 
         const consph_particle_input *in = sw->files ? &sw->files[r] : NULL;
         const size_t n = in ? in->p.n : (size_t)pow(sw->nx[r], (double)dim);
         consph_approx_cost one =
-            in ? consph_approx_estimate(&sw->spec, n, consph_box_volume(&in->p.box),
-                                        in->p.spacing, threads)
+            in ? consph_approx_estimate(&sw->spec, n, consph_box_volume(&in->p.box), in->p.spacing,
+                                        threads)
                : consph_approx_estimate(&sw->spec, n, 1.0, 1.0 / sw->nx[r], threads);
         c.seconds += one.seconds;
         if (one.bytes > c.worst.bytes) {
@@ -108,8 +108,7 @@ int consph_approx_sweep_check(const consph_approx_sweep *sw)
                                        "%s: field '%s' has period 1 but the periodic axis %c has "
                                        "length %g; allowed: a non-periodic axis, or a box of "
                                        "whole-number length",
-                                       in->path, consph_mfield_name(sw->spec.field), "xyz"[a],
-                                       len);
+                                       in->path, consph_mfield_name(sw->spec.field), "xyz"[a], len);
             }
         consph_approx_spec s = row_spec(sw, r);
         if (consph_approx_check(&s) != CONSPH_OK)
