@@ -31,30 +31,21 @@ static void print_csv_row(const consph_approx_row *r, double nx)
            r->fallbacks);
 }
 
-/* A particle file given with --particles, read before anything runs. */
-typedef struct input_file {
-    const char *path;
-    consph_particles p;
-    consph_read_report rep;
-    consph_volume_kind volume;
-    char volume_text[96];
-    double nx; /* N^(1/dim): the resolution the order fit sees */
-    int periodic_given;
-} input_file;
-
 /* The verdict on every norm's order; a non-finite or degenerate row is reported once, on
  * stderr, naming the series and the resolution. Returns CLI_EXIT_NONFINITE for a non-finite row. */
 static int fit_orders(const consph_approx_row *rows, const double *res, int nrows,
-                      const char *series, const input_file *files, const char *pm,
+                      const char *series, const consph_particle_input *files, const char *pm,
                       consph_series_order fits[4])
 {
     int rc = 0, warned = 0;
-    for (int k = 0; k < 4; ++k) {
-        consph_series_order *so = &fits[k];
-        if (consph_series_fit(rows, res, nrows, norm_names[k], 3, pm, so) == CONSPH_ENOMEM) {
-            so->status = CONSPH_SERIES_NO_FIT;
-            snprintf(so->text, sizeof so->text, "n/a (out of memory)");
+    if (consph_approx_sweep_fit(rows, res, nrows, pm, fits) == CONSPH_ENOMEM)
+        for (int k = 0; k < 4; ++k) {
+            fits[k].status = CONSPH_SERIES_NO_FIT;
+            fits[k].row = -1;
+            snprintf(fits[k].text, sizeof fits[k].text, "n/a (out of memory)");
         }
+    for (int k = 0; k < 4; ++k) {
+        const consph_series_order *so = &fits[k];
         if (warned || so->row < 0) continue;
         /* A file's row is named by the file: several files can share one nx. */
         const char *file = files ? files[so->row].path : NULL;
@@ -81,17 +72,6 @@ static void json_number(const char *fmt, double v)
         printf("null");
 }
 
-/* N^(1/dim), exact when N is a perfect power, so that a file reports the nx of the layout it
- * was made from. */
-static double resolution_of(size_t n, int dim)
-{
-    double r = pow((double)n, 1.0 / dim);
-    double k = floor(r + 0.5);
-    double kd = 1.0;
-    for (int a = 0; a < dim; ++a) kd *= k;
-    return kd == (double)n ? k : r;
-}
-
 static void json_string(const char *s)
 {
     putchar('"');
@@ -106,7 +86,7 @@ static void json_string(const char *s)
     putchar('"');
 }
 
-static void describe_file(FILE *o, const input_file *f)
+static void describe_file(FILE *o, const consph_particle_input *f, int periodic_given)
 {
     const consph_particles *p = &f->p;
     static const char axis[] = "xyz";
@@ -121,7 +101,7 @@ static void describe_file(FILE *o, const input_file *f)
         if (p->box.periodic[a]) fprintf(o, "%c", axis[a]), any = 1;
     fprintf(o, "%s (%s), spacing %g (%s), volumes %s", any ? "" : "none",
             f->rep.periodic_from_file ? "from the file"
-            : f->periodic_given       ? "--periodic"
+            : periodic_given          ? "--periodic"
                                       : "none in the file",
             p->spacing, f->rep.spacing_from_file ? "from the file" : "(V/N)^(1/dim)",
             f->volume_text);
@@ -131,34 +111,24 @@ static void describe_file(FILE *o, const input_file *f)
     fprintf(o, "\n");
 }
 
-/* The volume rule for one file: --volume when given, else the file's volumes, else 1/ΣW. */
 /* Memory and time from the particle count and the neighbours the kernel's support holds at that
  * h, before any work: a size the machine cannot hold is refused naming --hdx and --nx (or the
  * file), one that may pass ten seconds is announced on stderr. */
-static int check_cost(const cli_command *cmd, const consph_approx_spec *s, const input_file *in,
-                      int from_files, int nrows, const double *nx, const char *kernel, double hdx,
-                      long dim)
+static int check_cost(const cli_command *cmd, const consph_approx_sweep *sw, const char *kernel,
+                      double hdx, long dim)
 {
     const int threads = consph_num_threads();
-    double seconds = 0.0, worst = 0.0, worst_nbr = 0.0;
-    int at = 0;
-    for (int r = 0; r < nrows; ++r) {
-        const size_t n = from_files ? in[r].p.n : (size_t)pow(nx[r], (double)dim);
-        consph_approx_cost c = from_files
-                                   ? consph_approx_estimate(s, n, consph_box_volume(&in[r].p.box),
-                                                            in[r].p.spacing, threads)
-                                   : consph_approx_estimate(s, n, 1.0, 1.0 / nx[r], threads);
-        seconds += c.seconds;
-        if (c.bytes > worst) worst = c.bytes, worst_nbr = c.neighbours, at = r;
-    }
+    const consph_approx_sweep_cost c = consph_approx_sweep_estimate(sw, threads);
+    const double seconds = c.seconds, worst = c.worst.bytes, worst_nbr = c.worst.neighbours;
+    const int at = c.worst_row;
     double limit, cap, available;
     if (consph_memory_limit(&limit, &cap, &available))
         return cli_error(cmd, "%s", consph_last_error());
     char where[256];
-    if (from_files)
-        snprintf(where, sizeof where, "%.200s", in[at].path);
+    if (sw->files)
+        snprintf(where, sizeof where, "%.200s", sw->files[at].path);
     else
-        snprintf(where, sizeof where, "--nx %.0f", nx[at]);
+        snprintf(where, sizeof where, "--nx %.0f", sw->nx[at]);
     if (worst > limit)
         return cli_error(cmd,
                          "option --hdx: %g with kernel %s in %ldD gives about %.3g neighbours per "
@@ -176,62 +146,198 @@ static int check_cost(const cli_command *cmd, const consph_approx_spec *s, const
     return 0;
 }
 
-static int choose_volume(const cli_command *cmd, input_file *f, int volume_idx, int given)
+/* --volume on a file: the file's default (consph_particle_input_read) unless given; lattice
+ * replaces its volumes by box volume / N, shepard is number. */
+static int choose_volume(const cli_command *cmd, consph_particle_input *f, int volume_idx,
+                         int given)
 {
-    consph_particles *p = &f->p;
-    int has = f->rep.volumes != CONSPH_VOLUMES_NONE;
-    const char *origin = consph_volume_origin_name(f->rep.volumes);
-    if (!given) {
-        f->volume = has ? CONSPH_VOLUME_GIVEN : CONSPH_VOLUME_NUMBER;
-        snprintf(f->volume_text, sizeof f->volume_text, "%s",
-                 has ? (f->rep.volumes == CONSPH_VOLUMES_COLUMN ? "given (file column 'volume')"
-                                                                : "given (file columns m/rho)")
-                     : "number (1/sum W, 001 eq. 5: no volumes in the file)");
-        return 0;
-    }
+    if (!given) return 0;
     if (volume_idx == CONSPH_VOLUME_COUNT) { /* lattice */
-        double *vol = consph_particles_field(p, "volume", 1);
-        if (!vol) return cli_error(cmd, "%s: %s", f->path, consph_last_error());
-        double v = consph_box_volume(&p->box) / (double)p->n;
-        for (size_t i = 0; i < p->n; ++i) vol[i] = v;
-        f->volume = CONSPH_VOLUME_GIVEN;
+        if (consph_particle_input_lattice_volumes(f) != CONSPH_OK)
+            return cli_error(cmd, "%s", consph_last_error());
         snprintf(f->volume_text, sizeof f->volume_text, "given (--volume lattice: box volume / N)");
         return 0;
     }
     if (volume_idx == CONSPH_VOLUME_COUNT + 1) volume_idx = CONSPH_VOLUME_NUMBER; /* shepard */
-    if (volume_idx == CONSPH_VOLUME_GIVEN && !has)
-        return cli_error(cmd,
-                         "option --volume: given needs volumes, but %s has no volume (or m and "
-                         "rho) column; allowed: lattice, shepard, number, summation",
-                         f->path);
     f->volume = (consph_volume_kind)volume_idx;
     snprintf(f->volume_text, sizeof f->volume_text, "%s (--volume%s%s)",
              consph_volume_name(f->volume), volume_idx == CONSPH_VOLUME_GIVEN ? ": " : "",
-             volume_idx == CONSPH_VOLUME_GIVEN ? origin : "");
+             volume_idx != CONSPH_VOLUME_GIVEN       ? ""
+             : f->rep.volumes != CONSPH_VOLUMES_NONE ? consph_volume_origin_name(f->rep.volumes)
+                                                     : "box volume / N, none in the file");
     return 0;
 }
 
-/* Fields of period 1 repeat on a periodic axis only when its length is a whole number. */
-static int check_field_period(const cli_command *cmd, const input_file *f, consph_mfield_id field)
+/* Reads the files of --particles (consph_particle_input_read) into in[], checking that they
+ * share a dimension and applying --volume; a failure is one line on stderr. */
+static int read_files(const cli_command *cmd, const char *particles, const consph_read_options *ro,
+                      const char *periodic_text, int volume_idx, int volume_given,
+                      consph_particle_input *in, int *nin)
 {
-    if (field == CONSPH_MFIELD_CONST) return 0;
-    static const char axis[] = "xyz";
-    for (int a = 0; a < f->p.dim; ++a) {
-        double len = consph_box_length(&f->p.box, a);
-        if (f->p.box.periodic[a] && fabs(len - floor(len + 0.5)) > 1e-12 * fmax(1.0, len))
-            return cli_error(cmd,
-                             "option --periodic: %s: field '%s' has period 1 but the periodic "
-                             "axis %c has length %g; allowed: a non-periodic axis, or a box of "
-                             "whole-number length",
-                             f->path, consph_mfield_name(field), axis[a], len);
+    static char list[4096]; /* holds the file names, which the reports quote */
+    if (strlen(particles) >= sizeof list || !cli_list_items_nonempty(particles))
+        return cli_error(cmd, "option --particles: '%s' is not a comma-separated list of files",
+                         particles);
+    strcpy(list, particles);
+    char *save = NULL;
+    for (char *t = strtok_r(list, ",", &save); t; t = strtok_r(NULL, ",", &save)) {
+        if (*nin == CLI_LIST_MAX)
+            return cli_error(cmd, "option --particles: at most %d files", CLI_LIST_MAX);
+        consph_particle_input *f = &in[*nin];
+        consph_particle_format pf;
+        if (consph_particle_format_from_path(t, &pf) != CONSPH_OK)
+            return cli_error(cmd, "option --particles: %s", consph_last_error());
+        if (consph_particle_input_read(t, ro, f) != CONSPH_OK) {
+            fprintf(stderr, "consph approx: %s\n", consph_last_error());
+            return CLI_EXIT_USAGE;
+        }
+        ++*nin;
+        if (f->p.dim != in[0].p.dim)
+            return cli_error(cmd, "option --particles: %s is %dD but %s is %dD", t, f->p.dim,
+                             in[0].path, in[0].p.dim);
+        if (periodic_text && cli_check_periodic_dim(cmd, periodic_text, f->p.dim))
+            return CLI_EXIT_USAGE;
+        if (choose_volume(cmd, f, volume_idx, volume_given)) return CLI_EXIT_USAGE;
     }
     return 0;
 }
 
-static void free_inputs(input_file *in, int n)
+static void free_inputs(consph_particle_input *in, int n)
 {
-    for (int k = 0; k < n; ++k) consph_particles_free(&in[k].p);
+    for (int k = 0; k < n; ++k) consph_particle_input_free(&in[k]);
     free(in);
+}
+
+/* The writer of `consph approx`: the header, each row as it is measured (table or CSV, with
+ * its packing warnings), the orders, or the whole sweep as JSON. */
+typedef struct approx_writer {
+    int fmt; /* 0 table, 1 csv, 2 json */
+    const consph_approx_sweep *sw;
+    const char *opname, *kernel, *field;
+    double hdx, beta;
+    int hpol;
+    long dim;
+    char pdesc[8]; /* the periodic axes */
+    int periodic_given;
+    double tol;
+} approx_writer;
+
+static void write_head(const approx_writer *w)
+{
+    const consph_approx_spec *s = &w->sw->spec;
+    const consph_particle_input *in = w->sw->files;
+    const int nin = in ? w->sw->nrows : 0;
+    const long dim = w->dim;
+    char hdesc[96];
+    if (s->h_policy == CONSPH_H_ZHU || s->h_policy == CONSPH_H_BETA)
+        snprintf(hdesc, sizeof hdesc, "h = hdx*dx at N = %.0f, then h ~ N^(-1/%g)", s->n_ref,
+                 s->h_policy == CONSPH_H_ZHU ? 2.0 * (double)dim : w->beta);
+    else
+        snprintf(hdesc, sizeof hdesc, "%s", w->hpol ? "h = N^-1/6" : "h = hdx*dx");
+    if (w->fmt == 0) {
+        if (in)
+            printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), particles "
+                   "from %d file%s, dim %ld, field %s\n",
+                   w->opname, consph_form_name(s->op.form), consph_corr_name(s->op.corr), w->kernel,
+                   w->hdx, hdesc, nin, nin == 1 ? "" : "s", dim, w->field);
+        else
+            printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), layout %s, "
+                   "dim %ld, periodic %s, field %s, volume %s\n",
+                   w->opname, consph_form_name(s->op.form), consph_corr_name(s->op.corr), w->kernel,
+                   w->hdx, hdesc, consph_layout_name(s->layout.kind), dim,
+                   !w->pdesc[0]                      ? "no"
+                   : strlen(w->pdesc) == (size_t)dim ? "yes"
+                                                     : w->pdesc,
+                   w->field, consph_volume_name(s->volume));
+        for (int k = 0; k < nin; ++k) describe_file(stdout, &in[k], w->periodic_given);
+        printf("%6s %10s %10s %8s %11s %11s %11s %11s %11s %9s %9s\n", "nx", "n", "h", "nbr", "l1",
+               "l2", "linf", "mae", "ft/fmax", "seconds", "fallback");
+    } else {
+        /* CSV and JSON keep their columns; what was read from each file goes to stderr. */
+        for (int k = 0; k < nin; ++k) describe_file(stderr, &in[k], w->periodic_given);
+        if (w->fmt == 1) print_csv_header();
+    }
+}
+
+static void write_json(const approx_writer *w, const consph_approx_row *rows, const double *res,
+                       const consph_series_order fits[4])
+{
+    const consph_approx_spec *s = &w->sw->spec;
+    const consph_particle_input *in = w->sw->files;
+    const int nrows = w->sw->nrows;
+    printf("{\n  \"op\": \"%s\", \"form\": \"%s\", \"corr\": \"%s\", \"kernel\": \"%s\", "
+           "\"hdx\": %g, \"h_policy\": \"%s\", \"layout\": \"%s\", \"dim\": %ld, ",
+           w->opname, consph_form_name(s->op.form), consph_corr_name(s->op.corr), w->kernel, w->hdx,
+           consph_h_policy_name(s->h_policy), in ? "files" : consph_layout_name(s->layout.kind),
+           w->dim);
+    if (in)
+        printf("\"field\": \"%s\",\n", w->field);
+    else
+        printf("\"periodic\": %s, \"field\": \"%s\", \"volume\": \"%s\",\n",
+               w->pdesc[0] ? "true" : "false", w->field, consph_volume_name(s->volume));
+    printf("  \"rows\": [\n");
+    for (int r = 0; r < nrows; ++r) {
+        const consph_approx_row *row = &rows[r];
+        printf("    {");
+        if (in) {
+            printf("\"file\": ");
+            json_string(in[r].path);
+            printf(", \"volume\": \"%s\", \"volumes\": ", consph_volume_name(in[r].volume));
+            json_string(in[r].volume_text);
+            printf(", \"wrapped\": %zu, ", in[r].rep.wrapped);
+        }
+        printf("\"nx\": %.10g, \"n\": %zu, \"h\": %.10g, \"nbr_mean\": ", res[r], row->n, row->h);
+        json_number("%.6g", row->nbr_mean);
+        const double cols[] = {row->err.l1, row->err.l2, row->err.linf, row->err.mae,
+                               row->ft_over_fmax};
+        static const char *const names[] = {"l1", "l2", "linf", "mae", "ft_over_fmax"};
+        for (int c = 0; c < 5; ++c) {
+            printf(", \"%s\": ", names[c]);
+            json_number("%.6e", cols[c]);
+        }
+        printf(", \"seconds\": ");
+        json_number("%.6g", row->seconds);
+        printf(", \"fallbacks\": %zu}%s\n", row->fallbacks, r + 1 < nrows ? "," : "");
+    }
+    printf("  ],\n  \"order\": {");
+    for (int k = 0; k < 4; ++k) {
+        const consph_order_fit *fit = &fits[k].fit;
+        printf("%s\"%s\": ", k ? ", " : "", norm_names[k]);
+        if (fits[k].status != CONSPH_SERIES_ORDER) {
+            printf("null");
+            continue;
+        }
+        printf("{\"order\": %.6f, \"stderr\": ", fit->order);
+        json_number("%.6f", fit->order_stderr);
+        printf("}");
+    }
+    printf("}\n}\n");
+}
+
+/* A row's line of the table or CSV as soon as it is measured, and its packing warnings. */
+static void print_row(void *ctx, int r, const consph_approx_row *w, double res)
+{
+    const approx_writer *pr = ctx;
+    const consph_approx_spec *s = &pr->sw->spec;
+    if (!pr->sw->files && s->layout.kind == CONSPH_LAYOUT_PACKED_POLISHED &&
+        w->layout_spread > pr->tol)
+        fprintf(stderr,
+                "consph approx: warning: nx = %.0f: packing stopped at --pack-iter %d "
+                "with max|rho/rho0-1| = %.3g above --pack-tol %g; the particles are "
+                "less uniform than asked\n",
+                pr->sw->nx[r], s->layout.packing.max_iter, w->layout_spread, pr->tol);
+    if (!pr->sw->files && s->layout.kind == CONSPH_LAYOUT_PACKED && !w->layout_converged)
+        fprintf(stderr,
+                "consph approx: warning: nx = %.0f: packing stopped at --pack-iter %d "
+                "before the particles stopped moving (max|rho/rho0-1| = %.3g)\n",
+                pr->sw->nx[r], s->layout.packing.max_iter, w->layout_spread);
+    if (pr->fmt == 0)
+        printf("%6.6g %10zu %10.4g %8.2f %11.4e %11.4e %11.4e %11.4e %11.3e %9.3g %9zu\n", res,
+               w->n, w->h, w->nbr_mean, w->err.l1, w->err.l2, w->err.linf, w->err.mae,
+               w->ft_over_fmax, w->seconds, w->fallbacks);
+    else if (pr->fmt == 1)
+        print_csv_row(w, res);
+    fflush(stdout);
 }
 
 int cmd_approx(int argc, char **argv)
@@ -393,34 +499,14 @@ int cmd_approx(int argc, char **argv)
     if (!from_files && volume_idx == CONSPH_VOLUME_COUNT + 1) volume_idx = CONSPH_VOLUME_NUMBER;
 
     /* Every file is read, and every bad one rejected, before anything is measured. */
-    input_file *in = NULL;
+    consph_particle_input *in = NULL;
     int nin = 0;
-    static char list[4096]; /* holds the file names, which the reports quote */
     if (from_files) {
-        size_t len = strlen(particles);
-        if (len >= sizeof list || !cli_list_items_nonempty(particles))
-            return cli_error(
-                &cmd, "option --particles: '%s' is not a comma-separated list of files", particles);
-        strcpy(list, particles);
         in = calloc(CLI_LIST_MAX, sizeof *in);
         if (!in) return cli_error(&cmd, "out of memory");
     }
     rc = CLI_EXIT_USAGE;
-    char *save = NULL;
-    for (char *t = from_files ? strtok_r(list, ",", &save) : NULL; t;
-         t = strtok_r(NULL, ",", &save)) {
-        if (nin == CLI_LIST_MAX) {
-            cli_error(&cmd, "option --particles: at most %d files", CLI_LIST_MAX);
-            goto out;
-        }
-        input_file *f = &in[nin];
-        f->path = t;
-        f->periodic_given = opts[O_PERIODIC].given;
-        consph_particle_format pf;
-        if (consph_particle_format_from_path(t, &pf) != CONSPH_OK) {
-            cli_error(&cmd, "option --particles: %s", consph_last_error());
-            goto out;
-        }
+    if (from_files) {
         consph_read_options ro;
         memset(&ro, 0, sizeof ro);
         ro.dim = opts[O_DIM].given ? (int)dim : 0;
@@ -432,20 +518,9 @@ int cmd_approx(int argc, char **argv)
             ro.have_periodic = 1;
             for (int a = 0; a < CONSPH_MAX_DIM; ++a) ro.periodic[a] = periodic[a];
         }
-        if (consph_read_particles(t, &ro, &f->p, &f->rep) != CONSPH_OK) {
-            fprintf(stderr, "consph approx: %s\n", consph_last_error());
+        if (read_files(&cmd, particles, &ro, opts[O_PERIODIC].given ? periodic_text : NULL,
+                       volume_idx, opts[O_VOLUME].given, in, &nin))
             goto out;
-        }
-        ++nin;
-        if (f->p.dim != in[0].p.dim) {
-            cli_error(&cmd, "option --particles: %s is %dD but %s is %dD", t, f->p.dim, in[0].path,
-                      in[0].p.dim);
-            goto out;
-        }
-        if (opts[O_PERIODIC].given && cli_check_periodic_dim(&cmd, periodic_text, f->p.dim))
-            goto out;
-        if (choose_volume(&cmd, f, volume_idx, opts[O_VOLUME].given)) goto out;
-        f->nx = resolution_of(f->p.n, f->p.dim);
     }
     if (from_files) dim = in[0].p.dim;
 
@@ -497,99 +572,28 @@ int cmd_approx(int argc, char **argv)
     s.field_params.sigma = sigma;
     s.volume = (consph_volume_kind)volume_idx;
     s.interior_only = mask_idx == 0;
-    if (!from_files && consph_approx_check(&s) != CONSPH_OK) {
+    const int nrows = from_files ? nin : nx.n;
+    const consph_approx_sweep sw = {s, nrows, from_files ? NULL : nx.v, from_files ? in : NULL};
+    if (consph_approx_sweep_check(&sw) != CONSPH_OK) {
         cli_error(&cmd, "%s", consph_last_error());
         goto out;
     }
-    for (int k = 0; k < nin; ++k) {
-        consph_approx_spec fs = s;
-        fs.layout.box = in[k].p.box;
-        fs.volume = in[k].volume;
-        if (check_field_period(&cmd, &in[k], s.field)) goto out;
-        if (consph_approx_check(&fs) != CONSPH_OK) {
-            cli_error(&cmd, "%s: %s", in[k].path, consph_last_error());
-            goto out;
-        }
-    }
-
-    int nrows = from_files ? nin : nx.n;
-    if (check_cost(&cmd, &s, in, from_files, nrows, nx.v, kernel, hdx, dim)) goto out;
+    if (check_cost(&cmd, &sw, kernel, hdx, dim)) goto out;
     consph_approx_row rows[CLI_LIST_MAX];
     double res[CLI_LIST_MAX];
     /* After every check: a rejection stays the one line on stderr. */
     for (int k = 0; k < nin; ++k)
         cli_note_read_defaults(&cmd, in[k].path, &in[k].p, &in[k].rep, box_text != NULL,
-                               in[k].periodic_given);
-    char pdesc[8] = "";
+                               opts[O_PERIODIC].given);
+    approx_writer out = {
+        fmt, &sw, opname, kernel, field, hdx, beta, hpol, dim, "", opts[O_PERIODIC].given, tol};
     for (int a = 0, k = 0; a < dim; ++a)
-        if (periodic[a]) pdesc[k++] = "xyz"[a];
-    char hdesc[96];
-    if (s.h_policy == CONSPH_H_ZHU || s.h_policy == CONSPH_H_BETA)
-        snprintf(hdesc, sizeof hdesc, "h = hdx*dx at N = %.0f, then h ~ N^(-1/%g)", s.n_ref,
-                 s.h_policy == CONSPH_H_ZHU ? 2.0 * (double)dim : beta);
-    else
-        snprintf(hdesc, sizeof hdesc, "%s", hpol ? "h = N^-1/6" : "h = hdx*dx");
-    if (fmt == 0) {
-        if (from_files)
-            printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), particles "
-                   "from %d file%s, dim %ld, field %s\n",
-                   opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
-                   hdesc, nin, nin == 1 ? "" : "s", dim, field);
-        else
-            printf("# consph approx: op %s, form %s, corr %s, kernel %s, h/dx %g (%s), layout %s, "
-                   "dim %ld, periodic %s, field %s, volume %s\n",
-                   opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
-                   hdesc, consph_layout_name(s.layout.kind), dim,
-                   !pdesc[0]                      ? "no"
-                   : strlen(pdesc) == (size_t)dim ? "yes"
-                                                  : pdesc,
-                   field, consph_volume_name(s.volume));
-        for (int k = 0; k < nin; ++k) describe_file(stdout, &in[k]);
-        printf("%6s %10s %10s %8s %11s %11s %11s %11s %11s %9s %9s\n", "nx", "n", "h", "nbr", "l1",
-               "l2", "linf", "mae", "ft/fmax", "seconds", "fallback");
-    } else {
-        /* CSV and JSON keep their columns; what was read from each file goes to stderr. */
-        for (int k = 0; k < nin; ++k) describe_file(stderr, &in[k]);
-        if (fmt == 1) print_csv_header();
-    }
+        if (periodic[a]) out.pdesc[k++] = "xyz"[a];
+    write_head(&out);
     rc = 1;
-    for (int r = 0; r < nrows; ++r) {
-        if (from_files) {
-            consph_approx_spec fs = s;
-            fs.layout.box = in[r].p.box;
-            fs.volume = in[r].volume;
-            if (consph_approx_run_particles(&fs, &in[r].p, (size_t)floor(in[r].nx + 0.5),
-                                            &rows[r]) != CONSPH_OK) {
-                fprintf(stderr, "consph approx: %s: %s\n", in[r].path, consph_last_error());
-                goto out;
-            }
-            res[r] = in[r].nx;
-        } else {
-            if (consph_approx_run(&s, (size_t)nx.v[r], &rows[r]) != CONSPH_OK) {
-                fprintf(stderr, "consph approx: nx = %.0f: %s\n", nx.v[r], consph_last_error());
-                goto out;
-            }
-            if (s.layout.kind == CONSPH_LAYOUT_PACKED_POLISHED && rows[r].layout_spread > tol)
-                fprintf(stderr,
-                        "consph approx: warning: nx = %.0f: packing stopped at --pack-iter %d "
-                        "with max|rho/rho0-1| = %.3g above --pack-tol %g; the particles are "
-                        "less uniform than asked\n",
-                        nx.v[r], s.layout.packing.max_iter, rows[r].layout_spread, tol);
-            if (s.layout.kind == CONSPH_LAYOUT_PACKED && !rows[r].layout_converged)
-                fprintf(stderr,
-                        "consph approx: warning: nx = %.0f: packing stopped at --pack-iter %d "
-                        "before the particles stopped moving (max|rho/rho0-1| = %.3g)\n",
-                        nx.v[r], s.layout.packing.max_iter, rows[r].layout_spread);
-            res[r] = (double)rows[r].nx;
-        }
-        const consph_approx_row *w = &rows[r];
-        if (fmt == 0)
-            printf("%6.6g %10zu %10.4g %8.2f %11.4e %11.4e %11.4e %11.4e %11.3e %9.3g %9zu\n",
-                   res[r], w->n, w->h, w->nbr_mean, w->err.l1, w->err.l2, w->err.linf, w->err.mae,
-                   w->ft_over_fmax, w->seconds, w->fallbacks);
-        else if (fmt == 1)
-            print_csv_row(w, res[r]);
-        fflush(stdout);
+    if (consph_approx_sweep_run(&sw, rows, res, print_row, &out) != CONSPH_OK) {
+        fprintf(stderr, "consph approx: %s\n", consph_last_error());
+        goto out;
     }
     char series[96];
     snprintf(series, sizeof series, "%s %s %s", opname, consph_form_name(s.op.form),
@@ -600,52 +604,7 @@ int cmd_approx(int argc, char **argv)
     if (fmt == 0) {
         for (int k = 0; k < 4; ++k) printf("order (%s): %s\n", norm_names[k], fits[k].text);
     } else if (fmt == 2) {
-        printf("{\n  \"op\": \"%s\", \"form\": \"%s\", \"corr\": \"%s\", \"kernel\": \"%s\", "
-               "\"hdx\": %g, \"h_policy\": \"%s\", \"layout\": \"%s\", \"dim\": %ld, ",
-               opname, consph_form_name(s.op.form), consph_corr_name(s.op.corr), kernel, hdx,
-               consph_h_policy_name(s.h_policy),
-               from_files ? "files" : consph_layout_name(s.layout.kind), dim);
-        if (from_files)
-            printf("\"field\": \"%s\",\n", field);
-        else
-            printf("\"periodic\": %s, \"field\": \"%s\", \"volume\": \"%s\",\n",
-                   pdesc[0] ? "true" : "false", field, consph_volume_name(s.volume));
-        printf("  \"rows\": [\n");
-        for (int r = 0; r < nrows; ++r) {
-            const consph_approx_row *w = &rows[r];
-            printf("    {");
-            if (from_files) {
-                printf("\"file\": ");
-                json_string(in[r].path);
-                printf(", \"volume\": \"%s\", \"volumes\": ", consph_volume_name(in[r].volume));
-                json_string(in[r].volume_text);
-                printf(", \"wrapped\": %zu, ", in[r].rep.wrapped);
-            }
-            printf("\"nx\": %.10g, \"n\": %zu, \"h\": %.10g, \"nbr_mean\": ", res[r], w->n, w->h);
-            json_number("%.6g", w->nbr_mean);
-            const double cols[] = {w->err.l1, w->err.l2, w->err.linf, w->err.mae, w->ft_over_fmax};
-            static const char *const names[] = {"l1", "l2", "linf", "mae", "ft_over_fmax"};
-            for (int c = 0; c < 5; ++c) {
-                printf(", \"%s\": ", names[c]);
-                json_number("%.6e", cols[c]);
-            }
-            printf(", \"seconds\": ");
-            json_number("%.6g", w->seconds);
-            printf(", \"fallbacks\": %zu}%s\n", w->fallbacks, r + 1 < nrows ? "," : "");
-        }
-        printf("  ],\n  \"order\": {");
-        for (int k = 0; k < 4; ++k) {
-            const consph_order_fit *fit = &fits[k].fit;
-            printf("%s\"%s\": ", k ? ", " : "", norm_names[k]);
-            if (fits[k].status != CONSPH_SERIES_ORDER) {
-                printf("null");
-                continue;
-            }
-            printf("{\"order\": %.6f, \"stderr\": ", fit->order);
-            json_number("%.6f", fit->order_stderr);
-            printf("}");
-        }
-        printf("}\n}\n");
+        write_json(&out, rows, res, fits);
     }
     if (fit_rc) {
         rc = fit_rc;

@@ -142,8 +142,8 @@ static void free_inputs(study_inputs *in)
     in->n = 0;
 }
 
-/* Reads every file of `list`. A file without volumes gets box volume / N, used by figures that
- * ask for `volume = given`; the others compute their own. */
+/* Reads every file of `list` (consph_particle_input_read: a file without volumes gets box
+ * volume / N, used by figures that ask for `volume = given`; the others compute their own). */
 static int read_inputs(const cli_command *cmd, const char *list, const char *box_text,
                        const char *periodic_text, study_inputs *in)
 {
@@ -178,35 +178,33 @@ static int read_inputs(const cli_command *cmd, const char *list, const char *box
         name[n] = '\0';
         in->names[in->n] = name;
         consph_particle_format pf;
-        consph_read_report rep;
         if (consph_particle_format_from_path(name, &pf) != CONSPH_OK) {
             cli_error(cmd, "option --particles: %s", consph_last_error());
             free(name);
             free_inputs(in);
             return CLI_EXIT_USAGE;
         }
-        if (consph_read_particles(name, &ro, &in->sets[in->n], &rep) != CONSPH_OK) {
+        consph_particle_input file;
+        if (consph_particle_input_read(name, &ro, &file) != CONSPH_OK) {
             fprintf(stderr, "consph study: %s\n", consph_last_error());
             free(name);
             free_inputs(in);
             return CLI_EXIT_USAGE;
         }
+        /* The figures choose their volume kind (key `volume`); given volumes follow the rule
+         * of consph_particle_input_read. */
+        in->sets[in->n] = file.p;
+        const consph_read_report rep = file.rep;
         consph_particles *p = &in->sets[in->n++];
         if (periodic_text && cli_check_periodic_dim(cmd, periodic_text, p->dim)) {
             free_inputs(in);
             return CLI_EXIT_USAGE;
         }
         cli_note_read_defaults(cmd, name, p, &rep, box_text != NULL, periodic_text != NULL);
-        const char *vol = consph_volume_origin_name(rep.volumes);
-        if (rep.volumes == CONSPH_VOLUMES_NONE) {
-            double *v = consph_particles_field(p, "volume", 1);
-            if (!v) {
-                free_inputs(in);
-                return cli_error(cmd, "%s: %s", name, consph_last_error());
-            }
-            for (size_t i = 0; i < p->n; ++i) v[i] = consph_box_volume(&p->box) / (double)p->n;
-            vol = "none in the file: box volume / N where a figure asks for given volumes";
-        }
+        const char *vol = rep.volumes == CONSPH_VOLUMES_NONE
+                              ? "none in the file: box volume / N where a figure asks for given "
+                                "volumes"
+                              : consph_volume_origin_name(rep.volumes);
         printf("particles %s: %zu, %dD, volumes %s", name, p->n, p->dim, vol);
         if (rep.wrapped) printf("; %zu wrapped into the periodic box", rep.wrapped);
         printf("\n");

@@ -211,11 +211,19 @@ chmod 600 "$work/locked.csv"
 rejects "no box" "nobox.csv: the file has no box" "$(printf 'x,y\n0.1,0.2\n' >"$work/nobox.csv"; echo "$work/nobox.csv")"
 "$bin" approx --op function --particles "$work/nobox.csv" --box 0:1,0:2 --periodic no --format csv >/dev/null 2>&1 &&
     ok || bad "--box for a file without one"
+# A file without volumes has box volume / N as its given volumes (the one rule of approx and
+# study, include/consph/study.h): --volume given then measures what --volume lattice does.
+for v in given lattice; do
+    "$bin" approx --op function --particles "$work/nobox.csv" --box 0:1,0:2 --periodic no \
+        --volume $v --format csv 2>"$work/err-$v" | cut -d, -f1-9 >"$work/vol-$v.csv"
+done
+[ -s "$work/vol-given.csv" ] && cmp -s "$work/vol-given.csv" "$work/vol-lattice.csv" &&
+    grep -q "given (--volume: box volume / N, none in the file)" "$work/err-given" && ok ||
+    bad "--volume given without volumes in the file: $(cat "$work/err-given")"
 # Options that do not fit the files: exit 2, one line naming the option.
 for args in "lattice-2-8.csv|--box 0:1,2:1|option --box: '0:1,2:1' is not a box" \
     "lattice-2-8.csv|--nx 8|option --nx: not with --particles" \
-    "lattice-2-8.csv|--periodic xz|option --periodic: axis z" \
-    "nobox.csv|--box 0:1,0:1 --volume given|option --volume: given needs volumes"; do
+    "lattice-2-8.csv|--periodic xz|option --periodic: axis z"; do
     IFS='|' read -r file opt expect <<<"$args"
     # shellcheck disable=SC2086
     "$bin" approx --op function --particles "$work/$file" $opt >"$work/out" 2>"$work/err"

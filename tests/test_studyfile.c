@@ -161,6 +161,30 @@ static void test_validation(void)
     CHECK(validate("study = a\n[figure f]\nnx = 8, 16\n") == CONSPH_OK, "%s", consph_last_error());
 }
 
+/* The kinds come from one registry: its names list is what `kind` allows, and every kind in it
+ * validates a figure of its own (a kind missing from a row or a list would be refused). */
+static void test_kind_registry(void)
+{
+    const char *names = consph_study_kind_names();
+    CHECK(strcmp(names, "approx, m0, appc, cauchy, run, heat") == 0, "kinds '%s'", names);
+    char expect[160];
+    snprintf(expect, sizeof expect, "unknown value 'nope'; allowed: %s", names);
+    expect_invalid("study = a\n[figure f]\nkind = nope\nnx = 8\n", expect);
+    static const char *const figures[] = {
+        "kind = approx\nnx = 8,16\n",
+        "kind = m0\nnx = 8,16\n",
+        "kind = appc\nnx = 64\nhdelta.values = 0.5,1\n",
+        "kind = cauchy\nnx = 8,16,32\n",
+        "kind = run\nnx = 8\nsteps = 2\n[series s]\nscheme = e-c\n",
+        "kind = heat\nnx = 11\n[series s]\nlaplacian = s4\n",
+    };
+    for (size_t k = 0; k < sizeof figures / sizeof figures[0]; ++k) {
+        char text[256];
+        snprintf(text, sizeof text, "study = a\n[figure f]\n%s", figures[k]);
+        CHECK(validate(text) == CONSPH_OK, "%s: %s", figures[k], consph_last_error());
+    }
+}
+
 /* Keys of a cauchy figure that its method or measure does not read are refused at their line;
  * a figure-level one that some series reads is kept. Then the memory, before any work. */
 static void test_cauchy_keys(void)
@@ -317,6 +341,7 @@ int main(void)
         snprintf(root, sizeof root, "..");
     test_ignored_keys();
     test_validation();
+    test_kind_registry();
     test_cauchy_keys();
     test_fuzz_replay(root);
     test_shipped_studies(root);

@@ -7,6 +7,7 @@
 #include <stdio.h>
 
 #include "consph/core.h"
+#include "consph/io.h"
 #include "consph/layout.h"
 #include "consph/ops.h"
 
@@ -228,9 +229,72 @@ int consph_approx_run_particles(const consph_approx_spec *spec, const consph_par
 void consph_approx_exact(const consph_approx_spec *spec, const double *x, double rho_i,
                          double *out);
 
+/* ---- Particle files as the measurements take them (`consph approx --particles`, `consph study
+ * --particles`): read in one place, with one rule for their volumes ---------------------------- */
+
+/* A particle file read for a measurement. Its given volumes (the "volume" field, used where a
+ * measurement asks for CONSPH_VOLUME_GIVEN) are the file's `volume` column, else its m/rho,
+ * else box volume / N: the volume of each particle of a lattice of N filling the box. `volume`
+ * is the kind a measurement uses unless told otherwise: given when the file carries volumes,
+ * else number (1/ΣW, 001 eq. 5); a study figure's `volume` key tells otherwise. */
+typedef struct consph_particle_input {
+    const char *path; /* as given (not copied) */
+    consph_particles p;
+    consph_read_report rep;
+    double nx; /* N^(1/dim), exact when N is a perfect power: the resolution an order fit sees */
+    consph_volume_kind volume;
+    char volume_text[96]; /* where the volumes come from, for reports */
+} consph_particle_input;
+
+/* N^(1/dim), exact when N is a perfect power, so that a file made by `consph layout --nx K`
+ * reports nx = K. */
+double consph_resolution_of(size_t n, int dim);
+/* Reads `path` (consph_read_particles with `ro`) and applies the volume rule above. On error
+ * nothing is held; the message names the file. */
+int consph_particle_input_read(const char *path, const consph_read_options *ro,
+                               consph_particle_input *in);
+/* Replaces the file's volumes by box volume / N for every particle and uses them (given). */
+int consph_particle_input_lattice_volumes(consph_particle_input *in);
+void consph_particle_input_free(consph_particle_input *in);
+
+/* ---- A sweep of `consph approx`: one spec over resolutions or particle files --------------- */
+
+typedef struct consph_approx_sweep {
+    consph_approx_spec spec;
+    int nrows;
+    const double *nx;                   /* layouts: particles per axis of each row */
+    const consph_particle_input *files; /* files: one row each (NULL for layouts); each runs
+                                           in its own box with its own `volume` */
+} consph_approx_sweep;
+
+/* The cost of every row before it runs (consph_approx_estimate): total seconds, and the row
+ * with the most memory. */
+typedef struct consph_approx_sweep_cost {
+    double seconds;
+    consph_approx_cost worst;
+    int worst_row;
+} consph_approx_sweep_cost;
+consph_approx_sweep_cost consph_approx_sweep_estimate(const consph_approx_sweep *sw, int threads);
+/* Checks the spec on every file's box: the operator (consph_approx_check) and a period-1 field
+ * on a periodic axis of whole-number length. The message names the file. */
+int consph_approx_sweep_check(const consph_approx_sweep *sw);
+/* Measures every row in order into rows[] and res[] (the resolution fitted: nx, or the file's
+ * N^(1/dim)); on_row (may be NULL) sees each as it is done. An error names the row ("nx = 20:
+ * ..." or "FILE: ..."). */
+typedef void (*consph_approx_row_fn)(void *ctx, int row, const consph_approx_row *r, double res);
+int consph_approx_sweep_run(const consph_approx_sweep *sw, consph_approx_row *rows, double *res,
+                            consph_approx_row_fn on_row, void *ctx);
+/* The order verdicts of the four norms l1, l2, linf and mae, in that order (3 decimals). */
+int consph_approx_sweep_fit(const consph_approx_row *rows, const double *res, int nrows,
+                            const char *pm, consph_series_order fits[4]);
+
 /* ---- Studies: declared in files (docs/studies.md), run by `consph study` ------------------- */
 
 typedef struct consph_study consph_study;
+
+/* The figure kinds a study may use (a figure's `kind` key), comma-separated: "approx, m0, appc,
+ * cauchy, run, heat", generated from the kinds' registry (src/study/kinds/kinds.h). */
+const char *consph_study_kind_names(void);
 
 /* Reads and validates the syntax of a study file; CONSPH_EFORMAT naming file and line. */
 int consph_study_load(const char *path, consph_study **out);

@@ -61,7 +61,7 @@ int study_parse(const char *path, const char *data, size_t size, consph_study **
  * STUDY_NAME_MAX characters; `series` also allows '=' and inner spaces ("F1 eta=1.5"). */
 int study_plain_name(const char *name, int series);
 
-/* ---- shared by the figure kinds (engine.c, runstudy.c) ---- */
+/* ---- shared by the figure kinds (keys.c, writer.c; kinds/kinds.h has the rest) ---- */
 
 #include <stdio.h>
 
@@ -120,7 +120,7 @@ double study_run_estimate(const consph_study *s, const study_figure *f, int quic
                           double *particle_steps);
 #define STUDY_MAX_SWEEP MAX_SWEEP
 
-/* ---- kind = heat (heat_study.c): 002's heat-conduction runs, S3 against S4 (docs/heat.md) ---- */
+/* ---- kind = heat (kinds/heat.c): 002's heat-conduction runs, S3 against S4 (docs/heat.md) ---- */
 int study_heat_figure(const consph_study *s, const study_figure *f, int quick, const char *dir,
                       FILE *log);
 /* The estimated run time of a heat figure in seconds, calibrated on a small run. */

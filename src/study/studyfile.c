@@ -7,6 +7,7 @@
 
 #include "consph/solver.h"
 #include "study/study_internal.h"
+#include "study/kinds/kinds.h"
 
 static char *dup_range(const char *a, size_t n)
 {
@@ -104,18 +105,21 @@ int study_series_sets(const consph_study *s, const study_figure *f, const study_
     return r && lookup(s, f, r, key) != lookup(s, f, NULL, key);
 }
 
-/* The figure kinds (`kind`), as bits of key_rule.kinds. */
+/* The figure kinds (`kind`), as bits of key_rule.kinds: bit k is study_kinds[k], the
+ * registry's (kinds/kinds.h). */
+#define STUDY_KIND_BIT(name) K_BIT_##name,
+enum { STUDY_KINDS(STUDY_KIND_BIT) K_COUNT };
+#undef STUDY_KIND_BIT
 enum {
-    K_APPROX = 1,
-    K_M0 = 2,
-    K_APPC = 4,
-    K_CAUCHY = 8,
-    K_RUN = 16,
-    K_HEAT = 32,
-    K_ALL = 63,
+    K_APPROX = 1 << K_BIT_approx,
+    K_M0 = 1 << K_BIT_m0,
+    K_APPC = 1 << K_BIT_appc,
+    K_CAUCHY = 1 << K_BIT_cauchy,
+    K_RUN = 1 << K_BIT_run,
+    K_HEAT = 1 << K_BIT_heat,
+    K_ALL = (1 << K_COUNT) - 1,
     K_LAYOUT = K_APPROX | K_M0 | K_CAUCHY /* the kinds measuring generated layouts */
 };
-static const char *const kind_names[] = {"approx", "m0", "appc", "cauchy", "run", "heat", NULL};
 
 /* Where a key may be set: before the first section, on a [figure], in a [series]. Keys read
  * once per figure (its title, axes, report) mean nothing in a series. */
@@ -219,10 +223,10 @@ static int key_rule_of(const char *key, key_rule *out)
 static const char *kinds_text(int kinds, char *buf, size_t size)
 {
     buf[0] = '\0';
-    for (int k = 0; kind_names[k]; ++k)
+    for (int k = 0; study_kind_names[k]; ++k)
         if (kinds & (1 << k)) {
             if (buf[0]) append(buf, size, ", ");
-            append(buf, size, kind_names[k]);
+            append(buf, size, study_kind_names[k]);
         }
     return buf;
 }
@@ -234,8 +238,8 @@ static int figure_kind_bit(const consph_study *s, const study_figure *f)
     const study_kv *kv = kv_find(&f->keys, "kind");
     if (!kv) kv = kv_find(&s->keys, "kind");
     if (!kv) return K_APPROX;
-    for (int k = 0; kind_names[k]; ++k)
-        if (strcmp(kv->value, kind_names[k]) == 0) return 1 << k;
+    for (int k = 0; study_kind_names[k]; ++k)
+        if (strcmp(kv->value, study_kind_names[k]) == 0) return 1 << k;
     return 0;
 }
 

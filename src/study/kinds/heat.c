@@ -8,7 +8,7 @@
 
 #include "consph/heat.h"
 #include "consph/io.h"
-#include "study/study_internal.h"
+#include "study/kinds/kinds.h"
 
 typedef struct heat_plan {
     consph_heat_params prm;
@@ -147,12 +147,7 @@ static int write_plot(const consph_study *s, const study_figure *f, const heat_p
         fprintf(o, "\n");
     }
     fprintf(o, "unset multiplot\n");
-    if (rc) {
-        consph_outfile_abort(&of);
-        return rc;
-    }
-    if ((rc = consph_outfile_commit(&of))) return rc;
-    return study_render_figure(dir, f->id);
+    return study_gp_finish(&of, rc, dir, f->id);
 }
 
 static void order_of(const heat_plan *pl, const heat_row *rows, int norm, char *buf, size_t size)
@@ -188,7 +183,7 @@ static int write_report(const consph_study *s, const study_figure *f, const heat
             "`wendland-c2:h` with h = η Δ, forward Euler with Δt = 0.2 d_min² to t = %g. Orders "
             "are least-squares slopes in 1/Δ (positive: the error falls).\n\n",
             quick ? "quick" : "full", plans[0].prm.tf);
-    if (!timing && study_have_gnuplot()) fprintf(o, "![%s](%s.svg)\n\n", f->id, f->id);
+    if (!timing) study_md_figure(o, f->id);
     if (timing) {
         fprintf(o,
                 "| series | nx | N | steps | time (s) | relative to %s | steps (s) | set-up (s) "
@@ -314,3 +309,24 @@ double study_heat_seconds(const consph_study *s, const study_figure *f, int quic
     }
     return total;
 }
+
+static int heat_estimate(const consph_study *s, const study_figure *f, int quick,
+                         const study_files *files, study_estimate *e)
+{
+    (void)files;
+    e->seconds += study_heat_seconds(s, f, quick);
+    return CONSPH_OK;
+}
+
+static int heat_figure(const study_job *job, const study_figure *f)
+{
+    return study_heat_figure(job->s, f, job->quick, job->dir, job->log);
+}
+
+const study_kind study_kind_heat = {
+    .name = "heat",
+    .particles = STUDY_PARTICLES_IGNORED,
+    .validate = study_validate_plans,
+    .estimate = heat_estimate,
+    .run = heat_figure,
+};

@@ -1,0 +1,157 @@
+/* Study kinds as table rows: one const row per figure kind (kinds/approx.c, m0.c, appc.c,
+ * cauchy.c, run.c, heat.c), listed once in the registry (engine.c). The engine validates,
+ * estimates and runs a study through the rows; the kinds share the series plan (plan.c) and
+ * one writer for CSV, markdown and gnuplot figures (writer.c). */
+#ifndef CONSPH_STUDY_KINDS_H
+#define CONSPH_STUDY_KINDS_H
+
+#include <stdio.h>
+
+#include "consph/io.h"
+#include "consph/study.h"
+#include "study/study_internal.h"
+
+/* Particle files that replace the generated layouts (consph study --particles). */
+typedef struct study_files {
+    const consph_particles *sets;
+    const char *const *names;
+    int n;
+} study_files;
+
+/* ---- the series plan shared by the kinds that measure operators on particles (plan.c) ---- */
+
+/* Everything needed to run one series, parsed from its keys. */
+typedef struct series_plan {
+    consph_approx_spec spec;
+    const char *kernel_name;
+    int sweep_hdx; /* 0: sweep nx, 1: sweep hdx at fixed nx */
+    int nvalues;
+    double values[MAX_SWEEP];
+    size_t nx_fixed;
+    int bound; /* 0 none, 1 interp, 2 delta */
+} series_plan;
+
+/* Packed layouts are expensive and shared between series: generated once per study run. */
+typedef struct cached_layout {
+    consph_layout_params lp;
+    consph_particles p;
+    double seconds;
+    int used;
+} cached_layout;
+
+#define CACHE_SIZE 16
+typedef struct layout_cache {
+    cached_layout e[CACHE_SIZE];
+    int next;
+} layout_cache;
+
+/* Series whose published value is drawn, and series of a cauchy figure. */
+#define MAX_SERIES_POINTS 64
+
+int study_plan_build(const consph_study *s, const study_figure *f, const study_series *r, int quick,
+                     series_plan *pl);
+/* N^(1/dim), exact when N is a perfect power. */
+double study_resolution_of(const consph_particles *p);
+/* How h was chosen, for the reports. */
+const char *study_h_policy_text(const consph_approx_spec *sp, char *buf, size_t size);
+int study_layout_get(layout_cache *c, const consph_layout_params *lp, const consph_particles **p,
+                     double *seconds, FILE *log);
+void study_layout_cache_free(layout_cache *c);
+/* Particle files replace a plan's nx sweep, one resolution each. */
+void study_plan_take_files(series_plan *pl, const study_files *files);
+/* The particles of resolution j of an nx sweep, and their nx. */
+int study_plan_particles(const series_plan *pl, int j, const study_files *files,
+                         layout_cache *cache, FILE *log, const consph_particles **p, size_t *nx);
+/* Neighbour pairs of one run at nx particles per axis of the unit box, from geometry. */
+double study_pairs_estimate(const series_plan *pl, double nx);
+/* Period-1 fields repeat on a periodic axis only when its length is a whole number. */
+int study_check_field_period(const consph_approx_spec *sp, const consph_box *box);
+
+/* ---- the writer shared by every kind (writer.c) ---- */
+
+/* Whether the list holds `key`. */
+int study_kv_has(const study_kvlist *l, const char *key);
+/* The figure's title; with --particles it says that the layout it names is not what ran. */
+const char *study_files_title(const consph_study *s, const study_figure *f, int files, char *buf,
+                              size_t size);
+/* "the files'", "quick" or "full (paper)": which resolutions ran, for a report's Run line. */
+const char *study_resolutions_text(int files, int quick);
+/* Commits `of`, or aborts it when rc is already an error; returns the first error. */
+int study_close_output(consph_outfile *of, int rc);
+/* Closes a figure's gnuplot script as study_close_output does and draws it into ID.svg. */
+int study_gp_finish(consph_outfile *of, int rc, const char *dir, const char *id);
+/* The markdown line that shows the figure's SVG, when gnuplot draws it. */
+void study_md_figure(FILE *o, const char *id);
+/* Creates `path` and its missing parents, and removes what a failed run created. */
+int study_mkdir_p(const char *path, size_t *created);
+void study_remove_created(const char *dir, size_t created);
+/* The study's README: title, then every figure's report in order. */
+int study_write_readme(const consph_study *s, int quick, int files, const char *dir);
+
+/* ---- the kind rows ---- */
+
+/* What one figure run sees. */
+typedef struct study_job {
+    const consph_study *s;
+    int quick;
+    const char *dir;
+    const study_files *files; /* NULL: the layouts the study names */
+    layout_cache *cache;
+    FILE *log;
+} study_job;
+
+/* What a study's estimate adds up: neighbour pairs (timed on a small run of the first series),
+ * packed particles (timed on a small packing), and seconds the kinds estimate themselves. */
+typedef struct study_estimate {
+    double pairs, packed_particles, seconds;
+    double seen[256][3]; /* packed layouts counted once per (dim, nx, seed) */
+    int nseen;
+    series_plan first;
+    int have_first;
+} study_estimate;
+
+/* How a kind meets --particles. */
+typedef enum study_particles_use {
+    STUDY_PARTICLES_IGNORED, /* makes no particles of its own layout (appc, heat) */
+    STUDY_PARTICLES_USED,    /* runs on the files in place of its layouts */
+    STUDY_PARTICLES_REFUSED  /* the solver makes its own particles */
+} study_particles_use;
+
+typedef struct study_kind {
+    const char *name;
+    study_particles_use particles;
+    /* With --particles: the files must also suit the operator and field of every series. */
+    int checks_operator_on_files;
+    /* Checks the figure's keys without running anything. */
+    int (*validate)(const consph_study *s, const study_figure *f, int quick);
+    /* Checks that span the study's figures of this kind (a study-level key that some series
+     * reads); NULL when none. */
+    int (*validate_study)(const consph_study *s, int quick, const study_files *files);
+    /* Adds the figure's cost to *e; NULL: free. */
+    int (*estimate)(const consph_study *s, const study_figure *f, int quick,
+                    const study_files *files, study_estimate *e);
+    /* Runs the figure and writes FIGURE.csv, .md and its plot files into job->dir. */
+    int (*run)(const study_job *job, const study_figure *f);
+} study_kind;
+
+/* The registry: one row per kind, in the order a figure's `kind` key lists them (the first is
+ * the default). The rows, their names and their list are generated from this one list
+ * (engine.c). */
+#define STUDY_KINDS(X) X(approx) X(m0) X(appc) X(cauchy) X(run) X(heat)
+#define STUDY_KIND_DECLARE(name) extern const study_kind study_kind_##name;
+STUDY_KINDS(STUDY_KIND_DECLARE)
+#undef STUDY_KIND_DECLARE
+/* Every row, and every name (NULL-terminated), in registry order. */
+extern const study_kind *const study_kinds[];
+extern const char *const study_kind_names[];
+
+const study_kind *study_kind_of(const consph_study *s, const study_figure *f);
+/* The kind named `name`, NULL when none. */
+const study_kind *study_kind_lookup(const char *name);
+/* Checks every series through study_plan_build: the validate of the operator kinds. */
+int study_validate_plans(const consph_study *s, const study_figure *f, int quick);
+/* Neighbour pairs and packings of every series: the estimate of the operator kinds. */
+int study_estimate_plans(const consph_study *s, const study_figure *f, int quick,
+                         const study_files *files, study_estimate *e);
+
+#endif
