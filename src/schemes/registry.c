@@ -50,8 +50,8 @@ const char *consph_scheme_names(void)
     if (!names[0]) {
         size_t len = 0;
         for (size_t k = 0; k < scheme_count() && len < sizeof names; ++k) {
-            int w = snprintf(names + len, sizeof names - len, "%s%s", k ? "," : "",
-                             schemes[k]->name);
+            int w =
+                snprintf(names + len, sizeof names - len, "%s%s", k ? "," : "", schemes[k]->name);
             if (w < 0) break;
             len += (size_t)w;
         }

@@ -21,10 +21,11 @@
 
 #include "ops/terms.h"
 #include "regularise/regularise.h"
-#include "schemes/delta/iact.h"
 #include "solver/solver_internal.h"
 
 #define SF_GRADRHO_L "gradrho_l" /* ⟨∇ρ⟩^L, d */
+
+enum { SHIFT_NONE, SHIFT_SUN, SHIFT_APP_D };
 
 typedef struct delta_job {
     int d, shift;
@@ -52,7 +53,7 @@ static void visit_renorm(void *vjob, const consph_nbhd *nb)
     for (int a = 0; a < d; ++a) job->gradrho[a * cap + i] = g[a];
 }
 
-/* Pass 2: every rate, from the pair terms of iact.h. */
+/* Pass 2: every rate. */
 static void visit_rates(void *vjob, const consph_nbhd *nb)
 {
     const delta_job *job = vjob;
@@ -60,11 +61,8 @@ static void visit_rates(void *vjob, const consph_nbhd *nb)
     const size_t i = nb->i, cap = job->cap;
     const double *u = job->u, *rho = job->rho, *vol = job->vol, *gr = job->gradrho;
     const double rhoi = rho[i], pi = job->p[i];
-    double ui[3] = {0.0, 0.0, 0.0}, dui[3] = {0.0, 0.0, 0.0}, gri[3] = {0.0, 0.0, 0.0};
-    for (int a = 0; a < d; ++a) {
-        ui[a] = u[a * cap + i];
-        gri[a] = gr[a * cap + i];
-    }
+    double ui[3] = {0.0, 0.0, 0.0}, dui[3] = {0.0, 0.0, 0.0};
+    for (int a = 0; a < d; ++a) ui[a] = u[a * cap + i];
     if (job->du)
         for (int a = 0; a < d; ++a) dui[a] = job->du[a * cap + i];
     double divu = 0.0, diff = 0.0, shq = 0.0, gp[3] = {0}, visc[3] = {0}, shu[3] = {0};
@@ -73,28 +71,43 @@ static void visit_rates(void *vjob, const consph_nbhd *nb)
         const double r = nb->r[q];
         if (!(r > 0.0)) continue;
         const size_t j = nb->j[q];
-        double x[3] = {0.0, 0.0, 0.0}, uj[3] = {0.0, 0.0, 0.0}, grj[3] = {0.0, 0.0, 0.0};
-        double duj[3] = {0.0, 0.0, 0.0};
+        const double Vj = vol[j], dwr = nb->dwr[q], r2 = r * r;
+        double x[3], gw[3], uji[3];
+        double ux = 0.0, psig = 0.0;
         for (int a = 0; a < d; ++a) {
             x[a] = nb->dx[a][q];
-            uj[a] = u[a * cap + j];
-            grj[a] = gr[a * cap + j];
+            gw[a] = dwr * x[a];
+            uji[a] = u[a * cap + j] - ui[a];
+            ux += uji[a] * x[a];
         }
-        if (job->shift == DELTA_SHIFT_SUN)
-            for (int a = 0; a < d; ++a) duj[a] = job->du[a * cap + j];
-        delta_pair t;
-        delta_pair_terms(d, job->shift, vol[j], nb->dwr[q], x, r, rhoi, rho[j], pi, job->p[j], ui,
-                         uj, gri, grj, dui, duj, &t);
+        const double drho = rho[j] - rhoi;
         for (int a = 0; a < d; ++a) {
-            divu += t.div[a];
-            gp[a] += t.gp[a];
-            visc[a] -= t.visc[a];
-            for (int b = 0; b < d; ++b) G[a * d + b] += t.G[a * d + b];
+            /* ψ_ij with x_ji = -x_ij */
+            const double psi = -2.0 * drho * x[a] / r2 - (gr[a * cap + i] + gr[a * cap + j]);
+            psig += psi * gw[a];
+            divu += Vj * uji[a] * gw[a];
+            gp[a] += Vj * (pi + job->p[j]) * gw[a];
+            /* π_ij = u_ji·x_ji/r² = -u_ji·x_ij/r² */
+            visc[a] -= Vj * ux / r2 * gw[a];
+            for (int b = 0; b < d; ++b) G[a * d + b] += Vj * uji[a] * gw[b];
         }
-        diff += t.diff;
-        if (job->shift != DELTA_SHIFT_NONE) {
-            shq += t.shq;
-            for (int a = 0; a < d; ++a) shu[a] += t.shu[a];
+        diff += Vj * psig;
+        if (job->shift == SHIFT_SUN) {
+            /* Σ V_j [(f_j δu_j + f_i δu_i) - f_i (δu_j - δu_i)]·∇W_ij
+             *   = Σ V_j [(f_j - f_i) δu_j·∇W_ij + 2 f_i δu_i·∇W_ij] */
+            double sj = 0.0, si = 0.0;
+            for (int a = 0; a < d; ++a) {
+                sj += job->du[a * cap + j] * gw[a];
+                si += dui[a] * gw[a];
+            }
+            shq += Vj * (drho * sj + 2.0 * rhoi * si);
+            for (int a = 0; a < d; ++a) shu[a] += Vj * (uji[a] * sj + 2.0 * ui[a] * si);
+        } else if (job->shift == SHIFT_APP_D) {
+            /* 001 eq. D.5: Σ V_j (f_j - f_i) δu_i·∇W_ij */
+            double si = 0.0;
+            for (int a = 0; a < d; ++a) si += dui[a] * gw[a];
+            shq += Vj * drho * si;
+            for (int a = 0; a < d; ++a) shu[a] += Vj * uji[a] * si;
         }
     }
     const double *L = job->L + 0;
@@ -131,7 +144,7 @@ static int delta_rates(consph_solver *s, int shift)
     s->passes = 0;
     double *du = NULL;
     int st = CONSPH_OK;
-    if (shift != DELTA_SHIFT_NONE) {
+    if (shift != SHIFT_NONE) {
         st = solver_shift_velocity(s, &du);
         if (st != CONSPH_OK) return st;
     }
@@ -171,15 +184,15 @@ static int delta_rates(consph_solver *s, int shift)
 
 static int rhs_delta(consph_solver *s)
 {
-    return delta_rates(s, DELTA_SHIFT_NONE);
+    return delta_rates(s, SHIFT_NONE);
 }
 static int rhs_delta_plus(consph_solver *s)
 {
-    return delta_rates(s, DELTA_SHIFT_SUN);
+    return delta_rates(s, SHIFT_SUN);
 }
 static int rhs_delta_plus_d(consph_solver *s)
 {
-    return delta_rates(s, DELTA_SHIFT_APP_D);
+    return delta_rates(s, SHIFT_APP_D);
 }
 
 const scheme_def scheme_delta_sph = {

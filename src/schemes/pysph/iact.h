@@ -25,11 +25,11 @@ typedef struct pysph_consts {
 
 /* What one neighbour j adds to particle i (not summed for j = i, where ∇W_ii = 0). */
 typedef struct pysph_pair {
-    double f[3];  /* force per unit mass times m (tvf, edac) or acceleration (wcsph) */
-    double fp[3]; /* its pressure part (the solver's ∇p diagnostics) */
-    double fb[3]; /* tvf, edac: the background-pressure force; wcsph: XSPH's ε ū_ij W term */
-    double g[9];  /* m/ϱ_j u_ij ⊗ ∇W_ij, subtracted into ∇u */
-    double div;   /* m/ϱ_j u_ij·∇W_ij (tvf, edac), m u_ij·∇W_ij (wcsph: dϱ/dt) */
+    double f[3];   /* force per unit mass times m (tvf, edac) or acceleration (wcsph) */
+    double fp[3];  /* its pressure part (the solver's ∇p diagnostics) */
+    double fb[3];  /* tvf, edac: the background-pressure force; wcsph: XSPH's ε ū_ij W term */
+    double g[9];   /* m/ϱ_j u_ij ⊗ ∇W_ij, subtracted into ∇u */
+    double div;    /* m/ϱ_j u_ij·∇W_ij (tvf, edac), m u_ij·∇W_ij (wcsph: dϱ/dt) */
     double q1, q2; /* edac: dp/dt's continuity-like and diffusion terms */
 } pysph_pair;
 
