@@ -112,8 +112,8 @@ static void world_free(world *w)
 }
 
 /* consph_apply on a fresh cache; the pairs it visited into *pairs. */
-static int apply(world *w, consph_op op, consph_op_form form, consph_op_corr corr,
-                 const double *in, double *out, size_t *pairs)
+static int apply(world *w, consph_op op, consph_op_form form, consph_op_corr corr, const double *in,
+                 double *out, size_t *pairs)
 {
     consph_op_report rep;
     if (consph_op_ctx_refresh(&w->ctx) != CONSPH_OK) return 0;
@@ -124,8 +124,8 @@ static int apply(world *w, consph_op op, consph_op_form form, consph_op_corr cor
 
 /* Field `name` (ncomp components) against ref (ncomp × n contiguous); with `by_rho` the field
  * divided by the context's ρ first. tol = 0: bit for bit; else |kit - ref| <= tol max|ref|. */
-static void expect_same(world *w, const char *what, const char *name, int ncomp,
-                        const double *ref, int by_rho, double tol)
+static void expect_same(world *w, const char *what, const char *name, int ncomp, const double *ref,
+                        int by_rho, double tol)
 {
     const size_t n = w->n;
     size_t bad = 0;
@@ -143,8 +143,8 @@ static void expect_same(world *w, const char *what, const char *name, int ncomp,
         }
     }
     if (tol == 0.0)
-        CHECK(bad == 0, "%dD %s: %zu of %zu values differ from consph_apply (max %.3g)", w->d,
-              what, bad, (size_t)ncomp * n, diff);
+        CHECK(bad == 0, "%dD %s: %zu of %zu values differ from consph_apply (max %.3g)", w->d, what,
+              bad, (size_t)ncomp * n, diff);
     else
         CHECK(diff <= tol * big, "%dD %s: max |kit - consph_apply| %.3g > %.1g max|ref| (%.3g)",
               w->d, what, diff, tol, big);
@@ -185,8 +185,7 @@ static void compare(world *w, kit_lap lap, const char *label)
      * (src/schemes/negi/kit.c), which rounds differently: measured ≤ 6e-16 max|∇²u| in 2D and
      * 3D. Every other Laplacian sums the same terms in the same order. */
     if (ok) expect_same(w, what, SF_LAPU, d, ref, 0, lap == KIT_LAP_KORZILIUS ? 1e-14 : 0.0);
-    ok = ok &&
-         apply(w, CONSPH_OP_LAPLACIAN, CONSPH_FORM_COUPLED, CONSPH_CORR_BC, w->q, ref, NULL);
+    ok = ok && apply(w, CONSPH_OP_LAPLACIAN, CONSPH_FORM_COUPLED, CONSPH_CORR_BC, w->q, ref, NULL);
     snprintf(what, sizeof what, "%s lap q (coupled bc)", label);
     if (ok) expect_same(w, what, SF_LAPQ, 1, ref, 0, 0.0);
     if (ok && consph_op_ctx_refresh(&w->ctx) == CONSPH_OK) {
@@ -324,8 +323,7 @@ static void check_case(consph_layout_kind kind, int dim, size_t nx, int periodic
         set_threads(1);
         w.sys.parallel_min = pmin;
         double *s2 = snapshot(&w);
-        CHECK(ok && s1 && s2 &&
-                  count_diff(s1, s2, (size_t)(2 * dim * dim + 3 * dim + 2) * n) == 0,
+        CHECK(ok && s1 && s2 && count_diff(s1, s2, (size_t)(2 * dim * dim + 3 * dim + 2) * n) == 0,
               "%dD %s lap %d: the same bits on one thread and on two", dim, label, lap);
         free(s1);
         free(s2);
