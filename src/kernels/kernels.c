@@ -15,6 +15,7 @@
 
 #include <math.h>
 #include <stddef.h>
+#include <stdio.h>
 #include <string.h>
 
 #define PI 3.14159265358979323846
@@ -494,10 +495,6 @@ static const consph_kernel_info info_table[CONSPH_KERNEL_COUNT] = {
                           .tensor = 1},
 };
 
-static const char kernel_names[] = "cubic, quintic, gaussian, super-gaussian, lucy, wendland-c2, "
-                                   "wendland-c4, wendland-c6, wendland-c2:h, wendland-c4:h, "
-                                   "wendland-c6:h, m4";
-
 const consph_kernel_info *consph_kernel_info_get(consph_kernel_id id)
 {
     if ((int)id < 0 || id >= CONSPH_KERNEL_COUNT) {
@@ -508,9 +505,22 @@ const consph_kernel_info *consph_kernel_info_get(consph_kernel_id id)
     return &info_table[id];
 }
 
+/* Built from info_table on the first call; the critical section orders that write before any
+ * caller's read. */
 const char *consph_kernel_names(void)
 {
-    return kernel_names;
+    static char names[512];
+#pragma omp critical(consph_kernel_names)
+    if (!names[0]) {
+        size_t len = 0;
+        for (int k = 0; k < CONSPH_KERNEL_COUNT && len < sizeof names; ++k) {
+            int w = snprintf(names + len, sizeof names - len, "%s%s", k ? ", " : "",
+                             info_table[k].name);
+            if (w < 0) break;
+            len += (size_t)w;
+        }
+    }
+    return names;
 }
 
 int consph_kernel_lookup(const char *name, consph_kernel_id *id)
@@ -522,7 +532,7 @@ int consph_kernel_lookup(const char *name, consph_kernel_id *id)
                 return CONSPH_OK;
             }
     return consph_fail(CONSPH_EINVAL, "unknown kernel '%s'; allowed: %s", name ? name : "(null)",
-                       kernel_names);
+                       consph_kernel_names());
 }
 
 int consph_kernel_beta_001(consph_kernel_id id, int dim)

@@ -90,7 +90,7 @@ int state_undeclared(consph_solver *s, int drop);
 /* The arrays of a snapshot, in declaration order, into arr (CONSPH_MAX_FIELDS entries). */
 int state_snapshot_arrays(const consph_solver *s, consph_vtu_array *arr, int *narr);
 
-/* ---- the derivative kit: fused passes over the system ---- */
+/* ---- the derivative kit: fused passes over the system (src/schemes/negi/kit.c) ---- */
 typedef enum kit_lap {
     KIT_LAP_COUPLED,  /* coupled_bc, 001 Table 4 with Bonet (= s1_diff from G) */
     KIT_LAP_FATEHI_C, /* Fatehi_c, 001 eq. 13 */
@@ -131,8 +131,8 @@ typedef struct scheme_def {
     /* the set-up keeps each slot's lattice point (SF_LATTICE, for remeshing) */
     int needs_lattice;
     int passes_min; /* passes per stage the equations need at least */
-    /* CONSPH_PARAM_ALPHA and CONSPH_PARAM_DELTA when its rates use α or δ (the EOS and IPST
-     * follow from evolve_p, closure and regularise: consph_scheme_reads) */
+    /* CONSPH_PARAM_ALPHA, CONSPH_PARAM_DELTA and CONSPH_PARAM_IPST when its rates use α or δ
+     * or it shifts by IPST (the EOS follows from evolve_p and closure: consph_scheme_reads) */
     unsigned reads;
     /* Rates into SF_AX (when moves), SF_AU and SF_AQ at the current state. */
     int (*rhs)(consph_solver *s);
@@ -153,13 +153,14 @@ typedef struct scheme_def {
     const field_decl *fields;
 } scheme_def;
 
+/* The table of every scheme (src/schemes/registry.c). */
 const scheme_def *scheme_find(const char *name);
-/* The schemes of 001 §5.1 and §5.4 (src/schemes/negi/negi.c). */
+/* The schemes of 001 §5.1 and §5.4 (src/schemes/negi/scheme.c). */
 extern const scheme_def scheme_l_ipst_c, scheme_l_ipst_f, scheme_l_ipst_k, scheme_l_pst_c,
     scheme_pe_ipst_c, scheme_l_rr_c, scheme_tv_c, scheme_e_c, scheme_ewcsph;
-/* The established weakly-compressible schemes (src/schemes/pysph/pysph.c). */
+/* The established weakly-compressible schemes (src/schemes/pysph/scheme.c). */
 extern const scheme_def scheme_wcsph, scheme_tvf, scheme_edac;
-/* The δ-SPH family (src/schemes/delta/delta.c). */
+/* The δ-SPH family (src/schemes/delta/scheme.c). */
 extern const scheme_def scheme_delta_sph, scheme_delta_plus_sph, scheme_delta_plus_sph_d;
 size_t scheme_count(void);
 

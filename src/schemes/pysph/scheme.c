@@ -19,6 +19,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "schemes/pysph/iact.h"
 #include "solver/solver_internal.h"
 
 #define SF_NUMD "numden" /* V_i = Σ_j W_ij (tvf, edac) */
@@ -32,7 +33,8 @@ enum { RV_WCSPH, RV_TVF, RV_EDAC };
 typedef struct rival_job {
     int kind, d;
     size_t cap;
-    double m, h, h2, rho0, c0, cexp, nu, alpha, pb, p0, nu_edac;
+    pysph_consts c; /* the pair terms' constants (iact.h) */
+    double rho0, cexp, p0;
     const double *u, *rho, *p, *tvdu;
     const double *cs; /* wcsph with α > 0: Tait's sound speed of each particle */
     double *numd, *pavg, *rhos, *pw, *au, *aq, *ax, *auhat;
@@ -59,7 +61,7 @@ static void visit_density(void *vjob, const consph_nbhd *nb)
     double s = 0.0, ps = 0.0;
     for (size_t k = 0; k < nb->n; ++k) s += nb->w[k];
     job->numd[i] = s;
-    job->rhos[i] = job->m * s;
+    job->rhos[i] = job->c.m * s;
     if (job->kind == RV_TVF) {
         job->pw[i] = job->p0 * (job->rhos[i] / job->rho0 - 1.0);
     } else {
@@ -115,8 +117,7 @@ RV_INLINE void visit_tv_d(const rival_job *job, const consph_nbhd *nb, const int
     const double *u = job->u, *du = job->tvdu;
     const double rhoi = job->rho[i], pi = job->p[i], Vi = 1.0 / job->numd[i];
     const double pav = edac ? job->pavg[i] : 0.0;
-    const double m = job->m, h2 = job->h2, nu = job->nu, pb = job->pb;
-    const double nu_edac = job->nu_edac, c0 = job->c0;
+    const pysph_consts *c = &job->c;
     double ui[3] = {0.0, 0.0, 0.0}, dui[3] = {0.0, 0.0, 0.0};
     for (int a = 0; a < d; ++a) {
         ui[a] = u[a * cap + i];
@@ -137,39 +138,25 @@ RV_INLINE void visit_tv_d(const rival_job *job, const consph_nbhd *nb, const int
         rv_gather(d, cap, du, jb, nk, duj);
         for (size_t k = 0; k < nk; ++k) {
             /* the particle itself gets terms too (∇W_ii = 0); they are not summed */
-            const double Vj = 1.0 / nd[k];
-            const double w2 = Vi * Vi + Vj * Vj, dwr = nb->dwr[k0 + k];
-            double xij[3] = {0.0, 0.0, 0.0}, uij[3] = {0.0, 0.0, 0.0}, gw[3] = {0.0, 0.0, 0.0};
-            double xdw = 0.0, udw = 0.0;
+            double xij[3] = {0.0, 0.0, 0.0}, ujk[3] = {0.0, 0.0, 0.0}, dujk[3] = {0.0, 0.0, 0.0};
             for (int a = 0; a < d; ++a) {
                 xij[a] = nb->dx[a][k0 + k];
-                gw[a] = dwr * xij[a];
-                uij[a] = ui[a] - uj[a][k];
-                xdw += xij[a] * gw[a];
-                udw += uij[a] * gw[a];
+                ujk[a] = uj[a][k];
+                dujk[a] = duj[a][k];
             }
-            const double r2 = nb->r[k0 + k] * nb->r[k0 + k];
-            /* Adami et al. eq. 7 (p̃_ij), with p - p̄_i in edac (Ramachandran & Puri eq. 25) */
-            const double pij = (rhoj[k] * (pi - pav) + rhoi * (pj[k] - pav)) / (rhoi + rhoj[k]);
-            const double eta = 2.0 * nu * rhoi * rhoj[k] / (rhoi + rhoj[k]);
-            const double visc = w2 * eta * xdw / (r2 + h2);
+            pysph_pair o;
+            pysph_tv_pair(d, edac, c, rhoi, pi, pav, Vi, ui, dui, rhoj[k], pj[k], nd[k], ujk, dujk,
+                          nb->dwr[k0 + k], xij, nb->r[k0 + k], &o);
             for (int a = 0; a < d; ++a) {
-                double A = 0.0; /* ½(A_i + A_j)·∇W, A = ϱ u (ũ - u) */
-                for (int b = 0; b < d; ++b)
-                    A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj[k] * uj[a][k] * duj[b][k]) * gw[b];
-                tf[a][k] = -pij * w2 * gw[a] + visc * uij[a] + w2 * A;
-                tp[a][k] = -pij * w2 * gw[a] / m;
-                tb[a][k] = -pb * w2 * gw[a];
+                tf[a][k] = o.f[a];
+                tp[a][k] = o.fp[a];
+                tb[a][k] = o.fb[a];
             }
-            const double vj = m / rhoj[k];
-            for (int a = 0; a < d; ++a)
-                for (int b = 0; b < d; ++b) tg[a * d + b][k] = vj * uij[a] * gw[b];
-            tdiv[k] = vj * udw;
+            for (int e = 0; e < d * d; ++e) tg[e][k] = o.g[e];
+            tdiv[k] = o.div;
             if (edac) {
-                /* Ramachandran & Puri eq. 22: the continuity-like term and EDAC diffusion */
-                const double etae = 2.0 * nu_edac * rhoi * rhoj[k] / (rhoi + rhoj[k]);
-                ta1[k] = rhoi / rhoj[k] * c0 * c0 * m * udw;
-                ta2[k] = w2 * etae * xdw / (r2 + h2) * (pi - pj[k]) / m;
+                ta1[k] = o.q1;
+                ta2[k] = o.q2;
             }
         }
         for (size_t k = 0; k < nk; ++k) {
@@ -188,8 +175,8 @@ RV_INLINE void visit_tv_d(const rival_job *job, const consph_nbhd *nb, const int
         }
     }
     for (int a = 0; a < d; ++a) {
-        job->au[a * cap + i] = f[a] / m;
-        job->auhat[a * cap + i] = fb[a] / m;
+        job->au[a * cap + i] = f[a] / c->m;
+        job->auhat[a * cap + i] = fb[a] / c->m;
     }
     job->aq[i] = ap;
     put_diag(job, i, fp, div, G);
@@ -211,10 +198,10 @@ RV_CLONES static void visit_tv(void *vjob, const consph_nbhd *nb)
 RV_INLINE void visit_wcsph_d(const rival_job *job, const consph_nbhd *nb, const int d)
 {
     const size_t i = nb->i, cap = job->cap;
-    const double *u = job->u, m = job->m, h = job->h, h2 = job->h2, nu = job->nu;
-    const double rhoi = job->rho[i], pi = job->p[i], ti = pi / (rhoi * rhoi);
-    const double alpha = job->alpha;
-    const int av = alpha > 0.0;
+    const double *u = job->u;
+    const double rhoi = job->rho[i], pi = job->p[i];
+    const pysph_consts *c = &job->c;
+    const int av = c->alpha > 0.0;
     const double ci = av ? job->cs[i] : 0.0;
     double ui[3] = {0.0, 0.0, 0.0};
     for (int a = 0; a < d; ++a) ui[a] = u[a * cap + i];
@@ -223,60 +210,40 @@ RV_INLINE void visit_wcsph_d(const rival_job *job, const consph_nbhd *nb, const 
     for (size_t k0 = 0; k0 < nb->n; k0 += RV_BLOCK) {
         const size_t nk = nb->n - k0 < RV_BLOCK ? nb->n - k0 : RV_BLOCK;
         const size_t *jb = nb->j + k0;
-        double rhoj[RV_BLOCK], pj[RV_BLOCK], uj[3][RV_BLOCK], ux[RV_BLOCK], r2[RV_BLOCK];
-        double tij[RV_BLOCK], pij[RV_BLOCK], gw[3][RV_BLOCK], uij[3][RV_BLOCK];
+        double rhoj[RV_BLOCK], pj[RV_BLOCK], cj[RV_BLOCK], uj[3][RV_BLOCK];
         double tf[3][RV_BLOCK], tp[3][RV_BLOCK], tx[3][RV_BLOCK], tg[9][RV_BLOCK];
         double td[RV_BLOCK];
         rv_gather(1, 0, job->rho, jb, nk, &rhoj);
         rv_gather(1, 0, job->p, jb, nk, &pj);
         rv_gather(d, cap, u, jb, nk, uj);
-        for (size_t k = 0; k < nk; ++k) {
-            /* the particle itself gets terms too (∇W_ii = 0); they are not summed */
-            const double dwr = nb->dwr[k0 + k];
-            double uxk = 0.0;
-            tij[k] = pj[k] / (rhoj[k] * rhoj[k]);
-            r2[k] = nb->r[k0 + k] * nb->r[k0 + k];
-            for (int a = 0; a < d; ++a) {
-                const double xa = nb->dx[a][k0 + k];
-                uij[a][k] = ui[a] - uj[a][k];
-                gw[a][k] = dwr * xa;
-                uxk += uij[a][k] * xa;
-            }
-            ux[k] = uxk;
-            pij[k] = 0.0;
-        }
+        double pij[RV_BLOCK];
+        for (size_t k = 0; k < nk; ++k) pij[k] = 0.0;
         if (av) {
-            double cj[RV_BLOCK];
             rv_gather(1, 0, job->cs, jb, nk, &cj);
             for (size_t k = 0; k < nk; ++k) {
-                /* Monaghan 1992 eq. 4.2 (β = 0), on approach only; computed for every pair
-                 * and selected, since the sign of u_ij·x_ij is a coin toss to the branch
-                 * predictor */
-                const double mu = h * ux[k] / (r2[k] + h2), rhob = 0.5 * (rhoi + rhoj[k]);
-                const double v = -alpha * 0.5 * (ci + cj[k]) * mu / rhob;
-                pij[k] = ux[k] < 0.0 ? v : 0.0;
+                double ux = 0.0;
+                for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a][k]) * nb->dx[a][k0 + k];
+                pij[k] = pysph_monaghan_pi(c, rhoi, ci, rhoj[k], cj[k], ux,
+                                           nb->r[k0 + k] * nb->r[k0 + k]);
             }
         }
         for (size_t k = 0; k < nk; ++k) {
-            const double rhob = 0.5 * (rhoi + rhoj[k]);
-            double udw = 0.0, xdw = 0.0;
+            /* the particle itself gets terms too (∇W_ii = 0); they are not summed */
+            double xij[3] = {0.0, 0.0, 0.0}, ujk[3] = {0.0, 0.0, 0.0};
             for (int a = 0; a < d; ++a) {
-                const double xa = nb->dx[a][k0 + k];
-                udw += uij[a][k] * gw[a][k];
-                xdw += xa * gw[a][k];
+                xij[a] = nb->dx[a][k0 + k];
+                ujk[a] = uj[a][k];
             }
-            /* Morris et al. 1997 / Cleary's laminar viscosity */
-            const double visc = m * 4.0 * nu * xdw / ((rhoi + rhoj[k]) * (r2[k] + h2));
-            const double wk = nb->w[k0 + k];
+            pysph_pair o;
+            pysph_wcsph_pair(d, c, rhoi, pi, ui, rhoj[k], pj[k], ujk, pij[k], nb->w[k0 + k],
+                             nb->dwr[k0 + k], xij, nb->r[k0 + k], &o);
             for (int a = 0; a < d; ++a) {
-                tf[a][k] = -m * (ti + tij[k] + pij[k]) * gw[a][k] + visc * uij[a][k];
-                tp[a][k] = -m * (ti + tij[k]) * gw[a][k];
-                tx[a][k] = 0.5 * m * wk / rhob * uij[a][k]; /* XSPH, ε = 0.5 */
+                tf[a][k] = o.f[a];
+                tp[a][k] = o.fp[a];
+                tx[a][k] = o.fb[a];
             }
-            td[k] = m * udw;
-            const double vj = m / rhoj[k];
-            for (int a = 0; a < d; ++a)
-                for (int b = 0; b < d; ++b) tg[a * d + b][k] = vj * uij[a][k] * gw[b][k];
+            td[k] = o.div;
+            for (int e = 0; e < d * d; ++e) tg[e][k] = o.g[e];
         }
         for (size_t k = 0; k < nk; ++k) {
             if (jb[k] == i) continue;
@@ -317,17 +284,17 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     job->kind = kind;
     job->d = d;
     job->cap = s->sys.p->cap;
-    job->m = s->mass;
-    job->h = s->h;
-    job->h2 = 0.01 * s->h * s->h; /* PySPH's EPS = 0.01 h_ij² in every 1/(r² + EPS) */
+    job->c.m = s->mass;
+    job->c.h = s->h;
+    job->c.h2 = 0.01 * s->h * s->h; /* PySPH's EPS = 0.01 h_ij² in every 1/(r² + EPS) */
     job->rho0 = s->prm.rho0;
-    job->c0 = s->c0;
+    job->c.c0 = s->c0;
     job->cexp = 0.5 * (s->prm.gamma - 1.0); /* Tait's sound speed c_o (ϱ/ϱ_o)^((γ-1)/2) */
-    job->nu = s->nu;
-    job->alpha = s->prm.alpha >= 0.0 ? s->prm.alpha : 0.1; /* PySPH WCSPHScheme */
-    job->p0 = s->c0 * s->c0 * s->prm.rho0;                 /* tvf's p_o = c_o² ϱ_o */
-    job->pb = job->p0; /* Adami et al. §2.3; PySPH's taylor_green: p_b = p_o */
-    job->nu_edac = 0.5 * s->h * s->c0 / 8.0; /* Ramachandran & Puri: α_edac h c_o / 8, α = 0.5 */
+    job->c.nu = s->nu;
+    job->c.alpha = s->prm.alpha >= 0.0 ? s->prm.alpha : 0.1; /* PySPH WCSPHScheme */
+    job->p0 = s->c0 * s->c0 * s->prm.rho0;                   /* tvf's p_o = c_o² ϱ_o */
+    job->c.pb = job->p0; /* Adami et al. §2.3; PySPH's taylor_green: p_b = p_o */
+    job->c.nu_edac = 0.5 * s->h * s->c0 / 8.0; /* Ramachandran & Puri: α_edac h c_o / 8, α = 0.5 */
     job->u = sv_field(s, SF_U, d);
     job->p = sv_field(s, SF_P, 1);
     job->au = sv_field(s, SF_AU, d);
@@ -342,13 +309,13 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     if (kind == RV_WCSPH) {
         job->rho = sv_field(s, SF_RHOF, 1);
         if (!job->rho) return CONSPH_ENOMEM;
-        if (job->alpha > 0.0) {
+        if (job->c.alpha > 0.0) {
             /* Tait's c_o (ϱ/ϱ_o)^((γ-1)/2) once per particle for Monaghan's Π_ij: a pow() per
              * approaching pair cost more than the rest of the pair. */
             const size_t n = s->sys.p->n;
             double *cs = consph_sys_scratch(&s->sys, n ? n : 1);
             if (!cs) return CONSPH_ENOMEM;
-            const double *rho = job->rho, c0 = job->c0, rho0 = job->rho0, cexp = job->cexp;
+            const double *rho = job->rho, c0 = job->c.c0, rho0 = job->rho0, cexp = job->cexp;
 #pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
             for (size_t i = 0; i < n; ++i) cs[i] = c0 * pow(rho[i] / rho0, cexp);
             job->cs = cs;

@@ -9,6 +9,7 @@
  * and inverted in the same visit. A matrix that is singular or worse conditioned than
  * cond_max falls back to the identity, as the operators do. */
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #include "ops/ops_internal.h"
@@ -20,6 +21,7 @@ typedef struct kit_job {
     size_t cap;
     const double *vol, *p, *u, *q;
     double *bonet, *gradp, *gradu, *divu, *gradq, *lapu, *lapq;
+    unsigned char *bonet_ok; /* B_i accepted, for Fatehi_c and Korzilius (else NULL) */
 } kit_job;
 
 static void visit_volume(void *vjob, const consph_nbhd *nb)
@@ -55,7 +57,8 @@ static void visit_first(void *vjob, const consph_nbhd *nb)
     const size_t i = nb->i, cap = job->cap;
     double moment[9], B[9], out[3];
     term_bonet_moment_any(d, nb, job->vol, moment);
-    consph_bonet_finalise(d, moment, job->rq->cond_max, B, NULL);
+    const int ok = consph_bonet_finalise(d, moment, job->rq->cond_max, B, NULL);
+    if (job->bonet_ok) job->bonet_ok[i] = (unsigned char)ok;
     for (int e = 0; e < d * d; ++e) job->bonet[(size_t)e * cap + i] = B[e];
     if (want & KIT_GRADP) {
         corrected_gradient(d, nb, job->vol, job->p, B, out);
@@ -95,19 +98,30 @@ static void set_identity(double *a, int n)
         for (int c = 0; c < n; ++c) a[r * n + c] = r == c ? 1.0 : 0.0;
 }
 
-/* Fatehi_c's B̂ (001 eq. 13 = C.13). */
+/* Fatehi_c's B̂ (001 eq. 13 = C.13); the identity where B_i fell back, as the operator's
+ * (src/ops/ops_corr.c). */
 static void fatehi_c_matrix(int d, const consph_nbhd *nb, const double *vol, const double B[9],
-                            double cond_max, double Bh[9])
+                            int bonet_ok, double cond_max, double Bh[9])
 {
     double M[9] = {0}, cond;
+    if (!bonet_ok) {
+        set_identity(Bh, d);
+        return;
+    }
     term_fatehi_c_matrix(d, nb, vol, B, M);
     if (!ops_invert(d, M, Bh, cond_max, &cond)) set_identity(Bh, d);
 }
 
-/* Korzilius' Γ̃^{-1} (001 eq. 15 with the catalogue's fixes). */
+/* Korzilius' Γ̃^{-1} (001 eq. 15 with the catalogue's fixes); the identity where B_i fell
+ * back, as the operator's (src/ops/ops_corr.c). */
 static void korzilius_matrix(int d, int P, const int *pl, const int *pk, const consph_nbhd *nb,
-                             const double *vol, const double B[9], double cond_max, double *Ainv)
+                             const double *vol, const double B[9], int bonet_ok, double cond_max,
+                             double *Ainv)
 {
+    if (!bonet_ok) {
+        set_identity(Ainv, P);
+        return;
+    }
     double cq[OPS_MAX_P];
     for (int p = 0; p < P; ++p) cq[p] = term_taylor_c(pl[p], pk[p]);
     double A[OPS_MAX_P * OPS_MAX_P] = {0}, Hx[OPS_MAX_P * 3] = {0}, Gz[3 * OPS_MAX_P] = {0};
@@ -132,7 +146,7 @@ static void visit_second(void *vjob, const consph_nbhd *nb)
                     coupled(d, nb, job->vol, B, job->gradu + (size_t)a * d * cap, cap);
         } else if (job->rq->lap == KIT_LAP_FATEHI_C) {
             double Bh[9], G[3];
-            fatehi_c_matrix(d, nb, job->vol, B, job->rq->cond_max, Bh);
+            fatehi_c_matrix(d, nb, job->vol, B, job->bonet_ok[i], job->rq->cond_max, Bh);
             for (int a = 0; a < d; ++a) {
                 for (int b = 0; b < d; ++b) G[b] = job->gradu[(size_t)(a * d + b) * cap + i];
                 job->lapu[a * cap + i] = term_fatehi_lap(d, nb, job->vol, job->u + a * cap, G, Bh);
@@ -142,7 +156,8 @@ static void visit_second(void *vjob, const consph_nbhd *nb)
             int pl[OPS_MAX_P], pk[OPS_MAX_P];
             for (int p = 0; p < P; ++p) ops_pair_index(d, p, &pl[p], &pk[p]);
             double Ainv[OPS_MAX_P * OPS_MAX_P], G[3];
-            korzilius_matrix(d, P, pl, pk, nb, job->vol, B, job->rq->cond_max, Ainv);
+            korzilius_matrix(d, P, pl, pk, nb, job->vol, B, job->bonet_ok[i], job->rq->cond_max,
+                             Ainv);
             for (int a = 0; a < d; ++a) {
                 double rhs[OPS_MAX_P] = {0}, lap = 0.0;
                 for (int b = 0; b < d; ++b) G[b] = job->gradu[(size_t)(a * d + b) * cap + i];
@@ -199,17 +214,20 @@ int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes
         return CONSPH_ENOMEM;
     /* Fields may have been created above, which can move no data (fields are separate
      * allocations), so the pointers taken before stay valid. */
+    if ((want & KIT_LAPU) && rq->lap != KIT_LAP_COUPLED) {
+        job.bonet_ok = malloc(p->n ? p->n : 1);
+        if (!job.bonet_ok) return CONSPH_ENOMEM;
+    }
     const consph_pass first = {"kit: bonet, gradients, divergence", CONSPH_PASS_DW, visit_first};
     int st = consph_pass_run_counted(s, &first, &job, pairs);
-    if (st != CONSPH_OK) return st;
-    ++*passes;
-    if (want & (KIT_LAPU | KIT_LAPQ)) {
+    if (st == CONSPH_OK) ++*passes;
+    if (st == CONSPH_OK && (want & (KIT_LAPU | KIT_LAPQ))) {
         unsigned need = CONSPH_PASS_DW;
         if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need |= CONSPH_PASS_D2W;
         const consph_pass second = {"kit: laplacians", need, visit_second};
         st = consph_pass_run_counted(s, &second, &job, pairs);
-        if (st != CONSPH_OK) return st;
-        ++*passes;
+        if (st == CONSPH_OK) ++*passes;
     }
-    return CONSPH_OK;
+    free(job.bonet_ok);
+    return st;
 }

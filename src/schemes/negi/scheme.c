@@ -1,25 +1,16 @@
-/* The schemes of 001 §5 as table entries: the rates of each from the kit's fused passes, and
- * its regularisation (docs/schemes.md records every choice with its source).
- *
- * Every rate is a per-particle combination of the kit's derivatives:
- *   du/dt = -∇p/ϱ + ν∇²u  [- (u·∇)u Eulerian]  [+ (δu·∇)u TV-C]
- *   dϱ/dt = -ϱ∇·u  [+ D∇²ϱ]  [- u·∇ϱ E-C]  [+ δu·∇ϱ TV-C]
- *   dp/dt = -ϱ c_o² ∇·u + D∇²p   (PE-IPST-C, eq. 30; ϱ from eq. 31)
- *   dx/dt = u  [+ δu TV-C]  (0 Eulerian)
- * with ∇p asym_bc, ∇u f4 (asym_bc per component), ∇·u div_bc and the Laplacians of Table 6. */
+/* The schemes of 001 §5 (and EWCSPH as 001 runs it): each one a const negi_terms naming the
+ * terms of its rates (iact.h gives them as equations and the per-particle combination), beside
+ * its table row: layout, EOS, integrator, regularisation. The derivatives the rates combine come
+ * from the kit's fused passes (kit.c) with ∇p asym_bc, ∇u f4 (asym_bc per component), ∇·u
+ * div_bc and the Laplacians of 001 Table 6; docs/schemes.md records every choice with its
+ * source. */
 #include <math.h>
 #include <stdio.h>
 #include <string.h>
 
 #include "regularise/regularise.h"
+#include "schemes/negi/iact.h"
 #include "solver/solver_internal.h"
-
-enum {
-    T_EULER = 1u << 0,    /* -(u·∇)u, and -u·∇ϱ unless T_NO_ADV_Q */
-    T_NO_ADV_Q = 1u << 1, /* EWCSPH: the continuity equation drops -u·∇ϱ (Nasar et al.) */
-    T_DIFFUSE = 1u << 2,  /* D∇²q (δ-SPH term, eq. 27) */
-    T_TV = 1u << 3        /* the shifting velocity δu of TV-C (eqs. 34-35) */
-};
 
 int solver_shift_velocity(consph_solver *s, double **du)
 {
@@ -37,7 +28,9 @@ int solver_shift_velocity(consph_solver *s, double **du)
     return CONSPH_OK;
 }
 
-static int rates(consph_solver *s, kit_lap lap, unsigned terms)
+/* The rates of one scheme's terms t at the current state: the kit's derivatives, then
+ * negi_rates_i per particle. */
+static int rates(consph_solver *s, const negi_terms *t)
 {
     consph_sys *sys = &s->sys;
     consph_particles *p = sys->p;
@@ -51,13 +44,13 @@ static int rates(consph_solver *s, kit_lap lap, unsigned terms)
         s->passes = 1;
     }
     const char *q = s->scheme->evolve_p ? SF_P : SF_RHOF;
-    kit_req rq = {KIT_GRADP | KIT_LAPU | KIT_DIVU, lap, q, 1e8};
-    if (terms & T_DIFFUSE) rq.want |= KIT_LAPQ;
-    if ((terms & T_TV) || ((terms & T_EULER) && !(terms & T_NO_ADV_Q))) rq.want |= KIT_GRADQ;
+    kit_req rq = {KIT_GRADP | KIT_LAPU | KIT_DIVU, (kit_lap)t->lap, q, 1e8};
+    if (t->diffuse_q) rq.want |= KIT_LAPQ;
+    if (t->transport || t->advect_q) rq.want |= KIT_GRADQ;
     st = kit_derivatives(sys, &rq, &s->pairs, &s->passes);
     if (st != CONSPH_OK) return st;
     double *du = NULL;
-    if (terms & T_TV) {
+    if (t->transport) {
         /* 001 §5.4 item 4: the PST of [33] as a transport velocity */
         st = solver_shift_velocity(s, &du);
         if (st != CONSPH_OK) return st;
@@ -69,66 +62,30 @@ static int rates(consph_solver *s, kit_lap lap, unsigned terms)
     const double *lapq = (rq.want & KIT_LAPQ) ? sv_field(s, SF_LAPQ, 1) : NULL;
     double *ax = s->scheme->moves ? sv_field(s, SF_AX, d) : NULL;
     double *au = sv_field(s, SF_AU, d), *aq = sv_field(s, SF_AQ, 1);
-    if (!u || !rhof || !gradp || !G || !lapu || !divu || !au || !aq || (s->scheme->moves && !ax))
+    if (!u || !rhof || !gradp || !G || !lapu || !divu || !au || !aq || (s->scheme->moves && !ax) ||
+        ((rq.want & KIT_GRADQ) && !gradq) || ((rq.want & KIT_LAPQ) && !lapq))
         return CONSPH_ENOMEM;
     const double nu = s->nu, D = s->D, c2 = s->c0 * s->c0;
     const int evolve_p = s->scheme->evolve_p;
 #pragma omp parallel for schedule(static) if (n > sys->parallel_min)
     for (size_t i = 0; i < n; ++i) {
-        double ui[3], dui[3] = {0.0, 0.0, 0.0};
-        for (int a = 0; a < d; ++a) ui[a] = u[a * cap + i];
-        if (du)
-            for (int a = 0; a < d; ++a) dui[a] = du[a * cap + i];
+        negi_derivs v = {.rhof = rhof[i], .divu = divu[i], .lapq = lapq ? lapq[i] : 0.0};
         for (int a = 0; a < d; ++a) {
-            double v = -gradp[a * cap + i] / rhof[i] + nu * lapu[a * cap + i];
-            for (int b = 0; b < d; ++b) {
-                double g = G[(size_t)(a * d + b) * cap + i];
-                if (terms & T_EULER) v -= ui[b] * g;
-                if (terms & T_TV) v += dui[b] * g;
-            }
-            au[a * cap + i] = v;
-            if (ax) ax[a * cap + i] = ui[a] + dui[a];
+            v.u[a] = u[a * cap + i];
+            v.du[a] = du ? du[a * cap + i] : 0.0;
+            v.gradp[a] = gradp[a * cap + i];
+            v.lapu[a] = lapu[a * cap + i];
+            v.gradq[a] = gradq ? gradq[a * cap + i] : 0.0;
         }
-        double r = evolve_p ? -rhof[i] * c2 * divu[i] : -rhof[i] * divu[i];
-        if (lapq) r += D * lapq[i];
-        if (gradq)
-            for (int a = 0; a < d; ++a) {
-                double gq = gradq[a * cap + i];
-                if ((terms & T_EULER) && !(terms & T_NO_ADV_Q)) r -= ui[a] * gq;
-                if (terms & T_TV) r += dui[a] * gq;
-            }
-        aq[i] = r;
+        for (int e = 0; e < d * d; ++e) v.G[e] = G[(size_t)e * cap + i];
+        double rau[3], rax[3];
+        negi_rates_i(t, d, nu, D, c2, evolve_p, &v, rau, rax, &aq[i]);
+        for (int a = 0; a < d; ++a) {
+            au[a * cap + i] = rau[a];
+            if (ax) ax[a * cap + i] = rax[a];
+        }
     }
     return CONSPH_OK;
-}
-
-static int rhs_l_c(consph_solver *s)
-{
-    return rates(s, KIT_LAP_COUPLED, 0);
-}
-static int rhs_l_f(consph_solver *s)
-{
-    return rates(s, KIT_LAP_FATEHI_C, 0);
-}
-static int rhs_l_k(consph_solver *s)
-{
-    return rates(s, KIT_LAP_KORZILIUS, 0);
-}
-static int rhs_pe_c(consph_solver *s)
-{
-    return rates(s, KIT_LAP_COUPLED, T_DIFFUSE);
-}
-static int rhs_tv_c(consph_solver *s)
-{
-    return rates(s, KIT_LAP_COUPLED, T_DIFFUSE | T_TV);
-}
-static int rhs_e_c(consph_solver *s)
-{
-    return rates(s, KIT_LAP_COUPLED, T_DIFFUSE | T_EULER);
-}
-static int rhs_ewcsph(consph_solver *s)
-{
-    return rates(s, KIT_LAP_COUPLED, T_EULER | T_NO_ADV_Q);
 }
 
 /* The gradients of u and of the evolved scalar at the positions before a shift (the Taylor
@@ -198,6 +155,63 @@ static int regularise_remesh(consph_solver *s)
     return CONSPH_OK;
 }
 
+/* ---- the schemes: the terms of each one's rates, then its row ---- */
+
+/* 001 §5.1.1: Lagrangian, -∇p/ϱ + ν∇²u (coupled_bc), dϱ/dt = -ϱ∇·u; IPST every ipst_every
+ * steps. L-IPST-F and L-IPST-K change the viscous Laplacian only; L-PST-C the shifting and
+ * L-RR-C the regularisation (remeshing), with L-IPST-C's rates. */
+static const negi_terms l_ipst_c = {.lap = KIT_LAP_COUPLED};
+static const negi_terms l_ipst_f = {.lap = KIT_LAP_FATEHI_C};
+static const negi_terms l_ipst_k = {.lap = KIT_LAP_KORZILIUS};
+static const negi_terms l_pst_c = {.lap = KIT_LAP_COUPLED};
+static const negi_terms l_rr_c = {.lap = KIT_LAP_COUPLED};
+/* 001 §5.4: dp/dt = -ϱ c_o² ∇·u + D∇²p (eq. 30) */
+static const negi_terms pe_ipst_c = {.lap = KIT_LAP_COUPLED, .diffuse_q = 1};
+/* 001 §5.4 (eqs. 34-35): moved with u + δu, the δu terms in both rates, δ-term */
+static const negi_terms tv_c = {.lap = KIT_LAP_COUPLED, .diffuse_q = 1, .transport = 1};
+/* 001 eq. 36: Eulerian, both advection terms, δ-term */
+static const negi_terms e_c = {
+    .lap = KIT_LAP_COUPLED, .advect_u = 1, .advect_q = 1, .diffuse_q = 1};
+/* Nasar et al. 2019 as 001 runs it: Eulerian without -u·∇ϱ, no δ-term */
+static const negi_terms ewcsph = {.lap = KIT_LAP_COUPLED, .advect_u = 1};
+
+static int rhs_l_ipst_c(consph_solver *s)
+{
+    return rates(s, &l_ipst_c);
+}
+static int rhs_l_ipst_f(consph_solver *s)
+{
+    return rates(s, &l_ipst_f);
+}
+static int rhs_l_ipst_k(consph_solver *s)
+{
+    return rates(s, &l_ipst_k);
+}
+static int rhs_l_pst_c(consph_solver *s)
+{
+    return rates(s, &l_pst_c);
+}
+static int rhs_l_rr_c(consph_solver *s)
+{
+    return rates(s, &l_rr_c);
+}
+static int rhs_pe_ipst_c(consph_solver *s)
+{
+    return rates(s, &pe_ipst_c);
+}
+static int rhs_tv_c(consph_solver *s)
+{
+    return rates(s, &tv_c);
+}
+static int rhs_e_c(consph_solver *s)
+{
+    return rates(s, &e_c);
+}
+static int rhs_ewcsph(consph_solver *s)
+{
+    return rates(s, &ewcsph);
+}
+
 const scheme_def scheme_l_ipst_c = {
     .name = "l-ipst-c",
     .summary = "001 §5.1.1: Lagrangian, asym_bc ∇p, div_bc, coupled_bc viscosity, IPST",
@@ -207,7 +221,8 @@ const scheme_def scheme_l_ipst_c = {
     .eos = CONSPH_EOS_TAIT,
     .integrator = "rk2",
     .passes_min = 3,
-    .rhs = rhs_l_c,
+    .reads = CONSPH_PARAM_IPST,
+    .rhs = rhs_l_ipst_c,
     .regularise = regularise_ipst,
     .fields = negi_fields};
 const scheme_def scheme_l_ipst_f = {.name = "l-ipst-f",
@@ -219,7 +234,8 @@ const scheme_def scheme_l_ipst_f = {.name = "l-ipst-f",
                                     .eos = CONSPH_EOS_TAIT,
                                     .integrator = "rk2",
                                     .passes_min = 3,
-                                    .rhs = rhs_l_f,
+                                    .reads = CONSPH_PARAM_IPST,
+                                    .rhs = rhs_l_ipst_f,
                                     .regularise = regularise_ipst,
                                     .fields = negi_fields};
 const scheme_def scheme_l_ipst_k = {
@@ -231,7 +247,8 @@ const scheme_def scheme_l_ipst_k = {
     .eos = CONSPH_EOS_TAIT,
     .integrator = "rk2",
     .passes_min = 3,
-    .rhs = rhs_l_k,
+    .reads = CONSPH_PARAM_IPST,
+    .rhs = rhs_l_ipst_k,
     .regularise = regularise_ipst,
     .fields = negi_fields};
 const scheme_def scheme_l_pst_c = {
@@ -243,7 +260,7 @@ const scheme_def scheme_l_pst_c = {
     .eos = CONSPH_EOS_TAIT,
     .integrator = "rk2",
     .passes_min = 3,
-    .rhs = rhs_l_c,
+    .rhs = rhs_l_pst_c,
     .regularise = regularise_pst,
     .fields = negi_fields};
 const scheme_def scheme_pe_ipst_c = {
@@ -255,8 +272,8 @@ const scheme_def scheme_pe_ipst_c = {
     .eos = CONSPH_EOS_LINEAR,
     .integrator = "rk2",
     .passes_min = 3,
-    .reads = CONSPH_PARAM_DELTA,
-    .rhs = rhs_pe_c,
+    .reads = CONSPH_PARAM_DELTA | CONSPH_PARAM_IPST,
+    .rhs = rhs_pe_ipst_c,
     .regularise = regularise_ipst,
     .fields = negi_fields};
 const scheme_def scheme_l_rr_c = {
@@ -269,7 +286,7 @@ const scheme_def scheme_l_rr_c = {
     .integrator = "rk2",
     .needs_lattice = 1,
     .passes_min = 3,
-    .rhs = rhs_l_c,
+    .rhs = rhs_l_rr_c,
     .regularise = regularise_remesh,
     .fields = negi_remesh_fields};
 const scheme_def scheme_tv_c = {
@@ -311,79 +328,6 @@ const scheme_def scheme_ewcsph = {
     .rhs = rhs_ewcsph,
     .regularise = NULL,
     .fields = negi_fields};
-
-/* The table, in the order consph_scheme_names lists; a scheme family in its own file adds its
- * rows here (their definitions are declared in solver_internal.h). */
-static const scheme_def *const schemes[] = {
-    &scheme_l_ipst_c,
-    &scheme_l_ipst_f,
-    &scheme_l_ipst_k,
-    &scheme_l_pst_c,
-    &scheme_pe_ipst_c,
-    &scheme_l_rr_c,
-    &scheme_tv_c,
-    &scheme_e_c,
-    &scheme_ewcsph,
-    &scheme_wcsph,
-    &scheme_tvf,
-    &scheme_edac,
-    &scheme_delta_sph,
-    &scheme_delta_plus_sph,
-    &scheme_delta_plus_sph_d,
-};
-
-const scheme_def *scheme_find(const char *name)
-{
-    for (size_t k = 0; k < sizeof schemes / sizeof schemes[0]; ++k)
-        if (strcmp(schemes[k]->name, name) == 0) return schemes[k];
-    return NULL;
-}
-
-/* Kept in table order; test_solver checks that every name resolves and the table has no other. */
-const char *consph_scheme_names(void)
-{
-    return "l-ipst-c,l-ipst-f,l-ipst-k,l-pst-c,pe-ipst-c,l-rr-c,tv-c,e-c,ewcsph,wcsph,tvf,edac,"
-           "delta-sph,delta-plus-sph,delta-plus-sph-d";
-}
-
-int consph_scheme_uses_ipst(const char *name)
-{
-    return consph_scheme_reads(name, CONSPH_PARAM_IPST);
-}
-
-int consph_scheme_reads(const char *name, unsigned param)
-{
-    const scheme_def *sd = scheme_find(name);
-    if (!sd) return 0;
-    switch (param) {
-    case CONSPH_PARAM_EOS:
-        /* solver_eos and the initial density are the only readers; a closure or an evolved p
-         * replaces both */
-        return !sd->evolve_p && !sd->closure;
-    case CONSPH_PARAM_IPST:
-        return sd->regularise == regularise_ipst;
-    default:
-        return (sd->reads & param) != 0;
-    }
-}
-
-const char *consph_scheme_readers(unsigned param, char *buf, size_t size)
-{
-    size_t len = 0;
-    if (size) buf[0] = '\0';
-    for (size_t k = 0; k < scheme_count() && len < size; ++k)
-        if (consph_scheme_reads(schemes[k]->name, param)) {
-            int w = snprintf(buf + len, size - len, "%s%s", len ? ", " : "", schemes[k]->name);
-            if (w < 0) break;
-            len += (size_t)w;
-        }
-    return buf;
-}
-
-size_t scheme_count(void)
-{
-    return sizeof schemes / sizeof schemes[0];
-}
 
 /* ---- fields: what these schemes declare beyond the solver's and the integrator's
  * (solver_internal.h, field_decl; the snapshot names are in docs/solver-files.md) ---- */

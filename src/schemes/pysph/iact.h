@@ -1,0 +1,125 @@
+/* The pair interactions of the PySPH family (wcsph, tvf, edac; scheme.c), each a pure function
+ * of the two particles' values and the pair geometry: plain C over scalars and small arrays,
+ * no library type, so that the same file compiles for any target. With x_ij = x_i - x_j,
+ * ∇W_ij = dwr x_ij and u_ij = u_i - u_j. The order of every sum is part of the results (every
+ * run is reproduced bit for bit): keep it. */
+#ifndef CONSPH_SCHEMES_PYSPH_IACT_H
+#define CONSPH_SCHEMES_PYSPH_IACT_H
+
+#if defined(__GNUC__)
+#define PYSPH_IACT static inline __attribute__((always_inline))
+#else
+#define PYSPH_IACT static inline
+#endif
+
+/* The constants of a right-hand side. */
+typedef struct pysph_consts {
+    double m;       /* particle mass */
+    double h, h2;   /* smoothing length; PySPH's ε = 0.01 h² in every 1/(r² + ε) */
+    double nu;      /* kinematic viscosity */
+    double alpha;   /* wcsph: Monaghan's α (0: no artificial viscosity) */
+    double pb;      /* tvf, edac: background pressure */
+    double c0;      /* edac: speed of sound */
+    double nu_edac; /* edac: the pressure diffusion ν_edac */
+} pysph_consts;
+
+/* What one neighbour j adds to particle i (not summed for j = i, where ∇W_ii = 0). */
+typedef struct pysph_pair {
+    double f[3];   /* force per unit mass times m (tvf, edac) or acceleration (wcsph) */
+    double fp[3];  /* its pressure part (the solver's ∇p diagnostics) */
+    double fb[3];  /* tvf, edac: the background-pressure force; wcsph: XSPH's ε ū_ij W term */
+    double g[9];   /* m/ϱ_j u_ij ⊗ ∇W_ij, subtracted into ∇u */
+    double div;    /* m/ϱ_j u_ij·∇W_ij (tvf, edac), m u_ij·∇W_ij (wcsph: dϱ/dt) */
+    double q1, q2; /* edac: dp/dt's continuity-like and diffusion terms */
+} pysph_pair;
+
+/* Adami, Hu & Adams 2013 (tvf) and Ramachandran & Puri 2019 (edac): one pair. V = 1/Σ W,
+ * du = ũ - u the transport velocity's offset, pav p̄_i (edac; 0 for tvf). */
+PYSPH_IACT void pysph_tv_pair(int d, int edac, const pysph_consts *c, double rhoi, double pi,
+                              double pav, double Vi, const double ui[3], const double dui[3],
+                              double rhoj, double pj, double numdj, const double uj[3],
+                              const double duj[3], double dwr, const double xij[3], double r,
+                              pysph_pair *o)
+{
+    const double Vj = 1.0 / numdj;
+    const double w2 = Vi * Vi + Vj * Vj;
+    double uij[3] = {0.0, 0.0, 0.0}, gw[3] = {0.0, 0.0, 0.0};
+    double xdw = 0.0, udw = 0.0;
+    for (int a = 0; a < d; ++a) {
+        gw[a] = dwr * xij[a];
+        uij[a] = ui[a] - uj[a];
+        xdw += xij[a] * gw[a];
+        udw += uij[a] * gw[a];
+    }
+    const double r2 = r * r;
+    /* Adami et al. eq. 7 (p̃_ij), with p - p̄_i in edac (Ramachandran & Puri eq. 25) */
+    const double pij = (rhoj * (pi - pav) + rhoi * (pj - pav)) / (rhoi + rhoj);
+    const double eta = 2.0 * c->nu * rhoi * rhoj / (rhoi + rhoj);
+    const double visc = w2 * eta * xdw / (r2 + c->h2);
+    for (int a = 0; a < d; ++a) {
+        double A = 0.0; /* ½(A_i + A_j)·∇W, A = ϱ u (ũ - u) */
+        for (int b = 0; b < d; ++b)
+            A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj * uj[a] * duj[b]) * gw[b];
+        o->f[a] = -pij * w2 * gw[a] + visc * uij[a] + w2 * A;
+        o->fp[a] = -pij * w2 * gw[a] / c->m;
+        o->fb[a] = -c->pb * w2 * gw[a];
+    }
+    const double vj = c->m / rhoj;
+    for (int a = 0; a < d; ++a)
+        for (int b = 0; b < d; ++b) o->g[a * d + b] = vj * uij[a] * gw[b];
+    o->div = vj * udw;
+    o->q1 = 0.0;
+    o->q2 = 0.0;
+    if (edac) {
+        /* Ramachandran & Puri eq. 22: the continuity-like term and EDAC diffusion */
+        const double etae = 2.0 * c->nu_edac * rhoi * rhoj / (rhoi + rhoj);
+        o->q1 = rhoi / rhoj * c->c0 * c->c0 * c->m * udw;
+        o->q2 = w2 * etae * xdw / (r2 + c->h2) * (pi - pj) / c->m;
+    }
+}
+
+/* Monaghan 1992 eq. 4.2 (β = 0): the artificial viscosity Π_ij, on approach only (ux = u_ij·x_ij
+ * < 0); ci, cj the Tait sound speeds. Computed for every pair and selected, since the sign of
+ * u_ij·x_ij is a coin toss to the branch predictor. */
+PYSPH_IACT double pysph_monaghan_pi(const pysph_consts *c, double rhoi, double ci, double rhoj,
+                                    double cj, double ux, double r2)
+{
+    const double mu = c->h * ux / (r2 + c->h2), rhob = 0.5 * (rhoi + rhoj);
+    const double v = -c->alpha * 0.5 * (ci + cj) * mu / rhob;
+    return ux < 0.0 ? v : 0.0;
+}
+
+/* Monaghan's WCSPH: one pair of the symmetric pressure force with Monaghan's Π_ij (pij, 0 when
+ * α = 0), Morris/Cleary's laminar viscosity, XSPH (ε = 0.5) and the continuity equation.
+ * w = W_ij. */
+PYSPH_IACT void pysph_wcsph_pair(int d, const pysph_consts *c, double rhoi, double pi,
+                                 const double ui[3], double rhoj, double pj, const double uj[3],
+                                 double pij, double w, double dwr, const double xij[3], double r,
+                                 pysph_pair *o)
+{
+    const double m = c->m, ti = pi / (rhoi * rhoi), tij = pj / (rhoj * rhoj), r2 = r * r;
+    double uij[3] = {0.0, 0.0, 0.0}, gw[3] = {0.0, 0.0, 0.0};
+    for (int a = 0; a < d; ++a) {
+        uij[a] = ui[a] - uj[a];
+        gw[a] = dwr * xij[a];
+    }
+    const double rhob = 0.5 * (rhoi + rhoj);
+    double udw = 0.0, xdw = 0.0;
+    for (int a = 0; a < d; ++a) {
+        udw += uij[a] * gw[a];
+        xdw += xij[a] * gw[a];
+    }
+    /* Morris et al. 1997 / Cleary's laminar viscosity */
+    const double visc = m * 4.0 * c->nu * xdw / ((rhoi + rhoj) * (r2 + c->h2));
+    for (int a = 0; a < d; ++a) {
+        o->f[a] = -m * (ti + tij + pij) * gw[a] + visc * uij[a];
+        o->fp[a] = -m * (ti + tij) * gw[a];
+        o->fb[a] = 0.5 * m * w / rhob * uij[a]; /* XSPH, ε = 0.5 */
+    }
+    o->div = m * udw;
+    const double vj = m / rhoj;
+    for (int a = 0; a < d; ++a)
+        for (int b = 0; b < d; ++b) o->g[a * d + b] = vj * uij[a] * gw[b];
+}
+
+#endif
