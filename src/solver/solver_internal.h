@@ -231,6 +231,20 @@ int run_nx_fits(int nx, int dim, double memory);
 #define SOLVER_PARALLEL_MIN 4096
 #define HIST_COLS 14 /* step t l1_u linf_u l1_p linf_p ke mx my mz ang ft_fmax max_divu dt */
 
+/* Diagnostics (diag.c): a row of the history; x of particle i as the problems take it (every
+ * coordinate of the run, 0 beyond); the authors' measure: output time k of a --tf run, the sample
+ * at this instant, and the sample after a step when it ended on the next output time (`landed`:
+ * the step was cut to end on it). */
+int solver_hist_push(consph_solver *s, const consph_step_diag *g);
+void solver_position_of(const consph_particles *p, size_t i, double x[3]);
+double solver_auth_time(const consph_solver *s, int k);
+int solver_auth_sample(consph_solver *s);
+int solver_auth_after_step(consph_solver *s, int landed);
+/* Validity (validity.c): CONSPH_ENUMERIC naming the first non-finite value, or the first bound of
+ * the weakly-compressible model the state of diagnostics g is beyond. */
+int solver_check_finite(consph_solver *s);
+int solver_check_valid(consph_solver *s, const consph_step_diag *g);
+
 /* Shared by the schemes: the declared field `name` of ncomp components; NULL with CONSPH_EINVAL
  * naming it and the scheme when it is not declared or has other components. */
 double *sv_field(consph_solver *s, const char *name, int ncomp);

@@ -1,0 +1,278 @@
+/* The solver's diagnostics: the per-step values of the log (errors against the exact solution,
+ * kinetic energy, momentum, F_T/F_max) in any dimension, the history they are kept in, the
+ * authors' error measure of 001's post-processing, the summary and the output fields. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "integrators/integrators.h"
+#include "solver/solver_internal.h"
+
+int solver_hist_push(consph_solver *s, const consph_step_diag *g)
+{
+    if (s->nhist == s->caphist) {
+        size_t cap = s->caphist ? 2 * s->caphist : 256;
+        double *h = realloc(s->hist, cap * HIST_COLS * sizeof(double));
+        if (!h) return consph_fail(CONSPH_ENOMEM, "out of memory for the run history");
+        s->hist = h;
+        s->caphist = cap;
+    }
+    double row[HIST_COLS] = {(double)g->step, g->t,       g->l1_u,     g->linf_u, g->l1_p,
+                             g->linf_p,       g->ke,      g->mom[0],   g->mom[1], g->mom[2],
+                             g->ang,          g->ft_fmax, g->max_divu, s->dt};
+    memcpy(s->hist + s->nhist * HIST_COLS, row, sizeof row);
+    ++s->nhist;
+    return CONSPH_OK;
+}
+
+/* ---- the authors' error measure (consph_error_kind) ---- */
+
+/* x of particle i as the problems take it: every coordinate of the run, 0 beyond. */
+void solver_position_of(const consph_particles *p, size_t i, double x[3])
+{
+    for (int a = 0; a < 3; ++a) x[a] = a < p->dim ? p->x[a][i] : 0.0;
+}
+
+/* |u| over d components; in 2D hypot, as the 2D runs have always computed it. */
+static double speed(const double u[3], int d)
+{
+    return d == 2 ? hypot(u[0], u[1]) : sqrt(u[0] * u[0] + u[1] * u[1] + u[2] * u[2]);
+}
+
+static double max_abs(const double *a, size_t n)
+{
+    double m = 0.0;
+    for (size_t i = 0; i < n; ++i) m = fmax(m, fabs(a[i]));
+    return m;
+}
+
+/* Output time k with --tf; the last is t_f itself, not a rounding of it. */
+double solver_auth_time(const consph_solver *s, int k)
+{
+    const int last = s->prm.error_times - 1;
+    return k >= last ? s->tf : s->tf * (double)k / (double)last;
+}
+
+/* With --steps: the step whose end is output time k. */
+static long auth_step(const consph_solver *s, int k)
+{
+    return lround((double)s->nsteps * (double)k / (double)(s->prm.error_times - 1));
+}
+
+/* Adds this instant's normalised errors of 001's post-processing to the sums. Runs right after
+ * consph_solver_diag, whose buffer is large enough. */
+int solver_auth_sample(consph_solver *s)
+{
+    const consph_particles *p = s->sys.p;
+    const size_t n = p->n, cap = p->cap;
+    const double *u = sv_field(s, SF_U, s->dim), *pr = sv_field(s, SF_P, 1);
+    if (!u || !pr || s->diag_cap < 4 * n) return consph_fail(CONSPH_EINVAL, "solver state missing");
+    double eu_n = NAN, ep_n = NAN;
+    if (s->prob->has_exact || s->t == 0.0) {
+        double *eu = s->diag_buf, *mu = eu + n, *ep = eu + 2 * n, *pe = eu + 3 * n;
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
+        for (size_t i = 0; i < n; ++i) {
+            double x[3], ue[3];
+            solver_position_of(p, i, x);
+            s->prob->exact(&s->prm, s->t, x, ue, &pe[i]);
+            mu[i] = speed(ue, s->dim);
+            const double ui[3] = {u[i], u[cap + i], s->dim == 3 ? u[2 * cap + i] : 0.0};
+            eu[i] = fabs(speed(ui, s->dim) - mu[i]);
+            ep[i] = fabs(pr[i] - pe[i]);
+        }
+        /* mean/mean for u, mean/max for p: taylor_green.py, post_process */
+        eu_n = consph_sum(eu, n) / consph_sum(mu, n);
+        ep_n = consph_sum(ep, n) / (double)n / max_abs(pe, n);
+    }
+    s->auth_u_acc += eu_n;
+    s->auth_p_acc += ep_n;
+    ++s->auth_n;
+    return CONSPH_OK;
+}
+
+/* After a step: samples when it ended on the next output time. `landed`: a --tf run's step was
+ * cut to end on it. */
+int solver_auth_after_step(consph_solver *s, int landed)
+{
+    int hit = 0;
+    if (s->nsteps == 0) {
+        hit = landed;
+        s->auth_next += hit;
+    } else {
+        /* several output times may round to one step: it is sampled once */
+        while (s->auth_next < s->prm.error_times && auth_step(s, s->auth_next) <= s->step) {
+            hit |= auth_step(s, s->auth_next) == s->step;
+            ++s->auth_next;
+        }
+    }
+    return hit ? solver_auth_sample(s) : CONSPH_OK;
+}
+
+/* ---- diagnostics ---- */
+
+int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
+{
+    consph_solver *s = (consph_solver *)cs; /* fields are looked up, not created */
+    const consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    memset(g, 0, sizeof *g);
+    g->step = s->step;
+    g->t = s->t;
+    const consph_field *fu = consph_particles_find(p, SF_U), *fp = consph_particles_find(p, SF_P);
+    const consph_field *fr = consph_particles_find(p, SF_RHOF);
+    const consph_field *fa = consph_particles_find(p, SF_AU);
+    const consph_field *fd = consph_particles_find(p, SF_DIVU);
+    const consph_field *fm = consph_particles_find(p, SF_MASS);
+    if (!fu || !fp || !fr || !fa || !fd) return consph_fail(CONSPH_EINVAL, "solver state missing");
+    /* Without an exact solution after t = 0 the errors are not computed (they are n/a): the
+     * exact() of such a problem is its initial state, evaluated for nothing. */
+    const int errors = s->prob->has_exact || s->t == 0.0;
+    /* kept between calls: a fresh allocation every step costs page faults on a hot path */
+    const size_t cols = d == 3 ? 8 : 7; /* 3D: m u_z too */
+    if (s->diag_cap < cols * n) {
+        double *nw = realloc(s->diag_buf, cols * (n ? n : 1) * sizeof(double));
+        if (!nw) return consph_fail(CONSPH_ENOMEM, "out of memory");
+        s->diag_buf = nw;
+        s->diag_cap = cols * n;
+    }
+    double *w = s->diag_buf;
+    double *eu = w, *ep = w + n, *ke = w + 2 * n, *mx = w + 3 * n, *my = w + 4 * n, *an = w + 5 * n,
+           *fx = w + 6 * n, *mz = d == 3 ? w + 7 * n : NULL;
+    const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]), yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i) {
+        double x[3];
+        solver_position_of(p, i, x);
+        const double ux = fu->data[i], uy = fu->data[cap + i];
+        const double uz = d == 3 ? fu->data[2 * cap + i] : 0.0, ui[3] = {ux, uy, uz};
+        if (errors) {
+            double ue[3], pe;
+            s->prob->exact(&s->prm, s->t, x, ue, &pe);
+            eu[i] = fabs(speed(ui, d) - speed(ue, d));
+            ep[i] = fabs(fp->data[i] - pe);
+        }
+        const double m = fm ? fm->data[i] : s->mass;
+        ke[i] = 0.5 * m * (d == 3 ? ux * ux + uy * uy + uz * uz : ux * ux + uy * uy);
+        mx[i] = m * ux;
+        my[i] = m * uy;
+        if (mz) mz[i] = m * uz;
+        /* the z-component about the box centre's axis, in 3D as in 2D (a periodic box conserves
+         * no angular momentum; the column tracks the rotation of the planar flows) */
+        an[i] = m * ((x[0] - xc) * uy - (x[1] - yc) * ux);
+        /* 001's authors sum m·a of the whole acceleration (taylor_green.py, post_process:
+         * sum(m*au)); the maximum is of the acceleration itself (docs/schemes.md) */
+        fx[i] = m * fa->data[i];
+    }
+    const double inv_n = n ? 1.0 / (double)n : 0.0;
+    if (errors) {
+        g->l1_u = consph_sum(eu, n) * inv_n;
+        g->l1_p = consph_sum(ep, n) * inv_n;
+        g->linf_u = max_abs(eu, n);
+        g->linf_p = max_abs(ep, n);
+    } else {
+        /* no exact solution after t = 0: the errors are n/a, not a failure */
+        g->l1_u = g->l1_p = g->linf_u = g->linf_p = NAN;
+    }
+    g->ke = consph_sum(ke, n);
+    g->mom[0] = consph_sum(mx, n);
+    g->mom[1] = consph_sum(my, n);
+    if (mz) g->mom[2] = consph_sum(mz, n);
+    g->ang = consph_sum(an, n);
+    double fmax = max_abs(fa->data, n); /* component 0: a_x */
+    g->ft_fmax = fmax > 0.0 ? consph_sum(fx, n) / fmax : 0.0;
+    g->max_divu = max_abs(fd->data, n);
+    return CONSPH_OK;
+}
+
+int consph_solver_summary(const consph_solver *s, consph_run_summary *sum)
+{
+    memset(sum, 0, sizeof *sum);
+    snprintf(sum->scheme, sizeof sum->scheme, "%s", s->scheme->name);
+    snprintf(sum->problem, sizeof sum->problem, "%s", s->prob->name);
+    snprintf(sum->integrator, sizeof sum->integrator, "%s", s->integ->name);
+    sum->n = s->sys.p->n;
+    sum->dim = s->dim;
+    sum->steps = s->step;
+    sum->t = s->t;
+    sum->dt = s->dt;
+    sum->h = s->h;
+    sum->c0 = s->c0;
+    sum->l1_u = s->l1_u_acc;
+    sum->l1_p = s->l1_p_acc;
+    sum->error = s->prm.error;
+    sum->error_samples = s->auth_n;
+    sum->l1n_u = s->auth_n ? s->auth_u_acc / s->auth_n : NAN;
+    sum->l1n_p = s->auth_n ? s->auth_p_acc / s->auth_n : NAN;
+    consph_step_diag last;
+    int st = consph_solver_history_row(s, s->nhist - 1, &last);
+    if (st != CONSPH_OK) return st;
+    sum->linf_u = last.linf_u;
+    sum->linf_p = last.linf_p;
+    sum->ke = last.ke;
+    for (int a = 0; a < 3; ++a) sum->momentum[a] = last.mom[a];
+    sum->angular_momentum = last.ang;
+    sum->ft_fmax = last.ft_fmax;
+    sum->max_divu = last.max_divu;
+    sum->seconds = s->seconds;
+    sum->pairs = s->pairs;
+    sum->passes_per_stage = s->passes;
+    sum->passes_min = s->scheme->passes_min;
+    sum->regularisations = s->regs;
+    return CONSPH_OK;
+}
+
+int consph_solver_output_fields(consph_solver *s)
+{
+    consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    double *ue = sv_field(s, SF_UEX, d), *pe = sv_field(s, SF_PEX, 1);
+    double *w = sv_field(s, SF_VORT, d == 3 ? 3 : 1); /* a scalar in 2D, a vector in 3D */
+    const double *G = sv_field(s, SF_GRADU, d * d);
+    if (!ue || !pe || !w || !G) return CONSPH_ENOMEM;
+#define GRAD(a, b) G[(size_t)((a)*d + (b)) * cap + i] /* ∂_b u_a */
+    for (size_t i = 0; i < n; ++i) {
+        double x[3], u[3];
+        solver_position_of(p, i, x);
+        s->prob->exact(&s->prm, s->t, x, u, &pe[i]);
+        for (int a = 0; a < d; ++a) ue[a * cap + i] = u[a];
+        /* ∇×u from the last stage's G (Bonet-corrected); its z-component ∂v/∂x - ∂u/∂y is 2D's */
+        if (d == 3) {
+            w[i] = GRAD(2, 1) - GRAD(1, 2);
+            w[cap + i] = GRAD(0, 2) - GRAD(2, 0);
+            w[2 * cap + i] = GRAD(1, 0) - GRAD(0, 1);
+        } else {
+            w[i] = GRAD(1, 0) - GRAD(0, 1);
+        }
+    }
+#undef GRAD
+    return CONSPH_OK;
+}
+
+/* ---- the history (the columns of solver_hist_push) ---- */
+
+size_t consph_solver_history_size(const consph_solver *s)
+{
+    return s->nhist;
+}
+
+int consph_solver_history_row(const consph_solver *s, size_t k, consph_step_diag *d)
+{
+    if (k >= s->nhist) return consph_fail(CONSPH_EINVAL, "history row %zu of %zu", k, s->nhist);
+    const double *h = s->hist + k * HIST_COLS;
+    memset(d, 0, sizeof *d);
+    d->step = (long)h[0];
+    d->t = h[1];
+    d->l1_u = h[2];
+    d->linf_u = h[3];
+    d->l1_p = h[4];
+    d->linf_p = h[5];
+    d->ke = h[6];
+    for (int a = 0; a < 3; ++a) d->mom[a] = h[7 + a];
+    d->ang = h[10];
+    d->ft_fmax = h[11];
+    d->max_divu = h[12];
+    return CONSPH_OK;
+}

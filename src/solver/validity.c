@@ -1,0 +1,143 @@
+/* The validity of a run: after every step, every value finite and the state within the bounds of
+ * the weakly-compressible model (docs/schemes.md, "Validity of a run"), the first breach named by
+ * step, particle, position, quantity, value and bound; and the warning for a Δt above a stability
+ * bound. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "solver/solver_internal.h"
+
+/* "(x, y)" (or with z) of particle i: every coordinate of the run's dimension. */
+static void position_text(const consph_solver *s, size_t i, char *buf, size_t size)
+{
+    const consph_particles *p = s->sys.p;
+    int k = snprintf(buf, size, "(");
+    for (int a = 0; a < s->dim && k > 0 && (size_t)k < size; ++a)
+        k += snprintf(buf + k, size - (size_t)k, "%s%.6g", a ? ", " : "", p->x[a][i]);
+    if (k > 0 && (size_t)k < size) snprintf(buf + k, size - (size_t)k, ")");
+}
+
+static int stop_at(const consph_solver *s, size_t i, const char *what)
+{
+    char pos[128];
+    position_text(s, i, pos, sizeof pos);
+    const double *id = sv_field((consph_solver *)s, SF_ID, 1);
+    return consph_fail(CONSPH_ENUMERIC, "diverged at step %ld (t = %.6g): particle %.0f at %s %s",
+                       s->step, s->t, id[i], pos, what);
+}
+
+/* Names the first non-finite value: the particle by its initial index, its position, the
+ * quantity. */
+int solver_check_finite(consph_solver *s)
+{
+    consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    static const char *const xs[3] = {"x", "y", "z"}, *const us[3] = {"u", "v", "w"};
+    const double *u = sv_field(s, SF_U, d), *rf = sv_field(s, SF_RHOF, 1);
+    const double *pr = sv_field(s, SF_P, 1);
+    for (size_t i = 0; i < n; ++i) {
+        char what[64] = "";
+        for (int a = 0; a < d && !what[0]; ++a)
+            if (!isfinite(p->x[a][i]))
+                snprintf(what, sizeof what, "has a non-finite %s", xs[a]);
+            else if (!isfinite(u[a * cap + i]))
+                snprintf(what, sizeof what, "has a non-finite velocity %s", us[a]);
+        if (!what[0] && !isfinite(rf[i]))
+            snprintf(what, sizeof what, "has a non-finite density rhof");
+        if (!what[0] && !isfinite(pr[i]))
+            snprintf(what, sizeof what, "has a non-finite pressure p");
+        if (what[0]) return stop_at(s, i, what);
+    }
+    return CONSPH_OK;
+}
+
+/* The particle with the largest v[i] (the smallest id among equals, so that the choice does not
+ * depend on the order the particles are in); v is per particle of the current order. */
+typedef struct worst {
+    size_t i;
+    double v;
+} worst;
+
+static void worst_take(worst *w, size_t i, double v, const double *id)
+{
+    if (v > w->v || (v == w->v && id[i] < id[w->i])) {
+        w->i = i;
+        w->v = v;
+    }
+}
+
+/* The weakly-compressible model's validity (docs/schemes.md, "Validity of a run"), checked after
+ * every step once the values are known to be finite: the Mach number |u_i|/c_o, the compression
+ * |ϱ_i/ρ_o − 1| (for pe-ipst-c, which evolves p, ϱ = p/c_o² + ρ_o by eq. 31: the same bound on
+ * p/(ρ_o c_o²)), and the kinetic energy of the step's diagnostics g against the initial one (no
+ * problem here has an energy source).
+ * Maxima over the particles with ties to the smallest id: the verdict and the particle named do
+ * not depend on the thread count or the particle order. */
+int solver_check_valid(consph_solver *s, const consph_step_diag *g)
+{
+    const consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    const double *u = sv_field(s, SF_U, d), *rf = sv_field(s, SF_RHOF, 1);
+    const double *pr = sv_field(s, SF_P, 1), *id = sv_field(s, SF_ID, 1);
+    const double r0 = s->prm.rho0;
+    /* edac evolves p on its own, with no EOS: its ϱ is a summation density that only weights
+     * its sums, and a uniform drift of p moves nothing (its force takes p - p̄) */
+    const int compressible = !(s->scheme->evolve_p && s->scheme->closure);
+    worst fast = {0, -1.0}, comp = {0, -1.0};
+    for (size_t i = 0; i < n; ++i) {
+        double u2 = 0.0;
+        for (int a = 0; a < d; ++a) u2 += u[a * cap + i] * u[a * cap + i];
+        worst_take(&fast, i, u2, id);
+        if (compressible) worst_take(&comp, i, fabs(rf[i] / r0 - 1.0), id);
+    }
+    if (n == 0) return CONSPH_OK;
+    char what[192];
+    const double mach = sqrt(fast.v) / s->c0;
+    if (mach > CONSPH_VALID_MACH) {
+        snprintf(what, sizeof what,
+                 "moves at Mach number |u|/c_o = %.4g, above the bound %g (|u| = %.4g, c_o = %g)",
+                 mach, CONSPH_VALID_MACH, sqrt(fast.v), s->c0);
+        return stop_at(s, fast.i, what);
+    }
+    if (comp.v > CONSPH_VALID_COMPRESSION) {
+        snprintf(what, sizeof what,
+                 "has density |rhof/rho_o - 1| = %.4g, above the bound %g of the "
+                 "weakly-compressible range (rhof = %.4g, p = %.4g)",
+                 comp.v, CONSPH_VALID_COMPRESSION, rf[comp.i], pr[comp.i]);
+        return stop_at(s, comp.i, what);
+    }
+    const double ke0 = s->hist[6]; /* row 0: the initial state */
+    if (g->ke > ke0 * (1.0 + CONSPH_VALID_KE_GROWTH)) {
+        snprintf(what, sizeof what,
+                 "is the fastest (|u| = %.4g) as the kinetic energy %.6g exceeds its initial "
+                 "%.6g by %.4g, above the bound %g (the problem supplies no energy)",
+                 sqrt(fast.v), g->ke, ke0, g->ke / ke0 - 1.0, CONSPH_VALID_KE_GROWTH);
+        return stop_at(s, fast.i, what);
+    }
+    return CONSPH_OK;
+}
+
+int consph_solver_dt_warning(const consph_solver *s, char *buf, size_t size)
+{
+    const double U = s->prm.U, acoustic = CONSPH_DT_ACOUSTIC * s->h / (U + s->c0);
+    const double viscous = s->nu > 0.0 ? CONSPH_DT_VISCOUS * s->h * s->h / s->nu : INFINITY;
+    /* a Δt equal to the bound but for the rounding of the default rule is not above it */
+    const double slack = 1.0 + 1e-12;
+    if (s->dt > acoustic * slack)
+        snprintf(buf, size,
+                 "dt = %.6g is above the acoustic stability bound %g h/(U + c_o) = %.6g (h = %.6g, "
+                 "U = %g, c_o = %g)",
+                 s->dt, CONSPH_DT_ACOUSTIC, acoustic, s->h, U, s->c0);
+    else if (s->dt > viscous * slack)
+        snprintf(buf, size,
+                 "dt = %.6g is above the viscous stability bound %g h^2/nu = %.6g (h = %.6g, "
+                 "nu = %g)",
+                 s->dt, CONSPH_DT_VISCOUS, viscous, s->h, s->nu);
+    else
+        return 0;
+    return 1;
+}
