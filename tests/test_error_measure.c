@@ -3,7 +3,7 @@
  * hand from the particles at those times (the exact solution written out again, not consph's);
  * --tf runs land on the output times, t = 0 included; --steps runs sample each output step
  * once; a restart continues the measure bit for bit; an eq26 run is not touched by it.
- * Item 3: F_T/F_max is the authors' Σ m a_x / max |a_x| of the whole acceleration du/dt with
+ * F_T/F_max is the authors' Σ m a_x / max |a_x| of the whole acceleration du/dt with
  * m = ρ_o Δs², by hand from the particles; at round-off on the lattice for E-C. */
 #include <math.h>
 #include <stdlib.h>

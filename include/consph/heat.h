@@ -1,15 +1,17 @@
-/* consph heat: the transient heat-conduction test of Fatehi & Manzari (002 §6, catalogue B2.0,
- * E2.1-E2.4), a scalar solver on the pass layer.
+/* consph heat: the transient heat-conduction test of Fatehi & Manzari (002 §6, Figs. 1-3),
+ * a scalar solver on the pass layer.
  *
  * ∂T/∂t = α∇²T on the unit square, α = 1 by default. Particles sit on the vertices of an
- * nx × nx grid including the boundary, Δ = 1/(nx - 1) (catalogue Part C 002-1: the paper's
- * "vertices of a square grid in [0,1]×[0,1]", whose boundary nodes are where the Dirichlet values
- * live; docs/heat.md). The boundary particles carry the wall temperature and are sources only
- * (the system's destination mask): they appear among the neighbours of the interior particles
- * and are never updated. There are no ghost particles.
+ * nx × nx grid including the boundary, Δ = 1/(nx - 1) (002 does not say whether its n × n
+ * particles include the walls, docs/deviations.md; the paper's "vertices of a square grid in
+ * [0,1]×[0,1]", whose boundary nodes are where the Dirichlet values live; docs/heat.md). The
+ * boundary particles carry the wall temperature and are sources only (the system's destination
+ * mask): they appear among the neighbours of the interior particles and are never updated. There
+ * are no ghost particles.
  *
  * Interior particles may be perturbed as 002 §6.2: x += ε κ Δ per coordinate, κ uniform in
- * [-0.25, 0.25] (the walls are not). Volumes ω = Δ² for every particle (catalogue B2.0 [I]).
+ * [-0.25, 0.25] (the walls are not). Volumes ω = Δ² for every particle (002 §6 states
+ * "constant and equal" volumes for the regular grid only).
  * Kernel Wendland C2 with support h = η Δ (`wendland-c2:h`, 002 eq. 47).
  *
  * The Laplacian is S3 (Brookshaw/Cleary, 002 eq. 13) or S4 (002 eqs. 40-41: the F4 gradient

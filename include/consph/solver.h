@@ -69,7 +69,8 @@ typedef struct consph_run_params {
     double rho0; /* reference density ρ_o */
     double gamma;
     consph_eos_kind eos;
-    double delta;      /* δ of the diffusive terms D = δ h c_o (catalogue Part C 001.11) */
+    double delta;      /* δ of the diffusive terms D = δ h c_o (001 eq. 27 prints δ h c_o²;
+                          docs/deviations.md) */
     double alpha;      /* artificial viscosity α (wcsph, δ-SPH family); < 0: the scheme's default
                           (wcsph 0.1 as PySPH's WCSPHScheme, δ-SPH family 0) */
     double tf;         /* final time (used when steps = 0) */

@@ -36,9 +36,10 @@ const char *consph_order_text(const consph_order_fit *fit, int digits, const cha
 /* ---- Error norms ---------------------------------------------------------------------------- */
 
 /* Per-particle error e_i = |g_i - g_o,i| (Euclidean over components) over the particles with
- * mask[i] != 0 (mask NULL: all). l1 = Σ e_i / Σ |g_o,i| (001 eq. 7 with the |.| of catalogue
- * A9, NaN when Σ|g_o| = 0), l2 = sqrt(mean e²) (002 eq. 44), linf = max e (002 eq. 45),
- * mae = mean e (003 eq. 58). Arrays are component-major with stride n between components. */
+ * mask[i] != 0 (mask NULL: all). l1 = Σ e_i / Σ |g_o,i| (001 eq. 7 with |g_o| in the
+ * denominator, docs/deviations.md; NaN when Σ|g_o| = 0), l2 = sqrt(mean e²) (002 eq. 44),
+ * linf = max e (002 eq. 45), mae = mean e (003 eq. 58). Arrays are component-major with stride n
+ * between components. */
 typedef struct consph_error_norms {
     double l1, l2, linf, mae;
     size_t count;
@@ -46,7 +47,8 @@ typedef struct consph_error_norms {
 int consph_error_norms_compute(const double *approx, const double *exact, size_t n, int ncomp,
                                const unsigned char *mask, consph_error_norms *out);
 
-/* 001 Tables 3/5: F_T/F_max = Σ_i F_i / max_i |F_i| of the x-components (catalogue A9). */
+/* 001 Tables 3/5: F_T/F_max = Σ_i F_i / max_i |F_i| of the x-components
+ * (001 does not name the component; docs/deviations.md). */
 double consph_total_force_ratio(const double *fx, size_t n, const unsigned char *mask);
 
 /* ---- Manufactured fields -------------------------------------------------------------------- */
@@ -60,8 +62,8 @@ typedef enum consph_mfield_id {
     CONSPH_MFIELD_QUADRATIC,  /* x² + 3xy - y² + 2z² - yz (x² + 3xy - y² in 2D) */
     CONSPH_MFIELD_CUBIC,      /* x³ - 2xy² + y³ + xz² */
     CONSPH_MFIELD_TGV,        /* vector, 001 eq. 12: (-cos2πx sin2πy, sin2πx cos2πy), div 0 */
-    CONSPH_MFIELD_SIN2PI_VEC, /* vector: every component sin(2π Σ x_a) (001 E1.8, periodic) */
-    CONSPH_MFIELD_SINPI_VEC,  /* vector: every component sin(π Σ x_a) (001 E1.8 as printed) */
+    CONSPH_MFIELD_SIN2PI_VEC, /* vector: every component sin(2π Σ x_a) (001 §4.2, periodic) */
+    CONSPH_MFIELD_SINPI_VEC,  /* vector: every component sin(π Σ x_a) (001 §4.2 as printed) */
     CONSPH_MFIELD_DELTA,      /* scalar nascent Gaussian δ of width sigma at x0 (003 eq. 73) */
     CONSPH_MFIELD_COUNT
 } consph_mfield_id;

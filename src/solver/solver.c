@@ -126,7 +126,8 @@ int derive_solver(consph_solver *s)
     s->c0 = prm->c0 > 0.0 ? prm->c0 : 10.0 * prm->U;
     s->nu = prm->nu >= 0.0 ? prm->nu : prm->U * (s->prob->hi[0] - s->prob->lo[0]) / prm->re;
     s->mass = prm->rho0 * pow(s->ds, s->dim);
-    s->D = prm->delta * s->h * s->c0; /* catalogue Part C 001.11: δ h c_o */
+    /* 001 eq. 27 prints δ h c_o², whose units are wrong: docs/deviations.md */
+    s->D = prm->delta * s->h * s->c0;
     s->eos = prm->eos == CONSPH_EOS_DEFAULT ? s->scheme->eos : prm->eos;
     s->dt = prm->dt > 0.0 ? prm->dt
                           : prm->cfl * (prm->h_dt > 0.0 ? prm->h_dt : s->h) / (prm->U + s->c0);

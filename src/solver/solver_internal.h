@@ -94,7 +94,7 @@ int state_snapshot_arrays(const consph_solver *s, consph_vtu_array *arr, int *na
 typedef enum kit_lap {
     KIT_LAP_COUPLED,  /* coupled_bc, 001 Table 4 with Bonet (= s1_diff from G) */
     KIT_LAP_FATEHI_C, /* Fatehi_c, 001 eq. 13 */
-    KIT_LAP_KORZILIUS /* Korzilius, 001 eqs. 14-15 with the catalogue's fixes */
+    KIT_LAP_KORZILIUS /* Korzilius, 001 eqs. 14-15 with the fixes of docs/deviations.md */
 } kit_lap;
 
 enum {

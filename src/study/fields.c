@@ -21,7 +21,7 @@ static const mfield_info mfields[CONSPH_MFIELD_COUNT] = {
     [CONSPH_MFIELD_TGV] = {"tgv", "(-cos2πx sin2πy, sin2πx cos2πy), 001 eq. 12, divergence-free", 1,
                            1},
     [CONSPH_MFIELD_SIN2PI_VEC] = {"sin2pi-vec", "sin(2π(x+y+z)) in every component", 1, 1},
-    [CONSPH_MFIELD_SINPI_VEC] = {"sinpi-vec", "sin(π(x+y+z)) in every component, 001 E1.8", 1, 0},
+    [CONSPH_MFIELD_SINPI_VEC] = {"sinpi-vec", "sin(π(x+y+z)) in every component, 001 §4.2", 1, 0},
     [CONSPH_MFIELD_DELTA] = {"delta", "nascent Gaussian δ of width sigma at x0, 003 eq. 73", 0, 0},
 };
 

@@ -5,8 +5,8 @@
  * pair geometry ∇p (asym with bc, 001 Table 2), G = ∇u (the same form per component: f4), ∇·u
  * (div with bc, 001 eq. 11) and ∇q of a scalar. Pass 2: the Laplacians, which need G_j or ∇q_j
  * at the neighbours (coupled_bc: Σ ω_j (G_j - G_i)·B_i∇W_ij), or at i only (Fatehi_c, 001
- * eq. 13; Korzilius, 001 eqs. 14-15 with the fixes of catalogue §A7), whose matrices are summed
- * and inverted in the same visit. A matrix that is singular or worse conditioned than
+ * eq. 13; Korzilius, 001 eqs. 14-15 with the fixes of docs/deviations.md), whose matrices are
+ * summed and inverted in the same visit. A matrix that is singular or worse conditioned than
  * cond_max falls back to the identity, as the operators do. */
 #include <math.h>
 #include <stdlib.h>
@@ -112,7 +112,7 @@ static void fatehi_c_matrix(int d, const consph_nbhd *nb, const double *vol, con
     if (!ops_invert(d, M, Bh, cond_max, &cond)) set_identity(Bh, d);
 }
 
-/* Korzilius' Γ̃^{-1} (001 eq. 15 with the catalogue's fixes); the identity where B_i fell
+/* Korzilius' Γ̃^{-1} (001 eq. 15 with the fixes of docs/deviations.md); the identity where B_i fell
  * back, as the operator's (src/ops/ops_corr.c). */
 static void korzilius_matrix(int d, int P, const int *pl, const int *pk, const consph_nbhd *nb,
                              const double *vol, const double B[9], int bonet_ok, double cond_max,
