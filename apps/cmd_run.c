@@ -288,16 +288,15 @@ int cmd_run(int argc, char **argv)
     const int nothers = (int)(sizeof others / sizeof others[0]);
     for (int k = 0; k < nothers; ++k) opts[nparam + k] = others[k];
     const char *positional[1] = {NULL};
-    cli_command cmd = {"run",
-                       "run a simulation: weakly-compressible SPH, or 002's heat problem",
-                       "consph run PROBLEM --scheme S --nx N [options]   (PROBLEM: taylor-green, "
-                       "gresho-chan, shear-layer, beltrami)\n"
-                       "       consph run heat --laplacian s3|s4 --nx N --eta H/Δ [options]",
-                       run_details,
-                       opts,
-                       nparam + nothers,
-                       1,
-                       positional};
+    char usage[512];
+    snprintf(usage, sizeof usage,
+             "consph run PROBLEM --scheme S --nx N [options]   (PROBLEM: %s)\n"
+             "       consph run heat --laplacian s3|s4 --nx N --eta H/Δ [options]",
+             consph_problem_names());
+    cli_command cmd = {"run", "run a simulation: weakly-compressible SPH, or 002's heat problem",
+                       usage, run_details,
+                       opts,  nparam + nothers,
+                       1,     positional};
     int rc = cli_parse(&cmd, argc, argv);
     if (rc) return rc == 1 ? 0 : rc;
     if (!positional[0] && !restart)

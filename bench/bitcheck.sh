@@ -25,7 +25,10 @@ else
   refdir=$work/ref
   mkdir -p "$refdir" || exit 2
 fi
-schemes="l-ipst-c l-ipst-f l-ipst-k l-pst-c pe-ipst-c l-rr-c tv-c e-c ewcsph wcsph tvf edac delta-sph delta-plus-sph delta-plus-sph-d"
+# every scheme of the new binary's registry (consph run --help, --scheme's allowed names); a
+# scheme the reference binary lacks fails its reference runs and is not compared
+schemes=$("$new" run --help 2>&1 | sed -n 's/^ *--scheme S .*(\([a-z0-9,+-]*\); default .*/\1/p' | tr , ' ')
+[ -n "$schemes" ] || { echo "no scheme list in $new run --help"; exit 2; }
 
 run_all() { # BIN DIR
   local bin=$1 dir=$2 s th

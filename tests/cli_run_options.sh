@@ -13,6 +13,9 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 . "$(dirname "$0")/lib_cli.sh"
 tg() { "$consph" run taylor-green --nx 8 --steps 2 --format json "$@"; }
+# every scheme, as the registry lists them (consph run --help, --scheme's allowed names)
+schemes=$("$consph" run --help 2>&1 | sed -n 's/^ *--scheme S .*(\([a-z0-9,+-]*\); default .*/\1/p' | tr , ' ')
+[ -n "$schemes" ] || bad "no scheme list in consph run --help"
 
 # refused WHAT TEXT ARGS...: exit 2 naming TEXT, nothing written in $work/o
 mkdir -p "$work/o"
@@ -54,8 +57,7 @@ refused "heat seed without eps" "option --seed does nothing for heat without --e
 # accepted: the option acts. For every scheme, each of --alpha/--delta/--eos is refused or
 # changes the result against the scheme's defaults.
 strip() { grep -v '"seconds"'; }
-for s in l-ipst-c l-ipst-f l-ipst-k l-pst-c pe-ipst-c l-rr-c tv-c e-c ewcsph wcsph tvf edac delta-sph \
-    delta-plus-sph delta-plus-sph-d; do
+for s in $schemes; do
     base=$(tg --scheme "$s" --layout lattice | strip) || { bad "$s: the default run failed"; continue; }
     for o in "--alpha 0.3" "--delta 0.4" "--eos tait" "--eos linear"; do
         # shellcheck disable=SC2086

@@ -241,6 +241,9 @@ static void declarations(void)
         const scheme_def *sd = scheme_find(cases[k].scheme);
         CHECK(sd && sd->fields, "%s declares no fields", cases[k].scheme);
     }
+    /* a scheme added to the registry without its expected arrays here would go unchecked */
+    CHECK(sizeof cases / sizeof cases[0] == scheme_count(), "%zu cases for %zu schemes (%s)",
+          sizeof cases / sizeof cases[0], scheme_count(), consph_scheme_names());
 }
 
 static void bad_arrays(void)

@@ -1,33 +1,40 @@
-/* Every scheme of the solver, one row each: the families' rows (src/schemes/<family>/scheme.c)
+/* Every scheme of the solver, one line each: the families' rows (src/schemes/<family>/scheme.c)
  * listed once here, and everything else that names schemes read from this list. Adding a scheme
- * is its row in its family's scheme.c, its declaration in src/solver/solver_internal.h and one
- * line below. */
+ * is its row in its family's scheme.c and one line of SCHEMES below. */
 #include <stdio.h>
 #include <string.h>
 
 #include "solver/solver_internal.h"
 
-/* In the order consph_scheme_names lists. */
-static const scheme_def *const schemes[] = {
-    /* 001 §5.1 and §5.4 (negi/) */
-    &scheme_l_ipst_c,
-    &scheme_l_ipst_f,
-    &scheme_l_ipst_k,
-    &scheme_l_pst_c,
-    &scheme_pe_ipst_c,
-    &scheme_l_rr_c,
-    &scheme_tv_c,
-    &scheme_e_c,
-    &scheme_ewcsph,
-    /* the established weakly-compressible schemes (pysph/) */
-    &scheme_wcsph,
-    &scheme_tvf,
-    &scheme_edac,
-    /* the δ-SPH family (delta/) */
-    &scheme_delta_sph,
-    &scheme_delta_plus_sph,
-    &scheme_delta_plus_sph_d,
-};
+/* In the order consph_scheme_names lists; each line expands to the row's declaration and its
+ * entry in the table. */
+#define SCHEMES(X)                                                                                 \
+    /* 001 §5.1 and §5.4 (negi/) */                                                              \
+    X(scheme_l_ipst_c)                                                                             \
+    X(scheme_l_ipst_f)                                                                             \
+    X(scheme_l_ipst_k)                                                                             \
+    X(scheme_l_pst_c)                                                                              \
+    X(scheme_pe_ipst_c)                                                                            \
+    X(scheme_l_rr_c)                                                                               \
+    X(scheme_tv_c)                                                                                 \
+    X(scheme_e_c)                                                                                  \
+    X(scheme_ewcsph)                                                                               \
+    /* the established weakly-compressible schemes (pysph/) */                                     \
+    X(scheme_wcsph)                                                                                \
+    X(scheme_tvf)                                                                                  \
+    X(scheme_edac)                                                                                 \
+    /* the δ-SPH family (delta/) */                                                               \
+    X(scheme_delta_sph)                                                                            \
+    X(scheme_delta_plus_sph)                                                                       \
+    X(scheme_delta_plus_sph_d)
+
+#define DECLARE_SCHEME(row) extern const scheme_def row;
+SCHEMES(DECLARE_SCHEME)
+#undef DECLARE_SCHEME
+
+#define SCHEME_ENTRY(row) &row,
+static const scheme_def *const schemes[] = {SCHEMES(SCHEME_ENTRY)};
+#undef SCHEME_ENTRY
 
 size_t scheme_count(void)
 {

@@ -153,21 +153,16 @@ typedef struct scheme_def {
     const field_decl *fields;
 } scheme_def;
 
-/* The table of every scheme (src/schemes/registry.c). */
+/* The table of every scheme (src/schemes/registry.c, which also declares the rows: a scheme is
+ * found by name, never by its row's symbol). */
 const scheme_def *scheme_find(const char *name);
-/* The schemes of 001 §5.1 and §5.4 (src/schemes/negi/scheme.c). */
-extern const scheme_def scheme_l_ipst_c, scheme_l_ipst_f, scheme_l_ipst_k, scheme_l_pst_c,
-    scheme_pe_ipst_c, scheme_l_rr_c, scheme_tv_c, scheme_e_c, scheme_ewcsph;
-/* The established weakly-compressible schemes (src/schemes/pysph/scheme.c). */
-extern const scheme_def scheme_wcsph, scheme_tvf, scheme_edac;
-/* The δ-SPH family (src/schemes/delta/scheme.c). */
-extern const scheme_def scheme_delta_sph, scheme_delta_plus_sph, scheme_delta_plus_sph_d;
 size_t scheme_count(void);
 
 /* ---- problems: data ---- */
-/* A problem is a row of the table in src/problems/problems.c (its names list is generated from
- * the rows). The run has the problem's dimension; nx particles span axis 0 and the spacing
- * Δs = (hi[0] - lo[0])/nx is the same on every axis (round(L_a/Δs) particles along axis a). */
+/* A problem is a row in its own file, src/problems/<name>.c, listed once in src/problems/problems.c
+ * (its names list is generated from that list). The run has the problem's dimension; nx particles
+ * span axis 0 and the spacing Δs = (hi[0] - lo[0])/nx is the same on every axis (round(L_a/Δs)
+ * particles along axis a). */
 typedef struct problem_def {
     const char *name;
     const char *summary;
