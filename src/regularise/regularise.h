@@ -12,6 +12,7 @@
 #define CONSPH_REGULARISE_H
 
 #include "consph/pass.h"
+#include "consph/solver.h"
 
 /* ---- moving particles ---- */
 
@@ -59,6 +60,11 @@ typedef struct reg_pst_params {
 /* δr_i = -cfl·mach·(2h)² Σ_j [1 + R (W_ij/W(ds))^n] ∇W_ij V_j of Sun et al. into dr (d × cap),
  * V_j from the field "volume"; 0 for particles outside a destination mask. Moves nothing. */
 int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr);
+
+/* The shifting velocity δu = δr/Δt of Sun et al. (δr of reg_pst_shift with R = 0.2, n = 4 and
+ * CFL·Ma·(2h)² = 4ΔtUh, no cap; docs/schemes.md) into the solver's field SF_SHIFT at the current
+ * positions and volumes; counts its pass in s->passes. In shift_velocity.c. */
+int solver_shift_velocity(consph_solver *s, double **du);
 
 /* ---- remeshing (001 eqs. 32-33) ---- */
 

@@ -247,10 +247,6 @@ void solver_eos(consph_solver *s); /* p from ϱ, or ϱ from p (evolve_p) */
 /* Taylor update of 001 eq. 22/29 after a shift dr (SF_SHIFT): u, the evolved scalar, from the
  * gradients the kit left (SF_GRADU, SF_GRADQ), then the EOS. */
 void solver_taylor_update(consph_solver *s, const double *dr);
-/* The shifting velocity δu = δr/Δt of Sun et al. (δr of reg_pst_shift with R = 0.2, n = 4 and
- * CFL·Ma·(2h)² = 4ΔtUh, no cap; docs/schemes.md) into the field SF_SHIFT at the current
- * positions and volumes; counts its pass in s->passes. */
-int solver_shift_velocity(consph_solver *s, double **du);
 /* The quantities derived from s->prm (scheme, problem, h, Δs, c_o, ν, Δt, ...). */
 int derive_solver(consph_solver *s);
 

@@ -21,11 +21,16 @@
 
 #include "ops/terms.h"
 #include "regularise/regularise.h"
+#include "schemes/delta/iact.h"
 #include "solver/solver_internal.h"
 
 #define SF_GRADRHO_L "gradrho_l" /* ⟨∇ρ⟩^L, d */
 
-enum { SHIFT_NONE, SHIFT_SUN, SHIFT_APP_D };
+#if defined(__GNUC__)
+#define DELTA_INLINE static inline __attribute__((always_inline))
+#else
+#define DELTA_INLINE static inline
+#endif
 
 typedef struct delta_job {
     int d, shift;
@@ -53,77 +58,76 @@ static void visit_renorm(void *vjob, const consph_nbhd *nb)
     for (int a = 0; a < d; ++a) job->gradrho[a * cap + i] = g[a];
 }
 
-/* Pass 2: every rate. */
-static void visit_rates(void *vjob, const consph_nbhd *nb)
+/* Pass 2: every rate, the pair terms of iact.h summed in neighbour order. */
+DELTA_INLINE void visit_rates_d(const delta_job *job, const consph_nbhd *nb, const int d,
+                                const int shift)
 {
-    const delta_job *job = vjob;
-    const int d = job->d;
     const size_t i = nb->i, cap = job->cap;
-    const double *u = job->u, *rho = job->rho, *vol = job->vol, *gr = job->gradrho;
-    const double rhoi = rho[i], pi = job->p[i];
-    double ui[3] = {0.0, 0.0, 0.0}, dui[3] = {0.0, 0.0, 0.0};
-    for (int a = 0; a < d; ++a) ui[a] = u[a * cap + i];
-    if (job->du)
-        for (int a = 0; a < d; ++a) dui[a] = job->du[a * cap + i];
-    double divu = 0.0, diff = 0.0, shq = 0.0, gp[3] = {0}, visc[3] = {0}, shu[3] = {0};
-    double G[9] = {0};
+    const double *restrict u = job->u, *restrict rho = job->rho, *restrict vol = job->vol;
+    const double *restrict p = job->p, *restrict gr = job->gradrho, *restrict du = job->du;
+    const double rhoi = rho[i], pi = p[i];
+    double ui[3] = {0.0, 0.0, 0.0}, dui[3] = {0.0, 0.0, 0.0}, gri[3] = {0.0, 0.0, 0.0};
+    for (int a = 0; a < d; ++a) {
+        ui[a] = u[a * cap + i];
+        gri[a] = gr[a * cap + i];
+    }
+    if (shift != DELTA_SHIFT_NONE)
+        for (int a = 0; a < d; ++a) dui[a] = du[a * cap + i];
+    delta_sums s = {0};
     for (size_t q = 0; q < nb->n; ++q) {
         const double r = nb->r[q];
         if (!(r > 0.0)) continue;
         const size_t j = nb->j[q];
-        const double Vj = vol[j], dwr = nb->dwr[q], r2 = r * r;
-        double x[3], gw[3], uji[3];
-        double ux = 0.0, psig = 0.0;
+        double x[3] = {0.0, 0.0, 0.0}, uj[3] = {0.0, 0.0, 0.0}, duj[3] = {0.0, 0.0, 0.0};
+        double grj[3] = {0.0, 0.0, 0.0};
         for (int a = 0; a < d; ++a) {
             x[a] = nb->dx[a][q];
-            gw[a] = dwr * x[a];
-            uji[a] = u[a * cap + j] - ui[a];
-            ux += uji[a] * x[a];
+            uj[a] = u[a * cap + j];
+            grj[a] = gr[a * cap + j];
         }
-        const double drho = rho[j] - rhoi;
-        for (int a = 0; a < d; ++a) {
-            /* ψ_ij with x_ji = -x_ij */
-            const double psi = -2.0 * drho * x[a] / r2 - (gr[a * cap + i] + gr[a * cap + j]);
-            psig += psi * gw[a];
-            divu += Vj * uji[a] * gw[a];
-            gp[a] += Vj * (pi + job->p[j]) * gw[a];
-            /* π_ij = u_ji·x_ji/r² = -u_ji·x_ij/r² */
-            visc[a] -= Vj * ux / r2 * gw[a];
-            for (int b = 0; b < d; ++b) G[a * d + b] += Vj * uji[a] * gw[b];
-        }
-        diff += Vj * psig;
-        if (job->shift == SHIFT_SUN) {
-            /* Σ V_j [(f_j δu_j + f_i δu_i) - f_i (δu_j - δu_i)]·∇W_ij
-             *   = Σ V_j [(f_j - f_i) δu_j·∇W_ij + 2 f_i δu_i·∇W_ij] */
-            double sj = 0.0, si = 0.0;
-            for (int a = 0; a < d; ++a) {
-                sj += job->du[a * cap + j] * gw[a];
-                si += dui[a] * gw[a];
-            }
-            shq += Vj * (drho * sj + 2.0 * rhoi * si);
-            for (int a = 0; a < d; ++a) shu[a] += Vj * (uji[a] * sj + 2.0 * ui[a] * si);
-        } else if (job->shift == SHIFT_APP_D) {
-            /* 001 eq. D.5: Σ V_j (f_j - f_i) δu_i·∇W_ij */
-            double si = 0.0;
-            for (int a = 0; a < d; ++a) si += dui[a] * gw[a];
-            shq += Vj * drho * si;
-            for (int a = 0; a < d; ++a) shu[a] += Vj * uji[a] * si;
-        }
+        if (shift == DELTA_SHIFT_SUN)
+            for (int a = 0; a < d; ++a) duj[a] = du[a * cap + j];
+        delta_pair(d, shift, rhoi, pi, ui, dui, gri, rho[j], p[j], uj, duj, grj, vol[j], nb->dwr[q],
+                   x, r, &s);
     }
-    const double *L = job->L + 0;
+    const double *L = job->L;
     for (int a = 0; a < d; ++a) {
-        job->au[a * cap + i] = -gp[a] / rhoi + job->visc / rhoi * visc[a] + shu[a];
-        job->gradp[a * cap + i] = gp[a];
+        job->au[a * cap + i] = -s.gp[a] / rhoi + job->visc / rhoi * s.visc[a] + s.shu[a];
+        job->gradp[a * cap + i] = s.gp[a];
         if (job->ax) job->ax[a * cap + i] = ui[a] + dui[a];
         /* ∂_b u_a renormalised with L_i, for the vorticity of the output */
         for (int b = 0; b < d; ++b) {
             double v = 0.0;
-            for (int c = 0; c < d; ++c) v += L[(size_t)(b * d + c) * cap + i] * G[a * d + c];
+            for (int c = 0; c < d; ++c) v += L[(size_t)(b * d + c) * cap + i] * s.G[a * d + c];
             job->gradu[(size_t)(a * d + b) * cap + i] = v;
         }
     }
-    job->divu[i] = divu;
-    job->aq[i] = -rhoi * divu + job->h_c0_delta * diff + shq;
+    job->divu[i] = s.divu;
+    job->aq[i] = -rhoi * s.divu + job->h_c0_delta * s.diff + s.shq;
+}
+
+/* Clones with d and the shifting form compile-time constants (2D and 3D), so that the pair
+ * term's loops unroll and its sums, G's included, stay in registers: a run-time d leaves G in
+ * memory and costs 7 % (3D) to 25 % (2D) more instructions. */
+DELTA_INLINE void visit_rates_shift(const delta_job *job, const consph_nbhd *nb, const int shift)
+{
+    if (job->d == 2)
+        visit_rates_d(job, nb, 2, shift);
+    else if (job->d == 3)
+        visit_rates_d(job, nb, 3, shift);
+    else
+        visit_rates_d(job, nb, job->d, shift);
+}
+
+static void visit_rates(void *vjob, const consph_nbhd *nb)
+{
+    const delta_job *job = vjob;
+    if (job->shift == DELTA_SHIFT_SUN)
+        visit_rates_shift(job, nb, DELTA_SHIFT_SUN);
+    else if (job->shift == DELTA_SHIFT_APP_D)
+        visit_rates_shift(job, nb, DELTA_SHIFT_APP_D);
+    else
+        visit_rates_shift(job, nb, DELTA_SHIFT_NONE);
 }
 
 static int delta_rates(consph_solver *s, int shift)
@@ -144,7 +148,7 @@ static int delta_rates(consph_solver *s, int shift)
     s->passes = 0;
     double *du = NULL;
     int st = CONSPH_OK;
-    if (shift != SHIFT_NONE) {
+    if (shift != DELTA_SHIFT_NONE) {
         st = solver_shift_velocity(s, &du);
         if (st != CONSPH_OK) return st;
     }
@@ -184,15 +188,15 @@ static int delta_rates(consph_solver *s, int shift)
 
 static int rhs_delta(consph_solver *s)
 {
-    return delta_rates(s, SHIFT_NONE);
+    return delta_rates(s, DELTA_SHIFT_NONE);
 }
 static int rhs_delta_plus(consph_solver *s)
 {
-    return delta_rates(s, SHIFT_SUN);
+    return delta_rates(s, DELTA_SHIFT_SUN);
 }
 static int rhs_delta_plus_d(consph_solver *s)
 {
-    return delta_rates(s, SHIFT_APP_D);
+    return delta_rates(s, DELTA_SHIFT_APP_D);
 }
 
 const scheme_def scheme_delta_sph = {
