@@ -136,6 +136,9 @@ typedef struct scheme_def {
     unsigned reads;
     /* Rates into SF_AX (when moves), SF_AU and SF_AQ at the current state. */
     int (*rhs)(consph_solver *s);
+    /* What a family's shared rhs reads to tell its schemes apart (001's family: the scheme's
+     * negi_terms); NULL where each scheme has an rhs of its own. */
+    const void *terms;
     /* After a full step (NULL: none). */
     int (*regularise)(consph_solver *s);
     /* After every stage, in place of 001's closure (p from ϱ by the EOS, or ϱ from p by

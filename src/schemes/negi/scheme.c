@@ -159,41 +159,10 @@ static const negi_terms e_c = {
 /* Nasar et al. 2019 as 001 runs it: Eulerian without -u·∇ϱ, no δ-term */
 static const negi_terms ewcsph = {.lap = KIT_LAP_COUPLED, .advect_u = 1};
 
-static int rhs_l_ipst_c(consph_solver *s)
+/* Every scheme of the family: the rates its row's terms name. */
+static int rhs_negi(consph_solver *s)
 {
-    return rates(s, &l_ipst_c);
-}
-static int rhs_l_ipst_f(consph_solver *s)
-{
-    return rates(s, &l_ipst_f);
-}
-static int rhs_l_ipst_k(consph_solver *s)
-{
-    return rates(s, &l_ipst_k);
-}
-static int rhs_l_pst_c(consph_solver *s)
-{
-    return rates(s, &l_pst_c);
-}
-static int rhs_l_rr_c(consph_solver *s)
-{
-    return rates(s, &l_rr_c);
-}
-static int rhs_pe_ipst_c(consph_solver *s)
-{
-    return rates(s, &pe_ipst_c);
-}
-static int rhs_tv_c(consph_solver *s)
-{
-    return rates(s, &tv_c);
-}
-static int rhs_e_c(consph_solver *s)
-{
-    return rates(s, &e_c);
-}
-static int rhs_ewcsph(consph_solver *s)
-{
-    return rates(s, &ewcsph);
+    return rates(s, s->scheme->terms);
 }
 
 const scheme_def scheme_l_ipst_c = {
@@ -206,7 +175,8 @@ const scheme_def scheme_l_ipst_c = {
     .integrator = "rk2",
     .passes_min = 3,
     .reads = CONSPH_PARAM_IPST,
-    .rhs = rhs_l_ipst_c,
+    .rhs = rhs_negi,
+    .terms = &l_ipst_c,
     .regularise = regularise_ipst,
     .fields = negi_fields};
 const scheme_def scheme_l_ipst_f = {.name = "l-ipst-f",
@@ -219,7 +189,8 @@ const scheme_def scheme_l_ipst_f = {.name = "l-ipst-f",
                                     .integrator = "rk2",
                                     .passes_min = 3,
                                     .reads = CONSPH_PARAM_IPST,
-                                    .rhs = rhs_l_ipst_f,
+                                    .rhs = rhs_negi,
+                                    .terms = &l_ipst_f,
                                     .regularise = regularise_ipst,
                                     .fields = negi_fields};
 const scheme_def scheme_l_ipst_k = {
@@ -232,7 +203,8 @@ const scheme_def scheme_l_ipst_k = {
     .integrator = "rk2",
     .passes_min = 3,
     .reads = CONSPH_PARAM_IPST,
-    .rhs = rhs_l_ipst_k,
+    .rhs = rhs_negi,
+    .terms = &l_ipst_k,
     .regularise = regularise_ipst,
     .fields = negi_fields};
 const scheme_def scheme_l_pst_c = {
@@ -244,7 +216,8 @@ const scheme_def scheme_l_pst_c = {
     .eos = CONSPH_EOS_TAIT,
     .integrator = "rk2",
     .passes_min = 3,
-    .rhs = rhs_l_pst_c,
+    .rhs = rhs_negi,
+    .terms = &l_pst_c,
     .regularise = regularise_pst,
     .fields = negi_fields};
 const scheme_def scheme_pe_ipst_c = {
@@ -257,7 +230,8 @@ const scheme_def scheme_pe_ipst_c = {
     .integrator = "rk2",
     .passes_min = 3,
     .reads = CONSPH_PARAM_DELTA | CONSPH_PARAM_IPST,
-    .rhs = rhs_pe_ipst_c,
+    .rhs = rhs_negi,
+    .terms = &pe_ipst_c,
     .regularise = regularise_ipst,
     .fields = negi_fields};
 const scheme_def scheme_l_rr_c = {
@@ -270,7 +244,8 @@ const scheme_def scheme_l_rr_c = {
     .integrator = "rk2",
     .needs_lattice = 1,
     .passes_min = 3,
-    .rhs = rhs_l_rr_c,
+    .rhs = rhs_negi,
+    .terms = &l_rr_c,
     .regularise = regularise_remesh,
     .fields = negi_remesh_fields};
 const scheme_def scheme_tv_c = {
@@ -284,7 +259,8 @@ const scheme_def scheme_tv_c = {
     .integrator = "rk2",
     .passes_min = 4,
     .reads = CONSPH_PARAM_DELTA,
-    .rhs = rhs_tv_c,
+    .rhs = rhs_negi,
+    .terms = &tv_c,
     .regularise = NULL,
     .fields = negi_fields};
 const scheme_def scheme_e_c = {.name = "e-c",
@@ -297,7 +273,8 @@ const scheme_def scheme_e_c = {.name = "e-c",
                                .integrator = "rk2",
                                .passes_min = 2,
                                .reads = CONSPH_PARAM_DELTA,
-                               .rhs = rhs_e_c,
+                               .rhs = rhs_negi,
+                               .terms = &e_c,
                                .regularise = NULL,
                                .fields = negi_fields};
 const scheme_def scheme_ewcsph = {
@@ -309,7 +286,8 @@ const scheme_def scheme_ewcsph = {
     .eos = CONSPH_EOS_TAIT,
     .integrator = "rk2",
     .passes_min = 2,
-    .rhs = rhs_ewcsph,
+    .rhs = rhs_negi,
+    .terms = &ewcsph,
     .regularise = NULL,
     .fields = negi_fields};
 
