@@ -96,7 +96,7 @@ int consph_heat_params_check(const consph_heat_params *prm)
         return consph_fail(CONSPH_EINVAL, "option --nx: %d is out of range (allowed: 4 to 20000)",
                            prm->nx);
     /* measured: 195 bytes per particle at nx = 400 */
-    if (runfiles_memory_check(prm->nx, 512.0, runfiles_machine_memory()) != CONSPH_OK)
+    if (runfiles_memory_check(prm->nx, 2, 512.0, runfiles_machine_memory()) != CONSPH_OK)
         return consph_fail(CONSPH_EINVAL, "option %s", consph_last_error());
     if (!(prm->eta >= 1.0 && prm->eta <= 10.0))
         return consph_fail(CONSPH_EINVAL,

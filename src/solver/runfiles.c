@@ -131,13 +131,14 @@ double runfiles_machine_memory(void)
     return pages > 0 && size > 0 ? (double)pages * (double)size : 0.0;
 }
 
-int runfiles_memory_check(int nx, double bytes_each, double memory)
+int runfiles_memory_check(int nx, int dim, double bytes_each, double memory)
 {
-    const double n = (double)nx * (double)nx, need = n * bytes_each;
+    const double n = pow((double)nx, dim), need = n * bytes_each;
     if (memory > 0.0 && need > memory)
         return consph_fail(CONSPH_EINVAL,
-                           "--nx %d: %.4g particles need about %.3g GiB (%.0f bytes each), more "
+                           "--nx %d: %.4g particles%s need about %.3g GiB (%.0f bytes each), more "
                            "than this machine's memory (%.3g GiB)",
-                           nx, n, need / 1073741824.0, bytes_each, memory / 1073741824.0);
+                           nx, n, dim == 3 ? " (nx^3)" : "", need / 1073741824.0, bytes_each,
+                           memory / 1073741824.0);
     return CONSPH_OK;
 }

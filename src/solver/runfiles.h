@@ -38,9 +38,9 @@ int runfiles_is_run_file(const char *name);
 
 /* This machine's physical memory in bytes (0 when unknown). */
 double runfiles_machine_memory(void);
-/* CONSPH_OK when nx × nx particles of bytes_each fit in `memory` bytes (0: unknown, always);
+/* CONSPH_OK when nx^dim particles of bytes_each fit in `memory` bytes (0: unknown, always);
  * else CONSPH_EINVAL naming --nx, the estimate and the memory. */
-int runfiles_memory_check(int nx, double bytes_each, double memory);
+int runfiles_memory_check(int nx, int dim, double bytes_each, double memory);
 
 /* "  \"key\": value," (null when not finite; no comma when last). */
 void runfiles_json_num(FILE *fp, const char *key, double v, int last);

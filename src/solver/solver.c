@@ -36,13 +36,7 @@ int run_nx_fits(int nx, int dim, double memory)
                            "--nx must be an integer in [4, %d] (at most %.0f particles in %dD), "
                            "not %d (%.4g particles, about %.3g GiB)",
                            nx_max, nmax, dim, nx, n, need / 1073741824.0);
-    if (dim == 2) return runfiles_memory_check(nx, RUN_BYTES_PER_PARTICLE, memory);
-    if (memory > 0.0 && need > memory)
-        return consph_fail(CONSPH_EINVAL,
-                           "--nx %d: %.4g particles (nx^3) need about %.3g GiB (%.0f bytes each), "
-                           "more than this machine's memory (%.3g GiB)",
-                           nx, n, need / 1073741824.0, each, memory / 1073741824.0);
-    return CONSPH_OK;
+    return runfiles_memory_check(nx, dim, each, memory);
 }
 
 int consph_run_nx_check(int nx, int dim)
