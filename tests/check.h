@@ -6,6 +6,20 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
+
+/* The thread count of the next parallel regions, for tests that compare 1 and 2 threads (a
+ * no-op without OpenMP). */
+static inline void check_set_threads(int n)
+{
+#ifdef _OPENMP
+    omp_set_num_threads(n);
+#else
+    (void)n;
+#endif
+}
 
 static int check_failures = 0;
 static int check_count = 0;

@@ -22,24 +22,12 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #include "check.h"
 #include "consph/consph.h"
 #include "solver/solver_internal.h"
 
 #define TWO_PI 6.283185307179586
-
-static void set_threads(int t)
-{
-#ifdef _OPENMP
-    omp_set_num_threads(t);
-#else
-    (void)t;
-#endif
-}
 
 /* Component a of field `name` (stride cap) into n contiguous values. */
 static void gather(const consph_particles *p, const char *name, int a, double *out)
@@ -306,7 +294,7 @@ static void check_case(consph_layout_kind kind, int dim, size_t nx, int periodic
         kit_req rq = {all, (kit_lap)lap, SF_RHOF, cond_max};
         int passes = 0;
         pairs = 0;
-        set_threads(1);
+        check_set_threads(1);
         ok = kit_derivatives(&w.sys, &rq, &pairs, &passes) == CONSPH_OK;
         CHECK(ok, "%dD %s: kit: %s", dim, label, consph_last_error());
         if (!ok) break;
@@ -318,9 +306,9 @@ static void check_case(consph_layout_kind kind, int dim, size_t nx, int periodic
         /* two threads on every pass, however small the set */
         const size_t pmin = w.sys.parallel_min;
         w.sys.parallel_min = 0;
-        set_threads(2);
+        check_set_threads(2);
         ok = kit_derivatives(&w.sys, &rq, &pairs, &passes) == CONSPH_OK;
-        set_threads(1);
+        check_set_threads(1);
         w.sys.parallel_min = pmin;
         double *s2 = snapshot(&w);
         CHECK(ok && s1 && s2 && count_diff(s1, s2, (size_t)(2 * dim * dim + 3 * dim + 2) * n) == 0,

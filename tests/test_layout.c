@@ -8,19 +8,6 @@
 #include "check.h"
 #include "consph/consph.h"
 
-#ifdef _OPENMP
-#include <omp.h>
-#endif
-
-static void set_threads(int n)
-{
-#ifdef _OPENMP
-    omp_set_num_threads(n);
-#else
-    (void)n;
-#endif
-}
-
 static int same_positions(const consph_particles *a, const consph_particles *b)
 {
     if (a->n != b->n || a->dim != b->dim) return 0;
@@ -306,7 +293,7 @@ static void test_polished_2d(void)
     lp.packing.history_every = 100;
     consph_particles p, q, r;
     consph_packing_report rep, rep2, rep3;
-    set_threads(1);
+    check_set_threads(1);
     CHECK(consph_layout_generate(&lp, &p, &rep) == CONSPH_OK, "packed: %s", consph_last_error());
     printf("packed-polished 20^2: %d iterations (polishing from %d), %.2f s, spread %.3e -> %.3e\n",
            rep.iterations, rep.polish_start, rep.seconds, rep.rho_spread_initial,
@@ -356,10 +343,10 @@ static void test_polished_2d(void)
     consph_packing_report_free(&rep);
     CHECK(consph_layout_generate(&lp, &p, &rep) == CONSPH_OK, "60 steps, 1 thread");
     CHECK(rep.polish_start == 30, "both stages run: polishing from %d", rep.polish_start);
-    set_threads(2);
+    check_set_threads(2);
     CHECK(consph_layout_generate(&lp, &q, &rep2) == CONSPH_OK, "60 steps, 2 threads");
     CHECK(same_positions(&p, &q), "independent of the number of threads");
-    set_threads(1);
+    check_set_threads(1);
     lp.seed = 6;
     CHECK(consph_layout_generate(&lp, &r, &rep3) == CONSPH_OK, "packed, other seed");
     CHECK(!same_positions(&p, &r), "another seed gives another arrangement");
@@ -395,7 +382,7 @@ static void test_polished_3d(void)
     lp.packing.history_every = 0;
     consph_particles p;
     consph_packing_report rep;
-    set_threads(1);
+    check_set_threads(1);
     CHECK(consph_layout_generate(&lp, &p, &rep) == CONSPH_OK, "packed 3D: %s", consph_last_error());
     printf("packed-polished 8^3: %d iterations (polishing from %d), %.2f s, spread %.3e -> %.3e\n",
            rep.iterations, rep.polish_start, rep.seconds, rep.rho_spread_initial,
@@ -426,7 +413,7 @@ static void test_packed_rule(void)
     lp.packing.history_every = 0;
     consph_particles p, q;
     consph_packing_report rep, rep2;
-    set_threads(1);
+    check_set_threads(1);
     CHECK(consph_layout_generate(&lp, &p, &rep) == CONSPH_OK, "packed: %s", consph_last_error());
     printf("packed 20^2: %d steps, 100 max|u|dt/h %.3g, spread %.3e -> %.3e\n", rep.iterations,
            rep.move_final, rep.rho_spread_initial, rep.rho_spread_final);
@@ -474,7 +461,7 @@ static void test_packed_geometry(void)
     lp.packing.history_every = 0;
     consph_particles p;
     consph_packing_report rep;
-    set_threads(1);
+    check_set_threads(1);
     CHECK(consph_layout_generate(&lp, &p, &rep) == CONSPH_OK, "packed 32: %s", consph_last_error());
     CHECK(rep.converged, "packed 32 converged in %d steps", rep.iterations);
     CHECK(rep.rho_spread_initial > 0.2, "the start is far from uniform: %g",
@@ -507,11 +494,11 @@ static void test_packed_threads(void)
     lp.packing.history_every = 0;
     consph_particles p, q;
     consph_packing_report rep, rep2;
-    set_threads(1);
+    check_set_threads(1);
     CHECK(consph_layout_generate(&lp, &p, &rep) == CONSPH_OK, "80 steps, 1 thread");
-    set_threads(2);
+    check_set_threads(2);
     CHECK(consph_layout_generate(&lp, &q, &rep2) == CONSPH_OK, "80 steps, 2 threads");
-    set_threads(1);
+    check_set_threads(1);
     CHECK(same_positions(&p, &q) && rep.rho_spread_final == rep2.rho_spread_final &&
               rep.move_final == rep2.move_final,
           "packed is independent of the number of threads");

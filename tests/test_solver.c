@@ -4,23 +4,11 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
-#ifdef _OPENMP
-#include <omp.h>
-#endif
 
 #include "check.h"
 #include "consph/io.h"
 #include "consph/solver.h"
 #include "solver/solver_internal.h"
-
-static void set_threads(int t)
-{
-#ifdef _OPENMP
-    omp_set_num_threads(t);
-#else
-    (void)t;
-#endif
-}
 
 static consph_run_params params(const char *scheme, int nx)
 {
@@ -301,14 +289,14 @@ static void test_threads(const char *scheme, int layout)
     p.ipst_every = 5;
     consph_solver *s[2];
     for (int t = 0; t < 2; ++t) {
-        set_threads(t + 1);
+        check_set_threads(t + 1);
         s[t] = make(&p);
         if (!s[t]) return;
         /* the pass layer runs serially below parallel_min particles */
         s[t]->sys.parallel_min = 1;
         CHECK(run_steps(s[t], 12) == CONSPH_OK, "%s: %s", scheme, consph_last_error());
     }
-    set_threads(1);
+    check_set_threads(1);
     CHECK(same_bits(consph_solver_particles(s[0]), consph_solver_particles(s[1])),
           "%s: 1 and 2 threads differ", scheme);
     consph_solver_free(s[0]);
@@ -453,7 +441,7 @@ static void test_order(void)
 
 int main(void)
 {
-    set_threads(1);
+    check_set_threads(1);
     test_names();
     test_momentum("ewcsph");
     test_momentum("e-c");
