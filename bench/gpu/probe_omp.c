@@ -59,35 +59,35 @@ int main(int argc, char **argv)
     {
         for (int rep = -1; rep < o.reps; ++rep) { /* rep -1: warm-up, not timed */
             double t0 = probe_now();
-#pragma omp target teams distribute parallel for
+#pragma omp target teams distribute parallel for firstprivate(c)
             for (long k = 0; k < ncell; ++k) {
                 count[k] = 0;
                 fill[k] = 0;
             }
-#pragma omp target teams distribute parallel for
+#pragma omp target teams distribute parallel for firstprivate(c)
             for (long i = 0; i < n; ++i) {
                 cell[i] = probe_cell_of(&c, pos, (int)i);
 #pragma omp atomic update
                 count[cell[i]] += 1;
             }
-#pragma omp target teams distribute parallel for
+#pragma omp target teams distribute parallel for firstprivate(c)
             for (int b = 0; b < PROBE_SCAN_BLOCKS; ++b)
                 bsum[b] = probe_scan_block_sum(count, (int)ncell, b);
 #pragma omp target
             probe_scan_blocks(bsum, off, (int)ncell);
-#pragma omp target teams distribute parallel for
+#pragma omp target teams distribute parallel for firstprivate(c)
             for (int b = 0; b < PROBE_SCAN_BLOCKS; ++b)
                 probe_scan_block_write(count, bsum, off, (int)ncell, b);
-#pragma omp target teams distribute parallel for
+#pragma omp target teams distribute parallel for firstprivate(c)
             for (long i = 0; i < n; ++i) {
                 int slot;
 #pragma omp atomic capture
                 slot = fill[cell[i]]++;
                 idx[off[cell[i]] + slot] = (int)i;
             }
-#pragma omp target teams distribute parallel for
+#pragma omp target teams distribute parallel for firstprivate(c)
             for (long k = 0; k < ncell; ++k) probe_sort_cell(off, idx, (int)k);
-#pragma omp target teams distribute parallel for
+#pragma omp target teams distribute parallel for firstprivate(c)
             for (long k = 0; k < n; ++k) {
                 const long i = idx[k];
                 for (int a = 0; a < d; ++a) {
@@ -97,12 +97,12 @@ int main(int argc, char **argv)
                 srho[k] = rho[i];
             }
             double t1 = probe_now();
-#pragma omp target teams distribute parallel for
+#pragma omp target teams distribute parallel for firstprivate(c)
             for (long k = 0; k < n; ++k) rho_a[k] = probe_density(&c, spos, off, (int)k);
             double t2 = probe_now();
-#pragma omp target teams distribute parallel for
+#pragma omp target teams distribute parallel for firstprivate(c)
             for (long k = 0; k < n; ++k) p[k] = probe_tait(&c, srho[k]);
-#pragma omp target teams distribute parallel for
+#pragma omp target teams distribute parallel for firstprivate(c)
             for (long k = 0; k < n; ++k) {
                 double out[4];
                 probe_rate(&c, spos, svel, srho, p, off, (int)k, out);
@@ -114,7 +114,7 @@ int main(int argc, char **argv)
             if (t2 - t1 < r.t_a) r.t_a = t2 - t1;
             if (t3 - t2 < r.t_b) r.t_b = t3 - t2;
         }
-#pragma omp target teams distribute parallel for reduction(+ : pairs)
+#pragma omp target teams distribute parallel for reduction(+ : pairs) map(tofrom : pairs) firstprivate(c)
         for (long k = 0; k < n; ++k) pairs += probe_count(&c, spos, off, (int)k);
 #pragma omp target update from(idx [0:n])
     }

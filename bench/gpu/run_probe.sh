@@ -82,8 +82,8 @@ note "host $(uname -n) $(uname -r), $(nproc) cores, $NT threads for the CPU runs
     echo "== gcc"; gcc --version 2>&1 | head -1
     echo "== memory"; free -g 2>&1 | head -2
     echo "== nvidia-smi"
-    timeout 30 nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm,compute_cap --format=csv 2>&1
-    timeout 30 nvidia-smi 2>&1
+    timeout 15 nvidia-smi --query-gpu=name,driver_version,memory.total,clocks.max.sm,compute_cap --format=csv 2>&1
+    timeout 15 nvidia-smi 2>&1
     echo "== libcuda"; (ldconfig -p 2>/dev/null | grep -E 'libcuda\.so') || echo "not in ldconfig"
 } > "$RAW/environment.log" 2>&1
 cat "$RAW/environment.log"
@@ -144,7 +144,7 @@ if [ -n "$NVCC" ] && [ "$NVCC" != none ] && [ -x "$NVCC" ]; then
         name=$([ $fm = true ] && echo fma || echo nofma)
         for arch in "-arch=native" "-arch=sm_90" \
             "-gencode=arch=compute_90,code=sm_90 -gencode=arch=compute_90,code=compute_90" \
-            "-arch=sm_80"; do
+            "-arch=sm_90 -allow-unsupported-compiler" "-arch=sm_80"; do
             tag=$(echo "$arch" | tr -c 'A-Za-z0-9_\n' '_' | cut -c1-30)
             part "build_cuda_${name}_$tag" 180 "$NVCC" -O3 -fmad=$fm $arch \
                 -o "$WORK/probe_cuda_$name" "$HERE/probe.cu" || continue
@@ -273,4 +273,6 @@ grep -h '^CELLORDER FAIL' "$RAW"/*.log > /dev/null 2>&1 && status "CELLORDER FAI
 bash "$HERE/report.sh" "$OUT" "$NT" > "$OUT/gpu_probe.md"
 note "wrote $OUT/gpu_probe.md ($(elapsed)s in all)"
 cat "$OUT/gpu_probe.md"
+exec >&- 2>&-
+sleep 1 # let tee finish run.log
 exit 0
