@@ -49,6 +49,19 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
  * the periodic image of the pair, so that x_ij = x_i - (x_j + image·len) per axis, which holds
  * as long as the positions are not wrapped between builds. x_ref holds the positions at the
  * build, to tell when a particle has moved far enough to need a new list. */
+/* The packing's parameter checks (those consph_layout_pack makes first). */
+int layout_check_packing(const consph_layout_params *lp);
+
+/* The cache (cache.c): 1 when it is on and the kind is cached; a hit fills the positions of p
+ * (initialised, n and dim of lp) and the report (when non-NULL) and returns 1; a miss or a bad
+ * file returns 0 (a bad file with one line on stderr). store writes a file (a failure to write
+ * warns once on stderr and turns the writes off). */
+int layout_cache_enabled(const consph_layout_params *lp);
+int layout_cache_load(const consph_layout_params *lp, consph_particles *p,
+                      consph_packing_report *report);
+void layout_cache_store(const consph_layout_params *lp, const consph_particles *p,
+                        const consph_packing_report *report);
+
 /* Entries past the end of the list arrays that a vector loop may read (whole blocks of four). */
 #define PACK_SLACK 4
 

@@ -66,11 +66,19 @@
  * made Wendland kernels, whose support is 2h, unstable). It stops as soon as
  * max_i |rho_i/rho0 - 1| < tol, or after max_iter steps.
  *
- * Every pair sum is a pass (consph_pass_run) over systems wrapping the particles and one
- * neighbour search: W for the density, W'/r for the forces. Reproducibility: the passes are
- * gathers with neighbours in a fixed order and the only reductions are max/min, which are exact;
- * so the result does not depend on the number of threads. Particles are kept in cell order during
- * the iteration for memory locality and returned in lattice order: particle i of the result
+ * The pair sums walk a private neighbour list (pairlist.c, a Verlet list): each particle's
+ * neighbours within the kernel radius plus a skin of 0.1 radius, with the periodic image of each
+ * pair, rebuilt (and the particles re-sorted into cell order, for memory locality) only once a
+ * particle has moved half the skin since the last build; the positions are wrapped into the box
+ * at the builds only, so the images stay valid between them. Per step, one walk computes the
+ * densities and W'/r of the force's kernel (kept per list entry), a second the forces. The
+ * separations, square roots and force sums run four list entries at a time (AVX2 where the
+ * processor has it; the portable loops give the same values), each particle's sums in four
+ * interleaved partial sums in list order. Reproducibility: every sum is a gather into particle
+ * i in the fixed order of its list and the only reductions are max, which are exact, so the
+ * result does not depend on the number of threads. Changing any of this moves the positions at
+ * round-off: bump CONSPH_LAYOUT_PACKING_VERSION (include/consph/layout.h), the cache's key.
+ * Particles are returned in lattice order: particle i of the result
  * started at lattice node i. */
 #include <math.h>
 #include <stdlib.h>
@@ -206,6 +214,12 @@ static int check_packing(const consph_layout_params *lp, consph_kernel_id *id)
                            "packing needs a radial kernel",
                            name, pp->kernel);
     return CONSPH_OK;
+}
+
+int layout_check_packing(const consph_layout_params *lp)
+{
+    consph_kernel_id id;
+    return check_packing(lp, &id);
 }
 
 /* The short-range repulsion of stage 1 and 2. */

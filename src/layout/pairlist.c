@@ -33,7 +33,8 @@ int pack_list_init(pack_list *L, const consph_particles *p, double radius)
     L->radius = radius;
     for (int a = 0; a < p->dim; ++a) L->len[a] = consph_box_length(&p->box, a);
     int ok = (L->start = consph_calloc(p->n + 1, sizeof(size_t))) != NULL;
-    for (int a = 0; a < p->dim; ++a) ok &= (L->x_ref[a] = consph_calloc(p->n, sizeof(double))) != NULL;
+    for (int a = 0; a < p->dim; ++a)
+        ok &= (L->x_ref[a] = consph_calloc(p->n, sizeof(double))) != NULL;
     if (!ok) {
         pack_list_free(L);
         return CONSPH_ENOMEM;
@@ -50,7 +51,7 @@ static int8_t image_of(double xi, double xj, double dx, double len)
 
 /* Fills list entries [L->start[i], L->start[i + 1]) of particle i, or counts them (fill = 0). */
 static size_t list_particle(pack_list *L, const consph_nnps *grid, const consph_particles *p,
-                           size_t i, consph_nbrs *nb, int fill)
+                            size_t i, consph_nbrs *nb, int fill)
 {
     size_t m = consph_nnps_query_particle(grid, i, nb);
     if (m == (size_t)-1 || !fill) return m;
