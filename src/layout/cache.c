@@ -251,7 +251,8 @@ int layout_cache_load(const consph_layout_params *lp, consph_particles *p,
     int absent = 0;
     unsigned char *data = slurp(path, limit, &len, &absent);
     if (!data) {
-        if (!absent) fprintf(stderr, "consph: layout cache %s: cannot read it; recomputing\n", path);
+        if (!absent)
+            fprintf(stderr, "consph: layout cache %s: cannot read it; recomputing\n", path);
         return 0;
     }
     const char *why = NULL;
@@ -340,7 +341,8 @@ int layout_cache_load(const consph_layout_params *lp, consph_particles *p,
         for (size_t i = 0; i < n; ++i)
             if (!isfinite(p->x[a][i]) || p->x[a][i] < lp->box.lo[a] ||
                 !(p->x[a][i] < lp->box.hi[a])) {
-                fprintf(stderr, "consph: layout cache %s: a position outside the box; recomputing it\n",
+                fprintf(stderr,
+                        "consph: layout cache %s: a position outside the box; recomputing it\n",
                         path);
                 consph_packing_report_free(&rep);
                 return 0;
@@ -374,8 +376,9 @@ static int make_dirs(const char *dir)
 static void warn_unwritable(const char *what)
 {
     if (!cache_write_warned)
-        fprintf(stderr, "consph: warning: cannot write the layout cache in %s (%s: %s); going on "
-                        "without it\n",
+        fprintf(stderr,
+                "consph: warning: cannot write the layout cache in %s (%s: %s); going on "
+                "without it\n",
                 cache_dir, what, strerror(errno));
     cache_write_warned = 1;
 }

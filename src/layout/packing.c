@@ -125,6 +125,7 @@ typedef struct pack_work {
     size_t *origin_tmp;
     size_t *perm;
     double *scratch;
+    double *xv; /* positions interleaved per particle (stride 2 in 2D, 4 in 3D), per step */
 } pack_work;
 
 static void work_free(pack_work *w)
@@ -139,6 +140,7 @@ static void work_free(pack_work *w)
     free(w->origin_tmp);
     free(w->perm);
     free(w->scratch);
+    free(w->xv);
     memset(w, 0, sizeof *w);
 }
 
@@ -158,6 +160,7 @@ static int work_alloc(pack_work *w, size_t n, int dim, int need_glass_rho)
     ok &= (w->origin_tmp = consph_calloc(n, sizeof(size_t))) != NULL;
     ok &= (w->perm = consph_calloc(n, sizeof(size_t))) != NULL;
     ok &= (w->scratch = consph_calloc(n, sizeof(double))) != NULL;
+    ok &= (w->xv = consph_calloc(4 * n + 4, sizeof(double))) != NULL;
     if (!ok) {
         work_free(w);
         return CONSPH_ENOMEM;
@@ -280,6 +283,8 @@ typedef struct pack_sweep {
     const double *rho;         /* force: the density it acts on */
     const double *weight;      /* force: per particle, V_j = m/rho_j (stage 1) or e_j (stage 2) */
     int avx2;                  /* the processor has AVX2: list_geometry's vector path */
+    int fused_quintic;         /* density: W and the force's W'/r are one quintic (AVX2) */
+    const double *xv; /* the positions interleaved, stride 2 in 2D, 4 in 3D (pack_work's) */
 } pack_sweep;
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
@@ -295,17 +300,46 @@ __attribute__((target("avx2"))) static size_t geometry_avx2(int dim, const pack_
     const pack_list *L = sw->L;
     const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
     const uint32_t *J = L->j + e0;
+    const double *xv = sw->xv;
+    __m256d xi[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM];
+    for (int a = 0; a < dim; ++a) {
+        xi[a] = _mm256_set1_pd(sw->x[a][i]);
+        len[a] = _mm256_set1_pd(L->len[a]);
+    }
     for (size_t q = 0; q < m; q += 4) {
-        const __m128i idx = _mm_loadu_si128((const __m128i *)(J + q));
+        /* x_j of the four entries, one axis per vector: from the interleaved copy (whole
+         * particles per load) in 2D and 3D, gathered in 1D. */
+        __m256d xj[CONSPH_MAX_DIM];
+        if (dim == 2) {
+            const double *p0 = xv + 2 * (size_t)J[q], *p1 = xv + 2 * (size_t)J[q + 1];
+            const double *p2 = xv + 2 * (size_t)J[q + 2], *p3 = xv + 2 * (size_t)J[q + 3];
+            /* lo = [x0 y0 x2 y2], hi = [x1 y1 x3 y3]: the unpacks give [x0 x1 x2 x3] */
+            const __m256d lo =
+                _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p0)), _mm_loadu_pd(p2), 1);
+            const __m256d hi =
+                _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p1)), _mm_loadu_pd(p3), 1);
+            xj[0] = _mm256_unpacklo_pd(lo, hi);
+            xj[1] = _mm256_unpackhi_pd(lo, hi);
+        } else if (dim == 3) {
+            const __m256d r0 = _mm256_loadu_pd(xv + 4 * (size_t)J[q]);
+            const __m256d r1 = _mm256_loadu_pd(xv + 4 * (size_t)J[q + 1]);
+            const __m256d r2 = _mm256_loadu_pd(xv + 4 * (size_t)J[q + 2]);
+            const __m256d r3 = _mm256_loadu_pd(xv + 4 * (size_t)J[q + 3]);
+            const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
+            const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
+            xj[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
+            xj[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
+            xj[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
+        } else {
+            xj[0] = _mm256_i32gather_pd(sw->x[0], _mm_loadu_si128((const __m128i *)(J + q)), 8);
+        }
         __m256d rr = _mm256_setzero_pd();
         for (int a = 0; a < dim; ++a) {
             int32_t img4;
             memcpy(&img4, L->image[a] + e0 + q, sizeof img4);
             const __m256d img = _mm256_cvtepi32_pd(_mm_cvtepi8_epi32(_mm_cvtsi32_si128(img4)));
-            const __m256d xj = _mm256_i32gather_pd(sw->x[a], idx, 8);
-            const __m256d xi = _mm256_set1_pd(sw->x[a][i]);
             const __m256d d =
-                _mm256_sub_pd(xi, _mm256_add_pd(xj, _mm256_mul_pd(img, _mm256_set1_pd(L->len[a]))));
+                _mm256_sub_pd(xi[a], _mm256_add_pd(xj[a], _mm256_mul_pd(img, len[a])));
             if (with_dx) _mm256_storeu_pd(b->dx[a] + q, d);
             rr = a == 0 ? _mm256_mul_pd(d, d) : _mm256_add_pd(rr, _mm256_mul_pd(d, d));
         }
@@ -360,21 +394,75 @@ list_geometry(const int dim, const pack_sweep *sw, size_t i, pair_buf *b, const 
     return m;
 }
 
-/* sum_q v[q] in four interleaved partial sums combined in a fixed order: independent of the
- * number of threads, and without one addition's latency per term. */
+/* sum_q v[q] in four interleaved partial sums (term q in sum q mod 4) combined in a fixed order:
+ * independent of the number of threads, without one addition's latency per term, and what the
+ * vector loops compute lane by lane. */
 static inline double sum4(const double *v, size_t m)
 {
-    double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
-    size_t q = 0;
-    for (; q + 4 <= m; q += 4) {
-        a0 += v[q];
-        a1 += v[q + 1];
-        a2 += v[q + 2];
-        a3 += v[q + 3];
-    }
-    for (; q < m; ++q) a0 += v[q];
-    return (a0 + a1) + (a2 + a3);
+    double a[4] = {0.0, 0.0, 0.0, 0.0};
+    for (size_t q = 0; q < m; ++q) a[q & 3] += v[q];
+    return (a[0] + a[1]) + (a[2] + a[3]);
 }
+
+#ifdef PACK_AVX2
+/* The quintic's W (summed as sum4) and W'/r (into dwr[0..m)) of the distances r in one loop:
+ * the operations of consph_kernel_eval_batch's quintic (src/kernels/kernels.c), so the same
+ * values, with the powers shared. */
+__attribute__((target("avx2"))) static double quintic_avx2(const consph_kernel *k, size_t m,
+                                                           const double *r, double *dwr)
+{
+    const __m256d inv_h = _mm256_set1_pd(k->inv_h), norm = _mm256_set1_pd(k->norm);
+    const __m256d norm1 = _mm256_set1_pd(k->norm * k->inv_h);
+    /* W''(0) = norm h^-2 f''(0), f''(0) = 20·27 - 120·8 + 300 */
+    const __m256d at_zero = _mm256_set1_pd(
+        k->norm * k->inv_h * k->inv_h * (20.0 * 3.0 * 3.0 * 3.0 - 120.0 * 2.0 * 2.0 * 2.0 + 300.0));
+    const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
+    const __m256d c1 = _mm256_set1_pd(1.0), c2 = _mm256_set1_pd(2.0), c3 = _mm256_set1_pd(3.0);
+    const __m256d c6 = _mm256_set1_pd(6.0), c15 = _mm256_set1_pd(15.0);
+    const __m256d cm5 = _mm256_set1_pd(-5.0), c30 = _mm256_set1_pd(30.0),
+                  c75 = _mm256_set1_pd(75.0);
+    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
+    __m256d acc = zero;
+    for (size_t q = 0; q < m; q += 4) {
+        const __m256d rp = _mm256_loadu_pd(r + q), x = _mm256_mul_pd(rp, inv_h);
+        const __m256d t3 = _mm256_sub_pd(c3, x);
+        __m256d t2 = _mm256_sub_pd(c2, x), t1 = _mm256_sub_pd(c1, x);
+        t2 = _mm256_and_pd(t2, _mm256_cmp_pd(t2, zero, _CMP_GT_OQ));
+        t1 = _mm256_and_pd(t1, _mm256_cmp_pd(t1, zero, _CMP_GT_OQ));
+        const __m256d s3 = _mm256_mul_pd(t3, t3), s2 = _mm256_mul_pd(t2, t2),
+                      s1 = _mm256_mul_pd(t1, t1);
+        const __m256d p3 = _mm256_mul_pd(s3, s3), p2 = _mm256_mul_pd(s2, s2),
+                      p1 = _mm256_mul_pd(s1, s1);
+        /* pow5(t) - 6 pow5(t2) + 15 pow5(t1), pow5 = (t²)² t */
+        __m256d f = _mm256_add_pd(
+            _mm256_sub_pd(_mm256_mul_pd(p3, t3), _mm256_mul_pd(c6, _mm256_mul_pd(p2, t2))),
+            _mm256_mul_pd(c15, _mm256_mul_pd(p1, t1)));
+        /* -5 pow4(t) + 30 pow4(t2) - 75 pow4(t1) */
+        __m256d df = _mm256_sub_pd(_mm256_add_pd(_mm256_mul_pd(cm5, p3), _mm256_mul_pd(c30, p2)),
+                                   _mm256_mul_pd(c75, p1));
+        const __m256d inside = _mm256_cmp_pd(x, c3, _CMP_LT_OQ); /* q < support (and q >= 3: 0) */
+        const __m256d valid =
+            _mm256_castsi256_pd(_mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane));
+        const __m256d w = _mm256_and_pd(inside, _mm256_mul_pd(norm, f));
+        acc = _mm256_add_pd(acc, _mm256_and_pd(valid, w));
+        const __m256d pos = _mm256_cmp_pd(rp, zero, _CMP_GT_OQ);
+        const __m256d v = _mm256_div_pd(_mm256_mul_pd(norm1, df), _mm256_blendv_pd(one, rp, pos));
+        const __m256d d = _mm256_and_pd(inside, _mm256_blendv_pd(at_zero, v, pos));
+        /* Whole blocks stored whole; the last one entry by entry, since the entries past m are
+         * another particle's (a masked store is slow on some processors). */
+        if (q + 4 <= m) {
+            _mm256_storeu_pd(dwr + q, d);
+        } else {
+            double tail[4];
+            _mm256_storeu_pd(tail, d);
+            for (size_t e = q; e < m; ++e) dwr[e] = tail[e - q];
+        }
+    }
+    double a[4];
+    _mm256_storeu_pd(a, acc);
+    return (a[0] + a[1]) + (a[2] + a[3]);
+}
+#endif
 
 /* rho_i = m sum_j W_ij over the list with the kernel k (the entries past its support add exact
  * zeros). */
@@ -395,6 +483,13 @@ density_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_bu
     const force_params *fp = sw->fp;
     for (size_t i = i0; i < i1; ++i) {
         const size_t m = list_geometry(dim, sw, i, b, 0);
+#ifdef PACK_AVX2
+        if (sw->fused_quintic) {
+            sw->w->rho[i] =
+                fp->mass * quintic_avx2(fp->target, m, b->r, sw->L->dwr + sw->L->start[i]);
+            continue;
+        }
+#endif
         sw->w->rho[i] = list_density(fp->target, fp->mass, b, m);
         if (sw->glass) sw->w->rho_glass[i] = list_density(fp->glass, fp->mass, b, m);
         consph_kernel_eval_batch(sw->kern, m, b->r, NULL, sw->L->dwr + sw->L->start[i], NULL);
@@ -426,8 +521,9 @@ accel_sums_avx2(int dim, size_t m, const uint32_t *J, const double *dwr, const d
     const __m256d vrange2 = _mm256_set1_pd(range2);
     const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
     for (size_t q = 0; q < m; q += 4) {
-        const __m128i idx = _mm_loadu_si128((const __m128i *)(J + q));
-        __m256d wq = _mm256_i32gather_pd(weight, idx, 8);
+        /* four loads rather than a gather instruction, which is slow on some processors */
+        __m256d wq =
+            _mm256_set_pd(weight[J[q + 3]], weight[J[q + 2]], weight[J[q + 1]], weight[J[q]]);
         if (polish) wq = _mm256_add_pd(vei, wq);
         const __m256d rr = _mm256_loadu_pd(r2 + q);
         const __m256i valid =
@@ -577,6 +673,7 @@ static void sweep_init(pack_sweep *sw, const force_params *fp, const pack_list *
     sw->L = L;
     sw->w = w;
     for (int a = 0; a < p->dim; ++a) sw->x[a] = p->x[a];
+    sw->xv = w->xv;
 #ifdef PACK_AVX2
     sw->avx2 = __builtin_cpu_supports("avx2");
 #endif
@@ -589,8 +686,16 @@ static int compute_density(const force_params *fp, const pack_list *L, const con
 {
     pack_sweep sw;
     sweep_init(&sw, fp, L, p, w);
+    /* The interleaved copy of the positions that the vector path loads whole particles from;
+     * the force pass of the same step reads it too. */
+    const size_t stride = p->dim == 3 ? 4 : (size_t)p->dim;
+    for (int a = 0; a < p->dim; ++a)
+        for (size_t i = 0; i < w->n; ++i) w->xv[stride * i + (size_t)a] = p->x[a][i];
     sw.glass = !fp->polish && w->rho_glass;
     sw.kern = fp->polish ? fp->target : fp->glass;
+    sw.fused_quintic = sw.avx2 && !sw.glass && fp->target->id == CONSPH_KERNEL_QUINTIC &&
+                       sw.kern->id == CONSPH_KERNEL_QUINTIC && sw.kern->h == fp->target->h &&
+                       sw.kern->dim == fp->target->dim;
     return sweep_run(&sw, 0);
 }
 
