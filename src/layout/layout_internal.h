@@ -49,6 +49,10 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
  * the periodic image of the pair, so that x_ij = x_i - (x_j + image·len) per axis, which holds
  * as long as the positions are not wrapped between builds. x_ref holds the positions at the
  * build, to tell when a particle has moved far enough to need a new list. */
+/* Tests: 1 makes the packing use its portable loops even where the processor has AVX2 (both
+ * give the same positions bit for bit); 0 restores the choice by processor. */
+void layout_pack_set_portable(int on);
+
 /* The packing's parameter checks (those consph_layout_pack makes first). */
 int layout_check_packing(const consph_layout_params *lp);
 

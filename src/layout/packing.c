@@ -273,6 +273,14 @@ static int pair_buf_alloc(pair_buf *b, size_t len)
     return ok;
 }
 
+/* Set by tests: the portable loops even where the processor has AVX2. */
+static int pack_portable_only;
+
+void layout_pack_set_portable(int on)
+{
+    pack_portable_only = on;
+}
+
 /* What the pair sums of one step read and write. */
 typedef struct pack_sweep {
     const force_params *fp;
@@ -676,7 +684,7 @@ static void sweep_init(pack_sweep *sw, const force_params *fp, const pack_list *
     for (int a = 0; a < p->dim; ++a) sw->x[a] = p->x[a];
     sw->xv = w->xv;
 #ifdef PACK_AVX2
-    sw->avx2 = __builtin_cpu_supports("avx2");
+    sw->avx2 = !pack_portable_only && __builtin_cpu_supports("avx2");
 #endif
 }
 
