@@ -11,6 +11,7 @@
 
 #include "consph/core.h"
 #include "consph/io.h"
+#include "consph/layout.h"
 
 static consph_fdstream stdout_stream = {STDOUT_FILENO, 0};
 static int stdout_wrapped;
@@ -462,5 +463,32 @@ int cli_check_periodic_dim(const cli_command *cmd, const char *text, int dim)
                              "option --periodic: axis %c, but the particles are %dD; allowed: "
                              "yes, no, or axes among %.*s",
                              "xyz"[a], dim, dim, "xyz");
+    return 0;
+}
+
+int cli_cache_apply(const cli_command *cmd, const cli_cache *c)
+{
+    if (c->off && c->dir)
+        return cli_error(cmd, "options --cache and --no-cache contradict each other: give one");
+    if (c->off) {
+        consph_layout_cache_set(NULL);
+        return 0;
+    }
+    char dir[4096];
+    const char *xdg = getenv("XDG_CACHE_HOME"), *home = getenv("HOME");
+    int k = -1;
+    if (c->dir)
+        k = snprintf(dir, sizeof dir, "%s", c->dir);
+    else if (xdg && xdg[0] == '/') /* the XDG rule: a relative path is ignored */
+        k = snprintf(dir, sizeof dir, "%s/consph", xdg);
+    else if (home && *home)
+        k = snprintf(dir, sizeof dir, "%s/.cache/consph", home);
+    if (k < 0) {
+        consph_layout_cache_set(NULL);
+        return 0;
+    }
+    if ((size_t)k >= sizeof dir || consph_layout_cache_set(dir) != 0)
+        return cli_error(cmd, "option --cache: the directory name is too long (at most %d bytes)",
+                         4000);
     return 0;
 }

@@ -97,6 +97,34 @@ int cli_bad_periodic(const cli_command *cmd, const char *text);
  * that a size the machine cannot hold fails up front instead of at allocation. */
 int cli_check_nx(const cli_command *cmd, long nx, long dim);
 
+/* The options of the cache of packed layouts, the same in every command that can generate one
+ * (layout, approx, study, run): CLI_CACHE_OPTS(c) in the option table, cli_cache_apply(cmd, &c)
+ * once parsed. */
+typedef struct cli_cache {
+    const char *dir; /* --cache DIR */
+    int off;         /* --no-cache */
+} cli_cache;
+#define CLI_CACHE_OPTS(c)                                                                          \
+    {"--cache",                                                                                    \
+     CLI_STRING,                                                                                   \
+     &(c).dir,                                                                                     \
+     "DIR",                                                                                        \
+     "directory of the cache of packed layouts (default $XDG_CACHE_HOME/consph, else "             \
+     "~/.cache/consph)",                                                                           \
+     NULL,                                                                                         \
+     0,                                                                                            \
+     0,                                                                                            \
+     0},                                                                                           \
+    {                                                                                              \
+        "--no-cache", CLI_FLAG, &(c).off, NULL,                                                    \
+            "neither read nor write the cache of packed layouts", NULL, 0, 0, 0                    \
+    }
+/* Turns the library's layout cache on (--cache DIR, or the default directory) or off
+ * (--no-cache, or no default directory: neither XDG_CACHE_HOME nor HOME set). 0, or the
+ * rejection naming the option (CLI_EXIT_USAGE). A directory that cannot be written is no error
+ * here: the first write warns and the run goes on without the cache. */
+int cli_cache_apply(const cli_command *cmd, const cli_cache *c);
+
 struct consph_particles;
 struct consph_read_report;
 /* After a particle file was read: one line on stderr saying which box and periodicity were

@@ -348,6 +348,7 @@ int cmd_approx(int argc, char **argv)
     double hdx = 1.2, eps = 0.2, sigma = 0.1, tol = 1e-4, beta = 0.0;
     long dim = 2, seed = 1, max_iter = 0; /* 0: the layout kind's default */
     cli_list nx = {0, {0}};
+    cli_cache cache = {NULL, 0};
     char volume_choices[128] = "";
     for (int v = 0; v < CONSPH_VOLUME_COUNT; ++v) {
         if (v) strcat(volume_choices, ",");
@@ -412,6 +413,7 @@ int cmd_approx(int argc, char **argv)
          FORMAT_CHOICES, 0, 0, 0},
         {"--beta", CLI_DOUBLE, &beta, "B", "the exponent of --h-policy beta, > dim", NULL, 0, 1e3,
          0},
+        CLI_CACHE_OPTS(cache),
     };
     enum {
         O_OP = 0,
@@ -461,6 +463,7 @@ int cmd_approx(int argc, char **argv)
                        NULL};
     int rc = cli_parse(&cmd, argc, argv);
     if (rc) return rc == 1 ? 0 : rc;
+    if ((rc = cli_cache_apply(&cmd, &cache))) return rc;
     if (!opts[O_OP].given) return cli_error(&cmd, "option --op is required; allowed: " OP_CHOICES);
     const int from_files = opts[O_PARTICLES].given;
     if (!from_files && !opts[O_NX].given)

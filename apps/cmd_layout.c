@@ -50,6 +50,11 @@ static const char layout_details[] =
     "lie in [1e-50, 1e50] (kernels divide by h^(D+2)). A lone particle in a box that is not\n"
     "periodic has no neighbour: its spacing statistics print as n/a.\n"
     "\n"
+    "The packed kinds are kept in a cache of layouts (--cache DIR, default\n"
+    "$XDG_CACHE_HOME/consph or ~/.cache/consph; --no-cache to bypass it): the same parameters\n"
+    "read the file instead of packing again. README.md says what the key holds and how to\n"
+    "clear it.\n"
+    "\n"
     "exit status: 0 success, 1 failure while running, 2 bad usage (nothing is written)";
 
 static int opt_given(const cli_opt *opts, int nopts, const char *name)
@@ -142,8 +147,9 @@ static int layout_from_file(const cli_command *cmd, const char *in, const char *
 static void print_report(const consph_packing_report *r, const consph_layout_params *lp)
 {
     const int converged = r->converged, polished = lp->kind == CONSPH_LAYOUT_PACKED_POLISHED;
-    printf("packing: %d iterations in %.3f s, max|rho/rho0-1| %.3e -> %.3e", r->iterations,
-           r->seconds, r->rho_spread_initial, r->rho_spread_final);
+    printf("packing: %d iterations in %.3f s%s, max|rho/rho0-1| %.3e -> %.3e", r->iterations,
+           r->seconds, r->from_cache ? " (read from the layout cache)" : "", r->rho_spread_initial,
+           r->rho_spread_final);
     if (polished)
         printf(" (tol %.1e, %s)\n", lp->packing.tol,
                converged ? "converged" : "NOT converged: --max-iter reached");
@@ -173,6 +179,7 @@ int cmd_layout(int argc, char **argv)
     long dim = 0, nx = 0, seed = 1, max_iter = 0, history_every = 100;
     double eps = 0.2, hdx = 1.2, tol = 1e-4, move_tol = 1e-2, perturb = 0.5;
     const char *kernel = "quintic", *out = NULL, *in = NULL, *box_text = NULL;
+    cli_cache cache = {NULL, 0};
     cli_opt opts[] = {
         {"--kind", CLI_CHOICE, &kind_index, "K", "particle arrangement (required)",
          consph_layout_names(), 0, 0, 0},
@@ -212,6 +219,7 @@ int cmd_layout(int argc, char **argv)
          0, 0},
         {"--box", CLI_STRING, &box_text, "x0:x1,y0:y1[,z0:z1]",
          "with --in: the domain (default: the file's box)", NULL, 0, 0, 0},
+        CLI_CACHE_OPTS(cache),
     };
     cli_command cmd = {
         "layout",
@@ -228,6 +236,7 @@ int cmd_layout(int argc, char **argv)
     int rc = cli_parse(&cmd, argc, argv);
     if (rc == 1) return 0;
     if (rc) return rc;
+    if ((rc = cli_cache_apply(&cmd, &cache))) return rc;
 
     consph_particle_format out_fmt = CONSPH_FORMAT_CSV;
     if (out) consph_particle_format_from_path(out, &out_fmt);

@@ -260,6 +260,7 @@ int cmd_run(int argc, char **argv)
     long snap_every = 0, ckpt_every = 0, threads = 0;
     int format = 0, heat_lap = 1, heat_walls = 0;
     int overwrite = 0;
+    cli_cache cache = {NULL, 0};
     double heat_eta = 2.0, heat_eps = 0.0;
     static param_opts po;
     cli_opt opts[RUN_OPTS_MAX + 16];
@@ -284,6 +285,7 @@ int cmd_run(int argc, char **argv)
         {"--eps", CLI_DOUBLE, &heat_eps, "E", "heat: perturbation ε of the interior (002 §6.2)",
          NULL, 0, 1, 0},
         {"--walls", CLI_CHOICE, &heat_walls, "W", "heat: boundary data", "sin,linear", 0, 0, 0},
+        CLI_CACHE_OPTS(cache),
     };
     const int nothers = (int)(sizeof others / sizeof others[0]);
     for (int k = 0; k < nothers; ++k) opts[nparam + k] = others[k];
@@ -299,6 +301,7 @@ int cmd_run(int argc, char **argv)
                        1,     positional};
     int rc = cli_parse(&cmd, argc, argv);
     if (rc) return rc == 1 ? 0 : rc;
+    if ((rc = cli_cache_apply(&cmd, &cache))) return rc;
     if (!positional[0] && !restart)
         return cli_error(&cmd, "a problem is required (allowed: %s, heat)", consph_problem_names());
     /* Before the packing, the restart or the run, not at their first write. */

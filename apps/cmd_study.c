@@ -226,6 +226,7 @@ int cmd_study(int argc, char **argv)
     int quick = 0, list = 0, estimate_only = 0;
     const char *out = "out/studies";
     const char *name = NULL, *particles = NULL, *box_text = NULL, *periodic_text = NULL;
+    cli_cache cache = {NULL, 0};
     cli_opt opts[] = {
         {"--list", CLI_FLAG, &list, NULL, "list the available studies and exit", NULL, 0, 0, 0},
         {"--quick", CLI_FLAG, &quick, NULL,
@@ -242,6 +243,7 @@ int cmd_study(int argc, char **argv)
          "with --particles: the domain (default: the box each file carries)", NULL, 0, 0, 0},
         {"--periodic", CLI_STRING, &periodic_text, "yes|no|AXES",
          "with --particles: periodic axes (default: each file's own)", NULL, 0, 0, 0},
+        CLI_CACHE_OPTS(cache),
     };
     const char *positional[1] = {NULL};
     cli_command cmd = {"study",
@@ -263,6 +265,7 @@ int cmd_study(int argc, char **argv)
                        positional};
     int rc = cli_parse(&cmd, argc, argv);
     if (rc) return rc == 1 ? 0 : rc;
+    if ((rc = cli_cache_apply(&cmd, &cache))) return rc;
     if (list) return list_studies(&cmd);
     char why[2200];
     if (!*out || !dir_creatable(out, why, sizeof why))

@@ -67,6 +67,7 @@ typedef struct consph_packing_report {
     int polish_start;  /* iteration at which the density-polishing stage began, -1 if never */
     int converged;     /* the stopping rule was met before max_iter */
     double move_final; /* packed: 100 max|u| Δt / h at the last test (NaN before the first) */
+    int from_cache;    /* 1: read from the layout cache (seconds is then the original packing's) */
 } consph_packing_report;
 
 void consph_packing_report_free(consph_packing_report *r);
@@ -86,6 +87,34 @@ consph_layout_params consph_layout_defaults(consph_layout_kind kind, int dim, si
  * the packed kinds. */
 int consph_layout_generate(const consph_layout_params *lp, consph_particles *p,
                            consph_packing_report *report);
+
+/* ---- the cache of packed layouts ----
+ *
+ * When a cache directory is set, consph_layout_generate keeps every packed and packed-polished
+ * result there and reads it back for the same parameters instead of packing again (the other
+ * kinds are cheaper to make than to read and are never cached). A file is named by a hash of its
+ * key, holds the key in full and a CRC-32 of its content, and is used only when both match: a
+ * corrupt, truncated or foreign file is ignored with one line on stderr, recomputed and
+ * rewritten. The key is everything that decides the positions: kind, dim, nx, box and
+ * periodicity, seed, kernel, hdx, perturb, max_iter, tol (packed-polished) or move_tol (packed),
+ * CONSPH_LAYOUT_PACKING_VERSION, and the build's arithmetic (fused multiply-adds or not, byte
+ * order). Writes go to a temporary file in the directory, renamed into place: concurrent
+ * processes are safe. A directory that cannot be written warns once on stderr and the run goes
+ * on without the cache. Off by default in the library; the CLI turns it on. Not thread-safe to
+ * change while layouts are being generated. */
+
+/* Bump whenever a change to the packing moves its positions: old cache files then miss. */
+#define CONSPH_LAYOUT_PACKING_VERSION 2
+
+/* Sets the cache directory (created when first written; copied), or turns the cache off with
+ * NULL or "". */
+int consph_layout_cache_set(const char *dir);
+/* The directory in use, or NULL when the cache is off. */
+const char *consph_layout_cache_get(void);
+/* The key of lp as written in its file (text), and the file that holds it under the current
+ * directory (CONSPH_EINVAL when the cache is off). */
+int consph_layout_cache_key(const consph_layout_params *lp, char *key, size_t size);
+int consph_layout_cache_path(const consph_layout_params *lp, char *path, size_t size);
 
 /* Summary statistics of any particle set: minimum pair distance (periodic aware) and the spread
  * of the summation density max |rho_i/rho0 - 1| with the given kernel and h/Δs. */

@@ -207,6 +207,30 @@ static void fill_halton(const consph_layout_params *lp, consph_particles *p)
     }
 }
 
+/* The packed kinds, through the cache when it is on. */
+static int generate_packed(const consph_layout_params *lp, consph_particles *p,
+                           consph_packing_report *report)
+{
+    const int cached = layout_cache_enabled(lp);
+    if (cached) {
+        /* A rejected file fills nothing the packing below does not overwrite. */
+        if (layout_check_packing(lp) == CONSPH_OK && layout_cache_load(lp, p, report))
+            return CONSPH_OK;
+        if (report) memset(report, 0, sizeof *report);
+    }
+    consph_packing_report own;
+    consph_packing_report *rep = report;
+    if (cached && !rep) {
+        memset(&own, 0, sizeof own);
+        rep = &own;
+    }
+    fill_lattice(lp, p);
+    int rc = consph_layout_pack(lp, p, rep);
+    if (rc == CONSPH_OK && cached) layout_cache_store(lp, p, rep);
+    if (rep == &own) consph_packing_report_free(&own);
+    return rc;
+}
+
 int consph_layout_generate(const consph_layout_params *lp, consph_particles *p,
                            consph_packing_report *report)
 {
@@ -232,8 +256,7 @@ int consph_layout_generate(const consph_layout_params *lp, consph_particles *p,
         break;
     case CONSPH_LAYOUT_PACKED:
     case CONSPH_LAYOUT_PACKED_POLISHED:
-        fill_lattice(lp, p);
-        rc = consph_layout_pack(lp, p, report);
+        rc = generate_packed(lp, p, report);
         break;
     default:
         rc = consph_fail(CONSPH_EINVAL, "layout kind %d is unknown", (int)lp->kind);

@@ -3,6 +3,7 @@
 #define CONSPH_LAYOUT_INTERNAL_H
 
 #include <math.h>
+#include <stdint.h>
 
 #include "consph/kernels.h"
 #include "consph/layout.h"
@@ -42,5 +43,48 @@ double consph_layout_spread(const double *rho, size_t n, double rho0);
  * lattice of spacing p->spacing in a periodic box). */
 int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
                        consph_packing_report *report);
+
+/* The packing's neighbour list (pairlist.c): for particle i, entries [start[i], start[i + 1])
+ * hold each neighbour j within `radius` at the last build (i itself among them, at r = 0) and
+ * the periodic image of the pair, so that x_ij = x_i - (x_j + image·len) per axis, which holds
+ * as long as the positions are not wrapped between builds. x_ref holds the positions at the
+ * build, to tell when a particle has moved far enough to need a new list. */
+/* Tests: 1 makes the packing use its portable loops even where the processor has AVX2 (both
+ * give the same positions bit for bit); 0 restores the choice by processor. */
+void layout_pack_set_portable(int on);
+
+/* The packing's parameter checks (those consph_layout_pack makes first). */
+int layout_check_packing(const consph_layout_params *lp);
+
+/* The cache (cache.c): 1 when it is on and the kind is cached; a hit fills the positions of p
+ * (initialised, n and dim of lp) and the report (when non-NULL) and returns 1; a miss or a bad
+ * file returns 0 (a bad file with one line on stderr). store writes a file (a failure to write
+ * warns once on stderr and turns the writes off). */
+int layout_cache_enabled(const consph_layout_params *lp);
+int layout_cache_load(const consph_layout_params *lp, consph_particles *p,
+                      consph_packing_report *report);
+void layout_cache_store(const consph_layout_params *lp, const consph_particles *p,
+                        const consph_packing_report *report);
+
+/* Entries past the end of the list arrays that a vector loop may read (whole blocks of four). */
+#define PACK_SLACK 4
+
+typedef struct pack_list {
+    int dim;
+    size_t n, cap, max_len;
+    size_t *start;
+    uint32_t *j;
+    int8_t *image[CONSPH_MAX_DIM];
+    double *dwr; /* per entry: W'/r of the force's kernel at the current step */
+    double *x_ref[CONSPH_MAX_DIM];
+    double radius, len[CONSPH_MAX_DIM];
+    long builds;
+} pack_list;
+
+int pack_list_init(pack_list *L, const consph_particles *p, double radius);
+/* Lists the neighbours of every particle of p from `grid` (built on p, radius L->radius) and
+ * records the positions. */
+int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particles *p);
+void pack_list_free(pack_list *L);
 
 #endif

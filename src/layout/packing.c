@@ -66,17 +66,32 @@
  * made Wendland kernels, whose support is 2h, unstable). It stops as soon as
  * max_i |rho_i/rho0 - 1| < tol, or after max_iter steps.
  *
- * Every pair sum is a pass (consph_pass_run) over systems wrapping the particles and one
- * neighbour search: W for the density, W'/r for the forces. Reproducibility: the passes are
- * gathers with neighbours in a fixed order and the only reductions are max/min, which are exact;
- * so the result does not depend on the number of threads. Particles are kept in cell order during
- * the iteration for memory locality and returned in lattice order: particle i of the result
+ * The pair sums walk a private neighbour list (pairlist.c, a Verlet list): each particle's
+ * neighbours within the kernel radius plus a skin of 0.05 radius, with the periodic image of each
+ * pair, rebuilt (and the particles re-sorted into cell order, for memory locality) only once a
+ * particle has moved half the skin since the last build; the positions are wrapped into the box
+ * at the builds only, so the images stay valid between them. Per step, one walk computes the
+ * densities and W'/r of the force's kernel (kept per list entry), a second the forces. The
+ * separations, square roots and force sums run four list entries at a time (AVX2 where the
+ * processor has it; the portable loops give the same values), each particle's sums in four
+ * interleaved partial sums in list order. Reproducibility: every sum is a gather into particle
+ * i in the fixed order of its list and the only reductions are max, which are exact, so the
+ * result does not depend on the number of threads. Changing any of this moves the positions at
+ * round-off: bump CONSPH_LAYOUT_PACKING_VERSION (include/consph/layout.h), the cache's key.
+ * Particles are returned in lattice order: particle i of the result
  * started at lattice node i. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "layout/layout_internal.h"
+
+/* The pair loops below vectorise only when sqrt needs no errno path and selects may be
+ * if-converted; neither option changes a value (no reassociation, no contraction), and no
+ * code here reads errno or the floating-point flags. */
+#if defined(__GNUC__) && !defined(__clang__)
+#pragma GCC optimize("no-trapping-math", "no-math-errno")
+#endif
 
 static const double packing_rho0 = 1.0;
 static const double packing_pb = 1.0;
@@ -86,9 +101,12 @@ static const double packing_polish_k = 300.0; /* K / p_b of stage 2 */
  * steps. */
 static const double packing_stall_gain = 0.9;
 static const int packing_stall_steps = 200;
-/* Re-sort the particles into cell order every this many steps: often enough that neighbours
- * stay close in memory, rarely enough that the permutations cost nothing. */
-static const int packing_sort_every = 25;
+/* The neighbour list's skin, a fraction of the kernel radius: the list holds the pairs within
+ * (1 + skin) radius and is rebuilt (the particles re-sorted into cell order with it) once a
+ * particle has moved skin·radius/2 since the last build. Wider skins mean fewer builds and more
+ * pairs visited per step (2D nx = 40, one thread: 0.03 and 0.05 took 1.07 s, 0.1 1.12 s, 0.15
+ * 1.19 s). */
+static const double packing_skin = 0.05;
 /* packed, as [51]'s implementation runs it on free particles: the stopping test every this many
  * steps (its dfreq), honoured from this many tests on (its "more than 10"), the steps of its
  * time-step ramp (n_damp) and the step size it starts from rest with (its dt_adapt at t = 0). */
@@ -108,6 +126,7 @@ typedef struct pack_work {
     size_t *origin_tmp;
     size_t *perm;
     double *scratch;
+    double *xv; /* positions interleaved per particle (stride 2 in 2D, 4 in 3D), per step */
 } pack_work;
 
 static void work_free(pack_work *w)
@@ -122,6 +141,7 @@ static void work_free(pack_work *w)
     free(w->origin_tmp);
     free(w->perm);
     free(w->scratch);
+    free(w->xv);
     memset(w, 0, sizeof *w);
 }
 
@@ -141,6 +161,7 @@ static int work_alloc(pack_work *w, size_t n, int dim, int need_glass_rho)
     ok &= (w->origin_tmp = consph_calloc(n, sizeof(size_t))) != NULL;
     ok &= (w->perm = consph_calloc(n, sizeof(size_t))) != NULL;
     ok &= (w->scratch = consph_calloc(n, sizeof(double))) != NULL;
+    ok &= (w->xv = consph_calloc(4 * n + 4, sizeof(double))) != NULL;
     if (!ok) {
         work_free(w);
         return CONSPH_ENOMEM;
@@ -199,6 +220,12 @@ static int check_packing(const consph_layout_params *lp, consph_kernel_id *id)
     return CONSPH_OK;
 }
 
+int layout_check_packing(const consph_layout_params *lp)
+{
+    consph_kernel_id id;
+    return check_packing(lp, &id);
+}
+
 /* The short-range repulsion of stage 1 and 2. */
 typedef struct repulsion {
     double k, c, range, r_floor;
@@ -214,92 +241,523 @@ static inline double repulsion_coef(const repulsion *rp, double r)
 }
 
 typedef struct force_params {
-    const consph_sys *glass_sys;  /* stage 1: quintic, h = 1.2Δs */
-    const consph_sys *target_sys; /* the caller's kernel: stopping test and stage 2 */
+    const consph_kernel *glass;  /* stage 1: quintic, h = 1.2Δs */
+    const consph_kernel *target; /* the caller's kernel: stopping test and stage 2 */
     double mass;
     int polish; /* 0: stage 1, background pressure; 1: stage 2, density-error gradient */
     repulsion rep;
 } force_params;
 
-/* rho (caller's kernel) and, when it differs, rho_glass (stage-1 kernel); rho_glass is needed only
- * in stage 1. */
-static int compute_density(const force_params *fp, pack_work *w)
+/* Per-thread buffers of one particle's list entries: distances, kernel values and separations. */
+typedef struct pair_buf {
+    double *r, *k, *dx[CONSPH_MAX_DIM];
+} pair_buf;
+
+static void pair_buf_free(pair_buf *b)
 {
-    int rc = consph_layout_density(fp->target_sys, fp->mass, w->rho, NULL);
-    if (!rc && !fp->polish && w->rho_glass)
-        rc = consph_layout_density(fp->glass_sys, fp->mass, w->rho_glass, NULL);
-    return rc;
+    free(b->r);
+    free(b->k);
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(b->dx[a]);
+    memset(b, 0, sizeof *b);
 }
 
-typedef struct accel_job {
-    const force_params *fp;
-    pack_work *w;
-    const double *rho;
-} accel_job;
-
-/* Stage 1: a_i = -(p_b/m) V_i sum_j V_j ∇_i W_ij + repulsion, with ∇_i W_ij = (W'/r) x_ij.
- * Stage 2: a_i = -(K/rho0^2) m sum_j (e_i + e_j) ∇_i W_ij + repulsion. */
-static void accel_visit(void *job, const consph_nbhd *nb)
+static int pair_buf_alloc(pair_buf *b, size_t len)
 {
-    const accel_job *jb = job;
-    const force_params *fp = jb->fp;
-    pack_work *w = jb->w;
-    const double *rho = jb->rho;
-    const int dim = w->dim;
-    const double mass = fp->mass, rho0 = packing_rho0;
-    const size_t i = nb->i;
-    double sum[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
-    double rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
-    const double ei = rho[i] / rho0 - 1.0;
-    for (size_t q = 0; q < nb->n; ++q) {
-        double r = nb->r[q];
-        if (!(r > 0.0)) continue;
-        double rho_j = rho[nb->j[q]];
-        double weight = fp->polish ? ei + (rho_j / rho0 - 1.0) : mass / rho_j;
-        double f = weight * nb->dwr[q];
-        for (int a = 0; a < dim; ++a) sum[a] += f * nb->dx[a][q];
-        if (r < fp->rep.range) {
-            double g = repulsion_coef(&fp->rep, r);
-            for (int a = 0; a < dim; ++a) rep[a] += g * nb->dx[a][q];
+    memset(b, 0, sizeof *b);
+    len += PACK_SLACK; /* whole blocks of four, and never a zero-size allocation */
+    int ok = (b->r = malloc(len * sizeof(double))) != NULL;
+    ok &= (b->k = malloc(len * sizeof(double))) != NULL;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+        ok &= (b->dx[a] = malloc(len * sizeof(double))) != NULL;
+    if (!ok) pair_buf_free(b);
+    return ok;
+}
+
+/* Set by tests: the portable loops even where the processor has AVX2. */
+static int pack_portable_only;
+
+void layout_pack_set_portable(int on)
+{
+    pack_portable_only = on;
+}
+
+/* What the pair sums of one step read and write. */
+typedef struct pack_sweep {
+    const force_params *fp;
+    const pack_list *L;
+    const double *x[CONSPH_MAX_DIM];
+    pack_work *w;
+    int glass;                 /* density: also rho_glass */
+    const consph_kernel *kern; /* the force's kernel */
+    const double *rho;         /* force: the density it acts on */
+    const double *weight;      /* force: per particle, V_j = m/rho_j (stage 1) or e_j (stage 2) */
+    int avx2;                  /* the processor has AVX2: list_geometry's vector path */
+    int fused_quintic;         /* density: W and the force's W'/r are one quintic (AVX2) */
+    const double *xv; /* the positions interleaved, stride 2 in 2D, 4 in 3D (pack_work's) */
+} pack_sweep;
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
+#include <immintrin.h>
+#define PACK_AVX2 1
+/* list_geometry four entries at a time: the same operations in the same order (no fused
+ * multiply-add; packed square roots are correctly rounded like sqrt), so the same values. It
+ * reads and writes whole blocks of four: the list and the buffers carry PACK_SLACK entries past
+ * the end. */
+__attribute__((target("avx2"))) static size_t geometry_avx2(int dim, const pack_sweep *sw, size_t i,
+                                                            pair_buf *b, int with_dx)
+{
+    const pack_list *L = sw->L;
+    const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
+    const uint32_t *J = L->j + e0;
+    const double *xv = sw->xv;
+    __m256d xi[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM];
+    for (int a = 0; a < dim; ++a) {
+        xi[a] = _mm256_set1_pd(sw->x[a][i]);
+        len[a] = _mm256_set1_pd(L->len[a]);
+    }
+    for (size_t q = 0; q < m; q += 4) {
+        /* x_j of the four entries, one axis per vector: from the interleaved copy (whole
+         * particles per load) in 2D and 3D, gathered in 1D. */
+        __m256d xj[CONSPH_MAX_DIM];
+        if (dim == 2) {
+            const double *p0 = xv + 2 * (size_t)J[q], *p1 = xv + 2 * (size_t)J[q + 1];
+            const double *p2 = xv + 2 * (size_t)J[q + 2], *p3 = xv + 2 * (size_t)J[q + 3];
+            /* lo = [x0 y0 x2 y2], hi = [x1 y1 x3 y3]: the unpacks give [x0 x1 x2 x3] */
+            const __m256d lo =
+                _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p0)), _mm_loadu_pd(p2), 1);
+            const __m256d hi =
+                _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p1)), _mm_loadu_pd(p3), 1);
+            xj[0] = _mm256_unpacklo_pd(lo, hi);
+            xj[1] = _mm256_unpackhi_pd(lo, hi);
+        } else if (dim == 3) {
+            const __m256d r0 = _mm256_loadu_pd(xv + 4 * (size_t)J[q]);
+            const __m256d r1 = _mm256_loadu_pd(xv + 4 * (size_t)J[q + 1]);
+            const __m256d r2 = _mm256_loadu_pd(xv + 4 * (size_t)J[q + 2]);
+            const __m256d r3 = _mm256_loadu_pd(xv + 4 * (size_t)J[q + 3]);
+            const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
+            const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
+            xj[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
+            xj[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
+            xj[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
+        } else {
+            xj[0] = _mm256_i32gather_pd(sw->x[0], _mm_loadu_si128((const __m128i *)(J + q)), 8);
+        }
+        __m256d rr = _mm256_setzero_pd();
+        for (int a = 0; a < dim; ++a) {
+            int32_t img4;
+            memcpy(&img4, L->image[a] + e0 + q, sizeof img4);
+            const __m256d img = _mm256_cvtepi32_pd(_mm_cvtepi8_epi32(_mm_cvtsi32_si128(img4)));
+            const __m256d d =
+                _mm256_sub_pd(xi[a], _mm256_add_pd(xj[a], _mm256_mul_pd(img, len[a])));
+            if (with_dx) _mm256_storeu_pd(b->dx[a] + q, d);
+            rr = a == 0 ? _mm256_mul_pd(d, d) : _mm256_add_pd(rr, _mm256_mul_pd(d, d));
+        }
+        _mm256_storeu_pd(b->r + q, with_dx ? rr : _mm256_sqrt_pd(rr));
+    }
+    return m;
+}
+#endif
+
+/* The distances of particle i's list entries into the buffer, or with with_dx the separations
+ * x_ij and the squared distances; returns the entry count m. The entries up to the next multiple
+ * of four are filled too (from the list's next entries or its slack), so that loops over whole
+ * blocks read finite values. dim is a constant where this is inlined. */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline size_t
+list_geometry(const int dim, const pack_sweep *sw, size_t i, pair_buf *b, const int with_dx)
+{
+#ifdef PACK_AVX2
+    if (sw->avx2) return geometry_avx2(dim, sw, i, b, with_dx);
+#endif
+    const pack_list *L = sw->L;
+    const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
+    const uint32_t *restrict J = L->j + e0;
+    const int8_t *restrict img0 = L->image[0] + e0;
+    const int8_t *restrict img1 = dim > 1 ? L->image[1] + e0 : NULL;
+    const int8_t *restrict img2 = dim > 2 ? L->image[2] + e0 : NULL;
+    const double *restrict x0 = sw->x[0], *restrict x1 = sw->x[1], *restrict x2 = sw->x[2];
+    const double len0 = L->len[0], len1 = L->len[1], len2 = L->len[2];
+    const double xi0 = x0[i], xi1 = dim > 1 ? x1[i] : 0.0, xi2 = dim > 2 ? x2[i] : 0.0;
+    double *restrict r = b->r, *restrict d0p = b->dx[0], *restrict d1p = b->dx[1],
+                     *restrict d2p = b->dx[2];
+    const size_t m4 = (m + 3) & ~(size_t)3;
+    for (size_t q = 0; q < m4; ++q) {
+        const size_t j = J[q];
+        const double d0 = xi0 - (x0[j] + (double)img0[q] * len0);
+        double rr = d0 * d0;
+        if (with_dx) d0p[q] = d0;
+        if (dim > 1) {
+            const double d1 = xi1 - (x1[j] + (double)img1[q] * len1);
+            rr += d1 * d1;
+            if (with_dx) d1p[q] = d1;
+        }
+        if (dim > 2) {
+            const double d2 = xi2 - (x2[j] + (double)img2[q] * len2);
+            rr += d2 * d2;
+            if (with_dx) d2p[q] = d2;
+        }
+        r[q] = with_dx ? rr : sqrt(rr);
+    }
+    return m;
+}
+
+/* sum_q v[q] in four interleaved partial sums (term q in sum q mod 4) combined in a fixed order:
+ * independent of the number of threads, without one addition's latency per term, and what the
+ * vector loops compute lane by lane. */
+static inline double sum4(const double *v, size_t m)
+{
+    double a[4] = {0.0, 0.0, 0.0, 0.0};
+    for (size_t q = 0; q < m; ++q) a[q & 3] += v[q];
+    return (a[0] + a[1]) + (a[2] + a[3]);
+}
+
+#ifdef PACK_AVX2
+/* The quintic's W (summed as sum4) and W'/r (into dwr[0..m)) of the distances r in one loop:
+ * the operations of consph_kernel_eval_batch's quintic (src/kernels/kernels.c), so the same
+ * values, with the powers shared. */
+__attribute__((target("avx2"))) static double quintic_avx2(const consph_kernel *k, size_t m,
+                                                           const double *r, double *dwr)
+{
+    const __m256d inv_h = _mm256_set1_pd(k->inv_h), norm = _mm256_set1_pd(k->norm);
+    const __m256d norm1 = _mm256_set1_pd(k->norm * k->inv_h);
+    /* W''(0) = norm h^-2 f''(0), f''(0) = 20·27 - 120·8 + 300 */
+    const __m256d at_zero = _mm256_set1_pd(
+        k->norm * k->inv_h * k->inv_h * (20.0 * 3.0 * 3.0 * 3.0 - 120.0 * 2.0 * 2.0 * 2.0 + 300.0));
+    const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
+    const __m256d c1 = _mm256_set1_pd(1.0), c2 = _mm256_set1_pd(2.0), c3 = _mm256_set1_pd(3.0);
+    const __m256d c6 = _mm256_set1_pd(6.0), c15 = _mm256_set1_pd(15.0);
+    const __m256d cm5 = _mm256_set1_pd(-5.0), c30 = _mm256_set1_pd(30.0),
+                  c75 = _mm256_set1_pd(75.0);
+    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
+    __m256d acc = zero;
+    for (size_t q = 0; q < m; q += 4) {
+        const __m256d rp = _mm256_loadu_pd(r + q), x = _mm256_mul_pd(rp, inv_h);
+        const __m256d t3 = _mm256_sub_pd(c3, x);
+        __m256d t2 = _mm256_sub_pd(c2, x), t1 = _mm256_sub_pd(c1, x);
+        t2 = _mm256_and_pd(t2, _mm256_cmp_pd(t2, zero, _CMP_GT_OQ));
+        t1 = _mm256_and_pd(t1, _mm256_cmp_pd(t1, zero, _CMP_GT_OQ));
+        const __m256d s3 = _mm256_mul_pd(t3, t3), s2 = _mm256_mul_pd(t2, t2),
+                      s1 = _mm256_mul_pd(t1, t1);
+        const __m256d p3 = _mm256_mul_pd(s3, s3), p2 = _mm256_mul_pd(s2, s2),
+                      p1 = _mm256_mul_pd(s1, s1);
+        /* pow5(t) - 6 pow5(t2) + 15 pow5(t1), pow5 = (t²)² t */
+        __m256d f = _mm256_add_pd(
+            _mm256_sub_pd(_mm256_mul_pd(p3, t3), _mm256_mul_pd(c6, _mm256_mul_pd(p2, t2))),
+            _mm256_mul_pd(c15, _mm256_mul_pd(p1, t1)));
+        /* -5 pow4(t) + 30 pow4(t2) - 75 pow4(t1) */
+        __m256d df = _mm256_sub_pd(_mm256_add_pd(_mm256_mul_pd(cm5, p3), _mm256_mul_pd(c30, p2)),
+                                   _mm256_mul_pd(c75, p1));
+        const __m256d inside = _mm256_cmp_pd(x, c3, _CMP_LT_OQ); /* q < support (and q >= 3: 0) */
+        const __m256d valid =
+            _mm256_castsi256_pd(_mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane));
+        const __m256d w = _mm256_and_pd(inside, _mm256_mul_pd(norm, f));
+        acc = _mm256_add_pd(acc, _mm256_and_pd(valid, w));
+        const __m256d pos = _mm256_cmp_pd(rp, zero, _CMP_GT_OQ);
+        const __m256d v = _mm256_div_pd(_mm256_mul_pd(norm1, df), _mm256_blendv_pd(one, rp, pos));
+        const __m256d d = _mm256_and_pd(inside, _mm256_blendv_pd(at_zero, v, pos));
+        /* Whole blocks stored whole; the last one entry by entry, since the entries past m are
+         * another particle's (a masked store is slow on some processors). */
+        if (q + 4 <= m) {
+            _mm256_storeu_pd(dwr + q, d);
+        } else {
+            double tail[4];
+            _mm256_storeu_pd(tail, d);
+            for (size_t e = q; e < m; ++e) dwr[e] = tail[e - q];
         }
     }
-    double coef = fp->polish ? -packing_polish_k * packing_pb / (rho0 * rho0) * mass
-                             : -packing_pb * (mass / rho[i]) / mass;
-    for (int a = 0; a < dim; ++a) w->acc[a][i] = coef * sum[a] + rep[a];
+    double a[4];
+    _mm256_storeu_pd(a, acc);
+    return (a[0] + a[1]) + (a[2] + a[3]);
 }
+#endif
 
-static int compute_acceleration(const force_params *fp, pack_work *w)
+/* rho_i = m sum_j W_ij over the list with the kernel k (the entries past its support add exact
+ * zeros). */
+static double list_density(const consph_kernel *k, double mass, const pair_buf *b, size_t m)
 {
-    accel_job job = {fp, w, (fp->polish || !w->rho_glass) ? w->rho : w->rho_glass};
-    const consph_pass pass = {"packing force", CONSPH_PASS_DW, accel_visit};
-    return consph_pass_run(fp->polish ? fp->target_sys : fp->glass_sys, &pass, &job);
+    consph_kernel_eval_batch(k, m, b->r, b->k, NULL, NULL);
+    return mass * sum4(b->k, m);
 }
 
-/* Damped Euler step, then wrap into the periodic box: u <- (1 - νΔt) u + Δt a, and x advanced
- * with the old velocity (explicit Euler, as [51]'s implementation integrates) or with the new one
- * (symplectic Euler, the polished kind). Returns max_i |u_i| after the step. */
-static double advance(consph_particles *p, pack_work *w, double dt, double nu, int explicit_euler)
+/* The densities, and W'/r of the force's kernel into the list (read by accel_range), so that
+ * the force needs no square root and no kernel evaluation. */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline void
+density_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf *b)
+{
+    const force_params *fp = sw->fp;
+    for (size_t i = i0; i < i1; ++i) {
+        const size_t m = list_geometry(dim, sw, i, b, 0);
+#ifdef PACK_AVX2
+        if (sw->fused_quintic) {
+            sw->w->rho[i] =
+                fp->mass * quintic_avx2(fp->target, m, b->r, sw->L->dwr + sw->L->start[i]);
+            continue;
+        }
+#endif
+        sw->w->rho[i] = list_density(fp->target, fp->mass, b, m);
+        if (sw->glass) sw->w->rho_glass[i] = list_density(fp->glass, fp->mass, b, m);
+        consph_kernel_eval_batch(sw->kern, m, b->r, NULL, sw->L->dwr + sw->L->start[i], NULL);
+    }
+}
+
+/* Adds the repulsion of one pair at squared distance r2 < range^2 to rep, in list order. */
+static inline void repulsion_add(int dim, const repulsion *rp, double r2, double d0, double d1,
+                                 double d2, double *rep)
+{
+    const double g = repulsion_coef(rp, sqrt(r2));
+    rep[0] += g * d0;
+    if (dim > 1) rep[1] += g * d1;
+    if (dim > 2) rep[2] += g * d2;
+}
+
+#ifdef PACK_AVX2
+/* The force sums of accel_range four entries at a time: lane l holds the entries q ≡ l (mod 4),
+ * as in the portable loop, with the same operations (no fused multiply-add), so the same
+ * values. */
+__attribute__((target("avx2"))) static void
+accel_sums_avx2(int dim, size_t m, const uint32_t *J, const double *dwr, const double *r2,
+                double *const *dx, const double *weight, double ei, int polish, double range2,
+                const repulsion *rp, double s[CONSPH_MAX_DIM][4], double *rep)
+{
+    __m256d acc[CONSPH_MAX_DIM];
+    for (int a = 0; a < dim; ++a) acc[a] = _mm256_setzero_pd();
+    const __m256d zero = _mm256_setzero_pd(), vei = _mm256_set1_pd(ei);
+    const __m256d vrange2 = _mm256_set1_pd(range2);
+    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
+    for (size_t q = 0; q < m; q += 4) {
+        /* four loads rather than a gather instruction, which is slow on some processors */
+        __m256d wq =
+            _mm256_set_pd(weight[J[q + 3]], weight[J[q + 2]], weight[J[q + 1]], weight[J[q]]);
+        if (polish) wq = _mm256_add_pd(vei, wq);
+        const __m256d rr = _mm256_loadu_pd(r2 + q);
+        const __m256i valid =
+            _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane); /* q + l < m */
+        const __m256d pos =
+            _mm256_and_pd(_mm256_castsi256_pd(valid), _mm256_cmp_pd(rr, zero, _CMP_GT_OQ));
+        const __m256d f = _mm256_and_pd(pos, _mm256_mul_pd(wq, _mm256_loadu_pd(dwr + q)));
+        for (int a = 0; a < dim; ++a)
+            acc[a] = _mm256_add_pd(acc[a], _mm256_mul_pd(f, _mm256_loadu_pd(dx[a] + q)));
+        int near = _mm256_movemask_pd(_mm256_and_pd(pos, _mm256_cmp_pd(rr, vrange2, _CMP_LT_OQ)));
+        while (near) {
+            const size_t e = q + (size_t)__builtin_ctz((unsigned)near);
+            near &= near - 1;
+            repulsion_add(dim, rp, r2[e], dx[0][e], dim > 1 ? dx[1][e] : 0.0,
+                          dim > 2 ? dx[2][e] : 0.0, rep);
+        }
+    }
+    for (int a = 0; a < dim; ++a) _mm256_storeu_pd(s[a], acc[a]);
+}
+#endif
+
+/* Stage 1: a_i = -(p_b/m) V_i sum_j V_j ∇_i W_ij + repulsion, with ∇_i W_ij = (W'/r) x_ij.
+ * Stage 2: a_i = -(K/rho0^2) m sum_j (e_i + e_j) ∇_i W_ij + repulsion. The pair at r = 0 (i
+ * itself) adds nothing. The sums run in four interleaved partial sums (as sum4). */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline void
+accel_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf *b)
+{
+    const force_params *fp = sw->fp;
+    const double mass = fp->mass, rho0 = packing_rho0, range2 = fp->rep.range * fp->rep.range;
+    const int polish = fp->polish;
+    const double *restrict weight = sw->weight;
+    const double *restrict r2 = b->r;
+    const double *d0 = b->dx[0], *d1 = b->dx[1], *d2 = b->dx[2];
+    for (size_t i = i0; i < i1; ++i) {
+        const size_t m = list_geometry(dim, sw, i, b, 1);
+        const uint32_t *restrict J = sw->L->j + sw->L->start[i];
+        const double *restrict dwr = sw->L->dwr + sw->L->start[i];
+        const double ei = polish ? weight[i] : 0.0;
+        double s[CONSPH_MAX_DIM][4] = {{0.0}}, rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+#ifdef PACK_AVX2
+        if (sw->avx2)
+            accel_sums_avx2(dim, m, J, dwr, r2, b->dx, weight, ei, polish, range2, &fp->rep, s,
+                            rep);
+        else
+#endif
+            for (size_t q = 0; q < m; q += 4) {
+                for (int l = 0; l < 4; ++l) {
+                    const size_t e = q + l;
+                    const double wq = polish ? ei + weight[J[e]] : weight[J[e]];
+                    const double f = e < m && r2[e] > 0.0 ? wq * dwr[e] : 0.0;
+                    s[0][l] += f * d0[e];
+                    if (dim > 1) s[1][l] += f * d1[e];
+                    if (dim > 2) s[2][l] += f * d2[e];
+                }
+                for (size_t e = q; e < q + 4 && e < m; ++e)
+                    if (r2[e] < range2 && r2[e] > 0.0)
+                        repulsion_add(dim, &fp->rep, r2[e], d0[e], d1[e], d2[e], rep);
+            }
+        const double coef = polish ? -packing_polish_k * packing_pb / (rho0 * rho0) * mass
+                                   : -packing_pb * (mass / sw->rho[i]) / mass;
+        pack_work *w = sw->w;
+        for (int a = 0; a < dim; ++a)
+            w->acc[a][i] = coef * ((s[a][0] + s[a][1]) + (s[a][2] + s[a][3])) + rep[a];
+    }
+}
+
+/* The pair loops gather through the list; a generic x86-64 build also carries an AVX2 copy,
+ * chosen at load time (no FMA is enabled, so both copies compute the same values). */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
+    !defined(__AVX2__)
+#define PACK_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define PACK_CLONES
+#endif
+
+PACK_CLONES
+static void density_block(const pack_sweep *sw, size_t i0, size_t i1, pair_buf *b)
+{
+    switch (sw->L->dim) {
+    case 1:
+        density_range(1, sw, i0, i1, b);
+        break;
+    case 2:
+        density_range(2, sw, i0, i1, b);
+        break;
+    default:
+        density_range(3, sw, i0, i1, b);
+    }
+}
+
+PACK_CLONES
+static void accel_block(const pack_sweep *sw, size_t i0, size_t i1, pair_buf *b)
+{
+    switch (sw->L->dim) {
+    case 1:
+        accel_range(1, sw, i0, i1, b);
+        break;
+    case 2:
+        accel_range(2, sw, i0, i1, b);
+        break;
+    default:
+        accel_range(3, sw, i0, i1, b);
+    }
+}
+
+/* Particles per chunk of the parallel loops. */
+#define PACK_CHUNK 256
+
+/* Runs density_block (force = 0) or accel_block over every particle in chunks, in parallel.
+ * Each particle's sums are gathered in its list's order: independent of the number of
+ * threads. */
+static int sweep_run(const pack_sweep *sw, int force)
+{
+    const size_t n = sw->w->n, nchunks = (n + PACK_CHUNK - 1) / PACK_CHUNK;
+    int failed = 0;
+#pragma omp parallel if (n >= 2048)
+    {
+        pair_buf b;
+        if (!pair_buf_alloc(&b, sw->L->max_len)) {
+#pragma omp atomic write
+            failed = 1;
+        }
+#pragma omp barrier
+        if (!failed) {
+#pragma omp for schedule(dynamic, 4)
+            for (size_t c = 0; c < nchunks; ++c) {
+                const size_t i0 = c * PACK_CHUNK, i1 = i0 + PACK_CHUNK < n ? i0 + PACK_CHUNK : n;
+                if (force)
+                    accel_block(sw, i0, i1, &b);
+                else
+                    density_block(sw, i0, i1, &b);
+            }
+        }
+        pair_buf_free(&b);
+    }
+    return failed ? CONSPH_ENOMEM : CONSPH_OK;
+}
+
+static void sweep_init(pack_sweep *sw, const force_params *fp, const pack_list *L,
+                       const consph_particles *p, pack_work *w)
+{
+    memset(sw, 0, sizeof *sw);
+    sw->fp = fp;
+    sw->L = L;
+    sw->w = w;
+    for (int a = 0; a < p->dim; ++a) sw->x[a] = p->x[a];
+    sw->xv = w->xv;
+#ifdef PACK_AVX2
+    sw->avx2 = !pack_portable_only && __builtin_cpu_supports("avx2");
+#endif
+}
+
+/* rho (caller's kernel) and, when it differs, rho_glass (stage-1 kernel); rho_glass is needed only
+ * in stage 1. */
+static int compute_density(const force_params *fp, const pack_list *L, const consph_particles *p,
+                           pack_work *w)
+{
+    pack_sweep sw;
+    sweep_init(&sw, fp, L, p, w);
+    /* The interleaved copy of the positions that the vector path loads whole particles from;
+     * the force pass of the same step reads it too. */
+    const size_t stride = p->dim == 3 ? 4 : (size_t)p->dim;
+    for (int a = 0; a < p->dim; ++a)
+        for (size_t i = 0; i < w->n; ++i) w->xv[stride * i + (size_t)a] = p->x[a][i];
+    sw.glass = !fp->polish && w->rho_glass;
+    sw.kern = fp->polish ? fp->target : fp->glass;
+    sw.fused_quintic = sw.avx2 && !sw.glass && fp->target->id == CONSPH_KERNEL_QUINTIC &&
+                       sw.kern->id == CONSPH_KERNEL_QUINTIC && sw.kern->h == fp->target->h &&
+                       sw.kern->dim == fp->target->dim;
+    return sweep_run(&sw, 0);
+}
+
+static int compute_acceleration(const force_params *fp, const pack_list *L,
+                                const consph_particles *p, pack_work *w)
+{
+    pack_sweep sw;
+    sweep_init(&sw, fp, L, p, w);
+    sw.rho = (fp->polish || !w->rho_glass) ? w->rho : w->rho_glass;
+    /* The per-particle factor of each pair's weight, once per particle instead of per pair. */
+    for (size_t i = 0; i < w->n; ++i)
+        w->scratch[i] = fp->polish ? sw.rho[i] / packing_rho0 - 1.0 : fp->mass / sw.rho[i];
+    sw.weight = w->scratch;
+    return sweep_run(&sw, 1);
+}
+
+/* Damped Euler step: u <- (1 - νΔt) u + Δt a, and x advanced with the old velocity (explicit
+ * Euler, as [51]'s implementation integrates) or with the new one (symplectic Euler, the polished
+ * kind). The positions are not wrapped into the box here: the list's periodic images stay valid
+ * while they move continuously, and step_density wraps them when it rebuilds the list. Returns
+ * max_i |u_i| after the step, and in *moved2 the largest squared distance of a particle from
+ * where it was when the list was built. */
+static double advance(consph_particles *p, pack_work *w, const pack_list *L, double dt, double nu,
+                      int explicit_euler, double *moved2)
 {
     const double damp = 1.0 - nu * dt;
     const int dim = w->dim;
-    double lo[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM];
-    for (int a = 0; a < dim; ++a) {
-        lo[a] = p->box.lo[a];
-        len[a] = consph_box_length(&p->box, a);
-    }
-    double vmax2 = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : vmax2)
+    double vmax2 = 0.0, dmax2 = 0.0;
+#pragma omp parallel for schedule(static) reduction(max : vmax2, dmax2) if (w->n >= 2048)
     for (size_t i = 0; i < w->n; ++i) {
-        double v2 = 0.0;
+        double v2 = 0.0, d2 = 0.0;
         for (int a = 0; a < dim; ++a) {
             const double u0 = w->u[a][i], u1 = damp * u0 + dt * w->acc[a][i];
             w->u[a][i] = u1;
-            p->x[a][i] = layout_wrap(p->x[a][i] + dt * (explicit_euler ? u0 : u1), lo[a], len[a]);
+            const double x = p->x[a][i] + dt * (explicit_euler ? u0 : u1);
+            p->x[a][i] = x;
             v2 += u1 * u1;
+            d2 += (x - L->x_ref[a][i]) * (x - L->x_ref[a][i]);
         }
         if (v2 > vmax2) vmax2 = v2;
+        if (d2 > dmax2) dmax2 = d2;
     }
+    *moved2 = dmax2;
     return sqrt(vmax2);
+}
+
+/* Brings every position back into the periodic box. */
+static void wrap_positions(consph_particles *p)
+{
+    for (int a = 0; a < p->dim; ++a) {
+        const double lo = p->box.lo[a], len = consph_box_length(&p->box, a);
+        for (size_t i = 0; i < p->n; ++i) p->x[a][i] = layout_wrap(p->x[a][i], lo, len);
+    }
 }
 
 static int record_history(consph_packing_report *r, int cap, int iter, double spread)
@@ -318,11 +776,13 @@ static int restore_lattice_order(consph_particles *p, pack_work *w)
     return consph_particles_permute(p, w->perm);
 }
 
-/* What both kinds set up: kernels, forces, work arrays, the search and the systems on it. */
+/* What both kinds set up: kernels, forces, work arrays, the search and the neighbour list. */
 typedef struct packer {
     consph_kernel target, glass;
-    consph_sys target_sys, glass_sys;
     consph_nnps *grid;
+    pack_list list;
+    double rebuild_move2; /* rebuild the list once a particle has moved this far (squared) */
+    int rebuild;          /* the list is stale */
     force_params fp;
     pack_work w;
     double nu;
@@ -332,6 +792,7 @@ typedef struct packer {
 static void packer_free(packer *pk)
 {
     consph_nnps_free(pk->grid);
+    pack_list_free(&pk->list);
     work_free(&pk->w);
     memset(pk, 0, sizeof *pk);
 }
@@ -376,29 +837,35 @@ static int packer_init(packer *pk, const consph_layout_params *lp, consph_partic
     }
     rc = work_alloc(&pk->w, p->n, dim, !same_kernel);
     if (rc) return rc;
-    pk->grid = consph_nnps_create(&p->box, fmax(pk->glass.radius, pk->target.radius), 0);
+    /* A pair farther apart than the kernel radius at a build can come within it only after one
+     * of the two has moved half the skin. */
+    const double radius = fmax(pk->glass.radius, pk->target.radius);
+    const double skin = packing_skin * radius;
+    pk->rebuild_move2 = 0.25 * skin * skin;
+    pk->rebuild = 1;
+    pk->grid = consph_nnps_create(&p->box, radius + skin, 0);
     if (!pk->grid) return CONSPH_ENOMEM;
-    /* Both systems share the particles and the search, rebuilt in place every step. */
-    rc = consph_sys_wrap(&pk->glass_sys, p, pk->grid, &pk->glass);
-    if (!rc) rc = consph_sys_wrap(&pk->target_sys, p, pk->grid, &pk->target);
-    fp->glass_sys = &pk->glass_sys;
-    fp->target_sys = &pk->target_sys;
-    return rc;
+    fp->glass = &pk->glass;
+    fp->target = &pk->target;
+    return pack_list_init(&pk->list, p, radius + skin);
 }
 
-/* Rebuilds the search on the moved particles (re-sorting them every packing_sort_every steps),
- * computes the density and records the step in the report. */
+/* Rebuilds the neighbour list when it is stale (wrapping the particles into the box and sorting
+ * them into cell order first), computes the density and records the step in the report. */
 static int step_density(packer *pk, const consph_layout_params *lp, consph_particles *p, int iter,
                         int last, consph_packing_report *report, double *spread)
 {
-    int rc;
-    if (iter % packing_sort_every == 0) {
+    int rc = CONSPH_OK;
+    if (pk->rebuild) {
+        wrap_positions(p);
         rc = consph_nnps_sort(pk->grid, p, pk->w.perm);
-        if (!rc) work_permute(&pk->w);
-    } else {
-        rc = consph_nnps_build(pk->grid, p);
+        if (!rc) {
+            work_permute(&pk->w);
+            rc = pack_list_build(&pk->list, pk->grid, p);
+        }
+        pk->rebuild = 0;
     }
-    if (!rc) rc = compute_density(&pk->fp, &pk->w);
+    if (!rc) rc = compute_density(&pk->fp, &pk->list, p, &pk->w);
     if (rc) return rc;
     *spread = consph_layout_spread(pk->w.rho, pk->w.n, packing_rho0);
     if (!isfinite(*spread))
@@ -409,6 +876,15 @@ static int step_density(packer *pk, const consph_layout_params *lp, consph_parti
     if (report && every > 0 && (iter % every == 0 || last))
         record_history(report, pk->hist_cap, iter, *spread);
     return CONSPH_OK;
+}
+
+/* One step of the particles; marks the list stale when a particle has moved half the skin. */
+static double step_advance(packer *pk, consph_particles *p, double dt, int explicit_euler)
+{
+    double moved2;
+    double vmax = advance(p, &pk->w, &pk->list, dt, pk->nu, explicit_euler, &moved2);
+    if (!(moved2 <= pk->rebuild_move2)) pk->rebuild = 1;
+    return vmax;
 }
 
 /* [51]'s time-step ramp (its solver's n_damp = 10): step `count` uses this fraction of the step
@@ -432,9 +908,9 @@ static int pack_single(packer *pk, const consph_layout_params *lp, consph_partic
         const int last = converged || steps >= pp->max_iter;
         rc = step_density(pk, lp, p, steps, last, report, &spread);
         if (rc || last) break;
-        rc = compute_acceleration(&pk->fp, &pk->w);
+        rc = compute_acceleration(&pk->fp, &pk->list, p, &pk->w);
         if (rc) break;
-        const double vmax = advance(p, &pk->w, dt, nu, 1);
+        const double vmax = step_advance(pk, p, dt, 1);
         if (steps % packing_check_every == 0) {
             ++checks;
             move = 100.0 * vmax * dt / h;
@@ -494,9 +970,9 @@ static int pack_polished(packer *pk, const consph_layout_params *lp, consph_part
                 if (report) report->polish_start = iter;
             }
         }
-        rc = compute_acceleration(fp, &pk->w);
+        rc = compute_acceleration(fp, &pk->list, p, &pk->w);
         if (rc) break;
-        advance(p, &pk->w, fp->polish ? dt_polish : dt_glass, pk->nu, 0);
+        step_advance(pk, p, fp->polish ? dt_polish : dt_glass, 0);
     }
     if (report) {
         report->iterations = iter;
@@ -518,7 +994,10 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
         rc = lp->kind == CONSPH_LAYOUT_PACKED_POLISHED ? pack_polished(&pk, lp, p, report)
                                                        : pack_single(&pk, lp, p, report);
     }
-    if (!rc) rc = restore_lattice_order(p, &pk.w);
+    if (!rc) {
+        wrap_positions(p);
+        rc = restore_lattice_order(p, &pk.w);
+    }
     if (!rc && report) report->seconds = consph_wtime() - t0;
     packer_free(&pk);
     return rc;
