@@ -126,7 +126,7 @@ failing 2 "made with --quick, this run is without it" /dev/null -- \
     "$bin" study "$study" --out "$work/k7" --resume && pass=$((pass + 1))
 sed 's/^title = Stop and resume self-test/title = changed/' "$study" >"$work/resume.study"
 mkdir -p "$work/ch" && cp -r "$work/k3/resume" "$work/ch/"
-failing 2 "the study file's contents differs" /dev/null -- \
+failing 2 "the study file's contents differ from the run that kept the rows" /dev/null -- \
     "$bin" study "$work/resume.study" --quick --out "$work/ch" --resume && pass=$((pass + 1))
 failing 2 "nothing to resume" /dev/null -- \
     "$bin" study "$study" --quick --out "$work/empty" --resume && pass=$((pass + 1))

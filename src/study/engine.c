@@ -324,8 +324,9 @@ static int check_state(const char *dir, const char *want, const char *cmd_dir)
     have[got] = '\0';
     fclose(in);
     if (!strcmp(have, want)) return CONSPH_OK;
-    static const char *const what[] = {"the state file's version", "the study file's contents",
-                                       "--quick", "the particle files (--particles)"};
+    static const char *const what[] = {"the state file's version differs",
+                                       "the study file's contents differ", "--quick differs",
+                                       "the particle files (--particles) differ"};
     const char *a = have, *b = want;
     for (int line = 0; line < 4; ++line) {
         size_t la = strcspn(a, "\n"), lb = strcspn(b, "\n");
@@ -338,10 +339,10 @@ static int check_state(const char *dir, const char *want, const char *cmd_dir)
                                    cmd_dir, strstr(a, "yes") == a + 6 ? "with" : "without",
                                    strstr(b, "yes") == b + 6 ? "with" : "without");
             return consph_fail(CONSPH_EINVAL,
-                               "--resume: %s differ%s from the run that kept the rows in '%s'; "
-                               "resume with the same study file and options, or run without "
-                               "--resume to start over",
-                               what[line], line == 3 ? "" : "s", cmd_dir);
+                               "--resume: %s from the run that kept the rows in '%s'; resume "
+                               "with the same study file and options, or run without --resume "
+                               "to start over",
+                               what[line], cmd_dir);
         }
         a += la + (a[la] == '\n');
         b += lb + (b[lb] == '\n');

@@ -473,6 +473,9 @@ int study_row_finish(const study_job *job, const study_figure *f, int k, int j, 
         fwrite(row, 1, size, of.fp);
         if (nextra) fwrite(extra, sizeof *extra, nextra, of.fp);
         if ((rc = consph_outfile_commit(&of))) return rc;
+        /* From the first kept row on, a signal (a second SIGINT, SIGHUP) leaves the directory
+         * and its rows for --resume; a failure still removes it (study_remove_created). */
+        consph_made_dir_unregister();
     }
     r->done++;
     r->work_done += r->row_work;
