@@ -138,6 +138,46 @@ failing 2 "the particle files (--particles) differ" /dev/null -- \
     "$bin" study "$src/tests/data/engine.study" --quick --out "$work/eng" --resume \
     --particles "$work/p16.csv" && pass=$((pass + 1))
 
+# A real SIGINT while a solver row runs: the row stops at its next step and is not kept, the
+# rows before it are, and the partial report names the command that resumes.
+cat >"$work/long.study" <<'STUDY'
+study = long
+title = A short row, then a long solver row
+[figure a]
+op = grad
+nx = 12
+[figure b]
+kind = run
+problem = taylor-green
+nx = 24,32
+steps = 20000
+[series EWCSPH]
+scheme = ewcsph
+STUDY
+set -m
+"$bin" study "$work/long.study" --out "$work/long" >/dev/null 2>"$work/long.err" &
+p=$!
+set +m
+for _ in $(seq 600); do
+    grep -q '^study: row 1/3 done' "$work/long.err" && break
+    sleep 0.05
+done
+sleep 0.3
+kill -INT "$p"
+{ wait "$p"; } 2>/dev/null
+rc=$?
+d=$work/long/long
+if [ $rc != 130 ]; then
+    bad "SIGINT in a solver row: exit $rc, want 130: $(cat "$work/long.err")"
+elif [ "$(ls -A "$d" | grep -c '\.row$')" != 1 ]; then
+    bad "SIGINT in a solver row: kept $(ls -A "$d" | grep '\.row$' | tr '\n' ' '), want the first row only"
+elif ! grep -q '^## b: not run' "$d/README.md" || ! grep -q "^## a: " "$d/README.md" ||
+    ! grep -qF -- "--out $work/long --resume" "$d/README.md"; then
+    bad "SIGINT in a solver row: README.md: $(cat "$d/README.md")"
+else
+    pass=$((pass + 1))
+fi
+
 # The estimate: finite seconds, then minutes for a short study, days and hours for a long one;
 # nothing written.
 line=$("$bin" study "$study" --quick --estimate --out "$work/est" | grep '^estimated run time')

@@ -321,7 +321,10 @@ typedef struct consph_study_options {
     int progress;
     int resume;             /* read the rows an earlier run of the same study and options kept */
     const char *resume_cmd; /* the command line that resumes, for the message after a stop */
-    int *stopped_by;        /* set to the signal that stopped the study (consph_stop_install) */
+    /* NULL, or where the signal that stopped the study goes (0: none); non-NULL also says that
+     * the caller installed the stop handlers (consph_stop_install), which solver rows then
+     * watch at every step. */
+    int *stopped_by;
 } consph_study_options;
 
 /* "mm:ss", "h:mm:ss", or "D.d days" when long; "--" when unknown (NaN, negative). */

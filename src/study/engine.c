@@ -502,6 +502,7 @@ static int study_run(const consph_study *s, const consph_study_options *opt,
     rows.dir = dir;
     rows.t0 = consph_wtime();
     rows.print = opt->progress;
+    rows.signals = opt->stopped_by != NULL;
     rows.tty = opt->progress && isatty(STDERR_FILENO) == 1;
     const char *hook = getenv("CONSPH_TEST_STOP_AFTER_ROWS");
     rows.stop_after = hook ? atoi(hook) : 0;

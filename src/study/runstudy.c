@@ -247,8 +247,8 @@ static int run_one(const run_plan *pl, int j, double h_dt, int curve, run_row *r
     int stopped = 0;
     /* On a terminal the run's own step line shows (after the row, consph_progress_prefix). */
     const consph_run_output watch = {.signals = 1, .progress = rows && rows->tty};
-    rc = consph_run(sv, rows ? &watch : NULL, &row->sum, &stopped);
-    if (rows) {
+    rc = consph_run(sv, rows && rows->signals ? &watch : NULL, &row->sum, &stopped);
+    if (rows && rows->signals) {
         /* consph_run gave back the handlers it found; the study keeps watching. */
         if (stopped && !rows->stopped) rows->stopped = stopped;
         int irc = consph_stop_install();

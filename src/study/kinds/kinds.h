@@ -93,8 +93,6 @@ void study_remove_created(const char *dir, size_t created);
 /* The study's README: title, then every figure's report in order. */
 int study_write_readme(const consph_study *s, int quick, int files, const char *dir);
 
-/* ---- the kind rows ---- */
-
 /* ---- rows: progress, the store that --resume reads, stop requests (writer.c) ---- */
 
 /* A study's rows (one run of a figure's series at one resolution) as they finish: the progress
@@ -111,6 +109,7 @@ typedef struct study_rows {
     int tty;                    /* a live line on stderr, else one plain line per finished row */
     int stop_after;             /* tests: a stop request after this many rows run (0: never) */
     int run_now;                /* rows run by this process */
+    int signals;                /* the caller installed consph_stop_install (opt->stopped_by) */
     int stopped;                /* the signal that stopped the study, 0 when none */
     char current[192];          /* the row now running, for the progress line and the partial
                                    report */
@@ -125,6 +124,8 @@ typedef struct study_rows {
 /* Writes what the figures logged since the last call (terminal only); the next row redraws the
  * live line. */
 void study_rows_flush(study_rows *r);
+
+/* ---- the kind rows ---- */
 
 /* What one figure run sees. */
 typedef struct study_job {
