@@ -2,6 +2,8 @@
 #include <dirent.h>
 #include <errno.h>
 #include <limits.h>
+#include <math.h>
+#include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -221,9 +223,59 @@ static int run_status(int rc)
                                                        : 1;
 }
 
+/* The estimate in seconds, and in minutes, hours or days as its size asks. */
+static void print_estimate(double est)
+{
+    if (!isfinite(est)) {
+        printf("estimated run time: unknown (the calibration run failed)\n");
+        return;
+    }
+    printf("estimated run time: %.0f s", est);
+    if (est >= 2 * 86400.0)
+        printf(" (%.1f days, %.1f hours)", est / 86400.0, est / 3600.0);
+    else if (est >= 2 * 3600.0)
+        printf(" (%.1f hours)", est / 3600.0);
+    else
+        printf(" (%.1f min)", est / 60.0);
+    printf("; from the work (particle-steps, neighbour pairs, packed particles) at the cost "
+           "measured here on small runs\n");
+}
+
+/* A word as a shell reads it back: quoted unless made of safe characters only. */
+static size_t shell_word(char *buf, size_t size, const char *w)
+{
+    int plain = *w != '\0';
+    for (const char *c = w; *c && plain; ++c)
+        plain = strchr("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789-_./=,:+@",
+                       *c) != NULL;
+    if (plain) return (size_t)snprintf(buf, size, "%s", w);
+    size_t n = 0;
+    n += (size_t)snprintf(buf + n, n < size ? size - n : 0, "'");
+    for (const char *c = w; *c; ++c)
+        n += (size_t)snprintf(buf + n, n < size ? size - n : 0, *c == '\'' ? "'\\''" : "%c", *c);
+    n += (size_t)snprintf(buf + n, n < size ? size - n : 0, "'");
+    return n;
+}
+
+/* The command line that resumes this one: its own words, and --resume. */
+static char *resume_command(int argc, char **argv, int resume)
+{
+    size_t size = 64;
+    for (int a = 0; a < argc; ++a) size += 4 * strlen(argv[a]) + 3;
+    char *buf = malloc(size);
+    if (!buf) return NULL;
+    size_t n = (size_t)snprintf(buf, size, "consph");
+    for (int a = 0; a < argc; ++a) {
+        buf[n++] = ' ';
+        n += shell_word(buf + n, size - n, argv[a]);
+    }
+    if (!resume) snprintf(buf + n, size - n, " --resume");
+    return buf;
+}
+
 int cmd_study(int argc, char **argv)
 {
-    int quick = 0, list = 0, estimate_only = 0;
+    int quick = 0, list = 0, estimate_only = 0, resume = 0;
     const char *out = "out/studies";
     const char *name = NULL, *particles = NULL, *box_text = NULL, *periodic_text = NULL;
     cli_cache cache = {NULL, 0};
@@ -235,6 +287,10 @@ int cmd_study(int argc, char **argv)
          0, 0},
         {"--estimate", CLI_FLAG, &estimate_only, NULL, "print the run-time estimate and exit", NULL,
          0, 0, 0},
+        {"--resume", CLI_FLAG, &resume, NULL,
+         "go on with a stopped study: the rows it finished (kept in DIR/NAME/) are read back, not "
+         "run again; refused when the study file, --quick or --particles differ",
+         NULL, 0, 0, 0},
         {"--particles", CLI_STRING, &particles, "FILE,FILE,...",
          "particle files (.csv or .vtu) in place of every figure's layout: one row per file, in "
          "order, at nx = N^(1/dim); an h/dx sweep runs on the last file",
@@ -246,23 +302,28 @@ int cmd_study(int argc, char **argv)
         CLI_CACHE_OPTS(cache),
     };
     const char *positional[1] = {NULL};
-    cli_command cmd = {"study",
-                       "Run a convergence study declared in studies/NAME.study: per figure or "
-                       "table a CSV, a markdown report with the paper's numbers beside ours, and "
-                       "a gnuplot figure.",
-                       "consph study NAME [--quick] [--out DIR] [--particles FILE,...] | consph "
-                       "study --list",
-                       "NAME is a study name (see --list) or a path to a .study file; NAME.study "
-                       "is taken from the first of $CONSPH_STUDIES, ./studies and the built-in "
-                       "studies that has it.\n"
-                       "Without --quick the paper's resolutions are used and a run-time "
-                       "estimate is printed first. File format: docs/studies.md.\n"
-                       "Exit status: 0 done, 1 a run failed, 2 bad input, 3 an error is not "
-                       "finite (stderr names the figure, series and resolution).",
-                       opts,
-                       (int)(sizeof opts / sizeof opts[0]),
-                       1,
-                       positional};
+    cli_command cmd = {
+        "study",
+        "Run a convergence study declared in studies/NAME.study: per figure or "
+        "table a CSV, a markdown report with the paper's numbers beside ours, and "
+        "a gnuplot figure.",
+        "consph study NAME [--quick] [--out DIR] [--particles FILE,...] [--estimate] "
+        "[--resume] | consph study --list",
+        "NAME is a study name (see --list) or a path to a .study file; NAME.study "
+        "is taken from the first of $CONSPH_STUDIES, ./studies and the built-in "
+        "studies that has it.\n"
+        "Without --quick the paper's resolutions are used and a run-time "
+        "estimate is printed first. File format: docs/studies.md.\n"
+        "Progress goes to stderr: a live line on a terminal, else a line per "
+        "finished row. SIGINT or SIGTERM ends the current row at its next step, "
+        "writes the partial README.md and prints the command that resumes.\n"
+        "Exit status: 0 done, 1 a run failed, 2 bad input, 3 an error is not "
+        "finite (stderr names the figure, series and resolution), 128 + signal "
+        "stopped.",
+        opts,
+        (int)(sizeof opts / sizeof opts[0]),
+        1,
+        positional};
     int rc = cli_parse(&cmd, argc, argv);
     if (rc) return rc == 1 ? 0 : rc;
     if ((rc = cli_cache_apply(&cmd, &cache))) return rc;
@@ -309,19 +370,39 @@ int cmd_study(int argc, char **argv)
     if (!quick || estimate_only) {
         double est = particles ? consph_study_estimate_particles(s, quick, in.sets, in.n)
                                : consph_study_estimate(s, quick);
-        printf("estimated run time: %.0f s (%.1f min; rough: neighbour pairs x measured cost per "
-               "pair)\n",
-               est, est / 60.0);
+        print_estimate(est);
         fflush(stdout);
     }
-    consph_study_options o = {quick, out, stdout};
+    char *resume_cmd = resume_command(argc, argv, resume);
+    int stopped_by = 0;
+    consph_study_options o = {.quick = quick, .out_dir = out, .log = stdout};
+    o.progress = 1;
+    o.resume = resume;
+    o.resume_cmd = resume_cmd;
+    o.stopped_by = &stopped_by;
     double t0 = consph_wtime();
     rc = CONSPH_OK;
-    if (!estimate_only)
+    /* SIGINT/SIGTERM: the current row ends at its next step, the partial report is written. */
+    if (!estimate_only) rc = consph_stop_install();
+    if (rc == CONSPH_OK && !estimate_only)
         rc = particles
                  ? consph_study_run_particles(s, &o, in.sets, (const char *const *)in.names, in.n)
                  : consph_study_run(s, &o);
+    if (!estimate_only) consph_stop_uninstall();
     free_inputs(&in);
+    if (rc == CONSPH_OK && stopped_by) {
+        fprintf(stderr,
+                "consph study: stopped by %s; partial report in %s/%s/README.md; the finished "
+                "rows are kept: resume with\n  %s\n",
+                stopped_by == SIGINT    ? "SIGINT"
+                : stopped_by == SIGTERM ? "SIGTERM"
+                                        : "a signal",
+                out, consph_study_name(s), resume_cmd ? resume_cmd : "consph study NAME --resume");
+        free(resume_cmd);
+        consph_study_free(s);
+        return 128 + stopped_by;
+    }
+    free(resume_cmd);
     if (rc != CONSPH_OK) {
         fprintf(stderr, "consph study: %s\n", consph_last_error());
         consph_study_free(s);

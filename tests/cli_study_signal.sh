@@ -1,8 +1,9 @@
 #!/usr/bin/env bash
 # A study stopped by SIGTERM or SIGINT while gnuplot draws: the gnuplot child
-# is killed and reaped, its temporary SVG goes, and the study directory the run created goes too
-# (as after a failure), with exit status 128 + signal; a directory that existed before stays,
-# without temporaries. gnuplot is a fake first on PATH that starts its output and then sleeps, so
+# is killed and reaped, its temporary SVG goes, and the study directory stays with a partial
+# README.md that names the signal and the command that resumes, with exit status 128 + signal.
+# SIGHUP (not a stop request) ends the study at once without a report: the rows it kept stay for
+# --resume (001-fig2 keeps its one row before drawing), without temporaries. gnuplot is a fake first on PATH that starts its output and then sleeps, so
 # the signal always arrives mid-drawing. A symbolic link at OUT/NAME is refused (exit 2) without
 # writing through it. The same for the gnuplot of a shear-layer run stopped by SIGTERM.
 # Usage: cli_study_signal.sh <path-to-consph> <source-dir>
@@ -61,8 +62,15 @@ stop() {
         bad "$sig: gnuplot $q still running"
     elif [ -n "$left" ]; then
         bad "$sig: temporaries left: $left"
-    elif [ "$keep" = 0 ] && [ -e "$out/001-fig2" ]; then
-        bad "$sig: the study directory it created is left: $(ls "$out/001-fig2")"
+    elif [ "$sig" != HUP ] && ! grep -q "^\*\*Partial results\*\*: stopped by SIG$sig" \
+        "$out/001-fig2/README.md" 2>/dev/null; then
+        bad "$sig: no partial README.md: $(ls -A "$out/001-fig2" 2>&1)"
+    elif [ "$sig" != HUP ] && ! grep -qF -- "--out $out --resume" "$out/001-fig2/README.md"; then
+        bad "$sig: the partial README.md lacks the command that resumes"
+    elif [ "$sig" = HUP ] && [ -e "$out/001-fig2/README.md" ]; then
+        bad "$sig: a README.md was written"
+    elif [ "$sig" = HUP ] && [ -z "$(ls -A "$out/001-fig2" | grep '\.row$')" ]; then
+        bad "$sig: the kept rows are gone: $(ls -A "$out/001-fig2" 2>&1)"
     elif [ "$keep" = 1 ] && [ ! -d "$out/001-fig2" ]; then
         bad "$sig: the study directory that existed before is gone"
     else
@@ -70,12 +78,10 @@ stop() {
     fi
 }
 mkdir "$work/a" "$work/b"
+stop HUP 129 "$work/a" 0
 stop TERM 143 "$work/a" 0
 stop INT 130 "$work/a" 0
-stop HUP 129 "$work/a" 0
-# Nested: out/new/ is created too, and goes.
-stop TERM 143 "$work/b/new" 0
-[ -e "$work/b/new" ] && bad "TERM: created parent $work/b/new left" || pass=$((pass + 1))
+stop HUP 129 "$work/b/new" 0
 mkdir -p "$work/a/001-fig2"
 stop TERM 143 "$work/a" 1
 

@@ -239,6 +239,9 @@ void consph_progress_start(consph_progress *pr, long step0);
 void consph_progress_update(consph_progress *pr, long step, double t, long steps_end, double t_end);
 /* Clears the line. */
 void consph_progress_end(consph_progress *pr);
+/* Text every progress line starts with until changed (NULL or "": none), e.g. the study row a
+ * run belongs to; copied (at most 255 bytes). */
+void consph_progress_prefix(const char *text);
 
 #ifdef __cplusplus
 }

@@ -316,11 +316,29 @@ typedef struct consph_study_options {
     int quick;           /* the reduced resolutions (quick.* keys) */
     const char *out_dir; /* results go to out_dir/<study>/ */
     FILE *log;           /* progress lines (NULL: silent) */
+    /* Rows: a progress line on stderr (live on a terminal, one line per finished row
+     * otherwise), each finished row kept in out_dir/<study>/ for --resume. */
+    int progress;
+    int resume;             /* read the rows an earlier run of the same study and options kept */
+    const char *resume_cmd; /* the command line that resumes, for the message after a stop */
+    /* NULL, or where the signal that stopped the study goes (0: none); non-NULL also says that
+     * the caller installed the stop handlers (consph_stop_install), which solver rows then
+     * watch at every step. */
+    int *stopped_by;
 } consph_study_options;
+
+/* "mm:ss", "h:mm:ss", or "D.d days" when long; "--" when unknown (NaN, negative). */
+const char *consph_study_duration_text(double seconds, char *buf, size_t size);
 
 /* Runs every figure; writes FIGURE.csv, FIGURE.md, FIGURE.gp (+ .svg when gnuplot is
  * installed) per figure and README.md per study, each atomically. A figure gnuplot fails to
- * draw is an error (CONSPH_EIO, no SVG); a failed run removes the directories it created. */
+ * draw is an error (CONSPH_EIO, no SVG); a failed run removes the directories it created.
+ * Every finished row is kept (hidden files beside the outputs); with opt->resume the rows and
+ * figures an earlier run kept are read back, not run again, when the study file, --quick and
+ * the particle files are those it ran with (CONSPH_EINVAL naming the difference otherwise).
+ * A stop request (consph_stop_install: SIGINT, SIGTERM) ends the current row at its next step;
+ * the partial README.md says which rows ran and how to resume; CONSPH_OK with
+ * *opt->stopped_by set to the signal. */
 int consph_study_run(const consph_study *s, const consph_study_options *opt);
 /* Runs `s` like consph_study_run, with the particle sets in place of every layout: a figure
  * sweeping nx gets one row per set, in order, reported at nx = N^(1/dim); a figure sweeping h/Δs

@@ -11,6 +11,14 @@
 /* Seconds between redraws: fast enough to look live, slow enough to cost nothing. */
 #define PROGRESS_PERIOD 0.25
 
+/* A study's row ("row 3/12  tgv, EWCSPH, nx=40 | "), shown before the run's own line. */
+static char progress_prefix[256];
+
+void consph_progress_prefix(const char *text)
+{
+    snprintf(progress_prefix, sizeof progress_prefix, "%s", text ? text : "");
+}
+
 void consph_progress_start(consph_progress *pr, long step0)
 {
     memset(pr, 0, sizeof *pr);
@@ -53,8 +61,8 @@ void consph_progress_update(consph_progress *pr, long step, double t, long steps
     char etabuf[32];
     format_eta(etabuf, sizeof etabuf, eta);
     /* \033[K clears what a longer previous line left to the right. */
-    fprintf(stderr, "\rstep %ld  t=%.6g  %.*f steps/s  ETA %s\033[K", step, t, rate < 10 ? 2 : 0,
-            rate, etabuf);
+    fprintf(stderr, "\r%sstep %ld  t=%.6g  %.*f steps/s  ETA %s\033[K", progress_prefix, step, t,
+            rate < 10 ? 2 : 0, rate, etabuf);
     fflush(stderr);
 }
 

@@ -1,11 +1,15 @@
 /* Runs the figures of a study file through the registry of study kinds (kinds/kinds.h): checks
  * every figure before anything runs, estimates the run time, and writes each figure's outputs
  * and the study README into OUT/STUDY/. */
+#include <dirent.h>
 #include <math.h>
+#include <signal.h>
+#include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include "consph/io.h"
 #include "io/outfile_internal.h"
@@ -58,6 +62,14 @@ int study_validate_plans(const consph_study *s, const study_figure *f, int quick
     return CONSPH_OK;
 }
 
+/* Iterations a packing takes to meet its stopping rule: they grow slowly with nx (packed, 2D,
+ * the defaults: 2651, 3551 and 5401 iterations at nx 20, 40 and 80), capped by pack_iter. A
+ * model rather than a measurement, so that the estimate need not pack a layout to the end. */
+static double packing_iterations(double nx, const consph_layout_params *lp)
+{
+    return fmin((double)lp->packing.max_iter, 3550.0 * sqrt(nx / 40.0));
+}
+
 /* Particle files replace the nx sweeps (one run per file at its N^(1/dim)) and need no
  * packing. */
 int study_estimate_plans(const consph_study *s, const study_figure *f, int quick,
@@ -93,7 +105,8 @@ int study_estimate_plans(const consph_study *s, const study_figure *f, int quick
                     dup = !memcmp(e->seen[q], key, sizeof key);
                 if (!dup) {
                     if (e->nseen < 256) memcpy(e->seen[e->nseen++], key, sizeof key);
-                    e->packed_particles += pow(nx, pl.spec.layout.dim);
+                    e->packed_particles +=
+                        pow(nx, pl.spec.layout.dim) * packing_iterations(nx, &pl.spec.layout);
                 }
             }
         }
@@ -138,8 +151,11 @@ static double estimate(const consph_study *s, int quick, const study_files *file
         free(e);
         return total_seconds;
     }
-    /* Calibrate on a small run of the first series (about 2500 particles). */
-    const series_plan first = e->first;
+    /* Calibrate on a small run of the first series (about 2500 particles) on a lattice: the cost
+     * per pair does not depend on the arrangement, and a packed one would take longer to make
+     * than the whole calibration may. */
+    series_plan first = e->first;
+    first.spec.layout.kind = CONSPH_LAYOUT_LATTICE;
     double nx_cal = first.spec.layout.dim == 1 ? 2500 : first.spec.layout.dim == 2 ? 50 : 14;
     consph_approx_row row;
     double t0 = consph_wtime();
@@ -149,15 +165,20 @@ static double estimate(const consph_study *s, int quick, const study_files *file
     }
     double total = consph_wtime() - t0;
     double per_pair = (total - row.layout_seconds) / study_pairs_estimate(&first, nx_cal);
+    /* Packing: the cost of one iteration per particle, from 200 iterations at 40². */
     double per_packed = 0.0;
     if (e->packed_particles > 0) {
         consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED, 2, 40);
+        lp.packing.max_iter = 200;
         consph_particles p;
+        consph_packing_report rep;
+        memset(&rep, 0, sizeof rep);
         t0 = consph_wtime();
-        if (consph_layout_generate(&lp, &p, NULL) == CONSPH_OK) {
-            per_packed = (consph_wtime() - t0) / (double)p.n;
+        if (consph_layout_generate(&lp, &p, &rep) == CONSPH_OK) {
+            per_packed = (consph_wtime() - t0) / ((double)p.n * fmax(1, rep.iterations));
             consph_particles_free(&p);
         }
+        consph_packing_report_free(&rep);
     }
     total_seconds += e->pairs * per_pair + e->packed_particles * per_packed;
     free(e);
@@ -216,25 +237,247 @@ static int validate_files(const consph_study *s, int quick, const study_files *f
     return CONSPH_OK;
 }
 
+/* ---- rows, their store and --resume ---- */
+
+static uint64_t fnv1a(uint64_t h, const void *data, size_t n)
+{
+    const unsigned char *c = data;
+    for (size_t k = 0; k < n; ++k) h = (h ^ c[k]) * 1099511628211ull;
+    return h;
+}
+
+/* FNV-1a of a file's bytes into h; 0 when it cannot be read. */
+static int hash_file(const char *path, uint64_t *h)
+{
+    FILE *in = fopen(path, "rb");
+    if (!in) return 0;
+    char buf[65536];
+    size_t got;
+    while ((got = fread(buf, 1, sizeof buf, in)) > 0) *h = fnv1a(*h, buf, got);
+    int ok = !ferror(in);
+    fclose(in);
+    return ok;
+}
+
+/* What a resumed run must share with the run that kept the rows: the study file's contents,
+ * --quick and the particle files (names and contents). One line each, compared line by line. */
+static int state_text(const consph_study *s, int quick, const study_files *files, char *buf,
+                      size_t size)
+{
+    uint64_t hs = 14695981039346656037ull, hp = hs;
+    if (!hash_file(s->path, &hs))
+        return consph_fail(CONSPH_EIO, "cannot read the study file '%s'", s->path);
+    for (int k = 0; files && k < files->n; ++k) {
+        hp = fnv1a(hp, files->names[k], strlen(files->names[k]) + 1);
+        if (!hash_file(files->names[k], &hp))
+            return consph_fail(CONSPH_EIO, "cannot read the particle file '%s'", files->names[k]);
+    }
+    snprintf(buf, size, "consph-study-state 1\nstudy file %016llx\nquick %s\nparticles %s%016llx\n",
+             (unsigned long long)hs, quick ? "yes" : "no", files ? "" : "none ",
+             (unsigned long long)(files ? hp : 0));
+    return CONSPH_OK;
+}
+
+#define STATE_NAME ".study-state"
+
+/* A fresh run forgets what an earlier one kept: its rows, figures and state. */
+static void forget_kept(const char *dir)
+{
+    DIR *d = opendir(dir);
+    if (!d) return;
+    struct dirent *e;
+    char path[STUDY_PATH_MAX];
+    while ((e = readdir(d))) {
+        size_t n = strlen(e->d_name);
+        int kept = e->d_name[0] == '.' && ((n > 4 && !strcmp(e->d_name + n - 4, ".row")) ||
+                                           (n > 5 && !strcmp(e->d_name + n - 5, ".done")) ||
+                                           !strcmp(e->d_name, STATE_NAME));
+        if (kept && study_out_path(path, dir, e->d_name, "") == CONSPH_OK) remove(path);
+    }
+    closedir(d);
+}
+
+static int write_small(const char *dir, const char *name, const char *text)
+{
+    char path[STUDY_PATH_MAX];
+    consph_outfile of;
+    int rc = study_out_path(path, dir, name, "");
+    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
+    if (rc) return rc;
+    fputs(text, of.fp);
+    return consph_outfile_commit(&of);
+}
+
+/* The first line where the kept state and this run's differ, named for the message. */
+static int check_state(const char *dir, const char *want, const char *cmd_dir)
+{
+    char path[STUDY_PATH_MAX], have[512] = "";
+    int rc = study_out_path(path, dir, STATE_NAME, "");
+    if (rc) return rc;
+    FILE *in = fopen(path, "r");
+    if (!in)
+        return consph_fail(CONSPH_EINVAL,
+                           "--resume: nothing to resume in '%s' (no rows kept by an earlier run "
+                           "of this study); run it without --resume",
+                           cmd_dir);
+    size_t got = fread(have, 1, sizeof have - 1, in);
+    have[got] = '\0';
+    fclose(in);
+    if (!strcmp(have, want)) return CONSPH_OK;
+    static const char *const what[] = {"the state file's version differs",
+                                       "the study file's contents differ", "--quick differs",
+                                       "the particle files (--particles) differ"};
+    const char *a = have, *b = want;
+    for (int line = 0; line < 4; ++line) {
+        size_t la = strcspn(a, "\n"), lb = strcspn(b, "\n");
+        if (la != lb || strncmp(a, b, la)) {
+            if (line == 2)
+                return consph_fail(CONSPH_EINVAL,
+                                   "--resume: the rows in '%s' were made %s --quick, this run is "
+                                   "%s it; resume with the same options, or run without --resume "
+                                   "to start over",
+                                   cmd_dir, strstr(a, "yes") == a + 6 ? "with" : "without",
+                                   strstr(b, "yes") == b + 6 ? "with" : "without");
+            return consph_fail(CONSPH_EINVAL,
+                               "--resume: %s from the run that kept the rows in '%s'; resume "
+                               "with the same study file and options, or run without --resume "
+                               "to start over",
+                               what[line], cmd_dir);
+        }
+        a += la + (a[la] == '\n');
+        b += lb + (b[lb] == '\n');
+    }
+    return consph_fail(CONSPH_EINVAL, "--resume: the state kept in '%s' is not readable", cmd_dir);
+}
+
+static int figure_done_path(char *buf, const char *dir, const study_figure *f)
+{
+    char name[STUDY_NAME_MAX + 8];
+    snprintf(name, sizeof name, ".%s", f->id);
+    return study_out_path(buf, dir, name, ".done");
+}
+
+static int figure_rows(const consph_study *s, const study_figure *f, int quick,
+                       const study_files *files, double *work)
+{
+    const study_kind *kind = study_kind_of(s, f);
+    *work = 1.0;
+    if (!kind->rows) return 1;
+    *work = 0.0;
+    return kind->rows(s, f, quick, files, work);
+}
+
 static int run_figures(const consph_study *s, const consph_study_options *opt,
-                       const study_files *files, const char *dir)
+                       const study_files *files, const char *dir, study_rows *rows)
 {
     int rc = CONSPH_OK;
     layout_cache *cache = calloc(1, sizeof *cache);
     if (!cache) return consph_fail(CONSPH_ENOMEM, "out of memory");
     FILE *log = opt->log;
-    const study_job job = {s, opt->quick, dir, files, cache, log};
+    /* On a terminal the log reaches opt->log between redraws of the live line. */
+    if (rows->tty && log) {
+        rows->out = log;
+        rows->mem = open_memstream(&rows->membuf, &rows->memlen);
+        if (rows->mem) log = rows->mem;
+    }
+    const study_job job = {s, opt->quick, dir, files, cache, log, rows};
     for (int k = 0; rc == CONSPH_OK && k < s->nfigs; ++k) {
         const study_figure *f = &s->figs[k];
+        const study_kind *kind = study_kind_of(s, f);
+        char done[STUDY_PATH_MAX];
+        double work;
+        const int nrows = figure_rows(s, f, opt->quick, files, &work);
+        if ((rc = figure_done_path(done, dir, f))) break;
+        if (opt->resume && access(done, F_OK) == 0) {
+            /* Its outputs were committed before the mark: kept as they are. */
+            if (log) fprintf(log, "[%s] kept from the earlier run\n", f->id);
+            rows->done += nrows;
+            rows->work_done += work;
+            continue;
+        }
+        if (study_rows_stop(&job)) break;
         if (log) fprintf(log, "[%s] %s\n", f->id, study_get_or(s, f, NULL, "title", ""));
         double t0 = consph_wtime();
-        rc = study_kind_of(s, f)->run(&job, f);
+        if (!kind->rows) study_row_begin(&job, f, -1, "", 1.0);
+        rc = kind->run(&job, f);
+        if (rc == STUDY_STOPPED) {
+            rc = CONSPH_OK;
+            study_rows_stop(&job);
+            if (!rows->stopped) rows->stopped = SIGINT;
+            break;
+        }
+        if (rc == CONSPH_OK && !kind->rows)
+            rc = study_row_finish(&job, f, -1, 0, NULL, 0, NULL, 0, 0);
+        if (rc == CONSPH_OK) rc = write_small(dir, strrchr(done, '/') + 1, "");
         if (log && rc == CONSPH_OK)
             fprintf(log, "  -> %s/%s.md (%.1f s)\n", dir, f->id, consph_wtime() - t0);
+        study_rows_flush(rows);
+    }
+    if (rc == CONSPH_OK) study_rows_stop(&job);
+    if (rows->mem) {
+        study_rows_flush(rows);
+        fclose(rows->mem);
+        free(rows->membuf);
+        rows->mem = NULL;
     }
     study_layout_cache_free(cache);
     free(cache);
     return rc;
+}
+
+/* README.md of a stopped study: the figures that finished, then the others as not run, with
+ * the rows each kept for --resume, and the command that resumes. */
+static int write_partial_readme(const consph_study *s, const consph_study_options *opt,
+                                const study_files *files, const char *dir, const study_rows *rows)
+{
+    char path[STUDY_PATH_MAX];
+    consph_outfile of;
+    int rc = study_out_path(path, dir, "README", ".md");
+    if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
+    if (rc) return rc;
+    FILE *o = of.fp;
+    fprintf(o, "# %s: %s\n\n", consph_study_name(s), consph_study_title(s));
+    fprintf(o,
+            "**Partial results**: stopped by %s after %d of %d rows. Resume with\n\n"
+            "    %s\n\n",
+            rows->stopped == SIGINT    ? "SIGINT"
+            : rows->stopped == SIGTERM ? "SIGTERM"
+                                       : "a signal",
+            rows->done, rows->total,
+            opt->resume_cmd ? opt->resume_cmd : "consph study NAME --resume");
+    for (int k = 0; k < s->nfigs; ++k) {
+        const study_figure *f = &s->figs[k];
+        char md[STUDY_PATH_MAX], buf[4096];
+        if (figure_done_path(path, dir, f) == CONSPH_OK && access(path, F_OK) == 0 &&
+            study_out_path(md, dir, f->id, ".md") == CONSPH_OK) {
+            FILE *in = fopen(md, "r");
+            if (in) {
+                size_t got;
+                while ((got = fread(buf, 1, sizeof buf, in)) > 0) fwrite(buf, 1, got, o);
+                fclose(in);
+                continue;
+            }
+        }
+        double work;
+        const int nrows = figure_rows(s, f, opt->quick, files, &work);
+        int kept = 0;
+        char prefix[STUDY_NAME_MAX + 4];
+        snprintf(prefix, sizeof prefix, ".%s.s", f->id);
+        DIR *d = opendir(dir);
+        struct dirent *e;
+        while (d && (e = readdir(d))) {
+            size_t n = strlen(e->d_name);
+            kept += !strncmp(e->d_name, prefix, strlen(prefix)) && n > 4 &&
+                    !strcmp(e->d_name + n - 4, ".row");
+        }
+        if (d) closedir(d);
+        fprintf(o,
+                "## %s: %s\n\n%s: %d of %d rows done and kept for --resume; the rest not "
+                "run.\n\n",
+                f->id, kept ? "partly run" : "not run", study_get_or(s, f, NULL, "title", f->id),
+                kept, nrows);
+    }
+    return consph_outfile_commit(&of);
 }
 
 static int study_run(const consph_study *s, const consph_study_options *opt,
@@ -243,22 +486,50 @@ static int study_run(const consph_study *s, const consph_study_options *opt,
     int rc = study_validate(s, opt->quick, files);
     if (rc) return rc;
     if (files && (rc = validate_files(s, opt->quick, files))) return rc;
-    char dir[STUDY_PATH_MAX];
+    char dir[STUDY_PATH_MAX], state[512];
     size_t created = 0;
     if ((rc = study_out_path(dir, opt->out_dir, consph_study_name(s), ""))) return rc;
+    if ((rc = state_text(s, opt->quick, files, state, sizeof state))) return rc;
     struct stat st;
     if (lstat(dir, &st) == 0 && S_ISLNK(st.st_mode))
         return consph_fail(CONSPH_EINVAL,
                            "'%s' is a symbolic link, which would take the results out of the "
                            "output directory; allowed: a directory, or nothing, at that name",
                            dir);
+    if (opt->resume && (rc = check_state(dir, state, dir))) return rc;
+    study_rows rows;
+    memset(&rows, 0, sizeof rows);
+    rows.dir = dir;
+    rows.t0 = consph_wtime();
+    rows.print = opt->progress;
+    rows.signals = opt->stopped_by != NULL;
+    rows.tty = opt->progress && isatty(STDERR_FILENO) == 1;
+    const char *hook = getenv("CONSPH_TEST_STOP_AFTER_ROWS");
+    rows.stop_after = hook ? atoi(hook) : 0;
+    for (int k = 0; k < s->nfigs; ++k) {
+        double work;
+        rows.total += figure_rows(s, &s->figs[k], opt->quick, files, &work);
+        rows.work_total += work;
+    }
     rc = study_mkdir_p(dir, &created);
     /* A signal removes what was made as a failure does (study_remove_created). */
     if (rc == CONSPH_OK) consph_made_dir_register(dir, created);
-    if (rc == CONSPH_OK) rc = run_figures(s, opt, files, dir);
-    if (rc == CONSPH_OK) rc = study_write_readme(s, opt->quick, files != NULL, dir);
+    if (rc == CONSPH_OK && !opt->resume) {
+        forget_kept(dir);
+        rc = write_small(dir, STATE_NAME, state);
+    }
+    if (rc == CONSPH_OK) rc = run_figures(s, opt, files, dir, &rows);
+    if (rows.tty) {
+        fprintf(stderr, "\r\033[K");
+        consph_progress_prefix(NULL);
+    }
+    if (rc == CONSPH_OK && rows.stopped)
+        rc = write_partial_readme(s, opt, files, dir, &rows);
+    else if (rc == CONSPH_OK)
+        rc = study_write_readme(s, opt->quick, files != NULL, dir);
     if (rc) study_remove_created(dir, created);
     consph_made_dir_unregister();
+    if (opt->stopped_by) *opt->stopped_by = rc == CONSPH_OK ? rows.stopped : 0;
     return rc;
 }
 

@@ -248,6 +248,31 @@ double study_pairs_estimate(const series_plan *pl, double nx)
     return n * (1.0 + consph_approx_neighbours(&pl->spec, (size_t)n, 1.0, 1.0 / nx));
 }
 
+/* The work of row j (neighbour pairs), the unit of the progress line's ETA. */
+double study_plan_row_work(const series_plan *pl, int j)
+{
+    series_plan one = *pl;
+    if (pl->sweep_hdx) one.spec.hdx = pl->values[j];
+    return study_pairs_estimate(&one, pl->sweep_hdx ? (double)pl->nx_fixed : pl->values[j]);
+}
+
+/* The rows of an operator figure (one per series and resolution) and their neighbour pairs. */
+int study_plan_rows(const consph_study *s, const study_figure *f, int quick,
+                    const study_files *files, double *work)
+{
+    int n = 0;
+    for (int k = 0; k < f->nseries; ++k) {
+        series_plan pl;
+        if (study_plan_build(s, f, &f->series[k], quick, &pl) != CONSPH_OK) continue;
+        if (files && !pl.sweep_hdx) study_plan_take_files(&pl, files);
+        if (files && pl.sweep_hdx)
+            pl.nx_fixed = (size_t)floor(study_resolution_of(&files->sets[files->n - 1]) + 0.5);
+        for (int j = 0; j < pl.nvalues; ++j) *work += study_plan_row_work(&pl, j);
+        n += pl.nvalues;
+    }
+    return n;
+}
+
 /* Period-1 fields repeat on a periodic axis only when its length is a whole number. */
 int study_check_field_period(const consph_approx_spec *sp, const consph_box *box)
 {

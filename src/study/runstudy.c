@@ -10,6 +10,7 @@
 
 #include "consph/io.h"
 #include "consph/solver.h"
+#include "study/kinds/kinds.h"
 #include "study/kinds/run.h"
 
 /* `quick.KEY` in a quick run when set, else KEY. */
@@ -230,8 +231,10 @@ static int keep_history(const consph_solver *sv, run_row *row)
     return CONSPH_OK;
 }
 
-/* One run; `curve` (X_RADIUS, X_TIME, else none) keeps that curve of it. */
-static int run_one(const run_plan *pl, int j, double h_dt, int curve, run_row *row)
+/* One run; `curve` (X_RADIUS, X_TIME, else none) keeps that curve of it. With `rows`, a stop
+ * request ends it at its next step: STUDY_STOPPED, the row not done. */
+static int run_one(const run_plan *pl, int j, double h_dt, int curve, run_row *row,
+                   study_rows *rows)
 {
     consph_run_params p = pl->prm;
     p.nx = (int)pl->nx[j];
@@ -242,7 +245,19 @@ static int run_one(const run_plan *pl, int j, double h_dt, int curve, run_row *r
     if (!consph_solver_dt_warning(sv, row->dt_warning, sizeof row->dt_warning))
         row->dt_warning[0] = '\0';
     int stopped = 0;
-    rc = consph_run(sv, NULL, &row->sum, &stopped);
+    /* On a terminal the run's own step line shows (after the row, consph_progress_prefix). */
+    const consph_run_output watch = {.signals = 1, .progress = rows && rows->tty};
+    rc = consph_run(sv, rows && rows->signals ? &watch : NULL, &row->sum, &stopped);
+    if (rows && rows->signals) {
+        /* consph_run gave back the handlers it found; the study keeps watching. */
+        if (stopped && !rows->stopped) rows->stopped = stopped;
+        int irc = consph_stop_install();
+        if (rc == CONSPH_OK) rc = irc;
+    }
+    if (rc == CONSPH_OK && stopped) {
+        consph_solver_free(sv);
+        return STUDY_STOPPED;
+    }
     if (rc == CONSPH_OK && curve == X_RADIUS) rc = keep_profile(sv, row);
     /* A diverged run's history is kept too: it shows how it got there. */
     if ((rc == CONSPH_OK || rc == CONSPH_ENUMERIC) && curve == X_TIME) {
@@ -269,9 +284,26 @@ static int run_one(const run_plan *pl, int j, double h_dt, int curve, run_row *r
     return rc;
 }
 
-int study_run_figure(const consph_study *s, const study_figure *f, int quick, const char *dir,
-                     FILE *log)
+/* The rows of a run figure (one run per series and resolution) and their particle-steps. */
+int study_run_rows(const consph_study *s, const study_figure *f, int quick, double *work)
 {
+    int n = 0;
+    for (int k = 0; k < f->nseries; ++k) {
+        run_plan pl;
+        if (plan_build(s, f, &f->series[k], quick, &pl) != CONSPH_OK) continue;
+        for (int j = 0; j < pl.nnx; ++j)
+            *work += particles_of(&pl, pl.nx[j]) * steps_of(&pl, pl.nx[j]);
+        n += pl.nnx;
+    }
+    return n;
+}
+
+int study_run_figure(const study_job *job, const study_figure *f)
+{
+    const consph_study *s = job->s;
+    const int quick = job->quick;
+    const char *dir = job->dir;
+    FILE *log = job->log;
     int ref, x, rc = study_run_validate(s, f, quick);
     if (rc == CONSPH_OK) rc = tr_reference(s, f, &ref);
     if (rc == CONSPH_OK) rc = x_axis(s, f, &x);
@@ -293,8 +325,25 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
         /* The finest first: its h sets Δt of the whole sweep (dt_rule = finest). */
         double h_dt = 0.0;
         for (int j = pl->nnx - 1; rc == CONSPH_OK && j >= 0; --j) {
+            if (study_rows_stop(job)) {
+                rc = STUDY_STOPPED;
+                break;
+            }
             run_row *w = &rows[k][j];
-            rc = run_one(pl, j, h_dt, j == pl->nnx - 1 ? x : X_NX, w);
+            char what[32];
+            snprintf(what, sizeof what, "nx=%g", pl->nx[j]);
+            study_row_begin(job, f, k, what, particles_of(pl, pl->nx[j]) * steps_of(pl, pl->nx[j]));
+            /* A row an earlier run kept is read back with its curve, not run again. */
+            double *curve = NULL;
+            size_t ncurve_values = 0;
+            const int stored = study_row_load(job, f, k, j, w, sizeof *w, &curve, &ncurve_values);
+            if (stored) {
+                w->curve = curve;
+                rc = CONSPH_OK;
+            } else {
+                rc = run_one(pl, j, h_dt, j == pl->nnx - 1 ? x : X_NX, w, job->rows);
+            }
+            if (rc == STUDY_STOPPED) break;
             if (rc) {
                 consph_fail(rc, "figure '%s', series '%s', nx %g: %s", f->id, f->series[k].label,
                             pl->nx[j], consph_last_error());
@@ -307,6 +356,10 @@ int study_run_figure(const consph_study *s, const study_figure *f, int quick, co
                         f->series[k].label, pl->nx[j], w->sum.n, w->sum.steps, w->sum.l1_u,
                         w->sum.l1_p, w->sum.seconds, w->status ? " diverged" : "");
             if (log && w->dt_warning[0]) fprintf(log, "  warning: %s\n", w->dt_warning);
+            const size_t cols =
+                j == pl->nnx - 1 && x >= X_RADIUS ? (size_t)curve_kinds[x].ncols : 0;
+            rc = study_row_finish(job, f, k, j, w, sizeof *w, w->curve,
+                                  w->curve ? cols * w->ncurve : 0, stored);
         }
     }
     char tbuf[640];

@@ -111,9 +111,12 @@ int study_render_figure(const char *dir, const char *id);
 
 /* Checks every key of a run figure's series. */
 int study_run_validate(const consph_study *s, const study_figure *f, int quick);
-/* Runs the figure and writes FIGURE.csv, .md, .dat, .gp and .svg into dir. */
-int study_run_figure(const consph_study *s, const study_figure *f, int quick, const char *dir,
-                     FILE *log);
+/* Runs the figure (job: kinds/kinds.h) and writes FIGURE.csv, .md, .dat, .gp and .svg into
+ * job->dir. */
+struct study_job;
+int study_run_figure(const struct study_job *job, const study_figure *f);
+/* The figure's runs, and their particle-steps added to *work. */
+int study_run_rows(const consph_study *s, const study_figure *f, int quick, double *work);
 /* Particle-steps of the figure's runs, and the seconds they should take (calibrated on a short
  * run of its first series). */
 double study_run_estimate(const consph_study *s, const study_figure *f, int quick,
@@ -121,8 +124,6 @@ double study_run_estimate(const consph_study *s, const study_figure *f, int quic
 #define STUDY_MAX_SWEEP MAX_SWEEP
 
 /* ---- kind = heat (kinds/heat.c): 002's heat-conduction runs, S3 against S4 (docs/heat.md) ---- */
-int study_heat_figure(const consph_study *s, const study_figure *f, int quick, const char *dir,
-                      FILE *log);
 /* The estimated run time of a heat figure in seconds, calibrated on a small run. */
 double study_heat_seconds(const consph_study *s, const study_figure *f, int quick);
 

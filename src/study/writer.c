@@ -4,12 +4,14 @@
 #include <dirent.h>
 #include <errno.h>
 #include <fcntl.h>
+#include <math.h>
 #include <signal.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "consph/io.h"
@@ -247,9 +249,24 @@ int study_render_figure(const char *dir, const char *id)
         consph_tmp_unregister(tmp);
         return consph_fail(CONSPH_EIO, "cannot start gnuplot: %s", strerror(fork_errno));
     }
-    int status = 0;
-    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) continue;
+    /* Polled rather than waited for: a stop request (consph_stop_install records SIGINT and
+     * SIGTERM) ends the drawing at once, as the signal's default action would. */
+    int status = 0, stopped = 0;
+    for (;;) {
+        pid_t w = waitpid(pid, &status, WNOHANG);
+        if (w == pid || (w < 0 && errno != EINTR)) break;
+        if (!stopped && consph_stop_requested()) {
+            stopped = 1;
+            kill(pid, SIGKILL);
+        }
+        if (w == 0) nanosleep(&(struct timespec){0, 10000000L}, NULL);
+    }
     consph_child_unregister(pid);
+    if (stopped) {
+        remove(tmp);
+        consph_tmp_unregister(tmp);
+        return STUDY_STOPPED;
+    }
     struct stat st;
     int drawn =
         WIFEXITED(status) && WEXITSTATUS(status) == 0 && stat(tmp, &st) == 0 && st.st_size > 0;
@@ -313,4 +330,174 @@ int study_gp_finish(consph_outfile *of, int rc, const char *dir, const char *id)
 {
     rc = study_close_output(of, rc);
     return rc ? rc : study_render_figure(dir, id);
+}
+
+/* ---- rows: progress, the store that --resume reads ---- */
+
+/* DIR/.FIGURE.sK.rJ.row: hidden beside the figure's outputs, so that a failed run's cleanup
+ * (study_remove_created) takes it with them and a listing of the results does not show it. */
+static int row_path(char *buf, const study_job *job, const study_figure *f, int k, int j)
+{
+    char name[STUDY_NAME_MAX + 48];
+    snprintf(name, sizeof name, ".%s.s%d.r%d", f->id, k, j);
+    return study_out_path(buf, job->dir, name, ".row");
+}
+
+#define ROW_MAGIC "consph-study-row 1"
+
+int study_row_load(const study_job *job, const study_figure *f, int k, int j, void *row,
+                   size_t size, double **extra, size_t *nextra)
+{
+    if (extra) *extra = NULL;
+    if (nextra) *nextra = 0;
+    if (!job->rows) return 0;
+    char path[STUDY_PATH_MAX];
+    if (row_path(path, job, f, k, j) != CONSPH_OK) return 0;
+    FILE *in = fopen(path, "rb");
+    if (!in) return 0;
+    /* Two text lines, then the bytes: fgets, as a scanf "\n" would skip bytes of the row that
+     * look like white space. */
+    char magic[32], counts[64];
+    unsigned long long got_size = 0, got_extra = 0;
+    int ok = fgets(magic, sizeof magic, in) && strcmp(magic, ROW_MAGIC "\n") == 0 &&
+             fgets(counts, sizeof counts, in) &&
+             sscanf(counts, "%llu %llu", &got_size, &got_extra) == 2 && got_size == size &&
+             (extra || got_extra == 0);
+    double *x = NULL;
+    if (ok && got_extra) {
+        x = malloc((size_t)got_extra * sizeof *x);
+        ok = x != NULL;
+    }
+    ok = ok && fread(row, 1, size, in) == size &&
+         (!got_extra || fread(x, sizeof *x, (size_t)got_extra, in) == (size_t)got_extra);
+    fclose(in);
+    if (!ok) {
+        free(x);
+        return 0;
+    }
+    if (extra) *extra = x;
+    if (nextra) *nextra = (size_t)got_extra;
+    return 1;
+}
+
+/* "mm:ss", "h:mm:ss", or days and hours when long; "--" when unknown. */
+const char *consph_study_duration_text(double seconds, char *buf, size_t size)
+{
+    if (!(seconds >= 0) || !isfinite(seconds)) {
+        snprintf(buf, size, "--");
+        return buf;
+    }
+    if (seconds >= 2 * 86400.0) {
+        snprintf(buf, size, "%.1f days", seconds / 86400.0);
+        return buf;
+    }
+    long s = (long)(seconds + 0.5);
+    if (s >= 3600)
+        snprintf(buf, size, "%ld:%02ld:%02ld", s / 3600, s / 60 % 60, s % 60);
+    else
+        snprintf(buf, size, "%02ld:%02ld", s / 60, s % 60);
+    return buf;
+}
+
+/* Seconds still to go: the remaining work at the rate of the rows this process ran (their wall
+ * time includes the packing of their layouts); unknown before the first. */
+static double rows_eta(const study_rows *r)
+{
+    if (r->work_run <= 0 || r->seconds_run <= 0) return NAN;
+    return (r->work_total - r->work_done) * r->seconds_run / r->work_run;
+}
+
+/* The log written since the last call, below the live line (which it clears first). */
+static void rows_pass_log(study_rows *r)
+{
+    if (!r->mem) return;
+    fflush(r->mem);
+    if (r->memlen > r->memdone && r->out) {
+        fprintf(stderr, "\r\033[K");
+        fflush(stderr);
+        fwrite(r->membuf + r->memdone, 1, r->memlen - r->memdone, r->out);
+        fflush(r->out);
+    }
+    r->memdone = r->memlen;
+}
+
+static void rows_line(study_rows *r, int done_line, int stored)
+{
+    rows_pass_log(r);
+    if (!r->print) return;
+    char el[32], eta[32];
+    consph_study_duration_text(consph_wtime() - r->t0, el, sizeof el);
+    consph_study_duration_text(rows_eta(r), eta, sizeof eta);
+    /* One fprintf per line: stderr is unbuffered, and a line must not be torn by others. */
+    if (r->tty) {
+        fprintf(stderr, "\rrow %d/%d  %s  elapsed %s  ETA %s\033[K", r->done + !done_line, r->total,
+                r->current, el, eta);
+        /* A solver row's own line (consph_run) keeps the row in view. */
+        char prefix[256];
+        snprintf(prefix, sizeof prefix, "row %d/%d %.40s | ", r->done + !done_line, r->total,
+                 r->current);
+        consph_progress_prefix(prefix);
+    } else if (done_line)
+        fprintf(stderr, "study: row %d/%d %s: %s (elapsed %s, ETA %s)\n", r->done, r->total,
+                stored ? "kept from the earlier run" : "done", r->current, el, eta);
+    fflush(stderr);
+}
+
+void study_row_begin(const study_job *job, const study_figure *f, int k, const char *what,
+                     double work)
+{
+    study_rows *r = job->rows;
+    if (!r) return;
+    if (k >= 0)
+        snprintf(r->current, sizeof r->current, "%s, %s, %s", f->id, f->series[k].label, what);
+    else
+        snprintf(r->current, sizeof r->current, "%s", f->id);
+    r->row_t0 = consph_wtime();
+    r->row_work = work;
+    if (r->tty) rows_line(r, 0, 0);
+}
+
+int study_row_finish(const study_job *job, const study_figure *f, int k, int j, const void *row,
+                     size_t size, const double *extra, size_t nextra, int stored)
+{
+    study_rows *r = job->rows;
+    if (!r) return CONSPH_OK;
+    if (!stored && row) {
+        char path[STUDY_PATH_MAX];
+        consph_outfile of;
+        int rc = row_path(path, job, f, k, j);
+        if (rc == CONSPH_OK) rc = consph_outfile_open(&of, path);
+        if (rc) return rc;
+        fprintf(of.fp, "%s\n%llu %llu\n", ROW_MAGIC, (unsigned long long)size,
+                (unsigned long long)nextra);
+        fwrite(row, 1, size, of.fp);
+        if (nextra) fwrite(extra, sizeof *extra, nextra, of.fp);
+        if ((rc = consph_outfile_commit(&of))) return rc;
+        /* From the first kept row on, a signal (a second SIGINT, SIGHUP) leaves the directory
+         * and its rows for --resume; a failure still removes it (study_remove_created). */
+        consph_made_dir_unregister();
+    }
+    r->done++;
+    r->work_done += r->row_work;
+    if (!stored) {
+        r->run_now++;
+        r->work_run += r->row_work;
+        r->seconds_run += consph_wtime() - r->row_t0;
+        if (r->stop_after > 0 && r->run_now == r->stop_after) raise(SIGINT);
+    }
+    rows_line(r, 1, stored);
+    return CONSPH_OK;
+}
+
+void study_rows_flush(study_rows *r)
+{
+    rows_pass_log(r);
+}
+
+int study_rows_stop(const study_job *job)
+{
+    study_rows *r = job->rows;
+    if (!r) return 0;
+    if (!r->stopped) r->stopped = consph_stop_requested();
+    return r->stopped;
 }

@@ -334,33 +334,46 @@ static int run_approx_figure(const study_job *job, const study_figure *f)
         /* Files replace the nx sweep, one row each; an h/Δs sweep runs on the last file. */
         if (files && !pl->sweep_hdx) study_plan_take_files(pl, files);
         for (int j = 0; rc == CONSPH_OK && j < pl->nvalues; ++j) {
+            if (study_rows_stop(job)) {
+                rc = STUDY_STOPPED;
+                break;
+            }
             consph_approx_spec sp = pl->spec;
             size_t nx = pl->sweep_hdx ? pl->nx_fixed : (size_t)pl->values[j];
             if (pl->sweep_hdx) sp.hdx = pl->values[j];
             /* T_r compares the finest resolutions: a median there, single timings elsewhere. */
             if (tr && !pl->sweep_hdx && j == pl->nvalues - 1) sp.timing_runs = TR_TIMINGS;
-            const consph_particles *p;
+            char what[64];
+            snprintf(what, sizeof what, "%s=%g", pl->sweep_hdx ? "h/dx" : "nx", pl->values[j]);
+            study_row_begin(job, f, k, what, study_plan_row_work(pl, j));
+            consph_approx_row *w = &res[k].rows[j];
+            /* A row an earlier run kept is read back, its layout not made again. */
+            const int stored = study_row_load(job, f, k, j, w, sizeof *w, NULL, NULL);
+            const consph_particles *p = NULL;
             double lsec = 0.0;
             if (files) {
                 p = &files->sets[pl->sweep_hdx ? files->n - 1 : j];
                 res[k].nx[j] = study_resolution_of(p);
                 nx = (size_t)floor(res[k].nx[j] + 0.5);
                 sp.layout.box = p->box;
-            } else {
+            } else if (!stored) {
                 consph_layout_params lp = sp.layout;
                 for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
                 rc = study_layout_get(cache, &lp, &p, &lsec, log);
                 if (rc) break;
                 res[k].nx[j] = (double)nx;
+            } else {
+                res[k].nx[j] = (double)nx;
             }
-            consph_approx_row *w = &res[k].rows[j];
-            rc = consph_approx_run_particles(&sp, p, nx, w);
-            if (rc) {
-                consph_fail(rc, "figure '%s', series '%s', nx %zu: %s", f->id, f->series[k].label,
-                            nx, consph_last_error());
-                break;
+            if (!stored) {
+                rc = consph_approx_run_particles(&sp, p, nx, w);
+                if (rc) {
+                    consph_fail(rc, "figure '%s', series '%s', nx %zu: %s", f->id,
+                                f->series[k].label, nx, consph_last_error());
+                    break;
+                }
+                w->layout_seconds = lsec;
             }
-            w->layout_seconds = lsec;
             double b = NAN;
             if (pl->bound) {
                 double nn = sp.h_policy == CONSPH_H_SCALING ? consph_scaling_nnbr((double)w->n)
@@ -379,6 +392,7 @@ static int run_approx_figure(const study_job *job, const study_figure *f)
                         f->series[k].label, pl->sweep_hdx ? "h/dx" : "nx", pl->values[j], w->n,
                         w->nbr_mean, w->err.l1, w->err.mae, w->seconds,
                         lsec > 0.5 ? ", layout generated" : "");
+            rc = study_row_finish(job, f, k, j, w, sizeof *w, NULL, 0, stored);
         }
     }
     if (rc == CONSPH_OK) rc = write_approx_outputs(s, f, plans, res, job->dir, quick, files, log);
@@ -393,5 +407,6 @@ const study_kind study_kind_approx = {
     .checks_operator_on_files = 1,
     .validate = study_validate_plans,
     .estimate = study_estimate_plans,
+    .rows = study_plan_rows,
     .run = run_approx_figure,
 };

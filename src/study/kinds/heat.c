@@ -228,9 +228,36 @@ static int write_report(const consph_study *s, const study_figure *f, const heat
     return consph_outfile_commit(&of);
 }
 
-int study_heat_figure(const consph_study *s, const study_figure *f, int quick, const char *dir,
-                      FILE *log)
+/* The work model of one run (time steps × pairs), the unit of the progress line's ETA. */
+static double heat_row_work(const heat_plan *pl, int j)
 {
+    double nx = pl->nx[j], d = 1.0 / (nx - 1.0);
+    double steps = pl->prm.tf / (pl->prm.courant * d * d) + 1.0;
+    return steps * nx * nx * (1.0 + M_PI * pl->prm.eta * pl->prm.eta);
+}
+
+static int heat_rows(const consph_study *s, const study_figure *f, int quick,
+                     const study_files *files, double *work)
+{
+    (void)files;
+    const char *report = study_get(s, f, NULL, "report");
+    const int timing = report && strcmp(report, "time") == 0;
+    int n = 0;
+    for (int k = 0; k < f->nseries; ++k) {
+        heat_plan pl;
+        if (heat_plan_build(s, f, &f->series[k], quick, &pl) != CONSPH_OK) continue;
+        for (int j = timing ? pl.nvalues - 1 : 0; j < pl.nvalues; ++j, ++n)
+            *work += heat_row_work(&pl, j);
+    }
+    return n;
+}
+
+static int heat_figure(const study_job *job, const study_figure *f)
+{
+    const consph_study *s = job->s;
+    const int quick = job->quick;
+    const char *dir = job->dir;
+    FILE *log = job->log;
     if (f->nseries < 1) return study_key_error(s, f, NULL, "kind", "a heat figure needs series");
     const char *report = study_get(s, f, NULL, "report");
     const int timing = report && strcmp(report, "time") == 0;
@@ -245,7 +272,17 @@ int study_heat_figure(const consph_study *s, const study_figure *f, int quick, c
         for (int j = 0; rc == CONSPH_OK && j < plans[k].nvalues; ++j) {
             /* a time comparison runs only the finest resolution, best of 3 when it is cheap */
             if (timing && j < plans[k].nvalues - 1) continue;
-            rc = run_one(&plans[k], j, timing && quick ? 3 : 1, &rows[k][j]);
+            if (study_rows_stop(job)) {
+                rc = STUDY_STOPPED;
+                break;
+            }
+            char what[32];
+            snprintf(what, sizeof what, "nx=%g", plans[k].nx[j]);
+            study_row_begin(job, f, k, what, heat_row_work(&plans[k], j));
+            /* A row an earlier run kept is read back, not run again. */
+            const int stored =
+                study_row_load(job, f, k, j, &rows[k][j], sizeof rows[k][j], NULL, NULL);
+            if (!stored) rc = run_one(&plans[k], j, timing && quick ? 3 : 1, &rows[k][j]);
             const consph_heat_summary *w = &rows[k][j].sum;
             if (rc == CONSPH_OK && !(isfinite(w->l2) && isfinite(w->linf) && isfinite(w->ec)))
                 rc = consph_fail(CONSPH_ENUMERIC, "error not finite");
@@ -258,6 +295,9 @@ int study_heat_figure(const consph_study *s, const study_figure *f, int quick, c
                 fprintf(log, "  %s nx %d: L2 %.3e  (%.2f s)\n", f->series[k].label, w->nx, w->l2,
                         rows[k][j].total);
             }
+            if (rc == CONSPH_OK)
+                rc =
+                    study_row_finish(job, f, k, j, &rows[k][j], sizeof rows[k][j], NULL, 0, stored);
         }
     if (timing)
         for (int k = 0; k < f->nseries; ++k) {
@@ -318,15 +358,11 @@ static int heat_estimate(const consph_study *s, const study_figure *f, int quick
     return CONSPH_OK;
 }
 
-static int heat_figure(const study_job *job, const study_figure *f)
-{
-    return study_heat_figure(job->s, f, job->quick, job->dir, job->log);
-}
-
 const study_kind study_kind_heat = {
     .name = "heat",
     .particles = STUDY_PARTICLES_IGNORED,
     .validate = study_validate_plans,
     .estimate = heat_estimate,
+    .rows = heat_rows,
     .run = heat_figure,
 };

@@ -64,6 +64,11 @@ int study_plan_particles(const series_plan *pl, int j, const study_files *files,
                          layout_cache *cache, FILE *log, const consph_particles **p, size_t *nx);
 /* Neighbour pairs of one run at nx particles per axis of the unit box, from geometry. */
 double study_pairs_estimate(const series_plan *pl, double nx);
+/* The work of row j of a plan (neighbour pairs), and the rows of an operator figure with their
+ * work: study_kind.rows of the kinds that report rows. */
+double study_plan_row_work(const series_plan *pl, int j);
+int study_plan_rows(const consph_study *s, const study_figure *f, int quick,
+                    const study_files *files, double *work);
 /* Period-1 fields repeat on a periodic axis only when its length is a whole number. */
 int study_check_field_period(const consph_approx_spec *sp, const consph_box *box);
 
@@ -88,6 +93,38 @@ void study_remove_created(const char *dir, size_t created);
 /* The study's README: title, then every figure's report in order. */
 int study_write_readme(const consph_study *s, int quick, int files, const char *dir);
 
+/* ---- rows: progress, the store that --resume reads, stop requests (writer.c) ---- */
+
+/* A study's rows (one run of a figure's series at one resolution) as they finish: the progress
+ * line, and each finished row's result kept in DIR/.FIGURE.sS.rJ.row (written atomically), so
+ * that a resumed study reads it instead of running it again. Kinds that do not report rows
+ * (m0, appc, cauchy) count as one row per figure. */
+typedef struct study_rows {
+    const char *dir;
+    int total, done;            /* rows of the study, rows finished (run now or read back) */
+    double work_total;          /* the work model's units (particle-steps, pairs) of every row */
+    double work_done, work_run; /* of the finished rows; of those run by this process */
+    double t0, seconds_run;     /* start; wall time of the rows run by this process */
+    int print;                  /* progress on stderr at all */
+    int tty;                    /* a live line on stderr, else one plain line per finished row */
+    int stop_after;             /* tests: a stop request after this many rows run (0: never) */
+    int run_now;                /* rows run by this process */
+    int signals;                /* the caller installed consph_stop_install (opt->stopped_by) */
+    int stopped;                /* the signal that stopped the study, 0 when none */
+    char current[192];          /* the row now running, for the progress line and the partial
+                                   report */
+    double row_t0, row_work;
+    /* On a terminal the figures' log goes through `mem` and out to `out` between redraws, so
+     * that its lines do not run into the live line. */
+    FILE *out, *mem;
+    char *membuf;
+    size_t memlen, memdone;
+} study_rows;
+
+/* Writes what the figures logged since the last call (terminal only); the next row redraws the
+ * live line. */
+void study_rows_flush(study_rows *r);
+
 /* ---- the kind rows ---- */
 
 /* What one figure run sees. */
@@ -98,10 +135,29 @@ typedef struct study_job {
     const study_files *files; /* NULL: the layouts the study names */
     layout_cache *cache;
     FILE *log;
+    study_rows *rows; /* NULL: no progress, no store (the estimate's runs) */
 } study_job;
 
+/* The stored result of row j of series k of figure f: 1 when read into row (size bytes) and
+ * *extra (*nextra doubles, malloc'd, NULL when none; extra may be NULL), 0 when absent. */
+int study_row_load(const study_job *job, const study_figure *f, int k, int j, void *row,
+                   size_t size, double **extra, size_t *nextra);
+/* Shows that row j of series k (labelled `what`, e.g. "nx=32") starts; `work` in the units of
+ * the figure's study_kind.rows. */
+void study_row_begin(const study_job *job, const study_figure *f, int k, const char *what,
+                     double work);
+/* Keeps a finished row (as study_row_load reads it) and counts it; `stored` 1 when it was read
+ * back rather than run. */
+int study_row_finish(const study_job *job, const study_figure *f, int k, int j, const void *row,
+                     size_t size, const double *extra, size_t nextra, int stored);
+/* The signal that asks the study to stop (consph_stop_requested, or the tests' row count). */
+int study_rows_stop(const study_job *job);
+/* Internal status of a figure stopped by a signal between or inside rows: not an error. */
+#define STUDY_STOPPED 100
+
 /* What a study's estimate adds up: neighbour pairs (timed on a small run of the first series),
- * packed particles (timed on a small packing), and seconds the kinds estimate themselves. */
+ * packing work (particles × iterations, timed on a few iterations of a small packing), and
+ * seconds the kinds estimate themselves. */
 typedef struct study_estimate {
     double pairs, packed_particles, seconds;
     double seen[256][3]; /* packed layouts counted once per (dim, nx, seed) */
@@ -130,6 +186,9 @@ typedef struct study_kind {
     /* Adds the figure's cost to *e; NULL: free. */
     int (*estimate)(const consph_study *s, const study_figure *f, int quick,
                     const study_files *files, study_estimate *e);
+    /* The figure's rows and their work (study_row_begin's units); NULL: one row. */
+    int (*rows)(const consph_study *s, const study_figure *f, int quick, const study_files *files,
+                double *work);
     /* Runs the figure and writes FIGURE.csv, .md and its plot files into job->dir. */
     int (*run)(const study_job *job, const study_figure *f);
 } study_kind;

@@ -12,7 +12,14 @@ static int run_estimate(const consph_study *s, const study_figure *f, int quick,
 
 static int run_figure(const study_job *job, const study_figure *f)
 {
-    return study_run_figure(job->s, f, job->quick, job->dir, job->log);
+    return study_run_figure(job, f);
+}
+
+static int run_rows(const consph_study *s, const study_figure *f, int quick,
+                    const study_files *files, double *work)
+{
+    (void)files;
+    return study_run_rows(s, f, quick, work);
 }
 
 const study_kind study_kind_run = {
@@ -20,5 +27,6 @@ const study_kind study_kind_run = {
     .particles = STUDY_PARTICLES_REFUSED,
     .validate = study_run_validate,
     .estimate = run_estimate,
+    .rows = run_rows,
     .run = run_figure,
 };
