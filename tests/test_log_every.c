@@ -128,8 +128,8 @@ static char *slurp(const char *dir, const char *name)
 
 static void remove_run(const char *dir)
 {
-    static const char *const names[] = {"log.csv", "summary.json", "checkpoint.ckpt", "run.id",
-                                        "run.pvd", "profile.csv"};
+    static const char *const names[] = {"log.csv", "summary.json", "checkpoint.ckpt",
+                                        "run.id",  "run.pvd",      "profile.csv"};
     for (size_t k = 0; k < sizeof names / sizeof names[0]; ++k) {
         char path[256];
         snprintf(path, sizeof path, "%s/%s", dir, names[k]);

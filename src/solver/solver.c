@@ -74,8 +74,12 @@ void solver_eos(consph_solver *s)
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
         for (size_t i = 0; i < n; ++i) pr[i] = c2 * (rhof[i] - r0);
     } else {
+        const int ig = eos_int_exponent(g); /* Tait's γ = 7: by multiplication */
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
-        for (size_t i = 0; i < n; ++i) pr[i] = r0 * c2 / g * (pow(rhof[i] / r0, g) - 1.0);
+        for (size_t i = 0; i < n; ++i) {
+            const double x = rhof[i] / r0;
+            pr[i] = r0 * c2 / g * ((ig >= 0 ? eos_ipow(x, ig) : pow(x, g)) - 1.0);
+        }
     }
 }
 
