@@ -23,8 +23,8 @@ static void test_ipow(void)
             const double ulps = fabs(m - p) / (nextafter(p, INFINITY) - p);
             if (ulps > worst) worst = ulps;
             /* each multiplication rounds once, and a squaring doubles the error before it */
-            CHECK(ulps <= n + 1.0, "%.17g^%d: %.17g by multiplication, %.17g by pow (%g ulps)", x, n,
-                  m, p, ulps);
+            CHECK(ulps <= n + 1.0, "%.17g^%d: %.17g by multiplication, %.17g by pow (%g ulps)", x,
+                  n, m, p, ulps);
         }
     CHECK(worst > 0.0, "multiplication agrees with pow bit for bit everywhere: is pow used?");
     CHECK(eos_ipow(2.0, 10) == 1024.0 && eos_ipow(-1.5, 3) == -3.375 && eos_ipow(3.0, 0) == 1.0,

@@ -75,10 +75,20 @@ void solver_eos(consph_solver *s)
         for (size_t i = 0; i < n; ++i) pr[i] = c2 * (rhof[i] - r0);
     } else {
         const int ig = eos_int_exponent(g); /* Tait's γ = 7: by multiplication */
+        if (ig == 7) {
+            /* the common case written out, the products in eos_ipow's order (the same bits), so
+             * that the loop vectorises */
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
-        for (size_t i = 0; i < n; ++i) {
-            const double x = rhof[i] / r0;
-            pr[i] = r0 * c2 / g * ((ig >= 0 ? eos_ipow(x, ig) : pow(x, g)) - 1.0);
+            for (size_t i = 0; i < n; ++i) {
+                const double x = rhof[i] / r0, x2 = x * x, x4 = x2 * x2;
+                pr[i] = r0 * c2 / g * (x * x2 * x4 - 1.0);
+            }
+        } else {
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
+            for (size_t i = 0; i < n; ++i) {
+                const double x = rhof[i] / r0;
+                pr[i] = r0 * c2 / g * ((ig >= 0 ? eos_ipow(x, ig) : pow(x, g)) - 1.0);
+            }
         }
     }
 }
