@@ -261,6 +261,14 @@ static void test_format3(void)
     CHECK(consph_solver_restore(&r, tmp, consph_solver_particles(s), hist, nh) == CONSPH_EFORMAT &&
               strstr(consph_last_error(), "log_since"),
           "pending time after the last row of this step: %s", consph_last_error());
+    meta_edit(tmp, sizeof tmp, meta, "log_since", "log_since=-0x1p-10");
+    CHECK(consph_solver_restore(&r, tmp, consph_solver_particles(s), hist, nh) == CONSPH_EFORMAT &&
+              strstr(consph_last_error(), "key 'log_since' = -0.000976562 is not a time"),
+          "negative log_since: %s", consph_last_error());
+    meta_edit(tmp, sizeof tmp, meta, "log_since", "log_since=0x1p+4");
+    CHECK(consph_solver_restore(&r, tmp, consph_solver_particles(s), hist, nh) == CONSPH_EFORMAT &&
+              strstr(consph_last_error(), "key 'log_since' = 16 is not a time"),
+          "log_since past t: %s", consph_last_error());
     p.log_every = 0;
     CHECK(consph_run_params_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "log_every"),
           "log_every = 0: %s", consph_last_error());
