@@ -48,7 +48,13 @@ for f in run.pvd log.csv summary.json snap_000000.vtu snap_000010.vtu snap_00002
 done
 [ "$(ls "$tmp/a" | grep -c '\.tmp')" -eq 0 ] || bad "temporary files left: $(ls "$tmp/a")"
 [ "$(grep -c '<DataSet' "$tmp/a/run.pvd")" -eq 3 ] || bad "run.pvd does not index 3 snapshots"
-[ "$(wc -l <"$tmp/a/log.csv")" -eq 22 ] || bad "log.csv: $(wc -l <"$tmp/a/log.csv") lines, expected header + 21"
+# the diagnostics every 10 steps by default, at the snapshots and the last step: 0, 10, 20
+[ "$(cut -d, -f1 "$tmp/a/log.csv" | tr '\n' ' ')" = "step 0 10 20 " ] || bad "log.csv steps: $(cut -d, -f1 "$tmp/a/log.csv" | tr '\n' ' '), expected 0 10 20"
+# --log-every 7: the multiples of 7, the snapshot at 10 and the last step
+run --scheme e-c --layout lattice --steps 20 --snapshot-every 10 --log-every 7 --out "$tmp/k7" >/dev/null ||
+    bad "--log-every 7 run exit $?"
+[ "$(cut -d, -f1 "$tmp/k7/log.csv" | tr '\n' ' ')" = "step 0 7 10 14 20 " ] || bad "--log-every 7 log.csv steps: $(cut -d, -f1 "$tmp/k7/log.csv" | tr '\n' ' '), expected 0 7 10 14 20"
+failing 2 "option --log-every: log_every = 0 is out of range" "$tmp/out" -- "$consph" run taylor-green --log-every 0
 python3 - "$tmp/a.json" "$tmp/a/summary.json" <<'PY' || bad "summary JSON"
 import json, sys
 for path in sys.argv[1:]:

@@ -129,8 +129,8 @@ awk '!/^#/ && NF == 3 { n++; d = $2 - $3; if (d < 0) d = -d; if (d > m) m = d
 grep -q "prof-profile.dat' index 0 using 1:2" "$tmp/gc/gc/prof.gp" || bad "radius study: no u_φ(r) plot"
 
 # x = time (001 Figs. 15-17): the momentum history of each series' finest run, a row per step
-# from t = 0 with finite values; a series that diverges (E-C with a time step 10x too large)
-# stops at its last finite step; the report's drifts are those of the data.
+# (log_every 1) from t = 0 with finite values; a series that diverges (E-C with a time step 10x
+# too large) stops at its last finite step; the report's drifts are those of the data.
 cat >"$tmp/gm.study" <<'STUDY'
 study = gm
 [figure mom]
@@ -140,6 +140,7 @@ y = momentum_x, angular_momentum
 problem = gresho-chan
 nx = 16
 steps = 20
+log_every = 1
 [series L-IPST-C]
 scheme = l-ipst-c
 paper.outcome = completes

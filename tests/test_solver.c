@@ -78,6 +78,7 @@ static void test_momentum(const char *scheme)
     consph_run_params p = params(scheme, 16);
     p.steps = 100;
     p.tf = 0.0;
+    p.log_every = 1;
     consph_solver *s = make(&p);
     if (!s) return;
     int st = run_steps(s, 100);
@@ -87,7 +88,7 @@ static void test_momentum(const char *scheme)
     CHECK(fabs(sum.momentum[0]) < 1e-14 && fabs(sum.momentum[1]) < 1e-14,
           "%s: momentum (%g, %g) after 100 steps", scheme, sum.momentum[0], sum.momentum[1]);
     CHECK(fabs(sum.ft_fmax) < 1e-11, "%s: F_T/F_max %g", scheme, sum.ft_fmax);
-    /* The history: step 0 and every step, the last row the summary's. */
+    /* The history with log_every 1: step 0 and every step, the last row the summary's. */
     CHECK(consph_solver_history_size(s) == 101, "%s: %zu history rows after 100 steps", scheme,
           consph_solver_history_size(s));
     consph_step_diag d = {0};
@@ -337,6 +338,7 @@ static consph_solver *run_until_stop(const char *scheme, double dt, double tf, l
     p.dt = dt;
     p.tf = tf;
     p.steps = steps;
+    p.log_every = 1;
     consph_solver *s = make(&p);
     *st = s ? CONSPH_OK : CONSPH_EINVAL;
     while (s && *st == CONSPH_OK && !consph_solver_done(s)) *st = consph_solver_step(s);
@@ -356,7 +358,8 @@ static void test_divergence(void)
     CHECK(strstr(m, "diverged at step 2 ") && strstr(m, "particle") &&
               strstr(m, "kinetic energy") && strstr(m, "above the bound 0.1 "),
           "message: %s", m);
-    /* The history ends at the last valid step: the stopping one leaves no row. */
+    /* The history ends at the last sample before the stop (log_every 1: the last valid step);
+     * the stopping step leaves no row. */
     consph_step_diag d;
     size_t nh = consph_solver_history_size(s);
     CHECK(nh == (size_t)consph_solver_step_count(s) &&

@@ -84,6 +84,8 @@ typedef struct consph_run_params {
     int rho_init;      /* consph_rho_init */
     int error;         /* consph_error_kind: what the run reports as its L1 beside eq. 26 */
     int error_times;   /* the authors' measure: this many output times in [0, t_f] (001's: 50) */
+    int log_every;     /* the diagnostics (log.csv rows, eq. 26's samples) every this many steps,
+                          at t = 0, the last step and each snapshot; never otherwise */
 } consph_run_params;
 
 void consph_run_params_default(consph_run_params *prm);
@@ -249,15 +251,18 @@ const consph_run_params *consph_solver_params(const consph_solver *s);
 const consph_particles *consph_solver_particles(const consph_solver *s);
 int consph_solver_output_fields(consph_solver *s);
 
-/* The per-step diagnostics of the log: t, L1 and L∞ of |u| and p at this instant, kinetic
- * energy, momentum, angular momentum, F_T/F_max, max |∇·u|. */
+/* The diagnostics of the log at this instant (computed on demand; a run samples them every
+ * log_every steps): t, L1 and L∞ of |u| and p, kinetic energy, momentum, angular momentum,
+ * F_T/F_max, max |∇·u|. */
 typedef struct consph_step_diag {
     long step;
     double t, l1_u, linf_u, l1_p, linf_p, ke, mom[3], ang, ft_fmax, max_divu;
 } consph_step_diag;
 int consph_solver_diag(const consph_solver *s, consph_step_diag *d);
-/* The run's history, as log.csv holds it: one row per step taken, the initial state (step 0)
- * first, so a run of n steps has n + 1 rows; a run that diverged ends at its last finite step.
+/* The run's history, as log.csv holds it: one row per sample of the diagnostics (t = 0, every
+ * log_every steps, the last step, each snapshot of consph_run), the initial state (step 0)
+ * first, so a run of n steps with log_every 1 has n + 1 rows; a run that diverged ends at its
+ * last sample before the stop.
  * consph_solver_history_row fills *d with row k (its step, t, errors, momentum and angular
  * momentum about the box centre as consph_solver_diag computed them then); CONSPH_EINVAL for
  * k >= consph_solver_history_size(s). */
@@ -272,8 +277,8 @@ int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **
 /* ---- a whole run, with its files ---- */
 
 /* Where and how often a run writes. In `dir`: snapshots snap_NNNNNN.vtu (every field of the
- * particles) indexed by run.pvd (a ParaView time series), log.csv (one row per step: the
- * consph_step_diag columns and dt), summary.json, and checkpoint.ckpt. Every file is written to
+ * particles) indexed by run.pvd (a ParaView time series), log.csv (one row per sample, log_every:
+ * the consph_step_diag columns and dt), summary.json, and checkpoint.ckpt. Every file is written to
  * a temporary name and renamed when complete. */
 typedef struct consph_run_output {
     const char *dir;       /* NULL: no files */

@@ -1,6 +1,7 @@
-/* The solver's diagnostics: the per-step values of the log (errors against the exact solution,
- * kinetic energy, momentum, F_T/F_max) in any dimension, the history they are kept in, the
- * authors' error measure of 001's post-processing, the summary and the output fields. */
+/* The solver's diagnostics: the values of the log (errors against the exact solution, kinetic
+ * energy, momentum, F_T/F_max) in any dimension, sampled every log_every steps, at t = 0, the
+ * last step and each snapshot (solver_sample), the history they are kept in, the authors' error
+ * measure of 001's post-processing, the summary and the output fields. */
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -20,9 +21,65 @@ int solver_hist_push(consph_solver *s, const consph_step_diag *g)
     }
     double row[HIST_COLS] = {(double)g->step, g->t,       g->l1_u,     g->linf_u, g->l1_p,
                              g->linf_p,       g->ke,      g->mom[0],   g->mom[1], g->mom[2],
-                             g->ang,          g->ft_fmax, g->max_divu, s->dt};
+                             g->ang,          g->ft_fmax, g->max_divu, s->step_dt};
     memcpy(s->hist + s->nhist * HIST_COLS, row, sizeof row);
     ++s->nhist;
+    return CONSPH_OK;
+}
+
+int solver_sample(consph_solver *s)
+{
+    if (s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step) return CONSPH_OK;
+    consph_step_diag g;
+    int st = consph_solver_diag(s, &g);
+    if (st != CONSPH_OK) return st;
+    if (s->nhist) {
+        /* 001 eq. 26: Σ_j mean|f - f_o|(t_j) (t_j - t_{j-1}) over the samples t_j */
+        s->l1_u_acc += s->log_since * g.l1_u;
+        s->l1_p_acc += s->log_since * g.l1_p;
+    }
+    s->log_since = 0.0;
+    return solver_hist_push(s, &g);
+}
+
+/* The per-particle buffer of the diagnostics, cols values per particle, kept between calls (a
+ * fresh allocation at every sample costs page faults). */
+static double *diag_buffer(consph_solver *s, size_t cols)
+{
+    const size_t n = s->sys.p->n;
+    if (s->diag_cap < cols * n) {
+        double *nw = realloc(s->diag_buf, cols * (n ? n : 1) * sizeof(double));
+        if (!nw) {
+            consph_fail(CONSPH_ENOMEM, "out of memory");
+            return NULL;
+        }
+        s->diag_buf = nw;
+        s->diag_cap = cols * n;
+    }
+    return s->diag_buf;
+}
+
+static double kinetic_energy_of(double m, double ux, double uy, double uz, int d)
+{
+    return 0.5 * m * (d == 3 ? ux * ux + uy * uy + uz * uz : ux * ux + uy * uy);
+}
+
+int solver_kinetic_energy(consph_solver *s, double *ke)
+{
+    const consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t n = p->n, cap = p->cap;
+    const consph_field *fu = consph_particles_find(p, SF_U),
+                       *fm = consph_particles_find(p, SF_MASS);
+    double *w = diag_buffer(s, 1);
+    if (!fu) return consph_fail(CONSPH_EINVAL, "solver state missing");
+    if (!w) return CONSPH_ENOMEM;
+    const double *u = fu->data;
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i)
+        w[i] = kinetic_energy_of(fm ? fm->data[i] : s->mass, u[i], u[cap + i],
+                                 d == 3 ? u[2 * cap + i] : 0.0, d);
+    *ke = consph_sum(w, n);
     return CONSPH_OK;
 }
 
@@ -60,14 +117,14 @@ static long auth_step(const consph_solver *s, int k)
     return lround((double)s->nsteps * (double)k / (double)(s->prm.error_times - 1));
 }
 
-/* Adds this instant's normalised errors of 001's post-processing to the sums. Runs right after
- * consph_solver_diag, whose buffer is large enough. */
+/* Adds this instant's normalised errors of 001's post-processing to the sums. */
 int solver_auth_sample(consph_solver *s)
 {
     const consph_particles *p = s->sys.p;
     const size_t n = p->n, cap = p->cap;
     const double *u = sv_field(s, SF_U, s->dim), *pr = sv_field(s, SF_P, 1);
-    if (!u || !pr || s->diag_cap < 4 * n) return consph_fail(CONSPH_EINVAL, "solver state missing");
+    if (!u || !pr) return consph_fail(CONSPH_EINVAL, "solver state missing");
+    if (!diag_buffer(s, 4)) return CONSPH_ENOMEM;
     double eu_n = NAN, ep_n = NAN;
     if (s->prob->has_exact || s->t == 0.0) {
         double *eu = s->diag_buf, *mu = eu + n, *ep = eu + 2 * n, *pe = eu + 3 * n;
@@ -129,15 +186,8 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
     /* Without an exact solution after t = 0 the errors are not computed (they are n/a): the
      * exact() of such a problem is its initial state, evaluated for nothing. */
     const int errors = s->prob->has_exact || s->t == 0.0;
-    /* kept between calls: a fresh allocation every step costs page faults on a hot path */
-    const size_t cols = d == 3 ? 8 : 7; /* 3D: m u_z too */
-    if (s->diag_cap < cols * n) {
-        double *nw = realloc(s->diag_buf, cols * (n ? n : 1) * sizeof(double));
-        if (!nw) return consph_fail(CONSPH_ENOMEM, "out of memory");
-        s->diag_buf = nw;
-        s->diag_cap = cols * n;
-    }
-    double *w = s->diag_buf;
+    double *w = diag_buffer(s, d == 3 ? 8 : 7); /* 3D: m u_z too */
+    if (!w) return CONSPH_ENOMEM;
     double *eu = w, *ep = w + n, *ke = w + 2 * n, *mx = w + 3 * n, *my = w + 4 * n, *an = w + 5 * n,
            *fx = w + 6 * n, *mz = d == 3 ? w + 7 * n : NULL;
     const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]), yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
@@ -154,7 +204,7 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
             ep[i] = fabs(fp->data[i] - pe);
         }
         const double m = fm ? fm->data[i] : s->mass;
-        ke[i] = 0.5 * m * (d == 3 ? ux * ux + uy * uy + uz * uz : ux * ux + uy * uy);
+        ke[i] = kinetic_energy_of(m, ux, uy, uz, d);
         mx[i] = m * ux;
         my[i] = m * uy;
         if (mz) mz[i] = m * uz;

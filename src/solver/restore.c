@@ -1,6 +1,7 @@
 /* What a checkpoint holds of a solver besides its particles: the parameters and the scalars of
  * the run as "key=value" lines, doubles in C99 hexadecimal (%a) so they read back bit for bit,
- * and the per-step history. Parsing is strict: every key known, every value checked. */
+ * and the history of the sampled diagnostics. Parsing is strict: every key known, every value
+ * checked. */
 #include <errno.h>
 #include <inttypes.h>
 #include <limits.h>
@@ -17,7 +18,17 @@
  * version-1 checkpoint would continue under other integrators than it started with.
  * 3: the run's identifier (key run), which a restart checks against its output directory's
  * run.id; a version-2 checkpoint has none, so nothing could tell its directory from another's. */
-#define CHECKPOINT_FORMAT "consph-solver-3"
+/* 4: the diagnostics are sampled every log_every steps (key log_every), the history holds one row
+ * per sample, and log_since is the time since the last one. A version-3 checkpoint sampled every
+ * step: it reads as log_every 1 with nothing pending (format3_implied). */
+#define CHECKPOINT_FORMAT "consph-solver-4"
+#define CHECKPOINT_FORMAT_3 "consph-solver-3"
+
+/* The keys a version-3 checkpoint lacks and the values its run had. */
+static const struct {
+    const char *key, *value;
+} format3_implied[] = {{"log_every", "1"}, {"log_since", "0"}};
+#define FORMAT3_NIMPLIED (sizeof format3_implied / sizeof format3_implied[0])
 
 int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **history,
                                   size_t *nhistory)
@@ -33,12 +44,13 @@ int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **
     int len = snprintf(m, META_MAX, "format=" CHECKPOINT_FORMAT "\n");
     if (len > 0) len = run_params_meta_write(p, m, META_MAX, (size_t)len);
     if (len > 0) {
-        const int w =
-            snprintf(m + len, META_MAX - (size_t)len,
-                     "t=%a\nstep=%ld\nl1_u_acc=%a\nl1_p_acc=%a\nseconds=%a\npairs=%zu\nregs=%ld\n"
-                     "passes=%d\nrun=%s\nauth_u_acc=%a\nauth_p_acc=%a\nauth_n=%d\nauth_next=%d\n",
-                     s->t, s->step, s->l1_u_acc, s->l1_p_acc, s->seconds, s->pairs, s->regs,
-                     s->passes, s->run_id, s->auth_u_acc, s->auth_p_acc, s->auth_n, s->auth_next);
+        const int w = snprintf(
+            m + len, META_MAX - (size_t)len,
+            "t=%a\nstep=%ld\nl1_u_acc=%a\nl1_p_acc=%a\nseconds=%a\npairs=%zu\nregs=%ld\n"
+            "passes=%d\nrun=%s\nauth_u_acc=%a\nauth_p_acc=%a\nauth_n=%d\nauth_next=%d\n"
+            "log_since=%a\n",
+            s->t, s->step, s->l1_u_acc, s->l1_p_acc, s->seconds, s->pairs, s->regs, s->passes,
+            s->run_id, s->auth_u_acc, s->auth_p_acc, s->auth_n, s->auth_next, s->log_since);
         len = w < 0 ? -1 : len + w;
     }
     if (len < 0 || len >= META_MAX) {
@@ -57,8 +69,8 @@ int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **
  * parameters of the table (params.def) and the run's own state. Key index k: 0 the format,
  * 1..count the parameters in table order, then state_keys. */
 static const char *const state_keys[] = {
-    "t",      "step", "l1_u_acc",   "l1_p_acc",   "seconds", "pairs",    "regs",
-    "passes", "run",  "auth_u_acc", "auth_p_acc", "auth_n",  "auth_next"};
+    "t",      "step", "l1_u_acc",   "l1_p_acc",   "seconds", "pairs",     "regs",
+    "passes", "run",  "auth_u_acc", "auth_p_acc", "auth_n",  "auth_next", "log_since"};
 #define STATE_NKEYS (sizeof state_keys / sizeof state_keys[0])
 #define META_NKEYS_MAX 128
 
@@ -112,7 +124,8 @@ static int read_run_id(const char *v, char *out)
 static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const char *v)
 {
     long l;
-    if (!strcmp(k, "format")) return !strcmp(v, CHECKPOINT_FORMAT);
+    if (!strcmp(k, "format"))
+        return !strcmp(v, CHECKPOINT_FORMAT) || !strcmp(v, CHECKPOINT_FORMAT_3);
     const int pk = run_params_meta_read(p, k, v);
     if (pk >= 0) return pk;
 #define D(name, dst)                                                                               \
@@ -132,6 +145,7 @@ static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const
     D("auth_u_acc", s->auth_u_acc)
     D("auth_p_acc", s->auth_p_acc)
     D("seconds", s->seconds)
+    D("log_since", s->log_since)
 #undef D
 #undef L
     return 0;
@@ -142,6 +156,7 @@ static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const
 static int meta_parse(consph_solver *s, const char *meta)
 {
     unsigned char seen[META_NKEYS_MAX] = {0};
+    int format3 = 0;
     if (meta_nkeys() > META_NKEYS_MAX)
         return consph_fail(CONSPH_EFORMAT, "metadata: more keys than %d", META_NKEYS_MAX);
     const char *line = meta;
@@ -174,14 +189,27 @@ static int meta_parse(consph_solver *s, const char *meta)
             return consph_fail(CONSPH_EFORMAT, "metadata line %d: key '%s' given twice", lineno,
                                buf);
         seen[k] = 1;
-        if (k == 0 && strcmp(v, CHECKPOINT_FORMAT))
+        if (k == 0 && strcmp(v, CHECKPOINT_FORMAT) && strcmp(v, CHECKPOINT_FORMAT_3))
             return consph_fail(CONSPH_EFORMAT,
-                               "checkpoint format '%.40s' is not this consph's (%s); start the "
-                               "run again",
-                               v, CHECKPOINT_FORMAT);
+                               "checkpoint format '%.40s' is not this consph's (%s or %s); start "
+                               "the run again",
+                               v, CHECKPOINT_FORMAT, CHECKPOINT_FORMAT_3);
+        if (k == 0) format3 = !strcmp(v, CHECKPOINT_FORMAT_3);
+        for (size_t j = 0; format3 && j < FORMAT3_NIMPLIED; ++j)
+            if (!strcmp(buf, format3_implied[j].key))
+                return consph_fail(CONSPH_EFORMAT,
+                                   "metadata line %d: key '%s' is not one of format %s", lineno,
+                                   buf, CHECKPOINT_FORMAT_3);
         if (!meta_set(&s->prm, s, buf, v))
             return consph_fail(CONSPH_EFORMAT, "metadata line %d: key '%s': bad value '%.60s'",
                                lineno, buf, v);
+    }
+    for (size_t j = 0; format3 && j < FORMAT3_NIMPLIED; ++j) {
+        const int k = meta_key_index(format3_implied[j].key);
+        if (k < 0 || !meta_set(&s->prm, s, format3_implied[j].key, format3_implied[j].value))
+            return consph_fail(CONSPH_EFORMAT, "metadata: key '%s' of format %s",
+                               format3_implied[j].key, CHECKPOINT_FORMAT_3);
+        seen[k] = 1;
     }
     for (size_t k = 0; k < meta_nkeys(); ++k)
         if (!seen[k])
@@ -230,9 +258,49 @@ static int state_check(const consph_solver *s)
         return consph_fail(CONSPH_EFORMAT,
                            "metadata: keys 'auth_n' = %d, 'auth_next' = %d: past error_times = %d",
                            s->auth_n, s->auth_next, p->error_times);
+    /* a sum of the steps' Δt against t, which a step landing on an output time sets instead of
+     * adding its Δt: the rounding slack of t_end above */
+    if (!(isfinite(s->log_since) && s->log_since >= 0.0 && s->log_since <= s->t * (1.0 + 1e-9)))
+        return consph_fail(CONSPH_EFORMAT,
+                           "metadata: key 'log_since' = %g is not a time in [0, t = %.17g]",
+                           s->log_since, s->t);
     if (!(isfinite(s->seconds) && s->seconds >= 0.0))
         return consph_fail(CONSPH_EFORMAT, "metadata: key 'seconds' = %g is not a time >= 0",
                            s->seconds);
+    return CONSPH_OK;
+}
+
+/* The history against the run's state: rows of HIST_COLS whose steps start at 0 and increase up
+ * to the current step, every multiple of log_every among them, and the last row this step's
+ * exactly when nothing is pending since (log_since 0). */
+static int history_check(const consph_solver *s, const double *h, size_t nh)
+{
+    if (nh == 0 || nh % HIST_COLS != 0)
+        return consph_fail(CONSPH_EFORMAT, "history of %zu values is not rows of %d", nh,
+                           HIST_COLS);
+    const size_t rows = nh / HIST_COLS;
+    double prev = -1.0;
+    for (size_t r = 0; r < rows; ++r) {
+        const double st = h[r * HIST_COLS];
+        if (!(st == floor(st) && st > prev && st <= (double)s->step && (r || st == 0.0)))
+            return consph_fail(CONSPH_EFORMAT,
+                               "history row %zu: step %g is not after %g and at most step = %ld "
+                               "(the first row is step 0)",
+                               r, st, prev, s->step);
+        prev = st;
+    }
+    size_t sampled = 0; /* the rows of the cadence's steps */
+    for (size_t r = 0; r < rows; ++r)
+        sampled += fmod(h[r * HIST_COLS], (double)s->prm.log_every) == 0.0;
+    if (sampled != (size_t)(s->step / s->prm.log_every) + 1)
+        return consph_fail(CONSPH_EFORMAT,
+                           "history of %zu rows lacks samples of log_every = %d up to step %ld",
+                           rows, s->prm.log_every, s->step);
+    if ((prev == (double)s->step) != (s->log_since == 0.0))
+        return consph_fail(CONSPH_EFORMAT,
+                           "metadata: key 'log_since' = %g does not fit the history, whose last "
+                           "row is step %g of %ld",
+                           s->log_since, prev, s->step);
     return CONSPH_OK;
 }
 
@@ -252,12 +320,7 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
     }
     if (st == CONSPH_OK) st = derive_solver(s);
     if (st == CONSPH_OK) st = state_check(s);
-    if (st == CONSPH_OK &&
-        (nhistory == 0 || nhistory % HIST_COLS != 0 || nhistory / HIST_COLS != (size_t)s->step + 1))
-        st = consph_fail(CONSPH_EFORMAT,
-                         "history of %zu values does not hold %ld "
-                         "steps",
-                         nhistory, s->step + 1);
+    if (st == CONSPH_OK) st = history_check(s, history, nhistory);
     if (st == CONSPH_OK &&
         (particles->dim != s->dim || (double)particles->n != pow((double)p->nx, s->dim)))
         st = consph_fail(CONSPH_EFORMAT, "%zu particles in %dD do not match nx = %d", particles->n,
@@ -285,6 +348,7 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
     }
     memcpy(s->hist, history, nhistory * sizeof(double));
     s->nhist = s->caphist = nhistory / HIST_COLS;
+    s->step_dt = s->dt; /* the next sample follows a step, which sets it */
     *out = s;
     return CONSPH_OK;
 }

@@ -54,12 +54,14 @@ static int write_log(const consph_solver *s, runfiles *f)
                         s->hist, s->nhist, HIST_COLS);
 }
 
-/* The declared output arrays (the same at every step) and the time. */
+/* The declared output arrays (the same at every step) and the time; the log gets this instant's
+ * diagnostics first, if its cadence had not sampled it. */
 static int write_snapshot(consph_solver *s, runfiles *f)
 {
     consph_vtu_array arr[CONSPH_MAX_FIELDS];
     consph_vtu_content c = {arr, 0, 1, s->t};
-    int st = consph_solver_output_fields(s);
+    int st = solver_sample(s);
+    if (st == CONSPH_OK) st = consph_solver_output_fields(s);
     if (st == CONSPH_OK) st = state_undeclared(s, 0);
     if (st == CONSPH_OK) st = state_snapshot_arrays(s, arr, &c.narrays);
     if (st == CONSPH_OK) st = runfiles_snapshot_content(f, s->sys.p, &c, s->step);

@@ -74,8 +74,22 @@ void solver_eos(consph_solver *s)
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
         for (size_t i = 0; i < n; ++i) pr[i] = c2 * (rhof[i] - r0);
     } else {
+        const int ig = eos_int_exponent(g); /* Tait's γ = 7: by multiplication */
+        if (ig == 7) {
+            /* the common case written out, the products in eos_ipow's order (the same bits), so
+             * that the loop vectorises */
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
-        for (size_t i = 0; i < n; ++i) pr[i] = r0 * c2 / g * (pow(rhof[i] / r0, g) - 1.0);
+            for (size_t i = 0; i < n; ++i) {
+                const double x = rhof[i] / r0, x2 = x * x, x4 = x2 * x2;
+                pr[i] = r0 * c2 / g * (x * x2 * x4 - 1.0);
+            }
+        } else {
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
+            for (size_t i = 0; i < n; ++i) {
+                const double x = rhof[i] / r0;
+                pr[i] = r0 * c2 / g * ((ig >= 0 ? eos_ipow(x, ig) : pow(x, g)) - 1.0);
+            }
+        }
     }
 }
 
@@ -240,11 +254,10 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
     consph_particles_free(&src);
     consph_particles_free(&lat);
     if (st == CONSPH_OK && prm->rho_init == CONSPH_RHO_INIT_RHO0) solver_eos(s);
-    consph_step_diag g;
+    s->step_dt = s->dt;
     if (st == CONSPH_OK) st = initial_rates(s);
     if (st == CONSPH_OK) st = state_undeclared(s, 0);
-    if (st == CONSPH_OK) st = consph_solver_diag(s, &g);
-    if (st == CONSPH_OK) st = solver_hist_push(s, &g);
+    if (st == CONSPH_OK) st = solver_sample(s); /* t = 0 */
     if (st == CONSPH_OK && prm->error == CONSPH_ERROR_AUTHORS) {
         st = solver_auth_sample(s); /* t = 0 is the first output time */
         s->auth_next = 1;
@@ -396,13 +409,11 @@ int consph_solver_step(consph_solver *s)
     }
     if (st == CONSPH_OK && s->scheme->regularise) st = s->scheme->regularise(s);
     if (st == CONSPH_OK) st = solver_check_finite(s);
-    consph_step_diag g;
-    if (st == CONSPH_OK) st = consph_solver_diag(s, &g);
-    if (st == CONSPH_OK) st = solver_check_valid(s, &g);
+    if (st == CONSPH_OK) st = solver_check_valid(s);
     if (st == CONSPH_OK) {
-        s->l1_u_acc += dt * g.l1_u;
-        s->l1_p_acc += dt * g.l1_p;
-        st = solver_hist_push(s, &g);
+        s->log_since += dt;
+        s->step_dt = dt;
+        if (s->step % s->prm.log_every == 0 || consph_solver_done(s)) st = solver_sample(s);
     }
     if (st == CONSPH_OK && s->prm.error == CONSPH_ERROR_AUTHORS)
         st = solver_auth_after_step(s, landed);

@@ -202,6 +202,9 @@ struct consph_solver {
     double t, dt, tf;
     long step, nsteps; /* nsteps: the step count to reach (0: run to tf) */
     double l1_u_acc, l1_p_acc;
+    /* the time since the last sample of the diagnostics (a sum of the steps' Δt, so that with
+     * log_every 1 it is each step's Δt exactly), and the Δt of the last step */
+    double log_since, step_dt;
     /* the authors' measure: sums of the normalised errors at the output times reached, their
      * count, and the index of the next output time */
     double auth_u_acc, auth_p_acc;
@@ -213,7 +216,7 @@ struct consph_solver {
     int volumes_fixed; /* particles never move: ω computed once */
     int reuse_rates;   /* pec/kdk: the rates left by the previous step are this step's first */
     double chi0;
-    /* per-step history for the log (HIST_COLS doubles per step) */
+    /* the history for the log: HIST_COLS doubles per sample (solver_sample) */
     double *hist;
     size_t nhist, caphist;
     double *diag_buf; /* the per-particle terms of consph_solver_diag, 8 per particle */
@@ -234,19 +237,40 @@ int run_nx_fits(int nx, int dim, double memory);
  * at this instant, and the sample after a step when it ended on the next output time (`landed`:
  * the step was cut to end on it). */
 int solver_hist_push(consph_solver *s, const consph_step_diag *g);
+/* The diagnostics of this instant into the history and the eq. 26 sums (each sample weighted by
+ * the time since the previous one, log_since); nothing when the history's last row is this
+ * step's already. Called at t = 0, every log_every steps, at the last step and before each
+ * snapshot. */
+int solver_sample(consph_solver *s);
+/* Kinetic energy Σ m |u|²/2, as consph_solver_diag computes it (bit for bit). */
+int solver_kinetic_energy(consph_solver *s, double *ke);
 void solver_position_of(const consph_particles *p, size_t i, double x[3]);
 double solver_auth_time(const consph_solver *s, int k);
 int solver_auth_sample(consph_solver *s);
 int solver_auth_after_step(consph_solver *s, int landed);
-/* Validity (validity.c): CONSPH_ENUMERIC naming the first non-finite value, or the first bound of
- * the weakly-compressible model the state of diagnostics g is beyond. */
+/* Validity (validity.c), after every step: CONSPH_ENUMERIC naming the first non-finite value, or
+ * the first bound of the weakly-compressible model the state is beyond (from the state and its
+ * kinetic energy only: no exact solution). */
 int solver_check_finite(consph_solver *s);
-int solver_check_valid(consph_solver *s, const consph_step_diag *g);
+int solver_check_valid(consph_solver *s);
 
 /* Shared by the schemes: the declared field `name` of ncomp components; NULL with CONSPH_EINVAL
  * naming it and the scheme when it is not declared or has other components. */
 double *sv_field(consph_solver *s, const char *name, int ncomp);
 void solver_eos(consph_solver *s); /* p from ϱ, or ϱ from p (evolve_p) */
+/* The exponent g of a power as a whole number when it is one in [0, 64], else -1: the EOS then
+ * takes x^g by multiplication (eos_ipow), which differs from pow's at round-off only. */
+static inline int eos_int_exponent(double g)
+{
+    return g >= 0.0 && g <= 64.0 && g == (double)(int)g ? (int)g : -1;
+}
+static inline double eos_ipow(double x, int n)
+{
+    double r = 1.0;
+    for (; n; n >>= 1, x *= x)
+        if (n & 1) r *= x;
+    return r;
+}
 /* Taylor update of 001 eq. 22/29 after a shift dr (SF_SHIFT): u, the evolved scalar, from the
  * gradients the kit left (SF_GRADU, SF_GRADQ), then the EOS. */
 void solver_taylor_update(consph_solver *s, const double *dr);

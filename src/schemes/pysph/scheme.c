@@ -316,8 +316,10 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
             double *cs = consph_sys_scratch(&s->sys, n ? n : 1);
             if (!cs) return CONSPH_ENOMEM;
             const double *rho = job->rho, c0 = job->c.c0, rho0 = job->rho0, cexp = job->cexp;
+            const int ie = eos_int_exponent(cexp); /* γ = 7: the cube, by multiplication */
 #pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
-            for (size_t i = 0; i < n; ++i) cs[i] = c0 * pow(rho[i] / rho0, cexp);
+            for (size_t i = 0; i < n; ++i)
+                cs[i] = c0 * (ie >= 0 ? eos_ipow(rho[i] / rho0, ie) : pow(rho[i] / rho0, cexp));
             job->cs = cs;
         }
         return CONSPH_OK;
