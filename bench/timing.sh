@@ -6,10 +6,10 @@
 
 now() { date +%s.%N; }
 
-# c / p to 3 digits, or - when either is missing or p is not positive
+# c / p to 3 digits, or - when either is missing or not positive (a failed run, or noise)
 ratio() {
     awk -v c="$1" -v p="$2" 'BEGIN {
-        if (c == "-" || p == "-" || c == "" || p == "" || p + 0 <= 0) print "-"
+        if (c == "-" || p == "-" || c == "" || p == "" || c + 0 <= 0 || p + 0 <= 0) print "-"
         else printf "%.3f\n", c / p }'
 }
 

@@ -28,8 +28,8 @@ check_v n/a - ge 10
 check_v n/a -0.3 le 0.4
 check_v n/a 0 ge 10
 check_v n/a "not run" le 20
-r=$(sh -c ". '$src/bench/timing.sh'; ratio 3 1.5; ratio 3 -; ratio 3 0")
-[ "$r" = "$(printf '2.000\n-\n-')" ] || bad "ratio: $r"
+r=$(sh -c ". '$src/bench/timing.sh'; ratio 3 1.5; ratio 3 -; ratio 3 0; ratio -1 2")
+[ "$r" = "$(printf '2.000\n-\n-\n-')" ] || bad "ratio: $r"
 
 # a stub PySPH: answers the three questions the script asks python, and runs "its example" by
 # logging the arguments; sleeps in proportion to the steps so the step difference is positive
