@@ -336,6 +336,7 @@ if [ "$PROFILE" = 1 ] && [ -n "$missed" ]; then
     } >> "$TMPMD"
 fi
 
+chmod 644 "$TMPMD" # mktemp made it private
 mv "$TMPMD" "$OUT"
 trap - EXIT
 echo "wrote $OUT"

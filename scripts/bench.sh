@@ -21,4 +21,4 @@ if [ "$rc" = 77 ]; then
 elif [ "$rc" != 0 ]; then
   exit "$rc"
 fi
-cp bench/speed.md out/bench/speed.md
+cp "${OUT:-bench/speed.md}" out/bench/speed.md

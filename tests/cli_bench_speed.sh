@@ -57,6 +57,7 @@ rc=$?
 [ "$rc" = 0 ] || bad "QUICK=1 with the stub: exit $rc: $(tail -n 5 "$tmp/out")"
 md=$tmp/speed.md
 [ -f "$md" ] || bad "no report"
+[ "$(stat -c %a "$md")" = 644 ] || bad "the report's mode is $(stat -c %a "$md"), not 644"
 [ -z "$(ls "$tmp" | grep 'speed.md.')" ] || bad "a temporary report was left behind"
 for h in "## Targets" "## consph against PySPH" "## consph 2 threads against 1" "## L-IPST-C, serial" \
     "## Pairs per second per core" "## Studies"; do
