@@ -161,7 +161,7 @@ ipst_row() { # start, options...
     fi
     v=$(verdict "$(us "$cs")" le 0.4)
     echo "| $start | $IPST_NX | $(us "$cs") | $v |" >> "$ipst"
-    target "L-IPST-C ≤ 0.4 µs per particle-step, serial, nx $IPST_NX, $start" "$(us "$cs") µs" "$v"
+    target "L-IPST-C ≤ 0.4 µs per particle-step, serial, nx $IPST_NX, $start" "$(us "$cs" | sed "s/[0-9]$/& µs/")" "$v"
     [ "$v" = MISS ] && missed="$missed l-ipst-c"
     return 0
 }
