@@ -36,12 +36,11 @@ mkdir -p "$WORK"
 TMPMD=$(mktemp "$OUT.XXXXXX")
 trap 'rm -f "$TMPMD"' EXIT
 
-now() { date +%s.%N; }
+# now, ratio, step_counts, run_pysph, run_consph_rival, fastest, per_particle_step
+. "$HERE/timing.sh"
 # h = 1.2/nx; PySPH's measures of the last snapshot of a run
 errors() { "$PYTHON" "$HERE/pysph_errors.py" "$1" 0.5 100 "$(echo "1.2 / $2" | bc -l)"; }
 last() { ls "$1"/$2 | sort | tail -n 1; }
-# c / p to 3 digits, or - when p is 0
-ratio() { awk -v c="$1" -v p="$2" 'BEGIN { if (p == 0) print "-"; else printf "%.3f", c / p }'; }
 
 {
     echo "# consph against PySPH 1.0b1 on Taylor-Green"
@@ -94,44 +93,17 @@ done
     echo "|---|---|---|---|---|---|"
 } >> "$TMPMD"
 
-# seconds of one run of K steps; $1 = py|cs, $2 scheme, $3 nx, $4 threads, $5 K
-timed_once() {
-    t0=$(now)
-    if [ "$1" = py ]; then
-        omp=""
-        [ "$4" -gt 1 ] && omp=--openmp
-        OMP_NUM_THREADS=$4 "$PYTHON" "$TG" --scheme "$2" --nx "$3" --hdx 1.2 --tf 1000 \
-            --max-steps "$5" --disable-output $omp -d "$WORK/t_py" > "$WORK/t_py.log" 2>&1
-    else
-        al=""
-        [ "$2" = wcsph ] && al="--alpha 0"
-        "$CONSPH" run taylor-green --scheme "$2" --nx "$3" --cfl 0.25 $al --steps "$5" \
-            --threads "$4" > /dev/null
-    fi
-    t1=$(now)
-    echo "$t1 - $t0" | bc -l
-}
-# the fastest of REPEAT runs: load from elsewhere only ever adds time
-timed() {
-    best=""
-    r=0
-    while [ "$r" -lt "$REPEAT" ]; do
-        t=$(timed_once "$@")
-        if [ -z "$best" ] || [ "$(echo "$t < $best" | bc -l)" = 1 ]; then best=$t; fi
-        r=$((r + 1))
-    done
-    echo "$best"
-}
 for nx in $TNXS; do
-    # a few seconds of stepping per run for each code on one core
-    if [ "$nx" -le 100 ]; then k1=10 k2=110 c1=10 c2=410; else k1=5 k2=25 c1=5 c2=85; fi
+    set -- $(step_counts "$nx")
+    k1=$1 k2=$2 c1=$3 c2=$4
     for s in $SCHEMES; do
         for th in $THREADS; do
-            timed py "$s" "$nx" "$th" "$k1" > /dev/null # compiles this configuration once
-            a=$(timed py "$s" "$nx" "$th" "$k1") b=$(timed py "$s" "$nx" "$th" "$k2")
-            c=$(timed cs "$s" "$nx" "$th" "$c1") d=$(timed cs "$s" "$nx" "$th" "$c2")
-            py=$(echo "($b - $a) / (($k2 - $k1) * $nx * $nx)" | bc -l)
-            cs=$(echo "($d - $c) / (($c2 - $c1) * $nx * $nx)" | bc -l)
+            run_pysph "$s" "$nx" "$th" "$k1" # compiles this configuration once
+            a=$(fastest run_pysph "$s" "$nx" "$th" "$k1") b=$(fastest run_pysph "$s" "$nx" "$th" "$k2")
+            c=$(fastest run_consph_rival "$s" "$nx" "$th" "$c1")
+            d=$(fastest run_consph_rival "$s" "$nx" "$th" "$c2")
+            py=$(per_particle_step "$a" "$b" "$k1" "$k2" $((nx * nx)))
+            cs=$(per_particle_step "$c" "$d" "$c1" "$c2" $((nx * nx)))
             printf '| %s | %s | %s | %.3e | %.3e | %s |\n' "$s" "$nx" "$th" "$py" "$cs" \
                 "$(ratio "$py" "$cs")" >> "$TMPMD"
         done
