@@ -78,6 +78,7 @@ typedef struct consph_run_params {
     double dt;         /* fixed time step (0: the rule cfl · h_dt/(U + c_o)) */
     double cfl;        /* 0.3 (001 §5.2) */
     double h_dt;       /* h in the time-step rule (0: this run's h); studies pass the finest h */
+    double skin;       /* neighbour-list skin in support radii (0: rebuild every step) */
     int ipst_every;    /* IPST every this many steps (001: 10) */
     int ipst_max_iter; /* at most this many shifts (001: 10) */
     double ipst_tol;   /* ε of 001 eq. 21 */
