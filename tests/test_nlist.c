@@ -30,8 +30,7 @@ static void visit_record(void *job, const consph_nbhd *nb)
     r->count[nb->i] = nb->n;
     for (size_t k = 0; k < m; ++k) {
         r->j[nb->i * MAXNB + k] = nb->j[k];
-        for (int a = 0; a < 3; ++a)
-            r->dx[a][nb->i * MAXNB + k] = nb->dx[a] ? nb->dx[a][k] : 0.0;
+        for (int a = 0; a < 3; ++a) r->dx[a][nb->i * MAXNB + k] = nb->dx[a] ? nb->dx[a][k] : 0.0;
     }
 }
 
@@ -61,8 +60,11 @@ static size_t check_brute(consph_sys *s, const char *what)
     r.count = calloc(n, sizeof(size_t));
     r.j = malloc(n * MAXNB * sizeof(size_t));
     for (int a = 0; a < 3; ++a) r.dx[a] = malloc(n * MAXNB * sizeof(double));
-    CHECK(consph_pass_run(s, &pass_record, &r) == CONSPH_OK, "%s: pass: %s", what,
-          consph_last_error());
+    /* twice: from the second position state on, the first pass of a state that had two
+     * fills the cache and the second reads it (a state's first pass otherwise streams) */
+    for (int twice = 0; twice < 2; ++twice)
+        CHECK(consph_pass_run(s, &pass_record, &r) == CONSPH_OK, "%s: pass: %s", what,
+              consph_last_error());
     consph_nbrs b = {0};
     pair_key *ka = malloc(MAXNB * sizeof *ka), *kb = malloc(MAXNB * sizeof *kb);
     size_t pairs = 0, bad = 0;
@@ -72,8 +74,8 @@ static size_t check_brute(consph_sys *s, const char *what)
         size_t m = consph_nnps_brute(p, s->kernel.radius, x, &b);
         pairs += m;
         if (m != r.count[i] || m > MAXNB) {
-            CHECK(0, "%s: particle %zu has %zu neighbours in the list, %zu by brute force", what,
-                  i, r.count[i], m);
+            CHECK(0, "%s: particle %zu has %zu neighbours in the list, %zu by brute force", what, i,
+                  r.count[i], m);
             ++bad;
             continue;
         }
@@ -162,10 +164,10 @@ static void test_brute(int dim, size_t n, double len, double h, const char *what
     move_all(&s, &rng, below, 0);
     move_all(&s, &rng, 2.0 * skin * k.radius, 1); /* above, re-sorted */
     consph_sys_nlist_info(&s, &info);
-    CHECK(info.builds == 3 && info.caches == 3, "%s: %zu builds, %zu caches", what, info.builds,
+    CHECK(info.builds == 3 && info.caches == 2, "%s: %zu builds, %zu caches", what, info.builds,
           info.caches);
-    CHECK(info.bytes > 0.0 && info.candidates >= info.pairs, "%s: %g bytes, %g candidates",
-          what, info.bytes, info.candidates);
+    CHECK(info.bytes > 0.0 && info.candidates >= info.pairs, "%s: %g bytes, %g candidates", what,
+          info.bytes, info.candidates);
     check_brute(&s, what);
     consph_sys_free(&s);
     consph_particles_free(&src);
@@ -254,8 +256,8 @@ static void test_skin0_bits(void)
                 if (d / scale > worst) worst = d / scale;
             }
         }
-        CHECK(worst < 1e-12, "round %d: skin 0.25 differs from the gather by %g (relative)",
-              round, worst);
+        CHECK(worst < 1e-12, "round %d: skin 0.25 differs from the gather by %g (relative)", round,
+              worst);
         /* the same move on all three */
         for (size_t i = 0; i < n; ++i) {
             double d0 = 0.02 / (double)nx * (2.0 * consph_rng_uniform(&rng) - 1.0);
@@ -277,8 +279,8 @@ static void test_skin0_bits(void)
             }
         }
         const int resort = round % 2;
-        CHECK(consph_sys_update(&a, resort) == CONSPH_OK && consph_sys_update(&b, resort) ==
-                                                                 CONSPH_OK &&
+        CHECK(consph_sys_update(&a, resort) == CONSPH_OK &&
+                  consph_sys_update(&b, resort) == CONSPH_OK &&
                   consph_sys_update(&c, resort) == CONSPH_OK,
               "update");
     }
@@ -304,8 +306,7 @@ static consph_solver *make(const char *scheme, double skin, int nx)
     p.tf = 0.0;
     p.ipst_every = 7;
     consph_solver *s = NULL;
-    CHECK(consph_solver_create(&s, &p) == CONSPH_OK, "create %s: %s", scheme,
-          consph_last_error());
+    CHECK(consph_solver_create(&s, &p) == CONSPH_OK, "create %s: %s", scheme, consph_last_error());
     return s;
 }
 
@@ -330,7 +331,8 @@ static double velocity_gap(const consph_particles *a, const consph_particles *b)
     for (size_t i = 0; i < a->n; ++i) {
         const size_t k = at[(size_t)ia->data[i]];
         for (int c = 0; c < a->dim; ++c) {
-            const double va = ua->data[(size_t)c * a->cap + i], vb = ub->data[(size_t)c * b->cap + k];
+            const double va = ua->data[(size_t)c * a->cap + i],
+                         vb = ub->data[(size_t)c * b->cap + k];
             worst = fmax(worst, fabs(va - vb));
             umax = fmax(umax, fabs(va));
         }
@@ -366,7 +368,8 @@ static void test_solver(const char *scheme)
     size_t nh = 0;
     consph_solver *r = NULL;
     int st = consph_solver_checkpoint_meta(s1, &meta, &hist, &nh);
-    if (st == CONSPH_OK) st = consph_solver_restore(&r, meta, consph_solver_particles(s1), hist, nh);
+    if (st == CONSPH_OK)
+        st = consph_solver_restore(&r, meta, consph_solver_particles(s1), hist, nh);
     CHECK(st == CONSPH_OK, "%s: restore: %s", scheme, consph_last_error());
     free(meta);
     free(hist);
@@ -379,8 +382,7 @@ static void test_solver(const char *scheme)
     CHECK(gap < 1e-10, "%s: skin %g and skin 0 differ by %g (relative) after 20 steps", scheme,
           skin, gap);
     if (r) {
-        CHECK(run_steps(r, 11) == CONSPH_OK, "%s: restored steps: %s", scheme,
-              consph_last_error());
+        CHECK(run_steps(r, 11) == CONSPH_OK, "%s: restored steps: %s", scheme, consph_last_error());
         CHECK(same_positions(consph_solver_particles(s1), consph_solver_particles(r)),
               "%s: the restored run differs", scheme);
         consph_solver_free(r);

@@ -21,6 +21,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#if defined(__x86_64__) && defined(__SSE2__)
+#include <emmintrin.h>
+#define NLIST_SSE2 1
+#endif
+
 #define NLIST_BLOCK 64
 /* Image index per axis in [-NLIST_IMAGE_MAX, NLIST_IMAGE_MAX], 4 bits per axis in a code. */
 #define NLIST_IMAGE_MAX 7
@@ -55,6 +60,9 @@ struct consph_nlist {
     nlist_block *blocks;
     unsigned long epoch, cache_epoch;
     unsigned have; /* CONSPH_PASS_W / DW / D2W values in the cache */
+    /* passes run on this position state and on the one before (whether a cache pays) */
+    unsigned long state_epoch;
+    int passes_state, passes_last;
     size_t builds, caches, ncand, npairs;
     char note[200];
 };
@@ -263,8 +271,8 @@ static int nlist_index(consph_sys *s)
     if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK) return CONSPH_EINVAL;
     const size_t n = v.n;
     const int dim = v.dim;
-    if ((uint64_t)n > (uint64_t)UINT32_MAX)
-        return switch_off(s, "the neighbour list holds particle indices as 32 bits; more "
+    if ((uint64_t)n > (uint64_t)INT32_MAX)
+        return switch_off(s, "the neighbour list holds particle indices as 31 bits; more "
                              "particles than that: the passes gather");
     if (n != l->n || !l->u) {
         free_arrays(l);
@@ -355,7 +363,10 @@ static int nlist_displace(consph_sys *s, double *max_d2, int *changed)
     if (!xb) return CONSPH_ENOMEM;
     double m2 = 0.0;
     int ch = 0;
-#pragma omp parallel for schedule(static) reduction(max : m2) reduction(| : ch) if (n >= s->parallel_min)
+#pragma omp parallel for schedule(static) reduction(max                                            \
+                                                    : m2)                                          \
+    reduction(|                                                                                    \
+              : ch) if (n >= s->parallel_min)
     for (size_t i = 0; i < n; ++i) {
         double d2 = 0.0;
         for (int a = 0; a < dim; ++a) {
@@ -425,73 +436,200 @@ int nlist_update(consph_sys *s, int resort)
 
 /* ---- the cache ---- */
 
-static int cache_block(const consph_sys *s, nlist_block *b)
+/* Where one slot's filtered pairs go. */
+typedef struct pair_out {
+    size_t *j;
+    double *d[CONSPH_MAX_DIM], *r;
+} pair_out;
+
+/* The candidates of slot sl (of block b) within the radius, appended from entry `used` of o;
+ * r holds r² on return. Every candidate is written and the count advances only on a hit, so o
+ * needs room for used + (the slot's candidates). */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline size_t
+filter_slot(const consph_nlist *l, const nlist_block *b, size_t sl, pair_out o, size_t used)
 {
-    const consph_nlist *l = s->nlist;
     const int dim = l->dim;
     const size_t n = l->n;
     const double r2max = l->radius2;
     const double *u0 = l->u, *u1 = dim > 1 ? l->u + n : NULL, *u2 = dim > 2 ? l->u + 2 * n : NULL;
     const double *t0 = l->shift_of[0], *t1 = l->shift_of[1], *t2 = l->shift_of[2];
-    size_t used = 0;
-    for (size_t sl = b->s0; sl < b->s1; ++sl) {
-        const size_t k0 = b->coff[sl - b->s0], k1 = b->coff[sl - b->s0 + 1];
-        b->poff[sl - b->s0] = used;
-        if (pair_reserve(b, dim, used + (k1 - k0))) return CONSPH_ENOMEM;
-        const size_t i = particle_of(l, sl);
-        const uint32_t *cj = b->cj;
-        const uint16_t *ci = b->cimg;
-        size_t *pj = b->pj;
-        double *d0 = b->pdx[0], *d1 = b->pdx[1], *d2 = b->pdx[2], *pr = b->pr;
-        /* the operations of consph_nnps_scan_run in its order: q = x_i - shift, x_ij = q - x_j,
-         * r² summed from axis 0 up */
-        if (dim == 1) {
-            const double x0 = u0[i];
-            for (size_t k = k0; k < k1; ++k) {
-                const size_t j = cj[k];
-                const double e0 = (x0 - t0[ci[k] & 15]) - u0[j];
-                const double rr = e0 * e0;
-                pj[used] = j;
-                d0[used] = e0;
-                pr[used] = rr;
-                used += rr < r2max;
-            }
-        } else if (dim == 2) {
-            const double x0 = u0[i], x1 = u1[i];
-            for (size_t k = k0; k < k1; ++k) {
-                const size_t j = cj[k];
-                const unsigned c = ci[k];
-                const double e0 = (x0 - t0[c & 15]) - u0[j];
-                const double e1 = (x1 - t1[(c >> 4) & 15]) - u1[j];
-                const double rr = e0 * e0 + e1 * e1;
-                pj[used] = j;
-                d0[used] = e0;
-                d1[used] = e1;
-                pr[used] = rr;
-                used += rr < r2max;
-            }
-        } else {
-            const double x0 = u0[i], x1 = u1[i], x2 = u2[i];
-            for (size_t k = k0; k < k1; ++k) {
-                const size_t j = cj[k];
-                const unsigned c = ci[k];
-                const double e0 = (x0 - t0[c & 15]) - u0[j];
-                const double e1 = (x1 - t1[(c >> 4) & 15]) - u1[j];
-                const double e2 = (x2 - t2[(c >> 8) & 15]) - u2[j];
-                const double rr = e0 * e0 + e1 * e1 + e2 * e2;
-                pj[used] = j;
-                d0[used] = e0;
-                d1[used] = e1;
-                d2[used] = e2;
-                pr[used] = rr;
-                used += rr < r2max;
-            }
+    const size_t k0 = b->coff[sl - b->s0], k1 = b->coff[sl - b->s0 + 1];
+    const size_t i = particle_of(l, sl);
+    const uint32_t *cj = b->cj;
+    const uint16_t *ci = b->cimg;
+    size_t *pj = o.j;
+    double *d0 = o.d[0], *d1 = o.d[1], *d2 = o.d[2], *pr = o.r;
+    /* the operations of consph_nnps_scan_run in its order: q = x_i - shift, x_ij = q - x_j, r²
+     * summed from axis 0 up */
+    if (dim == 1) {
+        const double x0 = u0[i];
+        for (size_t k = k0; k < k1; ++k) {
+            const size_t j = cj[k];
+            const double e0 = (x0 - t0[ci[k] & 15]) - u0[j];
+            const double rr = e0 * e0;
+            pj[used] = j;
+            d0[used] = e0;
+            pr[used] = rr;
+            used += rr < r2max;
+        }
+    } else if (dim == 2) {
+        const double x0 = u0[i], x1 = u1[i];
+        for (size_t k = k0; k < k1; ++k) {
+            const size_t j = cj[k];
+            const unsigned c = ci[k];
+            const double e0 = (x0 - t0[c & 15]) - u0[j];
+            const double e1 = (x1 - t1[(c >> 4) & 15]) - u1[j];
+            const double rr = e0 * e0 + e1 * e1;
+            pj[used] = j;
+            d0[used] = e0;
+            d1[used] = e1;
+            pr[used] = rr;
+            used += rr < r2max;
+        }
+    } else {
+        const double x0 = u0[i], x1 = u1[i], x2 = u2[i];
+        for (size_t k = k0; k < k1; ++k) {
+            const size_t j = cj[k];
+            const unsigned c = ci[k];
+            const double e0 = (x0 - t0[c & 15]) - u0[j];
+            const double e1 = (x1 - t1[(c >> 4) & 15]) - u1[j];
+            const double e2 = (x2 - t2[(c >> 8) & 15]) - u2[j];
+            const double rr = e0 * e0 + e1 * e1 + e2 * e2;
+            pj[used] = j;
+            d0[used] = e0;
+            d1[used] = e1;
+            d2[used] = e2;
+            pr[used] = rr;
+            used += rr < r2max;
         }
     }
+    return used;
+}
+
+#if defined(NLIST_SSE2) && defined(__GNUC__)
+#include <immintrin.h>
+#define NLIST_AVX2 1
+/* permute[m]: 32-bit lane indices that move the 64-bit lanes of the set bits of m to the
+ * front (as in src/nnps/gather.c). */
+static const int32_t hit_permute[16][8] = {
+    {0, 1, 2, 3, 4, 5, 6, 7}, {0, 1, 2, 3, 4, 5, 6, 7}, {2, 3, 0, 1, 4, 5, 6, 7},
+    {0, 1, 2, 3, 4, 5, 6, 7}, {4, 5, 0, 1, 2, 3, 6, 7}, {0, 1, 4, 5, 2, 3, 6, 7},
+    {2, 3, 4, 5, 0, 1, 6, 7}, {0, 1, 2, 3, 4, 5, 6, 7}, {6, 7, 0, 1, 2, 3, 4, 5},
+    {0, 1, 6, 7, 2, 3, 4, 5}, {2, 3, 6, 7, 0, 1, 4, 5}, {0, 1, 2, 3, 6, 7, 4, 5},
+    {4, 5, 6, 7, 0, 1, 2, 3}, {0, 1, 4, 5, 6, 7, 2, 3}, {2, 3, 4, 5, 6, 7, 0, 1},
+    {0, 1, 2, 3, 4, 5, 6, 7}};
+static const unsigned char hit_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
+
+#define NLIST_STORE(dst, v, perm)                                                                  \
+    _mm256_storeu_si256((__m256i *)(dst), _mm256_permutevar8x32_epi32(_mm256_castpd_si256(v), perm))
+
+/* filter_slot on four candidates at a time: the same operations on the same values (no
+ * fused multiply-add), the hits compressed to the front of each block of four. Whole blocks
+ * are stored, so o needs 3 entries of slack past the candidates. */
+__attribute__((target("avx2"))) static size_t
+filter_slot_avx2(const consph_nlist *l, const nlist_block *b, size_t sl, pair_out o, size_t used)
+{
+    const int dim = l->dim;
+    const size_t n = l->n;
+    const double *u0 = l->u, *u1 = dim > 1 ? l->u + n : l->u, *u2 = dim > 2 ? l->u + 2 * n : l->u;
+    const size_t k0 = b->coff[sl - b->s0], k1 = b->coff[sl - b->s0 + 1];
+    const size_t i = particle_of(l, sl);
+    const __m256d lim = _mm256_set1_pd(l->radius2);
+    const __m256d x0 = _mm256_set1_pd(u0[i]), x1 = _mm256_set1_pd(dim > 1 ? u1[i] : 0.0);
+    const __m256d x2 = _mm256_set1_pd(dim > 2 ? u2[i] : 0.0);
+    /* the shift (double)m · L of the table, computed the same way from the image index m */
+    const __m128i m15 = _mm_set1_epi32(15), seven = _mm_set1_epi32(NLIST_IMAGE_MAX);
+    const __m256d len0 = _mm256_set1_pd(l->periodic[0] ? l->len[0] : 0.0);
+    const __m256d len1 = _mm256_set1_pd(dim > 1 && l->periodic[1] ? l->len[1] : 0.0);
+    const __m256d len2 = _mm256_set1_pd(dim > 2 && l->periodic[2] ? l->len[2] : 0.0);
+    const uint32_t *cj = b->cj;
+    size_t k = k0;
+    for (; k + 4 <= k1; k += 4) {
+        const __m128i j = _mm_loadu_si128((const __m128i *)(cj + k));
+        const size_t ja = cj[k], jb = cj[k + 1], jc = cj[k + 2], jd = cj[k + 3];
+        const __m128i c = _mm_cvtepu16_epi32(_mm_loadl_epi64((const __m128i *)(b->cimg + k)));
+        const __m256d m0 = _mm256_cvtepi32_pd(_mm_sub_epi32(_mm_and_si128(c, m15), seven));
+        __m256d e0 = _mm256_sub_pd(_mm256_sub_pd(x0, _mm256_mul_pd(m0, len0)),
+                                   _mm256_set_pd(u0[jd], u0[jc], u0[jb], u0[ja]));
+        __m256d rr = _mm256_mul_pd(e0, e0), e1 = e0, e2 = e0;
+        if (dim > 1) {
+            const __m256d m1 =
+                _mm256_cvtepi32_pd(_mm_sub_epi32(_mm_and_si128(_mm_srli_epi32(c, 4), m15), seven));
+            e1 = _mm256_sub_pd(_mm256_sub_pd(x1, _mm256_mul_pd(m1, len1)),
+                               _mm256_set_pd(u1[jd], u1[jc], u1[jb], u1[ja]));
+            rr = _mm256_add_pd(rr, _mm256_mul_pd(e1, e1));
+        }
+        if (dim > 2) {
+            const __m256d m2 =
+                _mm256_cvtepi32_pd(_mm_sub_epi32(_mm_and_si128(_mm_srli_epi32(c, 8), m15), seven));
+            e2 = _mm256_sub_pd(_mm256_sub_pd(x2, _mm256_mul_pd(m2, len2)),
+                               _mm256_set_pd(u2[jd], u2[jc], u2[jb], u2[ja]));
+            rr = _mm256_add_pd(rr, _mm256_mul_pd(e2, e2));
+        }
+        const int m = _mm256_movemask_pd(_mm256_cmp_pd(rr, lim, _CMP_LT_OQ));
+        const __m256i perm = _mm256_loadu_si256((const __m256i *)hit_permute[m]);
+        _mm256_storeu_si256((__m256i *)(o.j + used),
+                            _mm256_permutevar8x32_epi32(_mm256_cvtepu32_epi64(j), perm));
+        NLIST_STORE(o.r + used, rr, perm);
+        NLIST_STORE(o.d[0] + used, e0, perm);
+        if (dim > 1) NLIST_STORE(o.d[1] + used, e1, perm);
+        if (dim > 2) NLIST_STORE(o.d[2] + used, e2, perm);
+        used += hit_count[m];
+    }
+    /* the last candidates one by one */
+    if (k < k1) {
+        nlist_block tail = *b;
+        size_t coff[2] = {k, k1};
+        tail.s0 = sl;
+        tail.coff = coff;
+        used = filter_slot(l, &tail, sl, o, used);
+    }
+    return used;
+}
+#endif
+
+/* Set once by consph_sys_nlist, before any pass can read it. */
+static int use_avx2 = -1;
+
+/* filter_slot, vectorised where the processor allows. */
+static inline size_t filter(const consph_nlist *l, const nlist_block *b, size_t sl, pair_out o,
+                            size_t used)
+{
+#ifdef NLIST_AVX2
+    if (use_avx2 > 0) return filter_slot_avx2(l, b, sl, o, used);
+#endif
+    return filter_slot(l, b, sl, o, used);
+}
+
+/* r = sqrt(r²) over [from, to), then zeros up to whole vectors for the kernel batch (r = 0 is a
+ * valid distance; the values are unused). */
+static inline void roots_and_pad(double *r, size_t from, size_t to)
+{
+    size_t k = from;
+#ifdef NLIST_SSE2
+    /* packed square roots are correctly rounded like sqrt(), without its errno branch */
+    for (; k + 2 <= to; k += 2) _mm_storeu_pd(r + k, _mm_sqrt_pd(_mm_loadu_pd(r + k)));
+#endif
+    for (; k < to; ++k) r[k] = sqrt(r[k]);
+    for (k = to; k < ((to + 3) & ~(size_t)3); ++k) r[k] = 0.0;
+}
+
+static int cache_block(const consph_sys *s, nlist_block *b)
+{
+    const consph_nlist *l = s->nlist;
+    size_t used = 0;
+    for (size_t sl = b->s0; sl < b->s1; ++sl) {
+        b->poff[sl - b->s0] = used;
+        if (pair_reserve(b, l->dim, used + (b->coff[sl - b->s0 + 1] - b->coff[sl - b->s0])))
+            return CONSPH_ENOMEM;
+        pair_out o = {b->pj, {b->pdx[0], b->pdx[1], b->pdx[2]}, b->pr};
+        used = filter(l, b, sl, o, used);
+    }
     b->poff[b->s1 - b->s0] = used;
-    for (size_t k = 0; k < used; ++k) b->pr[k] = sqrt(b->pr[k]);
-    /* whole vectors for the kernel batch (r = 0 is a valid distance; the values are unused) */
-    for (size_t k = used; k < ((used + 3) & ~(size_t)3); ++k) b->pr[k] = 0.0;
+    roots_and_pad(b->pr, 0, used);
     return CONSPH_OK;
 }
 
@@ -505,6 +643,66 @@ static int values_block(const consph_sys *s, nlist_block *b, unsigned want)
     return CONSPH_OK;
 }
 
+/* One pass without the cache: each particle's pairs are filtered and evaluated into the
+ * thread's buffers and visited at once. */
+static int stream_pass(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs)
+{
+    const consph_nlist *l = s->nlist;
+    const unsigned need = pass->need;
+    const unsigned char *dest = s->dest;
+    const int with_dx = !(need & CONSPH_PASS_NO_DX);
+    size_t visited = 0;
+    int status = CONSPH_OK;
+#pragma omp parallel reduction(+ : visited) if (l->n >= s->parallel_min)
+    {
+        nlist_block buf;
+        memset(&buf, 0, sizeof buf);
+        int ok = values_reserve(&buf, 0) == CONSPH_OK;
+#pragma omp for schedule(dynamic, 1)
+        for (size_t k = 0; k < l->nblocks; ++k) {
+            const nlist_block *b = &l->blocks[k];
+            for (size_t sl = b->s0; sl < b->s1 && ok; ++sl) {
+                const size_t i = particle_of(l, sl);
+                if (dest && !dest[i]) continue;
+                if (pair_reserve(&buf, l->dim, b->coff[sl - b->s0 + 1] - b->coff[sl - b->s0]) ||
+                    values_reserve(&buf, CONSPH_PASS_W | CONSPH_PASS_DW | CONSPH_PASS_D2W)) {
+                    ok = 0;
+                    break;
+                }
+                pair_out o = {buf.pj, {buf.pdx[0], buf.pdx[1], buf.pdx[2]}, buf.pr};
+                const size_t m = filter(l, b, sl, o, 0);
+                roots_and_pad(buf.pr, 0, m);
+                consph_kernel_eval_batch(
+                    &s->kernel, (m + 3) & ~(size_t)3, buf.pr, need & CONSPH_PASS_W ? buf.pw : NULL,
+                    need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? buf.pdwr : NULL,
+                    need & CONSPH_PASS_D2W ? buf.pd2w : NULL);
+                consph_nbhd nb;
+                nb.i = i;
+                nb.n = m;
+                nb.j = buf.pj;
+                for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+                    nb.dx[a] = with_dx && a < l->dim ? buf.pdx[a] : NULL;
+                nb.r = buf.pr;
+                nb.w = need & CONSPH_PASS_W ? buf.pw : NULL;
+                nb.dwr = need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? buf.pdwr : NULL;
+                nb.d2w = need & CONSPH_PASS_D2W ? buf.pd2w : NULL;
+                pass->visit(job, &nb);
+                visited += m;
+            }
+        }
+        if (!ok) {
+#pragma omp critical(consph_nlist_stream)
+            status = CONSPH_ENOMEM;
+        }
+        block_free(&buf);
+    }
+    if (status != CONSPH_OK)
+        return consph_fail(status, "pass '%s': out of memory for a neighbourhood",
+                           pass->name ? pass->name : "unnamed");
+    if (pairs) *pairs += visited;
+    return CONSPH_OK;
+}
+
 int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs)
 {
     consph_nlist *l = s->nlist;
@@ -513,7 +711,17 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
     if (need & CONSPH_PASS_W) want |= CONSPH_PASS_W;
     if (need & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) want |= CONSPH_PASS_DW;
     if (need & CONSPH_PASS_D2W) want |= CONSPH_PASS_D2W;
+    if (l->state_epoch != l->epoch) {
+        l->state_epoch = l->epoch;
+        l->passes_last = l->passes_state;
+        l->passes_state = 0;
+    }
+    ++l->passes_state;
     const int fresh = l->cache_epoch != l->epoch || !l->caches;
+    /* A cache pays where several passes read one position state; a single pass is served
+     * better by filtering each particle's candidates into a small buffer that stays in the
+     * processor's cache. Both compute the same values, so the choice changes no result. */
+    if (fresh && l->passes_last < 2) return stream_pass(s, pass, job, pairs);
     if (fresh) l->have = 0;
     const unsigned missing = want & ~l->have;
     const int par = l->n >= s->parallel_min;
@@ -647,6 +855,9 @@ int consph_sys_nlist(consph_sys *s, double skin, const char *build_field, int re
         return consph_fail(CONSPH_EINVAL, "neighbour list: field name '%s' is too long",
                            build_field);
     if (s->nlist) consph_sys_nlist(s, -1.0, NULL, 0);
+#ifdef NLIST_AVX2
+    if (use_avx2 < 0) use_avx2 = __builtin_cpu_supports("avx2") ? 1 : 0;
+#endif
     consph_nlist *l = consph_calloc(1, sizeof *l);
     if (!l) return CONSPH_ENOMEM;
     s->nlist = l;
