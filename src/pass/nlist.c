@@ -299,6 +299,12 @@ static int nlist_index(consph_sys *s)
         free(l->particle);
         l->particle = NULL;
     }
+    if (l->skin == 0.0) {
+        /* rebuilt at every move: the search itself is the list (cache_block_gather) */
+        ++l->builds;
+        ++l->epoch;
+        return CONSPH_OK;
+    }
     size_t stride;
     double *xb = build_positions(s, &stride);
     if (!xb) return CONSPH_ENOMEM;
@@ -633,6 +639,49 @@ static int cache_block(const consph_sys *s, nlist_block *b)
     return CONSPH_OK;
 }
 
+/* cache_block for skin 0: the gather's own neighbourhoods, stored. */
+static int cache_block_gather(const consph_sys *s, nlist_block *b, consph_nnps_runs *runs,
+                              size_t **slot, size_t *cap)
+{
+    const consph_nlist *l = s->nlist;
+    consph_nnps_slots v;
+    if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK) return CONSPH_EINVAL;
+    size_t lo = 0, hi = v.ncells;
+    while (hi - lo > 1) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (v.cell_start[mid] <= b->s0)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    size_t c = lo, runs_cell = (size_t)-1, used = 0;
+    for (size_t sl = b->s0; sl < b->s1; ++sl) {
+        while (sl >= v.cell_start[c + 1]) ++c;
+        if (c != runs_cell) {
+            if (consph_nnps_cell_runs(s->nnps, c, runs) == (size_t)-1) return CONSPH_ENOMEM;
+            runs_cell = c;
+            const size_t need = runs->candidates + CONSPH_NNPS_GATHER_SLACK;
+            if (need > *cap) {
+                if (grow((void **)slot, need, sizeof(size_t))) return CONSPH_ENOMEM;
+                *cap = need;
+            }
+        }
+        b->poff[sl - b->s0] = used;
+        if (pair_reserve(b, l->dim, used + runs->candidates + CONSPH_NNPS_GATHER_SLACK))
+            return CONSPH_ENOMEM;
+        double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+        for (int a = 0; a < l->dim; ++a) xi[a] = v.x[a][sl];
+        double *dx[CONSPH_MAX_DIM] = {b->pdx[0] + used, l->dim > 1 ? b->pdx[1] + used : NULL,
+                                      l->dim > 2 ? b->pdx[2] + used : NULL};
+        const size_t m = consph_nnps_gather(&v, runs, xi, *slot, dx, b->pr + used);
+        for (size_t k = 0; k < m; ++k) b->pj[used + k] = consph_nnps_slot_particle(&v, (*slot)[k]);
+        used += m;
+    }
+    b->poff[b->s1 - b->s0] = used;
+    for (size_t k = used; k < ((used + 3) & ~(size_t)3); ++k) b->pr[k] = 0.0;
+    return CONSPH_OK;
+}
+
 static int values_block(const consph_sys *s, nlist_block *b, unsigned want)
 {
     if (values_reserve(b, want)) return CONSPH_ENOMEM;
@@ -721,23 +770,34 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
     /* A cache pays where several passes read one position state; a single pass is served
      * better by filtering each particle's candidates into a small buffer that stays in the
      * processor's cache. Both compute the same values, so the choice changes no result. */
-    if (fresh && l->passes_last < 2) return stream_pass(s, pass, job, pairs);
+    if (fresh && (l->passes_last < 2 || l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n))
+        return l->skin == 0.0 ? NLIST_GATHER : stream_pass(s, pass, job, pairs);
     if (fresh) l->have = 0;
     const unsigned missing = want & ~l->have;
     const int par = l->n >= s->parallel_min;
     int status = CONSPH_OK;
     if (fresh || missing) {
         size_t total = 0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : total) if (par)
-        for (size_t k = 0; k < l->nblocks; ++k) {
-            nlist_block *b = &l->blocks[k];
-            int st = fresh ? cache_block(s, b) : CONSPH_OK;
-            if (!st && missing) st = values_block(s, b, missing);
-            if (st) {
+#pragma omp parallel reduction(+ : total) if (par)
+        {
+            consph_nnps_runs runs;
+            memset(&runs, 0, sizeof runs);
+            size_t *slot = NULL, cap = 0;
+#pragma omp for schedule(dynamic, 1)
+            for (size_t k = 0; k < l->nblocks; ++k) {
+                nlist_block *b = &l->blocks[k];
+                int st = !fresh           ? CONSPH_OK
+                         : l->skin == 0.0 ? cache_block_gather(s, b, &runs, &slot, &cap)
+                                          : cache_block(s, b);
+                if (!st && missing) st = values_block(s, b, missing);
+                if (st) {
 #pragma omp critical(consph_nlist_cache)
-                status = st;
+                    status = st;
+                }
+                total += b->poff[b->s1 - b->s0];
             }
-            total += b->poff[b->s1 - b->s0];
+            consph_nnps_runs_free(&runs);
+            free(slot);
         }
         if (status != CONSPH_OK) {
             l->cache_epoch = l->epoch - 1;

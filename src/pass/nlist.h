@@ -8,7 +8,9 @@
 /* consph_sys_update when the system has a list: the same contract (rebuild after a move; with
  * resort, the re-sort into cell order where the list is rebuilt). */
 int nlist_update(consph_sys *s, int resort);
-/* consph_pass_run_counted over the list and its cache. */
+/* consph_pass_run_counted over the list and its cache; NLIST_GATHER (and nothing done) where
+ * the search's own gather serves the pass as well (skin 0 without a cache). */
+#define NLIST_GATHER 1
 int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs);
 void nlist_free(consph_nlist *l);
 /* Whether the passes run on the list (it is on and holds the system's n particles). */

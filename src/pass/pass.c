@@ -82,7 +82,10 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
     const consph_kernel *kernel = &s->kernel;
     consph_nnps_slots v;
     if (n == 0) return CONSPH_OK;
-    if (s->nlist && nlist_serves(s->nlist, n)) return nlist_pass_run(s, pass, job, pairs);
+    if (s->nlist && nlist_serves(s->nlist, n)) {
+        const int rc = nlist_pass_run(s, pass, job, pairs);
+        if (rc != NLIST_GATHER) return rc;
+    }
     if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK)
         return pass_fail(pass, CONSPH_EINVAL, consph_last_error());
     if (v.n != n) {

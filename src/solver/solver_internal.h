@@ -88,6 +88,8 @@ int field_ncomp(field_shape shape, int d);
 int state_create(consph_solver *s);
 /* Gives the system its neighbour list (skin of a moving scheme; resume: from a checkpoint). */
 int solver_nlist_start(consph_solver *s, int resume);
+/* The list's memory, builds and note into the summary (skin > 0 only). */
+void solver_nlist_summary(const consph_solver *s, consph_run_summary *sum);
 /* CONSPH_EINVAL naming the first field of the particles that nobody declared (a field created
  * past sv_field); with `drop`, such fields are removed instead (a checkpoint of an older run). */
 int state_undeclared(consph_solver *s, int drop);

@@ -1,6 +1,7 @@
 /* Declared state: the solver, the integrator and each scheme list the fields they use
  * (solver_internal.h, field_decl); set-up creates them all, sv_field hands out only those, and a
  * snapshot writes the ones that name an output array (docs/solver-files.md, "Snapshot arrays"). */
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -43,6 +44,16 @@ int solver_nlist_start(consph_solver *s, int resume)
 {
     const double skin = s->scheme->moves ? s->prm.skin : 0.0;
     return consph_sys_nlist(&s->sys, skin, skin > 0.0 ? SF_XB : NULL, resume);
+}
+
+void solver_nlist_summary(const consph_solver *s, consph_run_summary *sum)
+{
+    consph_nlist_info info;
+    consph_sys_nlist_info(&s->sys, &info);
+    sum->nlist_skin = s->scheme->moves ? s->prm.skin : 0.0;
+    sum->nlist_bytes = info.bytes;
+    sum->nlist_builds = (long)info.builds;
+    snprintf(sum->nlist_note, sizeof sum->nlist_note, "%s", info.note);
 }
 
 int field_ncomp(field_shape shape, int d)
