@@ -39,14 +39,14 @@ run_all() { # BIN DIR [FLAGS]
   for s in $schemes; do
     for th in 1 2; do
       "$bin" run taylor-green --scheme "$s" --nx 48 --steps 20 --threads $th "${flags[@]}" --out "$dir/tg-$s-$th" >/dev/null 2>&1 || echo "run failed: tg $s $th"
-      "$bin" run gresho-chan --scheme "$s" --nx 48 --steps 10 --threads $th --layout lattice --out "$dir/gc-$s-$th" >/dev/null 2>&1 || echo "run failed: gc $s $th"
+      "$bin" run gresho-chan --scheme "$s" --nx 48 --steps 10 --threads $th "${flags[@]}" --layout lattice --out "$dir/gc-$s-$th" >/dev/null 2>&1 || echo "run failed: gc $s $th"
       "$bin" run shear-layer --scheme "$s" --nx 48 --steps 10 --threads $th "${flags[@]}" --out "$dir/sl-$s-$th" >/dev/null 2>&1 || echo "run failed: sl $s $th"
     done
   done
   if "$bin" run --help 2>&1 | grep -q beltrami; then
     for s in $schemes; do
       for th in 1 2; do
-        "$bin" run beltrami --scheme "$s" --nx 14 --steps 5 --threads $th --layout lattice --out "$dir/be-$s-$th" >/dev/null 2>&1 || echo "run failed: be $s $th"
+        "$bin" run beltrami --scheme "$s" --nx 14 --steps 5 --threads $th "${flags[@]}" --layout lattice --out "$dir/be-$s-$th" >/dev/null 2>&1 || echo "run failed: be $s $th"
       done
     done
   fi

@@ -60,9 +60,9 @@ static size_t check_brute(consph_sys *s, const char *what)
     r.count = calloc(n, sizeof(size_t));
     r.j = malloc(n * MAXNB * sizeof(size_t));
     for (int a = 0; a < 3; ++a) r.dx[a] = malloc(n * MAXNB * sizeof(double));
-    /* twice: from the second position state on, the first pass of a state that had two
-     * fills the cache and the second reads it (a state's first pass otherwise streams) */
-    for (int twice = 0; twice < 2; ++twice)
+    /* three times: from the second position state on, the first pass after a state that had
+     * three fills the cache and the others read it (a state's passes otherwise stream) */
+    for (int times = 0; times < 3; ++times)
         CHECK(consph_pass_run(s, &pass_record, &r) == CONSPH_OK, "%s: pass: %s", what,
               consph_last_error());
     consph_nbrs b = {0};
@@ -227,8 +227,8 @@ static void test_skin0_bits(void)
     consph_rng_seed(&rng, 4);
     for (int round = 0; round < 4; ++round) {
         size_t pa = 0, pb = 0;
-        /* b twice: the second pass reads the cache the first computed */
-        for (int twice = 0; twice < 2; ++twice) {
+        /* b three times: from round 1 on, the later passes read the cache the first filled */
+        for (int times = 0; times < 3; ++times) {
             pb = 0;
             CHECK(consph_pass_run_counted(&b, &pass_moments, &mb, &pb) == CONSPH_OK, "pass b");
         }
@@ -284,6 +284,9 @@ static void test_skin0_bits(void)
                   consph_sys_update(&c, resort) == CONSPH_OK,
               "update");
     }
+    consph_nlist_info info;
+    consph_sys_nlist_info(&b, &info);
+    CHECK(info.caches == 3, "skin 0: %zu caches in 3 rounds after the first", info.caches);
     free(ma.out);
     free(mb.out);
     free(mc.out);
