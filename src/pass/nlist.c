@@ -599,8 +599,10 @@ filter_slot_avx2(const consph_nlist *l, const nlist_block *b, size_t sl, pair_ou
 }
 #endif
 
+#ifdef NLIST_AVX2
 /* Set once by consph_sys_nlist, before any pass can read it. */
 static int use_avx2 = -1;
+#endif
 
 /* filter_slot, vectorised where the processor allows. */
 static inline size_t filter(const consph_nlist *l, const nlist_block *b, size_t sl, pair_out o,
