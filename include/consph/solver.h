@@ -206,8 +206,9 @@ typedef struct consph_run_summary {
     int passes_per_stage, passes_min;
     long regularisations; /* IPST/PST/remesh steps applied */
     /* the neighbour list of a moving scheme with skin > 0 (src/pass/nlist.c): bytes per
-     * particle of list, pair cache and build positions, its builds, and why it is off ("" when
-     * on); nlist_skin 0 otherwise, and the summary's JSON then leaves these out */
+     * particle of list, pair cache and build positions, its builds (in this process), and why
+     * it is off ("" when on); nlist_skin 0 otherwise, and the summary's JSON then leaves these
+     * out (builds always: a restart counts its own) */
     double nlist_skin, nlist_bytes;
     long nlist_builds;
     char nlist_note[200];

@@ -971,13 +971,14 @@ void consph_sys_nlist_info(const consph_sys *s, consph_nlist_info *info)
     const double n = (double)l->n;
     info->candidates = (double)l->ncand / n;
     info->pairs = (double)l->npairs / n;
-    double bytes = (double)l->n * (sizeof(double) * 2.0 * l->dim + (l->particle ? 8.0 : 0.0));
-    for (size_t k = 0; k < l->nblocks; ++k) {
-        const nlist_block *b = &l->blocks[k];
-        const double values = (b->pw != NULL) + (b->pdwr != NULL) + (b->pd2w != NULL);
-        bytes += (double)b->ccap * (sizeof(uint32_t) + sizeof(uint16_t)) +
-                 (double)b->pcap * (sizeof(size_t) + sizeof(double) * (l->dim + 1 + values)) +
-                 2.0 * (double)(b->s1 - b->s0 + 1) * sizeof(size_t);
-    }
+    /* from the counts of the last build and cache, not the buffers' capacities, so that a run
+     * and its restart report the same */
+    const double values = l->npairs ? (l->have & CONSPH_PASS_W ? 1.0 : 0.0) +
+                                          (l->have & CONSPH_PASS_DW ? 1.0 : 0.0) +
+                                          (l->have & CONSPH_PASS_D2W ? 1.0 : 0.0)
+                                    : 0.0;
+    double bytes = n * (sizeof(double) * 2.0 * l->dim + (l->particle ? 8.0 : 0.0)) +
+                   (double)l->ncand * (sizeof(uint32_t) + sizeof(uint16_t)) +
+                   (double)l->npairs * (sizeof(size_t) + sizeof(double) * (l->dim + 1 + values));
     info->bytes = bytes / n;
 }

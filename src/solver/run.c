@@ -46,8 +46,7 @@ void consph_run_summary_json(FILE *fp, const consph_run_summary *s)
     if (s->nlist_skin > 0.0) {
         runfiles_json_num(fp, "nlist_skin", s->nlist_skin, 0);
         runfiles_json_num(fp, "nlist_bytes_per_particle", s->nlist_bytes, 0);
-        fprintf(fp, "  \"nlist_builds\": %ld,\n  \"nlist_note\": \"%s\",\n", s->nlist_builds,
-                s->nlist_note);
+        fprintf(fp, "  \"nlist_note\": \"%s\",\n", s->nlist_note);
     }
     fprintf(fp, "  \"regularisations\": %ld\n}\n", s->regularisations);
 }
