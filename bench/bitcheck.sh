@@ -5,6 +5,8 @@
 # (bench/snapdiff.sh: the arrays renamed by the declared state are found under their old names;
 # arrays the reference wrote and the new binary no longer does are not compared).
 #   bench/bitcheck.sh REF_CONSPH NEW_CONSPH [WORKDIR]
+# NEW_FLAGS (environment): options added to every run of NEW_CONSPH only, e.g.
+# NEW_FLAGS="--skin 0" to compare a neighbour list that rebuilds every step with the reference.
 # REF_CONSPH may instead be the "ref" directory of an earlier bitcheck's WORKDIR, whose results
 # are then reused (the reference binary's runs are the same every time).
 # Cases, each at 1 and 2 threads (nx 48: 2304 particles, above the 2048 at which passes go
@@ -30,19 +32,21 @@ fi
 schemes=$("$new" run --help 2>&1 | sed -n 's/^ *--scheme S .*(\([a-z0-9,+-]*\); default .*/\1/p' | tr , ' ')
 [ -n "$schemes" ] || { echo "no scheme list in $new run --help"; exit 2; }
 
-run_all() { # BIN DIR
+run_all() { # BIN DIR [FLAGS]
   local bin=$1 dir=$2 s th
+  local -a flags
+  read -r -a flags <<< "${3:-}"
   for s in $schemes; do
     for th in 1 2; do
-      "$bin" run taylor-green --scheme "$s" --nx 48 --steps 20 --threads $th --out "$dir/tg-$s-$th" >/dev/null 2>&1 || echo "run failed: tg $s $th"
-      "$bin" run gresho-chan --scheme "$s" --nx 48 --steps 10 --threads $th --layout lattice --out "$dir/gc-$s-$th" >/dev/null 2>&1 || echo "run failed: gc $s $th"
-      "$bin" run shear-layer --scheme "$s" --nx 48 --steps 10 --threads $th --out "$dir/sl-$s-$th" >/dev/null 2>&1 || echo "run failed: sl $s $th"
+      "$bin" run taylor-green --scheme "$s" --nx 48 --steps 20 --threads $th "${flags[@]}" --out "$dir/tg-$s-$th" >/dev/null 2>&1 || echo "run failed: tg $s $th"
+      "$bin" run gresho-chan --scheme "$s" --nx 48 --steps 10 --threads $th "${flags[@]}" --layout lattice --out "$dir/gc-$s-$th" >/dev/null 2>&1 || echo "run failed: gc $s $th"
+      "$bin" run shear-layer --scheme "$s" --nx 48 --steps 10 --threads $th "${flags[@]}" --out "$dir/sl-$s-$th" >/dev/null 2>&1 || echo "run failed: sl $s $th"
     done
   done
   if "$bin" run --help 2>&1 | grep -q beltrami; then
     for s in $schemes; do
       for th in 1 2; do
-        "$bin" run beltrami --scheme "$s" --nx 14 --steps 5 --threads $th --layout lattice --out "$dir/be-$s-$th" >/dev/null 2>&1 || echo "run failed: be $s $th"
+        "$bin" run beltrami --scheme "$s" --nx 14 --steps 5 --threads $th "${flags[@]}" --layout lattice --out "$dir/be-$s-$th" >/dev/null 2>&1 || echo "run failed: be $s $th"
       done
     done
   fi
@@ -51,15 +55,15 @@ run_all() { # BIN DIR
     a5=""
     [ $s = wcsph ] && a0="--alpha 0" && a5="--alpha 0.5" # only wcsph of the three reads α
     for th in 1 2; do
-      "$bin" run taylor-green --scheme $s --nx 48 --hdx 2 --steps 10 --threads $th --out "$dir/h2-$s-$th" >/dev/null 2>&1 || echo "run failed: h2 $s $th"
-      "$bin" run taylor-green --scheme $s --nx 48 $a0 --steps 10 --threads $th --out "$dir/a0-$s-$th" >/dev/null 2>&1 || echo "run failed: a0 $s $th"
-      "$bin" run taylor-green --scheme $s --nx 48 --kernel cubic $a5 --steps 10 --threads $th --out "$dir/cu-$s-$th" >/dev/null 2>&1 || echo "run failed: cu $s $th"
+      "$bin" run taylor-green --scheme $s --nx 48 --hdx 2 --steps 10 --threads $th "${flags[@]}" --out "$dir/h2-$s-$th" >/dev/null 2>&1 || echo "run failed: h2 $s $th"
+      "$bin" run taylor-green --scheme $s --nx 48 $a0 --steps 10 --threads $th "${flags[@]}" --out "$dir/a0-$s-$th" >/dev/null 2>&1 || echo "run failed: a0 $s $th"
+      "$bin" run taylor-green --scheme $s --nx 48 --kernel cubic $a5 --steps 10 --threads $th "${flags[@]}" --out "$dir/cu-$s-$th" >/dev/null 2>&1 || echo "run failed: cu $s $th"
     done
   done
 }
 
 [ -d "$ref" ] || run_all "$ref" "$refdir"
-run_all "$new" "$work/new"
+run_all "$new" "$work/new" "${NEW_FLAGS:-}"
 bad=0 cases=0
 for d in "$refdir"/*/; do
   n=$(basename "$d")

@@ -66,6 +66,8 @@ typedef struct consph_pass {
 
 /* ---- the system ---- */
 
+typedef struct consph_nlist consph_nlist; /* src/pass/nlist.c */
+
 typedef struct consph_sys {
     consph_particles *p; /* in cell order after consph_sys_init */
     consph_nnps *nnps;
@@ -78,6 +80,7 @@ typedef struct consph_sys {
     int owned;           /* 1 when p, nnps, origin and dest belong to the system */
     double *scratch;     /* consph_sys_scratch's buffer, always the system's own */
     size_t scratch_cap;
+    consph_nlist *nlist; /* consph_sys_nlist's neighbour list; NULL: every pass gathers */
 } consph_sys;
 
 /* The distance within which the kernel can be non-zero: the radius a system's search needs
@@ -97,6 +100,56 @@ int consph_sys_wrap(consph_sys *s, consph_particles *p, consph_nnps *nnps,
 /* After the particles moved: rebuilds the search; with resort, first sorts the particles (every
  * named field, origin and the destination mask with them) back into cell order. */
 int consph_sys_update(consph_sys *s, int resort);
+/* ---- the neighbour list (opt-in) ----
+ *
+ * consph_sys_nlist gives the system a per-particle list of candidate neighbours within
+ * (1 + skin)·radius (radius: consph_sys_reach), built from the search's cell traversal in the
+ * order a pass gathers them, with the periodic image of each candidate (every image, also when
+ * the radius exceeds half the box). The first pass after the particles moved filters each
+ * particle's candidates by the current separations into a cache of the neighbours within the
+ * radius with x_ij, r and, as passes ask, W, W'/r and W''; every later pass until the next move
+ * is handed pointers into it, so the gather and the kernel are evaluated once per position
+ * state instead of once per pass.
+ *
+ * consph_sys_update is then the one call after every move: it invalidates the cache and
+ * rebuilds the list (with resort: re-sorted into cell order first) only when some particle has
+ * moved more than skin·radius/2 since the list was built (then no pair can have crossed the
+ * skin). The test is a maximum over particles, so it does not depend on the thread count.
+ *
+ * With skin 0 the list is rebuilt at every consph_sys_update exactly as the search is today, and
+ * the neighbours, their order, separations and kernel values are those of the gather bit for
+ * bit. With skin > 0 the neighbours come in the candidates' order and x_ij is computed from the
+ * positions at the build plus each particle's displacement since (a round-off change). The list
+ * is a function of the particles' order and their positions at the build: a caller that must
+ * restart bit for bit keeps those positions in a named particle field (build_field) and, on
+ * resuming, calls consph_sys_nlist with resume = 1 on the particles in the order they were
+ * saved, which rebuilds the same list from them.
+ *
+ * Memory: per candidate 6 bytes, per cached pair 8 + 8·dim + 8 per kernel value (see
+ * consph_sys_nlist_info). Above CONSPH_NLIST_MAX_CANDIDATES candidates per particle on average
+ * the list turns itself off (passes gather as without it) and the info's note says so. */
+#define CONSPH_NLIST_MAX_CANDIDATES 400
+
+/* skin >= 0 turns the list on (the system must own its search: consph_sys_init, and have a
+ * radial kernel); skin < 0 turns it off. build_field: NULL, or the name of a dim-component
+ * particle field (created if absent) that holds the positions of the last build, so that it
+ * follows re-sorts and is saved with the particles. resume: build from build_field's positions
+ * and, for a system made by consph_sys_init, in the order of the particles it was given. */
+int consph_sys_nlist(consph_sys *s, double skin, const char *build_field, int resume);
+
+typedef struct consph_nlist_info {
+    int on;            /* the passes run on the list */
+    double skin;       /* as set (also when the list turned itself off) */
+    size_t builds;     /* list builds so far */
+    size_t caches;     /* pair caches computed so far */
+    double candidates; /* per particle, mean at the last build */
+    double pairs;      /* per particle, mean in the last cache */
+    double bytes;      /* per particle: list, cache and build positions */
+    char note[200];    /* why the list is off, or "" */
+} consph_nlist_info;
+
+void consph_sys_nlist_info(const consph_sys *s, consph_nlist_info *info);
+
 /* Sets the destination mask (n entries in the system's particle order; copied), or clears it
  * with NULL. */
 int consph_sys_set_dest(consph_sys *s, const unsigned char *dest);

@@ -78,6 +78,7 @@ typedef struct consph_run_params {
     double dt;         /* fixed time step (0: the rule cfl · h_dt/(U + c_o)) */
     double cfl;        /* 0.3 (001 §5.2) */
     double h_dt;       /* h in the time-step rule (0: this run's h); studies pass the finest h */
+    double skin;       /* neighbour-list skin in support radii (0: rebuild every step) */
     int ipst_every;    /* IPST every this many steps (001: 10) */
     int ipst_max_iter; /* at most this many shifts (001: 10) */
     double ipst_tol;   /* ε of 001 eq. 21 */
@@ -206,6 +207,13 @@ typedef struct consph_run_summary {
     size_t pairs;   /* pair evaluations of the time steps */
     int passes_per_stage, passes_min;
     long regularisations; /* IPST/PST/remesh steps applied */
+    /* the neighbour list of a moving scheme with skin > 0 (src/pass/nlist.c): bytes per
+     * particle of list, pair cache and build positions, its builds (in this process), and why
+     * it is off ("" when on); nlist_skin 0 otherwise, and the summary's JSON then leaves these
+     * out (builds always: a restart counts its own) */
+    double nlist_skin, nlist_bytes;
+    long nlist_builds;
+    char nlist_note[200];
 } consph_run_summary;
 
 /* ---- the solver ---- */

@@ -15,6 +15,7 @@
 #include <string.h>
 
 #include "consph/pass.h"
+#include "pass/nlist.h"
 
 /* Cells per dynamic chunk: at the default cells per radius a 2D cell holds ~13 particles at
  * h = 1.2Δs with the quintic kernel, a 3D one ~6. */
@@ -81,6 +82,10 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
     const consph_kernel *kernel = &s->kernel;
     consph_nnps_slots v;
     if (n == 0) return CONSPH_OK;
+    if (s->nlist && nlist_serves(s->nlist, n)) {
+        const int rc = nlist_pass_run(s, pass, job, pairs);
+        if (rc != NLIST_GATHER) return rc;
+    }
     if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK)
         return pass_fail(pass, CONSPH_EINVAL, consph_last_error());
     if (v.n != n) {
@@ -273,12 +278,22 @@ int consph_sys_update(consph_sys *s, int resort)
 {
     if (!s || !s->p || !s->nnps)
         return consph_fail(CONSPH_EINVAL, "system update: needs an initialised system");
+    if (s->nlist) return nlist_update(s, resort);
     if (!resort) return consph_nnps_build(s->nnps, s->p);
     const size_t n = s->p->n;
     size_t *perm = consph_calloc(n ? n : 1, sizeof(size_t));
     if (!perm) return CONSPH_ENOMEM;
     int rc = consph_nnps_sort(s->nnps, s->p, perm);
-    if (rc == CONSPH_OK && (s->origin || s->dest)) {
+    if (rc == CONSPH_OK) rc = sys_carry_permutation(s, perm);
+    free(perm);
+    return rc;
+}
+
+int sys_carry_permutation(consph_sys *s, const size_t *perm)
+{
+    const size_t n = s->p->n;
+    int rc = CONSPH_OK;
+    if (s->origin || s->dest) {
         /* Carry origin and mask through the same permutation, new[i] = old[perm[i]]. */
         size_t *o2 = s->origin ? consph_calloc(n ? n : 1, sizeof(size_t)) : NULL;
         unsigned char *d2 = s->dest ? consph_calloc(n ? n : 1, 1) : NULL;
@@ -295,7 +310,6 @@ int consph_sys_update(consph_sys *s, int resort)
         free(o2);
         free(d2);
     }
-    free(perm);
     return rc;
 }
 
@@ -334,6 +348,7 @@ void consph_sys_free(consph_sys *s)
 {
     if (!s) return;
     free(s->scratch);
+    nlist_free(s->nlist);
     if (s->owned) {
         consph_nnps_free(s->nnps);
         if (s->p) consph_particles_free(s->p);

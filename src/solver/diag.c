@@ -267,6 +267,7 @@ int consph_solver_summary(const consph_solver *s, consph_run_summary *sum)
     sum->max_divu = last.max_divu;
     sum->seconds = s->seconds;
     sum->pairs = s->pairs;
+    solver_nlist_summary(s, sum);
     sum->passes_per_stage = s->passes;
     sum->passes_min = s->scheme->passes_min;
     sum->regularisations = s->regs;

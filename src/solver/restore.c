@@ -338,6 +338,7 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
      * zero, as that run would have) or carry one no longer declared (dropped) */
     if (st == CONSPH_OK) st = state_create(s);
     if (st == CONSPH_OK) st = state_undeclared(s, 1);
+    if (st == CONSPH_OK) st = solver_nlist_start(s, 1);
     if (st == CONSPH_OK) {
         s->hist = malloc(nhistory * sizeof(double));
         if (!s->hist) st = consph_fail(CONSPH_ENOMEM, "out of memory");

@@ -43,6 +43,11 @@ void consph_run_summary_json(FILE *fp, const consph_run_summary *s)
     runfiles_json_num(fp, "seconds", s->seconds, 0);
     fprintf(fp, "  \"pairs\": %zu,\n  \"passes_per_stage\": %d,\n  \"passes_min\": %d,\n", s->pairs,
             s->passes_per_stage, s->passes_min);
+    if (s->nlist_skin > 0.0) {
+        runfiles_json_num(fp, "nlist_skin", s->nlist_skin, 0);
+        runfiles_json_num(fp, "nlist_bytes_per_particle", s->nlist_bytes, 0);
+        fprintf(fp, "  \"nlist_note\": \"%s\",\n", s->nlist_note);
+    }
     fprintf(fp, "  \"regularisations\": %ld\n}\n", s->regularisations);
 }
 

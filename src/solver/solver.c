@@ -232,6 +232,7 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
         st = consph_layout_generate(&ll, &lat, NULL);
     }
     if (st == CONSPH_OK) st = state_create(s);
+    if (st == CONSPH_OK) st = solver_nlist_start(s, 0);
     if (st == CONSPH_OK) {
         consph_particles *p = s->sys.p;
         const size_t n = p->n, cap = p->cap;

@@ -22,6 +22,8 @@
 #define SF_MASS "mass"     /* per-particle mass of a scheme that has one (else ρ_o Δs^d) */
 #define SF_LATTICE "x_lat" /* L-RR-C: the lattice point of the slot, d */
 /* the integrator's state (src/integrators/): the start of the step and the rates */
+/* the positions at the last neighbour-list build (src/pass/nlist.c), checkpoint only */
+#define SF_XB "x_build"
 #define SF_X0 "x0"
 #define SF_U0 "u0"
 #define SF_Q0 "q0"
@@ -84,6 +86,10 @@ int field_ncomp(field_shape shape, int d);
 /* Creates every declared field (zero) that the particles lack; CONSPH_EINVAL when two
  * declarations of a name disagree. */
 int state_create(consph_solver *s);
+/* Gives the system its neighbour list (skin of a moving scheme; resume: from a checkpoint). */
+int solver_nlist_start(consph_solver *s, int resume);
+/* The list's memory, builds and note into the summary (skin > 0 only). */
+void solver_nlist_summary(const consph_solver *s, consph_run_summary *sum);
 /* CONSPH_EINVAL naming the first field of the particles that nobody declared (a field created
  * past sv_field); with `drop`, such fields are removed instead (a checkpoint of an older run). */
 int state_undeclared(consph_solver *s, int drop);

@@ -1,6 +1,7 @@
 /* Declared state: the solver, the integrator and each scheme list the fields they use
  * (solver_internal.h, field_decl); set-up creates them all, sv_field hands out only those, and a
  * snapshot writes the ones that name an output array (docs/solver-files.md, "Snapshot arrays"). */
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -35,6 +36,26 @@ const field_decl integrator_fields[] = {{SF_AX, FIELD_VECTOR, FIELD_DERIVED, NUL
                                         {SF_Q0, FIELD_SCALAR, FIELD_SCRATCH, NULL},
                                         FIELD_END};
 
+/* A moving scheme's neighbour list with a skin: the positions of its last build, which a
+ * checkpoint must carry for a restart to rebuild the same list (src/pass/nlist.c). */
+static const field_decl nlist_fields[] = {{SF_XB, FIELD_VECTOR, FIELD_STATE, NULL}, FIELD_END};
+
+int solver_nlist_start(consph_solver *s, int resume)
+{
+    const double skin = s->scheme->moves ? s->prm.skin : 0.0;
+    return consph_sys_nlist(&s->sys, skin, skin > 0.0 ? SF_XB : NULL, resume);
+}
+
+void solver_nlist_summary(const consph_solver *s, consph_run_summary *sum)
+{
+    consph_nlist_info info;
+    consph_sys_nlist_info(&s->sys, &info);
+    sum->nlist_skin = s->scheme->moves ? s->prm.skin : 0.0;
+    sum->nlist_bytes = info.bytes;
+    sum->nlist_builds = (long)info.builds;
+    snprintf(sum->nlist_note, sizeof sum->nlist_note, "%s", info.note);
+}
+
 int field_ncomp(field_shape shape, int d)
 {
     switch (shape) {
@@ -50,19 +71,21 @@ int field_ncomp(field_shape shape, int d)
 }
 
 /* The lists of a solver, in the order their fields are created and written. */
-static int state_lists(const consph_solver *s, const field_decl *lists[3])
+static int state_lists(const consph_solver *s, const field_decl *lists[4])
 {
-    lists[0] = solver_fields;
-    lists[1] = integrator_fields;
-    lists[2] = s->scheme->fields;
-    return s->scheme->fields ? 3 : 2;
+    int nl = 0;
+    lists[nl++] = solver_fields;
+    lists[nl++] = integrator_fields;
+    if (s->scheme->fields) lists[nl++] = s->scheme->fields;
+    if (s->scheme->moves && s->prm.skin > 0.0) lists[nl++] = nlist_fields;
+    return nl;
 }
 
 /* The first declaration of `name` (NULL: none) and, in *output, the output name any
  * declaration of it gives. */
 static const field_decl *declared(const consph_solver *s, const char *name, const char **output)
 {
-    const field_decl *lists[3], *first = NULL;
+    const field_decl *lists[4], *first = NULL;
     const int nl = state_lists(s, lists);
     if (output) *output = NULL;
     for (int l = 0; l < nl; ++l)
@@ -94,7 +117,7 @@ double *sv_field(consph_solver *s, const char *name, int ncomp)
 
 int state_create(consph_solver *s)
 {
-    const field_decl *lists[3];
+    const field_decl *lists[4];
     const int nl = state_lists(s, lists);
     for (int l = 0; l < nl; ++l)
         for (const field_decl *f = lists[l]; f->name; ++f) {
@@ -149,7 +172,7 @@ int state_undeclared(consph_solver *s, int drop)
 
 int state_snapshot_arrays(const consph_solver *s, consph_vtu_array *arr, int *narr)
 {
-    const field_decl *lists[3];
+    const field_decl *lists[4];
     const int nl = state_lists(s, lists);
     *narr = 0;
     for (int l = 0; l < nl; ++l)

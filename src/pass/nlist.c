@@ -1,0 +1,984 @@
+/* The neighbour list with a skin and the pair-geometry cache (include/consph/pass.h,
+ * consph_sys_nlist).
+ *
+ * Layout: the sorted slots of the search are cut into blocks of NLIST_BLOCK consecutive slots;
+ * each block owns its candidates (particle j as uint32 and the periodic image as one code) and
+ * its cached pairs (j, x_ij, r and the kernel values), each slot a contiguous range. Blocks are
+ * filled independently (any thread, any order) and every particle's range is a function of the
+ * build alone, so nothing depends on the thread count; no prefix sum over all particles is
+ * needed and a block's arrays are kept (grown, never shrunk) from one cache to the next.
+ *
+ * Candidates come from consph_nnps_gather, one run at a time so that each hit knows its image
+ * shift; their order is the gather's. The cache filters them by r² < radius² with
+ *   x_ij = (u_i - shift) - u_j,  u = (positions at the build) + (displacement since),
+ * the operations of the gather in its order (consph_nnps_scan_run), so on the build's own
+ * positions (skin 0 always) it reproduces the gather's neighbours and values bit for bit. */
+#include "pass/nlist.h"
+
+#include <math.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#if defined(__x86_64__) && defined(__SSE2__)
+#include <emmintrin.h>
+#define NLIST_SSE2 1
+#endif
+
+#define NLIST_BLOCK 64
+/* Passes on the previous position state from which a state's pairs are cached. */
+#define NLIST_CACHE_PASSES 3
+/* Image index per axis in [-NLIST_IMAGE_MAX, NLIST_IMAGE_MAX], 4 bits per axis in a code. */
+#define NLIST_IMAGE_MAX 7
+/* The candidate radius is widened by this much (skin > 0 only), so that rounding in the
+ * distances and displacements cannot lose a pair at the edge of the skin. */
+#define NLIST_MARGIN 1e-9
+
+typedef struct nlist_block {
+    size_t s0, s1;
+    size_t *coff; /* s1 - s0 + 1 offsets into cj, cimg */
+    uint32_t *cj;
+    uint16_t *cimg;
+    size_t ccap;
+    size_t *poff; /* s1 - s0 + 1 offsets into the cache */
+    size_t *pj;
+    double *pdx[CONSPH_MAX_DIM], *pr, *pw, *pdwr, *pd2w;
+    size_t pcap;
+} nlist_block;
+
+struct consph_nlist {
+    double skin, radius, radius2, trigger2;
+    char field[64]; /* the build positions' field; "" keeps them in xb_own */
+    int dim, off;
+    size_t n;
+    size_t *particle; /* slot -> particle; NULL: the identity */
+    double *xb_own;   /* dim × n */
+    double *u;        /* dim × n */
+    double len[CONSPH_MAX_DIM];
+    int periodic[CONSPH_MAX_DIM];
+    double shift_of[CONSPH_MAX_DIM][2 * NLIST_IMAGE_MAX + 1];
+    size_t nblocks;
+    nlist_block *blocks;
+    unsigned long epoch, cache_epoch;
+    unsigned have; /* CONSPH_PASS_W / DW / D2W values in the cache */
+    /* passes run on this position state and on the one before (whether a cache pays) */
+    unsigned long state_epoch;
+    int passes_state, passes_last;
+    size_t builds, caches, ncand, npairs;
+    char note[200];
+};
+
+static void block_free(nlist_block *b)
+{
+    free(b->coff);
+    free(b->cj);
+    free(b->cimg);
+    free(b->poff);
+    free(b->pj);
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(b->pdx[a]);
+    free(b->pr);
+    free(b->pw);
+    free(b->pdwr);
+    free(b->pd2w);
+    memset(b, 0, sizeof *b);
+}
+
+static void free_arrays(consph_nlist *l)
+{
+    for (size_t k = 0; k < l->nblocks; ++k) block_free(&l->blocks[k]);
+    free(l->blocks);
+    free(l->particle);
+    free(l->xb_own);
+    free(l->u);
+    l->blocks = NULL;
+    l->nblocks = 0;
+    l->particle = NULL;
+    l->xb_own = l->u = NULL;
+    l->n = 0;
+}
+
+void nlist_free(consph_nlist *l)
+{
+    if (!l) return;
+    free_arrays(l);
+    free(l);
+}
+
+static int grow(void **p, size_t count, size_t size)
+{
+    void *q = realloc(*p, (count ? count : 1) * size);
+    if (!q) return CONSPH_ENOMEM;
+    *p = q;
+    return CONSPH_OK;
+}
+
+static int cand_reserve(nlist_block *b, size_t need)
+{
+    if (need <= b->ccap) return CONSPH_OK;
+    size_t cap = b->ccap + b->ccap / 2;
+    if (cap < need) cap = need;
+    int st = grow((void **)&b->cj, cap, sizeof(uint32_t));
+    st = st ? st : grow((void **)&b->cimg, cap, sizeof(uint16_t));
+    if (st == CONSPH_OK) b->ccap = cap;
+    return st;
+}
+
+/* Room for `need` cached pairs plus the padding of the kernel batch. */
+static int pair_reserve(nlist_block *b, int dim, size_t need)
+{
+    need += 4;
+    if (need <= b->pcap) return CONSPH_OK;
+    size_t cap = b->pcap + b->pcap / 4;
+    if (cap < need) cap = need;
+    int st = grow((void **)&b->pj, cap, sizeof(size_t));
+    for (int a = 0; a < dim; ++a) st = st ? st : grow((void **)&b->pdx[a], cap, sizeof(double));
+    st = st ? st : grow((void **)&b->pr, cap, sizeof(double));
+    /* Kernel values are (re)allocated when first asked for (values_reserve). */
+    if (st == CONSPH_OK) {
+        if (b->pw) st = grow((void **)&b->pw, cap, sizeof(double));
+        if (!st && b->pdwr) st = grow((void **)&b->pdwr, cap, sizeof(double));
+        if (!st && b->pd2w) st = grow((void **)&b->pd2w, cap, sizeof(double));
+    }
+    if (st == CONSPH_OK) b->pcap = cap;
+    return st;
+}
+
+static int values_reserve(nlist_block *b, unsigned want)
+{
+    int st = CONSPH_OK;
+    if ((want & CONSPH_PASS_W) && !b->pw) st = grow((void **)&b->pw, b->pcap, sizeof(double));
+    if (!st && (want & CONSPH_PASS_DW) && !b->pdwr)
+        st = grow((void **)&b->pdwr, b->pcap, sizeof(double));
+    if (!st && (want & CONSPH_PASS_D2W) && !b->pd2w)
+        st = grow((void **)&b->pd2w, b->pcap, sizeof(double));
+    return st;
+}
+
+/* The positions of the last build: axis a of particle i at xb[a * stride + i]. */
+static double *build_positions(consph_sys *s, size_t *stride)
+{
+    consph_nlist *l = s->nlist;
+    if (!l->field[0]) {
+        *stride = l->n;
+        return l->xb_own;
+    }
+    double *f = consph_particles_field(s->p, l->field, s->p->dim);
+    *stride = s->p->cap;
+    return f;
+}
+
+static inline size_t particle_of(const consph_nlist *l, size_t slot)
+{
+    return l->particle ? l->particle[slot] : slot;
+}
+
+/* The candidates of one block's slots from the search just built. */
+static int index_block(const consph_sys *s, const consph_nnps_slots *v, nlist_block *b,
+                       consph_nnps_runs *runs, size_t **slot, double **r, size_t *cap, char *why,
+                       size_t why_size)
+{
+    const consph_nlist *l = s->nlist;
+    const int dim = v->dim;
+    /* the cell of the block's first slot: cell_start[c] <= s0 < cell_start[c + 1] */
+    size_t lo = 0, hi = v->ncells;
+    while (hi - lo > 1) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (v->cell_start[mid] <= b->s0)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    size_t c = lo, runs_cell = (size_t)-1, used = 0;
+    for (size_t sl = b->s0; sl < b->s1; ++sl) {
+        while (sl >= v->cell_start[c + 1]) ++c;
+        if (c != runs_cell) {
+            if (consph_nnps_cell_runs(s->nnps, c, runs) == (size_t)-1) {
+                snprintf(why, why_size, "runs of cell %zu: %s", c, consph_last_error());
+                return CONSPH_ENOMEM;
+            }
+            runs_cell = c;
+            const size_t need = runs->candidates + CONSPH_NNPS_GATHER_SLACK;
+            if (need > *cap) {
+                if (grow((void **)slot, need, sizeof(size_t)) ||
+                    grow((void **)r, need, sizeof(double))) {
+                    snprintf(why, why_size, "out of memory for %zu candidates", need);
+                    return CONSPH_ENOMEM;
+                }
+                *cap = need;
+            }
+        }
+        b->coff[sl - b->s0] = used;
+        if (cand_reserve(b, used + runs->candidates)) {
+            snprintf(why, why_size, "out of memory for the neighbour list");
+            return CONSPH_ENOMEM;
+        }
+        double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+        for (int a = 0; a < dim; ++a) xi[a] = v->x[a][sl];
+        for (size_t k = 0; k < runs->n; ++k) {
+            const consph_nnps_run *run = &runs->run[k];
+            consph_nnps_runs one = {1, 1, (consph_nnps_run *)run, run->s1 - run->s0};
+            const size_t m = consph_nnps_gather(v, &one, xi, *slot, NULL, *r);
+            unsigned code = 0;
+            for (int a = 0; a < dim; ++a) {
+                const double q = l->periodic[a] ? run->shift[a] / l->len[a] : 0.0;
+                const long img = lround(q);
+                if (labs(img) > NLIST_IMAGE_MAX) {
+                    snprintf(why, why_size,
+                             "the radius spans more than %d periodic images of axis %d",
+                             NLIST_IMAGE_MAX, a);
+                    return CONSPH_EINVAL;
+                }
+                code |= (unsigned)(img + NLIST_IMAGE_MAX) << (4 * a);
+            }
+            for (size_t p = 0; p < m; ++p) {
+                b->cj[used] = (uint32_t)consph_nnps_slot_particle(v, (*slot)[p]);
+                b->cimg[used] = (uint16_t)code;
+                ++used;
+            }
+        }
+    }
+    b->coff[b->s1 - b->s0] = used;
+    return CONSPH_OK;
+}
+
+/* Turns the list off for good (the passes gather from here on) with a note saying why, and
+ * gives the search back its own radius. */
+static int switch_off(consph_sys *s, const char *why)
+{
+    consph_nlist *l = s->nlist;
+    snprintf(l->note, sizeof l->note, "%s", why);
+    size_t stride;
+    double *xb = build_positions(s, &stride);
+    /* a restart from these particles must not resume a list the run no longer keeps */
+    if (xb && l->field[0])
+        for (int a = 0; a < s->p->dim; ++a)
+            for (size_t i = 0; i < s->p->n; ++i) xb[a * stride + i] = NAN;
+    free_arrays(l);
+    l->off = 1;
+    if (consph_nnps_radius(s->nnps) != l->radius) {
+        consph_nnps *g = consph_nnps_create(&s->p->box, l->radius, 0);
+        if (!g) return CONSPH_ENOMEM;
+        consph_nnps_free(s->nnps);
+        s->nnps = g;
+    }
+    return consph_nnps_build(s->nnps, s->p);
+}
+
+/* The list from the search just built on the current positions. */
+static int nlist_index(consph_sys *s)
+{
+    consph_nlist *l = s->nlist;
+    consph_nnps_slots v;
+    if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK) return CONSPH_EINVAL;
+    const size_t n = v.n;
+    const int dim = v.dim;
+    if ((uint64_t)n > (uint64_t)INT32_MAX)
+        return switch_off(s, "the neighbour list holds particle indices as 31 bits; more "
+                             "particles than that: the passes gather");
+    if (n != l->n || !l->u) {
+        free_arrays(l);
+        l->n = n;
+        l->nblocks = (n + NLIST_BLOCK - 1) / NLIST_BLOCK;
+        l->u = malloc((size_t)dim * (n ? n : 1) * sizeof(double));
+        l->blocks = consph_calloc(l->nblocks ? l->nblocks : 1, sizeof(nlist_block));
+        if (!l->field[0]) l->xb_own = malloc((size_t)dim * (n ? n : 1) * sizeof(double));
+        if (!l->u || !l->blocks || (!l->field[0] && !l->xb_own)) return CONSPH_ENOMEM;
+        for (size_t k = 0; k < l->nblocks; ++k) {
+            nlist_block *b = &l->blocks[k];
+            b->s0 = k * NLIST_BLOCK;
+            b->s1 = b->s0 + NLIST_BLOCK < n ? b->s0 + NLIST_BLOCK : n;
+            b->coff = malloc((b->s1 - b->s0 + 1) * sizeof(size_t));
+            b->poff = malloc((b->s1 - b->s0 + 1) * sizeof(size_t));
+            if (!b->coff || !b->poff) return CONSPH_ENOMEM;
+        }
+    }
+    if (v.particle) {
+        if (!l->particle && !(l->particle = malloc((n ? n : 1) * sizeof(size_t))))
+            return CONSPH_ENOMEM;
+        memcpy(l->particle, v.particle, n * sizeof(size_t));
+    } else {
+        free(l->particle);
+        l->particle = NULL;
+    }
+    if (l->skin == 0.0) {
+        /* rebuilt at every move: the search itself is the list (cache_block_gather) */
+        ++l->builds;
+        ++l->epoch;
+        return CONSPH_OK;
+    }
+    size_t stride;
+    double *xb = build_positions(s, &stride);
+    if (!xb) return CONSPH_ENOMEM;
+    for (int a = 0; a < dim; ++a)
+        for (size_t sl = 0; sl < n; ++sl) {
+            const size_t i = particle_of(l, sl);
+            xb[(size_t)a * stride + i] = l->u[(size_t)a * n + i] = v.x[a][sl];
+        }
+    int status = CONSPH_OK;
+    char why[200] = "";
+#pragma omp parallel if (n >= s->parallel_min)
+    {
+        consph_nnps_runs runs;
+        memset(&runs, 0, sizeof runs);
+        size_t *slot = NULL, cap = 0;
+        double *r = NULL;
+        int my_status = CONSPH_OK;
+        char my_why[200] = "";
+#pragma omp for schedule(dynamic, 1)
+        for (size_t k = 0; k < l->nblocks; ++k)
+            if (my_status == CONSPH_OK)
+                my_status = index_block(s, &v, &l->blocks[k], &runs, &slot, &r, &cap, my_why,
+                                        sizeof my_why);
+#pragma omp critical(consph_nlist_index)
+        if (my_status != CONSPH_OK && (status == CONSPH_OK || my_status < status)) {
+            status = my_status;
+            memcpy(why, my_why, sizeof why);
+        }
+        consph_nnps_runs_free(&runs);
+        free(slot);
+        free(r);
+    }
+    if (status == CONSPH_EINVAL) return switch_off(s, why);
+    if (status != CONSPH_OK) return consph_fail(status, "neighbour list: %s", why);
+    size_t total = 0;
+    for (size_t k = 0; k < l->nblocks; ++k)
+        total += l->blocks[k].coff[l->blocks[k].s1 - l->blocks[k].s0];
+    l->ncand = total;
+    ++l->builds;
+    ++l->epoch;
+    if (n && (double)total / (double)n > CONSPH_NLIST_MAX_CANDIDATES) {
+        char note[200];
+        snprintf(note, sizeof note,
+                 "%.0f candidate neighbours per particle, above the list's budget of %d: the "
+                 "passes gather (O(N) memory)",
+                 (double)total / (double)n, CONSPH_NLIST_MAX_CANDIDATES);
+        return switch_off(s, note);
+    }
+    return CONSPH_OK;
+}
+
+/* u = build positions + displacement since the build (the nearest periodic image of it);
+ * *max_d2: the largest squared displacement, *changed: whether any u changed. */
+static int nlist_displace(consph_sys *s, double *max_d2, int *changed)
+{
+    consph_nlist *l = s->nlist;
+    const consph_particles *p = s->p;
+    const size_t n = l->n;
+    const int dim = l->dim;
+    size_t stride;
+    const double *xb = build_positions(s, &stride);
+    if (!xb) return CONSPH_ENOMEM;
+    double m2 = 0.0;
+    int ch = 0;
+#pragma omp parallel for schedule(static) reduction(max                                            \
+                                                    : m2)                                          \
+    reduction(|                                                                                    \
+              : ch) if (n >= s->parallel_min)
+    for (size_t i = 0; i < n; ++i) {
+        double d2 = 0.0;
+        for (int a = 0; a < dim; ++a) {
+            const double b = xb[(size_t)a * stride + i];
+            double d = p->x[a][i] - b;
+            if (l->periodic[a]) {
+                if (d > 0.5 * l->len[a])
+                    d -= l->len[a];
+                else if (d < -0.5 * l->len[a])
+                    d += l->len[a];
+            }
+            const double u = b + d;
+            double *ua = &l->u[(size_t)a * n + i];
+            ch |= !(*ua == u);
+            *ua = u;
+            d2 += d * d;
+        }
+        /* NaN counts as a move beyond the skin: the rebuild then fails as a search would */
+        if (!(d2 <= m2)) m2 = isnan(d2) ? INFINITY : d2;
+    }
+    *max_d2 = m2;
+    *changed = ch;
+    return CONSPH_OK;
+}
+
+int nlist_serves(const consph_nlist *l, size_t n)
+{
+    return !l->off && l->n == n;
+}
+
+static int rebuild_search(consph_sys *s, int resort)
+{
+    if (!resort) return consph_nnps_build(s->nnps, s->p);
+    const size_t n = s->p->n;
+    size_t *perm = consph_calloc(n ? n : 1, sizeof(size_t));
+    if (!perm) return CONSPH_ENOMEM;
+    int rc = consph_nnps_sort(s->nnps, s->p, perm);
+    if (rc == CONSPH_OK) rc = sys_carry_permutation(s, perm);
+    free(perm);
+    return rc;
+}
+
+int nlist_update(consph_sys *s, int resort)
+{
+    consph_nlist *l = s->nlist;
+    if (l->off) return rebuild_search(s, resort);
+    if (s->p->n != l->n) {
+        int rc = rebuild_search(s, resort);
+        return rc ? rc : nlist_index(s);
+    }
+    if (l->skin == 0.0) {
+        /* the search's own schedule, as without a list */
+        int rc = rebuild_search(s, resort);
+        return rc ? rc : nlist_index(s);
+    }
+    double max_d2;
+    int changed;
+    int rc = nlist_displace(s, &max_d2, &changed);
+    if (rc) return rc;
+    if (max_d2 > l->trigger2) {
+        rc = rebuild_search(s, resort);
+        return rc ? rc : nlist_index(s);
+    }
+    if (changed) ++l->epoch;
+    return CONSPH_OK;
+}
+
+/* ---- the cache ---- */
+
+/* Where one slot's filtered pairs go. */
+typedef struct pair_out {
+    size_t *j;
+    double *d[CONSPH_MAX_DIM], *r;
+} pair_out;
+
+/* The candidates of slot sl (of block b) within the radius, appended from entry `used` of o;
+ * r holds r² on return. Every candidate is written and the count advances only on a hit, so o
+ * needs room for used + (the slot's candidates). */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline size_t
+filter_slot(const consph_nlist *l, const nlist_block *b, size_t sl, pair_out o, size_t used)
+{
+    const int dim = l->dim;
+    const size_t n = l->n;
+    const double r2max = l->radius2;
+    const double *u0 = l->u, *u1 = dim > 1 ? l->u + n : NULL, *u2 = dim > 2 ? l->u + 2 * n : NULL;
+    const double *t0 = l->shift_of[0], *t1 = l->shift_of[1], *t2 = l->shift_of[2];
+    const size_t k0 = b->coff[sl - b->s0], k1 = b->coff[sl - b->s0 + 1];
+    const size_t i = particle_of(l, sl);
+    const uint32_t *cj = b->cj;
+    const uint16_t *ci = b->cimg;
+    size_t *pj = o.j;
+    double *d0 = o.d[0], *d1 = o.d[1], *d2 = o.d[2], *pr = o.r;
+    /* the operations of consph_nnps_scan_run in its order: q = x_i - shift, x_ij = q - x_j, r²
+     * summed from axis 0 up */
+    if (dim == 1) {
+        const double x0 = u0[i];
+        for (size_t k = k0; k < k1; ++k) {
+            const size_t j = cj[k];
+            const double e0 = (x0 - t0[ci[k] & 15]) - u0[j];
+            const double rr = e0 * e0;
+            pj[used] = j;
+            d0[used] = e0;
+            pr[used] = rr;
+            used += rr < r2max;
+        }
+    } else if (dim == 2) {
+        const double x0 = u0[i], x1 = u1[i];
+        for (size_t k = k0; k < k1; ++k) {
+            const size_t j = cj[k];
+            const unsigned c = ci[k];
+            const double e0 = (x0 - t0[c & 15]) - u0[j];
+            const double e1 = (x1 - t1[(c >> 4) & 15]) - u1[j];
+            const double rr = e0 * e0 + e1 * e1;
+            pj[used] = j;
+            d0[used] = e0;
+            d1[used] = e1;
+            pr[used] = rr;
+            used += rr < r2max;
+        }
+    } else {
+        const double x0 = u0[i], x1 = u1[i], x2 = u2[i];
+        for (size_t k = k0; k < k1; ++k) {
+            const size_t j = cj[k];
+            const unsigned c = ci[k];
+            const double e0 = (x0 - t0[c & 15]) - u0[j];
+            const double e1 = (x1 - t1[(c >> 4) & 15]) - u1[j];
+            const double e2 = (x2 - t2[(c >> 8) & 15]) - u2[j];
+            const double rr = e0 * e0 + e1 * e1 + e2 * e2;
+            pj[used] = j;
+            d0[used] = e0;
+            d1[used] = e1;
+            d2[used] = e2;
+            pr[used] = rr;
+            used += rr < r2max;
+        }
+    }
+    return used;
+}
+
+#if defined(NLIST_SSE2) && defined(__GNUC__)
+#include <immintrin.h>
+#define NLIST_AVX2 1
+/* permute[m]: 32-bit lane indices that move the 64-bit lanes of the set bits of m to the
+ * front (as in src/nnps/gather.c). */
+static const int32_t hit_permute[16][8] = {
+    {0, 1, 2, 3, 4, 5, 6, 7}, {0, 1, 2, 3, 4, 5, 6, 7}, {2, 3, 0, 1, 4, 5, 6, 7},
+    {0, 1, 2, 3, 4, 5, 6, 7}, {4, 5, 0, 1, 2, 3, 6, 7}, {0, 1, 4, 5, 2, 3, 6, 7},
+    {2, 3, 4, 5, 0, 1, 6, 7}, {0, 1, 2, 3, 4, 5, 6, 7}, {6, 7, 0, 1, 2, 3, 4, 5},
+    {0, 1, 6, 7, 2, 3, 4, 5}, {2, 3, 6, 7, 0, 1, 4, 5}, {0, 1, 2, 3, 6, 7, 4, 5},
+    {4, 5, 6, 7, 0, 1, 2, 3}, {0, 1, 4, 5, 6, 7, 2, 3}, {2, 3, 4, 5, 6, 7, 0, 1},
+    {0, 1, 2, 3, 4, 5, 6, 7}};
+static const unsigned char hit_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
+
+#define NLIST_STORE(dst, v, perm)                                                                  \
+    _mm256_storeu_si256((__m256i *)(dst), _mm256_permutevar8x32_epi32(_mm256_castpd_si256(v), perm))
+
+/* filter_slot on four candidates at a time: the same operations on the same values (no
+ * fused multiply-add), the hits compressed to the front of each block of four. Whole blocks
+ * are stored, so o needs 3 entries of slack past the candidates. */
+__attribute__((target("avx2"))) static size_t
+filter_slot_avx2(const consph_nlist *l, const nlist_block *b, size_t sl, pair_out o, size_t used)
+{
+    const int dim = l->dim;
+    const size_t n = l->n;
+    const double *u0 = l->u, *u1 = dim > 1 ? l->u + n : l->u, *u2 = dim > 2 ? l->u + 2 * n : l->u;
+    const size_t k0 = b->coff[sl - b->s0], k1 = b->coff[sl - b->s0 + 1];
+    const size_t i = particle_of(l, sl);
+    const __m256d lim = _mm256_set1_pd(l->radius2);
+    const __m256d x0 = _mm256_set1_pd(u0[i]), x1 = _mm256_set1_pd(dim > 1 ? u1[i] : 0.0);
+    const __m256d x2 = _mm256_set1_pd(dim > 2 ? u2[i] : 0.0);
+    /* the shift (double)m · L of the table, computed the same way from the image index m */
+    const __m128i m15 = _mm_set1_epi32(15), seven = _mm_set1_epi32(NLIST_IMAGE_MAX);
+    const __m256d len0 = _mm256_set1_pd(l->periodic[0] ? l->len[0] : 0.0);
+    const __m256d len1 = _mm256_set1_pd(dim > 1 && l->periodic[1] ? l->len[1] : 0.0);
+    const __m256d len2 = _mm256_set1_pd(dim > 2 && l->periodic[2] ? l->len[2] : 0.0);
+    const uint32_t *cj = b->cj;
+    size_t k = k0;
+    for (; k + 4 <= k1; k += 4) {
+        const __m128i j = _mm_loadu_si128((const __m128i *)(cj + k));
+        const size_t ja = cj[k], jb = cj[k + 1], jc = cj[k + 2], jd = cj[k + 3];
+        const __m128i c = _mm_cvtepu16_epi32(_mm_loadl_epi64((const __m128i *)(b->cimg + k)));
+        const __m256d m0 = _mm256_cvtepi32_pd(_mm_sub_epi32(_mm_and_si128(c, m15), seven));
+        __m256d e0 = _mm256_sub_pd(_mm256_sub_pd(x0, _mm256_mul_pd(m0, len0)),
+                                   _mm256_set_pd(u0[jd], u0[jc], u0[jb], u0[ja]));
+        __m256d rr = _mm256_mul_pd(e0, e0), e1 = e0, e2 = e0;
+        if (dim > 1) {
+            const __m256d m1 =
+                _mm256_cvtepi32_pd(_mm_sub_epi32(_mm_and_si128(_mm_srli_epi32(c, 4), m15), seven));
+            e1 = _mm256_sub_pd(_mm256_sub_pd(x1, _mm256_mul_pd(m1, len1)),
+                               _mm256_set_pd(u1[jd], u1[jc], u1[jb], u1[ja]));
+            rr = _mm256_add_pd(rr, _mm256_mul_pd(e1, e1));
+        }
+        if (dim > 2) {
+            const __m256d m2 =
+                _mm256_cvtepi32_pd(_mm_sub_epi32(_mm_and_si128(_mm_srli_epi32(c, 8), m15), seven));
+            e2 = _mm256_sub_pd(_mm256_sub_pd(x2, _mm256_mul_pd(m2, len2)),
+                               _mm256_set_pd(u2[jd], u2[jc], u2[jb], u2[ja]));
+            rr = _mm256_add_pd(rr, _mm256_mul_pd(e2, e2));
+        }
+        const int m = _mm256_movemask_pd(_mm256_cmp_pd(rr, lim, _CMP_LT_OQ));
+        const __m256i perm = _mm256_loadu_si256((const __m256i *)hit_permute[m]);
+        _mm256_storeu_si256((__m256i *)(o.j + used),
+                            _mm256_permutevar8x32_epi32(_mm256_cvtepu32_epi64(j), perm));
+        NLIST_STORE(o.r + used, rr, perm);
+        NLIST_STORE(o.d[0] + used, e0, perm);
+        if (dim > 1) NLIST_STORE(o.d[1] + used, e1, perm);
+        if (dim > 2) NLIST_STORE(o.d[2] + used, e2, perm);
+        used += hit_count[m];
+    }
+    /* the last candidates one by one */
+    if (k < k1) {
+        nlist_block tail = *b;
+        size_t coff[2] = {k, k1};
+        tail.s0 = sl;
+        tail.coff = coff;
+        used = filter_slot(l, &tail, sl, o, used);
+    }
+    return used;
+}
+#endif
+
+#ifdef NLIST_AVX2
+/* Set once by consph_sys_nlist, before any pass can read it. */
+static int use_avx2 = -1;
+#endif
+
+/* filter_slot, vectorised where the processor allows. */
+static inline size_t filter(const consph_nlist *l, const nlist_block *b, size_t sl, pair_out o,
+                            size_t used)
+{
+#ifdef NLIST_AVX2
+    if (use_avx2 > 0) return filter_slot_avx2(l, b, sl, o, used);
+#endif
+    return filter_slot(l, b, sl, o, used);
+}
+
+/* r = sqrt(r²) over [from, to), then zeros up to whole vectors for the kernel batch (r = 0 is a
+ * valid distance; the values are unused). */
+static inline void roots_and_pad(double *r, size_t from, size_t to)
+{
+    size_t k = from;
+#ifdef NLIST_SSE2
+    /* packed square roots are correctly rounded like sqrt(), without its errno branch */
+    for (; k + 2 <= to; k += 2) _mm_storeu_pd(r + k, _mm_sqrt_pd(_mm_loadu_pd(r + k)));
+#endif
+    for (; k < to; ++k) r[k] = sqrt(r[k]);
+    for (k = to; k < ((to + 3) & ~(size_t)3); ++k) r[k] = 0.0;
+}
+
+static int cache_block(const consph_sys *s, nlist_block *b)
+{
+    const consph_nlist *l = s->nlist;
+    size_t used = 0;
+    for (size_t sl = b->s0; sl < b->s1; ++sl) {
+        b->poff[sl - b->s0] = used;
+        if (pair_reserve(b, l->dim, used + (b->coff[sl - b->s0 + 1] - b->coff[sl - b->s0])))
+            return CONSPH_ENOMEM;
+        pair_out o = {b->pj, {b->pdx[0], b->pdx[1], b->pdx[2]}, b->pr};
+        used = filter(l, b, sl, o, used);
+    }
+    b->poff[b->s1 - b->s0] = used;
+    roots_and_pad(b->pr, 0, used);
+    return CONSPH_OK;
+}
+
+/* cache_block for skin 0: the gather's own neighbourhoods, stored. */
+static int cache_block_gather(const consph_sys *s, nlist_block *b, consph_nnps_runs *runs,
+                              size_t **slot, size_t *cap)
+{
+    const consph_nlist *l = s->nlist;
+    consph_nnps_slots v;
+    if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK) return CONSPH_EINVAL;
+    size_t lo = 0, hi = v.ncells;
+    while (hi - lo > 1) {
+        size_t mid = lo + (hi - lo) / 2;
+        if (v.cell_start[mid] <= b->s0)
+            lo = mid;
+        else
+            hi = mid;
+    }
+    size_t c = lo, runs_cell = (size_t)-1, used = 0;
+    for (size_t sl = b->s0; sl < b->s1; ++sl) {
+        while (sl >= v.cell_start[c + 1]) ++c;
+        if (c != runs_cell) {
+            if (consph_nnps_cell_runs(s->nnps, c, runs) == (size_t)-1) return CONSPH_ENOMEM;
+            runs_cell = c;
+            const size_t need = runs->candidates + CONSPH_NNPS_GATHER_SLACK;
+            if (need > *cap) {
+                if (grow((void **)slot, need, sizeof(size_t))) return CONSPH_ENOMEM;
+                *cap = need;
+            }
+        }
+        b->poff[sl - b->s0] = used;
+        if (pair_reserve(b, l->dim, used + runs->candidates + CONSPH_NNPS_GATHER_SLACK))
+            return CONSPH_ENOMEM;
+        double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+        for (int a = 0; a < l->dim; ++a) xi[a] = v.x[a][sl];
+        double *dx[CONSPH_MAX_DIM] = {b->pdx[0] + used, l->dim > 1 ? b->pdx[1] + used : NULL,
+                                      l->dim > 2 ? b->pdx[2] + used : NULL};
+        const size_t m = consph_nnps_gather(&v, runs, xi, *slot, dx, b->pr + used);
+        for (size_t k = 0; k < m; ++k) b->pj[used + k] = consph_nnps_slot_particle(&v, (*slot)[k]);
+        used += m;
+    }
+    b->poff[b->s1 - b->s0] = used;
+    for (size_t k = used; k < ((used + 3) & ~(size_t)3); ++k) b->pr[k] = 0.0;
+    return CONSPH_OK;
+}
+
+static int values_block(const consph_sys *s, nlist_block *b, unsigned want)
+{
+    if (values_reserve(b, want)) return CONSPH_ENOMEM;
+    const size_t used = b->poff[b->s1 - b->s0], m4 = (used + 3) & ~(size_t)3;
+    consph_kernel_eval_batch(&s->kernel, m4, b->pr, want & CONSPH_PASS_W ? b->pw : NULL,
+                             want & CONSPH_PASS_DW ? b->pdwr : NULL,
+                             want & CONSPH_PASS_D2W ? b->pd2w : NULL);
+    return CONSPH_OK;
+}
+
+/* One pass without the cache: each particle's pairs are filtered and evaluated into the
+ * thread's buffers and visited at once. */
+static int stream_pass(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs)
+{
+    const consph_nlist *l = s->nlist;
+    const unsigned need = pass->need;
+    const unsigned char *dest = s->dest;
+    const int with_dx = !(need & CONSPH_PASS_NO_DX);
+    size_t visited = 0;
+    int status = CONSPH_OK;
+#pragma omp parallel reduction(+ : visited) if (l->n >= s->parallel_min)
+    {
+        nlist_block buf;
+        memset(&buf, 0, sizeof buf);
+        int ok = values_reserve(&buf, 0) == CONSPH_OK;
+#pragma omp for schedule(dynamic, 1)
+        for (size_t k = 0; k < l->nblocks; ++k) {
+            const nlist_block *b = &l->blocks[k];
+            for (size_t sl = b->s0; sl < b->s1 && ok; ++sl) {
+                const size_t i = particle_of(l, sl);
+                if (dest && !dest[i]) continue;
+                if (pair_reserve(&buf, l->dim, b->coff[sl - b->s0 + 1] - b->coff[sl - b->s0]) ||
+                    values_reserve(&buf, CONSPH_PASS_W | CONSPH_PASS_DW | CONSPH_PASS_D2W)) {
+                    ok = 0;
+                    break;
+                }
+                pair_out o = {buf.pj, {buf.pdx[0], buf.pdx[1], buf.pdx[2]}, buf.pr};
+                const size_t m = filter(l, b, sl, o, 0);
+                roots_and_pad(buf.pr, 0, m);
+                consph_kernel_eval_batch(
+                    &s->kernel, (m + 3) & ~(size_t)3, buf.pr, need & CONSPH_PASS_W ? buf.pw : NULL,
+                    need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? buf.pdwr : NULL,
+                    need & CONSPH_PASS_D2W ? buf.pd2w : NULL);
+                consph_nbhd nb;
+                nb.i = i;
+                nb.n = m;
+                nb.j = buf.pj;
+                for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+                    nb.dx[a] = with_dx && a < l->dim ? buf.pdx[a] : NULL;
+                nb.r = buf.pr;
+                nb.w = need & CONSPH_PASS_W ? buf.pw : NULL;
+                nb.dwr = need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? buf.pdwr : NULL;
+                nb.d2w = need & CONSPH_PASS_D2W ? buf.pd2w : NULL;
+                pass->visit(job, &nb);
+                visited += m;
+            }
+        }
+        if (!ok) {
+#pragma omp critical(consph_nlist_stream)
+            status = CONSPH_ENOMEM;
+        }
+        block_free(&buf);
+    }
+    if (status != CONSPH_OK)
+        return consph_fail(status, "pass '%s': out of memory for a neighbourhood",
+                           pass->name ? pass->name : "unnamed");
+    if (pairs) *pairs += visited;
+    return CONSPH_OK;
+}
+
+int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs)
+{
+    consph_nlist *l = s->nlist;
+    const unsigned need = pass->need;
+    unsigned want = 0;
+    if (need & CONSPH_PASS_W) want |= CONSPH_PASS_W;
+    if (need & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) want |= CONSPH_PASS_DW;
+    if (need & CONSPH_PASS_D2W) want |= CONSPH_PASS_D2W;
+    if (l->state_epoch != l->epoch) {
+        l->state_epoch = l->epoch;
+        l->passes_last = l->passes_state;
+        l->passes_state = 0;
+    }
+    ++l->passes_state;
+    const int fresh = l->cache_epoch != l->epoch || !l->caches;
+    /* A cache pays where several passes read one position state; one or two passes are served
+     * better by filtering each particle's candidates into a small buffer that stays in the
+     * processor's cache (measured: edac and tvf, two passes per state, ran 5 % slower from a
+     * cache; L-IPST-C, three, 15 % faster). Both compute the same values, so the choice changes
+     * no result. */
+    if (fresh &&
+        (l->passes_last < NLIST_CACHE_PASSES || l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n))
+        return l->skin == 0.0 ? NLIST_GATHER : stream_pass(s, pass, job, pairs);
+    if (fresh) l->have = 0;
+    const unsigned missing = want & ~l->have;
+    const int par = l->n >= s->parallel_min;
+    int status = CONSPH_OK;
+    if (fresh || missing) {
+        size_t total = 0;
+#pragma omp parallel reduction(+ : total) if (par)
+        {
+            consph_nnps_runs runs;
+            memset(&runs, 0, sizeof runs);
+            size_t *slot = NULL, cap = 0;
+#pragma omp for schedule(dynamic, 1)
+            for (size_t k = 0; k < l->nblocks; ++k) {
+                nlist_block *b = &l->blocks[k];
+                int st = !fresh           ? CONSPH_OK
+                         : l->skin == 0.0 ? cache_block_gather(s, b, &runs, &slot, &cap)
+                                          : cache_block(s, b);
+                if (!st && missing) st = values_block(s, b, missing);
+                if (st) {
+#pragma omp critical(consph_nlist_cache)
+                    status = st;
+                }
+                total += b->poff[b->s1 - b->s0];
+            }
+            consph_nnps_runs_free(&runs);
+            free(slot);
+        }
+        if (status != CONSPH_OK) {
+            l->cache_epoch = l->epoch - 1;
+            return consph_fail(status, "pass '%s': out of memory for the pair cache",
+                               pass->name ? pass->name : "unnamed");
+        }
+        if (fresh) {
+            l->npairs = total;
+            l->cache_epoch = l->epoch;
+            ++l->caches;
+        }
+        l->have |= missing;
+    }
+    const unsigned char *dest = s->dest;
+    const int with_dx = !(need & CONSPH_PASS_NO_DX);
+    size_t visited = 0;
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : visited) if (par)
+    for (size_t k = 0; k < l->nblocks; ++k) {
+        const nlist_block *b = &l->blocks[k];
+        for (size_t sl = b->s0; sl < b->s1; ++sl) {
+            const size_t i = particle_of(l, sl);
+            if (dest && !dest[i]) continue;
+            const size_t o = b->poff[sl - b->s0], m = b->poff[sl - b->s0 + 1] - o;
+            consph_nbhd nb;
+            nb.i = i;
+            nb.n = m;
+            nb.j = b->pj + o;
+            for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+                nb.dx[a] = with_dx && a < l->dim ? b->pdx[a] + o : NULL;
+            nb.r = b->pr + o;
+            nb.w = need & CONSPH_PASS_W ? b->pw + o : NULL;
+            nb.dwr = need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? b->pdwr + o : NULL;
+            nb.d2w = need & CONSPH_PASS_D2W ? b->pd2w + o : NULL;
+            pass->visit(job, &nb);
+            visited += m;
+        }
+    }
+    if (pairs) *pairs += visited;
+    return CONSPH_OK;
+}
+
+/* ---- turning it on ---- */
+
+/* Puts the particles back into the order they were given to consph_sys_init. */
+static int unsort(consph_sys *s)
+{
+    const size_t n = s->p->n;
+    size_t *perm = consph_calloc(n ? n : 1, sizeof(size_t));
+    if (!perm) return CONSPH_ENOMEM;
+    for (size_t i = 0; i < n; ++i) perm[s->origin[i]] = i;
+    int rc = consph_particles_permute(s->p, perm);
+    if (rc == CONSPH_OK) rc = sys_carry_permutation(s, perm);
+    free(perm);
+    return rc;
+}
+
+static int resume_from_field(consph_sys *s)
+{
+    consph_nlist *l = s->nlist;
+    consph_particles *p = s->p;
+    const size_t n = p->n, cap = p->cap;
+    int rc = s->origin ? unsort(s) : CONSPH_OK;
+    if (rc) return rc;
+    const consph_field *f = consph_particles_find(p, l->field);
+    if (!f || f->ncomp != p->dim)
+        return consph_fail(CONSPH_EINVAL, "neighbour list: no build positions '%s' to resume from",
+                           l->field);
+    for (size_t k = 0; k < (size_t)p->dim * cap; k += cap)
+        for (size_t i = 0; i < n; ++i)
+            if (isnan(f->data[k + i]))
+                return switch_off(s, "the run this resumes had turned its neighbour list off");
+    double *keep = malloc((size_t)p->dim * (n ? n : 1) * sizeof(double));
+    if (!keep) return CONSPH_ENOMEM;
+    for (int a = 0; a < p->dim; ++a) {
+        memcpy(keep + (size_t)a * n, p->x[a], n * sizeof(double));
+        memcpy(p->x[a], f->data + (size_t)a * cap, n * sizeof(double));
+    }
+    rc = consph_nnps_build(s->nnps, p);
+    if (rc == CONSPH_OK) rc = nlist_index(s);
+    for (int a = 0; a < p->dim; ++a) memcpy(p->x[a], keep + (size_t)a * n, n * sizeof(double));
+    free(keep);
+    if (rc || l->off) return rc;
+    double max_d2;
+    int changed;
+    rc = nlist_displace(s, &max_d2, &changed);
+    if (rc == CONSPH_OK && changed) ++l->epoch;
+    return rc;
+}
+
+int consph_sys_nlist(consph_sys *s, double skin, const char *build_field, int resume)
+{
+    if (!s || !s->p || !s->nnps)
+        return consph_fail(CONSPH_EINVAL, "neighbour list: needs an initialised system");
+    if (skin < 0.0) {
+        if (s->nlist) {
+            const double radius = s->nlist->radius;
+            nlist_free(s->nlist);
+            s->nlist = NULL;
+            if (consph_nnps_radius(s->nnps) != radius) {
+                consph_nnps *g = consph_nnps_create(&s->p->box, radius, 0);
+                if (!g) return CONSPH_ENOMEM;
+                consph_nnps_free(s->nnps);
+                s->nnps = g;
+            }
+            return consph_nnps_build(s->nnps, s->p);
+        }
+        return CONSPH_OK;
+    }
+    if (!isfinite(skin) || skin > 10.0)
+        return consph_fail(CONSPH_EINVAL, "neighbour list: skin %g is not in [0, 10]", skin);
+    if (!s->owned)
+        return consph_fail(CONSPH_EINVAL,
+                           "neighbour list: the system must own its search (consph_sys_init)");
+    if (build_field && strlen(build_field) >= sizeof s->nlist->field)
+        return consph_fail(CONSPH_EINVAL, "neighbour list: field name '%s' is too long",
+                           build_field);
+    if (s->nlist) consph_sys_nlist(s, -1.0, NULL, 0);
+#ifdef NLIST_AVX2
+    if (use_avx2 < 0) use_avx2 = __builtin_cpu_supports("avx2") ? 1 : 0;
+#endif
+    consph_nlist *l = consph_calloc(1, sizeof *l);
+    if (!l) return CONSPH_ENOMEM;
+    s->nlist = l;
+    const consph_particles *p = s->p;
+    l->skin = skin;
+    l->dim = p->dim;
+    l->radius = consph_nnps_radius(s->nnps);
+    l->radius2 = l->radius * l->radius;
+    if (build_field) snprintf(l->field, sizeof l->field, "%s", build_field);
+    double trigger = 0.5 * skin * l->radius;
+    for (int a = 0; a < p->dim; ++a) {
+        l->periodic[a] = p->box.periodic[a];
+        l->len[a] = p->box.hi[a] - p->box.lo[a];
+        /* a displacement is taken as the nearest image, which needs it below half the box */
+        if (l->periodic[a] && trigger > 0.25 * l->len[a]) trigger = 0.25 * l->len[a];
+        for (int m = -NLIST_IMAGE_MAX; m <= NLIST_IMAGE_MAX; ++m)
+            l->shift_of[a][m + NLIST_IMAGE_MAX] = l->periodic[a] ? (double)m * l->len[a] : 0.0;
+    }
+    l->trigger2 = trigger * trigger;
+    if (s->kernel.tensor) return switch_off(s, "a tensor-product kernel: the passes gather");
+    if (skin > 0.0) {
+        consph_nnps *g =
+            consph_nnps_create(&p->box, l->radius * (1.0 + skin) * (1.0 + NLIST_MARGIN), 0);
+        if (!g) return CONSPH_ENOMEM;
+        consph_nnps_free(s->nnps);
+        s->nnps = g;
+        if (resume) return resume_from_field(s);
+    }
+    int rc = consph_nnps_build(s->nnps, s->p);
+    return rc ? rc : nlist_index(s);
+}
+
+void consph_sys_nlist_info(const consph_sys *s, consph_nlist_info *info)
+{
+    memset(info, 0, sizeof *info);
+    const consph_nlist *l = s ? s->nlist : NULL;
+    if (!l) return;
+    info->on = !l->off;
+    info->skin = l->skin;
+    info->builds = l->builds;
+    info->caches = l->caches;
+    snprintf(info->note, sizeof info->note, "%s", l->note);
+    if (l->off || !l->n) return;
+    const double n = (double)l->n;
+    info->candidates = (double)l->ncand / n;
+    info->pairs = (double)l->npairs / n;
+    /* from the counts of the last build and cache, not the buffers' capacities, so that a run
+     * and its restart report the same */
+    const double values = l->npairs ? (l->have & CONSPH_PASS_W ? 1.0 : 0.0) +
+                                          (l->have & CONSPH_PASS_DW ? 1.0 : 0.0) +
+                                          (l->have & CONSPH_PASS_D2W ? 1.0 : 0.0)
+                                    : 0.0;
+    double bytes = n * (sizeof(double) * 2.0 * l->dim + (l->particle ? 8.0 : 0.0)) +
+                   (double)l->ncand * (sizeof(uint32_t) + sizeof(uint16_t)) +
+                   (double)l->npairs * (sizeof(size_t) + sizeof(double) * (l->dim + 1 + values));
+    info->bytes = bytes / n;
+}

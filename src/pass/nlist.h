@@ -1,0 +1,23 @@
+/* The neighbour list with a skin and the pair-geometry cache behind consph_sys_nlist (nlist.c):
+ * internal to the pass layer. */
+#ifndef CONSPH_PASS_NLIST_H
+#define CONSPH_PASS_NLIST_H
+
+#include "consph/pass.h"
+
+/* consph_sys_update when the system has a list: the same contract (rebuild after a move; with
+ * resort, the re-sort into cell order where the list is rebuilt). */
+int nlist_update(consph_sys *s, int resort);
+/* consph_pass_run_counted over the list and its cache; NLIST_GATHER (and nothing done) where
+ * the search's own gather serves the pass as well (skin 0 without a cache). */
+#define NLIST_GATHER 1
+int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs);
+void nlist_free(consph_nlist *l);
+/* Whether the passes run on the list (it is on and holds the system's n particles). */
+int nlist_serves(const consph_nlist *l, size_t n);
+
+/* Carries the origin and the destination mask of a system through new[i] = old[perm[i]]
+ * (pass.c). */
+int sys_carry_permutation(consph_sys *s, const size_t *perm);
+
+#endif
