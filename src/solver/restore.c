@@ -27,7 +27,7 @@
 /* The keys a version-3 checkpoint lacks and the values its run had. */
 static const struct {
     const char *key, *value;
-} format3_implied[] = {{"log_every", "1"}, {"log_since", "0"}};
+} format3_implied[] = {{"log_every", "1"}, {"log_since", "0"}, {"skin", "0"}};
 #define FORMAT3_NIMPLIED (sizeof format3_implied / sizeof format3_implied[0])
 
 int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **history,
