@@ -303,11 +303,11 @@ typedef struct pack_sweep {
  * multiply-add; packed square roots are correctly rounded like sqrt), so the same values. It
  * reads and writes whole blocks of four: the list and the buffers carry PACK_SLACK entries past
  * the end. */
-__attribute__((target("avx2"))) static size_t geometry_avx2(int dim, const pack_sweep *sw, size_t i,
-                                                            pair_buf *b, int with_dx)
+__attribute__((target("avx2"))) static void geometry_avx2(int dim, const pack_sweep *sw, size_t i,
+                                                          size_t m, pair_buf *b, int with_dx)
 {
     const pack_list *L = sw->L;
-    const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
+    const size_t e0 = L->start[i];
     const uint32_t *J = L->j + e0;
     const double *xv = sw->xv;
     __m256d xi[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM];
@@ -354,25 +354,28 @@ __attribute__((target("avx2"))) static size_t geometry_avx2(int dim, const pack_
         }
         _mm256_storeu_pd(b->r + q, with_dx ? rr : _mm256_sqrt_pd(rr));
     }
-    return m;
 }
 #endif
 
-/* The distances of particle i's list entries into the buffer, or with with_dx the separations
- * x_ij and the squared distances; returns the entry count m. The entries up to the next multiple
+/* The distances of the first m of particle i's list entries into the buffer, or with with_dx
+ * the separations x_ij and the squared distances. The entries up to the next multiple
  * of four are filled too (from the list's next entries or its slack), so that loops over whole
  * blocks read finite values. dim is a constant where this is inlined. */
 #if defined(__GNUC__)
 __attribute__((always_inline))
 #endif
-static inline size_t
-list_geometry(const int dim, const pack_sweep *sw, size_t i, pair_buf *b, const int with_dx)
+static inline void
+list_geometry(const int dim, const pack_sweep *sw, size_t i, size_t m, pair_buf *b,
+              const int with_dx)
 {
 #ifdef PACK_AVX2
-    if (sw->avx2) return geometry_avx2(dim, sw, i, b, with_dx);
+    if (sw->avx2) {
+        geometry_avx2(dim, sw, i, m, b, with_dx);
+        return;
+    }
 #endif
     const pack_list *L = sw->L;
-    const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
+    const size_t e0 = L->start[i];
     const uint32_t *restrict J = L->j + e0;
     const int8_t *restrict img0 = L->image[0] + e0;
     const int8_t *restrict img1 = dim > 1 ? L->image[1] + e0 : NULL;
@@ -400,25 +403,33 @@ list_geometry(const int dim, const pack_sweep *sw, size_t i, pair_buf *b, const 
         }
         r[q] = with_dx ? rr : sqrt(rr);
     }
-    return m;
 }
 
 /* sum_q v[q] in four interleaved partial sums (term q in sum q mod 4) combined in a fixed order:
  * independent of the number of threads, without one addition's latency per term, and what the
  * vector loops compute lane by lane. */
-static inline double sum4(const double *v, size_t m)
+static inline double sum4(const double *restrict v, size_t m)
 {
-    double a[4] = {0.0, 0.0, 0.0, 0.0};
-    for (size_t q = 0; q < m; ++q) a[q & 3] += v[q];
-    return (a[0] + a[1]) + (a[2] + a[3]);
+    double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
+    size_t q = 0;
+    for (; q + 4 <= m; q += 4) {
+        a0 += v[q];
+        a1 += v[q + 1];
+        a2 += v[q + 2];
+        a3 += v[q + 3];
+    }
+    if (q < m) a0 += v[q];
+    if (q + 1 < m) a1 += v[q + 1];
+    if (q + 2 < m) a2 += v[q + 2];
+    return (a0 + a1) + (a2 + a3);
 }
 
 #ifdef PACK_AVX2
-/* The quintic's W (summed as sum4) and W'/r (into dwr[0..m)) of the distances r in one loop:
+/* The quintic's W (into wout[0..m)) and W'/r (into dwr[0..m)) of the distances r in one loop:
  * the operations of consph_kernel_eval_batch's quintic (src/kernels/kernels.c), so the same
  * values, with the powers shared. */
-__attribute__((target("avx2"))) static double quintic_avx2(const consph_kernel *k, size_t m,
-                                                           const double *r, double *dwr)
+__attribute__((target("avx2"))) static void quintic_avx2(const consph_kernel *k, size_t m,
+                                                         const double *r, double *wout, double *dwr)
 {
     const __m256d inv_h = _mm256_set1_pd(k->inv_h), norm = _mm256_set1_pd(k->norm);
     const __m256d norm1 = _mm256_set1_pd(k->norm * k->inv_h);
@@ -430,8 +441,6 @@ __attribute__((target("avx2"))) static double quintic_avx2(const consph_kernel *
     const __m256d c6 = _mm256_set1_pd(6.0), c15 = _mm256_set1_pd(15.0);
     const __m256d cm5 = _mm256_set1_pd(-5.0), c30 = _mm256_set1_pd(30.0),
                   c75 = _mm256_set1_pd(75.0);
-    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
-    __m256d acc = zero;
     for (size_t q = 0; q < m; q += 4) {
         const __m256d rp = _mm256_loadu_pd(r + q), x = _mm256_mul_pd(rp, inv_h);
         const __m256d t3 = _mm256_sub_pd(c3, x);
@@ -450,10 +459,7 @@ __attribute__((target("avx2"))) static double quintic_avx2(const consph_kernel *
         __m256d df = _mm256_sub_pd(_mm256_add_pd(_mm256_mul_pd(cm5, p3), _mm256_mul_pd(c30, p2)),
                                    _mm256_mul_pd(c75, p1));
         const __m256d inside = _mm256_cmp_pd(x, c3, _CMP_LT_OQ); /* q < support (and q >= 3: 0) */
-        const __m256d valid =
-            _mm256_castsi256_pd(_mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane));
         const __m256d w = _mm256_and_pd(inside, _mm256_mul_pd(norm, f));
-        acc = _mm256_add_pd(acc, _mm256_and_pd(valid, w));
         const __m256d pos = _mm256_cmp_pd(rp, zero, _CMP_GT_OQ);
         const __m256d v = _mm256_div_pd(_mm256_mul_pd(norm1, df), _mm256_blendv_pd(one, rp, pos));
         const __m256d d = _mm256_and_pd(inside, _mm256_blendv_pd(at_zero, v, pos));
@@ -461,28 +467,25 @@ __attribute__((target("avx2"))) static double quintic_avx2(const consph_kernel *
          * another particle's (a masked store is slow on some processors). */
         if (q + 4 <= m) {
             _mm256_storeu_pd(dwr + q, d);
+            _mm256_storeu_pd(wout + q, w);
         } else {
-            double tail[4];
+            double tail[4], wtail[4];
             _mm256_storeu_pd(tail, d);
-            for (size_t e = q; e < m; ++e) dwr[e] = tail[e - q];
+            _mm256_storeu_pd(wtail, w);
+            for (size_t e = q; e < m; ++e) {
+                dwr[e] = tail[e - q];
+                wout[e] = wtail[e - q];
+            }
         }
     }
-    double a[4];
-    _mm256_storeu_pd(a, acc);
-    return (a[0] + a[1]) + (a[2] + a[3]);
 }
 #endif
 
-/* rho_i = m sum_j W_ij over the list with the kernel k (the entries past its support add exact
- * zeros). */
-static double list_density(const consph_kernel *k, double mass, const pair_buf *b, size_t m)
-{
-    consph_kernel_eval_batch(k, m, b->r, b->k, NULL, NULL);
-    return mass * sum4(b->k, m);
-}
-
-/* The densities, and W'/r of the force's kernel into the list (read by accel_range), so that
- * the force needs no square root and no kernel evaluation. */
+/* Each pair's kernel values, once per pair: particle i evaluates W (and W'/r of the force's
+ * kernel, read by accel_range, which then needs no square root and no kernel evaluation) for its
+ * entries j >= i, at the distance seen from i, and copies them to the mirror entries in the rows
+ * of its neighbours j > i. Every entry is written by one particle only; the densities are summed
+ * once all are written (density_sums). */
 #if defined(__GNUC__)
 __attribute__((always_inline))
 #endif
@@ -490,18 +493,30 @@ static inline void
 density_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf *b)
 {
     const force_params *fp = sw->fp;
+    const pack_list *L = sw->L;
+    double *restrict w0 = L->w[0], *restrict w1 = sw->glass ? L->w[1] : NULL;
+    double *restrict dwr = L->dwr;
     for (size_t i = i0; i < i1; ++i) {
-        const size_t m = list_geometry(dim, sw, i, b, 0);
+        const size_t e0 = L->start[i], m = L->upper[i];
+        list_geometry(dim, sw, i, m, b, 0);
 #ifdef PACK_AVX2
         if (sw->fused_quintic) {
-            sw->w->rho[i] =
-                fp->mass * quintic_avx2(fp->target, m, b->r, sw->L->dwr + sw->L->start[i]);
-            continue;
-        }
+            quintic_avx2(fp->target, m, b->r, w0 + e0, dwr + e0);
+        } else
 #endif
-        sw->w->rho[i] = list_density(fp->target, fp->mass, b, m);
-        if (sw->glass) sw->w->rho_glass[i] = list_density(fp->glass, fp->mass, b, m);
-        consph_kernel_eval_batch(sw->kern, m, b->r, NULL, sw->L->dwr + sw->L->start[i], NULL);
+        {
+            consph_kernel_eval_batch(fp->target, m, b->r, w0 + e0, NULL, NULL);
+            if (w1) consph_kernel_eval_batch(fp->glass, m, b->r, w1 + e0, NULL, NULL);
+            consph_kernel_eval_batch(sw->kern, m, b->r, NULL, dwr + e0, NULL);
+        }
+        const uint32_t *mirror = L->mirror;
+        for (size_t e = e0; e < e0 + m; ++e) {
+            const uint32_t f = mirror[e];
+            if (f == PACK_NO_MIRROR) continue;
+            w0[f] = w0[e];
+            dwr[f] = dwr[e];
+            if (w1) w1[f] = w1[e];
+        }
     }
 }
 
@@ -570,7 +585,8 @@ accel_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf 
     const double *restrict r2 = b->r;
     const double *d0 = b->dx[0], *d1 = b->dx[1], *d2 = b->dx[2];
     for (size_t i = i0; i < i1; ++i) {
-        const size_t m = list_geometry(dim, sw, i, b, 1);
+        const size_t m = sw->L->start[i + 1] - sw->L->start[i];
+        list_geometry(dim, sw, i, m, b, 1);
         const uint32_t *restrict J = sw->L->j + sw->L->start[i];
         const double *restrict dwr = sw->L->dwr + sw->L->start[i];
         const double ei = polish ? weight[i] : 0.0;
@@ -705,7 +721,19 @@ static int compute_density(const force_params *fp, const pack_list *L, const con
     sw.fused_quintic = sw.avx2 && !sw.glass && fp->target->id == CONSPH_KERNEL_QUINTIC &&
                        sw.kern->id == CONSPH_KERNEL_QUINTIC && sw.kern->h == fp->target->h &&
                        sw.kern->dim == fp->target->dim;
-    return sweep_run(&sw, 0);
+    int rc = sweep_run(&sw, 0);
+    if (rc) return rc;
+    /* rho_i = m sum_j W_ij over i's row in its order (sum4; the entries past the kernel's
+     * support hold exact zeros). */
+    const double mass = fp->mass;
+    const int glass = sw.glass;
+#pragma omp parallel for schedule(static) if (w->n >= 2048)
+    for (size_t i = 0; i < w->n; ++i) {
+        const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
+        w->rho[i] = mass * sum4(L->w[0] + e0, m);
+        if (glass) w->rho_glass[i] = mass * sum4(L->w[1] + e0, m);
+    }
+    return CONSPH_OK;
 }
 
 static int compute_acceleration(const force_params *fp, const pack_list *L,
@@ -847,7 +875,7 @@ static int packer_init(packer *pk, const consph_layout_params *lp, consph_partic
     if (!pk->grid) return CONSPH_ENOMEM;
     fp->glass = &pk->glass;
     fp->target = &pk->target;
-    return pack_list_init(&pk->list, p, radius + skin);
+    return pack_list_init(&pk->list, p, radius + skin, !same_kernel);
 }
 
 /* Rebuilds the neighbour list when it is stale (wrapping the particles into the box and sorting
