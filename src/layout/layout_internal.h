@@ -69,8 +69,8 @@ void layout_cache_store(const consph_layout_params *lp, const consph_particles *
 /* Entries past the end of the list arrays that a vector loop may read (whole blocks of four). */
 #define PACK_SLACK 4
 
-/* No mirror entry (pack_list.mirror). */
-#define PACK_NO_MIRROR UINT32_MAX
+/* At most this many list entries (pack_list.mirror is 32-bit). */
+#define PACK_MAX_ENTRIES (UINT32_MAX - PACK_SLACK)
 
 /* Each row holds first the entries with j >= i (the row's "upper" part: i itself and the pairs
  * that i computes), then those with j < i. The per-entry kernel values are computed once per
@@ -85,7 +85,7 @@ typedef struct pack_list {
     uint32_t *upper; /* per particle: its entries with j >= i, at the start of its row */
     uint32_t *j;
     int8_t *image[CONSPH_MAX_DIM];
-    uint32_t *mirror; /* per upper entry with j > i: index of the entry (j, i, -image) */
+    uint32_t *mirror; /* per upper entry: index of the entry (j, i, -image), or start[n] */
     double *w[2];     /* per entry: W of the caller's kernel and (w[1]) of the stage-1 kernel */
     double *dwr;      /* per entry: W'/r of the force's kernel at the current step */
     double *x_ref[CONSPH_MAX_DIM];

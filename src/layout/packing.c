@@ -509,13 +509,14 @@ density_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_bu
             if (w1) consph_kernel_eval_batch(fp->glass, m, b->r, w1 + e0, NULL, NULL);
             consph_kernel_eval_batch(sw->kern, m, b->r, NULL, dwr + e0, NULL);
         }
-        const uint32_t *mirror = L->mirror;
+        /* the entries without a mirror copy to a spare slot past the list's entries */
+        const uint32_t *restrict mirror = L->mirror;
+        if (w1)
+            for (size_t e = e0; e < e0 + m; ++e) w1[mirror[e]] = w1[e];
         for (size_t e = e0; e < e0 + m; ++e) {
             const uint32_t f = mirror[e];
-            if (f == PACK_NO_MIRROR) continue;
             w0[f] = w0[e];
             dwr[f] = dwr[e];
-            if (w1) w1[f] = w1[e];
         }
     }
 }
@@ -714,8 +715,9 @@ static int compute_density(const force_params *fp, const pack_list *L, const con
     /* The interleaved copy of the positions that the vector path loads whole particles from;
      * the force pass of the same step reads it too. */
     const size_t stride = p->dim == 3 ? 4 : (size_t)p->dim;
-    for (int a = 0; a < p->dim; ++a)
-        for (size_t i = 0; i < w->n; ++i) w->xv[stride * i + (size_t)a] = p->x[a][i];
+#pragma omp parallel for schedule(static) if (w->n >= 2048)
+    for (size_t i = 0; i < w->n; ++i)
+        for (int a = 0; a < p->dim; ++a) w->xv[stride * i + (size_t)a] = p->x[a][i];
     sw.glass = !fp->polish && w->rho_glass;
     sw.kern = fp->polish ? fp->target : fp->glass;
     sw.fused_quintic = sw.avx2 && !sw.glass && fp->target->id == CONSPH_KERNEL_QUINTIC &&
@@ -743,6 +745,7 @@ static int compute_acceleration(const force_params *fp, const pack_list *L,
     sweep_init(&sw, fp, L, p, w);
     sw.rho = (fp->polish || !w->rho_glass) ? w->rho : w->rho_glass;
     /* The per-particle factor of each pair's weight, once per particle instead of per pair. */
+#pragma omp parallel for schedule(static) if (w->n >= 2048)
     for (size_t i = 0; i < w->n; ++i)
         w->scratch[i] = fp->polish ? sw.rho[i] / packing_rho0 - 1.0 : fp->mass / sw.rho[i];
     sw.weight = w->scratch;

@@ -81,14 +81,15 @@ static size_t list_particle(pack_list *L, const consph_nnps *grid, const consph_
 }
 
 /* The mirrors of particle i's pairs j > i (the entry of j's row for i with the opposite image,
- * among the entries j lists with smaller indices), and zero kernel values in i's lower part,
+ * among the entries j lists with smaller indices; for the others the spare slot just past the
+ * list's entries, within its slack), and zero kernel values in i's lower part,
  * for the entries that no pair's mirror writes. */
 static void link_particle(pack_list *L, size_t i)
 {
     const size_t b = L->start[i], up = b + L->upper[i];
     for (size_t e = b; e < up; ++e) {
         const size_t j = L->j[e];
-        L->mirror[e] = PACK_NO_MIRROR;
+        L->mirror[e] = (uint32_t)L->start[L->n];
         if (j == i) continue;
         for (size_t f = L->start[j] + L->upper[j]; f < L->start[j + 1]; ++f) {
             if (L->j[f] != i) continue;
@@ -101,7 +102,7 @@ static void link_particle(pack_list *L, size_t i)
         }
     }
     for (size_t e = up; e < L->start[i + 1]; ++e) {
-        L->mirror[e] = PACK_NO_MIRROR;
+        L->mirror[e] = (uint32_t)L->start[L->n];
         L->w[0][e] = 0.0;
         if (L->glass_w) L->w[1][e] = 0.0;
         L->dwr[e] = 0.0;
@@ -140,13 +141,13 @@ int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particle
             L->start[i + 1] += L->start[i];
         }
         const size_t entries = L->start[n];
-        if (entries >= PACK_NO_MIRROR)
+        if (entries > PACK_MAX_ENTRIES)
             return consph_fail(CONSPH_EINVAL,
-                               "layout packing: %zu neighbour-list entries; at most %u", entries,
-                               (unsigned)PACK_NO_MIRROR - 1);
+                               "layout packing: %zu neighbour-list entries; at most %zu", entries,
+                               (size_t)PACK_MAX_ENTRIES);
         if (entries > L->cap) {
             size_t cap = entries + entries / 8;
-            if (cap >= PACK_NO_MIRROR) cap = entries;
+            if (cap > PACK_MAX_ENTRIES) cap = entries;
             free(L->j);
             free(L->mirror);
             free(L->w[0]);
