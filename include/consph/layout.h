@@ -104,7 +104,7 @@ int consph_layout_generate(const consph_layout_params *lp, consph_particles *p,
  * change while layouts are being generated. */
 
 /* Bump whenever a change to the packing moves its positions: old cache files then miss. */
-#define CONSPH_LAYOUT_PACKING_VERSION 3
+#define CONSPH_LAYOUT_PACKING_VERSION 2
 
 /* Sets the cache directory (created when first written; copied), or turns the cache off with
  * NULL or "". */

@@ -69,32 +69,19 @@ void layout_cache_store(const consph_layout_params *lp, const consph_particles *
 /* Entries past the end of the list arrays that a vector loop may read (whole blocks of four). */
 #define PACK_SLACK 4
 
-/* At most this many list entries (pack_list.mirror is 32-bit). */
-#define PACK_MAX_ENTRIES (UINT32_MAX - PACK_SLACK)
-
-/* Each row holds first the entries with j >= i (the row's "upper" part: i itself and the pairs
- * that i computes), then those with j < i. The per-entry kernel values are computed once per
- * pair, by the row of the smaller index, and copied to the mirror entry (j's entry for i with
- * the opposite image); an entry without a mirror (a pair at the edge of the list's radius that
- * the search listed from one side only) keeps 0, which is its kernel value until the next
- * build. */
 typedef struct pack_list {
     int dim;
     size_t n, cap, max_len;
     size_t *start;
-    uint32_t *upper; /* per particle: its entries with j >= i, at the start of its row */
     uint32_t *j;
     int8_t *image[CONSPH_MAX_DIM];
-    uint32_t *mirror; /* per upper entry: index of the entry (j, i, -image), or start[n] */
-    double *w[2];     /* per entry: W of the caller's kernel and (w[1]) of the stage-1 kernel */
-    double *dwr;      /* per entry: W'/r of the force's kernel at the current step */
+    double *dwr; /* per entry: W'/r of the force's kernel at the current step */
     double *x_ref[CONSPH_MAX_DIM];
     double radius, len[CONSPH_MAX_DIM];
-    int glass_w; /* w[1] is kept */
     long builds;
 } pack_list;
 
-int pack_list_init(pack_list *L, const consph_particles *p, double radius, int glass_w);
+int pack_list_init(pack_list *L, const consph_particles *p, double radius);
 /* Lists the neighbours of every particle of p from `grid` (built on p, radius L->radius) and
  * records the positions. */
 int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particles *p);

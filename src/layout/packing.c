@@ -299,49 +299,55 @@ typedef struct pack_sweep {
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 #include <immintrin.h>
 #define PACK_AVX2 1
+/* x_j of four list entries J[0..3], one axis per vector: from the interleaved copy (whole
+ * particles per load) in 2D and 3D, gathered in 1D. */
+__attribute__((target("avx2"), always_inline)) static inline void
+load_xj_avx2(int dim, const pack_sweep *sw, const uint32_t *J, __m256d xj[CONSPH_MAX_DIM])
+{
+    const double *xv = sw->xv;
+    if (dim == 2) {
+        const double *p0 = xv + 2 * (size_t)J[0], *p1 = xv + 2 * (size_t)J[1];
+        const double *p2 = xv + 2 * (size_t)J[2], *p3 = xv + 2 * (size_t)J[3];
+        /* lo = [x0 y0 x2 y2], hi = [x1 y1 x3 y3]: the unpacks give [x0 x1 x2 x3] */
+        const __m256d lo =
+            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p0)), _mm_loadu_pd(p2), 1);
+        const __m256d hi =
+            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p1)), _mm_loadu_pd(p3), 1);
+        xj[0] = _mm256_unpacklo_pd(lo, hi);
+        xj[1] = _mm256_unpackhi_pd(lo, hi);
+    } else if (dim == 3) {
+        const __m256d r0 = _mm256_loadu_pd(xv + 4 * (size_t)J[0]);
+        const __m256d r1 = _mm256_loadu_pd(xv + 4 * (size_t)J[1]);
+        const __m256d r2 = _mm256_loadu_pd(xv + 4 * (size_t)J[2]);
+        const __m256d r3 = _mm256_loadu_pd(xv + 4 * (size_t)J[3]);
+        const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
+        const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
+        xj[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
+        xj[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
+        xj[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
+    } else {
+        xj[0] = _mm256_i32gather_pd(sw->x[0], _mm_loadu_si128((const __m128i *)J), 8);
+    }
+}
+
 /* list_geometry four entries at a time: the same operations in the same order (no fused
  * multiply-add; packed square roots are correctly rounded like sqrt), so the same values. It
  * reads and writes whole blocks of four: the list and the buffers carry PACK_SLACK entries past
  * the end. */
-__attribute__((target("avx2"))) static void geometry_avx2(int dim, const pack_sweep *sw, size_t i,
-                                                          size_t m, pair_buf *b, int with_dx)
+__attribute__((target("avx2"))) static size_t geometry_avx2(int dim, const pack_sweep *sw, size_t i,
+                                                            pair_buf *b, int with_dx)
 {
     const pack_list *L = sw->L;
-    const size_t e0 = L->start[i];
+    const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
     const uint32_t *J = L->j + e0;
-    const double *xv = sw->xv;
     __m256d xi[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM];
     for (int a = 0; a < dim; ++a) {
         xi[a] = _mm256_set1_pd(sw->x[a][i]);
         len[a] = _mm256_set1_pd(L->len[a]);
     }
     for (size_t q = 0; q < m; q += 4) {
-        /* x_j of the four entries, one axis per vector: from the interleaved copy (whole
-         * particles per load) in 2D and 3D, gathered in 1D. */
         __m256d xj[CONSPH_MAX_DIM];
-        if (dim == 2) {
-            const double *p0 = xv + 2 * (size_t)J[q], *p1 = xv + 2 * (size_t)J[q + 1];
-            const double *p2 = xv + 2 * (size_t)J[q + 2], *p3 = xv + 2 * (size_t)J[q + 3];
-            /* lo = [x0 y0 x2 y2], hi = [x1 y1 x3 y3]: the unpacks give [x0 x1 x2 x3] */
-            const __m256d lo =
-                _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p0)), _mm_loadu_pd(p2), 1);
-            const __m256d hi =
-                _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p1)), _mm_loadu_pd(p3), 1);
-            xj[0] = _mm256_unpacklo_pd(lo, hi);
-            xj[1] = _mm256_unpackhi_pd(lo, hi);
-        } else if (dim == 3) {
-            const __m256d r0 = _mm256_loadu_pd(xv + 4 * (size_t)J[q]);
-            const __m256d r1 = _mm256_loadu_pd(xv + 4 * (size_t)J[q + 1]);
-            const __m256d r2 = _mm256_loadu_pd(xv + 4 * (size_t)J[q + 2]);
-            const __m256d r3 = _mm256_loadu_pd(xv + 4 * (size_t)J[q + 3]);
-            const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
-            const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
-            xj[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
-            xj[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
-            xj[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
-        } else {
-            xj[0] = _mm256_i32gather_pd(sw->x[0], _mm_loadu_si128((const __m128i *)(J + q)), 8);
-        }
+        load_xj_avx2(dim, sw, J + q, xj);
         __m256d rr = _mm256_setzero_pd();
         for (int a = 0; a < dim; ++a) {
             int32_t img4;
@@ -354,28 +360,25 @@ __attribute__((target("avx2"))) static void geometry_avx2(int dim, const pack_sw
         }
         _mm256_storeu_pd(b->r + q, with_dx ? rr : _mm256_sqrt_pd(rr));
     }
+    return m;
 }
 #endif
 
-/* The distances of the first m of particle i's list entries into the buffer, or with with_dx
- * the separations x_ij and the squared distances. The entries up to the next multiple
+/* The distances of particle i's list entries into the buffer, or with with_dx the separations
+ * x_ij and the squared distances; returns the entry count m. The entries up to the next multiple
  * of four are filled too (from the list's next entries or its slack), so that loops over whole
  * blocks read finite values. dim is a constant where this is inlined. */
 #if defined(__GNUC__)
 __attribute__((always_inline))
 #endif
-static inline void
-list_geometry(const int dim, const pack_sweep *sw, size_t i, size_t m, pair_buf *b,
-              const int with_dx)
+static inline size_t
+list_geometry(const int dim, const pack_sweep *sw, size_t i, pair_buf *b, const int with_dx)
 {
 #ifdef PACK_AVX2
-    if (sw->avx2) {
-        geometry_avx2(dim, sw, i, m, b, with_dx);
-        return;
-    }
+    if (sw->avx2) return geometry_avx2(dim, sw, i, b, with_dx);
 #endif
     const pack_list *L = sw->L;
-    const size_t e0 = L->start[i];
+    const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
     const uint32_t *restrict J = L->j + e0;
     const int8_t *restrict img0 = L->image[0] + e0;
     const int8_t *restrict img1 = dim > 1 ? L->image[1] + e0 : NULL;
@@ -403,33 +406,25 @@ list_geometry(const int dim, const pack_sweep *sw, size_t i, size_t m, pair_buf 
         }
         r[q] = with_dx ? rr : sqrt(rr);
     }
+    return m;
 }
 
 /* sum_q v[q] in four interleaved partial sums (term q in sum q mod 4) combined in a fixed order:
  * independent of the number of threads, without one addition's latency per term, and what the
  * vector loops compute lane by lane. */
-static inline double sum4(const double *restrict v, size_t m)
+static inline double sum4(const double *v, size_t m)
 {
-    double a0 = 0.0, a1 = 0.0, a2 = 0.0, a3 = 0.0;
-    size_t q = 0;
-    for (; q + 4 <= m; q += 4) {
-        a0 += v[q];
-        a1 += v[q + 1];
-        a2 += v[q + 2];
-        a3 += v[q + 3];
-    }
-    if (q < m) a0 += v[q];
-    if (q + 1 < m) a1 += v[q + 1];
-    if (q + 2 < m) a2 += v[q + 2];
-    return (a0 + a1) + (a2 + a3);
+    double a[4] = {0.0, 0.0, 0.0, 0.0};
+    for (size_t q = 0; q < m; ++q) a[q & 3] += v[q];
+    return (a[0] + a[1]) + (a[2] + a[3]);
 }
 
 #ifdef PACK_AVX2
-/* The quintic's W (into wout[0..m)) and W'/r (into dwr[0..m)) of the distances r in one loop:
+/* The quintic's W (summed as sum4) and W'/r (into dwr[0..m)) of the distances r in one loop:
  * the operations of consph_kernel_eval_batch's quintic (src/kernels/kernels.c), so the same
  * values, with the powers shared. */
-__attribute__((target("avx2"))) static void quintic_avx2(const consph_kernel *k, size_t m,
-                                                         const double *r, double *wout, double *dwr)
+__attribute__((target("avx2"))) static double quintic_avx2(const consph_kernel *k, size_t m,
+                                                           const double *r, double *dwr)
 {
     const __m256d inv_h = _mm256_set1_pd(k->inv_h), norm = _mm256_set1_pd(k->norm);
     const __m256d norm1 = _mm256_set1_pd(k->norm * k->inv_h);
@@ -441,6 +436,8 @@ __attribute__((target("avx2"))) static void quintic_avx2(const consph_kernel *k,
     const __m256d c6 = _mm256_set1_pd(6.0), c15 = _mm256_set1_pd(15.0);
     const __m256d cm5 = _mm256_set1_pd(-5.0), c30 = _mm256_set1_pd(30.0),
                   c75 = _mm256_set1_pd(75.0);
+    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
+    __m256d acc = zero;
     for (size_t q = 0; q < m; q += 4) {
         const __m256d rp = _mm256_loadu_pd(r + q), x = _mm256_mul_pd(rp, inv_h);
         const __m256d t3 = _mm256_sub_pd(c3, x);
@@ -459,7 +456,10 @@ __attribute__((target("avx2"))) static void quintic_avx2(const consph_kernel *k,
         __m256d df = _mm256_sub_pd(_mm256_add_pd(_mm256_mul_pd(cm5, p3), _mm256_mul_pd(c30, p2)),
                                    _mm256_mul_pd(c75, p1));
         const __m256d inside = _mm256_cmp_pd(x, c3, _CMP_LT_OQ); /* q < support (and q >= 3: 0) */
+        const __m256d valid =
+            _mm256_castsi256_pd(_mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane));
         const __m256d w = _mm256_and_pd(inside, _mm256_mul_pd(norm, f));
+        acc = _mm256_add_pd(acc, _mm256_and_pd(valid, w));
         const __m256d pos = _mm256_cmp_pd(rp, zero, _CMP_GT_OQ);
         const __m256d v = _mm256_div_pd(_mm256_mul_pd(norm1, df), _mm256_blendv_pd(one, rp, pos));
         const __m256d d = _mm256_and_pd(inside, _mm256_blendv_pd(at_zero, v, pos));
@@ -467,25 +467,28 @@ __attribute__((target("avx2"))) static void quintic_avx2(const consph_kernel *k,
          * another particle's (a masked store is slow on some processors). */
         if (q + 4 <= m) {
             _mm256_storeu_pd(dwr + q, d);
-            _mm256_storeu_pd(wout + q, w);
         } else {
-            double tail[4], wtail[4];
+            double tail[4];
             _mm256_storeu_pd(tail, d);
-            _mm256_storeu_pd(wtail, w);
-            for (size_t e = q; e < m; ++e) {
-                dwr[e] = tail[e - q];
-                wout[e] = wtail[e - q];
-            }
+            for (size_t e = q; e < m; ++e) dwr[e] = tail[e - q];
         }
     }
+    double a[4];
+    _mm256_storeu_pd(a, acc);
+    return (a[0] + a[1]) + (a[2] + a[3]);
 }
 #endif
 
-/* Each pair's kernel values, once per pair: particle i evaluates W (and W'/r of the force's
- * kernel, read by accel_range, which then needs no square root and no kernel evaluation) for its
- * entries j >= i, at the distance seen from i, and copies them to the mirror entries in the rows
- * of its neighbours j > i. Every entry is written by one particle only; the densities are summed
- * once all are written (density_sums). */
+/* rho_i = m sum_j W_ij over the list with the kernel k (the entries past its support add exact
+ * zeros). */
+static double list_density(const consph_kernel *k, double mass, const pair_buf *b, size_t m)
+{
+    consph_kernel_eval_batch(k, m, b->r, b->k, NULL, NULL);
+    return mass * sum4(b->k, m);
+}
+
+/* The densities, and W'/r of the force's kernel into the list (read by accel_range), so that
+ * the force needs no square root and no kernel evaluation. */
 #if defined(__GNUC__)
 __attribute__((always_inline))
 #endif
@@ -493,31 +496,18 @@ static inline void
 density_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf *b)
 {
     const force_params *fp = sw->fp;
-    const pack_list *L = sw->L;
-    double *restrict w0 = L->w[0], *restrict w1 = sw->glass ? L->w[1] : NULL;
-    double *restrict dwr = L->dwr;
     for (size_t i = i0; i < i1; ++i) {
-        const size_t e0 = L->start[i], m = L->upper[i];
-        list_geometry(dim, sw, i, m, b, 0);
+        const size_t m = list_geometry(dim, sw, i, b, 0);
 #ifdef PACK_AVX2
         if (sw->fused_quintic) {
-            quintic_avx2(fp->target, m, b->r, w0 + e0, dwr + e0);
-        } else
+            sw->w->rho[i] =
+                fp->mass * quintic_avx2(fp->target, m, b->r, sw->L->dwr + sw->L->start[i]);
+            continue;
+        }
 #endif
-        {
-            consph_kernel_eval_batch(fp->target, m, b->r, w0 + e0, NULL, NULL);
-            if (w1) consph_kernel_eval_batch(fp->glass, m, b->r, w1 + e0, NULL, NULL);
-            consph_kernel_eval_batch(sw->kern, m, b->r, NULL, dwr + e0, NULL);
-        }
-        /* the entries without a mirror copy to a spare slot past the list's entries */
-        const uint32_t *restrict mirror = L->mirror;
-        if (w1)
-            for (size_t e = e0; e < e0 + m; ++e) w1[mirror[e]] = w1[e];
-        for (size_t e = e0; e < e0 + m; ++e) {
-            const uint32_t f = mirror[e];
-            w0[f] = w0[e];
-            dwr[f] = dwr[e];
-        }
+        sw->w->rho[i] = list_density(fp->target, fp->mass, b, m);
+        if (sw->glass) sw->w->rho_glass[i] = list_density(fp->glass, fp->mass, b, m);
+        consph_kernel_eval_batch(sw->kern, m, b->r, NULL, sw->L->dwr + sw->L->start[i], NULL);
     }
 }
 
@@ -532,38 +522,56 @@ static inline void repulsion_add(int dim, const repulsion *rp, double r2, double
 }
 
 #ifdef PACK_AVX2
-/* The force sums of accel_range four entries at a time: lane l holds the entries q ≡ l (mod 4),
- * as in the portable loop, with the same operations (no fused multiply-add), so the same
- * values. */
+/* accel_range's geometry and force sums in one loop, four entries at a time, the separations
+ * kept in registers: the operations of geometry_avx2 and accel_sums_avx2 in the same order, so
+ * the same values. */
 __attribute__((target("avx2"))) static void
-accel_sums_avx2(int dim, size_t m, const uint32_t *J, const double *dwr, const double *r2,
-                double *const *dx, const double *weight, double ei, int polish, double range2,
-                const repulsion *rp, double s[CONSPH_MAX_DIM][4], double *rep)
+accel_fused_avx2(int dim, const pack_sweep *sw, size_t i, size_t m, double ei, int polish,
+                 double range2, const repulsion *rp, double s[CONSPH_MAX_DIM][4], double *rep)
 {
-    __m256d acc[CONSPH_MAX_DIM];
-    for (int a = 0; a < dim; ++a) acc[a] = _mm256_setzero_pd();
+    const pack_list *L = sw->L;
+    const size_t e0 = L->start[i];
+    const uint32_t *J = L->j + e0;
+    const double *dwr = L->dwr + e0, *weight = sw->weight;
+    __m256d xi[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM], acc[CONSPH_MAX_DIM];
+    for (int a = 0; a < dim; ++a) {
+        xi[a] = _mm256_set1_pd(sw->x[a][i]);
+        len[a] = _mm256_set1_pd(L->len[a]);
+        acc[a] = _mm256_setzero_pd();
+    }
     const __m256d zero = _mm256_setzero_pd(), vei = _mm256_set1_pd(ei);
     const __m256d vrange2 = _mm256_set1_pd(range2);
     const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
     for (size_t q = 0; q < m; q += 4) {
-        /* four loads rather than a gather instruction, which is slow on some processors */
+        __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
+        load_xj_avx2(dim, sw, J + q, xj);
+        __m256d rr = _mm256_setzero_pd();
+        for (int a = 0; a < dim; ++a) {
+            int32_t img4;
+            memcpy(&img4, L->image[a] + e0 + q, sizeof img4);
+            const __m256d img = _mm256_cvtepi32_pd(_mm_cvtepi8_epi32(_mm_cvtsi32_si128(img4)));
+            d[a] = _mm256_sub_pd(xi[a], _mm256_add_pd(xj[a], _mm256_mul_pd(img, len[a])));
+            rr = a == 0 ? _mm256_mul_pd(d[a], d[a]) : _mm256_add_pd(rr, _mm256_mul_pd(d[a], d[a]));
+        }
         __m256d wq =
             _mm256_set_pd(weight[J[q + 3]], weight[J[q + 2]], weight[J[q + 1]], weight[J[q]]);
         if (polish) wq = _mm256_add_pd(vei, wq);
-        const __m256d rr = _mm256_loadu_pd(r2 + q);
         const __m256i valid =
             _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane); /* q + l < m */
         const __m256d pos =
             _mm256_and_pd(_mm256_castsi256_pd(valid), _mm256_cmp_pd(rr, zero, _CMP_GT_OQ));
         const __m256d f = _mm256_and_pd(pos, _mm256_mul_pd(wq, _mm256_loadu_pd(dwr + q)));
-        for (int a = 0; a < dim; ++a)
-            acc[a] = _mm256_add_pd(acc[a], _mm256_mul_pd(f, _mm256_loadu_pd(dx[a] + q)));
+        for (int a = 0; a < dim; ++a) acc[a] = _mm256_add_pd(acc[a], _mm256_mul_pd(f, d[a]));
         int near = _mm256_movemask_pd(_mm256_and_pd(pos, _mm256_cmp_pd(rr, vrange2, _CMP_LT_OQ)));
-        while (near) {
-            const size_t e = q + (size_t)__builtin_ctz((unsigned)near);
-            near &= near - 1;
-            repulsion_add(dim, rp, r2[e], dx[0][e], dim > 1 ? dx[1][e] : 0.0,
-                          dim > 2 ? dx[2][e] : 0.0, rep);
+        if (near) {
+            double r2[4], dx[CONSPH_MAX_DIM][4] = {{0.0}};
+            _mm256_storeu_pd(r2, rr);
+            for (int a = 0; a < dim; ++a) _mm256_storeu_pd(dx[a], d[a]);
+            while (near) {
+                const int l = __builtin_ctz((unsigned)near);
+                near &= near - 1;
+                repulsion_add(dim, rp, r2[l], dx[0][l], dx[1][l], dx[2][l], rep);
+            }
         }
     }
     for (int a = 0; a < dim; ++a) _mm256_storeu_pd(s[a], acc[a]);
@@ -587,17 +595,17 @@ accel_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf 
     const double *d0 = b->dx[0], *d1 = b->dx[1], *d2 = b->dx[2];
     for (size_t i = i0; i < i1; ++i) {
         const size_t m = sw->L->start[i + 1] - sw->L->start[i];
-        list_geometry(dim, sw, i, m, b, 1);
         const uint32_t *restrict J = sw->L->j + sw->L->start[i];
         const double *restrict dwr = sw->L->dwr + sw->L->start[i];
         const double ei = polish ? weight[i] : 0.0;
         double s[CONSPH_MAX_DIM][4] = {{0.0}}, rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
 #ifdef PACK_AVX2
         if (sw->avx2)
-            accel_sums_avx2(dim, m, J, dwr, r2, b->dx, weight, ei, polish, range2, &fp->rep, s,
-                            rep);
+            accel_fused_avx2(dim, sw, i, m, ei, polish, range2, &fp->rep, s, rep);
         else
 #endif
+        {
+            list_geometry(dim, sw, i, b, 1);
             for (size_t q = 0; q < m; q += 4) {
                 for (int l = 0; l < 4; ++l) {
                     const size_t e = q + l;
@@ -611,6 +619,7 @@ accel_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf 
                     if (r2[e] < range2 && r2[e] > 0.0)
                         repulsion_add(dim, &fp->rep, r2[e], d0[e], d1[e], d2[e], rep);
             }
+        }
         const double coef = polish ? -packing_polish_k * packing_pb / (rho0 * rho0) * mass
                                    : -packing_pb * (mass / sw->rho[i]) / mass;
         pack_work *w = sw->w;
@@ -723,19 +732,7 @@ static int compute_density(const force_params *fp, const pack_list *L, const con
     sw.fused_quintic = sw.avx2 && !sw.glass && fp->target->id == CONSPH_KERNEL_QUINTIC &&
                        sw.kern->id == CONSPH_KERNEL_QUINTIC && sw.kern->h == fp->target->h &&
                        sw.kern->dim == fp->target->dim;
-    int rc = sweep_run(&sw, 0);
-    if (rc) return rc;
-    /* rho_i = m sum_j W_ij over i's row in its order (sum4; the entries past the kernel's
-     * support hold exact zeros). */
-    const double mass = fp->mass;
-    const int glass = sw.glass;
-#pragma omp parallel for schedule(static) if (w->n >= 2048)
-    for (size_t i = 0; i < w->n; ++i) {
-        const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
-        w->rho[i] = mass * sum4(L->w[0] + e0, m);
-        if (glass) w->rho_glass[i] = mass * sum4(L->w[1] + e0, m);
-    }
-    return CONSPH_OK;
+    return sweep_run(&sw, 0);
 }
 
 static int compute_acceleration(const force_params *fp, const pack_list *L,
@@ -878,7 +875,7 @@ static int packer_init(packer *pk, const consph_layout_params *lp, consph_partic
     if (!pk->grid) return CONSPH_ENOMEM;
     fp->glass = &pk->glass;
     fp->target = &pk->target;
-    return pack_list_init(&pk->list, p, radius + skin, !same_kernel);
+    return pack_list_init(&pk->list, p, radius + skin);
 }
 
 /* Rebuilds the neighbour list when it is stale (wrapping the particles into the box and sorting

@@ -2,10 +2,7 @@
  * kernel radius plus a skin, with the periodic image of each pair, kept over many steps while
  * the particles move by less than half the skin. The packing's motions per step are small
  * (at most a few percent of h once the first steps are past), so the search runs once in many
- * steps instead of every step; the pair sums then walk the list. Each row lists the entries
- * with j >= i first (search order within each part), and every pair j > i knows its mirror
- * entry in j's row, so that the packing evaluates the kernel once per pair
- * (layout_internal.h). */
+ * steps instead of every step; the pair sums then walk the list. */
 #include <math.h>
 #include <stdint.h>
 #include <stdlib.h>
@@ -16,11 +13,7 @@
 void pack_list_free(pack_list *L)
 {
     free(L->start);
-    free(L->upper);
     free(L->j);
-    free(L->mirror);
-    free(L->w[0]);
-    free(L->w[1]);
     free(L->dwr);
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
         free(L->image[a]);
@@ -29,7 +22,7 @@ void pack_list_free(pack_list *L)
     memset(L, 0, sizeof *L);
 }
 
-int pack_list_init(pack_list *L, const consph_particles *p, double radius, int glass_w)
+int pack_list_init(pack_list *L, const consph_particles *p, double radius)
 {
     memset(L, 0, sizeof *L);
     if (p->n > INT32_MAX) /* the indices are 32-bit (signed for the vector gathers) */
@@ -38,10 +31,8 @@ int pack_list_init(pack_list *L, const consph_particles *p, double radius, int g
     L->dim = p->dim;
     L->n = p->n;
     L->radius = radius;
-    L->glass_w = glass_w;
     for (int a = 0; a < p->dim; ++a) L->len[a] = consph_box_length(&p->box, a);
     int ok = (L->start = consph_calloc(p->n + 1, sizeof(size_t))) != NULL;
-    ok &= (L->upper = consph_calloc(p->n + 1, sizeof(uint32_t))) != NULL;
     for (int a = 0; a < p->dim; ++a)
         ok &= (L->x_ref[a] = consph_calloc(p->n, sizeof(double))) != NULL;
     if (!ok) {
@@ -58,55 +49,20 @@ static int8_t image_of(double xi, double xj, double dx, double len)
     return (int8_t)lrint((xi - xj - dx) / len);
 }
 
-/* Fills list entries [L->start[i], L->start[i + 1]) of particle i, those with j >= i first, or
- * counts them (fill = 0). */
+/* Fills list entries [L->start[i], L->start[i + 1]) of particle i, or counts them (fill = 0). */
 static size_t list_particle(pack_list *L, const consph_nnps *grid, const consph_particles *p,
                             size_t i, consph_nbrs *nb, int fill)
 {
     size_t m = consph_nnps_query_particle(grid, i, nb);
     if (m == (size_t)-1 || !fill) return m;
     const size_t b = L->start[i];
-    size_t up = 0;
-    for (size_t q = 0; q < m; ++q) up += nb->j[q] >= i;
-    size_t at_up = b, at_low = b + up;
     for (size_t q = 0; q < m; ++q) {
         const size_t j = nb->j[q];
-        const size_t e = j >= i ? at_up++ : at_low++;
-        L->j[e] = (uint32_t)j;
+        L->j[b + q] = (uint32_t)j;
         for (int a = 0; a < L->dim; ++a)
-            L->image[a][e] = image_of(p->x[a][i], p->x[a][j], nb->dx[a][q], L->len[a]);
+            L->image[a][b + q] = image_of(p->x[a][i], p->x[a][j], nb->dx[a][q], L->len[a]);
     }
-    L->upper[i] = (uint32_t)up;
     return m;
-}
-
-/* The mirrors of particle i's pairs j > i (the entry of j's row for i with the opposite image,
- * among the entries j lists with smaller indices; for the others the spare slot just past the
- * list's entries, within its slack), and zero kernel values in i's lower part,
- * for the entries that no pair's mirror writes. */
-static void link_particle(pack_list *L, size_t i)
-{
-    const size_t b = L->start[i], up = b + L->upper[i];
-    for (size_t e = b; e < up; ++e) {
-        const size_t j = L->j[e];
-        L->mirror[e] = (uint32_t)L->start[L->n];
-        if (j == i) continue;
-        for (size_t f = L->start[j] + L->upper[j]; f < L->start[j + 1]; ++f) {
-            if (L->j[f] != i) continue;
-            int opposite = 1;
-            for (int a = 0; a < L->dim; ++a) opposite &= L->image[a][f] == -L->image[a][e];
-            if (opposite) {
-                L->mirror[e] = (uint32_t)f;
-                break;
-            }
-        }
-    }
-    for (size_t e = up; e < L->start[i + 1]; ++e) {
-        L->mirror[e] = (uint32_t)L->start[L->n];
-        L->w[0][e] = 0.0;
-        if (L->glass_w) L->w[1][e] = 0.0;
-        L->dwr[e] = 0.0;
-    }
 }
 
 int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particles *p)
@@ -141,27 +97,14 @@ int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particle
             L->start[i + 1] += L->start[i];
         }
         const size_t entries = L->start[n];
-        if (entries > PACK_MAX_ENTRIES)
-            return consph_fail(CONSPH_EINVAL,
-                               "layout packing: %zu neighbour-list entries; at most %zu", entries,
-                               (size_t)PACK_MAX_ENTRIES);
         if (entries > L->cap) {
             size_t cap = entries + entries / 8;
-            if (cap > PACK_MAX_ENTRIES) cap = entries;
             free(L->j);
-            free(L->mirror);
-            free(L->w[0]);
-            free(L->w[1]);
-            free(L->dwr);
-            L->w[1] = NULL;
             /* calloc: the slack past the entries holds valid indices (0) for vector reads */
             L->j = consph_calloc(cap + PACK_SLACK, sizeof *L->j);
-            L->mirror = consph_calloc(cap + PACK_SLACK, sizeof *L->mirror);
-            L->w[0] = consph_calloc(cap + PACK_SLACK, sizeof *L->w[0]);
-            if (L->glass_w) L->w[1] = consph_calloc(cap + PACK_SLACK, sizeof *L->w[1]);
+            free(L->dwr);
             L->dwr = consph_calloc(cap + PACK_SLACK, sizeof *L->dwr);
-            int ok = L->j != NULL && L->mirror != NULL && L->w[0] != NULL && L->dwr != NULL &&
-                     (!L->glass_w || L->w[1] != NULL);
+            int ok = L->j != NULL && L->dwr != NULL;
             for (int a = 0; a < L->dim; ++a) {
                 free(L->image[a]);
                 ok &= (L->image[a] = consph_calloc(cap + PACK_SLACK, sizeof *L->image[a])) != NULL;
@@ -170,8 +113,6 @@ int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particle
             L->cap = cap;
         }
     }
-#pragma omp parallel for schedule(static) if (n >= 2048)
-    for (size_t i = 0; i < n; ++i) link_particle(L, i);
     for (int a = 0; a < L->dim; ++a) memcpy(L->x_ref[a], p->x[a], n * sizeof(double));
     L->builds++;
     return CONSPH_OK;
