@@ -71,15 +71,20 @@
  * pair, rebuilt (and the particles re-sorted into cell order, for memory locality) only once a
  * particle has moved half the skin since the last build; the positions are wrapped into the box
  * at the builds only, so the images stay valid between them. Per step, one walk computes the
- * densities and W'/r of the force's kernel (kept per list entry), a second the forces. The
- * separations, square roots and force sums run four list entries at a time (AVX2 where the
- * processor has it; the portable loops give the same values), each particle's sums in four
- * interleaved partial sums in list order. Reproducibility: every sum is a gather into particle
- * i in the fixed order of its list and the only reductions are max, which are exact, so the
- * result does not depend on the number of threads. Changing any of this moves the positions at
- * round-off: bump CONSPH_LAYOUT_PACKING_VERSION (include/consph/layout.h), the cache's key.
- * Particles are returned in lattice order: particle i of the result
- * started at lattice node i. */
+ * densities and W'/r of the force's kernel (kept per list entry), a second the separations
+ * again (in registers) and the forces. The separations, square roots and force sums run four
+ * list entries at a time (AVX2 where the processor has it; the portable loops give the same
+ * values), each particle's sums in four interleaved partial sums in list order. Each pair's
+ * kernel values are computed from both sides: a list that computed them once per pair and
+ * copied them to the mirror entry (j's entry for i) measured slower here, the copies being
+ * scattered writes and the stored W an extra array (2D nx 200, two threads: 168 against 96 s of
+ * CPU; nx 50, where the list fits the cache, even). The division in W'/r stays: W'/r has no
+ * division-free form with the same values (f'(q)/q is a polynomial on q < 1 only). Reproducibility:
+ * every sum is a gather into particle i in the fixed order of its list and the only reductions are
+ * max, which are exact, so the result does not depend on the number of threads. Changing any of
+ * this moves the positions at round-off: bump CONSPH_LAYOUT_PACKING_VERSION
+ * (include/consph/layout.h), the cache's key. Particles are returned in lattice order: particle i
+ * of the result started at lattice node i. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
