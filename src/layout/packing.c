@@ -71,15 +71,20 @@
  * pair, rebuilt (and the particles re-sorted into cell order, for memory locality) only once a
  * particle has moved half the skin since the last build; the positions are wrapped into the box
  * at the builds only, so the images stay valid between them. Per step, one walk computes the
- * densities and W'/r of the force's kernel (kept per list entry), a second the forces. The
- * separations, square roots and force sums run four list entries at a time (AVX2 where the
- * processor has it; the portable loops give the same values), each particle's sums in four
- * interleaved partial sums in list order. Reproducibility: every sum is a gather into particle
- * i in the fixed order of its list and the only reductions are max, which are exact, so the
- * result does not depend on the number of threads. Changing any of this moves the positions at
- * round-off: bump CONSPH_LAYOUT_PACKING_VERSION (include/consph/layout.h), the cache's key.
- * Particles are returned in lattice order: particle i of the result
- * started at lattice node i. */
+ * densities and W'/r of the force's kernel (kept per list entry), a second the separations
+ * again (in registers) and the forces. The separations, square roots and force sums run four
+ * list entries at a time (AVX2 where the processor has it; the portable loops give the same
+ * values), each particle's sums in four interleaved partial sums in list order. Each pair's
+ * kernel values are computed from both sides: a list that computed them once per pair and
+ * copied them to the mirror entry (j's entry for i) measured slower here, the copies being
+ * scattered writes and the stored W an extra array (2D nx 200, two threads: 168 against 96 s of
+ * CPU; nx 50, where the list fits the cache, even). The division in W'/r stays: W'/r has no
+ * division-free form with the same values (f'(q)/q is a polynomial on q < 1 only). Reproducibility:
+ * every sum is a gather into particle i in the fixed order of its list and the only reductions are
+ * max, which are exact, so the result does not depend on the number of threads. Changing any of
+ * this moves the positions at round-off: bump CONSPH_LAYOUT_PACKING_VERSION
+ * (include/consph/layout.h), the cache's key. Particles are returned in lattice order: particle i
+ * of the result started at lattice node i. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -299,6 +304,37 @@ typedef struct pack_sweep {
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 #include <immintrin.h>
 #define PACK_AVX2 1
+/* x_j of four list entries J[0..3], one axis per vector: from the interleaved copy (whole
+ * particles per load) in 2D and 3D, gathered in 1D. */
+__attribute__((target("avx2"), always_inline)) static inline void
+load_xj_avx2(int dim, const pack_sweep *sw, const uint32_t *J, __m256d xj[CONSPH_MAX_DIM])
+{
+    const double *xv = sw->xv;
+    if (dim == 2) {
+        const double *p0 = xv + 2 * (size_t)J[0], *p1 = xv + 2 * (size_t)J[1];
+        const double *p2 = xv + 2 * (size_t)J[2], *p3 = xv + 2 * (size_t)J[3];
+        /* lo = [x0 y0 x2 y2], hi = [x1 y1 x3 y3]: the unpacks give [x0 x1 x2 x3] */
+        const __m256d lo =
+            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p0)), _mm_loadu_pd(p2), 1);
+        const __m256d hi =
+            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p1)), _mm_loadu_pd(p3), 1);
+        xj[0] = _mm256_unpacklo_pd(lo, hi);
+        xj[1] = _mm256_unpackhi_pd(lo, hi);
+    } else if (dim == 3) {
+        const __m256d r0 = _mm256_loadu_pd(xv + 4 * (size_t)J[0]);
+        const __m256d r1 = _mm256_loadu_pd(xv + 4 * (size_t)J[1]);
+        const __m256d r2 = _mm256_loadu_pd(xv + 4 * (size_t)J[2]);
+        const __m256d r3 = _mm256_loadu_pd(xv + 4 * (size_t)J[3]);
+        const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
+        const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
+        xj[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
+        xj[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
+        xj[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
+    } else {
+        xj[0] = _mm256_i32gather_pd(sw->x[0], _mm_loadu_si128((const __m128i *)J), 8);
+    }
+}
+
 /* list_geometry four entries at a time: the same operations in the same order (no fused
  * multiply-add; packed square roots are correctly rounded like sqrt), so the same values. It
  * reads and writes whole blocks of four: the list and the buffers carry PACK_SLACK entries past
@@ -309,39 +345,14 @@ __attribute__((target("avx2"))) static size_t geometry_avx2(int dim, const pack_
     const pack_list *L = sw->L;
     const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
     const uint32_t *J = L->j + e0;
-    const double *xv = sw->xv;
     __m256d xi[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM];
     for (int a = 0; a < dim; ++a) {
         xi[a] = _mm256_set1_pd(sw->x[a][i]);
         len[a] = _mm256_set1_pd(L->len[a]);
     }
     for (size_t q = 0; q < m; q += 4) {
-        /* x_j of the four entries, one axis per vector: from the interleaved copy (whole
-         * particles per load) in 2D and 3D, gathered in 1D. */
         __m256d xj[CONSPH_MAX_DIM];
-        if (dim == 2) {
-            const double *p0 = xv + 2 * (size_t)J[q], *p1 = xv + 2 * (size_t)J[q + 1];
-            const double *p2 = xv + 2 * (size_t)J[q + 2], *p3 = xv + 2 * (size_t)J[q + 3];
-            /* lo = [x0 y0 x2 y2], hi = [x1 y1 x3 y3]: the unpacks give [x0 x1 x2 x3] */
-            const __m256d lo =
-                _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p0)), _mm_loadu_pd(p2), 1);
-            const __m256d hi =
-                _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p1)), _mm_loadu_pd(p3), 1);
-            xj[0] = _mm256_unpacklo_pd(lo, hi);
-            xj[1] = _mm256_unpackhi_pd(lo, hi);
-        } else if (dim == 3) {
-            const __m256d r0 = _mm256_loadu_pd(xv + 4 * (size_t)J[q]);
-            const __m256d r1 = _mm256_loadu_pd(xv + 4 * (size_t)J[q + 1]);
-            const __m256d r2 = _mm256_loadu_pd(xv + 4 * (size_t)J[q + 2]);
-            const __m256d r3 = _mm256_loadu_pd(xv + 4 * (size_t)J[q + 3]);
-            const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
-            const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
-            xj[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
-            xj[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
-            xj[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
-        } else {
-            xj[0] = _mm256_i32gather_pd(sw->x[0], _mm_loadu_si128((const __m128i *)(J + q)), 8);
-        }
+        load_xj_avx2(dim, sw, J + q, xj);
         __m256d rr = _mm256_setzero_pd();
         for (int a = 0; a < dim; ++a) {
             int32_t img4;
@@ -516,38 +527,56 @@ static inline void repulsion_add(int dim, const repulsion *rp, double r2, double
 }
 
 #ifdef PACK_AVX2
-/* The force sums of accel_range four entries at a time: lane l holds the entries q ≡ l (mod 4),
- * as in the portable loop, with the same operations (no fused multiply-add), so the same
- * values. */
+/* accel_range's geometry and force sums in one loop, four entries at a time, the separations
+ * kept in registers: the operations of geometry_avx2 and accel_sums_avx2 in the same order, so
+ * the same values. */
 __attribute__((target("avx2"))) static void
-accel_sums_avx2(int dim, size_t m, const uint32_t *J, const double *dwr, const double *r2,
-                double *const *dx, const double *weight, double ei, int polish, double range2,
-                const repulsion *rp, double s[CONSPH_MAX_DIM][4], double *rep)
+accel_fused_avx2(int dim, const pack_sweep *sw, size_t i, size_t m, double ei, int polish,
+                 double range2, const repulsion *rp, double s[CONSPH_MAX_DIM][4], double *rep)
 {
-    __m256d acc[CONSPH_MAX_DIM];
-    for (int a = 0; a < dim; ++a) acc[a] = _mm256_setzero_pd();
+    const pack_list *L = sw->L;
+    const size_t e0 = L->start[i];
+    const uint32_t *J = L->j + e0;
+    const double *dwr = L->dwr + e0, *weight = sw->weight;
+    __m256d xi[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM], acc[CONSPH_MAX_DIM];
+    for (int a = 0; a < dim; ++a) {
+        xi[a] = _mm256_set1_pd(sw->x[a][i]);
+        len[a] = _mm256_set1_pd(L->len[a]);
+        acc[a] = _mm256_setzero_pd();
+    }
     const __m256d zero = _mm256_setzero_pd(), vei = _mm256_set1_pd(ei);
     const __m256d vrange2 = _mm256_set1_pd(range2);
     const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
     for (size_t q = 0; q < m; q += 4) {
-        /* four loads rather than a gather instruction, which is slow on some processors */
+        __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
+        load_xj_avx2(dim, sw, J + q, xj);
+        __m256d rr = _mm256_setzero_pd();
+        for (int a = 0; a < dim; ++a) {
+            int32_t img4;
+            memcpy(&img4, L->image[a] + e0 + q, sizeof img4);
+            const __m256d img = _mm256_cvtepi32_pd(_mm_cvtepi8_epi32(_mm_cvtsi32_si128(img4)));
+            d[a] = _mm256_sub_pd(xi[a], _mm256_add_pd(xj[a], _mm256_mul_pd(img, len[a])));
+            rr = a == 0 ? _mm256_mul_pd(d[a], d[a]) : _mm256_add_pd(rr, _mm256_mul_pd(d[a], d[a]));
+        }
         __m256d wq =
             _mm256_set_pd(weight[J[q + 3]], weight[J[q + 2]], weight[J[q + 1]], weight[J[q]]);
         if (polish) wq = _mm256_add_pd(vei, wq);
-        const __m256d rr = _mm256_loadu_pd(r2 + q);
         const __m256i valid =
             _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane); /* q + l < m */
         const __m256d pos =
             _mm256_and_pd(_mm256_castsi256_pd(valid), _mm256_cmp_pd(rr, zero, _CMP_GT_OQ));
         const __m256d f = _mm256_and_pd(pos, _mm256_mul_pd(wq, _mm256_loadu_pd(dwr + q)));
-        for (int a = 0; a < dim; ++a)
-            acc[a] = _mm256_add_pd(acc[a], _mm256_mul_pd(f, _mm256_loadu_pd(dx[a] + q)));
+        for (int a = 0; a < dim; ++a) acc[a] = _mm256_add_pd(acc[a], _mm256_mul_pd(f, d[a]));
         int near = _mm256_movemask_pd(_mm256_and_pd(pos, _mm256_cmp_pd(rr, vrange2, _CMP_LT_OQ)));
-        while (near) {
-            const size_t e = q + (size_t)__builtin_ctz((unsigned)near);
-            near &= near - 1;
-            repulsion_add(dim, rp, r2[e], dx[0][e], dim > 1 ? dx[1][e] : 0.0,
-                          dim > 2 ? dx[2][e] : 0.0, rep);
+        if (near) {
+            double r2[4], dx[CONSPH_MAX_DIM][4] = {{0.0}};
+            _mm256_storeu_pd(r2, rr);
+            for (int a = 0; a < dim; ++a) _mm256_storeu_pd(dx[a], d[a]);
+            while (near) {
+                const int l = __builtin_ctz((unsigned)near);
+                near &= near - 1;
+                repulsion_add(dim, rp, r2[l], dx[0][l], dx[1][l], dx[2][l], rep);
+            }
         }
     }
     for (int a = 0; a < dim; ++a) _mm256_storeu_pd(s[a], acc[a]);
@@ -570,17 +599,18 @@ accel_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf 
     const double *restrict r2 = b->r;
     const double *d0 = b->dx[0], *d1 = b->dx[1], *d2 = b->dx[2];
     for (size_t i = i0; i < i1; ++i) {
-        const size_t m = list_geometry(dim, sw, i, b, 1);
+        const size_t m = sw->L->start[i + 1] - sw->L->start[i];
         const uint32_t *restrict J = sw->L->j + sw->L->start[i];
         const double *restrict dwr = sw->L->dwr + sw->L->start[i];
         const double ei = polish ? weight[i] : 0.0;
         double s[CONSPH_MAX_DIM][4] = {{0.0}}, rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
 #ifdef PACK_AVX2
         if (sw->avx2)
-            accel_sums_avx2(dim, m, J, dwr, r2, b->dx, weight, ei, polish, range2, &fp->rep, s,
-                            rep);
+            accel_fused_avx2(dim, sw, i, m, ei, polish, range2, &fp->rep, s, rep);
         else
 #endif
+        {
+            list_geometry(dim, sw, i, b, 1);
             for (size_t q = 0; q < m; q += 4) {
                 for (int l = 0; l < 4; ++l) {
                     const size_t e = q + l;
@@ -594,6 +624,7 @@ accel_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf 
                     if (r2[e] < range2 && r2[e] > 0.0)
                         repulsion_add(dim, &fp->rep, r2[e], d0[e], d1[e], d2[e], rep);
             }
+        }
         const double coef = polish ? -packing_polish_k * packing_pb / (rho0 * rho0) * mass
                                    : -packing_pb * (mass / sw->rho[i]) / mass;
         pack_work *w = sw->w;
@@ -698,8 +729,9 @@ static int compute_density(const force_params *fp, const pack_list *L, const con
     /* The interleaved copy of the positions that the vector path loads whole particles from;
      * the force pass of the same step reads it too. */
     const size_t stride = p->dim == 3 ? 4 : (size_t)p->dim;
-    for (int a = 0; a < p->dim; ++a)
-        for (size_t i = 0; i < w->n; ++i) w->xv[stride * i + (size_t)a] = p->x[a][i];
+#pragma omp parallel for schedule(static) if (w->n >= 2048)
+    for (size_t i = 0; i < w->n; ++i)
+        for (int a = 0; a < p->dim; ++a) w->xv[stride * i + (size_t)a] = p->x[a][i];
     sw.glass = !fp->polish && w->rho_glass;
     sw.kern = fp->polish ? fp->target : fp->glass;
     sw.fused_quintic = sw.avx2 && !sw.glass && fp->target->id == CONSPH_KERNEL_QUINTIC &&
@@ -715,6 +747,7 @@ static int compute_acceleration(const force_params *fp, const pack_list *L,
     sweep_init(&sw, fp, L, p, w);
     sw.rho = (fp->polish || !w->rho_glass) ? w->rho : w->rho_glass;
     /* The per-particle factor of each pair's weight, once per particle instead of per pair. */
+#pragma omp parallel for schedule(static) if (w->n >= 2048)
     for (size_t i = 0; i < w->n; ++i)
         w->scratch[i] = fp->polish ? sw.rho[i] / packing_rho0 - 1.0 : fp->mass / sw.rho[i];
     sw.weight = w->scratch;
