@@ -115,6 +115,9 @@ int consph_scheme_reads(const char *name, unsigned param);
 const char *consph_scheme_readers(unsigned param, char *buf, size_t size);
 /* The layout the run starts from: prm->layout, else the scheme's (-1 for an unknown scheme). */
 int consph_run_params_layout(const consph_run_params *prm);
+/* The layout parameters a run of prm starts from (kind, box, particles per axis, seed, the
+ * packing's h/Δs): what consph_solver_create generates, and what keys its layout cache entry. */
+int consph_run_layout_params(const consph_run_params *prm, consph_layout_params *lp);
 const char *consph_problem_names(void);
 const char *consph_integrator_names(void);
 /* CONSPH_EINVAL naming the parameter and the allowed values when something is out of range (the

@@ -167,6 +167,23 @@ static consph_box problem_box(const problem_def *pb)
     return box;
 }
 
+int consph_run_layout_params(const consph_run_params *prm, consph_layout_params *lp)
+{
+    const problem_def *pb = problem_find(prm->problem);
+    const int kind = consph_run_params_layout(prm);
+    if (!pb || kind < 0)
+        return consph_fail(CONSPH_EINVAL, "unknown problem '%s' or scheme '%s'", prm->problem,
+                           prm->scheme);
+    const double ds = (pb->hi[0] - pb->lo[0]) / prm->nx; /* as derive_solver */
+    *lp = consph_layout_defaults((consph_layout_kind)kind, pb->dim, (size_t)prm->nx);
+    lp->box = problem_box(pb);
+    for (int a = 1; a < pb->dim; ++a) /* the spacing Δs of axis 0 on every axis */
+        lp->nx[a] = (size_t)lround((lp->box.hi[a] - lp->box.lo[a]) / ds);
+    lp->seed = prm->seed;
+    lp->packing.hdx = prm->hdx;
+    return CONSPH_OK;
+}
+
 static int initial_rates(consph_solver *s)
 {
     if (s->volumes_fixed) {
@@ -213,14 +230,9 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
     s->prm = *prm;
     new_run_id(s->run_id);
     st = derive_solver(s);
-    consph_layout_kind kind =
-        prm->layout >= 0 ? (consph_layout_kind)prm->layout : s->scheme->layout;
-    consph_layout_params lp = consph_layout_defaults(kind, s->dim, (size_t)prm->nx);
-    lp.box = problem_box(s->prob);
-    for (int a = 1; a < s->dim; ++a) /* the spacing Δs of axis 0 on every axis */
-        lp.nx[a] = (size_t)lround((lp.box.hi[a] - lp.box.lo[a]) / s->ds);
-    lp.seed = prm->seed;
-    lp.packing.hdx = prm->hdx;
+    consph_layout_params lp;
+    memset(&lp, 0, sizeof lp);
+    if (st == CONSPH_OK) st = consph_run_layout_params(prm, &lp);
     consph_particles src = {0}, lat = {0};
     if (st == CONSPH_OK) st = consph_layout_generate(&lp, &src, NULL);
     consph_kernel k;

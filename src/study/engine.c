@@ -70,6 +70,45 @@ static double packing_iterations(double nx, const consph_layout_params *lp)
     return fmin((double)lp->packing.max_iter, 3550.0 * sqrt(nx / 40.0));
 }
 
+/* Seconds of one packing iteration per particle, timed once per process on 200 iterations at
+ * 40² with the layout cache off (a cached calibration would time a file read). */
+static double packing_seconds_per_iteration(void)
+{
+    static double per = -1.0;
+    if (per >= 0.0) return per;
+    per = 0.0;
+    char dir[4096] = "";
+    const char *cache = consph_layout_cache_get();
+    if (cache) snprintf(dir, sizeof dir, "%s", cache);
+    consph_layout_cache_set(NULL);
+    consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED, 2, 40);
+    lp.packing.max_iter = 200;
+    consph_particles p;
+    consph_packing_report rep;
+    memset(&rep, 0, sizeof rep);
+    const double t0 = consph_wtime();
+    if (consph_layout_generate(&lp, &p, &rep) == CONSPH_OK) {
+        per = (consph_wtime() - t0) / ((double)p.n * fmax(1, rep.iterations));
+        consph_particles_free(&p);
+    }
+    consph_packing_report_free(&rep);
+    if (dir[0]) consph_layout_cache_set(dir);
+    return per;
+}
+
+double study_packing_seconds(const consph_layout_params *lp)
+{
+    if (lp->kind != CONSPH_LAYOUT_PACKED && lp->kind != CONSPH_LAYOUT_PACKED_POLISHED) return 0.0;
+    char path[4352];
+    /* a layout the cache already holds costs a file read */
+    if (consph_layout_cache_get() && consph_layout_cache_path(lp, path, sizeof path) == CONSPH_OK &&
+        access(path, R_OK) == 0)
+        return 0.0;
+    double n = 1.0;
+    for (int a = 0; a < lp->dim; ++a) n *= (double)lp->nx[a];
+    return n * packing_iterations((double)lp->nx[0], lp) * packing_seconds_per_iteration();
+}
+
 /* Particle files replace the nx sweeps (one run per file at its N^(1/dim)) and need no
  * packing. */
 int study_estimate_plans(const consph_study *s, const study_figure *f, int quick,
@@ -105,8 +144,9 @@ int study_estimate_plans(const consph_study *s, const study_figure *f, int quick
                     dup = !memcmp(e->seen[q], key, sizeof key);
                 if (!dup) {
                     if (e->nseen < 256) memcpy(e->seen[e->nseen++], key, sizeof key);
-                    e->packed_particles +=
-                        pow(nx, pl.spec.layout.dim) * packing_iterations(nx, &pl.spec.layout);
+                    consph_layout_params lp = pl.spec.layout;
+                    for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? (size_t)nx : 1;
+                    e->seconds += study_packing_seconds(&lp);
                 }
             }
         }
@@ -165,22 +205,7 @@ static double estimate(const consph_study *s, int quick, const study_files *file
     }
     double total = consph_wtime() - t0;
     double per_pair = (total - row.layout_seconds) / study_pairs_estimate(&first, nx_cal);
-    /* Packing: the cost of one iteration per particle, from 200 iterations at 40². */
-    double per_packed = 0.0;
-    if (e->packed_particles > 0) {
-        consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED, 2, 40);
-        lp.packing.max_iter = 200;
-        consph_particles p;
-        consph_packing_report rep;
-        memset(&rep, 0, sizeof rep);
-        t0 = consph_wtime();
-        if (consph_layout_generate(&lp, &p, &rep) == CONSPH_OK) {
-            per_packed = (consph_wtime() - t0) / ((double)p.n * fmax(1, rep.iterations));
-            consph_particles_free(&p);
-        }
-        consph_packing_report_free(&rep);
-    }
-    total_seconds += e->pairs * per_pair + e->packed_particles * per_packed;
+    total_seconds += e->pairs * per_pair;
     free(e);
     return total_seconds;
 }

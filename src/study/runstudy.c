@@ -152,11 +152,28 @@ static double steps_of(const run_plan *pl, double nx)
     return ceil(p->tf / (p->cfl * h / (p->U + c0)));
 }
 
+/* The seconds to pack the layout of one run, 0 when the cache holds it or when an earlier row
+ * of this estimate packs the same one and the cache keeps it for the others (keys: `seen`). */
+static double run_packing_seconds(const consph_run_params *prm, char (*seen)[512], int *nseen)
+{
+    consph_layout_params lp;
+    if (consph_run_layout_params(prm, &lp) != CONSPH_OK) return 0.0;
+    char key[512];
+    if (consph_layout_cache_get() && consph_layout_cache_key(&lp, key, sizeof key) == CONSPH_OK) {
+        for (int q = 0; q < *nseen; ++q)
+            if (!strcmp(seen[q], key)) return 0.0;
+        if (*nseen < 64) snprintf(seen[(*nseen)++], sizeof seen[0], "%s", key);
+    }
+    return study_packing_seconds(&lp);
+}
+
 double study_run_estimate(const consph_study *s, const study_figure *f, int quick,
                           double *particle_steps)
 {
     run_plan first, pl;
-    double made = 0.0;
+    double made = 0.0, packing = 0.0;
+    char seen[64][512];
+    int nseen = 0;
     *particle_steps = 0.0;
     for (int k = 0; k < f->nseries; ++k) {
         if (plan_build(s, f, &f->series[k], quick, &pl) != CONSPH_OK) return NAN;
@@ -164,13 +181,17 @@ double study_run_estimate(const consph_study *s, const study_figure *f, int quic
         for (int j = 0; j < pl.nnx; ++j) {
             *particle_steps += particles_of(&pl, pl.nx[j]) * steps_of(&pl, pl.nx[j]);
             made += particles_of(&pl, pl.nx[j]);
+            consph_run_params row = pl.prm;
+            row.nx = (int)pl.nx[j];
+            packing += run_packing_seconds(&row, seen, &nseen);
         }
     }
     if (f->nseries == 0) return 0.0;
-    /* Calibration: 16² (3D: 8³) particles, 20 steps of the first series, set-up (packing) timed
-     * apart. */
+    /* Calibration: 16² (3D: 8³) particles on the lattice, 20 steps of the first series; the
+     * set-up without packing timed apart (packing: study_packing_seconds). */
     consph_run_params p = first.prm;
     p.nx = consph_problem_dim(p.problem) == 3 ? 8 : 16;
+    p.layout = CONSPH_LAYOUT_LATTICE;
     const double ncal = particles_of(&first, p.nx);
     p.steps = 20;
     p.h_dt = 0.0;
@@ -183,7 +204,7 @@ double study_run_estimate(const consph_study *s, const study_figure *f, int quic
     int rc = consph_run(sv, NULL, &sum, &stopped);
     consph_solver_free(sv);
     if (rc != CONSPH_OK || sum.steps <= 0) return NAN;
-    return *particle_steps * sum.seconds / (ncal * (double)sum.steps) + made * per_made;
+    return *particle_steps * sum.seconds / (ncal * (double)sum.steps) + made * per_made + packing;
 }
 
 /* u_φ(r) about the centre of the box, with the exact u_φ, per particle at the end of a run. */

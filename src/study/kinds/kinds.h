@@ -156,10 +156,9 @@ int study_rows_stop(const study_job *job);
 #define STUDY_STOPPED 100
 
 /* What a study's estimate adds up: neighbour pairs (timed on a small run of the first series),
- * packing work (particles × iterations, timed on a few iterations of a small packing), and
- * seconds the kinds estimate themselves. */
+ * and seconds: the packings (study_packing_seconds) and what the kinds estimate themselves. */
 typedef struct study_estimate {
-    double pairs, packed_particles, seconds;
+    double pairs, seconds;
     double seen[256][3]; /* packed layouts counted once per (dim, nx, seed) */
     int nseen;
     series_plan first;
@@ -212,5 +211,9 @@ int study_validate_plans(const consph_study *s, const study_figure *f, int quick
 /* Neighbour pairs and packings of every series: the estimate of the operator kinds. */
 int study_estimate_plans(const consph_study *s, const study_figure *f, int quick,
                          const study_files *files, study_estimate *e);
+/* Seconds to pack the layout lp (its nx[] set): 0 for an unpacked kind or a layout the cache
+ * holds, else particles × modelled iterations × the time of one iteration per particle on this
+ * machine (timed once per process). */
+double study_packing_seconds(const consph_layout_params *lp);
 
 #endif
