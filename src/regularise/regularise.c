@@ -384,3 +384,19 @@ int reg_remesh_m4(consph_sys *s, const double *lattice, double ds, const char *c
     free(orphan);
     return rc;
 }
+
+/* The shift times period_dt + m T (T = every period_dt) at or before t, counted with a slack of
+ * 1e-9 T so that a step landing on one by accumulated additions counts it once. */
+static double ipst_times_upto(double t, double period_dt, double T)
+{
+    if (t < period_dt - 1e-9 * T) return 0.0;
+    return floor((t - period_dt) / T + 1e-9) + 1.0;
+}
+
+int reg_ipst_due(long step, double t_prev, double t, int every, double period_dt)
+{
+    if (every <= 0 || step < 1) return 0;
+    if (!(period_dt > 0.0)) return (step - 1) % every == 0;
+    const double T = every * period_dt;
+    return ipst_times_upto(t, period_dt, T) > ipst_times_upto(t_prev, period_dt, T);
+}

@@ -35,6 +35,15 @@ typedef struct reg_ipst_report {
     double max_shift; /* largest |total displacement| of a particle, in units of h */
 } reg_ipst_report;
 
+/* 1 when IPST runs after the step from t_prev to t (the step-th step, counted from 1), else 0.
+ * period_dt <= 0: after steps 1, every + 1, 2 every + 1, ... (001's authors shift in PySPH's
+ * post-step callback when its step counter, not yet incremented, is a multiple of every:
+ * tsph_with_pst.py, post_step_ipst). period_dt > 0: the same schedule on a reference step
+ * period_dt, in time: after each step whose interval (t_prev, t] holds one of the times
+ * period_dt + m every period_dt (m = 0, 1, ...), so runs of any Δt shift at the same times
+ * (once per step at most: a Δt above every period_dt shifts every step). every <= 0: never. */
+int reg_ipst_due(long step, double t_prev, double t, int every, double period_dt);
+
 /* χ_o for the kernel on the unperturbed lattice of spacing ds in the kernel's dimension:
  * h^d Σ_j W(|x_j|) over lattice points (1.4399190 for quintic, h = 1.2 ds, 2D:
  * docs/reference-values.md). */
@@ -63,8 +72,11 @@ int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr);
 
 /* The shifting velocity δu = δr/Δt of Sun et al. (δr of reg_pst_shift with R = 0.2, n = 4 and
  * CFL·Ma·(2h)² = 4ΔtUh, no cap; docs/schemes.md) into the solver's field SF_SHIFT at the current
- * positions and volumes; counts its pass in s->passes. In shift_velocity.c. */
+ * positions and volumes; counts its pass in s->passes. In shift_velocity.c (δ+-SPH). */
 int solver_shift_velocity(consph_solver *s, double **du);
+/* The same for 001's TV-C as its authors compute it, δu = -2hU Σ_j (1 + 0.24 (W_ij/W(Δs))^4)
+ * ∇W_ij V_j (no cap; docs/schemes.md, "Shifting constants"). */
+int solver_shift_velocity_tvc(consph_solver *s, double **du);
 
 /* ---- remeshing (001 eqs. 32-33) ---- */
 
