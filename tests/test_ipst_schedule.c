@@ -3,6 +3,7 @@
  * - reg_ipst_due: after steps 1, K + 1, 2K + 1, ... of the run's Δt; on a reference Δt, the
  *   same shift times for two run Δt's (and accumulated times), at most once per step;
  * - a run counts those shifts (ipst_every alone, and ipst_h_dt at half the run's Δt);
+ * - χ_o is max χ after the first shift (001's authors), or the lattice's on request;
  * - L-PST-C moves a particle by -2h² (U/c_o) Σ_j (1 + 0.24 (W_ij/W(Δs))⁴) ∇W_ij V_j and TV-C's
  *   shifting velocity is -2hU Σ_j (...) ∇W_ij V_j, both against a brute-force sum here. */
 #include <math.h>
@@ -172,8 +173,49 @@ static void test_constants(void)
     }
 }
 
+/* χ_o as 001's authors fix it: max_i h^d Σ_j W_ij after the first shift (step 1), recorded in
+ * the run's parameters; `lattice` keeps -1 (reg_chi0 is used). */
+static void test_chi0_first_shift(void)
+{
+    consph_run_params p = params("l-ipst-c");
+    p.steps = 1;
+    p.ipst_every = 10;
+    consph_solver *s = NULL;
+    CHECK(consph_solver_create(&s, &p) == CONSPH_OK, "l-ipst-c: %s", consph_last_error());
+    if (!s) return;
+    CHECK(consph_solver_step(s) == CONSPH_OK, "step: %s", consph_last_error());
+    const consph_particles *q = consph_solver_particles(s);
+    const consph_kernel *k = &s->sys.kernel;
+    const double L = s->prob->hi[0] - s->prob->lo[0];
+    double mx = 0.0;
+    for (size_t i = 0; i < q->n; ++i) {
+        double sum = 0.0;
+        for (size_t j = 0; j < q->n; ++j) {
+            double r2 = 0.0;
+            for (int a = 0; a < 2; ++a) {
+                double x = q->x[a][i] - q->x[a][j];
+                x -= L * nearbyint(x / L);
+                r2 += x * x;
+            }
+            sum += consph_kernel_w(k, sqrt(r2));
+        }
+        mx = fmax(mx, s->h * s->h * sum);
+    }
+    const double chi0 = consph_solver_params(s)->ipst_chi0;
+    CHECK(fabs(chi0 - mx) <= 1e-12 * mx, "χ_o %.15g, max χ after step 1 by hand %.15g", chi0, mx);
+    CHECK(fabs(chi0 - s->chi0) > 1e-6, "χ_o %.10g is not the lattice's %.10g", chi0, s->chi0);
+    consph_solver_free(s);
+    p.ipst_chi0 = -1.0;
+    CHECK(consph_solver_create(&s, &p) == CONSPH_OK, "lattice: %s", consph_last_error());
+    if (!s) return;
+    CHECK(consph_solver_step(s) == CONSPH_OK, "step: %s", consph_last_error());
+    CHECK(consph_solver_params(s)->ipst_chi0 == -1.0, "lattice χ_o kept");
+    consph_solver_free(s);
+}
+
 int main(void)
 {
+    test_chi0_first_shift();
     test_due();
     test_run_counts();
     test_constants();

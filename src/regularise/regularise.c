@@ -151,7 +151,9 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
         /* The volumes are those of the current positions; the last refresh leaves "volume"
          * matching the positions the call returns. */
         if ((rc = ipst_volumes(s, prm->h, sumw, vol, &chi_max))) break;
-        if (fabs(chi_max - prm->chi0) < prm->tol || iterations == prm->max_iter) break;
+        if ((iterations >= prm->min_iter && fabs(chi_max - prm->chi0) < prm->tol) ||
+            iterations >= prm->max_iter)
+            break;
         if ((rc = consph_pass_run(s, &pass, &job))) break;
         if ((rc = reg_move(s, step))) break;
         for (size_t k = 0; k < (size_t)d * cap; ++k) total[k] += step[k];
@@ -172,6 +174,7 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
             rep->iterations = iterations;
             rep->chi_err = fabs(chi_max - prm->chi0);
             rep->max_shift = sqrt(mx) / prm->h;
+            rep->chi_max = chi_max;
         }
     }
     free(sumw);

@@ -27,12 +27,15 @@ typedef struct reg_ipst_params {
     double chi0;  /* χ_o: h^d Σ_j W_ij on the unperturbed lattice (reg_chi0) */
     double tol;   /* ε of eq. 21 */
     int max_iter; /* at most this many shifts (001: 10) */
+    int min_iter; /* at least this many shifts before eq. 21 is tested (0: tested before the
+                     first; 001's authors: 1, PySPH's iterated group with min_iterations=1) */
 } reg_ipst_params;
 
 typedef struct reg_ipst_report {
     int iterations;   /* shifts applied */
     double chi_err;   /* |max χ - χ_o| after the last shift */
     double max_shift; /* largest |total displacement| of a particle, in units of h */
+    double chi_max;   /* max_i χ_i after the last shift */
 } reg_ipst_report;
 
 /* 1 when IPST runs after the step from t_prev to t (the step-th step, counted from 1), else 0.
@@ -50,7 +53,8 @@ int reg_ipst_due(long step, double t_prev, double t, int every, double period_dt
 double reg_chi0(const consph_kernel *k, double ds);
 
 /* Shifts the particles by eq. 19 (away from crowded neighbours) until eq. 21 holds or max_iter
- * shifts were made, testing eq. 21 before each shift (a set that meets it is not moved),
+ * shifts were made, testing eq. 21 before each shift once min_iter shifts were made (with
+ * min_iter 0 a set that meets it is not moved),
  * recomputing the volumes ω = 1/Σ_j W_ij (written into "volume") at every iteration, and adds
  * the total displacement of each particle to dr_total (d × cap, zeroed by the caller). Refuses a
  * system with a destination mask. */

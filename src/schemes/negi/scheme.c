@@ -106,10 +106,19 @@ static int regularise_ipst(consph_solver *s)
     int st = gradients_for_shift(s);
     if (st == CONSPH_OK) st = zeroed_shift(s, &dr);
     if (st != CONSPH_OK) return st;
-    reg_ipst_params ip = {s->h, s->chi0, s->prm.ipst_tol, s->prm.ipst_max_iter};
+    /* χ_o (docs/schemes.md, "IPST"): ipst_chi0 = lattice: 001's text, the unperturbed
+     * lattice's (reg_chi0); 0: as 001's authors, one shift at the first call, then max χ after
+     * it, kept in prm so that a checkpoint carries it (pst.py, NumberDensityMoment: χ_o is set
+     * while t < Δt, in the same iteration, which then converges at once); > 0: that value. At
+     * least one shift per call, as the authors' iterated group (min_iterations=1). */
+    reg_ipst_params ip = {s->h, s->chi0, s->prm.ipst_tol, s->prm.ipst_max_iter, 1};
     reg_ipst_report rep;
+    const int first = s->prm.ipst_chi0 == 0.0;
+    if (s->prm.ipst_chi0 > 0.0) ip.chi0 = s->prm.ipst_chi0;
+    if (first) ip.max_iter = 1;
     st = reg_ipst(&s->sys, &ip, dr, &rep);
     if (st != CONSPH_OK) return st;
+    if (first) s->prm.ipst_chi0 = rep.chi_max;
     solver_taylor_update(s, dr);
     ++s->regs;
     return CONSPH_OK;
