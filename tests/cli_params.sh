@@ -15,7 +15,7 @@ trap 'rm -rf "$work"' EXIT
 opts=$(grep -E '^  --[a-z0-9-]+ .*; default [^;]*\)$' "$work/help" | awk '{print $1}')
 n=$(echo "$opts" | wc -w)
 # the table's rows with an option (all but problem, rho0, gamma)
-[ "$n" = 27 ] || bad "$n table options in the help, want 27: $opts"
+[ "$n" = 29 ] || bad "$n table options in the help, want 29: $opts"
 for o in $opts; do
     failing 2 "option $o: " "$work/out" -- "$consph" run taylor-green "$o" "@" &&
         grep -qF "allowed: " "$work/err" && pass=$((pass + 1)) ||

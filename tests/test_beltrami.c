@@ -266,11 +266,11 @@ static void test_regularise_3d(void)
     consph_sys s;
     /* IPST (001 eqs. 19-21): χ_o of the 3D lattice, and the shifts even out a disordered set */
     CHECK(make_sys3(&s, 8, 0.4), "system: %s", consph_last_error());
-    reg_ipst_params ip = {s.kernel.h, reg_chi0(&s.kernel, s.p->spacing), 1e-3, 10};
+    reg_ipst_params ip = {s.kernel.h, reg_chi0(&s.kernel, s.p->spacing), 1e-3, 10, 0};
     CHECK(ip.chi0 > 0.5 && ip.chi0 < 2.0, "chi0 in 3D %g", ip.chi0);
     double *dr = calloc(3 * s.p->cap, sizeof(double));
     const double spread0 = sumw_spread(&s);
-    reg_ipst_report rep = {-1, NAN, NAN};
+    reg_ipst_report rep = {-1, NAN, NAN, NAN};
     CHECK(reg_ipst(&s, &ip, dr, &rep) == CONSPH_OK, "IPST: %s", consph_last_error());
     const double spread1 = sumw_spread(&s);
     printf("3D IPST: %d iterations, spread of sum W %.3e -> %.3e, max shift %.3f h\n",

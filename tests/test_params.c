@@ -134,7 +134,7 @@ static void test_defaults(void)
         for (int j = 0; j < k; ++j)
             CHECK(consph_run_param_at(j)->offset != d->offset, "%s: member twice", d->name);
     }
-    CHECK(consph_run_param_count() == 30, "%d rows, 30 members", consph_run_param_count());
+    CHECK(consph_run_param_count() == 32, "%d rows, 32 members", consph_run_param_count());
     CHECK(!consph_run_param_at(-1) && !consph_run_param_at(consph_run_param_count()) &&
               !consph_run_param_find("nosuch"),
           "out-of-table lookups answered");

@@ -83,7 +83,7 @@ static void test_chi0(void)
 
 static reg_ipst_params ipst_params(const consph_sys *s)
 {
-    reg_ipst_params prm = {s->kernel.h, reg_chi0(&s->kernel, s->p->spacing), 1e-3, 10};
+    reg_ipst_params prm = {s->kernel.h, reg_chi0(&s->kernel, s->p->spacing), 1e-3, 10, 0};
     return prm;
 }
 
@@ -104,7 +104,7 @@ static void test_lattice(void)
     CHECK(big <= 1e-12 * s.kernel.h, "PST moves a lattice by %g", big);
     memset(dr, 0, 2 * cap * sizeof(double));
     reg_ipst_params prm = ipst_params(&s);
-    reg_ipst_report rep = {-1, NAN, NAN};
+    reg_ipst_report rep = {-1, NAN, NAN, NAN};
     CHECK(reg_ipst(&s, &prm, dr, &rep) == CONSPH_OK, "IPST: %s", consph_last_error());
     CHECK(rep.iterations == 0 || rep.iterations == 1, "iterations %d", rep.iterations);
     double moved = 0.0, shift = 0.0;
@@ -133,7 +133,7 @@ static void test_ipst_perturbed(void)
     double *x0[2] = {malloc(n * sizeof(double)), malloc(n * sizeof(double))};
     for (int a = 0; a < 2; ++a) memcpy(x0[a], s.p->x[a], n * sizeof(double));
     double *dr = calloc(2 * cap, sizeof(double));
-    reg_ipst_report rep = {-1, NAN, NAN};
+    reg_ipst_report rep = {-1, NAN, NAN, NAN};
     CHECK(reg_ipst(&s, &prm, dr, &rep) == CONSPH_OK, "IPST: %s", consph_last_error());
     chi_stats(&s, prm.chi0, &err1, &spread1);
     printf("IPST perturbed: %d iterations, max|chi - chi0| %.3e -> %.3e, spread of sum W %.3e -> "

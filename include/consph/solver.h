@@ -87,6 +87,12 @@ typedef struct consph_run_params {
     int error_times;   /* the authors' measure: this many output times in [0, t_f] (001's: 50) */
     int log_every;     /* the diagnostics (log.csv rows, eq. 26's samples) every this many steps,
                           at t = 0, the last step and each snapshot; never otherwise */
+    double ipst_h_dt;  /* IPST every ipst_every steps of the time-step rule's Δt at this h instead
+                          of the run's own steps (0: the run's steps); 001's studies pass the
+                          paper's finest h, so every resolution shifts as often per unit time */
+    double ipst_chi0;  /* χ_o of 001 eq. 21: -1 the unperturbed lattice's, 0 max χ after one
+                          shift at the run's first IPST (001's authors; the run then stores that
+                          value here, and a checkpoint carries it), > 0 that value */
 } consph_run_params;
 
 void consph_run_params_default(consph_run_params *prm);
@@ -105,7 +111,7 @@ typedef enum consph_scheme_param {
     CONSPH_PARAM_ALPHA = 1u << 0, /* alpha: artificial viscosity */
     CONSPH_PARAM_DELTA = 1u << 1, /* delta: the diffusive term D = δ h c_o */
     CONSPH_PARAM_EOS = 1u << 2,   /* eos: p from the evolved ϱ (not edac, pe-ipst-c, tvf) */
-    CONSPH_PARAM_IPST = 1u << 3   /* ipst_every, ipst_max_iter, ipst_tol */
+    CONSPH_PARAM_IPST = 1u << 3   /* ipst_every, ipst_max_iter, ipst_tol, ipst_h_dt, ipst_chi0 */
 } consph_scheme_param;
 /* 1 when the scheme `name` reads `param` (one consph_scheme_param), else 0 (also for an unknown
  * name). */

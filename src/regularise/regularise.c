@@ -151,7 +151,9 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
         /* The volumes are those of the current positions; the last refresh leaves "volume"
          * matching the positions the call returns. */
         if ((rc = ipst_volumes(s, prm->h, sumw, vol, &chi_max))) break;
-        if (fabs(chi_max - prm->chi0) < prm->tol || iterations == prm->max_iter) break;
+        if ((iterations >= prm->min_iter && fabs(chi_max - prm->chi0) < prm->tol) ||
+            iterations >= prm->max_iter)
+            break;
         if ((rc = consph_pass_run(s, &pass, &job))) break;
         if ((rc = reg_move(s, step))) break;
         for (size_t k = 0; k < (size_t)d * cap; ++k) total[k] += step[k];
@@ -172,6 +174,7 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
             rep->iterations = iterations;
             rep->chi_err = fabs(chi_max - prm->chi0);
             rep->max_shift = sqrt(mx) / prm->h;
+            rep->chi_max = chi_max;
         }
     }
     free(sumw);
@@ -383,4 +386,20 @@ int reg_remesh_m4(consph_sys *s, const double *lattice, double ds, const char *c
     free(mask);
     free(orphan);
     return rc;
+}
+
+/* The shift times period_dt + m T (T = every period_dt) at or before t, counted with a slack of
+ * 1e-9 T so that a step landing on one by accumulated additions counts it once. */
+static double ipst_times_upto(double t, double period_dt, double T)
+{
+    if (t < period_dt - 1e-9 * T) return 0.0;
+    return floor((t - period_dt) / T + 1e-9) + 1.0;
+}
+
+int reg_ipst_due(long step, double t_prev, double t, int every, double period_dt)
+{
+    if (every <= 0 || step < 1) return 0;
+    if (!(period_dt > 0.0)) return (step - 1) % every == 0;
+    const double T = every * period_dt;
+    return ipst_times_upto(t, period_dt, T) > ipst_times_upto(t_prev, period_dt, T);
 }

@@ -27,13 +27,25 @@ typedef struct reg_ipst_params {
     double chi0;  /* χ_o: h^d Σ_j W_ij on the unperturbed lattice (reg_chi0) */
     double tol;   /* ε of eq. 21 */
     int max_iter; /* at most this many shifts (001: 10) */
+    int min_iter; /* at least this many shifts before eq. 21 is tested (0: tested before the
+                     first; 001's authors: 1, PySPH's iterated group with min_iterations=1) */
 } reg_ipst_params;
 
 typedef struct reg_ipst_report {
     int iterations;   /* shifts applied */
     double chi_err;   /* |max χ - χ_o| after the last shift */
     double max_shift; /* largest |total displacement| of a particle, in units of h */
+    double chi_max;   /* max_i χ_i after the last shift */
 } reg_ipst_report;
+
+/* 1 when IPST runs after the step from t_prev to t (the step-th step, counted from 1), else 0.
+ * period_dt <= 0: after steps 1, every + 1, 2 every + 1, ... (001's authors shift in PySPH's
+ * post-step callback when its step counter, not yet incremented, is a multiple of every:
+ * tsph_with_pst.py, post_step_ipst). period_dt > 0: the same schedule on a reference step
+ * period_dt, in time: after each step whose interval (t_prev, t] holds one of the times
+ * period_dt + m every period_dt (m = 0, 1, ...), so runs of any Δt shift at the same times
+ * (once per step at most: a Δt above every period_dt shifts every step). every <= 0: never. */
+int reg_ipst_due(long step, double t_prev, double t, int every, double period_dt);
 
 /* χ_o for the kernel on the unperturbed lattice of spacing ds in the kernel's dimension:
  * h^d Σ_j W(|x_j|) over lattice points (1.4399190 for quintic, h = 1.2 ds, 2D:
@@ -41,7 +53,8 @@ typedef struct reg_ipst_report {
 double reg_chi0(const consph_kernel *k, double ds);
 
 /* Shifts the particles by eq. 19 (away from crowded neighbours) until eq. 21 holds or max_iter
- * shifts were made, testing eq. 21 before each shift (a set that meets it is not moved),
+ * shifts were made, testing eq. 21 before each shift once min_iter shifts were made (with
+ * min_iter 0 a set that meets it is not moved),
  * recomputing the volumes ω = 1/Σ_j W_ij (written into "volume") at every iteration, and adds
  * the total displacement of each particle to dr_total (d × cap, zeroed by the caller). Refuses a
  * system with a destination mask. */
@@ -63,8 +76,11 @@ int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr);
 
 /* The shifting velocity δu = δr/Δt of Sun et al. (δr of reg_pst_shift with R = 0.2, n = 4 and
  * CFL·Ma·(2h)² = 4ΔtUh, no cap; docs/schemes.md) into the solver's field SF_SHIFT at the current
- * positions and volumes; counts its pass in s->passes. In shift_velocity.c. */
+ * positions and volumes; counts its pass in s->passes. In shift_velocity.c (δ+-SPH). */
 int solver_shift_velocity(consph_solver *s, double **du);
+/* The same for 001's TV-C as its authors compute it, δu = -2hU Σ_j (1 + 0.24 (W_ij/W(Δs))^4)
+ * ∇W_ij V_j (no cap; docs/schemes.md, "Shifting constants"). */
+int solver_shift_velocity_tvc(consph_solver *s, double **du);
 
 /* ---- remeshing (001 eqs. 32-33) ---- */
 

@@ -35,8 +35,9 @@ static int rates(consph_solver *s, const negi_terms *t)
     if (st != CONSPH_OK) return st;
     double *du = NULL;
     if (t->transport) {
-        /* 001 §5.4 item 4: the PST of [33] as a transport velocity */
-        st = solver_shift_velocity(s, &du);
+        /* 001 §5.4 item 4: the PST of [33] as a transport velocity, at 001's authors'
+         * constants (tsph_dsph.py, ComputeShiftVelocity; docs/schemes.md) */
+        st = solver_shift_velocity_tvc(s, &du);
         if (st != CONSPH_OK) return st;
     }
     const double *u = sv_field(s, SF_U, d), *rhof = sv_field(s, SF_RHOF, 1);
@@ -92,31 +93,47 @@ static int zeroed_shift(consph_solver *s, double **dr)
     return CONSPH_OK;
 }
 
-/* IPST every ipst_every steps (001 §5.1.1). */
+/* IPST every ipst_every steps (001 §5.1.1), the first after step 1 as 001's authors run it
+ * (reg_ipst_due); with ipst_h_dt, steps of the time-step rule's Δt at that h (001 §5.2: the
+ * finest resolution's Δt for every resolution), so the shifts fall at the same times whatever
+ * the run's Δt (docs/schemes.md, "IPST schedule"). */
 static int regularise_ipst(consph_solver *s)
 {
-    if (s->prm.ipst_every <= 0 || s->step % s->prm.ipst_every != 0) return CONSPH_OK;
+    const double period_dt =
+        s->prm.ipst_h_dt > 0.0 ? s->prm.cfl * s->prm.ipst_h_dt / (s->prm.U + s->c0) : 0.0;
+    if (!reg_ipst_due(s->step, s->t - s->dt, s->t, s->prm.ipst_every, period_dt)) return CONSPH_OK;
     double *dr;
     int st = gradients_for_shift(s);
     if (st == CONSPH_OK) st = zeroed_shift(s, &dr);
     if (st != CONSPH_OK) return st;
-    reg_ipst_params ip = {s->h, s->chi0, s->prm.ipst_tol, s->prm.ipst_max_iter};
+    /* χ_o (docs/schemes.md, "IPST"): ipst_chi0 = lattice: 001's text, the unperturbed
+     * lattice's (reg_chi0); 0: as 001's authors, one shift at the first call, then max χ after
+     * it, kept in prm so that a checkpoint carries it (pst.py, NumberDensityMoment: χ_o is set
+     * while t < Δt, in the same iteration, which then converges at once); > 0: that value. At
+     * least one shift per call, as the authors' iterated group (min_iterations=1). */
+    reg_ipst_params ip = {s->h, s->chi0, s->prm.ipst_tol, s->prm.ipst_max_iter, 1};
     reg_ipst_report rep;
+    const int first = s->prm.ipst_chi0 == 0.0;
+    if (s->prm.ipst_chi0 > 0.0) ip.chi0 = s->prm.ipst_chi0;
+    if (first) ip.max_iter = 1;
     st = reg_ipst(&s->sys, &ip, dr, &rep);
     if (st != CONSPH_OK) return st;
+    if (first) s->prm.ipst_chi0 = rep.chi_max;
     solver_taylor_update(s, dr);
     ++s->regs;
     return CONSPH_OK;
 }
 
-/* The non-iterative shifting of Sun et al. every step (L-PST-C). */
+/* The non-iterative shifting of Sun et al. every step (L-PST-C), at 001's authors' constants:
+ * CFL 0.5 and R = 0.24, n = 4, Ma = U/c_o (pst.py, DeltaPlusSPHPST: δr = -2h² Ma Σ (1 + R
+ * (W_ij/W(Δs))^n) ∇W_ij V_j). 001 does not write the shift out (docs/schemes.md). */
 static int regularise_pst(consph_solver *s)
 {
     double *dr;
     int st = gradients_for_shift(s);
     if (st == CONSPH_OK) st = zeroed_shift(s, &dr);
     if (st != CONSPH_OK) return st;
-    reg_pst_params pp = {s->h, s->ds, s->dt * s->c0 / s->h, s->prm.U / s->c0, 0.2, 4.0, 0.0};
+    reg_pst_params pp = {s->h, s->ds, 0.5, s->prm.U / s->c0, 0.24, 4.0, 0.0};
     st = reg_pst_shift(&s->sys, &pp, dr);
     if (st == CONSPH_OK) st = reg_move(&s->sys, dr);
     if (st != CONSPH_OK) return st;
