@@ -43,7 +43,7 @@ run_all() { # BIN DIR [FLAGS]
       "$bin" run shear-layer --scheme "$s" --nx 48 --steps 10 --threads $th "${flags[@]}" --out "$dir/sl-$s-$th" >/dev/null 2>&1 || echo "run failed: sl $s $th"
     done
   done
-  if "$bin" run --help 2>&1 | grep -q beltrami; then
+  if "$bin" run --help 2>&1 | grep beltrami > /dev/null; then
     for s in $schemes; do
       for th in 1 2; do
         "$bin" run beltrami --scheme "$s" --nx 14 --steps 5 --threads $th "${flags[@]}" --layout lattice --out "$dir/be-$s-$th" >/dev/null 2>&1 || echo "run failed: be $s $th"
