@@ -52,6 +52,16 @@ typedef enum consph_error_kind {
     CONSPH_ERROR_AUTHORS = 1
 } consph_error_kind;
 
+/* What the errors are taken against (docs/schemes.md, "The weakly-compressible reference").
+ * incompressible: the problem's exact solution. wc: a pseudo-spectral solution of the
+ * weakly-compressible equations the scheme discretises (continuity, the run's EOS, ν), from
+ * the run's own initial state, interpolated spectrally at the particles; 2D problems periodic
+ * in both axes with an exact solution. */
+typedef enum consph_exact_kind {
+    CONSPH_EXACT_INCOMPRESSIBLE = 0,
+    CONSPH_EXACT_WC = 1
+} consph_exact_kind;
+
 /* Everything a run is made from. consph_run_params_default fills 001's Taylor-Green values. */
 typedef struct consph_run_params {
     char problem[32];    /* "taylor-green" */
@@ -86,6 +96,7 @@ typedef struct consph_run_params {
     int error_times;   /* the authors' measure: this many output times in [0, t_f] (001's: 50) */
     int log_every;     /* the diagnostics (log.csv rows, eq. 26's samples) every this many steps,
                           at t = 0, the last step and each snapshot; never otherwise */
+    int exact;         /* consph_exact_kind: what every error is taken against */
 } consph_run_params;
 
 void consph_run_params_default(consph_run_params *prm);

@@ -30,6 +30,13 @@ static const struct {
 } format3_implied[] = {{"log_every", "1"}, {"log_since", "0"}};
 #define FORMAT3_NIMPLIED (sizeof format3_implied / sizeof format3_implied[0])
 
+/* Keys added to format 4 after its first checkpoints, and the value those checkpoints' runs had:
+ * a key missing from a checkpoint reads as this (exact: --exact wc came later). */
+static const struct {
+    const char *key, *value;
+} format4_added[] = {{"exact", "incompressible"}};
+#define FORMAT4_NADDED (sizeof format4_added / sizeof format4_added[0])
+
 int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **history,
                                   size_t *nhistory)
 {
@@ -210,6 +217,14 @@ static int meta_parse(consph_solver *s, const char *meta)
             return consph_fail(CONSPH_EFORMAT, "metadata: key '%s' of format %s",
                                format3_implied[j].key, CHECKPOINT_FORMAT_3);
         seen[k] = 1;
+    }
+    for (size_t j = 0; j < FORMAT4_NADDED; ++j) {
+        const int k = meta_key_index(format4_added[j].key);
+        if (k >= 0 && !seen[k]) {
+            if (!meta_set(&s->prm, s, format4_added[j].key, format4_added[j].value))
+                return consph_fail(CONSPH_EFORMAT, "metadata: key '%s'", format4_added[j].key);
+            seen[k] = 1;
+        }
     }
     for (size_t k = 0; k < meta_nkeys(); ++k)
         if (!seen[k])
