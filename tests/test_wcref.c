@@ -6,8 +6,9 @@
  * - its distance to the incompressible solution is O(Ma²) in u (c_o 20 against 80);
  * - a run's errors against it: round-off at t = 0, and far below those against the
  *   incompressible solution when the run starts off the incompressible balance (ϱ = ρ_o), where
- *   the acoustic waves the reference carries dominate; the option is refused where it cannot
- *   act. */
+ *   the acoustic waves the reference carries dominate; `both` gives the incompressible errors
+ *   and, beside them, the wc ones, each bit for bit as the single runs; the option is refused
+ *   where it cannot act. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -192,7 +193,27 @@ static void test_solver(void)
     CHECK(e0inc > 0.1, "p starts at 0, the exact p does not: %.3e", e0inc);
     CHECK(wc.l1_u < 0.5 * inc.l1_u && wc.l1_p < 0.7 * inc.l1_p,
           "against wc %.3e %.3e, incompressible %.3e %.3e", wc.l1_u, wc.l1_p, inc.l1_u, inc.l1_p);
+    /* both: the errors against the incompressible solution bit for bit, and beside them those
+     * against wc, bit for bit too (the authors' measure as well) */
+    prm.error = CONSPH_ERROR_AUTHORS;
+    prm.error_times = 5;
+    consph_run_summary bi, bw, bb;
+    prm.exact = CONSPH_EXACT_INCOMPRESSIBLE;
+    CHECK(run(prm, &bi, &e0inc) == CONSPH_OK, "run: %s", consph_last_error());
+    prm.exact = CONSPH_EXACT_WC;
+    CHECK(run(prm, &bw, &e0wc) == CONSPH_OK, "run: %s", consph_last_error());
+    prm.exact = CONSPH_EXACT_BOTH;
+    CHECK(run(prm, &bb, &e0wc) == CONSPH_OK, "run: %s", consph_last_error());
+    CHECK(bb.l1_u == bi.l1_u && bb.l1_p == bi.l1_p && bb.l1n_u == bi.l1n_u &&
+              bb.l1n_p == bi.l1n_p && bb.linf_u == bi.linf_u,
+          "both: incompressible errors changed");
+    CHECK(bb.wc_l1_u == bw.l1_u && bb.wc_l1_p == bw.l1_p && bb.wc_l1n_u == bw.l1n_u &&
+              bb.wc_l1n_p == bw.l1n_p,
+          "both: wc errors %.17g %.17g, wc run %.17g %.17g", bb.wc_l1_p, bb.wc_l1n_p, bw.l1_p,
+          bw.l1n_p);
+    CHECK(isnan(bi.wc_l1_u) && isnan(bw.wc_l1n_u), "wc_* outside both: not NaN");
     /* refused where no Fourier series can stand for the solution */
+    prm.exact = CONSPH_EXACT_WC;
     strcpy(prm.problem, "gresho-chan"); /* periodic, but its kinks need more than 32² */
     CHECK(consph_run_params_check(&prm) == CONSPH_EINVAL && strstr(consph_last_error(), "exact wc"),
           "gresho-chan with exact wc: %s", consph_last_error());

@@ -55,11 +55,13 @@ typedef enum consph_error_kind {
 /* What the errors are taken against (docs/schemes.md, "The weakly-compressible reference").
  * incompressible: the problem's exact solution. wc: a pseudo-spectral solution of the
  * weakly-compressible equations the scheme discretises (continuity, the run's EOS, ν), from
- * the run's own initial state, interpolated spectrally at the particles; 2D problems periodic
- * in both axes with an exact solution. */
+ * the run's own initial state, interpolated spectrally at the particles; for problems whose row
+ * allows it (taylor-green). both: the errors against the incompressible solution, and beside
+ * them (consph_run_summary's wc_*) the same measures against wc. */
 typedef enum consph_exact_kind {
     CONSPH_EXACT_INCOMPRESSIBLE = 0,
-    CONSPH_EXACT_WC = 1
+    CONSPH_EXACT_WC = 1,
+    CONSPH_EXACT_BOTH = 2
 } consph_exact_kind;
 
 /* Everything a run is made from. consph_run_params_default fills 001's Taylor-Green values. */
@@ -217,6 +219,10 @@ typedef struct consph_run_summary {
     size_t pairs;   /* pair evaluations of the time steps */
     int passes_per_stage, passes_min;
     long regularisations; /* IPST/PST/remesh steps applied */
+    int exact;            /* consph_exact_kind of the run */
+    /* exact both: eq. 26 (wc_l1_*) and the authors' measure (wc_l1n_*, error authors) against
+     * the weakly-compressible reference; NaN otherwise */
+    double wc_l1_u, wc_l1_p, wc_l1n_u, wc_l1n_p;
 } consph_run_summary;
 
 /* ---- the solver ---- */

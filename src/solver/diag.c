@@ -59,7 +59,7 @@ static int wcref_make(consph_solver *s)
 
 int solver_exact_prepare(consph_solver *s)
 {
-    if (s->prm.exact != CONSPH_EXACT_WC) return CONSPH_OK;
+    if (s->prm.exact == CONSPH_EXACT_INCOMPRESSIBLE) return CONSPH_OK;
     if (!s->wc) {
         int st = wcref_make(s);
         if (st != CONSPH_OK) return st;
@@ -67,16 +67,72 @@ int solver_exact_prepare(consph_solver *s)
     return wcref_advance(s->wc, s->t);
 }
 
-void solver_exact(const consph_solver *s, const double x[3], double u[3], double *p)
+static void wc_exact(const consph_solver *s, const double x[3], double u[3], double *p)
 {
-    if (!s->wc) {
-        s->prob->exact(&s->prm, s->t, x, u, p);
-        return;
-    }
     double rho;
     wcref_eval(s->wc, x, u, &rho);
     u[2] = 0.0;
     *p = wcref_pressure(s->wc, rho);
+}
+
+void solver_exact(const consph_solver *s, const double x[3], double u[3], double *p)
+{
+    if (s->prm.exact == CONSPH_EXACT_WC)
+        wc_exact(s, x, u, p);
+    else
+        s->prob->exact(&s->prm, s->t, x, u, p);
+}
+
+/* forward: the per-particle buffer (below) */
+static double *diag_buffer(consph_solver *s, size_t cols);
+static double speed(const double u[3], int d);
+static double max_abs(const double *a, size_t n);
+
+/* The normalisers of the authors' measure (mean |u_e|, max |p_e|) against the reference are the
+ * incompressible solution's: the reference's own max |p| is 0 at t = 0 with rho_init rho0, and
+ * with the same denominators the two errors differ in their numerators only. */
+static void incompressible_scales(const consph_solver *s, const double x[3], double *mu, double *pe)
+{
+    double ue[3];
+    s->prob->exact(&s->prm, s->t, x, ue, pe);
+    *mu = speed(ue, s->dim);
+}
+
+/* --exact both: this instant's errors against the reference, as consph_solver_diag (mean |f -
+ * f_o|, *eu and *ep) and solver_auth_sample (normalised, *nu and *np) take them against the
+ * incompressible solution. Its own buffer: the callers' are in use. */
+int solver_wc_side(consph_solver *s, double *eu, double *ep, double *nu, double *np)
+{
+    const consph_particles *p = s->sys.p;
+    const size_t n = p->n, cap = p->cap;
+    const double *u = sv_field(s, SF_U, s->dim), *pr = sv_field(s, SF_P, 1);
+    if (!u || !pr) return consph_fail(CONSPH_EINVAL, "solver state missing");
+    int st = solver_exact_prepare(s);
+    if (st != CONSPH_OK) return st;
+    if (s->wc_cap < 4 * n) {
+        double *nw = realloc(s->wc_buf, 4 * (n ? n : 1) * sizeof(double));
+        if (!nw) return consph_fail(CONSPH_ENOMEM, "out of memory");
+        s->wc_buf = nw;
+        s->wc_cap = 4 * n;
+    }
+    double *a = s->wc_buf, *mu = a + n, *b = a + 2 * n, *pe = a + 3 * n;
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i) {
+        double x[3], ue[3];
+        solver_position_of(p, i, x);
+        wc_exact(s, x, ue, &pe[i]);
+        const double ui[3] = {u[i], u[cap + i], 0.0};
+        a[i] = fabs(speed(ui, s->dim) - speed(ue, s->dim));
+        b[i] = fabs(pr[i] - pe[i]);
+        incompressible_scales(s, x, &mu[i], &pe[i]);
+    }
+    const double su = consph_sum(a, n), sp = consph_sum(b, n);
+    const double inv_n = n ? 1.0 / (double)n : 0.0; /* as consph_solver_diag */
+    *eu = su * inv_n;
+    *ep = sp * inv_n;
+    *nu = su / consph_sum(mu, n);
+    *np = sp / (double)n / max_abs(pe, n);
+    return CONSPH_OK;
 }
 
 int solver_hist_push(consph_solver *s, const consph_step_diag *g)
@@ -106,6 +162,13 @@ int solver_sample(consph_solver *s)
         /* 001 eq. 26: Σ_j mean|f - f_o|(t_j) (t_j - t_{j-1}) over the samples t_j */
         s->l1_u_acc += s->log_since * g.l1_u;
         s->l1_p_acc += s->log_since * g.l1_p;
+        if (s->prm.exact == CONSPH_EXACT_BOTH) {
+            double eu, ep, nu, np;
+            st = solver_wc_side(s, &eu, &ep, &nu, &np);
+            if (st != CONSPH_OK) return st;
+            s->wcs_u_acc += s->log_since * eu;
+            s->wcs_p_acc += s->log_since * ep;
+        }
     }
     s->log_since = 0.0;
     return solver_hist_push(s, &g);
@@ -208,6 +271,8 @@ int solver_auth_sample(consph_solver *s)
             const double ui[3] = {u[i], u[cap + i], s->dim == 3 ? u[2 * cap + i] : 0.0};
             eu[i] = fabs(speed(ui, s->dim) - mu[i]);
             ep[i] = fabs(pr[i] - pe[i]);
+            if (s->prm.exact == CONSPH_EXACT_WC) /* the scales: solver_wc_side */
+                incompressible_scales(s, x, &mu[i], &pe[i]);
         }
         /* mean/mean for u, mean/max for p: taylor_green.py, post_process */
         eu_n = consph_sum(eu, n) / consph_sum(mu, n);
@@ -216,6 +281,13 @@ int solver_auth_sample(consph_solver *s)
     s->auth_u_acc += eu_n;
     s->auth_p_acc += ep_n;
     ++s->auth_n;
+    if (s->prm.exact == CONSPH_EXACT_BOTH) {
+        double eu, ep, nu, np;
+        int st = solver_wc_side(s, &eu, &ep, &nu, &np);
+        if (st != CONSPH_OK) return st;
+        s->wcs_auth_u_acc += nu;
+        s->wcs_auth_p_acc += np;
+    }
     return CONSPH_OK;
 }
 
@@ -345,6 +417,12 @@ int consph_solver_summary(const consph_solver *s, consph_run_summary *sum)
     sum->passes_per_stage = s->passes;
     sum->passes_min = s->scheme->passes_min;
     sum->regularisations = s->regs;
+    sum->exact = s->prm.exact;
+    const int both = s->prm.exact == CONSPH_EXACT_BOTH;
+    sum->wc_l1_u = both ? s->wcs_u_acc : NAN;
+    sum->wc_l1_p = both ? s->wcs_p_acc : NAN;
+    sum->wc_l1n_u = both && s->auth_n ? s->wcs_auth_u_acc / s->auth_n : NAN;
+    sum->wc_l1n_p = both && s->auth_n ? s->wcs_auth_p_acc / s->auth_n : NAN;
     return CONSPH_OK;
 }
 

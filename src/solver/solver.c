@@ -279,6 +279,7 @@ void consph_solver_free(consph_solver *s)
     free(s->diag_buf);
     free(s->integ_scratch);
     wcref_free(s->wc);
+    free(s->wc_buf);
     free(s);
 }
 

@@ -226,6 +226,10 @@ struct consph_solver {
     size_t diag_cap;
     char run_id[CONSPH_RUN_ID_LEN + 1]; /* new at set-up, kept by checkpoints */
     struct wcref *wc; /* --exact wc: the reference (src/problems/wcref.h), made when first used */
+    /* --exact both: the eq. 26 sums and the authors' sums against the reference */
+    double wcs_u_acc, wcs_p_acc, wcs_auth_u_acc, wcs_auth_p_acc;
+    double *wc_buf; /* solver_wc_side's per-particle terms */
+    size_t wc_cap;
 };
 
 /* consph_run_nx_check against `memory` bytes (0: unknown) instead of this machine's. */
@@ -257,6 +261,7 @@ int solver_auth_after_step(consph_solver *s, int landed);
  * (the problem's exact solution, or the reference), safe on several threads. */
 int solver_exact_prepare(consph_solver *s);
 void solver_exact(const consph_solver *s, const double x[3], double u[3], double *p);
+int solver_wc_side(consph_solver *s, double *eu, double *ep, double *nu, double *np);
 /* Validity (validity.c), after every step: CONSPH_ENUMERIC naming the first non-finite value, or
  * the first bound of the weakly-compressible model the state is beyond (from the state and its
  * kinetic energy only: no exact solution). */
