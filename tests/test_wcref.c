@@ -212,8 +212,14 @@ static void test_solver(void)
           "both: wc errors %.17g %.17g, wc run %.17g %.17g", bb.wc_l1_p, bb.wc_l1n_p, bw.l1_p,
           bw.l1n_p);
     CHECK(isnan(bi.wc_l1_u) && isnan(bw.wc_l1n_u), "wc_* outside both: not NaN");
-    /* refused where no Fourier series can stand for the solution */
+    /* the linear EOS from ϱ = ρ_o: the reference starts where the run does */
     prm.exact = CONSPH_EXACT_WC;
+    prm.eos = CONSPH_EOS_LINEAR;
+    prm.tf = 0.002;
+    CHECK(run(prm, &bw, &e0wc) == CONSPH_OK, "run: %s", consph_last_error());
+    CHECK(e0wc < 1e-12, "linear EOS, rho_init rho0: error at t = 0 against wc %.3e", e0wc);
+    prm.eos = CONSPH_EOS_DEFAULT;
+    /* refused where no Fourier series can stand for the solution */
     strcpy(prm.problem, "gresho-chan"); /* periodic, but its kinks need more than 32² */
     CHECK(consph_run_params_check(&prm) == CONSPH_EINVAL && strstr(consph_last_error(), "exact wc"),
           "gresho-chan with exact wc: %s", consph_last_error());

@@ -45,8 +45,8 @@ static int wcref_make(consph_solver *s)
             pb->exact(&s->prm, 0.0, x, ue, &pe);
             u[q] = ue[0];
             v[q] = ue[1];
-            if (s->prm.rho_init == CONSPH_RHO_INIT_RHO0 && !linear)
-                r[q] = r0;
+            if (s->prm.rho_init == CONSPH_RHO_INIT_RHO0 && !s->scheme->evolve_p)
+                r[q] = r0; /* p = EOS(ρ_o) = 0, under either EOS */
             else if (linear)
                 r[q] = pe / c2 + r0;
             else
@@ -83,8 +83,7 @@ void solver_exact(const consph_solver *s, const double x[3], double u[3], double
         s->prob->exact(&s->prm, s->t, x, u, p);
 }
 
-/* forward: the per-particle buffer (below) */
-static double *diag_buffer(consph_solver *s, size_t cols);
+/* defined below, with the authors' measure */
 static double speed(const double u[3], int d);
 static double max_abs(const double *a, size_t n);
 
