@@ -42,6 +42,20 @@ struct wcref {
     double complex *ret[NF]; /* the kept coefficients, (2K + 1)², for wcref_eval */
 };
 
+/* Products written out: without -ffast-math (results must not depend on it) a complex `*` calls
+ * the library's NaN-checking multiply, several times slower in these loops. */
+static inline double complex cmul(double complex a, double complex b)
+{
+    return CMPLX(creal(a) * creal(b) - cimag(a) * cimag(b),
+                 creal(a) * cimag(b) + cimag(a) * creal(b));
+}
+
+/* i k z */
+static inline double complex imul(double k, double complex z)
+{
+    return CMPLX(-k * cimag(z), k * creal(z));
+}
+
 /* ---- a radix-2 FFT of our own (no dependency for a grid this small) ---- */
 
 static void fft1(const wcref *w, double complex *a, size_t stride, int inverse)
@@ -64,7 +78,7 @@ static void fft1(const wcref *w, double complex *a, size_t stride, int inverse)
                 double complex tw = w->tw[j * step];
                 if (inverse) tw = conj(tw);
                 double complex *x0 = a + (size_t)(i + j) * stride, *x1 = x0 + (size_t)half * stride;
-                const double complex v = *x1 * tw;
+                const double complex v = cmul(*x1, tw);
                 *x1 = *x0 - v;
                 *x0 += v;
             }
@@ -113,10 +127,10 @@ static void rhs(wcref *w, double complex *const in[NF], double complex *const ou
         g[0][q] = in[0][q];
         g[1][q] = in[1][q];
         g[2][q] = in[2][q];
-        g[3][q] = I * w->kx[q] * in[1][q];
-        g[4][q] = I * w->ky[q] * in[1][q];
-        g[5][q] = I * w->kx[q] * in[2][q];
-        g[6][q] = I * w->ky[q] * in[2][q];
+        g[3][q] = imul(w->kx[q], in[1][q]);
+        g[4][q] = imul(w->ky[q], in[1][q]);
+        g[5][q] = imul(w->kx[q], in[2][q]);
+        g[6][q] = imul(w->ky[q], in[2][q]);
     }
     for (int f = 0; f < 7; ++f) fft2(w, g[f], 1);
     /* the products, in place: ρ'u, ρ'v, (u·∇)u, (u·∇)v, h_nl */
@@ -137,9 +151,9 @@ static void rhs(wcref *w, double complex *const in[NF], double complex *const ou
             continue;
         }
         const double kx = w->kx[q], ky = w->ky[q];
-        out[0][q] = -I * (kx * g[0][q] + ky * g[1][q]);
-        out[1][q] = -g[2][q] - I * kx * g[4][q] - nu * w->kk[q] * in[1][q];
-        out[2][q] = -g[3][q] - I * ky * g[4][q] - nu * w->kk[q] * in[2][q];
+        out[0][q] = imul(-1.0, kx * g[0][q] + ky * g[1][q]);
+        out[1][q] = -g[2][q] - imul(kx, g[4][q]) - nu * w->kk[q] * in[1][q];
+        out[2][q] = -g[3][q] - imul(ky, g[4][q]) - nu * w->kk[q] * in[2][q];
     }
 }
 
@@ -168,7 +182,7 @@ static void propagate(const wcref *w, double complex *const z[NF], int full)
         if (w->kk[q] == 0.0 || !w->keep[q]) continue;
         const double km = sqrt(w->kk[q]), ex = w->kx[q] / km, ey = w->ky[q] / km;
         const double complex r = z[0][q] * cr, ul = ex * z[1][q] + ey * z[2][q];
-        const double complex r2 = c[q] * r - I * s[q] * ul, ul2 = c[q] * ul - I * s[q] * r;
+        const double complex r2 = c[q] * r - imul(s[q], ul), ul2 = c[q] * ul - imul(s[q], r);
         z[0][q] = r2 / cr;
         z[1][q] += ex * (ul2 - ul);
         z[2][q] += ey * (ul2 - ul);
@@ -376,23 +390,35 @@ double wcref_step(const wcref *w)
 void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho)
 {
     const int K = w->K, m = 2 * K + 1;
-    double complex ex[2 * KMAX + 1], ey[2 * KMAX + 1];
+    /* e^{i a θ} for a = -K..K, by cos/sin of each multiple (no recurrence to accumulate) */
+    double cx[2 * KMAX + 1], sx[2 * KMAX + 1], cy[KMAX + 1], sy[KMAX + 1];
     const double tx = 2.0 * M_PI * (x[0] - w->p.lo[0]) / w->p.len[0];
     const double ty = 2.0 * M_PI * (x[1] - w->p.lo[1]) / w->p.len[1];
     for (int a = -K; a <= K; ++a) {
-        ex[a + K] = cexp(I * tx * a);
-        ey[a + K] = cexp(I * ty * a);
+        cx[a + K] = cos(tx * a);
+        sx[a + K] = sin(tx * a);
     }
+    for (int b = 0; b <= K; ++b) {
+        cy[b] = cos(ty * b);
+        sy[b] = sin(ty * b);
+    }
+    /* The coefficients of a real field are Hermitian, c(-a, -b) = conj c(a, b): the rows b < 0
+     * are the conjugates of the rows b > 0, so f = Re S_0 + 2 Σ_{b>0} Re S_b with
+     * S_b = e^{i b θ_y} Σ_a c(a, b) e^{i a θ_x}. */
     double out[NF];
     for (int f = 0; f < NF; ++f) {
-        double complex sum = 0.0;
+        double sum = 0.0;
         const double complex *c = w->ret[f];
-        for (int b = 0; b < m; ++b) {
-            double complex row = 0.0;
-            for (int a = 0; a < m; ++a) row += c[a + (size_t)m * b] * ex[a];
-            sum += row * ey[b];
+        for (int b = 0; b <= K; ++b) {
+            const double complex *row = c + (size_t)m * (size_t)(b + K);
+            double re = 0.0, im = 0.0;
+            for (int a = 0; a < m; ++a) {
+                re += creal(row[a]) * cx[a] - cimag(row[a]) * sx[a];
+                im += creal(row[a]) * sx[a] + cimag(row[a]) * cx[a];
+            }
+            sum += (b ? 2.0 : 1.0) * (re * cy[b] - im * sy[b]);
         }
-        out[f] = creal(sum);
+        out[f] = sum;
     }
     *rho = w->p.rho0 + out[0];
     u[0] = out[1];
