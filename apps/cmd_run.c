@@ -423,6 +423,7 @@ int cmd_run(int argc, char **argv)
     consph_run_summary sum;
     int sig = 0;
     st = consph_run(s, &ro, &sum, &sig);
+    const int against_wc = sum.exact == CONSPH_EXACT_WC;
     consph_solver_free(s);
     if (st == CONSPH_ENUMERIC) {
         fprintf(stderr, "consph run: %s\n", consph_last_error());
@@ -450,11 +451,19 @@ int cmd_run(int argc, char **argv)
             char a[2][32];
             error_text(a[0], sizeof a[0], sum.l1n_u);
             error_text(a[1], sizeof a[1], sum.l1n_p);
-            printf("L1(u) %s  L1(p) %s  (001's authors: mean over %d output times)\n", a[0], a[1],
-                   sum.error_samples);
+            printf("L1(u) %s  L1(p) %s  (001's authors: mean over %d output times%s)\n", a[0], a[1],
+                   sum.error_samples, against_wc ? ", against wc" : "");
         }
-        printf("L1(u) %s  L1(p) %s  (001 eq. 26)   Linf(u) %s  Linf(p) %s\n", e[0], e[1], e[2],
-               e[3]);
+        printf("L1(u) %s  L1(p) %s  (001 eq. 26%s)   Linf(u) %s  Linf(p) %s\n", e[0], e[1],
+               against_wc ? ", against wc" : "", e[2], e[3]);
+        if (sum.exact == CONSPH_EXACT_BOTH) {
+            char w[4][32];
+            const double wv[4] = {sum.wc_l1n_u, sum.wc_l1n_p, sum.wc_l1_u, sum.wc_l1_p};
+            for (int k = 0; k < 4; ++k) error_text(w[k], sizeof w[k], wv[k]);
+            if (sum.error == CONSPH_ERROR_AUTHORS)
+                printf("L1(u) %s  L1(p) %s  (001's authors, against wc)\n", w[0], w[1]);
+            printf("L1(u) %s  L1(p) %s  (001 eq. 26, against wc)\n", w[2], w[3]);
+        }
         if (sum.dim == 3)
             printf("momentum (%.3e, %.3e, %.3e)  ", sum.momentum[0], sum.momentum[1],
                    sum.momentum[2]);

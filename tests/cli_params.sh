@@ -15,7 +15,7 @@ trap 'rm -rf "$work"' EXIT
 opts=$(grep -E '^  --[a-z0-9-]+ .*; default [^;]*\)$' "$work/help" | awk '{print $1}')
 n=$(echo "$opts" | wc -w)
 # the table's rows with an option (all but problem, rho0, gamma)
-[ "$n" = 29 ] || bad "$n table options in the help, want 29: $opts"
+[ "$n" = 30 ] || bad "$n table options in the help, want 30: $opts"
 for o in $opts; do
     failing 2 "option $o: " "$work/out" -- "$consph" run taylor-green "$o" "@" &&
         grep -qF "allowed: " "$work/err" && pass=$((pass + 1)) ||
@@ -35,4 +35,9 @@ failing 2 "option --cfl: cfl = 0 is out of range (allowed: (0, 2])" "$work/out" 
     bad "--cfl 2 (the edge) refused"
 failing 2 "unknown option '--rho0'" "$work/out" -- \
     "$consph" run taylor-green --nx 8 --steps 1 --rho0 2 && pass=$((pass + 1))
+failing 2 "option --exact: exact wc needs a smooth 2D periodic problem" "$work/out" -- \
+    "$consph" run gresho-chan --nx 8 --steps 1 --exact wc && pass=$((pass + 1))
+"$consph" run taylor-green --nx 8 --steps 2 --exact wc >"$work/wc" 2>&1 &&
+    grep -q "(001 eq. 26, against wc)" "$work/wc" && pass=$((pass + 1)) ||
+    bad "--exact wc: the table does not say so: $(cat "$work/wc")"
 summary cli_params

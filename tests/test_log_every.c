@@ -228,6 +228,8 @@ static void test_format3(void)
     meta_edit(buf, sizeof buf, tmp, "log_since", NULL);
     meta_edit(tmp, sizeof tmp, buf, "log_every", NULL);
     meta_edit(buf, sizeof buf, tmp, "skin", NULL);
+    meta_edit(tmp, sizeof tmp, buf, "ipst_h_dt", NULL);
+    meta_edit(buf, sizeof buf, tmp, "ipst_chi0", NULL);
     st = consph_solver_restore(&r, buf, consph_solver_particles(s), hist, nh);
     CHECK(st == CONSPH_OK && consph_solver_params(r)->log_every == 1, "format 3: %s",
           consph_last_error());

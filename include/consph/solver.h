@@ -52,6 +52,18 @@ typedef enum consph_error_kind {
     CONSPH_ERROR_AUTHORS = 1
 } consph_error_kind;
 
+/* What the errors are taken against (docs/schemes.md, "The weakly-compressible reference").
+ * incompressible: the problem's exact solution. wc: a pseudo-spectral solution of the
+ * weakly-compressible equations the scheme discretises (continuity, the run's EOS, ν), from
+ * the run's own initial state, interpolated spectrally at the particles; for problems whose row
+ * allows it (taylor-green). both: the errors against the incompressible solution, and beside
+ * them (consph_run_summary's wc_*) the same measures against wc. */
+typedef enum consph_exact_kind {
+    CONSPH_EXACT_INCOMPRESSIBLE = 0,
+    CONSPH_EXACT_WC = 1,
+    CONSPH_EXACT_BOTH = 2
+} consph_exact_kind;
+
 /* Everything a run is made from. consph_run_params_default fills 001's Taylor-Green values. */
 typedef struct consph_run_params {
     char problem[32];    /* "taylor-green" */
@@ -93,6 +105,7 @@ typedef struct consph_run_params {
     double ipst_chi0;  /* χ_o of 001 eq. 21: -1 the unperturbed lattice's, 0 max χ after one
                           shift at the run's first IPST (001's authors; the run then stores that
                           value here, and a checkpoint carries it), > 0 that value */
+    int exact;         /* consph_exact_kind: what every error is taken against */
 } consph_run_params;
 
 void consph_run_params_default(consph_run_params *prm);
@@ -223,6 +236,10 @@ typedef struct consph_run_summary {
     double nlist_skin, nlist_bytes;
     long nlist_builds;
     char nlist_note[200];
+    int exact;            /* consph_exact_kind of the run */
+    /* exact both: eq. 26 (wc_l1_*) and the authors' measure (wc_l1n_*, error authors) against
+     * the weakly-compressible reference; NaN otherwise */
+    double wc_l1_u, wc_l1_p, wc_l1n_u, wc_l1n_p;
 } consph_run_summary;
 
 /* ---- the solver ---- */

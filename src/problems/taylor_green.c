@@ -24,6 +24,6 @@ const problem_def problem_taylor_green = {
     .summary = "001 eq. 25: Taylor-Green vortex, periodic unit square",
     .dim = 2, .lo = {0.0, 0.0}, .hi = {1.0, 1.0}, .periodic = {1, 1},
     .exact = taylor_green, .has_exact = 1,
-    .tf = 0.5, .nu = -1.0, .c0 = 0.0, .layout = -1
+    .tf = 0.5, .nu = -1.0, .c0 = 0.0, .layout = -1, .wc_reference = 1
 };
 /* clang-format on */

@@ -8,7 +8,131 @@
 #include <string.h>
 
 #include "integrators/integrators.h"
+#include "problems/wcref.h"
 #include "solver/solver_internal.h"
+
+/* ---- the reference of the errors (consph_exact_kind) ---- */
+
+/* The grid of --exact wc's reference: 32² keeps |k| <= 10 (2π/L) after dealiasing, and agrees
+ * with 64² to < 1e-9 on Taylor-Green at c_o = 20 up to t = 0.1 (docs/schemes.md). */
+enum { WCREF_GRID = 32 };
+
+/* The reference starts from the run's own initial state (solver.c, consph_solver_create): u and
+ * p exact, ϱ from p by the inverted EOS (or ρ_o with rho_init rho0); a scheme that evolves p
+ * relates them linearly (001 eq. 31), as does the linear EOS. */
+static int wcref_make(consph_solver *s)
+{
+    const problem_def *pb = s->prob;
+    const int n = WCREF_GRID, linear = s->scheme->evolve_p || s->eos == CONSPH_EOS_LINEAR;
+    const double c2 = s->c0 * s->c0, r0 = s->prm.rho0, g = s->prm.gamma;
+    wcref_params wp = {.n = n,
+                       .lo = {pb->lo[0], pb->lo[1]},
+                       .len = {pb->hi[0] - pb->lo[0], pb->hi[1] - pb->lo[1]},
+                       .c0 = s->c0,
+                       .rho0 = r0,
+                       .gamma = g,
+                       .linear = linear,
+                       .nu = s->nu};
+    const size_t nn = (size_t)n * (size_t)n;
+    double *r = malloc(3 * nn * sizeof(double));
+    if (!r) return consph_fail(CONSPH_ENOMEM, "out of memory for the wc reference");
+    double *u = r + nn, *v = r + 2 * nn;
+    for (int j = 0; j < n; ++j)
+        for (int i = 0; i < n; ++i) {
+            const size_t q = (size_t)i + (size_t)n * (size_t)j;
+            const double x[3] = {wp.lo[0] + wp.len[0] * i / n, wp.lo[1] + wp.len[1] * j / n, 0.0};
+            double ue[3], pe;
+            pb->exact(&s->prm, 0.0, x, ue, &pe);
+            u[q] = ue[0];
+            v[q] = ue[1];
+            if (s->prm.rho_init == CONSPH_RHO_INIT_RHO0 && !s->scheme->evolve_p)
+                r[q] = r0; /* p = EOS(ρ_o) = 0, under either EOS */
+            else if (linear)
+                r[q] = pe / c2 + r0;
+            else
+                r[q] = r0 * pow(1.0 + g * pe / (r0 * c2), 1.0 / g); /* eq. 18 inverted */
+        }
+    int st = wcref_create(&s->wc, &wp, r, u, v);
+    free(r);
+    return st;
+}
+
+int solver_exact_prepare(consph_solver *s)
+{
+    if (s->prm.exact == CONSPH_EXACT_INCOMPRESSIBLE) return CONSPH_OK;
+    if (!s->wc) {
+        int st = wcref_make(s);
+        if (st != CONSPH_OK) return st;
+    }
+    return wcref_advance(s->wc, s->t);
+}
+
+static void wc_exact(const consph_solver *s, const double x[3], double u[3], double *p)
+{
+    double rho;
+    wcref_eval(s->wc, x, u, &rho);
+    u[2] = 0.0;
+    *p = wcref_pressure(s->wc, rho);
+}
+
+void solver_exact(const consph_solver *s, const double x[3], double u[3], double *p)
+{
+    if (s->prm.exact == CONSPH_EXACT_WC)
+        wc_exact(s, x, u, p);
+    else
+        s->prob->exact(&s->prm, s->t, x, u, p);
+}
+
+/* defined below, with the authors' measure */
+static double speed(const double u[3], int d);
+static double max_abs(const double *a, size_t n);
+
+/* The normalisers of the authors' measure (mean |u_e|, max |p_e|) against the reference are the
+ * incompressible solution's: the reference's own max |p| is 0 at t = 0 with rho_init rho0, and
+ * with the same denominators the two errors differ in their numerators only. */
+static void incompressible_scales(const consph_solver *s, const double x[3], double *mu, double *pe)
+{
+    double ue[3];
+    s->prob->exact(&s->prm, s->t, x, ue, pe);
+    *mu = speed(ue, s->dim);
+}
+
+/* --exact both: this instant's errors against the reference, as consph_solver_diag (mean |f -
+ * f_o|, *eu and *ep) and solver_auth_sample (normalised, *nu and *np) take them against the
+ * incompressible solution. Its own buffer: the callers' are in use. */
+int solver_wc_side(consph_solver *s, double *eu, double *ep, double *nu, double *np)
+{
+    const consph_particles *p = s->sys.p;
+    const size_t n = p->n, cap = p->cap;
+    const double *u = sv_field(s, SF_U, s->dim), *pr = sv_field(s, SF_P, 1);
+    if (!u || !pr) return consph_fail(CONSPH_EINVAL, "solver state missing");
+    int st = solver_exact_prepare(s);
+    if (st != CONSPH_OK) return st;
+    if (s->wc_cap < 4 * n) {
+        double *nw = realloc(s->wc_buf, 4 * (n ? n : 1) * sizeof(double));
+        if (!nw) return consph_fail(CONSPH_ENOMEM, "out of memory");
+        s->wc_buf = nw;
+        s->wc_cap = 4 * n;
+    }
+    double *a = s->wc_buf, *mu = a + n, *b = a + 2 * n, *pe = a + 3 * n;
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i) {
+        double x[3], ue[3];
+        solver_position_of(p, i, x);
+        wc_exact(s, x, ue, &pe[i]);
+        const double ui[3] = {u[i], u[cap + i], 0.0};
+        a[i] = fabs(speed(ui, s->dim) - speed(ue, s->dim));
+        b[i] = fabs(pr[i] - pe[i]);
+        incompressible_scales(s, x, &mu[i], &pe[i]);
+    }
+    const double su = consph_sum(a, n), sp = consph_sum(b, n);
+    const double inv_n = n ? 1.0 / (double)n : 0.0; /* as consph_solver_diag */
+    *eu = su * inv_n;
+    *ep = sp * inv_n;
+    *nu = su / consph_sum(mu, n);
+    *np = sp / (double)n / max_abs(pe, n);
+    return CONSPH_OK;
+}
 
 int solver_hist_push(consph_solver *s, const consph_step_diag *g)
 {
@@ -37,6 +161,13 @@ int solver_sample(consph_solver *s)
         /* 001 eq. 26: Σ_j mean|f - f_o|(t_j) (t_j - t_{j-1}) over the samples t_j */
         s->l1_u_acc += s->log_since * g.l1_u;
         s->l1_p_acc += s->log_since * g.l1_p;
+        if (s->prm.exact == CONSPH_EXACT_BOTH) {
+            double eu, ep, nu, np;
+            st = solver_wc_side(s, &eu, &ep, &nu, &np);
+            if (st != CONSPH_OK) return st;
+            s->wcs_u_acc += s->log_since * eu;
+            s->wcs_p_acc += s->log_since * ep;
+        }
     }
     s->log_since = 0.0;
     return solver_hist_push(s, &g);
@@ -127,16 +258,20 @@ int solver_auth_sample(consph_solver *s)
     if (!diag_buffer(s, 4)) return CONSPH_ENOMEM;
     double eu_n = NAN, ep_n = NAN;
     if (s->prob->has_exact || s->t == 0.0) {
+        int st = solver_exact_prepare(s);
+        if (st != CONSPH_OK) return st;
         double *eu = s->diag_buf, *mu = eu + n, *ep = eu + 2 * n, *pe = eu + 3 * n;
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
         for (size_t i = 0; i < n; ++i) {
             double x[3], ue[3];
             solver_position_of(p, i, x);
-            s->prob->exact(&s->prm, s->t, x, ue, &pe[i]);
+            solver_exact(s, x, ue, &pe[i]);
             mu[i] = speed(ue, s->dim);
             const double ui[3] = {u[i], u[cap + i], s->dim == 3 ? u[2 * cap + i] : 0.0};
             eu[i] = fabs(speed(ui, s->dim) - mu[i]);
             ep[i] = fabs(pr[i] - pe[i]);
+            if (s->prm.exact == CONSPH_EXACT_WC) /* the scales: solver_wc_side */
+                incompressible_scales(s, x, &mu[i], &pe[i]);
         }
         /* mean/mean for u, mean/max for p: taylor_green.py, post_process */
         eu_n = consph_sum(eu, n) / consph_sum(mu, n);
@@ -145,6 +280,13 @@ int solver_auth_sample(consph_solver *s)
     s->auth_u_acc += eu_n;
     s->auth_p_acc += ep_n;
     ++s->auth_n;
+    if (s->prm.exact == CONSPH_EXACT_BOTH) {
+        double eu, ep, nu, np;
+        int st = solver_wc_side(s, &eu, &ep, &nu, &np);
+        if (st != CONSPH_OK) return st;
+        s->wcs_auth_u_acc += nu;
+        s->wcs_auth_p_acc += np;
+    }
     return CONSPH_OK;
 }
 
@@ -186,6 +328,10 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
     /* Without an exact solution after t = 0 the errors are not computed (they are n/a): the
      * exact() of such a problem is its initial state, evaluated for nothing. */
     const int errors = s->prob->has_exact || s->t == 0.0;
+    if (errors) {
+        int st = solver_exact_prepare(s);
+        if (st != CONSPH_OK) return st;
+    }
     double *w = diag_buffer(s, d == 3 ? 8 : 7); /* 3D: m u_z too */
     if (!w) return CONSPH_ENOMEM;
     double *eu = w, *ep = w + n, *ke = w + 2 * n, *mx = w + 3 * n, *my = w + 4 * n, *an = w + 5 * n,
@@ -199,7 +345,7 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
         const double uz = d == 3 ? fu->data[2 * cap + i] : 0.0, ui[3] = {ux, uy, uz};
         if (errors) {
             double ue[3], pe;
-            s->prob->exact(&s->prm, s->t, x, ue, &pe);
+            solver_exact(s, x, ue, &pe);
             eu[i] = fabs(speed(ui, d) - speed(ue, d));
             ep[i] = fabs(fp->data[i] - pe);
         }
@@ -271,6 +417,12 @@ int consph_solver_summary(const consph_solver *s, consph_run_summary *sum)
     sum->passes_per_stage = s->passes;
     sum->passes_min = s->scheme->passes_min;
     sum->regularisations = s->regs;
+    sum->exact = s->prm.exact;
+    const int both = s->prm.exact == CONSPH_EXACT_BOTH;
+    sum->wc_l1_u = both ? s->wcs_u_acc : NAN;
+    sum->wc_l1_p = both ? s->wcs_p_acc : NAN;
+    sum->wc_l1n_u = both && s->auth_n ? s->wcs_auth_u_acc / s->auth_n : NAN;
+    sum->wc_l1n_p = both && s->auth_n ? s->wcs_auth_p_acc / s->auth_n : NAN;
     return CONSPH_OK;
 }
 
@@ -283,11 +435,14 @@ int consph_solver_output_fields(consph_solver *s)
     double *w = sv_field(s, SF_VORT, d == 3 ? 3 : 1); /* a scalar in 2D, a vector in 3D */
     const double *G = sv_field(s, SF_GRADU, d * d);
     if (!ue || !pe || !w || !G) return CONSPH_ENOMEM;
+    /* the arrays u_exact, p_exact: what the errors are taken against */
+    int st = solver_exact_prepare(s);
+    if (st != CONSPH_OK) return st;
 #define GRAD(a, b) G[(size_t)((a)*d + (b)) * cap + i] /* ∂_b u_a */
     for (size_t i = 0; i < n; ++i) {
         double x[3], u[3];
         solver_position_of(p, i, x);
-        s->prob->exact(&s->prm, s->t, x, u, &pe[i]);
+        solver_exact(s, x, u, &pe[i]);
         for (int a = 0; a < d; ++a) ue[a * cap + i] = u[a];
         /* ∇×u from the last stage's G (Bonet-corrected); its z-component ∂v/∂x - ∂u/∂y is 2D's */
         if (d == 3) {

@@ -472,6 +472,13 @@ int consph_run_params_check(const consph_run_params *prm)
                            "rho_init rho0 needs a scheme whose pressure comes from its evolved "
                            "density by the EOS, not '%s' (allowed: eos)",
                            prm->scheme);
+    /* the wc reference is a Fourier series of smooth data on a 2D periodic box, standing in for
+     * an exact solution: the problems whose row says so */
+    if (prm->exact != CONSPH_EXACT_INCOMPRESSIBLE && !problem_find(prm->problem)->wc_reference)
+        return consph_fail(CONSPH_EINVAL,
+                           "exact %s needs a smooth 2D periodic problem with an exact solution "
+                           "(taylor-green), not '%s' (allowed: incompressible)",
+                           prm->exact == CONSPH_EXACT_WC ? "wc" : "both", prm->problem);
     return CONSPH_OK;
 }
 

@@ -27,8 +27,23 @@
 /* The keys a version-3 checkpoint lacks and the values its run had. */
 static const struct {
     const char *key, *value;
-} format3_implied[] = {{"log_every", "1"}, {"log_since", "0"}, {"skin", "0"}};
+} format3_implied[] = {{"log_every", "1"}, {"log_since", "0"}, {"skin", "0"},
+                     {"ipst_h_dt", "0"}, {"ipst_chi0", "-1"}};
 #define FORMAT3_NIMPLIED (sizeof format3_implied / sizeof format3_implied[0])
+
+/* Keys added to format 4 after its first checkpoints, and the value those checkpoints' runs had:
+ * a key missing from a checkpoint reads as this (exact and the wcs_* sums: --exact came later;
+ * ipst_h_dt and ipst_chi0: those runs shifted on their own steps with the lattice's χ_o). */
+static const struct {
+    const char *key, *value;
+} format4_added[] = {{"exact", "incompressible"},
+                     {"wcs_u_acc", "0"},
+                     {"wcs_p_acc", "0"},
+                     {"wcs_auth_u_acc", "0"},
+                     {"wcs_auth_p_acc", "0"},
+                     {"ipst_h_dt", "0"},
+                     {"ipst_chi0", "-1"}};
+#define FORMAT4_NADDED (sizeof format4_added / sizeof format4_added[0])
 
 int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **history,
                                   size_t *nhistory)
@@ -48,9 +63,10 @@ int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **
             m + len, META_MAX - (size_t)len,
             "t=%a\nstep=%ld\nl1_u_acc=%a\nl1_p_acc=%a\nseconds=%a\npairs=%zu\nregs=%ld\n"
             "passes=%d\nrun=%s\nauth_u_acc=%a\nauth_p_acc=%a\nauth_n=%d\nauth_next=%d\n"
-            "log_since=%a\n",
+            "log_since=%a\nwcs_u_acc=%a\nwcs_p_acc=%a\nwcs_auth_u_acc=%a\nwcs_auth_p_acc=%a\n",
             s->t, s->step, s->l1_u_acc, s->l1_p_acc, s->seconds, s->pairs, s->regs, s->passes,
-            s->run_id, s->auth_u_acc, s->auth_p_acc, s->auth_n, s->auth_next, s->log_since);
+            s->run_id, s->auth_u_acc, s->auth_p_acc, s->auth_n, s->auth_next, s->log_since,
+            s->wcs_u_acc, s->wcs_p_acc, s->wcs_auth_u_acc, s->wcs_auth_p_acc);
         len = w < 0 ? -1 : len + w;
     }
     if (len < 0 || len >= META_MAX) {
@@ -69,8 +85,9 @@ int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **
  * parameters of the table (params.def) and the run's own state. Key index k: 0 the format,
  * 1..count the parameters in table order, then state_keys. */
 static const char *const state_keys[] = {
-    "t",      "step", "l1_u_acc",   "l1_p_acc",   "seconds", "pairs",     "regs",
-    "passes", "run",  "auth_u_acc", "auth_p_acc", "auth_n",  "auth_next", "log_since"};
+    "t",         "step",      "l1_u_acc",  "l1_p_acc",   "seconds",        "pairs",
+    "regs",      "passes",    "run",       "auth_u_acc", "auth_p_acc",     "auth_n",
+    "auth_next", "log_since", "wcs_u_acc", "wcs_p_acc",  "wcs_auth_u_acc", "wcs_auth_p_acc"};
 #define STATE_NKEYS (sizeof state_keys / sizeof state_keys[0])
 #define META_NKEYS_MAX 128
 
@@ -146,6 +163,10 @@ static int meta_set(consph_run_params *p, consph_solver *s, const char *k, const
     D("auth_p_acc", s->auth_p_acc)
     D("seconds", s->seconds)
     D("log_since", s->log_since)
+    D("wcs_u_acc", s->wcs_u_acc)
+    D("wcs_p_acc", s->wcs_p_acc)
+    D("wcs_auth_u_acc", s->wcs_auth_u_acc)
+    D("wcs_auth_p_acc", s->wcs_auth_p_acc)
 #undef D
 #undef L
     return 0;
@@ -210,6 +231,14 @@ static int meta_parse(consph_solver *s, const char *meta)
             return consph_fail(CONSPH_EFORMAT, "metadata: key '%s' of format %s",
                                format3_implied[j].key, CHECKPOINT_FORMAT_3);
         seen[k] = 1;
+    }
+    for (size_t j = 0; j < FORMAT4_NADDED; ++j) {
+        const int k = meta_key_index(format4_added[j].key);
+        if (k >= 0 && !seen[k]) {
+            if (!meta_set(&s->prm, s, format4_added[j].key, format4_added[j].value))
+                return consph_fail(CONSPH_EFORMAT, "metadata: key '%s'", format4_added[j].key);
+            seen[k] = 1;
+        }
     }
     for (size_t k = 0; k < meta_nkeys(); ++k)
         if (!seen[k])

@@ -31,6 +31,15 @@ void consph_run_summary_json(FILE *fp, const consph_run_summary *s)
         runfiles_json_num(fp, "l1_u_authors", s->l1n_u, 0);
         runfiles_json_num(fp, "l1_p_authors", s->l1n_p, 0);
     }
+    if (s->exact == CONSPH_EXACT_BOTH) {
+        /* only then, as the authors' keys */
+        runfiles_json_num(fp, "l1_u_wc", s->wc_l1_u, 0);
+        runfiles_json_num(fp, "l1_p_wc", s->wc_l1_p, 0);
+        if (s->error == CONSPH_ERROR_AUTHORS) {
+            runfiles_json_num(fp, "l1_u_authors_wc", s->wc_l1n_u, 0);
+            runfiles_json_num(fp, "l1_p_authors_wc", s->wc_l1n_p, 0);
+        }
+    }
     runfiles_json_num(fp, "linf_u", s->linf_u, 0);
     runfiles_json_num(fp, "linf_p", s->linf_p, 0);
     runfiles_json_num(fp, "kinetic_energy", s->ke, 0);

@@ -15,6 +15,7 @@
 #include "solver/runfiles.h"
 #include "regularise/regularise.h"
 #include "integrators/integrators.h"
+#include "problems/wcref.h"
 #include "solver/solver_internal.h"
 
 /* Measured peak resident memory per particle (2D, one thread, --out, 160 000 particles): 600
@@ -290,6 +291,8 @@ void consph_solver_free(consph_solver *s)
     free(s->hist);
     free(s->diag_buf);
     free(s->integ_scratch);
+    wcref_free(s->wc);
+    free(s->wc_buf);
     free(s);
 }
 

@@ -188,6 +188,9 @@ typedef struct problem_def {
     int layout;          /* consph_layout_kind, or -1: the scheme's */
     int radial;          /* a vortex centred in the box: the run writes profile.csv, u_φ(r) */
     int vorticity_image; /* the run draws the final vorticity (vorticity.png) */
+    /* --exact wc may take it: 2D, periodic in both axes, an exact solution, and initial data
+     * smooth enough for the reference's 32² Fourier series (src/problems/wcref.c) */
+    int wc_reference;
 } problem_def;
 
 const problem_def *problem_find(const char *name);
@@ -228,6 +231,11 @@ struct consph_solver {
     double *diag_buf; /* the per-particle terms of consph_solver_diag, 8 per particle */
     size_t diag_cap;
     char run_id[CONSPH_RUN_ID_LEN + 1]; /* new at set-up, kept by checkpoints */
+    struct wcref *wc; /* --exact wc: the reference (src/problems/wcref.h), made when first used */
+    /* --exact both: the eq. 26 sums and the authors' sums against the reference */
+    double wcs_u_acc, wcs_p_acc, wcs_auth_u_acc, wcs_auth_p_acc;
+    double *wc_buf; /* solver_wc_side's per-particle terms */
+    size_t wc_cap;
 };
 
 /* consph_run_nx_check against `memory` bytes (0: unknown) instead of this machine's. */
@@ -254,6 +262,12 @@ void solver_position_of(const consph_particles *p, size_t i, double x[3]);
 double solver_auth_time(const consph_solver *s, int k);
 int solver_auth_sample(consph_solver *s);
 int solver_auth_after_step(consph_solver *s, int landed);
+/* The reference the errors are taken against (diag.c): solver_exact_prepare makes --exact wc's
+ * reference on first use and brings it to s->t; solver_exact then gives u and p at x and s->t
+ * (the problem's exact solution, or the reference), safe on several threads. */
+int solver_exact_prepare(consph_solver *s);
+void solver_exact(const consph_solver *s, const double x[3], double u[3], double *p);
+int solver_wc_side(consph_solver *s, double *eu, double *ep, double *nu, double *np);
 /* Validity (validity.c), after every step: CONSPH_ENUMERIC naming the first non-finite value, or
  * the first bound of the weakly-compressible model the state is beyond (from the state and its
  * kinetic energy only: no exact solution). */

@@ -290,6 +290,8 @@ static int run_one(const run_plan *pl, int j, double h_dt, int curve, run_row *r
     if (pl->l1_mean && row->sum.t > 0) {
         row->sum.l1_u /= row->sum.t;
         row->sum.l1_p /= row->sum.t;
+        row->sum.wc_l1_u /= row->sum.t;
+        row->sum.wc_l1_p /= row->sum.t;
     }
     row->eq26_u = row->sum.l1_u;
     row->eq26_p = row->sum.l1_p;
