@@ -43,6 +43,10 @@ typedef struct consph_packing_params {
     double move_tol;    /* packed: stop once 100 max_i |u_i| Δt / h <= move_tol at a test
                            (every 50 steps, from the 11th test on; default 1e-2, [51]'s code) */
     int history_every;  /* record the density spread every this many iterations (0: never) */
+    int walls;          /* packed: 0 (default) packs in the periodic box; L > 0 packs inside a
+                           frozen container of L lattice layers around the box, as PySPH's
+                           packing tool does for a bounded domain, and returns the particles in
+                           the (periodic) box: the authors' packed files were made this way */
 } consph_packing_params;
 
 typedef struct consph_layout_params {
