@@ -8,7 +8,9 @@
  * packed        the perturbed-periodic (PP) arrangement of 001: a perturbed lattice relaxed
  *               by the particle packing of [51] (Negi & Ramachandran 2021) as its authors'
  *               implementation runs it, with its stopping rule (the particles have stopped
- *               moving).
+ *               moving). With packing.walls = L > 0 it packs inside L frozen lattice layers
+ *               around the box and returns the particles in the periodic box: the authors'
+ *               packed files were made so (src/layout/packing.c).
  * packed-polished  the same start relaxed by that packing until it stalls, then by a damped
  *               descent of the density error until max|rho/rho0 - 1| < tol (consph's own).
  *

@@ -43,6 +43,24 @@
  * at 0.3, 0.18Δs at 0.35, 0.34Δs at 0.5). The equilibrium is not uniform density: the spread
  * stalls at several 1e-3.
  *
+ * packed with walls = L > 0: the same packing inside a frozen container, as the authors' packed
+ * files were made. Those files (pysphApproximator approximator/data/nx*.npz: x and y only; the
+ * repository has no script that makes them) keep every particle 0.37-0.38Δs inside the square
+ * at all six resolutions and line a row of particles 0.4-0.6Δs from each wall, an empty band
+ * 0.6-1Δs, the next row near 1.4Δs: the packing of a walled square, not of a periodic box. Read
+ * as periodic (as 001's PP runs use them), two wall rows meet at each box edge, and all their
+ * closest pairs (0.79-0.86Δs) are across that seam; two or more Δs inside, their nearest
+ * neighbours are 0.93-0.94Δs apart at the closest, as here. PySPH's packing tool surrounds a
+ * bounded domain with frozen lattice layers (tools/particle_packing.py,
+ * create_frozen_container, default l = 3) that take part in both forces and never move; here
+ * the container is L layers of the cell-centred lattice continued outside the box (PySPH's
+ * function staggers alternate columns by Δs/2: not followed, the files do not tell which
+ * container was used), in a periodic box enlarged by L layers per side (2L >= 4 layers across
+ * its seam: no free particle sees the images of the others), free particles first. Everything
+ * else (forces, steps, stopping rule, perturbation draws) is packed's; the reported density
+ * spread includes the frozen particles. The free particles are returned in the original box,
+ * which stays periodic.
+ *
  * packed-polished, stage 1: the same forces with the quintic at h = 1.2Δs whatever kernel the
  * caller names (the caller's kernel is the one of the density target: kernels with many
  * neighbours pair particles in this stage, the quintic at h = 2Δs did: nearest-neighbour
