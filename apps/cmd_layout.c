@@ -210,7 +210,8 @@ int cmd_layout(int argc, char **argv)
         {"--walls", CLI_INT, &walls, "L",
          "packed: pack inside a frozen container of L lattice layers around the box (PySPH's "
          "create_frozen_container; the authors' packed files), then return the particles in "
-         "the periodic box; 0 packs periodically (default 0)",
+         "the periodic box; 0 packs periodically (default 0); else at least half the kernel's "
+         "support in Δs (quintic, 1.2: 2)",
          NULL, 0, 8, 0},
         {"--max-iter", CLI_INT, &max_iter, "M",
          "packed kinds: iteration cap (default 40000 packed, 5000 packed-polished)", NULL, 0,
@@ -304,6 +305,14 @@ int cmd_layout(int argc, char **argv)
                          "option --kernel: '%s' is a tensor-product remeshing kernel; --kind "
                          "%s needs a radial kernel",
                          kernel, consph_layout_name(kind));
+    /* The frozen container is 2·walls layers thick across the enlarged box's seam: at least the
+     * kernel's support (src/layout/packing.c). */
+    const int min_walls = (int)ceil(0.5 * consph_kernel_info_get(kernel_id)->support * hdx);
+    if (walls > 0 && walls < min_walls)
+        return cli_error(&cmd,
+                         "option --walls: %ld layers are thinner than the support of %s at h/Δs "
+                         "%g; allowed: 0 or %d..8",
+                         walls, kernel, hdx, min_walls);
     int periodic = periodic_index == 0;
     if (packed && !periodic)
         return cli_error(&cmd,

@@ -157,6 +157,7 @@ expect_usage_error --tol --kind packed --dim 2 --nx 8 --tol 1e-3 --out p.vtu
 expect_usage_error --move-tol --kind packed-polished --dim 2 --nx 8 --move-tol 1e-3 --out p.vtu
 expect_usage_error --walls --kind packed-polished --dim 2 --nx 8 --walls 3 --out p.vtu
 expect_usage_error --walls --kind packed --dim 2 --nx 8 --walls 9 --out p.vtu
+expect_usage_error --walls --kind packed --dim 2 --nx 8 --walls 1 --out p.vtu
 expect_usage_error --walls --in p.csv --walls 3
 expect_usage_error --periodic --kind lattice --dim 2 --nx 8 --periodic maybe --out p.vtu
 expect_usage_error --kernel --kind packed --dim 2 --nx 8 --kernel nonsense --out p.vtu

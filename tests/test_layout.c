@@ -570,6 +570,11 @@ static void test_packed_walls(void)
     CHECK(consph_layout_generate(&lp, &per, NULL) == CONSPH_EINVAL &&
               strstr(consph_last_error(), "walls"),
           "walls 9 rejected: %s", consph_last_error());
+    /* quintic at h = 1.2Δs: support 3.6Δs, so at least 2 layers (4 across the seam) */
+    lp.packing.walls = 1;
+    CHECK(consph_layout_generate(&lp, &per, NULL) == CONSPH_EINVAL &&
+              strstr(consph_last_error(), "2..8"),
+          "walls 1 rejected: %s", consph_last_error());
     lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED_POLISHED, 2, n);
     lp.packing.walls = 3;
     CHECK(consph_layout_generate(&lp, &per, NULL) == CONSPH_EINVAL &&

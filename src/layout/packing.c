@@ -56,7 +56,8 @@
  * the container is L layers of the cell-centred lattice continued outside the box (PySPH's
  * function staggers alternate columns by Δs/2: not followed, the files do not tell which
  * container was used), in a periodic box enlarged by L layers per side (2L >= 4 layers across
- * its seam: no free particle sees the images of the others), free particles first. Everything
+ * its seam, at least the kernel's support: no free particle sees the images of the others),
+ * free particles first. Everything
  * else (forces, steps, stopping rule, perturbation draws) is packed's; the reported density
  * spread includes the frozen particles. The free particles are returned in the original box,
  * which stays periodic.
@@ -209,6 +210,11 @@ static void work_permute(pack_work *w)
     w->origin_tmp = t;
 }
 
+int layout_min_walls(consph_kernel_id id, double hdx)
+{
+    return (int)ceil(0.5 * consph_kernel_info_get(id)->support * hdx);
+}
+
 static int check_packing(const consph_layout_params *lp, consph_kernel_id *id)
 {
     const consph_packing_params *pp = &lp->packing;
@@ -247,6 +253,15 @@ static int check_packing(const consph_layout_params *lp, consph_kernel_id *id)
                            "layout %s: kernel '%s' is a tensor-product remeshing kernel; the "
                            "packing needs a radial kernel",
                            name, pp->kernel);
+    /* The container is 2·walls layers thick across the enlarged box's seam: at least the
+     * kernel's support, or free particles would see the images of those across it. */
+    const int min_walls = layout_min_walls(*id, pp->hdx);
+    if (pp->walls > 0 && pp->walls < min_walls)
+        return consph_fail(CONSPH_EINVAL,
+                           "layout %s: walls = %d is thinner than the kernel's support (%s, "
+                           "h/Δs %g); allowed: 0 or %d..8",
+                           name, pp->walls, pp->kernel ? pp->kernel : "quintic", pp->hdx,
+                           min_walls);
     return CONSPH_OK;
 }
 
