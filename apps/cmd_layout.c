@@ -25,6 +25,9 @@ static const char layout_details[] =
     "                1.2), explicit Euler steps, until the particles stop moving: every 50\n"
     "                steps, from the 11th test on, 100 max|u| Δt / h <= --move-tol; or\n"
     "                --max-iter steps (default 40000). Needs a periodic box.\n"
+    "                --walls L packs instead inside L frozen lattice layers around the box\n"
+    "                (PySPH's frozen container) and returns the particles in the periodic\n"
+    "                box, wall rows meeting at its edges: how the authors' files were made.\n"
     "  packed-polished  consph's two-stage relaxation: that packing (with the quintic at\n"
     "                h = 1.2Δs, symplectic steps) until it stalls, then a damped descent of\n"
     "                sum_i (rho_i/rho0 - 1)^2 with --kernel and --hdx, until\n"
@@ -176,7 +179,7 @@ static void print_report(const consph_packing_report *r, const consph_layout_par
 int cmd_layout(int argc, char **argv)
 {
     int kind_index = -1, periodic_index = 0, encoding_index = CONSPH_VTU_DEFAULT;
-    long dim = 0, nx = 0, seed = 1, max_iter = 0, history_every = 100;
+    long dim = 0, nx = 0, seed = 1, max_iter = 0, history_every = 100, walls = 0;
     double eps = 0.2, hdx = 1.2, tol = 1e-4, move_tol = 1e-2, perturb = 0.5;
     const char *kernel = "quintic", *out = NULL, *in = NULL, *box_text = NULL;
     cli_cache cache = {NULL, 0};
@@ -204,6 +207,12 @@ int cmd_layout(int argc, char **argv)
         {"--move-tol", CLI_DOUBLE, &move_tol, "T",
          "packed: stop once 100 max|u| dt/h <= T at a test (default 1e-2, as [51]'s code)", NULL,
          1e-15, 100.0, 0},
+        {"--walls", CLI_INT, &walls, "L",
+         "packed: pack inside a frozen container of L lattice layers around the box (PySPH's "
+         "create_frozen_container; the authors' packed files), then return the particles in "
+         "the periodic box; 0 packs periodically (default 0); else at least half the kernel's "
+         "support in Δs (quintic, 1.2: 2)",
+         NULL, 0, 8, 0},
         {"--max-iter", CLI_INT, &max_iter, "M",
          "packed kinds: iteration cap (default 40000 packed, 5000 packed-polished)", NULL, 0,
          100000000, 0},
@@ -245,9 +254,9 @@ int cmd_layout(int argc, char **argv)
                          "option --vtu-encoding: only with a .vtu --out; allowed: --out FILE.vtu");
     consph_vtu_encoding enc = (consph_vtu_encoding)encoding_index;
     if (opt_given(opts, nopts, "--in")) {
-        static const char *const generator_only[] = {"--kind",     "--nx",       "--seed",
-                                                     "--eps",      "--perturb",  "--tol",
-                                                     "--move-tol", "--max-iter", "--history-every"};
+        static const char *const generator_only[] = {
+            "--kind", "--nx",       "--seed",     "--eps",           "--perturb",
+            "--tol",  "--move-tol", "--max-iter", "--history-every", "--walls"};
         for (size_t k = 0; k < sizeof generator_only / sizeof generator_only[0]; ++k)
             if (opt_given(opts, nopts, generator_only[k]))
                 return cli_error(&cmd, "option %s: not with --in (the file is the particles)",
@@ -285,6 +294,8 @@ int cmd_layout(int argc, char **argv)
         return cli_error(&cmd, "option --tol applies only to --kind packed-polished");
     if (opt_given(opts, nopts, "--move-tol") && kind != CONSPH_LAYOUT_PACKED)
         return cli_error(&cmd, "option --move-tol applies only to --kind packed");
+    if (opt_given(opts, nopts, "--walls") && kind != CONSPH_LAYOUT_PACKED)
+        return cli_error(&cmd, "option --walls applies only to --kind packed");
     consph_kernel_id kernel_id;
     if (consph_kernel_lookup(kernel, &kernel_id) != CONSPH_OK)
         return cli_error(&cmd, "option --kernel: unknown value '%s'; allowed: %s", kernel,
@@ -294,6 +305,14 @@ int cmd_layout(int argc, char **argv)
                          "option --kernel: '%s' is a tensor-product remeshing kernel; --kind "
                          "%s needs a radial kernel",
                          kernel, consph_layout_name(kind));
+    /* The frozen container is 2·walls layers thick across the enlarged box's seam: at least the
+     * kernel's support (src/layout/packing.c). */
+    const int min_walls = (int)ceil(0.5 * consph_kernel_info_get(kernel_id)->support * hdx);
+    if (walls > 0 && walls < min_walls)
+        return cli_error(&cmd,
+                         "option --walls: %ld layers are thinner than the support of %s at h/Δs "
+                         "%g; allowed: 0 or %d..8",
+                         walls, kernel, hdx, min_walls);
     int periodic = periodic_index == 0;
     if (packed && !periodic)
         return cli_error(&cmd,
@@ -310,6 +329,7 @@ int cmd_layout(int argc, char **argv)
     lp.packing.perturb = perturb;
     lp.packing.tol = tol;
     lp.packing.move_tol = move_tol;
+    lp.packing.walls = (int)walls;
     if (opt_given(opts, nopts, "--max-iter")) lp.packing.max_iter = (int)max_iter;
     lp.packing.history_every = (int)history_every;
 

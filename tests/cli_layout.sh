@@ -61,7 +61,7 @@ grep -q '^packing: ' "$work/stdout" || bad "packed: no packing line"
 # The report never contradicts itself: a run that stops on --max-iter (0 included) does not say
 # the tolerance was met, and one whose tolerance was met is not called "NOT converged".
 for args in "packed --max-iter 0" "packed --max-iter 1" "packed --max-iter 0 --perturb 0" \
-    "packed --move-tol 1e-2" "packed-polished --max-iter 0" "packed-polished --max-iter 1" \
+    "packed --move-tol 1e-2" "packed --walls 3 --max-iter 1" "packed-polished --max-iter 0" "packed-polished --max-iter 1" \
     "packed-polished --max-iter 0 --perturb 0" "packed-polished --max-iter 300 --tol 1e-2"; do
     # shellcheck disable=SC2086
     "$bin" layout --kind $args --dim 2 --nx 8 --history-every 0 >"$work/stdout" 2>&1 ||
@@ -155,6 +155,10 @@ expect_usage_error --periodic --kind packed --dim 2 --nx 8 --periodic no --out p
 expect_usage_error --periodic --kind packed-polished --dim 2 --nx 8 --periodic no --out p.vtu
 expect_usage_error --tol --kind packed --dim 2 --nx 8 --tol 1e-3 --out p.vtu
 expect_usage_error --move-tol --kind packed-polished --dim 2 --nx 8 --move-tol 1e-3 --out p.vtu
+expect_usage_error --walls --kind packed-polished --dim 2 --nx 8 --walls 3 --out p.vtu
+expect_usage_error --walls --kind packed --dim 2 --nx 8 --walls 9 --out p.vtu
+expect_usage_error --walls --kind packed --dim 2 --nx 8 --walls 1 --out p.vtu
+expect_usage_error --walls --in p.csv --walls 3
 expect_usage_error --periodic --kind lattice --dim 2 --nx 8 --periodic maybe --out p.vtu
 expect_usage_error --kernel --kind packed --dim 2 --nx 8 --kernel nonsense --out p.vtu
 expect_usage_error --kernel --kind packed --dim 2 --nx 8 --kernel m4 --hdx 1 --out p.vtu

@@ -508,6 +508,80 @@ static void test_packed_threads(void)
     consph_packing_report_free(&rep2);
 }
 
+/* packed with walls: the packing of a walled square, as the authors' packed files were made
+ * (docs/reference-values.md): the frozen layers keep every particle at least ~0.37Δs inside the
+ * box (the files: 0.37-0.38Δs) and line a row of particles along each wall, while the periodic
+ * packing from the same start lets particles straddle the box edges. The walled packing obeys
+ * the same stopping rule and gives the same positions for any thread count; walls apply only to
+ * packed and are bounded. */
+static double min_edge_distance(const consph_particles *p, double ds)
+{
+    double m = INFINITY;
+    for (size_t i = 0; i < p->n; ++i)
+        for (int a = 0; a < p->dim; ++a) {
+            double d = fmin(p->x[a][i] - p->box.lo[a], p->box.hi[a] - p->x[a][i]) / ds;
+            if (d < m) m = d;
+        }
+    return m;
+}
+
+static void test_packed_walls(void)
+{
+    const size_t n = 24;
+    const double ds = 1.0 / (double)n;
+    consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED, 2, n);
+    lp.packing.history_every = 0;
+    consph_particles per, w1, w2;
+    consph_packing_report rep;
+    check_set_threads(1);
+    CHECK(consph_layout_generate(&lp, &per, NULL) == CONSPH_OK, "periodic: %s",
+          consph_last_error());
+    lp.packing.walls = 3;
+    CHECK(consph_layout_generate(&lp, &w1, &rep) == CONSPH_OK, "walled: %s", consph_last_error());
+    check_set_threads(2);
+    CHECK(consph_layout_generate(&lp, &w2, NULL) == CONSPH_OK, "walled, 2 threads");
+    check_set_threads(1);
+    const double e_per = min_edge_distance(&per, ds), e_w = min_edge_distance(&w1, ds);
+    size_t row = 0;
+    for (size_t i = 0; i < w1.n; ++i) {
+        double d = INFINITY;
+        for (int a = 0; a < 2; ++a) d = fmin(d, fmin(w1.x[a][i], 1.0 - w1.x[a][i]) / ds);
+        row += d < 0.75;
+    }
+    printf("walled 24^2: %d steps, spread %.3e, min edge distance %.3f (periodic %.3f), %zu in "
+           "the wall rows\n",
+           rep.iterations, rep.rho_spread_final, e_w, e_per, row);
+    CHECK(w1.n == n * n && w1.box.periodic[0] && w1.box.periodic[1], "n^2 particles, periodic box");
+    CHECK(rep.converged && rep.iterations % 50 == 1, "stopped by [51]'s rule: %d steps",
+          rep.iterations);
+    CHECK(e_w > 0.3 && e_w < 0.5, "the walls keep particles ~0.4Δs inside: %.3f", e_w);
+    CHECK(e_per < 0.3, "the periodic packing crosses the edges: %.3f", e_per);
+    CHECK(row >= 3 * n && row <= 4 * n, "one row along each wall: %zu particles", row);
+    int same = 1;
+    for (size_t i = 0; i < w1.n; ++i)
+        for (int a = 0; a < 2; ++a) same &= w1.x[a][i] == w2.x[a][i];
+    CHECK(same, "the same positions on 1 and 2 threads");
+    consph_particles_free(&per);
+    consph_particles_free(&w1);
+    consph_particles_free(&w2);
+    consph_packing_report_free(&rep);
+
+    lp.packing.walls = 9;
+    CHECK(consph_layout_generate(&lp, &per, NULL) == CONSPH_EINVAL &&
+              strstr(consph_last_error(), "walls"),
+          "walls 9 rejected: %s", consph_last_error());
+    /* quintic at h = 1.2Δs: support 3.6Δs, so at least 2 layers (4 across the seam) */
+    lp.packing.walls = 1;
+    CHECK(consph_layout_generate(&lp, &per, NULL) == CONSPH_EINVAL &&
+              strstr(consph_last_error(), "2..8"),
+          "walls 1 rejected: %s", consph_last_error());
+    lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED_POLISHED, 2, n);
+    lp.packing.walls = 3;
+    CHECK(consph_layout_generate(&lp, &per, NULL) == CONSPH_EINVAL &&
+              strstr(consph_last_error(), "walls"),
+          "walls with packed-polished rejected: %s", consph_last_error());
+}
+
 int main(void)
 {
     test_names();
@@ -520,5 +594,6 @@ int main(void)
     test_packed_rule();
     test_packed_geometry();
     test_packed_threads();
+    test_packed_walls();
     return check_summary("test_layout");
 }

@@ -117,6 +117,7 @@ static void test_keys(const char *dir)
     v[k++].packing.perturb = 0.4;
     v[k++].packing.max_iter = 1000;
     v[k++].packing.move_tol = 2e-2;
+    v[k++].packing.walls = 3;
     v[k].dim = 3, v[k].nx[2] = 20, v[k].box = consph_box_unit(3, 1), ++k;
     v[k].box.hi[0] = 2.0, v[k].nx[0] = 40, ++k;
     const int nvariants = k;

@@ -8,7 +8,9 @@
  * packed        the perturbed-periodic (PP) arrangement of 001: a perturbed lattice relaxed
  *               by the particle packing of [51] (Negi & Ramachandran 2021) as its authors'
  *               implementation runs it, with its stopping rule (the particles have stopped
- *               moving).
+ *               moving). With packing.walls = L > 0 it packs inside L frozen lattice layers
+ *               around the box and returns the particles in the periodic box: the authors'
+ *               packed files were made so (src/layout/packing.c).
  * packed-polished  the same start relaxed by that packing until it stalls, then by a damped
  *               descent of the density error until max|rho/rho0 - 1| < tol (consph's own).
  *
@@ -43,6 +45,10 @@ typedef struct consph_packing_params {
     double move_tol;    /* packed: stop once 100 max_i |u_i| Δt / h <= move_tol at a test
                            (every 50 steps, from the 11th test on; default 1e-2, [51]'s code) */
     int history_every;  /* record the density spread every this many iterations (0: never) */
+    int walls;          /* packed: 0 (default) packs in the periodic box; L > 0 packs inside a
+                           frozen container of L lattice layers around the box, as PySPH's
+                           packing tool does for a bounded domain, and returns the particles in
+                           the (periodic) box: the authors' packed files were made this way */
 } consph_packing_params;
 
 typedef struct consph_layout_params {

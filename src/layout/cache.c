@@ -108,6 +108,8 @@ int consph_layout_cache_key(const consph_layout_params *lp, char *key, size_t si
         ok &= key_add(key, size, &len, "tol %.17g\n", pp->tol);
     else
         ok &= key_add(key, size, &len, "move-tol %.17g\n", pp->move_tol);
+    /* Only when set, so that the keys (and files) of the periodic packing stay as they were. */
+    if (pp->walls > 0) ok &= key_add(key, size, &len, "walls %d\n", pp->walls);
     if (!ok) return consph_fail(CONSPH_EINVAL, "layout cache key longer than %zu bytes", size);
     return CONSPH_OK;
 }

@@ -82,6 +82,7 @@ consph_layout_params consph_layout_defaults(consph_layout_kind kind, int dim, si
     lp.packing.tol = 1e-4;
     lp.packing.move_tol = 1e-2;
     lp.packing.history_every = 50;
+    lp.packing.walls = 0;
     return lp;
 }
 

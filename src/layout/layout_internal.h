@@ -55,6 +55,8 @@ void layout_pack_set_portable(int on);
 
 /* The packing's parameter checks (those consph_layout_pack makes first). */
 int layout_check_packing(const consph_layout_params *lp);
+/* The fewest frozen layers packed's walls may have with this kernel: half its support, in Δs. */
+int layout_min_walls(consph_kernel_id id, double hdx);
 
 /* The cache (cache.c): 1 when it is on and the kind is cached; a hit fills the positions of p
  * (initialised, n and dim of lp) and the report (when non-NULL) and returns 1; a miss or a bad

@@ -43,6 +43,25 @@
  * at 0.3, 0.18Δs at 0.35, 0.34Δs at 0.5). The equilibrium is not uniform density: the spread
  * stalls at several 1e-3.
  *
+ * packed with walls = L > 0: the same packing inside a frozen container, as the authors' packed
+ * files were made. Those files (pysphApproximator approximator/data/nx*.npz: x and y only; the
+ * repository has no script that makes them) keep every particle 0.37-0.38Δs inside the square
+ * at all six resolutions and line a row of particles 0.4-0.6Δs from each wall, an empty band
+ * 0.6-1Δs, the next row near 1.4Δs: the packing of a walled square, not of a periodic box. Read
+ * as periodic (as 001's PP runs use them), two wall rows meet at each box edge, and all their
+ * closest pairs (0.79-0.86Δs) are across that seam; two or more Δs inside, their nearest
+ * neighbours are 0.93-0.94Δs apart at the closest, as here. PySPH's packing tool surrounds a
+ * bounded domain with frozen lattice layers (tools/particle_packing.py,
+ * create_frozen_container, default l = 3) that take part in both forces and never move; here
+ * the container is L layers of the cell-centred lattice continued outside the box (PySPH's
+ * function staggers alternate columns by Δs/2: not followed, the files do not tell which
+ * container was used), in a periodic box enlarged by L layers per side (2L >= 4 layers across
+ * its seam, at least the kernel's support: no free particle sees the images of the others),
+ * free particles first. Everything
+ * else (forces, steps, stopping rule, perturbation draws) is packed's; the reported density
+ * spread includes the frozen particles. The free particles are returned in the original box,
+ * which stays periodic.
+ *
  * packed-polished, stage 1: the same forces with the quintic at h = 1.2Δs whatever kernel the
  * caller names (the caller's kernel is the one of the density target: kernels with many
  * neighbours pair particles in this stage, the quintic at h = 2Δs did: nearest-neighbour
@@ -122,6 +141,7 @@ static const double packing_first_dt = 1e-7;
 
 typedef struct pack_work {
     size_t n;
+    size_t n_free; /* particles whose origin index is n_free or more are frozen (walls) */
     int dim;
     double *u[CONSPH_MAX_DIM]; /* velocity */
     double *acc[CONSPH_MAX_DIM];
@@ -154,6 +174,7 @@ static int work_alloc(pack_work *w, size_t n, int dim, int need_glass_rho)
 {
     memset(w, 0, sizeof *w);
     w->n = n;
+    w->n_free = n;
     w->dim = dim;
     int ok = 1;
     for (int a = 0; a < dim; ++a) {
@@ -189,6 +210,11 @@ static void work_permute(pack_work *w)
     w->origin_tmp = t;
 }
 
+int layout_min_walls(consph_kernel_id id, double hdx)
+{
+    return (int)ceil(0.5 * consph_kernel_info_get(id)->support * hdx);
+}
+
 static int check_packing(const consph_layout_params *lp, consph_kernel_id *id)
 {
     const consph_packing_params *pp = &lp->packing;
@@ -212,6 +238,11 @@ static int check_packing(const consph_layout_params *lp, consph_kernel_id *id)
     if (lp->kind == CONSPH_LAYOUT_PACKED && (!(pp->move_tol > 0.0) || !isfinite(pp->move_tol)))
         return consph_fail(CONSPH_EINVAL, "layout %s: move_tol = %g must be positive", name,
                            pp->move_tol);
+    if (pp->walls < 0 || pp->walls > 8)
+        return consph_fail(CONSPH_EINVAL, "layout %s: walls = %d is outside [0, 8]", name,
+                           pp->walls);
+    if (pp->walls > 0 && lp->kind != CONSPH_LAYOUT_PACKED)
+        return consph_fail(CONSPH_EINVAL, "layout %s: walls applies only to packed", name);
     if (pp->history_every < 0)
         return consph_fail(CONSPH_EINVAL, "layout %s: history_every = %d is negative", name,
                            pp->history_every);
@@ -222,6 +253,15 @@ static int check_packing(const consph_layout_params *lp, consph_kernel_id *id)
                            "layout %s: kernel '%s' is a tensor-product remeshing kernel; the "
                            "packing needs a radial kernel",
                            name, pp->kernel);
+    /* The container is 2·walls layers thick across the enlarged box's seam: at least the
+     * kernel's support, or free particles would see the images of those across it. */
+    const int min_walls = layout_min_walls(*id, pp->hdx);
+    if (pp->walls > 0 && pp->walls < min_walls)
+        return consph_fail(CONSPH_EINVAL,
+                           "layout %s: walls = %d is thinner than the kernel's support (%s, "
+                           "h/Δs %g); allowed: 0 or %d..8",
+                           name, pp->walls, pp->kernel ? pp->kernel : "quintic", pp->hdx,
+                           min_walls);
     return CONSPH_OK;
 }
 
@@ -768,6 +808,7 @@ static double advance(consph_particles *p, pack_work *w, const pack_list *L, dou
     double vmax2 = 0.0, dmax2 = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : vmax2, dmax2) if (w->n >= 2048)
     for (size_t i = 0; i < w->n; ++i) {
+        if (w->origin[i] >= w->n_free) continue; /* frozen: no motion, u stays 0 */
         double v2 = 0.0, d2 = 0.0;
         for (int a = 0; a < dim; ++a) {
             const double u0 = w->u[a][i], u1 = damp * u0 + dt * w->acc[a][i];
@@ -831,7 +872,7 @@ static void packer_free(packer *pk)
 }
 
 static int packer_init(packer *pk, const consph_layout_params *lp, consph_particles *p,
-                       consph_packing_report *report)
+                       size_t n_free, consph_packing_report *report)
 {
     const consph_packing_params *pp = &lp->packing;
     memset(pk, 0, sizeof *pk);
@@ -860,7 +901,8 @@ static int packer_init(packer *pk, const consph_layout_params *lp, consph_partic
     fp->rep.r_floor = 0.5 * pk->glass.h;
     pk->nu = (dim == 3 ? 0.5 : 0.2) / ds;
 
-    consph_layout_perturb(lp, p, ds, pp->perturb);
+    /* With walls the caller has perturbed the free particles and added the frozen ones. */
+    if (n_free == p->n) consph_layout_perturb(lp, p, ds, pp->perturb);
 
     if (report && pp->history_every > 0) {
         pk->hist_cap = pp->max_iter / pp->history_every + 2;
@@ -870,6 +912,7 @@ static int packer_init(packer *pk, const consph_layout_params *lp, consph_partic
     }
     rc = work_alloc(&pk->w, p->n, dim, !same_kernel);
     if (rc) return rc;
+    pk->w.n_free = n_free;
     /* A pair farther apart than the kernel radius at a build can come within it only after one
      * of the two has moved half the skin. */
     const double radius = fmax(pk->glass.radius, pk->target.radius);
@@ -1016,12 +1059,86 @@ static int pack_polished(packer *pk, const consph_layout_params *lp, consph_part
     return rc;
 }
 
+/* The walled variant: the perturbed particles of the box plus a frozen container, `walls`
+ * layers of the cell-centred lattice continued outside the box on every side, in a periodic box
+ * enlarged by those layers. The container is 2·walls layers thick across the enlarged box's
+ * seam, so with walls >= 2 (quintic, h = 1.2Δs: support 3.6Δs) no free particle sees the images
+ * of the free particles on the other side: the packing is that of a walled square, as PySPH's
+ * packing tool (tools/particle_packing.py, create_frozen_container: frozen lattice layers
+ * around the domain, default l = 3, taking part in every force but never moving) does for a
+ * bounded domain. The free particles are then returned in the original box, which the caller
+ * treats as periodic: at its edges two wall-aligned rows meet. Returns the enlarged set in *q
+ * (free particles first, in lattice order). */
+static int build_walled(const consph_layout_params *lp, const consph_particles *p,
+                        consph_particles *q)
+{
+    const int dim = lp->dim, L = lp->packing.walls;
+    const double ds = p->spacing;
+    consph_box box = p->box;
+    size_t next[CONSPH_MAX_DIM], n_ext = 1;
+    for (int a = 0; a < dim; ++a) {
+        box.lo[a] -= L * ds;
+        box.hi[a] += L * ds;
+        box.periodic[a] = 1;
+        next[a] = lp->nx[a] + 2 * (size_t)L;
+        n_ext *= next[a];
+    }
+    int rc = consph_particles_init(q, dim, n_ext, &box);
+    if (rc) return rc;
+    q->spacing = ds;
+    for (int a = 0; a < dim; ++a) memcpy(q->x[a], p->x[a], p->n * sizeof(double));
+    size_t k = p->n;
+    for (size_t c = 0; c < n_ext; ++c) {
+        size_t rem = c, idx[CONSPH_MAX_DIM];
+        int inside = 1;
+        for (int a = 0; a < dim; ++a) {
+            idx[a] = rem % next[a];
+            rem /= next[a];
+            inside &= idx[a] >= (size_t)L && idx[a] < (size_t)L + lp->nx[a];
+        }
+        if (inside) continue;
+        for (int a = 0; a < dim; ++a) q->x[a][k] = box.lo[a] + ((double)idx[a] + 0.5) * ds;
+        ++k;
+    }
+    return CONSPH_OK;
+}
+
 int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
                        consph_packing_report *report)
 {
     const double t0 = consph_wtime();
     packer pk;
-    int rc = packer_init(&pk, lp, p, report);
+    memset(&pk, 0, sizeof pk);
+    if (lp->kind == CONSPH_LAYOUT_PACKED && lp->packing.walls > 0) {
+        consph_layout_params lw = *lp;
+        int rc = check_packing(lp, &(consph_kernel_id){0});
+        if (rc) return rc;
+        consph_layout_perturb(lp, p, p->spacing, lp->packing.perturb);
+        consph_particles q;
+        memset(&q, 0, sizeof q);
+        rc = build_walled(lp, p, &q);
+        if (!rc) {
+            lw.box = q.box;
+            rc = packer_init(&pk, &lw, &q, p->n, report);
+        }
+        if (!rc) {
+            if (report) report->polish_start = -1;
+            rc = pack_single(&pk, &lw, &q, report);
+        }
+        if (!rc) {
+            wrap_positions(&q);
+            rc = restore_lattice_order(&q, &pk.w);
+        }
+        if (!rc) {
+            for (int a = 0; a < lp->dim; ++a) memcpy(p->x[a], q.x[a], p->n * sizeof(double));
+            wrap_positions(p);
+        }
+        if (!rc && report) report->seconds = consph_wtime() - t0;
+        packer_free(&pk);
+        consph_particles_free(&q);
+        return rc;
+    }
+    int rc = packer_init(&pk, lp, p, p->n, report);
     if (!rc) {
         if (report) report->polish_start = -1;
         rc = lp->kind == CONSPH_LAYOUT_PACKED_POLISHED ? pack_polished(&pk, lp, p, report)
