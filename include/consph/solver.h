@@ -236,7 +236,7 @@ typedef struct consph_run_summary {
     double nlist_skin, nlist_bytes;
     long nlist_builds;
     char nlist_note[200];
-    int exact;            /* consph_exact_kind of the run */
+    int exact; /* consph_exact_kind of the run */
     /* exact both: eq. 26 (wc_l1_*) and the authors' measure (wc_l1n_*, error authors) against
      * the weakly-compressible reference; NaN otherwise */
     double wc_l1_u, wc_l1_p, wc_l1n_u, wc_l1n_p;

@@ -27,8 +27,8 @@
 /* The keys a version-3 checkpoint lacks and the values its run had. */
 static const struct {
     const char *key, *value;
-} format3_implied[] = {{"log_every", "1"}, {"log_since", "0"}, {"skin", "0"},
-                     {"ipst_h_dt", "0"}, {"ipst_chi0", "-1"}};
+} format3_implied[] = {
+    {"log_every", "1"}, {"log_since", "0"}, {"skin", "0"}, {"ipst_h_dt", "0"}, {"ipst_chi0", "-1"}};
 #define FORMAT3_NIMPLIED (sizeof format3_implied / sizeof format3_implied[0])
 
 /* Keys added to format 4 after its first checkpoints, and the value those checkpoints' runs had:
@@ -36,12 +36,8 @@ static const struct {
  * ipst_h_dt and ipst_chi0: those runs shifted on their own steps with the lattice's χ_o). */
 static const struct {
     const char *key, *value;
-} format4_added[] = {{"exact", "incompressible"},
-                     {"wcs_u_acc", "0"},
-                     {"wcs_p_acc", "0"},
-                     {"wcs_auth_u_acc", "0"},
-                     {"wcs_auth_p_acc", "0"},
-                     {"ipst_h_dt", "0"},
+} format4_added[] = {{"exact", "incompressible"}, {"wcs_u_acc", "0"},      {"wcs_p_acc", "0"},
+                     {"wcs_auth_u_acc", "0"},     {"wcs_auth_p_acc", "0"}, {"ipst_h_dt", "0"},
                      {"ipst_chi0", "-1"}};
 #define FORMAT4_NADDED (sizeof format4_added / sizeof format4_added[0])
 

@@ -91,6 +91,12 @@ int study_plan_build(const consph_study *s, const study_figure *f, const study_s
     if ((rc = study_get_double(s, f, r, "pack_tol", 1e-4, 1e-12, 1, &tol))) return rc;
     const int iters_def = consph_layout_defaults((consph_layout_kind)ilay, 2, 10).packing.max_iter;
     if ((rc = study_get_double(s, f, r, "pack_iter", iters_def, 1, 1e7, &iters))) return rc;
+    double walls;
+    if ((rc = study_get_double(s, f, r, "pack_walls", 0, 0, 8, &walls))) return rc;
+    if (walls != floor(walls))
+        return study_key_error(s, f, r, "pack_walls", "a whole number of layers; allowed: 0..8");
+    if (walls > 0 && ilay != CONSPH_LAYOUT_PACKED)
+        return study_key_error(s, f, r, "pack_walls", "needs layout = packed");
 
     consph_approx_spec *sp = &pl->spec;
     *sp = consph_approx_defaults((int)dim);
@@ -112,6 +118,7 @@ int study_plan_build(const consph_study *s, const study_figure *f, const study_s
     sp->layout.seed = (uint64_t)seed;
     sp->layout.packing.tol = tol;
     sp->layout.packing.max_iter = (int)iters;
+    sp->layout.packing.walls = (int)walls;
     sp->layout.box = consph_box_unit((int)dim, iper == 0);
     const char *field = study_get(s, f, r, "field");
     if (!field) field = iop == 2 ? "tgv" : "sin2pi";
@@ -163,7 +170,7 @@ static int same_layout(const consph_layout_params *a, const consph_layout_params
     if ((a->kind == CONSPH_LAYOUT_PACKED || a->kind == CONSPH_LAYOUT_PACKED_POLISHED) &&
         (a->packing.tol != b->packing.tol || a->packing.max_iter != b->packing.max_iter ||
          a->packing.move_tol != b->packing.move_tol || a->packing.hdx != b->packing.hdx ||
-         strcmp(a->packing.kernel, b->packing.kernel)))
+         a->packing.walls != b->packing.walls || strcmp(a->packing.kernel, b->packing.kernel)))
         return 0;
     return 1;
 }
