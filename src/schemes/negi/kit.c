@@ -117,9 +117,18 @@ TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int
 FIRST_CLONES(1)
 FIRST_CLONES(2)
 FIRST_CLONES(3)
-#define FIRST_NAMES_Q(D, P, U) {first_##D##P##U##0, first_##D##P##U##1}
-#define FIRST_NAMES_U(D, P) {FIRST_NAMES_Q(D, P, 0), FIRST_NAMES_Q(D, P, 1)}
-#define FIRST_NAMES(D) {FIRST_NAMES_U(D, 0), FIRST_NAMES_U(D, 1)}
+#define FIRST_NAMES_Q(D, P, U)                                                                     \
+    {                                                                                              \
+        first_##D##P##U##0, first_##D##P##U##1                                                     \
+    }
+#define FIRST_NAMES_U(D, P)                                                                        \
+    {                                                                                              \
+        FIRST_NAMES_Q(D, P, 0), FIRST_NAMES_Q(D, P, 1)                                             \
+    }
+#define FIRST_NAMES(D)                                                                             \
+    {                                                                                              \
+        FIRST_NAMES_U(D, 0), FIRST_NAMES_U(D, 1)                                                   \
+    }
 static const consph_visit_fn first_visits[3][2][2][2] = {FIRST_NAMES(1), FIRST_NAMES(2),
                                                          FIRST_NAMES(3)};
 
