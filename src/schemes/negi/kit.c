@@ -1,13 +1,13 @@
 /* The derivatives a scheme's right-hand side is made of, as fused passes over the solver's
  * system, with the operator terms of src/ops/terms.h (the code the static studies measure).
  *
- * Pass 1 (per particle, one traversal): the Bonet moment, inverted into B_i, then with the same
- * pair geometry ∇p (asym with bc, 001 Table 2), G = ∇u (the same form per component: f4), ∇·u
- * (div with bc, 001 eq. 11) and ∇q of a scalar. Pass 2: the Laplacians, which need G_j or ∇q_j
- * at the neighbours (coupled_bc: Σ ω_j (G_j - G_i)·B_i∇W_ij), or at i only (Fatehi_c, 001
- * eq. 13; Korzilius, 001 eqs. 14-15 with the fixes of docs/deviations.md), whose matrices are
- * summed and inverted in the same visit. A matrix that is singular or worse conditioned than
- * cond_max falls back to the identity, as the operators do. */
+ * Pass 1 (per particle, one run over the neighbours): the Bonet moment, inverted into B_i, and
+ * the sums of ∇p (asym with bc, 001 Table 2), G = ∇u (the same form per component: f4), ∇·u
+ * (div with bc, 001 eq. 11, as the trace of G) and ∇q of a scalar. Pass 2: the Laplacians, which
+ * need G_j or ∇q_j at the neighbours (coupled_bc: Σ ω_j (G_j - G_i)·B_i∇W_ij), or at i only
+ * (Fatehi_c, 001 eq. 13; Korzilius, 001 eqs. 14-15 with the fixes of docs/deviations.md), whose
+ * matrices are summed and inverted in the same visit. A matrix that is singular or worse
+ * conditioned than cond_max falls back to the identity, as the operators do. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
