@@ -53,7 +53,9 @@ TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int
     const double *vol = job->vol, *pf = job->p, *uf = job->u, *qf = job->q;
     const double *dx0 = nb->dx[0], *dx1 = D > 1 ? nb->dx[1] : NULL, *dx2 = D > 2 ? nb->dx[2] : NULL;
     const double *dwr = nb->dwr;
-    double mom[9] = {0}, sp[3] = {0}, su[9] = {0}, sq[3] = {0}, ui[3] = {0};
+    /* sm is copied into mom after the run: mom's address goes to the inversion, and a sum whose
+     * address is taken is stored to memory at every pair */
+    double sm[9] = {0}, sp[3] = {0}, su[9] = {0}, sq[3] = {0}, ui[3] = {0};
     const double pi = with_p ? pf[i] : 0.0, qi = with_q ? qf[i] : 0.0;
     if (with_u)
         for (int a = 0; a < D; ++a) ui[a] = uf[a * cap + i];
@@ -65,7 +67,7 @@ TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int
         if (D > 1) x[1] = dx1[k];
         if (D > 2) x[2] = dx2[k];
         for (int a = 0; a < D; ++a)
-            for (int b = 0; b < D; ++b) mom[a * D + b] -= g * x[a] * x[b];
+            for (int b = 0; b < D; ++b) sm[a * D + b] -= g * x[a] * x[b];
         if (with_p) {
             const double t = om * (pf[j] - pi) * w1;
             for (int b = 0; b < D; ++b) sp[b] += t * x[b];
@@ -81,7 +83,8 @@ TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int
         }
     }
     const double zero[3] = {0.0, 0.0, 0.0};
-    double B[9], out[3];
+    double mom[9], B[9], out[3];
+    for (int e = 0; e < D * D; ++e) mom[e] = sm[e];
     const int ok = consph_bonet_finalise(D, mom, job->rq->cond_max, B, NULL);
     if (job->bonet_ok) job->bonet_ok[i] = (unsigned char)ok;
     for (int e = 0; e < D * D; ++e) job->bonet[(size_t)e * cap + i] = B[e];
