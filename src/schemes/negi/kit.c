@@ -206,8 +206,8 @@ static void set_identity(double *a, int n)
 
 /* Fatehi_c's B̂ (001 eq. 13 = C.13); the identity where B_i fell back, as the operator's
  * (src/ops/ops_corr.c). */
-static void fatehi_c_matrix(int d, const consph_nbhd *nb, const double *vol, const double B[9],
-                            int bonet_ok, double cond_max, double Bh[9])
+TERM_INLINE void fatehi_c_matrix(const int d, const consph_nbhd *nb, const double *vol,
+                                 const double B[9], int bonet_ok, double cond_max, double Bh[9])
 {
     double M[9] = {0}, cond;
     if (!bonet_ok) {
@@ -216,25 +216,6 @@ static void fatehi_c_matrix(int d, const consph_nbhd *nb, const double *vol, con
     }
     term_fatehi_c_matrix(d, nb, vol, B, M);
     if (!ops_invert(d, M, Bh, cond_max, &cond)) set_identity(Bh, d);
-}
-
-/* Korzilius' Γ̃^{-1} (001 eq. 15 with the fixes of docs/deviations.md); the identity where B_i fell
- * back, as the operator's (src/ops/ops_corr.c). */
-static void korzilius_matrix(int d, int P, const int *pl, const int *pk, const consph_nbhd *nb,
-                             const double *vol, const double B[9], int bonet_ok, double cond_max,
-                             double *Ainv)
-{
-    if (!bonet_ok) {
-        set_identity(Ainv, P);
-        return;
-    }
-    double cq[OPS_MAX_P];
-    for (int p = 0; p < P; ++p) cq[p] = term_taylor_c(pl[p], pk[p]);
-    double A[OPS_MAX_P * OPS_MAX_P] = {0}, Hx[OPS_MAX_P * 3] = {0}, Gz[3 * OPS_MAX_P] = {0};
-    term_second_moment(d, P, pl, pk, cq, 1, nb, vol, A, Hx, Gz);
-    term_korzilius_correct(d, P, Hx, Gz, B, A);
-    double cond;
-    if (!ops_invert(P, A, Ainv, cond_max, &cond)) set_identity(Ainv, P);
 }
 
 /* Fatehi_c (001 eq. C.10 with B̂ of eq. 13) of every component of u in one run over the
@@ -266,75 +247,99 @@ TERM_INLINE void fatehi_body(const kit_job *job, const consph_nbhd *nb, const in
     for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = acc[a];
 }
 
-/* Korzilius' right-hand sides (term_hessian_rhs) of every component of u in one run over the
- * neighbours, the kernel Hessian once per pair, each sum with that term's arithmetic. */
-TERM_INLINE void hessian_rhs_body(const kit_job *job, const consph_nbhd *nb, const int D,
-                                  const int *pl, const int *pk, double *rhs)
+/* Korzilius (001 eqs. 14-15) of every component of u in one run over the neighbours: the sums of
+ * term_second_moment (A, Hx, Gz) and of term_hessian_rhs per component (src/ops/terms.h), with
+ * their arithmetic and the kernel Hessian formed once per pair, so bit for bit those terms'; then
+ * Γ̃^{-1} (001 eq. 15 with the fixes of docs/deviations.md), the identity where B_i fell back, as
+ * the operator's (src/ops/ops_corr.c). d known at compile time. */
+TERM_INLINE void korzilius_body(const kit_job *job, const consph_nbhd *nb, const int D,
+                                const double B[9])
 {
+    enum { MP = OPS_MAX_P };
     const int P = D * (D + 1) / 2; /* ops_npairs */
     const size_t i = nb->i, cap = job->cap;
     const double *vol = job->vol, *u = job->u;
+    int pl[MP], pk[MP];
+    double cq[MP];
+    for (int a = 0, q = 0; a < D; ++a)
+        for (int b = a; b < D; ++b, ++q) {
+            pl[q] = a; /* ops_pair_index's order */
+            pk[q] = b;
+            cq[q] = term_taylor_c(a, b);
+        }
     double G[9], ui[3];
     for (int e = 0; e < D * D; ++e) G[e] = job->gradu[(size_t)e * cap + i];
     for (int a = 0; a < D; ++a) ui[a] = u[a * cap + i];
+    double A[MP * MP] = {0}, Hx[MP * 3] = {0}, Gz[3 * MP] = {0}, rhs[3 * MP] = {0};
     for (size_t k = 0; k < nb->n; ++k) {
         const size_t j = nb->j[k];
-        double x[3], H[6];
-        const double aee = term_pair_hess(D, nb, k, x), w1 = nb->dwr[k];
-        for (int q = 0; q < P; ++q) H[q] = aee * x[pl[q]] * x[pk[q]] + (pl[q] == pk[q] ? w1 : 0.0);
+        const double om = vol[j], dwr = nb->dwr[k];
+        double x[3], zeta[MP], H[MP];
+        const double aee = term_pair_hess(D, nb, k, x);
+        for (int q = 0; q < P; ++q) {
+            zeta[q] = cq[q] * x[pl[q]] * x[pk[q]];
+            H[q] = aee * x[pl[q]] * x[pk[q]] + (pl[q] == pk[q] ? dwr : 0.0);
+        }
+        for (int a = 0; a < P; ++a)
+            for (int b = 0; b < P; ++b) A[a * P + b] += om * H[a] * zeta[b];
+        for (int a = 0; a < P; ++a)
+            for (int b = 0; b < D; ++b) Hx[a * D + b] -= om * H[a] * x[b];
+        for (int a = 0; a < D; ++a)
+            for (int b = 0; b < P; ++b) Gz[a * P + b] += om * dwr * x[a] * zeta[b];
         for (int a = 0; a < D; ++a) {
             double xG = 0.0;
             for (int b = 0; b < D; ++b) xG += x[b] * G[a * D + b];
             /* x_ji·G = -x_ij·G */
-            const double sa = vol[j] * ((u[a * cap + j] - ui[a]) + xG);
+            const double sa = om * ((u[a * cap + j] - ui[a]) + xG);
             for (int q = 0; q < P; ++q) rhs[a * P + q] += sa * H[q];
         }
+    }
+    double Ainv[MP * MP], cond;
+    if (job->bonet_ok[i]) {
+        term_korzilius_correct(D, P, Hx, Gz, B, A);
+        if (!ops_invert(P, A, Ainv, job->rq->cond_max, &cond)) set_identity(Ainv, P);
+    } else {
+        set_identity(Ainv, P);
+    }
+    for (int a = 0; a < D; ++a) {
+        double lap = 0.0;
+        for (int r = 0; r < P; ++r)
+            if (pl[r] == pk[r])
+                for (int c = 0; c < P; ++c) lap += Ainv[r * P + c] * rhs[a * P + c];
+        job->lapu[a * cap + i] = lap;
+    }
+}
+
+/* ∇²u of Fatehi_c or Korzilius at one particle, d known at compile time. */
+TERM_INLINE void second_body(const kit_job *job, const consph_nbhd *nb, const int D)
+{
+    const size_t i = nb->i, cap = job->cap;
+    double B[9];
+    for (int e = 0; e < D * D; ++e) B[e] = job->bonet[(size_t)e * cap + i];
+    if (job->rq->lap == KIT_LAP_FATEHI_C) {
+        double Bh[9];
+        fatehi_c_matrix(D, nb, job->vol, B, job->bonet_ok[i], job->rq->cond_max, Bh);
+        fatehi_body(job, nb, D, Bh);
+    } else {
+        korzilius_body(job, nb, D, B);
     }
 }
 
 static void visit_second(void *vjob, const consph_nbhd *nb)
 {
     const kit_job *job = vjob;
-    const int d = job->d;
     const unsigned want = job->rq->want;
-    const size_t i = nb->i, cap = job->cap;
     if ((want & KIT_LAPU) && job->rq->lap == KIT_LAP_COUPLED) {
         coupled_any(job, nb, 1, (want & KIT_LAPQ) != 0);
         return;
     }
-    double B[9];
-    for (int e = 0; e < d * d; ++e) B[e] = job->bonet[(size_t)e * cap + i];
     if (want & KIT_LAPU) {
-        if (job->rq->lap == KIT_LAP_FATEHI_C) {
-            double Bh[9];
-            fatehi_c_matrix(d, nb, job->vol, B, job->bonet_ok[i], job->rq->cond_max, Bh);
-            if (d == 1)
-                fatehi_body(job, nb, 1, Bh);
-            else if (d == 2)
-                fatehi_body(job, nb, 2, Bh);
-            else
-                fatehi_body(job, nb, 3, Bh);
-        } else {
-            const int P = ops_npairs(d);
-            int pl[OPS_MAX_P], pk[OPS_MAX_P];
-            for (int p = 0; p < P; ++p) ops_pair_index(d, p, &pl[p], &pk[p]);
-            double Ainv[OPS_MAX_P * OPS_MAX_P], rhs[3 * OPS_MAX_P] = {0};
-            korzilius_matrix(d, P, pl, pk, nb, job->vol, B, job->bonet_ok[i], job->rq->cond_max,
-                             Ainv);
-            if (d == 1)
-                hessian_rhs_body(job, nb, 1, pl, pk, rhs);
-            else if (d == 2)
-                hessian_rhs_body(job, nb, 2, pl, pk, rhs);
-            else
-                hessian_rhs_body(job, nb, 3, pl, pk, rhs);
-            for (int a = 0; a < d; ++a) {
-                double lap = 0.0;
-                for (int r = 0; r < P; ++r)
-                    if (pl[r] == pk[r])
-                        for (int c = 0; c < P; ++c) lap += Ainv[r * P + c] * rhs[a * P + c];
-                job->lapu[a * cap + i] = lap;
-            }
-        }
+        if (job->d == 1)
+            second_body(job, nb, 1);
+        else if (job->d == 2)
+            second_body(job, nb, 2);
+        else
+            second_body(job, nb, 3);
     }
     if (want & KIT_LAPQ) coupled_any(job, nb, 0, 1);
 }
