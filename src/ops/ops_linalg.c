@@ -6,7 +6,7 @@
 
 #define MAXN OPS_MAX_MSPH
 
-static double norm1(int n, const double *a)
+static inline double norm1(const int n, const double *a)
 {
     double best = 0.0;
     for (int c = 0; c < n; ++c) {
@@ -17,10 +17,15 @@ static double norm1(int n, const double *a)
     return best;
 }
 
-int ops_invert(int n, const double *a, double *ainv, double cond_max, double *cond)
+/* The inverse for n known at compile time where the caller passes a constant (the 2×2 and 3×3
+ * Bonet matrices of every step), the same operations in the same order for any n. */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline int
+invert_n(const int n, const double *a, double *ainv, double cond_max, double *cond)
 {
     double rs[MAXN], cs[MAXN], m[MAXN * MAXN], inv[MAXN * MAXN];
-    if (n < 1 || n > MAXN) return 0;
     /* Correction matrices mix entries of different units (W, x W, ∇W, x ∇W, ...). Scaling rows
      * and columns to unit max-norm removes the units, so one threshold serves every matrix and
      * every h; it also improves the pivoting. */
@@ -85,6 +90,14 @@ int ops_invert(int n, const double *a, double *ainv, double cond_max, double *co
         for (int c = 0; c < n; ++c) ainv[r * n + c] = cs[r] * inv[r * n + c] * rs[c];
     if (cond) *cond = kappa;
     return 1;
+}
+
+int ops_invert(int n, const double *a, double *ainv, double cond_max, double *cond)
+{
+    if (n < 1 || n > MAXN) return 0;
+    if (n == 2) return invert_n(2, a, ainv, cond_max, cond);
+    if (n == 3) return invert_n(3, a, ainv, cond_max, cond);
+    return invert_n(n, a, ainv, cond_max, cond);
 }
 
 void ops_pair_index(int dim, int p, int *l, int *k)

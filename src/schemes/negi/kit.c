@@ -1,13 +1,13 @@
 /* The derivatives a scheme's right-hand side is made of, as fused passes over the solver's
  * system, with the operator terms of src/ops/terms.h (the code the static studies measure).
  *
- * Pass 1 (per particle, one traversal): the Bonet moment, inverted into B_i, then with the same
- * pair geometry ∇p (asym with bc, 001 Table 2), G = ∇u (the same form per component: f4), ∇·u
- * (div with bc, 001 eq. 11) and ∇q of a scalar. Pass 2: the Laplacians, which need G_j or ∇q_j
- * at the neighbours (coupled_bc: Σ ω_j (G_j - G_i)·B_i∇W_ij), or at i only (Fatehi_c, 001
- * eq. 13; Korzilius, 001 eqs. 14-15 with the fixes of docs/deviations.md), whose matrices are
- * summed and inverted in the same visit. A matrix that is singular or worse conditioned than
- * cond_max falls back to the identity, as the operators do. */
+ * Pass 1 (per particle, one run over the neighbours): the Bonet moment, inverted into B_i, and
+ * the sums of ∇p (asym with bc, 001 Table 2), G = ∇u (the same form per component: f4), ∇·u
+ * (div with bc, 001 eq. 11, as the trace of G) and ∇q of a scalar. Pass 2: the Laplacians, which
+ * need G_j or ∇q_j at the neighbours (coupled_bc: Σ ω_j (G_j - G_i)·B_i∇W_ij), or at i only
+ * (Fatehi_c, 001 eq. 13; Korzilius, 001 eqs. 14-15 with the fixes of docs/deviations.md), whose
+ * matrices are summed and inverted in the same visit. A matrix that is singular or worse
+ * conditioned than cond_max falls back to the identity, as the operators do. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -39,57 +39,163 @@ int kit_volumes(consph_sys *s, size_t *pairs)
     return consph_pass_run_counted(s, &pass, vol, pairs);
 }
 
-/* B_i Σ ω_j (f_j - f_i) ∇W_ij */
-static void corrected_gradient(int d, const consph_nbhd *nb, const double *vol, const double *f,
-                               const double B[9], double out[3])
+/* Pass 1 at one particle, for a dimension and a set of derivatives known at compile time: one
+ * run over the neighbours sums the Bonet moment and the raw gradient sums Σ ω_j (f_j - f_i) ∇W_ij
+ * of p, of every component of u and of q, with the arithmetic of term_moments and
+ * term_grad_sums (src/ops/terms.h), so B_i, ∇p, G and ∇q are those of the per-quantity terms bit
+ * for bit; B_i is applied after the run (term_apply_rule). ∇·u is the trace of G = B_i S_u, the
+ * same sum as div_bc's Σ ω_j (u_j - u_i)·B_i∇W_ij (001 eq. 11) associated differently: it moves
+ * at round-off against the per-pair form, the same for any thread count. */
+TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int D,
+                            const int with_p, const int with_u, const int with_q)
 {
-    const double zero[3] = {0.0, 0.0, 0.0};
-    double sg[3], sw;
-    term_grad_sums_any(d, TERM_GRAD_DIFF, 0, nb, vol, NULL, NULL, f, f[nb->i], sg, &sw);
-    term_apply_rule(d, zero, B, sg, sw, out);
-}
-
-static void visit_first(void *vjob, const consph_nbhd *nb)
-{
-    const kit_job *job = vjob;
-    const int d = job->d;
-    const unsigned want = job->rq->want;
     const size_t i = nb->i, cap = job->cap;
-    double moment[9], B[9], out[3];
-    term_bonet_moment_any(d, nb, job->vol, moment);
-    const int ok = consph_bonet_finalise(d, moment, job->rq->cond_max, B, NULL);
-    if (job->bonet_ok) job->bonet_ok[i] = (unsigned char)ok;
-    for (int e = 0; e < d * d; ++e) job->bonet[(size_t)e * cap + i] = B[e];
-    if (want & KIT_GRADP) {
-        corrected_gradient(d, nb, job->vol, job->p, B, out);
-        for (int a = 0; a < d; ++a) job->gradp[a * cap + i] = out[a];
-    }
-    if (want & KIT_GRADU)
-        for (int a = 0; a < d; ++a) {
-            corrected_gradient(d, nb, job->vol, job->u + a * cap, B, out);
-            for (int b = 0; b < d; ++b) job->gradu[(size_t)(a * d + b) * cap + i] = out[b];
+    const double *vol = job->vol, *pf = job->p, *uf = job->u, *qf = job->q;
+    const double *dx0 = nb->dx[0], *dx1 = D > 1 ? nb->dx[1] : NULL, *dx2 = D > 2 ? nb->dx[2] : NULL;
+    const double *dwr = nb->dwr;
+    /* sm is copied into mom after the run: mom's address goes to the inversion, and a sum whose
+     * address is taken is stored to memory at every pair */
+    double sm[9] = {0}, sp[3] = {0}, su[9] = {0}, sq[3] = {0}, ui[3] = {0};
+    const double pi = with_p ? pf[i] : 0.0, qi = with_q ? qf[i] : 0.0;
+    if (with_u)
+        for (int a = 0; a < D; ++a) ui[a] = uf[a * cap + i];
+    for (size_t k = 0; k < nb->n; ++k) {
+        const size_t j = nb->j[k];
+        const double om = vol[j], w1 = dwr[k], g = om * w1;
+        double x[3];
+        x[0] = dx0[k];
+        if (D > 1) x[1] = dx1[k];
+        if (D > 2) x[2] = dx2[k];
+        for (int a = 0; a < D; ++a)
+            for (int b = 0; b < D; ++b) sm[a * D + b] -= g * x[a] * x[b];
+        if (with_p) {
+            const double t = om * (pf[j] - pi) * w1;
+            for (int b = 0; b < D; ++b) sp[b] += t * x[b];
         }
-    if (want & KIT_DIVU) {
-        const double zero[3] = {0.0, 0.0, 0.0};
-        double ui[3];
-        for (int a = 0; a < d; ++a) ui[a] = job->u[a * cap + i];
-        job->divu[i] =
-            term_corrected_div_any(d, CONSPH_CORR_BC, zero, B, nb, job->vol, job->u, cap, ui);
+        if (with_u)
+            for (int a = 0; a < D; ++a) {
+                const double t = om * (uf[a * cap + j] - ui[a]) * w1;
+                for (int b = 0; b < D; ++b) su[a * D + b] += t * x[b];
+            }
+        if (with_q) {
+            const double t = om * (qf[j] - qi) * w1;
+            for (int b = 0; b < D; ++b) sq[b] += t * x[b];
+        }
     }
-    if (want & KIT_GRADQ) {
-        corrected_gradient(d, nb, job->vol, job->q, B, out);
-        for (int a = 0; a < d; ++a) job->gradq[a * cap + i] = out[a];
+    const double zero[3] = {0.0, 0.0, 0.0};
+    double mom[9], B[9], out[3];
+    for (int e = 0; e < D * D; ++e) mom[e] = sm[e];
+    const int ok = consph_bonet_finalise(D, mom, job->rq->cond_max, B, NULL);
+    if (job->bonet_ok) job->bonet_ok[i] = (unsigned char)ok;
+    for (int e = 0; e < D * D; ++e) job->bonet[(size_t)e * cap + i] = B[e];
+    if (with_p) {
+        term_apply_rule(D, zero, B, sp, 0.0, out);
+        for (int a = 0; a < D; ++a) job->gradp[a * cap + i] = out[a];
+    }
+    if (with_u) {
+        double div = 0.0;
+        for (int a = 0; a < D; ++a) {
+            term_apply_rule(D, zero, B, su + a * D, 0.0, out);
+            if (job->gradu)
+                for (int b = 0; b < D; ++b) job->gradu[(size_t)(a * D + b) * cap + i] = out[b];
+            div += out[a];
+        }
+        if (job->divu) job->divu[i] = div;
+    }
+    if (with_q) {
+        term_apply_rule(D, zero, B, sq, 0.0, out);
+        for (int a = 0; a < D; ++a) job->gradq[a * cap + i] = out[a];
     }
 }
 
-/* coupled_bc of a scalar whose gradient field (d components, stride cap) is g. */
-static double coupled(int d, const consph_nbhd *nb, const double *vol, const double *B,
-                      const double *g, size_t cap)
+/* One visit function per (d, ∇p, ∇u or ∇·u, ∇q), chosen once per pass by kit_derivatives. */
+#define FIRST_CLONE(D, P, U, Q)                                                                    \
+    static void first_##D##P##U##Q(void *job, const consph_nbhd *nb)                               \
+    {                                                                                              \
+        first_body(job, nb, D, P, U, Q);                                                           \
+    }
+#define FIRST_CLONES_Q(D, P, U) FIRST_CLONE(D, P, U, 0) FIRST_CLONE(D, P, U, 1)
+#define FIRST_CLONES_U(D, P) FIRST_CLONES_Q(D, P, 0) FIRST_CLONES_Q(D, P, 1)
+#define FIRST_CLONES(D) FIRST_CLONES_U(D, 0) FIRST_CLONES_U(D, 1)
+FIRST_CLONES(1)
+FIRST_CLONES(2)
+FIRST_CLONES(3)
+#define FIRST_NAMES_Q(D, P, U)                                                                     \
+    {                                                                                              \
+        first_##D##P##U##0, first_##D##P##U##1                                                     \
+    }
+#define FIRST_NAMES_U(D, P)                                                                        \
+    {                                                                                              \
+        FIRST_NAMES_Q(D, P, 0), FIRST_NAMES_Q(D, P, 1)                                             \
+    }
+#define FIRST_NAMES(D)                                                                             \
+    {                                                                                              \
+        FIRST_NAMES_U(D, 0), FIRST_NAMES_U(D, 1)                                                   \
+    }
+static const consph_visit_fn first_visits[3][2][2][2] = {FIRST_NAMES(1), FIRST_NAMES(2),
+                                                         FIRST_NAMES(3)};
+
+/* coupled_bc (Σ ω_j (G_j - G_i)·B_i∇W_ij) of every component of u and of q in one run over the
+ * neighbours, for a dimension known at compile time: B_i∇W_ij is formed once per pair and each
+ * Laplacian summed with the arithmetic of term_corrected_div (src/ops/terms.h), so the results are
+ * those of one term per quantity bit for bit. */
+TERM_INLINE void coupled_body(const kit_job *job, const consph_nbhd *nb, const int D,
+                              const int with_u, const int with_q)
 {
-    const double zero[3] = {0.0, 0.0, 0.0};
-    double gi[3];
-    for (int b = 0; b < d; ++b) gi[b] = g[b * cap + nb->i];
-    return term_corrected_div_any(d, CONSPH_CORR_BC, zero, B, nb, vol, g, cap, gi);
+    const size_t i = nb->i, cap = job->cap;
+    const double *vol = job->vol, *gu = job->gradu, *gq = job->gradq;
+    double B[9], Gi[9] = {0}, gqi[3] = {0}, acc[3] = {0}, accq = 0.0;
+    for (int e = 0; e < D * D; ++e) B[e] = job->bonet[(size_t)e * cap + i];
+    if (with_u)
+        for (int e = 0; e < D * D; ++e) Gi[e] = gu[(size_t)e * cap + i];
+    if (with_q)
+        for (int b = 0; b < D; ++b) gqi[b] = gq[b * cap + i];
+    for (size_t k = 0; k < nb->n; ++k) {
+        const size_t j = nb->j[k];
+        const double w1 = nb->dwr[k];
+        double gr[3], g[3];
+        for (int b = 0; b < D; ++b) gr[b] = w1 * nb->dx[b][k];
+        for (int a = 0; a < D; ++a) {
+            double v = 0.0;
+            for (int b = 0; b < D; ++b) v += B[a * D + b] * gr[b];
+            g[a] = v;
+        }
+        if (with_u)
+            for (int a = 0; a < D; ++a) {
+                double sa = 0.0;
+                for (int b = 0; b < D; ++b)
+                    sa += (gu[(size_t)(a * D + b) * cap + j] - Gi[a * D + b]) * g[b];
+                acc[a] += vol[j] * sa;
+            }
+        if (with_q) {
+            double sq = 0.0;
+            for (int b = 0; b < D; ++b) sq += (gq[b * cap + j] - gqi[b]) * g[b];
+            accq += vol[j] * sq;
+        }
+    }
+    if (with_u)
+        for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = acc[a];
+    if (with_q) job->lapq[i] = accq;
+}
+
+static void coupled_any(const kit_job *job, const consph_nbhd *nb, int with_u, int with_q)
+{
+#define COUPLED_D(D)                                                                               \
+    do {                                                                                           \
+        if (with_u && with_q)                                                                      \
+            coupled_body(job, nb, D, 1, 1);                                                        \
+        else if (with_u)                                                                           \
+            coupled_body(job, nb, D, 1, 0);                                                        \
+        else                                                                                       \
+            coupled_body(job, nb, D, 0, 1);                                                        \
+    } while (0)
+    if (job->d == 1)
+        COUPLED_D(1);
+    else if (job->d == 2)
+        COUPLED_D(2);
+    else
+        COUPLED_D(3);
+#undef COUPLED_D
 }
 
 static void set_identity(double *a, int n)
@@ -100,8 +206,8 @@ static void set_identity(double *a, int n)
 
 /* Fatehi_c's B̂ (001 eq. 13 = C.13); the identity where B_i fell back, as the operator's
  * (src/ops/ops_corr.c). */
-static void fatehi_c_matrix(int d, const consph_nbhd *nb, const double *vol, const double B[9],
-                            int bonet_ok, double cond_max, double Bh[9])
+TERM_INLINE void fatehi_c_matrix(const int d, const consph_nbhd *nb, const double *vol,
+                                 const double B[9], int bonet_ok, double cond_max, double Bh[9])
 {
     double M[9] = {0}, cond;
     if (!bonet_ok) {
@@ -112,64 +218,130 @@ static void fatehi_c_matrix(int d, const consph_nbhd *nb, const double *vol, con
     if (!ops_invert(d, M, Bh, cond_max, &cond)) set_identity(Bh, d);
 }
 
-/* Korzilius' Γ̃^{-1} (001 eq. 15 with the fixes of docs/deviations.md); the identity where B_i fell
- * back, as the operator's (src/ops/ops_corr.c). */
-static void korzilius_matrix(int d, int P, const int *pl, const int *pk, const consph_nbhd *nb,
-                             const double *vol, const double B[9], int bonet_ok, double cond_max,
-                             double *Ainv)
+/* Fatehi_c (001 eq. C.10 with B̂ of eq. 13) of every component of u in one run over the
+ * neighbours: x_ij^T B̂ x_ij once per pair, each component with term_fatehi_lap's arithmetic
+ * (src/ops/terms.h), so bit for bit that term per component. */
+TERM_INLINE void fatehi_body(const kit_job *job, const consph_nbhd *nb, const int D,
+                             const double Bh[9])
 {
-    if (!bonet_ok) {
-        set_identity(Ainv, P);
-        return;
+    const size_t i = nb->i, cap = job->cap;
+    const double *vol = job->vol, *u = job->u;
+    double G[9], ui[3], acc[3] = {0};
+    for (int e = 0; e < D * D; ++e) G[e] = job->gradu[(size_t)e * cap + i];
+    for (int a = 0; a < D; ++a) ui[a] = u[a * cap + i];
+    for (size_t k = 0; k < nb->n; ++k) {
+        const double r = nb->r[k];
+        if (!(r > 0.0)) continue;
+        const size_t j = nb->j[k];
+        double x[3], xBx = 0.0;
+        for (int a = 0; a < D; ++a) x[a] = nb->dx[a][k];
+        for (int a = 0; a < D; ++a)
+            for (int b = 0; b < D; ++b) xBx += x[a] * Bh[a * D + b] * x[b];
+        const double c = 2.0 * vol[j] * nb->dwr[k];
+        for (int a = 0; a < D; ++a) {
+            double xG = 0.0;
+            for (int b = 0; b < D; ++b) xG += x[b] * G[a * D + b];
+            acc[a] += c * ((ui[a] - u[a * cap + j]) - xG) * xBx / (r * r);
+        }
     }
-    double cq[OPS_MAX_P];
-    for (int p = 0; p < P; ++p) cq[p] = term_taylor_c(pl[p], pk[p]);
-    double A[OPS_MAX_P * OPS_MAX_P] = {0}, Hx[OPS_MAX_P * 3] = {0}, Gz[3 * OPS_MAX_P] = {0};
-    term_second_moment(d, P, pl, pk, cq, 1, nb, vol, A, Hx, Gz);
-    term_korzilius_correct(d, P, Hx, Gz, B, A);
-    double cond;
-    if (!ops_invert(P, A, Ainv, cond_max, &cond)) set_identity(Ainv, P);
+    for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = acc[a];
+}
+
+/* Korzilius (001 eqs. 14-15) of every component of u in one run over the neighbours: the sums of
+ * term_second_moment (A, Hx, Gz) and of term_hessian_rhs per component (src/ops/terms.h), with
+ * their arithmetic and the kernel Hessian formed once per pair, so bit for bit those terms'; then
+ * Γ̃^{-1} (001 eq. 15 with the fixes of docs/deviations.md), the identity where B_i fell back, as
+ * the operator's (src/ops/ops_corr.c). d known at compile time. */
+TERM_INLINE void korzilius_body(const kit_job *job, const consph_nbhd *nb, const int D,
+                                const double B[9])
+{
+    enum { MP = OPS_MAX_P };
+    const int P = D * (D + 1) / 2; /* ops_npairs */
+    const size_t i = nb->i, cap = job->cap;
+    const double *vol = job->vol, *u = job->u;
+    int pl[MP], pk[MP];
+    double cq[MP];
+    for (int a = 0, q = 0; a < D; ++a)
+        for (int b = a; b < D; ++b, ++q) {
+            pl[q] = a; /* ops_pair_index's order */
+            pk[q] = b;
+            cq[q] = term_taylor_c(a, b);
+        }
+    double G[9], ui[3];
+    for (int e = 0; e < D * D; ++e) G[e] = job->gradu[(size_t)e * cap + i];
+    for (int a = 0; a < D; ++a) ui[a] = u[a * cap + i];
+    double A[MP * MP] = {0}, Hx[MP * 3] = {0}, Gz[3 * MP] = {0}, rhs[3 * MP] = {0};
+    for (size_t k = 0; k < nb->n; ++k) {
+        const size_t j = nb->j[k];
+        const double om = vol[j], dwr = nb->dwr[k];
+        double x[3], zeta[MP], H[MP];
+        const double aee = term_pair_hess(D, nb, k, x);
+        for (int q = 0; q < P; ++q) {
+            zeta[q] = cq[q] * x[pl[q]] * x[pk[q]];
+            H[q] = aee * x[pl[q]] * x[pk[q]] + (pl[q] == pk[q] ? dwr : 0.0);
+        }
+        for (int a = 0; a < P; ++a)
+            for (int b = 0; b < P; ++b) A[a * P + b] += om * H[a] * zeta[b];
+        for (int a = 0; a < P; ++a)
+            for (int b = 0; b < D; ++b) Hx[a * D + b] -= om * H[a] * x[b];
+        for (int a = 0; a < D; ++a)
+            for (int b = 0; b < P; ++b) Gz[a * P + b] += om * dwr * x[a] * zeta[b];
+        for (int a = 0; a < D; ++a) {
+            double xG = 0.0;
+            for (int b = 0; b < D; ++b) xG += x[b] * G[a * D + b];
+            /* x_ji·G = -x_ij·G */
+            const double sa = om * ((u[a * cap + j] - ui[a]) + xG);
+            for (int q = 0; q < P; ++q) rhs[a * P + q] += sa * H[q];
+        }
+    }
+    double Ainv[MP * MP], cond;
+    if (job->bonet_ok[i]) {
+        term_korzilius_correct(D, P, Hx, Gz, B, A);
+        if (!ops_invert(P, A, Ainv, job->rq->cond_max, &cond)) set_identity(Ainv, P);
+    } else {
+        set_identity(Ainv, P);
+    }
+    for (int a = 0; a < D; ++a) {
+        double lap = 0.0;
+        for (int r = 0; r < P; ++r)
+            if (pl[r] == pk[r])
+                for (int c = 0; c < P; ++c) lap += Ainv[r * P + c] * rhs[a * P + c];
+        job->lapu[a * cap + i] = lap;
+    }
+}
+
+/* ∇²u of Fatehi_c or Korzilius at one particle, d known at compile time. */
+TERM_INLINE void second_body(const kit_job *job, const consph_nbhd *nb, const int D)
+{
+    const size_t i = nb->i, cap = job->cap;
+    double B[9];
+    for (int e = 0; e < D * D; ++e) B[e] = job->bonet[(size_t)e * cap + i];
+    if (job->rq->lap == KIT_LAP_FATEHI_C) {
+        double Bh[9];
+        fatehi_c_matrix(D, nb, job->vol, B, job->bonet_ok[i], job->rq->cond_max, Bh);
+        fatehi_body(job, nb, D, Bh);
+    } else {
+        korzilius_body(job, nb, D, B);
+    }
 }
 
 static void visit_second(void *vjob, const consph_nbhd *nb)
 {
     const kit_job *job = vjob;
-    const int d = job->d;
     const unsigned want = job->rq->want;
-    const size_t i = nb->i, cap = job->cap;
-    double B[9];
-    for (int e = 0; e < d * d; ++e) B[e] = job->bonet[(size_t)e * cap + i];
-    if (want & KIT_LAPU) {
-        if (job->rq->lap == KIT_LAP_COUPLED) {
-            for (int a = 0; a < d; ++a)
-                job->lapu[a * cap + i] =
-                    coupled(d, nb, job->vol, B, job->gradu + (size_t)a * d * cap, cap);
-        } else if (job->rq->lap == KIT_LAP_FATEHI_C) {
-            double Bh[9], G[3];
-            fatehi_c_matrix(d, nb, job->vol, B, job->bonet_ok[i], job->rq->cond_max, Bh);
-            for (int a = 0; a < d; ++a) {
-                for (int b = 0; b < d; ++b) G[b] = job->gradu[(size_t)(a * d + b) * cap + i];
-                job->lapu[a * cap + i] = term_fatehi_lap(d, nb, job->vol, job->u + a * cap, G, Bh);
-            }
-        } else {
-            const int P = ops_npairs(d);
-            int pl[OPS_MAX_P], pk[OPS_MAX_P];
-            for (int p = 0; p < P; ++p) ops_pair_index(d, p, &pl[p], &pk[p]);
-            double Ainv[OPS_MAX_P * OPS_MAX_P], G[3];
-            korzilius_matrix(d, P, pl, pk, nb, job->vol, B, job->bonet_ok[i], job->rq->cond_max,
-                             Ainv);
-            for (int a = 0; a < d; ++a) {
-                double rhs[OPS_MAX_P] = {0}, lap = 0.0;
-                for (int b = 0; b < d; ++b) G[b] = job->gradu[(size_t)(a * d + b) * cap + i];
-                term_hessian_rhs(d, P, pl, pk, nb, job->vol, job->u + a * cap, G, rhs);
-                for (int r = 0; r < P; ++r)
-                    if (pl[r] == pk[r])
-                        for (int c = 0; c < P; ++c) lap += Ainv[r * P + c] * rhs[c];
-                job->lapu[a * cap + i] = lap;
-            }
-        }
+    if ((want & KIT_LAPU) && job->rq->lap == KIT_LAP_COUPLED) {
+        coupled_any(job, nb, 1, (want & KIT_LAPQ) != 0);
+        return;
     }
-    if (want & KIT_LAPQ) job->lapq[i] = coupled(d, nb, job->vol, B, job->gradq, cap);
+    if (want & KIT_LAPU) {
+        if (job->d == 1)
+            second_body(job, nb, 1);
+        else if (job->d == 2)
+            second_body(job, nb, 2);
+        else
+            second_body(job, nb, 3);
+    }
+    if (want & KIT_LAPQ) coupled_any(job, nb, 0, 1);
 }
 
 int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes)
@@ -218,6 +390,9 @@ int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes
         job.bonet_ok = malloc(p->n ? p->n : 1);
         if (!job.bonet_ok) return CONSPH_ENOMEM;
     }
+    const consph_visit_fn visit_first =
+        first_visits[d - 1][(want & KIT_GRADP) != 0][(want & (KIT_GRADU | KIT_DIVU)) != 0]
+                    [(want & KIT_GRADQ) != 0];
     const consph_pass first = {"kit: bonet, gradients, divergence", CONSPH_PASS_DW, visit_first};
     int st = consph_pass_run_counted(s, &first, &job, pairs);
     if (st == CONSPH_OK) ++*passes;
