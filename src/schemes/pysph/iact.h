@@ -34,14 +34,13 @@ typedef struct pysph_pair {
 } pysph_pair;
 
 /* Adami, Hu & Adams 2013 (tvf) and Ramachandran & Puri 2019 (edac): one pair. V = 1/Σ W,
- * du = ũ - u the transport velocity's offset, pav p̄_i (edac; 0 for tvf). */
+ * du = ũ - u the transport velocity's offset, pav p̄_i (edac; 0 for tvf), vj = m/ϱ_j. */
 PYSPH_IACT void pysph_tv_pair(int d, int edac, const pysph_consts *c, double rhoi, double pi,
                               double pav, double Vi, const double ui[3], const double dui[3],
-                              double rhoj, double pj, double numdj, const double uj[3],
+                              double rhoj, double pj, double Vj, double vj, const double uj[3],
                               const double duj[3], double dwr, const double xij[3], double r,
                               pysph_pair *o)
 {
-    const double Vj = 1.0 / numdj;
     const double w2 = Vi * Vi + Vj * Vj;
     double uij[3] = {0.0, 0.0, 0.0}, gw[3] = {0.0, 0.0, 0.0};
     double xdw = 0.0, udw = 0.0;
@@ -64,7 +63,6 @@ PYSPH_IACT void pysph_tv_pair(int d, int edac, const pysph_consts *c, double rho
         o->fp[a] = -pij * w2 * gw[a] / c->m;
         o->fb[a] = -c->pb * w2 * gw[a];
     }
-    const double vj = c->m / rhoj;
     for (int a = 0; a < d; ++a)
         for (int b = 0; b < d; ++b) o->g[a * d + b] = vj * uij[a] * gw[b];
     o->div = vj * udw;
@@ -91,13 +89,13 @@ PYSPH_IACT double pysph_monaghan_pi(const pysph_consts *c, double rhoi, double c
 
 /* Monaghan's WCSPH: one pair of the symmetric pressure force with Monaghan's Π_ij (pij, 0 when
  * α = 0), Morris/Cleary's laminar viscosity, XSPH (ε = 0.5) and the continuity equation.
- * w = W_ij. */
-PYSPH_IACT void pysph_wcsph_pair(int d, const pysph_consts *c, double rhoi, double pi,
-                                 const double ui[3], double rhoj, double pj, const double uj[3],
-                                 double pij, double w, double dwr, const double xij[3], double r,
-                                 pysph_pair *o)
+ * w = W_ij; ti = p_i/ϱ_i², tij = p_j/ϱ_j², vj = m/ϱ_j. */
+PYSPH_IACT void pysph_wcsph_pair(int d, const pysph_consts *c, double rhoi, double ti,
+                                 const double ui[3], double rhoj, double tij, double vj,
+                                 const double uj[3], double pij, double w, double dwr,
+                                 const double xij[3], double r, pysph_pair *o)
 {
-    const double m = c->m, ti = pi / (rhoi * rhoi), tij = pj / (rhoj * rhoj), r2 = r * r;
+    const double m = c->m, r2 = r * r;
     double uij[3] = {0.0, 0.0, 0.0}, gw[3] = {0.0, 0.0, 0.0};
     for (int a = 0; a < d; ++a) {
         uij[a] = ui[a] - uj[a];
@@ -117,7 +115,6 @@ PYSPH_IACT void pysph_wcsph_pair(int d, const pysph_consts *c, double rhoi, doub
         o->fb[a] = 0.5 * m * w / rhob * uij[a]; /* XSPH, ε = 0.5 */
     }
     o->div = m * udw;
-    const double vj = m / rhoj;
     for (int a = 0; a < d; ++a)
         for (int b = 0; b < d; ++b) o->g[a * d + b] = vj * uij[a] * gw[b];
 }
