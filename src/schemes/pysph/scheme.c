@@ -237,15 +237,18 @@ RV_INLINE void visit_wcsph_d(const rival_job *job, const consph_nbhd *nb, const 
         rv_gather(1, 0, job->pr2, jb, nk, &tj);
         if (grads) rv_gather(1, 0, job->mrho, jb, nk, &mr);
         rv_gather(d, cap, u, jb, nk, uj);
-        double pij[RV_BLOCK];
-        for (size_t k = 0; k < nk; ++k) pij[k] = 0.0;
+        double pij[RV_BLOCK], inv_s[RV_BLOCK], inv_r[RV_BLOCK];
+        for (size_t k = 0; k < nk; ++k) {
+            pij[k] = 0.0;
+            inv_s[k] = 1.0 / (rhoi + rhoj[k]);
+            inv_r[k] = 1.0 / (nb->r[k0 + k] * nb->r[k0 + k] + c->h2);
+        }
         if (av) {
             rv_gather(1, 0, job->cs, jb, nk, &cj);
             for (size_t k = 0; k < nk; ++k) {
                 double ux = 0.0;
                 for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a][k]) * nb->dx[a][k0 + k];
-                pij[k] = pysph_monaghan_pi(c, rhoi, ci, rhoj[k], cj[k], ux,
-                                           nb->r[k0 + k] * nb->r[k0 + k]);
+                pij[k] = pysph_monaghan_pi(c, ci, cj[k], ux, inv_r[k], inv_s[k]);
             }
         }
         for (size_t k = 0; k < nk; ++k) {
@@ -256,8 +259,8 @@ RV_INLINE void visit_wcsph_d(const rival_job *job, const consph_nbhd *nb, const 
                 ujk[a] = uj[a][k];
             }
             pysph_pair o;
-            pysph_wcsph_pair(d, c, rhoi, ti, ui, rhoj[k], tj[k], grads ? mr[k] : 0.0, ujk, pij[k],
-                             nb->w[k0 + k], nb->dwr[k0 + k], xij, nb->r[k0 + k], &o);
+            pysph_wcsph_pair(d, c, ti, ui, tj[k], grads ? mr[k] : 0.0, ujk, pij[k], nb->w[k0 + k],
+                             nb->dwr[k0 + k], xij, inv_s[k], inv_r[k], &o);
             for (int a = 0; a < d; ++a) {
                 tf[a][k] = o.f[a];
                 tx[a][k] = o.fb[a];
@@ -309,6 +312,7 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     job->d = d;
     job->cap = s->sys.p->cap;
     job->c.m = s->mass;
+    job->c.minv = 1.0 / s->mass;
     job->c.h = s->h;
     job->c.h2 = 0.01 * s->h * s->h; /* PySPH's EPS = 0.01 h_ij² in every 1/(r² + EPS) */
     job->rho0 = s->prm.rho0;
