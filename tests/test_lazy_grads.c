@@ -108,8 +108,8 @@ static void scheme_case(const char *scheme)
         if (n % EVERY && n != STEPS) continue;
         snprintf(path, sizeof path, "%s/%s", sub, pvd.file[k++]);
         CHECK(same_as_snapshot(full, path),
-              "%s: the snapshot of step %ld differs from a run that computes ∇u every step",
-              scheme, n);
+              "%s: the snapshot of step %ld differs from a run that computes ∇u every step", scheme,
+              n);
     }
     consph_pvd_free(&pvd);
 
