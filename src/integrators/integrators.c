@@ -25,6 +25,16 @@ static void set_fields(const integ_state *st, double c, const double *ku, const 
     const size_t n = st->n, cap = st->cap;
     double *u = st->u, *q = st->q;
     const double *u0 = st->u0, *q0 = st->q0;
+    /* the 2D loop with its dimension known at compile time vectorises */
+    if (d == 2) {
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+        for (size_t i = 0; i < n; ++i) {
+            q[i] = q0[i] + c * kq[i];
+            u[i] = u0[i] + c * ku[i];
+            u[cap + i] = u0[cap + i] + c * ku[cap + i];
+        }
+        return;
+    }
 #pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
         q[i] = q0[i] + c * kq[i];

@@ -245,6 +245,10 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
         }
     }
     if (st == CONSPH_OK && out && out->signals) st = consph_stop_install();
+    /* ∇u (the vorticity, velocity_gradient) is computed only in the steps that end at a
+     * snapshot or the end of the run (consph_solver_step) */
+    s->grads_lazy = 1;
+    s->grads_every = files ? out->snapshot_every : 0;
     consph_progress pr;
     consph_progress_start(&pr, s->step);
     if (!(out && out->progress)) pr.enabled = 0;
@@ -266,6 +270,7 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
         }
     }
     consph_progress_end(&pr);
+    s->grads_lazy = 0;
     if (out && out->signals) consph_stop_uninstall();
     consph_solver_summary(s, sum);
     if (files && (st == CONSPH_OK || st == CONSPH_ENUMERIC)) {

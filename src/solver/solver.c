@@ -408,6 +408,11 @@ int consph_solver_step(consph_solver *s)
     }
     const double full = s->dt;
     s->dt = dt;
+    const double t_next =
+        auth_tf ? (landed ? target : s->t + dt) : (s->nsteps == 0 && dt < full ? s->tf : s->t + dt);
+    const int last = s->nsteps > 0 ? s->step + 1 >= s->nsteps : t_next >= s->tf;
+    s->grads_skip =
+        s->grads_lazy && !last && !(s->grads_every > 0 && (s->step + 1) % s->grads_every == 0);
     int st = CONSPH_OK;
     if (s->scheme->moves) st = consph_sys_update(&s->sys, 1);
     integ_state is;
@@ -417,10 +422,7 @@ int consph_solver_step(consph_solver *s)
     if (st == CONSPH_OK && !s->reuse_rates) st = s->scheme->rhs(s);
     if (st == CONSPH_OK) st = s->integ->step(&is, dt);
     if (st == CONSPH_OK) {
-        if (auth_tf)
-            s->t = landed ? target : s->t + dt;
-        else
-            s->t = s->nsteps == 0 && dt < full ? s->tf : s->t + dt;
+        s->t = t_next;
         ++s->step;
     }
     if (st == CONSPH_OK && s->scheme->regularise) st = s->scheme->regularise(s);
@@ -434,6 +436,7 @@ int consph_solver_step(consph_solver *s)
     if (st == CONSPH_OK && s->prm.error == CONSPH_ERROR_AUTHORS)
         st = solver_auth_after_step(s, landed);
     s->dt = full;
+    s->grads_skip = 0;
     s->seconds += consph_wtime() - t0;
     return st;
 }

@@ -224,6 +224,12 @@ struct consph_solver {
     long regs;
     int volumes_fixed; /* particles never move: ω computed once */
     int reuse_rates;   /* pec/kdk: the rates left by the previous step are this step's first */
+    /* ∇u and ∇p are read by snapshots and the end-of-run outputs only: a right-hand side may
+     * skip them while grads_skip is set, which consph_solver_step does for a step that ends
+     * neither the run nor at a multiple of grads_every (consph_run sets grads_lazy and the
+     * snapshot cadence; left 0, every right-hand side computes them) */
+    int grads_lazy, grads_skip;
+    long grads_every;
     double chi0;
     /* the history for the log: HIST_COLS doubles per sample (solver_sample) */
     double *hist;

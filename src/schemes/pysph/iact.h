@@ -14,7 +14,7 @@
 
 /* The constants of a right-hand side. */
 typedef struct pysph_consts {
-    double m;       /* particle mass */
+    double m, minv; /* particle mass and its inverse */
     double h, h2;   /* smoothing length; PySPH's ε = 0.01 h² in every 1/(r² + ε) */
     double nu;      /* kinematic viscosity */
     double alpha;   /* wcsph: Monaghan's α (0: no artificial viscosity) */
@@ -34,14 +34,13 @@ typedef struct pysph_pair {
 } pysph_pair;
 
 /* Adami, Hu & Adams 2013 (tvf) and Ramachandran & Puri 2019 (edac): one pair. V = 1/Σ W,
- * du = ũ - u the transport velocity's offset, pav p̄_i (edac; 0 for tvf). */
+ * du = ũ - u the transport velocity's offset, pav p̄_i (edac; 0 for tvf), vj = m/ϱ_j. */
 PYSPH_IACT void pysph_tv_pair(int d, int edac, const pysph_consts *c, double rhoi, double pi,
                               double pav, double Vi, const double ui[3], const double dui[3],
-                              double rhoj, double pj, double numdj, const double uj[3],
+                              double rhoj, double pj, double Vj, double vj, const double uj[3],
                               const double duj[3], double dwr, const double xij[3], double r,
                               pysph_pair *o)
 {
-    const double Vj = 1.0 / numdj;
     const double w2 = Vi * Vi + Vj * Vj;
     double uij[3] = {0.0, 0.0, 0.0}, gw[3] = {0.0, 0.0, 0.0};
     double xdw = 0.0, udw = 0.0;
@@ -52,19 +51,21 @@ PYSPH_IACT void pysph_tv_pair(int d, int edac, const pysph_consts *c, double rho
         udw += uij[a] * gw[a];
     }
     const double r2 = r * r;
+    /* two divisions per pair, shared by every term that divides by ϱ_i + ϱ_j or r² + ε (the
+     * pair's values move at round-off against dividing in each term) */
+    const double inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r2 + c->h2);
     /* Adami et al. eq. 7 (p̃_ij), with p - p̄_i in edac (Ramachandran & Puri eq. 25) */
-    const double pij = (rhoj * (pi - pav) + rhoi * (pj - pav)) / (rhoi + rhoj);
-    const double eta = 2.0 * c->nu * rhoi * rhoj / (rhoi + rhoj);
-    const double visc = w2 * eta * xdw / (r2 + c->h2);
+    const double pij = (rhoj * (pi - pav) + rhoi * (pj - pav)) * inv_s;
+    const double rr = rhoi * rhoj * inv_s, wx = w2 * xdw * inv_r;
+    const double visc = 2.0 * c->nu * rr * wx; /* η_ij = 2 ν ϱ_i ϱ_j/(ϱ_i + ϱ_j) */
     for (int a = 0; a < d; ++a) {
         double A = 0.0; /* ½(A_i + A_j)·∇W, A = ϱ u (ũ - u) */
         for (int b = 0; b < d; ++b)
             A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj * uj[a] * duj[b]) * gw[b];
         o->f[a] = -pij * w2 * gw[a] + visc * uij[a] + w2 * A;
-        o->fp[a] = -pij * w2 * gw[a] / c->m;
+        o->fp[a] = -pij * w2 * gw[a] * c->minv;
         o->fb[a] = -c->pb * w2 * gw[a];
     }
-    const double vj = c->m / rhoj;
     for (int a = 0; a < d; ++a)
         for (int b = 0; b < d; ++b) o->g[a * d + b] = vj * uij[a] * gw[b];
     o->div = vj * udw;
@@ -72,52 +73,51 @@ PYSPH_IACT void pysph_tv_pair(int d, int edac, const pysph_consts *c, double rho
     o->q2 = 0.0;
     if (edac) {
         /* Ramachandran & Puri eq. 22: the continuity-like term and EDAC diffusion */
-        const double etae = 2.0 * c->nu_edac * rhoi * rhoj / (rhoi + rhoj);
-        o->q1 = rhoi / rhoj * c->c0 * c->c0 * c->m * udw;
-        o->q2 = w2 * etae * xdw / (r2 + c->h2) * (pi - pj) / c->m;
+        o->q1 = rhoi * vj * c->c0 * c->c0 * udw; /* ϱ_i/ϱ_j c² m u_ij·∇W */
+        o->q2 = 2.0 * c->nu_edac * rr * wx * (pi - pj) * c->minv;
     }
 }
 
 /* Monaghan 1992 eq. 4.2 (β = 0): the artificial viscosity Π_ij, on approach only (ux = u_ij·x_ij
  * < 0); ci, cj the Tait sound speeds. Computed for every pair and selected, since the sign of
  * u_ij·x_ij is a coin toss to the branch predictor. */
-PYSPH_IACT double pysph_monaghan_pi(const pysph_consts *c, double rhoi, double ci, double rhoj,
-                                    double cj, double ux, double r2)
+PYSPH_IACT double pysph_monaghan_pi(const pysph_consts *c, double ci, double cj, double ux,
+                                    double inv_r, double inv_s)
 {
-    const double mu = c->h * ux / (r2 + c->h2), rhob = 0.5 * (rhoi + rhoj);
-    const double v = -c->alpha * 0.5 * (ci + cj) * mu / rhob;
+    /* inv_r = 1/(r² + ε), inv_s = 1/(ϱ_i + ϱ_j) = 1/(2 ϱ̄_ij) */
+    const double mu = c->h * ux * inv_r;
+    const double v = -c->alpha * (ci + cj) * mu * inv_s;
     return ux < 0.0 ? v : 0.0;
 }
 
 /* Monaghan's WCSPH: one pair of the symmetric pressure force with Monaghan's Π_ij (pij, 0 when
  * α = 0), Morris/Cleary's laminar viscosity, XSPH (ε = 0.5) and the continuity equation.
- * w = W_ij. */
-PYSPH_IACT void pysph_wcsph_pair(int d, const pysph_consts *c, double rhoi, double pi,
-                                 const double ui[3], double rhoj, double pj, const double uj[3],
-                                 double pij, double w, double dwr, const double xij[3], double r,
+ * w = W_ij; ti = p_i/ϱ_i², tij = p_j/ϱ_j², vj = m/ϱ_j; inv_s = 1/(ϱ_i + ϱ_j) and
+ * inv_r = 1/(r² + ε), shared with Π_ij (two divisions per pair). */
+PYSPH_IACT void pysph_wcsph_pair(int d, const pysph_consts *c, double ti, const double ui[3],
+                                 double tij, double vj, const double uj[3], double pij, double w,
+                                 double dwr, const double xij[3], double inv_s, double inv_r,
                                  pysph_pair *o)
 {
-    const double m = c->m, ti = pi / (rhoi * rhoi), tij = pj / (rhoj * rhoj), r2 = r * r;
+    const double m = c->m;
     double uij[3] = {0.0, 0.0, 0.0}, gw[3] = {0.0, 0.0, 0.0};
     for (int a = 0; a < d; ++a) {
         uij[a] = ui[a] - uj[a];
         gw[a] = dwr * xij[a];
     }
-    const double rhob = 0.5 * (rhoi + rhoj);
     double udw = 0.0, xdw = 0.0;
     for (int a = 0; a < d; ++a) {
         udw += uij[a] * gw[a];
         xdw += xij[a] * gw[a];
     }
     /* Morris et al. 1997 / Cleary's laminar viscosity */
-    const double visc = m * 4.0 * c->nu * xdw / ((rhoi + rhoj) * (r2 + c->h2));
+    const double visc = m * 4.0 * c->nu * xdw * inv_s * inv_r;
     for (int a = 0; a < d; ++a) {
         o->f[a] = -m * (ti + tij + pij) * gw[a] + visc * uij[a];
         o->fp[a] = -m * (ti + tij) * gw[a];
-        o->fb[a] = 0.5 * m * w / rhob * uij[a]; /* XSPH, ε = 0.5 */
+        o->fb[a] = m * w * inv_s * uij[a]; /* XSPH, ε = 0.5: ε m W/ϱ̄_ij */
     }
     o->div = m * udw;
-    const double vj = m / rhoj;
     for (int a = 0; a < d; ++a)
         for (int b = 0; b < d; ++b) o->g[a * d + b] = vj * uij[a] * gw[b];
 }

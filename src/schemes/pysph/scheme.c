@@ -37,19 +37,24 @@ typedef struct rival_job {
     double rho0, cexp, p0;
     const double *u, *rho, *p, *tvdu;
     const double *cs; /* wcsph with α > 0: Tait's sound speed of each particle */
+    /* per particle, computed once instead of once per pair (the same operations, hence the
+     * same values): wcsph p/ϱ², tvf and edac 1/V = 1/Σ W; m/ϱ for ∇u */
+    double *pr2, *vol, *mrho;
     double *numd, *pavg, *rhos, *pw, *au, *aq, *ax, *auhat;
     double *gradp, *divu, *gradu; /* for the diagnostics and the vorticity output */
+    int grads;                    /* ∇u and ∇p wanted (consph_solver.grads_skip unset) */
 } rival_job;
 
 /* The solver's diagnostics read ∇p (as -ϱ times the pressure acceleration), ∇·u and ∇u: the
  * scheme's own estimates, Σ_j m_j/ϱ_j (u_j - u_i) ⊗ ∇W_ij for ∇u. */
-static void put_diag(const rival_job *job, size_t i, const double fp[3], double div,
-                     const double G[9])
+static inline void put_diag(const rival_job *job, size_t i, const double fp[3], double div,
+                            const double G[9], const int d, const int grads)
 {
-    const int d = job->d;
     const size_t cap = job->cap;
-    for (int a = 0; a < d; ++a) job->gradp[a * cap + i] = -job->rho[i] * fp[a];
-    for (int e = 0; e < d * d; ++e) job->gradu[(size_t)e * cap + i] = G[e];
+    if (grads) {
+        for (int a = 0; a < d; ++a) job->gradp[a * cap + i] = -job->rho[i] * fp[a];
+        for (int e = 0; e < d * d; ++e) job->gradu[(size_t)e * cap + i] = G[e];
+    }
     job->divu[i] = div;
 }
 
@@ -62,6 +67,8 @@ static void visit_density(void *vjob, const consph_nbhd *nb)
     for (size_t k = 0; k < nb->n; ++k) s += nb->w[k];
     job->numd[i] = s;
     job->rhos[i] = job->c.m * s;
+    job->vol[i] = 1.0 / s;
+    job->mrho[i] = job->c.m / job->rhos[i];
     if (job->kind == RV_TVF) {
         job->pw[i] = job->p0 * (job->rhos[i] / job->rho0 - 1.0);
     } else {
@@ -111,11 +118,12 @@ RV_INLINE void rv_gather(int d, size_t cap, const double *f, const size_t *j, si
 }
 
 /* ---- the tvf / edac rates ---- */
-RV_INLINE void visit_tv_d(const rival_job *job, const consph_nbhd *nb, const int d, const int edac)
+RV_INLINE void visit_tv_d(const rival_job *job, const consph_nbhd *nb, const int d, const int edac,
+                          const int grads)
 {
     const size_t i = nb->i, cap = job->cap;
     const double *u = job->u, *du = job->tvdu;
-    const double rhoi = job->rho[i], pi = job->p[i], Vi = 1.0 / job->numd[i];
+    const double rhoi = job->rho[i], pi = job->p[i], Vi = job->vol[i];
     const double pav = edac ? job->pavg[i] : 0.0;
     const pysph_consts *c = &job->c;
     double ui[3] = {0.0, 0.0, 0.0}, dui[3] = {0.0, 0.0, 0.0};
@@ -128,12 +136,14 @@ RV_INLINE void visit_tv_d(const rival_job *job, const consph_nbhd *nb, const int
     for (size_t k0 = 0; k0 < nb->n; k0 += RV_BLOCK) {
         const size_t nk = nb->n - k0 < RV_BLOCK ? nb->n - k0 : RV_BLOCK;
         const size_t *jb = nb->j + k0;
-        double rhoj[RV_BLOCK], pj[RV_BLOCK], nd[RV_BLOCK], uj[3][RV_BLOCK], duj[3][RV_BLOCK];
+        double rhoj[RV_BLOCK], pj[RV_BLOCK], vol[RV_BLOCK], mr[RV_BLOCK], uj[3][RV_BLOCK],
+            duj[3][RV_BLOCK];
         double tf[3][RV_BLOCK], tp[3][RV_BLOCK], tb[3][RV_BLOCK], tg[9][RV_BLOCK];
         double tdiv[RV_BLOCK], ta1[RV_BLOCK], ta2[RV_BLOCK];
         rv_gather(1, 0, job->rho, jb, nk, &rhoj);
         rv_gather(1, 0, job->p, jb, nk, &pj);
-        rv_gather(1, 0, job->numd, jb, nk, &nd);
+        rv_gather(1, 0, job->vol, jb, nk, &vol);
+        rv_gather(1, 0, job->mrho, jb, nk, &mr);
         rv_gather(d, cap, u, jb, nk, uj);
         rv_gather(d, cap, du, jb, nk, duj);
         for (size_t k = 0; k < nk; ++k) {
@@ -145,14 +155,15 @@ RV_INLINE void visit_tv_d(const rival_job *job, const consph_nbhd *nb, const int
                 dujk[a] = duj[a][k];
             }
             pysph_pair o;
-            pysph_tv_pair(d, edac, c, rhoi, pi, pav, Vi, ui, dui, rhoj[k], pj[k], nd[k], ujk, dujk,
-                          nb->dwr[k0 + k], xij, nb->r[k0 + k], &o);
+            pysph_tv_pair(d, edac, c, rhoi, pi, pav, Vi, ui, dui, rhoj[k], pj[k], vol[k], mr[k],
+                          ujk, dujk, nb->dwr[k0 + k], xij, nb->r[k0 + k], &o);
             for (int a = 0; a < d; ++a) {
                 tf[a][k] = o.f[a];
-                tp[a][k] = o.fp[a];
                 tb[a][k] = o.fb[a];
+                if (grads) tp[a][k] = o.fp[a];
             }
-            for (int e = 0; e < d * d; ++e) tg[e][k] = o.g[e];
+            if (grads)
+                for (int e = 0; e < d * d; ++e) tg[e][k] = o.g[e];
             tdiv[k] = o.div;
             if (edac) {
                 ta1[k] = o.q1;
@@ -163,10 +174,11 @@ RV_INLINE void visit_tv_d(const rival_job *job, const consph_nbhd *nb, const int
             if (jb[k] == i) continue; /* ∇W_ii = 0: no force on itself */
             for (int a = 0; a < d; ++a) {
                 f[a] += tf[a][k];
-                fp[a] += tp[a][k];
                 fb[a] += tb[a][k];
+                if (grads) fp[a] += tp[a][k];
             }
-            for (int e = 0; e < d * d; ++e) G[e] -= tg[e][k];
+            if (grads)
+                for (int e = 0; e < d * d; ++e) G[e] -= tg[e][k];
             div -= tdiv[k];
             if (edac) {
                 ap += ta1[k];
@@ -179,27 +191,35 @@ RV_INLINE void visit_tv_d(const rival_job *job, const consph_nbhd *nb, const int
         job->auhat[a * cap + i] = fb[a] / c->m;
     }
     job->aq[i] = ap;
-    put_diag(job, i, fp, div, G);
+    put_diag(job, i, fp, div, G, d, grads);
 }
 
+/* Compile-time clones for 2D and 3D, with and without ∇u, as the δ family has
+ * (src/schemes/delta/scheme.c). */
 RV_CLONES static void visit_tv(void *vjob, const consph_nbhd *nb)
 {
     const rival_job *job = vjob;
-    const int edac = job->kind == RV_EDAC;
-    if (job->d == 2 && edac)
-        visit_tv_d(job, nb, 2, 1);
-    else if (job->d == 2)
-        visit_tv_d(job, nb, 2, 0);
-    else
-        visit_tv_d(job, nb, job->d, edac);
+    const int edac = job->kind == RV_EDAC, g = job->grads;
+    if (job->d == 2) {
+        if (edac)
+            g ? visit_tv_d(job, nb, 2, 1, 1) : visit_tv_d(job, nb, 2, 1, 0);
+        else
+            g ? visit_tv_d(job, nb, 2, 0, 1) : visit_tv_d(job, nb, 2, 0, 0);
+    } else { /* the problems are 2D or 3D (the problem table) */
+        if (edac)
+            g ? visit_tv_d(job, nb, 3, 1, 1) : visit_tv_d(job, nb, 3, 1, 0);
+        else
+            g ? visit_tv_d(job, nb, 3, 0, 1) : visit_tv_d(job, nb, 3, 0, 0);
+    }
 }
 
 /* ---- wcsph ---- */
-RV_INLINE void visit_wcsph_d(const rival_job *job, const consph_nbhd *nb, const int d)
+RV_INLINE void visit_wcsph_d(const rival_job *job, const consph_nbhd *nb, const int d,
+                             const int grads)
 {
     const size_t i = nb->i, cap = job->cap;
     const double *u = job->u;
-    const double rhoi = job->rho[i], pi = job->p[i];
+    const double rhoi = job->rho[i], ti = job->pr2[i];
     const pysph_consts *c = &job->c;
     const int av = c->alpha > 0.0;
     const double ci = av ? job->cs[i] : 0.0;
@@ -210,21 +230,25 @@ RV_INLINE void visit_wcsph_d(const rival_job *job, const consph_nbhd *nb, const 
     for (size_t k0 = 0; k0 < nb->n; k0 += RV_BLOCK) {
         const size_t nk = nb->n - k0 < RV_BLOCK ? nb->n - k0 : RV_BLOCK;
         const size_t *jb = nb->j + k0;
-        double rhoj[RV_BLOCK], pj[RV_BLOCK], cj[RV_BLOCK], uj[3][RV_BLOCK];
+        double rhoj[RV_BLOCK], tj[RV_BLOCK], mr[RV_BLOCK], cj[RV_BLOCK], uj[3][RV_BLOCK];
         double tf[3][RV_BLOCK], tp[3][RV_BLOCK], tx[3][RV_BLOCK], tg[9][RV_BLOCK];
         double td[RV_BLOCK];
         rv_gather(1, 0, job->rho, jb, nk, &rhoj);
-        rv_gather(1, 0, job->p, jb, nk, &pj);
+        rv_gather(1, 0, job->pr2, jb, nk, &tj);
+        if (grads) rv_gather(1, 0, job->mrho, jb, nk, &mr);
         rv_gather(d, cap, u, jb, nk, uj);
-        double pij[RV_BLOCK];
-        for (size_t k = 0; k < nk; ++k) pij[k] = 0.0;
+        double pij[RV_BLOCK], inv_s[RV_BLOCK], inv_r[RV_BLOCK];
+        for (size_t k = 0; k < nk; ++k) {
+            pij[k] = 0.0;
+            inv_s[k] = 1.0 / (rhoi + rhoj[k]);
+            inv_r[k] = 1.0 / (nb->r[k0 + k] * nb->r[k0 + k] + c->h2);
+        }
         if (av) {
             rv_gather(1, 0, job->cs, jb, nk, &cj);
             for (size_t k = 0; k < nk; ++k) {
                 double ux = 0.0;
                 for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a][k]) * nb->dx[a][k0 + k];
-                pij[k] = pysph_monaghan_pi(c, rhoi, ci, rhoj[k], cj[k], ux,
-                                           nb->r[k0 + k] * nb->r[k0 + k]);
+                pij[k] = pysph_monaghan_pi(c, ci, cj[k], ux, inv_r[k], inv_s[k]);
             }
         }
         for (size_t k = 0; k < nk; ++k) {
@@ -235,25 +259,27 @@ RV_INLINE void visit_wcsph_d(const rival_job *job, const consph_nbhd *nb, const 
                 ujk[a] = uj[a][k];
             }
             pysph_pair o;
-            pysph_wcsph_pair(d, c, rhoi, pi, ui, rhoj[k], pj[k], ujk, pij[k], nb->w[k0 + k],
-                             nb->dwr[k0 + k], xij, nb->r[k0 + k], &o);
+            pysph_wcsph_pair(d, c, ti, ui, tj[k], grads ? mr[k] : 0.0, ujk, pij[k], nb->w[k0 + k],
+                             nb->dwr[k0 + k], xij, inv_s[k], inv_r[k], &o);
             for (int a = 0; a < d; ++a) {
                 tf[a][k] = o.f[a];
-                tp[a][k] = o.fp[a];
                 tx[a][k] = o.fb[a];
+                if (grads) tp[a][k] = o.fp[a];
             }
             td[k] = o.div;
-            for (int e = 0; e < d * d; ++e) tg[e][k] = o.g[e];
+            if (grads)
+                for (int e = 0; e < d * d; ++e) tg[e][k] = o.g[e];
         }
         for (size_t k = 0; k < nk; ++k) {
             if (jb[k] == i) continue;
             for (int a = 0; a < d; ++a) {
                 f[a] += tf[a][k];
-                fp[a] += tp[a][k];
                 xs[a] -= tx[a][k];
+                if (grads) fp[a] += tp[a][k];
             }
             drho += td[k];
-            for (int e = 0; e < d * d; ++e) G[e] -= tg[e][k];
+            if (grads)
+                for (int e = 0; e < d * d; ++e) G[e] -= tg[e][k];
         }
     }
     for (int a = 0; a < d; ++a) {
@@ -261,16 +287,17 @@ RV_INLINE void visit_wcsph_d(const rival_job *job, const consph_nbhd *nb, const 
         job->ax[a * cap + i] = ui[a] + xs[a];
     }
     job->aq[i] = drho;
-    put_diag(job, i, fp, -drho / rhoi, G);
+    put_diag(job, i, fp, -drho / rhoi, G, d, grads);
 }
 
 RV_CLONES static void visit_wcsph(void *vjob, const consph_nbhd *nb)
 {
     const rival_job *job = vjob;
+    const int g = job->grads;
     if (job->d == 2)
-        visit_wcsph_d(job, nb, 2);
-    else
-        visit_wcsph_d(job, nb, job->d);
+        g ? visit_wcsph_d(job, nb, 2, 1) : visit_wcsph_d(job, nb, 2, 0);
+    else /* 3D */
+        g ? visit_wcsph_d(job, nb, 3, 1) : visit_wcsph_d(job, nb, 3, 0);
 }
 
 #if defined(__GNUC__) && !defined(__clang__)
@@ -285,6 +312,7 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     job->d = d;
     job->cap = s->sys.p->cap;
     job->c.m = s->mass;
+    job->c.minv = 1.0 / s->mass;
     job->c.h = s->h;
     job->c.h2 = 0.01 * s->h * s->h; /* PySPH's EPS = 0.01 h_ij² in every 1/(r² + EPS) */
     job->rho0 = s->prm.rho0;
@@ -303,25 +331,32 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     job->gradp = sv_field(s, SF_GRADP, d);
     job->divu = sv_field(s, SF_DIVU, 1);
     job->gradu = sv_field(s, SF_GRADU, d * d);
+    job->grads = !s->grads_skip;
     if (!job->u || !job->p || !job->au || !job->aq || !job->ax || !job->gradp || !job->divu ||
         !job->gradu)
         return CONSPH_ENOMEM;
     if (kind == RV_WCSPH) {
         job->rho = sv_field(s, SF_RHOF, 1);
         if (!job->rho) return CONSPH_ENOMEM;
-        if (job->c.alpha > 0.0) {
-            /* Tait's c_o (ϱ/ϱ_o)^((γ-1)/2) once per particle for Monaghan's Π_ij: a pow() per
-             * approaching pair cost more than the rest of the pair. */
-            const size_t n = s->sys.p->n;
-            double *cs = consph_sys_scratch(&s->sys, n ? n : 1);
-            if (!cs) return CONSPH_ENOMEM;
-            const double *rho = job->rho, c0 = job->c.c0, rho0 = job->rho0, cexp = job->cexp;
-            const int ie = eos_int_exponent(cexp); /* γ = 7: the cube, by multiplication */
+        /* Tait's c_o (ϱ/ϱ_o)^((γ-1)/2) once per particle for Monaghan's Π_ij (a pow() per
+         * approaching pair cost more than the rest of the pair), p/ϱ² and m/ϱ */
+        const size_t n = s->sys.p->n, nn = n ? n : 1;
+        double *sc = consph_sys_scratch(&s->sys, 3 * nn);
+        if (!sc) return CONSPH_ENOMEM;
+        double *pr2 = sc, *mrho = sc + nn, *cs = sc + 2 * nn;
+        const double *rho = job->rho, *p = job->p, c0 = job->c.c0, rho0 = job->rho0;
+        const double cexp = job->cexp, m = job->c.m;
+        const int ie = eos_int_exponent(cexp); /* γ = 7: the cube, by multiplication */
+        const int av = job->c.alpha > 0.0, grads = job->grads;
 #pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
-            for (size_t i = 0; i < n; ++i)
-                cs[i] = c0 * (ie >= 0 ? eos_ipow(rho[i] / rho0, ie) : pow(rho[i] / rho0, cexp));
-            job->cs = cs;
+        for (size_t i = 0; i < n; ++i) {
+            pr2[i] = p[i] / (rho[i] * rho[i]);
+            if (grads) mrho[i] = m / rho[i];
+            if (av) cs[i] = c0 * (ie >= 0 ? eos_ipow(rho[i] / rho0, ie) : pow(rho[i] / rho0, cexp));
         }
+        job->pr2 = pr2;
+        job->mrho = mrho;
+        if (av) job->cs = cs;
         return CONSPH_OK;
     }
     job->rhos = sv_field(s, SF_RHOS, 1);
@@ -332,6 +367,12 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     job->tvdu = sv_field(s, SF_TVDU, d);
     job->auhat = sv_field(s, SF_UHAT, d);
     if (!job->rhos || !job->numd || !job->pavg || !job->tvdu || !job->auhat) return CONSPH_ENOMEM;
+    /* 1/V and m/ϱ of each particle, set by the density pass */
+    const size_t nn = s->sys.p->n ? s->sys.p->n : 1;
+    double *sc = consph_sys_scratch(&s->sys, 2 * nn);
+    if (!sc) return CONSPH_ENOMEM;
+    job->vol = sc;
+    job->mrho = sc + nn;
     return CONSPH_OK;
 }
 
