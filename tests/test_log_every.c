@@ -289,6 +289,7 @@ int main(void)
     test_cadence("e-c");
     test_restart("tvf");
     test_restart("l-ipst-c");
+    test_restart("ewcsph"); /* its frozen ϱ_c (state field rhoc) travels in the checkpoint */
     test_format3();
     return check_summary("test_log_every");
 }

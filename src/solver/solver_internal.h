@@ -98,9 +98,11 @@ int state_snapshot_arrays(const consph_solver *s, consph_vtu_array *arr, int *na
 
 /* ---- the derivative kit: fused passes over the system (src/schemes/negi/kit.c) ---- */
 typedef enum kit_lap {
-    KIT_LAP_COUPLED,  /* coupled_bc, 001 Table 4 with Bonet (= s1_diff from G) */
-    KIT_LAP_FATEHI_C, /* Fatehi_c, 001 eq. 13 */
-    KIT_LAP_KORZILIUS /* Korzilius, 001 eqs. 14-15 with the fixes of docs/deviations.md */
+    KIT_LAP_COUPLED,   /* coupled_bc, 001 Table 4 with Bonet (= s1_diff from G) */
+    KIT_LAP_FATEHI_C,  /* Fatehi_c, 001 eq. 13 */
+    KIT_LAP_KORZILIUS, /* Korzilius, 001 eqs. 14-15 with the fixes of docs/deviations.md */
+    KIT_LAP_CLEARY     /* Cleary's, Bonet-corrected, as 001's authors run EWCSPH (kit.c),
+                          per unit mass density: the rates multiply by ν ρ_o */
 } kit_lap;
 
 enum {

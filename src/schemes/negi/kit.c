@@ -20,6 +20,7 @@ typedef struct kit_job {
     int d;
     size_t cap;
     const double *vol, *p, *u, *q;
+    const double *rho; /* ϱ, for Cleary's Laplacian (else NULL) */
     double *bonet, *gradp, *gradu, *divu, *gradq, *lapu, *lapq;
     unsigned char *bonet_ok; /* B_i accepted, for Fatehi_c and Korzilius (else NULL) */
 } kit_job;
@@ -310,7 +311,34 @@ TERM_INLINE void korzilius_body(const kit_job *job, const consph_nbhd *nb, const
     }
 }
 
-/* ∇²u of Fatehi_c or Korzilius at one particle, d known at compile time. */
+/* Cleary's Laplacian as 001's authors run EWCSPH (ewcsph.py, get_equations_ewcsph: their
+ * ViscosityCleary, scheme_equation.py, after GradientCorrection, so with B_i∇W_ij): with
+ * η = νϱ averaged harmonically, 2η_ij m_j/(ϱ_i ϱ_j) = 4ν m_j/(ϱ_i + ϱ_j), so
+ *   ∇²u_i = Σ_j 4 m_j/(ϱ_i + ϱ_j) (x_ij·B_i∇W_ij)/r_ij² (u_i - u_j),
+ * ν ρ_o applied by the rates: their m_j = ρ_o Δs² is ρ_o ω_j here (the kit's volumes), and
+ * what is summed here is 4 ω_j/(ϱ_i + ϱ_j)...; pairs closer than 1e-14 are skipped, as theirs. */
+TERM_INLINE void cleary_body(const kit_job *job, const consph_nbhd *nb, const int D,
+                             const double B[9])
+{
+    const size_t i = nb->i, cap = job->cap;
+    const double *vol = job->vol, *u = job->u, *rho = job->rho;
+    double ui[3], acc[3] = {0};
+    for (int a = 0; a < D; ++a) ui[a] = u[a * cap + i];
+    for (size_t k = 0; k < nb->n; ++k) {
+        const double r = nb->r[k];
+        if (!(r > 1e-14)) continue;
+        const size_t j = nb->j[k];
+        double x[3], xBx = 0.0;
+        for (int a = 0; a < D; ++a) x[a] = nb->dx[a][k];
+        for (int a = 0; a < D; ++a)
+            for (int b = 0; b < D; ++b) xBx += x[a] * B[a * D + b] * x[b];
+        const double c = 4.0 * vol[j] / (rho[i] + rho[j]) * nb->dwr[k] * xBx / (r * r);
+        for (int a = 0; a < D; ++a) acc[a] += c * (ui[a] - u[a * cap + j]);
+    }
+    for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = acc[a];
+}
+
+/* ∇²u of Fatehi_c, Korzilius or Cleary at one particle, d known at compile time. */
 TERM_INLINE void second_body(const kit_job *job, const consph_nbhd *nb, const int D)
 {
     const size_t i = nb->i, cap = job->cap;
@@ -320,6 +348,8 @@ TERM_INLINE void second_body(const kit_job *job, const consph_nbhd *nb, const in
         double Bh[9];
         fatehi_c_matrix(D, nb, job->vol, B, job->bonet_ok[i], job->rq->cond_max, Bh);
         fatehi_body(job, nb, D, Bh);
+    } else if (job->rq->lap == KIT_LAP_CLEARY) {
+        cleary_body(job, nb, D, B);
     } else {
         korzilius_body(job, nb, D, B);
     }
@@ -379,6 +409,11 @@ int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes
         job.gradq = consph_particles_field(p, SF_GRADQ, d);
     }
     if (want & KIT_LAPU) job.lapu = consph_particles_field(p, SF_LAPU, d);
+    if ((want & KIT_LAPU) && rq->lap == KIT_LAP_CLEARY) {
+        const consph_field *fr = consph_particles_find(p, SF_RHOF);
+        if (!fr) return consph_fail(CONSPH_EINVAL, "kit: no density field");
+        job.rho = fr->data;
+    }
     if (want & KIT_LAPQ) job.lapq = consph_particles_field(p, SF_LAPQ, 1);
     if (((want & KIT_GRADU) && !job.gradu) || ((want & KIT_DIVU) && !job.divu) ||
         ((want & KIT_GRADQ) && !job.gradq) || ((want & KIT_LAPU) && !job.lapu) ||

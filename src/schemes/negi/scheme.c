@@ -12,6 +12,9 @@
 #include "schemes/negi/iact.h"
 #include "solver/solver_internal.h"
 
+/* EWCSPH's ϱ_c (negi_terms.frozen_rho), a state field so that a checkpoint carries it */
+#define SF_RHOC "rhoc"
+
 /* The rates of one scheme's terms t at the current state: the kit's derivatives, then
  * negi_rates_i per particle. */
 static int rates(consph_solver *s, const negi_terms *t)
@@ -41,6 +44,18 @@ static int rates(consph_solver *s, const negi_terms *t)
         if (st != CONSPH_OK) return st;
     }
     const double *u = sv_field(s, SF_U, d), *rhof = sv_field(s, SF_RHOF, 1);
+    double *rhoc = NULL;
+    if (t->frozen_rho) {
+        /* 001's authors' EWCSPH divides ∇p by rhoc, which taylor_green.py sets to
+         * ρ_o + p_0/c_o² and their no_soc steppers never update (ewcsph.py, RK2Stepper and
+         * MomentumEquationSymm). The field is zero until the first evaluation, which is at the
+         * initial state (p there is the EOS of the ϱ inverted from the exact p_0). */
+        rhoc = sv_field(s, SF_RHOC, 1);
+        if (!rhoc || !sv_field(s, SF_P, 1)) return CONSPH_ENOMEM;
+        const double *p0 = sv_field(s, SF_P, 1);
+        if (n > 0 && rhoc[0] == 0.0)
+            for (size_t i = 0; i < n; ++i) rhoc[i] = s->prm.rho0 + p0[i] / (s->c0 * s->c0);
+    }
     const double *gradp = sv_field(s, SF_GRADP, d), *G = sv_field(s, SF_GRADU, d * d);
     const double *lapu = sv_field(s, SF_LAPU, d), *divu = sv_field(s, SF_DIVU, 1);
     const double *gradq = (rq.want & KIT_GRADQ) ? sv_field(s, SF_GRADQ, d) : NULL;
@@ -50,11 +65,16 @@ static int rates(consph_solver *s, const negi_terms *t)
     if (!u || !rhof || !gradp || !G || !lapu || !divu || !au || !aq || (s->scheme->moves && !ax) ||
         ((rq.want & KIT_GRADQ) && !gradq) || ((rq.want & KIT_LAPQ) && !lapq))
         return CONSPH_ENOMEM;
-    const double nu = s->nu, D = s->D, c2 = s->c0 * s->c0;
+    const double rho0 = s->prm.rho0, c2 = s->c0 * s->c0, D = s->D;
+    /* Cleary's Laplacian comes per unit mass density (kit.c: m_j = ρ_o ω_j) */
+    const double nu = t->lap == KIT_LAP_CLEARY ? s->nu * rho0 : s->nu;
     const int evolve_p = s->scheme->evolve_p;
 #pragma omp parallel for schedule(static) if (n > sys->parallel_min)
     for (size_t i = 0; i < n; ++i) {
-        negi_derivs v = {.rhof = rhof[i], .divu = divu[i], .lapq = lapq ? lapq[i] : 0.0};
+        negi_derivs v = {.rhof = rhof[i],
+                         .rhom = rhoc ? rhoc[i] : rhof[i],
+                         .divu = divu[i],
+                         .lapq = lapq ? lapq[i] : 0.0};
         for (int a = 0; a < d; ++a) {
             v.u[a] = u[a * cap + i];
             v.du[a] = du ? du[a * cap + i] : 0.0;
@@ -64,7 +84,7 @@ static int rates(consph_solver *s, const negi_terms *t)
         }
         for (int e = 0; e < d * d; ++e) v.G[e] = G[(size_t)e * cap + i];
         double rau[3], rax[3];
-        negi_rates_i(t, d, nu, D, c2, evolve_p, &v, rau, rax, &aq[i]);
+        negi_rates_i(t, d, nu, D, c2, rho0, evolve_p, &v, rau, rax, &aq[i]);
         for (int a = 0; a < d; ++a) {
             au[a * cap + i] = rau[a];
             if (ax) ax[a * cap + i] = rax[a];
@@ -156,6 +176,9 @@ static int regularise_remesh(consph_solver *s)
     return CONSPH_OK;
 }
 
+/* EWCSPH also carries its frozen ϱ_c (negi_terms.frozen_rho) */
+extern const field_decl negi_ewcsph_fields[];
+
 /* ---- the schemes: the terms of each one's rates, then its row ---- */
 
 /* 001 §5.1.1: Lagrangian, -∇p/ϱ + ν∇²u (coupled_bc), dϱ/dt = -ϱ∇·u; IPST every ipst_every
@@ -166,15 +189,18 @@ static const negi_terms l_ipst_f = {.lap = KIT_LAP_FATEHI_C};
 static const negi_terms l_ipst_k = {.lap = KIT_LAP_KORZILIUS};
 static const negi_terms l_pst_c = {.lap = KIT_LAP_COUPLED};
 static const negi_terms l_rr_c = {.lap = KIT_LAP_COUPLED};
-/* 001 §5.4: dp/dt = -ϱ c_o² ∇·u + D∇²p (eq. 30) */
+/* 001 §5.4: dp/dt = -ρ_o c_o² ∇·u + D∇²p (eq. 30 with 001's authors' ρ_o c_o²; ϱ of eq. 31
+ * in -∇p/ϱ, as 001's text: docs/schemes.md, "PE-IPST-C") */
 static const negi_terms pe_ipst_c = {.lap = KIT_LAP_COUPLED, .diffuse_q = 1};
 /* 001 §5.4 (eqs. 34-35): moved with u + δu, the δu terms in both rates, δ-term */
 static const negi_terms tv_c = {.lap = KIT_LAP_COUPLED, .diffuse_q = 1, .transport = 1};
 /* 001 eq. 36: Eulerian, both advection terms, δ-term */
 static const negi_terms e_c = {
     .lap = KIT_LAP_COUPLED, .advect_u = 1, .advect_q = 1, .diffuse_q = 1};
-/* Nasar et al. 2019 as 001 runs it: Eulerian without -u·∇ϱ, no δ-term */
-static const negi_terms ewcsph = {.lap = KIT_LAP_COUPLED, .advect_u = 1};
+/* Nasar et al. 2019 as 001 runs it: Eulerian without -u·∇ϱ, no δ-term, Cleary's viscosity
+ * with the Bonet-corrected kernel gradient (001's authors' ewcsph.py, get_equations_ewcsph:
+ * ViscosityCleary after GradientCorrection; docs/schemes.md, "EWCSPH") */
+static const negi_terms ewcsph = {.lap = KIT_LAP_CLEARY, .advect_u = 1, .frozen_rho = 1};
 
 /* Every scheme of the family: the rates its row's terms name. */
 static int rhs_negi(consph_solver *s)
@@ -306,7 +332,7 @@ const scheme_def scheme_ewcsph = {
     .rhs = rhs_negi,
     .terms = &ewcsph,
     .regularise = NULL,
-    .fields = negi_fields};
+    .fields = negi_ewcsph_fields};
 
 /* ---- fields: what these schemes declare beyond the solver's and the integrator's
  * (solver_internal.h, field_decl; the snapshot names are in docs/solver-files.md) ---- */
@@ -325,4 +351,6 @@ const field_decl negi_fields[] = {NEGI_FIELDS, FIELD_END};
 /* L-RR-C also keeps the lattice point each particle is remeshed to */
 const field_decl negi_remesh_fields[] = {
     NEGI_FIELDS, {SF_LATTICE, FIELD_VECTOR, FIELD_STATE, NULL}, FIELD_END};
+const field_decl negi_ewcsph_fields[] = {
+    NEGI_FIELDS, {SF_RHOC, FIELD_SCALAR, FIELD_STATE, NULL}, FIELD_END};
 /* ---- end of fields ---- */
