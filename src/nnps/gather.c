@@ -152,9 +152,7 @@ NNPS_INLINE size_t gather_runs(const int isa, const int dim, const consph_nnps_s
     return n;
 }
 
-#ifdef NNPS_AVX2
-/* permute[m]: 32-bit lane indices that move the doubles of the set bits of m to the front. */
-static const int32_t hit_permute[16][8] = {
+const int32_t nnps_hit_permute[16][8] = {
     {0, 1, 2, 3, 4, 5, 6, 7}, {0, 1, 2, 3, 4, 5, 6, 7}, {2, 3, 0, 1, 4, 5, 6, 7},
     {0, 1, 2, 3, 4, 5, 6, 7}, {4, 5, 0, 1, 2, 3, 6, 7}, {0, 1, 4, 5, 2, 3, 6, 7},
     {2, 3, 4, 5, 0, 1, 6, 7}, {0, 1, 2, 3, 4, 5, 6, 7}, {6, 7, 0, 1, 2, 3, 4, 5},
@@ -162,6 +160,7 @@ static const int32_t hit_permute[16][8] = {
     {4, 5, 6, 7, 0, 1, 2, 3}, {0, 1, 4, 5, 6, 7, 2, 3}, {2, 3, 4, 5, 6, 7, 0, 1},
     {0, 1, 2, 3, 4, 5, 6, 7}};
 
+#ifdef NNPS_AVX2
 __attribute__((target("avx2"))) static inline __m256i compress(__m256i v, __m256i perm)
 {
     return _mm256_permutevar8x32_epi32(v, perm);
@@ -196,7 +195,7 @@ avx2_block(const int dim, const int with_dx, const double *x0, const double *x1,
     }
     int m = _mm256_movemask_pd(_mm256_cmp_pd(rr, lim, _CMP_LT_OQ));
     if (valid != 15) m &= valid;
-    const __m256i perm = _mm256_loadu_si256((const __m256i *)hit_permute[m]);
+    const __m256i perm = _mm256_loadu_si256((const __m256i *)nnps_hit_permute[m]);
     _mm256_storeu_si256((__m256i *)(o.slot + n), compress(sl, perm));
     AVX2_STORE(o.r + n, rr, perm);
     if (with_dx) {

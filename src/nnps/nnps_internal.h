@@ -6,6 +6,7 @@
 #include "consph/nnps.h"
 
 #include <math.h>
+#include <stdint.h>
 
 /* Maps a coordinate on a periodic axis into [lo, hi). Points already inside are returned
  * unchanged; the few that rounding pushes onto hi or below lo go to lo, which is the same
@@ -18,6 +19,11 @@ static inline double nnps_wrap(double x, double lo, double hi, double len)
     if (!(w >= lo && w < hi)) w = lo;
     return w;
 }
+
+/* nnps_hit_permute[m]: the 32-bit lane indices that move the 64-bit lanes of the set bits of the
+ * 4-bit mask m to the front (a permutevar8x32 compress), for the AVX2 hit tests of gather.c and
+ * src/pass/nlist.c. */
+extern const int32_t nnps_hit_permute[16][8];
 
 /* Implementations of the hit test (gather.c); each gives the same result bit for bit. */
 enum { NNPS_ISA_C, NNPS_ISA_SSE2, NNPS_ISA_AVX2 };

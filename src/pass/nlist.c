@@ -14,6 +14,7 @@
  * the operations of the gather in its order (consph_nnps_scan_run), so on the build's own
  * positions (skin 0 always) it reproduces the gather's neighbours and values bit for bit. */
 #include "pass/nlist.h"
+#include "nnps/nnps_internal.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -520,15 +521,6 @@ filter_slot(const consph_nlist *l, const nlist_block *b, size_t sl, pair_out o, 
 #if defined(NLIST_SSE2) && defined(__GNUC__)
 #include <immintrin.h>
 #define NLIST_AVX2 1
-/* permute[m]: 32-bit lane indices that move the 64-bit lanes of the set bits of m to the
- * front (as in src/nnps/gather.c). */
-static const int32_t hit_permute[16][8] = {
-    {0, 1, 2, 3, 4, 5, 6, 7}, {0, 1, 2, 3, 4, 5, 6, 7}, {2, 3, 0, 1, 4, 5, 6, 7},
-    {0, 1, 2, 3, 4, 5, 6, 7}, {4, 5, 0, 1, 2, 3, 6, 7}, {0, 1, 4, 5, 2, 3, 6, 7},
-    {2, 3, 4, 5, 0, 1, 6, 7}, {0, 1, 2, 3, 4, 5, 6, 7}, {6, 7, 0, 1, 2, 3, 4, 5},
-    {0, 1, 6, 7, 2, 3, 4, 5}, {2, 3, 6, 7, 0, 1, 4, 5}, {0, 1, 2, 3, 6, 7, 4, 5},
-    {4, 5, 6, 7, 0, 1, 2, 3}, {0, 1, 4, 5, 6, 7, 2, 3}, {2, 3, 4, 5, 6, 7, 0, 1},
-    {0, 1, 2, 3, 4, 5, 6, 7}};
 static const unsigned char hit_count[16] = {0, 1, 1, 2, 1, 2, 2, 3, 1, 2, 2, 3, 2, 3, 3, 4};
 
 #define NLIST_STORE(dst, v, perm)                                                                  \
@@ -578,7 +570,7 @@ filter_slot_avx2(const consph_nlist *l, const nlist_block *b, size_t sl, pair_ou
             rr = _mm256_add_pd(rr, _mm256_mul_pd(e2, e2));
         }
         const int m = _mm256_movemask_pd(_mm256_cmp_pd(rr, lim, _CMP_LT_OQ));
-        const __m256i perm = _mm256_loadu_si256((const __m256i *)hit_permute[m]);
+        const __m256i perm = _mm256_loadu_si256((const __m256i *)nnps_hit_permute[m]);
         _mm256_storeu_si256((__m256i *)(o.j + used),
                             _mm256_permutevar8x32_epi32(_mm256_cvtepu32_epi64(j), perm));
         NLIST_STORE(o.r + used, rr, perm);

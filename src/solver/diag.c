@@ -97,6 +97,22 @@ static void incompressible_scales(const consph_solver *s, const double x[3], dou
     *mu = speed(ue, s->dim);
 }
 
+/* A buffer of cols per-particle columns kept between calls (a fresh allocation every sample
+ * costs page faults on a hot path); NULL with CONSPH_ENOMEM recorded. */
+static double *columns_buffer(double **buf, size_t *cap, size_t n, size_t cols)
+{
+    if (*cap < cols * n) {
+        double *nw = realloc(*buf, cols * (n ? n : 1) * sizeof(double));
+        if (!nw) {
+            consph_fail(CONSPH_ENOMEM, "out of memory");
+            return NULL;
+        }
+        *buf = nw;
+        *cap = cols * n;
+    }
+    return *buf;
+}
+
 /* --exact both: this instant's errors against the reference, as consph_solver_diag (mean |f -
  * f_o|, *eu and *ep) and solver_auth_sample (normalised, *nu and *np) take them against the
  * incompressible solution. Its own buffer: the callers' are in use. */
@@ -108,13 +124,9 @@ int solver_wc_side(consph_solver *s, double *eu, double *ep, double *nu, double 
     if (!u || !pr) return consph_fail(CONSPH_EINVAL, "solver state missing");
     int st = solver_exact_prepare(s);
     if (st != CONSPH_OK) return st;
-    if (s->wc_cap < 4 * n) {
-        double *nw = realloc(s->wc_buf, 4 * (n ? n : 1) * sizeof(double));
-        if (!nw) return consph_fail(CONSPH_ENOMEM, "out of memory");
-        s->wc_buf = nw;
-        s->wc_cap = 4 * n;
-    }
-    double *a = s->wc_buf, *mu = a + n, *b = a + 2 * n, *pe = a + 3 * n;
+    double *a = columns_buffer(&s->wc_buf, &s->wc_cap, n, 4);
+    if (!a) return CONSPH_ENOMEM;
+    double *mu = a + n, *b = a + 2 * n, *pe = a + 3 * n;
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
         double x[3], ue[3];
@@ -177,17 +189,7 @@ int solver_sample(consph_solver *s)
  * fresh allocation at every sample costs page faults). */
 static double *diag_buffer(consph_solver *s, size_t cols)
 {
-    const size_t n = s->sys.p->n;
-    if (s->diag_cap < cols * n) {
-        double *nw = realloc(s->diag_buf, cols * (n ? n : 1) * sizeof(double));
-        if (!nw) {
-            consph_fail(CONSPH_ENOMEM, "out of memory");
-            return NULL;
-        }
-        s->diag_buf = nw;
-        s->diag_cap = cols * n;
-    }
-    return s->diag_buf;
+    return columns_buffer(&s->diag_buf, &s->diag_cap, s->sys.p->n, cols);
 }
 
 static double kinetic_energy_of(double m, double ux, double uy, double uz, int d)
