@@ -14,6 +14,12 @@ opt=()
 command -v gnuplot >/dev/null || opt+=(gnuplot-nox)
 # Optional: the memory checker that `make check` runs every operator under.
 command -v valgrind >/dev/null || opt+=(valgrind)
+# Optional: OpenMPI for the decomposed solver (src/par) and its multi-rank tests.
+{ command -v mpicc >/dev/null && [ -f /usr/lib/x86_64-linux-gnu/openmpi/include/mpi.h ]; } ||
+  [ -f /usr/include/x86_64-linux-gnu/openmpi/mpi.h ] || opt+=(libopenmpi-dev openmpi-bin)
+# Optional: the Python module (headers) and its example figure (matplotlib).
+/usr/bin/python3 -c 'import sysconfig,os,sys; sys.exit(0 if os.path.exists(os.path.join(sysconfig.get_paths()["include"],"Python.h")) else 1)' >/dev/null 2>&1 || opt+=(python3-dev)
+/usr/bin/python3 -c 'import matplotlib' >/dev/null 2>&1 || opt+=(python3-matplotlib)
 [ ${#need[@]} -eq 0 ] && [ ${#opt[@]} -eq 0 ] && exit 0
 if [ "$(id -u)" = 0 ] && command -v apt-get >/dev/null; then
   export DEBIAN_FRONTEND=noninteractive
