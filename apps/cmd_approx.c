@@ -533,7 +533,17 @@ int cmd_approx(int argc, char **argv)
     cli_choice_name(OP_CHOICES, op_idx, opname, sizeof opname);
     if (!form) form = default_form[op_idx];
     if (consph_op_parse(opname, form, corr, (int)dim, &s.op) != CONSPH_OK) {
-        cli_error(&cmd, "%s", consph_last_error());
+        consph_op_form unknown;
+        consph_op op;
+        char valid[1024];
+        /* An unknown form name: the forms this op takes, with their corrections, rather than
+         * every form of every op. */
+        if (consph_form_lookup(form, &unknown) != CONSPH_OK &&
+            consph_op_lookup(opname, &op) == CONSPH_OK)
+            cli_error(&cmd, "option --form: unknown form '%s'; valid form[corrections] of %s: %s",
+                      form, opname, consph_op_describe(op, valid, sizeof valid));
+        else
+            cli_error(&cmd, "%s", consph_last_error());
         goto out;
     }
     if (consph_kernel_lookup(kernel, &s.kernel) != CONSPH_OK) {

@@ -7,6 +7,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "consph/core.h"
+#include "consph/solver.h"
 
 typedef struct subcommand {
     const char *name;
@@ -21,9 +22,28 @@ static const subcommand subcommands[] = {
     {"approx", cmd_approx, "measure an operator's accuracy and order of convergence"},
     {"study", cmd_study, "run a convergence study that reproduces a paper's figure or table"},
     {"wasserstein", cmd_wasserstein, "Wasserstein distance between two particle files"},
-    {"run", cmd_run, "run a weakly-compressible SPH simulation (taylor-green)"},
+    {"run", cmd_run, "run a simulation: a weakly-compressible SPH problem, or 002's heat problem"},
 };
 #define NSUB (sizeof subcommands / sizeof subcommands[0])
+
+/* `head` and a comma-separated list, one item after the other, wrapped at 80 columns. */
+static void print_list(FILE *out, const char *head, const char *list)
+{
+    fprintf(out, "%s\n ", head);
+    int col = 1;
+    for (const char *c = list; *c;) {
+        size_t len = strcspn(c, ",");
+        if (col + 1 + (int)len > 80) {
+            fprintf(out, "\n ");
+            col = 1;
+        }
+        fprintf(out, " %.*s", (int)len, c);
+        col += 1 + (int)len;
+        c += len;
+        if (*c) ++c;
+    }
+    fprintf(out, "\n");
+}
 
 static void usage(FILE *out)
 {
@@ -32,7 +52,13 @@ static void usage(FILE *out)
     fprintf(out, "usage: consph COMMAND [options]   (consph COMMAND --help for its options)\n\n");
     fprintf(out, "commands:\n");
     for (size_t k = 0; k < NSUB; ++k)
-        fprintf(out, "  %-10s %s\n", subcommands[k].name, subcommands[k].summary);
+        fprintf(out, "  %-12s %s\n", subcommands[k].name, subcommands[k].summary);
+    /* From the registries, so that a new problem or scheme is listed without an edit here. */
+    char problems[512];
+    snprintf(problems, sizeof problems, "%s,heat", consph_problem_names());
+    fprintf(out, "\n");
+    print_list(out, "problems (consph run PROBLEM):", problems);
+    print_list(out, "schemes (consph run --scheme):", consph_scheme_names());
     fprintf(out,
             "\nexit status: 0 success, 1 failure while running (a failed write included), 2 bad\n"
             "usage or input, 3 a non-finite result or a run that left its model's validity,\n"

@@ -160,7 +160,7 @@ grep -q '^003-appc ' "$tmp/log" && grep -q '^local ' "$tmp/log" || bad "--list w
 # 0.3 from the paper's is flagged; F_T/F_max is blank for a function; no slope guide when
 # h = N^(-1/6); T_r (a median of 5 timings) only where the paper publishes one.
 grep -q '^\$paper0 << EOD' "$d/grad.gp" && grep -q '^32 0.001$' "$d/grad.gp" || bad "grad.gp lacks the paper's point"
-grep -q "title 'paper (series colour)'" "$d/grad.gp" || bad "grad.gp: the paper's point has no key entry"
+grep -q "\$paper0 with points .* title '[^']*: paper (nx 32)'" "$d/grad.gp" || bad "grad.gp: the paper's point has no key entry naming its series"
 grep -q '⚠' "$d/grad.md" && bad "asym_bc (1.9 against 2.0) flagged"
 mini "$tmp/rep.study" "report" 'h_policy = scaling
 kernel = wendland-c4:h

@@ -1,5 +1,5 @@
 /* The outputs a problem adds to a run's directory at the final time: the velocity profile u_φ(r)
- * of a centred vortex (profile.csv) and, for the shear layer, the vorticity as a gnuplot pm3d
+ * of a centred vortex (profile.csv) and, for the shear layer, the vorticity as a gnuplot image
  * map (vorticity.dat, vorticity.gp and, when gnuplot is installed, vorticity.png) of a 2D
  * problem. */
 #define _GNU_SOURCE /* posix_spawn_file_actions_addchdir_np */
@@ -171,10 +171,12 @@ static int write_vorticity(consph_solver *s, const char *dir)
     fprintf(of.fp,
             "set terminal png size 900,820\nset output 'vorticity.png.tmp'\n"
             "set title '%s, %s, nx %d, t = %.4g: vorticity' noenhanced\n"
-            "set pm3d map\nset size ratio -1\nset xrange [%.17g:%.17g]\nset yrange [%.17g:%.17g]\n"
+            "set size ratio -1\nset xrange [%.17g:%.17g]\nset yrange [%.17g:%.17g]\n"
+            "set xlabel 'x'\nset ylabel 'y'\n"
+            "set cblabel 'vorticity ω = ∂v/∂x − ∂u/∂y (cell mean over particles)' noenhanced\n"
             "set palette defined (-1 'blue', 0 'white', 1 'red')\nset cbrange [%.6g:%.6g]\n"
-            "splot 'vorticity.dat' matrix using (%.17g + ($1 + 0.5) * %.17g):"
-            "(%.17g + ($2 + 0.5) * %.17g):3 with pm3d notitle\n",
+            "plot 'vorticity.dat' matrix using (%.17g + ($1 + 0.5) * %.17g):"
+            "(%.17g + ($2 + 0.5) * %.17g):3 with image notitle\n",
             s->prob->name, s->scheme->name, nx, s->t, lo, hi, s->prob->lo[1], s->prob->hi[1], -wmax,
             wmax, lo, ds, s->prob->lo[1], ds);
     st = consph_outfile_commit(&of);

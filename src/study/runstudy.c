@@ -400,7 +400,7 @@ int study_run_figure(const study_job *job, const study_figure *f)
     const char *title = rc == CONSPH_OK ? run_title(s, f, quick, &plans[0], tbuf, sizeof tbuf) : "";
     if (rc == CONSPH_OK) rc = run_write_report(s, f, quick, dir, plans, rows, ref, x, title);
     if (rc == CONSPH_OK && run_plottable(f, plans, rows, x))
-        rc = run_write_plot(s, f, dir, title, plans, rows, x);
+        rc = run_write_plot(s, f, dir, quick, plans, rows, x);
     for (int k = 0; rows && k < f->nseries; ++k)
         for (int j = 0; j < MAX_SWEEP; ++j) free(rows[k][j].curve);
     free(plans);

@@ -104,7 +104,23 @@ const char *study_csv_label(const char *label, char *buf, size_t size);
  * ID.svg. */
 int study_have_gnuplot(void);
 int study_gp_put(FILE *o, const char *text);
-int study_gp_head(FILE *o, const char *id, const char *title);
+int study_gp_head(FILE *o, const char *id, const char *title, const char *ran);
+int study_gp_title(FILE *o, const char *title, const char *ran);
+/* Series k's colour and marker (" lc rgb '...' pt N"), the paper point's style for series k,
+ * and the colour and marker alone. */
+void study_gp_style(FILE *o, int k);
+void study_gp_paper_style(FILE *o, int k);
+const char *study_gp_colour(int k);
+int study_gp_point(int k);
+/* The extent of what a figure draws on one axis, and `set Xrange` cropped to it. */
+typedef struct study_extent {
+    double lo, hi;
+} study_extent;
+void study_extent_init(study_extent *e);
+void study_extent_add(study_extent *e, double v, int log);
+void study_gp_range(FILE *o, const char *axis, const study_extent *e, int log);
+/* "NAME = v1, v2, ..." appended at buf + *len, for the line of a title that says what ran. */
+void study_list_text(char *buf, size_t size, size_t *len, const char *name, const double *v, int n);
 int study_render_figure(const char *dir, const char *id);
 
 /* ---- kind = run: solver runs over resolutions (runstudy.c) ---- */

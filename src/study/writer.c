@@ -183,17 +183,125 @@ int study_gp_put(FILE *o, const char *text)
     return CONSPH_OK;
 }
 
+/* A figure's title as one gnuplot string expression: the study file's title, then on a second
+ * line `ran` (what this run was: its t_f and resolutions), each quoted by study_gp_put. */
+int study_gp_title(FILE *o, const char *title, const char *ran)
+{
+    int rc = study_gp_put(o, title);
+    if (rc == CONSPH_OK && ran && ran[0]) {
+        fprintf(o, " . \"\\n\" . ");
+        rc = study_gp_put(o, ran);
+    }
+    return rc;
+}
+
 /* The head of every figure script: SVG into `outfile` (ID.svg unless the caller sets it, so the
- * script also runs by hand) and a title. */
-int study_gp_head(FILE *o, const char *id, const char *title)
+ * script also runs by hand) and a title that says what ran. */
+int study_gp_head(FILE *o, const char *id, const char *title, const char *ran)
 {
     fprintf(o,
             "set terminal svg size 900,640 dynamic\nif (!exists('outfile')) outfile = '%s.svg'\n"
             "set output outfile\nset title ",
             id);
-    int rc = study_gp_put(o, title);
+    int rc = study_gp_title(o, title, ran);
     fprintf(o, " noenhanced\nset grid\nset key outside right noenhanced\n");
     return rc;
+}
+
+/* Series styles: gnuplot's default colours repeat after 8, and a figure of 001 has up to 12
+ * schemes, so each series takes a colour of its own from 16 and a marker from 15 (filled and
+ * open alternating); the pair differs for every series up to 240, and past the 16 colours the
+ * line is dashed as well. */
+static const char *const gp_colours[] = {
+    "#1f77b4", "#d62728", "#2ca02c", "#ff7f0e", "#9467bd", "#8c564b", "#e377c2", "#17becf",
+    "#000000", "#bcbd22", "#7f7f7f", "#393b79", "#843c39", "#637939", "#ff9896", "#98df8a"};
+static const int gp_points[] = {7, 5, 9, 11, 13, 15, 6, 4, 8, 10, 12, 14, 1, 2, 3};
+#define GP_NCOLOURS ((int)(sizeof gp_colours / sizeof gp_colours[0]))
+#define GP_NPOINTS ((int)(sizeof gp_points / sizeof gp_points[0]))
+
+const char *study_gp_colour(int k)
+{
+    return gp_colours[(k < 0 ? 0 : k) % GP_NCOLOURS];
+}
+
+int study_gp_point(int k)
+{
+    return gp_points[(k < 0 ? 0 : k) % GP_NPOINTS];
+}
+
+void study_gp_style(FILE *o, int k)
+{
+    fprintf(o, " lc rgb '%s' pt %d", study_gp_colour(k), study_gp_point(k));
+    if (k >= GP_NCOLOURS) fprintf(o, " dt %d", 1 + k / GP_NCOLOURS);
+}
+
+/* The paper's value of series k: the open form of the series' marker, larger, in its colour. */
+void study_gp_paper_style(FILE *o, int k)
+{
+    int pt = study_gp_point(k);
+    /* gnuplot's filled markers 5, 7, ..., 15 are the open 4, 6, ..., 14 filled */
+    if (pt >= 5 && pt % 2 == 1) pt -= 1;
+    fprintf(o, " lc rgb '%s' pt %d ps 2.4 lw 2", study_gp_colour(k), pt);
+}
+
+void study_extent_init(study_extent *e)
+{
+    e->lo = INFINITY;
+    e->hi = -INFINITY;
+}
+
+/* A value joins the extent when it can be drawn: finite, and positive on a log axis. */
+void study_extent_add(study_extent *e, double v, int log)
+{
+    if (!isfinite(v) || (log && !(v > 0))) return;
+    e->lo = fmin(e->lo, v);
+    e->hi = fmax(e->hi, v);
+}
+
+/* `set Xrange` to the extent with a margin of 4 % of its span each side (of its decades on a
+ * log axis, at least a factor 1.15), so that the axes end at the data and the paper's points
+ * rather than at gnuplot's next round tic; autoscale when the extent is empty. */
+void study_gp_range(FILE *o, const char *axis, const study_extent *e, int log)
+{
+    if (!(e->lo <= e->hi)) {
+        fprintf(o, "set autoscale %s\n", axis);
+        return;
+    }
+    if (log) {
+        const double f = fmax(1.15, pow(e->hi / e->lo, 0.04)), lo = e->lo / f, hi = e->hi * f;
+        fprintf(o, "set %srange [%.10g:%.10g]\n", axis, lo, hi);
+        /* Under two decades gnuplot labels one tic or none: 1-2-5 tics instead. */
+        if (hi / lo < 100.0) {
+            char tics[256];
+            size_t len = 0;
+            for (double d = pow(10.0, floor(log10(lo))); d <= hi; d *= 10.0)
+                for (int m = 0; m < 3 && len < sizeof tics; ++m) {
+                    const double t = d * (m == 0 ? 1.0 : m == 1 ? 2.0 : 5.0);
+                    if (t >= lo && t <= hi)
+                        len += (size_t)snprintf(tics + len, sizeof tics - len, "%s%.6g",
+                                                len ? ", " : "", t);
+                }
+            if (len && len < sizeof tics) fprintf(o, "set %stics (%s)\n", axis, tics);
+        }
+    } else {
+        double pad = e->hi > e->lo ? 0.04 * (e->hi - e->lo) : fmax(1e-12, 0.05 * fabs(e->hi));
+        fprintf(o, "set %srange [%.10g:%.10g]\n", axis, e->lo - pad, e->hi + pad);
+    }
+}
+
+/* "NAME = v1, v2, v3" appended to buf at *len (NAME omitted when NULL), at most 8 values shown
+ * (the first six, an ellipsis and the last). */
+void study_list_text(char *buf, size_t size, size_t *len, const char *name, const double *v, int n)
+{
+    if (*len >= size) return;
+    if (name) *len += (size_t)snprintf(buf + *len, size - *len, "%s = ", name);
+    for (int j = 0; j < n && *len < size; ++j) {
+        if (n > 8 && j == 6) {
+            *len += (size_t)snprintf(buf + *len, size - *len, ", ...");
+            j = n - 1;
+        }
+        *len += (size_t)snprintf(buf + *len, size - *len, "%s%g", j ? ", " : "", v[j]);
+    }
 }
 
 /* Draws DIR/ID.gp into DIR/ID.svg through a temporary file, so that a figure either is drawn

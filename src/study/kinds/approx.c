@@ -78,6 +78,40 @@ static int reports_tr(const consph_study *s, const study_figure *f)
     return 0;
 }
 
+/* The title's second line: what ran (the resolutions, the h/Δs sweep, the files), and for a
+ * quick run the paper's resolutions beside them. */
+static void ran_text(const consph_study *s, const study_figure *f, const series_plan *plans,
+                     const series_result *res, int quick, const study_files *files, int dim,
+                     char *buf, size_t size)
+{
+    size_t len = (size_t)snprintf(buf, size, "ran: ");
+    if (files) {
+        double n[MAX_SWEEP];
+        for (int j = 0; j < files->n && j < MAX_SWEEP; ++j) n[j] = (double)files->sets[j].n;
+        len += (size_t)snprintf(buf + len, size - len, "particle files, ");
+        study_list_text(buf, size, &len, "N", n, files->n < MAX_SWEEP ? files->n : MAX_SWEEP);
+    } else if (plans[0].sweep_hdx) {
+        len += (size_t)snprintf(buf + len, size - len, "nx = %zu, ", plans[0].nx_fixed);
+        study_list_text(buf, size, &len, "h/Δs", plans[0].values, plans[0].nvalues);
+    } else {
+        study_list_text(buf, size, &len, "nx", res[0].nx, res[0].nrows);
+    }
+    if (len < size)
+        len += (size_t)snprintf(buf + len, size - len, " (%dD, %s", dim,
+                                files   ? "the files'"
+                                : quick ? "quick"
+                                        : "the paper's");
+    double full[MAX_SWEEP];
+    int nfull = 0;
+    if (quick && !files && !plans[0].sweep_hdx &&
+        study_get_list(s, f, &f->series[0], "nx", 2, 1e5, full, &nfull) == CONSPH_OK && nfull &&
+        len < size) {
+        len += (size_t)snprintf(buf + len, size - len, "; the paper's: ");
+        study_list_text(buf, size, &len, "nx", full, nfull);
+    }
+    if (len < size) snprintf(buf + len, size - len, ")");
+}
+
 static int write_approx_outputs(const consph_study *s, const study_figure *f,
                                 const series_plan *plans, const series_result *res, const char *dir,
                                 int quick, const study_files *files, FILE *log)
@@ -263,9 +297,22 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     if ((rc = consph_outfile_commit(&of))) return rc;
     if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
     o = of.fp;
-    rc = study_gp_head(o, f->id, title);
+    char ran[512];
+    ran_text(s, f, plans, res, quick, files, dim, ran, sizeof ran);
+    rc = study_gp_head(o, f->id, title, ran);
     fprintf(o, "set logscale xy\nset format y '%%g'\nset xlabel '%s'\nset ylabel '%s error'\n",
             strcmp(xname, "nbr") == 0 ? "neighbours" : "particles per axis", norm);
+    /* The axes end at the data and the paper's points, the guide and the bound left out. */
+    study_extent ex, ey;
+    study_extent_init(&ex);
+    study_extent_init(&ey);
+    for (int k = 0; k < f->nseries; ++k)
+        for (int j = 0; j < res[k].nrows; ++j) {
+            double y = norm_value(&res[k].rows[j], norm);
+            if (!(y > 0) || !isfinite(y)) continue;
+            study_extent_add(&ex, x_value(&res[k].rows[j], res[k].nx[j], xname, dim), 1);
+            study_extent_add(&ey, y, 1);
+        }
     /* A slope -2 guide (second-order convergence in the particle spacing), half a step below
      * the lowest first point so that it does not hide a series that converges at that rate.
      * Meaningless against neighbours, across h/Δs, or when h is not proportional to the
@@ -282,25 +329,36 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
                 x_value(&res[0].rows[0], res[0].nx[0], xname, dim));
     /* The paper's value of each series as a marked point at the paper's finest resolution. */
     int paper_pt[MAX_SERIES_POINTS] = {0};
+    double paper_x[MAX_SERIES_POINTS] = {0};
     for (int k = 0; k < f->nseries && k < MAX_SERIES_POINTS; ++k) {
         double px, py;
         if (sweep_hdx || !paper_point(s, f, &f->series[k], xname, norm, &px, &py)) continue;
         fprintf(o, "$paper%d << EOD\n%.10g %.10g\nEOD\n", k, px, py);
+        study_extent_add(&ex, px, 1);
+        study_extent_add(&ey, py, 1);
         paper_pt[k] = 1;
+        paper_x[k] = px;
     }
+    study_gp_range(o, "x", &ex, 1);
+    study_gp_range(o, "y", &ey, 1);
     fprintf(o, "plot");
     for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
-        fprintf(o, "%s '%s.dat' index %d using 1:2 with linespoints lc %d title ",
-                k ? ", \\\n    " : " ", f->id, k, k + 1);
+        fprintf(o, "%s '%s.dat' index %d using 1:2 with linespoints", k ? ", \\\n    " : " ", f->id,
+                k);
+        study_gp_style(o, k);
+        fprintf(o, " title ");
         rc = study_gp_put(o, f->series[k].label);
     }
-    /* One key entry for every paper point: the colour says which series. */
-    int keyed = 0;
-    for (int k = 0; k < f->nseries && k < MAX_SERIES_POINTS; ++k) {
+    /* Every paper point its own key entry, naming its series: the open form of the series'
+     * marker. */
+    for (int k = 0; rc == CONSPH_OK && k < f->nseries && k < MAX_SERIES_POINTS; ++k) {
         if (!paper_pt[k]) continue;
-        fprintf(o, ", \\\n    $paper%d with points pt 6 ps 2 lw 2 lc %d %s", k, k + 1,
-                keyed ? "notitle" : "title 'paper (series colour)'");
-        keyed = 1;
+        char text[320];
+        snprintf(text, sizeof text, "%s: paper (nx %g)", f->series[k].label, paper_x[k]);
+        fprintf(o, ", \\\n    $paper%d with points", k);
+        study_gp_paper_style(o, k);
+        fprintf(o, " title ");
+        rc = study_gp_put(o, text);
     }
     if (plans[0].bound)
         fprintf(o, ", \\\n    '%s.dat' index 0 using 1:3 with lines dashtype 2 title 'bound'",

@@ -110,7 +110,7 @@ static int write_csv(const study_figure *f, const heat_plan *plans,
 
 /* Three panels (L2, L∞, EC against Δ), one line per series; data in ID.dat, one block each. */
 static int write_plot(const consph_study *s, const study_figure *f, const heat_plan *plans,
-                      heat_row (*rows)[STUDY_MAX_SWEEP], const char *dir)
+                      heat_row (*rows)[STUDY_MAX_SWEEP], int quick, const char *dir)
 {
     consph_outfile of;
     int rc = study_open_output(&of, dir, f->id, ".dat");
@@ -127,23 +127,67 @@ static int write_plot(const consph_study *s, const study_figure *f, const heat_p
     if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
     FILE *o = of.fp;
     const char *title = study_get(s, f, NULL, "title");
-    rc = study_gp_head(o, f->id, title ? title : f->id);
+    char ran[512];
+    size_t len = (size_t)snprintf(ran, sizeof ran, "ran: t_f = %g, ", plans[0].prm.tf);
+    study_list_text(ran, sizeof ran, &len, "nx", plans[0].nx, plans[0].nvalues);
+    double full[STUDY_MAX_SWEEP];
+    int nfull = 0;
+    if (len < sizeof ran)
+        len += (size_t)snprintf(ran + len, sizeof ran - len, " (%s", quick ? "quick" : "full");
+    if (quick && study_get_list(s, f, &f->series[0], "nx", 4, 20000, full, &nfull) == CONSPH_OK &&
+        nfull && len < sizeof ran) {
+        len += (size_t)snprintf(ran + len, sizeof ran - len, "; the full study: ");
+        study_list_text(ran, sizeof ran, &len, "nx", full, nfull);
+    }
+    if (len < sizeof ran) snprintf(ran + len, sizeof ran - len, ")");
+    rc = study_gp_head(o, f->id, title ? title : f->id, ran);
     static const char *const names[3] = {"L2 (002 eq. 44)", "Linf (eq. 45)", "EC (eq. 46)"};
-    fprintf(o, "set terminal svg size 1500,560 dynamic\nset output outfile\nunset title\n"
+    fprintf(o, "set terminal svg size 1500,600 dynamic\nset output outfile\nunset title\n"
                "set multiplot layout 1,3 title ");
-    if (rc == CONSPH_OK) rc = study_gp_put(o, title ? title : f->id);
+    if (rc == CONSPH_OK) rc = study_gp_title(o, title ? title : f->id, ran);
     fprintf(o, " noenhanced\nset logscale xy\nset format y '%%.0e'\nset xlabel 'Δ = 1/(nx-1)'\n"
                "set key bottom right noenhanced font ',9'\n");
+    study_extent ex;
+    study_extent_init(&ex);
+    for (int k = 0; k < f->nseries; ++k)
+        for (int j = 0; j < plans[k].nvalues; ++j) study_extent_add(&ex, rows[k][j].sum.delta, 1);
+    study_gp_range(o, "x", &ex, 1);
     for (int c = 0; rc == CONSPH_OK && c < 3; ++c) {
-        fprintf(o, "set ylabel '%s'\n%s\nplot", names[c], c ? "unset key" : "");
+        /* 002 describes S3 as first order and S4 as near second order: a slope-1 guide above
+         * the errors at the coarsest Δ and a slope-2 guide below them, so that neither hides a
+         * series. */
+        study_extent ey;
+        study_extent_init(&ey);
+        double x0 = ex.hi, top = -INFINITY, bottom = INFINITY;
+        for (int k = 0; k < f->nseries; ++k)
+            for (int j = 0; j < plans[k].nvalues; ++j) {
+                const consph_heat_summary *w = &rows[k][j].sum;
+                const double e = c == 0 ? w->l2 : c == 1 ? w->linf : w->ec;
+                study_extent_add(&ey, e, 1);
+                if (w->delta == x0 && e > 0 && isfinite(e)) {
+                    top = fmax(top, e);
+                    bottom = fmin(bottom, e);
+                }
+            }
+        study_gp_range(o, "y", &ey, 1);
+        fprintf(o, "set ylabel '%s'\n%s\n", names[c], c ? "unset key" : "");
+        const int guides = isfinite(top) && isfinite(bottom) && isfinite(x0);
+        if (guides)
+            fprintf(o, "slope1(x) = %.10g*(x/%.10g)\nslope2(x) = %.10g*(x/%.10g)**2\n", 2.0 * top,
+                    x0, 0.5 * bottom, x0);
+        fprintf(o, "plot");
         for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
-            /* S3 dashed, S4 solid; the colour follows η */
-            fprintf(o, "%s '%s.dat' index %d using 1:%d with linespoints dashtype %d lc %d title ",
-                    k ? ", \\\n    " : " ", f->id, k, c + 2,
-                    plans[k].prm.laplacian == CONSPH_HEAT_S3 ? 2 : 1,
-                    1 + (int)lround((plans[k].prm.eta - 1.0) * 2.0));
+            /* each series its colour and marker; S3 dashed, S4 solid */
+            fprintf(o, "%s '%s.dat' index %d using 1:%d with linespoints", k ? ", \\\n    " : " ",
+                    f->id, k, c + 2);
+            study_gp_style(o, k);
+            fprintf(o, " dt %d title ", plans[k].prm.laplacian == CONSPH_HEAT_S3 ? 2 : 1);
             rc = study_gp_put(o, f->series[k].label);
         }
+        if (guides)
+            fprintf(o, ", \\\n    slope1(x) with lines dt 3 lw 2 lc rgb 'gray40' title 'slope 1 "
+                       "(first order)', \\\n    slope2(x) with lines dt 4 lw 2 lc rgb 'gray20' "
+                       "title 'slope 2 (second order)'");
         fprintf(o, "\n");
     }
     fprintf(o, "unset multiplot\n");
@@ -307,7 +351,7 @@ static int heat_figure(const study_job *job, const study_figure *f)
             plans[k].nvalues = 1;
         }
     if (rc == CONSPH_OK) rc = write_csv(f, plans, rows, dir);
-    if (rc == CONSPH_OK && !timing) rc = write_plot(s, f, plans, rows, dir);
+    if (rc == CONSPH_OK && !timing) rc = write_plot(s, f, plans, rows, quick, dir);
     if (rc == CONSPH_OK) rc = write_report(s, f, plans, rows, timing, quick, dir);
     free(plans);
     free(rows);

@@ -172,11 +172,26 @@ static int run_m0_figure(const study_job *job, const study_figure *f)
     if (rc == CONSPH_OK) rc = study_open_output(&of, dir, f->id, ".gp");
     if (rc == CONSPH_OK) {
         FILE *o = of.fp;
-        rc = study_gp_head(o, f->id, study_files_title(s, f, files != NULL, tbuf, sizeof tbuf));
+        char ran[512];
+        double nxs[MAX_SWEEP];
+        size_t len = (size_t)snprintf(ran, sizeof ran, "ran: ");
+        for (int j = 0; j < nrows; ++j) nxs[j] = (double)rows[j].nx;
+        study_list_text(ran, sizeof ran, &len, "nx", nxs, nrows);
+        if (len < sizeof ran)
+            snprintf(ran + len, sizeof ran - len, " (%s, %dD)",
+                     files   ? "particle files"
+                     : quick ? "quick"
+                             : "the paper's",
+                     pl.spec.layout.dim);
+        rc =
+            study_gp_head(o, f->id, study_files_title(s, f, files != NULL, tbuf, sizeof tbuf), ran);
         fprintf(o, "set xlabel 'M0'\nset ylabel 'particles (density)'\nplot");
-        for (int j = 0; j < nrows; ++j)
-            fprintf(o, "%s '%s.dat' index %d using 1:2 with lines title 'N = %zu'",
-                    j ? ", \\\n    " : " ", f->id, j, rows[j].n);
+        for (int j = 0; j < nrows; ++j) {
+            fprintf(o, "%s '%s.dat' index %d using 1:2 with linespoints pi %d",
+                    j ? ", \\\n    " : " ", f->id, j, nbins > 12 ? nbins / 12 : 1);
+            study_gp_style(o, j);
+            fprintf(o, " title 'N = %zu'", rows[j].n);
+        }
         fprintf(o, "\n");
         rc = study_gp_finish(&of, rc, dir, f->id);
     }

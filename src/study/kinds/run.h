@@ -50,8 +50,9 @@ typedef struct curve_kind {
 } curve_kind;
 
 static const curve_kind curve_kinds[] = {
-    [X_RADIUS] = {"profile", "r u_phi u_phi_exact", "r", "points pt 7 ps 0.4", 3, 8},
-    [X_TIME] = {"history", "t momentum_x momentum_y angular_momentum", "t", "lines lw 1.5", 4, 12},
+    [X_RADIUS] = {"profile", "r u_phi u_phi_exact", "r", "points ps 0.5", 3, 8},
+    [X_TIME] = {"history", "t momentum_x momentum_y angular_momentum", "t", "linespoints lw 1.5", 4,
+                12},
 };
 
 /* x = time: the quantities of `y`, one panel each, and their columns in the history. */
@@ -70,8 +71,9 @@ const char *run_title(const consph_study *s, const study_figure *f, int quick, c
 int run_write_report(const consph_study *s, const study_figure *f, int quick, const char *dir,
                      const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref, int x,
                      const char *title);
-/* FIGURE.dat, .gp and .svg (and FIGURE-profile/-history.dat for x = radius or time). */
-int run_write_plot(const consph_study *s, const study_figure *f, const char *dir, const char *title,
+/* FIGURE.dat, .gp and .svg (and FIGURE-profile/-history.dat for x = radius or time); the title
+ * says what ran (t_f, resolutions, quick). */
+int run_write_plot(const consph_study *s, const study_figure *f, const char *dir, int quick,
                    const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x);
 
 #endif

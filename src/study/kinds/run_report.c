@@ -326,8 +326,41 @@ int run_write_report(const consph_study *s, const study_figure *f, int quick, co
     return consph_outfile_commit(&of);
 }
 
-/* One panel: column `col` of the data (2: L1(u), 3: L1(p)) against column `xcol`, with the
- * paper's value `paper_key` at the paper's finest nx and, against nx, a slope -2 guide. */
+/* The line of a figure's title that says what ran: t_f (or the steps, and the time the first
+ * series' finest run reached), the resolutions, and for a quick run the paper's beside them. */
+static void ran_text(const consph_study *s, const study_figure *f, int quick, const run_plan *plans,
+                     run_row (*rows)[MAX_SWEEP], char *buf, size_t size)
+{
+    const run_plan *pl = &plans[0];
+    size_t len;
+    if (pl->prm.steps > 0)
+        len = (size_t)snprintf(buf, size, "ran: %ld steps (t = %.4g at nx %g), ", pl->prm.steps,
+                               rows[0][pl->nnx - 1].sum.t, pl->nx[pl->nnx - 1]);
+    else
+        len = (size_t)snprintf(buf, size, "ran: t_f = %g, ", pl->prm.tf);
+    study_list_text(buf, size, &len, "nx", pl->nx, pl->nnx);
+    if (len < size)
+        len += (size_t)snprintf(buf + len, size - len, ", c_o = %g (%s", rows[0][0].sum.c0,
+                                quick ? "quick" : "the paper's");
+    double nxs[MAX_SWEEP];
+    int n = 0;
+    const char *tf = study_get(s, f, &f->series[0], "tf");
+    const char *steps = study_get(s, f, &f->series[0], "steps");
+    if (quick && len < size) {
+        len += (size_t)snprintf(buf + len, size - len, "; the paper's: ");
+        if (steps)
+            len += (size_t)snprintf(buf + len, size - len, "%s steps, ", steps);
+        else if (tf)
+            len += (size_t)snprintf(buf + len, size - len, "t_f = %s, ", tf);
+        if (study_get_list(s, f, &f->series[0], "nx", 4, 1e5, nxs, &n) == CONSPH_OK && n)
+            study_list_text(buf, size, &len, "nx", nxs, n);
+    }
+    if (len < size) snprintf(buf + len, size - len, ")");
+}
+
+/* One panel: column `col` of the data (2: L1(u), 3: L1(p)) against column `xcol`, cropped to the
+ * points drawn, with the paper's value `paper_key` of each series at the paper's finest nx (the
+ * open form of the series' marker, its own key entry) and, against nx, a slope -2 guide. */
 static int gp_panel(FILE *o, const consph_study *s, const study_figure *f, const run_plan *plans,
                     run_row (*rows)[MAX_SWEEP], int xcol, int col, const char *paper_key,
                     const char *ylabel)
@@ -335,36 +368,60 @@ static int gp_panel(FILE *o, const consph_study *s, const study_figure *f, const
     int rc = CONSPH_OK;
     fprintf(o, "set ylabel '%s'\n", ylabel);
     double y0 = INFINITY, x0 = NAN;
+    double paper_x[MAX_SERIES_POINTS];
+    int paper_pt[MAX_SERIES_POINTS] = {0};
+    study_extent ex, ey;
+    study_extent_init(&ex);
+    study_extent_init(&ey);
     for (int k = 0; k < f->nseries; ++k) {
         double y = col == 2 ? rows[k][0].sum.l1_u : rows[k][0].sum.l1_p;
         if (rows[k][0].status == CONSPH_OK && y > 0 && y < y0) {
             y0 = y;
             x0 = plans[k].nx[0];
         }
+        for (int j = 0; j < plans[k].nnx; ++j) {
+            const run_row *w = &rows[k][j];
+            const double yj = col == 2 ? w->sum.l1_u : w->sum.l1_p;
+            if (w->status != CONSPH_OK || !(yj > 0) || !isfinite(yj)) continue;
+            study_extent_add(&ex, xcol == 1 ? plans[k].nx[j] : w->sum.seconds, 1);
+            study_extent_add(&ey, yj, 1);
+        }
         double nxs[MAX_SWEEP], py;
         int n = 0;
-        if (xcol == 1 && study_paper_number(s, f, &f->series[k], paper_key, &py) && py > 0 &&
-            study_get_list(s, f, &f->series[k], "nx", 4, 1e5, nxs, &n) == CONSPH_OK && n)
+        if (k < MAX_SERIES_POINTS && xcol == 1 &&
+            study_paper_number(s, f, &f->series[k], paper_key, &py) && py > 0 &&
+            study_get_list(s, f, &f->series[k], "nx", 4, 1e5, nxs, &n) == CONSPH_OK && n) {
             fprintf(o, "$paper%d_%d << EOD\n%.10g %.10g\nEOD\n", col, k, nxs[n - 1], py);
+            study_extent_add(&ex, nxs[n - 1], 1);
+            study_extent_add(&ey, py, 1);
+            paper_pt[k] = 1;
+            paper_x[k] = nxs[n - 1];
+        }
     }
+    study_gp_range(o, "x", &ex, 1);
+    study_gp_range(o, "y", &ey, 1);
     int guide = xcol == 1 && isfinite(y0);
     if (guide) fprintf(o, "ref(x) = %.10g*(x/%.10g)**(-2)\n", 0.5 * y0, x0);
     fprintf(o, "plot");
     for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
-        fprintf(o, "%s '%s.dat' index %d using %d:%d with linespoints lc %d title ",
-                k ? ", \\\n    " : " ", f->id, k, xcol, col, k + 1);
+        fprintf(o, "%s '%s.dat' index %d using %d:%d with linespoints", k ? ", \\\n    " : " ",
+                f->id, k, xcol, col);
+        study_gp_style(o, k);
+        fprintf(o, " title ");
         rc = study_gp_put(o, f->series[k].label);
     }
-    int keyed = 0;
-    for (int k = 0; xcol == 1 && k < f->nseries; ++k) {
-        double py;
-        if (!study_paper_number(s, f, &f->series[k], paper_key, &py) || !(py > 0)) continue;
-        fprintf(o, ", \\\n    $paper%d_%d with points pt 6 ps 2 lw 2 lc %d %s", col, k, k + 1,
-                keyed ? "notitle" : "title 'paper (series colour)'");
-        keyed = 1;
+    for (int k = 0; rc == CONSPH_OK && k < f->nseries && k < MAX_SERIES_POINTS; ++k) {
+        if (!paper_pt[k]) continue;
+        char text[320];
+        snprintf(text, sizeof text, "%s: paper (nx %g)", f->series[k].label, paper_x[k]);
+        fprintf(o, ", \\\n    $paper%d_%d with points", col, k);
+        study_gp_paper_style(o, k);
+        fprintf(o, " title ");
+        rc = study_gp_put(o, text);
     }
     if (guide)
-        fprintf(o, ", \\\n    ref(x) with lines dashtype 2 lw 2 lc rgb 'gray40' title 'slope -2'");
+        fprintf(o, ", \\\n    ref(x) with lines dashtype 2 lw 2 lc rgb 'gray40' title 'slope -2 "
+                   "(second order)'");
     fprintf(o, "\n");
     return rc;
 }
@@ -394,8 +451,8 @@ static void y_range(FILE *o, const study_figure *f, const run_plan *plans,
  * one panel per quantity: u_φ against r with the exact profile in black (x = radius), or each
  * quantity of `y` against t (x = time). */
 static int write_curve_plot(const consph_study *s, const study_figure *f, const char *dir,
-                            const char *title, const run_plan *plans, run_row (*rows)[MAX_SWEEP],
-                            int x)
+                            const char *title, const char *ran, const run_plan *plans,
+                            run_row (*rows)[MAX_SWEEP], int x)
 {
     const curve_kind *ck = &curve_kinds[x];
     int ys[MAX_PANELS], ny, rc = run_y_panels(s, f, x, ys, &ny);
@@ -418,12 +475,12 @@ static int write_curve_plot(const consph_study *s, const study_figure *f, const 
     if ((rc = consph_outfile_commit(&of))) return rc;
     if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
     FILE *o = of.fp;
-    rc = study_gp_head(o, f->id, title);
+    rc = study_gp_head(o, f->id, title, ran);
     fprintf(o, "set xlabel '%s'\n%s", ck->xlabel,
             x == X_TIME ? "set autoscale xfix\nset format y '%.6g'\n" : "");
     if (ny > 1) {
         fprintf(o, "set multiplot layout %d,1 title ", ny);
-        if (rc == CONSPH_OK) rc = study_gp_put(o, title);
+        if (rc == CONSPH_OK) rc = study_gp_title(o, title, ran);
         /* Panels of one width whether or not they carry the key. */
         fprintf(
             o, " noenhanced\nunset title\nset lmargin at screen 0.14\nset rmargin at screen 0.8\n");
@@ -440,11 +497,14 @@ static int write_curve_plot(const consph_study *s, const study_figure *f, const 
         for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
             if (rows[k][plans[k].nnx - 1].ncurve == 0)
                 continue; /* x = radius: a diverged run has none */
-            fprintf(o, "%s '%s.dat' index %d using 1:%d with %s lc %d ", n ? ", \\\n    " : " ",
-                    name, n, col, ck->style, k + 1);
-            /* gnuplot's colours repeat after 8: lines past them are dashed */
-            if (x == X_TIME) fprintf(o, "dt %d ", 1 + k / 8);
-            fprintf(o, "title ");
+            fprintf(o, "%s '%s.dat' index %d using 1:%d with %s", n ? ", \\\n    " : " ", name, n,
+                    col, ck->style);
+            study_gp_style(o, k);
+            /* a history has a row per step: a marker every tenth of it, offset per series so
+             * that markers of curves on top of each other stay apart */
+            const size_t nc = rows[k][plans[k].nnx - 1].ncurve;
+            if (x == X_TIME) fprintf(o, " pi %zu", nc > 10 ? nc / 10 : 1);
+            fprintf(o, " title ");
             ++n;
             rc = study_gp_put(o, f->series[k].label);
         }
@@ -464,9 +524,12 @@ static int write_curve_plot(const consph_study *s, const study_figure *f, const 
     return study_render_figure(dir, f->id);
 }
 
-int run_write_plot(const consph_study *s, const study_figure *f, const char *dir, const char *title,
+int run_write_plot(const consph_study *s, const study_figure *f, const char *dir, int quick,
                    const run_plan *plans, run_row (*rows)[MAX_SWEEP], int x)
 {
+    const char *title = study_get_or(s, f, NULL, "title", f->id);
+    char ran[512];
+    ran_text(s, f, quick, plans, rows, ran, sizeof ran);
     consph_outfile of;
     int rc = study_open_output(&of, dir, f->id, ".dat");
     if (rc) return rc;
@@ -479,10 +542,10 @@ int run_write_plot(const consph_study *s, const study_figure *f, const char *dir
         fprintf(of.fp, "\n\n");
     }
     if ((rc = consph_outfile_commit(&of))) return rc;
-    if (x >= X_RADIUS) return write_curve_plot(s, f, dir, title, plans, rows, x);
+    if (x >= X_RADIUS) return write_curve_plot(s, f, dir, title, ran, plans, rows, x);
     if ((rc = study_open_output(&of, dir, f->id, ".gp"))) return rc;
     FILE *o = of.fp;
-    rc = study_gp_head(o, f->id, title);
+    rc = study_gp_head(o, f->id, title, ran);
     fprintf(o, "set logscale xy\nset format y '%%g'\n");
     if (x == X_SECONDS) {
         fprintf(o, "set xlabel 'wall time of the time steps (s)'\n");
@@ -491,16 +554,21 @@ int run_write_plot(const consph_study *s, const study_figure *f, const char *dir
                           AUTHORS(&plans[0]) ? "L1(u), the measure of 001 authors"
                                              : "L1(u), 001 eq. 26");
     } else {
-        fprintf(o, "set xlabel 'particles per axis'\nset multiplot layout 1,2 title ");
-        if (rc == CONSPH_OK) rc = study_gp_put(o, title);
-        /* One key, for both panels, where the falling curves leave room. */
-        fprintf(o, " noenhanced\nset key inside bottom left noenhanced font ',10'\n"
+        /* Two panels of one width and one key, right of them: a key entry for every series
+         * and every paper point. */
+        fprintf(o, "set terminal svg size 1300,640 dynamic\nset output outfile\n"
+                   "set xlabel 'particles per axis'\nset multiplot title ");
+        if (rc == CONSPH_OK) rc = study_gp_title(o, title, ran);
+        fprintf(o, " noenhanced\nunset key\nset tmargin at screen 0.86\nset bmargin at screen 0.1\n"
+                   "set lmargin at screen 0.07\nset rmargin at screen 0.37\n"
                    "set title 'velocity'\n");
         if (rc == CONSPH_OK)
             rc = gp_panel(o, s, f, plans, rows, 1, 2, "paper.l1_u",
                           AUTHORS(&plans[0]) ? "L1(u), the measure of 001 authors"
                                              : "L1(u), 001 eq. 26");
-        fprintf(o, "unset key\nset title 'pressure'\n");
+        fprintf(o, "set key at screen 0.995,0.86 top right noenhanced font ',9' spacing 1.1\n"
+                   "set lmargin at screen 0.45\nset rmargin at screen 0.75\n"
+                   "set title 'pressure'\n");
         if (rc == CONSPH_OK)
             rc = gp_panel(o, s, f, plans, rows, 1, 3, "paper.l1_p",
                           AUTHORS(&plans[0]) ? "L1(p), the measure of 001 authors"
