@@ -65,7 +65,7 @@ head -1 "$tmp/out/tiny/conv.csv" | grep -q ',status,l1_u_eq26,l1_p_eq26$' || bad
 # the table's L1(u) is the authors' measure, the eq. 26 column the integral
 awk -F, 'NR > 1 && $10 == $19 { same = 1 } END { exit same }' "$tmp/out/tiny/conv.csv" ||
     bad "authors' L1 equals eq. 26 in the csv"
-grep -q "ran: t_f = 0.01, nx = 10, 14, c_o = [0-9.]* (quick; the paper''s: t_f = 0.5, " "$tmp/out/tiny/conv.gp" ||
+grep -q "ran: t_f = 0.01, nx = 10, 14, c_o = [0-9.]* (quick; full study: t_f = 0.5, " "$tmp/out/tiny/conv.gp" ||
     bad "plot title does not say what ran: $(grep 'set multiplot' "$tmp/out/tiny/conv.gp")"
 
 # 3. --particles: the title says the particles came from files

@@ -119,6 +119,8 @@ typedef struct study_extent {
 void study_extent_init(study_extent *e);
 void study_extent_add(study_extent *e, double v, int log);
 void study_gp_range(FILE *o, const char *axis, const study_extent *e, int log);
+/* `set Xtics` at these values (the resolutions that ran and the paper's), at most 12. */
+void study_gp_tics(FILE *o, const char *axis, const double *v, int n);
 /* "NAME = v1, v2, ..." appended at buf + *len, for the line of a title that says what ran. */
 void study_list_text(char *buf, size_t size, size_t *len, const char *name, const double *v, int n);
 int study_render_figure(const char *dir, const char *id);

@@ -289,6 +289,28 @@ void study_gp_range(FILE *o, const char *axis, const study_extent *e, int log)
     }
 }
 
+/* Tics at the given values (the resolutions that ran and the paper's), sorted, each once; left
+ * to gnuplot when there are more than 12. */
+void study_gp_tics(FILE *o, const char *axis, const double *v, int n)
+{
+    double t[12];
+    int m = 0;
+    for (int j = 0; j < n; ++j) {
+        if (!isfinite(v[j]) || !(v[j] > 0)) continue;
+        int k = 0;
+        while (k < m && t[k] < v[j]) ++k;
+        if (k < m && t[k] == v[j]) continue;
+        if (m == 12) return;
+        memmove(t + k + 1, t + k, (size_t)(m - k) * sizeof *t);
+        t[k] = v[j];
+        ++m;
+    }
+    if (m == 0) return;
+    fprintf(o, "set %stics (", axis);
+    for (int k = 0; k < m; ++k) fprintf(o, "%s%.6g", k ? ", " : "", t[k]);
+    fprintf(o, ")\n");
+}
+
 /* "NAME = v1, v2, v3" appended to buf at *len (NAME omitted when NULL), at most 8 values shown
  * (the first six, an ellipsis and the last). */
 void study_list_text(char *buf, size_t size, size_t *len, const char *name, const double *v, int n)

@@ -100,14 +100,18 @@ static void ran_text(const consph_study *s, const study_figure *f, const series_
         len += (size_t)snprintf(buf + len, size - len, " (%dD, %s", dim,
                                 files   ? "the files'"
                                 : quick ? "quick"
-                                        : "the paper's");
+                                        : "full study");
+    /* A quick run's full-study resolutions beside it, where they differ. */
     double full[MAX_SWEEP];
     int nfull = 0;
     if (quick && !files && !plans[0].sweep_hdx &&
-        study_get_list(s, f, &f->series[0], "nx", 2, 1e5, full, &nfull) == CONSPH_OK && nfull &&
-        len < size) {
-        len += (size_t)snprintf(buf + len, size - len, "; the paper's: ");
-        study_list_text(buf, size, &len, "nx", full, nfull);
+        study_get_list(s, f, &f->series[0], "nx", 2, 1e5, full, &nfull) == CONSPH_OK && nfull) {
+        int same = nfull == res[0].nrows;
+        for (int j = 0; same && j < nfull; ++j) same = full[j] == res[0].nx[j];
+        if (!same && len < size) {
+            len += (size_t)snprintf(buf + len, size - len, "; full study: ");
+            study_list_text(buf, size, &len, "nx", full, nfull);
+        }
     }
     if (len < size) snprintf(buf + len, size - len, ")");
 }
@@ -324,9 +328,11 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     }
     int guide = !sweep_hdx && res[0].nrows > 0 && strcmp(xname, "nbr") != 0 &&
                 plans[0].spec.h_policy == CONSPH_H_HDX && isfinite(y0);
-    if (guide)
+    if (guide) {
         fprintf(o, "ref(x) = %.10g*(x/%.10g)**(-2)\n", 0.5 * y0,
                 x_value(&res[0].rows[0], res[0].nx[0], xname, dim));
+        study_extent_add(&ey, 0.5 * y0, 1); /* the guide's start stays in the frame */
+    }
     /* The paper's value of each series as a marked point at the paper's finest resolution. */
     int paper_pt[MAX_SERIES_POINTS] = {0};
     double paper_x[MAX_SERIES_POINTS] = {0};
@@ -341,6 +347,14 @@ static int write_approx_outputs(const consph_study *s, const study_figure *f,
     }
     study_gp_range(o, "x", &ex, 1);
     study_gp_range(o, "y", &ey, 1);
+    if (strcmp(xname, "nx") == 0) {
+        double tics[2 * MAX_SWEEP + MAX_SERIES_POINTS];
+        int nt = 0;
+        for (int j = 0; j < res[0].nrows; ++j) tics[nt++] = res[0].nx[j];
+        for (int k = 0; k < f->nseries && k < MAX_SERIES_POINTS; ++k)
+            if (paper_pt[k]) tics[nt++] = paper_x[k];
+        study_gp_tics(o, "x", tics, nt);
+    }
     fprintf(o, "plot");
     for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
         fprintf(o, "%s '%s.dat' index %d using 1:2 with linespoints", k ? ", \\\n    " : " ", f->id,

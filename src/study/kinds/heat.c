@@ -133,10 +133,15 @@ static int write_plot(const consph_study *s, const study_figure *f, const heat_p
     double full[STUDY_MAX_SWEEP];
     int nfull = 0;
     if (len < sizeof ran)
-        len += (size_t)snprintf(ran + len, sizeof ran - len, " (%s", quick ? "quick" : "full");
-    if (quick && study_get_list(s, f, &f->series[0], "nx", 4, 20000, full, &nfull) == CONSPH_OK &&
-        nfull && len < sizeof ran) {
-        len += (size_t)snprintf(ran + len, sizeof ran - len, "; the full study: ");
+        len +=
+            (size_t)snprintf(ran + len, sizeof ran - len, " (%s", quick ? "quick" : "full study");
+    int same = 0;
+    if (quick && study_get_list(s, f, &f->series[0], "nx", 4, 20000, full, &nfull) == CONSPH_OK) {
+        same = nfull == plans[0].nvalues;
+        for (int j = 0; same && j < nfull; ++j) same = full[j] == plans[0].nx[j];
+    }
+    if (quick && nfull && !same && len < sizeof ran) {
+        len += (size_t)snprintf(ran + len, sizeof ran - len, "; full study: ");
         study_list_text(ran, sizeof ran, &len, "nx", full, nfull);
     }
     if (len < sizeof ran) snprintf(ran + len, sizeof ran - len, ")");

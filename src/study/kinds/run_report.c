@@ -334,26 +334,36 @@ static void ran_text(const consph_study *s, const study_figure *f, int quick, co
     const run_plan *pl = &plans[0];
     size_t len;
     if (pl->prm.steps > 0)
-        len = (size_t)snprintf(buf, size, "ran: %ld steps (t = %.4g at nx %g), ", pl->prm.steps,
-                               rows[0][pl->nnx - 1].sum.t, pl->nx[pl->nnx - 1]);
+        len = (size_t)snprintf(buf, size, "ran: %ld step%s (t = %.4g at nx %g), ", pl->prm.steps,
+                               pl->prm.steps == 1 ? "" : "s", rows[0][pl->nnx - 1].sum.t,
+                               pl->nx[pl->nnx - 1]);
     else
         len = (size_t)snprintf(buf, size, "ran: t_f = %g, ", pl->prm.tf);
     study_list_text(buf, size, &len, "nx", pl->nx, pl->nnx);
     if (len < size)
         len += (size_t)snprintf(buf + len, size - len, ", c_o = %g (%s", rows[0][0].sum.c0,
-                                quick ? "quick" : "the paper's");
-    double nxs[MAX_SWEEP];
-    int n = 0;
+                                quick ? "quick" : "full study");
+    /* A quick run's full-study values beside it, where they differ. */
+    double nxs[MAX_SWEEP], full_tf = pl->prm.tf;
+    int n = 0, same = 1;
     const char *tf = study_get(s, f, &f->series[0], "tf");
     const char *steps = study_get(s, f, &f->series[0], "steps");
-    if (quick && len < size) {
-        len += (size_t)snprintf(buf + len, size - len, "; the paper's: ");
+    if (study_get_list(s, f, &f->series[0], "nx", 4, 1e5, nxs, &n) != CONSPH_OK) n = 0;
+    same = n == pl->nnx;
+    for (int j = 0; same && j < n; ++j) same = nxs[j] == pl->nx[j];
+    if (tf) full_tf = strtod(tf, NULL);
+    if (steps)
+        same = same && strtol(steps, NULL, 10) == pl->prm.steps;
+    else
+        same = same && full_tf == pl->prm.tf && pl->prm.steps <= 0;
+    if (quick && !same && len < size) {
+        len += (size_t)snprintf(buf + len, size - len, "; full study: ");
         if (steps)
-            len += (size_t)snprintf(buf + len, size - len, "%s steps, ", steps);
+            len += (size_t)snprintf(buf + len, size - len, "%s step%s, ", steps,
+                                    strcmp(steps, "1") == 0 ? "" : "s");
         else if (tf)
             len += (size_t)snprintf(buf + len, size - len, "t_f = %s, ", tf);
-        if (study_get_list(s, f, &f->series[0], "nx", 4, 1e5, nxs, &n) == CONSPH_OK && n)
-            study_list_text(buf, size, &len, "nx", nxs, n);
+        if (n) study_list_text(buf, size, &len, "nx", nxs, n);
     }
     if (len < size) snprintf(buf + len, size - len, ")");
 }
@@ -398,9 +408,19 @@ static int gp_panel(FILE *o, const consph_study *s, const study_figure *f, const
             paper_x[k] = nxs[n - 1];
         }
     }
+    int guide = xcol == 1 && isfinite(y0);
+    /* the guide's start stays in the frame */
+    if (guide) study_extent_add(&ey, 0.5 * y0, 1);
     study_gp_range(o, "x", &ex, 1);
     study_gp_range(o, "y", &ey, 1);
-    int guide = xcol == 1 && isfinite(y0);
+    if (xcol == 1) {
+        double tics[MAX_SWEEP + MAX_SERIES_POINTS];
+        int nt = 0;
+        for (int j = 0; j < plans[0].nnx; ++j) tics[nt++] = plans[0].nx[j];
+        for (int k = 0; k < f->nseries && k < MAX_SERIES_POINTS; ++k)
+            if (paper_pt[k]) tics[nt++] = paper_x[k];
+        study_gp_tics(o, "x", tics, nt);
+    }
     if (guide) fprintf(o, "ref(x) = %.10g*(x/%.10g)**(-2)\n", 0.5 * y0, x0);
     fprintf(o, "plot");
     for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
