@@ -340,9 +340,13 @@ static void ran_text(const consph_study *s, const study_figure *f, int quick, co
     else
         len = (size_t)snprintf(buf, size, "ran: t_f = %g, ", pl->prm.tf);
     study_list_text(buf, size, &len, "nx", pl->nx, pl->nnx);
+    /* c_o, where every series ran at one (001 Table 8 sweeps it across series) */
+    int one_c0 = 1;
+    for (int k = 1; k < f->nseries; ++k) one_c0 = one_c0 && rows[k][0].sum.c0 == rows[0][0].sum.c0;
+    if (len < size && one_c0)
+        len += (size_t)snprintf(buf + len, size - len, ", c_o = %g", rows[0][0].sum.c0);
     if (len < size)
-        len += (size_t)snprintf(buf + len, size - len, ", c_o = %g (%s", rows[0][0].sum.c0,
-                                quick ? "quick" : "full study");
+        len += (size_t)snprintf(buf + len, size - len, " (%s", quick ? "quick" : "full study");
     /* A quick run's full-study values beside it, where they differ. */
     double nxs[MAX_SWEEP], full_tf = pl->prm.tf;
     int n = 0, same = 1;
