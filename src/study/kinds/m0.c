@@ -187,8 +187,10 @@ static int run_m0_figure(const study_job *job, const study_figure *f)
             study_gp_head(o, f->id, study_files_title(s, f, files != NULL, tbuf, sizeof tbuf), ran);
         fprintf(o, "set xlabel 'M0'\nset ylabel 'particles (density)'\nplot");
         for (int j = 0; j < nrows; ++j) {
+            /* a marker every twelfth of the bins, the interval differing per series so that
+             * the markers of overlapping curves fall apart */
             fprintf(o, "%s '%s.dat' index %d using 1:2 with linespoints pi %d",
-                    j ? ", \\\n    " : " ", f->id, j, nbins > 12 ? nbins / 12 : 1);
+                    j ? ", \\\n    " : " ", f->id, j, (nbins > 12 ? nbins / 12 : 1) + j);
             study_gp_style(o, j);
             fprintf(o, " title 'N = %zu'", rows[j].n);
         }

@@ -524,10 +524,10 @@ static int write_curve_plot(const consph_study *s, const study_figure *f, const 
             fprintf(o, "%s '%s.dat' index %d using 1:%d with %s", n ? ", \\\n    " : " ", name, n,
                     col, ck->style);
             study_gp_style(o, k);
-            /* a history has a row per step: a marker every tenth of it, offset per series so
-             * that markers of curves on top of each other stay apart */
+            /* a history has a row per step: a marker every tenth of it, the interval differing
+             * per series so that the markers of curves on top of each other fall apart */
             const size_t nc = rows[k][plans[k].nnx - 1].ncurve;
-            if (x == X_TIME) fprintf(o, " pi %zu", nc > 10 ? nc / 10 : 1);
+            if (x == X_TIME) fprintf(o, " pi %zu", (nc > 10 ? nc / 10 : 1) + (size_t)k);
             fprintf(o, " title ");
             ++n;
             rc = study_gp_put(o, f->series[k].label);
