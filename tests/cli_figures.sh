@@ -131,11 +131,12 @@ hdx = 2.0
 STUDY
 "$consph" study "$tmp/heatfig.study" --quick --out "$tmp/out" >"$tmp/log" 2>&1 || bad "heat study: $(cat "$tmp/log")"
 gp=$tmp/out/heatfig/h.gp
-grep -q "multiplot layout 1,3 title 'S3 vs S4' \. \"\\\\n\" \. 'ran: t_f = 0.002, nx = 6, 8, 10 (quick; full study: nx = 20, 40)'" "$gp" ||
+grep -q "^set multiplot title 'S3 vs S4' \. \"\\\\n\" \. 'ran: t_f = 0.002, nx = 6, 8, 10 (quick; full study: nx = 20, 40)'" "$gp" ||
     bad "heat figure: the title does not say what ran: $(grep multiplot "$gp")"
 [ "$(grep -c "title 'slope 1 (first order)'" "$gp")" = 3 ] && [ "$(grep -c "title 'slope 2 (second order)'" "$gp")" = 3 ] ||
     bad "heat figure: no slope guides in every panel"
 distinct "$gp" "h.dat' index [0-9]+ using 1:2" "heat figure"
+grep -q "^set xtics ('1/5' 0.2, '1/7' 0.1428571429, '1/9' 0.1111111111)$" "$gp" || bad "heat figure: tics not at the resolutions: $(grep xtics "$gp")"
 
 # ---- 5. the vorticity image ----
 "$consph" run shear-layer --scheme e-c --nx 8 --steps 2 --out "$tmp/s" >"$tmp/log" 2>&1 || bad "shear layer: $(cat "$tmp/log")"

@@ -147,16 +147,23 @@ static int write_plot(const consph_study *s, const study_figure *f, const heat_p
     if (len < sizeof ran) snprintf(ran + len, sizeof ran - len, ")");
     rc = study_gp_head(o, f->id, title ? title : f->id, ran);
     static const char *const names[3] = {"L2 (002 eq. 44)", "Linf (eq. 45)", "EC (eq. 46)"};
-    fprintf(o, "set terminal svg size 1500,600 dynamic\nset output outfile\nunset title\n"
-               "set multiplot layout 1,3 title ");
+    /* Three panels of one width, the key right of the last. */
+    fprintf(o, "set terminal svg size 1600,600 dynamic\nset output outfile\nunset title\n"
+               "set multiplot title ");
     if (rc == CONSPH_OK) rc = study_gp_title(o, title ? title : f->id, ran);
     fprintf(o, " noenhanced\nset logscale xy\nset format y '%%.0e'\nset xlabel 'Δ = 1/(nx-1)'\n"
-               "set key bottom right noenhanced font ',9'\n");
+               "unset key\nset tmargin at screen 0.88\nset bmargin at screen 0.11\n");
     study_extent ex;
     study_extent_init(&ex);
     for (int k = 0; k < f->nseries; ++k)
         for (int j = 0; j < plans[k].nvalues; ++j) study_extent_add(&ex, rows[k][j].sum.delta, 1);
     study_gp_range(o, "x", &ex, 1);
+    /* tics at the resolutions that ran, as 1/(nx - 1) */
+    fprintf(o, "set xtics (");
+    for (int j = 0; j < plans[0].nvalues; ++j)
+        fprintf(o, "%s'1/%g' %.10g", j ? ", " : "", plans[0].nx[j] - 1.0,
+                1.0 / (plans[0].nx[j] - 1.0));
+    fprintf(o, ")\n");
     for (int c = 0; rc == CONSPH_OK && c < 3; ++c) {
         /* 002 describes S3 as first order and S4 as near second order: a slope-1 guide above
          * the errors at the coarsest Δ and a slope-2 guide below them, so that neither hides a
@@ -174,8 +181,15 @@ static int write_plot(const consph_study *s, const study_figure *f, const heat_p
                     bottom = fmin(bottom, e);
                 }
             }
+        if (isfinite(top) && isfinite(bottom)) {
+            /* the guides start in the frame */
+            study_extent_add(&ey, 2.0 * top, 1);
+            study_extent_add(&ey, 0.5 * bottom, 1);
+        }
         study_gp_range(o, "y", &ey, 1);
-        fprintf(o, "set ylabel '%s'\n%s\n", names[c], c ? "unset key" : "");
+        fprintf(o, "set ylabel '%s'\nset lmargin at screen %.3f\nset rmargin at screen %.3f\n",
+                names[c], 0.05 + 0.27 * c, 0.26 + 0.27 * c);
+        if (c == 2) fprintf(o, "set key at screen 0.82,0.88 top left noenhanced font ',9'\n");
         const int guides = isfinite(top) && isfinite(bottom) && isfinite(x0);
         if (guides)
             fprintf(o, "slope1(x) = %.10g*(x/%.10g)\nslope2(x) = %.10g*(x/%.10g)**2\n", 2.0 * top,

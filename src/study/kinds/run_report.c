@@ -590,7 +590,7 @@ int run_write_plot(const consph_study *s, const study_figure *f, const char *dir
             rc = gp_panel(o, s, f, plans, rows, 1, 2, "paper.l1_u",
                           AUTHORS(&plans[0]) ? "L1(u), the measure of 001 authors"
                                              : "L1(u), 001 eq. 26");
-        fprintf(o, "set key at screen 0.995,0.86 top right noenhanced font ',9' spacing 1.1\n"
+        fprintf(o, "set key at screen 0.77,0.86 top left noenhanced font ',9' spacing 1.1\n"
                    "set lmargin at screen 0.45\nset rmargin at screen 0.75\n"
                    "set title 'pressure'\n");
         if (rc == CONSPH_OK)
