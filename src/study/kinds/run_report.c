@@ -507,7 +507,8 @@ static int write_curve_plot(const consph_study *s, const study_figure *f, const 
         if (rc == CONSPH_OK) rc = study_gp_title(o, title, ran);
         /* Panels of one width whether or not they carry the key. */
         fprintf(
-            o, " noenhanced\nunset title\nset lmargin at screen 0.14\nset rmargin at screen 0.8\n");
+            o,
+            " noenhanced\nunset title\nset lmargin at screen 0.14\nset rmargin at screen 0.72\n");
     }
     int n = 0;
     for (int panel = 0; rc == CONSPH_OK && panel < ny; ++panel) {
@@ -530,7 +531,15 @@ static int write_curve_plot(const consph_study *s, const study_figure *f, const 
             if (x == X_TIME) fprintf(o, " pi %zu", (nc > 10 ? nc / 10 : 1) + (size_t)k);
             fprintf(o, " title ");
             ++n;
-            rc = study_gp_put(o, f->series[k].label);
+            /* a history that ends early says why: the run diverged there */
+            const run_row *w = &rows[k][plans[k].nnx - 1];
+            char label[192];
+            if (w->status != CONSPH_OK)
+                snprintf(label, sizeof label, "%s (diverged, t = %.3g)", f->series[k].label,
+                         w->curve[(size_t)ck->ncols * (w->ncurve - 1)]);
+            else
+                snprintf(label, sizeof label, "%s", f->series[k].label);
+            rc = study_gp_put(o, label);
         }
         if (n && x == X_RADIUS)
             fprintf(o,
