@@ -35,8 +35,23 @@ static const char run_details[] =
     "SIGINT/SIGTERM finish the step, write a checkpoint and exit 130/143;\n"
     "--restart DIR/checkpoint.ckpt continues bit for bit (the output\n"
     "options are not in the checkpoint: give --out, --snapshot-every and --checkpoint-every\n"
-    "again). A DIR holding another run's files is refused: a new run needs --overwrite (which\n"
-    "removes those files, nothing else), a restart its own run's DIR (DIR/run.id) or a new one.\n"
+    "again); with a later --tf or more --steps it continues to that end, equal to the run made\n"
+    "with that end from the start (checkpoints are never of a run's last step: a finished run\n"
+    "continues from its last multiple of --checkpoint-every); refused for --error authors, whose\n"
+    "output times divide the whole run. A DIR holding another run's files is refused: a new run\n"
+    "needs --overwrite (which removes those files, nothing else), a restart its own run's DIR\n"
+    "(DIR/run.id) or a new one.\n"
+    "\n"
+    "--particles FILE starts from a CSV or VTU of particles (as consph approx reads them) in the\n"
+    "problem's box (a file stating another box or periodicity is refused): positions, and the\n"
+    "fields velocity (or u) and pressure (or p) where present, else the problem's solution at\n"
+    "t = 0. N particles: nx = N^(1/d) when N is a perfect power (a file of consph layout gives "
+    "the\n"
+    "run of --layout, bit for bit), else Δs = (box volume / N)^(1/d); not with --nx, --layout,\n"
+    "--seed. --config FILE reads key = value lines ('#' comments) with the run keys of study\n"
+    "files (problem, scheme, nx, tf, ...); the options given replace its keys (--steps its tf,\n"
+    "--re its nu, --dt its cfl and h_dt, and back). A bad file: FILE:LINE, exit 2, nothing\n"
+    "written. docs/solver-files.md, \"Runs from the user's inputs\".\n"
     "Options that would do nothing are refused: --steps with --tf, --cfl or --h-dt with --dt,\n"
     "--snapshot-every/--checkpoint-every/--overwrite without --out, a scheme parameter the\n"
     "scheme does not read (--alpha: wcsph and the δ-SPH family; --delta: pe-ipst-c, tv-c, e-c\n"
@@ -567,6 +582,9 @@ int cmd_run(int argc, char **argv)
     char usage[512];
     snprintf(usage, sizeof usage,
              "consph run PROBLEM --scheme S --nx N [options]   (PROBLEM: %s)\n"
+             "       consph run PROBLEM --particles FILE [options]   consph run --config FILE "
+             "[options]\n"
+             "       consph run --restart CKPT [--tf T | --steps K] [output options]\n"
              "       consph run heat --laplacian s3|s4 --nx N --eta H/Δ [options]",
              consph_problem_names());
     cli_command cmd = {"run", "run a simulation: weakly-compressible SPH, or 002's heat problem",

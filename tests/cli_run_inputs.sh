@@ -109,6 +109,9 @@ same_run "$work/cf-a" "$work/cf-b" "--config"
     bad "run --config with options"
 grep -q '"n": 196,' "$work/cf.json" && grep -q '"t": 0.01,' "$work/cf.json" && pass=$((pass + 1)) ||
     bad "--nx/--tf did not replace the file's keys: $(head -8 "$work/cf.json")"
+# the example of examples/ reads (shortened by options)
+"$consph" run --config "$(dirname "$0")/../examples/taylor-green.run" --nx 12 --steps 1 >/dev/null &&
+    pass=$((pass + 1)) || bad "examples/taylor-green.run"
 # refusals: FILE:LINE, the key, exit 2, nothing written
 cfg_refused() { # TEXT LINES...: a file of those lines is refused with TEXT
     local text=$1
