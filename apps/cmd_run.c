@@ -42,16 +42,16 @@ static const char run_details[] =
     "needs --overwrite (which removes those files, nothing else), a restart its own run's DIR\n"
     "(DIR/run.id) or a new one.\n"
     "\n"
-    "--particles FILE starts from a CSV or VTU of particles (as consph approx reads them) in the\n"
-    "problem's box (a file stating another box or periodicity is refused): positions, and the\n"
-    "fields velocity (or u) and pressure (or p) where present, else the problem's solution at\n"
-    "t = 0. N particles: nx = N^(1/d) when N is a perfect power (a file of consph layout gives "
-    "the\n"
-    "run of --layout, bit for bit), else Δs = (box volume / N)^(1/d); not with --nx, --layout,\n"
-    "--seed. --config FILE reads key = value lines ('#' comments) with the run keys of study\n"
-    "files (problem, scheme, nx, tf, ...); the options given replace its keys (--steps its tf,\n"
-    "--re its nu, --dt its cfl and h_dt, and back). A bad file: FILE:LINE, exit 2, nothing\n"
-    "written. docs/solver-files.md, \"Runs from the user's inputs\".\n"
+    "--particles FILE starts from a CSV or VTU of particles (as consph approx reads them) in\n"
+    "the problem's box (a file stating another box or periodicity is refused): positions, and\n"
+    "the fields velocity (or u) and pressure (or p) where present, else the problem's solution\n"
+    "at t = 0. N particles: nx = N^(1/d) when N is a perfect power (a file of consph layout\n"
+    "gives the run of --layout, bit for bit), else Δs = (box volume / N)^(1/d); not with --nx,\n"
+    "--layout, --seed. --config FILE reads key = value lines ('#' comments) with the run keys of\n"
+    "study files (problem, scheme, nx, tf, ...); the options given replace its keys (--steps\n"
+    "its tf, --re its nu, --dt its cfl and h_dt, and back). A bad file: FILE:LINE, exit 2,\n"
+    "nothing written. docs/solver-files.md, \"Runs from the user's inputs\".\n"
+    "\n"
     "Options that would do nothing are refused: --steps with --tf, --cfl or --h-dt with --dt,\n"
     "--snapshot-every/--checkpoint-every/--overwrite without --out, a scheme parameter the\n"
     "scheme does not read (--alpha: wcsph and the δ-SPH family; --delta: pe-ipst-c, tv-c, e-c\n"
@@ -238,7 +238,8 @@ static int run_file_load(const cli_command *cmd, const char *path, run_file *rf)
     return st == CONSPH_ENOMEM ? 1 : CLI_EXIT_USAGE;
 }
 
-/* The file's entry of the parameter `name` that stays (not replaced by an option), or NULL. */
+/* The index of the file's key of the parameter `name` that stays (not replaced by an option);
+ * -1 when none. */
 static int run_file_find(const run_file *rf, const char *name)
 {
     for (int k = 0; rf && k < rf->n; ++k)
@@ -417,7 +418,7 @@ static int params_given(const cli_command *cmd, const cli_opt *opts, const param
     return 0;
 }
 
-/* A box as text: "[0, 1]x[0, 1]" and its periodic axes ("periodic xy", "not periodic"). */
+/* A box as text, "[0, 1]x[0, 1]"; its periodic axes as text, "periodic xy" or "not periodic". */
 static void box_text(const consph_box *b, int dim, char *buf, size_t size)
 {
     size_t len = 0;
@@ -435,9 +436,9 @@ static void periodic_text(const consph_box *b, int dim, char *buf, size_t size)
     snprintf(buf, size, "%s%s", axes[0] ? "periodic " : "not periodic", axes);
 }
 
-/* The field of a particle file that holds `what` under one of two names (a snapshot's array,
- * or a CSV's columns NAME_0, NAME_1, ...) with dim components (a VTU vector carries 3 in 2D,
- * the third zero); NULL when it has none. */
+/* Into *out the field of a particle file named `name` (a snapshot's array) or `other` (a CSV's
+ * columns other_0, other_1, ...), with dim components when `vector` (a VTU vector carries 3 in
+ * 2D, the third zero) else 1; NULL when it has neither. */
 static int file_field(const cli_command *cmd, const char *path, const consph_particles *p,
                       const char *name, const char *other, int vector, const consph_field **out)
 {

@@ -55,7 +55,8 @@ static int same_state(const consph_solver *a, const consph_solver *b)
         if (memcmp(p->x[d], q->x[d], p->n * sizeof(double))) return 0;
     static const char *const f[] = {"u", "p"};
     for (int k = 0; k < 2; ++k) {
-        const consph_field *fa = consph_particles_find(p, f[k]), *fb = consph_particles_find(q, f[k]);
+        const consph_field *fa = consph_particles_find(p, f[k]),
+                           *fb = consph_particles_find(q, f[k]);
         if (!fa || !fb) return 0;
         for (int c = 0; c < fa->ncomp; ++c)
             if (memcmp(fa->data + (size_t)c * p->cap, fb->data + (size_t)c * q->cap,
@@ -136,6 +137,13 @@ int main(void)
     if (c) run_to_end(c);
     CHECK(c && same_state(a, c), "the layout's particles given differ from the layout");
     consph_solver_free(c);
+    /* the resolution of a particle count: nx^2 exactly, else nx rounded and n */
+    consph_run_params q = full;
+    CHECK(consph_run_params_particles(&q, 100) == CONSPH_OK && q.nx == 10 && q.n == 0,
+          "100 particles: nx %d, n %ld", q.nx, q.n);
+    CHECK(consph_run_params_particles(&q, 90) == CONSPH_OK && q.nx == 9 && q.n == 90,
+          "90 particles: nx %d, n %ld", q.nx, q.n);
+    CHECK(consph_run_params_particles(&q, 9) == CONSPH_EINVAL, "9 particles accepted");
     /* n particles not nx^d go with nx = n^(1/d) rounded */
     consph_run_params odd = full;
     odd.n = 90;
