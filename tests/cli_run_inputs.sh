@@ -68,6 +68,13 @@ grep -v '^# n ' "$work/lat.csv" | head -n 146 >"$work/n140.csv"
 "$consph" run taylor-green --scheme l-ipst-c --particles "$work/n140.csv" --steps 2 --format json \
     >"$work/n140.json" || bad "run of 140 particles"
 grep -q '"n": 140,' "$work/n140.json" && pass=$((pass + 1)) || bad "140 particles: $(head -5 "$work/n140.json")"
+# its checkpoint carries n: a restart continues it bit for bit
+"$consph" run taylor-green --scheme l-ipst-c --particles "$work/n140.csv" --steps 4 \
+    --checkpoint-every 2 --out "$work/n140-a" >/dev/null || bad "140 particles, checkpointed"
+"$consph" run --restart "$work/n140-a/checkpoint.ckpt" --out "$work/n140-b" >/dev/null ||
+    bad "140 particles, restarted"
+cmp -s "$work/n140-a/snap_000004.vtu" "$work/n140-b/snap_000004.vtu" && pass=$((pass + 1)) ||
+    bad "140 particles: the restart differs"
 failing 2 "n = 140 particles, not nx^2: scheme 'l-rr-c'" "$work/out" -- "$consph" run taylor-green \
     --scheme l-rr-c --particles "$work/n140.csv" --steps 2 --out "$work/no1" && pass=$((pass + 1))
 nothing_written "l-rr-c on 140 particles" "$work/no1"
