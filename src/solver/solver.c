@@ -268,12 +268,11 @@ static int given_particles(const consph_solver *s, const consph_particles *in, c
     return CONSPH_OK;
 }
 
-/* The value of the given field `name` (component c) for the particle of initial index i, or
- * NULL when there is none. */
-static const double *given_value(const consph_particles *in, const char *name, int c, size_t i)
+/* The given field `name`'s data (components cap apart), NULL when there is none. */
+static const double *given_field(const consph_particles *in, const char *name)
 {
     const consph_field *f = in ? consph_particles_find(in, name) : NULL;
-    return f ? &f->data[(size_t)c * in->cap + i] : NULL;
+    return f ? f->data : NULL;
 }
 
 int consph_solver_create(consph_solver **out, const consph_run_params *prm)
@@ -324,6 +323,8 @@ int consph_solver_create_from(consph_solver **out, const consph_run_params *prm,
         double *id = sv_field(s, SF_ID, 1), *u = sv_field(s, SF_U, s->dim);
         double *pr = sv_field(s, SF_P, 1), *rhof = sv_field(s, SF_RHOF, 1);
         double *xl = lat.n ? sv_field(s, SF_LATTICE, s->dim) : NULL;
+        const double *gu = given_field(given, "u"), *gp = given_field(given, "p");
+        const size_t gcap = given ? given->cap : 0;
         if (!id || !u || !pr || !rhof || (lat.n && !xl)) st = CONSPH_ENOMEM;
         for (size_t i = 0; st == CONSPH_OK && i < n; ++i) {
             double x[3], ue[3], pe;
@@ -331,12 +332,8 @@ int consph_solver_create_from(consph_solver **out, const consph_run_params *prm,
             s->prob->exact(prm, 0.0, x, ue, &pe);
             const size_t o = s->sys.origin[i];
             id[i] = (double)o;
-            for (int a = 0; a < s->dim; ++a) {
-                const double *gu = given_value(given, "u", a, o);
-                u[a * cap + i] = gu ? *gu : ue[a];
-            }
-            const double *gp = given_value(given, "p", 0, o);
-            if (gp) pe = *gp;
+            for (int a = 0; a < s->dim; ++a) u[a * cap + i] = gu ? gu[a * gcap + o] : ue[a];
+            if (gp) pe = gp[o];
             pr[i] = pe;
             rhof[i] = prm->rho_init == CONSPH_RHO_INIT_RHO0 ? prm->rho0 : exact_rho(s, pe);
             if (xl)
