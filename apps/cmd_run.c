@@ -35,8 +35,23 @@ static const char run_details[] =
     "SIGINT/SIGTERM finish the step, write a checkpoint and exit 130/143;\n"
     "--restart DIR/checkpoint.ckpt continues bit for bit (the output\n"
     "options are not in the checkpoint: give --out, --snapshot-every and --checkpoint-every\n"
-    "again). A DIR holding another run's files is refused: a new run needs --overwrite (which\n"
-    "removes those files, nothing else), a restart its own run's DIR (DIR/run.id) or a new one.\n"
+    "again); with a later --tf or more --steps it continues to that end, equal to the run made\n"
+    "with that end from the start (checkpoints are never of a run's last step: a finished run\n"
+    "continues from its last multiple of --checkpoint-every); refused for --error authors, whose\n"
+    "output times divide the whole run. A DIR holding another run's files is refused: a new run\n"
+    "needs --overwrite (which removes those files, nothing else), a restart its own run's DIR\n"
+    "(DIR/run.id) or a new one.\n"
+    "\n"
+    "--particles FILE starts from a CSV or VTU of particles (as consph approx reads them) in\n"
+    "the problem's box (a file stating another box or periodicity is refused): positions, and\n"
+    "the fields velocity (or u) and pressure (or p) where present, else the problem's solution\n"
+    "at t = 0. N particles: nx = N^(1/d) when N is a perfect power (a file of consph layout\n"
+    "gives the run of --layout, bit for bit), else Δs = (box volume / N)^(1/d); not with --nx,\n"
+    "--layout, --seed. --config FILE reads key = value lines ('#' comments) with the run keys of\n"
+    "study files (problem, scheme, nx, tf, ...); the options given replace its keys (--steps\n"
+    "its tf, --re its nu, --dt its cfl and h_dt, and back). A bad file: FILE:LINE, exit 2,\n"
+    "nothing written. docs/solver-files.md, \"Runs from the user's inputs\".\n"
+    "\n"
     "Options that would do nothing are refused: --steps with --tf, --cfl or --h-dt with --dt,\n"
     "--snapshot-every/--checkpoint-every/--overwrite without --out, a scheme parameter the\n"
     "scheme does not read (--alpha: wcsph and the δ-SPH family; --delta: pe-ipst-c, tv-c, e-c\n"
@@ -133,31 +148,182 @@ static int option_given(const cli_command *cmd, const char *name)
     return 0;
 }
 
+/* --config FILE: a run parameter file, `key = value` lines with the run keys of study files (the
+ * table's study keys) and '#' comments, read by the study files' reader (consph_kv_parse). An
+ * option given replaces the file's key of the same parameter, and the file's key it clashes with
+ * (--steps its tf, --re its nu, --dt its cfl and h_dt, and the other way round). */
+#define RUN_FILE_KEYS 64
+#define RUN_FILE_VALUE 256
+
+typedef struct run_file {
+    const char *path;
+    int n;
+    struct {
+        const consph_run_param *d;
+        char value[RUN_FILE_VALUE];
+        int line, dropped;
+    } k[RUN_FILE_KEYS];
+} run_file;
+
+/* The pairs of parameters that set one thing, each replacing the other. */
+static const char *const clash_pairs[][3] = {{"tf", "steps", "the end of the run"},
+                                             {"re", "nu", "the viscosity"},
+                                             {"dt", "cfl", "the time step"},
+                                             {"dt", "h_dt", "the time step"}};
+#define NCLASH (sizeof clash_pairs / sizeof clash_pairs[0])
+
+static int run_file_line(void *ctx, int line, char *key, char *value)
+{
+    run_file *rf = ctx;
+    if (!value)
+        return consph_fail(CONSPH_EFORMAT,
+                           "%s:%d: '%.40s': a run file has no sections, only key = value lines "
+                           "(sections are for study files)",
+                           rf->path, line, key);
+    const consph_run_param *d = NULL;
+    char allowed[640] = "";
+    for (int k = 0; k < consph_run_param_count(); ++k) {
+        const consph_run_param *r = consph_run_param_at(k);
+        if (!r->study_key) continue;
+        if (!strcmp(r->study_key, key)) d = r;
+        size_t len = strlen(allowed);
+        snprintf(allowed + len, sizeof allowed - len, "%s%s", len ? ", " : "", r->study_key);
+    }
+    if (!d)
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: unknown key '%.40s' (allowed: %s)", rf->path,
+                           line, key, allowed);
+    if (!*value)
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: key '%s' has no value", rf->path, line, key);
+    for (int k = 0; k < rf->n; ++k)
+        if (rf->k[k].d == d)
+            return consph_fail(CONSPH_EFORMAT, "%s:%d: key '%s' set twice (first on line %d)",
+                               rf->path, line, key, rf->k[k].line);
+    if (strlen(value) >= RUN_FILE_VALUE || rf->n == RUN_FILE_KEYS)
+        return consph_fail(CONSPH_EFORMAT, "%s:%d: key '%s': a value of at most %d characters",
+                           rf->path, line, key, RUN_FILE_VALUE - 1);
+    rf->k[rf->n].d = d;
+    strcpy(rf->k[rf->n].value, value);
+    rf->k[rf->n].line = line;
+    rf->k[rf->n].dropped = 0;
+    ++rf->n;
+    return CONSPH_OK;
+}
+
+/* Reads --config FILE into rf; a failure is one line on stderr (exit 2, 1 out of memory). */
+static int run_file_load(const cli_command *cmd, const char *path, run_file *rf)
+{
+    enum { MAX_SIZE = 1 << 20 }; /* run files are small: a mistaken path must not fill memory */
+    rf->path = path;
+    rf->n = 0;
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return cli_error(cmd, "option --config: cannot read '%s': %s", path, strerror(errno));
+    char *data = malloc(MAX_SIZE + 1);
+    const size_t size = data ? fread(data, 1, MAX_SIZE + 1, fp) : 0;
+    const int err = ferror(fp);
+    fclose(fp);
+    if (!data) {
+        fprintf(stderr, "consph run: out of memory\n");
+        return 1;
+    }
+    int st = CONSPH_OK;
+    if (err)
+        st = consph_fail(CONSPH_EIO, "cannot read '%s'", path);
+    else if (size > MAX_SIZE)
+        st = consph_fail(CONSPH_EFORMAT, "%s: larger than %d bytes", path, MAX_SIZE);
+    else
+        st = consph_kv_parse(path, data, size, 4095, run_file_line, rf);
+    free(data);
+    if (st == CONSPH_OK) return 0;
+    fprintf(stderr, "consph run: option --config: %s\n", consph_last_error());
+    return st == CONSPH_ENOMEM ? 1 : CLI_EXIT_USAGE;
+}
+
+/* The index of the file's key of the parameter `name` that stays (not replaced by an option);
+ * -1 when none. */
+static int run_file_find(const run_file *rf, const char *name)
+{
+    for (int k = 0; rf && k < rf->n; ++k)
+        if (!rf->k[k].dropped && !strcmp(rf->k[k].d->name, name)) return k;
+    return -1;
+}
+
+/* Whether the parameter `name` is set by an option or by the file (a key not replaced); where
+ * into buf ("option --alpha" or "FILE:LINE: key 'alpha'"). */
+static int param_given(const cli_command *cmd, const run_file *rf, const char *name, char *buf,
+                       size_t size)
+{
+    const consph_run_param *d = consph_run_param_find(name);
+    if (d && d->option && option_given(cmd, d->option)) {
+        snprintf(buf, size, "option %s", d->option);
+        return 1;
+    }
+    const int k = run_file_find(rf, name);
+    if (k < 0) return 0;
+    snprintf(buf, size, "%s:%d: key '%s'", rf->path, rf->k[k].line, rf->k[k].d->study_key);
+    return 1;
+}
+
+/* The file's keys into prm, after the problem's defaults and before the options: those an option
+ * replaces are checked (a bad value is never ignored) but not applied. */
+static int run_file_apply(const cli_command *cmd, run_file *rf, consph_run_params *prm)
+{
+    for (int k = 0; k < rf->n; ++k) {
+        const consph_run_param *d = rf->k[k].d;
+        int dropped = (d->option && option_given(cmd, d->option)) || !strcmp(d->name, "problem");
+        for (size_t c = 0; c < NCLASH; ++c)
+            for (int side = 0; side < 2; ++side) {
+                const consph_run_param *o = consph_run_param_find(clash_pairs[c][1 - side]);
+                if (!strcmp(d->name, clash_pairs[c][side]) && o && o->option &&
+                    option_given(cmd, o->option))
+                    dropped = 1;
+            }
+        consph_run_params scratch = *prm;
+        if (consph_run_param_set(dropped ? &scratch : prm, d->name, rf->k[k].value) != CONSPH_OK)
+            return cli_error(cmd, "option --config: %s:%d: key '%s': %s", rf->path, rf->k[k].line,
+                             d->study_key, consph_last_error());
+        rf->k[k].dropped = dropped;
+    }
+    for (size_t c = 0; c < NCLASH; ++c) {
+        const int a = run_file_find(rf, clash_pairs[c][0]),
+                  b = run_file_find(rf, clash_pairs[c][1]);
+        if (a >= 0 && b >= 0)
+            return cli_error(cmd,
+                             "option --config: %s:%d: keys '%s' and '%s' (line %d) both set %s: "
+                             "give one",
+                             rf->path, rf->k[a > b ? a : b].line, rf->k[a > b ? a : b].d->study_key,
+                             rf->k[a > b ? b : a].d->study_key, rf->k[a > b ? b : a].line,
+                             clash_pairs[c][2]);
+    }
+    return 0;
+}
+
 /* Options setting a parameter that this run's scheme or layout does not read would do nothing:
  * refused, naming where they act (the table's `reads`: consph_scheme_reads;
  * consph_layout_uses_seed). --eos default is the scheme's own EOS, so it is no setting. */
-static int unread_options(const cli_command *cmd, const consph_run_params *prm)
+static int unread_options(const cli_command *cmd, const run_file *rf, const consph_run_params *prm)
 {
-    char list[512];
+    char list[512], where[320], lw[320];
     for (int k = 0; k < consph_run_param_count(); ++k) {
         const consph_run_param *d = consph_run_param_at(k);
-        if (!d->reads || !d->option || !option_given(cmd, d->option) ||
+        if (!d->reads || !param_given(cmd, rf, d->name, where, sizeof where) ||
             (d->reads == CONSPH_PARAM_EOS && !strcmp(d->name, "eos") &&
              prm->eos == CONSPH_EOS_DEFAULT) ||
             consph_scheme_reads(prm->scheme, d->reads))
             continue;
-        return cli_error(cmd, "option %s does nothing for --scheme %s (it acts on: %s)", d->option,
+        return cli_error(cmd, "%s does nothing for --scheme %s (it acts on: %s)", where,
                          prm->scheme, consph_scheme_readers(d->reads, list, sizeof list));
     }
     const int layout = consph_run_params_layout(prm);
-    if (!option_given(cmd, "--seed") || layout < 0 ||
+    if (!param_given(cmd, rf, "seed", where, sizeof where) || layout < 0 ||
         consph_layout_uses_seed((consph_layout_kind)layout))
         return 0;
     return cli_error(cmd,
-                     "option --seed does nothing for --layout %s (%s), which draws no random "
+                     "%s does nothing for --layout %s (%s), which draws no random "
                      "numbers (it acts on: %s)",
-                     consph_layout_name((consph_layout_kind)layout),
-                     option_given(cmd, "--layout") ? "given" : "the problem's or scheme's default",
+                     where, consph_layout_name((consph_layout_kind)layout),
+                     param_given(cmd, rf, "layout", lw, sizeof lw)
+                         ? "given"
+                         : "the problem's or scheme's default",
                      consph_layout_seeded_names(list, sizeof list));
 }
 
@@ -252,18 +418,133 @@ static int params_given(const cli_command *cmd, const cli_opt *opts, const param
     return 0;
 }
 
+/* A box as text, "[0, 1]x[0, 1]"; its periodic axes as text, "periodic xy" or "not periodic". */
+static void box_text(const consph_box *b, int dim, char *buf, size_t size)
+{
+    size_t len = 0;
+    buf[0] = '\0';
+    for (int a = 0; a < dim && len < size; ++a)
+        len += (size_t)snprintf(buf + len, size - len, "%s[%.17g, %.17g]", a ? "x" : "", b->lo[a],
+                                b->hi[a]);
+}
+
+static void periodic_text(const consph_box *b, int dim, char *buf, size_t size)
+{
+    char axes[4] = "";
+    for (int a = 0, k = 0; a < dim; ++a)
+        if (b->periodic[a]) axes[k++] = "xyz"[a], axes[k] = '\0';
+    snprintf(buf, size, "%s%s", axes[0] ? "periodic " : "not periodic", axes);
+}
+
+/* Into *out the field of a particle file named `name` (a snapshot's array) or `other` (a CSV's
+ * columns other_0, other_1, ...), with dim components when `vector` (a VTU vector carries 3 in
+ * 2D, the third zero) else 1; NULL when it has neither. */
+static int file_field(const cli_command *cmd, const char *path, const consph_particles *p,
+                      const char *name, const char *other, int vector, const consph_field **out)
+{
+    const consph_field *a = consph_particles_find(p, name), *b = consph_particles_find(p, other);
+    *out = a ? a : b;
+    if (a && b)
+        return cli_error(cmd, "option --particles: %s has both fields '%s' and '%s': keep one",
+                         path, name, other);
+    if (!*out) return 0;
+    const int want = vector ? p->dim : 1;
+    const int pad = vector && p->dim == 2 && (*out)->ncomp == 3;
+    if ((*out)->ncomp != want && !pad)
+        return cli_error(cmd, "option --particles: %s: field '%s' has %d components, not %d", path,
+                         (*out)->name, (*out)->ncomp, want);
+    for (size_t i = 0; pad && i < p->n; ++i)
+        if ((*out)->data[2 * p->cap + i] != 0.0)
+            return cli_error(cmd,
+                             "option --particles: %s: field '%s' of particle %zu has z = %.17g, "
+                             "but the problem is 2D",
+                             path, (*out)->name, i, (*out)->data[2 * p->cap + i]);
+    return 0;
+}
+
+/* --particles FILE (the readers of consph_read_particles, as `consph approx` reads them): the
+ * positions, in the problem's box (a box or periodicity the file states must be the problem's),
+ * and the velocity and pressure where the file has them, into `given` as
+ * consph_solver_create_from takes them; nx and n from their count. Nothing is written. */
+static int read_given(const cli_command *cmd, const char *path, consph_run_params *prm,
+                      consph_particles *given)
+{
+    consph_particle_format fmt;
+    if (consph_particle_format_from_path(path, &fmt) != CONSPH_OK)
+        return cli_error(cmd, "option --particles: %s", consph_last_error());
+    consph_layout_params lp; /* the problem's box and periodicity */
+    if (consph_run_layout_params(prm, &lp) != CONSPH_OK)
+        return cli_error(cmd, "%s", consph_last_error());
+    const int dim = consph_problem_dim(prm->problem);
+    consph_read_options ro;
+    memset(&ro, 0, sizeof ro);
+    ro.dim = dim;
+    ro.have_box = ro.have_periodic = 1;
+    ro.box = lp.box;
+    for (int a = 0; a < dim; ++a) ro.periodic[a] = lp.box.periodic[a];
+    consph_particles p;
+    consph_read_report rep;
+    int st = consph_read_particles(path, &ro, &p, &rep);
+    if (st != CONSPH_OK) {
+        fprintf(stderr, "consph run: option --particles: %s\n", consph_last_error());
+        return st == CONSPH_ENOMEM ? 1 : CLI_EXIT_USAGE;
+    }
+    char want[160], have[160];
+    int bad = 0;
+    for (int a = 0; a < dim && rep.file_has_box; ++a)
+        bad |= rep.file_box.lo[a] != lp.box.lo[a] || rep.file_box.hi[a] != lp.box.hi[a];
+    const char *field = fmt == CONSPH_FORMAT_CSV ? "its '# box' comment" : "its FieldData 'box'";
+    if (bad) {
+        box_text(&lp.box, dim, want, sizeof want);
+        box_text(&rep.file_box, dim, have, sizeof have);
+    }
+    for (int a = 0; !bad && a < dim && rep.file_has_periodic; ++a)
+        if (!rep.file_box.periodic[a] != !lp.box.periodic[a]) {
+            bad = 1;
+            field =
+                fmt == CONSPH_FORMAT_CSV ? "its '# periodic' comment" : "its FieldData 'periodic'";
+            periodic_text(&lp.box, dim, want, sizeof want);
+            periodic_text(&rep.file_box, dim, have, sizeof have);
+        }
+    int rc = 0;
+    if (bad)
+        rc = cli_error(cmd,
+                       "option --particles: %s: %s says %s, but problem %s is %s: a run "
+                       "takes its problem's box and periodicity",
+                       path, field, have, prm->problem, want);
+    const consph_field *u = NULL, *pr = NULL;
+    if (!rc) rc = file_field(cmd, path, &p, "velocity", "u", 1, &u);
+    if (!rc) rc = file_field(cmd, path, &p, "pressure", "p", 0, &pr);
+    if (!rc && consph_run_params_particles(prm, p.n) != CONSPH_OK)
+        rc = cli_error(cmd, "option --particles: %s: %s", path, consph_last_error());
+    if (!rc && consph_particles_init(given, dim, p.n, &p.box) != CONSPH_OK) rc = 1;
+    for (int a = 0; !rc && a < dim; ++a) memcpy(given->x[a], p.x[a], p.n * sizeof(double));
+    double *gu = !rc && u ? consph_particles_field(given, "u", dim) : NULL;
+    double *gp = !rc && pr ? consph_particles_field(given, "p", 1) : NULL;
+    if (!rc && ((u && !gu) || (pr && !gp))) rc = 1;
+    for (int a = 0; gu && !rc && a < dim; ++a)
+        memcpy(gu + (size_t)a * given->cap, u->data + (size_t)a * p.cap, p.n * sizeof(double));
+    if (gp && !rc) memcpy(gp, pr->data, p.n * sizeof(double));
+    if (rc == 1) fprintf(stderr, "consph run: %s\n", consph_last_error());
+    consph_particles_free(&p);
+    return rc;
+}
+
 int cmd_run(int argc, char **argv)
 {
     consph_run_params prm;
     consph_run_params_default(&prm);
-    const char *out = NULL, *restart = NULL;
+    const char *out = NULL, *restart = NULL, *particles = NULL, *config = NULL;
+    static run_file rf;
+    consph_particles given;
+    memset(&given, 0, sizeof given);
     long snap_every = 0, ckpt_every = 0, threads = 0;
     int format = 0, heat_lap = 1, heat_walls = 0;
     int overwrite = 0;
     cli_cache cache = {NULL, 0};
     double heat_eta = 2.0, heat_eps = 0.0;
     static param_opts po;
-    cli_opt opts[RUN_OPTS_MAX + 16];
+    cli_opt opts[RUN_OPTS_MAX + 24];
     const int nparam = param_options(opts, &po, &prm);
     const cli_opt others[] = {
         {"--out", CLI_STRING, &out, "DIR", "write snapshots, log, summary, checkpoints here", NULL,
@@ -276,7 +557,16 @@ int cmd_run(int argc, char **argv)
          1e12, 0},
         {"--overwrite", CLI_FLAG, &overwrite, NULL,
          "remove the files of an earlier run in --out first (only those)", NULL, 0, 0, 0},
-        {"--restart", CLI_STRING, &restart, "FILE", "continue from a checkpoint", NULL, 0, 0, 0},
+        {"--restart", CLI_STRING, &restart, "FILE",
+         "continue from a checkpoint (with --tf or --steps: to another end)", NULL, 0, 0, 0},
+        {"--particles", CLI_STRING, &particles, "FILE",
+         "start from these particles (CSV or VTU: positions, optional velocity and pressure) "
+         "instead of --layout; nx from their count",
+         NULL, 0, 0, 0},
+        {"--config", CLI_STRING, &config, "FILE",
+         "run parameters as key = value lines (the run keys of study files); options given "
+         "replace its keys",
+         NULL, 0, 0, 0},
         {"--format", CLI_CHOICE, &format, "F", "result on stdout", "table,json", 0, 0, 0},
         {"--threads", CLI_INT, &threads, "T", "threads (0: OpenMP's default)", NULL, 0, 4096, 0},
         {"--laplacian", CLI_CHOICE, &heat_lap, "L", "heat: the Laplacian (002 S3 or S4)", "s3,s4",
@@ -293,6 +583,9 @@ int cmd_run(int argc, char **argv)
     char usage[512];
     snprintf(usage, sizeof usage,
              "consph run PROBLEM --scheme S --nx N [options]   (PROBLEM: %s)\n"
+             "       consph run PROBLEM --particles FILE [options]   consph run --config FILE "
+             "[options]\n"
+             "       consph run --restart CKPT [--tf T | --steps K] [output options]\n"
              "       consph run heat --laplacian s3|s4 --nx N --eta H/Δ [options]",
              consph_problem_names());
     cli_command cmd = {"run", "run a simulation: weakly-compressible SPH, or 002's heat problem",
@@ -302,8 +595,15 @@ int cmd_run(int argc, char **argv)
     int rc = cli_parse(&cmd, argc, argv);
     if (rc) return rc == 1 ? 0 : rc;
     if ((rc = cli_cache_apply(&cmd, &cache))) return rc;
-    if (!positional[0] && !restart)
-        return cli_error(&cmd, "a problem is required (allowed: %s, heat)", consph_problem_names());
+    if (config && !restart && (rc = run_file_load(&cmd, config, &rf)) != 0) return rc;
+    const run_file *cf = config && !restart ? &rf : NULL;
+    const int file_problem = run_file_find(cf, "problem");
+    const char *problem = positional[0]       ? positional[0]
+                          : file_problem >= 0 ? rf.k[file_problem].value
+                                              : NULL;
+    if (!problem && !restart)
+        return cli_error(&cmd, "a problem is required (allowed: %s, heat)%s",
+                         consph_problem_names(), config ? ", or a key 'problem' in --config" : "");
     /* Before the packing, the restart or the run, not at their first write. */
     if (out && (rc = cli_check_out_dir(&cmd, "--out", out)) != 0) return rc;
     if (threads > 0) consph_set_num_threads((int)threads);
@@ -367,21 +667,38 @@ int cmd_run(int argc, char **argv)
     consph_solver *s = NULL;
     int st;
     if (restart) {
-        for (int k = 0; k < cmd.nopts; ++k)
-            if (opts[k].given && strcmp(opts[k].name, "--restart") &&
-                strcmp(opts[k].name, "--out") && strcmp(opts[k].name, "--format") &&
-                strcmp(opts[k].name, "--threads") && strcmp(opts[k].name, "--snapshot-every") &&
-                strcmp(opts[k].name, "--checkpoint-every"))
+        static const char *const with_restart[] = {
+            "--restart",          "--out", "--format", "--threads", "--snapshot-every",
+            "--checkpoint-every", "--tf",  "--steps"};
+        for (int k = 0; k < cmd.nopts; ++k) {
+            size_t w = 0;
+            while (w < sizeof with_restart / sizeof with_restart[0] &&
+                   strcmp(opts[k].name, with_restart[w]))
+                ++w;
+            if (opts[k].given && w == sizeof with_restart / sizeof with_restart[0])
                 return cli_error(
                     &cmd,
                     "option %s cannot change a restarted run (allowed with --restart: "
-                    "--out, --format, --threads, --snapshot-every, --checkpoint-every)",
+                    "--out, --format, --threads, --snapshot-every, --checkpoint-every, and a new "
+                    "end: --tf or --steps)",
                     opts[k].name);
+        }
         if (positional[0]) return cli_error(&cmd, "give no problem with --restart");
+        /* the new end, read with the table's bounds */
+        consph_run_params end = prm;
+        if ((rc = params_given(&cmd, opts, &po, nparam, &end)) != 0) return rc;
         st = consph_run_restart(&s, restart);
         if (st != CONSPH_OK) {
             fprintf(stderr, "consph run: option --restart: %s\n", consph_last_error());
             return CLI_EXIT_USAGE;
+        }
+        const int new_tf = option_given(&cmd, "--tf"), new_steps = option_given(&cmd, "--steps");
+        if ((new_tf || new_steps) && consph_solver_extend(s, new_tf ? end.tf : 0.0,
+                                                          new_steps ? end.steps : 0) != CONSPH_OK) {
+            rc = cli_error(&cmd, "option %s: checkpoint '%s': %s", new_tf ? "--tf" : "--steps",
+                           restart, consph_last_error());
+            consph_solver_free(s);
+            return rc;
         }
         if (out && (rc = prepare_out(&cmd, out, consph_solver_run_id(s), 0)) != 0) {
             consph_solver_free(s);
@@ -390,29 +707,61 @@ int cmd_run(int argc, char **argv)
     } else {
         if (option_given(&cmd, "--re") && option_given(&cmd, "--nu"))
             return cli_error(&cmd, "options --re and --nu both set the viscosity: give one");
-        if (consph_run_params_problem(&prm, positional[0]) != CONSPH_OK)
-            return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s, heat)", positional[0],
-                             consph_problem_names());
-        /* the problem's defaults (consph_run_params_problem) stay unless an option is given */
-        if ((rc = params_given(&cmd, opts, &po, nparam, &prm)) != 0) return rc;
-        if (option_given(&cmd, "--re")) prm.nu = -1.0; /* ν from the Re given */
-        if (option_given(&cmd, "--steps")) prm.tf = 0.0;
-        if (prm.dt > 0.0 && (option_given(&cmd, "--cfl") || option_given(&cmd, "--h-dt")))
+        if (consph_run_params_problem(&prm, problem) != CONSPH_OK) {
+            if (positional[0])
+                return cli_error(&cmd, "problem '%.40s' is unknown (allowed: %s, heat)", problem,
+                                 consph_problem_names());
             return cli_error(&cmd,
-                             "option %s sets the time-step rule, which --dt %g replaces: "
-                             "give one",
-                             option_given(&cmd, "--cfl") ? "--cfl" : "--h-dt", prm.dt);
-        if (option_given(&cmd, "--error-times") && prm.error != CONSPH_ERROR_AUTHORS)
-            return cli_error(&cmd, "option --error-times counts the output times of --error "
-                                   "authors: give --error authors too");
+                             "option --config: %s:%d: key 'problem': problem '%.40s' is unknown "
+                             "(allowed: %s)",
+                             rf.path, rf.k[file_problem].line, problem, consph_problem_names());
+        }
+        /* the problem's defaults (consph_run_params_problem) stay unless the file's key or an
+         * option is given, in that order */
+        if (cf && (rc = run_file_apply(&cmd, &rf, &prm)) != 0) return rc;
+        if ((rc = params_given(&cmd, opts, &po, nparam, &prm)) != 0) return rc;
+        char where[320];
+        if (particles) {
+            static const char *const layout_only[] = {"nx", "layout", "seed"};
+            for (size_t k = 0; k < sizeof layout_only / sizeof layout_only[0]; ++k)
+                if (param_given(&cmd, cf, layout_only[k], where, sizeof where))
+                    return cli_error(&cmd,
+                                     "%s: not with --particles (the file's particles and their "
+                                     "count replace the layout)",
+                                     where);
+        }
+        if (param_given(&cmd, cf, "re", where, sizeof where)) prm.nu = -1.0; /* ν from Re */
+        if (param_given(&cmd, cf, "steps", where, sizeof where)) prm.tf = 0.0;
+        if (prm.dt > 0.0 && (param_given(&cmd, cf, "cfl", where, sizeof where) ||
+                             param_given(&cmd, cf, "h_dt", where, sizeof where)))
+            return cli_error(&cmd, "%s sets the time-step rule, which %s %g replaces: give one",
+                             where, option_given(&cmd, "--dt") ? "--dt" : "dt", prm.dt);
+        if (param_given(&cmd, cf, "error_times", where, sizeof where) &&
+            prm.error != CONSPH_ERROR_AUTHORS)
+            return cli_error(&cmd,
+                             "%s counts the output times of --error authors: give --error "
+                             "authors too",
+                             where);
         if (consph_run_params_check(&prm) != CONSPH_OK) return params_refused(&cmd);
-        if ((rc = unread_options(&cmd, &prm)) != 0) return rc;
-        if (out && (rc = prepare_out(&cmd, out, NULL, overwrite)) != 0) return rc;
+        if ((rc = unread_options(&cmd, cf, &prm)) != 0) return rc;
+        if (particles) {
+            rc = read_given(&cmd, particles, &prm, &given);
+            if (!rc && consph_run_params_check(&prm) != CONSPH_OK)
+                rc = cli_error(&cmd, "option --particles: %s: %s", particles, consph_last_error());
+        }
+        if (!rc && out) rc = prepare_out(&cmd, out, NULL, overwrite);
+        if (rc) {
+            consph_particles_free(&given);
+            return rc;
+        }
     }
-    if (!s && (st = consph_solver_create(&s, &prm)) != CONSPH_OK) {
+    if (!s && (st = particles ? consph_solver_create_from(&s, &prm, &given)
+                              : consph_solver_create(&s, &prm)) != CONSPH_OK) {
         fprintf(stderr, "consph run: %s\n", consph_last_error());
+        consph_particles_free(&given);
         return 1;
     }
+    consph_particles_free(&given);
     char warn[256];
     if (consph_solver_dt_warning(s, warn, sizeof warn))
         fprintf(stderr,

@@ -135,6 +135,11 @@ typedef struct consph_read_report {
     int has_mass; /* a "mass" field from an `m` (or `mass`) column */
     int has_time; /* VTU: a FieldData array TimeValue, whose value is `time` */
     double time;
+    /* the box and periodicity the file itself states, also where the options replaced them
+     * (for a caller that checks them against its own): file_box.lo/hi when file_has_box,
+     * file_box.periodic when file_has_periodic */
+    int file_has_box, file_has_periodic;
+    consph_box file_box;
 } consph_read_report;
 
 /* Reads a particle file into `p` (initialised here), streaming it: memory is O(N). The format is
@@ -171,6 +176,20 @@ int consph_read_particles_mem(const char *name, consph_particle_format fmt, cons
 
 /* "file column 'volume'", "m/rho columns" or "none": for reports. */
 const char *consph_volume_origin_name(consph_volume_origin origin);
+
+/* ---- key = value texts (study files, run parameter files) --------------------------------- */
+
+/* Called for each line that is not blank or a comment: a section header `[...]` as key (the line,
+ * trimmed) with value NULL, else the key and the value of `key = value`, both trimmed (the value
+ * may be empty), writable until the next call. A status other than CONSPH_OK stops the
+ * reading and is returned. */
+typedef int (*consph_kv_fn)(void *ctx, int line, char *key, char *value);
+/* Reads `size` bytes of text line by line: a '#' starts a comment that runs to the end of the
+ * line. CONSPH_EFORMAT "PATH:LINE: ..." for a NUL byte, a line longer than line_max characters,
+ * a control character other than tab, or a line that is neither a section header nor has an
+ * '='. */
+int consph_kv_parse(const char *path, const char *data, size_t size, size_t line_max,
+                    consph_kv_fn each, void *ctx);
 
 /* ---- Runs: checkpoints, ParaView time series, stop requests, progress ---------------------- */
 

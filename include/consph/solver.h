@@ -106,6 +106,9 @@ typedef struct consph_run_params {
                           shift at the run's first IPST (001's authors; the run then stores that
                           value here, and a checkpoint carries it), > 0 that value */
     int exact;         /* consph_exact_kind: what every error is taken against */
+    long n;            /* the particle count of a run from given particles when it is not nx^dim
+                          (then Δs = (box volume / n)^(1/dim) and nx the nearest integer to
+                          n^(1/dim)); 0: nx^dim particles, Δs = the box side / nx */
 } consph_run_params;
 
 void consph_run_params_default(consph_run_params *prm);
@@ -247,6 +250,20 @@ typedef struct consph_solver consph_solver;
 
 /* Builds particles and initial state from the parameters (checked first). */
 int consph_solver_create(consph_solver **out, const consph_run_params *prm);
+/* The same from given particles instead of the layout (consph run --particles): their positions,
+ * in the stored order (the field "id" numbers them so), and where `given` has them the fields
+ * "u" (dim components) and "p" (1) instead of the problem's solution at t = 0 (ϱ then follows
+ * from p as at set-up). Its count, box and periodicity must be the run's
+ * (consph_run_params_particles) and every position inside the box; other fields are ignored,
+ * volumes and masses being the run's own (box volume / N, as a layout's). Given the particles of
+ * the layout the parameters name, the run is the same bit for bit. */
+int consph_solver_create_from(consph_solver **out, const consph_run_params *prm,
+                              const consph_particles *given);
+/* Sets prm->nx and prm->n for a run from `count` particles (prm->problem set): nx = count^(1/dim)
+ * and n = 0 when count is a perfect power, else nx = count^(1/dim) rounded and n = count (the
+ * spacing then (box volume / count)^(1/dim)). CONSPH_EINVAL naming the count when the run could
+ * not hold it (consph_run_nx_check). */
+int consph_run_params_particles(consph_run_params *prm, size_t count);
 /* Restores a solver from a checkpoint's metadata and particles (consph_solver_checkpoint_meta);
  * takes ownership of nothing. */
 int consph_solver_restore(consph_solver **out, const char *meta, const consph_particles *p,
@@ -330,6 +347,14 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
                int *stopped_by);
 /* Restores a solver from a checkpoint file; a refusal names the file and the metadata key. */
 int consph_run_restart(consph_solver **s, const char *checkpoint);
+/* Gives a restored run another end: tf > 0 (a run to t_f) or steps > 0 (a run of that many
+ * steps), after the checkpoint's t and step. The run then continues as an uninterrupted run
+ * with that end would have (bit for bit), which holds because every step before the end of a
+ * run is a full Δt. CONSPH_EINVAL, the run unchanged, when it cannot: an end not after the
+ * checkpoint, a run with the authors' error measure (its output times divide the whole run),
+ * or a checkpoint at the end of a run whose last step was shortened to land on its t_f. The
+ * same end as the run's is no change. */
+int consph_solver_extend(consph_solver *s, double tf, long steps);
 
 /* A run's identifier: CONSPH_RUN_ID_LEN hexadecimal digits drawn when the solver is set up,
  * kept by its checkpoints and written to DIR/run.id by consph_run, so that a restart can tell

@@ -555,6 +555,15 @@ int consph_rd_finish(rd_set *set, const consph_read_options *opt, consph_particl
         rep->has_mass = fm >= 0;
         rep->has_time = set->have_time;
         rep->time = set->have_time ? set->time : 0.0;
+        memset(&rep->file_box, 0, sizeof rep->file_box);
+        rep->file_box.dim = dim;
+        rep->file_has_box = set->have_box && set->box_dim == dim;
+        rep->file_has_periodic = set->have_periodic && set->periodic_dim == dim;
+        for (int a = 0; a < dim; ++a) {
+            rep->file_box.lo[a] = rep->file_has_box ? set->lo[a] : 0.0;
+            rep->file_box.hi[a] = rep->file_has_box ? set->hi[a] : 0.0;
+            rep->file_box.periodic[a] = rep->file_has_periodic && set->periodic[a];
+        }
     }
     return CONSPH_OK;
 }

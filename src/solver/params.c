@@ -461,6 +461,15 @@ int consph_run_params_check(const consph_run_params *prm)
     if ((st = consph_run_nx_check(prm->nx, consph_problem_dim(prm->problem))) != CONSPH_OK)
         return st;
     /* rules between parameters */
+    if (prm->n > 0) {
+        const int dim = consph_problem_dim(prm->problem);
+        if (scheme_find(prm->scheme)->needs_lattice)
+            return consph_fail(CONSPH_EINVAL,
+                               "n = %ld particles, not nx^%d: scheme '%s' remeshes onto a lattice "
+                               "of nx^%d particles, so it needs a particle count that is a "
+                               "perfect power",
+                               prm->n, dim, prm->scheme, dim);
+    }
     if (prm->steps == 0 && !(prm->tf > 0.0))
         return consph_fail(CONSPH_EINVAL,
                            "tf = 0 with steps = 0: tf must be a positive time or steps a positive "
@@ -559,4 +568,23 @@ const consph_run_param *run_param_of_message(const char *msg)
         if (o && !strncmp(msg, d->option, o) && (msg[o] == ' ' || msg[o] == '\'')) return d;
     }
     return NULL;
+}
+
+int consph_run_params_particles(consph_run_params *prm, size_t count)
+{
+    const int dim = consph_problem_dim(prm->problem);
+    if (!dim)
+        return consph_fail(CONSPH_EINVAL, "problem '%s' is unknown (allowed: %s)", prm->problem,
+                           consph_problem_names());
+    const long nx = count ? lround(pow((double)count, 1.0 / dim)) : 0;
+    double power = 1.0; /* nx^dim, exact for any count a run can hold */
+    for (int a = 0; a < dim; ++a) power *= (double)nx;
+    if (consph_run_nx_check((int)(nx < INT_MAX ? nx : INT_MAX), dim) != CONSPH_OK) {
+        char msg[400];
+        snprintf(msg, sizeof msg, "%s", consph_last_error());
+        return consph_fail(CONSPH_EINVAL, "%zu particles in %dD (nx %ld): %s", count, dim, nx, msg);
+    }
+    prm->nx = (int)nx;
+    prm->n = power == (double)count ? 0 : (long)count;
+    return CONSPH_OK;
 }

@@ -36,9 +36,9 @@ static const struct {
  * ipst_h_dt and ipst_chi0: those runs shifted on their own steps with the lattice's χ_o). */
 static const struct {
     const char *key, *value;
-} format4_added[] = {{"exact", "incompressible"}, {"wcs_u_acc", "0"},      {"wcs_p_acc", "0"},
-                     {"wcs_auth_u_acc", "0"},     {"wcs_auth_p_acc", "0"}, {"ipst_h_dt", "0"},
-                     {"ipst_chi0", "-1"}};
+} format4_added[] = {
+    {"exact", "incompressible"}, {"wcs_u_acc", "0"}, {"wcs_p_acc", "0"},  {"wcs_auth_u_acc", "0"},
+    {"wcs_auth_p_acc", "0"},     {"ipst_h_dt", "0"}, {"ipst_chi0", "-1"}, {"n", "0"}};
 #define FORMAT4_NADDED (sizeof format4_added / sizeof format4_added[0])
 
 int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **history,
@@ -347,9 +347,10 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
     if (st == CONSPH_OK) st = state_check(s);
     if (st == CONSPH_OK) st = history_check(s, history, nhistory);
     if (st == CONSPH_OK &&
-        (particles->dim != s->dim || (double)particles->n != pow((double)p->nx, s->dim)))
-        st = consph_fail(CONSPH_EFORMAT, "%zu particles in %dD do not match nx = %d", particles->n,
-                         particles->dim, p->nx);
+        (particles->dim != s->dim ||
+         (double)particles->n != (p->n > 0 ? (double)p->n : pow((double)p->nx, s->dim))))
+        st = consph_fail(CONSPH_EFORMAT, "%zu particles in %dD do not match nx = %d, n = %ld",
+                         particles->n, particles->dim, p->nx, p->n);
     consph_kernel k;
     if (st == CONSPH_OK) st = consph_kernel_init(&k, p->kernel, s->dim, s->h);
     if (st == CONSPH_OK) st = consph_sys_init(&s->sys, particles, &k, 0.0);
@@ -376,5 +377,51 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
     s->nhist = s->caphist = nhistory / HIST_COLS;
     s->step_dt = s->dt; /* the next sample follows a step, which sets it */
     *out = s;
+    return CONSPH_OK;
+}
+
+int consph_solver_extend(consph_solver *s, double tf, long steps)
+{
+    consph_run_params *p = &s->prm;
+    if ((tf > 0.0) == (steps > 0))
+        return consph_fail(CONSPH_EINVAL, "a new end of the run is tf > 0 or steps > 0: give one");
+    if (steps > 0 ? steps == p->steps : p->steps == 0 && tf == p->tf) return CONSPH_OK;
+    if (steps > 0 && steps <= s->step)
+        return consph_fail(CONSPH_EINVAL,
+                           "steps = %ld is not after the checkpoint's step %ld (t = %.17g): give "
+                           "more steps",
+                           steps, s->step, s->t);
+    if (tf > 0.0 && !(tf > s->t))
+        return consph_fail(CONSPH_EINVAL,
+                           "tf = %.17g is not after the checkpoint's t = %.17g (step %ld): give a "
+                           "later tf",
+                           tf, s->t, s->step);
+    /* 001's authors' measure averages over output times spread over [0, t_f] (or the steps'
+     * ends): another end moves every one of them, the samples already taken included */
+    if (p->error == CONSPH_ERROR_AUTHORS)
+        return consph_fail(CONSPH_EINVAL,
+                           "error = authors: its %d output times divide the run's own end (%s), "
+                           "so a run with another end samples other times from t = 0 on; run it "
+                           "again with the new end",
+                           p->error_times, p->steps > 0 ? "steps" : "tf");
+    /* A --tf run's last step is shortened to land on t_f: a run to a later end would have taken
+     * a full step there (consph_solver_step). Only a finished run has taken it: its history's
+     * last row is that step, with its Δt. */
+    const double *last = s->nhist ? s->hist + (s->nhist - 1) * HIST_COLS : NULL;
+    if (p->steps == 0 && s->t >= p->tf && last && (long)last[0] == s->step &&
+        last[HIST_COLS - 1] != s->dt)
+        return consph_fail(CONSPH_EINVAL,
+                           "the checkpoint is the end of a run whose last step was shortened to "
+                           "land on tf = %.17g (Δt %.17g, not %.17g): a run to another end "
+                           "would not have taken that step; restart from an earlier checkpoint",
+                           p->tf, last[HIST_COLS - 1], s->dt);
+    consph_run_params q = *p;
+    q.tf = steps > 0 ? 0.0 : tf;
+    q.steps = steps > 0 ? steps : 0;
+    int st = consph_run_params_check(&q);
+    if (st != CONSPH_OK) return st;
+    *p = q;
+    s->tf = q.tf;
+    s->nsteps = q.steps;
     return CONSPH_OK;
 }

@@ -238,6 +238,13 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
         if (st == CONSPH_OK && s->step > 0 && access(pvd, F_OK) == 0) {
             st = consph_pvd_load(&f.pvd, pvd);
             f.have_pvd = st == CONSPH_OK;
+            /* the snapshots after the checkpoint are rewritten, or stale: those of the run's
+             * former end when it continues to another (consph_solver_extend) */
+            for (size_t k = 0; st == CONSPH_OK && k < f.pvd.n; ++k) {
+                const char *snap = f.pvd.time[k] > s->t ? runfiles_join(&f, f.pvd.file[k]) : NULL;
+                if (snap && unlink(snap) != 0 && errno != ENOENT)
+                    st = consph_fail(CONSPH_EIO, "cannot remove '%s': %s", snap, strerror(errno));
+            }
             if (st == CONSPH_OK) st = consph_pvd_truncate(&f.pvd, s->t);
         } else if (st == CONSPH_OK) {
             st = runfiles_pvd_init(&f);

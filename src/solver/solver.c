@@ -130,7 +130,11 @@ int derive_solver(consph_solver *s)
     s->integ = integ_find(prm->integrator[0] ? prm->integrator : s->scheme->integrator);
     if (!s->integ) return consph_fail(CONSPH_EINVAL, "unknown integrator");
     s->dim = s->prob->dim;
-    s->ds = (s->prob->hi[0] - s->prob->lo[0]) / prm->nx;
+    double volume = 1.0;
+    for (int a = 0; a < s->dim; ++a) volume *= s->prob->hi[a] - s->prob->lo[a];
+    /* n particles that are not nx^dim (a particle file): the spacing of their mean volume */
+    s->ds = prm->n > 0 ? pow(volume / (double)prm->n, 1.0 / s->dim)
+                       : (s->prob->hi[0] - s->prob->lo[0]) / prm->nx;
     s->h = prm->hdx * s->ds;
     s->c0 = prm->c0 > 0.0 ? prm->c0 : 10.0 * prm->U;
     s->nu = prm->nu >= 0.0 ? prm->nu : prm->U * (s->prob->hi[0] - s->prob->lo[0]) / prm->re;
@@ -221,11 +225,77 @@ const char *consph_solver_run_id(const consph_solver *s)
     return s->run_id;
 }
 
+/* The given particles as consph_layout_generate makes a layout: positions in the problem's box,
+ * the run's spacing and the field "volume" = box volume / N; "u" and "p" are the caller's. */
+static int given_particles(const consph_solver *s, const consph_particles *in, consph_particles *p)
+{
+    const size_t n = s->prm.n > 0 ? (size_t)s->prm.n : (size_t)lround(pow(s->prm.nx, s->dim));
+    const consph_box box = problem_box(s->prob);
+    if (in->dim != s->dim || in->n != n)
+        return consph_fail(CONSPH_EINVAL,
+                           "the given particles (%zu in %dD) are not the %zu in %dD of nx = %d, "
+                           "n = %ld (consph_run_params_particles sets them)",
+                           in->n, in->dim, n, s->dim, s->prm.nx, s->prm.n);
+    for (int a = 0; a < s->dim; ++a)
+        if (in->box.lo[a] != box.lo[a] || in->box.hi[a] != box.hi[a] ||
+            !in->box.periodic[a] != !box.periodic[a])
+            return consph_fail(CONSPH_EINVAL,
+                               "the given particles' box or periodicity on axis %d is not that of "
+                               "problem '%s'",
+                               a, s->prob->name);
+    for (int a = 0; a < s->dim; ++a)
+        for (size_t i = 0; i < n; ++i)
+            if (!(in->x[a][i] >= box.lo[a] && in->x[a][i] < box.hi[a]))
+                return consph_fail(CONSPH_EINVAL,
+                                   "given particle %zu: coordinate %d = %.17g is not in [%.17g, "
+                                   "%.17g) (the box of problem '%s')",
+                                   i, a, in->x[a][i], box.lo[a], box.hi[a], s->prob->name);
+    static const char *const named[2] = {"u", "p"};
+    for (int k = 0; k < 2; ++k) {
+        const consph_field *f = consph_particles_find(in, named[k]);
+        if (f && f->ncomp != (k ? 1 : s->dim))
+            return consph_fail(CONSPH_EINVAL, "the given field '%s' has %d components, not %d",
+                               named[k], f->ncomp, k ? 1 : s->dim);
+    }
+    int st = consph_particles_init(p, s->dim, n, &box);
+    if (st != CONSPH_OK) return st;
+    p->spacing = s->ds;
+    for (int a = 0; a < s->dim; ++a) memcpy(p->x[a], in->x[a], n * sizeof(double));
+    double *vol = consph_particles_field(p, "volume", 1);
+    if (!vol) return CONSPH_ENOMEM;
+    const double v = consph_box_volume(&box) / (double)n;
+    for (size_t i = 0; i < n; ++i) vol[i] = v;
+    return CONSPH_OK;
+}
+
+/* The given field `name`'s data (components cap apart), NULL when there is none. */
+static const double *given_field(const consph_particles *in, const char *name)
+{
+    const consph_field *f = in ? consph_particles_find(in, name) : NULL;
+    return f ? f->data : NULL;
+}
+
 int consph_solver_create(consph_solver **out, const consph_run_params *prm)
+{
+    return consph_solver_create_from(out, prm, NULL);
+}
+
+int consph_solver_create_from(consph_solver **out, const consph_run_params *prm,
+                              const consph_particles *given)
 {
     *out = NULL;
     int st = consph_run_params_check(prm);
     if (st != CONSPH_OK) return st;
+    if (prm->n > 0 && !given)
+        return consph_fail(CONSPH_EINVAL,
+                           "n = %ld: a run of n particles starts from given "
+                           "particles, not from a layout",
+                           prm->n);
+    const int dim = consph_problem_dim(prm->problem);
+    if (prm->n > 0 && prm->nx != lround(pow((double)prm->n, 1.0 / dim)))
+        return consph_fail(CONSPH_EINVAL,
+                           "n = %ld particles go with nx = %ld (n^(1/%d) rounded), not nx = %d",
+                           prm->n, lround(pow((double)prm->n, 1.0 / dim)), dim, prm->nx);
     consph_solver *s = consph_calloc(1, sizeof *s);
     if (!s) return CONSPH_ENOMEM;
     s->prm = *prm;
@@ -235,7 +305,8 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
     memset(&lp, 0, sizeof lp);
     if (st == CONSPH_OK) st = consph_run_layout_params(prm, &lp);
     consph_particles src = {0}, lat = {0};
-    if (st == CONSPH_OK) st = consph_layout_generate(&lp, &src, NULL);
+    if (st == CONSPH_OK)
+        st = given ? given_particles(s, given, &src) : consph_layout_generate(&lp, &src, NULL);
     consph_kernel k;
     if (st == CONSPH_OK) st = consph_kernel_init(&k, prm->kernel, s->dim, s->h);
     if (st == CONSPH_OK) st = consph_sys_init(&s->sys, &src, &k, 0.0);
@@ -252,13 +323,17 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
         double *id = sv_field(s, SF_ID, 1), *u = sv_field(s, SF_U, s->dim);
         double *pr = sv_field(s, SF_P, 1), *rhof = sv_field(s, SF_RHOF, 1);
         double *xl = lat.n ? sv_field(s, SF_LATTICE, s->dim) : NULL;
+        const double *gu = given_field(given, "u"), *gp = given_field(given, "p");
+        const size_t gcap = given ? given->cap : 0;
         if (!id || !u || !pr || !rhof || (lat.n && !xl)) st = CONSPH_ENOMEM;
         for (size_t i = 0; st == CONSPH_OK && i < n; ++i) {
             double x[3], ue[3], pe;
             solver_position_of(p, i, x);
             s->prob->exact(prm, 0.0, x, ue, &pe);
-            id[i] = (double)s->sys.origin[i];
-            for (int a = 0; a < s->dim; ++a) u[a * cap + i] = ue[a];
+            const size_t o = s->sys.origin[i];
+            id[i] = (double)o;
+            for (int a = 0; a < s->dim; ++a) u[a * cap + i] = gu ? gu[a * gcap + o] : ue[a];
+            if (gp) pe = gp[o];
             pr[i] = pe;
             rhof[i] = prm->rho_init == CONSPH_RHO_INIT_RHO0 ? prm->rho0 : exact_rho(s, pe);
             if (xl)

@@ -323,23 +323,23 @@ static int parse_section(consph_study *s, char *t, const char *path, int line, s
     return CONSPH_OK;
 }
 
-/* One logical line, comments and surrounding blanks included. */
-static int parse_line(consph_study *s, char *buf, const char *path, int line, study_figure **fig,
-                      study_series **ser)
+/* Where the reading is: the study, its file, the figure and series being read. */
+typedef struct parse_state {
+    consph_study *s;
+    const char *path;
+    study_figure *fig;
+    study_series *ser;
+} parse_state;
+
+/* One line as consph_kv_parse hands it: a section header (value NULL) or key = value. */
+static int parse_line(void *ctx, int line, char *key, char *value)
 {
-    char *hash = strchr(buf, '#');
-    if (hash) *hash = '\0';
-    char *t = trim(buf);
-    if (!*t) return CONSPH_OK;
-    for (const char *c = t; *c; ++c)
-        if ((unsigned char)*c < 0x20 && *c != '\t')
-            return consph_fail(CONSPH_EFORMAT, "%s:%d: control character 0x%02x", path, line,
-                               (unsigned char)*c);
-    if (*t == '[') return parse_section(s, t, path, line, fig, ser);
-    char *eq = strchr(t, '=');
-    if (!eq) return consph_fail(CONSPH_EFORMAT, "%s:%d: expected 'key = value'", path, line);
-    *eq = '\0';
-    char *key = trim(t), *value = trim(eq + 1);
+    parse_state *ps = ctx;
+    consph_study *s = ps->s;
+    const char *path = ps->path;
+    study_figure **fig = &ps->fig;
+    study_series **ser = &ps->ser;
+    if (!value) return parse_section(s, key, path, line, fig, ser);
     key_rule rule_row, inner_row;
     const key_rule *rule = study_key_rule_of(key, &rule_row) ? &rule_row : NULL;
     if (!rule)
@@ -394,27 +394,8 @@ int study_parse(const char *path, const char *data, size_t size, consph_study **
         free(s);
         return consph_fail(CONSPH_ENOMEM, "out of memory");
     }
-    char buf[STUDY_LINE_MAX + 1];
-    int line = 0, rc = CONSPH_OK;
-    study_figure *fig = NULL;
-    study_series *ser = NULL;
-    size_t pos = 0;
-    while (rc == CONSPH_OK && pos < size) {
-        ++line;
-        const char *nl = memchr(data + pos, '\n', size - pos);
-        size_t len = nl ? (size_t)(nl - (data + pos)) : size - pos;
-        if (memchr(data + pos, '\0', len)) {
-            rc = consph_fail(CONSPH_EFORMAT, "%s:%d: NUL byte", path, line);
-        } else if (len > STUDY_LINE_MAX) {
-            rc = consph_fail(CONSPH_EFORMAT, "%s:%d: line longer than %d characters", path, line,
-                             STUDY_LINE_MAX);
-        } else {
-            memcpy(buf, data + pos, len);
-            buf[len] = '\0';
-            rc = parse_line(s, buf, path, line, &fig, &ser);
-        }
-        pos += len + 1;
-    }
+    parse_state ps = {s, path, NULL, NULL};
+    int rc = consph_kv_parse(path, data, size, STUDY_LINE_MAX, parse_line, &ps);
     const char *name = study_get(s, NULL, NULL, "study");
     if (rc == CONSPH_OK && !name)
         rc = consph_fail(CONSPH_EFORMAT, "%s: no 'study = NAME' line", path);
