@@ -19,6 +19,7 @@
 #include <math.h>
 #include <string.h>
 
+#include "pass/group.h"
 #include "schemes/pysph/iact.h"
 #include "solver/solver_internal.h"
 
@@ -300,6 +301,287 @@ RV_CLONES static void visit_wcsph(void *vjob, const consph_nbhd *nb)
         g ? visit_wcsph_d(job, nb, 3, 1) : visit_wcsph_d(job, nb, 3, 0);
 }
 
+/* ---- the same visits over groups of particles (src/pass/group.h) ----
+ *
+ * Each sum above is a chain of dependent additions in neighbour order, whose latency bounds the
+ * visit. The group visits run the chains of PASS_GROUP particles of one cell side by side, one
+ * particle per lane of a vector: lane l computes the terms of its own particle's k-th neighbour
+ * with the operations of the pair functions (iact.h) in their order and adds them to its own
+ * sums in its own neighbour order, so every value is the per-particle visit's bit for bit
+ * (tests/test_pysph_group.c). GCC's and clang's vector extensions; other compilers run the
+ * per-particle visits. */
+#if defined(__GNUC__)
+#define RV_GROUPS 1
+/* GCC builds a vector from scalars by inserting them into the destination's old value, and then
+ * warns that the old value may be uninitialised (it is never read) */
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+typedef double rv4 __attribute__((vector_size(4 * sizeof(double))));
+typedef long long rv4i __attribute__((vector_size(4 * sizeof(double))));
+
+/* m ? a : b per lane (m: all bits set or none); a macro, since a function returning a vector
+ * would have a different ABI in the clone without AVX */
+#define RV_SEL(m, a, b) ((rv4)(((m) & (rv4i)(a)) | (~(m) & (rv4i)(b))))
+/* acc + t in the lanes of m; the others keep acc */
+#define RV_ADD(acc, m, t) ((acc) = RV_SEL((m), (acc) + (t), (acc)))
+#define RV_SUB(acc, m, t) ((acc) = RV_SEL((m), (acc) - (t), (acc)))
+
+/* The group's lanes (src/pass/group.h: every lane's arrays reach kmax, and the lanes past
+ * count repeat the first, whose sums are never written). */
+typedef struct rv_lanes {
+    const consph_nbhd *nb[PASS_GROUP];
+    size_t i[PASS_GROUP], kmax;
+    rv4i n;
+    int count;
+} rv_lanes;
+
+RV_INLINE void rv_lanes_of(rv_lanes *L, const consph_nbhd *nb, int count)
+{
+    L->count = count;
+    L->kmax = 0;
+    for (int l = 0; l < PASS_GROUP; ++l) {
+        L->nb[l] = &nb[l];
+        L->i[l] = nb[l].i;
+        L->n[l] = (long long)nb[l].n;
+        if (nb[l].n > L->kmax) L->kmax = nb[l].n;
+    }
+}
+
+/* The neighbours j of entry k of each lane, and the lanes that sum it: all but the padding
+ * (skip_self: all but the particle itself, ∇W_ii = 0, which the padding is too). */
+RV_INLINE void rv_entry(const rv_lanes *L, size_t k, size_t j[PASS_GROUP], int skip_self, rv4i *m)
+{
+    for (int l = 0; l < PASS_GROUP; ++l) j[l] = L->nb[l]->j[k];
+    if (skip_self) {
+        const rv4i jv = {(long long)j[0], (long long)j[1], (long long)j[2], (long long)j[3]};
+        const rv4i iv = {(long long)L->i[0], (long long)L->i[1], (long long)L->i[2],
+                         (long long)L->i[3]};
+        *m = (rv4i)(jv != iv);
+    } else {
+        *m = (rv4i)((long long)k < L->n);
+    }
+}
+
+#define RV_AT(arr, idx) ((rv4){(arr)[(idx)[0]], (arr)[(idx)[1]], (arr)[(idx)[2]], (arr)[(idx)[3]]})
+#define RV_NB(L, field, k)                                                                         \
+    ((rv4){(L)->nb[0]->field[k], (L)->nb[1]->field[k], (L)->nb[2]->field[k], (L)->nb[3]->field[k]})
+#define RV_I(L, arr) ((rv4){(arr)[(L)->i[0]], (arr)[(L)->i[1]], (arr)[(L)->i[2]], (arr)[(L)->i[3]]})
+
+RV_INLINE void group_density(const rival_job *job, const consph_nbhd *nb, int count)
+{
+    rv_lanes L;
+    rv_lanes_of(&L, nb, count);
+    const int edac = job->kind != RV_TVF;
+    rv4 s = {0.0, 0.0, 0.0, 0.0}, ps = s;
+    size_t j[PASS_GROUP] = {0};
+    for (size_t k = 0; k < L.kmax; ++k) {
+        rv4i m;
+        rv_entry(&L, k, j, 0, &m);
+        RV_ADD(s, m, RV_NB(&L, w, k));
+        if (edac) RV_ADD(ps, m, RV_AT(job->p, j));
+    }
+    for (int l = 0; l < count; ++l) {
+        const size_t i = L.i[l];
+        job->numd[i] = s[l];
+        job->rhos[i] = job->c.m * s[l];
+        job->vol[i] = 1.0 / s[l];
+        job->mrho[i] = job->c.m / job->rhos[i];
+        if (job->kind == RV_TVF)
+            job->pw[i] = job->p0 * (job->rhos[i] / job->rho0 - 1.0);
+        else
+            job->pavg[i] = ps[l] / (double)L.nb[l]->n;
+    }
+}
+
+RV_CLONES static void group_visit_density(void *vjob, const consph_nbhd *nb, int count)
+{
+    group_density(vjob, nb, count);
+}
+
+/* visit_tv_d over a group: pysph_tv_pair's operations in its order, per lane. */
+RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count, const int d,
+                          const int edac, const int grads)
+{
+    rv_lanes L;
+    rv_lanes_of(&L, nb, count);
+    const size_t cap = job->cap;
+    const pysph_consts *c = &job->c;
+    const rv4 rhoi = RV_I(&L, job->rho), pi = RV_I(&L, job->p), Vi = RV_I(&L, job->vol);
+    const rv4 zero = {0.0, 0.0, 0.0, 0.0};
+    const rv4 pav = edac ? RV_I(&L, job->pavg) : zero;
+    rv4 ui[3] = {zero, zero, zero}, dui[3] = {zero, zero, zero};
+    for (int a = 0; a < d; ++a) {
+        ui[a] = RV_I(&L, job->u + a * cap);
+        dui[a] = RV_I(&L, job->tvdu + a * cap);
+    }
+    rv4 f[3] = {zero, zero, zero}, fb[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
+    rv4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, div = zero, ap = zero;
+    size_t j[PASS_GROUP] = {0};
+    for (size_t k = 0; k < L.kmax; ++k) {
+        rv4i m;
+        rv_entry(&L, k, j, 1, &m);
+        const rv4 rhoj = RV_AT(job->rho, j), pj = RV_AT(job->p, j), Vj = RV_AT(job->vol, j);
+        const rv4 vj = RV_AT(job->mrho, j), dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
+        rv4 xij[3] = {zero, zero, zero}, uj[3] = {zero, zero, zero}, duj[3] = {zero, zero, zero};
+        for (int a = 0; a < d; ++a) {
+            xij[a] = RV_NB(&L, dx[a], k);
+            uj[a] = RV_AT(job->u + a * cap, j);
+            duj[a] = RV_AT(job->tvdu + a * cap, j);
+        }
+        /* pysph_tv_pair */
+        const rv4 w2 = Vi * Vi + Vj * Vj;
+        rv4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
+        rv4 xdw = zero, udw = zero;
+        for (int a = 0; a < d; ++a) {
+            gw[a] = dwr * xij[a];
+            uij[a] = ui[a] - uj[a];
+            xdw += xij[a] * gw[a];
+            udw += uij[a] * gw[a];
+        }
+        const rv4 r2 = r * r;
+        const rv4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r2 + c->h2);
+        const rv4 pij = (rhoj * (pi - pav) + rhoi * (pj - pav)) * inv_s;
+        const rv4 rr = rhoi * rhoj * inv_s, wx = w2 * xdw * inv_r;
+        const rv4 visc = 2.0 * c->nu * rr * wx;
+        for (int a = 0; a < d; ++a) {
+            rv4 A = zero;
+            for (int b = 0; b < d; ++b)
+                A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj * uj[a] * duj[b]) * gw[b];
+            RV_ADD(f[a], m, -pij * w2 * gw[a] + visc * uij[a] + w2 * A);
+            RV_ADD(fb[a], m, -c->pb * w2 * gw[a]);
+            if (grads) RV_ADD(fp[a], m, -pij * w2 * gw[a] * c->minv);
+        }
+        if (grads)
+            for (int a = 0; a < d; ++a)
+                for (int b = 0; b < d; ++b) RV_SUB(G[a * d + b], m, vj * uij[a] * gw[b]);
+        RV_SUB(div, m, vj * udw);
+        if (edac) {
+            RV_ADD(ap, m, rhoi * vj * c->c0 * c->c0 * udw);
+            RV_ADD(ap, m, 2.0 * c->nu_edac * rr * wx * (pi - pj) * c->minv);
+        }
+    }
+    for (int l = 0; l < count; ++l) {
+        const size_t i = L.i[l];
+        double fpl[3] = {0.0, 0.0, 0.0}, Gl[9] = {0.0};
+        for (int a = 0; a < d; ++a) {
+            job->au[a * cap + i] = f[a][l] / c->m;
+            job->auhat[a * cap + i] = fb[a][l] / c->m;
+            fpl[a] = fp[a][l];
+        }
+        for (int e = 0; e < d * d; ++e) Gl[e] = G[e][l];
+        job->aq[i] = ap[l];
+        put_diag(job, i, fpl, div[l], Gl, d, grads);
+    }
+}
+
+RV_CLONES static void group_visit_tv(void *vjob, const consph_nbhd *nb, int count)
+{
+    const rival_job *job = vjob;
+    const int edac = job->kind == RV_EDAC, g = job->grads;
+    if (job->d == 2) {
+        if (edac)
+            g ? group_tv_d(job, nb, count, 2, 1, 1) : group_tv_d(job, nb, count, 2, 1, 0);
+        else
+            g ? group_tv_d(job, nb, count, 2, 0, 1) : group_tv_d(job, nb, count, 2, 0, 0);
+    } else {
+        if (edac)
+            g ? group_tv_d(job, nb, count, 3, 1, 1) : group_tv_d(job, nb, count, 3, 1, 0);
+        else
+            g ? group_tv_d(job, nb, count, 3, 0, 1) : group_tv_d(job, nb, count, 3, 0, 0);
+    }
+}
+
+/* visit_wcsph_d over a group: pysph_monaghan_pi's and pysph_wcsph_pair's operations. */
+RV_INLINE void group_wcsph_d(const rival_job *job, const consph_nbhd *nb, int count, const int d,
+                             const int grads)
+{
+    rv_lanes L;
+    rv_lanes_of(&L, nb, count);
+    const size_t cap = job->cap;
+    const pysph_consts *c = &job->c;
+    const int av = c->alpha > 0.0;
+    const rv4 zero = {0.0, 0.0, 0.0, 0.0};
+    const rv4 rhoi = RV_I(&L, job->rho), ti = RV_I(&L, job->pr2);
+    const rv4 ci = av ? RV_I(&L, job->cs) : zero;
+    rv4 ui[3] = {zero, zero, zero};
+    for (int a = 0; a < d; ++a) ui[a] = RV_I(&L, job->u + a * cap);
+    rv4 f[3] = {zero, zero, zero}, xs[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
+    rv4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, drho = zero;
+    const double m = c->m;
+    size_t j[PASS_GROUP] = {0};
+    for (size_t k = 0; k < L.kmax; ++k) {
+        rv4i msk;
+        rv_entry(&L, k, j, 1, &msk);
+        const rv4 rhoj = RV_AT(job->rho, j), tj = RV_AT(job->pr2, j);
+        const rv4 vj = grads ? RV_AT(job->mrho, j) : zero;
+        const rv4 w = RV_NB(&L, w, k), dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
+        rv4 xij[3], uj[3];
+        for (int a = 0; a < 3; ++a) {
+            xij[a] = a < d ? RV_NB(&L, dx[a], k) : zero;
+            uj[a] = a < d ? RV_AT(job->u + a * cap, j) : zero;
+        }
+        const rv4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r * r + c->h2);
+        rv4 pij = zero;
+        if (av) {
+            rv4 ux = zero;
+            for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
+            /* pysph_monaghan_pi */
+            const rv4 mu = c->h * ux * inv_r;
+            const rv4 v = -c->alpha * (ci + RV_AT(job->cs, j)) * mu * inv_s;
+            pij = RV_SEL((rv4i)(ux < 0.0), v, zero);
+        }
+        /* pysph_wcsph_pair */
+        rv4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
+        for (int a = 0; a < d; ++a) {
+            uij[a] = ui[a] - uj[a];
+            gw[a] = dwr * xij[a];
+        }
+        rv4 udw = zero, xdw = zero;
+        for (int a = 0; a < d; ++a) {
+            udw += uij[a] * gw[a];
+            xdw += xij[a] * gw[a];
+        }
+        const rv4 visc = m * 4.0 * c->nu * xdw * inv_s * inv_r;
+        for (int a = 0; a < d; ++a) {
+            RV_ADD(f[a], msk, -m * (ti + tj + pij) * gw[a] + visc * uij[a]);
+            RV_SUB(xs[a], msk, m * w * inv_s * uij[a]);
+            if (grads) RV_ADD(fp[a], msk, -m * (ti + tj) * gw[a]);
+        }
+        RV_ADD(drho, msk, m * udw);
+        if (grads)
+            for (int a = 0; a < d; ++a)
+                for (int b = 0; b < d; ++b) RV_SUB(G[a * d + b], msk, vj * uij[a] * gw[b]);
+    }
+    for (int l = 0; l < count; ++l) {
+        const size_t i = L.i[l];
+        double fpl[3] = {0.0, 0.0, 0.0}, Gl[9] = {0.0};
+        for (int a = 0; a < d; ++a) {
+            job->au[a * cap + i] = f[a][l];
+            job->ax[a * cap + i] = ui[a][l] + xs[a][l];
+            fpl[a] = fp[a][l];
+        }
+        for (int e = 0; e < d * d; ++e) Gl[e] = G[e][l];
+        job->aq[i] = drho[l];
+        put_diag(job, i, fpl, -drho[l] / rhoi[l], Gl, d, grads);
+    }
+}
+
+RV_CLONES static void group_visit_wcsph(void *vjob, const consph_nbhd *nb, int count)
+{
+    const rival_job *job = vjob;
+    const int g = job->grads;
+    if (job->d == 2)
+        g ? group_wcsph_d(job, nb, count, 2, 1) : group_wcsph_d(job, nb, count, 2, 0);
+    else
+        g ? group_wcsph_d(job, nb, count, 3, 1) : group_wcsph_d(job, nb, count, 3, 0);
+}
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#endif /* __GNUC__ */
+
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC pop_options
 #endif
@@ -376,6 +658,30 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     return CONSPH_OK;
 }
 
+/* Whether the rates run the group visits (0: the per-particle visits, which give the same
+ * values; tests/test_pysph_group.c compares the two). */
+int pysph_group_visits = 1;
+
+/* A pass with its group visit where the system and the compiler allow one, else per particle. */
+static int run_pass(consph_solver *s, const consph_pass *pass, pass_group_fn group, rival_job *job)
+{
+#ifdef RV_GROUPS
+    if (pysph_group_visits) {
+        const int st = pass_run_groups(&s->sys, pass->name, pass->need, group, job, &s->pairs);
+        if (st != PASS_GROUP_UNSERVED) return st;
+    }
+#else
+    (void)group;
+#endif
+    return consph_pass_run_counted(&s->sys, pass, job, &s->pairs);
+}
+
+#ifndef RV_GROUPS
+#define group_visit_wcsph NULL
+#define group_visit_density NULL
+#define group_visit_tv NULL
+#endif
+
 static int rhs_wcsph(consph_solver *s)
 {
     rival_job job;
@@ -383,7 +689,7 @@ static int rhs_wcsph(consph_solver *s)
     if (st != CONSPH_OK) return st;
     const consph_pass pass = {"wcsph rates", CONSPH_PASS_W | CONSPH_PASS_DW, visit_wcsph};
     s->passes = 1;
-    return consph_pass_run_counted(&s->sys, &pass, &job, &s->pairs);
+    return run_pass(s, &pass, group_visit_wcsph, &job);
 }
 
 /* Density pass, then the rates; the transport velocity follows from them in tv_transport. */
@@ -394,8 +700,8 @@ static int rhs_tv(consph_solver *s, int kind)
     if (st != CONSPH_OK) return st;
     const consph_pass dens = {"tv density", CONSPH_PASS_W | CONSPH_PASS_NO_DX, visit_density};
     const consph_pass rates = {"tv rates", CONSPH_PASS_DW, visit_tv};
-    st = consph_pass_run_counted(&s->sys, &dens, &job, &s->pairs);
-    if (st == CONSPH_OK) st = consph_pass_run_counted(&s->sys, &rates, &job, &s->pairs);
+    st = run_pass(s, &dens, group_visit_density, &job);
+    if (st == CONSPH_OK) st = run_pass(s, &rates, group_visit_tv, &job);
     if (st != CONSPH_OK) return st;
     s->passes = 2;
     double *rhof = sv_field(s, SF_RHOF, 1);
