@@ -140,8 +140,7 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
                 continue;
             }
             for (int l = 0; l < PASS_GROUP && my_status == CONSPH_OK; ++l)
-                if (lane_reserve(&sc[l], runs.candidates + CONSPH_NNPS_GATHER_SLACK) !=
-                    CONSPH_OK) {
+                if (lane_reserve(&sc[l], runs.candidates + CONSPH_NNPS_GATHER_SLACK) != CONSPH_OK) {
                     my_status = CONSPH_ENOMEM;
                     snprintf(my_why, sizeof my_why, "out of memory for %zu candidate neighbours",
                              runs.candidates);

@@ -17,6 +17,7 @@
  * η_ij and A_i + A_j are symmetric and ∇W_ij is odd), so they conserve linear momentum to
  * round-off on any particle distribution. */
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 
 #include "pass/group.h"
@@ -31,6 +32,10 @@
 
 enum { RV_WCSPH, RV_TVF, RV_EDAC };
 
+/* Whether the rates run the group visits (0: the per-particle visits, which give the same
+ * values; tests/test_pysph_group.c compares the two). */
+int pysph_group_visits = 1;
+
 typedef struct rival_job {
     int kind, d;
     size_t cap;
@@ -41,6 +46,10 @@ typedef struct rival_job {
     /* per particle, computed once instead of once per pair (the same operations, hence the
      * same values): wcsph p/ϱ², tvf and edac 1/V = 1/Σ W; m/ϱ for ∇u */
     double *pr2, *vol, *mrho;
+    /* the group visits: what a pair reads of its neighbour j, together at pack[j * RV_PACK] (one
+     * cache line instead of one per field); NULL: read from the fields */
+    double *pack;
+    size_t pk; /* doubles per particle in the pack */
     double *numd, *pavg, *rhos, *pw, *au, *aq, *ax, *auhat;
     double *gradp, *divu, *gradu; /* for the diagnostics and the vorticity output */
     int grads;                    /* ∇u and ∇p wanted (consph_solver.grads_skip unset) */
@@ -367,6 +376,26 @@ RV_INLINE void rv_entry(const rv_lanes *L, size_t k, size_t j[PASS_GROUP], int s
 #define RV_AT(arr, idx) ((rv4){(arr)[(idx)[0]], (arr)[(idx)[1]], (arr)[(idx)[2]], (arr)[(idx)[3]]})
 #define RV_NB(L, field, k)                                                                         \
     ((rv4){(L)->nb[0]->field[k], (L)->nb[1]->field[k], (L)->nb[2]->field[k], (L)->nb[3]->field[k]})
+/* Entries o..o+3 of the four lanes' rows q[l], as four vectors (a 4×4 transpose). */
+typedef double rv4u __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double))));
+#if defined(__clang__)
+#define RV_SHUF(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)
+#else
+#define RV_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (rv4i){i0, i1, i2, i3})
+#endif
+RV_INLINE void rv_transpose(const double *const q[PASS_GROUP], size_t o, rv4 *f0, rv4 *f1, rv4 *f2,
+                            rv4 *f3)
+{
+    const rv4 a0 = *(const rv4u *)(q[0] + o), a1 = *(const rv4u *)(q[1] + o);
+    const rv4 a2 = *(const rv4u *)(q[2] + o), a3 = *(const rv4u *)(q[3] + o);
+    const rv4 t0 = RV_SHUF(a0, a1, 0, 4, 2, 6), t1 = RV_SHUF(a0, a1, 1, 5, 3, 7);
+    const rv4 t2 = RV_SHUF(a2, a3, 0, 4, 2, 6), t3 = RV_SHUF(a2, a3, 1, 5, 3, 7);
+    *f0 = RV_SHUF(t0, t2, 0, 1, 4, 5);
+    *f1 = RV_SHUF(t1, t3, 0, 1, 4, 5);
+    *f2 = RV_SHUF(t0, t2, 2, 3, 6, 7);
+    *f3 = RV_SHUF(t1, t3, 2, 3, 6, 7);
+}
+#define RV_PK(q, o) ((rv4){(q)[0][o], (q)[1][o], (q)[2][o], (q)[3][o]})
 #define RV_I(L, arr) ((rv4){(arr)[(L)->i[0]], (arr)[(L)->i[1]], (arr)[(L)->i[2]], (arr)[(L)->i[3]]})
 
 RV_INLINE void group_density(const rival_job *job, const consph_nbhd *nb, int count)
@@ -422,14 +451,21 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
     for (size_t k = 0; k < L.kmax; ++k) {
         rv4i m;
         rv_entry(&L, k, j, 1, &m);
-        const rv4 rhoj = RV_AT(job->rho, j), pj = RV_AT(job->p, j), Vj = RV_AT(job->vol, j);
-        const rv4 vj = RV_AT(job->mrho, j), dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
+        const double *q[PASS_GROUP];
+        for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack + j[l] * job->pk;
+        rv4 rhoj, pj, Vj, vj;
         rv4 xij[3] = {zero, zero, zero}, uj[3] = {zero, zero, zero}, duj[3] = {zero, zero, zero};
-        for (int a = 0; a < d; ++a) {
-            xij[a] = RV_NB(&L, dx[a], k);
-            uj[a] = RV_AT(job->u + a * cap, j);
-            duj[a] = RV_AT(job->tvdu + a * cap, j);
+        rv_transpose(q, 0, &rhoj, &pj, &Vj, &vj);
+        if (d == 2) {
+            rv_transpose(q, 4, &uj[0], &uj[1], &duj[0], &duj[1]);
+        } else {
+            for (int a = 0; a < d; ++a) {
+                uj[a] = RV_PK(q, 4 + a);
+                duj[a] = RV_PK(q, 4 + d + a);
+            }
         }
+        const rv4 dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
+        for (int a = 0; a < d; ++a) xij[a] = RV_NB(&L, dx[a], k);
         /* pysph_tv_pair */
         const rv4 w2 = Vi * Vi + Vj * Vj;
         rv4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
@@ -651,22 +687,53 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     if (!job->rhos || !job->numd || !job->pavg || !job->tvdu || !job->auhat) return CONSPH_ENOMEM;
     /* 1/V and m/ϱ of each particle, set by the density pass */
     const size_t nn = s->sys.p->n ? s->sys.p->n : 1;
-    double *sc = consph_sys_scratch(&s->sys, 2 * nn);
+    size_t want = 2 * nn;
+#ifdef RV_GROUPS
+    /* the pack of the group visits, its particles on 64-byte lines in 2D */
+    job->pk = d == 2 ? 8 : 10;
+    if (pysph_group_visits) want += job->pk * nn + 8;
+#endif
+    double *sc = consph_sys_scratch(&s->sys, want);
     if (!sc) return CONSPH_ENOMEM;
     job->vol = sc;
     job->mrho = sc + nn;
+#ifdef RV_GROUPS
+    if (pysph_group_visits) {
+        double *pk = sc + 2 * nn;
+        while ((uintptr_t)pk % 64) ++pk;
+        job->pack = pk;
+    }
+#endif
     return CONSPH_OK;
 }
 
-/* Whether the rates run the group visits (0: the per-particle visits, which give the same
- * values; tests/test_pysph_group.c compares the two). */
-int pysph_group_visits = 1;
+#ifdef RV_GROUPS
+/* tvf and edac: ϱ, p, V, m/ϱ, u and ũ - u of every particle into the pack (after the density
+ * pass, which sets ϱ, V, m/ϱ and tvf's p). */
+static void tv_pack(const consph_solver *s, const rival_job *job)
+{
+    const size_t n = s->sys.p->n, cap = job->cap;
+    const int d = job->d;
+#pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
+    for (size_t i = 0; i < n; ++i) {
+        double *q = job->pack + i * job->pk;
+        q[0] = job->rho[i];
+        q[1] = job->p[i];
+        q[2] = job->vol[i];
+        q[3] = job->mrho[i];
+        for (int a = 0; a < d; ++a) {
+            q[4 + a] = job->u[a * cap + i];
+            q[4 + d + a] = job->tvdu[a * cap + i];
+        }
+    }
+}
+#endif
 
 /* A pass with its group visit where the system and the compiler allow one, else per particle. */
 static int run_pass(consph_solver *s, const consph_pass *pass, pass_group_fn group, rival_job *job)
 {
 #ifdef RV_GROUPS
-    if (pysph_group_visits) {
+    if (pysph_group_visits && group) {
         const int st = pass_run_groups(&s->sys, pass->name, pass->need, group, job, &s->pairs);
         if (st != PASS_GROUP_UNSERVED) return st;
     }
@@ -701,7 +768,10 @@ static int rhs_tv(consph_solver *s, int kind)
     const consph_pass dens = {"tv density", CONSPH_PASS_W | CONSPH_PASS_NO_DX, visit_density};
     const consph_pass rates = {"tv rates", CONSPH_PASS_DW, visit_tv};
     st = run_pass(s, &dens, group_visit_density, &job);
-    if (st == CONSPH_OK) st = run_pass(s, &rates, group_visit_tv, &job);
+#ifdef RV_GROUPS
+    if (st == CONSPH_OK && job.pack) tv_pack(s, &job);
+#endif
+    if (st == CONSPH_OK) st = run_pass(s, &rates, job.pack ? group_visit_tv : NULL, &job);
     if (st != CONSPH_OK) return st;
     s->passes = 2;
     double *rhof = sv_field(s, SF_RHOF, 1);
