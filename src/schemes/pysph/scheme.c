@@ -550,14 +550,15 @@ RV_INLINE void group_wcsph_d(const rival_job *job, const consph_nbhd *nb, int co
     for (size_t k = 0; k < L.kmax; ++k) {
         rv4i msk;
         rv_entry(&L, k, j, 1, &msk);
-        const rv4 rhoj = RV_AT(job->rho, j), tj = RV_AT(job->pr2, j);
-        const rv4 vj = grads ? RV_AT(job->mrho, j) : zero;
+        const double *q[PASS_GROUP];
+        for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack + j[l] * 8;
+        rv4 rhoj, tj, vj, cj, uj[3], pad;
+        rv_transpose(q, 0, &rhoj, &tj, &vj, &cj);
+        rv_transpose(q, 4, &uj[0], &uj[1], &uj[2], &pad);
+        (void)pad;
         const rv4 w = RV_NB(&L, w, k), dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
-        rv4 xij[3], uj[3];
-        for (int a = 0; a < 3; ++a) {
-            xij[a] = a < d ? RV_NB(&L, dx[a], k) : zero;
-            uj[a] = a < d ? RV_AT(job->u + a * cap, j) : zero;
-        }
+        rv4 xij[3];
+        for (int a = 0; a < 3; ++a) xij[a] = a < d ? RV_NB(&L, dx[a], k) : zero;
         const rv4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r * r + c->h2);
         rv4 pij = zero;
         if (av) {
@@ -565,7 +566,7 @@ RV_INLINE void group_wcsph_d(const rival_job *job, const consph_nbhd *nb, int co
             for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
             /* pysph_monaghan_pi */
             const rv4 mu = c->h * ux * inv_r;
-            const rv4 v = -c->alpha * (ci + RV_AT(job->cs, j)) * mu * inv_s;
+            const rv4 v = -c->alpha * (ci + cj) * mu * inv_s;
             pij = RV_SEL((rv4i)(ux < 0.0), v, zero);
         }
         /* pysph_wcsph_pair */
@@ -659,9 +660,23 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         /* Tait's c_o (ϱ/ϱ_o)^((γ-1)/2) once per particle for Monaghan's Π_ij (a pow() per
          * approaching pair cost more than the rest of the pair), p/ϱ² and m/ϱ */
         const size_t n = s->sys.p->n, nn = n ? n : 1;
-        double *sc = consph_sys_scratch(&s->sys, 3 * nn);
+        size_t want = 3 * nn;
+#ifdef RV_GROUPS
+        /* the pack of the group visit: ϱ, p/ϱ², m/ϱ, c, u per particle on a 64-byte line */
+        job->pk = 8;
+        if (pysph_group_visits) want += job->pk * nn + 8;
+#endif
+        double *sc = consph_sys_scratch(&s->sys, want);
         if (!sc) return CONSPH_ENOMEM;
-        double *pr2 = sc, *mrho = sc + nn, *cs = sc + 2 * nn;
+        double *pr2 = sc, *mrho = sc + nn, *cs = sc + 2 * nn, *pack = NULL;
+#ifdef RV_GROUPS
+        if (pysph_group_visits) {
+            pack = sc + 3 * nn;
+            while ((uintptr_t)pack % 64) ++pack;
+        }
+#endif
+        const size_t cap = job->cap;
+        const double *u = job->u;
         const double *rho = job->rho, *p = job->p, c0 = job->c.c0, rho0 = job->rho0;
         const double cexp = job->cexp, m = job->c.m;
         const int ie = eos_int_exponent(cexp); /* γ = 7: the cube, by multiplication */
@@ -671,7 +686,17 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
             pr2[i] = p[i] / (rho[i] * rho[i]);
             if (grads) mrho[i] = m / rho[i];
             if (av) cs[i] = c0 * (ie >= 0 ? eos_ipow(rho[i] / rho0, ie) : pow(rho[i] / rho0, cexp));
+            if (pack) {
+                double *q = pack + i * 8;
+                q[0] = rho[i];
+                q[1] = pr2[i];
+                q[2] = grads ? mrho[i] : 0.0;
+                q[3] = av ? cs[i] : 0.0;
+                for (int a = 0; a < 3; ++a) q[4 + a] = a < d ? u[a * cap + i] : 0.0;
+                q[7] = 0.0;
+            }
         }
+        job->pack = pack;
         job->pr2 = pr2;
         job->mrho = mrho;
         if (av) job->cs = cs;
@@ -756,7 +781,7 @@ static int rhs_wcsph(consph_solver *s)
     if (st != CONSPH_OK) return st;
     const consph_pass pass = {"wcsph rates", CONSPH_PASS_W | CONSPH_PASS_DW, visit_wcsph};
     s->passes = 1;
-    return run_pass(s, &pass, group_visit_wcsph, &job);
+    return run_pass(s, &pass, job.pack ? group_visit_wcsph : NULL, &job);
 }
 
 /* Density pass, then the rates; the transport velocity follows from them in tv_transport. */
