@@ -32,8 +32,8 @@
 
 enum { RV_WCSPH, RV_TVF, RV_EDAC };
 
-/* Whether the rates run the group visits (0: the per-particle visits, which give the same
- * values; tests/test_pysph_group.c compares the two). */
+/* Whether wcsph, tvf and edac run their passes over groups (0: the per-particle visits, which give
+ * the same values; tests/test_pysph_group.c compares the two). */
 int pysph_group_visits = 1;
 
 typedef struct rival_job {
@@ -46,7 +46,7 @@ typedef struct rival_job {
     /* per particle, computed once instead of once per pair (the same operations, hence the
      * same values): wcsph p/ϱ², tvf and edac 1/V = 1/Σ W; m/ϱ for ∇u */
     double *pr2, *vol, *mrho;
-    /* the group visits: what a pair reads of its neighbour j, together at pack[j * RV_PACK] (one
+    /* the group visits: what a pair reads of its neighbour j, together at pack[j * pk] (one
      * cache line instead of one per field); NULL: read from the fields */
     double *pack;
     size_t pk; /* doubles per particle in the pack */
