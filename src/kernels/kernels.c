@@ -610,6 +610,18 @@ eval_batch(const consph_kernel *k, size_t m, const double *restrict r, double *r
 {
     const double inv_h = k->inv_h, support = k->support, norm = k->norm;
     const double norm1 = norm * inv_h, norm2 = norm * inv_h * inv_h;
+    if (w && dwr) {
+        /* W and W'/r in one loop: the shape functions share their pieces ((3 - q)^4 of W' is
+         * the start of (3 - q)^5 of W), computed once; each value is the loops' below */
+        const double at_zero = norm2 * d2f(0.0);
+        for (size_t p = 0; p < m; ++p) {
+            double rp = r[p], q = rp * inv_h, v = norm * f(q);
+            w[p] = q < support ? v : 0.0;
+            double v1 = norm1 * df(q) / (rp > 0.0 ? rp : 1.0);
+            dwr[p] = !(q < support) ? 0.0 : rp > 0.0 ? v1 : at_zero;
+        }
+        w = dwr = NULL;
+    }
     if (w)
         for (size_t p = 0; p < m; ++p) {
             double q = r[p] * inv_h, v = norm * f(q);

@@ -748,6 +748,31 @@ static int stream_pass(const consph_sys *s, const consph_pass *pass, void *job, 
     return CONSPH_OK;
 }
 
+/* Whether nlist_pass_run would hand this pass to the search's own gather (NLIST_GATHER): then
+ * it counts the pass as nlist_pass_run does, so that the choice of the state's later passes is
+ * the same whoever runs this one (src/pass/group.c). */
+int nlist_gathers(consph_nlist *l)
+{
+    if (l->skin != 0.0) return 0;
+    const unsigned long state = l->state_epoch;
+    const int last = l->passes_last, count = l->passes_state;
+    if (l->state_epoch != l->epoch) {
+        l->state_epoch = l->epoch;
+        l->passes_last = l->passes_state;
+        l->passes_state = 0;
+    }
+    const int fresh = l->cache_epoch != l->epoch || !l->caches;
+    if (fresh &&
+        (l->passes_last < NLIST_CACHE_PASSES || l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n)) {
+        ++l->passes_state;
+        return 1;
+    }
+    l->state_epoch = state;
+    l->passes_last = last;
+    l->passes_state = count;
+    return 0;
+}
+
 int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs)
 {
     consph_nlist *l = s->nlist;

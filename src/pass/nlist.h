@@ -12,6 +12,9 @@ int nlist_update(consph_sys *s, int resort);
  * the search's own gather serves the pass as well (skin 0 without a cache). */
 #define NLIST_GATHER 1
 int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs);
+/* Whether nlist_pass_run would leave the next pass to the search's gather; if so, counts it as
+ * run (a caller that runs the pass itself asks this instead of calling nlist_pass_run). */
+int nlist_gathers(consph_nlist *l);
 void nlist_free(consph_nlist *l);
 /* Whether the passes run on the list (it is on and holds the system's n particles). */
 int nlist_serves(const consph_nlist *l, size_t n);

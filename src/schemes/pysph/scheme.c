@@ -17,8 +17,10 @@
  * η_ij and A_i + A_j are symmetric and ∇W_ij is odd), so they conserve linear momentum to
  * round-off on any particle distribution. */
 #include <math.h>
+#include <stdint.h>
 #include <string.h>
 
+#include "pass/group.h"
 #include "schemes/pysph/iact.h"
 #include "solver/solver_internal.h"
 
@@ -30,6 +32,10 @@
 
 enum { RV_WCSPH, RV_TVF, RV_EDAC };
 
+/* Whether wcsph, tvf and edac run their passes over groups (0: the per-particle visits, which give
+ * the same values; tests/test_pysph_group.c compares the two). */
+int pysph_group_visits = 1;
+
 typedef struct rival_job {
     int kind, d;
     size_t cap;
@@ -40,6 +46,10 @@ typedef struct rival_job {
     /* per particle, computed once instead of once per pair (the same operations, hence the
      * same values): wcsph p/ϱ², tvf and edac 1/V = 1/Σ W; m/ϱ for ∇u */
     double *pr2, *vol, *mrho;
+    /* the group visits: what a pair reads of its neighbour j, together at pack[j * pk] (one
+     * cache line instead of one per field); NULL: read from the fields */
+    double *pack;
+    size_t pk; /* doubles per particle in the pack */
     double *numd, *pavg, *rhos, *pw, *au, *aq, *ax, *auhat;
     double *gradp, *divu, *gradu; /* for the diagnostics and the vorticity output */
     int grads;                    /* ∇u and ∇p wanted (consph_solver.grads_skip unset) */
@@ -300,6 +310,315 @@ RV_CLONES static void visit_wcsph(void *vjob, const consph_nbhd *nb)
         g ? visit_wcsph_d(job, nb, 3, 1) : visit_wcsph_d(job, nb, 3, 0);
 }
 
+/* ---- the same visits over groups of particles (src/pass/group.h) ----
+ *
+ * Each sum above is a chain of dependent additions in neighbour order, whose latency bounds the
+ * visit. The group visits run the chains of PASS_GROUP particles of one cell side by side, one
+ * particle per lane of a vector: lane l computes the terms of its own particle's k-th neighbour
+ * with the operations of the pair functions (iact.h) in their order and adds them to its own
+ * sums in its own neighbour order, so every value is the per-particle visit's bit for bit
+ * (tests/test_pysph_group.c). GCC's and clang's vector extensions; other compilers run the
+ * per-particle visits. */
+#if defined(__GNUC__)
+#define RV_GROUPS 1
+/* GCC builds a vector from scalars by inserting them into the destination's old value, and then
+ * warns that the old value may be uninitialised (it is never read) */
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+typedef double rv4 __attribute__((vector_size(4 * sizeof(double))));
+typedef long long rv4i __attribute__((vector_size(4 * sizeof(double))));
+
+/* m ? a : b per lane (m: all bits set or none); a macro, since a function returning a vector
+ * would have a different ABI in the clone without AVX */
+#define RV_SEL(m, a, b) ((rv4)(((m) & (rv4i)(a)) | (~(m) & (rv4i)(b))))
+/* acc + t in the lanes of m; the others keep acc */
+#define RV_ADD(acc, m, t) ((acc) = RV_SEL((m), (acc) + (t), (acc)))
+#define RV_SUB(acc, m, t) ((acc) = RV_SEL((m), (acc) - (t), (acc)))
+
+/* The group's lanes (src/pass/group.h: every lane's arrays reach kmax, and the lanes past
+ * count repeat the first, whose sums are never written). */
+typedef struct rv_lanes {
+    const consph_nbhd *nb[PASS_GROUP];
+    size_t i[PASS_GROUP], kmax;
+    rv4i n;
+    int count;
+} rv_lanes;
+
+RV_INLINE void rv_lanes_of(rv_lanes *L, const consph_nbhd *nb, int count)
+{
+    L->count = count;
+    L->kmax = 0;
+    for (int l = 0; l < PASS_GROUP; ++l) {
+        L->nb[l] = &nb[l];
+        L->i[l] = nb[l].i;
+        L->n[l] = (long long)nb[l].n;
+        if (nb[l].n > L->kmax) L->kmax = nb[l].n;
+    }
+}
+
+/* The neighbours j of entry k of each lane, and the lanes that sum it: all but the padding
+ * (skip_self: all but the particle itself, ∇W_ii = 0, which the padding is too). */
+RV_INLINE void rv_entry(const rv_lanes *L, size_t k, size_t j[PASS_GROUP], int skip_self, rv4i *m)
+{
+    for (int l = 0; l < PASS_GROUP; ++l) j[l] = L->nb[l]->j[k];
+    if (skip_self) {
+        const rv4i jv = {(long long)j[0], (long long)j[1], (long long)j[2], (long long)j[3]};
+        const rv4i iv = {(long long)L->i[0], (long long)L->i[1], (long long)L->i[2],
+                         (long long)L->i[3]};
+        *m = (rv4i)(jv != iv);
+    } else {
+        *m = (rv4i)((long long)k < L->n);
+    }
+}
+
+#define RV_AT(arr, idx) ((rv4){(arr)[(idx)[0]], (arr)[(idx)[1]], (arr)[(idx)[2]], (arr)[(idx)[3]]})
+#define RV_NB(L, field, k)                                                                         \
+    ((rv4){(L)->nb[0]->field[k], (L)->nb[1]->field[k], (L)->nb[2]->field[k], (L)->nb[3]->field[k]})
+/* Entries o..o+3 of the four lanes' rows q[l], as four vectors (a 4×4 transpose). */
+typedef double rv4u __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double))));
+#if defined(__clang__)
+#define RV_SHUF(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)
+#else
+#define RV_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (rv4i){i0, i1, i2, i3})
+#endif
+RV_INLINE void rv_transpose(const double *const q[PASS_GROUP], size_t o, rv4 *f0, rv4 *f1, rv4 *f2,
+                            rv4 *f3)
+{
+    const rv4 a0 = *(const rv4u *)(q[0] + o), a1 = *(const rv4u *)(q[1] + o);
+    const rv4 a2 = *(const rv4u *)(q[2] + o), a3 = *(const rv4u *)(q[3] + o);
+    const rv4 t0 = RV_SHUF(a0, a1, 0, 4, 2, 6), t1 = RV_SHUF(a0, a1, 1, 5, 3, 7);
+    const rv4 t2 = RV_SHUF(a2, a3, 0, 4, 2, 6), t3 = RV_SHUF(a2, a3, 1, 5, 3, 7);
+    *f0 = RV_SHUF(t0, t2, 0, 1, 4, 5);
+    *f1 = RV_SHUF(t1, t3, 0, 1, 4, 5);
+    *f2 = RV_SHUF(t0, t2, 2, 3, 6, 7);
+    *f3 = RV_SHUF(t1, t3, 2, 3, 6, 7);
+}
+#define RV_PK(q, o) ((rv4){(q)[0][o], (q)[1][o], (q)[2][o], (q)[3][o]})
+#define RV_I(L, arr) ((rv4){(arr)[(L)->i[0]], (arr)[(L)->i[1]], (arr)[(L)->i[2]], (arr)[(L)->i[3]]})
+
+RV_INLINE void group_density(const rival_job *job, const consph_nbhd *nb, int count)
+{
+    rv_lanes L;
+    rv_lanes_of(&L, nb, count);
+    const int edac = job->kind != RV_TVF;
+    rv4 s = {0.0, 0.0, 0.0, 0.0}, ps = s;
+    size_t j[PASS_GROUP] = {0};
+    for (size_t k = 0; k < L.kmax; ++k) {
+        rv4i m;
+        rv_entry(&L, k, j, 0, &m);
+        RV_ADD(s, m, RV_NB(&L, w, k));
+        if (edac) RV_ADD(ps, m, RV_AT(job->p, j));
+    }
+    for (int l = 0; l < count; ++l) {
+        const size_t i = L.i[l];
+        job->numd[i] = s[l];
+        job->rhos[i] = job->c.m * s[l];
+        job->vol[i] = 1.0 / s[l];
+        job->mrho[i] = job->c.m / job->rhos[i];
+        if (job->kind == RV_TVF)
+            job->pw[i] = job->p0 * (job->rhos[i] / job->rho0 - 1.0);
+        else
+            job->pavg[i] = ps[l] / (double)L.nb[l]->n;
+    }
+}
+
+RV_CLONES static void group_visit_density(void *vjob, const consph_nbhd *nb, int count)
+{
+    group_density(vjob, nb, count);
+}
+
+/* visit_tv_d over a group: pysph_tv_pair's operations in its order, per lane. */
+RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count, const int d,
+                          const int edac, const int grads)
+{
+    rv_lanes L;
+    rv_lanes_of(&L, nb, count);
+    const size_t cap = job->cap;
+    const pysph_consts *c = &job->c;
+    const rv4 rhoi = RV_I(&L, job->rho), pi = RV_I(&L, job->p), Vi = RV_I(&L, job->vol);
+    const rv4 zero = {0.0, 0.0, 0.0, 0.0};
+    const rv4 pav = edac ? RV_I(&L, job->pavg) : zero;
+    rv4 ui[3] = {zero, zero, zero}, dui[3] = {zero, zero, zero};
+    for (int a = 0; a < d; ++a) {
+        ui[a] = RV_I(&L, job->u + a * cap);
+        dui[a] = RV_I(&L, job->tvdu + a * cap);
+    }
+    rv4 f[3] = {zero, zero, zero}, fb[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
+    rv4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, div = zero, ap = zero;
+    size_t j[PASS_GROUP] = {0};
+    for (size_t k = 0; k < L.kmax; ++k) {
+        rv4i m;
+        rv_entry(&L, k, j, 1, &m);
+        const double *q[PASS_GROUP];
+        for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack + j[l] * job->pk;
+        rv4 rhoj, pj, Vj, vj;
+        rv4 xij[3] = {zero, zero, zero}, uj[3] = {zero, zero, zero}, duj[3] = {zero, zero, zero};
+        rv_transpose(q, 0, &rhoj, &pj, &Vj, &vj);
+        if (d == 2) {
+            rv_transpose(q, 4, &uj[0], &uj[1], &duj[0], &duj[1]);
+        } else {
+            for (int a = 0; a < d; ++a) {
+                uj[a] = RV_PK(q, 4 + a);
+                duj[a] = RV_PK(q, 4 + d + a);
+            }
+        }
+        const rv4 dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
+        for (int a = 0; a < d; ++a) xij[a] = RV_NB(&L, dx[a], k);
+        /* pysph_tv_pair */
+        const rv4 w2 = Vi * Vi + Vj * Vj;
+        rv4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
+        rv4 xdw = zero, udw = zero;
+        for (int a = 0; a < d; ++a) {
+            gw[a] = dwr * xij[a];
+            uij[a] = ui[a] - uj[a];
+            xdw += xij[a] * gw[a];
+            udw += uij[a] * gw[a];
+        }
+        const rv4 r2 = r * r;
+        const rv4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r2 + c->h2);
+        const rv4 pij = (rhoj * (pi - pav) + rhoi * (pj - pav)) * inv_s;
+        const rv4 rr = rhoi * rhoj * inv_s, wx = w2 * xdw * inv_r;
+        const rv4 visc = 2.0 * c->nu * rr * wx;
+        for (int a = 0; a < d; ++a) {
+            rv4 A = zero;
+            for (int b = 0; b < d; ++b)
+                A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj * uj[a] * duj[b]) * gw[b];
+            RV_ADD(f[a], m, -pij * w2 * gw[a] + visc * uij[a] + w2 * A);
+            RV_ADD(fb[a], m, -c->pb * w2 * gw[a]);
+            if (grads) RV_ADD(fp[a], m, -pij * w2 * gw[a] * c->minv);
+        }
+        if (grads)
+            for (int a = 0; a < d; ++a)
+                for (int b = 0; b < d; ++b) RV_SUB(G[a * d + b], m, vj * uij[a] * gw[b]);
+        RV_SUB(div, m, vj * udw);
+        if (edac) {
+            RV_ADD(ap, m, rhoi * vj * c->c0 * c->c0 * udw);
+            RV_ADD(ap, m, 2.0 * c->nu_edac * rr * wx * (pi - pj) * c->minv);
+        }
+    }
+    for (int l = 0; l < count; ++l) {
+        const size_t i = L.i[l];
+        double fpl[3] = {0.0, 0.0, 0.0}, Gl[9] = {0.0};
+        for (int a = 0; a < d; ++a) {
+            job->au[a * cap + i] = f[a][l] / c->m;
+            job->auhat[a * cap + i] = fb[a][l] / c->m;
+            fpl[a] = fp[a][l];
+        }
+        for (int e = 0; e < d * d; ++e) Gl[e] = G[e][l];
+        job->aq[i] = ap[l];
+        put_diag(job, i, fpl, div[l], Gl, d, grads);
+    }
+}
+
+RV_CLONES static void group_visit_tv(void *vjob, const consph_nbhd *nb, int count)
+{
+    const rival_job *job = vjob;
+    const int edac = job->kind == RV_EDAC, g = job->grads;
+    if (job->d == 2) {
+        if (edac)
+            g ? group_tv_d(job, nb, count, 2, 1, 1) : group_tv_d(job, nb, count, 2, 1, 0);
+        else
+            g ? group_tv_d(job, nb, count, 2, 0, 1) : group_tv_d(job, nb, count, 2, 0, 0);
+    } else {
+        if (edac)
+            g ? group_tv_d(job, nb, count, 3, 1, 1) : group_tv_d(job, nb, count, 3, 1, 0);
+        else
+            g ? group_tv_d(job, nb, count, 3, 0, 1) : group_tv_d(job, nb, count, 3, 0, 0);
+    }
+}
+
+/* visit_wcsph_d over a group: pysph_monaghan_pi's and pysph_wcsph_pair's operations. */
+RV_INLINE void group_wcsph_d(const rival_job *job, const consph_nbhd *nb, int count, const int d,
+                             const int grads)
+{
+    rv_lanes L;
+    rv_lanes_of(&L, nb, count);
+    const size_t cap = job->cap;
+    const pysph_consts *c = &job->c;
+    const int av = c->alpha > 0.0;
+    const rv4 zero = {0.0, 0.0, 0.0, 0.0};
+    const rv4 rhoi = RV_I(&L, job->rho), ti = RV_I(&L, job->pr2);
+    const rv4 ci = av ? RV_I(&L, job->cs) : zero;
+    rv4 ui[3] = {zero, zero, zero};
+    for (int a = 0; a < d; ++a) ui[a] = RV_I(&L, job->u + a * cap);
+    rv4 f[3] = {zero, zero, zero}, xs[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
+    rv4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, drho = zero;
+    const double m = c->m;
+    size_t j[PASS_GROUP] = {0};
+    for (size_t k = 0; k < L.kmax; ++k) {
+        rv4i msk;
+        rv_entry(&L, k, j, 1, &msk);
+        const double *q[PASS_GROUP];
+        for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack + j[l] * 8;
+        rv4 rhoj, tj, vj, cj, uj[3], pad;
+        rv_transpose(q, 0, &rhoj, &tj, &vj, &cj);
+        rv_transpose(q, 4, &uj[0], &uj[1], &uj[2], &pad);
+        (void)pad;
+        const rv4 w = RV_NB(&L, w, k), dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
+        rv4 xij[3];
+        for (int a = 0; a < 3; ++a) xij[a] = a < d ? RV_NB(&L, dx[a], k) : zero;
+        const rv4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r * r + c->h2);
+        rv4 pij = zero;
+        if (av) {
+            rv4 ux = zero;
+            for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
+            /* pysph_monaghan_pi */
+            const rv4 mu = c->h * ux * inv_r;
+            const rv4 v = -c->alpha * (ci + cj) * mu * inv_s;
+            pij = RV_SEL((rv4i)(ux < 0.0), v, zero);
+        }
+        /* pysph_wcsph_pair */
+        rv4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
+        for (int a = 0; a < d; ++a) {
+            uij[a] = ui[a] - uj[a];
+            gw[a] = dwr * xij[a];
+        }
+        rv4 udw = zero, xdw = zero;
+        for (int a = 0; a < d; ++a) {
+            udw += uij[a] * gw[a];
+            xdw += xij[a] * gw[a];
+        }
+        const rv4 visc = m * 4.0 * c->nu * xdw * inv_s * inv_r;
+        for (int a = 0; a < d; ++a) {
+            RV_ADD(f[a], msk, -m * (ti + tj + pij) * gw[a] + visc * uij[a]);
+            RV_SUB(xs[a], msk, m * w * inv_s * uij[a]);
+            if (grads) RV_ADD(fp[a], msk, -m * (ti + tj) * gw[a]);
+        }
+        RV_ADD(drho, msk, m * udw);
+        if (grads)
+            for (int a = 0; a < d; ++a)
+                for (int b = 0; b < d; ++b) RV_SUB(G[a * d + b], msk, vj * uij[a] * gw[b]);
+    }
+    for (int l = 0; l < count; ++l) {
+        const size_t i = L.i[l];
+        double fpl[3] = {0.0, 0.0, 0.0}, Gl[9] = {0.0};
+        for (int a = 0; a < d; ++a) {
+            job->au[a * cap + i] = f[a][l];
+            job->ax[a * cap + i] = ui[a][l] + xs[a][l];
+            fpl[a] = fp[a][l];
+        }
+        for (int e = 0; e < d * d; ++e) Gl[e] = G[e][l];
+        job->aq[i] = drho[l];
+        put_diag(job, i, fpl, -drho[l] / rhoi[l], Gl, d, grads);
+    }
+}
+
+RV_CLONES static void group_visit_wcsph(void *vjob, const consph_nbhd *nb, int count)
+{
+    const rival_job *job = vjob;
+    const int g = job->grads;
+    if (job->d == 2)
+        g ? group_wcsph_d(job, nb, count, 2, 1) : group_wcsph_d(job, nb, count, 2, 0);
+    else
+        g ? group_wcsph_d(job, nb, count, 3, 1) : group_wcsph_d(job, nb, count, 3, 0);
+}
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#endif /* __GNUC__ */
+
 #if defined(__GNUC__) && !defined(__clang__)
 #pragma GCC pop_options
 #endif
@@ -341,9 +660,23 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         /* Tait's c_o (ϱ/ϱ_o)^((γ-1)/2) once per particle for Monaghan's Π_ij (a pow() per
          * approaching pair cost more than the rest of the pair), p/ϱ² and m/ϱ */
         const size_t n = s->sys.p->n, nn = n ? n : 1;
-        double *sc = consph_sys_scratch(&s->sys, 3 * nn);
+        size_t want = 3 * nn;
+#ifdef RV_GROUPS
+        /* the pack of the group visit: ϱ, p/ϱ², m/ϱ, c, u per particle on a 64-byte line */
+        job->pk = 8;
+        if (pysph_group_visits) want += job->pk * nn + 8;
+#endif
+        double *sc = consph_sys_scratch(&s->sys, want);
         if (!sc) return CONSPH_ENOMEM;
-        double *pr2 = sc, *mrho = sc + nn, *cs = sc + 2 * nn;
+        double *pr2 = sc, *mrho = sc + nn, *cs = sc + 2 * nn, *pack = NULL;
+#ifdef RV_GROUPS
+        if (pysph_group_visits) {
+            pack = sc + 3 * nn;
+            while ((uintptr_t)pack % 64) ++pack;
+        }
+#endif
+        const size_t cap = job->cap;
+        const double *u = job->u;
         const double *rho = job->rho, *p = job->p, c0 = job->c.c0, rho0 = job->rho0;
         const double cexp = job->cexp, m = job->c.m;
         const int ie = eos_int_exponent(cexp); /* γ = 7: the cube, by multiplication */
@@ -353,7 +686,17 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
             pr2[i] = p[i] / (rho[i] * rho[i]);
             if (grads) mrho[i] = m / rho[i];
             if (av) cs[i] = c0 * (ie >= 0 ? eos_ipow(rho[i] / rho0, ie) : pow(rho[i] / rho0, cexp));
+            if (pack) {
+                double *q = pack + i * 8;
+                q[0] = rho[i];
+                q[1] = pr2[i];
+                q[2] = grads ? mrho[i] : 0.0;
+                q[3] = av ? cs[i] : 0.0;
+                for (int a = 0; a < 3; ++a) q[4 + a] = a < d ? u[a * cap + i] : 0.0;
+                q[7] = 0.0;
+            }
         }
+        job->pack = pack;
         job->pr2 = pr2;
         job->mrho = mrho;
         if (av) job->cs = cs;
@@ -369,12 +712,67 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     if (!job->rhos || !job->numd || !job->pavg || !job->tvdu || !job->auhat) return CONSPH_ENOMEM;
     /* 1/V and m/ϱ of each particle, set by the density pass */
     const size_t nn = s->sys.p->n ? s->sys.p->n : 1;
-    double *sc = consph_sys_scratch(&s->sys, 2 * nn);
+    size_t want = 2 * nn;
+#ifdef RV_GROUPS
+    /* the pack of the group visits, its particles on 64-byte lines in 2D */
+    job->pk = d == 2 ? 8 : 10;
+    if (pysph_group_visits) want += job->pk * nn + 8;
+#endif
+    double *sc = consph_sys_scratch(&s->sys, want);
     if (!sc) return CONSPH_ENOMEM;
     job->vol = sc;
     job->mrho = sc + nn;
+#ifdef RV_GROUPS
+    if (pysph_group_visits) {
+        double *pk = sc + 2 * nn;
+        while ((uintptr_t)pk % 64) ++pk;
+        job->pack = pk;
+    }
+#endif
     return CONSPH_OK;
 }
+
+#ifdef RV_GROUPS
+/* tvf and edac: ϱ, p, V, m/ϱ, u and ũ - u of every particle into the pack (after the density
+ * pass, which sets ϱ, V, m/ϱ and tvf's p). */
+static void tv_pack(const consph_solver *s, const rival_job *job)
+{
+    const size_t n = s->sys.p->n, cap = job->cap;
+    const int d = job->d;
+#pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
+    for (size_t i = 0; i < n; ++i) {
+        double *q = job->pack + i * job->pk;
+        q[0] = job->rho[i];
+        q[1] = job->p[i];
+        q[2] = job->vol[i];
+        q[3] = job->mrho[i];
+        for (int a = 0; a < d; ++a) {
+            q[4 + a] = job->u[a * cap + i];
+            q[4 + d + a] = job->tvdu[a * cap + i];
+        }
+    }
+}
+#endif
+
+/* A pass with its group visit where the system and the compiler allow one, else per particle. */
+static int run_pass(consph_solver *s, const consph_pass *pass, pass_group_fn group, rival_job *job)
+{
+#ifdef RV_GROUPS
+    if (pysph_group_visits && group) {
+        const int st = pass_run_groups(&s->sys, pass->name, pass->need, group, job, &s->pairs);
+        if (st != PASS_GROUP_UNSERVED) return st;
+    }
+#else
+    (void)group;
+#endif
+    return consph_pass_run_counted(&s->sys, pass, job, &s->pairs);
+}
+
+#ifndef RV_GROUPS
+#define group_visit_wcsph NULL
+#define group_visit_density NULL
+#define group_visit_tv NULL
+#endif
 
 static int rhs_wcsph(consph_solver *s)
 {
@@ -383,7 +781,7 @@ static int rhs_wcsph(consph_solver *s)
     if (st != CONSPH_OK) return st;
     const consph_pass pass = {"wcsph rates", CONSPH_PASS_W | CONSPH_PASS_DW, visit_wcsph};
     s->passes = 1;
-    return consph_pass_run_counted(&s->sys, &pass, &job, &s->pairs);
+    return run_pass(s, &pass, job.pack ? group_visit_wcsph : NULL, &job);
 }
 
 /* Density pass, then the rates; the transport velocity follows from them in tv_transport. */
@@ -394,8 +792,11 @@ static int rhs_tv(consph_solver *s, int kind)
     if (st != CONSPH_OK) return st;
     const consph_pass dens = {"tv density", CONSPH_PASS_W | CONSPH_PASS_NO_DX, visit_density};
     const consph_pass rates = {"tv rates", CONSPH_PASS_DW, visit_tv};
-    st = consph_pass_run_counted(&s->sys, &dens, &job, &s->pairs);
-    if (st == CONSPH_OK) st = consph_pass_run_counted(&s->sys, &rates, &job, &s->pairs);
+    st = run_pass(s, &dens, group_visit_density, &job);
+#ifdef RV_GROUPS
+    if (st == CONSPH_OK && job.pack) tv_pack(s, &job);
+#endif
+    if (st == CONSPH_OK) st = run_pass(s, &rates, job.pack ? group_visit_tv : NULL, &job);
     if (st != CONSPH_OK) return st;
     s->passes = 2;
     double *rhof = sv_field(s, SF_RHOF, 1);

@@ -1,0 +1,30 @@
+/* Passes over groups of particles (group.c): internal to the library, for visits that sum the
+ * neighbourhoods of several particles at once in the lanes of a vector. */
+#ifndef CONSPH_PASS_GROUP_H
+#define CONSPH_PASS_GROUP_H
+
+#include "consph/pass.h"
+
+/* Particles per group: the lanes of a vector of doubles on AVX2. */
+#define PASS_GROUP 4
+
+/* Called once per group of count (1..PASS_GROUP) destination particles, nb[0..count), each
+ * neighbourhood exactly as consph_pass_run hands it to a visit (the same neighbours in the same
+ * order, the same separations and kernel values bit for bit). Its arrays extend past nb[l].n to
+ * the group's largest n with entries of the particle itself (j = i, zero separations, r and
+ * kernel values), so that the lanes of a vector can run to the same end; nb[count..PASS_GROUP)
+ * repeat nb[0]. Writes results for the group's particles only. */
+typedef void (*pass_group_fn)(void *job, const consph_nbhd *nb, int count);
+
+/* consph_pass_run_counted with a group visit; `need` and `name` as a consph_pass's. The groups
+ * are consecutive particles of one cell of the search. Returns PASS_GROUP_UNSERVED (and does
+ * nothing) where it does not serve the system: a destination mask, a neighbour list in use, a
+ * tensor-product kernel or particles not in cell order; the caller then runs the pass with a
+ * per-particle visit, which sums the same values. */
+#define PASS_GROUP_UNSERVED 1
+/* Calls of pass_run_groups that ran their pass (for tests: that the group visits did run). */
+extern unsigned long pass_group_runs;
+int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
+                    void *job, size_t *pairs);
+
+#endif
