@@ -84,7 +84,8 @@ static PyObject *py_apply(PyObject *self, PyObject *args, PyObject *kw)
     const int nin = consph_op_ncomp_in(op, dim), nout = consph_op_ncomp_out(op, dim);
     fa = pyc_double_array(fobj, "field");
     if (!fa) goto done;
-    if (!(PyArray_SIZE(fa) == (npy_intp)(n * (size_t)nin) && PyArray_DIM(fa, 0) == (npy_intp)n)) {
+    if (!(PyArray_NDIM(fa) >= 1 && PyArray_SIZE(fa) == (npy_intp)(n * (size_t)nin) &&
+          PyArray_DIM(fa, 0) == (npy_intp)n)) {
         pyc_raise_msg(CONSPH_EINVAL, "field: op %s takes %s per particle: %zu%s values", opname,
                       nin == 1 ? "1 value" : "a d-vector", n, nin == 1 ? "" : "×d");
         goto done;
@@ -372,7 +373,10 @@ static PyObject *py_approx(PyObject *self, PyObject *args, PyObject *kw)
             const char *path = PyUnicode_AsUTF8(PySequence_Fast_GET_ITEM(seq, r));
             int st = path ? consph_particle_input_read(path, &ro, &in[r]) : -1;
             if (st != CONSPH_OK) {
-                for (int k = 0; k < r; ++k) consph_particle_input_free(&in[k]);
+                for (int k = 0; k < r; ++k) {
+                    free((char *)in[k].path);
+                    consph_particle_input_free(&in[k]);
+                }
                 free(in);
                 Py_DECREF(seq);
                 return st < 0 ? NULL : pyc_raise(st);

@@ -15,6 +15,7 @@ What must hold:
 import glob
 import json
 import os
+import shutil
 import subprocess
 import sys
 import tempfile
@@ -240,7 +241,44 @@ try:
 except consph.InvalidArgument:
     pass
 
+# ---- a study file: its table equals consph.approx's numbers (to the CSV's 7 digits) ----------
+study_file = os.path.join(tmp, "pytest.study")
+with open(study_file, "w") as f:
+    f.write("study = pytest\ntitle = A study run from Python\n[figure grad]\n"
+            "title = Gradient on the lattice\nkind = approx\nop = grad\nform = f4\n"
+            "nx = 8,16\n[series f4]\nlayout = lattice\n")
+tables = consph.study(study_file, out_dir=os.path.join(tmp, "study"))
+ref = consph.approx("grad", nx=[8, 16], form="f4")
+check(list(tables["grad"]["nx"]) == [8.0, 16.0] and list(tables["grad"]["series"]) == ["f4"] * 2,
+      f"study table: {tables['grad']}")
+check(np.allclose(tables["grad"]["l1"], ref["rows"]["l1"], rtol=1e-6, atol=0),
+      "study table l1 equals approx's")
+check(os.path.isfile(os.path.join(tmp, "study", "pytest", "README.md")), "study: README.md")
+try:
+    consph.study("no-such-study")
+    check(False, "an unknown study was found")
+except consph.InvalidArgument:
+    pass
+
+# ---- make install: the package imports from the prefix -------------------------------------
+prefix = os.path.join(tmp, "prefix")
+r = subprocess.run(["cmake", "--install", os.path.dirname(consph_bin), "--prefix", prefix],
+                   capture_output=True, text=True)
+check(r.returncode == 0, f"cmake --install: {r.stderr}")
+site = glob.glob(os.path.join(prefix, "lib", "python3*", "*-packages"))
+check(len(site) == 1 and os.path.isfile(os.path.join(site[0], "consph", "__init__.py")),
+      f"installed package: {site}")
+if site:
+    env = dict(os.environ, PYTHONPATH=site[0])
+    r = subprocess.run([sys.executable, "-c", "import consph; print(consph.__file__); "
+                        "print(float(consph.W([0.0], 'cubic', 1)[0]))"],
+                       capture_output=True, text=True, env=env, cwd=tmp)
+    lines = r.stdout.split()
+    check(r.returncode == 0 and len(lines) == 2 and lines[0].startswith(prefix)
+          and abs(float(lines[1]) - 2.0 / 3.0) < 1e-15, f"the installed module: {r}")
+
 for f in failures:
     print("FAIL:", f)
 print("python module:", "ok" if not failures else f"{len(failures)} failures")
+shutil.rmtree(tmp, ignore_errors=True)
 sys.exit(1 if failures else 0)
