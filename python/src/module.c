@@ -447,11 +447,10 @@ static PyObject *py_read_checkpoint(PyObject *self, PyObject *args, PyObject *kw
     return d;
 }
 
-PyDoc_STRVAR(
-    set_num_threads_doc,
-    "set_num_threads(n)\n\nThreads of the library's parallel regions from now on (n > 0;\n"
-    "results do not depend on it). Set OMP_WAIT_POLICY=passive before starting Python on a\n"
-    "loaded machine (include/consph/core.h says why).");
+PyDoc_STRVAR(set_num_threads_doc,
+             "set_num_threads(n)\n\nThreads of the library's parallel regions from now on (n > 0;\n"
+             "results do not depend on it). import consph sets OMP_WAIT_POLICY=passive when unset\n"
+             "(include/consph/core.h says why).");
 
 static PyObject *py_set_num_threads(PyObject *self, PyObject *args)
 {
@@ -498,13 +497,17 @@ static struct PyModuleDef module_def = {
 
 static int add_methods(PyObject *m, PyMethodDef *defs)
 {
+    PyObject *name = PyModule_GetNameObject(m);
+    if (!name) return -1;
     for (PyMethodDef *d = defs; d->ml_name; ++d) {
-        PyObject *f = PyCFunction_NewEx(d, NULL, PyModule_GetNameObject(m));
+        PyObject *f = PyCFunction_NewEx(d, NULL, name);
         if (!f || PyModule_AddObject(m, d->ml_name, f) < 0) {
             Py_XDECREF(f);
+            Py_DECREF(name);
             return -1;
         }
     }
+    Py_DECREF(name);
     return 0;
 }
 

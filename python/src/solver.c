@@ -3,9 +3,11 @@
  * copies, its summary, checkpoints and restart. */
 #include "pyconsph.h"
 
+#include <errno.h>
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 typedef struct {
     PyObject_HEAD consph_solver *s;
@@ -139,20 +141,51 @@ static PyObject *solver_step(PyObject *self, PyObject *args, PyObject *kw)
     Py_RETURN_NONE;
 }
 
+/* The run to its end with the files of consph run --out DIR (apps/cmd_run.c). */
+static PyObject *run_files(solver_object *so, PyObject *tfo, PyObject *stepso, const char *out,
+                           long snap_every, long ckpt_every)
+{
+    if (tfo != Py_None || stepso != Py_None)
+        return pyc_raise_msg(CONSPH_EINVAL, "out: a run with files goes to its own end: give "
+                                            "tf or steps when creating the Solver, not here");
+    if (snap_every < 0 || ckpt_every < 0)
+        return pyc_raise_msg(CONSPH_EINVAL, "snapshot_every and checkpoint_every must be >= 0");
+    struct stat sb;
+    if (stat(out, &sb) != 0 && mkdir(out, 0777) != 0)
+        return pyc_raise_msg(CONSPH_EIO, "out: cannot create directory '%s': %s", out,
+                             strerror(errno));
+    const long step0 = consph_solver_step_count(so->s);
+    consph_run_output ro = {out, snap_every, ckpt_every, 0, 0};
+    consph_run_summary sum;
+    int st, sig = 0;
+    PYC_UNLOCKED(st = consph_run(so->s, &ro, &sum, &sig));
+    if (st != CONSPH_OK) return pyc_raise(st);
+    return PyLong_FromLong(consph_solver_step_count(so->s) - step0);
+}
+
 PyDoc_STRVAR(run_doc,
-             "run(tf=None, steps=None) -> int\n\n"
+             "run(tf=None, steps=None, out=None, snapshot_every=0, checkpoint_every=0) -> int\n\n"
              "Steps until the run's own end (its tf or steps), or earlier: until t >= tf, or\n"
              "until step_count reaches steps (a total, not a count from now). The run's own\n"
              "last step lands on its final time; tf here stops at the first step ending at or\n"
-             "after it. Returns the steps taken. Interrupt with Ctrl-C between steps.");
+             "after it. Returns the steps taken. Interrupt with Ctrl-C between steps.\n"
+             "out: a directory (created if missing) where the run goes to its end writing the\n"
+             "files of `consph run --out` (consph_run: snapshots every snapshot_every steps\n"
+             "(0: the first and the last) indexed by run.pvd, log.csv, summary.json, and\n"
+             "checkpoint.ckpt every checkpoint_every steps); not with tf or steps.");
 
 static PyObject *solver_run(PyObject *self, PyObject *args, PyObject *kw)
 {
     solver_object *so = (solver_object *)self;
-    static char *kwlist[] = {"tf", "steps", NULL};
+    static char *kwlist[] = {"tf", "steps", "out", "snapshot_every", "checkpoint_every", NULL};
     PyObject *tfo = Py_None, *stepso = Py_None;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "|OO", kwlist, &tfo, &stepso)) return NULL;
+    const char *out = NULL;
+    long snap_every = 0, ckpt_every = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "|OOzll", kwlist, &tfo, &stepso, &out, &snap_every,
+                                     &ckpt_every))
+        return NULL;
     if (!ready(so)) return NULL;
+    if (out) return run_files(so, tfo, stepso, out, snap_every, ckpt_every);
     double tf = INFINITY;
     long steps = -1;
     if (tfo != Py_None && ((tf = PyFloat_AsDouble(tfo)) == -1.0 && PyErr_Occurred())) return NULL;

@@ -199,6 +199,13 @@ for scheme in ("wcsph", "l-ipst-c", "delta-plus-sph"):
     check(compared == 3, f"{scheme}: velocity, pressure and density compared ({compared})")
     check(not bits_equal(snap.fields["velocity"][:, :2], consph.Solver(
         "taylor-green", **opts).field("u", order="current")), f"{scheme}: the run moved u")
+    # the run with files (consph_run, as consph run --out): its snapshot holds the CLI's arrays
+    d3 = os.path.join(tmp, "py-run-" + scheme)
+    check(consph.Solver("taylor-green", **opts).run(out=d3) == 20, f"{scheme}: run(out=...)")
+    snap3 = consph.read_particles(os.path.join(d3, "snap_000020.vtu"))
+    check(sorted(snap3.fields) == sorted(snap.fields) and bits_equal(snap3.x, snap.x) and all(
+        bits_equal(snap3.fields[k], snap.fields[k]) for k in snap.fields),
+        f"{scheme}: run(out=...) writes the CLI's snapshot, every array bit for bit")
     # the initial order is the id order
     ids = s.field("id")
     check(np.array_equal(ids, np.arange(s.n)), f"{scheme}: field(order='initial') by id")
