@@ -26,8 +26,11 @@ static int bind_kernel(const char *name, int dim, double h, int radial, consph_k
     return 0;
 }
 
-PyDoc_STRVAR(kernel_names_doc, "kernel_names() -> list of str\n\nEvery kernel's name, as "
-                               "`consph kernels` lists them.");
+PyDoc_STRVAR(kernel_names_doc,
+             "kernel_names()\n"
+             "--\n"
+             "\n"
+             "Returns list of str. Every kernel's name, as `consph kernels` lists them.");
 
 static PyObject *py_kernel_names(PyObject *self, PyObject *args)
 {
@@ -36,12 +39,15 @@ static PyObject *py_kernel_names(PyObject *self, PyObject *args)
     return pyc_name_list(consph_kernel_names());
 }
 
-PyDoc_STRVAR(kernel_info_doc,
-             "kernel_info(name) -> dict\n\n"
-             "What `consph kernels` says of a kernel: name, description, source (paper and\n"
-             "equation), support (in units of h), beta_001 (edge smoothness, 001's definition),\n"
-             "sigma (the normalisation in 1D, 2D, 3D; 0 where unsupported) and tensor (True for\n"
-             "the tensor-product remeshing kernel m4).");
+PyDoc_STRVAR(
+    kernel_info_doc,
+    "kernel_info(name)\n"
+    "--\n"
+    "\n"
+    "Returns dict. What `consph kernels` says of a kernel: name, description, source (paper and\n"
+    "equation), support (in units of h), beta_001 (edge smoothness, 001's definition),\n"
+    "sigma (the normalisation in 1D, 2D, 3D; 0 where unsupported) and tensor (True for\n"
+    "the tensor-product remeshing kernel m4).");
 
 static PyObject *py_kernel_info(PyObject *self, PyObject *args, PyObject *kw)
 {
@@ -97,13 +103,20 @@ static PyObject *eval_radial(PyObject *args, PyObject *kw, int what)
     return PyArray_Return(out);
 }
 
-PyDoc_STRVAR(W_doc, "W(r, kernel='quintic', dim=2, h=1.0) -> ndarray\n\n"
-                    "The kernel W(r, h) = sigma_d / h^d f(r/h) at every distance r >= 0 (an array\n"
+PyDoc_STRVAR(W_doc, "W(r, kernel='quintic', dim=2, h=1.0)\n"
+                    "--\n"
+                    "\n"
+                    "Returns ndarray. The kernel W(r, h) = sigma_d / h^d f(r/h) at every distance "
+                    "r >= 0 (an array\n"
                     "of any shape; include/consph/kernels.h). Radial kernels only.");
-PyDoc_STRVAR(dWdr_doc, "dWdr(r, kernel='quintic', dim=2, h=1.0) -> ndarray\n\n"
-                       "dW/dr at every distance r >= 0 (radial kernels).");
-PyDoc_STRVAR(d2Wdr2_doc, "d2Wdr2(r, kernel='quintic', dim=2, h=1.0) -> ndarray\n\n"
-                         "d²W/dr² at every distance r >= 0 (radial kernels).");
+PyDoc_STRVAR(dWdr_doc, "dWdr(r, kernel='quintic', dim=2, h=1.0)\n"
+                       "--\n"
+                       "\n"
+                       "Returns ndarray. dW/dr at every distance r >= 0 (radial kernels).");
+PyDoc_STRVAR(d2Wdr2_doc, "d2Wdr2(r, kernel='quintic', dim=2, h=1.0)\n"
+                         "--\n"
+                         "\n"
+                         "Returns ndarray. d²W/dr² at every distance r >= 0 (radial kernels).");
 
 static PyObject *py_W(PyObject *self, PyObject *args, PyObject *kw)
 {
@@ -137,8 +150,11 @@ static PyArrayObject *separations(PyObject *o, int dim, npy_intp *n)
 }
 
 PyDoc_STRVAR(gradW_doc,
-             "gradW(dx, kernel='quintic', dim=2, h=1.0) -> ndarray\n\n"
-             "∇_i W(|x_i - x_j|) = W'(r) x_ij / r for every separation x_ij = x_i - x_j (an\n"
+             "gradW(dx, kernel='quintic', dim=2, h=1.0)\n"
+             "--\n"
+             "\n"
+             "Returns ndarray. ∇_i W(|x_i - x_j|) = W'(r) x_ij / r for every separation x_ij = x_i "
+             "- x_j (an\n"
              "N×dim array; 0 at r = 0), as consph_kernel_grad computes it. Radial kernels.");
 
 static PyObject *py_gradW(PyObject *self, PyObject *args, PyObject *kw)
@@ -172,10 +188,12 @@ static PyObject *py_gradW(PyObject *self, PyObject *args, PyObject *kw)
     return (PyObject *)out;
 }
 
-PyDoc_STRVAR(W_vec_doc,
-             "W_vec(dx, kernel='quintic', dim=2, h=1.0) -> ndarray\n\n"
-             "W of every separation vector (an N×dim array): radial and tensor-product (m4)\n"
-             "kernels alike (consph_kernel_w_vec).");
+PyDoc_STRVAR(W_vec_doc, "W_vec(dx, kernel='quintic', dim=2, h=1.0)\n"
+                        "--\n"
+                        "\n"
+                        "Returns ndarray. W of every separation vector (an N×dim array): radial "
+                        "and tensor-product (m4)\n"
+                        "kernels alike (consph_kernel_w_vec).");
 
 static PyObject *py_W_vec(PyObject *self, PyObject *args, PyObject *kw)
 {
@@ -206,8 +224,10 @@ static PyObject *py_W_vec(PyObject *self, PyObject *args, PyObject *kw)
 
 /* ---- layouts ---- */
 
-PyDoc_STRVAR(layout_names_doc, "layout_names() -> list of str\n\nThe layout kinds of consph "
-                               "layout --kind.");
+PyDoc_STRVAR(layout_names_doc, "layout_names()\n"
+                               "--\n"
+                               "\n"
+                               "Returns list of str. The layout kinds of consph layout --kind.");
 
 static PyObject *py_layout_names(PyObject *self, PyObject *args)
 {
@@ -244,8 +264,11 @@ PyDoc_STRVAR(
     layout_doc,
     "layout(kind, dim, nx, periodic=True, seed=1, eps=0.2, kernel='quintic', hdx=1.2,\n"
     "       perturb=0.5, tol=1e-4, move_tol=1e-2, walls=0, max_iter=None, history_every=0,\n"
-    "       cache=None) -> dict\n\n"
-    "Generates nx^dim particles in the unit box as `consph layout --kind KIND --dim D --nx N`\n"
+    "       cache=None)\n"
+    "--\n"
+    "\n"
+    "Returns dict. Generates nx^dim particles in the unit box as `consph layout --kind KIND --dim "
+    "D --nx N`\n"
     "does, with its options by the same names (consph_layout_generate): lattice, random,\n"
     "quasi-random, packed, packed-polished. max_iter None is the kind's default; cache: a\n"
     "directory for the cache of packed layouts (None: off, the library's default). Returns the\n"
@@ -344,14 +367,16 @@ static PyObject *py_layout(PyObject *self, PyObject *args, PyObject *kw)
     return d;
 }
 
-PyDoc_STRVAR(
-    layout_stats_doc,
-    "layout_stats(particles, kernel='quintic', hdx=1.2) -> dict\n\n"
-    "The statistics `consph layout` prints for any particle set: n, min_spacing (periodic\n"
-    "aware), rho_spread = max|rho_i/rho0 - 1| and rho_mean of the summation density with\n"
-    "the kernel at h = hdx Δs (consph_layout_stats_compute), and the nearest-neighbour\n"
-    "distances nn_min, nn_mean, nn_max, nn_std and the distances to the nearest lattice\n"
-    "node disp_mean, disp_max, in units of Δs (consph_layout_nn_stats_compute).");
+PyDoc_STRVAR(layout_stats_doc,
+             "layout_stats(particles, kernel='quintic', hdx=1.2)\n"
+             "--\n"
+             "\n"
+             "Returns dict. The statistics `consph layout` prints for any particle set: n, "
+             "min_spacing (periodic\n"
+             "aware), rho_spread = max|rho_i/rho0 - 1| and rho_mean of the summation density with\n"
+             "the kernel at h = hdx Δs (consph_layout_stats_compute), and the nearest-neighbour\n"
+             "distances nn_min, nn_mean, nn_max, nn_std and the distances to the nearest lattice\n"
+             "node disp_mean, disp_max, in units of Δs (consph_layout_nn_stats_compute).");
 
 static PyObject *py_layout_stats(PyObject *self, PyObject *args, PyObject *kw)
 {

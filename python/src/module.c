@@ -337,8 +337,11 @@ static int parse_box_option(PyObject *box, int *dim, consph_read_options *ro)
 }
 
 PyDoc_STRVAR(read_particles_doc,
-             "read_particles(path, dim=0, box=None, periodic=None) -> dict\n\n"
-             "Reads a particle file (.csv or .vtu: consph layout --out, a run's snapshot, ...)\n"
+             "read_particles(path, dim=0, box=None, periodic=None)\n"
+             "--\n"
+             "\n"
+             "Returns dict. Reads a particle file (.csv or .vtu: consph layout --out, a run's "
+             "snapshot, ...)\n"
              "with the library's reader (consph_read_particles): positions, box, periodicity,\n"
              "spacing and every array as a field. box: ((lo, hi), ...) to replace the file's;\n"
              "periodic: a bool or one per axis to replace the file's. Returns the particle\n"
@@ -385,7 +388,9 @@ static PyObject *py_read_particles(PyObject *self, PyObject *args, PyObject *kw)
 }
 
 PyDoc_STRVAR(write_particles_doc,
-             "write_particles(path, particles, encoding='zlib')\n\n"
+             "write_particles(path, particles, encoding='zlib')\n"
+             "--\n"
+             "\n"
              "Writes a consph.Particles to .csv or .vtu (by the extension) as consph layout --out\n"
              "does (consph_write_particles_enc); encoding: ascii, binary or zlib (.vtu only).");
 
@@ -411,12 +416,15 @@ static PyObject *py_write_particles(PyObject *self, PyObject *args, PyObject *kw
     Py_RETURN_NONE;
 }
 
-PyDoc_STRVAR(read_checkpoint_doc,
-             "read_checkpoint(path) -> dict\n\n"
-             "Reads a checkpoint (consph_checkpoint_read: a run's checkpoint.ckpt or\n"
-             "Solver.checkpoint's file) without restoring a run: 'meta' (the run's key=value\n"
-             "text), 'particles' (the particle dict in the stored order, every field of the\n"
-             "run's state included) and 'history' (the raw doubles of the run's history).");
+PyDoc_STRVAR(
+    read_checkpoint_doc,
+    "read_checkpoint(path)\n"
+    "--\n"
+    "\n"
+    "Returns dict. Reads a checkpoint (consph_checkpoint_read: a run's checkpoint.ckpt or\n"
+    "Solver.checkpoint's file) without restoring a run: 'meta' (the run's key=value\n"
+    "text), 'particles' (the particle dict in the stored order, every field of the\n"
+    "run's state included) and 'history' (the raw doubles of the run's history).");
 
 static PyObject *py_read_checkpoint(PyObject *self, PyObject *args, PyObject *kw)
 {
@@ -448,7 +456,10 @@ static PyObject *py_read_checkpoint(PyObject *self, PyObject *args, PyObject *kw
 }
 
 PyDoc_STRVAR(set_num_threads_doc,
-             "set_num_threads(n)\n\nThreads of the library's parallel regions from now on (n > 0;\n"
+             "set_num_threads(n, /)\n"
+             "--\n"
+             "\n"
+             "Threads of the library's parallel regions from now on (n > 0;\n"
              "results do not depend on it). import consph sets OMP_WAIT_POLICY=passive when unset\n"
              "(include/consph/core.h says why).");
 
@@ -462,8 +473,11 @@ static PyObject *py_set_num_threads(PyObject *self, PyObject *args)
     Py_RETURN_NONE;
 }
 
-PyDoc_STRVAR(num_threads_doc, "num_threads() -> int\n\nThreads a parallel region of the library "
-                              "would use (1 without OpenMP).");
+PyDoc_STRVAR(num_threads_doc,
+             "num_threads()\n"
+             "--\n"
+             "\n"
+             "Returns int. Threads a parallel region of the library would use (1 without OpenMP).");
 
 static PyObject *py_num_threads(PyObject *self, PyObject *args)
 {

@@ -23,8 +23,11 @@ static int parse_volume(const char *name, consph_volume_kind *kind)
 PyDoc_STRVAR(
     apply_doc,
     "apply(particles, op, form=None, corr='none', field=None, kernel='quintic', hdx=1.2,\n"
-    "      h=None, volume=None, cond_max=1e8) -> ndarray\n\n"
-    "Evaluates an operator on the user's particles and field with consph_apply (the library's\n"
+    "      h=None, volume=None, cond_max=1e8)\n"
+    "--\n"
+    "\n"
+    "Returns ndarray. Evaluates an operator on the user's particles and field with consph_apply "
+    "(the library's\n"
     "one entry point of every (operator, form, correction) of include/consph/ops.h), as\n"
     "`consph approx --particles` measures it:\n"
     "  particles  a consph.Particles (positions N×d, box lo/hi, periodicity, spacing, fields)\n"
@@ -154,8 +157,11 @@ done:
 }
 
 PyDoc_STRVAR(field_values_doc,
-             "field_values(name, x, sigma=0.1, x0=None) -> dict\n\n"
-             "A manufactured field of the studies (consph_mfield_eval; names: field_names()) and\n"
+             "field_values(name, x, sigma=0.1, x0=None)\n"
+             "--\n"
+             "\n"
+             "Returns dict. A manufactured field of the studies (consph_mfield_eval; names: "
+             "field_names()) and\n"
              "its exact derivatives at the points x (N×d): 'f' (N, or N×d for a vector field),\n"
              "'grad' (N×d: ∇ of component 0), 'laplacian' (N), 'hessian' (N×d(d+1)/2, the\n"
              "order of op hessian), 'div' (vector fields). sigma, x0: the delta field's width\n"
@@ -290,8 +296,11 @@ PyDoc_STRVAR(
     "approx(op, nx=None, files=None, form=None, corr='none', kernel='quintic', hdx=1.2,\n"
     "       h_policy='hdx', beta=None, layout='lattice', dim=2, periodic=True, field=None,\n"
     "       volume=None, mask='interior', eps=0.2, seed=1, sigma=0.1, pack_tol=1e-4,\n"
-    "       pack_iter=None) -> dict\n\n"
-    "`consph approx`: an operator's accuracy on a manufactured field at several resolutions\n"
+    "       pack_iter=None)\n"
+    "--\n"
+    "\n"
+    "Returns dict. `consph approx`: an operator's accuracy on a manufactured field at several "
+    "resolutions\n"
     "(nx: particles per axis of each row, on layouts of the unit box) or on particle files\n"
     "(files: paths, one row each), with the CLI's options by the same names and defaults.\n"
     "periodic: a bool or one per axis. volume None: number for layouts, each file's own rule\n"
@@ -516,12 +525,25 @@ static const char *corr_name(int k)
     return consph_corr_name((consph_op_corr)k);
 }
 
-PyDoc_STRVAR(op_names_doc, "op_names() -> list of str\n\nThe operators of apply and approx.");
-PyDoc_STRVAR(form_names_doc, "form_names() -> list of str\n\nEvery operator form (which forms "
-                             "each operator takes: valid_forms).");
-PyDoc_STRVAR(corr_names_doc, "corr_names() -> list of str\n\nThe corrections.");
-PyDoc_STRVAR(field_names_doc, "field_names() -> list of str\n\nThe manufactured fields of "
-                              "field_values and approx.");
+PyDoc_STRVAR(op_names_doc, "op_names()\n"
+                           "--\n"
+                           "\n"
+                           "Returns list of str. The operators of apply and approx.");
+PyDoc_STRVAR(
+    form_names_doc,
+    "form_names()\n"
+    "--\n"
+    "\n"
+    "Returns list of str. Every operator form (which forms each operator takes: valid_forms).");
+PyDoc_STRVAR(corr_names_doc, "corr_names()\n"
+                             "--\n"
+                             "\n"
+                             "Returns list of str. The corrections.");
+PyDoc_STRVAR(field_names_doc,
+             "field_names()\n"
+             "--\n"
+             "\n"
+             "Returns list of str. The manufactured fields of field_values and approx.");
 
 static PyObject *py_op_names(PyObject *self, PyObject *args)
 {
@@ -548,10 +570,12 @@ static PyObject *py_field_names(PyObject *self, PyObject *args)
     return pyc_name_list(consph_mfield_names());
 }
 
-PyDoc_STRVAR(valid_forms_doc,
-             "valid_forms(op, dim=2) -> list of (form, [corrections])\n\n"
-             "Every form of the operator with the corrections it takes in that dimension (the\n"
-             "validity table of src/ops/ops_api.c, consph_op_check).");
+PyDoc_STRVAR(valid_forms_doc, "valid_forms(op, dim=2)\n"
+                              "--\n"
+                              "\n"
+                              "Returns list of (form, [corrections]). Every form of the operator "
+                              "with the corrections it takes in that dimension (the\n"
+                              "validity table of src/ops/ops_api.c, consph_op_check).");
 
 static PyObject *py_valid_forms(PyObject *self, PyObject *args, PyObject *kw)
 {

@@ -123,10 +123,14 @@ static int ready(solver_object *so)
     return 0;
 }
 
-PyDoc_STRVAR(step_doc, "step(n=1)\n\nAdvances the run by n time steps (consph_solver_step). A "
-                       "run that leaves its model's\nvalidity raises consph.Failure (code "
-                       "ENUMERIC) naming the step, particle and bound;\nstepping a finished "
-                       "run raises consph.InvalidArgument.");
+PyDoc_STRVAR(
+    step_doc,
+    "step($self, /, n=1)\n"
+    "--\n"
+    "\n"
+    "Advances the run by n time steps (consph_solver_step). A run that leaves its model's\n"
+    "validity raises consph.Failure (code ENUMERIC) naming the step, particle and bound;\n"
+    "stepping a finished run raises consph.InvalidArgument.");
 
 static PyObject *solver_step(PyObject *self, PyObject *args, PyObject *kw)
 {
@@ -163,16 +167,19 @@ static PyObject *run_files(solver_object *so, PyObject *tfo, PyObject *stepso, c
     return PyLong_FromLong(consph_solver_step_count(so->s) - step0);
 }
 
-PyDoc_STRVAR(run_doc,
-             "run(tf=None, steps=None, out=None, snapshot_every=0, checkpoint_every=0) -> int\n\n"
-             "Steps until the run's own end (its tf or steps), or earlier: until t >= tf, or\n"
-             "until step_count reaches steps (a total, not a count from now). The run's own\n"
-             "last step lands on its final time; tf here stops at the first step ending at or\n"
-             "after it. Returns the steps taken. Interrupt with Ctrl-C between steps.\n"
-             "out: a directory (created if missing) where the run goes to its end writing the\n"
-             "files of `consph run --out` (consph_run: snapshots every snapshot_every steps\n"
-             "(0: the first and the last) indexed by run.pvd, log.csv, summary.json, and\n"
-             "checkpoint.ckpt every checkpoint_every steps); not with tf or steps.");
+PyDoc_STRVAR(
+    run_doc,
+    "run($self, /, tf=None, steps=None, out=None, snapshot_every=0, checkpoint_every=0)\n"
+    "--\n"
+    "\n"
+    "Returns int. Steps until the run's own end (its tf or steps), or earlier: until t >= tf, or\n"
+    "until step_count reaches steps (a total, not a count from now). The run's own\n"
+    "last step lands on its final time; tf here stops at the first step ending at or\n"
+    "after it. Returns the steps taken. Interrupt with Ctrl-C between steps.\n"
+    "out: a directory (created if missing) where the run goes to its end writing the\n"
+    "files of `consph run --out` (consph_run: snapshots every snapshot_every steps\n"
+    "(0: the first and the last) indexed by run.pvd, log.csv, summary.json, and\n"
+    "checkpoint.ckpt every checkpoint_every steps); not with tf or steps.");
 
 static PyObject *solver_run(PyObject *self, PyObject *args, PyObject *kw)
 {
@@ -219,8 +226,11 @@ static size_t *initial_order(const consph_particles *p)
 }
 
 PyDoc_STRVAR(field_doc,
-             "field(name, order='initial') -> ndarray\n\n"
-             "A copy of one field of the run's particles (consph_solver_particles): 'x' the\n"
+             "field($self, /, name, order='initial')\n"
+             "--\n"
+             "\n"
+             "Returns ndarray. A copy of one field of the run's particles "
+             "(consph_solver_particles): 'x' the\n"
              "positions (N×d), or a particle field by its name in the solver (u, p, rhof,\n"
              "volume, id, u_exact, p_exact, vorticity, ...: field_names()). N values or N×k.\n"
              "order 'initial' puts the particles in their initial order (by the field id);\n"
@@ -272,8 +282,11 @@ static PyObject *solver_field(PyObject *self, PyObject *args, PyObject *kw)
     return r;
 }
 
-PyDoc_STRVAR(field_names_doc, "field_names() -> list of str\n\nThe fields of the run's "
-                              "particles (every declared field, state and scratch).");
+PyDoc_STRVAR(field_names_doc, "field_names($self, /)\n"
+                              "--\n"
+                              "\n"
+                              "Returns list of str. The fields of the run's particles (every "
+                              "declared field, state and scratch).");
 
 static PyObject *solver_field_names(PyObject *self, PyObject *args)
 {
@@ -288,8 +301,11 @@ static PyObject *solver_field_names(PyObject *self, PyObject *args)
 }
 
 PyDoc_STRVAR(particles_doc,
-             "particles(order='initial') -> dict\n\n"
-             "Every field of the run's particles and their positions, box and periodicity as a\n"
+             "_particles($self, /, order='initial')\n"
+             "--\n"
+             "\n"
+             "Returns dict. Every field of the run's particles and their positions, box and "
+             "periodicity as a\n"
              "particle dict (copies; consph.Solver.particles wraps it into a consph.Particles).");
 
 static PyObject *solver_particles(PyObject *self, PyObject *args, PyObject *kw)
@@ -317,8 +333,10 @@ static int dict_double(PyObject *d, const char *k, double v)
 }
 
 PyDoc_STRVAR(summary_doc,
-             "summary() -> dict\n\n"
-             "What the run measured so far (consph_solver_summary; the members of\n"
+             "summary($self, /)\n"
+             "--\n"
+             "\n"
+             "Returns dict. What the run measured so far (consph_solver_summary; the members of\n"
              "consph_run_summary, summary.json's keys): scheme, problem, integrator, n, dim,\n"
              "steps, t, dt, h, c0, l1_u, l1_p (001 eq. 26), linf_u, linf_p, ke, momentum,\n"
              "angular_momentum, ft_fmax, max_divu, seconds, pairs, ... (NaN where not measured).");
@@ -387,8 +405,11 @@ static const char *const diag_columns[] = {
     "mom_x", "mom_y", "mom_z", "angular_momentum", "ft_fmax", "max_divu"};
 
 PyDoc_STRVAR(history_doc,
-             "history() -> dict of arrays\n\n"
-             "The run's history as log.csv holds it (consph_solver_history_row): one row per\n"
+             "history($self, /)\n"
+             "--\n"
+             "\n"
+             "Returns dict of arrays. The run's history as log.csv holds it "
+             "(consph_solver_history_row): one row per\n"
              "sample (t = 0, every log_every steps, the last step), columns step, t, l1_u,\n"
              "linf_u, l1_p, linf_p, ke, mom_x, mom_y, mom_z, angular_momentum, ft_fmax,\n"
              "max_divu.");
@@ -423,9 +444,12 @@ static PyObject *solver_history(PyObject *self, PyObject *args)
     return d;
 }
 
-PyDoc_STRVAR(diag_doc, "diag() -> tuple\n\nThe diagnostics at this instant "
-                       "(consph_solver_diag): (step, t, l1_u, linf_u, l1_p,\nlinf_p, ke, mom_x, "
-                       "mom_y, mom_z, angular_momentum, ft_fmax, max_divu).");
+PyDoc_STRVAR(diag_doc, "diag($self, /)\n"
+                       "--\n"
+                       "\n"
+                       "Returns tuple. The diagnostics at this instant (consph_solver_diag): "
+                       "(step, t, l1_u, linf_u, l1_p,\n"
+                       "linf_p, ke, mom_x, mom_y, mom_z, angular_momentum, ft_fmax, max_divu).");
 
 static PyObject *solver_diag(PyObject *self, PyObject *args)
 {
@@ -438,10 +462,12 @@ static PyObject *solver_diag(PyObject *self, PyObject *args)
     return diag_tuple(&g);
 }
 
-PyDoc_STRVAR(params_doc,
-             "params() -> dict\n\n"
-             "Every run parameter of this run by its table name, as the text "
-             "consph_run_param_set\nreads back to the same value (the checkpoint's metadata).");
+PyDoc_STRVAR(params_doc, "params($self, /)\n"
+                         "--\n"
+                         "\n"
+                         "Returns dict. Every run parameter of this run by its table name, as the "
+                         "text consph_run_param_set\n"
+                         "reads back to the same value (the checkpoint's metadata).");
 
 static PyObject *solver_params(PyObject *self, PyObject *args)
 {
@@ -466,7 +492,9 @@ static PyObject *solver_params(PyObject *self, PyObject *args)
 }
 
 PyDoc_STRVAR(checkpoint_doc,
-             "checkpoint(path)\n\n"
+             "checkpoint($self, /, path)\n"
+             "--\n"
+             "\n"
              "Writes a checkpoint of the run as consph run does (consph_solver_checkpoint_meta,\n"
              "consph_checkpoint_write, atomically): Solver.restart(path) and `consph run\n"
              "--restart path` continue it bit for bit.");
@@ -491,10 +519,12 @@ static PyObject *solver_checkpoint(PyObject *self, PyObject *args, PyObject *kw)
     Py_RETURN_NONE;
 }
 
-PyDoc_STRVAR(restart_doc,
-             "Solver.restart(path) -> Solver\n\n"
-             "A solver restored from a checkpoint (consph_run_restart: Solver.checkpoint's file\n"
-             "or a run's checkpoint.ckpt); it continues bit for bit.");
+PyDoc_STRVAR(restart_doc, "restart($type, /, path)\n"
+                          "--\n"
+                          "\n"
+                          "Returns Solver. A solver restored from a checkpoint "
+                          "(consph_run_restart: Solver.checkpoint's file\n"
+                          "or a run's checkpoint.ckpt); it continues bit for bit.");
 
 static PyObject *solver_restart(PyObject *cls, PyObject *args, PyObject *kw)
 {
@@ -514,9 +544,13 @@ static PyObject *solver_restart(PyObject *cls, PyObject *args, PyObject *kw)
     return (PyObject *)so;
 }
 
-PyDoc_STRVAR(dt_warning_doc, "dt_warning() -> str or None\n\nThe sentence consph run warns "
-                             "with when Δt exceeds a stability bound\n"
-                             "(consph_solver_dt_warning), None when it does not.");
+PyDoc_STRVAR(
+    dt_warning_doc,
+    "dt_warning($self, /)\n"
+    "--\n"
+    "\n"
+    "Returns str or None. The sentence consph run warns with when Δt exceeds a stability bound\n"
+    "(consph_solver_dt_warning), None when it does not.");
 
 static PyObject *solver_dt_warning(PyObject *self, PyObject *args)
 {
@@ -601,7 +635,7 @@ static PyMethodDef solver_methods[] = {
 
 PyDoc_STRVAR(
     solver_doc,
-    "Solver(problem='taylor-green', **params)\n\n"
+    "Solver(problem='taylor-green', **params)\n--\n\n"
     "A weakly-compressible SPH run (consph_solver_create), as `consph run PROBLEM` sets it up:\n"
     "the problem's defaults, then every keyword as the run parameter of that name in the\n"
     "parameter table (consph_run_param_set, in the table's order; the names are the study\n"

@@ -7,8 +7,11 @@
 #include <string.h>
 
 PyDoc_STRVAR(run_study_doc,
-             "run_study(path, out_dir, quick=False, log=False) -> dict\n\n"
-             "Loads, validates and runs a study file (consph_study_load, consph_study_validate,\n"
+             "run_study(path, out_dir, quick=False, log=False)\n"
+             "--\n"
+             "\n"
+             "Returns dict. Loads, validates and runs a study file (consph_study_load, "
+             "consph_study_validate,\n"
              "consph_study_run) as `consph study FILE --out OUT_DIR [--quick]` does, writing\n"
              "OUT_DIR/NAME/FIGURE.csv, .md, .gp per figure and README.md. log: progress lines on\n"
              "stderr. Returns {'name', 'title', 'dir'}; consph.study reads the tables back.");
@@ -48,10 +51,11 @@ static PyObject *py_run_study(PyObject *self, PyObject *args, PyObject *kw)
     return r;
 }
 
-PyDoc_STRVAR(study_estimate_doc,
-             "study_estimate(path, quick=False) -> float\n\n"
-             "The study's rough run-time estimate in seconds (consph_study_estimate), before "
-             "running it.");
+PyDoc_STRVAR(study_estimate_doc, "study_estimate(path, quick=False)\n"
+                                 "--\n"
+                                 "\n"
+                                 "Returns float. The study's rough run-time estimate in seconds "
+                                 "(consph_study_estimate), before running it.");
 
 static PyObject *py_study_estimate(PyObject *self, PyObject *args, PyObject *kw)
 {
@@ -138,8 +142,11 @@ static int measure_of(PyObject *obj, PyObject *wobj, const char *what, measure_s
 PyDoc_STRVAR(
     wasserstein_doc,
     "wasserstein(a, b, wa=None, wb=None, method='exact', p=1, directions=64, seed=1,\n"
-    "            eps=1e-3, tol=1e-6, max_iter=20000) -> dict\n\n"
-    "The Wasserstein distance W_p between two weighted point sets (consph_wasserstein,\n"
+    "            eps=1e-3, tol=1e-6, max_iter=20000)\n"
+    "--\n"
+    "\n"
+    "Returns dict. The Wasserstein distance W_p between two weighted point sets "
+    "(consph_wasserstein,\n"
     "docs/wasserstein.md): a, b are N points (1D), N×d arrays or consph.Particles (whose\n"
     "'mass' field, or volume × rho, weighs them); wa, wb weights (None: equal, or the\n"
     "particles' masses), normalised to sum 1. method: exact (1D), sliced (directions, seed) or\n"
@@ -235,8 +242,11 @@ done:
 }
 
 PyDoc_STRVAR(run_params_doc,
-             "run_params() -> list of dict\n\n"
-             "The run parameter table (src/solver/params.def): per parameter its name (the key\n"
+             "run_params()\n"
+             "--\n"
+             "\n"
+             "Returns list of dict. The run parameter table (src/solver/params.def): per parameter "
+             "its name (the key\n"
              "of consph.Solver and of study files), option (consph run's), study_key, owner,\n"
              "allowed (text), default (text) and help.");
 
@@ -266,9 +276,12 @@ static PyObject *py_run_params(PyObject *self, PyObject *args)
     return l;
 }
 
-PyDoc_STRVAR(name_lists_doc,
-             "names(what) -> list of str\n\n"
-             "The allowed names of 'problem', 'scheme', 'integrator' or 'study_kind'.");
+PyDoc_STRVAR(
+    name_lists_doc,
+    "names(what, /)\n"
+    "--\n"
+    "\n"
+    "Returns list of str. The allowed names of 'problem', 'scheme', 'integrator' or 'study_kind'.");
 
 static PyObject *py_names(PyObject *self, PyObject *args)
 {
