@@ -12,7 +12,8 @@ a RuntimeError, for anything else). docs/python.md in the repository is the guid
     >>> s.run(); u = s.field("u")
 
 Kernels: W, dWdr, d2Wdr2, gradW, W_vec, kernel_names, kernel_info.
-Particles: Particles, layout, layout_stats, read_particles, write_particles, read_checkpoint.
+Particles: Particles, layout, layout_stats, read_particles, write_particles, read_checkpoint,
+layout_cache, set_layout_cache.
 Operators: apply, approx, field_values, op_names, form_names, corr_names, valid_forms,
 field_names. Runs: Solver, run_params, names. Studies: study, study_path, study_estimate.
 Transport: wasserstein.
@@ -50,16 +51,32 @@ from ._core import (  # noqa: F401,E402  (the public API)
     gradW,
     kernel_info,
     kernel_names,
+    layout_cache,
     layout_names,
     names,
     num_threads,
     op_names,
     run_params,
+    set_layout_cache,
     set_num_threads,
     valid_forms,
     wasserstein,
     write_particles,
 )
+
+
+def _default_layout_cache():
+    """Where the CLI keeps its cache of packed layouts (apps/cli.c, cli_cache_apply)."""
+    xdg, home = _os.environ.get("XDG_CACHE_HOME"), _os.environ.get("HOME")
+    if xdg and xdg.startswith("/"):  # the XDG rule: a relative path is ignored
+        return _os.path.join(xdg, "consph")
+    if home:
+        return _os.path.join(home, ".cache", "consph")
+    return None
+
+
+# Packed layouts (the start of most of 001's runs) are packed once, as with the CLI.
+set_layout_cache(_default_layout_cache())
 
 
 class Particles:
@@ -120,7 +137,8 @@ def layout(kind, dim, nx, **options):
     """Generates nx^dim particles in the unit box as `consph layout --kind KIND --dim D --nx N`
     does, with its options by the same names: periodic=True, seed=1, eps=0.2 (random),
     kernel='quintic', hdx=1.2, perturb=0.5, tol=1e-4, move_tol=1e-2, walls=0, max_iter=None,
-    history_every=0 (packed kinds), cache=None (a directory for the cache of packed layouts).
+    history_every=0 (packed kinds), cache=None (a directory for the cache of packed layouts for
+    this call; None: layout_cache(), on by default where the CLI keeps it).
     kind: lattice, random, quasi-random, packed, packed-polished (layout_names()).
     Returns a Particles with the field 'volume' and, for the packed kinds, .report (the
     packing's iterations, density spread, convergence and history)."""

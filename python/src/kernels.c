@@ -271,7 +271,7 @@ PyDoc_STRVAR(
     "D --nx N`\n"
     "does, with its options by the same names (consph_layout_generate): lattice, random,\n"
     "quasi-random, packed, packed-polished. max_iter None is the kind's default; cache: a\n"
-    "directory for the cache of packed layouts (None: off, the library's default). Returns the\n"
+    "directory for the cache of packed layouts for this call (None: layout_cache()). Returns the\n"
     "particle dict (x, lo, hi, periodic, spacing, fields with 'volume') and, for the packed\n"
     "kinds, 'report' (iterations, density spread before and after, converged, history).\n"
     "consph.layout wraps it into a consph.Particles.");
@@ -367,6 +367,36 @@ static PyObject *py_layout(PyObject *self, PyObject *args, PyObject *kw)
     return d;
 }
 
+PyDoc_STRVAR(set_layout_cache_doc,
+             "set_layout_cache(path, /)\n--\n\n"
+             "Sets the directory of the cache of packed layouts (consph_layout_cache_set, the\n"
+             "cache the CLI's --cache names), or turns it off with None. import consph turns it\n"
+             "on where the CLI keeps it: $XDG_CACHE_HOME/consph, else ~/.cache/consph. A cached\n"
+             "layout is bit for bit the one a fresh packing gives (include/consph/layout.h).");
+
+static PyObject *py_set_layout_cache(PyObject *self, PyObject *args)
+{
+    (void)self;
+    const char *dir = NULL;
+    if (!PyArg_ParseTuple(args, "z", &dir)) return NULL;
+    int st = consph_layout_cache_set(dir);
+    if (st != CONSPH_OK) return pyc_raise(st);
+    Py_RETURN_NONE;
+}
+
+PyDoc_STRVAR(layout_cache_doc, "layout_cache()\n--\n\n"
+                               "Returns str or None. The directory of the cache of packed "
+                               "layouts, None when it is off.");
+
+static PyObject *py_layout_cache(PyObject *self, PyObject *args)
+{
+    (void)self;
+    (void)args;
+    const char *dir = consph_layout_cache_get();
+    if (!dir) Py_RETURN_NONE;
+    return PyUnicode_FromString(dir);
+}
+
 PyDoc_STRVAR(layout_stats_doc,
              "layout_stats(particles, kernel='quintic', hdx=1.2)\n"
              "--\n"
@@ -416,4 +446,6 @@ PyMethodDef pyc_kernel_methods[] = {
     {"layout_names", py_layout_names, METH_NOARGS, layout_names_doc},
     {"layout", FN(py_layout), KW, layout_doc},
     {"layout_stats", FN(py_layout_stats), KW, layout_stats_doc},
+    {"set_layout_cache", py_set_layout_cache, METH_VARARGS, set_layout_cache_doc},
+    {"layout_cache", py_layout_cache, METH_NOARGS, layout_cache_doc},
     {NULL, NULL, 0, NULL}};
