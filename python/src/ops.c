@@ -23,7 +23,7 @@ static int parse_volume(const char *name, consph_volume_kind *kind)
 PyDoc_STRVAR(
     apply_doc,
     "apply(particles, op, form=None, corr='none', field=None, kernel='quintic', hdx=1.2,\n"
-    "      h=None, volume=None, cond_max=1e8)\n"
+    "      h=None, volume=None, cond_max=1e8, report=False)\n"
     "--\n"
     "\n"
     "Returns ndarray. Evaluates an operator on the user's particles and field with consph_apply "
@@ -40,18 +40,21 @@ PyDoc_STRVAR(
     "  volume     summation, number or given (None: given when the particles carry a 'volume'\n"
     "             field, else number, the rule of approx's particle files)\n"
     "Returns N values (function, div, laplacian), N×d (grad) or N×d(d+1)/2 (hessian: xx, xy,\n"
-    "xz, yy, yz, zz) in the particles' order. The forms asym, sym1, sym2, sym_s1 return ∇p/ρ.");
+    "xz, yy, yz, zz) in the particles' order. The forms asym, sym1, sym2, sym_s1 return ∇p/ρ.\n"
+    "report=True returns (values, {n, pairs, fallbacks, max_cond, seconds, h}): the particles\n"
+    "whose correction matrix was rejected, the largest accepted condition estimate, the h used.");
 
 static PyObject *py_apply(PyObject *self, PyObject *args, PyObject *kw)
 {
     (void)self;
-    static char *kwlist[] = {"particles", "op", "form",   "corr",     "field", "kernel",
-                             "hdx",       "h",  "volume", "cond_max", NULL};
+    static char *kwlist[] = {"particles", "op", "form",   "corr",     "field",  "kernel",
+                             "hdx",       "h",  "volume", "cond_max", "report", NULL};
     PyObject *pobj, *fobj = Py_None, *hobj = Py_None;
     const char *opname, *form = NULL, *corr = "none", *kernel = "quintic", *volume = NULL;
     double hdx = 1.2, cond_max = 1e8;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "Os|zzOsdOzd", kwlist, &pobj, &opname, &form, &corr,
-                                     &fobj, &kernel, &hdx, &hobj, &volume, &cond_max))
+    int want_report = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "Os|zzOsdOzdp", kwlist, &pobj, &opname, &form, &corr,
+                                     &fobj, &kernel, &hdx, &hobj, &volume, &cond_max, &want_report))
         return NULL;
     if (fobj == Py_None)
         return pyc_raise_msg(CONSPH_EINVAL, "field: give the field's values at the particles");
@@ -131,7 +134,8 @@ static PyObject *py_apply(PyObject *self, PyObject *args, PyObject *kw)
     for (size_t i = 0; i < n; ++i)
         for (int c = 0; c < nin; ++c)
             in[(size_t)c * n + i] = fv[sys.origin[i] * (size_t)nin + (size_t)c];
-    PYC_UNLOCKED(st = consph_apply(&ctx, spec.op, spec.form, spec.corr, in, out, NULL));
+    consph_op_report rep;
+    PYC_UNLOCKED(st = consph_apply(&ctx, spec.op, spec.form, spec.corr, in, out, &rep));
     if (st != CONSPH_OK) {
         pyc_raise(st);
         goto done;
@@ -145,6 +149,11 @@ static PyObject *py_apply(PyObject *self, PyObject *args, PyObject *kw)
             for (int c = 0; c < nout; ++c)
                 rv[sys.origin[i] * (size_t)nout + (size_t)c] = out[(size_t)c * n + i];
         result = (PyObject *)r;
+        if (want_report)
+            result =
+                Py_BuildValue("(N{s:n,s:n,s:n,s:d,s:d,s:d})", r, "n", (Py_ssize_t)rep.n, "pairs",
+                              (Py_ssize_t)rep.pairs, "fallbacks", (Py_ssize_t)rep.fallbacks,
+                              "max_cond", rep.max_cond, "seconds", rep.seconds, "h", h);
     }
 done:
     free(in);

@@ -143,7 +143,10 @@ for op, form, corr, kind in cases:
         pk = consph.layout(kind, dim=2, nx=nx, seed=5)
         field = "tgv" if op == "div" else "sin2pi"
         fv = consph.field_values(field, pk.x)
-        g = consph.apply(pk, op, form=form, corr=corr, field=fv["f"], volume="number")
+        g, rep = consph.apply(pk, op, form=form, corr=corr, field=fv["f"], volume="number",
+                              report=True)
+        check(rep["fallbacks"] == res["rows"]["fallbacks"][k] and rep["h"] == res["rows"]["h"][k],
+              f"apply {op} report {rep}")
         exact = {"grad": fv["grad"], "laplacian": fv["laplacian"], "div": fv["div"]}[op]
         e = np.abs(g - exact) if g.ndim == 1 else np.linalg.norm(g - exact, axis=1)
         ex = np.abs(exact) if exact.ndim == 1 else np.linalg.norm(exact, axis=1)
