@@ -33,7 +33,11 @@ PyObject *pyc_raise(int status)
 {
     const char *msg = consph_last_error();
     PyObject *cls = status == CONSPH_EINVAL ? error_invalid : error_failure;
-    PyObject *exc = PyObject_CallFunction(cls, "s", msg[0] ? msg : "consph: unknown failure");
+    /* a message may quote a file name that is not UTF-8 */
+    if (!msg[0]) msg = "consph: unknown failure";
+    PyObject *text = PyUnicode_DecodeUTF8(msg, (Py_ssize_t)strlen(msg), "replace");
+    PyObject *exc = text ? PyObject_CallOneArg(cls, text) : NULL;
+    Py_XDECREF(text);
     if (!exc) return NULL;
     PyObject *st = PyLong_FromLong(status), *code = PyUnicode_FromString(status_name(status));
     if (st && code && PyObject_SetAttrString(exc, "status", st) == 0 &&

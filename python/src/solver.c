@@ -40,6 +40,35 @@ static int param_text(PyObject *v, char *buf, size_t size)
     return 0;
 }
 
+/* A parameter the run's scheme or layout does not read would do nothing: refused as consph run
+ * refuses its option (apps/cmd_run.c, unread_options); eos 'default' is no setting. */
+static int unread_params(PyObject *kw, const consph_run_params *prm)
+{
+    char list[512];
+    for (int k = 0; kw && k < consph_run_param_count(); ++k) {
+        const consph_run_param *d = consph_run_param_at(k);
+        if (!d->reads || !PyDict_GetItemString(kw, d->name) ||
+            (!strcmp(d->name, "eos") && prm->eos == CONSPH_EOS_DEFAULT) ||
+            consph_scheme_reads(prm->scheme, d->reads))
+            continue;
+        pyc_raise_msg(CONSPH_EINVAL, "%s does nothing for scheme %s (it acts on: %s)", d->name,
+                      prm->scheme, consph_scheme_readers(d->reads, list, sizeof list));
+        return -1;
+    }
+    const int layout = consph_run_params_layout(prm);
+    if (!kw || !PyDict_GetItemString(kw, "seed") || layout < 0 ||
+        consph_layout_uses_seed((consph_layout_kind)layout))
+        return 0;
+    pyc_raise_msg(CONSPH_EINVAL,
+                  "seed does nothing for layout %s (%s), which draws no random numbers (it acts "
+                  "on: %s)",
+                  consph_layout_name((consph_layout_kind)layout),
+                  PyDict_GetItemString(kw, "layout") ? "given"
+                                                     : "the problem's or scheme's default",
+                  consph_layout_seeded_names(list, sizeof list));
+    return -1;
+}
+
 static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
 {
     solver_object *so = (solver_object *)self;
@@ -100,6 +129,7 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
     if (have_re) prm.nu = -1.0;
     if (have_steps) prm.tf = 0.0;
     if (consph_run_params_check(&prm) != CONSPH_OK) return pyc_raise(CONSPH_EINVAL), -1;
+    if (unread_params(kw, &prm) < 0) return -1;
     consph_solver *s = NULL;
     int st;
     PYC_UNLOCKED(st = consph_solver_create(&s, &prm));

@@ -76,6 +76,11 @@ except consph.InvalidArgument as e:
     check(str(e).startswith("hdx = 9 is out of range (allowed: ") and str(e) in err,
           f"hdx out of range: python {str(e)!r}, CLI {err!r}")
 try:
+    consph.Solver("taylor-green", scheme="l-ipst-c", nx=16, alpha=0.2)
+    check(False, "alpha for l-ipst-c was accepted")
+except consph.InvalidArgument as e:
+    check(str(e).startswith("alpha does nothing for scheme l-ipst-c (it acts on: wcsph"), str(e))
+try:
     consph.read_particles(os.path.join(tmp, "none.csv"))
     check(False, "a missing file was read")
 except consph.Failure as e:
