@@ -13,8 +13,8 @@ typedef struct {
     PyObject_HEAD consph_solver *s;
 } solver_object;
 
-/* Python's value as the text consph_run_param_set reads: names as they are, integers in
- * decimal, floats with the digits that read back to the same double, None as "none". */
+/* Python's value as the text consph_run_param_set reads; None is "none", the special value of
+ * tf and steps. */
 static int param_text(PyObject *v, char *buf, size_t size)
 {
     if (v == Py_None) {
@@ -26,16 +26,16 @@ static int param_text(PyObject *v, char *buf, size_t size)
         const char *s = PyUnicode_AsUTF8(v);
         if (!s) return -1;
         snprintf(buf, size, "%s", s);
-    } else if (PyLong_Check(v)) {
-        PyObject *r = PyObject_Str(v);
+    } else {
+        /* integers (numpy's too) in decimal; other numbers as Python's repr of the float, the
+         * shortest text that reads back to the same double, so messages quote what was given */
+        PyObject *num = PyIndex_Check(v) ? PyNumber_Index(v) : PyNumber_Float(v);
+        PyObject *r = num ? (PyLong_Check(num) ? PyObject_Str(num) : PyObject_Repr(num)) : NULL;
         const char *s = r ? PyUnicode_AsUTF8(r) : NULL;
         if (s) snprintf(buf, size, "%s", s);
+        Py_XDECREF(num);
         Py_XDECREF(r);
         if (!s) return -1;
-    } else {
-        double d = PyFloat_AsDouble(v);
-        if (d == -1.0 && PyErr_Occurred()) return -1;
-        snprintf(buf, size, "%.17g", d);
     }
     return 0;
 }
