@@ -1,0 +1,689 @@
+/* consph._core.Solver: the WCSPH solver (include/consph/solver.h) from a problem and the run
+ * parameters of its table (src/solver/params.def), stepped from Python, its fields as numpy
+ * copies, its summary, checkpoints and restart. */
+#include "pyconsph.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+typedef struct {
+    PyObject_HEAD consph_solver *s;
+} solver_object;
+
+/* Python's value as the text consph_run_param_set reads; None is "none", the special value of
+ * tf and steps. */
+static int param_text(PyObject *v, char *buf, size_t size)
+{
+    if (v == Py_None) {
+        snprintf(buf, size, "none");
+    } else if (PyBool_Check(v)) {
+        PyErr_SetString(PyExc_TypeError, "a run parameter is a number or a name, not a bool");
+        return -1;
+    } else if (PyUnicode_Check(v)) {
+        const char *s = PyUnicode_AsUTF8(v);
+        if (!s) return -1;
+        snprintf(buf, size, "%s", s);
+    } else {
+        /* integers (numpy's too) in decimal; other numbers as Python's repr of the float, the
+         * shortest text that reads back to the same double, so messages quote what was given */
+        PyObject *num = PyIndex_Check(v) ? PyNumber_Index(v) : PyNumber_Float(v);
+        PyObject *r = num ? (PyLong_Check(num) ? PyObject_Str(num) : PyObject_Repr(num)) : NULL;
+        const char *s = r ? PyUnicode_AsUTF8(r) : NULL;
+        if (s) snprintf(buf, size, "%s", s);
+        Py_XDECREF(num);
+        Py_XDECREF(r);
+        if (!s) return -1;
+    }
+    return 0;
+}
+
+/* A parameter the run's scheme or layout does not read would do nothing: refused as consph run
+ * refuses its option (apps/cmd_run.c, unread_options); eos 'default' is no setting. */
+static int unread_params(PyObject *kw, const consph_run_params *prm)
+{
+    char list[512];
+    for (int k = 0; kw && k < consph_run_param_count(); ++k) {
+        const consph_run_param *d = consph_run_param_at(k);
+        if (!d->reads || !PyDict_GetItemString(kw, d->name) ||
+            (!strcmp(d->name, "eos") && prm->eos == CONSPH_EOS_DEFAULT) ||
+            consph_scheme_reads(prm->scheme, d->reads))
+            continue;
+        pyc_raise_msg(CONSPH_EINVAL, "%s does nothing for scheme %s (it acts on: %s)", d->name,
+                      prm->scheme, consph_scheme_readers(d->reads, list, sizeof list));
+        return -1;
+    }
+    const int layout = consph_run_params_layout(prm);
+    if (!kw || !PyDict_GetItemString(kw, "seed") || layout < 0 ||
+        consph_layout_uses_seed((consph_layout_kind)layout))
+        return 0;
+    pyc_raise_msg(CONSPH_EINVAL,
+                  "seed does nothing for layout %s (%s), which draws no random numbers (it acts "
+                  "on: %s)",
+                  consph_layout_name((consph_layout_kind)layout),
+                  PyDict_GetItemString(kw, "layout") ? "given"
+                                                     : "the problem's or scheme's default",
+                  consph_layout_seeded_names(list, sizeof list));
+    return -1;
+}
+
+static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
+{
+    solver_object *so = (solver_object *)self;
+    const char *problem = "taylor-green";
+    if (!PyArg_ParseTuple(args, "|s:Solver", &problem)) return -1;
+    consph_run_params prm;
+    consph_run_params_default(&prm);
+    PyObject *pobj = kw ? PyDict_GetItemString(kw, "problem") : NULL;
+    if (pobj) {
+        if (PyTuple_GET_SIZE(args)) {
+            PyErr_SetString(PyExc_TypeError, "Solver: problem given twice");
+            return -1;
+        }
+        problem = PyUnicode_AsUTF8(pobj);
+        if (!problem) return -1;
+    }
+    if (consph_run_params_problem(&prm, problem) != CONSPH_OK) return pyc_raise(CONSPH_EINVAL), -1;
+    /* every key is a parameter of the table; unknown ones get the library's message */
+    PyObject *key, *val;
+    Py_ssize_t pos = 0;
+    while (kw && PyDict_Next(kw, &pos, &key, &val)) {
+        const char *name = PyUnicode_AsUTF8(key);
+        if (!name) return -1;
+        if (!strcmp(name, "problem")) continue;
+        if (!consph_run_param_find(name)) {
+            char names[2048] = "";
+            for (int k = 0; k < consph_run_param_count(); ++k) {
+                size_t len = strlen(names);
+                snprintf(names + len, sizeof names - len, "%s%s", k ? ", " : "",
+                         consph_run_param_at(k)->name);
+            }
+            pyc_raise_msg(CONSPH_EINVAL, "no run parameter is named '%.40s' (allowed: %s)", name,
+                          names);
+            return -1;
+        }
+    }
+    int have_steps = 0, have_tf = 0, have_re = 0, have_nu = 0;
+    /* in the table's order, as consph run sets its options */
+    for (int k = 0; k < consph_run_param_count(); ++k) {
+        const consph_run_param *d = consph_run_param_at(k);
+        PyObject *v = kw ? PyDict_GetItemString(kw, d->name) : NULL;
+        if (!v || !strcmp(d->name, "problem")) continue;
+        char text[512];
+        if (param_text(v, text, sizeof text) < 0) return -1;
+        if (consph_run_param_set(&prm, d->name, text) != CONSPH_OK)
+            return pyc_raise(CONSPH_EINVAL), -1;
+        have_steps |= !strcmp(d->name, "steps") && v != Py_None;
+        have_tf |= !strcmp(d->name, "tf") && v != Py_None;
+        have_re |= !strcmp(d->name, "re");
+        have_nu |= !strcmp(d->name, "nu");
+    }
+    /* the rules of consph run between its options (apps/cmd_run.c) */
+    if (have_steps && have_tf)
+        return pyc_raise_msg(CONSPH_EINVAL, "steps and tf both set the end of the run: give one"),
+               -1;
+    if (have_re && have_nu)
+        return pyc_raise_msg(CONSPH_EINVAL, "re and nu both set the viscosity: give one"), -1;
+    if (have_re) prm.nu = -1.0;
+    if (have_steps) prm.tf = 0.0;
+    if (consph_run_params_check(&prm) != CONSPH_OK) return pyc_raise(CONSPH_EINVAL), -1;
+    if (unread_params(kw, &prm) < 0) return -1;
+    consph_solver *s = NULL;
+    int st;
+    PYC_UNLOCKED(st = consph_solver_create(&s, &prm));
+    if (st != CONSPH_OK) return pyc_raise(st), -1;
+    consph_solver_free(so->s);
+    so->s = s;
+    return 0;
+}
+
+static void solver_dealloc(PyObject *self)
+{
+    solver_object *so = (solver_object *)self;
+    consph_solver_free(so->s);
+    Py_TYPE(self)->tp_free(self);
+}
+
+static int ready(solver_object *so)
+{
+    if (so->s) return 1;
+    pyc_raise_msg(CONSPH_EINVAL, "Solver: not set up (its creation failed)");
+    return 0;
+}
+
+PyDoc_STRVAR(
+    step_doc,
+    "step($self, /, n=1)\n"
+    "--\n"
+    "\n"
+    "Advances the run by n time steps (consph_solver_step). A run that leaves its model's\n"
+    "validity raises consph.Failure (code ENUMERIC) naming the step, particle and bound;\n"
+    "stepping a finished run raises consph.InvalidArgument.");
+
+static PyObject *solver_step(PyObject *self, PyObject *args, PyObject *kw)
+{
+    solver_object *so = (solver_object *)self;
+    static char *kwlist[] = {"n", NULL};
+    long n = 1;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "|l", kwlist, &n)) return NULL;
+    if (!ready(so)) return NULL;
+    int st = CONSPH_OK;
+    PYC_UNLOCKED(for (long k = 0; k < n && st == CONSPH_OK; ++k) st = consph_solver_step(so->s));
+    if (st != CONSPH_OK) return pyc_raise(st);
+    Py_RETURN_NONE;
+}
+
+/* The run to its end with the files of consph run --out DIR (apps/cmd_run.c). */
+static PyObject *run_files(solver_object *so, PyObject *tfo, PyObject *stepso, const char *out,
+                           long snap_every, long ckpt_every)
+{
+    if (tfo != Py_None || stepso != Py_None)
+        return pyc_raise_msg(CONSPH_EINVAL, "out: a run with files goes to its own end: give "
+                                            "tf or steps when creating the Solver, not here");
+    if (snap_every < 0 || ckpt_every < 0)
+        return pyc_raise_msg(CONSPH_EINVAL, "snapshot_every and checkpoint_every must be >= 0");
+    struct stat sb;
+    if (stat(out, &sb) != 0 && mkdir(out, 0777) != 0)
+        return pyc_raise_msg(CONSPH_EIO, "out: cannot create directory '%s': %s", out,
+                             strerror(errno));
+    const long step0 = consph_solver_step_count(so->s);
+    consph_run_output ro = {out, snap_every, ckpt_every, 0, 0};
+    consph_run_summary sum;
+    int st, sig = 0;
+    PYC_UNLOCKED(st = consph_run(so->s, &ro, &sum, &sig));
+    if (st != CONSPH_OK) return pyc_raise(st);
+    return PyLong_FromLong(consph_solver_step_count(so->s) - step0);
+}
+
+PyDoc_STRVAR(
+    run_doc,
+    "run($self, /, tf=None, steps=None, out=None, snapshot_every=0, checkpoint_every=0)\n"
+    "--\n"
+    "\n"
+    "Returns int. Steps until the run's own end (its tf or steps), or earlier: until t >= tf, or\n"
+    "until step_count reaches steps (a total, not a count from now). The run's own\n"
+    "last step lands on its final time; tf here stops at the first step ending at or\n"
+    "after it. Returns the steps taken. Interrupt with Ctrl-C between steps.\n"
+    "out: a directory (created if missing) where the run goes to its end writing the\n"
+    "files of `consph run --out` (consph_run: snapshots every snapshot_every steps\n"
+    "(0: the first and the last) indexed by run.pvd, log.csv, summary.json, and\n"
+    "checkpoint.ckpt every checkpoint_every steps); not with tf or steps.");
+
+static PyObject *solver_run(PyObject *self, PyObject *args, PyObject *kw)
+{
+    solver_object *so = (solver_object *)self;
+    static char *kwlist[] = {"tf", "steps", "out", "snapshot_every", "checkpoint_every", NULL};
+    PyObject *tfo = Py_None, *stepso = Py_None;
+    const char *out = NULL;
+    long snap_every = 0, ckpt_every = 0;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "|OOzll", kwlist, &tfo, &stepso, &out, &snap_every,
+                                     &ckpt_every))
+        return NULL;
+    if (!ready(so)) return NULL;
+    if (out) return run_files(so, tfo, stepso, out, snap_every, ckpt_every);
+    double tf = INFINITY;
+    long steps = -1;
+    if (tfo != Py_None && ((tf = PyFloat_AsDouble(tfo)) == -1.0 && PyErr_Occurred())) return NULL;
+    if (stepso != Py_None && ((steps = PyLong_AsLong(stepso)) == -1 && PyErr_Occurred()))
+        return NULL;
+    long taken = 0;
+    while (!consph_solver_done(so->s) && consph_solver_time(so->s) < tf &&
+           (steps < 0 || consph_solver_step_count(so->s) < steps)) {
+        int st;
+        PYC_UNLOCKED(st = consph_solver_step(so->s));
+        if (st != CONSPH_OK) return pyc_raise(st);
+        ++taken;
+        if (PyErr_CheckSignals() < 0) return NULL;
+    }
+    return PyLong_FromLong(taken);
+}
+
+/* The order that puts particles back in their initial order (the field "id"). */
+static size_t *initial_order(const consph_particles *p)
+{
+    const consph_field *id = consph_particles_find(p, "id");
+    size_t *order = malloc((p->n ? p->n : 1) * sizeof *order);
+    if (!order) return NULL;
+    for (size_t i = 0; i < p->n; ++i) order[i] = i;
+    if (!id) return order;
+    for (size_t i = 0; i < p->n; ++i) {
+        const double v = id->data[i];
+        if (v >= 0 && v < (double)p->n) order[(size_t)v] = i;
+    }
+    return order;
+}
+
+PyDoc_STRVAR(field_doc,
+             "field($self, /, name, order='initial')\n"
+             "--\n"
+             "\n"
+             "Returns ndarray. A copy of one field of the run's particles "
+             "(consph_solver_particles): 'x' the\n"
+             "positions (N×d), or a particle field by its name in the solver (u, p, rhof,\n"
+             "volume, id, u_exact, p_exact, vorticity, ...: field_names()). N values or N×k.\n"
+             "order 'initial' puts the particles in their initial order (by the field id);\n"
+             "'current' keeps the solver's (cell) order, the order of its snapshots.\n"
+             "Copies, not views: they stay valid after further steps and after the solver.\n"
+             "u_exact, p_exact and vorticity are refreshed first (consph_solver_output_fields).");
+
+static PyObject *solver_field(PyObject *self, PyObject *args, PyObject *kw)
+{
+    solver_object *so = (solver_object *)self;
+    static char *kwlist[] = {"name", "order", NULL};
+    const char *name, *ord = "initial";
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "s|s", kwlist, &name, &ord)) return NULL;
+    if (!ready(so)) return NULL;
+    if (strcmp(ord, "initial") && strcmp(ord, "current"))
+        return pyc_raise_msg(CONSPH_EINVAL, "order '%s' is unknown (allowed: initial, current)",
+                             ord);
+    if (!strcmp(name, "u_exact") || !strcmp(name, "p_exact") || !strcmp(name, "vorticity")) {
+        int st = consph_solver_output_fields(so->s);
+        if (st != CONSPH_OK) return pyc_raise(st);
+    }
+    const consph_particles *p = consph_solver_particles(so->s);
+    size_t *order = strcmp(ord, "initial") ? NULL : initial_order(p);
+    if (!strcmp(ord, "initial") && !order) return PyErr_NoMemory();
+    PyObject *r = NULL;
+    if (!strcmp(name, "x")) {
+        npy_intp dims[2] = {(npy_intp)p->n, p->dim};
+        PyArrayObject *a = (PyArrayObject *)PyArray_SimpleNew(2, dims, NPY_DOUBLE);
+        if (a)
+            for (size_t i = 0; i < p->n; ++i)
+                for (int c = 0; c < p->dim; ++c)
+                    ((double *)PyArray_DATA(a))[i * (size_t)p->dim + (size_t)c] =
+                        p->x[c][order ? order[i] : i];
+        r = (PyObject *)a;
+    } else {
+        const consph_field *f = consph_particles_find(p, name);
+        if (!f) {
+            char names[1024] = "x";
+            for (int k = 0; k < p->nfields; ++k) {
+                size_t len = strlen(names);
+                snprintf(names + len, sizeof names - len, ", %s", p->fields[k].name);
+            }
+            pyc_raise_msg(CONSPH_EINVAL, "the run has no field '%.40s' (allowed: %s)", name, names);
+        } else {
+            r = pyc_field_array(f->data, p->n, p->cap, f->ncomp, order);
+        }
+    }
+    free(order);
+    return r;
+}
+
+PyDoc_STRVAR(field_names_doc, "field_names($self, /)\n"
+                              "--\n"
+                              "\n"
+                              "Returns list of str. The fields of the run's particles (every "
+                              "declared field, state and scratch).");
+
+static PyObject *solver_field_names(PyObject *self, PyObject *args)
+{
+    (void)args;
+    solver_object *so = (solver_object *)self;
+    if (!ready(so)) return NULL;
+    const consph_particles *p = consph_solver_particles(so->s);
+    PyObject *l = PyList_New(p->nfields);
+    for (int k = 0; l && k < p->nfields; ++k)
+        PyList_SET_ITEM(l, k, PyUnicode_FromString(p->fields[k].name));
+    return l;
+}
+
+PyDoc_STRVAR(particles_doc,
+             "_particles($self, /, order='initial')\n"
+             "--\n"
+             "\n"
+             "Returns dict. Every field of the run's particles and their positions, box and "
+             "periodicity as a\n"
+             "particle dict (copies; consph.Solver.particles wraps it into a consph.Particles).");
+
+static PyObject *solver_particles(PyObject *self, PyObject *args, PyObject *kw)
+{
+    solver_object *so = (solver_object *)self;
+    static char *kwlist[] = {"order", NULL};
+    const char *ord = "initial";
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "|s", kwlist, &ord)) return NULL;
+    if (!ready(so)) return NULL;
+    if (strcmp(ord, "initial") && strcmp(ord, "current"))
+        return pyc_raise_msg(CONSPH_EINVAL, "order '%s' is unknown (allowed: initial, current)",
+                             ord);
+    int st = consph_solver_output_fields(so->s);
+    if (st != CONSPH_OK) return pyc_raise(st);
+    const consph_particles *p = consph_solver_particles(so->s);
+    size_t *order = strcmp(ord, "initial") ? NULL : initial_order(p);
+    PyObject *d = pyc_particles_dict(p, order);
+    free(order);
+    return d;
+}
+
+static int dict_double(PyObject *d, const char *k, double v)
+{
+    return pyc_dict_steal(d, k, PyFloat_FromDouble(v));
+}
+
+PyDoc_STRVAR(summary_doc,
+             "summary($self, /)\n"
+             "--\n"
+             "\n"
+             "Returns dict. What the run measured so far (consph_solver_summary; the members of\n"
+             "consph_run_summary, summary.json's keys): scheme, problem, integrator, n, dim,\n"
+             "steps, t, dt, h, c0, l1_u, l1_p (001 eq. 26), linf_u, linf_p, ke, momentum,\n"
+             "angular_momentum, ft_fmax, max_divu, seconds, pairs, ... (NaN where not measured).");
+
+static PyObject *solver_summary(PyObject *self, PyObject *args)
+{
+    (void)args;
+    solver_object *so = (solver_object *)self;
+    if (!ready(so)) return NULL;
+    consph_run_summary s;
+    int st = consph_solver_summary(so->s, &s);
+    if (st != CONSPH_OK) return pyc_raise(st);
+    PyObject *d = Py_BuildValue(
+        "{s:s,s:s,s:s,s:n,s:i,s:l,s:i,s:i,s:i,s:i,s:l,s:n,s:l,s:s}", "scheme", s.scheme, "problem",
+        s.problem, "integrator", s.integrator, "n", (Py_ssize_t)s.n, "dim", s.dim, "steps", s.steps,
+        "error", s.error, "error_samples", s.error_samples, "passes_per_stage", s.passes_per_stage,
+        "passes_min", s.passes_min, "regularisations", s.regularisations, "pairs",
+        (Py_ssize_t)s.pairs, "nlist_builds", s.nlist_builds, "nlist_note", s.nlist_note);
+    if (!d) return NULL;
+    const struct {
+        const char *k;
+        double v;
+    } nums[] = {{"t", s.t},
+                {"dt", s.dt},
+                {"h", s.h},
+                {"c0", s.c0},
+                {"l1_u", s.l1_u},
+                {"l1_p", s.l1_p},
+                {"l1n_u", s.l1n_u},
+                {"l1n_p", s.l1n_p},
+                {"linf_u", s.linf_u},
+                {"linf_p", s.linf_p},
+                {"ke", s.ke},
+                {"angular_momentum", s.angular_momentum},
+                {"ft_fmax", s.ft_fmax},
+                {"max_divu", s.max_divu},
+                {"seconds", s.seconds},
+                {"nlist_skin", s.nlist_skin},
+                {"nlist_bytes", s.nlist_bytes},
+                {"wc_l1_u", s.wc_l1_u},
+                {"wc_l1_p", s.wc_l1_p},
+                {"wc_l1n_u", s.wc_l1n_u},
+                {"wc_l1n_p", s.wc_l1n_p}};
+    for (size_t k = 0; k < sizeof nums / sizeof nums[0]; ++k)
+        if (dict_double(d, nums[k].k, nums[k].v) < 0) {
+            Py_DECREF(d);
+            return NULL;
+        }
+    if (pyc_dict_steal(d, "momentum",
+                       Py_BuildValue("(ddd)", s.momentum[0], s.momentum[1], s.momentum[2])) < 0 ||
+        pyc_dict_steal(d, "exact", PyLong_FromLong(s.exact)) < 0) {
+        Py_DECREF(d);
+        return NULL;
+    }
+    return d;
+}
+
+static PyObject *diag_tuple(const consph_step_diag *g)
+{
+    return Py_BuildValue("(ldddddddddddd)", g->step, g->t, g->l1_u, g->linf_u, g->l1_p, g->linf_p,
+                         g->ke, g->mom[0], g->mom[1], g->mom[2], g->ang, g->ft_fmax, g->max_divu);
+}
+
+static const char *const diag_columns[] = {
+    "step",  "t",     "l1_u",  "linf_u",           "l1_p",    "linf_p",  "ke",
+    "mom_x", "mom_y", "mom_z", "angular_momentum", "ft_fmax", "max_divu"};
+
+PyDoc_STRVAR(history_doc,
+             "history($self, /)\n"
+             "--\n"
+             "\n"
+             "Returns dict of arrays. The run's history as log.csv holds it "
+             "(consph_solver_history_row): one row per\n"
+             "sample (t = 0, every log_every steps, the last step), columns step, t, l1_u,\n"
+             "linf_u, l1_p, linf_p, ke, mom_x, mom_y, mom_z, angular_momentum, ft_fmax,\n"
+             "max_divu.");
+
+static PyObject *solver_history(PyObject *self, PyObject *args)
+{
+    (void)args;
+    solver_object *so = (solver_object *)self;
+    if (!ready(so)) return NULL;
+    const size_t n = consph_solver_history_size(so->s);
+    const int ncol = (int)(sizeof diag_columns / sizeof diag_columns[0]);
+    npy_intp dims[1] = {(npy_intp)n};
+    PyObject *d = PyDict_New();
+    PyArrayObject *cols[13];
+    for (int c = 0; c < ncol; ++c)
+        cols[c] = (PyArrayObject *)PyArray_SimpleNew(1, dims, NPY_DOUBLE);
+    for (size_t k = 0; k < n; ++k) {
+        consph_step_diag g;
+        if (consph_solver_history_row(so->s, k, &g) != CONSPH_OK) break;
+        const double v[] = {(double)g.step, g.t,       g.l1_u,    g.linf_u, g.l1_p,
+                            g.linf_p,       g.ke,      g.mom[0],  g.mom[1], g.mom[2],
+                            g.ang,          g.ft_fmax, g.max_divu};
+        for (int c = 0; c < ncol; ++c)
+            if (cols[c]) ((double *)PyArray_DATA(cols[c]))[k] = v[c];
+    }
+    for (int c = 0; c < ncol; ++c)
+        if (!d || pyc_dict_steal(d, diag_columns[c], (PyObject *)cols[c]) < 0) {
+            for (int e = c + 1; e < ncol; ++e) Py_XDECREF(cols[e]);
+            Py_XDECREF(d);
+            return NULL;
+        }
+    return d;
+}
+
+PyDoc_STRVAR(diag_doc, "diag($self, /)\n"
+                       "--\n"
+                       "\n"
+                       "Returns tuple. The diagnostics at this instant (consph_solver_diag): "
+                       "(step, t, l1_u, linf_u, l1_p,\n"
+                       "linf_p, ke, mom_x, mom_y, mom_z, angular_momentum, ft_fmax, max_divu).");
+
+static PyObject *solver_diag(PyObject *self, PyObject *args)
+{
+    (void)args;
+    solver_object *so = (solver_object *)self;
+    if (!ready(so)) return NULL;
+    consph_step_diag g;
+    int st = consph_solver_diag(so->s, &g);
+    if (st != CONSPH_OK) return pyc_raise(st);
+    return diag_tuple(&g);
+}
+
+PyDoc_STRVAR(params_doc, "params($self, /)\n"
+                         "--\n"
+                         "\n"
+                         "Returns dict. Every run parameter of this run by its table name, as the "
+                         "text consph_run_param_set\n"
+                         "reads back to the same value (the checkpoint's metadata).");
+
+static PyObject *solver_params(PyObject *self, PyObject *args)
+{
+    (void)args;
+    solver_object *so = (solver_object *)self;
+    if (!ready(so)) return NULL;
+    const consph_run_params *prm = consph_solver_params(so->s);
+    PyObject *d = PyDict_New();
+    for (int k = 0; d && k < consph_run_param_count(); ++k) {
+        const consph_run_param *r = consph_run_param_at(k);
+        char buf[512];
+        if (consph_run_param_format(prm, r->name, buf, sizeof buf) != CONSPH_OK) {
+            Py_DECREF(d);
+            return pyc_raise(CONSPH_EINVAL);
+        }
+        if (pyc_dict_steal(d, r->name, PyUnicode_FromString(buf)) < 0) {
+            Py_DECREF(d);
+            return NULL;
+        }
+    }
+    return d;
+}
+
+PyDoc_STRVAR(checkpoint_doc,
+             "checkpoint($self, /, path)\n"
+             "--\n"
+             "\n"
+             "Writes a checkpoint of the run as consph run does (consph_solver_checkpoint_meta,\n"
+             "consph_checkpoint_write, atomically): Solver.restart(path) and `consph run\n"
+             "--restart path` continue it bit for bit.");
+
+static PyObject *solver_checkpoint(PyObject *self, PyObject *args, PyObject *kw)
+{
+    solver_object *so = (solver_object *)self;
+    static char *kwlist[] = {"path", NULL};
+    const char *path;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "s", kwlist, &path)) return NULL;
+    if (!ready(so)) return NULL;
+    char *meta = NULL;
+    double *hist = NULL;
+    size_t nh = 0;
+    int st = consph_solver_checkpoint_meta(so->s, &meta, &hist, &nh);
+    if (st == CONSPH_OK)
+        PYC_UNLOCKED(
+            st = consph_checkpoint_write(path, meta, consph_solver_particles(so->s), hist, nh));
+    free(meta);
+    free(hist);
+    if (st != CONSPH_OK) return pyc_raise(st);
+    Py_RETURN_NONE;
+}
+
+PyDoc_STRVAR(restart_doc, "restart($type, /, path)\n"
+                          "--\n"
+                          "\n"
+                          "Returns Solver. A solver restored from a checkpoint "
+                          "(consph_run_restart: Solver.checkpoint's file\n"
+                          "or a run's checkpoint.ckpt); it continues bit for bit.");
+
+static PyObject *solver_restart(PyObject *cls, PyObject *args, PyObject *kw)
+{
+    static char *kwlist[] = {"path", NULL};
+    const char *path;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "s", kwlist, &path)) return NULL;
+    consph_solver *s = NULL;
+    int st;
+    PYC_UNLOCKED(st = consph_run_restart(&s, path));
+    if (st != CONSPH_OK) return pyc_raise(st);
+    solver_object *so = (solver_object *)((PyTypeObject *)cls)->tp_alloc((PyTypeObject *)cls, 0);
+    if (!so) {
+        consph_solver_free(s);
+        return NULL;
+    }
+    so->s = s;
+    return (PyObject *)so;
+}
+
+PyDoc_STRVAR(
+    dt_warning_doc,
+    "dt_warning($self, /)\n"
+    "--\n"
+    "\n"
+    "Returns str or None. The sentence consph run warns with when Δt exceeds a stability bound\n"
+    "(consph_solver_dt_warning), None when it does not.");
+
+static PyObject *solver_dt_warning(PyObject *self, PyObject *args)
+{
+    (void)args;
+    solver_object *so = (solver_object *)self;
+    if (!ready(so)) return NULL;
+    char buf[512];
+    if (consph_solver_dt_warning(so->s, buf, sizeof buf)) return PyUnicode_FromString(buf);
+    Py_RETURN_NONE;
+}
+
+static PyObject *get_t(PyObject *self, void *c)
+{
+    (void)c;
+    solver_object *so = (solver_object *)self;
+    return ready(so) ? PyFloat_FromDouble(consph_solver_time(so->s)) : NULL;
+}
+static PyObject *get_step_count(PyObject *self, void *c)
+{
+    (void)c;
+    solver_object *so = (solver_object *)self;
+    return ready(so) ? PyLong_FromLong(consph_solver_step_count(so->s)) : NULL;
+}
+static PyObject *get_dt(PyObject *self, void *c)
+{
+    (void)c;
+    solver_object *so = (solver_object *)self;
+    return ready(so) ? PyFloat_FromDouble(consph_solver_dt(so->s)) : NULL;
+}
+static PyObject *get_done(PyObject *self, void *c)
+{
+    (void)c;
+    solver_object *so = (solver_object *)self;
+    return ready(so) ? PyBool_FromLong(consph_solver_done(so->s)) : NULL;
+}
+static PyObject *get_n(PyObject *self, void *c)
+{
+    (void)c;
+    solver_object *so = (solver_object *)self;
+    return ready(so) ? PyLong_FromSize_t(consph_solver_particles(so->s)->n) : NULL;
+}
+static PyObject *get_dim(PyObject *self, void *c)
+{
+    (void)c;
+    solver_object *so = (solver_object *)self;
+    return ready(so) ? PyLong_FromLong(consph_solver_particles(so->s)->dim) : NULL;
+}
+static PyObject *get_run_id(PyObject *self, void *c)
+{
+    (void)c;
+    solver_object *so = (solver_object *)self;
+    return ready(so) ? PyUnicode_FromString(consph_solver_run_id(so->s)) : NULL;
+}
+
+static PyGetSetDef solver_getset[] = {
+    {"t", get_t, NULL, "the simulated time", NULL},
+    {"step_count", get_step_count, NULL, "the steps taken since t = 0", NULL},
+    {"dt", get_dt, NULL, "the time step", NULL},
+    {"done", get_done, NULL, "True once the run reached its final time or step count", NULL},
+    {"n", get_n, NULL, "the number of particles", NULL},
+    {"dim", get_dim, NULL, "the dimension", NULL},
+    {"run_id", get_run_id, NULL, "the run's identifier (kept by its checkpoints)", NULL},
+    {NULL, NULL, NULL, NULL, NULL}};
+
+#define KW (METH_VARARGS | METH_KEYWORDS)
+#define FN(f) (PyCFunction)(void (*)(void))(f)
+
+static PyMethodDef solver_methods[] = {
+    {"step", FN(solver_step), KW, step_doc},
+    {"run", FN(solver_run), KW, run_doc},
+    {"field", FN(solver_field), KW, field_doc},
+    {"field_names", solver_field_names, METH_NOARGS, field_names_doc},
+    {"_particles", FN(solver_particles), KW, particles_doc},
+    {"summary", solver_summary, METH_NOARGS, summary_doc},
+    {"history", solver_history, METH_NOARGS, history_doc},
+    {"diag", solver_diag, METH_NOARGS, diag_doc},
+    {"params", solver_params, METH_NOARGS, params_doc},
+    {"checkpoint", FN(solver_checkpoint), KW, checkpoint_doc},
+    {"dt_warning", solver_dt_warning, METH_NOARGS, dt_warning_doc},
+    {"restart", FN(solver_restart), KW | METH_CLASS, restart_doc},
+    {NULL, NULL, 0, NULL}};
+
+PyDoc_STRVAR(
+    solver_doc,
+    "Solver(problem='taylor-green', **params)\n--\n\n"
+    "A weakly-compressible SPH run (consph_solver_create), as `consph run PROBLEM` sets it up:\n"
+    "the problem's defaults, then every keyword as the run parameter of that name in the\n"
+    "parameter table (consph_run_param_set, in the table's order; the names are the study\n"
+    "files' keys: scheme, nx, layout, seed, hdx, kernel, u... see consph.run_params()).\n"
+    "Values are numbers or names; a parameter's special value by its name ('none', 're',\n"
+    "'default', 'lattice'). As consph run: steps replaces tf, re sets ν (nu) from Re; a bad\n"
+    "key or value raises consph.InvalidArgument with the library's message.\n\n"
+    "Example: s = consph.Solver('taylor-green', scheme='wcsph', nx=20, steps=20); s.run();\n"
+    "u = s.field('u')");
+
+PyTypeObject pyc_solver_type = {
+    PyVarObject_HEAD_INIT(NULL, 0).tp_name = "consph.Solver",
+    .tp_basicsize = sizeof(solver_object),
+    .tp_dealloc = solver_dealloc,
+    .tp_flags = Py_TPFLAGS_DEFAULT | Py_TPFLAGS_BASETYPE,
+    .tp_doc = solver_doc,
+    .tp_methods = solver_methods,
+    .tp_getset = solver_getset,
+    .tp_init = solver_init,
+    .tp_new = PyType_GenericNew,
+};
