@@ -90,18 +90,37 @@ typedef struct ipst_job {
 } ipst_job;
 
 /* Eq. 19: δx_i = h Σ_j (x_ij/r_ij) W_ij ω_j. A neighbour at r = 0 (i itself, or a coincident
- * particle) has no direction and adds nothing. */
-static void ipst_visit(void *job, const consph_nbhd *nb)
+ * particle) has no direction and adds nothing. d known at compile time, so the sums stay in
+ * registers (with d read at run time they went through memory at every pair). */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline void
+ipst_body(const ipst_job *a, const consph_nbhd *nb, const int D)
 {
-    const ipst_job *a = job;
-    double acc[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+    const double *vol = a->vol, *w = nb->w, *r = nb->r;
+    const size_t *j = nb->j;
+    double acc[3] = {0.0, 0.0, 0.0};
     for (size_t q = 0; q < nb->n; ++q) {
-        const double r = nb->r[q];
-        if (!(r > 0.0)) continue;
-        const double f = nb->w[q] * a->vol[nb->j[q]] / r;
-        for (int c = 0; c < a->dim; ++c) acc[c] += f * nb->dx[c][q];
+        const double rq = r[q];
+        if (!(rq > 0.0)) continue;
+        const double f = w[q] * vol[j[q]] / rq;
+        for (int c = 0; c < D; ++c) acc[c] += f * nb->dx[c][q];
     }
-    for (int c = 0; c < a->dim; ++c) a->step[(size_t)c * a->cap + nb->i] = a->h * acc[c];
+    for (int c = 0; c < D; ++c) a->step[(size_t)c * a->cap + nb->i] = a->h * acc[c];
+}
+
+static void ipst_visit_1(void *job, const consph_nbhd *nb)
+{
+    ipst_body(job, nb, 1);
+}
+static void ipst_visit_2(void *job, const consph_nbhd *nb)
+{
+    ipst_body(job, nb, 2);
+}
+static void ipst_visit_3(void *job, const consph_nbhd *nb)
+{
+    ipst_body(job, nb, 3);
 }
 
 /* Writes ω = 1/Σ_j W_ij into vol and returns max_i h^d Σ_j W_ij (NaN when any sum is NaN). */
@@ -144,10 +163,15 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
     double *total = consph_calloc((size_t)d * cap, sizeof(double));
     int rc = (sumw && step && total) ? CONSPH_OK : CONSPH_ENOMEM;
     ipst_job job = {prm->h, vol, step, cap, d};
-    const consph_pass pass = {"IPST shift (001 eq. 19)", CONSPH_PASS_W, ipst_visit};
+    static const consph_visit_fn visits[3] = {ipst_visit_1, ipst_visit_2, ipst_visit_3};
+    const consph_pass pass = {"IPST shift (001 eq. 19)", CONSPH_PASS_W, visits[d - 1]};
     int iterations = 0;
     double chi_max = NAN;
     while (rc == CONSPH_OK) {
+        /* Each position state is read by the volumes' pass and, unless eq. 21 stops the
+         * iteration, the shift's: one gather and one kernel batch for both where the system
+         * keeps a neighbour list (its pair cache; the same values). */
+        consph_sys_expect_passes(s, iterations < prm->max_iter ? 2 : 1, CONSPH_PASS_W);
         /* The volumes are those of the current positions; the last refresh leaves "volume"
          * matching the positions the call returns. */
         if ((rc = ipst_volumes(s, prm->h, sumw, vol, &chi_max))) break;
