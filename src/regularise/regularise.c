@@ -297,6 +297,7 @@ int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr)
 /* ---- remeshing ---- */
 
 typedef struct remesh_job {
+    const consph_kernel *m4;
     const size_t *origin; /* of the joint system: < n lattice point, else n + particle */
     size_t n, cap;
     int nf;
@@ -317,8 +318,16 @@ static void remesh_visit(void *job, const consph_nbhd *nb)
         for (int c = 0; c < a->f[f]->ncomp; ++c) a->out[(a->off[f] + (size_t)c) * a->n + k] = 0.0;
     for (size_t q = 0; q < nb->n; ++q) {
         const size_t o = a->origin[nb->j[q]];
-        const double w = nb->w[q];
-        if (o < a->n || w == 0.0) continue;
+        if (o < a->n) continue;
+        /* M4 of the separation (consph_kernel_w_vec's product), for the particles only: the
+         * pass evaluates no kernel, half the neighbours being other lattice points */
+        const consph_kernel *m4 = a->m4;
+        double w = m4->norm;
+        for (int c = 0; c < m4->dim && w != 0.0; ++c) {
+            const double qa = fabs(nb->dx[c][q]) * m4->inv_h;
+            w = qa < m4->support ? w * m4->f(qa) : 0.0;
+        }
+        if (w == 0.0) continue;
         const size_t j = o - a->n;
         wsum += w;
         for (int f = 0; f < a->nf; ++f)
@@ -401,8 +410,8 @@ int reg_remesh_m4(consph_sys *s, const double *lattice, double ds, const char *c
         rc = consph_sys_set_dest(&sys, mask);
     }
     if (!rc) {
-        remesh_job job = {sys.origin, n, cap, nf, f, off, out, orphan};
-        const consph_pass pass = {"remesh M4 (001 eq. 33)", CONSPH_PASS_W, remesh_visit};
+        remesh_job job = {&k, sys.origin, n, cap, nf, f, off, out, orphan};
+        const consph_pass pass = {"remesh M4 (001 eq. 33)", 0u, remesh_visit};
         rc = consph_pass_run(&sys, &pass, &job);
     }
     if (!rc) {
