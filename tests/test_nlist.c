@@ -197,6 +197,21 @@ static void visit_moments(void *job, const consph_nbhd *nb)
 static const consph_pass pass_moments = {
     "moments", CONSPH_PASS_W | CONSPH_PASS_DW | CONSPH_PASS_D2W, visit_moments};
 
+static void visit_moments_w(void *job, const consph_nbhd *nb)
+{
+    moments *m = job;
+    double s[6] = {0, 0, 0, 0, 0, 0};
+    for (size_t k = 0; k < nb->n; ++k) {
+        s[0] += nb->w[k];
+        s[1] += nb->w[k] * nb->dx[0][k];
+        s[2] += nb->w[k] * nb->dx[1][k];
+        s[3] += nb->r[k];
+        s[4] += (double)nb->j[k];
+    }
+    s[5] = (double)nb->n;
+    memcpy(m->out + 6 * nb->i, s, sizeof s);
+}
+
 static void test_skin0_bits(void)
 {
     const size_t nx = 40, n = nx * nx;
@@ -293,6 +308,77 @@ static void test_skin0_bits(void)
     consph_sys_free(&a);
     consph_sys_free(&b);
     consph_sys_free(&c);
+    consph_particles_free(&src);
+}
+
+/* A caller's hint (consph_sys_expect_passes) makes a two-pass state cache from its first pass,
+ * also right after a state with one pass, with the values the hint names computed in one batch;
+ * the neighbourhoods and values stay the gather's bit for bit. */
+static void test_hint(void)
+{
+    const size_t nx = 30, n = nx * nx;
+    consph_box box = consph_box_unit(2, 1);
+    consph_particles src;
+    CHECK(consph_particles_init(&src, 2, n, &box) == CONSPH_OK, "init");
+    consph_rng rng;
+    consph_rng_seed(&rng, 7);
+    for (size_t i = 0; i < n; ++i) {
+        src.x[0][i] = ((double)(i % nx) + 0.5 + 0.3 * consph_rng_uniform(&rng)) / (double)nx;
+        src.x[1][i] = ((double)(i / nx) + 0.5 + 0.3 * consph_rng_uniform(&rng)) / (double)nx;
+    }
+    consph_kernel k;
+    CHECK(consph_kernel_init(&k, CONSPH_KERNEL_QUINTIC, 2, 1.2 / (double)nx) == CONSPH_OK, "k");
+    consph_sys a, b;
+    CHECK(consph_sys_init(&a, &src, &k, 0.0) == CONSPH_OK, "sys a");
+    CHECK(consph_sys_init(&b, &src, &k, 0.0) == CONSPH_OK, "sys b");
+    CHECK(consph_sys_nlist(&b, 0.0, NULL, 0) == CONSPH_OK, "nlist b");
+    /* W alone first, so the second pass's W'/r and W'' come from the hint's batch */
+    const consph_pass pass_w = {"w", CONSPH_PASS_W, visit_moments_w};
+    moments ma = {malloc(6 * n * sizeof(double))}, mb = {malloc(6 * n * sizeof(double))};
+    moments wa = {malloc(6 * n * sizeof(double))}, wb = {malloc(6 * n * sizeof(double))};
+    size_t before = 0;
+    for (int round = 0; round < 3; ++round) {
+        consph_nlist_info info;
+        consph_sys_nlist_info(&b, &info);
+        before = info.caches;
+        consph_sys_expect_passes(&b, 2, CONSPH_PASS_W | CONSPH_PASS_DW | CONSPH_PASS_D2W);
+        CHECK(consph_pass_run(&b, &pass_w, &wb) == CONSPH_OK, "pass w b");
+        CHECK(consph_pass_run(&b, &pass_moments, &mb) == CONSPH_OK, "pass b");
+        CHECK(consph_pass_run(&a, &pass_w, &wa) == CONSPH_OK, "pass w a");
+        CHECK(consph_pass_run(&a, &pass_moments, &ma) == CONSPH_OK, "pass a");
+        consph_sys_nlist_info(&b, &info);
+        CHECK(info.caches == before + 1, "round %d: the hinted state made %zu caches", round,
+              info.caches - before);
+        CHECK(memcmp(ma.out, mb.out, 6 * n * sizeof(double)) == 0 &&
+                  memcmp(wa.out, wb.out, 6 * n * sizeof(double)) == 0,
+              "round %d: the hinted cache differs from the gather", round);
+        /* a state with one pass between: without the hint the next would gather */
+        for (size_t i = 0; i < n; ++i) {
+            const double d = 0.05 / (double)nx * (2.0 * consph_rng_uniform(&rng) - 1.0);
+            double x = a.p->x[0][i] + d;
+            x -= floor(x);
+            a.p->x[0][i] = b.p->x[0][i] = x >= 1.0 ? 0.0 : x;
+        }
+        CHECK(consph_sys_update(&a, 0) == CONSPH_OK && consph_sys_update(&b, 0) == CONSPH_OK,
+              "update");
+        CHECK(consph_pass_run(&b, &pass_w, &wb) == CONSPH_OK, "pass w b");
+        for (size_t i = 0; i < n; ++i) {
+            double x = a.p->x[1][i] + 0.01 / (double)nx;
+            x -= floor(x);
+            a.p->x[1][i] = b.p->x[1][i] = x >= 1.0 ? 0.0 : x;
+        }
+        CHECK(consph_sys_update(&a, 1) == CONSPH_OK && consph_sys_update(&b, 1) == CONSPH_OK,
+              "update");
+    }
+    /* no list: the hint does nothing */
+    consph_sys_expect_passes(&a, 2, CONSPH_PASS_W);
+    CHECK(consph_pass_run(&a, &pass_w, &wa) == CONSPH_OK, "pass a after a hint");
+    free(ma.out);
+    free(mb.out);
+    free(wa.out);
+    free(wb.out);
+    consph_sys_free(&a);
+    consph_sys_free(&b);
     consph_particles_free(&src);
 }
 
@@ -414,6 +500,7 @@ int main(void)
     test_brute(2, 60, 0.5, 0.1, "2D, box < 2 radius");
     test_brute(3, 40, 0.5, 0.1, "3D, box < 2 radius");
     test_skin0_bits();
+    test_hint();
     const char *schemes[] = {"wcsph", "edac", "tvf", "l-ipst-c", "delta-plus-sph", "tv-c"};
     for (size_t k = 0; k < sizeof schemes / sizeof schemes[0]; ++k) test_solver(schemes[k]);
     return check_summary("test_nlist");

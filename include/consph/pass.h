@@ -150,6 +150,13 @@ typedef struct consph_nlist_info {
 
 void consph_sys_nlist_info(const consph_sys *s, consph_nlist_info *info);
 
+/* Tells the system's neighbour list that `passes` passes, needing together the kernel values
+ * `need` (CONSPH_PASS_W, _DW, _D2W), will read the current positions (until the next
+ * consph_sys_update). With 2 or more the first of them caches the pairs with all those values
+ * (one gather and one kernel batch for all), whatever the previous state's passes were. A hint
+ * only: it changes no result, and does nothing on a system without a list. */
+void consph_sys_expect_passes(consph_sys *s, int passes, unsigned need);
+
 /* Sets the destination mask (n entries in the system's particle order; copied), or clears it
  * with NULL. */
 int consph_sys_set_dest(consph_sys *s, const unsigned char *dest);

@@ -66,6 +66,11 @@ struct consph_nlist {
     /* passes run on this position state and on the one before (whether a cache pays) */
     unsigned long state_epoch;
     int passes_state, passes_last;
+    /* consph_sys_expect_passes: the state (epoch) it was given for, how many passes and the
+     * kernel values they need together */
+    unsigned long hint_epoch;
+    int hint_passes;
+    unsigned hint_need;
     size_t builds, caches, ncand, npairs;
     char note[200];
 };
@@ -788,13 +793,20 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
     }
     ++l->passes_state;
     const int fresh = l->cache_epoch != l->epoch || !l->caches;
+    const int hinted = l->hint_epoch == l->epoch && l->hint_passes >= 2;
+    if (hinted) {
+        if (l->hint_need & CONSPH_PASS_W) want |= CONSPH_PASS_W;
+        if (l->hint_need & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) want |= CONSPH_PASS_DW;
+        if (l->hint_need & CONSPH_PASS_D2W) want |= CONSPH_PASS_D2W;
+    }
     /* A cache pays where several passes read one position state; one or two passes are served
      * better by filtering each particle's candidates into a small buffer that stays in the
      * processor's cache (measured: edac and tvf, two passes per state, ran 5 % slower from a
      * cache; L-IPST-C, three, 15 % faster). Both compute the same values, so the choice changes
-     * no result. */
-    if (fresh &&
-        (l->passes_last < NLIST_CACHE_PASSES || l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n))
+     * no result. A caller that knows how many passes will read the state says so
+     * (consph_sys_expect_passes) and is believed over the previous state's count. */
+    if (fresh && ((!hinted && l->passes_last < NLIST_CACHE_PASSES) ||
+                  l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n))
         return l->skin == 0.0 ? NLIST_GATHER : stream_pass(s, pass, job, pairs);
     if (fresh) l->have = 0;
     const unsigned missing = want & ~l->have;
@@ -861,6 +873,15 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
     }
     if (pairs) *pairs += visited;
     return CONSPH_OK;
+}
+
+void consph_sys_expect_passes(consph_sys *s, int passes, unsigned need)
+{
+    consph_nlist *l = s ? s->nlist : NULL;
+    if (!l || l->off) return;
+    l->hint_epoch = l->epoch;
+    l->hint_passes = passes;
+    l->hint_need = need;
 }
 
 /* ---- turning it on ---- */

@@ -90,18 +90,37 @@ typedef struct ipst_job {
 } ipst_job;
 
 /* Eq. 19: δx_i = h Σ_j (x_ij/r_ij) W_ij ω_j. A neighbour at r = 0 (i itself, or a coincident
- * particle) has no direction and adds nothing. */
-static void ipst_visit(void *job, const consph_nbhd *nb)
+ * particle) has no direction and adds nothing. d known at compile time, so the sums stay in
+ * registers (with d read at run time they went through memory at every pair). */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline void
+ipst_body(const ipst_job *a, const consph_nbhd *nb, const int D)
 {
-    const ipst_job *a = job;
-    double acc[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+    const double *vol = a->vol, *w = nb->w, *r = nb->r;
+    const size_t *j = nb->j;
+    double acc[3] = {0.0, 0.0, 0.0};
     for (size_t q = 0; q < nb->n; ++q) {
-        const double r = nb->r[q];
-        if (!(r > 0.0)) continue;
-        const double f = nb->w[q] * a->vol[nb->j[q]] / r;
-        for (int c = 0; c < a->dim; ++c) acc[c] += f * nb->dx[c][q];
+        const double rq = r[q];
+        if (!(rq > 0.0)) continue;
+        const double f = w[q] * vol[j[q]] / rq;
+        for (int c = 0; c < D; ++c) acc[c] += f * nb->dx[c][q];
     }
-    for (int c = 0; c < a->dim; ++c) a->step[(size_t)c * a->cap + nb->i] = a->h * acc[c];
+    for (int c = 0; c < D; ++c) a->step[(size_t)c * a->cap + nb->i] = a->h * acc[c];
+}
+
+static void ipst_visit_1(void *job, const consph_nbhd *nb)
+{
+    ipst_body(job, nb, 1);
+}
+static void ipst_visit_2(void *job, const consph_nbhd *nb)
+{
+    ipst_body(job, nb, 2);
+}
+static void ipst_visit_3(void *job, const consph_nbhd *nb)
+{
+    ipst_body(job, nb, 3);
 }
 
 /* Writes ω = 1/Σ_j W_ij into vol and returns max_i h^d Σ_j W_ij (NaN when any sum is NaN). */
@@ -144,10 +163,15 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
     double *total = consph_calloc((size_t)d * cap, sizeof(double));
     int rc = (sumw && step && total) ? CONSPH_OK : CONSPH_ENOMEM;
     ipst_job job = {prm->h, vol, step, cap, d};
-    const consph_pass pass = {"IPST shift (001 eq. 19)", CONSPH_PASS_W, ipst_visit};
+    static const consph_visit_fn visits[3] = {ipst_visit_1, ipst_visit_2, ipst_visit_3};
+    const consph_pass pass = {"IPST shift (001 eq. 19)", CONSPH_PASS_W, visits[d - 1]};
     int iterations = 0;
     double chi_max = NAN;
     while (rc == CONSPH_OK) {
+        /* Each position state is read by the volumes' pass and, unless eq. 21 stops the
+         * iteration, the shift's: one gather and one kernel batch for both where the system
+         * keeps a neighbour list (its pair cache; the same values). */
+        consph_sys_expect_passes(s, iterations < prm->max_iter ? 2 : 1, CONSPH_PASS_W);
         /* The volumes are those of the current positions; the last refresh leaves "volume"
          * matching the positions the call returns. */
         if ((rc = ipst_volumes(s, prm->h, sumw, vol, &chi_max))) break;
@@ -197,14 +221,19 @@ typedef struct pst_job {
 } pst_job;
 
 /* δr_i = -CFL·Ma·(2h)² Σ_j [1 + R (W_ij/W(Δs))^n] ∇W_ij V_j, capped in length. The self term
- * has ∇W = 0. */
-static void pst_visit(void *job, const consph_nbhd *nb)
+ * has ∇W = 0. n4: n is 4 (every caller's), the power taken as (t²)², which differs from pow()
+ * at round-off and costs a fraction of it. */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline void
+pst_body(const pst_job *a, const consph_nbhd *nb, const int n4)
 {
-    const pst_job *a = job;
     double acc[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
     for (size_t q = 0; q < nb->n; ++q) {
+        const double t = nb->w[q] * a->inv_wds, t2 = t * t;
         const double f =
-            (1.0 + a->R * pow(nb->w[q] * a->inv_wds, a->n)) * nb->dwr[q] * a->vol[nb->j[q]];
+            (1.0 + a->R * (n4 ? t2 * t2 : pow(t, a->n))) * nb->dwr[q] * a->vol[nb->j[q]];
         for (int c = 0; c < a->dim; ++c) acc[c] += f * nb->dx[c][q];
     }
     double len2 = 0.0;
@@ -215,6 +244,15 @@ static void pst_visit(void *job, const consph_nbhd *nb)
     const double len = sqrt(len2);
     const double scale = len > a->cap_len ? a->cap_len / len : 1.0;
     for (int c = 0; c < a->dim; ++c) a->dr[(size_t)c * a->cap + nb->i] = scale * acc[c];
+}
+
+static void pst_visit(void *job, const consph_nbhd *nb)
+{
+    pst_body(job, nb, 0);
+}
+static void pst_visit_n4(void *job, const consph_nbhd *nb)
+{
+    pst_body(job, nb, 1);
 }
 
 int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr)
@@ -251,13 +289,15 @@ int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr)
                    dr,
                    cap,
                    s->p->dim};
-    const consph_pass pass = {"PST of Sun et al.", CONSPH_PASS_W | CONSPH_PASS_DW, pst_visit};
+    const consph_pass pass = {"PST of Sun et al.", CONSPH_PASS_W | CONSPH_PASS_DW,
+                              prm->n == 4.0 ? pst_visit_n4 : pst_visit};
     return consph_pass_run(s, &pass, &job);
 }
 
 /* ---- remeshing ---- */
 
 typedef struct remesh_job {
+    const consph_kernel *m4;
     const size_t *origin; /* of the joint system: < n lattice point, else n + particle */
     size_t n, cap;
     int nf;
@@ -278,8 +318,16 @@ static void remesh_visit(void *job, const consph_nbhd *nb)
         for (int c = 0; c < a->f[f]->ncomp; ++c) a->out[(a->off[f] + (size_t)c) * a->n + k] = 0.0;
     for (size_t q = 0; q < nb->n; ++q) {
         const size_t o = a->origin[nb->j[q]];
-        const double w = nb->w[q];
-        if (o < a->n || w == 0.0) continue;
+        if (o < a->n) continue;
+        /* M4 of the separation (consph_kernel_w_vec's product), for the particles only: the
+         * pass evaluates no kernel, half the neighbours being other lattice points */
+        const consph_kernel *m4 = a->m4;
+        double w = m4->norm;
+        for (int c = 0; c < m4->dim && w != 0.0; ++c) {
+            const double qa = fabs(nb->dx[c][q]) * m4->inv_h;
+            w = qa < m4->support ? w * m4->f(qa) : 0.0;
+        }
+        if (w == 0.0) continue;
         const size_t j = o - a->n;
         wsum += w;
         for (int f = 0; f < a->nf; ++f)
@@ -362,8 +410,8 @@ int reg_remesh_m4(consph_sys *s, const double *lattice, double ds, const char *c
         rc = consph_sys_set_dest(&sys, mask);
     }
     if (!rc) {
-        remesh_job job = {sys.origin, n, cap, nf, f, off, out, orphan};
-        const consph_pass pass = {"remesh M4 (001 eq. 33)", CONSPH_PASS_W, remesh_visit};
+        remesh_job job = {&k, sys.origin, n, cap, nf, f, off, out, orphan};
+        const consph_pass pass = {"remesh M4 (001 eq. 33)", 0u, remesh_visit};
         rc = consph_pass_run(&sys, &pass, &job);
     }
     if (!rc) {

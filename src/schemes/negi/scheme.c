@@ -25,6 +25,11 @@ static int rates(consph_solver *s, const negi_terms *t)
     const size_t n = p->n, cap = p->cap;
     int st = CONSPH_OK;
     s->passes = 0;
+    /* The volumes, the kit's two passes and TV-C's shifting read this position state: one
+     * gather and one kernel batch for all of them (the neighbour list's pair cache). */
+    consph_sys_expect_passes(sys, 2 + !s->volumes_fixed + (t->transport != 0),
+                             CONSPH_PASS_W | CONSPH_PASS_DW |
+                                 (t->lap == KIT_LAP_KORZILIUS ? CONSPH_PASS_D2W : 0u));
     if (!s->volumes_fixed) {
         st = kit_volumes(sys, &s->pairs);
         if (st != CONSPH_OK) return st;
@@ -98,6 +103,8 @@ static int rates(consph_solver *s, const negi_terms *t)
 static int gradients_for_shift(consph_solver *s)
 {
     int passes = 0;
+    /* These two passes and the shifting's first (IPST's volumes, or the PST) read this state */
+    consph_sys_expect_passes(&s->sys, 3, CONSPH_PASS_W | CONSPH_PASS_DW);
     int st = kit_volumes(&s->sys, &s->pairs);
     kit_req rq = {KIT_GRADU | KIT_GRADQ, KIT_LAP_COUPLED, s->scheme->evolve_p ? SF_P : SF_RHOF,
                   1e8};
