@@ -29,8 +29,13 @@
 
 #if defined(__CUDACC__)
 #define GPU_FN __host__ __device__ static inline
+#define GPU_FN_INLINE __host__ __device__ static __forceinline__
+#elif defined(__GNUC__)
+#define GPU_FN static inline
+#define GPU_FN_INLINE static inline __attribute__((always_inline))
 #else
 #define GPU_FN static inline
+#define GPU_FN_INLINE static inline
 #endif
 
 /* The search grid, as src/nnps/nnps.c sets it up (gpu.c's grid_setup), padded to three axes. */
@@ -379,10 +384,10 @@ GPU_FN void dev_edac_density(const gpu_view *v, size_t i)
     gv(v, GA_PAVG, 0)[i] = ps / (double)cnt;
 }
 
-/* The rates of tvf/edac at particle i (visit_tv_d with edac; the closure ϱ = m Σ W after). */
-GPU_FN void dev_edac_rates(const gpu_view *v, size_t i)
+/* The rates of tvf/edac at particle i (visit_tv_d with edac; the closure ϱ = m Σ W after), for
+ * a dimension and gradients known at compile time: every small array is then registers. */
+GPU_FN_INLINE void dev_edac_rates_d(const gpu_view *v, size_t i, const int d, const int grads)
 {
-    const int d = v->d, grads = v->grads;
     const pysph_consts *c = &v->c;
     const double *rho = gv(v, GA_RHOS, 0), *p = gv(v, GA_P, 0);
     const double rhoi = rho[i], pi = p[i], Vi = v->vol[i], pav = gv(v, GA_PAVG, 0)[i];
@@ -429,6 +434,21 @@ GPU_FN void dev_edac_rates(const gpu_view *v, size_t i)
     }
     gv(v, GA_DIVU, 0)[i] = div;
     gv(v, GA_RHOF, 0)[i] = rhoi;
+}
+
+GPU_FN void dev_edac_rates(const gpu_view *v, size_t i)
+{
+    if (v->d == 2) {
+        if (v->grads)
+            dev_edac_rates_d(v, i, 2, 1);
+        else
+            dev_edac_rates_d(v, i, 2, 0);
+    } else {
+        if (v->grads)
+            dev_edac_rates_d(v, i, 3, 1);
+        else
+            dev_edac_rates_d(v, i, 3, 0);
+    }
 }
 
 #endif

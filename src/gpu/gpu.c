@@ -16,6 +16,7 @@ struct gpu_run {
     gpu_view v;       /* device pointers */
     int nfields;      /* the particles' field count at the attach (checked at each copy) */
     double *dev_a[2]; /* the two blocks of arrays (v.a, v.b swap at each re-sort) */
+    size_t bytes;     /* device memory allocated */
 };
 
 /* ---- the emulation backend ---- */
@@ -375,6 +376,8 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
         st = be_fail(be, "device memory");
     v->a = g->dev_a[0];
     v->b = g->dev_a[1];
+    g->bytes = 2 * nd + 2 * n * sizeof(double) + (size_t)d * n * sizeof(double) +
+               2 * n * sizeof(uint32_t) + 2 * nc;
     if (st == CONSPH_OK) st = copy_arrays(s, 1);
     if (st != CONSPH_OK) {
         s->gpu = NULL;
@@ -459,4 +462,9 @@ int consph_solver_set_device(consph_solver *s, consph_device device)
     const gpu_backend *be = gpu_cuda_backend(why, sizeof why);
     if (!be) return consph_fail(CONSPH_EINVAL, "--device gpu: %s", why);
     return gpu_attach(s, be);
+}
+
+size_t gpu_device_bytes(const consph_solver *s)
+{
+    return s->gpu ? s->gpu->bytes : 0;
 }

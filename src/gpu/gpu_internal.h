@@ -59,6 +59,8 @@ int gpu_step(struct consph_solver *s, double dt, int *synced);
 /* Copies the device's state into the solver's particles and rebuilds the host search. */
 int gpu_download(struct consph_solver *s);
 void gpu_free(struct gpu_run *g);
+/* The device memory the solver's GPU state holds (what gpu_attach allocated; 0 on the CPU). */
+size_t gpu_device_bytes(const struct consph_solver *s);
 
 #ifdef __cplusplus
 }
