@@ -10,12 +10,19 @@
 #      bench/gpu.md.
 # Without nvcc or a GPU it runs what it can (the CPU columns) and says what it skipped.
 #
+# Where the GPU machine cannot build (no cmake, no zlib headers), build here and carry build-gpu:
+#   bash bench/gpu.sh --build-only        # here, with nvcc: build-gpu/ (no MPI, static CUDA runtime)
+#   bash bench/gpu.sh --no-build --out "$OUT"   # there, build-gpu carried
+# With neither flag the script builds, and falls back to a carried build-gpu when the build fails.
+#
 # Usage: bash bench/gpu.sh [--out DIR] [--quick] [--emulate] [--budget SECONDS] [--no-build]
+#                          [--build-only]
 #   --out DIR     where gpu.md, results.txt and the logs go (default: build-gpu/gpu-out)
 #   --quick       small sizes (a check of the script: 2D nx 40 and 60, 3D nx 12)
 #   --emulate     the GPU columns from the host emulation (no GPU needed; slow: small sizes)
 #   --budget S    no case starts after S seconds (default 330); each case runs under timeout
 #   --no-build    use build-gpu/ as it is
+#   --build-only  build build-gpu/ and stop
 # Environment: NVCC (the compiler; "none": build without CUDA), BUILD (default build-gpu),
 # CASES (a list of dim:nx, default "2:316 2:1000 2:3162 3:100"), THREADS (default: nproc).
 set -u
@@ -26,6 +33,7 @@ quick=0
 emulate=0
 budget=330
 build=1
+build_only=0
 while [ $# -gt 0 ]; do
     case "$1" in
     --out)
@@ -36,6 +44,7 @@ while [ $# -gt 0 ]; do
     --quick) quick=1; shift ;;
     --emulate) emulate=1; shift ;;
     --no-build) build=0; shift ;;
+    --build-only) build_only=1; shift ;;
     --budget)
         [ $# -ge 2 ] && [[ "$2" =~ ^[0-9]+$ ]] ||
             { echo "bench/gpu.sh: --budget needs a whole number of seconds" >&2; exit 2; }
@@ -62,6 +71,7 @@ log() { echo "[$(($(date +%s) - start)) s] $*" | tee -a "$out/run.log"; }
 # ---- 1. the build ----
 nvcc=${NVCC:-$(command -v nvcc || { [ -x /usr/local/cuda/bin/nvcc ] && echo /usr/local/cuda/bin/nvcc; })}
 [ -n "$nvcc" ] || nvcc=none
+have_build() { [ -x "$bdir/consph" ] && [ -x "$bdir/bench/bench_gpu" ] && [ -x "$bdir/tests/test_gpu_cuda" ]; }
 if [ $build = 1 ]; then
     if [ "$nvcc" = none ]; then
         log "build: no nvcc, building without CUDA"
@@ -70,18 +80,49 @@ if [ $build = 1 ]; then
         log "build: $nvcc"
         cuda=(-DCONSPH_CUDA=ON -DCMAKE_CUDA_COMPILER="$nvcc")
     fi
-    { cmake -S . -B "$bdir" -DCMAKE_BUILD_TYPE=Release "${cuda[@]}" &&
+    # no MPI: a build carried to another machine then needs only the C, OpenMP and zlib
+    # runtimes and the GPU driver there
+    if ! { cmake -S . -B "$bdir" -DCMAKE_BUILD_TYPE=Release -DCONSPH_MPI=OFF "${cuda[@]}" &&
         cmake --build "$bdir" -j "$threads" --target consph bench_gpu test_gpu_emul test_gpu_cuda; } \
-        >"$out/build.log" 2>&1 || { log "build failed: $out/build.log"; tail -20 "$out/build.log"; exit 1; }
+        >"$out/build.log" 2>&1; then
+        tail -20 "$out/build.log"
+        if have_build && [ $build_only = 0 ]; then
+            log "build failed ($out/build.log): using the build-gpu that is there (carried?)"
+        else
+            log "build failed: $out/build.log"
+            exit 1
+        fi
+    fi
 fi
+if [ $build_only = 1 ]; then
+    log "built $bdir (carry it: bash bench/gpu.sh --no-build there)"
+    exit 0
+fi
+have_build || { log "no build in $bdir (consph, bench/bench_gpu, tests/test_gpu_cuda)"; exit 1; }
 "$bdir/consph" run taylor-green --scheme edac --nx 8 --steps 1 --device gpu 2>&1 |
     grep -q "without GPU support" && cuda_built=no || cuda_built=yes
 log "build done (CUDA: $cuda_built)"
 
-# ---- 2. the GPU tests ----
-(cd "$bdir" && timeout 240 ctest -L gpu --output-on-failure) >"$out/ctest.log" 2>&1
-ctest_rc=$?
-log "ctest -L gpu: exit $ctest_rc ($(grep -E 'tests passed|tests failed' "$out/ctest.log" | tail -1))"
+# ---- 2. the GPU tests (ctest -L gpu's, run directly: a carried build's CTest files name the
+# paths of the machine that built it) ----
+ctest_rc=0
+tests_line=""
+: >"$out/ctest.log"
+for t in "$bdir/tests/test_gpu_emul" "$bdir/tests/test_gpu_cuda" \
+    "bash tests/cli_gpu.sh $bdir/consph $root"; do
+    name=$(basename "${t%% *}")
+    [ "$name" = bash ] && name=cli_gpu
+    echo "== $name" >>"$out/ctest.log"
+    OMP_NUM_THREADS=4 timeout 240 $t >>"$out/ctest.log" 2>&1
+    rc=$?
+    case $rc in
+    0) r=passed ;;
+    77) r=skipped ;;
+    *) r="FAILED ($rc)"; ctest_rc=1 ;;
+    esac
+    tests_line="$tests_line $name $r;"
+done
+log "GPU tests:$tests_line"
 
 # ---- 3. the cases ----
 if [ $quick = 1 ]; then
@@ -129,7 +170,7 @@ commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null)
     echo "GPU:   ${gpu_name:-none found}"
     echo "CPU:   $cpu_name, $(nproc) cores; all-core columns on $threads threads"
     echo "nvcc:  ${nvcc_ver:-none} (CUDA built: $cuda_built)"
-    echo "tests: ctest -L gpu exit $ctest_rc: $(grep -E 'tests passed|tests failed' "$out/ctest.log" | tail -1)"
+    echo "tests (ctest -L gpu):$tests_line"
     [ $emulate = 1 ] && echo "GPU columns: the host emulation (--emulate), not a GPU"
     why=$(grep -m1 -o 'gpu_why="[^"]*"' "$out/results.txt" | cut -d'"' -f2)
     [ -n "$why" ] && echo "GPU columns: none, $why"
@@ -162,8 +203,9 @@ commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null)
     }
     END { if (bad != "") print "\nFailed cases:" bad " (raw/*.err)" }' "$out/results.txt"
     echo
-    echo "Raw: results.txt (bench_gpu's lines), run.log, build.log, ctest.log, raw/*.err."
+    echo "Raw: results.txt (bench_gpu's lines), run.log, build.log, ctest.log (the tests' output), raw/*.err."
 } >"$out/gpu.md"
 [ "$out" != "$root/bench" ] && cp "$out/gpu.md" "$root/bench/gpu.md" 2>/dev/null
 log "wrote $out/gpu.md"
 cat "$out/gpu.md"
+exit $ctest_rc

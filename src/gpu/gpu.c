@@ -107,6 +107,16 @@ const gpu_backend *gpu_cuda_backend(char *why, size_t len)
 
 /* ---- what the GPU runs ---- */
 
+/* The CUDA backend; CONSPH_GPU_BACKEND=emulation in the environment puts the host emulation in
+ * its place, so that the CLI's GPU path (lazy copies, snapshots, checkpoints) is tested end to end
+ * on machines without a GPU (tests/cli_gpu.sh). */
+static const gpu_backend *find_backend(char *why, size_t len)
+{
+    const char *e = getenv("CONSPH_GPU_BACKEND");
+    if (e && strcmp(e, "emulation") == 0) return &gpu_emulation;
+    return gpu_cuda_backend(why, len);
+}
+
 const char *consph_gpu_schemes(void)
 {
     return "edac";
@@ -115,7 +125,7 @@ const char *consph_gpu_schemes(void)
 int consph_gpu_available(char *why, size_t len)
 {
     char buf[256];
-    const gpu_backend *be = gpu_cuda_backend(buf, sizeof buf);
+    const gpu_backend *be = find_backend(buf, sizeof buf);
     if (why && len) snprintf(why, len, "%s", be ? "" : buf);
     return be != NULL;
 }
@@ -459,7 +469,7 @@ int consph_solver_set_device(consph_solver *s, consph_device device)
     if (device != CONSPH_DEVICE_GPU)
         return consph_fail(CONSPH_EINVAL, "device %d is neither the CPU nor the GPU", (int)device);
     char why[256];
-    const gpu_backend *be = gpu_cuda_backend(why, sizeof why);
+    const gpu_backend *be = find_backend(why, sizeof why);
     if (!be) return consph_fail(CONSPH_EINVAL, "--device gpu: %s", why);
     return gpu_attach(s, be);
 }
