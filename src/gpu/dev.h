@@ -44,7 +44,9 @@ typedef struct gpu_grid {
     int periodic[3];
     int64_t nc[3], reach[3];
     double lo[3], hi[3], len[3], inv_h[3]; /* len = hi - lo */
+    double h[3];                           /* cell edges, len / nc */
     double radius2;
+    double prune2; /* (radius + 4 slack)²: a cell farther from the point holds no neighbour */
     size_t ncells;
 } gpu_grid;
 
@@ -234,10 +236,27 @@ GPU_FN int64_t gpu_floor_div(int64_t u, int64_t d)
     return (u % d != 0 && u < 0) ? q - 1 : q;
 }
 
-/* Points the walk at its current unwrapped cell u: the cell's slots and the image shift. */
+/* Points the walk at its current unwrapped cell u: the cell's slots and the image shift; no slots
+ * when the cell lies farther than the radius (widened by the rounding of binning, as the CPU's
+ * walk widens it by its slack) from the point: such a cell holds no neighbour, so skipping it
+ * changes which cells are read, never the neighbours or their order. */
 GPU_FN void gpu_walk_cell(const gpu_view *v, gpu_walk *w)
 {
     const gpu_grid *g = &v->g;
+    double gap2 = 0.0;
+    for (int a = 0; a < g->dim; ++a) {
+        const double lo = g->lo[a] + (double)w->u[a] * g->h[a];
+        const double hi = g->lo[a] + (double)(w->u[a] + 1) * g->h[a];
+        const int open_lo = !g->periodic[a] && w->u[a] == 0;
+        const int open_hi = !g->periodic[a] && w->u[a] == g->nc[a] - 1;
+        const double x = w->xi[a];
+        const double gap = (!open_lo && x < lo) ? lo - x : (!open_hi && x > hi) ? x - hi : 0.0;
+        gap2 += gap * gap;
+    }
+    if (gap2 > g->prune2) {
+        w->s = w->s1 = 0;
+        return;
+    }
     size_t cell = 0;
     double shift[3] = {0.0, 0.0, 0.0};
     for (int a = 2; a >= 0; --a) {
@@ -258,7 +277,7 @@ GPU_FN void gpu_walk_start(const gpu_view *v, size_t i, gpu_walk *w)
 {
     const gpu_grid *g = &v->g;
     for (int a = 0; a < 3; ++a) {
-        w->xi[a] = 0.0;
+        w->xi[a] = w->q[a] = 0.0;
         w->c[a] = 0;
         w->ua[a] = w->ub[a] = 0;
         if (a >= g->dim) continue;

@@ -228,11 +228,14 @@ static void grid_setup(gpu_grid *g, const consph_box *box, int dim, double radiu
         g->ncells *= (size_t)g->nc[a];
         if (a >= dim) continue;
         const double h = g->len[a] / v[a];
+        g->h[a] = h;
         g->inv_h[a] = v[a] / g->len[a];
         double k = ceil((radius + 2.0 * slack[a]) / h);
         if (!g->periodic[a]) k = fmin(k, v[a] - 1.0);
         g->reach[a] = (int64_t)k;
     }
+    const double slack_max = fmax(slack[0], fmax(slack[1], slack[2]));
+    g->prune2 = (radius + 4.0 * slack_max) * (radius + 4.0 * slack_max);
 }
 
 /* ---- the copies between the solver's particles and the device ---- */
