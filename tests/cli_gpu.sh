@@ -3,7 +3,7 @@
 # (naming those that are), --checkpoint-every, an option of heat, a build without GPU support or
 # a machine without a device. The GPU path of the CLI on the host emulation
 # (CONSPH_GPU_BACKEND=emulation), and on the GPU where one is found: the run's log, snapshots,
-# final checkpoint and summary equal the CPU run's byte for byte (edac, 2D and 3D).
+# final checkpoint and summary equal the CPU run's byte for byte (edac and wcsph, 2D and 3D).
 # Usage: bash cli_gpu.sh PATH-TO-CONSPH SOURCE-DIR
 set -u
 consph=$1
@@ -12,7 +12,7 @@ trap 'rm -rf "$work"' EXIT
 . "$2/tests/lib_cli.sh"
 
 run() { "$consph" run taylor-green --nx 16 --steps 3 --threads 1 "$@"; }
-failing 2 "allowed: edac" "$work/o" -- run --scheme wcsph --device gpu && pass=$((pass + 1))
+failing 2 "allowed: edac,wcsph" "$work/o" -- run --scheme tvf --device gpu && pass=$((pass + 1))
 failing 2 "allowed: cpu,gpu" "$work/o" -- run --scheme edac --device tpu && pass=$((pass + 1))
 failing 2 "--checkpoint-every" "$work/o" -- run --scheme edac --device gpu --out "$work/ck" \
     --checkpoint-every 2 && pass=$((pass + 1))
@@ -31,7 +31,7 @@ same_files() {
     local backend=$1 case=$2 d
     for d in cpu gpu; do
         # shellcheck disable=SC2086
-        CONSPH_GPU_BACKEND=$backend "$consph" run $case --scheme edac --device $d \
+        CONSPH_GPU_BACKEND=$backend "$consph" run $case --device $d \
             --out "$work/$d" --overwrite --format json >"$work/$d.json" || bad "$case on the $d"
     done
     local n=0 f
@@ -47,8 +47,9 @@ same_files() {
     pass=$((pass + 1))
 }
 # the host emulation behind the CLI: everywhere
-same_files emulation "taylor-green --nx 24 --steps 12 --log-every 5 --snapshot-every 4"
-same_files emulation "beltrami --nx 8 --steps 6 --log-every 4"
+same_files emulation "taylor-green --scheme edac --nx 24 --steps 12 --log-every 5 --snapshot-every 4"
+same_files emulation "beltrami --scheme edac --nx 8 --steps 6 --log-every 4"
+same_files emulation "taylor-green --scheme wcsph --nx 24 --steps 8 --log-every 3 --snapshot-every 5"
 
 run --scheme edac --device gpu >"$work/o" 2>"$work/err"
 rc=$?
@@ -60,8 +61,10 @@ if [ $rc = 2 ]; then
         bad "no GPU: $(cat "$work/err")"
     fi
 elif [ $rc = 0 ]; then
-    same_files "" "taylor-green --nx 64 --steps 20 --snapshot-every 7"
-    same_files "" "beltrami --nx 12 --steps 10"
+    for scheme in edac wcsph; do
+        same_files "" "taylor-green --scheme $scheme --nx 64 --steps 20 --snapshot-every 7"
+        same_files "" "beltrami --scheme $scheme --nx 12 --steps 10"
+    done
 else
     bad "edac --device gpu: exit $rc: $(cat "$work/err")"
 fi

@@ -11,12 +11,12 @@
 #include "gpu/gpu_internal.h"
 #include "solver/solver_internal.h"
 
-static consph_solver *make(const char *problem, int nx, int steps, int lazy)
+static consph_solver *make(const char *scheme, const char *problem, int nx, int steps, int lazy)
 {
     consph_run_params p;
     consph_run_params_default(&p);
     CHECK(consph_run_params_problem(&p, problem) == CONSPH_OK, "problem %s", problem);
-    snprintf(p.scheme, sizeof p.scheme, "edac");
+    snprintf(p.scheme, sizeof p.scheme, "%s", scheme);
     p.nx = nx;
     p.steps = steps;
     p.tf = 0.0;
@@ -57,43 +57,45 @@ static void same_state(const consph_solver *a, const consph_solver *b, const cha
           a->step, a->t, b->step, b->t);
 }
 
-static void gpu_compare(const gpu_backend *be, const char *problem, int nx, int lazy)
+static void gpu_compare(const gpu_backend *be, const char *scheme, const char *problem, int nx,
+                        int lazy)
 {
     enum { STEPS = 20 };
-    char what[96];
+    char what[128];
     /* one step more than the GPU runs: the last on the CPU, from the state copied back */
-    consph_solver *cpu = make(problem, nx, STEPS + 1, lazy),
-                  *emu = make(problem, nx, STEPS + 1, lazy);
+    consph_solver *cpu = make(scheme, problem, nx, STEPS + 1, lazy),
+                  *emu = make(scheme, problem, nx, STEPS + 1, lazy);
     if (!cpu || !emu) goto done;
     int st = gpu_attach(emu, be);
     CHECK(st == CONSPH_OK, "attach: %s", consph_last_error());
     if (st != CONSPH_OK) goto done;
     for (int k = 1; k <= STEPS; ++k) {
         int a = consph_solver_step(cpu), b = consph_solver_step(emu);
-        CHECK(a == CONSPH_OK && b == CONSPH_OK, "%s step %d: %s", problem, k, consph_last_error());
+        CHECK(a == CONSPH_OK && b == CONSPH_OK, "%s %s step %d: %s", scheme, problem, k,
+              consph_last_error());
         if (a != CONSPH_OK || b != CONSPH_OK) break;
         /* lazily, the state is on the host at the log samples only (log_every 7) */
         if ((!lazy && (k == 1 || k == STEPS)) || (lazy && k % 7 == 0)) {
-            snprintf(what, sizeof what, "%s: %s nx %d%s after step %d", be->name, problem, nx,
-                     lazy ? " (lazy gradients)" : "", k);
+            snprintf(what, sizeof what, "%s: %s %s nx %d%s after step %d", be->name, scheme,
+                     problem, nx, lazy ? " (lazy gradients)" : "", k);
             same_state(cpu, emu, what);
         }
     }
     /* the diagnostics sampled from the copied-back state: the same log */
     CHECK(cpu->nhist == emu->nhist &&
               memcmp(cpu->hist, emu->hist, cpu->nhist * HIST_COLS * sizeof(double)) == 0,
-          "%s: the logged diagnostics differ", problem);
+          "%s %s: the logged diagnostics differ", scheme, problem);
     /* back to the host: the state comes back, and the CPU steps on from it */
     CHECK(consph_solver_set_device(emu, CONSPH_DEVICE_CPU) == CONSPH_OK, "to the CPU: %s",
           consph_last_error());
     CHECK(emu->gpu == NULL, "still on the device");
-    snprintf(what, sizeof what, "%s: %s nx %d%s back on the host", be->name, problem, nx,
+    snprintf(what, sizeof what, "%s: %s %s nx %d%s back on the host", be->name, scheme, problem, nx,
              lazy ? " (lazy gradients)" : "");
     same_state(cpu, emu, what);
     CHECK(consph_solver_step(cpu) == CONSPH_OK && consph_solver_step(emu) == CONSPH_OK,
           "the step after: %s", consph_last_error());
-    snprintf(what, sizeof what, "%s: %s nx %d%s, a CPU step after the GPU's", be->name, problem, nx,
-             lazy ? " (lazy gradients)" : "");
+    snprintf(what, sizeof what, "%s: %s %s nx %d%s, a CPU step after the GPU's", be->name, scheme,
+             problem, nx, lazy ? " (lazy gradients)" : "");
     same_state(cpu, emu, what);
 done:
     consph_solver_free(cpu);
@@ -101,9 +103,11 @@ done:
 }
 
 /* Two runs on the backend, stepped alike: bit for bit (no order-dependent atomics in any sum). */
-static void gpu_twice(const gpu_backend *be, const char *problem, int nx, int steps)
+static void gpu_twice(const gpu_backend *be, const char *scheme, const char *problem, int nx,
+                      int steps)
 {
-    consph_solver *a = make(problem, nx, steps, 1), *b = make(problem, nx, steps, 1);
+    consph_solver *a = make(scheme, problem, nx, steps, 1),
+                  *b = make(scheme, problem, nx, steps, 1);
     int st = a && b ? gpu_attach(a, be) : CONSPH_EINVAL;
     if (st == CONSPH_OK) st = gpu_attach(b, be);
     CHECK(st == CONSPH_OK, "attach: %s", consph_last_error());
@@ -112,8 +116,8 @@ static void gpu_twice(const gpu_backend *be, const char *problem, int nx, int st
         if (st == CONSPH_OK) st = consph_solver_step(b);
     }
     CHECK(st == CONSPH_OK, "steps: %s", consph_last_error());
-    char what[96];
-    snprintf(what, sizeof what, "%s: two runs of %s nx %d", be->name, problem, nx);
+    char what[128];
+    snprintf(what, sizeof what, "%s: two runs of %s %s nx %d", be->name, scheme, problem, nx);
     if (st == CONSPH_OK) same_state(a, b, what);
     consph_solver_free(a);
     consph_solver_free(b);

@@ -1,6 +1,6 @@
 /* The CUDA backend of the GPU solver on the device (ctest label "gpu"; skipped, 77, where the
- * build has no CUDA or the machine no device): edac on the 2D Taylor-Green vortex and the 3D
- * Beltrami flow stepped on the GPU equals the CPU solver bit for bit, every particle array after
+ * build has no CUDA or the machine no device): edac and wcsph on the 2D Taylor-Green vortex and the
+ * 3D Beltrami flow stepped on the GPU equals the CPU solver bit for bit, every particle array after
  * one step and after 20 (nvcc -fmad=false against C11's uncontracted arithmetic), and two GPU
  * runs are bitwise equal. */
 #include "gpu_compare.h"
@@ -13,10 +13,13 @@ int main(void)
         printf("test_gpu_cuda: skipped: %s\n", why);
         return 77;
     }
-    gpu_compare(be, "taylor-green", 100, 0);
-    gpu_compare(be, "taylor-green", 100, 1);
-    gpu_compare(be, "beltrami", 20, 0);
-    gpu_twice(be, "taylor-green", 200, 10);
-    gpu_twice(be, "beltrami", 24, 5);
+    static const char *const schemes[] = {"edac", "wcsph"};
+    for (int k = 0; k < 2; ++k) {
+        gpu_compare(be, schemes[k], "taylor-green", 100, 0);
+        gpu_compare(be, schemes[k], "taylor-green", 100, 1);
+        gpu_compare(be, schemes[k], "beltrami", 20, 0);
+        gpu_twice(be, schemes[k], "taylor-green", 200, 10);
+        gpu_twice(be, schemes[k], "beltrami", 24, 5);
+    }
     return check_summary("test_gpu_cuda");
 }

@@ -1,8 +1,8 @@
 /* The GPU solver's per-particle functions (src/gpu/dev.h), run by the host emulation backend
  * exactly as the CUDA kernels run them (one call per particle or cell, the scatter in reverse
  * order so that the per-cell sort must restore the stable order), against the CPU solver: edac
- * on the 2D Taylor-Green vortex and the 3D Beltrami flow, every particle array (positions and
- * every field, the start-of-step copies and gradients included) and the particles' origins bit
+ * and wcsph on the 2D Taylor-Green vortex and the 3D Beltrami flow, every particle array (positions
+ * and every field, the start-of-step copies and gradients included) and the particles' origins bit
  * for bit after one step and after 20, with the gradients every step and as consph_run skips
  * them (grads_lazy, the state copied back only at the log samples and the end). Then the
  * refusals: schemes not ported, and a build without CUDA. */
@@ -12,9 +12,9 @@ static void refusals(void)
 {
     consph_run_params p;
     consph_run_params_default(&p);
-    snprintf(p.scheme, sizeof p.scheme, "wcsph");
-    CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "edac"),
-          "wcsph on the GPU: %s", consph_last_error());
+    snprintf(p.scheme, sizeof p.scheme, "tvf");
+    CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "edac,wcsph"),
+          "tvf on the GPU: %s", consph_last_error());
     snprintf(p.scheme, sizeof p.scheme, "edac");
     p.skin = 0.2;
     CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "--skin"),
@@ -44,10 +44,13 @@ static void refusals(void)
 
 int main(void)
 {
-    gpu_compare(&gpu_emulation, "taylor-green", 20, 0);
-    gpu_compare(&gpu_emulation, "taylor-green", 20, 1);
-    gpu_compare(&gpu_emulation, "beltrami", 10, 0);
-    gpu_twice(&gpu_emulation, "taylor-green", 20, 5);
+    static const char *const schemes[] = {"edac", "wcsph"};
+    for (int k = 0; k < 2; ++k) {
+        gpu_compare(&gpu_emulation, schemes[k], "taylor-green", 20, 0);
+        gpu_compare(&gpu_emulation, schemes[k], "taylor-green", 20, 1);
+        gpu_compare(&gpu_emulation, schemes[k], "beltrami", 10, 0);
+    }
+    gpu_twice(&gpu_emulation, "edac", "taylor-green", 20, 5);
     refusals();
     return check_summary("test_gpu_emul");
 }

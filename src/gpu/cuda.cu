@@ -38,11 +38,16 @@ GPU_KERNEL(k_permute, dev_permute(&v, i))
 GPU_KERNEL(k_save, dev_save_start(&v, i))
 GPU_KERNEL(k_advance, dev_advance(&v, i, c))
 GPU_KERNEL(k_density, dev_edac_density(&v, i))
+GPU_KERNEL(k_wprep, dev_wcsph_prep(&v, i))
 /* one kernel per dimension and gradients: each holds only its own variant's registers */
 GPU_KERNEL(k_rates2, dev_edac_rates_d(&v, i, 2, 0))
 GPU_KERNEL(k_rates2g, dev_edac_rates_d(&v, i, 2, 1))
 GPU_KERNEL(k_rates3, dev_edac_rates_d(&v, i, 3, 0))
 GPU_KERNEL(k_rates3g, dev_edac_rates_d(&v, i, 3, 1))
+GPU_KERNEL(k_wrates2, dev_wcsph_rates_d(&v, i, 2, 0))
+GPU_KERNEL(k_wrates2g, dev_wcsph_rates_d(&v, i, 2, 1))
+GPU_KERNEL(k_wrates3, dev_wcsph_rates_d(&v, i, 3, 0))
+GPU_KERNEL(k_wrates3g, dev_wcsph_rates_d(&v, i, 3, 1))
 
 int cu_alloc(void **p, size_t bytes)
 {
@@ -81,12 +86,18 @@ int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_PERMUTE: k_permute<<<blocks, threads>>>(*v, count, c); break;
     case GK_SAVE: k_save<<<blocks, threads>>>(*v, count, c); break;
     case GK_ADVANCE: k_advance<<<blocks, threads>>>(*v, count, c); break;
-    case GK_DENSITY: k_density<<<blocks, threads>>>(*v, count, c); break;
+    case GK_DENSITY:
+        (v->scheme == GS_EDAC ? k_density : k_wprep)<<<blocks, threads>>>(*v, count, c);
+        break;
     case GK_RATES:
-        if (v->d == 2)
+        if (v->scheme == GS_EDAC && v->d == 2)
             (v->grads ? k_rates2g : k_rates2)<<<blocks, threads>>>(*v, count, c);
-        else
+        else if (v->scheme == GS_EDAC)
             (v->grads ? k_rates3g : k_rates3)<<<blocks, threads>>>(*v, count, c);
+        else if (v->d == 2)
+            (v->grads ? k_wrates2g : k_wrates2)<<<blocks, threads>>>(*v, count, c);
+        else
+            (v->grads ? k_wrates3g : k_wrates3)<<<blocks, threads>>>(*v, count, c);
         break;
     }
     return fail(cudaGetLastError(), "kernel launch");

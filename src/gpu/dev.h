@@ -13,10 +13,12 @@
  *    r² < R² (src/nnps/gather.c); the CPU walk prunes cells that hold no hit, which changes
  *    which cells are read, never the order of the hits;
  *  - the quintic kernel: src/kernels/kernels.c's quintic_f/df/d2f and eval_batch's selects;
- *  - the passes: src/schemes/pysph/scheme.c's visit_density and visit_tv_d (edac), summing the
- *    same pysph_tv_pair terms (src/schemes/pysph/iact.h) in the same neighbour order;
+ *  - the passes: src/schemes/pysph/scheme.c's visit_density and visit_tv_d (edac), job_fields'
+ *    per-particle values and visit_wcsph_d (wcsph), summing the same pysph_tv_pair and
+ *    pysph_wcsph_pair terms (src/schemes/pysph/iact.h) in the same neighbour order;
  *  - the integrator: src/integrators/integrators.c's set_fields and drift with edac's transport
- *    hook and the solver's wrap_positions. */
+ *    hook, the solver's wrap_positions and closures (edac's summation density, wcsph's EOS of
+ *    src/solver/solver.c's solver_eos). */
 #ifndef CONSPH_GPU_DEV_H
 #define CONSPH_GPU_DEV_H
 
@@ -76,20 +78,30 @@ enum {
     GA_U0,
     GA_Q0,
     GA_X0,
+    GA_Q, /* the evolved scalar: p (edac) or ϱ (wcsph) */
     GA_COUNT
 };
+
+/* The schemes the GPU runs. */
+enum { GS_EDAC, GS_WCSPH };
 
 typedef struct gpu_view {
     size_t n; /* particles, and the stride of every array */
     int d;
     int narr;         /* arrays in a (and b) */
     int grads;        /* ∇p and ∇u wanted by this evaluation (the solver's grads_skip unset) */
-    int at[GA_COUNT]; /* first array of each quantity in a */
+    int at[GA_COUNT]; /* first array of each quantity in a (-1: the scheme has none) */
+    int scheme;       /* GS_* */
+    /* wcsph: Monaghan's Π on (α > 0), Tait's EOS (tait: γ = 7, by multiplication) or the linear
+     * one, ρ_o, c_o², γ, and the integer exponent of the sound speed's (ϱ/ρ_o)^((γ-1)/2) */
+    int av, tait, cs_exp;
+    double rho0, c2, gamma;
     gpu_grid g;
     gpu_kern k;
     pysph_consts c;
     double *a, *b;      /* narr arrays of n each; b: the target of a permutation */
-    double *vol, *mrho; /* 1/Σ W and m/ϱ of the density pass (n each) */
+    double *vol, *mrho; /* edac: 1/Σ W and m/ϱ of the density pass; wcsph: p/ϱ², m/ϱ (n each) */
+    double *cs;         /* wcsph: Tait's sound speed of each particle (n) */
     double *xs;         /* d arrays of n: the coordinates in slot order */
     uint32_t *cell;     /* n: the cell of each particle */
     uint32_t *count;    /* ncells + 1: particles per cell, then the scatter's fill */
@@ -188,26 +200,41 @@ GPU_FN void dev_permute(const gpu_view *v, size_t s)
 /* ---- the integrator (pec: src/integrators/integrators.c) ---- */
 GPU_FN void dev_save_start(const gpu_view *v, size_t i)
 {
-    gv(v, GA_Q0, 0)[i] = gv(v, GA_P, 0)[i];
+    gv(v, GA_Q0, 0)[i] = gv(v, GA_Q, 0)[i];
     for (int a = 0; a < v->d; ++a) {
         gv(v, GA_U0, a)[i] = gv(v, GA_U, a)[i];
         gv(v, GA_X0, a)[i] = gv(v, GA_X, a)[i];
     }
 }
 
-/* advance(c): u, p = u0, p0 + c (au, aq); the transport hook ũ - u = c ã, dx/dt = u + ũ - u;
- * x = x0 + c dx/dt wrapped into the box; the closure ϱ = the last summation density. */
+/* wcsph's closure: the EOS of solver_eos (γ = 7 written out as there). */
+GPU_FN double gpu_eos(const gpu_view *v, double rho)
+{
+    if (!v->tait) return v->c2 * (rho - v->rho0);
+    const double x = rho / v->rho0, x2 = x * x, x4 = x2 * x2;
+    return v->rho0 * v->c2 / v->gamma * (x * x2 * x4 - 1.0);
+}
+
+/* advance(c): u, q = u0, q0 + c (au, aq); edac's transport hook ũ - u = c ã and dx/dt = u + ũ - u
+ * (wcsph: dx/dt as the rates left it); x = x0 + c dx/dt wrapped into the box; the closure (edac:
+ * ϱ = the last summation density; wcsph: p = EOS(ϱ)). */
 GPU_FN void dev_advance(const gpu_view *v, size_t i, double c)
 {
     const gpu_grid *g = &v->g;
-    gv(v, GA_P, 0)[i] = gv(v, GA_Q0, 0)[i] + c * gv(v, GA_AQ, 0)[i];
+    const int edac = v->scheme == GS_EDAC;
+    gv(v, GA_Q, 0)[i] = gv(v, GA_Q0, 0)[i] + c * gv(v, GA_AQ, 0)[i];
     for (int a = 0; a < v->d; ++a) {
         const double u = gv(v, GA_U0, a)[i] + c * gv(v, GA_AU, a)[i];
-        const double du = c * gv(v, GA_AUHAT, a)[i];
-        const double ax = u + du;
         gv(v, GA_U, a)[i] = u;
-        gv(v, GA_TVDU, a)[i] = du;
-        gv(v, GA_AX, a)[i] = ax;
+        double ax;
+        if (edac) {
+            const double du = c * gv(v, GA_AUHAT, a)[i];
+            ax = u + du;
+            gv(v, GA_TVDU, a)[i] = du;
+            gv(v, GA_AX, a)[i] = ax;
+        } else {
+            ax = gv(v, GA_AX, a)[i];
+        }
         double x = gv(v, GA_X0, a)[i] + c * ax;
         if (g->periodic[a]) {
             const double lo = g->lo[a], L = g->len[a];
@@ -218,7 +245,10 @@ GPU_FN void dev_advance(const gpu_view *v, size_t i, double c)
         }
         gv(v, GA_X, a)[i] = x;
     }
-    gv(v, GA_RHOF, 0)[i] = gv(v, GA_RHOS, 0)[i];
+    if (edac)
+        gv(v, GA_RHOF, 0)[i] = gv(v, GA_RHOS, 0)[i];
+    else
+        gv(v, GA_P, 0)[i] = gpu_eos(v, gv(v, GA_RHOF, 0)[i]);
 }
 
 /* ---- the neighbour walk ---- */
@@ -244,7 +274,8 @@ GPU_FN void gpu_walk_cell(const gpu_view *v, gpu_walk *w)
 {
     const gpu_grid *g = &v->g;
     double gap2 = 0.0;
-    for (int a = 0; a < g->dim; ++a) {
+    for (int a = 0; a < 3; ++a) { /* a constant trip count: the walk stays in registers */
+        if (a >= g->dim) break;
         const double lo = g->lo[a] + (double)w->u[a] * g->h[a];
         const double hi = g->lo[a] + (double)(w->u[a] + 1) * g->h[a];
         const int open_lo = !g->periodic[a] && w->u[a] == 0;
@@ -455,7 +486,7 @@ GPU_FN_INLINE void dev_edac_rates_d(const gpu_view *v, size_t i, const int d, co
     gv(v, GA_RHOF, 0)[i] = rhoi;
 }
 
-GPU_FN void dev_edac_rates(const gpu_view *v, size_t i)
+GPU_FN void dev_edac_rates_any(const gpu_view *v, size_t i)
 {
     if (v->d == 2) {
         if (v->grads)
@@ -467,6 +498,106 @@ GPU_FN void dev_edac_rates(const gpu_view *v, size_t i)
             dev_edac_rates_d(v, i, 3, 1);
         else
             dev_edac_rates_d(v, i, 3, 0);
+    }
+}
+
+/* ---- wcsph (src/schemes/pysph/scheme.c) ---- */
+
+/* eos_ipow of src/solver/solver_internal.h: x^n by squaring, in its order. */
+GPU_FN double gpu_ipow(double x, int n)
+{
+    double r = 1.0;
+    for (; n; n >>= 1, x *= x)
+        if (n & 1) r *= x;
+    return r;
+}
+
+/* job_fields' per-particle values: p/ϱ², m/ϱ (with the gradients) and Tait's sound speed
+ * c_o (ϱ/ρ_o)^((γ-1)/2) (with Monaghan's Π). */
+GPU_FN void dev_wcsph_prep(const gpu_view *v, size_t i)
+{
+    const double rho = gv(v, GA_RHOF, 0)[i], p = gv(v, GA_P, 0)[i];
+    v->vol[i] = p / (rho * rho);
+    if (v->grads) v->mrho[i] = v->c.m / rho;
+    if (v->av) v->cs[i] = v->c.c0 * gpu_ipow(rho / v->rho0, v->cs_exp);
+}
+
+/* visit_wcsph_d: the symmetric pressure force with Π_ij, the laminar viscosity, XSPH and the
+ * continuity equation at particle i. */
+GPU_FN_INLINE void dev_wcsph_rates_d(const gpu_view *v, size_t i, const int d, const int grads)
+{
+    const pysph_consts *c = &v->c;
+    const double *rho = gv(v, GA_RHOF, 0), *pr2 = v->vol;
+    const double rhoi = rho[i], ti = pr2[i];
+    const int av = v->av;
+    const double ci = av ? v->cs[i] : 0.0;
+    double ui[3] = {0.0, 0.0, 0.0};
+    for (int a = 0; a < d; ++a) ui[a] = gv(v, GA_U, a)[i];
+    double f[3] = {0.0, 0.0, 0.0}, xs[3] = {0.0, 0.0, 0.0}, fp[3] = {0.0, 0.0, 0.0}, drho = 0.0;
+    double G[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    gpu_walk w;
+    gpu_walk_start(v, i, &w);
+    double xij[3], r;
+    uint32_t j;
+    while (gpu_walk_next(v, &w, &j, xij, &r)) {
+        if (j == i) continue;
+        double uj[3] = {0.0, 0.0, 0.0};
+        for (int a = 0; a < d; ++a) uj[a] = gv(v, GA_U, a)[j];
+        const double inv_s = 1.0 / (rhoi + rho[j]), inv_r = 1.0 / (r * r + c->h2);
+        double pij = 0.0;
+        if (av) {
+            double ux = 0.0;
+            for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
+            pij = pysph_monaghan_pi(c, ci, v->cs[j], ux, inv_r, inv_s);
+        }
+        pysph_pair o;
+        pysph_wcsph_pair(d, c, ti, ui, pr2[j], grads ? v->mrho[j] : 0.0, uj, pij, gpu_w(&v->k, r),
+                         gpu_dwr(&v->k, r), xij, inv_s, inv_r, &o);
+        for (int a = 0; a < d; ++a) {
+            f[a] += o.f[a];
+            xs[a] -= o.fb[a];
+            if (grads) fp[a] += o.fp[a];
+        }
+        drho += o.div;
+        if (grads)
+            for (int e = 0; e < d * d; ++e) G[e] -= o.g[e];
+    }
+    for (int a = 0; a < d; ++a) {
+        gv(v, GA_AU, a)[i] = f[a];
+        gv(v, GA_AX, a)[i] = ui[a] + xs[a];
+    }
+    gv(v, GA_AQ, 0)[i] = drho;
+    if (grads) {
+        for (int a = 0; a < d; ++a) gv(v, GA_GRADP, a)[i] = -rhoi * fp[a];
+        for (int e = 0; e < d * d; ++e) gv(v, GA_GRADU, e)[i] = G[e];
+    }
+    gv(v, GA_DIVU, 0)[i] = -drho / rhoi;
+}
+
+/* The scheme's pass before the rates (edac: the density pass; wcsph: per-particle values) and
+ * its rates, dispatched on the view. */
+GPU_FN void dev_pre_rates(const gpu_view *v, size_t i)
+{
+    if (v->scheme == GS_EDAC)
+        dev_edac_density(v, i);
+    else
+        dev_wcsph_prep(v, i);
+}
+
+GPU_FN void dev_rates(const gpu_view *v, size_t i)
+{
+    if (v->scheme == GS_EDAC) {
+        dev_edac_rates_any(v, i);
+    } else if (v->d == 2) {
+        if (v->grads)
+            dev_wcsph_rates_d(v, i, 2, 1);
+        else
+            dev_wcsph_rates_d(v, i, 2, 0);
+    } else {
+        if (v->grads)
+            dev_wcsph_rates_d(v, i, 3, 1);
+        else
+            dev_wcsph_rates_d(v, i, 3, 0);
     }
 }
 

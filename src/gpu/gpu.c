@@ -69,10 +69,10 @@ static int emu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
         for (size_t i = 0; i < count; ++i) dev_advance(v, i, c);
         break;
     case GK_DENSITY:
-        for (size_t i = 0; i < count; ++i) dev_edac_density(v, i);
+        for (size_t i = 0; i < count; ++i) dev_pre_rates(v, i);
         break;
     case GK_RATES:
-        for (size_t i = 0; i < count; ++i) dev_edac_rates(v, i);
+        for (size_t i = 0; i < count; ++i) dev_rates(v, i);
         break;
     }
     return 0;
@@ -119,7 +119,7 @@ static const gpu_backend *find_backend(char *why, size_t len)
 
 const char *consph_gpu_schemes(void)
 {
-    return "edac";
+    return "edac,wcsph";
 }
 
 int consph_gpu_available(char *why, size_t len)
@@ -132,15 +132,20 @@ int consph_gpu_available(char *why, size_t len)
 
 static int check_params(const consph_run_params *prm)
 {
-    if (strcmp(prm->scheme, "edac") != 0)
+    if (strcmp(prm->scheme, "edac") != 0 && strcmp(prm->scheme, "wcsph") != 0)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: scheme '%s' does not run on the GPU yet (allowed: %s)",
                            prm->scheme, consph_gpu_schemes());
     if (prm->integrator[0] && strcmp(prm->integrator, "pec") != 0)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: integrator '%s' does not run on the GPU yet (allowed: "
-                           "pec, edac's default)",
+                           "pec, the default of edac and wcsph)",
                            prm->integrator);
+    /* wcsph's Tait EOS and sound speed by multiplication (solver_eos's γ = 7 loop) */
+    if (strcmp(prm->scheme, "wcsph") == 0 && prm->eos != CONSPH_EOS_LINEAR && prm->gamma != 7.0)
+        return consph_fail(CONSPH_EINVAL,
+                           "--device gpu: wcsph's Tait EOS runs on the GPU with γ = 7 only, not %g",
+                           prm->gamma);
     if (prm->kernel != CONSPH_KERNEL_QUINTIC)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: only the quintic kernel runs on the GPU yet (--kernel "
@@ -299,8 +304,8 @@ void gpu_free(gpu_run *g)
 {
     if (!g) return;
     const gpu_backend *be = g->be;
-    void *bufs[] = {g->dev_a[0], g->dev_a[1], g->v.vol,   g->v.mrho, g->v.xs,
-                    g->v.cell,   g->v.count,  g->v.start, g->v.order};
+    void *bufs[] = {g->dev_a[0], g->dev_a[1], g->v.vol,   g->v.mrho,  g->v.cs,
+                    g->v.xs,     g->v.cell,   g->v.count, g->v.start, g->v.order};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k)
         if (bufs[k]) be->release(bufs[k]);
     free(g);
@@ -341,21 +346,35 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     v->narr = host_arrays(p, arr, (int)(sizeof arr / sizeof arr[0]));
     g->nfields = p->nfields;
     v->at[GA_X] = 0;
+    const int edac = strcmp(s->prm.scheme, "edac") == 0;
+    v->scheme = edac ? GS_EDAC : GS_WCSPH;
     struct {
         int q;
         const char *name;
-        int ncomp;
-    } const map[] = {{GA_U, SF_U, d},       {GA_P, SF_P, 1},
-                     {GA_AU, SF_AU, d},     {GA_AQ, SF_AQ, 1},
-                     {GA_AX, SF_AX, d},     {GA_AUHAT, "auhat", d},
-                     {GA_TVDU, "tvdu", d},  {GA_RHOS, "rhos", 1},
-                     {GA_RHOF, SF_RHOF, 1}, {GA_NUMD, "numden", 1},
-                     {GA_PAVG, "pavg", 1},  {GA_GRADP, SF_GRADP, d},
-                     {GA_DIVU, SF_DIVU, 1}, {GA_GRADU, SF_GRADU, d * d},
-                     {GA_U0, SF_U0, d},     {GA_Q0, SF_Q0, 1},
-                     {GA_X0, SF_X0, d}}; /* tvdu, auhat, rhos, numden, pavg: pysph/scheme.c */
+        int ncomp, edac_only;
+    } const map[] = {{GA_U, SF_U, d, 0},       {GA_P, SF_P, 1, 0},
+                     {GA_AU, SF_AU, d, 0},     {GA_AQ, SF_AQ, 1, 0},
+                     {GA_AX, SF_AX, d, 0},     {GA_AUHAT, "auhat", d, 1},
+                     {GA_TVDU, "tvdu", d, 1},  {GA_RHOS, "rhos", 1, 1},
+                     {GA_RHOF, SF_RHOF, 1, 0}, {GA_NUMD, "numden", 1, 1},
+                     {GA_PAVG, "pavg", 1, 1},  {GA_GRADP, SF_GRADP, d, 0},
+                     {GA_DIVU, SF_DIVU, 1, 0}, {GA_GRADU, SF_GRADU, d * d, 0},
+                     {GA_U0, SF_U0, d, 0},     {GA_Q0, SF_Q0, 1, 0},
+                     {GA_X0, SF_X0, d, 0},     {GA_Q, edac ? SF_P : SF_RHOF, 1, 0}};
+    /* tvdu, auhat, rhos, numden, pavg: pysph/scheme.c */
+    for (int q = 1; q < GA_COUNT; ++q) v->at[q] = -1;
     for (size_t k = 0; st == CONSPH_OK && k < sizeof map / sizeof map[0]; ++k)
-        st = array_of(s, map[k].name, map[k].ncomp, &v->at[map[k].q]);
+        if (edac || !map[k].edac_only)
+            st = array_of(s, map[k].name, map[k].ncomp, &v->at[map[k].q]);
+    v->av = (s->prm.alpha >= 0.0 ? s->prm.alpha : 0.1) > 0.0; /* job_fields' α */
+    v->tait = s->eos == CONSPH_EOS_TAIT;
+    v->rho0 = s->prm.rho0;
+    v->c2 = s->c0 * s->c0;
+    v->gamma = s->prm.gamma;
+    v->cs_exp = eos_int_exponent(0.5 * (s->prm.gamma - 1.0));
+    if (st == CONSPH_OK && !edac && v->av && v->cs_exp < 0)
+        st = consph_fail(CONSPH_EINVAL, "--device gpu: wcsph's sound speed needs an odd γ, not %g",
+                         s->prm.gamma);
     grid_setup(&v->g, &p->box, d, consph_nnps_radius(s->sys.nnps), p->n);
     if (st == CONSPH_OK && v->g.ncells != consph_nnps_cells(s->sys.nnps))
         st = consph_fail(CONSPH_EINVAL, "GPU: %zu cells, the CPU search has %zu", v->g.ncells,
@@ -383,13 +402,14 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
         (be->alloc((void **)&g->dev_a[0], nd) || be->alloc((void **)&g->dev_a[1], nd) ||
          be->alloc((void **)&v->vol, n * sizeof(double)) ||
          be->alloc((void **)&v->mrho, n * sizeof(double)) ||
+         be->alloc((void **)&v->cs, n * sizeof(double)) ||
          be->alloc((void **)&v->xs, (size_t)d * n * sizeof(double)) ||
          be->alloc((void **)&v->cell, n * sizeof(uint32_t)) || be->alloc((void **)&v->count, nc) ||
          be->alloc((void **)&v->start, nc) || be->alloc((void **)&v->order, n * sizeof(uint32_t))))
         st = be_fail(be, "device memory");
     v->a = g->dev_a[0];
     v->b = g->dev_a[1];
-    g->bytes = 2 * nd + 2 * n * sizeof(double) + (size_t)d * n * sizeof(double) +
+    g->bytes = 2 * nd + 3 * n * sizeof(double) + (size_t)d * n * sizeof(double) +
                2 * n * sizeof(uint32_t) + 2 * nc;
     if (st == CONSPH_OK) st = copy_arrays(s, 1);
     if (st != CONSPH_OK) {
@@ -422,10 +442,11 @@ static int build_cells(gpu_run *g)
     return CONSPH_OK;
 }
 
-/* edac under pec, as consph_solver_step runs it on the CPU: re-sort into cell order, save the
- * start, advance by Δt/2 with the previous step's rates, rebuild the search, the density and
- * rate passes, advance by Δt. */
-static int step_edac(gpu_run *g, double dt, int grads)
+/* edac or wcsph under pec, as consph_solver_step runs it on the CPU: re-sort into cell order,
+ * save the start, advance by Δt/2 with the previous step's rates, rebuild the search, the
+ * scheme's passes (edac: density, then rates; wcsph: per-particle values, then rates), advance
+ * by Δt. */
+static int step_pec(gpu_run *g, double dt, int grads)
 {
     const gpu_backend *be = g->be;
     gpu_view *v = &g->v;
@@ -449,7 +470,7 @@ static int step_edac(gpu_run *g, double dt, int grads)
 int gpu_step(consph_solver *s, double dt, int *synced)
 {
     *synced = 0;
-    int st = step_edac(s->gpu, dt, !s->grads_skip);
+    int st = step_pec(s->gpu, dt, !s->grads_skip);
     if (st != CONSPH_OK) return st;
     /* what the host reads after this step: the log sample, a snapshot's gradients, the end */
     if (!s->grads_skip || (s->step + 1) % s->prm.log_every == 0 ||
