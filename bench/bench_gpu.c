@@ -1,5 +1,5 @@
 /* The GPU solver against the CPU solver on one case (bench/gpu.sh runs it per size): two solvers
- * set up alike (edac; the set-up on --setup-threads), then
+ * set up alike (--scheme, edac by default; the set-up on --setup-threads), then
  *   1. one step each, the GPU's (or the host emulation's, --emulate) against the CPU's on
  *      --threads-max threads: values differing and the largest relative difference;
  *   2. --gpu-steps steps on the GPU, timed to the copy back that ends them, less that copy;
@@ -7,7 +7,7 @@
  * Every solver runs as consph run does without snapshots (gradients only where read, no log
  * samples in between). One line of key=value on stdout; a part whose step count is 0 is skipped.
  *
- *   bench_gpu --problem taylor-green --nx 1000 [--gpu-steps 20] [--cpu-steps 3]
+ *   bench_gpu --problem taylor-green --nx 1000 [--scheme edac] [--gpu-steps 20] [--cpu-steps 3]
  *             [--serial-steps 1] [--threads-max 16] [--setup-threads 16] [--emulate] */
 #include <math.h>
 #include <stdio.h>
@@ -19,12 +19,12 @@
 #include "gpu/gpu_internal.h"
 #include "solver/solver_internal.h"
 
-static consph_solver *make(const char *problem, int nx)
+static consph_solver *make(const char *scheme, const char *problem, int nx)
 {
     consph_run_params p;
     consph_run_params_default(&p);
     if (consph_run_params_problem(&p, problem) != CONSPH_OK) return NULL;
-    snprintf(p.scheme, sizeof p.scheme, "edac");
+    snprintf(p.scheme, sizeof p.scheme, "%s", scheme);
     p.nx = nx;
     p.steps = 1000000000L;
     p.tf = 0.0;
@@ -72,7 +72,7 @@ static void agreement(const consph_solver *a, const consph_solver *b, size_t *di
 
 int main(int argc, char **argv)
 {
-    const char *problem = "taylor-green";
+    const char *problem = "taylor-green", *scheme = "edac";
     int nx = 100, emulate = 0, threads_max = 16, setup_threads = 16;
     long gpu_steps = 20, cpu_steps = 3, serial_steps = 1;
     for (int k = 1; k < argc; ++k) {
@@ -88,6 +88,8 @@ int main(int argc, char **argv)
         ++k;
         if (!strcmp(o, "--problem"))
             problem = v;
+        else if (!strcmp(o, "--scheme"))
+            scheme = v;
         else if (!strcmp(o, "--nx"))
             nx = atoi(v);
         else if (!strcmp(o, "--gpu-steps"))
@@ -101,10 +103,11 @@ int main(int argc, char **argv)
         else if (!strcmp(o, "--setup-threads"))
             setup_threads = atoi(v);
         else {
-            fprintf(stderr,
-                    "bench_gpu: unknown option %s (allowed: --problem, --nx, --gpu-steps, "
-                    "--cpu-steps, --serial-steps, --threads-max, --setup-threads, --emulate)\n",
-                    o);
+            fprintf(
+                stderr,
+                "bench_gpu: unknown option %s (allowed: --problem, --scheme, --nx, --gpu-steps, "
+                "--cpu-steps, --serial-steps, --threads-max, --setup-threads, --emulate)\n",
+                o);
             return 2;
         }
     }
@@ -112,22 +115,23 @@ int main(int argc, char **argv)
     const gpu_backend *be = emulate ? &gpu_emulation : gpu_cuda_backend(why, sizeof why);
     consph_set_num_threads(setup_threads);
     double t0 = consph_wtime();
-    consph_solver *cpu = make(problem, nx);
+    consph_solver *cpu = make(scheme, problem, nx);
     const double setup = consph_wtime() - t0;
-    consph_solver *gpu = be ? make(problem, nx) : NULL;
+    consph_solver *gpu = be ? make(scheme, problem, nx) : NULL;
     if (!cpu || (be && !gpu)) {
         fprintf(stderr, "bench_gpu: set-up: %s\n", consph_last_error());
         return 1;
     }
     int st = CONSPH_OK;
-    printf("problem=%s dim=%d n=%zu setup_s=%.3f", problem, cpu->dim, cpu->sys.p->n, setup);
+    printf("scheme=%s problem=%s dim=%d n=%zu setup_s=%.3f", scheme, problem, cpu->dim,
+           cpu->sys.p->n, setup);
     /* 1. one step each */
     consph_set_num_threads(threads_max);
     size_t before = cpu->pairs;
     const double cpu_first = steps(cpu, 1, &st);
     const double pairs = (double)(cpu->pairs - before);
-    printf(" pairs_per_step=%.0f pairs_per_particle=%.2f", pairs,
-           pairs / 2.0 / (double)cpu->sys.p->n);
+    printf(" pairs_per_step=%.0f pairs_per_particle=%.2f", pairs, /* per pass */
+           pairs / (double)cpu->passes / (double)cpu->sys.p->n);
     if (be && st == CONSPH_OK) {
         t0 = consph_wtime();
         st = gpu_attach(gpu, be);

@@ -3,11 +3,11 @@
 #   1. builds consph with nvcc (CONSPH_CUDA, -fmad=false) in build-gpu/;
 #   2. runs the GPU tests (ctest -L gpu: the emulation and the CUDA backend against the CPU
 #      solver bit for bit, two GPU runs bit for bit, the CLI's --device gpu);
-#   3. edac at 10^5, 10^6, 10^7 particles (2D Taylor-Green) and 10^6 (3D Beltrami) with
+#   3. edac (SCHEMES) at 10^5, 10^6, 10^7 particles (2D Taylor-Green) and 10^6 (3D Beltrami) with
 #      bench_gpu: µs per particle-step and pairs/s on the GPU, on all cores and on one core, GPU
 #      memory per particle, the GPU's state after one step against the CPU's;
-#   4. writes the tables to gpu.md (and the raw lines, logs) in the output folder, and to
-#      bench/gpu.md.
+#   4. writes the tables to gpu.md (and the raw lines, logs) in the output folder, and (not with
+#      --quick or --emulate) to bench/gpu.md.
 # Without nvcc or a GPU it runs what it can (the CPU columns) and says what it skipped.
 #
 # Where the GPU machine cannot build (no cmake, no zlib headers), build here and carry build-gpu:
@@ -24,7 +24,8 @@
 #   --no-build    use build-gpu/ as it is
 #   --build-only  build build-gpu/ and stop
 # Environment: NVCC (the compiler; "none": build without CUDA), BUILD (default build-gpu),
-# CASES (a list of dim:nx, default "2:316 2:1000 3:100 2:3162"), THREADS (default: nproc).
+# CASES (a list of dim:nx, default "2:316 2:1000 3:100 2:3162"), SCHEMES (default "edac"; the
+# GPU runs edac and wcsph), THREADS (default: nproc).
 set -u
 cd "$(dirname "$0")/.."
 root=$(pwd)
@@ -132,6 +133,7 @@ else
 fi
 emu=()
 [ $emulate = 1 ] && emu=(--emulate)
+for scheme in ${SCHEMES:-edac}; do
 for c in $cases; do
     dim=${c%%:*}
     nx=${c##*:}
@@ -142,18 +144,19 @@ for c in $cases; do
     [ $quick = 1 ] && { g=3 k=2 s=1; }
     elapsed=$(($(date +%s) - start))
     if [ $elapsed -ge "$budget" ]; then
-        log "case $problem nx $nx: skipped (budget of $budget s spent)"
-        echo "problem=$problem dim=$dim nx=$nx skipped=budget" >>"$out/results.txt"
+        log "case $scheme $problem nx $nx: skipped (budget of $budget s spent)"
+        echo "scheme=$scheme problem=$problem dim=$dim nx=$nx skipped=budget" >>"$out/results.txt"
         continue
     fi
     left=$((budget - elapsed + 60))
-    log "case $problem nx $nx ($n particles): gpu $g steps, $threads threads $k, serial $s (timeout $left s)"
-    line=$(timeout "$left" "$bdir/bench/bench_gpu" --problem "$problem" --nx "$nx" --gpu-steps $g \
+    log "case $scheme $problem nx $nx ($n particles): gpu $g steps, $threads threads $k, serial $s (timeout $left s)"
+    line=$(timeout "$left" "$bdir/bench/bench_gpu" --scheme "$scheme" --problem "$problem" --nx "$nx" --gpu-steps $g \
         --cpu-steps $k --serial-steps $s --threads-max "$threads" --setup-threads "$threads" \
-        "${emu[@]}" 2>"$out/raw/case_${dim}d_$nx.err")
+        "${emu[@]}" 2>"$out/raw/case_${scheme}_${dim}d_$nx.err")
     rc=$?
     echo "$line nx=$nx rc=$rc" >>"$out/results.txt"
     log "  exit $rc: $line"
+done
 done
 
 # ---- 4. the report ----
@@ -176,36 +179,38 @@ commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null)
     [ -n "$why" ] && echo "GPU columns: none, $why"
     echo '```'
     echo
-    echo "edac (pec), quintic kernel, h = 1.2 Δs; 2D: Taylor-Green, 3D: Beltrami. One step is the"
+    echo "pec, quintic kernel, h = 1.2 Δs; 2D: Taylor-Green, 3D: Beltrami. One step is the"
     echo "re-sort, two half-steps of the integrator, the cell lists, the density and rate passes."
-    echo "pairs/s: the pair evaluations of one step (both passes, i itself included) over its time."
+    echo "pairs/particle: neighbours per particle and pass, i itself included; pairs/s: the pair"
+    echo "evaluations of one step (every pass: edac two, wcsph one) over its time."
     echo "GPU step time: steps to the copy back that ends them, less that copy. x serial / x all:"
     echo "the serial and all-core CPU step time over the GPU's. B/particle: the device memory the"
     echo "GPU state holds (two copies of every particle array, for the re-sort, plus the cell"
     echo "lists). Step 1: every particle array after one step, GPU against CPU."
     echo
-    echo "| dim | N | pairs/particle | GPU µs/particle-step | GPU pairs/s | all-core µs/p-s | serial µs/p-s | x serial | x all | B/particle | step 1: differing / values | step 1: max rel |"
-    echo "|---|---|---|---|---|---|---|---|---|---|---|---|"
+    echo "| scheme | dim | N | pairs/particle | GPU µs/particle-step | GPU pairs/s | all-core µs/p-s | serial µs/p-s | x serial | x all | B/particle | step 1: differing / values | step 1: max rel |"
+    echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
     awk '
     function v(k,   i, a) { for (i = 1; i <= NF; ++i) { split($i, a, "="); if (a[1] == k) return a[2] } return "" }
     function f(x, fmt) { return x == "" ? "-" : sprintf(fmt, x) }
     {
-        if (v("skipped") != "") { printf "| %s | nx %s | skipped (%s) |||||||||| \n", v("dim"), v("nx"), v("skipped"); next }
+        if (v("skipped") != "") { printf "| %s | %s | nx %s | skipped (%s) |||||||||| \n", v("scheme"), v("dim"), v("nx"), v("skipped"); next }
         g = v("gpu_us_per_particle_step"); c = v("cpu_us_per_particle_step"); s = v("serial_us_per_particle_step")
         xs = (g != "" && s != "" && g > 0) ? sprintf("%.3g", s / g) : "-"
         xa = (g != "" && c != "" && g > 0) ? sprintf("%.3g", c / g) : "-"
         d1 = v("step1_differing") == "" ? "-" : v("step1_differing") " / " v("step1_values")
-        printf "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", v("dim"), v("n"),
+        printf "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", v("scheme"), v("dim"), v("n"),
             f(v("pairs_per_particle"), "%.1f"), f(g, "%.4g"), f(v("gpu_pairs_per_s"), "%.3g"),
             f(c, "%.4g"), f(s, "%.4g"), xs, xa, f(v("gpu_bytes_per_particle"), "%.0f"), d1,
             f(v("step1_maxrel"), "%.1e")
-        if (v("rc") != 0) bad = bad " " v("dim") "D nx " v("nx") " (exit " v("rc") ")"
+        if (v("rc") != 0) bad = bad " " v("scheme") " " v("dim") "D nx " v("nx") " (exit " v("rc") ")"
     }
     END { if (bad != "") print "\nFailed cases:" bad " (raw/*.err)" }' "$out/results.txt"
     echo
     echo "Raw: results.txt (bench_gpu's lines), run.log, build.log, ctest.log (the tests' output), raw/*.err."
 } >"$out/gpu.md"
-[ "$out" != "$root/bench" ] && cp "$out/gpu.md" "$root/bench/gpu.md" 2>/dev/null
+# bench/gpu.md holds a full run's tables only (not --quick's, not the emulation's)
+[ $quick = 0 ] && [ $emulate = 0 ] && [ "$out" != "$root/bench" ] && cp "$out/gpu.md" "$root/bench/gpu.md"
 log "wrote $out/gpu.md"
 cat "$out/gpu.md"
 exit $ctest_rc
