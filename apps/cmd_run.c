@@ -10,6 +10,7 @@
 
 #include "cli.h"
 #include "commands.h"
+#include "consph/gpu.h"
 #include "consph/heat.h"
 #include "consph/io.h"
 #include "consph/layout.h"
@@ -539,7 +540,7 @@ int cmd_run(int argc, char **argv)
     consph_particles given;
     memset(&given, 0, sizeof given);
     long snap_every = 0, ckpt_every = 0, threads = 0;
-    int format = 0, heat_lap = 1, heat_walls = 0;
+    int format = 0, heat_lap = 1, heat_walls = 0, device = CONSPH_DEVICE_CPU;
     int overwrite = 0;
     cli_cache cache = {NULL, 0};
     double heat_eta = 2.0, heat_eps = 0.0;
@@ -569,6 +570,8 @@ int cmd_run(int argc, char **argv)
          NULL, 0, 0, 0},
         {"--format", CLI_CHOICE, &format, "F", "result on stdout", "table,json", 0, 0, 0},
         {"--threads", CLI_INT, &threads, "T", "threads (0: OpenMP's default)", NULL, 0, 4096, 0},
+        {"--device", CLI_CHOICE, &device, "D", "where the steps run (gpu: docs/gpu.md)", "cpu,gpu",
+         0, 0, 0},
         {"--laplacian", CLI_CHOICE, &heat_lap, "L", "heat: the Laplacian (002 S3 or S4)", "s3,s4",
          0, 0, 0},
         {"--eta", CLI_DOUBLE, &heat_eta, "H/Δ", "heat: h/Δ", NULL, 1, 10, 0},
@@ -669,7 +672,7 @@ int cmd_run(int argc, char **argv)
     if (restart) {
         static const char *const with_restart[] = {
             "--restart",          "--out", "--format", "--threads", "--snapshot-every",
-            "--checkpoint-every", "--tf",  "--steps"};
+            "--checkpoint-every", "--tf",  "--steps", "--device"};
         for (int k = 0; k < cmd.nopts; ++k) {
             size_t w = 0;
             while (w < sizeof with_restart / sizeof with_restart[0] &&
@@ -679,8 +682,8 @@ int cmd_run(int argc, char **argv)
                 return cli_error(
                     &cmd,
                     "option %s cannot change a restarted run (allowed with --restart: "
-                    "--out, --format, --threads, --snapshot-every, --checkpoint-every, and a new "
-                    "end: --tf or --steps)",
+                    "--out, --format, --threads, --snapshot-every, --checkpoint-every, --device, "
+                    "and a new end: --tf or --steps)",
                     opts[k].name);
         }
         if (positional[0]) return cli_error(&cmd, "give no problem with --restart");
@@ -755,6 +758,19 @@ int cmd_run(int argc, char **argv)
             return rc;
         }
     }
+    /* the GPU's refusals before the set-up's work (bad input: exit 2) */
+    if (device == CONSPH_DEVICE_GPU) {
+        if (ckpt_every > 0)
+            rc = cli_error(&cmd, "option --checkpoint-every does not run with --device gpu yet "
+                                 "(the checkpoint at the end of the run is written)");
+        else if (consph_gpu_check(s ? consph_solver_params(s) : &prm) != CONSPH_OK)
+            rc = cli_error(&cmd, "%s", consph_last_error());
+        if (rc) {
+            consph_solver_free(s);
+            consph_particles_free(&given);
+            return rc;
+        }
+    }
     if (!s && (st = particles ? consph_solver_create_from(&s, &prm, &given)
                               : consph_solver_create(&s, &prm)) != CONSPH_OK) {
         fprintf(stderr, "consph run: %s\n", consph_last_error());
@@ -762,6 +778,12 @@ int cmd_run(int argc, char **argv)
         return 1;
     }
     consph_particles_free(&given);
+    if (device == CONSPH_DEVICE_GPU &&
+        consph_solver_set_device(s, CONSPH_DEVICE_GPU) != CONSPH_OK) {
+        fprintf(stderr, "consph run: --device gpu: %s\n", consph_last_error());
+        consph_solver_free(s);
+        return 1;
+    }
     char warn[256];
     if (consph_solver_dt_warning(s, warn, sizeof warn))
         fprintf(stderr,

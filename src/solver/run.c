@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "consph/io.h"
+#include "gpu/gpu_internal.h"
 #include "solver/runfiles.h"
 #include "solver/solver_internal.h"
 
@@ -272,7 +273,8 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
         int sig = out && out->signals ? consph_stop_requested() : 0;
         if (st == CONSPH_OK && sig && !last) {
             *stopped_by = sig;
-            if (files) st = write_checkpoint(s, &f);
+            st = gpu_download(s); /* a GPU run's state, for the checkpoint and the summary */
+            if (files && st == CONSPH_OK) st = write_checkpoint(s, &f);
             break;
         }
     }

@@ -16,6 +16,7 @@
 #include "regularise/regularise.h"
 #include "integrators/integrators.h"
 #include "problems/wcref.h"
+#include "gpu/gpu_internal.h"
 #include "solver/solver_internal.h"
 
 /* Measured peak resident memory per particle (2D, one thread, --out, 160 000 particles): 600
@@ -362,6 +363,7 @@ int consph_solver_create_from(consph_solver **out, const consph_run_params *prm,
 void consph_solver_free(consph_solver *s)
 {
     if (!s) return;
+    gpu_free(s->gpu);
     consph_sys_free(&s->sys);
     free(s->hist);
     free(s->diag_buf);
@@ -489,20 +491,26 @@ int consph_solver_step(consph_solver *s)
     s->grads_skip =
         s->grads_lazy && !last && !(s->grads_every > 0 && (s->step + 1) % s->grads_every == 0);
     int st = CONSPH_OK;
-    if (s->scheme->moves) st = consph_sys_update(&s->sys, 1);
-    integ_state is;
-    if (st == CONSPH_OK) st = integ_state_of(s, &is);
-    if (st == CONSPH_OK) integ_save_start(&is);
-    /* pec and kdk start from the rates the previous step left (the set-up's for the first) */
-    if (st == CONSPH_OK && !s->reuse_rates) st = s->scheme->rhs(s);
-    if (st == CONSPH_OK) st = s->integ->step(&is, dt);
+    /* on the GPU the host's particles are this step's only when the step copied them back */
+    int on_host = 1;
+    if (s->gpu) {
+        st = gpu_step(s, dt, &on_host);
+    } else {
+        if (s->scheme->moves) st = consph_sys_update(&s->sys, 1);
+        integ_state is;
+        if (st == CONSPH_OK) st = integ_state_of(s, &is);
+        if (st == CONSPH_OK) integ_save_start(&is);
+        /* pec and kdk start from the rates the previous step left (the set-up's for the first) */
+        if (st == CONSPH_OK && !s->reuse_rates) st = s->scheme->rhs(s);
+        if (st == CONSPH_OK) st = s->integ->step(&is, dt);
+    }
     if (st == CONSPH_OK) {
         s->t = t_next;
         ++s->step;
     }
     if (st == CONSPH_OK && s->scheme->regularise) st = s->scheme->regularise(s);
-    if (st == CONSPH_OK) st = solver_check_finite(s);
-    if (st == CONSPH_OK) st = solver_check_valid(s);
+    if (st == CONSPH_OK && on_host) st = solver_check_finite(s);
+    if (st == CONSPH_OK && on_host) st = solver_check_valid(s);
     if (st == CONSPH_OK) {
         s->log_since += dt;
         s->step_dt = dt;

@@ -244,6 +244,7 @@ struct consph_solver {
     double wcs_u_acc, wcs_p_acc, wcs_auth_u_acc, wcs_auth_p_acc;
     double *wc_buf; /* solver_wc_side's per-particle terms */
     size_t wc_cap;
+    struct gpu_run *gpu; /* --device gpu: the steps run there (src/gpu/); NULL: on the CPU */
 };
 
 /* consph_run_nx_check against `memory` bytes (0: unknown) instead of this machine's. */

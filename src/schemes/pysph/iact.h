@@ -6,10 +6,12 @@
 #ifndef CONSPH_SCHEMES_PYSPH_IACT_H
 #define CONSPH_SCHEMES_PYSPH_IACT_H
 
+#include "gpu/hd.h" /* CONSPH_HD: these terms compile for the GPU too (src/gpu/) */
+
 #if defined(__GNUC__)
-#define PYSPH_IACT static inline __attribute__((always_inline))
+#define PYSPH_IACT CONSPH_HD static inline __attribute__((always_inline))
 #else
-#define PYSPH_IACT static inline
+#define PYSPH_IACT CONSPH_HD static inline
 #endif
 
 /* The constants of a right-hand side. */

@@ -1,0 +1,216 @@
+#!/usr/bin/env bash
+# The GPU solver on a machine with an NVIDIA GPU, in one run of a few minutes (docs/gpu.md):
+#   1. builds consph with nvcc (CONSPH_CUDA, -fmad=false) in build-gpu/;
+#   2. runs the GPU tests (ctest -L gpu: the emulation and the CUDA backend against the CPU
+#      solver bit for bit, two GPU runs bit for bit, the CLI's --device gpu);
+#   3. edac (SCHEMES) at 10^5, 10^6, 10^7 particles (2D Taylor-Green) and 10^6 (3D Beltrami) with
+#      bench_gpu: µs per particle-step and pairs/s on the GPU, on all cores and on one core, GPU
+#      memory per particle, the GPU's state after one step against the CPU's;
+#   4. writes the tables to gpu.md (and the raw lines, logs) in the output folder, and (not with
+#      --quick or --emulate) to bench/gpu.md.
+# Without nvcc or a GPU it runs what it can (the CPU columns) and says what it skipped.
+#
+# Where the GPU machine cannot build (no cmake, no zlib headers), build here and carry build-gpu:
+#   bash bench/gpu.sh --build-only        # here, with nvcc: build-gpu/ (no MPI, static CUDA runtime)
+#   bash bench/gpu.sh --no-build --out "$OUT"   # there, build-gpu carried
+# With neither flag the script builds, and falls back to a carried build-gpu when the build fails.
+#
+# Usage: bash bench/gpu.sh [--out DIR] [--quick] [--emulate] [--budget SECONDS] [--no-build]
+#                          [--build-only]
+#   --out DIR     where gpu.md, results.txt and the logs go (default: build-gpu/gpu-out)
+#   --quick       small sizes (a check of the script: 2D nx 40 and 60, 3D nx 12)
+#   --emulate     the GPU columns from the host emulation (no GPU needed; slow: small sizes)
+#   --budget S    no case starts after S seconds (default 330); each case runs under timeout
+#   --no-build    use build-gpu/ as it is
+#   --build-only  build build-gpu/ and stop
+# Environment: NVCC (the compiler; "none": build without CUDA), BUILD (default build-gpu),
+# CASES (a list of dim:nx, default "2:316 2:1000 3:100 2:3162"), SCHEMES (default "edac"; the
+# GPU runs edac and wcsph), THREADS (default: nproc).
+set -u
+cd "$(dirname "$0")/.."
+root=$(pwd)
+out=""
+quick=0
+emulate=0
+budget=330
+build=1
+build_only=0
+while [ $# -gt 0 ]; do
+    case "$1" in
+    --out)
+        [ $# -ge 2 ] || { echo "bench/gpu.sh: --out needs a folder" >&2; exit 2; }
+        out=$2
+        shift 2
+        ;;
+    --quick) quick=1; shift ;;
+    --emulate) emulate=1; shift ;;
+    --no-build) build=0; shift ;;
+    --build-only) build_only=1; shift ;;
+    --budget)
+        [ $# -ge 2 ] && [[ "$2" =~ ^[0-9]+$ ]] ||
+            { echo "bench/gpu.sh: --budget needs a whole number of seconds" >&2; exit 2; }
+        budget=$2
+        shift 2
+        ;;
+    *)
+        echo "bench/gpu.sh: unknown argument '$1' (allowed: --out DIR, --quick, --emulate," \
+            "--budget S, --no-build)" >&2
+        exit 2
+        ;;
+    esac
+done
+bdir=${BUILD:-build-gpu}
+out=${out:-$bdir/gpu-out}
+mkdir -p "$out/raw" || exit 1
+out=$(cd "$out" && pwd)
+threads=${THREADS:-$(nproc)}
+start=$(date +%s)
+log() { echo "[$(($(date +%s) - start)) s] $*" | tee -a "$out/run.log"; }
+: >"$out/run.log"
+: >"$out/results.txt"
+
+# ---- 1. the build ----
+nvcc=${NVCC:-$(command -v nvcc || { [ -x /usr/local/cuda/bin/nvcc ] && echo /usr/local/cuda/bin/nvcc; })}
+[ -n "$nvcc" ] || nvcc=none
+have_build() { [ -x "$bdir/consph" ] && [ -x "$bdir/bench/bench_gpu" ] && [ -x "$bdir/tests/test_gpu_cuda" ]; }
+if [ $build = 1 ]; then
+    if [ "$nvcc" = none ]; then
+        log "build: no nvcc, building without CUDA"
+        cuda=(-DCONSPH_CUDA=OFF)
+    else
+        log "build: $nvcc"
+        cuda=(-DCONSPH_CUDA=ON -DCMAKE_CUDA_COMPILER="$nvcc")
+    fi
+    # no MPI: a build carried to another machine then needs only the C, OpenMP and zlib
+    # runtimes and the GPU driver there
+    if ! { cmake -S . -B "$bdir" -DCMAKE_BUILD_TYPE=Release -DCONSPH_MPI=OFF "${cuda[@]}" &&
+        cmake --build "$bdir" -j "$threads" --target consph bench_gpu test_gpu_emul test_gpu_cuda; } \
+        >"$out/build.log" 2>&1; then
+        tail -20 "$out/build.log"
+        if have_build && [ $build_only = 0 ]; then
+            log "build failed ($out/build.log): using the build-gpu that is there (carried?)"
+        else
+            log "build failed: $out/build.log"
+            exit 1
+        fi
+    fi
+fi
+if [ $build_only = 1 ]; then
+    log "built $bdir (carry it: bash bench/gpu.sh --no-build there)"
+    exit 0
+fi
+have_build || { log "no build in $bdir (consph, bench/bench_gpu, tests/test_gpu_cuda)"; exit 1; }
+"$bdir/consph" run taylor-green --scheme edac --nx 8 --steps 1 --device gpu 2>&1 |
+    grep -q "without GPU support" && cuda_built=no || cuda_built=yes
+log "build done (CUDA: $cuda_built)"
+
+# ---- 2. the GPU tests (ctest -L gpu's, run directly: a carried build's CTest files name the
+# paths of the machine that built it) ----
+ctest_rc=0
+tests_line=""
+: >"$out/ctest.log"
+for t in "$bdir/tests/test_gpu_emul" "$bdir/tests/test_gpu_cuda" \
+    "bash tests/cli_gpu.sh $bdir/consph $root"; do
+    name=$(basename "${t%% *}")
+    [ "$name" = bash ] && name=cli_gpu
+    echo "== $name" >>"$out/ctest.log"
+    OMP_NUM_THREADS=4 timeout 240 $t >>"$out/ctest.log" 2>&1
+    rc=$?
+    case $rc in
+    0) r=passed ;;
+    77) r=skipped ;;
+    *) r="FAILED ($rc)"; ctest_rc=1 ;;
+    esac
+    tests_line="$tests_line $name $r;"
+done
+log "GPU tests:$tests_line"
+
+# ---- 3. the cases ----
+if [ $quick = 1 ]; then
+    cases=${CASES:-"2:40 2:60 3:12"}
+else
+    cases=${CASES:-"2:316 2:1000 3:100 2:3162"}  # the largest last: the budget cuts it first
+fi
+emu=()
+[ $emulate = 1 ] && emu=(--emulate)
+for scheme in ${SCHEMES:-edac}; do
+for c in $cases; do
+    dim=${c%%:*}
+    nx=${c##*:}
+    [ "$dim" = 2 ] && problem=taylor-green || problem=beltrami
+    n=$((dim == 2 ? nx * nx : nx * nx * nx))
+    # steps by size: the GPU's to a tenth of a second or more, the CPU's to a few seconds
+    if [ $n -le 200000 ]; then g=50 k=5 s=2; elif [ $n -le 2000000 ]; then g=20 k=3 s=1; else g=10 k=1 s=1; fi
+    [ $quick = 1 ] && { g=3 k=2 s=1; }
+    elapsed=$(($(date +%s) - start))
+    if [ $elapsed -ge "$budget" ]; then
+        log "case $scheme $problem nx $nx: skipped (budget of $budget s spent)"
+        echo "scheme=$scheme problem=$problem dim=$dim nx=$nx skipped=budget" >>"$out/results.txt"
+        continue
+    fi
+    left=$((budget - elapsed + 60))
+    log "case $scheme $problem nx $nx ($n particles): gpu $g steps, $threads threads $k, serial $s (timeout $left s)"
+    line=$(timeout "$left" "$bdir/bench/bench_gpu" --scheme "$scheme" --problem "$problem" --nx "$nx" --gpu-steps $g \
+        --cpu-steps $k --serial-steps $s --threads-max "$threads" --setup-threads "$threads" \
+        "${emu[@]}" 2>"$out/raw/case_${scheme}_${dim}d_$nx.err")
+    rc=$?
+    echo "$line nx=$nx rc=$rc" >>"$out/results.txt"
+    log "  exit $rc: $line"
+done
+done
+
+# ---- 4. the report ----
+gpu_name=$(nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader 2>/dev/null | head -1)
+cpu_name=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')
+nvcc_ver=$([ "$nvcc" != none ] && "$nvcc" --version 2>/dev/null | tail -2 | head -1)
+commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null)
+{
+    echo "# GPU solver (bench/gpu.sh)"
+    echo
+    echo "Run $(date -u '+%Y-%m-%d %H:%M UTC') on $(hostname), consph ${commit:-?}."
+    echo
+    echo '```'
+    echo "GPU:   ${gpu_name:-none found}"
+    echo "CPU:   $cpu_name, $(nproc) cores; all-core columns on $threads threads"
+    echo "nvcc:  ${nvcc_ver:-none} (CUDA built: $cuda_built)"
+    echo "tests (ctest -L gpu):$tests_line"
+    [ $emulate = 1 ] && echo "GPU columns: the host emulation (--emulate), not a GPU"
+    why=$(grep -m1 -o 'gpu_why="[^"]*"' "$out/results.txt" | cut -d'"' -f2)
+    [ -n "$why" ] && echo "GPU columns: none, $why"
+    echo '```'
+    echo
+    echo "pec, quintic kernel, h = 1.2 Δs; 2D: Taylor-Green, 3D: Beltrami. One step is the"
+    echo "re-sort, two half-steps of the integrator, the cell lists, the density and rate passes."
+    echo "pairs/particle: neighbours per particle and pass, i itself included; pairs/s: the pair"
+    echo "evaluations of one step (every pass: edac two, wcsph one) over its time."
+    echo "GPU step time: steps to the copy back that ends them, less that copy. x serial / x all:"
+    echo "the serial and all-core CPU step time over the GPU's. B/particle: the device memory the"
+    echo "GPU state holds (two copies of every particle array, for the re-sort, plus the cell"
+    echo "lists). Step 1: every particle array after one step, GPU against CPU."
+    echo
+    echo "| scheme | dim | N | pairs/particle | GPU µs/particle-step | GPU pairs/s | all-core µs/p-s | serial µs/p-s | x serial | x all | B/particle | step 1: differing / values | step 1: max rel |"
+    echo "|---|---|---|---|---|---|---|---|---|---|---|---|---|"
+    awk '
+    function v(k,   i, a) { for (i = 1; i <= NF; ++i) { split($i, a, "="); if (a[1] == k) return a[2] } return "" }
+    function f(x, fmt) { return x == "" ? "-" : sprintf(fmt, x) }
+    {
+        if (v("skipped") != "") { printf "| %s | %s | nx %s | skipped (%s) |||||||||| \n", v("scheme"), v("dim"), v("nx"), v("skipped"); next }
+        g = v("gpu_us_per_particle_step"); c = v("cpu_us_per_particle_step"); s = v("serial_us_per_particle_step")
+        xs = (g != "" && s != "" && g > 0) ? sprintf("%.3g", s / g) : "-"
+        xa = (g != "" && c != "" && g > 0) ? sprintf("%.3g", c / g) : "-"
+        d1 = v("step1_differing") == "" ? "-" : v("step1_differing") " / " v("step1_values")
+        printf "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", v("scheme"), v("dim"), v("n"),
+            f(v("pairs_per_particle"), "%.1f"), f(g, "%.4g"), f(v("gpu_pairs_per_s"), "%.3g"),
+            f(c, "%.4g"), f(s, "%.4g"), xs, xa, f(v("gpu_bytes_per_particle"), "%.0f"), d1,
+            f(v("step1_maxrel"), "%.1e")
+        if (v("rc") != 0) bad = bad " " v("scheme") " " v("dim") "D nx " v("nx") " (exit " v("rc") ")"
+    }
+    END { if (bad != "") print "\nFailed cases:" bad " (raw/*.err)" }' "$out/results.txt"
+    echo
+    echo "Raw: results.txt (bench_gpu's lines), run.log, build.log, ctest.log (the tests' output), raw/*.err."
+} >"$out/gpu.md"
+# bench/gpu.md holds a full run's tables only (not --quick's, not the emulation's)
+[ $quick = 0 ] && [ $emulate = 0 ] && [ "$out" != "$root/bench" ] && cp "$out/gpu.md" "$root/bench/gpu.md"
+log "wrote $out/gpu.md"
+cat "$out/gpu.md"
+exit $ctest_rc

@@ -1,0 +1,145 @@
+/* The CUDA backend of the GPU solver (gpu_internal.h): one thread per particle (or cell, or
+ * slot) running dev.h's function, the device memory and copies, and the counting sort's prefix
+ * sums (CUB's, exact on integers). Built only with CONSPH_CUDA and nvcc, with -fmad=false: a
+ * contracted multiply-add rounds once where the CPU rounds twice, and the GPU run would then
+ * leave the CPU's at round-off. */
+#include <cuda_runtime.h>
+#include <cub/device/device_scan.cuh>
+#include <stdio.h>
+
+#include "gpu/gpu_internal.h"
+
+namespace {
+
+char cuda_err[256];
+
+int fail(cudaError_t e, const char *what)
+{
+    if (e == cudaSuccess) return 0;
+    snprintf(cuda_err, sizeof cuda_err, "%s: %s", what, cudaGetErrorString(e));
+    return 1;
+}
+
+/* The view goes by value: each launch sees the current arrays (a and b swap at a re-sort). */
+#define GPU_KERNEL(name, call)                                                                     \
+    __global__ void name(const gpu_view v, size_t count, double c)                                \
+    {                                                                                              \
+        const size_t i = (size_t)blockIdx.x * blockDim.x + threadIdx.x;                          \
+        (void)c;                                                                                   \
+        if (i < count) call;                                                                       \
+    }
+
+GPU_KERNEL(k_bin, dev_bin(&v, i))
+GPU_KERNEL(k_count, dev_count(&v, i))
+GPU_KERNEL(k_scatter, dev_scatter(&v, i))
+GPU_KERNEL(k_cell_sort, dev_cell_sort(&v, i))
+GPU_KERNEL(k_slots, dev_slots(&v, i))
+GPU_KERNEL(k_permute, dev_permute(&v, i))
+GPU_KERNEL(k_save, dev_save_start(&v, i))
+GPU_KERNEL(k_advance, dev_advance(&v, i, c))
+GPU_KERNEL(k_density, dev_edac_density(&v, i))
+GPU_KERNEL(k_wprep, dev_wcsph_prep(&v, i))
+/* one kernel per dimension and gradients: each holds only its own variant's registers */
+GPU_KERNEL(k_rates2, dev_edac_rates_d(&v, i, 2, 0))
+GPU_KERNEL(k_rates2g, dev_edac_rates_d(&v, i, 2, 1))
+GPU_KERNEL(k_rates3, dev_edac_rates_d(&v, i, 3, 0))
+GPU_KERNEL(k_rates3g, dev_edac_rates_d(&v, i, 3, 1))
+GPU_KERNEL(k_wrates2, dev_wcsph_rates_d(&v, i, 2, 0))
+GPU_KERNEL(k_wrates2g, dev_wcsph_rates_d(&v, i, 2, 1))
+GPU_KERNEL(k_wrates3, dev_wcsph_rates_d(&v, i, 3, 0))
+GPU_KERNEL(k_wrates3g, dev_wcsph_rates_d(&v, i, 3, 1))
+
+int cu_alloc(void **p, size_t bytes)
+{
+    *p = NULL;
+    return fail(cudaMalloc(p, bytes ? bytes : 1), "cudaMalloc");
+}
+void cu_release(void *p)
+{
+    cudaFree(p);
+}
+int cu_put(void *dev, const void *host, size_t bytes)
+{
+    return fail(cudaMemcpy(dev, host, bytes, cudaMemcpyHostToDevice), "cudaMemcpy to the device");
+}
+int cu_get(void *host, const void *dev, size_t bytes)
+{
+    return fail(cudaMemcpy(host, dev, bytes, cudaMemcpyDeviceToHost), "cudaMemcpy from the device");
+}
+int cu_zero(void *dev, size_t bytes)
+{
+    return fail(cudaMemsetAsync(dev, 0, bytes), "cudaMemset");
+}
+
+int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
+{
+    if (count == 0) return 0;
+    /* the pair passes hold many registers: smaller blocks keep more of them resident */
+    const unsigned threads = (k == GK_DENSITY || k == GK_RATES) ? 128u : 256u;
+    const unsigned blocks = (unsigned)((count + threads - 1) / threads);
+    switch (k) {
+    case GK_BIN: k_bin<<<blocks, threads>>>(*v, count, c); break;
+    case GK_COUNT: k_count<<<blocks, threads>>>(*v, count, c); break;
+    case GK_SCATTER: k_scatter<<<blocks, threads>>>(*v, count, c); break;
+    case GK_CELL_SORT: k_cell_sort<<<blocks, threads>>>(*v, count, c); break;
+    case GK_SLOTS: k_slots<<<blocks, threads>>>(*v, count, c); break;
+    case GK_PERMUTE: k_permute<<<blocks, threads>>>(*v, count, c); break;
+    case GK_SAVE: k_save<<<blocks, threads>>>(*v, count, c); break;
+    case GK_ADVANCE: k_advance<<<blocks, threads>>>(*v, count, c); break;
+    case GK_DENSITY:
+        (v->scheme == GS_EDAC ? k_density : k_wprep)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_RATES:
+        if (v->scheme == GS_EDAC && v->d == 2)
+            (v->grads ? k_rates2g : k_rates2)<<<blocks, threads>>>(*v, count, c);
+        else if (v->scheme == GS_EDAC)
+            (v->grads ? k_rates3g : k_rates3)<<<blocks, threads>>>(*v, count, c);
+        else if (v->d == 2)
+            (v->grads ? k_wrates2g : k_wrates2)<<<blocks, threads>>>(*v, count, c);
+        else
+            (v->grads ? k_wrates3g : k_wrates3)<<<blocks, threads>>>(*v, count, c);
+        break;
+    }
+    return fail(cudaGetLastError(), "kernel launch");
+}
+
+void *scan_tmp = NULL;
+size_t scan_tmp_bytes = 0;
+
+int cu_scan(const gpu_view *v)
+{
+    const int items = (int)(v->g.ncells + 1);
+    size_t need = 0;
+    if (fail(cub::DeviceScan::ExclusiveSum(NULL, need, v->count, v->start, items), "scan size"))
+        return 1;
+    if (need > scan_tmp_bytes) {
+        cudaFree(scan_tmp);
+        scan_tmp = NULL;
+        scan_tmp_bytes = 0;
+        if (fail(cudaMalloc(&scan_tmp, need), "cudaMalloc (scan)")) return 1;
+        scan_tmp_bytes = need;
+    }
+    return fail(cub::DeviceScan::ExclusiveSum(scan_tmp, need, v->count, v->start, items), "scan");
+}
+
+const char *cu_error(void)
+{
+    return cuda_err;
+}
+
+const gpu_backend cuda_backend = {"CUDA", cu_alloc, cu_release, cu_put, cu_get,
+                                  cu_zero, cu_launch, cu_scan,   cu_error};
+
+} // namespace
+
+extern "C" const gpu_backend *gpu_cuda_backend(char *why, size_t len)
+{
+    int count = 0;
+    const cudaError_t e = cudaGetDeviceCount(&count);
+    if (e != cudaSuccess || count == 0) {
+        snprintf(why, len, "no CUDA device found (%s)",
+                 e != cudaSuccess ? cudaGetErrorString(e) : "cudaGetDeviceCount: 0 devices");
+        return NULL;
+    }
+    return &cuda_backend;
+}

@@ -1,0 +1,69 @@
+/* The GPU solver's host side (gpu.c) and its backends: the CUDA one (cuda.cu, built with
+ * CONSPH_CUDA) and the host emulation (gpu.c), which runs the same per-particle functions
+ * (dev.h) in loops and is what make check tests against the CPU solver. */
+#ifndef CONSPH_GPU_INTERNAL_H
+#define CONSPH_GPU_INTERNAL_H
+
+#include <stddef.h>
+
+#include "gpu/dev.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* The per-thread functions of dev.h a backend launches over `count` threads. */
+typedef enum gpu_kernel {
+    GK_BIN,       /* dev_bin, per particle */
+    GK_COUNT,     /* dev_count */
+    GK_SCATTER,   /* dev_scatter */
+    GK_CELL_SORT, /* dev_cell_sort, per cell */
+    GK_SLOTS,     /* dev_slots, per slot */
+    GK_PERMUTE,   /* dev_permute, per slot */
+    GK_SAVE,      /* dev_save_start */
+    GK_ADVANCE,   /* dev_advance with the weight c */
+    GK_DENSITY,   /* dev_edac_density */
+    GK_RATES      /* dev_edac_rates */
+} gpu_kernel;
+
+typedef struct gpu_backend {
+    const char *name;
+    /* 0 on success; else the backend's message is backend->error() */
+    int (*alloc)(void **p, size_t bytes);
+    void (*release)(void *p);
+    int (*put)(void *dev, const void *host, size_t bytes);
+    int (*get)(void *host, const void *dev, size_t bytes);
+    int (*zero)(void *dev, size_t bytes);
+    int (*launch)(gpu_kernel k, size_t count, const gpu_view *v, double c);
+    /* start[0..ncells] = the exclusive prefix sums of count[0..ncells] (count[ncells] = 0) */
+    int (*scan)(const gpu_view *v);
+    const char *(*error)(void);
+} gpu_backend;
+
+/* Runs the per-thread functions in loops on the host (the scatter in reverse particle order,
+ * so that the per-cell sort has to restore the order, as after a GPU's atomics). */
+extern const gpu_backend gpu_emulation;
+
+/* The CUDA backend (cuda.cu): NULL with a message in why when this build has none or no device
+ * is found. */
+const gpu_backend *gpu_cuda_backend(char *why, size_t len);
+
+struct consph_solver;
+typedef struct gpu_run gpu_run;
+/* Moves a solver's particles onto the backend's device (a copy of every particle array); the
+ * solver's steps then run there (gpu_step) until gpu_free. */
+int gpu_attach(struct consph_solver *s, const gpu_backend *be);
+/* One step of dt on the device; copies the state back to the host when the step's end is read
+ * there (a log sample, a snapshot's gradients, the last step), and says so in *synced. */
+int gpu_step(struct consph_solver *s, double dt, int *synced);
+/* Copies the device's state into the solver's particles and rebuilds the host search. */
+int gpu_download(struct consph_solver *s);
+void gpu_free(struct gpu_run *g);
+/* The device memory the solver's GPU state holds (what gpu_attach allocated; 0 on the CPU). */
+size_t gpu_device_bytes(const struct consph_solver *s);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

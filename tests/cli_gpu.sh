@@ -1,0 +1,71 @@
+#!/usr/bin/env bash
+# `consph run ... --device gpu`: the refusals (exit 2) name what is wrong: a scheme not ported
+# (naming those that are), --checkpoint-every, an option of heat, a build without GPU support or
+# a machine without a device. The GPU path of the CLI on the host emulation
+# (CONSPH_GPU_BACKEND=emulation), and on the GPU where one is found: the run's log, snapshots,
+# final checkpoint and summary equal the CPU run's byte for byte (edac and wcsph, 2D and 3D).
+# Usage: bash cli_gpu.sh PATH-TO-CONSPH SOURCE-DIR
+set -u
+consph=$1
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+. "$2/tests/lib_cli.sh"
+
+run() { "$consph" run taylor-green --nx 16 --steps 3 --threads 1 "$@"; }
+failing 2 "allowed: edac,wcsph" "$work/o" -- run --scheme tvf --device gpu && pass=$((pass + 1))
+failing 2 "allowed: cpu,gpu" "$work/o" -- run --scheme edac --device tpu && pass=$((pass + 1))
+failing 2 "--checkpoint-every" "$work/o" -- run --scheme edac --device gpu --out "$work/ck" \
+    --checkpoint-every 2 && pass=$((pass + 1))
+failing 2 "--skin" "$work/o" -- run --scheme edac --device gpu --skin 0.1 && pass=$((pass + 1))
+failing 2 "--device" "$work/o" -- "$consph" run heat --nx 10 --steps 2 --device gpu &&
+    pass=$((pass + 1))
+# the CPU is the default and --device cpu changes nothing
+run --scheme edac --out "$work/a" >/dev/null && run --scheme edac --device cpu --out "$work/b" >/dev/null ||
+    bad "edac on the CPU"
+cmp -s "$work/a/log.csv" "$work/b/log.csv" && pass=$((pass + 1)) || bad "--device cpu changed the log"
+
+# the CPU's and the GPU's files of one run: log, snapshots (the GPU copies its state back for
+# them and the log samples only), summary but its timing; BACKEND: the environment's
+# CONSPH_GPU_BACKEND ("" the CUDA device, "emulation" the host emulation)
+same_files() {
+    local backend=$1 case=$2 d
+    for d in cpu gpu; do
+        # shellcheck disable=SC2086
+        CONSPH_GPU_BACKEND=$backend "$consph" run $case --device $d \
+            --out "$work/$d" --overwrite --format json >"$work/$d.json" || bad "$case on the $d"
+    done
+    local n=0 f
+    for f in "$work"/cpu/log.csv "$work"/cpu/snap_*.vtu "$work"/cpu/checkpoint.ckpt; do
+        [ -e "$f" ] || continue
+        n=$((n + 1))
+        cmp -s "$f" "$work/gpu/${f##*/}" || bad "${backend:-cuda}: $case: ${f##*/} differs"
+    done
+    [ $n -ge 3 ] || bad "${backend:-cuda}: $case: only $n files compared"
+    diff <(grep -v '"seconds"\|"pairs"' "$work/cpu.json") \
+        <(grep -v '"seconds"\|"pairs"' "$work/gpu.json") >/dev/null ||
+        bad "${backend:-cuda}: $case: the summaries differ"
+    pass=$((pass + 1))
+}
+# the host emulation behind the CLI: everywhere
+same_files emulation "taylor-green --scheme edac --nx 24 --steps 12 --log-every 5 --snapshot-every 4"
+same_files emulation "beltrami --scheme edac --nx 8 --steps 6 --log-every 4"
+same_files emulation "taylor-green --scheme wcsph --nx 24 --steps 8 --log-every 3 --snapshot-every 5"
+
+run --scheme edac --device gpu >"$work/o" 2>"$work/err"
+rc=$?
+if [ $rc = 2 ]; then
+    # no GPU here: the message says which of the two is missing
+    if grep -qE "without GPU support|no CUDA device" "$work/err"; then
+        pass=$((pass + 1))
+    else
+        bad "no GPU: $(cat "$work/err")"
+    fi
+elif [ $rc = 0 ]; then
+    for scheme in edac wcsph; do
+        same_files "" "taylor-green --scheme $scheme --nx 64 --steps 20 --snapshot-every 7"
+        same_files "" "beltrami --scheme $scheme --nx 12 --steps 10"
+    done
+else
+    bad "edac --device gpu: exit $rc: $(cat "$work/err")"
+fi
+summary cli_gpu

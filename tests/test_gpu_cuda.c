@@ -1,0 +1,25 @@
+/* The CUDA backend of the GPU solver on the device (ctest label "gpu"; skipped, 77, where the
+ * build has no CUDA or the machine no device): edac and wcsph on the 2D Taylor-Green vortex and the
+ * 3D Beltrami flow stepped on the GPU equals the CPU solver bit for bit, every particle array after
+ * one step and after 20 (nvcc -fmad=false against C11's uncontracted arithmetic), and two GPU
+ * runs are bitwise equal. */
+#include "gpu_compare.h"
+
+int main(void)
+{
+    char why[256];
+    const gpu_backend *be = gpu_cuda_backend(why, sizeof why);
+    if (!be) {
+        printf("test_gpu_cuda: skipped: %s\n", why);
+        return 77;
+    }
+    static const char *const schemes[] = {"edac", "wcsph"};
+    for (int k = 0; k < 2; ++k) {
+        gpu_compare(be, schemes[k], "taylor-green", 100, 0);
+        gpu_compare(be, schemes[k], "taylor-green", 100, 1);
+        gpu_compare(be, schemes[k], "beltrami", 20, 0);
+        gpu_twice(be, schemes[k], "taylor-green", 200, 10);
+        gpu_twice(be, schemes[k], "beltrami", 24, 5);
+    }
+    return check_summary("test_gpu_cuda");
+}

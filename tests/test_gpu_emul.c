@@ -1,0 +1,56 @@
+/* The GPU solver's per-particle functions (src/gpu/dev.h), run by the host emulation backend
+ * exactly as the CUDA kernels run them (one call per particle or cell, the scatter in reverse
+ * order so that the per-cell sort must restore the stable order), against the CPU solver: edac
+ * and wcsph on the 2D Taylor-Green vortex and the 3D Beltrami flow, every particle array (positions
+ * and every field, the start-of-step copies and gradients included) and the particles' origins bit
+ * for bit after one step and after 20, with the gradients every step and as consph_run skips
+ * them (grads_lazy, the state copied back only at the log samples and the end). Then the
+ * refusals: schemes not ported, and a build without CUDA. */
+#include "gpu_compare.h"
+
+static void refusals(void)
+{
+    consph_run_params p;
+    consph_run_params_default(&p);
+    snprintf(p.scheme, sizeof p.scheme, "tvf");
+    CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "edac,wcsph"),
+          "tvf on the GPU: %s", consph_last_error());
+    snprintf(p.scheme, sizeof p.scheme, "edac");
+    p.skin = 0.2;
+    CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "--skin"),
+          "a skin on the GPU: %s", consph_last_error());
+    char why[256];
+#ifdef CONSPH_HAVE_CUDA
+    if (!consph_gpu_available(why, sizeof why))
+        CHECK(strstr(why, "no CUDA device"), "a CUDA build without a device: %s", why);
+#else
+    CHECK(!consph_gpu_available(why, sizeof why) && strstr(why, "without GPU support"), "%s", why);
+    p.skin = 0.0;
+    CHECK(consph_gpu_check(&p) == CONSPH_EINVAL &&
+              strstr(consph_last_error(), "without GPU support"),
+          "%s", consph_last_error());
+    p.nx = 8;
+    p.steps = 1;
+    p.tf = 0.0;
+    consph_solver *s = NULL;
+    if (consph_solver_create(&s, &p) == CONSPH_OK) {
+        CHECK(consph_solver_set_device(s, CONSPH_DEVICE_GPU) == CONSPH_EINVAL, "no GPU build");
+        CHECK(s->gpu == NULL, "attached without a GPU");
+        CHECK(consph_solver_step(s) == CONSPH_OK, "the CPU steps on: %s", consph_last_error());
+    }
+    consph_solver_free(s);
+#endif
+}
+
+int main(void)
+{
+    static const char *const schemes[] = {"edac", "wcsph"};
+    for (int k = 0; k < 2; ++k) {
+        gpu_compare(&gpu_emulation, schemes[k], "taylor-green", 20, 0);
+        gpu_compare(&gpu_emulation, schemes[k], "taylor-green", 20, 1);
+        gpu_compare(&gpu_emulation, schemes[k], "beltrami", 10, 0);
+    }
+    gpu_twice(&gpu_emulation, "edac", "taylor-green", 20, 5);
+    refusals();
+    return check_summary("test_gpu_emul");
+}
