@@ -1,0 +1,23 @@
+/* The solver decomposed over MPI ranks (par_solver.c): the hooks consph_solver_step and the run
+ * call when a solver has been cut by consph_par_solver_decompose (s->par != NULL). */
+#ifndef CONSPH_PAR_PAR_SOLVER_H
+#define CONSPH_PAR_PAR_SOLVER_H
+
+#include "solver/solver_internal.h"
+
+typedef struct par_solver par_solver;
+
+/* In place of the serial re-sort at a step's start: particles handed to the ranks that now own
+ * their cells, re-sorted into the serial order, the slabs re-cut by particle count, the halo
+ * rebuilt. */
+int par_step_begin(consph_solver *s);
+/* After the step's local work: `status` agreed over the ranks, and the guard that no particle
+ * moved far enough in the step to have needed a halo it did not have. */
+int par_step_end(consph_solver *s, int status);
+/* solver_global's decomposed case. */
+int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg);
+/* This rank (0 for a serial solver). */
+int par_rank(const consph_solver *s);
+void par_solver_free(par_solver *ps);
+
+#endif
