@@ -33,13 +33,14 @@ typedef struct par_case {
 /* Sizes with more slabs of cells along the last axis than one rank's own and its halo (reach
  * plus one cell each way) span, so that every rank holds only a part of the particles. */
 static const par_case cases[] = {
-    {"wcsph-2d", "taylor-green", "wcsph", 40, CONSPH_LAYOUT_RANDOM, 10, NULL},
-    {"edac-2d", "taylor-green", "edac", 40, CONSPH_LAYOUT_RANDOM, 10, NULL},
-    {"lipstc-2d", "taylor-green", "l-ipst-c", 40, CONSPH_LAYOUT_RANDOM, 10, "ipst_every=3"},
-    {"deltaplus-2d", "taylor-green", "delta-plus-sph", 40, CONSPH_LAYOUT_RANDOM, 10, NULL},
+    {"wcsph-2d", "taylor-green", "wcsph", 40, CONSPH_LAYOUT_RANDOM, 8, NULL},
+    {"edac-2d", "taylor-green", "edac", 40, CONSPH_LAYOUT_RANDOM, 8, NULL},
+    {"lipstc-2d", "taylor-green", "l-ipst-c", 40, CONSPH_LAYOUT_RANDOM, 8, "ipst_every=3"},
+    {"deltaplus-2d", "taylor-green", "delta-plus-sph", 40, CONSPH_LAYOUT_RANDOM, 8, NULL},
     {"tvf-2d", "taylor-green", "tvf", 40, CONSPH_LAYOUT_RANDOM, 6, NULL},
     {"ec-2d", "taylor-green", "e-c", 40, CONSPH_LAYOUT_LATTICE, 4, NULL},
-    {"lipstc-3d", "beltrami", "l-ipst-c", 20, CONSPH_LAYOUT_LATTICE, 3, "ipst_every=2 kernel=cubic"},
+    {"lipstc-3d", "beltrami", "l-ipst-c", 20, CONSPH_LAYOUT_LATTICE, 3,
+     "ipst_every=2 kernel=cubic"},
     {"wcsph-3d", "beltrami", "wcsph", 20, CONSPH_LAYOUT_LATTICE, 3, "kernel=cubic"},
 };
 #define NCASES (sizeof cases / sizeof cases[0])
@@ -312,8 +313,8 @@ int main(int argc, char **argv)
     }
     for (int np = 2; np <= 3; ++np) {
         snprintf(cmd, sizeof cmd,
-                 "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_"
-                 "oversubscribe=1 mpirun --oversubscribe -np %d %s --child %s",
+                 "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
+                 "OMPI_MCA_mpi_yield_when_idle=1 mpirun --oversubscribe -np %d %s --child %s",
                  np, argv[0], base);
         const int rc = system(cmd);
         CHECK(rc == 0, "%s exited with %d", cmd, rc);

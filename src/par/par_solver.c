@@ -37,18 +37,18 @@
 struct par_solver {
     MPI_Comm comm;
     int rank, size;
-    int axis;             /* the slab axis: dim - 1 */
-    int periodic;         /* along it */
+    int axis;     /* the slab axis: dim - 1 */
+    int periodic; /* along it */
     int64_t nc[CONSPH_MAX_DIM];
-    int64_t width;        /* halo width in cells along the axis: the walk's reach + 1 */
-    double edge, len;     /* cell edge and box length along the axis */
-    int64_t *cut;         /* size + 1: rank r owns the axis cells [cut[r], cut[r + 1]) */
-    int *owner;           /* per axis cell */
-    unsigned char *halo;  /* [q * nc + c]: axis cell c is in rank q's halo */
+    int64_t width;       /* halo width in cells along the axis: the walk's reach + 1 */
+    double edge, len;    /* cell edge and box length along the axis */
+    int64_t *cut;        /* size + 1: rank r owns the axis cells [cut[r], cut[r + 1]) */
+    int *owner;          /* per axis cell */
+    unsigned char *halo; /* [q * nc + c]: axis cell c is in rank q's halo */
     size_t nglobal, nown, goff;
-    double *g;            /* per local particle: index in the serial order (halo: -1) */
-    size_t *own;          /* the owned particles' local indices, ascending */
-    double *x0;           /* their axis coordinate at the last re-sort */
+    double *g;   /* per local particle: index in the serial order (halo: -1) */
+    size_t *own; /* the owned particles' local indices, ascending */
+    double *x0;  /* their axis coordinate at the last re-sort */
     /* halo refresh: per rank the particles sent (owned) and received (halo), ascending */
     int *scount, *sdispl, *rcount, *rdispl; /* in particles */
     int *sdbl, *sddis, *rdbl, *rddis;       /* in doubles, per call */
@@ -101,18 +101,46 @@ static void unpack(consph_particles *p, size_t i, const double *in)
             p->fields[f].data[(size_t)c * p->cap + i] = in[k++];
 }
 
-/* A particle set with the fields of `like`, in its order, for n particles. */
-static int particles_like(consph_particles *out, const consph_particles *like, size_t n)
+/* A particle set with the fields of `like` (those with sel[f] when sel is given), in its
+ * order, for n particles. */
+static int particles_like_some(consph_particles *out, const consph_particles *like, size_t n,
+                               const unsigned char *sel)
 {
     int st = consph_particles_init(out, like->dim, n, &like->box);
     if (st != CONSPH_OK) return st;
     out->spacing = like->spacing;
     for (int f = 0; f < like->nfields; ++f)
-        if (!consph_particles_field(out, like->fields[f].name, like->fields[f].ncomp)) {
+        if ((!sel || sel[f]) &&
+            !consph_particles_field(out, like->fields[f].name, like->fields[f].ncomp)) {
             consph_particles_free(out);
             return par_fail_mem();
         }
     return CONSPH_OK;
+}
+
+static int particles_like(consph_particles *out, const consph_particles *like, size_t n)
+{
+    return particles_like_some(out, like, n, NULL);
+}
+
+/* pack of the positions and the selected fields */
+static size_t values_selected(const consph_particles *p, const unsigned char *sel)
+{
+    size_t k = (size_t)p->dim;
+    for (int f = 0; f < p->nfields; ++f)
+        if (sel[f]) k += (size_t)p->fields[f].ncomp;
+    return k;
+}
+
+static void pack_selected(const consph_particles *p, const unsigned char *sel, size_t i,
+                          double *out)
+{
+    size_t k = 0;
+    for (int a = 0; a < p->dim; ++a) out[k++] = p->x[a][i];
+    for (int f = 0; f < p->nfields; ++f)
+        if (sel[f])
+            for (int c = 0; c < p->fields[f].ncomp; ++c)
+                out[k++] = p->fields[f].data[(size_t)c * p->cap + i];
 }
 
 static int counts_to_doubles(par_solver *ps, const int *cnt, int *dbl, int *dis, size_t per)
@@ -472,10 +500,22 @@ int par_step_end(consph_solver *s, int status)
 
 int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg)
 {
+    return par_global_some(s, fn, arg, NULL);
+}
+
+int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg,
+                    const char *const *only)
+{
     par_solver *ps = s->par;
     consph_particles *p = s->sys.p;
     const double t0 = MPI_Wtime();
-    const size_t per = values_per_particle(p);
+    unsigned char sel[CONSPH_MAX_FIELDS];
+    for (int f = 0; f < p->nfields; ++f) {
+        sel[f] = !only;
+        for (int k = 0; only && only[k]; ++k)
+            if (!strcmp(p->fields[f].name, only[k])) sel[f] = 1;
+    }
+    const size_t per = values_selected(p, sel);
     int st = CONSPH_OK;
     double *sbuf = malloc((ps->nown ? ps->nown : 1) * per * sizeof(double));
     int *cnt = NULL, *dis = NULL, *pcnt = NULL;
@@ -485,7 +525,7 @@ int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *a
         pcnt = consph_calloc((size_t)ps->size, sizeof(int));
     }
     if (!sbuf || (ps->rank == 0 && (!cnt || !dis || !pcnt))) MPI_Abort(ps->comm, 1);
-    for (size_t o = 0; o < ps->nown; ++o) pack(p, ps->own[o], sbuf + o * per);
+    for (size_t o = 0; o < ps->nown; ++o) pack_selected(p, sel, ps->own[o], sbuf + o * per);
     const int mine = (int)ps->nown;
     MPI_Gather(&mine, 1, MPI_INT, pcnt, 1, MPI_INT, 0, ps->comm);
     if (ps->rank == 0) st = counts_to_doubles(ps, pcnt, cnt, dis, per);
@@ -493,7 +533,7 @@ int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *a
     memset(&full, 0, sizeof full);
     double *rbuf = NULL;
     if (ps->rank == 0) {
-        if (st == CONSPH_OK) st = particles_like(&full, p, ps->nglobal);
+        if (st == CONSPH_OK) st = particles_like_some(&full, p, ps->nglobal, sel);
         rbuf = malloc((ps->nglobal ? ps->nglobal : 1) * per * sizeof(double));
         if (!rbuf) MPI_Abort(ps->comm, 1);
         if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
@@ -637,9 +677,8 @@ int consph_par_solver_decompose(consph_solver *s)
     ps->rdbl = consph_calloc((size_t)size, sizeof(int));
     ps->rddis = consph_calloc((size_t)size, sizeof(int));
     unsigned char *dest = consph_calloc(n ? n : 1, 1);
-    if (!ps->cut || !ps->owner || !ps->halo || !ps->g || !ps->own || !ps->scount ||
-        !ps->sdispl || !ps->rcount || !ps->rdispl || !ps->sdbl || !ps->sddis || !ps->rdbl ||
-        !ps->rddis || !dest) {
+    if (!ps->cut || !ps->owner || !ps->halo || !ps->g || !ps->own || !ps->scount || !ps->sdispl ||
+        !ps->rcount || !ps->rdispl || !ps->sdbl || !ps->sddis || !ps->rdbl || !ps->rddis || !dest) {
         free(dest);
         par_solver_free(ps);
         return par_fail_mem();
@@ -690,6 +729,13 @@ int par_step_end(consph_solver *s, int status)
 
 int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg)
 {
+    return fn(s, arg);
+}
+
+int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg,
+                    const char *const *only)
+{
+    (void)only;
     return fn(s, arg);
 }
 

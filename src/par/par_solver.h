@@ -16,6 +16,10 @@ int par_step_begin(consph_solver *s);
 int par_step_end(consph_solver *s, int status);
 /* solver_global's decomposed case. */
 int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg);
+/* The same with rank 0's particles holding their positions and only the fields named in
+ * `only` (NULL-terminated; NULL: every field): what fn reads, for what runs at every step. */
+int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg,
+                    const char *const *only);
 /* This rank (0 for a serial solver). */
 int par_rank(const consph_solver *s);
 void par_solver_free(par_solver *ps);

@@ -458,7 +458,12 @@ int consph_solver_step(consph_solver *s)
     if (s->par) st = par_step_end(s, st);
     if (st == CONSPH_OK) {
         step_close_arg a = {landed, dt};
-        st = solver_global(s, step_close, &a);
+        /* decomposed, a step that samples nothing gathers only what the checks read */
+        static const char *const checked[] = {SF_U, SF_RHOF, SF_P, SF_ID, SF_MASS, NULL};
+        const int samples = s->step % s->prm.log_every == 0 || consph_solver_done(s) ||
+                            s->prm.error == CONSPH_ERROR_AUTHORS;
+        st = s->par && !samples ? par_global_some(s, step_close, &a, checked)
+                                : solver_global(s, step_close, &a);
     }
     s->dt = full;
     s->grads_skip = 0;
