@@ -451,7 +451,8 @@ static int migrate(consph_solver *s, par_solver *ps)
         }
     }
     MPI_Alltoallv(sbuf, sd, sdis, MPI_DOUBLE, rbuf, rd, rdis, MPI_DOUBLE, ps->comm);
-    ps->bytes += (double)(ns * per * sizeof(double));
+    /* what stays on this rank is a copy, as the serial re-sort's permutation */
+    ps->bytes += (double)((ns - (size_t)cnt[ps->rank]) * per * sizeof(double));
     ps->seconds += MPI_Wtime() - t0;
     st = install(s, ps, rbuf, nr, per);
     free(ac);
@@ -542,7 +543,7 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
     MPI_Gatherv(sbuf, (int)(ps->nown * per), MPI_DOUBLE, rbuf, cnt, dis, MPI_DOUBLE, 0, ps->comm);
     unsigned long long pairs = s->pairs - ps->pairs_base, total = 0;
     MPI_Reduce(&pairs, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, ps->comm);
-    ps->bytes += (double)(ps->nown * per * sizeof(double));
+    if (ps->rank != 0) ps->bytes += (double)(ps->nown * per * sizeof(double));
     ps->seconds += MPI_Wtime() - t0;
     free(sbuf);
     char msg[1024] = "";
