@@ -467,6 +467,174 @@ static int migrate(consph_solver *s, par_solver *ps)
     return st;
 }
 
+/* ---- consph_sum over the ranks ---- */
+
+/* consph_sum's tree (src/core/util.c): leaves of at most SUM_LEAF values summed in order,
+ * nodes split on a leaf boundary so that the tree depends on n alone. */
+#define SUM_LEAF 256
+
+typedef struct sum_item {
+    double start, len, value; /* a node's sum; len 0: the single value at start */
+} sum_item;
+
+typedef struct sum_items {
+    sum_item *it;
+    size_t n, cap;
+} sum_items;
+
+static int sum_push(sum_items *a, double start, double len, double value)
+{
+    if (a->n == a->cap) {
+        size_t cap = a->cap ? 2 * a->cap : 64;
+        sum_item *q = realloc(a->it, cap * sizeof *q);
+        if (!q) return par_fail_mem();
+        a->it = q;
+        a->cap = cap;
+    }
+    a->it[a->n++] = (sum_item){start, len, value};
+    return CONSPH_OK;
+}
+
+/* The nodes of the tree over [0, N) that lie within this rank's [lo, hi), as sums, and the
+ * values of the leaves it shares with another rank, one by one. */
+static int sum_emit(sum_items *a, const double *w, size_t lo, size_t hi, size_t s, size_t n)
+{
+    if (s + n <= lo || s >= hi || n == 0) return CONSPH_OK;
+    if (lo <= s && s + n <= hi)
+        return sum_push(a, (double)s, (double)n, consph_sum(w + (s - lo), n));
+    if (n <= SUM_LEAF) {
+        for (size_t i = s > lo ? s : lo; i < s + n && i < hi; ++i)
+            if (sum_push(a, (double)i, 0.0, w[i - lo])) return CONSPH_ENOMEM;
+        return CONSPH_OK;
+    }
+    const size_t left = ((n + SUM_LEAF - 1) / SUM_LEAF / 2) * SUM_LEAF;
+    int st = sum_emit(a, w, lo, hi, s, left);
+    return st ? st : sum_emit(a, w, lo, hi, s + left, n - left);
+}
+
+/* The first item at or after start (items ascend by start). */
+static size_t sum_find(const sum_item *it, size_t n, double start)
+{
+    size_t a = 0, b = n;
+    while (a < b) {
+        const size_t m = (a + b) / 2;
+        if (it[m].start < start)
+            a = m + 1;
+        else
+            b = m;
+    }
+    return a;
+}
+
+static double sum_eval(const sum_item *it, size_t m, size_t s, size_t n)
+{
+    size_t k = sum_find(it, m, (double)s);
+    /* a whole node on one rank; several items may start at s (a node and, as single values,
+     * a shared leaf's first) only when len differs */
+    for (size_t q = k; q < m && it[q].start == (double)s; ++q)
+        if (it[q].len == (double)n) return it[q].value;
+    if (n <= SUM_LEAF) {
+        double acc = 0.0;
+        for (; k < m && it[k].start < (double)(s + n); ++k) acc += it[k].value;
+        return acc;
+    }
+    const size_t left = ((n + SUM_LEAF - 1) / SUM_LEAF / 2) * SUM_LEAF;
+    return sum_eval(it, m, s, left) + sum_eval(it, m, s + left, n - left);
+}
+
+/* consph_sum of w over the serial order, each rank holding the values of its owned particles
+ * (its range [goff, goff + nown) of that order), bit for bit on every rank. */
+static int par_sum(par_solver *ps, const double *w, double *out)
+{
+    sum_items a = {NULL, 0, 0};
+    int st = sum_emit(&a, w, ps->goff, ps->goff + ps->nown, 0, ps->nglobal);
+    if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
+    const int mine = (int)(3 * a.n);
+    int *cnt = NULL, *dis = NULL;
+    double *all = NULL;
+    size_t total = 0;
+    if (ps->rank == 0) {
+        cnt = malloc((size_t)ps->size * sizeof(int));
+        dis = malloc((size_t)ps->size * sizeof(int));
+        if (!cnt || !dis) MPI_Abort(ps->comm, 1);
+    }
+    MPI_Gather(&mine, 1, MPI_INT, cnt, 1, MPI_INT, 0, ps->comm);
+    if (ps->rank == 0) {
+        for (int q = 0; q < ps->size; ++q) {
+            dis[q] = (int)total;
+            total += (size_t)cnt[q];
+        }
+        all = malloc((total ? total : 1) * sizeof(double));
+        if (!all) MPI_Abort(ps->comm, 1);
+    }
+    MPI_Gatherv(a.it, mine, MPI_DOUBLE, all, cnt, dis, MPI_DOUBLE, 0, ps->comm);
+    double v = 0.0;
+    if (ps->rank == 0) v = sum_eval((const sum_item *)all, total / 3, 0, ps->nglobal);
+    MPI_Bcast(&v, 1, MPI_DOUBLE, 0, ps->comm);
+    if (ps->rank != 0) ps->bytes += (double)mine * sizeof(double);
+    free(a.it);
+    free(cnt);
+    free(dis);
+    free(all);
+    *out = v;
+    return CONSPH_OK;
+}
+
+int par_owned_sum(consph_solver *s, const double *w, double *out)
+{
+    return par_sum(s->par, w, out);
+}
+
+int par_checks_clean(consph_solver *s, int *clean)
+{
+    par_solver *ps = s->par;
+    const consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t cap = p->cap;
+    const double t0 = MPI_Wtime();
+    const consph_field *fu = consph_particles_find(p, SF_U),
+                       *fr = consph_particles_find(p, SF_RHOF),
+                       *fp = consph_particles_find(p, SF_P),
+                       *fm = consph_particles_find(p, SF_MASS);
+    double *w = malloc((ps->nown ? ps->nown : 1) * sizeof(double));
+    if (!fu || !fr || !fp || !w) {
+        free(w);
+        MPI_Abort(ps->comm, 1);
+    }
+    const double *u = fu->data, *rf = fr->data, *pr = fp->data, r0 = s->prm.rho0;
+    /* as solver_check_finite and solver_check_valid (src/solver/validity.c) and
+     * solver_kinetic_energy (diag.c) compute them, over the owned particles */
+    const int compressible = !(s->scheme->evolve_p && s->scheme->closure);
+    double finite = 0.0, u2max = 0.0, cmax = 0.0;
+    for (size_t o = 0; o < ps->nown; ++o) {
+        const size_t i = ps->own[o];
+        finite += rf[i] - rf[i] + pr[i] - pr[i];
+        double u2 = 0.0;
+        for (int a = 0; a < d; ++a) {
+            finite += p->x[a][i] - p->x[a][i] + u[a * cap + i] - u[a * cap + i];
+            u2 += u[a * cap + i] * u[a * cap + i];
+        }
+        u2max = u2 > u2max ? u2 : u2max;
+        if (compressible) {
+            const double c = fabs(rf[i] / r0 - 1.0);
+            cmax = c > cmax ? c : cmax;
+        }
+        const double m = fm ? fm->data[i] : s->mass, ux = u[i], uy = u[cap + i],
+                     uz = d == 3 ? u[2 * cap + i] : 0.0;
+        w[o] = 0.5 * m * (d == 3 ? ux * ux + uy * uy + uz * uz : ux * ux + uy * uy);
+    }
+    double in[3] = {finite == 0.0 ? 0.0 : 1.0, u2max, cmax}, out[3];
+    MPI_Allreduce(in, out, 3, MPI_DOUBLE, MPI_MAX, ps->comm);
+    double ke = 0.0;
+    par_sum(ps, w, &ke);
+    free(w);
+    ps->seconds += MPI_Wtime() - t0;
+    const double ke0 = s->hist[6]; /* row 0: the initial state, on every rank */
+    *clean = out[0] == 0.0 && sqrt(out[1]) / s->c0 <= CONSPH_VALID_MACH &&
+             out[2] <= CONSPH_VALID_COMPRESSION && !(ke > ke0 * (1.0 + CONSPH_VALID_KE_GROWTH));
+    return CONSPH_OK;
+}
+
 /* ---- the solver's hooks ---- */
 
 int par_step_begin(consph_solver *s)
@@ -744,6 +912,19 @@ int par_rank(const consph_solver *s)
 {
     (void)s;
     return 0;
+}
+
+int par_checks_clean(consph_solver *s, int *clean)
+{
+    (void)s;
+    *clean = 0;
+    return CONSPH_OK;
+}
+
+int par_owned_sum(consph_solver *s, const double *w, double *out)
+{
+    *out = consph_sum(w, s->sys.p->n);
+    return CONSPH_OK;
 }
 
 void par_solver_free(par_solver *ps)

@@ -20,6 +20,14 @@ int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *a
  * `only` (NULL-terminated; NULL: every field): what fn reads, for what runs at every step. */
 int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg,
                     const char *const *only);
+/* The verdict of the checks after a step (solver_check_finite, solver_check_valid) without
+ * gathering the particles: *clean when every owned value is finite and the state within the
+ * CONSPH_VALID_* bounds, the kinetic energy summed as consph_sum over the serial order; the
+ * same on every rank. When not clean, the serial checks on rank 0 name the particle. */
+int par_checks_clean(consph_solver *s, int *clean);
+/* consph_sum over the serial order of w, one value per owned particle in this rank's order
+ * (the particles in the destination mask, ascending), the same on every rank. */
+int par_owned_sum(consph_solver *s, const double *w, double *out);
 /* This rank (0 for a serial solver). */
 int par_rank(const consph_solver *s);
 void par_solver_free(par_solver *ps);

@@ -458,12 +458,20 @@ int consph_solver_step(consph_solver *s)
     if (s->par) st = par_step_end(s, st);
     if (st == CONSPH_OK) {
         step_close_arg a = {landed, dt};
-        /* decomposed, a step that samples nothing gathers only what the checks read */
+        /* decomposed, a step that samples nothing takes the checks' verdict over the ranks;
+         * a failed check gathers what the checks read, for the serial message */
         static const char *const checked[] = {SF_U, SF_RHOF, SF_P, SF_ID, SF_MASS, NULL};
         const int samples = s->step % s->prm.log_every == 0 || consph_solver_done(s) ||
                             s->prm.error == CONSPH_ERROR_AUTHORS;
-        st = s->par && !samples ? par_global_some(s, step_close, &a, checked)
-                                : solver_global(s, step_close, &a);
+        int clean = 0;
+        if (s->par && !samples) st = par_checks_clean(s, &clean);
+        if (st == CONSPH_OK && clean) {
+            s->log_since += dt;
+            s->step_dt = dt;
+        } else if (st == CONSPH_OK) {
+            st = s->par && !samples ? par_global_some(s, step_close, &a, checked)
+                                    : solver_global(s, step_close, &a);
+        }
     }
     s->dt = full;
     s->grads_skip = 0;
