@@ -825,6 +825,13 @@ int consph_par_solver_decompose(consph_solver *s)
     ps->width = reach[axis] + 1;
     ps->edge = edge[axis];
     const int64_t nca = ps->nc[axis];
+    if ((size_t)size > n) {
+        free(ps);
+        return consph_fail(CONSPH_EINVAL,
+                           "%d MPI ranks for %zu particles: run on at most as many ranks as "
+                           "particles",
+                           size, n);
+    }
     if ((int64_t)size > nca) {
         free(ps);
         return consph_fail(CONSPH_EINVAL,
