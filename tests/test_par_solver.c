@@ -44,6 +44,8 @@ static const par_case cases[] = {
     {"lipstc-3d", "beltrami", "l-ipst-c", 20, CONSPH_LAYOUT_LATTICE, 3,
      "ipst_every=2 kernel=cubic"},
     {"wcsph-3d", "beltrami", "wcsph", 20, CONSPH_LAYOUT_LATTICE, 3, "kernel=cubic"},
+    /* the authors' error measure samples after every step: every step gathers the whole set */
+    {"authors", "taylor-green", "edac", 40, CONSPH_LAYOUT_RANDOM, 6, "error=authors"},
     /* leaves the model's validity at step 12 (kinetic energy growth): the checks' verdict
      * over the ranks, then the serial message */
     {"diverges", "taylor-green", "wcsph", 40, CONSPH_LAYOUT_RANDOM, 30, "cfl=1.5"},
@@ -95,6 +97,9 @@ static int dump(consph_solver *s, void *path)
     }
     fwrite(s->hist, sizeof(double), s->nhist * HIST_COLS, fp);
     fwrite(&s->pairs, sizeof s->pairs, 1, fp);
+    const double acc[] = {s->l1_u_acc,   s->l1_p_acc,       s->auth_u_acc,
+                          s->auth_p_acc, (double)s->auth_n, s->prm.ipst_chi0};
+    fwrite(acc, sizeof acc, 1, fp);
     fclose(fp);
     return CONSPH_OK;
 }
