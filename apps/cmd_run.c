@@ -672,7 +672,7 @@ int cmd_run(int argc, char **argv)
     if (restart) {
         static const char *const with_restart[] = {
             "--restart",          "--out", "--format", "--threads", "--snapshot-every",
-            "--checkpoint-every", "--tf",  "--steps", "--device"};
+            "--checkpoint-every", "--tf",  "--steps",  "--device"};
         for (int k = 0; k < cmd.nopts; ++k) {
             size_t w = 0;
             while (w < sizeof with_restart / sizeof with_restart[0] &&

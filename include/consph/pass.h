@@ -67,6 +67,20 @@ typedef struct consph_pass {
 /* ---- the system ---- */
 
 typedef struct consph_nlist consph_nlist; /* src/pass/nlist.c */
+struct consph_sys;
+
+/* A system that is one part of a particle set decomposed over processes (src/par: MPI ranks).
+ * Its particles outside the destination mask are the halo: copies of other parts' particles.
+ * refresh brings the halo's positions, named fields and the system scratch (in blocks of n
+ * values) up to date with their owners; it runs at the start of every pass and of every
+ * consph_sys_update, so a pass reads the neighbours' current values whatever the caller
+ * changed since. max is the maximum of v over every part (NaN when any part's is NaN), for a
+ * loop over the particles that must agree on every part. */
+typedef struct consph_sys_split {
+    int (*refresh)(struct consph_sys *s, void *ctx);
+    double (*max)(void *ctx, double v);
+    void *ctx;
+} consph_sys_split;
 
 typedef struct consph_sys {
     consph_particles *p; /* in cell order after consph_sys_init */
@@ -80,7 +94,9 @@ typedef struct consph_sys {
     int owned;           /* 1 when p, nnps, origin and dest belong to the system */
     double *scratch;     /* consph_sys_scratch's buffer, always the system's own */
     size_t scratch_cap;
-    consph_nlist *nlist; /* consph_sys_nlist's neighbour list; NULL: every pass gathers */
+    consph_nlist *nlist;           /* consph_sys_nlist's neighbour list; NULL: every pass gathers */
+    size_t scratch_asked;          /* the count of the last consph_sys_scratch */
+    const consph_sys_split *split; /* NULL: the system is the whole particle set */
 } consph_sys;
 
 /* The distance within which the kernel can be non-zero: the radius a system's search needs

@@ -74,6 +74,7 @@ struct consph_nnps {
     size_t n;
     int identity; /* order[s] == s for every slot: the set is in cell order */
     const consph_particles *p;
+    size_t grid_n; /* nnps_fix_grid: the grid is chosen for this many particles, not n */
 };
 
 consph_nnps *consph_nnps_create(const consph_box *box, double radius, int cells_per_radius)
@@ -163,6 +164,7 @@ size_t consph_nnps_bytes(const consph_nnps *g)
 /* Picks the cell counts for n particles: edge >= radius / cells_per_radius, total capped. */
 static void setup_grid(consph_nnps *g, size_t n)
 {
+    if (g->grid_n) n = g->grid_n;
     double v[CONSPH_MAX_DIM] = {1.0, 1.0, 1.0};
     if (g->cells_per_radius_asked == 0) {
         const double pi = 3.14159265358979323846;
@@ -320,6 +322,26 @@ int consph_nnps_sort(consph_nnps *g, consph_particles *p, size_t *perm_out)
     for (size_t s = 0; s < p->n; ++s) g->order[s] = s;
     g->identity = 1;
     return CONSPH_OK;
+}
+
+void nnps_fix_grid(consph_nnps *g, size_t n)
+{
+    g->grid_n = n;
+}
+
+void nnps_grid(const consph_nnps *g, int64_t nc[CONSPH_MAX_DIM], int64_t reach[CONSPH_MAX_DIM],
+               double edge[CONSPH_MAX_DIM])
+{
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
+        nc[a] = g->nc[a];
+        reach[a] = g->reach[a];
+        edge[a] = g->h[a];
+    }
+}
+
+int64_t nnps_axis_cell(const consph_nnps *g, int a, double x)
+{
+    return cell_index(g, a, stored_coord(g, a, x));
 }
 
 /* Integer floor division for a positive divisor; u is nearly always inside [0, d) or one

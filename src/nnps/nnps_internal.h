@@ -39,4 +39,14 @@ size_t nnps_gather_runs(int isa, const consph_nnps_slots *v, const consph_nnps_r
  * buffer can be reused across structures of different dimension. */
 int nnps_nbrs_reserve(consph_nbrs *nb, size_t need);
 
+/* For a search over part of a particle set (an MPI rank's particles and its halo, src/par): the
+ * grid (cells per radius and cell counts) is chosen at every build as for n particles, the
+ * whole set, so that it is the whole set's grid and cells are walked as in the serial run. */
+void nnps_fix_grid(consph_nnps *g, size_t n);
+/* The grid of the last build: cells per axis, cells a query walks each way, cell edges. */
+void nnps_grid(const consph_nnps *g, int64_t nc[CONSPH_MAX_DIM], int64_t reach[CONSPH_MAX_DIM],
+               double edge[CONSPH_MAX_DIM]);
+/* The cell along axis a of coordinate x, as a build bins it (wrapped on a periodic axis). */
+int64_t nnps_axis_cell(const consph_nnps *g, int a, double x);
+
 #endif

@@ -107,7 +107,8 @@ unsigned long pass_group_runs = 0;
 int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
                     void *job, size_t *pairs)
 {
-    if (!s || !s->p || !s->nnps || !visit || s->dest || s->kernel.tensor)
+    /* a decomposed system refreshes its halo in consph_pass_run_counted: that path serves it */
+    if (!s || !s->p || !s->nnps || !visit || s->dest || s->kernel.tensor || s->split)
         return PASS_GROUP_UNSERVED;
     const size_t n = s->p->n;
     if (n == 0) return CONSPH_OK;

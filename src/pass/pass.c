@@ -77,6 +77,10 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
     char why[256];
     if (!s || !s->p || !s->nnps || !pass || !pass->visit)
         return consph_fail(CONSPH_EINVAL, "pass: needs a system and a pass with a visit");
+    if (s->split) {
+        int rc = s->split->refresh((consph_sys *)s, s->split->ctx);
+        if (rc != CONSPH_OK) return rc;
+    }
     const size_t n = s->p->n;
     const unsigned need = pass->need;
     const consph_kernel *kernel = &s->kernel;
@@ -278,6 +282,10 @@ int consph_sys_update(consph_sys *s, int resort)
 {
     if (!s || !s->p || !s->nnps)
         return consph_fail(CONSPH_EINVAL, "system update: needs an initialised system");
+    if (s->split) {
+        int rc = s->split->refresh(s, s->split->ctx);
+        if (rc != CONSPH_OK) return rc;
+    }
     if (s->nlist) return nlist_update(s, resort);
     if (!resort) return consph_nnps_build(s->nnps, s->p);
     const size_t n = s->p->n;
@@ -333,6 +341,7 @@ int consph_sys_set_dest(consph_sys *s, const unsigned char *dest)
 
 double *consph_sys_scratch(consph_sys *s, size_t count)
 {
+    s->scratch_asked = count;
     if (count <= s->scratch_cap) return s->scratch;
     double *q = realloc(s->scratch, count * sizeof(double));
     if (!q) {

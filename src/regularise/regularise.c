@@ -132,11 +132,12 @@ static int ipst_volumes(const consph_sys *s, double h, double *sumw, double *vol
     double mx = -INFINITY;
     for (size_t i = 0; i < s->p->n; ++i) {
         vol[i] = 1.0 / sumw[i];
+        if (s->dest && !s->dest[i]) continue; /* a halo particle: its part's maximum */
         double chi = hd * sumw[i];
         if (isnan(chi)) mx = NAN;
         if (chi > mx) mx = chi;
     }
-    *chi_max = mx;
+    *chi_max = s->split ? s->split->max(s->split->ctx, mx) : mx;
     return CONSPH_OK;
 }
 
@@ -150,7 +151,9 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
                            "IPST: needs h > 0, chi0 > 0, tol > 0 and max_iter >= 0 (got h = %g, "
                            "chi0 = %g, tol = %g, max_iter = %d)",
                            prm->h, prm->chi0, prm->tol, prm->max_iter);
-    if (s->dest)
+    /* a decomposed system's halo is shifted by its own part (the shift of a particle outside
+     * the mask stays 0 here) */
+    if (s->dest && !s->split)
         return consph_fail(CONSPH_EINVAL,
                            "IPST: the system has a destination mask; IPST shifts every particle");
     consph_particles *p = s->p;

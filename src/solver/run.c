@@ -14,6 +14,7 @@
 #include "gpu/gpu_internal.h"
 #include "solver/runfiles.h"
 #include "solver/solver_internal.h"
+#include "par/par_solver.h"
 
 void consph_run_summary_json(FILE *fp, const consph_run_summary *s)
 {
@@ -71,7 +72,7 @@ static int write_log(const consph_solver *s, runfiles *f)
 
 /* The declared output arrays (the same at every step) and the time; the log gets this instant's
  * diagnostics first, if its cadence had not sampled it. */
-static int write_snapshot(consph_solver *s, runfiles *f)
+static int snapshot_whole(consph_solver *s, void *f)
 {
     consph_vtu_array arr[CONSPH_MAX_FIELDS];
     consph_vtu_content c = {arr, 0, 1, s->t};
@@ -83,8 +84,17 @@ static int write_snapshot(consph_solver *s, runfiles *f)
     return st == CONSPH_OK ? write_log(s, f) : st;
 }
 
-static int write_checkpoint(const consph_solver *s, runfiles *f)
+/* Decomposed over MPI ranks, every rank computes its particles' output fields first: the
+ * checkpoints carry them as the serial run's do. */
+static int write_snapshot(consph_solver *s, runfiles *f)
 {
+    int st = s->par ? consph_solver_output_fields(s) : CONSPH_OK;
+    return st == CONSPH_OK ? solver_global(s, snapshot_whole, f) : st;
+}
+
+static int checkpoint_whole(consph_solver *s, void *vf)
+{
+    runfiles *f = vf;
     char *meta = NULL;
     double *hist = NULL;
     size_t nh = 0;
@@ -95,6 +105,11 @@ static int write_checkpoint(const consph_solver *s, runfiles *f)
     free(meta);
     free(hist);
     return st == CONSPH_OK ? write_log(s, f) : st;
+}
+
+static int write_checkpoint(consph_solver *s, runfiles *f)
+{
+    return solver_global(s, checkpoint_whole, f);
 }
 
 static void summary_json(FILE *fp, const void *sum)
@@ -223,6 +238,50 @@ int consph_run_dir_check(const char *dir, const char *run_id, int overwrite)
     return st;
 }
 
+/* The run's directory opened: checked, run.id, the index (a restart's continued). */
+static int run_open(consph_solver *s, void *vf)
+{
+    runfiles *f = vf;
+    int st = consph_run_dir_check(f->dir, s->step > 0 ? s->run_id : NULL, 0);
+    if (st == CONSPH_OK) st = runfiles_text(f, "run.id", run_id_text, s->run_id);
+    const char *pvd = st == CONSPH_OK ? runfiles_join(f, "run.pvd") : NULL;
+    if (st == CONSPH_OK && !pvd) st = consph_fail(CONSPH_ENOMEM, "out of memory");
+    if (st == CONSPH_OK && s->step > 0 && access(pvd, F_OK) == 0) {
+        st = consph_pvd_load(&f->pvd, pvd);
+        f->have_pvd = st == CONSPH_OK;
+        if (st == CONSPH_OK) st = consph_pvd_truncate(&f->pvd, s->t);
+    } else if (st == CONSPH_OK) {
+        st = runfiles_pvd_init(f);
+    }
+    return st;
+}
+
+typedef struct run_close_arg {
+    const consph_run_output *out;
+    consph_run_summary *sum;
+    runfiles *f;
+    int files, stopped;
+    int status; /* the run's, before its last files */
+} run_close_arg;
+
+/* The summary and the end-of-run files (the log also after a divergence). */
+static int run_close(consph_solver *s, void *va)
+{
+    run_close_arg *a = va;
+    const int st = a->status;
+    consph_solver_summary(s, a->sum);
+    if (!(a->files && (st == CONSPH_OK || st == CONSPH_ENUMERIC))) return st;
+    /* keep the message of a divergence: the files below must not replace it */
+    char msg[512];
+    snprintf(msg, sizeof msg, "%s", consph_last_error());
+    int wst = write_log(s, a->f);
+    if (wst == CONSPH_OK && st == CONSPH_OK && !a->stopped) wst = write_summary(a->sum, a->f);
+    if (wst == CONSPH_OK && st == CONSPH_OK && !a->stopped) wst = problem_outputs(s, a->out->dir);
+    if (st == CONSPH_OK) return wst;
+    consph_fail(st, "%s", msg);
+    return st;
+}
+
 int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summary *sum,
                int *stopped_by)
 {
@@ -230,7 +289,12 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
     const int files = out && out->dir;
     int st = CONSPH_OK;
     *stopped_by = 0;
-    if (files) {
+    if (files && s->par) {
+        /* rank 0 writes the files; the others follow its status */
+        const int fresh = !(s->step > 0);
+        st = solver_global(s, run_open, &f);
+        if (st == CONSPH_OK && fresh) st = write_snapshot(s, &f);
+    } else if (files) {
         st = consph_run_dir_check(out->dir, s->step > 0 ? s->run_id : NULL, 0);
         if (st == CONSPH_OK) st = runfiles_text(&f, "run.id", run_id_text, s->run_id);
         const char *pvd = st == CONSPH_OK ? runfiles_join(&f, "run.pvd") : NULL;
@@ -252,14 +316,17 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
             if (st == CONSPH_OK && s->step == 0) st = write_snapshot(s, &f);
         }
     }
-    if (st == CONSPH_OK && out && out->signals) st = consph_stop_install();
+    /* decomposed over MPI ranks, mpirun delivers the signals (a stop checkpoint would need
+     * every rank to agree on the step) */
+    const int signals = out && out->signals && !s->par;
+    if (st == CONSPH_OK && signals) st = consph_stop_install();
     /* ∇u (the vorticity, velocity_gradient) is computed only in the steps that end at a
      * snapshot or the end of the run (consph_solver_step) */
     s->grads_lazy = 1;
     s->grads_every = files ? out->snapshot_every : 0;
     consph_progress pr;
     consph_progress_start(&pr, s->step);
-    if (!(out && out->progress)) pr.enabled = 0;
+    if (!(out && out->progress) || par_rank(s) != 0) pr.enabled = 0;
     while (st == CONSPH_OK && !consph_solver_done(s)) {
         st = consph_solver_step(s);
         if (st != CONSPH_OK) break;
@@ -270,7 +337,7 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
         if (st == CONSPH_OK && files && !last && out->checkpoint_every > 0 &&
             s->step % out->checkpoint_every == 0)
             st = write_checkpoint(s, &f);
-        int sig = out && out->signals ? consph_stop_requested() : 0;
+        int sig = signals ? consph_stop_requested() : 0;
         if (st == CONSPH_OK && sig && !last) {
             *stopped_by = sig;
             st = gpu_download(s); /* a GPU run's state, for the checkpoint and the summary */
@@ -280,20 +347,11 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
     }
     consph_progress_end(&pr);
     s->grads_lazy = 0;
-    if (out && out->signals) consph_stop_uninstall();
-    consph_solver_summary(s, sum);
-    if (files && (st == CONSPH_OK || st == CONSPH_ENUMERIC)) {
-        /* keep the message of a divergence: the files below must not replace it */
-        char msg[512];
-        snprintf(msg, sizeof msg, "%s", consph_last_error());
-        int wst = write_log(s, &f);
-        if (wst == CONSPH_OK && st == CONSPH_OK && !*stopped_by) wst = write_summary(sum, &f);
-        if (wst == CONSPH_OK && st == CONSPH_OK && !*stopped_by) wst = problem_outputs(s, out->dir);
-        if (st == CONSPH_OK)
-            st = wst;
-        else
-            consph_fail(st, "%s", msg);
-    }
+    if (signals) consph_stop_uninstall();
+    run_close_arg ca = {out, sum, &f, files, *stopped_by, st};
+    /* decomposed: every rank's summary of its own part, then rank 0's of the whole run */
+    if (s->par) consph_solver_summary(s, sum);
+    st = solver_global(s, run_close, &ca);
     runfiles_free(&f);
     return st;
 }

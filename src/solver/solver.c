@@ -18,6 +18,7 @@
 #include "problems/wcref.h"
 #include "gpu/gpu_internal.h"
 #include "solver/solver_internal.h"
+#include "par/par_solver.h"
 
 /* Measured peak resident memory per particle (2D, one thread, --out, 160 000 particles): 600
  * bytes for l-rr-c (which keeps a lattice copy), 340-400 for the others, packing included; the
@@ -370,6 +371,7 @@ void consph_solver_free(consph_solver *s)
     free(s->integ_scratch);
     wcref_free(s->wc);
     free(s->wc_buf);
+    par_solver_free(s->par);
     free(s);
 }
 
@@ -466,6 +468,34 @@ static int integ_state_of(consph_solver *s, integ_state *is)
     return CONSPH_OK;
 }
 
+int solver_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg)
+{
+    return s->par ? par_global(s, fn, arg) : fn(s, arg);
+}
+
+/* What follows a step and reads every particle: the checks, the diagnostics' sample, the
+ * authors' measure. */
+typedef struct step_close_arg {
+    int landed;
+    int on_host; /* 0: a GPU step that left the particles on the device (nothing to check) */
+    double dt;
+} step_close_arg;
+
+static int step_close(consph_solver *s, void *arg)
+{
+    const step_close_arg *a = arg;
+    int st = a->on_host ? solver_check_finite(s) : CONSPH_OK;
+    if (st == CONSPH_OK && a->on_host) st = solver_check_valid(s);
+    if (st == CONSPH_OK) {
+        s->log_since += a->dt;
+        s->step_dt = a->dt;
+        if (s->step % s->prm.log_every == 0 || consph_solver_done(s)) st = solver_sample(s);
+    }
+    if (st == CONSPH_OK && s->prm.error == CONSPH_ERROR_AUTHORS)
+        st = solver_auth_after_step(s, a->landed);
+    return st;
+}
+
 int consph_solver_step(consph_solver *s)
 {
     if (consph_solver_done(s)) return consph_fail(CONSPH_EINVAL, "the run is complete");
@@ -496,7 +526,7 @@ int consph_solver_step(consph_solver *s)
     if (s->gpu) {
         st = gpu_step(s, dt, &on_host);
     } else {
-        if (s->scheme->moves) st = consph_sys_update(&s->sys, 1);
+        if (s->scheme->moves) st = s->par ? par_step_begin(s) : consph_sys_update(&s->sys, 1);
         integ_state is;
         if (st == CONSPH_OK) st = integ_state_of(s, &is);
         if (st == CONSPH_OK) integ_save_start(&is);
@@ -509,15 +539,24 @@ int consph_solver_step(consph_solver *s)
         ++s->step;
     }
     if (st == CONSPH_OK && s->scheme->regularise) st = s->scheme->regularise(s);
-    if (st == CONSPH_OK && on_host) st = solver_check_finite(s);
-    if (st == CONSPH_OK && on_host) st = solver_check_valid(s);
+    if (s->par) st = par_step_end(s, st);
     if (st == CONSPH_OK) {
-        s->log_since += dt;
-        s->step_dt = dt;
-        if (s->step % s->prm.log_every == 0 || consph_solver_done(s)) st = solver_sample(s);
+        step_close_arg a = {landed, on_host, dt};
+        /* decomposed, a step that samples nothing takes the checks' verdict over the ranks;
+         * a failed check gathers what the checks read, for the serial message */
+        static const char *const checked[] = {SF_U, SF_RHOF, SF_P, SF_ID, SF_MASS, NULL};
+        const int samples = s->step % s->prm.log_every == 0 || consph_solver_done(s) ||
+                            s->prm.error == CONSPH_ERROR_AUTHORS;
+        int clean = 0;
+        if (s->par && !samples) st = par_checks_clean(s, &clean);
+        if (st == CONSPH_OK && clean) {
+            s->log_since += dt;
+            s->step_dt = dt;
+        } else if (st == CONSPH_OK) {
+            st = s->par && !samples ? par_global_some(s, step_close, &a, checked)
+                                    : solver_global(s, step_close, &a);
+        }
     }
-    if (st == CONSPH_OK && s->prm.error == CONSPH_ERROR_AUTHORS)
-        st = solver_auth_after_step(s, landed);
     s->dt = full;
     s->grads_skip = 0;
     s->seconds += consph_wtime() - t0;

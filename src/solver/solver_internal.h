@@ -244,8 +244,14 @@ struct consph_solver {
     double wcs_u_acc, wcs_p_acc, wcs_auth_u_acc, wcs_auth_p_acc;
     double *wc_buf; /* solver_wc_side's per-particle terms */
     size_t wc_cap;
-    struct gpu_run *gpu; /* --device gpu: the steps run there (src/gpu/); NULL: on the CPU */
+    struct gpu_run *gpu;    /* --device gpu: the steps run there (src/gpu/); NULL: on the CPU */
+    struct par_solver *par; /* decomposed over MPI ranks (src/par/par_solver.h); NULL: serial */
 };
+
+/* fn(s, arg) over the whole state: at once in a serial run; decomposed, on rank 0 over the
+ * particles gathered in the serial order (the other ranks take its status and message). For
+ * what reads every particle: diagnostics, checks, files. */
+int solver_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg);
 
 /* consph_run_nx_check against `memory` bytes (0: unknown) instead of this machine's. */
 int run_nx_fits(int nx, int dim, double memory);

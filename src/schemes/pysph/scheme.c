@@ -664,13 +664,13 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
 #ifdef RV_GROUPS
         /* the pack of the group visit: ϱ, p/ϱ², m/ϱ, c, u per particle on a 64-byte line */
         job->pk = 8;
-        if (pysph_group_visits) want += job->pk * nn + 8;
+        if (pysph_group_visits && !s->sys.split) want += job->pk * nn + 8;
 #endif
         double *sc = consph_sys_scratch(&s->sys, want);
         if (!sc) return CONSPH_ENOMEM;
         double *pr2 = sc, *mrho = sc + nn, *cs = sc + 2 * nn, *pack = NULL;
 #ifdef RV_GROUPS
-        if (pysph_group_visits) {
+        if (pysph_group_visits && !s->sys.split) {
             pack = sc + 3 * nn;
             while ((uintptr_t)pack % 64) ++pack;
         }
@@ -716,14 +716,14 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
 #ifdef RV_GROUPS
     /* the pack of the group visits, its particles on 64-byte lines in 2D */
     job->pk = d == 2 ? 8 : 10;
-    if (pysph_group_visits) want += job->pk * nn + 8;
+    if (pysph_group_visits && !s->sys.split) want += job->pk * nn + 8;
 #endif
     double *sc = consph_sys_scratch(&s->sys, want);
     if (!sc) return CONSPH_ENOMEM;
     job->vol = sc;
     job->mrho = sc + nn;
 #ifdef RV_GROUPS
-    if (pysph_group_visits) {
+    if (pysph_group_visits && !s->sys.split) {
         double *pk = sc + 2 * nn;
         while ((uintptr_t)pk % 64) ++pk;
         job->pack = pk;

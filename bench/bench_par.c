@@ -1,0 +1,102 @@
+/* The solver decomposed over MPI ranks: time per step, the communication per particle-step and
+ * the fraction of the step time spent in MPI calls (bench/mpi.md).
+ *
+ *   mpirun -np K build/bench/bench_par PROBLEM SCHEME NX STEPS [key=value ...]
+ *
+ * Set-up (every rank makes the whole solver, then it is cut) is not timed; the steps are. Rank 0
+ * prints one line per rank and the totals. Without MPI it runs the serial solver. */
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "consph/par.h"
+#include "consph/solver.h"
+#include "solver/solver_internal.h"
+
+#ifdef CONSPH_HAVE_MPI
+#include <mpi.h>
+#endif
+
+int main(int argc, char **argv)
+{
+    if (argc < 5) {
+        fprintf(stderr, "usage: %s PROBLEM SCHEME NX STEPS [key=value ...]\n", argv[0]);
+        return 2;
+    }
+    int rank = 0, size = 1;
+#ifdef CONSPH_HAVE_MPI
+    MPI_Init(&argc, &argv);
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+#endif
+    consph_run_params prm;
+    consph_run_params_default(&prm);
+    int st = consph_run_params_problem(&prm, argv[1]);
+    if (st == CONSPH_OK) st = consph_run_param_set(&prm, "scheme", argv[2]);
+    if (st == CONSPH_OK) st = consph_run_param_set(&prm, "nx", argv[3]);
+    if (st == CONSPH_OK) st = consph_run_param_set(&prm, "steps", argv[4]);
+    if (st == CONSPH_OK) st = consph_run_param_set(&prm, "layout", "lattice");
+    for (int k = 5; st == CONSPH_OK && k < argc; ++k) {
+        char key[64];
+        const char *eq = strchr(argv[k], '=');
+        if (!eq) {
+            st = CONSPH_EINVAL;
+            break;
+        }
+        snprintf(key, sizeof key, "%.*s", (int)(eq - argv[k]), argv[k]);
+        st = consph_run_param_set(&prm, key, eq + 1);
+    }
+    prm.tf = 0.0;
+    consph_solver *s = NULL;
+    if (st == CONSPH_OK) st = consph_solver_create(&s, &prm);
+    const size_t whole = st == CONSPH_OK ? s->sys.p->n : 0;
+    if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
+    double b0 = 0.0, c0 = 0.0, t0 = consph_wtime();
+    if (st == CONSPH_OK) consph_par_solver_comm(s, &b0, &c0);
+    while (st == CONSPH_OK && !consph_solver_done(s)) st = consph_solver_step(s);
+    const double secs = consph_wtime() - t0;
+    if (st != CONSPH_OK) {
+        if (rank == 0) fprintf(stderr, "bench_par: %s\n", consph_last_error());
+#ifdef CONSPH_HAVE_MPI
+        MPI_Finalize();
+#endif
+        return 1;
+    }
+    double b1 = 0.0, c1 = 0.0;
+    consph_par_solver_comm(s, &b1, &c1);
+    size_t own = 0;
+    for (size_t i = 0; i < s->sys.p->n; ++i) own += !s->sys.dest || s->sys.dest[i];
+    /* per rank: owned, held, seconds, bytes sent, MPI seconds */
+    double mine[5] = {(double)own, (double)s->sys.p->n, secs, b1 - b0, c1 - c0};
+    double *all = malloc(5 * (size_t)size * sizeof(double));
+#ifdef CONSPH_HAVE_MPI
+    MPI_Gather(mine, 5, MPI_DOUBLE, all, 5, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+#else
+    memcpy(all, mine, sizeof mine);
+#endif
+    if (rank == 0) {
+        const double steps = (double)s->step;
+        double bytes = 0.0, tmax = 0.0, cmean = 0.0;
+        printf("%s %s nx %s: %zu particles, %d rank(s), %.0f steps\n", argv[1], argv[2], argv[3],
+               whole, size, steps);
+        for (int r = 0; r < size; ++r) {
+            const double *a = all + 5 * r;
+            printf("  rank %d: owns %.0f, holds %.0f (halo %.2f of owned), %.4f s/step, "
+                   "%.1f bytes sent per owned particle-step, MPI %.1f%% of the time\n",
+                   r, a[0], a[1], (a[1] - a[0]) / a[0], a[2] / steps, a[3] / (a[0] * steps),
+                   100.0 * a[4] / a[2]);
+            bytes += a[3];
+            if (a[2] > tmax) tmax = a[2];
+            cmean += a[4] / a[2] / size;
+        }
+        printf("  total: %.4f s/step, %.1f bytes per particle-step, MPI %.1f%% of the step time "
+               "(mean over ranks)\n",
+               tmax / steps, bytes / ((double)whole * steps), 100.0 * cmean);
+    }
+    free(all);
+    consph_solver_free(s);
+#ifdef CONSPH_HAVE_MPI
+    MPI_Finalize();
+#endif
+    return 0;
+}

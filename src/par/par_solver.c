@@ -1,0 +1,955 @@
+/* The solver decomposed over MPI ranks, bit for bit the serial run (docs/mpi.md).
+ *
+ * Ranks own slabs of the neighbour search's cells along the last axis, the slowest of the cell
+ * order (src/nnps/nnps.c: cell = (c_2 nc_1 + c_1) nc_0 + c_0), so each rank owns a contiguous
+ * range of the serial particle order. The serial order is rebuilt by each re-sort as a stable
+ * sort by cell of the previous order; every particle carries its index in the previous serial
+ * order (g), and a rank sorts the particles it holds by (cell, g): the serial order restricted
+ * to them. Its search then visits, for every owned particle, the serial run's neighbours in the
+ * serial order, the grid being the whole set's (nnps_fix_grid).
+ *
+ * The halo: the particles of the slabs within the search's reach plus one cell of a rank's own,
+ * sources only (the system's destination mask), at their true positions so that the periodic
+ * search finds the images the serial search finds. The pass layer calls refresh before every
+ * pass and every search rebuild: positions, every named field and the system scratch of the
+ * halo particles from their owners. Particles move less than half a cell in a step
+ * (par_step_end checks it), so the halo made at the step's start holds every particle within
+ * the radius of an owned one until the next re-sort.
+ *
+ * What reads every particle (checks, diagnostics, files) runs on rank 0 over the owned
+ * particles gathered in rank order, which is the serial order (par_global), so sums over
+ * particles are the serial consph_sum whatever the rank count. */
+#include "par/par_solver.h"
+
+#include "consph/par.h"
+
+#ifdef CONSPH_HAVE_MPI
+
+#include <math.h>
+#include <mpi.h>
+#include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+#include "nnps/nnps_internal.h"
+
+struct par_solver {
+    MPI_Comm comm;
+    int rank, size;
+    int axis;     /* the slab axis: dim - 1 */
+    int periodic; /* along it */
+    int64_t nc[CONSPH_MAX_DIM];
+    int64_t width;       /* halo width in cells along the axis: the walk's reach + 1 */
+    double edge, len;    /* cell edge and box length along the axis */
+    int64_t *cut;        /* size + 1: rank r owns the axis cells [cut[r], cut[r + 1]) */
+    int *owner;          /* per axis cell */
+    unsigned char *halo; /* [q * nc + c]: axis cell c is in rank q's halo */
+    size_t nglobal, nown, goff;
+    double *g;   /* per local particle: index in the serial order (halo: -1) */
+    size_t *own; /* the owned particles' local indices, ascending */
+    double *x0;  /* their axis coordinate at the last re-sort */
+    /* halo refresh: per rank the particles sent (owned) and received (halo), ascending */
+    int *scount, *sdispl, *rcount, *rdispl; /* in particles */
+    int *sdbl, *sddis, *rdbl, *rddis;       /* in doubles, per call */
+    size_t *sidx, *ridx;
+    double *sbuf, *rbuf;
+    size_t sbuf_cap, rbuf_cap;
+    consph_sys_split split;
+    size_t pairs_base; /* the solver's pair count when it was cut (counted on every rank) */
+    double bytes, seconds;
+};
+
+static int par_fail_mem(void)
+{
+    return consph_fail(CONSPH_ENOMEM, "MPI decomposition: out of memory");
+}
+
+static int reserve(double **buf, size_t *cap, size_t need)
+{
+    if (need <= *cap) return CONSPH_OK;
+    double *q = realloc(*buf, (need ? need : 1) * sizeof(double));
+    if (!q) return par_fail_mem();
+    *buf = q;
+    *cap = need;
+    return CONSPH_OK;
+}
+
+/* Doubles per particle: positions, then every field's components (in the particles' order). */
+static size_t values_per_particle(const consph_particles *p)
+{
+    size_t k = (size_t)p->dim;
+    for (int f = 0; f < p->nfields; ++f) k += (size_t)p->fields[f].ncomp;
+    return k;
+}
+
+static void pack(const consph_particles *p, size_t i, double *out)
+{
+    size_t k = 0;
+    for (int a = 0; a < p->dim; ++a) out[k++] = p->x[a][i];
+    for (int f = 0; f < p->nfields; ++f)
+        for (int c = 0; c < p->fields[f].ncomp; ++c)
+            out[k++] = p->fields[f].data[(size_t)c * p->cap + i];
+}
+
+static void unpack(consph_particles *p, size_t i, const double *in)
+{
+    size_t k = 0;
+    for (int a = 0; a < p->dim; ++a) p->x[a][i] = in[k++];
+    for (int f = 0; f < p->nfields; ++f)
+        for (int c = 0; c < p->fields[f].ncomp; ++c)
+            p->fields[f].data[(size_t)c * p->cap + i] = in[k++];
+}
+
+/* A particle set with the fields of `like` (those with sel[f] when sel is given), in its
+ * order, for n particles. */
+static int particles_like_some(consph_particles *out, const consph_particles *like, size_t n,
+                               const unsigned char *sel)
+{
+    int st = consph_particles_init(out, like->dim, n, &like->box);
+    if (st != CONSPH_OK) return st;
+    out->spacing = like->spacing;
+    for (int f = 0; f < like->nfields; ++f)
+        if ((!sel || sel[f]) &&
+            !consph_particles_field(out, like->fields[f].name, like->fields[f].ncomp)) {
+            consph_particles_free(out);
+            return par_fail_mem();
+        }
+    return CONSPH_OK;
+}
+
+static int particles_like(consph_particles *out, const consph_particles *like, size_t n)
+{
+    return particles_like_some(out, like, n, NULL);
+}
+
+/* pack of the positions and the selected fields */
+static size_t values_selected(const consph_particles *p, const unsigned char *sel)
+{
+    size_t k = (size_t)p->dim;
+    for (int f = 0; f < p->nfields; ++f)
+        if (sel[f]) k += (size_t)p->fields[f].ncomp;
+    return k;
+}
+
+static void pack_selected(const consph_particles *p, const unsigned char *sel, size_t i,
+                          double *out)
+{
+    size_t k = 0;
+    for (int a = 0; a < p->dim; ++a) out[k++] = p->x[a][i];
+    for (int f = 0; f < p->nfields; ++f)
+        if (sel[f])
+            for (int c = 0; c < p->fields[f].ncomp; ++c)
+                out[k++] = p->fields[f].data[(size_t)c * p->cap + i];
+}
+
+static int counts_to_doubles(par_solver *ps, const int *cnt, int *dbl, int *dis, size_t per)
+{
+    size_t off = 0;
+    for (int q = 0; q < ps->size; ++q) {
+        const size_t v = (size_t)cnt[q] * per;
+        if (v > INT32_MAX || off > INT32_MAX)
+            return consph_fail(CONSPH_EINVAL,
+                               "MPI decomposition: more than 2^31 values to one rank; use more "
+                               "ranks");
+        dbl[q] = (int)v;
+        dis[q] = (int)off;
+        off += v;
+    }
+    return CONSPH_OK;
+}
+
+/* ---- the halo refresh (consph_sys_split) ---- */
+
+static int refresh(consph_sys *sys, void *ctx)
+{
+    par_solver *ps = ctx;
+    consph_particles *p = sys->p;
+    const size_t n = p->n;
+    const double t0 = MPI_Wtime();
+    /* the scratch a job asked for in blocks of n (consph_sys_scratch: k·n values) */
+    size_t blocks = 0;
+    if (sys->scratch && n && sys->scratch_asked % n == 0) blocks = sys->scratch_asked / n;
+    const size_t per = values_per_particle(p) + blocks;
+    const size_t ns = ps->sdispl[ps->size - 1] + (size_t)ps->scount[ps->size - 1];
+    const size_t nr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
+    int st = reserve(&ps->sbuf, &ps->sbuf_cap, ns * per);
+    if (st == CONSPH_OK) st = reserve(&ps->rbuf, &ps->rbuf_cap, nr * per);
+    if (st == CONSPH_OK) st = counts_to_doubles(ps, ps->scount, ps->sdbl, ps->sddis, per);
+    if (st == CONSPH_OK) st = counts_to_doubles(ps, ps->rcount, ps->rdbl, ps->rddis, per);
+    if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
+    for (size_t k = 0; k < ns; ++k) {
+        const size_t i = ps->sidx[k];
+        double *o = ps->sbuf + k * per;
+        pack(p, i, o);
+        for (size_t b = 0; b < blocks; ++b) o[per - blocks + b] = sys->scratch[b * n + i];
+    }
+    MPI_Alltoallv(ps->sbuf, ps->sdbl, ps->sddis, MPI_DOUBLE, ps->rbuf, ps->rdbl, ps->rddis,
+                  MPI_DOUBLE, ps->comm);
+    for (size_t k = 0; k < nr; ++k) {
+        const size_t i = ps->ridx[k];
+        const double *in = ps->rbuf + k * per;
+        unpack(p, i, in);
+        for (size_t b = 0; b < blocks; ++b) sys->scratch[b * n + i] = in[per - blocks + b];
+    }
+    ps->bytes += (double)(ns * per * sizeof(double));
+    ps->seconds += MPI_Wtime() - t0;
+    return CONSPH_OK;
+}
+
+static double split_max(void *ctx, double v)
+{
+    par_solver *ps = ctx;
+    double in[2] = {isnan(v) ? 1.0 : 0.0, isnan(v) ? -INFINITY : v}, out[2];
+    MPI_Allreduce(in, out, 2, MPI_DOUBLE, MPI_MAX, ps->comm);
+    return out[0] > 0.0 ? NAN : out[1];
+}
+
+/* ---- the slabs ---- */
+
+/* Axis cells [cut[q], cut[q + 1]) to each rank in proportion to their particles (counts per
+ * axis cell summed over the ranks: the same cut on every rank), at least one cell each. */
+static void cut_slabs(par_solver *ps, const int64_t *count)
+{
+    const int64_t nc = ps->nc[ps->axis];
+    int64_t total = 0;
+    for (int64_t c = 0; c < nc; ++c) total += count[c];
+    ps->cut[0] = 0;
+    int64_t c = 0, cum = 0;
+    for (int r = 1; r < ps->size; ++r) {
+        /* the first cell whose particles reach r/size of the total */
+        while (c < nc && cum * ps->size < (int64_t)r * total) cum += count[c++];
+        int64_t k = c;
+        if (k < ps->cut[r - 1] + 1) k = ps->cut[r - 1] + 1;
+        if (k > nc - (ps->size - r)) k = nc - (ps->size - r);
+        ps->cut[r] = k;
+    }
+    ps->cut[ps->size] = nc;
+    for (int q = 0; q < ps->size; ++q)
+        for (int64_t k = ps->cut[q]; k < ps->cut[q + 1]; ++k) ps->owner[k] = q;
+    memset(ps->halo, 0, (size_t)ps->size * (size_t)nc);
+    for (int q = 0; q < ps->size; ++q) {
+        unsigned char *h = ps->halo + (size_t)q * (size_t)nc;
+        for (int64_t d = 1; d <= ps->width; ++d) {
+            int64_t lo = ps->cut[q] - d, hi = ps->cut[q + 1] - 1 + d;
+            if (ps->periodic) {
+                lo = ((lo % nc) + nc) % nc;
+                hi = ((hi % nc) + nc) % nc;
+            }
+            if (lo >= 0 && lo < nc && ps->owner[lo] != q) h[lo] = 1;
+            if (hi >= 0 && hi < nc && ps->owner[hi] != q) h[hi] = 1;
+        }
+    }
+}
+
+typedef struct held {
+    int64_t cell; /* the whole cell index, as the search bins it */
+    double g;     /* index in the previous serial order */
+    size_t at;    /* in the received values */
+} held;
+
+static int held_cmp(const void *pa, const void *pb)
+{
+    const held *a = pa, *b = pb;
+    if (a->cell != b->cell) return a->cell < b->cell ? -1 : 1;
+    return a->g < b->g ? -1 : a->g > b->g;
+}
+
+static int64_t cell_of(const par_solver *ps, const consph_nnps *nn, const double *x, int dim,
+                       int64_t *axis_cell)
+{
+    int64_t c = 0;
+    for (int a = dim - 1; a >= 0; --a) {
+        const int64_t k = nnps_axis_cell(nn, a, x[a]);
+        if (a == ps->axis) *axis_cell = k;
+        c = c * ps->nc[a] + k;
+    }
+    return c;
+}
+
+/* The particles this rank now holds (m of them, packed: positions, fields, g) become its
+ * system: sorted by (cell, g), the owned ones marked, the exchange lists made. */
+static int install(consph_solver *s, par_solver *ps, const double *vals, size_t m, size_t per)
+{
+    consph_particles *p = s->sys.p;
+    const int dim = p->dim;
+    held *h = malloc((m ? m : 1) * sizeof *h);
+    int64_t *acell = malloc((m ? m : 1) * sizeof *acell);
+    if (!h || !acell) {
+        free(h);
+        free(acell);
+        return par_fail_mem();
+    }
+    size_t kept = 0;
+    for (size_t k = 0; k < m; ++k) {
+        const double *v = vals + k * per;
+        int64_t ac = 0;
+        const int64_t c = cell_of(ps, s->sys.nnps, v, dim, &ac);
+        const int q = ps->owner[ac];
+        if (q != ps->rank && !ps->halo[(size_t)ps->rank * (size_t)ps->nc[ps->axis] + ac]) continue;
+        h[kept].cell = c;
+        h[kept].g = v[per - 1];
+        h[kept].at = k;
+        ++kept;
+    }
+    qsort(h, kept, sizeof *h, held_cmp);
+    consph_particles np;
+    int st = particles_like(&np, p, kept);
+    size_t nown = 0;
+    unsigned char *dest = st == CONSPH_OK ? consph_calloc(kept ? kept : 1, 1) : NULL;
+    size_t *origin = st == CONSPH_OK ? consph_calloc(kept ? kept : 1, sizeof(size_t)) : NULL;
+    double *g = st == CONSPH_OK ? malloc((kept ? kept : 1) * sizeof(double)) : NULL;
+    if (st == CONSPH_OK && (!dest || !origin || !g)) st = par_fail_mem();
+    for (size_t k = 0; st == CONSPH_OK && k < kept; ++k) {
+        const double *v = vals + h[k].at * per;
+        unpack(&np, k, v);
+        int64_t ac = 0;
+        cell_of(ps, s->sys.nnps, v, dim, &ac);
+        acell[k] = ac;
+        dest[k] = ps->owner[ac] == ps->rank;
+        nown += dest[k];
+        origin[k] = k;
+    }
+    unsigned long long mine = nown, below = 0;
+    MPI_Exscan(&mine, &below, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, ps->comm);
+    if (ps->rank == 0) below = 0;
+    if (st == CONSPH_OK) {
+        free(ps->own);
+        free(ps->x0);
+        ps->own = malloc((nown ? nown : 1) * sizeof(size_t));
+        ps->x0 = malloc((nown ? nown : 1) * sizeof(double));
+        if (!ps->own || !ps->x0) st = par_fail_mem();
+    }
+    /* the exchange lists: what each rank's halo takes of ours, what ours takes of each */
+    size_t ns = 0, nr = 0;
+    for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
+        ps->scount[q] = ps->rcount[q] = 0;
+        const unsigned char *hq = ps->halo + (size_t)q * (size_t)ps->nc[ps->axis];
+        for (size_t k = 0; k < kept; ++k) {
+            if (dest[k] && q != ps->rank && hq[acell[k]]) ++ps->scount[q];
+            if (!dest[k] && ps->owner[acell[k]] == q) ++ps->rcount[q];
+        }
+        ps->sdispl[q] = (int)ns;
+        ps->rdispl[q] = (int)nr;
+        ns += (size_t)ps->scount[q];
+        nr += (size_t)ps->rcount[q];
+    }
+    if (st == CONSPH_OK) {
+        free(ps->sidx);
+        free(ps->ridx);
+        ps->sidx = malloc((ns ? ns : 1) * sizeof(size_t));
+        ps->ridx = malloc((nr ? nr : 1) * sizeof(size_t));
+        if (!ps->sidx || !ps->ridx) st = par_fail_mem();
+    }
+    if (st == CONSPH_OK) {
+        size_t o = 0;
+        for (size_t k = 0; k < kept; ++k) {
+            if (dest[k]) {
+                g[k] = (double)(below + o);
+                ps->own[o] = k;
+                ps->x0[o] = np.x[ps->axis][k];
+                ++o;
+            } else {
+                g[k] = -1.0;
+            }
+        }
+        for (int q = 0; q < ps->size; ++q) {
+            const unsigned char *hq = ps->halo + (size_t)q * (size_t)ps->nc[ps->axis];
+            size_t si = (size_t)ps->sdispl[q], ri = (size_t)ps->rdispl[q];
+            for (size_t k = 0; k < kept; ++k) {
+                if (dest[k] && q != ps->rank && hq[acell[k]]) ps->sidx[si++] = k;
+                if (!dest[k] && ps->owner[acell[k]] == q) ps->ridx[ri++] = k;
+            }
+        }
+    }
+    free(h);
+    free(acell);
+    if (st != CONSPH_OK) {
+        if (np.x[0]) consph_particles_free(&np);
+        free(dest);
+        free(origin);
+        free(g);
+        return st;
+    }
+    consph_particles_free(p);
+    *p = np;
+    free(s->sys.origin);
+    s->sys.origin = origin;
+    free(s->sys.dest);
+    s->sys.dest = dest;
+    s->sys.scratch_asked = 0;
+    /* the integrator's scratch is sized by the particles' capacity, which changed */
+    free(s->integ_scratch);
+    s->integ_scratch = NULL;
+    free(ps->g);
+    ps->g = g;
+    ps->nown = nown;
+    ps->goff = below;
+    return consph_sys_update(&s->sys, 0);
+}
+
+/* Every owned particle to the rank that owns its cell now and to the ranks whose halo holds
+ * that cell; then install. */
+static int migrate(consph_solver *s, par_solver *ps)
+{
+    consph_particles *p = s->sys.p;
+    const int64_t nca = ps->nc[ps->axis];
+    const double t0 = MPI_Wtime();
+    int64_t *count = consph_calloc((size_t)nca, sizeof(int64_t));
+    int64_t *all = consph_calloc((size_t)nca, sizeof(int64_t));
+    int64_t *ac = malloc((ps->nown ? ps->nown : 1) * sizeof(int64_t));
+    if (!count || !all || !ac) {
+        free(count);
+        free(all);
+        free(ac);
+        return par_fail_mem();
+    }
+    for (size_t o = 0; o < ps->nown; ++o) {
+        const size_t i = ps->own[o];
+        ac[o] = nnps_axis_cell(s->sys.nnps, ps->axis, p->x[ps->axis][i]);
+        ++count[ac[o]];
+    }
+    MPI_Allreduce(count, all, (int)nca, MPI_INT64_T, MPI_SUM, ps->comm);
+    cut_slabs(ps, all);
+    free(count);
+    free(all);
+    const size_t per = values_per_particle(p) + 1; /* + g */
+    int *cnt = consph_calloc((size_t)ps->size, sizeof(int));
+    int *rcnt = consph_calloc((size_t)ps->size, sizeof(int));
+    int *sd = consph_calloc((size_t)ps->size, sizeof(int));
+    int *sdis = consph_calloc((size_t)ps->size, sizeof(int));
+    int *rd = consph_calloc((size_t)ps->size, sizeof(int));
+    int *rdis = consph_calloc((size_t)ps->size, sizeof(int));
+    int st = cnt && rcnt && sd && sdis && rd && rdis ? CONSPH_OK : par_fail_mem();
+    for (size_t o = 0; st == CONSPH_OK && o < ps->nown; ++o)
+        for (int q = 0; q < ps->size; ++q)
+            if (ps->owner[ac[o]] == q || ps->halo[(size_t)q * (size_t)nca + ac[o]]) ++cnt[q];
+    if (st == CONSPH_OK) MPI_Alltoall(cnt, 1, MPI_INT, rcnt, 1, MPI_INT, ps->comm);
+    if (st == CONSPH_OK) st = counts_to_doubles(ps, cnt, sd, sdis, per);
+    if (st == CONSPH_OK) st = counts_to_doubles(ps, rcnt, rd, rdis, per);
+    size_t ns = 0, nr = 0;
+    for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
+        ns += (size_t)cnt[q];
+        nr += (size_t)rcnt[q];
+    }
+    double *sbuf = NULL, *rbuf = NULL;
+    if (st == CONSPH_OK) {
+        sbuf = malloc((ns ? ns : 1) * per * sizeof(double));
+        rbuf = malloc((nr ? nr : 1) * per * sizeof(double));
+        if (!sbuf || !rbuf) st = par_fail_mem();
+    }
+    if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
+    /* packed per destination rank, each in the local (serial) order */
+    for (int q = 0; q < ps->size; ++q) {
+        size_t k = (size_t)sdis[q] / per;
+        for (size_t o = 0; o < ps->nown; ++o) {
+            if (ps->owner[ac[o]] != q && !ps->halo[(size_t)q * (size_t)nca + ac[o]]) continue;
+            double *v = sbuf + k * per;
+            pack(p, ps->own[o], v);
+            v[per - 1] = ps->g[ps->own[o]];
+            ++k;
+        }
+    }
+    MPI_Alltoallv(sbuf, sd, sdis, MPI_DOUBLE, rbuf, rd, rdis, MPI_DOUBLE, ps->comm);
+    /* what stays on this rank is a copy, as the serial re-sort's permutation */
+    ps->bytes += (double)((ns - (size_t)cnt[ps->rank]) * per * sizeof(double));
+    ps->seconds += MPI_Wtime() - t0;
+    st = install(s, ps, rbuf, nr, per);
+    free(ac);
+    free(cnt);
+    free(rcnt);
+    free(sd);
+    free(sdis);
+    free(rd);
+    free(rdis);
+    free(sbuf);
+    free(rbuf);
+    return st;
+}
+
+/* ---- consph_sum over the ranks ---- */
+
+/* consph_sum's tree (src/core/util.c): leaves of at most SUM_LEAF values summed in order,
+ * nodes split on a leaf boundary so that the tree depends on n alone. */
+#define SUM_LEAF 256
+
+typedef struct sum_item {
+    double start, len, value; /* a node's sum; len 0: the single value at start */
+} sum_item;
+
+typedef struct sum_items {
+    sum_item *it;
+    size_t n, cap;
+} sum_items;
+
+static int sum_push(sum_items *a, double start, double len, double value)
+{
+    if (a->n == a->cap) {
+        size_t cap = a->cap ? 2 * a->cap : 64;
+        sum_item *q = realloc(a->it, cap * sizeof *q);
+        if (!q) return par_fail_mem();
+        a->it = q;
+        a->cap = cap;
+    }
+    a->it[a->n++] = (sum_item){start, len, value};
+    return CONSPH_OK;
+}
+
+/* The nodes of the tree over [0, N) that lie within this rank's [lo, hi), as sums, and the
+ * values of the leaves it shares with another rank, one by one. */
+static int sum_emit(sum_items *a, const double *w, size_t lo, size_t hi, size_t s, size_t n)
+{
+    if (s + n <= lo || s >= hi || n == 0) return CONSPH_OK;
+    if (lo <= s && s + n <= hi)
+        return sum_push(a, (double)s, (double)n, consph_sum(w + (s - lo), n));
+    if (n <= SUM_LEAF) {
+        for (size_t i = s > lo ? s : lo; i < s + n && i < hi; ++i)
+            if (sum_push(a, (double)i, 0.0, w[i - lo])) return CONSPH_ENOMEM;
+        return CONSPH_OK;
+    }
+    const size_t left = ((n + SUM_LEAF - 1) / SUM_LEAF / 2) * SUM_LEAF;
+    int st = sum_emit(a, w, lo, hi, s, left);
+    return st ? st : sum_emit(a, w, lo, hi, s + left, n - left);
+}
+
+/* The first item at or after start (items ascend by start). */
+static size_t sum_find(const sum_item *it, size_t n, double start)
+{
+    size_t a = 0, b = n;
+    while (a < b) {
+        const size_t m = (a + b) / 2;
+        if (it[m].start < start)
+            a = m + 1;
+        else
+            b = m;
+    }
+    return a;
+}
+
+static double sum_eval(const sum_item *it, size_t m, size_t s, size_t n)
+{
+    size_t k = sum_find(it, m, (double)s);
+    /* a whole node on one rank; several items may start at s (a node and, as single values,
+     * a shared leaf's first) only when len differs */
+    for (size_t q = k; q < m && it[q].start == (double)s; ++q)
+        if (it[q].len == (double)n) return it[q].value;
+    if (n <= SUM_LEAF) {
+        double acc = 0.0;
+        for (; k < m && it[k].start < (double)(s + n); ++k) acc += it[k].value;
+        return acc;
+    }
+    const size_t left = ((n + SUM_LEAF - 1) / SUM_LEAF / 2) * SUM_LEAF;
+    return sum_eval(it, m, s, left) + sum_eval(it, m, s + left, n - left);
+}
+
+/* consph_sum of w over the serial order, each rank holding the values of its owned particles
+ * (its range [goff, goff + nown) of that order), bit for bit on every rank. */
+static int par_sum(par_solver *ps, const double *w, double *out)
+{
+    sum_items a = {NULL, 0, 0};
+    int st = sum_emit(&a, w, ps->goff, ps->goff + ps->nown, 0, ps->nglobal);
+    if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
+    const int mine = (int)(3 * a.n);
+    int *cnt = NULL, *dis = NULL;
+    double *all = NULL;
+    size_t total = 0;
+    if (ps->rank == 0) {
+        cnt = malloc((size_t)ps->size * sizeof(int));
+        dis = malloc((size_t)ps->size * sizeof(int));
+        if (!cnt || !dis) MPI_Abort(ps->comm, 1);
+    }
+    MPI_Gather(&mine, 1, MPI_INT, cnt, 1, MPI_INT, 0, ps->comm);
+    if (ps->rank == 0) {
+        for (int q = 0; q < ps->size; ++q) {
+            dis[q] = (int)total;
+            total += (size_t)cnt[q];
+        }
+        all = malloc((total ? total : 1) * sizeof(double));
+        if (!all) MPI_Abort(ps->comm, 1);
+    }
+    MPI_Gatherv(a.it, mine, MPI_DOUBLE, all, cnt, dis, MPI_DOUBLE, 0, ps->comm);
+    double v = 0.0;
+    if (ps->rank == 0) v = sum_eval((const sum_item *)all, total / 3, 0, ps->nglobal);
+    MPI_Bcast(&v, 1, MPI_DOUBLE, 0, ps->comm);
+    if (ps->rank != 0) ps->bytes += (double)mine * sizeof(double);
+    free(a.it);
+    free(cnt);
+    free(dis);
+    free(all);
+    *out = v;
+    return CONSPH_OK;
+}
+
+int par_owned_sum(consph_solver *s, const double *w, double *out)
+{
+    return par_sum(s->par, w, out);
+}
+
+int par_checks_clean(consph_solver *s, int *clean)
+{
+    par_solver *ps = s->par;
+    const consph_particles *p = s->sys.p;
+    const int d = s->dim;
+    const size_t cap = p->cap;
+    const double t0 = MPI_Wtime();
+    const consph_field *fu = consph_particles_find(p, SF_U),
+                       *fr = consph_particles_find(p, SF_RHOF),
+                       *fp = consph_particles_find(p, SF_P),
+                       *fm = consph_particles_find(p, SF_MASS);
+    double *w = malloc((ps->nown ? ps->nown : 1) * sizeof(double));
+    if (!fu || !fr || !fp || !w) {
+        free(w);
+        MPI_Abort(ps->comm, 1);
+    }
+    const double *u = fu->data, *rf = fr->data, *pr = fp->data, r0 = s->prm.rho0;
+    /* as solver_check_finite and solver_check_valid (src/solver/validity.c) and
+     * solver_kinetic_energy (diag.c) compute them, over the owned particles */
+    const int compressible = !(s->scheme->evolve_p && s->scheme->closure);
+    double finite = 0.0, u2max = 0.0, cmax = 0.0;
+    for (size_t o = 0; o < ps->nown; ++o) {
+        const size_t i = ps->own[o];
+        finite += rf[i] - rf[i] + pr[i] - pr[i];
+        double u2 = 0.0;
+        for (int a = 0; a < d; ++a) {
+            finite += p->x[a][i] - p->x[a][i] + u[a * cap + i] - u[a * cap + i];
+            u2 += u[a * cap + i] * u[a * cap + i];
+        }
+        u2max = u2 > u2max ? u2 : u2max;
+        if (compressible) {
+            const double c = fabs(rf[i] / r0 - 1.0);
+            cmax = c > cmax ? c : cmax;
+        }
+        const double m = fm ? fm->data[i] : s->mass, ux = u[i], uy = u[cap + i],
+                     uz = d == 3 ? u[2 * cap + i] : 0.0;
+        w[o] = 0.5 * m * (d == 3 ? ux * ux + uy * uy + uz * uz : ux * ux + uy * uy);
+    }
+    double in[3] = {finite == 0.0 ? 0.0 : 1.0, u2max, cmax}, out[3];
+    MPI_Allreduce(in, out, 3, MPI_DOUBLE, MPI_MAX, ps->comm);
+    double ke = 0.0;
+    par_sum(ps, w, &ke);
+    free(w);
+    ps->seconds += MPI_Wtime() - t0;
+    const double ke0 = s->hist[6]; /* row 0: the initial state, on every rank */
+    *clean = out[0] == 0.0 && sqrt(out[1]) / s->c0 <= CONSPH_VALID_MACH &&
+             out[2] <= CONSPH_VALID_COMPRESSION && !(ke > ke0 * (1.0 + CONSPH_VALID_KE_GROWTH));
+    return CONSPH_OK;
+}
+
+/* ---- the solver's hooks ---- */
+
+int par_step_begin(consph_solver *s)
+{
+    return migrate(s, s->par);
+}
+
+int par_step_end(consph_solver *s, int status)
+{
+    par_solver *ps = s->par;
+    /* the largest move along the slab axis since the re-sort, nearest image */
+    const consph_particles *p = s->sys.p;
+    double mx = 0.0;
+    for (size_t o = 0; o < ps->nown; ++o) {
+        double d = fabs(p->x[ps->axis][ps->own[o]] - ps->x0[o]);
+        if (ps->periodic && d > 0.5 * ps->len) d = ps->len - d;
+        if (d > mx || isnan(d)) mx = isnan(d) ? 0.0 : d; /* NaN: the checks name it */
+    }
+    double in[2] = {status != CONSPH_OK ? 1.0 : 0.0, mx}, out[2];
+    MPI_Allreduce(in, out, 2, MPI_DOUBLE, MPI_MAX, ps->comm);
+    if (status != CONSPH_OK) return status;
+    if (out[0] > 0.0)
+        return consph_fail(CONSPH_EINVAL, "step %ld failed on another MPI rank", s->step);
+    if (s->scheme->moves && out[1] >= 0.5 * ps->edge)
+        return consph_fail(CONSPH_EINVAL,
+                           "step %ld: a particle moved %g along axis %d in one step, half a "
+                           "search cell (%g) or more: the MPI halo may miss neighbours; run "
+                           "with a smaller dt or without MPI",
+                           s->step, out[1], ps->axis, 0.5 * ps->edge);
+    return CONSPH_OK;
+}
+
+int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg)
+{
+    return par_global_some(s, fn, arg, NULL);
+}
+
+int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg,
+                    const char *const *only)
+{
+    par_solver *ps = s->par;
+    consph_particles *p = s->sys.p;
+    const double t0 = MPI_Wtime();
+    unsigned char sel[CONSPH_MAX_FIELDS];
+    for (int f = 0; f < p->nfields; ++f) {
+        sel[f] = !only;
+        for (int k = 0; only && only[k]; ++k)
+            if (!strcmp(p->fields[f].name, only[k])) sel[f] = 1;
+    }
+    const size_t per = values_selected(p, sel);
+    int st = CONSPH_OK;
+    double *sbuf = malloc((ps->nown ? ps->nown : 1) * per * sizeof(double));
+    int *cnt = NULL, *dis = NULL, *pcnt = NULL;
+    if (ps->rank == 0) {
+        cnt = consph_calloc((size_t)ps->size, sizeof(int));
+        dis = consph_calloc((size_t)ps->size, sizeof(int));
+        pcnt = consph_calloc((size_t)ps->size, sizeof(int));
+    }
+    if (!sbuf || (ps->rank == 0 && (!cnt || !dis || !pcnt))) MPI_Abort(ps->comm, 1);
+    for (size_t o = 0; o < ps->nown; ++o) pack_selected(p, sel, ps->own[o], sbuf + o * per);
+    const int mine = (int)ps->nown;
+    MPI_Gather(&mine, 1, MPI_INT, pcnt, 1, MPI_INT, 0, ps->comm);
+    if (ps->rank == 0) st = counts_to_doubles(ps, pcnt, cnt, dis, per);
+    consph_particles full;
+    memset(&full, 0, sizeof full);
+    double *rbuf = NULL;
+    if (ps->rank == 0) {
+        if (st == CONSPH_OK) st = particles_like_some(&full, p, ps->nglobal, sel);
+        rbuf = malloc((ps->nglobal ? ps->nglobal : 1) * per * sizeof(double));
+        if (!rbuf) MPI_Abort(ps->comm, 1);
+        if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
+    }
+    if (mine * per > INT32_MAX) MPI_Abort(ps->comm, 1);
+    MPI_Gatherv(sbuf, (int)(ps->nown * per), MPI_DOUBLE, rbuf, cnt, dis, MPI_DOUBLE, 0, ps->comm);
+    unsigned long long pairs = s->pairs - ps->pairs_base, total = 0;
+    MPI_Reduce(&pairs, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, ps->comm);
+    if (ps->rank != 0) ps->bytes += (double)(ps->nown * per * sizeof(double));
+    ps->seconds += MPI_Wtime() - t0;
+    free(sbuf);
+    char msg[1024] = "";
+    if (ps->rank == 0) {
+        for (size_t i = 0; i < ps->nglobal; ++i) unpack(&full, i, rbuf + i * per);
+        free(rbuf);
+        /* the serial view: the whole set, no mask, nothing decomposed (a nested
+         * solver_global runs at once) */
+        consph_particles local = *p;
+        unsigned char *dest = s->sys.dest;
+        size_t *origin = s->sys.origin;
+        const size_t pairs_local = s->pairs;
+        *p = full;
+        s->sys.dest = NULL;
+        s->sys.origin = NULL;
+        s->par = NULL;
+        s->pairs = ps->pairs_base + (size_t)total;
+        st = fn(s, arg);
+        if (st != CONSPH_OK) snprintf(msg, sizeof msg, "%s", consph_last_error());
+        s->par = ps;
+        s->pairs = pairs_local;
+        s->sys.dest = dest;
+        s->sys.origin = origin;
+        full = *p;
+        *p = local;
+        consph_particles_free(&full);
+        free(cnt);
+        free(dis);
+        free(pcnt);
+    }
+    const double t1 = MPI_Wtime();
+    MPI_Bcast(&st, 1, MPI_INT, 0, ps->comm);
+    if (st != CONSPH_OK) {
+        MPI_Bcast(msg, (int)sizeof msg, MPI_CHAR, 0, ps->comm);
+        consph_fail(st, "%s", msg);
+    }
+    ps->seconds += MPI_Wtime() - t1;
+    return st;
+}
+
+int par_rank(const consph_solver *s)
+{
+    return s->par ? s->par->rank : 0;
+}
+
+void par_solver_free(par_solver *ps)
+{
+    if (!ps) return;
+    free(ps->cut);
+    free(ps->owner);
+    free(ps->halo);
+    free(ps->g);
+    free(ps->own);
+    free(ps->x0);
+    free(ps->scount);
+    free(ps->sdispl);
+    free(ps->rcount);
+    free(ps->rdispl);
+    free(ps->sdbl);
+    free(ps->sddis);
+    free(ps->rdbl);
+    free(ps->rddis);
+    free(ps->sidx);
+    free(ps->ridx);
+    free(ps->sbuf);
+    free(ps->rbuf);
+    free(ps);
+}
+
+/* ---- set-up ---- */
+
+int consph_par_solver_decompose(consph_solver *s)
+{
+    int init = 0;
+    MPI_Initialized(&init);
+    if (!s) return consph_fail(CONSPH_EINVAL, "MPI decomposition: needs a solver");
+    if (!init || s->par) return CONSPH_OK;
+    int size = 1, rank = 0;
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    if (size == 1) return CONSPH_OK;
+    consph_particles *p = s->sys.p;
+    const size_t n = p->n;
+    const int axis = p->dim - 1;
+    if (s->prm.skin > 0.0)
+        return consph_fail(CONSPH_EINVAL,
+                           "--skin %g: the neighbour list with a skin is not decomposed over MPI "
+                           "ranks (its rebuild follows every particle's displacement); run with "
+                           "--skin 0 or on one rank",
+                           s->prm.skin);
+    if (s->scheme->needs_lattice)
+        return consph_fail(CONSPH_EINVAL,
+                           "scheme %s remeshes every particle onto the lattice, which is not "
+                           "decomposed over MPI ranks; run it on one rank",
+                           s->scheme->name);
+    par_solver *ps = consph_calloc(1, sizeof *ps);
+    if (!ps) return par_fail_mem();
+    ps->comm = MPI_COMM_WORLD;
+    ps->rank = rank;
+    ps->size = size;
+    ps->axis = axis;
+    ps->periodic = p->box.periodic[axis] != 0;
+    ps->len = p->box.hi[axis] - p->box.lo[axis];
+    ps->nglobal = n;
+    ps->pairs_base = s->pairs;
+    /* the whole set's grid, from now on at every build of this rank's part */
+    nnps_fix_grid(s->sys.nnps, n);
+    int64_t reach[CONSPH_MAX_DIM];
+    double edge[CONSPH_MAX_DIM];
+    nnps_grid(s->sys.nnps, ps->nc, reach, edge);
+    ps->width = reach[axis] + 1;
+    ps->edge = edge[axis];
+    const int64_t nca = ps->nc[axis];
+    if ((size_t)size > n) {
+        free(ps);
+        return consph_fail(CONSPH_EINVAL,
+                           "%d MPI ranks for %zu particles: run on at most as many ranks as "
+                           "particles",
+                           size, n);
+    }
+    if ((int64_t)size > nca) {
+        free(ps);
+        return consph_fail(CONSPH_EINVAL,
+                           "%d MPI ranks, but the decomposition cuts the box into %lld slabs of "
+                           "search cells along axis %d (%zu particles): run on at most %lld ranks",
+                           size, (long long)nca, axis, n, (long long)nca);
+    }
+    ps->cut = consph_calloc((size_t)size + 1, sizeof(int64_t));
+    ps->owner = consph_calloc((size_t)nca, sizeof(int));
+    ps->halo = consph_calloc((size_t)size * (size_t)nca, 1);
+    ps->g = malloc((n ? n : 1) * sizeof(double));
+    ps->own = malloc((n ? n : 1) * sizeof(size_t));
+    ps->scount = consph_calloc((size_t)size, sizeof(int));
+    ps->sdispl = consph_calloc((size_t)size, sizeof(int));
+    ps->rcount = consph_calloc((size_t)size, sizeof(int));
+    ps->rdispl = consph_calloc((size_t)size, sizeof(int));
+    ps->sdbl = consph_calloc((size_t)size, sizeof(int));
+    ps->sddis = consph_calloc((size_t)size, sizeof(int));
+    ps->rdbl = consph_calloc((size_t)size, sizeof(int));
+    ps->rddis = consph_calloc((size_t)size, sizeof(int));
+    unsigned char *dest = consph_calloc(n ? n : 1, 1);
+    if (!ps->cut || !ps->owner || !ps->halo || !ps->g || !ps->own || !ps->scount || !ps->sdispl ||
+        !ps->rcount || !ps->rdispl || !ps->sdbl || !ps->sddis || !ps->rdbl || !ps->rddis || !dest) {
+        free(dest);
+        par_solver_free(ps);
+        return par_fail_mem();
+    }
+    /* Every rank holds the whole set in the serial order: each starts from an equal share of
+     * that order, which the migration hands to the slabs' owners. */
+    const size_t lo = n * (size_t)rank / (size_t)size, hi = n * (size_t)(rank + 1) / (size_t)size;
+    for (size_t i = 0; i < n; ++i) {
+        ps->g[i] = (double)i;
+        dest[i] = i >= lo && i < hi;
+    }
+    for (size_t i = lo; i < hi; ++i) ps->own[i - lo] = i;
+    ps->nown = hi - lo;
+    ps->split.refresh = refresh;
+    ps->split.max = split_max;
+    ps->split.ctx = ps;
+    free(s->sys.dest);
+    s->sys.dest = dest;
+    s->sys.split = &ps->split;
+    s->par = ps;
+    int st = migrate(s, ps);
+    if (st != CONSPH_OK) {
+        s->sys.split = NULL;
+        s->par = NULL;
+        par_solver_free(ps);
+    }
+    return st;
+}
+
+void consph_par_solver_comm(const consph_solver *s, double *bytes, double *seconds)
+{
+    *bytes = s && s->par ? s->par->bytes : 0.0;
+    *seconds = s && s->par ? s->par->seconds : 0.0;
+}
+
+#else /* no MPI: one rank, nothing to cut */
+
+int par_step_begin(consph_solver *s)
+{
+    return consph_sys_update(&s->sys, 1);
+}
+
+int par_step_end(consph_solver *s, int status)
+{
+    (void)s;
+    return status;
+}
+
+int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg)
+{
+    return fn(s, arg);
+}
+
+int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg,
+                    const char *const *only)
+{
+    (void)only;
+    return fn(s, arg);
+}
+
+int par_rank(const consph_solver *s)
+{
+    (void)s;
+    return 0;
+}
+
+int par_checks_clean(consph_solver *s, int *clean)
+{
+    (void)s;
+    *clean = 0;
+    return CONSPH_OK;
+}
+
+int par_owned_sum(consph_solver *s, const double *w, double *out)
+{
+    *out = consph_sum(w, s->sys.p->n);
+    return CONSPH_OK;
+}
+
+void par_solver_free(par_solver *ps)
+{
+    (void)ps;
+}
+
+int consph_par_solver_decompose(consph_solver *s)
+{
+    (void)s;
+    return CONSPH_OK;
+}
+
+void consph_par_solver_comm(const consph_solver *s, double *bytes, double *seconds)
+{
+    (void)s;
+    *bytes = 0.0;
+    *seconds = 0.0;
+}
+
+#endif

@@ -1,0 +1,35 @@
+/* The solver decomposed over MPI ranks (par_solver.c): the hooks consph_solver_step and the run
+ * call when a solver has been cut by consph_par_solver_decompose (s->par != NULL). */
+#ifndef CONSPH_PAR_PAR_SOLVER_H
+#define CONSPH_PAR_PAR_SOLVER_H
+
+#include "solver/solver_internal.h"
+
+typedef struct par_solver par_solver;
+
+/* In place of the serial re-sort at a step's start: particles handed to the ranks that now own
+ * their cells, re-sorted into the serial order, the slabs re-cut by particle count, the halo
+ * rebuilt. */
+int par_step_begin(consph_solver *s);
+/* After the step's local work: `status` agreed over the ranks, and the guard that no particle
+ * moved far enough in the step to have needed a halo it did not have. */
+int par_step_end(consph_solver *s, int status);
+/* solver_global's decomposed case. */
+int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg);
+/* The same with rank 0's particles holding their positions and only the fields named in
+ * `only` (NULL-terminated; NULL: every field): what fn reads, for what runs at every step. */
+int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg,
+                    const char *const *only);
+/* The verdict of the checks after a step (solver_check_finite, solver_check_valid) without
+ * gathering the particles: *clean when every owned value is finite and the state within the
+ * CONSPH_VALID_* bounds, the kinetic energy summed as consph_sum over the serial order; the
+ * same on every rank. When not clean, the serial checks on rank 0 name the particle. */
+int par_checks_clean(consph_solver *s, int *clean);
+/* consph_sum over the serial order of w, one value per owned particle in this rank's order
+ * (the particles in the destination mask, ascending), the same on every rank. */
+int par_owned_sum(consph_solver *s, const double *w, double *out);
+/* This rank (0 for a serial solver). */
+int par_rank(const consph_solver *s);
+void par_solver_free(par_solver *ps);
+
+#endif

@@ -1,0 +1,433 @@
+/* The solver decomposed over MPI ranks (src/par/par_solver.c) against the serial run, bit for
+ * bit: the whole state (positions and every field of every particle, in the serial order) and
+ * the history after a few steps of one scheme of each family in 2D (random layout, so that
+ * particles change cells and ranks) and of 3D Beltrami; a run's files (snapshots, log, summary,
+ * checkpoint) on 2 and 3 ranks equal the serial run's; a checkpoint restarts on 2 and 3 ranks
+ * to the serial run's final files; a launch on more ranks than slabs is refused on every rank.
+ *
+ * Run without mpirun, the test computes the serial references and launches itself under
+ * `mpirun -np 2` and `-np 3` (--oversubscribe: this machine may have fewer cores); skips (77)
+ * without MPI or mpirun. */
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+#include "check.h"
+#include "consph/io.h"
+#include "consph/par.h"
+#include "consph/solver.h"
+#include "par/par_solver.h"
+#include "solver/solver_internal.h"
+
+#ifdef CONSPH_HAVE_MPI
+#include <mpi.h>
+
+typedef struct par_case {
+    const char *name, *problem, *scheme;
+    int nx, layout;
+    long steps;
+    const char *extra; /* "key=value" or NULL */
+} par_case;
+
+/* Sizes with more slabs of cells along the last axis than one rank's own and its halo (reach
+ * plus one cell each way) span, so that every rank holds only a part of the particles. */
+static const par_case cases[] = {
+    {"wcsph-2d", "taylor-green", "wcsph", 40, CONSPH_LAYOUT_RANDOM, 8, NULL},
+    {"edac-2d", "taylor-green", "edac", 40, CONSPH_LAYOUT_RANDOM, 8, NULL},
+    {"lipstc-2d", "taylor-green", "l-ipst-c", 40, CONSPH_LAYOUT_RANDOM, 8, "ipst_every=3"},
+    {"deltaplus-2d", "taylor-green", "delta-plus-sph", 40, CONSPH_LAYOUT_RANDOM, 8, NULL},
+    {"tvf-2d", "taylor-green", "tvf", 40, CONSPH_LAYOUT_RANDOM, 6, NULL},
+    {"ec-2d", "taylor-green", "e-c", 40, CONSPH_LAYOUT_LATTICE, 4, NULL},
+    {"lipstc-3d", "beltrami", "l-ipst-c", 20, CONSPH_LAYOUT_LATTICE, 3,
+     "ipst_every=2 kernel=cubic"},
+    {"wcsph-3d", "beltrami", "wcsph", 20, CONSPH_LAYOUT_LATTICE, 3, "kernel=cubic"},
+    /* the authors' error measure samples after every step: every step gathers the whole set */
+    {"authors", "taylor-green", "edac", 40, CONSPH_LAYOUT_RANDOM, 6, "error=authors"},
+    /* leaves the model's validity at step 12 (kinetic energy growth): the checks' verdict
+     * over the ranks, then the serial message */
+    {"diverges", "taylor-green", "wcsph", 40, CONSPH_LAYOUT_RANDOM, 30, "cfl=1.5"},
+};
+#define NCASES (sizeof cases / sizeof cases[0])
+
+static consph_run_params case_params(const par_case *c)
+{
+    consph_run_params p;
+    consph_run_params_default(&p);
+    if (consph_run_params_problem(&p, c->problem) != CONSPH_OK) {
+        fprintf(stderr, "%s\n", consph_last_error());
+        exit(1);
+    }
+    snprintf(p.scheme, sizeof p.scheme, "%s", c->scheme);
+    p.nx = c->nx;
+    p.steps = c->steps;
+    p.tf = 0.0;
+    p.layout = c->layout;
+    /* "key=value key=value" */
+    for (const char *e = c->extra; e && *e;) {
+        char key[64], val[64];
+        const char *eq = strchr(e, '='), *end = strchr(e, ' ');
+        if (!end) end = e + strlen(e);
+        snprintf(key, sizeof key, "%.*s", (int)(eq - e), e);
+        snprintf(val, sizeof val, "%.*s", (int)(end - eq - 1), eq + 1);
+        if (consph_run_param_set(&p, key, val) != CONSPH_OK) {
+            fprintf(stderr, "%s\n", consph_last_error());
+            exit(1);
+        }
+        e = *end ? end + 1 : end;
+    }
+    return p;
+}
+
+/* The whole state to a file: n, then per field (positions first) its values in the particle
+ * order, then the history. */
+static int dump(consph_solver *s, void *path)
+{
+    FILE *fp = fopen(path, "wb");
+    if (!fp) return consph_fail(CONSPH_EIO, "cannot write %s", (const char *)path);
+    const consph_particles *p = s->sys.p;
+    fwrite(&p->n, sizeof p->n, 1, fp);
+    for (int a = 0; a < p->dim; ++a) fwrite(p->x[a], sizeof(double), p->n, fp);
+    for (int f = 0; f < p->nfields; ++f) {
+        fwrite(p->fields[f].name, 1, sizeof p->fields[f].name, fp);
+        for (int c = 0; c < p->fields[f].ncomp; ++c)
+            fwrite(p->fields[f].data + (size_t)c * p->cap, sizeof(double), p->n, fp);
+    }
+    fwrite(s->hist, sizeof(double), s->nhist * HIST_COLS, fp);
+    fwrite(&s->pairs, sizeof s->pairs, 1, fp);
+    const double acc[] = {s->l1_u_acc,   s->l1_p_acc,       s->auth_u_acc,
+                          s->auth_p_acc, (double)s->auth_n, s->prm.ipst_chi0};
+    fwrite(acc, sizeof acc, 1, fp);
+    fclose(fp);
+    return CONSPH_OK;
+}
+
+/* Values of very different magnitudes, so that the order of a sum shows in its bits. */
+static double sum_value(double id)
+{
+    return sin(id) * pow(10.0, fmod(id * 7.0, 13.0) - 6.0);
+}
+
+static double whole_sum;
+
+static int sum_whole(consph_solver *s, void *unused)
+{
+    (void)unused;
+    const consph_particles *p = s->sys.p;
+    const double *id = consph_particles_find(p, SF_ID)->data;
+    double *w = malloc(p->n * sizeof(double));
+    for (size_t i = 0; i < p->n; ++i) w[i] = sum_value(id[i]);
+    whole_sum = consph_sum(w, p->n);
+    free(w);
+    return CONSPH_OK;
+}
+
+/* par_owned_sum (the kinetic energy of the checks after every step) against consph_sum over the
+ * gathered serial order, bit for bit; rank 0 holds the serial sum. */
+static int check_owned_sum(consph_solver *s, const char *name)
+{
+    const consph_particles *p = s->sys.p;
+    const double *id = consph_particles_find(p, SF_ID)->data;
+    double *w = malloc((p->n ? p->n : 1) * sizeof(double));
+    size_t m = 0;
+    for (size_t i = 0; i < p->n; ++i)
+        if (!s->sys.dest || s->sys.dest[i]) w[m++] = sum_value(id[i]);
+    double v = 0.0;
+    int st = par_owned_sum(s, w, &v);
+    free(w);
+    if (st == CONSPH_OK) st = solver_global(s, sum_whole, NULL);
+    int rank = 0;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    if (st == CONSPH_OK && rank == 0 && memcmp(&v, &whole_sum, sizeof v)) {
+        fprintf(stderr, "case %s: the sum over ranks %.17g, over the serial order %.17g\n", name, v,
+                whole_sum);
+        st = CONSPH_EINVAL;
+    }
+    /* every rank takes rank 0's verdict: a rank that stopped alone would leave the others
+     * waiting in the next collective */
+    MPI_Bcast(&st, 1, MPI_INT, 0, MPI_COMM_WORLD);
+    return st;
+}
+
+static int rank_zero(void)
+{
+    int init = 0, rank = 0;
+    MPI_Initialized(&init);
+    if (init) MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    return rank == 0;
+}
+
+static int run_case(const par_case *c, const char *path)
+{
+    consph_run_params prm = case_params(c);
+    consph_solver *s = NULL;
+    int st = consph_solver_create(&s, &prm);
+    const size_t whole = st == CONSPH_OK ? s->sys.p->n : 0;
+    if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
+    /* decomposed: this rank owns a part of the particles and, on 3 ranks, holds a part (its
+     * own and its halo) */
+    int size = 1;
+    MPI_Initialized(&size);
+    if (size) MPI_Comm_size(MPI_COMM_WORLD, &size);
+    size_t own = 0;
+    for (size_t i = 0; st == CONSPH_OK && s->sys.dest && i < s->sys.p->n; ++i)
+        own += s->sys.dest[i] != 0;
+    if (st == CONSPH_OK && size > 1 &&
+        !(s->sys.dest && own < whole && (size < 3 || s->sys.p->n < whole))) {
+        fprintf(stderr, "case %s: %zu of %zu particles on this rank: not decomposed\n", c->name,
+                s->sys.p->n, whole);
+        st = CONSPH_EINVAL;
+    }
+    while (st == CONSPH_OK && !consph_solver_done(s)) st = consph_solver_step(s);
+    if (st == CONSPH_ENUMERIC && !strcmp(c->name, "diverges")) {
+        /* the message (and the state where it stopped) is what is compared */
+        char msg[600];
+        snprintf(msg, sizeof msg, "%s.msg", path);
+        FILE *fp = rank_zero() ? fopen(msg, "w") : NULL;
+        if (fp) {
+            fprintf(fp, "%s\n", consph_last_error());
+            fclose(fp);
+        }
+        st = CONSPH_OK;
+    }
+    if (st == CONSPH_OK && size > 1) st = check_owned_sum(s, c->name);
+    if (st == CONSPH_OK) st = solver_global(s, dump, (void *)path);
+    if (st != CONSPH_OK) fprintf(stderr, "case %s: %s\n", c->name, consph_last_error());
+    consph_solver_free(s);
+    return st;
+}
+
+/* A run with files: 10 steps, a snapshot every 5, a checkpoint at step 5; the run id fixed so
+ * that the files can be compared. With `restart`, from dir/checkpoint.ckpt instead. */
+static int run_files(const char *dir, int restart)
+{
+    par_case c = {"files", "taylor-green", "edac", 40, CONSPH_LAYOUT_RANDOM, 10, NULL};
+    consph_run_params prm = case_params(&c);
+    consph_solver *s = NULL;
+    int st;
+    if (restart) {
+        char ck[512];
+        snprintf(ck, sizeof ck, "%s/checkpoint.ckpt", dir);
+        st = consph_run_restart(&s, ck);
+    } else {
+        mkdir(dir, 0755); /* every rank: one makes it */
+        st = consph_solver_create(&s, &prm);
+        if (st == CONSPH_OK) snprintf(s->run_id, sizeof s->run_id, "0123456789abcdef");
+    }
+    if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
+    consph_run_output out = {dir, 5, 5, 0, 0};
+    consph_run_summary sum;
+    int sig = 0;
+    if (st == CONSPH_OK) st = consph_run(s, &out, &sum, &sig);
+    if (st != CONSPH_OK) fprintf(stderr, "files run in %s: %s\n", dir, consph_last_error());
+    consph_solver_free(s);
+    return st;
+}
+
+/* ---- under mpirun ---- */
+
+static int child(const char *base)
+{
+    MPI_Init(NULL, NULL);
+    int rank = 0, size = 1, bad = 0;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    for (size_t k = 0; k < NCASES; ++k) {
+        char path[512];
+        snprintf(path, sizeof path, "%s.%s.np%d", base, cases[k].name, size);
+        bad |= run_case(&cases[k], path) != CONSPH_OK;
+    }
+    char dir[512];
+    snprintf(dir, sizeof dir, "%s.files.np%d", base, size);
+    bad |= run_files(dir, 0) != CONSPH_OK;
+    snprintf(dir, sizeof dir, "%s.restart.np%d", base, size);
+    bad |= run_files(dir, 1) != CONSPH_OK;
+    /* more ranks than slabs: 4² particles in 2D have one or two cells per axis */
+    {
+        par_case c = {"tiny", "taylor-green", "wcsph", 4, CONSPH_LAYOUT_LATTICE, 1, NULL};
+        consph_run_params prm = case_params(&c);
+        prm.hdx = 1.0;
+        consph_solver *s = NULL;
+        int st = consph_solver_create(&s, &prm);
+        if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
+        if (st != CONSPH_EINVAL || !strstr(consph_last_error(), "slabs")) {
+            fprintf(stderr, "rank %d: a launch on too many ranks gave %d: %s\n", rank, st,
+                    consph_last_error());
+            bad = 1;
+        }
+        consph_solver_free(s);
+    }
+    int any = 0;
+    MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    MPI_Finalize();
+    return any ? 1 : 0;
+}
+
+static int same_file(const char *a, const char *b)
+{
+    FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
+    int same = fa && fb;
+    while (same) {
+        int ca = fgetc(fa), cb = fgetc(fb);
+        if (ca != cb) same = 0;
+        if (ca == EOF || cb == EOF) break;
+    }
+    if (fa) fclose(fa);
+    if (fb) fclose(fb);
+    return same;
+}
+
+/* summary.json but its "seconds" line. */
+static int same_summary(const char *a, const char *b)
+{
+    FILE *fa = fopen(a, "r"), *fb = fopen(b, "r");
+    int same = fa && fb;
+    char la[512], lb[512];
+    while (same) {
+        char *ra = fgets(la, sizeof la, fa), *rb = fgets(lb, sizeof lb, fb);
+        if (!ra || !rb) {
+            same = !ra && !rb;
+            break;
+        }
+        if (strstr(la, "\"seconds\"") && strstr(lb, "\"seconds\"")) continue;
+        same = !strcmp(la, lb);
+    }
+    if (fa) fclose(fa);
+    if (fb) fclose(fb);
+    return same;
+}
+
+/* Two checkpoints hold the same state: metadata but its wall-clock "seconds", every particle
+ * array and the history, bit for bit. */
+static int same_checkpoint(const char *a, const char *b)
+{
+    char *ma = NULL, *mb = NULL;
+    double *ha = NULL, *hb = NULL;
+    size_t na = 0, nb = 0;
+    consph_particles pa, pb;
+    memset(&pa, 0, sizeof pa);
+    memset(&pb, 0, sizeof pb);
+    int same = consph_checkpoint_read(a, &ma, &pa, &ha, &na) == CONSPH_OK;
+    same = same && consph_checkpoint_read(b, &mb, &pb, &hb, &nb) == CONSPH_OK;
+    if (same) {
+        char *sa = strstr(ma, "seconds="), *sb = strstr(mb, "seconds=");
+        same = sa && sb;
+        if (same) {
+            char *ea = strchr(sa, '\n'), *eb = strchr(sb, '\n');
+            same = ea && eb && !strncmp(ma, mb, (size_t)(sa - ma)) && sa - ma == sb - mb &&
+                   !strcmp(ea, eb);
+        }
+    }
+    same = same && na == nb && !memcmp(ha, hb, na * sizeof(double));
+    same = same && pa.n == pb.n && pa.nfields == pb.nfields;
+    for (int d = 0; same && d < pa.dim; ++d)
+        same = !memcmp(pa.x[d], pb.x[d], pa.n * sizeof(double));
+    for (int f = 0; same && f < pa.nfields; ++f) {
+        same = !strcmp(pa.fields[f].name, pb.fields[f].name) &&
+               pa.fields[f].ncomp == pb.fields[f].ncomp;
+        for (int c = 0; same && c < pa.fields[f].ncomp; ++c)
+            same = !memcmp(pa.fields[f].data + (size_t)c * pa.cap,
+                           pb.fields[f].data + (size_t)c * pb.cap, pa.n * sizeof(double));
+    }
+    free(ma);
+    free(mb);
+    free(ha);
+    free(hb);
+    if (pa.x[0]) consph_particles_free(&pa);
+    if (pb.x[0]) consph_particles_free(&pb);
+    return same;
+}
+
+static const char *const run_files_list[] = {"log.csv", "run.pvd", "snap_000000.vtu",
+                                             "snap_000005.vtu", "snap_000010.vtu"};
+
+static void compare_dirs(const char *ref, const char *dir)
+{
+    for (size_t k = 0; k < sizeof run_files_list / sizeof run_files_list[0]; ++k) {
+        char a[600], b[600];
+        snprintf(a, sizeof a, "%s/%s", ref, run_files_list[k]);
+        snprintf(b, sizeof b, "%s/%s", dir, run_files_list[k]);
+        CHECK(access(a, F_OK) == 0, "the serial run wrote no %s", a);
+        CHECK(same_file(a, b), "%s differs from the serial %s", b, a);
+    }
+    char a[600], b[600];
+    snprintf(a, sizeof a, "%s/checkpoint.ckpt", ref);
+    snprintf(b, sizeof b, "%s/checkpoint.ckpt", dir);
+    CHECK(same_checkpoint(a, b), "%s holds another state than the serial %s", b, a);
+    snprintf(a, sizeof a, "%s/summary.json", ref);
+    snprintf(b, sizeof b, "%s/summary.json", dir);
+    CHECK(same_summary(a, b), "%s differs from the serial %s", b, a);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc == 3 && !strcmp(argv[1], "--child")) return child(argv[2]);
+    if (system("command -v mpirun >/dev/null 2>&1") != 0) {
+        printf("test_par_solver: no mpirun: skipped\n");
+        return 77;
+    }
+    char base[256];
+    snprintf(base, sizeof base, "%s/consph-par-%d", getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp",
+             (int)getpid());
+    for (size_t k = 0; k < NCASES; ++k) {
+        char path[512];
+        snprintf(path, sizeof path, "%s.%s.serial", base, cases[k].name);
+        CHECK(run_case(&cases[k], path) == CONSPH_OK, "serial %s", cases[k].name);
+    }
+    char ref[512], cmd[2048];
+    snprintf(ref, sizeof ref, "%s.files.serial", base);
+    CHECK(run_files(ref, 0) == CONSPH_OK, "serial run with files");
+    /* the restart directories start as the serial run's at its checkpoint (step 5): its files
+     * up to there and the checkpoint */
+    for (int np = 2; np <= 3; ++np) {
+        snprintf(cmd, sizeof cmd,
+                 "rm -rf %s.restart.np%d && cp -r %s %s.restart.np%d && rm -f "
+                 "%s.restart.np%d/snap_000010.vtu %s.restart.np%d/summary.json",
+                 base, np, ref, base, np, base, np, base, np);
+        CHECK(system(cmd) == 0, "%s", cmd);
+    }
+    for (int np = 2; np <= 3; ++np) {
+        snprintf(cmd, sizeof cmd,
+                 "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
+                 "OMPI_MCA_mpi_yield_when_idle=1 mpirun --oversubscribe -np %d %s --child %s",
+                 np, argv[0], base);
+        const int rc = system(cmd);
+        CHECK(rc == 0, "%s exited with %d", cmd, rc);
+        for (size_t k = 0; k < NCASES; ++k) {
+            char a[512], b[512];
+            snprintf(a, sizeof a, "%s.%s.serial", base, cases[k].name);
+            snprintf(b, sizeof b, "%s.%s.np%d", base, cases[k].name, np);
+            CHECK(same_file(a, b), "%s on %d ranks: the state differs from the serial run's",
+                  cases[k].name, np);
+            if (!strcmp(cases[k].name, "diverges")) {
+                strcat(a, ".msg");
+                strcat(b, ".msg");
+                CHECK(access(a, F_OK) == 0, "the serial run did not diverge");
+                CHECK(same_file(a, b), "%s on %d ranks: another message than the serial run's",
+                      cases[k].name, np);
+            }
+        }
+        char dir[512];
+        snprintf(dir, sizeof dir, "%s.files.np%d", base, np);
+        compare_dirs(ref, dir);
+        snprintf(dir, sizeof dir, "%s.restart.np%d", base, np);
+        compare_dirs(ref, dir);
+    }
+    if (check_failures == 0) {
+        snprintf(cmd, sizeof cmd, "rm -rf %s.*", base);
+        if (system(cmd) != 0) fprintf(stderr, "could not remove %s.*\n", base);
+    }
+    return check_summary("test_par_solver");
+}
+
+#else
+
+int main(void)
+{
+    printf("test_par_solver: built without MPI: skipped\n");
+    return 77;
+}
+
+#endif
