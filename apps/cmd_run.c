@@ -10,6 +10,7 @@
 
 #include "cli.h"
 #include "commands.h"
+#include "consph/par.h"
 #include "consph/heat.h"
 #include "consph/io.h"
 #include "consph/layout.h"
@@ -301,6 +302,13 @@ int cmd_run(int argc, char **argv)
                        1,     positional};
     int rc = cli_parse(&cmd, argc, argv);
     if (rc) return rc == 1 ? 0 : rc;
+    /* Under K > 1 MPI ranks (mpirun -np K): the entry point of the solver's domain decomposition
+     * goes here. Until it exists, K copies of one serial run would write the same files. */
+    if (consph_par_size() > 1)
+        return cli_error(&cmd,
+                         "launched on %d MPI ranks: consph run does not decompose a run over "
+                         "ranks yet; run it without mpirun (or with -np 1)",
+                         consph_par_size());
     if ((rc = cli_cache_apply(&cmd, &cache))) return rc;
     if (!positional[0] && !restart)
         return cli_error(&cmd, "a problem is required (allowed: %s, heat)", consph_problem_names());

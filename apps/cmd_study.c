@@ -13,6 +13,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "consph/io.h"
+#include "consph/par.h"
 #include "consph/study.h"
 
 /* Longest --out accepted: DIR/STUDY/FIGURE.svg.tmp.PID must stay under PATH_MAX. */
@@ -367,7 +368,8 @@ int cmd_study(int argc, char **argv)
         printf("study %s: %s (%s resolutions)\n", consph_study_name(s), consph_study_title(s),
                quick ? "quick" : "paper");
     }
-    if (!quick || estimate_only) {
+    /* Under MPI the estimate's calibration runs on rank 0 alone, which prints it. */
+    if ((!quick || estimate_only) && consph_par_rank() == 0) {
         double est = particles ? consph_study_estimate_particles(s, quick, in.sets, in.n)
                                : consph_study_estimate(s, quick);
         print_estimate(est);

@@ -7,6 +7,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "consph/core.h"
+#include "consph/par.h"
 
 typedef struct subcommand {
     const char *name;
@@ -57,9 +58,16 @@ static void prefer_passive_wait(char **argv)
     unsetenv("OMP_WAIT_POLICY");
 }
 
-int main(int argc, char **argv)
+/* Under K > 1 MPI ranks, `study` spreads its rows over the ranks and `run` is the solver's
+ * (apps/cmd_run.c decides); every other command is run by rank 0 alone while the others wait:
+ * they make one file or one listing, which K copies would only write over each other. */
+static int runs_on_every_rank(const char *name)
 {
-    prefer_passive_wait(argv);
+    return strcmp(name, "study") == 0 || strcmp(name, "run") == 0;
+}
+
+static int dispatch(int argc, char **argv)
+{
     /* Every path that writes to stdout ends in cli_finish_stdout: output lost to a full disk or
      * a closed pipe must not exit 0. */
     cli_stdout_init();
@@ -77,13 +85,37 @@ int main(int argc, char **argv)
         printf("consph %s\n", CONSPH_VERSION);
         printf("threads %d, OMP_WAIT_POLICY %s\n", consph_num_threads(),
                policy ? policy : "unset (libgomp default)");
+        if (consph_par_available())
+            printf("MPI ranks %d\n", consph_par_size());
+        else
+            printf("MPI not built in\n");
         return cli_finish_stdout(NULL, 0);
     }
     for (size_t k = 0; k < NSUB; ++k)
-        if (strcmp(argv[1], subcommands[k].name) == 0)
+        if (strcmp(argv[1], subcommands[k].name) == 0) {
+            if (consph_par_rank() != 0 && !runs_on_every_rank(subcommands[k].name)) return 0;
             return cli_finish_stdout(subcommands[k].name, subcommands[k].run(argc - 1, argv + 1));
+        }
     fprintf(stderr, "consph: unknown command '%s'; allowed:", argv[1]);
     for (size_t k = 0; k < NSUB; ++k) fprintf(stderr, " %s", subcommands[k].name);
     fprintf(stderr, "\n");
     return 2;
+}
+
+int main(int argc, char **argv)
+{
+    prefer_passive_wait(argv);
+    /* MPI only under a launcher (include/consph/par.h): a serial run never initialises it. */
+    if (consph_par_init(&argc, &argv) != CONSPH_OK) {
+        fprintf(stderr, "consph: %s\n", consph_last_error());
+        return 1;
+    }
+    /* A message every rank would print (a bad option) is printed once, by rank 0; errors met on
+     * one rank only reach rank 0 through consph_par_agree. */
+    consph_par_quiet_others();
+    int rc = dispatch(argc, argv);
+    /* Every rank exits with rank 0's status, the one whose messages were printed. */
+    rc = consph_par_bcast_int(rc);
+    consph_par_finalize();
+    return rc;
 }

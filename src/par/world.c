@@ -1,0 +1,152 @@
+/* The MPI world (include/consph/par.h, section 1): MPI only when a launcher started the process,
+ * one rank otherwise; the collective helpers the CLI and the studies use. */
+#include <fcntl.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <unistd.h>
+
+#include "consph/core.h"
+#include "consph/par.h"
+
+#ifdef CONSPH_HAVE_MPI
+#include <mpi.h>
+
+static int world_inited;   /* MPI_Init was called by consph_par_init */
+static MPI_Comm world_comm; /* the helpers' own duplicate of MPI_COMM_WORLD */
+
+/* A launcher (OpenMPI's mpirun, PMIx or PMI-1/2 ones such as srun and MPICH's mpiexec) leaves
+ * these in the environment of every process it starts; MPI_Init in a process started by hand
+ * would make it a singleton that still spawns OpenMPI's runtime, slow and needless. */
+static int launched_by_mpi(void)
+{
+    static const char *const vars[] = {"OMPI_COMM_WORLD_SIZE", "PMIX_RANK", "PMI_SIZE"};
+    for (size_t k = 0; k < sizeof vars / sizeof vars[0]; ++k)
+        if (getenv(vars[k])) return 1;
+    return 0;
+}
+
+static int running(void)
+{
+    int fin = 0;
+    if (!world_inited) return 0;
+    MPI_Finalized(&fin);
+    return !fin;
+}
+
+int consph_par_init(int *argc, char ***argv)
+{
+    int already = 0;
+    MPI_Initialized(&already);
+    if (already || !launched_by_mpi()) {
+        if (already && !world_inited) {
+            /* An application that initialised MPI itself: join its world. */
+            MPI_Comm_dup(MPI_COMM_WORLD, &world_comm);
+            world_inited = 2;
+        }
+        return CONSPH_OK;
+    }
+    int provided = 0;
+    /* Only the main thread calls MPI; OpenMP threads compute between the calls. */
+    if (MPI_Init_thread(argc, argv, MPI_THREAD_FUNNELED, &provided) != MPI_SUCCESS)
+        return consph_fail(CONSPH_EIO, "MPI_Init failed");
+    MPI_Comm_dup(MPI_COMM_WORLD, &world_comm);
+    world_inited = 1;
+    return CONSPH_OK;
+}
+
+int consph_par_rank(void)
+{
+    int r = 0;
+    if (running()) MPI_Comm_rank(world_comm, &r);
+    return r;
+}
+
+int consph_par_size(void)
+{
+    int n = 1;
+    if (running()) MPI_Comm_size(world_comm, &n);
+    return n;
+}
+
+int consph_par_available(void) { return 1; }
+
+void consph_par_finalize(void)
+{
+    if (!running()) return;
+    MPI_Comm_free(&world_comm);
+    /* MPI initialised by the application is finalised by it. */
+    if (world_inited == 1) MPI_Finalize();
+    world_inited = 0;
+}
+
+void consph_par_barrier(void)
+{
+    if (running()) MPI_Barrier(world_comm);
+}
+
+int consph_par_agree(int status)
+{
+    if (consph_par_size() < 2) return status;
+    int rank = consph_par_rank(), size = consph_par_size();
+    int mine = status != CONSPH_OK ? rank : size, first = size;
+    MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, world_comm);
+    if (first == size) return CONSPH_OK;
+    char msg[1024];
+    snprintf(msg, sizeof msg, "%s", rank == first ? consph_last_error() : "");
+    MPI_Bcast(&status, 1, MPI_INT, first, world_comm);
+    MPI_Bcast(msg, (int)sizeof msg, MPI_CHAR, first, world_comm);
+    return consph_fail(status, "%s", msg);
+}
+
+int consph_par_bcast_int(int v)
+{
+    if (running()) MPI_Bcast(&v, 1, MPI_INT, 0, world_comm);
+    return v;
+}
+
+long consph_par_sum_long(long v)
+{
+    long s = v;
+    if (running()) MPI_Allreduce(&v, &s, 1, MPI_LONG, MPI_SUM, world_comm);
+    return s;
+}
+
+int consph_par_max_int(int v)
+{
+    int m = v;
+    if (running()) MPI_Allreduce(&v, &m, 1, MPI_INT, MPI_MAX, world_comm);
+    return m;
+}
+
+#else /* one rank */
+
+int consph_par_init(int *argc, char ***argv)
+{
+    (void)argc;
+    (void)argv;
+    return CONSPH_OK;
+}
+int consph_par_rank(void) { return 0; }
+int consph_par_size(void) { return 1; }
+int consph_par_available(void) { return 0; }
+void consph_par_finalize(void) {}
+void consph_par_barrier(void) {}
+int consph_par_agree(int status) { return status; }
+int consph_par_bcast_int(int v) { return v; }
+long consph_par_sum_long(long v) { return v; }
+int consph_par_max_int(int v) { return v; }
+
+#endif
+
+void consph_par_quiet_others(void)
+{
+    if (consph_par_rank() == 0) return;
+    fflush(stdout);
+    fflush(stderr);
+    int fd = open("/dev/null", O_WRONLY);
+    if (fd < 0) return;
+    dup2(fd, STDOUT_FILENO);
+    dup2(fd, STDERR_FILENO);
+    close(fd);
+}
