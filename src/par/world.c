@@ -12,7 +12,7 @@
 #ifdef CONSPH_HAVE_MPI
 #include <mpi.h>
 
-static int world_inited;   /* MPI_Init was called by consph_par_init */
+static int world_inited;    /* MPI_Init was called by consph_par_init */
 static MPI_Comm world_comm; /* the helpers' own duplicate of MPI_COMM_WORLD */
 
 /* A launcher (OpenMPI's mpirun, PMIx or PMI-1/2 ones such as srun and MPICH's mpiexec) leaves
@@ -69,7 +69,10 @@ int consph_par_size(void)
     return n;
 }
 
-int consph_par_available(void) { return 1; }
+int consph_par_available(void)
+{
+    return 1;
+}
 
 void consph_par_finalize(void)
 {
@@ -127,15 +130,36 @@ int consph_par_init(int *argc, char ***argv)
     (void)argv;
     return CONSPH_OK;
 }
-int consph_par_rank(void) { return 0; }
-int consph_par_size(void) { return 1; }
-int consph_par_available(void) { return 0; }
+int consph_par_rank(void)
+{
+    return 0;
+}
+int consph_par_size(void)
+{
+    return 1;
+}
+int consph_par_available(void)
+{
+    return 0;
+}
 void consph_par_finalize(void) {}
 void consph_par_barrier(void) {}
-int consph_par_agree(int status) { return status; }
-int consph_par_bcast_int(int v) { return v; }
-long consph_par_sum_long(long v) { return v; }
-int consph_par_max_int(int v) { return v; }
+int consph_par_agree(int status)
+{
+    return status;
+}
+int consph_par_bcast_int(int v)
+{
+    return v;
+}
+long consph_par_sum_long(long v)
+{
+    return v;
+}
+int consph_par_max_int(int v)
+{
+    return v;
+}
 
 #endif
 
