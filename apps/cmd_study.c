@@ -318,6 +318,8 @@ int cmd_study(int argc, char **argv)
         "Progress goes to stderr: a live line on a terminal, else a line per "
         "finished row. SIGINT or SIGTERM ends the current row at its next step, "
         "writes the partial README.md and prints the command that resumes.\n"
+        "Under mpirun -np K the rows are spread over the K ranks and rank 0 writes "
+        "the same report (docs/mpi.md); --out must be seen by every rank.\n"
         "Exit status: 0 done, 1 a run failed, 2 bad input, 3 an error is not "
         "finite (stderr names the figure, series and resolution), 128 + signal "
         "stopped.",

@@ -36,7 +36,9 @@ static int running(void)
 
 int consph_par_init(int *argc, char ***argv)
 {
-    int already = 0;
+    int already = 0, fin = 0;
+    MPI_Finalized(&fin);
+    if (fin) return CONSPH_OK; /* once finalised, MPI cannot start again: one rank from here */
     MPI_Initialized(&already);
     if (already || !launched_by_mpi()) {
         if (already && !world_inited) {

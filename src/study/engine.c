@@ -444,7 +444,11 @@ static int run_figures(const consph_study *s, const consph_study_options *opt,
         rows->fig_met = 0;
         if (opt->resume && access(done, F_OK) == 0) {
             /* Its outputs were committed before the mark: kept as they are. */
-            if (log) fprintf(log, "[%s] kept from the earlier run\n", f->id);
+            if (log && rows->shared_report)
+                fprintf(log, "[%s] %s\n  -> %s/%s.md (run on another rank)\n", f->id,
+                        study_get_or(s, f, NULL, "title", ""), dir, f->id);
+            else if (log)
+                fprintf(log, "[%s] kept from the earlier run\n", f->id);
             rows->done += nrows;
             rows->work_done += work;
             continue;
@@ -616,6 +620,7 @@ static int study_run_shared(const consph_study *s, const consph_study_options *o
         rows.done = 0;
         rows.work_done = 0.0;
         rows.print = 0;
+        rows.shared_report = 1;
         rc = run_figures(s, &report, files, dir, &rows);
         if (rc == CONSPH_OK && rows.stopped)
             rc = write_partial_readme(s, opt, files, dir, &rows);

@@ -127,6 +127,7 @@ typedef struct study_rows {
     const study_figure *unit_fig; /* the unit met last */
     int unit_series;
     int fig_rows, fig_met; /* rows of the figure now running; rows of it met so far */
+    int shared_report;     /* rank 0's pass over the rows the ranks kept */
 } study_rows;
 
 /* Writes what the figures logged since the last call (terminal only); the next row redraws the
