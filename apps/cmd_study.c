@@ -274,6 +274,8 @@ static char *resume_command(int argc, char **argv, int resume)
     return buf;
 }
 
+int cmd_study_started;
+
 int cmd_study(int argc, char **argv)
 {
     int quick = 0, list = 0, estimate_only = 0, resume = 0;
@@ -388,10 +390,13 @@ int cmd_study(int argc, char **argv)
     rc = CONSPH_OK;
     /* SIGINT/SIGTERM: the current row ends at its next step, the partial report is written. */
     if (!estimate_only) rc = consph_stop_install();
-    if (rc == CONSPH_OK && !estimate_only)
+    if (rc == CONSPH_OK && !estimate_only) {
+        /* its first collective call agrees the start with every rank (apps/consph.c) */
+        cmd_study_started = 1;
         rc = particles
                  ? consph_study_run_particles(s, &o, in.sets, (const char *const *)in.names, in.n)
                  : consph_study_run(s, &o);
+    }
     if (!estimate_only) consph_stop_uninstall();
     free_inputs(&in);
     if (rc == CONSPH_OK && stopped_by) {

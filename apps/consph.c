@@ -114,6 +114,14 @@ int main(int argc, char **argv)
      * one rank only reach rank 0 through consph_par_agree. */
     consph_par_quiet_others();
     int rc = dispatch(argc, argv);
+    /* A rank that ended `study` before its run (a file that only it could not read) joins the
+     * run's first agreement, so that the others end too instead of waiting for it. */
+    if (consph_par_size() > 1 && argc > 1 && strcmp(argv[1], "study") == 0 && !cmd_study_started)
+        consph_par_agree(rc == 0 ? CONSPH_OK
+                                 : consph_fail(CONSPH_EINVAL,
+                                               "rank %d of %d stopped before the study started "
+                                               "(exit %d); only rank 0 prints its messages",
+                                               consph_par_rank(), consph_par_size(), rc));
     /* Every rank exits with rank 0's status, the one whose messages were printed. */
     rc = consph_par_bcast_int(rc);
     consph_par_finalize();

@@ -3,8 +3,9 @@
 # writes (every file byte for byte, the wall-time columns masked; the same hidden rows kept); a
 # study with fewer rows than ranks leaves ranks idle; a study stopped on 2 ranks resumes on 3 to
 # the serial report; a row that fails on rank 1 ends every rank with the serial exit status and
-# message, printed once; `consph run` on 2 ranks is refused (exit 2, once); the other commands
-# run on rank 0 alone (layout: the serial file and output, once). A serial run never initialises MPI.
+# message, printed once, and so does a rank that stops before the study starts; `consph run` on
+# 2 ranks is refused (exit 2, once); the other commands run on rank 0 alone (layout: the serial
+# file and output, once). A serial run never initialises MPI.
 # Skips (77) in a build without MPI, without mpirun, or where mpirun cannot start 2 ranks.
 # Usage: cli_mpi.sh <path-to-consph> <source-dir>
 set -u
@@ -114,6 +115,18 @@ elif [ "$(ours "$work/e2" | grep -cF "consph study: $msg")" != 1 ]; then
 else
     pass=$((pass + 1))
 fi
+
+# A rank that stops before the study starts (the study is found on rank 0 only): every rank
+# ends, exit 2, nothing written, rank 0 names the rank.
+mkdir -p "$work/dA" "$work/dB"
+sed 's/^study = g$/study = onlyhere/' "$work/g.study" >"$work/dA/onlyhere.study"
+timeout 120 mpirun --oversubscribe -np 1 env CONSPH_STUDIES="$work/dA" "$bin" study onlyhere --quick \
+    --out "$work/div" : -np 1 env CONSPH_STUDIES="$work/dB" "$bin" study onlyhere --quick \
+    --out "$work/div" >/dev/null 2>"$work/err"
+rc=$?
+[ $rc = 2 ] && grep -q '^consph study: rank 1 of 2 stopped before the study started' "$work/err" &&
+    [ ! -e "$work/div" ] && pass=$((pass + 1)) ||
+    bad "study found on rank 0 only: exit $rc: $(ours "$work/err")"
 
 # consph run is refused on 2 ranks, once, before writing anything.
 failing 2 "launched on 2 MPI ranks: consph run does not decompose" /dev/null -- \
