@@ -106,9 +106,11 @@ int main(int argc, char **argv)
 {
     prefer_passive_wait(argv);
     /* MPI only under a launcher (include/consph/par.h): a serial run never initialises it. */
-    if (consph_par_init(&argc, &argv) != CONSPH_OK) {
+    const int par = consph_par_init(&argc, &argv);
+    if (par != CONSPH_OK) {
+        /* each rank of a build without MPI believes it is rank 0: all of them say it */
         fprintf(stderr, "consph: %s\n", consph_last_error());
-        return 1;
+        return par == CONSPH_EINVAL ? 2 : 1;
     }
     /* A message every rank would print (a bad option) is printed once, by rank 0; errors met on
      * one rank only reach rank 0 through consph_par_agree. */

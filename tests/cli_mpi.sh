@@ -6,7 +6,8 @@
 # message, printed once, and so does a rank that stops before the study starts; `consph run` on
 # 2 ranks is refused (exit 2, once); the other commands run on rank 0 alone (layout: the serial
 # file and output, once). A serial run never initialises MPI.
-# Skips (77) in a build without MPI, without mpirun, or where mpirun cannot start 2 ranks.
+# In a build without MPI: a launch on 2 ranks is refused (exit 2). Skips (77) without mpirun or
+# where mpirun cannot start 2 ranks.
 # Usage: cli_mpi.sh <path-to-consph> <source-dir>
 set -u
 bin=$1 src=$2
@@ -14,7 +15,15 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 . "$(dirname "${BASH_SOURCE[0]}")/lib_cli.sh"
 
-"$bin" --version | grep -qx 'MPI ranks 1' || { echo "skipped: consph built without MPI"; exit 77; }
+if "$bin" --version | grep -qx 'MPI not built in'; then
+    # Without MPI, a launch on 2 ranks (as mpirun's environment says) is refused, not run twice.
+    failing 2 "launched by an MPI launcher on 2 ranks, but this consph was built without MPI" \
+        /dev/null -- env OMPI_COMM_WORLD_SIZE=2 OMPI_COMM_WORLD_RANK=1 "$bin" layout --kind lattice \
+        --dim 2 --nx 4 --out "$work/l.csv" && [ ! -e "$work/l.csv" ] && pass=$((pass + 1))
+    env PMI_SIZE=1 "$bin" --version >/dev/null && pass=$((pass + 1)) || bad "PMI_SIZE=1: refused"
+    summary cli_mpi
+    exit
+fi
 command -v mpirun >/dev/null || { echo "skipped: no mpirun"; exit 77; }
 # mpirun refuses root without these; one process per rank on however few cores there are.
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1

@@ -14,7 +14,8 @@
 #define CONSPH_PAR_H
 
 /* Initialises MPI iff launched by an MPI launcher; idempotent (a second call does nothing).
- * argc/argv may be NULL. Returns CONSPH_OK, or CONSPH_EIO when MPI_Init fails (message set). */
+ * argc/argv may be NULL. Returns CONSPH_OK; CONSPH_EIO when MPI_Init fails; CONSPH_EINVAL in a
+ * build without MPI started by a launcher on more than one rank (message set). */
 int consph_par_init(int *argc, char ***argv);
 /* This process's rank, 0 when MPI is not running. */
 int consph_par_rank(void);

@@ -126,10 +126,30 @@ int consph_par_max_int(int v)
 
 #else /* one rank */
 
+/* The value of the first of `vars` set in the environment, else -1. */
+static long launcher_value(const char *const *vars, int n)
+{
+    for (int k = 0; k < n; ++k) {
+        const char *v = getenv(vars[k]);
+        if (v && *v) return strtol(v, NULL, 10);
+    }
+    return -1;
+}
+
 int consph_par_init(int *argc, char ***argv)
 {
     (void)argc;
     (void)argv;
+    /* Started by mpirun on K > 1 ranks, a build without MPI would run K copies of one serial
+     * command, writing the same files. */
+    static const char *const size_vars[] = {"OMPI_COMM_WORLD_SIZE", "PMI_SIZE"};
+    static const char *const rank_vars[] = {"OMPI_COMM_WORLD_RANK", "PMI_RANK", "PMIX_RANK"};
+    const long size = launcher_value(size_vars, 2), rank = launcher_value(rank_vars, 3);
+    if (size > 1 || rank > 0)
+        return consph_fail(CONSPH_EINVAL,
+                           "launched by an MPI launcher on %ld ranks, but this consph was built "
+                           "without MPI (CONSPH_MPI, docs/mpi.md); run it without mpirun",
+                           size > 1 ? size : rank + 1);
     return CONSPH_OK;
 }
 int consph_par_rank(void)
