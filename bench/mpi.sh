@@ -11,8 +11,8 @@
 # environment: CONSPH (default build/consph), OUT (default bench/mpi.md), RANKS (default "2";
 #   on a 16-core machine "2 4 8 16"), STUDIES (default "003-kernels 001-table9": 45 short rows,
 #   and 21 solver rows of about 75 CPU seconds in all), WORK (scratch directory), and for the
-#   solver: WEAK_PER_RANK
-#   (particles per rank, default 100000), STRONG_NX (default 200), STEPS1/STEPS2 (default 2/12).
+#   solver: WEAK_PER_RANK (particles per rank, default 100000), STRONG_NX (default 200),
+#   STEPS1/STEPS2 (default 2/12).
 # Exit 2 when the binary has no MPI or mpirun cannot start 2 ranks.
 set -eu
 
@@ -59,7 +59,7 @@ same_dirs() {
     done
 }
 
-TMPMD=$(mktemp "$OUT.XXXXXX")
+TMPMD=$(mktemp "$WORK/mpi.md.XXXXXX")
 trap 'rm -f "$TMPMD"' EXIT
 {
     echo "# consph over MPI ranks"
@@ -163,6 +163,7 @@ solver_scaling "$CONSPH" run beltrami --scheme l-ipst-c >>"$TMPMD"
 
 echo >>"$TMPMD"
 echo "Load average after: $(cut -d' ' -f1-3 /proc/loadavg)." >>"$TMPMD"
-mv "$TMPMD" "$OUT"
+cp "$TMPMD" "$OUT"
+rm -f "$TMPMD"
 trap - EXIT
 echo "wrote $OUT" >&2
