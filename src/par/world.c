@@ -4,6 +4,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "consph/core.h"
@@ -32,6 +33,22 @@ static int running(void)
     if (!world_inited) return 0;
     MPI_Finalized(&fin);
     return !fin;
+}
+
+/* Waits for a non-blocking collective asleep: OpenMPI's blocking collectives poll at full speed,
+ * so a rank that waits (for the others' rows, for rank 0's report) would take a core from the
+ * ranks still working when ranks share cores. Polls from 50 µs up to every 10 ms. */
+static void wait_asleep(MPI_Request *req)
+{
+    long ns = 50000;
+    for (;;) {
+        int done = 0;
+        MPI_Test(req, &done, MPI_STATUS_IGNORE);
+        if (done) return;
+        const struct timespec ts = {0, ns};
+        nanosleep(&ts, NULL);
+        if (ns < 10000000) ns *= 2;
+    }
 }
 
 int consph_par_init(int *argc, char ***argv)
@@ -87,7 +104,24 @@ void consph_par_finalize(void)
 
 void consph_par_barrier(void)
 {
-    if (running()) MPI_Barrier(world_comm);
+    if (!running()) return;
+    MPI_Request req;
+    MPI_Ibarrier(world_comm, &req);
+    wait_asleep(&req);
+}
+
+static void allreduce_int(int *in, int *out, MPI_Op op)
+{
+    MPI_Request req;
+    MPI_Iallreduce(in, out, 1, MPI_INT, op, world_comm, &req);
+    wait_asleep(&req);
+}
+
+static void bcast(void *buf, int count, MPI_Datatype type, int root)
+{
+    MPI_Request req;
+    MPI_Ibcast(buf, count, type, root, world_comm, &req);
+    wait_asleep(&req);
 }
 
 int consph_par_agree(int status)
@@ -95,32 +129,36 @@ int consph_par_agree(int status)
     if (consph_par_size() < 2) return status;
     int rank = consph_par_rank(), size = consph_par_size();
     int mine = status != CONSPH_OK ? rank : size, first = size;
-    MPI_Allreduce(&mine, &first, 1, MPI_INT, MPI_MIN, world_comm);
+    allreduce_int(&mine, &first, MPI_MIN);
     if (first == size) return CONSPH_OK;
     char msg[1024];
     snprintf(msg, sizeof msg, "%s", rank == first ? consph_last_error() : "");
-    MPI_Bcast(&status, 1, MPI_INT, first, world_comm);
-    MPI_Bcast(msg, (int)sizeof msg, MPI_CHAR, first, world_comm);
+    bcast(&status, 1, MPI_INT, first);
+    bcast(msg, (int)sizeof msg, MPI_CHAR, first);
     return consph_fail(status, "%s", msg);
 }
 
 int consph_par_bcast_int(int v)
 {
-    if (running()) MPI_Bcast(&v, 1, MPI_INT, 0, world_comm);
+    if (running()) bcast(&v, 1, MPI_INT, 0);
     return v;
 }
 
 long consph_par_sum_long(long v)
 {
     long s = v;
-    if (running()) MPI_Allreduce(&v, &s, 1, MPI_LONG, MPI_SUM, world_comm);
+    if (running()) {
+        MPI_Request req;
+        MPI_Iallreduce(&v, &s, 1, MPI_LONG, MPI_SUM, world_comm, &req);
+        wait_asleep(&req);
+    }
     return s;
 }
 
 int consph_par_max_int(int v)
 {
     int m = v;
-    if (running()) MPI_Allreduce(&v, &m, 1, MPI_INT, MPI_MAX, world_comm);
+    if (running()) allreduce_int(&v, &m, MPI_MAX);
     return m;
 }
 
