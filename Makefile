@@ -26,7 +26,8 @@ check: $(BUILD)/consph
 demo: $(BUILD)/consph
 	bash scripts/demo.sh $(BUILD)/consph
 
-# Without MPI: OpenMPI's own allocations at MPI_Init are reported by LeakSanitizer.
+# Without MPI (docs/mpi.md): OpenMPI's run-time keeps allocations to exit that LeakSanitizer
+# reports; the multi-rank tests skip there.
 asan: deps
 	cmake -S . -B $(ASAN_BUILD) -DCMAKE_BUILD_TYPE=Debug -DCMAKE_C_FLAGS_DEBUG="-g -O1" -DCONSPH_SANITIZE=ON -DCONSPH_MPI=OFF $(CMAKE_ARGS)
 	cmake --build $(ASAN_BUILD) -j $(JOBS)

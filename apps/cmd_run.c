@@ -11,6 +11,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "consph/gpu.h"
+#include "consph/par.h"
 #include "consph/heat.h"
 #include "consph/io.h"
 #include "consph/layout.h"
@@ -108,6 +109,9 @@ static int make_dir(const cli_command *cmd, const char *dir)
  * --overwrite, removed) for a new run (run_id NULL); a restart needs its own run's directory. */
 static int prepare_out(const cli_command *cmd, const char *dir, const char *run_id, int overwrite)
 {
+    /* under MPI rank 0 alone writes the run's files: it alone makes and clears the directory
+     * (its failure reaches the other ranks at the agreement before the decomposition) */
+    if (consph_par_rank() != 0) return 0;
     int rc = make_dir(cmd, dir);
     if (rc) return rc;
     int st = consph_run_dir_check(dir, run_id, overwrite);
@@ -531,6 +535,8 @@ static int read_given(const cli_command *cmd, const char *path, consph_run_param
     return rc;
 }
 
+int cmd_run_started;
+
 int cmd_run(int argc, char **argv)
 {
     consph_run_params prm;
@@ -611,6 +617,18 @@ int cmd_run(int argc, char **argv)
     if (out && (rc = cli_check_out_dir(&cmd, "--out", out)) != 0) return rc;
     if (threads > 0) consph_set_num_threads((int)threads);
     const int heat = positional[0] && strcmp(positional[0], "heat") == 0;
+    /* Under K > 1 MPI ranks the WCSPH solver is decomposed (below, consph_par_solver_decompose);
+     * 002's conduction solver is not, and K copies of it would write the same files. */
+    if (heat && consph_par_size() > 1)
+        return cli_error(&cmd,
+                         "problem heat is not decomposed over MPI ranks (launched on %d): run it "
+                         "without mpirun (or with -np 1)",
+                         consph_par_size());
+    if (device == CONSPH_DEVICE_GPU && consph_par_size() > 1)
+        return cli_error(&cmd,
+                         "option --device gpu runs on one process: launched on %d MPI ranks, run "
+                         "it without mpirun (or with -np 1)",
+                         consph_par_size());
     for (int k = 0; k < cmd.nopts; ++k) {
         if (!opts[k].given) continue;
         const int heat_only = strncmp(opts[k].help, "heat: ", 6) == 0;
@@ -783,6 +801,18 @@ int cmd_run(int argc, char **argv)
         fprintf(stderr, "consph run: --device gpu: %s\n", consph_last_error());
         consph_solver_free(s);
         return 1;
+    }
+    if (consph_par_size() > 1) {
+        /* every rank made the same solver; from the decomposition on they run it together. The
+         * agreement first: a rank that stopped earlier joins it from main (apps/consph.c). */
+        cmd_run_started = 1;
+        st = consph_par_agree(CONSPH_OK);
+        if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
+        if (st != CONSPH_OK) {
+            fprintf(stderr, "consph run: %s\n", consph_last_error());
+            consph_solver_free(s);
+            return st == CONSPH_EINVAL ? CLI_EXIT_USAGE : 1;
+        }
     }
     char warn[256];
     if (consph_solver_dt_warning(s, warn, sizeof warn))

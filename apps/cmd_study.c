@@ -13,6 +13,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "consph/io.h"
+#include "consph/par.h"
 #include "consph/study.h"
 
 /* Longest --out accepted: DIR/STUDY/FIGURE.svg.tmp.PID must stay under PATH_MAX. */
@@ -273,6 +274,8 @@ static char *resume_command(int argc, char **argv, int resume)
     return buf;
 }
 
+int cmd_study_started;
+
 int cmd_study(int argc, char **argv)
 {
     int quick = 0, list = 0, estimate_only = 0, resume = 0;
@@ -317,6 +320,8 @@ int cmd_study(int argc, char **argv)
         "Progress goes to stderr: a live line on a terminal, else a line per "
         "finished row. SIGINT or SIGTERM ends the current row at its next step, "
         "writes the partial README.md and prints the command that resumes.\n"
+        "Under mpirun -np K the rows are spread over the K ranks and rank 0 writes "
+        "the same report (docs/mpi.md); --out must be seen by every rank.\n"
         "Exit status: 0 done, 1 a run failed, 2 bad input, 3 an error is not "
         "finite (stderr names the figure, series and resolution), 128 + signal "
         "stopped.",
@@ -367,7 +372,8 @@ int cmd_study(int argc, char **argv)
         printf("study %s: %s (%s resolutions)\n", consph_study_name(s), consph_study_title(s),
                quick ? "quick" : "paper");
     }
-    if (!quick || estimate_only) {
+    /* Under MPI the estimate's calibration runs on rank 0 alone, which prints it. */
+    if ((!quick || estimate_only) && consph_par_rank() == 0) {
         double est = particles ? consph_study_estimate_particles(s, quick, in.sets, in.n)
                                : consph_study_estimate(s, quick);
         print_estimate(est);
@@ -384,10 +390,13 @@ int cmd_study(int argc, char **argv)
     rc = CONSPH_OK;
     /* SIGINT/SIGTERM: the current row ends at its next step, the partial report is written. */
     if (!estimate_only) rc = consph_stop_install();
-    if (rc == CONSPH_OK && !estimate_only)
+    if (rc == CONSPH_OK && !estimate_only) {
+        /* its first collective call agrees the start with every rank (apps/consph.c) */
+        cmd_study_started = 1;
         rc = particles
                  ? consph_study_run_particles(s, &o, in.sets, (const char *const *)in.names, in.n)
                  : consph_study_run(s, &o);
+    }
     if (!estimate_only) consph_stop_uninstall();
     free_inputs(&in);
     if (rc == CONSPH_OK && stopped_by) {

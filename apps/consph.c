@@ -7,6 +7,7 @@
 #include "cli.h"
 #include "commands.h"
 #include "consph/core.h"
+#include "consph/par.h"
 #include "consph/solver.h"
 
 typedef struct subcommand {
@@ -83,9 +84,16 @@ static void prefer_passive_wait(char **argv)
     unsetenv("OMP_WAIT_POLICY");
 }
 
-int main(int argc, char **argv)
+/* Under K > 1 MPI ranks, `study` spreads its rows over the ranks and `run` is the solver's
+ * (apps/cmd_run.c decides); every other command is run by rank 0 alone while the others wait:
+ * they make one file or one listing, which K copies would only write over each other. */
+static int runs_on_every_rank(const char *name)
 {
-    prefer_passive_wait(argv);
+    return strcmp(name, "study") == 0 || strcmp(name, "run") == 0;
+}
+
+static int dispatch(int argc, char **argv)
+{
     /* Every path that writes to stdout ends in cli_finish_stdout: output lost to a full disk or
      * a closed pipe must not exit 0. */
     cli_stdout_init();
@@ -103,13 +111,50 @@ int main(int argc, char **argv)
         printf("consph %s\n", CONSPH_VERSION);
         printf("threads %d, OMP_WAIT_POLICY %s\n", consph_num_threads(),
                policy ? policy : "unset (libgomp default)");
+        if (consph_par_available())
+            printf("MPI ranks %d\n", consph_par_size());
+        else
+            printf("MPI not built in\n");
         return cli_finish_stdout(NULL, 0);
     }
     for (size_t k = 0; k < NSUB; ++k)
-        if (strcmp(argv[1], subcommands[k].name) == 0)
+        if (strcmp(argv[1], subcommands[k].name) == 0) {
+            if (consph_par_rank() != 0 && !runs_on_every_rank(subcommands[k].name)) return 0;
             return cli_finish_stdout(subcommands[k].name, subcommands[k].run(argc - 1, argv + 1));
+        }
     fprintf(stderr, "consph: unknown command '%s'; allowed:", argv[1]);
     for (size_t k = 0; k < NSUB; ++k) fprintf(stderr, " %s", subcommands[k].name);
     fprintf(stderr, "\n");
     return 2;
+}
+
+int main(int argc, char **argv)
+{
+    prefer_passive_wait(argv);
+    /* MPI only under a launcher (include/consph/par.h): a serial run never initialises it. */
+    const int par = consph_par_init(&argc, &argv);
+    if (par != CONSPH_OK) {
+        /* each rank of a build without MPI believes it is rank 0: all of them say it */
+        fprintf(stderr, "consph: %s\n", consph_last_error());
+        return par == CONSPH_EINVAL ? 2 : 1;
+    }
+    /* A message every rank would print (a bad option) is printed once, by rank 0; errors met on
+     * one rank only reach rank 0 through consph_par_agree. */
+    consph_par_quiet_others();
+    int rc = dispatch(argc, argv);
+    /* A rank that ended `study` (or `run`) before its run (a file that only it could not read)
+     * joins the run's first agreement, so that the others end too instead of waiting for it. */
+    const int study = argc > 1 && strcmp(argv[1], "study") == 0 && !cmd_study_started;
+    const int run = argc > 1 && strcmp(argv[1], "run") == 0 && !cmd_run_started;
+    if (consph_par_size() > 1 && (study || run))
+        consph_par_agree(rc == 0 ? CONSPH_OK
+                                 : consph_fail(CONSPH_EINVAL,
+                                               "rank %d of %d stopped before the %s started "
+                                               "(exit %d); only rank 0 prints its messages",
+                                               consph_par_rank(), consph_par_size(),
+                                               study ? "study" : "run", rc));
+    /* Every rank exits with rank 0's status, the one whose messages were printed. */
+    rc = consph_par_bcast_int(rc);
+    consph_par_finalize();
+    return rc;
 }

@@ -13,38 +13,6 @@ trap 'rm -rf "$work"' EXIT
 . "$(dirname "${BASH_SOURCE[0]}")/lib_cli.sh"
 study=$src/tests/data/resume.study
 
-# The files of a study directory with their wall-time columns blanked (CSV columns and markdown
-# table columns named seconds, setup_seconds or s; the last column of tgv.dat).
-masked() {
-    awk '
-    FNR == 1 { delete cols; mode = -1 }
-    {
-        md = ($0 ~ /^\|/)
-        n = md ? split($0, a, "|") : split($0, a, ",")
-        hit = 0
-        for (i = 1; i <= n; i++) {
-            t = a[i]; gsub(/ /, "", t)
-            if (t == "seconds" || t == "setup_seconds" || (md && t == "s")) hit = 1
-        }
-        if (hit) {
-            delete cols
-            for (i = 1; i <= n; i++) {
-                t = a[i]; gsub(/ /, "", t)
-                if (t == "seconds" || t == "setup_seconds" || (md && t == "s")) cols[i] = 1
-            }
-            mode = md; print; next
-        }
-        if (length(cols) && md == mode && n > 1) {
-            for (i in cols) a[i] = "X"
-            s = a[1]
-            for (i = 2; i <= n; i++) s = s (md ? "|" : ",") a[i]
-            print s; next
-        }
-        delete cols
-        if (FILENAME ~ /tgv[.]dat$/ && $0 !~ /^#/ && NF > 1) { $NF = "X" }
-        print
-    }' "$1"
-}
 # same A B: every output of study directory A equals B's, masked.
 same() {
     local f ok=0

@@ -28,3 +28,39 @@ summary() {
     echo "$1: $pass passed, $fail failed"
     [ $fail = 0 ]
 }
+# masked FILE: a study output file with its wall-time columns blanked (CSV columns and markdown
+# table columns named seconds, setup_seconds, s or T_r (a ratio of wall times); the last column
+# of a .dat block whose header line ends in "seconds").
+masked() {
+    awk '
+    FNR == 1 { delete cols; mode = -1; datsec = 0 }
+    {
+        md = ($0 ~ /^\|/)
+        n = md ? split($0, a, "|") : split($0, a, ",")
+        hit = 0
+        for (i = 1; i <= n; i++) {
+            t = a[i]; gsub(/ /, "", t)
+            if (t == "seconds" || t == "setup_seconds" || (md && (t == "s" || t == "T_r"))) hit = 1
+        }
+        if (hit) {
+            delete cols
+            for (i = 1; i <= n; i++) {
+                t = a[i]; gsub(/ /, "", t)
+                if (t == "seconds" || t == "setup_seconds" || (md && (t == "s" || t == "T_r"))) cols[i] = 1
+            }
+            mode = md; print; next
+        }
+        if (length(cols) && md == mode && n > 1) {
+            for (i in cols) a[i] = "X"
+            s = a[1]
+            for (i = 2; i <= n; i++) s = s (md ? "|" : ",") a[i]
+            print s; next
+        }
+        delete cols
+        if (FILENAME ~ /[.]dat$/) {
+            if ($0 ~ /^#/) datsec = ($NF == "seconds")
+            else if (datsec && NF > 1) $NF = "X"
+        }
+        print
+    }' "$1"
+}

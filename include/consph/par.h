@@ -1,6 +1,15 @@
-/* consph par: running over MPI ranks.
+/* consph over MPI ranks.
  *
- * (The MPI world, consph_par_init/rank/size/finalize, is declared in its own section.) */
+ * Section 1, the world (src/par/world.c): which process this is among the ranks of one launch.
+ * consph_par_init calls MPI_Init only when the process was started by an MPI launcher (mpirun,
+ * srun, mpiexec: OMPI_COMM_WORLD_SIZE, PMIX_RANK or PMI_SIZE in the environment); a process run
+ * on its own never initialises MPI and is rank 0 of 1, as is every process of a build without
+ * MPI (CONSPH_HAVE_MPI undefined). Every function below is then a no-op that returns what one
+ * rank would, so callers need no #ifdef.
+ *
+ * The collective calls (barrier, agree, bcast, sum, max) must be made by every rank in the same
+ * order; they go through a communicator of their own (a duplicate of MPI_COMM_WORLD), so they
+ * never match messages of the solver's decomposition. */
 #ifndef CONSPH_PAR_H
 #define CONSPH_PAR_H
 
@@ -10,6 +19,35 @@
 extern "C" {
 #endif
 
+/* Initialises MPI iff launched by an MPI launcher; idempotent (a second call does nothing).
+ * argc/argv may be NULL. Returns CONSPH_OK; CONSPH_EIO when MPI_Init fails; CONSPH_EINVAL in a
+ * build without MPI started by a launcher on more than one rank (message set). */
+int consph_par_init(int *argc, char ***argv);
+/* This process's rank, 0 when MPI is not running. */
+int consph_par_rank(void);
+/* The number of ranks, 1 when MPI is not running. */
+int consph_par_size(void);
+/* 1 when this build has MPI (CONSPH_HAVE_MPI), else 0. */
+int consph_par_available(void);
+/* Finalises MPI if consph_par_init initialised it; idempotent. */
+void consph_par_finalize(void);
+
+/* Waits for every rank. */
+void consph_par_barrier(void);
+/* One status for all ranks: every rank passes its own; each gets back the status of the lowest
+ * rank whose status is not CONSPH_OK (CONSPH_OK when none), with that rank's consph_last_error()
+ * message set on every rank, so that rank 0 can report a failure that happened elsewhere. */
+int consph_par_agree(int status);
+/* Rank 0's value of v, on every rank (an exit status decided on rank 0). */
+int consph_par_bcast_int(int v);
+/* The sum and the maximum of v over the ranks, on every rank. */
+long consph_par_sum_long(long v);
+int consph_par_max_int(int v);
+/* Sends the standard output and error of every rank but 0 to /dev/null, so that a message
+ * every rank would print is printed once (the CLI's policy under MPI). */
+void consph_par_quiet_others(void);
+
+/* Section 2: */
 /* ---- the solver decomposed over the ranks (src/par/par_solver.c) ----
  *
  * consph_par_solver_decompose cuts a solver that every rank of MPI_COMM_WORLD made the same

@@ -12,6 +12,7 @@
 #include <unistd.h>
 
 #include "consph/io.h"
+#include "consph/par.h"
 #include "io/outfile_internal.h"
 #include "study/kinds/kinds.h"
 
@@ -392,6 +393,30 @@ static int figure_rows(const consph_study *s, const study_figure *f, int quick,
     return kind->rows(s, f, quick, files, work);
 }
 
+/* ---- a study spread over MPI ranks ---- */
+
+/* Whether this rank runs the next unit: units are dealt round-robin in the order every rank
+ * meets them (the study's figures, series and rows), so no message decides who runs what. A
+ * row is a unit, or with `together` every row of series k of f is one. */
+static int unit_mine(study_rows *r, const study_figure *f, int k, int together)
+{
+    if (!together || f != r->unit_fig || k != r->unit_series) {
+        r->share_units++;
+        r->unit_fig = f;
+        r->unit_series = k;
+    }
+    return (r->share_units - 1) % r->share_size == r->share_rank;
+}
+
+int study_row_elsewhere(const study_job *job, const study_figure *f, int k, int together)
+{
+    study_rows *r = job->rows;
+    if (!r || r->share_size < 2) return CONSPH_OK;
+    r->fig_met++;
+    if (unit_mine(r, f, k, together)) return CONSPH_OK;
+    return r->fig_met >= r->fig_rows ? STUDY_SHARED : STUDY_ELSEWHERE;
+}
+
 static int run_figures(const consph_study *s, const consph_study_options *opt,
                        const study_files *files, const char *dir, study_rows *rows)
 {
@@ -413,9 +438,17 @@ static int run_figures(const consph_study *s, const consph_study_options *opt,
         double work;
         const int nrows = figure_rows(s, f, opt->quick, files, &work);
         if ((rc = figure_done_path(done, dir, f))) break;
+        /* Spread over ranks, a figure without rows is one unit, run whole by its rank. */
+        if (rows->share_size > 1 && !kind->rows && !unit_mine(rows, f, -1, 0)) continue;
+        rows->fig_rows = nrows;
+        rows->fig_met = 0;
         if (opt->resume && access(done, F_OK) == 0) {
             /* Its outputs were committed before the mark: kept as they are. */
-            if (log) fprintf(log, "[%s] kept from the earlier run\n", f->id);
+            if (log && rows->shared_report)
+                fprintf(log, "[%s] %s\n  -> %s/%s.md (run on another rank)\n", f->id,
+                        study_get_or(s, f, NULL, "title", ""), dir, f->id);
+            else if (log)
+                fprintf(log, "[%s] kept from the earlier run\n", f->id);
             rows->done += nrows;
             rows->work_done += work;
             continue;
@@ -425,6 +458,11 @@ static int run_figures(const consph_study *s, const consph_study_options *opt,
         double t0 = consph_wtime();
         if (!kind->rows) study_row_begin(&job, f, -1, "", 1.0);
         rc = kind->run(&job, f);
+        if (rc == STUDY_SHARED) {
+            /* its rows are kept; rank 0 writes its report from them */
+            rc = CONSPH_OK;
+            continue;
+        }
         if (rc == STUDY_STOPPED) {
             rc = CONSPH_OK;
             study_rows_stop(&job);
@@ -505,16 +543,15 @@ static int write_partial_readme(const consph_study *s, const consph_study_option
     return consph_outfile_commit(&of);
 }
 
-static int study_run(const consph_study *s, const consph_study_options *opt,
-                     const study_files *files)
+/* The checks made before anything is written; the study's directory and its state text. */
+static int study_prepare(const consph_study *s, const consph_study_options *opt,
+                         const study_files *files, char *dir, char *state, size_t state_size)
 {
     int rc = study_validate(s, opt->quick, files);
     if (rc) return rc;
     if (files && (rc = validate_files(s, opt->quick, files))) return rc;
-    char dir[STUDY_PATH_MAX], state[512];
-    size_t created = 0;
     if ((rc = study_out_path(dir, opt->out_dir, consph_study_name(s), ""))) return rc;
-    if ((rc = state_text(s, opt->quick, files, state, sizeof state))) return rc;
+    if ((rc = state_text(s, opt->quick, files, state, state_size))) return rc;
     struct stat st;
     if (lstat(dir, &st) == 0 && S_ISLNK(st.st_mode))
         return consph_fail(CONSPH_EINVAL,
@@ -522,20 +559,99 @@ static int study_run(const consph_study *s, const consph_study_options *opt,
                            "output directory; allowed: a directory, or nothing, at that name",
                            dir);
     if (opt->resume && (rc = check_state(dir, state, dir))) return rc;
-    study_rows rows;
-    memset(&rows, 0, sizeof rows);
-    rows.dir = dir;
-    rows.t0 = consph_wtime();
-    rows.print = opt->progress;
-    rows.signals = opt->stopped_by != NULL;
-    rows.tty = opt->progress && isatty(STDERR_FILENO) == 1;
+    return CONSPH_OK;
+}
+
+static void rows_init(study_rows *rows, const consph_study *s, const consph_study_options *opt,
+                      const study_files *files, const char *dir)
+{
+    memset(rows, 0, sizeof *rows);
+    rows->dir = dir;
+    rows->t0 = consph_wtime();
+    rows->print = opt->progress;
+    rows->signals = opt->stopped_by != NULL;
+    rows->tty = opt->progress && isatty(STDERR_FILENO) == 1;
     const char *hook = getenv("CONSPH_TEST_STOP_AFTER_ROWS");
-    rows.stop_after = hook ? atoi(hook) : 0;
+    rows->stop_after = hook ? atoi(hook) : 0;
     for (int k = 0; k < s->nfigs; ++k) {
         double work;
-        rows.total += figure_rows(s, &s->figs[k], opt->quick, files, &work);
-        rows.work_total += work;
+        rows->total += figure_rows(s, &s->figs[k], opt->quick, files, &work);
+        rows->work_total += work;
     }
+}
+
+/* A study on K > 1 ranks (docs/mpi.md): every rank runs its share of the rows into the row
+ * store that --resume reads (a shared file system: the one --out names); then rank 0 runs the
+ * study once more as a resume of the rows kept, so that every report is written by the code, in
+ * the order and from the rows of a serial study. `rc`: this rank's result of study_prepare. */
+static int study_run_shared(const consph_study *s, const consph_study_options *opt,
+                            const study_files *files, const char *dir, const char *state, int rc)
+{
+    const int rank = consph_par_rank();
+    if ((rc = consph_par_agree(rc))) return rc;
+    study_rows rows;
+    rows_init(&rows, s, opt, files, dir);
+    /* rank 0's progress lines count the rows it runs; no live line between ranks' output */
+    rows.tty = 0;
+    size_t created = 0;
+    if (rank == 0) {
+        rc = study_mkdir_p(dir, &created);
+        if (rc == CONSPH_OK) consph_made_dir_register(dir, created);
+        if (rc == CONSPH_OK && !opt->resume) {
+            forget_kept(dir);
+            rc = write_small(dir, STATE_NAME, state);
+        }
+    }
+    if ((rc = consph_par_agree(rc)) == CONSPH_OK) {
+        consph_study_options share = *opt;
+        share.log = NULL;
+        rows.share_rank = rank;
+        rows.share_size = consph_par_size();
+        rc = run_figures(s, &share, files, dir, &rows);
+        rows.share_size = 0;
+    }
+    rc = consph_par_agree(rc);
+    const int stopped = consph_par_max_int(rc == CONSPH_OK ? rows.stopped : 0);
+    const long done = consph_par_sum_long(rows.done);
+    if (rank == 0 && rc == CONSPH_OK && !stopped) {
+        /* The report pass: every row is read back (one missing is run here). */
+        consph_study_options report = *opt;
+        report.resume = 1;
+        rows.done = 0;
+        rows.work_done = 0.0;
+        rows.print = 0;
+        rows.shared_report = 1;
+        rc = run_figures(s, &report, files, dir, &rows);
+        if (rc == CONSPH_OK && rows.stopped)
+            rc = write_partial_readme(s, opt, files, dir, &rows);
+        else if (rc == CONSPH_OK)
+            rc = study_write_readme(s, opt->quick, files != NULL, dir);
+    } else if (rank == 0 && rc == CONSPH_OK) {
+        rows.stopped = stopped;
+        rows.done = (int)done;
+        rc = write_partial_readme(s, opt, files, dir, &rows);
+    }
+    if (rank == 0) {
+        if (rc) study_remove_created(dir, created);
+        consph_made_dir_unregister();
+    }
+    rc = consph_par_agree(rc);
+    const int stopped_by =
+        consph_par_bcast_int(rc == CONSPH_OK ? (stopped ? stopped : rows.stopped) : 0);
+    if (opt->stopped_by) *opt->stopped_by = stopped_by;
+    return rc;
+}
+
+static int study_run(const consph_study *s, const consph_study_options *opt,
+                     const study_files *files)
+{
+    char dir[STUDY_PATH_MAX], state[512];
+    int rc = study_prepare(s, opt, files, dir, state, sizeof state);
+    if (consph_par_size() > 1) return study_run_shared(s, opt, files, dir, state, rc);
+    if (rc) return rc;
+    size_t created = 0;
+    study_rows rows;
+    rows_init(&rows, s, opt, files, dir);
     rc = study_mkdir_p(dir, &created);
     /* A signal removes what was made as a failure does (study_remove_created). */
     if (rc == CONSPH_OK) consph_made_dir_register(dir, created);

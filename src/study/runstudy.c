@@ -363,6 +363,12 @@ int study_run_figure(const study_job *job, const study_figure *f)
                 rc = STUDY_STOPPED;
                 break;
             }
+            rc = study_row_elsewhere(job, f, k, pl->dt_finest);
+            if (rc == STUDY_ELSEWHERE) {
+                rc = CONSPH_OK;
+                continue;
+            }
+            if (rc) break;
             run_row *w = &rows[k][j];
             char what[32];
             snprintf(what, sizeof what, "nx=%g", pl->nx[j]);

@@ -616,7 +616,7 @@ int study_row_finish(const study_job *job, const study_figure *f, int k, int j, 
         if (r->stop_after > 0 && r->run_now == r->stop_after) raise(SIGINT);
     }
     rows_line(r, 1, stored);
-    return CONSPH_OK;
+    return r->share_size > 1 && r->fig_met >= r->fig_rows ? STUDY_SHARED : CONSPH_OK;
 }
 
 void study_rows_flush(study_rows *r)

@@ -410,6 +410,12 @@ static int run_approx_figure(const study_job *job, const study_figure *f)
                 rc = STUDY_STOPPED;
                 break;
             }
+            rc = study_row_elsewhere(job, f, k, 0);
+            if (rc == STUDY_ELSEWHERE) {
+                rc = CONSPH_OK;
+                continue;
+            }
+            if (rc) break;
             consph_approx_spec sp = pl->spec;
             size_t nx = pl->sweep_hdx ? pl->nx_fixed : (size_t)pl->values[j];
             if (pl->sweep_hdx) sp.hdx = pl->values[j];

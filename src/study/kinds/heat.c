@@ -339,6 +339,12 @@ static int heat_figure(const study_job *job, const study_figure *f)
                 rc = STUDY_STOPPED;
                 break;
             }
+            rc = study_row_elsewhere(job, f, k, 0);
+            if (rc == STUDY_ELSEWHERE) {
+                rc = CONSPH_OK;
+                continue;
+            }
+            if (rc) break;
             char what[32];
             snprintf(what, sizeof what, "nx=%g", plans[k].nx[j]);
             study_row_begin(job, f, k, what, heat_row_work(&plans[k], j));

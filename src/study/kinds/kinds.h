@@ -119,6 +119,15 @@ typedef struct study_rows {
     FILE *out, *mem;
     char *membuf;
     size_t memlen, memdone;
+    /* A study spread over MPI ranks (engine.c, docs/mpi.md): while share_size > 1 this rank runs
+     * only its units (a row, or every row of a series whose rows need its first) and keeps their
+     * rows; rank 0 then writes the reports from the kept rows. */
+    int share_rank, share_size;
+    long share_units;             /* units met so far, in the study's order */
+    const study_figure *unit_fig; /* the unit met last */
+    int unit_series;
+    int fig_rows, fig_met; /* rows of the figure now running; rows of it met so far */
+    int shared_report;     /* rank 0's pass over the rows the ranks kept */
 } study_rows;
 
 /* Writes what the figures logged since the last call (terminal only); the next row redraws the
@@ -150,6 +159,15 @@ void study_row_begin(const study_job *job, const study_figure *f, int k, const c
  * back rather than run. */
 int study_row_finish(const study_job *job, const study_figure *f, int k, int j, const void *row,
                      size_t size, const double *extra, size_t nextra, int stored);
+/* In a study spread over ranks: STUDY_ELSEWHERE when another rank runs row j of series k (the
+ * kind skips the row), STUDY_SHARED when that was also the figure's last row (the kind returns
+ * without writing its report, which rank 0 writes from the kept rows); CONSPH_OK when this rank
+ * runs it, and always in a serial study. `together`: the series' rows need its first row's
+ * result, so one rank runs them all. study_row_finish returns STUDY_SHARED after the figure's
+ * last row in the same way. */
+int study_row_elsewhere(const study_job *job, const study_figure *f, int k, int together);
+#define STUDY_ELSEWHERE 101
+#define STUDY_SHARED 102
 /* The signal that asks the study to stop (consph_stop_requested, or the tests' row count). */
 int study_rows_stop(const study_job *job);
 /* Internal status of a figure stopped by a signal between or inside rows: not an error. */
