@@ -40,31 +40,54 @@ static int param_text(PyObject *v, char *buf, size_t size)
     return 0;
 }
 
+/* Whether the parameter `name` is set by a keyword or by a key of the run file that stays (not
+ * replaced by a keyword); where into buf ("alpha" or "FILE:LINE: key 'alpha'"). */
+static int param_given(PyObject *kw, const consph_run_file *rf, const char *name, char *buf,
+                       size_t size)
+{
+    if (kw && PyDict_GetItemString(kw, name)) {
+        snprintf(buf, size, "%s", name);
+        return 1;
+    }
+    const int k = consph_run_file_find(rf, name);
+    if (k < 0) return 0;
+    snprintf(buf, size, "%s:%d: key '%s'", rf->path, rf->key[k].line, rf->key[k].param->study_key);
+    return 1;
+}
+
+/* consph_run_file_apply's `given`: the keywords replace the file's keys. */
+static int keyword_sets(void *kw, const char *name)
+{
+    return kw && PyDict_GetItemString(kw, name) != NULL;
+}
+
 /* A parameter the run's scheme or layout does not read would do nothing: refused as consph run
  * refuses its option (apps/cmd_run.c, unread_options); eos 'default' is no setting. */
-static int unread_params(PyObject *kw, const consph_run_params *prm)
+static int unread_params(PyObject *kw, const consph_run_file *rf, const consph_run_params *prm)
 {
-    char list[512];
-    for (int k = 0; kw && k < consph_run_param_count(); ++k) {
+    char list[512], where[320];
+    for (int k = 0; k < consph_run_param_count(); ++k) {
         const consph_run_param *d = consph_run_param_at(k);
-        if (!d->reads || !PyDict_GetItemString(kw, d->name) ||
+        if (!d->reads || !param_given(kw, rf, d->name, where, sizeof where) ||
             (!strcmp(d->name, "eos") && prm->eos == CONSPH_EOS_DEFAULT) ||
             consph_scheme_reads(prm->scheme, d->reads))
             continue;
-        pyc_raise_msg(CONSPH_EINVAL, "%s does nothing for scheme %s (it acts on: %s)", d->name,
+        pyc_raise_msg(CONSPH_EINVAL, "%s does nothing for scheme %s (it acts on: %s)", where,
                       prm->scheme, consph_scheme_readers(d->reads, list, sizeof list));
         return -1;
     }
     const int layout = consph_run_params_layout(prm);
-    if (!kw || !PyDict_GetItemString(kw, "seed") || layout < 0 ||
+    if (!param_given(kw, rf, "seed", where, sizeof where) || layout < 0 ||
         consph_layout_uses_seed((consph_layout_kind)layout))
         return 0;
+    char lw[320];
     pyc_raise_msg(CONSPH_EINVAL,
-                  "seed does nothing for layout %s (%s), which draws no random numbers (it acts "
+                  "%s does nothing for layout %s (%s), which draws no random numbers (it acts "
                   "on: %s)",
-                  consph_layout_name((consph_layout_kind)layout),
-                  PyDict_GetItemString(kw, "layout") ? "given"
-                                                     : "the problem's or scheme's default",
+                  where, consph_layout_name((consph_layout_kind)layout),
+                  param_given(kw, rf, "layout", lw, sizeof lw)
+                      ? "given"
+                      : "the problem's or scheme's default",
                   consph_layout_seeded_names(list, sizeof list));
     return -1;
 }
@@ -195,13 +218,13 @@ static int given_particles(PyObject *obj, const consph_run_params *prm, consph_p
     return rc;
 }
 
-static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
+/* The run's parameters from the problem's defaults, the run file's keys (rf NULL: none) and the
+ * keywords, in that order, with consph run's rules between them (apps/cmd_run.c). */
+static int init_params(PyObject *args, PyObject *kw, consph_run_file *rf, consph_run_params *prm)
 {
-    solver_object *so = (solver_object *)self;
-    const char *problem = "taylor-green";
+    const char *problem = NULL;
     if (!PyArg_ParseTuple(args, "|s:Solver", &problem)) return -1;
-    consph_run_params prm;
-    consph_run_params_default(&prm);
+    consph_run_params_default(prm);
     PyObject *pobj = kw ? PyDict_GetItemString(kw, "problem") : NULL;
     if (pobj) {
         if (PyTuple_GET_SIZE(args)) {
@@ -211,14 +234,24 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
         problem = PyUnicode_AsUTF8(pobj);
         if (!problem) return -1;
     }
-    if (consph_run_params_problem(&prm, problem) != CONSPH_OK) return pyc_raise(CONSPH_EINVAL), -1;
+    const int file_problem = problem ? -1 : consph_run_file_find(rf, "problem");
+    if (file_problem >= 0) problem = rf->key[file_problem].value;
+    if (consph_run_params_problem(prm, problem ? problem : "taylor-green") != CONSPH_OK) {
+        if (file_problem < 0) return pyc_raise(CONSPH_EINVAL), -1;
+        char why[512];
+        snprintf(why, sizeof why, "%s", consph_last_error());
+        return pyc_raise_msg(CONSPH_EINVAL, "%s:%d: key 'problem': %s", rf->path,
+                             rf->key[file_problem].line, why),
+               -1;
+    }
     /* every key is a parameter of the table; unknown ones get the library's message */
     PyObject *key, *val;
     Py_ssize_t pos = 0;
     while (kw && PyDict_Next(kw, &pos, &key, &val)) {
         const char *name = PyUnicode_AsUTF8(key);
         if (!name) return -1;
-        if (!strcmp(name, "problem") || !strcmp(name, "particles")) continue;
+        if (!strcmp(name, "problem") || !strcmp(name, "particles") || !strcmp(name, "config"))
+            continue;
         if (!consph_run_param_find(name)) {
             char names[2048] = "";
             for (int k = 0; k < consph_run_param_count(); ++k) {
@@ -231,6 +264,9 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
             return -1;
         }
     }
+    /* the file's keys, those a keyword replaces checked but not applied */
+    if (rf && consph_run_file_apply(rf, prm, keyword_sets, kw) != CONSPH_OK)
+        return pyc_raise(CONSPH_EINVAL), -1;
     int have_steps = 0, have_tf = 0, have_re = 0, have_nu = 0;
     /* in the table's order, as consph run sets its options */
     for (int k = 0; k < consph_run_param_count(); ++k) {
@@ -239,7 +275,7 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
         if (!v || !strcmp(d->name, "problem")) continue;
         char text[512];
         if (param_text(v, text, sizeof text) < 0) return -1;
-        if (consph_run_param_set(&prm, d->name, text) != CONSPH_OK)
+        if (consph_run_param_set(prm, d->name, text) != CONSPH_OK)
             return pyc_raise(CONSPH_EINVAL), -1;
         have_steps |= !strcmp(d->name, "steps") && v != Py_None;
         have_tf |= !strcmp(d->name, "tf") && v != Py_None;
@@ -252,38 +288,78 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
                -1;
     if (have_re && have_nu)
         return pyc_raise_msg(CONSPH_EINVAL, "re and nu both set the viscosity: give one"), -1;
-    if (have_re) prm.nu = -1.0;
-    if (have_steps) prm.tf = 0.0;
-    if (consph_run_params_check(&prm) != CONSPH_OK) return pyc_raise(CONSPH_EINVAL), -1;
-    if (unread_params(kw, &prm) < 0) return -1;
+    if (have_re || consph_run_file_find(rf, "re") >= 0) prm->nu = -1.0; /* ν from Re */
+    if (have_steps || consph_run_file_find(rf, "steps") >= 0) prm->tf = 0.0;
+    char where[320];
+    if (prm->dt > 0.0 && (param_given(kw, rf, "cfl", where, sizeof where) ||
+                          param_given(kw, rf, "h_dt", where, sizeof where)))
+        return pyc_raise_msg(CONSPH_EINVAL,
+                             "%s sets the time-step rule, which dt %g replaces: give one", where,
+                             prm->dt),
+               -1;
+    if (param_given(kw, rf, "error_times", where, sizeof where) &&
+        prm->error != CONSPH_ERROR_AUTHORS)
+        return pyc_raise_msg(CONSPH_EINVAL,
+                             "%s counts the output times of error 'authors': give error='authors' "
+                             "too",
+                             where),
+               -1;
+    if (consph_run_params_check(prm) != CONSPH_OK) return pyc_raise(CONSPH_EINVAL), -1;
+    return unread_params(kw, rf, prm);
+}
+
+static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
+{
+    solver_object *so = (solver_object *)self;
+    PyObject *cobj = kw ? PyDict_GetItemString(kw, "config") : NULL;
+    consph_run_file *rf = NULL;
+    char path[4096]; /* rf->path points here */
+    if (cobj && cobj != Py_None) {
+        PyObject *bytes = NULL;
+        if (!PyUnicode_FSConverter(cobj, &bytes)) return -1;
+        snprintf(path, sizeof path, "%s", PyBytes_AS_STRING(bytes));
+        Py_DECREF(bytes);
+        rf = malloc(sizeof *rf);
+        if (!rf) return PyErr_NoMemory(), -1;
+        int st;
+        PYC_UNLOCKED(st = consph_run_file_load(rf, path));
+        if (st != CONSPH_OK) {
+            free(rf);
+            return pyc_raise(st), -1;
+        }
+    }
+    consph_run_params prm;
+    int rc = init_params(args, kw, rf, &prm);
     PyObject *gobj = kw ? PyDict_GetItemString(kw, "particles") : NULL;
     if (gobj == Py_None) gobj = NULL;
     consph_particles given;
     memset(&given, 0, sizeof given);
-    if (gobj) {
+    if (!rc && gobj) {
         static const char *const layout_only[] = {"nx", "layout", "seed"};
-        for (size_t k = 0; k < sizeof layout_only / sizeof layout_only[0]; ++k)
-            if (PyDict_GetItemString(kw, layout_only[k]))
-                return pyc_raise_msg(CONSPH_EINVAL,
-                                     "%s: not with particles (the particles and their count "
-                                     "replace the layout)",
-                                     layout_only[k]),
-                       -1;
-        if (given_particles(gobj, &prm, &given) < 0) {
-            consph_particles_free(&given);
-            return -1;
-        }
-        if (consph_run_params_particles(&prm, given.n) != CONSPH_OK ||
-            consph_run_params_check(&prm) != CONSPH_OK) {
-            consph_particles_free(&given);
-            return pyc_raise(CONSPH_EINVAL), -1;
+        char where[320];
+        for (size_t k = 0; !rc && k < sizeof layout_only / sizeof layout_only[0]; ++k)
+            if (param_given(kw, rf, layout_only[k], where, sizeof where)) {
+                pyc_raise_msg(CONSPH_EINVAL,
+                              "%s: not with particles (the particles and their count replace "
+                              "the layout)",
+                              where);
+                rc = -1;
+            }
+        if (!rc) rc = given_particles(gobj, &prm, &given);
+        if (!rc && (consph_run_params_particles(&prm, given.n) != CONSPH_OK ||
+                    consph_run_params_check(&prm) != CONSPH_OK)) {
+            pyc_raise(CONSPH_EINVAL);
+            rc = -1;
         }
     }
+    free(rf);
     consph_solver *s = NULL;
-    int st;
-    PYC_UNLOCKED(st = gobj ? consph_solver_create_from(&s, &prm, &given)
-                           : consph_solver_create(&s, &prm));
+    int st = CONSPH_OK;
+    if (!rc)
+        PYC_UNLOCKED(st = gobj ? consph_solver_create_from(&s, &prm, &given)
+                               : consph_solver_create(&s, &prm));
     consph_particles_free(&given);
+    if (rc) return -1;
     if (st != CONSPH_OK) return pyc_raise(st), -1;
     consph_solver_free(so->s);
     so->s = s;
@@ -857,7 +933,7 @@ static PyMethodDef solver_methods[] = {
 
 PyDoc_STRVAR(
     solver_doc,
-    "Solver(problem='taylor-green', particles=None, **params)\n--\n\n"
+    "Solver(problem='taylor-green', particles=None, config=None, **params)\n--\n\n"
     "A weakly-compressible SPH run (consph_solver_create), as `consph run PROBLEM` sets it up:\n"
     "the problem's defaults, then every keyword as the run parameter of that name in the\n"
     "parameter table (consph_run_param_set, in the table's order; the names are the study\n"
@@ -870,7 +946,11 @@ PyDoc_STRVAR(
     "problem's; its fields u or velocity, p or pressure, where present, replace the\n"
     "problem's solution at t = 0) or a tuple (x, u=None, p=None) in the problem's box. Their\n"
     "order is kept; N sets nx (N = nx^d) or the spacing; nx, layout and seed are refused.\n"
-    "The particles of consph.layout(K, d, nx) give the run with layout=K, nx=nx bit for bit.\n\n"
+    "The particles of consph.layout(K, d, nx) give the run with layout=K, nx=nx bit for bit.\n"
+    "config: a run parameter file read as `consph run --config` reads it (consph_run_file_load;\n"
+    "its problem key when no problem is given): the problem's defaults, then the file's keys,\n"
+    "then the keywords, each replacing the file's key of its parameter and the one it clashes\n"
+    "with (steps/tf, re/nu, dt/cfl and h_dt); a bad file raises with FILE:LINE.\n\n"
     "Example: s = consph.Solver('taylor-green', scheme='wcsph', nx=20, steps=20); s.run();\n"
     "u = s.field('u')");
 

@@ -11,7 +11,7 @@ What must hold:
     pressure, density), also across a checkpoint written from Python and continued by the CLI;
   - a run from the user's particles (a layout's) equals `consph run --layout` and `--particles`
     bit for bit, and a run extended past its end (live, or restarted to a later t_f) equals the
-    uninterrupted run bit for bit;
+    uninterrupted run bit for bit; a run file read from Python equals `consph run --config`;
   - a bad argument raises consph.Error carrying the library's message (the CLI's words).
 """
 
@@ -332,6 +332,43 @@ try:
 except consph.InvalidArgument as e:
     check(str(e).startswith("the checkpoint is the end of a run whose last step was shortened"),
           f"extend refused with the library's message: {e}")
+
+# ---- a run parameter file (consph_run_file_load, as consph run --config) ---------------------
+case = os.path.join(tmp, "case.run")
+with open(case, "w") as f:
+    f.write("# Taylor-Green, weakly compressible\nproblem = taylor-green\nscheme = wcsph  # 001\n"
+            "nx = 12\nsteps = 6\nlog_every = 2\n")
+s_cfg = consph.Solver(config=case)
+s_cfg.run()
+d = os.path.join(tmp, "run-config")
+cli("run", "--config", case, "--out", d)
+check(s_cfg.step_count == 6 and s_cfg.params()["log_every"] == "2", "config: steps, log_every")
+snapshot_equals(consph.read_particles(os.path.join(d, "snap_000006.vtu")), s_cfg,
+                "Solver(config=...) against consph run --config")
+s_opt = consph.Solver.from_config(case, nx=14, tf=0.01)  # keywords replace nx and steps
+s_opt.run()
+check(s_opt.n == 196 and s_opt.t == 0.01, f"from_config: keywords replace keys ({s_opt.n}, {s_opt.t})")
+for lines, words in ((["problem = taylor-green", "nxx = 20"], "bad.run:2: unknown key 'nxx'"),
+                     (["problem = taylor-green", "tf = 1", "steps = 3"],
+                      "bad.run:3: keys 'steps' and 'tf' (line 2) both set the end of the run"),
+                     (["scheme = l-ipst-c", "alpha = 0.2"], "bad.run:2: key 'alpha' does nothing"),
+                     (["problem = nosuch"], "bad.run:1: key 'problem': problem 'nosuch'")):
+    bad = os.path.join(tmp, "bad.run")
+    with open(bad, "w") as f:
+        f.write("\n".join(lines) + "\n")
+    try:
+        consph.Solver(config=bad)
+        check(False, f"run file accepted: {words}")
+    except consph.Error as e:
+        check(str(e).startswith(bad[:-len("bad.run")] + words), f"run file refused: {e}")
+        if "does nothing" not in words:  # the CLI's own words, but its option names
+            _, _, err = cli("run", "--config", bad, ok=False)
+            check(str(e) in err, f"run file: python {str(e)!r}, CLI {err!r}")
+try:
+    consph.Solver(config=case, particles=lat)
+    check(False, "a file's nx beside particles")
+except consph.InvalidArgument as e:
+    check(str(e).startswith(case + ":4: key 'nx': not with particles"), str(e))
 
 # ---- Wasserstein: exact 1D against the sorted-sample formula -------------------------------
 rng = np.random.default_rng(2)
