@@ -110,10 +110,10 @@ int consph_run_file_apply(consph_run_file *rf, consph_run_params *prm,
                   b = consph_run_file_find(rf, clash_pairs[c][1]);
         if (a < 0 || b < 0) continue;
         const int later = a > b ? a : b, earlier = a > b ? b : a;
-        return consph_fail(CONSPH_EINVAL, "%s:%d: keys '%s' and '%s' (line %d) both set %s: give one",
-                           rf->path, rf->key[later].line, rf->key[later].param->study_key,
-                           rf->key[earlier].param->study_key, rf->key[earlier].line,
-                           clash_pairs[c][2]);
+        return consph_fail(
+            CONSPH_EINVAL, "%s:%d: keys '%s' and '%s' (line %d) both set %s: give one", rf->path,
+            rf->key[later].line, rf->key[later].param->study_key, rf->key[earlier].param->study_key,
+            rf->key[earlier].line, clash_pairs[c][2]);
     }
     return CONSPH_OK;
 }
