@@ -92,9 +92,9 @@ static int unread_params(PyObject *kw, const consph_run_file *rf, const consph_r
     return -1;
 }
 
-/* One field of the given particles, `name` (dim components when `vector`, 1 otherwise: a
- * velocity may carry a third component of 0 in 2D, as a VTU vector does) into given's field
- * `to`, read through elem(i, c) = data[i * si + c * sc]; "what" names it in messages. */
+/* One field of the given particles into given's field `to`: dim components when `vector` (a
+ * velocity may carry a third component of 0 in 2D, as a VTU vector does), else 1, read through
+ * elem(i, c) = data[i * si + c * sc]; `what` names it in messages. */
 static int given_field(consph_particles *given, const char *to, const char *what,
                        const double *data, size_t si, size_t sc, int ncomp, int vector)
 {
@@ -119,8 +119,8 @@ static int given_field(consph_particles *given, const char *to, const char *what
     return 0;
 }
 
-/* A field of a consph.Particles by either of its names (a snapshot's `vector` array or the
- * CSV's columns); NULL when it has neither. */
+/* A field of a consph.Particles by either of its names (a snapshot's array `name` or a CSV's
+ * columns `other`) into given's field `to`; nothing when it has neither, refused when both. */
 static int particles_field(const consph_particles *src, consph_particles *given, const char *name,
                            const char *other, const char *to, int vector)
 {
