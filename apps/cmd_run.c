@@ -153,103 +153,24 @@ static int option_given(const cli_command *cmd, const char *name)
     return 0;
 }
 
-/* --config FILE: a run parameter file, `key = value` lines with the run keys of study files (the
- * table's study keys) and '#' comments, read by the study files' reader (consph_kv_parse). An
- * option given replaces the file's key of the same parameter, and the file's key it clashes with
+/* --config FILE: a run parameter file (consph_run_file_load, src/solver/runfile.c). An option
+ * given replaces the file's key of the same parameter, and the file's key it clashes with
  * (--steps its tf, --re its nu, --dt its cfl and h_dt, and the other way round). */
-#define RUN_FILE_KEYS 64
-#define RUN_FILE_VALUE 256
-
-typedef struct run_file {
-    const char *path;
-    int n;
-    struct {
-        const consph_run_param *d;
-        char value[RUN_FILE_VALUE];
-        int line, dropped;
-    } k[RUN_FILE_KEYS];
-} run_file;
-
-/* The pairs of parameters that set one thing, each replacing the other. */
-static const char *const clash_pairs[][3] = {{"tf", "steps", "the end of the run"},
-                                             {"re", "nu", "the viscosity"},
-                                             {"dt", "cfl", "the time step"},
-                                             {"dt", "h_dt", "the time step"}};
-#define NCLASH (sizeof clash_pairs / sizeof clash_pairs[0])
-
-static int run_file_line(void *ctx, int line, char *key, char *value)
-{
-    run_file *rf = ctx;
-    if (!value)
-        return consph_fail(CONSPH_EFORMAT,
-                           "%s:%d: '%.40s': a run file has no sections, only key = value lines "
-                           "(sections are for study files)",
-                           rf->path, line, key);
-    const consph_run_param *d = NULL;
-    char allowed[640] = "";
-    for (int k = 0; k < consph_run_param_count(); ++k) {
-        const consph_run_param *r = consph_run_param_at(k);
-        if (!r->study_key) continue;
-        if (!strcmp(r->study_key, key)) d = r;
-        size_t len = strlen(allowed);
-        snprintf(allowed + len, sizeof allowed - len, "%s%s", len ? ", " : "", r->study_key);
-    }
-    if (!d)
-        return consph_fail(CONSPH_EFORMAT, "%s:%d: unknown key '%.40s' (allowed: %s)", rf->path,
-                           line, key, allowed);
-    if (!*value)
-        return consph_fail(CONSPH_EFORMAT, "%s:%d: key '%s' has no value", rf->path, line, key);
-    for (int k = 0; k < rf->n; ++k)
-        if (rf->k[k].d == d)
-            return consph_fail(CONSPH_EFORMAT, "%s:%d: key '%s' set twice (first on line %d)",
-                               rf->path, line, key, rf->k[k].line);
-    if (strlen(value) >= RUN_FILE_VALUE || rf->n == RUN_FILE_KEYS)
-        return consph_fail(CONSPH_EFORMAT, "%s:%d: key '%s': a value of at most %d characters",
-                           rf->path, line, key, RUN_FILE_VALUE - 1);
-    rf->k[rf->n].d = d;
-    strcpy(rf->k[rf->n].value, value);
-    rf->k[rf->n].line = line;
-    rf->k[rf->n].dropped = 0;
-    ++rf->n;
-    return CONSPH_OK;
-}
+typedef consph_run_file run_file;
 
 /* Reads --config FILE into rf; a failure is one line on stderr (exit 2, 1 out of memory). */
 static int run_file_load(const cli_command *cmd, const char *path, run_file *rf)
 {
-    enum { MAX_SIZE = 1 << 20 }; /* run files are small: a mistaken path must not fill memory */
-    rf->path = path;
-    rf->n = 0;
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return cli_error(cmd, "option --config: cannot read '%s': %s", path, strerror(errno));
-    char *data = malloc(MAX_SIZE + 1);
-    const size_t size = data ? fread(data, 1, MAX_SIZE + 1, fp) : 0;
-    const int err = ferror(fp);
-    fclose(fp);
-    if (!data) {
-        fprintf(stderr, "consph run: out of memory\n");
-        return 1;
-    }
-    int st = CONSPH_OK;
-    if (err)
-        st = consph_fail(CONSPH_EIO, "cannot read '%s'", path);
-    else if (size > MAX_SIZE)
-        st = consph_fail(CONSPH_EFORMAT, "%s: larger than %d bytes", path, MAX_SIZE);
-    else
-        st = consph_kv_parse(path, data, size, 4095, run_file_line, rf);
-    free(data);
+    (void)cmd;
+    const int st = consph_run_file_load(rf, path);
     if (st == CONSPH_OK) return 0;
     fprintf(stderr, "consph run: option --config: %s\n", consph_last_error());
     return st == CONSPH_ENOMEM ? 1 : CLI_EXIT_USAGE;
 }
 
-/* The index of the file's key of the parameter `name` that stays (not replaced by an option);
- * -1 when none. */
 static int run_file_find(const run_file *rf, const char *name)
 {
-    for (int k = 0; rf && k < rf->n; ++k)
-        if (!rf->k[k].dropped && !strcmp(rf->k[k].d->name, name)) return k;
-    return -1;
+    return consph_run_file_find(rf, name);
 }
 
 /* Whether the parameter `name` is set by an option or by the file (a key not replaced); where
@@ -264,42 +185,23 @@ static int param_given(const cli_command *cmd, const run_file *rf, const char *n
     }
     const int k = run_file_find(rf, name);
     if (k < 0) return 0;
-    snprintf(buf, size, "%s:%d: key '%s'", rf->path, rf->k[k].line, rf->k[k].d->study_key);
+    snprintf(buf, size, "%s:%d: key '%s'", rf->path, rf->key[k].line, rf->key[k].param->study_key);
     return 1;
+}
+
+/* Whether an option sets the parameter `name` (consph_run_file_apply's `given`). */
+static int option_sets(void *ctx, const char *name)
+{
+    const consph_run_param *d = consph_run_param_find(name);
+    return d && d->option && option_given(ctx, d->option);
 }
 
 /* The file's keys into prm, after the problem's defaults and before the options: those an option
  * replaces are checked (a bad value is never ignored) but not applied. */
 static int run_file_apply(const cli_command *cmd, run_file *rf, consph_run_params *prm)
 {
-    for (int k = 0; k < rf->n; ++k) {
-        const consph_run_param *d = rf->k[k].d;
-        int dropped = (d->option && option_given(cmd, d->option)) || !strcmp(d->name, "problem");
-        for (size_t c = 0; c < NCLASH; ++c)
-            for (int side = 0; side < 2; ++side) {
-                const consph_run_param *o = consph_run_param_find(clash_pairs[c][1 - side]);
-                if (!strcmp(d->name, clash_pairs[c][side]) && o && o->option &&
-                    option_given(cmd, o->option))
-                    dropped = 1;
-            }
-        consph_run_params scratch = *prm;
-        if (consph_run_param_set(dropped ? &scratch : prm, d->name, rf->k[k].value) != CONSPH_OK)
-            return cli_error(cmd, "option --config: %s:%d: key '%s': %s", rf->path, rf->k[k].line,
-                             d->study_key, consph_last_error());
-        rf->k[k].dropped = dropped;
-    }
-    for (size_t c = 0; c < NCLASH; ++c) {
-        const int a = run_file_find(rf, clash_pairs[c][0]),
-                  b = run_file_find(rf, clash_pairs[c][1]);
-        if (a >= 0 && b >= 0)
-            return cli_error(cmd,
-                             "option --config: %s:%d: keys '%s' and '%s' (line %d) both set %s: "
-                             "give one",
-                             rf->path, rf->k[a > b ? a : b].line, rf->k[a > b ? a : b].d->study_key,
-                             rf->k[a > b ? b : a].d->study_key, rf->k[a > b ? b : a].line,
-                             clash_pairs[c][2]);
-    }
-    return 0;
+    if (consph_run_file_apply(rf, prm, option_sets, (void *)cmd) == CONSPH_OK) return 0;
+    return cli_error(cmd, "option --config: %s", consph_last_error());
 }
 
 /* Options setting a parameter that this run's scheme or layout does not read would do nothing:
@@ -608,7 +510,7 @@ int cmd_run(int argc, char **argv)
     const run_file *cf = config && !restart ? &rf : NULL;
     const int file_problem = run_file_find(cf, "problem");
     const char *problem = positional[0]       ? positional[0]
-                          : file_problem >= 0 ? rf.k[file_problem].value
+                          : file_problem >= 0 ? rf.key[file_problem].value
                                               : NULL;
     if (!problem && !restart)
         return cli_error(&cmd, "a problem is required (allowed: %s, heat)%s",
@@ -735,7 +637,7 @@ int cmd_run(int argc, char **argv)
             return cli_error(&cmd,
                              "option --config: %s:%d: key 'problem': problem '%.40s' is unknown "
                              "(allowed: %s)",
-                             rf.path, rf.k[file_problem].line, problem, consph_problem_names());
+                             rf.path, rf.key[file_problem].line, problem, consph_problem_names());
         }
         /* the problem's defaults (consph_run_params_problem) stay unless the file's key or an
          * option is given, in that order */

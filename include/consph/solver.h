@@ -245,6 +245,37 @@ typedef struct consph_run_summary {
     double wc_l1_u, wc_l1_p, wc_l1n_u, wc_l1n_p;
 } consph_run_summary;
 
+/* ---- run parameter files (consph run --config FILE; docs/solver-files.md) ---- */
+#define CONSPH_RUN_FILE_KEYS 64
+#define CONSPH_RUN_FILE_VALUE 256
+/* A run parameter file: `key = value` lines with '#' comments (consph_kv_parse), the keys the
+ * parameter table's study keys (`problem`, `scheme`, `nx`, `tf`, ...), each at most once. */
+typedef struct consph_run_file {
+    const char *path; /* as given to consph_run_file_load (the caller keeps it) */
+    int n;
+    struct {
+        const consph_run_param *param;
+        char value[CONSPH_RUN_FILE_VALUE];
+        int line;
+        int dropped; /* replaced by the caller's own setting (consph_run_file_apply) */
+    } key[CONSPH_RUN_FILE_KEYS];
+} consph_run_file;
+/* Reads the file (at most 1 MiB): CONSPH_EIO when it cannot be read; CONSPH_EFORMAT
+ * "PATH:LINE: ..." for a section, an unknown key (naming the allowed), a key without a value or
+ * given twice, a value too long, or what consph_kv_parse refuses. */
+int consph_run_file_load(consph_run_file *rf, const char *path);
+/* The file's keys into prm (after the problem's defaults, before the caller's own settings),
+ * but `problem`: a key whose parameter the caller sets itself (given(ctx, name) nonzero; given
+ * NULL: none), or that clashes with one it sets (tf and steps, re and nu, dt and cfl or h_dt),
+ * is checked (a bad value is never ignored) but not applied, and marked dropped. CONSPH_EINVAL
+ * "PATH:LINE: key 'K': ..." for a bad value, "PATH:LINE: keys 'A' and 'B' (line M) both set
+ * ...: give one" for two clashing keys that stay. */
+int consph_run_file_apply(consph_run_file *rf, consph_run_params *prm,
+                          int (*given)(void *ctx, const char *param), void *ctx);
+/* The index of the key of the parameter `name` (the table's name) that stays (not dropped);
+ * -1 when none (or rf NULL). */
+int consph_run_file_find(const consph_run_file *rf, const char *name);
+
 /* ---- the solver ---- */
 typedef struct consph_solver consph_solver;
 

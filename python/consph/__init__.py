@@ -173,6 +173,18 @@ def read_checkpoint(path):
 class Solver(_core.Solver):
     __doc__ = _core.Solver.__doc__
 
+    @classmethod
+    def from_config(cls, path, problem=None, **params):
+        """A run from a run parameter file, as `consph run --config PATH` reads it
+        (consph_run_file_load: `key = value` lines with '#' comments, the run keys of study
+        files: problem, scheme, nx, tf, steps, ...). The keywords are run parameters that replace
+        the file's key of the same parameter and the one they clash with (steps its tf, re its
+        nu, dt its cfl and h_dt), as consph run's options do; particles=... as for Solver.
+        The same as Solver(problem, config=path, **params)."""
+        if problem is not None:
+            params["problem"] = problem
+        return cls(config=path, **params)
+
     def particles(self, order="initial"):
         """Every field of the run's particles with their positions, box and periodicity, as a
         Particles of copies (order 'initial': by the particles' initial index, the field id;

@@ -174,47 +174,33 @@ static int axis_values(PyObject *obj, const char *name, int dim, double *out)
     return 0;
 }
 
-int pyc_particles_from(PyObject *obj, consph_particles *p)
+int pyc_particles_positions(PyObject *xo, const consph_box *box, consph_particles *p)
 {
     memset(p, 0, sizeof *p);
-    PyObject *xo = PyObject_GetAttrString(obj, "x");
-    if (!xo) {
-        PyErr_Clear();
-        PyErr_SetString(PyExc_TypeError,
-                        "particles: expected a consph.Particles (attributes x, lo, hi, periodic, "
-                        "spacing, fields)");
-        return -1;
-    }
     PyArrayObject *x = pyc_double_array(xo, "particles.x");
-    Py_DECREF(xo);
     if (!x) return -1;
     const int nd = PyArray_NDIM(x);
     const size_t n = nd >= 1 ? (size_t)PyArray_DIM(x, 0) : 0;
     const int dim = nd == 1 ? 1 : nd == 2 ? (int)PyArray_DIM(x, 1) : 0;
-    if (dim < 1 || dim > CONSPH_MAX_DIM || n == 0) {
+    if (dim < 1 || dim > CONSPH_MAX_DIM || n == 0 || (box && dim != box->dim)) {
         Py_DECREF(x);
-        pyc_raise_msg(CONSPH_EINVAL,
-                      "particles: x must be an N×d array with N >= 1 and d in 1..3 (got %d "
-                      "axes of shape %ld×%d)",
-                      nd, (long)n, dim);
+        if (box)
+            pyc_raise_msg(CONSPH_EINVAL,
+                          "particles: x must be an N×%d array with N >= 1 (got %d axes of shape "
+                          "%ld×%d)",
+                          box->dim, nd, (long)n, dim);
+        else
+            pyc_raise_msg(CONSPH_EINVAL,
+                          "particles: x must be an N×d array with N >= 1 and d in 1..3 (got %d "
+                          "axes of shape %ld×%d)",
+                          nd, (long)n, dim);
         return -1;
     }
-    consph_box box;
-    memset(&box, 0, sizeof box);
-    box.dim = dim;
-    double per[CONSPH_MAX_DIM];
-    if (axis_values(obj, "lo", dim, box.lo) < 0 || axis_values(obj, "hi", dim, box.hi) < 0 ||
-        axis_values(obj, "periodic", dim, per) < 0) {
+    if (!box) { /* the caller's box follows from the dimension */
         Py_DECREF(x);
-        return -1;
+        return dim;
     }
-    for (int a = 0; a < dim; ++a) box.periodic[a] = per[a] != 0.0;
-    if (consph_box_check(&box) != CONSPH_OK) {
-        Py_DECREF(x);
-        pyc_raise(CONSPH_EINVAL);
-        return -1;
-    }
-    if (consph_particles_init(p, dim, n, &box) != CONSPH_OK) {
+    if (consph_particles_init(p, dim, n, box) != CONSPH_OK) {
         Py_DECREF(x);
         pyc_raise(CONSPH_ENOMEM);
         return -1;
@@ -223,7 +209,7 @@ int pyc_particles_from(PyObject *obj, consph_particles *p)
     /* As the file readers do (src/io/particles_read.c): only values outside [lo, hi) move. */
     for (size_t i = 0; i < n; ++i)
         for (int a = 0; a < dim; ++a) {
-            double v = xv[i * (size_t)dim + (size_t)a], lo = box.lo[a], hi = box.hi[a];
+            double v = xv[i * (size_t)dim + (size_t)a], lo = box->lo[a], hi = box->hi[a];
             if (!isfinite(v)) {
                 Py_DECREF(x);
                 consph_particles_free(p);
@@ -231,12 +217,12 @@ int pyc_particles_from(PyObject *obj, consph_particles *p)
                               "xyz"[a], v);
                 return -1;
             }
-            if (box.periodic[a] && !(v >= lo && v < hi)) {
+            if (box->periodic[a] && !(v >= lo && v < hi)) {
                 double len = hi - lo, s = fmod(v - lo, len);
                 if (s < 0.0) s += len;
                 if (!(s < len)) s = 0.0;
                 v = lo + s < hi ? lo + s : lo;
-            } else if (!box.periodic[a] && (v < lo || v > hi)) {
+            } else if (!box->periodic[a] && (v < lo || v > hi)) {
                 Py_DECREF(x);
                 consph_particles_free(p);
                 pyc_raise_msg(CONSPH_EINVAL,
@@ -248,6 +234,44 @@ int pyc_particles_from(PyObject *obj, consph_particles *p)
             p->x[a][i] = v;
         }
     Py_DECREF(x);
+    return dim;
+}
+
+int pyc_particles_from(PyObject *obj, consph_particles *p)
+{
+    memset(p, 0, sizeof *p);
+    PyObject *xo = PyObject_GetAttrString(obj, "x");
+    if (!xo) {
+        PyErr_Clear();
+        PyErr_SetString(PyExc_TypeError,
+                        "particles: expected a consph.Particles (attributes x, lo, hi, periodic, "
+                        "spacing, fields)");
+        return -1;
+    }
+    const int dim = pyc_particles_positions(xo, NULL, p);
+    if (dim < 0) {
+        Py_DECREF(xo);
+        return -1;
+    }
+    consph_box box;
+    memset(&box, 0, sizeof box);
+    box.dim = dim;
+    double per[CONSPH_MAX_DIM];
+    if (axis_values(obj, "lo", dim, box.lo) < 0 || axis_values(obj, "hi", dim, box.hi) < 0 ||
+        axis_values(obj, "periodic", dim, per) < 0) {
+        Py_DECREF(xo);
+        return -1;
+    }
+    for (int a = 0; a < dim; ++a) box.periodic[a] = per[a] != 0.0;
+    if (consph_box_check(&box) != CONSPH_OK) {
+        Py_DECREF(xo);
+        pyc_raise(CONSPH_EINVAL);
+        return -1;
+    }
+    const int st = pyc_particles_positions(xo, &box, p);
+    Py_DECREF(xo);
+    if (st < 0) return -1;
+    const size_t n = p->n;
     PyObject *sp = PyObject_GetAttrString(obj, "spacing");
     if (!sp) PyErr_Clear();
     if (sp && sp != Py_None) {

@@ -42,6 +42,10 @@ PyArrayObject *pyc_double_array(PyObject *obj, const char *what);
  * as the file readers wrap them; outside on another axis is an error. `p` is initialised here;
  * free it with consph_particles_free. Returns 0, or -1 with an exception. */
 int pyc_particles_from(PyObject *obj, consph_particles *p);
+/* Positions xo (an N×d array-like, or N in 1D) into p, initialised here with `box` (its dim must
+ * be d) and no fields, wrapped as pyc_particles_from wraps them. box NULL: only checks the shape
+ * (p untouched). Returns d, or -1 with an exception. */
+int pyc_particles_positions(PyObject *xo, const consph_box *box, consph_particles *p);
 /* A dict {x, lo, hi, periodic, spacing, fields} of copies of p's arrays, particle i of the
  * result being p's order[i] (order NULL: p's own order). */
 PyObject *pyc_particles_dict(const consph_particles *p, const size_t *order);

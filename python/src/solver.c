@@ -40,42 +40,191 @@ static int param_text(PyObject *v, char *buf, size_t size)
     return 0;
 }
 
+/* Whether the parameter `name` is set by a keyword or by a key of the run file that stays (not
+ * replaced by a keyword); where into buf ("alpha" or "FILE:LINE: key 'alpha'"). */
+static int param_given(PyObject *kw, const consph_run_file *rf, const char *name, char *buf,
+                       size_t size)
+{
+    if (kw && PyDict_GetItemString(kw, name)) {
+        snprintf(buf, size, "%s", name);
+        return 1;
+    }
+    const int k = consph_run_file_find(rf, name);
+    if (k < 0) return 0;
+    snprintf(buf, size, "%s:%d: key '%s'", rf->path, rf->key[k].line, rf->key[k].param->study_key);
+    return 1;
+}
+
+/* consph_run_file_apply's `given`: the keywords replace the file's keys. */
+static int keyword_sets(void *kw, const char *name)
+{
+    return kw && PyDict_GetItemString(kw, name) != NULL;
+}
+
 /* A parameter the run's scheme or layout does not read would do nothing: refused as consph run
  * refuses its option (apps/cmd_run.c, unread_options); eos 'default' is no setting. */
-static int unread_params(PyObject *kw, const consph_run_params *prm)
+static int unread_params(PyObject *kw, const consph_run_file *rf, const consph_run_params *prm)
 {
-    char list[512];
-    for (int k = 0; kw && k < consph_run_param_count(); ++k) {
+    char list[512], where[320];
+    for (int k = 0; k < consph_run_param_count(); ++k) {
         const consph_run_param *d = consph_run_param_at(k);
-        if (!d->reads || !PyDict_GetItemString(kw, d->name) ||
+        if (!d->reads || !param_given(kw, rf, d->name, where, sizeof where) ||
             (!strcmp(d->name, "eos") && prm->eos == CONSPH_EOS_DEFAULT) ||
             consph_scheme_reads(prm->scheme, d->reads))
             continue;
-        pyc_raise_msg(CONSPH_EINVAL, "%s does nothing for scheme %s (it acts on: %s)", d->name,
+        pyc_raise_msg(CONSPH_EINVAL, "%s does nothing for scheme %s (it acts on: %s)", where,
                       prm->scheme, consph_scheme_readers(d->reads, list, sizeof list));
         return -1;
     }
     const int layout = consph_run_params_layout(prm);
-    if (!kw || !PyDict_GetItemString(kw, "seed") || layout < 0 ||
+    if (!param_given(kw, rf, "seed", where, sizeof where) || layout < 0 ||
         consph_layout_uses_seed((consph_layout_kind)layout))
         return 0;
+    char lw[320];
     pyc_raise_msg(CONSPH_EINVAL,
-                  "seed does nothing for layout %s (%s), which draws no random numbers (it acts "
+                  "%s does nothing for layout %s (%s), which draws no random numbers (it acts "
                   "on: %s)",
-                  consph_layout_name((consph_layout_kind)layout),
-                  PyDict_GetItemString(kw, "layout") ? "given"
-                                                     : "the problem's or scheme's default",
+                  where, consph_layout_name((consph_layout_kind)layout),
+                  param_given(kw, rf, "layout", lw, sizeof lw)
+                      ? "given"
+                      : "the problem's or scheme's default",
                   consph_layout_seeded_names(list, sizeof list));
     return -1;
 }
 
-static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
+/* One field of the given particles into given's field `to`: dim components when `vector` (a
+ * velocity may carry a third component of 0 in 2D, as a VTU vector does), else 1, read through
+ * elem(i, c) = data[i * si + c * sc]; `what` names it in messages. */
+static int given_field(consph_particles *given, const char *to, const char *what,
+                       const double *data, size_t si, size_t sc, int ncomp, int vector)
 {
-    solver_object *so = (solver_object *)self;
-    const char *problem = "taylor-green";
+    const int dim = given->dim, want = vector ? dim : 1;
+    const int pad = vector && dim == 2 && ncomp == 3;
+    if (ncomp != want && !pad)
+        return pyc_raise_msg(CONSPH_EINVAL, "particles: field '%s' has %d components, not %d", what,
+                             ncomp, want),
+               -1;
+    for (size_t i = 0; pad && i < given->n; ++i)
+        if (data[i * si + 2 * sc] != 0.0)
+            return pyc_raise_msg(CONSPH_EINVAL,
+                                 "particles: field '%s' of particle %zu has z = %.17g, but the "
+                                 "problem is 2D",
+                                 what, i, data[i * si + 2 * sc]),
+                   -1;
+    double *dst = consph_particles_field(given, to, want);
+    if (!dst) return pyc_raise(CONSPH_ENOMEM), -1;
+    for (int c = 0; c < want; ++c)
+        for (size_t i = 0; i < given->n; ++i)
+            dst[(size_t)c * given->cap + i] = data[i * si + (size_t)c * sc];
+    return 0;
+}
+
+/* A field of a consph.Particles by either of its names (a snapshot's array `name` or a CSV's
+ * columns `other`) into given's field `to`; nothing when it has neither, refused when both. */
+static int particles_field(const consph_particles *src, consph_particles *given, const char *name,
+                           const char *other, const char *to, int vector)
+{
+    const consph_field *a = consph_particles_find(src, name),
+                       *b = consph_particles_find(src, other);
+    if (a && b)
+        return pyc_raise_msg(CONSPH_EINVAL, "particles has both fields '%s' and '%s': keep one",
+                             name, other),
+               -1;
+    const consph_field *f = a ? a : b;
+    if (!f) return 0;
+    return given_field(given, to, f->name, f->data, 1, src->cap, f->ncomp, vector);
+}
+
+/* An array argument (u or p of a tuple) as a field; None is none. */
+static int tuple_field(PyObject *o, consph_particles *given, const char *what, int vector)
+{
+    if (o == Py_None) return 0;
+    PyArrayObject *a = pyc_double_array(o, what);
+    if (!a) return -1;
+    const int nd = PyArray_NDIM(a);
+    int ncomp = nd == 1 ? 1 : nd == 2 ? (int)PyArray_DIM(a, 1) : 0;
+    if (nd < 1 || nd > 2 || (size_t)PyArray_DIM(a, 0) != given->n) ncomp = 0;
+    int rc = -1;
+    if (ncomp < 1)
+        pyc_raise_msg(CONSPH_EINVAL, "particles: %s must hold N = %zu values%s", what, given->n,
+                      vector ? " × dim" : "");
+    else
+        rc = given_field(given, what, what, PyArray_DATA(a), (size_t)ncomp, 1, ncomp, vector);
+    Py_DECREF(a);
+    return rc;
+}
+
+static void box_text(const consph_box *b, int dim, char *buf, size_t size)
+{
+    size_t len = 0;
+    buf[0] = '\0';
+    for (int a = 0; a < dim && len < size; ++a)
+        len += (size_t)snprintf(buf + len, size - len, "%s[%.17g, %.17g]", a ? "x" : "", b->lo[a],
+                                b->hi[a]);
+    char axes[CONSPH_MAX_DIM + 1] = "";
+    for (int a = 0, k = 0; a < dim; ++a)
+        if (b->periodic[a]) axes[k++] = "xyz"[a], axes[k] = '\0';
+    if (len < size)
+        snprintf(buf + len, size - len, axes[0] ? ", periodic %s" : ", not periodic", axes);
+}
+
+/* Solver(particles=...): a consph.Particles (its box and periodicity must be the problem's; its
+ * fields u or velocity, p or pressure) or a tuple (x, u=None, p=None) in the problem's box, into
+ * `given` as consph_solver_create_from takes them (consph run --particles, apps/cmd_run.c). */
+static int given_particles(PyObject *obj, const consph_run_params *prm, consph_particles *given)
+{
+    consph_layout_params lp;
+    if (consph_run_layout_params(prm, &lp) != CONSPH_OK) return pyc_raise(CONSPH_EINVAL), -1;
+    const int dim = consph_problem_dim(prm->problem);
+    consph_box box = lp.box;
+    box.dim = dim;
+    if (PyTuple_Check(obj) || PyList_Check(obj)) {
+        PyObject *t = PySequence_Tuple(obj);
+        if (!t) return -1;
+        PyObject *xo, *uo = Py_None, *po = Py_None;
+        int rc = PyArg_ParseTuple(t, "O|OO:particles (x, u=None, p=None)", &xo, &uo, &po) &&
+                         pyc_particles_positions(xo, &box, given) >= 0 &&
+                         tuple_field(uo, given, "u", 1) == 0 && tuple_field(po, given, "p", 0) == 0
+                     ? 0
+                     : -1;
+        Py_DECREF(t);
+        return rc;
+    }
+    consph_particles src;
+    if (pyc_particles_from(obj, &src) < 0) return -1;
+    int bad = src.dim != dim;
+    for (int a = 0; a < dim && !bad; ++a)
+        bad = src.box.lo[a] != box.lo[a] || src.box.hi[a] != box.hi[a] ||
+              !src.box.periodic[a] != !box.periodic[a];
+    int rc = -1;
+    if (bad) {
+        char want[200], have[200];
+        box_text(&box, dim, want, sizeof want);
+        box_text(&src.box, src.dim, have, sizeof have);
+        pyc_raise_msg(CONSPH_EINVAL,
+                      "particles: their box is %s (%dD), but problem %s is %s: a run takes its "
+                      "problem's box and periodicity",
+                      have, src.dim, prm->problem, want);
+    } else if (consph_particles_init(given, dim, src.n, &box) != CONSPH_OK) {
+        pyc_raise(CONSPH_ENOMEM);
+    } else {
+        for (int a = 0; a < dim; ++a) memcpy(given->x[a], src.x[a], src.n * sizeof(double));
+        rc = particles_field(&src, given, "velocity", "u", "u", 1) < 0 ||
+                     particles_field(&src, given, "pressure", "p", "p", 0) < 0
+                 ? -1
+                 : 0;
+    }
+    consph_particles_free(&src);
+    return rc;
+}
+
+/* The run's parameters from the problem's defaults, the run file's keys (rf NULL: none) and the
+ * keywords, in that order, with consph run's rules between them (apps/cmd_run.c). */
+static int init_params(PyObject *args, PyObject *kw, consph_run_file *rf, consph_run_params *prm)
+{
+    const char *problem = NULL;
     if (!PyArg_ParseTuple(args, "|s:Solver", &problem)) return -1;
-    consph_run_params prm;
-    consph_run_params_default(&prm);
+    consph_run_params_default(prm);
     PyObject *pobj = kw ? PyDict_GetItemString(kw, "problem") : NULL;
     if (pobj) {
         if (PyTuple_GET_SIZE(args)) {
@@ -85,14 +234,24 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
         problem = PyUnicode_AsUTF8(pobj);
         if (!problem) return -1;
     }
-    if (consph_run_params_problem(&prm, problem) != CONSPH_OK) return pyc_raise(CONSPH_EINVAL), -1;
+    const int file_problem = problem ? -1 : consph_run_file_find(rf, "problem");
+    if (file_problem >= 0) problem = rf->key[file_problem].value;
+    if (consph_run_params_problem(prm, problem ? problem : "taylor-green") != CONSPH_OK) {
+        if (file_problem < 0) return pyc_raise(CONSPH_EINVAL), -1;
+        char why[512];
+        snprintf(why, sizeof why, "%s", consph_last_error());
+        return pyc_raise_msg(CONSPH_EINVAL, "%s:%d: key 'problem': %s", rf->path,
+                             rf->key[file_problem].line, why),
+               -1;
+    }
     /* every key is a parameter of the table; unknown ones get the library's message */
     PyObject *key, *val;
     Py_ssize_t pos = 0;
     while (kw && PyDict_Next(kw, &pos, &key, &val)) {
         const char *name = PyUnicode_AsUTF8(key);
         if (!name) return -1;
-        if (!strcmp(name, "problem")) continue;
+        if (!strcmp(name, "problem") || !strcmp(name, "particles") || !strcmp(name, "config"))
+            continue;
         if (!consph_run_param_find(name)) {
             char names[2048] = "";
             for (int k = 0; k < consph_run_param_count(); ++k) {
@@ -105,6 +264,9 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
             return -1;
         }
     }
+    /* the file's keys, those a keyword replaces checked but not applied */
+    if (rf && consph_run_file_apply(rf, prm, keyword_sets, kw) != CONSPH_OK)
+        return pyc_raise(CONSPH_EINVAL), -1;
     int have_steps = 0, have_tf = 0, have_re = 0, have_nu = 0;
     /* in the table's order, as consph run sets its options */
     for (int k = 0; k < consph_run_param_count(); ++k) {
@@ -113,7 +275,7 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
         if (!v || !strcmp(d->name, "problem")) continue;
         char text[512];
         if (param_text(v, text, sizeof text) < 0) return -1;
-        if (consph_run_param_set(&prm, d->name, text) != CONSPH_OK)
+        if (consph_run_param_set(prm, d->name, text) != CONSPH_OK)
             return pyc_raise(CONSPH_EINVAL), -1;
         have_steps |= !strcmp(d->name, "steps") && v != Py_None;
         have_tf |= !strcmp(d->name, "tf") && v != Py_None;
@@ -126,13 +288,78 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
                -1;
     if (have_re && have_nu)
         return pyc_raise_msg(CONSPH_EINVAL, "re and nu both set the viscosity: give one"), -1;
-    if (have_re) prm.nu = -1.0;
-    if (have_steps) prm.tf = 0.0;
-    if (consph_run_params_check(&prm) != CONSPH_OK) return pyc_raise(CONSPH_EINVAL), -1;
-    if (unread_params(kw, &prm) < 0) return -1;
+    if (have_re || consph_run_file_find(rf, "re") >= 0) prm->nu = -1.0; /* ν from Re */
+    if (have_steps || consph_run_file_find(rf, "steps") >= 0) prm->tf = 0.0;
+    char where[320];
+    if (prm->dt > 0.0 && (param_given(kw, rf, "cfl", where, sizeof where) ||
+                          param_given(kw, rf, "h_dt", where, sizeof where)))
+        return pyc_raise_msg(CONSPH_EINVAL,
+                             "%s sets the time-step rule, which dt %g replaces: give one", where,
+                             prm->dt),
+               -1;
+    if (param_given(kw, rf, "error_times", where, sizeof where) &&
+        prm->error != CONSPH_ERROR_AUTHORS)
+        return pyc_raise_msg(CONSPH_EINVAL,
+                             "%s counts the output times of error 'authors': give error='authors' "
+                             "too",
+                             where),
+               -1;
+    if (consph_run_params_check(prm) != CONSPH_OK) return pyc_raise(CONSPH_EINVAL), -1;
+    return unread_params(kw, rf, prm);
+}
+
+static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
+{
+    solver_object *so = (solver_object *)self;
+    PyObject *cobj = kw ? PyDict_GetItemString(kw, "config") : NULL;
+    consph_run_file *rf = NULL;
+    char path[4096]; /* rf->path points here */
+    if (cobj && cobj != Py_None) {
+        PyObject *bytes = NULL;
+        if (!PyUnicode_FSConverter(cobj, &bytes)) return -1;
+        snprintf(path, sizeof path, "%s", PyBytes_AS_STRING(bytes));
+        Py_DECREF(bytes);
+        rf = malloc(sizeof *rf);
+        if (!rf) return PyErr_NoMemory(), -1;
+        int st;
+        PYC_UNLOCKED(st = consph_run_file_load(rf, path));
+        if (st != CONSPH_OK) {
+            free(rf);
+            return pyc_raise(st), -1;
+        }
+    }
+    consph_run_params prm;
+    int rc = init_params(args, kw, rf, &prm);
+    PyObject *gobj = kw ? PyDict_GetItemString(kw, "particles") : NULL;
+    if (gobj == Py_None) gobj = NULL;
+    consph_particles given;
+    memset(&given, 0, sizeof given);
+    if (!rc && gobj) {
+        static const char *const layout_only[] = {"nx", "layout", "seed"};
+        char where[320];
+        for (size_t k = 0; !rc && k < sizeof layout_only / sizeof layout_only[0]; ++k)
+            if (param_given(kw, rf, layout_only[k], where, sizeof where)) {
+                pyc_raise_msg(CONSPH_EINVAL,
+                              "%s: not with particles (the particles and their count replace "
+                              "the layout)",
+                              where);
+                rc = -1;
+            }
+        if (!rc) rc = given_particles(gobj, &prm, &given);
+        if (!rc && (consph_run_params_particles(&prm, given.n) != CONSPH_OK ||
+                    consph_run_params_check(&prm) != CONSPH_OK)) {
+            pyc_raise(CONSPH_EINVAL);
+            rc = -1;
+        }
+    }
+    free(rf);
     consph_solver *s = NULL;
-    int st;
-    PYC_UNLOCKED(st = consph_solver_create(&s, &prm));
+    int st = CONSPH_OK;
+    if (!rc)
+        PYC_UNLOCKED(st = gobj ? consph_solver_create_from(&s, &prm, &given)
+                               : consph_solver_create(&s, &prm));
+    consph_particles_free(&given);
+    if (rc) return -1;
     if (st != CONSPH_OK) return pyc_raise(st), -1;
     consph_solver_free(so->s);
     so->s = s;
@@ -203,9 +430,13 @@ PyDoc_STRVAR(
     "--\n"
     "\n"
     "Returns int. Steps until the run's own end (its tf or steps), or earlier: until t >= tf, or\n"
-    "until step_count reaches steps (a total, not a count from now). The run's own\n"
-    "last step lands on its final time; tf here stops at the first step ending at or\n"
-    "after it. Returns the steps taken. Interrupt with Ctrl-C between steps.\n"
+    "until step_count reaches steps (a total, not a count from now); give one of them.\n"
+    "The run's own last step lands on its final time; tf before it stops at the first\n"
+    "step ending at or after it. tf or steps past the run's end becomes its end\n"
+    "(consph_solver_extend): the run then continues as one created with that end would,\n"
+    "bit for bit, landing on tf. A run whose last step was shortened to land on its tf,\n"
+    "or one with error='authors', cannot be extended: consph.InvalidArgument with the\n"
+    "library's reason. Returns the steps taken. Interrupt with Ctrl-C between steps.\n"
     "out: a directory (created if missing) where the run goes to its end writing the\n"
     "files of `consph run --out` (consph_run: snapshots every snapshot_every steps\n"
     "(0: the first and the last) indexed by run.pvd, log.csv, summary.json, and\n"
@@ -228,6 +459,24 @@ static PyObject *solver_run(PyObject *self, PyObject *args, PyObject *kw)
     if (tfo != Py_None && ((tf = PyFloat_AsDouble(tfo)) == -1.0 && PyErr_Occurred())) return NULL;
     if (stepso != Py_None && ((steps = PyLong_AsLong(stepso)) == -1 && PyErr_Occurred()))
         return NULL;
+    if (tfo != Py_None && stepso != Py_None)
+        return pyc_raise_msg(CONSPH_EINVAL, "run: tf and steps both say where to stop: give one");
+    /* A stop past the run's own end becomes its end (consph_solver_extend), so the run goes on
+     * as one created with that end: its last step lands on tf. Every step of a run of steps is
+     * a full Δt, so such a run ends at steps·Δt; a run to t_f passes `steps` when that many
+     * steps of Δt pass t_f. */
+    const consph_run_params *prm = consph_solver_params(so->s);
+    const double dt = consph_solver_dt(so->s);
+    const long step0 = consph_solver_step_count(so->s);
+    const int past =
+        tfo != Py_None ? tf > (prm->steps > 0 ? (double)prm->steps * dt : prm->tf)
+        : stepso != Py_None
+            ? (prm->steps > 0 ? steps > prm->steps
+                              : consph_solver_time(so->s) + (double)(steps - step0) * dt > prm->tf)
+            : 0;
+    if (past && consph_solver_extend(so->s, tfo != Py_None ? tf : 0.0,
+                                     tfo != Py_None ? 0 : steps) != CONSPH_OK)
+        return pyc_raise(CONSPH_EINVAL);
     long taken = 0;
     while (!consph_solver_done(so->s) && consph_solver_time(so->s) < tf &&
            (steps < 0 || consph_solver_step_count(so->s) < steps)) {
@@ -549,22 +798,41 @@ static PyObject *solver_checkpoint(PyObject *self, PyObject *args, PyObject *kw)
     Py_RETURN_NONE;
 }
 
-PyDoc_STRVAR(restart_doc, "restart($type, /, path)\n"
-                          "--\n"
-                          "\n"
-                          "Returns Solver. A solver restored from a checkpoint "
-                          "(consph_run_restart: Solver.checkpoint's file\n"
-                          "or a run's checkpoint.ckpt); it continues bit for bit.");
+PyDoc_STRVAR(restart_doc,
+             "restart($type, /, path, tf=None, steps=None)\n"
+             "--\n"
+             "\n"
+             "Returns Solver. A solver restored from a checkpoint (consph_run_restart: "
+             "Solver.checkpoint's file\n"
+             "or a run's checkpoint.ckpt); it continues bit for bit. tf or steps gives it another\n"
+             "end after the checkpoint's (consph_solver_extend, as `consph run --restart CKPT\n"
+             "--tf T`): it then continues as the uninterrupted run with that end, bit for bit.\n"
+             "An end it cannot take raises consph.InvalidArgument with the library's reason.");
 
 static PyObject *solver_restart(PyObject *cls, PyObject *args, PyObject *kw)
 {
-    static char *kwlist[] = {"path", NULL};
+    static char *kwlist[] = {"path", "tf", "steps", NULL};
     const char *path;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "s", kwlist, &path)) return NULL;
+    PyObject *tfo = Py_None, *stepso = Py_None;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "s|OO", kwlist, &path, &tfo, &stepso)) return NULL;
+    double tf = 0.0;
+    long steps = 0;
+    if (tfo != Py_None && ((tf = PyFloat_AsDouble(tfo)) == -1.0 && PyErr_Occurred())) return NULL;
+    if (stepso != Py_None && ((steps = PyLong_AsLong(stepso)) == -1 && PyErr_Occurred()))
+        return NULL;
+    if (tfo != Py_None && stepso != Py_None)
+        return pyc_raise_msg(CONSPH_EINVAL,
+                             "restart: tf and steps both set the end of the run: give one");
     consph_solver *s = NULL;
     int st;
     PYC_UNLOCKED(st = consph_run_restart(&s, path));
     if (st != CONSPH_OK) return pyc_raise(st);
+    /* the new end, as consph run --restart CKPT --tf T or --steps K */
+    if ((tfo != Py_None || stepso != Py_None) &&
+        (st = consph_solver_extend(s, tf, steps)) != CONSPH_OK) {
+        consph_solver_free(s);
+        return pyc_raise(st);
+    }
     solver_object *so = (solver_object *)((PyTypeObject *)cls)->tp_alloc((PyTypeObject *)cls, 0);
     if (!so) {
         consph_solver_free(s);
@@ -665,14 +933,24 @@ static PyMethodDef solver_methods[] = {
 
 PyDoc_STRVAR(
     solver_doc,
-    "Solver(problem='taylor-green', **params)\n--\n\n"
+    "Solver(problem='taylor-green', particles=None, config=None, **params)\n--\n\n"
     "A weakly-compressible SPH run (consph_solver_create), as `consph run PROBLEM` sets it up:\n"
     "the problem's defaults, then every keyword as the run parameter of that name in the\n"
     "parameter table (consph_run_param_set, in the table's order; the names are the study\n"
     "files' keys: scheme, nx, layout, seed, hdx, kernel, u... see consph.run_params()).\n"
     "Values are numbers or names; a parameter's special value by its name ('none', 're',\n"
     "'default', 'lattice'). As consph run: steps replaces tf, re sets ν (nu) from Re; a bad\n"
-    "key or value raises consph.InvalidArgument with the library's message.\n\n"
+    "key or value raises consph.InvalidArgument with the library's message.\n"
+    "particles: start from these particles instead of the layout, as `consph run --particles`\n"
+    "(consph_solver_create_from): a consph.Particles (its box and periodicity must be the\n"
+    "problem's; its fields u or velocity, p or pressure, where present, replace the\n"
+    "problem's solution at t = 0) or a tuple (x, u=None, p=None) in the problem's box. Their\n"
+    "order is kept; N sets nx (N = nx^d) or the spacing; nx, layout and seed are refused.\n"
+    "The particles of consph.layout(K, d, nx) give the run with layout=K, nx=nx bit for bit.\n"
+    "config: a run parameter file read as `consph run --config` reads it (consph_run_file_load;\n"
+    "its problem key when no problem is given): the problem's defaults, then the file's keys,\n"
+    "then the keywords, each replacing the file's key of its parameter and the one it clashes\n"
+    "with (steps/tf, re/nu, dt/cfl and h_dt); a bad file raises with FILE:LINE.\n\n"
     "Example: s = consph.Solver('taylor-green', scheme='wcsph', nx=20, steps=20); s.run();\n"
     "u = s.field('u')");
 

@@ -9,6 +9,9 @@ What must hold:
     round-off, and consph.approx the numbers `consph approx` prints to their printed digits;
   - a 20-step run equals `consph run`'s last snapshot bit for bit (positions, id, velocity,
     pressure, density), also across a checkpoint written from Python and continued by the CLI;
+  - a run from the user's particles (a layout's) equals `consph run --layout` and `--particles`
+    bit for bit, and a run extended past its end (live, or restarted to a later t_f) equals the
+    uninterrupted run bit for bit; a run file read from Python equals `consph run --config`;
   - a bad argument raises consph.Error carrying the library's message (the CLI's words).
 """
 
@@ -244,6 +247,128 @@ try:
     check(False, "a finished run stepped")
 except consph.InvalidArgument:
     pass
+
+# ---- runs from the user's particles (consph_solver_create_from) ----------------------------
+def snapshot_equals(snap, solver, what):
+    """The solver's state equals a snapshot of consph run bit for bit (cell order)."""
+    check(bits_equal(snap.x, solver.field("x", order="current")), f"{what}: positions")
+    for mine, theirs in SNAP.items():
+        a = solver.field(mine, order="current")
+        b = snap.fields[theirs][:, :2] if a.ndim == 2 else snap.fields[theirs]
+        check(bits_equal(a, b), f"{what}: {mine} equals the snapshot's {theirs}")
+
+
+lat = consph.layout("lattice", dim=2, nx=20)
+base = {"scheme": "wcsph", "steps": 20}
+s_lay = consph.Solver("taylor-green", nx=20, layout="lattice", **base)
+s_lay.run()
+s_par = consph.Solver("taylor-green", particles=lat, **base)
+s_par.run()
+s_tup = consph.Solver("taylor-green", particles=(lat.x,), **base)
+s_tup.run()
+check(s_par.params()["nx"] == "20" and s_par.n == 400, f"particles: nx from N {s_par.params()}")
+for name in ("x", "u", "p", "rhof"):
+    check(bits_equal(s_lay.field(name), s_par.field(name)), f"particles=layout: {name}")
+    check(bits_equal(s_lay.field(name), s_tup.field(name)), f"particles=(x,): {name}")
+lat_csv = os.path.join(tmp, "lattice.csv")
+consph.write_particles(lat_csv, lat)
+for how, extra in (("--layout", ["--nx", 20, "--layout", "lattice"]),
+                   ("--particles", ["--particles", lat_csv])):
+    d = os.path.join(tmp, "run-from" + how)
+    cli("run", "taylor-green", "--scheme", "wcsph", "--steps", 20, *extra, "--out", d)
+    snapshot_equals(consph.read_particles(os.path.join(d, "snap_000020.vtu")), s_par,
+                    f"particles=layout against consph run {how}")
+# the user's own positions, velocity and pressure: as consph run --particles reads them
+rng = np.random.default_rng(4)
+ux, uu, up = rng.random((300, 2)), 0.1 * rng.normal(size=(300, 2)), rng.normal(size=300)
+user = consph.Particles(ux, fields={"u": uu, "p": up})
+s_user = consph.Solver("taylor-green", particles=user, scheme="wcsph", steps=5)
+check(bits_equal(s_user.field("u"), uu) and bits_equal(s_user.field("p"), up),
+      "particles: the given velocity and pressure at t = 0")
+s_user.run()
+user_csv = os.path.join(tmp, "user.csv")
+consph.write_particles(user_csv, user)
+d = os.path.join(tmp, "run-user")
+cli("run", "taylor-green", "--scheme", "wcsph", "--steps", 5, "--particles", user_csv, "--out", d)
+snapshot_equals(consph.read_particles(os.path.join(d, "snap_000005.vtu")), s_user,
+                "the user's particles against consph run --particles")
+for bad, words in (({"particles": lat, "nx": 20}, "nx: not with particles"),
+                   ({"particles": consph.Particles(lat.x, hi=2.0)}, "a run takes its problem's box"),
+                   ({"particles": (lat.x, np.ones((lat.n, 3)))}, "has z = 1, but the problem is 2D")):
+    try:
+        consph.Solver("taylor-green", scheme="wcsph", **bad)
+        check(False, f"accepted: {words}")
+    except consph.InvalidArgument as e:
+        check(words in str(e), f"refusal {words!r}: {e}")
+
+# ---- a run past its end (consph_solver_extend) and a restart to a later t_f ------------------
+full = consph.Solver("taylor-green", scheme="wcsph", nx=16, tf=0.04)
+full.run()
+part = consph.Solver("taylor-green", scheme="wcsph", nx=16, tf=0.02)
+part.run(steps=5)
+ck = os.path.join(tmp, "early.ckpt")
+part.checkpoint(ck)
+part.run(tf=0.04)  # past its end: the run's end becomes 0.04
+again = consph.Solver.restart(ck)
+again.run(tf=0.04)
+ended = consph.Solver.restart(ck, tf=0.04)
+ended.run()
+check(part.t == 0.04 and part.done and full.t == 0.04, f"extended to t_f: {part.t}")
+for name in ("x", "u", "p", "rhof"):
+    for other, what in ((part, "run(tf) past the end"), (again, "restart, then run(tf)"),
+                        (ended, "restart(tf=...)")):
+        check(bits_equal(full.field(name), other.field(name)), f"{what}: {name} bit for bit")
+more = consph.Solver("taylor-green", scheme="wcsph", nx=16, steps=10)
+more.run()
+more.run(steps=20)  # a run of steps, finished, extended by steps
+ref = consph.Solver("taylor-green", scheme="wcsph", nx=16, steps=20)
+ref.run()
+check(more.step_count == 20 and bits_equal(more.field("u"), ref.field("u")), "run(steps) extends")
+try:
+    short = consph.Solver("taylor-green", scheme="wcsph", nx=16, tf=0.02)
+    short.run()  # its last step was shortened to land on 0.02
+    short.run(tf=0.04)
+    check(False, "a run whose last step was shortened was extended")
+except consph.InvalidArgument as e:
+    check(str(e).startswith("the checkpoint is the end of a run whose last step was shortened"),
+          f"extend refused with the library's message: {e}")
+
+# ---- a run parameter file (consph_run_file_load, as consph run --config) ---------------------
+case = os.path.join(tmp, "case.run")
+with open(case, "w") as f:
+    f.write("# Taylor-Green, weakly compressible\nproblem = taylor-green\nscheme = wcsph  # 001\n"
+            "nx = 12\nsteps = 6\nlog_every = 2\n")
+s_cfg = consph.Solver(config=case)
+s_cfg.run()
+d = os.path.join(tmp, "run-config")
+cli("run", "--config", case, "--out", d)
+check(s_cfg.step_count == 6 and s_cfg.params()["log_every"] == "2", "config: steps, log_every")
+snapshot_equals(consph.read_particles(os.path.join(d, "snap_000006.vtu")), s_cfg,
+                "Solver(config=...) against consph run --config")
+s_opt = consph.Solver.from_config(case, nx=14, tf=0.01)  # keywords replace nx and steps
+s_opt.run()
+check(s_opt.n == 196 and s_opt.t == 0.01, f"from_config: keywords replace keys ({s_opt.n}, {s_opt.t})")
+for lines, words in ((["problem = taylor-green", "nxx = 20"], "bad.run:2: unknown key 'nxx'"),
+                     (["problem = taylor-green", "tf = 1", "steps = 3"],
+                      "bad.run:3: keys 'steps' and 'tf' (line 2) both set the end of the run"),
+                     (["scheme = l-ipst-c", "alpha = 0.2"], "bad.run:2: key 'alpha' does nothing"),
+                     (["problem = nosuch"], "bad.run:1: key 'problem': problem 'nosuch'")):
+    bad = os.path.join(tmp, "bad.run")
+    with open(bad, "w") as f:
+        f.write("\n".join(lines) + "\n")
+    try:
+        consph.Solver(config=bad)
+        check(False, f"run file accepted: {words}")
+    except consph.Error as e:
+        check(str(e).startswith(bad[:-len("bad.run")] + words), f"run file refused: {e}")
+        if "does nothing" not in words:  # the CLI's own words, but its option names
+            _, _, err = cli("run", "--config", bad, ok=False)
+            check(str(e) in err, f"run file: python {str(e)!r}, CLI {err!r}")
+try:
+    consph.Solver(config=case, particles=lat)
+    check(False, "a file's nx beside particles")
+except consph.InvalidArgument as e:
+    check(str(e).startswith(case + ":4: key 'nx': not with particles"), str(e))
 
 # ---- Wasserstein: exact 1D against the sorted-sample formula -------------------------------
 rng = np.random.default_rng(2)
