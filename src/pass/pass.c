@@ -15,57 +15,12 @@
 #include <string.h>
 
 #include "consph/pass.h"
+#include "pass/nbhd.h"
 #include "pass/nlist.h"
 
 /* Cells per dynamic chunk: at the default cells per radius a 2D cell holds ~13 particles at
  * h = 1.2Δs with the quintic kernel, a 3D one ~6. */
 #define PASS_CELLS_PER_CHUNK 16
-
-typedef struct pass_scratch {
-    consph_nnps_runs runs;
-    size_t cap;
-    size_t *slot, *j;
-    double *dx[CONSPH_MAX_DIM];
-    double *r, *w, *dwr, *d2w;
-} pass_scratch;
-
-static void scratch_free(pass_scratch *sc)
-{
-    consph_nnps_runs_free(&sc->runs);
-    free(sc->slot);
-    free(sc->j);
-    for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(sc->dx[a]);
-    free(sc->r);
-    free(sc->w);
-    free(sc->dwr);
-    free(sc->d2w);
-    memset(sc, 0, sizeof *sc);
-}
-
-static int grow(void **p, size_t count, size_t size)
-{
-    void *q = realloc(*p, count * size);
-    if (!q) return CONSPH_ENOMEM;
-    *p = q;
-    return CONSPH_OK;
-}
-
-static int scratch_reserve(pass_scratch *sc, size_t need)
-{
-    if (need <= sc->cap) return CONSPH_OK;
-    size_t cap = sc->cap ? sc->cap : 256;
-    while (cap < need) cap *= 2;
-    int st = grow((void **)&sc->slot, cap, sizeof(size_t));
-    st = st ? st : grow((void **)&sc->j, cap, sizeof(size_t));
-    for (int a = 0; a < CONSPH_MAX_DIM; ++a)
-        st = st ? st : grow((void **)&sc->dx[a], cap, sizeof(double));
-    st = st ? st : grow((void **)&sc->r, cap, sizeof(double));
-    st = st ? st : grow((void **)&sc->w, cap, sizeof(double));
-    st = st ? st : grow((void **)&sc->dwr, cap, sizeof(double));
-    st = st ? st : grow((void **)&sc->d2w, cap, sizeof(double));
-    if (st == CONSPH_OK) sc->cap = cap;
-    return st;
-}
 
 static int pass_fail(const consph_pass *pass, int status, const char *why)
 {
@@ -107,7 +62,7 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
     }
     /* A tensor-product kernel is a function of the separation vector, not of r. */
     const int tensor = kernel->tensor && (need & CONSPH_PASS_W);
-    const int dim = v.dim, with_dx = !(need & CONSPH_PASS_NO_DX) || tensor;
+    const int with_dx = !(need & CONSPH_PASS_NO_DX) || tensor;
     const unsigned char *dest = s->dest;
     int status = CONSPH_OK;
     size_t total = 0;
@@ -115,7 +70,9 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
     why[0] = '\0';
 #pragma omp parallel if (n >= s->parallel_min)
     {
-        pass_scratch sc;
+        consph_nnps_runs runs;
+        memset(&runs, 0, sizeof runs);
+        nbhd_scratch sc;
         memset(&sc, 0, sizeof sc);
         int my_status = CONSPH_OK;
         char my_why[256] = "";
@@ -129,60 +86,24 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
                 while (s_dest < last && !dest[consph_nnps_slot_particle(&v, s_dest)]) ++s_dest;
                 if (s_dest == last) continue;
             }
-            if (consph_nnps_cell_runs(s->nnps, c, &sc.runs) == (size_t)-1) {
+            if (consph_nnps_cell_runs(s->nnps, c, &runs) == (size_t)-1) {
                 my_status = CONSPH_ENOMEM;
                 snprintf(my_why, sizeof my_why, "runs of cell %zu: %s", c, consph_last_error());
                 continue;
             }
-            if (scratch_reserve(&sc, sc.runs.candidates + CONSPH_NNPS_GATHER_SLACK) != CONSPH_OK) {
+            if (nbhd_scratch_reserve(&sc, runs.candidates + CONSPH_NNPS_GATHER_SLACK) !=
+                CONSPH_OK) {
                 my_status = CONSPH_ENOMEM;
                 snprintf(my_why, sizeof my_why, "out of memory for %zu candidate neighbours",
-                         sc.runs.candidates);
+                         runs.candidates);
                 continue;
             }
             for (size_t sl = first; sl < last; ++sl) {
-                const size_t i = consph_nnps_slot_particle(&v, sl);
-                if (dest && !dest[i]) continue;
-                double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
-                for (int a = 0; a < dim; ++a) xi[a] = v.x[a][sl];
-                const size_t m =
-                    consph_nnps_gather(&v, &sc.runs, xi, sc.slot, with_dx ? sc.dx : NULL, sc.r);
-                const size_t *j = sc.slot;
-                if (v.particle) {
-                    for (size_t p = 0; p < m; ++p) sc.j[p] = v.particle[sc.slot[p]];
-                    j = sc.j;
-                }
-                if (tensor) {
-                    for (size_t p = 0; p < m; ++p) {
-                        double d[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
-                        for (int a = 0; a < dim; ++a) d[a] = sc.dx[a][p];
-                        sc.w[p] = consph_kernel_w_vec(kernel, d);
-                    }
-                } else {
-                    /* Whole vectors: the batch's scalar remainder loop would cost more than the
-                     * few extra values (r = 0 is a valid distance; the extra values are
-                     * unused). */
-                    const size_t m4 = (m + 3) & ~(size_t)3;
-                    for (size_t p = m; p < m4; ++p) sc.r[p] = 0.0;
-                    consph_kernel_eval_batch(kernel, m4, sc.r, need & CONSPH_PASS_W ? sc.w : NULL,
-                                             need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? sc.dwr
-                                                                                       : NULL,
-                                             need & CONSPH_PASS_D2W ? sc.d2w : NULL);
-                }
+                if (dest && !dest[consph_nnps_slot_particle(&v, sl)]) continue;
                 consph_nbhd nb;
-                nb.i = i;
-                nb.n = m;
-                nb.j = j;
-                for (int a = 0; a < CONSPH_MAX_DIM; ++a)
-                    nb.dx[a] = with_dx && a < dim ? sc.dx[a] : NULL;
-                nb.r = sc.r;
-                /* Values the pass did not ask for were not evaluated: hand out no pointer to
-                 * them, so that reading one faults at once instead of summing stale scratch. */
-                nb.w = need & CONSPH_PASS_W ? sc.w : NULL;
-                nb.dwr = need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? sc.dwr : NULL;
-                nb.d2w = need & CONSPH_PASS_D2W ? sc.d2w : NULL;
+                nbhd_gather(s, &v, &runs, sl, need, with_dx, &sc, &nb);
                 pass->visit(job, &nb);
-                my_pairs += m;
+                my_pairs += nb.n;
             }
         }
 #pragma omp critical(consph_pass_run)
@@ -194,7 +115,8 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
                 memcpy(why, my_why, sizeof why);
             }
         }
-        scratch_free(&sc);
+        consph_nnps_runs_free(&runs);
+        nbhd_scratch_free(&sc);
     }
     if (pairs) *pairs += total;
     if (status != CONSPH_OK) return pass_fail(pass, status, why);
