@@ -204,34 +204,26 @@ static int run_file_apply(const cli_command *cmd, run_file *rf, consph_run_param
     return cli_error(cmd, "option --config: %s", consph_last_error());
 }
 
-/* Options setting a parameter that this run's scheme or layout does not read would do nothing:
- * refused, naming where they act (the table's `reads`: consph_scheme_reads;
- * consph_layout_uses_seed). --eos default is the scheme's own EOS, so it is no setting. */
+/* consph_run_params_unread's `given`: an option, or a key of --config that stays. */
+typedef struct given_ctx {
+    const cli_command *cmd;
+    const run_file *rf;
+} given_ctx;
+
+static int given_where(void *ctx, const char *name, char *where, size_t size)
+{
+    const given_ctx *g = ctx;
+    return param_given(g->cmd, g->rf, name, where, size);
+}
+
+/* Options (or keys) setting a parameter that this run's scheme or layout does not read would do
+ * nothing: refused, naming where they act. */
 static int unread_options(const cli_command *cmd, const run_file *rf, const consph_run_params *prm)
 {
-    char list[512], where[320], lw[320];
-    for (int k = 0; k < consph_run_param_count(); ++k) {
-        const consph_run_param *d = consph_run_param_at(k);
-        if (!d->reads || !param_given(cmd, rf, d->name, where, sizeof where) ||
-            (d->reads == CONSPH_PARAM_EOS && !strcmp(d->name, "eos") &&
-             prm->eos == CONSPH_EOS_DEFAULT) ||
-            consph_scheme_reads(prm->scheme, d->reads))
-            continue;
-        return cli_error(cmd, "%s does nothing for --scheme %s (it acts on: %s)", where,
-                         prm->scheme, consph_scheme_readers(d->reads, list, sizeof list));
-    }
-    const int layout = consph_run_params_layout(prm);
-    if (!param_given(cmd, rf, "seed", where, sizeof where) || layout < 0 ||
-        consph_layout_uses_seed((consph_layout_kind)layout))
+    given_ctx g = {cmd, rf};
+    if (consph_run_params_unread(prm, given_where, &g, "--scheme", "--layout") == CONSPH_OK)
         return 0;
-    return cli_error(cmd,
-                     "%s does nothing for --layout %s (%s), which draws no random "
-                     "numbers (it acts on: %s)",
-                     where, consph_layout_name((consph_layout_kind)layout),
-                     param_given(cmd, rf, "layout", lw, sizeof lw)
-                         ? "given"
-                         : "the problem's or scheme's default",
-                     consph_layout_seeded_names(list, sizeof list));
+    return cli_error(cmd, "%s", consph_last_error());
 }
 
 static int run_heat(const cli_command *cmd, const consph_heat_params *hp, const char *out,

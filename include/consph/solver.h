@@ -275,6 +275,16 @@ int consph_run_file_apply(consph_run_file *rf, consph_run_params *prm,
 /* The index of the key of the parameter `name` (the table's name) that stays (not dropped);
  * -1 when none (or rf NULL). */
 int consph_run_file_find(const consph_run_file *rf, const char *name);
+/* Settings that would do nothing are refused, not ignored: CONSPH_EINVAL "WHERE does nothing for
+ * SCHEME_WORD S (it acts on: ...)" for the first parameter of the table that is set (given(ctx,
+ * name, where, size) nonzero, writing where it was set: "option --alpha", "FILE:LINE: key
+ * 'alpha'") and that the scheme of prm does not read (consph_scheme_reads; eos 'default' is no
+ * setting), or "WHERE does nothing for LAYOUT_WORD L (given|the problem's or scheme's default),
+ * which draws no random numbers (it acts on: ...)" for a seed the layout does not draw. The words
+ * name the scheme and layout as the caller's user gives them ("--scheme", "scheme"). */
+int consph_run_params_unread(const consph_run_params *prm,
+                             int (*given)(void *ctx, const char *name, char *where, size_t size),
+                             void *ctx, const char *scheme_word, const char *layout_word);
 
 /* ---- the solver ---- */
 typedef struct consph_solver consph_solver;

@@ -61,34 +61,25 @@ static int keyword_sets(void *kw, const char *name)
     return kw && PyDict_GetItemString(kw, name) != NULL;
 }
 
+/* consph_run_params_unread's `given`: a keyword, or a key of the run file that stays. */
+typedef struct given_ctx {
+    PyObject *kw;
+    const consph_run_file *rf;
+} given_ctx;
+
+static int given_where(void *ctx, const char *name, char *where, size_t size)
+{
+    const given_ctx *g = ctx;
+    return param_given(g->kw, g->rf, name, where, size);
+}
+
 /* A parameter the run's scheme or layout does not read would do nothing: refused as consph run
- * refuses its option (apps/cmd_run.c, unread_options); eos 'default' is no setting. */
+ * refuses its option. */
 static int unread_params(PyObject *kw, const consph_run_file *rf, const consph_run_params *prm)
 {
-    char list[512], where[320];
-    for (int k = 0; k < consph_run_param_count(); ++k) {
-        const consph_run_param *d = consph_run_param_at(k);
-        if (!d->reads || !param_given(kw, rf, d->name, where, sizeof where) ||
-            (!strcmp(d->name, "eos") && prm->eos == CONSPH_EOS_DEFAULT) ||
-            consph_scheme_reads(prm->scheme, d->reads))
-            continue;
-        pyc_raise_msg(CONSPH_EINVAL, "%s does nothing for scheme %s (it acts on: %s)", where,
-                      prm->scheme, consph_scheme_readers(d->reads, list, sizeof list));
-        return -1;
-    }
-    const int layout = consph_run_params_layout(prm);
-    if (!param_given(kw, rf, "seed", where, sizeof where) || layout < 0 ||
-        consph_layout_uses_seed((consph_layout_kind)layout))
-        return 0;
-    char lw[320];
-    pyc_raise_msg(CONSPH_EINVAL,
-                  "%s does nothing for layout %s (%s), which draws no random numbers (it acts "
-                  "on: %s)",
-                  where, consph_layout_name((consph_layout_kind)layout),
-                  param_given(kw, rf, "layout", lw, sizeof lw)
-                      ? "given"
-                      : "the problem's or scheme's default",
-                  consph_layout_seeded_names(list, sizeof list));
+    given_ctx g = {kw, rf};
+    if (consph_run_params_unread(prm, given_where, &g, "scheme", "layout") == CONSPH_OK) return 0;
+    pyc_raise_msg(CONSPH_EINVAL, "%s", consph_last_error());
     return -1;
 }
 

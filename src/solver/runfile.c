@@ -117,3 +117,32 @@ int consph_run_file_apply(consph_run_file *rf, consph_run_params *prm,
     }
     return CONSPH_OK;
 }
+
+int consph_run_params_unread(const consph_run_params *prm,
+                             int (*given)(void *ctx, const char *name, char *where, size_t size),
+                             void *ctx, const char *scheme_word, const char *layout_word)
+{
+    char list[512], where[320], lw[320];
+    for (int k = 0; k < consph_run_param_count(); ++k) {
+        const consph_run_param *d = consph_run_param_at(k);
+        if (!d->reads || !given(ctx, d->name, where, sizeof where) ||
+            (d->reads == CONSPH_PARAM_EOS && !strcmp(d->name, "eos") &&
+             prm->eos == CONSPH_EOS_DEFAULT) ||
+            consph_scheme_reads(prm->scheme, d->reads))
+            continue;
+        return consph_fail(CONSPH_EINVAL, "%s does nothing for %s %s (it acts on: %s)", where,
+                           scheme_word, prm->scheme,
+                           consph_scheme_readers(d->reads, list, sizeof list));
+    }
+    const int layout = consph_run_params_layout(prm);
+    if (!given(ctx, "seed", where, sizeof where) || layout < 0 ||
+        consph_layout_uses_seed((consph_layout_kind)layout))
+        return CONSPH_OK;
+    return consph_fail(CONSPH_EINVAL,
+                       "%s does nothing for %s %s (%s), which draws no random numbers (it acts "
+                       "on: %s)",
+                       where, layout_word, consph_layout_name((consph_layout_kind)layout),
+                       given(ctx, "layout", lw, sizeof lw) ? "given"
+                                                           : "the problem's or scheme's default",
+                       consph_layout_seeded_names(list, sizeof list));
+}
