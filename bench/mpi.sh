@@ -246,45 +246,59 @@ solver_scaling() {
 }
 
 # serial_overhead: main's serial binary against BASE (the serial binary before the MPI hooks),
-# same runs, --threads 1: minimum user time of REPEAT tries, and instructions where perf can
-# count them.
+# same runs, --threads 1: instructions (perf where it can count them, else valgrind's
+# cachegrind without cache simulation: every instruction of the process, loader included) and
+# the minimum user time of REPEAT tries.
+icount() {
+    if perf stat -x, -e instructions:u true 2>&1 | grep -q '^[0-9]'; then
+        perf stat -x, -e instructions:u "$@" 2>&1 >/dev/null | grep instructions | cut -d, -f1
+    elif command -v valgrind >/dev/null; then
+        valgrind --tool=cachegrind --cache-sim=no --cachegrind-out-file=/dev/null "$@" 2>&1 >/dev/null |
+            sed -n 's/.*I *refs: *//p' | tr -d ,
+    else
+        echo --
+    fi
+    rm -rf "$WORK/o"
+}
 serial_overhead() {
+    how=valgrind
+    perf stat -x, -e instructions:u true 2>&1 | grep -q '^[0-9]' && how=perf
     echo
     echo "## Serial overhead of the MPI hooks"
     echo
-    echo "\`consph run taylor-green --scheme S --nx 100 --steps 40 --threads 1 --layout lattice\`,"
-    echo "serial (no mpirun), $(basename "$BASE") before the MPI merge against this build; user"
-    echo "seconds: minimum of $REPEAT tries, alternating the binaries."
+    echo "\`consph run taylor-green --scheme S --nx 100 --steps 40 --threads 1 --layout lattice\`"
+    echo "(10 000 particles, set-up and output included) and \`consph --version\` (start-up only),"
+    echo "serial (no mpirun): the binary before the MPI merge (before) against this build (now)."
+    echo "Instructions: $how (user space, the whole process); user seconds: minimum of $REPEAT"
+    echo "tries, the binaries alternating."
     echo
-    echo "| scheme | instructions before | instructions now | user s before | user s now | change |"
+    echo "| command | instructions before | instructions now | change | user s before | user s now |"
     echo "|---|---|---|---|---|---|"
-    for sch in wcsph l-ipst-c; do
-        set -- run taylor-green --scheme "$sch" --nx 100 --steps 40 --threads 1 --layout lattice
+    for sch in --version wcsph l-ipst-c; do
+        if [ "$sch" = --version ]; then
+            set -- --version
+        else
+            set -- run taylor-green --scheme "$sch" --nx 100 --steps 40 --threads 1 --layout lattice --out "$WORK/o"
+        fi
         ub= un=
         r=0
         while [ $r -lt "$REPEAT" ]; do
             for bin in "$BASE" "$CONSPH"; do
-                /usr/bin/time -f %U -o "$WORK/time" "$bin" "$@" --out "$WORK/o" >/dev/null 2>&1
+                /usr/bin/time -f %U -o "$WORK/time" "$bin" "$@" >/dev/null 2>&1 || true
                 rm -rf "$WORK/o"
-                u=$(cat "$WORK/time")
+                u=$(tail -n 1 "$WORK/time")
                 if [ "$bin" = "$BASE" ]; then ub=$(printf '%s\n%s\n' "$u" "$ub" | grep . | sort -g | head -n 1)
                 else un=$(printf '%s\n%s\n' "$u" "$un" | grep . | sort -g | head -n 1); fi
             done
             r=$((r + 1))
         done
-        ib=-- in=--
-        if perf stat -x, -e instructions:u true 2>&1 | grep -q '^[0-9]'; then
-            ib=$(perf stat -x, -e instructions:u "$BASE" "$@" --out "$WORK/o" 2>&1 >/dev/null | grep instructions | cut -d, -f1)
-            rm -rf "$WORK/o"
-            in=$(perf stat -x, -e instructions:u "$CONSPH" "$@" --out "$WORK/o" 2>&1 >/dev/null | grep instructions | cut -d, -f1)
-            rm -rf "$WORK/o"
-        fi
+        ib=$(icount "$BASE" "$@")
+        in=$(icount "$CONSPH" "$@")
+        echo "serial $sch: $ib $in $ub $un" >&2
         awk -v s="$sch" -v ib="$ib" -v in_="$in" -v ub="$ub" -v un="$un" 'BEGIN {
-            ch = (ib != "--") ? sprintf("%+.2f %% instructions", 100 * (in_ - ib) / ib) : sprintf("%+.1f %% user time", 100 * (un - ub) / ub)
-            printf "| %s | %s | %s | %s | %s | %s |\n", s, ib, in_, ub, un, ch }'
+            ch = (ib != "--" && ib > 0) ? sprintf("%+.2f %%", 100 * (in_ - ib) / ib) : "--"
+            printf "| %s | %s | %s | %s | %s | %s |\n", s, ib, in_, ch, ub, un }'
     done
-    perf stat -x, -e instructions:u true 2>&1 | grep -q '^[0-9]' ||
-        { echo; echo "perf cannot count instructions on this machine (\`<not supported>\`: a VM without"; echo "PMU access); the user times are the measurement."; }
 }
 
 case " $SECTIONS " in *" solver "*) solver_scaling >>"$TMPMD" ;; esac
