@@ -719,6 +719,21 @@ int cmd_run(int argc, char **argv)
     int sig = 0;
     st = consph_run(s, &ro, &sum, &sig);
     const int against_wc = sum.exact == CONSPH_EXACT_WC;
+    if (consph_par_size() > 1 && st == CONSPH_OK && !sig) {
+        /* every rank follows rank 0's status, so every rank takes part in these sums. On stderr:
+         * stdout and summary.json stay the serial run's (tests/cli_mpi.sh) */
+        double bytes, secs;
+        consph_par_solver_comm(s, &bytes, &secs);
+        const long all_bytes = consph_par_sum_long((long)bytes);
+        const long all_us = consph_par_sum_long((long)(secs * 1e6));
+        const double mean_secs = 1e-6 * (double)all_us / consph_par_size();
+        fprintf(stderr,
+                "consph run: MPI %d ranks: %ld bytes sent (%.1f per particle-step), %.3f s in MPI "
+                "calls per rank (mean; %.1f%% of the steps' %.3f s)\n",
+                consph_par_size(), all_bytes,
+                sum.steps ? (double)all_bytes / ((double)sum.steps * (double)sum.n) : 0.0,
+                mean_secs, sum.seconds > 0.0 ? 100.0 * mean_secs / sum.seconds : 0.0, sum.seconds);
+    }
     consph_solver_free(s);
     if (st == CONSPH_ENUMERIC) {
         fprintf(stderr, "consph run: %s\n", consph_last_error());

@@ -4,15 +4,23 @@
 #    `mpirun -np K` for every K of RANKS, one OpenMP thread per rank: wall time, CPU time of all
 #    ranks, rows per second, speed-up and efficiency against the serial run, and whether every
 #    output equals the serial one (wall-time columns masked, as tests/cli_mpi.sh).
-# 2. The solver's weak and strong scaling (solver_scaling below): measured once `consph run` runs
-#    decomposed over ranks; until then the section says it is pending.
+# 2. The solver over ranks (solver_scaling): weak scaling of `consph run` on the 3D Beltrami flow
+#    and the 2D Taylor-Green vortex with L-IPST-C, strong scaling at the largest K's size, the
+#    bytes per particle-step and the fraction of the step time in MPI calls (the run's
+#    "consph run: MPI" line on stderr), and the extrapolation to 16 ranks.
+# 3. The serial overhead of the MPI hooks (serial_overhead): this build against BASE, the serial
+#    binary before them, on the same serial runs.
 #
 # usage: bench/mpi.sh        (from the repository root, after make)
-# environment: CONSPH (default build/consph), OUT (default bench/mpi.md), RANKS (default "2";
-#   on a 16-core machine "2 4 8 16"), STUDIES (default "003-kernels 001-table9": 45 short rows,
-#   and 21 solver rows of about 75 CPU seconds in all), WORK (scratch directory), and for the
-#   solver: WEAK_PER_RANK (particles per rank, default 100000), STRONG_NX (default 200),
-#   STEPS1/STEPS2 (default 2/12).
+# environment: CONSPH (default build/consph), OUT (default bench/mpi.md), SECTIONS (default
+#   "studies solver serial"), RANKS (default "2"; on a 16-core machine "2 4 8 16"), STUDIES
+#   (default "003-kernels 001-table9": 45 short rows, and 21 solver rows of about 75 CPU seconds
+#   in all), WORK (scratch directory), REPEAT (tries of each timing, minimum kept; default 1),
+#   for the solver WEAK_PER_RANK (3D particles per rank, default 100000), WEAK_PER_RANK_2D
+#   (default 40000), STEPS1/STEPS2 (default 2/12), BENCH_PAR (default build/bench/bench_par,
+#   for halo/owned), BANDWIDTH (bytes/s per rank assumed in the extrapolation, default 5e9),
+#   BASE (serial binary before the MPI merge; the section is left out without) and NOMPI (this
+#   tree built with -DCONSPH_MPI=OFF, an optional column of that section).
 # Exit 2 when the binary has no MPI or mpirun cannot start 2 ranks.
 set -eu
 
@@ -22,7 +30,13 @@ RANKS=${RANKS:-2}
 STUDIES=${STUDIES:-"003-kernels 001-table9"}
 WORK=${WORK:-${TMPDIR:-/tmp}/consph_mpi_bench}
 WEAK_PER_RANK=${WEAK_PER_RANK:-100000}
-STRONG_NX=${STRONG_NX:-200}
+WEAK_PER_RANK_2D=${WEAK_PER_RANK_2D:-40000}
+SECTIONS=${SECTIONS:-"studies solver serial"}
+REPEAT=${REPEAT:-1}
+BENCH_PAR=${BENCH_PAR:-build/bench/bench_par}
+BANDWIDTH=${BANDWIDTH:-5e9}
+NOMPI=${NOMPI:-}
+BASE=${BASE:-}
 STEPS1=${STEPS1:-2}
 STEPS2=${STEPS2:-12}
 HERE=$(cd "$(dirname "$0")" && pwd)
@@ -68,6 +82,9 @@ trap 'rm -f "$TMPMD"' EXIT
     echo "$(mpirun --version | head -n 1), one OpenMP thread per rank; load average before:"
     echo "$(cut -d' ' -f1-3 /proc/loadavg). Wall times on a machine shared with other work are noisy;"
     echo "the CPU column (user + system of every rank and of mpirun) shows the overhead of the ranks."
+} >"$TMPMD"
+case " $SECTIONS " in *" studies "*) ;; *) STUDIES= ;; esac
+[ -z "$STUDIES" ] || {
     echo
     echo "## Studies over ranks"
     echo
@@ -83,7 +100,7 @@ trap 'rm -f "$TMPMD"' EXIT
     echo
     echo "| study | rows | ranks | wall s | CPU s | rows/s | speed-up | efficiency | same |"
     echo "|---|---|---|---|---|---|---|---|---|"
-} >"$TMPMD"
+} >>"$TMPMD"
 
 for s in $STUDIES; do
     set -- $(timed 1 "$CONSPH" study "$s" --quick --out "$WORK/s1")
@@ -102,64 +119,219 @@ for s in $STUDIES; do
     rm -rf "$WORK"/s[0-9]*
 done
 
-# ---- the solver's scaling: filled in by the decomposition's entry point ----
-# solver_scaling RUN...: RUN is the command that runs the 3D Beltrami flow with L-IPST-C (its
-# --nx, --steps and --out are appended). Weak scaling: WEAK_PER_RANK particles per rank,
-# nx = round((K * WEAK_PER_RANK)^(1/3)), efficiency t_step(1) / t_step(K) · (N_K / (K N_1)) (the
-# nx rounding corrected); strong scaling: nx = STRONG_NX on every K, efficiency
-# t_step(1) / (K t_step(K)). t_step: (time of STEPS2 steps - time of STEPS1 steps) / (STEPS2 -
-# STEPS1), so that set-up and output do not count. Bytes communicated per particle-step and the
-# fraction of step time in communication come from the run's summary.json (keys comm_bytes and
-# comm_seconds, when the decomposition writes them). While `consph run` refuses K > 1 ranks
-# (exit 2), the section says so and measures nothing.
-solver_scaling() {
+# ---- the solver over ranks ----
+# run_once K NX STEPS RUN...: one run of RUN (its --nx, --steps and --out appended) on K ranks;
+# prints "T B C U": the steps' wall time (stdout's "X s, ..." line: set-up excluded), the bytes
+# every rank sent and the mean seconds per rank in MPI calls (the "consph run: MPI" line of
+# stderr, apps/cmd_run.c; 0 0 serially), and the CPU seconds of every rank (and mpirun).
+run_once() {
+    np=$1 nx=$2 steps=$3
+    shift 3
+    if [ "$np" = 1 ]; then
+        /usr/bin/time -f "%U %S" -o "$WORK/time" "$@" --nx "$nx" --steps "$steps" --out "$WORK/r" \
+            >"$WORK/out" 2>"$WORK/err"
+    else
+        /usr/bin/time -f "%U %S" -o "$WORK/time" mpirun --oversubscribe -np "$np" "$@" --nx "$nx" \
+            --steps "$steps" --out "$WORK/r" >"$WORK/out" 2>"$WORK/err"
+    fi || { echo "mpi: $* --nx $nx on $np ranks failed: $(head -n 3 "$WORK/err")" >&2; exit 1; }
+    rm -rf "$WORK/r"
+    t=$(sed -n 's/^\([0-9.]*\) s, .*/\1/p' "$WORK/out")
+    b=$(sed -n 's/^consph run: MPI [0-9]* ranks: \([0-9]*\) bytes sent.*/\1/p' "$WORK/err")
+    c=$(sed -n 's/.* \([0-9.]*\) s in MPI calls per rank.*/\1/p' "$WORK/err")
+    u=$(tail -n 1 "$WORK/time" | awk '{ print $1 + $2 }')
+    echo "$t ${b:-0} ${c:-0} $u"
+}
+
+# measure K NX RUN...: time per step and communication per step from STEPS1 and STEPS2 steps,
+# the minimum of REPEAT tries of each; prints "s/step bytes/step comm-s/step cpu-s/step".
+measure() {
+    np=$1 nx=$2
+    shift 2
+    best1= best2=
+    r=0
+    while [ $r -lt "$REPEAT" ]; do
+        l1=$(run_once "$np" "$nx" "$STEPS1" "$@")
+        l2=$(run_once "$np" "$nx" "$STEPS2" "$@")
+        best1=$(printf '%s\n%s\n' "$l1" "$best1" | grep . | sort -g | head -n 1)
+        best2=$(printf '%s\n%s\n' "$l2" "$best2" | grep . | sort -g | head -n 1)
+        r=$((r + 1))
+    done
+    echo "$best1 $best2" | awk -v s1="$STEPS1" -v s2="$STEPS2" \
+        '{ d = s2 - s1; printf "%.4g %.6g %.4g %.4g\n", ($5 - $1) / d, ($6 - $2) / d, ($7 - $3) / d, ($8 - $4) / d }'
+}
+
+# halo K NX PROBLEM SCHEME: halo / owned particles, mean over ranks (bench_par, one step).
+halo() {
+    [ -x "$BENCH_PAR" ] || { echo --; return; }
+    mpirun --oversubscribe -np "$1" "$BENCH_PAR" "$3" "$4" "$2" 1 2>/dev/null |
+        sed -n 's/.*(halo \([0-9.]*\) of owned).*/\1/p' | awk '{ s += $1; n++ } END { if (n) printf "%.2f", s / n; else print "--" }'
+}
+
+# solver_case DIM PER_RANK PROBLEM SCHEME: weak scaling at PER_RANK particles per rank (nx =
+# round((K PER_RANK)^(1/DIM))), and strong scaling at the largest K's nx; then the extrapolation
+# of the halo and the communication to 16 ranks (slabs along one axis).
+solver_case() {
+    dim=$1 per=$2 prob=$3 scheme=$4
+    set -- "$CONSPH" run "$prob" --scheme "$scheme" --layout lattice --threads 1
     echo
-    echo "## The solver over ranks: weak and strong scaling"
+    echo "### $prob, $scheme, ${dim}D: weak scaling at $per particles per rank"
     echo
-    if mpirun --oversubscribe -np 2 "$@" --nx 8 --steps 1 --out "$WORK/probe" >/dev/null 2>"$WORK/err"; then :; else
-        echo "Pending: \`mpirun -np 2 $(echo "$*" | sed "s|$CONSPH|consph|")\` exits $? (\`consph run\` is not"
-        echo "decomposed over ranks yet: \"$(grep -o 'consph run does not decompose[^;]*' "$WORK/err" | head -n 1)\")."
-        echo "Once it is, this section holds: weak scaling on the 3D Beltrami flow with L-IPST-C at"
-        echo "$WEAK_PER_RANK particles per rank (target: efficiency >= 80 % from 1 to 16 ranks), strong"
-        echo "scaling at ${STRONG_NX}³, time per step from $STEPS1 and $STEPS2 steps, and bytes"
-        echo "communicated per particle-step with the fraction of step time in communication."
-        return 0
-    fi
-    echo "Time per step from $STEPS1 and $STEPS2 steps (set-up and output excluded)."
-    echo
-    echo "| scaling | ranks | nx | particles | s/step | efficiency | bytes/particle-step | comm fraction |"
-    echo "|---|---|---|---|---|---|---|---|"
+    echo "| scaling | ranks | nx | particles | s/step | efficiency | CPU s/step | bytes/particle-step | comm fraction | halo/owned |"
+    echo "|---|---|---|---|---|---|---|---|---|---|"
+    : >"$WORK/cache"
+    kmax=1
+    for k in 1 $RANKS; do kmax=$k; done
+    nxs=$(awk -v k="$kmax" -v n="$per" -v d="$dim" 'BEGIN { printf "%d", (k * n)^(1 / d) + 0.5 }')
     for mode in weak strong; do
-        t1=
-        n1=
+        t1= n1=
         for k in 1 $RANKS; do
             if [ $mode = weak ]; then
-                nx=$(awk -v k="$k" -v n="$WEAK_PER_RANK" 'BEGIN { printf "%d", (k * n)^(1 / 3) + 0.5 }')
+                nx=$(awk -v k="$k" -v n="$per" -v d="$dim" 'BEGIN { printf "%d", (k * n)^(1 / d) + 0.5 }')
             else
-                nx=$STRONG_NX
+                nx=$nxs
             fi
-            a=$(timed "$k" "$@" --nx "$nx" --steps "$STEPS1" --out "$WORK/r1" | cut -d' ' -f1)
-            b=$(timed "$k" "$@" --nx "$nx" --steps "$STEPS2" --out "$WORK/r2" | cut -d' ' -f1)
-            step=$(awk -v a="$a" -v b="$b" -v s1="$STEPS1" -v s2="$STEPS2" 'BEGIN { printf "%.4g", (b - a) / (s2 - s1) }')
-            n=$((nx * nx * nx))
+            m=$(sed -n "s/^$k $nx //p" "$WORK/cache")
+            if [ -z "$m" ]; then
+                m=$(measure "$k" "$nx" "$@")
+                echo "$k $nx $m" >>"$WORK/cache"
+            fi
+                step=${m%% *}
+            n=$(awk -v nx="$nx" -v d="$dim" 'BEGIN { printf "%d", nx^d }')
             [ -z "$t1" ] && t1=$step n1=$n
             if [ $mode = weak ]; then
                 eff=$(awk -v t1="$t1" -v t="$step" -v k="$k" -v n="$n" -v n1="$n1" 'BEGIN { printf "%.2f", t1 / t * n / (k * n1) }')
             else
                 eff=$(awk -v t1="$t1" -v t="$step" -v k="$k" 'BEGIN { printf "%.2f", t1 / (k * t) }')
             fi
-            cb=$(grep -o '"comm_bytes": *[0-9.eE+-]*' "$WORK/r2/summary.json" 2>/dev/null | sed 's/.*: *//' || true)
-            cs=$(grep -o '"comm_seconds": *[0-9.eE+-]*' "$WORK/r2/summary.json" 2>/dev/null | sed 's/.*: *//' || true)
-            bps=--
-            frac=--
-            [ -n "$cb" ] && bps=$(awk -v c="$cb" -v n="$n" -v s="$STEPS2" 'BEGIN { printf "%.1f", c / (n * s) }')
-            [ -n "$cs" ] && frac=$(awk -v c="$cs" -v t="$b" 'BEGIN { printf "%.2f", c / t }')
-            echo "| $mode | $k | $nx | $n | $step | $eff | $bps | $frac |"
-            rm -rf "$WORK/r1" "$WORK/r2"
+            h=--
+            [ "$k" -gt 1 ] && h=$(halo "$k" "$nx" "$prob" "$scheme")
+            echo "$m" | awk -v mode=$mode -v k="$k" -v nx="$nx" -v n="$n" -v eff="$eff" -v h="$h" \
+                '{ printf "| %s | %d | %d | %d | %s | %s | %s | %.0f | %.2f | %s |\n", mode, k, nx, n, $1, eff, $4, $2 / n, $3 / $1, h }'
+            echo "$mode $k $nx $n $m $h" >>"$WORK/rows"
+            echo "$prob $mode $k ranks nx $nx: $m" >&2
         done
     done
+    # extrapolation: the weak row of the largest K
+    awk -v dim="$dim" -v per="$per" -v kmax="$kmax" -v bw="$BANDWIDTH" '
+        $1 == "weak" && $2 == 1 { t1 = $5 }
+        $1 == "weak" && $2 == kmax { nx = $3; n = $4; t = $5; b = $6 / $4; c = $7; h = $9 }
+        END {
+            if (kmax < 2 || h == "--" || h + 0 == 0) exit
+            nx16 = int((16 * per)^(1 / dim) + 0.5)
+            # the halo is a fixed number of cell layers each side; the owned slab thins as the
+            # axis grows by nx16 / nx and is cut in 16 instead of kmax
+            h16 = h * nx / nx16 * 16 / kmax
+            b16 = b * h16 / h
+            kappa = c * kmax / (b * n)     # MPI seconds per byte a rank sends, kmax-rank run
+            c16 = kappa * b16 * per
+            comp = t1                      # the pair work of PER_RANK owned particles
+            printf "\nAt 16 ranks (extrapolated, not measured): nx %d, halo/owned about %.1f", nx16, h16
+            printf " (%.2f measured at %d ranks), about %.0f bytes per particle-step;", h, kmax, b16
+            printf " at the %d-rank cost per byte (%.2g s/MB, waiting on this shared machine included)", kmax, kappa * 1e6
+            printf " communication would take %.3g s of a step whose pair work takes %.3g s:", c16, comp
+            printf " weak-scaling efficiency about %.2f.", comp / (comp + c16)
+            cb = b16 * per / bw
+            printf " At an assumed %.0f GB/s per rank (shared memory in one node; latency, packing and", bw / 1e9
+            printf " waiting left out) the %.0f MB a rank sends per step take %.3g s: efficiency", b16 * per / 1e6, cb
+            printf " about %.2f, if the halo work (refresh, search over the halo) costs nothing.\n", comp / (comp + cb)
+        }' "$WORK/rows"
+    rm -f "$WORK/rows"
 }
-solver_scaling "$CONSPH" run beltrami --scheme l-ipst-c >>"$TMPMD"
+
+solver_scaling() {
+    echo
+    echo "## The solver over ranks: weak and strong scaling"
+    echo
+    echo "\`[mpirun -np K] consph run PROBLEM --scheme S --layout lattice --threads 1 --nx NX\`;"
+    echo "time per step = (steps' time of $STEPS2 steps - of $STEPS1) / $((STEPS2 - STEPS1)), the"
+    echo "steps' time being the run's own (stdout: set-up excluded), minimum of $REPEAT tries."
+    echo "Communication: the \"consph run: MPI\" line on stderr (bytes sent by every rank, mean"
+    echo "seconds per rank in MPI calls, consph_par_solver_comm), differenced the same way; comm"
+    echo "fraction = MPI seconds per step / s per step. halo/owned: bench/bench_par, mean over ranks."
+    echo "Weak efficiency: t(1) / t(K) · N_K / (K N_1) (nx rounding corrected); strong: the largest"
+    echo "K's size on every K, t(1) / (K t(K)). With ranks > cores, or cores shared with other"
+    echo "work, a rank waits for a descheduled one inside MPI: comm fractions are upper bounds."
+    solver_case 3 "$WEAK_PER_RANK" beltrami l-ipst-c
+    solver_case 2 "$WEAK_PER_RANK_2D" taylor-green l-ipst-c
+    echo
+    echo "### What the slabs mean for the targets"
+    echo
+    echo "The extrapolation keeps what the measurement shows: every rank refreshes every field of"
+    echo "its halo before every pass, and the halo is a fixed number of cell layers (the search's"
+    echo "reach plus one) on each side of a slab whatever its thickness. Weak scaling along one axis"
+    echo "thins the slabs as K grows (the axis grows as K^(1/3) in 3D, K^(1/2) in 2D), so the halo,"
+    echo "and the bytes with it, outgrow the owned particles; more ranks than cell layers along the"
+    echo "axis are refused. The 3D target (efficiency >= 80 % at 16 ranks, 10^5 particles per rank)"
+    echo "needs a decomposition in all three axes (ranges of a space-filling curve over cells, with a"
+    echo "map back to the serial order) and a refresh of only the fields a pass reads; a machine with"
+    echo "16 free cores to measure it (none was lent here: the rows above are 1 and 2 ranks on a"
+    echo "2-core machine shared with other work)."
+}
+
+# serial_overhead: main's serial binary against BASE (the serial binary before the MPI hooks),
+# same runs, --threads 1: instructions (perf where it can count them, else valgrind's
+# cachegrind without cache simulation: every instruction of the process, loader included) and
+# the minimum user time of REPEAT tries.
+icount() {
+    if perf stat -x, -e instructions:u true 2>&1 | grep -q '^[0-9]'; then
+        perf stat -x, -e instructions:u "$@" 2>&1 >/dev/null | grep instructions | cut -d, -f1
+    elif command -v valgrind >/dev/null; then
+        valgrind --tool=cachegrind --cache-sim=no --cachegrind-out-file=/dev/null "$@" 2>&1 >/dev/null |
+            sed -n 's/.*I *refs: *//p' | tr -d ,
+    else
+        echo --
+    fi
+    rm -rf "$WORK/o"
+}
+serial_overhead() {
+    how=valgrind
+    perf stat -x, -e instructions:u true 2>&1 | grep -q '^[0-9]' && how=perf
+    bins="$BASE ${NOMPI:-} $CONSPH"
+    echo
+    echo "## Serial overhead of the MPI hooks"
+    echo
+    echo "\`consph run taylor-green --scheme S --nx 100 --steps 40 --threads 1 --layout lattice\`"
+    echo "(10 000 particles, set-up and output included) and \`consph --version\` (start-up only),"
+    echo "serial (no mpirun). Before: the binary before the MPI merge (other merges since change"
+    echo "it too); no MPI: this tree built with \`-DCONSPH_MPI=OFF\` (the hooks' serial stubs); now:"
+    echo "this build, with MPI. Instructions: $how (user space, the whole process, loader included);"
+    echo "user seconds: minimum of $REPEAT tries, the binaries alternating."
+    echo
+    echo "| command | instructions before | no MPI | now | now - no MPI | user s before / no MPI / now |"
+    echo "|---|---|---|---|---|---|"
+    for sch in --version wcsph l-ipst-c; do
+        if [ "$sch" = --version ]; then
+            set -- --version
+        else
+            set -- run taylor-green --scheme "$sch" --nx 100 --steps 40 --threads 1 --layout lattice --out "$WORK/o"
+        fi
+        : >"$WORK/user"
+        r=0
+        while [ $r -lt "$REPEAT" ]; do
+            j=0
+            for bin in $bins; do
+                /usr/bin/time -f %U -o "$WORK/time" "$bin" "$@" >/dev/null 2>&1 || true
+                rm -rf "$WORK/o"
+                echo "$j $(tail -n 1 "$WORK/time")" >>"$WORK/user"
+                j=$((j + 1))
+            done
+            r=$((r + 1))
+        done
+        users=$(awk '!($1 in m) || $2 < m[$1] { m[$1] = $2 } END { for (j = 0; j in m; j++) printf "%s%s", j ? " / " : "", m[j] }' "$WORK/user")
+        ib=$(icount "$BASE" "$@")
+        inm=--
+        [ -n "$NOMPI" ] && inm=$(icount "$NOMPI" "$@")
+        in=$(icount "$CONSPH" "$@")
+        [ -n "$NOMPI" ] || users="$users (no MPI build not given)"
+        echo "serial $sch: $ib $inm $in $users" >&2
+        awk -v s="$sch" -v ib="$ib" -v inm="$inm" -v in_="$in" -v u="$users" 'BEGIN {
+            ch = (inm != "--" && inm > 0) ? sprintf("%+d (%+.3f %%)", in_ - inm, 100 * (in_ - inm) / inm) : "--"
+            printf "| %s | %s | %s | %s | %s | %s |\n", s, ib, inm, in_, ch, u }'
+    done
+}
+
+case " $SECTIONS " in *" solver "*) solver_scaling >>"$TMPMD" ;; esac
+case " $SECTIONS " in *" serial "*) [ -z "$BASE" ] || serial_overhead >>"$TMPMD" ;; esac
 
 echo >>"$TMPMD"
 echo "Load average after: $(cut -d' ' -f1-3 /proc/loadavg)." >>"$TMPMD"

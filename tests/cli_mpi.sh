@@ -159,6 +159,9 @@ runargs=(run taylor-green --scheme edac --layout lattice --nx 24 --steps 6 --sna
 for np in 2 3; do
     mpi $np "$bin" "${runargs[@]}" --out "$work/r$np" >"$work/ro$np" 2>"$work/err" ||
         { bad "run on $np ranks: exit $?: $(ours "$work/err")"; continue; }
+    # rank 0 alone reports the communication of every rank, on stderr
+    [ "$(grep -c "^consph run: MPI $np ranks: [1-9][0-9]* bytes sent" "$work/err")" = 1 ] &&
+        pass=$((pass + 1)) || bad "run on $np ranks: no communication line once: $(ours "$work/err")"
     same_run "$work/r1" "$work/r$np" "run on $np ranks" &&
         cmp -s <(grep -v ' s, ' "$work/ro1") <(grep -v ' s, ' "$work/ro$np") && pass=$((pass + 1)) ||
         bad "run on $np ranks: stdout $(diff <(grep -v ' s, ' "$work/ro1") <(grep -v ' s, ' "$work/ro$np") | head -4)"
