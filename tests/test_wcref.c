@@ -172,6 +172,17 @@ static void test_share(void)
     CHECK(wcref_advance(b, 0.06) == CONSPH_OK && wcref_advance(alone, 0.06) == CONSPH_OK,
           "advance");
     CHECK(diff_at(b, alone, NULL) == 0.0, "a new time from the shared state differs");
+    /* just short of the furthest shared step (which b must not take) and on it */
+    const double dt = wcref_step(b);
+    long jt = (long)(0.07 / dt);
+    while ((double)(jt + 1) * dt <= 0.07) ++jt;
+    while ((double)jt * dt > 0.07) --jt;
+    const double near[] = {((double)jt - 0.5) * dt, (double)jt * dt};
+    for (int k = 0; k < 2; ++k) {
+        CHECK(wcref_advance(b, near[k]) == CONSPH_OK && wcref_advance(alone, near[k]) == CONSPH_OK,
+              "advance");
+        CHECK(diff_at(b, alone, NULL) == 0.0, "t = %.17g next to the shared step differs", near[k]);
+    }
     /* another viscosity, another trajectory */
     wcref *c = make(32, 0.0, 20, 0, 0.5 * nu, 1, 0);
     h = wcref_shared_hits();
@@ -259,6 +270,8 @@ static void test_solver(void)
     /* two solvers of the same parameters: the second takes the reference from the share, with
      * the errors of a reference computed alone; another c_o shares nothing */
     wcref_share_clear();
+    prm.nx = 16; /* cheap runs: the share is what is looked at */
+    prm.tf = 0.01;
     consph_run_summary s1, s2;
     CHECK(run(prm, &s1, &e0wc) == CONSPH_OK, "run: %s", consph_last_error());
     unsigned long h = wcref_shared_hits();
@@ -275,6 +288,7 @@ static void test_solver(void)
     CHECK(run(prm, &s2, &e0wc) == CONSPH_OK, "run: %s", consph_last_error());
     CHECK(wcref_shared_hits() == h, "another c_o hit the share");
     prm.c0 = 20;
+    prm.nx = 24;
     /* the linear EOS from ϱ = ρ_o: the reference starts where the run does */
     prm.exact = CONSPH_EXACT_WC;
     prm.eos = CONSPH_EOS_LINEAR;
