@@ -17,6 +17,8 @@
 #include "consph/solver.h"
 #include "problems/wcref.h"
 
+static int make_unshared; /* make's references stay out of the share */
+
 static wcref *make(int n, double dt, double c0, int linear, double nu, int tg, double eps)
 {
     wcref_params p = {.n = n,
@@ -27,7 +29,8 @@ static wcref *make(int n, double dt, double c0, int linear, double nu, int tg, d
                       .gamma = 7,
                       .linear = linear,
                       .nu = nu,
-                      .dt = dt};
+                      .dt = dt,
+                      .unshared = make_unshared};
     const size_t nn = (size_t)n * (size_t)n;
     double *r = malloc(3 * nn * sizeof(double)), *u = r + nn, *v = r + 2 * nn;
     for (int j = 0; j < n; ++j)
@@ -141,6 +144,58 @@ static double distance(const wcref *w, double nu)
 /* The weakly-compressible solution leaves the incompressible one by O(Ma²) in u (acoustic
  * waves whose phase makes the distance at one time oscillate: its mean over t = 0.01..0.1 is
  * compared). Ma 1/20 against 1/80: Ma² gives 16, Ma 4, Ma³ 64. */
+/* The share: a reference made from the same inputs as another takes the other's states, bit for
+ * bit those of a reference that computes them alone; any other input shares nothing. */
+static void test_share(void)
+{
+    const double nu = 0.01, ts[] = {0.0123, 0.031, 0.05, 0.031, 0.07};
+    wcref_share_clear();
+    wcref *a = make(32, 0.0, 20, 0, nu, 1, 0);
+    make_unshared = 1;
+    wcref *alone = make(32, 0.0, 20, 0, nu, 1, 0);
+    make_unshared = 0;
+    for (int k = 0; k < 5; ++k)
+        CHECK(wcref_advance(a, ts[k]) == CONSPH_OK && wcref_advance(alone, ts[k]) == CONSPH_OK,
+              "advance");
+    wcref_free(a); /* its trajectory outlives it */
+    wcref *b = make(32, 0.0, 20, 0, nu, 1, 0);
+    unsigned long h = wcref_shared_hits();
+    for (int k = 0; k < 5; ++k) {
+        CHECK(wcref_advance(b, ts[k]) == CONSPH_OK && wcref_advance(alone, ts[k]) == CONSPH_OK,
+              "advance");
+        CHECK(diff_at(b, alone, NULL) == 0.0, "shared state at t = %g differs", ts[k]);
+    }
+    CHECK(wcref_shared_hits() >= h + 5, "the times asked before: %lu hits",
+          wcref_shared_hits() - h);
+    /* a time not asked before: the furthest shared state, then b's own steps */
+    h = wcref_shared_hits();
+    CHECK(wcref_advance(b, 0.06) == CONSPH_OK && wcref_advance(alone, 0.06) == CONSPH_OK,
+          "advance");
+    CHECK(diff_at(b, alone, NULL) == 0.0, "a new time from the shared state differs");
+    /* just short of the furthest shared step (which b must not take) and on it */
+    const double dt = wcref_step(b);
+    long jt = (long)(0.07 / dt);
+    while ((double)(jt + 1) * dt <= 0.07) ++jt;
+    while ((double)jt * dt > 0.07) --jt;
+    const double near[] = {((double)jt - 0.5) * dt, (double)jt * dt};
+    for (int k = 0; k < 2; ++k) {
+        CHECK(wcref_advance(b, near[k]) == CONSPH_OK && wcref_advance(alone, near[k]) == CONSPH_OK,
+              "advance");
+        CHECK(diff_at(b, alone, NULL) == 0.0, "t = %.17g next to the shared step differs", near[k]);
+    }
+    /* another viscosity, another trajectory */
+    wcref *c = make(32, 0.0, 20, 0, 0.5 * nu, 1, 0);
+    h = wcref_shared_hits();
+    for (int k = 0; k < 3; ++k) /* times rising: c's own earlier ones are not asked again */
+        CHECK(wcref_advance(c, ts[k]) == CONSPH_OK, "advance");
+    CHECK(wcref_shared_hits() == h, "another ν hit the share");
+    CHECK(diff_at(c, alone, NULL) > 0.0, "another ν, the same state");
+    wcref_free(b);
+    wcref_free(c);
+    wcref_free(alone);
+    wcref_share_clear();
+}
+
 static void test_mach(void)
 {
     const double nu = 0.01;
@@ -212,6 +267,28 @@ static void test_solver(void)
           "both: wc errors %.17g %.17g, wc run %.17g %.17g", bb.wc_l1_p, bb.wc_l1n_p, bw.l1_p,
           bw.l1n_p);
     CHECK(isnan(bi.wc_l1_u) && isnan(bw.wc_l1n_u), "wc_* outside both: not NaN");
+    /* two solvers of the same parameters: the second takes the reference from the share, with
+     * the errors of a reference computed alone; another c_o shares nothing */
+    wcref_share_clear();
+    prm.nx = 16; /* cheap runs: the share is what is looked at */
+    prm.tf = 0.01;
+    consph_run_summary s1, s2;
+    CHECK(run(prm, &s1, &e0wc) == CONSPH_OK, "run: %s", consph_last_error());
+    unsigned long h = wcref_shared_hits();
+    CHECK(run(prm, &s2, &e0wc) == CONSPH_OK, "run: %s", consph_last_error());
+    CHECK(wcref_shared_hits() > h, "the second run did not use the share");
+    CHECK(!memcmp(&s1.wc_l1_u, &s2.wc_l1_u, sizeof s1.wc_l1_u) &&
+              !memcmp(&s1.wc_l1_p, &s2.wc_l1_p, sizeof s1.wc_l1_p) &&
+              !memcmp(&s1.wc_l1n_u, &s2.wc_l1n_u, sizeof s1.wc_l1n_u) &&
+              !memcmp(&s1.wc_l1n_p, &s2.wc_l1n_p, sizeof s1.wc_l1n_p),
+          "shared wc errors %.17g %.17g, alone %.17g %.17g", s2.wc_l1_p, s2.wc_l1n_p, s1.wc_l1_p,
+          s1.wc_l1n_p);
+    prm.c0 = 21;
+    h = wcref_shared_hits();
+    CHECK(run(prm, &s2, &e0wc) == CONSPH_OK, "run: %s", consph_last_error());
+    CHECK(wcref_shared_hits() == h, "another c_o hit the share");
+    prm.c0 = 20;
+    prm.nx = 24;
     /* the linear EOS from ϱ = ρ_o: the reference starts where the run does */
     prm.exact = CONSPH_EXACT_WC;
     prm.eos = CONSPH_EOS_LINEAR;
@@ -230,6 +307,7 @@ int main(void)
     test_acoustic(0);
     test_acoustic(1);
     test_taylor_green();
+    test_share();
     test_mach();
     test_solver();
     return check_summary("test_wcref");

@@ -24,6 +24,8 @@
 
 enum { NF = 3, NMAX = 256, KMAX = NMAX / 3 };
 
+typedef struct wctraj wctraj;
+
 struct wcref {
     wcref_params p;
     int n, K; /* grid size, the largest kept |k| index */
@@ -40,7 +42,235 @@ struct wcref {
     /* the exact rotations of L over h and h/2, for the h they were made for */
     double *cf, *sf, *ch, *sh, hrot;
     double complex *ret[NF]; /* the kept coefficients, (2K + 1)², for wcref_eval */
+    wctraj *tr;              /* the shared trajectory (NULL: unshared) */
 };
+
+/* ---- the process-wide share ----
+ *
+ * The state at t is a function of the parameters, the initial grid values and t alone
+ * (wcref_advance), so references made from the same inputs may take it from one another bit
+ * for bit. A trajectory, keyed on every field of wcref_params and every grid value, keeps the
+ * furthest whole-step state any of its references reached and the coefficients handed out at
+ * each time asked (up to MEMO_BYTES): the rows of a study at one dt ask the same times and
+ * step the reference once between them. Each reference still steps its own copy of the state,
+ * so a miss costs what it did unshared. Owner: the list below; a trajectory lives while a
+ * reference holds it and, unheld, until KEEP_UNHELD newer ones are unheld or
+ * wcref_share_clear. Every access is inside the critical section consph_wcref_share. */
+enum { KEEP_UNHELD = 4 };
+#define MEMO_BYTES ((size_t)16 << 20)
+
+struct wctraj {
+    wctraj *next;
+    wcref_params p; /* the key: the parameters as given (unshared = 0) */
+    double *grid;   /* the key: ρ, u, v at the grid points, 3 n² */
+    int refs;
+    unsigned long unheld_at; /* when refs fell to 0: the eviction order */
+    long j;                  /* s is the state at t = j dt; 0: none yet */
+    double complex *s[NF];
+    size_t nmemo, capmemo, maxmemo; /* times asked, sorted, with their coefficients */
+    double *mt;
+    double complex **mret; /* NF blocks of (2K + 1)² each */
+};
+
+static wctraj *share_list;
+static unsigned long share_hits, share_clock;
+
+static int same_key(const wctraj *tr, const wcref_params *wp, const double *rho, const double *u,
+                    const double *v)
+{
+    const size_t nn = (size_t)wp->n * (size_t)wp->n, b = nn * sizeof(double);
+    const wcref_params *a = &tr->p;
+    /* field by field, bitwise (padding and 0.0 / -0.0 must not decide) */
+    return a->n == wp->n && a->linear == wp->linear && !memcmp(a->lo, wp->lo, sizeof a->lo) &&
+           !memcmp(a->len, wp->len, sizeof a->len) && !memcmp(&a->c0, &wp->c0, sizeof a->c0) &&
+           !memcmp(&a->rho0, &wp->rho0, sizeof a->rho0) &&
+           !memcmp(&a->gamma, &wp->gamma, sizeof a->gamma) &&
+           !memcmp(&a->nu, &wp->nu, sizeof a->nu) && !memcmp(&a->dt, &wp->dt, sizeof a->dt) &&
+           !memcmp(tr->grid, rho, b) && !memcmp(tr->grid + nn, u, b) &&
+           !memcmp(tr->grid + 2 * nn, v, b);
+}
+
+static void traj_free(wctraj *tr)
+{
+    for (size_t e = 0; e < tr->nmemo; ++e) free(tr->mret[e]);
+    free(tr->mt);
+    free(tr->mret);
+    for (int f = 0; f < NF; ++f) free(tr->s[f]);
+    free(tr->grid);
+    free(tr);
+}
+
+/* Frees the unheld trajectories beyond the keep newest ones. */
+static void share_trim(int keep)
+{
+    for (;;) {
+        int unheld = 0;
+        wctraj **oldest = NULL;
+        for (wctraj **q = &share_list; *q; q = &(*q)->next)
+            if (!(*q)->refs) {
+                ++unheld;
+                if (!oldest || (*q)->unheld_at < (*oldest)->unheld_at) oldest = q;
+            }
+        if (unheld <= keep) return;
+        wctraj *tr = *oldest;
+        *oldest = tr->next;
+        traj_free(tr);
+    }
+}
+
+/* The trajectory of these inputs, held; a new one if none (NULL when out of memory: the
+ * reference then runs unshared). */
+static wctraj *share_hold(const wcref_params *wp, const double *rho, const double *u,
+                          const double *v, size_t mm)
+{
+    wctraj *tr = NULL;
+#pragma omp critical(consph_wcref_share)
+    {
+        for (tr = share_list; tr && !same_key(tr, wp, rho, u, v); tr = tr->next) {
+        }
+        if (!tr) {
+            const size_t nn = (size_t)wp->n * (size_t)wp->n;
+            tr = calloc(1, sizeof *tr);
+            if (tr && (tr->grid = malloc(3 * nn * sizeof(double)))) {
+                tr->p = *wp;
+                memcpy(tr->grid, rho, nn * sizeof(double));
+                memcpy(tr->grid + nn, u, nn * sizeof(double));
+                memcpy(tr->grid + 2 * nn, v, nn * sizeof(double));
+                tr->maxmemo = MEMO_BYTES / (NF * mm * sizeof(double complex));
+                tr->next = share_list;
+                share_list = tr;
+            } else {
+                free(tr);
+                tr = NULL;
+            }
+        }
+        if (tr) ++tr->refs;
+    }
+    return tr;
+}
+
+static void share_release(wctraj *tr)
+{
+#pragma omp critical(consph_wcref_share)
+    {
+        if (--tr->refs == 0) {
+            tr->unheld_at = ++share_clock;
+            share_trim(KEEP_UNHELD);
+        }
+    }
+}
+
+/* Index of the first memo time >= t. */
+static size_t memo_find(const wctraj *tr, double t)
+{
+    size_t lo = 0, hi = tr->nmemo;
+    while (lo < hi) {
+        const size_t mid = lo + (hi - lo) / 2;
+        if (tr->mt[mid] < t)
+            lo = mid + 1;
+        else
+            hi = mid;
+    }
+    return lo;
+}
+
+static size_t ret_count(const wcref *w)
+{
+    return (size_t)(2 * w->K + 1) * (size_t)(2 * w->K + 1);
+}
+
+/* w->ret from the memo if t was asked before: 1, else 0. */
+static int share_lookup(wcref *w, double t)
+{
+    int hit = 0;
+    const size_t mm = ret_count(w);
+#pragma omp critical(consph_wcref_share)
+    {
+        const wctraj *tr = w->tr;
+        const size_t e = memo_find(tr, t);
+        if (e < tr->nmemo && tr->mt[e] == t) {
+            for (int f = 0; f < NF; ++f)
+                memcpy(w->ret[f], tr->mret[e] + (size_t)f * mm, mm * sizeof(double complex));
+            hit = 1;
+            ++share_hits;
+        }
+    }
+    return hit;
+}
+
+/* Before stepping towards t: the trajectory's state if it is further on than w's and not
+ * beyond t (the whole steps w would take itself). */
+static void share_adopt(wcref *w, double t)
+{
+#pragma omp critical(consph_wcref_share)
+    {
+        const wctraj *tr = w->tr;
+        if (tr->j > w->j && (double)tr->j * w->dt <= t) {
+            for (int f = 0; f < NF; ++f) memcpy(w->s[f], tr->s[f], w->nn * sizeof(double complex));
+            w->j = tr->j;
+            ++share_hits;
+        }
+    }
+}
+
+/* After reaching t: w's whole-step state if it is the furthest, and w->ret for t. Out of
+ * memory here only leaves the share smaller. */
+static void share_publish(wcref *w, double t)
+{
+    const size_t mm = ret_count(w);
+#pragma omp critical(consph_wcref_share)
+    {
+        wctraj *tr = w->tr;
+        if (w->j > tr->j) {
+            int ok = 1;
+            for (int f = 0; ok && f < NF; ++f)
+                ok = tr->s[f] || (tr->s[f] = malloc(w->nn * sizeof(double complex)));
+            if (ok) {
+                for (int f = 0; f < NF; ++f)
+                    memcpy(tr->s[f], w->s[f], w->nn * sizeof(double complex));
+                tr->j = w->j;
+            }
+        }
+        const size_t e = memo_find(tr, t);
+        if (!(e < tr->nmemo && tr->mt[e] == t) && tr->nmemo < tr->maxmemo) {
+            if (tr->nmemo == tr->capmemo) {
+                const size_t cap = tr->capmemo ? 2 * tr->capmemo : 64;
+                double *mt = realloc(tr->mt, cap * sizeof *mt);
+                if (mt) tr->mt = mt;
+                double complex **mr = mt ? realloc(tr->mret, cap * sizeof *mr) : NULL;
+                if (mr) {
+                    tr->mret = mr;
+                    tr->capmemo = cap;
+                }
+            }
+            double complex *blk =
+                tr->nmemo < tr->capmemo ? malloc(NF * mm * sizeof(double complex)) : NULL;
+            if (blk) {
+                for (int f = 0; f < NF; ++f)
+                    memcpy(blk + (size_t)f * mm, w->ret[f], mm * sizeof(double complex));
+                memmove(tr->mt + e + 1, tr->mt + e, (tr->nmemo - e) * sizeof *tr->mt);
+                memmove(tr->mret + e + 1, tr->mret + e, (tr->nmemo - e) * sizeof *tr->mret);
+                tr->mt[e] = t;
+                tr->mret[e] = blk;
+                ++tr->nmemo;
+            }
+        }
+    }
+}
+
+unsigned long wcref_shared_hits(void)
+{
+    unsigned long h;
+#pragma omp critical(consph_wcref_share)
+    h = share_hits;
+    return h;
+}
+
+void wcref_share_clear(void)
+{
+#pragma omp critical(consph_wcref_share)
+    share_trim(0);
+}
 
 /* Products written out: without -ffast-math (results must not depend on it) a complex `*` calls
  * the library's NaN-checking multiply, several times slower in these loops. */
@@ -250,6 +480,7 @@ static void refresh(wcref *w, double complex *const z[NF])
 void wcref_free(wcref *w)
 {
     if (!w) return;
+    if (w->tr) share_release(w->tr);
     free(w->kx);
     free(w->ky);
     free(w->kk);
@@ -345,6 +576,7 @@ int wcref_create(wcref **out, const wcref_params *wp, const double *rho, const d
     w->j = 0;
     w->t = 0.0;
     refresh(w, w->s);
+    if (!wp->unshared) w->tr = share_hold(wp, rho, u, v, mm);
     *out = w;
     return CONSPH_OK;
 }
@@ -354,6 +586,10 @@ int wcref_advance(wcref *w, double t)
     if (!(t >= 0.0) || !isfinite(t))
         return consph_fail(CONSPH_EINVAL, "wc reference: time %g is not >= 0", t);
     if (t == w->t) return CONSPH_OK;
+    if (w->tr && share_lookup(w, t)) {
+        w->t = t;
+        return CONSPH_OK;
+    }
     /* Whole steps on the fixed grid t_j = j dt, then one shorter step from the last t_j <= t
      * on a copy: the state at t depends on t alone, not on the times asked before it (so a
      * restarted run measures against the same numbers as one that never stopped). */
@@ -361,6 +597,7 @@ int wcref_advance(wcref *w, double t)
         copy3(w, w->s, w->s0);
         w->j = 0;
     }
+    if (w->tr) share_adopt(w, t);
     while ((double)(w->j + 1) * w->dt <= t) {
         step(w, w->s, w->dt);
         ++w->j;
@@ -373,6 +610,7 @@ int wcref_advance(wcref *w, double t)
     } else {
         refresh(w, w->s);
     }
+    if (w->tr) share_publish(w, t);
     w->t = t;
     return CONSPH_OK;
 }

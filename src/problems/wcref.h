@@ -20,6 +20,7 @@ typedef struct wcref_params {
     int linear;             /* 1: p = c_o²(ρ - ρ_o); 0: Tait with γ */
     double nu;              /* kinematic viscosity */
     double dt;              /* the step (0: the rule of wcref.c from the initial speed) */
+    int unshared;           /* 1: neither uses nor feeds the process-wide share (wcref.c) */
 } wcref_params;
 
 /* From grid values at x_ij = lo + (i, j) len/n (index i + n j): density and velocity. */
@@ -35,5 +36,12 @@ double wcref_step(const wcref *w);
 void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho);
 /* p(ρ) of the reference's equation of state. */
 double wcref_pressure(const wcref *w, double rho);
+
+/* The share of wcref.c: references created from identical parameters and grid values (bit for
+ * bit) share one trajectory, so the rows of a study that differ in resolution or scheme only
+ * step it once. wcref_shared_hits counts the advances served from it (tests);
+ * wcref_share_clear frees the trajectories no reference holds. */
+unsigned long wcref_shared_hits(void);
+void wcref_share_clear(void);
 
 #endif
