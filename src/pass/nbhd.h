@@ -24,8 +24,8 @@ int nbhd_scratch_reserve(nbhd_scratch *sc, size_t need);
  * kernel values `need` asks for (a tensor-product kernel from the separations, a radial one in
  * one vectorised batch), into sc and nb. */
 static inline void nbhd_gather(const consph_sys *s, const consph_nnps_slots *v,
-                               const consph_nnps_runs *runs, size_t sl, unsigned need,
-                               int with_dx, nbhd_scratch *sc, consph_nbhd *nb)
+                               const consph_nnps_runs *runs, size_t sl, unsigned need, int with_dx,
+                               nbhd_scratch *sc, consph_nbhd *nb)
 {
     const int dim = v->dim;
     const consph_kernel *kernel = &s->kernel;
