@@ -274,11 +274,18 @@ static char *resume_command(int argc, char **argv, int resume)
     return buf;
 }
 
+/* The default of --jobs. */
+static long jobs_default(void)
+{
+    return 1;
+}
+
 int cmd_study_started;
 
 int cmd_study(int argc, char **argv)
 {
     int quick = 0, list = 0, estimate_only = 0, resume = 0;
+    long jobs = 0; /* 0: the default, jobs_default() */
     const char *out = "out/studies";
     const char *name = NULL, *particles = NULL, *box_text = NULL, *periodic_text = NULL;
     cli_cache cache = {NULL, 0};
@@ -302,6 +309,10 @@ int cmd_study(int argc, char **argv)
          "with --particles: the domain (default: the box each file carries)", NULL, 0, 0, 0},
         {"--periodic", CLI_STRING, &periodic_text, "yes|no|AXES",
          "with --particles: periodic axes (default: each file's own)", NULL, 0, 0, 0},
+        {"--jobs", CLI_INT, &jobs, "J",
+         "run the rows on J worker processes, each with cores/J threads, and write the report a "
+         "serial run writes (default 1: one process)",
+         NULL, 1, 256, 0},
         CLI_CACHE_OPTS(cache),
     };
     const char *positional[1] = {NULL};
@@ -333,6 +344,17 @@ int cmd_study(int argc, char **argv)
     if (rc) return rc == 1 ? 0 : rc;
     if ((rc = cli_cache_apply(&cmd, &cache))) return rc;
     if (list) return list_studies(&cmd);
+    const cli_opt *jobs_opt = opts;
+    while (strcmp(jobs_opt->name, "--jobs")) jobs_opt++;
+    if (jobs_opt->given && estimate_only)
+        return cli_error(&cmd, "option --jobs: not with --estimate, which runs nothing");
+    /* Under mpirun the ranks share the rows already; workers on every rank would oversubscribe. */
+    if (jobs_opt->given && jobs > 1 && consph_par_size() > 1)
+        return cli_error(&cmd,
+                         "option --jobs: %ld workers under mpirun on %d ranks; allowed there: 1 "
+                         "(the ranks share the rows, docs/mpi.md)",
+                         jobs, consph_par_size());
+    if (!jobs_opt->given) jobs = consph_par_size() > 1 ? 1 : jobs_default();
     char why[2200];
     if (!*out || !dir_creatable(out, why, sizeof why))
         return cli_error(&cmd, "option --out: cannot write results under '%.200s%s': %s", out,
@@ -386,6 +408,7 @@ int cmd_study(int argc, char **argv)
     o.resume = resume;
     o.resume_cmd = resume_cmd;
     o.stopped_by = &stopped_by;
+    o.jobs = (int)jobs;
     double t0 = consph_wtime();
     rc = CONSPH_OK;
     /* SIGINT/SIGTERM: the current row ends at its next step, the partial report is written. */

@@ -325,6 +325,9 @@ typedef struct consph_study_options {
      * the caller installed the stop handlers (consph_stop_install), which solver rows then
      * watch at every step. */
     int *stopped_by;
+    /* > 1: the rows run on that many forked worker processes, the report as a serial one's
+     * (0 or 1: this process alone; ignored under MPI on several ranks) */
+    int jobs;
 } consph_study_options;
 
 /* "mm:ss", "h:mm:ss", or "D.d days" when long; "--" when unknown (NaN, negative). */

@@ -9,6 +9,8 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <sys/wait.h>
+#include <time.h>
 #include <unistd.h>
 
 #include "consph/io.h"
@@ -445,8 +447,9 @@ static int run_figures(const consph_study *s, const consph_study_options *opt,
         if (opt->resume && access(done, F_OK) == 0) {
             /* Its outputs were committed before the mark: kept as they are. */
             if (log && rows->shared_report)
-                fprintf(log, "[%s] %s\n  -> %s/%s.md (run on another rank)\n", f->id,
-                        study_get_or(s, f, NULL, "title", ""), dir, f->id);
+                fprintf(log, "[%s] %s\n  -> %s/%s.md (run %s)\n", f->id,
+                        study_get_or(s, f, NULL, "title", ""), dir, f->id,
+                        opt->jobs > 1 ? "by a worker process" : "on another rank");
             else if (log)
                 fprintf(log, "[%s] kept from the earlier run\n", f->id);
             rows->done += nrows;
@@ -642,6 +645,146 @@ static int study_run_shared(const consph_study *s, const consph_study_options *o
     return rc;
 }
 
+/* What a worker of study_run_jobs hands back through its pipe. */
+typedef struct job_result {
+    int rc, stopped, done;
+    char msg[1024];
+} job_result;
+
+/* A study on opt->jobs forked worker processes (docs/studies.md): worker k runs the units rank k
+ * of `jobs` MPI ranks would (unit_mine) into the kept rows, then this process writes the report
+ * as a resume of them, as study_run_shared does. Processes rather than threads: every global of
+ * the library stays private to one row. Workers are in their own process group, so a SIGINT of
+ * the terminal reaches this process alone, which passes its stop request on once. */
+static int study_run_jobs(const consph_study *s, const consph_study_options *opt,
+                          const study_files *files, const char *dir, const char *state)
+{
+    const int jobs = opt->jobs;
+    size_t created = 0;
+    study_rows rows;
+    rows_init(&rows, s, opt, files, dir);
+    rows.tty = 0;
+    int rc = study_mkdir_p(dir, &created);
+    if (rc == CONSPH_OK) consph_made_dir_register(dir, created);
+    if (rc == CONSPH_OK && !opt->resume) {
+        forget_kept(dir);
+        rc = write_small(dir, STATE_NAME, state);
+    }
+    pid_t pid[256];
+    int fd[256], started = 0;
+    const int threads = consph_num_threads() / jobs > 1 ? consph_num_threads() / jobs : 1;
+    fflush(NULL);
+    for (int k = 0; rc == CONSPH_OK && k < jobs; ++k) {
+        int p[2];
+        if (pipe(p) != 0) {
+            rc = consph_fail(CONSPH_EIO, "--jobs: cannot make a pipe for worker %d", k);
+            break;
+        }
+        pid[k] = fork();
+        if (pid[k] < 0) {
+            close(p[0]);
+            close(p[1]);
+            rc = consph_fail(CONSPH_EIO, "--jobs: cannot start worker %d of %d", k, jobs);
+            break;
+        }
+        if (pid[k] == 0) {
+            setpgid(0, 0);
+            close(p[0]);
+            consph_set_num_threads(threads);
+            consph_study_options share = *opt;
+            share.log = NULL;
+            rows.print = opt->progress && k == 0;
+            rows.share_rank = k;
+            rows.share_size = jobs;
+            job_result res;
+            memset(&res, 0, sizeof res);
+            res.rc = run_figures(s, &share, files, dir, &rows);
+            res.stopped = rows.stopped;
+            res.done = rows.done;
+            if (res.rc) snprintf(res.msg, sizeof res.msg, "%s", consph_last_error());
+            fflush(NULL);
+            const int sent = write(p[1], &res, sizeof res) == (ssize_t)sizeof res;
+            _exit(sent && res.rc == CONSPH_OK ? 0 : 1);
+        }
+        close(p[1]);
+        fd[k] = p[0];
+        started++;
+    }
+    /* Polled rather than waited for, so that a stop request here reaches every worker, and a
+     * worker that fails or is killed stops the others, as a serial study stops at its first
+     * failure. */
+    int alive = started, forwarded = 0, stopped = 0, failed = -1, worker_failed = 0;
+    long done = 0;
+    int status[256];
+    for (int k = 0; k < started; ++k) status[k] = -1;
+    while (alive > 0) {
+        const int sig = consph_stop_requested();
+        if ((sig || rc || worker_failed) && !forwarded) {
+            forwarded = 1;
+            for (int k = 0; k < started; ++k)
+                if (status[k] == -1) kill(pid[k], sig ? sig : SIGTERM);
+        }
+        int any = 0;
+        for (int k = 0; k < started; ++k) {
+            if (status[k] != -1) continue;
+            int st;
+            if (waitpid(pid[k], &st, WNOHANG) != pid[k]) continue;
+            status[k] = st;
+            worker_failed |= !WIFEXITED(st) || WEXITSTATUS(st) != 0;
+            any = 1;
+            alive--;
+        }
+        if (!any) nanosleep(&(struct timespec){0, 20000000}, NULL);
+    }
+    for (int k = 0; k < started; ++k) {
+        job_result res;
+        memset(&res, 0, sizeof res);
+        const int got = read(fd[k], &res, sizeof res) == (ssize_t)sizeof res;
+        close(fd[k]);
+        if (WIFSIGNALED(status[k]) && !got) {
+            res.rc = CONSPH_EIO;
+            snprintf(res.msg, sizeof res.msg,
+                     "--jobs: worker %d of %d (pid %ld) ended by signal %d", k, jobs, (long)pid[k],
+                     WTERMSIG(status[k]));
+        } else if (!got) {
+            res.rc = CONSPH_EIO;
+            snprintf(res.msg, sizeof res.msg,
+                     "--jobs: worker %d of %d (pid %ld) ended with status %d and no result", k,
+                     jobs, (long)pid[k], WIFEXITED(status[k]) ? WEXITSTATUS(status[k]) : -1);
+        }
+        /* The first worker's failure is reported, as a serial study reports its first. */
+        if (res.rc && failed < 0 && rc == CONSPH_OK) {
+            failed = k;
+            rc = consph_fail(res.rc, "%s", res.msg);
+        }
+        if (res.stopped > stopped) stopped = res.stopped;
+        done += res.done;
+    }
+    if (rc == CONSPH_OK && !stopped) stopped = consph_stop_requested();
+    if (rc == CONSPH_OK && !stopped) {
+        consph_study_options report = *opt;
+        report.resume = 1;
+        rows.done = 0;
+        rows.work_done = 0.0;
+        rows.print = 0;
+        rows.shared_report = 1;
+        rc = run_figures(s, &report, files, dir, &rows);
+        if (rc == CONSPH_OK && rows.stopped)
+            rc = write_partial_readme(s, opt, files, dir, &rows);
+        else if (rc == CONSPH_OK)
+            rc = study_write_readme(s, opt->quick, files != NULL, dir);
+    } else if (rc == CONSPH_OK) {
+        rows.stopped = stopped;
+        rows.done = (int)done;
+        rc = write_partial_readme(s, opt, files, dir, &rows);
+    }
+    if (rc) study_remove_created(dir, created);
+    consph_made_dir_unregister();
+    if (opt->stopped_by)
+        *opt->stopped_by = rc == CONSPH_OK ? (stopped ? stopped : rows.stopped) : 0;
+    return rc;
+}
+
 static int study_run(const consph_study *s, const consph_study_options *opt,
                      const study_files *files)
 {
@@ -649,6 +792,7 @@ static int study_run(const consph_study *s, const consph_study_options *opt,
     int rc = study_prepare(s, opt, files, dir, state, sizeof state);
     if (consph_par_size() > 1) return study_run_shared(s, opt, files, dir, state, rc);
     if (rc) return rc;
+    if (opt->jobs > 1) return study_run_jobs(s, opt, files, dir, state);
     size_t created = 0;
     study_rows rows;
     rows_init(&rows, s, opt, files, dir);

@@ -1,0 +1,115 @@
+#!/usr/bin/env bash
+# consph study --jobs J (docs/studies.md): the rows on J forked workers write the files a serial
+# study writes (every file byte for byte, the wall-time columns masked); a study stopped on 2
+# workers exits 130 with the partial report and the resume command once, and resumes on 3 to the
+# serial report; a SIGINT to the study stops every worker; a row that fails in a worker gives
+# the serial exit status and message, once; a worker killed by a signal is reported, not waited
+# on forever; bad values, --estimate: exit 2.
+# Usage: cli_study_jobs.sh <path-to-consph> <source-dir>
+set -u
+bin=$1 src=$2
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+. "$(dirname "${BASH_SOURCE[0]}")/lib_cli.sh"
+
+# same A B WHAT: the study directories hold the same files, equal once masked, svg included.
+same() {
+    local f ok=0
+    if [ "$(ls -A "$1")" != "$(ls -A "$2")" ]; then
+        bad "$3: files $(ls -A "$2" | tr '\n' ' ') want $(ls -A "$1" | tr '\n' ' ')"
+        return 1
+    fi
+    for f in "$1"/*; do
+        cmp -s <(masked "$f") <(masked "$2/${f##*/}") ||
+            { bad "$3: ${f##*/} differs: $(diff <(masked "$f") <(masked "$2/${f##*/}") | head -4)"; ok=1; }
+    done
+    return $ok
+}
+
+study=$src/tests/data/resume.study
+"$bin" study "$study" --quick --jobs 1 --out "$work/s1" >/dev/null 2>"$work/err" ||
+    { bad "serial study: $(cat "$work/err")"; summary cli_study_jobs; exit; }
+for j in 2 3; do
+    timeout 120 "$bin" study "$study" --quick --jobs $j --out "$work/s$j" >"$work/out" 2>"$work/err" ||
+        { bad "--jobs $j: exit $?: $(cat "$work/err")"; continue; }
+    same "$work/s1/resume" "$work/s$j/resume" "--jobs $j" && pass=$((pass + 1))
+    [ "$(grep -c '^done in' "$work/out")" = 1 ] && pass=$((pass + 1)) ||
+        bad "--jobs $j: stdout: $(cat "$work/out")"
+done
+
+# Stopped on 2 workers (each stops after its first row), resumed on 3.
+CONSPH_TEST_STOP_AFTER_ROWS=1 timeout 120 "$bin" study "$study" --quick --jobs 2 --out "$work/k" \
+    >/dev/null 2>"$work/err"
+rc=$?
+if [ $rc != 130 ]; then
+    bad "stop on 2 workers: exit $rc, want 130: $(cat "$work/err")"
+elif ! grep -q '^\*\*Partial results\*\*: stopped by SIGINT after 2 of 12 rows' "$work/k/resume/README.md"; then
+    bad "stop on 2 workers: README.md: $(head -3 "$work/k/resume/README.md")"
+elif [ "$(grep -c 'resume with' "$work/err")" != 1 ]; then
+    bad "stop on 2 workers: the resume command not printed once: $(cat "$work/err")"
+elif ! timeout 120 "$bin" study "$study" --quick --jobs 3 --out "$work/k" --resume >/dev/null 2>"$work/err"; then
+    bad "resume on 3 workers: $(cat "$work/err")"
+else
+    same "$work/s1/resume" "$work/k/resume" "stopped on 2 workers, resumed on 3" && pass=$((pass + 1))
+fi
+
+# A study whose rows take minutes: a SIGINT to it stops both workers at their next step.
+cat >"$work/long.study" <<'STUDY'
+study = long
+[figure tgv]
+kind = run
+problem = taylor-green
+nx = 24,28
+steps = 1000000
+[series EWCSPH]
+scheme = ewcsph
+STUDY
+timeout 60 "$bin" study "$work/long.study" --quick --jobs 2 --out "$work/l" >/dev/null 2>"$work/err" &
+pid=$!
+sleep 2
+kill -INT $pid
+wait $pid
+rc=$?
+[ $rc = 130 ] && grep -q '^\*\*Partial results\*\*: stopped by SIGINT' "$work/l/long/README.md" &&
+    pass=$((pass + 1)) || bad "SIGINT on 2 workers: exit $rc: $(cat "$work/err")"
+
+# A worker killed by a signal: reported (exit 1, naming it), the other worker stopped.
+timeout 60 "$bin" study "$work/long.study" --quick --jobs 2 --out "$work/x" >/dev/null 2>"$work/err" &
+pid=$!
+sleep 2
+# $pid is timeout's; its child is the study, whose children are the workers
+kill -KILL "$(pgrep -P "$(pgrep -P $pid | head -1)" | head -1)"
+wait $pid
+rc=$?
+[ $rc = 1 ] && grep -q '^consph study: --jobs: worker [01] of 2 (pid [0-9]*) ended by signal 9$' "$work/err" &&
+    pass=$((pass + 1)) || bad "worker killed: exit $rc: $(cat "$work/err")"
+
+# A row that fails in worker 1 (its row file cannot be written: a directory holds the name).
+cat >"$work/g.study" <<'STUDY'
+study = g
+[figure g]
+op = grad
+nx = 8,10
+STUDY
+for j in 1 2; do
+    mkdir -p "$work/f$j/g/.g.s0.r1.row/x"
+    timeout 60 "$bin" study "$work/g.study" --quick --jobs $j --out "$work/f$j" >/dev/null 2>"$work/e$j"
+    echo $? >"$work/rc$j"
+done
+msg="'$work/f2/g/.g.s0.r1.row' is a directory"
+if [ "$(cat "$work/rc1")" = 0 ] || [ "$(cat "$work/rc2")" != "$(cat "$work/rc1")" ]; then
+    bad "a row failing in worker 1: exit $(cat "$work/rc2"), serial $(cat "$work/rc1")"
+elif [ "$(grep -cF "consph study: $msg" "$work/e2")" != 1 ]; then
+    bad "a row failing in worker 1: message not printed once: $(cat "$work/e2")"
+else
+    pass=$((pass + 1))
+fi
+
+# Bad values.
+for j in 0 257 x; do
+    failing 2 "option --jobs" /dev/null -- "$bin" study "$study" --quick --jobs $j --out "$work/b" &&
+        pass=$((pass + 1))
+done
+failing 2 "option --jobs: not with --estimate" /dev/null -- "$bin" study "$study" --estimate --jobs 2 &&
+    pass=$((pass + 1))
+summary cli_study_jobs
