@@ -322,7 +322,7 @@ int cmd_study(int argc, char **argv)
         "table a CSV, a markdown report with the paper's numbers beside ours, and "
         "a gnuplot figure.",
         "consph study NAME [--quick] [--out DIR] [--particles FILE,...] [--estimate] "
-        "[--resume] | consph study --list",
+        "[--resume] [--jobs J] | consph study --list",
         "NAME is a study name (see --list) or a path to a .study file; NAME.study "
         "is taken from the first of $CONSPH_STUDIES, ./studies and the built-in "
         "studies that has it.\n"
@@ -332,7 +332,8 @@ int cmd_study(int argc, char **argv)
         "finished row. SIGINT or SIGTERM ends the current row at its next step, "
         "writes the partial README.md and prints the command that resumes.\n"
         "Under mpirun -np K the rows are spread over the K ranks and rank 0 writes "
-        "the same report (docs/mpi.md); --out must be seen by every rank.\n"
+        "the same report (docs/mpi.md); --out must be seen by every rank; --jobs J "
+        "does the same with J forked processes of this machine (docs/studies.md).\n"
         "Exit status: 0 done, 1 a run failed, 2 bad input, 3 an error is not "
         "finite (stderr names the figure, series and resolution), 128 + signal "
         "stopped.",

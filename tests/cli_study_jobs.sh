@@ -37,6 +37,27 @@ for j in 2 3; do
         bad "--jobs $j: stdout: $(cat "$work/out")"
 done
 
+# Fewer rows than workers: one approx row and one m0 figure on 3 workers.
+cat >"$work/two.study" <<'STUDY'
+study = two
+[figure g]
+op = grad
+nx = 10
+[figure m]
+kind = m0
+layout = quasi-random
+kernel = wendland-c4:h
+h_policy = scaling
+periodic = no
+nx = 12
+bins = 10
+range = 0.5:1.5
+STUDY
+"$bin" study "$work/two.study" --quick --jobs 1 --out "$work/t1" >/dev/null 2>&1 &&
+    timeout 60 "$bin" study "$work/two.study" --quick --jobs 3 --out "$work/t3" >/dev/null 2>"$work/err" &&
+    same "$work/t1/two" "$work/t3/two" "2 rows on 3 workers" && pass=$((pass + 1)) ||
+    bad "2 rows on 3 workers: $(cat "$work/err")"
+
 # Stopped on 2 workers (each stops after its first row), resumed on 3.
 CONSPH_TEST_STOP_AFTER_ROWS=1 timeout 120 "$bin" study "$study" --quick --jobs 2 --out "$work/k" \
     >/dev/null 2>"$work/err"

@@ -659,10 +659,11 @@ typedef struct job_result {
 static int study_run_jobs(const consph_study *s, const consph_study_options *opt,
                           const study_files *files, const char *dir, const char *state)
 {
-    const int jobs = opt->jobs;
     size_t created = 0;
     study_rows rows;
     rows_init(&rows, s, opt, files, dir);
+    /* no more workers than units (a unit holds at least one row) */
+    const int jobs = opt->jobs < rows.total ? opt->jobs : rows.total > 1 ? rows.total : 1;
     rows.tty = 0;
     int rc = study_mkdir_p(dir, &created);
     if (rc == CONSPH_OK) consph_made_dir_register(dir, created);
