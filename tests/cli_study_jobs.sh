@@ -87,7 +87,10 @@ scheme = ewcsph
 STUDY
 timeout 60 "$bin" study "$work/long.study" --quick --jobs 2 --out "$work/l" >/dev/null 2>"$work/err" &
 pid=$!
-sleep 2
+# the signal once the study has made its directory (its stop handler is in place by then), not
+# after a fixed sleep that a loaded machine may not honour
+for _ in $(seq 300); do [ -d "$work/l/long" ] && break; sleep 0.1; done
+sleep 1
 kill -INT $pid
 wait $pid
 rc=$?
