@@ -85,7 +85,9 @@ steps = 1000000
 [series EWCSPH]
 scheme = ewcsph
 STUDY
-timeout 60 "$bin" study "$work/long.study" --quick --jobs 2 --out "$work/l" >/dev/null 2>"$work/err" &
+# --foreground: GNU timeout otherwise sends the signal it forwards to its whole process group as
+# well, so the study would see two SIGINTs, and a second stop signal kills on purpose
+timeout --foreground 60 "$bin" study "$work/long.study" --quick --jobs 2 --out "$work/l" >/dev/null 2>"$work/err" &
 pid=$!
 # the signal once the study has made its directory (its stop handler is in place by then), not
 # after a fixed sleep that a loaded machine may not honour
