@@ -583,6 +583,33 @@ static void rows_init(study_rows *rows, const consph_study *s, const consph_stud
     }
 }
 
+/* After the units ran elsewhere (ranks, worker processes) and kept their rows on disk: the report
+ * pass reads every row back (one missing is run here) and writes the serial report, or, when a
+ * unit was stopped (`stopped`, `done` rows in all), the partial README. */
+static int report_kept_rows(const consph_study *s, const consph_study_options *opt,
+                            const study_files *files, const char *dir, study_rows *rows,
+                            int stopped, long done)
+{
+    int rc;
+    if (stopped) {
+        rows->stopped = stopped;
+        rows->done = (int)done;
+        return write_partial_readme(s, opt, files, dir, rows);
+    }
+    consph_study_options report = *opt;
+    report.resume = 1;
+    rows->done = 0;
+    rows->work_done = 0.0;
+    rows->print = 0;
+    rows->shared_report = 1;
+    rc = run_figures(s, &report, files, dir, rows);
+    if (rc == CONSPH_OK && rows->stopped)
+        rc = write_partial_readme(s, opt, files, dir, rows);
+    else if (rc == CONSPH_OK)
+        rc = study_write_readme(s, opt->quick, files != NULL, dir);
+    return rc;
+}
+
 /* A study on K > 1 ranks (docs/mpi.md): every rank runs its share of the rows into the row
  * store that --resume reads (a shared file system: the one --out names); then rank 0 runs the
  * study once more as a resume of the rows kept, so that every report is written by the code, in
@@ -616,24 +643,8 @@ static int study_run_shared(const consph_study *s, const consph_study_options *o
     rc = consph_par_agree(rc);
     const int stopped = consph_par_max_int(rc == CONSPH_OK ? rows.stopped : 0);
     const long done = consph_par_sum_long(rows.done);
-    if (rank == 0 && rc == CONSPH_OK && !stopped) {
-        /* The report pass: every row is read back (one missing is run here). */
-        consph_study_options report = *opt;
-        report.resume = 1;
-        rows.done = 0;
-        rows.work_done = 0.0;
-        rows.print = 0;
-        rows.shared_report = 1;
-        rc = run_figures(s, &report, files, dir, &rows);
-        if (rc == CONSPH_OK && rows.stopped)
-            rc = write_partial_readme(s, opt, files, dir, &rows);
-        else if (rc == CONSPH_OK)
-            rc = study_write_readme(s, opt->quick, files != NULL, dir);
-    } else if (rank == 0 && rc == CONSPH_OK) {
-        rows.stopped = stopped;
-        rows.done = (int)done;
-        rc = write_partial_readme(s, opt, files, dir, &rows);
-    }
+    if (rank == 0 && rc == CONSPH_OK)
+        rc = report_kept_rows(s, opt, files, dir, &rows, stopped, done);
     if (rank == 0) {
         if (rc) study_remove_created(dir, created);
         consph_made_dir_unregister();
@@ -762,23 +773,7 @@ static int study_run_jobs(const consph_study *s, const consph_study_options *opt
         done += res.done;
     }
     if (rc == CONSPH_OK && !stopped) stopped = consph_stop_requested();
-    if (rc == CONSPH_OK && !stopped) {
-        consph_study_options report = *opt;
-        report.resume = 1;
-        rows.done = 0;
-        rows.work_done = 0.0;
-        rows.print = 0;
-        rows.shared_report = 1;
-        rc = run_figures(s, &report, files, dir, &rows);
-        if (rc == CONSPH_OK && rows.stopped)
-            rc = write_partial_readme(s, opt, files, dir, &rows);
-        else if (rc == CONSPH_OK)
-            rc = study_write_readme(s, opt->quick, files != NULL, dir);
-    } else if (rc == CONSPH_OK) {
-        rows.stopped = stopped;
-        rows.done = (int)done;
-        rc = write_partial_readme(s, opt, files, dir, &rows);
-    }
+    if (rc == CONSPH_OK) rc = report_kept_rows(s, opt, files, dir, &rows, stopped, done);
     if (rc) study_remove_created(dir, created);
     consph_made_dir_unregister();
     if (opt->stopped_by)
