@@ -39,27 +39,13 @@ mpi 2 "$bin" --version >"$work/v" 2>&1 && [ "$(grep -c '^MPI ranks 2$' "$work/v"
     { echo "skipped: mpirun cannot start 2 ranks here: $(head -3 "$work/v")"; exit 77; }
 pass=$((pass + 1))
 
-# same A B WHAT: the study directories hold the same files, equal once masked, svg included.
-same() {
-    local f ok=0
-    if [ "$(ls -A "$1")" != "$(ls -A "$2")" ]; then
-        bad "$3: files $(ls -A "$2" | tr '\n' ' ') want $(ls -A "$1" | tr '\n' ' ')"
-        return 1
-    fi
-    for f in "$1"/*; do
-        cmp -s <(masked "$f") <(masked "$2/${f##*/}") ||
-            { bad "$3: ${f##*/} differs: $(diff <(masked "$f") <(masked "$2/${f##*/}") | head -4)"; ok=1; }
-    done
-    return $ok
-}
-
 study=$src/tests/data/resume.study
 "$bin" study "$study" --quick --out "$work/s1" >/dev/null 2>"$work/err" ||
     { bad "serial study: $(cat "$work/err")"; summary cli_mpi; exit; }
 for np in 2 3; do
     mpi $np "$bin" study "$study" --quick --out "$work/s$np" >"$work/out" 2>"$work/err" ||
         { bad "$np ranks: exit $?: $(cat "$work/err")"; continue; }
-    same "$work/s1/resume" "$work/s$np/resume" "$np ranks" && pass=$((pass + 1))
+    same_study "$work/s1/resume" "$work/s$np/resume" "$np ranks" && pass=$((pass + 1))
     # rank 0 alone writes stdout: one title line, one "done" line
     [ "$(grep -c '^study resume:' "$work/out")" = 1 ] && [ "$(grep -c '^done in' "$work/out")" = 1 ] &&
         pass=$((pass + 1)) || bad "$np ranks: stdout not rank 0's alone: $(cat "$work/out")"
@@ -83,7 +69,7 @@ range = 0.5:1.5
 STUDY
 "$bin" study "$work/two.study" --quick --out "$work/t1" >/dev/null 2>&1 &&
     mpi 3 "$bin" study "$work/two.study" --quick --out "$work/t3" >/dev/null 2>"$work/err" &&
-    same "$work/t1/two" "$work/t3/two" "2 rows on 3 ranks" && pass=$((pass + 1)) ||
+    same_study "$work/t1/two" "$work/t3/two" "2 rows on 3 ranks" && pass=$((pass + 1)) ||
     bad "2 rows on 3 ranks: $(cat "$work/err")"
 
 # Stopped on 2 ranks (each rank stops after its first row), resumed on 3.
@@ -99,7 +85,7 @@ elif [ "$(ours "$work/err" | grep -c 'resume with')" != 1 ]; then
 elif ! mpi 3 "$bin" study "$study" --quick --out "$work/k" --resume >/dev/null 2>"$work/err"; then
     bad "resume on 3 ranks: $(cat "$work/err")"
 else
-    same "$work/s1/resume" "$work/k/resume" "stopped on 2 ranks, resumed on 3" && pass=$((pass + 1))
+    same_study "$work/s1/resume" "$work/k/resume" "stopped on 2 ranks, resumed on 3" && pass=$((pass + 1))
 fi
 
 # A row that fails on rank 1 (its row file cannot be written: a directory holds the name).

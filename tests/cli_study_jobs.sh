@@ -12,27 +12,13 @@ work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 . "$(dirname "${BASH_SOURCE[0]}")/lib_cli.sh"
 
-# same A B WHAT: the study directories hold the same files, equal once masked, svg included.
-same() {
-    local f ok=0
-    if [ "$(ls -A "$1")" != "$(ls -A "$2")" ]; then
-        bad "$3: files $(ls -A "$2" | tr '\n' ' ') want $(ls -A "$1" | tr '\n' ' ')"
-        return 1
-    fi
-    for f in "$1"/*; do
-        cmp -s <(masked "$f") <(masked "$2/${f##*/}") ||
-            { bad "$3: ${f##*/} differs: $(diff <(masked "$f") <(masked "$2/${f##*/}") | head -4)"; ok=1; }
-    done
-    return $ok
-}
-
 study=$src/tests/data/resume.study
 "$bin" study "$study" --quick --jobs 1 --out "$work/s1" >/dev/null 2>"$work/err" ||
     { bad "serial study: $(cat "$work/err")"; summary cli_study_jobs; exit; }
 for j in 2 3; do
     timeout 120 "$bin" study "$study" --quick --jobs $j --out "$work/s$j" >"$work/out" 2>"$work/err" ||
         { bad "--jobs $j: exit $?: $(cat "$work/err")"; continue; }
-    same "$work/s1/resume" "$work/s$j/resume" "--jobs $j" && pass=$((pass + 1))
+    same_study "$work/s1/resume" "$work/s$j/resume" "--jobs $j" && pass=$((pass + 1))
     [ "$(grep -c '^done in' "$work/out")" = 1 ] && pass=$((pass + 1)) ||
         bad "--jobs $j: stdout: $(cat "$work/out")"
 done
@@ -55,7 +41,7 @@ range = 0.5:1.5
 STUDY
 "$bin" study "$work/two.study" --quick --jobs 1 --out "$work/t1" >/dev/null 2>&1 &&
     timeout 60 "$bin" study "$work/two.study" --quick --jobs 3 --out "$work/t3" >/dev/null 2>"$work/err" &&
-    same "$work/t1/two" "$work/t3/two" "2 rows on 3 workers" && pass=$((pass + 1)) ||
+    same_study "$work/t1/two" "$work/t3/two" "2 rows on 3 workers" && pass=$((pass + 1)) ||
     bad "2 rows on 3 workers: $(cat "$work/err")"
 
 # Stopped on 2 workers (each stops after its first row), resumed on 3.
@@ -71,7 +57,7 @@ elif [ "$(grep -c 'resume with' "$work/err")" != 1 ]; then
 elif ! timeout 120 "$bin" study "$study" --quick --jobs 3 --out "$work/k" --resume >/dev/null 2>"$work/err"; then
     bad "resume on 3 workers: $(cat "$work/err")"
 else
-    same "$work/s1/resume" "$work/k/resume" "stopped on 2 workers, resumed on 3" && pass=$((pass + 1))
+    same_study "$work/s1/resume" "$work/k/resume" "stopped on 2 workers, resumed on 3" && pass=$((pass + 1))
 fi
 
 # A study whose rows take minutes: a SIGINT to it stops both workers at their next step.

@@ -64,3 +64,17 @@ masked() {
         print
     }' "$1"
 }
+
+# same_study A B WHAT: the study directories hold the same files, equal once masked, svg included.
+same_study() {
+    local f ok=0
+    if [ "$(ls -A "$1")" != "$(ls -A "$2")" ]; then
+        bad "$3: files $(ls -A "$2" | tr '\n' ' ') want $(ls -A "$1" | tr '\n' ' ')"
+        return 1
+    fi
+    for f in "$1"/*; do
+        cmp -s <(masked "$f") <(masked "$2/${f##*/}") ||
+            { bad "$3: ${f##*/} differs: $(diff <(masked "$f") <(masked "$2/${f##*/}") | head -4)"; ok=1; }
+    done
+    return $ok
+}
