@@ -66,6 +66,20 @@ failing 2 "'device': unknown value 'tpu'" "$work/o" -- "$bin" study "$work/badke
     --out "$work/x" &&
     pass=$((pass + 1))
 [ -e "$work/x" ] && bad "a refused study wrote $work/x" || pass=$((pass + 1))
+# one GPU for the ranks of mpirun: refused where this consph has MPI and mpirun starts 2 ranks
+if ! "$bin" --version | grep -qx 'MPI not built in' && command -v mpirun >/dev/null; then
+    export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+    timeout 120 mpirun --oversubscribe -np 2 "$bin" study "$study" --quick --device auto \
+        --out "$work/x" >"$work/o" 2>&1
+    rc=$?
+    if grep -q "launched on 2 MPI ranks" "$work/o"; then
+        [ $rc = 2 ] && [ ! -e "$work/x" ] && pass=$((pass + 1)) || bad "mpirun -np 2: exit $rc"
+    elif ! grep -q "^MPI ranks 2$" <(timeout 60 mpirun --oversubscribe -np 2 "$bin" --version 2>&1); then
+        echo "mpirun cannot start 2 ranks here: not checked"
+    else
+        bad "mpirun -np 2 --device auto: exit $rc: $(head -5 "$work/o")"
+    fi
+fi
 # --device cpu runs as the default does, and says so
 "$bin" study "$study" --quick --device cpu --out "$work/dcpu" >/dev/null 2>"$work/err" ||
     bad "--device cpu: $(cat "$work/err")"
