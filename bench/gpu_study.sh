@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # A convergence study on one GPU against the same study on every core (docs/gpu.md, "Studies"),
 # in about two minutes on the lent machine (one GPU, 16 cores):
+#   0. runs tests/cli_study_gpu.sh (on the GPU too where there is one: a study's report under
+#      --device gpu and auto equals the CPU's);
 #   1. finds the schemes the GPU runs (a one-step `consph run --device gpu` of each scheme of
 #      001-table9, and edac);
 #   2. writes a study of 001-table9's figure (Taylor-Green, c_o = 80, h/Δs 1.2, Δt from the
@@ -29,7 +31,7 @@
 # Usage: bash bench/gpu_study.sh [--out DIR] [--steps K] [--budget S] [--quick] [--emulate]
 #                                [--no-build] [--build-only]
 #   --out DIR     where gpu_study.md and the studies go (default: build-gpu/gpu-study-out)
-#   --steps K     steps of every row (default 200)
+#   --steps K     steps of every row (default 150)
 #   --budget S    no study starts after S seconds; each runs under timeout (default 140)
 #   --quick       nx 20, 30, 40 and 5 steps (a check of the script)
 #   --emulate     the GPU's rows on the host emulation (CONSPH_GPU_BACKEND=emulation; slow: use
@@ -38,7 +40,7 @@
 set -u
 cd "$(dirname "$0")/.." || exit 1
 out=""
-steps=200
+steps=150
 budget=140
 quick=0
 emulate=0
@@ -90,6 +92,12 @@ gpu_env=()
 [ $emulate = 1 ] && gpu_env=(CONSPH_GPU_BACKEND=emulation)
 # the layout cache of this run alone: the packing estimate must not find layouts made elsewhere
 export XDG_CACHE_HOME=$out/cache
+
+# ---- 0. the study test on this machine's GPU: the GPU's report equals the CPU's ----
+timeout 60 bash tests/cli_study_gpu.sh "$consph" "$(pwd)" >"$out/cli_study_gpu.log" 2>&1
+test_rc=$?
+test_line="tests/cli_study_gpu.sh: $(tail -1 "$out/cli_study_gpu.log") (exit $test_rc)"
+log "$test_line"
 
 # ---- 1. the schemes the GPU runs ----
 table9="e-c ewcsph l-ipst-c l-pst-c l-rr-c pe-ipst-c tv-c"
@@ -215,6 +223,8 @@ md=$out/gpu_study.md
     echo
     echo "$(date -u '+%Y-%m-%d %H:%M UTC'); $(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1)"
     echo "$([ $emulate = 1 ] && echo '(GPU rows on the host emulation: not a GPU measurement) ')$([ $quick = 1 ] && echo '(--quick: a check of the script, not the paper'"'"'s resolutions) ')CPU: $(nproc) cores, $threads threads."
+    echo
+    echo "$test_line"
     echo
     echo "The study: 001-table9's figure (its keys; \`layout = lattice\`), series:$on_gpu, nx $nx,"
     echo "$steps steps per row. Wall time of the whole \`consph study\` (set-up, steps, reports):"
