@@ -308,14 +308,15 @@ solver_scaling() {
     echo
     echo "### What the slabs mean for the targets"
     echo
-    echo "The extrapolation keeps what the measurement shows: every rank refreshes every field of"
-    echo "its halo before every pass, and the halo is a fixed number of cell layers (the search's"
-    echo "reach plus one) on each side of a slab whatever its thickness. Weak scaling along one axis"
+    echo "The extrapolation keeps what the measurement shows: before every pass every rank refreshes"
+    echo "the fields of its halo that changed since the last refresh, and the halo is a fixed number"
+    echo "of cell layers (the search's reach plus one) on each side of a slab whatever its"
+    echo "thickness. Weak scaling along one axis"
     echo "thins the slabs as K grows (the axis grows as K^(1/3) in 3D, K^(1/2) in 2D), so the halo,"
     echo "and the bytes with it, outgrow the owned particles; more ranks than cell layers along the"
     echo "axis are refused. The 3D target (efficiency >= 80 % at 16 ranks, 10^5 particles per rank)"
     echo "needs a decomposition in all three axes (ranges of a space-filling curve over cells, with a"
-    echo "map back to the serial order) and a refresh of only the fields a pass reads."
+    echo "map back to the serial order), and fewer bytes: only the fields a pass reads."
     echo "Measured here: ranks 1 $RANKS on $(getconf _NPROCESSORS_ONLN) cores${MACHINE_NOTE:+ ($MACHINE_NOTE)}."
 }
 
