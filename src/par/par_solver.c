@@ -13,7 +13,9 @@
  * search finds the images the serial search finds. The pass layer calls refresh before every
  * pass and every search rebuild: positions, every named field and the system scratch of the
  * halo particles from their owners, sending only the columns (a field's component, an axis,
- * a scratch block) whose owned values changed since the last exchange. Particles move less than
+ * a scratch block) whose owned values changed since the last exchange; the migration at a
+ * re-sort sends a particle the receiver's halo held as its slot there and those columns.
+ * Particles move less than
  * half a cell in a step (par_step_end checks it), so the halo made at the step's start holds every
  * particle within the radius of an owned one until the next re-sort.
  *
@@ -96,15 +98,6 @@ static size_t values_per_particle(const consph_particles *p)
     size_t k = (size_t)p->dim;
     for (int f = 0; f < p->nfields; ++f) k += (size_t)p->fields[f].ncomp;
     return k;
-}
-
-static void pack(const consph_particles *p, size_t i, double *out)
-{
-    size_t k = 0;
-    for (int a = 0; a < p->dim; ++a) out[k++] = p->x[a][i];
-    for (int f = 0; f < p->nfields; ++f)
-        for (int c = 0; c < p->fields[f].ncomp; ++c)
-            out[k++] = p->fields[f].data[(size_t)c * p->cap + i];
 }
 
 static void unpack(consph_particles *p, size_t i, const double *in)
@@ -553,47 +546,113 @@ static int migrate(consph_solver *s, par_solver *ps)
     free(count);
     free(all);
     const size_t per = values_per_particle(p) + 1; /* + g */
+    const size_t ncol = per - 1;
     int *cnt = consph_calloc((size_t)ps->size, sizeof(int));
     int *rcnt = consph_calloc((size_t)ps->size, sizeof(int));
     int *sd = consph_calloc((size_t)ps->size, sizeof(int));
     int *sdis = consph_calloc((size_t)ps->size, sizeof(int));
     int *rd = consph_calloc((size_t)ps->size, sizeof(int));
     int *rdis = consph_calloc((size_t)ps->size, sizeof(int));
-    int st = cnt && rcnt && sd && sdis && rd && rdis ? CONSPH_OK : par_fail_mem();
-    for (size_t o = 0; st == CONSPH_OK && o < ps->nown; ++o)
-        for (int q = 0; q < ps->size; ++q)
-            if (ps->owner[ac[o]] == q || ps->halo[(size_t)q * (size_t)nca + ac[o]]) ++cnt[q];
-    if (st == CONSPH_OK) MPI_Alltoall(cnt, 1, MPI_INT, rcnt, 1, MPI_INT, ps->comm);
-    if (st == CONSPH_OK) st = counts_to_doubles(ps, cnt, sd, sdis, per);
-    if (st == CONSPH_OK) st = counts_to_doubles(ps, rcnt, rd, rdis, per);
-    size_t ns = 0, nr = 0;
-    for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
-        ns += (size_t)cnt[q];
-        nr += (size_t)rcnt[q];
-    }
-    double *sbuf = NULL, *rbuf = NULL;
-    if (st == CONSPH_OK) {
-        sbuf = malloc((ns ? ns : 1) * per * sizeof(double));
-        rbuf = malloc((nr ? nr : 1) * per * sizeof(double));
-        if (!sbuf || !rbuf) st = par_fail_mem();
-    }
+    long *slot = malloc((p->n ? p->n : 1) * sizeof(long));
+    int st = cnt && rcnt && sd && sdis && rd && rdis && slot ? CONSPH_OK : par_fail_mem();
+    /* A particle that goes to a rank whose halo held it travels as its slot in that halo and
+     * the columns that changed since the last refresh (or that rank does not hold); the rank
+     * takes the others from what it kept (got). Records: g, slot (-1: every column), values. */
+    const size_t ons = ps->sdispl[ps->size - 1] + (size_t)ps->scount[ps->size - 1];
+    const size_t onr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
+    const size_t valid = ps->base == ncol ? ps->nvalid : 0;
+    if (st == CONSPH_OK && halo_columns(ps, &s->sys, 0) != ncol) st = par_fail_mem();
+    if (st == CONSPH_OK) st = halo_state_reserve(ps, ncol);
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
+    for (size_t c = 0; c < ncol; ++c) {
+        int changed = c >= valid;
+        const double *v = ps->col[c], *old = ps->sent + c * ons;
+        for (size_t k = 0; !changed && k < ons; ++k)
+            changed = memcmp(&v[ps->sidx[k]], &old[k], sizeof(double)) != 0;
+        ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
+    }
+    MPI_Allgather(ps->mask, (int)ncol, MPI_UNSIGNED_CHAR, ps->masks, (int)ncol, MPI_UNSIGNED_CHAR,
+                  ps->comm);
+    for (size_t i = 0; i < p->n; ++i) slot[i] = -1;
+    size_t ns = 0, nsd = 0;
+    for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
+        const unsigned char *mq = ps->masks + (size_t)q * ncol;
+        size_t sel = 0;
+        for (size_t c = 0; c < ncol; ++c) sel += (size_t)col_goes(ps->mask, mq, c);
+        const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
+        for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
+        size_t d = 0;
+        for (size_t o = 0; o < ps->nown; ++o)
+            if (ps->owner[ac[o]] == q || ps->halo[(size_t)q * (size_t)nca + ac[o]]) {
+                ++cnt[q];
+                d += 2 + (q != ps->rank && slot[ps->own[o]] >= 0 ? sel : ncol);
+            }
+        for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = -1;
+        if (d > INT32_MAX || nsd > INT32_MAX)
+            st = consph_fail(CONSPH_EINVAL, "MPI decomposition: more than 2^31 values to one "
+                                            "rank; use more ranks");
+        sd[q] = (int)d;
+        sdis[q] = (int)nsd;
+        ns += (size_t)cnt[q];
+        nsd += d;
+    }
+    if (st == CONSPH_OK) MPI_Alltoall(cnt, 1, MPI_INT, rcnt, 1, MPI_INT, ps->comm);
+    if (st == CONSPH_OK) MPI_Alltoall(sd, 1, MPI_INT, rd, 1, MPI_INT, ps->comm);
+    size_t nr = 0, nrd = 0;
+    for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
+        if (nrd > INT32_MAX)
+            st = consph_fail(CONSPH_EINVAL, "MPI decomposition: more than 2^31 "
+                                            "values to one rank; use more ranks");
+        rdis[q] = (int)nrd;
+        nr += (size_t)rcnt[q];
+        nrd += (size_t)rd[q];
+    }
+    double *sbuf = NULL, *rbuf = NULL, *full = NULL;
+    if (st == CONSPH_OK) {
+        sbuf = malloc((nsd ? nsd : 1) * sizeof(double));
+        rbuf = malloc((nrd ? nrd : 1) * sizeof(double));
+        full = malloc((nr ? nr : 1) * per * sizeof(double));
+        if (!sbuf || !rbuf || !full) st = par_fail_mem();
+    }
+    if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
     /* packed per destination rank, each in the local (serial) order */
+    double *v = sbuf;
     for (int q = 0; q < ps->size; ++q) {
-        size_t k = (size_t)sdis[q] / per;
+        const unsigned char *mq = ps->masks + (size_t)q * ncol;
+        const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
+        for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
         for (size_t o = 0; o < ps->nown; ++o) {
             if (ps->owner[ac[o]] != q && !ps->halo[(size_t)q * (size_t)nca + ac[o]]) continue;
-            double *v = sbuf + k * per;
-            pack(p, ps->own[o], v);
-            v[per - 1] = ps->g[ps->own[o]];
-            ++k;
+            const size_t i = ps->own[o];
+            const long sl = q != ps->rank ? slot[i] : -1;
+            *v++ = ps->g[i];
+            *v++ = (double)sl;
+            for (size_t c = 0; c < ncol; ++c)
+                if (sl < 0 || col_goes(ps->mask, mq, c)) *v++ = ps->col[c][i];
         }
+        for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = -1;
     }
     MPI_Alltoallv(sbuf, sd, sdis, MPI_DOUBLE, rbuf, rd, rdis, MPI_DOUBLE, ps->comm);
+    /* the records as install reads them: every column, then g */
+    const double *in = rbuf;
+    double *out = full;
+    for (int q = 0; q < ps->size; ++q) {
+        const unsigned char *mq = ps->masks + (size_t)q * ncol;
+        for (int r = 0; r < rcnt[q]; ++r, out += per) {
+            out[ncol] = *in++;
+            const long sl = (long)*in++;
+            const size_t at = (size_t)ps->rdispl[q] + (size_t)sl;
+            for (size_t c = 0; c < ncol; ++c)
+                out[c] = sl < 0 || col_goes(mq, ps->mask, c) ? *in++ : ps->got[c * onr + at];
+        }
+    }
     /* what stays on this rank is a copy, as the serial re-sort's permutation */
-    ps->bytes += (double)((ns - (size_t)cnt[ps->rank]) * per * sizeof(double));
+    ps->bytes +=
+        (double)((nsd - (size_t)sd[ps->rank]) * sizeof(double) + ncol * (size_t)(ps->size - 1));
     ps->seconds += MPI_Wtime() - t0;
-    st = install(s, ps, rbuf, nr, per);
+    free(slot);
+    st = install(s, ps, full, nr, per);
+    free(full);
     free(ac);
     free(cnt);
     free(rcnt);
