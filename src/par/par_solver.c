@@ -15,9 +15,9 @@
  * halo particles from their owners, sending only the columns (a field's component, an axis,
  * a scratch block) whose owned values changed since the last exchange; the migration at a
  * re-sort sends a particle the receiver's halo held as its slot there and those columns.
- * Particles move less than
- * half a cell in a step (par_step_end checks it), so the halo made at the step's start holds every
- * particle within the radius of an owned one until the next re-sort.
+ * Particles move less than half a cell in a step (par_step_end checks it), so the halo made at
+ * the step's start holds every particle within the radius of an owned one until the next
+ * re-sort.
  *
  * What reads every particle (checks, diagnostics, files) runs on rank 0 over the owned
  * particles gathered in rank order, which is the serial order (par_global), so sums over
