@@ -15,6 +15,10 @@
 #   DIR/scripts/            bench/mpi.sh, bench/mpi_device.sh, tests/lib_cli.sh: the folder is
 #                           self-contained, a checkout without this branch can run it
 #
+# With BEFORE=BINARY in the environment, that consph (an MPI build of an earlier commit) goes in
+# as DIR/bin/consph-before, with BEFORE_NOTE (what it is) in DIR/bin/consph-before.txt:
+# mpi_device.sh then measures its largest weak case too.
+#
 # usage: bench/mpi_carry.sh [DIR] [BUILD]   (from anywhere; DIR default mpi-carry, BUILD default
 #   build, both relative to the repository root unless absolute; BUILD is configured (Release,
 #   MPI, no CUDA) and built if it has no consph or bench_par). consph's RUNPATH names the
@@ -59,6 +63,11 @@ cp -L /usr/bin/orterun /usr/bin/orted /usr/bin/ompi_info "$DIR/usr/bin/"
 cp -L /usr/bin/orterun "$DIR/usr/bin/mpirun"
 cp -L "$BUILD/consph" "$BUILD/bench/bench_par" "$DIR/bin/"
 strip "$DIR/bin/consph" "$DIR/bin/bench_par"
+if [ -n "${BEFORE:-}" ]; then
+    cp -L "$BEFORE" "$DIR/bin/consph-before"
+    strip "$DIR/bin/consph-before" 2>/dev/null || true
+    echo "${BEFORE_NOTE:-an earlier commit}" >"$DIR/bin/consph-before.txt"
+fi
 for c in $COMPONENTS; do
     cp -L "$SYSLIB/openmpi/lib/openmpi3/mca_$c.so" "$L/openmpi/lib/openmpi3/"
 done
@@ -71,7 +80,7 @@ cp tests/lib_cli.sh "$DIR/scripts/tests/"
 # Every library the binaries and components load, glibc's own left to the target: by soname,
 # as plain files, in the flat folder (and PMIx's copy where its prefix expects it).
 GLIBC='^(linux-vdso|ld-linux|libc|libm|libpthread|libdl|librt|libresolv|libutil|libmvec)\.so'
-ldd "$DIR"/usr/bin/* "$DIR"/bin/* "$L"/openmpi/lib/openmpi3/*.so "$L"/pmix2/lib/pmix/*.so 2>/dev/null |
+ldd "$DIR"/usr/bin/* "$DIR"/bin/consph* "$DIR"/bin/bench_par "$L"/openmpi/lib/openmpi3/*.so "$L"/pmix2/lib/pmix/*.so 2>/dev/null |
     awk '$2 == "=>" && $3 ~ /^\// { print $1, $3 } $2 == "=>" && $3 == "not" { print $1, "MISSING" }' |
     sort -u >"$DIR/libs.txt"
 if grep -q MISSING "$DIR/libs.txt"; then

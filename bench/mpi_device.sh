@@ -14,7 +14,9 @@
 #   else ./mpi-carry), RANKS (default "2 4 8 16"; 1 is always run), BUDGET (seconds for the
 #   whole, default 175), WEAK_PER_RANK (default 20000), STRONG_NX (default 64), STEPS1/STEPS2
 #   (default 1/4), STUDY (default 003-kernels, "" for none), SYSTEM_MPI=1 (use this machine's
-#   OpenMPI instead: for the test here).
+#   OpenMPI instead: for the test here), BEFORE (default CARRY/bin/consph-before when packed:
+#   an earlier build measured on the largest weak case after the tables, for a before/after on
+#   this machine).
 # Exit 0 with the tables written; 2 when 2 ranks cannot start (diag.txt says why).
 set -u
 T0=$(date +%s)
@@ -119,15 +121,60 @@ echo "launcher for $KMAX ranks: $MPIRUN ($(($(date +%s) - T0)) s so far)" | tee 
 echo "hello $(($(date +%s) - T0))" >"$OUTDIR/times.txt"
 
 # The solver: weak scaling, then strong; each run under CASE_TIMEOUT and none past BUDGET - 12 s,
-# no case started after BUDGET - 45 s, cases too big for the memory skipped.
+# no case started after BUDGET - 45 s (30 s earlier with an earlier build to measure), cases
+# too big for the memory skipped.
 t=$(date +%s)
 WORK=${WORK:-${TMPDIR:-/tmp}/consph_mpi_device}
-DEADLINE=$((T0 + BUDGET - 45)) HARD_END=$((T0 + BUDGET - 12)) MPIRUN="$MPIRUN" CONSPH="$CONSPH" BENCH_PAR="$BENCH_PAR" \
+BEFORE=${BEFORE:-$CARRY/bin/consph-before}
+spare=0
+[ -x "$BEFORE" ] && spare=30 # the earlier build's row below
+DEADLINE=$((T0 + BUDGET - 45 - spare)) HARD_END=$((T0 + BUDGET - 12 - spare)) MPIRUN="$MPIRUN" CONSPH="$CONSPH" BENCH_PAR="$BENCH_PAR" \
     OUT="$OUTDIR/mpi.md" RANKS="$RANKS" SECTIONS=solver SOLVER_CASES=3d MACHINE_NOTE="${MACHINE_NOTE:-bench/mpi_device.sh, one rank per core, the OpenMPI run-time carried}" \
     WEAK_PER_RANK=${WEAK_PER_RANK:-20000} STRONG_NX=${STRONG_NX:-64} STEPS1=${STEPS1:-1} \
     STEPS2=${STEPS2:-4} CASE_TIMEOUT=${CASE_TIMEOUT:-40} WORK="$WORK" \
     bash "$SCRIPTS/mpi.sh" 2>&1 | tee "$OUTDIR/progress.log"
 echo "solver $(($(date +%s) - t))" >>"$OUTDIR/times.txt"
+
+# The earlier build on the largest weak case, if packed and time is left (a row appended)
+left=$((T0 + BUDGET - $(date +%s)))
+nxb=$(awk -v k="$KMAX" -v n="${WEAK_PER_RANK:-20000}" 'BEGIN { printf "%d", (k * n)^(1 / 3) + 0.5 }')
+if [ -x "$BEFORE" ] && [ "$left" -gt 40 ] &&
+    grep -q "^beltrami weak $KMAX ranks nx $nxb: [0-9]" "$OUTDIR/progress.log"; then
+    t=$(date +%s)
+    row=
+    for st in ${STEPS1:-1} ${STEPS2:-4}; do
+        rm -rf "$WORK.b"
+        if timeout $(((left - 10) / 2)) $MPIRUN -np "$KMAX" "$BEFORE" run beltrami --scheme l-ipst-c \
+            --layout lattice --threads 1 --nx "$nxb" --steps "$st" --out "$WORK.b" \
+            >"$WORK.b.out" 2>"$WORK.b.err"; then
+            row="$row $(sed -n 's/^\([0-9.]*\) s, .*/\1/p' "$WORK.b.out") $(sed -n 's/^consph run: MPI [0-9]* ranks: \([0-9]*\) bytes sent.* \([0-9.]*\) s in MPI calls per rank.*/\1 \2/p' "$WORK.b.err")"
+        else
+            row="$row FAIL"
+            echo "before build: $(tail -n 3 "$WORK.b.err")" >>"$OUTDIR/progress.log"
+        fi
+    done
+    rm -rf "$WORK.b"
+    echo "before build weak $KMAX ranks nx $nxb:$row" | tee -a "$OUTDIR/progress.log"
+    case $row in
+    *FAIL*) ;;
+    *)
+        {
+            echo
+            echo "### The earlier build (consph-before) on the largest weak case"
+            echo
+            echo "Same command, steps and differencing as the weak rows above; the build packed as"
+            echo "bin/consph-before (bench/mpi_carry.sh with BEFORE=...): $(cat "$BEFORE.txt" 2>/dev/null || echo an earlier commit)."
+            echo
+            echo "| build | ranks | nx | s/step | bytes/particle-step | MPI s/step | comm fraction |"
+            echo "|---|---|---|---|---|---|---|"
+            echo "$row" | awk -v k="$KMAX" -v nx="$nxb" -v d="$((${STEPS2:-4} - ${STEPS1:-1}))" '{
+                t = ($4 - $1) / d; b = ($5 - $2) / d / nx^3; c = ($6 - $3) / d
+                printf "| before | %d | %d | %.4g | %.0f | %.4g | %.2f |\n", k, nx, t, b, c, c / t }'
+        } >>"$OUTDIR/mpi.md"
+        ;;
+    esac
+    echo "before $(($(date +%s) - t))" >>"$OUTDIR/times.txt"
+fi
 
 # A quick study over ranks, if time is left (its table is appended to mpi.md)
 left=$((T0 + BUDGET - $(date +%s)))
