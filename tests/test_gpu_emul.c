@@ -4,7 +4,8 @@
  * and wcsph on the 2D Taylor-Green vortex and the 3D Beltrami flow, every particle array (positions
  * and every field, the start-of-step copies and gradients included) and the particles' origins bit
  * for bit after one step and after 20, with the gradients every step and as consph_run skips
- * them (grads_lazy, the state copied back only at the log samples and the end). Then the
+ * them (grads_lazy, the state copied back only at the log samples and the end); L-IPST-C (rk2,
+ * the kit's passes, IPST) the same way, over two shifts. Then the
  * refusals: schemes not ported, and a build without CUDA. */
 #include "gpu_compare.h"
 
@@ -15,6 +16,14 @@ static void refusals(void)
     snprintf(p.scheme, sizeof p.scheme, "tvf");
     CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "edac,wcsph"),
           "tvf on the GPU: %s", consph_last_error());
+    snprintf(p.scheme, sizeof p.scheme, "l-pst-c");
+    CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "l-ipst-c"),
+          "l-pst-c on the GPU: %s", consph_last_error());
+    snprintf(p.scheme, sizeof p.scheme, "l-ipst-c");
+    snprintf(p.integrator, sizeof p.integrator, "pec");
+    CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "rk2"),
+          "l-ipst-c under pec on the GPU: %s", consph_last_error());
+    p.integrator[0] = 0;
     snprintf(p.scheme, sizeof p.scheme, "edac");
     p.skin = 0.2;
     CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "--skin"),
@@ -50,6 +59,11 @@ int main(void)
         gpu_compare(&gpu_emulation, schemes[k], "taylor-green", 20, 1);
         gpu_compare(&gpu_emulation, schemes[k], "beltrami", 10, 0);
     }
+    /* L-IPST-C from its packed start: IPST after steps 1 (one shift, χ_o from it) and 11 (to
+     * eq. 21 or ten shifts) */
+    gpu_compare(&gpu_emulation, "l-ipst-c", "taylor-green", 16, 0);
+    gpu_compare(&gpu_emulation, "l-ipst-c", "taylor-green", 16, 1);
+    gpu_compare(&gpu_emulation, "l-ipst-c", "beltrami", 8, 0);
     gpu_twice(&gpu_emulation, "edac", "taylor-green", 20, 5);
     refusals();
     return check_summary("test_gpu_emul");

@@ -27,6 +27,8 @@
 #include <stdint.h>
 
 #include "gpu/hd.h"
+#include "schemes/negi/iact.h"
+#include "schemes/negi/kit_pair.h"
 #include "schemes/pysph/iact.h"
 
 #if defined(__CUDACC__)
@@ -78,12 +80,19 @@ enum {
     GA_U0,
     GA_Q0,
     GA_X0,
-    GA_Q, /* the evolved scalar: p (edac) or ϱ (wcsph) */
+    GA_Q, /* the evolved scalar: p (edac, pe-ipst-c) or ϱ (wcsph, l-ipst-c) */
+    /* 001's family (src/schemes/negi/scheme.c's fields) */
+    GA_VOL,   /* ω = 1/Σ W */
+    GA_BONET, /* B_i, d × d */
+    GA_GRADQ,
+    GA_LAPU,
+    GA_LAPQ,
+    GA_SHIFT, /* δr of the last shift */
     GA_COUNT
 };
 
 /* The schemes the GPU runs. */
-enum { GS_EDAC, GS_WCSPH };
+enum { GS_EDAC, GS_WCSPH, GS_NEGI };
 
 typedef struct gpu_view {
     size_t n; /* particles, and the stride of every array */
@@ -107,6 +116,16 @@ typedef struct gpu_view {
     uint32_t *count;    /* ncells + 1: particles per cell, then the scatter's fill */
     uint32_t *start;    /* ncells + 1: the first slot of each cell */
     uint32_t *order;    /* n: the particle in each slot */
+    /* 001's family (GS_NEGI): the terms of the scheme's rates, q = p (evolve_p) or ϱ, ν (Cleary's
+     * ν ρ_o), the δ-term's D, the kit's cond_max; the sums of the kit's first pass now run (∇p,
+     * G, ∇q, ∇·u stored) and its second (∇²u, ∇²q); IPST's h and h^d */
+    negi_terms nt;
+    int evolve_p;
+    int kit_p, kit_u, kit_q, kit_div, lap_u, lap_q;
+    double nu, Dq, cond_max, ipst_h, ipst_hd;
+    double *step, *total;        /* IPST: d arrays of n each: this shift and the sum of them */
+    double *chi;                 /* IPST: h^d Σ W of each particle (n) */
+    unsigned long long *chi_max; /* IPST: the bits of max χ (χ >= 0, so ordered as integers) */
 } gpu_view;
 
 GPU_FN double *gv(const gpu_view *v, int q, int comp)
@@ -215,6 +234,16 @@ GPU_FN double gpu_eos(const gpu_view *v, double rho)
     return v->rho0 * v->c2 / v->gamma * (x * x2 * x4 - 1.0);
 }
 
+/* The closure of wcsph and 001's family (solver_eos): ϱ = p/c_o² + ρ_o where p evolves (eq. 31),
+ * else p = EOS(ϱ). */
+GPU_FN void gpu_close(const gpu_view *v, size_t i)
+{
+    if (v->evolve_p)
+        gv(v, GA_RHOF, 0)[i] = gv(v, GA_P, 0)[i] / v->c2 + v->rho0;
+    else
+        gv(v, GA_P, 0)[i] = gpu_eos(v, gv(v, GA_RHOF, 0)[i]);
+}
+
 /* advance(c): u, q = u0, q0 + c (au, aq); edac's transport hook ũ - u = c ã and dx/dt = u + ũ - u
  * (wcsph: dx/dt as the rates left it); x = x0 + c dx/dt wrapped into the box; the closure (edac:
  * ϱ = the last summation density; wcsph: p = EOS(ϱ)). */
@@ -248,7 +277,7 @@ GPU_FN void dev_advance(const gpu_view *v, size_t i, double c)
     if (edac)
         gv(v, GA_RHOF, 0)[i] = gv(v, GA_RHOS, 0)[i];
     else
-        gv(v, GA_P, 0)[i] = gpu_eos(v, gv(v, GA_RHOF, 0)[i]);
+        gpu_close(v, i);
 }
 
 /* ---- the neighbour walk ---- */
@@ -573,6 +602,8 @@ GPU_FN_INLINE void dev_wcsph_rates_d(const gpu_view *v, size_t i, const int d, c
     }
     gv(v, GA_DIVU, 0)[i] = -drho / rhoi;
 }
+
+#include "gpu/dev_negi.h"
 
 /* The scheme's pass before the rates (edac: the density pass; wcsph: per-particle values) and
  * its rates, dispatched on the view. */

@@ -19,6 +19,7 @@
 
 #include "consph/ops.h"
 #include "consph/pass.h"
+#include "ops/small.h" /* term_apply_rule */
 
 /* For terms instantiated with a compile-time dimension, so their sums stay in registers. */
 #if defined(__GNUC__)
@@ -66,17 +67,6 @@ static inline void term_corrected_grad(int d, consph_op_corr corr, const double 
         double v = c[a] * w;
         for (int b = 0; b < d; ++b) v += M[a * d + b] * gr[b];
         g[a] = v;
-    }
-}
-
-/* The rule applied to a particle's sums (term_grad_sums): out = c sw + M sg. */
-static inline void term_apply_rule(int d, const double c[3], const double M[9], const double sg[3],
-                                   double sw, double out[3])
-{
-    for (int a = 0; a < d; ++a) {
-        double v = c[a] * sw;
-        for (int b = 0; b < d; ++b) v += M[a * d + b] * sg[b];
-        out[a] = v;
     }
 }
 
