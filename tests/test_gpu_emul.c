@@ -16,9 +16,9 @@ static void refusals(void)
     snprintf(p.scheme, sizeof p.scheme, "tvf");
     CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "edac,wcsph"),
           "tvf on the GPU: %s", consph_last_error());
-    snprintf(p.scheme, sizeof p.scheme, "l-pst-c");
+    snprintf(p.scheme, sizeof p.scheme, "l-rr-c");
     CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "l-ipst-c"),
-          "l-pst-c on the GPU: %s", consph_last_error());
+          "l-rr-c on the GPU: %s", consph_last_error());
     snprintf(p.scheme, sizeof p.scheme, "l-ipst-c");
     snprintf(p.integrator, sizeof p.integrator, "pec");
     CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "rk2"),
@@ -64,6 +64,15 @@ int main(void)
     gpu_compare(&gpu_emulation, "l-ipst-c", "taylor-green", 16, 0);
     gpu_compare(&gpu_emulation, "l-ipst-c", "taylor-green", 16, 1);
     gpu_compare(&gpu_emulation, "l-ipst-c", "beltrami", 8, 0);
+    /* the other ported schemes of 001's family: PE-IPST-C (p evolves, the δ-term's ∇²p),
+     * L-PST-C (Sun et al.'s shifting every step), TV-C (moved with u + δu, its δu terms), E-C
+     * (Eulerian: fixed particles and volumes,
+     * both advection terms) */
+    gpu_compare(&gpu_emulation, "pe-ipst-c", "taylor-green", 16, 1);
+    gpu_compare(&gpu_emulation, "l-pst-c", "taylor-green", 16, 0);
+    gpu_compare(&gpu_emulation, "tv-c", "taylor-green", 16, 0);
+    gpu_compare(&gpu_emulation, "e-c", "taylor-green", 16, 0);
+    gpu_compare(&gpu_emulation, "e-c", "beltrami", 8, 1);
     gpu_twice(&gpu_emulation, "edac", "taylor-green", 20, 5);
     refusals();
     return check_summary("test_gpu_emul");

@@ -66,7 +66,9 @@ GPU_KERNEL(k_chi_max, dev_chi_max(&v, i))
 GPU_KERNEL(k_ipst_shift2, dev_ipst_shift_d(&v, i, 2))
 GPU_KERNEL(k_ipst_shift3, dev_ipst_shift_d(&v, i, 3))
 GPU_KERNEL(k_ipst_move, dev_ipst_move(&v, i))
-GPU_KERNEL(k_ipst_end, dev_ipst_end(&v, i))
+GPU_KERNEL(k_pst_shift2, dev_pst_shift_d(&v, i, 2, c))
+GPU_KERNEL(k_pst_shift3, dev_pst_shift_d(&v, i, 3, c))
+GPU_KERNEL(k_shift_end, dev_shift_end(&v, i, c != 0.0))
 
 int cu_alloc(void **p, size_t bytes)
 {
@@ -140,7 +142,10 @@ int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
         (v->d == 2 ? k_ipst_shift2 : k_ipst_shift3)<<<blocks, threads>>>(*v, count, c);
         break;
     case GK_IPST_MOVE: k_ipst_move<<<blocks, threads>>>(*v, count, c); break;
-    case GK_IPST_END: k_ipst_end<<<blocks, threads>>>(*v, count, c); break;
+    case GK_PST_SHIFT:
+        (v->d == 2 ? k_pst_shift2 : k_pst_shift3)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_SHIFT_END: k_shift_end<<<blocks, threads>>>(*v, count, c); break;
     }
     return fail(cudaGetLastError(), "kernel launch");
 }

@@ -120,9 +120,12 @@ typedef struct gpu_view {
      * ν ρ_o), the δ-term's D, the kit's cond_max; the sums of the kit's first pass now run (∇p,
      * G, ∇q, ∇·u stored) and its second (∇²u, ∇²q); IPST's h and h^d */
     negi_terms nt;
-    int evolve_p;
+    int evolve_p, moves; /* moves: 0 for the Eulerian schemes (no drift, no x0, fixed ω) */
     int kit_p, kit_u, kit_q, kit_div, lap_u, lap_q;
     double nu, Dq, cond_max, ipst_h, ipst_hd;
+    /* Sun et al.'s shifting (L-PST-C): -CFL Ma (2h)², 1/W(Δs), R and the cap on |δr| */
+    double pst_coef, pst_inv_wds, pst_R, pst_cap;
+    double c0_over_h;            /* TV-C: δu = (c_o/h) δr */
     double *step, *total;        /* IPST: d arrays of n each: this shift and the sum of them */
     double *chi;                 /* IPST: h^d Σ W of each particle (n) */
     unsigned long long *chi_max; /* IPST: the bits of max χ (χ >= 0, so ordered as integers) */
@@ -222,7 +225,7 @@ GPU_FN void dev_save_start(const gpu_view *v, size_t i)
     gv(v, GA_Q0, 0)[i] = gv(v, GA_Q, 0)[i];
     for (int a = 0; a < v->d; ++a) {
         gv(v, GA_U0, a)[i] = gv(v, GA_U, a)[i];
-        gv(v, GA_X0, a)[i] = gv(v, GA_X, a)[i];
+        if (v->moves) gv(v, GA_X0, a)[i] = gv(v, GA_X, a)[i];
     }
 }
 
@@ -262,6 +265,7 @@ GPU_FN void dev_advance(const gpu_view *v, size_t i, double c)
             gv(v, GA_TVDU, a)[i] = du;
             gv(v, GA_AX, a)[i] = ax;
         } else {
+            if (!v->moves) continue;
             ax = gv(v, GA_AX, a)[i];
         }
         double x = gv(v, GA_X0, a)[i] + c * ax;

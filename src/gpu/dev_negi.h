@@ -143,16 +143,17 @@ GPU_FN void dev_negi_rates(const gpu_view *v, size_t i)
         nd.u[a] = nd.du[a] = nd.gradp[a] = nd.lapu[a] = nd.gradq[a] = 0.0;
         if (a >= d) continue;
         nd.u[a] = gv(v, GA_U, a)[i];
+        if (v->nt.transport) nd.du[a] = gv(v, GA_SHIFT, a)[i];
         nd.gradp[a] = gv(v, GA_GRADP, a)[i];
         nd.lapu[a] = gv(v, GA_LAPU, a)[i];
-        if (v->kit_q) nd.gradq[a] = gv(v, GA_GRADQ, a)[i];
+        if (v->nt.advect_q || v->nt.transport) nd.gradq[a] = gv(v, GA_GRADQ, a)[i];
     }
     for (int e = 0; e < 9; ++e) nd.G[e] = e < d * d ? gv(v, GA_GRADU, e)[i] : 0.0;
     double au[3], ax[3], aq;
     negi_rates_i(&v->nt, d, v->nu, v->Dq, v->c2, v->rho0, v->evolve_p, &nd, au, ax, &aq);
     for (int a = 0; a < d; ++a) {
         gv(v, GA_AU, a)[i] = au[a];
-        gv(v, GA_AX, a)[i] = ax[a];
+        if (v->moves) gv(v, GA_AX, a)[i] = ax[a];
     }
     gv(v, GA_AQ, 0)[i] = aq;
 }
@@ -232,6 +233,46 @@ GPU_FN void dev_ipst_shift_any(const gpu_view *v, size_t i)
         dev_ipst_shift_d(v, i, 3);
 }
 
+/* ---- the shifting of Sun et al. (regularise.c's reg_pst_shift with n = 4, no cap) ---- */
+
+/* δr_i = coef Σ_j [1 + R (W_ij/W(Δs))^4] ∇W_ij ω_j (pst_body), into step for the move and, times
+ * mul, into the shift field: 1 for L-PST-C's δr, c_o/h for TV-C's δu
+ * (solver_shift_velocity_tvc). */
+GPU_FN_INLINE void dev_pst_shift_d(const gpu_view *v, size_t i, const int D, double mul)
+{
+    const double *vol = gv(v, GA_VOL, 0);
+    double acc[3] = {0.0, 0.0, 0.0};
+    gpu_walk w;
+    gpu_walk_start(v, i, &w);
+    double x[3], r;
+    uint32_t j;
+    while (gpu_walk_next(v, &w, &j, x, &r)) {
+        const double t = gpu_w(&v->k, r) * v->pst_inv_wds, t2 = t * t;
+        const double f = (1.0 + v->pst_R * (t2 * t2)) * gpu_dwr(&v->k, r) * vol[j];
+        for (int c = 0; c < D; ++c) acc[c] += f * x[c];
+    }
+    double len2 = 0.0;
+    for (int c = 0; c < D; ++c) {
+        acc[c] *= v->pst_coef;
+        len2 += acc[c] * acc[c];
+    }
+    const double len = sqrt(len2);
+    const double scale = len > v->pst_cap ? v->pst_cap / len : 1.0;
+    for (int c = 0; c < D; ++c) {
+        const double dr = scale * acc[c];
+        gv(v, GA_SHIFT, c)[i] = mul == 1.0 ? dr : dr * mul;
+        v->step[(size_t)c * v->n + i] = dr;
+    }
+}
+
+GPU_FN void dev_pst_shift_any(const gpu_view *v, size_t i, double mul)
+{
+    if (v->d == 2)
+        dev_pst_shift_d(v, i, 2, mul);
+    else
+        dev_pst_shift_d(v, i, 3, mul);
+}
+
 /* reg_move: x + δx, wrapped into a periodic box as layout_wrap (src/layout/layout_internal.h)
  * does; the iteration's total += δx. */
 GPU_FN void dev_ipst_move(const gpu_view *v, size_t i)
@@ -251,17 +292,17 @@ GPU_FN void dev_ipst_move(const gpu_view *v, size_t i)
     }
 }
 
-/* After the iterations: δr += the total (the field zeroed before, as negi/scheme.c's
- * zeroed_shift), solver_taylor_update's u += δr·∇u and q += δr·∇q with the gradients of before
- * the shift, and the closure. */
-GPU_FN void dev_ipst_end(const gpu_view *v, size_t i)
+/* After a shift: with add_total (IPST) δr += the iterations' total (the field zeroed before, as
+ * negi/scheme.c's zeroed_shift), else δr as dev_pst_shift left it; solver_taylor_update's
+ * u += δr·∇u and q += δr·∇q with the gradients of before the shift, and the closure. */
+GPU_FN void dev_shift_end(const gpu_view *v, size_t i, int add_total)
 {
     const int d = v->d;
     const size_t n = v->n;
     double dr[3] = {0.0, 0.0, 0.0};
     for (int a = 0; a < d; ++a) {
         double *sh = gv(v, GA_SHIFT, a);
-        sh[i] += v->total[(size_t)a * n + i];
+        if (add_total) sh[i] += v->total[(size_t)a * n + i];
         dr[a] = sh[i];
     }
     double dq = 0.0;

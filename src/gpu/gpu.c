@@ -18,6 +18,7 @@ struct gpu_run {
     int nfields;      /* the particles' field count at the attach (checked at each copy) */
     double *dev_a[2]; /* the two blocks of arrays (v.a, v.b swap at each re-sort) */
     size_t bytes;     /* device memory allocated */
+    int built;        /* the cell lists of particles that do not move are built */
 };
 
 /* ---- the emulation backend ---- */
@@ -99,8 +100,11 @@ static int emu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_IPST_MOVE:
         for (size_t i = 0; i < count; ++i) dev_ipst_move(v, i);
         break;
-    case GK_IPST_END:
-        for (size_t i = 0; i < count; ++i) dev_ipst_end(v, i);
+    case GK_PST_SHIFT:
+        for (size_t i = 0; i < count; ++i) dev_pst_shift_any(v, i, c);
+        break;
+    case GK_SHIFT_END:
+        for (size_t i = 0; i < count; ++i) dev_shift_end(v, i, c != 0.0);
         break;
     }
     return 0;
@@ -147,13 +151,16 @@ static const gpu_backend *find_backend(char *why, size_t len)
 
 const char *consph_gpu_schemes(void)
 {
-    return "edac,wcsph,l-ipst-c";
+    return "edac,wcsph,l-ipst-c,pe-ipst-c,l-pst-c,tv-c,e-c";
 }
 
-/* 001's family on the GPU: L-IPST-C (rk2, coupled_bc, IPST). */
+/* 001's family on the GPU (rk2, coupled_bc): L-IPST-C and PE-IPST-C (IPST), L-PST-C (Sun et
+ * al.'s shifting), TV-C (its shifting velocity), E-C (Eulerian). */
 static int is_negi(const char *scheme)
 {
-    return strcmp(scheme, "l-ipst-c") == 0;
+    return strcmp(scheme, "l-ipst-c") == 0 || strcmp(scheme, "pe-ipst-c") == 0 ||
+           strcmp(scheme, "l-pst-c") == 0 || strcmp(scheme, "tv-c") == 0 ||
+           strcmp(scheme, "e-c") == 0;
 }
 
 int consph_gpu_available(char *why, size_t len)
@@ -174,11 +181,14 @@ static int check_params(const consph_run_params *prm)
     if (prm->integrator[0] && strcmp(prm->integrator, negi ? "rk2" : "pec") != 0)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: integrator '%s' does not run on the GPU yet (allowed: "
-                           "pec, the default of edac and wcsph; rk2, the default of l-ipst-c)",
+                           "pec, the default of edac and wcsph; rk2, that of 001's schemes)",
                            prm->integrator);
     /* Tait's EOS and sound speed by multiplication (solver_eos's γ = 7 loop) */
-    if ((strcmp(prm->scheme, "wcsph") == 0 || negi) && prm->eos != CONSPH_EOS_LINEAR &&
-        prm->gamma != 7.0)
+    const int tait = prm->eos == CONSPH_EOS_TAIT ||
+                     (prm->eos == CONSPH_EOS_DEFAULT &&
+                      (strcmp(prm->scheme, "wcsph") == 0 || strcmp(prm->scheme, "l-ipst-c") == 0 ||
+                       strcmp(prm->scheme, "l-pst-c") == 0));
+    if ((negi || strcmp(prm->scheme, "wcsph") == 0) && tait && prm->gamma != 7.0)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: %s's Tait EOS runs on the GPU with γ = 7 only, not %g",
                            prm->scheme, prm->gamma);
@@ -389,25 +399,27 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     const int edac = strcmp(s->prm.scheme, "edac") == 0, negi = is_negi(s->prm.scheme);
     v->scheme = edac ? GS_EDAC : negi ? GS_NEGI : GS_WCSPH;
     const int evolve_p = edac || (negi && s->scheme->evolve_p);
+    const int moves = !negi || s->scheme->moves;
+    v->moves = moves;
     /* who: 1 every scheme, 2 edac only (pysph/scheme.c's tvdu, auhat, rhos, numden, pavg), 4
-     * 001's family only (negi/scheme.c's fields) */
+     * 001's family only (negi/scheme.c's fields), 8 the schemes that move (x0, dx/dt) */
     struct {
         int q;
         const char *name;
         int ncomp, who;
     } const map[] = {{GA_U, SF_U, d, 1},         {GA_P, SF_P, 1, 1},
                      {GA_AU, SF_AU, d, 1},       {GA_AQ, SF_AQ, 1, 1},
-                     {GA_AX, SF_AX, d, 1},       {GA_AUHAT, "auhat", d, 2},
+                     {GA_AX, SF_AX, d, 8},       {GA_AUHAT, "auhat", d, 2},
                      {GA_TVDU, "tvdu", d, 2},    {GA_RHOS, "rhos", 1, 2},
                      {GA_RHOF, SF_RHOF, 1, 1},   {GA_NUMD, "numden", 1, 2},
                      {GA_PAVG, "pavg", 1, 2},    {GA_GRADP, SF_GRADP, d, 1},
                      {GA_DIVU, SF_DIVU, 1, 1},   {GA_GRADU, SF_GRADU, d * d, 1},
                      {GA_U0, SF_U0, d, 1},       {GA_Q0, SF_Q0, 1, 1},
-                     {GA_X0, SF_X0, d, 1},       {GA_Q, evolve_p ? SF_P : SF_RHOF, 1, 1},
+                     {GA_X0, SF_X0, d, 8},       {GA_Q, evolve_p ? SF_P : SF_RHOF, 1, 1},
                      {GA_VOL, SF_VOL, 1, 4},     {GA_BONET, SF_BONET, d * d, 4},
                      {GA_GRADQ, SF_GRADQ, d, 4}, {GA_LAPU, SF_LAPU, d, 4},
                      {GA_LAPQ, SF_LAPQ, 1, 4},   {GA_SHIFT, SF_SHIFT, d, 4}};
-    const int mine = 1 | (edac ? 2 : 0) | (negi ? 4 : 0);
+    const int mine = 1 | (edac ? 2 : 0) | (negi ? 4 : 0) | (moves ? 8 : 0);
     for (int q = 1; q < GA_COUNT; ++q) v->at[q] = -1;
     for (size_t k = 0; st == CONSPH_OK && k < sizeof map / sizeof map[0]; ++k)
         if (map[k].who & mine) st = array_of(s, map[k].name, map[k].ncomp, &v->at[map[k].q]);
@@ -421,6 +433,14 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
         v->cond_max = 1e8; /* the kit_req of negi/scheme.c */
         v->ipst_h = s->h;
         v->ipst_hd = pow(s->h, d);
+        /* negi/scheme.c's regularise_pst: CFL 0.5, Ma = U/c_o, R = 0.24, n = 4, no cap
+         * (reg_pst_shift's constants from them) */
+        const double twoh = 2.0 * s->h, wds = consph_kernel_w(&s->sys.kernel, s->ds);
+        v->pst_coef = -0.5 * (s->prm.U / s->c0) * twoh * twoh;
+        v->pst_inv_wds = 1.0 / wds;
+        v->pst_R = 0.24;
+        v->pst_cap = INFINITY;
+        v->c0_over_h = s->c0 / s->h;
     }
     v->av = (s->prm.alpha >= 0.0 ? s->prm.alpha : 0.1) > 0.0; /* job_fields' α */
     v->tait = s->eos == CONSPH_EOS_TAIT;
@@ -561,12 +581,16 @@ static int negi_rates(gpu_run *g)
 {
     const gpu_backend *be = g->be;
     gpu_view *v = &g->v;
-    LAUNCH(GK_NEGI_VOLUMES, v->n, 0.0);
-    int st = negi_first(g, 1, 0, 1);
+    const negi_terms *t = &v->nt;
+    if (v->moves) LAUNCH(GK_NEGI_VOLUMES, v->n, 0.0); /* fixed for the Eulerian schemes */
+    int st = negi_first(g, 1, t->diffuse_q || t->advect_q || t->transport, 1);
     if (st != CONSPH_OK) return st;
     v->lap_u = 1;
-    v->lap_q = 0;
+    v->lap_q = t->diffuse_q;
     LAUNCH(GK_NEGI_COUPLED, v->n, 0.0);
+    /* TV-C's shifting velocity δu = (c_o/h) δr of Sun et al.'s shift at 001's authors'
+     * constants (solver_shift_velocity_tvc), in the shift field */
+    if (t->transport) LAUNCH(GK_PST_SHIFT, v->n, v->c0_over_h);
     LAUNCH(GK_NEGI_RATES, v->n, 0.0);
     return CONSPH_OK;
 }
@@ -578,20 +602,26 @@ static int step_rk2(gpu_run *g, double dt)
 {
     const gpu_backend *be = g->be;
     gpu_view *v = &g->v;
-    int st = build_cells(g);
-    if (st != CONSPH_OK) return st;
-    LAUNCH(GK_PERMUTE, v->n, 0.0);
-    double *t = v->a;
-    v->a = v->b;
-    v->b = t;
-    if ((st = rebuild(g)) != CONSPH_OK) return st;
+    int st = CONSPH_OK;
+    if (v->moves) {
+        if ((st = build_cells(g)) != CONSPH_OK) return st;
+        LAUNCH(GK_PERMUTE, v->n, 0.0);
+        double *t = v->a;
+        v->a = v->b;
+        v->b = t;
+        if ((st = rebuild(g)) != CONSPH_OK) return st;
+    } else if (!g->built) {
+        /* the Eulerian schemes' particles stay where they are: one search for the run */
+        if ((st = rebuild(g)) != CONSPH_OK) return st;
+        g->built = 1;
+    }
     LAUNCH(GK_SAVE, v->n, 0.0);
     if ((st = negi_rates(g)) != CONSPH_OK) return st;
     LAUNCH(GK_ADVANCE, v->n, 0.5 * dt);
-    if ((st = rebuild(g)) != CONSPH_OK) return st;
+    if (v->moves && (st = rebuild(g)) != CONSPH_OK) return st;
     if ((st = negi_rates(g)) != CONSPH_OK) return st;
     LAUNCH(GK_ADVANCE, v->n, dt);
-    return rebuild(g);
+    return v->moves ? rebuild(g) : CONSPH_OK;
 }
 
 /* Whether the host reads the state after this step (counted in s->step + ahead): the log
@@ -608,8 +638,8 @@ int gpu_step(consph_solver *s, double dt, int *synced)
     const int negi = s->gpu->v.scheme == GS_NEGI;
     int st = negi ? step_rk2(s->gpu, dt) : step_pec(s->gpu, dt, !s->grads_skip);
     if (st != CONSPH_OK) return st;
-    /* 001's family copies back after its regularisation (gpu_regularise) */
-    if (!negi && host_reads(s, 1)) {
+    /* 001's family copies back after its regularisation where it has one (gpu_regularise) */
+    if (!(negi && s->scheme->regularise) && host_reads(s, 1)) {
         st = gpu_download(s);
         *synced = st == CONSPH_OK;
     }
@@ -663,7 +693,26 @@ static int ipst(consph_solver *s)
         if ((st = rebuild(g)) != CONSPH_OK) return st;
     }
     if (first) s->prm.ipst_chi0 = chi_max;
-    LAUNCH(GK_IPST_END, n, 0.0);
+    LAUNCH(GK_SHIFT_END, n, 1.0);
+    ++s->regs;
+    return CONSPH_OK;
+}
+
+/* negi/scheme.c's regularise_pst on the device: the gradients before the shift, Sun et al.'s
+ * shift (reg_pst_shift) into the shift field, the move, the Taylor update and the closure. */
+static int pst(consph_solver *s)
+{
+    gpu_run *g = s->gpu;
+    const gpu_backend *be = g->be;
+    gpu_view *v = &g->v;
+    LAUNCH(GK_NEGI_VOLUMES, v->n, 0.0);
+    int st = negi_first(g, 0, 1, 0);
+    if (st != CONSPH_OK) return st;
+    if (be->zero(v->total, (size_t)v->d * v->n * sizeof(double))) return be_fail(be, "zero");
+    LAUNCH(GK_PST_SHIFT, v->n, 1.0);
+    LAUNCH(GK_IPST_MOVE, v->n, 0.0);
+    if ((st = rebuild(g)) != CONSPH_OK) return st;
+    LAUNCH(GK_SHIFT_END, v->n, 0.0);
     ++s->regs;
     return CONSPH_OK;
 }
@@ -671,9 +720,11 @@ static int ipst(consph_solver *s)
 int gpu_regularise(consph_solver *s, int *synced)
 {
     *synced = 0;
-    int st = strcmp(s->scheme->name, "l-ipst-c") == 0
-                 ? ipst(s)
-                 : consph_fail(CONSPH_EINVAL, "GPU: no regularisation of %s", s->scheme->name);
+    const char *name = s->scheme->name;
+    int st = strcmp(name, "l-ipst-c") == 0 || strcmp(name, "pe-ipst-c") == 0 ? ipst(s)
+             : strcmp(name, "l-pst-c") == 0
+                 ? pst(s)
+                 : consph_fail(CONSPH_EINVAL, "GPU: no regularisation of %s", name);
     if (st == CONSPH_OK && host_reads(s, 0)) {
         st = gpu_download(s);
         *synced = st == CONSPH_OK;

@@ -33,7 +33,8 @@ typedef enum gpu_kernel {
     GK_CHI_MAX,      /* dev_chi_max, per GPU_MAX_CHUNK particles */
     GK_IPST_SHIFT,   /* dev_ipst_shift_any */
     GK_IPST_MOVE,    /* dev_ipst_move */
-    GK_IPST_END      /* dev_ipst_end */
+    GK_PST_SHIFT,    /* dev_pst_shift_any */
+    GK_SHIFT_END     /* dev_shift_end, adding IPST's total when c != 0 */
 } gpu_kernel;
 
 typedef struct gpu_backend {

@@ -42,7 +42,8 @@ OPS_SMALL double ops_norm1(const int n, const double *a)
 
 /* The inverse for n known at compile time where the caller passes a constant (the 2×2 and 3×3
  * Bonet matrices of every step), the same operations in the same order for any n. */
-OPS_SMALL int ops_invert_n(const int n, const double *a, double *ainv, double cond_max, double *cond)
+OPS_SMALL int ops_invert_n(const int n, const double *a, double *ainv, double cond_max,
+                           double *cond)
 {
     double rs[OPS_SMALL_SCRATCH], cs[OPS_SMALL_SCRATCH];
     double m[OPS_SMALL_SCRATCH * OPS_SMALL_SCRATCH], inv[OPS_SMALL_SCRATCH * OPS_SMALL_SCRATCH];

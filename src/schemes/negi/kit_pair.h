@@ -43,8 +43,8 @@ KIT_PAIR void kit_first_pair(const int D, const int with_p, const int with_u, co
  * and ∇q = B sq for the sums asked for. */
 KIT_PAIR int kit_first_finish(const int D, const int with_p, const int with_u, const int with_q,
                               const double mom[9], double cond_max, const double sp[3],
-                              const double su[9], const double sq[3], double B[9],
-                              double gradp[3], double G[9], double *divu, double gradq[3])
+                              const double su[9], const double sq[3], double B[9], double gradp[3],
+                              double G[9], double *divu, double gradq[3])
 {
     const double zero[3] = {0.0, 0.0, 0.0};
     double cond = 0.0;
