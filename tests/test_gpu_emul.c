@@ -66,13 +66,15 @@ int main(void)
     gpu_compare(&gpu_emulation, "l-ipst-c", "beltrami", 8, 0);
     /* the other ported schemes of 001's family: PE-IPST-C (p evolves, the δ-term's ∇²p),
      * L-PST-C (Sun et al.'s shifting every step), TV-C (moved with u + δu, its δu terms), E-C
-     * (Eulerian: fixed particles and volumes,
-     * both advection terms) */
+     * (Eulerian: fixed particles and volumes, both advection terms) */
     gpu_compare(&gpu_emulation, "pe-ipst-c", "taylor-green", 16, 1);
     gpu_compare(&gpu_emulation, "l-pst-c", "taylor-green", 16, 0);
     gpu_compare(&gpu_emulation, "tv-c", "taylor-green", 16, 0);
     gpu_compare(&gpu_emulation, "e-c", "taylor-green", 16, 0);
     gpu_compare(&gpu_emulation, "e-c", "beltrami", 8, 1);
+    /* EWCSPH: Eulerian, Cleary's Laplacian, ∇p over its frozen ϱ_c */
+    gpu_compare(&gpu_emulation, "ewcsph", "taylor-green", 16, 0);
+    gpu_compare(&gpu_emulation, "ewcsph", "beltrami", 8, 0);
     gpu_twice(&gpu_emulation, "edac", "taylor-green", 20, 5);
     refusals();
     return check_summary("test_gpu_emul");

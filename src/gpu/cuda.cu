@@ -60,6 +60,8 @@ GPU_KERNEL(k_ncoupled2, dev_negi_coupled_d(&v, i, 2, 1, 0))
 GPU_KERNEL(k_ncoupled3, dev_negi_coupled_d(&v, i, 3, 1, 0))
 GPU_KERNEL(k_ncoupled2q, dev_negi_coupled_d(&v, i, 2, 1, 1))
 GPU_KERNEL(k_ncoupled3q, dev_negi_coupled_d(&v, i, 3, 1, 1))
+GPU_KERNEL(k_ncleary2, dev_negi_cleary_d(&v, i, 2))
+GPU_KERNEL(k_ncleary3, dev_negi_cleary_d(&v, i, 3))
 GPU_KERNEL(k_nrates, dev_negi_rates(&v, i))
 GPU_KERNEL(k_ipst_vol, dev_ipst_volumes(&v, i))
 GPU_KERNEL(k_chi_max, dev_chi_max(&v, i))
@@ -134,6 +136,9 @@ int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
             (v->d == 2 ? k_ncoupled2q : k_ncoupled3q)<<<blocks, threads>>>(*v, count, c);
         else
             (v->d == 2 ? k_ncoupled2 : k_ncoupled3)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_NEGI_CLEARY:
+        (v->d == 2 ? k_ncleary2 : k_ncleary3)<<<blocks, threads>>>(*v, count, c);
         break;
     case GK_NEGI_RATES: k_nrates<<<blocks, threads>>>(*v, count, c); break;
     case GK_IPST_VOLUMES: k_ipst_vol<<<blocks, threads>>>(*v, count, c); break;

@@ -88,6 +88,7 @@ enum {
     GA_LAPU,
     GA_LAPQ,
     GA_SHIFT, /* δr of the last shift */
+    GA_RHOC,  /* EWCSPH's frozen ϱ_c */
     GA_COUNT
 };
 

@@ -130,13 +130,42 @@ GPU_FN void dev_negi_coupled_any(const gpu_view *v, size_t i)
     }
 }
 
+/* Cleary's Laplacian as 001's authors run EWCSPH (kit.c's cleary_body), with the B_i of pass 1
+ * and ϱ. */
+GPU_FN_INLINE void dev_negi_cleary_d(const gpu_view *v, size_t i, const int D)
+{
+    const double *vol = gv(v, GA_VOL, 0), *rho = gv(v, GA_RHOF, 0);
+    double B[9], ui[3] = {0.0, 0.0, 0.0}, acc[3] = {0.0, 0.0, 0.0};
+    for (int e = 0; e < D * D; ++e) B[e] = gv(v, GA_BONET, e)[i];
+    for (int a = 0; a < D; ++a) ui[a] = gv(v, GA_U, a)[i];
+    gpu_walk w;
+    gpu_walk_start(v, i, &w);
+    double x[3], r;
+    uint32_t j;
+    while (gpu_walk_next(v, &w, &j, x, &r)) {
+        if (!(r > 1e-14)) continue;
+        double uj[3] = {0.0, 0.0, 0.0};
+        for (int a = 0; a < D; ++a) uj[a] = gv(v, GA_U, a)[j];
+        kit_cleary_pair(D, B, r, gpu_dwr(&v->k, r), x, vol[j], rho[i], rho[j], ui, uj, acc);
+    }
+    for (int a = 0; a < D; ++a) gv(v, GA_LAPU, a)[i] = acc[a];
+}
+
+GPU_FN void dev_negi_cleary_any(const gpu_view *v, size_t i)
+{
+    if (v->d == 2)
+        dev_negi_cleary_d(v, i, 2);
+    else
+        dev_negi_cleary_d(v, i, 3);
+}
+
 /* negi/scheme.c's rates loop: the kit's derivatives at i into negi_rates_i. */
 GPU_FN void dev_negi_rates(const gpu_view *v, size_t i)
 {
     const int d = v->d;
     negi_derivs nd;
     nd.rhof = gv(v, GA_RHOF, 0)[i];
-    nd.rhom = nd.rhof;
+    nd.rhom = v->nt.frozen_rho ? gv(v, GA_RHOC, 0)[i] : nd.rhof;
     nd.divu = gv(v, GA_DIVU, 0)[i];
     nd.lapq = v->lap_q ? gv(v, GA_LAPQ, 0)[i] : 0.0;
     for (int a = 0; a < 3; ++a) {

@@ -85,6 +85,9 @@ static int emu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_NEGI_COUPLED:
         for (size_t i = 0; i < count; ++i) dev_negi_coupled_any(v, i);
         break;
+    case GK_NEGI_CLEARY:
+        for (size_t i = 0; i < count; ++i) dev_negi_cleary_any(v, i);
+        break;
     case GK_NEGI_RATES:
         for (size_t i = 0; i < count; ++i) dev_negi_rates(v, i);
         break;
@@ -151,16 +154,17 @@ static const gpu_backend *find_backend(char *why, size_t len)
 
 const char *consph_gpu_schemes(void)
 {
-    return "edac,wcsph,l-ipst-c,pe-ipst-c,l-pst-c,tv-c,e-c";
+    return "edac,wcsph,l-ipst-c,pe-ipst-c,l-pst-c,tv-c,e-c,ewcsph";
 }
 
 /* 001's family on the GPU (rk2, coupled_bc): L-IPST-C and PE-IPST-C (IPST), L-PST-C (Sun et
- * al.'s shifting), TV-C (its shifting velocity), E-C (Eulerian). */
+ * al.'s shifting), TV-C (its shifting velocity), E-C and EWCSPH (Eulerian; EWCSPH with Cleary's
+ * Laplacian and its frozen ϱ_c). */
 static int is_negi(const char *scheme)
 {
     return strcmp(scheme, "l-ipst-c") == 0 || strcmp(scheme, "pe-ipst-c") == 0 ||
            strcmp(scheme, "l-pst-c") == 0 || strcmp(scheme, "tv-c") == 0 ||
-           strcmp(scheme, "e-c") == 0;
+           strcmp(scheme, "e-c") == 0 || strcmp(scheme, "ewcsph") == 0;
 }
 
 int consph_gpu_available(char *why, size_t len)
@@ -187,7 +191,7 @@ static int check_params(const consph_run_params *prm)
     const int tait = prm->eos == CONSPH_EOS_TAIT ||
                      (prm->eos == CONSPH_EOS_DEFAULT &&
                       (strcmp(prm->scheme, "wcsph") == 0 || strcmp(prm->scheme, "l-ipst-c") == 0 ||
-                       strcmp(prm->scheme, "l-pst-c") == 0));
+                       strcmp(prm->scheme, "l-pst-c") == 0 || strcmp(prm->scheme, "ewcsph") == 0));
     if ((negi || strcmp(prm->scheme, "wcsph") == 0) && tait && prm->gamma != 7.0)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: %s's Tait EOS runs on the GPU with γ = 7 only, not %g",
@@ -402,7 +406,8 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     const int moves = !negi || s->scheme->moves;
     v->moves = moves;
     /* who: 1 every scheme, 2 edac only (pysph/scheme.c's tvdu, auhat, rhos, numden, pavg), 4
-     * 001's family only (negi/scheme.c's fields), 8 the schemes that move (x0, dx/dt) */
+     * 001's family only (negi/scheme.c's fields), 8 the schemes that move (x0, dx/dt), 16
+     * EWCSPH's ϱ_c */
     struct {
         int q;
         const char *name;
@@ -418,8 +423,10 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
                      {GA_X0, SF_X0, d, 8},       {GA_Q, evolve_p ? SF_P : SF_RHOF, 1, 1},
                      {GA_VOL, SF_VOL, 1, 4},     {GA_BONET, SF_BONET, d * d, 4},
                      {GA_GRADQ, SF_GRADQ, d, 4}, {GA_LAPU, SF_LAPU, d, 4},
-                     {GA_LAPQ, SF_LAPQ, 1, 4},   {GA_SHIFT, SF_SHIFT, d, 4}};
-    const int mine = 1 | (edac ? 2 : 0) | (negi ? 4 : 0) | (moves ? 8 : 0);
+                     {GA_LAPQ, SF_LAPQ, 1, 4},   {GA_SHIFT, SF_SHIFT, d, 4},
+                     {GA_RHOC, "rhoc", 1, 16}}; /* negi/scheme.c's SF_RHOC */
+    const int frozen = negi && ((const negi_terms *)s->scheme->terms)->frozen_rho;
+    const int mine = 1 | (edac ? 2 : 0) | (negi ? 4 : 0) | (moves ? 8 : 0) | (frozen ? 16 : 0);
     for (int q = 1; q < GA_COUNT; ++q) v->at[q] = -1;
     for (size_t k = 0; st == CONSPH_OK && k < sizeof map / sizeof map[0]; ++k)
         if (map[k].who & mine) st = array_of(s, map[k].name, map[k].ncomp, &v->at[map[k].q]);
@@ -587,7 +594,10 @@ static int negi_rates(gpu_run *g)
     if (st != CONSPH_OK) return st;
     v->lap_u = 1;
     v->lap_q = t->diffuse_q;
-    LAUNCH(GK_NEGI_COUPLED, v->n, 0.0);
+    if (t->lap == KIT_LAP_CLEARY)
+        LAUNCH(GK_NEGI_CLEARY, v->n, 0.0);
+    else
+        LAUNCH(GK_NEGI_COUPLED, v->n, 0.0);
     /* TV-C's shifting velocity δu = (c_o/h) δr of Sun et al.'s shift at 001's authors'
      * constants (solver_shift_velocity_tvc), in the shift field */
     if (t->transport) LAUNCH(GK_PST_SHIFT, v->n, v->c0_over_h);

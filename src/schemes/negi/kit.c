@@ -295,12 +295,12 @@ TERM_INLINE void cleary_body(const kit_job *job, const consph_nbhd *nb, const in
         const double r = nb->r[k];
         if (!(r > 1e-14)) continue;
         const size_t j = nb->j[k];
-        double x[3], xBx = 0.0;
-        for (int a = 0; a < D; ++a) x[a] = nb->dx[a][k];
-        for (int a = 0; a < D; ++a)
-            for (int b = 0; b < D; ++b) xBx += x[a] * B[a * D + b] * x[b];
-        const double c = 4.0 * vol[j] / (rho[i] + rho[j]) * nb->dwr[k] * xBx / (r * r);
-        for (int a = 0; a < D; ++a) acc[a] += c * (ui[a] - u[a * cap + j]);
+        double x[3], uj[3];
+        for (int a = 0; a < D; ++a) {
+            x[a] = nb->dx[a][k];
+            uj[a] = u[a * cap + j];
+        }
+        kit_cleary_pair(D, B, r, nb->dwr[k], x, vol[j], rho[i], rho[j], ui, uj, acc);
     }
     for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = acc[a];
 }

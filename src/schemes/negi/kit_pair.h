@@ -3,10 +3,10 @@
  * neighbours in the CPU's order and calls these): pass 1's sums (the Bonet moment and the raw
  * gradient sums Σ ω_j (f_j - f_i) ∇W_ij of p, u and q, with term_moments' and term_grad_sums'
  * arithmetic, src/ops/terms.h) and their finish (B_i = the moment's inverse or the identity, as
- * consph_bonet_finalise; B_i applied by term_apply_rule; ∇·u the trace of G), and coupled_bc's
- * pair (Σ ω_j (G_j - G_i)·B_i∇W_ij, term_corrected_div's arithmetic). D and the with_* flags are
- * constants at every call, so the sums stay in registers. The order of every operation is part
- * of the results: keep it. */
+ * consph_bonet_finalise; B_i applied by term_apply_rule; ∇·u the trace of G), coupled_bc's
+ * pair (Σ ω_j (G_j - G_i)·B_i∇W_ij, term_corrected_div's arithmetic) and Cleary's. D and the with_*
+ * flags are constants at every call, so the sums stay in registers. The order of every operation is
+ * part of the results: keep it. */
 #ifndef CONSPH_SCHEMES_NEGI_KIT_PAIR_H
 #define CONSPH_SCHEMES_NEGI_KIT_PAIR_H
 
@@ -90,6 +90,20 @@ KIT_PAIR void kit_coupled_pair(const int D, const int with_u, const int with_q, 
         for (int b = 0; b < D; ++b) s += (gqj[b] - gqi[b]) * g[b];
         *accq += om * s;
     }
+}
+
+/* One neighbour j of Cleary's Laplacian (kit.c's cleary_body) at r_ij > 1e-14 (the caller skips
+ * the others): B = B_i, w1 = W'(r)/r, x = x_ij, om = ω_j, ϱ and u at i and j; adds
+ * 4 ω_j/(ϱ_i + ϱ_j) W'/r (x·B x)/r² (u_i - u_j) into acc. */
+KIT_PAIR void kit_cleary_pair(const int D, const double B[9], double r, double w1,
+                              const double x[3], double om, double rhoi, double rhoj,
+                              const double ui[3], const double uj[3], double acc[3])
+{
+    double xBx = 0.0;
+    for (int a = 0; a < D; ++a)
+        for (int b = 0; b < D; ++b) xBx += x[a] * B[a * D + b] * x[b];
+    const double c = 4.0 * om / (rhoi + rhoj) * w1 * xBx / (r * r);
+    for (int a = 0; a < D; ++a) acc[a] += c * (ui[a] - uj[a]);
 }
 
 #endif
