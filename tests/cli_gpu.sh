@@ -4,7 +4,7 @@
 # a machine without a device. The GPU path of the CLI on the host emulation
 # (CONSPH_GPU_BACKEND=emulation), and on the GPU where one is found: the run's log, snapshots,
 # final checkpoint and summary equal the CPU run's byte for byte (edac and wcsph, 2D and 3D;
-# l-ipst-c, l-pst-c, e-c).
+# l-ipst-c, l-pst-c, e-c, l-rr-c).
 # Usage: bash cli_gpu.sh PATH-TO-CONSPH SOURCE-DIR
 set -u
 consph=$1
@@ -14,7 +14,7 @@ trap 'rm -rf "$work"' EXIT
 
 run() { "$consph" run taylor-green --nx 16 --steps 3 --threads 1 "$@"; }
 failing 2 "allowed: edac,wcsph,l-ipst-c" "$work/o" -- run --scheme tvf --device gpu && pass=$((pass + 1))
-failing 2 "allowed: edac,wcsph,l-ipst-c" "$work/o" -- run --scheme l-rr-c --device gpu &&
+failing 2 "allowed: edac,wcsph,l-ipst-c" "$work/o" -- run --scheme l-ipst-k --device gpu &&
     pass=$((pass + 1))
 failing 2 "allowed: cpu,gpu" "$work/o" -- run --scheme edac --device tpu && pass=$((pass + 1))
 failing 2 "--checkpoint-every" "$work/o" -- run --scheme edac --device gpu --out "$work/ck" \
@@ -57,6 +57,7 @@ same_files emulation "taylor-green --scheme wcsph --nx 24 --steps 8 --log-every 
 same_files emulation "taylor-green --scheme l-ipst-c --nx 16 --steps 13 --log-every 4 --snapshot-every 6"
 same_files emulation "taylor-green --scheme l-pst-c --nx 12 --steps 5 --log-every 2 --snapshot-every 3"
 same_files emulation "taylor-green --scheme e-c --nx 12 --steps 5 --log-every 2 --snapshot-every 3"
+same_files emulation "taylor-green --scheme l-rr-c --nx 12 --steps 4 --log-every 2 --snapshot-every 3"
 
 run --scheme edac --device gpu >"$work/o" 2>"$work/err"
 rc=$?

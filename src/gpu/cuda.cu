@@ -71,6 +71,9 @@ GPU_KERNEL(k_ipst_move, dev_ipst_move(&v, i))
 GPU_KERNEL(k_pst_shift2, dev_pst_shift_d(&v, i, 2, c))
 GPU_KERNEL(k_pst_shift3, dev_pst_shift_d(&v, i, 3, c))
 GPU_KERNEL(k_shift_end, dev_shift_end(&v, i, c != 0.0))
+GPU_KERNEL(k_remesh2, dev_remesh_d(&v, i, 2))
+GPU_KERNEL(k_remesh3, dev_remesh_d(&v, i, 3))
+GPU_KERNEL(k_remesh_end, dev_remesh_end(&v, i))
 
 int cu_alloc(void **p, size_t bytes)
 {
@@ -151,6 +154,8 @@ int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
         (v->d == 2 ? k_pst_shift2 : k_pst_shift3)<<<blocks, threads>>>(*v, count, c);
         break;
     case GK_SHIFT_END: k_shift_end<<<blocks, threads>>>(*v, count, c); break;
+    case GK_REMESH: (v->d == 2 ? k_remesh2 : k_remesh3)<<<blocks, threads>>>(*v, count, c); break;
+    case GK_REMESH_END: k_remesh_end<<<blocks, threads>>>(*v, count, c); break;
     }
     return fail(cudaGetLastError(), "kernel launch");
 }

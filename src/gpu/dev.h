@@ -89,6 +89,7 @@ enum {
     GA_LAPQ,
     GA_SHIFT, /* δr of the last shift */
     GA_RHOC,  /* EWCSPH's frozen ϱ_c */
+    GA_LAT,   /* L-RR-C's lattice point of each particle */
     GA_COUNT
 };
 
@@ -126,9 +127,11 @@ typedef struct gpu_view {
     double nu, Dq, cond_max, ipst_h, ipst_hd;
     /* Sun et al.'s shifting (L-PST-C): -CFL Ma (2h)², 1/W(Δs), R and the cap on |δr| */
     double pst_coef, pst_inv_wds, pst_R, pst_cap;
-    double c0_over_h;            /* TV-C: δu = (c_o/h) δr */
-    double *step, *total;        /* IPST: d arrays of n each: this shift and the sum of them */
-    double *chi;                 /* IPST: h^d Σ W of each particle (n) */
+    double c0_over_h;                     /* TV-C: δu = (c_o/h) δr */
+    double m4_norm, m4_inv_h, m4_support; /* L-RR-C: the M4 kernel at h = Δs */
+    /* d arrays of n each: a shift (IPST, PST; L-RR-C: the remeshed u) and IPST's sum of them */
+    double *step, *total;
+    double *chi;                 /* n: IPST's h^d Σ W of each particle; L-RR-C: the remeshed q */
     unsigned long long *chi_max; /* IPST: the bits of max χ (χ >= 0, so ordered as integers) */
 } gpu_view;
 

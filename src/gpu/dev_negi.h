@@ -302,6 +302,71 @@ GPU_FN void dev_pst_shift_any(const gpu_view *v, size_t i, double mul)
         dev_pst_shift_d(v, i, 3, mul);
 }
 
+/* ---- M4 remeshing (L-RR-C: regularise.c's reg_remesh_m4) ---- */
+
+/* src/kernels/kernels.c's m4_f (001 eq. 32's profile). */
+GPU_FN double gpu_m4_f(double q)
+{
+    double inner = 1.0 - q * q * (2.5 - 1.5 * q);
+    double t = 2.0 - q, outer = 0.5 * (1.0 - q) * t * t;
+    return q < 1.0 ? inner : q < 2.0 ? outer : 0.0;
+}
+
+/* Eq. 33 at lattice point k (remesh_visit): Σ_j φ_j M4_kj / Σ_j M4_kj of u and q over the
+ * particles j, in the order of the CPU's joint search of lattice points and particles (cells
+ * ascending, each cell's particles by index: its lattice points, first in each cell, are
+ * skipped). v is the joint view: its grid, cell lists and slots are the particles' in the joint
+ * search, and its x the lattice field, where the walk starts. The result goes to step (u) and
+ * chi (q); a lattice point with no particle keeps particle k's values. */
+GPU_FN_INLINE void dev_remesh_d(const gpu_view *v, size_t k, const int D)
+{
+    const size_t n = v->n;
+    const double *q = gv(v, GA_Q, 0);
+    double out[4] = {0.0, 0.0, 0.0, 0.0}, wsum = 0.0;
+    gpu_walk w;
+    gpu_walk_start(v, k, &w);
+    double x[3], r;
+    uint32_t j;
+    while (gpu_walk_next(v, &w, &j, x, &r)) {
+        double m = v->m4_norm;
+        for (int c = 0; c < D && m != 0.0; ++c) {
+            const double qa = fabs(x[c]) * v->m4_inv_h;
+            m = qa < v->m4_support ? m * gpu_m4_f(qa) : 0.0;
+        }
+        if (m == 0.0) continue;
+        wsum += m;
+        for (int c = 0; c < D; ++c) out[c] += m * gv(v, GA_U, c)[j];
+        out[D] += m * q[j];
+    }
+    if (wsum == 0.0) {
+        for (int c = 0; c < D; ++c) v->step[(size_t)c * n + k] = gv(v, GA_U, c)[k];
+        v->chi[k] = q[k];
+        return;
+    }
+    for (int c = 0; c < D; ++c) v->step[(size_t)c * n + k] = out[c] / wsum;
+    v->chi[k] = out[D] / wsum;
+}
+
+GPU_FN void dev_remesh_any(const gpu_view *v, size_t k)
+{
+    if (v->d == 2)
+        dev_remesh_d(v, k, 2);
+    else
+        dev_remesh_d(v, k, 3);
+}
+
+/* After the remeshing: u and q the remeshed values, x the lattice point, the closure. */
+GPU_FN void dev_remesh_end(const gpu_view *v, size_t k)
+{
+    const size_t n = v->n;
+    for (int c = 0; c < v->d; ++c) {
+        gv(v, GA_U, c)[k] = v->step[(size_t)c * n + k];
+        gv(v, GA_X, c)[k] = gv(v, GA_LAT, c)[k];
+    }
+    gv(v, GA_Q, 0)[k] = v->chi[k];
+    gpu_close(v, k);
+}
+
 /* reg_move: x + δx, wrapped into a periodic box as layout_wrap (src/layout/layout_internal.h)
  * does; the iteration's total += δx. */
 GPU_FN void dev_ipst_move(const gpu_view *v, size_t i)

@@ -19,6 +19,11 @@ struct gpu_run {
     double *dev_a[2]; /* the two blocks of arrays (v.a, v.b swap at each re-sort) */
     size_t bytes;     /* device memory allocated */
     int built;        /* the cell lists of particles that do not move are built */
+    /* L-RR-C: the search of reg_remesh_m4's joint system (lattice points and particles, the M4
+     * kernel's reach): its grid, and the particles' cell lists and slots in it */
+    gpu_grid joint_grid;
+    uint32_t *jcell, *jcount, *jstart, *jorder;
+    double *jxs;
 };
 
 /* ---- the emulation backend ---- */
@@ -109,6 +114,12 @@ static int emu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_SHIFT_END:
         for (size_t i = 0; i < count; ++i) dev_shift_end(v, i, c != 0.0);
         break;
+    case GK_REMESH:
+        for (size_t i = 0; i < count; ++i) dev_remesh_any(v, i);
+        break;
+    case GK_REMESH_END:
+        for (size_t i = 0; i < count; ++i) dev_remesh_end(v, i);
+        break;
     }
     return 0;
 }
@@ -154,17 +165,18 @@ static const gpu_backend *find_backend(char *why, size_t len)
 
 const char *consph_gpu_schemes(void)
 {
-    return "edac,wcsph,l-ipst-c,pe-ipst-c,l-pst-c,tv-c,e-c,ewcsph";
+    return "edac,wcsph,l-ipst-c,pe-ipst-c,l-pst-c,l-rr-c,tv-c,e-c,ewcsph";
 }
 
 /* 001's family on the GPU (rk2, coupled_bc): L-IPST-C and PE-IPST-C (IPST), L-PST-C (Sun et
- * al.'s shifting), TV-C (its shifting velocity), E-C and EWCSPH (Eulerian; EWCSPH with Cleary's
- * Laplacian and its frozen ϱ_c). */
+ * al.'s shifting), L-RR-C (M4 remeshing), TV-C (its shifting velocity), E-C and EWCSPH (Eulerian;
+ * EWCSPH with Cleary's Laplacian and its frozen ϱ_c). */
 static int is_negi(const char *scheme)
 {
     return strcmp(scheme, "l-ipst-c") == 0 || strcmp(scheme, "pe-ipst-c") == 0 ||
-           strcmp(scheme, "l-pst-c") == 0 || strcmp(scheme, "tv-c") == 0 ||
-           strcmp(scheme, "e-c") == 0 || strcmp(scheme, "ewcsph") == 0;
+           strcmp(scheme, "l-pst-c") == 0 || strcmp(scheme, "l-rr-c") == 0 ||
+           strcmp(scheme, "tv-c") == 0 || strcmp(scheme, "e-c") == 0 ||
+           strcmp(scheme, "ewcsph") == 0;
 }
 
 int consph_gpu_available(char *why, size_t len)
@@ -191,7 +203,8 @@ static int check_params(const consph_run_params *prm)
     const int tait = prm->eos == CONSPH_EOS_TAIT ||
                      (prm->eos == CONSPH_EOS_DEFAULT &&
                       (strcmp(prm->scheme, "wcsph") == 0 || strcmp(prm->scheme, "l-ipst-c") == 0 ||
-                       strcmp(prm->scheme, "l-pst-c") == 0 || strcmp(prm->scheme, "ewcsph") == 0));
+                       strcmp(prm->scheme, "l-pst-c") == 0 || strcmp(prm->scheme, "l-rr-c") == 0 ||
+                       strcmp(prm->scheme, "ewcsph") == 0));
     if ((negi || strcmp(prm->scheme, "wcsph") == 0) && tait && prm->gamma != 7.0)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: %s's Tait EOS runs on the GPU with γ = 7 only, not %g",
@@ -357,9 +370,9 @@ void gpu_free(gpu_run *g)
 {
     if (!g) return;
     const gpu_backend *be = g->be;
-    void *bufs[] = {g->dev_a[0], g->dev_a[1], g->v.vol,    g->v.mrho,  g->v.cs,
-                    g->v.xs,     g->v.cell,   g->v.count,  g->v.start, g->v.order,
-                    g->v.step,   g->v.total,  g->v.chi_max};
+    void *bufs[] = {g->dev_a[0],  g->dev_a[1], g->v.vol,   g->v.mrho,  g->v.cs,   g->v.xs,
+                    g->v.cell,    g->v.count,  g->v.start, g->v.order, g->v.step, g->v.total,
+                    g->v.chi_max, g->jcell,    g->jcount,  g->jstart,  g->jorder, g->jxs};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k)
         if (bufs[k]) be->release(bufs[k]);
     free(g);
@@ -407,7 +420,7 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     v->moves = moves;
     /* who: 1 every scheme, 2 edac only (pysph/scheme.c's tvdu, auhat, rhos, numden, pavg), 4
      * 001's family only (negi/scheme.c's fields), 8 the schemes that move (x0, dx/dt), 16
-     * EWCSPH's ϱ_c */
+     * EWCSPH's ϱ_c, 32 L-RR-C's lattice */
     struct {
         int q;
         const char *name;
@@ -424,9 +437,12 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
                      {GA_VOL, SF_VOL, 1, 4},     {GA_BONET, SF_BONET, d * d, 4},
                      {GA_GRADQ, SF_GRADQ, d, 4}, {GA_LAPU, SF_LAPU, d, 4},
                      {GA_LAPQ, SF_LAPQ, 1, 4},   {GA_SHIFT, SF_SHIFT, d, 4},
-                     {GA_RHOC, "rhoc", 1, 16}}; /* negi/scheme.c's SF_RHOC */
+                     {GA_RHOC, "rhoc", 1, 16}, /* negi/scheme.c's SF_RHOC */
+                     {GA_LAT, SF_LATTICE, d, 32}};
     const int frozen = negi && ((const negi_terms *)s->scheme->terms)->frozen_rho;
-    const int mine = 1 | (edac ? 2 : 0) | (negi ? 4 : 0) | (moves ? 8 : 0) | (frozen ? 16 : 0);
+    const int lattice = negi && s->scheme->needs_lattice;
+    const int mine = 1 | (edac ? 2 : 0) | (negi ? 4 : 0) | (moves ? 8 : 0) | (frozen ? 16 : 0) |
+                     (lattice ? 32 : 0);
     for (int q = 1; q < GA_COUNT; ++q) v->at[q] = -1;
     for (size_t k = 0; st == CONSPH_OK && k < sizeof map / sizeof map[0]; ++k)
         if (map[k].who & mine) st = array_of(s, map[k].name, map[k].ncomp, &v->at[map[k].q]);
@@ -448,6 +464,15 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
         v->pst_R = 0.24;
         v->pst_cap = INFINITY;
         v->c0_over_h = s->c0 / s->h;
+        /* regularise_remesh: reg_remesh_m4's kernel and joint system of 2n points */
+        consph_kernel m4;
+        if (st == CONSPH_OK) st = consph_kernel_init(&m4, CONSPH_KERNEL_M4, d, s->ds);
+        if (st == CONSPH_OK) {
+            v->m4_norm = m4.norm;
+            v->m4_inv_h = m4.inv_h;
+            v->m4_support = m4.support;
+            grid_setup(&g->joint_grid, &p->box, d, consph_sys_reach(&m4), 2 * p->n);
+        }
     }
     v->av = (s->prm.alpha >= 0.0 ? s->prm.alpha : 0.1) > 0.0; /* job_fields' α */
     v->tait = s->eos == CONSPH_EOS_TAIT;
@@ -495,11 +520,20 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
          be->alloc((void **)&v->step, nstep) || be->alloc((void **)&v->total, nstep) ||
          be->alloc((void **)&v->chi_max, sizeof(unsigned long long))))
         st = be_fail(be, "device memory");
+    const size_t njc = lattice ? (g->joint_grid.ncells + 1) * sizeof(uint32_t) : 1;
+    const size_t nj = lattice ? n : 1;
+    if (st == CONSPH_OK &&
+        (be->alloc((void **)&g->jcell, nj * sizeof(uint32_t)) ||
+         be->alloc((void **)&g->jcount, njc) || be->alloc((void **)&g->jstart, njc) ||
+         be->alloc((void **)&g->jorder, nj * sizeof(uint32_t)) ||
+         be->alloc((void **)&g->jxs, (size_t)d * nj * sizeof(double))))
+        st = be_fail(be, "device memory");
     v->a = g->dev_a[0];
     v->b = g->dev_a[1];
     v->chi = v->mrho;
     g->bytes = 2 * nd + nvol + n * sizeof(double) + ncs * sizeof(double) +
                (size_t)d * n * sizeof(double) + 2 * n * sizeof(uint32_t) + 2 * nc + 2 * nstep;
+    if (lattice) g->bytes += 2 * n * sizeof(uint32_t) + 2 * njc + (size_t)d * n * sizeof(double);
     if (st == CONSPH_OK) st = copy_arrays(s, 1);
     if (st != CONSPH_OK) {
         s->gpu = NULL;
@@ -515,11 +549,9 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
         if (be->launch(k, count, v, c)) return be_fail(be, #k);                                    \
     } while (0)
 
-/* Bins the particles and sorts the slots by cell (consph_nnps_build). */
-static int build_cells(gpu_run *g)
+/* Bins the particles and sorts the slots by cell (consph_nnps_build), in the view's grid. */
+static int build_cells_in(const gpu_backend *be, const gpu_view *v)
 {
-    const gpu_backend *be = g->be;
-    const gpu_view *v = &g->v;
     const size_t nc = (v->g.ncells + 1) * sizeof(uint32_t);
     if (be->zero(v->count, nc)) return be_fail(be, "zero");
     LAUNCH(GK_BIN, v->n, 0.0);
@@ -529,6 +561,11 @@ static int build_cells(gpu_run *g)
     LAUNCH(GK_SCATTER, v->n, 0.0);
     LAUNCH(GK_CELL_SORT, v->g.ncells, 0.0);
     return CONSPH_OK;
+}
+
+static int build_cells(gpu_run *g)
+{
+    return build_cells_in(g->be, &g->v);
 }
 
 /* edac or wcsph under pec, as consph_solver_step runs it on the CPU: re-sort into cell order,
@@ -727,13 +764,41 @@ static int pst(consph_solver *s)
     return CONSPH_OK;
 }
 
+/* negi/scheme.c's regularise_remesh on the device: reg_remesh_m4's sums at every lattice point
+ * over the particles, in its joint search's order (the particles binned in the joint grid), then
+ * u, q and x replaced, the closure, and the search rebuilt. */
+static int remesh(consph_solver *s)
+{
+    gpu_run *g = s->gpu;
+    const gpu_backend *be = g->be;
+    gpu_view jv = g->v;
+    jv.g = g->joint_grid;
+    jv.cell = g->jcell;
+    jv.count = g->jcount;
+    jv.start = g->jstart;
+    jv.order = g->jorder;
+    jv.xs = g->jxs;
+    int st = build_cells_in(be, &jv);
+    if (st != CONSPH_OK) return st;
+    const gpu_view *v = &jv;
+    LAUNCH(GK_SLOTS, v->n, 0.0);
+    jv.at[GA_X] = jv.at[GA_LAT]; /* the walks start at the lattice points */
+    LAUNCH(GK_REMESH, v->n, 0.0);
+    v = &g->v;
+    LAUNCH(GK_REMESH_END, v->n, 0.0);
+    if ((st = rebuild(g)) != CONSPH_OK) return st;
+    ++s->regs;
+    return CONSPH_OK;
+}
+
 int gpu_regularise(consph_solver *s, int *synced)
 {
     *synced = 0;
     const char *name = s->scheme->name;
     int st = strcmp(name, "l-ipst-c") == 0 || strcmp(name, "pe-ipst-c") == 0 ? ipst(s)
-             : strcmp(name, "l-pst-c") == 0
-                 ? pst(s)
+             : strcmp(name, "l-pst-c") == 0                                  ? pst(s)
+             : strcmp(name, "l-rr-c") == 0
+                 ? remesh(s)
                  : consph_fail(CONSPH_EINVAL, "GPU: no regularisation of %s", name);
     if (st == CONSPH_OK && host_reads(s, 0)) {
         st = gpu_download(s);

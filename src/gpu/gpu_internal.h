@@ -35,7 +35,9 @@ typedef enum gpu_kernel {
     GK_IPST_SHIFT,   /* dev_ipst_shift_any */
     GK_IPST_MOVE,    /* dev_ipst_move */
     GK_PST_SHIFT,    /* dev_pst_shift_any */
-    GK_SHIFT_END     /* dev_shift_end, adding IPST's total when c != 0 */
+    GK_SHIFT_END,    /* dev_shift_end, adding IPST's total when c != 0 */
+    GK_REMESH,       /* dev_remesh_any, on the joint view */
+    GK_REMESH_END    /* dev_remesh_end */
 } gpu_kernel;
 
 typedef struct gpu_backend {
