@@ -62,7 +62,8 @@ GPU_KERNEL(k_ncoupled2q, dev_negi_coupled_d(&v, i, 2, 1, 1))
 GPU_KERNEL(k_ncoupled3q, dev_negi_coupled_d(&v, i, 3, 1, 1))
 GPU_KERNEL(k_ncleary2, dev_negi_cleary_d(&v, i, 2))
 GPU_KERNEL(k_ncleary3, dev_negi_cleary_d(&v, i, 3))
-GPU_KERNEL(k_nrates, dev_negi_rates(&v, i))
+GPU_KERNEL(k_nrates2, dev_negi_rates_d(&v, i, 2))
+GPU_KERNEL(k_nrates3, dev_negi_rates_d(&v, i, 3))
 GPU_KERNEL(k_ipst_vol, dev_ipst_volumes(&v, i))
 GPU_KERNEL(k_chi_max, dev_chi_max(&v, i))
 GPU_KERNEL(k_ipst_shift2, dev_ipst_shift_d(&v, i, 2))
@@ -143,7 +144,9 @@ int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_NEGI_CLEARY:
         (v->d == 2 ? k_ncleary2 : k_ncleary3)<<<blocks, threads>>>(*v, count, c);
         break;
-    case GK_NEGI_RATES: k_nrates<<<blocks, threads>>>(*v, count, c); break;
+    case GK_NEGI_RATES:
+        (v->d == 2 ? k_nrates2 : k_nrates3)<<<blocks, threads>>>(*v, count, c);
+        break;
     case GK_IPST_VOLUMES: k_ipst_vol<<<blocks, threads>>>(*v, count, c); break;
     case GK_CHI_MAX: k_chi_max<<<blocks, threads>>>(*v, count, c); break;
     case GK_IPST_SHIFT:

@@ -159,10 +159,10 @@ GPU_FN void dev_negi_cleary_any(const gpu_view *v, size_t i)
         dev_negi_cleary_d(v, i, 3);
 }
 
-/* negi/scheme.c's rates loop: the kit's derivatives at i into negi_rates_i. */
-GPU_FN void dev_negi_rates(const gpu_view *v, size_t i)
+/* negi/scheme.c's rates loop: the kit's derivatives at i into negi_rates_i, d known at compile
+ * time (the small arrays stay in registers). */
+GPU_FN_INLINE void dev_negi_rates_d(const gpu_view *v, size_t i, const int D)
 {
-    const int d = v->d;
     negi_derivs nd;
     nd.rhof = gv(v, GA_RHOF, 0)[i];
     nd.rhom = v->nt.frozen_rho ? gv(v, GA_RHOC, 0)[i] : nd.rhof;
@@ -170,21 +170,29 @@ GPU_FN void dev_negi_rates(const gpu_view *v, size_t i)
     nd.lapq = v->lap_q ? gv(v, GA_LAPQ, 0)[i] : 0.0;
     for (int a = 0; a < 3; ++a) {
         nd.u[a] = nd.du[a] = nd.gradp[a] = nd.lapu[a] = nd.gradq[a] = 0.0;
-        if (a >= d) continue;
+        if (a >= D) continue;
         nd.u[a] = gv(v, GA_U, a)[i];
         if (v->nt.transport) nd.du[a] = gv(v, GA_SHIFT, a)[i];
         nd.gradp[a] = gv(v, GA_GRADP, a)[i];
         nd.lapu[a] = gv(v, GA_LAPU, a)[i];
         if (v->nt.advect_q || v->nt.transport) nd.gradq[a] = gv(v, GA_GRADQ, a)[i];
     }
-    for (int e = 0; e < 9; ++e) nd.G[e] = e < d * d ? gv(v, GA_GRADU, e)[i] : 0.0;
+    for (int e = 0; e < 9; ++e) nd.G[e] = e < D * D ? gv(v, GA_GRADU, e)[i] : 0.0;
     double au[3], ax[3], aq;
-    negi_rates_i(&v->nt, d, v->nu, v->Dq, v->c2, v->rho0, v->evolve_p, &nd, au, ax, &aq);
-    for (int a = 0; a < d; ++a) {
+    negi_rates_i(&v->nt, D, v->nu, v->Dq, v->c2, v->rho0, v->evolve_p, &nd, au, ax, &aq);
+    for (int a = 0; a < D; ++a) {
         gv(v, GA_AU, a)[i] = au[a];
         if (v->moves) gv(v, GA_AX, a)[i] = ax[a];
     }
     gv(v, GA_AQ, 0)[i] = aq;
+}
+
+GPU_FN void dev_negi_rates(const gpu_view *v, size_t i)
+{
+    if (v->d == 2)
+        dev_negi_rates_d(v, i, 2);
+    else
+        dev_negi_rates_d(v, i, 3);
 }
 
 /* ---- IPST (reg_ipst) ---- */
