@@ -26,7 +26,8 @@
 #   --build-only  build build-gpu/ and stop
 # Environment: NVCC (the compiler; "none": build without CUDA), BUILD (default build-gpu),
 # CASES (a list of dim:nx, default "2:316 2:1000 3:100 2:3162"), SCHEMES (default "edac l-ipst-c";
-# the GPU runs edac, wcsph and l-ipst-c), LIPSTC_LAYOUT (l-ipst-c's start: "lattice", the
+# the GPU runs edac, wcsph and 001-table9's schemes; the pair columns count l-ipst-c's passes, not
+# the other 001 schemes'), LIPSTC_LAYOUT (l-ipst-c's start: "lattice", the
 # default, or "scheme": its packed start, which takes minutes to pack at 10^6 particles and
 # more), THREADS (default: nproc).
 set -u
