@@ -28,9 +28,11 @@ int main(void)
     gpu_compare(be, "l-ipst-c", "taylor-green", 64, 1);
     gpu_compare(be, "l-ipst-c", "beltrami", 12, 0);
     gpu_twice(be, "l-ipst-c", "taylor-green", 64, 12);
-    /* the rest of 001-table9's schemes, small (packed starts: pe-ipst-c, l-pst-c, tv-c) */
-    static const char *const table9[] = {"pe-ipst-c", "l-pst-c", "tv-c", "l-rr-c", "e-c", "ewcsph"};
-    for (int k = 0; k < 6; ++k) {
+    /* the rest of 001-table9's schemes and l-ipst-f, small (packed starts: pe-ipst-c, l-pst-c,
+     * tv-c, l-ipst-f) */
+    static const char *const table9[] = {"pe-ipst-c", "l-pst-c", "tv-c",    "l-rr-c",
+                                         "e-c",       "ewcsph",  "l-ipst-f"};
+    for (int k = 0; k < 7; ++k) {
         gpu_compare(be, table9[k], "taylor-green", 32, 0);
         gpu_compare(be, table9[k], "beltrami", 8, 1);
     }

@@ -68,6 +68,9 @@ int main(void)
      * L-PST-C (Sun et al.'s shifting every step), TV-C (moved with u + δu, its δu terms), E-C
      * (Eulerian: fixed particles and volumes, both advection terms) */
     gpu_compare(&gpu_emulation, "pe-ipst-c", "taylor-green", 16, 1);
+    /* L-IPST-F: Fatehi_c's Laplacian (its B̂ from a walk of its own) */
+    gpu_compare(&gpu_emulation, "l-ipst-f", "taylor-green", 16, 0);
+    gpu_compare(&gpu_emulation, "l-ipst-f", "beltrami", 8, 1);
     gpu_compare(&gpu_emulation, "l-pst-c", "taylor-green", 16, 0);
     gpu_compare(&gpu_emulation, "tv-c", "taylor-green", 16, 0);
     /* L-RR-C: M4 remeshing to the lattice after every step */

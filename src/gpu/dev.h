@@ -133,6 +133,7 @@ typedef struct gpu_view {
     double *step, *total;
     double *chi;                 /* n: IPST's h^d Σ W of each particle; L-RR-C: the remeshed q */
     unsigned long long *chi_max; /* IPST: the bits of max χ (χ >= 0, so ordered as integers) */
+    unsigned char *bonet_ok;     /* n: B_i accepted by the kit's first pass (Fatehi_c reads it) */
 } gpu_view;
 
 GPU_FN double *gv(const gpu_view *v, int q, int comp)

@@ -49,7 +49,8 @@ GPU_FN_INLINE void dev_negi_first_d(const gpu_view *v, size_t i, const int D, co
                        Q ? qf[j] : 0.0, qi, sm, sp, su, sq);
     }
     double B[9], gp[3], G[9], div = 0.0, gq[3];
-    kit_first_finish(D, P, U, Q, sm, v->cond_max, sp, su, sq, B, gp, G, &div, gq);
+    v->bonet_ok[i] = (unsigned char)kit_first_finish(D, P, U, Q, sm, v->cond_max, sp, su, sq, B, gp,
+                                                     G, &div, gq);
     for (int e = 0; e < D * D; ++e) gv(v, GA_BONET, e)[i] = B[e];
     if (P)
         for (int a = 0; a < D; ++a) gv(v, GA_GRADP, a)[i] = gp[a];
@@ -157,6 +158,50 @@ GPU_FN void dev_negi_cleary_any(const gpu_view *v, size_t i)
         dev_negi_cleary_d(v, i, 2);
     else
         dev_negi_cleary_d(v, i, 3);
+}
+
+/* Fatehi_c's Laplacian (kit.c's fatehi_c_matrix and fatehi_body): B̂_i from one walk (the
+ * identity where B_i fell back or B̂'s matrix is singular or ill conditioned), ∇²u from another. */
+GPU_FN_INLINE void dev_negi_fatehi_d(const gpu_view *v, size_t i, const int D)
+{
+    const double *vol = gv(v, GA_VOL, 0);
+    double Bh[9], G[9], ui[3] = {0.0, 0.0, 0.0}, acc[3] = {0.0, 0.0, 0.0};
+    for (int e = 0; e < D * D; ++e) G[e] = gv(v, GA_GRADU, e)[i];
+    for (int a = 0; a < D; ++a) ui[a] = gv(v, GA_U, a)[i];
+    gpu_walk w;
+    double x[3], r;
+    uint32_t j;
+    int ok = v->bonet_ok[i];
+    if (ok) {
+        double B[9], L1[3] = {0.0, 0.0, 0.0}, M[9], cond = 0.0;
+        double L2[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, L3[27];
+        for (int e = 0; e < 27; ++e) L3[e] = 0.0;
+        for (int e = 0; e < D * D; ++e) B[e] = gv(v, GA_BONET, e)[i];
+        gpu_walk_start(v, i, &w);
+        while (gpu_walk_next(v, &w, &j, x, &r))
+            if (r > 0.0) term_fatehi_c_pair(D, r, x, vol[j] * gpu_dwr(&v->k, r), L1, L2, L3);
+        term_fatehi_c_finish(D, B, L1, L2, L3, M);
+        ok = ops_invert_n(D, M, Bh, v->cond_max, &cond);
+    }
+    if (!ok)
+        for (int a = 0; a < D; ++a)
+            for (int b = 0; b < D; ++b) Bh[a * D + b] = a == b ? 1.0 : 0.0;
+    gpu_walk_start(v, i, &w);
+    while (gpu_walk_next(v, &w, &j, x, &r)) {
+        if (!(r > 0.0)) continue;
+        double uj[3] = {0.0, 0.0, 0.0};
+        for (int a = 0; a < D; ++a) uj[a] = gv(v, GA_U, a)[j];
+        kit_fatehi_pair(D, Bh, r, gpu_dwr(&v->k, r), x, vol[j], G, ui, uj, acc);
+    }
+    for (int a = 0; a < D; ++a) gv(v, GA_LAPU, a)[i] = acc[a];
+}
+
+GPU_FN void dev_negi_fatehi_any(const gpu_view *v, size_t i)
+{
+    if (v->d == 2)
+        dev_negi_fatehi_d(v, i, 2);
+    else
+        dev_negi_fatehi_d(v, i, 3);
 }
 
 /* negi/scheme.c's rates loop: the kit's derivatives at i into negi_rates_i, d known at compile

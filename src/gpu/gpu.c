@@ -90,6 +90,9 @@ static int emu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_NEGI_COUPLED:
         for (size_t i = 0; i < count; ++i) dev_negi_coupled_any(v, i);
         break;
+    case GK_NEGI_FATEHI:
+        for (size_t i = 0; i < count; ++i) dev_negi_fatehi_any(v, i);
+        break;
     case GK_NEGI_CLEARY:
         for (size_t i = 0; i < count; ++i) dev_negi_cleary_any(v, i);
         break;
@@ -165,18 +168,18 @@ static const gpu_backend *find_backend(char *why, size_t len)
 
 const char *consph_gpu_schemes(void)
 {
-    return "edac,wcsph,l-ipst-c,pe-ipst-c,l-pst-c,l-rr-c,tv-c,e-c,ewcsph";
+    return "edac,wcsph,l-ipst-c,l-ipst-f,pe-ipst-c,l-pst-c,l-rr-c,tv-c,e-c,ewcsph";
 }
 
-/* 001's family on the GPU (rk2, coupled_bc): L-IPST-C and PE-IPST-C (IPST), L-PST-C (Sun et
- * al.'s shifting), L-RR-C (M4 remeshing), TV-C (its shifting velocity), E-C and EWCSPH (Eulerian;
- * EWCSPH with Cleary's Laplacian and its frozen ϱ_c). */
+/* 001's family on the GPU (rk2, coupled_bc): L-IPST-C, L-IPST-F (Fatehi_c) and PE-IPST-C (IPST),
+ * L-PST-C (Sun et al.'s shifting), L-RR-C (M4 remeshing), TV-C (its shifting velocity), E-C and
+ * EWCSPH (Eulerian; EWCSPH with Cleary's Laplacian and its frozen ϱ_c). */
 static int is_negi(const char *scheme)
 {
-    return strcmp(scheme, "l-ipst-c") == 0 || strcmp(scheme, "pe-ipst-c") == 0 ||
-           strcmp(scheme, "l-pst-c") == 0 || strcmp(scheme, "l-rr-c") == 0 ||
-           strcmp(scheme, "tv-c") == 0 || strcmp(scheme, "e-c") == 0 ||
-           strcmp(scheme, "ewcsph") == 0;
+    return strcmp(scheme, "l-ipst-c") == 0 || strcmp(scheme, "l-ipst-f") == 0 ||
+           strcmp(scheme, "pe-ipst-c") == 0 || strcmp(scheme, "l-pst-c") == 0 ||
+           strcmp(scheme, "l-rr-c") == 0 || strcmp(scheme, "tv-c") == 0 ||
+           strcmp(scheme, "e-c") == 0 || strcmp(scheme, "ewcsph") == 0;
 }
 
 int consph_gpu_available(char *why, size_t len)
@@ -200,11 +203,12 @@ static int check_params(const consph_run_params *prm)
                            "pec, the default of edac and wcsph; rk2, that of 001's schemes)",
                            prm->integrator);
     /* Tait's EOS and sound speed by multiplication (solver_eos's γ = 7 loop) */
-    const int tait = prm->eos == CONSPH_EOS_TAIT ||
-                     (prm->eos == CONSPH_EOS_DEFAULT &&
-                      (strcmp(prm->scheme, "wcsph") == 0 || strcmp(prm->scheme, "l-ipst-c") == 0 ||
-                       strcmp(prm->scheme, "l-pst-c") == 0 || strcmp(prm->scheme, "l-rr-c") == 0 ||
-                       strcmp(prm->scheme, "ewcsph") == 0));
+    const int tait =
+        prm->eos == CONSPH_EOS_TAIT ||
+        (prm->eos == CONSPH_EOS_DEFAULT &&
+         (strcmp(prm->scheme, "wcsph") == 0 || strcmp(prm->scheme, "l-ipst-c") == 0 ||
+          strcmp(prm->scheme, "l-ipst-f") == 0 || strcmp(prm->scheme, "l-pst-c") == 0 ||
+          strcmp(prm->scheme, "l-rr-c") == 0 || strcmp(prm->scheme, "ewcsph") == 0));
     if ((negi || strcmp(prm->scheme, "wcsph") == 0) && tait && prm->gamma != 7.0)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: %s's Tait EOS runs on the GPU with γ = 7 only, not %g",
@@ -370,9 +374,10 @@ void gpu_free(gpu_run *g)
 {
     if (!g) return;
     const gpu_backend *be = g->be;
-    void *bufs[] = {g->dev_a[0],  g->dev_a[1], g->v.vol,   g->v.mrho,  g->v.cs,   g->v.xs,
-                    g->v.cell,    g->v.count,  g->v.start, g->v.order, g->v.step, g->v.total,
-                    g->v.chi_max, g->jcell,    g->jcount,  g->jstart,  g->jorder, g->jxs};
+    void *bufs[] = {g->dev_a[0], g->dev_a[1], g->v.vol,     g->v.mrho,    g->v.cs,
+                    g->v.xs,     g->v.cell,   g->v.count,   g->v.start,   g->v.order,
+                    g->v.step,   g->v.total,  g->v.chi_max, g->jcell,     g->jcount,
+                    g->jstart,   g->jorder,   g->jxs,       g->v.bonet_ok};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k)
         if (bufs[k]) be->release(bufs[k]);
     free(g);
@@ -518,7 +523,8 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
          be->alloc((void **)&v->cell, n * sizeof(uint32_t)) || be->alloc((void **)&v->count, nc) ||
          be->alloc((void **)&v->start, nc) || be->alloc((void **)&v->order, n * sizeof(uint32_t)) ||
          be->alloc((void **)&v->step, nstep) || be->alloc((void **)&v->total, nstep) ||
-         be->alloc((void **)&v->chi_max, sizeof(unsigned long long))))
+         be->alloc((void **)&v->chi_max, sizeof(unsigned long long)) ||
+         be->alloc((void **)&v->bonet_ok, negi ? n : 1)))
         st = be_fail(be, "device memory");
     const size_t njc = lattice ? (g->joint_grid.ncells + 1) * sizeof(uint32_t) : 1;
     const size_t nj = lattice ? n : 1;
@@ -532,7 +538,8 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     v->b = g->dev_a[1];
     v->chi = v->mrho;
     g->bytes = 2 * nd + nvol + n * sizeof(double) + ncs * sizeof(double) +
-               (size_t)d * n * sizeof(double) + 2 * n * sizeof(uint32_t) + 2 * nc + 2 * nstep;
+               (size_t)d * n * sizeof(double) + 2 * n * sizeof(uint32_t) + 2 * nc + 2 * nstep +
+               (negi ? n : 1);
     if (lattice) g->bytes += 2 * n * sizeof(uint32_t) + 2 * njc + (size_t)d * n * sizeof(double);
     if (st == CONSPH_OK) st = copy_arrays(s, 1);
     if (st != CONSPH_OK) {
@@ -633,6 +640,8 @@ static int negi_rates(gpu_run *g)
     v->lap_q = t->diffuse_q;
     if (t->lap == KIT_LAP_CLEARY)
         LAUNCH(GK_NEGI_CLEARY, v->n, 0.0);
+    else if (t->lap == KIT_LAP_FATEHI_C)
+        LAUNCH(GK_NEGI_FATEHI, v->n, 0.0);
     else
         LAUNCH(GK_NEGI_COUPLED, v->n, 0.0);
     /* TV-C's shifting velocity δu = (c_o/h) δr of Sun et al.'s shift at 001's authors'
@@ -795,8 +804,10 @@ int gpu_regularise(consph_solver *s, int *synced)
 {
     *synced = 0;
     const char *name = s->scheme->name;
-    int st = strcmp(name, "l-ipst-c") == 0 || strcmp(name, "pe-ipst-c") == 0 ? ipst(s)
-             : strcmp(name, "l-pst-c") == 0                                  ? pst(s)
+    int st = strcmp(name, "l-ipst-c") == 0 || strcmp(name, "l-ipst-f") == 0 ||
+                     strcmp(name, "pe-ipst-c") == 0
+                 ? ipst(s)
+             : strcmp(name, "l-pst-c") == 0 ? pst(s)
              : strcmp(name, "l-rr-c") == 0
                  ? remesh(s)
                  : consph_fail(CONSPH_EINVAL, "GPU: no regularisation of %s", name);

@@ -1,8 +1,8 @@
 /* The per-particle dense algebra of the correction matrices, written once for the host and the
  * GPU (CONSPH_HD, src/gpu/hd.h): the small inverse of ops_invert (src/ops/ops_linalg.c) and the
- * corrected-gradient rule applied to a particle's sums (src/ops/terms.h), so that the GPU's
- * fused derivative passes (src/gpu/dev.h) round as the CPU's. Plain C over small arrays. The
- * order of every operation is part of the results: keep it. */
+ * corrected-gradient rule applied to a particle's sums and fatehi_c's moments (src/ops/terms.h), so
+ * that the GPU's fused derivative passes (src/gpu/dev.h) round as the CPU's. Plain C over small
+ * arrays. The order of every operation is part of the results: keep it. */
 #ifndef CONSPH_OPS_SMALL_H
 #define CONSPH_OPS_SMALL_H
 
@@ -123,6 +123,37 @@ CONSPH_HD static inline void term_apply_rule(int d, const double c[3], const dou
         for (int b = 0; b < d; ++b) v += M[a * d + b] * sg[b];
         out[a] = v;
     }
+}
+
+/* One pair of fatehi_c's moments (term_fatehi_c_moments, r > 0): g = ω_j W'/r, so that
+ * L1 += g r² x, L2 += g x x, L3 += g/r² x x x. */
+CONSPH_HD static inline void term_fatehi_c_pair(int d, double r, const double x[3], double g,
+                                                double L1[3], double L2[9], double L3[27])
+{
+    const double g3 = g / (r * r);
+    for (int a = 0; a < d; ++a) {
+        L1[a] += g * r * r * x[a];
+        for (int b = 0; b < d; ++b) {
+            L2[a * d + b] += g * x[a] * x[b];
+            for (int c = 0; c < d; ++c) L3[(a * d + b) * d + c] += g3 * x[a] * x[b] * x[c];
+        }
+    }
+}
+
+/* fatehi_c's matrix from its moments (term_fatehi_c_matrix): M = -(L2 + L3·(B L1)). */
+CONSPH_HD static inline void term_fatehi_c_finish(int d, const double B[9], const double L1[3],
+                                                  const double L2[9], const double L3[27],
+                                                  double M[9])
+{
+    double BL1[3] = {0.0, 0.0, 0.0};
+    for (int a = 0; a < d; ++a)
+        for (int t = 0; t < d; ++t) BL1[a] += B[a * d + t] * L1[t];
+    for (int a = 0; a < d; ++a)
+        for (int b = 0; b < d; ++b) {
+            double v = L2[a * d + b];
+            for (int c = 0; c < d; ++c) v += L3[(a * d + b) * d + c] * BL1[c];
+            M[a * d + b] = -v;
+        }
 }
 
 #endif

@@ -19,7 +19,7 @@
 
 #include "consph/ops.h"
 #include "consph/pass.h"
-#include "ops/small.h" /* term_apply_rule */
+#include "ops/small.h" /* term_apply_rule, fatehi_c's pair and finish */
 
 /* For terms instantiated with a compile-time dimension, so their sums stay in registers. */
 #if defined(__GNUC__)
@@ -449,14 +449,7 @@ static inline void term_fatehi_c_moments(int d, const consph_nbhd *nb, const dou
         if (!(r > 0.0)) continue;
         double x[3];
         for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-        double g = vol[nb->j[q]] * nb->dwr[q], g3 = g / (r * r);
-        for (int a = 0; a < d; ++a) {
-            L1[a] += g * r * r * x[a];
-            for (int b = 0; b < d; ++b) {
-                L2[a * d + b] += g * x[a] * x[b];
-                for (int c = 0; c < d; ++c) L3[(a * d + b) * d + c] += g3 * x[a] * x[b] * x[c];
-            }
-        }
+        term_fatehi_c_pair(d, r, x, vol[nb->j[q]] * nb->dwr[q], L1, L2, L3);
     }
 }
 
@@ -465,16 +458,9 @@ static inline void term_fatehi_c_moments(int d, const consph_nbhd *nb, const dou
 static inline void term_fatehi_c_matrix(int d, const consph_nbhd *nb, const double *vol,
                                         const double B[9], double M[9])
 {
-    double L1[3] = {0}, L2[9] = {0}, L3[27] = {0}, BL1[3] = {0};
+    double L1[3] = {0}, L2[9] = {0}, L3[27] = {0};
     term_fatehi_c_moments(d, nb, vol, L1, L2, L3);
-    for (int a = 0; a < d; ++a)
-        for (int t = 0; t < d; ++t) BL1[a] += B[a * d + t] * L1[t];
-    for (int a = 0; a < d; ++a)
-        for (int b = 0; b < d; ++b) {
-            double v = L2[a * d + b];
-            for (int c = 0; c < d; ++c) v += L3[(a * d + b) * d + c] * BL1[c];
-            M[a * d + b] = -v;
-        }
+    term_fatehi_c_finish(d, B, L1, L2, L3, M);
 }
 
 /* Coefficient of x^l x^k H_lk in the second-order Taylor term: 1/2 on the diagonal, 1 off it

@@ -201,16 +201,12 @@ TERM_INLINE void fatehi_body(const kit_job *job, const consph_nbhd *nb, const in
         const double r = nb->r[k];
         if (!(r > 0.0)) continue;
         const size_t j = nb->j[k];
-        double x[3], xBx = 0.0;
-        for (int a = 0; a < D; ++a) x[a] = nb->dx[a][k];
-        for (int a = 0; a < D; ++a)
-            for (int b = 0; b < D; ++b) xBx += x[a] * Bh[a * D + b] * x[b];
-        const double c = 2.0 * vol[j] * nb->dwr[k];
+        double x[3], uj[3];
         for (int a = 0; a < D; ++a) {
-            double xG = 0.0;
-            for (int b = 0; b < D; ++b) xG += x[b] * G[a * D + b];
-            acc[a] += c * ((ui[a] - u[a * cap + j]) - xG) * xBx / (r * r);
+            x[a] = nb->dx[a][k];
+            uj[a] = u[a * cap + j];
         }
+        kit_fatehi_pair(D, Bh, r, nb->dwr[k], x, vol[j], G, ui, uj, acc);
     }
     for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = acc[a];
 }

@@ -106,4 +106,22 @@ KIT_PAIR void kit_cleary_pair(const int D, const double B[9], double r, double w
     for (int a = 0; a < D; ++a) acc[a] += c * (ui[a] - uj[a]);
 }
 
+/* One neighbour j of Fatehi_c's Laplacian (kit.c's fatehi_body) at r_ij > 0 (the caller skips
+ * the others): Bh = B̂_i, w1 = W'(r)/r, x = x_ij, om = ω_j, G = ∇u_i, u at i and j; adds
+ * 2 ω_j W'/r ((u_i - u_j) - x·G) (x·B̂ x)/r² per component into acc. */
+KIT_PAIR void kit_fatehi_pair(const int D, const double Bh[9], double r, double w1,
+                              const double x[3], double om, const double G[9], const double ui[3],
+                              const double uj[3], double acc[3])
+{
+    double xBx = 0.0;
+    for (int a = 0; a < D; ++a)
+        for (int b = 0; b < D; ++b) xBx += x[a] * Bh[a * D + b] * x[b];
+    const double c = 2.0 * om * w1;
+    for (int a = 0; a < D; ++a) {
+        double xG = 0.0;
+        for (int b = 0; b < D; ++b) xG += x[b] * G[a * D + b];
+        acc[a] += c * ((ui[a] - uj[a]) - xG) * xBx / (r * r);
+    }
+}
+
 #endif
