@@ -14,7 +14,7 @@ trap 'rm -rf "$work"' EXIT
 
 run() { "$consph" run taylor-green --nx 16 --steps 3 --threads 1 "$@"; }
 failing 2 "allowed: edac,wcsph,l-ipst-c" "$work/o" -- run --scheme tvf --device gpu && pass=$((pass + 1))
-failing 2 "allowed: edac,wcsph,l-ipst-c" "$work/o" -- run --scheme l-ipst-k --device gpu &&
+failing 2 "allowed: edac,wcsph,l-ipst-c" "$work/o" -- run --scheme delta-plus-sph --device gpu &&
     pass=$((pass + 1))
 failing 2 "allowed: cpu,gpu" "$work/o" -- run --scheme edac --device tpu && pass=$((pass + 1))
 failing 2 "--checkpoint-every" "$work/o" -- run --scheme edac --device gpu --out "$work/ck" \

@@ -60,6 +60,8 @@ GPU_KERNEL(k_ncoupled2, dev_negi_coupled_d(&v, i, 2, 1, 0))
 GPU_KERNEL(k_ncoupled3, dev_negi_coupled_d(&v, i, 3, 1, 0))
 GPU_KERNEL(k_ncoupled2q, dev_negi_coupled_d(&v, i, 2, 1, 1))
 GPU_KERNEL(k_ncoupled3q, dev_negi_coupled_d(&v, i, 3, 1, 1))
+GPU_KERNEL(k_nkorz2, dev_negi_korzilius_d(&v, i, 2))
+GPU_KERNEL(k_nkorz3, dev_negi_korzilius_d(&v, i, 3))
 GPU_KERNEL(k_nfatehi2, dev_negi_fatehi_d(&v, i, 2))
 GPU_KERNEL(k_nfatehi3, dev_negi_fatehi_d(&v, i, 3))
 GPU_KERNEL(k_ncleary2, dev_negi_cleary_d(&v, i, 2))
@@ -142,6 +144,9 @@ int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
             (v->d == 2 ? k_ncoupled2q : k_ncoupled3q)<<<blocks, threads>>>(*v, count, c);
         else
             (v->d == 2 ? k_ncoupled2 : k_ncoupled3)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_NEGI_KORZ:
+        (v->d == 2 ? k_nkorz2 : k_nkorz3)<<<blocks, threads>>>(*v, count, c);
         break;
     case GK_NEGI_FATEHI:
         (v->d == 2 ? k_nfatehi2 : k_nfatehi3)<<<blocks, threads>>>(*v, count, c);

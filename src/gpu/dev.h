@@ -57,6 +57,7 @@ typedef struct gpu_grid {
 /* The quintic spline's constants (consph_kernel: norm, 1/h, support; eval_batch's products). */
 typedef struct gpu_kern {
     double norm, inv_h, support, norm1, at_zero;
+    double norm2; /* norm / h², of W'' */
 } gpu_kern;
 
 /* Indices of the solver's arrays in the view's block a (x first, then every particle field's
@@ -446,6 +447,13 @@ GPU_FN double gpu_dwr(const gpu_kern *k, double r)
     const double q = r * k->inv_h;
     const double v = k->norm1 * gpu_quintic_df(q) / (r > 0.0 ? r : 1.0);
     return !(q < k->support) ? 0.0 : r > 0.0 ? v : k->at_zero;
+}
+
+/* W''(r) (eval_batch's d2w select). */
+GPU_FN double gpu_d2w(const gpu_kern *k, double r)
+{
+    const double q = r * k->inv_h, v = k->norm2 * gpu_quintic_d2f(q);
+    return q < k->support ? v : 0.0;
 }
 
 /* ---- edac's passes (src/schemes/pysph/scheme.c) ---- */

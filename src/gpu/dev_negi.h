@@ -196,6 +196,52 @@ GPU_FN_INLINE void dev_negi_fatehi_d(const gpu_view *v, size_t i, const int D)
     for (int a = 0; a < D; ++a) gv(v, GA_LAPU, a)[i] = acc[a];
 }
 
+/* Korzilius' Laplacian (kit.c's korzilius_body), with the B_i of pass 1 and its verdict. */
+GPU_FN_INLINE void dev_negi_korzilius_d(const gpu_view *v, size_t i, const int D)
+{
+    const int P = D * (D + 1) / 2;
+    const double *vol = gv(v, GA_VOL, 0);
+    int pl[6], pk[6];
+    double cq[6];
+    for (int a = 0, q = 0; a < D; ++a)
+        for (int b = a; b < D; ++b, ++q) {
+            pl[q] = a;
+            pk[q] = b;
+            cq[q] = term_taylor_c(a, b);
+        }
+    double B[9], G[9], ui[3] = {0.0, 0.0, 0.0};
+    for (int e = 0; e < D * D; ++e) {
+        B[e] = gv(v, GA_BONET, e)[i];
+        G[e] = gv(v, GA_GRADU, e)[i];
+    }
+    for (int a = 0; a < D; ++a) ui[a] = gv(v, GA_U, a)[i];
+    double A[36], Hx[18], Gz[18], rhs[18];
+    for (int e = 0; e < 36; ++e) A[e] = 0.0;
+    for (int e = 0; e < 18; ++e) Hx[e] = Gz[e] = rhs[e] = 0.0;
+    gpu_walk w;
+    gpu_walk_start(v, i, &w);
+    double x[3], r;
+    uint32_t j;
+    while (gpu_walk_next(v, &w, &j, x, &r)) {
+        double uj[3] = {0.0, 0.0, 0.0};
+        for (int a = 0; a < D; ++a) uj[a] = gv(v, GA_U, a)[j];
+        const double dwr = gpu_dwr(&v->k, r);
+        const double aee = term_hess_radial(r, dwr, gpu_d2w(&v->k, r));
+        kit_korzilius_pair(D, P, pl, pk, cq, vol[j], dwr, aee, x, G, ui, uj, A, Hx, Gz, rhs);
+    }
+    double lap[3];
+    kit_korzilius_finish(D, P, pl, pk, v->bonet_ok[i], Hx, Gz, B, A, rhs, v->cond_max, lap);
+    for (int a = 0; a < D; ++a) gv(v, GA_LAPU, a)[i] = lap[a];
+}
+
+GPU_FN void dev_negi_korzilius_any(const gpu_view *v, size_t i)
+{
+    if (v->d == 2)
+        dev_negi_korzilius_d(v, i, 2);
+    else
+        dev_negi_korzilius_d(v, i, 3);
+}
+
 GPU_FN void dev_negi_fatehi_any(const gpu_view *v, size_t i)
 {
     if (v->d == 2)

@@ -90,6 +90,9 @@ static int emu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_NEGI_COUPLED:
         for (size_t i = 0; i < count; ++i) dev_negi_coupled_any(v, i);
         break;
+    case GK_NEGI_KORZ:
+        for (size_t i = 0; i < count; ++i) dev_negi_korzilius_any(v, i);
+        break;
     case GK_NEGI_FATEHI:
         for (size_t i = 0; i < count; ++i) dev_negi_fatehi_any(v, i);
         break;
@@ -168,7 +171,7 @@ static const gpu_backend *find_backend(char *why, size_t len)
 
 const char *consph_gpu_schemes(void)
 {
-    return "edac,wcsph,l-ipst-c,l-ipst-f,pe-ipst-c,l-pst-c,l-rr-c,tv-c,e-c,ewcsph";
+    return "edac,wcsph,l-ipst-c,l-ipst-f,l-ipst-k,pe-ipst-c,l-pst-c,l-rr-c,tv-c,e-c,ewcsph";
 }
 
 /* 001's family on the GPU (rk2, coupled_bc): L-IPST-C, L-IPST-F (Fatehi_c) and PE-IPST-C (IPST),
@@ -177,9 +180,10 @@ const char *consph_gpu_schemes(void)
 static int is_negi(const char *scheme)
 {
     return strcmp(scheme, "l-ipst-c") == 0 || strcmp(scheme, "l-ipst-f") == 0 ||
-           strcmp(scheme, "pe-ipst-c") == 0 || strcmp(scheme, "l-pst-c") == 0 ||
-           strcmp(scheme, "l-rr-c") == 0 || strcmp(scheme, "tv-c") == 0 ||
-           strcmp(scheme, "e-c") == 0 || strcmp(scheme, "ewcsph") == 0;
+           strcmp(scheme, "l-ipst-k") == 0 || strcmp(scheme, "pe-ipst-c") == 0 ||
+           strcmp(scheme, "l-pst-c") == 0 || strcmp(scheme, "l-rr-c") == 0 ||
+           strcmp(scheme, "tv-c") == 0 || strcmp(scheme, "e-c") == 0 ||
+           strcmp(scheme, "ewcsph") == 0;
 }
 
 int consph_gpu_available(char *why, size_t len)
@@ -498,6 +502,7 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     v->k.support = kr->support;
     v->k.norm1 = kr->norm * kr->inv_h;
     v->k.at_zero = kr->norm * kr->inv_h * kr->inv_h * gpu_quintic_d2f(0.0);
+    v->k.norm2 = kr->norm * kr->inv_h * kr->inv_h;
     /* pysph/scheme.c's job_fields */
     v->c.m = s->mass;
     v->c.minv = 1.0 / s->mass;
@@ -642,6 +647,8 @@ static int negi_rates(gpu_run *g)
         LAUNCH(GK_NEGI_CLEARY, v->n, 0.0);
     else if (t->lap == KIT_LAP_FATEHI_C)
         LAUNCH(GK_NEGI_FATEHI, v->n, 0.0);
+    else if (t->lap == KIT_LAP_KORZILIUS)
+        LAUNCH(GK_NEGI_KORZ, v->n, 0.0);
     else
         LAUNCH(GK_NEGI_COUPLED, v->n, 0.0);
     /* TV-C's shifting velocity δu = (c_o/h) δr of Sun et al.'s shift at 001's authors'
@@ -805,7 +812,7 @@ int gpu_regularise(consph_solver *s, int *synced)
     *synced = 0;
     const char *name = s->scheme->name;
     int st = strcmp(name, "l-ipst-c") == 0 || strcmp(name, "l-ipst-f") == 0 ||
-                     strcmp(name, "pe-ipst-c") == 0
+                     strcmp(name, "l-ipst-k") == 0 || strcmp(name, "pe-ipst-c") == 0
                  ? ipst(s)
              : strcmp(name, "l-pst-c") == 0 ? pst(s)
              : strcmp(name, "l-rr-c") == 0

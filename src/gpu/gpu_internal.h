@@ -30,6 +30,7 @@ typedef enum gpu_kernel {
     GK_NEGI_COUPLED, /* dev_negi_coupled_any */
     GK_NEGI_CLEARY,  /* dev_negi_cleary_any */
     GK_NEGI_FATEHI,  /* dev_negi_fatehi_any */
+    GK_NEGI_KORZ,    /* dev_negi_korzilius_any */
     GK_NEGI_RATES,   /* dev_negi_rates */
     GK_IPST_VOLUMES, /* dev_ipst_volumes */
     GK_CHI_MAX,      /* dev_chi_max, per GPU_MAX_CHUNK particles */

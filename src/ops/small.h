@@ -13,10 +13,11 @@
 /* The largest matrix inverted (OPS_MAX_MSPH of ops_internal.h: MSPH's 10×10 in 3D). */
 #define OPS_SMALL_MAXN 10
 
-/* The scratch of one inverse: the GPU inverts the Bonet matrices only (2×2, 3×3), and its
- * pivoting indexes the scratch at run time, which puts it in the thread's local memory. */
+/* The scratch of one inverse: the GPU inverts the Bonet and Fatehi_c matrices (2×2, 3×3) and
+ * Korzilius' (3×3, 6×6), and its pivoting indexes the scratch at run time, which puts it in the
+ * thread's local memory. */
 #if defined(__CUDA_ARCH__)
-#define OPS_SMALL_SCRATCH 3
+#define OPS_SMALL_SCRATCH 6
 #else
 #define OPS_SMALL_SCRATCH OPS_SMALL_MAXN
 #endif
@@ -154,6 +155,35 @@ CONSPH_HD static inline void term_fatehi_c_finish(int d, const double B[9], cons
             for (int c = 0; c < d; ++c) v += L3[(a * d + b) * d + c] * BL1[c];
             M[a * d + b] = -v;
         }
+}
+
+/* Coefficient of x^l x^k H_lk in the second-order Taylor term: 1/2 on the diagonal, 1 off it
+ * (the symmetric pair is counted once); 000 eq. 32's (1 - δ_lk/2). */
+CONSPH_HD static inline double term_taylor_c(int l, int k)
+{
+    return l == k ? 0.5 : 1.0;
+}
+
+/* The radial part of the kernel Hessian ∂_l∂_k W = aee x^l x^k + dwr δ_lk of a pair at r:
+ * (W'' - W'/r)/r², 0 at r = 0 (term_pair_hess). */
+CONSPH_HD static inline double term_hess_radial(double r, double dwr, double d2w)
+{
+    return r > 0.0 ? (d2w - dwr) / (r * r) : 0.0;
+}
+
+/* Korzilius' Γ̃ (001 eq. 15 with the fixes of docs/deviations.md): subtracts Hx B Gz, from the sums
+ * of term_second_moment with korz, from its CSPM matrix A. */
+CONSPH_HD static inline void term_korzilius_correct(int d, int P, const double *Hx,
+                                                    const double *Gz, const double B[9], double *A)
+{
+    double BG[3 * 6];
+    for (int e = 0; e < 3 * 6; ++e) BG[e] = 0.0;
+    for (int a = 0; a < d; ++a)
+        for (int b = 0; b < P; ++b)
+            for (int c = 0; c < d; ++c) BG[a * P + b] += B[a * d + c] * Gz[c * P + b];
+    for (int a = 0; a < P; ++a)
+        for (int b = 0; b < P; ++b)
+            for (int c = 0; c < d; ++c) A[a * P + b] -= Hx[a * d + c] * BG[c * P + b];
 }
 
 #endif

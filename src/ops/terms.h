@@ -75,8 +75,7 @@ static inline void term_corrected_grad(int d, consph_op_corr corr, const double 
 static inline double term_pair_hess(int d, const consph_nbhd *nb, size_t q, double x[3])
 {
     for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-    const double r = nb->r[q], dwr = nb->dwr[q];
-    return r > 0.0 ? (nb->d2w[q] - dwr) / (r * r) : 0.0;
+    return term_hess_radial(nb->r[q], nb->dwr[q], nb->d2w[q]);
 }
 
 /* ---- function sums ---- */
@@ -463,13 +462,6 @@ static inline void term_fatehi_c_matrix(int d, const consph_nbhd *nb, const doub
     term_fatehi_c_finish(d, B, L1, L2, L3, M);
 }
 
-/* Coefficient of x^l x^k H_lk in the second-order Taylor term: 1/2 on the diagonal, 1 off it
- * (the symmetric pair is counted once); 000 eq. 32's (1 - δ_lk/2). */
-static inline double term_taylor_c(int l, int k)
-{
-    return l == k ? 0.5 : 1.0;
-}
-
 /* The CSPM second-derivative matrix (000 eq. 32) A = Σ ω ∂∂W ζ^T, ζ_q = cq_q x^l x^k, and with
  * korz Korzilius' Hx = Σ ω ∂∂W x_ji^T and Gz = Σ ω ∇W ζ^T (001 eq. 15); all zero on entry. */
 static inline void term_second_moment(int d, int P, const int *pl, const int *pk, const double *cq,
@@ -494,20 +486,6 @@ static inline void term_second_moment(int d, int P, const int *pl, const int *pk
                 for (int b = 0; b < P; ++b) Gz[a * P + b] += om * dwr * x[a] * zeta[b];
         }
     }
-}
-
-/* Korzilius' Γ̃ (001 eq. 15 with the fixes of docs/deviations.md): subtracts Hx B Gz, from the sums
- * of term_second_moment with korz, from its CSPM matrix A. */
-static inline void term_korzilius_correct(int d, int P, const double *Hx, const double *Gz,
-                                          const double B[9], double *A)
-{
-    double BG[3 * 6] = {0};
-    for (int a = 0; a < d; ++a)
-        for (int b = 0; b < P; ++b)
-            for (int c = 0; c < d; ++c) BG[a * P + b] += B[a * d + c] * Gz[c * P + b];
-    for (int a = 0; a < P; ++a)
-        for (int b = 0; b < P; ++b)
-            for (int c = 0; c < d; ++c) A[a * P + b] -= Hx[a * d + c] * BG[c * P + b];
 }
 
 /* MSPH (000 §3.3): A = Σ T C^T with test functions T = ω [W, ∂W, ∂∂W] and columns

@@ -237,41 +237,14 @@ TERM_INLINE void korzilius_body(const kit_job *job, const consph_nbhd *nb, const
     double A[MP * MP] = {0}, Hx[MP * 3] = {0}, Gz[3 * MP] = {0}, rhs[3 * MP] = {0};
     for (size_t k = 0; k < nb->n; ++k) {
         const size_t j = nb->j[k];
-        const double om = vol[j], dwr = nb->dwr[k];
-        double x[3], zeta[MP], H[MP];
+        double x[3], uj[3];
         const double aee = term_pair_hess(D, nb, k, x);
-        for (int q = 0; q < P; ++q) {
-            zeta[q] = cq[q] * x[pl[q]] * x[pk[q]];
-            H[q] = aee * x[pl[q]] * x[pk[q]] + (pl[q] == pk[q] ? dwr : 0.0);
-        }
-        for (int a = 0; a < P; ++a)
-            for (int b = 0; b < P; ++b) A[a * P + b] += om * H[a] * zeta[b];
-        for (int a = 0; a < P; ++a)
-            for (int b = 0; b < D; ++b) Hx[a * D + b] -= om * H[a] * x[b];
-        for (int a = 0; a < D; ++a)
-            for (int b = 0; b < P; ++b) Gz[a * P + b] += om * dwr * x[a] * zeta[b];
-        for (int a = 0; a < D; ++a) {
-            double xG = 0.0;
-            for (int b = 0; b < D; ++b) xG += x[b] * G[a * D + b];
-            /* x_ji·G = -x_ij·G */
-            const double sa = om * ((u[a * cap + j] - ui[a]) + xG);
-            for (int q = 0; q < P; ++q) rhs[a * P + q] += sa * H[q];
-        }
+        for (int a = 0; a < D; ++a) uj[a] = u[a * cap + j];
+        kit_korzilius_pair(D, P, pl, pk, cq, vol[j], nb->dwr[k], aee, x, G, ui, uj, A, Hx, Gz, rhs);
     }
-    double Ainv[MP * MP], cond;
-    if (job->bonet_ok[i]) {
-        term_korzilius_correct(D, P, Hx, Gz, B, A);
-        if (!ops_invert(P, A, Ainv, job->rq->cond_max, &cond)) set_identity(Ainv, P);
-    } else {
-        set_identity(Ainv, P);
-    }
-    for (int a = 0; a < D; ++a) {
-        double lap = 0.0;
-        for (int r = 0; r < P; ++r)
-            if (pl[r] == pk[r])
-                for (int c = 0; c < P; ++c) lap += Ainv[r * P + c] * rhs[a * P + c];
-        job->lapu[a * cap + i] = lap;
-    }
+    double lap[3];
+    kit_korzilius_finish(D, P, pl, pk, job->bonet_ok[i], Hx, Gz, B, A, rhs, job->rq->cond_max, lap);
+    for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = lap[a];
 }
 
 /* Cleary's Laplacian as 001's authors run EWCSPH (ewcsph.py, get_equations_ewcsph: their

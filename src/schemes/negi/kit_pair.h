@@ -124,4 +124,59 @@ KIT_PAIR void kit_fatehi_pair(const int D, const double Bh[9], double r, double 
     }
 }
 
+/* One neighbour j of Korzilius' Laplacian (kit.c's korzilius_body; P = d(d+1)/2 pairs (pl, pk)
+ * with Taylor coefficients cq): om = ω_j, dwr = W'/r, aee the Hessian's radial part, x = x_ij,
+ * G = ∇u_i, u at i and j; adds to the sums of term_second_moment (A, Hx, Gz) and
+ * term_hessian_rhs (rhs, per component of u). */
+KIT_PAIR void kit_korzilius_pair(const int D, const int P, const int pl[6], const int pk[6],
+                                 const double cq[6], double om, double dwr, double aee,
+                                 const double x[3], const double G[9], const double ui[3],
+                                 const double uj[3], double A[36], double Hx[18], double Gz[18],
+                                 double rhs[18])
+{
+    double zeta[6], H[6];
+    for (int q = 0; q < P; ++q) {
+        zeta[q] = cq[q] * x[pl[q]] * x[pk[q]];
+        H[q] = aee * x[pl[q]] * x[pk[q]] + (pl[q] == pk[q] ? dwr : 0.0);
+    }
+    for (int a = 0; a < P; ++a)
+        for (int b = 0; b < P; ++b) A[a * P + b] += om * H[a] * zeta[b];
+    for (int a = 0; a < P; ++a)
+        for (int b = 0; b < D; ++b) Hx[a * D + b] -= om * H[a] * x[b];
+    for (int a = 0; a < D; ++a)
+        for (int b = 0; b < P; ++b) Gz[a * P + b] += om * dwr * x[a] * zeta[b];
+    for (int a = 0; a < D; ++a) {
+        double xG = 0.0;
+        for (int b = 0; b < D; ++b) xG += x[b] * G[a * D + b];
+        /* x_ji·G = -x_ij·G */
+        const double sa = om * ((uj[a] - ui[a]) + xG);
+        for (int q = 0; q < P; ++q) rhs[a * P + q] += sa * H[q];
+    }
+}
+
+/* Korzilius' finish: Γ̃ = A - Hx B Gz inverted (001 eq. 15), the identity where B_i fell back (ok
+ * 0) or Γ̃ is singular or worse conditioned than cond_max; ∇²u's components the diagonal rows of
+ * Γ̃^{-1} applied to rhs. A is overwritten. */
+KIT_PAIR void kit_korzilius_finish(const int D, const int P, const int pl[6], const int pk[6],
+                                   int ok, const double Hx[18], const double Gz[18],
+                                   const double B[9], double A[36], const double rhs[18],
+                                   double cond_max, double lapu[3])
+{
+    double Ainv[36], cond = 0.0;
+    if (ok) {
+        term_korzilius_correct(D, P, Hx, Gz, B, A);
+        ok = ops_invert_n(P, A, Ainv, cond_max, &cond);
+    }
+    if (!ok)
+        for (int r = 0; r < P; ++r)
+            for (int c = 0; c < P; ++c) Ainv[r * P + c] = r == c ? 1.0 : 0.0;
+    for (int a = 0; a < D; ++a) {
+        double lap = 0.0;
+        for (int r = 0; r < P; ++r)
+            if (pl[r] == pk[r])
+                for (int c = 0; c < P; ++c) lap += Ainv[r * P + c] * rhs[a * P + c];
+        lapu[a] = lap;
+    }
+}
+
 #endif
