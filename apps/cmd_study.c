@@ -274,10 +274,13 @@ static char *resume_command(int argc, char **argv, int resume)
     return buf;
 }
 
-/* The default of --jobs. */
+/* The default of --jobs: a worker per core OpenMP would use (OMP_NUM_THREADS), each with one
+ * thread: rows run whole on one core each beat every row spread over the cores (001-table9
+ * --quick on 2 cores, docs/studies.md). */
 static long jobs_default(void)
 {
-    return 1;
+    const int cores = consph_num_threads();
+    return cores < 1 ? 1 : cores > 256 ? 256 : cores;
 }
 
 int cmd_study_started;
@@ -311,7 +314,7 @@ int cmd_study(int argc, char **argv)
          "with --particles: periodic axes (default: each file's own)", NULL, 0, 0, 0},
         {"--jobs", CLI_INT, &jobs, "J",
          "run the rows on J worker processes, each with cores/J threads, and write the report a "
-         "serial run writes (default 1: one process)",
+         "serial run writes (default: the cores, OMP_NUM_THREADS; 1: this process alone)",
          NULL, 1, 256, 0},
         CLI_CACHE_OPTS(cache),
     };

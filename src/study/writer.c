@@ -534,6 +534,9 @@ const char *consph_study_duration_text(double seconds, char *buf, size_t size)
 static double rows_eta(const study_rows *r)
 {
     if (r->work_run <= 0 || r->seconds_run <= 0) return NAN;
+    if (r->shared) /* the workers together, each at this one's rate */
+        return (r->work_total - (double)__atomic_load_n(&r->shared->work_done, __ATOMIC_RELAXED)) *
+               r->seconds_run / r->work_run / r->share_size;
     return (r->work_total - r->work_done) * r->seconds_run / r->work_run;
 }
 
@@ -568,7 +571,8 @@ static void rows_line(study_rows *r, int done_line, int stored)
                  r->current);
         consph_progress_prefix(prefix);
     } else if (done_line)
-        fprintf(stderr, "study: row %d/%d %s: %s (elapsed %s, ETA %s)\n", r->done, r->total,
+        fprintf(stderr, "study: row %d/%d %s: %s (elapsed %s, ETA %s)\n",
+                r->shared ? __atomic_load_n(&r->shared->done, __ATOMIC_RELAXED) : r->done, r->total,
                 stored ? "kept from the earlier run" : "done", r->current, el, eta);
     fflush(stderr);
 }
@@ -609,6 +613,10 @@ int study_row_finish(const study_job *job, const study_figure *f, int k, int j, 
     }
     r->done++;
     r->work_done += r->row_work;
+    if (r->shared) {
+        __atomic_add_fetch(&r->shared->done, 1, __ATOMIC_RELAXED);
+        __atomic_add_fetch(&r->shared->work_done, llround(r->row_work), __ATOMIC_RELAXED);
+    }
     if (!stored) {
         r->run_now++;
         r->work_run += r->row_work;
