@@ -224,8 +224,8 @@ static int run_status(int rc)
                                                        : 1;
 }
 
-/* The estimate in seconds, and in minutes, hours or days as its size asks. */
-static void print_estimate(double est)
+/* The estimate in seconds, and in minutes, hours or days as its size asks; `jobs` workers. */
+static void print_estimate(double est, long jobs)
 {
     if (!isfinite(est)) {
         printf("estimated run time: unknown (the calibration run failed)\n");
@@ -238,6 +238,7 @@ static void print_estimate(double est)
         printf(" (%.1f hours)", est / 3600.0);
     else
         printf(" (%.1f min)", est / 60.0);
+    if (jobs > 1) printf(" on %ld worker processes", jobs);
     printf("; from the work (particle-steps, neighbour pairs, packed particles) at the cost "
            "measured here on small runs\n");
 }
@@ -400,9 +401,17 @@ int cmd_study(int argc, char **argv)
     }
     /* Under MPI the estimate's calibration runs on rank 0 alone, which prints it. */
     if ((!quick || estimate_only) && consph_par_rank() == 0) {
+        /* for the workers that will run: calibrated at a worker's threads, the work shared
+         * evenly between them */
+        const int cores = consph_num_threads();
+        if (jobs > 1) consph_set_num_threads(cores / jobs > 1 ? (int)(cores / jobs) : 1);
         double est = particles ? consph_study_estimate_particles(s, quick, in.sets, in.n)
                                : consph_study_estimate(s, quick);
-        print_estimate(est);
+        if (jobs > 1) {
+            consph_set_num_threads(cores);
+            est /= (double)jobs;
+        }
+        print_estimate(est, jobs);
         fflush(stdout);
     }
     char *resume_cmd = resume_command(argc, argv, resume);
