@@ -683,6 +683,8 @@ static int study_run_jobs(const consph_study *s, const consph_study_options *opt
 {
     size_t created = 0;
     study_rows rows = *prepared;
+    /* on a terminal worker 0 alone keeps the live line, counting every worker's rows */
+    const int tty = rows.tty;
     rows.tty = 0;
     /* a unit holds at least one row: one claim per row is enough */
     const size_t shared_size = sizeof(study_shared) + (size_t)rows.total + 1;
@@ -725,9 +727,12 @@ static int study_run_jobs(const consph_study *s, const consph_study_options *opt
             rows.share_rank = k;
             rows.share_size = jobs;
             rows.shared = sh;
+            rows.tty = tty && k == 0;
+            rows.print = opt->progress && (!tty || k == 0);
             job_result res;
             memset(&res, 0, sizeof res);
             res.rc = run_figures(s, &share, files, dir, &rows);
+            if (rows.tty) fprintf(stderr, "\r\033[K");
             res.stopped = rows.stopped;
             res.done = rows.done;
             if (res.rc) snprintf(res.msg, sizeof res.msg, "%s", consph_last_error());

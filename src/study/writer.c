@@ -562,17 +562,18 @@ static void rows_line(study_rows *r, int done_line, int stored)
     consph_study_duration_text(consph_wtime() - r->t0, el, sizeof el);
     consph_study_duration_text(rows_eta(r), eta, sizeof eta);
     /* One fprintf per line: stderr is unbuffered, and a line must not be torn by others. */
+    /* with --jobs, the rows every worker finished */
+    const int done = r->shared ? __atomic_load_n(&r->shared->done, __ATOMIC_RELAXED) : r->done;
     if (r->tty) {
-        fprintf(stderr, "\rrow %d/%d  %s  elapsed %s  ETA %s\033[K", r->done + !done_line, r->total,
+        fprintf(stderr, "\rrow %d/%d  %s  elapsed %s  ETA %s\033[K", done + !done_line, r->total,
                 r->current, el, eta);
         /* A solver row's own line (consph_run) keeps the row in view. */
         char prefix[256];
-        snprintf(prefix, sizeof prefix, "row %d/%d %.40s | ", r->done + !done_line, r->total,
+        snprintf(prefix, sizeof prefix, "row %d/%d %.40s | ", done + !done_line, r->total,
                  r->current);
         consph_progress_prefix(prefix);
     } else if (done_line)
-        fprintf(stderr, "study: row %d/%d %s: %s (elapsed %s, ETA %s)\n",
-                r->shared ? __atomic_load_n(&r->shared->done, __ATOMIC_RELAXED) : r->done, r->total,
+        fprintf(stderr, "study: row %d/%d %s: %s (elapsed %s, ETA %s)\n", done, r->total,
                 stored ? "kept from the earlier run" : "done", r->current, el, eta);
     fflush(stderr);
 }
