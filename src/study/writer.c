@@ -562,8 +562,10 @@ static void rows_line(study_rows *r, int done_line, int stored)
     consph_study_duration_text(consph_wtime() - r->t0, el, sizeof el);
     consph_study_duration_text(rows_eta(r), eta, sizeof eta);
     /* One fprintf per line: stderr is unbuffered, and a line must not be torn by others. */
-    /* with --jobs, the rows every worker finished */
-    const int done = r->shared ? __atomic_load_n(&r->shared->done, __ATOMIC_RELAXED) : r->done;
+    /* with --jobs, the rows every worker finished (a finished row: the count it made) */
+    const int done = !r->shared  ? r->done
+                     : done_line ? r->shared_done
+                                 : __atomic_load_n(&r->shared->done, __ATOMIC_RELAXED);
     if (r->tty) {
         fprintf(stderr, "\rrow %d/%d  %s  elapsed %s  ETA %s\033[K", done + !done_line, r->total,
                 r->current, el, eta);
@@ -615,7 +617,7 @@ int study_row_finish(const study_job *job, const study_figure *f, int k, int j, 
     r->done++;
     r->work_done += r->row_work;
     if (r->shared) {
-        __atomic_add_fetch(&r->shared->done, 1, __ATOMIC_RELAXED);
+        r->shared_done = __atomic_add_fetch(&r->shared->done, 1, __ATOMIC_RELAXED);
         __atomic_add_fetch(&r->shared->work_done, llround(r->row_work), __ATOMIC_RELAXED);
     }
     if (!stored) {

@@ -140,6 +140,7 @@ typedef struct study_rows {
      * worker that claims it first, and the rows finished by all of them are counted together */
     study_shared *shared;
     int unit_claimed;      /* whether this worker claimed the unit met last */
+    int shared_done;       /* the count of every worker's rows this worker's last row made */
     int fig_rows, fig_met; /* rows of the figure now running; rows of it met so far */
     int shared_report;     /* rank 0's pass over the rows the ranks kept */
 } study_rows;
