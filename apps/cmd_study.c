@@ -225,8 +225,8 @@ static int run_status(int rc)
                                                        : 1;
 }
 
-/* The estimate in seconds, and in minutes, hours or days as its size asks. */
-static void print_estimate(double est)
+/* The estimate in seconds, and in minutes, hours or days as its size asks; `jobs` workers. */
+static void print_estimate(double est, long jobs)
 {
     if (!isfinite(est)) {
         printf("estimated run time: unknown (the calibration run failed)\n");
@@ -239,6 +239,7 @@ static void print_estimate(double est)
         printf(" (%.1f hours)", est / 3600.0);
     else
         printf(" (%.1f min)", est / 60.0);
+    if (jobs > 1) printf(" on %ld worker processes", jobs);
     printf("; from the work (particle-steps, neighbour pairs, packed particles) at the cost "
            "measured here on small runs\n");
 }
@@ -275,10 +276,13 @@ static char *resume_command(int argc, char **argv, int resume)
     return buf;
 }
 
-/* The default of --jobs. */
+/* The default of --jobs: a worker per core OpenMP would use (OMP_NUM_THREADS), each with one
+ * thread: rows run whole on one core each beat every row spread over the cores (001-table9
+ * --quick on 2 cores, docs/studies.md). */
 static long jobs_default(void)
 {
-    return 1;
+    const int cores = consph_num_threads();
+    return cores < 1 ? 1 : cores > 256 ? 256 : cores;
 }
 
 int cmd_study_started;
@@ -313,7 +317,7 @@ int cmd_study(int argc, char **argv)
          "with --particles: periodic axes (default: each file's own)", NULL, 0, 0, 0},
         {"--jobs", CLI_INT, &jobs, "J",
          "run the rows on J worker processes, each with cores/J threads, and write the report a "
-         "serial run writes (default 1: one process)",
+         "serial run writes (default: the cores, OMP_NUM_THREADS; 1: this process alone)",
          NULL, 1, 256, 0},
         {"--device", CLI_CHOICE, &device_index, "D",
          "where the solver rows run: cpu, gpu (every row, else exit 2 naming those that cannot), "
@@ -396,6 +400,8 @@ int cmd_study(int argc, char **argv)
         consph_study_device_of(s, device_opt->given ? CONSPH_STUDY_DEVICE_CPU + device_index
                                                     : CONSPH_STUDY_DEVICE_DEFAULT);
     const int on_gpu = device == CONSPH_STUDY_DEVICE_GPU || device == CONSPH_STUDY_DEVICE_AUTO;
+    /* one GPU: the default of one worker per core becomes one process */
+    if (on_gpu && !jobs_opt->given) jobs = 1;
     rc = 0;
     if (on_gpu && consph_par_size() > 1)
         rc = cli_error(&cmd,
@@ -431,9 +437,17 @@ int cmd_study(int argc, char **argv)
     }
     /* Under MPI the estimate's calibration runs on rank 0 alone, which prints it. */
     if ((!quick || estimate_only) && consph_par_rank() == 0) {
+        /* for the workers that will run: calibrated at a worker's threads, the work shared
+         * evenly between them */
+        const int cores = consph_num_threads();
+        if (jobs > 1) consph_set_num_threads(cores / jobs > 1 ? (int)(cores / jobs) : 1);
         double est = particles ? consph_study_estimate_particles(s, quick, in.sets, in.n)
                                : consph_study_estimate(s, quick);
-        print_estimate(est);
+        if (jobs > 1) {
+            consph_set_num_threads(cores);
+            est /= (double)jobs;
+        }
+        print_estimate(est, jobs);
         fflush(stdout);
     }
     char *resume_cmd = resume_command(argc, argv, resume);

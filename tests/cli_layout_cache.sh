@@ -72,6 +72,9 @@ wait $p1 || bad "writer 1: exit $?"
 wait $p2 || bad "writer 2: exit $?"
 [ "$(files "$c2")" = 1 ] && [ -z "$(find "$c2" -name '.layout-tmp*')" ] && pass=$((pass + 1)) ||
     bad "concurrent: $(ls -a "$c2")"
+# ... and one of them packed: the other waited on the key's lock and read the file
+[ "$(cat "$work/w1" "$work/w2" | grep -c 'read from the layout cache')" = 1 ] && pass=$((pass + 1)) ||
+    bad "concurrent: not packed once: $(grep -h '^packing:' "$work/w1" "$work/w2")"
 "$bin" "${gen[@]}" --cache "$c2" --out "$work/c.csv" >"$work/o" 2>"$work/e"
 grep -q "read from the layout cache" "$work/o" && [ ! -s "$work/e" ] &&
     cmp -s "$work/miss.csv" "$work/c.csv" && pass=$((pass + 1)) || bad "concurrent: not a valid file"

@@ -99,7 +99,8 @@ same_report "$work/cpu/gpu" "$work/dcpu/gpu" "--device cpu" && pass=$((pass + 1)
 # "emulation")
 gpu_runs() {
     local be=$1 w=$work/${1:-cuda}
-    CONSPH_GPU_BACKEND=$be "$bin" study "$study" --quick --device gpu --out "$w/gpu" \
+    # on 2 cores, where the default --jobs is 2 workers: one GPU makes it one process
+    OMP_NUM_THREADS=2 CONSPH_GPU_BACKEND=$be "$bin" study "$study" --quick --device gpu --out "$w/gpu" \
         >"$w.out" 2>"$work/err" || { bad "${be:-cuda}: --device gpu: $(cat "$work/err")"; return; }
     same_report "$work/cpu/gpu" "$w/gpu/gpu" "${be:-cuda}: --device gpu" && pass=$((pass + 1))
     [ "$(device_line "$w/gpu/gpu" tgv)" = "Device: the GPU ran every row. The GPU's rows count no neighbour pairs (pairs 0 in the CSV)." ] &&

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # consph study --jobs J (docs/studies.md): the rows on J forked workers write the files a serial
-# study writes (every file byte for byte, the wall-time columns masked); a study stopped on 2
+# study writes (every file byte for byte, the wall-time columns masked), and so does the default,
+# a worker per core (OMP_NUM_THREADS); a study stopped on 2
 # workers exits 130 with the partial report and the resume command once, and resumes on 3 to the
 # serial report; a SIGINT to the study stops every worker; a row that fails in a worker gives
 # the serial exit status and message, once; a worker killed by a signal is reported, not waited
@@ -43,6 +44,16 @@ STUDY
     timeout 60 "$bin" study "$work/two.study" --quick --jobs 3 --out "$work/t3" >/dev/null 2>"$work/err" &&
     same_study "$work/t1/two" "$work/t3/two" "2 rows on 3 workers" && pass=$((pass + 1)) ||
     bad "2 rows on 3 workers: $(cat "$work/err")"
+
+# Without --jobs: a worker per core OpenMP would use (OMP_NUM_THREADS), the same files; the m0
+# figure's report line says a worker ran it.
+OMP_NUM_THREADS=2 timeout 60 "$bin" study "$work/two.study" --quick --out "$work/d2" >"$work/out" 2>"$work/err" &&
+    same_study "$work/t1/two" "$work/d2/two" "default --jobs on 2 cores" &&
+    grep -q 'run by a worker process' "$work/out" && pass=$((pass + 1)) ||
+    bad "default --jobs on 2 cores: $(cat "$work/out" "$work/err")"
+OMP_NUM_THREADS=1 "$bin" study "$work/two.study" --quick --out "$work/d1" >"$work/out" 2>&1 &&
+    ! grep -q 'worker' "$work/out" && pass=$((pass + 1)) ||
+    bad "default --jobs on 1 core: $(cat "$work/out")"
 
 # Stopped on 2 workers (each stops after its first row), resumed on 3.
 CONSPH_TEST_STOP_AFTER_ROWS=1 timeout 120 "$bin" study "$study" --quick --jobs 2 --out "$work/k" \
@@ -96,7 +107,7 @@ rc=$?
 [ $rc = 1 ] && grep -q '^consph study: --jobs: worker [01] of 2 (pid [0-9]*) ended by signal 9$' "$work/err" &&
     pass=$((pass + 1)) || bad "worker killed: exit $rc: $(cat "$work/err")"
 
-# A row that fails in worker 1 (its row file cannot be written: a directory holds the name).
+# A row that fails in a worker (its row file cannot be written: a directory holds the name).
 cat >"$work/g.study" <<'STUDY'
 study = g
 [figure g]

@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
-# consph study: a study stopped after k rows (CONSPH_TEST_STOP_AFTER_ROWS raises SIGINT after
-# the k-th row it runs) exits 130 with a partial README.md and the command that resumes; that
+# consph study --jobs 1 (one process, so that "the k-th row" and the progress lines count every
+# row; tests/cli_study_jobs.sh stops and resumes worker processes): a study stopped after k rows
+# (CONSPH_TEST_STOP_AFTER_ROWS raises SIGINT after the k-th row it runs) exits 130 with a partial README.md and the command that resumes; that
 # command finishes the study to the report of an uninterrupted run (every file equal, the
 # columns of wall times aside), running none of the rows kept; a resume of a finished study
 # rewrites every file byte for byte; a resume with another study file, --quick or --particles
@@ -27,7 +28,7 @@ same() {
     return $ok
 }
 
-"$bin" study "$study" --quick --out "$work/ref" >/dev/null 2>"$work/ref.err" ||
+"$bin" study "$study" --quick --jobs 1 --out "$work/ref" >/dev/null 2>"$work/ref.err" ||
     { bad "uninterrupted run: $(cat "$work/ref.err")"; summary cli_study_resume; exit; }
 ref=$work/ref/resume
 total=$(grep -c '^study: row .* done:' "$work/ref.err")
@@ -38,7 +39,7 @@ total=$(grep -c '^study: row .* done:' "$work/ref.err")
 for kk in 3:3 7:1 10:1; do
     k=${kk%:*} back=${kk#*:}
     out=$work/k$k
-    CONSPH_TEST_STOP_AFTER_ROWS=$k "$bin" study "$study" --quick --out "$out" >/dev/null \
+    CONSPH_TEST_STOP_AFTER_ROWS=$k "$bin" study "$study" --quick --jobs 1 --out "$out" >/dev/null \
         2>"$work/err"
     rc=$?
     d=$out/resume
@@ -54,7 +55,7 @@ for kk in 3:3 7:1 10:1; do
         bad "stop after $k rows: README.md: $(head -5 "$d/README.md")"
     elif ! grep -q 'not run' "$d/README.md" || ! grep -qF -- "$cmd" "$d/README.md"; then
         bad "stop after $k rows: README.md lacks the rows not run or the command '$cmd'"
-    elif [ "$cmd" != "consph study $study --quick --out $out --resume" ]; then
+    elif [ "$cmd" != "consph study $study --quick --jobs 1 --out $out --resume" ]; then
         bad "stop after $k rows: resume command '$cmd'"
     elif [ -n "$(find "$out" -name '*.tmp*')" ]; then
         bad "stop after $k rows: temporaries left: $(find "$out" -name '*.tmp*')"
@@ -80,7 +81,7 @@ d=$work/k7/resume
 mkdir "$work/before"
 cp "$d"/*.csv "$d"/*.md "$d"/*.dat "$work/before/"
 rm "$d"/.*.done
-"$bin" study "$study" --quick --out "$work/k7" --resume >/dev/null 2>"$work/err" ||
+"$bin" study "$study" --quick --jobs 1 --out "$work/k7" --resume >/dev/null 2>"$work/err" ||
     bad "second resume: $(cat "$work/err")"
 kept=$(grep -c '^study: row .* kept from the earlier run' "$work/err")
 [ "$kept" = 11 ] && pass=$((pass + 1)) || bad "second resume: $kept of the 11 kept rows read back"
@@ -100,7 +101,7 @@ failing 2 "nothing to resume" /dev/null -- \
     "$bin" study "$study" --quick --out "$work/empty" --resume && pass=$((pass + 1))
 [ -e "$work/empty" ] && bad "a refused resume created its output directory"
 "$bin" layout --kind lattice --dim 2 --nx 16 --out "$work/p16.csv" >/dev/null
-CONSPH_TEST_STOP_AFTER_ROWS=2 "$bin" study "$src/tests/data/engine.study" --quick \
+CONSPH_TEST_STOP_AFTER_ROWS=2 "$bin" study "$src/tests/data/engine.study" --quick --jobs 1 \
     --out "$work/eng" >/dev/null 2>&1
 failing 2 "the particle files (--particles) differ" /dev/null -- \
     "$bin" study "$src/tests/data/engine.study" --quick --out "$work/eng" --resume \
@@ -123,7 +124,7 @@ steps = 20000
 scheme = ewcsph
 STUDY
 set -m
-"$bin" study "$work/long.study" --out "$work/long" >/dev/null 2>"$work/long.err" &
+"$bin" study "$work/long.study" --jobs 1 --out "$work/long" >/dev/null 2>"$work/long.err" &
 p=$!
 set +m
 for _ in $(seq 600); do

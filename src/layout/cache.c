@@ -16,6 +16,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <fcntl.h>
+#include <sys/file.h>
 #include <sys/stat.h>
 #include <unistd.h>
 #include <zlib.h>
@@ -448,4 +450,29 @@ void layout_cache_store(const consph_layout_params *lp, const consph_particles *
         warn_unwritable("renaming a file into place");
         unlink(tmp);
     }
+}
+
+int layout_cache_lock(const consph_layout_params *lp)
+{
+    char key[2048], path[CACHE_PATH_MAX + 64], lock[CACHE_PATH_MAX + 80];
+    if (consph_layout_cache_key(lp, key, sizeof key) ||
+        cache_file_name(cache_dir, key, path, sizeof path) || make_dirs(cache_dir) != 0)
+        return -1;
+    /* .layout-<hash>.lock beside layout-<hash>.bin, hidden; left in place, since a process may
+     * be waiting on it */
+    const char *base = strrchr(path, '/') + 1;
+    snprintf(lock, sizeof lock, "%s/.%.*s.lock", cache_dir, (int)(strlen(base) - 4), base);
+    int fd = open(lock, O_RDWR | O_CREAT | O_CLOEXEC, 0666);
+    if (fd < 0) return -1;
+    while (flock(fd, LOCK_EX) != 0)
+        if (errno != EINTR) {
+            close(fd);
+            return -1;
+        }
+    return fd;
+}
+
+void layout_cache_unlock(int fd)
+{
+    if (fd >= 0) close(fd); /* releases the flock */
 }

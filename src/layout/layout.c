@@ -6,6 +6,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 
 #include "layout/layout_internal.h"
 
@@ -213,10 +214,22 @@ static int generate_packed(const consph_layout_params *lp, consph_particles *p,
                            consph_packing_report *report)
 {
     const int cached = layout_cache_enabled(lp);
+    int lock = -1;
     if (cached) {
+        char path[4352];
+        const int absent =
+            consph_layout_cache_path(lp, path, sizeof path) == CONSPH_OK && access(path, F_OK) != 0;
         /* A rejected file fills nothing the packing below does not overwrite. */
         if (layout_check_packing(lp) == CONSPH_OK && layout_cache_load(lp, p, report))
             return CONSPH_OK;
+        /* another process may be packing it: wait for it, then read its file (a file rejected
+         * above is packed again here) */
+        lock = layout_cache_lock(lp);
+        if (lock >= 0 && absent && layout_check_packing(lp) == CONSPH_OK &&
+            layout_cache_load(lp, p, report)) {
+            layout_cache_unlock(lock);
+            return CONSPH_OK;
+        }
         if (report) memset(report, 0, sizeof *report);
     }
     consph_packing_report own;
@@ -228,6 +241,7 @@ static int generate_packed(const consph_layout_params *lp, consph_particles *p,
     fill_lattice(lp, p);
     int rc = consph_layout_pack(lp, p, rep);
     if (rc == CONSPH_OK && cached) layout_cache_store(lp, p, rep);
+    layout_cache_unlock(lock);
     if (rep == &own) consph_packing_report_free(&own);
     return rc;
 }

@@ -67,6 +67,12 @@ int layout_cache_load(const consph_layout_params *lp, consph_particles *p,
                       consph_packing_report *report);
 void layout_cache_store(const consph_layout_params *lp, const consph_particles *p,
                         const consph_packing_report *report);
+/* An exclusive lock (flock) on the layout's key while it is packed, so that a process asking for
+ * a layout another one is packing waits and reads its file rather than packing it again (a
+ * study's worker processes, concurrent runs); the kernel releases it if its holder dies. The
+ * lock's descriptor, or -1 when none could be taken (the packing then goes on unlocked). */
+int layout_cache_lock(const consph_layout_params *lp);
+void layout_cache_unlock(int fd);
 
 /* Entries past the end of the list arrays that a vector loop may read (whole blocks of four). */
 #define PACK_SLACK 4

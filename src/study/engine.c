@@ -8,6 +8,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/mman.h>
 #include <sys/stat.h>
 #include <sys/wait.h>
 #include <time.h>
@@ -400,15 +401,24 @@ static int figure_rows(const consph_study *s, const study_figure *f, int quick,
 
 /* Whether this rank runs the next unit: units are dealt round-robin in the order every rank
  * meets them (the study's figures, series and rows), so no message decides who runs what. A
- * row is a unit, or with `together` every row of series k of f is one. */
+ * row is a unit, or with `together` every row of series k of f is one. Worker processes
+ * (--jobs) share memory instead: each meets the units in that same order and runs the ones it
+ * claims first, so a worker that finished its unit takes the next one nobody has, and rows of
+ * unequal cost (a scheme twice as dear as another) balance themselves. */
 static int unit_mine(study_rows *r, const study_figure *f, int k, int together)
 {
-    if (!together || f != r->unit_fig || k != r->unit_series) {
+    const int new_unit = !together || f != r->unit_fig || k != r->unit_series;
+    if (new_unit) {
         r->share_units++;
         r->unit_fig = f;
         r->unit_series = k;
     }
-    return (r->share_units - 1) % r->share_size == r->share_rank;
+    study_shared *sh = r->shared;
+    if (!sh || r->share_units > sh->nunits)
+        return (r->share_units - 1) % r->share_size == r->share_rank;
+    if (new_unit)
+        r->unit_claimed = !__atomic_exchange_n(&sh->claim[r->share_units - 1], 1, __ATOMIC_ACQ_REL);
+    return r->unit_claimed;
 }
 
 int study_row_elsewhere(const study_job *job, const study_figure *f, int k, int together)
@@ -664,20 +674,29 @@ typedef struct job_result {
     char msg[1024];
 } job_result;
 
-/* A study on opt->jobs forked worker processes (docs/studies.md): worker k runs the units rank k
- * of `jobs` MPI ranks would (unit_mine) into the kept rows, then this process writes the report
- * as a resume of them, as study_run_shared does. Processes rather than threads: every global of
- * the library stays private to one row. Workers are in their own process group, so a SIGINT of
- * the terminal reaches this process alone, which passes its stop request on once. */
+/* A study on `jobs` forked worker processes (docs/studies.md): the workers claim the units as
+ * they meet them (unit_mine) and keep their rows, then this process writes the report as a
+ * resume of them, as study_run_shared does. Processes rather than threads: every global of the
+ * library stays private to one row. Workers are in their own process group, so a SIGINT of the
+ * terminal reaches this process alone, which passes its stop request on once. */
 static int study_run_jobs(const consph_study *s, const consph_study_options *opt,
-                          const study_files *files, const char *dir, const char *state)
+                          const study_files *files, const char *dir, const char *state,
+                          study_rows *prepared, int jobs)
 {
     size_t created = 0;
-    study_rows rows;
-    rows_init(&rows, s, opt, files, dir);
-    /* no more workers than units (a unit holds at least one row) */
-    const int jobs = opt->jobs < rows.total ? opt->jobs : rows.total > 1 ? rows.total : 1;
+    study_rows rows = *prepared;
+    /* on a terminal worker 0 alone keeps the live line, counting every worker's rows */
+    const int tty = rows.tty;
     rows.tty = 0;
+    /* a unit holds at least one row: one claim per row is enough */
+    const size_t shared_size = sizeof(study_shared) + (size_t)rows.total + 1;
+    study_shared *sh =
+        mmap(NULL, shared_size, PROT_READ | PROT_WRITE, MAP_SHARED | MAP_ANONYMOUS, -1, 0);
+    if (sh == MAP_FAILED)
+        return consph_fail(CONSPH_ENOMEM, "--jobs: cannot map %zu bytes shared by the workers",
+                           shared_size);
+    memset(sh, 0, shared_size);
+    sh->nunits = rows.total + 1;
     int rc = study_mkdir_p(dir, &created);
     if (rc == CONSPH_OK) consph_made_dir_register(dir, created);
     if (rc == CONSPH_OK && !opt->resume) {
@@ -707,12 +726,15 @@ static int study_run_jobs(const consph_study *s, const consph_study_options *opt
             consph_set_num_threads(threads);
             consph_study_options share = *opt;
             share.log = NULL;
-            rows.print = opt->progress && k == 0;
             rows.share_rank = k;
             rows.share_size = jobs;
+            rows.shared = sh;
+            rows.tty = tty && k == 0;
+            rows.print = opt->progress && (!tty || k == 0);
             job_result res;
             memset(&res, 0, sizeof res);
             res.rc = run_figures(s, &share, files, dir, &rows);
+            if (rows.tty) fprintf(stderr, "\r\033[K");
             res.stopped = rows.stopped;
             res.done = rows.done;
             if (res.rc) snprintf(res.msg, sizeof res.msg, "%s", consph_last_error());
@@ -774,6 +796,7 @@ static int study_run_jobs(const consph_study *s, const consph_study_options *opt
         if (res.stopped > stopped) stopped = res.stopped;
         done += res.done;
     }
+    munmap(sh, shared_size);
     if (rc == CONSPH_OK && !stopped) stopped = consph_stop_requested();
     if (rc == CONSPH_OK) rc = report_kept_rows(s, opt, files, dir, &rows, stopped, done);
     if (rc) study_remove_created(dir, created);
@@ -853,10 +876,12 @@ static int study_run(const consph_study *s, const consph_study_options *asked,
     if (rc == CONSPH_OK) rc = study_prepare(s, opt, files, dir, state, sizeof state);
     if (consph_par_size() > 1) return study_run_shared(s, opt, files, dir, state, rc);
     if (rc) return rc;
-    if (opt->jobs > 1) return study_run_jobs(s, opt, files, dir, state);
     size_t created = 0;
     study_rows rows;
     rows_init(&rows, s, opt, files, dir);
+    /* no more workers than units (a unit holds at least one row); one runs here */
+    const int jobs = opt->jobs < rows.total ? opt->jobs : rows.total;
+    if (jobs > 1) return study_run_jobs(s, opt, files, dir, state, &rows, jobs);
     rc = study_mkdir_p(dir, &created);
     /* A signal removes what was made as a failure does (study_remove_created). */
     if (rc == CONSPH_OK) consph_made_dir_register(dir, created);

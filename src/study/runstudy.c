@@ -221,6 +221,17 @@ double study_run_estimate(const consph_study *s, const study_figure *f, int quic
     return *particle_steps * sum.seconds / (ncal * (double)sum.steps) + made * per_made + packing;
 }
 
+/* h of the sweep's finest run as the solver derives it (derive_solver: hdx times the box's
+ * length over nx), bit for bit. */
+static double finest_h(const run_plan *pl)
+{
+    consph_run_params p = pl->prm;
+    p.nx = (int)pl->nx[pl->nnx - 1];
+    consph_layout_params lp;
+    if (consph_run_layout_params(&p, &lp) != CONSPH_OK) return 0.0;
+    return p.hdx * ((lp.box.hi[0] - lp.box.lo[0]) / p.nx);
+}
+
 /* u_φ(r) about the centre of the box, with the exact u_φ, per particle at the end of a run. */
 static int keep_profile(consph_solver *sv, run_row *row)
 {
@@ -406,14 +417,15 @@ int study_run_figure(const study_job *job, const study_figure *f)
     for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
         const run_plan *pl = &plans[k];
         const int gpu = series_on_gpu(job, pl);
-        /* The finest first: its h sets Δt of the whole sweep (dt_rule = finest). */
-        double h_dt = 0.0;
+        /* The finest first; its h sets Δt of the whole sweep (dt_rule = finest), known before it
+         * runs, so that every row is a unit of its own for --jobs and MPI ranks. */
+        const double h_finest = pl->dt_finest ? finest_h(pl) : 0.0;
         for (int j = pl->nnx - 1; rc == CONSPH_OK && j >= 0; --j) {
             if (study_rows_stop(job)) {
                 rc = STUDY_STOPPED;
                 break;
             }
-            rc = study_row_elsewhere(job, f, k, pl->dt_finest);
+            rc = study_row_elsewhere(job, f, k, 0);
             if (rc == STUDY_ELSEWHERE) {
                 rc = CONSPH_OK;
                 continue;
@@ -431,8 +443,8 @@ int study_run_figure(const study_job *job, const study_figure *f)
                 w->curve = curve;
                 rc = CONSPH_OK;
             } else {
-                rc = run_one(pl, j, h_dt, j == pl->nnx - 1 ? x : X_NX, w, job->rows, gpu,
-                             job->device);
+                rc = run_one(pl, j, j == pl->nnx - 1 ? 0.0 : h_finest, j == pl->nnx - 1 ? x : X_NX,
+                             w, job->rows, gpu, job->device);
             }
             if (rc == STUDY_STOPPED) break;
             if (rc) {
@@ -440,7 +452,12 @@ int study_run_figure(const study_job *job, const study_figure *f)
                             pl->nx[j], consph_last_error());
                 break;
             }
-            if (pl->dt_finest && j == pl->nnx - 1) h_dt = w->sum.h;
+            if (pl->dt_finest && j == pl->nnx - 1 && w->status == CONSPH_OK && w->sum.h != h_finest)
+                rc = consph_fail(CONSPH_EINVAL,
+                                 "figure '%s', series '%s': the finest run's h %.17g is not the "
+                                 "h %.17g its sweep's time step was given",
+                                 f->id, f->series[k].label, w->sum.h, h_finest);
+            if (rc) break;
             if (log)
                 fprintf(log,
                         "  %-24s nx=%-5g N=%-7zu steps=%-7ld L1(u)=%.3e L1(p)=%.3e (%.2fs%s)%s\n",

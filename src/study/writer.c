@@ -534,6 +534,9 @@ const char *consph_study_duration_text(double seconds, char *buf, size_t size)
 static double rows_eta(const study_rows *r)
 {
     if (r->work_run <= 0 || r->seconds_run <= 0) return NAN;
+    if (r->shared) /* the workers together, each at this one's rate */
+        return (r->work_total - (double)__atomic_load_n(&r->shared->work_done, __ATOMIC_RELAXED)) *
+               r->seconds_run / r->work_run / r->share_size;
     return (r->work_total - r->work_done) * r->seconds_run / r->work_run;
 }
 
@@ -559,16 +562,20 @@ static void rows_line(study_rows *r, int done_line, int stored)
     consph_study_duration_text(consph_wtime() - r->t0, el, sizeof el);
     consph_study_duration_text(rows_eta(r), eta, sizeof eta);
     /* One fprintf per line: stderr is unbuffered, and a line must not be torn by others. */
+    /* with --jobs, the rows every worker finished (a finished row: the count it made) */
+    const int done = !r->shared  ? r->done
+                     : done_line ? r->shared_done
+                                 : __atomic_load_n(&r->shared->done, __ATOMIC_RELAXED);
     if (r->tty) {
-        fprintf(stderr, "\rrow %d/%d  %s  elapsed %s  ETA %s\033[K", r->done + !done_line, r->total,
+        fprintf(stderr, "\rrow %d/%d  %s  elapsed %s  ETA %s\033[K", done + !done_line, r->total,
                 r->current, el, eta);
         /* A solver row's own line (consph_run) keeps the row in view. */
         char prefix[256];
-        snprintf(prefix, sizeof prefix, "row %d/%d %.40s | ", r->done + !done_line, r->total,
+        snprintf(prefix, sizeof prefix, "row %d/%d %.40s | ", done + !done_line, r->total,
                  r->current);
         consph_progress_prefix(prefix);
     } else if (done_line)
-        fprintf(stderr, "study: row %d/%d %s: %s (elapsed %s, ETA %s)\n", r->done, r->total,
+        fprintf(stderr, "study: row %d/%d %s: %s (elapsed %s, ETA %s)\n", done, r->total,
                 stored ? "kept from the earlier run" : "done", r->current, el, eta);
     fflush(stderr);
 }
@@ -609,6 +616,10 @@ int study_row_finish(const study_job *job, const study_figure *f, int k, int j, 
     }
     r->done++;
     r->work_done += r->row_work;
+    if (r->shared) {
+        r->shared_done = __atomic_add_fetch(&r->shared->done, 1, __ATOMIC_RELAXED);
+        __atomic_add_fetch(&r->shared->work_done, llround(r->row_work), __ATOMIC_RELAXED);
+    }
     if (!stored) {
         r->run_now++;
         r->work_run += r->row_work;

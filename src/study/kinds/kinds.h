@@ -99,6 +99,16 @@ int study_write_readme(const consph_study *s, int quick, int files, const char *
  * line, and each finished row's result kept in DIR/.FIGURE.sS.rJ.row (written atomically), so
  * that a resumed study reads it instead of running it again. Kinds that do not report rows
  * (m0, appc, cauchy) count as one row per figure. */
+/* What the worker processes of --jobs share (engine.c, memory mapped before they fork): the
+ * claims on the units, one byte each, and the rows they finished, counted together for the
+ * progress lines. Every access is atomic. */
+typedef struct study_shared {
+    long nunits;
+    int done;
+    long long work_done; /* the work model's units, rounded */
+    unsigned char claim[];
+} study_shared;
+
 typedef struct study_rows {
     const char *dir;
     int total, done;            /* rows of the study, rows finished (run now or read back) */
@@ -126,6 +136,11 @@ typedef struct study_rows {
     long share_units;             /* units met so far, in the study's order */
     const study_figure *unit_fig; /* the unit met last */
     int unit_series;
+    /* --jobs: the workers share these (memory mapped before the fork): a unit is run by the
+     * worker that claims it first, and the rows finished by all of them are counted together */
+    study_shared *shared;
+    int unit_claimed;      /* whether this worker claimed the unit met last */
+    int shared_done;       /* the count of every worker's rows this worker's last row made */
     int fig_rows, fig_met; /* rows of the figure now running; rows of it met so far */
     int shared_report;     /* rank 0's pass over the rows the ranks kept */
 } study_rows;
