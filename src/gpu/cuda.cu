@@ -6,6 +6,7 @@
 #include <cuda_runtime.h>
 #include <cub/device/device_scan.cuh>
 #include <stdio.h>
+#include <stdlib.h>
 
 #include "gpu/gpu_internal.h"
 
@@ -71,11 +72,32 @@ int cu_zero(void *dev, size_t bytes)
     return fail(cudaMemsetAsync(dev, 0, bytes), "cudaMemset");
 }
 
+/* Threads per block: the pair passes (density, rates) hold many registers, and smaller blocks
+ * keep more of them resident; CONSPH_GPU_BLOCK_PAIR (the pair passes) and CONSPH_GPU_BLOCK (every
+ * other kernel) override the defaults for the launch-shape sweep (bench/gpu_tune.sh). Read at
+ * each launch (a lookup in the environment, far below a launch's few microseconds); 0 with the
+ * message set when the value is not a multiple of 32 from 32 to 1024. */
+unsigned block_size(gpu_kernel k)
+{
+    const int pair = k == GK_DENSITY || k == GK_RATES;
+    const char *name = pair ? "CONSPH_GPU_BLOCK_PAIR" : "CONSPH_GPU_BLOCK";
+    const char *e = getenv(name);
+    if (!e || !*e) return pair ? 128u : 256u;
+    char *end = NULL;
+    const long b = strtol(e, &end, 10);
+    if (*end || b < 32 || b > 1024 || b % 32) {
+        snprintf(cuda_err, sizeof cuda_err,
+                 "%s=%s: threads per block must be a multiple of 32 from 32 to 1024", name, e);
+        return 0;
+    }
+    return (unsigned)b;
+}
+
 int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
 {
     if (count == 0) return 0;
-    /* the pair passes hold many registers: smaller blocks keep more of them resident */
-    const unsigned threads = (k == GK_DENSITY || k == GK_RATES) ? 128u : 256u;
+    const unsigned threads = block_size(k);
+    if (!threads) return 1;
     const unsigned blocks = (unsigned)((count + threads - 1) / threads);
     switch (k) {
     case GK_BIN: k_bin<<<blocks, threads>>>(*v, count, c); break;
