@@ -38,7 +38,8 @@ GPU_KERNEL(k_slots, dev_slots(&v, i))
 GPU_KERNEL(k_permute, dev_permute(&v, i))
 GPU_KERNEL(k_save, dev_save_start(&v, i))
 GPU_KERNEL(k_advance, dev_advance(&v, i, c))
-GPU_KERNEL(k_density, dev_edac_density(&v, i))
+GPU_KERNEL(k_density2, dev_edac_density_d(&v, i, 2))
+GPU_KERNEL(k_density3, dev_edac_density_d(&v, i, 3))
 GPU_KERNEL(k_wprep, dev_wcsph_prep(&v, i))
 /* one kernel per dimension and gradients: each holds only its own variant's registers */
 GPU_KERNEL(k_rates2, dev_edac_rates_d(&v, i, 2, 0))
@@ -109,7 +110,9 @@ int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_SAVE: k_save<<<blocks, threads>>>(*v, count, c); break;
     case GK_ADVANCE: k_advance<<<blocks, threads>>>(*v, count, c); break;
     case GK_DENSITY:
-        (v->scheme == GS_EDAC ? k_density : k_wprep)<<<blocks, threads>>>(*v, count, c);
+        (v->scheme != GS_EDAC ? k_wprep
+         : v->d == 2          ? k_density2
+                              : k_density3)<<<blocks, threads>>>(*v, count, c);
         break;
     case GK_RATES:
         if (v->scheme == GS_EDAC && v->d == 2)

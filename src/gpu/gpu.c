@@ -304,8 +304,9 @@ void gpu_free(gpu_run *g)
 {
     if (!g) return;
     const gpu_backend *be = g->be;
-    void *bufs[] = {g->dev_a[0], g->dev_a[1], g->v.vol,   g->v.mrho,  g->v.cs,
-                    g->v.xs,     g->v.cell,   g->v.count, g->v.start, g->v.order};
+    void *bufs[] = {g->dev_a[0],  g->dev_a[1], g->v.vol,   g->v.mrho,  g->v.cs,
+                    g->v.xs,      g->v.cell,   g->v.count, g->v.start, g->v.order,
+                    g->v.slot_of, g->v.pack,   g->v.xp};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k)
         if (bufs[k]) be->release(bufs[k]);
     free(g);
@@ -376,6 +377,11 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
         st = consph_fail(CONSPH_EINVAL, "--device gpu: wcsph's sound speed needs an odd γ, not %g",
                          s->prm.gamma);
     grid_setup(&v->g, &p->box, d, consph_nnps_radius(s->sys.nnps), p->n);
+    /* dev.h's walk holds cell coordinates in 32 bits: c ± reach with c < 2^30 */
+    for (int a = 0; st == CONSPH_OK && a < d; ++a)
+        if (v->g.reach[a] > (1 << 29))
+            st = consph_fail(CONSPH_EINVAL, "GPU: the search reaches %lld cells along axis %d",
+                             (long long)v->g.reach[a], a);
     if (st == CONSPH_OK && v->g.ncells != consph_nnps_cells(s->sys.nnps))
         st = consph_fail(CONSPH_EINVAL, "GPU: %zu cells, the CPU search has %zu", v->g.ncells,
                          consph_nnps_cells(s->sys.nnps));
@@ -404,13 +410,16 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
          be->alloc((void **)&v->mrho, n * sizeof(double)) ||
          be->alloc((void **)&v->cs, n * sizeof(double)) ||
          be->alloc((void **)&v->xs, (size_t)d * n * sizeof(double)) ||
+         be->alloc((void **)&v->xp, 4 * n * sizeof(double)) ||
+         be->alloc((void **)&v->slot_of, n * sizeof(uint32_t)) ||
+         be->alloc((void **)&v->pack, (size_t)(4 + 2 * d) * n * sizeof(double)) ||
          be->alloc((void **)&v->cell, n * sizeof(uint32_t)) || be->alloc((void **)&v->count, nc) ||
          be->alloc((void **)&v->start, nc) || be->alloc((void **)&v->order, n * sizeof(uint32_t))))
         st = be_fail(be, "device memory");
     v->a = g->dev_a[0];
     v->b = g->dev_a[1];
-    g->bytes = 2 * nd + 3 * n * sizeof(double) + (size_t)d * n * sizeof(double) +
-               2 * n * sizeof(uint32_t) + 2 * nc;
+    g->bytes = 2 * nd + 3 * n * sizeof(double) + (size_t)(d + 4) * n * sizeof(double) +
+               (size_t)(4 + 2 * d) * n * sizeof(double) + 3 * n * sizeof(uint32_t) + 2 * nc;
     if (st == CONSPH_OK) st = copy_arrays(s, 1);
     if (st != CONSPH_OK) {
         s->gpu = NULL;
