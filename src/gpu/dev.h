@@ -596,6 +596,23 @@ GPU_FN_INLINE int gpu_walkr_next(const gpu_view *v, gpu_walkr *w, const int D, u
     }
 }
 
+/* The next neighbour other than i itself (slot self): the rate passes' sums leave out j = i,
+ * where ∇W_ii = 0. */
+GPU_FN_INLINE int gpu_walkr_other(const gpu_view *v, gpu_walkr *w, const int D, uint32_t self,
+                                  uint32_t *slot, double dx[3], double *r)
+{
+    if (!gpu_walkr_next(v, w, D, slot, dx, r)) return 0;
+    return *slot != self || gpu_walkr_next(v, w, D, slot, dx, r);
+}
+
+/* Neighbours whose pair terms a rate pass computes at once (1 or 2): two independent pair
+ * computations give the GPU two chains of divisions and square roots to interleave, where one
+ * thread's chain would wait on each; the sums still add the pairs one at a time, in the
+ * neighbour order, so the results are the same bits either way. */
+#ifndef CONSPH_GPU_PAIRS
+#define CONSPH_GPU_PAIRS 1
+#endif
+
 /* ---- the neighbour records (gpu_view's pack) ----
  * edac: ϱ, p, V, m/ϱ, u, ũ - u (4 + 2d); wcsph: ϱ, p/ϱ², m/ϱ, c_s, u (4 + d, padded to even):
  * an even width keeps every record on 16 bytes, read in pairs of doubles. */
@@ -704,6 +721,37 @@ GPU_FN void dev_edac_density(const gpu_view *v, size_t i)
         dev_edac_density_d(v, i, 3);
 }
 
+/* edac's pair term of i and the neighbour in slot sl (its values from the slot's record). */
+GPU_FN_INLINE void gpu_edac_pair(const gpu_view *v, const int d, double rhoi, double pi, double pav,
+                                 double Vi, const double ui[3], const double dui[3], uint32_t sl,
+                                 const double xij[3], double r, pysph_pair *o)
+{
+    double q[10], uj[3] = {0.0, 0.0, 0.0}, duj[3] = {0.0, 0.0, 0.0};
+    gpu_pack_read(v->pack + (size_t)sl * (size_t)(4 + 2 * d), q, 4 + 2 * d);
+    for (int a = 0; a < d; ++a) {
+        uj[a] = q[4 + a];
+        duj[a] = q[4 + d + a];
+    }
+    pysph_tv_pair(d, 1, &v->c, rhoi, pi, pav, Vi, ui, dui, q[0], q[1], q[2], q[3], uj, duj,
+                  gpu_dwr(&v->k, r), xij, r, o);
+}
+
+/* One pair added into edac's sums, each in visit_tv_d's order. */
+GPU_FN_INLINE void gpu_edac_add(const pysph_pair *o, const int d, const int grads, double f[3],
+                                double fb[3], double fp[3], double G[9], double *div, double *ap)
+{
+    for (int a = 0; a < d; ++a) {
+        f[a] += o->f[a];
+        fb[a] += o->fb[a];
+        if (grads) fp[a] += o->fp[a];
+    }
+    if (grads)
+        for (int e = 0; e < d * d; ++e) G[e] -= o->g[e];
+    *div -= o->div;
+    *ap += o->q1;
+    *ap += o->q2;
+}
+
 /* The rates of tvf/edac at particle i (visit_tv_d with edac; the closure ϱ = m Σ W after), for
  * a dimension and gradients known at compile time: every small array is then registers. */
 GPU_FN_INLINE void dev_edac_rates_d(const gpu_view *v, size_t i, const int d, const int grads)
@@ -721,29 +769,27 @@ GPU_FN_INLINE void dev_edac_rates_d(const gpu_view *v, size_t i, const int d, co
     const uint32_t self = v->slot_of[i];
     gpu_walkr w;
     gpu_walkr_start(v, i, &w, d);
-    double xij[3], r;
-    uint32_t sl;
-    while (gpu_walkr_next(v, &w, d, &sl, xij, &r)) {
-        if (sl == self) continue; /* ∇W_ii = 0: no force on itself */
-        double q[10], uj[3] = {0.0, 0.0, 0.0}, duj[3] = {0.0, 0.0, 0.0};
-        gpu_pack_read(v->pack + (size_t)sl * (size_t)(4 + 2 * d), q, 4 + 2 * d);
-        for (int a = 0; a < d; ++a) {
-            uj[a] = q[4 + a];
-            duj[a] = q[4 + d + a];
+    double xa[3], xb[3], ra, rb;
+    uint32_t sa, sb;
+    while (gpu_walkr_other(v, &w, d, self, &sa, xa, &ra)) {
+        /* with two at once, a missing second repeats the first, computed and not added */
+        int hb = 0;
+        if (CONSPH_GPU_PAIRS == 2) {
+            hb = gpu_walkr_other(v, &w, d, self, &sb, xb, &rb);
+            if (!hb) {
+                sb = sa;
+                rb = ra;
+                for (int a = 0; a < 3; ++a) xb[a] = xa[a];
+            }
         }
-        pysph_pair o;
-        pysph_tv_pair(d, 1, c, rhoi, pi, pav, Vi, ui, dui, q[0], q[1], q[2], q[3], uj, duj,
-                      gpu_dwr(&v->k, r), xij, r, &o);
-        for (int a = 0; a < d; ++a) {
-            f[a] += o.f[a];
-            fb[a] += o.fb[a];
-            if (grads) fp[a] += o.fp[a];
+        pysph_pair oa, ob;
+        gpu_edac_pair(v, d, rhoi, pi, pav, Vi, ui, dui, sa, xa, ra, &oa);
+        if (CONSPH_GPU_PAIRS == 2) gpu_edac_pair(v, d, rhoi, pi, pav, Vi, ui, dui, sb, xb, rb, &ob);
+        gpu_edac_add(&oa, d, grads, f, fb, fp, G, &div, &ap);
+        if (CONSPH_GPU_PAIRS == 2) {
+            if (!hb) break;
+            gpu_edac_add(&ob, d, grads, f, fb, fp, G, &div, &ap);
         }
-        if (grads)
-            for (int e = 0; e < d * d; ++e) G[e] -= o.g[e];
-        div -= o.div;
-        ap += o.q1;
-        ap += o.q2;
     }
     for (int a = 0; a < d; ++a) {
         gv(v, GA_AU, a)[i] = f[a] / c->m;
@@ -804,11 +850,46 @@ GPU_FN void dev_wcsph_prep(const gpu_view *v, size_t i)
     if (v->d == 3) rec[7] = 0.0;
 }
 
+/* wcsph's pair term of i and the neighbour in slot sl (its values from the slot's record), with
+ * Monaghan's Π where α > 0. */
+GPU_FN_INLINE void gpu_wcsph_pair(const gpu_view *v, const int d, const int grads, double rhoi,
+                                  double ti, double ci, const double ui[3], uint32_t sl,
+                                  const double xij[3], double r, pysph_pair *o)
+{
+    const pysph_consts *c = &v->c;
+    const int K = (4 + d + 1) & ~1; /* gpu_pack_width */
+    double q[8], uj[3] = {0.0, 0.0, 0.0};
+    gpu_pack_read(v->pack + (size_t)sl * (size_t)K, q, K);
+    for (int a = 0; a < d; ++a) uj[a] = q[4 + a];
+    const double inv_s = 1.0 / (rhoi + q[0]), inv_r = 1.0 / (r * r + c->h2);
+    double pij = 0.0;
+    if (v->av) {
+        double ux = 0.0;
+        for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
+        pij = pysph_monaghan_pi(c, ci, q[3], ux, inv_r, inv_s);
+    }
+    pysph_wcsph_pair(d, c, ti, ui, q[1], grads ? q[2] : 0.0, uj, pij, gpu_w(&v->k, r),
+                     gpu_dwr(&v->k, r), xij, inv_s, inv_r, o);
+}
+
+/* One pair added into wcsph's sums, each in visit_wcsph_d's order. */
+GPU_FN_INLINE void gpu_wcsph_add(const pysph_pair *o, const int d, const int grads, double f[3],
+                                 double xs[3], double fp[3], double G[9], double *drho)
+{
+    for (int a = 0; a < d; ++a) {
+        f[a] += o->f[a];
+        xs[a] -= o->fb[a];
+        if (grads) fp[a] += o->fp[a];
+    }
+    *drho += o->div;
+    if (grads)
+        for (int e = 0; e < d * d; ++e) G[e] -= o->g[e];
+}
+
 /* visit_wcsph_d: the symmetric pressure force with Π_ij, the laminar viscosity, XSPH and the
  * continuity equation at particle i. */
 GPU_FN_INLINE void dev_wcsph_rates_d(const gpu_view *v, size_t i, const int d, const int grads)
 {
-    const pysph_consts *c = &v->c;
     const double *rho = gv(v, GA_RHOF, 0), *pr2 = v->vol;
     const double rhoi = rho[i], ti = pr2[i];
     const int av = v->av;
@@ -817,35 +898,30 @@ GPU_FN_INLINE void dev_wcsph_rates_d(const gpu_view *v, size_t i, const int d, c
     for (int a = 0; a < d; ++a) ui[a] = gv(v, GA_U, a)[i];
     double f[3] = {0.0, 0.0, 0.0}, xs[3] = {0.0, 0.0, 0.0}, fp[3] = {0.0, 0.0, 0.0}, drho = 0.0;
     double G[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-    const int K = (4 + d + 1) & ~1; /* gpu_pack_width */
     const uint32_t self = v->slot_of[i];
     gpu_walkr w;
     gpu_walkr_start(v, i, &w, d);
-    double xij[3], r;
-    uint32_t sl;
-    while (gpu_walkr_next(v, &w, d, &sl, xij, &r)) {
-        if (sl == self) continue;
-        double q[8], uj[3] = {0.0, 0.0, 0.0};
-        gpu_pack_read(v->pack + (size_t)sl * (size_t)K, q, K);
-        for (int a = 0; a < d; ++a) uj[a] = q[4 + a];
-        const double inv_s = 1.0 / (rhoi + q[0]), inv_r = 1.0 / (r * r + c->h2);
-        double pij = 0.0;
-        if (av) {
-            double ux = 0.0;
-            for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
-            pij = pysph_monaghan_pi(c, ci, q[3], ux, inv_r, inv_s);
+    double xa[3], xb[3], ra, rb;
+    uint32_t sa, sb;
+    while (gpu_walkr_other(v, &w, d, self, &sa, xa, &ra)) {
+        /* with two at once, a missing second repeats the first, computed and not added */
+        int hb = 0;
+        if (CONSPH_GPU_PAIRS == 2) {
+            hb = gpu_walkr_other(v, &w, d, self, &sb, xb, &rb);
+            if (!hb) {
+                sb = sa;
+                rb = ra;
+                for (int a = 0; a < 3; ++a) xb[a] = xa[a];
+            }
         }
-        pysph_pair o;
-        pysph_wcsph_pair(d, c, ti, ui, q[1], grads ? q[2] : 0.0, uj, pij, gpu_w(&v->k, r),
-                         gpu_dwr(&v->k, r), xij, inv_s, inv_r, &o);
-        for (int a = 0; a < d; ++a) {
-            f[a] += o.f[a];
-            xs[a] -= o.fb[a];
-            if (grads) fp[a] += o.fp[a];
+        pysph_pair oa, ob;
+        gpu_wcsph_pair(v, d, grads, rhoi, ti, ci, ui, sa, xa, ra, &oa);
+        if (CONSPH_GPU_PAIRS == 2) gpu_wcsph_pair(v, d, grads, rhoi, ti, ci, ui, sb, xb, rb, &ob);
+        gpu_wcsph_add(&oa, d, grads, f, xs, fp, G, &drho);
+        if (CONSPH_GPU_PAIRS == 2) {
+            if (!hb) break;
+            gpu_wcsph_add(&ob, d, grads, f, xs, fp, G, &drho);
         }
-        drho += o.div;
-        if (grads)
-            for (int e = 0; e < d * d; ++e) G[e] -= o.g[e];
     }
     for (int a = 0; a < d; ++a) {
         gv(v, GA_AU, a)[i] = f[a];
