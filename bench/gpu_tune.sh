@@ -23,7 +23,8 @@
 # Options: --out DIR (default build-gpu-tune/out), --quick (2D nx 60, 3D nx 14), --emulate (the
 # host emulation instead of the GPU: blocks and caps then change nothing), --budget S (no process
 # starts after S seconds, default 100; each under timeout), --no-build, --build-only.
-# Environment: NVCC (the compiler), TAG (the build's name, default r), CAPS (default
+# Environment: NVCC (the compiler), TAG (the build's name, default r), CUDA_FLAGS (more nvcc
+# flags for the build, e.g. -DCONSPH_GPU_PAIRS=2), CAPS (default
 # "0 128 96 80 64"), VARIANTS (what runs, in order; default every binary there, cap by cap in
 # the order of CAPS: the budget drops the last first), BLOCKS (default "64,128"),
 # CASES (scheme:dim:nx, default "edac:2:1000 edac:3:100 wcsph:2:1000 wcsph:3:100"), THREADS
@@ -83,7 +84,7 @@ if [ $build = 1 ]; then
         say "build $v: register cap ${c:-none}"
         if ! { cmake -S . -B "$bdir" -DCMAKE_BUILD_TYPE=Release -DCONSPH_MPI=OFF -DCONSPH_CUDA=ON \
             -DCMAKE_CUDA_COMPILER="$nvcc" -DCMAKE_CUDA_ARCHITECTURES=90 \
-            -DCMAKE_CUDA_FLAGS="-Xptxas -v" -DCONSPH_CUDA_MAXRREG="$c" &&
+            -DCMAKE_CUDA_FLAGS="-Xptxas -v ${CUDA_FLAGS:-}" -DCONSPH_CUDA_MAXRREG="$c" &&
             touch src/gpu/cuda.cu && cmake --build "$bdir" -j "$(nproc)" --target bench_gpu; } \
             >"$bin/build-$v.log" 2>&1; then
             tail -20 "$bin/build-$v.log"
