@@ -601,8 +601,9 @@ GPU_FN_INLINE int gpu_walkr_next(const gpu_view *v, gpu_walkr *w, const int D, u
 GPU_FN_INLINE int gpu_walkr_other(const gpu_view *v, gpu_walkr *w, const int D, uint32_t self,
                                   uint32_t *slot, double dx[3], double *r)
 {
-    if (!gpu_walkr_next(v, w, D, slot, dx, r)) return 0;
-    return *slot != self || gpu_walkr_next(v, w, D, slot, dx, r);
+    while (gpu_walkr_next(v, w, D, slot, dx, r))
+        if (*slot != self) return 1; /* every image of i is left out, as j == i is on the CPU */
+    return 0;
 }
 
 /* Neighbours whose pair terms a rate pass computes at once (1 or 2): two independent pair
