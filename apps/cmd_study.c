@@ -12,6 +12,7 @@
 
 #include "cli.h"
 #include "commands.h"
+#include "consph/gpu.h"
 #include "consph/io.h"
 #include "consph/par.h"
 #include "consph/study.h"
@@ -285,7 +286,8 @@ int cmd_study_started;
 int cmd_study(int argc, char **argv)
 {
     int quick = 0, list = 0, estimate_only = 0, resume = 0;
-    long jobs = 0; /* 0: the default, jobs_default() */
+    long jobs = 0;        /* 0: the default, jobs_default() */
+    int device_index = 0; /* of "cpu,gpu,auto", when --device is given */
     const char *out = "out/studies";
     const char *name = NULL, *particles = NULL, *box_text = NULL, *periodic_text = NULL;
     cli_cache cache = {NULL, 0};
@@ -313,6 +315,11 @@ int cmd_study(int argc, char **argv)
          "run the rows on J worker processes, each with cores/J threads, and write the report a "
          "serial run writes (default 1: one process)",
          NULL, 1, 256, 0},
+        {"--device", CLI_CHOICE, &device_index, "D",
+         "where the solver rows run: cpu, gpu (every row, else exit 2 naming those that cannot), "
+         "auto (the GPU where it can; docs/gpu.md); default: the study file's key `device`, else "
+         "cpu",
+         "cpu,gpu,auto", 0, 0, 0},
         CLI_CACHE_OPTS(cache),
     };
     const char *positional[1] = {NULL};
@@ -322,7 +329,7 @@ int cmd_study(int argc, char **argv)
         "table a CSV, a markdown report with the paper's numbers beside ours, and "
         "a gnuplot figure.",
         "consph study NAME [--quick] [--out DIR] [--particles FILE,...] [--estimate] "
-        "[--resume] [--jobs J] | consph study --list",
+        "[--resume] [--jobs J] [--device cpu|gpu|auto] | consph study --list",
         "NAME is a study name (see --list) or a path to a .study file; NAME.study "
         "is taken from the first of $CONSPH_STUDIES, ./studies and the built-in "
         "studies that has it.\n"
@@ -381,6 +388,33 @@ int cmd_study(int argc, char **argv)
         consph_study_free(s);
         return cli_error(&cmd, "%s", consph_last_error());
     }
+    /* The device before anything runs (the estimate's calibration included): a row the GPU
+     * cannot run under --device gpu, or a GPU shared by processes, writes nothing. */
+    const cli_opt *device_opt = opts;
+    while (strcmp(device_opt->name, "--device")) device_opt++;
+    const int device =
+        consph_study_device_of(s, device_opt->given ? CONSPH_STUDY_DEVICE_CPU + device_index
+                                                    : CONSPH_STUDY_DEVICE_DEFAULT);
+    const int on_gpu = device == CONSPH_STUDY_DEVICE_GPU || device == CONSPH_STUDY_DEVICE_AUTO;
+    rc = 0;
+    if (on_gpu && consph_par_size() > 1)
+        rc = cli_error(&cmd,
+                       "option --device %s runs the study on one process with one GPU: launched "
+                       "on %d MPI ranks, run it without mpirun (or with -np 1)",
+                       consph_study_device_name(device), consph_par_size());
+    else if (on_gpu && jobs > 1)
+        rc = cli_error(&cmd,
+                       "option --jobs: %ld workers with --device %s, which has one GPU; allowed "
+                       "there: 1",
+                       jobs, consph_study_device_name(device));
+    else if (consph_study_device_check(s, quick, device) != CONSPH_OK)
+        rc = cli_error(&cmd, "%s", consph_last_error());
+    if (rc) {
+        consph_study_free(s);
+        return rc;
+    }
+    if (device == CONSPH_STUDY_DEVICE_AUTO && !consph_gpu_available(why, sizeof why))
+        fprintf(stderr, "consph study: --device auto: %s; every row runs on the CPU\n", why);
     /* Files are read whole before the study starts: a bad one writes nothing. */
     static study_inputs in;
     if (particles) {
@@ -410,6 +444,7 @@ int cmd_study(int argc, char **argv)
     o.resume_cmd = resume_cmd;
     o.stopped_by = &stopped_by;
     o.jobs = (int)jobs;
+    o.device = device;
     double t0 = consph_wtime();
     rc = CONSPH_OK;
     /* SIGINT/SIGTERM: the current row ends at its next step, the partial report is written. */

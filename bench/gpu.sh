@@ -3,7 +3,8 @@
 #   1. builds consph with nvcc (CONSPH_CUDA, -fmad=false) in build-gpu/;
 #   2. runs the GPU tests (ctest -L gpu: the emulation and the CUDA backend against the CPU
 #      solver bit for bit, two GPU runs bit for bit, the CLI's --device gpu);
-#   3. edac (SCHEMES) at 10^5, 10^6, 10^7 particles (2D Taylor-Green) and 10^6 (3D Beltrami) with
+#   3. edac and l-ipst-c (SCHEMES) at 10^5, 10^6, 10^7 particles (2D Taylor-Green) and 10^6 (3D
+#      Beltrami; l-ipst-c from the lattice, LIPSTC_LAYOUT, not its packed start) with
 #      bench_gpu: µs per particle-step and pairs/s on the GPU, on all cores and on one core, GPU
 #      memory per particle, the GPU's state after one step against the CPU's;
 #   4. writes the tables to gpu.md (and the raw lines, logs) in the output folder, and (not with
@@ -24,8 +25,11 @@
 #   --no-build    use build-gpu/ as it is
 #   --build-only  build build-gpu/ and stop
 # Environment: NVCC (the compiler; "none": build without CUDA), BUILD (default build-gpu),
-# CASES (a list of dim:nx, default "2:316 2:1000 3:100 2:3162"), SCHEMES (default "edac"; the
-# GPU runs edac and wcsph), THREADS (default: nproc).
+# CASES (a list of dim:nx, default "2:316 2:1000 3:100 2:3162"), SCHEMES (default "edac l-ipst-c";
+# the GPU runs edac, wcsph and 001-table9's schemes; the pair columns count l-ipst-c's passes, not
+# the other 001 schemes'), LIPSTC_LAYOUT (l-ipst-c's start: "lattice", the
+# default, or "scheme": its packed start, which takes minutes to pack at 10^6 particles and
+# more), THREADS (default: nproc).
 set -u
 cd "$(dirname "$0")/.."
 root=$(pwd)
@@ -133,8 +137,9 @@ else
 fi
 emu=()
 [ $emulate = 1 ] && emu=(--emulate)
-for scheme in ${SCHEMES:-edac}; do
+# each size for every scheme before the next size: the budget cuts the largest first
 for c in $cases; do
+for scheme in ${SCHEMES:-edac l-ipst-c}; do
     dim=${c%%:*}
     nx=${c##*:}
     [ "$dim" = 2 ] && problem=taylor-green || problem=beltrami
@@ -149,10 +154,12 @@ for c in $cases; do
         continue
     fi
     left=$((budget - elapsed + 60))
-    log "case $scheme $problem nx $nx ($n particles): gpu $g steps, $threads threads $k, serial $s (timeout $left s)"
+    layout=scheme
+    [ "$scheme" = l-ipst-c ] && layout=${LIPSTC_LAYOUT:-lattice}
+    log "case $scheme $problem nx $nx ($n particles, $layout start): gpu $g steps, $threads threads $k, serial $s (timeout $left s)"
     line=$(timeout "$left" "$bdir/bench/bench_gpu" --scheme "$scheme" --problem "$problem" --nx "$nx" --gpu-steps $g \
         --cpu-steps $k --serial-steps $s --threads-max "$threads" --setup-threads "$threads" \
-        "${emu[@]}" 2>"$out/raw/case_${scheme}_${dim}d_$nx.err")
+        --layout "$layout" "${emu[@]}" 2>"$out/raw/case_${scheme}_${dim}d_$nx.err")
     rc=$?
     echo "$line nx=$nx rc=$rc" >>"$out/results.txt"
     log "  exit $rc: $line"
@@ -179,10 +186,15 @@ commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null)
     [ -n "$why" ] && echo "GPU columns: none, $why"
     echo '```'
     echo
-    echo "pec, quintic kernel, h = 1.2 Δs; 2D: Taylor-Green, 3D: Beltrami. One step is the"
+    echo "Quintic kernel, h = 1.2 Δs; 2D: Taylor-Green, 3D: Beltrami. edac, wcsph: pec; a step is the"
     echo "re-sort, two half-steps of the integrator, the cell lists, the density and rate passes."
+    echo "l-ipst-c: rk2 (two evaluations of the volumes, the kit's first pass and coupled_bc's"
+    echo "Laplacian, then the rates) and IPST after step 1 and every 10 steps (to eq. 21 or ten"
+    echo "shifts); it starts from the lattice (marked so), not its packed layout, which takes"
+    echo "minutes to pack at these sizes: a speed measurement, the flow's accuracy aside."
     echo "pairs/particle: neighbours per particle and pass, i itself included; pairs/s: the pair"
-    echo "evaluations of one step (every pass: edac two, wcsph one) over its time."
+    echo "evaluations of one step (every pass: edac two, wcsph one, l-ipst-c six, IPST's not"
+    echo "counted though its time is) over its time."
     echo "GPU step time: steps to the copy back that ends them, less that copy. x serial / x all:"
     echo "the serial and all-core CPU step time over the GPU's. B/particle: the device memory the"
     echo "GPU state holds (two copies of every particle array, for the re-sort, plus the cell"
@@ -199,7 +211,8 @@ commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null)
         xs = (g != "" && s != "" && g > 0) ? sprintf("%.3g", s / g) : "-"
         xa = (g != "" && c != "" && g > 0) ? sprintf("%.3g", c / g) : "-"
         d1 = v("step1_differing") == "" ? "-" : v("step1_differing") " / " v("step1_values")
-        printf "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", v("scheme"), v("dim"), v("n"),
+        sc = v("scheme"); if (v("layout") == "lattice") sc = sc " (lattice)"
+        printf "| %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s | %s |\n", sc, v("dim"), v("n"),
             f(v("pairs_per_particle"), "%.1f"), f(g, "%.4g"), f(v("gpu_pairs_per_s"), "%.3g"),
             f(c, "%.4g"), f(s, "%.4g"), xs, xa, f(v("gpu_bytes_per_particle"), "%.0f"), d1,
             f(v("step1_maxrel"), "%.1e")

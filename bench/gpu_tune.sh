@@ -28,7 +28,8 @@
 # "0 128 96 80 64"), VARIANTS (what runs, in order; default every binary there, cap by cap in
 # the order of CAPS: the budget drops the last first), BLOCKS (default "64,128"),
 # CASES (scheme:dim:nx, default "edac:2:1000 edac:3:100 wcsph:2:1000 wcsph:3:100"), THREADS
-# (the CPU's threads for set-up and the reference step; default nproc).
+# (the CPU's threads for set-up and the reference step; default nproc), LAYOUT (bench_gpu's
+# --layout: lattice for l-ipst-c, whose packed start takes minutes at 10^6).
 set -u
 # the script runs from bench/ or as the copy the build puts beside the binaries (carried alone)
 here=$(cd "$(dirname "$0")" && pwd)
@@ -156,7 +157,7 @@ for v in $variants; do
         [ $left -gt 30 ] && left=30
         timeout "$left" "$exe" --scheme "$scheme" --problem "$problem" --nx "$nx" \
             --gpu-steps $g --stages $k --cpu-steps 0 --serial-steps 0 --blocks "$blocks" \
-            --threads-max "$threads" --setup-threads "$threads" "${emu[@]}" \
+            --threads-max "$threads" --setup-threads "$threads" "${emu[@]}" ${LAYOUT:+--layout "$LAYOUT"} \
             >"$out/raw/${v}_${scheme}_${dim}d.txt" 2>"$out/raw/${v}_${scheme}_${dim}d.err"
         rc=$?
         sed "s/^/variant=$v tag=$vtag cap=$vcap /; s/\$/ nx=$nx rc=$rc/" \

@@ -1,4 +1,4 @@
-#!/bin/sh
+#!/bin/bash
 # consph over MPI ranks as a benchmark (docs/mpi.md); writes bench/mpi.md.
 # 1. Studies over ranks: each study of STUDIES (--quick) serially and under
 #    `mpirun -np K` for every K of RANKS, one OpenMP thread per rank: wall time, CPU time of all
@@ -21,6 +21,14 @@
 #   for halo/owned), BANDWIDTH (bytes/s per rank assumed in the extrapolation, default 5e9),
 #   BASE (serial binary before the MPI merge; the section is left out without) and NOMPI (this
 #   tree built with -DCONSPH_MPI=OFF, an optional column of that section).
+#   For a machine of its own (bench/mpi_device.sh): MPIRUN (the launcher and its options,
+#   default "mpirun --oversubscribe"), SOLVER_CASES (default "3d 2d"), STRONG_NX / STRONG_NX_2D
+#   (the strong-scaling size; default the largest K's weak size), CASE_TIMEOUT (seconds per
+#   run, 0 = none), DEADLINE (epoch seconds: later cases are skipped), MEM_KB (memory the
+#   ranks may use; a case whose ranks would need more, scaled from the serial run's peak as
+#   every rank makes the whole solver before the cut, is skipped; default 80 % of MemAvailable)
+#   HARD_END (epoch seconds: no run goes past it, a run cut there counts as failed)
+#   and MACHINE_NOTE (a few words on the machine for the last paragraph).
 # Exit 2 when the binary has no MPI or mpirun cannot start 2 ranks.
 set -eu
 
@@ -39,29 +47,48 @@ NOMPI=${NOMPI:-}
 BASE=${BASE:-}
 STEPS1=${STEPS1:-2}
 STEPS2=${STEPS2:-12}
+MPIRUN=${MPIRUN:-mpirun --oversubscribe}
+SOLVER_CASES=${SOLVER_CASES:-"3d 2d"}
+STRONG_NX=${STRONG_NX:-}
+STRONG_NX_2D=${STRONG_NX_2D:-}
+CASE_TIMEOUT=${CASE_TIMEOUT:-0}
+DEADLINE=${DEADLINE:-0}
+HARD_END=${HARD_END:-0}
+MEM_KB=${MEM_KB:-$(awk '/^MemAvailable:/ { printf "%d", $2 * 0.8 }' /proc/meminfo)}
 HERE=$(cd "$(dirname "$0")" && pwd)
 export OMP_NUM_THREADS=1 OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
 
 [ -x "$CONSPH" ] || { echo "mpi: $CONSPH not built (run make)" >&2; exit 2; }
 "$CONSPH" --version | grep -qx 'MPI ranks 1' || { echo "mpi: $CONSPH built without MPI" >&2; exit 2; }
-mpirun --oversubscribe -np 2 "$CONSPH" --version 2>&1 | grep -qx 'MPI ranks 2' ||
+$MPIRUN -np 2 "$CONSPH" --version 2>&1 | grep -qx 'MPI ranks 2' ||
     { echo "mpi: mpirun cannot start 2 ranks of $CONSPH" >&2; exit 2; }
 rm -rf "$WORK"
 mkdir -p "$WORK"
 # masked(): a study output with its wall-time columns blanked
 . "$HERE/../tests/lib_cli.sh"
 
+# limit: the seconds a run may take (0: no limit), CASE_TIMEOUT or what is left before HARD_END.
+limit() {
+    lim=$CASE_TIMEOUT
+    if [ "$HARD_END" -gt 0 ]; then
+        left=$((HARD_END - $(date +%s)))
+        [ "$left" -gt 1 ] || left=1
+        { [ "$lim" = 0 ] || [ "$left" -lt "$lim" ]; } && lim=$left
+    fi
+    echo "$lim"
+}
+
 # timed K CMD...: runs CMD (under mpirun -np K when K > 1), prints "wall cpu" in seconds.
 timed() {
     np=$1
     shift
     if [ "$np" = 1 ]; then
-        /usr/bin/time -f "%e %U %S" -o "$WORK/time" "$@" >"$WORK/out" 2>"$WORK/err"
+        /usr/bin/time -f "%e %U %S" -o "$WORK/time" timeout "$(limit)" "$@" >"$WORK/out" 2>"$WORK/err" || true
     else
-        /usr/bin/time -f "%e %U %S" -o "$WORK/time" mpirun --oversubscribe -np "$np" "$@" \
-            >"$WORK/out" 2>"$WORK/err"
+        /usr/bin/time -f "%e %U %S" -o "$WORK/time" timeout "$(limit)" $MPIRUN -np "$np" "$@" \
+            >"$WORK/out" 2>"$WORK/err" || true
     fi
-    awk '{ printf "%s %.2f\n", $1, $2 + $3 }' "$WORK/time"
+    tail -n 1 "$WORK/time" | awk '{ printf "%s %.2f\n", $1, $2 + $3 }'
 }
 
 same_dirs() {
@@ -123,27 +150,31 @@ done
 # run_once K NX STEPS RUN...: one run of RUN (its --nx, --steps and --out appended) on K ranks;
 # prints "T B C U": the steps' wall time (stdout's "X s, ..." line: set-up excluded), the bytes
 # every rank sent and the mean seconds per rank in MPI calls (the "consph run: MPI" line of
-# stderr, apps/cmd_run.c; 0 0 serially), and the CPU seconds of every rank (and mpirun).
+# stderr, apps/cmd_run.c; 0 0 serially), the CPU seconds of every rank (and mpirun), and the
+# peak resident kB (serially: the run's). A run that fails or passes CASE_TIMEOUT prints FAIL.
 run_once() {
     np=$1 nx=$2 steps=$3
     shift 3
-    if [ "$np" = 1 ]; then
-        /usr/bin/time -f "%U %S" -o "$WORK/time" "$@" --nx "$nx" --steps "$steps" --out "$WORK/r" \
-            >"$WORK/out" 2>"$WORK/err"
-    else
-        /usr/bin/time -f "%U %S" -o "$WORK/time" mpirun --oversubscribe -np "$np" "$@" --nx "$nx" \
-            --steps "$steps" --out "$WORK/r" >"$WORK/out" 2>"$WORK/err"
-    fi || { echo "mpi: $* --nx $nx on $np ranks failed: $(head -n 3 "$WORK/err")" >&2; exit 1; }
+    launch=
+    [ "$np" = 1 ] || launch="$MPIRUN -np $np"
+    if ! /usr/bin/time -f "%U %S %M" -o "$WORK/time" timeout "$(limit)" $launch "$@" \
+        --nx "$nx" --steps "$steps" --out "$WORK/r" >"$WORK/out" 2>"$WORK/err"; then
+        echo "mpi: $* --nx $nx --steps $steps on $np ranks failed or timed out: $(grep -v '^Command' "$WORK/err" | head -n 3)" >&2
+        rm -rf "$WORK/r"
+        echo FAIL
+        return 0
+    fi
     rm -rf "$WORK/r"
     t=$(sed -n 's/^\([0-9.]*\) s, .*/\1/p' "$WORK/out")
     b=$(sed -n 's/^consph run: MPI [0-9]* ranks: \([0-9]*\) bytes sent.*/\1/p' "$WORK/err")
     c=$(sed -n 's/.* \([0-9.]*\) s in MPI calls per rank.*/\1/p' "$WORK/err")
     u=$(tail -n 1 "$WORK/time" | awk '{ print $1 + $2 }')
-    echo "$t ${b:-0} ${c:-0} $u"
+    echo "$t ${b:-0} ${c:-0} $u $(tail -n 1 "$WORK/time" | awk '{ print $3 }')"
 }
 
 # measure K NX RUN...: time per step and communication per step from STEPS1 and STEPS2 steps,
-# the minimum of REPEAT tries of each; prints "s/step bytes/step comm-s/step cpu-s/step".
+# the minimum of REPEAT tries of each; prints "s/step bytes/step comm-s/step cpu-s/step" and
+# the peak resident kB of the longer run, or FAIL.
 measure() {
     np=$1 nx=$2
     shift 2
@@ -151,27 +182,30 @@ measure() {
     r=0
     while [ $r -lt "$REPEAT" ]; do
         l1=$(run_once "$np" "$nx" "$STEPS1" "$@")
+        [ "$l1" != FAIL ] || { echo FAIL; return 0; }
         l2=$(run_once "$np" "$nx" "$STEPS2" "$@")
+        [ "$l2" != FAIL ] || { echo FAIL; return 0; }
         best1=$(printf '%s\n%s\n' "$l1" "$best1" | grep . | sort -g | head -n 1)
         best2=$(printf '%s\n%s\n' "$l2" "$best2" | grep . | sort -g | head -n 1)
         r=$((r + 1))
     done
     echo "$best1 $best2" | awk -v s1="$STEPS1" -v s2="$STEPS2" \
-        '{ d = s2 - s1; printf "%.4g %.6g %.4g %.4g\n", ($5 - $1) / d, ($6 - $2) / d, ($7 - $3) / d, ($8 - $4) / d }'
+        '{ d = s2 - s1; printf "%.4g %.6g %.4g %.4g %d\n", ($6 - $1) / d, ($7 - $2) / d, ($8 - $3) / d, ($9 - $4) / d, $10 }'
 }
 
 # halo K NX PROBLEM SCHEME: halo / owned particles, mean over ranks (bench_par, one step).
 halo() {
     [ -x "$BENCH_PAR" ] || { echo --; return; }
-    mpirun --oversubscribe -np "$1" "$BENCH_PAR" "$3" "$4" "$2" 1 2>/dev/null |
+    timeout "$(limit)" $MPIRUN -np "$1" "$BENCH_PAR" "$3" "$4" "$2" 1 2>/dev/null |
         sed -n 's/.*(halo \([0-9.]*\) of owned).*/\1/p' | awk '{ s += $1; n++ } END { if (n) printf "%.2f", s / n; else print "--" }'
 }
 
-# solver_case DIM PER_RANK PROBLEM SCHEME: weak scaling at PER_RANK particles per rank (nx =
-# round((K PER_RANK)^(1/DIM))), and strong scaling at the largest K's nx; then the extrapolation
-# of the halo and the communication to 16 ranks (slabs along one axis).
+# solver_case DIM PER_RANK STRONG_NX PROBLEM SCHEME: weak scaling at PER_RANK particles per rank
+# (nx = round((K PER_RANK)^(1/DIM))), and strong scaling at STRONG_NX (empty: the largest K's
+# nx); then the extrapolation of the halo and the communication to 16 ranks (slabs along one
+# axis) from the largest K measured, when that is below 16.
 solver_case() {
-    dim=$1 per=$2 prob=$3 scheme=$4
+    dim=$1 per=$2 snx=$3 prob=$4 scheme=$5
     set -- "$CONSPH" run "$prob" --scheme "$scheme" --layout lattice --threads 1
     echo
     echo "### $prob, $scheme, ${dim}D: weak scaling at $per particles per rank"
@@ -182,6 +216,8 @@ solver_case() {
     kmax=1
     for k in 1 $RANKS; do kmax=$k; done
     nxs=$(awk -v k="$kmax" -v n="$per" -v d="$dim" 'BEGIN { printf "%d", (k * n)^(1 / d) + 0.5 }')
+    [ -z "$snx" ] || nxs=$snx
+    kb_per=
     for mode in weak strong; do
         t1= n1=
         for k in 1 $RANKS; do
@@ -191,32 +227,48 @@ solver_case() {
                 nx=$nxs
             fi
             m=$(sed -n "s/^$k $nx //p" "$WORK/cache")
-            if [ -z "$m" ]; then
-                m=$(measure "$k" "$nx" "$@")
-                echo "$k $nx $m" >>"$WORK/cache"
-            fi
-                step=${m%% *}
             n=$(awk -v nx="$nx" -v d="$dim" 'BEGIN { printf "%d", nx^d }')
+            if [ -z "$m" ]; then
+                # every rank makes the whole solver before the cut: K times the serial peak
+                need=$(awk -v k="$k" -v n="$n" -v b="$kb_per" 'BEGIN { if (b != "") printf "%d", k * n * b; else print 0 }')
+                if [ "$DEADLINE" -gt 0 ] && [ "$(date +%s)" -ge "$DEADLINE" ]; then
+                    m="SKIP time budget spent"
+                elif [ "$need" -gt "$MEM_KB" ]; then
+                    m="SKIP needs about $((need / 1048576)) GiB (all ranks)"
+                else
+                    m=$(measure "$k" "$nx" "$@")
+                    [ "$m" = FAIL ] || echo "$k $nx $m" >>"$WORK/cache"
+                fi
+            fi
+            echo "$prob $mode $k ranks nx $nx: $m" >&2
+            case $m in
+            FAIL | SKIP*)
+                echo "| $mode | $k | $nx | $n | ${m#SKIP } | | | | | |"
+                [ -n "$t1" ] || t1=0 n1=$n
+                continue
+                ;;
+            esac
+            step=${m%% *}
+            [ "$k" = 1 ] && kb_per=$(echo "$m" | awk -v n="$n" '{ printf "%.6f", $5 / n }')
             [ -z "$t1" ] && t1=$step n1=$n
             if [ $mode = weak ]; then
-                eff=$(awk -v t1="$t1" -v t="$step" -v k="$k" -v n="$n" -v n1="$n1" 'BEGIN { printf "%.2f", t1 / t * n / (k * n1) }')
+                eff=$(awk -v t1="$t1" -v t="$step" -v k="$k" -v n="$n" -v n1="$n1" 'BEGIN { if (t1 > 0) printf "%.2f", t1 / t * n / (k * n1); else print "--" }')
             else
-                eff=$(awk -v t1="$t1" -v t="$step" -v k="$k" 'BEGIN { printf "%.2f", t1 / (k * t) }')
+                eff=$(awk -v t1="$t1" -v t="$step" -v k="$k" 'BEGIN { if (t1 > 0) printf "%.2f", t1 / (k * t); else print "--" }')
             fi
             h=--
             [ "$k" -gt 1 ] && h=$(halo "$k" "$nx" "$prob" "$scheme")
             echo "$m" | awk -v mode=$mode -v k="$k" -v nx="$nx" -v n="$n" -v eff="$eff" -v h="$h" \
                 '{ printf "| %s | %d | %d | %d | %s | %s | %s | %.0f | %.2f | %s |\n", mode, k, nx, n, $1, eff, $4, $2 / n, $3 / $1, h }'
             echo "$mode $k $nx $n $m $h" >>"$WORK/rows"
-            echo "$prob $mode $k ranks nx $nx: $m" >&2
         done
     done
     # extrapolation: the weak row of the largest K
-    awk -v dim="$dim" -v per="$per" -v kmax="$kmax" -v bw="$BANDWIDTH" '
+    awk -v dim="$dim" -v per="$per" -v bw="$BANDWIDTH" '
         $1 == "weak" && $2 == 1 { t1 = $5 }
-        $1 == "weak" && $2 == kmax { nx = $3; n = $4; t = $5; b = $6 / $4; c = $7; h = $9 }
+        $1 == "weak" && $2 >= kmax { kmax = $2; nx = $3; n = $4; t = $5; b = $6 / $4; c = $7; h = $10 }
         END {
-            if (kmax < 2 || h == "--" || h + 0 == 0) exit
+            if (kmax < 2 || kmax >= 16 || h == "--" || h + 0 == 0) exit
             nx16 = int((16 * per)^(1 / dim) + 0.5)
             # the halo is a fixed number of cell layers each side; the owned slab thins as the
             # axis grows by nx16 / nx and is cut in 16 instead of kmax
@@ -251,21 +303,21 @@ solver_scaling() {
     echo "Weak efficiency: t(1) / t(K) · N_K / (K N_1) (nx rounding corrected); strong: the largest"
     echo "K's size on every K, t(1) / (K t(K)). With ranks > cores, or cores shared with other"
     echo "work, a rank waits for a descheduled one inside MPI: comm fractions are upper bounds."
-    solver_case 3 "$WEAK_PER_RANK" beltrami l-ipst-c
-    solver_case 2 "$WEAK_PER_RANK_2D" taylor-green l-ipst-c
+    case " $SOLVER_CASES " in *" 3d "*) solver_case 3 "$WEAK_PER_RANK" "$STRONG_NX" beltrami l-ipst-c ;; esac
+    case " $SOLVER_CASES " in *" 2d "*) solver_case 2 "$WEAK_PER_RANK_2D" "$STRONG_NX_2D" taylor-green l-ipst-c ;; esac
     echo
     echo "### What the slabs mean for the targets"
     echo
-    echo "The extrapolation keeps what the measurement shows: every rank refreshes every field of"
-    echo "its halo before every pass, and the halo is a fixed number of cell layers (the search's"
-    echo "reach plus one) on each side of a slab whatever its thickness. Weak scaling along one axis"
+    echo "The extrapolation keeps what the measurement shows: before every pass every rank refreshes"
+    echo "the fields of its halo that changed since the last refresh, and the halo is a fixed number"
+    echo "of cell layers (the search's reach plus one) on each side of a slab whatever its"
+    echo "thickness. Weak scaling along one axis"
     echo "thins the slabs as K grows (the axis grows as K^(1/3) in 3D, K^(1/2) in 2D), so the halo,"
     echo "and the bytes with it, outgrow the owned particles; more ranks than cell layers along the"
     echo "axis are refused. The 3D target (efficiency >= 80 % at 16 ranks, 10^5 particles per rank)"
     echo "needs a decomposition in all three axes (ranges of a space-filling curve over cells, with a"
-    echo "map back to the serial order) and a refresh of only the fields a pass reads; a machine with"
-    echo "16 free cores to measure it (none was lent here: the rows above are 1 and 2 ranks on a"
-    echo "2-core machine shared with other work)."
+    echo "map back to the serial order), and fewer bytes: only the fields a pass reads."
+    echo "Measured here: ranks 1 $RANKS on $(getconf _NPROCESSORS_ONLN) cores${MACHINE_NOTE:+ ($MACHINE_NOTE)}."
 }
 
 # serial_overhead: main's serial binary against BASE (the serial binary before the MPI hooks),

@@ -3,7 +3,8 @@
 # (naming those that are), --checkpoint-every, an option of heat, a build without GPU support or
 # a machine without a device. The GPU path of the CLI on the host emulation
 # (CONSPH_GPU_BACKEND=emulation), and on the GPU where one is found: the run's log, snapshots,
-# final checkpoint and summary equal the CPU run's byte for byte (edac and wcsph, 2D and 3D).
+# final checkpoint and summary equal the CPU run's byte for byte (edac and wcsph, 2D and 3D;
+# l-ipst-c, l-pst-c, e-c, l-rr-c).
 # Usage: bash cli_gpu.sh PATH-TO-CONSPH SOURCE-DIR
 set -u
 consph=$1
@@ -12,7 +13,9 @@ trap 'rm -rf "$work"' EXIT
 . "$2/tests/lib_cli.sh"
 
 run() { "$consph" run taylor-green --nx 16 --steps 3 --threads 1 "$@"; }
-failing 2 "allowed: edac,wcsph" "$work/o" -- run --scheme tvf --device gpu && pass=$((pass + 1))
+failing 2 "allowed: edac,wcsph,l-ipst-c" "$work/o" -- run --scheme tvf --device gpu && pass=$((pass + 1))
+failing 2 "allowed: edac,wcsph,l-ipst-c" "$work/o" -- run --scheme delta-plus-sph --device gpu &&
+    pass=$((pass + 1))
 failing 2 "allowed: cpu,gpu" "$work/o" -- run --scheme edac --device tpu && pass=$((pass + 1))
 failing 2 "--checkpoint-every" "$work/o" -- run --scheme edac --device gpu --out "$work/ck" \
     --checkpoint-every 2 && pass=$((pass + 1))
@@ -50,6 +53,11 @@ same_files() {
 same_files emulation "taylor-green --scheme edac --nx 24 --steps 12 --log-every 5 --snapshot-every 4"
 same_files emulation "beltrami --scheme edac --nx 8 --steps 6 --log-every 4"
 same_files emulation "taylor-green --scheme wcsph --nx 24 --steps 8 --log-every 3 --snapshot-every 5"
+# L-IPST-C: IPST after steps 1 and 11
+same_files emulation "taylor-green --scheme l-ipst-c --nx 16 --steps 13 --log-every 4 --snapshot-every 6"
+same_files emulation "taylor-green --scheme l-pst-c --nx 12 --steps 5 --log-every 2 --snapshot-every 3"
+same_files emulation "taylor-green --scheme e-c --nx 12 --steps 5 --log-every 2 --snapshot-every 3"
+same_files emulation "taylor-green --scheme l-rr-c --nx 12 --steps 4 --log-every 2 --snapshot-every 3"
 
 run --scheme edac --device gpu >"$work/o" 2>"$work/err"
 rc=$?
@@ -61,7 +69,7 @@ if [ $rc = 2 ]; then
         bad "no GPU: $(cat "$work/err")"
     fi
 elif [ $rc = 0 ]; then
-    for scheme in edac wcsph; do
+    for scheme in edac wcsph l-ipst-c; do
         same_files "" "taylor-green --scheme $scheme --nx 64 --steps 20 --snapshot-every 7"
         same_files "" "beltrami --scheme $scheme --nx 12 --steps 10"
     done

@@ -81,6 +81,10 @@ static void gpu_compare(const gpu_backend *be, const char *scheme, const char *p
             same_state(cpu, emu, what);
         }
     }
+    /* the same regularisations (IPST's shifts of L-IPST-C), the same χ_o */
+    CHECK(cpu->regs == emu->regs && cpu->prm.ipst_chi0 == emu->prm.ipst_chi0,
+          "%s %s: %ld regularisations, χ_o %.17g vs %ld, %.17g", scheme, problem, (long)cpu->regs,
+          cpu->prm.ipst_chi0, (long)emu->regs, emu->prm.ipst_chi0);
     /* the diagnostics sampled from the copied-back state: the same log */
     CHECK(cpu->nhist == emu->nhist &&
               memcmp(cpu->hist, emu->hist, cpu->nhist * HIST_COLS * sizeof(double)) == 0,

@@ -3,7 +3,8 @@
  * the history after a few steps of one scheme of each family in 2D (random layout, so that
  * particles change cells and ranks) and of 3D Beltrami; a run's files (snapshots, log, summary,
  * checkpoint) on 2 and 3 ranks equal the serial run's; a checkpoint restarts on 2 and 3 ranks
- * to the serial run's final files; a launch on more ranks than slabs is refused on every rank.
+ * to the serial run's final files; a launch on more ranks than slabs is refused on every rank;
+ * the halo refresh sends only changed columns and leaves the halo equal to its owners.
  *
  * Run without mpirun, the test computes the serial references and launches itself under
  * `mpirun -np 2` and `-np 3` (--oversubscribe: this machine may have fewer cores); skips (77)
@@ -228,6 +229,84 @@ static int run_files(const char *dir, int restart)
 
 /* ---- under mpirun ---- */
 
+/* The halo refresh sends only the columns that changed (src/par/par_solver.c, refresh): after
+ * the cut nothing travels but the column masks; a changed owned value reaches every copy; a
+ * halo value written locally is put back to its owner's. */
+static int check_refresh(void)
+{
+    par_case c = {"refresh", "taylor-green", "wcsph", 40, CONSPH_LAYOUT_RANDOM, 1, NULL};
+    consph_run_params prm = case_params(&c);
+    consph_solver *s = NULL;
+    int st = consph_solver_create(&s, &prm);
+    if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
+    if (st != CONSPH_OK) {
+        fprintf(stderr, "refresh: %s\n", consph_last_error());
+        consph_solver_free(s);
+        return st;
+    }
+    int rank = 0, size = 1, bad = 0;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    consph_sys *sys = &s->sys;
+    consph_particles *p = sys->p;
+    const double *id = consph_particles_find(p, SF_ID)->data;
+    double *f0 = p->fields[0].data; /* the first field's first component */
+    size_t ncols = (size_t)p->dim;
+    for (int f = 0; f < p->nfields; ++f) ncols += (size_t)p->fields[f].ncomp;
+    const double masks = (double)(ncols * (size_t)(size - 1));
+    double b0 = 0, b1 = 0, b2 = 0, b3 = 0, sec = 0;
+    consph_par_solver_comm(s, &b0, &sec);
+    sys->split->refresh(sys, sys->split->ctx);
+    consph_par_solver_comm(s, &b1, &sec);
+    if (b1 - b0 != masks) {
+        fprintf(stderr, "rank %d: a refresh after the cut sent %g bytes, the masks are %g\n", rank,
+                b1 - b0, masks);
+        bad = 1;
+    }
+    /* an owned value changes on rank 0; a halo value is overwritten on every rank */
+    double target = -1.0;
+    size_t first_halo = p->n;
+    for (size_t i = 0; i < p->n && first_halo == p->n; ++i)
+        if (!sys->dest[i]) first_halo = i;
+    if (rank == 0)
+        for (size_t i = 0; i < p->n; ++i)
+            if (sys->dest[i]) {
+                target = id[i];
+                f0[i] = 12345.0;
+                break;
+            }
+    MPI_Bcast(&target, 1, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    double kept = 0.0;
+    if (first_halo < p->n && id[first_halo] != target) {
+        kept = f0[first_halo];
+        f0[first_halo] = -7.0;
+    }
+    sys->split->refresh(sys, sys->split->ctx);
+    consph_par_solver_comm(s, &b2, &sec);
+    for (size_t i = 0; i < p->n; ++i)
+        if (id[i] == target && f0[i] != 12345.0) {
+            fprintf(stderr, "rank %d: the changed value did not reach its copy (%g)\n", rank,
+                    f0[i]);
+            bad = 1;
+        }
+    if (first_halo < p->n && id[first_halo] != target && memcmp(&f0[first_halo], &kept, 8)) {
+        fprintf(stderr, "rank %d: a halo value written here was not put back\n", rank);
+        bad = 1;
+    }
+    if (rank == 0 && !(b2 - b1 > masks)) {
+        fprintf(stderr, "rank 0: the changed column was not sent\n");
+        bad = 1;
+    }
+    sys->split->refresh(sys, sys->split->ctx);
+    consph_par_solver_comm(s, &b3, &sec);
+    if (b3 - b2 != masks) {
+        fprintf(stderr, "rank %d: a refresh with nothing changed sent %g bytes\n", rank, b3 - b2);
+        bad = 1;
+    }
+    consph_solver_free(s);
+    return bad ? CONSPH_EINVAL : CONSPH_OK;
+}
+
 static int child(const char *base)
 {
     MPI_Init(NULL, NULL);
@@ -244,6 +323,7 @@ static int child(const char *base)
     bad |= run_files(dir, 0) != CONSPH_OK;
     snprintf(dir, sizeof dir, "%s.restart.np%d", base, size);
     bad |= run_files(dir, 1) != CONSPH_OK;
+    bad |= check_refresh() != CONSPH_OK;
     /* more ranks than slabs: 4² particles in 2D have one or two cells per axis */
     {
         par_case c = {"tiny", "taylor-green", "wcsph", 4, CONSPH_LAYOUT_LATTICE, 1, NULL};

@@ -328,7 +328,31 @@ typedef struct consph_study_options {
     /* > 1: the rows run on that many forked worker processes, the report as a serial one's
      * (0 or 1: this process alone; ignored under MPI on several ranks) */
     int jobs;
+    /* Where the solver rows (kind = run) run: a consph_study_device; 0 (DEFAULT) takes the
+     * study file's key `device`, else the CPU. Other kinds run on the CPU whatever it says. */
+    int device;
 } consph_study_options;
+
+/* Where a study's solver rows run (`consph study --device`, the study file's key `device`;
+ * docs/studies.md). DEFAULT: neither given, the CPU, and the reports as ever; any other value
+ * adds a line per run figure saying which device ran each row. AUTO: on the GPU the rows that
+ * consph_gpu_check passes (every row on the CPU where no GPU is found), the others on the CPU. */
+typedef enum consph_study_device {
+    CONSPH_STUDY_DEVICE_DEFAULT,
+    CONSPH_STUDY_DEVICE_CPU,
+    CONSPH_STUDY_DEVICE_GPU,
+    CONSPH_STUDY_DEVICE_AUTO
+} consph_study_device;
+/* "cpu", "gpu", "auto" (DEFAULT: "cpu"). */
+const char *consph_study_device_name(int device);
+/* The device a study runs on: `asked` unless DEFAULT (an option wins), else the study file's key
+ * `device` (checked by consph_study_validate), else DEFAULT. */
+int consph_study_device_of(const consph_study *s, int asked);
+/* Before anything runs: CONSPH_OK when every solver row of `s` can run on `device` (resolved by
+ * consph_study_device_of). GPU: CONSPH_EINVAL with what the build or the machine lacks
+ * (consph_gpu_available), or naming every row that cannot run there (figure, series, its
+ * resolutions) and why (consph_gpu_check); the other devices always can. */
+int consph_study_device_check(const consph_study *s, int quick, int device);
 
 /* "mm:ss", "h:mm:ss", or "D.d days" when long; "--" when unknown (NaN, negative). */
 const char *consph_study_duration_text(double seconds, char *buf, size_t size);

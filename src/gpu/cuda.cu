@@ -65,6 +65,37 @@ GPU_RATE_KERNEL(k_wrates2, 80, dev_wcsph_rates_d(&v, i, 2, 0))
 GPU_RATE_KERNEL(k_wrates2g, 80, dev_wcsph_rates_d(&v, i, 2, 1))
 GPU_RATE_KERNEL(k_wrates3, 80, dev_wcsph_rates_d(&v, i, 3, 0))
 GPU_RATE_KERNEL(k_wrates3g, 80, dev_wcsph_rates_d(&v, i, 3, 1))
+/* 001's family (dev_negi.h): one kernel per dimension and set of sums */
+GPU_KERNEL(k_nvol, dev_negi_volumes(&v, i))
+GPU_KERNEL(k_nfirst2r, dev_negi_first_d(&v, i, 2, 1, 1, 0, 1))
+GPU_KERNEL(k_nfirst3r, dev_negi_first_d(&v, i, 3, 1, 1, 0, 1))
+GPU_KERNEL(k_nfirst2rq, dev_negi_first_d(&v, i, 2, 1, 1, 1, 1))
+GPU_KERNEL(k_nfirst3rq, dev_negi_first_d(&v, i, 3, 1, 1, 1, 1))
+GPU_KERNEL(k_nfirst2s, dev_negi_first_d(&v, i, 2, 0, 1, 1, 0))
+GPU_KERNEL(k_nfirst3s, dev_negi_first_d(&v, i, 3, 0, 1, 1, 0))
+GPU_KERNEL(k_ncoupled2, dev_negi_coupled_d(&v, i, 2, 1, 0))
+GPU_KERNEL(k_ncoupled3, dev_negi_coupled_d(&v, i, 3, 1, 0))
+GPU_KERNEL(k_ncoupled2q, dev_negi_coupled_d(&v, i, 2, 1, 1))
+GPU_KERNEL(k_ncoupled3q, dev_negi_coupled_d(&v, i, 3, 1, 1))
+GPU_KERNEL(k_nkorz2, dev_negi_korzilius_d(&v, i, 2))
+GPU_KERNEL(k_nkorz3, dev_negi_korzilius_d(&v, i, 3))
+GPU_KERNEL(k_nfatehi2, dev_negi_fatehi_d(&v, i, 2))
+GPU_KERNEL(k_nfatehi3, dev_negi_fatehi_d(&v, i, 3))
+GPU_KERNEL(k_ncleary2, dev_negi_cleary_d(&v, i, 2))
+GPU_KERNEL(k_ncleary3, dev_negi_cleary_d(&v, i, 3))
+GPU_KERNEL(k_nrates2, dev_negi_rates_d(&v, i, 2))
+GPU_KERNEL(k_nrates3, dev_negi_rates_d(&v, i, 3))
+GPU_KERNEL(k_ipst_vol, dev_ipst_volumes(&v, i))
+GPU_KERNEL(k_chi_max, dev_chi_max(&v, i))
+GPU_KERNEL(k_ipst_shift2, dev_ipst_shift_d(&v, i, 2))
+GPU_KERNEL(k_ipst_shift3, dev_ipst_shift_d(&v, i, 3))
+GPU_KERNEL(k_ipst_move, dev_ipst_move(&v, i))
+GPU_KERNEL(k_pst_shift2, dev_pst_shift_d(&v, i, 2, c))
+GPU_KERNEL(k_pst_shift3, dev_pst_shift_d(&v, i, 3, c))
+GPU_KERNEL(k_shift_end, dev_shift_end(&v, i, c != 0.0))
+GPU_KERNEL(k_remesh2, dev_remesh_d(&v, i, 2))
+GPU_KERNEL(k_remesh3, dev_remesh_d(&v, i, 3))
+GPU_KERNEL(k_remesh_end, dev_remesh_end(&v, i))
 
 int cu_alloc(void **p, size_t bytes)
 {
@@ -140,6 +171,45 @@ int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
         else
             (v->grads ? k_wrates3g : k_wrates3)<<<blocks, threads>>>(*v, count, c);
         break;
+    case GK_NEGI_VOLUMES: k_nvol<<<blocks, threads>>>(*v, count, c); break;
+    case GK_NEGI_FIRST:
+        if (v->kit_p && v->kit_q)
+            (v->d == 2 ? k_nfirst2rq : k_nfirst3rq)<<<blocks, threads>>>(*v, count, c);
+        else if (v->kit_p)
+            (v->d == 2 ? k_nfirst2r : k_nfirst3r)<<<blocks, threads>>>(*v, count, c);
+        else
+            (v->d == 2 ? k_nfirst2s : k_nfirst3s)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_NEGI_COUPLED:
+        if (v->lap_q)
+            (v->d == 2 ? k_ncoupled2q : k_ncoupled3q)<<<blocks, threads>>>(*v, count, c);
+        else
+            (v->d == 2 ? k_ncoupled2 : k_ncoupled3)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_NEGI_KORZ:
+        (v->d == 2 ? k_nkorz2 : k_nkorz3)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_NEGI_FATEHI:
+        (v->d == 2 ? k_nfatehi2 : k_nfatehi3)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_NEGI_CLEARY:
+        (v->d == 2 ? k_ncleary2 : k_ncleary3)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_NEGI_RATES:
+        (v->d == 2 ? k_nrates2 : k_nrates3)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_IPST_VOLUMES: k_ipst_vol<<<blocks, threads>>>(*v, count, c); break;
+    case GK_CHI_MAX: k_chi_max<<<blocks, threads>>>(*v, count, c); break;
+    case GK_IPST_SHIFT:
+        (v->d == 2 ? k_ipst_shift2 : k_ipst_shift3)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_IPST_MOVE: k_ipst_move<<<blocks, threads>>>(*v, count, c); break;
+    case GK_PST_SHIFT:
+        (v->d == 2 ? k_pst_shift2 : k_pst_shift3)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_SHIFT_END: k_shift_end<<<blocks, threads>>>(*v, count, c); break;
+    case GK_REMESH: (v->d == 2 ? k_remesh2 : k_remesh3)<<<blocks, threads>>>(*v, count, c); break;
+    case GK_REMESH_END: k_remesh_end<<<blocks, threads>>>(*v, count, c); break;
     }
     return fail(cudaGetLastError(), "kernel launch");
 }

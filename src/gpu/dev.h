@@ -27,6 +27,8 @@
 #include <stdint.h>
 
 #include "gpu/hd.h"
+#include "schemes/negi/iact.h"
+#include "schemes/negi/kit_pair.h"
 #include "schemes/pysph/iact.h"
 
 #if defined(__CUDACC__)
@@ -62,6 +64,7 @@ typedef struct gpu_grid {
 /* The quintic spline's constants (consph_kernel: norm, 1/h, support; eval_batch's products). */
 typedef struct gpu_kern {
     double norm, inv_h, support, norm1, at_zero;
+    double norm2; /* norm / h², of W'' */
 } gpu_kern;
 
 /* Indices of the solver's arrays in the view's block a (x first, then every particle field's
@@ -85,12 +88,21 @@ enum {
     GA_U0,
     GA_Q0,
     GA_X0,
-    GA_Q, /* the evolved scalar: p (edac) or ϱ (wcsph) */
+    GA_Q, /* the evolved scalar: p (edac, pe-ipst-c) or ϱ (wcsph, l-ipst-c) */
+    /* 001's family (src/schemes/negi/scheme.c's fields) */
+    GA_VOL,   /* ω = 1/Σ W */
+    GA_BONET, /* B_i, d × d */
+    GA_GRADQ,
+    GA_LAPU,
+    GA_LAPQ,
+    GA_SHIFT, /* δr of the last shift */
+    GA_RHOC,  /* EWCSPH's frozen ϱ_c */
+    GA_LAT,   /* L-RR-C's lattice point of each particle */
     GA_COUNT
 };
 
 /* The schemes the GPU runs. */
-enum { GS_EDAC, GS_WCSPH };
+enum { GS_EDAC, GS_WCSPH, GS_NEGI };
 
 typedef struct gpu_view {
     size_t n; /* particles, and the stride of every array */
@@ -122,6 +134,22 @@ typedef struct gpu_view {
     uint32_t *count; /* ncells + 1: particles per cell, then the scatter's fill */
     uint32_t *start; /* ncells + 1: the first slot of each cell */
     uint32_t *order; /* n: the particle in each slot */
+    /* 001's family (GS_NEGI): the terms of the scheme's rates, q = p (evolve_p) or ϱ, ν (Cleary's
+     * ν ρ_o), the δ-term's D, the kit's cond_max; the sums of the kit's first pass now run (∇p,
+     * G, ∇q, ∇·u stored) and its second (∇²u, ∇²q); IPST's h and h^d */
+    negi_terms nt;
+    int evolve_p, moves; /* moves: 0 for the Eulerian schemes (no drift, no x0, fixed ω) */
+    int kit_p, kit_u, kit_q, kit_div, lap_u, lap_q;
+    double nu, Dq, cond_max, ipst_h, ipst_hd;
+    /* Sun et al.'s shifting (L-PST-C): -CFL Ma (2h)², 1/W(Δs), R and the cap on |δr| */
+    double pst_coef, pst_inv_wds, pst_R, pst_cap;
+    double c0_over_h;                     /* TV-C: δu = (c_o/h) δr */
+    double m4_norm, m4_inv_h, m4_support; /* L-RR-C: the M4 kernel at h = Δs */
+    /* d arrays of n each: a shift (IPST, PST; L-RR-C: the remeshed u) and IPST's sum of them */
+    double *step, *total;
+    double *chi;                 /* n: IPST's h^d Σ W of each particle; L-RR-C: the remeshed q */
+    unsigned long long *chi_max; /* IPST: the bits of max χ (χ >= 0, so ordered as integers) */
+    unsigned char *bonet_ok;     /* n: B_i accepted by the kit's first pass (Fatehi_c reads it) */
 } gpu_view;
 
 GPU_FN double *gv(const gpu_view *v, int q, int comp)
@@ -226,7 +254,7 @@ GPU_FN void dev_save_start(const gpu_view *v, size_t i)
     gv(v, GA_Q0, 0)[i] = gv(v, GA_Q, 0)[i];
     for (int a = 0; a < v->d; ++a) {
         gv(v, GA_U0, a)[i] = gv(v, GA_U, a)[i];
-        gv(v, GA_X0, a)[i] = gv(v, GA_X, a)[i];
+        if (v->moves) gv(v, GA_X0, a)[i] = gv(v, GA_X, a)[i];
     }
 }
 
@@ -236,6 +264,16 @@ GPU_FN double gpu_eos(const gpu_view *v, double rho)
     if (!v->tait) return v->c2 * (rho - v->rho0);
     const double x = rho / v->rho0, x2 = x * x, x4 = x2 * x2;
     return v->rho0 * v->c2 / v->gamma * (x * x2 * x4 - 1.0);
+}
+
+/* The closure of wcsph and 001's family (solver_eos): ϱ = p/c_o² + ρ_o where p evolves (eq. 31),
+ * else p = EOS(ϱ). */
+GPU_FN void gpu_close(const gpu_view *v, size_t i)
+{
+    if (v->evolve_p)
+        gv(v, GA_RHOF, 0)[i] = gv(v, GA_P, 0)[i] / v->c2 + v->rho0;
+    else
+        gv(v, GA_P, 0)[i] = gpu_eos(v, gv(v, GA_RHOF, 0)[i]);
 }
 
 /* advance(c): u, q = u0, q0 + c (au, aq); edac's transport hook ũ - u = c ã and dx/dt = u + ũ - u
@@ -256,6 +294,7 @@ GPU_FN void dev_advance(const gpu_view *v, size_t i, double c)
             gv(v, GA_TVDU, a)[i] = du;
             gv(v, GA_AX, a)[i] = ax;
         } else {
+            if (!v->moves) continue;
             ax = gv(v, GA_AX, a)[i];
         }
         double x = gv(v, GA_X0, a)[i] + c * ax;
@@ -271,7 +310,7 @@ GPU_FN void dev_advance(const gpu_view *v, size_t i, double c)
     if (edac)
         gv(v, GA_RHOF, 0)[i] = gv(v, GA_RHOS, 0)[i];
     else
-        gv(v, GA_P, 0)[i] = gpu_eos(v, gv(v, GA_RHOF, 0)[i]);
+        gpu_close(v, i);
 }
 
 /* ---- the neighbour walk ---- */
@@ -680,6 +719,13 @@ GPU_FN double gpu_dwr(const gpu_kern *k, double r)
     return !(q < k->support) ? 0.0 : r > 0.0 ? v : k->at_zero;
 }
 
+/* W''(r) (eval_batch's d2w select). */
+GPU_FN double gpu_d2w(const gpu_kern *k, double r)
+{
+    const double q = r * k->inv_h, v = k->norm2 * gpu_quintic_d2f(q);
+    return q < k->support ? v : 0.0;
+}
+
 /* ---- edac's passes (src/schemes/pysph/scheme.c) ---- */
 
 /* Summation density ϱ = m Σ W, 1/V, m/ϱ and the neighbour average p̄ (visit_density); then the
@@ -935,6 +981,8 @@ GPU_FN_INLINE void dev_wcsph_rates_d(const gpu_view *v, size_t i, const int d, c
     }
     gv(v, GA_DIVU, 0)[i] = -drho / rhoi;
 }
+
+#include "gpu/dev_negi.h"
 
 /* The scheme's pass before the rates (edac: the density pass; wcsph: per-particle values) and
  * its rates, dispatched on the view. */

@@ -9,6 +9,7 @@
 
 #include "consph/gpu.h"
 #include "gpu/gpu_internal.h"
+#include "regularise/regularise.h"
 #include "solver/solver_internal.h"
 
 struct gpu_run {
@@ -17,6 +18,12 @@ struct gpu_run {
     int nfields;      /* the particles' field count at the attach (checked at each copy) */
     double *dev_a[2]; /* the two blocks of arrays (v.a, v.b swap at each re-sort) */
     size_t bytes;     /* device memory allocated */
+    int built;        /* the cell lists of particles that do not move are built */
+    /* L-RR-C: the search of reg_remesh_m4's joint system (lattice points and particles, the M4
+     * kernel's reach): its grid, and the particles' cell lists and slots in it */
+    gpu_grid joint_grid;
+    uint32_t *jcell, *jcount, *jstart, *jorder;
+    double *jxs;
 };
 
 /* ---- the emulation backend ---- */
@@ -74,6 +81,51 @@ static int emu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_RATES:
         for (size_t i = 0; i < count; ++i) dev_rates(v, i);
         break;
+    case GK_NEGI_VOLUMES:
+        for (size_t i = 0; i < count; ++i) dev_negi_volumes(v, i);
+        break;
+    case GK_NEGI_FIRST:
+        for (size_t i = 0; i < count; ++i) dev_negi_first_any(v, i);
+        break;
+    case GK_NEGI_COUPLED:
+        for (size_t i = 0; i < count; ++i) dev_negi_coupled_any(v, i);
+        break;
+    case GK_NEGI_KORZ:
+        for (size_t i = 0; i < count; ++i) dev_negi_korzilius_any(v, i);
+        break;
+    case GK_NEGI_FATEHI:
+        for (size_t i = 0; i < count; ++i) dev_negi_fatehi_any(v, i);
+        break;
+    case GK_NEGI_CLEARY:
+        for (size_t i = 0; i < count; ++i) dev_negi_cleary_any(v, i);
+        break;
+    case GK_NEGI_RATES:
+        for (size_t i = 0; i < count; ++i) dev_negi_rates(v, i);
+        break;
+    case GK_IPST_VOLUMES:
+        for (size_t i = 0; i < count; ++i) dev_ipst_volumes(v, i);
+        break;
+    case GK_CHI_MAX:
+        for (size_t i = 0; i < count; ++i) dev_chi_max(v, i);
+        break;
+    case GK_IPST_SHIFT:
+        for (size_t i = 0; i < count; ++i) dev_ipst_shift_any(v, i);
+        break;
+    case GK_IPST_MOVE:
+        for (size_t i = 0; i < count; ++i) dev_ipst_move(v, i);
+        break;
+    case GK_PST_SHIFT:
+        for (size_t i = 0; i < count; ++i) dev_pst_shift_any(v, i, c);
+        break;
+    case GK_SHIFT_END:
+        for (size_t i = 0; i < count; ++i) dev_shift_end(v, i, c != 0.0);
+        break;
+    case GK_REMESH:
+        for (size_t i = 0; i < count; ++i) dev_remesh_any(v, i);
+        break;
+    case GK_REMESH_END:
+        for (size_t i = 0; i < count; ++i) dev_remesh_end(v, i);
+        break;
     }
     return 0;
 }
@@ -119,7 +171,19 @@ static const gpu_backend *find_backend(char *why, size_t len)
 
 const char *consph_gpu_schemes(void)
 {
-    return "edac,wcsph";
+    return "edac,wcsph,l-ipst-c,l-ipst-f,l-ipst-k,pe-ipst-c,l-pst-c,l-rr-c,tv-c,e-c,ewcsph";
+}
+
+/* 001's family on the GPU (rk2, coupled_bc): L-IPST-C, L-IPST-F (Fatehi_c) and PE-IPST-C (IPST),
+ * L-PST-C (Sun et al.'s shifting), L-RR-C (M4 remeshing), TV-C (its shifting velocity), E-C and
+ * EWCSPH (Eulerian; EWCSPH with Cleary's Laplacian and its frozen ϱ_c). */
+static int is_negi(const char *scheme)
+{
+    return strcmp(scheme, "l-ipst-c") == 0 || strcmp(scheme, "l-ipst-f") == 0 ||
+           strcmp(scheme, "l-ipst-k") == 0 || strcmp(scheme, "pe-ipst-c") == 0 ||
+           strcmp(scheme, "l-pst-c") == 0 || strcmp(scheme, "l-rr-c") == 0 ||
+           strcmp(scheme, "tv-c") == 0 || strcmp(scheme, "e-c") == 0 ||
+           strcmp(scheme, "ewcsph") == 0;
 }
 
 int consph_gpu_available(char *why, size_t len)
@@ -132,20 +196,27 @@ int consph_gpu_available(char *why, size_t len)
 
 static int check_params(const consph_run_params *prm)
 {
-    if (strcmp(prm->scheme, "edac") != 0 && strcmp(prm->scheme, "wcsph") != 0)
+    const int negi = is_negi(prm->scheme);
+    if (strcmp(prm->scheme, "edac") != 0 && strcmp(prm->scheme, "wcsph") != 0 && !negi)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: scheme '%s' does not run on the GPU yet (allowed: %s)",
                            prm->scheme, consph_gpu_schemes());
-    if (prm->integrator[0] && strcmp(prm->integrator, "pec") != 0)
+    if (prm->integrator[0] && strcmp(prm->integrator, negi ? "rk2" : "pec") != 0)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: integrator '%s' does not run on the GPU yet (allowed: "
-                           "pec, the default of edac and wcsph)",
+                           "pec, the default of edac and wcsph; rk2, that of 001's schemes)",
                            prm->integrator);
-    /* wcsph's Tait EOS and sound speed by multiplication (solver_eos's γ = 7 loop) */
-    if (strcmp(prm->scheme, "wcsph") == 0 && prm->eos != CONSPH_EOS_LINEAR && prm->gamma != 7.0)
+    /* Tait's EOS and sound speed by multiplication (solver_eos's γ = 7 loop) */
+    const int tait =
+        prm->eos == CONSPH_EOS_TAIT ||
+        (prm->eos == CONSPH_EOS_DEFAULT &&
+         (strcmp(prm->scheme, "wcsph") == 0 || strcmp(prm->scheme, "l-ipst-c") == 0 ||
+          strcmp(prm->scheme, "l-ipst-f") == 0 || strcmp(prm->scheme, "l-pst-c") == 0 ||
+          strcmp(prm->scheme, "l-rr-c") == 0 || strcmp(prm->scheme, "ewcsph") == 0));
+    if ((negi || strcmp(prm->scheme, "wcsph") == 0) && tait && prm->gamma != 7.0)
         return consph_fail(CONSPH_EINVAL,
-                           "--device gpu: wcsph's Tait EOS runs on the GPU with γ = 7 only, not %g",
-                           prm->gamma);
+                           "--device gpu: %s's Tait EOS runs on the GPU with γ = 7 only, not %g",
+                           prm->scheme, prm->gamma);
     if (prm->kernel != CONSPH_KERNEL_QUINTIC)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: only the quintic kernel runs on the GPU yet (--kernel "
@@ -174,7 +245,10 @@ static int check_solver(consph_solver *s)
 {
     int st = check_params(&s->prm);
     if (st != CONSPH_OK) return st;
-    if (!s->reuse_rates || s->sys.dest || s->sys.kernel.tensor || !s->sys.p)
+    /* edac and wcsph start from the rates the previous step left (pec); 001's family evaluates
+     * afresh (rk2), its regularisation changing the state after the last evaluation */
+    if (s->reuse_rates == is_negi(s->prm.scheme) || s->sys.dest || s->sys.kernel.tensor ||
+        !s->sys.p)
         return consph_fail(CONSPH_EINVAL, "--device gpu: this run's set-up does not run there");
     return CONSPH_OK;
 }
@@ -304,9 +378,10 @@ void gpu_free(gpu_run *g)
 {
     if (!g) return;
     const gpu_backend *be = g->be;
-    void *bufs[] = {g->dev_a[0],  g->dev_a[1], g->v.vol,   g->v.mrho,  g->v.cs,
-                    g->v.xs,      g->v.cell,   g->v.count, g->v.start, g->v.order,
-                    g->v.slot_of, g->v.pack,   g->v.xp};
+    void *bufs[] = {g->dev_a[0],   g->dev_a[1],  g->v.vol,   g->v.mrho,  g->v.cs,   g->v.xs,
+                    g->v.cell,     g->v.count,   g->v.start, g->v.order, g->v.step, g->v.total,
+                    g->v.chi_max,  g->jcell,     g->jcount,  g->jstart,  g->jorder, g->jxs,
+                    g->v.bonet_ok, g->v.slot_of, g->v.pack,  g->v.xp};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k)
         if (bufs[k]) be->release(bufs[k]);
     free(g);
@@ -347,33 +422,74 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     v->narr = host_arrays(p, arr, (int)(sizeof arr / sizeof arr[0]));
     g->nfields = p->nfields;
     v->at[GA_X] = 0;
-    const int edac = strcmp(s->prm.scheme, "edac") == 0;
-    v->scheme = edac ? GS_EDAC : GS_WCSPH;
+    const int edac = strcmp(s->prm.scheme, "edac") == 0, negi = is_negi(s->prm.scheme);
+    v->scheme = edac ? GS_EDAC : negi ? GS_NEGI : GS_WCSPH;
+    const int evolve_p = edac || (negi && s->scheme->evolve_p);
+    const int moves = !negi || s->scheme->moves;
+    v->moves = moves;
+    /* who: 1 every scheme, 2 edac only (pysph/scheme.c's tvdu, auhat, rhos, numden, pavg), 4
+     * 001's family only (negi/scheme.c's fields), 8 the schemes that move (x0, dx/dt), 16
+     * EWCSPH's ϱ_c, 32 L-RR-C's lattice */
     struct {
         int q;
         const char *name;
-        int ncomp, edac_only;
-    } const map[] = {{GA_U, SF_U, d, 0},       {GA_P, SF_P, 1, 0},
-                     {GA_AU, SF_AU, d, 0},     {GA_AQ, SF_AQ, 1, 0},
-                     {GA_AX, SF_AX, d, 0},     {GA_AUHAT, "auhat", d, 1},
-                     {GA_TVDU, "tvdu", d, 1},  {GA_RHOS, "rhos", 1, 1},
-                     {GA_RHOF, SF_RHOF, 1, 0}, {GA_NUMD, "numden", 1, 1},
-                     {GA_PAVG, "pavg", 1, 1},  {GA_GRADP, SF_GRADP, d, 0},
-                     {GA_DIVU, SF_DIVU, 1, 0}, {GA_GRADU, SF_GRADU, d * d, 0},
-                     {GA_U0, SF_U0, d, 0},     {GA_Q0, SF_Q0, 1, 0},
-                     {GA_X0, SF_X0, d, 0},     {GA_Q, edac ? SF_P : SF_RHOF, 1, 0}};
-    /* tvdu, auhat, rhos, numden, pavg: pysph/scheme.c */
+        int ncomp, who;
+    } const map[] = {{GA_U, SF_U, d, 1},         {GA_P, SF_P, 1, 1},
+                     {GA_AU, SF_AU, d, 1},       {GA_AQ, SF_AQ, 1, 1},
+                     {GA_AX, SF_AX, d, 8},       {GA_AUHAT, "auhat", d, 2},
+                     {GA_TVDU, "tvdu", d, 2},    {GA_RHOS, "rhos", 1, 2},
+                     {GA_RHOF, SF_RHOF, 1, 1},   {GA_NUMD, "numden", 1, 2},
+                     {GA_PAVG, "pavg", 1, 2},    {GA_GRADP, SF_GRADP, d, 1},
+                     {GA_DIVU, SF_DIVU, 1, 1},   {GA_GRADU, SF_GRADU, d * d, 1},
+                     {GA_U0, SF_U0, d, 1},       {GA_Q0, SF_Q0, 1, 1},
+                     {GA_X0, SF_X0, d, 8},       {GA_Q, evolve_p ? SF_P : SF_RHOF, 1, 1},
+                     {GA_VOL, SF_VOL, 1, 4},     {GA_BONET, SF_BONET, d * d, 4},
+                     {GA_GRADQ, SF_GRADQ, d, 4}, {GA_LAPU, SF_LAPU, d, 4},
+                     {GA_LAPQ, SF_LAPQ, 1, 4},   {GA_SHIFT, SF_SHIFT, d, 4},
+                     {GA_RHOC, "rhoc", 1, 16}, /* negi/scheme.c's SF_RHOC */
+                     {GA_LAT, SF_LATTICE, d, 32}};
+    const int frozen = negi && ((const negi_terms *)s->scheme->terms)->frozen_rho;
+    const int lattice = negi && s->scheme->needs_lattice;
+    const int mine = 1 | (edac ? 2 : 0) | (negi ? 4 : 0) | (moves ? 8 : 0) | (frozen ? 16 : 0) |
+                     (lattice ? 32 : 0);
     for (int q = 1; q < GA_COUNT; ++q) v->at[q] = -1;
     for (size_t k = 0; st == CONSPH_OK && k < sizeof map / sizeof map[0]; ++k)
-        if (edac || !map[k].edac_only)
-            st = array_of(s, map[k].name, map[k].ncomp, &v->at[map[k].q]);
+        if (map[k].who & mine) st = array_of(s, map[k].name, map[k].ncomp, &v->at[map[k].q]);
+    if (negi) {
+        /* negi/scheme.c's rates: the scheme's terms, ν (Cleary's per unit mass density), D */
+        const negi_terms *t = s->scheme->terms;
+        v->nt = *t;
+        v->evolve_p = s->scheme->evolve_p;
+        v->nu = t->lap == KIT_LAP_CLEARY ? s->nu * s->prm.rho0 : s->nu;
+        v->Dq = s->D;
+        v->cond_max = 1e8; /* the kit_req of negi/scheme.c */
+        v->ipst_h = s->h;
+        v->ipst_hd = pow(s->h, d);
+        /* negi/scheme.c's regularise_pst: CFL 0.5, Ma = U/c_o, R = 0.24, n = 4, no cap
+         * (reg_pst_shift's constants from them) */
+        const double twoh = 2.0 * s->h, wds = consph_kernel_w(&s->sys.kernel, s->ds);
+        v->pst_coef = -0.5 * (s->prm.U / s->c0) * twoh * twoh;
+        v->pst_inv_wds = 1.0 / wds;
+        v->pst_R = 0.24;
+        v->pst_cap = INFINITY;
+        v->c0_over_h = s->c0 / s->h;
+        /* regularise_remesh: reg_remesh_m4's kernel and joint system of 2n points */
+        consph_kernel m4;
+        if (st == CONSPH_OK) st = consph_kernel_init(&m4, CONSPH_KERNEL_M4, d, s->ds);
+        if (st == CONSPH_OK) {
+            v->m4_norm = m4.norm;
+            v->m4_inv_h = m4.inv_h;
+            v->m4_support = m4.support;
+            grid_setup(&g->joint_grid, &p->box, d, consph_sys_reach(&m4), 2 * p->n);
+        }
+    }
     v->av = (s->prm.alpha >= 0.0 ? s->prm.alpha : 0.1) > 0.0; /* job_fields' α */
     v->tait = s->eos == CONSPH_EOS_TAIT;
     v->rho0 = s->prm.rho0;
     v->c2 = s->c0 * s->c0;
     v->gamma = s->prm.gamma;
     v->cs_exp = eos_int_exponent(0.5 * (s->prm.gamma - 1.0));
-    if (st == CONSPH_OK && !edac && v->av && v->cs_exp < 0)
+    if (st == CONSPH_OK && v->scheme == GS_WCSPH && v->av && v->cs_exp < 0)
         st = consph_fail(CONSPH_EINVAL, "--device gpu: wcsph's sound speed needs an odd γ, not %g",
                          s->prm.gamma);
     grid_setup(&v->g, &p->box, d, consph_nnps_radius(s->sys.nnps), p->n);
@@ -391,6 +507,7 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     v->k.support = kr->support;
     v->k.norm1 = kr->norm * kr->inv_h;
     v->k.at_zero = kr->norm * kr->inv_h * kr->inv_h * gpu_quintic_d2f(0.0);
+    v->k.norm2 = kr->norm * kr->inv_h * kr->inv_h;
     /* pysph/scheme.c's job_fields */
     v->c.m = s->mass;
     v->c.minv = 1.0 / s->mass;
@@ -403,23 +520,42 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     v->c.nu_edac = 0.5 * s->h * s->c0 / 8.0;
     const size_t n = p->n ? p->n : 1, nd = (size_t)v->narr * n * sizeof(double);
     const size_t nc = (v->g.ncells + 1) * sizeof(uint32_t);
+    /* per particle: edac's 1/V and m/ϱ, wcsph's p/ϱ², m/ϱ and c; 001's family IPST's χ in
+     * mrho and its two shifts */
+    const size_t nvol = negi ? 1 : n * sizeof(double), ncs = v->scheme == GS_WCSPH ? n : 1;
+    const size_t nstep = negi ? (size_t)d * n * sizeof(double) : 1;
+    /* the rate passes' neighbour records: edac's and wcsph's (dev.h's gpu_pack_width) */
+    const size_t npack = negi ? 1 : (size_t)(4 + 2 * d) * n;
     s->gpu = g;
     if (st == CONSPH_OK &&
         (be->alloc((void **)&g->dev_a[0], nd) || be->alloc((void **)&g->dev_a[1], nd) ||
-         be->alloc((void **)&v->vol, n * sizeof(double)) ||
-         be->alloc((void **)&v->mrho, n * sizeof(double)) ||
-         be->alloc((void **)&v->cs, n * sizeof(double)) ||
+         be->alloc((void **)&v->vol, nvol) || be->alloc((void **)&v->mrho, n * sizeof(double)) ||
+         be->alloc((void **)&v->cs, ncs * sizeof(double)) ||
          be->alloc((void **)&v->xs, (size_t)d * n * sizeof(double)) ||
          be->alloc((void **)&v->xp, 4 * n * sizeof(double)) ||
          be->alloc((void **)&v->slot_of, n * sizeof(uint32_t)) ||
-         be->alloc((void **)&v->pack, (size_t)(4 + 2 * d) * n * sizeof(double)) ||
+         be->alloc((void **)&v->pack, npack * sizeof(double)) ||
          be->alloc((void **)&v->cell, n * sizeof(uint32_t)) || be->alloc((void **)&v->count, nc) ||
-         be->alloc((void **)&v->start, nc) || be->alloc((void **)&v->order, n * sizeof(uint32_t))))
+         be->alloc((void **)&v->start, nc) || be->alloc((void **)&v->order, n * sizeof(uint32_t)) ||
+         be->alloc((void **)&v->step, nstep) || be->alloc((void **)&v->total, nstep) ||
+         be->alloc((void **)&v->chi_max, sizeof(unsigned long long)) ||
+         be->alloc((void **)&v->bonet_ok, negi ? n : 1)))
+        st = be_fail(be, "device memory");
+    const size_t njc = lattice ? (g->joint_grid.ncells + 1) * sizeof(uint32_t) : 1;
+    const size_t nj = lattice ? n : 1;
+    if (st == CONSPH_OK &&
+        (be->alloc((void **)&g->jcell, nj * sizeof(uint32_t)) ||
+         be->alloc((void **)&g->jcount, njc) || be->alloc((void **)&g->jstart, njc) ||
+         be->alloc((void **)&g->jorder, nj * sizeof(uint32_t)) ||
+         be->alloc((void **)&g->jxs, (size_t)d * nj * sizeof(double))))
         st = be_fail(be, "device memory");
     v->a = g->dev_a[0];
     v->b = g->dev_a[1];
-    g->bytes = 2 * nd + 3 * n * sizeof(double) + (size_t)(d + 4) * n * sizeof(double) +
-               (size_t)(4 + 2 * d) * n * sizeof(double) + 3 * n * sizeof(uint32_t) + 2 * nc;
+    v->chi = v->mrho;
+    g->bytes = 2 * nd + nvol + n * sizeof(double) + ncs * sizeof(double) +
+               (size_t)(d + 4) * n * sizeof(double) + npack * sizeof(double) +
+               3 * n * sizeof(uint32_t) + 2 * nc + 2 * nstep + (negi ? n : 1);
+    if (lattice) g->bytes += 2 * n * sizeof(uint32_t) + 2 * njc + (size_t)d * n * sizeof(double);
     if (st == CONSPH_OK) st = copy_arrays(s, 1);
     if (st != CONSPH_OK) {
         s->gpu = NULL;
@@ -435,11 +571,9 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
         if (be->launch(k, count, v, c)) return be_fail(be, #k);                                    \
     } while (0)
 
-/* Bins the particles and sorts the slots by cell (consph_nnps_build). */
-static int build_cells(gpu_run *g)
+/* Bins the particles and sorts the slots by cell (consph_nnps_build), in the view's grid. */
+static int build_cells_in(const gpu_backend *be, const gpu_view *v)
 {
-    const gpu_backend *be = g->be;
-    const gpu_view *v = &g->v;
     const size_t nc = (v->g.ncells + 1) * sizeof(uint32_t);
     if (be->zero(v->count, nc)) return be_fail(be, "zero");
     LAUNCH(GK_BIN, v->n, 0.0);
@@ -449,6 +583,11 @@ static int build_cells(gpu_run *g)
     LAUNCH(GK_SCATTER, v->n, 0.0);
     LAUNCH(GK_CELL_SORT, v->g.ncells, 0.0);
     return CONSPH_OK;
+}
+
+static int build_cells(gpu_run *g)
+{
+    return build_cells_in(g->be, &g->v);
 }
 
 /* edac or wcsph under pec, as consph_solver_step runs it on the CPU: re-sort into cell order,
@@ -476,14 +615,220 @@ static int step_pec(gpu_run *g, double dt, int grads)
     return CONSPH_OK;
 }
 
+/* The search after a move: the cell lists and the slots' coordinates (consph_sys_update without
+ * the re-sort). */
+static int rebuild(gpu_run *g)
+{
+    const gpu_backend *be = g->be;
+    const gpu_view *v = &g->v;
+    int st = build_cells(g);
+    if (st == CONSPH_OK) LAUNCH(GK_SLOTS, v->n, 0.0);
+    return st;
+}
+
+/* The kit's first pass with the sums named (kit_derivatives' want, negi/scheme.c). */
+static int negi_first(gpu_run *g, int with_p, int with_q, int with_div)
+{
+    const gpu_backend *be = g->be;
+    gpu_view *v = &g->v;
+    v->kit_p = with_p;
+    v->kit_u = 1;
+    v->kit_q = with_q;
+    v->kit_div = with_div;
+    if (!gpu_negi_first_known(v))
+        return consph_fail(CONSPH_EINVAL, "GPU: no kernel for these derivatives");
+    LAUNCH(GK_NEGI_FIRST, v->n, 0.0);
+    return CONSPH_OK;
+}
+
+/* negi/scheme.c's rates: the volumes, the kit's two passes (∇p, G, ∇·u; coupled_bc's ∇²u), the
+ * per-particle rates. */
+static int negi_rates(gpu_run *g)
+{
+    const gpu_backend *be = g->be;
+    gpu_view *v = &g->v;
+    const negi_terms *t = &v->nt;
+    if (v->moves) LAUNCH(GK_NEGI_VOLUMES, v->n, 0.0); /* fixed for the Eulerian schemes */
+    int st = negi_first(g, 1, t->diffuse_q || t->advect_q || t->transport, 1);
+    if (st != CONSPH_OK) return st;
+    v->lap_u = 1;
+    v->lap_q = t->diffuse_q;
+    if (t->lap == KIT_LAP_CLEARY)
+        LAUNCH(GK_NEGI_CLEARY, v->n, 0.0);
+    else if (t->lap == KIT_LAP_FATEHI_C)
+        LAUNCH(GK_NEGI_FATEHI, v->n, 0.0);
+    else if (t->lap == KIT_LAP_KORZILIUS)
+        LAUNCH(GK_NEGI_KORZ, v->n, 0.0);
+    else
+        LAUNCH(GK_NEGI_COUPLED, v->n, 0.0);
+    /* TV-C's shifting velocity δu = (c_o/h) δr of Sun et al.'s shift at 001's authors'
+     * constants (solver_shift_velocity_tvc), in the shift field */
+    if (t->transport) LAUNCH(GK_PST_SHIFT, v->n, v->c0_over_h);
+    LAUNCH(GK_NEGI_RATES, v->n, 0.0);
+    return CONSPH_OK;
+}
+
+/* 001's family under rk2, as consph_solver_step runs it: re-sort into cell order and rebuild the
+ * search, save the start, the rates, advance by Δt/2 (the closure: Tait's EOS), the rates there,
+ * advance by Δt from the start. */
+static int step_rk2(gpu_run *g, double dt)
+{
+    const gpu_backend *be = g->be;
+    gpu_view *v = &g->v;
+    int st = CONSPH_OK;
+    if (v->moves) {
+        if ((st = build_cells(g)) != CONSPH_OK) return st;
+        LAUNCH(GK_PERMUTE, v->n, 0.0);
+        double *t = v->a;
+        v->a = v->b;
+        v->b = t;
+        if ((st = rebuild(g)) != CONSPH_OK) return st;
+    } else if (!g->built) {
+        /* the Eulerian schemes' particles stay where they are: one search for the run */
+        if ((st = rebuild(g)) != CONSPH_OK) return st;
+        g->built = 1;
+    }
+    LAUNCH(GK_SAVE, v->n, 0.0);
+    if ((st = negi_rates(g)) != CONSPH_OK) return st;
+    LAUNCH(GK_ADVANCE, v->n, 0.5 * dt);
+    if (v->moves && (st = rebuild(g)) != CONSPH_OK) return st;
+    if ((st = negi_rates(g)) != CONSPH_OK) return st;
+    LAUNCH(GK_ADVANCE, v->n, dt);
+    return v->moves ? rebuild(g) : CONSPH_OK;
+}
+
+/* Whether the host reads the state after this step (counted in s->step + ahead): the log
+ * sample, a snapshot's gradients, the end. */
+static int host_reads(const consph_solver *s, long ahead)
+{
+    return !s->grads_skip || (s->step + ahead) % s->prm.log_every == 0 ||
+           s->prm.error == CONSPH_ERROR_AUTHORS;
+}
+
 int gpu_step(consph_solver *s, double dt, int *synced)
 {
     *synced = 0;
-    int st = step_pec(s->gpu, dt, !s->grads_skip);
+    const int negi = s->gpu->v.scheme == GS_NEGI;
+    int st = negi ? step_rk2(s->gpu, dt) : step_pec(s->gpu, dt, !s->grads_skip);
     if (st != CONSPH_OK) return st;
-    /* what the host reads after this step: the log sample, a snapshot's gradients, the end */
-    if (!s->grads_skip || (s->step + 1) % s->prm.log_every == 0 ||
-        s->prm.error == CONSPH_ERROR_AUTHORS) {
+    /* 001's family copies back after its regularisation where it has one (gpu_regularise) */
+    if (!(negi && s->scheme->regularise) && host_reads(s, 1)) {
+        st = gpu_download(s);
+        *synced = st == CONSPH_OK;
+    }
+    return st;
+}
+
+/* max χ of the current positions, with the volumes ω (reg_ipst's ipst_volumes). */
+static int ipst_volumes(gpu_run *g, double *chi_max)
+{
+    const gpu_backend *be = g->be;
+    const gpu_view *v = &g->v;
+    if (be->zero(v->chi_max, sizeof(unsigned long long))) return be_fail(be, "zero");
+    LAUNCH(GK_IPST_VOLUMES, v->n, 0.0);
+    LAUNCH(GK_CHI_MAX, (v->n + GPU_MAX_CHUNK - 1) / GPU_MAX_CHUNK, 0.0);
+    unsigned long long bits = 0;
+    if (be->get(&bits, v->chi_max, sizeof bits)) return be_fail(be, "copy from the device");
+    memcpy(chi_max, &bits, sizeof bits);
+    return CONSPH_OK;
+}
+
+/* negi/scheme.c's regularise_ipst and reg_ipst on the device: the gradients before the shift
+ * (fresh volumes, G and ∇q), then until eq. 21 holds or max_iter shifts were made: the volumes
+ * and max χ, the shift (eq. 19) and the move; then the Taylor update and the closure. The
+ * schedule and χ_o as on the CPU. */
+static int ipst(consph_solver *s)
+{
+    gpu_run *g = s->gpu;
+    const gpu_backend *be = g->be;
+    gpu_view *v = &g->v;
+    const double period_dt =
+        s->prm.ipst_h_dt > 0.0 ? s->prm.cfl * s->prm.ipst_h_dt / (s->prm.U + s->c0) : 0.0;
+    if (!reg_ipst_due(s->step, s->t - s->dt, s->t, s->prm.ipst_every, period_dt)) return CONSPH_OK;
+    LAUNCH(GK_NEGI_VOLUMES, v->n, 0.0);
+    int st = negi_first(g, 0, 1, 0);
+    if (st != CONSPH_OK) return st;
+    const size_t n = v->n, dn = (size_t)v->d * n * sizeof(double);
+    if (be->zero(v->a + (size_t)v->at[GA_SHIFT] * n, dn) || be->zero(v->total, dn))
+        return be_fail(be, "zero");
+    reg_ipst_params ip = {s->h, s->chi0, s->prm.ipst_tol, s->prm.ipst_max_iter, 1};
+    const int first = s->prm.ipst_chi0 == 0.0;
+    if (s->prm.ipst_chi0 > 0.0) ip.chi0 = s->prm.ipst_chi0;
+    if (first) ip.max_iter = 1;
+    if (!(ip.chi0 > 0.0) || !isfinite(ip.chi0) || !(ip.tol > 0.0) || ip.max_iter < 0)
+        return consph_fail(CONSPH_EINVAL, "IPST: needs chi0 > 0, tol > 0 and max_iter >= 0");
+    double chi_max = NAN;
+    for (int it = 0;; ++it) {
+        if ((st = ipst_volumes(g, &chi_max)) != CONSPH_OK) return st;
+        if ((it >= ip.min_iter && fabs(chi_max - ip.chi0) < ip.tol) || it >= ip.max_iter) break;
+        LAUNCH(GK_IPST_SHIFT, n, 0.0);
+        LAUNCH(GK_IPST_MOVE, n, 0.0);
+        if ((st = rebuild(g)) != CONSPH_OK) return st;
+    }
+    if (first) s->prm.ipst_chi0 = chi_max;
+    LAUNCH(GK_SHIFT_END, n, 1.0);
+    ++s->regs;
+    return CONSPH_OK;
+}
+
+/* negi/scheme.c's regularise_pst on the device: the gradients before the shift, Sun et al.'s
+ * shift (reg_pst_shift) into the shift field, the move, the Taylor update and the closure. */
+static int pst(consph_solver *s)
+{
+    gpu_run *g = s->gpu;
+    const gpu_backend *be = g->be;
+    gpu_view *v = &g->v;
+    LAUNCH(GK_NEGI_VOLUMES, v->n, 0.0);
+    int st = negi_first(g, 0, 1, 0);
+    if (st != CONSPH_OK) return st;
+    if (be->zero(v->total, (size_t)v->d * v->n * sizeof(double))) return be_fail(be, "zero");
+    LAUNCH(GK_PST_SHIFT, v->n, 1.0);
+    LAUNCH(GK_IPST_MOVE, v->n, 0.0);
+    if ((st = rebuild(g)) != CONSPH_OK) return st;
+    LAUNCH(GK_SHIFT_END, v->n, 0.0);
+    ++s->regs;
+    return CONSPH_OK;
+}
+
+/* negi/scheme.c's regularise_remesh on the device: reg_remesh_m4's sums at every lattice point
+ * over the particles, in its joint search's order (the particles binned in the joint grid), then
+ * u, q and x replaced, the closure, and the search rebuilt. */
+static int remesh(consph_solver *s)
+{
+    gpu_run *g = s->gpu;
+    const gpu_backend *be = g->be;
+    gpu_view jv = g->v;
+    jv.g = g->joint_grid;
+    jv.cell = g->jcell;
+    jv.count = g->jcount;
+    jv.start = g->jstart;
+    jv.order = g->jorder;
+    jv.xs = g->jxs;
+    int st = build_cells_in(be, &jv);
+    if (st != CONSPH_OK) return st;
+    const gpu_view *v = &jv;
+    LAUNCH(GK_SLOTS, v->n, 0.0);
+    jv.at[GA_X] = jv.at[GA_LAT]; /* the walks start at the lattice points */
+    LAUNCH(GK_REMESH, v->n, 0.0);
+    v = &g->v;
+    LAUNCH(GK_REMESH_END, v->n, 0.0);
+    if ((st = rebuild(g)) != CONSPH_OK) return st;
+    ++s->regs;
+    return CONSPH_OK;
+}
+
+int gpu_regularise(consph_solver *s, int *synced)
+{
+    *synced = 0;
+    const char *name = s->scheme->name;
+    int st = strcmp(name, "l-ipst-c") == 0 || strcmp(name, "l-ipst-f") == 0 ||
+                     strcmp(name, "l-ipst-k") == 0 || strcmp(name, "pe-ipst-c") == 0
+                 ? ipst(s)
+             : strcmp(name, "l-pst-c") == 0 ? pst(s)
+             : strcmp(name, "l-rr-c") == 0
+                 ? remesh(s)
+                 : consph_fail(CONSPH_EINVAL, "GPU: no regularisation of %s", name);
+    if (st == CONSPH_OK && host_reads(s, 0)) {
         st = gpu_download(s);
         *synced = st == CONSPH_OK;
     }

@@ -23,7 +23,23 @@ typedef enum gpu_kernel {
     GK_SAVE,      /* dev_save_start */
     GK_ADVANCE,   /* dev_advance with the weight c */
     GK_DENSITY,   /* dev_edac_density */
-    GK_RATES      /* dev_edac_rates */
+    GK_RATES,     /* dev_edac_rates */
+    /* 001's family (dev_negi.h), per particle */
+    GK_NEGI_VOLUMES, /* dev_negi_volumes */
+    GK_NEGI_FIRST,   /* dev_negi_first_any: the sums the view's kit_* flags name */
+    GK_NEGI_COUPLED, /* dev_negi_coupled_any */
+    GK_NEGI_CLEARY,  /* dev_negi_cleary_any */
+    GK_NEGI_FATEHI,  /* dev_negi_fatehi_any */
+    GK_NEGI_KORZ,    /* dev_negi_korzilius_any */
+    GK_NEGI_RATES,   /* dev_negi_rates */
+    GK_IPST_VOLUMES, /* dev_ipst_volumes */
+    GK_CHI_MAX,      /* dev_chi_max, per GPU_MAX_CHUNK particles */
+    GK_IPST_SHIFT,   /* dev_ipst_shift_any */
+    GK_IPST_MOVE,    /* dev_ipst_move */
+    GK_PST_SHIFT,    /* dev_pst_shift_any */
+    GK_SHIFT_END,    /* dev_shift_end, adding IPST's total when c != 0 */
+    GK_REMESH,       /* dev_remesh_any, on the joint view */
+    GK_REMESH_END    /* dev_remesh_end */
 } gpu_kernel;
 
 typedef struct gpu_backend {
@@ -56,6 +72,9 @@ int gpu_attach(struct consph_solver *s, const gpu_backend *be);
 /* One step of dt on the device; copies the state back to the host when the step's end is read
  * there (a log sample, a snapshot's gradients, the last step), and says so in *synced. */
 int gpu_step(struct consph_solver *s, double dt, int *synced);
+/* After a step on the device, the scheme's regularisation there (IPST when due, as the CPU's
+ * negi/scheme.c regularise_ipst), and the copy back as gpu_step decides it, in *synced. */
+int gpu_regularise(struct consph_solver *s, int *synced);
 /* Copies the device's state into the solver's particles and rebuilds the host search. */
 int gpu_download(struct consph_solver *s);
 void gpu_free(struct gpu_run *g);

@@ -7,9 +7,12 @@
 #include "consph/core.h"
 #include "gpu/stages.h"
 
-const char *const gpu_stage_names[GST_N] = {"bin",   "count",   "scan", "scatter", "cell_sort",
-                                            "slots", "permute", "save", "advance", "density",
-                                            "rates", "other",   "zero", "put",     "get"};
+const char *const gpu_stage_names[GST_N] = {
+    "bin",          "count",        "scan",        "scatter",     "cell_sort", "slots",
+    "permute",      "save",         "advance",     "density",     "rates",     "negi_volumes",
+    "negi_first",   "negi_coupled", "negi_cleary", "negi_fatehi", "negi_korz", "negi_rates",
+    "ipst_volumes", "chi_max",      "ipst_shift",  "ipst_move",   "pst_shift", "shift_end",
+    "remesh",       "remesh_end",   "other",       "zero",        "put",       "get"};
 
 /* ---- the host clock ---- */
 
@@ -109,6 +112,36 @@ static gpu_stage kernel_stage(gpu_kernel k)
         return GST_DENSITY;
     case GK_RATES:
         return GST_RATES;
+    case GK_NEGI_VOLUMES:
+        return GST_NEGI_VOLUMES;
+    case GK_NEGI_FIRST:
+        return GST_NEGI_FIRST;
+    case GK_NEGI_COUPLED:
+        return GST_NEGI_COUPLED;
+    case GK_NEGI_CLEARY:
+        return GST_NEGI_CLEARY;
+    case GK_NEGI_FATEHI:
+        return GST_NEGI_FATEHI;
+    case GK_NEGI_KORZ:
+        return GST_NEGI_KORZ;
+    case GK_NEGI_RATES:
+        return GST_NEGI_RATES;
+    case GK_IPST_VOLUMES:
+        return GST_IPST_VOLUMES;
+    case GK_CHI_MAX:
+        return GST_CHI_MAX;
+    case GK_IPST_SHIFT:
+        return GST_IPST_SHIFT;
+    case GK_IPST_MOVE:
+        return GST_IPST_MOVE;
+    case GK_PST_SHIFT:
+        return GST_PST_SHIFT;
+    case GK_SHIFT_END:
+        return GST_SHIFT_END;
+    case GK_REMESH:
+        return GST_REMESH;
+    case GK_REMESH_END:
+        return GST_REMESH_END;
     default:
         return GST_OTHER;
     }

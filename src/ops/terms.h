@@ -19,6 +19,7 @@
 
 #include "consph/ops.h"
 #include "consph/pass.h"
+#include "ops/small.h" /* term_apply_rule, fatehi_c's pair and finish */
 
 /* For terms instantiated with a compile-time dimension, so their sums stay in registers. */
 #if defined(__GNUC__)
@@ -69,24 +70,12 @@ static inline void term_corrected_grad(int d, consph_op_corr corr, const double 
     }
 }
 
-/* The rule applied to a particle's sums (term_grad_sums): out = c sw + M sg. */
-static inline void term_apply_rule(int d, const double c[3], const double M[9], const double sg[3],
-                                   double sw, double out[3])
-{
-    for (int a = 0; a < d; ++a) {
-        double v = c[a] * sw;
-        for (int b = 0; b < d; ++b) v += M[a * d + b] * sg[b];
-        out[a] = v;
-    }
-}
-
 /* Loads x = x_ij of pair q and returns (W'' - W'/r)/r² (0 at r = 0), the radial part of the
  * kernel Hessian ∂_l∂_k W = aee x^l x^k + dwr δ_lk. */
 static inline double term_pair_hess(int d, const consph_nbhd *nb, size_t q, double x[3])
 {
     for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-    const double r = nb->r[q], dwr = nb->dwr[q];
-    return r > 0.0 ? (nb->d2w[q] - dwr) / (r * r) : 0.0;
+    return term_hess_radial(nb->r[q], nb->dwr[q], nb->d2w[q]);
 }
 
 /* ---- function sums ---- */
@@ -459,14 +448,7 @@ static inline void term_fatehi_c_moments(int d, const consph_nbhd *nb, const dou
         if (!(r > 0.0)) continue;
         double x[3];
         for (int a = 0; a < d; ++a) x[a] = nb->dx[a][q];
-        double g = vol[nb->j[q]] * nb->dwr[q], g3 = g / (r * r);
-        for (int a = 0; a < d; ++a) {
-            L1[a] += g * r * r * x[a];
-            for (int b = 0; b < d; ++b) {
-                L2[a * d + b] += g * x[a] * x[b];
-                for (int c = 0; c < d; ++c) L3[(a * d + b) * d + c] += g3 * x[a] * x[b] * x[c];
-            }
-        }
+        term_fatehi_c_pair(d, r, x, vol[nb->j[q]] * nb->dwr[q], L1, L2, L3);
     }
 }
 
@@ -475,23 +457,9 @@ static inline void term_fatehi_c_moments(int d, const consph_nbhd *nb, const dou
 static inline void term_fatehi_c_matrix(int d, const consph_nbhd *nb, const double *vol,
                                         const double B[9], double M[9])
 {
-    double L1[3] = {0}, L2[9] = {0}, L3[27] = {0}, BL1[3] = {0};
+    double L1[3] = {0}, L2[9] = {0}, L3[27] = {0};
     term_fatehi_c_moments(d, nb, vol, L1, L2, L3);
-    for (int a = 0; a < d; ++a)
-        for (int t = 0; t < d; ++t) BL1[a] += B[a * d + t] * L1[t];
-    for (int a = 0; a < d; ++a)
-        for (int b = 0; b < d; ++b) {
-            double v = L2[a * d + b];
-            for (int c = 0; c < d; ++c) v += L3[(a * d + b) * d + c] * BL1[c];
-            M[a * d + b] = -v;
-        }
-}
-
-/* Coefficient of x^l x^k H_lk in the second-order Taylor term: 1/2 on the diagonal, 1 off it
- * (the symmetric pair is counted once); 000 eq. 32's (1 - δ_lk/2). */
-static inline double term_taylor_c(int l, int k)
-{
-    return l == k ? 0.5 : 1.0;
+    term_fatehi_c_finish(d, B, L1, L2, L3, M);
 }
 
 /* The CSPM second-derivative matrix (000 eq. 32) A = Σ ω ∂∂W ζ^T, ζ_q = cq_q x^l x^k, and with
@@ -518,20 +486,6 @@ static inline void term_second_moment(int d, int P, const int *pl, const int *pk
                 for (int b = 0; b < P; ++b) Gz[a * P + b] += om * dwr * x[a] * zeta[b];
         }
     }
-}
-
-/* Korzilius' Γ̃ (001 eq. 15 with the fixes of docs/deviations.md): subtracts Hx B Gz, from the sums
- * of term_second_moment with korz, from its CSPM matrix A. */
-static inline void term_korzilius_correct(int d, int P, const double *Hx, const double *Gz,
-                                          const double B[9], double *A)
-{
-    double BG[3 * 6] = {0};
-    for (int a = 0; a < d; ++a)
-        for (int b = 0; b < P; ++b)
-            for (int c = 0; c < d; ++c) BG[a * P + b] += B[a * d + c] * Gz[c * P + b];
-    for (int a = 0; a < P; ++a)
-        for (int b = 0; b < P; ++b)
-            for (int c = 0; c < d; ++c) A[a * P + b] -= Hx[a * d + c] * BG[c * P + b];
 }
 
 /* MSPH (000 §3.3): A = Σ T C^T with test functions T = ω [W, ∂W, ∂∂W] and columns

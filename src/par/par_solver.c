@@ -12,9 +12,12 @@
  * sources only (the system's destination mask), at their true positions so that the periodic
  * search finds the images the serial search finds. The pass layer calls refresh before every
  * pass and every search rebuild: positions, every named field and the system scratch of the
- * halo particles from their owners. Particles move less than half a cell in a step
- * (par_step_end checks it), so the halo made at the step's start holds every particle within
- * the radius of an owned one until the next re-sort.
+ * halo particles from their owners, sending only the columns (a field's component, an axis,
+ * a scratch block) whose owned values changed since the last exchange; the migration at a
+ * re-sort sends a particle the receiver's halo held as its slot there and those columns.
+ * Particles move less than half a cell in a step (par_step_end checks it), so the halo made at
+ * the step's start holds every particle within the radius of an owned one until the next
+ * re-sort.
  *
  * What reads every particle (checks, diagnostics, files) runs on rank 0 over the owned
  * particles gathered in rank order, which is the serial order (par_global), so sums over
@@ -55,10 +58,24 @@ struct par_solver {
     size_t *sidx, *ridx;
     double *sbuf, *rbuf;
     size_t sbuf_cap, rbuf_cap;
+    /* The halo's columns (an axis of the positions, a field's component, a scratch block) as
+     * last exchanged, column-major: sent[c·ns + k] for send slot k, got[c·nr + k] for receive
+     * slot k. A refresh sends only the columns whose owned values changed since (bitwise) or
+     * that the receiver holds no copy of, and writes every column of the halo from got, so the
+     * halo ends as a full refresh leaves it. The first nvalid columns are kept; base: the
+     * columns of positions and fields they were counted with (the scratch blocks follow). */
+    size_t nvalid, base;
+    double *sent, *got;
+    size_t sent_cap, got_cap;
+    double **col;                /* per column: its values, indexed by local particle */
+    unsigned char *mask, *masks; /* per column COL_CHANGED | COL_WANTED: this rank's, all ranks' */
+    size_t col_cap, masks_cap;
     consph_sys_split split;
     size_t pairs_base; /* the solver's pair count when it was cut (counted on every rank) */
     double bytes, seconds;
 };
+
+enum { COL_CHANGED = 1, COL_WANTED = 2 }; /* changed on the owner; not held by the receiver */
 
 static int par_fail_mem(void)
 {
@@ -81,15 +98,6 @@ static size_t values_per_particle(const consph_particles *p)
     size_t k = (size_t)p->dim;
     for (int f = 0; f < p->nfields; ++f) k += (size_t)p->fields[f].ncomp;
     return k;
-}
-
-static void pack(const consph_particles *p, size_t i, double *out)
-{
-    size_t k = 0;
-    for (int a = 0; a < p->dim; ++a) out[k++] = p->x[a][i];
-    for (int f = 0; f < p->nfields; ++f)
-        for (int c = 0; c < p->fields[f].ncomp; ++c)
-            out[k++] = p->fields[f].data[(size_t)c * p->cap + i];
 }
 
 static void unpack(consph_particles *p, size_t i, const double *in)
@@ -161,6 +169,71 @@ static int counts_to_doubles(par_solver *ps, const int *cnt, int *dbl, int *dis,
 
 /* ---- the halo refresh (consph_sys_split) ---- */
 
+/* The columns of a refresh: positions, every named field's components, then the scratch
+ * blocks; col[c][i] is column c of local particle i. Returns their count (0: out of memory). */
+static size_t halo_columns(par_solver *ps, consph_sys *sys, size_t blocks)
+{
+    consph_particles *p = sys->p;
+    const size_t ncols = values_per_particle(p) + blocks;
+    if (ncols > ps->col_cap) {
+        double **c = realloc(ps->col, ncols * sizeof *c);
+        if (c) ps->col = c;
+        unsigned char *m = c ? realloc(ps->mask, ncols) : NULL;
+        if (m) ps->mask = m;
+        if (!c || !m) return 0;
+        ps->col_cap = ncols;
+    }
+    size_t k = 0;
+    for (int a = 0; a < p->dim; ++a) ps->col[k++] = p->x[a];
+    for (int f = 0; f < p->nfields; ++f)
+        for (int c = 0; c < p->fields[f].ncomp; ++c)
+            ps->col[k++] = p->fields[f].data + (size_t)c * p->cap;
+    for (size_t b = 0; b < blocks; ++b) ps->col[k++] = sys->scratch + b * p->n;
+    return ncols;
+}
+
+/* Room for ncols columns of the kept state, the columns already kept preserved. */
+static int halo_state_reserve(par_solver *ps, size_t ncols)
+{
+    const size_t ns = ps->sdispl[ps->size - 1] + (size_t)ps->scount[ps->size - 1];
+    const size_t nr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
+    int st = reserve(&ps->sent, &ps->sent_cap, ns * ncols);
+    if (st == CONSPH_OK) st = reserve(&ps->got, &ps->got_cap, nr * ncols);
+    if (st == CONSPH_OK && ncols * (size_t)ps->size > ps->masks_cap) {
+        unsigned char *m = realloc(ps->masks, ncols * (size_t)ps->size);
+        if (!m) return par_fail_mem();
+        ps->masks = m;
+        ps->masks_cap = ncols * (size_t)ps->size;
+    }
+    return st;
+}
+
+/* After a cut: install made the halo from its owners' packed values, so the kept state is
+ * what every rank holds now, positions and fields (the scratch is not carried). */
+static int halo_state_from_cut(par_solver *ps, consph_sys *sys)
+{
+    const size_t ncols = halo_columns(ps, sys, 0);
+    int st = ncols ? halo_state_reserve(ps, ncols) : par_fail_mem();
+    if (st != CONSPH_OK) return st;
+    const size_t ns = ps->sdispl[ps->size - 1] + (size_t)ps->scount[ps->size - 1];
+    const size_t nr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
+    for (size_t c = 0; c < ncols; ++c) {
+        const double *v = ps->col[c];
+        for (size_t k = 0; k < ns; ++k) ps->sent[c * ns + k] = v[ps->sidx[k]];
+        for (size_t k = 0; k < nr; ++k) ps->got[c * nr + k] = v[ps->ridx[k]];
+    }
+    ps->base = ncols;
+    ps->nvalid = ncols;
+    return CONSPH_OK;
+}
+
+/* column c goes from rank q (mask mq) to rank r (mask mr) when it changed on q or r holds no
+ * copy of it */
+static int col_goes(const unsigned char *mq, const unsigned char *mr, size_t c)
+{
+    return (mq[c] & COL_CHANGED) || (mr[c] & COL_WANTED);
+}
+
 static int refresh(consph_sys *sys, void *ctx)
 {
     par_solver *ps = ctx;
@@ -170,29 +243,85 @@ static int refresh(consph_sys *sys, void *ctx)
     /* the scratch a job asked for in blocks of n (consph_sys_scratch: k·n values) */
     size_t blocks = 0;
     if (sys->scratch && n && sys->scratch_asked % n == 0) blocks = sys->scratch_asked / n;
-    const size_t per = values_per_particle(p) + blocks;
+    const size_t ncols = halo_columns(ps, sys, blocks);
     const size_t ns = ps->sdispl[ps->size - 1] + (size_t)ps->scount[ps->size - 1];
     const size_t nr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
-    int st = reserve(&ps->sbuf, &ps->sbuf_cap, ns * per);
-    if (st == CONSPH_OK) st = reserve(&ps->rbuf, &ps->rbuf_cap, nr * per);
-    if (st == CONSPH_OK) st = counts_to_doubles(ps, ps->scount, ps->sdbl, ps->sddis, per);
-    if (st == CONSPH_OK) st = counts_to_doubles(ps, ps->rcount, ps->rdbl, ps->rddis, per);
+    int st = ncols ? halo_state_reserve(ps, ncols) : par_fail_mem();
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
-    for (size_t k = 0; k < ns; ++k) {
-        const size_t i = ps->sidx[k];
-        double *o = ps->sbuf + k * per;
-        pack(p, i, o);
-        for (size_t b = 0; b < blocks; ++b) o[per - blocks + b] = sys->scratch[b * n + i];
+    /* the kept columns that still mean the same: positions and fields counted alike, and the
+     * scratch blocks both had */
+    size_t valid = ncols - blocks == ps->base ? ps->nvalid : 0;
+    if (valid > ncols) valid = ncols;
+    for (size_t c = 0; c < ncols; ++c) {
+        int changed = c >= valid;
+        const double *v = ps->col[c], *old = ps->sent + c * ns;
+        for (size_t k = 0; !changed && k < ns; ++k)
+            changed = memcmp(&v[ps->sidx[k]], &old[k], sizeof(double)) != 0;
+        ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
     }
-    MPI_Alltoallv(ps->sbuf, ps->sdbl, ps->sddis, MPI_DOUBLE, ps->rbuf, ps->rdbl, ps->rddis,
-                  MPI_DOUBLE, ps->comm);
-    for (size_t k = 0; k < nr; ++k) {
-        const size_t i = ps->ridx[k];
-        const double *in = ps->rbuf + k * per;
-        unpack(p, i, in);
-        for (size_t b = 0; b < blocks; ++b) sys->scratch[b * n + i] = in[per - blocks + b];
+    MPI_Allgather(ps->mask, (int)ncols, MPI_UNSIGNED_CHAR, ps->masks, (int)ncols, MPI_UNSIGNED_CHAR,
+                  ps->comm);
+    size_t sdbl = 0, rdbl = 0;
+    for (int q = 0; q < ps->size; ++q) {
+        const unsigned char *mq = ps->masks + (size_t)q * ncols;
+        for (size_t c = 0; c < ncols; ++c) {
+            if (col_goes(ps->mask, mq, c)) sdbl += (size_t)ps->scount[q];
+            if (col_goes(mq, ps->mask, c)) rdbl += (size_t)ps->rcount[q];
+        }
     }
-    ps->bytes += (double)(ns * per * sizeof(double));
+    if (sdbl > INT32_MAX || rdbl > INT32_MAX)
+        st = consph_fail(CONSPH_EINVAL, "MPI decomposition: more than 2^31 values to one rank; "
+                                        "use more ranks");
+    if (st == CONSPH_OK) st = reserve(&ps->sbuf, &ps->sbuf_cap, sdbl);
+    if (st == CONSPH_OK) st = reserve(&ps->rbuf, &ps->rbuf_cap, rdbl);
+    if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
+    /* every rank sees every mask: when none asks for a column, none calls the exchange */
+    int any = 0;
+    for (size_t k = 0; k < ncols * (size_t)ps->size; ++k) any |= ps->masks[k] != 0;
+    size_t so = 0, ro = 0;
+    for (int q = 0; q < ps->size; ++q) {
+        const unsigned char *mq = ps->masks + (size_t)q * ncols;
+        const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
+        const size_t r0 = (size_t)ps->rdispl[q], r1 = r0 + (size_t)ps->rcount[q];
+        ps->sddis[q] = (int)so;
+        ps->rddis[q] = (int)ro;
+        for (size_t c = 0; c < ncols; ++c) {
+            if (col_goes(ps->mask, mq, c)) {
+                const double *v = ps->col[c];
+                for (size_t k = s0; k < s1; ++k) ps->sbuf[so++] = v[ps->sidx[k]];
+            }
+            if (col_goes(mq, ps->mask, c)) ro += r1 - r0;
+        }
+        ps->sdbl[q] = (int)(so - (size_t)ps->sddis[q]);
+        ps->rdbl[q] = (int)(ro - (size_t)ps->rddis[q]);
+    }
+    if (any)
+        MPI_Alltoallv(ps->sbuf, ps->sdbl, ps->sddis, MPI_DOUBLE, ps->rbuf, ps->rdbl, ps->rddis,
+                      MPI_DOUBLE, ps->comm);
+    ro = 0;
+    for (int q = 0; q < ps->size; ++q) {
+        const unsigned char *mq = ps->masks + (size_t)q * ncols;
+        const size_t r0 = (size_t)ps->rdispl[q], r1 = r0 + (size_t)ps->rcount[q];
+        for (size_t c = 0; c < ncols; ++c)
+            if (col_goes(mq, ps->mask, c)) {
+                memcpy(ps->got + c * nr + r0, ps->rbuf + ro, (r1 - r0) * sizeof(double));
+                ro += r1 - r0;
+            }
+    }
+    /* every column of the halo from what its owners sent last: a scheme may have written halo
+     * values since, and the pass must read the owners' */
+    for (size_t c = 0; c < ncols; ++c) {
+        double *v = ps->col[c];
+        const double *in = ps->got + c * nr;
+        for (size_t k = 0; k < nr; ++k) v[ps->ridx[k]] = in[k];
+        if (ps->mask[c] & COL_CHANGED) {
+            double *old = ps->sent + c * ns;
+            for (size_t k = 0; k < ns; ++k) old[k] = v[ps->sidx[k]];
+        }
+    }
+    ps->base = ncols - blocks;
+    ps->nvalid = ncols;
+    ps->bytes += (double)(sdbl * sizeof(double) + ncols * (size_t)(ps->size - 1));
     ps->seconds += MPI_Wtime() - t0;
     return CONSPH_OK;
 }
@@ -385,6 +514,9 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
     ps->g = g;
     ps->nown = nown;
     ps->goff = below;
+    /* new halo lists, the halo as the owners packed it */
+    st = halo_state_from_cut(ps, &s->sys);
+    if (st != CONSPH_OK) return st;
     return consph_sys_update(&s->sys, 0);
 }
 
@@ -414,47 +546,113 @@ static int migrate(consph_solver *s, par_solver *ps)
     free(count);
     free(all);
     const size_t per = values_per_particle(p) + 1; /* + g */
+    const size_t ncol = per - 1;
     int *cnt = consph_calloc((size_t)ps->size, sizeof(int));
     int *rcnt = consph_calloc((size_t)ps->size, sizeof(int));
     int *sd = consph_calloc((size_t)ps->size, sizeof(int));
     int *sdis = consph_calloc((size_t)ps->size, sizeof(int));
     int *rd = consph_calloc((size_t)ps->size, sizeof(int));
     int *rdis = consph_calloc((size_t)ps->size, sizeof(int));
-    int st = cnt && rcnt && sd && sdis && rd && rdis ? CONSPH_OK : par_fail_mem();
-    for (size_t o = 0; st == CONSPH_OK && o < ps->nown; ++o)
-        for (int q = 0; q < ps->size; ++q)
-            if (ps->owner[ac[o]] == q || ps->halo[(size_t)q * (size_t)nca + ac[o]]) ++cnt[q];
-    if (st == CONSPH_OK) MPI_Alltoall(cnt, 1, MPI_INT, rcnt, 1, MPI_INT, ps->comm);
-    if (st == CONSPH_OK) st = counts_to_doubles(ps, cnt, sd, sdis, per);
-    if (st == CONSPH_OK) st = counts_to_doubles(ps, rcnt, rd, rdis, per);
-    size_t ns = 0, nr = 0;
-    for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
-        ns += (size_t)cnt[q];
-        nr += (size_t)rcnt[q];
-    }
-    double *sbuf = NULL, *rbuf = NULL;
-    if (st == CONSPH_OK) {
-        sbuf = malloc((ns ? ns : 1) * per * sizeof(double));
-        rbuf = malloc((nr ? nr : 1) * per * sizeof(double));
-        if (!sbuf || !rbuf) st = par_fail_mem();
-    }
+    long *slot = malloc((p->n ? p->n : 1) * sizeof(long));
+    int st = cnt && rcnt && sd && sdis && rd && rdis && slot ? CONSPH_OK : par_fail_mem();
+    /* A particle that goes to a rank whose halo held it travels as its slot in that halo and
+     * the columns that changed since the last refresh (or that rank does not hold); the rank
+     * takes the others from what it kept (got). Records: g, slot (-1: every column), values. */
+    const size_t ons = ps->sdispl[ps->size - 1] + (size_t)ps->scount[ps->size - 1];
+    const size_t onr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
+    const size_t valid = ps->base == ncol ? ps->nvalid : 0;
+    if (st == CONSPH_OK && halo_columns(ps, &s->sys, 0) != ncol) st = par_fail_mem();
+    if (st == CONSPH_OK) st = halo_state_reserve(ps, ncol);
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
+    for (size_t c = 0; c < ncol; ++c) {
+        int changed = c >= valid;
+        const double *v = ps->col[c], *old = ps->sent + c * ons;
+        for (size_t k = 0; !changed && k < ons; ++k)
+            changed = memcmp(&v[ps->sidx[k]], &old[k], sizeof(double)) != 0;
+        ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
+    }
+    MPI_Allgather(ps->mask, (int)ncol, MPI_UNSIGNED_CHAR, ps->masks, (int)ncol, MPI_UNSIGNED_CHAR,
+                  ps->comm);
+    for (size_t i = 0; i < p->n; ++i) slot[i] = -1;
+    size_t ns = 0, nsd = 0;
+    for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
+        const unsigned char *mq = ps->masks + (size_t)q * ncol;
+        size_t sel = 0;
+        for (size_t c = 0; c < ncol; ++c) sel += (size_t)col_goes(ps->mask, mq, c);
+        const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
+        for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
+        size_t d = 0;
+        for (size_t o = 0; o < ps->nown; ++o)
+            if (ps->owner[ac[o]] == q || ps->halo[(size_t)q * (size_t)nca + ac[o]]) {
+                ++cnt[q];
+                d += 2 + (q != ps->rank && slot[ps->own[o]] >= 0 ? sel : ncol);
+            }
+        for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = -1;
+        if (d > INT32_MAX || nsd > INT32_MAX)
+            st = consph_fail(CONSPH_EINVAL, "MPI decomposition: more than 2^31 values to one "
+                                            "rank; use more ranks");
+        sd[q] = (int)d;
+        sdis[q] = (int)nsd;
+        ns += (size_t)cnt[q];
+        nsd += d;
+    }
+    if (st == CONSPH_OK) MPI_Alltoall(cnt, 1, MPI_INT, rcnt, 1, MPI_INT, ps->comm);
+    if (st == CONSPH_OK) MPI_Alltoall(sd, 1, MPI_INT, rd, 1, MPI_INT, ps->comm);
+    size_t nr = 0, nrd = 0;
+    for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
+        if (nrd > INT32_MAX)
+            st = consph_fail(CONSPH_EINVAL, "MPI decomposition: more than 2^31 "
+                                            "values to one rank; use more ranks");
+        rdis[q] = (int)nrd;
+        nr += (size_t)rcnt[q];
+        nrd += (size_t)rd[q];
+    }
+    double *sbuf = NULL, *rbuf = NULL, *full = NULL;
+    if (st == CONSPH_OK) {
+        sbuf = malloc((nsd ? nsd : 1) * sizeof(double));
+        rbuf = malloc((nrd ? nrd : 1) * sizeof(double));
+        full = malloc((nr ? nr : 1) * per * sizeof(double));
+        if (!sbuf || !rbuf || !full) st = par_fail_mem();
+    }
+    if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
     /* packed per destination rank, each in the local (serial) order */
+    double *v = sbuf;
     for (int q = 0; q < ps->size; ++q) {
-        size_t k = (size_t)sdis[q] / per;
+        const unsigned char *mq = ps->masks + (size_t)q * ncol;
+        const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
+        for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
         for (size_t o = 0; o < ps->nown; ++o) {
             if (ps->owner[ac[o]] != q && !ps->halo[(size_t)q * (size_t)nca + ac[o]]) continue;
-            double *v = sbuf + k * per;
-            pack(p, ps->own[o], v);
-            v[per - 1] = ps->g[ps->own[o]];
-            ++k;
+            const size_t i = ps->own[o];
+            const long sl = q != ps->rank ? slot[i] : -1;
+            *v++ = ps->g[i];
+            *v++ = (double)sl;
+            for (size_t c = 0; c < ncol; ++c)
+                if (sl < 0 || col_goes(ps->mask, mq, c)) *v++ = ps->col[c][i];
         }
+        for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = -1;
     }
     MPI_Alltoallv(sbuf, sd, sdis, MPI_DOUBLE, rbuf, rd, rdis, MPI_DOUBLE, ps->comm);
+    /* the records as install reads them: every column, then g */
+    const double *in = rbuf;
+    double *out = full;
+    for (int q = 0; q < ps->size; ++q) {
+        const unsigned char *mq = ps->masks + (size_t)q * ncol;
+        for (int r = 0; r < rcnt[q]; ++r, out += per) {
+            out[ncol] = *in++;
+            const long sl = (long)*in++;
+            const size_t at = (size_t)ps->rdispl[q] + (size_t)sl;
+            for (size_t c = 0; c < ncol; ++c)
+                out[c] = sl < 0 || col_goes(mq, ps->mask, c) ? *in++ : ps->got[c * onr + at];
+        }
+    }
     /* what stays on this rank is a copy, as the serial re-sort's permutation */
-    ps->bytes += (double)((ns - (size_t)cnt[ps->rank]) * per * sizeof(double));
+    ps->bytes +=
+        (double)((nsd - (size_t)sd[ps->rank]) * sizeof(double) + ncol * (size_t)(ps->size - 1));
     ps->seconds += MPI_Wtime() - t0;
-    st = install(s, ps, rbuf, nr, per);
+    free(slot);
+    st = install(s, ps, full, nr, per);
+    free(full);
     free(ac);
     free(cnt);
     free(rcnt);
@@ -778,6 +976,11 @@ void par_solver_free(par_solver *ps)
     free(ps->ridx);
     free(ps->sbuf);
     free(ps->rbuf);
+    free(ps->sent);
+    free(ps->got);
+    free(ps->col);
+    free(ps->mask);
+    free(ps->masks);
     free(ps);
 }
 

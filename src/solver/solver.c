@@ -538,7 +538,8 @@ int consph_solver_step(consph_solver *s)
         s->t = t_next;
         ++s->step;
     }
-    if (st == CONSPH_OK && s->scheme->regularise) st = s->scheme->regularise(s);
+    if (st == CONSPH_OK && s->scheme->regularise)
+        st = s->gpu ? gpu_regularise(s, &on_host) : s->scheme->regularise(s);
     if (s->par) st = par_step_end(s, st);
     if (st == CONSPH_OK) {
         step_close_arg a = {landed, on_host, dt};

@@ -13,6 +13,7 @@
 #include <time.h>
 #include <unistd.h>
 
+#include "consph/gpu.h"
 #include "consph/io.h"
 #include "consph/par.h"
 #include "io/outfile_internal.h"
@@ -432,7 +433,8 @@ static int run_figures(const consph_study *s, const consph_study_options *opt,
         rows->mem = open_memstream(&rows->membuf, &rows->memlen);
         if (rows->mem) log = rows->mem;
     }
-    const study_job job = {s, opt->quick, dir, files, cache, log, rows};
+    const int gpu_ok = opt->device == CONSPH_STUDY_DEVICE_AUTO && consph_gpu_available(NULL, 0);
+    const study_job job = {s, opt->quick, dir, files, cache, log, rows, opt->device, gpu_ok};
     for (int k = 0; rc == CONSPH_OK && k < s->nfigs; ++k) {
         const study_figure *f = &s->figs[k];
         const study_kind *kind = study_kind_of(s, f);
@@ -781,11 +783,74 @@ static int study_run_jobs(const consph_study *s, const consph_study_options *opt
     return rc;
 }
 
-static int study_run(const consph_study *s, const consph_study_options *opt,
+/* ---- the device of the solver rows ---- */
+
+const char *consph_study_device_name(int device)
+{
+    return device == CONSPH_STUDY_DEVICE_GPU    ? "gpu"
+           : device == CONSPH_STUDY_DEVICE_AUTO ? "auto"
+                                                : "cpu";
+}
+
+int consph_study_device_of(const consph_study *s, int asked)
+{
+    if (asked != CONSPH_STUDY_DEVICE_DEFAULT) return asked;
+    const char *v = study_get(s, NULL, NULL, "device");
+    if (!v) return CONSPH_STUDY_DEVICE_DEFAULT;
+    return !strcmp(v, "gpu")    ? CONSPH_STUDY_DEVICE_GPU
+           : !strcmp(v, "auto") ? CONSPH_STUDY_DEVICE_AUTO
+                                : CONSPH_STUDY_DEVICE_CPU;
+}
+
+int consph_study_device_check(const consph_study *s, int quick, int device)
+{
+    if (device != CONSPH_STUDY_DEVICE_GPU) return CONSPH_OK;
+    char why[256];
+    if (!consph_gpu_available(why, sizeof why))
+        return consph_fail(CONSPH_EINVAL, "--device gpu: %s", why);
+    char rows[3000];
+    size_t len = 0;
+    int bad = 0;
+    for (int k = 0; k < s->nfigs; ++k)
+        if (study_kind_of(s, &s->figs[k]) == &study_kind_run)
+            study_run_gpu_refusals(s, &s->figs[k], quick, rows, sizeof rows, &len, &bad);
+    if (!bad) return CONSPH_OK;
+    return consph_fail(CONSPH_EINVAL,
+                       "--device gpu: %d series cannot run on the GPU (use --device auto to run "
+                       "them on the CPU):%s",
+                       bad, rows);
+}
+
+/* A GPU is one device: the ranks of MPI or the worker processes of --jobs would each put their
+ * rows on it at once. */
+static int device_sharing(const consph_study_options *opt)
+{
+    if (opt->device != CONSPH_STUDY_DEVICE_GPU && opt->device != CONSPH_STUDY_DEVICE_AUTO)
+        return CONSPH_OK;
+    if (consph_par_size() > 1)
+        return consph_fail(CONSPH_EINVAL,
+                           "--device %s runs the study on one process with one GPU: launched on "
+                           "%d MPI ranks, run it without mpirun (or with -np 1)",
+                           consph_study_device_name(opt->device), consph_par_size());
+    if (opt->jobs > 1)
+        return consph_fail(CONSPH_EINVAL,
+                           "--jobs %d with --device %s: the GPU is one device; allowed there: "
+                           "--jobs 1",
+                           opt->jobs, consph_study_device_name(opt->device));
+    return CONSPH_OK;
+}
+
+static int study_run(const consph_study *s, const consph_study_options *asked,
                      const study_files *files)
 {
     char dir[STUDY_PATH_MAX], state[512];
-    int rc = study_prepare(s, opt, files, dir, state, sizeof state);
+    consph_study_options resolved = *asked;
+    const consph_study_options *opt = &resolved;
+    /* a bad key `device` is study_prepare's to report (study_validate) */
+    resolved.device = consph_study_device_of(s, asked->device);
+    int rc = device_sharing(opt);
+    if (rc == CONSPH_OK) rc = consph_study_device_check(s, opt->quick, opt->device);
+    if (rc == CONSPH_OK) rc = study_prepare(s, opt, files, dir, state, sizeof state);
     if (consph_par_size() > 1) return study_run_shared(s, opt, files, dir, state, rc);
     if (rc) return rc;
     if (opt->jobs > 1) return study_run_jobs(s, opt, files, dir, state);

@@ -8,6 +8,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "consph/gpu.h"
 #include "consph/io.h"
 #include "consph/solver.h"
 #include "study/kinds/kinds.h"
@@ -124,7 +125,9 @@ static int x_axis(const consph_study *s, const study_figure *f, int *x)
 
 int study_run_validate(const consph_study *s, const study_figure *f, int quick)
 {
+    static const char *const devices[] = {"cpu", "gpu", "auto", NULL};
     int rc, dummy;
+    if ((rc = study_get_choice(s, f, NULL, "device", devices, 0, &dummy))) return rc;
     for (int k = 0; k < f->nseries; ++k) {
         run_plan pl;
         if ((rc = plan_build(s, f, &f->series[k], quick, &pl))) return rc;
@@ -263,10 +266,47 @@ static int keep_history(const consph_solver *sv, run_row *row)
     return CONSPH_OK;
 }
 
+void study_run_gpu_refusals(const consph_study *s, const study_figure *f, int quick, char *buf,
+                            size_t size, size_t *len, int *bad)
+{
+    for (int k = 0; k < f->nseries; ++k) {
+        run_plan pl;
+        if (plan_build(s, f, &f->series[k], quick, &pl) != CONSPH_OK) continue;
+        for (int j = 0; j < pl.nnx; ++j) {
+            consph_run_params p = pl.prm;
+            p.nx = (int)pl.nx[j];
+            if (consph_gpu_check(&p) == CONSPH_OK) continue;
+            /* the rows of a series differ in nx alone, which no GPU check reads: one line each */
+            const char *why = consph_last_error();
+            if (!strncmp(why, "--device gpu: ", 14)) why += 14;
+            if (*len < size)
+                *len +=
+                    (size_t)snprintf(buf + *len, size - *len, "\n  figure '%s', series '%s' (nx",
+                                     f->id, f->series[k].label);
+            for (int q = 0; q < pl.nnx && *len < size; ++q)
+                *len += (size_t)snprintf(buf + *len, size - *len, "%s%g", q ? ", " : " ", pl.nx[q]);
+            if (*len < size) *len += (size_t)snprintf(buf + *len, size - *len, "): %s", why);
+            ++*bad;
+            break;
+        }
+    }
+}
+
+/* Whether the rows of a series run on the GPU: every one under DEVICE_GPU (checked before the
+ * study started, consph_study_device_check), those consph_gpu_check passes under DEVICE_AUTO. */
+static int series_on_gpu(const study_job *job, const run_plan *pl)
+{
+    if (job->device == CONSPH_STUDY_DEVICE_GPU) return 1;
+    return job->device == CONSPH_STUDY_DEVICE_AUTO && job->gpu_ok &&
+           consph_gpu_check(&pl->prm) == CONSPH_OK;
+}
+
 /* One run; `curve` (X_RADIUS, X_TIME, else none) keeps that curve of it. With `rows`, a stop
- * request ends it at its next step: STUDY_STOPPED, the row not done. */
+ * request ends it at its next step: STUDY_STOPPED, the row not done. `gpu`: its steps on the GPU
+ * (a failure to move there is the row's under DEVICE_GPU; under DEVICE_AUTO the row stays on the
+ * CPU, whose state the failed move left as it was), row->device says where it ran. */
 static int run_one(const run_plan *pl, int j, double h_dt, int curve, run_row *row,
-                   study_rows *rows)
+                   study_rows *rows, int gpu, int device)
 {
     consph_run_params p = pl->prm;
     p.nx = (int)pl->nx[j];
@@ -274,6 +314,15 @@ static int run_one(const run_plan *pl, int j, double h_dt, int curve, run_row *r
     consph_solver *sv = NULL;
     int rc = consph_solver_create(&sv, &p);
     if (rc) return rc;
+    row->device = CONSPH_DEVICE_CPU;
+    if (gpu) {
+        rc = consph_solver_set_device(sv, CONSPH_DEVICE_GPU);
+        if (rc == CONSPH_OK) row->device = CONSPH_DEVICE_GPU;
+        if (rc != CONSPH_OK && device == CONSPH_STUDY_DEVICE_GPU) {
+            consph_solver_free(sv);
+            return rc;
+        }
+    }
     if (!consph_solver_dt_warning(sv, row->dt_warning, sizeof row->dt_warning))
         row->dt_warning[0] = '\0';
     int stopped = 0;
@@ -356,6 +405,7 @@ int study_run_figure(const study_job *job, const study_figure *f)
         fprintf(log, "  %d series, about %.2g particle-steps\n", f->nseries, particle_steps);
     for (int k = 0; rc == CONSPH_OK && k < f->nseries; ++k) {
         const run_plan *pl = &plans[k];
+        const int gpu = series_on_gpu(job, pl);
         /* The finest first: its h sets Δt of the whole sweep (dt_rule = finest). */
         double h_dt = 0.0;
         for (int j = pl->nnx - 1; rc == CONSPH_OK && j >= 0; --j) {
@@ -381,7 +431,8 @@ int study_run_figure(const study_job *job, const study_figure *f)
                 w->curve = curve;
                 rc = CONSPH_OK;
             } else {
-                rc = run_one(pl, j, h_dt, j == pl->nnx - 1 ? x : X_NX, w, job->rows);
+                rc = run_one(pl, j, h_dt, j == pl->nnx - 1 ? x : X_NX, w, job->rows, gpu,
+                             job->device);
             }
             if (rc == STUDY_STOPPED) break;
             if (rc) {
@@ -392,9 +443,13 @@ int study_run_figure(const study_job *job, const study_figure *f)
             if (pl->dt_finest && j == pl->nnx - 1) h_dt = w->sum.h;
             if (log)
                 fprintf(log,
-                        "  %-24s nx=%-5g N=%-7zu steps=%-7ld L1(u)=%.3e L1(p)=%.3e (%.2fs)%s\n",
+                        "  %-24s nx=%-5g N=%-7zu steps=%-7ld L1(u)=%.3e L1(p)=%.3e (%.2fs%s)%s\n",
                         f->series[k].label, pl->nx[j], w->sum.n, w->sum.steps, w->sum.l1_u,
-                        w->sum.l1_p, w->sum.seconds, w->status ? " diverged" : "");
+                        w->sum.l1_p, w->sum.seconds,
+                        job->device == CONSPH_STUDY_DEVICE_DEFAULT ? ""
+                        : w->device == CONSPH_DEVICE_GPU           ? " on the GPU"
+                                                                   : " on the CPU",
+                        w->status ? " diverged" : "");
             if (log && w->dt_warning[0]) fprintf(log, "  warning: %s\n", w->dt_warning);
             const size_t cols =
                 j == pl->nnx - 1 && x >= X_RADIUS ? (size_t)curve_kinds[x].ncols : 0;
@@ -404,7 +459,9 @@ int study_run_figure(const study_job *job, const study_figure *f)
     }
     char tbuf[640];
     const char *title = rc == CONSPH_OK ? run_title(s, f, quick, &plans[0], tbuf, sizeof tbuf) : "";
-    if (rc == CONSPH_OK) rc = run_write_report(s, f, quick, dir, plans, rows, ref, x, title);
+    if (rc == CONSPH_OK)
+        rc = run_write_report(s, f, quick, dir, plans, rows, ref, x, title,
+                              job->device != CONSPH_STUDY_DEVICE_DEFAULT);
     if (rc == CONSPH_OK && run_plottable(f, plans, rows, x))
         rc = run_write_plot(s, f, dir, quick, plans, rows, x);
     for (int k = 0; rows && k < f->nseries; ++k)

@@ -135,6 +135,11 @@ struct study_job;
 int study_run_figure(const struct study_job *job, const study_figure *f);
 /* The figure's runs, and their particle-steps added to *work. */
 int study_run_rows(const consph_study *s, const study_figure *f, int quick, double *work);
+/* Appends to buf (size bytes, *len used) a line for every series of the run figure f that cannot
+ * run on the GPU ("figure 'F', series 'S' (nx 16, 24): why", consph_gpu_check) and counts them
+ * in *bad. */
+void study_run_gpu_refusals(const consph_study *s, const study_figure *f, int quick, char *buf,
+                            size_t size, size_t *len, int *bad);
 /* Particle-steps of the figure's runs, and the seconds they should take (calibrated on a short
  * run of its first series). */
 double study_run_estimate(const consph_study *s, const study_figure *f, int quick,

@@ -6,6 +6,8 @@
 #ifndef CONSPH_SCHEMES_NEGI_IACT_H
 #define CONSPH_SCHEMES_NEGI_IACT_H
 
+#include "gpu/hd.h" /* CONSPH_HD: the rates compile for the GPU too (src/gpu/dev.h) */
+
 /* The terms of one scheme's rates (a const one per scheme in scheme.c):
  *   du/dt = -∇p/ϱ (ϱ_c: frozen_rho) + ν∇²u  [- (u·∇)u  advect_u]  [+ (δu·∇)u  transport]
  *   dq/dt = -ϱ∇·u (q = ϱ) or -ρ_o c_o² ∇·u (q = p: eq. 30 as 001's authors run it)
@@ -35,9 +37,10 @@ typedef struct negi_derivs {
  * ∇·u is ρ_o c_o², as 001's authors' EDACEquation (tsph_with_pst.py) where eq. 30 prints
  * ϱ c_o² (docs/schemes.md, "PE-IPST-C"). The order of the sums is part of the
  * results (every run is reproduced bit for bit): keep it. */
-static inline void negi_rates_i(const negi_terms *t, int d, double nu, double D, double c2,
-                                double rho0, int evolve_p, const negi_derivs *v, double au[3],
-                                double ax[3], double *aq)
+CONSPH_HD static inline void negi_rates_i(const negi_terms *t, int d, double nu, double D,
+                                          double c2, double rho0, int evolve_p,
+                                          const negi_derivs *v, double au[3], double ax[3],
+                                          double *aq)
 {
     for (int a = 0; a < d; ++a) {
         double r = -v->gradp[a] / v->rhom + nu * v->lapu[a];

@@ -13,6 +13,7 @@
 #include <string.h>
 
 #include "ops/ops_internal.h"
+#include "schemes/negi/kit_pair.h"
 #include "solver/solver_internal.h"
 
 typedef struct kit_job {
@@ -62,51 +63,30 @@ TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int
         for (int a = 0; a < D; ++a) ui[a] = uf[a * cap + i];
     for (size_t k = 0; k < nb->n; ++k) {
         const size_t j = nb->j[k];
-        const double om = vol[j], w1 = dwr[k], g = om * w1;
-        double x[3];
+        double x[3], uj[3] = {0};
         x[0] = dx0[k];
         if (D > 1) x[1] = dx1[k];
         if (D > 2) x[2] = dx2[k];
-        for (int a = 0; a < D; ++a)
-            for (int b = 0; b < D; ++b) sm[a * D + b] -= g * x[a] * x[b];
-        if (with_p) {
-            const double t = om * (pf[j] - pi) * w1;
-            for (int b = 0; b < D; ++b) sp[b] += t * x[b];
-        }
         if (with_u)
-            for (int a = 0; a < D; ++a) {
-                const double t = om * (uf[a * cap + j] - ui[a]) * w1;
-                for (int b = 0; b < D; ++b) su[a * D + b] += t * x[b];
-            }
-        if (with_q) {
-            const double t = om * (qf[j] - qi) * w1;
-            for (int b = 0; b < D; ++b) sq[b] += t * x[b];
-        }
+            for (int a = 0; a < D; ++a) uj[a] = uf[a * cap + j];
+        kit_first_pair(D, with_p, with_u, with_q, vol[j], dwr[k], x, with_p ? pf[j] : 0.0, pi, uj,
+                       ui, with_q ? qf[j] : 0.0, qi, sm, sp, su, sq);
     }
-    const double zero[3] = {0.0, 0.0, 0.0};
-    double mom[9], B[9], out[3];
+    double mom[9], B[9], gp[3], G[9], div = 0.0, gq[3];
     for (int e = 0; e < D * D; ++e) mom[e] = sm[e];
-    const int ok = consph_bonet_finalise(D, mom, job->rq->cond_max, B, NULL);
+    const int ok = kit_first_finish(D, with_p, with_u, with_q, mom, job->rq->cond_max, sp, su, sq,
+                                    B, gp, G, &div, gq);
     if (job->bonet_ok) job->bonet_ok[i] = (unsigned char)ok;
     for (int e = 0; e < D * D; ++e) job->bonet[(size_t)e * cap + i] = B[e];
-    if (with_p) {
-        term_apply_rule(D, zero, B, sp, 0.0, out);
-        for (int a = 0; a < D; ++a) job->gradp[a * cap + i] = out[a];
-    }
+    if (with_p)
+        for (int a = 0; a < D; ++a) job->gradp[a * cap + i] = gp[a];
     if (with_u) {
-        double div = 0.0;
-        for (int a = 0; a < D; ++a) {
-            term_apply_rule(D, zero, B, su + a * D, 0.0, out);
-            if (job->gradu)
-                for (int b = 0; b < D; ++b) job->gradu[(size_t)(a * D + b) * cap + i] = out[b];
-            div += out[a];
-        }
+        if (job->gradu)
+            for (int e = 0; e < D * D; ++e) job->gradu[(size_t)e * cap + i] = G[e];
         if (job->divu) job->divu[i] = div;
     }
-    if (with_q) {
-        term_apply_rule(D, zero, B, sq, 0.0, out);
-        for (int a = 0; a < D; ++a) job->gradq[a * cap + i] = out[a];
-    }
+    if (with_q)
+        for (int a = 0; a < D; ++a) job->gradq[a * cap + i] = gq[a];
 }
 
 /* One visit function per (d, ∇p, ∇u or ∇·u, ∇q), chosen once per pass by kit_derivatives. */
@@ -153,26 +133,13 @@ TERM_INLINE void coupled_body(const kit_job *job, const consph_nbhd *nb, const i
         for (int b = 0; b < D; ++b) gqi[b] = gq[b * cap + i];
     for (size_t k = 0; k < nb->n; ++k) {
         const size_t j = nb->j[k];
-        const double w1 = nb->dwr[k];
-        double gr[3], g[3];
-        for (int b = 0; b < D; ++b) gr[b] = w1 * nb->dx[b][k];
-        for (int a = 0; a < D; ++a) {
-            double v = 0.0;
-            for (int b = 0; b < D; ++b) v += B[a * D + b] * gr[b];
-            g[a] = v;
-        }
+        double x[3], Gj[9] = {0}, gqj[3] = {0};
+        for (int b = 0; b < D; ++b) x[b] = nb->dx[b][k];
         if (with_u)
-            for (int a = 0; a < D; ++a) {
-                double sa = 0.0;
-                for (int b = 0; b < D; ++b)
-                    sa += (gu[(size_t)(a * D + b) * cap + j] - Gi[a * D + b]) * g[b];
-                acc[a] += vol[j] * sa;
-            }
-        if (with_q) {
-            double sq = 0.0;
-            for (int b = 0; b < D; ++b) sq += (gq[b * cap + j] - gqi[b]) * g[b];
-            accq += vol[j] * sq;
-        }
+            for (int e = 0; e < D * D; ++e) Gj[e] = gu[(size_t)e * cap + j];
+        if (with_q)
+            for (int b = 0; b < D; ++b) gqj[b] = gq[b * cap + j];
+        kit_coupled_pair(D, with_u, with_q, B, nb->dwr[k], x, vol[j], Gj, Gi, gqj, gqi, acc, &accq);
     }
     if (with_u)
         for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = acc[a];
@@ -234,16 +201,12 @@ TERM_INLINE void fatehi_body(const kit_job *job, const consph_nbhd *nb, const in
         const double r = nb->r[k];
         if (!(r > 0.0)) continue;
         const size_t j = nb->j[k];
-        double x[3], xBx = 0.0;
-        for (int a = 0; a < D; ++a) x[a] = nb->dx[a][k];
-        for (int a = 0; a < D; ++a)
-            for (int b = 0; b < D; ++b) xBx += x[a] * Bh[a * D + b] * x[b];
-        const double c = 2.0 * vol[j] * nb->dwr[k];
+        double x[3], uj[3];
         for (int a = 0; a < D; ++a) {
-            double xG = 0.0;
-            for (int b = 0; b < D; ++b) xG += x[b] * G[a * D + b];
-            acc[a] += c * ((ui[a] - u[a * cap + j]) - xG) * xBx / (r * r);
+            x[a] = nb->dx[a][k];
+            uj[a] = u[a * cap + j];
         }
+        kit_fatehi_pair(D, Bh, r, nb->dwr[k], x, vol[j], G, ui, uj, acc);
     }
     for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = acc[a];
 }
@@ -274,41 +237,14 @@ TERM_INLINE void korzilius_body(const kit_job *job, const consph_nbhd *nb, const
     double A[MP * MP] = {0}, Hx[MP * 3] = {0}, Gz[3 * MP] = {0}, rhs[3 * MP] = {0};
     for (size_t k = 0; k < nb->n; ++k) {
         const size_t j = nb->j[k];
-        const double om = vol[j], dwr = nb->dwr[k];
-        double x[3], zeta[MP], H[MP];
+        double x[3], uj[3];
         const double aee = term_pair_hess(D, nb, k, x);
-        for (int q = 0; q < P; ++q) {
-            zeta[q] = cq[q] * x[pl[q]] * x[pk[q]];
-            H[q] = aee * x[pl[q]] * x[pk[q]] + (pl[q] == pk[q] ? dwr : 0.0);
-        }
-        for (int a = 0; a < P; ++a)
-            for (int b = 0; b < P; ++b) A[a * P + b] += om * H[a] * zeta[b];
-        for (int a = 0; a < P; ++a)
-            for (int b = 0; b < D; ++b) Hx[a * D + b] -= om * H[a] * x[b];
-        for (int a = 0; a < D; ++a)
-            for (int b = 0; b < P; ++b) Gz[a * P + b] += om * dwr * x[a] * zeta[b];
-        for (int a = 0; a < D; ++a) {
-            double xG = 0.0;
-            for (int b = 0; b < D; ++b) xG += x[b] * G[a * D + b];
-            /* x_ji·G = -x_ij·G */
-            const double sa = om * ((u[a * cap + j] - ui[a]) + xG);
-            for (int q = 0; q < P; ++q) rhs[a * P + q] += sa * H[q];
-        }
+        for (int a = 0; a < D; ++a) uj[a] = u[a * cap + j];
+        kit_korzilius_pair(D, P, pl, pk, cq, vol[j], nb->dwr[k], aee, x, G, ui, uj, A, Hx, Gz, rhs);
     }
-    double Ainv[MP * MP], cond;
-    if (job->bonet_ok[i]) {
-        term_korzilius_correct(D, P, Hx, Gz, B, A);
-        if (!ops_invert(P, A, Ainv, job->rq->cond_max, &cond)) set_identity(Ainv, P);
-    } else {
-        set_identity(Ainv, P);
-    }
-    for (int a = 0; a < D; ++a) {
-        double lap = 0.0;
-        for (int r = 0; r < P; ++r)
-            if (pl[r] == pk[r])
-                for (int c = 0; c < P; ++c) lap += Ainv[r * P + c] * rhs[a * P + c];
-        job->lapu[a * cap + i] = lap;
-    }
+    double lap[3];
+    kit_korzilius_finish(D, P, pl, pk, job->bonet_ok[i], Hx, Gz, B, A, rhs, job->rq->cond_max, lap);
+    for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = lap[a];
 }
 
 /* Cleary's Laplacian as 001's authors run EWCSPH (ewcsph.py, get_equations_ewcsph: their
@@ -328,12 +264,12 @@ TERM_INLINE void cleary_body(const kit_job *job, const consph_nbhd *nb, const in
         const double r = nb->r[k];
         if (!(r > 1e-14)) continue;
         const size_t j = nb->j[k];
-        double x[3], xBx = 0.0;
-        for (int a = 0; a < D; ++a) x[a] = nb->dx[a][k];
-        for (int a = 0; a < D; ++a)
-            for (int b = 0; b < D; ++b) xBx += x[a] * B[a * D + b] * x[b];
-        const double c = 4.0 * vol[j] / (rho[i] + rho[j]) * nb->dwr[k] * xBx / (r * r);
-        for (int a = 0; a < D; ++a) acc[a] += c * (ui[a] - u[a * cap + j]);
+        double x[3], uj[3];
+        for (int a = 0; a < D; ++a) {
+            x[a] = nb->dx[a][k];
+            uj[a] = u[a * cap + j];
+        }
+        kit_cleary_pair(D, B, r, nb->dwr[k], x, vol[j], rho[i], rho[j], ui, uj, acc);
     }
     for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = acc[a];
 }

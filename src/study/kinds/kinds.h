@@ -145,6 +145,8 @@ typedef struct study_job {
     layout_cache *cache;
     FILE *log;
     study_rows *rows; /* NULL: no progress, no store (the estimate's runs) */
+    int device;       /* consph_study_device, resolved (consph_study_device_of) */
+    int gpu_ok;       /* a GPU was found (consph_gpu_available); read under DEVICE_AUTO */
 } study_job;
 
 /* The stored result of row j of series k of figure f: 1 when read into row (size bytes) and

@@ -31,6 +31,7 @@ typedef struct run_row {
     consph_run_summary sum;
     double eq26_u, eq26_p; /* 001 eq. 26 as the study reports it (key l1) */
     int status;            /* CONSPH_OK, or CONSPH_ENUMERIC for a run that diverged */
+    int device;            /* the consph_device its steps ran on */
     char why[256];
     char dt_warning[256]; /* Δt above its stability bound (consph_solver_dt_warning), or "" */
     /* The finest run's curve (curve_kinds[x]): x = radius, r, u_φ and the exact u_φ per particle
@@ -67,10 +68,11 @@ int run_plottable(const study_figure *f, const run_plan *plans, run_row (*rows)[
 /* The figure's title; a quick run's says what it ran. */
 const char *run_title(const consph_study *s, const study_figure *f, int quick, const run_plan *pl,
                       char *buf, size_t size);
-/* FIGURE.csv and FIGURE.md: the orders, the paper's values beside ours, every run. */
+/* FIGURE.csv and FIGURE.md: the orders, the paper's values beside ours, every run; with
+ * `devices` a line saying which device ran each row. */
 int run_write_report(const consph_study *s, const study_figure *f, int quick, const char *dir,
                      const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref, int x,
-                     const char *title);
+                     const char *title, int devices);
 /* FIGURE.dat, .gp and .svg (and FIGURE-profile/-history.dat for x = radius or time); the title
  * says what ran (t_f, resolutions, quick). */
 int run_write_plot(const consph_study *s, const study_figure *f, const char *dir, int quick,

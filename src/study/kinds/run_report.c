@@ -6,6 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#include "consph/gpu.h"
 #include "consph/io.h"
 #include "study/kinds/kinds.h"
 #include "study/kinds/run.h"
@@ -166,9 +167,39 @@ const char *run_title(const consph_study *s, const study_figure *f, int quick, c
     return len < size ? buf : title;
 }
 
+/* "Device: ...": which device ran each row (consph study --device). */
+static void device_line(FILE *o, const study_figure *f, const run_plan *plans,
+                        run_row (*rows)[MAX_SWEEP])
+{
+    int count[2] = {0, 0}, total = 0;
+    for (int k = 0; k < f->nseries; ++k)
+        for (int j = 0; j < plans[k].nnx; ++j, ++total)
+            count[rows[k][j].device == CONSPH_DEVICE_GPU]++;
+    fprintf(o, "Device:");
+    if (count[1] == total || count[0] == total)
+        fprintf(o, " the %s ran every row.", count[1] ? "GPU" : "CPU");
+    for (int d = 1; d >= 0 && count[0] && count[1]; --d) {
+        fprintf(o, " the %s ran", d ? "GPU" : "CPU");
+        int listed = 0;
+        for (int k = 0; k < f->nseries; ++k) {
+            int n = 0;
+            for (int j = 0; j < plans[k].nnx; ++j) {
+                if ((rows[k][j].device == CONSPH_DEVICE_GPU) != d) continue;
+                if (!n) fprintf(o, "%s %s (nx ", listed++ ? "," : "", f->series[k].label);
+                fprintf(o, "%s%g", n++ ? ", " : "", plans[k].nx[j]);
+            }
+            if (n) fprintf(o, ")");
+        }
+        fprintf(o, "%s", d ? ";" : ". T_r and the seconds compare wall times of both.");
+    }
+    /* docs/gpu.md: a GPU run counts no neighbour pairs */
+    fprintf(o, "%s\n\n",
+            count[1] ? " The GPU's rows count no neighbour pairs (pairs 0 in the CSV)." : "");
+}
+
 int run_write_report(const consph_study *s, const study_figure *f, int quick, const char *dir,
                      const run_plan *plans, run_row (*rows)[MAX_SWEEP], int ref, int x,
-                     const char *title)
+                     const char *title, int devices)
 {
     char label[128];
     consph_outfile of;
@@ -298,6 +329,7 @@ int run_write_report(const consph_study *s, const study_figure *f, int quick, co
             "T_r: wall time of the time steps at the finest resolution relative to series '%s' "
             "(set-up and packing excluded).\n\n",
             f->series[ref].label);
+    if (devices) device_line(o, f, plans, rows);
     for (int k = 0; k < f->nseries; ++k)
         for (int j = 0; j < plans[k].nnx; ++j)
             if (rows[k][j].status != CONSPH_OK)

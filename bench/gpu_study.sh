@@ -1,0 +1,271 @@
+#!/usr/bin/env bash
+# A convergence study on one GPU against the same study on every core (docs/gpu.md, "Studies"),
+# in about two minutes on the lent machine (one GPU, 16 cores):
+#   0. runs tests/cli_study_gpu.sh (on the GPU too where there is one: a study's report under
+#      --device gpu and auto equals the CPU's);
+#   1. finds the schemes the GPU runs (a one-step `consph run --device gpu` of each scheme of
+#      001-table9, and edac);
+#   2. writes a study of 001-table9's figure (Taylor-Green, c_o = 80, h/Δs 1.2, Δt from the
+#      finest h, IPST's schedule, error = authors, exact = both, the paper's resolutions
+#      50..500) with one series per table-9 scheme the GPU runs and edac, each run STEPS steps
+#      (a fraction of t_f = 0.5, which takes about 56 250) on the lattice (layout = lattice: a
+#      packed layout is made on the host, the same for both devices, cached between the
+#      Lagrangian schemes; its cost is estimated apart, below);
+#   3. runs it with --device gpu, then with --device cpu on THREADS threads; then once more on
+#      the GPU with error = eq26 (no copy of the particles back to the host at every step, which
+#      the authors' measure takes on the GPU: docs/gpu.md), when the budget allows;
+#   4. extrapolates each to the full 001-table9 (six resolutions, seven schemes, t = 0.5):
+#      per scheme and resolution, the measured wall time per step times ceil(0.5/Δt) steps; a
+#      table-9 scheme the GPU does not run yet is priced as the reference series (l-ipst-c when
+#      the GPU runs it, else edac standing for EWCSPH) times its T_r relative to it from 001
+#      Table 9 (E-C 1.19, EWCSPH 1.00, L-IPST-C 1.53, L-PST-C 2.02, L-RR-C 1.41, PE-IPST-C 1.65,
+#      TV-C 1.88; edac taken as 1.00); plus the set-up measured here (wall time less the steps'),
+#      scaled to 42 rows, plus the packings by consph's own model (the difference of two
+#      `consph study --estimate` of the table with and without packed layouts);
+#   5. writes gpu_study.md (and the study outputs, logs) in the output folder.
+#
+# Build where the GPU machine cannot (as bench/gpu.sh; both use build-gpu/):
+#   bash bench/gpu_study.sh --build-only                # here, with nvcc
+#   bash bench/gpu_study.sh --no-build --out "$OUT"     # there, build-gpu carried
+#
+# Usage: bash bench/gpu_study.sh [--out DIR] [--steps K] [--budget S] [--quick] [--emulate]
+#                                [--no-build] [--build-only]
+#   --out DIR     where gpu_study.md and the studies go (default: build-gpu/gpu-study-out)
+#   --steps K     steps of every row (default 150)
+#   --budget S    no study starts after S seconds; each runs under timeout (default 140)
+#   --quick       nx 20, 30, 40 and 5 steps (a check of the script)
+#   --emulate     the GPU's rows on the host emulation (CONSPH_GPU_BACKEND=emulation; slow: use
+#                 with --quick)
+# Environment: BUILD (default build-gpu), THREADS (the CPU study's threads, default nproc).
+set -u
+cd "$(dirname "$0")/.." || exit 1
+out=""
+steps=150
+budget=140
+quick=0
+emulate=0
+build=auto
+while [ $# -gt 0 ]; do
+    case "$1" in
+    --out | --steps | --budget)
+        [ $# -ge 2 ] || { echo "bench/gpu_study.sh: $1 needs a value" >&2; exit 2; }
+        case "$1" in
+        --out) out=$2 ;;
+        --steps | --budget)
+            [[ "$2" =~ ^[1-9][0-9]*$ ]] ||
+                { echo "bench/gpu_study.sh: $1 needs a whole number > 0, not '$2'" >&2; exit 2; }
+            [ "$1" = --steps ] && steps=$2 || budget=$2
+            ;;
+        esac
+        shift 2
+        ;;
+    --quick) quick=1; shift ;;
+    --emulate) emulate=1; shift ;;
+    --no-build) build=no; shift ;;
+    --build-only) build=only; shift ;;
+    *)
+        echo "bench/gpu_study.sh: unknown argument '$1' (allowed: --out DIR, --steps K," \
+            "--budget S, --quick, --emulate, --no-build, --build-only)" >&2
+        exit 2
+        ;;
+    esac
+done
+bdir=${BUILD:-build-gpu}
+if [ $build = only ] || { [ $build = auto ] && [ ! -x "$bdir/consph" ]; }; then
+    BUILD=$bdir bash bench/gpu.sh --build-only || exit 1
+    [ $build = only ] && exit 0
+fi
+consph=$bdir/consph
+[ -x "$consph" ] || { echo "bench/gpu_study.sh: no $consph (build it: --build-only)" >&2; exit 1; }
+consph=$(cd "$(dirname "$consph")" && pwd)/consph
+out=${out:-$bdir/gpu-study-out}
+mkdir -p "$out" || exit 1
+out=$(cd "$out" && pwd)
+threads=${THREADS:-$(nproc)}
+start=$(date +%s)
+elapsed() { echo $(($(date +%s) - start)); }
+log() { echo "[$(elapsed) s] $*" | tee -a "$out/run.log"; }
+: >"$out/run.log"
+nx=50,100,200,250,400,500
+[ $quick = 1 ] && { nx=20,30,40; steps=5; }
+gpu_env=()
+[ $emulate = 1 ] && gpu_env=(CONSPH_GPU_BACKEND=emulation)
+# the layout cache of this run alone: the packing estimate must not find layouts made elsewhere
+export XDG_CACHE_HOME=$out/cache
+
+# ---- 0. the study test on this machine's GPU: the GPU's report equals the CPU's ----
+timeout 60 bash tests/cli_study_gpu.sh "$consph" "$(pwd)" >"$out/cli_study_gpu.log" 2>&1
+test_rc=$?
+test_line="tests/cli_study_gpu.sh: $(tail -1 "$out/cli_study_gpu.log") (exit $test_rc)"
+log "$test_line"
+
+# ---- 1. the schemes the GPU runs ----
+table9="e-c ewcsph l-ipst-c l-pst-c l-rr-c pe-ipst-c tv-c"
+on_gpu=""
+for s in $table9 edac; do
+    env ${gpu_env[@]+"${gpu_env[@]}"} "$consph" run taylor-green --scheme "$s" --nx 8 --steps 1 --device gpu \
+        >/dev/null 2>"$out/probe.err" && on_gpu="$on_gpu $s"
+done
+if [ -z "$on_gpu" ]; then
+    log "no scheme runs on the GPU here: $(tail -1 "$out/probe.err")"
+    exit 1
+fi
+log "the GPU runs:$on_gpu (table 9: $table9); $threads threads for the CPU study"
+
+# ---- 2. the study ----
+sdir=$out/study
+mkdir -p "$sdir"
+write_study() { # write_study FILE ERROR
+    {
+        echo "study = gpustudy"
+        echo "title = 001-table9's runs, $steps steps each, on the GPU's schemes (bench/gpu_study.sh)"
+        echo "paper = none"
+        echo "note = A timing of 001-table9's figure: its keys, $steps steps per row, the lattice."
+        echo
+        echo "[figure table9]"
+        echo "title = Taylor-Green, c_o = 80, $steps steps"
+        echo "kind = run"
+        echo "problem = taylor-green"
+        echo "hdx = 1.2"
+        echo "c0 = 80"
+        echo "nx = $nx"
+        echo "steps = $steps"
+        echo "dt_rule = finest"
+        echo "ipst_h_dt = 0.0024"
+        echo "layout = lattice"
+        echo "error = $2"
+        [ "$2" = authors ] && echo "error_times = 2"
+        echo "exact = both"
+        for s in $on_gpu; do printf '\n[series %s]\nscheme = %s\n' "$s" "$s"; done
+    } >"$1"
+}
+write_study "$sdir/gpustudy.study" authors
+
+# study DEVICE DIR [ENV...]: wall seconds into $DIR.wall, or "" when it failed or ran out of time
+study() {
+    local device=$1 dir=$2 left
+    shift 2
+    left=$((budget - $(elapsed)))
+    if [ $left -lt 10 ]; then
+        log "$device: skipped (budget of $budget s spent)"
+        return 1
+    fi
+    local t0 t1
+    t0=$(date +%s.%N)
+    env "$@" timeout "$left" "$consph" study "$sdir/gpustudy.study" --device "$device" \
+        --out "$dir" >"$dir.log" 2>&1
+    local rc=$?
+    t1=$(date +%s.%N)
+    if [ $rc != 0 ]; then
+        log "$device: exit $rc ($([ $rc = 124 ] && echo "past the budget" || tail -2 "$dir.log" | tr '\n' ' '))"
+        return 1
+    fi
+    awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.2f\n", b - a }' >"$dir.wall"
+    log "$device: $(cat "$dir.wall") s ($dir/gpustudy/table9.md)"
+}
+study gpu "$out/gpu" ${gpu_env[@]+"${gpu_env[@]}"}
+study cpu "$out/cpu" OMP_NUM_THREADS="$threads"
+write_study "$sdir/gpustudy.study" eq26
+study gpu "$out/gpu-eq26" ${gpu_env[@]+"${gpu_env[@]}"}
+write_study "$sdir/gpustudy.study" authors
+
+# ---- 3. the packing the table's Lagrangian schemes start from, by consph's model ----
+# `consph study --estimate` adds the packings (its model of their iterations, timed here) to the
+# steps' cost: with one step per row the steps are a trifle, and the same study with every
+# series on the lattice leaves that trifle alone
+packing=""
+if [ $quick = 0 ] && [ $(($(elapsed) + 20)) -lt "$budget" ]; then
+    est() { OMP_NUM_THREADS=$threads timeout 20 "$consph" study "$1" --estimate 2>/dev/null |
+        sed -n 's/^estimated run time: \([0-9.e+]*\) s.*/\1/p'; }
+    mkdir -p "$out/est/packed" "$out/est/lattice"
+    sed 's/^tf = 0.5$/steps = 1/' studies/001-table9.study >"$out/est/packed/001-table9.study"
+    awk '/^\[series/ { print; print "layout = lattice"; next } { print }' \
+        "$out/est/packed/001-table9.study" >"$out/est/lattice/001-table9.study"
+    with=$(est "$out/est/packed/001-table9.study")
+    without=$(est "$out/est/lattice/001-table9.study")
+    if [ -n "$with" ] && [ -n "$without" ]; then
+        packing=$(awk -v a="$with" -v b="$without" 'BEGIN { printf "%.0f", a - b }')
+        log "the packings of 001-table9 by consph's model on $threads threads: $packing s"
+    fi
+fi
+
+# ---- 4. the extrapolation ----
+# rows DIR: "scheme nx n steps dt seconds" of the study's CSV
+rows() {
+    awk -F, 'NR == 1 { for (i = 1; i <= NF; i++) c[$i] = i; next }
+        { print $c["scheme"], $c["nx"], $c["n"], $c["steps"], $c["dt"], $c["seconds"] }' \
+        "$1/gpustudy/table9.csv"
+}
+# extrapolate DIR: per scheme the full table's step seconds, then the total (see the header)
+extrapolate() {
+    local dir=$1
+    [ -f "$dir.wall" ] || { echo "none"; return; }
+    rows "$dir" | awk -v wall="$(cat "$dir.wall")" -v table9="$table9" -v pack="${packing:-0}" '
+        BEGIN { split("e-c 1.19 ewcsph 1.00 l-ipst-c 1.53 l-pst-c 2.02 l-rr-c 1.41 pe-ipst-c 1.65 tv-c 1.88 edac 1.00", t, " ")
+                for (i = 1; i < 18; i += 2) tr[t[i]] = t[i + 1] }
+        { full = int(0.5 / $5 + 0.999999); per = $6 / $4
+          f[$1] += per * full; stepsec += $6; nrows++; steps_full = full }
+        END {
+            ref = ("l-ipst-c" in f) ? "l-ipst-c" : "edac"
+            n = split(table9, s, " ")
+            for (i = 1; i <= n; i++) {
+                v = (s[i] in f) ? f[s[i]] : f[ref] * tr[s[i]] / tr[ref]
+                total += v
+                how = how sprintf("%s%s %.0f s%s", i > 1 ? ", " : "", s[i], v, (s[i] in f) ? "" : " (T_r)")
+            }
+            setup = (wall - stepsec) / nrows * 42
+            printf "%.0f|%.0f|%.0f|%d|%s|%s\n", total + setup + pack, setup, total, steps_full, how, ref
+        }'
+}
+md=$out/gpu_study.md
+{
+    echo "# A study on one GPU against $threads cores (bench/gpu_study.sh)"
+    echo
+    echo "$(date -u '+%Y-%m-%d %H:%M UTC'); $(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1)"
+    echo "$([ $emulate = 1 ] && echo '(GPU rows on the host emulation: not a GPU measurement) ')$([ $quick = 1 ] && echo '(--quick: a check of the script, not the paper'"'"'s resolutions) ')CPU: $(nproc) cores, $threads threads."
+    echo
+    echo "$test_line"
+    echo
+    echo "The study: 001-table9's figure (its keys; \`layout = lattice\`), series:$on_gpu, nx $nx,"
+    echo "$steps steps per row. Wall time of the whole \`consph study\` (set-up, steps, reports):"
+    echo
+    echo "| run | wall s | Σ step s | full 001-table9 extrapolated: total s (h) | of it set-up s | steps s |"
+    echo "|---|---|---|---|---|---|"
+    for d in gpu cpu gpu-eq26; do
+        [ -f "$out/$d.wall" ] || { echo "| $d | not run | | | | |"; continue; }
+        IFS='|' read -r tot setup stp nsteps how ref <<<"$(extrapolate "$out/$d")"
+        sum=$(rows "$out/$d" | awk '{ s += $6 } END { printf "%.2f", s }')
+        echo "| $d | $(cat "$out/$d.wall") | $sum | $tot ($(awk -v t="$tot" 'BEGIN { printf "%.2f", t / 3600 }')) | $setup | $stp |"
+        echo "$d: $how (reference $ref; $nsteps steps per row)" >>"$out/how.txt"
+    done
+    echo
+    echo "Per scheme, the full table's step seconds (\"T_r\": priced from the reference series):"
+    echo
+    sed 's/^/- /' "$out/how.txt" 2>/dev/null
+    echo
+    echo "Per row (wall time per step, ms):"
+    echo
+    echo "| scheme | nx | N | GPU ms/step | CPU ms/step | CPU/GPU | GPU eq26 ms/step |"
+    echo "|---|---|---|---|---|---|---|"
+    join_rows() { [ -f "$out/$1.wall" ] && rows "$out/$1" | awk '{ printf "%s:%s %s %.4f\n", $1, $2, $3, 1000 * $6 / $4 }'; }
+    join_rows gpu >"$out/r.gpu"
+    join_rows cpu >"$out/r.cpu"
+    join_rows gpu-eq26 >"$out/r.eq26"
+    awk 'FILENAME ~ /r.cpu$/ { c[$1] = $3; next } FILENAME ~ /r.eq26$/ { e[$1] = $3; next }
+         { k[++n] = $1; N[$1] = $2; g[$1] = $3 }
+         END { for (i = 1; i <= n; i++) { split(k[i], a, ":"); x = k[i]
+               printf "| %s | %s | %s | %.3f | %s | %s | %s |\n", a[1], a[2], N[x], g[x],
+                   (x in c) ? sprintf("%.3f", c[x]) : "", (x in c) ? sprintf("%.1f", c[x] / g[x]) : "",
+                   (x in e) ? sprintf("%.3f", e[x]) : "" } }' "$out/r.cpu" "$out/r.eq26" "$out/r.gpu"
+    echo
+    echo "Method: per scheme and nx, (step seconds / steps) × ceil(0.5/Δt) (Δt from the finest h,"
+    echo "as the table runs); a table-9 scheme the GPU does not run is priced as the reference times"
+    echo "its 001 Table 9 T_r over the reference's (edac counted as EWCSPH, 1.00); set-up = (wall −"
+    echo "Σ step s)/rows × 42 rows; packing: ${packing:-not estimated} s by consph's model on the CPU"
+    echo "(\`consph study --estimate\` of the table at one step per row, less the same with every series"
+    echo "on the lattice; the packed layouts are made on the host for either device, once per nx, kept"
+    echo "in the layout cache for the other schemes). error = authors copies every"
+    echo "particle back to the host after every GPU step (docs/gpu.md); gpu-eq26 shows the GPU without it."
+} >"$md"
+cat "$md"
+log "done: $md"

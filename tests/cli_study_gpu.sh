@@ -1,0 +1,157 @@
+#!/usr/bin/env bash
+# consph study --device cpu|gpu|auto (docs/studies.md, docs/gpu.md), on the host emulation behind
+# --device gpu (CONSPH_GPU_BACKEND=emulation) and on the GPU where one is found: a study of edac
+# and wcsph rows under --device gpu writes the CPU study's files (every file, the wall-time
+# columns, the GPU's uncounted pairs and the line that says which device ran the rows masked);
+# --device gpu on a study with a scheme the GPU does not run exits 2 naming that series and
+# writes nothing; --device auto runs it mixed and writes the CPU's report, its device line
+# naming the rows of each device; without a GPU, gpu exits 2 with the reason and auto runs on the
+# CPU, said once; the study file's key `device` and the option that overrides it; bad values,
+# --jobs > 1 with a GPU: exit 2.
+# Usage: cli_study_gpu.sh <path-to-consph> <source-dir>
+set -u
+bin=$1 src=$2
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+. "$(dirname "${BASH_SOURCE[0]}")/lib_cli.sh"
+
+study=$src/tests/data/gpu.study
+# a scheme the GPU does not run (yet: the first of these it refuses)
+other=""
+for s in tvf ewcsph e-c l-rr-c tv-c; do
+    CONSPH_GPU_BACKEND=emulation "$bin" run taylor-green --scheme $s --nx 8 --steps 1 \
+        --device gpu >/dev/null 2>"$work/err"
+    [ $? = 2 ] && grep -q "does not run on the GPU" "$work/err" && { other=$s; break; }
+done
+[ -n "$other" ] || { bad "every scheme runs on the GPU: choose another for this test"; other=tvf; }
+# the study with a series of that scheme
+{ cat "$study"; printf '\n[figure tgv2]\ntitle = Taylor-Green, %s too\nkind = run\n' $other
+  printf 'problem = taylor-green\nnx = 16,20\nsteps = 3\n\n[series EDAC]\nscheme = edac\n\n'
+  printf '[series OTHER]\nscheme = %s\n' $other; } | sed 's/^study = gpu$/study = mixed/' \
+    >"$work/mixed.study"
+
+# norm FILE: masked (lib_cli.sh), without the device line and its blank line, the CSV's pairs
+# column blanked (a GPU row counts none, docs/gpu.md)
+norm() {
+    masked "$1" | awk -v csv="$([[ $1 == *.csv ]] && echo 1)" '
+        skip && $0 == "" { skip = 0; next }
+        /^Device: / { skip = 1; next }
+        { skip = 0 }
+        csv && FNR == 1 { n = split($0, h, ","); for (i = 1; i <= n; i++) if (h[i] == "pairs") col = i }
+        csv && col && FNR > 1 { n = split($0, a, ","); a[col] = "P"; s = a[1]
+                                for (i = 2; i <= n; i++) s = s "," a[i]; print s; next }
+        { print }'
+}
+# same_report A B WHAT: the same files, equal once normed
+same_report() {
+    local f ok=0
+    [ "$(ls -A "$1")" = "$(ls -A "$2")" ] ||
+        { bad "$3: files $(ls -A "$2" | tr '\n' ' ') want $(ls -A "$1" | tr '\n' ' ')"; return 1; }
+    for f in "$1"/*; do
+        cmp -s <(norm "$f") <(norm "$2/${f##*/}") ||
+            { bad "$3: ${f##*/} differs: $(diff <(norm "$f") <(norm "$2/${f##*/}") | head -4)"; ok=1; }
+    done
+    return $ok
+}
+# device_line DIR FIGURE: the line saying which device ran its rows
+device_line() { grep '^Device: ' "$1/$2.md"; }
+
+"$bin" study "$study" --quick --out "$work/cpu" >/dev/null 2>"$work/err" ||
+    { bad "CPU study: $(cat "$work/err")"; summary cli_study_gpu; exit; }
+"$bin" study "$work/mixed.study" --quick --out "$work/cpu" >/dev/null 2>"$work/err" ||
+    { bad "CPU mixed study: $(cat "$work/err")"; summary cli_study_gpu; exit; }
+# without --device the report says nothing of devices
+grep -q '^Device' "$work/cpu/gpu/tgv.md" "$work/cpu/gpu/README.md" &&
+    bad "a study without --device names a device" || pass=$((pass + 1))
+
+failing 2 "allowed: cpu,gpu,auto" "$work/o" -- "$bin" study "$study" --quick --device tpu \
+    --out "$work/x" && pass=$((pass + 1))
+failing 2 "--jobs" "$work/o" -- "$bin" study "$study" --quick --device auto --jobs 2 \
+    --out "$work/x" && pass=$((pass + 1))
+mkdir "$work/badkey"
+sed 's/^paper = none$/paper = none\ndevice = tpu/' "$study" >"$work/badkey/gpu.study"
+failing 2 "'device': unknown value 'tpu'" "$work/o" -- "$bin" study "$work/badkey/gpu.study" --quick \
+    --out "$work/x" &&
+    pass=$((pass + 1))
+[ -e "$work/x" ] && bad "a refused study wrote $work/x" || pass=$((pass + 1))
+# one GPU for the ranks of mpirun: refused where this consph has MPI and mpirun starts 2 ranks
+if ! "$bin" --version | grep -qx 'MPI not built in' && command -v mpirun >/dev/null; then
+    export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1
+    timeout 120 mpirun --oversubscribe -np 2 "$bin" study "$study" --quick --device auto \
+        --out "$work/x" >"$work/o" 2>&1
+    rc=$?
+    if grep -q "launched on 2 MPI ranks" "$work/o"; then
+        [ $rc = 2 ] && [ ! -e "$work/x" ] && pass=$((pass + 1)) || bad "mpirun -np 2: exit $rc"
+    elif ! grep -q "^MPI ranks 2$" <(timeout 60 mpirun --oversubscribe -np 2 "$bin" --version 2>&1); then
+        echo "mpirun cannot start 2 ranks here: not checked"
+    else
+        bad "mpirun -np 2 --device auto: exit $rc: $(head -5 "$work/o")"
+    fi
+fi
+# --device cpu runs as the default does, and says so
+"$bin" study "$study" --quick --device cpu --out "$work/dcpu" >/dev/null 2>"$work/err" ||
+    bad "--device cpu: $(cat "$work/err")"
+same_report "$work/cpu/gpu" "$work/dcpu/gpu" "--device cpu" && pass=$((pass + 1))
+[ "$(device_line "$work/dcpu/gpu" tgv)" = "Device: the CPU ran every row." ] &&
+    pass=$((pass + 1)) || bad "--device cpu: $(device_line "$work/dcpu/gpu" tgv)"
+
+# gpu_runs BACKEND: the GPU's studies against the CPU's (BACKEND: "" the CUDA device, or
+# "emulation")
+gpu_runs() {
+    local be=$1 w=$work/${1:-cuda}
+    CONSPH_GPU_BACKEND=$be "$bin" study "$study" --quick --device gpu --out "$w/gpu" \
+        >"$w.out" 2>"$work/err" || { bad "${be:-cuda}: --device gpu: $(cat "$work/err")"; return; }
+    same_report "$work/cpu/gpu" "$w/gpu/gpu" "${be:-cuda}: --device gpu" && pass=$((pass + 1))
+    [ "$(device_line "$w/gpu/gpu" tgv)" = "Device: the GPU ran every row. The GPU's rows count no neighbour pairs (pairs 0 in the CSV)." ] &&
+        pass=$((pass + 1)) || bad "${be:-cuda}: --device gpu: $(device_line "$w/gpu/gpu" tgv)"
+    # the operator figure has no device
+    grep -q '^Device' "$w/gpu/gpu/grad.md" && bad "${be:-cuda}: grad names a device" ||
+        pass=$((pass + 1))
+    failing 2 "series 'OTHER' (nx 16, 20): scheme '$other' does not run on the GPU" "$w.o" -- \
+        env CONSPH_GPU_BACKEND="$be" "$bin" study "$work/mixed.study" --quick --device gpu \
+        --out "$w/refused" && pass=$((pass + 1))
+    [ -e "$w/refused" ] && bad "${be:-cuda}: the refused study wrote $w/refused" ||
+        pass=$((pass + 1))
+    CONSPH_GPU_BACKEND=$be "$bin" study "$work/mixed.study" --quick --device auto --out "$w/auto" \
+        >/dev/null 2>"$work/err" || { bad "${be:-cuda}: --device auto: $(cat "$work/err")"; return; }
+    same_report "$work/cpu/mixed" "$w/auto/mixed" "${be:-cuda}: --device auto" && pass=$((pass + 1))
+    local want="Device: the GPU ran EDAC (nx 16, 20); the CPU ran OTHER (nx 16, 20). T_r and the"
+    want="$want seconds compare wall times of both. The GPU's rows count no neighbour pairs (pairs 0"
+    want="$want in the CSV)."
+    [ "$(device_line "$w/auto/mixed" tgv2)" = "$want" ] && pass=$((pass + 1)) ||
+        bad "${be:-cuda}: --device auto: $(device_line "$w/auto/mixed" tgv2)"
+    # the study file's key, and the option that wins over it
+    mkdir -p "$w.key"
+    sed 's/^paper = none$/paper = none\ndevice = gpu/' "$study" >"$w.key/gpu.study"
+    CONSPH_GPU_BACKEND=$be "$bin" study "$w.key/gpu.study" --quick --out "$w/key" >/dev/null \
+        2>"$work/err" || bad "${be:-cuda}: device = gpu: $(cat "$work/err")"
+    [ "$(device_line "$w/key/gpu" tgv)" = "Device: the GPU ran every row. The GPU's rows count no neighbour pairs (pairs 0 in the CSV)." ] &&
+        pass=$((pass + 1)) || bad "${be:-cuda}: key device = gpu: $(device_line "$w/key/gpu" tgv)"
+    CONSPH_GPU_BACKEND=$be "$bin" study "$w.key/gpu.study" --quick --device cpu --out "$w/key" \
+        >/dev/null 2>"$work/err" || bad "${be:-cuda}: --device cpu over the key: $(cat "$work/err")"
+    [ "$(device_line "$w/key/gpu" tgv)" = "Device: the CPU ran every row." ] &&
+        pass=$((pass + 1)) || bad "${be:-cuda}: --device cpu over the key: $(device_line "$w/key/gpu" tgv)"
+}
+mkdir -p "$work/emulation" "$work/cuda"
+gpu_runs emulation
+
+# the machine's own: no GPU (CI) or one
+"$bin" study "$study" --quick --device gpu --out "$work/real" >/dev/null 2>"$work/err"
+rc=$?
+if [ $rc = 2 ]; then
+    grep -qE "without GPU support|no CUDA device" "$work/err" && pass=$((pass + 1)) ||
+        bad "no GPU: $(cat "$work/err")"
+    [ -e "$work/real" ] && bad "no GPU: --device gpu wrote $work/real" || pass=$((pass + 1))
+    "$bin" study "$work/mixed.study" --quick --device auto --out "$work/auto" >/dev/null \
+        2>"$work/err" || bad "no GPU: --device auto: $(cat "$work/err")"
+    [ "$(grep -c 'every row runs on the CPU' "$work/err")" = 1 ] && pass=$((pass + 1)) ||
+        bad "no GPU: --device auto: stderr $(cat "$work/err")"
+    same_report "$work/cpu/mixed" "$work/auto/mixed" "no GPU: --device auto" && pass=$((pass + 1))
+    [ "$(device_line "$work/auto/mixed" tgv2)" = "Device: the CPU ran every row." ] &&
+        pass=$((pass + 1)) || bad "no GPU: --device auto: $(device_line "$work/auto/mixed" tgv2)"
+elif [ $rc = 0 ]; then
+    gpu_runs ""
+else
+    bad "--device gpu: exit $rc: $(cat "$work/err")"
+fi
+summary cli_study_gpu
