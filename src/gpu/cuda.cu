@@ -6,6 +6,7 @@
 #include <cuda_runtime.h>
 #include <cub/device/device_scan.cuh>
 #include <stdio.h>
+#include <stdlib.h>
 
 #include "gpu/gpu_internal.h"
 
@@ -37,17 +38,33 @@ GPU_KERNEL(k_slots, dev_slots(&v, i))
 GPU_KERNEL(k_permute, dev_permute(&v, i))
 GPU_KERNEL(k_save, dev_save_start(&v, i))
 GPU_KERNEL(k_advance, dev_advance(&v, i, c))
-GPU_KERNEL(k_density, dev_edac_density(&v, i))
+GPU_KERNEL(k_density2, dev_edac_density_d(&v, i, 2))
+GPU_KERNEL(k_density3, dev_edac_density_d(&v, i, 3))
 GPU_KERNEL(k_wprep, dev_wcsph_prep(&v, i))
+/* The rate kernels under a register cap each (__maxnreg__): on an H200 a cap of 80 to 128 made
+ * them 1.2-2x faster than the compiler's own choice (bench/gpu_tune.sh, docs/gpu.md), in 2D
+ * with spills; 3D edac best at 128. A build with CONSPH_CUDA_MAXRREG (the sweep's cap for every
+ * kernel) leaves them uncapped, so that the cap it names is the one that holds. */
+#if defined(CONSPH_CUDA_MAXRREG_SET)
+#define GPU_RATE_KERNEL(name, regs, call) GPU_KERNEL(name, call)
+#else
+#define GPU_RATE_KERNEL(name, regs, call)                                                          \
+    __global__ void __maxnreg__(regs) name(const gpu_view v, size_t count, double c)              \
+    {                                                                                              \
+        const size_t i = (size_t)blockIdx.x * blockDim.x + threadIdx.x;                          \
+        (void)c;                                                                                   \
+        if (i < count) call;                                                                       \
+    }
+#endif
 /* one kernel per dimension and gradients: each holds only its own variant's registers */
-GPU_KERNEL(k_rates2, dev_edac_rates_d(&v, i, 2, 0))
-GPU_KERNEL(k_rates2g, dev_edac_rates_d(&v, i, 2, 1))
-GPU_KERNEL(k_rates3, dev_edac_rates_d(&v, i, 3, 0))
-GPU_KERNEL(k_rates3g, dev_edac_rates_d(&v, i, 3, 1))
-GPU_KERNEL(k_wrates2, dev_wcsph_rates_d(&v, i, 2, 0))
-GPU_KERNEL(k_wrates2g, dev_wcsph_rates_d(&v, i, 2, 1))
-GPU_KERNEL(k_wrates3, dev_wcsph_rates_d(&v, i, 3, 0))
-GPU_KERNEL(k_wrates3g, dev_wcsph_rates_d(&v, i, 3, 1))
+GPU_RATE_KERNEL(k_rates2, 80, dev_edac_rates_d(&v, i, 2, 0))
+GPU_RATE_KERNEL(k_rates2g, 80, dev_edac_rates_d(&v, i, 2, 1))
+GPU_RATE_KERNEL(k_rates3, 128, dev_edac_rates_d(&v, i, 3, 0))
+GPU_RATE_KERNEL(k_rates3g, 128, dev_edac_rates_d(&v, i, 3, 1))
+GPU_RATE_KERNEL(k_wrates2, 80, dev_wcsph_rates_d(&v, i, 2, 0))
+GPU_RATE_KERNEL(k_wrates2g, 80, dev_wcsph_rates_d(&v, i, 2, 1))
+GPU_RATE_KERNEL(k_wrates3, 80, dev_wcsph_rates_d(&v, i, 3, 0))
+GPU_RATE_KERNEL(k_wrates3g, 80, dev_wcsph_rates_d(&v, i, 3, 1))
 /* 001's family (dev_negi.h): one kernel per dimension and set of sums */
 GPU_KERNEL(k_nvol, dev_negi_volumes(&v, i))
 GPU_KERNEL(k_nfirst2r, dev_negi_first_d(&v, i, 2, 1, 1, 0, 1))
@@ -102,11 +119,33 @@ int cu_zero(void *dev, size_t bytes)
     return fail(cudaMemsetAsync(dev, 0, bytes), "cudaMemset");
 }
 
+/* Threads per block: the pair passes (density, rates) hold many registers, and smaller blocks
+ * keep more of them resident (64 was the fastest or within 3 % of it on an H200 at the rate
+ * kernels' caps, bench/gpu_tune.sh); CONSPH_GPU_BLOCK_PAIR (the pair passes) and CONSPH_GPU_BLOCK (every
+ * other kernel) override the defaults for the launch-shape sweep (bench/gpu_tune.sh). Read at
+ * each launch (a lookup in the environment, far below a launch's few microseconds); 0 with the
+ * message set when the value is not a multiple of 32 from 32 to 1024. */
+unsigned block_size(gpu_kernel k)
+{
+    const int pair = k == GK_DENSITY || k == GK_RATES;
+    const char *name = pair ? "CONSPH_GPU_BLOCK_PAIR" : "CONSPH_GPU_BLOCK";
+    const char *e = getenv(name);
+    if (!e || !*e) return pair ? 64u : 256u;
+    char *end = NULL;
+    const long b = strtol(e, &end, 10);
+    if (*end || b < 32 || b > 1024 || b % 32) {
+        snprintf(cuda_err, sizeof cuda_err,
+                 "%s=%s: threads per block must be a multiple of 32 from 32 to 1024", name, e);
+        return 0;
+    }
+    return (unsigned)b;
+}
+
 int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
 {
     if (count == 0) return 0;
-    /* the pair passes hold many registers: smaller blocks keep more of them resident */
-    const unsigned threads = (k == GK_DENSITY || k == GK_RATES) ? 128u : 256u;
+    const unsigned threads = block_size(k);
+    if (!threads) return 1;
     const unsigned blocks = (unsigned)((count + threads - 1) / threads);
     switch (k) {
     case GK_BIN: k_bin<<<blocks, threads>>>(*v, count, c); break;
@@ -118,7 +157,9 @@ int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_SAVE: k_save<<<blocks, threads>>>(*v, count, c); break;
     case GK_ADVANCE: k_advance<<<blocks, threads>>>(*v, count, c); break;
     case GK_DENSITY:
-        (v->scheme == GS_EDAC ? k_density : k_wprep)<<<blocks, threads>>>(*v, count, c);
+        (v->scheme != GS_EDAC ? k_wprep
+         : v->d == 2          ? k_density2
+                              : k_density3)<<<blocks, threads>>>(*v, count, c);
         break;
     case GK_RATES:
         if (v->scheme == GS_EDAC && v->d == 2)

@@ -42,6 +42,13 @@
 #define GPU_FN_INLINE static inline
 #endif
 
+/* A load of what no thread of the kernel writes, through the GPU's read-only data path. */
+#if defined(__CUDA_ARCH__)
+#define GPU_LDG(p) __ldg(p)
+#else
+#define GPU_LDG(p) (*(p))
+#endif
+
 /* The search grid, as src/nnps/nnps.c sets it up (gpu.c's grid_setup), padded to three axes. */
 typedef struct gpu_grid {
     int dim;
@@ -115,10 +122,18 @@ typedef struct gpu_view {
     double *vol, *mrho; /* edac: 1/Σ W and m/ϱ of the density pass; wcsph: p/ϱ², m/ϱ (n each) */
     double *cs;         /* wcsph: Tait's sound speed of each particle (n) */
     double *xs;         /* d arrays of n: the coordinates in slot order */
-    uint32_t *cell;     /* n: the cell of each particle */
-    uint32_t *count;    /* ncells + 1: particles per cell, then the scatter's fill */
-    uint32_t *start;    /* ncells + 1: the first slot of each cell */
-    uint32_t *order;    /* n: the particle in each slot */
+    /* n records of 4 doubles in slot order: the coordinates and edac's p (x, y, p, 0 in 2D;
+     * x, y, z, p in 3D), what the walk of the passes reads of each candidate in 16-byte loads */
+    double *xp;
+    uint32_t *slot_of; /* n: the slot of each particle (order's inverse) */
+    /* n records of gpu_pack_width doubles in slot order: what the rate pass reads of each
+     * neighbour (written by the pass before it), so that a pair reads one record, not one value
+     * from each of a dozen arrays */
+    double *pack;
+    uint32_t *cell;  /* n: the cell of each particle */
+    uint32_t *count; /* ncells + 1: particles per cell, then the scatter's fill */
+    uint32_t *start; /* ncells + 1: the first slot of each cell */
+    uint32_t *order; /* n: the particle in each slot */
     /* 001's family (GS_NEGI): the terms of the scheme's rates, q = p (evolve_p) or ϱ, ν (Cleary's
      * ν ρ_o), the δ-term's D, the kit's cond_max; the sums of the kit's first pass now run (∇p,
      * G, ∇q, ∇·u stored) and its second (∇²u, ∇²q); IPST's h and h^d */
@@ -209,12 +224,20 @@ GPU_FN void dev_cell_sort(const gpu_view *v, size_t c)
     }
 }
 
-/* The search's copy of the coordinates in slot order. */
+/* The search's copies of the coordinates in slot order (xs, and xp with edac's p beside them:
+ * the density pass reads its neighbours' p), and each particle's slot. */
 GPU_FN void dev_slots(const gpu_view *v, size_t s)
 {
     const uint32_t i = v->order[s];
-    for (int a = 0; a < v->d; ++a)
-        v->xs[(size_t)a * v->n + s] = gpu_stored(&v->g, a, gv(v, GA_X, a)[i]);
+    double *rec = v->xp + 4 * s;
+    rec[2] = rec[3] = 0.0;
+    for (int a = 0; a < v->d; ++a) {
+        const double x = gpu_stored(&v->g, a, gv(v, GA_X, a)[i]);
+        v->xs[(size_t)a * v->n + s] = x;
+        rec[a] = x;
+    }
+    if (v->scheme == GS_EDAC) rec[v->d] = gv(v, GA_P, 0)[i];
+    v->slot_of[i] = (uint32_t)s;
 }
 
 /* Re-sorting into cell order: b = a permuted, new[s] = old[order[s]] (consph_particles_permute
@@ -404,6 +427,253 @@ GPU_FN int gpu_walk_next(const gpu_view *v, gpu_walk *w, uint32_t *j, double dx[
     }
 }
 
+/* ---- the neighbour walk for a dimension known at compile time, by rows of cells ----
+ * The same neighbours in the same order, with the same arithmetic, as gpu_walk_*, walked by rows
+ * of cells along axis 0: cells u0 .. u0 + k of a row are adjacent in the counting sort, so their
+ * slots are one range, read as one (split only where a periodic axis 0 wraps, the image shift
+ * changing). A row is skipped when its gap along axes 1 and 2 alone puts every cell of it beyond
+ * the radius, and trimmed at each end by gpu_walk_cell's own test, so that every cell the cell
+ * walk reads is read (rounding is monotone: a row's bound never exceeds a cell's gap), and the
+ * few cells between read more are only extra candidates, never neighbours. D is a constant once
+ * inlined (the loops over axes unroll), the cell coordinates are 32-bit (gpu_attach bounds the
+ * reach), and the walk yields slots: the passes read their neighbours' values in slot order (xp,
+ * pack), not through the particle index. */
+typedef struct gpu_walkr {
+    int u[3], ua[3], ub[3]; /* u[1], u[2]: the current row */
+    int u0, last0;          /* the row's next cell along axis 0, and its last */
+    double xi[3], q[3];
+    double g1, g2; /* the row's squared gaps along axes 1 and 2 */
+    size_t row;    /* the row's first cell index without axis 0: (c2 nc1 + c1) nc0 */
+    uint32_t s, s1;
+} gpu_walkr;
+
+GPU_FN int gpu_floor_div32(int u, int d)
+{
+    if (u >= 0 && u < d) return 0;
+    if (u < 0 && u >= -d) return -1;
+    const int q = u / d;
+    return (u % d != 0 && u < 0) ? q - 1 : q;
+}
+
+/* gpu_walk_cell's gap of cell u along axis a from x. */
+GPU_FN_INLINE double gpu_gap(const gpu_grid *g, int a, int u, double x)
+{
+    const double lo = g->lo[a] + (double)u * g->h[a];
+    const double hi = g->lo[a] + (double)(u + 1) * g->h[a];
+    const int open_lo = !g->periodic[a] && u == 0;
+    const int open_hi = !g->periodic[a] && u == (int)g->nc[a] - 1;
+    return (!open_lo && x < lo) ? lo - x : (!open_hi && x > hi) ? x - hi : 0.0;
+}
+
+/* gpu_walk_cell's pruning of cell u0 of the current row, its sum in the same order. */
+GPU_FN_INLINE int gpu_walkr_far(const gpu_view *v, const gpu_walkr *w, int u0, const int D)
+{
+    const double g0 = gpu_gap(&v->g, 0, u0, w->xi[0]);
+    double gap2 = 0.0;
+    gap2 += g0 * g0;
+    if (D > 1) gap2 += w->g1;
+    if (D > 2) gap2 += w->g2;
+    return gap2 > v->g.prune2;
+}
+
+/* Sets the walk on row (u[1], u[2]); 0 when no cell of it can hold a neighbour. */
+GPU_FN_INLINE int gpu_walkr_row(const gpu_view *v, gpu_walkr *w, const int D)
+{
+    const gpu_grid *g = &v->g;
+    w->g1 = w->g2 = 0.0;
+    if (D > 1) {
+        const double g1 = gpu_gap(g, 1, w->u[1], w->xi[1]);
+        w->g1 = g1 * g1;
+    }
+    if (D > 2) {
+        const double g2 = gpu_gap(g, 2, w->u[2], w->xi[2]);
+        w->g2 = g2 * g2;
+    }
+    double bound = 0.0;
+    if (D > 1) bound += w->g1;
+    if (D > 2) bound += w->g2;
+    if (bound > g->prune2) return 0;
+    int first = w->ua[0], last = w->ub[0];
+    while (first <= last && gpu_walkr_far(v, w, first, D)) ++first;
+    while (last >= first && gpu_walkr_far(v, w, last, D)) --last;
+    if (first > last) return 0;
+    size_t row = 0;
+    for (int a = D - 1; a >= 1; --a) {
+        const int nc = (int)g->nc[a];
+        int ca = w->u[a];
+        double shift = 0.0;
+        if (g->periodic[a]) {
+            const int m = gpu_floor_div32(w->u[a], nc);
+            ca = w->u[a] - m * nc;
+            shift = (double)m * g->len[a];
+        }
+        row = row * (size_t)nc + (size_t)ca;
+        w->q[a] = w->xi[a] - shift;
+    }
+    w->row = row * (size_t)g->nc[0];
+    w->u0 = first;
+    w->last0 = last;
+    return 1;
+}
+
+/* The next range of slots of the row: its cells from u0 to the row's last or the wrap of a
+ * periodic axis 0, whichever comes first. */
+GPU_FN_INLINE void gpu_walkr_range(const gpu_view *v, gpu_walkr *w)
+{
+    const gpu_grid *g = &v->g;
+    const int nc = (int)g->nc[0];
+    int c0 = w->u0;
+    double shift = 0.0;
+    if (g->periodic[0]) {
+        const int m = gpu_floor_div32(w->u0, nc);
+        c0 = w->u0 - m * nc;
+        shift = (double)m * g->len[0];
+    }
+    int k = w->last0 - w->u0; /* cells after the first */
+    if (k > nc - 1 - c0) k = nc - 1 - c0;
+    w->q[0] = w->xi[0] - shift;
+    w->s = GPU_LDG(&v->start[w->row + (size_t)c0]);
+    w->s1 = GPU_LDG(&v->start[w->row + (size_t)(c0 + k + 1)]);
+    w->u0 += k + 1;
+}
+
+/* Moves to the next row that may hold a neighbour, from the current one; 0 at the end. */
+GPU_FN_INLINE int gpu_walkr_seek(const gpu_view *v, gpu_walkr *w, const int D)
+{
+    for (;;) {
+        if (gpu_walkr_row(v, w, D)) return 1;
+        int a = 1;
+        while (a < D && ++w->u[a] > w->ub[a]) {
+            w->u[a] = w->ua[a];
+            ++a;
+        }
+        if (a == D) return 0;
+    }
+}
+
+/* A candidate's coordinates from its xp record (one 16-byte load in 2D, two in 3D). */
+GPU_FN_INLINE void gpu_xp_read(const double *rec, double x[4], const int D)
+{
+#if defined(__CUDA_ARCH__)
+    const double2 a = __ldg((const double2 *)rec);
+    x[0] = a.x;
+    x[1] = a.y;
+    x[2] = x[3] = 0.0;
+    if (D > 2) {
+        const double2 b = __ldg((const double2 *)(rec + 2));
+        x[2] = b.x;
+    }
+#else
+    for (int a = 0; a < 4; ++a) x[a] = a < D ? rec[a] : 0.0;
+#endif
+}
+
+/* Starts the walk of particle i at its first row. */
+GPU_FN_INLINE void gpu_walkr_start(const gpu_view *v, size_t i, gpu_walkr *w, const int D)
+{
+    const gpu_grid *g = &v->g;
+    for (int a = 0; a < D; ++a) {
+        const int nc = (int)g->nc[a], reach = (int)g->reach[a];
+        w->xi[a] = gpu_stored(g, a, gv(v, GA_X, a)[i]);
+        w->q[a] = 0.0; /* set by every row and range that is read */
+        const int c = (int)gpu_cell_axis(g, a, w->xi[a]);
+        w->ua[a] = c - reach;
+        w->ub[a] = c + reach;
+        if (!g->periodic[a]) {
+            if (w->ua[a] < 0) w->ua[a] = 0;
+            if (w->ub[a] > nc - 1) w->ub[a] = nc - 1;
+        }
+        w->u[a] = w->ua[a];
+    }
+    w->s = w->s1 = 0;
+    w->row = 0;
+    w->u0 = 1;
+    w->last0 = 0;
+    gpu_walkr_seek(v, w, D); /* i's own cell is never pruned: a row is found */
+}
+
+/* The next neighbour's slot (i's own among them, at r = 0), with x_ij and r; 0 at the end. */
+GPU_FN_INLINE int gpu_walkr_next(const gpu_view *v, gpu_walkr *w, const int D, uint32_t *slot,
+                                 double dx[3], double *r)
+{
+    for (;;) {
+        while (w->s < w->s1) {
+            const uint32_t s = w->s++;
+            double x[4];
+            gpu_xp_read(v->xp + 4 * (size_t)s, x, D);
+            const double d0 = w->q[0] - x[0];
+            double rr = d0 * d0;
+            dx[0] = d0;
+            dx[1] = dx[2] = 0.0;
+            if (D > 1) {
+                const double d1 = w->q[1] - x[1];
+                rr += d1 * d1;
+                dx[1] = d1;
+            }
+            if (D > 2) {
+                const double d2 = w->q[2] - x[2];
+                rr += d2 * d2;
+                dx[2] = d2;
+            }
+            if (rr < v->g.radius2) {
+                *slot = s;
+                *r = sqrt(rr);
+                return 1;
+            }
+        }
+        if (w->u0 <= w->last0) {
+            gpu_walkr_range(v, w);
+            continue;
+        }
+        /* the next row: axis 1 innermost, ascending */
+        int a = 1;
+        while (a < D && ++w->u[a] > w->ub[a]) {
+            w->u[a] = w->ua[a];
+            ++a;
+        }
+        if (a == D || !gpu_walkr_seek(v, w, D)) return 0;
+    }
+}
+
+/* The next neighbour other than i itself (slot self): the rate passes' sums leave out j = i,
+ * where ∇W_ii = 0. */
+GPU_FN_INLINE int gpu_walkr_other(const gpu_view *v, gpu_walkr *w, const int D, uint32_t self,
+                                  uint32_t *slot, double dx[3], double *r)
+{
+    while (gpu_walkr_next(v, w, D, slot, dx, r))
+        if (*slot != self) return 1; /* every image of i is left out, as j == i is on the CPU */
+    return 0;
+}
+
+/* Neighbours whose pair terms a rate pass computes at once (1 or 2): two independent pair
+ * computations give the GPU two chains of divisions and square roots to interleave, where one
+ * thread's chain would wait on each; the sums still add the pairs one at a time, in the
+ * neighbour order, so the results are the same bits either way. */
+#ifndef CONSPH_GPU_PAIRS
+#define CONSPH_GPU_PAIRS 1
+#endif
+
+/* ---- the neighbour records (gpu_view's pack) ----
+ * edac: ϱ, p, V, m/ϱ, u, ũ - u (4 + 2d); wcsph: ϱ, p/ϱ², m/ϱ, c_s, u (4 + d, padded to even):
+ * an even width keeps every record on 16 bytes, read in pairs of doubles. */
+GPU_FN int gpu_pack_width(int scheme, int d)
+{
+    return scheme == GS_EDAC ? 4 + 2 * d : (4 + d + 1) & ~1;
+}
+
+GPU_FN_INLINE void gpu_pack_read(const double *rec, double *q, const int K)
+{
+#if defined(__CUDA_ARCH__)
+    for (int k = 0; k < K; k += 2) {
+        const double2 t = __ldg((const double2 *)(rec + k));
+        q[k] = t.x;
+        q[k + 1] = t.y;
+    }
+#else
+    for (int k = 0; k < K; ++k) q[k] = rec[k];
+#endif
+}
+
 /* ---- the quintic spline (src/kernels/kernels.c) ---- */
 GPU_FN double gpu_pos(double t)
 {
@@ -458,26 +728,75 @@ GPU_FN double gpu_d2w(const gpu_kern *k, double r)
 
 /* ---- edac's passes (src/schemes/pysph/scheme.c) ---- */
 
-/* Summation density ϱ = m Σ W, 1/V, m/ϱ and the neighbour average p̄ (visit_density). */
-GPU_FN void dev_edac_density(const gpu_view *v, size_t i)
+/* Summation density ϱ = m Σ W, 1/V, m/ϱ and the neighbour average p̄ (visit_density); then the
+ * particle's record for the rate pass. */
+GPU_FN_INLINE void dev_edac_density_d(const gpu_view *v, size_t i, const int D)
 {
-    const double *p = gv(v, GA_P, 0);
-    gpu_walk w;
-    gpu_walk_start(v, i, &w);
-    double s = 0.0, ps = 0.0, dx[3], r;
+    const double *ps = v->xp + D; /* p in slot order, stride 4 */
+    gpu_walkr w;
+    gpu_walkr_start(v, i, &w, D);
+    double s = 0.0, psum = 0.0, dx[3], r;
     size_t cnt = 0;
-    uint32_t j;
-    while (gpu_walk_next(v, &w, &j, dx, &r)) {
+    uint32_t sl;
+    while (gpu_walkr_next(v, &w, D, &sl, dx, &r)) {
         s += gpu_w(&v->k, r);
-        ps += p[j];
+        psum += GPU_LDG(&ps[4 * (size_t)sl]);
         ++cnt;
     }
-    const double m = v->c.m, rhos = m * s;
+    const double m = v->c.m, rhos = m * s, vol = 1.0 / s, mrho = m / rhos;
     gv(v, GA_NUMD, 0)[i] = s;
     gv(v, GA_RHOS, 0)[i] = rhos;
-    v->vol[i] = 1.0 / s;
-    v->mrho[i] = m / rhos;
-    gv(v, GA_PAVG, 0)[i] = ps / (double)cnt;
+    v->vol[i] = vol;
+    v->mrho[i] = mrho;
+    gv(v, GA_PAVG, 0)[i] = psum / (double)cnt;
+    double *rec = v->pack + (size_t)v->slot_of[i] * (size_t)(4 + 2 * D);
+    rec[0] = rhos;
+    rec[1] = gv(v, GA_P, 0)[i];
+    rec[2] = vol;
+    rec[3] = mrho;
+    for (int a = 0; a < D; ++a) {
+        rec[4 + a] = gv(v, GA_U, a)[i];
+        rec[4 + D + a] = gv(v, GA_TVDU, a)[i];
+    }
+}
+
+GPU_FN void dev_edac_density(const gpu_view *v, size_t i)
+{
+    if (v->d == 2)
+        dev_edac_density_d(v, i, 2);
+    else
+        dev_edac_density_d(v, i, 3);
+}
+
+/* edac's pair term of i and the neighbour in slot sl (its values from the slot's record). */
+GPU_FN_INLINE void gpu_edac_pair(const gpu_view *v, const int d, double rhoi, double pi, double pav,
+                                 double Vi, const double ui[3], const double dui[3], uint32_t sl,
+                                 const double xij[3], double r, pysph_pair *o)
+{
+    double q[10], uj[3] = {0.0, 0.0, 0.0}, duj[3] = {0.0, 0.0, 0.0};
+    gpu_pack_read(v->pack + (size_t)sl * (size_t)(4 + 2 * d), q, 4 + 2 * d);
+    for (int a = 0; a < d; ++a) {
+        uj[a] = q[4 + a];
+        duj[a] = q[4 + d + a];
+    }
+    pysph_tv_pair(d, 1, &v->c, rhoi, pi, pav, Vi, ui, dui, q[0], q[1], q[2], q[3], uj, duj,
+                  gpu_dwr(&v->k, r), xij, r, o);
+}
+
+/* One pair added into edac's sums, each in visit_tv_d's order. */
+GPU_FN_INLINE void gpu_edac_add(const pysph_pair *o, const int d, const int grads, double f[3],
+                                double fb[3], double fp[3], double G[9], double *div, double *ap)
+{
+    for (int a = 0; a < d; ++a) {
+        f[a] += o->f[a];
+        fb[a] += o->fb[a];
+        if (grads) fp[a] += o->fp[a];
+    }
+    if (grads)
+        for (int e = 0; e < d * d; ++e) G[e] -= o->g[e];
+    *div -= o->div;
+    *ap += o->q1;
+    *ap += o->q2;
 }
 
 /* The rates of tvf/edac at particle i (visit_tv_d with edac; the closure ϱ = m Σ W after), for
@@ -494,30 +813,30 @@ GPU_FN_INLINE void dev_edac_rates_d(const gpu_view *v, size_t i, const int d, co
     }
     double f[3] = {0.0, 0.0, 0.0}, fb[3] = {0.0, 0.0, 0.0}, fp[3] = {0.0, 0.0, 0.0}, ap = 0.0;
     double G[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, div = 0.0;
-    gpu_walk w;
-    gpu_walk_start(v, i, &w);
-    double xij[3], r;
-    uint32_t j;
-    while (gpu_walk_next(v, &w, &j, xij, &r)) {
-        if (j == i) continue; /* ∇W_ii = 0: no force on itself */
-        double uj[3] = {0.0, 0.0, 0.0}, duj[3] = {0.0, 0.0, 0.0};
-        for (int a = 0; a < d; ++a) {
-            uj[a] = gv(v, GA_U, a)[j];
-            duj[a] = gv(v, GA_TVDU, a)[j];
+    const uint32_t self = v->slot_of[i];
+    gpu_walkr w;
+    gpu_walkr_start(v, i, &w, d);
+    double xa[3], xb[3], ra, rb;
+    uint32_t sa, sb;
+    while (gpu_walkr_other(v, &w, d, self, &sa, xa, &ra)) {
+        /* with two at once, a missing second repeats the first, computed and not added */
+        int hb = 0;
+        if (CONSPH_GPU_PAIRS == 2) {
+            hb = gpu_walkr_other(v, &w, d, self, &sb, xb, &rb);
+            if (!hb) {
+                sb = sa;
+                rb = ra;
+                for (int a = 0; a < 3; ++a) xb[a] = xa[a];
+            }
         }
-        pysph_pair o;
-        pysph_tv_pair(d, 1, c, rhoi, pi, pav, Vi, ui, dui, rho[j], p[j], v->vol[j], v->mrho[j], uj,
-                      duj, gpu_dwr(&v->k, r), xij, r, &o);
-        for (int a = 0; a < d; ++a) {
-            f[a] += o.f[a];
-            fb[a] += o.fb[a];
-            if (grads) fp[a] += o.fp[a];
+        pysph_pair oa, ob;
+        gpu_edac_pair(v, d, rhoi, pi, pav, Vi, ui, dui, sa, xa, ra, &oa);
+        if (CONSPH_GPU_PAIRS == 2) gpu_edac_pair(v, d, rhoi, pi, pav, Vi, ui, dui, sb, xb, rb, &ob);
+        gpu_edac_add(&oa, d, grads, f, fb, fp, G, &div, &ap);
+        if (CONSPH_GPU_PAIRS == 2) {
+            if (!hb) break;
+            gpu_edac_add(&ob, d, grads, f, fb, fp, G, &div, &ap);
         }
-        if (grads)
-            for (int e = 0; e < d * d; ++e) G[e] -= o.g[e];
-        div -= o.div;
-        ap += o.q1;
-        ap += o.q2;
     }
     for (int a = 0; a < d; ++a) {
         gv(v, GA_AU, a)[i] = f[a] / c->m;
@@ -563,16 +882,61 @@ GPU_FN double gpu_ipow(double x, int n)
 GPU_FN void dev_wcsph_prep(const gpu_view *v, size_t i)
 {
     const double rho = gv(v, GA_RHOF, 0)[i], p = gv(v, GA_P, 0)[i];
-    v->vol[i] = p / (rho * rho);
-    if (v->grads) v->mrho[i] = v->c.m / rho;
-    if (v->av) v->cs[i] = v->c.c0 * gpu_ipow(rho / v->rho0, v->cs_exp);
+    const double pr2 = p / (rho * rho);
+    const double mrho = v->grads ? v->c.m / rho : 0.0;
+    const double cs = v->av ? v->c.c0 * gpu_ipow(rho / v->rho0, v->cs_exp) : 0.0;
+    v->vol[i] = pr2;
+    if (v->grads) v->mrho[i] = mrho;
+    if (v->av) v->cs[i] = cs;
+    double *rec = v->pack + (size_t)v->slot_of[i] * (size_t)gpu_pack_width(GS_WCSPH, v->d);
+    rec[0] = rho;
+    rec[1] = pr2;
+    rec[2] = mrho;
+    rec[3] = cs;
+    for (int a = 0; a < v->d; ++a) rec[4 + a] = gv(v, GA_U, a)[i];
+    if (v->d == 3) rec[7] = 0.0;
+}
+
+/* wcsph's pair term of i and the neighbour in slot sl (its values from the slot's record), with
+ * Monaghan's Π where α > 0. */
+GPU_FN_INLINE void gpu_wcsph_pair(const gpu_view *v, const int d, const int grads, double rhoi,
+                                  double ti, double ci, const double ui[3], uint32_t sl,
+                                  const double xij[3], double r, pysph_pair *o)
+{
+    const pysph_consts *c = &v->c;
+    const int K = (4 + d + 1) & ~1; /* gpu_pack_width */
+    double q[8], uj[3] = {0.0, 0.0, 0.0};
+    gpu_pack_read(v->pack + (size_t)sl * (size_t)K, q, K);
+    for (int a = 0; a < d; ++a) uj[a] = q[4 + a];
+    const double inv_s = 1.0 / (rhoi + q[0]), inv_r = 1.0 / (r * r + c->h2);
+    double pij = 0.0;
+    if (v->av) {
+        double ux = 0.0;
+        for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
+        pij = pysph_monaghan_pi(c, ci, q[3], ux, inv_r, inv_s);
+    }
+    pysph_wcsph_pair(d, c, ti, ui, q[1], grads ? q[2] : 0.0, uj, pij, gpu_w(&v->k, r),
+                     gpu_dwr(&v->k, r), xij, inv_s, inv_r, o);
+}
+
+/* One pair added into wcsph's sums, each in visit_wcsph_d's order. */
+GPU_FN_INLINE void gpu_wcsph_add(const pysph_pair *o, const int d, const int grads, double f[3],
+                                 double xs[3], double fp[3], double G[9], double *drho)
+{
+    for (int a = 0; a < d; ++a) {
+        f[a] += o->f[a];
+        xs[a] -= o->fb[a];
+        if (grads) fp[a] += o->fp[a];
+    }
+    *drho += o->div;
+    if (grads)
+        for (int e = 0; e < d * d; ++e) G[e] -= o->g[e];
 }
 
 /* visit_wcsph_d: the symmetric pressure force with Π_ij, the laminar viscosity, XSPH and the
  * continuity equation at particle i. */
 GPU_FN_INLINE void dev_wcsph_rates_d(const gpu_view *v, size_t i, const int d, const int grads)
 {
-    const pysph_consts *c = &v->c;
     const double *rho = gv(v, GA_RHOF, 0), *pr2 = v->vol;
     const double rhoi = rho[i], ti = pr2[i];
     const int av = v->av;
@@ -581,32 +945,30 @@ GPU_FN_INLINE void dev_wcsph_rates_d(const gpu_view *v, size_t i, const int d, c
     for (int a = 0; a < d; ++a) ui[a] = gv(v, GA_U, a)[i];
     double f[3] = {0.0, 0.0, 0.0}, xs[3] = {0.0, 0.0, 0.0}, fp[3] = {0.0, 0.0, 0.0}, drho = 0.0;
     double G[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
-    gpu_walk w;
-    gpu_walk_start(v, i, &w);
-    double xij[3], r;
-    uint32_t j;
-    while (gpu_walk_next(v, &w, &j, xij, &r)) {
-        if (j == i) continue;
-        double uj[3] = {0.0, 0.0, 0.0};
-        for (int a = 0; a < d; ++a) uj[a] = gv(v, GA_U, a)[j];
-        const double inv_s = 1.0 / (rhoi + rho[j]), inv_r = 1.0 / (r * r + c->h2);
-        double pij = 0.0;
-        if (av) {
-            double ux = 0.0;
-            for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
-            pij = pysph_monaghan_pi(c, ci, v->cs[j], ux, inv_r, inv_s);
+    const uint32_t self = v->slot_of[i];
+    gpu_walkr w;
+    gpu_walkr_start(v, i, &w, d);
+    double xa[3], xb[3], ra, rb;
+    uint32_t sa, sb;
+    while (gpu_walkr_other(v, &w, d, self, &sa, xa, &ra)) {
+        /* with two at once, a missing second repeats the first, computed and not added */
+        int hb = 0;
+        if (CONSPH_GPU_PAIRS == 2) {
+            hb = gpu_walkr_other(v, &w, d, self, &sb, xb, &rb);
+            if (!hb) {
+                sb = sa;
+                rb = ra;
+                for (int a = 0; a < 3; ++a) xb[a] = xa[a];
+            }
         }
-        pysph_pair o;
-        pysph_wcsph_pair(d, c, ti, ui, pr2[j], grads ? v->mrho[j] : 0.0, uj, pij, gpu_w(&v->k, r),
-                         gpu_dwr(&v->k, r), xij, inv_s, inv_r, &o);
-        for (int a = 0; a < d; ++a) {
-            f[a] += o.f[a];
-            xs[a] -= o.fb[a];
-            if (grads) fp[a] += o.fp[a];
+        pysph_pair oa, ob;
+        gpu_wcsph_pair(v, d, grads, rhoi, ti, ci, ui, sa, xa, ra, &oa);
+        if (CONSPH_GPU_PAIRS == 2) gpu_wcsph_pair(v, d, grads, rhoi, ti, ci, ui, sb, xb, rb, &ob);
+        gpu_wcsph_add(&oa, d, grads, f, xs, fp, G, &drho);
+        if (CONSPH_GPU_PAIRS == 2) {
+            if (!hb) break;
+            gpu_wcsph_add(&ob, d, grads, f, xs, fp, G, &drho);
         }
-        drho += o.div;
-        if (grads)
-            for (int e = 0; e < d * d; ++e) G[e] -= o.g[e];
     }
     for (int a = 0; a < d; ++a) {
         gv(v, GA_AU, a)[i] = f[a];

@@ -378,10 +378,10 @@ void gpu_free(gpu_run *g)
 {
     if (!g) return;
     const gpu_backend *be = g->be;
-    void *bufs[] = {g->dev_a[0], g->dev_a[1], g->v.vol,     g->v.mrho,    g->v.cs,
-                    g->v.xs,     g->v.cell,   g->v.count,   g->v.start,   g->v.order,
-                    g->v.step,   g->v.total,  g->v.chi_max, g->jcell,     g->jcount,
-                    g->jstart,   g->jorder,   g->jxs,       g->v.bonet_ok};
+    void *bufs[] = {g->dev_a[0],   g->dev_a[1],  g->v.vol,   g->v.mrho,  g->v.cs,   g->v.xs,
+                    g->v.cell,     g->v.count,   g->v.start, g->v.order, g->v.step, g->v.total,
+                    g->v.chi_max,  g->jcell,     g->jcount,  g->jstart,  g->jorder, g->jxs,
+                    g->v.bonet_ok, g->v.slot_of, g->v.pack,  g->v.xp};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k)
         if (bufs[k]) be->release(bufs[k]);
     free(g);
@@ -493,6 +493,11 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
         st = consph_fail(CONSPH_EINVAL, "--device gpu: wcsph's sound speed needs an odd γ, not %g",
                          s->prm.gamma);
     grid_setup(&v->g, &p->box, d, consph_nnps_radius(s->sys.nnps), p->n);
+    /* dev.h's walk holds cell coordinates in 32 bits: c ± reach with c < 2^30 */
+    for (int a = 0; st == CONSPH_OK && a < d; ++a)
+        if (v->g.reach[a] > (1 << 29))
+            st = consph_fail(CONSPH_EINVAL, "GPU: the search reaches %lld cells along axis %d",
+                             (long long)v->g.reach[a], a);
     if (st == CONSPH_OK && v->g.ncells != consph_nnps_cells(s->sys.nnps))
         st = consph_fail(CONSPH_EINVAL, "GPU: %zu cells, the CPU search has %zu", v->g.ncells,
                          consph_nnps_cells(s->sys.nnps));
@@ -519,12 +524,17 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
      * mrho and its two shifts */
     const size_t nvol = negi ? 1 : n * sizeof(double), ncs = v->scheme == GS_WCSPH ? n : 1;
     const size_t nstep = negi ? (size_t)d * n * sizeof(double) : 1;
+    /* the rate passes' neighbour records: edac's and wcsph's (dev.h's gpu_pack_width) */
+    const size_t npack = negi ? 1 : (size_t)(4 + 2 * d) * n;
     s->gpu = g;
     if (st == CONSPH_OK &&
         (be->alloc((void **)&g->dev_a[0], nd) || be->alloc((void **)&g->dev_a[1], nd) ||
          be->alloc((void **)&v->vol, nvol) || be->alloc((void **)&v->mrho, n * sizeof(double)) ||
          be->alloc((void **)&v->cs, ncs * sizeof(double)) ||
          be->alloc((void **)&v->xs, (size_t)d * n * sizeof(double)) ||
+         be->alloc((void **)&v->xp, 4 * n * sizeof(double)) ||
+         be->alloc((void **)&v->slot_of, n * sizeof(uint32_t)) ||
+         be->alloc((void **)&v->pack, npack * sizeof(double)) ||
          be->alloc((void **)&v->cell, n * sizeof(uint32_t)) || be->alloc((void **)&v->count, nc) ||
          be->alloc((void **)&v->start, nc) || be->alloc((void **)&v->order, n * sizeof(uint32_t)) ||
          be->alloc((void **)&v->step, nstep) || be->alloc((void **)&v->total, nstep) ||
@@ -543,8 +553,8 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     v->b = g->dev_a[1];
     v->chi = v->mrho;
     g->bytes = 2 * nd + nvol + n * sizeof(double) + ncs * sizeof(double) +
-               (size_t)d * n * sizeof(double) + 2 * n * sizeof(uint32_t) + 2 * nc + 2 * nstep +
-               (negi ? n : 1);
+               (size_t)(d + 4) * n * sizeof(double) + npack * sizeof(double) +
+               3 * n * sizeof(uint32_t) + 2 * nc + 2 * nstep + (negi ? n : 1);
     if (lattice) g->bytes += 2 * n * sizeof(uint32_t) + 2 * njc + (size_t)d * n * sizeof(double);
     if (st == CONSPH_OK) st = copy_arrays(s, 1);
     if (st != CONSPH_OK) {
