@@ -3,7 +3,8 @@
  *
  *   mpirun -np K build/bench/bench_par PROBLEM SCHEME NX STEPS [key=value ...]
  *
- * Set-up (every rank makes the whole solver, then it is cut) is not timed; the steps are. Rank 0
+ * Set-up (consph_par_solver_create: every rank makes the whole set's particles, then they are
+ * cut) is not timed; the steps are. Rank 0
  * prints one line per rank and the totals. Without MPI it runs the serial solver. */
 #include <stdio.h>
 #include <stdlib.h>
@@ -26,6 +27,7 @@ int main(int argc, char **argv)
     int rank = 0, size = 1;
 #ifdef CONSPH_HAVE_MPI
     MPI_Init(&argc, &argv);
+    consph_par_init(&argc, &argv); /* joins this world */
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);
 #endif
@@ -48,9 +50,11 @@ int main(int argc, char **argv)
     }
     prm.tf = 0.0;
     consph_solver *s = NULL;
-    if (st == CONSPH_OK) st = consph_solver_create(&s, &prm);
-    const size_t whole = st == CONSPH_OK ? s->sys.p->n : 0;
-    if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
+    if (st == CONSPH_OK) st = consph_par_solver_create(&s, &prm, NULL, NULL);
+    size_t own = 0;
+    for (size_t i = 0; st == CONSPH_OK && i < s->sys.p->n; ++i)
+        own += !s->sys.dest || s->sys.dest[i];
+    const size_t whole = (size_t)consph_par_sum_long((long)own);
     double b0 = 0.0, c0 = 0.0, t0 = consph_wtime();
     if (st == CONSPH_OK) consph_par_solver_comm(s, &b0, &c0);
     while (st == CONSPH_OK && !consph_solver_done(s)) st = consph_solver_step(s);
@@ -58,13 +62,14 @@ int main(int argc, char **argv)
     if (st != CONSPH_OK) {
         if (rank == 0) fprintf(stderr, "bench_par: %s\n", consph_last_error());
 #ifdef CONSPH_HAVE_MPI
+        consph_par_finalize();
         MPI_Finalize();
 #endif
         return 1;
     }
     double b1 = 0.0, c1 = 0.0;
     consph_par_solver_comm(s, &b1, &c1);
-    size_t own = 0;
+    own = 0;
     for (size_t i = 0; i < s->sys.p->n; ++i) own += !s->sys.dest || s->sys.dest[i];
     /* per rank: owned, held, seconds, bytes sent, MPI seconds */
     double mine[5] = {(double)own, (double)s->sys.p->n, secs, b1 - b0, c1 - c0};
@@ -96,6 +101,7 @@ int main(int argc, char **argv)
     free(all);
     consph_solver_free(s);
 #ifdef CONSPH_HAVE_MPI
+    consph_par_finalize();
     MPI_Finalize();
 #endif
     return 0;

@@ -4,6 +4,7 @@
  * particles change cells and ranks) and of 3D Beltrami; a run's files (snapshots, log, summary,
  * checkpoint) on 2 and 3 ranks equal the serial run's; a checkpoint restarts on 2 and 3 ranks
  * to the serial run's final files; a launch on more ranks than slabs is refused on every rank;
+ * the cases are cut at the set-up (consph_par_solver_create), the files' runs after it;
  * the halo refresh sends only changed columns and leaves the halo equal to its owners.
  *
  * Run without mpirun, the test computes the serial references and launches itself under
@@ -164,17 +165,25 @@ static int run_case(const par_case *c, const char *path)
 {
     consph_run_params prm = case_params(c);
     consph_solver *s = NULL;
-    int st = consph_solver_create(&s, &prm);
-    const size_t whole = st == CONSPH_OK ? s->sys.p->n : 0;
-    if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
-    /* decomposed: this rank owns a part of the particles and, on 3 ranks, holds a part (its
-     * own and its halo) */
+    /* cut at the set-up (consph_par_solver_create: the initial rates and the first sample
+     * made decomposed); run_files and check_refresh cut a whole solver */
+    int st = consph_par_solver_create(&s, &prm, NULL, NULL);
+    const int dim = consph_problem_dim(c->problem);
+    const size_t whole = (size_t)lround(pow((double)c->nx, (double)dim));
+    /* decomposed: this rank owns a part of the particles, the ranks all of them, and on 3
+     * ranks it holds a part (its own and its halo) */
     int size = 1;
     MPI_Initialized(&size);
     if (size) MPI_Comm_size(MPI_COMM_WORLD, &size);
     size_t own = 0;
     for (size_t i = 0; st == CONSPH_OK && s->sys.dest && i < s->sys.p->n; ++i)
         own += s->sys.dest[i] != 0;
+    unsigned long long mine = own, owned = 0;
+    if (size > 1) MPI_Allreduce(&mine, &owned, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
+    if (st == CONSPH_OK && size > 1 && owned != whole) {
+        fprintf(stderr, "case %s: the ranks own %llu of %zu particles\n", c->name, owned, whole);
+        st = CONSPH_EINVAL;
+    }
     if (st == CONSPH_OK && size > 1 &&
         !(s->sys.dest && own < whole && (size < 3 || s->sys.p->n < whole))) {
         fprintf(stderr, "case %s: %zu of %zu particles on this rank: not decomposed\n", c->name,
@@ -310,6 +319,7 @@ static int check_refresh(void)
 static int child(const char *base)
 {
     MPI_Init(NULL, NULL);
+    consph_par_init(NULL, NULL); /* joins this world: consph_par_solver_create's agreement */
     int rank = 0, size = 1, bad = 0;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);
@@ -341,6 +351,7 @@ static int child(const char *base)
     }
     int any = 0;
     MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    consph_par_finalize();
     MPI_Finalize();
     return any ? 1 : 0;
 }

@@ -955,6 +955,22 @@ int par_rank(const consph_solver *s)
     return s->par ? s->par->rank : 0;
 }
 
+int par_share_history(consph_solver *s)
+{
+    par_solver *ps = s->par;
+    unsigned long long nh = s->nhist;
+    MPI_Bcast(&nh, 1, MPI_UNSIGNED_LONG_LONG, 0, ps->comm);
+    if (ps->rank != 0 && nh > s->caphist) {
+        double *h = realloc(s->hist, (size_t)nh * HIST_COLS * sizeof(double));
+        if (!h) MPI_Abort(ps->comm, 1); /* rank 0 waits in the broadcast */
+        s->hist = h;
+        s->caphist = (size_t)nh;
+    }
+    if (nh) MPI_Bcast(s->hist, (int)(nh * HIST_COLS), MPI_DOUBLE, 0, ps->comm);
+    s->nhist = (size_t)nh;
+    return CONSPH_OK;
+}
+
 void par_solver_free(par_solver *ps)
 {
     if (!ps) return;
@@ -1124,6 +1140,12 @@ int par_rank(const consph_solver *s)
     return 0;
 }
 
+int par_share_history(consph_solver *s)
+{
+    (void)s;
+    return CONSPH_OK;
+}
+
 int par_checks_clean(consph_solver *s, int *clean)
 {
     (void)s;
@@ -1156,3 +1178,22 @@ void consph_par_solver_comm(const consph_solver *s, double *bytes, double *secon
 }
 
 #endif
+
+/* The ranks agree that every one made its particles, then cut them (consph_par_solver_create). */
+static int agree_and_cut(consph_solver *s, void *arg)
+{
+    int *joined = arg;
+    const int st = consph_par_agree(CONSPH_OK);
+    *joined = 1;
+    return st == CONSPH_OK ? consph_par_solver_decompose(s) : st;
+}
+
+int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
+                             const consph_particles *given, int *joined)
+{
+    int mine = 0;
+    if (!joined) joined = &mine;
+    *joined = 0;
+    if (consph_par_size() < 2) return consph_solver_create_from(out, prm, given);
+    return solver_create_cut(out, prm, given, agree_and_cut, joined);
+}
