@@ -2,6 +2,8 @@
  * the fraction of the step time spent in MPI calls (bench/mpi.md).
  *
  *   mpirun -np K build/bench/bench_par PROBLEM SCHEME NX STEPS [key=value ...]
+ *   (boxes=K0xK1xK2 forces the pieces per axis of the decomposition; default: the fewest halo
+ *   cells)
  *
  * Set-up (consph_par_solver_create: every rank makes the whole set's particles, then they are
  * cut) is not timed; the steps are. Rank 0
@@ -12,6 +14,7 @@
 
 #include "consph/par.h"
 #include "consph/solver.h"
+#include "par/par_solver.h"
 #include "solver/solver_internal.h"
 
 #ifdef CONSPH_HAVE_MPI
@@ -46,6 +49,12 @@ int main(int argc, char **argv)
             break;
         }
         snprintf(key, sizeof key, "%.*s", (int)(eq - argv[k]), argv[k]);
+        int kb[3] = {0, 0, 0};
+        if (!strcmp(key, "boxes")) { /* boxes=K0xK1xK2: the pieces per axis, forced */
+            if (sscanf(eq + 1, "%dx%dx%d", &kb[0], &kb[1], &kb[2]) != 3) st = CONSPH_EINVAL;
+            par_force_boxes(kb);
+            continue;
+        }
         st = consph_run_param_set(&prm, key, eq + 1);
     }
     prm.tf = 0.0;

@@ -34,5 +34,8 @@ int par_share_history(consph_solver *s);
 /* This rank (0 for a serial solver). */
 int par_rank(const consph_solver *s);
 void par_solver_free(par_solver *ps);
+/* For the tests: the next decompositions cut k[a] pieces along axis a (NULL: chosen for the
+ * fewest halo cells); a launch whose rank count is not their product is refused. */
+void par_force_boxes(const int *k);
 
 #endif
