@@ -52,14 +52,15 @@ void consph_par_quiet_others(void);
  *
  * consph_par_solver_decompose cuts a solver that every rank of MPI_COMM_WORLD made the same
  * way (consph_solver_create with the same parameters, or consph_run_restart of the same
- * checkpoint) into slabs of the search's cells along the last axis, one per rank, each with a
- * halo of the neighbouring slabs' particles. From then on consph_solver_step and consph_run
+ * checkpoint) into boxes of the search's cells, one per rank (pieces along every axis, the
+ * fewest halo cells; slabs along the last axis on a tie), each with a halo of the neighbouring
+ * boxes' particles. From then on consph_solver_step and consph_run
  * run decomposed and give the serial run's snapshots, log, summary and checkpoints bit for bit
  * (timings aside); only rank 0 writes files and its summary is the run's (docs/mpi.md). MPI
  * must be initialised; on one rank, or built without MPI, it changes nothing (CONSPH_OK).
  * CONSPH_EINVAL (the same message on every rank: print it on rank 0) for a launch the
- * decomposition cannot serve: more ranks than slabs of cells, a neighbour list with a skin,
- * remeshing (l-rr-c). */
+ * decomposition cannot serve: a rank count the cells cannot be cut into, a neighbour list with a
+ * skin, remeshing (l-rr-c). */
 int consph_par_solver_decompose(consph_solver *s);
 /* consph_solver_create_from (given NULL: consph_solver_create) decomposed from the start, for
  * runs too large for every rank to hold the whole solver: every rank makes the whole set's

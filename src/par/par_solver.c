@@ -1,14 +1,16 @@
 /* The solver decomposed over MPI ranks, bit for bit the serial run (docs/mpi.md).
  *
- * Ranks own slabs of the neighbour search's cells along the last axis, the slowest of the cell
- * order (src/nnps/nnps.c: cell = (c_2 nc_1 + c_1) nc_0 + c_0), so each rank owns a contiguous
- * range of the serial particle order. The serial order is rebuilt by each re-sort as a stable
- * sort by cell of the previous order; every particle carries its index in the previous serial
- * order (g), and a rank sorts the particles it holds by (cell, g): the serial order restricted
- * to them. Its search then visits, for every owned particle, the serial run's neighbours in the
- * serial order, the grid being the whole set's (nnps_fix_grid).
+ * Ranks own boxes of the neighbour search's cells (k_a pieces along axis a; k = 1, 1, K: slabs
+ * along the last axis, the slowest of the cell order, src/nnps/nnps.c: cell = (c_2 nc_1 + c_1)
+ * nc_0 + c_0). The serial order is rebuilt by each re-sort as a stable sort by cell of the
+ * previous order; every particle carries its index in the previous serial order (g), and a rank
+ * sorts the particles it holds by (cell, g): the serial order restricted to them. A rank's
+ * particles are runs of the serial order (a row of cells within its piece along axis 0), whose
+ * starts come from the particle counts per run summed over the ranks. Its search then visits,
+ * for every owned particle, the serial run's neighbours in the serial order, the grid being the
+ * whole set's (nnps_fix_grid).
  *
- * The halo: the particles of the slabs within the search's reach plus one cell of a rank's own,
+ * The halo: the particles of the cells within the search's reach plus one cell of a rank's box,
  * sources only (the system's destination mask), at their true positions so that the periodic
  * search finds the images the serial search finds. The pass layer calls refresh before every
  * pass and every search rebuild: positions, every named field and the system scratch of the
@@ -20,8 +22,8 @@
  * re-sort.
  *
  * What reads every particle (checks, diagnostics, files) runs on rank 0 over the owned
- * particles gathered in rank order, which is the serial order (par_global), so sums over
- * particles are the serial consph_sum whatever the rank count. */
+ * particles gathered into the serial order (par_global), so sums over particles are the serial
+ * consph_sum whatever the rank count. */
 #include "par/par_solver.h"
 
 #include "consph/par.h"
