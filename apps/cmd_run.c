@@ -683,6 +683,19 @@ int cmd_run(int argc, char **argv)
             return rc;
         }
     }
+    /* Under K > 1 ranks the solver is cut before its neighbour list and initial rates, so no
+     * rank holds the whole solver; a failure once the ranks agreed is the run's (exit 2 when
+     * the decomposition refuses the launch). */
+    int par_joined = 0;
+    if (!s && consph_par_size() > 1) {
+        st = consph_par_solver_create(&s, &prm, particles ? &given : NULL, &par_joined);
+        cmd_run_started = par_joined;
+        if (st != CONSPH_OK) {
+            fprintf(stderr, "consph run: %s\n", consph_last_error());
+            consph_particles_free(&given);
+            return st == CONSPH_EINVAL && par_joined ? CLI_EXIT_USAGE : 1;
+        }
+    }
     if (!s && (st = particles ? consph_solver_create_from(&s, &prm, &given)
                               : consph_solver_create(&s, &prm)) != CONSPH_OK) {
         fprintf(stderr, "consph run: %s\n", consph_last_error());
@@ -699,9 +712,12 @@ int cmd_run(int argc, char **argv)
     if (consph_par_size() > 1) {
         /* every rank made the same solver; from the decomposition on they run it together. The
          * agreement first: a rank that stopped earlier joins it from main (apps/consph.c). */
-        cmd_run_started = 1;
-        st = consph_par_agree(CONSPH_OK);
-        if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
+        st = CONSPH_OK;
+        if (!par_joined) {
+            cmd_run_started = 1;
+            st = consph_par_agree(CONSPH_OK);
+            if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
+        }
         if (st != CONSPH_OK) {
             fprintf(stderr, "consph run: %s\n", consph_last_error());
             consph_solver_free(s);

@@ -2,8 +2,11 @@
  * the fraction of the step time spent in MPI calls (bench/mpi.md).
  *
  *   mpirun -np K build/bench/bench_par PROBLEM SCHEME NX STEPS [key=value ...]
+ *   (boxes=K0xK1xK2 forces the pieces per axis of the decomposition; default: the fewest halo
+ *   cells)
  *
- * Set-up (every rank makes the whole solver, then it is cut) is not timed; the steps are. Rank 0
+ * Set-up (consph_par_solver_create: every rank makes the whole set's particles, then they are
+ * cut) is not timed; the steps are. Rank 0
  * prints one line per rank and the totals. Without MPI it runs the serial solver. */
 #include <stdio.h>
 #include <stdlib.h>
@@ -11,6 +14,7 @@
 
 #include "consph/par.h"
 #include "consph/solver.h"
+#include "par/par_solver.h"
 #include "solver/solver_internal.h"
 
 #ifdef CONSPH_HAVE_MPI
@@ -26,6 +30,7 @@ int main(int argc, char **argv)
     int rank = 0, size = 1;
 #ifdef CONSPH_HAVE_MPI
     MPI_Init(&argc, &argv);
+    consph_par_init(&argc, &argv); /* joins this world */
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);
 #endif
@@ -44,13 +49,21 @@ int main(int argc, char **argv)
             break;
         }
         snprintf(key, sizeof key, "%.*s", (int)(eq - argv[k]), argv[k]);
+        int kb[3] = {0, 0, 0};
+        if (!strcmp(key, "boxes")) { /* boxes=K0xK1xK2: the pieces per axis, forced */
+            if (sscanf(eq + 1, "%dx%dx%d", &kb[0], &kb[1], &kb[2]) != 3) st = CONSPH_EINVAL;
+            par_force_boxes(kb);
+            continue;
+        }
         st = consph_run_param_set(&prm, key, eq + 1);
     }
     prm.tf = 0.0;
     consph_solver *s = NULL;
-    if (st == CONSPH_OK) st = consph_solver_create(&s, &prm);
-    const size_t whole = st == CONSPH_OK ? s->sys.p->n : 0;
-    if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
+    if (st == CONSPH_OK) st = consph_par_solver_create(&s, &prm, NULL, NULL);
+    size_t own = 0;
+    for (size_t i = 0; st == CONSPH_OK && i < s->sys.p->n; ++i)
+        own += !s->sys.dest || s->sys.dest[i];
+    const size_t whole = (size_t)consph_par_sum_long((long)own);
     double b0 = 0.0, c0 = 0.0, t0 = consph_wtime();
     if (st == CONSPH_OK) consph_par_solver_comm(s, &b0, &c0);
     while (st == CONSPH_OK && !consph_solver_done(s)) st = consph_solver_step(s);
@@ -58,13 +71,14 @@ int main(int argc, char **argv)
     if (st != CONSPH_OK) {
         if (rank == 0) fprintf(stderr, "bench_par: %s\n", consph_last_error());
 #ifdef CONSPH_HAVE_MPI
+        consph_par_finalize();
         MPI_Finalize();
 #endif
         return 1;
     }
     double b1 = 0.0, c1 = 0.0;
     consph_par_solver_comm(s, &b1, &c1);
-    size_t own = 0;
+    own = 0;
     for (size_t i = 0; i < s->sys.p->n; ++i) own += !s->sys.dest || s->sys.dest[i];
     /* per rank: owned, held, seconds, bytes sent, MPI seconds */
     double mine[5] = {(double)own, (double)s->sys.p->n, secs, b1 - b0, c1 - c0};
@@ -96,6 +110,7 @@ int main(int argc, char **argv)
     free(all);
     consph_solver_free(s);
 #ifdef CONSPH_HAVE_MPI
+    consph_par_finalize();
     MPI_Finalize();
 #endif
     return 0;

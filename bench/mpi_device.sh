@@ -12,11 +12,12 @@
 # usage: bash CARRY/scripts/bench/mpi_device.sh [OUTDIR]   (from anywhere; OUTDIR default
 #   ./mpi-device-out). Environment: CARRY (default: the folder this script was packed into,
 #   else ./mpi-carry), RANKS (default "2 4 8 16"; 1 is always run), BUDGET (seconds for the
-#   whole, default 175), WEAK_PER_RANK (default 20000), STRONG_NX (default 48), STEPS1/STEPS2
-#   (default 1/3), STUDY (default 003-kernels, "" for none), SYSTEM_MPI=1 (use this machine's
-#   OpenMPI instead: for the test here), BEFORE (default CARRY/bin/consph-before when packed:
-#   an earlier build measured on the largest weak case after the tables, for a before/after on
-#   this machine).
+#   whole, default 175), WEAK_PER_RANK (default 100000, the issue's size; 10^5 x 16 ranks needs
+#   about 45 GB with the solver cut at its set-up), STRONG_NX (default 48: the issue's 200^3
+#   needs about 150 GB), STEPS1/STEPS2 (default 1/3), STUDY (default 003-kernels, "" for none),
+#   SYSTEM_MPI=1 (use this machine's OpenMPI instead: for the test here), BEFORE (default
+#   CARRY/bin/consph-before when packed: an earlier build measured with this one on the largest
+#   rank count at BEFORE_PER_RANK particles per rank, default 20000, before the tables).
 # Exit 0 with the tables written; 2 when 2 ranks cannot start (diag.txt says why).
 set -u
 T0=$(date +%s)
@@ -129,45 +130,58 @@ WORK=${WORK:-${TMPDIR:-/tmp}/consph_mpi_device}
 : >"$OUTDIR/progress.log"
 STEPS1=${STEPS1:-1} STEPS2=${STEPS2:-3}
 
-# The earlier build, if packed, on the largest weak case first (about 20 s on 16 cores), so
-# that the solver tables below cannot leave it no time; its row is appended after them.
+# The earlier build, if packed, on KMAX ranks first (so that the solver tables below cannot
+# leave it no time), and this build on the same case; their rows are appended after the tables.
+# The size is BEFORE_PER_RANK particles per rank (default 20000): an earlier build that makes
+# the whole solver on every rank before the cut needs about 12.8 kB per particle on every
+# rank, which 10^5 per rank on 16 ranks (315 GB) does not fit.
 BEFORE=${BEFORE:-$CARRY/bin/consph-before}
-nxb=$(awk -v k="$KMAX" -v n="${WEAK_PER_RANK:-20000}" 'BEGIN { printf "%d", (k * n)^(1 / 3) + 0.5 }')
+nxb=$(awk -v k="$KMAX" -v n="${BEFORE_PER_RANK:-20000}" 'BEGIN { printf "%d", (k * n)^(1 / 3) + 0.5 }')
 : >"$WORK.before.md"
 if [ -x "$BEFORE" ]; then
     t=$(date +%s)
-    row=
-    for st in $STEPS1 $STEPS2; do
+    rows=
+    for build in before after; do
+        bin=$BEFORE
+        [ $build = before ] || bin=$CONSPH
+        row=
+        for st in $STEPS1 $STEPS2; do
+            rm -rf "$WORK.b"
+            if timeout 40 $MPIRUN -np "$KMAX" "$bin" run beltrami --scheme l-ipst-c \
+                --layout lattice --threads 1 --nx "$nxb" --steps "$st" --out "$WORK.b" \
+                >"$WORK.b.out" 2>"$WORK.b.err"; then
+                row="$row $(sed -n 's/^\([0-9.]*\) s, .*/\1/p' "$WORK.b.out") $(sed -n 's/^consph run: MPI [0-9]* ranks: \([0-9]*\) bytes sent.* \([0-9.]*\) s in MPI calls per rank.*/\1 \2/p' "$WORK.b.err")"
+            else
+                row="$row FAIL"
+                echo "$build build: $(tail -n 3 "$WORK.b.err")" >>"$OUTDIR/progress.log"
+            fi
+        done
         rm -rf "$WORK.b"
-        if timeout 40 $MPIRUN -np "$KMAX" "$BEFORE" run beltrami --scheme l-ipst-c \
-            --layout lattice --threads 1 --nx "$nxb" --steps "$st" --out "$WORK.b" \
-            >"$WORK.b.out" 2>"$WORK.b.err"; then
-            row="$row $(sed -n 's/^\([0-9.]*\) s, .*/\1/p' "$WORK.b.out") $(sed -n 's/^consph run: MPI [0-9]* ranks: \([0-9]*\) bytes sent.* \([0-9.]*\) s in MPI calls per rank.*/\1 \2/p' "$WORK.b.err")"
-        else
-            row="$row FAIL"
-            echo "before build: $(tail -n 3 "$WORK.b.err")" >>"$OUTDIR/progress.log"
-        fi
+        echo "$build build weak $KMAX ranks nx $nxb:$row" | tee -a "$OUTDIR/progress.log"
+        case $row in
+        *FAIL*) ;;
+        *)
+            rows="$rows$(echo "$row" | awk -v b=$build -v k="$KMAX" -v nx="$nxb" -v d="$((STEPS2 - STEPS1))" '{
+                t = ($4 - $1) / d; by = ($5 - $2) / d / nx^3; c = ($6 - $3) / d
+                printf "| %s | %d | %d | %.4g | %.0f | %.4g | %.2f |\n", b, k, nx, t, by, c, c / t }')
+"
+            ;;
+        esac
     done
-    rm -rf "$WORK.b"
-    echo "before build weak $KMAX ranks nx $nxb:$row" | tee -a "$OUTDIR/progress.log"
-    case $row in
-    *FAIL*) ;;
-    *)
+    if [ -n "$rows" ]; then
         {
             echo
-            echo "### The earlier build (consph-before) on the largest weak case"
+            echo "### The earlier build (consph-before) and this one on $KMAX ranks, nx $nxb"
             echo
-            echo "Same command, steps and differencing as the weak rows above; the build packed as"
-            echo "bin/consph-before (bench/mpi_carry.sh with BEFORE=...): $(cat "$BEFORE.txt" 2>/dev/null || echo an earlier commit)."
+            echo "Same command, steps and differencing as the weak rows above, at ${BEFORE_PER_RANK:-20000} particles"
+            echo "per rank; before: the build packed as bin/consph-before (bench/mpi_carry.sh with"
+            echo "BEFORE=...): $(cat "$BEFORE.txt" 2>/dev/null || echo an earlier commit); after: bin/consph."
             echo
             echo "| build | ranks | nx | s/step | bytes/particle-step | MPI s/step | comm fraction |"
             echo "|---|---|---|---|---|---|---|"
-            echo "$row" | awk -v k="$KMAX" -v nx="$nxb" -v d="$((STEPS2 - STEPS1))" '{
-                t = ($4 - $1) / d; b = ($5 - $2) / d / nx^3; c = ($6 - $3) / d
-                printf "| before | %d | %d | %.4g | %.0f | %.4g | %.2f |\n", k, nx, t, b, c, c / t }'
+            printf '%s' "$rows"
         } >"$WORK.before.md"
-        ;;
-    esac
+    fi
     echo "before $(($(date +%s) - t))" >>"$OUTDIR/times.txt"
 fi
 
@@ -176,7 +190,7 @@ fi
 t=$(date +%s)
 DEADLINE=$((T0 + BUDGET - 25)) HARD_END=$((T0 + BUDGET - 8)) MPIRUN="$MPIRUN" CONSPH="$CONSPH" BENCH_PAR="$BENCH_PAR" \
     OUT="$OUTDIR/mpi.md" RANKS="$RANKS" SECTIONS=solver SOLVER_CASES=3d MACHINE_NOTE="${MACHINE_NOTE:-bench/mpi_device.sh, one rank per core, the OpenMPI run-time carried}" \
-    WEAK_PER_RANK=${WEAK_PER_RANK:-20000} STRONG_NX=${STRONG_NX:-48} STEPS1=$STEPS1 \
+    WEAK_PER_RANK=${WEAK_PER_RANK:-100000} STRONG_NX=${STRONG_NX:-48} STEPS1=$STEPS1 \
     STEPS2=$STEPS2 CASE_TIMEOUT=${CASE_TIMEOUT:-40} WORK="$WORK" \
     bash "$SCRIPTS/mpi.sh" 2>&1 | tee -a "$OUTDIR/progress.log"
 echo "solver $(($(date +%s) - t))" >>"$OUTDIR/times.txt"

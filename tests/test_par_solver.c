@@ -4,6 +4,8 @@
  * particles change cells and ranks) and of 3D Beltrami; a run's files (snapshots, log, summary,
  * checkpoint) on 2 and 3 ranks equal the serial run's; a checkpoint restarts on 2 and 3 ranks
  * to the serial run's final files; a launch on more ranks than slabs is refused on every rank;
+ * the cases are cut at the set-up (consph_par_solver_create), the files' runs after it; on 4
+ * ranks, some cases and the restart with the boxes forced to 2 x 2 pieces across two axes;
  * the halo refresh sends only changed columns and leaves the halo equal to its owners.
  *
  * Run without mpirun, the test computes the serial references and launches itself under
@@ -164,19 +166,27 @@ static int run_case(const par_case *c, const char *path)
 {
     consph_run_params prm = case_params(c);
     consph_solver *s = NULL;
-    int st = consph_solver_create(&s, &prm);
-    const size_t whole = st == CONSPH_OK ? s->sys.p->n : 0;
-    if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
-    /* decomposed: this rank owns a part of the particles and, on 3 ranks, holds a part (its
-     * own and its halo) */
+    /* cut at the set-up (consph_par_solver_create: the initial rates and the first sample
+     * made decomposed); run_files and check_refresh cut a whole solver */
+    int st = consph_par_solver_create(&s, &prm, NULL, NULL);
+    const int dim = consph_problem_dim(c->problem);
+    const size_t whole = (size_t)lround(pow((double)c->nx, (double)dim));
+    /* decomposed: this rank owns a part of the particles, the ranks all of them, and on 3
+     * ranks it holds a part (its own and its halo) */
     int size = 1;
     MPI_Initialized(&size);
     if (size) MPI_Comm_size(MPI_COMM_WORLD, &size);
     size_t own = 0;
     for (size_t i = 0; st == CONSPH_OK && s->sys.dest && i < s->sys.p->n; ++i)
         own += s->sys.dest[i] != 0;
+    unsigned long long mine = own, owned = 0;
+    if (size > 1) MPI_Allreduce(&mine, &owned, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
+    if (st == CONSPH_OK && size > 1 && owned != whole) {
+        fprintf(stderr, "case %s: the ranks own %llu of %zu particles\n", c->name, owned, whole);
+        st = CONSPH_EINVAL;
+    }
     if (st == CONSPH_OK && size > 1 &&
-        !(s->sys.dest && own < whole && (size < 3 || s->sys.p->n < whole))) {
+        !(s->sys.dest && own < whole && (size != 3 || s->sys.p->n < whole))) {
         fprintf(stderr, "case %s: %zu of %zu particles on this rank: not decomposed\n", c->name,
                 s->sys.p->n, whole);
         st = CONSPH_EINVAL;
@@ -307,9 +317,45 @@ static int check_refresh(void)
     return bad ? CONSPH_EINVAL : CONSPH_OK;
 }
 
+/* On 4 ranks the boxes are forced to 2 x 2 pieces across the last two axes (3D) or both axes
+ * (2D): each rank's particles are runs of the serial order, not one range. */
+static const char *const boxes_cases[] = {"lipstc-3d", "wcsph-3d", "edac-2d", "diverges"};
+
+static void force_boxes(const char *problem)
+{
+    static const int k3[CONSPH_MAX_DIM] = {1, 2, 2}, k2[CONSPH_MAX_DIM] = {2, 2, 1};
+    par_force_boxes(consph_problem_dim(problem) == 3 ? k3 : k2);
+}
+
+static int child_boxes(const char *base)
+{
+    MPI_Init(NULL, NULL);
+    consph_par_init(NULL, NULL);
+    int bad = 0;
+    for (size_t k = 0; k < NCASES; ++k)
+        for (size_t b = 0; b < sizeof boxes_cases / sizeof boxes_cases[0]; ++b)
+            if (!strcmp(cases[k].name, boxes_cases[b])) {
+                char path[512];
+                snprintf(path, sizeof path, "%s.%s.np4", base, cases[k].name);
+                force_boxes(cases[k].problem);
+                bad |= run_case(&cases[k], path) != CONSPH_OK;
+            }
+    char dir[512];
+    force_boxes("taylor-green");
+    snprintf(dir, sizeof dir, "%s.restart.np4", base);
+    bad |= run_files(dir, 1) != CONSPH_OK;
+    par_force_boxes(NULL);
+    int any = 0;
+    MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    consph_par_finalize();
+    MPI_Finalize();
+    return any ? 1 : 0;
+}
+
 static int child(const char *base)
 {
     MPI_Init(NULL, NULL);
+    consph_par_init(NULL, NULL); /* joins this world: consph_par_solver_create's agreement */
     int rank = 0, size = 1, bad = 0;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     MPI_Comm_size(MPI_COMM_WORLD, &size);
@@ -341,6 +387,7 @@ static int child(const char *base)
     }
     int any = 0;
     MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    consph_par_finalize();
     MPI_Finalize();
     return any ? 1 : 0;
 }
@@ -444,6 +491,7 @@ static void compare_dirs(const char *ref, const char *dir)
 int main(int argc, char **argv)
 {
     if (argc == 3 && !strcmp(argv[1], "--child")) return child(argv[2]);
+    if (argc == 3 && !strcmp(argv[1], "--child-boxes")) return child_boxes(argv[2]);
     if (system("command -v mpirun >/dev/null 2>&1") != 0) {
         printf("test_par_solver: no mpirun: skipped\n");
         return 77;
@@ -461,7 +509,7 @@ int main(int argc, char **argv)
     CHECK(run_files(ref, 0) == CONSPH_OK, "serial run with files");
     /* the restart directories start as the serial run's at its checkpoint (step 5): its files
      * up to there and the checkpoint */
-    for (int np = 2; np <= 3; ++np) {
+    for (int np = 2; np <= 4; ++np) {
         snprintf(cmd, sizeof cmd,
                  "rm -rf %s.restart.np%d && cp -r %s %s.restart.np%d && rm -f "
                  "%s.restart.np%d/snap_000010.vtu %s.restart.np%d/summary.json",
@@ -493,6 +541,32 @@ int main(int argc, char **argv)
         snprintf(dir, sizeof dir, "%s.files.np%d", base, np);
         compare_dirs(ref, dir);
         snprintf(dir, sizeof dir, "%s.restart.np%d", base, np);
+        compare_dirs(ref, dir);
+    }
+    /* 4 ranks in 2 x 2 boxes: a few cases, and the restart of the serial checkpoint */
+    snprintf(cmd, sizeof cmd,
+             "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
+             "OMPI_MCA_mpi_yield_when_idle=1 mpirun --oversubscribe -np 4 %s --child-boxes %s",
+             argv[0], base);
+    const int rc4 = system(cmd);
+    CHECK(rc4 == 0, "%s exited with %d", cmd, rc4);
+    for (size_t k = 0; k < NCASES; ++k)
+        for (size_t b = 0; b < sizeof boxes_cases / sizeof boxes_cases[0]; ++b)
+            if (!strcmp(cases[k].name, boxes_cases[b])) {
+                char a[512], c[512];
+                snprintf(a, sizeof a, "%s.%s.serial", base, cases[k].name);
+                snprintf(c, sizeof c, "%s.%s.np4", base, cases[k].name);
+                CHECK(same_file(a, c), "%s on 4 ranks in 2 x 2 boxes: the state differs",
+                      cases[k].name);
+                if (!strcmp(cases[k].name, "diverges")) {
+                    strcat(a, ".msg");
+                    strcat(c, ".msg");
+                    CHECK(same_file(a, c), "diverges on 4 ranks in boxes: another message");
+                }
+            }
+    {
+        char dir[512];
+        snprintf(dir, sizeof dir, "%s.restart.np4", base);
         compare_dirs(ref, dir);
     }
     if (check_failures == 0) {

@@ -52,15 +52,27 @@ void consph_par_quiet_others(void);
  *
  * consph_par_solver_decompose cuts a solver that every rank of MPI_COMM_WORLD made the same
  * way (consph_solver_create with the same parameters, or consph_run_restart of the same
- * checkpoint) into slabs of the search's cells along the last axis, one per rank, each with a
- * halo of the neighbouring slabs' particles. From then on consph_solver_step and consph_run
+ * checkpoint) into boxes of the search's cells, one per rank (pieces along every axis, the
+ * fewest halo cells; slabs along the last axis on a tie), each with a halo of the neighbouring
+ * boxes' particles. From then on consph_solver_step and consph_run
  * run decomposed and give the serial run's snapshots, log, summary and checkpoints bit for bit
  * (timings aside); only rank 0 writes files and its summary is the run's (docs/mpi.md). MPI
  * must be initialised; on one rank, or built without MPI, it changes nothing (CONSPH_OK).
  * CONSPH_EINVAL (the same message on every rank: print it on rank 0) for a launch the
- * decomposition cannot serve: more ranks than slabs of cells, a neighbour list with a skin,
- * remeshing (l-rr-c). */
+ * decomposition cannot serve: a rank count the cells cannot be cut into, a neighbour list with a
+ * skin, remeshing (l-rr-c). */
 int consph_par_solver_decompose(consph_solver *s);
+/* consph_solver_create_from (given NULL: consph_solver_create) decomposed from the start, for
+ * runs too large for every rank to hold the whole solver: every rank makes the whole set's
+ * particles and initial fields (the same on every rank), the ranks agree (consph_par_agree:
+ * a rank that failed before passes its status to the others, which fail with it), the
+ * decomposition cuts them, and the neighbour list, the initial rates and the first sample are
+ * made decomposed, so a rank's peak memory is its part's solver plus the whole set's particles,
+ * not the whole solver. *joined (may be NULL) is set to 1 once this rank has joined the
+ * agreement. The run is the serial one bit for bit, as after consph_par_solver_decompose. On
+ * one rank, or built without MPI: consph_solver_create_from. */
+int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
+                             const consph_particles *given, int *joined);
 
 /* Communication of a decomposed solver so far, this rank: bytes sent (halo refresh, migration,
  * gathers to rank 0) and seconds spent in MPI calls. Zero for a serial solver. */

@@ -1,14 +1,16 @@
 /* The solver decomposed over MPI ranks, bit for bit the serial run (docs/mpi.md).
  *
- * Ranks own slabs of the neighbour search's cells along the last axis, the slowest of the cell
- * order (src/nnps/nnps.c: cell = (c_2 nc_1 + c_1) nc_0 + c_0), so each rank owns a contiguous
- * range of the serial particle order. The serial order is rebuilt by each re-sort as a stable
- * sort by cell of the previous order; every particle carries its index in the previous serial
- * order (g), and a rank sorts the particles it holds by (cell, g): the serial order restricted
- * to them. Its search then visits, for every owned particle, the serial run's neighbours in the
- * serial order, the grid being the whole set's (nnps_fix_grid).
+ * Ranks own boxes of the neighbour search's cells (k_a pieces along axis a; k = 1, 1, K: slabs
+ * along the last axis, the slowest of the cell order, src/nnps/nnps.c: cell = (c_2 nc_1 + c_1)
+ * nc_0 + c_0). The serial order is rebuilt by each re-sort as a stable sort by cell of the
+ * previous order; every particle carries its index in the previous serial order (g), and a rank
+ * sorts the particles it holds by (cell, g): the serial order restricted to them. A rank's
+ * particles are runs of the serial order (a row of cells within its piece along axis 0), whose
+ * starts come from the particle counts per run summed over the ranks. Its search then visits,
+ * for every owned particle, the serial run's neighbours in the serial order, the grid being the
+ * whole set's (nnps_fix_grid).
  *
- * The halo: the particles of the slabs within the search's reach plus one cell of a rank's own,
+ * The halo: the particles of the cells within the search's reach plus one cell of a rank's box,
  * sources only (the system's destination mask), at their true positions so that the periodic
  * search finds the images the serial search finds. The pass layer calls refresh before every
  * pass and every search rebuild: positions, every named field and the system scratch of the
@@ -20,8 +22,8 @@
  * re-sort.
  *
  * What reads every particle (checks, diagnostics, files) runs on rank 0 over the owned
- * particles gathered in rank order, which is the serial order (par_global), so sums over
- * particles are the serial consph_sum whatever the rank count. */
+ * particles gathered into the serial order (par_global), so sums over particles are the serial
+ * consph_sum whatever the rank count. */
 #include "par/par_solver.h"
 
 #include "consph/par.h"
@@ -40,18 +42,23 @@
 struct par_solver {
     MPI_Comm comm;
     int rank, size;
-    int axis;     /* the slab axis: dim - 1 */
-    int periodic; /* along it */
+    int dim;
+    /* The boxes: k[a] pieces along axis a, rank (i_2 k_1 + i_1) k_0 + i_0 owning the cells
+     * [cut[a][i_a], cut[a][i_a + 1]) along every axis a (k = 1, ..., 1, K: slabs along the
+     * last axis). */
+    int k[CONSPH_MAX_DIM];
+    int periodic[CONSPH_MAX_DIM];
     int64_t nc[CONSPH_MAX_DIM];
-    int64_t width;       /* halo width in cells along the axis: the walk's reach + 1 */
-    double edge, len;    /* cell edge and box length along the axis */
-    int64_t *cut;        /* size + 1: rank r owns the axis cells [cut[r], cut[r + 1]) */
-    int *owner;          /* per axis cell */
-    unsigned char *halo; /* [q * nc + c]: axis cell c is in rank q's halo */
-    size_t nglobal, nown, goff;
+    int64_t width[CONSPH_MAX_DIM]; /* halo width in cells: the walk's reach + 1 */
+    double edge[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM]; /* cell edge, box length */
+    int64_t *cut[CONSPH_MAX_DIM];                     /* k[a] + 1 each */
+    int *piece[CONSPH_MAX_DIM];                       /* per axis cell: its piece along the axis */
+    int64_t nrows; /* cells of the axes above the first (a row: c_0 varies) */
+    int64_t *seg;  /* per row and piece along axis 0: particles (serial index) */
+    size_t nglobal, nown;
     double *g;   /* per local particle: index in the serial order (halo: -1) */
-    size_t *own; /* the owned particles' local indices, ascending */
-    double *x0;  /* their axis coordinate at the last re-sort */
+    size_t *own; /* the owned particles' local indices, ascending (so is their g) */
+    double *x0;  /* their coordinates at the last re-sort, dim per particle */
     /* halo refresh: per rank the particles sent (owned) and received (halo), ascending */
     int *scount, *sdispl, *rcount, *rdispl; /* in particles */
     int *sdbl, *sddis, *rdbl, *rddis;       /* in doubles, per call */
@@ -334,41 +341,89 @@ static double split_max(void *ctx, double v)
     return out[0] > 0.0 ? NAN : out[1];
 }
 
-/* ---- the slabs ---- */
+/* ---- the boxes ---- */
 
-/* Axis cells [cut[q], cut[q + 1]) to each rank in proportion to their particles (counts per
- * axis cell summed over the ranks: the same cut on every rank), at least one cell each. */
-static void cut_slabs(par_solver *ps, const int64_t *count)
+/* The cells of one axis to its k pieces in proportion to their particles (counts per axis
+ * cell summed over the ranks: the same cut on every rank), at least one cell each. */
+static void cut_axis(int64_t *cut, int *piece, int k, int64_t nc, const int64_t *count)
 {
-    const int64_t nc = ps->nc[ps->axis];
     int64_t total = 0;
     for (int64_t c = 0; c < nc; ++c) total += count[c];
-    ps->cut[0] = 0;
+    cut[0] = 0;
     int64_t c = 0, cum = 0;
-    for (int r = 1; r < ps->size; ++r) {
-        /* the first cell whose particles reach r/size of the total */
-        while (c < nc && cum * ps->size < (int64_t)r * total) cum += count[c++];
-        int64_t k = c;
-        if (k < ps->cut[r - 1] + 1) k = ps->cut[r - 1] + 1;
-        if (k > nc - (ps->size - r)) k = nc - (ps->size - r);
-        ps->cut[r] = k;
+    for (int r = 1; r < k; ++r) {
+        /* the first cell whose particles reach r/k of the total */
+        while (c < nc && cum * k < (int64_t)r * total) cum += count[c++];
+        int64_t x = c;
+        if (x < cut[r - 1] + 1) x = cut[r - 1] + 1;
+        if (x > nc - (k - r)) x = nc - (k - r);
+        cut[r] = x;
     }
-    ps->cut[ps->size] = nc;
-    for (int q = 0; q < ps->size; ++q)
-        for (int64_t k = ps->cut[q]; k < ps->cut[q + 1]; ++k) ps->owner[k] = q;
-    memset(ps->halo, 0, (size_t)ps->size * (size_t)nc);
-    for (int q = 0; q < ps->size; ++q) {
-        unsigned char *h = ps->halo + (size_t)q * (size_t)nc;
-        for (int64_t d = 1; d <= ps->width; ++d) {
-            int64_t lo = ps->cut[q] - d, hi = ps->cut[q + 1] - 1 + d;
-            if (ps->periodic) {
-                lo = ((lo % nc) + nc) % nc;
-                hi = ((hi % nc) + nc) % nc;
-            }
-            if (lo >= 0 && lo < nc && ps->owner[lo] != q) h[lo] = 1;
-            if (hi >= 0 && hi < nc && ps->owner[hi] != q) h[hi] = 1;
+    cut[k] = nc;
+    for (int q = 0; q < k; ++q)
+        for (int64_t x = cut[q]; x < cut[q + 1]; ++x) piece[x] = q;
+}
+
+/* The rank owning the cell whose axis cells are ac. */
+static int owner_of(const par_solver *ps, const int64_t *ac)
+{
+    int q = 0;
+    for (int a = ps->dim - 1; a >= 0; --a) q = q * ps->k[a] + ps->piece[a][ac[a]];
+    return q;
+}
+
+/* Whether the cell ac is in rank q's halo: not q's, and along every axis within the halo
+ * width of q's box (the nearest periodic image). */
+static int in_halo(const par_solver *ps, int q, const int64_t *ac)
+{
+    int inside = 1;
+    for (int a = 0; a < ps->dim; ++a) {
+        const int iq = q % ps->k[a];
+        q /= ps->k[a];
+        const int64_t lo = ps->cut[a][iq], hi = ps->cut[a][iq + 1], c = ac[a], n = ps->nc[a];
+        if (c >= lo && c < hi) continue;
+        inside = 0;
+        int64_t below = lo - c, above = c - (hi - 1);
+        if (ps->periodic[a]) {
+            below = ((below % n) + n) % n;
+            above = ((above % n) + n) % n;
+        } else {
+            if (below < 0) below = INT64_MAX;
+            if (above < 0) above = INT64_MAX;
+        }
+        if ((below < above ? below : above) > ps->width[a]) return 0;
+    }
+    return !inside;
+}
+
+/* The cut of every axis by the owned particles' counts per axis cell (ac: dim per particle). */
+static int cut_boxes(par_solver *ps, const int64_t *ac, size_t n)
+{
+    int64_t total = 0;
+    for (int a = 0; a < ps->dim; ++a) total += ps->nc[a];
+    int64_t *count = consph_calloc((size_t)total, sizeof(int64_t));
+    int64_t *all = consph_calloc((size_t)total, sizeof(int64_t));
+    if (!count || !all) {
+        free(count);
+        free(all);
+        return par_fail_mem();
+    }
+    for (size_t o = 0; o < n; ++o) {
+        int64_t off = 0;
+        for (int a = 0; a < ps->dim; ++a) {
+            ++count[off + ac[o * (size_t)ps->dim + (size_t)a]];
+            off += ps->nc[a];
         }
     }
+    MPI_Allreduce(count, all, (int)total, MPI_INT64_T, MPI_SUM, ps->comm);
+    int64_t off = 0;
+    for (int a = 0; a < ps->dim; ++a) {
+        cut_axis(ps->cut[a], ps->piece[a], ps->k[a], ps->nc[a], all + off);
+        off += ps->nc[a];
+    }
+    free(count);
+    free(all);
+    return CONSPH_OK;
 }
 
 typedef struct held {
@@ -384,14 +439,13 @@ static int held_cmp(const void *pa, const void *pb)
     return a->g < b->g ? -1 : a->g > b->g;
 }
 
-static int64_t cell_of(const par_solver *ps, const consph_nnps *nn, const double *x, int dim,
-                       int64_t *axis_cell)
+/* The whole cell index of x, and its cell along every axis in ac. */
+static int64_t cell_of(const par_solver *ps, const consph_nnps *nn, const double *x, int64_t *ac)
 {
     int64_t c = 0;
-    for (int a = dim - 1; a >= 0; --a) {
-        const int64_t k = nnps_axis_cell(nn, a, x[a]);
-        if (a == ps->axis) *axis_cell = k;
-        c = c * ps->nc[a] + k;
+    for (int a = ps->dim - 1; a >= 0; --a) {
+        ac[a] = nnps_axis_cell(nn, a, x[a]);
+        c = c * ps->nc[a] + ac[a];
     }
     return c;
 }
@@ -402,20 +456,24 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
 {
     consph_particles *p = s->sys.p;
     const int dim = p->dim;
+    const size_t nseg = (size_t)ps->nrows * (size_t)ps->k[0];
     held *h = malloc((m ? m : 1) * sizeof *h);
-    int64_t *acell = malloc((m ? m : 1) * sizeof *acell);
-    if (!h || !acell) {
+    int64_t *acell = malloc((m ? m : 1) * (size_t)dim * sizeof *acell);
+    int *owner = malloc((m ? m : 1) * sizeof *owner);
+    int64_t *segn = consph_calloc(nseg, sizeof(int64_t));
+    if (!h || !acell || !owner || !segn) {
         free(h);
         free(acell);
+        free(owner);
+        free(segn);
         return par_fail_mem();
     }
     size_t kept = 0;
     for (size_t k = 0; k < m; ++k) {
         const double *v = vals + k * per;
-        int64_t ac = 0;
-        const int64_t c = cell_of(ps, s->sys.nnps, v, dim, &ac);
-        const int q = ps->owner[ac];
-        if (q != ps->rank && !ps->halo[(size_t)ps->rank * (size_t)ps->nc[ps->axis] + ac]) continue;
+        int64_t ac[CONSPH_MAX_DIM];
+        const int64_t c = cell_of(ps, s->sys.nnps, v, ac);
+        if (owner_of(ps, ac) != ps->rank && !in_halo(ps, ps->rank, ac)) continue;
         h[kept].cell = c;
         h[kept].g = v[per - 1];
         h[kept].at = k;
@@ -432,31 +490,43 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
     for (size_t k = 0; st == CONSPH_OK && k < kept; ++k) {
         const double *v = vals + h[k].at * per;
         unpack(&np, k, v);
-        int64_t ac = 0;
-        cell_of(ps, s->sys.nnps, v, dim, &ac);
-        acell[k] = ac;
-        dest[k] = ps->owner[ac] == ps->rank;
+        int64_t *ac = acell + k * (size_t)dim;
+        cell_of(ps, s->sys.nnps, v, ac);
+        owner[k] = owner_of(ps, ac);
+        dest[k] = owner[k] == ps->rank;
         nown += dest[k];
         origin[k] = k;
+        /* the serial order: rows (the cells beyond axis 0), in each the pieces along axis 0 */
+        if (dest[k]) ++segn[(h[k].cell / ps->nc[0]) * ps->k[0] + ps->piece[0][ac[0]]];
     }
-    unsigned long long mine = nown, below = 0;
-    MPI_Exscan(&mine, &below, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, ps->comm);
-    if (ps->rank == 0) below = 0;
+    /* every segment (a row's cells in one piece along axis 0) is one rank's: the sum over the
+     * ranks is its count, and the serial index of its first particle their prefix sum */
+    if (st == CONSPH_OK) {
+        MPI_Allreduce(segn, ps->seg, (int)nseg, MPI_INT64_T, MPI_SUM, ps->comm);
+        int64_t acc = 0;
+        for (size_t q = 0; q < nseg; ++q) {
+            const int64_t c = ps->seg[q];
+            ps->seg[q] = acc;
+            acc += c;
+        }
+    } else {
+        MPI_Abort(ps->comm, 1); /* the other ranks wait in the counts' exchange */
+    }
     if (st == CONSPH_OK) {
         free(ps->own);
         free(ps->x0);
         ps->own = malloc((nown ? nown : 1) * sizeof(size_t));
-        ps->x0 = malloc((nown ? nown : 1) * sizeof(double));
+        ps->x0 = malloc((nown ? nown : 1) * (size_t)dim * sizeof(double));
         if (!ps->own || !ps->x0) st = par_fail_mem();
     }
     /* the exchange lists: what each rank's halo takes of ours, what ours takes of each */
     size_t ns = 0, nr = 0;
     for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
         ps->scount[q] = ps->rcount[q] = 0;
-        const unsigned char *hq = ps->halo + (size_t)q * (size_t)ps->nc[ps->axis];
         for (size_t k = 0; k < kept; ++k) {
-            if (dest[k] && q != ps->rank && hq[acell[k]]) ++ps->scount[q];
-            if (!dest[k] && ps->owner[acell[k]] == q) ++ps->rcount[q];
+            if (dest[k] && q != ps->rank && in_halo(ps, q, acell + k * (size_t)dim))
+                ++ps->scount[q];
+            if (!dest[k] && owner[k] == q) ++ps->rcount[q];
         }
         ps->sdispl[q] = (int)ns;
         ps->rdispl[q] = (int)nr;
@@ -474,23 +544,26 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
         size_t o = 0;
         for (size_t k = 0; k < kept; ++k) {
             if (dest[k]) {
-                g[k] = (double)(below + o);
+                const int64_t *ac = acell + k * (size_t)dim;
+                g[k] = (double)ps->seg[(h[k].cell / ps->nc[0]) * ps->k[0] + ps->piece[0][ac[0]]]++;
                 ps->own[o] = k;
-                ps->x0[o] = np.x[ps->axis][k];
+                for (int a = 0; a < dim; ++a) ps->x0[o * (size_t)dim + (size_t)a] = np.x[a][k];
                 ++o;
             } else {
                 g[k] = -1.0;
             }
         }
         for (int q = 0; q < ps->size; ++q) {
-            const unsigned char *hq = ps->halo + (size_t)q * (size_t)ps->nc[ps->axis];
             size_t si = (size_t)ps->sdispl[q], ri = (size_t)ps->rdispl[q];
             for (size_t k = 0; k < kept; ++k) {
-                if (dest[k] && q != ps->rank && hq[acell[k]]) ps->sidx[si++] = k;
-                if (!dest[k] && ps->owner[acell[k]] == q) ps->ridx[ri++] = k;
+                if (dest[k] && q != ps->rank && in_halo(ps, q, acell + k * (size_t)dim))
+                    ps->sidx[si++] = k;
+                if (!dest[k] && owner[k] == q) ps->ridx[ri++] = k;
             }
         }
     }
+    free(owner);
+    free(segn);
     free(h);
     free(acell);
     if (st != CONSPH_OK) {
@@ -513,7 +586,6 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
     free(ps->g);
     ps->g = g;
     ps->nown = nown;
-    ps->goff = below;
     /* new halo lists, the halo as the owners packed it */
     st = halo_state_from_cut(ps, &s->sys);
     if (st != CONSPH_OK) return st;
@@ -525,26 +597,20 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
 static int migrate(consph_solver *s, par_solver *ps)
 {
     consph_particles *p = s->sys.p;
-    const int64_t nca = ps->nc[ps->axis];
+    const size_t dim = (size_t)ps->dim;
     const double t0 = MPI_Wtime();
-    int64_t *count = consph_calloc((size_t)nca, sizeof(int64_t));
-    int64_t *all = consph_calloc((size_t)nca, sizeof(int64_t));
-    int64_t *ac = malloc((ps->nown ? ps->nown : 1) * sizeof(int64_t));
-    if (!count || !all || !ac) {
-        free(count);
-        free(all);
+    int64_t *ac = malloc((ps->nown ? ps->nown : 1) * dim * sizeof(int64_t));
+    int *owner = malloc((ps->nown ? ps->nown : 1) * sizeof(int));
+    if (!ac || !owner) {
         free(ac);
+        free(owner);
         return par_fail_mem();
     }
-    for (size_t o = 0; o < ps->nown; ++o) {
-        const size_t i = ps->own[o];
-        ac[o] = nnps_axis_cell(s->sys.nnps, ps->axis, p->x[ps->axis][i]);
-        ++count[ac[o]];
-    }
-    MPI_Allreduce(count, all, (int)nca, MPI_INT64_T, MPI_SUM, ps->comm);
-    cut_slabs(ps, all);
-    free(count);
-    free(all);
+    for (size_t o = 0; o < ps->nown; ++o)
+        for (size_t a = 0; a < dim; ++a)
+            ac[o * dim + a] = nnps_axis_cell(s->sys.nnps, (int)a, p->x[a][ps->own[o]]);
+    if (cut_boxes(ps, ac, ps->nown) != CONSPH_OK) MPI_Abort(ps->comm, 1);
+    for (size_t o = 0; o < ps->nown; ++o) owner[o] = owner_of(ps, ac + o * dim);
     const size_t per = values_per_particle(p) + 1; /* + g */
     const size_t ncol = per - 1;
     int *cnt = consph_calloc((size_t)ps->size, sizeof(int));
@@ -583,7 +649,7 @@ static int migrate(consph_solver *s, par_solver *ps)
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
         size_t d = 0;
         for (size_t o = 0; o < ps->nown; ++o)
-            if (ps->owner[ac[o]] == q || ps->halo[(size_t)q * (size_t)nca + ac[o]]) {
+            if (owner[o] == q || in_halo(ps, q, ac + o * dim)) {
                 ++cnt[q];
                 d += 2 + (q != ps->rank && slot[ps->own[o]] >= 0 ? sel : ncol);
             }
@@ -622,7 +688,7 @@ static int migrate(consph_solver *s, par_solver *ps)
         const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
         for (size_t o = 0; o < ps->nown; ++o) {
-            if (ps->owner[ac[o]] != q && !ps->halo[(size_t)q * (size_t)nca + ac[o]]) continue;
+            if (owner[o] != q && !in_halo(ps, q, ac + o * dim)) continue;
             const size_t i = ps->own[o];
             const long sl = q != ps->rank ? slot[i] : -1;
             *v++ = ps->g[i];
@@ -654,6 +720,7 @@ static int migrate(consph_solver *s, par_solver *ps)
     st = install(s, ps, full, nr, per);
     free(full);
     free(ac);
+    free(owner);
     free(cnt);
     free(rcnt);
     free(sd);
@@ -740,12 +807,27 @@ static double sum_eval(const sum_item *it, size_t m, size_t s, size_t n)
     return sum_eval(it, m, s, left) + sum_eval(it, m, s + left, n - left);
 }
 
+static int item_cmp(const void *pa, const void *pb)
+{
+    const sum_item *a = pa, *b = pb;
+    if (a->start != b->start) return a->start < b->start ? -1 : 1;
+    return a->len < b->len ? -1 : a->len > b->len;
+}
+
 /* consph_sum of w over the serial order, each rank holding the values of its owned particles
- * (its range [goff, goff + nown) of that order), bit for bit on every rank. */
+ * (runs of consecutive serial indices, ascending: the rows of its box), bit for bit on every
+ * rank. */
 static int par_sum(par_solver *ps, const double *w, double *out)
 {
     sum_items a = {NULL, 0, 0};
-    int st = sum_emit(&a, w, ps->goff, ps->goff + ps->nown, 0, ps->nglobal);
+    int st = CONSPH_OK;
+    for (size_t o = 0; st == CONSPH_OK && o < ps->nown;) {
+        size_t e = o + 1;
+        const size_t lo = (size_t)ps->g[ps->own[o]];
+        while (e < ps->nown && (size_t)ps->g[ps->own[e]] == lo + (e - o)) ++e;
+        st = sum_emit(&a, w + o, lo, lo + (e - o), 0, ps->nglobal);
+        o = e;
+    }
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
     const int mine = (int)(3 * a.n);
     int *cnt = NULL, *dis = NULL;
@@ -767,7 +849,10 @@ static int par_sum(par_solver *ps, const double *w, double *out)
     }
     MPI_Gatherv(a.it, mine, MPI_DOUBLE, all, cnt, dis, MPI_DOUBLE, 0, ps->comm);
     double v = 0.0;
-    if (ps->rank == 0) v = sum_eval((const sum_item *)all, total / 3, 0, ps->nglobal);
+    if (ps->rank == 0) {
+        qsort(all, total / 3, sizeof(sum_item), item_cmp); /* the ranks' runs interleave */
+        v = sum_eval((const sum_item *)all, total / 3, 0, ps->nglobal);
+    }
     MPI_Bcast(&v, 1, MPI_DOUBLE, 0, ps->comm);
     if (ps->rank != 0) ps->bytes += (double)mine * sizeof(double);
     free(a.it);
@@ -843,25 +928,35 @@ int par_step_begin(consph_solver *s)
 int par_step_end(consph_solver *s, int status)
 {
     par_solver *ps = s->par;
-    /* the largest move along the slab axis since the re-sort, nearest image */
+    /* the largest move along each axis since the re-sort in cell edges, nearest image */
     const consph_particles *p = s->sys.p;
     double mx = 0.0;
-    for (size_t o = 0; o < ps->nown; ++o) {
-        double d = fabs(p->x[ps->axis][ps->own[o]] - ps->x0[o]);
-        if (ps->periodic && d > 0.5 * ps->len) d = ps->len - d;
-        if (d > mx || isnan(d)) mx = isnan(d) ? 0.0 : d; /* NaN: the checks name it */
-    }
+    int axis = 0;
+    for (size_t o = 0; o < ps->nown; ++o)
+        for (int a = 0; a < ps->dim; ++a) {
+            double d = fabs(p->x[a][ps->own[o]] - ps->x0[o * (size_t)ps->dim + (size_t)a]);
+            if (ps->periodic[a] && d > 0.5 * ps->len[a]) d = ps->len[a] - d;
+            d /= ps->edge[a];
+            if (d > mx || isnan(d)) { /* NaN: the checks name it */
+                mx = isnan(d) ? 0.0 : d;
+                axis = a;
+            }
+        }
     double in[2] = {status != CONSPH_OK ? 1.0 : 0.0, mx}, out[2];
     MPI_Allreduce(in, out, 2, MPI_DOUBLE, MPI_MAX, ps->comm);
+    /* the axis: the lowest among the ranks that saw the maximum */
+    int ax = out[1] == mx ? axis : CONSPH_MAX_DIM;
+    int axmin = 0;
+    MPI_Allreduce(&ax, &axmin, 1, MPI_INT, MPI_MIN, ps->comm);
     if (status != CONSPH_OK) return status;
     if (out[0] > 0.0)
         return consph_fail(CONSPH_EINVAL, "step %ld failed on another MPI rank", s->step);
-    if (s->scheme->moves && out[1] >= 0.5 * ps->edge)
+    if (s->scheme->moves && out[1] >= 0.5)
         return consph_fail(CONSPH_EINVAL,
                            "step %ld: a particle moved %g along axis %d in one step, half a "
                            "search cell (%g) or more: the MPI halo may miss neighbours; run "
                            "with a smaller dt or without MPI",
-                           s->step, out[1], ps->axis, 0.5 * ps->edge);
+                           s->step, out[1] * ps->edge[axmin], axmin, 0.5 * ps->edge[axmin]);
     return CONSPH_OK;
 }
 
@@ -882,7 +977,7 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
         for (int k = 0; only && only[k]; ++k)
             if (!strcmp(p->fields[f].name, only[k])) sel[f] = 1;
     }
-    const size_t per = values_selected(p, sel);
+    const size_t per = values_selected(p, sel) + 1; /* + the serial index */
     int st = CONSPH_OK;
     double *sbuf = malloc((ps->nown ? ps->nown : 1) * per * sizeof(double));
     int *cnt = NULL, *dis = NULL, *pcnt = NULL;
@@ -892,7 +987,10 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
         pcnt = consph_calloc((size_t)ps->size, sizeof(int));
     }
     if (!sbuf || (ps->rank == 0 && (!cnt || !dis || !pcnt))) MPI_Abort(ps->comm, 1);
-    for (size_t o = 0; o < ps->nown; ++o) pack_selected(p, sel, ps->own[o], sbuf + o * per);
+    for (size_t o = 0; o < ps->nown; ++o) {
+        pack_selected(p, sel, ps->own[o], sbuf + o * per);
+        sbuf[o * per + per - 1] = ps->g[ps->own[o]];
+    }
     const int mine = (int)ps->nown;
     MPI_Gather(&mine, 1, MPI_INT, pcnt, 1, MPI_INT, 0, ps->comm);
     if (ps->rank == 0) st = counts_to_doubles(ps, pcnt, cnt, dis, per);
@@ -914,7 +1012,11 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
     free(sbuf);
     char msg[1024] = "";
     if (ps->rank == 0) {
-        for (size_t i = 0; i < ps->nglobal; ++i) unpack(&full, i, rbuf + i * per);
+        /* into the serial order: each rank's particles are runs of it */
+        for (size_t i = 0; i < ps->nglobal; ++i) {
+            const double *v = rbuf + i * per;
+            unpack(&full, (size_t)v[per - 1], v);
+        }
         free(rbuf);
         /* the serial view: the whole set, no mask, nothing decomposed (a nested
          * solver_global runs at once) */
@@ -955,12 +1057,30 @@ int par_rank(const consph_solver *s)
     return s->par ? s->par->rank : 0;
 }
 
+int par_share_history(consph_solver *s)
+{
+    par_solver *ps = s->par;
+    unsigned long long nh = s->nhist;
+    MPI_Bcast(&nh, 1, MPI_UNSIGNED_LONG_LONG, 0, ps->comm);
+    if (ps->rank != 0 && nh > s->caphist) {
+        double *h = realloc(s->hist, (size_t)nh * HIST_COLS * sizeof(double));
+        if (!h) MPI_Abort(ps->comm, 1); /* rank 0 waits in the broadcast */
+        s->hist = h;
+        s->caphist = (size_t)nh;
+    }
+    if (nh) MPI_Bcast(s->hist, (int)(nh * HIST_COLS), MPI_DOUBLE, 0, ps->comm);
+    s->nhist = (size_t)nh;
+    return CONSPH_OK;
+}
+
 void par_solver_free(par_solver *ps)
 {
     if (!ps) return;
-    free(ps->cut);
-    free(ps->owner);
-    free(ps->halo);
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
+        free(ps->cut[a]);
+        free(ps->piece[a]);
+    }
+    free(ps->seg);
     free(ps->g);
     free(ps->own);
     free(ps->x0);
@@ -985,6 +1105,49 @@ void par_solver_free(par_solver *ps)
 }
 
 /* ---- set-up ---- */
+
+static int forced_boxes[CONSPH_MAX_DIM];
+
+void par_force_boxes(const int *k)
+{
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) forced_boxes[a] = k ? k[a] : 0;
+}
+
+/* The pieces per axis, k_0 k_1 k_2 = K, each at most the axis' cells, that make the fewest
+ * halo cells per rank (a box of (nc_a / k_a) cells along each axis and its halo of width w_a on
+ * either side where k_a > 1); on a tie the slabs (pieces along the later axes). 0: none fits. */
+static int choose_boxes(par_solver *ps)
+{
+    const int K = ps->size, d = ps->dim;
+    double best = INFINITY;
+    int found = 0;
+    for (int k2 = d > 2 ? K : 1; k2 >= 1; --k2) {
+        if (K % k2) continue;
+        for (int k1 = K / k2; k1 >= 1; --k1) {
+            if ((K / k2) % k1) continue;
+            const int k[CONSPH_MAX_DIM] = {K / k2 / k1, k1, k2};
+            double own = 1.0, ext = 1.0;
+            int fits = d > 1 || k1 == 1;
+            for (int a = 0; a < d; ++a) {
+                fits = fits && k[a] <= ps->nc[a];
+                const double o = (double)ps->nc[a] / k[a];
+                double e = k[a] > 1 ? o + 2.0 * (double)ps->width[a] : o;
+                if (e > (double)ps->nc[a]) e = (double)ps->nc[a];
+                own *= o;
+                ext *= e;
+            }
+            if (forced_boxes[0])
+                for (int a = 0; a < CONSPH_MAX_DIM; ++a) fits = fits && k[a] == forced_boxes[a];
+            if (fits && ext - own < best) {
+                best = ext - own;
+                for (int a = 0; a < CONSPH_MAX_DIM; ++a) ps->k[a] = k[a];
+                found = 1;
+            }
+        }
+        if (d < 2) break;
+    }
+    return found;
+}
 
 int consph_par_solver_decompose(consph_solver *s)
 {
@@ -1015,9 +1178,7 @@ int consph_par_solver_decompose(consph_solver *s)
     ps->comm = MPI_COMM_WORLD;
     ps->rank = rank;
     ps->size = size;
-    ps->axis = axis;
-    ps->periodic = p->box.periodic[axis] != 0;
-    ps->len = p->box.hi[axis] - p->box.lo[axis];
+    ps->dim = p->dim;
     ps->nglobal = n;
     ps->pairs_base = s->pairs;
     /* the whole set's grid, from now on at every build of this rank's part */
@@ -1025,9 +1186,14 @@ int consph_par_solver_decompose(consph_solver *s)
     int64_t reach[CONSPH_MAX_DIM];
     double edge[CONSPH_MAX_DIM];
     nnps_grid(s->sys.nnps, ps->nc, reach, edge);
-    ps->width = reach[axis] + 1;
-    ps->edge = edge[axis];
-    const int64_t nca = ps->nc[axis];
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
+        ps->k[a] = 1;
+        if (a >= ps->dim) continue;
+        ps->periodic[a] = p->box.periodic[a] != 0;
+        ps->len[a] = p->box.hi[a] - p->box.lo[a];
+        ps->width[a] = reach[a] + 1;
+        ps->edge[a] = edge[a];
+    }
     if ((size_t)size > n) {
         free(ps);
         return consph_fail(CONSPH_EINVAL,
@@ -1035,16 +1201,25 @@ int consph_par_solver_decompose(consph_solver *s)
                            "particles",
                            size, n);
     }
-    if ((int64_t)size > nca) {
+    if (!choose_boxes(ps)) {
+        const int64_t nca = ps->nc[axis];
         free(ps);
         return consph_fail(CONSPH_EINVAL,
                            "%d MPI ranks, but the decomposition cuts the box into %lld slabs of "
-                           "search cells along axis %d (%zu particles): run on at most %lld ranks",
-                           size, (long long)nca, axis, n, (long long)nca);
+                           "search cells along axis %d (%zu particles), and %d does not factor "
+                           "into as many pieces along the axes as their slabs allow: run on at "
+                           "most %lld ranks",
+                           size, (long long)nca, axis, n, size, (long long)nca);
     }
-    ps->cut = consph_calloc((size_t)size + 1, sizeof(int64_t));
-    ps->owner = consph_calloc((size_t)nca, sizeof(int));
-    ps->halo = consph_calloc((size_t)size * (size_t)nca, 1);
+    int mem = 1;
+    ps->nrows = 1;
+    for (int a = 0; a < ps->dim; ++a) {
+        ps->cut[a] = consph_calloc((size_t)ps->k[a] + 1, sizeof(int64_t));
+        ps->piece[a] = consph_calloc((size_t)ps->nc[a], sizeof(int));
+        mem = mem && ps->cut[a] && ps->piece[a];
+        if (a > 0) ps->nrows *= ps->nc[a];
+    }
+    ps->seg = consph_calloc((size_t)ps->nrows * (size_t)ps->k[0], sizeof(int64_t));
     ps->g = malloc((n ? n : 1) * sizeof(double));
     ps->own = malloc((n ? n : 1) * sizeof(size_t));
     ps->scount = consph_calloc((size_t)size, sizeof(int));
@@ -1056,8 +1231,8 @@ int consph_par_solver_decompose(consph_solver *s)
     ps->rdbl = consph_calloc((size_t)size, sizeof(int));
     ps->rddis = consph_calloc((size_t)size, sizeof(int));
     unsigned char *dest = consph_calloc(n ? n : 1, 1);
-    if (!ps->cut || !ps->owner || !ps->halo || !ps->g || !ps->own || !ps->scount || !ps->sdispl ||
-        !ps->rcount || !ps->rdispl || !ps->sdbl || !ps->sddis || !ps->rdbl || !ps->rddis || !dest) {
+    if (!mem || !ps->seg || !ps->g || !ps->own || !ps->scount || !ps->sdispl || !ps->rcount ||
+        !ps->rdispl || !ps->sdbl || !ps->sddis || !ps->rdbl || !ps->rddis || !dest) {
         free(dest);
         par_solver_free(ps);
         return par_fail_mem();
@@ -1124,6 +1299,12 @@ int par_rank(const consph_solver *s)
     return 0;
 }
 
+int par_share_history(consph_solver *s)
+{
+    (void)s;
+    return CONSPH_OK;
+}
+
 int par_checks_clean(consph_solver *s, int *clean)
 {
     (void)s;
@@ -1142,6 +1323,11 @@ void par_solver_free(par_solver *ps)
     (void)ps;
 }
 
+void par_force_boxes(const int *k)
+{
+    (void)k;
+}
+
 int consph_par_solver_decompose(consph_solver *s)
 {
     (void)s;
@@ -1156,3 +1342,22 @@ void consph_par_solver_comm(const consph_solver *s, double *bytes, double *secon
 }
 
 #endif
+
+/* The ranks agree that every one made its particles, then cut them (consph_par_solver_create). */
+static int agree_and_cut(consph_solver *s, void *arg)
+{
+    int *joined = arg;
+    const int st = consph_par_agree(CONSPH_OK);
+    *joined = 1;
+    return st == CONSPH_OK ? consph_par_solver_decompose(s) : st;
+}
+
+int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
+                             const consph_particles *given, int *joined)
+{
+    int mine = 0;
+    if (!joined) joined = &mine;
+    *joined = 0;
+    if (consph_par_size() < 2) return consph_solver_create_from(out, prm, given);
+    return solver_create_cut(out, prm, given, agree_and_cut, joined);
+}

@@ -28,8 +28,14 @@ int par_checks_clean(consph_solver *s, int *clean);
 /* consph_sum over the serial order of w, one value per owned particle in this rank's order
  * (the particles in the destination mask, ascending), the same on every rank. */
 int par_owned_sum(consph_solver *s, const double *w, double *out);
+/* Rank 0's history of the diagnostics to every rank: after a sample made decomposed at the
+ * set-up (the checks read its first row, the initial state, on every rank). */
+int par_share_history(consph_solver *s);
 /* This rank (0 for a serial solver). */
 int par_rank(const consph_solver *s);
 void par_solver_free(par_solver *ps);
+/* For the tests: the next decompositions cut k[a] pieces along axis a (NULL: chosen for the
+ * fewest halo cells); a launch whose rank count is not their product is refused. */
+void par_force_boxes(const int *k);
 
 #endif

@@ -630,6 +630,7 @@ static int cache_block(const consph_sys *s, nlist_block *b)
     size_t used = 0;
     for (size_t sl = b->s0; sl < b->s1; ++sl) {
         b->poff[sl - b->s0] = used;
+        if (s->dest && !s->dest[particle_of(l, sl)]) continue; /* a source only: no pairs */
         if (pair_reserve(b, l->dim, used + (b->coff[sl - b->s0 + 1] - b->coff[sl - b->s0])))
             return CONSPH_ENOMEM;
         pair_out o = {b->pj, {b->pdx[0], b->pdx[1], b->pdx[2]}, b->pr};
@@ -668,6 +669,8 @@ static int cache_block_gather(const consph_sys *s, nlist_block *b, consph_nnps_r
             }
         }
         b->poff[sl - b->s0] = used;
+        /* a source only (the MPI halo): no pass visits its pairs, so none are kept */
+        if (s->dest && !s->dest[particle_of(l, sl)]) continue;
         if (pair_reserve(b, l->dim, used + runs->candidates + CONSPH_NNPS_GATHER_SLACK))
             return CONSPH_ENOMEM;
         double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};

@@ -277,6 +277,16 @@ static const double *given_field(const consph_particles *in, const char *name)
     return f ? f->data : NULL;
 }
 
+/* The diagnostics at t = 0 (over the whole set: solver_global, when the set-up was cut). */
+static int first_sample(consph_solver *s, void *arg)
+{
+    (void)arg;
+    int st = solver_sample(s);
+    if (st == CONSPH_OK && s->prm.error == CONSPH_ERROR_AUTHORS)
+        st = solver_auth_sample(s); /* t = 0 is the first output time */
+    return st;
+}
+
 int consph_solver_create(consph_solver **out, const consph_run_params *prm)
 {
     return consph_solver_create_from(out, prm, NULL);
@@ -284,6 +294,13 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
 
 int consph_solver_create_from(consph_solver **out, const consph_run_params *prm,
                               const consph_particles *given)
+{
+    return solver_create_cut(out, prm, given, NULL, NULL);
+}
+
+int solver_create_cut(consph_solver **out, const consph_run_params *prm,
+                      const consph_particles *given, int (*cut)(consph_solver *s, void *arg),
+                      void *arg)
 {
     *out = NULL;
     int st = consph_run_params_check(prm);
@@ -318,7 +335,8 @@ int consph_solver_create_from(consph_solver **out, const consph_run_params *prm,
         st = consph_layout_generate(&ll, &lat, NULL);
     }
     if (st == CONSPH_OK) st = state_create(s);
-    if (st == CONSPH_OK) st = solver_nlist_start(s, 0);
+    /* cut: the neighbour list and the initial rates are made on this rank's part only */
+    if (st == CONSPH_OK && !cut) st = solver_nlist_start(s, 0);
     if (st == CONSPH_OK) {
         consph_particles *p = s->sys.p;
         const size_t n = p->n, cap = p->cap;
@@ -345,14 +363,14 @@ int consph_solver_create_from(consph_solver **out, const consph_run_params *prm,
     consph_particles_free(&src);
     consph_particles_free(&lat);
     if (st == CONSPH_OK && prm->rho_init == CONSPH_RHO_INIT_RHO0) solver_eos(s);
+    if (st == CONSPH_OK && cut) st = cut(s, arg);
+    if (st == CONSPH_OK && cut) st = solver_nlist_start(s, 0);
     s->step_dt = s->dt;
     if (st == CONSPH_OK) st = initial_rates(s);
     if (st == CONSPH_OK) st = state_undeclared(s, 0);
-    if (st == CONSPH_OK) st = solver_sample(s); /* t = 0 */
-    if (st == CONSPH_OK && prm->error == CONSPH_ERROR_AUTHORS) {
-        st = solver_auth_sample(s); /* t = 0 is the first output time */
-        s->auth_next = 1;
-    }
+    if (st == CONSPH_OK) st = solver_global(s, first_sample, NULL);
+    if (st == CONSPH_OK && s->par) st = par_share_history(s);
+    if (prm->error == CONSPH_ERROR_AUTHORS) s->auth_next = 1;
     if (st != CONSPH_OK) {
         consph_solver_free(s);
         return st;

@@ -252,6 +252,12 @@ struct consph_solver {
  * particles gathered in the serial order (the other ranks take its status and message). For
  * what reads every particle: diagnostics, checks, files. */
 int solver_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg);
+/* consph_solver_create_from with cut(s, arg) (NULL: none) run on the particles and their
+ * initial fields, before the neighbour list and the initial rates: the MPI decomposition's
+ * set-up (src/par/par_solver.c), so that only the rank's part gets them. */
+int solver_create_cut(consph_solver **out, const consph_run_params *prm,
+                      const consph_particles *given, int (*cut)(consph_solver *s, void *arg),
+                      void *arg);
 
 /* consph_run_nx_check against `memory` bytes (0: unknown) instead of this machine's. */
 int run_nx_fits(int nx, int dim, double memory);
