@@ -306,16 +306,13 @@ int solver_auth_due(const consph_solver *s, int landed)
  * cut to end on it. */
 int solver_auth_after_step(consph_solver *s, int landed)
 {
-    int hit = 0;
+    const int hit = solver_auth_due(s, landed);
     if (s->nsteps == 0) {
-        hit = landed;
         s->auth_next += hit;
     } else {
         /* several output times may round to one step: it is sampled once */
-        while (s->auth_next < s->prm.error_times && auth_step(s, s->auth_next) <= s->step) {
-            hit |= auth_step(s, s->auth_next) == s->step;
+        while (s->auth_next < s->prm.error_times && auth_step(s, s->auth_next) <= s->step)
             ++s->auth_next;
-        }
     }
     return hit ? solver_auth_sample(s) : CONSPH_OK;
 }
