@@ -12,8 +12,8 @@
 #      packed layout is made on the host, the same for both devices, cached between the
 #      Lagrangian schemes; its cost is estimated apart, below);
 #   3. runs it with --device gpu, then with --device cpu on THREADS threads; then once more on
-#      the GPU with error = eq26 (no copy of the particles back to the host at every step, which
-#      the authors' measure takes on the GPU: docs/gpu.md), when the budget allows;
+#      the GPU with error = eq26 (the authors' measure copies the particles back at its output
+#      times, here t = 0 and the end, besides the log samples: docs/gpu.md), when the budget allows;
 #   4. extrapolates each to the full 001-table9 (six resolutions, seven schemes, t = 0.5):
 #      per scheme and resolution, the measured wall time per step times ceil(0.5/Δt) steps; a
 #      table-9 scheme the GPU does not run yet is priced as the reference series (l-ipst-c when
@@ -264,8 +264,8 @@ md=$out/gpu_study.md
     echo "Σ step s)/rows × 42 rows; packing: ${packing:-not estimated} s by consph's model on the CPU"
     echo "(\`consph study --estimate\` of the table at one step per row, less the same with every series"
     echo "on the lattice; the packed layouts are made on the host for either device, once per nx, kept"
-    echo "in the layout cache for the other schemes). error = authors copies every"
-    echo "particle back to the host after every GPU step (docs/gpu.md); gpu-eq26 shows the GPU without it."
+    echo "in the layout cache for the other schemes). On the GPU, error = authors copies the particles"
+    echo "back at its output times besides the log samples (docs/gpu.md); gpu-eq26 shows the GPU without those."
 } >"$md"
 cat "$md"
 log "done: $md"

@@ -4,7 +4,7 @@
 # a machine without a device. The GPU path of the CLI on the host emulation
 # (CONSPH_GPU_BACKEND=emulation), and on the GPU where one is found: the run's log, snapshots,
 # final checkpoint and summary equal the CPU run's byte for byte (edac and wcsph, 2D and 3D;
-# l-ipst-c, l-pst-c, e-c, l-rr-c).
+# l-ipst-c, l-pst-c, e-c, l-rr-c; --error authors, whose run copies back at its output times only).
 # Usage: bash cli_gpu.sh PATH-TO-CONSPH SOURCE-DIR
 set -u
 consph=$1
@@ -58,6 +58,15 @@ same_files emulation "taylor-green --scheme l-ipst-c --nx 16 --steps 13 --log-ev
 same_files emulation "taylor-green --scheme l-pst-c --nx 12 --steps 5 --log-every 2 --snapshot-every 3"
 same_files emulation "taylor-green --scheme e-c --nx 12 --steps 5 --log-every 2 --snapshot-every 3"
 same_files emulation "taylor-green --scheme l-rr-c --nx 12 --steps 4 --log-every 2 --snapshot-every 3"
+# 001's authors' measure: its output times are sampled from the same states, by --steps (6, 12,
+# 18, 24, 30) and by --tf (steps cut to land on them); the GPU copies back after those steps, the
+# log samples (10, 20) and the last step only: 7 copies in 30 steps, not 30
+same_files emulation "taylor-green --scheme edac --nx 12 --steps 30 --log-every 10 --error authors --error-times 6"
+copies=$(CONSPH_GPU_BACKEND=emulation CONSPH_GPU_COUNT_COPIES=1 "$consph" run taylor-green \
+    --scheme edac --nx 12 --steps 30 --log-every 10 --error authors --error-times 6 --device gpu \
+    2>&1 >/dev/null | sed -n 's/^GPU: \([0-9]*\) copies back.*/\1/p')
+[ "$copies" = 7 ] && pass=$((pass + 1)) || bad "error authors: ${copies:-no count of} copies back, not 7"
+same_files emulation "taylor-green --scheme l-ipst-c --nx 12 --tf 0.02 --log-every 50 --error authors --error-times 4"
 
 run --scheme edac --device gpu >"$work/o" 2>"$work/err"
 rc=$?

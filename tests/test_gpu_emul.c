@@ -6,7 +6,8 @@
  * for bit after one step and after 20, with the gradients every step and as consph_run skips
  * them (grads_lazy, the state copied back only at the log samples and the end); 001's schemes
  * (rk2, the kit's passes, IPST over two shifts, the other regularisations) the same way. Then the
- * refusals: schemes not ported, and a build without CUDA. */
+ * refusals: schemes not ported, and a build without CUDA. Under error = authors, the copies back
+ * are counted: only the steps the host reads. */
 #include "gpu_compare.h"
 
 static void refusals(void)
@@ -51,6 +52,60 @@ static void refusals(void)
 #endif
 }
 
+/* error = authors (001's measure at its output times): the GPU run copies its state back after
+ * the steps whose end the host reads (the output times, the log samples, the last step) and no
+ * other, and the measure's sums, the log and the state equal the CPU's bit for bit; by --steps
+ * (output times rounded to steps) and by --tf (steps cut to land on them). */
+static void authors_copies(const char *scheme, int by_steps)
+{
+    consph_solver *s[2] = {NULL, NULL};
+    for (int k = 0; k < 2; ++k) {
+        consph_run_params p;
+        consph_run_params_default(&p);
+        snprintf(p.scheme, sizeof p.scheme, "%s", scheme);
+        p.nx = 16;
+        p.error = CONSPH_ERROR_AUTHORS;
+        p.error_times = 5;
+        p.log_every = 7;
+        p.steps = by_steps ? 24 : 0;
+        p.dt = by_steps ? 0.0 : 1.1e-3;
+        p.tf = by_steps ? 0.0 : 0.0255; /* output times k·0.006375: steps 6, 12, 18, 24 cut */
+        CHECK(consph_solver_create(&s[k], &p) == CONSPH_OK, "create: %s", consph_last_error());
+        if (!s[k]) goto done;
+        s[k]->grads_lazy = 1; /* as consph_run without snapshots */
+    }
+    consph_solver *cpu = s[0], *emu = s[1];
+    CHECK(gpu_attach(emu, &gpu_emulation) == CONSPH_OK, "attach: %s", consph_last_error());
+    if (!emu->gpu) goto done;
+    long steps = 0, reads = 0;
+    while (!consph_solver_done(cpu)) {
+        const int before = cpu->auth_n;
+        const int a = consph_solver_step(cpu), b = consph_solver_step(emu);
+        CHECK(a == CONSPH_OK && b == CONSPH_OK, "%s step %ld: %s", scheme, steps + 1,
+              consph_last_error());
+        if (a != CONSPH_OK || b != CONSPH_OK) goto done;
+        ++steps;
+        reads += cpu->step % 7 == 0 || consph_solver_done(cpu) || cpu->auth_n > before;
+    }
+    char what[128];
+    snprintf(what, sizeof what, "%s error = authors by %s", scheme, by_steps ? "steps" : "tf");
+    CHECK(gpu_download_count(emu) == reads && reads < steps / 2,
+          "%s: %ld copies back in %ld steps, the host reads %ld", what, gpu_download_count(emu),
+          steps, reads);
+    CHECK(consph_solver_done(emu) && cpu->auth_n == 5 && emu->auth_n == cpu->auth_n &&
+              memcmp(&cpu->auth_u_acc, &emu->auth_u_acc, sizeof(double)) == 0 &&
+              memcmp(&cpu->auth_p_acc, &emu->auth_p_acc, sizeof(double)) == 0,
+          "%s: %d samples, sums %.17g %.17g vs %d, %.17g %.17g", what, cpu->auth_n, cpu->auth_u_acc,
+          cpu->auth_p_acc, emu->auth_n, emu->auth_u_acc, emu->auth_p_acc);
+    CHECK(cpu->nhist == emu->nhist &&
+              memcmp(cpu->hist, emu->hist, cpu->nhist * HIST_COLS * sizeof(double)) == 0,
+          "%s: the logged diagnostics differ", what);
+    same_state(cpu, emu, what);
+done:
+    consph_solver_free(s[0]);
+    consph_solver_free(s[1]);
+}
+
 int main(void)
 {
     static const char *const schemes[] = {"edac", "wcsph"};
@@ -82,6 +137,9 @@ int main(void)
     gpu_compare(&gpu_emulation, "ewcsph", "taylor-green", 16, 0);
     gpu_compare(&gpu_emulation, "ewcsph", "beltrami", 8, 0);
     gpu_twice(&gpu_emulation, "edac", "taylor-green", 20, 5);
+    authors_copies("edac", 1);
+    authors_copies("edac", 0);
+    authors_copies("l-ipst-c", 0);
     refusals();
     return check_summary("test_gpu_emul");
 }

@@ -70,13 +70,16 @@ typedef struct gpu_run gpu_run;
  * solver's steps then run there (gpu_step) until gpu_free. */
 int gpu_attach(struct consph_solver *s, const gpu_backend *be);
 /* One step of dt on the device; copies the state back to the host when the step's end is read
- * there (a log sample, a snapshot's gradients, the last step), and says so in *synced. */
+ * there (a log sample, a snapshot's gradients, the last step), and says so in *synced; the
+ * authors' measure's output times are copied back by the solver's step_close. */
 int gpu_step(struct consph_solver *s, double dt, int *synced);
 /* After a step on the device, the scheme's regularisation there (IPST when due, as the CPU's
  * negi/scheme.c regularise_ipst), and the copy back as gpu_step decides it, in *synced. */
 int gpu_regularise(struct consph_solver *s, int *synced);
 /* Copies the device's state into the solver's particles and rebuilds the host search. */
 int gpu_download(struct consph_solver *s);
+/* How many times gpu_download copied the state back since the attach (0 on the CPU). */
+long gpu_download_count(const struct consph_solver *s);
 void gpu_free(struct gpu_run *g);
 /* The device memory the solver's GPU state holds (what gpu_attach allocated; 0 on the CPU). */
 size_t gpu_device_bytes(const struct consph_solver *s);

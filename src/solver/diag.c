@@ -292,20 +292,27 @@ int solver_auth_sample(consph_solver *s)
     return CONSPH_OK;
 }
 
+/* Whether solver_auth_after_step(s, landed) samples after this step (s->step counts it): the
+ * host's particles must then be this step's (a GPU run copies them back only then). */
+int solver_auth_due(const consph_solver *s, int landed)
+{
+    if (s->nsteps == 0) return landed;
+    for (int k = s->auth_next; k < s->prm.error_times && auth_step(s, k) <= s->step; ++k)
+        if (auth_step(s, k) == s->step) return 1;
+    return 0;
+}
+
 /* After a step: samples when it ended on the next output time. `landed`: a --tf run's step was
  * cut to end on it. */
 int solver_auth_after_step(consph_solver *s, int landed)
 {
-    int hit = 0;
+    const int hit = solver_auth_due(s, landed);
     if (s->nsteps == 0) {
-        hit = landed;
         s->auth_next += hit;
     } else {
         /* several output times may round to one step: it is sampled once */
-        while (s->auth_next < s->prm.error_times && auth_step(s, s->auth_next) <= s->step) {
-            hit |= auth_step(s, s->auth_next) == s->step;
+        while (s->auth_next < s->prm.error_times && auth_step(s, s->auth_next) <= s->step)
             ++s->auth_next;
-        }
     }
     return hit ? solver_auth_sample(s) : CONSPH_OK;
 }

@@ -502,8 +502,14 @@ typedef struct step_close_arg {
 static int step_close(consph_solver *s, void *arg)
 {
     const step_close_arg *a = arg;
-    int st = a->on_host ? solver_check_finite(s) : CONSPH_OK;
-    if (st == CONSPH_OK && a->on_host) st = solver_check_valid(s);
+    int st = CONSPH_OK, on_host = a->on_host;
+    /* a GPU run's state comes back for the authors' measure at its output times only */
+    if (!on_host && s->prm.error == CONSPH_ERROR_AUTHORS && solver_auth_due(s, a->landed)) {
+        st = gpu_download(s);
+        on_host = 1;
+    }
+    if (st == CONSPH_OK && on_host) st = solver_check_finite(s);
+    if (st == CONSPH_OK && on_host) st = solver_check_valid(s);
     if (st == CONSPH_OK) {
         s->log_since += a->dt;
         s->step_dt = a->dt;

@@ -283,6 +283,7 @@ void solver_position_of(const consph_particles *p, size_t i, double x[3]);
 double solver_auth_time(const consph_solver *s, int k);
 int solver_auth_sample(consph_solver *s);
 int solver_auth_after_step(consph_solver *s, int landed);
+int solver_auth_due(const consph_solver *s, int landed);
 /* The reference the errors are taken against (diag.c): solver_exact_prepare makes --exact wc's
  * reference on first use and brings it to s->t; solver_exact then gives u and p at x and s->t
  * (the problem's exact solution, or the reference), safe on several threads. */
