@@ -34,7 +34,7 @@ struct wcref {
     double *kx, *ky, *kk; /* per coefficient: k_x, k_y (2π index/len), |k|² */
     unsigned char *keep;  /* the 2/3 rule */
     double complex *tw;   /* e^{-2πi j/n}, j < n/2 */
-    double complex *col;  /* one column of the 2D transform */
+    double complex *col;  /* n × n: the transpose of the 2D transform's rows */
     /* per field (ρ', u, v): the initial state, the state, the stages and their scratch */
     double complex *s0[NF], *s[NF], *e[NF], *a[NF], *b[NF], *y[NF], *k[4][NF], *tmp[NF];
     long j;               /* s is the state at t = j dt (the fixed time grid); e that at t */
@@ -288,17 +288,35 @@ static inline double complex imul(double k, double complex z)
 
 /* ---- a radix-2 FFT of our own (no dependency for a grid this small) ---- */
 
-static void fft1(const wcref *w, double complex *a, size_t stride, int inverse)
+/* Straight vector loops: a generic x86-64 build also carries an AVX2 copy chosen at load time
+ * (the same operations in the same order, hence the same values; no FMA is enabled, so nothing
+ * is contracted), as consph_kernel_eval_batch. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
+    !defined(__AVX2__)
+#define WCREF_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define WCREF_CLONES
+#endif
+
+/* The 1D transform (bit reversal, then in-place butterflies) of every column of the n × n array a
+ * (index i + n j, along j) at once: each swap and butterfly is applied to whole rows, so every
+ * column goes through the operations, in the order, of its own 1D transform, and the innermost
+ * loop runs over contiguous memory. */
+WCREF_CLONES static void fft_columns(const wcref *w, double complex *a, int inverse)
 {
     const int n = w->n;
-    for (int i = 1, j = 0; i < n; ++i) { /* bit reversal */
+    const size_t rn = (size_t)n;
+    for (int i = 1, j = 0; i < n; ++i) { /* bit reversal, of rows */
         int bit = n >> 1;
         for (; j & bit; bit >>= 1) j ^= bit;
         j ^= bit;
         if (i < j) {
-            double complex t = a[(size_t)i * stride];
-            a[(size_t)i * stride] = a[(size_t)j * stride];
-            a[(size_t)j * stride] = t;
+            double complex *ri = a + (size_t)i * rn, *rj = a + (size_t)j * rn;
+            for (size_t c = 0; c < rn; ++c) {
+                const double complex t = ri[c];
+                ri[c] = rj[c];
+                rj[c] = t;
+            }
         }
     }
     for (int len = 2; len <= n; len <<= 1) {
@@ -307,25 +325,29 @@ static void fft1(const wcref *w, double complex *a, size_t stride, int inverse)
             for (int j = 0; j < half; ++j) {
                 double complex tw = w->tw[j * step];
                 if (inverse) tw = conj(tw);
-                double complex *x0 = a + (size_t)(i + j) * stride, *x1 = x0 + (size_t)half * stride;
-                const double complex v = cmul(*x1, tw);
-                *x1 = *x0 - v;
-                *x0 += v;
+                double complex *x0 = a + (size_t)(i + j) * rn, *x1 = x0 + (size_t)half * rn;
+                for (size_t c = 0; c < rn; ++c) {
+                    const double complex v = cmul(x1[c], tw);
+                    x1[c] = x0[c] - v;
+                    x0[c] += v;
+                }
             }
     }
 }
 
 /* Forward (coefficients = Σ f e^{-ik·x} / n², kept modes only) or inverse (grid values of the
- * series Σ c e^{ik·x}) 2D transform in place. */
+ * series Σ c e^{ik·x}) 2D transform in place. The row transforms are those of the transpose's
+ * columns (fft_columns); a transpose copies values exactly. */
 static void fft2(const wcref *w, double complex *a, int inverse)
 {
     const size_t n = (size_t)w->n;
-    for (size_t j = 0; j < n; ++j) fft1(w, a + j * n, 1, inverse);
-    for (size_t i = 0; i < n; ++i) {
-        for (size_t j = 0; j < n; ++j) w->col[j] = a[i + j * n];
-        fft1(w, w->col, 1, inverse);
-        for (size_t j = 0; j < n; ++j) a[i + j * n] = w->col[j];
-    }
+    double complex *t = w->col;
+    for (size_t j = 0; j < n; ++j)
+        for (size_t i = 0; i < n; ++i) t[j + i * n] = a[i + j * n];
+    fft_columns(w, t, inverse);
+    for (size_t j = 0; j < n; ++j)
+        for (size_t i = 0; i < n; ++i) a[i + j * n] = t[j + i * n];
+    fft_columns(w, a, inverse);
     if (!inverse) {
         const double s = 1.0 / (double)w->nn;
         for (size_t q = 0; q < w->nn; ++q) a[q] = w->keep[q] ? a[q] * s : 0.0;
@@ -527,7 +549,7 @@ int wcref_create(wcref **out, const wcref_params *wp, const double *rho, const d
     int ok = (w->kx = malloc(nn * sizeof(double))) && (w->ky = malloc(nn * sizeof(double))) &&
              (w->kk = malloc(nn * sizeof(double))) && (w->keep = malloc(nn)) &&
              (w->tw = malloc((size_t)n * sizeof(double complex))) &&
-             (w->col = malloc((size_t)n * sizeof(double complex))) &&
+             (w->col = malloc(nn * sizeof(double complex))) &&
              (w->cf = malloc(nn * sizeof(double))) && (w->sf = malloc(nn * sizeof(double))) &&
              (w->ch = malloc(nn * sizeof(double))) && (w->sh = malloc(nn * sizeof(double)));
     const size_t mm = (size_t)(2 * w->K + 1) * (size_t)(2 * w->K + 1);
