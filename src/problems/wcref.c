@@ -42,7 +42,8 @@ struct wcref {
     /* the exact rotations of L over h and h/2, for the h they were made for */
     double *cf, *sf, *ch, *sh, hrot;
     double complex *ret[NF]; /* the kept coefficients, (2K + 1)², for wcref_eval */
-    wctraj *tr;              /* the shared trajectory (NULL: unshared) */
+    double *ev; /* the rows b >= 0 of ret as wcref_eval's vector loop reads them (eval_layout) */
+    wctraj *tr; /* the shared trajectory (NULL: unshared) */
 };
 
 /* ---- the process-wide share ----
@@ -497,6 +498,34 @@ static void refresh(wcref *w, double complex *const z[NF])
             }
 }
 
+/* wcref_eval's sums run two lanes per field, (Re, Im) of Σ_a c(a, b) e^{i a θ_x}: lane 0 adds
+ * Re c cos - Im c sin as Re c cos + Im c (-sin), lane 1 Re c sin + Im c cos. x - y is x + (-y)
+ * and y (-s) is -(y s) in IEEE arithmetic, so each lane's value is the scalar sum's bit for bit.
+ * Per (b >= 0, a), 12 doubles: Re c and Im c of fields 0 and 1 duplicated, then of field 2. */
+enum { EV_STRIDE = 12 };
+
+static size_t ev_count(int K)
+{
+    return (size_t)(K + 1) * (size_t)(2 * K + 1) * EV_STRIDE;
+}
+
+static void eval_layout(wcref *w)
+{
+    const int K = w->K, m = 2 * K + 1;
+    for (int b = 0; b <= K; ++b)
+        for (int a = 0; a < m; ++a) {
+            const size_t src = (size_t)a + (size_t)m * (size_t)(b + K);
+            double *e = w->ev + ((size_t)b * (size_t)m + (size_t)a) * EV_STRIDE;
+            const double complex c0 = w->ret[0][src], c1 = w->ret[1][src], c2 = w->ret[2][src];
+            e[0] = e[1] = creal(c0);
+            e[2] = e[3] = creal(c1);
+            e[4] = e[5] = cimag(c0);
+            e[6] = e[7] = cimag(c1);
+            e[8] = e[9] = creal(c2);
+            e[10] = e[11] = cimag(c2);
+        }
+}
+
 /* ---- the interface ---- */
 
 void wcref_free(wcref *w)
@@ -522,6 +551,7 @@ void wcref_free(wcref *w)
         free(w->y[f]);
         free(w->tmp[f]);
         free(w->ret[f]);
+        if (f == 0) free(w->ev);
         for (int j = 0; j < 4; ++j) free(w->k[j][f]);
     }
     for (int f = 0; f < 7; ++f) free(w->g[f]);
@@ -560,6 +590,8 @@ int wcref_create(wcref **out, const wcref_params *wp, const double *rho, const d
         for (int j = 0; ok && j < 4; ++j) ok = (w->k[j][f] = malloc(zb)) != NULL;
     }
     for (int f = 0; ok && f < 7; ++f) ok = (w->g[f] = malloc(zb)) != NULL;
+    /* 32-byte aligned for the vector loads (EV_STRIDE doubles are a multiple of 32 bytes) */
+    ok = ok && (w->ev = aligned_alloc(32, ev_count(w->K) * sizeof(double))) != NULL;
     if (!ok) {
         wcref_free(w);
         return consph_fail(CONSPH_ENOMEM, "out of memory for the wc reference");
@@ -598,6 +630,7 @@ int wcref_create(wcref **out, const wcref_params *wp, const double *rho, const d
     w->j = 0;
     w->t = 0.0;
     refresh(w, w->s);
+    eval_layout(w);
     if (!wp->unshared) w->tr = share_hold(wp, rho, u, v, mm);
     *out = w;
     return CONSPH_OK;
@@ -609,6 +642,7 @@ int wcref_advance(wcref *w, double t)
         return consph_fail(CONSPH_EINVAL, "wc reference: time %g is not >= 0", t);
     if (t == w->t) return CONSPH_OK;
     if (w->tr && share_lookup(w, t)) {
+        eval_layout(w);
         w->t = t;
         return CONSPH_OK;
     }
@@ -632,6 +666,7 @@ int wcref_advance(wcref *w, double t)
     } else {
         refresh(w, w->s);
     }
+    eval_layout(w);
     if (w->tr) share_publish(w, t);
     w->t = t;
     return CONSPH_OK;
@@ -647,6 +682,7 @@ double wcref_step(const wcref *w)
     return w->dt;
 }
 
+WCREF_CLONES
 void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho)
 {
     const int K = w->K, m = 2 * K + 1;
@@ -675,6 +711,37 @@ void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho)
      * S_b = e^{i b θ_y} Σ_a c(a, b) e^{i a θ_x}. The three fields' sums side by side, each in
      * its own order (a, then b, ascending), so that their chains of additions overlap. */
     double out[NF] = {0.0, 0.0, 0.0};
+#if defined(__GNUC__)
+    /* eval_layout's two lanes per field: fields 0 and 1 in one 4-lane vector, field 2 in two */
+    typedef double v4d __attribute__((vector_size(32)));
+    typedef double v2d __attribute__((vector_size(16)));
+    v4d cs4[2 * KMAX + 1], ns4[2 * KMAX + 1];
+    v2d cs2[2 * KMAX + 1], ns2[2 * KMAX + 1];
+    for (int a = 0; a < m; ++a) {
+        const double c = cx[a], s = sx[a];
+        cs4[a] = (v4d){c, s, c, s};
+        ns4[a] = (v4d){-s, c, -s, c};
+        cs2[a] = (v2d){c, s};
+        ns2[a] = (v2d){-s, c};
+    }
+    for (int b = 0; b <= K; ++b) {
+        const double *e = w->ev + (size_t)b * (size_t)m * EV_STRIDE;
+        v4d acc01 = {0.0, 0.0, 0.0, 0.0};
+        v2d acc2 = {0.0, 0.0};
+        for (int a = 0; a < m; ++a, e += EV_STRIDE) {
+            const v4d re01 = *(const v4d *)e, im01 = *(const v4d *)(e + 4);
+            const v2d re2 = *(const v2d *)(e + 8), im2 = *(const v2d *)(e + 10);
+            acc01 += re01 * cs4[a] + im01 * ns4[a];
+            acc2 += re2 * cs2[a] + im2 * ns2[a];
+        }
+        const double re0 = acc01[0], im0 = acc01[1], re1 = acc01[2], im1 = acc01[3];
+        const double re2 = acc2[0], im2 = acc2[1];
+        const double wb = b ? 2.0 : 1.0;
+        out[0] += wb * (re0 * cy[b] - im0 * sy[b]);
+        out[1] += wb * (re1 * cy[b] - im1 * sy[b]);
+        out[2] += wb * (re2 * cy[b] - im2 * sy[b]);
+    }
+#else
     for (int b = 0; b <= K; ++b) {
         const size_t off = (size_t)m * (size_t)(b + K);
         const double complex *r0 = w->ret[0] + off, *r1 = w->ret[1] + off, *r2 = w->ret[2] + off;
@@ -693,6 +760,7 @@ void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho)
         out[1] += wb * (re1 * cy[b] - im1 * sy[b]);
         out[2] += wb * (re2 * cy[b] - im2 * sy[b]);
     }
+#endif
     *rho = w->p.rho0 + out[0];
     u[0] = out[1];
     u[1] = out[2];
