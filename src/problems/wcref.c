@@ -551,10 +551,10 @@ void wcref_free(wcref *w)
         free(w->y[f]);
         free(w->tmp[f]);
         free(w->ret[f]);
-        if (f == 0) free(w->ev);
         for (int j = 0; j < 4; ++j) free(w->k[j][f]);
     }
     for (int f = 0; f < 7; ++f) free(w->g[f]);
+    free(w->ev);
     free(w);
 }
 
