@@ -16,16 +16,6 @@
 #include "schemes/negi/kit_pair.h"
 #include "solver/solver_internal.h"
 
-/* The visits are straight-line arithmetic over a particle's pairs: a generic x86-64 build also
- * carries an AVX2 copy of each, chosen at load time (the same operations in the same order, hence
- * the same values; no FMA is enabled, so nothing is contracted), as consph_kernel_eval_batch. */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
-    !defined(__AVX2__)
-#define KIT_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define KIT_CLONES
-#endif
-
 typedef struct kit_job {
     const kit_req *rq;
     int d;
@@ -36,7 +26,7 @@ typedef struct kit_job {
     unsigned char *bonet_ok; /* B_i accepted, for Fatehi_c and Korzilius (else NULL) */
 } kit_job;
 
-KIT_CLONES static void visit_volume(void *vjob, const consph_nbhd *nb)
+static void visit_volume(void *vjob, const consph_nbhd *nb)
 {
     double *vol = vjob, s = 0.0;
     for (size_t k = 0; k < nb->n; ++k) s += nb->w[k];
@@ -101,7 +91,7 @@ TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int
 
 /* One visit function per (d, ∇p, ∇u or ∇·u, ∇q), chosen once per pass by kit_derivatives. */
 #define FIRST_CLONE(D, P, U, Q)                                                                    \
-    KIT_CLONES static void first_##D##P##U##Q(void *job, const consph_nbhd *nb)                    \
+    static void first_##D##P##U##Q(void *job, const consph_nbhd *nb)                               \
     {                                                                                              \
         first_body(job, nb, D, P, U, Q);                                                           \
     }
@@ -156,8 +146,7 @@ TERM_INLINE void coupled_body(const kit_job *job, const consph_nbhd *nb, const i
     if (with_q) job->lapq[i] = accq;
 }
 
-KIT_CLONES static void coupled_any(const kit_job *job, const consph_nbhd *nb, int with_u,
-                                   int with_q)
+static void coupled_any(const kit_job *job, const consph_nbhd *nb, int with_u, int with_q)
 {
 #define COUPLED_D(D)                                                                               \
     do {                                                                                           \
@@ -302,7 +291,7 @@ TERM_INLINE void second_body(const kit_job *job, const consph_nbhd *nb, const in
     }
 }
 
-KIT_CLONES static void visit_second(void *vjob, const consph_nbhd *nb)
+static void visit_second(void *vjob, const consph_nbhd *nb)
 {
     const kit_job *job = vjob;
     const unsigned want = job->rq->want;
