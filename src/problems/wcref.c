@@ -34,7 +34,7 @@ struct wcref {
     double *kx, *ky, *kk; /* per coefficient: k_x, k_y (2π index/len), |k|² */
     unsigned char *keep;  /* the 2/3 rule */
     double complex *tw;   /* e^{-2πi j/n}, j < n/2 */
-    double complex *col;  /* one column of the 2D transform */
+    double complex *col;  /* n × n: the transpose of the 2D transform's rows */
     /* per field (ρ', u, v): the initial state, the state, the stages and their scratch */
     double complex *s0[NF], *s[NF], *e[NF], *a[NF], *b[NF], *y[NF], *k[4][NF], *tmp[NF];
     long j;               /* s is the state at t = j dt (the fixed time grid); e that at t */
@@ -42,7 +42,8 @@ struct wcref {
     /* the exact rotations of L over h and h/2, for the h they were made for */
     double *cf, *sf, *ch, *sh, hrot;
     double complex *ret[NF]; /* the kept coefficients, (2K + 1)², for wcref_eval */
-    wctraj *tr;              /* the shared trajectory (NULL: unshared) */
+    double *ev; /* the rows b >= 0 of ret as wcref_eval's vector loop reads them (eval_layout) */
+    wctraj *tr; /* the shared trajectory (NULL: unshared) */
 };
 
 /* ---- the process-wide share ----
@@ -288,17 +289,35 @@ static inline double complex imul(double k, double complex z)
 
 /* ---- a radix-2 FFT of our own (no dependency for a grid this small) ---- */
 
-static void fft1(const wcref *w, double complex *a, size_t stride, int inverse)
+/* Straight vector loops: a generic x86-64 build also carries an AVX2 copy chosen at load time
+ * (the same operations in the same order, hence the same values; no FMA is enabled, so nothing
+ * is contracted), as consph_kernel_eval_batch. */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
+    !defined(__AVX2__)
+#define WCREF_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define WCREF_CLONES
+#endif
+
+/* The 1D transform (bit reversal, then in-place butterflies) of every column of the n × n array a
+ * (index i + n j, along j) at once: each swap and butterfly is applied to whole rows, so every
+ * column goes through the operations, in the order, of its own 1D transform, and the innermost
+ * loop runs over contiguous memory. */
+WCREF_CLONES static void fft_columns(const wcref *w, double complex *a, int inverse)
 {
     const int n = w->n;
-    for (int i = 1, j = 0; i < n; ++i) { /* bit reversal */
+    const size_t rn = (size_t)n;
+    for (int i = 1, j = 0; i < n; ++i) { /* bit reversal, of rows */
         int bit = n >> 1;
         for (; j & bit; bit >>= 1) j ^= bit;
         j ^= bit;
         if (i < j) {
-            double complex t = a[(size_t)i * stride];
-            a[(size_t)i * stride] = a[(size_t)j * stride];
-            a[(size_t)j * stride] = t;
+            double complex *ri = a + (size_t)i * rn, *rj = a + (size_t)j * rn;
+            for (size_t c = 0; c < rn; ++c) {
+                const double complex t = ri[c];
+                ri[c] = rj[c];
+                rj[c] = t;
+            }
         }
     }
     for (int len = 2; len <= n; len <<= 1) {
@@ -307,25 +326,29 @@ static void fft1(const wcref *w, double complex *a, size_t stride, int inverse)
             for (int j = 0; j < half; ++j) {
                 double complex tw = w->tw[j * step];
                 if (inverse) tw = conj(tw);
-                double complex *x0 = a + (size_t)(i + j) * stride, *x1 = x0 + (size_t)half * stride;
-                const double complex v = cmul(*x1, tw);
-                *x1 = *x0 - v;
-                *x0 += v;
+                double complex *x0 = a + (size_t)(i + j) * rn, *x1 = x0 + (size_t)half * rn;
+                for (size_t c = 0; c < rn; ++c) {
+                    const double complex v = cmul(x1[c], tw);
+                    x1[c] = x0[c] - v;
+                    x0[c] += v;
+                }
             }
     }
 }
 
 /* Forward (coefficients = Σ f e^{-ik·x} / n², kept modes only) or inverse (grid values of the
- * series Σ c e^{ik·x}) 2D transform in place. */
+ * series Σ c e^{ik·x}) 2D transform in place. The row transforms are those of the transpose's
+ * columns (fft_columns); a transpose copies values exactly. */
 static void fft2(const wcref *w, double complex *a, int inverse)
 {
     const size_t n = (size_t)w->n;
-    for (size_t j = 0; j < n; ++j) fft1(w, a + j * n, 1, inverse);
-    for (size_t i = 0; i < n; ++i) {
-        for (size_t j = 0; j < n; ++j) w->col[j] = a[i + j * n];
-        fft1(w, w->col, 1, inverse);
-        for (size_t j = 0; j < n; ++j) a[i + j * n] = w->col[j];
-    }
+    double complex *t = w->col;
+    for (size_t j = 0; j < n; ++j)
+        for (size_t i = 0; i < n; ++i) t[j + i * n] = a[i + j * n];
+    fft_columns(w, t, inverse);
+    for (size_t j = 0; j < n; ++j)
+        for (size_t i = 0; i < n; ++i) a[i + j * n] = t[j + i * n];
+    fft_columns(w, a, inverse);
     if (!inverse) {
         const double s = 1.0 / (double)w->nn;
         for (size_t q = 0; q < w->nn; ++q) a[q] = w->keep[q] ? a[q] * s : 0.0;
@@ -475,6 +498,34 @@ static void refresh(wcref *w, double complex *const z[NF])
             }
 }
 
+/* wcref_eval's sums run two lanes per field, (Re, Im) of Σ_a c(a, b) e^{i a θ_x}: lane 0 adds
+ * Re c cos - Im c sin as Re c cos + Im c (-sin), lane 1 Re c sin + Im c cos. x - y is x + (-y)
+ * and y (-s) is -(y s) in IEEE arithmetic, so each lane's value is the scalar sum's bit for bit.
+ * Per (b >= 0, a), 12 doubles: Re c and Im c of fields 0 and 1 duplicated, then of field 2. */
+enum { EV_STRIDE = 12 };
+
+static size_t ev_count(int K)
+{
+    return (size_t)(K + 1) * (size_t)(2 * K + 1) * EV_STRIDE;
+}
+
+static void eval_layout(wcref *w)
+{
+    const int K = w->K, m = 2 * K + 1;
+    for (int b = 0; b <= K; ++b)
+        for (int a = 0; a < m; ++a) {
+            const size_t src = (size_t)a + (size_t)m * (size_t)(b + K);
+            double *e = w->ev + ((size_t)b * (size_t)m + (size_t)a) * EV_STRIDE;
+            const double complex c0 = w->ret[0][src], c1 = w->ret[1][src], c2 = w->ret[2][src];
+            e[0] = e[1] = creal(c0);
+            e[2] = e[3] = creal(c1);
+            e[4] = e[5] = cimag(c0);
+            e[6] = e[7] = cimag(c1);
+            e[8] = e[9] = creal(c2);
+            e[10] = e[11] = cimag(c2);
+        }
+}
+
 /* ---- the interface ---- */
 
 void wcref_free(wcref *w)
@@ -503,6 +554,7 @@ void wcref_free(wcref *w)
         for (int j = 0; j < 4; ++j) free(w->k[j][f]);
     }
     for (int f = 0; f < 7; ++f) free(w->g[f]);
+    free(w->ev);
     free(w);
 }
 
@@ -527,7 +579,7 @@ int wcref_create(wcref **out, const wcref_params *wp, const double *rho, const d
     int ok = (w->kx = malloc(nn * sizeof(double))) && (w->ky = malloc(nn * sizeof(double))) &&
              (w->kk = malloc(nn * sizeof(double))) && (w->keep = malloc(nn)) &&
              (w->tw = malloc((size_t)n * sizeof(double complex))) &&
-             (w->col = malloc((size_t)n * sizeof(double complex))) &&
+             (w->col = malloc(nn * sizeof(double complex))) &&
              (w->cf = malloc(nn * sizeof(double))) && (w->sf = malloc(nn * sizeof(double))) &&
              (w->ch = malloc(nn * sizeof(double))) && (w->sh = malloc(nn * sizeof(double)));
     const size_t mm = (size_t)(2 * w->K + 1) * (size_t)(2 * w->K + 1);
@@ -538,6 +590,8 @@ int wcref_create(wcref **out, const wcref_params *wp, const double *rho, const d
         for (int j = 0; ok && j < 4; ++j) ok = (w->k[j][f] = malloc(zb)) != NULL;
     }
     for (int f = 0; ok && f < 7; ++f) ok = (w->g[f] = malloc(zb)) != NULL;
+    /* 32-byte aligned for the vector loads (EV_STRIDE doubles are a multiple of 32 bytes) */
+    ok = ok && (w->ev = aligned_alloc(32, ev_count(w->K) * sizeof(double))) != NULL;
     if (!ok) {
         wcref_free(w);
         return consph_fail(CONSPH_ENOMEM, "out of memory for the wc reference");
@@ -576,6 +630,7 @@ int wcref_create(wcref **out, const wcref_params *wp, const double *rho, const d
     w->j = 0;
     w->t = 0.0;
     refresh(w, w->s);
+    eval_layout(w);
     if (!wp->unshared) w->tr = share_hold(wp, rho, u, v, mm);
     *out = w;
     return CONSPH_OK;
@@ -587,6 +642,7 @@ int wcref_advance(wcref *w, double t)
         return consph_fail(CONSPH_EINVAL, "wc reference: time %g is not >= 0", t);
     if (t == w->t) return CONSPH_OK;
     if (w->tr && share_lookup(w, t)) {
+        eval_layout(w);
         w->t = t;
         return CONSPH_OK;
     }
@@ -610,6 +666,7 @@ int wcref_advance(wcref *w, double t)
     } else {
         refresh(w, w->s);
     }
+    eval_layout(w);
     if (w->tr) share_publish(w, t);
     w->t = t;
     return CONSPH_OK;
@@ -625,6 +682,7 @@ double wcref_step(const wcref *w)
     return w->dt;
 }
 
+WCREF_CLONES
 void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho)
 {
     const int K = w->K, m = 2 * K + 1;
@@ -653,6 +711,37 @@ void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho)
      * S_b = e^{i b θ_y} Σ_a c(a, b) e^{i a θ_x}. The three fields' sums side by side, each in
      * its own order (a, then b, ascending), so that their chains of additions overlap. */
     double out[NF] = {0.0, 0.0, 0.0};
+#if defined(__GNUC__)
+    /* eval_layout's two lanes per field: fields 0 and 1 in one 4-lane vector, field 2 in two */
+    typedef double v4d __attribute__((vector_size(32)));
+    typedef double v2d __attribute__((vector_size(16)));
+    v4d cs4[2 * KMAX + 1], ns4[2 * KMAX + 1];
+    v2d cs2[2 * KMAX + 1], ns2[2 * KMAX + 1];
+    for (int a = 0; a < m; ++a) {
+        const double c = cx[a], s = sx[a];
+        cs4[a] = (v4d){c, s, c, s};
+        ns4[a] = (v4d){-s, c, -s, c};
+        cs2[a] = (v2d){c, s};
+        ns2[a] = (v2d){-s, c};
+    }
+    for (int b = 0; b <= K; ++b) {
+        const double *e = w->ev + (size_t)b * (size_t)m * EV_STRIDE;
+        v4d acc01 = {0.0, 0.0, 0.0, 0.0};
+        v2d acc2 = {0.0, 0.0};
+        for (int a = 0; a < m; ++a, e += EV_STRIDE) {
+            const v4d re01 = *(const v4d *)e, im01 = *(const v4d *)(e + 4);
+            const v2d re2 = *(const v2d *)(e + 8), im2 = *(const v2d *)(e + 10);
+            acc01 += re01 * cs4[a] + im01 * ns4[a];
+            acc2 += re2 * cs2[a] + im2 * ns2[a];
+        }
+        const double re0 = acc01[0], im0 = acc01[1], re1 = acc01[2], im1 = acc01[3];
+        const double re2 = acc2[0], im2 = acc2[1];
+        const double wb = b ? 2.0 : 1.0;
+        out[0] += wb * (re0 * cy[b] - im0 * sy[b]);
+        out[1] += wb * (re1 * cy[b] - im1 * sy[b]);
+        out[2] += wb * (re2 * cy[b] - im2 * sy[b]);
+    }
+#else
     for (int b = 0; b <= K; ++b) {
         const size_t off = (size_t)m * (size_t)(b + K);
         const double complex *r0 = w->ret[0] + off, *r1 = w->ret[1] + off, *r2 = w->ret[2] + off;
@@ -671,6 +760,7 @@ void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho)
         out[1] += wb * (re1 * cy[b] - im1 * sy[b]);
         out[2] += wb * (re2 * cy[b] - im2 * sy[b]);
     }
+#endif
     *rho = w->p.rho0 + out[0];
     u[0] = out[1];
     u[1] = out[2];
