@@ -76,6 +76,8 @@ static void gpu_compare(const gpu_backend *be, const char *scheme, const char *p
         if (a != CONSPH_OK || b != CONSPH_OK) break;
         /* lazily, the state is on the host at the log samples only (log_every 7) */
         if ((!lazy && (k == 1 || k == STEPS)) || (lazy && k % 7 == 0)) {
+            /* a log sample copies back only what the host reads there: every array first */
+            if (lazy) CHECK(gpu_download(emu) == CONSPH_OK, "copy back: %s", consph_last_error());
             snprintf(what, sizeof what, "%s: %s %s nx %d%s after step %d", be->name, scheme,
                      problem, nx, lazy ? " (lazy gradients)" : "", k);
             same_state(cpu, emu, what);

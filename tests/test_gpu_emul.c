@@ -92,6 +92,20 @@ static void authors_copies(const char *scheme, int by_steps)
     CHECK(gpu_download_count(emu) == reads && reads < steps / 2,
           "%s: %ld copies back in %ld steps, the host reads %ld", what, gpu_download_count(emu),
           steps, reads);
+    /* the samples copy back the arrays the host reads only: fewer bytes than whole copies */
+    const consph_particles *p = emu->sys.p;
+    long long arrays = p->dim;
+    for (int f = 0; f < p->nfields; ++f) arrays += p->fields[f].ncomp;
+    const long long whole = arrays * (long long)p->n * (long long)sizeof(double);
+    CHECK(gpu_download_bytes(emu) > whole && gpu_download_bytes(emu) < reads * whole,
+          "%s: %lld bytes copied back in %ld copies of %lld bytes each at most", what,
+          gpu_download_bytes(emu), reads, whole);
+    /* the last step's copy is whole (the end of the run), the others the samples' */
+    printf("%s: %ld copies back, %lld bytes (whole copies: %lld); per particle: %lld B a sample, "
+           "%lld B whole\n",
+           what, reads, gpu_download_bytes(emu), reads * whole,
+           reads > 1 ? (gpu_download_bytes(emu) - whole) / (reads - 1) / (long long)p->n : 0,
+           whole / (long long)p->n);
     CHECK(consph_solver_done(emu) && cpu->auth_n == 5 && emu->auth_n == cpu->auth_n &&
               memcmp(&cpu->auth_u_acc, &emu->auth_u_acc, sizeof(double)) == 0 &&
               memcmp(&cpu->auth_p_acc, &emu->auth_p_acc, sizeof(double)) == 0,

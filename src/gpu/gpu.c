@@ -24,7 +24,8 @@ struct gpu_run {
     gpu_grid joint_grid;
     uint32_t *jcell, *jcount, *jstart, *jorder;
     double *jxs;
-    long downloads; /* copies of the state back to the host (gpu_download_count) */
+    long downloads;       /* copies of the state back to the host (gpu_download_count) */
+    long long down_bytes; /* the bytes those copies moved (gpu_download_bytes) */
 };
 
 /* ---- the emulation backend ---- */
@@ -341,7 +342,8 @@ static int be_fail(const gpu_backend *be, const char *what)
     return consph_fail(CONSPH_ENOMEM, "GPU (%s): %s: %s", be->name, what, be->error());
 }
 
-static int copy_arrays(consph_solver *s, int to_device)
+/* want[k]: whether host array k is copied (NULL: every array). */
+static int copy_arrays(consph_solver *s, int to_device, const unsigned char *want)
 {
     gpu_run *g = s->gpu;
     consph_particles *p = s->sys.p;
@@ -354,6 +356,8 @@ static int copy_arrays(consph_solver *s, int to_device)
                            g->v.narr, g->v.n, narr, p->n);
     const size_t bytes = p->n * sizeof(double);
     for (int k = 0; k < narr; ++k) {
+        if (want && !want[k]) continue;
+        if (!to_device) g->down_bytes += (long long)bytes;
         double *dev = g->v.a + (size_t)k * p->n;
         const int rc = to_device ? g->be->put(dev, arr[k], bytes) : g->be->get(arr[k], dev, bytes);
         if (rc) return be_fail(g->be, to_device ? "copy to the device" : "copy from the device");
@@ -361,13 +365,31 @@ static int copy_arrays(consph_solver *s, int to_device)
     return CONSPH_OK;
 }
 
-int gpu_download(consph_solver *s)
+/* The arrays the host reads at a log sample or an output time of the authors' measure: the
+ * positions (the host search, solver_position_of), and the fields of solver_check_finite,
+ * solver_check_valid (validity.c), consph_solver_diag, solver_wc_side and solver_auth_sample
+ * (diag.c), and the ids copy_back turns into the origins. */
+static const char *const sample_fields[] = {SF_U, SF_P, SF_RHOF, SF_ID, SF_MASS, SF_AU, SF_DIVU};
+
+static int copy_back(consph_solver *s, int all)
 {
     if (!s->gpu) return CONSPH_OK;
-    int st = copy_arrays(s, 0);
+    consph_particles *p = s->sys.p;
+    unsigned char want[CONSPH_MAX_DIM + CONSPH_MAX_FIELDS * 9] = {0};
+    if (!all) {
+        int k = 0;
+        for (int a = 0; a < p->dim; ++a) want[k++] = 1;
+        for (int f = 0; f < p->nfields; ++f) {
+            int read = 0;
+            for (size_t j = 0; j < sizeof sample_fields / sizeof sample_fields[0]; ++j)
+                read |= strcmp(p->fields[f].name, sample_fields[j]) == 0;
+            for (int c = 0; c < p->fields[f].ncomp; ++c)
+                if (k < (int)sizeof want) want[k++] = (unsigned char)read;
+        }
+    }
+    int st = copy_arrays(s, 0, all ? NULL : want);
     if (st != CONSPH_OK) return st;
     ++s->gpu->downloads;
-    consph_particles *p = s->sys.p;
     const double *id = sv_field(s, SF_ID, 1);
     if (!id) return CONSPH_EINVAL;
     if (s->sys.origin)
@@ -376,9 +398,24 @@ int gpu_download(consph_solver *s)
     return consph_sys_update(&s->sys, 0);
 }
 
+int gpu_download(consph_solver *s)
+{
+    return copy_back(s, 1);
+}
+
+int gpu_download_sample(consph_solver *s)
+{
+    return copy_back(s, 0);
+}
+
 long gpu_download_count(const consph_solver *s)
 {
     return s->gpu ? s->gpu->downloads : 0;
+}
+
+long long gpu_download_bytes(const consph_solver *s)
+{
+    return s->gpu ? s->gpu->down_bytes : 0;
 }
 
 void gpu_free(gpu_run *g)
@@ -387,7 +424,8 @@ void gpu_free(gpu_run *g)
     const gpu_backend *be = g->be;
     /* a test hook: tests/cli_gpu.sh counts the copies back of a CLI run */
     if (getenv("CONSPH_GPU_COUNT_COPIES"))
-        fprintf(stderr, "GPU: %ld copies back to the host\n", g->downloads);
+        fprintf(stderr, "GPU: %ld copies back to the host\nGPU: %lld bytes copied back\n",
+                g->downloads, g->down_bytes);
     void *bufs[] = {g->dev_a[0],   g->dev_a[1],  g->v.vol,   g->v.mrho,  g->v.cs,   g->v.xs,
                     g->v.cell,     g->v.count,   g->v.start, g->v.order, g->v.step, g->v.total,
                     g->v.chi_max,  g->jcell,     g->jcount,  g->jstart,  g->jorder, g->jxs,
@@ -566,7 +604,7 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
                (size_t)(d + 4) * n * sizeof(double) + npack * sizeof(double) +
                3 * n * sizeof(uint32_t) + 2 * nc + 2 * nstep + (negi ? n : 1);
     if (lattice) g->bytes += 2 * n * sizeof(uint32_t) + 2 * njc + (size_t)d * n * sizeof(double);
-    if (st == CONSPH_OK) st = copy_arrays(s, 1);
+    if (st == CONSPH_OK) st = copy_arrays(s, 1, NULL);
     if (st != CONSPH_OK) {
         s->gpu = NULL;
         gpu_free(g);
@@ -707,13 +745,21 @@ static int step_rk2(gpu_run *g, double dt)
     return v->moves ? rebuild(g) : CONSPH_OK;
 }
 
-/* Whether the host reads the state after this step (counted in s->step + ahead): the log
- * sample, a snapshot's gradients, the end. The authors' measure's output times are not known
+/* What the host reads of the state after this step (counted in s->step + ahead): 2, every
+ * array (a snapshot's gradients, the end); 1, the log sample's (gpu_download_sample); 0, none.
+ * The authors' measure's output times are not known
  * here (a --tf run's step lands on one as consph_solver_step decides): its step_close copies
  * the state back at those, so every other step leaves it on the device. */
 static int host_reads(const consph_solver *s, long ahead)
 {
-    return !s->grads_skip || (s->step + ahead) % s->prm.log_every == 0;
+    return !s->grads_skip ? 2 : (s->step + ahead) % s->prm.log_every == 0;
+}
+
+static int copy_back_read(consph_solver *s, int reads, int *synced)
+{
+    const int st = reads == 2 ? gpu_download(s) : gpu_download_sample(s);
+    *synced = st == CONSPH_OK;
+    return st;
 }
 
 int gpu_step(consph_solver *s, double dt, int *synced)
@@ -723,10 +769,8 @@ int gpu_step(consph_solver *s, double dt, int *synced)
     int st = negi ? step_rk2(s->gpu, dt) : step_pec(s->gpu, dt, !s->grads_skip);
     if (st != CONSPH_OK) return st;
     /* 001's family copies back after its regularisation where it has one (gpu_regularise) */
-    if (!(negi && s->scheme->regularise) && host_reads(s, 1)) {
-        st = gpu_download(s);
-        *synced = st == CONSPH_OK;
-    }
+    const int reads = host_reads(s, 1);
+    if (!(negi && s->scheme->regularise) && reads) st = copy_back_read(s, reads, synced);
     return st;
 }
 
@@ -839,10 +883,8 @@ int gpu_regularise(consph_solver *s, int *synced)
              : strcmp(name, "l-rr-c") == 0
                  ? remesh(s)
                  : consph_fail(CONSPH_EINVAL, "GPU: no regularisation of %s", name);
-    if (st == CONSPH_OK && host_reads(s, 0)) {
-        st = gpu_download(s);
-        *synced = st == CONSPH_OK;
-    }
+    const int reads = host_reads(s, 0);
+    if (st == CONSPH_OK && reads) st = copy_back_read(s, reads, synced);
     return st;
 }
 

@@ -503,9 +503,10 @@ static int step_close(consph_solver *s, void *arg)
 {
     const step_close_arg *a = arg;
     int st = CONSPH_OK, on_host = a->on_host;
-    /* a GPU run's state comes back for the authors' measure at its output times only */
+    /* a GPU run's state comes back for the authors' measure at its output times only, the
+     * arrays the measure, the checks and the diagnostics read */
     if (!on_host && s->prm.error == CONSPH_ERROR_AUTHORS && solver_auth_due(s, a->landed)) {
-        st = gpu_download(s);
+        st = gpu_download_sample(s);
         on_host = 1;
     }
     if (st == CONSPH_OK && on_host) st = solver_check_finite(s);
