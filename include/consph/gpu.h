@@ -20,7 +20,7 @@ extern "C" {
 
 typedef enum consph_device { CONSPH_DEVICE_CPU, CONSPH_DEVICE_GPU } consph_device;
 
-/* The schemes the GPU runs, comma-separated ("edac"). */
+/* The schemes the GPU runs, comma-separated (e.g. "edac,wcsph,l-ipst-c,..."). */
 const char *consph_gpu_schemes(void);
 /* 1 when this build has GPU support and finds a device; else 0 with the reason in why. */
 int consph_gpu_available(char *why, size_t len);
@@ -29,7 +29,10 @@ int consph_gpu_available(char *why, size_t len);
  * or the machine lacks. */
 int consph_gpu_check(const consph_run_params *prm);
 /* Moves the solver's steps onto the device (CPU: back to the host, with the state copied
- * back). */
+ * back). On the device, consph_solver_particles holds every array as of the last step that
+ * ended the run or a snapshot, and at log samples and the authors' output times only the
+ * arrays the host reads there (positions, u, p, ϱ, ids, mass, the rates' au and ∇·u;
+ * docs/gpu.md): call this with CONSPH_DEVICE_CPU to read any other array mid-run. */
 int consph_solver_set_device(consph_solver *s, consph_device device);
 
 #ifdef __cplusplus
