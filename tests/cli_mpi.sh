@@ -52,23 +52,9 @@ for np in 2 3; do
 done
 
 # Fewer rows than ranks: one approx row and one m0 figure on 3 ranks.
-cat >"$work/two.study" <<'STUDY'
-study = two
-[figure g]
-op = grad
-nx = 10
-[figure m]
-kind = m0
-layout = quasi-random
-kernel = wendland-c4:h
-h_policy = scaling
-periodic = no
-nx = 12
-bins = 10
-range = 0.5:1.5
-STUDY
-"$bin" study "$work/two.study" --quick --out "$work/t1" >/dev/null 2>&1 &&
-    mpi 3 "$bin" study "$work/two.study" --quick --out "$work/t3" >/dev/null 2>"$work/err" &&
+two=$src/tests/data/two.study
+"$bin" study "$two" --quick --out "$work/t1" >/dev/null 2>&1 &&
+    mpi 3 "$bin" study "$two" --quick --out "$work/t3" >/dev/null 2>"$work/err" &&
     same_study "$work/t1/two" "$work/t3/two" "2 rows on 3 ranks" && pass=$((pass + 1)) ||
     bad "2 rows on 3 ranks: $(cat "$work/err")"
 

@@ -25,33 +25,19 @@ for j in 2 3; do
 done
 
 # Fewer rows than workers: one approx row and one m0 figure on 3 workers.
-cat >"$work/two.study" <<'STUDY'
-study = two
-[figure g]
-op = grad
-nx = 10
-[figure m]
-kind = m0
-layout = quasi-random
-kernel = wendland-c4:h
-h_policy = scaling
-periodic = no
-nx = 12
-bins = 10
-range = 0.5:1.5
-STUDY
-"$bin" study "$work/two.study" --quick --jobs 1 --out "$work/t1" >/dev/null 2>&1 &&
-    timeout 60 "$bin" study "$work/two.study" --quick --jobs 3 --out "$work/t3" >/dev/null 2>"$work/err" &&
+two=$src/tests/data/two.study
+"$bin" study "$two" --quick --jobs 1 --out "$work/t1" >/dev/null 2>&1 &&
+    timeout 60 "$bin" study "$two" --quick --jobs 3 --out "$work/t3" >/dev/null 2>"$work/err" &&
     same_study "$work/t1/two" "$work/t3/two" "2 rows on 3 workers" && pass=$((pass + 1)) ||
     bad "2 rows on 3 workers: $(cat "$work/err")"
 
 # Without --jobs: a worker per core OpenMP would use (OMP_NUM_THREADS), the same files; the m0
 # figure's report line says a worker ran it.
-OMP_NUM_THREADS=2 timeout 60 "$bin" study "$work/two.study" --quick --out "$work/d2" >"$work/out" 2>"$work/err" &&
+OMP_NUM_THREADS=2 timeout 60 "$bin" study "$two" --quick --out "$work/d2" >"$work/out" 2>"$work/err" &&
     same_study "$work/t1/two" "$work/d2/two" "default --jobs on 2 cores" &&
     grep -q 'run by a worker process' "$work/out" && pass=$((pass + 1)) ||
     bad "default --jobs on 2 cores: $(cat "$work/out" "$work/err")"
-OMP_NUM_THREADS=1 "$bin" study "$work/two.study" --quick --out "$work/d1" >"$work/out" 2>&1 &&
+OMP_NUM_THREADS=1 "$bin" study "$two" --quick --out "$work/d1" >"$work/out" 2>&1 &&
     ! grep -q 'worker' "$work/out" && pass=$((pass + 1)) ||
     bad "default --jobs on 1 core: $(cat "$work/out")"
 
