@@ -653,6 +653,19 @@ GPU_FN_INLINE int gpu_walkr_other(const gpu_view *v, gpu_walkr *w, const int D, 
 #define CONSPH_GPU_PAIRS 1
 #endif
 
+/* The second neighbour of a two-at-once step: 1 when there is one; else 0, and the first is
+ * repeated, so that its pair term is computed (the two chains stay alike) and not added. */
+GPU_FN_INLINE int gpu_walkr_second(const gpu_view *v, gpu_walkr *w, const int D, uint32_t self,
+                                   uint32_t sa, const double xa[3], double ra, uint32_t *sb,
+                                   double xb[3], double *rb)
+{
+    if (gpu_walkr_other(v, w, D, self, sb, xb, rb)) return 1;
+    *sb = sa;
+    *rb = ra;
+    for (int a = 0; a < 3; ++a) xb[a] = xa[a];
+    return 0;
+}
+
 /* ---- the neighbour records (gpu_view's pack) ----
  * edac: ϱ, p, V, m/ϱ, u, ũ - u (4 + 2d); wcsph: ϱ, p/ϱ², m/ϱ, c_s, u (4 + d, padded to even):
  * an even width keeps every record on 16 bytes, read in pairs of doubles. */
@@ -819,16 +832,8 @@ GPU_FN_INLINE void dev_edac_rates_d(const gpu_view *v, size_t i, const int d, co
     double xa[3], xb[3], ra, rb;
     uint32_t sa, sb;
     while (gpu_walkr_other(v, &w, d, self, &sa, xa, &ra)) {
-        /* with two at once, a missing second repeats the first, computed and not added */
-        int hb = 0;
-        if (CONSPH_GPU_PAIRS == 2) {
-            hb = gpu_walkr_other(v, &w, d, self, &sb, xb, &rb);
-            if (!hb) {
-                sb = sa;
-                rb = ra;
-                for (int a = 0; a < 3; ++a) xb[a] = xa[a];
-            }
-        }
+        const int hb =
+            CONSPH_GPU_PAIRS == 2 && gpu_walkr_second(v, &w, d, self, sa, xa, ra, &sb, xb, &rb);
         pysph_pair oa, ob;
         gpu_edac_pair(v, d, rhoi, pi, pav, Vi, ui, dui, sa, xa, ra, &oa);
         if (CONSPH_GPU_PAIRS == 2) gpu_edac_pair(v, d, rhoi, pi, pav, Vi, ui, dui, sb, xb, rb, &ob);
@@ -951,16 +956,8 @@ GPU_FN_INLINE void dev_wcsph_rates_d(const gpu_view *v, size_t i, const int d, c
     double xa[3], xb[3], ra, rb;
     uint32_t sa, sb;
     while (gpu_walkr_other(v, &w, d, self, &sa, xa, &ra)) {
-        /* with two at once, a missing second repeats the first, computed and not added */
-        int hb = 0;
-        if (CONSPH_GPU_PAIRS == 2) {
-            hb = gpu_walkr_other(v, &w, d, self, &sb, xb, &rb);
-            if (!hb) {
-                sb = sa;
-                rb = ra;
-                for (int a = 0; a < 3; ++a) xb[a] = xa[a];
-            }
-        }
+        const int hb =
+            CONSPH_GPU_PAIRS == 2 && gpu_walkr_second(v, &w, d, self, sa, xa, ra, &sb, xb, &rb);
         pysph_pair oa, ob;
         gpu_wcsph_pair(v, d, grads, rhoi, ti, ci, ui, sa, xa, ra, &oa);
         if (CONSPH_GPU_PAIRS == 2) gpu_wcsph_pair(v, d, grads, rhoi, ti, ci, ui, sb, xb, rb, &ob);
