@@ -15,6 +15,8 @@
 #   bash bench/gpu.sh --build-only        # here, with nvcc: build-gpu/ (no MPI, static CUDA runtime)
 #   bash bench/gpu.sh --no-build --out "$OUT"   # there, build-gpu carried
 # With neither flag the script builds, and falls back to a carried build-gpu when the build fails.
+# A build writes build-gpu/COMMIT (the commit it was made from, "+changes" when the tree had
+# uncommitted edits); carry it with the binaries, since the report names that commit.
 #
 # Usage: bash bench/gpu.sh [--out DIR] [--quick] [--emulate] [--budget SECONDS] [--no-build]
 #                          [--build-only]
@@ -97,6 +99,12 @@ if [ $build = 1 ]; then
             log "build failed: $out/build.log"
             exit 1
         fi
+    else
+        # the report names the commit the binaries were built from, which a carried build
+        # keeps beside them, not the commit of the checkout the script later runs in
+        { git -C "$root" rev-parse --short HEAD 2>/dev/null || echo '?'; } |
+            tr -d '\n' >"$bdir/COMMIT"
+        git -C "$root" diff --quiet HEAD 2>/dev/null || printf '+changes' >>"$bdir/COMMIT"
     fi
 fi
 if [ $build_only = 1 ]; then
@@ -170,7 +178,11 @@ done
 gpu_name=$(nvidia-smi --query-gpu=name,driver_version,memory.total --format=csv,noheader 2>/dev/null | head -1)
 cpu_name=$(grep -m1 'model name' /proc/cpuinfo | cut -d: -f2 | sed 's/^ //')
 nvcc_ver=$([ "$nvcc" != none ] && "$nvcc" --version 2>/dev/null | tail -2 | head -1)
-commit=$(git -C "$root" rev-parse --short HEAD 2>/dev/null)
+if [ -s "$bdir/COMMIT" ]; then
+    commit="$(head -c 64 "$bdir/COMMIT" | tr -cd '0-9a-z+') (the build's)"
+else
+    commit="$(git -C "$root" rev-parse --short HEAD 2>/dev/null) (the checkout's; the build kept none)"
+fi
 {
     echo "# GPU solver (bench/gpu.sh)"
     echo
