@@ -401,32 +401,25 @@ static int figure_rows(const consph_study *s, const study_figure *f, int quick,
 
 /* Whether this rank runs the next unit: units are dealt round-robin in the order every rank
  * meets them (the study's figures, series and rows), so no message decides who runs what. A
- * row is a unit, or with `together` every row of series k of f is one. Worker processes
+ * row is a unit, and so is a figure without rows. Worker processes
  * (--jobs) share memory instead: each meets the units in that same order and runs the ones it
  * claims first, so a worker that finished its unit takes the next one nobody has, and rows of
  * unequal cost (a scheme twice as dear as another) balance themselves. */
-static int unit_mine(study_rows *r, const study_figure *f, int k, int together)
+static int unit_mine(study_rows *r)
 {
-    const int new_unit = !together || f != r->unit_fig || k != r->unit_series;
-    if (new_unit) {
-        r->share_units++;
-        r->unit_fig = f;
-        r->unit_series = k;
-    }
+    r->share_units++;
     study_shared *sh = r->shared;
     if (!sh || r->share_units > sh->nunits)
         return (r->share_units - 1) % r->share_size == r->share_rank;
-    if (new_unit)
-        r->unit_claimed = !__atomic_exchange_n(&sh->claim[r->share_units - 1], 1, __ATOMIC_ACQ_REL);
-    return r->unit_claimed;
+    return !__atomic_exchange_n(&sh->claim[r->share_units - 1], 1, __ATOMIC_ACQ_REL);
 }
 
-int study_row_elsewhere(const study_job *job, const study_figure *f, int k, int together)
+int study_row_elsewhere(const study_job *job)
 {
     study_rows *r = job->rows;
     if (!r || r->share_size < 2) return CONSPH_OK;
     r->fig_met++;
-    if (unit_mine(r, f, k, together)) return CONSPH_OK;
+    if (unit_mine(r)) return CONSPH_OK;
     return r->fig_met >= r->fig_rows ? STUDY_SHARED : STUDY_ELSEWHERE;
 }
 
@@ -453,7 +446,7 @@ static int run_figures(const consph_study *s, const consph_study_options *opt,
         const int nrows = figure_rows(s, f, opt->quick, files, &work);
         if ((rc = figure_done_path(done, dir, f))) break;
         /* Spread over ranks, a figure without rows is one unit, run whole by its rank. */
-        if (rows->share_size > 1 && !kind->rows && !unit_mine(rows, f, -1, 0)) continue;
+        if (rows->share_size > 1 && !kind->rows && !unit_mine(rows)) continue;
         rows->fig_rows = nrows;
         rows->fig_met = 0;
         if (opt->resume && access(done, F_OK) == 0) {

@@ -410,7 +410,7 @@ static int run_approx_figure(const study_job *job, const study_figure *f)
                 rc = STUDY_STOPPED;
                 break;
             }
-            rc = study_row_elsewhere(job, f, k, 0);
+            rc = study_row_elsewhere(job);
             if (rc == STUDY_ELSEWHERE) {
                 rc = CONSPH_OK;
                 continue;

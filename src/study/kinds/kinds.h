@@ -130,16 +130,13 @@ typedef struct study_rows {
     char *membuf;
     size_t memlen, memdone;
     /* A study spread over MPI ranks (engine.c, docs/mpi.md): while share_size > 1 this rank runs
-     * only its units (a row, or every row of a series whose rows need its first) and keeps their
-     * rows; rank 0 then writes the reports from the kept rows. */
+     * only its units (a row, or a figure without rows) and keeps their rows; rank 0 then writes
+     * the reports from the kept rows. */
     int share_rank, share_size;
-    long share_units;             /* units met so far, in the study's order */
-    const study_figure *unit_fig; /* the unit met last */
-    int unit_series;
+    long share_units; /* units met so far, in the study's order */
     /* --jobs: the workers share these (memory mapped before the fork): a unit is run by the
      * worker that claims it first, and the rows finished by all of them are counted together */
     study_shared *shared;
-    int unit_claimed;      /* whether this worker claimed the unit met last */
     int shared_done;       /* the count of every worker's rows this worker's last row made */
     int fig_rows, fig_met; /* rows of the figure now running; rows of it met so far */
     int shared_report;     /* rank 0's pass over the rows the ranks kept */
@@ -179,10 +176,9 @@ int study_row_finish(const study_job *job, const study_figure *f, int k, int j, 
 /* In a study spread over ranks: STUDY_ELSEWHERE when another rank runs row j of series k (the
  * kind skips the row), STUDY_SHARED when that was also the figure's last row (the kind returns
  * without writing its report, which rank 0 writes from the kept rows); CONSPH_OK when this rank
- * runs it, and always in a serial study. `together`: the series' rows need its first row's
- * result, so one rank runs them all. study_row_finish returns STUDY_SHARED after the figure's
- * last row in the same way. */
-int study_row_elsewhere(const study_job *job, const study_figure *f, int k, int together);
+ * runs it, and always in a serial study. study_row_finish returns STUDY_SHARED after the
+ * figure's last row in the same way. */
+int study_row_elsewhere(const study_job *job);
 #define STUDY_ELSEWHERE 101
 #define STUDY_SHARED 102
 /* The signal that asks the study to stop (consph_stop_requested, or the tests' row count). */
