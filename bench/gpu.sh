@@ -35,36 +35,9 @@
 set -u
 cd "$(dirname "$0")/.."
 root=$(pwd)
-out=""
-quick=0
-emulate=0
 budget=330
-build=1
-build_only=0
-while [ $# -gt 0 ]; do
-    case "$1" in
-    --out)
-        [ $# -ge 2 ] || { echo "bench/gpu.sh: --out needs a folder" >&2; exit 2; }
-        out=$2
-        shift 2
-        ;;
-    --quick) quick=1; shift ;;
-    --emulate) emulate=1; shift ;;
-    --no-build) build=0; shift ;;
-    --build-only) build_only=1; shift ;;
-    --budget)
-        [ $# -ge 2 ] && [[ "$2" =~ ^[0-9]+$ ]] ||
-            { echo "bench/gpu.sh: --budget needs a whole number of seconds" >&2; exit 2; }
-        budget=$2
-        shift 2
-        ;;
-    *)
-        echo "bench/gpu.sh: unknown argument '$1' (allowed: --out DIR, --quick, --emulate," \
-            "--budget S, --no-build)" >&2
-        exit 2
-        ;;
-    esac
-done
+. "$root/bench/gpu_args.sh"
+gpu_args bench/gpu.sh "$@"
 bdir=${BUILD:-build-gpu}
 out=${out:-$bdir/gpu-out}
 mkdir -p "$out/raw" || exit 1

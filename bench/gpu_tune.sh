@@ -31,40 +31,14 @@
 # (the CPU's threads for set-up and the reference step; default nproc), LAYOUT (bench_gpu's
 # --layout: lattice for l-ipst-c, whose packed start takes minutes at 10^6).
 set -u
-# the script runs from bench/ or as the copy the build puts beside the binaries (carried alone)
+# the script runs from bench/ or as the copy the build puts beside the binaries (carried with
+# gpu_args.sh)
 here=$(cd "$(dirname "$0")" && pwd)
 if compgen -G "$here/bench_gpu-*" >/dev/null; then root=$(cd "$here/../.." && pwd); else root=$(cd "$here/.." && pwd); fi
 cd "$root" || exit 1
-out=""
-quick=0
-emulate=0
 budget=100
-build=1
-build_only=0
-while [ $# -gt 0 ]; do
-    case "$1" in
-    --out)
-        [ $# -ge 2 ] || { echo "bench/gpu_tune.sh: --out needs a folder" >&2; exit 2; }
-        out=$2
-        shift 2
-        ;;
-    --quick) quick=1; shift ;;
-    --emulate) emulate=1; shift ;;
-    --no-build) build=0; shift ;;
-    --build-only) build_only=1; shift ;;
-    --budget)
-        [ $# -ge 2 ] && [[ "$2" =~ ^[0-9]+$ ]] ||
-            { echo "bench/gpu_tune.sh: --budget needs a whole number of seconds" >&2; exit 2; }
-        budget=$2
-        shift 2
-        ;;
-    *)
-        echo "bench/gpu_tune.sh: unknown argument '$1' (allowed: --out DIR, --quick, --emulate," \
-            "--budget S, --no-build, --build-only)" >&2
-        exit 2
-        ;;
-    esac
-done
+. "$here/gpu_args.sh"
+gpu_args bench/gpu_tune.sh "$@"
 bdir=build-gpu-tune
 bin=$bdir/bin
 caps=${CAPS:-"0 128 96 80 64"}
@@ -100,7 +74,7 @@ if [ $build = 1 ]; then
              /Used [0-9]+ registers/ && name != "" { print name, $5, sp; name = "" }' \
             "$bin/build-$v.log" | sort -u >"$bin/ptxas-$v.txt"
     done
-    cp bench/gpu_tune.sh "$bin/"
+    cp bench/gpu_tune.sh bench/gpu_args.sh "$bin/"
     echo "$(git rev-parse --short HEAD)$([ -n "$(git status --porcelain -uno)" ] && echo ' (with uncommitted changes)')" >"$bin/BUILT_FROM-$tag"
     du -sh "$bin"
     say "built $bin (carry it: bash bench/gpu_tune.sh --no-build --out DIR there)"
