@@ -827,7 +827,9 @@ GPU_FN_INLINE void dev_tv_density_d(const gpu_view *v, size_t i, const int D, co
         if (edac) psum += GPU_LDG(&ps[4 * (size_t)sl]);
         ++cnt;
     }
-    gpu_pairs_add(v, i, cnt);
+    /* this pass's neighbours and the rate pass's: it walks the same ones (the same positions and
+     * cell lists), and a counter there costs the capped rate kernels spills */
+    gpu_pairs_add(v, i, 2 * cnt);
     const double m = v->c.m, rhos = m * s, vol = 1.0 / s, mrho = m / rhos;
     gv(v, GA_NUMD, 0)[i] = s;
     gv(v, GA_RHOS, 0)[i] = rhos;
@@ -937,7 +939,6 @@ GPU_FN_INLINE void dev_tv_rates_d(const gpu_view *v, size_t i, const int d, cons
             gpu_edac_add(&ob, d, edac, grads, f, fb, fp, G, &div, &ap);
         }
     }
-    gpu_pairs_add(v, i, w.hits);
     for (int a = 0; a < d; ++a) {
         gv(v, GA_AU, a)[i] = f[a] / c->m;
         gv(v, GA_AUHAT, a)[i] = fb[a] / c->m;
