@@ -24,11 +24,13 @@ struct gpu_run {
     gpu_grid joint_grid;
     uint32_t *jcell, *jcount, *jstart, *jorder;
     double *jxs;
-    size_t pairs_base; /* the solver's pairs at the attach (the device counts the rest) */
-    size_t nchunks;    /* dev_pair_sum's threads */
-    unsigned long long *chunks_host; /* their sums, copied back */
-    long downloads;                  /* copies of the state back to the host (gpu_download_count) */
-    long long down_bytes;            /* the bytes those copies moved (gpu_download_bytes) */
+    long downloads;       /* copies of the state back to the host (gpu_download_count) */
+    long long down_bytes; /* the bytes those copies moved (gpu_download_bytes) */
+
+    /* the pair count: the solver's pairs at the attach (the device counts the rest), and
+     * dev_pair_sum's threads and their sums, copied back */
+    size_t pairs_base, nchunks;
+    unsigned long long *chunks_host;
 };
 
 /* ---- the emulation backend ---- */
@@ -458,13 +460,14 @@ void gpu_free(gpu_run *g)
     if (getenv("CONSPH_GPU_COUNT_COPIES"))
         fprintf(stderr, "GPU: %ld copies back to the host\nGPU: %lld bytes copied back\n",
                 g->downloads, g->down_bytes);
-    void *bufs[] = {g->dev_a[0], g->dev_a[1], g->v.vol,     g->v.mrho,       g->v.cs,
-                    g->v.xs,     g->v.cell,   g->v.count,   g->v.start,      g->v.order,
-                    g->v.step,   g->v.total,  g->v.chi_max, g->jcell,        g->jcount,
-                    g->jstart,   g->jorder,   g->jxs,       g->v.bonet_ok,   g->v.slot_of,
-                    g->v.pack,   g->v.xp,     g->v.pairs,   g->v.pair_chunks};
+    void *bufs[] = {g->dev_a[0],   g->dev_a[1],  g->v.vol,   g->v.mrho,  g->v.cs,   g->v.xs,
+                    g->v.cell,     g->v.count,   g->v.start, g->v.order, g->v.step, g->v.total,
+                    g->v.chi_max,  g->jcell,     g->jcount,  g->jstart,  g->jorder, g->jxs,
+                    g->v.bonet_ok, g->v.slot_of, g->v.pack,  g->v.xp};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k)
         if (bufs[k]) be->release(bufs[k]);
+    if (g->v.pairs) be->release(g->v.pairs);
+    if (g->v.pair_chunks) be->release(g->v.pair_chunks);
     free(g->chunks_host);
     free(g);
 }
