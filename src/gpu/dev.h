@@ -13,12 +13,12 @@
  *    r² < R² (src/nnps/gather.c); the CPU walk prunes cells that hold no hit, which changes
  *    which cells are read, never the order of the hits;
  *  - the quintic kernel: src/kernels/kernels.c's quintic_f/df/d2f and eval_batch's selects;
- *  - the passes: src/schemes/pysph/scheme.c's visit_density and visit_tv_d (edac), job_fields'
+ *  - the passes: src/schemes/pysph/scheme.c's visit_density and visit_tv_d (edac, tvf), job_fields'
  *    per-particle values and visit_wcsph_d (wcsph), summing the same pysph_tv_pair and
  *    pysph_wcsph_pair terms (src/schemes/pysph/iact.h) in the same neighbour order;
  *  - the integrator: src/integrators/integrators.c's set_fields and drift with edac's transport
- *    hook, the solver's wrap_positions and closures (edac's summation density, wcsph's EOS of
- *    src/solver/solver.c's solver_eos). */
+ *    hook (pec), step_kdk with tvf's (kdk), the solver's wrap_positions and closures (edac's and
+ *    tvf's summation density, wcsph's EOS of src/solver/solver.c's solver_eos). */
 #ifndef CONSPH_GPU_DEV_H
 #define CONSPH_GPU_DEV_H
 
@@ -300,6 +300,19 @@ GPU_FN void gpu_close(const gpu_view *v, size_t i)
         gv(v, GA_P, 0)[i] = gpu_eos(v, gv(v, GA_RHOF, 0)[i]);
 }
 
+/* A drifted coordinate wrapped into a periodic box (the solver's wrap_positions). */
+GPU_FN double gpu_wrap(const gpu_grid *g, int a, double x)
+{
+    if (g->periodic[a]) {
+        const double lo = g->lo[a], L = g->len[a];
+        if (x < lo || x >= lo + L) {
+            x -= L * floor((x - lo) / L);
+            if (x >= lo + L) x = lo; /* rounding of a tiny negative offset */
+        }
+    }
+    return x;
+}
+
 /* advance(c): u, q = u0, q0 + c (au, aq); edac's transport hook ũ - u = c ã and dx/dt = u + ũ - u
  * (wcsph: dx/dt as the rates left it); x = x0 + c dx/dt wrapped into the box; the closure (edac:
  * ϱ = the last summation density; wcsph: p = EOS(ϱ)). */
@@ -321,15 +334,7 @@ GPU_FN void dev_advance(const gpu_view *v, size_t i, double c)
             if (!v->moves) continue;
             ax = gv(v, GA_AX, a)[i];
         }
-        double x = gv(v, GA_X0, a)[i] + c * ax;
-        if (g->periodic[a]) {
-            const double lo = g->lo[a], L = g->len[a];
-            if (x < lo || x >= lo + L) {
-                x -= L * floor((x - lo) / L);
-                if (x >= lo + L) x = lo;
-            }
-        }
-        gv(v, GA_X, a)[i] = x;
+        gv(v, GA_X, a)[i] = gpu_wrap(g, a, gv(v, GA_X0, a)[i] + c * ax);
     }
     if (edac)
         gv(v, GA_RHOF, 0)[i] = gv(v, GA_RHOS, 0)[i];
@@ -354,15 +359,7 @@ GPU_FN void dev_kdk_drift(const gpu_view *v, size_t i, double dt)
         gv(v, GA_U, a)[i] = u;
         gv(v, GA_TVDU, a)[i] = du;
         gv(v, GA_AX, a)[i] = ax;
-        double x = gv(v, GA_X0, a)[i] + dt * ax;
-        if (g->periodic[a]) {
-            const double lo = g->lo[a], L = g->len[a];
-            if (x < lo || x >= lo + L) {
-                x -= L * floor((x - lo) / L);
-                if (x >= lo + L) x = lo;
-            }
-        }
-        gv(v, GA_X, a)[i] = x;
+        gv(v, GA_X, a)[i] = gpu_wrap(g, a, gv(v, GA_X0, a)[i] + dt * ax);
     }
     gv(v, GA_Q, 0)[i] = q0[i];
     gv(v, GA_RHOF, 0)[i] = gv(v, GA_RHOS, 0)[i];
