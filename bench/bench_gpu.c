@@ -1,7 +1,8 @@
 /* The GPU solver against the CPU solver on one case (bench/gpu.sh runs it per size): two solvers
  * set up alike (--scheme, edac by default; the set-up on --setup-threads), then
  *   1. one step each, the GPU's (or the host emulation's, --emulate) against the CPU's on
- *      --threads-max threads: values differing and the largest relative difference;
+ *      --threads-max threads: values differing and the largest relative difference, and
+ *      whether the pair counts agree;
  *   2. --gpu-steps steps on the GPU, timed to the copy back that ends them, less that copy;
  *   2b. with --stages S, S more steps with each launch, prefix sum, zeroing and copy between
  *      two timer marks (src/gpu/stages.h: CUDA events): stage_<name>_ms, per step, and
@@ -109,6 +110,8 @@ static int gpu_part(const gpu_backend *be, const consph_solver *cpu, const char 
         double maxrel;
         agreement(cpu, gpu, &differ, &values, &maxrel);
         printf(" step1_differing=%zu step1_values=%zu step1_maxrel=%.3e", differ, values, maxrel);
+        /* the pair evaluations counted on the device, against the CPU's */
+        printf(" step1_pairs_equal=%d", gpu->pairs == cpu->pairs);
     }
     /* 2. the GPU's steps, to the copy back that ends them, less that copy */
     if (st == CONSPH_OK && gpu_steps > 0) {

@@ -55,6 +55,8 @@ static void same_state(const consph_solver *a, const consph_solver *b, const cha
     CHECK(orig == 0, "%s: %zu particles have other origins", what, orig);
     CHECK(a->step == b->step && a->t == b->t, "%s: step %ld t %.17g vs step %ld t %.17g", what,
           a->step, a->t, b->step, b->t);
+    /* the pair evaluations of the counted passes (the GPU's counted on the device) */
+    CHECK(a->pairs == b->pairs && a->pairs > 0, "%s: %zu pairs vs %zu", what, a->pairs, b->pairs);
 }
 
 static void gpu_compare(const gpu_backend *be, const char *scheme, const char *problem, int nx,

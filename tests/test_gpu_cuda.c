@@ -1,9 +1,9 @@
 /* The CUDA backend of the GPU solver on the device (ctest label "gpu"; skipped, 77, where the
- * build has no CUDA or the machine no device): edac, wcsph and 001's nine schemes (l-ipst-c,
+ * build has no CUDA or the machine no device): edac, wcsph, tvf and 001's nine schemes (l-ipst-c,
  * l-ipst-f, l-ipst-k, pe-ipst-c, l-pst-c, tv-c, l-rr-c, e-c, ewcsph) on the 2D Taylor-Green vortex
  * and the 3D Beltrami flow stepped on the GPU equals the CPU solver bit for bit, every
- * particle array after one step and after 20 (nvcc -fmad=false against C11's uncontracted
- * arithmetic), and two GPU runs are bitwise equal. */
+ * particle array and the pair count after one step and after 20 (nvcc -fmad=false against C11's
+ * uncontracted arithmetic), and two GPU runs are bitwise equal. */
 #include "gpu_compare.h"
 
 int main(void)
@@ -14,8 +14,8 @@ int main(void)
         printf("test_gpu_cuda: skipped: %s\n", why);
         return 77;
     }
-    static const char *const schemes[] = {"edac", "wcsph"};
-    for (int k = 0; k < 2; ++k) {
+    static const char *const schemes[] = {"edac", "wcsph", "tvf"};
+    for (int k = 0; k < 3; ++k) {
         gpu_compare(be, schemes[k], "taylor-green", 100, 0);
         gpu_compare(be, schemes[k], "taylor-green", 100, 1);
         gpu_compare(be, schemes[k], "beltrami", 20, 0);

@@ -1,13 +1,13 @@
 /* The GPU solver's per-particle functions (src/gpu/dev.h), run by the host emulation backend
  * exactly as the CUDA kernels run them (one call per particle or cell, the scatter in reverse
- * order so that the per-cell sort must restore the stable order), against the CPU solver: edac
- * and wcsph on the 2D Taylor-Green vortex and the 3D Beltrami flow, every particle array (positions
- * and every field, the start-of-step copies and gradients included) and the particles' origins bit
- * for bit after one step and after 20, with the gradients every step and as consph_run skips
- * them (grads_lazy, the state copied back only at the log samples and the end); 001's schemes
- * (rk2, the kit's passes, IPST over two shifts, the other regularisations) the same way. Then the
- * refusals: schemes not ported, and a build without CUDA. Under error = authors, the copies back
- * are counted: only the steps the host reads. */
+ * order so that the per-cell sort must restore the stable order), against the CPU solver: edac,
+ * wcsph and tvf on the 2D Taylor-Green vortex and the 3D Beltrami flow, every particle array
+ * (positions and every field, the start-of-step copies and gradients included) and the particles'
+ * origins bit for bit after one step and after 20, and the count of pair evaluations, with the
+ * gradients every step and as consph_run skips them (grads_lazy, the state copied back only at the
+ * log samples and the end); 001's schemes (rk2, the kit's passes, IPST over two shifts, the other
+ * regularisations) the same way. Then the refusals: schemes not ported, and a build without CUDA.
+ * Under error = authors, the copies back are counted: only the steps the host reads. */
 #include "gpu_compare.h"
 
 static void refusals(void)
@@ -15,7 +15,11 @@ static void refusals(void)
     consph_run_params p;
     consph_run_params_default(&p);
     snprintf(p.scheme, sizeof p.scheme, "tvf");
-    CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "edac,wcsph"),
+    snprintf(p.integrator, sizeof p.integrator, "pec");
+    CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "kdk, tvf's"),
+          "tvf under pec on the GPU: %s", consph_last_error());
+    p.integrator[0] = 0;
+    CHECK(consph_gpu_check(&p) == CONSPH_OK || !strstr(consph_last_error(), "does not run"),
           "tvf on the GPU: %s", consph_last_error());
     snprintf(p.scheme, sizeof p.scheme, "delta-plus-sph");
     CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "l-ipst-c"),
@@ -122,8 +126,9 @@ done:
 
 int main(void)
 {
-    static const char *const schemes[] = {"edac", "wcsph"};
-    for (int k = 0; k < 2; ++k) {
+    /* tvf: kick-drift-kick, its transport velocity and summation density */
+    static const char *const schemes[] = {"edac", "wcsph", "tvf"};
+    for (int k = 0; k < 3; ++k) {
         gpu_compare(&gpu_emulation, schemes[k], "taylor-green", 20, 0);
         gpu_compare(&gpu_emulation, schemes[k], "taylor-green", 20, 1);
         gpu_compare(&gpu_emulation, schemes[k], "beltrami", 10, 0);
@@ -151,7 +156,9 @@ int main(void)
     gpu_compare(&gpu_emulation, "ewcsph", "taylor-green", 16, 0);
     gpu_compare(&gpu_emulation, "ewcsph", "beltrami", 8, 0);
     gpu_twice(&gpu_emulation, "edac", "taylor-green", 20, 5);
+    gpu_twice(&gpu_emulation, "tvf", "taylor-green", 20, 5);
     authors_copies("edac", 1);
+    authors_copies("tvf", 0);
     authors_copies("edac", 0);
     authors_copies("l-ipst-c", 0);
     refusals();

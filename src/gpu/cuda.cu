@@ -38,8 +38,13 @@ GPU_KERNEL(k_slots, dev_slots(&v, i))
 GPU_KERNEL(k_permute, dev_permute(&v, i))
 GPU_KERNEL(k_save, dev_save_start(&v, i))
 GPU_KERNEL(k_advance, dev_advance(&v, i, c))
+GPU_KERNEL(k_kdk_drift, dev_kdk_drift(&v, i, c))
+GPU_KERNEL(k_kdk_kick, dev_kdk_kick(&v, i, c))
+GPU_KERNEL(k_pair_sum, dev_pair_sum(&v, i))
 GPU_KERNEL(k_density2, dev_edac_density_d(&v, i, 2))
 GPU_KERNEL(k_density3, dev_edac_density_d(&v, i, 3))
+GPU_KERNEL(k_tdensity2, dev_tv_density_d(&v, i, 2, 0))
+GPU_KERNEL(k_tdensity3, dev_tv_density_d(&v, i, 3, 0))
 GPU_KERNEL(k_wprep, dev_wcsph_prep(&v, i))
 /* The rate kernels under a register cap each (__maxnreg__): on an H200 a cap of 80 to 128 made
  * them 1.2-2x faster than the compiler's own choice (bench/gpu_tune.sh, docs/gpu.md), in 2D
@@ -61,6 +66,11 @@ GPU_RATE_KERNEL(k_rates2, 80, dev_edac_rates_d(&v, i, 2, 0))
 GPU_RATE_KERNEL(k_rates2g, 80, dev_edac_rates_d(&v, i, 2, 1))
 GPU_RATE_KERNEL(k_rates3, 128, dev_edac_rates_d(&v, i, 3, 0))
 GPU_RATE_KERNEL(k_rates3g, 128, dev_edac_rates_d(&v, i, 3, 1))
+/* tvf: edac's pair terms without p̄ and dp/dt, under edac's caps (not measured for tvf) */
+GPU_RATE_KERNEL(k_trates2, 80, dev_tvf_rates_d(&v, i, 2, 0))
+GPU_RATE_KERNEL(k_trates2g, 80, dev_tvf_rates_d(&v, i, 2, 1))
+GPU_RATE_KERNEL(k_trates3, 128, dev_tvf_rates_d(&v, i, 3, 0))
+GPU_RATE_KERNEL(k_trates3g, 128, dev_tvf_rates_d(&v, i, 3, 1))
 GPU_RATE_KERNEL(k_wrates2, 80, dev_wcsph_rates_d(&v, i, 2, 0))
 GPU_RATE_KERNEL(k_wrates2g, 80, dev_wcsph_rates_d(&v, i, 2, 1))
 GPU_RATE_KERNEL(k_wrates3, 80, dev_wcsph_rates_d(&v, i, 3, 0))
@@ -156,13 +166,21 @@ int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_PERMUTE: k_permute<<<blocks, threads>>>(*v, count, c); break;
     case GK_SAVE: k_save<<<blocks, threads>>>(*v, count, c); break;
     case GK_ADVANCE: k_advance<<<blocks, threads>>>(*v, count, c); break;
+    case GK_KDK_DRIFT: k_kdk_drift<<<blocks, threads>>>(*v, count, c); break;
+    case GK_KDK_KICK: k_kdk_kick<<<blocks, threads>>>(*v, count, c); break;
+    case GK_PAIR_SUM: k_pair_sum<<<blocks, threads>>>(*v, count, c); break;
     case GK_DENSITY:
-        (v->scheme != GS_EDAC ? k_wprep
-         : v->d == 2          ? k_density2
-                              : k_density3)<<<blocks, threads>>>(*v, count, c);
+        (v->scheme == GS_TVF    ? (v->d == 2 ? k_tdensity2 : k_tdensity3)
+         : v->scheme != GS_EDAC ? k_wprep
+         : v->d == 2            ? k_density2
+                                : k_density3)<<<blocks, threads>>>(*v, count, c);
         break;
     case GK_RATES:
-        if (v->scheme == GS_EDAC && v->d == 2)
+        if (v->scheme == GS_TVF && v->d == 2)
+            (v->grads ? k_trates2g : k_trates2)<<<blocks, threads>>>(*v, count, c);
+        else if (v->scheme == GS_TVF)
+            (v->grads ? k_trates3g : k_trates3)<<<blocks, threads>>>(*v, count, c);
+        else if (v->scheme == GS_EDAC && v->d == 2)
             (v->grads ? k_rates2g : k_rates2)<<<blocks, threads>>>(*v, count, c);
         else if (v->scheme == GS_EDAC)
             (v->grads ? k_rates3g : k_rates3)<<<blocks, threads>>>(*v, count, c);

@@ -13,12 +13,12 @@
  *    r² < R² (src/nnps/gather.c); the CPU walk prunes cells that hold no hit, which changes
  *    which cells are read, never the order of the hits;
  *  - the quintic kernel: src/kernels/kernels.c's quintic_f/df/d2f and eval_batch's selects;
- *  - the passes: src/schemes/pysph/scheme.c's visit_density and visit_tv_d (edac), job_fields'
+ *  - the passes: src/schemes/pysph/scheme.c's visit_density and visit_tv_d (edac, tvf), job_fields'
  *    per-particle values and visit_wcsph_d (wcsph), summing the same pysph_tv_pair and
  *    pysph_wcsph_pair terms (src/schemes/pysph/iact.h) in the same neighbour order;
  *  - the integrator: src/integrators/integrators.c's set_fields and drift with edac's transport
- *    hook, the solver's wrap_positions and closures (edac's summation density, wcsph's EOS of
- *    src/solver/solver.c's solver_eos). */
+ *    hook (pec), step_kdk with tvf's (kdk), the solver's wrap_positions and closures (edac's and
+ *    tvf's summation density, wcsph's EOS of src/solver/solver.c's solver_eos). */
 #ifndef CONSPH_GPU_DEV_H
 #define CONSPH_GPU_DEV_H
 
@@ -101,8 +101,8 @@ enum {
     GA_COUNT
 };
 
-/* The schemes the GPU runs. */
-enum { GS_EDAC, GS_WCSPH, GS_NEGI };
+/* The schemes the GPU runs (GS_TVF: tvf, edac's passes without p̄ and dp/dt, under kdk). */
+enum { GS_EDAC, GS_WCSPH, GS_NEGI, GS_TVF };
 
 typedef struct gpu_view {
     size_t n; /* particles, and the stride of every array */
@@ -150,11 +150,35 @@ typedef struct gpu_view {
     double *chi;                 /* n: IPST's h^d Σ W of each particle; L-RR-C: the remeshed q */
     unsigned long long *chi_max; /* IPST: the bits of max χ (χ >= 0, so ordered as integers) */
     unsigned char *bonet_ok;     /* n: B_i accepted by the kit's first pass (Fatehi_c reads it) */
+    /* n: the neighbours (i itself among them) of the passes the CPU counts in consph_solver's
+     * pairs, summed per particle index over the run (each thread adds its own; the total is the
+     * run's whatever the re-sorts did to the indices), and their sums per GPU_PAIR_CHUNK */
+    unsigned long long *pairs, *pair_chunks;
 } gpu_view;
 
 GPU_FN double *gv(const gpu_view *v, int q, int comp)
 {
     return v->a + (size_t)(v->at[q] + comp) * v->n;
+}
+
+/* A counted pass's neighbours of particle i (consph_pass_run_counted's Σ nb.n). */
+GPU_FN_INLINE void gpu_pairs_add(const gpu_view *v, size_t i, size_t hits)
+{
+    v->pairs[i] += (unsigned long long)hits;
+}
+
+/* The particles one thread of dev_pair_sum adds up. */
+#define GPU_PAIR_CHUNK 1024
+
+/* The pair counts of particles [t GPU_PAIR_CHUNK, (t + 1) GPU_PAIR_CHUNK) into pair_chunks[t]:
+ * integers, so the total is exact in any order (no atomics). */
+GPU_FN void dev_pair_sum(const gpu_view *v, size_t t)
+{
+    const size_t i0 = t * GPU_PAIR_CHUNK;
+    const size_t i1 = i0 + GPU_PAIR_CHUNK < v->n ? i0 + GPU_PAIR_CHUNK : v->n;
+    unsigned long long s = 0;
+    for (size_t i = i0; i < i1; ++i) s += v->pairs[i];
+    v->pair_chunks[t] = s;
 }
 
 /* ---- the atomic increment of the counting sort ---- */
@@ -276,6 +300,19 @@ GPU_FN void gpu_close(const gpu_view *v, size_t i)
         gv(v, GA_P, 0)[i] = gpu_eos(v, gv(v, GA_RHOF, 0)[i]);
 }
 
+/* A drifted coordinate wrapped into a periodic box (the solver's wrap_positions). */
+GPU_FN double gpu_wrap(const gpu_grid *g, int a, double x)
+{
+    if (g->periodic[a]) {
+        const double lo = g->lo[a], L = g->len[a];
+        if (x < lo || x >= lo + L) {
+            x -= L * floor((x - lo) / L);
+            if (x >= lo + L) x = lo; /* rounding of a tiny negative offset */
+        }
+    }
+    return x;
+}
+
 /* advance(c): u, q = u0, q0 + c (au, aq); edac's transport hook ũ - u = c ã and dx/dt = u + ũ - u
  * (wcsph: dx/dt as the rates left it); x = x0 + c dx/dt wrapped into the box; the closure (edac:
  * ϱ = the last summation density; wcsph: p = EOS(ϱ)). */
@@ -297,15 +334,7 @@ GPU_FN void dev_advance(const gpu_view *v, size_t i, double c)
             if (!v->moves) continue;
             ax = gv(v, GA_AX, a)[i];
         }
-        double x = gv(v, GA_X0, a)[i] + c * ax;
-        if (g->periodic[a]) {
-            const double lo = g->lo[a], L = g->len[a];
-            if (x < lo || x >= lo + L) {
-                x -= L * floor((x - lo) / L);
-                if (x >= lo + L) x = lo;
-            }
-        }
-        gv(v, GA_X, a)[i] = x;
+        gv(v, GA_X, a)[i] = gpu_wrap(g, a, gv(v, GA_X0, a)[i] + c * ax);
     }
     if (edac)
         gv(v, GA_RHOF, 0)[i] = gv(v, GA_RHOS, 0)[i];
@@ -313,11 +342,44 @@ GPU_FN void dev_advance(const gpu_view *v, size_t i, double c)
         gpu_close(v, i);
 }
 
+/* ---- tvf's kick-drift-kick (src/integrators/integrators.c's step_kdk) ----
+ * The first half kick of u0, q0 with the rates the previous step left, u = u0, tvf's transport
+ * hook (ũ - u = Δt/2 ã, dx/dt = u + ũ - u: scheme.c's tv_transport), the drift x = x0 + Δt dx/dt
+ * wrapped as the solver's wrap_positions, q = q0 and the closure ϱ = m Σ W. */
+GPU_FN void dev_kdk_drift(const gpu_view *v, size_t i, double dt)
+{
+    const gpu_grid *g = &v->g;
+    const double c = 0.5 * dt;
+    double *q0 = gv(v, GA_Q0, 0);
+    q0[i] += 0.5 * dt * gv(v, GA_AQ, 0)[i];
+    for (int a = 0; a < v->d; ++a) {
+        double *u0 = gv(v, GA_U0, a);
+        u0[i] += 0.5 * dt * gv(v, GA_AU, a)[i];
+        const double u = u0[i], du = c * gv(v, GA_AUHAT, a)[i], ax = u + du;
+        gv(v, GA_U, a)[i] = u;
+        gv(v, GA_TVDU, a)[i] = du;
+        gv(v, GA_AX, a)[i] = ax;
+        gv(v, GA_X, a)[i] = gpu_wrap(g, a, gv(v, GA_X0, a)[i] + dt * ax);
+    }
+    gv(v, GA_Q, 0)[i] = q0[i];
+    gv(v, GA_RHOF, 0)[i] = gv(v, GA_RHOS, 0)[i];
+}
+
+/* The second kick (set_fields with c = Δt/2: u, q = u0, q0 + c (au, aq)) and the closure; the
+ * particles stay where the drift put them. */
+GPU_FN void dev_kdk_kick(const gpu_view *v, size_t i, double c)
+{
+    gv(v, GA_Q, 0)[i] = gv(v, GA_Q0, 0)[i] + c * gv(v, GA_AQ, 0)[i];
+    for (int a = 0; a < v->d; ++a) gv(v, GA_U, a)[i] = gv(v, GA_U0, a)[i] + c * gv(v, GA_AU, a)[i];
+    gv(v, GA_RHOF, 0)[i] = gv(v, GA_RHOS, 0)[i];
+}
+
 /* ---- the neighbour walk ---- */
 typedef struct gpu_walk {
     int64_t c[3], u[3], ua[3], ub[3];
     double xi[3], q[3];
     uint32_t s, s1;
+    uint32_t hits; /* neighbours yielded so far, i itself among them (gpu_pairs_add) */
 } gpu_walk;
 
 GPU_FN int64_t gpu_floor_div(int64_t u, int64_t d)
@@ -384,6 +446,7 @@ GPU_FN void gpu_walk_start(const gpu_view *v, size_t i, gpu_walk *w)
         }
     }
     for (int a = 0; a < 3; ++a) w->u[a] = w->ua[a];
+    w->hits = 0;
     gpu_walk_cell(v, w);
 }
 
@@ -413,6 +476,7 @@ GPU_FN int gpu_walk_next(const gpu_view *v, gpu_walk *w, uint32_t *j, double dx[
             if (rr < v->g.radius2) {
                 *j = v->order[s];
                 *r = sqrt(rr);
+                ++w->hits;
                 return 1;
             }
         }
@@ -445,6 +509,7 @@ typedef struct gpu_walkr {
     double g1, g2; /* the row's squared gaps along axes 1 and 2 */
     size_t row;    /* the row's first cell index without axis 0: (c2 nc1 + c1) nc0 */
     uint32_t s, s1;
+    uint32_t hits; /* neighbours yielded so far, i's own images among them (gpu_pairs_add) */
 } gpu_walkr;
 
 GPU_FN int gpu_floor_div32(int u, int d)
@@ -586,6 +651,7 @@ GPU_FN_INLINE void gpu_walkr_start(const gpu_view *v, size_t i, gpu_walkr *w, co
         w->u[a] = w->ua[a];
     }
     w->s = w->s1 = 0;
+    w->hits = 0;
     w->row = 0;
     w->u0 = 1;
     w->last0 = 0;
@@ -618,6 +684,7 @@ GPU_FN_INLINE int gpu_walkr_next(const gpu_view *v, gpu_walkr *w, const int D, u
             if (rr < v->g.radius2) {
                 *slot = s;
                 *r = sqrt(rr);
+                ++w->hits;
                 return 1;
             }
         }
@@ -667,11 +734,11 @@ GPU_FN_INLINE int gpu_walkr_second(const gpu_view *v, gpu_walkr *w, const int D,
 }
 
 /* ---- the neighbour records (gpu_view's pack) ----
- * edac: ϱ, p, V, m/ϱ, u, ũ - u (4 + 2d); wcsph: ϱ, p/ϱ², m/ϱ, c_s, u (4 + d, padded to even):
- * an even width keeps every record on 16 bytes, read in pairs of doubles. */
+ * edac and tvf: ϱ, p, V, m/ϱ, u, ũ - u (4 + 2d); wcsph: ϱ, p/ϱ², m/ϱ, c_s, u (4 + d, padded to
+ * even): an even width keeps every record on 16 bytes, read in pairs of doubles. */
 GPU_FN int gpu_pack_width(int scheme, int d)
 {
-    return scheme == GS_EDAC ? 4 + 2 * d : (4 + d + 1) & ~1;
+    return scheme == GS_EDAC || scheme == GS_TVF ? 4 + 2 * d : (4 + d + 1) & ~1;
 }
 
 GPU_FN_INLINE void gpu_pack_read(const double *rec, double *q, const int K)
@@ -741,11 +808,12 @@ GPU_FN double gpu_d2w(const gpu_kern *k, double r)
 
 /* ---- edac's passes (src/schemes/pysph/scheme.c) ---- */
 
-/* Summation density ϱ = m Σ W, 1/V, m/ϱ and the neighbour average p̄ (visit_density); then the
- * particle's record for the rate pass. */
-GPU_FN_INLINE void dev_edac_density_d(const gpu_view *v, size_t i, const int D)
+/* Summation density ϱ = m Σ W, 1/V, m/ϱ and edac's neighbour average p̄ or tvf's
+ * p = p_o (ϱ/ρ_o - 1) (visit_density, p_o = c_o² ρ_o as job_fields has it); then the particle's
+ * record for the rate pass. */
+GPU_FN_INLINE void dev_tv_density_d(const gpu_view *v, size_t i, const int D, const int edac)
 {
-    const double *ps = v->xp + D; /* p in slot order, stride 4 */
+    const double *ps = v->xp + D; /* edac's p in slot order, stride 4 */
     gpu_walkr w;
     gpu_walkr_start(v, i, &w, D);
     double s = 0.0, psum = 0.0, dx[3], r;
@@ -753,18 +821,28 @@ GPU_FN_INLINE void dev_edac_density_d(const gpu_view *v, size_t i, const int D)
     uint32_t sl;
     while (gpu_walkr_next(v, &w, D, &sl, dx, &r)) {
         s += gpu_w(&v->k, r);
-        psum += GPU_LDG(&ps[4 * (size_t)sl]);
+        if (edac) psum += GPU_LDG(&ps[4 * (size_t)sl]);
         ++cnt;
     }
+    /* this pass's neighbours and the rate pass's: it walks the same ones (the same positions and
+     * cell lists), and a counter there costs the capped rate kernels spills */
+    gpu_pairs_add(v, i, 2 * cnt);
     const double m = v->c.m, rhos = m * s, vol = 1.0 / s, mrho = m / rhos;
     gv(v, GA_NUMD, 0)[i] = s;
     gv(v, GA_RHOS, 0)[i] = rhos;
     v->vol[i] = vol;
     v->mrho[i] = mrho;
-    gv(v, GA_PAVG, 0)[i] = psum / (double)cnt;
+    double pi;
+    if (edac) {
+        gv(v, GA_PAVG, 0)[i] = psum / (double)cnt;
+        pi = gv(v, GA_P, 0)[i];
+    } else {
+        pi = v->c2 * v->rho0 * (rhos / v->rho0 - 1.0);
+        gv(v, GA_P, 0)[i] = pi;
+    }
     double *rec = v->pack + (size_t)v->slot_of[i] * (size_t)(4 + 2 * D);
     rec[0] = rhos;
-    rec[1] = gv(v, GA_P, 0)[i];
+    rec[1] = pi;
     rec[2] = vol;
     rec[3] = mrho;
     for (int a = 0; a < D; ++a) {
@@ -773,18 +851,26 @@ GPU_FN_INLINE void dev_edac_density_d(const gpu_view *v, size_t i, const int D)
     }
 }
 
-GPU_FN void dev_edac_density(const gpu_view *v, size_t i)
+GPU_FN_INLINE void dev_edac_density_d(const gpu_view *v, size_t i, const int D)
 {
-    if (v->d == 2)
-        dev_edac_density_d(v, i, 2);
-    else
-        dev_edac_density_d(v, i, 3);
+    dev_tv_density_d(v, i, D, 1);
 }
 
-/* edac's pair term of i and the neighbour in slot sl (its values from the slot's record). */
-GPU_FN_INLINE void gpu_edac_pair(const gpu_view *v, const int d, double rhoi, double pi, double pav,
-                                 double Vi, const double ui[3], const double dui[3], uint32_t sl,
-                                 const double xij[3], double r, pysph_pair *o)
+GPU_FN void dev_tv_density(const gpu_view *v, size_t i)
+{
+    const int edac = v->scheme == GS_EDAC;
+    if (v->d == 2)
+        edac ? dev_tv_density_d(v, i, 2, 1) : dev_tv_density_d(v, i, 2, 0);
+    else
+        edac ? dev_tv_density_d(v, i, 3, 1) : dev_tv_density_d(v, i, 3, 0);
+}
+
+/* edac's or tvf's pair term of i and the neighbour in slot sl (its values from the slot's
+ * record). */
+GPU_FN_INLINE void gpu_edac_pair(const gpu_view *v, const int d, const int edac, double rhoi,
+                                 double pi, double pav, double Vi, const double ui[3],
+                                 const double dui[3], uint32_t sl, const double xij[3], double r,
+                                 pysph_pair *o)
 {
     double q[10], uj[3] = {0.0, 0.0, 0.0}, duj[3] = {0.0, 0.0, 0.0};
     gpu_pack_read(v->pack + (size_t)sl * (size_t)(4 + 2 * d), q, 4 + 2 * d);
@@ -792,13 +878,15 @@ GPU_FN_INLINE void gpu_edac_pair(const gpu_view *v, const int d, double rhoi, do
         uj[a] = q[4 + a];
         duj[a] = q[4 + d + a];
     }
-    pysph_tv_pair(d, 1, &v->c, rhoi, pi, pav, Vi, ui, dui, q[0], q[1], q[2], q[3], uj, duj,
+    pysph_tv_pair(d, edac, &v->c, rhoi, pi, pav, Vi, ui, dui, q[0], q[1], q[2], q[3], uj, duj,
                   gpu_dwr(&v->k, r), xij, r, o);
 }
 
-/* One pair added into edac's sums, each in visit_tv_d's order. */
-GPU_FN_INLINE void gpu_edac_add(const pysph_pair *o, const int d, const int grads, double f[3],
-                                double fb[3], double fp[3], double G[9], double *div, double *ap)
+/* One pair added into edac's or tvf's sums, each in visit_tv_d's order (tvf adds nothing to
+ * dp/dt). */
+GPU_FN_INLINE void gpu_edac_add(const pysph_pair *o, const int d, const int edac, const int grads,
+                                double f[3], double fb[3], double fp[3], double G[9], double *div,
+                                double *ap)
 {
     for (int a = 0; a < d; ++a) {
         f[a] += o->f[a];
@@ -808,17 +896,21 @@ GPU_FN_INLINE void gpu_edac_add(const pysph_pair *o, const int d, const int grad
     if (grads)
         for (int e = 0; e < d * d; ++e) G[e] -= o->g[e];
     *div -= o->div;
-    *ap += o->q1;
-    *ap += o->q2;
+    if (edac) {
+        *ap += o->q1;
+        *ap += o->q2;
+    }
 }
 
-/* The rates of tvf/edac at particle i (visit_tv_d with edac; the closure ϱ = m Σ W after), for
- * a dimension and gradients known at compile time: every small array is then registers. */
-GPU_FN_INLINE void dev_edac_rates_d(const gpu_view *v, size_t i, const int d, const int grads)
+/* The rates of edac or tvf at particle i (visit_tv_d; the closure ϱ = m Σ W after), for a
+ * dimension, scheme and gradients known at compile time: every small array is then registers. */
+GPU_FN_INLINE void dev_tv_rates_d(const gpu_view *v, size_t i, const int d, const int edac,
+                                  const int grads)
 {
     const pysph_consts *c = &v->c;
     const double *rho = gv(v, GA_RHOS, 0), *p = gv(v, GA_P, 0);
-    const double rhoi = rho[i], pi = p[i], Vi = v->vol[i], pav = gv(v, GA_PAVG, 0)[i];
+    const double rhoi = rho[i], pi = p[i], Vi = v->vol[i];
+    const double pav = edac ? gv(v, GA_PAVG, 0)[i] : 0.0;
     double ui[3] = {0.0, 0.0, 0.0}, dui[3] = {0.0, 0.0, 0.0};
     for (int a = 0; a < d; ++a) {
         ui[a] = gv(v, GA_U, a)[i];
@@ -835,12 +927,13 @@ GPU_FN_INLINE void dev_edac_rates_d(const gpu_view *v, size_t i, const int d, co
         const int hb =
             CONSPH_GPU_PAIRS == 2 && gpu_walkr_second(v, &w, d, self, sa, xa, ra, &sb, xb, &rb);
         pysph_pair oa, ob;
-        gpu_edac_pair(v, d, rhoi, pi, pav, Vi, ui, dui, sa, xa, ra, &oa);
-        if (CONSPH_GPU_PAIRS == 2) gpu_edac_pair(v, d, rhoi, pi, pav, Vi, ui, dui, sb, xb, rb, &ob);
-        gpu_edac_add(&oa, d, grads, f, fb, fp, G, &div, &ap);
+        gpu_edac_pair(v, d, edac, rhoi, pi, pav, Vi, ui, dui, sa, xa, ra, &oa);
+        if (CONSPH_GPU_PAIRS == 2)
+            gpu_edac_pair(v, d, edac, rhoi, pi, pav, Vi, ui, dui, sb, xb, rb, &ob);
+        gpu_edac_add(&oa, d, edac, grads, f, fb, fp, G, &div, &ap);
         if (CONSPH_GPU_PAIRS == 2) {
             if (!hb) break;
-            gpu_edac_add(&ob, d, grads, f, fb, fp, G, &div, &ap);
+            gpu_edac_add(&ob, d, edac, grads, f, fb, fp, G, &div, &ap);
         }
     }
     for (int a = 0; a < d; ++a) {
@@ -856,18 +949,29 @@ GPU_FN_INLINE void dev_edac_rates_d(const gpu_view *v, size_t i, const int d, co
     gv(v, GA_RHOF, 0)[i] = rhoi;
 }
 
-GPU_FN void dev_edac_rates_any(const gpu_view *v, size_t i)
+GPU_FN_INLINE void dev_edac_rates_d(const gpu_view *v, size_t i, const int d, const int grads)
 {
+    dev_tv_rates_d(v, i, d, 1, grads);
+}
+
+GPU_FN_INLINE void dev_tvf_rates_d(const gpu_view *v, size_t i, const int d, const int grads)
+{
+    dev_tv_rates_d(v, i, d, 0, grads);
+}
+
+GPU_FN void dev_tv_rates_any(const gpu_view *v, size_t i)
+{
+    const int edac = v->scheme == GS_EDAC;
     if (v->d == 2) {
         if (v->grads)
-            dev_edac_rates_d(v, i, 2, 1);
+            edac ? dev_edac_rates_d(v, i, 2, 1) : dev_tvf_rates_d(v, i, 2, 1);
         else
-            dev_edac_rates_d(v, i, 2, 0);
+            edac ? dev_edac_rates_d(v, i, 2, 0) : dev_tvf_rates_d(v, i, 2, 0);
     } else {
         if (v->grads)
-            dev_edac_rates_d(v, i, 3, 1);
+            edac ? dev_edac_rates_d(v, i, 3, 1) : dev_tvf_rates_d(v, i, 3, 1);
         else
-            dev_edac_rates_d(v, i, 3, 0);
+            edac ? dev_edac_rates_d(v, i, 3, 0) : dev_tvf_rates_d(v, i, 3, 0);
     }
 }
 
@@ -967,6 +1071,7 @@ GPU_FN_INLINE void dev_wcsph_rates_d(const gpu_view *v, size_t i, const int d, c
             gpu_wcsph_add(&ob, d, grads, f, xs, fp, G, &drho);
         }
     }
+    gpu_pairs_add(v, i, w.hits);
     for (int a = 0; a < d; ++a) {
         gv(v, GA_AU, a)[i] = f[a];
         gv(v, GA_AX, a)[i] = ui[a] + xs[a];
@@ -985,16 +1090,16 @@ GPU_FN_INLINE void dev_wcsph_rates_d(const gpu_view *v, size_t i, const int d, c
  * its rates, dispatched on the view. */
 GPU_FN void dev_pre_rates(const gpu_view *v, size_t i)
 {
-    if (v->scheme == GS_EDAC)
-        dev_edac_density(v, i);
+    if (v->scheme == GS_EDAC || v->scheme == GS_TVF)
+        dev_tv_density(v, i);
     else
         dev_wcsph_prep(v, i);
 }
 
 GPU_FN void dev_rates(const gpu_view *v, size_t i)
 {
-    if (v->scheme == GS_EDAC) {
-        dev_edac_rates_any(v, i);
+    if (v->scheme == GS_EDAC || v->scheme == GS_TVF) {
+        dev_tv_rates_any(v, i);
     } else if (v->d == 2) {
         if (v->grads)
             dev_wcsph_rates_d(v, i, 2, 1);

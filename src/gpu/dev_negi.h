@@ -8,21 +8,24 @@
 #ifndef CONSPH_GPU_DEV_NEGI_H
 #define CONSPH_GPU_DEV_NEGI_H
 
-/* Σ_j W_ij (i itself among the j), in the walk's order. */
-GPU_FN double gpu_wsum(const gpu_view *v, size_t i)
+/* Σ_j W_ij (i itself among the j), in the walk's order; the neighbours in *hits. */
+GPU_FN double gpu_wsum(const gpu_view *v, size_t i, uint32_t *hits)
 {
     gpu_walk w;
     gpu_walk_start(v, i, &w);
     double s = 0.0, dx[3], r;
     uint32_t j;
     while (gpu_walk_next(v, &w, &j, dx, &r)) s += gpu_w(&v->k, r);
+    *hits = w.hits;
     return s;
 }
 
-/* kit_volumes: ω = 1/Σ W. */
+/* kit_volumes: ω = 1/Σ W (a pass the CPU counts). */
 GPU_FN void dev_negi_volumes(const gpu_view *v, size_t i)
 {
-    gv(v, GA_VOL, 0)[i] = 1.0 / gpu_wsum(v, i);
+    uint32_t hits;
+    gv(v, GA_VOL, 0)[i] = 1.0 / gpu_wsum(v, i, &hits);
+    gpu_pairs_add(v, i, hits);
 }
 
 /* The kit's pass 1 at particle i (kit.c's first_body): the Bonet matrix, and ∇p (P), G (U, with
@@ -48,6 +51,7 @@ GPU_FN_INLINE void dev_negi_first_d(const gpu_view *v, size_t i, const int D, co
         kit_first_pair(D, P, U, Q, vol[j], gpu_dwr(&v->k, r), x, P ? pf[j] : 0.0, pi, uj, ui,
                        Q ? qf[j] : 0.0, qi, sm, sp, su, sq);
     }
+    gpu_pairs_add(v, i, w.hits);
     double B[9], gp[3], G[9], div = 0.0, gq[3];
     v->bonet_ok[i] = (unsigned char)kit_first_finish(D, P, U, Q, sm, v->cond_max, sp, su, sq, B, gp,
                                                      G, &div, gq);
@@ -111,6 +115,7 @@ GPU_FN_INLINE void dev_negi_coupled_d(const gpu_view *v, size_t i, const int D, 
             for (int b = 0; b < D; ++b) gqj[b] = gv(v, GA_GRADQ, b)[j];
         kit_coupled_pair(D, U, Q, B, gpu_dwr(&v->k, r), x, vol[j], Gj, Gi, gqj, gqi, acc, &accq);
     }
+    gpu_pairs_add(v, i, w.hits);
     if (U)
         for (int a = 0; a < D; ++a) gv(v, GA_LAPU, a)[i] = acc[a];
     if (Q) gv(v, GA_LAPQ, 0)[i] = accq;
@@ -149,6 +154,7 @@ GPU_FN_INLINE void dev_negi_cleary_d(const gpu_view *v, size_t i, const int D)
         for (int a = 0; a < D; ++a) uj[a] = gv(v, GA_U, a)[j];
         kit_cleary_pair(D, B, r, gpu_dwr(&v->k, r), x, vol[j], rho[i], rho[j], ui, uj, acc);
     }
+    gpu_pairs_add(v, i, w.hits);
     for (int a = 0; a < D; ++a) gv(v, GA_LAPU, a)[i] = acc[a];
 }
 
@@ -193,6 +199,7 @@ GPU_FN_INLINE void dev_negi_fatehi_d(const gpu_view *v, size_t i, const int D)
         for (int a = 0; a < D; ++a) uj[a] = gv(v, GA_U, a)[j];
         kit_fatehi_pair(D, Bh, r, gpu_dwr(&v->k, r), x, vol[j], G, ui, uj, acc);
     }
+    gpu_pairs_add(v, i, w.hits); /* the CPU's pass is this walk (B̂ comes within it there) */
     for (int a = 0; a < D; ++a) gv(v, GA_LAPU, a)[i] = acc[a];
 }
 
@@ -229,6 +236,7 @@ GPU_FN_INLINE void dev_negi_korzilius_d(const gpu_view *v, size_t i, const int D
         const double aee = term_hess_radial(r, dwr, gpu_d2w(&v->k, r));
         kit_korzilius_pair(D, P, pl, pk, cq, vol[j], dwr, aee, x, G, ui, uj, A, Hx, Gz, rhs);
     }
+    gpu_pairs_add(v, i, w.hits);
     double lap[3];
     kit_korzilius_finish(D, P, pl, pk, v->bonet_ok[i], Hx, Gz, B, A, rhs, v->cond_max, lap);
     for (int a = 0; a < D; ++a) gv(v, GA_LAPU, a)[i] = lap[a];
@@ -291,7 +299,8 @@ GPU_FN void dev_negi_rates(const gpu_view *v, size_t i)
 /* ipst_volumes: ω = 1/Σ W and χ = h^d Σ W (the density pass with mass 1: 1·Σ W is Σ W). */
 GPU_FN void dev_ipst_volumes(const gpu_view *v, size_t i)
 {
-    const double s = gpu_wsum(v, i);
+    uint32_t hits; /* reg_ipst's passes are not counted in the CPU's pairs */
+    const double s = gpu_wsum(v, i, &hits);
     gv(v, GA_VOL, 0)[i] = 1.0 / s;
     v->chi[i] = v->ipst_hd * s;
 }

@@ -26,6 +26,11 @@ struct gpu_run {
     double *jxs;
     long downloads;       /* copies of the state back to the host (gpu_download_count) */
     long long down_bytes; /* the bytes those copies moved (gpu_download_bytes) */
+
+    /* the pair count: the solver's pairs at the attach (the device counts the rest), and
+     * dev_pair_sum's threads and their sums, copied back */
+    size_t pairs_base, nchunks;
+    unsigned long long *chunks_host;
 };
 
 /* ---- the emulation backend ---- */
@@ -76,6 +81,15 @@ static int emu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
         break;
     case GK_ADVANCE:
         for (size_t i = 0; i < count; ++i) dev_advance(v, i, c);
+        break;
+    case GK_KDK_DRIFT:
+        for (size_t i = 0; i < count; ++i) dev_kdk_drift(v, i, c);
+        break;
+    case GK_KDK_KICK:
+        for (size_t i = 0; i < count; ++i) dev_kdk_kick(v, i, c);
+        break;
+    case GK_PAIR_SUM:
+        for (size_t i = 0; i < count; ++i) dev_pair_sum(v, i);
         break;
     case GK_DENSITY:
         for (size_t i = 0; i < count; ++i) dev_pre_rates(v, i);
@@ -173,7 +187,7 @@ static const gpu_backend *find_backend(char *why, size_t len)
 
 const char *consph_gpu_schemes(void)
 {
-    return "edac,wcsph,l-ipst-c,l-ipst-f,l-ipst-k,pe-ipst-c,l-pst-c,l-rr-c,tv-c,e-c,ewcsph";
+    return "edac,wcsph,tvf,l-ipst-c,l-ipst-f,l-ipst-k,pe-ipst-c,l-pst-c,l-rr-c,tv-c,e-c,ewcsph";
 }
 
 /* 001's family on the GPU (rk2, coupled_bc): L-IPST-C, L-IPST-F (Fatehi_c) and PE-IPST-C (IPST),
@@ -198,16 +212,17 @@ int consph_gpu_available(char *why, size_t len)
 
 static int check_params(const consph_run_params *prm)
 {
-    const int negi = is_negi(prm->scheme);
-    if (strcmp(prm->scheme, "edac") != 0 && strcmp(prm->scheme, "wcsph") != 0 && !negi)
+    const int negi = is_negi(prm->scheme), tvf = strcmp(prm->scheme, "tvf") == 0;
+    if (strcmp(prm->scheme, "edac") != 0 && strcmp(prm->scheme, "wcsph") != 0 && !tvf && !negi)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: scheme '%s' does not run on the GPU yet (allowed: %s)",
                            prm->scheme, consph_gpu_schemes());
-    if (prm->integrator[0] && strcmp(prm->integrator, negi ? "rk2" : "pec") != 0)
+    if (prm->integrator[0] && strcmp(prm->integrator, negi ? "rk2" : tvf ? "kdk" : "pec") != 0)
         return consph_fail(CONSPH_EINVAL,
-                           "--device gpu: integrator '%s' does not run on the GPU yet (allowed: "
-                           "pec, the default of edac and wcsph; rk2, that of 001's schemes)",
-                           prm->integrator);
+                           "--device gpu: integrator '%s' does not run %s on the GPU yet "
+                           "(allowed: pec, the default of edac and wcsph; kdk, tvf's; rk2, that "
+                           "of 001's schemes)",
+                           prm->integrator, prm->scheme);
     /* Tait's EOS and sound speed by multiplication (solver_eos's γ = 7 loop) */
     const int tait =
         prm->eos == CONSPH_EOS_TAIT ||
@@ -247,8 +262,8 @@ static int check_solver(consph_solver *s)
 {
     int st = check_params(&s->prm);
     if (st != CONSPH_OK) return st;
-    /* edac and wcsph start from the rates the previous step left (pec); 001's family evaluates
-     * afresh (rk2), its regularisation changing the state after the last evaluation */
+    /* edac, wcsph and tvf start from the rates the previous step left (pec, kdk); 001's family
+     * evaluates afresh (rk2), its regularisation changing the state after the last evaluation */
     if (s->reuse_rates == is_negi(s->prm.scheme) || s->sys.dest || s->sys.kernel.tensor ||
         !s->sys.p)
         return consph_fail(CONSPH_EINVAL, "--device gpu: this run's set-up does not run there");
@@ -371,6 +386,24 @@ static int copy_arrays(consph_solver *s, int to_device, const unsigned char *wan
  * (diag.c), and the ids copy_back turns into the origins. */
 static const char *const sample_fields[] = {SF_U, SF_P, SF_RHOF, SF_ID, SF_MASS, SF_AU, SF_DIVU};
 
+/* The solver's pairs: those of the set-up and of the CPU before the attach, and the device's
+ * count since (dev_pair_sum's chunk sums, added here: integers, exact in any order). */
+static int pairs_back(consph_solver *s)
+{
+    gpu_run *g = s->gpu;
+    const gpu_backend *be = g->be;
+    const gpu_view *v = &g->v;
+    if (v->n == 0) return CONSPH_OK;
+    const size_t bytes = g->nchunks * sizeof(unsigned long long);
+    if (be->launch(GK_PAIR_SUM, g->nchunks, v, 0.0)) return be_fail(be, "GK_PAIR_SUM");
+    if (be->get(g->chunks_host, v->pair_chunks, bytes)) return be_fail(be, "copy from the device");
+    g->down_bytes += (long long)bytes;
+    size_t total = 0;
+    for (size_t t = 0; t < g->nchunks; ++t) total += (size_t)g->chunks_host[t];
+    s->pairs = g->pairs_base + total;
+    return CONSPH_OK;
+}
+
 static int copy_back(consph_solver *s, int all)
 {
     if (!s->gpu) return CONSPH_OK;
@@ -388,6 +421,7 @@ static int copy_back(consph_solver *s, int all)
         }
     }
     int st = copy_arrays(s, 0, all ? NULL : want);
+    if (st == CONSPH_OK) st = pairs_back(s);
     if (st != CONSPH_OK) return st;
     ++s->gpu->downloads;
     const double *id = sv_field(s, SF_ID, 1);
@@ -432,6 +466,9 @@ void gpu_free(gpu_run *g)
                     g->v.bonet_ok, g->v.slot_of, g->v.pack,  g->v.xp};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k)
         if (bufs[k]) be->release(bufs[k]);
+    if (g->v.pairs) be->release(g->v.pairs);
+    if (g->v.pair_chunks) be->release(g->v.pair_chunks);
+    free(g->chunks_host);
     free(g);
 }
 
@@ -471,11 +508,12 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     g->nfields = p->nfields;
     v->at[GA_X] = 0;
     const int edac = strcmp(s->prm.scheme, "edac") == 0, negi = is_negi(s->prm.scheme);
-    v->scheme = edac ? GS_EDAC : negi ? GS_NEGI : GS_WCSPH;
+    const int tvf = strcmp(s->prm.scheme, "tvf") == 0;
+    v->scheme = edac ? GS_EDAC : tvf ? GS_TVF : negi ? GS_NEGI : GS_WCSPH;
     const int evolve_p = edac || (negi && s->scheme->evolve_p);
     const int moves = !negi || s->scheme->moves;
     v->moves = moves;
-    /* who: 1 every scheme, 2 edac only (pysph/scheme.c's tvdu, auhat, rhos, numden, pavg), 4
+    /* who: 1 every scheme, 2 edac and tvf (pysph/scheme.c's tvdu, auhat, rhos, numden, pavg), 4
      * 001's family only (negi/scheme.c's fields), 8 the schemes that move (x0, dx/dt), 16
      * EWCSPH's ϱ_c, 32 L-RR-C's lattice */
     struct {
@@ -498,8 +536,8 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
                      {GA_LAT, SF_LATTICE, d, 32}};
     const int frozen = negi && ((const negi_terms *)s->scheme->terms)->frozen_rho;
     const int lattice = negi && s->scheme->needs_lattice;
-    const int mine = 1 | (edac ? 2 : 0) | (negi ? 4 : 0) | (moves ? 8 : 0) | (frozen ? 16 : 0) |
-                     (lattice ? 32 : 0);
+    const int mine = 1 | (edac || tvf ? 2 : 0) | (negi ? 4 : 0) | (moves ? 8 : 0) |
+                     (frozen ? 16 : 0) | (lattice ? 32 : 0);
     for (int q = 1; q < GA_COUNT; ++q) v->at[q] = -1;
     for (size_t k = 0; st == CONSPH_OK && k < sizeof map / sizeof map[0]; ++k)
         if (map[k].who & mine) st = array_of(s, map[k].name, map[k].ncomp, &v->at[map[k].q]);
@@ -589,6 +627,16 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
          be->alloc((void **)&v->chi_max, sizeof(unsigned long long)) ||
          be->alloc((void **)&v->bonet_ok, negi ? n : 1)))
         st = be_fail(be, "device memory");
+    g->pairs_base = s->pairs;
+    g->nchunks = (n + GPU_PAIR_CHUNK - 1) / GPU_PAIR_CHUNK;
+    const size_t npairs = n * sizeof(unsigned long long);
+    const size_t nchunk_bytes = g->nchunks * sizeof(unsigned long long);
+    if (st == CONSPH_OK &&
+        (be->alloc((void **)&v->pairs, npairs) ||
+         be->alloc((void **)&v->pair_chunks, nchunk_bytes) || be->zero(v->pairs, npairs)))
+        st = be_fail(be, "device memory");
+    if (st == CONSPH_OK && !(g->chunks_host = malloc(nchunk_bytes)))
+        st = consph_fail(CONSPH_ENOMEM, "out of memory");
     const size_t njc = lattice ? (g->joint_grid.ncells + 1) * sizeof(uint32_t) : 1;
     const size_t nj = lattice ? n : 1;
     if (st == CONSPH_OK &&
@@ -602,7 +650,8 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     v->chi = v->mrho;
     g->bytes = 2 * nd + nvol + n * sizeof(double) + ncs * sizeof(double) +
                (size_t)(d + 4) * n * sizeof(double) + npack * sizeof(double) +
-               3 * n * sizeof(uint32_t) + 2 * nc + 2 * nstep + (negi ? n : 1);
+               3 * n * sizeof(uint32_t) + 2 * nc + 2 * nstep + (negi ? n : 1) + npairs +
+               nchunk_bytes;
     if (lattice) g->bytes += 2 * n * sizeof(uint32_t) + 2 * njc + (size_t)d * n * sizeof(double);
     if (st == CONSPH_OK) st = copy_arrays(s, 1, NULL);
     if (st != CONSPH_OK) {
@@ -660,6 +709,31 @@ static int step_pec(gpu_run *g, double dt, int grads)
     LAUNCH(GK_DENSITY, v->n, 0.0);
     LAUNCH(GK_RATES, v->n, 0.0);
     LAUNCH(GK_ADVANCE, v->n, dt);
+    return CONSPH_OK;
+}
+
+/* tvf under kdk, as consph_solver_step and step_kdk run it on the CPU: re-sort into cell order,
+ * save the start, the first half kick with the previous step's rates, the transport velocity
+ * and the drift by Δt (dev_kdk_drift), rebuild the search, the density and rate passes, the
+ * second half kick. */
+static int step_kdk(gpu_run *g, double dt, int grads)
+{
+    const gpu_backend *be = g->be;
+    gpu_view *v = &g->v;
+    int st = build_cells(g);
+    if (st != CONSPH_OK) return st;
+    LAUNCH(GK_PERMUTE, v->n, 0.0);
+    double *t = v->a;
+    v->a = v->b;
+    v->b = t;
+    LAUNCH(GK_SAVE, v->n, 0.0);
+    LAUNCH(GK_KDK_DRIFT, v->n, dt);
+    if ((st = build_cells(g)) != CONSPH_OK) return st;
+    LAUNCH(GK_SLOTS, v->n, 0.0);
+    v->grads = grads;
+    LAUNCH(GK_DENSITY, v->n, 0.0);
+    LAUNCH(GK_RATES, v->n, 0.0);
+    LAUNCH(GK_KDK_KICK, v->n, 0.5 * dt);
     return CONSPH_OK;
 }
 
@@ -766,7 +840,9 @@ int gpu_step(consph_solver *s, double dt, int *synced)
 {
     *synced = 0;
     const int negi = s->gpu->v.scheme == GS_NEGI;
-    int st = negi ? step_rk2(s->gpu, dt) : step_pec(s->gpu, dt, !s->grads_skip);
+    int st = negi                         ? step_rk2(s->gpu, dt)
+             : s->gpu->v.scheme == GS_TVF ? step_kdk(s->gpu, dt, !s->grads_skip)
+                                          : step_pec(s->gpu, dt, !s->grads_skip);
     if (st != CONSPH_OK) return st;
     /* 001's family copies back after its regularisation where it has one (gpu_regularise) */
     const int reads = host_reads(s, 1);

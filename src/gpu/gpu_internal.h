@@ -22,8 +22,11 @@ typedef enum gpu_kernel {
     GK_PERMUTE,   /* dev_permute, per slot */
     GK_SAVE,      /* dev_save_start */
     GK_ADVANCE,   /* dev_advance with the weight c */
-    GK_DENSITY,   /* dev_edac_density */
-    GK_RATES,     /* dev_edac_rates */
+    GK_KDK_DRIFT, /* dev_kdk_drift with c = Δt (tvf) */
+    GK_KDK_KICK,  /* dev_kdk_kick with c = Δt/2 (tvf) */
+    GK_PAIR_SUM,  /* dev_pair_sum, per GPU_PAIR_CHUNK particles */
+    GK_DENSITY,   /* dev_pre_rates: edac's and tvf's density pass, wcsph's per-particle values */
+    GK_RATES,     /* dev_rates */
     /* 001's family (dev_negi.h), per particle */
     GK_NEGI_VOLUMES, /* dev_negi_volumes */
     GK_NEGI_FIRST,   /* dev_negi_first_any: the sums the view's kit_* flags name */

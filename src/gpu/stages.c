@@ -107,6 +107,8 @@ static gpu_stage kernel_stage(gpu_kernel k)
     case GK_SAVE:
         return GST_SAVE;
     case GK_ADVANCE:
+    case GK_KDK_DRIFT: /* tvf's integrator */
+    case GK_KDK_KICK:
         return GST_ADVANCE;
     case GK_DENSITY:
         return GST_DENSITY;

@@ -192,9 +192,7 @@ static void device_line(FILE *o, const study_figure *f, const run_plan *plans,
         }
         fprintf(o, "%s", d ? ";" : ". T_r and the seconds compare wall times of both.");
     }
-    /* docs/gpu.md: a GPU run counts no neighbour pairs */
-    fprintf(o, "%s\n\n",
-            count[1] ? " The GPU's rows count no neighbour pairs (pairs 0 in the CSV)." : "");
+    fprintf(o, "\n\n");
 }
 
 int run_write_report(const consph_study *s, const study_figure *f, int quick, const char *dir,
