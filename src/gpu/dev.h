@@ -98,11 +98,12 @@ enum {
     GA_SHIFT, /* δr of the last shift */
     GA_RHOC,  /* EWCSPH's frozen ϱ_c */
     GA_LAT,   /* L-RR-C's lattice point of each particle */
+    GA_MASS,  /* the δ-SPH family's masses m_i = ρ_i(0) Δs^d */
     GA_COUNT
 };
 
 /* The schemes the GPU runs. */
-enum { GS_EDAC, GS_WCSPH, GS_NEGI };
+enum { GS_EDAC, GS_WCSPH, GS_NEGI, GS_DELTA };
 
 typedef struct gpu_view {
     size_t n; /* particles, and the stride of every array */
@@ -150,6 +151,11 @@ typedef struct gpu_view {
     double *chi;                 /* n: IPST's h^d Σ W of each particle; L-RR-C: the remeshed q */
     unsigned long long *chi_max; /* IPST: the bits of max χ (χ >= 0, so ordered as integers) */
     unsigned char *bonet_ok;     /* n: B_i accepted by the kit's first pass (Fatehi_c reads it) */
+    /* the δ-SPH family (GS_DELTA, dev_delta.h; its δ h c_o in Dq, its L_i in the bonet field,
+     * ⟨∇ρ⟩^L in GA_GRADQ, δu in GA_SHIFT): the shifting form (iact.h's DELTA_SHIFT_*), the
+     * viscosity's (α h c_o + 2(d + 2) ν) ρ_o, and 1/Δt of the step (δu = δr/Δt) */
+    int dshift;
+    double dvisc, dinv_dt;
 } gpu_view;
 
 GPU_FN double *gv(const gpu_view *v, int q, int comp)
@@ -980,6 +986,7 @@ GPU_FN_INLINE void dev_wcsph_rates_d(const gpu_view *v, size_t i, const int d, c
 }
 
 #include "gpu/dev_negi.h"
+#include "gpu/dev_delta.h"
 
 /* The scheme's pass before the rates (edac: the density pass; wcsph: per-particle values) and
  * its rates, dispatched on the view. */
