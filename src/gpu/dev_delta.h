@@ -35,8 +35,8 @@ GPU_FN_INLINE void dev_delta_renorm_d(const gpu_view *v, size_t i, const int D)
     uint32_t sl;
     while (gpu_walkr_next(v, &w, D, &sl, x, &r)) {
         const uint32_t j = GPU_LDG(&v->order[sl]);
-        kit_first_pair(D, 0, 0, 1, vol[j], gpu_dwr(&v->k, r), x, 0.0, 0.0, none, none, rho[j],
-                       rhoi, sm, sp, su, sq);
+        kit_first_pair(D, 0, 0, 1, vol[j], gpu_dwr(&v->k, r), x, 0.0, 0.0, none, none, rho[j], rhoi,
+                       sm, sp, su, sq);
     }
     double L[9], gp[3], G[9], div = 0.0, gr[3];
     kit_first_finish(D, 0, 0, 1, sm, v->cond_max, sp, su, sq, L, gp, G, &div, gr);
