@@ -18,6 +18,13 @@ GPU_FN void dev_delta_volumes(const gpu_view *v, size_t i)
     gv(v, GA_VOL, 0)[i] = gv(v, GA_MASS, 0)[i] / gv(v, GA_RHOF, 0)[i];
 }
 
+/* The rate pass's neighbour records (the view's pack, in slot order): ρ, p, V, ⟨∇ρ⟩^L, u and, for
+ * δ+-SPH, δu, padded to an even width so that every record is read in 16-byte pairs. */
+GPU_FN int gpu_delta_pack_width(int d, int shift)
+{
+    return (3 + 2 * d + (shift == DELTA_SHIFT_SUN ? d : 0) + 1) & ~1;
+}
+
 /* Pass 1 at particle i (visit_renorm): L_i, the inverted Bonet moment Σ -V_j ∇W_ij ⊗ x_ij (the
  * identity where singular or conditioned worse than 1e8), into the bonet field, and ⟨∇ρ⟩^L_i =
  * L_i Σ V_j (ρ_j - ρ_i) ∇W_ij into gradrho_l (GA_GRADQ). Both sums over every neighbour, i
@@ -42,6 +49,18 @@ GPU_FN_INLINE void dev_delta_renorm_d(const gpu_view *v, size_t i, const int D)
     kit_first_finish(D, 0, 0, 1, sm, v->cond_max, sp, su, sq, L, gp, G, &div, gr);
     for (int e = 0; e < D * D; ++e) gv(v, GA_BONET, e)[i] = L[e];
     for (int a = 0; a < D; ++a) gv(v, GA_GRADQ, a)[i] = gr[a];
+    /* i's record for pass 2 (δu written by the shift's launch before this one) */
+    const int sun = v->dshift == DELTA_SHIFT_SUN, K = gpu_delta_pack_width(D, v->dshift);
+    double *rec = v->pack + (size_t)v->slot_of[i] * (size_t)K;
+    rec[0] = rhoi;
+    rec[1] = gv(v, GA_P, 0)[i];
+    rec[2] = vol[i];
+    for (int a = 0; a < D; ++a) {
+        rec[3 + a] = gr[a];
+        rec[3 + D + a] = gv(v, GA_U, a)[i];
+        if (sun) rec[3 + 2 * D + a] = gv(v, GA_SHIFT, a)[i];
+    }
+    if ((3 + 2 * D + (sun ? D : 0)) & 1) rec[K - 1] = 0.0;
 }
 
 GPU_FN void dev_delta_renorm(const gpu_view *v, size_t i)
@@ -53,12 +72,12 @@ GPU_FN void dev_delta_renorm(const gpu_view *v, size_t i)
 }
 
 /* Pass 2 at particle i (visit_rates_d): delta_pair over the neighbours at r > 0 in the walk's
- * order, then delta_rates_i; SHIFT the scheme's shifting form (iact.h's DELTA_SHIFT_*), δu from
- * the shift field. D and SHIFT constants once inlined: the sums stay in registers. */
+ * order, each neighbour's values from its slot's record (pass 1 wrote them), then delta_rates_i;
+ * SHIFT the scheme's shifting form (iact.h's DELTA_SHIFT_*), δu from the shift field. D and SHIFT
+ * constants once inlined: the sums stay in registers. */
 GPU_FN_INLINE void dev_delta_rates_d(const gpu_view *v, size_t i, const int D, const int SHIFT)
 {
-    const double *rho = gv(v, GA_RHOF, 0), *p = gv(v, GA_P, 0), *vol = gv(v, GA_VOL, 0);
-    const double rhoi = rho[i], pi = p[i];
+    const double rhoi = gv(v, GA_RHOF, 0)[i], pi = gv(v, GA_P, 0)[i];
     double ui[3] = {0.0, 0.0, 0.0}, dui[3] = {0.0, 0.0, 0.0}, gri[3] = {0.0, 0.0, 0.0};
     for (int a = 0; a < D; ++a) {
         ui[a] = gv(v, GA_U, a)[i];
@@ -73,16 +92,17 @@ GPU_FN_INLINE void dev_delta_rates_d(const gpu_view *v, size_t i, const int D, c
     gpu_walkr_start(v, i, &w, D);
     double x[3], r;
     uint32_t sl;
+    const int K = (3 + 2 * D + (SHIFT == DELTA_SHIFT_SUN ? D : 0) + 1) & ~1; /* pack width */
     while (gpu_walkr_next(v, &w, D, &sl, x, &r)) {
         if (!(r > 0.0)) continue;
-        const uint32_t j = GPU_LDG(&v->order[sl]);
-        double uj[3] = {0.0, 0.0, 0.0}, duj[3] = {0.0, 0.0, 0.0}, grj[3] = {0.0, 0.0, 0.0};
+        double q[12], uj[3] = {0.0, 0.0, 0.0}, duj[3] = {0.0, 0.0, 0.0}, grj[3] = {0.0, 0.0, 0.0};
+        gpu_pack_read(v->pack + (size_t)sl * (size_t)K, q, K);
         for (int a = 0; a < D; ++a) {
-            uj[a] = gv(v, GA_U, a)[j];
-            grj[a] = gv(v, GA_GRADQ, a)[j];
-            if (SHIFT == DELTA_SHIFT_SUN) duj[a] = gv(v, GA_SHIFT, a)[j];
+            grj[a] = q[3 + a];
+            uj[a] = q[3 + D + a];
+            if (SHIFT == DELTA_SHIFT_SUN) duj[a] = q[3 + 2 * D + a];
         }
-        delta_pair(D, SHIFT, rhoi, pi, ui, dui, gri, rho[j], p[j], uj, duj, grj, vol[j],
+        delta_pair(D, SHIFT, rhoi, pi, ui, dui, gri, q[0], q[1], uj, duj, grj, q[2],
                    gpu_dwr(&v->k, r), x, r, &s);
     }
     double L[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};

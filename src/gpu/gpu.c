@@ -615,8 +615,11 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     const size_t nvol = negi || delta ? 1 : n * sizeof(double);
     const size_t ncs = v->scheme == GS_WCSPH ? n : 1;
     const size_t nstep = negi || delta ? (size_t)d * n * sizeof(double) : 1;
-    /* the rate passes' neighbour records: edac's and wcsph's (dev.h's gpu_pack_width) */
-    const size_t npack = negi || delta ? 1 : (size_t)(4 + 2 * d) * n;
+    /* the rate passes' neighbour records: edac's and wcsph's (dev.h's gpu_pack_width), the δ
+     * family's (dev_delta.h's gpu_delta_pack_width) */
+    const size_t npack = negi    ? 1
+                         : delta ? (size_t)gpu_delta_pack_width(d, v->dshift) * n
+                                 : (size_t)(4 + 2 * d) * n;
     s->gpu = g;
     if (st == CONSPH_OK &&
         (be->alloc((void **)&g->dev_a[0], nd) || be->alloc((void **)&g->dev_a[1], nd) ||
