@@ -238,6 +238,11 @@ int main(int argc, char **argv)
          * own passes, every ipst_every steps, uncounted) */
         per_pass = pairs / 8.0;
         pairs = 6.0 * per_pass;
+    } else if (strncmp(scheme, "delta-", 6) == 0) {
+        /* rk2's two evaluations of two counted passes (L_i and ⟨∇ρ⟩^L, the rates); δ+-SPH's
+         * shift (a third pass over the same neighbours) uncounted */
+        per_pass = pairs / 4.0;
+        pairs = (strcmp(scheme, "delta-sph") == 0 ? 4.0 : 6.0) * per_pass;
     }
     char pairs_text[128];
     snprintf(pairs_text, sizeof pairs_text, " pairs_per_step=%.0f pairs_per_particle=%.2f",

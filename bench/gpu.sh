@@ -28,8 +28,9 @@
 #   --build-only  build build-gpu/ and stop
 # Environment: NVCC (the compiler; "none": build without CUDA), BUILD (default build-gpu),
 # CASES (a list of dim:nx, default "2:316 2:1000 3:100 2:3162"), SCHEMES (default "edac l-ipst-c";
-# the GPU runs edac, wcsph and 001-table9's schemes; the pair columns count l-ipst-c's passes, not
-# the other 001 schemes'), LIPSTC_LAYOUT (l-ipst-c's start: "lattice", the
+# the GPU runs edac, wcsph, 001-table9's schemes and the δ family; the pair columns count
+# l-ipst-c's and the δ family's passes, not the other 001 schemes'), LIPSTC_LAYOUT (l-ipst-c's and
+# the δ family's start: "lattice", the
 # default, or "scheme": its packed start, which takes minutes to pack at 10^6 particles and
 # more), THREADS (default: nproc).
 set -u
@@ -136,7 +137,8 @@ for scheme in ${SCHEMES:-edac l-ipst-c}; do
     fi
     left=$((budget - elapsed + 60))
     layout=scheme
-    [ "$scheme" = l-ipst-c ] && layout=${LIPSTC_LAYOUT:-lattice}
+    # the δ family's packed start packs as long as l-ipst-c's: the lattice too
+    case $scheme in l-ipst-c | delta-*) layout=${LIPSTC_LAYOUT:-lattice} ;; esac
     log "case $scheme $problem nx $nx ($n particles, $layout start): gpu $g steps, $threads threads $k, serial $s (timeout $left s)"
     line=$(timeout "$left" "$bdir/bench/bench_gpu" --scheme "$scheme" --problem "$problem" --nx "$nx" --gpu-steps $g \
         --cpu-steps $k --serial-steps $s --threads-max "$threads" --setup-threads "$threads" \

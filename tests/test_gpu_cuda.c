@@ -1,6 +1,7 @@
 /* The CUDA backend of the GPU solver on the device (ctest label "gpu"; skipped, 77, where the
  * build has no CUDA or the machine no device): edac, wcsph, tvf and 001's nine schemes (l-ipst-c,
- * l-ipst-f, l-ipst-k, pe-ipst-c, l-pst-c, tv-c, l-rr-c, e-c, ewcsph) on the 2D Taylor-Green vortex
+ * l-ipst-f, l-ipst-k, pe-ipst-c, l-pst-c, tv-c, l-rr-c, e-c, ewcsph) and the δ-SPH family
+ * (delta-sph, delta-plus-sph, delta-plus-sph-d) on the 2D Taylor-Green vortex
  * and the 3D Beltrami flow stepped on the GPU equals the CPU solver bit for bit, every
  * particle array and the pair count after one step and after 20 (nvcc -fmad=false against C11's
  * uncontracted arithmetic), and two GPU runs are bitwise equal. */
@@ -36,5 +37,13 @@ int main(void)
         gpu_compare(be, others[k], "taylor-green", 32, 0);
         gpu_compare(be, others[k], "beltrami", 8, 1);
     }
+    /* the δ-SPH family (packed starts) */
+    static const char *const deltas[] = {"delta-sph", "delta-plus-sph", "delta-plus-sph-d"};
+    for (int k = 0; k < 3; ++k) {
+        gpu_compare(be, deltas[k], "taylor-green", 32, 0);
+        gpu_compare(be, deltas[k], "taylor-green", 32, 1);
+        gpu_compare(be, deltas[k], "beltrami", 8, 0);
+    }
+    gpu_twice(be, "delta-plus-sph", "taylor-green", 32, 10);
     return check_summary("test_gpu_cuda");
 }

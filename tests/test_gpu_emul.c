@@ -6,8 +6,13 @@
  * origins bit for bit after one step and after 20, and the count of pair evaluations, with the
  * gradients every step and as consph_run skips them (grads_lazy, the state copied back only at the
  * log samples and the end); 001's schemes (rk2, the kit's passes, IPST over two shifts, the other
- * regularisations) the same way. Then the refusals: schemes not ported, and a build without CUDA.
- * Under error = authors, the copies back are counted: only the steps the host reads. */
+ * regularisations) and the δ-SPH family (rk2, δ+-SPH's shifting velocity) the same way. Then the
+ * refusals: schemes not ported, and a build without CUDA. Under error = authors, the copies back
+ * are counted: only the steps the host reads. */
+#include <dirent.h>
+#include <unistd.h>
+
+#include "consph/layout.h"
 #include "gpu_compare.h"
 
 static void refusals(void)
@@ -22,13 +27,24 @@ static void refusals(void)
     CHECK(consph_gpu_check(&p) == CONSPH_OK || !strstr(consph_last_error(), "does not run"),
           "tvf on the GPU: %s", consph_last_error());
     snprintf(p.scheme, sizeof p.scheme, "delta-plus-sph");
-    CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "l-ipst-c"),
-          "delta-plus-sph on the GPU: %s", consph_last_error());
+    snprintf(p.integrator, sizeof p.integrator, "ssprk3");
+    CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "rk2"),
+          "delta-plus-sph under ssprk3 on the GPU: %s", consph_last_error());
+    p.integrator[0] = 0;
     snprintf(p.scheme, sizeof p.scheme, "l-ipst-c");
     snprintf(p.integrator, sizeof p.integrator, "pec");
     CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "rk2"),
           "l-ipst-c under pec on the GPU: %s", consph_last_error());
     p.integrator[0] = 0;
+    /* the δ-SPH family is accepted (a study's rows under --device gpu|auto, consph_gpu_check):
+     * refused here only for want of a GPU */
+    static const char *const deltas[] = {"delta-sph", "delta-plus-sph", "delta-plus-sph-d"};
+    for (int k = 0; k < 3; ++k) {
+        snprintf(p.scheme, sizeof p.scheme, "%s", deltas[k]);
+        const int st = consph_gpu_check(&p);
+        CHECK(st == CONSPH_OK || !strstr(consph_last_error(), "does not run on the GPU"),
+              "%s on the GPU: %s", deltas[k], consph_last_error());
+    }
     snprintf(p.scheme, sizeof p.scheme, "edac");
     p.skin = 0.2;
     CHECK(consph_gpu_check(&p) == CONSPH_EINVAL && strstr(consph_last_error(), "--skin"),
@@ -155,12 +171,35 @@ int main(void)
     /* EWCSPH: Eulerian, Cleary's Laplacian, ∇p over its frozen ϱ_c */
     gpu_compare(&gpu_emulation, "ewcsph", "taylor-green", 16, 0);
     gpu_compare(&gpu_emulation, "ewcsph", "beltrami", 8, 0);
+    /* the δ-SPH family (rk2): δ-SPH, δ+-SPH (Sun's shifting velocity, its sum and difference
+     * terms), δ+-SPH-D (001 eq. D.5), from their packed starts */
+    static const char *const deltas[] = {"delta-sph", "delta-plus-sph", "delta-plus-sph-d"};
+    /* the two solvers of a case from one packing: a layout cache of this test's own */
+    char cache[] = "/tmp/consph-gpu-emul-XXXXXX";
+    const int cached = mkdtemp(cache) && consph_layout_cache_set(cache) == CONSPH_OK;
+    for (int k = 0; k < 3; ++k) {
+        gpu_compare(&gpu_emulation, deltas[k], "taylor-green", 16, k == 1);
+        gpu_compare(&gpu_emulation, deltas[k], "beltrami", 6, k == 2);
+    }
+    consph_layout_cache_set(NULL);
+    if (cached) {
+        DIR *dir = opendir(cache);
+        for (struct dirent *e; dir && (e = readdir(dir));) {
+            char path[sizeof cache + 256];
+            if (!strcmp(e->d_name, ".") || !strcmp(e->d_name, "..")) continue;
+            snprintf(path, sizeof path, "%s/%s", cache, e->d_name);
+            unlink(path);
+        }
+        if (dir) closedir(dir);
+        rmdir(cache);
+    }
     gpu_twice(&gpu_emulation, "edac", "taylor-green", 20, 5);
     gpu_twice(&gpu_emulation, "tvf", "taylor-green", 20, 5);
     authors_copies("edac", 1);
     authors_copies("tvf", 0);
     authors_copies("edac", 0);
     authors_copies("l-ipst-c", 0);
+    authors_copies("delta-plus-sph", 0); /* steps cut to land: δu = δr/Δt of the cut Δt */
     refusals();
     return check_summary("test_gpu_emul");
 }

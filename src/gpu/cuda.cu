@@ -106,6 +106,16 @@ GPU_KERNEL(k_shift_end, dev_shift_end(&v, i, c != 0.0))
 GPU_KERNEL(k_remesh2, dev_remesh_d(&v, i, 2))
 GPU_KERNEL(k_remesh3, dev_remesh_d(&v, i, 3))
 GPU_KERNEL(k_remesh_end, dev_remesh_end(&v, i))
+/* the δ-SPH family (dev_delta.h): one rate kernel per dimension and shifting form */
+GPU_KERNEL(k_dvol, dev_delta_volumes(&v, i))
+GPU_KERNEL(k_drenorm2, dev_delta_renorm_d(&v, i, 2))
+GPU_KERNEL(k_drenorm3, dev_delta_renorm_d(&v, i, 3))
+GPU_KERNEL(k_drates2, dev_delta_rates_d(&v, i, 2, DELTA_SHIFT_NONE))
+GPU_KERNEL(k_drates3, dev_delta_rates_d(&v, i, 3, DELTA_SHIFT_NONE))
+GPU_KERNEL(k_drates2s, dev_delta_rates_d(&v, i, 2, DELTA_SHIFT_SUN))
+GPU_KERNEL(k_drates3s, dev_delta_rates_d(&v, i, 3, DELTA_SHIFT_SUN))
+GPU_KERNEL(k_drates2d, dev_delta_rates_d(&v, i, 2, DELTA_SHIFT_APP_D))
+GPU_KERNEL(k_drates3d, dev_delta_rates_d(&v, i, 3, DELTA_SHIFT_APP_D))
 
 int cu_alloc(void **p, size_t bytes)
 {
@@ -228,6 +238,18 @@ int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_SHIFT_END: k_shift_end<<<blocks, threads>>>(*v, count, c); break;
     case GK_REMESH: (v->d == 2 ? k_remesh2 : k_remesh3)<<<blocks, threads>>>(*v, count, c); break;
     case GK_REMESH_END: k_remesh_end<<<blocks, threads>>>(*v, count, c); break;
+    case GK_DELTA_VOLUMES: k_dvol<<<blocks, threads>>>(*v, count, c); break;
+    case GK_DELTA_RENORM:
+        (v->d == 2 ? k_drenorm2 : k_drenorm3)<<<blocks, threads>>>(*v, count, c);
+        break;
+    case GK_DELTA_RATES:
+        if (v->dshift == DELTA_SHIFT_SUN)
+            (v->d == 2 ? k_drates2s : k_drates3s)<<<blocks, threads>>>(*v, count, c);
+        else if (v->dshift == DELTA_SHIFT_APP_D)
+            (v->d == 2 ? k_drates2d : k_drates3d)<<<blocks, threads>>>(*v, count, c);
+        else
+            (v->d == 2 ? k_drates2 : k_drates3)<<<blocks, threads>>>(*v, count, c);
+        break;
     }
     return fail(cudaGetLastError(), "kernel launch");
 }

@@ -98,11 +98,12 @@ enum {
     GA_SHIFT, /* δr of the last shift */
     GA_RHOC,  /* EWCSPH's frozen ϱ_c */
     GA_LAT,   /* L-RR-C's lattice point of each particle */
+    GA_MASS,  /* the δ-SPH family's masses m_i = ρ_i(0) Δs^d */
     GA_COUNT
 };
 
 /* The schemes the GPU runs (GS_TVF: tvf, edac's passes without p̄ and dp/dt, under kdk). */
-enum { GS_EDAC, GS_WCSPH, GS_NEGI, GS_TVF };
+enum { GS_EDAC, GS_WCSPH, GS_NEGI, GS_TVF, GS_DELTA };
 
 typedef struct gpu_view {
     size_t n; /* particles, and the stride of every array */
@@ -154,6 +155,11 @@ typedef struct gpu_view {
      * pairs, summed per particle index over the run (each thread adds its own; the total is the
      * run's whatever the re-sorts did to the indices), and their sums per GPU_PAIR_CHUNK */
     unsigned long long *pairs, *pair_chunks;
+    /* the δ-SPH family (GS_DELTA, dev_delta.h; its δ h c_o in Dq, its L_i in the bonet field,
+     * ⟨∇ρ⟩^L in GA_GRADQ, δu in GA_SHIFT): the shifting form (iact.h's DELTA_SHIFT_*), the
+     * viscosity's (α h c_o + 2(d + 2) ν) ρ_o, and 1/Δt of the step (δu = δr/Δt) */
+    int dshift;
+    double dvisc, dinv_dt;
 } gpu_view;
 
 GPU_FN double *gv(const gpu_view *v, int q, int comp)
@@ -1085,6 +1091,7 @@ GPU_FN_INLINE void dev_wcsph_rates_d(const gpu_view *v, size_t i, const int d, c
 }
 
 #include "gpu/dev_negi.h"
+#include "gpu/dev_delta.h"
 
 /* The scheme's pass before the rates (edac: the density pass; wcsph: per-particle values) and
  * its rates, dispatched on the view. */

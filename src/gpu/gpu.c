@@ -142,6 +142,15 @@ static int emu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     case GK_REMESH_END:
         for (size_t i = 0; i < count; ++i) dev_remesh_end(v, i);
         break;
+    case GK_DELTA_VOLUMES:
+        for (size_t i = 0; i < count; ++i) dev_delta_volumes(v, i);
+        break;
+    case GK_DELTA_RENORM:
+        for (size_t i = 0; i < count; ++i) dev_delta_renorm(v, i);
+        break;
+    case GK_DELTA_RATES:
+        for (size_t i = 0; i < count; ++i) dev_delta_rates(v, i);
+        break;
     }
     return 0;
 }
@@ -187,7 +196,8 @@ static const gpu_backend *find_backend(char *why, size_t len)
 
 const char *consph_gpu_schemes(void)
 {
-    return "edac,wcsph,tvf,l-ipst-c,l-ipst-f,l-ipst-k,pe-ipst-c,l-pst-c,l-rr-c,tv-c,e-c,ewcsph";
+    return "edac,wcsph,tvf,l-ipst-c,l-ipst-f,l-ipst-k,pe-ipst-c,l-pst-c,l-rr-c,tv-c,e-c,ewcsph,"
+           "delta-sph,delta-plus-sph,delta-plus-sph-d";
 }
 
 /* 001's family on the GPU (rk2, coupled_bc): L-IPST-C, L-IPST-F (Fatehi_c) and PE-IPST-C (IPST),
@@ -202,6 +212,13 @@ static int is_negi(const char *scheme)
            strcmp(scheme, "ewcsph") == 0;
 }
 
+/* The δ-SPH family (rk2): δ-SPH, δ+-SPH (Sun's shifting velocity) and δ+-SPH-D. */
+static int is_delta(const char *scheme)
+{
+    return strcmp(scheme, "delta-sph") == 0 || strcmp(scheme, "delta-plus-sph") == 0 ||
+           strcmp(scheme, "delta-plus-sph-d") == 0;
+}
+
 int consph_gpu_available(char *why, size_t len)
 {
     char buf[256];
@@ -212,16 +229,17 @@ int consph_gpu_available(char *why, size_t len)
 
 static int check_params(const consph_run_params *prm)
 {
-    const int negi = is_negi(prm->scheme), tvf = strcmp(prm->scheme, "tvf") == 0;
-    if (strcmp(prm->scheme, "edac") != 0 && strcmp(prm->scheme, "wcsph") != 0 && !tvf && !negi)
+    const int negi = is_negi(prm->scheme), rk2 = negi || is_delta(prm->scheme);
+    const int tvf = strcmp(prm->scheme, "tvf") == 0;
+    if (strcmp(prm->scheme, "edac") != 0 && strcmp(prm->scheme, "wcsph") != 0 && !tvf && !rk2)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: scheme '%s' does not run on the GPU yet (allowed: %s)",
                            prm->scheme, consph_gpu_schemes());
-    if (prm->integrator[0] && strcmp(prm->integrator, negi ? "rk2" : tvf ? "kdk" : "pec") != 0)
+    if (prm->integrator[0] && strcmp(prm->integrator, rk2 ? "rk2" : tvf ? "kdk" : "pec") != 0)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: integrator '%s' does not run %s on the GPU yet "
                            "(allowed: pec, the default of edac and wcsph; kdk, tvf's; rk2, that "
-                           "of 001's schemes)",
+                           "of 001's schemes and the δ-SPH family)",
                            prm->integrator, prm->scheme);
     /* Tait's EOS and sound speed by multiplication (solver_eos's γ = 7 loop) */
     const int tait =
@@ -230,7 +248,7 @@ static int check_params(const consph_run_params *prm)
          (strcmp(prm->scheme, "wcsph") == 0 || strcmp(prm->scheme, "l-ipst-c") == 0 ||
           strcmp(prm->scheme, "l-ipst-f") == 0 || strcmp(prm->scheme, "l-pst-c") == 0 ||
           strcmp(prm->scheme, "l-rr-c") == 0 || strcmp(prm->scheme, "ewcsph") == 0));
-    if ((negi || strcmp(prm->scheme, "wcsph") == 0) && tait && prm->gamma != 7.0)
+    if ((rk2 || strcmp(prm->scheme, "wcsph") == 0) && tait && prm->gamma != 7.0)
         return consph_fail(CONSPH_EINVAL,
                            "--device gpu: %s's Tait EOS runs on the GPU with γ = 7 only, not %g",
                            prm->scheme, prm->gamma);
@@ -263,9 +281,10 @@ static int check_solver(consph_solver *s)
     int st = check_params(&s->prm);
     if (st != CONSPH_OK) return st;
     /* edac, wcsph and tvf start from the rates the previous step left (pec, kdk); 001's family
-     * evaluates afresh (rk2), its regularisation changing the state after the last evaluation */
-    if (s->reuse_rates == is_negi(s->prm.scheme) || s->sys.dest || s->sys.kernel.tensor ||
-        !s->sys.p)
+     * and the δ-SPH family evaluate afresh (rk2), 001's regularisation changing the state after
+     * the last evaluation */
+    const int rk2 = is_negi(s->prm.scheme) || is_delta(s->prm.scheme);
+    if (s->reuse_rates == rk2 || s->sys.dest || s->sys.kernel.tensor || !s->sys.p)
         return consph_fail(CONSPH_EINVAL, "--device gpu: this run's set-up does not run there");
     return CONSPH_OK;
 }
@@ -508,8 +527,8 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     g->nfields = p->nfields;
     v->at[GA_X] = 0;
     const int edac = strcmp(s->prm.scheme, "edac") == 0, negi = is_negi(s->prm.scheme);
-    const int tvf = strcmp(s->prm.scheme, "tvf") == 0;
-    v->scheme = edac ? GS_EDAC : tvf ? GS_TVF : negi ? GS_NEGI : GS_WCSPH;
+    const int tvf = strcmp(s->prm.scheme, "tvf") == 0, delta = is_delta(s->prm.scheme);
+    v->scheme = edac ? GS_EDAC : tvf ? GS_TVF : negi ? GS_NEGI : delta ? GS_DELTA : GS_WCSPH;
     const int evolve_p = edac || (negi && s->scheme->evolve_p);
     const int moves = !negi || s->scheme->moves;
     v->moves = moves;
@@ -569,6 +588,29 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
             grid_setup(&g->joint_grid, &p->box, d, consph_sys_reach(&m4), 2 * p->n);
         }
     }
+    if (delta) {
+        /* delta/scheme.c's fields: V = m/ρ, L_i, ⟨∇ρ⟩^L (its SF_GRADRHO_L), δu, the masses */
+        if (st == CONSPH_OK) st = array_of(s, SF_VOL, 1, &v->at[GA_VOL]);
+        if (st == CONSPH_OK) st = array_of(s, SF_BONET, d * d, &v->at[GA_BONET]);
+        if (st == CONSPH_OK) st = array_of(s, "gradrho_l", d, &v->at[GA_GRADQ]);
+        if (st == CONSPH_OK) st = array_of(s, SF_SHIFT, d, &v->at[GA_SHIFT]);
+        if (st == CONSPH_OK) st = array_of(s, SF_MASS, 1, &v->at[GA_MASS]);
+        /* delta/scheme.c's delta_rates: the shifting form, δ h c_o, the viscosity's constant,
+         * visit_renorm's cond_max; solver_shift_velocity's reg_pst_shift constants but the CFL
+         * number, which depends on the step's Δt (gpu_step) */
+        const char *name = s->scheme->name;
+        v->dshift = strcmp(name, "delta-plus-sph") == 0     ? DELTA_SHIFT_SUN
+                    : strcmp(name, "delta-plus-sph-d") == 0 ? DELTA_SHIFT_APP_D
+                                                            : DELTA_SHIFT_NONE;
+        v->Dq = s->D;
+        v->dvisc =
+            ((s->prm.alpha >= 0.0 ? s->prm.alpha : 0.0) * s->h * s->c0 + 2.0 * (d + 2) * s->nu) *
+            s->prm.rho0;
+        v->cond_max = 1e8;
+        v->pst_inv_wds = 1.0 / consph_kernel_w(&s->sys.kernel, s->ds);
+        v->pst_R = 0.2;
+        v->pst_cap = INFINITY;
+    }
     v->av = (s->prm.alpha >= 0.0 ? s->prm.alpha : 0.1) > 0.0; /* job_fields' α */
     v->tait = s->eos == CONSPH_EOS_TAIT;
     v->rho0 = s->prm.rho0;
@@ -608,10 +650,14 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     const size_t nc = (v->g.ncells + 1) * sizeof(uint32_t);
     /* per particle: edac's 1/V and m/ϱ, wcsph's p/ϱ², m/ϱ and c; 001's family IPST's χ in
      * mrho and its two shifts */
-    const size_t nvol = negi ? 1 : n * sizeof(double), ncs = v->scheme == GS_WCSPH ? n : 1;
-    const size_t nstep = negi ? (size_t)d * n * sizeof(double) : 1;
-    /* the rate passes' neighbour records: edac's and wcsph's (dev.h's gpu_pack_width) */
-    const size_t npack = negi ? 1 : (size_t)(4 + 2 * d) * n;
+    const size_t nvol = negi || delta ? 1 : n * sizeof(double);
+    const size_t ncs = v->scheme == GS_WCSPH ? n : 1;
+    const size_t nstep = negi || delta ? (size_t)d * n * sizeof(double) : 1;
+    /* the rate passes' neighbour records: edac's and wcsph's (dev.h's gpu_pack_width), the δ
+     * family's (dev_delta.h's gpu_delta_pack_width) */
+    const size_t npack = negi    ? 1
+                         : delta ? (size_t)gpu_delta_pack_width(d, v->dshift) * n
+                                 : (size_t)(4 + 2 * d) * n;
     s->gpu = g;
     if (st == CONSPH_OK &&
         (be->alloc((void **)&g->dev_a[0], nd) || be->alloc((void **)&g->dev_a[1], nd) ||
@@ -790,9 +836,29 @@ static int negi_rates(gpu_run *g)
     return CONSPH_OK;
 }
 
-/* 001's family under rk2, as consph_solver_step runs it: re-sort into cell order and rebuild the
- * search, save the start, the rates, advance by Δt/2 (the closure: Tait's EOS), the rates there,
- * advance by Δt from the start. */
+/* delta/scheme.c's delta_rates: the volumes m/ρ, δ+-SPH's shifting velocity δu = δr/Δt
+ * (solver_shift_velocity: Sun's shift of dev_pst_shift_d, times 1/Δt, into the shift field), L_i
+ * and ⟨∇ρ⟩^L, the rates. */
+static int delta_rates(gpu_run *g)
+{
+    const gpu_backend *be = g->be;
+    const gpu_view *v = &g->v;
+    LAUNCH(GK_DELTA_VOLUMES, v->n, 0.0);
+    if (v->dshift != DELTA_SHIFT_NONE) LAUNCH(GK_PST_SHIFT, v->n, v->dinv_dt);
+    LAUNCH(GK_DELTA_RENORM, v->n, 0.0);
+    LAUNCH(GK_DELTA_RATES, v->n, 0.0);
+    return CONSPH_OK;
+}
+
+/* The rates of a scheme under rk2. */
+static int rk2_rates(gpu_run *g)
+{
+    return g->v.scheme == GS_DELTA ? delta_rates(g) : negi_rates(g);
+}
+
+/* 001's family and the δ-SPH family under rk2, as consph_solver_step runs it: re-sort into cell
+ * order and rebuild the search, save the start, the rates, advance by Δt/2 (the closure: the
+ * EOS), the rates there, advance by Δt from the start. */
 static int step_rk2(gpu_run *g, double dt)
 {
     const gpu_backend *be = g->be;
@@ -811,10 +877,10 @@ static int step_rk2(gpu_run *g, double dt)
         g->built = 1;
     }
     LAUNCH(GK_SAVE, v->n, 0.0);
-    if ((st = negi_rates(g)) != CONSPH_OK) return st;
+    if ((st = rk2_rates(g)) != CONSPH_OK) return st;
     LAUNCH(GK_ADVANCE, v->n, 0.5 * dt);
     if (v->moves && (st = rebuild(g)) != CONSPH_OK) return st;
-    if ((st = negi_rates(g)) != CONSPH_OK) return st;
+    if ((st = rk2_rates(g)) != CONSPH_OK) return st;
     LAUNCH(GK_ADVANCE, v->n, dt);
     return v->moves ? rebuild(g) : CONSPH_OK;
 }
@@ -840,9 +906,17 @@ int gpu_step(consph_solver *s, double dt, int *synced)
 {
     *synced = 0;
     const int negi = s->gpu->v.scheme == GS_NEGI;
-    int st = negi                         ? step_rk2(s->gpu, dt)
-             : s->gpu->v.scheme == GS_TVF ? step_kdk(s->gpu, dt, !s->grads_skip)
-                                          : step_pec(s->gpu, dt, !s->grads_skip);
+    if (s->gpu->v.scheme == GS_DELTA) {
+        /* solver_shift_velocity's reg_pst_params at this step's Δt (cut where a run lands on
+         * its end or an output time) */
+        gpu_view *v = &s->gpu->v;
+        const double cfl = s->dt * s->c0 / s->h, mach = s->prm.U / s->c0, twoh = 2.0 * s->h;
+        v->pst_coef = -cfl * mach * twoh * twoh;
+        v->dinv_dt = 1.0 / s->dt;
+    }
+    int st = negi || s->gpu->v.scheme == GS_DELTA ? step_rk2(s->gpu, dt)
+             : s->gpu->v.scheme == GS_TVF         ? step_kdk(s->gpu, dt, !s->grads_skip)
+                                                  : step_pec(s->gpu, dt, !s->grads_skip);
     if (st != CONSPH_OK) return st;
     /* 001's family copies back after its regularisation where it has one (gpu_regularise) */
     const int reads = host_reads(s, 1);

@@ -42,7 +42,11 @@ typedef enum gpu_kernel {
     GK_PST_SHIFT,    /* dev_pst_shift_any */
     GK_SHIFT_END,    /* dev_shift_end, adding IPST's total when c != 0 */
     GK_REMESH,       /* dev_remesh_any, on the joint view */
-    GK_REMESH_END    /* dev_remesh_end */
+    GK_REMESH_END,   /* dev_remesh_end */
+    /* the δ-SPH family (dev_delta.h), per particle */
+    GK_DELTA_VOLUMES, /* dev_delta_volumes */
+    GK_DELTA_RENORM,  /* dev_delta_renorm */
+    GK_DELTA_RATES    /* dev_delta_rates */
 } gpu_kernel;
 
 typedef struct gpu_backend {

@@ -8,11 +8,13 @@
 #include "gpu/stages.h"
 
 const char *const gpu_stage_names[GST_N] = {
-    "bin",          "count",        "scan",        "scatter",     "cell_sort", "slots",
-    "permute",      "save",         "advance",     "density",     "rates",     "negi_volumes",
-    "negi_first",   "negi_coupled", "negi_cleary", "negi_fatehi", "negi_korz", "negi_rates",
-    "ipst_volumes", "chi_max",      "ipst_shift",  "ipst_move",   "pst_shift", "shift_end",
-    "remesh",       "remesh_end",   "other",       "zero",        "put",       "get"};
+    "bin",         "count",         "scan",         "scatter",      "cell_sort",
+    "slots",       "permute",       "save",         "advance",      "density",
+    "rates",       "negi_volumes",  "negi_first",   "negi_coupled", "negi_cleary",
+    "negi_fatehi", "negi_korz",     "negi_rates",   "ipst_volumes", "chi_max",
+    "ipst_shift",  "ipst_move",     "pst_shift",    "shift_end",    "remesh",
+    "remesh_end",  "delta_volumes", "delta_renorm", "delta_rates",  "other",
+    "zero",        "put",           "get"};
 
 /* ---- the host clock ---- */
 
@@ -144,6 +146,12 @@ static gpu_stage kernel_stage(gpu_kernel k)
         return GST_REMESH;
     case GK_REMESH_END:
         return GST_REMESH_END;
+    case GK_DELTA_VOLUMES:
+        return GST_DELTA_VOLUMES;
+    case GK_DELTA_RENORM:
+        return GST_DELTA_RENORM;
+    case GK_DELTA_RATES:
+        return GST_DELTA_RATES;
     default:
         return GST_OTHER;
     }

@@ -41,6 +41,9 @@ typedef enum gpu_stage {
     GST_SHIFT_END,
     GST_REMESH,
     GST_REMESH_END,
+    GST_DELTA_VOLUMES, /* the δ-SPH family (dev_delta.h) */
+    GST_DELTA_RENORM,
+    GST_DELTA_RATES,
     GST_OTHER,
     GST_ZERO,
     GST_PUT,

@@ -11,10 +11,19 @@
 #ifndef CONSPH_SCHEMES_DELTA_IACT_H
 #define CONSPH_SCHEMES_DELTA_IACT_H
 
+#include "gpu/hd.h" /* CONSPH_HD: these terms compile for the GPU too (src/gpu/dev_delta.h) */
+
 #if defined(__GNUC__)
-#define DELTA_IACT static inline __attribute__((always_inline))
+#define DELTA_IACT CONSPH_HD static inline __attribute__((always_inline))
 #else
-#define DELTA_IACT static inline
+#define DELTA_IACT CONSPH_HD static inline
+#endif
+
+/* C++ (nvcc) spells C's restrict __restrict__. */
+#if defined(__cplusplus)
+#define DELTA_RESTRICT __restrict__
+#else
+#define DELTA_RESTRICT restrict
 #endif
 
 /* The shifting terms of the rates (scheme.c): none (δ-SPH), Sun et al. 2019's sum and
@@ -39,7 +48,7 @@ DELTA_IACT void delta_pair(const int d, const int shift, const double rhoi, cons
                            const double rhoj, const double pj, const double uj[3],
                            const double duj[3], const double grj[3], const double Vj,
                            const double dwr, const double x[3], const double r,
-                           delta_sums *restrict s)
+                           delta_sums *DELTA_RESTRICT s)
 {
     const double r2 = r * r;
     double gw[3], uji[3];
@@ -78,6 +87,32 @@ DELTA_IACT void delta_pair(const int d, const int shift, const double rhoi, cons
         s->shq += Vj * drho * si;
         for (int a = 0; a < d; ++a) s->shu[a] += Vj * uji[a] * si;
     }
+}
+
+/* Particle i's rates from its sums (scheme.c's rate pass, the GPU's dev_delta.h): du/dt
+ * (sym1's pressure, the viscosity, the shifting terms), ∇p's sum, dx/dt = u + δu, ∇u = G L_i^T
+ * (the renormalised gradient, for the vorticity of the output), ∇·u and dρ/dt (the δ-term and the
+ * shifting term). L: L_i, d × d row-major; visc = (α h c_o + 2(d + 2) ν) ρ_o, h_c0_delta = δ h
+ * c_o. */
+DELTA_IACT void delta_rates_i(const int d, const delta_sums *DELTA_RESTRICT s, const double rhoi,
+                              const double ui[3], const double dui[3], const double L[9],
+                              const double visc, const double h_c0_delta, double au[3],
+                              double gradp[3], double ax[3], double gradu[9], double *divu,
+                              double *aq)
+{
+    for (int a = 0; a < d; ++a) {
+        au[a] = -s->gp[a] / rhoi + visc / rhoi * s->visc[a] + s->shu[a];
+        gradp[a] = s->gp[a];
+        ax[a] = ui[a] + dui[a];
+        /* ∂_b u_a renormalised with L_i, for the vorticity of the output */
+        for (int b = 0; b < d; ++b) {
+            double v = 0.0;
+            for (int c = 0; c < d; ++c) v += L[b * d + c] * s->G[a * d + c];
+            gradu[a * d + b] = v;
+        }
+    }
+    *divu = s->divu;
+    *aq = -rhoi * s->divu + h_c0_delta * s->diff + s->shq;
 }
 
 #endif

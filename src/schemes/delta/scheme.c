@@ -90,20 +90,20 @@ DELTA_INLINE void visit_rates_d(const delta_job *job, const consph_nbhd *nb, con
         delta_pair(d, shift, rhoi, pi, ui, dui, gri, rho[j], p[j], uj, duj, grj, vol[j], nb->dwr[q],
                    x, r, &s);
     }
-    const double *L = job->L;
+    double L[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0};
+    for (int e = 0; e < d * d; ++e) L[e] = job->L[(size_t)e * cap + i];
+    double au[3] = {0.0, 0.0, 0.0}, gradp[3] = {0.0, 0.0, 0.0}, ax[3] = {0.0, 0.0, 0.0};
+    double gradu[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, divu = 0.0, aq = 0.0;
+    delta_rates_i(d, &s, rhoi, ui, dui, L, job->visc, job->h_c0_delta, au, gradp, ax, gradu, &divu,
+                  &aq);
     for (int a = 0; a < d; ++a) {
-        job->au[a * cap + i] = -s.gp[a] / rhoi + job->visc / rhoi * s.visc[a] + s.shu[a];
-        job->gradp[a * cap + i] = s.gp[a];
-        if (job->ax) job->ax[a * cap + i] = ui[a] + dui[a];
-        /* ∂_b u_a renormalised with L_i, for the vorticity of the output */
-        for (int b = 0; b < d; ++b) {
-            double v = 0.0;
-            for (int c = 0; c < d; ++c) v += L[(size_t)(b * d + c) * cap + i] * s.G[a * d + c];
-            job->gradu[(size_t)(a * d + b) * cap + i] = v;
-        }
+        job->au[a * cap + i] = au[a];
+        job->gradp[a * cap + i] = gradp[a];
+        if (job->ax) job->ax[a * cap + i] = ax[a];
+        for (int b = 0; b < d; ++b) job->gradu[(size_t)(a * d + b) * cap + i] = gradu[a * d + b];
     }
-    job->divu[i] = s.divu;
-    job->aq[i] = -rhoi * s.divu + job->h_c0_delta * s.diff + s.shq;
+    job->divu[i] = divu;
+    job->aq[i] = aq;
 }
 
 /* Clones with d and the shifting form compile-time constants (2D and 3D), so that the pair
