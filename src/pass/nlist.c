@@ -15,6 +15,7 @@
  * positions (skin 0 always) it reproduces the gather's neighbours and values bit for bit. */
 #include "pass/nlist.h"
 #include "nnps/nnps_internal.h"
+#include "pass/group.h"
 
 #include <math.h>
 #include <stdint.h>
@@ -781,20 +782,41 @@ int nlist_gathers(consph_nlist *l)
     return 0;
 }
 
-int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs)
+/* Whether the cache serves the next pass on this position state (else the search's gather, skin
+ * 0, or a stream, skin > 0). Reads the list only: nlist_cache_ready counts the pass. */
+static int cache_serves(const consph_nlist *l)
+{
+    const int passes_last = l->state_epoch != l->epoch ? l->passes_state : l->passes_last;
+    const int fresh = l->cache_epoch != l->epoch || !l->caches;
+    const int hinted = l->hint_epoch == l->epoch && l->hint_passes >= 2;
+    /* A cache pays where several passes read one position state; one or two passes are served
+     * better by filtering each particle's candidates into a small buffer that stays in the
+     * processor's cache (measured: edac and tvf, two passes per state, ran 5 % slower from a
+     * cache; L-IPST-C, three, 15 % faster). Both compute the same values, so the choice changes
+     * no result. A caller that knows how many passes will read the state says so
+     * (consph_sys_expect_passes) and is believed over the previous state's count. */
+    return !(fresh && ((!hinted && passes_last < NLIST_CACHE_PASSES) ||
+                       l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n));
+}
+
+/* Counts a pass on the current position state and, where the cache serves it (cache_serves
+ * before the count), fills what it lacks for `need`: *served 1; else *served 0 and nothing
+ * else done. */
+static int cache_ready(const consph_sys *s, unsigned need, const char *name, int *served)
 {
     consph_nlist *l = s->nlist;
-    const unsigned need = pass->need;
     unsigned want = 0;
     if (need & CONSPH_PASS_W) want |= CONSPH_PASS_W;
     if (need & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) want |= CONSPH_PASS_DW;
     if (need & CONSPH_PASS_D2W) want |= CONSPH_PASS_D2W;
+    *served = cache_serves(l);
     if (l->state_epoch != l->epoch) {
         l->state_epoch = l->epoch;
         l->passes_last = l->passes_state;
         l->passes_state = 0;
     }
     ++l->passes_state;
+    if (!*served) return CONSPH_OK;
     const int fresh = l->cache_epoch != l->epoch || !l->caches;
     const int hinted = l->hint_epoch == l->epoch && l->hint_passes >= 2;
     if (hinted) {
@@ -802,15 +824,6 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
         if (l->hint_need & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) want |= CONSPH_PASS_DW;
         if (l->hint_need & CONSPH_PASS_D2W) want |= CONSPH_PASS_D2W;
     }
-    /* A cache pays where several passes read one position state; one or two passes are served
-     * better by filtering each particle's candidates into a small buffer that stays in the
-     * processor's cache (measured: edac and tvf, two passes per state, ran 5 % slower from a
-     * cache; L-IPST-C, three, 15 % faster). Both compute the same values, so the choice changes
-     * no result. A caller that knows how many passes will read the state says so
-     * (consph_sys_expect_passes) and is believed over the previous state's count. */
-    if (fresh && ((!hinted && l->passes_last < NLIST_CACHE_PASSES) ||
-                  l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n))
-        return l->skin == 0.0 ? NLIST_GATHER : stream_pass(s, pass, job, pairs);
     if (fresh) l->have = 0;
     const unsigned missing = want & ~l->have;
     const int par = l->n >= s->parallel_min;
@@ -841,7 +854,7 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
         if (status != CONSPH_OK) {
             l->cache_epoch = l->epoch - 1;
             return consph_fail(status, "pass '%s': out of memory for the pair cache",
-                               pass->name ? pass->name : "unnamed");
+                               name ? name : "unnamed");
         }
         if (fresh) {
             l->npairs = total;
@@ -850,28 +863,76 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
         }
         l->have |= missing;
     }
-    const unsigned char *dest = s->dest;
+    return CONSPH_OK;
+}
+
+/* Slot sl's cached neighbourhood with the values `need` asks for. */
+static inline void cached_nbhd(const consph_nlist *l, const nlist_block *b, size_t sl,
+                               unsigned need, consph_nbhd *nb)
+{
     const int with_dx = !(need & CONSPH_PASS_NO_DX);
+    const size_t o = b->poff[sl - b->s0];
+    nb->i = particle_of(l, sl);
+    nb->n = b->poff[sl - b->s0 + 1] - o;
+    nb->j = b->pj + o;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+        nb->dx[a] = with_dx && a < l->dim ? b->pdx[a] + o : NULL;
+    nb->r = b->pr + o;
+    nb->w = need & CONSPH_PASS_W ? b->pw + o : NULL;
+    nb->dwr = need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? b->pdwr + o : NULL;
+    nb->d2w = need & CONSPH_PASS_D2W ? b->pd2w + o : NULL;
+}
+
+int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs)
+{
+    consph_nlist *l = s->nlist;
+    const unsigned need = pass->need;
+    int served = 0;
+    const int st = cache_ready(s, need, pass->name, &served);
+    if (st != CONSPH_OK) return st;
+    if (!served) return l->skin == 0.0 ? NLIST_GATHER : stream_pass(s, pass, job, pairs);
+    const int par = l->n >= s->parallel_min;
+    const unsigned char *dest = s->dest;
     size_t visited = 0;
 #pragma omp parallel for schedule(dynamic, 1) reduction(+ : visited) if (par)
     for (size_t k = 0; k < l->nblocks; ++k) {
         const nlist_block *b = &l->blocks[k];
         for (size_t sl = b->s0; sl < b->s1; ++sl) {
-            const size_t i = particle_of(l, sl);
-            if (dest && !dest[i]) continue;
-            const size_t o = b->poff[sl - b->s0], m = b->poff[sl - b->s0 + 1] - o;
+            if (dest && !dest[particle_of(l, sl)]) continue;
             consph_nbhd nb;
-            nb.i = i;
-            nb.n = m;
-            nb.j = b->pj + o;
-            for (int a = 0; a < CONSPH_MAX_DIM; ++a)
-                nb.dx[a] = with_dx && a < l->dim ? b->pdx[a] + o : NULL;
-            nb.r = b->pr + o;
-            nb.w = need & CONSPH_PASS_W ? b->pw + o : NULL;
-            nb.dwr = need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? b->pdwr + o : NULL;
-            nb.d2w = need & CONSPH_PASS_D2W ? b->pd2w + o : NULL;
+            cached_nbhd(l, b, sl, need, &nb);
             pass->visit(job, &nb);
-            visited += m;
+            visited += nb.n;
+        }
+    }
+    if (pairs) *pairs += visited;
+    return CONSPH_OK;
+}
+
+int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
+                    void *job, size_t *pairs, int *ran)
+{
+    consph_nlist *l = s->nlist;
+    *ran = -1;
+    /* a stream (skin > 0 without a cache) is left to the per-particle pass, which counts it */
+    if (s->dest || (!cache_serves(l) && l->skin != 0.0)) return CONSPH_OK;
+    int served = 0;
+    const int st = cache_ready(s, need, name, &served);
+    *ran = served;
+    if (st != CONSPH_OK || !served) return st;
+    size_t visited = 0;
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : visited) if (l->n >= s->parallel_min)
+    for (size_t k = 0; k < l->nblocks; ++k) {
+        const nlist_block *b = &l->blocks[k];
+        for (size_t sl = b->s0; sl < b->s1; sl += PASS_GROUP) {
+            consph_nbhd nb[PASS_GROUP];
+            const int count = b->s1 - sl < PASS_GROUP ? (int)(b->s1 - sl) : PASS_GROUP;
+            for (int g = 0; g < count; ++g) {
+                cached_nbhd(l, b, sl + (size_t)g, need, &nb[g]);
+                visited += nb[g].n;
+            }
+            for (int g = count; g < PASS_GROUP; ++g) nb[g] = nb[0];
+            visit(job, nb, count);
         }
     }
     if (pairs) *pairs += visited;
