@@ -19,6 +19,19 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
  * nothing counted (the per-particle pass serves it: a destination mask, a stream). */
 int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
                     void *job, size_t *pairs, int *ran);
+/* One pass of a chain (nlist_chain_run): its per-particle visit, and a group visit or NULL. */
+typedef struct block_visitor_in {
+    const consph_pass *pass;
+    pass_group_fn group;
+    void *job;
+} block_visitor_in;
+/* Passes in[0..count) on the current position state, each reading at the neighbours what the
+ * one before wrote, in one wavefront over a fresh pair cache (nlist.c): the values of running
+ * them one after the other. *ran 0 (nothing done) where the cache would not serve them so
+ * (already filled, a destination mask, a chain of one or more than four): the caller runs them one
+ * by one. */
+int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, size_t *pairs,
+                    int *ran);
 /* Whether nlist_pass_run would leave the next pass to the search's gather; if so, counts it as
  * run (a caller that runs the pass itself asks this instead of calling nlist_pass_run). */
 int nlist_gathers(consph_nlist *l);
