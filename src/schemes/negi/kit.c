@@ -9,12 +9,12 @@
  * matrices are summed and inverted in the same visit. A matrix that is singular or worse
  * conditioned than cond_max falls back to the identity, as the operators do. */
 #include <math.h>
-#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "ops/ops_internal.h"
 #include "pass/group.h"
+#include "pass/nlist.h"
 #include "schemes/negi/kit_pair.h"
 #include "solver/solver_internal.h"
 
@@ -26,7 +26,6 @@ typedef struct kit_job {
     const double *rho; /* ϱ, for Cleary's Laplacian (else NULL) */
     double *bonet, *gradp, *gradu, *divu, *gradq, *lapu, *lapq;
     unsigned char *bonet_ok; /* B_i accepted, for Fatehi_c and Korzilius (else NULL) */
-    double *pack, *pack2;    /* the group visits' rows (kit_pack; else NULL) */
 } kit_job;
 
 static void visit_volume(void *vjob, const consph_nbhd *nb)
@@ -314,20 +313,22 @@ static void visit_second(void *vjob, const consph_nbhd *nb)
     if (want & KIT_LAPQ) coupled_any(job, nb, 0, 1);
 }
 
-/* ---- the passes over groups of particles (src/pass/group.h) ----
+/* ---- the volumes over groups of particles (src/pass/group.h) ----
  *
- * The visits above sum one particle's neighbours pair by pair. The group visits run PASS_GROUP
- * particles side by side, one per lane of a vector of four doubles: lane l computes its own
- * particle's k-th pair with the operations of kit_pair.h in their order and adds it to its own
- * sums in its own neighbour order, so every value is the per-particle visit's bit for bit
- * (tests/test_kit_group.c). What a pair reads of its neighbour j is packed per particle on one
- * or more 32-byte rows before the pass (kit_pack), so four lanes' values come as four vector
- * loads and a transpose; the lanes' separations and kernel values are transposed four entries
- * at a time. A lane that has run out of neighbours reads its last one again and keeps its sums
- * (PASS_GROUP_UNPADDED: the neighbour list's pair cache hands its arrays over as they are).
- * GCC's and clang's vector extensions; other compilers run the per-particle visits. */
+ * visit_volume's sum is one chain of dependent additions. The group visit runs PASS_GROUP
+ * particles side by side, one per lane of a vector of four doubles, each lane adding its own
+ * particle's W in its own neighbour order, so every volume is the per-particle visit's bit for
+ * bit (tests/test_kit_group.c). A lane that has run out of neighbours reads its last one again
+ * and keeps its sum (PASS_GROUP_UNPADDED: the neighbour list hands its cache over as it is). The
+ * list runs it only on the blocks it has just filled (src/pass/nlist.c, nlist_group_run: four
+ * lanes streaming four ranges from memory ran slower than one). GCC's and clang's vector
+ * extensions; other compilers run the per-particle visit. */
 int kit_group_visits = 1;
 unsigned long kit_group_passes = 0;
+/* Whether the volumes and derivatives run chained where the list allows (0: one after the
+ * other, the same values; tests/test_kit_group.c compares the two), and how many chains ran. */
+int kit_chain_passes = 1;
+unsigned long kit_chains = 0;
 
 #if defined(__GNUC__)
 #define KIT_GROUPS 1
@@ -342,20 +343,13 @@ typedef long long kv4i __attribute__((vector_size(4 * sizeof(double))));
 typedef double kv4u __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double))));
 /* m ? a : b per lane (m: all bits set or none) */
 #define KV_SEL(m, a, b) ((kv4)(((m) & (kv4i)(a)) | (~(m) & (kv4i)(b))))
-/* acc = expr, in the lanes of m only where `tail` (the other lanes have run out) */
-#define KV_UPD(tail, m, acc, expr)                                                                 \
-    do {                                                                                           \
-        const kv4 upd_ = (expr);                                                                   \
-        (acc) = (tail) ? KV_SEL((m), upd_, (acc)) : upd_;                                          \
-    } while (0)
 #if defined(__clang__)
 #define KV_SHUF(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)
 #else
 #define KV_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (kv4i){i0, i1, i2, i3})
 #endif
-/* An AVX2 copy of the visits in a generic x86-64 build, chosen at load time (the same
- * operations in the same order; no FMA is enabled, so nothing is contracted), as the PySPH
- * family's group visits (src/schemes/pysph/scheme.c). */
+/* An AVX2 copy in a generic x86-64 build, chosen at load time (the same operations in the same
+ * order), as the PySPH family's group visits (src/schemes/pysph/scheme.c). */
 #if defined(__x86_64__) && !defined(__clang__) && defined(__GLIBC__) && !defined(__AVX2__)
 #define KIT_CLONES __attribute__((target_clones("avx2", "default")))
 #else
@@ -375,369 +369,48 @@ TERM_INLINE void kv_transpose(const double *const q[PASS_GROUP], size_t o, kv4 f
     f[3] = KV_SHUF(t1, t3, 2, 3, 6, 7);
 }
 
-/* The pack rows: pass 1 reads ω, p, u, q of j at KP1_* of a row of KP1 doubles; the Laplacians
- * ω, G and ∇q at 0, 1 + e, 1 + d² + b of a row of kp2(d) doubles. */
-enum { KP1 = 8, KP1_VOL = 0, KP1_P = 1, KP1_U0 = 2, KP1_U1 = 3, KP1_Q = 4, KP1_U2 = 5 };
-static int kp2(int d)
-{
-    return d == 2 ? 8 : 16;
-}
-
-/* The group's lanes: lane l reads entry e_l = min(k, n_l - 1) of its neighbourhood. */
-typedef struct kit_lanes {
-    const consph_nbhd *nb[PASS_GROUP];
-    size_t i[PASS_GROUP], n[PASS_GROUP], kmin, kmax;
-} kit_lanes;
-
-TERM_INLINE void kit_lanes_of(kit_lanes *L, const consph_nbhd *nb)
-{
-    L->kmin = (size_t)-1;
-    L->kmax = 0;
-    for (int l = 0; l < PASS_GROUP; ++l) {
-        L->nb[l] = &nb[l];
-        L->i[l] = nb[l].i;
-        L->n[l] = nb[l].n;
-        if (nb[l].n < L->kmin) L->kmin = nb[l].n;
-        if (nb[l].n > L->kmax) L->kmax = nb[l].n;
-    }
-}
-
-/* What the lanes read of their own arrays (ω-independent: x_ij, W'/r or W) at entry k, one
- * entry at a time (tail: clamped to each lane's last, with *m the lanes that sum it) or, in
- * kit_block, four entries at once. */
-typedef struct kit_pairv {
-    kv4 w1, x[3];
-    size_t j[PASS_GROUP];
-} kit_pairv;
-
-TERM_INLINE void kit_entry(const kit_lanes *L, size_t k, const int tail, const int D,
-                           const int with_x, kit_pairv *pv, kv4i *m)
-{
-    size_t e[PASS_GROUP];
-    for (int l = 0; l < PASS_GROUP; ++l) {
-        e[l] = tail && k >= L->n[l] ? L->n[l] - 1 : k;
-        pv->j[l] = L->nb[l]->j[e[l]];
-    }
-    pv->w1 =
-        (kv4){L->nb[0]->dwr[e[0]], L->nb[1]->dwr[e[1]], L->nb[2]->dwr[e[2]], L->nb[3]->dwr[e[3]]};
-    if (with_x)
-        for (int a = 0; a < D; ++a)
-            pv->x[a] = (kv4){L->nb[0]->dx[a][e[0]], L->nb[1]->dx[a][e[1]], L->nb[2]->dx[a][e[2]],
-                             L->nb[3]->dx[a][e[3]]};
-    if (tail) {
-        const kv4i kv = {(long long)k, (long long)k, (long long)k, (long long)k};
-        const kv4i nv = {(long long)L->n[0], (long long)L->n[1], (long long)L->n[2],
-                         (long long)L->n[3]};
-        *m = (kv4i)(kv < nv);
-    }
-}
-
-/* Entries k..k+3 of every lane (all below every lane's n). */
-TERM_INLINE void kit_block(const kit_lanes *L, size_t k, const int D, const int with_x,
-                           kit_pairv pv[4])
-{
-    kv4 f[4];
-    const double *q[PASS_GROUP];
-    for (int l = 0; l < PASS_GROUP; ++l) q[l] = L->nb[l]->dwr + k;
-    kv_transpose(q, 0, f);
-    for (int c = 0; c < 4; ++c) pv[c].w1 = f[c];
-    if (with_x)
-        for (int a = 0; a < D; ++a) {
-            for (int l = 0; l < PASS_GROUP; ++l) q[l] = L->nb[l]->dx[a] + k;
-            kv_transpose(q, 0, f);
-            for (int c = 0; c < 4; ++c) pv[c].x[a] = f[c];
-        }
-    for (int c = 0; c < 4; ++c)
-        for (int l = 0; l < PASS_GROUP; ++l) pv[c].j[l] = L->nb[l]->j[k + (size_t)c];
-}
-
 /* visit_volume over a group */
 KIT_CLONES static void group_volume(void *vjob, const consph_nbhd *nb, int count)
 {
     double *vol = vjob;
-    kit_lanes L;
-    kit_lanes_of(&L, nb);
+    size_t n[PASS_GROUP], kmin = nb[0].n, kmax = nb[0].n;
+    for (int l = 0; l < PASS_GROUP; ++l) {
+        n[l] = nb[l].n;
+        if (n[l] < kmin) kmin = n[l];
+        if (n[l] > kmax) kmax = n[l];
+    }
     kv4 s = {0.0, 0.0, 0.0, 0.0};
     size_t k = 0;
-    for (; k + 4 <= L.kmin; k += 4) {
+    for (; k + 4 <= kmin; k += 4) {
         kv4 f[4];
-        const double *q[PASS_GROUP];
-        for (int l = 0; l < PASS_GROUP; ++l) q[l] = L.nb[l]->w + k;
+        const double *q[PASS_GROUP] = {nb[0].w + k, nb[1].w + k, nb[2].w + k, nb[3].w + k};
         kv_transpose(q, 0, f);
         s += f[0];
         s += f[1];
         s += f[2];
         s += f[3];
     }
-    for (; k < L.kmax; ++k) {
+    const kv4i nv = {(long long)n[0], (long long)n[1], (long long)n[2], (long long)n[3]};
+    for (; k < kmax; ++k) {
         size_t e[PASS_GROUP];
-        for (int l = 0; l < PASS_GROUP; ++l) e[l] = k >= L.n[l] ? L.n[l] - 1 : k;
-        const kv4 w = {L.nb[0]->w[e[0]], L.nb[1]->w[e[1]], L.nb[2]->w[e[2]], L.nb[3]->w[e[3]]};
+        for (int l = 0; l < PASS_GROUP; ++l) e[l] = k < n[l] ? k : n[l] - 1;
+        const kv4 w = {nb[0].w[e[0]], nb[1].w[e[1]], nb[2].w[e[2]], nb[3].w[e[3]]};
         const kv4i kv = {(long long)k, (long long)k, (long long)k, (long long)k};
-        const kv4i nv = {(long long)L.n[0], (long long)L.n[1], (long long)L.n[2],
-                         (long long)L.n[3]};
-        const kv4i m = (kv4i)(kv < nv);
-        KV_UPD(1, m, s, s + w);
+        s = KV_SEL((kv4i)(kv < nv), s + w, s);
     }
-    for (int l = 0; l < count; ++l) vol[L.i[l]] = 1.0 / s[l];
+    for (int l = 0; l < count; ++l) vol[nb[l].i] = 1.0 / s[l];
 }
-
-typedef struct kit_first_sums {
-    kv4 sm[9], sp[3], su[9], sq[3];
-} kit_first_sums;
-
-/* kit_first_pair's operations on one entry of every lane. */
-TERM_INLINE void first_group_pair(const kit_job *job, const kit_pairv *pv, const int tail,
-                                  const kv4i m, const int D, const int with_p, const int with_u,
-                                  const int with_q, const kv4 pi, const kv4 ui[3], const kv4 qi,
-                                  kit_first_sums *S)
-{
-    const double *q[PASS_GROUP];
-    kv4 f[8];
-    for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack + pv->j[l] * KP1;
-    kv_transpose(q, 0, f);
-    if (with_q || (with_u && D > 2)) kv_transpose(q, 4, f + 4);
-    const kv4 om = f[KP1_VOL], w1 = pv->w1;
-    const kv4 *x = pv->x;
-    const kv4 g = om * w1;
-    for (int a = 0; a < D; ++a)
-        for (int b = 0; b < D; ++b)
-            KV_UPD(tail, m, S->sm[a * D + b], S->sm[a * D + b] - g * x[a] * x[b]);
-    if (with_p) {
-        const kv4 t = om * (f[KP1_P] - pi) * w1;
-        for (int b = 0; b < D; ++b) KV_UPD(tail, m, S->sp[b], S->sp[b] + t * x[b]);
-    }
-    if (with_u)
-        for (int a = 0; a < D; ++a) {
-            const kv4 uj = f[a == 0 ? KP1_U0 : a == 1 ? KP1_U1 : KP1_U2];
-            const kv4 t = om * (uj - ui[a]) * w1;
-            for (int b = 0; b < D; ++b)
-                KV_UPD(tail, m, S->su[a * D + b], S->su[a * D + b] + t * x[b]);
-        }
-    if (with_q) {
-        const kv4 t = om * (f[KP1_Q] - qi) * w1;
-        for (int b = 0; b < D; ++b) KV_UPD(tail, m, S->sq[b], S->sq[b] + t * x[b]);
-    }
-}
-
-/* first_body over a group */
-TERM_INLINE void first_group(const kit_job *job, const consph_nbhd *nb, int count, const int D,
-                             const int with_p, const int with_u, const int with_q)
-{
-    const size_t cap = job->cap;
-    kit_lanes L;
-    kit_lanes_of(&L, nb);
-    const kv4 zero = {0.0, 0.0, 0.0, 0.0};
-    const kv4i all = {-1, -1, -1, -1};
-    kit_first_sums S;
-    kv4 ui[3];
-    for (int e = 0; e < 9; ++e) S.sm[e] = S.su[e] = zero;
-    for (int a = 0; a < 3; ++a) S.sp[a] = S.sq[a] = ui[a] = zero;
-    const double *qi_rows[PASS_GROUP];
-    for (int l = 0; l < PASS_GROUP; ++l) qi_rows[l] = job->pack + L.i[l] * KP1;
-    kv4 fi[8];
-    kv_transpose(qi_rows, 0, fi);
-    kv_transpose(qi_rows, 4, fi + 4);
-    const kv4 pi = with_p ? fi[KP1_P] : zero, qi = with_q ? fi[KP1_Q] : zero;
-    if (with_u)
-        for (int a = 0; a < D; ++a) ui[a] = fi[a == 0 ? KP1_U0 : a == 1 ? KP1_U1 : KP1_U2];
-    (void)cap;
-    size_t k = 0;
-    for (; k + 4 <= L.kmin; k += 4) {
-        kit_pairv pv[4];
-        kit_block(&L, k, D, 1, pv);
-        for (int c = 0; c < 4; ++c)
-            first_group_pair(job, &pv[c], 0, all, D, with_p, with_u, with_q, pi, ui, qi, &S);
-    }
-    for (; k < L.kmax; ++k) {
-        kit_pairv pv;
-        kv4i m = all;
-        kit_entry(&L, k, 1, D, 1, &pv, &m);
-        first_group_pair(job, &pv, 1, m, D, with_p, with_u, with_q, pi, ui, qi, &S);
-    }
-    for (int l = 0; l < count; ++l) {
-        double m1[9] = {0}, p1[3] = {0}, u1[9] = {0}, q1[3] = {0};
-        for (int e = 0; e < D * D; ++e) {
-            m1[e] = S.sm[e][l];
-            u1[e] = S.su[e][l];
-        }
-        for (int a = 0; a < D; ++a) {
-            p1[a] = S.sp[a][l];
-            q1[a] = S.sq[a][l];
-        }
-        first_store(job, L.i[l], D, with_p, with_u, with_q, m1, p1, u1, q1);
-    }
-}
-
-#define FIRST_GROUP(D, P, U, Q)                                                                    \
-    KIT_CLONES static void first_group_##D##P##U##Q(void *job, const consph_nbhd *nb, int count)   \
-    {                                                                                              \
-        first_group(job, nb, count, D, P, U, Q);                                                   \
-    }
-#define FIRST_GROUPS_Q(D, P, U) FIRST_GROUP(D, P, U, 0) FIRST_GROUP(D, P, U, 1)
-#define FIRST_GROUPS_U(D, P) FIRST_GROUPS_Q(D, P, 0) FIRST_GROUPS_Q(D, P, 1)
-#define FIRST_GROUPS(D) FIRST_GROUPS_U(D, 0) FIRST_GROUPS_U(D, 1)
-FIRST_GROUPS(2)
-FIRST_GROUPS(3)
-#define FIRST_GROUP_NAMES_Q(D, P, U)                                                               \
-    {                                                                                              \
-        first_group_##D##P##U##0, first_group_##D##P##U##1                                         \
-    }
-#define FIRST_GROUP_NAMES_U(D, P)                                                                  \
-    {                                                                                              \
-        FIRST_GROUP_NAMES_Q(D, P, 0), FIRST_GROUP_NAMES_Q(D, P, 1)                                 \
-    }
-#define FIRST_GROUP_NAMES(D)                                                                       \
-    {                                                                                              \
-        FIRST_GROUP_NAMES_U(D, 0), FIRST_GROUP_NAMES_U(D, 1)                                       \
-    }
-/* 2D and 3D (1D runs the per-particle visits) */
-static const pass_group_fn first_groups[2][2][2][2] = {FIRST_GROUP_NAMES(2), FIRST_GROUP_NAMES(3)};
-
-/* kit_coupled_pair's operations on one entry of every lane. */
-TERM_INLINE void coupled_group_pair(const kit_job *job, const kit_pairv *pv, const int tail,
-                                    const kv4i m, const int D, const int with_u, const int with_q,
-                                    const kv4 B[9], const kv4 Gi[9], const kv4 gqi[3], kv4 acc[3],
-                                    kv4 *accq)
-{
-    const int R = kp2(D);
-    const double *q[PASS_GROUP];
-    kv4 f[16];
-    for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack2 + pv->j[l] * (size_t)R;
-    /* ω at 0, G at 1 + e, ∇q at 1 + D² + b: the blocks of four that hold what is read */
-    const int last = with_q ? D * D + D : D * D;
-    for (int o = 0; o <= last; o += 4) kv_transpose(q, (size_t)o, f + o);
-    const kv4 w1 = pv->w1, om = f[0];
-    kv4 gr[3], g[3];
-    for (int b = 0; b < D; ++b) gr[b] = w1 * pv->x[b];
-    for (int a = 0; a < D; ++a) {
-        kv4 v = {0.0, 0.0, 0.0, 0.0};
-        for (int b = 0; b < D; ++b) v += B[a * D + b] * gr[b];
-        g[a] = v;
-    }
-    if (with_u)
-        for (int a = 0; a < D; ++a) {
-            kv4 sa = {0.0, 0.0, 0.0, 0.0};
-            for (int b = 0; b < D; ++b) sa += (f[1 + a * D + b] - Gi[a * D + b]) * g[b];
-            KV_UPD(tail, m, acc[a], acc[a] + om * sa);
-        }
-    if (with_q) {
-        kv4 sq = {0.0, 0.0, 0.0, 0.0};
-        for (int b = 0; b < D; ++b) sq += (f[1 + D * D + b] - gqi[b]) * g[b];
-        KV_UPD(tail, m, *accq, *accq + om * sq);
-    }
-}
-
-/* coupled_body over a group */
-TERM_INLINE void coupled_group(const kit_job *job, const consph_nbhd *nb, int count, const int D,
-                               const int with_u, const int with_q)
-{
-    const size_t cap = job->cap;
-    kit_lanes L;
-    kit_lanes_of(&L, nb);
-    const kv4 zero = {0.0, 0.0, 0.0, 0.0};
-    const kv4i all = {-1, -1, -1, -1};
-    kv4 B[9], Gi[9], gqi[3], acc[3] = {zero, zero, zero}, accq = zero;
-    for (int e = 0; e < D * D; ++e) {
-        B[e] = (kv4){job->bonet[(size_t)e * cap + L.i[0]], job->bonet[(size_t)e * cap + L.i[1]],
-                     job->bonet[(size_t)e * cap + L.i[2]], job->bonet[(size_t)e * cap + L.i[3]]};
-        Gi[e] = zero;
-    }
-    for (int b = 0; b < 3; ++b) gqi[b] = zero;
-    {
-        const int R = kp2(D);
-        const double *q[PASS_GROUP];
-        kv4 f[16];
-        for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack2 + L.i[l] * (size_t)R;
-        for (int o = 0; o < R; o += 4) kv_transpose(q, (size_t)o, f + o);
-        if (with_u)
-            for (int e = 0; e < D * D; ++e) Gi[e] = f[1 + e];
-        if (with_q)
-            for (int b = 0; b < D; ++b) gqi[b] = f[1 + D * D + b];
-    }
-    size_t k = 0;
-    for (; k + 4 <= L.kmin; k += 4) {
-        kit_pairv pv[4];
-        kit_block(&L, k, D, 1, pv);
-        for (int c = 0; c < 4; ++c)
-            coupled_group_pair(job, &pv[c], 0, all, D, with_u, with_q, B, Gi, gqi, acc, &accq);
-    }
-    for (; k < L.kmax; ++k) {
-        kit_pairv pv;
-        kv4i m = all;
-        kit_entry(&L, k, 1, D, 1, &pv, &m);
-        coupled_group_pair(job, &pv, 1, m, D, with_u, with_q, B, Gi, gqi, acc, &accq);
-    }
-    for (int l = 0; l < count; ++l) {
-        const size_t i = L.i[l];
-        if (with_u)
-            for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = acc[a][l];
-        if (with_q) job->lapq[i] = accq[l];
-    }
-}
-
-#define COUPLED_GROUP(D, U, Q)                                                                     \
-    KIT_CLONES static void coupled_group_##D##U##Q(void *job, const consph_nbhd *nb, int count)    \
-    {                                                                                              \
-        coupled_group(job, nb, count, D, U, Q);                                                    \
-    }
-COUPLED_GROUP(2, 1, 1)
-COUPLED_GROUP(2, 1, 0)
-COUPLED_GROUP(2, 0, 1)
-COUPLED_GROUP(3, 1, 1)
-COUPLED_GROUP(3, 1, 0)
-COUPLED_GROUP(3, 0, 1)
-/* [d - 2][with_u][with_q] */
-static const pass_group_fn coupled_groups[2][2][2] = {
-    {{NULL, coupled_group_201}, {coupled_group_210, coupled_group_211}},
-    {{NULL, coupled_group_301}, {coupled_group_310, coupled_group_311}}};
 #if !defined(__clang__)
 #pragma GCC diagnostic pop
 #endif
-
-/* The rows of pass 1 (ω, p, u, q of every particle) into job->pack. */
-static void pack_first(const consph_sys *s, const kit_job *job)
-{
-    const size_t n = s->p->n, cap = job->cap;
-    const int d = job->d;
-    double *pk = job->pack;
-#pragma omp parallel for schedule(static) if (n >= s->parallel_min)
-    for (size_t i = 0; i < n; ++i) {
-        double *r = pk + i * KP1;
-        r[KP1_VOL] = job->vol[i];
-        r[KP1_P] = job->p ? job->p[i] : 0.0;
-        r[KP1_Q] = job->q ? job->q[i] : 0.0;
-        r[KP1_U0] = job->u && d > 0 ? job->u[i] : 0.0;
-        r[KP1_U1] = job->u && d > 1 ? job->u[cap + i] : 0.0;
-        r[KP1_U2] = job->u && d > 2 ? job->u[2 * cap + i] : 0.0;
-        r[6] = r[7] = 0.0;
-    }
-}
-
-/* The rows of the Laplacians (ω, G, ∇q of every particle) into job->pack2, after pass 1. */
-static void pack_second(const consph_sys *s, const kit_job *job)
-{
-    const size_t n = s->p->n, cap = job->cap;
-    const int d = job->d, R = kp2(d);
-    double *pk = job->pack2;
-#pragma omp parallel for schedule(static) if (n >= s->parallel_min)
-    for (size_t i = 0; i < n; ++i) {
-        double *r = pk + i * (size_t)R;
-        for (int c = 0; c < R; ++c) r[c] = 0.0;
-        r[0] = job->vol[i];
-        if (job->gradu)
-            for (int e = 0; e < d * d; ++e) r[1 + e] = job->gradu[(size_t)e * cap + i];
-        if (job->gradq)
-            for (int b = 0; b < d; ++b) r[1 + d * d + b] = job->gradq[(size_t)b * cap + i];
-    }
-}
+#else
+#define group_volume NULL
 #endif
 
 /* A pass with its group visit where the system and the compiler allow one, else per particle. */
 static int kit_run(consph_sys *s, const consph_pass *pass, pass_group_fn group, void *job,
                    size_t *pairs)
 {
-#ifdef KIT_GROUPS
     if (kit_group_visits && group) {
         const int st =
             pass_run_groups(s, pass->name, pass->need | PASS_GROUP_UNPADDED, group, job, pairs);
@@ -746,25 +419,24 @@ static int kit_run(consph_sys *s, const consph_pass *pass, pass_group_fn group, 
             return st;
         }
     }
-#else
-    (void)group;
-#endif
     return consph_pass_run_counted(s, pass, job, pairs);
 }
+
+static const consph_pass volume_pass = {"volumes 1/sum W", CONSPH_PASS_W | CONSPH_PASS_NO_DX,
+                                        visit_volume};
 
 int kit_volumes(consph_sys *s, size_t *pairs)
 {
     double *vol = consph_particles_field(s->p, SF_VOL, 1);
     if (!vol) return CONSPH_ENOMEM;
-    const consph_pass pass = {"volumes 1/sum W", CONSPH_PASS_W | CONSPH_PASS_NO_DX, visit_volume};
-#ifdef KIT_GROUPS
-    return kit_run(s, &pass, group_volume, vol, pairs);
-#else
-    return kit_run(s, &pass, NULL, vol, pairs);
-#endif
+    return kit_run(s, &volume_pass, group_volume, vol, pairs);
 }
 
-int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes)
+/* The volumes (with_volumes), then pass 1 and the Laplacians: chained on the neighbour list's
+ * pair cache where it serves them (src/pass/nlist.c, nlist_chain_run), else one after the
+ * other. */
+static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes,
+                      const int with_volumes)
 {
     consph_particles *p = s->p;
     const int d = p->dim;
@@ -774,6 +446,8 @@ int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes
     kit_req r = *rq;
     r.want = want;
     kit_job job = {.rq = &r, .d = d, .cap = p->cap};
+    double *vol = with_volumes ? consph_particles_field(p, SF_VOL, 1) : NULL;
+    if (with_volumes && !vol) return CONSPH_ENOMEM;
     const consph_field *f = consph_particles_find(p, SF_VOL);
     if (!f) return consph_fail(CONSPH_EINVAL, "kit: the particles have no volumes");
     job.vol = f->data;
@@ -815,44 +489,50 @@ int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes
         job.bonet_ok = malloc(p->n ? p->n : 1);
         if (!job.bonet_ok) return CONSPH_ENOMEM;
     }
-    const int P = (want & KIT_GRADP) != 0, U = (want & (KIT_GRADU | KIT_DIVU)) != 0;
-    const int Q = (want & KIT_GRADQ) != 0;
-    const consph_visit_fn visit_first = first_visits[d - 1][P][U][Q];
-    pass_group_fn group_first = NULL, group_second = NULL;
-#ifdef KIT_GROUPS
-    /* a decomposed system's passes run per particle (pass_run_groups declines it), and its
-     * scratch is carried to the halo (docs/mpi.md): no pack there */
-    if (kit_group_visits && d >= 2 && !s->split) {
-        group_first = first_groups[d - 2][P][U][Q];
-        /* coupled_bc is the only Laplacian with a group visit */
-        const int lu = (want & KIT_LAPU) != 0, lq = (want & KIT_LAPQ) != 0;
-        if ((lu || lq) && (!lu || rq->lap == KIT_LAP_COUPLED))
-            group_second = coupled_groups[d - 2][lu][lq];
-        const size_t nn = p->n ? p->n : 1;
-        double *sc = consph_sys_scratch(s, nn * (size_t)(KP1 + kp2(d)) + 8);
-        if (!sc) {
-            free(job.bonet_ok);
-            return CONSPH_ENOMEM;
-        }
-        while ((uintptr_t)sc % 64) ++sc;
-        job.pack = sc;
-        job.pack2 = sc + nn * KP1;
-        pack_first(s, &job);
-    }
-#endif
+    const consph_visit_fn visit_first =
+        first_visits[d - 1][(want & KIT_GRADP) != 0][(want & (KIT_GRADU | KIT_DIVU)) != 0]
+                    [(want & KIT_GRADQ) != 0];
     const consph_pass first = {"kit: bonet, gradients, divergence", CONSPH_PASS_DW, visit_first};
-    int st = kit_run(s, &first, group_first, &job, pairs);
+    unsigned need2 = CONSPH_PASS_DW;
+    if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need2 |= CONSPH_PASS_D2W;
+    const consph_pass second = {"kit: laplacians", need2, visit_second};
+    const int with_second = (want & (KIT_LAPU | KIT_LAPQ)) != 0;
+    int st = CONSPH_OK;
+    if (with_volumes && kit_chain_passes && s->nlist && nlist_serves(s->nlist, p->n)) {
+        const block_visitor_in chain[3] = {
+            {&volume_pass, kit_group_visits ? group_volume : NULL, vol},
+            {&first, NULL, &job},
+            {&second, NULL, &job}};
+        const int count = 2 + with_second;
+        int ran = 0;
+        st = nlist_chain_run(s, chain, count, pairs, &ran);
+        if (st == CONSPH_OK && ran) {
+            ++kit_chains;
+            *passes += count;
+            free(job.bonet_ok);
+            return CONSPH_OK;
+        }
+    }
+    if (st == CONSPH_OK && with_volumes) {
+        st = kit_run(s, &volume_pass, group_volume, vol, pairs);
+        if (st == CONSPH_OK) ++*passes;
+    }
+    if (st == CONSPH_OK) st = consph_pass_run_counted(s, &first, &job, pairs);
     if (st == CONSPH_OK) ++*passes;
-    if (st == CONSPH_OK && (want & (KIT_LAPU | KIT_LAPQ))) {
-        unsigned need = CONSPH_PASS_DW;
-        if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need |= CONSPH_PASS_D2W;
-        const consph_pass second = {"kit: laplacians", need, visit_second};
-#ifdef KIT_GROUPS
-        if (group_second) pack_second(s, &job);
-#endif
-        st = kit_run(s, &second, group_second, &job, pairs);
+    if (st == CONSPH_OK && with_second) {
+        st = consph_pass_run_counted(s, &second, &job, pairs);
         if (st == CONSPH_OK) ++*passes;
     }
     free(job.bonet_ok);
     return st;
+}
+
+int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes)
+{
+    return kit_passes(s, rq, pairs, passes, 0);
+}
+
+int kit_volumes_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes)
+{
+    return kit_passes(s, rq, pairs, passes, 1);
 }
