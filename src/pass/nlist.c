@@ -50,6 +50,7 @@ typedef struct nlist_block {
     size_t *pj;
     double *pdx[CONSPH_MAX_DIM], *pr, *pw, *pdwr, *pd2w;
     size_t pcap;
+    size_t slo, shi; /* the slots of every candidate of the last cache_block_gather */
 } nlist_block;
 
 struct consph_nlist {
@@ -661,11 +662,17 @@ static int cache_block_gather(const consph_sys *s, nlist_block *b, consph_nnps_r
             hi = mid;
     }
     size_t c = lo, runs_cell = (size_t)-1, used = 0;
+    b->slo = b->s0;
+    b->shi = b->s1 - 1;
     for (size_t sl = b->s0; sl < b->s1; ++sl) {
         while (sl >= v.cell_start[c + 1]) ++c;
         if (c != runs_cell) {
             if (consph_nnps_cell_runs(s->nnps, c, runs) == (size_t)-1) return CONSPH_ENOMEM;
             runs_cell = c;
+            for (size_t k = 0; k < runs->n; ++k) {
+                if (runs->run[k].s0 < b->slo) b->slo = runs->run[k].s0;
+                if (runs->run[k].s1 > b->shi + 1) b->shi = runs->run[k].s1 - 1;
+            }
             const size_t need = runs->candidates + CONSPH_NNPS_GATHER_SLACK;
             if (need > *cap) {
                 if (grow((void **)slot, need, sizeof(size_t))) return CONSPH_ENOMEM;
@@ -992,6 +999,8 @@ int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_g
 
 enum { CHAIN_PENDING = 0, CHAIN_DONE = 1, CHAIN_LATE = 2 };
 
+unsigned long nlist_chain_trailing = 0;
+
 typedef struct chain_state {
     const consph_sys *s;
     const block_visitor *bv;
@@ -1020,7 +1029,11 @@ static int chain_try(chain_state *c, int k, size_t b, size_t c0, size_t c1, size
             if (prev[x] == CHAIN_PENDING) verdict = CHAIN_PENDING;
         }
     }
-    if (verdict == CHAIN_DONE) *visited += visit_block(c->s, &c->s->nlist->blocks[b], &c->bv[k]);
+    if (verdict == CHAIN_DONE) {
+        *visited += visit_block(c->s, &c->s->nlist->blocks[b], &c->bv[k]);
+#pragma omp atomic
+        ++nlist_chain_trailing;
+    }
     if (verdict != CHAIN_PENDING) mine[b] = (unsigned char)verdict;
     return verdict;
 }
@@ -1055,8 +1068,8 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
     c.hi = malloc(nb * sizeof(size_t));
     /* a search built without a re-sort (inside a step) orders its slots otherwise than the
      * particles: the slot of each particle */
-    size_t *slot_of = l->particle ? malloc(l->n * sizeof(size_t)) : NULL;
-    if (!c.st || !c.lo || !c.hi || (l->particle && !slot_of)) {
+    size_t *slot_of = l->particle && l->skin != 0.0 ? malloc(l->n * sizeof(size_t)) : NULL;
+    if (!c.st || !c.lo || !c.hi || (l->particle && l->skin != 0.0 && !slot_of)) {
         free(c.st);
         free(c.lo);
         free(c.hi);
@@ -1101,11 +1114,16 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
                 break;
             }
             const size_t used = b->poff[b->s1 - b->s0];
-            size_t jlo = b->s0, jhi = b->s1 - 1;
-            for (size_t p = 0; p < used; ++p) {
-                const size_t j = slot_of ? slot_of[b->pj[p]] : b->pj[p];
-                if (j < jlo) jlo = j;
-                if (j > jhi) jhi = j;
+            /* skin 0: the slots of the candidate runs; else those of the pairs */
+            size_t jlo = b->slo, jhi = b->shi;
+            if (l->skin != 0.0) {
+                jlo = b->s0;
+                jhi = b->s1 - 1;
+                for (size_t p = 0; p < used; ++p) {
+                    const size_t j = slot_of ? slot_of[b->pj[p]] : b->pj[p];
+                    if (j < jlo) jlo = j;
+                    if (j > jhi) jhi = j;
+                }
             }
             c.lo[f] = jlo / NLIST_BLOCK;
             c.hi[f] = jhi / NLIST_BLOCK;

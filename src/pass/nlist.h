@@ -32,6 +32,8 @@ typedef struct block_visitor_in {
  * by one. */
 int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, size_t *pairs,
                     int *ran);
+/* Blocks that a chain's later passes visited during its sweep, not after it (for tests). */
+extern unsigned long nlist_chain_trailing;
 /* Whether nlist_pass_run would leave the next pass to the search's gather; if so, counts it as
  * run (a caller that runs the pass itself asks this instead of calling nlist_pass_run). */
 int nlist_gathers(consph_nlist *l);
