@@ -1044,7 +1044,8 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
     consph_nlist *l = s->nlist;
     *ran = 0;
     const int fresh = l->cache_epoch != l->epoch || !l->caches;
-    if (count < 2 || count > NLIST_CHAIN_MAX || s->dest || !fresh || !cache_serves(l) ||
+    /* a decomposed system refreshes its halo before every pass (consph_pass_run_counted) */
+    if (count < 2 || count > NLIST_CHAIN_MAX || s->dest || s->split || !fresh || !cache_serves(l) ||
         l->nblocks == 0)
         return CONSPH_OK;
     block_visitor bv[NLIST_CHAIN_MAX];
