@@ -28,9 +28,8 @@ typedef struct block_visitor_in {
 /* Passes in[0..count) on the current position state, each reading at the neighbours what the
  * one before wrote, in one wavefront over a fresh pair cache (nlist.c): the values of running
  * them one after the other. *ran 0 (nothing done) where the cache would not serve them so
- * (already filled, a destination mask, a decomposed system, a chain of one or more than
- * four): the caller runs them one
- * by one. */
+ * (already filled, a destination mask, a decomposed system, a chain of one or more than four):
+ * the caller runs them one by one. */
 int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, size_t *pairs,
                     int *ran);
 /* Blocks that a chain's later passes visited during its sweep, not after it (for tests). */
