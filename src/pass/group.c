@@ -42,9 +42,22 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
     if (n == 0) return CONSPH_OK;
     consph_nnps_slots v;
     if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK || v.n != n) return PASS_GROUP_UNSERVED;
-    /* a list that serves this pass from its cache or its own filter: the per-particle pass */
-    if (s->nlist && nlist_serves(s->nlist, n) && !nlist_gathers(s->nlist))
-        return PASS_GROUP_UNSERVED;
+    if (s->nlist && nlist_serves(s->nlist, n)) {
+        if (need & PASS_GROUP_UNPADDED) {
+            int ran;
+            const int st = nlist_group_run(s, name, need, visit, job, pairs, &ran);
+            if (st != CONSPH_OK || ran > 0) {
+                if (st == CONSPH_OK) ++pass_group_runs;
+                return st;
+            }
+            if (ran < 0) return PASS_GROUP_UNSERVED;
+        } else if (!nlist_gathers(s->nlist)) {
+            /* a list that serves this pass from its cache or its own filter: the per-particle
+             * pass */
+            return PASS_GROUP_UNSERVED;
+        }
+    }
+    need &= ~PASS_GROUP_UNPADDED;
     const int with_dx = !(need & CONSPH_PASS_NO_DX);
     ++pass_group_runs;
     int status = CONSPH_OK;

@@ -22,6 +22,10 @@ typedef void (*pass_group_fn)(void *job, const consph_nbhd *nb, int count);
  * tensor-product kernel or particles not in cell order; the caller then runs the pass with a
  * per-particle visit, which sums the same values. */
 #define PASS_GROUP_UNSERVED 1
+/* In `need`: the visit reads no entry of a lane past its own n (it masks the lanes that have
+ * run out), so a neighbour list's pair cache (src/pass/nlist.c) can serve the pass as it
+ * stands, without the padding, where it serves the state's passes. */
+#define PASS_GROUP_UNPADDED (1u << 16)
 /* Calls of pass_run_groups that ran their pass (for tests: that the group visits did run). */
 extern unsigned long pass_group_runs;
 int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,

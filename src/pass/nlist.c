@@ -15,12 +15,16 @@
  * positions (skin 0 always) it reproduces the gather's neighbours and values bit for bit. */
 #include "pass/nlist.h"
 #include "nnps/nnps_internal.h"
+#include "pass/group.h"
 
 #include <math.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #if defined(__x86_64__) && defined(__SSE2__)
 #include <emmintrin.h>
@@ -46,6 +50,7 @@ typedef struct nlist_block {
     size_t *pj;
     double *pdx[CONSPH_MAX_DIM], *pr, *pw, *pdwr, *pd2w;
     size_t pcap;
+    size_t slo, shi; /* the slots of every candidate of the last cache_block_gather */
 } nlist_block;
 
 struct consph_nlist {
@@ -657,11 +662,17 @@ static int cache_block_gather(const consph_sys *s, nlist_block *b, consph_nnps_r
             hi = mid;
     }
     size_t c = lo, runs_cell = (size_t)-1, used = 0;
+    b->slo = b->s0;
+    b->shi = b->s1 - 1;
     for (size_t sl = b->s0; sl < b->s1; ++sl) {
         while (sl >= v.cell_start[c + 1]) ++c;
         if (c != runs_cell) {
             if (consph_nnps_cell_runs(s->nnps, c, runs) == (size_t)-1) return CONSPH_ENOMEM;
             runs_cell = c;
+            for (size_t k = 0; k < runs->n; ++k) {
+                if (runs->run[k].s0 < b->slo) b->slo = runs->run[k].s0;
+                if (runs->run[k].s1 > b->shi + 1) b->shi = runs->run[k].s1 - 1;
+            }
             const size_t need = runs->candidates + CONSPH_NNPS_GATHER_SLACK;
             if (need > *cap) {
                 if (grow((void **)slot, need, sizeof(size_t))) return CONSPH_ENOMEM;
@@ -781,20 +792,97 @@ int nlist_gathers(consph_nlist *l)
     return 0;
 }
 
-int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs)
+/* Whether the cache serves the next pass on this position state (else the search's gather, skin
+ * 0, or a stream, skin > 0). Reads the list only: nlist_cache_ready counts the pass. */
+static int cache_serves(const consph_nlist *l)
 {
+    const int passes_last = l->state_epoch != l->epoch ? l->passes_state : l->passes_last;
+    const int fresh = l->cache_epoch != l->epoch || !l->caches;
+    const int hinted = l->hint_epoch == l->epoch && l->hint_passes >= 2;
+    /* A cache pays where several passes read one position state; one or two passes are served
+     * better by filtering each particle's candidates into a small buffer that stays in the
+     * processor's cache (measured: edac and tvf, two passes per state, ran 5 % slower from a
+     * cache; L-IPST-C, three, 15 % faster). Both compute the same values, so the choice changes
+     * no result. A caller that knows how many passes will read the state says so
+     * (consph_sys_expect_passes) and is believed over the previous state's count. */
+    return !(fresh && ((!hinted && passes_last < NLIST_CACHE_PASSES) ||
+                       l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n));
+}
+
+/* A pass's visits: per particle (pass) or over groups of slots (group, src/pass/group.h). */
+typedef struct block_visitor {
+    const consph_pass *pass;
+    pass_group_fn group;
+    void *job;
+    unsigned need;
+} block_visitor;
+
+/* Slot sl's cached neighbourhood with the values `need` asks for. */
+static inline void cached_nbhd(const consph_nlist *l, const nlist_block *b, size_t sl,
+                               unsigned need, consph_nbhd *nb)
+{
+    const int with_dx = !(need & CONSPH_PASS_NO_DX);
+    const size_t o = b->poff[sl - b->s0];
+    nb->i = particle_of(l, sl);
+    nb->n = b->poff[sl - b->s0 + 1] - o;
+    nb->j = b->pj + o;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+        nb->dx[a] = with_dx && a < l->dim ? b->pdx[a] + o : NULL;
+    nb->r = b->pr + o;
+    nb->w = need & CONSPH_PASS_W ? b->pw + o : NULL;
+    nb->dwr = need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? b->pdwr + o : NULL;
+    nb->d2w = need & CONSPH_PASS_D2W ? b->pd2w + o : NULL;
+}
+
+/* The visits of one block's slots; returns the pairs visited. */
+static size_t visit_block(const consph_sys *s, const nlist_block *b, const block_visitor *bv)
+{
+    const consph_nlist *l = s->nlist;
+    const unsigned char *dest = s->dest;
+    size_t visited = 0;
+    if (bv->group) {
+        for (size_t sl = b->s0; sl < b->s1; sl += PASS_GROUP) {
+            consph_nbhd nb[PASS_GROUP];
+            const int count = b->s1 - sl < PASS_GROUP ? (int)(b->s1 - sl) : PASS_GROUP;
+            for (int g = 0; g < PASS_GROUP; ++g) {
+                /* the lanes past count repeat the first (src/pass/group.h) */
+                cached_nbhd(l, b, g < count ? sl + (size_t)g : sl, bv->need, &nb[g]);
+                if (g < count) visited += nb[g].n;
+            }
+            bv->group(bv->job, nb, count);
+        }
+        return visited;
+    }
+    for (size_t sl = b->s0; sl < b->s1; ++sl) {
+        if (dest && !dest[particle_of(l, sl)]) continue;
+        consph_nbhd nb;
+        cached_nbhd(l, b, sl, bv->need, &nb);
+        bv->pass->visit(bv->job, &nb);
+        visited += nb.n;
+    }
+    return visited;
+}
+
+/* Counts a pass on the current position state and, where the cache serves it (cache_serves
+ * before the count), fills what it lacks for `need`: *served 1; else *served 0 and nothing
+ * else done. */
+static int cache_ready(const consph_sys *s, unsigned need, const char *name, int *served,
+                       const block_visitor *fuse, size_t *fused_pairs)
+{
+    *fused_pairs = (size_t)-1;
     consph_nlist *l = s->nlist;
-    const unsigned need = pass->need;
     unsigned want = 0;
     if (need & CONSPH_PASS_W) want |= CONSPH_PASS_W;
     if (need & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) want |= CONSPH_PASS_DW;
     if (need & CONSPH_PASS_D2W) want |= CONSPH_PASS_D2W;
+    *served = cache_serves(l);
     if (l->state_epoch != l->epoch) {
         l->state_epoch = l->epoch;
         l->passes_last = l->passes_state;
         l->passes_state = 0;
     }
     ++l->passes_state;
+    if (!*served) return CONSPH_OK;
     const int fresh = l->cache_epoch != l->epoch || !l->caches;
     const int hinted = l->hint_epoch == l->epoch && l->hint_passes >= 2;
     if (hinted) {
@@ -802,22 +890,16 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
         if (l->hint_need & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) want |= CONSPH_PASS_DW;
         if (l->hint_need & CONSPH_PASS_D2W) want |= CONSPH_PASS_D2W;
     }
-    /* A cache pays where several passes read one position state; one or two passes are served
-     * better by filtering each particle's candidates into a small buffer that stays in the
-     * processor's cache (measured: edac and tvf, two passes per state, ran 5 % slower from a
-     * cache; L-IPST-C, three, 15 % faster). Both compute the same values, so the choice changes
-     * no result. A caller that knows how many passes will read the state says so
-     * (consph_sys_expect_passes) and is believed over the previous state's count. */
-    if (fresh && ((!hinted && l->passes_last < NLIST_CACHE_PASSES) ||
-                  l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n))
-        return l->skin == 0.0 ? NLIST_GATHER : stream_pass(s, pass, job, pairs);
     if (fresh) l->have = 0;
     const unsigned missing = want & ~l->have;
     const int par = l->n >= s->parallel_min;
     int status = CONSPH_OK;
     if (fresh || missing) {
-        size_t total = 0;
-#pragma omp parallel reduction(+ : total) if (par)
+        size_t total = 0, visited = 0;
+        /* the pass that fills the cache visits each block as soon as it is filled, while its
+         * pairs are still in the processor's caches */
+        const block_visitor *now = fresh ? fuse : NULL;
+#pragma omp parallel reduction(+ : total, visited) if (par)
         {
             consph_nnps_runs runs;
             memset(&runs, 0, sizeof runs);
@@ -829,6 +911,7 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
                          : l->skin == 0.0 ? cache_block_gather(s, b, &runs, &slot, &cap)
                                           : cache_block(s, b);
                 if (!st && missing) st = values_block(s, b, missing);
+                if (!st && now) visited += visit_block(s, b, now);
                 if (st) {
 #pragma omp critical(consph_nlist_cache)
                     status = st;
@@ -841,7 +924,7 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
         if (status != CONSPH_OK) {
             l->cache_epoch = l->epoch - 1;
             return consph_fail(status, "pass '%s': out of memory for the pair cache",
-                               pass->name ? pass->name : "unnamed");
+                               name ? name : "unnamed");
         }
         if (fresh) {
             l->npairs = total;
@@ -849,31 +932,240 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
             ++l->caches;
         }
         l->have |= missing;
+        if (now) *fused_pairs = visited;
     }
-    const unsigned char *dest = s->dest;
-    const int with_dx = !(need & CONSPH_PASS_NO_DX);
+    return CONSPH_OK;
+}
+
+int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs)
+{
+    consph_nlist *l = s->nlist;
+    const unsigned need = pass->need;
+    int served = 0;
+    const block_visitor bv = {pass, NULL, job, need};
     size_t visited = 0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : visited) if (par)
-    for (size_t k = 0; k < l->nblocks; ++k) {
-        const nlist_block *b = &l->blocks[k];
-        for (size_t sl = b->s0; sl < b->s1; ++sl) {
-            const size_t i = particle_of(l, sl);
-            if (dest && !dest[i]) continue;
-            const size_t o = b->poff[sl - b->s0], m = b->poff[sl - b->s0 + 1] - o;
-            consph_nbhd nb;
-            nb.i = i;
-            nb.n = m;
-            nb.j = b->pj + o;
-            for (int a = 0; a < CONSPH_MAX_DIM; ++a)
-                nb.dx[a] = with_dx && a < l->dim ? b->pdx[a] + o : NULL;
-            nb.r = b->pr + o;
-            nb.w = need & CONSPH_PASS_W ? b->pw + o : NULL;
-            nb.dwr = need & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? b->pdwr + o : NULL;
-            nb.d2w = need & CONSPH_PASS_D2W ? b->pd2w + o : NULL;
-            pass->visit(job, &nb);
-            visited += m;
+    const int st = cache_ready(s, need, pass->name, &served, &bv, &visited);
+    if (st != CONSPH_OK) return st;
+    if (!served) return l->skin == 0.0 ? NLIST_GATHER : stream_pass(s, pass, job, pairs);
+    if (visited == (size_t)-1) {
+        visited = 0;
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : visited) if (l->n >= s->parallel_min)
+        for (size_t k = 0; k < l->nblocks; ++k) visited += visit_block(s, &l->blocks[k], &bv);
+    }
+    if (pairs) *pairs += visited;
+    return CONSPH_OK;
+}
+
+int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
+                    void *job, size_t *pairs, int *ran)
+{
+    consph_nlist *l = s->nlist;
+    *ran = -1;
+    const int fresh = l->cache_epoch != l->epoch || !l->caches;
+    /* Groups read the cache only while filling it: four lanes read four ranges of every array
+     * side by side, which the processor's prefetching follows worse than the one range of a
+     * per-particle visit once the cache no longer fits its caches (measured 15-25 % slower per
+     * pair at nx 100-250 in 2D, 8 % faster at nx 60). A stream (skin > 0 without a cache) and a
+     * filled cache are left to the per-particle pass, which counts the pass. */
+    if (s->dest || (cache_serves(l) ? !fresh : l->skin != 0.0)) return CONSPH_OK;
+    int served = 0;
+    const block_visitor bv = {NULL, visit, job, need};
+    size_t visited = 0;
+    const int st = cache_ready(s, need, name, &served, &bv, &visited);
+    *ran = served;
+    if (st != CONSPH_OK || !served) return st;
+    if (visited == (size_t)-1) {
+        visited = 0;
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : visited) if (l->n >= s->parallel_min)
+        for (size_t k = 0; k < l->nblocks; ++k) visited += visit_block(s, &l->blocks[k], &bv);
+    }
+    if (pairs) *pairs += visited;
+    return CONSPH_OK;
+}
+
+/* ---- chained passes: a wavefront over the blocks ----
+ *
+ * Pass k + 1 of a chain reads, at the neighbours, what pass k wrote. Run one after the other,
+ * each pass streams the whole cache from memory once it no longer fits the processor's caches
+ * (about 50 bytes per pair written and 30 to 40 read per pass). Here one sweep fills block f
+ * and runs pass 0 on it, and runs pass k on block b as soon as pass k - 1 is done on every
+ * block that holds a neighbour of b: the passes trail the fill by the blocks a neighbourhood
+ * spans, so a block's pairs are read again while they are still cached. A block whose
+ * neighbours lie outside its thread's share of blocks or span more than NLIST_CHAIN_SPAN of
+ * them (the periodic images across the box) waits until the sweep is over. Every visit reads
+ * the same values as in the passes run one after the other, so the results are those, for any
+ * thread count. */
+#define NLIST_CHAIN_MAX 4
+
+enum { CHAIN_PENDING = 0, CHAIN_DONE = 1, CHAIN_LATE = 2 };
+
+unsigned long nlist_chain_trailing = 0;
+
+typedef struct chain_state {
+    const consph_sys *s;
+    const block_visitor *bv;
+    int count;
+    unsigned char *st; /* count × nblocks */
+    size_t *lo, *hi;   /* the blocks holding a block's neighbours */
+    size_t span;
+} chain_state;
+
+/* Pass k on block b if it can run now: CHAIN_DONE (run), CHAIN_LATE (left for after the sweep)
+ * or CHAIN_PENDING (pass k - 1 has yet to reach some of its neighbours). */
+static int chain_try(chain_state *c, int k, size_t b, size_t c0, size_t c1, size_t *visited)
+{
+    const size_t nb = c->s->nlist->nblocks;
+    unsigned char *prev = c->st + (size_t)(k - 1) * nb, *mine = c->st + (size_t)k * nb;
+    const size_t lo = c->lo[b], hi = c->hi[b];
+    int verdict = CHAIN_DONE;
+    if (lo < c0 || hi >= c1 || hi - lo > c->span) {
+        verdict = CHAIN_LATE;
+    } else {
+        for (size_t x = lo; x <= hi; ++x) {
+            if (prev[x] == CHAIN_LATE) {
+                verdict = CHAIN_LATE;
+                break;
+            }
+            if (prev[x] == CHAIN_PENDING) verdict = CHAIN_PENDING;
         }
     }
+    if (verdict == CHAIN_DONE) {
+        *visited += visit_block(c->s, &c->s->nlist->blocks[b], &c->bv[k]);
+#pragma omp atomic
+        ++nlist_chain_trailing;
+    }
+    if (verdict != CHAIN_PENDING) mine[b] = (unsigned char)verdict;
+    return verdict;
+}
+
+int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, size_t *pairs,
+                    int *ran)
+{
+    consph_nlist *l = s->nlist;
+    *ran = 0;
+    const int fresh = l->cache_epoch != l->epoch || !l->caches;
+    /* a decomposed system refreshes its halo before every pass (consph_pass_run_counted) */
+    if (count < 2 || count > NLIST_CHAIN_MAX || s->dest || s->split || !fresh || !cache_serves(l) ||
+        l->nblocks == 0)
+        return CONSPH_OK;
+    block_visitor bv[NLIST_CHAIN_MAX];
+    unsigned want = 0;
+    for (int k = 0; k < count; ++k) {
+        bv[k] = (block_visitor){in[k].pass, in[k].group, in[k].job, in[k].pass->need};
+        const unsigned need = in[k].pass->need;
+        if (need & CONSPH_PASS_W) want |= CONSPH_PASS_W;
+        if (need & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) want |= CONSPH_PASS_DW;
+        if (need & CONSPH_PASS_D2W) want |= CONSPH_PASS_D2W;
+    }
+    if (l->hint_epoch == l->epoch && l->hint_passes >= 2) {
+        if (l->hint_need & CONSPH_PASS_W) want |= CONSPH_PASS_W;
+        if (l->hint_need & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) want |= CONSPH_PASS_DW;
+        if (l->hint_need & CONSPH_PASS_D2W) want |= CONSPH_PASS_D2W;
+    }
+    const size_t nb = l->nblocks;
+    chain_state c = {s, bv, count, NULL, NULL, NULL, 0};
+    c.st = consph_calloc((size_t)count * nb, 1);
+    c.lo = malloc(nb * sizeof(size_t));
+    c.hi = malloc(nb * sizeof(size_t));
+    /* a search built without a re-sort (inside a step) orders its slots otherwise than the
+     * particles: the slot of each particle */
+    size_t *slot_of = l->particle && l->skin != 0.0 ? malloc(l->n * sizeof(size_t)) : NULL;
+    if (!c.st || !c.lo || !c.hi || (l->particle && l->skin != 0.0 && !slot_of)) {
+        free(c.st);
+        free(c.lo);
+        free(c.hi);
+        free(slot_of);
+        return CONSPH_ENOMEM;
+    }
+    if (slot_of)
+        for (size_t sl = 0; sl < l->n; ++sl) slot_of[l->particle[sl]] = sl;
+    c.span = nb / 8 > 4 ? nb / 8 : 4;
+    /* the count of the passes on this state, as nlist_pass_run keeps it */
+    if (l->state_epoch != l->epoch) {
+        l->state_epoch = l->epoch;
+        l->passes_last = l->passes_state;
+        l->passes_state = 0;
+    }
+    l->passes_state += count;
+    l->have = 0;
+    *ran = 1;
+    const int par = l->n >= s->parallel_min;
+    int status = CONSPH_OK;
+    size_t total = 0, visited = 0;
+#pragma omp parallel reduction(+ : total, visited) if (par)
+    {
+#ifdef _OPENMP
+        const size_t nt = (size_t)omp_get_num_threads(), t = (size_t)omp_get_thread_num();
+#else
+        const size_t nt = 1, t = 0;
+#endif
+        const size_t c0 = nb * t / nt, c1 = nb * (t + 1) / nt;
+        consph_nnps_runs runs;
+        memset(&runs, 0, sizeof runs);
+        size_t *slot = NULL, cap = 0, next[NLIST_CHAIN_MAX];
+        int my_status = CONSPH_OK;
+        for (int k = 1; k < count; ++k) next[k] = c0;
+        for (size_t f = c0; f < c1 && my_status == CONSPH_OK; ++f) {
+            nlist_block *b = &l->blocks[f];
+            int st =
+                l->skin == 0.0 ? cache_block_gather(s, b, &runs, &slot, &cap) : cache_block(s, b);
+            if (!st) st = values_block(s, b, want);
+            if (st) {
+                my_status = st;
+                break;
+            }
+            const size_t used = b->poff[b->s1 - b->s0];
+            /* skin 0: the slots of the candidate runs; else those of the pairs */
+            size_t jlo = b->slo, jhi = b->shi;
+            if (l->skin != 0.0) {
+                jlo = b->s0;
+                jhi = b->s1 - 1;
+                for (size_t p = 0; p < used; ++p) {
+                    const size_t j = slot_of ? slot_of[b->pj[p]] : b->pj[p];
+                    if (j < jlo) jlo = j;
+                    if (j > jhi) jhi = j;
+                }
+            }
+            c.lo[f] = jlo / NLIST_BLOCK;
+            c.hi[f] = jhi / NLIST_BLOCK;
+            total += used;
+            visited += visit_block(s, b, &bv[0]);
+            c.st[f] = CHAIN_DONE;
+            for (int k = 1; k < count; ++k)
+                while (next[k] <= f && chain_try(&c, k, next[k], c0, c1, &visited) != CHAIN_PENDING)
+                    ++next[k];
+        }
+        /* what the sweep left: every block of pass k - 1 is done or late by now */
+        for (int k = 1; k < count && my_status == CONSPH_OK; ++k)
+            for (; next[k] < c1; ++next[k]) chain_try(&c, k, next[k], c0, c1, &visited);
+        consph_nnps_runs_free(&runs);
+        free(slot);
+        if (my_status != CONSPH_OK) {
+#pragma omp critical(consph_nlist_chain)
+            status = my_status;
+        }
+        /* the late blocks, pass by pass: each pass's are done on all threads before the next */
+        for (int k = 1; k < count; ++k) {
+#pragma omp barrier
+            if (status == CONSPH_OK)
+                for (size_t x = c0; x < c1; ++x)
+                    if (c.st[(size_t)k * nb + x] == CHAIN_LATE)
+                        visited += visit_block(s, &l->blocks[x], &bv[k]);
+        }
+    }
+    free(c.st);
+    free(c.lo);
+    free(c.hi);
+    free(slot_of);
+    if (status != CONSPH_OK) {
+        l->cache_epoch = l->epoch - 1;
+        return consph_fail(status, "pass '%s': out of memory for the pair cache",
+                           in[0].pass->name ? in[0].pass->name : "unnamed");
+    }
+    l->npairs = total;
+    l->cache_epoch = l->epoch;
+    ++l->caches;
+    l->have = want;
     if (pairs) *pairs += visited;
     return CONSPH_OK;
 }

@@ -4,6 +4,7 @@
 #define CONSPH_PASS_NLIST_H
 
 #include "consph/pass.h"
+#include "pass/group.h"
 
 /* consph_sys_update when the system has a list: the same contract (rebuild after a move; with
  * resort, the re-sort into cell order where the list is rebuilt). */
@@ -12,6 +13,27 @@ int nlist_update(consph_sys *s, int resort);
  * the search's own gather serves the pass as well (skin 0 without a cache). */
 #define NLIST_GATHER 1
 int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs);
+/* A pass over groups of particles (src/pass/group.h) from the cache, where the cache serves
+ * this pass: the lanes' arrays are the cache's, NOT padded past each lane's n. *ran: 1 ran it;
+ * 0 not, the pass counted as one the search's gather serves (skin 0, no cache); -1 not,
+ * nothing counted (the per-particle pass serves it: a destination mask, a stream). */
+int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
+                    void *job, size_t *pairs, int *ran);
+/* One pass of a chain (nlist_chain_run): its per-particle visit, and a group visit or NULL. */
+typedef struct block_visitor_in {
+    const consph_pass *pass;
+    pass_group_fn group;
+    void *job;
+} block_visitor_in;
+/* Passes in[0..count) on the current position state, each reading at the neighbours what the
+ * one before wrote, in one wavefront over a fresh pair cache (nlist.c): the values of running
+ * them one after the other. *ran 0 (nothing done) where the cache would not serve them so
+ * (already filled, a destination mask, a decomposed system, a chain of one or more than four):
+ * the caller runs them one by one. */
+int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, size_t *pairs,
+                    int *ran);
+/* Blocks that a chain's later passes visited during its sweep, not after it (for tests). */
+extern unsigned long nlist_chain_trailing;
 /* Whether nlist_pass_run would leave the next pass to the search's gather; if so, counts it as
  * run (a caller that runs the pass itself asks this instead of calling nlist_pass_run). */
 int nlist_gathers(consph_nlist *l);

@@ -126,6 +126,9 @@ int kit_volumes(consph_sys *s, size_t *pairs);
 /* The requested derivatives in at most two passes (gradients and divergence in the first,
  * Laplacians in the second); adds pairs to *pairs, passes to *passes. */
 int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes);
+/* kit_volumes then kit_derivatives, chained on the neighbour list's cache where it serves them
+ * (the same values); adds pairs to *pairs, passes (the volumes' too) to *passes. */
+int kit_volumes_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes);
 
 /* ---- schemes ---- */
 typedef struct scheme_def {

@@ -13,6 +13,8 @@
 #include <string.h>
 
 #include "ops/ops_internal.h"
+#include "pass/group.h"
+#include "pass/nlist.h"
 #include "schemes/negi/kit_pair.h"
 #include "solver/solver_internal.h"
 
@@ -33,12 +35,27 @@ static void visit_volume(void *vjob, const consph_nbhd *nb)
     vol[nb->i] = 1.0 / s;
 }
 
-int kit_volumes(consph_sys *s, size_t *pairs)
+/* Pass 1's finish at particle i from its sums, written into the job's fields. */
+TERM_INLINE void first_store(const kit_job *job, const size_t i, const int D, const int with_p,
+                             const int with_u, const int with_q, const double sm[9],
+                             const double sp[3], const double su[9], const double sq[3])
 {
-    double *vol = consph_particles_field(s->p, SF_VOL, 1);
-    if (!vol) return CONSPH_ENOMEM;
-    const consph_pass pass = {"volumes 1/sum W", CONSPH_PASS_W | CONSPH_PASS_NO_DX, visit_volume};
-    return consph_pass_run_counted(s, &pass, vol, pairs);
+    const size_t cap = job->cap;
+    double mom[9], B[9], gp[3], G[9], div = 0.0, gq[3];
+    for (int e = 0; e < D * D; ++e) mom[e] = sm[e];
+    const int ok = kit_first_finish(D, with_p, with_u, with_q, mom, job->rq->cond_max, sp, su, sq,
+                                    B, gp, G, &div, gq);
+    if (job->bonet_ok) job->bonet_ok[i] = (unsigned char)ok;
+    for (int e = 0; e < D * D; ++e) job->bonet[(size_t)e * cap + i] = B[e];
+    if (with_p)
+        for (int a = 0; a < D; ++a) job->gradp[a * cap + i] = gp[a];
+    if (with_u) {
+        if (job->gradu)
+            for (int e = 0; e < D * D; ++e) job->gradu[(size_t)e * cap + i] = G[e];
+        if (job->divu) job->divu[i] = div;
+    }
+    if (with_q)
+        for (int a = 0; a < D; ++a) job->gradq[a * cap + i] = gq[a];
 }
 
 /* Pass 1 at one particle, for a dimension and a set of derivatives known at compile time: one
@@ -72,21 +89,7 @@ TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int
         kit_first_pair(D, with_p, with_u, with_q, vol[j], dwr[k], x, with_p ? pf[j] : 0.0, pi, uj,
                        ui, with_q ? qf[j] : 0.0, qi, sm, sp, su, sq);
     }
-    double mom[9], B[9], gp[3], G[9], div = 0.0, gq[3];
-    for (int e = 0; e < D * D; ++e) mom[e] = sm[e];
-    const int ok = kit_first_finish(D, with_p, with_u, with_q, mom, job->rq->cond_max, sp, su, sq,
-                                    B, gp, G, &div, gq);
-    if (job->bonet_ok) job->bonet_ok[i] = (unsigned char)ok;
-    for (int e = 0; e < D * D; ++e) job->bonet[(size_t)e * cap + i] = B[e];
-    if (with_p)
-        for (int a = 0; a < D; ++a) job->gradp[a * cap + i] = gp[a];
-    if (with_u) {
-        if (job->gradu)
-            for (int e = 0; e < D * D; ++e) job->gradu[(size_t)e * cap + i] = G[e];
-        if (job->divu) job->divu[i] = div;
-    }
-    if (with_q)
-        for (int a = 0; a < D; ++a) job->gradq[a * cap + i] = gq[a];
+    first_store(job, i, D, with_p, with_u, with_q, sm, sp, su, sq);
 }
 
 /* One visit function per (d, ∇p, ∇u or ∇·u, ∇q), chosen once per pass by kit_derivatives. */
@@ -310,7 +313,130 @@ static void visit_second(void *vjob, const consph_nbhd *nb)
     if (want & KIT_LAPQ) coupled_any(job, nb, 0, 1);
 }
 
-int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes)
+/* ---- the volumes over groups of particles (src/pass/group.h) ----
+ *
+ * visit_volume's sum is one chain of dependent additions. The group visit runs PASS_GROUP
+ * particles side by side, one per lane of a vector of four doubles, each lane adding its own
+ * particle's W in its own neighbour order, so every volume is the per-particle visit's bit for
+ * bit (tests/test_kit_group.c). A lane that has run out of neighbours reads its last one again
+ * and keeps its sum (PASS_GROUP_UNPADDED: the neighbour list hands its cache over as it is). The
+ * list runs it only on the blocks it has just filled (src/pass/nlist.c, nlist_group_run: four
+ * lanes streaming four ranges from memory ran slower than one). GCC's and clang's vector
+ * extensions; other compilers run the per-particle visit. */
+int kit_group_visits = 1;
+unsigned long kit_group_passes = 0;
+/* Whether the volumes and derivatives run chained where the list allows (0: one after the
+ * other, the same values; tests/test_kit_group.c compares the two), and how many chains ran. */
+int kit_chain_passes = 1;
+unsigned long kit_chains = 0;
+
+#if defined(__GNUC__)
+#define KIT_GROUPS 1
+/* GCC builds a vector from scalars by inserting them into the destination's old value, and then
+ * warns that the old value may be uninitialised (it is never read) */
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+typedef double kv4 __attribute__((vector_size(4 * sizeof(double))));
+typedef long long kv4i __attribute__((vector_size(4 * sizeof(double))));
+typedef double kv4u __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double))));
+/* m ? a : b per lane (m: all bits set or none) */
+#define KV_SEL(m, a, b) ((kv4)(((m) & (kv4i)(a)) | (~(m) & (kv4i)(b))))
+#if defined(__clang__)
+#define KV_SHUF(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)
+#else
+#define KV_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (kv4i){i0, i1, i2, i3})
+#endif
+/* An AVX2 copy in a generic x86-64 build, chosen at load time (the same operations in the same
+ * order), as the PySPH family's group visits (src/schemes/pysph/scheme.c). */
+#if defined(__x86_64__) && !defined(__clang__) && defined(__GLIBC__) && !defined(__AVX2__)
+#define KIT_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define KIT_CLONES
+#endif
+
+/* Entries o..o+3 of the four rows q[l], as four vectors f[c] = {q[0][o+c], ..., q[3][o+c]}. */
+TERM_INLINE void kv_transpose(const double *const q[PASS_GROUP], size_t o, kv4 f[4])
+{
+    const kv4 a0 = *(const kv4u *)(q[0] + o), a1 = *(const kv4u *)(q[1] + o);
+    const kv4 a2 = *(const kv4u *)(q[2] + o), a3 = *(const kv4u *)(q[3] + o);
+    const kv4 t0 = KV_SHUF(a0, a1, 0, 4, 2, 6), t1 = KV_SHUF(a0, a1, 1, 5, 3, 7);
+    const kv4 t2 = KV_SHUF(a2, a3, 0, 4, 2, 6), t3 = KV_SHUF(a2, a3, 1, 5, 3, 7);
+    f[0] = KV_SHUF(t0, t2, 0, 1, 4, 5);
+    f[1] = KV_SHUF(t1, t3, 0, 1, 4, 5);
+    f[2] = KV_SHUF(t0, t2, 2, 3, 6, 7);
+    f[3] = KV_SHUF(t1, t3, 2, 3, 6, 7);
+}
+
+/* visit_volume over a group */
+KIT_CLONES static void group_volume(void *vjob, const consph_nbhd *nb, int count)
+{
+    double *vol = vjob;
+    size_t n[PASS_GROUP], kmin = nb[0].n, kmax = nb[0].n;
+    for (int l = 0; l < PASS_GROUP; ++l) {
+        n[l] = nb[l].n;
+        if (n[l] < kmin) kmin = n[l];
+        if (n[l] > kmax) kmax = n[l];
+    }
+    kv4 s = {0.0, 0.0, 0.0, 0.0};
+    size_t k = 0;
+    for (; k + 4 <= kmin; k += 4) {
+        kv4 f[4];
+        const double *q[PASS_GROUP] = {nb[0].w + k, nb[1].w + k, nb[2].w + k, nb[3].w + k};
+        kv_transpose(q, 0, f);
+        s += f[0];
+        s += f[1];
+        s += f[2];
+        s += f[3];
+    }
+    const kv4i nv = {(long long)n[0], (long long)n[1], (long long)n[2], (long long)n[3]};
+    for (; k < kmax; ++k) {
+        size_t e[PASS_GROUP];
+        for (int l = 0; l < PASS_GROUP; ++l) e[l] = k < n[l] ? k : n[l] - 1;
+        const kv4 w = {nb[0].w[e[0]], nb[1].w[e[1]], nb[2].w[e[2]], nb[3].w[e[3]]};
+        const kv4i kv = {(long long)k, (long long)k, (long long)k, (long long)k};
+        s = KV_SEL((kv4i)(kv < nv), s + w, s);
+    }
+    for (int l = 0; l < count; ++l) vol[nb[l].i] = 1.0 / s[l];
+}
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#else
+#define group_volume NULL
+#endif
+
+/* A pass with its group visit where the system and the compiler allow one, else per particle. */
+static int kit_run(consph_sys *s, const consph_pass *pass, pass_group_fn group, void *job,
+                   size_t *pairs)
+{
+    if (kit_group_visits && group) {
+        const int st =
+            pass_run_groups(s, pass->name, pass->need | PASS_GROUP_UNPADDED, group, job, pairs);
+        if (st != PASS_GROUP_UNSERVED) {
+            if (st == CONSPH_OK) ++kit_group_passes;
+            return st;
+        }
+    }
+    return consph_pass_run_counted(s, pass, job, pairs);
+}
+
+static const consph_pass volume_pass = {"volumes 1/sum W", CONSPH_PASS_W | CONSPH_PASS_NO_DX,
+                                        visit_volume};
+
+int kit_volumes(consph_sys *s, size_t *pairs)
+{
+    double *vol = consph_particles_field(s->p, SF_VOL, 1);
+    if (!vol) return CONSPH_ENOMEM;
+    return kit_run(s, &volume_pass, group_volume, vol, pairs);
+}
+
+/* The volumes (with_volumes), then pass 1 and the Laplacians: chained on the neighbour list's
+ * pair cache where it serves them (src/pass/nlist.c, nlist_chain_run), else one after the
+ * other. */
+static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes,
+                      const int with_volumes)
 {
     consph_particles *p = s->p;
     const int d = p->dim;
@@ -320,6 +446,8 @@ int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes
     kit_req r = *rq;
     r.want = want;
     kit_job job = {.rq = &r, .d = d, .cap = p->cap};
+    double *vol = with_volumes ? consph_particles_field(p, SF_VOL, 1) : NULL;
+    if (with_volumes && !vol) return CONSPH_ENOMEM;
     const consph_field *f = consph_particles_find(p, SF_VOL);
     if (!f) return consph_fail(CONSPH_EINVAL, "kit: the particles have no volumes");
     job.vol = f->data;
@@ -365,15 +493,46 @@ int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes
         first_visits[d - 1][(want & KIT_GRADP) != 0][(want & (KIT_GRADU | KIT_DIVU)) != 0]
                     [(want & KIT_GRADQ) != 0];
     const consph_pass first = {"kit: bonet, gradients, divergence", CONSPH_PASS_DW, visit_first};
-    int st = consph_pass_run_counted(s, &first, &job, pairs);
+    unsigned need2 = CONSPH_PASS_DW;
+    if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need2 |= CONSPH_PASS_D2W;
+    const consph_pass second = {"kit: laplacians", need2, visit_second};
+    const int with_second = (want & (KIT_LAPU | KIT_LAPQ)) != 0;
+    int st = CONSPH_OK;
+    if (with_volumes && kit_chain_passes && s->nlist && nlist_serves(s->nlist, p->n)) {
+        const block_visitor_in chain[3] = {
+            {&volume_pass, kit_group_visits ? group_volume : NULL, vol},
+            {&first, NULL, &job},
+            {&second, NULL, &job}};
+        const int count = 2 + with_second;
+        int ran = 0;
+        st = nlist_chain_run(s, chain, count, pairs, &ran);
+        if (st == CONSPH_OK && ran) {
+            ++kit_chains;
+            *passes += count;
+            free(job.bonet_ok);
+            return CONSPH_OK;
+        }
+    }
+    if (st == CONSPH_OK && with_volumes) {
+        st = kit_run(s, &volume_pass, group_volume, vol, pairs);
+        if (st == CONSPH_OK) ++*passes;
+    }
+    if (st == CONSPH_OK) st = consph_pass_run_counted(s, &first, &job, pairs);
     if (st == CONSPH_OK) ++*passes;
-    if (st == CONSPH_OK && (want & (KIT_LAPU | KIT_LAPQ))) {
-        unsigned need = CONSPH_PASS_DW;
-        if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need |= CONSPH_PASS_D2W;
-        const consph_pass second = {"kit: laplacians", need, visit_second};
+    if (st == CONSPH_OK && with_second) {
         st = consph_pass_run_counted(s, &second, &job, pairs);
         if (st == CONSPH_OK) ++*passes;
     }
     free(job.bonet_ok);
     return st;
+}
+
+int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes)
+{
+    return kit_passes(s, rq, pairs, passes, 0);
+}
+
+int kit_volumes_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes)
+{
+    return kit_passes(s, rq, pairs, passes, 1);
 }

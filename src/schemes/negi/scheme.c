@@ -30,16 +30,12 @@ static int rates(consph_solver *s, const negi_terms *t)
     consph_sys_expect_passes(sys, 2 + !s->volumes_fixed + (t->transport != 0),
                              CONSPH_PASS_W | CONSPH_PASS_DW |
                                  (t->lap == KIT_LAP_KORZILIUS ? CONSPH_PASS_D2W : 0u));
-    if (!s->volumes_fixed) {
-        st = kit_volumes(sys, &s->pairs);
-        if (st != CONSPH_OK) return st;
-        s->passes = 1;
-    }
     const char *q = s->scheme->evolve_p ? SF_P : SF_RHOF;
     kit_req rq = {KIT_GRADP | KIT_LAPU | KIT_DIVU, (kit_lap)t->lap, q, 1e8};
     if (t->diffuse_q) rq.want |= KIT_LAPQ;
     if (t->transport || t->advect_q) rq.want |= KIT_GRADQ;
-    st = kit_derivatives(sys, &rq, &s->pairs, &s->passes);
+    st = s->volumes_fixed ? kit_derivatives(sys, &rq, &s->pairs, &s->passes)
+                          : kit_volumes_derivatives(sys, &rq, &s->pairs, &s->passes);
     if (st != CONSPH_OK) return st;
     double *du = NULL;
     if (t->transport) {
@@ -105,10 +101,9 @@ static int gradients_for_shift(consph_solver *s)
     int passes = 0;
     /* These two passes and the shifting's first (IPST's volumes, or the PST) read this state */
     consph_sys_expect_passes(&s->sys, 3, CONSPH_PASS_W | CONSPH_PASS_DW);
-    int st = kit_volumes(&s->sys, &s->pairs);
     kit_req rq = {KIT_GRADU | KIT_GRADQ, KIT_LAP_COUPLED, s->scheme->evolve_p ? SF_P : SF_RHOF,
                   1e8};
-    return st == CONSPH_OK ? kit_derivatives(&s->sys, &rq, &s->pairs, &passes) : st;
+    return kit_volumes_derivatives(&s->sys, &rq, &s->pairs, &passes);
 }
 
 static int zeroed_shift(consph_solver *s, double **dr)
