@@ -12,6 +12,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#ifdef CONSPH_HAVE_OPENMP
+#include <omp.h>
+#endif
+
+#include "nnps/nnps_internal.h"
 #include "pass/nbhd.h"
 #include "pass/nlist.h"
 
@@ -104,5 +109,297 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
     if (pairs) *pairs += total;
     if (status != CONSPH_OK)
         return consph_fail(status, "pass '%s': %s", name ? name : "unnamed", why);
+    return CONSPH_OK;
+}
+
+/* ---- two passes in one sweep (pass_run_groups2) ----
+ *
+ * The cells are cut into slabs: the cells of one index along the outermost axis of the grid
+ * (nnps.c numbers cells with that axis slowest, so a slab is a contiguous range of cells and of
+ * slots). A particle's neighbours lie in the slabs within `lag` (the search's reach along that
+ * axis) of its own, modulo the period. Each thread takes a band of consecutive slabs:
+ *   1. the first pass on the band's lag edge slabs at each end (other bands' second pass reads
+ *      them), gathered as pass_run_groups does it; then a barrier;
+ *   2. one sweep over the band: the first pass on interior slab t, its neighbourhoods gathered
+ *      with the kernel values of both passes and kept, and the second pass on slab t - lag,
+ *      whose neighbours' first pass is then done (interior slabs from the kept neighbourhoods,
+ *      edge slabs gathered again).
+ * A neighbourhood is the same whichever pass gathers it (the gather's hits and r do not depend
+ * on which outputs it writes; the kernel batch's W and W'/r loop gives the separate loops'
+ * values), and each visit writes its own particles only, so the results are those of two
+ * pass_run_groups calls bit for bit for any thread count. Only lag + 1 slabs of
+ * neighbourhoods are kept per thread. */
+
+/* Above this lag (slabs thinner than the radius / 8) every slab is an edge slab: no ring. */
+#define GROUP2_MAX_LAG 8
+
+typedef struct group_rec {
+    int count;
+    size_t i[PASS_GROUP], n[PASS_GROUP], off[PASS_GROUP];
+} group_rec;
+
+/* The kept neighbourhoods of one slab's groups, as the second pass reads them. The gather writes
+ * straight into it: lane l of a group at used + l·stride (stride: the cell's candidates and the
+ * gather's slack), each lane's entries running to the group's kmax (the padding included); the
+ * next group starts after the last lane's kmax entries. The gaps are never touched. */
+typedef struct slab_store {
+    group_rec *rec;
+    size_t nrec, rec_cap;
+    size_t *slot, *j;
+    double *dx[CONSPH_MAX_DIM], *r, *w, *dwr, *d2w;
+    size_t used, cap;
+} slab_store;
+
+/* Each thread's ring of slabs, kept from one call to the next so that its pages stay mapped
+ * (allocating megabytes per pass cost more in page faults than the gathers it saves). The
+ * library starts no threads of its own; OpenMP's live as long as the process. */
+static _Thread_local slab_store ring_of_thread[GROUP2_MAX_LAG + 1];
+
+unsigned long pass_group_kept_slabs = 0;
+
+static int grow_array(void **p, size_t count, size_t size)
+{
+    void *q = realloc(*p, count * size);
+    if (!q) return CONSPH_ENOMEM;
+    *p = q;
+    return CONSPH_OK;
+}
+
+typedef struct sweep {
+    const consph_sys *s;
+    const consph_nnps_slots *v;
+    void *job;
+    size_t cells_per_slab;
+    unsigned need1, need2, need12;
+    int dx1, dx2, dx12; /* the passes' separations wanted */
+    pass_group_fn visit1, visit2;
+} sweep;
+
+typedef struct sweep_thread {
+    consph_nnps_runs runs;
+    nbhd_scratch sc[PASS_GROUP];
+    size_t pairs, kept;
+    int status;
+    char why[256];
+} sweep_thread;
+
+/* Room for `need` more entries and one more group in st (the arrays the second pass reads). */
+static int store_reserve(slab_store *st, size_t need)
+{
+    if (st->nrec == st->rec_cap) {
+        const size_t cap = st->rec_cap ? 2 * st->rec_cap : 256;
+        if (grow_array((void **)&st->rec, cap, sizeof *st->rec)) return CONSPH_ENOMEM;
+        st->rec_cap = cap;
+    }
+    need += st->used;
+    if (need <= st->cap) return CONSPH_OK;
+    size_t cap = st->cap ? st->cap : 4096;
+    while (cap < need) cap *= 2;
+    /* every array, whatever this pass reads: the ring serves the thread's later calls too */
+    int e = grow_array((void **)&st->slot, cap, sizeof(size_t));
+    e = e ? e : grow_array((void **)&st->j, cap, sizeof(size_t));
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+        e = e ? e : grow_array((void **)&st->dx[a], cap, sizeof(double));
+    e = e ? e : grow_array((void **)&st->r, cap, sizeof(double));
+    e = e ? e : grow_array((void **)&st->w, cap, sizeof(double));
+    e = e ? e : grow_array((void **)&st->dwr, cap, sizeof(double));
+    e = e ? e : grow_array((void **)&st->d2w, cap, sizeof(double));
+    if (e == CONSPH_OK) st->cap = cap;
+    return e;
+}
+
+/* Keeps the group's neighbourhoods nb[0..count) (entries to kmax) in st, compactly: copying
+ * from the lane's scratch, hot in the cache, costs less than gathering into the store's spread
+ * lanes, which the second pass then reads from further away. */
+static void store_group(const sweep *w, slab_store *st, const consph_nbhd *nb, int count,
+                        size_t kmax)
+{
+    group_rec *rec = &st->rec[st->nrec++];
+    rec->count = count;
+    const size_t bytes = kmax * sizeof(double);
+    for (int l = 0; l < count; ++l) {
+        const size_t off = st->used;
+        rec->i[l] = nb[l].i;
+        rec->n[l] = nb[l].n;
+        rec->off[l] = off;
+        memcpy(st->slot + off, nb[l].j, kmax * sizeof(size_t));
+        for (int a = 0; a < w->v->dim && w->dx2; ++a) memcpy(st->dx[a] + off, nb[l].dx[a], bytes);
+        memcpy(st->r + off, nb[l].r, bytes);
+        if (w->need2 & CONSPH_PASS_W) memcpy(st->w + off, nb[l].w, bytes);
+        if (w->need2 & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) memcpy(st->dwr + off, nb[l].dwr, bytes);
+        if (w->need2 & CONSPH_PASS_D2W) memcpy(st->d2w + off, nb[l].d2w, bytes);
+        st->used += kmax;
+    }
+}
+
+/* The second pass over the groups kept in st. */
+static void store_replay(const sweep *w, const slab_store *st)
+{
+    const size_t *j = st->slot;
+    for (size_t g = 0; g < st->nrec; ++g) {
+        const group_rec *rec = &st->rec[g];
+        consph_nbhd nb[PASS_GROUP];
+        for (int l = 0; l < rec->count; ++l) {
+            const size_t off = rec->off[l];
+            nb[l].i = rec->i[l];
+            nb[l].n = rec->n[l];
+            nb[l].j = j + off;
+            for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+                nb[l].dx[a] = w->dx2 && a < w->v->dim ? st->dx[a] + off : NULL;
+            nb[l].r = st->r + off;
+            nb[l].w = w->need2 & CONSPH_PASS_W ? st->w + off : NULL;
+            nb[l].dwr = w->need2 & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? st->dwr + off : NULL;
+            nb[l].d2w = w->need2 & CONSPH_PASS_D2W ? st->d2w + off : NULL;
+        }
+        for (int l = rec->count; l < PASS_GROUP; ++l) nb[l] = nb[0];
+        w->visit2(w->job, nb, rec->count);
+    }
+}
+
+enum { SLAB_FIRST = 1, SLAB_SECOND = 2, SLAB_BOTH = 3 };
+
+/* One slab's groups: the first pass, the second, or the first keeping the neighbourhoods (with
+ * both passes' kernel values) in st for the second. */
+static void run_slab(const sweep *w, sweep_thread *t, size_t slab, int mode, slab_store *st)
+{
+    if (t->status != CONSPH_OK) return;
+    const consph_nnps_slots *v = w->v;
+    const unsigned need = mode == SLAB_FIRST    ? w->need1
+                          : mode == SLAB_SECOND ? w->need2
+                                                : w->need12;
+    const int with_dx = mode == SLAB_FIRST ? w->dx1 : mode == SLAB_SECOND ? w->dx2 : w->dx12;
+    const size_t per_pair = mode == SLAB_BOTH ? 2 : 1;
+    if (st) st->nrec = st->used = 0;
+    for (size_t c = slab * w->cells_per_slab; c < (slab + 1) * w->cells_per_slab; ++c) {
+        const size_t first = v->cell_start[c], last = v->cell_start[c + 1];
+        if (first == last) continue;
+        if (consph_nnps_cell_runs(w->s->nnps, c, &t->runs) == (size_t)-1) {
+            t->status = CONSPH_ENOMEM;
+            snprintf(t->why, sizeof t->why, "runs of cell %zu: %s", c, consph_last_error());
+            return;
+        }
+        /* the gather's slack, and the kernel batch's rounding up to whole vectors */
+        const size_t stride = t->runs.candidates + CONSPH_NNPS_GATHER_SLACK + 4;
+        for (int l = 0; l < PASS_GROUP; ++l)
+            if (nbhd_scratch_reserve(&t->sc[l], stride) != CONSPH_OK) {
+                t->status = CONSPH_ENOMEM;
+                snprintf(t->why, sizeof t->why, "out of memory for %zu candidate neighbours",
+                         t->runs.candidates);
+                return;
+            }
+        for (size_t g = first; g < last; g += PASS_GROUP) {
+            consph_nbhd nb[PASS_GROUP];
+            const int count = last - g < PASS_GROUP ? (int)(last - g) : PASS_GROUP;
+            size_t kmax = 0;
+            for (int l = 0; l < count; ++l) {
+                nbhd_gather(w->s, v, &t->runs, g + (size_t)l, need, with_dx, &t->sc[l], &nb[l]);
+                t->pairs += per_pair * nb[l].n;
+                if (nb[l].n > kmax) kmax = nb[l].n;
+            }
+            for (int l = 0; l < count; ++l) lane_pad(&t->sc[l], &nb[l], kmax);
+            for (int l = count; l < PASS_GROUP; ++l) nb[l] = nb[0];
+            if (mode == SLAB_SECOND) {
+                w->visit2(w->job, nb, count);
+                continue;
+            }
+            w->visit1(w->job, nb, count);
+            if (mode == SLAB_BOTH) {
+                if (store_reserve(st, (size_t)count * kmax) != CONSPH_OK) {
+                    t->status = CONSPH_ENOMEM;
+                    snprintf(t->why, sizeof t->why, "out of memory keeping %zu neighbours",
+                             (size_t)count * kmax);
+                    return;
+                }
+                store_group(w, st, nb, count, kmax);
+            }
+        }
+    }
+}
+
+int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pass_group_fn visit1,
+                     const char *name2, unsigned need2, pass_group_fn visit2, void *job,
+                     size_t *pairs)
+{
+    if (!s || !s->p || !s->nnps || !visit1 || !visit2 || s->dest || s->kernel.tensor || s->split)
+        return PASS_GROUP_UNSERVED;
+    const size_t n = s->p->n;
+    if (n == 0) return CONSPH_OK;
+    consph_nnps_slots v;
+    if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK || v.n != n) return PASS_GROUP_UNSERVED;
+    if (s->nlist && nlist_serves(s->nlist, n)) {
+        if (!nlist_gathers(s->nlist)) return PASS_GROUP_UNSERVED;
+        (void)nlist_gathers(s->nlist); /* the second pass, counted as run too */
+    }
+    pass_group_runs += 2;
+
+    int64_t nc[CONSPH_MAX_DIM], reach[CONSPH_MAX_DIM];
+    double edge[CONSPH_MAX_DIM];
+    nnps_grid(s->nnps, nc, reach, edge);
+    int outer = 0;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+        if (nc[a] > 1) outer = a;
+    size_t cells_per_slab = 1, nslabs = (size_t)nc[outer];
+    for (int a = 0; a < outer; ++a) cells_per_slab *= (size_t)nc[a];
+    size_t lag = reach[outer] > 0 ? (size_t)reach[outer] : 0;
+    if (cells_per_slab * nslabs != v.ncells) { /* not expected: one slab, two plain passes */
+        cells_per_slab = v.ncells;
+        nslabs = 1;
+    }
+    if (lag > GROUP2_MAX_LAG) lag = nslabs; /* every slab an edge slab */
+
+    sweep w = {s, &v, job, cells_per_slab, need1, need2, 0, 0, 0, 0, visit1, visit2};
+    w.dx1 = !(need1 & CONSPH_PASS_NO_DX);
+    w.dx2 = !(need2 & CONSPH_PASS_NO_DX);
+    w.dx12 = w.dx1 || w.dx2;
+    w.need12 = (need1 | need2) & (CONSPH_PASS_W | CONSPH_PASS_DW | CONSPH_PASS_D2W);
+
+    int status = CONSPH_OK;
+    char why[256] = "";
+    const char *failed = name1;
+    size_t total = 0;
+#pragma omp parallel if (n >= s->parallel_min)
+    {
+        int nthreads = 1, me = 0;
+#ifdef CONSPH_HAVE_OPENMP
+        nthreads = omp_get_num_threads();
+        me = omp_get_thread_num();
+#endif
+        const size_t y0 = nslabs * (size_t)me / (size_t)nthreads;
+        const size_t y1 = nslabs * (size_t)(me + 1) / (size_t)nthreads;
+        sweep_thread t;
+        memset(&t, 0, sizeof t);
+        slab_store *ring = ring_of_thread;
+        for (size_t y = y0; y < y1; ++y)
+            if (y < y0 + lag || y + lag >= y1) run_slab(&w, &t, y, SLAB_FIRST, NULL);
+        const int first_status = t.status;
+#pragma omp barrier
+        for (size_t tt = y0; tt < y1 + lag && t.status == CONSPH_OK; ++tt) {
+            if (tt >= y0 + lag && tt + lag < y1)
+                run_slab(&w, &t, tt, SLAB_BOTH, &ring[tt % (lag + 1)]);
+            if (tt < y0 + lag || t.status != CONSPH_OK) continue;
+            const size_t y = tt - lag;
+            if (y < y0 + lag || y + lag >= y1)
+                run_slab(&w, &t, y, SLAB_SECOND, NULL);
+            else {
+                store_replay(&w, &ring[y % (lag + 1)]);
+                ++t.kept;
+            }
+        }
+#pragma omp critical(consph_pass_run_groups)
+        {
+            total += t.pairs;
+            pass_group_kept_slabs += t.kept;
+            if (t.status != CONSPH_OK && (status == CONSPH_OK || t.status < status)) {
+                status = t.status;
+                failed = first_status != CONSPH_OK ? name1 : name2;
+                memcpy(why, t.why, sizeof why);
+            }
+        }
+        consph_nnps_runs_free(&t.runs);
+        for (int l = 0; l < PASS_GROUP; ++l) nbhd_scratch_free(&t.sc[l]);
+    }
+    if (pairs) *pairs += total;
+    if (status != CONSPH_OK)
+        return consph_fail(status, "pass '%s': %s", failed ? failed : "unnamed", why);
     return CONSPH_OK;
 }
