@@ -169,7 +169,6 @@ typedef struct sweep {
     const consph_sys *s;
     const consph_nnps_slots *v;
     void *job;
-    size_t cells_per_slab;
     unsigned need1, need2, need12;
     int dx1, dx2, dx12; /* the passes' separations wanted */
     pass_group_fn visit1, visit2;
@@ -208,6 +207,17 @@ static int store_reserve(slab_store *st, size_t need)
     return e;
 }
 
+/* n 8-byte words (doubles or size_t), in blocks of four: a lane's few hundred bytes cost a
+ * library memcpy more in its call and dispatch than in the copy. Reads and writes up to three
+ * words past n: the lane scratch has that slack, and the store's room is reserved with it (the
+ * words are overwritten by the next lane, or never read). */
+static inline void copy_words(void *dst, const void *src, size_t n)
+{
+    char *d = dst;
+    const char *s = src;
+    for (size_t k = 0; k < n; k += 4) __builtin_memcpy(d + 8 * k, s + 8 * k, 32);
+}
+
 /* Keeps the group's neighbourhoods nb[0..count) (entries to kmax) in st, compactly: copying
  * from the lane's scratch, hot in the cache, costs less than gathering into the store's spread
  * lanes, which the second pass then reads from further away. */
@@ -216,18 +226,19 @@ static void store_group(const sweep *w, slab_store *st, const consph_nbhd *nb, i
 {
     group_rec *rec = &st->rec[st->nrec++];
     rec->count = count;
-    const size_t bytes = kmax * sizeof(double);
     for (int l = 0; l < count; ++l) {
         const size_t off = st->used;
         rec->i[l] = nb[l].i;
         rec->n[l] = nb[l].n;
         rec->off[l] = off;
-        memcpy(st->slot + off, nb[l].j, kmax * sizeof(size_t));
-        for (int a = 0; a < w->v->dim && w->dx2; ++a) memcpy(st->dx[a] + off, nb[l].dx[a], bytes);
-        memcpy(st->r + off, nb[l].r, bytes);
-        if (w->need2 & CONSPH_PASS_W) memcpy(st->w + off, nb[l].w, bytes);
-        if (w->need2 & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) memcpy(st->dwr + off, nb[l].dwr, bytes);
-        if (w->need2 & CONSPH_PASS_D2W) memcpy(st->d2w + off, nb[l].d2w, bytes);
+        copy_words(st->slot + off, nb[l].j, kmax);
+        for (int a = 0; a < w->v->dim && w->dx2; ++a)
+            copy_words(st->dx[a] + off, nb[l].dx[a], kmax);
+        copy_words(st->r + off, nb[l].r, kmax);
+        if (w->need2 & CONSPH_PASS_W) copy_words(st->w + off, nb[l].w, kmax);
+        if (w->need2 & (CONSPH_PASS_DW | CONSPH_PASS_D2W))
+            copy_words(st->dwr + off, nb[l].dwr, kmax);
+        if (w->need2 & CONSPH_PASS_D2W) copy_words(st->d2w + off, nb[l].d2w, kmax);
         st->used += kmax;
     }
 }
@@ -258,9 +269,9 @@ static void store_replay(const sweep *w, const slab_store *st)
 
 enum { SLAB_FIRST = 1, SLAB_SECOND = 2, SLAB_BOTH = 3 };
 
-/* One slab's groups: the first pass, the second, or the first keeping the neighbourhoods (with
+/* One cell's groups: the first pass, the second, or the first keeping the neighbourhoods (with
  * both passes' kernel values) in st for the second. */
-static void run_slab(const sweep *w, sweep_thread *t, size_t slab, int mode, slab_store *st)
+static void run_cell(const sweep *w, sweep_thread *t, size_t c, int mode, slab_store *st)
 {
     if (t->status != CONSPH_OK) return;
     const consph_nnps_slots *v = w->v;
@@ -269,10 +280,9 @@ static void run_slab(const sweep *w, sweep_thread *t, size_t slab, int mode, sla
                                                 : w->need12;
     const int with_dx = mode == SLAB_FIRST ? w->dx1 : mode == SLAB_SECOND ? w->dx2 : w->dx12;
     const size_t per_pair = mode == SLAB_BOTH ? 2 : 1;
-    if (st) st->nrec = st->used = 0;
-    for (size_t c = slab * w->cells_per_slab; c < (slab + 1) * w->cells_per_slab; ++c) {
+    {
         const size_t first = v->cell_start[c], last = v->cell_start[c + 1];
-        if (first == last) continue;
+        if (first == last) return;
         if (consph_nnps_cell_runs(w->s->nnps, c, &t->runs) == (size_t)-1) {
             t->status = CONSPH_ENOMEM;
             snprintf(t->why, sizeof t->why, "runs of cell %zu: %s", c, consph_last_error());
@@ -304,7 +314,7 @@ static void run_slab(const sweep *w, sweep_thread *t, size_t slab, int mode, sla
             }
             w->visit1(w->job, nb, count);
             if (mode == SLAB_BOTH) {
-                if (store_reserve(st, (size_t)count * kmax) != CONSPH_OK) {
+                if (store_reserve(st, (size_t)count * kmax + 4) != CONSPH_OK) {
                     t->status = CONSPH_ENOMEM;
                     snprintf(t->why, sizeof t->why, "out of memory keeping %zu neighbours",
                              (size_t)count * kmax);
@@ -315,6 +325,46 @@ static void run_slab(const sweep *w, sweep_thread *t, size_t slab, int mode, sla
         }
     }
 }
+
+/* Cells of a tile-slab (the cells of slab y with axis-0 index in [x0, x1), every index on the
+ * axes between) that a call runs: all, the edge columns (within lag0 of the strip's ends, where
+ * a neighbour may lie in another strip) or the others. */
+enum { CELLS_ALL, CELLS_EDGE, CELLS_INNER };
+
+typedef struct tiling {
+    size_t nc0, middle, nslabs; /* cells along axis 0, between, along the outermost axis */
+    size_t lag0, lag;           /* the search's reach along axis 0 and the outermost axis */
+    size_t nstrips;
+} tiling;
+
+static void strip_range(const tiling *tl, size_t strip, size_t *x0, size_t *x1)
+{
+    *x0 = tl->nc0 * strip / tl->nstrips;
+    *x1 = tl->nc0 * (strip + 1) / tl->nstrips;
+}
+
+static void run_tile(const sweep *w, const tiling *tl, sweep_thread *t, size_t strip, size_t y,
+                     int which, int mode, slab_store *st)
+{
+    size_t x0, x1;
+    strip_range(tl, strip, &x0, &x1);
+    const int whole = tl->nstrips == 1; /* axis-0 neighbours wrap into the same strip */
+    for (size_t m = 0; m < tl->middle; ++m) {
+        const size_t base = tl->nc0 * (m + tl->middle * y);
+        for (size_t x = x0; x < x1; ++x) {
+            const int edge = !whole && (x < x0 + tl->lag0 || x + tl->lag0 >= x1);
+            if ((which == CELLS_EDGE && !edge) || (which == CELLS_INNER && edge)) continue;
+            run_cell(w, t, base + x, mode, st);
+        }
+    }
+}
+
+/* A tile-slab's ring entries stay below this many neighbour entries (about 40 bytes each), so
+ * that the ring stays in a core's cache; above it the passes run as two plain sweeps. */
+#define GROUP2_RING_ENTRIES (1u << 17)
+/* Strips of about this many cells along axis 0: a ring of lag + 1 tile-slabs of 2D Taylor-Green
+ * (13 particles and ~45 neighbours per cell) then takes ~0.7 MB. */
+#define GROUP2_STRIP_CELLS 16
 
 int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pass_group_fn visit1,
                      const char *name2, unsigned need2, pass_group_fn visit2, void *job,
@@ -338,20 +388,33 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
     int outer = 0;
     for (int a = 0; a < CONSPH_MAX_DIM; ++a)
         if (nc[a] > 1) outer = a;
-    size_t cells_per_slab = 1, nslabs = (size_t)nc[outer];
-    for (int a = 0; a < outer; ++a) cells_per_slab *= (size_t)nc[a];
-    size_t lag = reach[outer] > 0 ? (size_t)reach[outer] : 0;
-    if (cells_per_slab * nslabs != v.ncells) { /* not expected: one slab, two plain passes */
-        cells_per_slab = v.ncells;
-        nslabs = 1;
+    tiling tl = {(size_t)nc[0], 1, (size_t)nc[outer], 0, 0, 1};
+    for (int a = 1; a < outer; ++a) tl.middle *= (size_t)nc[a];
+    tl.lag0 = reach[0] > 0 ? (size_t)reach[0] : 0;
+    tl.lag = reach[outer] > 0 ? (size_t)reach[outer] : 0;
+    if (outer == 0 || tl.nc0 * tl.middle * tl.nslabs != v.ncells) {
+        /* one slab, every cell an edge: the two passes one after the other */
+        tl.nc0 = v.ncells;
+        tl.middle = tl.nslabs = 1;
+        tl.lag = 1;
     }
-    if (lag > GROUP2_MAX_LAG) lag = nslabs; /* every slab an edge slab */
+    tl.nstrips = (tl.nc0 + GROUP2_STRIP_CELLS / 2) / GROUP2_STRIP_CELLS;
+    if (tl.nstrips < 1) tl.nstrips = 1;
+    /* neighbour entries of one tile-slab, at ~π/9 (2D) or ~π/20 (3D) of the candidates */
+    const double per_cell = (double)n / (double)v.ncells;
+    double cand = per_cell;
+    for (int a = 0; a < v.dim; ++a) cand *= (double)(2 * reach[a] + 1);
+    const double entries = per_cell * cand * (v.dim == 2 ? 0.35 : 0.16) *
+                           (double)(tl.nc0 / tl.nstrips + 1) * (double)tl.middle;
+    if (tl.lag > GROUP2_MAX_LAG || (double)(tl.lag + 1) * entries > GROUP2_RING_ENTRIES)
+        tl.lag = tl.nslabs; /* every slab an edge slab: no ring */
 
-    sweep w = {s, &v, job, cells_per_slab, need1, need2, 0, 0, 0, 0, visit1, visit2};
+    sweep w = {s, &v, job, need1, need2, 0, 0, 0, 0, visit1, visit2};
     w.dx1 = !(need1 & CONSPH_PASS_NO_DX);
     w.dx2 = !(need2 & CONSPH_PASS_NO_DX);
     w.dx12 = w.dx1 || w.dx2;
     w.need12 = (need1 | need2) & (CONSPH_PASS_W | CONSPH_PASS_DW | CONSPH_PASS_D2W);
+    const size_t lag = tl.lag, nslabs = tl.nslabs;
 
     int status = CONSPH_OK;
     char why[256] = "";
@@ -359,32 +422,38 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
     size_t total = 0;
 #pragma omp parallel if (n >= s->parallel_min)
     {
-        int nthreads = 1, me = 0;
-#ifdef CONSPH_HAVE_OPENMP
-        nthreads = omp_get_num_threads();
-        me = omp_get_thread_num();
-#endif
-        const size_t y0 = nslabs * (size_t)me / (size_t)nthreads;
-        const size_t y1 = nslabs * (size_t)(me + 1) / (size_t)nthreads;
         sweep_thread t;
         memset(&t, 0, sizeof t);
         slab_store *ring = ring_of_thread;
-        for (size_t y = y0; y < y1; ++y)
-            if (y < y0 + lag || y + lag >= y1) run_slab(&w, &t, y, SLAB_FIRST, NULL);
-        const int first_status = t.status;
-#pragma omp barrier
-        for (size_t tt = y0; tt < y1 + lag && t.status == CONSPH_OK; ++tt) {
-            if (tt >= y0 + lag && tt + lag < y1)
-                run_slab(&w, &t, tt, SLAB_BOTH, &ring[tt % (lag + 1)]);
-            if (tt < y0 + lag || t.status != CONSPH_OK) continue;
-            const size_t y = tt - lag;
-            if (y < y0 + lag || y + lag >= y1)
-                run_slab(&w, &t, y, SLAB_SECOND, NULL);
-            else {
-                store_replay(&w, &ring[y % (lag + 1)]);
-                ++t.kept;
+        /* 1. the first pass on every cell another tile's second pass reads: the edge slabs and
+         * the edge columns */
+#pragma omp for schedule(dynamic, 1)
+        for (size_t strip = 0; strip < tl.nstrips; ++strip)
+            for (size_t y = 0; y < nslabs; ++y) {
+                const int yedge = y < lag || y + lag >= nslabs;
+                run_tile(&w, &tl, &t, strip, y, yedge ? CELLS_ALL : CELLS_EDGE, SLAB_FIRST, NULL);
             }
-        }
+        const int first_status = t.status;
+        /* 2. each strip's sweep: the first pass on the inner cells of tile-slab tt, kept; the
+         * second on tile-slab tt - lag, whose neighbours' first pass is then done */
+#pragma omp for schedule(dynamic, 1)
+        for (size_t strip = 0; strip < tl.nstrips; ++strip)
+            for (size_t tt = 0; tt < nslabs + lag && t.status == CONSPH_OK; ++tt) {
+                if (tt >= lag && tt + lag < nslabs) {
+                    slab_store *st = &ring[tt % (lag + 1)];
+                    st->nrec = st->used = 0;
+                    run_tile(&w, &tl, &t, strip, tt, CELLS_INNER, SLAB_BOTH, st);
+                }
+                if (tt < lag) continue;
+                const size_t y = tt - lag;
+                if (y < lag || y + lag >= nslabs) {
+                    run_tile(&w, &tl, &t, strip, y, CELLS_ALL, SLAB_SECOND, NULL);
+                } else {
+                    run_tile(&w, &tl, &t, strip, y, CELLS_EDGE, SLAB_SECOND, NULL);
+                    if (t.status == CONSPH_OK) store_replay(&w, &ring[y % (lag + 1)]);
+                    ++t.kept;
+                }
+            }
 #pragma omp critical(consph_pass_run_groups)
         {
             total += t.pairs;

@@ -429,7 +429,22 @@ RV_CLONES static void group_visit_density(void *vjob, const consph_nbhd *nb, int
     group_density(vjob, nb, count);
 }
 
-static void tv_pack_one(const rival_job *job, size_t i);
+/* tvf and edac: ϱ, p, V, m/ϱ, u and ũ - u of particle i into the pack (after its density visit,
+ * which sets ϱ, V, m/ϱ and tvf's p). */
+RV_INLINE void tv_pack_one(const rival_job *job, size_t i)
+{
+    const size_t cap = job->cap;
+    const int d = job->d;
+    double *q = job->pack + i * job->pk;
+    q[0] = job->rho[i];
+    q[1] = job->p[i];
+    q[2] = job->vol[i];
+    q[3] = job->mrho[i];
+    for (int a = 0; a < d; ++a) {
+        q[4 + a] = job->u[a * cap + i];
+        q[4 + d + a] = job->tvdu[a * cap + i];
+    }
+}
 
 /* The density visit that also packs its particles for the rates visit (pass_run_groups2: the
  * rates of a particle may run before the density pass has reached every particle). */
@@ -744,23 +759,6 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
 }
 
 #ifdef RV_GROUPS
-/* tvf and edac: ϱ, p, V, m/ϱ, u and ũ - u of particle i into the pack (after its density visit,
- * which sets ϱ, V, m/ϱ and tvf's p). */
-static void tv_pack_one(const rival_job *job, size_t i)
-{
-    const size_t cap = job->cap;
-    const int d = job->d;
-    double *q = job->pack + i * job->pk;
-    q[0] = job->rho[i];
-    q[1] = job->p[i];
-    q[2] = job->vol[i];
-    q[3] = job->mrho[i];
-    for (int a = 0; a < d; ++a) {
-        q[4 + a] = job->u[a * cap + i];
-        q[4 + d + a] = job->tvdu[a * cap + i];
-    }
-}
-
 /* Every particle into the pack, after a density pass that did not pack. */
 static void tv_pack(const consph_solver *s, const rival_job *job)
 {
