@@ -364,7 +364,7 @@ static void run_tile(const sweep *w, const tiling *tl, sweep_thread *t, size_t s
 #define GROUP2_RING_ENTRIES (1u << 17)
 /* Strips of about this many cells along axis 0: a ring of lag + 1 tile-slabs of 2D Taylor-Green
  * (13 particles and ~45 neighbours per cell) then takes ~0.7 MB. */
-#define GROUP2_STRIP_CELLS 16
+size_t pass_group2_strip_cells = 16;
 
 int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pass_group_fn visit1,
                      const char *name2, unsigned need2, pass_group_fn visit2, void *job,
@@ -398,7 +398,8 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
         tl.middle = tl.nslabs = 1;
         tl.lag = 1;
     }
-    tl.nstrips = (tl.nc0 + GROUP2_STRIP_CELLS / 2) / GROUP2_STRIP_CELLS;
+    const size_t strip_cells = pass_group2_strip_cells ? pass_group2_strip_cells : 1;
+    tl.nstrips = (tl.nc0 + strip_cells / 2) / strip_cells;
     if (tl.nstrips < 1) tl.nstrips = 1;
     /* neighbour entries of one tile-slab, at ~π/9 (2D) or ~π/20 (3D) of the candidates */
     const double per_cell = (double)n / (double)v.ncells;

@@ -35,8 +35,10 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
  * first visit must write results of its own particles only and read nothing that the first
  * visit writes; the second may read any particle's. Returns PASS_GROUP_UNSERVED where
  * pass_run_groups would; pairs counts both passes' pairs. */
-/* Slabs whose second pass read the neighbourhoods the first kept (for tests: that it did). */
+/* Tile-slabs whose second pass read the neighbourhoods the first kept (for tests: that it did),
+ * and the strips' width in cells (16; tests narrow it to have edge columns on small grids). */
 extern unsigned long pass_group_kept_slabs;
+extern size_t pass_group2_strip_cells;
 int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pass_group_fn visit1,
                      const char *name2, unsigned need2, pass_group_fn visit2, void *job,
                      size_t *pairs);
