@@ -839,8 +839,10 @@ static void tv_transport(consph_solver *s, double c)
     const double *u = sv_field(s, SF_U, d), *ab = sv_field(s, SF_UHAT, d);
     double *du = sv_field(s, SF_TVDU, d), *ax = sv_field(s, SF_AX, d);
     if (!u || !ab || !du || !ax) return; /* created by the first right-hand side */
-    for (int a = 0; a < d; ++a)
-        for (size_t i = 0; i < n; ++i) {
+        /* on the threads: a serial loop here is a part of the step that no thread count shortens */
+#pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
+    for (size_t i = 0; i < n; ++i)
+        for (int a = 0; a < d; ++a) {
             du[a * cap + i] = c * ab[a * cap + i];
             ax[a * cap + i] = u[a * cap + i] + du[a * cap + i];
         }
