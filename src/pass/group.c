@@ -150,10 +150,61 @@ typedef struct slab_store {
     size_t used, cap;
 } slab_store;
 
+static void store_free(slab_store *st)
+{
+    free(st->rec);
+    free(st->slot);
+    free(st->j);
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(st->dx[a]);
+    free(st->r);
+    free(st->w);
+    free(st->dwr);
+    free(st->d2w);
+    memset(st, 0, sizeof *st);
+}
+
 /* Each thread's ring of slabs, kept from one call to the next so that its pages stay mapped
- * (allocating megabytes per pass cost more in page faults than the gathers it saves). The
- * library starts no threads of its own; OpenMP's live as long as the process. */
+ * (allocating megabytes per pass cost more in page faults than the gathers it saves), and freed
+ * when the thread ends. */
+static void ring_free(void *p)
+{
+    slab_store *ring = p;
+    for (int k = 0; k <= GROUP2_MAX_LAG; ++k) store_free(&ring[k]);
+    free(ring);
+}
+
+#if !defined(__STDC_NO_THREADS__)
+#include <threads.h>
+static tss_t ring_key;
+static once_flag ring_once = ONCE_FLAG_INIT;
+static int ring_key_made;
+static void ring_key_make(void)
+{
+    ring_key_made = tss_create(&ring_key, ring_free) == thrd_success;
+}
+static slab_store *thread_ring(void)
+{
+    call_once(&ring_once, ring_key_make);
+    if (!ring_key_made) return NULL;
+    slab_store *ring = tss_get(ring_key);
+    if (!ring) {
+        ring = calloc(GROUP2_MAX_LAG + 1, sizeof *ring);
+        if (ring && tss_set(ring_key, ring) != thrd_success) {
+            free(ring);
+            ring = NULL;
+        }
+    }
+    return ring;
+}
+#else
+/* without C11 threads: kept for the thread's life (the library starts no threads itself) */
 static _Thread_local slab_store ring_of_thread[GROUP2_MAX_LAG + 1];
+static slab_store *thread_ring(void)
+{
+    (void)ring_free;
+    return ring_of_thread;
+}
+#endif
 
 unsigned long pass_group_kept_slabs = 0;
 
@@ -425,7 +476,11 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
     {
         sweep_thread t;
         memset(&t, 0, sizeof t);
-        slab_store *ring = ring_of_thread;
+        slab_store *ring = lag < nslabs ? thread_ring() : NULL;
+        if (lag < nslabs && !ring) {
+            t.status = CONSPH_ENOMEM;
+            snprintf(t.why, sizeof t.why, "out of memory for the ring of kept neighbourhoods");
+        }
         /* 1. the first pass on every cell another tile's second pass reads: the edge slabs and
          * the edge columns */
 #pragma omp for schedule(dynamic, 1)
