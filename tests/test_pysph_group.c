@@ -2,7 +2,8 @@
  * lane (src/pass/group.c, the group visits of src/schemes/pysph/scheme.c): every field after
  * every step equals, bit for bit, the per-particle visits' (pysph_group_visits = 0), in 2D and
  * 3D, from a random layout (uneven neighbour counts, so lanes of different lengths and groups of
- * fewer than four), with and without the artificial viscosity and ∇u/∇p, on 1 and 2 threads. */
+ * fewer than four), with and without the artificial viscosity and ∇u/∇p, on 1 and 2 threads;
+ * tvf's and edac's two passes in one sweep (pass_run_groups2) likewise. */
 #include <string.h>
 
 #include "check.h"
@@ -107,6 +108,20 @@ int main(void)
         compare(schemes[k], "taylor-green", 14, wc ? 0.1 : -1.0, 0, 1);
         compare(schemes[k], "taylor-green", 14, wc ? 0.0 : -1.0, 1, 2);
         compare(schemes[k], "beltrami", 6, wc ? 0.1 : -1.0, 0, 1);
+    }
+    /* tvf and edac run their two passes in one sweep (pass_run_groups2): grids of enough slabs
+     * that neighbourhoods are kept from the density pass for the rates, on each thread's band */
+    for (int k = 1; k < 3; ++k) {
+        const unsigned long kept = pass_group_kept_slabs;
+        compare(schemes[k], "taylor-green", 40, -1.0, 0, 1);
+        compare(schemes[k], "taylor-green", 40, -1.0, 1, 2);
+        compare(schemes[k], "beltrami", 16, -1.0, 0, 2);
+        /* strips of 4 cells (3 strips of an 11-cell axis): edge columns between the strips */
+        pass_group2_strip_cells = 4;
+        compare(schemes[k], "taylor-green", 40, -1.0, 0, 1);
+        compare(schemes[k], "taylor-green", 40, -1.0, 0, 2);
+        pass_group2_strip_cells = 16;
+        CHECK(pass_group_kept_slabs > kept, "%s: no slab kept its neighbourhoods", schemes[k]);
     }
     return check_summary("test_pysph_group");
 }

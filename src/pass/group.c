@@ -12,6 +12,11 @@
 #include <stdlib.h>
 #include <string.h>
 
+#ifdef CONSPH_HAVE_OPENMP
+#include <omp.h>
+#endif
+
+#include "nnps/nnps_internal.h"
 #include "pass/nbhd.h"
 #include "pass/nlist.h"
 
@@ -117,5 +122,422 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
     if (pairs) *pairs += total;
     if (status != CONSPH_OK)
         return consph_fail(status, "pass '%s': %s", name ? name : "unnamed", why);
+    return CONSPH_OK;
+}
+
+/* ---- two passes in one sweep (pass_run_groups2) ----
+ *
+ * The cells are cut into slabs: the cells of one index along the outermost axis of the grid
+ * (nnps.c numbers cells with that axis slowest, so a slab is a contiguous range of cells and of
+ * slots). A particle's neighbours lie in the slabs within `lag` (the search's reach along that
+ * axis) of its own, modulo the period. Each thread takes a band of consecutive slabs:
+ *   1. the first pass on the band's lag edge slabs at each end (other bands' second pass reads
+ *      them), gathered as pass_run_groups does it; then a barrier;
+ *   2. one sweep over the band: the first pass on interior slab t, its neighbourhoods gathered
+ *      with the kernel values of both passes and kept, and the second pass on slab t - lag,
+ *      whose neighbours' first pass is then done (interior slabs from the kept neighbourhoods,
+ *      edge slabs gathered again).
+ * A neighbourhood is the same whichever pass gathers it (the gather's hits and r do not depend
+ * on which outputs it writes; the kernel batch's W and W'/r loop gives the separate loops'
+ * values), and each visit writes its own particles only, so the results are those of two
+ * pass_run_groups calls bit for bit for any thread count. Only lag + 1 slabs of
+ * neighbourhoods are kept per thread. */
+
+/* Above this lag (slabs thinner than the radius / 8) every slab is an edge slab: no ring. */
+#define GROUP2_MAX_LAG 8
+
+typedef struct group_rec {
+    int count;
+    size_t i[PASS_GROUP], n[PASS_GROUP], off[PASS_GROUP];
+} group_rec;
+
+/* The kept neighbourhoods of one slab's groups, as the second pass reads them. The gather writes
+ * straight into it: lane l of a group at used + l·stride (stride: the cell's candidates and the
+ * gather's slack), each lane's entries running to the group's kmax (the padding included); the
+ * next group starts after the last lane's kmax entries. The gaps are never touched. */
+typedef struct slab_store {
+    group_rec *rec;
+    size_t nrec, rec_cap;
+    size_t *slot, *j;
+    double *dx[CONSPH_MAX_DIM], *r, *w, *dwr, *d2w;
+    size_t used, cap;
+} slab_store;
+
+static void store_free(slab_store *st)
+{
+    free(st->rec);
+    free(st->slot);
+    free(st->j);
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(st->dx[a]);
+    free(st->r);
+    free(st->w);
+    free(st->dwr);
+    free(st->d2w);
+    memset(st, 0, sizeof *st);
+}
+
+/* Each thread's ring of slabs, kept from one call to the next so that its pages stay mapped
+ * (allocating megabytes per pass cost more in page faults than the gathers it saves), and freed
+ * when the thread ends. */
+static void ring_free(void *p)
+{
+    slab_store *ring = p;
+    for (int k = 0; k <= GROUP2_MAX_LAG; ++k) store_free(&ring[k]);
+    free(ring);
+}
+
+#if !defined(__STDC_NO_THREADS__)
+#include <threads.h>
+static tss_t ring_key;
+static once_flag ring_once = ONCE_FLAG_INIT;
+static int ring_key_made;
+static void ring_key_make(void)
+{
+    ring_key_made = tss_create(&ring_key, ring_free) == thrd_success;
+}
+static slab_store *thread_ring(void)
+{
+    call_once(&ring_once, ring_key_make);
+    if (!ring_key_made) return NULL;
+    slab_store *ring = tss_get(ring_key);
+    if (!ring) {
+        ring = calloc(GROUP2_MAX_LAG + 1, sizeof *ring);
+        if (ring && tss_set(ring_key, ring) != thrd_success) {
+            free(ring);
+            ring = NULL;
+        }
+    }
+    return ring;
+}
+#else
+/* without C11 threads: kept for the thread's life (the library starts no threads itself) */
+static _Thread_local slab_store ring_of_thread[GROUP2_MAX_LAG + 1];
+static slab_store *thread_ring(void)
+{
+    (void)ring_free;
+    return ring_of_thread;
+}
+#endif
+
+unsigned long pass_group_kept_slabs = 0;
+
+static int grow_array(void **p, size_t count, size_t size)
+{
+    void *q = realloc(*p, count * size);
+    if (!q) return CONSPH_ENOMEM;
+    *p = q;
+    return CONSPH_OK;
+}
+
+typedef struct sweep {
+    const consph_sys *s;
+    const consph_nnps_slots *v;
+    void *job;
+    unsigned need1, need2, need12;
+    int dx1, dx2, dx12; /* the passes' separations wanted */
+    pass_group_fn visit1, visit2;
+} sweep;
+
+typedef struct sweep_thread {
+    consph_nnps_runs runs;
+    nbhd_scratch sc[PASS_GROUP];
+    size_t pairs, kept;
+    int status;
+    char why[256];
+} sweep_thread;
+
+/* Room for `need` more entries and one more group in st (the arrays the second pass reads). */
+static int store_reserve(slab_store *st, size_t need)
+{
+    if (st->nrec == st->rec_cap) {
+        const size_t cap = st->rec_cap ? 2 * st->rec_cap : 256;
+        if (grow_array((void **)&st->rec, cap, sizeof *st->rec)) return CONSPH_ENOMEM;
+        st->rec_cap = cap;
+    }
+    need += st->used;
+    if (need <= st->cap) return CONSPH_OK;
+    size_t cap = st->cap ? st->cap : 4096;
+    while (cap < need) cap *= 2;
+    /* every array, whatever this pass reads: the ring serves the thread's later calls too */
+    int e = grow_array((void **)&st->slot, cap, sizeof(size_t));
+    e = e ? e : grow_array((void **)&st->j, cap, sizeof(size_t));
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+        e = e ? e : grow_array((void **)&st->dx[a], cap, sizeof(double));
+    e = e ? e : grow_array((void **)&st->r, cap, sizeof(double));
+    e = e ? e : grow_array((void **)&st->w, cap, sizeof(double));
+    e = e ? e : grow_array((void **)&st->dwr, cap, sizeof(double));
+    e = e ? e : grow_array((void **)&st->d2w, cap, sizeof(double));
+    if (e == CONSPH_OK) st->cap = cap;
+    return e;
+}
+
+/* n 8-byte words (doubles or size_t), in blocks of four: a lane's few hundred bytes cost a
+ * library memcpy more in its call and dispatch than in the copy. Reads and writes up to three
+ * words past n: the lane scratch has that slack, and the store's room is reserved with it (the
+ * words are overwritten by the next lane, or never read). */
+static inline void copy_words(void *dst, const void *src, size_t n)
+{
+    char *d = dst;
+    const char *s = src;
+    for (size_t k = 0; k < n; k += 4) __builtin_memcpy(d + 8 * k, s + 8 * k, 32);
+}
+
+/* Keeps the group's neighbourhoods nb[0..count) (entries to kmax) in st, compactly: copying
+ * from the lane's scratch, hot in the cache, costs less than gathering into the store's spread
+ * lanes, which the second pass then reads from further away. */
+static void store_group(const sweep *w, slab_store *st, const consph_nbhd *nb, int count,
+                        size_t kmax)
+{
+    group_rec *rec = &st->rec[st->nrec++];
+    rec->count = count;
+    for (int l = 0; l < count; ++l) {
+        const size_t off = st->used;
+        rec->i[l] = nb[l].i;
+        rec->n[l] = nb[l].n;
+        rec->off[l] = off;
+        copy_words(st->slot + off, nb[l].j, kmax);
+        for (int a = 0; a < w->v->dim && w->dx2; ++a)
+            copy_words(st->dx[a] + off, nb[l].dx[a], kmax);
+        copy_words(st->r + off, nb[l].r, kmax);
+        if (w->need2 & CONSPH_PASS_W) copy_words(st->w + off, nb[l].w, kmax);
+        if (w->need2 & (CONSPH_PASS_DW | CONSPH_PASS_D2W))
+            copy_words(st->dwr + off, nb[l].dwr, kmax);
+        if (w->need2 & CONSPH_PASS_D2W) copy_words(st->d2w + off, nb[l].d2w, kmax);
+        st->used += kmax;
+    }
+}
+
+/* The second pass over the groups kept in st. */
+static void store_replay(const sweep *w, const slab_store *st)
+{
+    const size_t *j = st->slot;
+    for (size_t g = 0; g < st->nrec; ++g) {
+        const group_rec *rec = &st->rec[g];
+        consph_nbhd nb[PASS_GROUP];
+        for (int l = 0; l < rec->count; ++l) {
+            const size_t off = rec->off[l];
+            nb[l].i = rec->i[l];
+            nb[l].n = rec->n[l];
+            nb[l].j = j + off;
+            for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+                nb[l].dx[a] = w->dx2 && a < w->v->dim ? st->dx[a] + off : NULL;
+            nb[l].r = st->r + off;
+            nb[l].w = w->need2 & CONSPH_PASS_W ? st->w + off : NULL;
+            nb[l].dwr = w->need2 & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? st->dwr + off : NULL;
+            nb[l].d2w = w->need2 & CONSPH_PASS_D2W ? st->d2w + off : NULL;
+        }
+        for (int l = rec->count; l < PASS_GROUP; ++l) nb[l] = nb[0];
+        w->visit2(w->job, nb, rec->count);
+    }
+}
+
+enum { SLAB_FIRST = 1, SLAB_SECOND = 2, SLAB_BOTH = 3 };
+
+/* One cell's groups: the first pass, the second, or the first keeping the neighbourhoods (with
+ * both passes' kernel values) in st for the second. */
+static void run_cell(const sweep *w, sweep_thread *t, size_t c, int mode, slab_store *st)
+{
+    if (t->status != CONSPH_OK) return;
+    const consph_nnps_slots *v = w->v;
+    const unsigned need = mode == SLAB_FIRST    ? w->need1
+                          : mode == SLAB_SECOND ? w->need2
+                                                : w->need12;
+    const int with_dx = mode == SLAB_FIRST ? w->dx1 : mode == SLAB_SECOND ? w->dx2 : w->dx12;
+    const size_t per_pair = mode == SLAB_BOTH ? 2 : 1;
+    {
+        const size_t first = v->cell_start[c], last = v->cell_start[c + 1];
+        if (first == last) return;
+        if (consph_nnps_cell_runs(w->s->nnps, c, &t->runs) == (size_t)-1) {
+            t->status = CONSPH_ENOMEM;
+            snprintf(t->why, sizeof t->why, "runs of cell %zu: %s", c, consph_last_error());
+            return;
+        }
+        /* the gather's slack, and the kernel batch's rounding up to whole vectors */
+        const size_t stride = t->runs.candidates + CONSPH_NNPS_GATHER_SLACK + 4;
+        for (int l = 0; l < PASS_GROUP; ++l)
+            if (nbhd_scratch_reserve(&t->sc[l], stride) != CONSPH_OK) {
+                t->status = CONSPH_ENOMEM;
+                snprintf(t->why, sizeof t->why, "out of memory for %zu candidate neighbours",
+                         t->runs.candidates);
+                return;
+            }
+        for (size_t g = first; g < last; g += PASS_GROUP) {
+            consph_nbhd nb[PASS_GROUP];
+            const int count = last - g < PASS_GROUP ? (int)(last - g) : PASS_GROUP;
+            size_t kmax = 0;
+            for (int l = 0; l < count; ++l) {
+                nbhd_gather(w->s, v, &t->runs, g + (size_t)l, need, with_dx, &t->sc[l], &nb[l]);
+                t->pairs += per_pair * nb[l].n;
+                if (nb[l].n > kmax) kmax = nb[l].n;
+            }
+            for (int l = 0; l < count; ++l) lane_pad(&t->sc[l], &nb[l], kmax);
+            for (int l = count; l < PASS_GROUP; ++l) nb[l] = nb[0];
+            if (mode == SLAB_SECOND) {
+                w->visit2(w->job, nb, count);
+                continue;
+            }
+            w->visit1(w->job, nb, count);
+            if (mode == SLAB_BOTH) {
+                if (store_reserve(st, (size_t)count * kmax + 4) != CONSPH_OK) {
+                    t->status = CONSPH_ENOMEM;
+                    snprintf(t->why, sizeof t->why, "out of memory keeping %zu neighbours",
+                             (size_t)count * kmax);
+                    return;
+                }
+                store_group(w, st, nb, count, kmax);
+            }
+        }
+    }
+}
+
+/* Cells of a tile-slab (the cells of slab y with axis-0 index in [x0, x1), every index on the
+ * axes between) that a call runs: all, the edge columns (within lag0 of the strip's ends, where
+ * a neighbour may lie in another strip) or the others. */
+enum { CELLS_ALL, CELLS_EDGE, CELLS_INNER };
+
+typedef struct tiling {
+    size_t nc0, middle, nslabs; /* cells along axis 0, between, along the outermost axis */
+    size_t lag0, lag;           /* the search's reach along axis 0 and the outermost axis */
+    size_t nstrips;
+} tiling;
+
+static void strip_range(const tiling *tl, size_t strip, size_t *x0, size_t *x1)
+{
+    *x0 = tl->nc0 * strip / tl->nstrips;
+    *x1 = tl->nc0 * (strip + 1) / tl->nstrips;
+}
+
+static void run_tile(const sweep *w, const tiling *tl, sweep_thread *t, size_t strip, size_t y,
+                     int which, int mode, slab_store *st)
+{
+    size_t x0, x1;
+    strip_range(tl, strip, &x0, &x1);
+    const int whole = tl->nstrips == 1; /* axis-0 neighbours wrap into the same strip */
+    for (size_t m = 0; m < tl->middle; ++m) {
+        const size_t base = tl->nc0 * (m + tl->middle * y);
+        for (size_t x = x0; x < x1; ++x) {
+            const int edge = !whole && (x < x0 + tl->lag0 || x + tl->lag0 >= x1);
+            if ((which == CELLS_EDGE && !edge) || (which == CELLS_INNER && edge)) continue;
+            run_cell(w, t, base + x, mode, st);
+        }
+    }
+}
+
+/* A tile-slab's ring entries stay below this many neighbour entries (about 40 bytes each), so
+ * that the ring stays in a core's cache; above it the passes run as two plain sweeps. */
+#define GROUP2_RING_ENTRIES (1u << 17)
+/* Strips of about this many cells along axis 0: a ring of lag + 1 tile-slabs of 2D Taylor-Green
+ * (13 particles and ~45 neighbours per cell) then takes ~0.7 MB. */
+size_t pass_group2_strip_cells = 16;
+
+int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pass_group_fn visit1,
+                     const char *name2, unsigned need2, pass_group_fn visit2, void *job,
+                     size_t *pairs)
+{
+    if (!s || !s->p || !s->nnps || !visit1 || !visit2 || s->dest || s->kernel.tensor || s->split)
+        return PASS_GROUP_UNSERVED;
+    const size_t n = s->p->n;
+    if (n == 0) return CONSPH_OK;
+    consph_nnps_slots v;
+    if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK || v.n != n) return PASS_GROUP_UNSERVED;
+    if (s->nlist && nlist_serves(s->nlist, n)) {
+        if (!nlist_gathers(s->nlist)) return PASS_GROUP_UNSERVED;
+        (void)nlist_gathers(s->nlist); /* the second pass, counted as run too */
+    }
+    pass_group_runs += 2;
+
+    int64_t nc[CONSPH_MAX_DIM], reach[CONSPH_MAX_DIM];
+    double edge[CONSPH_MAX_DIM];
+    nnps_grid(s->nnps, nc, reach, edge);
+    int outer = 0;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+        if (nc[a] > 1) outer = a;
+    tiling tl = {(size_t)nc[0], 1, (size_t)nc[outer], 0, 0, 1};
+    for (int a = 1; a < outer; ++a) tl.middle *= (size_t)nc[a];
+    tl.lag0 = reach[0] > 0 ? (size_t)reach[0] : 0;
+    tl.lag = reach[outer] > 0 ? (size_t)reach[outer] : 0;
+    if (outer == 0 || tl.nc0 * tl.middle * tl.nslabs != v.ncells) {
+        /* one slab, every cell an edge: the two passes one after the other */
+        tl.nc0 = v.ncells;
+        tl.middle = tl.nslabs = 1;
+        tl.lag = 1;
+    }
+    const size_t strip_cells = pass_group2_strip_cells ? pass_group2_strip_cells : 1;
+    tl.nstrips = (tl.nc0 + strip_cells / 2) / strip_cells;
+    if (tl.nstrips < 1) tl.nstrips = 1;
+    /* neighbour entries of one tile-slab, at ~π/9 (2D) or ~π/20 (3D) of the candidates */
+    const double per_cell = (double)n / (double)v.ncells;
+    double cand = per_cell;
+    for (int a = 0; a < v.dim; ++a) cand *= (double)(2 * reach[a] + 1);
+    const double entries = per_cell * cand * (v.dim == 2 ? 0.35 : 0.16) *
+                           (double)(tl.nc0 / tl.nstrips + 1) * (double)tl.middle;
+    if (tl.lag > GROUP2_MAX_LAG || (double)(tl.lag + 1) * entries > GROUP2_RING_ENTRIES)
+        tl.lag = tl.nslabs; /* every slab an edge slab: no ring */
+
+    sweep w = {s, &v, job, need1, need2, 0, 0, 0, 0, visit1, visit2};
+    w.dx1 = !(need1 & CONSPH_PASS_NO_DX);
+    w.dx2 = !(need2 & CONSPH_PASS_NO_DX);
+    w.dx12 = w.dx1 || w.dx2;
+    w.need12 = (need1 | need2) & (CONSPH_PASS_W | CONSPH_PASS_DW | CONSPH_PASS_D2W);
+    const size_t lag = tl.lag, nslabs = tl.nslabs;
+
+    int status = CONSPH_OK;
+    char why[256] = "";
+    const char *failed = name1;
+    size_t total = 0;
+#pragma omp parallel if (n >= s->parallel_min)
+    {
+        sweep_thread t;
+        memset(&t, 0, sizeof t);
+        slab_store *ring = lag < nslabs ? thread_ring() : NULL;
+        if (lag < nslabs && !ring) {
+            t.status = CONSPH_ENOMEM;
+            snprintf(t.why, sizeof t.why, "out of memory for the ring of kept neighbourhoods");
+        }
+        /* 1. the first pass on every cell another tile's second pass reads: the edge slabs and
+         * the edge columns */
+#pragma omp for schedule(dynamic, 1)
+        for (size_t strip = 0; strip < tl.nstrips; ++strip)
+            for (size_t y = 0; y < nslabs; ++y) {
+                const int yedge = y < lag || y + lag >= nslabs;
+                run_tile(&w, &tl, &t, strip, y, yedge ? CELLS_ALL : CELLS_EDGE, SLAB_FIRST, NULL);
+            }
+        const int first_status = t.status;
+        /* 2. each strip's sweep: the first pass on the inner cells of tile-slab tt, kept; the
+         * second on tile-slab tt - lag, whose neighbours' first pass is then done */
+#pragma omp for schedule(dynamic, 1)
+        for (size_t strip = 0; strip < tl.nstrips; ++strip)
+            for (size_t tt = 0; tt < nslabs + lag && t.status == CONSPH_OK; ++tt) {
+                if (tt >= lag && tt + lag < nslabs) {
+                    slab_store *st = &ring[tt % (lag + 1)];
+                    st->nrec = st->used = 0;
+                    run_tile(&w, &tl, &t, strip, tt, CELLS_INNER, SLAB_BOTH, st);
+                }
+                if (tt < lag) continue;
+                const size_t y = tt - lag;
+                if (y < lag || y + lag >= nslabs) {
+                    run_tile(&w, &tl, &t, strip, y, CELLS_ALL, SLAB_SECOND, NULL);
+                } else {
+                    run_tile(&w, &tl, &t, strip, y, CELLS_EDGE, SLAB_SECOND, NULL);
+                    if (t.status == CONSPH_OK) store_replay(&w, &ring[y % (lag + 1)]);
+                    ++t.kept;
+                }
+            }
+#pragma omp critical(consph_pass_run_groups)
+        {
+            total += t.pairs;
+            pass_group_kept_slabs += t.kept;
+            if (t.status != CONSPH_OK && (status == CONSPH_OK || t.status < status)) {
+                status = t.status;
+                failed = first_status != CONSPH_OK ? name1 : name2;
+                memcpy(why, t.why, sizeof why);
+            }
+        }
+        consph_nnps_runs_free(&t.runs);
+        for (int l = 0; l < PASS_GROUP; ++l) nbhd_scratch_free(&t.sc[l]);
+    }
+    if (pairs) *pairs += total;
+    if (status != CONSPH_OK)
+        return consph_fail(status, "pass '%s': %s", failed ? failed : "unnamed", why);
     return CONSPH_OK;
 }

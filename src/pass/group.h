@@ -31,4 +31,20 @@ extern unsigned long pass_group_runs;
 int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
                     void *job, size_t *pairs);
 
+/* Two passes over one position state where the second reads what the first wrote of the
+ * neighbours (a summation density, then the rates): the results of pass_run_groups(first)
+ * followed by pass_run_groups(second), bit for bit, with each neighbourhood gathered and its
+ * kernel values evaluated once for both where it can be (group.c: the passes run slab by slab
+ * of cells, the second a few slabs behind the first, the neighbourhoods in between kept). The
+ * first visit must write results of its own particles only and read nothing that the first
+ * visit writes; the second may read any particle's. Returns PASS_GROUP_UNSERVED where
+ * pass_run_groups would; pairs counts both passes' pairs. */
+/* Tile-slabs whose second pass read the neighbourhoods the first kept (for tests: that it did),
+ * and the strips' width in cells (16; tests narrow it to have edge columns on small grids). */
+extern unsigned long pass_group_kept_slabs;
+extern size_t pass_group2_strip_cells;
+int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pass_group_fn visit1,
+                     const char *name2, unsigned need2, pass_group_fn visit2, void *job,
+                     size_t *pairs);
+
 #endif

@@ -429,6 +429,32 @@ RV_CLONES static void group_visit_density(void *vjob, const consph_nbhd *nb, int
     group_density(vjob, nb, count);
 }
 
+/* tvf and edac: ϱ, p, V, m/ϱ, u and ũ - u of particle i into the pack (after its density visit,
+ * which sets ϱ, V, m/ϱ and tvf's p). */
+RV_INLINE void tv_pack_one(const rival_job *job, size_t i)
+{
+    const size_t cap = job->cap;
+    const int d = job->d;
+    double *q = job->pack + i * job->pk;
+    q[0] = job->rho[i];
+    q[1] = job->p[i];
+    q[2] = job->vol[i];
+    q[3] = job->mrho[i];
+    for (int a = 0; a < d; ++a) {
+        q[4 + a] = job->u[a * cap + i];
+        q[4 + d + a] = job->tvdu[a * cap + i];
+    }
+}
+
+/* The density visit that also packs its particles for the rates visit (pass_run_groups2: the
+ * rates of a particle may run before the density pass has reached every particle). */
+RV_CLONES static void group_visit_density_pack(void *vjob, const consph_nbhd *nb, int count)
+{
+    const rival_job *job = vjob;
+    group_density(job, nb, count);
+    for (int l = 0; l < count; ++l) tv_pack_one(job, nb[l].i);
+}
+
 /* visit_tv_d over a group: pysph_tv_pair's operations in its order, per lane. */
 RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count, const int d,
                           const int edac, const int grads)
@@ -733,24 +759,12 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
 }
 
 #ifdef RV_GROUPS
-/* tvf and edac: ϱ, p, V, m/ϱ, u and ũ - u of every particle into the pack (after the density
- * pass, which sets ϱ, V, m/ϱ and tvf's p). */
+/* Every particle into the pack, after a density pass that did not pack. */
 static void tv_pack(const consph_solver *s, const rival_job *job)
 {
-    const size_t n = s->sys.p->n, cap = job->cap;
-    const int d = job->d;
+    const size_t n = s->sys.p->n;
 #pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
-    for (size_t i = 0; i < n; ++i) {
-        double *q = job->pack + i * job->pk;
-        q[0] = job->rho[i];
-        q[1] = job->p[i];
-        q[2] = job->vol[i];
-        q[3] = job->mrho[i];
-        for (int a = 0; a < d; ++a) {
-            q[4 + a] = job->u[a * cap + i];
-            q[4 + d + a] = job->tvdu[a * cap + i];
-        }
-    }
+    for (size_t i = 0; i < n; ++i) tv_pack_one(job, i);
 }
 #endif
 
@@ -792,11 +806,20 @@ static int rhs_tv(consph_solver *s, int kind)
     if (st != CONSPH_OK) return st;
     const consph_pass dens = {"tv density", CONSPH_PASS_W | CONSPH_PASS_NO_DX, visit_density};
     const consph_pass rates = {"tv rates", CONSPH_PASS_DW, visit_tv};
-    st = run_pass(s, &dens, group_visit_density, &job);
+    st = PASS_GROUP_UNSERVED;
 #ifdef RV_GROUPS
-    if (st == CONSPH_OK && job.pack) tv_pack(s, &job);
+    /* both passes in one sweep, each neighbourhood gathered once where it can be */
+    if (pysph_group_visits && job.pack)
+        st = pass_run_groups2(&s->sys, dens.name, dens.need, group_visit_density_pack, rates.name,
+                              rates.need, group_visit_tv, &job, &s->pairs);
 #endif
-    if (st == CONSPH_OK) st = run_pass(s, &rates, job.pack ? group_visit_tv : NULL, &job);
+    if (st == PASS_GROUP_UNSERVED) {
+        st = run_pass(s, &dens, group_visit_density, &job);
+#ifdef RV_GROUPS
+        if (st == CONSPH_OK && job.pack) tv_pack(s, &job);
+#endif
+        if (st == CONSPH_OK) st = run_pass(s, &rates, job.pack ? group_visit_tv : NULL, &job);
+    }
     if (st != CONSPH_OK) return st;
     s->passes = 2;
     double *rhof = sv_field(s, SF_RHOF, 1);
@@ -816,8 +839,10 @@ static void tv_transport(consph_solver *s, double c)
     const double *u = sv_field(s, SF_U, d), *ab = sv_field(s, SF_UHAT, d);
     double *du = sv_field(s, SF_TVDU, d), *ax = sv_field(s, SF_AX, d);
     if (!u || !ab || !du || !ax) return; /* created by the first right-hand side */
-    for (int a = 0; a < d; ++a)
-        for (size_t i = 0; i < n; ++i) {
+        /* on the threads: a serial loop here is a part of the step that no thread count shortens */
+#pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
+    for (size_t i = 0; i < n; ++i)
+        for (int a = 0; a < d; ++a) {
             du[a * cap + i] = c * ab[a * cap + i];
             ax[a * cap + i] = u[a * cap + i] + du[a * cap + i];
         }
