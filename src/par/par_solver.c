@@ -53,6 +53,10 @@ struct par_solver {
     double edge[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM]; /* cell edge, box length */
     int64_t *cut[CONSPH_MAX_DIM];                     /* k[a] + 1 each */
     int *piece[CONSPH_MAX_DIM];                       /* per axis cell: its piece along the axis */
+    /* per axis cell: the pieces along the axis whose box or halo holds it, ascending (cover
+     * from cover_off[a][c] to cover_off[a][c + 1]); a cell's ranks are their products */
+    int *cover_off[CONSPH_MAX_DIM], *cover[CONSPH_MAX_DIM];
+    int *ranks;    /* size: scratch for covering */
     int64_t nrows; /* cells of the axes above the first (a row: c_0 varies) */
     int64_t *seg;  /* per row and piece along axis 0: particles (serial index) */
     size_t nglobal, nown;
@@ -241,23 +245,25 @@ static int col_goes(const unsigned char *mq, const unsigned char *mr, size_t c)
     return (mq[c] & COL_CHANGED) || (mr[c] & COL_WANTED);
 }
 
-static int refresh(consph_sys *sys, void *ctx)
+/* The halo's first ncols columns from their owners (all: refresh; the positions alone:
+ * refresh_positions). */
+static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
 {
-    par_solver *ps = ctx;
     consph_particles *p = sys->p;
     const size_t n = p->n;
     const double t0 = MPI_Wtime();
     /* the scratch a job asked for in blocks of n (consph_sys_scratch: k·n values) */
     size_t blocks = 0;
     if (sys->scratch && n && sys->scratch_asked % n == 0) blocks = sys->scratch_asked / n;
-    const size_t ncols = halo_columns(ps, sys, blocks);
+    const size_t nall = halo_columns(ps, sys, blocks);
+    const size_t ncols = positions_only && nall ? (size_t)p->dim : nall;
     const size_t ns = ps->sdispl[ps->size - 1] + (size_t)ps->scount[ps->size - 1];
     const size_t nr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
-    int st = ncols ? halo_state_reserve(ps, ncols) : par_fail_mem();
+    int st = ncols ? halo_state_reserve(ps, nall) : par_fail_mem();
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
     /* the kept columns that still mean the same: positions and fields counted alike, and the
      * scratch blocks both had */
-    size_t valid = ncols - blocks == ps->base ? ps->nvalid : 0;
+    size_t valid = nall - blocks == ps->base ? ps->nvalid : 0;
     if (valid > ncols) valid = ncols;
     for (size_t c = 0; c < ncols; ++c) {
         int changed = c >= valid;
@@ -326,11 +332,27 @@ static int refresh(consph_sys *sys, void *ctx)
             for (size_t k = 0; k < ns; ++k) old[k] = v[ps->sidx[k]];
         }
     }
-    ps->base = ncols - blocks;
-    ps->nvalid = ncols;
+    /* the positions alone leave the kept columns' count: a column they did not refresh that
+     * was not kept is still wanted at the next full refresh */
+    if (!positions_only) {
+        ps->base = nall - blocks;
+        ps->nvalid = nall;
+    }
     ps->bytes += (double)(sdbl * sizeof(double) + ncols * (size_t)(ps->size - 1));
     ps->seconds += MPI_Wtime() - t0;
     return CONSPH_OK;
+}
+
+static int refresh(consph_sys *sys, void *ctx)
+{
+    return refresh_some(sys, ctx, 0);
+}
+
+/* Before a search rebuild (consph_sys_update) only the halo's positions are read; the pass
+ * that follows refreshes every column that changed since. */
+static int refresh_positions(consph_sys *sys, void *ctx)
+{
+    return refresh_some(sys, ctx, 1);
 }
 
 static double split_max(void *ctx, double v)
@@ -372,28 +394,76 @@ static int owner_of(const par_solver *ps, const int64_t *ac)
     return q;
 }
 
+/* Whether axis cell c is within the halo width of piece i along axis a (the nearest periodic
+ * image), or in it (2). */
+static int piece_covers(const par_solver *ps, int a, int i, int64_t c)
+{
+    const int64_t lo = ps->cut[a][i], hi = ps->cut[a][i + 1], n = ps->nc[a];
+    if (c >= lo && c < hi) return 2;
+    int64_t below = lo - c, above = c - (hi - 1);
+    if (ps->periodic[a]) {
+        below = ((below % n) + n) % n;
+        above = ((above % n) + n) % n;
+    } else {
+        if (below < 0) below = INT64_MAX;
+        if (above < 0) above = INT64_MAX;
+    }
+    return (below < above ? below : above) <= ps->width[a];
+}
+
 /* Whether the cell ac is in rank q's halo: not q's, and along every axis within the halo
- * width of q's box (the nearest periodic image). */
+ * width of q's box. */
 static int in_halo(const par_solver *ps, int q, const int64_t *ac)
 {
     int inside = 1;
     for (int a = 0; a < ps->dim; ++a) {
         const int iq = q % ps->k[a];
         q /= ps->k[a];
-        const int64_t lo = ps->cut[a][iq], hi = ps->cut[a][iq + 1], c = ac[a], n = ps->nc[a];
-        if (c >= lo && c < hi) continue;
-        inside = 0;
-        int64_t below = lo - c, above = c - (hi - 1);
-        if (ps->periodic[a]) {
-            below = ((below % n) + n) % n;
-            above = ((above % n) + n) % n;
-        } else {
-            if (below < 0) below = INT64_MAX;
-            if (above < 0) above = INT64_MAX;
-        }
-        if ((below < above ? below : above) > ps->width[a]) return 0;
+        const int cov = piece_covers(ps, a, iq, ac[a]);
+        if (!cov) return 0;
+        inside = inside && cov == 2;
     }
     return !inside;
+}
+
+/* The cover lists of every axis after a cut. */
+static void cover_axes(par_solver *ps)
+{
+    for (int a = 0; a < ps->dim; ++a) {
+        int m = 0;
+        for (int64_t c = 0; c < ps->nc[a]; ++c) {
+            ps->cover_off[a][c] = m;
+            for (int i = 0; i < ps->k[a]; ++i)
+                if (piece_covers(ps, a, i, c)) ps->cover[a][m++] = i;
+        }
+        ps->cover_off[a][ps->nc[a]] = m;
+    }
+}
+
+/* The ranks whose box or halo holds the cell ac (its owner and the ranks whose halo holds
+ * it), ascending, into ps->ranks; returns their count. Only they, not every rank, are looked
+ * at per particle. */
+static int covering(const par_solver *ps, const int64_t *ac)
+{
+    static const int zero = 0;
+    const int *l[CONSPH_MAX_DIM];
+    int m[CONSPH_MAX_DIM];
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
+        if (a < ps->dim) {
+            const int o = ps->cover_off[a][ac[a]];
+            l[a] = ps->cover[a] + o;
+            m[a] = ps->cover_off[a][ac[a] + 1] - o;
+        } else {
+            l[a] = &zero;
+            m[a] = 1;
+        }
+    }
+    int n = 0;
+    for (int t2 = 0; t2 < m[2]; ++t2)
+        for (int t1 = 0; t1 < m[1]; ++t1)
+            for (int t0 = 0; t0 < m[0]; ++t0)
+                ps->ranks[n++] = (l[2][t2] * ps->k[1] + l[1][t1]) * ps->k[0] + l[0][t0];
+    return n;
 }
 
 /* The cut of every axis by the owned particles' counts per axis cell (ac: dim per particle). */
@@ -421,6 +491,7 @@ static int cut_boxes(par_solver *ps, const int64_t *ac, size_t n)
         cut_axis(ps->cut[a], ps->piece[a], ps->k[a], ps->nc[a], all + off);
         off += ps->nc[a];
     }
+    cover_axes(ps);
     free(count);
     free(all);
     return CONSPH_OK;
@@ -521,13 +592,17 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
     }
     /* the exchange lists: what each rank's halo takes of ours, what ours takes of each */
     size_t ns = 0, nr = 0;
-    for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
-        ps->scount[q] = ps->rcount[q] = 0;
-        for (size_t k = 0; k < kept; ++k) {
-            if (dest[k] && q != ps->rank && in_halo(ps, q, acell + k * (size_t)dim))
-                ++ps->scount[q];
-            if (!dest[k] && owner[k] == q) ++ps->rcount[q];
+    for (int q = 0; q < ps->size; ++q) ps->scount[q] = ps->rcount[q] = 0;
+    for (size_t k = 0; st == CONSPH_OK && k < kept; ++k) {
+        if (!dest[k]) {
+            ++ps->rcount[owner[k]];
+            continue;
         }
+        const int nq = covering(ps, acell + k * (size_t)dim);
+        for (int t = 0; t < nq; ++t)
+            if (ps->ranks[t] != ps->rank) ++ps->scount[ps->ranks[t]];
+    }
+    for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
         ps->sdispl[q] = (int)ns;
         ps->rdispl[q] = (int)nr;
         ns += (size_t)ps->scount[q];
@@ -553,12 +628,17 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
                 g[k] = -1.0;
             }
         }
-        for (int q = 0; q < ps->size; ++q) {
-            size_t si = (size_t)ps->sdispl[q], ri = (size_t)ps->rdispl[q];
-            for (size_t k = 0; k < kept; ++k) {
-                if (dest[k] && q != ps->rank && in_halo(ps, q, acell + k * (size_t)dim))
-                    ps->sidx[si++] = k;
-                if (!dest[k] && owner[k] == q) ps->ridx[ri++] = k;
+        /* ascending k within each rank's part; the counts serve as cursors */
+        for (int q = 0; q < ps->size; ++q) ps->scount[q] = ps->rcount[q] = 0;
+        for (size_t k = 0; k < kept; ++k) {
+            if (!dest[k]) {
+                ps->ridx[(size_t)ps->rdispl[owner[k]] + (size_t)ps->rcount[owner[k]]++] = k;
+                continue;
+            }
+            const int nq = covering(ps, acell + k * (size_t)dim);
+            for (int t = 0; t < nq; ++t) {
+                const int q = ps->ranks[t];
+                if (q != ps->rank) ps->sidx[(size_t)ps->sdispl[q] + (size_t)ps->scount[q]++] = k;
             }
         }
     }
@@ -586,10 +666,15 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
     free(ps->g);
     ps->g = g;
     ps->nown = nown;
-    /* new halo lists, the halo as the owners packed it */
+    /* new halo lists, the halo as the owners packed it: the search is built without a
+     * refresh, which would find nothing changed */
     st = halo_state_from_cut(ps, &s->sys);
     if (st != CONSPH_OK) return st;
-    return consph_sys_update(&s->sys, 0);
+    const consph_sys_split *split = s->sys.split;
+    s->sys.split = NULL;
+    st = consph_sys_update(&s->sys, 0);
+    s->sys.split = split;
+    return st;
 }
 
 /* Every owned particle to the rank that owns its cell now and to the ranks whose halo holds
@@ -611,6 +696,22 @@ static int migrate(consph_solver *s, par_solver *ps)
             ac[o * dim + a] = nnps_axis_cell(s->sys.nnps, (int)a, p->x[a][ps->own[o]]);
     if (cut_boxes(ps, ac, ps->nown) != CONSPH_OK) MPI_Abort(ps->comm, 1);
     for (size_t o = 0; o < ps->nown; ++o) owner[o] = owner_of(ps, ac + o * dim);
+    /* per rank, the owned particles it will hold (owns or has in its halo), ascending */
+    size_t *go_off = consph_calloc((size_t)ps->size + 1, sizeof(size_t)), *go = NULL;
+    if (!go_off) MPI_Abort(ps->comm, 1);
+    for (size_t o = 0; o < ps->nown; ++o) {
+        const int nq = covering(ps, ac + o * dim);
+        for (int t = 0; t < nq; ++t) ++go_off[ps->ranks[t] + 1];
+    }
+    for (int q = 0; q < ps->size; ++q) go_off[q + 1] += go_off[q];
+    go = malloc((go_off[ps->size] ? go_off[ps->size] : 1) * sizeof(size_t));
+    if (!go) MPI_Abort(ps->comm, 1);
+    for (size_t o = 0; o < ps->nown; ++o) {
+        const int nq = covering(ps, ac + o * dim);
+        for (int t = 0; t < nq; ++t) go[go_off[ps->ranks[t]]++] = o;
+    }
+    for (int q = ps->size; q > 0; --q) go_off[q] = go_off[q - 1];
+    go_off[0] = 0;
     const size_t per = values_per_particle(p) + 1; /* + g */
     const size_t ncol = per - 1;
     int *cnt = consph_calloc((size_t)ps->size, sizeof(int));
@@ -648,11 +749,10 @@ static int migrate(consph_solver *s, par_solver *ps)
         const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
         size_t d = 0;
-        for (size_t o = 0; o < ps->nown; ++o)
-            if (owner[o] == q || in_halo(ps, q, ac + o * dim)) {
-                ++cnt[q];
-                d += 2 + (q != ps->rank && slot[ps->own[o]] >= 0 ? sel : ncol);
-            }
+        for (size_t t = go_off[q]; t < go_off[q + 1]; ++t) {
+            ++cnt[q];
+            d += 2 + (q != ps->rank && slot[ps->own[go[t]]] >= 0 ? sel : ncol);
+        }
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = -1;
         if (d > INT32_MAX || nsd > INT32_MAX)
             st = consph_fail(CONSPH_EINVAL, "MPI decomposition: more than 2^31 values to one "
@@ -687,9 +787,8 @@ static int migrate(consph_solver *s, par_solver *ps)
         const unsigned char *mq = ps->masks + (size_t)q * ncol;
         const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
-        for (size_t o = 0; o < ps->nown; ++o) {
-            if (owner[o] != q && !in_halo(ps, q, ac + o * dim)) continue;
-            const size_t i = ps->own[o];
+        for (size_t t = go_off[q]; t < go_off[q + 1]; ++t) {
+            const size_t i = ps->own[go[t]];
             const long sl = q != ps->rank ? slot[i] : -1;
             *v++ = ps->g[i];
             *v++ = (double)sl;
@@ -721,6 +820,8 @@ static int migrate(consph_solver *s, par_solver *ps)
     free(full);
     free(ac);
     free(owner);
+    free(go_off);
+    free(go);
     free(cnt);
     free(rcnt);
     free(sd);
@@ -1079,7 +1180,10 @@ void par_solver_free(par_solver *ps)
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
         free(ps->cut[a]);
         free(ps->piece[a]);
+        free(ps->cover_off[a]);
+        free(ps->cover[a]);
     }
+    free(ps->ranks);
     free(ps->seg);
     free(ps->g);
     free(ps->own);
@@ -1216,10 +1320,14 @@ int consph_par_solver_decompose(consph_solver *s)
     for (int a = 0; a < ps->dim; ++a) {
         ps->cut[a] = consph_calloc((size_t)ps->k[a] + 1, sizeof(int64_t));
         ps->piece[a] = consph_calloc((size_t)ps->nc[a], sizeof(int));
-        mem = mem && ps->cut[a] && ps->piece[a];
+        ps->cover_off[a] = consph_calloc((size_t)ps->nc[a] + 1, sizeof(int));
+        ps->cover[a] = consph_calloc((size_t)ps->nc[a] * (size_t)ps->k[a], sizeof(int));
+        mem = mem && ps->cut[a] && ps->piece[a] && ps->cover_off[a] && ps->cover[a];
         if (a > 0) ps->nrows *= ps->nc[a];
     }
     ps->seg = consph_calloc((size_t)ps->nrows * (size_t)ps->k[0], sizeof(int64_t));
+    ps->ranks = consph_calloc((size_t)size, sizeof(int));
+    mem = mem && ps->ranks;
     ps->g = malloc((n ? n : 1) * sizeof(double));
     ps->own = malloc((n ? n : 1) * sizeof(size_t));
     ps->scount = consph_calloc((size_t)size, sizeof(int));
@@ -1247,6 +1355,7 @@ int consph_par_solver_decompose(consph_solver *s)
     for (size_t i = lo; i < hi; ++i) ps->own[i - lo] = i;
     ps->nown = hi - lo;
     ps->split.refresh = refresh;
+    ps->split.refresh_positions = refresh_positions;
     ps->split.max = split_max;
     ps->split.ctx = ps;
     free(s->sys.dest);
