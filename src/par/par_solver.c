@@ -82,6 +82,8 @@ struct par_solver {
     unsigned char *mask, *masks; /* per column COL_CHANGED | COL_WANTED: this rank's, all ranks' */
     size_t col_cap, masks_cap;
     consph_sys_split split;
+    /* the particle set the last install replaced: its storage serves the next one */
+    consph_particles spare;
     size_t pairs_base; /* the solver's pair count when it was cut (counted on every rank) */
     double bytes, seconds;
 };
@@ -140,6 +142,33 @@ static int particles_like_some(consph_particles *out, const consph_particles *li
 static int particles_like(consph_particles *out, const consph_particles *like, size_t n)
 {
     return particles_like_some(out, like, n, NULL);
+}
+
+/* A set like `like` for n particles (a re-sort's install): the spare set's storage when its
+ * fields are like's and it has room, else new storage with a quarter more room, so that the
+ * particle counts moving a little at each re-sort neither allocate (zero-filled pages
+ * touched afresh) nor change the capacity that the integrator's scratch is sized by. */
+static int particles_for(consph_particles *spare, consph_particles *out,
+                         const consph_particles *like, size_t n)
+{
+    int same = spare->x[0] && spare->cap >= n && spare->dim == like->dim &&
+               spare->nfields == like->nfields;
+    for (int f = 0; same && f < like->nfields; ++f)
+        same = spare->fields[f].ncomp == like->fields[f].ncomp &&
+               !strcmp(spare->fields[f].name, like->fields[f].name);
+    if (!same) {
+        if (spare->x[0]) consph_particles_free(spare);
+        const size_t cap = n + n / 4;
+        int st = particles_like(out, like, cap);
+        if (st == CONSPH_OK) out->n = n;
+        return st;
+    }
+    *out = *spare;
+    memset(spare, 0, sizeof *spare);
+    out->n = n;
+    out->box = like->box;
+    out->spacing = like->spacing;
+    return CONSPH_OK;
 }
 
 /* pack of the positions and the selected fields */
@@ -552,7 +581,7 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
     }
     qsort(h, kept, sizeof *h, held_cmp);
     consph_particles np;
-    int st = particles_like(&np, p, kept);
+    int st = particles_for(&ps->spare, &np, p, kept);
     size_t nown = 0;
     unsigned char *dest = st == CONSPH_OK ? consph_calloc(kept ? kept : 1, 1) : NULL;
     size_t *origin = st == CONSPH_OK ? consph_calloc(kept ? kept : 1, sizeof(size_t)) : NULL;
@@ -653,16 +682,19 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
         free(g);
         return st;
     }
-    consph_particles_free(p);
+    const size_t oldcap = p->cap;
+    ps->spare = *p;
     *p = np;
     free(s->sys.origin);
     s->sys.origin = origin;
     free(s->sys.dest);
     s->sys.dest = dest;
     s->sys.scratch_asked = 0;
-    /* the integrator's scratch is sized by the particles' capacity, which changed */
-    free(s->integ_scratch);
-    s->integ_scratch = NULL;
+    /* the integrator's scratch is sized by the particles' capacity */
+    if (p->cap != oldcap) {
+        free(s->integ_scratch);
+        s->integ_scratch = NULL;
+    }
     free(ps->g);
     ps->g = g;
     ps->nown = nown;
@@ -1184,6 +1216,7 @@ void par_solver_free(par_solver *ps)
         free(ps->cover[a]);
     }
     free(ps->ranks);
+    if (ps->spare.x[0]) consph_particles_free(&ps->spare);
     free(ps->seg);
     free(ps->g);
     free(ps->own);
