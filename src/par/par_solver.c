@@ -207,6 +207,42 @@ static int counts_to_doubles(par_solver *ps, const int *cnt, int *dbl, int *dis,
     return CONSPH_OK;
 }
 
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
+    !defined(__AVX2__)
+#define PAR_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define PAR_CLONES
+#endif
+
+/* Whether v[idx[k]] differs bitwise from old[k] for some k < n. Every refresh scans each
+ * column the owners did not change in full, so the scan is branch-free in blocks (gathers
+ * where the processor has them). */
+PAR_CLONES
+static int column_changed(const double *v, const size_t *idx, const double *old, size_t n)
+{
+    enum { BLOCK = 256 };
+    for (size_t k0 = 0; k0 < n; k0 += BLOCK) {
+        const size_t k1 = n - k0 < BLOCK ? n : k0 + BLOCK;
+        uint64_t diff = 0;
+        for (size_t k = k0; k < k1; ++k) {
+            uint64_t a, b;
+            memcpy(&a, &v[idx[k]], sizeof a);
+            memcpy(&b, &old[k], sizeof b);
+            diff |= a ^ b;
+        }
+        if (diff) return 1;
+    }
+    return 0;
+}
+
+/* out[k] = v[idx[k]] */
+PAR_CLONES
+static void gather_column(double *restrict out, const double *restrict v, const size_t *idx,
+                          size_t n)
+{
+    for (size_t k = 0; k < n; ++k) out[k] = v[idx[k]];
+}
+
 /* ---- the halo refresh (consph_sys_split) ---- */
 
 /* The columns of a refresh: positions, every named field's components, then the scratch
@@ -259,8 +295,8 @@ static int halo_state_from_cut(par_solver *ps, consph_sys *sys)
     const size_t nr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
     for (size_t c = 0; c < ncols; ++c) {
         const double *v = ps->col[c];
-        for (size_t k = 0; k < ns; ++k) ps->sent[c * ns + k] = v[ps->sidx[k]];
-        for (size_t k = 0; k < nr; ++k) ps->got[c * nr + k] = v[ps->ridx[k]];
+        gather_column(ps->sent + c * ns, v, ps->sidx, ns);
+        gather_column(ps->got + c * nr, v, ps->ridx, nr);
     }
     ps->base = ncols;
     ps->nvalid = ncols;
@@ -295,10 +331,8 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
     size_t valid = nall - blocks == ps->base ? ps->nvalid : 0;
     if (valid > ncols) valid = ncols;
     for (size_t c = 0; c < ncols; ++c) {
-        int changed = c >= valid;
-        const double *v = ps->col[c], *old = ps->sent + c * ns;
-        for (size_t k = 0; !changed && k < ns; ++k)
-            changed = memcmp(&v[ps->sidx[k]], &old[k], sizeof(double)) != 0;
+        const int changed =
+            c >= valid || column_changed(ps->col[c], ps->sidx, ps->sent + c * ns, ns);
         ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
     }
     MPI_Allgather(ps->mask, (int)ncols, MPI_UNSIGNED_CHAR, ps->masks, (int)ncols, MPI_UNSIGNED_CHAR,
@@ -330,7 +364,8 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
         for (size_t c = 0; c < ncols; ++c) {
             if (col_goes(ps->mask, mq, c)) {
                 const double *v = ps->col[c];
-                for (size_t k = s0; k < s1; ++k) ps->sbuf[so++] = v[ps->sidx[k]];
+                gather_column(ps->sbuf + so, v, ps->sidx + s0, s1 - s0);
+                so += s1 - s0;
             }
             if (col_goes(mq, ps->mask, c)) ro += r1 - r0;
         }
@@ -358,7 +393,7 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
         for (size_t k = 0; k < nr; ++k) v[ps->ridx[k]] = in[k];
         if (ps->mask[c] & COL_CHANGED) {
             double *old = ps->sent + c * ns;
-            for (size_t k = 0; k < ns; ++k) old[k] = v[ps->sidx[k]];
+            gather_column(old, v, ps->sidx, ns);
         }
     }
     /* the positions alone leave the kept columns' count: a column they did not refresh that
@@ -764,10 +799,8 @@ static int migrate(consph_solver *s, par_solver *ps)
     if (st == CONSPH_OK) st = halo_state_reserve(ps, ncol);
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
     for (size_t c = 0; c < ncol; ++c) {
-        int changed = c >= valid;
-        const double *v = ps->col[c], *old = ps->sent + c * ons;
-        for (size_t k = 0; !changed && k < ons; ++k)
-            changed = memcmp(&v[ps->sidx[k]], &old[k], sizeof(double)) != 0;
+        const int changed =
+            c >= valid || column_changed(ps->col[c], ps->sidx, ps->sent + c * ons, ons);
         ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
     }
     MPI_Allgather(ps->mask, (int)ncol, MPI_UNSIGNED_CHAR, ps->masks, (int)ncol, MPI_UNSIGNED_CHAR,
