@@ -386,11 +386,13 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
             }
     }
     /* every column of the halo from what its owners sent last: a scheme may have written halo
-     * values since, and the pass must read the owners' */
+     * values since, and the pass must read the owners'. A column whose halo holds them already
+     * (most: neither its owners nor this rank changed it) is only read. */
     for (size_t c = 0; c < ncols; ++c) {
         double *v = ps->col[c];
         const double *in = ps->got + c * nr;
-        for (size_t k = 0; k < nr; ++k) v[ps->ridx[k]] = in[k];
+        if (column_changed(v, ps->ridx, in, nr))
+            for (size_t k = 0; k < nr; ++k) v[ps->ridx[k]] = in[k];
         if (ps->mask[c] & COL_CHANGED) {
             double *old = ps->sent + c * ns;
             gather_column(old, v, ps->sidx, ns);
