@@ -598,19 +598,25 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
     int64_t *acell = malloc((m ? m : 1) * (size_t)dim * sizeof *acell);
     int *owner = malloc((m ? m : 1) * sizeof *owner);
     int64_t *segn = consph_calloc(nseg, sizeof(int64_t));
-    if (!h || !acell || !owner || !segn) {
+    /* per record: its axis cells and owner, found once */
+    int64_t *rac = malloc((m ? m : 1) * (size_t)dim * sizeof *rac);
+    int *rowner = malloc((m ? m : 1) * sizeof *rowner);
+    if (!h || !acell || !owner || !segn || !rac || !rowner) {
         free(h);
         free(acell);
         free(owner);
         free(segn);
+        free(rac);
+        free(rowner);
         return par_fail_mem();
     }
     size_t kept = 0;
     for (size_t k = 0; k < m; ++k) {
         const double *v = vals + k * per;
-        int64_t ac[CONSPH_MAX_DIM];
+        int64_t *ac = rac + k * (size_t)dim;
         const int64_t c = cell_of(ps, s->sys.nnps, v, ac);
-        if (owner_of(ps, ac) != ps->rank && !in_halo(ps, ps->rank, ac)) continue;
+        rowner[k] = owner_of(ps, ac);
+        if (rowner[k] != ps->rank && !in_halo(ps, ps->rank, ac)) continue;
         h[kept].cell = c;
         h[kept].g = v[per - 1];
         h[kept].at = k;
@@ -628,8 +634,8 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
         const double *v = vals + h[k].at * per;
         unpack(&np, k, v);
         int64_t *ac = acell + k * (size_t)dim;
-        cell_of(ps, s->sys.nnps, v, ac);
-        owner[k] = owner_of(ps, ac);
+        for (int a = 0; a < dim; ++a) ac[a] = rac[h[k].at * (size_t)dim + (size_t)a];
+        owner[k] = rowner[h[k].at];
         dest[k] = owner[k] == ps->rank;
         nown += dest[k];
         origin[k] = k;
@@ -712,6 +718,8 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
     free(segn);
     free(h);
     free(acell);
+    free(rac);
+    free(rowner);
     if (st != CONSPH_OK) {
         if (np.x[0]) consph_particles_free(&np);
         free(dest);
