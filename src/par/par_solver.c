@@ -589,8 +589,22 @@ static int64_t cell_of(const par_solver *ps, const consph_nnps *nn, const double
 
 /* The particles this rank now holds (m of them, packed: positions, fields, g) become its
  * system: sorted by (cell, g), the owned ones marked, the exchange lists made. */
-static int install(consph_solver *s, par_solver *ps, const double *vals, size_t m, size_t per)
+/* Particle i of src to slot k of dst (the same fields, in the same order). */
+static void copy_particle(consph_particles *dst, size_t k, const consph_particles *src, size_t i)
 {
+    for (int a = 0; a < src->dim; ++a) dst->x[a][k] = src->x[a][i];
+    for (int f = 0; f < src->nfields; ++f) {
+        const double *in = src->fields[f].data + i;
+        double *out = dst->fields[f].data + k;
+        for (int c = 0; c < src->fields[f].ncomp; ++c)
+            out[(size_t)c * dst->cap] = in[(size_t)c * src->cap];
+    }
+}
+
+static int install(consph_solver *s, par_solver *ps, const double *recv, size_t nrecv, size_t per,
+                   const size_t *self, size_t nself)
+{
+    const size_t m = nself + nrecv;
     consph_particles *p = s->sys.p;
     const int dim = p->dim;
     const size_t nseg = (size_t)ps->nrows * (size_t)ps->k[0];
@@ -611,14 +625,17 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
         return par_fail_mem();
     }
     size_t kept = 0;
+    /* records k < nself: this rank's particle self[k]; then the received ones */
     for (size_t k = 0; k < m; ++k) {
-        const double *v = vals + k * per;
+        double xk[CONSPH_MAX_DIM];
+        const double *v = k < nself ? xk : recv + (k - nself) * per;
+        for (int a = 0; k < nself && a < dim; ++a) xk[a] = p->x[a][self[k]];
         int64_t *ac = rac + k * (size_t)dim;
         const int64_t c = cell_of(ps, s->sys.nnps, v, ac);
         rowner[k] = owner_of(ps, ac);
         if (rowner[k] != ps->rank && !in_halo(ps, ps->rank, ac)) continue;
         h[kept].cell = c;
-        h[kept].g = v[per - 1];
+        h[kept].g = k < nself ? ps->g[self[k]] : v[per - 1];
         h[kept].at = k;
         ++kept;
     }
@@ -631,8 +648,11 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
     double *g = st == CONSPH_OK ? malloc((kept ? kept : 1) * sizeof(double)) : NULL;
     if (st == CONSPH_OK && (!dest || !origin || !g)) st = par_fail_mem();
     for (size_t k = 0; st == CONSPH_OK && k < kept; ++k) {
-        const double *v = vals + h[k].at * per;
-        unpack(&np, k, v);
+        const size_t at = h[k].at;
+        if (at < nself)
+            copy_particle(&np, k, p, self[at]);
+        else
+            unpack(&np, k, recv + (at - nself) * per);
         int64_t *ac = acell + k * (size_t)dim;
         for (int a = 0; a < dim; ++a) ac[a] = rac[h[k].at * (size_t)dim + (size_t)a];
         owner[k] = rowner[h[k].at];
@@ -824,9 +844,10 @@ static int migrate(consph_solver *s, par_solver *ps)
         const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
         size_t d = 0;
-        for (size_t t = go_off[q]; t < go_off[q + 1]; ++t) {
+        /* what stays on this rank is read by install from the particles themselves */
+        for (size_t t = go_off[q]; q != ps->rank && t < go_off[q + 1]; ++t) {
             ++cnt[q];
-            d += 2 + (q != ps->rank && slot[ps->own[go[t]]] >= 0 ? sel : ncol);
+            d += 2 + (slot[ps->own[go[t]]] >= 0 ? sel : ncol);
         }
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = -1;
         if (d > INT32_MAX || nsd > INT32_MAX)
@@ -862,9 +883,9 @@ static int migrate(consph_solver *s, par_solver *ps)
         const unsigned char *mq = ps->masks + (size_t)q * ncol;
         const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
-        for (size_t t = go_off[q]; t < go_off[q + 1]; ++t) {
+        for (size_t t = go_off[q]; q != ps->rank && t < go_off[q + 1]; ++t) {
             const size_t i = ps->own[go[t]];
-            const long sl = q != ps->rank ? slot[i] : -1;
+            const long sl = slot[i];
             *v++ = ps->g[i];
             *v++ = (double)sl;
             for (size_t c = 0; c < ncol; ++c)
@@ -891,7 +912,10 @@ static int migrate(consph_solver *s, par_solver *ps)
         (double)((nsd - (size_t)sd[ps->rank]) * sizeof(double) + ncol * (size_t)(ps->size - 1));
     ps->seconds += MPI_Wtime() - t0;
     free(slot);
-    st = install(s, ps, full, nr, per);
+    /* the owned particles that stay (owned here or in this rank's halo), as local indices */
+    const size_t nself = go_off[ps->rank + 1] - go_off[ps->rank];
+    for (size_t t = 0; t < nself; ++t) go[t] = ps->own[go[go_off[ps->rank] + t]];
+    st = install(s, ps, full, nr, per, go, nself);
     free(full);
     free(ac);
     free(owner);
