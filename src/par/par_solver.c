@@ -532,6 +532,40 @@ static int covering(const par_solver *ps, const int64_t *ac)
     return n;
 }
 
+/* The pairs (rank, particle) of covering for particles idx[0..n) (ac: their axis cells, dim
+ * per particle; only those with want[k], when given), in particle order, rank `skip` left
+ * out; each rank's count added to count[rank + 1]. Covering is found once per particle. */
+typedef struct cover_pairs {
+    int *q;
+    size_t *k, n, cap;
+} cover_pairs;
+
+static int cover_collect(par_solver *ps, cover_pairs *cp, const int64_t *ac, size_t n,
+                         const unsigned char *want, int skip, size_t *count)
+{
+    cp->n = 0;
+    for (size_t k = 0; k < n; ++k) {
+        if (want && !want[k]) continue;
+        const int nq = covering(ps, ac + k * (size_t)ps->dim);
+        if (cp->n + (size_t)nq > cp->cap) {
+            const size_t cap = 2 * (cp->n + (size_t)nq) + 64;
+            int *q = realloc(cp->q, cap * sizeof *q);
+            if (q) cp->q = q;
+            size_t *kk = q ? realloc(cp->k, cap * sizeof *kk) : NULL;
+            if (kk) cp->k = kk;
+            if (!q || !kk) return par_fail_mem();
+            cp->cap = cap;
+        }
+        for (int t = 0; t < nq; ++t)
+            if (ps->ranks[t] != skip) {
+                cp->q[cp->n] = ps->ranks[t];
+                cp->k[cp->n++] = k;
+                ++count[ps->ranks[t] + 1];
+            }
+    }
+    return CONSPH_OK;
+}
+
 /* The cut of every axis by the owned particles' counts per axis cell (ac: dim per particle). */
 static int cut_boxes(par_solver *ps, const int64_t *ac, size_t n)
 {
@@ -684,16 +718,17 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, size_t 
     }
     /* the exchange lists: what each rank's halo takes of ours, what ours takes of each */
     size_t ns = 0, nr = 0;
-    for (int q = 0; q < ps->size; ++q) ps->scount[q] = ps->rcount[q] = 0;
-    for (size_t k = 0; st == CONSPH_OK && k < kept; ++k) {
-        if (!dest[k]) {
-            ++ps->rcount[owner[k]];
-            continue;
-        }
-        const int nq = covering(ps, acell + k * (size_t)dim);
-        for (int t = 0; t < nq; ++t)
-            if (ps->ranks[t] != ps->rank) ++ps->scount[ps->ranks[t]];
+    cover_pairs cp = {NULL, NULL, 0, 0};
+    size_t *scnt = st == CONSPH_OK ? consph_calloc((size_t)ps->size + 1, sizeof(size_t)) : NULL;
+    if (st == CONSPH_OK &&
+        (!scnt || cover_collect(ps, &cp, acell, kept, dest, ps->rank, scnt) != CONSPH_OK))
+        st = par_fail_mem();
+    for (int q = 0; q < ps->size; ++q) {
+        ps->scount[q] = st == CONSPH_OK ? (int)scnt[q + 1] : 0;
+        ps->rcount[q] = 0;
     }
+    for (size_t k = 0; st == CONSPH_OK && k < kept; ++k)
+        if (!dest[k]) ++ps->rcount[owner[k]];
     for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
         ps->sdispl[q] = (int)ns;
         ps->rdispl[q] = (int)nr;
@@ -722,18 +757,17 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, size_t 
         }
         /* ascending k within each rank's part; the counts serve as cursors */
         for (int q = 0; q < ps->size; ++q) ps->scount[q] = ps->rcount[q] = 0;
-        for (size_t k = 0; k < kept; ++k) {
-            if (!dest[k]) {
+        for (size_t k = 0; k < kept; ++k)
+            if (!dest[k])
                 ps->ridx[(size_t)ps->rdispl[owner[k]] + (size_t)ps->rcount[owner[k]]++] = k;
-                continue;
-            }
-            const int nq = covering(ps, acell + k * (size_t)dim);
-            for (int t = 0; t < nq; ++t) {
-                const int q = ps->ranks[t];
-                if (q != ps->rank) ps->sidx[(size_t)ps->sdispl[q] + (size_t)ps->scount[q]++] = k;
-            }
+        for (size_t e = 0; e < cp.n; ++e) {
+            const int q = cp.q[e];
+            ps->sidx[(size_t)ps->sdispl[q] + (size_t)ps->scount[q]++] = cp.k[e];
         }
     }
+    free(cp.q);
+    free(cp.k);
+    free(scnt);
     free(owner);
     free(segn);
     free(h);
@@ -796,17 +830,14 @@ static int migrate(consph_solver *s, par_solver *ps)
     /* per rank, the owned particles it will hold (owns or has in its halo), ascending */
     size_t *go_off = consph_calloc((size_t)ps->size + 1, sizeof(size_t)), *go = NULL;
     if (!go_off) MPI_Abort(ps->comm, 1);
-    for (size_t o = 0; o < ps->nown; ++o) {
-        const int nq = covering(ps, ac + o * dim);
-        for (int t = 0; t < nq; ++t) ++go_off[ps->ranks[t] + 1];
-    }
+    cover_pairs cp = {NULL, NULL, 0, 0};
+    if (cover_collect(ps, &cp, ac, ps->nown, NULL, -1, go_off) != CONSPH_OK) MPI_Abort(ps->comm, 1);
     for (int q = 0; q < ps->size; ++q) go_off[q + 1] += go_off[q];
     go = malloc((go_off[ps->size] ? go_off[ps->size] : 1) * sizeof(size_t));
     if (!go) MPI_Abort(ps->comm, 1);
-    for (size_t o = 0; o < ps->nown; ++o) {
-        const int nq = covering(ps, ac + o * dim);
-        for (int t = 0; t < nq; ++t) go[go_off[ps->ranks[t]]++] = o;
-    }
+    for (size_t e = 0; e < cp.n; ++e) go[go_off[cp.q[e]]++] = cp.k[e];
+    free(cp.q);
+    free(cp.k);
     for (int q = ps->size; q > 0; --q) go_off[q] = go_off[q - 1];
     go_off[0] = 0;
     const size_t per = values_per_particle(p) + 1; /* + g */
