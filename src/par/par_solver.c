@@ -621,8 +621,61 @@ static int64_t cell_of(const par_solver *ps, const consph_nnps *nn, const double
     return c;
 }
 
-/* The particles this rank now holds (m of them, packed: positions, fields, g) become its
- * system: sorted by (cell, g), the owned ones marked, the exchange lists made. */
+static int held_less(const held *a, const held *b)
+{
+    return a->cell != b->cell ? a->cell < b->cell : a->g < b->g;
+}
+
+/* h[0..n) sorted by (cell, g), h being the runs [bound[r], bound[r + 1]) for r < nb, each in
+ * the order of the previous re-sort: few particles change cells in a step, so a run is
+ * insertion-sorted in about its length (past a budget of moves, by qsort), then the runs are
+ * merged. (cell, g) is unique: any sort gives the same order. */
+static int sort_held(held *h, size_t n, const size_t *bound, int nb)
+{
+    for (int r = 0; r < nb; ++r) {
+        const size_t b0 = bound[r], b1 = bound[r + 1];
+        size_t moves = 0, budget = 8 * (b1 - b0) + 1024;
+        for (size_t i = b0 + 1; i < b1 && moves <= budget; ++i) {
+            const held x = h[i];
+            size_t j = i;
+            for (; j > b0 && held_less(&x, &h[j - 1]) && moves <= budget; --j, ++moves)
+                h[j] = h[j - 1];
+            h[j] = x;
+        }
+        if (moves > budget) qsort(h + b0, b1 - b0, sizeof *h, held_cmp);
+    }
+    if (nb < 2) return CONSPH_OK;
+    held *t = malloc(n * sizeof *t);
+    size_t *b = malloc(((size_t)nb + 1) * sizeof *b);
+    if (!t || !b) {
+        free(t);
+        free(b);
+        return par_fail_mem();
+    }
+    memcpy(b, bound, ((size_t)nb + 1) * sizeof *b);
+    held *src = h, *dst = t;
+    while (nb > 1) {
+        int out = 0;
+        for (int r = 0; r < nb; r += 2) {
+            const size_t lo = b[r], mid = b[r + 1], hi = r + 2 <= nb ? b[r + 2] : mid;
+            size_t i = lo, j = mid, o = lo;
+            while (i < mid && j < hi) dst[o++] = held_less(&src[j], &src[i]) ? src[j++] : src[i++];
+            while (i < mid) dst[o++] = src[i++];
+            while (j < hi) dst[o++] = src[j++];
+            b[out++] = lo;
+        }
+        b[out] = n;
+        nb = out;
+        held *x = src;
+        src = dst;
+        dst = x;
+    }
+    if (src != h) memcpy(h, src, n * sizeof *h);
+    free(t);
+    free(b);
+    return CONSPH_OK;
+}
+
 /* Particle i of src to slot k of dst (the same fields, in the same order). */
 static void copy_particle(consph_particles *dst, size_t k, const consph_particles *src, size_t i)
 {
@@ -635,8 +688,11 @@ static void copy_particle(consph_particles *dst, size_t k, const consph_particle
     }
 }
 
+/* The particles this rank now holds become its system: sorted by (cell, g), the owned ones
+ * marked, the exchange lists made. They are this rank's particles self[0..nself), then those
+ * received (packed: positions, fields, g), rcnt[q] from rank q in its order. */
 static int install(consph_solver *s, par_solver *ps, const double *recv, size_t nrecv, size_t per,
-                   const size_t *self, size_t nself)
+                   const size_t *self, size_t nself, const int *rcnt)
 {
     const size_t m = nself + nrecv;
     consph_particles *p = s->sys.p;
@@ -659,8 +715,16 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, size_t 
         return par_fail_mem();
     }
     size_t kept = 0;
+    /* the runs of records in the previous order: this rank's, then each sender's */
+    size_t *bound = malloc(((size_t)ps->size + 2) * sizeof *bound);
+    if (!bound) MPI_Abort(ps->comm, 1);
+    int nb = 0, sender = 0;
+    size_t next = nself;
+    bound[nb++] = 0;
     /* records k < nself: this rank's particle self[k]; then the received ones */
     for (size_t k = 0; k < m; ++k) {
+        for (; k == next && sender < ps->size; next += (size_t)rcnt[sender++])
+            if (bound[nb - 1] != kept) bound[nb++] = kept;
         double xk[CONSPH_MAX_DIM];
         const double *v = k < nself ? xk : recv + (k - nself) * per;
         for (int a = 0; k < nself && a < dim; ++a) xk[a] = p->x[a][self[k]];
@@ -673,9 +737,11 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, size_t 
         h[kept].at = k;
         ++kept;
     }
-    qsort(h, kept, sizeof *h, held_cmp);
+    if (bound[nb - 1] != kept || nb == 1) bound[nb++] = kept;
+    int st = sort_held(h, kept, bound, nb - 1);
+    free(bound);
     consph_particles np;
-    int st = particles_for(&ps->spare, &np, p, kept);
+    if (st == CONSPH_OK) st = particles_for(&ps->spare, &np, p, kept);
     size_t nown = 0;
     unsigned char *dest = st == CONSPH_OK ? consph_calloc(kept ? kept : 1, 1) : NULL;
     size_t *origin = st == CONSPH_OK ? consph_calloc(kept ? kept : 1, sizeof(size_t)) : NULL;
@@ -946,7 +1012,7 @@ static int migrate(consph_solver *s, par_solver *ps)
     /* the owned particles that stay (owned here or in this rank's halo), as local indices */
     const size_t nself = go_off[ps->rank + 1] - go_off[ps->rank];
     for (size_t t = 0; t < nself; ++t) go[t] = ps->own[go[go_off[ps->rank] + t]];
-    st = install(s, ps, full, nr, per, go, nself);
+    st = install(s, ps, full, nr, per, go, nself, rcnt);
     free(full);
     free(ac);
     free(owner);
