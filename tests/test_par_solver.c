@@ -6,7 +6,8 @@
  * to the serial run's final files; a launch on more ranks than slabs is refused on every rank;
  * the cases are cut at the set-up (consph_par_solver_create), the files' runs after it; on 4
  * ranks, some cases and the restart with the boxes forced to 2 x 2 pieces across two axes;
- * the halo refresh sends only changed columns and leaves the halo equal to its owners.
+ * the halo refresh sends only changed columns and leaves the halo equal to its owners (the
+ * positions alone for refresh_positions).
  *
  * Run without mpirun, the test computes the serial references and launches itself under
  * `mpirun -np 2` and `-np 3` (--oversubscribe: this machine may have fewer cores); skips (77)
@@ -311,6 +312,27 @@ static int check_refresh(void)
     consph_par_solver_comm(s, &b3, &sec);
     if (b3 - b2 != masks) {
         fprintf(stderr, "rank %d: a refresh with nothing changed sent %g bytes\n", rank, b3 - b2);
+        bad = 1;
+    }
+    /* a halo position and a value of a column no owner changed, written here:
+     * refresh_positions (consph_sys_update's) puts the position back and leaves the field to
+     * the next refresh, which puts it back too */
+    const int mine = first_halo < p->n && p->nfields > 1;
+    double *f1 = p->nfields > 1 ? p->fields[1].data : NULL;
+    const double kx = mine ? p->x[0][first_halo] : 0.0, kf = mine ? f1[first_halo] : 0.0;
+    if (mine) {
+        p->x[0][first_halo] = kx + 0.5 * p->spacing;
+        f1[first_halo] = -9.0;
+    }
+    sys->split->refresh_positions(sys, sys->split->ctx);
+    if (mine && (memcmp(&p->x[0][first_halo], &kx, 8) || f1[first_halo] != -9.0)) {
+        fprintf(stderr, "rank %d: refresh_positions left x %g (owner's %g), field %g (-9)\n", rank,
+                p->x[0][first_halo], kx, f1[first_halo]);
+        bad = 1;
+    }
+    sys->split->refresh(sys, sys->split->ctx);
+    if (mine && memcmp(&f1[first_halo], &kf, 8)) {
+        fprintf(stderr, "rank %d: a halo value of an unchanged column was not put back\n", rank);
         bad = 1;
     }
     consph_solver_free(s);

@@ -73,13 +73,16 @@ struct consph_sys;
  * Its particles outside the destination mask are the halo: copies of other parts' particles.
  * refresh brings the halo's positions, named fields and the system scratch (in blocks of n
  * values) up to date with their owners; it runs at the start of every pass and of every
- * consph_sys_update, so a pass reads the neighbours' current values whatever the caller
- * changed since. max is the maximum of v over every part (NaN when any part's is NaN), for a
- * loop over the particles that must agree on every part. */
+ * consph_sys_update (refresh_positions there, where given), so a pass reads the neighbours'
+ * current values whatever the caller changed since. max is the maximum of v over every part (NaN
+ * when any part's is NaN), for a loop over the particles that must agree on every part. */
 typedef struct consph_sys_split {
     int (*refresh)(struct consph_sys *s, void *ctx);
     double (*max)(void *ctx, double v);
     void *ctx;
+    /* optional: the halo's positions alone, at consph_sys_update (whose search reads nothing
+     * else; the next pass refreshes the rest); NULL: refresh */
+    int (*refresh_positions)(struct consph_sys *s, void *ctx);
 } consph_sys_split;
 
 typedef struct consph_sys {

@@ -53,6 +53,10 @@ struct par_solver {
     double edge[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM]; /* cell edge, box length */
     int64_t *cut[CONSPH_MAX_DIM];                     /* k[a] + 1 each */
     int *piece[CONSPH_MAX_DIM];                       /* per axis cell: its piece along the axis */
+    /* per axis cell: the pieces along the axis whose box or halo holds it, ascending (cover
+     * from cover_off[a][c] to cover_off[a][c + 1]); a cell's ranks are their products */
+    int *cover_off[CONSPH_MAX_DIM], *cover[CONSPH_MAX_DIM];
+    int *ranks;    /* size: scratch for covering */
     int64_t nrows; /* cells of the axes above the first (a row: c_0 varies) */
     int64_t *seg;  /* per row and piece along axis 0: particles (serial index) */
     size_t nglobal, nown;
@@ -78,6 +82,8 @@ struct par_solver {
     unsigned char *mask, *masks; /* per column COL_CHANGED | COL_WANTED: this rank's, all ranks' */
     size_t col_cap, masks_cap;
     consph_sys_split split;
+    /* the particle set the last install replaced: its storage serves the next one */
+    consph_particles spare;
     size_t pairs_base; /* the solver's pair count when it was cut (counted on every rank) */
     double bytes, seconds;
 };
@@ -138,6 +144,33 @@ static int particles_like(consph_particles *out, const consph_particles *like, s
     return particles_like_some(out, like, n, NULL);
 }
 
+/* A set like `like` for n particles (a re-sort's install): the spare set's storage when its
+ * fields are like's and it has room, else new storage with a quarter more room, so that the
+ * particle counts moving a little at each re-sort neither allocate (zero-filled pages
+ * touched afresh) nor change the capacity that the integrator's scratch is sized by. */
+static int particles_for(consph_particles *spare, consph_particles *out,
+                         const consph_particles *like, size_t n)
+{
+    int same = spare->x[0] && spare->cap >= n && spare->dim == like->dim &&
+               spare->nfields == like->nfields;
+    for (int f = 0; same && f < like->nfields; ++f)
+        same = spare->fields[f].ncomp == like->fields[f].ncomp &&
+               !strcmp(spare->fields[f].name, like->fields[f].name);
+    if (!same) {
+        if (spare->x[0]) consph_particles_free(spare);
+        const size_t cap = n + n / 4;
+        int st = particles_like(out, like, cap);
+        if (st == CONSPH_OK) out->n = n;
+        return st;
+    }
+    *out = *spare;
+    memset(spare, 0, sizeof *spare);
+    out->n = n;
+    out->box = like->box;
+    out->spacing = like->spacing;
+    return CONSPH_OK;
+}
+
 /* pack of the positions and the selected fields */
 static size_t values_selected(const consph_particles *p, const unsigned char *sel)
 {
@@ -172,6 +205,42 @@ static int counts_to_doubles(par_solver *ps, const int *cnt, int *dbl, int *dis,
         off += v;
     }
     return CONSPH_OK;
+}
+
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
+    !defined(__AVX2__)
+#define PAR_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define PAR_CLONES
+#endif
+
+/* Whether v[idx[k]] differs bitwise from old[k] for some k < n. Every refresh scans each
+ * column the owners did not change in full, so the scan is branch-free in blocks (gathers
+ * where the processor has them). */
+PAR_CLONES
+static int column_changed(const double *v, const size_t *idx, const double *old, size_t n)
+{
+    enum { BLOCK = 256 };
+    for (size_t k0 = 0; k0 < n; k0 += BLOCK) {
+        const size_t k1 = n - k0 < BLOCK ? n : k0 + BLOCK;
+        uint64_t diff = 0;
+        for (size_t k = k0; k < k1; ++k) {
+            uint64_t a, b;
+            memcpy(&a, &v[idx[k]], sizeof a);
+            memcpy(&b, &old[k], sizeof b);
+            diff |= a ^ b;
+        }
+        if (diff) return 1;
+    }
+    return 0;
+}
+
+/* out[k] = v[idx[k]] */
+PAR_CLONES
+static void gather_column(double *restrict out, const double *restrict v, const size_t *idx,
+                          size_t n)
+{
+    for (size_t k = 0; k < n; ++k) out[k] = v[idx[k]];
 }
 
 /* ---- the halo refresh (consph_sys_split) ---- */
@@ -226,8 +295,8 @@ static int halo_state_from_cut(par_solver *ps, consph_sys *sys)
     const size_t nr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
     for (size_t c = 0; c < ncols; ++c) {
         const double *v = ps->col[c];
-        for (size_t k = 0; k < ns; ++k) ps->sent[c * ns + k] = v[ps->sidx[k]];
-        for (size_t k = 0; k < nr; ++k) ps->got[c * nr + k] = v[ps->ridx[k]];
+        gather_column(ps->sent + c * ns, v, ps->sidx, ns);
+        gather_column(ps->got + c * nr, v, ps->ridx, nr);
     }
     ps->base = ncols;
     ps->nvalid = ncols;
@@ -241,29 +310,29 @@ static int col_goes(const unsigned char *mq, const unsigned char *mr, size_t c)
     return (mq[c] & COL_CHANGED) || (mr[c] & COL_WANTED);
 }
 
-static int refresh(consph_sys *sys, void *ctx)
+/* The halo's first ncols columns from their owners (all: refresh; the positions alone:
+ * refresh_positions). */
+static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
 {
-    par_solver *ps = ctx;
     consph_particles *p = sys->p;
     const size_t n = p->n;
     const double t0 = MPI_Wtime();
     /* the scratch a job asked for in blocks of n (consph_sys_scratch: k·n values) */
     size_t blocks = 0;
     if (sys->scratch && n && sys->scratch_asked % n == 0) blocks = sys->scratch_asked / n;
-    const size_t ncols = halo_columns(ps, sys, blocks);
+    const size_t nall = halo_columns(ps, sys, blocks);
+    const size_t ncols = positions_only && nall ? (size_t)p->dim : nall;
     const size_t ns = ps->sdispl[ps->size - 1] + (size_t)ps->scount[ps->size - 1];
     const size_t nr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
-    int st = ncols ? halo_state_reserve(ps, ncols) : par_fail_mem();
+    int st = ncols ? halo_state_reserve(ps, nall) : par_fail_mem();
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
     /* the kept columns that still mean the same: positions and fields counted alike, and the
      * scratch blocks both had */
-    size_t valid = ncols - blocks == ps->base ? ps->nvalid : 0;
+    size_t valid = nall - blocks == ps->base ? ps->nvalid : 0;
     if (valid > ncols) valid = ncols;
     for (size_t c = 0; c < ncols; ++c) {
-        int changed = c >= valid;
-        const double *v = ps->col[c], *old = ps->sent + c * ns;
-        for (size_t k = 0; !changed && k < ns; ++k)
-            changed = memcmp(&v[ps->sidx[k]], &old[k], sizeof(double)) != 0;
+        const int changed =
+            c >= valid || column_changed(ps->col[c], ps->sidx, ps->sent + c * ns, ns);
         ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
     }
     MPI_Allgather(ps->mask, (int)ncols, MPI_UNSIGNED_CHAR, ps->masks, (int)ncols, MPI_UNSIGNED_CHAR,
@@ -295,7 +364,8 @@ static int refresh(consph_sys *sys, void *ctx)
         for (size_t c = 0; c < ncols; ++c) {
             if (col_goes(ps->mask, mq, c)) {
                 const double *v = ps->col[c];
-                for (size_t k = s0; k < s1; ++k) ps->sbuf[so++] = v[ps->sidx[k]];
+                gather_column(ps->sbuf + so, v, ps->sidx + s0, s1 - s0);
+                so += s1 - s0;
             }
             if (col_goes(mq, ps->mask, c)) ro += r1 - r0;
         }
@@ -316,21 +386,39 @@ static int refresh(consph_sys *sys, void *ctx)
             }
     }
     /* every column of the halo from what its owners sent last: a scheme may have written halo
-     * values since, and the pass must read the owners' */
+     * values since, and the pass must read the owners'. A column whose halo holds them already
+     * (most: neither its owners nor this rank changed it) is only read. */
     for (size_t c = 0; c < ncols; ++c) {
         double *v = ps->col[c];
         const double *in = ps->got + c * nr;
-        for (size_t k = 0; k < nr; ++k) v[ps->ridx[k]] = in[k];
+        if (column_changed(v, ps->ridx, in, nr))
+            for (size_t k = 0; k < nr; ++k) v[ps->ridx[k]] = in[k];
         if (ps->mask[c] & COL_CHANGED) {
             double *old = ps->sent + c * ns;
-            for (size_t k = 0; k < ns; ++k) old[k] = v[ps->sidx[k]];
+            gather_column(old, v, ps->sidx, ns);
         }
     }
-    ps->base = ncols - blocks;
-    ps->nvalid = ncols;
+    /* the positions alone leave the kept columns' count: a column they did not refresh that
+     * was not kept is still wanted at the next full refresh */
+    if (!positions_only) {
+        ps->base = nall - blocks;
+        ps->nvalid = nall;
+    }
     ps->bytes += (double)(sdbl * sizeof(double) + ncols * (size_t)(ps->size - 1));
     ps->seconds += MPI_Wtime() - t0;
     return CONSPH_OK;
+}
+
+static int refresh(consph_sys *sys, void *ctx)
+{
+    return refresh_some(sys, ctx, 0);
+}
+
+/* Before a search rebuild (consph_sys_update) only the halo's positions are read; the pass
+ * that follows refreshes every column that changed since. */
+static int refresh_positions(consph_sys *sys, void *ctx)
+{
+    return refresh_some(sys, ctx, 1);
 }
 
 static double split_max(void *ctx, double v)
@@ -372,28 +460,110 @@ static int owner_of(const par_solver *ps, const int64_t *ac)
     return q;
 }
 
+/* Whether axis cell c is within the halo width of piece i along axis a (the nearest periodic
+ * image), or in it (2). */
+static int piece_covers(const par_solver *ps, int a, int i, int64_t c)
+{
+    const int64_t lo = ps->cut[a][i], hi = ps->cut[a][i + 1], n = ps->nc[a];
+    if (c >= lo && c < hi) return 2;
+    int64_t below = lo - c, above = c - (hi - 1);
+    if (ps->periodic[a]) {
+        below = ((below % n) + n) % n;
+        above = ((above % n) + n) % n;
+    } else {
+        if (below < 0) below = INT64_MAX;
+        if (above < 0) above = INT64_MAX;
+    }
+    return (below < above ? below : above) <= ps->width[a];
+}
+
 /* Whether the cell ac is in rank q's halo: not q's, and along every axis within the halo
- * width of q's box (the nearest periodic image). */
+ * width of q's box. */
 static int in_halo(const par_solver *ps, int q, const int64_t *ac)
 {
     int inside = 1;
     for (int a = 0; a < ps->dim; ++a) {
         const int iq = q % ps->k[a];
         q /= ps->k[a];
-        const int64_t lo = ps->cut[a][iq], hi = ps->cut[a][iq + 1], c = ac[a], n = ps->nc[a];
-        if (c >= lo && c < hi) continue;
-        inside = 0;
-        int64_t below = lo - c, above = c - (hi - 1);
-        if (ps->periodic[a]) {
-            below = ((below % n) + n) % n;
-            above = ((above % n) + n) % n;
-        } else {
-            if (below < 0) below = INT64_MAX;
-            if (above < 0) above = INT64_MAX;
-        }
-        if ((below < above ? below : above) > ps->width[a]) return 0;
+        const int cov = piece_covers(ps, a, iq, ac[a]);
+        if (!cov) return 0;
+        inside = inside && cov == 2;
     }
     return !inside;
+}
+
+/* The cover lists of every axis after a cut. */
+static void cover_axes(par_solver *ps)
+{
+    for (int a = 0; a < ps->dim; ++a) {
+        int m = 0;
+        for (int64_t c = 0; c < ps->nc[a]; ++c) {
+            ps->cover_off[a][c] = m;
+            for (int i = 0; i < ps->k[a]; ++i)
+                if (piece_covers(ps, a, i, c)) ps->cover[a][m++] = i;
+        }
+        ps->cover_off[a][ps->nc[a]] = m;
+    }
+}
+
+/* The ranks whose box or halo holds the cell ac (its owner and the ranks whose halo holds
+ * it), ascending, into ps->ranks; returns their count. Only they, not every rank, are looked
+ * at per particle. */
+static int covering(const par_solver *ps, const int64_t *ac)
+{
+    static const int zero = 0;
+    const int *l[CONSPH_MAX_DIM];
+    int m[CONSPH_MAX_DIM];
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
+        if (a < ps->dim) {
+            const int o = ps->cover_off[a][ac[a]];
+            l[a] = ps->cover[a] + o;
+            m[a] = ps->cover_off[a][ac[a] + 1] - o;
+        } else {
+            l[a] = &zero;
+            m[a] = 1;
+        }
+    }
+    int n = 0;
+    for (int t2 = 0; t2 < m[2]; ++t2)
+        for (int t1 = 0; t1 < m[1]; ++t1)
+            for (int t0 = 0; t0 < m[0]; ++t0)
+                ps->ranks[n++] = (l[2][t2] * ps->k[1] + l[1][t1]) * ps->k[0] + l[0][t0];
+    return n;
+}
+
+/* The pairs (rank, particle) of covering for particles idx[0..n) (ac: their axis cells, dim
+ * per particle; only those with want[k], when given), in particle order, rank `skip` left
+ * out; each rank's count added to count[rank + 1]. Covering is found once per particle. */
+typedef struct cover_pairs {
+    int *q;
+    size_t *k, n, cap;
+} cover_pairs;
+
+static int cover_collect(par_solver *ps, cover_pairs *cp, const int64_t *ac, size_t n,
+                         const unsigned char *want, int skip, size_t *count)
+{
+    cp->n = 0;
+    for (size_t k = 0; k < n; ++k) {
+        if (want && !want[k]) continue;
+        const int nq = covering(ps, ac + k * (size_t)ps->dim);
+        if (cp->n + (size_t)nq > cp->cap) {
+            const size_t cap = 2 * (cp->n + (size_t)nq) + 64;
+            int *q = realloc(cp->q, cap * sizeof *q);
+            if (q) cp->q = q;
+            size_t *kk = q ? realloc(cp->k, cap * sizeof *kk) : NULL;
+            if (kk) cp->k = kk;
+            if (!q || !kk) return par_fail_mem();
+            cp->cap = cap;
+        }
+        for (int t = 0; t < nq; ++t)
+            if (ps->ranks[t] != skip) {
+                cp->q[cp->n] = ps->ranks[t];
+                cp->k[cp->n++] = k;
+                ++count[ps->ranks[t] + 1];
+            }
+    }
+    return CONSPH_OK;
 }
 
 /* The cut of every axis by the owned particles' counts per axis cell (ac: dim per particle). */
@@ -421,6 +591,7 @@ static int cut_boxes(par_solver *ps, const int64_t *ac, size_t n)
         cut_axis(ps->cut[a], ps->piece[a], ps->k[a], ps->nc[a], all + off);
         off += ps->nc[a];
     }
+    cover_axes(ps);
     free(count);
     free(all);
     return CONSPH_OK;
@@ -450,10 +621,86 @@ static int64_t cell_of(const par_solver *ps, const consph_nnps *nn, const double
     return c;
 }
 
-/* The particles this rank now holds (m of them, packed: positions, fields, g) become its
- * system: sorted by (cell, g), the owned ones marked, the exchange lists made. */
-static int install(consph_solver *s, par_solver *ps, const double *vals, size_t m, size_t per)
+static int held_less(const held *a, const held *b)
 {
+    return a->cell != b->cell ? a->cell < b->cell : a->g < b->g;
+}
+
+/* h[0..n) sorted by (cell, g), h being the runs [bound[r], bound[r + 1]) for r < nb, each in
+ * the order of the previous re-sort: few particles change cells in a step, so in 2D a run is
+ * insertion-sorted in about its length (past a budget of moves, by qsort), then the runs are
+ * merged. In 3D a particle that crosses a layer of cells along the last axes moves past a
+ * plane of cells in the order, which insertion pays for dearly (measured: more than qsort), so
+ * 3D sorts the whole by qsort. (cell, g) is unique: any sort gives the same order. */
+static int sort_held(held *h, size_t n, const size_t *bound, int nb, int dim)
+{
+    if (dim == 3) {
+        qsort(h, n, sizeof *h, held_cmp);
+        return CONSPH_OK;
+    }
+    for (int r = 0; r < nb; ++r) {
+        const size_t b0 = bound[r], b1 = bound[r + 1];
+        size_t moves = 0, budget = 8 * (b1 - b0) + 1024;
+        for (size_t i = b0 + 1; i < b1 && moves <= budget; ++i) {
+            const held x = h[i];
+            size_t j = i;
+            for (; j > b0 && held_less(&x, &h[j - 1]) && moves <= budget; --j, ++moves)
+                h[j] = h[j - 1];
+            h[j] = x;
+        }
+        if (moves > budget) qsort(h + b0, b1 - b0, sizeof *h, held_cmp);
+    }
+    if (nb < 2) return CONSPH_OK;
+    held *t = malloc(n * sizeof *t);
+    size_t *b = malloc(((size_t)nb + 1) * sizeof *b);
+    if (!t || !b) {
+        free(t);
+        free(b);
+        return par_fail_mem();
+    }
+    memcpy(b, bound, ((size_t)nb + 1) * sizeof *b);
+    held *src = h, *dst = t;
+    while (nb > 1) {
+        int out = 0;
+        for (int r = 0; r < nb; r += 2) {
+            const size_t lo = b[r], mid = b[r + 1], hi = r + 2 <= nb ? b[r + 2] : mid;
+            size_t i = lo, j = mid, o = lo;
+            while (i < mid && j < hi) dst[o++] = held_less(&src[j], &src[i]) ? src[j++] : src[i++];
+            while (i < mid) dst[o++] = src[i++];
+            while (j < hi) dst[o++] = src[j++];
+            b[out++] = lo;
+        }
+        b[out] = n;
+        nb = out;
+        held *x = src;
+        src = dst;
+        dst = x;
+    }
+    if (src != h) memcpy(h, src, n * sizeof *h);
+    free(t);
+    free(b);
+    return CONSPH_OK;
+}
+
+/* Particle i of src to slot k of dst (the same fields, in the same order). */
+static void copy_particle(consph_particles *dst, size_t k, const consph_particles *src, size_t i)
+{
+    for (int a = 0; a < src->dim; ++a) dst->x[a][k] = src->x[a][i];
+    for (int f = 0; f < src->nfields; ++f) {
+        const double *in = src->fields[f].data + i;
+        double *out = dst->fields[f].data + k;
+        for (int c = 0; c < src->fields[f].ncomp; ++c)
+            out[(size_t)c * dst->cap] = in[(size_t)c * src->cap];
+    }
+}
+
+/* The particles this rank now holds become its system: sorted by (cell, g), the owned ones
+ * marked, the exchange lists made. They are this rank's particles self[0..nself), then those
+ * received (packed: positions, fields, g), rcnt[q] from rank q in its order. */
+static int install(consph_solver *s, par_solver *ps, const double *recv, size_t nrecv, size_t per,
+                   const size_t *self, size_t nself, const int *rcnt)
+{
+    const size_t m = nself + nrecv;
     consph_particles *p = s->sys.p;
     const int dim = p->dim;
     const size_t nseg = (size_t)ps->nrows * (size_t)ps->k[0];
@@ -461,38 +708,60 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
     int64_t *acell = malloc((m ? m : 1) * (size_t)dim * sizeof *acell);
     int *owner = malloc((m ? m : 1) * sizeof *owner);
     int64_t *segn = consph_calloc(nseg, sizeof(int64_t));
-    if (!h || !acell || !owner || !segn) {
+    /* per record: its axis cells and owner, found once */
+    int64_t *rac = malloc((m ? m : 1) * (size_t)dim * sizeof *rac);
+    int *rowner = malloc((m ? m : 1) * sizeof *rowner);
+    if (!h || !acell || !owner || !segn || !rac || !rowner) {
         free(h);
         free(acell);
         free(owner);
         free(segn);
+        free(rac);
+        free(rowner);
         return par_fail_mem();
     }
     size_t kept = 0;
+    /* the runs of records in the previous order: this rank's, then each sender's */
+    size_t *bound = malloc(((size_t)ps->size + 2) * sizeof *bound);
+    if (!bound) MPI_Abort(ps->comm, 1);
+    int nb = 0, sender = 0;
+    size_t next = nself;
+    bound[nb++] = 0;
+    /* records k < nself: this rank's particle self[k]; then the received ones */
     for (size_t k = 0; k < m; ++k) {
-        const double *v = vals + k * per;
-        int64_t ac[CONSPH_MAX_DIM];
+        for (; k == next && sender < ps->size; next += (size_t)rcnt[sender++])
+            if (bound[nb - 1] != kept) bound[nb++] = kept;
+        double xk[CONSPH_MAX_DIM];
+        const double *v = k < nself ? xk : recv + (k - nself) * per;
+        for (int a = 0; k < nself && a < dim; ++a) xk[a] = p->x[a][self[k]];
+        int64_t *ac = rac + k * (size_t)dim;
         const int64_t c = cell_of(ps, s->sys.nnps, v, ac);
-        if (owner_of(ps, ac) != ps->rank && !in_halo(ps, ps->rank, ac)) continue;
+        rowner[k] = owner_of(ps, ac);
+        if (rowner[k] != ps->rank && !in_halo(ps, ps->rank, ac)) continue;
         h[kept].cell = c;
-        h[kept].g = v[per - 1];
+        h[kept].g = k < nself ? ps->g[self[k]] : v[per - 1];
         h[kept].at = k;
         ++kept;
     }
-    qsort(h, kept, sizeof *h, held_cmp);
+    if (bound[nb - 1] != kept || nb == 1) bound[nb++] = kept;
+    int st = sort_held(h, kept, bound, nb - 1, dim);
+    free(bound);
     consph_particles np;
-    int st = particles_like(&np, p, kept);
+    if (st == CONSPH_OK) st = particles_for(&ps->spare, &np, p, kept);
     size_t nown = 0;
     unsigned char *dest = st == CONSPH_OK ? consph_calloc(kept ? kept : 1, 1) : NULL;
     size_t *origin = st == CONSPH_OK ? consph_calloc(kept ? kept : 1, sizeof(size_t)) : NULL;
     double *g = st == CONSPH_OK ? malloc((kept ? kept : 1) * sizeof(double)) : NULL;
     if (st == CONSPH_OK && (!dest || !origin || !g)) st = par_fail_mem();
     for (size_t k = 0; st == CONSPH_OK && k < kept; ++k) {
-        const double *v = vals + h[k].at * per;
-        unpack(&np, k, v);
+        const size_t at = h[k].at;
+        if (at < nself)
+            copy_particle(&np, k, p, self[at]);
+        else
+            unpack(&np, k, recv + (at - nself) * per);
         int64_t *ac = acell + k * (size_t)dim;
-        cell_of(ps, s->sys.nnps, v, ac);
-        owner[k] = owner_of(ps, ac);
+        for (int a = 0; a < dim; ++a) ac[a] = rac[h[k].at * (size_t)dim + (size_t)a];
+        owner[k] = rowner[h[k].at];
         dest[k] = owner[k] == ps->rank;
         nown += dest[k];
         origin[k] = k;
@@ -521,13 +790,18 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
     }
     /* the exchange lists: what each rank's halo takes of ours, what ours takes of each */
     size_t ns = 0, nr = 0;
+    cover_pairs cp = {NULL, NULL, 0, 0};
+    size_t *scnt = st == CONSPH_OK ? consph_calloc((size_t)ps->size + 1, sizeof(size_t)) : NULL;
+    if (st == CONSPH_OK &&
+        (!scnt || cover_collect(ps, &cp, acell, kept, dest, ps->rank, scnt) != CONSPH_OK))
+        st = par_fail_mem();
+    for (int q = 0; q < ps->size; ++q) {
+        ps->scount[q] = st == CONSPH_OK ? (int)scnt[q + 1] : 0;
+        ps->rcount[q] = 0;
+    }
+    for (size_t k = 0; st == CONSPH_OK && k < kept; ++k)
+        if (!dest[k]) ++ps->rcount[owner[k]];
     for (int q = 0; st == CONSPH_OK && q < ps->size; ++q) {
-        ps->scount[q] = ps->rcount[q] = 0;
-        for (size_t k = 0; k < kept; ++k) {
-            if (dest[k] && q != ps->rank && in_halo(ps, q, acell + k * (size_t)dim))
-                ++ps->scount[q];
-            if (!dest[k] && owner[k] == q) ++ps->rcount[q];
-        }
         ps->sdispl[q] = (int)ns;
         ps->rdispl[q] = (int)nr;
         ns += (size_t)ps->scount[q];
@@ -553,19 +827,25 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
                 g[k] = -1.0;
             }
         }
-        for (int q = 0; q < ps->size; ++q) {
-            size_t si = (size_t)ps->sdispl[q], ri = (size_t)ps->rdispl[q];
-            for (size_t k = 0; k < kept; ++k) {
-                if (dest[k] && q != ps->rank && in_halo(ps, q, acell + k * (size_t)dim))
-                    ps->sidx[si++] = k;
-                if (!dest[k] && owner[k] == q) ps->ridx[ri++] = k;
-            }
+        /* ascending k within each rank's part; the counts serve as cursors */
+        for (int q = 0; q < ps->size; ++q) ps->scount[q] = ps->rcount[q] = 0;
+        for (size_t k = 0; k < kept; ++k)
+            if (!dest[k])
+                ps->ridx[(size_t)ps->rdispl[owner[k]] + (size_t)ps->rcount[owner[k]]++] = k;
+        for (size_t e = 0; e < cp.n; ++e) {
+            const int q = cp.q[e];
+            ps->sidx[(size_t)ps->sdispl[q] + (size_t)ps->scount[q]++] = cp.k[e];
         }
     }
+    free(cp.q);
+    free(cp.k);
+    free(scnt);
     free(owner);
     free(segn);
     free(h);
     free(acell);
+    free(rac);
+    free(rowner);
     if (st != CONSPH_OK) {
         if (np.x[0]) consph_particles_free(&np);
         free(dest);
@@ -573,23 +853,31 @@ static int install(consph_solver *s, par_solver *ps, const double *vals, size_t 
         free(g);
         return st;
     }
-    consph_particles_free(p);
+    const size_t oldcap = p->cap;
+    ps->spare = *p;
     *p = np;
     free(s->sys.origin);
     s->sys.origin = origin;
     free(s->sys.dest);
     s->sys.dest = dest;
     s->sys.scratch_asked = 0;
-    /* the integrator's scratch is sized by the particles' capacity, which changed */
-    free(s->integ_scratch);
-    s->integ_scratch = NULL;
+    /* the integrator's scratch is sized by the particles' capacity */
+    if (p->cap != oldcap) {
+        free(s->integ_scratch);
+        s->integ_scratch = NULL;
+    }
     free(ps->g);
     ps->g = g;
     ps->nown = nown;
-    /* new halo lists, the halo as the owners packed it */
+    /* new halo lists, the halo as the owners packed it: the search is built without a
+     * refresh, which would find nothing changed */
     st = halo_state_from_cut(ps, &s->sys);
     if (st != CONSPH_OK) return st;
-    return consph_sys_update(&s->sys, 0);
+    const consph_sys_split *split = s->sys.split;
+    s->sys.split = NULL;
+    st = consph_sys_update(&s->sys, 0);
+    s->sys.split = split;
+    return st;
 }
 
 /* Every owned particle to the rank that owns its cell now and to the ranks whose halo holds
@@ -611,6 +899,19 @@ static int migrate(consph_solver *s, par_solver *ps)
             ac[o * dim + a] = nnps_axis_cell(s->sys.nnps, (int)a, p->x[a][ps->own[o]]);
     if (cut_boxes(ps, ac, ps->nown) != CONSPH_OK) MPI_Abort(ps->comm, 1);
     for (size_t o = 0; o < ps->nown; ++o) owner[o] = owner_of(ps, ac + o * dim);
+    /* per rank, the owned particles it will hold (owns or has in its halo), ascending */
+    size_t *go_off = consph_calloc((size_t)ps->size + 1, sizeof(size_t)), *go = NULL;
+    if (!go_off) MPI_Abort(ps->comm, 1);
+    cover_pairs cp = {NULL, NULL, 0, 0};
+    if (cover_collect(ps, &cp, ac, ps->nown, NULL, -1, go_off) != CONSPH_OK) MPI_Abort(ps->comm, 1);
+    for (int q = 0; q < ps->size; ++q) go_off[q + 1] += go_off[q];
+    go = malloc((go_off[ps->size] ? go_off[ps->size] : 1) * sizeof(size_t));
+    if (!go) MPI_Abort(ps->comm, 1);
+    for (size_t e = 0; e < cp.n; ++e) go[go_off[cp.q[e]]++] = cp.k[e];
+    free(cp.q);
+    free(cp.k);
+    for (int q = ps->size; q > 0; --q) go_off[q] = go_off[q - 1];
+    go_off[0] = 0;
     const size_t per = values_per_particle(p) + 1; /* + g */
     const size_t ncol = per - 1;
     int *cnt = consph_calloc((size_t)ps->size, sizeof(int));
@@ -631,10 +932,8 @@ static int migrate(consph_solver *s, par_solver *ps)
     if (st == CONSPH_OK) st = halo_state_reserve(ps, ncol);
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
     for (size_t c = 0; c < ncol; ++c) {
-        int changed = c >= valid;
-        const double *v = ps->col[c], *old = ps->sent + c * ons;
-        for (size_t k = 0; !changed && k < ons; ++k)
-            changed = memcmp(&v[ps->sidx[k]], &old[k], sizeof(double)) != 0;
+        const int changed =
+            c >= valid || column_changed(ps->col[c], ps->sidx, ps->sent + c * ons, ons);
         ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
     }
     MPI_Allgather(ps->mask, (int)ncol, MPI_UNSIGNED_CHAR, ps->masks, (int)ncol, MPI_UNSIGNED_CHAR,
@@ -648,11 +947,11 @@ static int migrate(consph_solver *s, par_solver *ps)
         const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
         size_t d = 0;
-        for (size_t o = 0; o < ps->nown; ++o)
-            if (owner[o] == q || in_halo(ps, q, ac + o * dim)) {
-                ++cnt[q];
-                d += 2 + (q != ps->rank && slot[ps->own[o]] >= 0 ? sel : ncol);
-            }
+        /* what stays on this rank is read by install from the particles themselves */
+        for (size_t t = go_off[q]; q != ps->rank && t < go_off[q + 1]; ++t) {
+            ++cnt[q];
+            d += 2 + (slot[ps->own[go[t]]] >= 0 ? sel : ncol);
+        }
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = -1;
         if (d > INT32_MAX || nsd > INT32_MAX)
             st = consph_fail(CONSPH_EINVAL, "MPI decomposition: more than 2^31 values to one "
@@ -687,10 +986,9 @@ static int migrate(consph_solver *s, par_solver *ps)
         const unsigned char *mq = ps->masks + (size_t)q * ncol;
         const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
-        for (size_t o = 0; o < ps->nown; ++o) {
-            if (owner[o] != q && !in_halo(ps, q, ac + o * dim)) continue;
-            const size_t i = ps->own[o];
-            const long sl = q != ps->rank ? slot[i] : -1;
+        for (size_t t = go_off[q]; q != ps->rank && t < go_off[q + 1]; ++t) {
+            const size_t i = ps->own[go[t]];
+            const long sl = slot[i];
             *v++ = ps->g[i];
             *v++ = (double)sl;
             for (size_t c = 0; c < ncol; ++c)
@@ -717,10 +1015,15 @@ static int migrate(consph_solver *s, par_solver *ps)
         (double)((nsd - (size_t)sd[ps->rank]) * sizeof(double) + ncol * (size_t)(ps->size - 1));
     ps->seconds += MPI_Wtime() - t0;
     free(slot);
-    st = install(s, ps, full, nr, per);
+    /* the owned particles that stay (owned here or in this rank's halo), as local indices */
+    const size_t nself = go_off[ps->rank + 1] - go_off[ps->rank];
+    for (size_t t = 0; t < nself; ++t) go[t] = ps->own[go[go_off[ps->rank] + t]];
+    st = install(s, ps, full, nr, per, go, nself, rcnt);
     free(full);
     free(ac);
     free(owner);
+    free(go_off);
+    free(go);
     free(cnt);
     free(rcnt);
     free(sd);
@@ -1079,7 +1382,11 @@ void par_solver_free(par_solver *ps)
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
         free(ps->cut[a]);
         free(ps->piece[a]);
+        free(ps->cover_off[a]);
+        free(ps->cover[a]);
     }
+    free(ps->ranks);
+    if (ps->spare.x[0]) consph_particles_free(&ps->spare);
     free(ps->seg);
     free(ps->g);
     free(ps->own);
@@ -1216,10 +1523,14 @@ int consph_par_solver_decompose(consph_solver *s)
     for (int a = 0; a < ps->dim; ++a) {
         ps->cut[a] = consph_calloc((size_t)ps->k[a] + 1, sizeof(int64_t));
         ps->piece[a] = consph_calloc((size_t)ps->nc[a], sizeof(int));
-        mem = mem && ps->cut[a] && ps->piece[a];
+        ps->cover_off[a] = consph_calloc((size_t)ps->nc[a] + 1, sizeof(int));
+        ps->cover[a] = consph_calloc((size_t)ps->nc[a] * (size_t)ps->k[a], sizeof(int));
+        mem = mem && ps->cut[a] && ps->piece[a] && ps->cover_off[a] && ps->cover[a];
         if (a > 0) ps->nrows *= ps->nc[a];
     }
     ps->seg = consph_calloc((size_t)ps->nrows * (size_t)ps->k[0], sizeof(int64_t));
+    ps->ranks = consph_calloc((size_t)size, sizeof(int));
+    mem = mem && ps->ranks;
     ps->g = malloc((n ? n : 1) * sizeof(double));
     ps->own = malloc((n ? n : 1) * sizeof(size_t));
     ps->scount = consph_calloc((size_t)size, sizeof(int));
@@ -1247,6 +1558,7 @@ int consph_par_solver_decompose(consph_solver *s)
     for (size_t i = lo; i < hi; ++i) ps->own[i - lo] = i;
     ps->nown = hi - lo;
     ps->split.refresh = refresh;
+    ps->split.refresh_positions = refresh_positions;
     ps->split.max = split_max;
     ps->split.ctx = ps;
     free(s->sys.dest);

@@ -288,21 +288,28 @@ static int nlist_index(consph_sys *s)
         return switch_off(s, "the neighbour list holds particle indices as 31 bits; more "
                              "particles than that: the passes gather");
     if (n != l->n || !l->u) {
-        free_arrays(l);
-        l->n = n;
-        l->nblocks = (n + NLIST_BLOCK - 1) / NLIST_BLOCK;
-        l->u = malloc((size_t)dim * (n ? n : 1) * sizeof(double));
-        l->blocks = consph_calloc(l->nblocks ? l->nblocks : 1, sizeof(nlist_block));
-        if (!l->field[0]) l->xb_own = malloc((size_t)dim * (n ? n : 1) * sizeof(double));
-        if (!l->u || !l->blocks || (!l->field[0] && !l->xb_own)) return CONSPH_ENOMEM;
+        /* The blocks that remain keep their candidate and pair buffers: an MPI rank's particle
+         * count changes at every re-sort (src/par/par_solver.c), and growing them again from
+         * nothing each time copied more than the passes computed. */
+        const size_t nb = (n + NLIST_BLOCK - 1) / NLIST_BLOCK, sz = (size_t)dim * (n ? n : 1);
+        for (size_t k = nb; k < l->nblocks; ++k) block_free(&l->blocks[k]);
+        if (nb < l->nblocks) l->nblocks = nb;
+        if (grow((void **)&l->blocks, nb, sizeof(nlist_block))) return CONSPH_ENOMEM;
+        memset(l->blocks + l->nblocks, 0, (nb - l->nblocks) * sizeof(nlist_block));
+        l->nblocks = nb;
+        l->n = 0; /* until every array below has its size */
+        if (grow((void **)&l->u, sz, sizeof(double))) return CONSPH_ENOMEM;
+        if (!l->field[0] && grow((void **)&l->xb_own, sz, sizeof(double))) return CONSPH_ENOMEM;
+        if (l->particle && grow((void **)&l->particle, n, sizeof(size_t))) return CONSPH_ENOMEM;
         for (size_t k = 0; k < l->nblocks; ++k) {
             nlist_block *b = &l->blocks[k];
             b->s0 = k * NLIST_BLOCK;
             b->s1 = b->s0 + NLIST_BLOCK < n ? b->s0 + NLIST_BLOCK : n;
-            b->coff = malloc((b->s1 - b->s0 + 1) * sizeof(size_t));
-            b->poff = malloc((b->s1 - b->s0 + 1) * sizeof(size_t));
+            if (!b->coff) b->coff = malloc((NLIST_BLOCK + 1) * sizeof(size_t));
+            if (!b->poff) b->poff = malloc((NLIST_BLOCK + 1) * sizeof(size_t));
             if (!b->coff || !b->poff) return CONSPH_ENOMEM;
         }
+        l->n = n;
     }
     if (v.particle) {
         if (!l->particle && !(l->particle = malloc((n ? n : 1) * sizeof(size_t))))
@@ -666,6 +673,10 @@ static int cache_block_gather(const consph_sys *s, nlist_block *b, consph_nnps_r
     b->shi = b->s1 - 1;
     for (size_t sl = b->s0; sl < b->s1; ++sl) {
         while (sl >= v.cell_start[c + 1]) ++c;
+        b->poff[sl - b->s0] = used;
+        /* a source only (the MPI halo): no pass visits its pairs, so none are kept, and a cell
+         * of sources only needs no runs */
+        if (s->dest && !s->dest[particle_of(l, sl)]) continue;
         if (c != runs_cell) {
             if (consph_nnps_cell_runs(s->nnps, c, runs) == (size_t)-1) return CONSPH_ENOMEM;
             runs_cell = c;
@@ -679,9 +690,6 @@ static int cache_block_gather(const consph_sys *s, nlist_block *b, consph_nnps_r
                 *cap = need;
             }
         }
-        b->poff[sl - b->s0] = used;
-        /* a source only (the MPI halo): no pass visits its pairs, so none are kept */
-        if (s->dest && !s->dest[particle_of(l, sl)]) continue;
         if (pair_reserve(b, l->dim, used + runs->candidates + CONSPH_NNPS_GATHER_SLACK))
             return CONSPH_ENOMEM;
         double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};

@@ -205,7 +205,8 @@ int consph_sys_update(consph_sys *s, int resort)
     if (!s || !s->p || !s->nnps)
         return consph_fail(CONSPH_EINVAL, "system update: needs an initialised system");
     if (s->split) {
-        int rc = s->split->refresh(s, s->split->ctx);
+        int rc = s->split->refresh_positions ? s->split->refresh_positions(s, s->split->ctx)
+                                             : s->split->refresh(s, s->split->ctx);
         if (rc != CONSPH_OK) return rc;
     }
     if (s->nlist) return nlist_update(s, resort);
