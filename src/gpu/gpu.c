@@ -733,11 +733,9 @@ static int build_cells(gpu_run *g)
     return build_cells_in(g->be, &g->v);
 }
 
-/* edac or wcsph under pec, as consph_solver_step runs it on the CPU: re-sort into cell order,
- * save the start, advance by Δt/2 with the previous step's rates, rebuild the search, the
- * scheme's passes (edac: density, then rates; wcsph: per-particle values, then rates), advance
- * by Δt. */
-static int step_pec(gpu_run *g, double dt, int grads)
+/* The start of a pec or kdk step: bins the particles, permutes them into cell order (the two
+ * copies of every array swap roles) and saves the start of the step. */
+static int resort_save(gpu_run *g)
 {
     const gpu_backend *be = g->be;
     gpu_view *v = &g->v;
@@ -748,6 +746,19 @@ static int step_pec(gpu_run *g, double dt, int grads)
     v->a = v->b;
     v->b = t;
     LAUNCH(GK_SAVE, v->n, 0.0);
+    return CONSPH_OK;
+}
+
+/* edac or wcsph under pec, as consph_solver_step runs it on the CPU: re-sort into cell order,
+ * save the start, advance by Δt/2 with the previous step's rates, rebuild the search, the
+ * scheme's passes (edac: density, then rates; wcsph: per-particle values, then rates), advance
+ * by Δt. */
+static int step_pec(gpu_run *g, double dt, int grads)
+{
+    const gpu_backend *be = g->be;
+    gpu_view *v = &g->v;
+    int st = resort_save(g);
+    if (st != CONSPH_OK) return st;
     LAUNCH(GK_ADVANCE, v->n, 0.5 * dt);
     if ((st = build_cells(g)) != CONSPH_OK) return st;
     LAUNCH(GK_SLOTS, v->n, 0.0);
@@ -766,13 +777,8 @@ static int step_kdk(gpu_run *g, double dt, int grads)
 {
     const gpu_backend *be = g->be;
     gpu_view *v = &g->v;
-    int st = build_cells(g);
+    int st = resort_save(g);
     if (st != CONSPH_OK) return st;
-    LAUNCH(GK_PERMUTE, v->n, 0.0);
-    double *t = v->a;
-    v->a = v->b;
-    v->b = t;
-    LAUNCH(GK_SAVE, v->n, 0.0);
     LAUNCH(GK_KDK_DRIFT, v->n, dt);
     if ((st = build_cells(g)) != CONSPH_OK) return st;
     LAUNCH(GK_SLOTS, v->n, 0.0);
