@@ -945,6 +945,20 @@ static int cache_ready(const consph_sys *s, unsigned need, const char *name, int
     return CONSPH_OK;
 }
 
+/* A pass the cache served: the visits cache_ready left to a sweep of the filled blocks
+ * (visited (size_t)-1), then the pass's count. */
+static void visit_served(const consph_sys *s, const block_visitor *bv, size_t visited,
+                         size_t *pairs)
+{
+    const consph_nlist *l = s->nlist;
+    if (visited == (size_t)-1) {
+        visited = 0;
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : visited) if (l->n >= s->parallel_min)
+        for (size_t k = 0; k < l->nblocks; ++k) visited += visit_block(s, &l->blocks[k], bv);
+    }
+    if (pairs) *pairs += visited;
+}
+
 int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size_t *pairs)
 {
     consph_nlist *l = s->nlist;
@@ -955,12 +969,7 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
     const int st = cache_ready(s, need, pass->name, &served, &bv, &visited);
     if (st != CONSPH_OK) return st;
     if (!served) return l->skin == 0.0 ? NLIST_GATHER : stream_pass(s, pass, job, pairs);
-    if (visited == (size_t)-1) {
-        visited = 0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : visited) if (l->n >= s->parallel_min)
-        for (size_t k = 0; k < l->nblocks; ++k) visited += visit_block(s, &l->blocks[k], &bv);
-    }
-    if (pairs) *pairs += visited;
+    visit_served(s, &bv, visited, pairs);
     return CONSPH_OK;
 }
 
@@ -982,12 +991,7 @@ int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_g
     const int st = cache_ready(s, need, name, &served, &bv, &visited);
     *ran = served;
     if (st != CONSPH_OK || !served) return st;
-    if (visited == (size_t)-1) {
-        visited = 0;
-#pragma omp parallel for schedule(dynamic, 1) reduction(+ : visited) if (l->n >= s->parallel_min)
-        for (size_t k = 0; k < l->nblocks; ++k) visited += visit_block(s, &l->blocks[k], &bv);
-    }
-    if (pairs) *pairs += visited;
+    visit_served(s, &bv, visited, pairs);
     return CONSPH_OK;
 }
 
