@@ -192,7 +192,6 @@ static void run_case(const walk_case *c, unsigned seed)
     v.scheme = GS_WCSPH; /* no p beside the coordinates */
     grid(&v.g, c);
     v.a = calloc((size_t)d * n, sizeof(double));
-    v.xs = calloc((size_t)d * n, sizeof(double));
     v.xp = calloc(4 * n, sizeof(double));
     v.cell = calloc(n, sizeof(uint32_t));
     v.count = calloc(v.g.ncells + 1, sizeof(uint32_t));
@@ -201,8 +200,8 @@ static void run_case(const walk_case *c, unsigned seed)
     v.slot_of = calloc(n, sizeof(uint32_t));
     uint32_t *hits_j = malloc(HITS_MAX * sizeof(uint32_t));
     double *hits_x = malloc(4 * HITS_MAX * sizeof(double));
-    if (!v.a || !v.xs || !v.xp || !v.cell || !v.count || !v.start || !v.order || !v.slot_of ||
-        !hits_j || !hits_x) {
+    if (!v.a || !v.xp || !v.cell || !v.count || !v.start || !v.order || !v.slot_of || !hits_j ||
+        !hits_x) {
         CHECK(0, "out of memory");
         return;
     }
@@ -269,7 +268,6 @@ static void run_case(const walk_case *c, unsigned seed)
     if (c->radius > c->len[0] && c->periodic[0])
         CHECK(images > 0, "%s: no particle meets its own image (the wrap is not tested)", c->name);
     free(v.a);
-    free(v.xs);
     free(v.xp);
     free(v.cell);
     free(v.count);

@@ -122,7 +122,6 @@ typedef struct gpu_view {
     double *a, *b;      /* narr arrays of n each; b: the target of a permutation */
     double *vol, *mrho; /* edac: 1/Σ W and m/ϱ of the density pass; wcsph: p/ϱ², m/ϱ (n each) */
     double *cs;         /* wcsph: Tait's sound speed of each particle (n) */
-    double *xs;         /* d arrays of n: the coordinates in slot order */
     /* n records of 4 doubles in slot order: the coordinates and edac's p (x, y, p, 0 in 2D;
      * x, y, z, p in 3D), what the walk of the passes reads of each candidate in 16-byte loads */
     double *xp;
@@ -254,8 +253,8 @@ GPU_FN void dev_cell_sort(const gpu_view *v, size_t c)
     }
 }
 
-/* The search's copies of the coordinates in slot order (xs, and xp with edac's p beside them:
- * the density pass reads its neighbours' p), and each particle's slot. */
+/* The search's copy of the coordinates in slot order (xp, with edac's p beside them: the
+ * density pass reads its neighbours' p), and each particle's slot. */
 GPU_FN void dev_slots(const gpu_view *v, size_t s)
 {
     const uint32_t i = v->order[s];
@@ -263,7 +262,6 @@ GPU_FN void dev_slots(const gpu_view *v, size_t s)
     rec[2] = rec[3] = 0.0;
     for (int a = 0; a < v->d; ++a) {
         const double x = gpu_stored(&v->g, a, gv(v, GA_X, a)[i]);
-        v->xs[(size_t)a * v->n + s] = x;
         rec[a] = x;
     }
     if (v->scheme == GS_EDAC) rec[v->d] = gv(v, GA_P, 0)[i];
