@@ -620,11 +620,16 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
         st = consph_fail(CONSPH_EINVAL, "--device gpu: wcsph's sound speed needs an odd γ, not %g",
                          s->prm.gamma);
     grid_setup(&v->g, &p->box, d, consph_nnps_radius(s->sys.nnps), p->n);
-    /* dev.h's walk holds cell coordinates in 32 bits: c ± reach with c < 2^30 */
-    for (int a = 0; st == CONSPH_OK && a < d; ++a)
-        if (v->g.reach[a] > (1 << 29))
+    /* dev.h's walk holds cell coordinates in 32 bits: c ± reach with c < 2^30 (the remeshing's
+     * walk is in the joint grid) */
+    for (int a = 0; st == CONSPH_OK && a < d; ++a) {
+        const int64_t reach = lattice && g->joint_grid.reach[a] > v->g.reach[a]
+                                  ? g->joint_grid.reach[a]
+                                  : v->g.reach[a];
+        if (reach > (1 << 29))
             st = consph_fail(CONSPH_EINVAL, "GPU: the search reaches %lld cells along axis %d",
-                             (long long)v->g.reach[a], a);
+                             (long long)reach, a);
+    }
     if (st == CONSPH_OK && v->g.ncells != consph_nnps_cells(s->sys.nnps))
         st = consph_fail(CONSPH_EINVAL, "GPU: %zu cells, the CPU search has %zu", v->g.ncells,
                          consph_nnps_cells(s->sys.nnps));
