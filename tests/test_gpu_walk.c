@@ -1,9 +1,10 @@
-/* The GPU pair passes' walk by rows of cells (src/gpu/dev.h's gpu_walkr_*) against the cell walk
- * (gpu_walk_*, the one the CPU search's order was matched with): for every particle of random
- * points, the same neighbours in the same order with bit-identical x_ij and r, in 2D and 3D, on
- * periodic, walled and mixed boxes, and on grids so coarse that a periodic row wraps more than
- * once (the search reaching farther than the box, several images of one particle). The cells
- * and slots are built by dev.h's own binning and counting sort. */
+/* The GPU pair passes' walk by rows of cells (src/gpu/dev.h's gpu_walkr_*) against a walk cell
+ * by cell (the reference below, the walk the CPU search's order was first matched with on the
+ * GPU): for every particle of random points, the same neighbours in the same order with
+ * bit-identical x_ij and r, in 2D and 3D, on periodic, walled and mixed boxes, and on grids so
+ * coarse that a periodic row wraps more than once (the search reaching farther than the box,
+ * several images of one particle). The cells and slots are built by dev.h's own binning and
+ * counting sort. */
 #include <float.h>
 #include <math.h>
 #include <stdint.h>
@@ -14,6 +15,123 @@
 #include "gpu/dev.h"
 
 #define HITS_MAX 4096 /* neighbours of one particle, images included */
+
+/* ---- the reference: the cells of reach around i's one at a time, axis 0 innermost, each
+ * pruned when farther than the radius (widened by the binning's rounding) ---- */
+typedef struct cell_walk {
+    int64_t c[3], u[3], ua[3], ub[3];
+    double xi[3], q[3];
+    uint32_t s, s1;
+    uint32_t hits; /* neighbours yielded so far, i itself among them (gpu_pairs_add) */
+} cell_walk;
+
+static int64_t floor_div(int64_t u, int64_t d)
+{
+    if (u >= 0 && u < d) return 0;
+    if (u < 0 && u >= -d) return -1;
+    const int64_t q = u / d;
+    return (u % d != 0 && u < 0) ? q - 1 : q;
+}
+
+/* Points the walk at its current unwrapped cell u: the cell's slots and the image shift; no slots
+ * when the cell lies farther than the radius (widened by the rounding of binning, as the CPU's
+ * walk widens it by its slack) from the point: such a cell holds no neighbour, so skipping it
+ * changes which cells are read, never the neighbours or their order. */
+static void cell_walk_cell(const gpu_view *v, cell_walk *w)
+{
+    const gpu_grid *g = &v->g;
+    double gap2 = 0.0;
+    for (int a = 0; a < 3; ++a) {
+        if (a >= g->dim) break;
+        const double lo = g->lo[a] + (double)w->u[a] * g->h[a];
+        const double hi = g->lo[a] + (double)(w->u[a] + 1) * g->h[a];
+        const int open_lo = !g->periodic[a] && w->u[a] == 0;
+        const int open_hi = !g->periodic[a] && w->u[a] == g->nc[a] - 1;
+        const double x = w->xi[a];
+        const double gap = (!open_lo && x < lo) ? lo - x : (!open_hi && x > hi) ? x - hi : 0.0;
+        gap2 += gap * gap;
+    }
+    if (gap2 > g->prune2) {
+        w->s = w->s1 = 0;
+        return;
+    }
+    size_t cell = 0;
+    double shift[3] = {0.0, 0.0, 0.0};
+    for (int a = 2; a >= 0; --a) {
+        int64_t ca = w->u[a];
+        if (g->periodic[a]) {
+            const int64_t m = floor_div(w->u[a], g->nc[a]);
+            ca = w->u[a] - m * g->nc[a];
+            shift[a] = (double)m * g->len[a];
+        }
+        cell = cell * (size_t)g->nc[a] + (size_t)ca;
+    }
+    for (int a = 0; a < 3; ++a) w->q[a] = a < g->dim ? w->xi[a] - shift[a] : 0.0;
+    w->s = v->start[cell];
+    w->s1 = v->start[cell + 1];
+}
+
+static void cell_walk_start(const gpu_view *v, size_t i, cell_walk *w)
+{
+    const gpu_grid *g = &v->g;
+    for (int a = 0; a < 3; ++a) {
+        w->xi[a] = w->q[a] = 0.0;
+        w->c[a] = 0;
+        w->ua[a] = w->ub[a] = 0;
+        if (a >= g->dim) continue;
+        w->xi[a] = gpu_stored(g, a, gv(v, GA_X, a)[i]);
+        w->c[a] = gpu_cell_axis(g, a, w->xi[a]);
+        w->ua[a] = w->c[a] - g->reach[a];
+        w->ub[a] = w->c[a] + g->reach[a];
+        if (!g->periodic[a]) {
+            if (w->ua[a] < 0) w->ua[a] = 0;
+            if (w->ub[a] > g->nc[a] - 1) w->ub[a] = g->nc[a] - 1;
+        }
+    }
+    for (int a = 0; a < 3; ++a) w->u[a] = w->ua[a];
+    w->hits = 0;
+    cell_walk_cell(v, w);
+}
+
+/* The next neighbour j of the walk (i itself among them, at r = 0), with x_ij and r; 0 at the
+ * end. */
+static int cell_walk_next(const gpu_view *v, cell_walk *w, uint32_t *j, double dx[3], double *r)
+{
+    const int d = v->d;
+    for (;;) {
+        while (w->s < w->s1) {
+            const uint32_t s = w->s++;
+            const double d0 = w->q[0] - v->xp[4 * (size_t)s];
+            double rr = d0 * d0;
+            dx[0] = d0;
+            dx[1] = dx[2] = 0.0;
+            if (d > 1) {
+                const double d1 = w->q[1] - v->xp[4 * (size_t)s + 1];
+                rr += d1 * d1;
+                dx[1] = d1;
+            }
+            if (d > 2) {
+                const double d2 = w->q[2] - v->xp[4 * (size_t)s + 2];
+                rr += d2 * d2;
+                dx[2] = d2;
+            }
+            if (rr < v->g.radius2) {
+                *j = v->order[s];
+                *r = sqrt(rr);
+                ++w->hits;
+                return 1;
+            }
+        }
+        /* the next cell: axis 0 innermost, ascending */
+        int a = 0;
+        while (a < 3 && ++w->u[a] > w->ub[a]) {
+            w->u[a] = w->ua[a];
+            ++a;
+        }
+        if (a == 3) return 0;
+        cell_walk_cell(v, w);
+    }
+}
 
 typedef struct walk_case {
     const char *name;
@@ -74,7 +192,6 @@ static void run_case(const walk_case *c, unsigned seed)
     v.scheme = GS_WCSPH; /* no p beside the coordinates */
     grid(&v.g, c);
     v.a = calloc((size_t)d * n, sizeof(double));
-    v.xs = calloc((size_t)d * n, sizeof(double));
     v.xp = calloc(4 * n, sizeof(double));
     v.cell = calloc(n, sizeof(uint32_t));
     v.count = calloc(v.g.ncells + 1, sizeof(uint32_t));
@@ -83,8 +200,8 @@ static void run_case(const walk_case *c, unsigned seed)
     v.slot_of = calloc(n, sizeof(uint32_t));
     uint32_t *hits_j = malloc(HITS_MAX * sizeof(uint32_t));
     double *hits_x = malloc(4 * HITS_MAX * sizeof(double));
-    if (!v.a || !v.xs || !v.xp || !v.cell || !v.count || !v.start || !v.order || !v.slot_of ||
-        !hits_j || !hits_x) {
+    if (!v.a || !v.xp || !v.cell || !v.count || !v.start || !v.order || !v.slot_of || !hits_j ||
+        !hits_x) {
         CHECK(0, "out of memory");
         return;
     }
@@ -110,12 +227,12 @@ static void run_case(const walk_case *c, unsigned seed)
     size_t total = 0, differ = 0, images = 0;
     for (size_t i = 0; i < n; ++i) {
         /* the cell walk's neighbours of i */
-        gpu_walk w;
-        gpu_walk_start(&v, i, &w);
+        cell_walk w;
+        cell_walk_start(&v, i, &w);
         size_t k = 0;
         uint32_t j;
         double dx[3], r;
-        while (k < HITS_MAX && gpu_walk_next(&v, &w, &j, dx, &r)) {
+        while (k < HITS_MAX && cell_walk_next(&v, &w, &j, dx, &r)) {
             hits_j[k] = j;
             for (int a = 0; a < 3; ++a) hits_x[4 * k + (size_t)a] = a < d ? dx[a] : 0.0;
             hits_x[4 * k + 3] = r;
@@ -151,7 +268,6 @@ static void run_case(const walk_case *c, unsigned seed)
     if (c->radius > c->len[0] && c->periodic[0])
         CHECK(images > 0, "%s: no particle meets its own image (the wrap is not tested)", c->name);
     free(v.a);
-    free(v.xs);
     free(v.xp);
     free(v.cell);
     free(v.count);

@@ -122,7 +122,6 @@ typedef struct gpu_view {
     double *a, *b;      /* narr arrays of n each; b: the target of a permutation */
     double *vol, *mrho; /* edac: 1/Σ W and m/ϱ of the density pass; wcsph: p/ϱ², m/ϱ (n each) */
     double *cs;         /* wcsph: Tait's sound speed of each particle (n) */
-    double *xs;         /* d arrays of n: the coordinates in slot order */
     /* n records of 4 doubles in slot order: the coordinates and edac's p (x, y, p, 0 in 2D;
      * x, y, z, p in 3D), what the walk of the passes reads of each candidate in 16-byte loads */
     double *xp;
@@ -254,8 +253,8 @@ GPU_FN void dev_cell_sort(const gpu_view *v, size_t c)
     }
 }
 
-/* The search's copies of the coordinates in slot order (xs, and xp with edac's p beside them:
- * the density pass reads its neighbours' p), and each particle's slot. */
+/* The search's copy of the coordinates in slot order (xp, with edac's p beside them: the
+ * density pass reads its neighbours' p), and each particle's slot. */
 GPU_FN void dev_slots(const gpu_view *v, size_t s)
 {
     const uint32_t i = v->order[s];
@@ -263,7 +262,6 @@ GPU_FN void dev_slots(const gpu_view *v, size_t s)
     rec[2] = rec[3] = 0.0;
     for (int a = 0; a < v->d; ++a) {
         const double x = gpu_stored(&v->g, a, gv(v, GA_X, a)[i]);
-        v->xs[(size_t)a * v->n + s] = x;
         rec[a] = x;
     }
     if (v->scheme == GS_EDAC) rec[v->d] = gv(v, GA_P, 0)[i];
@@ -380,134 +378,22 @@ GPU_FN void dev_kdk_kick(const gpu_view *v, size_t i, double c)
     gv(v, GA_RHOF, 0)[i] = gv(v, GA_RHOS, 0)[i];
 }
 
-/* ---- the neighbour walk ---- */
-typedef struct gpu_walk {
-    int64_t c[3], u[3], ua[3], ub[3];
-    double xi[3], q[3];
-    uint32_t s, s1;
-    uint32_t hits; /* neighbours yielded so far, i itself among them (gpu_pairs_add) */
-} gpu_walk;
-
-GPU_FN int64_t gpu_floor_div(int64_t u, int64_t d)
-{
-    if (u >= 0 && u < d) return 0;
-    if (u < 0 && u >= -d) return -1;
-    const int64_t q = u / d;
-    return (u % d != 0 && u < 0) ? q - 1 : q;
-}
-
-/* Points the walk at its current unwrapped cell u: the cell's slots and the image shift; no slots
- * when the cell lies farther than the radius (widened by the rounding of binning, as the CPU's
- * walk widens it by its slack) from the point: such a cell holds no neighbour, so skipping it
- * changes which cells are read, never the neighbours or their order. */
-GPU_FN void gpu_walk_cell(const gpu_view *v, gpu_walk *w)
-{
-    const gpu_grid *g = &v->g;
-    double gap2 = 0.0;
-    for (int a = 0; a < 3; ++a) { /* a constant trip count: the walk stays in registers */
-        if (a >= g->dim) break;
-        const double lo = g->lo[a] + (double)w->u[a] * g->h[a];
-        const double hi = g->lo[a] + (double)(w->u[a] + 1) * g->h[a];
-        const int open_lo = !g->periodic[a] && w->u[a] == 0;
-        const int open_hi = !g->periodic[a] && w->u[a] == g->nc[a] - 1;
-        const double x = w->xi[a];
-        const double gap = (!open_lo && x < lo) ? lo - x : (!open_hi && x > hi) ? x - hi : 0.0;
-        gap2 += gap * gap;
-    }
-    if (gap2 > g->prune2) {
-        w->s = w->s1 = 0;
-        return;
-    }
-    size_t cell = 0;
-    double shift[3] = {0.0, 0.0, 0.0};
-    for (int a = 2; a >= 0; --a) {
-        int64_t ca = w->u[a];
-        if (g->periodic[a]) {
-            const int64_t m = gpu_floor_div(w->u[a], g->nc[a]);
-            ca = w->u[a] - m * g->nc[a];
-            shift[a] = (double)m * g->len[a];
-        }
-        cell = cell * (size_t)g->nc[a] + (size_t)ca;
-    }
-    for (int a = 0; a < 3; ++a) w->q[a] = a < g->dim ? w->xi[a] - shift[a] : 0.0;
-    w->s = v->start[cell];
-    w->s1 = v->start[cell + 1];
-}
-
-GPU_FN void gpu_walk_start(const gpu_view *v, size_t i, gpu_walk *w)
-{
-    const gpu_grid *g = &v->g;
-    for (int a = 0; a < 3; ++a) {
-        w->xi[a] = w->q[a] = 0.0;
-        w->c[a] = 0;
-        w->ua[a] = w->ub[a] = 0;
-        if (a >= g->dim) continue;
-        w->xi[a] = gpu_stored(g, a, gv(v, GA_X, a)[i]);
-        w->c[a] = gpu_cell_axis(g, a, w->xi[a]);
-        w->ua[a] = w->c[a] - g->reach[a];
-        w->ub[a] = w->c[a] + g->reach[a];
-        if (!g->periodic[a]) {
-            if (w->ua[a] < 0) w->ua[a] = 0;
-            if (w->ub[a] > g->nc[a] - 1) w->ub[a] = g->nc[a] - 1;
-        }
-    }
-    for (int a = 0; a < 3; ++a) w->u[a] = w->ua[a];
-    w->hits = 0;
-    gpu_walk_cell(v, w);
-}
-
-/* The next neighbour j of the walk (i itself among them, at r = 0), with x_ij and r; 0 at the
- * end. */
-GPU_FN int gpu_walk_next(const gpu_view *v, gpu_walk *w, uint32_t *j, double dx[3], double *r)
-{
-    const int d = v->d;
-    const size_t n = v->n;
-    for (;;) {
-        while (w->s < w->s1) {
-            const uint32_t s = w->s++;
-            const double d0 = w->q[0] - v->xs[s];
-            double rr = d0 * d0;
-            dx[0] = d0;
-            dx[1] = dx[2] = 0.0;
-            if (d > 1) {
-                const double d1 = w->q[1] - v->xs[n + s];
-                rr += d1 * d1;
-                dx[1] = d1;
-            }
-            if (d > 2) {
-                const double d2 = w->q[2] - v->xs[2 * n + s];
-                rr += d2 * d2;
-                dx[2] = d2;
-            }
-            if (rr < v->g.radius2) {
-                *j = v->order[s];
-                *r = sqrt(rr);
-                ++w->hits;
-                return 1;
-            }
-        }
-        /* the next cell: axis 0 innermost, ascending */
-        int a = 0;
-        while (a < 3 && ++w->u[a] > w->ub[a]) {
-            w->u[a] = w->ua[a];
-            ++a;
-        }
-        if (a == 3) return 0;
-        gpu_walk_cell(v, w);
-    }
-}
-
-/* ---- the neighbour walk for a dimension known at compile time, by rows of cells ----
- * The same neighbours in the same order, with the same arithmetic, as gpu_walk_*, walked by rows
- * of cells along axis 0: cells u0 .. u0 + k of a row are adjacent in the counting sort, so their
- * slots are one range, read as one (split only where a periodic axis 0 wraps, the image shift
- * changing). A row is skipped when its gap along axes 1 and 2 alone puts every cell of it beyond
- * the radius, and trimmed at each end by gpu_walk_cell's own test, so that every cell the cell
- * walk reads is read (rounding is monotone: a row's bound never exceeds a cell's gap), and the
- * few cells between read more are only extra candidates, never neighbours. D is a constant once
+/* ---- the neighbour walk, for a dimension known at compile time, by rows of cells ----
+ * Every pair pass walks particle i's neighbours in the CPU search's order: the cells of reach
+ * around i's, unwrapped (a periodic axis gives images), axis 0 innermost and ascending, each
+ * cell's slots in order, i itself among the neighbours at r = 0. A cell farther than the radius
+ * (widened by the rounding of binning, as the CPU's walk widens it by its slack) holds no
+ * neighbour; skipping it changes which cells are read, never the neighbours or their order.
+ * The walk goes by rows of cells along axis 0: cells u0 .. u0 + k of a row are adjacent in the
+ * counting sort, so their slots are one range, read as one (split only where a periodic axis 0
+ * wraps, the image shift changing). A row is skipped when its gap along axes 1 and 2 alone puts
+ * every cell of it beyond the radius, and trimmed at each end by the cell test (gpu_walkr_far),
+ * so that every cell that may hold a neighbour is read (rounding is monotone: a row's bound never
+ * exceeds a cell's gap), and the few cells between read more are only extra candidates, never
+ * neighbours. tests/test_gpu_walk.c holds the walk to a cell-by-cell one. D is a constant once
  * inlined (the loops over axes unroll), the cell coordinates are 32-bit (gpu_attach bounds the
- * reach), and the walk yields slots: the passes read their neighbours' values in slot order (xp,
- * pack), not through the particle index. */
+ * reach), and the walk yields slots: edac's and wcsph's passes read their neighbours' values in
+ * slot order (xp, pack), 001's family through the particle index (dev_negi.h). */
 typedef struct gpu_walkr {
     int u[3], ua[3], ub[3]; /* u[1], u[2]: the current row */
     int u0, last0;          /* the row's next cell along axis 0, and its last */
@@ -526,7 +412,7 @@ GPU_FN int gpu_floor_div32(int u, int d)
     return (u % d != 0 && u < 0) ? q - 1 : q;
 }
 
-/* gpu_walk_cell's gap of cell u along axis a from x. */
+/* The gap of cell u along axis a from x (0 inside it, and beyond a wall's open side). */
 GPU_FN_INLINE double gpu_gap(const gpu_grid *g, int a, int u, double x)
 {
     const double lo = g->lo[a] + (double)u * g->h[a];
@@ -536,7 +422,7 @@ GPU_FN_INLINE double gpu_gap(const gpu_grid *g, int a, int u, double x)
     return (!open_lo && x < lo) ? lo - x : (!open_hi && x > hi) ? x - hi : 0.0;
 }
 
-/* gpu_walk_cell's pruning of cell u0 of the current row, its sum in the same order. */
+/* The cell test: cell u0 of the current row lies beyond the pruning radius. */
 GPU_FN_INLINE int gpu_walkr_far(const gpu_view *v, const gpu_walkr *w, int u0, const int D)
 {
     const double g0 = gpu_gap(&v->g, 0, u0, w->xi[0]);

@@ -4,20 +4,37 @@
  * (src/regularise/regularise.c's reg_ipst: the volumes with max χ, the shift of 001 eq. 19, the
  * move; then src/solver/solver.c's solver_taylor_update and closure). Part of dev.h (its walk,
  * kernel and view); each sum gathers over the neighbours in the CPU's order, and the pair and
- * per-particle arithmetic of the kit and the rates is the CPU's own code (kit_pair.h, iact.h). */
+ * per-particle arithmetic of the kit and the rates is the CPU's own code (kit_pair.h, iact.h).
+ * The walk is dev.h's by rows of cells (gpu_walkr_*), the neighbours' values read by particle. */
 #ifndef CONSPH_GPU_DEV_NEGI_H
 #define CONSPH_GPU_DEV_NEGI_H
 
-/* Σ_j W_ij (i itself among the j), in the walk's order; the neighbours in *hits. */
-GPU_FN double gpu_wsum(const gpu_view *v, size_t i, uint32_t *hits)
+/* The row walk's next neighbour as a particle index: these passes read their neighbours' values
+ * by particle (the arrays of gv), not from records in slot order as edac's and wcsph's do. */
+GPU_FN_INLINE int gpu_walkj_next(const gpu_view *v, gpu_walkr *w, const int D, uint32_t *j,
+                                 double dx[3], double *r)
 {
-    gpu_walk w;
-    gpu_walk_start(v, i, &w);
+    uint32_t sl;
+    if (!gpu_walkr_next(v, w, D, &sl, dx, r)) return 0;
+    *j = GPU_LDG(&v->order[sl]);
+    return 1;
+}
+
+/* Σ_j W_ij (i itself among the j), in the walk's order; the neighbours in *hits. */
+GPU_FN_INLINE double gpu_wsum_d(const gpu_view *v, size_t i, uint32_t *hits, const int D)
+{
+    gpu_walkr w;
+    gpu_walkr_start(v, i, &w, D);
     double s = 0.0, dx[3], r;
-    uint32_t j;
-    while (gpu_walk_next(v, &w, &j, dx, &r)) s += gpu_w(&v->k, r);
+    uint32_t sl;
+    while (gpu_walkr_next(v, &w, D, &sl, dx, &r)) s += gpu_w(&v->k, r);
     *hits = w.hits;
     return s;
+}
+
+GPU_FN double gpu_wsum(const gpu_view *v, size_t i, uint32_t *hits)
+{
+    return v->d == 2 ? gpu_wsum_d(v, i, hits, 2) : gpu_wsum_d(v, i, hits, 3);
 }
 
 /* kit_volumes: ω = 1/Σ W (a pass the CPU counts). */
@@ -40,11 +57,11 @@ GPU_FN_INLINE void dev_negi_first_d(const gpu_view *v, size_t i, const int D, co
     const double pi = P ? pf[i] : 0.0, qi = Q ? qf[i] : 0.0;
     if (U)
         for (int a = 0; a < D; ++a) ui[a] = gv(v, GA_U, a)[i];
-    gpu_walk w;
-    gpu_walk_start(v, i, &w);
+    gpu_walkr w;
+    gpu_walkr_start(v, i, &w, D);
     double x[3], r;
     uint32_t j;
-    while (gpu_walk_next(v, &w, &j, x, &r)) {
+    while (gpu_walkj_next(v, &w, D, &j, x, &r)) {
         double uj[3] = {0.0, 0.0, 0.0};
         if (U)
             for (int a = 0; a < D; ++a) uj[a] = gv(v, GA_U, a)[j];
@@ -103,11 +120,11 @@ GPU_FN_INLINE void dev_negi_coupled_d(const gpu_view *v, size_t i, const int D, 
         for (int e = 0; e < D * D; ++e) Gi[e] = gv(v, GA_GRADU, e)[i];
     if (Q)
         for (int b = 0; b < D; ++b) gqi[b] = gv(v, GA_GRADQ, b)[i];
-    gpu_walk w;
-    gpu_walk_start(v, i, &w);
+    gpu_walkr w;
+    gpu_walkr_start(v, i, &w, D);
     double x[3], r;
     uint32_t j;
-    while (gpu_walk_next(v, &w, &j, x, &r)) {
+    while (gpu_walkj_next(v, &w, D, &j, x, &r)) {
         double Gj[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, gqj[3] = {0.0, 0.0, 0.0};
         if (U)
             for (int e = 0; e < D * D; ++e) Gj[e] = gv(v, GA_GRADU, e)[j];
@@ -144,11 +161,11 @@ GPU_FN_INLINE void dev_negi_cleary_d(const gpu_view *v, size_t i, const int D)
     double B[9], ui[3] = {0.0, 0.0, 0.0}, acc[3] = {0.0, 0.0, 0.0};
     for (int e = 0; e < D * D; ++e) B[e] = gv(v, GA_BONET, e)[i];
     for (int a = 0; a < D; ++a) ui[a] = gv(v, GA_U, a)[i];
-    gpu_walk w;
-    gpu_walk_start(v, i, &w);
+    gpu_walkr w;
+    gpu_walkr_start(v, i, &w, D);
     double x[3], r;
     uint32_t j;
-    while (gpu_walk_next(v, &w, &j, x, &r)) {
+    while (gpu_walkj_next(v, &w, D, &j, x, &r)) {
         if (!(r > 1e-14)) continue;
         double uj[3] = {0.0, 0.0, 0.0};
         for (int a = 0; a < D; ++a) uj[a] = gv(v, GA_U, a)[j];
@@ -174,7 +191,7 @@ GPU_FN_INLINE void dev_negi_fatehi_d(const gpu_view *v, size_t i, const int D)
     double Bh[9], G[9], ui[3] = {0.0, 0.0, 0.0}, acc[3] = {0.0, 0.0, 0.0};
     for (int e = 0; e < D * D; ++e) G[e] = gv(v, GA_GRADU, e)[i];
     for (int a = 0; a < D; ++a) ui[a] = gv(v, GA_U, a)[i];
-    gpu_walk w;
+    gpu_walkr w;
     double x[3], r;
     uint32_t j;
     int ok = v->bonet_ok[i];
@@ -183,8 +200,8 @@ GPU_FN_INLINE void dev_negi_fatehi_d(const gpu_view *v, size_t i, const int D)
         double L2[9] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0}, L3[27];
         for (int e = 0; e < 27; ++e) L3[e] = 0.0;
         for (int e = 0; e < D * D; ++e) B[e] = gv(v, GA_BONET, e)[i];
-        gpu_walk_start(v, i, &w);
-        while (gpu_walk_next(v, &w, &j, x, &r))
+        gpu_walkr_start(v, i, &w, D);
+        while (gpu_walkj_next(v, &w, D, &j, x, &r))
             if (r > 0.0) term_fatehi_c_pair(D, r, x, vol[j] * gpu_dwr(&v->k, r), L1, L2, L3);
         term_fatehi_c_finish(D, B, L1, L2, L3, M);
         ok = ops_invert_n(D, M, Bh, v->cond_max, &cond);
@@ -192,8 +209,8 @@ GPU_FN_INLINE void dev_negi_fatehi_d(const gpu_view *v, size_t i, const int D)
     if (!ok)
         for (int a = 0; a < D; ++a)
             for (int b = 0; b < D; ++b) Bh[a * D + b] = a == b ? 1.0 : 0.0;
-    gpu_walk_start(v, i, &w);
-    while (gpu_walk_next(v, &w, &j, x, &r)) {
+    gpu_walkr_start(v, i, &w, D);
+    while (gpu_walkj_next(v, &w, D, &j, x, &r)) {
         if (!(r > 0.0)) continue;
         double uj[3] = {0.0, 0.0, 0.0};
         for (int a = 0; a < D; ++a) uj[a] = gv(v, GA_U, a)[j];
@@ -225,11 +242,11 @@ GPU_FN_INLINE void dev_negi_korzilius_d(const gpu_view *v, size_t i, const int D
     double A[36], Hx[18], Gz[18], rhs[18];
     for (int e = 0; e < 36; ++e) A[e] = 0.0;
     for (int e = 0; e < 18; ++e) Hx[e] = Gz[e] = rhs[e] = 0.0;
-    gpu_walk w;
-    gpu_walk_start(v, i, &w);
+    gpu_walkr w;
+    gpu_walkr_start(v, i, &w, D);
     double x[3], r;
     uint32_t j;
-    while (gpu_walk_next(v, &w, &j, x, &r)) {
+    while (gpu_walkj_next(v, &w, D, &j, x, &r)) {
         double uj[3] = {0.0, 0.0, 0.0};
         for (int a = 0; a < D; ++a) uj[a] = gv(v, GA_U, a)[j];
         const double dwr = gpu_dwr(&v->k, r);
@@ -350,11 +367,11 @@ GPU_FN_INLINE void dev_ipst_shift_d(const gpu_view *v, size_t i, const int D)
 {
     const double *vol = gv(v, GA_VOL, 0);
     double acc[3] = {0.0, 0.0, 0.0};
-    gpu_walk w;
-    gpu_walk_start(v, i, &w);
+    gpu_walkr w;
+    gpu_walkr_start(v, i, &w, D);
     double x[3], r;
     uint32_t j;
-    while (gpu_walk_next(v, &w, &j, x, &r)) {
+    while (gpu_walkj_next(v, &w, D, &j, x, &r)) {
         if (!(r > 0.0)) continue;
         const double f = gpu_w(&v->k, r) * vol[j] / r;
         for (int c = 0; c < D; ++c) acc[c] += f * x[c];
@@ -379,11 +396,11 @@ GPU_FN_INLINE void dev_pst_shift_d(const gpu_view *v, size_t i, const int D, dou
 {
     const double *vol = gv(v, GA_VOL, 0);
     double acc[3] = {0.0, 0.0, 0.0};
-    gpu_walk w;
-    gpu_walk_start(v, i, &w);
+    gpu_walkr w;
+    gpu_walkr_start(v, i, &w, D);
     double x[3], r;
     uint32_t j;
-    while (gpu_walk_next(v, &w, &j, x, &r)) {
+    while (gpu_walkj_next(v, &w, D, &j, x, &r)) {
         const double t = gpu_w(&v->k, r) * v->pst_inv_wds, t2 = t * t;
         const double f = (1.0 + v->pst_R * (t2 * t2)) * gpu_dwr(&v->k, r) * vol[j];
         for (int c = 0; c < D; ++c) acc[c] += f * x[c];
@@ -431,11 +448,11 @@ GPU_FN_INLINE void dev_remesh_d(const gpu_view *v, size_t k, const int D)
     const size_t n = v->n;
     const double *q = gv(v, GA_Q, 0);
     double out[4] = {0.0, 0.0, 0.0, 0.0}, wsum = 0.0;
-    gpu_walk w;
-    gpu_walk_start(v, k, &w);
+    gpu_walkr w;
+    gpu_walkr_start(v, k, &w, D);
     double x[3], r;
     uint32_t j;
-    while (gpu_walk_next(v, &w, &j, x, &r)) {
+    while (gpu_walkj_next(v, &w, D, &j, x, &r)) {
         double m = v->m4_norm;
         for (int c = 0; c < D && m != 0.0; ++c) {
             const double qa = fabs(x[c]) * v->m4_inv_h;

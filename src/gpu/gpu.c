@@ -23,7 +23,6 @@ struct gpu_run {
      * kernel's reach): its grid, and the particles' cell lists and slots in it */
     gpu_grid joint_grid;
     uint32_t *jcell, *jcount, *jstart, *jorder;
-    double *jxs;
     long downloads;       /* copies of the state back to the host (gpu_download_count) */
     long long down_bytes; /* the bytes those copies moved (gpu_download_bytes) */
 
@@ -479,10 +478,10 @@ void gpu_free(gpu_run *g)
     if (getenv("CONSPH_GPU_COUNT_COPIES"))
         fprintf(stderr, "GPU: %ld copies back to the host\nGPU: %lld bytes copied back\n",
                 g->downloads, g->down_bytes);
-    void *bufs[] = {g->dev_a[0],   g->dev_a[1],  g->v.vol,   g->v.mrho,  g->v.cs,   g->v.xs,
-                    g->v.cell,     g->v.count,   g->v.start, g->v.order, g->v.step, g->v.total,
-                    g->v.chi_max,  g->jcell,     g->jcount,  g->jstart,  g->jorder, g->jxs,
-                    g->v.bonet_ok, g->v.slot_of, g->v.pack,  g->v.xp};
+    void *bufs[] = {g->dev_a[0], g->dev_a[1],   g->v.vol,     g->v.mrho,  g->v.cs,
+                    g->v.cell,   g->v.count,    g->v.start,   g->v.order, g->v.step,
+                    g->v.total,  g->v.chi_max,  g->jcell,     g->jcount,  g->jstart,
+                    g->jorder,   g->v.bonet_ok, g->v.slot_of, g->v.pack,  g->v.xp};
     for (size_t k = 0; k < sizeof bufs / sizeof bufs[0]; ++k)
         if (bufs[k]) be->release(bufs[k]);
     if (g->v.pairs) be->release(g->v.pairs);
@@ -621,11 +620,16 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
         st = consph_fail(CONSPH_EINVAL, "--device gpu: wcsph's sound speed needs an odd γ, not %g",
                          s->prm.gamma);
     grid_setup(&v->g, &p->box, d, consph_nnps_radius(s->sys.nnps), p->n);
-    /* dev.h's walk holds cell coordinates in 32 bits: c ± reach with c < 2^30 */
-    for (int a = 0; st == CONSPH_OK && a < d; ++a)
-        if (v->g.reach[a] > (1 << 29))
+    /* dev.h's walk holds cell coordinates in 32 bits: c ± reach with c < 2^30 (the remeshing's
+     * walk is in the joint grid) */
+    for (int a = 0; st == CONSPH_OK && a < d; ++a) {
+        const int64_t reach = lattice && g->joint_grid.reach[a] > v->g.reach[a]
+                                  ? g->joint_grid.reach[a]
+                                  : v->g.reach[a];
+        if (reach > (1 << 29))
             st = consph_fail(CONSPH_EINVAL, "GPU: the search reaches %lld cells along axis %d",
-                             (long long)v->g.reach[a], a);
+                             (long long)reach, a);
+    }
     if (st == CONSPH_OK && v->g.ncells != consph_nnps_cells(s->sys.nnps))
         st = consph_fail(CONSPH_EINVAL, "GPU: %zu cells, the CPU search has %zu", v->g.ncells,
                          consph_nnps_cells(s->sys.nnps));
@@ -663,7 +667,6 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
         (be->alloc((void **)&g->dev_a[0], nd) || be->alloc((void **)&g->dev_a[1], nd) ||
          be->alloc((void **)&v->vol, nvol) || be->alloc((void **)&v->mrho, n * sizeof(double)) ||
          be->alloc((void **)&v->cs, ncs * sizeof(double)) ||
-         be->alloc((void **)&v->xs, (size_t)d * n * sizeof(double)) ||
          be->alloc((void **)&v->xp, 4 * n * sizeof(double)) ||
          be->alloc((void **)&v->slot_of, n * sizeof(uint32_t)) ||
          be->alloc((void **)&v->pack, npack * sizeof(double)) ||
@@ -688,17 +691,15 @@ int gpu_attach(consph_solver *s, const gpu_backend *be)
     if (st == CONSPH_OK &&
         (be->alloc((void **)&g->jcell, nj * sizeof(uint32_t)) ||
          be->alloc((void **)&g->jcount, njc) || be->alloc((void **)&g->jstart, njc) ||
-         be->alloc((void **)&g->jorder, nj * sizeof(uint32_t)) ||
-         be->alloc((void **)&g->jxs, (size_t)d * nj * sizeof(double))))
+         be->alloc((void **)&g->jorder, nj * sizeof(uint32_t))))
         st = be_fail(be, "device memory");
     v->a = g->dev_a[0];
     v->b = g->dev_a[1];
     v->chi = v->mrho;
-    g->bytes = 2 * nd + nvol + n * sizeof(double) + ncs * sizeof(double) +
-               (size_t)(d + 4) * n * sizeof(double) + npack * sizeof(double) +
-               3 * n * sizeof(uint32_t) + 2 * nc + 2 * nstep + (negi ? n : 1) + npairs +
-               nchunk_bytes;
-    if (lattice) g->bytes += 2 * n * sizeof(uint32_t) + 2 * njc + (size_t)d * n * sizeof(double);
+    g->bytes = 2 * nd + nvol + n * sizeof(double) + ncs * sizeof(double) + 4 * n * sizeof(double) +
+               npack * sizeof(double) + 3 * n * sizeof(uint32_t) + 2 * nc + 2 * nstep +
+               (negi ? n : 1) + npairs + nchunk_bytes;
+    if (lattice) g->bytes += 2 * n * sizeof(uint32_t) + 2 * njc;
     if (st == CONSPH_OK) st = copy_arrays(s, 1, NULL);
     if (st != CONSPH_OK) {
         s->gpu = NULL;
@@ -1014,10 +1015,10 @@ static int remesh(consph_solver *s)
     jv.count = g->jcount;
     jv.start = g->jstart;
     jv.order = g->jorder;
-    jv.xs = g->jxs;
     int st = build_cells_in(be, &jv);
     if (st != CONSPH_OK) return st;
     const gpu_view *v = &jv;
+    /* the joint slots into the search's xp and slot_of, which the rebuild below restores */
     LAUNCH(GK_SLOTS, v->n, 0.0);
     jv.at[GA_X] = jv.at[GA_LAT]; /* the walks start at the lattice points */
     LAUNCH(GK_REMESH, v->n, 0.0);
