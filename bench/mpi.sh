@@ -202,8 +202,9 @@ halo() {
 
 # solver_case DIM PER_RANK STRONG_NX PROBLEM SCHEME: weak scaling at PER_RANK particles per rank
 # (nx = round((K PER_RANK)^(1/DIM))), and strong scaling at STRONG_NX (empty: the largest K's
-# nx); then the extrapolation of the halo and the communication to 16 ranks (slabs along one
-# axis) from the largest K measured, when that is below 16.
+# nx); then the extrapolation of the halo and the communication to 16 ranks from the largest K
+# measured, when that is below 16, as if the cut stayed slabs along one axis: an upper bound,
+# since consph cuts boxes over up to three axes where they hold fewer halo cells.
 solver_case() {
     dim=$1 per=$2 snx=$3 prob=$4 scheme=$5
     set -- "$CONSPH" run "$prob" --scheme "$scheme" --layout lattice --threads 1
@@ -280,7 +281,7 @@ solver_case() {
             kappa = c * kmax / (b * n)     # MPI seconds per byte a rank sends, kmax-rank run
             c16 = kappa * b16 * per
             comp = t1                      # the pair work of PER_RANK owned particles
-            printf "\nAt 16 ranks (extrapolated, not measured): nx %d, halo/owned about %.1f", nx16, h16
+            printf "\nAt 16 ranks (extrapolated as slabs, not measured; boxes over up to three axes hold fewer): nx %d, halo/owned about %.1f", nx16, h16
             printf " (%.2f measured at %d ranks), about %.0f bytes per particle-step;", h, kmax, b16
             printf " at the %d-rank cost per byte (%.2g s/MB, waiting on this shared machine included)", kmax, kappa * 1e6
             printf " communication would take %.3g s of a step whose pair work takes %.3g s:", c16, comp
@@ -309,17 +310,16 @@ solver_scaling() {
     case " $SOLVER_CASES " in *" 3d "*) solver_case 3 "$WEAK_PER_RANK" "$STRONG_NX" beltrami l-ipst-c ;; esac
     case " $SOLVER_CASES " in *" 2d "*) solver_case 2 "$WEAK_PER_RANK_2D" "$STRONG_NX_2D" taylor-green l-ipst-c ;; esac
     echo
-    echo "### What the slabs mean for the targets"
+    echo "### What the halo means for the targets"
     echo
-    echo "The extrapolation keeps what the measurement shows: before every pass every rank refreshes"
-    echo "the fields of its halo that changed since the last refresh, and the halo is a fixed number"
-    echo "of cell layers (the search's reach plus one) on each side of a slab whatever its"
-    echo "thickness. Weak scaling along one axis"
-    echo "thins the slabs as K grows (the axis grows as K^(1/3) in 3D, K^(1/2) in 2D), so the halo,"
-    echo "and the bytes with it, outgrow the owned particles; more ranks than cell layers along the"
-    echo "axis are refused. The 3D target (efficiency >= 80 % at 16 ranks, 10^5 particles per rank)"
-    echo "needs a decomposition in all three axes (ranges of a space-filling curve over cells, with a"
-    echo "map back to the serial order), and fewer bytes: only the fields a pass reads."
+    echo "Before every pass every rank refreshes the fields of its halo that changed since the last"
+    echo "refresh (only the positions at a search rebuild), and the halo is a fixed number of cell"
+    echo "layers (the search's reach plus one) on each side of a rank's box along every cut axis,"
+    echo "whatever its thickness. The cut is K = k0 k1 k2 boxes of cells chosen for the fewest halo"
+    echo "cells (slabs where they win, at 2-3 ranks), so the halo grows more slowly with K than a"
+    echo "slab's; the extrapolation above keeps slabs and is an upper bound. What a rank adds to the"
+    echo "serial work, by kind, is measured in instructions by bench/mpi_instr.sh; the refresh still"
+    echo "scans every column, since the passes do not declare the fields they read."
     echo "Measured here: ranks 1 $RANKS on $(getconf _NPROCESSORS_ONLN) cores${MACHINE_NOTE:+ ($MACHINE_NOTE)}."
 }
 
