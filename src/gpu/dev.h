@@ -42,6 +42,17 @@
 #define GPU_FN_INLINE static inline
 #endif
 
+/* NAME(v, i): BODY(v, i, D) for the view's dimension, BODY written with D a compile-time
+ * constant once inlined (its small arrays then stay in registers). */
+#define GPU_BY_DIM(name, body)                                                                     \
+    GPU_FN void name(const gpu_view *v, size_t i)                                                  \
+    {                                                                                              \
+        if (v->d == 2)                                                                             \
+            body(v, i, 2);                                                                         \
+        else                                                                                       \
+            body(v, i, 3);                                                                         \
+    }
+
 /* A load of what no thread of the kernel writes, through the GPU's read-only data path. */
 #if defined(__CUDA_ARCH__)
 #define GPU_LDG(p) __ldg(p)

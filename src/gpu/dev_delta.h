@@ -68,13 +68,7 @@ GPU_FN_INLINE void dev_delta_renorm_d(const gpu_view *v, size_t i, const int D)
     if ((3 + 2 * D + (sun ? D : 0)) & 1) rec[K - 1] = 0.0;
 }
 
-GPU_FN void dev_delta_renorm(const gpu_view *v, size_t i)
-{
-    if (v->d == 2)
-        dev_delta_renorm_d(v, i, 2);
-    else
-        dev_delta_renorm_d(v, i, 3);
-}
+GPU_BY_DIM(dev_delta_renorm, dev_delta_renorm_d)
 
 /* Pass 2 at particle i (visit_rates_d): delta_pair over the neighbours at r > 0 in the walk's
  * order, each neighbour's values from its slot's record (pass 1 wrote them), then delta_rates_i;

@@ -175,13 +175,7 @@ GPU_FN_INLINE void dev_negi_cleary_d(const gpu_view *v, size_t i, const int D)
     for (int a = 0; a < D; ++a) gv(v, GA_LAPU, a)[i] = acc[a];
 }
 
-GPU_FN void dev_negi_cleary_any(const gpu_view *v, size_t i)
-{
-    if (v->d == 2)
-        dev_negi_cleary_d(v, i, 2);
-    else
-        dev_negi_cleary_d(v, i, 3);
-}
+GPU_BY_DIM(dev_negi_cleary_any, dev_negi_cleary_d)
 
 /* Fatehi_c's Laplacian (kit.c's fatehi_c_matrix and fatehi_body): B̂_i from one walk (the
  * identity where B_i fell back or B̂'s matrix is singular or ill conditioned), ∇²u from another. */
@@ -259,21 +253,9 @@ GPU_FN_INLINE void dev_negi_korzilius_d(const gpu_view *v, size_t i, const int D
     for (int a = 0; a < D; ++a) gv(v, GA_LAPU, a)[i] = lap[a];
 }
 
-GPU_FN void dev_negi_korzilius_any(const gpu_view *v, size_t i)
-{
-    if (v->d == 2)
-        dev_negi_korzilius_d(v, i, 2);
-    else
-        dev_negi_korzilius_d(v, i, 3);
-}
+GPU_BY_DIM(dev_negi_korzilius_any, dev_negi_korzilius_d)
 
-GPU_FN void dev_negi_fatehi_any(const gpu_view *v, size_t i)
-{
-    if (v->d == 2)
-        dev_negi_fatehi_d(v, i, 2);
-    else
-        dev_negi_fatehi_d(v, i, 3);
-}
+GPU_BY_DIM(dev_negi_fatehi_any, dev_negi_fatehi_d)
 
 /* negi/scheme.c's rates loop: the kit's derivatives at i into negi_rates_i, d known at compile
  * time (the small arrays stay in registers). */
@@ -303,13 +285,7 @@ GPU_FN_INLINE void dev_negi_rates_d(const gpu_view *v, size_t i, const int D)
     gv(v, GA_AQ, 0)[i] = aq;
 }
 
-GPU_FN void dev_negi_rates(const gpu_view *v, size_t i)
-{
-    if (v->d == 2)
-        dev_negi_rates_d(v, i, 2);
-    else
-        dev_negi_rates_d(v, i, 3);
-}
+GPU_BY_DIM(dev_negi_rates, dev_negi_rates_d)
 
 /* ---- IPST (reg_ipst) ---- */
 
@@ -379,13 +355,7 @@ GPU_FN_INLINE void dev_ipst_shift_d(const gpu_view *v, size_t i, const int D)
     for (int c = 0; c < D; ++c) v->step[(size_t)c * v->n + i] = v->ipst_h * acc[c];
 }
 
-GPU_FN void dev_ipst_shift_any(const gpu_view *v, size_t i)
-{
-    if (v->d == 2)
-        dev_ipst_shift_d(v, i, 2);
-    else
-        dev_ipst_shift_d(v, i, 3);
-}
+GPU_BY_DIM(dev_ipst_shift_any, dev_ipst_shift_d)
 
 /* ---- the shifting of Sun et al. (regularise.c's reg_pst_shift with n = 4, no cap) ---- */
 
@@ -472,13 +442,7 @@ GPU_FN_INLINE void dev_remesh_d(const gpu_view *v, size_t k, const int D)
     v->chi[k] = out[D] / wsum;
 }
 
-GPU_FN void dev_remesh_any(const gpu_view *v, size_t k)
-{
-    if (v->d == 2)
-        dev_remesh_d(v, k, 2);
-    else
-        dev_remesh_d(v, k, 3);
-}
+GPU_BY_DIM(dev_remesh_any, dev_remesh_d)
 
 /* After the remeshing: u and q the remeshed values, x the lattice point, the closure. */
 GPU_FN void dev_remesh_end(const gpu_view *v, size_t k)
