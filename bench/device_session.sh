@@ -46,24 +46,27 @@ case "$mode" in
     : >"$out/session.log"
     log "device: $(nvidia-smi --query-gpu=name --format=csv,noheader 2>/dev/null | head -1), $(nproc) cores"
     left() { echo $((budget - ($(date +%s) - start))); }
-    pack() { tar -C "$work" -czf "$out/$1.tar.gz" "$1" 2>/dev/null; }
+    # part NAME LIMIT CMD...: CMD writes into $work/NAME under a time limit; its log joins that
+    # folder, its report NAME.md is copied out and the folder packed as NAME.tar.gz
+    part() {
+        local name=$1 limit=$2
+        shift 2
+        timeout "$limit" "$@" >"$work/$name.log" 2>&1
+        log "   exit $?"
+        mkdir -p "$work/$name"
+        mv "$work/$name.log" "$work/$name/"
+        cp "$work/$name/$name.md" "$out/" 2>/dev/null
+        tar -C "$work" -czf "$out/$name.tar.gz" "$name" 2>/dev/null
+    }
     if [ -x build-gpu-carry/consph ]; then
         b=$((budget * gpu_share / 100))
         log "1. bench/gpu.sh, budget $b s"
-        BUILD=build-gpu-carry timeout $((b + 120)) bash bench/gpu.sh --no-build --budget "$b" \
-            --out "$work/gpu" >"$work/gpu.log" 2>&1
-        log "   exit $?"
-        mv "$work/gpu.log" "$work/gpu/" 2>/dev/null
-        cp "$work/gpu/gpu.md" "$out/" 2>/dev/null
-        pack gpu
+        part gpu $((b + 120)) env BUILD=build-gpu-carry bash bench/gpu.sh --no-build \
+            --budget "$b" --out "$work/gpu"
         b=$(($(left) * study_share * 100 / (100 - gpu_share) / 100))
         log "2. bench/gpu_study.sh, budget $b s"
-        BUILD=build-gpu-carry timeout $((b + 120)) bash bench/gpu_study.sh --no-build \
-            --budget "$b" --out "$work/gpu_study" >"$work/gpu_study.log" 2>&1
-        log "   exit $?"
-        mv "$work/gpu_study.log" "$work/gpu_study/" 2>/dev/null
-        cp "$work/gpu_study/gpu_study.md" "$out/" 2>/dev/null
-        pack gpu_study
+        part gpu_study $((b + 120)) env BUILD=build-gpu-carry bash bench/gpu_study.sh \
+            --no-build --budget "$b" --out "$work/gpu_study"
     else
         log "1-2. skipped: no build-gpu-carry (bash bench/device_session.sh --prep here, then carry it)"
     fi
@@ -71,12 +74,8 @@ case "$mode" in
         b=$(($(left) - 20))
         if [ $b -gt 60 ]; then
             log "3. bench/mpi_device.sh, budget $b s"
-            BUDGET=$b timeout $((b + 60)) bash mpi-carry/scripts/bench/mpi_device.sh "$work/mpi" \
-                >"$work/mpi.log" 2>&1
-            log "   exit $?"
-            mv "$work/mpi.log" "$work/mpi/" 2>/dev/null
-            cp "$work/mpi/mpi.md" "$out/" 2>/dev/null
-            pack mpi
+            part mpi $((b + 60)) env BUDGET="$b" bash mpi-carry/scripts/bench/mpi_device.sh \
+                "$work/mpi"
         else
             log "3. skipped: $b s left"
         fi
