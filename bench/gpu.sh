@@ -209,8 +209,15 @@ fi
     echo
     echo "Raw: results.txt (bench_gpu's lines), run.log, build.log, ctest.log (the tests' output), raw/*.err."
 } >"$out/gpu.md"
-# bench/gpu.md holds a full run's tables only (not --quick's, not the emulation's)
-[ $quick = 0 ] && [ $emulate = 0 ] && [ "$out" != "$root/bench" ] && cp "$out/gpu.md" "$root/bench/gpu.md"
+# bench/gpu.md holds a full run's tables on a GPU only (not --quick's, not the emulation's, not a
+# run whose cases found no device: that would replace the record with empty GPU columns)
+if [ $quick = 0 ] && [ $emulate = 0 ] && [ "$out" != "$root/bench" ]; then
+    if grep -q 'backend="CUDA"' "$out/results.txt"; then
+        cp "$out/gpu.md" "$root/bench/gpu.md"
+    else
+        log "no case ran on a GPU: bench/gpu.md left as it was"
+    fi
+fi
 log "wrote $out/gpu.md"
 cat "$out/gpu.md"
 exit $ctest_rc
