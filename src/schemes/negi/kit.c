@@ -14,6 +14,7 @@
 
 #include "ops/ops_internal.h"
 #include "pass/group.h"
+#include "pass/lanes4.h"
 #include "pass/nlist.h"
 #include "schemes/negi/kit_pair.h"
 #include "solver/solver_internal.h"
@@ -330,7 +331,7 @@ unsigned long kit_group_passes = 0;
 int kit_chain_passes = 1;
 unsigned long kit_chains = 0;
 
-#if defined(__GNUC__)
+#ifdef CONSPH_LANES4
 #define KIT_GROUPS 1
 /* GCC builds a vector from scalars by inserting them into the destination's old value, and then
  * warns that the old value may be uninitialised (it is never read) */
@@ -338,15 +339,10 @@ unsigned long kit_chains = 0;
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
-typedef double kv4 __attribute__((vector_size(4 * sizeof(double))));
-typedef long long kv4i __attribute__((vector_size(4 * sizeof(double))));
-typedef double kv4u __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double))));
-/* m ? a : b per lane (m: all bits set or none) */
-#define KV_SEL(m, a, b) ((kv4)(((m) & (kv4i)(a)) | (~(m) & (kv4i)(b))))
 #if defined(__clang__)
 #define KV_SHUF(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)
 #else
-#define KV_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (kv4i){i0, i1, i2, i3})
+#define KV_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (lane4i){i0, i1, i2, i3})
 #endif
 /* An AVX2 copy in a generic x86-64 build, chosen at load time (the same operations in the same
  * order), as the PySPH family's group visits (src/schemes/pysph/scheme.c). */
@@ -357,12 +353,12 @@ typedef double kv4u __attribute__((vector_size(4 * sizeof(double)), aligned(size
 #endif
 
 /* Entries o..o+3 of the four rows q[l], as four vectors f[c] = {q[0][o+c], ..., q[3][o+c]}. */
-TERM_INLINE void kv_transpose(const double *const q[PASS_GROUP], size_t o, kv4 f[4])
+TERM_INLINE void kv_transpose(const double *const q[PASS_GROUP], size_t o, lane4 f[4])
 {
-    const kv4 a0 = *(const kv4u *)(q[0] + o), a1 = *(const kv4u *)(q[1] + o);
-    const kv4 a2 = *(const kv4u *)(q[2] + o), a3 = *(const kv4u *)(q[3] + o);
-    const kv4 t0 = KV_SHUF(a0, a1, 0, 4, 2, 6), t1 = KV_SHUF(a0, a1, 1, 5, 3, 7);
-    const kv4 t2 = KV_SHUF(a2, a3, 0, 4, 2, 6), t3 = KV_SHUF(a2, a3, 1, 5, 3, 7);
+    const lane4 a0 = *(const lane4u *)(q[0] + o), a1 = *(const lane4u *)(q[1] + o);
+    const lane4 a2 = *(const lane4u *)(q[2] + o), a3 = *(const lane4u *)(q[3] + o);
+    const lane4 t0 = KV_SHUF(a0, a1, 0, 4, 2, 6), t1 = KV_SHUF(a0, a1, 1, 5, 3, 7);
+    const lane4 t2 = KV_SHUF(a2, a3, 0, 4, 2, 6), t3 = KV_SHUF(a2, a3, 1, 5, 3, 7);
     f[0] = KV_SHUF(t0, t2, 0, 1, 4, 5);
     f[1] = KV_SHUF(t1, t3, 0, 1, 4, 5);
     f[2] = KV_SHUF(t0, t2, 2, 3, 6, 7);
@@ -379,10 +375,10 @@ KIT_CLONES static void group_volume(void *vjob, const consph_nbhd *nb, int count
         if (n[l] < kmin) kmin = n[l];
         if (n[l] > kmax) kmax = n[l];
     }
-    kv4 s = {0.0, 0.0, 0.0, 0.0};
+    lane4 s = {0.0, 0.0, 0.0, 0.0};
     size_t k = 0;
     for (; k + 4 <= kmin; k += 4) {
-        kv4 f[4];
+        lane4 f[4];
         const double *q[PASS_GROUP] = {nb[0].w + k, nb[1].w + k, nb[2].w + k, nb[3].w + k};
         kv_transpose(q, 0, f);
         s += f[0];
@@ -390,13 +386,13 @@ KIT_CLONES static void group_volume(void *vjob, const consph_nbhd *nb, int count
         s += f[2];
         s += f[3];
     }
-    const kv4i nv = {(long long)n[0], (long long)n[1], (long long)n[2], (long long)n[3]};
+    const lane4i nv = {(long long)n[0], (long long)n[1], (long long)n[2], (long long)n[3]};
     for (; k < kmax; ++k) {
         size_t e[PASS_GROUP];
         for (int l = 0; l < PASS_GROUP; ++l) e[l] = k < n[l] ? k : n[l] - 1;
-        const kv4 w = {nb[0].w[e[0]], nb[1].w[e[1]], nb[2].w[e[2]], nb[3].w[e[3]]};
-        const kv4i kv = {(long long)k, (long long)k, (long long)k, (long long)k};
-        s = KV_SEL((kv4i)(kv < nv), s + w, s);
+        const lane4 w = {nb[0].w[e[0]], nb[1].w[e[1]], nb[2].w[e[2]], nb[3].w[e[3]]};
+        const lane4i kv = {(long long)k, (long long)k, (long long)k, (long long)k};
+        s = LANE4_SEL((lane4i)(kv < nv), s + w, s);
     }
     for (int l = 0; l < count; ++l) vol[nb[l].i] = 1.0 / s[l];
 }

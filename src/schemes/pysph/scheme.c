@@ -21,6 +21,7 @@
 #include <string.h>
 
 #include "pass/group.h"
+#include "pass/lanes4.h"
 #include "schemes/pysph/iact.h"
 #include "solver/solver_internal.h"
 
@@ -319,7 +320,7 @@ RV_CLONES static void visit_wcsph(void *vjob, const consph_nbhd *nb)
  * sums in its own neighbour order, so every value is the per-particle visit's bit for bit
  * (tests/test_pysph_group.c). GCC's and clang's vector extensions; other compilers run the
  * per-particle visits. */
-#if defined(__GNUC__)
+#ifdef CONSPH_LANES4
 #define RV_GROUPS 1
 /* GCC builds a vector from scalars by inserting them into the destination's old value, and then
  * warns that the old value may be uninitialised (it is never read) */
@@ -327,22 +328,16 @@ RV_CLONES static void visit_wcsph(void *vjob, const consph_nbhd *nb)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
-typedef double rv4 __attribute__((vector_size(4 * sizeof(double))));
-typedef long long rv4i __attribute__((vector_size(4 * sizeof(double))));
-
-/* m ? a : b per lane (m: all bits set or none); a macro, since a function returning a vector
- * would have a different ABI in the clone without AVX */
-#define RV_SEL(m, a, b) ((rv4)(((m) & (rv4i)(a)) | (~(m) & (rv4i)(b))))
 /* acc + t in the lanes of m; the others keep acc */
-#define RV_ADD(acc, m, t) ((acc) = RV_SEL((m), (acc) + (t), (acc)))
-#define RV_SUB(acc, m, t) ((acc) = RV_SEL((m), (acc) - (t), (acc)))
+#define RV_ADD(acc, m, t) ((acc) = LANE4_SEL((m), (acc) + (t), (acc)))
+#define RV_SUB(acc, m, t) ((acc) = LANE4_SEL((m), (acc) - (t), (acc)))
 
 /* The group's lanes (src/pass/group.h: every lane's arrays reach kmax, and the lanes past
  * count repeat the first, whose sums are never written). */
 typedef struct rv_lanes {
     const consph_nbhd *nb[PASS_GROUP];
     size_t i[PASS_GROUP], kmax;
-    rv4i n;
+    lane4i n;
     int count;
 } rv_lanes;
 
@@ -360,53 +355,56 @@ RV_INLINE void rv_lanes_of(rv_lanes *L, const consph_nbhd *nb, int count)
 
 /* The neighbours j of entry k of each lane, and the lanes that sum it: all but the padding
  * (skip_self: all but the particle itself, ∇W_ii = 0, which the padding is too). */
-RV_INLINE void rv_entry(const rv_lanes *L, size_t k, size_t j[PASS_GROUP], int skip_self, rv4i *m)
+RV_INLINE void rv_entry(const rv_lanes *L, size_t k, size_t j[PASS_GROUP], int skip_self, lane4i *m)
 {
     for (int l = 0; l < PASS_GROUP; ++l) j[l] = L->nb[l]->j[k];
     if (skip_self) {
-        const rv4i jv = {(long long)j[0], (long long)j[1], (long long)j[2], (long long)j[3]};
-        const rv4i iv = {(long long)L->i[0], (long long)L->i[1], (long long)L->i[2],
-                         (long long)L->i[3]};
-        *m = (rv4i)(jv != iv);
+        const lane4i jv = {(long long)j[0], (long long)j[1], (long long)j[2], (long long)j[3]};
+        const lane4i iv = {(long long)L->i[0], (long long)L->i[1], (long long)L->i[2],
+                           (long long)L->i[3]};
+        *m = (lane4i)(jv != iv);
     } else {
-        *m = (rv4i)((long long)k < L->n);
+        *m = (lane4i)((long long)k < L->n);
     }
 }
 
-#define RV_AT(arr, idx) ((rv4){(arr)[(idx)[0]], (arr)[(idx)[1]], (arr)[(idx)[2]], (arr)[(idx)[3]]})
+#define RV_AT(arr, idx)                                                                            \
+    ((lane4){(arr)[(idx)[0]], (arr)[(idx)[1]], (arr)[(idx)[2]], (arr)[(idx)[3]]})
 #define RV_NB(L, field, k)                                                                         \
-    ((rv4){(L)->nb[0]->field[k], (L)->nb[1]->field[k], (L)->nb[2]->field[k], (L)->nb[3]->field[k]})
+    ((lane4){(L)->nb[0]->field[k], (L)->nb[1]->field[k], (L)->nb[2]->field[k],                     \
+             (L)->nb[3]->field[k]})
 /* Entries o..o+3 of the four lanes' rows q[l], as four vectors (a 4×4 transpose). */
 typedef double rv4u __attribute__((vector_size(4 * sizeof(double)), aligned(sizeof(double))));
 #if defined(__clang__)
 #define RV_SHUF(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)
 #else
-#define RV_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (rv4i){i0, i1, i2, i3})
+#define RV_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (lane4i){i0, i1, i2, i3})
 #endif
-RV_INLINE void rv_transpose(const double *const q[PASS_GROUP], size_t o, rv4 *f0, rv4 *f1, rv4 *f2,
-                            rv4 *f3)
+RV_INLINE void rv_transpose(const double *const q[PASS_GROUP], size_t o, lane4 *f0, lane4 *f1,
+                            lane4 *f2, lane4 *f3)
 {
-    const rv4 a0 = *(const rv4u *)(q[0] + o), a1 = *(const rv4u *)(q[1] + o);
-    const rv4 a2 = *(const rv4u *)(q[2] + o), a3 = *(const rv4u *)(q[3] + o);
-    const rv4 t0 = RV_SHUF(a0, a1, 0, 4, 2, 6), t1 = RV_SHUF(a0, a1, 1, 5, 3, 7);
-    const rv4 t2 = RV_SHUF(a2, a3, 0, 4, 2, 6), t3 = RV_SHUF(a2, a3, 1, 5, 3, 7);
+    const lane4 a0 = *(const rv4u *)(q[0] + o), a1 = *(const rv4u *)(q[1] + o);
+    const lane4 a2 = *(const rv4u *)(q[2] + o), a3 = *(const rv4u *)(q[3] + o);
+    const lane4 t0 = RV_SHUF(a0, a1, 0, 4, 2, 6), t1 = RV_SHUF(a0, a1, 1, 5, 3, 7);
+    const lane4 t2 = RV_SHUF(a2, a3, 0, 4, 2, 6), t3 = RV_SHUF(a2, a3, 1, 5, 3, 7);
     *f0 = RV_SHUF(t0, t2, 0, 1, 4, 5);
     *f1 = RV_SHUF(t1, t3, 0, 1, 4, 5);
     *f2 = RV_SHUF(t0, t2, 2, 3, 6, 7);
     *f3 = RV_SHUF(t1, t3, 2, 3, 6, 7);
 }
-#define RV_PK(q, o) ((rv4){(q)[0][o], (q)[1][o], (q)[2][o], (q)[3][o]})
-#define RV_I(L, arr) ((rv4){(arr)[(L)->i[0]], (arr)[(L)->i[1]], (arr)[(L)->i[2]], (arr)[(L)->i[3]]})
+#define RV_PK(q, o) ((lane4){(q)[0][o], (q)[1][o], (q)[2][o], (q)[3][o]})
+#define RV_I(L, arr)                                                                               \
+    ((lane4){(arr)[(L)->i[0]], (arr)[(L)->i[1]], (arr)[(L)->i[2]], (arr)[(L)->i[3]]})
 
 RV_INLINE void group_density(const rival_job *job, const consph_nbhd *nb, int count)
 {
     rv_lanes L;
     rv_lanes_of(&L, nb, count);
     const int edac = job->kind != RV_TVF;
-    rv4 s = {0.0, 0.0, 0.0, 0.0}, ps = s;
+    lane4 s = {0.0, 0.0, 0.0, 0.0}, ps = s;
     size_t j[PASS_GROUP] = {0};
     for (size_t k = 0; k < L.kmax; ++k) {
-        rv4i m;
+        lane4i m;
         rv_entry(&L, k, j, 0, &m);
         RV_ADD(s, m, RV_NB(&L, w, k));
         if (edac) RV_ADD(ps, m, RV_AT(job->p, j));
@@ -463,24 +461,24 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
     rv_lanes_of(&L, nb, count);
     const size_t cap = job->cap;
     const pysph_consts *c = &job->c;
-    const rv4 rhoi = RV_I(&L, job->rho), pi = RV_I(&L, job->p), Vi = RV_I(&L, job->vol);
-    const rv4 zero = {0.0, 0.0, 0.0, 0.0};
-    const rv4 pav = edac ? RV_I(&L, job->pavg) : zero;
-    rv4 ui[3] = {zero, zero, zero}, dui[3] = {zero, zero, zero};
+    const lane4 rhoi = RV_I(&L, job->rho), pi = RV_I(&L, job->p), Vi = RV_I(&L, job->vol);
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0};
+    const lane4 pav = edac ? RV_I(&L, job->pavg) : zero;
+    lane4 ui[3] = {zero, zero, zero}, dui[3] = {zero, zero, zero};
     for (int a = 0; a < d; ++a) {
         ui[a] = RV_I(&L, job->u + a * cap);
         dui[a] = RV_I(&L, job->tvdu + a * cap);
     }
-    rv4 f[3] = {zero, zero, zero}, fb[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
-    rv4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, div = zero, ap = zero;
+    lane4 f[3] = {zero, zero, zero}, fb[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
+    lane4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, div = zero, ap = zero;
     size_t j[PASS_GROUP] = {0};
     for (size_t k = 0; k < L.kmax; ++k) {
-        rv4i m;
+        lane4i m;
         rv_entry(&L, k, j, 1, &m);
         const double *q[PASS_GROUP];
         for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack + j[l] * job->pk;
-        rv4 rhoj, pj, Vj, vj;
-        rv4 xij[3] = {zero, zero, zero}, uj[3] = {zero, zero, zero}, duj[3] = {zero, zero, zero};
+        lane4 rhoj, pj, Vj, vj;
+        lane4 xij[3] = {zero, zero, zero}, uj[3] = {zero, zero, zero}, duj[3] = {zero, zero, zero};
         rv_transpose(q, 0, &rhoj, &pj, &Vj, &vj);
         if (d == 2) {
             rv_transpose(q, 4, &uj[0], &uj[1], &duj[0], &duj[1]);
@@ -490,25 +488,25 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
                 duj[a] = RV_PK(q, 4 + d + a);
             }
         }
-        const rv4 dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
+        const lane4 dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
         for (int a = 0; a < d; ++a) xij[a] = RV_NB(&L, dx[a], k);
         /* pysph_tv_pair */
-        const rv4 w2 = Vi * Vi + Vj * Vj;
-        rv4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
-        rv4 xdw = zero, udw = zero;
+        const lane4 w2 = Vi * Vi + Vj * Vj;
+        lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
+        lane4 xdw = zero, udw = zero;
         for (int a = 0; a < d; ++a) {
             gw[a] = dwr * xij[a];
             uij[a] = ui[a] - uj[a];
             xdw += xij[a] * gw[a];
             udw += uij[a] * gw[a];
         }
-        const rv4 r2 = r * r;
-        const rv4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r2 + c->h2);
-        const rv4 pij = (rhoj * (pi - pav) + rhoi * (pj - pav)) * inv_s;
-        const rv4 rr = rhoi * rhoj * inv_s, wx = w2 * xdw * inv_r;
-        const rv4 visc = 2.0 * c->nu * rr * wx;
+        const lane4 r2 = r * r;
+        const lane4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r2 + c->h2);
+        const lane4 pij = (rhoj * (pi - pav) + rhoi * (pj - pav)) * inv_s;
+        const lane4 rr = rhoi * rhoj * inv_s, wx = w2 * xdw * inv_r;
+        const lane4 visc = 2.0 * c->nu * rr * wx;
         for (int a = 0; a < d; ++a) {
-            rv4 A = zero;
+            lane4 A = zero;
             for (int b = 0; b < d; ++b)
                 A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj * uj[a] * duj[b]) * gw[b];
             RV_ADD(f[a], m, -pij * w2 * gw[a] + visc * uij[a] + w2 * A);
@@ -564,49 +562,49 @@ RV_INLINE void group_wcsph_d(const rival_job *job, const consph_nbhd *nb, int co
     const size_t cap = job->cap;
     const pysph_consts *c = &job->c;
     const int av = c->alpha > 0.0;
-    const rv4 zero = {0.0, 0.0, 0.0, 0.0};
-    const rv4 rhoi = RV_I(&L, job->rho), ti = RV_I(&L, job->pr2);
-    const rv4 ci = av ? RV_I(&L, job->cs) : zero;
-    rv4 ui[3] = {zero, zero, zero};
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0};
+    const lane4 rhoi = RV_I(&L, job->rho), ti = RV_I(&L, job->pr2);
+    const lane4 ci = av ? RV_I(&L, job->cs) : zero;
+    lane4 ui[3] = {zero, zero, zero};
     for (int a = 0; a < d; ++a) ui[a] = RV_I(&L, job->u + a * cap);
-    rv4 f[3] = {zero, zero, zero}, xs[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
-    rv4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, drho = zero;
+    lane4 f[3] = {zero, zero, zero}, xs[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
+    lane4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, drho = zero;
     const double m = c->m;
     size_t j[PASS_GROUP] = {0};
     for (size_t k = 0; k < L.kmax; ++k) {
-        rv4i msk;
+        lane4i msk;
         rv_entry(&L, k, j, 1, &msk);
         const double *q[PASS_GROUP];
         for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack + j[l] * 8;
-        rv4 rhoj, tj, vj, cj, uj[3], pad;
+        lane4 rhoj, tj, vj, cj, uj[3], pad;
         rv_transpose(q, 0, &rhoj, &tj, &vj, &cj);
         rv_transpose(q, 4, &uj[0], &uj[1], &uj[2], &pad);
         (void)pad;
-        const rv4 w = RV_NB(&L, w, k), dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
-        rv4 xij[3];
+        const lane4 w = RV_NB(&L, w, k), dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
+        lane4 xij[3];
         for (int a = 0; a < 3; ++a) xij[a] = a < d ? RV_NB(&L, dx[a], k) : zero;
-        const rv4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r * r + c->h2);
-        rv4 pij = zero;
+        const lane4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r * r + c->h2);
+        lane4 pij = zero;
         if (av) {
-            rv4 ux = zero;
+            lane4 ux = zero;
             for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
             /* pysph_monaghan_pi */
-            const rv4 mu = c->h * ux * inv_r;
-            const rv4 v = -c->alpha * (ci + cj) * mu * inv_s;
-            pij = RV_SEL((rv4i)(ux < 0.0), v, zero);
+            const lane4 mu = c->h * ux * inv_r;
+            const lane4 v = -c->alpha * (ci + cj) * mu * inv_s;
+            pij = LANE4_SEL((lane4i)(ux < 0.0), v, zero);
         }
         /* pysph_wcsph_pair */
-        rv4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
+        lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
         for (int a = 0; a < d; ++a) {
             uij[a] = ui[a] - uj[a];
             gw[a] = dwr * xij[a];
         }
-        rv4 udw = zero, xdw = zero;
+        lane4 udw = zero, xdw = zero;
         for (int a = 0; a < d; ++a) {
             udw += uij[a] * gw[a];
             xdw += xij[a] * gw[a];
         }
-        const rv4 visc = m * 4.0 * c->nu * xdw * inv_s * inv_r;
+        const lane4 visc = m * 4.0 * c->nu * xdw * inv_s * inv_r;
         for (int a = 0; a < d; ++a) {
             RV_ADD(f[a], msk, -m * (ti + tj + pij) * gw[a] + visc * uij[a]);
             RV_SUB(xs[a], msk, m * w * inv_s * uij[a]);
