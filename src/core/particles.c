@@ -107,43 +107,75 @@ double *consph_particles_field(consph_particles *p, const char *name, int ncomp)
     return data;
 }
 
-static int permute_array(double *a, size_t n, const size_t *perm, double *tmp)
-{
-    for (size_t i = 0; i < n; ++i) tmp[i] = a[perm[i]];
-    memcpy(a, tmp, n * sizeof(double));
-    return CONSPH_OK;
-}
-
 /* The arrays are independent copies, shared out among the threads from this many particles on
  * (a solver re-sorts its whole state, tens of arrays, every step). */
 #define PERMUTE_PARALLEL_MIN 4096
 
+/* a[s] = a[perm[s]] over the runs of slots that move, run[2k] <= s < run[2k + 1] (moved slots
+ * in all): every value is read into tmp before any is written. */
+static void permute_runs(double *a, const size_t *perm, const size_t *run, size_t nruns,
+                         double *tmp)
+{
+    size_t k = 0;
+    for (size_t r = 0; r < nruns; ++r)
+        for (size_t s = run[2 * r]; s < run[2 * r + 1]; ++s) tmp[k++] = a[perm[s]];
+    k = 0;
+    for (size_t r = 0; r < nruns; ++r) {
+        const size_t len = run[2 * r + 1] - run[2 * r];
+        memcpy(a + run[2 * r], tmp + k, len * sizeof(double));
+        k += len;
+    }
+}
+
+/* Only the slots with perm[s] != s move: a re-sort after a small step leaves most particles in
+ * place (a third of them move in a Taylor-Green step), and the fixed ones are neither read nor
+ * written. */
 int consph_particles_permute(consph_particles *p, const size_t *perm)
 {
+    const size_t n = p->n;
+    size_t nruns = 0, moved = 0;
+    for (size_t s = 0; s < n; ++s)
+        if (perm[s] != s && (s == 0 || perm[s - 1] == s - 1)) ++nruns;
+    if (nruns == 0) return CONSPH_OK;
+    size_t *run = malloc(2 * nruns * sizeof(size_t));
+    if (!run) return consph_fail(CONSPH_ENOMEM, "out of memory for %zu runs of moved slots", nruns);
+    size_t r = 0;
+    for (size_t s = 0; s < n; ++s) {
+        if (perm[s] == s) continue;
+        if (s == 0 || perm[s - 1] == s - 1) run[2 * r] = s;
+        if (s + 1 == n || perm[s + 1] == s + 1) run[2 * r++ + 1] = s + 1;
+        ++moved;
+    }
     int narr = p->dim;
     for (int f = 0; f < p->nfields; ++f) narr += p->fields[f].ncomp;
     double **arr = consph_calloc((size_t)narr, sizeof(double *));
-    if (!arr) return CONSPH_ENOMEM;
+    if (!arr) {
+        free(run);
+        return CONSPH_ENOMEM;
+    }
     int k = 0;
     for (int a = 0; a < p->dim; ++a) arr[k++] = p->x[a];
     for (int f = 0; f < p->nfields; ++f)
         for (int c = 0; c < p->fields[f].ncomp; ++c)
             arr[k++] = p->fields[f].data + (size_t)c * p->cap;
     int st = CONSPH_OK;
-#pragma omp parallel if (p->n >= PERMUTE_PARALLEL_MIN)
+#pragma omp parallel if (moved >= PERMUTE_PARALLEL_MIN)
     {
-        double *tmp = consph_calloc(p->n ? p->n : 1, sizeof(double));
+        double *tmp = malloc(moved * sizeof(double));
         if (!tmp) {
 #pragma omp atomic write
             st = CONSPH_ENOMEM;
         }
 #pragma omp for schedule(dynamic, 1)
         for (int a = 0; a < narr; ++a)
-            if (tmp) permute_array(arr[a], p->n, perm, tmp);
+            if (tmp) permute_runs(arr[a], perm, run, nruns, tmp);
         free(tmp);
     }
     free(arr);
-    return st;
+    free(run);
+    if (st != CONSPH_OK)
+        return consph_fail(st, "out of memory for the %zu moved values of an array", moved);
+    return CONSPH_OK;
 }
 
 int consph_particles_copy(consph_particles *dst, const consph_particles *src)

@@ -75,6 +75,7 @@ struct consph_nnps {
     int identity; /* order[s] == s for every slot: the set is in cell order */
     const consph_particles *p;
     size_t grid_n; /* nnps_fix_grid: the grid is chosen for this many particles, not n */
+    int current;   /* nnps_build_is_current: the next sort may use this build as it is */
 };
 
 consph_nnps *consph_nnps_create(const consph_box *box, double radius, int cells_per_radius)
@@ -254,8 +255,58 @@ static int reserve_arrays(consph_nnps *g, size_t n)
     return CONSPH_OK;
 }
 
+/* The cell of every particle, c = (c2 nc1 + c1) nc0 + c0. */
+static void bin_cells(const consph_nnps *g, const consph_particles *p, size_t *cell_of, size_t n)
+{
+    const int dim = g->dim;
+#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i) {
+        size_t c = 0;
+        for (int a = dim - 1; a >= 0; --a)
+            c = c * (size_t)g->nc[a] + (size_t)cell_index(g, a, stored_coord(g, a, p->x[a][i]));
+        cell_of[i] = c;
+    }
+}
+
+/* bin_cells in 2D, the grid's constants held in locals: the stores to cell_of (size_t) may alias
+ * the grid's int64_t members, which the general loop would otherwise read again per particle.
+ * The same operations as cell_index and stored_coord, hence the same cells. */
+static void bin_cells_2d(const consph_nnps *g, const double *x0, const double *x1,
+                         size_t *restrict cell_of, size_t n)
+{
+    const double lo0 = g->lo[0], hi0 = g->hi[0], len0 = g->len[0], ih0 = g->inv_h[0];
+    const double lo1 = g->lo[1], hi1 = g->hi[1], len1 = g->len[1], ih1 = g->inv_h[1];
+    const int per0 = g->periodic[0], per1 = g->periodic[1];
+    const int64_t nc0 = g->nc[0], nc1 = g->nc[1];
+    const double top0 = (double)nc0, top1 = (double)nc1;
+#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i) {
+        const double y0 = per0 ? nnps_wrap(x0[i], lo0, hi0, len0) : x0[i];
+        const double y1 = per1 ? nnps_wrap(x1[i], lo1, hi1, len1) : x1[i];
+        const double v0 = (y0 - lo0) * ih0, v1 = (y1 - lo1) * ih1;
+        const int64_t c0 = !(v0 >= 0.0) ? 0 : v0 >= top0 ? nc0 - 1 : (int64_t)v0;
+        const int64_t c1 = !(v1 >= 0.0) ? 0 : v1 >= top1 ? nc1 - 1 : (int64_t)v1;
+        cell_of[i] = (size_t)c1 * (size_t)nc0 + (size_t)c0;
+    }
+}
+
+/* xs[s] = the stored coordinate along axis a of particle order[s]. */
+static void gather_coords(const consph_nnps *g, int a, const double *x, const size_t *order,
+                          double *restrict xs, size_t n)
+{
+    const double lo = g->lo[a], hi = g->hi[a], len = g->len[a];
+    if (g->periodic[a]) {
+#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
+        for (size_t s = 0; s < n; ++s) xs[s] = nnps_wrap(x[order[s]], lo, hi, len);
+    } else {
+#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
+        for (size_t s = 0; s < n; ++s) xs[s] = x[order[s]];
+    }
+}
+
 int consph_nnps_build(consph_nnps *g, const consph_particles *p)
 {
+    g->current = 0;
     g->p = NULL;
     g->n = 0;
     if (!p || p->dim != g->dim)
@@ -271,13 +322,10 @@ int consph_nnps_build(consph_nnps *g, const consph_particles *p)
     const int dim = g->dim;
     size_t *cell_of = g->cell_of;
 
-#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
-    for (size_t i = 0; i < n; ++i) {
-        size_t c = 0;
-        for (int a = dim - 1; a >= 0; --a)
-            c = c * (size_t)g->nc[a] + (size_t)cell_index(g, a, stored_coord(g, a, p->x[a][i]));
-        cell_of[i] = c;
-    }
+    if (dim == 2)
+        bin_cells_2d(g, p->x[0], p->x[1], cell_of, n);
+    else
+        bin_cells(g, p, cell_of, n);
 
     /* Stable counting sort, serial: it is a small fraction of a query sweep (see bench_nnps),
      * and a serial pass makes the order trivially independent of the thread count. */
@@ -296,9 +344,7 @@ int consph_nnps_build(consph_nnps *g, const consph_particles *p)
     for (size_t s = 0; s < n && g->identity; ++s) g->identity = order[s] == s;
     for (int a = 0; a < dim; ++a) {
         double *xs = g->xs[a];
-        const double *x = p->x[a];
-#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
-        for (size_t s = 0; s < n; ++s) xs[s] = stored_coord(g, a, x[order[s]]);
+        gather_coords(g, a, p->x[a], order, xs, n);
         /* The gather's vector paths read whole blocks past a run's end; NaN is never a hit. */
         if (n)
             for (size_t s = n; s < n + CONSPH_NNPS_GATHER_SLACK; ++s) xs[s] = NAN;
@@ -310,10 +356,15 @@ int consph_nnps_build(consph_nnps *g, const consph_particles *p)
 
 int consph_nnps_sort(consph_nnps *g, consph_particles *p, size_t *perm_out)
 {
-    int status = consph_nnps_build(g, p);
+    /* A build its caller vouched for (nnps_build_is_current) is the build of these positions:
+     * making it again would give the same cells, order and coordinates. */
+    const int reuse = g->current && g->p == p && g->n == p->n;
+    int status = reuse ? CONSPH_OK : consph_nnps_build(g, p);
+    g->current = 0;
     if (status) return status;
     if (p->n == 0) return CONSPH_OK;
-    status = consph_particles_permute(p, g->order);
+    /* already in cell order: the permutation is the identity and moves nothing */
+    status = g->identity ? CONSPH_OK : consph_particles_permute(p, g->order);
     if (status) return status;
     if (perm_out) memcpy(perm_out, g->order, p->n * sizeof *perm_out);
     /* A rebuild of the permuted set would bin particle s into the cell of old particle
@@ -322,6 +373,11 @@ int consph_nnps_sort(consph_nnps *g, consph_particles *p, size_t *perm_out)
     for (size_t s = 0; s < p->n; ++s) g->order[s] = s;
     g->identity = 1;
     return CONSPH_OK;
+}
+
+void nnps_build_is_current(consph_nnps *g)
+{
+    g->current = g->p != NULL;
 }
 
 void nnps_fix_grid(consph_nnps *g, size_t n)

@@ -39,6 +39,11 @@ size_t nnps_gather_runs(int isa, const consph_nnps_slots *v, const consph_nnps_r
  * buffer can be reused across structures of different dimension. */
 int nnps_nbrs_reserve(consph_nbrs *nb, size_t need);
 
+/* The caller's word that the particles have not moved since the last build (nor been
+ * reordered): the next consph_nnps_sort permutes by that build's order instead of binning them
+ * again. Any build in between takes the word back. */
+void nnps_build_is_current(consph_nnps *g);
+
 /* For a search over part of a particle set (an MPI rank's particles and its halo, src/par): the
  * grid (cells per radius and cell counts) is chosen at every build as for n particles, the
  * whole set, so that it is the whole set's grid and cells are walked as in the serial run. */

@@ -19,6 +19,7 @@
 #include "gpu/gpu_internal.h"
 #include "solver/solver_internal.h"
 #include "par/par_solver.h"
+#include "nnps/nnps_internal.h"
 
 /* Measured peak resident memory per particle (2D, one thread, --out, 160 000 particles): 600
  * bytes for l-rr-c (which keeps a lattice copy), 340-400 for the others, packing included; the
@@ -430,11 +431,41 @@ static void integ_transport(void *ctx, double c)
     s->scheme->transport(s, c);
 }
 
+/* Whether the search is made afresh from the positions at every move and nothing moves the
+ * particles after the integrator's last drift (no regularisation, no neighbour list with a skin,
+ * not cut over ranks, not on a GPU): then the build after a step's last drift is the build its
+ * next step's re-sort would make. */
+static int search_follows_drift(const consph_solver *s)
+{
+    return !s->scheme->regularise && !s->par && !s->gpu && !(s->prm.skin > 0.0);
+}
+
 static int integ_moved(void *ctx)
 {
     consph_solver *s = ctx;
     wrap_positions(s);
-    return consph_sys_update(&s->sys, 0);
+    const int st = consph_sys_update(&s->sys, 0);
+    if (st == CONSPH_OK && search_follows_drift(s)) nnps_build_is_current(s->sys.nnps);
+    return st;
+}
+
+/* The re-sort into cell order at a step's start, carrying only the fields whose values the
+ * step or the output can read before writing them (state_carried): the others are hidden from
+ * the permutation and put back in their places after it. */
+static int resort_carried(consph_solver *s)
+{
+    consph_particles *p = s->sys.p;
+    consph_field all[CONSPH_MAX_FIELDS];
+    const int nf = p->nfields;
+    memcpy(all, p->fields, (size_t)nf * sizeof all[0]);
+    int k = 0;
+    for (int f = 0; f < nf; ++f)
+        if (state_carried(s, all[f].name)) p->fields[k++] = all[f];
+    p->nfields = k;
+    const int st = consph_sys_update(&s->sys, 1);
+    memcpy(p->fields, all, (size_t)nf * sizeof all[0]);
+    p->nfields = nf;
+    return st;
 }
 
 /* The integrator's view of the state. The start-of-step copies are created here on the first
@@ -551,7 +582,7 @@ int consph_solver_step(consph_solver *s)
     if (s->gpu) {
         st = gpu_step(s, dt, &on_host);
     } else {
-        if (s->scheme->moves) st = s->par ? par_step_begin(s) : consph_sys_update(&s->sys, 1);
+        if (s->scheme->moves) st = s->par ? par_step_begin(s) : resort_carried(s);
         integ_state is;
         if (st == CONSPH_OK) st = integ_state_of(s, &is);
         if (st == CONSPH_OK) integ_save_start(&is);

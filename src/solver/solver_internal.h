@@ -56,7 +56,11 @@ typedef enum field_role {
     FIELD_STATE,   /* what the scheme evolves or carries from step to step */
     FIELD_DERIVED, /* derivatives and sums a right-hand side leaves (read by diagnostics, the
                     * output, or the next stage) */
-    FIELD_SCRATCH  /* the integrator's copies within a step: never written */
+    FIELD_SCRATCH, /* written within every step before anything reads it (the integrator's
+                    * copies, a right-hand side's own sums): never written to snapshots, and not
+                    * carried by the re-sort at a step's start */
+    FIELD_OUTPUT   /* written from the state before each snapshot (consph_solver_output_fields)
+                    * and read only there: not carried by the re-sort either */
 } field_role;
 
 /* One field: its name (an SF_* macro), components, role and, when a snapshot carries it, the
@@ -86,6 +90,9 @@ int field_ncomp(field_shape shape, int d);
 /* Creates every declared field (zero) that the particles lack; CONSPH_EINVAL when two
  * declarations of a name disagree. */
 int state_create(consph_solver *s);
+/* 0 when every declaration of field `name` is FIELD_SCRATCH or FIELD_OUTPUT: its values between
+ * two steps are never read, so a step's re-sort need not carry them. */
+int state_carried(const consph_solver *s, const char *name);
 /* Gives the system its neighbour list (skin of a moving scheme; resume: from a checkpoint). */
 int solver_nlist_start(consph_solver *s, int resume);
 /* The list's memory, builds and note into the summary (skin > 0 only). */

@@ -19,9 +19,9 @@ const field_decl solver_fields[] = {
     {SF_GRADU, FIELD_TENSOR, FIELD_DERIVED, "velocity_gradient"},
     {SF_DIVU, FIELD_SCALAR, FIELD_DERIVED, NULL},
     /* consph_solver_output_fields, before each snapshot */
-    {SF_VORT, FIELD_CURL, FIELD_DERIVED, "vorticity"},
-    {SF_UEX, FIELD_VECTOR, FIELD_DERIVED, "velocity_exact"},
-    {SF_PEX, FIELD_SCALAR, FIELD_DERIVED, "pressure_exact"},
+    {SF_VORT, FIELD_CURL, FIELD_OUTPUT, "vorticity"},
+    {SF_UEX, FIELD_VECTOR, FIELD_OUTPUT, "velocity_exact"},
+    {SF_PEX, FIELD_SCALAR, FIELD_OUTPUT, "pressure_exact"},
     FIELD_END};
 
 /* The integrator's (one list for rk2, euler, kdk and pec; an integrator table can hold its own
@@ -113,6 +113,20 @@ double *sv_field(consph_solver *s, const char *name, int ncomp)
         return NULL;
     }
     return f->data;
+}
+
+int state_carried(const consph_solver *s, const char *name)
+{
+    const field_decl *lists[4];
+    const int nl = state_lists(s, lists);
+    int found = 0;
+    for (int l = 0; l < nl; ++l)
+        for (const field_decl *f = lists[l]; f->name; ++f)
+            if (!strcmp(f->name, name)) {
+                if (f->role != FIELD_SCRATCH && f->role != FIELD_OUTPUT) return 1;
+                found = 1;
+            }
+    return !found; /* an undeclared field is carried: nothing says it is dead */
 }
 
 int state_create(consph_solver *s)

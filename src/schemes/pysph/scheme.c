@@ -918,8 +918,8 @@ const field_decl wcsph_fields[] = {{SF_RHOF, FIELD_SCALAR, FIELD_STATE, "density
 const field_decl tv_fields[] = {{SF_RHOF, FIELD_SCALAR, FIELD_STATE, "summation_density"},
                                 {SF_GRADP, FIELD_VECTOR, FIELD_DERIVED, NULL},
                                 {SF_RHOS, FIELD_SCALAR, FIELD_DERIVED, NULL},
-                                {SF_NUMD, FIELD_SCALAR, FIELD_DERIVED, NULL},
-                                {SF_PAVG, FIELD_SCALAR, FIELD_DERIVED, NULL},
+                                {SF_NUMD, FIELD_SCALAR, FIELD_SCRATCH, NULL},
+                                {SF_PAVG, FIELD_SCALAR, FIELD_SCRATCH, NULL},
                                 {SF_TVDU, FIELD_VECTOR, FIELD_STATE, NULL},
                                 {SF_UHAT, FIELD_VECTOR, FIELD_DERIVED, NULL},
                                 FIELD_END};
