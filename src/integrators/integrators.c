@@ -42,22 +42,71 @@ static void set_fields(const integ_state *st, double c, const double *ku, const 
     }
 }
 
-/* x = x0 + c kx, then wrapped and the search rebuilt by the solver. */
-static int drift(const integ_state *st, double c, const double *kx)
+/* set_fields from the unsaved start: u0, q0 = u, q, and u = u0 + c ku, q = q0 + c kq in the same
+ * sweep (the same values: u0 is u). */
+static void save_set_fields(const integ_state *st, double c, const double *ku, const double *kq)
+{
+    const int d = st->dim;
+    const size_t n = st->n, cap = st->cap;
+    double *u = st->u, *q = st->q, *u0 = st->u0, *q0 = st->q0;
+    if (d == 2) {
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+        for (size_t i = 0; i < n; ++i) {
+            const double qi = q[i], ui = u[i], vi = u[cap + i];
+            q0[i] = qi;
+            u0[i] = ui;
+            u0[cap + i] = vi;
+            q[i] = qi + c * kq[i];
+            u[i] = ui + c * ku[i];
+            u[cap + i] = vi + c * ku[cap + i];
+        }
+        return;
+    }
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i) {
+        const double qi = q[i];
+        q0[i] = qi;
+        q[i] = qi + c * kq[i];
+        for (int a = 0; a < d; ++a) {
+            const double ui = u[a * cap + i];
+            u0[a * cap + i] = ui;
+            u[a * cap + i] = ui + c * ku[a * cap + i];
+        }
+    }
+}
+
+/* x = x0 + c kx (with save: x0 = x first, in the same sweep), then wrapped and the search
+ * rebuilt by the solver. */
+static int drift(const integ_state *st, double c, const double *kx, int save)
 {
     const size_t n = st->n, cap = st->cap;
-    for (int a = 0; a < st->dim; ++a)
-        for (size_t i = 0; i < n; ++i) st->x[a][i] = st->x0[a * cap + i] + c * kx[a * cap + i];
+    for (int a = 0; a < st->dim; ++a) {
+        double *x = st->x[a], *x0 = st->x0 + a * cap;
+        const double *k = kx + a * cap;
+        if (save) {
+            for (size_t i = 0; i < n; ++i) {
+                const double xi = x[i];
+                x0[i] = xi;
+                x[i] = xi + c * k[i];
+            }
+        } else {
+            for (size_t i = 0; i < n; ++i) x[i] = x0[i] + c * k[i];
+        }
+    }
     return st->moved(st->ctx);
 }
 
-/* y = y0 + c k for the evolved fields with the last rates, then the closure. */
-static int advance(const integ_state *st, double c)
+/* y = y0 + c k for the evolved fields with the last rates, then the closure; save: the step's
+ * first update of an unsaved start, which saves it on the way. */
+static int advance(const integ_state *st, double c, int save)
 {
-    set_fields(st, c, st->au, st->aq);
+    if (save)
+        save_set_fields(st, c, st->au, st->aq);
+    else
+        set_fields(st, c, st->au, st->aq);
     if (st->x0) {
         if (st->transport) st->transport(st->ctx, c);
-        int rc = drift(st, c, st->ax);
+        int rc = drift(st, c, st->ax, save);
         if (rc != CONSPH_OK) return rc;
     }
     st->close(st->ctx);
@@ -68,15 +117,15 @@ static int advance(const integ_state *st, double c)
  * is the previous step's F(y½), which makes PySPH's PECIntegrator. */
 static int step_midpoint(const integ_state *st, double dt)
 {
-    int rc = advance(st, 0.5 * dt);
+    int rc = advance(st, 0.5 * dt, st->unsaved);
     if (rc == CONSPH_OK) rc = st->rates(st->ctx);
-    if (rc == CONSPH_OK) rc = advance(st, dt);
+    if (rc == CONSPH_OK) rc = advance(st, dt, 0);
     return rc;
 }
 
 static int step_euler(const integ_state *st, double dt)
 {
-    return advance(st, dt);
+    return advance(st, dt, st->unsaved);
 }
 
 /* Kick-drift-kick: the half kick moves u0 and q0 on, the drift uses the kicked velocity (with the
@@ -85,13 +134,28 @@ static int step_kdk(const integ_state *st, double dt)
 {
     const int d = st->dim;
     const size_t n = st->n, cap = st->cap;
-    double *u0 = st->u0, *q0 = st->q0, *ax = st->ax;
-    const double *au = st->au, *aq = st->aq;
-    for (size_t i = 0; i < n; ++i) {
-        q0[i] += 0.5 * dt * aq[i];
-        for (int a = 0; a < d; ++a) u0[a * cap + i] += 0.5 * dt * au[a * cap + i];
+    double *u0 = st->u0, *q0 = st->q0, *ax = st->ax, *u = st->u;
+    const double *au = st->au, *aq = st->aq, *q = st->q;
+    if (st->unsaved) {
+        /* the start read from u, q and kicked into u0, q0 (the same values: u0 would be u) */
+        const double h = 0.5 * dt;
+        for (size_t i = 0; i < n; ++i) q0[i] = q[i] + h * aq[i];
+        for (int a = 0; a < d; ++a) {
+            double *ua = u + a * cap, *u0a = u0 + a * cap;
+            const double *aua = au + a * cap;
+            for (size_t i = 0; i < n; ++i) {
+                const double v = ua[i] + h * aua[i];
+                u0a[i] = v;
+                ua[i] = v;
+            }
+        }
+    } else {
+        for (size_t i = 0; i < n; ++i) {
+            q0[i] += 0.5 * dt * aq[i];
+            for (int a = 0; a < d; ++a) u0[a * cap + i] += 0.5 * dt * au[a * cap + i];
+        }
+        for (int a = 0; a < d; ++a) memcpy(u + a * cap, u0 + a * cap, n * sizeof(double));
     }
-    for (int a = 0; a < d; ++a) memcpy(st->u + a * cap, u0 + a * cap, n * sizeof(double));
     int rc = CONSPH_OK;
     if (st->x0) {
         if (st->transport) {
@@ -101,7 +165,7 @@ static int step_kdk(const integ_state *st, double dt)
             for (int a = 0; a < d; ++a)
                 for (size_t i = 0; i < n; ++i) ax[a * cap + i] += 0.5 * dt * au[a * cap + i];
         }
-        rc = drift(st, dt, ax);
+        rc = drift(st, dt, ax, st->unsaved);
     }
     memcpy(st->q, q0, n * sizeof(double));
     if (rc == CONSPH_OK) st->close(st->ctx);
@@ -153,7 +217,7 @@ static int ssprk3_stage(const integ_state *st, double c, double tc, double w, in
                 const size_t j = a * cap + i;
                 kx[j] = first ? st->ax[j] : kx[j] + w * st->ax[j];
             }
-        int rc = drift(st, c, kx);
+        int rc = drift(st, c, kx, 0);
         if (rc != CONSPH_OK) return rc;
     }
     st->close(st->ctx);
@@ -162,6 +226,7 @@ static int ssprk3_stage(const integ_state *st, double c, double tc, double w, in
 
 static int step_ssprk3(const integ_state *st, double dt)
 {
+    if (st->unsaved) integ_save_start(st);
     double *ku = st->scratch[0], *kq = st->scratch[1];
     ssprk3_gather(st, ku, kq, 1.0, 1);
     int rc = ssprk3_stage(st, dt, dt, 1.0, 1);

@@ -30,10 +30,13 @@ typedef struct integ_field {
 
 typedef struct integ_state {
     int dim;
-    size_t n, cap;         /* particles, and the stride between components */
-    double *u, *q;         /* evolved velocity (dim components) and scalar */
-    double *x[3];          /* positions, one array per axis (when x0 is not NULL) */
-    double *u0, *q0, *x0;  /* the state at the step's start; x0 NULL: positions not evolved */
+    size_t n, cap;        /* particles, and the stride between components */
+    double *u, *q;        /* evolved velocity (dim components) and scalar */
+    double *x[3];         /* positions, one array per axis (when x0 is not NULL) */
+    double *u0, *q0, *x0; /* the state at the step's start; x0 NULL: positions not evolved */
+    /* 1: u0, q0, x0 are not written yet (integ_save_start not called): the step's first update
+     * of each field copies it there as it reads it, one sweep instead of two */
+    int unsaved;
     const double *au, *aq; /* rates at the last evaluation, rewritten in place by rates() */
     double *ax;            /* drift velocity (NULL when x0 is); rates() and transport() write it */
     /* the row's scratch, in its order (integ_def.scratch); never part of the particles' state */
@@ -63,8 +66,8 @@ typedef struct integ_def {
     int stages; /* rate evaluations per step, the first of them skipped when rates are reused */
     integ_reuse reuses_rates;
     const integ_field *scratch; /* NULL-name-terminated, or NULL: none */
-    /* One step of dt from the state saved by integ_save_start, whose rates are those at the
-     * step's start. */
+    /* One step of dt from the state saved by integ_save_start (or, with unsaved, from the
+     * current state, which it saves), whose rates are those at the step's start. */
     int (*step)(const integ_state *st, double dt);
 } integ_def;
 

@@ -403,6 +403,11 @@ static void wrap_positions(consph_solver *s)
         if (!p->box.periodic[a]) continue;
         const double lo = p->box.lo[a], L = p->box.hi[a] - lo;
         double *x = p->x[a];
+        /* a step moves few particles across the box's edge, or none: look before writing */
+        int out = 0;
+#pragma omp simd reduction(| : out)
+        for (size_t i = 0; i < p->n; ++i) out |= (x[i] < lo) | (x[i] >= lo + L);
+        if (!out) continue;
         for (size_t i = 0; i < p->n; ++i) {
             if (x[i] < lo || x[i] >= lo + L) {
                 x[i] -= L * floor((x[i] - lo) / L);
@@ -540,7 +545,6 @@ static int step_close(consph_solver *s, void *arg)
         st = gpu_download_sample(s);
         on_host = 1;
     }
-    if (st == CONSPH_OK && on_host) st = solver_check_finite(s);
     if (st == CONSPH_OK && on_host) st = solver_check_valid(s);
     if (st == CONSPH_OK) {
         s->log_since += a->dt;
@@ -585,8 +589,10 @@ int consph_solver_step(consph_solver *s)
         if (s->scheme->moves) st = s->par ? par_step_begin(s) : resort_carried(s);
         integ_state is;
         if (st == CONSPH_OK) st = integ_state_of(s, &is);
-        if (st == CONSPH_OK) integ_save_start(&is);
-        /* pec and kdk start from the rates the previous step left (the set-up's for the first) */
+        /* pec and kdk start from the rates the previous step left (the set-up's for the first);
+         * nothing then runs before the step, whose first update saves the start as it reads it */
+        is.unsaved = s->reuse_rates;
+        if (st == CONSPH_OK && !is.unsaved) integ_save_start(&is);
         if (st == CONSPH_OK && !s->reuse_rates) st = s->scheme->rhs(s);
         if (st == CONSPH_OK) st = s->integ->step(&is, dt);
     }

@@ -302,7 +302,8 @@ void solver_exact(const consph_solver *s, const double x[3], double u[3], double
 int solver_wc_side(consph_solver *s, double *eu, double *ep, double *nu, double *np);
 /* Validity (validity.c), after every step: CONSPH_ENUMERIC naming the first non-finite value, or
  * the first bound of the weakly-compressible model the state is beyond (from the state and its
- * kinetic energy only: no exact solution). */
+ * kinetic energy only: no exact solution). solver_check_valid checks both (it calls
+ * solver_check_finite to name a non-finite value). */
 int solver_check_finite(consph_solver *s);
 int solver_check_valid(consph_solver *s);
 

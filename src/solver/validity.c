@@ -85,11 +85,13 @@ static void worst_take(worst *w, size_t i, double v, const double *id)
 }
 
 /* The weakly-compressible model's validity (docs/schemes.md, "Validity of a run"), checked after
- * every step once the values are known to be finite: the Mach number |u_i|/c_o, the compression
- * |ϱ_i/ρ_o − 1| (for pe-ipst-c, which evolves p, ϱ = p/c_o² + ρ_o by eq. 31: the same bound on
- * p/(ρ_o c_o²)), and the kinetic energy against the initial one (no problem here has an energy
- * source). Only these cheap quantities: the diagnostics against the exact solution are sampled
- * (solver_sample), this runs after every step.
+ * every step: first that every value is finite (solver_check_finite names the first that is
+ * not), then the Mach number |u_i|/c_o, the compression |ϱ_i/ρ_o − 1| (for pe-ipst-c, which
+ * evolves p, ϱ = p/c_o² + ρ_o by eq. 31: the same bound on p/(ρ_o c_o²)), and the kinetic energy
+ * against the initial one (no problem here has an energy source). Only these cheap quantities:
+ * the diagnostics against the exact solution are sampled (solver_sample), this runs after every
+ * step. The finiteness and the maxima come from one sweep of the arrays; the maxima are used
+ * only once every value is known to be finite.
  * Maxima over the particles with ties to the smallest id: the verdict and the particle named do
  * not depend on the thread count or the particle order. */
 int solver_check_valid(consph_solver *s)
@@ -99,38 +101,51 @@ int solver_check_valid(consph_solver *s)
     const size_t n = p->n, cap = p->cap;
     const double *u = sv_field(s, SF_U, d), *rf = sv_field(s, SF_RHOF, 1);
     const double *pr = sv_field(s, SF_P, 1), *id = sv_field(s, SF_ID, 1);
+    if (!u || !rf || !pr || !id) return CONSPH_EINVAL;
     const double r0 = s->prm.rho0;
     /* edac evolves p on its own, with no EOS: its ϱ is a summation density that only weights
      * its sums, and a uniform drift of p moves nothing (its force takes p - p̄) */
     const int compressible = !(s->scheme->evolve_p && s->scheme->closure);
-    const double ke0 = s->hist[6]; /* row 0: the initial state */
-    double ke;
-    int st = solver_kinetic_energy(s, &ke);
-    if (st != CONSPH_OK) return st;
-    /* the maxima alone first (the values are finite): the particle to name is looked for only
-     * when a bound is passed, by the same expressions */
-    double u2max = 0.0, cmax = 0.0;
+    /* a - a is 0 for a finite a and NaN otherwise, so the sum is 0 exactly when every value is
+     * finite, in any order (as all_finite) */
+    double u2max = 0.0, cmax = 0.0, nonfinite = 0.0;
     if (d == 2) {
         /* (0 + u²) + v² of the loop below is u² + v²: the same value */
-#pragma omp simd reduction(max : u2max)
+        const double *x0 = p->x[0], *x1 = p->x[1];
+#pragma omp simd reduction(max : u2max, cmax) reduction(+ : nonfinite)
         for (size_t i = 0; i < n; ++i) {
-            const double u2 = u[i] * u[i] + u[cap + i] * u[cap + i];
+            const double ux = u[i], uy = u[cap + i];
+            nonfinite += (x0[i] - x0[i]) + (x1[i] - x1[i]) + (ux - ux) + (uy - uy) +
+                         (rf[i] - rf[i]) + (pr[i] - pr[i]);
+            const double u2 = ux * ux + uy * uy;
             u2max = u2 > u2max ? u2 : u2max;
+            const double c = compressible ? fabs(rf[i] / r0 - 1.0) : 0.0;
+            cmax = c > cmax ? c : cmax;
         }
     } else {
         for (size_t i = 0; i < n; ++i) {
             double u2 = 0.0;
-            for (int a = 0; a < d; ++a) u2 += u[a * cap + i] * u[a * cap + i];
+            nonfinite += (rf[i] - rf[i]) + (pr[i] - pr[i]);
+            for (int a = 0; a < d; ++a) {
+                nonfinite += (p->x[a][i] - p->x[a][i]) + (u[a * cap + i] - u[a * cap + i]);
+                u2 += u[a * cap + i] * u[a * cap + i];
+            }
             u2max = u2 > u2max ? u2 : u2max;
+            if (compressible) {
+                const double c = fabs(rf[i] / r0 - 1.0);
+                cmax = c > cmax ? c : cmax;
+            }
         }
     }
-    if (compressible) {
-#pragma omp simd reduction(max : cmax)
-        for (size_t i = 0; i < n; ++i) {
-            const double c = fabs(rf[i] / r0 - 1.0);
-            cmax = c > cmax ? c : cmax;
-        }
+    if (nonfinite != 0.0) {
+        const int st = solver_check_finite(s);
+        if (st != CONSPH_OK) return st;
     }
+    const double ke0 = s->hist[6]; /* row 0: the initial state */
+    double ke;
+    int st = solver_kinetic_energy(s, &ke);
+    if (st != CONSPH_OK) return st;
+    /* the particle to name is looked for only when a bound is passed, by the same expressions */
     if (sqrt(u2max) / s->c0 <= CONSPH_VALID_MACH && cmax <= CONSPH_VALID_COMPRESSION &&
         !(ke > ke0 * (1.0 + CONSPH_VALID_KE_GROWTH)))
         return CONSPH_OK;
