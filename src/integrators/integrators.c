@@ -18,61 +18,55 @@ void integ_save_start(const integ_state *st)
     }
 }
 
-/* u = u0 + c ku and q = q0 + c kq. */
-static void set_fields(const integ_state *st, double c, const double *ku, const double *kq)
+/* The evolved fields are updated in blocks of this many particles, shared out among the threads,
+ * one array at a time within a block: loops over restrict-qualified arrays that vectorise. */
+#define INTEG_BLOCK 2048
+
+/* y = y0 + c k over n values. */
+static void update_block(double *restrict y, const double *restrict y0, const double *restrict k,
+                         double c, size_t n)
 {
-    const int d = st->dim;
-    const size_t n = st->n, cap = st->cap;
-    double *u = st->u, *q = st->q;
-    const double *u0 = st->u0, *q0 = st->q0;
-    /* the 2D loop with its dimension known at compile time vectorises */
-    if (d == 2) {
-#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
-        for (size_t i = 0; i < n; ++i) {
-            q[i] = q0[i] + c * kq[i];
-            u[i] = u0[i] + c * ku[i];
-            u[cap + i] = u0[cap + i] + c * ku[cap + i];
-        }
-        return;
-    }
-#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i) y[i] = y0[i] + c * k[i];
+}
+
+/* y0 = y, then y = y0 + c k over n values (one sweep: the value saved is the one updated). */
+static void save_update_block(double *restrict y, double *restrict y0, const double *restrict k,
+                              double c, size_t n)
+{
     for (size_t i = 0; i < n; ++i) {
-        q[i] = q0[i] + c * kq[i];
-        for (int a = 0; a < d; ++a) u[a * cap + i] = u0[a * cap + i] + c * ku[a * cap + i];
+        const double v = y[i];
+        y0[i] = v;
+        y[i] = v + c * k[i];
     }
 }
 
-/* set_fields from the unsaved start: u0, q0 = u, q, and u = u0 + c ku, q = q0 + c kq in the same
- * sweep (the same values: u0 is u). */
-static void save_set_fields(const integ_state *st, double c, const double *ku, const double *kq)
+/* u = u0 + c ku and q = q0 + c kq; save: from the unsaved start, u0, q0 = u, q in the same sweep
+ * (the same values: u0 is u). */
+static void set_fields_from(const integ_state *st, double c, const double *ku, const double *kq,
+                            int save)
 {
     const int d = st->dim;
-    const size_t n = st->n, cap = st->cap;
+    const size_t n = st->n, cap = st->cap, nblocks = (n + INTEG_BLOCK - 1) / INTEG_BLOCK;
     double *u = st->u, *q = st->q, *u0 = st->u0, *q0 = st->q0;
-    if (d == 2) {
 #pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
-        for (size_t i = 0; i < n; ++i) {
-            const double qi = q[i], ui = u[i], vi = u[cap + i];
-            q0[i] = qi;
-            u0[i] = ui;
-            u0[cap + i] = vi;
-            q[i] = qi + c * kq[i];
-            u[i] = ui + c * ku[i];
-            u[cap + i] = vi + c * ku[cap + i];
-        }
-        return;
-    }
-#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
-    for (size_t i = 0; i < n; ++i) {
-        const double qi = q[i];
-        q0[i] = qi;
-        q[i] = qi + c * kq[i];
-        for (int a = 0; a < d; ++a) {
-            const double ui = u[a * cap + i];
-            u0[a * cap + i] = ui;
-            u[a * cap + i] = ui + c * ku[a * cap + i];
+    for (size_t b = 0; b < nblocks; ++b) {
+        const size_t i0 = b * INTEG_BLOCK, m = n - i0 < INTEG_BLOCK ? n - i0 : INTEG_BLOCK;
+        for (int a = -1; a < d; ++a) {
+            /* a = -1: q; then the components of u */
+            const size_t o = a < 0 ? i0 : (size_t)a * cap + i0;
+            double *y = a < 0 ? q : u, *y0 = a < 0 ? q0 : u0;
+            const double *k = a < 0 ? kq : ku;
+            if (save)
+                save_update_block(y + o, y0 + o, k + o, c, m);
+            else
+                update_block(y + o, y0 + o, k + o, c, m);
         }
     }
+}
+
+static void set_fields(const integ_state *st, double c, const double *ku, const double *kq)
+{
+    set_fields_from(st, c, ku, kq, 0);
 }
 
 /* x = x0 + c kx (with save: x0 = x first, in the same sweep), then wrapped and the search
@@ -101,7 +95,7 @@ static int drift(const integ_state *st, double c, const double *kx, int save)
 static int advance(const integ_state *st, double c, int save)
 {
     if (save)
-        save_set_fields(st, c, st->au, st->aq);
+        set_fields_from(st, c, st->au, st->aq, 1);
     else
         set_fields(st, c, st->au, st->aq);
     if (st->x0) {

@@ -268,17 +268,38 @@ static void bin_cells(const consph_nnps *g, const consph_particles *p, size_t *c
     }
 }
 
-/* bin_cells in 2D, the grid's constants held in locals: the stores to cell_of (size_t) may alias
+/* bin_cells in 2D, the grid's constants held in locals (1: every coordinate was inside the
+ * box on its periodic axes): the stores to cell_of (size_t) may alias
  * the grid's int64_t members, which the general loop would otherwise read again per particle.
  * The same operations as cell_index and stored_coord, hence the same cells. */
-static void bin_cells_2d(const consph_nnps *g, const double *x0, const double *x1,
-                         size_t *restrict cell_of, size_t n)
+static int bin_cells_2d(const consph_nnps *g, const double *x0, const double *x1,
+                        size_t *restrict cell_of, size_t n)
 {
     const double lo0 = g->lo[0], hi0 = g->hi[0], len0 = g->len[0], ih0 = g->inv_h[0];
     const double lo1 = g->lo[1], hi1 = g->hi[1], len1 = g->len[1], ih1 = g->inv_h[1];
     const int per0 = g->periodic[0], per1 = g->periodic[1];
     const int64_t nc0 = g->nc[0], nc1 = g->nc[1];
     const double top0 = (double)nc0, top1 = (double)nc1;
+    /* nnps_wrap returns a coordinate inside [lo, hi) as it is: when every one is (the solver
+     * wraps its positions), the loop needs neither its test nor its call */
+    int outside = 0;
+    if (per0 || per1) {
+        /* in bitwise form (a NaN is outside), so that it vectorises */
+#pragma omp simd reduction(| : outside)
+        for (size_t i = 0; i < n; ++i)
+            outside |= (per0 & ((int)!(x0[i] >= lo0) | (int)!(x0[i] < hi0))) |
+                       (per1 & ((int)!(x1[i] >= lo1) | (int)!(x1[i] < hi1)));
+    }
+    if (!outside) {
+#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
+        for (size_t i = 0; i < n; ++i) {
+            const double v0 = (x0[i] - lo0) * ih0, v1 = (x1[i] - lo1) * ih1;
+            const int64_t c0 = !(v0 >= 0.0) ? 0 : v0 >= top0 ? nc0 - 1 : (int64_t)v0;
+            const int64_t c1 = !(v1 >= 0.0) ? 0 : v1 >= top1 ? nc1 - 1 : (int64_t)v1;
+            cell_of[i] = (size_t)c1 * (size_t)nc0 + (size_t)c0;
+        }
+        return 1;
+    }
 #pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
         const double y0 = per0 ? nnps_wrap(x0[i], lo0, hi0, len0) : x0[i];
@@ -288,14 +309,16 @@ static void bin_cells_2d(const consph_nnps *g, const double *x0, const double *x
         const int64_t c1 = !(v1 >= 0.0) ? 0 : v1 >= top1 ? nc1 - 1 : (int64_t)v1;
         cell_of[i] = (size_t)c1 * (size_t)nc0 + (size_t)c0;
     }
+    return 0;
 }
 
-/* xs[s] = the stored coordinate along axis a of particle order[s]. */
+/* xs[s] = the stored coordinate along axis a of particle order[s]; inside: every coordinate is
+ * known to be inside the box, where nnps_wrap keeps it as it is. */
 static void gather_coords(const consph_nnps *g, int a, const double *x, const size_t *order,
-                          double *restrict xs, size_t n)
+                          double *restrict xs, size_t n, int inside)
 {
     const double lo = g->lo[a], hi = g->hi[a], len = g->len[a];
-    if (g->periodic[a]) {
+    if (g->periodic[a] && !inside) {
 #pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
         for (size_t s = 0; s < n; ++s) xs[s] = nnps_wrap(x[order[s]], lo, hi, len);
     } else {
@@ -322,10 +345,8 @@ int consph_nnps_build(consph_nnps *g, const consph_particles *p)
     const int dim = g->dim;
     size_t *cell_of = g->cell_of;
 
-    if (dim == 2)
-        bin_cells_2d(g, p->x[0], p->x[1], cell_of, n);
-    else
-        bin_cells(g, p, cell_of, n);
+    const int inside = dim == 2 ? bin_cells_2d(g, p->x[0], p->x[1], cell_of, n) : 0;
+    if (dim != 2) bin_cells(g, p, cell_of, n);
 
     /* Stable counting sort, serial: it is a small fraction of a query sweep (see bench_nnps),
      * and a serial pass makes the order trivially independent of the thread count. */
@@ -344,7 +365,7 @@ int consph_nnps_build(consph_nnps *g, const consph_particles *p)
     for (size_t s = 0; s < n && g->identity; ++s) g->identity = order[s] == s;
     for (int a = 0; a < dim; ++a) {
         double *xs = g->xs[a];
-        gather_coords(g, a, p->x[a], order, xs, n);
+        gather_coords(g, a, p->x[a], order, xs, n, inside);
         /* The gather's vector paths read whole blocks past a run's end; NaN is never a hit. */
         if (n)
             for (size_t s = n; s < n + CONSPH_NNPS_GATHER_SLACK; ++s) xs[s] = NAN;

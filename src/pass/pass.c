@@ -224,31 +224,21 @@ int sys_carry_permutation(consph_sys *s, const size_t *perm)
 {
     const size_t n = s->p->n;
     if (!s->origin && !s->dest) return CONSPH_OK;
-    /* Carry origin and mask through the same permutation, new[i] = old[perm[i]], over the slots
-     * that move (after a step, a third of them or fewer). */
-    size_t moved = 0;
-    for (size_t i = 0; i < n; ++i) moved += perm[i] != i;
-    if (moved == 0) return CONSPH_OK;
-    size_t *o2 = s->origin ? malloc(moved * sizeof(size_t)) : NULL;
-    unsigned char *d2 = s->dest ? malloc(moved) : NULL;
+    /* Carry origin and mask through the same permutation, new[i] = old[perm[i]]. */
+    size_t *o2 = s->origin ? malloc((n ? n : 1) * sizeof(size_t)) : NULL;
+    unsigned char *d2 = s->dest ? malloc(n ? n : 1) : NULL;
     int rc = CONSPH_OK;
     if ((s->origin && !o2) || (s->dest && !d2)) {
-        rc = consph_fail(CONSPH_ENOMEM, "out of memory carrying %zu moved particles", moved);
+        rc = consph_fail(CONSPH_ENOMEM, "out of memory carrying %zu particles", n);
     } else {
-        size_t k = 0;
-        for (size_t i = 0; i < n; ++i)
-            if (perm[i] != i) {
-                if (o2) o2[k] = s->origin[perm[i]];
-                if (d2) d2[k] = s->dest[perm[i]];
-                ++k;
-            }
-        k = 0;
-        for (size_t i = 0; i < n; ++i)
-            if (perm[i] != i) {
-                if (o2) s->origin[i] = o2[k];
-                if (d2) s->dest[i] = d2[k];
-                ++k;
-            }
+        if (o2) {
+            for (size_t i = 0; i < n; ++i) o2[i] = s->origin[perm[i]];
+            memcpy(s->origin, o2, n * sizeof(size_t));
+        }
+        if (d2) {
+            for (size_t i = 0; i < n; ++i) d2[i] = s->dest[perm[i]];
+            memcpy(s->dest, d2, n);
+        }
     }
     free(o2);
     free(d2);

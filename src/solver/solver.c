@@ -403,11 +403,6 @@ static void wrap_positions(consph_solver *s)
         if (!p->box.periodic[a]) continue;
         const double lo = p->box.lo[a], L = p->box.hi[a] - lo;
         double *x = p->x[a];
-        /* a step moves few particles across the box's edge, or none: look before writing */
-        int out = 0;
-#pragma omp simd reduction(| : out)
-        for (size_t i = 0; i < p->n; ++i) out |= (x[i] < lo) | (x[i] >= lo + L);
-        if (!out) continue;
         for (size_t i = 0; i < p->n; ++i) {
             if (x[i] < lo || x[i] >= lo + L) {
                 x[i] -= L * floor((x[i] - lo) / L);
