@@ -3,6 +3,7 @@
  * axes, radii from a few neighbours to several box lengths. */
 #include "check.h"
 #include "consph/nnps.h"
+#include "nnps/nnps_internal.h"
 
 #include <stdint.h>
 #include <stdlib.h>
@@ -686,6 +687,68 @@ static void test_exact_lattice(void)
     }
 }
 
+/* The re-sort after a small step, as a solver makes it: few particles change cell, so the
+ * permutation moves a minority of the slots (in runs, the first and the last slot among them),
+ * and a sort that takes the build after the move as current (nnps_build_is_current) must leave
+ * the particles, their fields and the permutation exactly as a sort that bins them afresh. */
+static void test_resort_small_moves(void)
+{
+    consph_rng rng;
+    consph_rng_seed(&rng, 7);
+    for (int dim = 2; dim <= 3; ++dim) {
+        const int periodic[3] = {1, 1, 0};
+        const consph_box box = make_box(dim, periodic);
+        const size_t n = 2000;
+        consph_particles p, q;
+        consph_particles_init(&p, dim, n, &box);
+        fill_random(&p, &rng);
+        double *id = consph_particles_field(&p, "id", 1);
+        for (size_t i = 0; i < n; ++i) id[i] = (double)i;
+        const double radius = radius_for(&box, n, 30.0);
+        consph_nnps *g = consph_nnps_create(&box, radius, 0), *fresh = NULL;
+        size_t *perm = malloc(n * sizeof *perm), *perm2 = malloc(n * sizeof *perm2);
+        CHECK(consph_nnps_sort(g, &p, perm) == CONSPH_OK, "first sort: %s", consph_last_error());
+        /* one particle in 50, and the first and last slots, moved by up to a fifth of a radius,
+         * wrapped on the periodic axes; one coordinate exactly on a periodic upper bound */
+        for (size_t i = 0; i < n; ++i) {
+            if (i % 50 && i != 0 && i != n - 1) continue;
+            for (int a = 0; a < dim; ++a) {
+                const double L = box.hi[a] - box.lo[a];
+                double x = p.x[a][i] + 0.2 * radius * (2.0 * consph_rng_uniform(&rng) - 1.0);
+                if (box.periodic[a]) x = x < box.lo[a] ? x + L : x >= box.hi[a] ? x - L : x;
+                p.x[a][i] = x;
+            }
+        }
+        p.x[0][n / 2] = box.hi[0];
+        consph_particles_copy(&q, &p);
+        CHECK(consph_nnps_build(g, &p) == CONSPH_OK, "build after the move");
+        nnps_build_is_current(g);
+        CHECK(consph_nnps_sort(g, &p, perm) == CONSPH_OK, "re-sort on the current build: %s",
+              consph_last_error());
+        fresh = consph_nnps_create(&box, radius, 0);
+        CHECK(consph_nnps_sort(fresh, &q, perm2) == CONSPH_OK, "fresh sort: %s",
+              consph_last_error());
+        size_t moved = 0;
+        long differ = 0;
+        const double *qid = consph_particles_find(&q, "id")->data;
+        for (size_t i = 0; i < n; ++i) {
+            moved += perm[i] != i;
+            differ += perm[i] != perm2[i] || id[i] != qid[i];
+            for (int a = 0; a < dim; ++a) differ += memcmp(&p.x[a][i], &q.x[a][i], sizeof(double));
+        }
+        CHECK(differ == 0, "%dD re-sort: %ld values differ from a sort binned afresh", dim, differ);
+        CHECK(moved > 0 && moved < n / 2, "%dD re-sort after a small move moved %zu of %zu", dim,
+              moved, n);
+        check_all_particles(&p, radius, 0, dim == 2 ? "re-sorted 2D" : "re-sorted 3D");
+        consph_nnps_free(fresh);
+        consph_nnps_free(g);
+        free(perm);
+        free(perm2);
+        consph_particles_free(&p);
+        consph_particles_free(&q);
+    }
+}
+
 int main(void)
 {
     double t0 = consph_wtime();
@@ -697,6 +760,7 @@ int main(void)
     test_faces_and_boundaries();
     test_arbitrary_points();
     test_sort();
+    test_resort_small_moves();
     test_thread_independence();
     test_cell_cap();
     printf("test_nnps: %.2f s\n", consph_wtime() - t0);
