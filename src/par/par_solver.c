@@ -38,6 +38,7 @@
 #include <string.h>
 
 #include "nnps/nnps_internal.h"
+#include "pass/nlist.h"
 
 struct par_solver {
     MPI_Comm comm;
@@ -85,6 +86,12 @@ struct par_solver {
     /* the particle set the last install replaced: its storage serves the next one */
     consph_particles spare;
     size_t pairs_base; /* the solver's pair count when it was cut (counted on every rank) */
+    /* The cut's weights: per local particle, the pairs the pair cache held for it on the last
+     * position state since the install that the cache served (pairs_epoch: the list's epoch
+     * then, 0: none yet); the same integers for any thread count. */
+    uint32_t *pairs;
+    size_t pairs_cap;
+    unsigned long pairs_epoch;
     double bytes, seconds;
 };
 
@@ -409,8 +416,28 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
     return CONSPH_OK;
 }
 
+/* The cache's pairs per particle, when it holds the current state's and they were not taken
+ * yet: every pass starts with a refresh, so the last cache of a step is taken by the next pass
+ * or by the re-sort (migrate), whichever comes first. */
+static void pairs_take(par_solver *ps, const consph_sys *sys)
+{
+    if (!sys->nlist) return;
+    const unsigned long e = nlist_pair_counts(sys->nlist, NULL);
+    if (!e || e == ps->pairs_epoch) return;
+    const size_t n = sys->p->n;
+    if (n > ps->pairs_cap) {
+        uint32_t *q = realloc(ps->pairs, n * sizeof *q);
+        if (!q) return; /* the cut then counts particles */
+        ps->pairs = q;
+        ps->pairs_cap = n;
+    }
+    nlist_pair_counts(sys->nlist, ps->pairs);
+    ps->pairs_epoch = e;
+}
+
 static int refresh(consph_sys *sys, void *ctx)
 {
+    pairs_take(ctx, sys);
     return refresh_some(sys, ctx, 0);
 }
 
@@ -431,21 +458,51 @@ static double split_max(void *ctx, double v)
 
 /* ---- the boxes ---- */
 
-/* The cells of one axis to its k pieces in proportion to their particles (counts per axis
- * cell summed over the ranks: the same cut on every rank), at least one cell each. */
-static void cut_axis(int64_t *cut, int *piece, int k, int64_t nc, const int64_t *count)
+/* Whether the axis cells' weights w[0..nc) fit k pieces of consecutive cells of at most cap
+ * each. */
+static int pieces_fit(const int64_t *w, int64_t nc, int k, int64_t cap)
 {
-    int64_t total = 0;
-    for (int64_t c = 0; c < nc; ++c) total += count[c];
+    int pieces = 1;
+    int64_t cur = 0;
+    for (int64_t c = 0; c < nc; ++c) {
+        if (w[c] > cap) return 0;
+        if (cur + w[c] > cap) {
+            if (++pieces > k) return 0;
+            cur = 0;
+        }
+        cur += w[c];
+    }
+    return 1;
+}
+
+/* The cells of one axis to its k pieces (k <= nc, at least one cell each) so that the heaviest
+ * piece is as light as the cells allow (weights per axis cell summed over the ranks: the same
+ * cut on every rank): the least cap that k pieces fit, by bisection, then the pieces filled up
+ * to it from the first cell. */
+static void cut_axis(int64_t *cut, int *piece, int k, int64_t nc, const int64_t *w)
+{
+    int64_t lo = 0, hi = 0;
+    for (int64_t c = 0; c < nc; ++c) {
+        hi += w[c];
+        if (w[c] > lo) lo = w[c];
+    }
+    while (lo < hi) {
+        const int64_t mid = lo + (hi - lo) / 2;
+        if (pieces_fit(w, nc, k, mid))
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
     cut[0] = 0;
-    int64_t c = 0, cum = 0;
-    for (int r = 1; r < k; ++r) {
-        /* the first cell whose particles reach r/k of the total */
-        while (c < nc && cum * k < (int64_t)r * total) cum += count[c++];
-        int64_t x = c;
-        if (x < cut[r - 1] + 1) x = cut[r - 1] + 1;
-        if (x > nc - (k - r)) x = nc - (k - r);
-        cut[r] = x;
+    int r = 1;
+    int64_t cur = 0;
+    for (int64_t c = 0; c < nc && r < k; ++c) {
+        /* a new piece where the cap is reached, or where each piece left needs a cell */
+        if ((c > cut[r - 1] && cur + w[c] > lo) || nc - c == k - r) {
+            cut[r++] = c;
+            cur = 0;
+        }
+        cur += w[c];
     }
     cut[k] = nc;
     for (int q = 0; q < k; ++q)
@@ -566,13 +623,24 @@ static int cover_collect(par_solver *ps, cover_pairs *cp, const int64_t *ac, siz
     return CONSPH_OK;
 }
 
-/* The cut of every axis by the owned particles' counts per axis cell (ac: dim per particle). */
-static int cut_boxes(par_solver *ps, const int64_t *ac, size_t n)
+static int count_cut; /* par_force_count_cut */
+
+void par_force_count_cut(int on)
+{
+    count_cut = on;
+}
+
+/* The cut of every axis by the owned particles' weights per axis cell (ac: dim per particle;
+ * w: their weights, NULL on a rank without them): the pairs each visited plus one where every
+ * rank has them, else the particle counts. */
+static int cut_boxes(par_solver *ps, const int64_t *ac, const uint32_t *w, size_t n)
 {
     int64_t total = 0;
     for (int a = 0; a < ps->dim; ++a) total += ps->nc[a];
-    int64_t *count = consph_calloc((size_t)total, sizeof(int64_t));
-    int64_t *all = consph_calloc((size_t)total, sizeof(int64_t));
+    /* per axis cell its particles, then its weight; then the ranks without weights */
+    const size_t len = 2 * (size_t)total + 1;
+    int64_t *count = consph_calloc(len, sizeof(int64_t));
+    int64_t *all = consph_calloc(len, sizeof(int64_t));
     if (!count || !all) {
         free(count);
         free(all);
@@ -580,15 +648,20 @@ static int cut_boxes(par_solver *ps, const int64_t *ac, size_t n)
     }
     for (size_t o = 0; o < n; ++o) {
         int64_t off = 0;
+        const int64_t wo = w ? (int64_t)w[o] + 1 : 0;
         for (int a = 0; a < ps->dim; ++a) {
-            ++count[off + ac[o * (size_t)ps->dim + (size_t)a]];
+            const int64_t c = off + ac[o * (size_t)ps->dim + (size_t)a];
+            ++count[c];
+            count[total + c] += wo;
             off += ps->nc[a];
         }
     }
-    MPI_Allreduce(count, all, (int)total, MPI_INT64_T, MPI_SUM, ps->comm);
+    count[2 * total] = !w || count_cut;
+    MPI_Allreduce(count, all, (int)len, MPI_INT64_T, MPI_SUM, ps->comm);
+    const int64_t *by = all[2 * total] ? all : all + total;
     int64_t off = 0;
     for (int a = 0; a < ps->dim; ++a) {
-        cut_axis(ps->cut[a], ps->piece[a], ps->k[a], ps->nc[a], all + off);
+        cut_axis(ps->cut[a], ps->piece[a], ps->k[a], ps->nc[a], by + off);
         off += ps->nc[a];
     }
     cover_axes(ps);
@@ -869,6 +942,7 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, size_t 
     free(ps->g);
     ps->g = g;
     ps->nown = nown;
+    ps->pairs_epoch = 0; /* the local indices are new */
     /* new halo lists, the halo as the owners packed it: the search is built without a
      * refresh, which would find nothing changed */
     st = halo_state_from_cut(ps, &s->sys);
@@ -897,7 +971,13 @@ static int migrate(consph_solver *s, par_solver *ps)
     for (size_t o = 0; o < ps->nown; ++o)
         for (size_t a = 0; a < dim; ++a)
             ac[o * dim + a] = nnps_axis_cell(s->sys.nnps, (int)a, p->x[a][ps->own[o]]);
-    if (cut_boxes(ps, ac, ps->nown) != CONSPH_OK) MPI_Abort(ps->comm, 1);
+    /* the weights: the pairs of the step's last cached state (none before the first pass) */
+    pairs_take(ps, &s->sys);
+    uint32_t *w = NULL;
+    if (ps->pairs_epoch && ps->nown && (w = malloc(ps->nown * sizeof *w)) != NULL)
+        for (size_t o = 0; o < ps->nown; ++o) w[o] = ps->pairs[ps->own[o]];
+    if (cut_boxes(ps, ac, w, ps->nown) != CONSPH_OK) MPI_Abort(ps->comm, 1);
+    free(w);
     for (size_t o = 0; o < ps->nown; ++o) owner[o] = owner_of(ps, ac + o * dim);
     /* per rank, the owned particles it will hold (owns or has in its halo), ascending */
     size_t *go_off = consph_calloc((size_t)ps->size + 1, sizeof(size_t)), *go = NULL;
@@ -1408,6 +1488,7 @@ void par_solver_free(par_solver *ps)
     free(ps->col);
     free(ps->mask);
     free(ps->masks);
+    free(ps->pairs);
     free(ps);
 }
 
@@ -1638,6 +1719,11 @@ void par_solver_free(par_solver *ps)
 void par_force_boxes(const int *k)
 {
     (void)k;
+}
+
+void par_force_count_cut(int on)
+{
+    (void)on;
 }
 
 int consph_par_solver_decompose(consph_solver *s)

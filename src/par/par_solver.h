@@ -8,8 +8,8 @@
 typedef struct par_solver par_solver;
 
 /* In place of the serial re-sort at a step's start: particles handed to the ranks that now own
- * their cells, re-sorted into the serial order, the slabs re-cut by particle count, the halo
- * rebuilt. */
+ * their cells, re-sorted into the serial order, the boxes re-cut by the pairs each particle
+ * visited, the halo rebuilt. */
 int par_step_begin(consph_solver *s);
 /* After the step's local work: `status` agreed over the ranks, and the guard that no particle
  * moved far enough in the step to have needed a halo it did not have. */
@@ -37,5 +37,7 @@ void par_solver_free(par_solver *ps);
 /* For the tests: the next decompositions cut k[a] pieces along axis a (NULL: chosen for the
  * fewest halo cells); a launch whose rank count is not their product is refused. */
 void par_force_boxes(const int *k);
+/* For the tests: nonzero cuts the boxes by particle counts, as before the pairs weighed them. */
+void par_force_count_cut(int on);
 
 #endif
