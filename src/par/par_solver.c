@@ -694,41 +694,32 @@ static int64_t cell_of(const par_solver *ps, const consph_nnps *nn, const double
     return c;
 }
 
-static int held_less(const held *a, const held *b)
+/* h[0..n) sorted by (cell, g), h being the runs [bound[r], bound[r + 1]) for r < nb, each
+ * ascending in g (this rank's particles, then each sender's, in their serial order): the runs
+ * merged by g, then a stable counting sort by cell over the cells they span (a rank's box and
+ * halo), as the serial re-sort sorts by cell the previous order. (cell, g) is unique: any sort
+ * gives the same order, and a span of cells far larger than the records (not met by boxes)
+ * goes to qsort. */
+static int sort_held(held *h, size_t n, const size_t *bound, int nb)
 {
-    return a->cell != b->cell ? a->cell < b->cell : a->g < b->g;
-}
-
-/* h[0..n) sorted by (cell, g), h being the runs [bound[r], bound[r + 1]) for r < nb, each in
- * the order of the previous re-sort: few particles change cells in a step, so in 2D a run is
- * insertion-sorted in about its length (past a budget of moves, by qsort), then the runs are
- * merged. In 3D a particle that crosses a layer of cells along the last axes moves past a
- * plane of cells in the order, which insertion pays for dearly (measured: more than qsort), so
- * 3D sorts the whole by qsort. (cell, g) is unique: any sort gives the same order. */
-static int sort_held(held *h, size_t n, const size_t *bound, int nb, int dim)
-{
-    if (dim == 3) {
+    if (n < 2) return CONSPH_OK;
+    int64_t lo = h[0].cell, hi = h[0].cell;
+    for (size_t k = 1; k < n; ++k) {
+        if (h[k].cell < lo) lo = h[k].cell;
+        if (h[k].cell > hi) hi = h[k].cell;
+    }
+    const size_t span = (size_t)(hi - lo) + 1;
+    if (span > 8 * n + 4096) {
         qsort(h, n, sizeof *h, held_cmp);
         return CONSPH_OK;
     }
-    for (int r = 0; r < nb; ++r) {
-        const size_t b0 = bound[r], b1 = bound[r + 1];
-        size_t moves = 0, budget = 8 * (b1 - b0) + 1024;
-        for (size_t i = b0 + 1; i < b1 && moves <= budget; ++i) {
-            const held x = h[i];
-            size_t j = i;
-            for (; j > b0 && held_less(&x, &h[j - 1]) && moves <= budget; --j, ++moves)
-                h[j] = h[j - 1];
-            h[j] = x;
-        }
-        if (moves > budget) qsort(h + b0, b1 - b0, sizeof *h, held_cmp);
-    }
-    if (nb < 2) return CONSPH_OK;
     held *t = malloc(n * sizeof *t);
     size_t *b = malloc(((size_t)nb + 1) * sizeof *b);
-    if (!t || !b) {
+    size_t *start = consph_calloc(span + 1, sizeof *start);
+    if (!t || !b || !start) {
         free(t);
         free(b);
+        free(start);
         return par_fail_mem();
     }
     memcpy(b, bound, ((size_t)nb + 1) * sizeof *b);
@@ -736,12 +727,12 @@ static int sort_held(held *h, size_t n, const size_t *bound, int nb, int dim)
     while (nb > 1) {
         int out = 0;
         for (int r = 0; r < nb; r += 2) {
-            const size_t lo = b[r], mid = b[r + 1], hi = r + 2 <= nb ? b[r + 2] : mid;
-            size_t i = lo, j = mid, o = lo;
-            while (i < mid && j < hi) dst[o++] = held_less(&src[j], &src[i]) ? src[j++] : src[i++];
+            const size_t lo_r = b[r], mid = b[r + 1], hi_r = r + 2 <= nb ? b[r + 2] : mid;
+            size_t i = lo_r, j = mid, o = lo_r;
+            while (i < mid && j < hi_r) dst[o++] = src[j].g < src[i].g ? src[j++] : src[i++];
             while (i < mid) dst[o++] = src[i++];
-            while (j < hi) dst[o++] = src[j++];
-            b[out++] = lo;
+            while (j < hi_r) dst[o++] = src[j++];
+            b[out++] = lo_r;
         }
         b[out] = n;
         nb = out;
@@ -749,29 +740,56 @@ static int sort_held(held *h, size_t n, const size_t *bound, int nb, int dim)
         src = dst;
         dst = x;
     }
-    if (src != h) memcpy(h, src, n * sizeof *h);
+    /* src: by g; dst: by cell, then g */
+    for (size_t k = 0; k < n; ++k) ++start[src[k].cell - lo + 1];
+    for (size_t c = 0; c < span; ++c) start[c + 1] += start[c];
+    for (size_t k = 0; k < n; ++k) dst[start[src[k].cell - lo]++] = src[k];
+    if (dst != h) memcpy(h, dst, n * sizeof *h);
     free(t);
     free(b);
+    free(start);
     return CONSPH_OK;
 }
 
-/* Particle i of src to slot k of dst (the same fields, in the same order). */
-static void copy_particle(consph_particles *dst, size_t k, const consph_particles *src, size_t i)
+/* The columns of p (positions, then every field's components), as values_per_particle counts
+ * them. */
+static void columns_of(const consph_particles *p, double **col)
 {
-    for (int a = 0; a < src->dim; ++a) dst->x[a][k] = src->x[a][i];
-    for (int f = 0; f < src->nfields; ++f) {
-        const double *in = src->fields[f].data + i;
-        double *out = dst->fields[f].data + k;
-        for (int c = 0; c < src->fields[f].ncomp; ++c)
-            out[(size_t)c * dst->cap] = in[(size_t)c * src->cap];
+    size_t k = 0;
+    for (int a = 0; a < p->dim; ++a) col[k++] = p->x[a];
+    for (int f = 0; f < p->nfields; ++f)
+        for (int c = 0; c < p->fields[f].ncomp; ++c)
+            col[k++] = p->fields[f].data + (size_t)c * p->cap;
+}
+
+/* A run of the new set's slots [k, k + len) whose values are consecutive in one source: this
+ * rank's particles from `from` (kind 0), or the received columns from record `from` (1). */
+typedef struct copy_run {
+    size_t k, from, len;
+    int kind;
+} copy_run;
+
+/* Every column of dst from the runs: between re-sorts few particles change cells or ranks, so
+ * the runs are long and a column is a few block copies, not a gather per value. */
+static void copy_runs(double *restrict dst, const double *own, const double *recv,
+                      const copy_run *run, size_t nrun)
+{
+    for (size_t r = 0; r < nrun; ++r) {
+        const double *from = (run[r].kind ? recv : own) + run[r].from;
+        double *to = dst + run[r].k;
+        if (run[r].len >= 8)
+            memcpy(to, from, run[r].len * sizeof(double));
+        else
+            for (size_t t = 0; t < run[r].len; ++t) to[t] = from[t];
     }
 }
 
 /* The particles this rank now holds become its system: sorted by (cell, g), the owned ones
- * marked, the exchange lists made. They are this rank's particles self[0..nself), then those
- * received (packed: positions, fields, g), rcnt[q] from rank q in its order. */
-static int install(consph_solver *s, par_solver *ps, const double *recv, size_t nrecv, size_t per,
-                   const size_t *self, size_t nself, const int *rcnt)
+ * marked, the exchange lists made. They are this rank's particles self[0..nself), then the
+ * nrecv received, rcnt[q] from rank q in its order: column c of record r at recv[c·nrecv + r]
+ * (positions, fields' components), g at rg[r]. */
+static int install(consph_solver *s, par_solver *ps, const double *recv, const double *rg,
+                   size_t nrecv, const size_t *self, size_t nself, const int *rcnt)
 {
     const size_t m = nself + nrecv;
     consph_particles *p = s->sys.p;
@@ -805,19 +823,19 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, size_t 
         for (; k == next && sender < ps->size; next += (size_t)rcnt[sender++])
             if (bound[nb - 1] != kept) bound[nb++] = kept;
         double xk[CONSPH_MAX_DIM];
-        const double *v = k < nself ? xk : recv + (k - nself) * per;
-        for (int a = 0; k < nself && a < dim; ++a) xk[a] = p->x[a][self[k]];
+        for (int a = 0; a < dim; ++a)
+            xk[a] = k < nself ? p->x[a][self[k]] : recv[(size_t)a * nrecv + (k - nself)];
         int64_t *ac = rac + k * (size_t)dim;
-        const int64_t c = cell_of(ps, s->sys.nnps, v, ac);
+        const int64_t c = cell_of(ps, s->sys.nnps, xk, ac);
         rowner[k] = owner_of(ps, ac);
         if (rowner[k] != ps->rank && !in_halo(ps, ps->rank, ac)) continue;
         h[kept].cell = c;
-        h[kept].g = k < nself ? ps->g[self[k]] : v[per - 1];
+        h[kept].g = k < nself ? ps->g[self[k]] : rg[k - nself];
         h[kept].at = k;
         ++kept;
     }
     if (bound[nb - 1] != kept || nb == 1) bound[nb++] = kept;
-    int st = sort_held(h, kept, bound, nb - 1, dim);
+    int st = sort_held(h, kept, bound, nb - 1);
     free(bound);
     consph_particles np;
     if (st == CONSPH_OK) st = particles_for(&ps->spare, &np, p, kept);
@@ -826,12 +844,31 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, size_t 
     size_t *origin = st == CONSPH_OK ? consph_calloc(kept ? kept : 1, sizeof(size_t)) : NULL;
     double *g = st == CONSPH_OK ? malloc((kept ? kept : 1) * sizeof(double)) : NULL;
     if (st == CONSPH_OK && (!dest || !origin || !g)) st = par_fail_mem();
+    /* the new set column by column, from runs of consecutive sources */
+    const size_t ncol = values_per_particle(p);
+    copy_run *run = st == CONSPH_OK ? malloc((kept ? kept : 1) * sizeof *run) : NULL;
+    double **ocol = st == CONSPH_OK ? malloc(2 * ncol * sizeof *ocol) : NULL;
+    if (st == CONSPH_OK && (!run || !ocol)) st = par_fail_mem();
+    if (st == CONSPH_OK) {
+        size_t nrun = 0;
+        for (size_t k = 0; k < kept; ++k) {
+            const size_t at = h[k].at;
+            const int kind = at >= nself;
+            const size_t from = kind ? at - nself : self[at];
+            copy_run *last = nrun ? &run[nrun - 1] : NULL;
+            if (last && last->kind == kind && last->from + last->len == from)
+                ++last->len;
+            else
+                run[nrun++] = (copy_run){k, from, 1, kind};
+        }
+        double **ncolp = ocol + ncol;
+        columns_of(p, ocol);
+        columns_of(&np, ncolp);
+        for (size_t c = 0; c < ncol; ++c) copy_runs(ncolp[c], ocol[c], recv + c * nrecv, run, nrun);
+    }
+    free(run);
+    free(ocol);
     for (size_t k = 0; st == CONSPH_OK && k < kept; ++k) {
-        const size_t at = h[k].at;
-        if (at < nself)
-            copy_particle(&np, k, p, self[at]);
-        else
-            unpack(&np, k, recv + (at - nself) * per);
         int64_t *ac = acell + k * (size_t)dim;
         for (int a = 0; a < dim; ++a) ac[a] = rac[h[k].at * (size_t)dim + (size_t)a];
         owner[k] = rowner[h[k].at];
@@ -992,8 +1029,7 @@ static int migrate(consph_solver *s, par_solver *ps)
     free(cp.k);
     for (int q = ps->size; q > 0; --q) go_off[q] = go_off[q - 1];
     go_off[0] = 0;
-    const size_t per = values_per_particle(p) + 1; /* + g */
-    const size_t ncol = per - 1;
+    const size_t ncol = values_per_particle(p);
     int *cnt = consph_calloc((size_t)ps->size, sizeof(int));
     int *rcnt = consph_calloc((size_t)ps->size, sizeof(int));
     int *sd = consph_calloc((size_t)ps->size, sizeof(int));
@@ -1052,54 +1088,83 @@ static int migrate(consph_solver *s, par_solver *ps)
         nr += (size_t)rcnt[q];
         nrd += (size_t)rd[q];
     }
-    double *sbuf = NULL, *rbuf = NULL, *full = NULL;
+    /* A message to rank q, column-wise: the records' g, their slots, then per column the
+     * values of every record where the column goes to q, else those of the records without a
+     * slot (q holds no copy of them), each in the local (serial) order. */
+    double *sbuf = NULL, *rbuf = NULL, *rcol = NULL, *rg = NULL;
+    size_t *iall = NULL, *ifull = NULL;
     if (st == CONSPH_OK) {
         sbuf = malloc((nsd ? nsd : 1) * sizeof(double));
         rbuf = malloc((nrd ? nrd : 1) * sizeof(double));
-        full = malloc((nr ? nr : 1) * per * sizeof(double));
-        if (!sbuf || !rbuf || !full) st = par_fail_mem();
+        rcol = malloc((nr ? nr : 1) * ncol * sizeof(double));
+        rg = malloc((nr ? nr : 1) * sizeof(double));
+        iall = malloc((ps->nown ? ps->nown : 1) * sizeof(size_t));
+        ifull = malloc((ps->nown ? ps->nown : 1) * sizeof(size_t));
+        if (!sbuf || !rbuf || !rcol || !rg || !iall || !ifull) st = par_fail_mem();
     }
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
-    /* packed per destination rank, each in the local (serial) order */
     double *v = sbuf;
     for (int q = 0; q < ps->size; ++q) {
+        if (q == ps->rank) continue;
         const unsigned char *mq = ps->masks + (size_t)q * ncol;
         const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
-        for (size_t t = go_off[q]; q != ps->rank && t < go_off[q + 1]; ++t) {
+        size_t m = 0, mf = 0;
+        for (size_t t = go_off[q]; t < go_off[q + 1]; ++t) {
             const size_t i = ps->own[go[t]];
-            const long sl = slot[i];
-            *v++ = ps->g[i];
-            *v++ = (double)sl;
-            for (size_t c = 0; c < ncol; ++c)
-                if (sl < 0 || col_goes(ps->mask, mq, c)) *v++ = ps->col[c][i];
+            iall[m++] = i;
+            if (slot[i] < 0) ifull[mf++] = i;
+        }
+        for (size_t k = 0; k < m; ++k) {
+            v[k] = ps->g[iall[k]];
+            v[m + k] = (double)slot[iall[k]];
+        }
+        v += 2 * m;
+        for (size_t c = 0; c < ncol; ++c) {
+            const int all = col_goes(ps->mask, mq, c);
+            gather_column(v, ps->col[c], all ? iall : ifull, all ? m : mf);
+            v += all ? m : mf;
         }
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = -1;
     }
     MPI_Alltoallv(sbuf, sd, sdis, MPI_DOUBLE, rbuf, rd, rdis, MPI_DOUBLE, ps->comm);
-    /* the records as install reads them: every column, then g */
+    /* the received records column by column (rcol[c·nr + r], g in rg), the columns not sent
+     * from what this rank kept of its halo (got) */
     const double *in = rbuf;
-    double *out = full;
+    size_t r0 = 0;
     for (int q = 0; q < ps->size; ++q) {
         const unsigned char *mq = ps->masks + (size_t)q * ncol;
-        for (int r = 0; r < rcnt[q]; ++r, out += per) {
-            out[ncol] = *in++;
-            const long sl = (long)*in++;
-            const size_t at = (size_t)ps->rdispl[q] + (size_t)sl;
-            for (size_t c = 0; c < ncol; ++c)
-                out[c] = sl < 0 || col_goes(mq, ps->mask, c) ? *in++ : ps->got[c * onr + at];
+        const size_t m = (size_t)rcnt[q];
+        const double *sl = in + m;
+        memcpy(rg + r0, in, m * sizeof(double));
+        in += 2 * m;
+        size_t mf = 0;
+        for (size_t r = 0; r < m; ++r) mf += sl[r] < 0.0;
+        for (size_t c = 0; c < ncol; ++c) {
+            double *out = rcol + c * nr + r0;
+            if (mf == m || col_goes(mq, ps->mask, c)) {
+                memcpy(out, in, m * sizeof(double));
+                in += m;
+                continue;
+            }
+            const double *kept = ps->got + c * onr + (size_t)ps->rdispl[q];
+            for (size_t r = 0; r < m; ++r) out[r] = sl[r] < 0.0 ? *in++ : kept[(size_t)sl[r]];
         }
+        r0 += m;
     }
     /* what stays on this rank is a copy, as the serial re-sort's permutation */
     ps->bytes +=
         (double)((nsd - (size_t)sd[ps->rank]) * sizeof(double) + ncol * (size_t)(ps->size - 1));
     ps->seconds += MPI_Wtime() - t0;
     free(slot);
+    free(iall);
+    free(ifull);
     /* the owned particles that stay (owned here or in this rank's halo), as local indices */
     const size_t nself = go_off[ps->rank + 1] - go_off[ps->rank];
     for (size_t t = 0; t < nself; ++t) go[t] = ps->own[go[go_off[ps->rank] + t]];
-    st = install(s, ps, full, nr, per, go, nself, rcnt);
-    free(full);
+    st = install(s, ps, rcol, rg, nr, go, nself, rcnt);
+    free(rcol);
+    free(rg);
     free(ac);
     free(owner);
     free(go_off);
