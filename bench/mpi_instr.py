@@ -23,13 +23,14 @@ KINDS = [
     ('search build and serial re-sort',
      r'^(consph_nnps_|nnps_|nlist_|index_block|cache_block|consph_particles_permute|'
      r'sys_carry|permute_)'),
-    ('halo refresh', r'^(refresh|column_changed|gather_column|halo_)'),
+    ('halo refresh', r'^(refresh|column_changed|gather_column|halo_|list_|__memcmp)'),
     ('migration and install',
      r'^(migrate|install|in_halo|cover|cut_|held_cmp|cell_of|owner_of|copy_particle|'
-     r'particles_for|particles_like|unpack|msort|qsort)'),
+     r'particles_for|particles_like|unpack|msort|qsort|sort_held|copy_runs|runs_of)'),
     ('rank 0 gathers, checks over ranks', r'^(par_|solver_|diag_|step_close|__sincos)'),
     ('MPI library (waiting included)', r'^(opal_|mca_|ompi_|PMPI_|MPI_|pmix|PMIx|\?\?\?|event_)'),
-    ('libc copies and fills', r'^__(memcpy|memmove|memset|mempcpy)'),
+    ('libc copies and fills (and copy_doubles)',
+     r'^(__memcpy|__memmove|__memset|__mempcpy|copy_doubles)'),
     ('malloc/free', r'^(_int_|malloc|free|realloc|calloc|unlink_chunk|consph_calloc|cfree)'),
 ]
 

@@ -68,6 +68,12 @@ struct par_solver {
     int *scount, *sdispl, *rcount, *rdispl; /* in particles */
     int *sdbl, *sddis, *rdbl, *rddis;       /* in doubles, per call */
     size_t *sidx, *ridx;
+    /* the same lists as runs of consecutive local indices (a box's boundary layers and its halo
+     * are runs of the cell order), each within one rank's part (rank q's from srun_off[q]);
+     * used where they are long (sruns, rruns) */
+    struct idx_run *srun, *rrun;
+    size_t *srun_off, *rrun_off;
+    int sruns, rruns;
     double *sbuf, *rbuf;
     size_t sbuf_cap, rbuf_cap;
     /* The halo's columns (an axis of the positions, a field's component, a scratch block) as
@@ -242,12 +248,93 @@ static int column_changed(const double *v, const size_t *idx, const double *old,
     return 0;
 }
 
+/* to[0..n) = from[0..n), the runs' block copy. A loop, not memcpy: glibc copies blocks of more
+ * than a few kB (a box's boundary layers) with `rep movsb`, which valgrind counts per byte, so
+ * the instruction counts of bench/mpi_instr.sh would show eight per value where the vector
+ * loop takes about one; GCC is kept from turning the loop back into memcpy. */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-tree-loop-distribute-patterns")))
+#endif
+PAR_CLONES static void
+copy_doubles(double *restrict to, const double *restrict from, size_t n)
+{
+    for (size_t k = 0; k < n; ++k) to[k] = from[k];
+}
+
 /* out[k] = v[idx[k]] */
 PAR_CLONES
 static void gather_column(double *restrict out, const double *restrict v, const size_t *idx,
                           size_t n)
 {
     for (size_t k = 0; k < n; ++k) out[k] = v[idx[k]];
+}
+
+/* A run of an index list: entries [k, k + len) are the local indices at, at + 1, ... */
+typedef struct idx_run {
+    size_t at, k, len;
+} idx_run;
+
+/* The runs of idx[0..), rank q's part [displ[q], displ[q] + count[q]) starting at run off[q];
+ * *use: whether they are long enough (8 entries on average) that block compares and copies
+ * beat the per-value gathers. */
+static int runs_of(const par_solver *ps, const size_t *idx, const int *displ, const int *count,
+                   idx_run **run, size_t **off, int *use)
+{
+    size_t n = 0, m = 0;
+    for (int q = 0; q < ps->size; ++q)
+        for (size_t k = (size_t)displ[q]; k < (size_t)displ[q] + (size_t)count[q]; ++k, ++n)
+            m += k == (size_t)displ[q] || idx[k] != idx[k - 1] + 1;
+    free(*run);
+    free(*off);
+    *run = malloc((m ? m : 1) * sizeof **run);
+    *off = malloc(((size_t)ps->size + 1) * sizeof **off);
+    if (!*run || !*off) return par_fail_mem();
+    m = 0;
+    for (int q = 0; q < ps->size; ++q) {
+        (*off)[q] = m;
+        for (size_t k = (size_t)displ[q]; k < (size_t)displ[q] + (size_t)count[q]; ++k)
+            if (k == (size_t)displ[q] || idx[k] != idx[k - 1] + 1)
+                (*run)[m++] = (idx_run){idx[k], k, 1};
+            else
+                ++(*run)[m - 1].len;
+    }
+    (*off)[ps->size] = m;
+    *use = 8 * m <= n;
+    return CONSPH_OK;
+}
+
+/* Whether v at the sent (recv 0) or received (1) particles differs bitwise from old. */
+static int list_changed(const par_solver *ps, int recv, const double *v, const double *old)
+{
+    const int use = recv ? ps->rruns : ps->sruns;
+    const idx_run *run = recv ? ps->rrun : ps->srun;
+    const size_t nrun = (recv ? ps->rrun_off : ps->srun_off)[ps->size];
+    if (use) {
+        for (size_t r = 0; r < nrun; ++r)
+            if (memcmp(v + run[r].at, old + run[r].k, run[r].len * sizeof(double))) return 1;
+        return 0;
+    }
+    const size_t n = nrun ? run[nrun - 1].k + run[nrun - 1].len : 0;
+    return column_changed(v, recv ? ps->ridx : ps->sidx, old, n);
+}
+
+/* out[k - k0] = v[idx[k]] for the sent (recv 0) or received (1) entries of ranks [q0, q1),
+ * k0 the first of them. */
+static void list_gather(const par_solver *ps, int recv, double *out, const double *v, int q0,
+                        int q1)
+{
+    const size_t *off = recv ? ps->rrun_off : ps->srun_off;
+    const idx_run *run = recv ? ps->rrun : ps->srun;
+    const size_t r0 = off[q0], r1 = off[q1];
+    if (r0 == r1) return;
+    const size_t k0 = run[r0].k;
+    if (recv ? ps->rruns : ps->sruns) {
+        for (size_t r = r0; r < r1; ++r)
+            copy_doubles(out + (run[r].k - k0), v + run[r].at, run[r].len);
+        return;
+    }
+    const size_t k1 = run[r1 - 1].k + run[r1 - 1].len;
+    gather_column(out, v, (recv ? ps->ridx : ps->sidx) + k0, k1 - k0);
 }
 
 /* ---- the halo refresh (consph_sys_split) ---- */
@@ -302,8 +389,8 @@ static int halo_state_from_cut(par_solver *ps, consph_sys *sys)
     const size_t nr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
     for (size_t c = 0; c < ncols; ++c) {
         const double *v = ps->col[c];
-        gather_column(ps->sent + c * ns, v, ps->sidx, ns);
-        gather_column(ps->got + c * nr, v, ps->ridx, nr);
+        list_gather(ps, 0, ps->sent + c * ns, v, 0, ps->size);
+        list_gather(ps, 1, ps->got + c * nr, v, 0, ps->size);
     }
     ps->base = ncols;
     ps->nvalid = ncols;
@@ -338,8 +425,7 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
     size_t valid = nall - blocks == ps->base ? ps->nvalid : 0;
     if (valid > ncols) valid = ncols;
     for (size_t c = 0; c < ncols; ++c) {
-        const int changed =
-            c >= valid || column_changed(ps->col[c], ps->sidx, ps->sent + c * ns, ns);
+        const int changed = c >= valid || list_changed(ps, 0, ps->col[c], ps->sent + c * ns);
         ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
     }
     MPI_Allgather(ps->mask, (int)ncols, MPI_UNSIGNED_CHAR, ps->masks, (int)ncols, MPI_UNSIGNED_CHAR,
@@ -371,7 +457,7 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
         for (size_t c = 0; c < ncols; ++c) {
             if (col_goes(ps->mask, mq, c)) {
                 const double *v = ps->col[c];
-                gather_column(ps->sbuf + so, v, ps->sidx + s0, s1 - s0);
+                list_gather(ps, 0, ps->sbuf + so, v, q, q + 1);
                 so += s1 - s0;
             }
             if (col_goes(mq, ps->mask, c)) ro += r1 - r0;
@@ -388,7 +474,7 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
         const size_t r0 = (size_t)ps->rdispl[q], r1 = r0 + (size_t)ps->rcount[q];
         for (size_t c = 0; c < ncols; ++c)
             if (col_goes(mq, ps->mask, c)) {
-                memcpy(ps->got + c * nr + r0, ps->rbuf + ro, (r1 - r0) * sizeof(double));
+                copy_doubles(ps->got + c * nr + r0, ps->rbuf + ro, r1 - r0);
                 ro += r1 - r0;
             }
     }
@@ -398,11 +484,17 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
     for (size_t c = 0; c < ncols; ++c) {
         double *v = ps->col[c];
         const double *in = ps->got + c * nr;
-        if (column_changed(v, ps->ridx, in, nr))
+        if (ps->rruns) {
+            const idx_run *run = ps->rrun;
+            for (size_t r = 0; r < ps->rrun_off[ps->size]; ++r)
+                if (memcmp(v + run[r].at, in + run[r].k, run[r].len * sizeof(double)))
+                    copy_doubles(v + run[r].at, in + run[r].k, run[r].len);
+        } else if (column_changed(v, ps->ridx, in, nr)) {
             for (size_t k = 0; k < nr; ++k) v[ps->ridx[k]] = in[k];
+        }
         if (ps->mask[c] & COL_CHANGED) {
             double *old = ps->sent + c * ns;
-            gather_column(old, v, ps->sidx, ns);
+            list_gather(ps, 0, old, v, 0, ps->size);
         }
     }
     /* the positions alone leave the kept columns' count: a column they did not refresh that
@@ -778,7 +870,7 @@ static void copy_runs(double *restrict dst, const double *own, const double *rec
         const double *from = (run[r].kind ? recv : own) + run[r].from;
         double *to = dst + run[r].k;
         if (run[r].len >= 8)
-            memcpy(to, from, run[r].len * sizeof(double));
+            copy_doubles(to, from, run[r].len);
         else
             for (size_t t = 0; t < run[r].len; ++t) to[t] = from[t];
     }
@@ -946,6 +1038,10 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, const d
             const int q = cp.q[e];
             ps->sidx[(size_t)ps->sdispl[q] + (size_t)ps->scount[q]++] = cp.k[e];
         }
+        st = runs_of(ps, ps->sidx, ps->sdispl, ps->scount, &ps->srun, &ps->srun_off, &ps->sruns);
+        if (st == CONSPH_OK)
+            st =
+                runs_of(ps, ps->ridx, ps->rdispl, ps->rcount, &ps->rrun, &ps->rrun_off, &ps->rruns);
     }
     free(cp.q);
     free(cp.k);
@@ -1048,8 +1144,7 @@ static int migrate(consph_solver *s, par_solver *ps)
     if (st == CONSPH_OK) st = halo_state_reserve(ps, ncol);
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
     for (size_t c = 0; c < ncol; ++c) {
-        const int changed =
-            c >= valid || column_changed(ps->col[c], ps->sidx, ps->sent + c * ons, ons);
+        const int changed = c >= valid || list_changed(ps, 0, ps->col[c], ps->sent + c * ons);
         ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
     }
     MPI_Allgather(ps->mask, (int)ncol, MPI_UNSIGNED_CHAR, ps->masks, (int)ncol, MPI_UNSIGNED_CHAR,
@@ -1143,7 +1238,7 @@ static int migrate(consph_solver *s, par_solver *ps)
         for (size_t c = 0; c < ncol; ++c) {
             double *out = rcol + c * nr + r0;
             if (mf == m || col_goes(mq, ps->mask, c)) {
-                memcpy(out, in, m * sizeof(double));
+                copy_doubles(out, in, m);
                 in += m;
                 continue;
             }
@@ -1546,6 +1641,10 @@ void par_solver_free(par_solver *ps)
     free(ps->rddis);
     free(ps->sidx);
     free(ps->ridx);
+    free(ps->srun);
+    free(ps->rrun);
+    free(ps->srun_off);
+    free(ps->rrun_off);
     free(ps->sbuf);
     free(ps->rbuf);
     free(ps->sent);
