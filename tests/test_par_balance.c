@@ -1,8 +1,9 @@
-/* The MPI cut weighted by pairs (src/par/par_solver.c, cut_boxes): on particles four times
+/* The MPI cut weighted by work (src/par/par_solver.c, cut_boxes): on particles four times
  * denser at one end of the cut axis than at the other, the pairs each rank visits are closer to
- * equal when the cut weighs each particle by the pairs it visited than when it counts particles
- * (both cuts of the same run, on 2 ranks), and both runs end in the serial run's state bit for
- * bit.
+ * equal when the cut weighs each particle by its work than when it counts particles (both cuts
+ * of the same run, on 2 ranks): L-IPST-C's particles weigh the pairs they visited (its pair
+ * cache keeps them), WCSPH's the candidates of their cell (no cache); every run ends in the
+ * serial run's state bit for bit.
  *
  * Run without mpirun, the test computes the serial reference and launches itself under
  * `mpirun -np 2` (--oversubscribe); skips (77) without MPI or mpirun. */
@@ -24,11 +25,18 @@
 
 #define STEPS 4
 
-static consph_run_params params(void)
+/* the scheme and what the weighted cut weighs with it (par_cut_weights) */
+static const struct {
+    const char *scheme;
+    int weights;
+} schemes[] = {{"l-ipst-c", 1}, {"wcsph", 2}};
+#define NSCHEMES (sizeof schemes / sizeof schemes[0])
+
+static consph_run_params params(const char *scheme)
 {
     consph_run_params p;
     consph_run_params_default(&p);
-    snprintf(p.scheme, sizeof p.scheme, "%s", "l-ipst-c");
+    snprintf(p.scheme, sizeof p.scheme, "%s", scheme);
     p.nx = 40;
     p.steps = STEPS;
     p.tf = 0.0;
@@ -70,10 +78,10 @@ static int dump(consph_solver *s, void *path)
 }
 
 /* A run of STEPS steps to `path`; *spread: the largest rank's pairs over the mean, counted from
- * the second step on (the set-up's cut has no pairs to weigh: it counts particles). */
-static int run(const char *path, double *spread)
+ * the second step on (the set-up's cut counts particles); *weights: par_cut_weights at the end. */
+static int run(const char *scheme, const char *path, double *spread, int *weights)
 {
-    consph_run_params prm = params();
+    consph_run_params prm = params(scheme);
     consph_particles given;
     memset(&given, 0, sizeof given);
     consph_solver *s = NULL;
@@ -93,6 +101,7 @@ static int run(const char *path, double *spread)
         MPI_Allreduce(&mine, &mx, 1, MPI_UNSIGNED_LONG_LONG, MPI_MAX, MPI_COMM_WORLD);
         MPI_Allreduce(&mine, &sum, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, MPI_COMM_WORLD);
         *spread = (double)mx * size / (double)sum;
+        *weights = par_cut_weights(s);
     }
     if (st == CONSPH_OK) st = solver_global(s, dump, (void *)path);
     if (st != CONSPH_OK) fprintf(stderr, "%s: %s\n", path, consph_last_error());
@@ -106,20 +115,28 @@ static int child(const char *base)
     consph_par_init(NULL, NULL);
     int rank = 0, bad = 0;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-    char path[512];
-    double weighted = 0.0, counted = 0.0;
-    snprintf(path, sizeof path, "%s.weighted", base);
-    bad |= run(path, &weighted) != CONSPH_OK;
-    par_force_count_cut(1);
-    snprintf(path, sizeof path, "%s.counted", base);
-    bad |= run(path, &counted) != CONSPH_OK;
-    par_force_count_cut(0);
-    if (!bad && rank == 0) {
-        printf("pairs of the busiest rank over the mean: %.4f cut by particles, %.4f by pairs\n",
-               counted, weighted);
+    for (size_t k = 0; k < NSCHEMES; ++k) {
+        char path[512];
+        double weighted = 0.0, counted = 0.0;
+        int wk = -1, ck = -1;
+        snprintf(path, sizeof path, "%s.%s.weighted", base, schemes[k].scheme);
+        bad |= run(schemes[k].scheme, path, &weighted, &wk) != CONSPH_OK;
+        par_force_count_cut(1);
+        snprintf(path, sizeof path, "%s.%s.counted", base, schemes[k].scheme);
+        bad |= run(schemes[k].scheme, path, &counted, &ck) != CONSPH_OK;
+        par_force_count_cut(0);
+        if (bad || rank != 0) continue;
+        printf("%s: pairs of the busiest rank over the mean: %.4f cut by particles, %.4f by "
+               "weights %d\n",
+               schemes[k].scheme, counted, weighted, wk);
+        if (wk != schemes[k].weights || ck != 0) {
+            fprintf(stderr, "%s: the cut weighed by %d (expected %d), forced counts by %d\n",
+                    schemes[k].scheme, wk, schemes[k].weights, ck);
+            bad = 1;
+        }
         /* the layout must make the counted cut unequal for the comparison to mean anything */
         if (!(counted > 1.15 && weighted < 1.0 + 0.5 * (counted - 1.0))) {
-            fprintf(stderr, "the pair-weighted cut did not balance the pairs\n");
+            fprintf(stderr, "%s: the weighted cut did not balance the pairs\n", schemes[k].scheme);
             bad = 1;
         }
     }
@@ -151,12 +168,16 @@ int main(int argc, char **argv)
         printf("test_par_balance: no mpirun: skipped\n");
         return 77;
     }
-    char base[256], ref[300], cmd[1024];
+    char base[256], ref[400], cmd[1024];
     snprintf(base, sizeof base, "%s/consph-balance-%d",
              getenv("TMPDIR") ? getenv("TMPDIR") : "/tmp", (int)getpid());
-    snprintf(ref, sizeof ref, "%s.serial", base);
-    double unused = 0.0;
-    CHECK(run(ref, &unused) == CONSPH_OK, "the serial run");
+    for (size_t k = 0; k < NSCHEMES; ++k) {
+        double unused = 0.0;
+        int none = 0;
+        snprintf(ref, sizeof ref, "%s.%s.serial", base, schemes[k].scheme);
+        CHECK(run(schemes[k].scheme, ref, &unused, &none) == CONSPH_OK, "the serial %s run",
+              schemes[k].scheme);
+    }
     snprintf(cmd, sizeof cmd,
              "OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 "
              "OMPI_MCA_mpi_yield_when_idle=1 mpirun --oversubscribe -np 2 %s --child %s",
@@ -164,12 +185,14 @@ int main(int argc, char **argv)
     const int rc = system(cmd);
     CHECK(rc == 0, "%s exited with %d", cmd, rc);
     static const char *const cuts[] = {"weighted", "counted"};
-    for (int k = 0; k < 2; ++k) {
-        char path[300];
-        snprintf(path, sizeof path, "%s.%s", base, cuts[k]);
-        CHECK(same_file(ref, path), "the run cut %s on 2 ranks: another state than the serial",
-              cuts[k]);
-    }
+    for (size_t k = 0; k < NSCHEMES; ++k)
+        for (int c = 0; c < 2; ++c) {
+            char path[400];
+            snprintf(ref, sizeof ref, "%s.%s.serial", base, schemes[k].scheme);
+            snprintf(path, sizeof path, "%s.%s.%s", base, schemes[k].scheme, cuts[c]);
+            CHECK(same_file(ref, path), "%s cut %s on 2 ranks: another state than the serial",
+                  schemes[k].scheme, cuts[c]);
+        }
     if (check_failures == 0) {
         snprintf(cmd, sizeof cmd, "rm -f %s.*", base);
         if (system(cmd) != 0) fprintf(stderr, "could not remove %s.*\n", base);

@@ -98,6 +98,8 @@ struct par_solver {
     uint32_t *pairs;
     size_t pairs_cap;
     unsigned long pairs_epoch;
+    int stepping; /* a step's re-sort: this rank's search holds its particles */
+    int weighed;  /* the kind of weights of the last cut (WEIGH_*) */
     double bytes, seconds;
 };
 
@@ -527,6 +529,37 @@ static void pairs_take(par_solver *ps, const consph_sys *sys)
     ps->pairs_epoch = e;
 }
 
+/* Where the pair cache kept no counts (a scheme with fewer passes per position state): each
+ * owned particle's weight in ps->pairs is the candidates that the walk of its cell visits
+ * (consph_nnps_cell_runs on this rank's search, built on the current positions, whose halo
+ * holds every owned cell's neighbourhood): the gather's work, an integer. 0: not available. */
+static int candidates_take(par_solver *ps, const consph_sys *sys)
+{
+    consph_nnps_slots v;
+    const size_t n = sys->p->n;
+    if (!sys->dest || consph_nnps_slots_get(sys->nnps, &v) != CONSPH_OK || v.n != n) return 0;
+    if (n > ps->pairs_cap) {
+        uint32_t *q = realloc(ps->pairs, n * sizeof *q);
+        if (!q) return 0;
+        ps->pairs = q;
+        ps->pairs_cap = n;
+    }
+    consph_nnps_runs runs;
+    memset(&runs, 0, sizeof runs);
+    int ok = 1;
+    for (size_t c = 0; ok && c < v.ncells; ++c) {
+        const size_t s0 = v.cell_start[c], s1 = v.cell_start[c + 1];
+        size_t s = s0;
+        while (s < s1 && !sys->dest[consph_nnps_slot_particle(&v, s)]) ++s;
+        if (s == s1) continue;
+        ok = consph_nnps_cell_runs(sys->nnps, c, &runs) != (size_t)-1;
+        for (s = s0; ok && s < s1; ++s)
+            ps->pairs[consph_nnps_slot_particle(&v, s)] = (uint32_t)runs.candidates;
+    }
+    consph_nnps_runs_free(&runs);
+    return ok;
+}
+
 static int refresh(consph_sys *sys, void *ctx)
 {
     pairs_take(ctx, sys);
@@ -722,15 +755,18 @@ void par_force_count_cut(int on)
     count_cut = on;
 }
 
+/* The weights of a cut: none (particle counts), the pairs visited, the search's candidates. */
+enum { WEIGH_COUNT, WEIGH_PAIRS, WEIGH_CANDIDATES, WEIGH_KINDS };
+
 /* The cut of every axis by the owned particles' weights per axis cell (ac: dim per particle;
- * w: their weights, NULL on a rank without them): the pairs each visited plus one where every
- * rank has them, else the particle counts. */
-static int cut_boxes(par_solver *ps, const int64_t *ac, const uint32_t *w, size_t n)
+ * w: their weights of kind `kind`, NULL with WEIGH_COUNT): the pairs each visited plus one where
+ * every rank has them, else the candidates of its cell plus one where every rank has those,
+ * else the particle counts. One MPI_Allreduce of a histogram per kind and the ranks with each. */
+static int cut_boxes(par_solver *ps, const int64_t *ac, const uint32_t *w, int kind, size_t n)
 {
     int64_t total = 0;
     for (int a = 0; a < ps->dim; ++a) total += ps->nc[a];
-    /* per axis cell its particles, then its weight; then the ranks without weights */
-    const size_t len = 2 * (size_t)total + 1;
+    const size_t len = WEIGH_KINDS * (size_t)total + WEIGH_KINDS;
     int64_t *count = consph_calloc(len, sizeof(int64_t));
     int64_t *all = consph_calloc(len, sizeof(int64_t));
     if (!count || !all) {
@@ -738,22 +774,29 @@ static int cut_boxes(par_solver *ps, const int64_t *ac, const uint32_t *w, size_
         free(all);
         return par_fail_mem();
     }
+    if (!w || count_cut) kind = WEIGH_COUNT;
+    int64_t *with = count + WEIGH_KINDS * total; /* per kind: the ranks that weigh so */
+    with[WEIGH_COUNT] = with[kind] = 1;
+    int64_t *mine = count + (size_t)kind * (size_t)total;
     for (size_t o = 0; o < n; ++o) {
         int64_t off = 0;
-        const int64_t wo = w ? (int64_t)w[o] + 1 : 0;
+        const int64_t wo = w ? (int64_t)w[o] + 1 : 1;
         for (int a = 0; a < ps->dim; ++a) {
             const int64_t c = off + ac[o * (size_t)ps->dim + (size_t)a];
             ++count[c];
-            count[total + c] += wo;
+            if (kind != WEIGH_COUNT) mine[c] += wo;
             off += ps->nc[a];
         }
     }
-    count[2 * total] = !w || count_cut;
     MPI_Allreduce(count, all, (int)len, MPI_INT64_T, MPI_SUM, ps->comm);
-    const int64_t *by = all[2 * total] ? all : all + total;
-    int64_t off = 0;
+    const int64_t *ranks_with = all + WEIGH_KINDS * total;
+    const int by = ranks_with[WEIGH_PAIRS] == ps->size        ? WEIGH_PAIRS
+                   : ranks_with[WEIGH_CANDIDATES] == ps->size ? WEIGH_CANDIDATES
+                                                              : WEIGH_COUNT;
+    ps->weighed = by;
+    int64_t off = (int64_t)by * total;
     for (int a = 0; a < ps->dim; ++a) {
-        cut_axis(ps->cut[a], ps->piece[a], ps->k[a], ps->nc[a], by + off);
+        cut_axis(ps->cut[a], ps->piece[a], ps->k[a], ps->nc[a], all + off);
         off += ps->nc[a];
     }
     cover_axes(ps);
@@ -1106,10 +1149,13 @@ static int migrate(consph_solver *s, par_solver *ps)
             ac[o * dim + a] = nnps_axis_cell(s->sys.nnps, (int)a, p->x[a][ps->own[o]]);
     /* the weights: the pairs of the step's last cached state (none before the first pass) */
     pairs_take(ps, &s->sys);
+    int kind = ps->pairs_epoch ? WEIGH_PAIRS : WEIGH_COUNT;
+    if (kind == WEIGH_COUNT && ps->stepping && candidates_take(ps, &s->sys))
+        kind = WEIGH_CANDIDATES;
     uint32_t *w = NULL;
-    if (ps->pairs_epoch && ps->nown && (w = malloc(ps->nown * sizeof *w)) != NULL)
+    if (kind != WEIGH_COUNT && (w = malloc((ps->nown ? ps->nown : 1) * sizeof *w)) != NULL)
         for (size_t o = 0; o < ps->nown; ++o) w[o] = ps->pairs[ps->own[o]];
-    if (cut_boxes(ps, ac, w, ps->nown) != CONSPH_OK) MPI_Abort(ps->comm, 1);
+    if (cut_boxes(ps, ac, w, kind, ps->nown) != CONSPH_OK) MPI_Abort(ps->comm, 1);
     free(w);
     for (size_t o = 0; o < ps->nown; ++o) owner[o] = owner_of(ps, ac + o * dim);
     /* per rank, the owned particles it will hold (owns or has in its halo), ascending */
@@ -1465,6 +1511,7 @@ int par_checks_clean(consph_solver *s, int *clean)
 
 int par_step_begin(consph_solver *s)
 {
+    s->par->stepping = 1;
     return migrate(s, s->par);
 }
 
@@ -1598,6 +1645,11 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
 int par_rank(const consph_solver *s)
 {
     return s->par ? s->par->rank : 0;
+}
+
+int par_cut_weights(const consph_solver *s)
+{
+    return s->par ? s->par->weighed : 0;
 }
 
 int par_share_history(consph_solver *s)
@@ -1851,6 +1903,12 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
 }
 
 int par_rank(const consph_solver *s)
+{
+    (void)s;
+    return 0;
+}
+
+int par_cut_weights(const consph_solver *s)
 {
     (void)s;
     return 0;

@@ -37,6 +37,9 @@ void par_solver_free(par_solver *ps);
 /* For the tests: the next decompositions cut k[a] pieces along axis a (NULL: chosen for the
  * fewest halo cells); a launch whose rank count is not their product is refused. */
 void par_force_boxes(const int *k);
+/* What weighed the particles at the last cut: 0 their count, 1 the pairs each visited, 2 the
+ * candidates of its cell's walk (0 for a serial solver). */
+int par_cut_weights(const consph_solver *s);
 /* For the tests: nonzero cuts the boxes by particle counts, as before the pairs weighed them. */
 void par_force_count_cut(int on);
 
