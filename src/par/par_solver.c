@@ -728,7 +728,21 @@ static int cover_collect(par_solver *ps, cover_pairs *cp, const int64_t *ac, siz
     cp->n = 0;
     for (size_t k = 0; k < n; ++k) {
         if (want && !want[k]) continue;
-        const int nq = covering(ps, ac + k * (size_t)ps->dim);
+        /* a cell that one piece along every axis covers (most: away from the halos) has one
+         * rank, found without covering's product */
+        const int64_t *a = ac + k * (size_t)ps->dim;
+        int one = 0, alone = 1;
+        for (int x = ps->dim - 1; alone && x >= 0; --x) {
+            const int o = ps->cover_off[x][a[x]];
+            alone = ps->cover_off[x][a[x] + 1] - o == 1;
+            one = one * ps->k[x] + ps->cover[x][o];
+        }
+        if (alone && one == skip) continue;
+        int nq = 1;
+        if (alone)
+            ps->ranks[0] = one;
+        else
+            nq = covering(ps, a);
         if (cp->n + (size_t)nq > cp->cap) {
             const size_t cap = 2 * (cp->n + (size_t)nq) + 64;
             int *q = realloc(cp->q, cap * sizeof *q);
