@@ -8,8 +8,8 @@
 typedef struct par_solver par_solver;
 
 /* In place of the serial re-sort at a step's start: particles handed to the ranks that now own
- * their cells, re-sorted into the serial order, the boxes re-cut by the pairs each particle
- * visited, the halo rebuilt. */
+ * their cells, re-sorted into the serial order, the boxes re-cut by each particle's work (the
+ * pairs it visited, else its cell's candidates, else one), the halo rebuilt. */
 int par_step_begin(consph_solver *s);
 /* After the step's local work: `status` agreed over the ranks, and the guard that no particle
  * moved far enough in the step to have needed a halo it did not have. */
