@@ -7,7 +7,8 @@ Each DIR holds one cachegrind file per rank (cg.PID) of the same run with STEPS 
 (DIR_SHORT) or more (DIR_LONG); their difference cancels the set-up and the last output. Every
 rank's counts are summed, so the numbers are the whole job's instructions per particle-step of
 an N-particle run (the serial run's, plus what the ranks add), and the largest rank's share
-times the ranks (the step waits for it) in the row "slowest rank x K". Functions are put in
+times the ranks (the step waits for it) in the row "slowest rank x K", and again without the
+MPI library (its polling while a rank waits follows the machine's load). Functions are put in
 kinds by name (the build has no line information); libc's copies and fills stay apart."""
 import collections
 import glob
@@ -23,13 +24,14 @@ KINDS = [
     ('search build and serial re-sort',
      r'^(consph_nnps_|nnps_|nlist_|index_block|cache_block|consph_particles_permute|'
      r'sys_carry|permute_)'),
-    ('halo refresh', r'^(refresh|column_changed|gather_column|halo_)'),
+    ('halo refresh', r'^(refresh|column_changed|gather_column|halo_|list_|__memcmp)'),
     ('migration and install',
      r'^(migrate|install|in_halo|cover|cut_|held_cmp|cell_of|owner_of|copy_particle|'
-     r'particles_for|particles_like|unpack|msort|qsort)'),
+     r'particles_for|particles_like|unpack|msort|qsort|sort_held|copy_runs|runs_of)'),
     ('rank 0 gathers, checks over ranks', r'^(par_|solver_|diag_|step_close|__sincos)'),
     ('MPI library (waiting included)', r'^(opal_|mca_|ompi_|PMPI_|MPI_|pmix|PMIx|\?\?\?|event_)'),
-    ('libc copies and fills', r'^__(memcpy|memmove|memset|mempcpy)'),
+    ('libc copies and fills (and copy_doubles)',
+     r'^(__memcpy|__memmove|__memset|__mempcpy|copy_doubles)'),
     ('malloc/free', r'^(_int_|malloc|free|realloc|calloc|unlink_chunk|consph_calloc|cfree)'),
 ]
 
@@ -75,7 +77,10 @@ def main():
                 by[kind(name)] += v
         total = sum(by.values())
         slowest = max(sum(d.values()) for d in per_rank) * len(per_rank)
-        cols.append((label, by, total, slowest))
+        # the same without the MPI library, whose polling while a rank waits follows the load
+        slowest_work = max(sum(v for name, v in d.items() if kind(name) != KINDS[6][0])
+                           for d in per_rank) * len(per_rank)
+        cols.append((label, by, total, slowest, slowest_work))
     scale = 1.0 / (n * steps)
     print('| kind | ' + ' | '.join(c[0] for c in cols) + ' |')
     print('|---|' + '---|' * len(cols))
@@ -89,6 +94,8 @@ def main():
           ' | '.join('%.3f' % ((c[2] - c[1][mpi]) / (base - cols[0][1][mpi])) for c in cols) + ' |')
     print('| slowest rank x K / first column | ' +
           ' | '.join('%.3f' % (c[3] / base) for c in cols) + ' |')
+    print('| slowest rank x K without the MPI library / first column | ' +
+          ' | '.join('%.3f' % (c[4] / (base - cols[0][1][mpi])) for c in cols) + ' |')
 
 
 if __name__ == '__main__':

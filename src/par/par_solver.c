@@ -38,6 +38,7 @@
 #include <string.h>
 
 #include "nnps/nnps_internal.h"
+#include "pass/nlist.h"
 
 struct par_solver {
     MPI_Comm comm;
@@ -67,6 +68,12 @@ struct par_solver {
     int *scount, *sdispl, *rcount, *rdispl; /* in particles */
     int *sdbl, *sddis, *rdbl, *rddis;       /* in doubles, per call */
     size_t *sidx, *ridx;
+    /* the same lists as runs of consecutive local indices (a box's boundary layers and its halo
+     * are runs of the cell order), each within one rank's part (rank q's from srun_off[q]);
+     * used where they are long (sruns, rruns) */
+    struct idx_run *srun, *rrun;
+    size_t *srun_off, *rrun_off;
+    int sruns, rruns;
     double *sbuf, *rbuf;
     size_t sbuf_cap, rbuf_cap;
     /* The halo's columns (an axis of the positions, a field's component, a scratch block) as
@@ -85,6 +92,14 @@ struct par_solver {
     /* the particle set the last install replaced: its storage serves the next one */
     consph_particles spare;
     size_t pairs_base; /* the solver's pair count when it was cut (counted on every rank) */
+    /* The cut's weights: per local particle, the pairs the pair cache held for it on the last
+     * position state since the install that the cache served (pairs_epoch: the list's epoch
+     * then, 0: none yet); the same integers for any thread count. */
+    uint32_t *pairs;
+    size_t pairs_cap;
+    unsigned long pairs_epoch;
+    int stepping; /* a step's re-sort: this rank's search holds its particles */
+    int weighed;  /* the kind of weights of the last cut (WEIGH_*) */
     double bytes, seconds;
 };
 
@@ -235,12 +250,93 @@ static int column_changed(const double *v, const size_t *idx, const double *old,
     return 0;
 }
 
+/* to[0..n) = from[0..n), the runs' block copy. A loop, not memcpy: glibc copies blocks of more
+ * than a few kB (a box's boundary layers) with `rep movsb`, which valgrind counts per byte, so
+ * the instruction counts of bench/mpi_instr.sh would show eight per value where the vector
+ * loop takes about one; GCC is kept from turning the loop back into memcpy. */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-tree-loop-distribute-patterns")))
+#endif
+PAR_CLONES static void
+copy_doubles(double *restrict to, const double *restrict from, size_t n)
+{
+    for (size_t k = 0; k < n; ++k) to[k] = from[k];
+}
+
 /* out[k] = v[idx[k]] */
 PAR_CLONES
 static void gather_column(double *restrict out, const double *restrict v, const size_t *idx,
                           size_t n)
 {
     for (size_t k = 0; k < n; ++k) out[k] = v[idx[k]];
+}
+
+/* A run of an index list: entries [k, k + len) are the local indices at, at + 1, ... */
+typedef struct idx_run {
+    size_t at, k, len;
+} idx_run;
+
+/* The runs of idx[0..), rank q's part [displ[q], displ[q] + count[q]) starting at run off[q];
+ * *use: whether they are long enough (8 entries on average) that block compares and copies
+ * beat the per-value gathers. */
+static int runs_of(const par_solver *ps, const size_t *idx, const int *displ, const int *count,
+                   idx_run **run, size_t **off, int *use)
+{
+    size_t n = 0, m = 0;
+    for (int q = 0; q < ps->size; ++q)
+        for (size_t k = (size_t)displ[q]; k < (size_t)displ[q] + (size_t)count[q]; ++k, ++n)
+            m += k == (size_t)displ[q] || idx[k] != idx[k - 1] + 1;
+    free(*run);
+    free(*off);
+    *run = malloc((m ? m : 1) * sizeof **run);
+    *off = malloc(((size_t)ps->size + 1) * sizeof **off);
+    if (!*run || !*off) return par_fail_mem();
+    m = 0;
+    for (int q = 0; q < ps->size; ++q) {
+        (*off)[q] = m;
+        for (size_t k = (size_t)displ[q]; k < (size_t)displ[q] + (size_t)count[q]; ++k)
+            if (k == (size_t)displ[q] || idx[k] != idx[k - 1] + 1)
+                (*run)[m++] = (idx_run){idx[k], k, 1};
+            else
+                ++(*run)[m - 1].len;
+    }
+    (*off)[ps->size] = m;
+    *use = 8 * m <= n;
+    return CONSPH_OK;
+}
+
+/* Whether v at the sent (recv 0) or received (1) particles differs bitwise from old. */
+static int list_changed(const par_solver *ps, int recv, const double *v, const double *old)
+{
+    const int use = recv ? ps->rruns : ps->sruns;
+    const idx_run *run = recv ? ps->rrun : ps->srun;
+    const size_t nrun = (recv ? ps->rrun_off : ps->srun_off)[ps->size];
+    if (use) {
+        for (size_t r = 0; r < nrun; ++r)
+            if (memcmp(v + run[r].at, old + run[r].k, run[r].len * sizeof(double))) return 1;
+        return 0;
+    }
+    const size_t n = nrun ? run[nrun - 1].k + run[nrun - 1].len : 0;
+    return column_changed(v, recv ? ps->ridx : ps->sidx, old, n);
+}
+
+/* out[k - k0] = v[idx[k]] for the sent (recv 0) or received (1) entries of ranks [q0, q1),
+ * k0 the first of them. */
+static void list_gather(const par_solver *ps, int recv, double *out, const double *v, int q0,
+                        int q1)
+{
+    const size_t *off = recv ? ps->rrun_off : ps->srun_off;
+    const idx_run *run = recv ? ps->rrun : ps->srun;
+    const size_t r0 = off[q0], r1 = off[q1];
+    if (r0 == r1) return;
+    const size_t k0 = run[r0].k;
+    if (recv ? ps->rruns : ps->sruns) {
+        for (size_t r = r0; r < r1; ++r)
+            copy_doubles(out + (run[r].k - k0), v + run[r].at, run[r].len);
+        return;
+    }
+    const size_t k1 = run[r1 - 1].k + run[r1 - 1].len;
+    gather_column(out, v, (recv ? ps->ridx : ps->sidx) + k0, k1 - k0);
 }
 
 /* ---- the halo refresh (consph_sys_split) ---- */
@@ -295,8 +391,8 @@ static int halo_state_from_cut(par_solver *ps, consph_sys *sys)
     const size_t nr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
     for (size_t c = 0; c < ncols; ++c) {
         const double *v = ps->col[c];
-        gather_column(ps->sent + c * ns, v, ps->sidx, ns);
-        gather_column(ps->got + c * nr, v, ps->ridx, nr);
+        list_gather(ps, 0, ps->sent + c * ns, v, 0, ps->size);
+        list_gather(ps, 1, ps->got + c * nr, v, 0, ps->size);
     }
     ps->base = ncols;
     ps->nvalid = ncols;
@@ -331,8 +427,7 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
     size_t valid = nall - blocks == ps->base ? ps->nvalid : 0;
     if (valid > ncols) valid = ncols;
     for (size_t c = 0; c < ncols; ++c) {
-        const int changed =
-            c >= valid || column_changed(ps->col[c], ps->sidx, ps->sent + c * ns, ns);
+        const int changed = c >= valid || list_changed(ps, 0, ps->col[c], ps->sent + c * ns);
         ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
     }
     MPI_Allgather(ps->mask, (int)ncols, MPI_UNSIGNED_CHAR, ps->masks, (int)ncols, MPI_UNSIGNED_CHAR,
@@ -364,7 +459,7 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
         for (size_t c = 0; c < ncols; ++c) {
             if (col_goes(ps->mask, mq, c)) {
                 const double *v = ps->col[c];
-                gather_column(ps->sbuf + so, v, ps->sidx + s0, s1 - s0);
+                list_gather(ps, 0, ps->sbuf + so, v, q, q + 1);
                 so += s1 - s0;
             }
             if (col_goes(mq, ps->mask, c)) ro += r1 - r0;
@@ -381,7 +476,7 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
         const size_t r0 = (size_t)ps->rdispl[q], r1 = r0 + (size_t)ps->rcount[q];
         for (size_t c = 0; c < ncols; ++c)
             if (col_goes(mq, ps->mask, c)) {
-                memcpy(ps->got + c * nr + r0, ps->rbuf + ro, (r1 - r0) * sizeof(double));
+                copy_doubles(ps->got + c * nr + r0, ps->rbuf + ro, r1 - r0);
                 ro += r1 - r0;
             }
     }
@@ -391,11 +486,17 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
     for (size_t c = 0; c < ncols; ++c) {
         double *v = ps->col[c];
         const double *in = ps->got + c * nr;
-        if (column_changed(v, ps->ridx, in, nr))
+        if (ps->rruns) {
+            const idx_run *run = ps->rrun;
+            for (size_t r = 0; r < ps->rrun_off[ps->size]; ++r)
+                if (memcmp(v + run[r].at, in + run[r].k, run[r].len * sizeof(double)))
+                    copy_doubles(v + run[r].at, in + run[r].k, run[r].len);
+        } else if (column_changed(v, ps->ridx, in, nr)) {
             for (size_t k = 0; k < nr; ++k) v[ps->ridx[k]] = in[k];
+        }
         if (ps->mask[c] & COL_CHANGED) {
             double *old = ps->sent + c * ns;
-            gather_column(old, v, ps->sidx, ns);
+            list_gather(ps, 0, old, v, 0, ps->size);
         }
     }
     /* the positions alone leave the kept columns' count: a column they did not refresh that
@@ -409,8 +510,59 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
     return CONSPH_OK;
 }
 
+/* The cache's pairs per particle, when it holds the current state's and they were not taken
+ * yet: every pass starts with a refresh, so the last cache of a step is taken by the next pass
+ * or by the re-sort (migrate), whichever comes first. */
+static void pairs_take(par_solver *ps, const consph_sys *sys)
+{
+    if (!sys->nlist) return;
+    const unsigned long e = nlist_pair_counts(sys->nlist, NULL);
+    if (!e || e == ps->pairs_epoch) return;
+    const size_t n = sys->p->n;
+    if (n > ps->pairs_cap) {
+        uint32_t *q = realloc(ps->pairs, n * sizeof *q);
+        if (!q) return; /* the cut then counts particles */
+        ps->pairs = q;
+        ps->pairs_cap = n;
+    }
+    nlist_pair_counts(sys->nlist, ps->pairs);
+    ps->pairs_epoch = e;
+}
+
+/* Where the pair cache kept no counts (a scheme with fewer passes per position state): each
+ * owned particle's weight in ps->pairs is the candidates that the walk of its cell visits
+ * (consph_nnps_cell_runs on this rank's search, built on the current positions, whose halo
+ * holds every owned cell's neighbourhood): the gather's work, an integer. 0: not available. */
+static int candidates_take(par_solver *ps, const consph_sys *sys)
+{
+    consph_nnps_slots v;
+    const size_t n = sys->p->n;
+    if (!sys->dest || consph_nnps_slots_get(sys->nnps, &v) != CONSPH_OK || v.n != n) return 0;
+    if (n > ps->pairs_cap) {
+        uint32_t *q = realloc(ps->pairs, n * sizeof *q);
+        if (!q) return 0;
+        ps->pairs = q;
+        ps->pairs_cap = n;
+    }
+    consph_nnps_runs runs;
+    memset(&runs, 0, sizeof runs);
+    int ok = 1;
+    for (size_t c = 0; ok && c < v.ncells; ++c) {
+        const size_t s0 = v.cell_start[c], s1 = v.cell_start[c + 1];
+        size_t s = s0;
+        while (s < s1 && !sys->dest[consph_nnps_slot_particle(&v, s)]) ++s;
+        if (s == s1) continue;
+        ok = consph_nnps_cell_runs(sys->nnps, c, &runs) != (size_t)-1;
+        for (s = s0; ok && s < s1; ++s)
+            ps->pairs[consph_nnps_slot_particle(&v, s)] = (uint32_t)runs.candidates;
+    }
+    consph_nnps_runs_free(&runs);
+    return ok;
+}
+
 static int refresh(consph_sys *sys, void *ctx)
 {
+    pairs_take(ctx, sys);
     return refresh_some(sys, ctx, 0);
 }
 
@@ -431,21 +583,51 @@ static double split_max(void *ctx, double v)
 
 /* ---- the boxes ---- */
 
-/* The cells of one axis to its k pieces in proportion to their particles (counts per axis
- * cell summed over the ranks: the same cut on every rank), at least one cell each. */
-static void cut_axis(int64_t *cut, int *piece, int k, int64_t nc, const int64_t *count)
+/* Whether the axis cells' weights w[0..nc) fit k pieces of consecutive cells of at most cap
+ * each. */
+static int pieces_fit(const int64_t *w, int64_t nc, int k, int64_t cap)
 {
-    int64_t total = 0;
-    for (int64_t c = 0; c < nc; ++c) total += count[c];
+    int pieces = 1;
+    int64_t cur = 0;
+    for (int64_t c = 0; c < nc; ++c) {
+        if (w[c] > cap) return 0;
+        if (cur + w[c] > cap) {
+            if (++pieces > k) return 0;
+            cur = 0;
+        }
+        cur += w[c];
+    }
+    return 1;
+}
+
+/* The cells of one axis to its k pieces (k <= nc, at least one cell each) so that the heaviest
+ * piece is as light as the cells allow (weights per axis cell summed over the ranks: the same
+ * cut on every rank): the least cap that k pieces fit, by bisection, then the pieces filled up
+ * to it from the first cell. */
+static void cut_axis(int64_t *cut, int *piece, int k, int64_t nc, const int64_t *w)
+{
+    int64_t lo = 0, hi = 0;
+    for (int64_t c = 0; c < nc; ++c) {
+        hi += w[c];
+        if (w[c] > lo) lo = w[c];
+    }
+    while (lo < hi) {
+        const int64_t mid = lo + (hi - lo) / 2;
+        if (pieces_fit(w, nc, k, mid))
+            hi = mid;
+        else
+            lo = mid + 1;
+    }
     cut[0] = 0;
-    int64_t c = 0, cum = 0;
-    for (int r = 1; r < k; ++r) {
-        /* the first cell whose particles reach r/k of the total */
-        while (c < nc && cum * k < (int64_t)r * total) cum += count[c++];
-        int64_t x = c;
-        if (x < cut[r - 1] + 1) x = cut[r - 1] + 1;
-        if (x > nc - (k - r)) x = nc - (k - r);
-        cut[r] = x;
+    int r = 1;
+    int64_t cur = 0;
+    for (int64_t c = 0; c < nc && r < k; ++c) {
+        /* a new piece where the cap is reached, or where each piece left needs a cell */
+        if ((c > cut[r - 1] && cur + w[c] > lo) || nc - c == k - r) {
+            cut[r++] = c;
+            cur = 0;
+        }
+        cur += w[c];
     }
     cut[k] = nc;
     for (int q = 0; q < k; ++q)
@@ -546,7 +728,21 @@ static int cover_collect(par_solver *ps, cover_pairs *cp, const int64_t *ac, siz
     cp->n = 0;
     for (size_t k = 0; k < n; ++k) {
         if (want && !want[k]) continue;
-        const int nq = covering(ps, ac + k * (size_t)ps->dim);
+        /* a cell that one piece along every axis covers (most: away from the halos) has one
+         * rank, found without covering's product */
+        const int64_t *a = ac + k * (size_t)ps->dim;
+        int one = 0, alone = 1;
+        for (int x = ps->dim - 1; alone && x >= 0; --x) {
+            const int o = ps->cover_off[x][a[x]];
+            alone = ps->cover_off[x][a[x] + 1] - o == 1;
+            one = one * ps->k[x] + ps->cover[x][o];
+        }
+        if (alone && one == skip) continue;
+        int nq = 1;
+        if (alone)
+            ps->ranks[0] = one;
+        else
+            nq = covering(ps, a);
         if (cp->n + (size_t)nq > cp->cap) {
             const size_t cap = 2 * (cp->n + (size_t)nq) + 64;
             int *q = realloc(cp->q, cap * sizeof *q);
@@ -566,27 +762,53 @@ static int cover_collect(par_solver *ps, cover_pairs *cp, const int64_t *ac, siz
     return CONSPH_OK;
 }
 
-/* The cut of every axis by the owned particles' counts per axis cell (ac: dim per particle). */
-static int cut_boxes(par_solver *ps, const int64_t *ac, size_t n)
+static int count_cut; /* par_force_count_cut */
+
+void par_force_count_cut(int on)
+{
+    count_cut = on;
+}
+
+/* The weights of a cut: none (particle counts), the pairs visited, the search's candidates. */
+enum { WEIGH_COUNT, WEIGH_PAIRS, WEIGH_CANDIDATES, WEIGH_KINDS };
+
+/* The cut of every axis by the owned particles' weights per axis cell (ac: dim per particle;
+ * w: their weights of kind `kind`, NULL with WEIGH_COUNT): the pairs each visited plus one where
+ * every rank has them, else the candidates of its cell plus one where every rank has those,
+ * else the particle counts. One MPI_Allreduce of a histogram per kind and the ranks with each. */
+static int cut_boxes(par_solver *ps, const int64_t *ac, const uint32_t *w, int kind, size_t n)
 {
     int64_t total = 0;
     for (int a = 0; a < ps->dim; ++a) total += ps->nc[a];
-    int64_t *count = consph_calloc((size_t)total, sizeof(int64_t));
-    int64_t *all = consph_calloc((size_t)total, sizeof(int64_t));
+    const size_t len = WEIGH_KINDS * (size_t)total + WEIGH_KINDS;
+    int64_t *count = consph_calloc(len, sizeof(int64_t));
+    int64_t *all = consph_calloc(len, sizeof(int64_t));
     if (!count || !all) {
         free(count);
         free(all);
         return par_fail_mem();
     }
+    if (!w || count_cut) kind = WEIGH_COUNT;
+    int64_t *with = count + WEIGH_KINDS * total; /* per kind: the ranks that weigh so */
+    with[WEIGH_COUNT] = with[kind] = 1;
+    int64_t *mine = count + (size_t)kind * (size_t)total;
     for (size_t o = 0; o < n; ++o) {
         int64_t off = 0;
+        const int64_t wo = w ? (int64_t)w[o] + 1 : 1;
         for (int a = 0; a < ps->dim; ++a) {
-            ++count[off + ac[o * (size_t)ps->dim + (size_t)a]];
+            const int64_t c = off + ac[o * (size_t)ps->dim + (size_t)a];
+            ++count[c];
+            if (kind != WEIGH_COUNT) mine[c] += wo;
             off += ps->nc[a];
         }
     }
-    MPI_Allreduce(count, all, (int)total, MPI_INT64_T, MPI_SUM, ps->comm);
-    int64_t off = 0;
+    MPI_Allreduce(count, all, (int)len, MPI_INT64_T, MPI_SUM, ps->comm);
+    const int64_t *ranks_with = all + WEIGH_KINDS * total;
+    const int by = ranks_with[WEIGH_PAIRS] == ps->size        ? WEIGH_PAIRS
+                   : ranks_with[WEIGH_CANDIDATES] == ps->size ? WEIGH_CANDIDATES
+                                                              : WEIGH_COUNT;
+    ps->weighed = by;
+    int64_t off = (int64_t)by * total;
     for (int a = 0; a < ps->dim; ++a) {
         cut_axis(ps->cut[a], ps->piece[a], ps->k[a], ps->nc[a], all + off);
         off += ps->nc[a];
@@ -621,41 +843,32 @@ static int64_t cell_of(const par_solver *ps, const consph_nnps *nn, const double
     return c;
 }
 
-static int held_less(const held *a, const held *b)
+/* h[0..n) sorted by (cell, g), h being the runs [bound[r], bound[r + 1]) for r < nb, each
+ * ascending in g (this rank's particles, then each sender's, in their serial order): the runs
+ * merged by g, then a stable counting sort by cell over the cells they span (a rank's box and
+ * halo), as the serial re-sort sorts by cell the previous order. (cell, g) is unique: any sort
+ * gives the same order, and a span of cells far larger than the records (not met by boxes)
+ * goes to qsort. */
+static int sort_held(held *h, size_t n, const size_t *bound, int nb)
 {
-    return a->cell != b->cell ? a->cell < b->cell : a->g < b->g;
-}
-
-/* h[0..n) sorted by (cell, g), h being the runs [bound[r], bound[r + 1]) for r < nb, each in
- * the order of the previous re-sort: few particles change cells in a step, so in 2D a run is
- * insertion-sorted in about its length (past a budget of moves, by qsort), then the runs are
- * merged. In 3D a particle that crosses a layer of cells along the last axes moves past a
- * plane of cells in the order, which insertion pays for dearly (measured: more than qsort), so
- * 3D sorts the whole by qsort. (cell, g) is unique: any sort gives the same order. */
-static int sort_held(held *h, size_t n, const size_t *bound, int nb, int dim)
-{
-    if (dim == 3) {
+    if (n < 2) return CONSPH_OK;
+    int64_t lo = h[0].cell, hi = h[0].cell;
+    for (size_t k = 1; k < n; ++k) {
+        if (h[k].cell < lo) lo = h[k].cell;
+        if (h[k].cell > hi) hi = h[k].cell;
+    }
+    const size_t span = (size_t)(hi - lo) + 1;
+    if (span > 8 * n + 4096) {
         qsort(h, n, sizeof *h, held_cmp);
         return CONSPH_OK;
     }
-    for (int r = 0; r < nb; ++r) {
-        const size_t b0 = bound[r], b1 = bound[r + 1];
-        size_t moves = 0, budget = 8 * (b1 - b0) + 1024;
-        for (size_t i = b0 + 1; i < b1 && moves <= budget; ++i) {
-            const held x = h[i];
-            size_t j = i;
-            for (; j > b0 && held_less(&x, &h[j - 1]) && moves <= budget; --j, ++moves)
-                h[j] = h[j - 1];
-            h[j] = x;
-        }
-        if (moves > budget) qsort(h + b0, b1 - b0, sizeof *h, held_cmp);
-    }
-    if (nb < 2) return CONSPH_OK;
     held *t = malloc(n * sizeof *t);
     size_t *b = malloc(((size_t)nb + 1) * sizeof *b);
-    if (!t || !b) {
+    size_t *start = consph_calloc(span + 1, sizeof *start);
+    if (!t || !b || !start) {
         free(t);
         free(b);
+        free(start);
         return par_fail_mem();
     }
     memcpy(b, bound, ((size_t)nb + 1) * sizeof *b);
@@ -663,12 +876,12 @@ static int sort_held(held *h, size_t n, const size_t *bound, int nb, int dim)
     while (nb > 1) {
         int out = 0;
         for (int r = 0; r < nb; r += 2) {
-            const size_t lo = b[r], mid = b[r + 1], hi = r + 2 <= nb ? b[r + 2] : mid;
-            size_t i = lo, j = mid, o = lo;
-            while (i < mid && j < hi) dst[o++] = held_less(&src[j], &src[i]) ? src[j++] : src[i++];
+            const size_t lo_r = b[r], mid = b[r + 1], hi_r = r + 2 <= nb ? b[r + 2] : mid;
+            size_t i = lo_r, j = mid, o = lo_r;
+            while (i < mid && j < hi_r) dst[o++] = src[j].g < src[i].g ? src[j++] : src[i++];
             while (i < mid) dst[o++] = src[i++];
-            while (j < hi) dst[o++] = src[j++];
-            b[out++] = lo;
+            while (j < hi_r) dst[o++] = src[j++];
+            b[out++] = lo_r;
         }
         b[out] = n;
         nb = out;
@@ -676,29 +889,56 @@ static int sort_held(held *h, size_t n, const size_t *bound, int nb, int dim)
         src = dst;
         dst = x;
     }
-    if (src != h) memcpy(h, src, n * sizeof *h);
+    /* src: by g; dst: by cell, then g */
+    for (size_t k = 0; k < n; ++k) ++start[src[k].cell - lo + 1];
+    for (size_t c = 0; c < span; ++c) start[c + 1] += start[c];
+    for (size_t k = 0; k < n; ++k) dst[start[src[k].cell - lo]++] = src[k];
+    if (dst != h) memcpy(h, dst, n * sizeof *h);
     free(t);
     free(b);
+    free(start);
     return CONSPH_OK;
 }
 
-/* Particle i of src to slot k of dst (the same fields, in the same order). */
-static void copy_particle(consph_particles *dst, size_t k, const consph_particles *src, size_t i)
+/* The columns of p (positions, then every field's components), as values_per_particle counts
+ * them. */
+static void columns_of(const consph_particles *p, double **col)
 {
-    for (int a = 0; a < src->dim; ++a) dst->x[a][k] = src->x[a][i];
-    for (int f = 0; f < src->nfields; ++f) {
-        const double *in = src->fields[f].data + i;
-        double *out = dst->fields[f].data + k;
-        for (int c = 0; c < src->fields[f].ncomp; ++c)
-            out[(size_t)c * dst->cap] = in[(size_t)c * src->cap];
+    size_t k = 0;
+    for (int a = 0; a < p->dim; ++a) col[k++] = p->x[a];
+    for (int f = 0; f < p->nfields; ++f)
+        for (int c = 0; c < p->fields[f].ncomp; ++c)
+            col[k++] = p->fields[f].data + (size_t)c * p->cap;
+}
+
+/* A run of the new set's slots [k, k + len) whose values are consecutive in one source: this
+ * rank's particles from `from` (kind 0), or the received columns from record `from` (1). */
+typedef struct copy_run {
+    size_t k, from, len;
+    int kind;
+} copy_run;
+
+/* Every column of dst from the runs: between re-sorts few particles change cells or ranks, so
+ * the runs are long and a column is a few block copies, not a gather per value. */
+static void copy_runs(double *restrict dst, const double *own, const double *recv,
+                      const copy_run *run, size_t nrun)
+{
+    for (size_t r = 0; r < nrun; ++r) {
+        const double *from = (run[r].kind ? recv : own) + run[r].from;
+        double *to = dst + run[r].k;
+        if (run[r].len >= 8)
+            copy_doubles(to, from, run[r].len);
+        else
+            for (size_t t = 0; t < run[r].len; ++t) to[t] = from[t];
     }
 }
 
 /* The particles this rank now holds become its system: sorted by (cell, g), the owned ones
- * marked, the exchange lists made. They are this rank's particles self[0..nself), then those
- * received (packed: positions, fields, g), rcnt[q] from rank q in its order. */
-static int install(consph_solver *s, par_solver *ps, const double *recv, size_t nrecv, size_t per,
-                   const size_t *self, size_t nself, const int *rcnt)
+ * marked, the exchange lists made. They are this rank's particles self[0..nself), then the
+ * nrecv received, rcnt[q] from rank q in its order: column c of record r at recv[c·nrecv + r]
+ * (positions, fields' components), g at rg[r]. */
+static int install(consph_solver *s, par_solver *ps, const double *recv, const double *rg,
+                   size_t nrecv, const size_t *self, size_t nself, const int *rcnt)
 {
     const size_t m = nself + nrecv;
     consph_particles *p = s->sys.p;
@@ -732,19 +972,19 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, size_t 
         for (; k == next && sender < ps->size; next += (size_t)rcnt[sender++])
             if (bound[nb - 1] != kept) bound[nb++] = kept;
         double xk[CONSPH_MAX_DIM];
-        const double *v = k < nself ? xk : recv + (k - nself) * per;
-        for (int a = 0; k < nself && a < dim; ++a) xk[a] = p->x[a][self[k]];
+        for (int a = 0; a < dim; ++a)
+            xk[a] = k < nself ? p->x[a][self[k]] : recv[(size_t)a * nrecv + (k - nself)];
         int64_t *ac = rac + k * (size_t)dim;
-        const int64_t c = cell_of(ps, s->sys.nnps, v, ac);
+        const int64_t c = cell_of(ps, s->sys.nnps, xk, ac);
         rowner[k] = owner_of(ps, ac);
         if (rowner[k] != ps->rank && !in_halo(ps, ps->rank, ac)) continue;
         h[kept].cell = c;
-        h[kept].g = k < nself ? ps->g[self[k]] : v[per - 1];
+        h[kept].g = k < nself ? ps->g[self[k]] : rg[k - nself];
         h[kept].at = k;
         ++kept;
     }
     if (bound[nb - 1] != kept || nb == 1) bound[nb++] = kept;
-    int st = sort_held(h, kept, bound, nb - 1, dim);
+    int st = sort_held(h, kept, bound, nb - 1);
     free(bound);
     consph_particles np;
     if (st == CONSPH_OK) st = particles_for(&ps->spare, &np, p, kept);
@@ -753,12 +993,31 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, size_t 
     size_t *origin = st == CONSPH_OK ? consph_calloc(kept ? kept : 1, sizeof(size_t)) : NULL;
     double *g = st == CONSPH_OK ? malloc((kept ? kept : 1) * sizeof(double)) : NULL;
     if (st == CONSPH_OK && (!dest || !origin || !g)) st = par_fail_mem();
+    /* the new set column by column, from runs of consecutive sources */
+    const size_t ncol = values_per_particle(p);
+    copy_run *run = st == CONSPH_OK ? malloc((kept ? kept : 1) * sizeof *run) : NULL;
+    double **ocol = st == CONSPH_OK ? malloc(2 * ncol * sizeof *ocol) : NULL;
+    if (st == CONSPH_OK && (!run || !ocol)) st = par_fail_mem();
+    if (st == CONSPH_OK) {
+        size_t nrun = 0;
+        for (size_t k = 0; k < kept; ++k) {
+            const size_t at = h[k].at;
+            const int kind = at >= nself;
+            const size_t from = kind ? at - nself : self[at];
+            copy_run *last = nrun ? &run[nrun - 1] : NULL;
+            if (last && last->kind == kind && last->from + last->len == from)
+                ++last->len;
+            else
+                run[nrun++] = (copy_run){k, from, 1, kind};
+        }
+        double **ncolp = ocol + ncol;
+        columns_of(p, ocol);
+        columns_of(&np, ncolp);
+        for (size_t c = 0; c < ncol; ++c) copy_runs(ncolp[c], ocol[c], recv + c * nrecv, run, nrun);
+    }
+    free(run);
+    free(ocol);
     for (size_t k = 0; st == CONSPH_OK && k < kept; ++k) {
-        const size_t at = h[k].at;
-        if (at < nself)
-            copy_particle(&np, k, p, self[at]);
-        else
-            unpack(&np, k, recv + (at - nself) * per);
         int64_t *ac = acell + k * (size_t)dim;
         for (int a = 0; a < dim; ++a) ac[a] = rac[h[k].at * (size_t)dim + (size_t)a];
         owner[k] = rowner[h[k].at];
@@ -836,6 +1095,10 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, size_t 
             const int q = cp.q[e];
             ps->sidx[(size_t)ps->sdispl[q] + (size_t)ps->scount[q]++] = cp.k[e];
         }
+        st = runs_of(ps, ps->sidx, ps->sdispl, ps->scount, &ps->srun, &ps->srun_off, &ps->sruns);
+        if (st == CONSPH_OK)
+            st =
+                runs_of(ps, ps->ridx, ps->rdispl, ps->rcount, &ps->rrun, &ps->rrun_off, &ps->rruns);
     }
     free(cp.q);
     free(cp.k);
@@ -869,6 +1132,7 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, size_t 
     free(ps->g);
     ps->g = g;
     ps->nown = nown;
+    ps->pairs_epoch = 0; /* the local indices are new */
     /* new halo lists, the halo as the owners packed it: the search is built without a
      * refresh, which would find nothing changed */
     st = halo_state_from_cut(ps, &s->sys);
@@ -897,7 +1161,16 @@ static int migrate(consph_solver *s, par_solver *ps)
     for (size_t o = 0; o < ps->nown; ++o)
         for (size_t a = 0; a < dim; ++a)
             ac[o * dim + a] = nnps_axis_cell(s->sys.nnps, (int)a, p->x[a][ps->own[o]]);
-    if (cut_boxes(ps, ac, ps->nown) != CONSPH_OK) MPI_Abort(ps->comm, 1);
+    /* the weights: the pairs of the step's last cached state (none before the first pass) */
+    pairs_take(ps, &s->sys);
+    int kind = ps->pairs_epoch ? WEIGH_PAIRS : WEIGH_COUNT;
+    if (kind == WEIGH_COUNT && ps->stepping && candidates_take(ps, &s->sys))
+        kind = WEIGH_CANDIDATES;
+    uint32_t *w = NULL;
+    if (kind != WEIGH_COUNT && (w = malloc((ps->nown ? ps->nown : 1) * sizeof *w)) != NULL)
+        for (size_t o = 0; o < ps->nown; ++o) w[o] = ps->pairs[ps->own[o]];
+    if (cut_boxes(ps, ac, w, kind, ps->nown) != CONSPH_OK) MPI_Abort(ps->comm, 1);
+    free(w);
     for (size_t o = 0; o < ps->nown; ++o) owner[o] = owner_of(ps, ac + o * dim);
     /* per rank, the owned particles it will hold (owns or has in its halo), ascending */
     size_t *go_off = consph_calloc((size_t)ps->size + 1, sizeof(size_t)), *go = NULL;
@@ -912,8 +1185,7 @@ static int migrate(consph_solver *s, par_solver *ps)
     free(cp.k);
     for (int q = ps->size; q > 0; --q) go_off[q] = go_off[q - 1];
     go_off[0] = 0;
-    const size_t per = values_per_particle(p) + 1; /* + g */
-    const size_t ncol = per - 1;
+    const size_t ncol = values_per_particle(p);
     int *cnt = consph_calloc((size_t)ps->size, sizeof(int));
     int *rcnt = consph_calloc((size_t)ps->size, sizeof(int));
     int *sd = consph_calloc((size_t)ps->size, sizeof(int));
@@ -932,8 +1204,7 @@ static int migrate(consph_solver *s, par_solver *ps)
     if (st == CONSPH_OK) st = halo_state_reserve(ps, ncol);
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
     for (size_t c = 0; c < ncol; ++c) {
-        const int changed =
-            c >= valid || column_changed(ps->col[c], ps->sidx, ps->sent + c * ons, ons);
+        const int changed = c >= valid || list_changed(ps, 0, ps->col[c], ps->sent + c * ons);
         ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
     }
     MPI_Allgather(ps->mask, (int)ncol, MPI_UNSIGNED_CHAR, ps->masks, (int)ncol, MPI_UNSIGNED_CHAR,
@@ -972,54 +1243,83 @@ static int migrate(consph_solver *s, par_solver *ps)
         nr += (size_t)rcnt[q];
         nrd += (size_t)rd[q];
     }
-    double *sbuf = NULL, *rbuf = NULL, *full = NULL;
+    /* A message to rank q, column-wise: the records' g, their slots, then per column the
+     * values of every record where the column goes to q, else those of the records without a
+     * slot (q holds no copy of them), each in the local (serial) order. */
+    double *sbuf = NULL, *rbuf = NULL, *rcol = NULL, *rg = NULL;
+    size_t *iall = NULL, *ifull = NULL;
     if (st == CONSPH_OK) {
         sbuf = malloc((nsd ? nsd : 1) * sizeof(double));
         rbuf = malloc((nrd ? nrd : 1) * sizeof(double));
-        full = malloc((nr ? nr : 1) * per * sizeof(double));
-        if (!sbuf || !rbuf || !full) st = par_fail_mem();
+        rcol = malloc((nr ? nr : 1) * ncol * sizeof(double));
+        rg = malloc((nr ? nr : 1) * sizeof(double));
+        iall = malloc((ps->nown ? ps->nown : 1) * sizeof(size_t));
+        ifull = malloc((ps->nown ? ps->nown : 1) * sizeof(size_t));
+        if (!sbuf || !rbuf || !rcol || !rg || !iall || !ifull) st = par_fail_mem();
     }
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
-    /* packed per destination rank, each in the local (serial) order */
     double *v = sbuf;
     for (int q = 0; q < ps->size; ++q) {
+        if (q == ps->rank) continue;
         const unsigned char *mq = ps->masks + (size_t)q * ncol;
         const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = (long)(k - s0);
-        for (size_t t = go_off[q]; q != ps->rank && t < go_off[q + 1]; ++t) {
+        size_t m = 0, mf = 0;
+        for (size_t t = go_off[q]; t < go_off[q + 1]; ++t) {
             const size_t i = ps->own[go[t]];
-            const long sl = slot[i];
-            *v++ = ps->g[i];
-            *v++ = (double)sl;
-            for (size_t c = 0; c < ncol; ++c)
-                if (sl < 0 || col_goes(ps->mask, mq, c)) *v++ = ps->col[c][i];
+            iall[m++] = i;
+            if (slot[i] < 0) ifull[mf++] = i;
+        }
+        for (size_t k = 0; k < m; ++k) {
+            v[k] = ps->g[iall[k]];
+            v[m + k] = (double)slot[iall[k]];
+        }
+        v += 2 * m;
+        for (size_t c = 0; c < ncol; ++c) {
+            const int all = col_goes(ps->mask, mq, c);
+            gather_column(v, ps->col[c], all ? iall : ifull, all ? m : mf);
+            v += all ? m : mf;
         }
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = -1;
     }
     MPI_Alltoallv(sbuf, sd, sdis, MPI_DOUBLE, rbuf, rd, rdis, MPI_DOUBLE, ps->comm);
-    /* the records as install reads them: every column, then g */
+    /* the received records column by column (rcol[c·nr + r], g in rg), the columns not sent
+     * from what this rank kept of its halo (got) */
     const double *in = rbuf;
-    double *out = full;
+    size_t r0 = 0;
     for (int q = 0; q < ps->size; ++q) {
         const unsigned char *mq = ps->masks + (size_t)q * ncol;
-        for (int r = 0; r < rcnt[q]; ++r, out += per) {
-            out[ncol] = *in++;
-            const long sl = (long)*in++;
-            const size_t at = (size_t)ps->rdispl[q] + (size_t)sl;
-            for (size_t c = 0; c < ncol; ++c)
-                out[c] = sl < 0 || col_goes(mq, ps->mask, c) ? *in++ : ps->got[c * onr + at];
+        const size_t m = (size_t)rcnt[q];
+        const double *sl = in + m;
+        memcpy(rg + r0, in, m * sizeof(double));
+        in += 2 * m;
+        size_t mf = 0;
+        for (size_t r = 0; r < m; ++r) mf += sl[r] < 0.0;
+        for (size_t c = 0; c < ncol; ++c) {
+            double *out = rcol + c * nr + r0;
+            if (mf == m || col_goes(mq, ps->mask, c)) {
+                copy_doubles(out, in, m);
+                in += m;
+                continue;
+            }
+            const double *kept = ps->got + c * onr + (size_t)ps->rdispl[q];
+            for (size_t r = 0; r < m; ++r) out[r] = sl[r] < 0.0 ? *in++ : kept[(size_t)sl[r]];
         }
+        r0 += m;
     }
     /* what stays on this rank is a copy, as the serial re-sort's permutation */
     ps->bytes +=
         (double)((nsd - (size_t)sd[ps->rank]) * sizeof(double) + ncol * (size_t)(ps->size - 1));
     ps->seconds += MPI_Wtime() - t0;
     free(slot);
+    free(iall);
+    free(ifull);
     /* the owned particles that stay (owned here or in this rank's halo), as local indices */
     const size_t nself = go_off[ps->rank + 1] - go_off[ps->rank];
     for (size_t t = 0; t < nself; ++t) go[t] = ps->own[go[go_off[ps->rank] + t]];
-    st = install(s, ps, full, nr, per, go, nself, rcnt);
-    free(full);
+    st = install(s, ps, rcol, rg, nr, go, nself, rcnt);
+    free(rcol);
+    free(rg);
     free(ac);
     free(owner);
     free(go_off);
@@ -1225,6 +1525,7 @@ int par_checks_clean(consph_solver *s, int *clean)
 
 int par_step_begin(consph_solver *s)
 {
+    s->par->stepping = 1;
     return migrate(s, s->par);
 }
 
@@ -1360,6 +1661,11 @@ int par_rank(const consph_solver *s)
     return s->par ? s->par->rank : 0;
 }
 
+int par_cut_weights(const consph_solver *s)
+{
+    return s->par ? s->par->weighed : 0;
+}
+
 int par_share_history(consph_solver *s)
 {
     par_solver *ps = s->par;
@@ -1401,6 +1707,10 @@ void par_solver_free(par_solver *ps)
     free(ps->rddis);
     free(ps->sidx);
     free(ps->ridx);
+    free(ps->srun);
+    free(ps->rrun);
+    free(ps->srun_off);
+    free(ps->rrun_off);
     free(ps->sbuf);
     free(ps->rbuf);
     free(ps->sent);
@@ -1408,6 +1718,7 @@ void par_solver_free(par_solver *ps)
     free(ps->col);
     free(ps->mask);
     free(ps->masks);
+    free(ps->pairs);
     free(ps);
 }
 
@@ -1611,6 +1922,12 @@ int par_rank(const consph_solver *s)
     return 0;
 }
 
+int par_cut_weights(const consph_solver *s)
+{
+    (void)s;
+    return 0;
+}
+
 int par_share_history(consph_solver *s)
 {
     (void)s;
@@ -1638,6 +1955,11 @@ void par_solver_free(par_solver *ps)
 void par_force_boxes(const int *k)
 {
     (void)k;
+}
+
+void par_force_count_cut(int on)
+{
+    (void)on;
 }
 
 int consph_par_solver_decompose(consph_solver *s)

@@ -8,8 +8,8 @@
 typedef struct par_solver par_solver;
 
 /* In place of the serial re-sort at a step's start: particles handed to the ranks that now own
- * their cells, re-sorted into the serial order, the slabs re-cut by particle count, the halo
- * rebuilt. */
+ * their cells, re-sorted into the serial order, the boxes re-cut by each particle's work (the
+ * pairs it visited, else its cell's candidates, else one), the halo rebuilt. */
 int par_step_begin(consph_solver *s);
 /* After the step's local work: `status` agreed over the ranks, and the guard that no particle
  * moved far enough in the step to have needed a halo it did not have. */
@@ -37,5 +37,10 @@ void par_solver_free(par_solver *ps);
 /* For the tests: the next decompositions cut k[a] pieces along axis a (NULL: chosen for the
  * fewest halo cells); a launch whose rank count is not their product is refused. */
 void par_force_boxes(const int *k);
+/* What weighed the particles at the last cut: 0 their count, 1 the pairs each visited, 2 the
+ * candidates of its cell's walk (0 for a serial solver). */
+int par_cut_weights(const consph_solver *s);
+/* For the tests: nonzero cuts the boxes by particle counts, as before the pairs weighed them. */
+void par_force_count_cut(int on);
 
 #endif

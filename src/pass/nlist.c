@@ -817,6 +817,17 @@ static int cache_serves(const consph_nlist *l)
                        l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n));
 }
 
+unsigned long nlist_pair_counts(const consph_nlist *l, uint32_t *count)
+{
+    if (l->off || !l->caches || l->cache_epoch != l->epoch || !l->epoch) return 0;
+    for (size_t k = 0; count && k < l->nblocks; ++k) {
+        const nlist_block *b = &l->blocks[k];
+        for (size_t sl = b->s0; sl < b->s1; ++sl)
+            count[particle_of(l, sl)] = (uint32_t)(b->poff[sl - b->s0 + 1] - b->poff[sl - b->s0]);
+    }
+    return l->epoch;
+}
+
 /* A pass's visits: per particle (pass) or over groups of slots (group, src/pass/group.h). */
 typedef struct block_visitor {
     const consph_pass *pass;

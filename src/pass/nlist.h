@@ -6,6 +6,8 @@
 #include "consph/pass.h"
 #include "pass/group.h"
 
+#include <stdint.h>
+
 /* consph_sys_update when the system has a list: the same contract (rebuild after a move; with
  * resort, the re-sort into cell order where the list is rebuilt). */
 int nlist_update(consph_sys *s, int resort);
@@ -40,6 +42,12 @@ int nlist_gathers(consph_nlist *l);
 void nlist_free(consph_nlist *l);
 /* Whether the passes run on the list (it is on and holds the system's n particles). */
 int nlist_serves(const consph_nlist *l, size_t n);
+
+/* The pairs the cache holds for each particle (count[i] for particle i; 0 for a source only)
+ * when it holds those of the current position state: returns that state's epoch (nonzero),
+ * else 0 and count untouched. count NULL: only whether (and which epoch). Integers filled by
+ * the build alone, so the same for any thread count (the MPI cut's weights, src/par). */
+unsigned long nlist_pair_counts(const consph_nlist *l, uint32_t *count);
 
 /* Carries the origin and the destination mask of a system through new[i] = old[perm[i]]
  * (pass.c). */
