@@ -514,11 +514,13 @@ TERM_INLINE int kv_extent(const consph_nbhd *nb, size_t *kmin, size_t *kmax, lan
 
 /* kit_first_pair over the lanes: neighbours j, separations x, W'/r w1 */
 TERM_INLINE void first_lanes(const kit_job *job, const size_t j[PASS_GROUP], const lane4 x[3],
-                             const lane4 w1, const int masked, const lane4i m, const int D,
-                             const int with_p, const int with_u, const int with_q, const lane4 pi,
-                             const lane4 ui[3], const lane4 qi, lane4 sm[9], lane4 sp[3],
+                             const lane4 *w1p, const int masked, const lane4i *mp, const int D,
+                             const int with_p, const int with_u, const int with_q, const lane4 *pip,
+                             const lane4 ui[3], const lane4 *qip, lane4 sm[9], lane4 sp[3],
                              lane4 su[9], lane4 sq[3])
 {
+    const lane4 w1 = *w1p, pi = *pip, qi = *qip;
+    const lane4i m = *mp;
     lane4 c[12];
     kv_unpack(job->pk1, kit_pack1_stride(D, with_p, with_u, with_q), j, c);
     const lane4 om = c[0];
@@ -560,7 +562,7 @@ TERM_INLINE void kv_entries4(const consph_nbhd *nb, size_t k, const int D, size_
 
 /* Entry k of every lane where masked, clamped to the lane's last one: j, x, w1 and the lanes
  * that count it (m) */
-TERM_INLINE void kv_entry1(const consph_nbhd *nb, size_t k, const int D, const lane4i nv,
+TERM_INLINE void kv_entry1(const consph_nbhd *nb, size_t k, const int D, const lane4i *nv,
                            size_t j[PASS_GROUP], lane4 x[3], lane4 *w1, lane4i *m)
 {
     size_t e[PASS_GROUP];
@@ -569,7 +571,7 @@ TERM_INLINE void kv_entry1(const consph_nbhd *nb, size_t k, const int D, const l
     for (int a = 0; a < D; ++a) x[a] = KV_NB(nb, dx[a], e);
     *w1 = KV_NB(nb, dwr, e);
     const lane4i kv = {(long long)k, (long long)k, (long long)k, (long long)k};
-    *m = (lane4i)(kv < nv);
+    *m = (lane4i)(kv < *nv);
 }
 
 /* first_body over a group */
@@ -597,14 +599,14 @@ TERM_INLINE void group_first_body(const kit_job *job, const consph_nbhd *nb, con
         lane4 x[4][3], w1[4];
         kv_entries4(nb, k, D, j, x, w1);
         for (int c = 0; c < 4; ++c)
-            first_lanes(job, j[c], x[c], w1[c], 0, m, D, with_p, with_u, with_q, pi, ui, qi, sm, sp,
-                        su, sq);
+            first_lanes(job, j[c], x[c], &w1[c], 0, &m, D, with_p, with_u, with_q, &pi, ui, &qi, sm,
+                        sp, su, sq);
     }
     for (; k < kmax; ++k) {
         size_t j[PASS_GROUP];
         lane4 x[3], w1;
-        kv_entry1(nb, k, D, nv, j, x, &w1, &m);
-        first_lanes(job, j, x, w1, 1, m, D, with_p, with_u, with_q, pi, ui, qi, sm, sp, su, sq);
+        kv_entry1(nb, k, D, &nv, j, x, &w1, &m);
+        first_lanes(job, j, x, &w1, 1, &m, D, with_p, with_u, with_q, &pi, ui, &qi, sm, sp, su, sq);
     }
     for (int l = 0; l < count; ++l) {
         double sml[9], spl[3] = {0}, sul[9] = {0}, sql[3] = {0};
@@ -650,11 +652,12 @@ static const pass_group_fn group_firsts[3][2][2][2] = {
 
 /* kit_coupled_pair over the lanes: neighbours j, separations x, W'/r w1 */
 TERM_INLINE void coupled_lanes(const kit_job *job, const size_t j[PASS_GROUP], const lane4 x[3],
-                               const lane4 w1, const int masked, const lane4i m, const int D,
+                               const lane4 *w1p, const int masked, const lane4i *mp, const int D,
                                const int with_u, const int with_q, const lane4 B[9],
                                const lane4 Gi[9], const lane4 gqi[3], lane4 acc[3], lane4 *accq)
 {
-    const lane4 zero = {0.0, 0.0, 0.0, 0.0};
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0}, w1 = *w1p;
+    const lane4i m = *mp;
     int vo;
     const int S = kit_pack2_stride(D, with_u, with_q, &vo);
     lane4 c[12];
@@ -704,13 +707,14 @@ TERM_INLINE void group_coupled_body(const kit_job *job, const consph_nbhd *nb, c
         lane4 x[4][3], w1[4];
         kv_entries4(nb, k, D, j, x, w1);
         for (int c = 0; c < 4; ++c)
-            coupled_lanes(job, j[c], x[c], w1[c], 0, m, D, with_u, with_q, B, Gi, gqi, acc, &accq);
+            coupled_lanes(job, j[c], x[c], &w1[c], 0, &m, D, with_u, with_q, B, Gi, gqi, acc,
+                          &accq);
     }
     for (; k < kmax; ++k) {
         size_t j[PASS_GROUP];
         lane4 x[3], w1;
-        kv_entry1(nb, k, D, nv, j, x, &w1, &m);
-        coupled_lanes(job, j, x, w1, 1, m, D, with_u, with_q, B, Gi, gqi, acc, &accq);
+        kv_entry1(nb, k, D, &nv, j, x, &w1, &m);
+        coupled_lanes(job, j, x, &w1, 1, &m, D, with_u, with_q, B, Gi, gqi, acc, &accq);
     }
     for (int l = 0; l < count; ++l) {
         const size_t i = nb[l].i;
@@ -751,8 +755,9 @@ static pass_group_fn group_first_of(int d, int with_p, int with_u, int with_q)
 #endif
 #else
 #define group_volume NULL
-#define group_first_of(d, with_p, with_u, with_q) NULL
-#define group_second_of(rq, d) NULL
+#define group_first_of(d, with_p, with_u, with_q)                                                  \
+    ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (pass_group_fn)NULL)
+#define group_second_of(rq, d) ((void)(rq), (void)(d), (pass_group_fn)NULL)
 #endif
 
 /* A pass with its group visit where the system and the compiler allow one, else per particle. */
