@@ -27,13 +27,57 @@ typedef struct kit_job {
     const double *rho; /* ϱ, for Cleary's Laplacian (else NULL) */
     double *bonet, *gradp, *gradu, *divu, *gradq, *lapu, *lapq;
     unsigned char *bonet_ok; /* B_i accepted, for Fatehi_c and Korzilius (else NULL) */
+    /* The values the group visits read at the neighbours, packed per particle so that a lane's
+     * are one or two vector loads instead of one load per value (kit_pack1, kit_pack2): pass 1's
+     * {ω, p, u, q} (stride s1, written where ω is), coupled_bc's {G, ∇q, ω} (stride s2, written by
+     * pass 1; ω at pk2_vol where the stride leaves room, else read from vol; pk2_u and pk2_q the
+     * Laplacians it serves). NULL where no group visit reads them. */
+    double *pk1, *pk2;
+    int s1, s2, pk2_vol, pk2_u, pk2_q;
 } kit_job;
+
+/* Pass 1's pack: ω, then p, u and q where pass 1 sums them, to a multiple of four. */
+static inline int kit_pack1_stride(const int D, const int with_p, const int with_u,
+                                   const int with_q)
+{
+    return (1 + with_p + with_u * D + with_q + 3) & ~3;
+}
+
+static inline void kit_pack1(const kit_job *job, const size_t i, const double om)
+{
+    const size_t cap = job->cap;
+    double *q = job->pk1 + i * (size_t)job->s1;
+    int o = 0;
+    q[o++] = om;
+    if (job->p) q[o++] = job->p[i];
+    if (job->u)
+        for (int a = 0; a < job->d; ++a) q[o++] = job->u[(size_t)a * cap + i];
+    if (job->q) q[o++] = job->q[i];
+}
+
+/* coupled_bc's pack: G (with_u), ∇q (with_q), then ω where the multiple of four leaves room
+ * (*vol its offset, else -1). */
+static inline int kit_pack2_stride(const int D, const int with_u, const int with_q, int *vol)
+{
+    const int n = with_u * D * D + with_q * D;
+    *vol = n % 4 ? n : -1;
+    return (n + 3) & ~3;
+}
+
+/* The volume visits' job: the volumes, and the kit's job whose pass-1 pack they fill (NULL: none).
+ */
+typedef struct kit_vol_job {
+    double *vol;
+    const kit_job *kit;
+} kit_vol_job;
 
 static void visit_volume(void *vjob, const consph_nbhd *nb)
 {
-    double *vol = vjob, s = 0.0;
+    const kit_vol_job *vj = vjob;
+    double s = 0.0;
     for (size_t k = 0; k < nb->n; ++k) s += nb->w[k];
-    vol[nb->i] = 1.0 / s;
+    vj->vol[nb->i] = 1.0 / s;
+    if (vj->kit && vj->kit->pk1) kit_pack1(vj->kit, nb->i, vj->vol[nb->i]);
 }
 
 /* Pass 1's finish at particle i from its sums, written into the job's fields. */
@@ -57,6 +101,15 @@ TERM_INLINE void first_store(const kit_job *job, const size_t i, const int D, co
     }
     if (with_q)
         for (int a = 0; a < D; ++a) job->gradq[a * cap + i] = gq[a];
+    if (job->pk2) {
+        double *pk = job->pk2 + i * (size_t)job->s2;
+        int o = 0;
+        if (with_u && job->pk2_u)
+            for (int e = 0; e < D * D; ++e) pk[o++] = G[e];
+        if (with_q && job->pk2_q)
+            for (int a = 0; a < D; ++a) pk[o++] = gq[a];
+        if (job->pk2_vol >= 0) pk[job->pk2_vol] = job->vol[i];
+    }
 }
 
 /* Pass 1 at one particle, for a dimension and a set of derivatives known at compile time: one
@@ -329,7 +382,24 @@ unsigned long kit_group_passes = 0;
 /* Whether the volumes and derivatives run chained where the list allows (0: one after the
  * other, the same values; tests/test_kit_group.c compares the two), and how many chains ran. */
 int kit_chain_passes = 1;
+/* Passes 1 and coupled_bc that ran over groups (for tests: that they did). */
+unsigned long kit_group_firsts = 0, kit_group_coupled = 0;
+/* coupled_bc's group visit reads four lanes' pairs side by side; the chained pass runs a few
+ * neighbourhoods behind the fill, and once the state's pair cache is larger than about this many
+ * bytes those pairs come from the last-level cache, where the per-particle visit's single
+ * stream is prefetched better: measured on a 2-core AMD EPYC (1 MiB L2 per core), L-IPST-C's
+ * coupled pass ran 13-20 % faster in groups at nx 20-40 and 5-25 % slower at nx 60-250. Pass 1
+ * does more arithmetic per pair and runs in groups at every size. The same values either way;
+ * tests set it to compare the group visit at any size. */
+double kit_coupled_lanes_bytes = 3.0 * 1024 * 1024;
 unsigned long kit_chains = 0;
+
+static int coupled_lanes_pay(const consph_sys *s)
+{
+    consph_nlist_info info;
+    consph_sys_nlist_info(s, &info);
+    return !info.on || info.bytes * (double)s->p->n <= kit_coupled_lanes_bytes;
+}
 
 #ifdef CONSPH_LANES4
 #define KIT_GROUPS 1
@@ -365,10 +435,19 @@ TERM_INLINE void kv_transpose(const double *const q[PASS_GROUP], size_t o, lane4
     f[3] = KV_SHUF(t1, t3, 2, 3, 6, 7);
 }
 
+/* The packed values (stride S) of the lanes' neighbours j: c[o] = {pk[j[0] S + o], ...} */
+TERM_INLINE void kv_unpack(const double *pk, const int S, const size_t j[PASS_GROUP], lane4 c[12])
+{
+    const double *q[PASS_GROUP] = {pk + j[0] * (size_t)S, pk + j[1] * (size_t)S,
+                                   pk + j[2] * (size_t)S, pk + j[3] * (size_t)S};
+    for (int o = 0; o < S; o += 4) kv_transpose(q, (size_t)o, c + o);
+}
+
 /* visit_volume over a group */
 KIT_CLONES static void group_volume(void *vjob, const consph_nbhd *nb, int count)
 {
-    double *vol = vjob;
+    const kit_vol_job *vj = vjob;
+    double *vol = vj->vol;
     size_t n[PASS_GROUP], kmin = nb[0].n, kmax = nb[0].n;
     for (int l = 0; l < PASS_GROUP; ++l) {
         n[l] = nb[l].n;
@@ -394,13 +473,291 @@ KIT_CLONES static void group_volume(void *vjob, const consph_nbhd *nb, int count
         const lane4i kv = {(long long)k, (long long)k, (long long)k, (long long)k};
         s = LANE4_SEL((lane4i)(kv < nv), s + w, s);
     }
-    for (int l = 0; l < count; ++l) vol[nb[l].i] = 1.0 / s[l];
+    for (int l = 0; l < count; ++l) {
+        vol[nb[l].i] = 1.0 / s[l];
+        if (vj->kit && vj->kit->pk1) kit_pack1(vj->kit, nb[l].i, vol[nb[l].i]);
+    }
+}
+
+/* ---- pass 1 and coupled_bc over groups ----
+ *
+ * first_body's and coupled_body's sums are, per particle, chains of dependent additions (the
+ * moment's, each gradient's, each Laplacian's). The group visits below run four particles in the
+ * lanes of a vector, kit_first_pair's and kit_coupled_pair's operations in their order (kit_pair.h)
+ * per lane, each lane over its own neighbours in its own order; a lane that has run out reads its
+ * last neighbour again and keeps its sums (KV_ACC's mask), so every result is the per-particle
+ * visit's bit for bit (tests/test_kit_group.c). The values at the neighbours are loaded lane by
+ * lane. */
+
+/* acc op t in the lanes of m where masked (the tail past the shortest lane), else in all */
+#define KV_ACC(acc, op, t) ((acc) = masked ? LANE4_SEL(m, (acc)op(t), (acc)) : (acc)op(t))
+#define KV_AT(arr, j) ((lane4){(arr)[(j)[0]], (arr)[(j)[1]], (arr)[(j)[2]], (arr)[(j)[3]]})
+#define KV_NB(nb, field, e)                                                                        \
+    ((lane4){(nb)[0].field[(e)[0]], (nb)[1].field[(e)[1]], (nb)[2].field[(e)[2]],                  \
+             (nb)[3].field[(e)[3]]})
+#define KV_I(arr, nb)                                                                              \
+    ((lane4){(arr)[(nb)[0].i], (arr)[(nb)[1].i], (arr)[(nb)[2].i], (arr)[(nb)[3].i]})
+
+/* The group's shortest and longest lane; 0 where a lane has no neighbour at all (then the
+ * per-particle visits run: a lane needs an entry to read again). */
+TERM_INLINE int kv_extent(const consph_nbhd *nb, size_t *kmin, size_t *kmax, lane4i *nv)
+{
+    *kmin = *kmax = nb[0].n;
+    for (int l = 0; l < PASS_GROUP; ++l) {
+        if (nb[l].n == 0) return 0;
+        if (nb[l].n < *kmin) *kmin = nb[l].n;
+        if (nb[l].n > *kmax) *kmax = nb[l].n;
+        (*nv)[l] = (long long)nb[l].n;
+    }
+    return 1;
+}
+
+/* kit_first_pair over the lanes: neighbours j, separations x, W'/r w1 */
+TERM_INLINE void first_lanes(const kit_job *job, const size_t j[PASS_GROUP], const lane4 x[3],
+                             const lane4 *w1p, const int masked, const lane4i *mp, const int D,
+                             const int with_p, const int with_u, const int with_q, const lane4 *pip,
+                             const lane4 ui[3], const lane4 *qip, lane4 sm[9], lane4 sp[3],
+                             lane4 su[9], lane4 sq[3])
+{
+    const lane4 w1 = *w1p, pi = *pip, qi = *qip;
+    const lane4i m = *mp;
+    lane4 c[12];
+    kv_unpack(job->pk1, kit_pack1_stride(D, with_p, with_u, with_q), j, c);
+    const lane4 om = c[0];
+    const lane4 g = om * w1;
+    for (int a = 0; a < D; ++a)
+        for (int b = 0; b < D; ++b) KV_ACC(sm[a * D + b], -, g * x[a] * x[b]);
+    if (with_p) {
+        const lane4 t = om * (c[1] - pi) * w1;
+        for (int b = 0; b < D; ++b) KV_ACC(sp[b], +, t * x[b]);
+    }
+    if (with_u)
+        for (int a = 0; a < D; ++a) {
+            const lane4 t = om * (c[1 + with_p + a] - ui[a]) * w1;
+            for (int b = 0; b < D; ++b) KV_ACC(su[a * D + b], +, t * x[b]);
+        }
+    if (with_q) {
+        const lane4 t = om * (c[1 + with_p + with_u * D] - qi) * w1;
+        for (int b = 0; b < D; ++b) KV_ACC(sq[b], +, t * x[b]);
+    }
+}
+
+/* Entries k..k+3 of every lane (all within every lane): neighbours j[c], separations x[c] and
+ * W'/r w1[c] of entry k + c, read four at a time per lane and transposed. */
+TERM_INLINE void kv_entries4(const consph_nbhd *nb, size_t k, const int D, size_t j[4][PASS_GROUP],
+                             lane4 x[4][3], lane4 w1[4])
+{
+    lane4 f[4];
+    for (int a = 0; a < D; ++a) {
+        const double *q[PASS_GROUP] = {nb[0].dx[a] + k, nb[1].dx[a] + k, nb[2].dx[a] + k,
+                                       nb[3].dx[a] + k};
+        kv_transpose(q, 0, f);
+        for (int c = 0; c < 4; ++c) x[c][a] = f[c];
+    }
+    const double *q[PASS_GROUP] = {nb[0].dwr + k, nb[1].dwr + k, nb[2].dwr + k, nb[3].dwr + k};
+    kv_transpose(q, 0, w1);
+    for (int l = 0; l < PASS_GROUP; ++l)
+        for (int c = 0; c < 4; ++c) j[c][l] = nb[l].j[k + (size_t)c];
+}
+
+/* Entry k of every lane where masked, clamped to the lane's last one: j, x, w1 and the lanes
+ * that count it (m) */
+TERM_INLINE void kv_entry1(const consph_nbhd *nb, size_t k, const int D, const lane4i *nv,
+                           size_t j[PASS_GROUP], lane4 x[3], lane4 *w1, lane4i *m)
+{
+    size_t e[PASS_GROUP];
+    for (int l = 0; l < PASS_GROUP; ++l) e[l] = k < nb[l].n ? k : nb[l].n - 1;
+    for (int l = 0; l < PASS_GROUP; ++l) j[l] = nb[l].j[e[l]];
+    for (int a = 0; a < D; ++a) x[a] = KV_NB(nb, dx[a], e);
+    *w1 = KV_NB(nb, dwr, e);
+    const lane4i kv = {(long long)k, (long long)k, (long long)k, (long long)k};
+    *m = (lane4i)(kv < *nv);
+}
+
+/* first_body over a group */
+TERM_INLINE void group_first_body(const kit_job *job, const consph_nbhd *nb, const int count,
+                                  const int D, const int with_p, const int with_u, const int with_q)
+{
+    size_t kmin, kmax;
+    lane4i nv = {0, 0, 0, 0}, m = nv;
+    if (!kv_extent(nb, &kmin, &kmax, &nv)) {
+        for (int l = 0; l < count; ++l) first_body(job, &nb[l], D, with_p, with_u, with_q);
+        return;
+    }
+    const size_t cap = job->cap;
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0};
+    const lane4 pi = with_p ? KV_I(job->p, nb) : zero, qi = with_q ? KV_I(job->q, nb) : zero;
+    lane4 ui[3] = {zero, zero, zero};
+    if (with_u)
+        for (int a = 0; a < D; ++a) ui[a] = KV_I(job->u + (size_t)a * cap, nb);
+    lane4 sm[9], sp[3], su[9], sq[3];
+    for (int c = 0; c < 9; ++c) sm[c] = su[c] = zero;
+    for (int c = 0; c < 3; ++c) sp[c] = sq[c] = zero;
+    size_t k = 0;
+    for (; k + 4 <= kmin; k += 4) {
+        size_t j[4][PASS_GROUP];
+        lane4 x[4][3], w1[4];
+        kv_entries4(nb, k, D, j, x, w1);
+        for (int c = 0; c < 4; ++c)
+            first_lanes(job, j[c], x[c], &w1[c], 0, &m, D, with_p, with_u, with_q, &pi, ui, &qi, sm,
+                        sp, su, sq);
+    }
+    for (; k < kmax; ++k) {
+        size_t j[PASS_GROUP];
+        lane4 x[3], w1;
+        kv_entry1(nb, k, D, &nv, j, x, &w1, &m);
+        first_lanes(job, j, x, &w1, 1, &m, D, with_p, with_u, with_q, &pi, ui, &qi, sm, sp, su, sq);
+    }
+    for (int l = 0; l < count; ++l) {
+        double sml[9], spl[3] = {0}, sul[9] = {0}, sql[3] = {0};
+        for (int c = 0; c < D * D; ++c) {
+            sml[c] = sm[c][l];
+            sul[c] = su[c][l];
+        }
+        for (int c = 0; c < D; ++c) {
+            spl[c] = sp[c][l];
+            sql[c] = sq[c][l];
+        }
+        first_store(job, nb[l].i, D, with_p, with_u, with_q, sml, spl, sul, sql);
+    }
+}
+
+#define GROUP_FIRST_CLONE(D, P, U, Q)                                                              \
+    KIT_CLONES static void group_first_##D##P##U##Q(void *job, const consph_nbhd *nb, int count)   \
+    {                                                                                              \
+        group_first_body(job, nb, count, D, P, U, Q);                                              \
+    }
+#define GROUP_FIRST_CLONES_Q(D, P, U) GROUP_FIRST_CLONE(D, P, U, 0) GROUP_FIRST_CLONE(D, P, U, 1)
+#define GROUP_FIRST_CLONES_U(D, P) GROUP_FIRST_CLONES_Q(D, P, 0) GROUP_FIRST_CLONES_Q(D, P, 1)
+#define GROUP_FIRST_CLONES(D) GROUP_FIRST_CLONES_U(D, 0) GROUP_FIRST_CLONES_U(D, 1)
+GROUP_FIRST_CLONES(2)
+GROUP_FIRST_CLONES(3)
+#define GROUP_FIRST_NAMES_Q(D, P, U)                                                               \
+    {                                                                                              \
+        group_first_##D##P##U##0, group_first_##D##P##U##1                                         \
+    }
+#define GROUP_FIRST_NAMES_U(D, P)                                                                  \
+    {                                                                                              \
+        GROUP_FIRST_NAMES_Q(D, P, 0), GROUP_FIRST_NAMES_Q(D, P, 1)                                 \
+    }
+#define GROUP_FIRST_NAMES(D)                                                                       \
+    {                                                                                              \
+        GROUP_FIRST_NAMES_U(D, 0), GROUP_FIRST_NAMES_U(D, 1)                                       \
+    }
+/* 1D runs the per-particle visits */
+static const pass_group_fn group_firsts[3][2][2][2] = {
+    {{{NULL, NULL}, {NULL, NULL}}, {{NULL, NULL}, {NULL, NULL}}},
+    GROUP_FIRST_NAMES(2),
+    GROUP_FIRST_NAMES(3)};
+
+/* kit_coupled_pair over the lanes: neighbours j, separations x, W'/r w1 */
+TERM_INLINE void coupled_lanes(const kit_job *job, const size_t j[PASS_GROUP], const lane4 x[3],
+                               const lane4 *w1p, const int masked, const lane4i *mp, const int D,
+                               const int with_u, const int with_q, const lane4 B[9],
+                               const lane4 Gi[9], const lane4 gqi[3], lane4 acc[3], lane4 *accq)
+{
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0}, w1 = *w1p;
+    const lane4i m = *mp;
+    int vo;
+    const int S = kit_pack2_stride(D, with_u, with_q, &vo);
+    lane4 c[12];
+    kv_unpack(job->pk2, S, j, c);
+    const lane4 om = vo >= 0 ? c[vo] : KV_AT(job->vol, j);
+    lane4 gr[3], g[3];
+    for (int b = 0; b < D; ++b) gr[b] = w1 * x[b];
+    for (int a = 0; a < D; ++a) {
+        lane4 v = zero;
+        for (int b = 0; b < D; ++b) v += B[a * D + b] * gr[b];
+        g[a] = v;
+    }
+    if (with_u)
+        for (int a = 0; a < D; ++a) {
+            lane4 sa = zero;
+            for (int b = 0; b < D; ++b) sa += (c[a * D + b] - Gi[a * D + b]) * g[b];
+            KV_ACC(acc[a], +, om * sa);
+        }
+    if (with_q) {
+        lane4 s = zero;
+        for (int b = 0; b < D; ++b) s += (c[with_u * D * D + b] - gqi[b]) * g[b];
+        KV_ACC(*accq, +, om * s);
+    }
+}
+
+/* coupled_body over a group */
+TERM_INLINE void group_coupled_body(const kit_job *job, const consph_nbhd *nb, const int count,
+                                    const int D, const int with_u, const int with_q)
+{
+    size_t kmin, kmax;
+    lane4i nv = {0, 0, 0, 0}, m = nv;
+    if (!kv_extent(nb, &kmin, &kmax, &nv)) {
+        for (int l = 0; l < count; ++l) coupled_body(job, &nb[l], D, with_u, with_q);
+        return;
+    }
+    const size_t cap = job->cap;
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0};
+    lane4 B[9], Gi[9], gqi[3], acc[3] = {zero, zero, zero}, accq = zero;
+    for (int c = 0; c < D * D; ++c) {
+        B[c] = KV_I(job->bonet + (size_t)c * cap, nb);
+        Gi[c] = with_u ? KV_I(job->gradu + (size_t)c * cap, nb) : zero;
+    }
+    for (int b = 0; b < D; ++b) gqi[b] = with_q ? KV_I(job->gradq + (size_t)b * cap, nb) : zero;
+    size_t k = 0;
+    for (; k + 4 <= kmin; k += 4) {
+        size_t j[4][PASS_GROUP];
+        lane4 x[4][3], w1[4];
+        kv_entries4(nb, k, D, j, x, w1);
+        for (int c = 0; c < 4; ++c)
+            coupled_lanes(job, j[c], x[c], &w1[c], 0, &m, D, with_u, with_q, B, Gi, gqi, acc,
+                          &accq);
+    }
+    for (; k < kmax; ++k) {
+        size_t j[PASS_GROUP];
+        lane4 x[3], w1;
+        kv_entry1(nb, k, D, &nv, j, x, &w1, &m);
+        coupled_lanes(job, j, x, &w1, 1, &m, D, with_u, with_q, B, Gi, gqi, acc, &accq);
+    }
+    for (int l = 0; l < count; ++l) {
+        const size_t i = nb[l].i;
+        if (with_u)
+            for (int a = 0; a < D; ++a) job->lapu[(size_t)a * cap + i] = acc[a][l];
+        if (with_q) job->lapq[i] = accq[l];
+    }
+}
+
+#define GROUP_COUPLED_CLONE(D, U, Q)                                                               \
+    KIT_CLONES static void group_coupled_##D##U##Q(void *job, const consph_nbhd *nb, int count)    \
+    {                                                                                              \
+        group_coupled_body(job, nb, count, D, U, Q);                                               \
+    }
+GROUP_COUPLED_CLONE(2, 1, 0)
+GROUP_COUPLED_CLONE(2, 1, 1)
+GROUP_COUPLED_CLONE(2, 0, 1)
+GROUP_COUPLED_CLONE(3, 1, 0)
+GROUP_COUPLED_CLONE(3, 1, 1)
+GROUP_COUPLED_CLONE(3, 0, 1)
+
+/* visit_second over groups where it runs coupled_bc only (∇²u coupled, or ∇²q alone); NULL for
+ * the other Laplacians and 1D (the per-particle visits) */
+static pass_group_fn group_second_of(const kit_req *rq, int d)
+{
+    const int lapu = (rq->want & KIT_LAPU) != 0, lapq = (rq->want & KIT_LAPQ) != 0;
+    if (d < 2 || (lapu && rq->lap != KIT_LAP_COUPLED) || !(lapu || lapq)) return NULL;
+    if (d == 2) return lapu ? (lapq ? group_coupled_211 : group_coupled_210) : group_coupled_201;
+    return lapu ? (lapq ? group_coupled_311 : group_coupled_310) : group_coupled_301;
+}
+
+static pass_group_fn group_first_of(int d, int with_p, int with_u, int with_q)
+{
+    return group_firsts[d - 1][with_p][with_u][with_q];
 }
 #if !defined(__clang__)
 #pragma GCC diagnostic pop
 #endif
 #else
 #define group_volume NULL
+#define group_first_of(d, with_p, with_u, with_q)                                                  \
+    ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (pass_group_fn)NULL)
+#define group_second_of(rq, d) ((void)(rq), (void)(d), (pass_group_fn)NULL)
 #endif
 
 /* A pass with its group visit where the system and the compiler allow one, else per particle. */
@@ -423,9 +780,9 @@ static const consph_pass volume_pass = {"volumes 1/sum W", CONSPH_PASS_W | CONSP
 
 int kit_volumes(consph_sys *s, size_t *pairs)
 {
-    double *vol = consph_particles_field(s->p, SF_VOL, 1);
-    if (!vol) return CONSPH_ENOMEM;
-    return kit_run(s, &volume_pass, group_volume, vol, pairs);
+    kit_vol_job vj = {consph_particles_field(s->p, SF_VOL, 1), NULL};
+    if (!vj.vol) return CONSPH_ENOMEM;
+    return kit_run(s, &volume_pass, group_volume, &vj, pairs);
 }
 
 /* The volumes (with_volumes), then pass 1 and the Laplacians: chained on the neighbour list's
@@ -489,34 +846,68 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         first_visits[d - 1][(want & KIT_GRADP) != 0][(want & (KIT_GRADU | KIT_DIVU)) != 0]
                     [(want & KIT_GRADQ) != 0];
     const consph_pass first = {"kit: bonet, gradients, divergence", CONSPH_PASS_DW, visit_first};
+    const int gp = (want & KIT_GRADP) != 0, gu = (want & (KIT_GRADU | KIT_DIVU)) != 0,
+              gq = (want & KIT_GRADQ) != 0;
+    /* a decomposed system or a destination mask runs the per-particle visits (pass_run_groups
+     * declines them): no packs, which a decomposed system's halo refresh would carry */
+    const int lanes = kit_group_visits && !s->split && !s->dest;
+    const pass_group_fn group_first = lanes ? group_first_of(d, gp, gu, gq) : NULL;
     unsigned need2 = CONSPH_PASS_DW;
     if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need2 |= CONSPH_PASS_D2W;
     const consph_pass second = {"kit: laplacians", need2, visit_second};
+    const pass_group_fn group_second =
+        lanes && coupled_lanes_pay(s) ? group_second_of(&r, d) : NULL;
+    /* the packs the group visits read: pass 1's filled by the volume visits or from the fixed
+     * volumes here, coupled_bc's by pass 1 (first_store) */
+    if (group_first) job.s1 = kit_pack1_stride(d, gp, gu, gq);
+    if (group_second) {
+        job.pk2_u = (want & KIT_LAPU) != 0;
+        job.pk2_q = (want & KIT_LAPQ) != 0;
+        job.s2 = kit_pack2_stride(d, job.pk2_u, job.pk2_q, &job.pk2_vol);
+    }
+    if (group_first || group_second) {
+        double *pk = consph_sys_scratch(s, (p->n ? p->n : 1) * (size_t)(job.s1 + job.s2));
+        if (!pk) {
+            free(job.bonet_ok);
+            return CONSPH_ENOMEM;
+        }
+        job.pk1 = group_first ? pk : NULL;
+        job.pk2 = group_second ? pk + p->n * (size_t)job.s1 : NULL;
+    }
+    if (job.pk1 && !with_volumes)
+        for (size_t i = 0; i < p->n; ++i) kit_pack1(&job, i, job.vol[i]);
+    kit_vol_job vj = {vol, &job};
     const int with_second = (want & (KIT_LAPU | KIT_LAPQ)) != 0;
     int st = CONSPH_OK;
     if (with_volumes && kit_chain_passes && s->nlist && nlist_serves(s->nlist, p->n)) {
         const block_visitor_in chain[3] = {
-            {&volume_pass, kit_group_visits ? group_volume : NULL, vol},
-            {&first, NULL, &job},
-            {&second, NULL, &job}};
+            {&volume_pass, kit_group_visits ? group_volume : NULL, &vj},
+            {&first, group_first, &job},
+            {&second, group_second, &job}};
         const int count = 2 + with_second;
         int ran = 0;
         st = nlist_chain_run(s, chain, count, pairs, &ran);
         if (st == CONSPH_OK && ran) {
             ++kit_chains;
+            if (group_first) ++kit_group_firsts;
+            if (group_second && with_second) ++kit_group_coupled;
             *passes += count;
             free(job.bonet_ok);
             return CONSPH_OK;
         }
     }
     if (st == CONSPH_OK && with_volumes) {
-        st = kit_run(s, &volume_pass, group_volume, vol, pairs);
+        st = kit_run(s, &volume_pass, group_volume, &vj, pairs);
         if (st == CONSPH_OK) ++*passes;
     }
-    if (st == CONSPH_OK) st = consph_pass_run_counted(s, &first, &job, pairs);
+    unsigned long ran = kit_group_passes;
+    if (st == CONSPH_OK) st = kit_run(s, &first, group_first, &job, pairs);
+    if (group_first && kit_group_passes != ran) ++kit_group_firsts;
     if (st == CONSPH_OK) ++*passes;
     if (st == CONSPH_OK && with_second) {
-        st = consph_pass_run_counted(s, &second, &job, pairs);
+        ran = kit_group_passes;
+        st = kit_run(s, &second, group_second, &job, pairs);
+        if (group_second && kit_group_passes != ran) ++kit_group_coupled;
         if (st == CONSPH_OK) ++*passes;
     }
     free(job.bonet_ok);
