@@ -79,4 +79,19 @@ static inline unsigned char *check_load_file(const char *path, size_t *size)
     return b;
 }
 
+/* Whether two files hold the same bytes (0 when either cannot be read). */
+static inline int check_same_file(const char *a, const char *b)
+{
+    FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
+    int same = fa && fb;
+    while (same) {
+        const int ca = fgetc(fa), cb = fgetc(fb);
+        if (ca != cb) same = 0;
+        if (ca == EOF || cb == EOF) break;
+    }
+    if (fa) fclose(fa);
+    if (fb) fclose(fb);
+    return same;
+}
+
 #endif

@@ -147,20 +147,6 @@ static int child(const char *base)
     return any ? 1 : 0;
 }
 
-static int same_file(const char *a, const char *b)
-{
-    FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
-    int same = fa && fb;
-    while (same) {
-        const int ca = fgetc(fa), cb = fgetc(fb);
-        if (ca != cb) same = 0;
-        if (ca == EOF || cb == EOF) break;
-    }
-    if (fa) fclose(fa);
-    if (fb) fclose(fb);
-    return same;
-}
-
 int main(int argc, char **argv)
 {
     if (argc == 3 && !strcmp(argv[1], "--child")) return child(argv[2]);
@@ -190,7 +176,7 @@ int main(int argc, char **argv)
             char path[400];
             snprintf(ref, sizeof ref, "%s.%s.serial", base, schemes[k].scheme);
             snprintf(path, sizeof path, "%s.%s.%s", base, schemes[k].scheme, cuts[c]);
-            CHECK(same_file(ref, path), "%s cut %s on 2 ranks: another state than the serial",
+            CHECK(check_same_file(ref, path), "%s cut %s on 2 ranks: another state than the serial",
                   schemes[k].scheme, cuts[c]);
         }
     if (check_failures == 0) {

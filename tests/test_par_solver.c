@@ -414,20 +414,6 @@ static int child(const char *base)
     return any ? 1 : 0;
 }
 
-static int same_file(const char *a, const char *b)
-{
-    FILE *fa = fopen(a, "rb"), *fb = fopen(b, "rb");
-    int same = fa && fb;
-    while (same) {
-        int ca = fgetc(fa), cb = fgetc(fb);
-        if (ca != cb) same = 0;
-        if (ca == EOF || cb == EOF) break;
-    }
-    if (fa) fclose(fa);
-    if (fb) fclose(fb);
-    return same;
-}
-
 /* summary.json but its "seconds" line. */
 static int same_summary(const char *a, const char *b)
 {
@@ -499,7 +485,7 @@ static void compare_dirs(const char *ref, const char *dir)
         snprintf(a, sizeof a, "%s/%s", ref, run_files_list[k]);
         snprintf(b, sizeof b, "%s/%s", dir, run_files_list[k]);
         CHECK(access(a, F_OK) == 0, "the serial run wrote no %s", a);
-        CHECK(same_file(a, b), "%s differs from the serial %s", b, a);
+        CHECK(check_same_file(a, b), "%s differs from the serial %s", b, a);
     }
     char a[600], b[600];
     snprintf(a, sizeof a, "%s/checkpoint.ckpt", ref);
@@ -549,14 +535,14 @@ int main(int argc, char **argv)
             char a[512], b[512];
             snprintf(a, sizeof a, "%s.%s.serial", base, cases[k].name);
             snprintf(b, sizeof b, "%s.%s.np%d", base, cases[k].name, np);
-            CHECK(same_file(a, b), "%s on %d ranks: the state differs from the serial run's",
+            CHECK(check_same_file(a, b), "%s on %d ranks: the state differs from the serial run's",
                   cases[k].name, np);
             if (!strcmp(cases[k].name, "diverges")) {
                 strcat(a, ".msg");
                 strcat(b, ".msg");
                 CHECK(access(a, F_OK) == 0, "the serial run did not diverge");
-                CHECK(same_file(a, b), "%s on %d ranks: another message than the serial run's",
-                      cases[k].name, np);
+                CHECK(check_same_file(a, b),
+                      "%s on %d ranks: another message than the serial run's", cases[k].name, np);
             }
         }
         char dir[512];
@@ -578,12 +564,12 @@ int main(int argc, char **argv)
                 char a[512], c[512];
                 snprintf(a, sizeof a, "%s.%s.serial", base, cases[k].name);
                 snprintf(c, sizeof c, "%s.%s.np4", base, cases[k].name);
-                CHECK(same_file(a, c), "%s on 4 ranks in 2 x 2 boxes: the state differs",
+                CHECK(check_same_file(a, c), "%s on 4 ranks in 2 x 2 boxes: the state differs",
                       cases[k].name);
                 if (!strcmp(cases[k].name, "diverges")) {
                     strcat(a, ".msg");
                     strcat(c, ".msg");
-                    CHECK(same_file(a, c), "diverges on 4 ranks in boxes: another message");
+                    CHECK(check_same_file(a, c), "diverges on 4 ranks in boxes: another message");
                 }
             }
     {
