@@ -393,29 +393,38 @@ int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr)
 typedef struct remesh_job {
     const consph_kernel *m4;
     const size_t *origin; /* of the joint system: < n lattice point, else n + particle */
-    size_t n, cap;
-    int nf;
-    const consph_field *const *f; /* the particles' fields */
-    const size_t *off;            /* first row of field k in out */
-    double *out;                  /* rows of n values, one per component */
+    size_t n;
+    size_t rows;              /* components of all the fields */
+    const double *const *src; /* row r: the particles' values of component r */
+    double *out;              /* rows of n values, one per component */
     unsigned char *orphan;
 } remesh_job;
 
+/* Components summed in registers or on the stack (the solver remeshes d + 1); more go through
+ * out, with the same operations. */
+#define REMESH_LOCAL_ROWS 16
+
 /* Eq. 33 at lattice point k: Σ_j φ_j M4_kj / Σ_j M4_kj over the particles (the other lattice
- * points of the joint system are skipped). */
+ * points of the joint system are skipped). The sums run in a local array, written once: into
+ * out, which may alias the sources as far as the compiler knows, every pair was a load and a
+ * store per component. */
 static void remesh_visit(void *job, const consph_nbhd *nb)
 {
     const remesh_job *a = job;
-    const size_t k = a->origin[nb->i];
+    const size_t k = a->origin[nb->i], rows = a->rows;
+    const double *const *src = a->src;
+    double local[REMESH_LOCAL_ROWS];
+    const int in_out = rows > REMESH_LOCAL_ROWS;
+    double *acc = in_out ? a->out + k : local;
+    const size_t stride = in_out ? a->n : 1;
     double wsum = 0.0;
-    for (int f = 0; f < a->nf; ++f)
-        for (int c = 0; c < a->f[f]->ncomp; ++c) a->out[(a->off[f] + (size_t)c) * a->n + k] = 0.0;
+    for (size_t r = 0; r < rows; ++r) acc[r * stride] = 0.0;
+    const consph_kernel *m4 = a->m4;
     for (size_t q = 0; q < nb->n; ++q) {
         const size_t o = a->origin[nb->j[q]];
         if (o < a->n) continue;
         /* M4 of the separation (consph_kernel_w_vec's product), for the particles only: the
          * pass evaluates no kernel, half the neighbours being other lattice points */
-        const consph_kernel *m4 = a->m4;
         double w = m4->norm;
         for (int c = 0; c < m4->dim && w != 0.0; ++c) {
             const double qa = fabs(nb->dx[c][q]) * m4->inv_h;
@@ -424,15 +433,16 @@ static void remesh_visit(void *job, const consph_nbhd *nb)
         if (w == 0.0) continue;
         const size_t j = o - a->n;
         wsum += w;
-        for (int f = 0; f < a->nf; ++f)
-            for (int c = 0; c < a->f[f]->ncomp; ++c)
-                a->out[(a->off[f] + (size_t)c) * a->n + k] +=
-                    w * a->f[f]->data[(size_t)c * a->cap + j];
+        for (size_t r = 0; r < rows; ++r) acc[r * stride] += w * src[r][j];
     }
     a->orphan[k] = wsum == 0.0;
-    if (wsum == 0.0) return;
-    for (int f = 0; f < a->nf; ++f)
-        for (int c = 0; c < a->f[f]->ncomp; ++c) a->out[(a->off[f] + (size_t)c) * a->n + k] /= wsum;
+    if (wsum == 0.0) {
+        /* out holds 0 for an orphan, as before */
+        if (!in_out)
+            for (size_t r = 0; r < rows; ++r) a->out[r * a->n + k] = 0.0;
+        return;
+    }
+    for (size_t r = 0; r < rows; ++r) a->out[r * a->n + k] = acc[r * stride] / wsum;
 }
 
 static int remesh_check(const consph_sys *s, const double *lattice, double ds,
@@ -504,9 +514,19 @@ int reg_remesh_m4(consph_sys *s, const double *lattice, double ds, const char *c
         rc = consph_sys_set_dest(&sys, mask);
     }
     if (!rc) {
-        remesh_job job = {&k, sys.origin, n, cap, nf, f, off, out, orphan};
-        const consph_pass pass = {"remesh M4 (001 eq. 33)", 0u, remesh_visit};
-        rc = consph_pass_run(&sys, &pass, &job);
+        /* the rows of out in field order, component by component */
+        const double **src = malloc((rows ? rows : 1) * sizeof *src);
+        if (!src)
+            rc = CONSPH_ENOMEM;
+        else {
+            for (int q = 0; q < nf; ++q)
+                for (int c = 0; c < f[q]->ncomp; ++c)
+                    src[off[q] + (size_t)c] = f[q]->data + (size_t)c * cap;
+            remesh_job job = {&k, sys.origin, n, rows, src, out, orphan};
+            const consph_pass pass = {"remesh M4 (001 eq. 33)", 0u, remesh_visit};
+            rc = consph_pass_run(&sys, &pass, &job);
+        }
+        free(src);
     }
     if (!rc) {
         size_t count = 0;
