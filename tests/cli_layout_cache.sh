@@ -106,4 +106,32 @@ failing 2 "--cache and --no-cache" "$work/o" -- "$bin" study 001-table3 --quick 
     >/dev/null 2>&1 && [ "$(files "$work/run")" = 1 ] && pass=$((pass + 1)) ||
     bad "run: $(files "$work/run") files"
 
+# A study without the cache packs its rows' layouts into a private directory of its own (under
+# $TMPDIR, shared by its worker processes), removed at the end: the user's cache is not created
+# and nothing is left behind; with the cache the same rows are the same numbers.
+mkdir -p "$work/tmp"
+cat >"$work/nc.study" <<'END'
+study = nc
+title = two packed series
+[figure f]
+kind = run
+problem = taylor-green
+nx = 8,10
+steps = 2
+[series A]
+scheme = l-ipst-c
+[series B]
+scheme = tv-c
+END
+TMPDIR=$work/tmp XDG_CACHE_HOME=$work/xdg-nc "$bin" study "$work/nc.study" --no-cache --jobs 2 \
+    --out "$work/nc-off" >"$work/o" 2>&1 || bad "study --no-cache: exit $?, $(cat "$work/o")"
+[ -e "$work/xdg-nc" ] && bad "study --no-cache created $work/xdg-nc" || pass=$((pass + 1))
+[ -z "$(ls -A "$work/tmp")" ] && pass=$((pass + 1)) || bad "study --no-cache left $(ls -A "$work/tmp")"
+"$bin" study "$work/nc.study" --cache "$work/nc-cache" --out "$work/nc-on" >"$work/o" 2>&1 ||
+    bad "study --cache: exit $?, $(cat "$work/o")"
+cut -d, -f1-14,16- "$work/nc-off/nc/f.csv" >"$work/nc-off.csv"
+cut -d, -f1-14,16- "$work/nc-on/nc/f.csv" >"$work/nc-on.csv"
+cmp -s "$work/nc-off.csv" "$work/nc-on.csv" && pass=$((pass + 1)) ||
+    bad "study --no-cache: other rows than with the cache"
+
 summary cli_layout_cache

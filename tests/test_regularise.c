@@ -535,6 +535,65 @@ static void test_threads(void)
     }
 }
 
+/* IPST on a system with a neighbour list (its volumes and shift chained on the pair cache) moves
+ * the particles, and leaves the volumes and the report, exactly as on a system without one, on
+ * 1 and 2 threads; on the lattice (converged before any shift) it moves nothing either. */
+static void test_ipst_chained(void)
+{
+    const struct {
+        consph_layout_kind kind;
+        size_t nx;
+        double eps;
+    } cases[2] = {{CONSPH_LAYOUT_RANDOM, 40, 0.4}, {CONSPH_LAYOUT_LATTICE, 20, 0.0}};
+    for (int c = 0; c < 2; ++c) {
+        double *out[3] = {NULL, NULL, NULL};
+        reg_ipst_report rep[3];
+        size_t n = 0;
+        for (int v = 0; v < 3; ++v) {
+#ifdef _OPENMP
+            omp_set_num_threads(v == 2 ? 2 : 1);
+#endif
+            consph_sys s;
+            CHECK(make_sys(&s, cases[c].kind, cases[c].nx, cases[c].eps, 3), "system");
+            if (v > 0)
+                CHECK(consph_sys_nlist(&s, 0.0, NULL, 0) == CONSPH_OK, "list: %s",
+                      consph_last_error());
+            n = s.p->n;
+            const size_t cap = s.p->cap;
+            double *dr = calloc(2 * cap, sizeof(double));
+            reg_ipst_params prm = ipst_params(&s);
+            const unsigned long chains = reg_ipst_chains;
+            CHECK(reg_ipst(&s, &prm, dr, &rep[v]) == CONSPH_OK, "IPST: %s", consph_last_error());
+            if (v > 0) CHECK(reg_ipst_chains > chains, "case %d: no iteration ran chained", c);
+            out[v] = malloc(5 * n * sizeof(double));
+            for (size_t i = 0; i < n; ++i) {
+                /* in the order of the input particles: the systems sort alike, but say so */
+                const size_t k = s.origin[i];
+                out[v][k] = s.p->x[0][i];
+                out[v][n + k] = s.p->x[1][i];
+                out[v][2 * n + k] = dr[i];
+                out[v][3 * n + k] = dr[cap + i];
+                out[v][4 * n + k] = consph_particles_find(s.p, "volume")->data[i];
+            }
+            free(dr);
+            consph_sys_free(&s);
+        }
+        CHECK(c == 1 || rep[0].iterations > 1, "case %d: %d iterations", c, rep[0].iterations);
+        for (int v = 1; v < 3; ++v) {
+            CHECK(!memcmp(out[0], out[v], 5 * n * sizeof(double)),
+                  "case %d: positions, shifts or volumes differ with the list (%d threads)", c, v);
+            CHECK(rep[v].iterations == rep[0].iterations &&
+                      !memcmp(&rep[v].chi_max, &rep[0].chi_max, sizeof(double)) &&
+                      !memcmp(&rep[v].max_shift, &rep[0].max_shift, sizeof(double)),
+                  "case %d: report differs with the list (%d threads)", c, v);
+        }
+        for (int v = 0; v < 3; ++v) free(out[v]);
+    }
+#ifdef _OPENMP
+    omp_set_num_threads(1);
+#endif
+}
+
 int main(void)
 {
     test_chi0();
@@ -546,5 +605,6 @@ int main(void)
     test_remesh_scattered();
     test_remesh_orphans();
     test_threads();
+    test_ipst_chained();
     return check_summary("test_regularise");
 }

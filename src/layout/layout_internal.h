@@ -14,7 +14,10 @@
  * x - lo is a tiny negative number and adding len rounds to exactly len. */
 static inline double layout_wrap(double x, double lo, double len)
 {
-    double s = fmod(x - lo, len);
+    /* fmod returns its argument exactly when |x - lo| < len, the common case of a particle moved
+     * by less than the box: the library call is skipped there, with the same result. */
+    const double off = x - lo;
+    double s = fabs(off) < len ? off : fmod(off, len);
     if (s < 0.0) s += len;
     if (!(s < len)) s = 0.0;
     return lo + s;

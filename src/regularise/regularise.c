@@ -8,6 +8,8 @@
 #include <string.h>
 
 #include "layout/layout_internal.h"
+#include "pass/lanes4.h"
+#include "pass/nlist.h"
 
 /* ---- moving particles ---- */
 
@@ -91,36 +93,85 @@ typedef struct ipst_job {
 
 /* Eq. 19: δx_i = h Σ_j (x_ij/r_ij) W_ij ω_j. A neighbour at r = 0 (i itself, or a coincident
  * particle) has no direction and adds nothing. d known at compile time, so the sums stay in
- * registers (with d read at run time they went through memory at every pair). */
+ * registers (with d read at run time they went through memory at every pair).
+ *
+ * The factors W_ij ω_j / r_ij are independent of each other: they are computed for a chunk of
+ * pairs first, four at a time, then added in the neighbours' order. A pair without direction
+ * gets the factor 0 and the separation +0, whose product +0 leaves the sums as skipping it does
+ * (a sum that starts at +0 is never -0), so the values are those of one loop over the pairs,
+ * bit for bit. */
+#define IPST_CHUNK 64
 #if defined(__GNUC__)
 __attribute__((always_inline))
 #endif
 static inline void
 ipst_body(const ipst_job *a, const consph_nbhd *nb, const int D)
 {
-    const double *vol = a->vol, *w = nb->w, *r = nb->r;
-    const size_t *j = nb->j;
+    const double *vol = a->vol;
     double acc[3] = {0.0, 0.0, 0.0};
-    for (size_t q = 0; q < nb->n; ++q) {
-        const double rq = r[q];
-        if (!(rq > 0.0)) continue;
-        const double f = w[q] * vol[j[q]] / rq;
-        for (int c = 0; c < D; ++c) acc[c] += f * nb->dx[c][q];
+    double f[IPST_CHUNK], x[3][IPST_CHUNK];
+    for (size_t q0 = 0; q0 < nb->n; q0 += IPST_CHUNK) {
+        const size_t m = nb->n - q0 < IPST_CHUNK ? nb->n - q0 : IPST_CHUNK;
+        const double *rq = nb->r + q0, *wq = nb->w + q0;
+        const size_t *jq = nb->j + q0;
+        size_t k = 0;
+#ifdef CONSPH_LANES4
+        /* the division on every lane (by 1 where the pair has no direction), then the select */
+        const lane4 zero = {0.0, 0.0, 0.0, 0.0}, one = {1.0, 1.0, 1.0, 1.0};
+        for (; k + 4 <= m; k += 4) {
+            const lane4 rk = *(const lane4u *)(rq + k), wk = *(const lane4u *)(wq + k);
+            const lane4 vk = {vol[jq[k]], vol[jq[k + 1]], vol[jq[k + 2]], vol[jq[k + 3]]};
+            const lane4i has = rk > zero;
+            const lane4 ratio = wk * vk / LANE4_SEL(has, rk, one);
+            *(lane4u *)(f + k) = LANE4_SEL(has, ratio, zero);
+            for (int c = 0; c < D; ++c)
+                *(lane4u *)(x[c] + k) = LANE4_SEL(has, *(const lane4u *)(nb->dx[c] + q0 + k), zero);
+        }
+#endif
+        for (; k < m; ++k) {
+            const int has = rq[k] > 0.0;
+            f[k] = has ? wq[k] * vol[jq[k]] / rq[k] : 0.0;
+            for (int c = 0; c < D; ++c) x[c][k] = has ? nb->dx[c][q0 + k] : 0.0;
+        }
+        for (k = 0; k < m; ++k)
+            for (int c = 0; c < D; ++c) acc[c] += f[k] * x[c][k];
     }
     for (int c = 0; c < D; ++c) a->step[(size_t)c * a->cap + nb->i] = a->h * acc[c];
 }
 
-static void ipst_visit_1(void *job, const consph_nbhd *nb)
+/* An AVX2 copy in a generic x86-64 build, chosen at load time (the same operations in the same
+ * order), as the kit's visits (src/schemes/negi/kit.c). */
+#if defined(__x86_64__) && !defined(__clang__) && defined(__GLIBC__) && !defined(__AVX2__)
+#define IPST_CLONES __attribute__((target_clones("avx2", "default")))
+#else
+#define IPST_CLONES
+#endif
+IPST_CLONES static void ipst_visit_1(void *job, const consph_nbhd *nb)
 {
     ipst_body(job, nb, 1);
 }
-static void ipst_visit_2(void *job, const consph_nbhd *nb)
+IPST_CLONES static void ipst_visit_2(void *job, const consph_nbhd *nb)
 {
     ipst_body(job, nb, 2);
 }
-static void ipst_visit_3(void *job, const consph_nbhd *nb)
+IPST_CLONES static void ipst_visit_3(void *job, const consph_nbhd *nb)
 {
     ipst_body(job, nb, 3);
+}
+
+/* max_i h^d Σ_j W_ij over the destinations (NaN when any sum is NaN), over every part of a
+ * decomposed system. */
+static double ipst_chi_max(const consph_sys *s, double h, const double *sumw)
+{
+    const double hd = pow(h, s->p->dim);
+    double mx = -INFINITY;
+    for (size_t i = 0; i < s->p->n; ++i) {
+        if (s->dest && !s->dest[i]) continue; /* a halo particle: its part's maximum */
+        double chi = hd * sumw[i];
+        if (isnan(chi)) mx = NAN;
+        if (chi > mx) mx = chi;
+    }
+    return s->split ? s->split->max(s->split->ctx, mx) : mx;
 }
 
 /* Writes ω = 1/Σ_j W_ij into vol and returns max_i h^d Σ_j W_ij (NaN when any sum is NaN). */
@@ -128,17 +179,47 @@ static int ipst_volumes(const consph_sys *s, double h, double *sumw, double *vol
 {
     int rc = consph_layout_density(s, 1.0, sumw, NULL);
     if (rc) return rc;
-    const double hd = pow(h, s->p->dim);
-    double mx = -INFINITY;
-    for (size_t i = 0; i < s->p->n; ++i) {
-        vol[i] = 1.0 / sumw[i];
-        if (s->dest && !s->dest[i]) continue; /* a halo particle: its part's maximum */
-        double chi = hd * sumw[i];
-        if (isnan(chi)) mx = NAN;
-        if (chi > mx) mx = chi;
-    }
-    *chi_max = s->split ? s->split->max(s->split->ctx, mx) : mx;
+    for (size_t i = 0; i < s->p->n; ++i) vol[i] = 1.0 / sumw[i];
+    *chi_max = ipst_chi_max(s, h, sumw);
     return CONSPH_OK;
+}
+
+unsigned long reg_ipst_chains;
+
+/* Σ_j W_ij and ω_i = 1/Σ_j W_ij of particle i: consph_layout_density's sum (mass 1) and
+ * ipst_volumes' reciprocal, the same operations in the same order. */
+typedef struct ipst_volume_job {
+    double *sumw, *vol;
+} ipst_volume_job;
+
+static void ipst_volume_visit(void *job, const consph_nbhd *nb)
+{
+    const ipst_volume_job *v = job;
+    double w = 0.0;
+    for (size_t q = 0; q < nb->n; ++q) w += nb->w[q];
+    const double sum = 1.0 * w;
+    v->sumw[nb->i] = sum;
+    v->vol[nb->i] = 1.0 / sum;
+}
+
+/* The volumes and the shift of one position state chained over the neighbour list's pair cache
+ * (src/pass/nlist.h, nlist_chain_run): the shift of a block runs as soon as the volumes of its
+ * neighbours are known, while the block's pairs are still in the processor's caches, instead of
+ * a second sweep over the whole cache. The values of ipst_volumes then the shift's pass. *ran 0
+ * where the list cannot chain them (no list, a mask, a decomposed system): nothing done. */
+static int ipst_chained(consph_sys *s, const consph_pass *shift, ipst_job *job, double *sumw,
+                        double *vol, int *ran)
+{
+    *ran = 0;
+    if (!s->nlist || !nlist_serves(s->nlist, s->p->n) || s->dest || s->split) return CONSPH_OK;
+    ipst_volume_job vj = {sumw, vol};
+    const consph_pass volumes = {"IPST volumes 1/sum W", CONSPH_PASS_W | CONSPH_PASS_NO_DX,
+                                 ipst_volume_visit};
+    const block_visitor_in chain[2] = {{&volumes, NULL, &vj}, {shift, NULL, job}};
+    size_t pairs = 0;
+    const int rc = nlist_chain_run(s, chain, 2, &pairs, ran);
+    if (rc == CONSPH_OK && *ran) ++reg_ipst_chains;
+    return rc;
 }
 
 int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ipst_report *rep)
@@ -175,13 +256,23 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
          * iteration, the shift's: one gather and one kernel batch for both where the system
          * keeps a neighbour list (its pair cache; the same values). */
         consph_sys_expect_passes(s, iterations < prm->max_iter ? 2 : 1, CONSPH_PASS_W);
+        /* While another shift may follow, the shift is computed with the volumes (chained),
+         * before eq. 21 is tested: where the test then stops the iteration, the shift is not
+         * applied, so the positions and volumes returned are those of computing it only when
+         * needed. */
+        int shifted = 0;
+        if (iterations < prm->max_iter && (rc = ipst_chained(s, &pass, &job, sumw, vol, &shifted)))
+            break;
         /* The volumes are those of the current positions; the last refresh leaves "volume"
          * matching the positions the call returns. */
-        if ((rc = ipst_volumes(s, prm->h, sumw, vol, &chi_max))) break;
+        if (shifted)
+            chi_max = ipst_chi_max(s, prm->h, sumw);
+        else if ((rc = ipst_volumes(s, prm->h, sumw, vol, &chi_max)))
+            break;
         if ((iterations >= prm->min_iter && fabs(chi_max - prm->chi0) < prm->tol) ||
             iterations >= prm->max_iter)
             break;
-        if ((rc = consph_pass_run(s, &pass, &job))) break;
+        if (!shifted && (rc = consph_pass_run(s, &pass, &job))) break;
         if ((rc = reg_move(s, step))) break;
         for (size_t k = 0; k < (size_t)d * cap; ++k) total[k] += step[k];
         ++iterations;
@@ -302,29 +393,38 @@ int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr)
 typedef struct remesh_job {
     const consph_kernel *m4;
     const size_t *origin; /* of the joint system: < n lattice point, else n + particle */
-    size_t n, cap;
-    int nf;
-    const consph_field *const *f; /* the particles' fields */
-    const size_t *off;            /* first row of field k in out */
-    double *out;                  /* rows of n values, one per component */
+    size_t n;
+    size_t rows;              /* components of all the fields */
+    const double *const *src; /* row r: the particles' values of component r */
+    double *out;              /* rows of n values, one per component */
     unsigned char *orphan;
 } remesh_job;
 
+/* Components summed in registers or on the stack (the solver remeshes d + 1); more go through
+ * out, with the same operations. */
+#define REMESH_LOCAL_ROWS 16
+
 /* Eq. 33 at lattice point k: Σ_j φ_j M4_kj / Σ_j M4_kj over the particles (the other lattice
- * points of the joint system are skipped). */
+ * points of the joint system are skipped). The sums run in a local array, written once: into
+ * out, which may alias the sources as far as the compiler knows, every pair was a load and a
+ * store per component. */
 static void remesh_visit(void *job, const consph_nbhd *nb)
 {
     const remesh_job *a = job;
-    const size_t k = a->origin[nb->i];
+    const size_t k = a->origin[nb->i], rows = a->rows;
+    const double *const *src = a->src;
+    double local[REMESH_LOCAL_ROWS];
+    const int in_out = rows > REMESH_LOCAL_ROWS;
+    double *acc = in_out ? a->out + k : local;
+    const size_t stride = in_out ? a->n : 1;
     double wsum = 0.0;
-    for (int f = 0; f < a->nf; ++f)
-        for (int c = 0; c < a->f[f]->ncomp; ++c) a->out[(a->off[f] + (size_t)c) * a->n + k] = 0.0;
+    for (size_t r = 0; r < rows; ++r) acc[r * stride] = 0.0;
+    const consph_kernel *m4 = a->m4;
     for (size_t q = 0; q < nb->n; ++q) {
         const size_t o = a->origin[nb->j[q]];
         if (o < a->n) continue;
         /* M4 of the separation (consph_kernel_w_vec's product), for the particles only: the
          * pass evaluates no kernel, half the neighbours being other lattice points */
-        const consph_kernel *m4 = a->m4;
         double w = m4->norm;
         for (int c = 0; c < m4->dim && w != 0.0; ++c) {
             const double qa = fabs(nb->dx[c][q]) * m4->inv_h;
@@ -333,15 +433,16 @@ static void remesh_visit(void *job, const consph_nbhd *nb)
         if (w == 0.0) continue;
         const size_t j = o - a->n;
         wsum += w;
-        for (int f = 0; f < a->nf; ++f)
-            for (int c = 0; c < a->f[f]->ncomp; ++c)
-                a->out[(a->off[f] + (size_t)c) * a->n + k] +=
-                    w * a->f[f]->data[(size_t)c * a->cap + j];
+        for (size_t r = 0; r < rows; ++r) acc[r * stride] += w * src[r][j];
     }
     a->orphan[k] = wsum == 0.0;
-    if (wsum == 0.0) return;
-    for (int f = 0; f < a->nf; ++f)
-        for (int c = 0; c < a->f[f]->ncomp; ++c) a->out[(a->off[f] + (size_t)c) * a->n + k] /= wsum;
+    if (wsum == 0.0) {
+        /* out holds 0 for an orphan, as before */
+        if (!in_out)
+            for (size_t r = 0; r < rows; ++r) a->out[r * a->n + k] = 0.0;
+        return;
+    }
+    for (size_t r = 0; r < rows; ++r) a->out[r * a->n + k] = acc[r * stride] / wsum;
 }
 
 static int remesh_check(const consph_sys *s, const double *lattice, double ds,
@@ -413,9 +514,19 @@ int reg_remesh_m4(consph_sys *s, const double *lattice, double ds, const char *c
         rc = consph_sys_set_dest(&sys, mask);
     }
     if (!rc) {
-        remesh_job job = {&k, sys.origin, n, cap, nf, f, off, out, orphan};
-        const consph_pass pass = {"remesh M4 (001 eq. 33)", 0u, remesh_visit};
-        rc = consph_pass_run(&sys, &pass, &job);
+        /* the rows of out in field order, component by component */
+        const double **src = malloc((rows ? rows : 1) * sizeof *src);
+        if (!src)
+            rc = CONSPH_ENOMEM;
+        else {
+            for (int q = 0; q < nf; ++q)
+                for (int c = 0; c < f[q]->ncomp; ++c)
+                    src[off[q] + (size_t)c] = f[q]->data + (size_t)c * cap;
+            remesh_job job = {&k, sys.origin, n, rows, src, out, orphan};
+            const consph_pass pass = {"remesh M4 (001 eq. 33)", 0u, remesh_visit};
+            rc = consph_pass_run(&sys, &pass, &job);
+        }
+        free(src);
     }
     if (!rc) {
         size_t count = 0;

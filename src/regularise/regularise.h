@@ -59,6 +59,9 @@ double reg_chi0(const consph_kernel *k, double ds);
  * the total displacement of each particle to dr_total (d × cap, zeroed by the caller). Refuses a
  * system with a destination mask. */
 int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ipst_report *rep);
+/* Iterations whose volumes and shift ran chained on the system's pair cache (a system with a
+ * neighbour list, consph_sys_nlist: the same values as one pass after the other); for tests. */
+extern unsigned long reg_ipst_chains;
 
 /* ---- non-iterative shifting of Sun et al. (δ+-SPH) ---- */
 typedef struct reg_pst_params {

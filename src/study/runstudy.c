@@ -170,55 +170,175 @@ static double run_packing_seconds(const consph_run_params *prm, char (*seen)[512
     return study_packing_seconds(&lp);
 }
 
+static double finest_h(const run_plan *pl);
+
+/* One calibration run of a series at nx per side, on its own layout (a packed one is packed once
+ * and cached like a row's; IPST's iterations depend on the arrangement: a lattice meets eq. 21
+ * at once where a packed layout takes all ten) or on the lattice: its first step untimed (it
+ * touches every array for the first time and makes IPST's first, one-iteration shift), then
+ * `steps` steps timed. At the series' Δt where its rows share one (dt_rule = finest), so that
+ * IPST's steps per shift are the rows'; else at its own, IPST keeping the series' steps per
+ * shift. Errors by eq. 26 (the authors' 50 samples would fall at every step of a calibration,
+ * where a row spreads them over thousands) against the incompressible solution unless `exact`
+ * (then the series' own: with the weakly-compressible reference, its evaluation at the particles
+ * at the log cadence). Seconds per particle-step of the timed steps, and per particle of the
+ * set-up without packing (packing: study_packing_seconds). */
+static int calibrate(const run_plan *pl, int nx, int lattice, int exact, long steps,
+                     double *per_step, double *per_made)
+{
+    consph_run_params p = pl->prm;
+    p.nx = nx;
+    if (lattice) p.layout = CONSPH_LAYOUT_LATTICE;
+    p.error = CONSPH_ERROR_EQ26;
+    if (!exact) p.exact = CONSPH_EXACT_INCOMPRESSIBLE;
+    p.h_dt = 0.0;
+    if (pl->dt_finest)
+        p.h_dt = finest_h(pl);
+    else if (p.ipst_h_dt > 0.0)
+        /* IPST on a time schedule shifts once per ipst_every steps of a Δt at h = ipst_h_dt: keep
+         * the series' steps per shift, which the calibration's larger Δt would otherwise turn
+         * into a shift at every step */
+        p.ipst_h_dt *= (p.hdx / p.nx) / (p.hdx / pl->nx[0]);
+    const double n = particles_of(pl, nx);
+    p.steps = steps + 1;
+    consph_solver *sv = NULL;
+    double t0 = study_cpu_seconds();
+    int rc = consph_solver_create(&sv, &p);
+    if (rc) return rc;
+    *per_made = (study_cpu_seconds() - t0) / n;
+    rc = consph_solver_step(sv);
+    t0 = study_cpu_seconds();
+    for (long k = 0; rc == CONSPH_OK && k < steps; ++k) rc = consph_solver_step(sv);
+    *per_step = (study_cpu_seconds() - t0) / (n * (double)steps);
+    consph_solver_free(sv);
+    return rc;
+}
+
+/* Calibration sizes. Small: a few hundred particles, every series (their costs per particle-step
+ * differ by 2-3 times: IPST's iterations, the remeshing, the passes per stage). Large: one run
+ * whose pair cache (about 2 kB per particle in 2D, 10 kB in 3D) is larger than a processor's
+ * last-level cache (tens of MB), so that it pays the memory traffic of a study's large rows,
+ * which a run whose data stay in the caches does not show (1.1-1.2 times the small run's cost
+ * per particle-step at 128² on this machine; docs/studies.md compares the estimate with rows at
+ * nx 500). */
+#define CAL_NX_SMALL_2D 16
+#define CAL_NX_SMALL_3D 8
+#define CAL_NX_LARGE_2D 128
+#define CAL_NX_LARGE_3D 20
+/* Timed steps of a small calibration: IPST every 10 steps shifts twice in them (after steps 11
+ * and 21), its rate. A large calibration times few steps, and its cost is compared with a small
+ * run of the same steps. */
+#define CAL_STEPS_SMALL 20
+#define CAL_STEPS_LARGE 4
+/* The calibrations of a figure stop calibrating series one by one past this many seconds (the
+ * rest take the mean rate of those done), so that an estimate stays within about 2 s. */
+#define CAL_BUDGET_SECONDS 1.0
+
+/* The size factor at N particles: 1 up to the small calibration's n0, the large one's ratio from
+ * its n1 on, log-linear between. */
+static double size_factor(double n, double n0, double n1, double ratio)
+{
+    if (!(n1 > n0) || n <= n0) return 1.0;
+    if (n >= n1) return ratio;
+    return 1.0 + (ratio - 1.0) * log(n / n0) / log(n1 / n0);
+}
+
 double study_run_estimate(const consph_study *s, const study_figure *f, int quick,
                           double *particle_steps)
 {
-    run_plan first, pl;
-    double made = 0.0, packing = 0.0;
+    *particle_steps = 0.0;
+    if (f->nseries == 0) return 0.0;
+    run_plan *plans = calloc((size_t)f->nseries, sizeof *plans);
+    double *rate = calloc((size_t)f->nseries, sizeof *rate);
+    if (!plans || !rate) {
+        free(plans);
+        free(rate);
+        return NAN;
+    }
+    double packing = 0.0, made = 0.0, max_nx = 0.0;
     char seen[64][512];
     int nseen = 0;
-    *particle_steps = 0.0;
     for (int k = 0; k < f->nseries; ++k) {
-        if (plan_build(s, f, &f->series[k], quick, &pl) != CONSPH_OK) return NAN;
-        if (k == 0) first = pl;
-        for (int j = 0; j < pl.nnx; ++j) {
-            *particle_steps += particles_of(&pl, pl.nx[j]) * steps_of(&pl, pl.nx[j]);
-            made += particles_of(&pl, pl.nx[j]);
-            consph_run_params row = pl.prm;
-            row.nx = (int)pl.nx[j];
+        run_plan *pl = &plans[k];
+        if (plan_build(s, f, &f->series[k], quick, pl) != CONSPH_OK) {
+            free(plans);
+            free(rate);
+            return NAN;
+        }
+        for (int j = 0; j < pl->nnx; ++j) {
+            *particle_steps += particles_of(pl, pl->nx[j]) * steps_of(pl, pl->nx[j]);
+            made += particles_of(pl, pl->nx[j]);
+            if (pl->nx[j] > max_nx) max_nx = pl->nx[j];
+            consph_run_params row = pl->prm;
+            row.nx = (int)pl->nx[j];
             packing += run_packing_seconds(&row, seen, &nseen);
         }
     }
-    if (f->nseries == 0) return 0.0;
-    /* Calibration: 16² (3D: 8³) particles on the lattice, 20 steps of the first series; the
-     * set-up without packing timed apart (packing: study_packing_seconds). */
-    consph_run_params p = first.prm;
-    p.nx = consph_problem_dim(p.problem) == 3 ? 8 : 16;
-    p.layout = CONSPH_LAYOUT_LATTICE;
-    /* the stepping alone: the authors' 50 samples and the weakly-compressible reference's solve
-     * would be most of 20 steps here and a trifle of a study's runs */
-    p.error = CONSPH_ERROR_EQ26;
-    p.exact = CONSPH_EXACT_INCOMPRESSIBLE;
-    if (p.ipst_h_dt > 0.0) {
-        /* IPST on a time schedule shifts once per ipst_every steps of a Δt at h = ipst_h_dt: keep
-         * the series' steps per shift, which the calibration's larger Δt would otherwise turn
-         * into a shift at every step (001-table9's full runs shift every 10 steps) */
-        const double h_run = p.hdx / (first.dt_finest ? first.nx[first.nnx - 1] : first.nx[0]);
-        p.ipst_h_dt *= (p.hdx / p.nx) / h_run;
+    const int dim3 = consph_problem_dim(plans[0].prm.problem) == 3;
+    const int nx0 = dim3 ? CAL_NX_SMALL_3D : CAL_NX_SMALL_2D;
+    /* no larger than the study's largest row */
+    const int nx1 = (int)fmin(dim3 ? CAL_NX_LARGE_3D : CAL_NX_LARGE_2D, max_nx);
+    /* every series at the small size on its own layout; the dearest (by its rows' work) again
+     * on the lattice at both sizes */
+    double per_made = 0.0, sum_rate = 0.0, dearest = -1.0;
+    int calibrated = 0, big = 0;
+    const double t0 = consph_wtime();
+    for (int k = 0; k < f->nseries; ++k) {
+        if (calibrated > 0 && consph_wtime() - t0 > CAL_BUDGET_SECONDS) {
+            rate[k] = -1.0;
+            continue;
+        }
+        double unused;
+        if (calibrate(&plans[k], nx0, 0, 0, CAL_STEPS_SMALL, &rate[k], &unused) != CONSPH_OK) {
+            free(plans);
+            free(rate);
+            return NAN;
+        }
+        sum_rate += rate[k];
+        ++calibrated;
+        double work = 0.0;
+        for (int j = 0; j < plans[k].nnx; ++j)
+            work += particles_of(&plans[k], plans[k].nx[j]) * steps_of(&plans[k], plans[k].nx[j]);
+        if (rate[k] * work > dearest) {
+            dearest = rate[k] * work;
+            big = k;
+        }
     }
-    const double ncal = particles_of(&first, p.nx);
-    p.steps = 20;
-    p.h_dt = 0.0;
-    consph_solver *sv = NULL;
-    consph_run_summary sum;
-    int stopped;
-    double t0 = consph_wtime();
-    if (consph_solver_create(&sv, &p) != CONSPH_OK) return NAN;
-    double per_made = (consph_wtime() - t0) / ncal;
-    int rc = consph_run(sv, NULL, &sum, &stopped);
-    consph_solver_free(sv);
-    if (rc != CONSPH_OK || sum.steps <= 0) return NAN;
-    return *particle_steps * sum.seconds / (ncal * (double)sum.steps) + made * per_made + packing;
+    for (int k = 0; k < f->nseries; ++k)
+        if (rate[k] < 0.0) rate[k] = sum_rate / calibrated;
+    /* the size factor, on the lattice at both sizes; at the large size the weakly-compressible
+     * reference's evaluation too, per particle-step, where the series has it (its solve, a cost
+     * per row whatever the particles, is left out) */
+    double ratio = 1.0, wc_side = 0.0, small_steps = 0.0, large_steps = 0.0, unused;
+    const double n0 = particles_of(&plans[big], nx0), n1 = particles_of(&plans[big], nx1);
+    int rc = calibrate(&plans[big], nx0, 1, 0, CAL_STEPS_LARGE, &small_steps, &per_made);
+    if (rc == CONSPH_OK && nx1 > nx0) {
+        rc = calibrate(&plans[big], nx1, 1, 0, CAL_STEPS_LARGE, &large_steps, &per_made);
+        /* the memory traffic makes a run dearer, never cheaper: a faster large run is noise */
+        if (rc == CONSPH_OK) ratio = fmax(1.0, large_steps / small_steps);
+    }
+    if (rc == CONSPH_OK && plans[big].prm.exact != CONSPH_EXACT_INCOMPRESSIBLE) {
+        double with_wc;
+        const int nx_wc = nx1 > nx0 ? nx1 : nx0;
+        rc = calibrate(&plans[big], nx_wc, 1, 1, CAL_STEPS_LARGE, &with_wc, &unused);
+        if (rc == CONSPH_OK) wc_side = fmax(0.0, with_wc - (nx1 > nx0 ? large_steps : small_steps));
+    }
+    if (rc) {
+        free(plans);
+        free(rate);
+        return NAN;
+    }
+    double seconds = made * per_made + packing;
+    for (int k = 0; k < f->nseries; ++k)
+        for (int j = 0; j < plans[k].nnx; ++j) {
+            const double n = particles_of(&plans[k], plans[k].nx[j]);
+            const double wc = plans[k].prm.exact != CONSPH_EXACT_INCOMPRESSIBLE ? wc_side : 0.0;
+            seconds += n * steps_of(&plans[k], plans[k].nx[j]) *
+                       (rate[k] * size_factor(n, n0, n1, ratio) + wc);
+        }
+    free(plans);
+    free(rate);
+    return seconds;
 }
 
 /* h of the sweep's finest run as the solver derives it (derive_solver: hdx times the box's

@@ -246,5 +246,10 @@ int study_estimate_plans(const consph_study *s, const study_figure *f, int quick
  * holds, else particles × modelled iterations × the time of one iteration per particle on this
  * machine (timed once per process). */
 double study_packing_seconds(const consph_layout_params *lp);
+/* Processor seconds of this process per thread of the runs (consph_num_threads): on an idle
+ * machine the seconds a run takes, and nearly that on one that others share, where the wall time
+ * of a short calibration is mostly the waits for a core. The clock of the estimates'
+ * calibrations. */
+double study_cpu_seconds(void);
 
 #endif
