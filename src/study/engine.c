@@ -913,16 +913,7 @@ static int study_run_with_cache(const consph_study *s, const consph_study_option
  * read nor written. */
 static void remove_private_cache(const char *dir)
 {
-    DIR *d = opendir(dir);
-    if (d) {
-        struct dirent *e;
-        char path[STUDY_PATH_MAX];
-        while ((e = readdir(d)))
-            if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..") &&
-                (size_t)snprintf(path, sizeof path, "%s/%s", dir, e->d_name) < sizeof path)
-                remove(path);
-        closedir(d);
-    }
+    study_remove_files(dir);
     rmdir(dir);
 }
 

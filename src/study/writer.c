@@ -125,20 +125,24 @@ int study_mkdir_p(const char *path, size_t *created)
     return CONSPH_OK;
 }
 
+void study_remove_files(const char *dir)
+{
+    DIR *d = opendir(dir);
+    if (!d) return;
+    struct dirent *e;
+    char path[STUDY_PATH_MAX];
+    while ((e = readdir(d)))
+        if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..") &&
+            study_out_path(path, dir, e->d_name, "") == CONSPH_OK)
+            remove(path);
+    closedir(d);
+}
+
 /* After a failed run: the directories it created go, with what it wrote into them. */
 void study_remove_created(const char *dir, size_t created)
 {
     if (!created) return;
-    DIR *d = opendir(dir);
-    if (d) {
-        struct dirent *e;
-        char path[STUDY_PATH_MAX];
-        while ((e = readdir(d)))
-            if (strcmp(e->d_name, ".") && strcmp(e->d_name, "..") &&
-                study_out_path(path, dir, e->d_name, "") == CONSPH_OK)
-                remove(path);
-        closedir(d);
-    }
+    study_remove_files(dir);
     char buf[STUDY_PATH_MAX];
     snprintf(buf, sizeof buf, "%s", dir);
     for (size_t k = strlen(buf); k >= created; --k) {

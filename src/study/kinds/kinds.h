@@ -90,6 +90,8 @@ void study_md_figure(FILE *o, const char *id);
 /* Creates `path` and its missing parents, and removes what a failed run created. */
 int study_mkdir_p(const char *path, size_t *created);
 void study_remove_created(const char *dir, size_t created);
+/* Removes the files directly inside dir (what a study writes there), not dir itself. */
+void study_remove_files(const char *dir);
 /* The study's README: title, then every figure's report in order. */
 int study_write_readme(const consph_study *s, int quick, int files, const char *dir);
 
