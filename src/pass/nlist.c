@@ -307,7 +307,8 @@ static int cache_over_budget(const consph_nlist *l)
 
 /* The pairs a cache of the state just built would hold, before any cache was filled: the
  * neighbours of the first destination of every block, times the block's destinations. Integer
- * counts from the build alone (any thread count gives the same); about 1/64 of a pass's gather. */
+ * counts from the build alone (any thread count gives the same); about 1/64 of a pass's gather,
+ * so it is taken again only where the last state had passes enough to want a cache. */
 static int pairs_estimate(const consph_sys *s, const consph_nnps_slots *v)
 {
     consph_nlist *l = s->nlist;
@@ -315,6 +316,7 @@ static int pairs_estimate(const consph_sys *s, const consph_nnps_slots *v)
         l->est_pairs = l->npairs;
         return CONSPH_OK;
     }
+    if (l->builds && l->passes_state < 2) return CONSPH_OK;
     consph_nnps_runs runs;
     memset(&runs, 0, sizeof runs);
     size_t *slot = NULL, cap = 0, est = 0;
