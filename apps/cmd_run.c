@@ -700,7 +700,8 @@ int cmd_run(int argc, char **argv)
                               : consph_solver_create(&s, &prm)) != CONSPH_OK) {
         fprintf(stderr, "consph run: %s\n", consph_last_error());
         consph_particles_free(&given);
-        return 1;
+        /* bad input the set-up finds (CONSPH_PAIR_CACHE_MB, a particle file's values) */
+        return st == CONSPH_EINVAL ? CLI_EXIT_USAGE : 1;
     }
     consph_particles_free(&given);
     if (device == CONSPH_DEVICE_GPU &&

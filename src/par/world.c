@@ -9,6 +9,7 @@
 
 #include "consph/core.h"
 #include "consph/par.h"
+#include "pass/nlist.h"
 
 #ifdef CONSPH_HAVE_MPI
 #include <mpi.h>
@@ -51,6 +52,19 @@ static void wait_asleep(MPI_Request *req)
     }
 }
 
+/* The ranks on this machine share its memory: the pair cache's default budget divides it. */
+static void count_node_processes(void)
+{
+    MPI_Comm node;
+    int count = 1;
+    if (MPI_Comm_split_type(world_comm, MPI_COMM_TYPE_SHARED, 0, MPI_INFO_NULL, &node) ==
+        MPI_SUCCESS) {
+        MPI_Comm_size(node, &count);
+        MPI_Comm_free(&node);
+    }
+    nlist_node_processes(count);
+}
+
 int consph_par_init(int *argc, char ***argv)
 {
     int already = 0, fin = 0;
@@ -62,6 +76,7 @@ int consph_par_init(int *argc, char ***argv)
             /* An application that initialised MPI itself: join its world. */
             MPI_Comm_dup(MPI_COMM_WORLD, &world_comm);
             world_inited = 2;
+            count_node_processes();
         }
         return CONSPH_OK;
     }
@@ -71,6 +86,7 @@ int consph_par_init(int *argc, char ***argv)
         return consph_fail(CONSPH_EIO, "MPI_Init failed");
     MPI_Comm_dup(MPI_COMM_WORLD, &world_comm);
     world_inited = 1;
+    count_node_processes();
     return CONSPH_OK;
 }
 

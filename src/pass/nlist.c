@@ -22,6 +22,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <unistd.h>
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -77,6 +78,10 @@ struct consph_nlist {
     int hint_passes;
     unsigned hint_need;
     size_t builds, caches, ncand, npairs;
+    /* the pairs a cache of the current state would hold (the last cache's count, else a sample
+     * at the build: pairs_estimate) and the bytes the cache may take (pair_cache_budget) */
+    size_t est_pairs;
+    double budget;
     char note[200];
 };
 
@@ -253,6 +258,99 @@ static int index_block(const consph_sys *s, const consph_nnps_slots *v, nlist_bl
     return CONSPH_OK;
 }
 
+/* ---- the pair cache's memory budget ---- */
+
+static int node_processes = 1;
+
+void nlist_node_processes(int count)
+{
+    node_processes = count > 0 ? count : 1;
+}
+
+/* Bytes the pair cache may take in this process: CONSPH_PAIR_CACHE_MB where set, else half the
+ * machine's physical memory shared by the processes on this node (MPI ranks on one machine
+ * each keep their own cache). */
+static int pair_cache_budget(double *bytes)
+{
+    const char *v = getenv("CONSPH_PAIR_CACHE_MB");
+    if (v && *v) {
+        char *end = NULL;
+        const double mb = strtod(v, &end);
+        while (end && (*end == ' ' || *end == '\t')) ++end;
+        if (!end || end == v || *end || !isfinite(mb) || mb < 0.0)
+            return consph_fail(CONSPH_EINVAL,
+                               "CONSPH_PAIR_CACHE_MB '%s': expected the pair cache's budget in "
+                               "megabytes, a number >= 0 (0: never cache the pairs)",
+                               v);
+        *bytes = mb * 1048576.0;
+        return CONSPH_OK;
+    }
+    const long pages = sysconf(_SC_PHYS_PAGES), size = sysconf(_SC_PAGE_SIZE);
+    *bytes = pages > 0 && size > 0 ? 0.5 * (double)pages * (double)size / node_processes : HUGE_VAL;
+    return CONSPH_OK;
+}
+
+/* Bytes per cached pair: j, x_ij, r and the kernel values (those cached so far, at least W and
+ * W'/r, which most passes read). */
+static double pair_bytes(const consph_nlist *l)
+{
+    int values =
+        !!(l->have & CONSPH_PASS_W) + !!(l->have & CONSPH_PASS_DW) + !!(l->have & CONSPH_PASS_D2W);
+    if (values < 2) values = 2;
+    return (double)sizeof(size_t) + sizeof(double) * (double)(l->dim + 1 + values);
+}
+
+static int cache_over_budget(const consph_nlist *l)
+{
+    return (double)l->est_pairs * pair_bytes(l) > l->budget;
+}
+
+/* The pairs a cache of the state just built would hold, before any cache was filled: the
+ * neighbours of the first destination of every block, times the block's destinations. Integer
+ * counts from the build alone (any thread count gives the same); about 1/64 of a pass's gather,
+ * so it is taken again only where the last state had passes enough to want a cache. */
+static int pairs_estimate(const consph_sys *s, const consph_nnps_slots *v)
+{
+    consph_nlist *l = s->nlist;
+    if (l->caches) {
+        l->est_pairs = l->npairs;
+        return CONSPH_OK;
+    }
+    if (l->builds && l->passes_state < 2) return CONSPH_OK;
+    consph_nnps_runs runs;
+    memset(&runs, 0, sizeof runs);
+    size_t *slot = NULL, cap = 0, est = 0;
+    int st = CONSPH_OK;
+    for (size_t k = 0; k < l->nblocks && st == CONSPH_OK; ++k) {
+        const nlist_block *b = &l->blocks[k];
+        size_t dests = 0, first = b->s1;
+        for (size_t sl = b->s0; sl < b->s1; ++sl)
+            if (!s->dest || s->dest[particle_of(l, sl)]) {
+                if (!dests++) first = sl;
+            }
+        if (!dests) continue;
+        double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+        for (int a = 0; a < l->dim; ++a) xi[a] = v->x[a][first];
+        if (consph_nnps_point_runs(s->nnps, xi, &runs) == (size_t)-1) {
+            st = CONSPH_ENOMEM;
+            break;
+        }
+        const size_t need = runs.candidates + CONSPH_NNPS_GATHER_SLACK;
+        if (need > cap) {
+            if (grow((void **)&slot, need, sizeof(size_t))) {
+                st = CONSPH_ENOMEM;
+                break;
+            }
+            cap = need;
+        }
+        est += dests * consph_nnps_gather(v, &runs, xi, slot, NULL, NULL);
+    }
+    consph_nnps_runs_free(&runs);
+    free(slot);
+    l->est_pairs = est;
+    return st;
+}
+
 /* Turns the list off for good (the passes gather from here on) with a note saying why, and
  * gives the search back its own radius. */
 static int switch_off(consph_sys *s, const char *why)
@@ -321,6 +419,7 @@ static int nlist_index(consph_sys *s)
     }
     if (l->skin == 0.0) {
         /* rebuilt at every move: the search itself is the list (cache_block_gather) */
+        if (pairs_estimate(s, &v)) return CONSPH_ENOMEM;
         ++l->builds;
         ++l->epoch;
         return CONSPH_OK;
@@ -363,6 +462,7 @@ static int nlist_index(consph_sys *s)
     for (size_t k = 0; k < l->nblocks; ++k)
         total += l->blocks[k].coff[l->blocks[k].s1 - l->blocks[k].s0];
     l->ncand = total;
+    if (pairs_estimate(s, &v)) return CONSPH_ENOMEM;
     ++l->builds;
     ++l->epoch;
     if (n && (double)total / (double)n > CONSPH_NLIST_MAX_CANDIDATES) {
@@ -789,8 +889,8 @@ int nlist_gathers(consph_nlist *l)
         l->passes_state = 0;
     }
     const int fresh = l->cache_epoch != l->epoch || !l->caches;
-    if (fresh &&
-        (l->passes_last < NLIST_CACHE_PASSES || l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n)) {
+    if (fresh && (l->passes_last < NLIST_CACHE_PASSES ||
+                  l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n || cache_over_budget(l))) {
         ++l->passes_state;
         return 1;
     }
@@ -812,9 +912,11 @@ static int cache_serves(const consph_nlist *l)
      * processor's cache (measured: edac and tvf, two passes per state, ran 5 % slower from a
      * cache; L-IPST-C, three, 15 % faster). Both compute the same values, so the choice changes
      * no result. A caller that knows how many passes will read the state says so
-     * (consph_sys_expect_passes) and is believed over the previous state's count. */
+     * (consph_sys_expect_passes) and is believed over the previous state's count. Nor is a
+     * cache made whose pairs would exceed the memory budget (pair_cache_budget): the filtering
+     * then serves every pass, at the cost measured in docs/mpi.md. */
     return !(fresh && ((!hinted && passes_last < NLIST_CACHE_PASSES) ||
-                       l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n));
+                       l->npairs > CONSPH_NLIST_MAX_CANDIDATES * l->n || cache_over_budget(l)));
 }
 
 unsigned long nlist_pair_counts(const consph_nlist *l, uint32_t *count)
@@ -1281,9 +1383,13 @@ int consph_sys_nlist(consph_sys *s, double skin, const char *build_field, int re
 #ifdef NLIST_AVX2
     if (use_avx2 < 0) use_avx2 = __builtin_cpu_supports("avx2") ? 1 : 0;
 #endif
+    double budget = 0.0;
+    const int bst = pair_cache_budget(&budget);
+    if (bst != CONSPH_OK) return bst;
     consph_nlist *l = consph_calloc(1, sizeof *l);
     if (!l) return CONSPH_ENOMEM;
     s->nlist = l;
+    l->budget = budget;
     const consph_particles *p = s->p;
     l->skin = skin;
     l->dim = p->dim;
@@ -1327,14 +1433,21 @@ void consph_sys_nlist_info(const consph_sys *s, consph_nlist_info *info)
     const double n = (double)l->n;
     info->candidates = (double)l->ncand / n;
     info->pairs = (double)l->npairs / n;
+    /* a cache refused for the budget holds no pairs (consph_sys_nlist_info's bytes stay true) */
+    const int refused = cache_over_budget(l);
+    if (refused)
+        snprintf(info->note, sizeof info->note,
+                 "pair cache off: its pairs would exceed the budget (CONSPH_PAIR_CACHE_MB, else "
+                 "half the memory per process); the passes filter the neighbours at every pass");
     /* from the counts of the last build and cache, not the buffers' capacities, so that a run
      * and its restart report the same */
-    const double values = l->npairs ? (l->have & CONSPH_PASS_W ? 1.0 : 0.0) +
-                                          (l->have & CONSPH_PASS_DW ? 1.0 : 0.0) +
-                                          (l->have & CONSPH_PASS_D2W ? 1.0 : 0.0)
-                                    : 0.0;
+    const double values = l->npairs && !refused ? (l->have & CONSPH_PASS_W ? 1.0 : 0.0) +
+                                                      (l->have & CONSPH_PASS_DW ? 1.0 : 0.0) +
+                                                      (l->have & CONSPH_PASS_D2W ? 1.0 : 0.0)
+                                                : 0.0;
     double bytes = n * (sizeof(double) * 2.0 * l->dim + (l->particle ? 8.0 : 0.0)) +
                    (double)l->ncand * (sizeof(uint32_t) + sizeof(uint16_t)) +
-                   (double)l->npairs * (sizeof(size_t) + sizeof(double) * (l->dim + 1 + values));
+                   (refused ? 0.0 : (double)l->npairs) *
+                       (sizeof(size_t) + sizeof(double) * (l->dim + 1 + values));
     info->bytes = bytes / n;
 }

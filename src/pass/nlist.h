@@ -40,6 +40,10 @@ extern unsigned long nlist_chain_trailing;
  * run (a caller that runs the pass itself asks this instead of calling nlist_pass_run). */
 int nlist_gathers(consph_nlist *l);
 void nlist_free(consph_nlist *l);
+/* The processes sharing this machine's memory (MPI ranks on one node; 1 without MPI): the pair
+ * cache's default budget is half the physical memory shared among them. Set once at start-up
+ * (src/par/world.c), before any list is made. */
+void nlist_node_processes(int count);
 /* Whether the passes run on the list (it is on and holds the system's n particles). */
 int nlist_serves(const consph_nlist *l, size_t n);
 
