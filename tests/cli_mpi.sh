@@ -111,20 +111,6 @@ rc=$?
 
 # consph run decomposes the solver: 2 and 3 ranks write the serial run's files bit for bit
 # (summary.json's timings aside), and its table once; a checkpoint of 3 ranks restarts on 2.
-nosec() { sed -E 's/"(seconds|setup_seconds|[a-z_]*seconds)": *[-0-9.eE+]+/"seconds": -/g' "$1"; }
-same_run() {
-    local f ok=0
-    [ "$(ls -A "$1")" = "$(ls -A "$2")" ] || { bad "$3: files $(ls -A "$2" | tr '\n' ' ')"; return 1; }
-    for f in "$1"/*; do
-        case $f in
-        # a run's id is drawn per run, and the checkpoint carries it: the restart below checks it
-        *run.id | *checkpoint.ckpt) true ;;
-        *summary.json) cmp -s <(nosec "$f") <(nosec "$2/${f##*/}") ;;
-        *) cmp -s "$f" "$2/${f##*/}" ;;
-        esac || { bad "$3: ${f##*/} differs"; ok=1; }
-    done
-    return $ok
-}
 runargs=(run taylor-green --scheme edac --layout lattice --nx 24 --steps 6 --snapshot-every 3
     --checkpoint-every 3)
 "$bin" "${runargs[@]}" --out "$work/r1" >"$work/ro1" 2>"$work/err" || bad "serial run: $(cat "$work/err")"

@@ -23,6 +23,31 @@ failing() {
     bad "$* >$to: message '$(cat "$work/err")' lacks '$text'"
     return 1
 }
+# summary_masked FILE: summary.json with its timings blanked (and, with SUMMARY_MASK_NLIST=1,
+# the neighbour list's bytes and note, which a pair-cache budget changes).
+summary_masked() {
+    if [ "${SUMMARY_MASK_NLIST:-0}" = 1 ]; then
+        sed -E -e 's/"([a-z_]*seconds)": *[-0-9.eE+]+/"\1": -/g' \
+            -e 's/"(nlist_bytes_per_particle|nlist_note)": *.*/"\1": -/' "$1"
+    else
+        sed -E 's/"([a-z_]*seconds)": *[-0-9.eE+]+/"\1": -/g' "$1"
+    fi
+}
+# same_run A B WHAT: run directories A and B hold the same files, each equal byte for byte
+# (summary.json through summary_masked; run.id and the checkpoint, which carries the run's id,
+# skipped); else 1 after saying which differ.
+same_run() {
+    local f ok=0
+    [ "$(ls -A "$1")" = "$(ls -A "$2")" ] || { bad "$3: files $(ls -A "$2" | tr '\n' ' ')"; return 1; }
+    for f in "$1"/*; do
+        case $f in
+        *run.id | *checkpoint.ckpt) true ;;
+        *summary.json) cmp -s <(summary_masked "$f") <(summary_masked "$2/${f##*/}") ;;
+        *) cmp -s "$f" "$2/${f##*/}" ;;
+        esac || { bad "$3: ${f##*/} differs"; ok=1; }
+    done
+    return $ok
+}
 # summary NAME: the counts; the exit status of the test.
 summary() {
     echo "$1: $pass passed, $fail failed"
