@@ -152,26 +152,21 @@ TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int
     {                                                                                              \
         first_body(job, nb, D, P, U, Q);                                                           \
     }
-#define FIRST_CLONES_Q(D, P, U) FIRST_CLONE(D, P, U, 0) FIRST_CLONE(D, P, U, 1)
-#define FIRST_CLONES_U(D, P) FIRST_CLONES_Q(D, P, 0) FIRST_CLONES_Q(D, P, 1)
-#define FIRST_CLONES(D) FIRST_CLONES_U(D, 0) FIRST_CLONES_U(D, 1)
-FIRST_CLONES(1)
-FIRST_CLONES(2)
-FIRST_CLONES(3)
-#define FIRST_NAMES_Q(D, P, U)                                                                     \
+/* M(D, P, U, Q) for every (∇p, ∇u or ∇·u, ∇q) of dimension D; the table of the functions
+ * PFX##D##P##U##Q that M defines, indexed [P][U][Q] */
+#define FIRST_EACH_Q(M, D, P, U) M(D, P, U, 0) M(D, P, U, 1)
+#define FIRST_EACH_U(M, D, P) FIRST_EACH_Q(M, D, P, 0) FIRST_EACH_Q(M, D, P, 1)
+#define FIRST_EACH(M, D) FIRST_EACH_U(M, D, 0) FIRST_EACH_U(M, D, 1)
+#define FIRST_TABLE(PFX, D)                                                                        \
     {                                                                                              \
-        first_##D##P##U##0, first_##D##P##U##1                                                     \
+        {{PFX##D##000, PFX##D##001}, {PFX##D##010, PFX##D##011}},                                  \
+            {{PFX##D##100, PFX##D##101}, {PFX##D##110, PFX##D##111}},                              \
     }
-#define FIRST_NAMES_U(D, P)                                                                        \
-    {                                                                                              \
-        FIRST_NAMES_Q(D, P, 0), FIRST_NAMES_Q(D, P, 1)                                             \
-    }
-#define FIRST_NAMES(D)                                                                             \
-    {                                                                                              \
-        FIRST_NAMES_U(D, 0), FIRST_NAMES_U(D, 1)                                                   \
-    }
-static const consph_visit_fn first_visits[3][2][2][2] = {FIRST_NAMES(1), FIRST_NAMES(2),
-                                                         FIRST_NAMES(3)};
+FIRST_EACH(FIRST_CLONE, 1)
+FIRST_EACH(FIRST_CLONE, 2)
+FIRST_EACH(FIRST_CLONE, 3)
+static const consph_visit_fn first_visits[3][2][2][2] = {
+    FIRST_TABLE(first_, 1), FIRST_TABLE(first_, 2), FIRST_TABLE(first_, 3)};
 
 /* coupled_bc (Σ ω_j (G_j - G_i)·B_i∇W_ij) of every component of u and of q in one run over the
  * neighbours, for a dimension known at compile time: B_i∇W_ij is formed once per pair and each
@@ -627,28 +622,13 @@ TERM_INLINE void group_first_body(const kit_job *job, const consph_nbhd *nb, con
     {                                                                                              \
         group_first_body(job, nb, count, D, P, U, Q);                                              \
     }
-#define GROUP_FIRST_CLONES_Q(D, P, U) GROUP_FIRST_CLONE(D, P, U, 0) GROUP_FIRST_CLONE(D, P, U, 1)
-#define GROUP_FIRST_CLONES_U(D, P) GROUP_FIRST_CLONES_Q(D, P, 0) GROUP_FIRST_CLONES_Q(D, P, 1)
-#define GROUP_FIRST_CLONES(D) GROUP_FIRST_CLONES_U(D, 0) GROUP_FIRST_CLONES_U(D, 1)
-GROUP_FIRST_CLONES(2)
-GROUP_FIRST_CLONES(3)
-#define GROUP_FIRST_NAMES_Q(D, P, U)                                                               \
-    {                                                                                              \
-        group_first_##D##P##U##0, group_first_##D##P##U##1                                         \
-    }
-#define GROUP_FIRST_NAMES_U(D, P)                                                                  \
-    {                                                                                              \
-        GROUP_FIRST_NAMES_Q(D, P, 0), GROUP_FIRST_NAMES_Q(D, P, 1)                                 \
-    }
-#define GROUP_FIRST_NAMES(D)                                                                       \
-    {                                                                                              \
-        GROUP_FIRST_NAMES_U(D, 0), GROUP_FIRST_NAMES_U(D, 1)                                       \
-    }
+FIRST_EACH(GROUP_FIRST_CLONE, 2)
+FIRST_EACH(GROUP_FIRST_CLONE, 3)
 /* 1D runs the per-particle visits */
 static const pass_group_fn group_firsts[3][2][2][2] = {
     {{{NULL, NULL}, {NULL, NULL}}, {{NULL, NULL}, {NULL, NULL}}},
-    GROUP_FIRST_NAMES(2),
-    GROUP_FIRST_NAMES(3)};
+    FIRST_TABLE(group_first_, 2),
+    FIRST_TABLE(group_first_, 3)};
 
 /* kit_coupled_pair over the lanes: neighbours j, separations x, W'/r w1 */
 TERM_INLINE void coupled_lanes(const kit_job *job, const size_t j[PASS_GROUP], const lane4 x[3],
