@@ -45,6 +45,7 @@ static const par_case cases[] = {
     {"deltaplus-2d", "taylor-green", "delta-plus-sph", 40, CONSPH_LAYOUT_RANDOM, 8, NULL},
     {"tvf-2d", "taylor-green", "tvf", 40, CONSPH_LAYOUT_RANDOM, 6, NULL},
     {"ec-2d", "taylor-green", "e-c", 40, CONSPH_LAYOUT_LATTICE, 4, NULL},
+    {"quasi-2d", "taylor-green", "wcsph", 40, CONSPH_LAYOUT_QUASI_RANDOM, 3, NULL},
     {"lipstc-3d", "beltrami", "l-ipst-c", 20, CONSPH_LAYOUT_LATTICE, 3,
      "ipst_every=2 kernel=cubic"},
     {"wcsph-3d", "beltrami", "wcsph", 20, CONSPH_LAYOUT_LATTICE, 3, "kernel=cubic"},
@@ -190,6 +191,15 @@ static int run_case(const par_case *c, const char *path)
         !(s->sys.dest && own < whole && (size != 3 || s->sys.p->n < whole))) {
         fprintf(stderr, "case %s: %zu of %zu particles on this rank: not decomposed\n", c->name,
                 s->sys.p->n, whole);
+        st = CONSPH_EINVAL;
+    }
+    /* the set-up made this rank's share of the layout only (lattice and random are made by
+     * index): at most ceil(N / K) particles before the cut, never the whole set */
+    const size_t share = (whole + (size_t)size - 1) / (size_t)(size > 1 ? size : 1);
+    if (st == CONSPH_OK && size > 1 && par_setup_made(s) > share) {
+        fprintf(stderr,
+                "case %s: the set-up made %zu particles on this rank, more than %zu of %zu\n",
+                c->name, par_setup_made(s), share, whole);
         st = CONSPH_EINVAL;
     }
     while (st == CONSPH_OK && !consph_solver_done(s)) st = consph_solver_step(s);
