@@ -1252,11 +1252,9 @@ static int migrate(consph_solver *s, par_solver *ps)
     if (st == CONSPH_OK) {
         sbuf = malloc((nsd ? nsd : 1) * sizeof(double));
         rbuf = malloc((nrd ? nrd : 1) * sizeof(double));
-        rcol = malloc((nr ? nr : 1) * ncol * sizeof(double));
-        rg = malloc((nr ? nr : 1) * sizeof(double));
         iall = malloc((ps->nown ? ps->nown : 1) * sizeof(size_t));
         ifull = malloc((ps->nown ? ps->nown : 1) * sizeof(size_t));
-        if (!sbuf || !rbuf || !rcol || !rg || !iall || !ifull) st = par_fail_mem();
+        if (!sbuf || !rbuf || !iall || !ifull) st = par_fail_mem();
     }
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
     double *v = sbuf;
@@ -1284,6 +1282,16 @@ static int migrate(consph_solver *s, par_solver *ps)
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = -1;
     }
     MPI_Alltoallv(sbuf, sd, sdis, MPI_DOUBLE, rbuf, rd, rdis, MPI_DOUBLE, ps->comm);
+    /* each buffer freed as soon as it is read: at the set-up's first cut nearly every particle
+     * travels, and the buffers would double the peak of the install */
+    free(sbuf);
+    sbuf = NULL;
+    rcol = malloc((nr ? nr : 1) * ncol * sizeof(double));
+    rg = malloc((nr ? nr : 1) * sizeof(double));
+    if (!rcol || !rg) {
+        par_fail_mem();
+        MPI_Abort(ps->comm, 1);
+    }
     /* the received records column by column (rcol[c·nr + r], g in rg), the columns not sent
      * from what this rank kept of its halo (got) */
     const double *in = rbuf;
@@ -1308,6 +1316,8 @@ static int migrate(consph_solver *s, par_solver *ps)
         }
         r0 += m;
     }
+    free(rbuf);
+    rbuf = NULL;
     /* what stays on this rank is a copy, as the serial re-sort's permutation */
     ps->bytes +=
         (double)((nsd - (size_t)sd[ps->rank]) * sizeof(double) + ncol * (size_t)(ps->size - 1));
