@@ -74,6 +74,14 @@ int consph_par_solver_decompose(consph_solver *s);
 int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
                              const consph_particles *given, int *joined);
 
+/* consph_run_restart for a decomposed run: each of K ranks reads only its part of the
+ * checkpoint's particles (consph_checkpoint_read_part: 1/K of them in the stored order, every
+ * field) and restores a solver of them, which consph_par_solver_decompose, called next as after
+ * consph_run_restart (once the ranks agree), cuts as it cuts a whole one: the run is the same bit
+ * for bit, for a checkpoint written on any number of ranks. Until then the solver holds a part
+ * only: run nothing on it. On one rank, or built without MPI: consph_run_restart. */
+int consph_par_run_restart(consph_solver **s, const char *checkpoint);
+
 /* Communication of a decomposed solver so far, this rank: bytes sent (halo refresh, migration,
  * gathers to rank 0) and seconds spent in MPI calls. Zero for a serial solver. */
 void consph_par_solver_comm(const consph_solver *s, double *bytes, double *seconds);

@@ -28,6 +28,9 @@
 
 #include "consph/par.h"
 
+#include <stdio.h>
+#include <stdlib.h>
+
 #ifdef CONSPH_HAVE_MPI
 
 #include <math.h>
@@ -1880,11 +1883,11 @@ static int decompose(consph_solver *s, const solver_range *range)
         return par_fail_mem();
     }
     if (range) {
-        /* This rank made the particles [lo, hi) of the set's order, each with its index there;
-         * the migration sorts runs ascending in that index (own in the made order). */
-        const double *id = sv_field(s, SF_ID, 1);
+        /* This rank made (or read) the particles [lo, hi) of the set's order, which its search
+         * sorted by cell: origin[i] is particle i's place in the range. The migration sorts runs
+         * ascending in the set's index (own in the range's order). */
         for (size_t i = 0; i < m; ++i) {
-            ps->g[i] = id[i];
+            ps->g[i] = (double)(range->lo + s->sys.origin[i]);
             dest[i] = 1;
             ps->own[s->sys.origin[i]] = i;
         }
@@ -1920,7 +1923,15 @@ static int decompose(consph_solver *s, const solver_range *range)
 
 int consph_par_solver_decompose(consph_solver *s)
 {
-    return decompose(s, NULL);
+    if (!s || !s->part) return decompose(s, NULL);
+    /* a rank's part of a checkpoint (consph_par_run_restart): its neighbour list once cut */
+    int st = decompose(s, s->part);
+    if (st == CONSPH_OK && s->par) st = solver_nlist_start(s, 1);
+    if (st == CONSPH_OK) {
+        free(s->part);
+        s->part = NULL;
+    }
+    return st;
 }
 
 size_t par_setup_made(const consph_solver *s)
@@ -2083,4 +2094,36 @@ int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
     const int ranged = setup_range(prm, given, consph_par_rank(), size, &range);
     create_cut c = {joined, ranged ? &range : NULL};
     return solver_create_cut(out, prm, given, c.range, agree_and_cut, &c);
+}
+
+int consph_par_run_restart(consph_solver **s, const char *checkpoint)
+{
+    const int size = consph_par_size();
+    *s = NULL;
+    if (size < 2) return consph_run_restart(s, checkpoint);
+    char *meta = NULL;
+    double *hist = NULL;
+    size_t nh = 0, first = 0, total = 0;
+    consph_particles p;
+    int st = consph_checkpoint_read_part(checkpoint, consph_par_rank(), size, &meta, &p, &hist, &nh,
+                                         &first, &total);
+    if (st != CONSPH_OK) return st;
+    if (total < (size_t)size) {
+        /* more ranks than particles: the whole set's cut refuses the launch with its message */
+        free(meta);
+        free(hist);
+        consph_particles_free(&p);
+        return consph_run_restart(s, checkpoint);
+    }
+    const solver_range range = {first, first + p.n, total};
+    st = solver_restore_range(s, meta, &p, hist, nh, &range);
+    if (st != CONSPH_OK && st != CONSPH_ENOMEM) {
+        char msg[512];
+        snprintf(msg, sizeof msg, "%s", consph_last_error());
+        consph_fail(st, "checkpoint '%s': %s", checkpoint, msg);
+    }
+    free(meta);
+    free(hist);
+    consph_particles_free(&p);
+    return st;
 }

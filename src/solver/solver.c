@@ -401,6 +401,7 @@ void consph_solver_free(consph_solver *s)
     wcref_free(s->wc);
     free(s->wc_buf);
     par_solver_free(s->par);
+    free(s->part);
     free(s);
 }
 

@@ -256,6 +256,8 @@ struct consph_solver {
     size_t wc_cap;
     struct gpu_run *gpu;    /* --device gpu: the steps run there (src/gpu/); NULL: on the CPU */
     struct par_solver *par; /* decomposed over MPI ranks (src/par/par_solver.h); NULL: serial */
+    /* a rank's part of a checkpoint, restored to be cut (range.n > 0: consph_par_run_restart) */
+    struct solver_range *part;
 };
 
 /* fn(s, arg) over the whole state: at once in a serial run; decomposed, on rank 0 over the
@@ -275,6 +277,10 @@ typedef struct solver_range {
 int solver_create_cut(consph_solver **out, const consph_run_params *prm,
                       const consph_particles *given, const solver_range *range,
                       int (*cut)(consph_solver *s, void *arg), void *arg);
+/* consph_solver_restore of the particles [range->lo, range->hi) of a checkpoint's range->n
+ * (NULL: all of them), before its cut: no neighbour list yet (the cut starts it). */
+int solver_restore_range(consph_solver **out, const char *meta, const consph_particles *particles,
+                         const double *history, size_t nhistory, const solver_range *range);
 
 /* consph_run_nx_check against `memory` bytes (0: unknown) instead of this machine's. */
 int run_nx_fits(int nx, int dim, double memory);
