@@ -221,6 +221,36 @@ static int run_case(const par_case *c, const char *path)
     return st;
 }
 
+/* The first case from given particles that hold only this rank's range of the layout (a
+ * library caller that reads its part of a file): the serial case's state, bit for bit. */
+static int run_given_range(const char *path)
+{
+    const par_case *c = &cases[0];
+    consph_run_params prm = case_params(c);
+    consph_layout_params lp;
+    int size = 1, rank = 0;
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    const size_t n = (size_t)c->nx * (size_t)c->nx, lo = n * (size_t)rank / (size_t)size,
+                 hi = n * (size_t)(rank + 1) / (size_t)size;
+    consph_particles part;
+    memset(&part, 0, sizeof part);
+    int st = consph_run_layout_params(&prm, &lp);
+    if (st == CONSPH_OK) st = consph_layout_generate_range(&lp, lo, hi - lo, &part);
+    consph_solver *s = NULL;
+    if (st == CONSPH_OK) st = consph_par_solver_create(&s, &prm, &part, NULL);
+    consph_particles_free(&part);
+    if (st == CONSPH_OK && par_setup_made(s) != hi - lo) {
+        fprintf(stderr, "given range: %zu particles made, not %zu\n", par_setup_made(s), hi - lo);
+        st = CONSPH_EINVAL;
+    }
+    while (st == CONSPH_OK && !consph_solver_done(s)) st = consph_solver_step(s);
+    if (st == CONSPH_OK) st = solver_global(s, dump, (void *)path);
+    if (st != CONSPH_OK) fprintf(stderr, "given range: %s\n", consph_last_error());
+    consph_solver_free(s);
+    return st;
+}
+
 /* A run with files: 10 steps, a snapshot every 5, a checkpoint at step 5; the run id fixed so
  * that the files can be compared. With `restart`, from dir/checkpoint.ckpt instead: read whole
  * on every rank (1), or each rank its part (2: consph_par_run_restart, which never holds more
@@ -412,6 +442,8 @@ static int child(const char *base)
     snprintf(dir, sizeof dir, "%s.restart.np%d", base, size);
     bad |= run_files(dir, 2) != CONSPH_OK;
     bad |= check_refresh() != CONSPH_OK;
+    snprintf(dir, sizeof dir, "%s.given.np%d", base, size);
+    bad |= run_given_range(dir) != CONSPH_OK;
     /* more ranks than slabs: 4² particles in 2D have one or two cells per axis */
     {
         par_case c = {"tiny", "taylor-green", "wcsph", 4, CONSPH_LAYOUT_LATTICE, 1, NULL};
@@ -565,7 +597,11 @@ int main(int argc, char **argv)
                       "%s on %d ranks: another message than the serial run's", cases[k].name, np);
             }
         }
-        char dir[512];
+        char dir[512], a[512];
+        snprintf(a, sizeof a, "%s.%s.serial", base, cases[0].name);
+        snprintf(dir, sizeof dir, "%s.given.np%d", base, np);
+        CHECK(check_same_file(a, dir), "%s from given ranges on %d ranks: the state differs",
+              cases[0].name, np);
         snprintf(dir, sizeof dir, "%s.files.np%d", base, np);
         compare_dirs(ref, dir);
         snprintf(dir, sizeof dir, "%s.restart.np%d", base, np);

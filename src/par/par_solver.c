@@ -28,6 +28,7 @@
 
 #include "consph/par.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 
@@ -2068,7 +2069,10 @@ static int setup_range(const consph_run_params *prm, const consph_particles *giv
     if (!sd || sd->needs_lattice) return 0;
     size_t n = 0;
     if (given) {
-        n = given->n;
+        /* the run's count (the given set may hold all of them or this rank's range only) */
+        const int dim = consph_problem_dim(prm->problem);
+        n = prm->n > 0 ? (size_t)prm->n : (size_t)lround(pow((double)prm->nx, dim));
+        if (dim < 1) return 0;
     } else {
         if (consph_run_layout_params(prm, &lp) != CONSPH_OK || !consph_layout_by_index(lp.kind))
             return 0;
