@@ -602,7 +602,7 @@ int cmd_run(int argc, char **argv)
         /* the new end, read with the table's bounds */
         consph_run_params end = prm;
         if ((rc = params_given(&cmd, opts, &po, nparam, &end)) != 0) return rc;
-        st = consph_run_restart(&s, restart);
+        st = consph_par_run_restart(&s, restart); /* on K ranks each reads its part */
         if (st != CONSPH_OK) {
             fprintf(stderr, "consph run: option --restart: %s\n", consph_last_error());
             return CLI_EXIT_USAGE;

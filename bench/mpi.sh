@@ -232,9 +232,9 @@ solver_case() {
             if [ -z "$m" ]; then
                 # the ranks together hold about 1.6 times the serial peak (a rank's pair cache
                 # is its owned particles', its halo's fields, the migration's buffers: 15 kB
-                # per owned particle measured in 3D against 11.7 serially) and each makes the
-                # whole set's particles before the cut (about 2 kB per particle at its peak)
-                need=$(awk -v k="$k" -v n="$n" -v b="$kb_per" 'BEGIN { if (b != "") printf "%d", 1.6 * n * b + k * n * 2; else print 0 }')
+                # per owned particle measured in 3D against 11.7 serially); each makes only its
+                # share of the set-up (about 2 kB per particle held at the first cut's peak)
+                need=$(awk -v n="$n" -v b="$kb_per" 'BEGIN { if (b != "") printf "%d", 1.6 * n * b + 2 * n * 2; else print 0 }')
                 if [ "$DEADLINE" -gt 0 ] && [ "$(date +%s)" -ge "$DEADLINE" ]; then
                     m="SKIP time budget spent"
                 elif [ "$need" -gt "$MEM_KB" ]; then

@@ -12,7 +12,8 @@
 #   .../pmix2/              PMIx (external in Debian's OpenMPI): library, components, help
 #   DIR/usr/share/openmpi/  help and data files
 #   DIR/bin/                consph and bench_par (Release, -DCONSPH_MPI=ON, -DCONSPH_CUDA=OFF)
-#   DIR/scripts/            bench/mpi.sh, bench/mpi_device.sh, tests/lib_cli.sh: the folder is
+#   DIR/scripts/            bench/mpi.sh, bench/mpi_device.sh, bench/mpi_strong.sh,
+#                           tests/lib_cli.sh: the folder is
 #                           self-contained, a checkout without this branch can run it
 #
 # With BEFORE=BINARY in the environment, that consph (an MPI build of an earlier commit) goes in
@@ -74,7 +75,7 @@ done
 cp -L "$SYSLIB"/pmix2/lib/pmix/*.so "$L/pmix2/lib/pmix/"
 cp -RL "$SYSLIB/pmix2/share/." "$L/pmix2/share/"
 cp -RL /usr/share/openmpi "$DIR/usr/share/"
-cp bench/mpi.sh bench/mpi_device.sh "$DIR/scripts/bench/"
+cp bench/mpi.sh bench/mpi_device.sh bench/mpi_strong.sh "$DIR/scripts/bench/"
 cp tests/lib_cli.sh "$DIR/scripts/tests/"
 
 # Every library the binaries and components load, glibc's own left to the target: by soname,

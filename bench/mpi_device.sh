@@ -18,6 +18,10 @@
 #   SYSTEM_MPI=1 (use this machine's OpenMPI instead: for the test here), BEFORE (default
 #   CARRY/bin/consph-before when packed: an earlier build measured with this one on the largest
 #   rank count at BEFORE_PER_RANK particles per rank, default 20000, before the tables).
+# CASE=strong200 runs instead (after the 2-rank start) only the strong scaling of the issue's
+#   200^3 (bench/mpi_strong.sh: 16, 8 then 4 ranks, 1 and 2 steps each, within BUDGET_BIG
+#   seconds, default 500: one 10-minute device call with the machine's start; BIG_NX and
+#   BIG_RANKS change the size and the rank counts) into OUTDIR/mpi.md.
 # Exit 0 with the tables written; 2 when 2 ranks cannot start (diag.txt says why).
 set -u
 T0=$(date +%s)
@@ -129,6 +133,17 @@ echo "hello $(($(date +%s) - T0))" >"$OUTDIR/times.txt"
 WORK=${WORK:-${TMPDIR:-/tmp}/consph_mpi_device}
 : >"$OUTDIR/progress.log"
 STEPS1=${STEPS1:-1} STEPS2=${STEPS2:-3}
+
+if [ "${CASE:-}" = strong200 ]; then
+    t=$(date +%s)
+    MPIRUN="$MPIRUN" CONSPH="$CONSPH" OUT="$OUTDIR/mpi.md" WORK="$WORK" NX="${BIG_NX:-200}" \
+        RANKS="${BIG_RANKS:-16 8 4}" DEADLINE=$((T0 + ${BUDGET_BIG:-500})) \
+        bash "$SCRIPTS/mpi_strong.sh" 2>&1 | tee -a "$OUTDIR/progress.log"
+    echo "strong200 $(($(date +%s) - t))" >>"$OUTDIR/times.txt"
+    echo "total $(($(date +%s) - T0))" >>"$OUTDIR/times.txt"
+    cat "$OUTDIR/times.txt"
+    exit 0
+fi
 
 # The earlier build, if packed, on KMAX ranks first (so that the solver tables below cannot
 # leave it no time), and this build on the same case; their rows are appended after the tables.

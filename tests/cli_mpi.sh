@@ -128,6 +128,16 @@ cp -r "$work/r3" "$work/rr"
 mpi 2 "$bin" run --restart "$work/rr/checkpoint.ckpt" --out "$work/rr" >/dev/null 2>"$work/err" &&
     same_run "$work/r1" "$work/rr" "restart of 3 ranks' checkpoint on 2" && pass=$((pass + 1)) ||
     bad "restart on 2 ranks: $(ours "$work/err")"
+# Given particles (a random layout's file): each rank's set-up takes its share of them, the run
+# is the serial one.
+"$bin" layout --kind random --dim 2 --nx 24 --out "$work/given.csv" >/dev/null 2>"$work/err" ||
+    bad "layout for --particles: $(cat "$work/err")"
+"$bin" run taylor-green --scheme edac --particles "$work/given.csv" --steps 3 --out "$work/g1" \
+    >/dev/null 2>"$work/err" || bad "serial run of given particles: $(cat "$work/err")"
+mpi 3 "$bin" run taylor-green --scheme edac --particles "$work/given.csv" --steps 3 \
+    --out "$work/g3" >/dev/null 2>"$work/err" && same_run "$work/g1" "$work/g3" \
+    "given particles on 3 ranks" && pass=$((pass + 1)) ||
+    bad "given particles on 3 ranks: $(ours "$work/err")"
 # What the decomposition cannot serve: exit 2, once, nothing written.
 failing 2 "l-rr-c" /dev/null -- \
     mpi 2 "$bin" run taylor-green --scheme l-rr-c --layout lattice --nx 8 --steps 2 --out "$work/rrc" &&

@@ -152,6 +152,41 @@ static void test_round_trip(void)
                     check_same_particles(&p, &q, what);
                     consph_particles_free(&q);
                 }
+                /* the parts a decomposed restart reads: together, the whole set bit for bit */
+                for (int parts = 1; parts <= 3; ++parts) {
+                    int same = 1;
+                    for (int part = 0; part < parts; ++part) {
+                        char *m3 = NULL;
+                        double *h3 = NULL;
+                        size_t n3 = 0, first = 0, total = 0;
+                        consph_particles r3;
+                        rc = consph_checkpoint_read_part(path, part, parts, &m3, &r3, &h3, &n3,
+                                                         &first, &total);
+                        CHECK(rc == CONSPH_OK, "%s: part %d of %d: %s", what, part, parts,
+                              consph_last_error());
+                        if (rc != CONSPH_OK) continue;
+                        const size_t lo = p.n * (size_t)part / (size_t)parts;
+                        same = same && total == p.n && first == lo && !strcmp(m3, meta) &&
+                               n3 == nh && (!nh || same_bits(h3, hist, nh)) && r3.dim == p.dim &&
+                               r3.n == p.n * (size_t)(part + 1) / (size_t)parts - lo &&
+                               r3.nfields == p.nfields && r3.spacing == p.spacing;
+                        for (int a = 0; same && a < dim; ++a)
+                            same = same_bits(r3.x[a], p.x[a] + lo, r3.n) &&
+                                   r3.box.lo[a] == p.box.lo[a] && r3.box.hi[a] == p.box.hi[a] &&
+                                   r3.box.periodic[a] == p.box.periodic[a];
+                        for (int f = 0; same && f < p.nfields; ++f) {
+                            same = !strcmp(r3.fields[f].name, p.fields[f].name) &&
+                                   r3.fields[f].ncomp == p.fields[f].ncomp;
+                            for (int c = 0; same && c < p.fields[f].ncomp; ++c)
+                                same = same_bits(r3.fields[f].data + (size_t)c * r3.cap,
+                                                 p.fields[f].data + (size_t)c * p.cap + lo, r3.n);
+                        }
+                        free(m3);
+                        free(h3);
+                        consph_particles_free(&r3);
+                    }
+                    CHECK(same, "%s: %d parts are not the whole set", what, parts);
+                }
                 free(meta2);
                 free(hist2);
                 consph_particles_free(&p);
@@ -191,6 +226,27 @@ static void expect_refused(const char *path, const void *bytes, size_t size, con
         free(meta);
         free(hist);
         consph_particles_free(&p);
+    }
+    /* a part of it: refused as well, with the whole read's message */
+    char whole[512];
+    snprintf(whole, sizeof whole, "%s", consph_last_error());
+    for (int part = 0; part < 2; ++part) {
+        meta = (char *)1;
+        hist = (double *)1;
+        nh = 99;
+        size_t first = 9, total = 9;
+        consph_clear_error();
+        rc = consph_checkpoint_read_part(path, part, 2, &meta, &p, &hist, &nh, &first, &total);
+        CHECK(rc == CONSPH_EFORMAT && !strcmp(consph_last_error(), whole),
+              "%s: part %d: rc %d (%s), the whole read's: %s", what, part, rc, consph_last_error(),
+              whole);
+        CHECK(meta == NULL && hist == NULL && nh == 0 && p.n == 0 && p.x[0] == NULL,
+              "%s: part %d: something was returned", what, part);
+        if (rc == CONSPH_OK) {
+            free(meta);
+            free(hist);
+            consph_particles_free(&p);
+        }
     }
 }
 

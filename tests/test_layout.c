@@ -582,12 +582,59 @@ static void test_packed_walls(void)
           "walls with packed-polished rejected: %s", consph_last_error());
 }
 
+/* The ranges an MPI rank makes at a decomposed set-up: consecutive ranges of every kind made by
+ * index put together are the whole layout bit for bit (positions and volume), the random kind's
+ * numbers skipped for the particles before a range; the packed kinds and a range beyond the set
+ * are refused. */
+static void test_ranges(void)
+{
+    static const consph_layout_kind kinds[] = {CONSPH_LAYOUT_LATTICE, CONSPH_LAYOUT_RANDOM,
+                                               CONSPH_LAYOUT_QUASI_RANDOM};
+    for (int dim = 2; dim <= 3; ++dim)
+        for (size_t k = 0; k < sizeof kinds / sizeof kinds[0]; ++k) {
+            consph_layout_params lp = consph_layout_defaults(kinds[k], dim, 7);
+            lp.seed = 11;
+            lp.eps = 0.4;
+            consph_particles whole;
+            CHECK(consph_layout_generate(&lp, &whole, NULL) == CONSPH_OK, "%s: %s",
+                  consph_layout_name(kinds[k]), consph_last_error());
+            const size_t n = whole.n, cuts[] = {0, 1, n / 3, n / 3, n - 5, n};
+            int same = 1;
+            for (size_t c = 0; c + 1 < sizeof cuts / sizeof cuts[0]; ++c) {
+                consph_particles part;
+                const size_t first = cuts[c], count = cuts[c + 1] - cuts[c];
+                CHECK(consph_layout_generate_range(&lp, first, count, &part) == CONSPH_OK,
+                      "%s range: %s", consph_layout_name(kinds[k]), consph_last_error());
+                same = same && part.n == count && part.spacing == whole.spacing;
+                for (int a = 0; same && a < dim; ++a)
+                    same = !memcmp(part.x[a], whole.x[a] + first, count * sizeof(double));
+                const consph_field *v = consph_particles_find(&part, "volume");
+                same = same && v &&
+                       (!count || v->data[0] == consph_particles_find(&whole, "volume")->data[0]);
+                consph_particles_free(&part);
+            }
+            CHECK(same, "%s %dD: the ranges are the whole layout's particles, bit for bit",
+                  consph_layout_name(kinds[k]), dim);
+            consph_particles part;
+            CHECK(consph_layout_generate_range(&lp, n - 2, 3, &part) == CONSPH_EINVAL,
+                  "a range beyond the set is refused");
+            consph_particles_free(&whole);
+        }
+    consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_PACKED, 2, 8);
+    consph_particles part;
+    CHECK(!consph_layout_by_index(CONSPH_LAYOUT_PACKED) &&
+              consph_layout_generate_range(&lp, 0, 4, &part) == CONSPH_EINVAL &&
+              strstr(consph_last_error(), "whole layout"),
+          "packed: no range (%s)", consph_last_error());
+}
+
 int main(void)
 {
     test_names();
     test_lattice();
     test_random();
     test_quasi_random();
+    test_ranges();
     test_stats();
     test_polished_2d();
     test_polished_3d();

@@ -45,6 +45,7 @@ static const par_case cases[] = {
     {"deltaplus-2d", "taylor-green", "delta-plus-sph", 40, CONSPH_LAYOUT_RANDOM, 8, NULL},
     {"tvf-2d", "taylor-green", "tvf", 40, CONSPH_LAYOUT_RANDOM, 6, NULL},
     {"ec-2d", "taylor-green", "e-c", 40, CONSPH_LAYOUT_LATTICE, 4, NULL},
+    {"quasi-2d", "taylor-green", "wcsph", 40, CONSPH_LAYOUT_QUASI_RANDOM, 3, NULL},
     {"lipstc-3d", "beltrami", "l-ipst-c", 20, CONSPH_LAYOUT_LATTICE, 3,
      "ipst_every=2 kernel=cubic"},
     {"wcsph-3d", "beltrami", "wcsph", 20, CONSPH_LAYOUT_LATTICE, 3, "kernel=cubic"},
@@ -192,6 +193,15 @@ static int run_case(const par_case *c, const char *path)
                 s->sys.p->n, whole);
         st = CONSPH_EINVAL;
     }
+    /* the set-up made this rank's share of the layout only (lattice and random are made by
+     * index): at most ceil(N / K) particles before the cut, never the whole set */
+    const size_t share = (whole + (size_t)size - 1) / (size_t)(size > 1 ? size : 1);
+    if (st == CONSPH_OK && size > 1 && par_setup_made(s) > share) {
+        fprintf(stderr,
+                "case %s: the set-up made %zu particles on this rank, more than %zu of %zu\n",
+                c->name, par_setup_made(s), share, whole);
+        st = CONSPH_EINVAL;
+    }
     while (st == CONSPH_OK && !consph_solver_done(s)) st = consph_solver_step(s);
     if (st == CONSPH_ENUMERIC && !strcmp(c->name, "diverges")) {
         /* the message (and the state where it stopped) is what is compared */
@@ -211,8 +221,40 @@ static int run_case(const par_case *c, const char *path)
     return st;
 }
 
+/* The first case from given particles that hold only this rank's range of the layout (a
+ * library caller that reads its part of a file): the serial case's state, bit for bit. */
+static int run_given_range(const char *path)
+{
+    const par_case *c = &cases[0];
+    consph_run_params prm = case_params(c);
+    consph_layout_params lp;
+    int size = 1, rank = 0;
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    const size_t n = (size_t)c->nx * (size_t)c->nx, lo = n * (size_t)rank / (size_t)size,
+                 hi = n * (size_t)(rank + 1) / (size_t)size;
+    consph_particles part;
+    memset(&part, 0, sizeof part);
+    int st = consph_run_layout_params(&prm, &lp);
+    if (st == CONSPH_OK) st = consph_layout_generate_range(&lp, lo, hi - lo, &part);
+    consph_solver *s = NULL;
+    if (st == CONSPH_OK) st = consph_par_solver_create(&s, &prm, &part, NULL);
+    consph_particles_free(&part);
+    if (st == CONSPH_OK && par_setup_made(s) != hi - lo) {
+        fprintf(stderr, "given range: %zu particles made, not %zu\n", par_setup_made(s), hi - lo);
+        st = CONSPH_EINVAL;
+    }
+    while (st == CONSPH_OK && !consph_solver_done(s)) st = consph_solver_step(s);
+    if (st == CONSPH_OK) st = solver_global(s, dump, (void *)path);
+    if (st != CONSPH_OK) fprintf(stderr, "given range: %s\n", consph_last_error());
+    consph_solver_free(s);
+    return st;
+}
+
 /* A run with files: 10 steps, a snapshot every 5, a checkpoint at step 5; the run id fixed so
- * that the files can be compared. With `restart`, from dir/checkpoint.ckpt instead. */
+ * that the files can be compared. With `restart`, from dir/checkpoint.ckpt instead: read whole
+ * on every rank (1), or each rank its part (2: consph_par_run_restart, which never holds more
+ * than its share of the particles before the cut). */
 static int run_files(const char *dir, int restart)
 {
     par_case c = {"files", "taylor-green", "edac", 40, CONSPH_LAYOUT_RANDOM, 10, NULL};
@@ -222,13 +264,21 @@ static int run_files(const char *dir, int restart)
     if (restart) {
         char ck[512];
         snprintf(ck, sizeof ck, "%s/checkpoint.ckpt", dir);
-        st = consph_run_restart(&s, ck);
+        st = restart == 2 ? consph_par_run_restart(&s, ck) : consph_run_restart(&s, ck);
     } else {
         mkdir(dir, 0755); /* every rank: one makes it */
         st = consph_solver_create(&s, &prm);
         if (st == CONSPH_OK) snprintf(s->run_id, sizeof s->run_id, "0123456789abcdef");
     }
     if (st == CONSPH_OK) st = consph_par_solver_decompose(s);
+    int size = 1;
+    MPI_Initialized(&size);
+    if (size) MPI_Comm_size(MPI_COMM_WORLD, &size);
+    if (st == CONSPH_OK && restart == 2 && size > 1 &&
+        par_setup_made(s) > (1600 + (size_t)size - 1) / (size_t)size) {
+        fprintf(stderr, "restart in %s: %zu particles read on this rank\n", dir, par_setup_made(s));
+        st = CONSPH_EINVAL;
+    }
     consph_run_output out = {dir, 5, 5, 0, 0};
     consph_run_summary sum;
     int sig = 0;
@@ -390,8 +440,10 @@ static int child(const char *base)
     snprintf(dir, sizeof dir, "%s.files.np%d", base, size);
     bad |= run_files(dir, 0) != CONSPH_OK;
     snprintf(dir, sizeof dir, "%s.restart.np%d", base, size);
-    bad |= run_files(dir, 1) != CONSPH_OK;
+    bad |= run_files(dir, 2) != CONSPH_OK;
     bad |= check_refresh() != CONSPH_OK;
+    snprintf(dir, sizeof dir, "%s.given.np%d", base, size);
+    bad |= run_given_range(dir) != CONSPH_OK;
     /* more ranks than slabs: 4² particles in 2D have one or two cells per axis */
     {
         par_case c = {"tiny", "taylor-green", "wcsph", 4, CONSPH_LAYOUT_LATTICE, 1, NULL};
@@ -545,7 +597,11 @@ int main(int argc, char **argv)
                       "%s on %d ranks: another message than the serial run's", cases[k].name, np);
             }
         }
-        char dir[512];
+        char dir[512], a[512];
+        snprintf(a, sizeof a, "%s.%s.serial", base, cases[0].name);
+        snprintf(dir, sizeof dir, "%s.given.np%d", base, np);
+        CHECK(check_same_file(a, dir), "%s from given ranges on %d ranks: the state differs",
+              cases[0].name, np);
         snprintf(dir, sizeof dir, "%s.files.np%d", base, np);
         compare_dirs(ref, dir);
         snprintf(dir, sizeof dir, "%s.restart.np%d", base, np);

@@ -208,6 +208,14 @@ int consph_checkpoint_write(const char *path, const char *meta, const consph_par
  * Sizes in the file are checked against its length before any allocation. */
 int consph_checkpoint_read(const char *path, char **meta, consph_particles *p, double **history,
                            size_t *nhistory);
+/* The same for one of `parts` parts of the particles: those [N part / parts, N (part + 1) /
+ * parts) of the stored N, in the stored order (*first, the first one's index; *total, N), every
+ * field; meta and history whole. The payload is inflated as a stream (its CRC checked over the
+ * whole of it), so memory is that of the part: an MPI rank's share of a restart
+ * (consph_par_run_restart). */
+int consph_checkpoint_read_part(const char *path, int part, int parts, char **meta,
+                                consph_particles *p, double **history, size_t *nhistory,
+                                size_t *first, size_t *total);
 
 /* A ParaView .pvd index of snapshot files, rewritten atomically after each added entry so it
  * is always complete. Entry file names are written relative to the index's directory. */

@@ -94,6 +94,16 @@ consph_layout_params consph_layout_defaults(consph_layout_kind kind, int dim, si
 int consph_layout_generate(const consph_layout_params *lp, consph_particles *p,
                            consph_packing_report *report);
 
+/* 1 when the kind makes each particle from its index alone (lattice, random, quasi-random), so
+ * that a part of the layout can be made without the rest. */
+int consph_layout_by_index(consph_layout_kind kind);
+/* The particles first, ..., first + count - 1 of the layout consph_layout_generate makes (the
+ * same bits, "volume" that of the whole set), into `p` (initialised here): an MPI rank's share
+ * of the set-up (src/par/par_solver.c). The random kind draws and drops the random numbers of
+ * the particles before `first`. CONSPH_EINVAL for the packed kinds and a range beyond the set. */
+int consph_layout_generate_range(const consph_layout_params *lp, size_t first, size_t count,
+                                 consph_particles *p);
+
 /* ---- the cache of packed layouts ----
  *
  * When a cache directory is set, consph_layout_generate keeps every packed and packed-polished

@@ -63,16 +63,26 @@ void consph_par_quiet_others(void);
  * skin, remeshing (l-rr-c). */
 int consph_par_solver_decompose(consph_solver *s);
 /* consph_solver_create_from (given NULL: consph_solver_create) decomposed from the start, for
- * runs too large for every rank to hold the whole solver: every rank makes the whole set's
- * particles and initial fields (the same on every rank), the ranks agree (consph_par_agree:
- * a rank that failed before passes its status to the others, which fail with it), the
- * decomposition cuts them, and the neighbour list, the initial rates and the first sample are
- * made decomposed, so a rank's peak memory is its part's solver plus the whole set's particles,
- * not the whole solver. *joined (may be NULL) is set to 1 once this rank has joined the
- * agreement. The run is the serial one bit for bit, as after consph_par_solver_decompose. On
- * one rank, or built without MPI: consph_solver_create_from. */
+ * runs too large for every rank to hold the whole solver or the whole set: rank k of K makes
+ * only the particles [N k/K, N (k+1)/K) of the layout's order (lattice, random, quasi-random)
+ * or of `given` (which may hold all N or only that range) with their initial fields, the ranks
+ * agree (consph_par_agree: a rank that failed before passes its status to the others, which
+ * fail with it), the decomposition cuts them, and the neighbour list, the initial rates and the
+ * first sample are made decomposed, so a rank's peak memory is its part's (a packed layout,
+ * l-rr-c and more ranks than particles: every rank makes the whole set first, as before). *joined
+ * (may be NULL) is set to 1 once this rank has joined the agreement. The run is the serial one bit
+ * for bit, as after consph_par_solver_decompose. On one rank, or built without MPI:
+ * consph_solver_create_from. */
 int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
                              const consph_particles *given, int *joined);
+
+/* consph_run_restart for a decomposed run: each of K ranks reads only its part of the
+ * checkpoint's particles (consph_checkpoint_read_part: 1/K of them in the stored order, every
+ * field) and restores a solver of them, which consph_par_solver_decompose, called next as after
+ * consph_run_restart (once the ranks agree), cuts as it cuts a whole one: the run is the same bit
+ * for bit, for a checkpoint written on any number of ranks. Until then the solver holds a part
+ * only: run nothing on it. On one rank, or built without MPI: consph_run_restart. */
+int consph_par_run_restart(consph_solver **s, const char *checkpoint);
 
 /* Communication of a decomposed solver so far, this rank: bytes sent (halo refresh, migration,
  * gathers to rank 0) and seconds spent in MPI calls. Zero for a serial solver. */

@@ -499,3 +499,361 @@ done:
     free(payload);
     return rc;
 }
+
+/* ---- reading a part: the payload inflated as a stream, only a range of each column kept ---- */
+
+typedef struct ck_stream {
+    const char *path;
+    FILE *fp;
+    z_stream z;
+    int zinit, zend;
+    unsigned char in[CK_CHUNK];
+    unsigned char skip[CK_CHUNK];
+    uint64_t usize, consumed; /* the payload's size, the bytes handed out so far */
+    uLong crc;
+    int err; /* the first error of the parse (its status; the message recorded) */
+} ck_stream;
+
+static int cs_bad(ck_stream *s, const char *what)
+{
+    if (!s->err) s->err = consph_fail(CONSPH_EFORMAT, "checkpoint '%s': %s", s->path, what);
+    return s->err;
+}
+
+static uint64_t cs_left(const ck_stream *s)
+{
+    return s->usize - s->consumed;
+}
+
+/* The next len bytes of the payload into dst (NULL: dropped), the CRC over them; a payload that
+ * ends first is an error naming `what` (where: "before" or "inside"). */
+static int cs_take(ck_stream *s, void *dst, size_t len, const char *where, const char *what)
+{
+    char msg[160];
+    if (len > cs_left(s)) {
+        snprintf(msg, sizeof msg, "payload ends %s the %s", where, what);
+        return cs_bad(s, msg);
+    }
+    unsigned char *out = dst;
+    while (len > 0) {
+        const size_t want = len < CK_CHUNK ? len : CK_CHUNK;
+        unsigned char *to = out ? out : s->skip;
+        s->z.next_out = to;
+        s->z.avail_out = (uInt)want;
+        while (s->z.avail_out > 0) {
+            if (s->z.avail_in == 0 && !feof(s->fp)) {
+                s->z.next_in = s->in;
+                s->z.avail_in = (uInt)fread(s->in, 1, CK_CHUNK, s->fp);
+            }
+            const int zr = inflate(&s->z, Z_NO_FLUSH);
+            if (zr == Z_STREAM_END) {
+                s->zend = 1;
+                break;
+            }
+            if (zr != Z_OK && !(zr == Z_BUF_ERROR && s->z.avail_in == 0 && !feof(s->fp)))
+                return cs_bad(s, zr == Z_BUF_ERROR ? "payload shorter than the header says"
+                                                   : "corrupt compressed payload");
+        }
+        const size_t got = want - s->z.avail_out;
+        s->crc = crc32(s->crc, to, (uInt)got);
+        s->consumed += got;
+        if (got < want) return cs_bad(s, "payload shorter than the header says");
+        if (out) out += got;
+        len -= got;
+    }
+    return CONSPH_OK;
+}
+
+/* Whether the stream ends here, the payload's bytes all handed out. */
+static int cs_end(ck_stream *s)
+{
+    unsigned char one;
+    while (!s->zend) {
+        if (s->z.avail_in == 0 && !feof(s->fp)) {
+            s->z.next_in = s->in;
+            s->z.avail_in = (uInt)fread(s->in, 1, CK_CHUNK, s->fp);
+        }
+        s->z.next_out = &one;
+        s->z.avail_out = 1;
+        const int zr = inflate(&s->z, Z_NO_FLUSH);
+        if (s->z.avail_out == 0) return 0; /* a byte beyond the payload */
+        if (zr == Z_STREAM_END)
+            s->zend = 1;
+        else if (zr != Z_OK && !(zr == Z_BUF_ERROR && s->z.avail_in == 0 && !feof(s->fp)))
+            return 0;
+    }
+    return 1;
+}
+
+static int cs_u64(ck_stream *s, uint64_t *v, const char *what)
+{
+    unsigned char b[8];
+    *v = 0;
+    int rc = cs_take(s, b, 8, "before", what);
+    if (!rc) *v = get_u64(b);
+    return rc;
+}
+
+/* `count` doubles into v (NULL: dropped), as their bit patterns. */
+static int cs_doubles(ck_stream *s, double *v, size_t count, const char *what)
+{
+    if (cs_left(s) / 8 < count) {
+        char msg[128];
+        snprintf(msg, sizeof msg, "payload ends inside the %s", what);
+        return cs_bad(s, msg);
+    }
+    int rc = cs_take(s, v, 8 * count, "inside", what);
+    for (size_t i = 0; v && !rc && i < count; ++i) {
+        const uint64_t bits = get_u64((const unsigned char *)&v[i]);
+        memcpy(&v[i], &bits, 8);
+    }
+    return rc;
+}
+
+/* The payload after the header: as parse_payload, keeping particles [first, first + count) of
+ * the stored n; *total is n. */
+static int cs_payload(ck_stream *s, int part, int parts, char **meta, consph_particles *p,
+                      double **history, size_t *nhistory, size_t *first, size_t *total)
+{
+    uint64_t len;
+    int rc = cs_u64(s, &len, "metadata");
+    char msg[160];
+    if (!rc && len > cs_left(s)) {
+        snprintf(msg, sizeof msg, "metadata length %llu exceeds the payload",
+                 (unsigned long long)len);
+        rc = cs_bad(s, msg);
+    }
+    if (!rc && !(*meta = malloc((size_t)len + 1))) rc = consph_fail(CONSPH_ENOMEM, "out of memory");
+    if (!rc) rc = cs_take(s, *meta, (size_t)len, "inside", "metadata");
+    if (rc) return rc;
+    (*meta)[len] = '\0';
+    if (memchr(*meta, '\0', (size_t)len)) return cs_bad(s, "metadata holds a NUL byte");
+    uint64_t dim, n, nfields, periodic[CONSPH_MAX_DIM];
+    consph_box box;
+    memset(&box, 0, sizeof box);
+    double spacing;
+    if ((rc = cs_u64(s, &dim, "dimension"))) return rc;
+    if (dim < 1 || dim > CONSPH_MAX_DIM) return cs_bad(s, "dimension is not 1, 2 or 3");
+    box.dim = (int)dim;
+    if ((rc = cs_u64(s, &n, "particle count"))) return rc;
+    for (int a = 0; a < box.dim; ++a) {
+        uint64_t lo, hi;
+        if ((rc = cs_u64(s, &lo, "box")) || (rc = cs_u64(s, &hi, "box")) ||
+            (rc = cs_u64(s, &periodic[a], "box")))
+            return rc;
+        memcpy(&box.lo[a], &lo, 8);
+        memcpy(&box.hi[a], &hi, 8);
+        if (periodic[a] > 1) return cs_bad(s, "periodicity flag is not 0 or 1");
+        box.periodic[a] = (int)periodic[a];
+    }
+    if (consph_box_check(&box)) return cs_bad(s, "invalid box");
+    uint64_t sb;
+    if ((rc = cs_u64(s, &sb, "spacing"))) return rc;
+    memcpy(&spacing, &sb, 8);
+    if ((rc = cs_u64(s, &nfields, "field count"))) return rc;
+    if (nfields > CONSPH_MAX_FIELDS) return cs_bad(s, "more fields than consph allows");
+    char names[CONSPH_MAX_FIELDS][CONSPH_FIELD_NAME_MAX];
+    int ncomp[CONSPH_MAX_FIELDS];
+    uint64_t columns = dim;
+    for (uint64_t f = 0; f < nfields; ++f) {
+        uint64_t nl;
+        if ((rc = cs_u64(s, &nl, "field name"))) return rc;
+        if (nl > CONSPH_FIELD_NAME_MAX - 1 || nl > cs_left(s)) {
+            snprintf(msg, sizeof msg, "field name length %llu exceeds %s", (unsigned long long)nl,
+                     nl > cs_left(s) ? "the payload" : "its limit");
+            return cs_bad(s, msg);
+        }
+        if ((rc = cs_take(s, names[f], (size_t)nl, "inside", "field name"))) return rc;
+        names[f][nl] = '\0';
+        if (memchr(names[f], '\0', (size_t)nl)) return cs_bad(s, "field name holds a NUL byte");
+        if (!names[f][0]) return cs_bad(s, "empty field name");
+        for (uint64_t g = 0; g < f; ++g)
+            if (strcmp(names[g], names[f]) == 0) return cs_bad(s, "two fields of the same name");
+        uint64_t nc;
+        if ((rc = cs_u64(s, &nc, "field components"))) return rc;
+        if (nc < 1 || nc > INT_MAX || nc > cs_left(s))
+            return cs_bad(s, "impossible field component count");
+        ncomp[f] = (int)nc;
+        columns += nc;
+    }
+    if (cs_left(s) < 8 || n > (cs_left(s) - 8) / 8 / columns)
+        return cs_bad(s, "particle count larger than the payload holds");
+    const size_t lo = (size_t)(n * (uint64_t)part / (uint64_t)parts),
+                 hi = (size_t)(n * (uint64_t)(part + 1) / (uint64_t)parts), m = hi - lo;
+    *first = lo;
+    *total = (size_t)n;
+    if ((rc = consph_particles_init(p, box.dim, m, &box))) return rc;
+    p->spacing = spacing;
+    /* every column: the particles before the range dropped, the range kept, the rest dropped */
+    for (uint64_t c = 0; c < columns && !rc; ++c) {
+        double *d = NULL;
+        if (c < dim) {
+            d = p->x[c];
+        } else {
+            uint64_t f = 0, k = c - dim;
+            while (k >= (uint64_t)ncomp[f]) k -= (uint64_t)ncomp[f++];
+            d = k == 0 ? consph_particles_field(p, names[f], ncomp[f])
+                       : consph_particles_find(p, names[f])->data;
+            if (!d) return CONSPH_ENOMEM;
+            d += (size_t)k * p->cap;
+        }
+        const char *what = c < dim ? "positions" : "field data";
+        rc = cs_doubles(s, NULL, lo, what);
+        if (!rc) rc = cs_doubles(s, d, m, what);
+        if (!rc) rc = cs_doubles(s, NULL, (size_t)n - hi, what);
+    }
+    if (rc) return rc;
+    uint64_t nh;
+    if ((rc = cs_u64(s, &nh, "history count"))) return rc;
+    if (nh > cs_left(s) / 8) return cs_bad(s, "history count larger than the payload holds");
+    if (nh) {
+        *history = malloc((size_t)nh * sizeof(double));
+        if (!*history) return consph_fail(CONSPH_ENOMEM, "out of memory");
+        if ((rc = cs_doubles(s, *history, (size_t)nh, "history"))) return rc;
+    }
+    *nhistory = (size_t)nh;
+    if (cs_left(s) != 0) return cs_bad(s, "bytes after the history");
+    return CONSPH_OK;
+}
+
+/* The first pass of a part's read: the whole compressed payload inflated as a stream into
+ * scratch, with consph_checkpoint_read's checks and words (consph_rd_inflate's for the stream,
+ * then its size and CRC), so that a bad file is refused as the whole read refuses it. */
+static int ck_verify(ck_stream *s, const ck_reader *r, uint64_t csize, uint32_t crc)
+{
+    const char *why = "";
+    z_stream z;
+    memset(&z, 0, sizeof z);
+    if (inflateInit(&z) != Z_OK) return bad(r, "out of memory");
+    uint64_t read_in = 0, out = 0;
+    const uint64_t limit = s->usize + 1;
+    uLong c = crc32(0L, Z_NULL, 0);
+    int rc = Z_OK;
+    while (rc != Z_STREAM_END && out < limit) {
+        if (z.avail_in == 0 && read_in < csize) {
+            const size_t want = csize - read_in < CK_CHUNK ? (size_t)(csize - read_in) : CK_CHUNK;
+            const size_t got = fread(s->in, 1, want, s->fp);
+            if (got != want) {
+                inflateEnd(&z);
+                return consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", r->path);
+            }
+            read_in += got;
+            z.next_in = s->in;
+            z.avail_in = (uInt)got;
+        }
+        size_t room = CK_CHUNK;
+        if (room > limit - out) room = (size_t)(limit - out);
+        z.next_out = s->skip;
+        z.avail_out = (uInt)room;
+        rc = inflate(&z, Z_NO_FLUSH);
+        const size_t got = room - z.avail_out;
+        c = crc32(c, s->skip, (uInt)got);
+        out += got;
+        if (rc == Z_OK) continue;
+        if (rc == Z_STREAM_END) break;
+        if (rc == Z_BUF_ERROR && (z.avail_out == 0 || (z.avail_in == 0 && read_in < csize)))
+            continue;
+        if (rc == Z_BUF_ERROR)
+            why = "truncated compressed data";
+        else if (rc == Z_NEED_DICT)
+            why = "needs a preset dictionary";
+        else if (rc == Z_MEM_ERROR)
+            why = "out of memory";
+        else if (z.msg && strstr(z.msg, "incorrect data check"))
+            why = "checksum mismatch";
+        else if (z.msg && strstr(z.msg, "header"))
+            why = "not a zlib stream (bad header)";
+        else
+            why = "corrupt compressed data";
+        break;
+    }
+    inflateEnd(&z);
+    if (out > s->usize) return bad(r, "more data than the block size in the header");
+    if (rc != Z_STREAM_END) return bad(r, why[0] ? why : "truncated compressed data");
+    if (z.avail_in != 0 || read_in < csize) return bad(r, "bytes after the end of the zlib stream");
+    if (out != s->usize) return bad(r, "payload shorter than the header says");
+    if ((uint32_t)c != crc) return bad(r, "CRC-32 mismatch (corrupt payload)");
+    return CONSPH_OK;
+}
+
+int consph_checkpoint_read_part(const char *path, int part, int parts, char **meta,
+                                consph_particles *p, double **history, size_t *nhistory,
+                                size_t *first, size_t *total)
+{
+    *meta = NULL;
+    *history = NULL;
+    *nhistory = 0;
+    *first = *total = 0;
+    memset(p, 0, sizeof *p);
+    if (parts < 1 || part < 0 || part >= parts)
+        return consph_fail(CONSPH_EINVAL, "checkpoint '%s': part %d of %d", path, part, parts);
+    ck_stream *s = consph_calloc(1, sizeof *s);
+    if (!s) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    s->path = path;
+    ck_reader r = {path, NULL, 0, 0};
+    int rc = CONSPH_OK;
+    char msg[160];
+    s->fp = fopen(path, "rb");
+    if (!s->fp) {
+        free(s);
+        return consph_fail(CONSPH_EIO, "cannot open checkpoint '%s'", path);
+    }
+    /* the header's checks are consph_checkpoint_read's, in its order and words */
+    unsigned char head[CK_HEADER];
+    size_t got = fread(head, 1, sizeof head, s->fp);
+    uint32_t crc = 0;
+    if (got < 8 || memcmp(head, CK_MAGIC, 8) != 0) {
+        rc = bad(&r, "not a consph checkpoint (bad magic)");
+    } else if (got < sizeof head) {
+        rc = bad(&r, "truncated header");
+    } else {
+        const uint32_t version = get_u32(head + 8);
+        crc = get_u32(head + 12);
+        s->usize = get_u64(head + 16);
+        const uint64_t csize = get_u64(head + 24);
+        long fsize = -1;
+        if (version != CK_VERSION) {
+            snprintf(msg, sizeof msg, "format version %lu, this build reads version %u",
+                     (unsigned long)version, CK_VERSION);
+            rc = bad(&r, msg);
+        } else if (fseek(s->fp, 0, SEEK_END) != 0 || (fsize = ftell(s->fp)) < 0) {
+            rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
+        } else if ((uint64_t)fsize - CK_HEADER != csize) {
+            snprintf(msg, sizeof msg, "%s: %llu bytes of compressed payload, the header says %llu",
+                     (uint64_t)fsize - CK_HEADER < csize ? "truncated" : "trailing bytes",
+                     (unsigned long long)((uint64_t)fsize - CK_HEADER), (unsigned long long)csize);
+            rc = bad(&r, msg);
+        } else if (csize == 0 || csize > UINT_MAX || s->usize / CK_MAX_RATIO > csize) {
+            rc = bad(&r, "impossible payload sizes in the header");
+        } else if (fseek(s->fp, CK_HEADER, SEEK_SET) != 0) {
+            rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
+        } else if ((rc = ck_verify(s, &r, csize, crc)) == CONSPH_OK &&
+                   fseek(s->fp, CK_HEADER, SEEK_SET) != 0) {
+            rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
+        }
+    }
+    if (rc == CONSPH_OK) {
+        if (inflateInit(&s->z) != Z_OK) {
+            rc = consph_fail(CONSPH_ENOMEM, "out of memory");
+        } else {
+            s->zinit = 1;
+            s->crc = crc32(0L, Z_NULL, 0);
+            rc = cs_payload(s, part, parts, meta, p, history, nhistory, first, total);
+            /* the stream was checked whole (ck_verify): what remains is the payload's content */
+            if (rc == CONSPH_OK && !cs_end(s))
+                rc = bad(&r, "inflate: the stream holds more than the header says");
+        }
+    }
+    if (s->zinit) inflateEnd(&s->z);
+    fclose(s->fp);
+    free(s);
+    if (rc != CONSPH_OK) {
+        free(*meta);
+        *meta = NULL;
+        free(*history);
+        *history = NULL;
+        *nhistory = 0;
+        if (p->x[0]) consph_particles_free(p);
+    }
+    return rc;
+}

@@ -144,12 +144,16 @@ static int check_params(const consph_layout_params *lp, size_t *n_out, double *d
 }
 
 /* Cell-centred lattice x = lo + (i + 1/2) Δs, axis 0 varying fastest:
- * particle index = i0 + nx0 (i1 + nx1 i2). */
-static void fill_lattice(const consph_layout_params *lp, consph_particles *p)
+ * particle index = i0 + nx0 (i1 + nx1 i2); p holds the particles first, first + 1, ... */
+static void fill_lattice(const consph_layout_params *lp, consph_particles *p, size_t first)
 {
-    size_t idx[CONSPH_MAX_DIM] = {0, 0, 0};
+    size_t idx[CONSPH_MAX_DIM] = {0, 0, 0}, rest = first;
     double ds[CONSPH_MAX_DIM];
-    for (int a = 0; a < lp->dim; ++a) ds[a] = consph_box_length(&lp->box, a) / (double)lp->nx[a];
+    for (int a = 0; a < lp->dim; ++a) {
+        ds[a] = consph_box_length(&lp->box, a) / (double)lp->nx[a];
+        idx[a] = rest % lp->nx[a];
+        rest /= lp->nx[a];
+    }
     for (size_t i = 0; i < p->n; ++i) {
         for (int a = 0; a < lp->dim; ++a)
             p->x[a][i] = lp->box.lo[a] + ((double)idx[a] + 0.5) * ds[a];
@@ -164,10 +168,13 @@ static void fill_lattice(const consph_layout_params *lp, consph_particles *p)
  * by axis, and wraps on periodic axes. With amplitude = eps/4 this is 002's x + eps κ Δ with κ
  * uniform in [-0.25, 0.25]. */
 static void perturb_positions(const consph_layout_params *lp, consph_particles *p, double ds,
-                              double amplitude)
+                              double amplitude, size_t first)
 {
     consph_rng rng;
     consph_rng_seed(&rng, lp->seed);
+    /* particle i draws numbers i·dim to i·dim + dim - 1 of the sequence: those of the particles
+     * before `first` are drawn and dropped (a few ns each, no memory) */
+    for (size_t k = 0; k < first * (size_t)lp->dim; ++k) (void)consph_rng_next(&rng);
     for (size_t i = 0; i < p->n; ++i)
         for (int a = 0; a < lp->dim; ++a)
             p->x[a][i] += amplitude * ds * (2.0 * consph_rng_uniform(&rng) - 1.0);
@@ -199,13 +206,13 @@ static double radical_inverse(uint64_t k, unsigned base)
 
 /* Halton points with bases 2, 3, 5 scaled to the box. Point i uses sequence index i + 1: index 0
  * is the origin in every base, which would put a particle on the box corner. */
-static void fill_halton(const consph_layout_params *lp, consph_particles *p)
+static void fill_halton(const consph_layout_params *lp, consph_particles *p, size_t first)
 {
     static const unsigned bases[CONSPH_MAX_DIM] = {2, 3, 5};
     for (int a = 0; a < lp->dim; ++a) {
         double lo = lp->box.lo[a], len = consph_box_length(&lp->box, a);
         for (size_t i = 0; i < p->n; ++i)
-            p->x[a][i] = lo + len * radical_inverse((uint64_t)i + 1, bases[a]);
+            p->x[a][i] = lo + len * radical_inverse((uint64_t)(first + i) + 1, bases[a]);
     }
 }
 
@@ -238,7 +245,7 @@ static int generate_packed(const consph_layout_params *lp, consph_particles *p,
         memset(&own, 0, sizeof own);
         rep = &own;
     }
-    fill_lattice(lp, p);
+    fill_lattice(lp, p, 0);
     int rc = consph_layout_pack(lp, p, rep);
     if (rc == CONSPH_OK && cached) layout_cache_store(lp, p, rep);
     layout_cache_unlock(lock);
@@ -246,8 +253,16 @@ static int generate_packed(const consph_layout_params *lp, consph_particles *p,
     return rc;
 }
 
-int consph_layout_generate(const consph_layout_params *lp, consph_particles *p,
-                           consph_packing_report *report)
+int consph_layout_by_index(consph_layout_kind kind)
+{
+    return kind == CONSPH_LAYOUT_LATTICE || kind == CONSPH_LAYOUT_RANDOM ||
+           kind == CONSPH_LAYOUT_QUASI_RANDOM;
+}
+
+/* The particles [first, first + count) of the layout, or all of them (whole: the packed kinds
+ * move every particle together). */
+static int generate(const consph_layout_params *lp, consph_particles *p,
+                    consph_packing_report *report, int whole, size_t first, size_t count)
 {
     memset(p, 0, sizeof *p);
     if (report) memset(report, 0, sizeof *report);
@@ -255,19 +270,32 @@ int consph_layout_generate(const consph_layout_params *lp, consph_particles *p,
     double ds = 0.0;
     int rc = check_params(lp, &n, &ds);
     if (rc) return rc;
-    rc = consph_particles_init(p, lp->dim, n, &lp->box);
+    if (whole) {
+        first = 0;
+        count = n;
+    } else if (!consph_layout_by_index(lp->kind)) {
+        return consph_fail(CONSPH_EINVAL,
+                           "layout %s: its particles are packed together, not made one by one "
+                           "from their index; generate the whole layout",
+                           consph_layout_name(lp->kind));
+    } else if (first > n || count > n - first) {
+        return consph_fail(CONSPH_EINVAL,
+                           "layout %s: particles [%zu, %zu) are not within its %zu particles",
+                           consph_layout_name(lp->kind), first, first + count, n);
+    }
+    rc = consph_particles_init(p, lp->dim, count, &lp->box);
     if (rc) return rc;
     p->spacing = ds;
     switch (lp->kind) {
     case CONSPH_LAYOUT_LATTICE:
-        fill_lattice(lp, p);
+        fill_lattice(lp, p, first);
         break;
     case CONSPH_LAYOUT_RANDOM:
-        fill_lattice(lp, p);
-        perturb_positions(lp, p, ds, 0.25 * lp->eps);
+        fill_lattice(lp, p, first);
+        perturb_positions(lp, p, ds, 0.25 * lp->eps, first);
         break;
     case CONSPH_LAYOUT_QUASI_RANDOM:
-        fill_halton(lp, p);
+        fill_halton(lp, p, first);
         break;
     case CONSPH_LAYOUT_PACKED:
     case CONSPH_LAYOUT_PACKED_POLISHED:
@@ -282,7 +310,7 @@ int consph_layout_generate(const consph_layout_params *lp, consph_particles *p,
             rc = CONSPH_ENOMEM;
         } else {
             double v = consph_box_volume(&lp->box) / (double)n;
-            for (size_t i = 0; i < n; ++i) vol[i] = v;
+            for (size_t i = 0; i < count; ++i) vol[i] = v;
         }
     }
     if (rc) {
@@ -292,8 +320,20 @@ int consph_layout_generate(const consph_layout_params *lp, consph_particles *p,
     return rc;
 }
 
+int consph_layout_generate(const consph_layout_params *lp, consph_particles *p,
+                           consph_packing_report *report)
+{
+    return generate(lp, p, report, 1, 0, 0);
+}
+
+int consph_layout_generate_range(const consph_layout_params *lp, size_t first, size_t count,
+                                 consph_particles *p)
+{
+    return generate(lp, p, NULL, 0, first, count);
+}
+
 void consph_layout_perturb(const consph_layout_params *lp, consph_particles *p, double ds,
                            double amplitude)
 {
-    perturb_positions(lp, p, ds, amplitude);
+    perturb_positions(lp, p, ds, amplitude, 0);
 }

@@ -28,6 +28,10 @@
 
 #include "consph/par.h"
 
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+
 #ifdef CONSPH_HAVE_MPI
 
 #include <math.h>
@@ -92,6 +96,7 @@ struct par_solver {
     /* the particle set the last install replaced: its storage serves the next one */
     consph_particles spare;
     size_t pairs_base; /* the solver's pair count when it was cut (counted on every rank) */
+    size_t made;       /* the particles this rank held when it was cut (set-up's memory) */
     /* The cut's weights: per local particle, the pairs the pair cache held for it on the last
      * position state since the install that the cache served (pairs_epoch: the list's epoch
      * then, 0: none yet); the same integers for any thread count. */
@@ -1251,11 +1256,9 @@ static int migrate(consph_solver *s, par_solver *ps)
     if (st == CONSPH_OK) {
         sbuf = malloc((nsd ? nsd : 1) * sizeof(double));
         rbuf = malloc((nrd ? nrd : 1) * sizeof(double));
-        rcol = malloc((nr ? nr : 1) * ncol * sizeof(double));
-        rg = malloc((nr ? nr : 1) * sizeof(double));
         iall = malloc((ps->nown ? ps->nown : 1) * sizeof(size_t));
         ifull = malloc((ps->nown ? ps->nown : 1) * sizeof(size_t));
-        if (!sbuf || !rbuf || !rcol || !rg || !iall || !ifull) st = par_fail_mem();
+        if (!sbuf || !rbuf || !iall || !ifull) st = par_fail_mem();
     }
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
     double *v = sbuf;
@@ -1283,6 +1286,16 @@ static int migrate(consph_solver *s, par_solver *ps)
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = -1;
     }
     MPI_Alltoallv(sbuf, sd, sdis, MPI_DOUBLE, rbuf, rd, rdis, MPI_DOUBLE, ps->comm);
+    /* each buffer freed as soon as it is read: at the set-up's first cut nearly every particle
+     * travels, and the buffers would double the peak of the install */
+    free(sbuf);
+    sbuf = NULL;
+    rcol = malloc((nr ? nr : 1) * ncol * sizeof(double));
+    rg = malloc((nr ? nr : 1) * sizeof(double));
+    if (!rcol || !rg) {
+        par_fail_mem();
+        MPI_Abort(ps->comm, 1);
+    }
     /* the received records column by column (rcol[c·nr + r], g in rg), the columns not sent
      * from what this rank kept of its halo (got) */
     const double *in = rbuf;
@@ -1307,6 +1320,8 @@ static int migrate(consph_solver *s, par_solver *ps)
         }
         r0 += m;
     }
+    free(rbuf);
+    rbuf = NULL;
     /* what stays on this rank is a copy, as the serial re-sort's permutation */
     ps->bytes +=
         (double)((nsd - (size_t)sd[ps->rank]) * sizeof(double) + ncol * (size_t)(ps->size - 1));
@@ -1767,7 +1782,10 @@ static int choose_boxes(par_solver *ps)
     return found;
 }
 
-int consph_par_solver_decompose(consph_solver *s)
+/* Cuts s, whose particles are the whole set (range NULL) or this rank's range of it (each
+ * carrying its index in the set's order as "id"): the first migration hands them to the boxes'
+ * owners, sorted by (cell, index), which is the serial set-up's stable sort by cell. */
+static int decompose(consph_solver *s, const solver_range *range)
 {
     int init = 0;
     MPI_Initialized(&init);
@@ -1778,7 +1796,7 @@ int consph_par_solver_decompose(consph_solver *s)
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
     if (size == 1) return CONSPH_OK;
     consph_particles *p = s->sys.p;
-    const size_t n = p->n;
+    const size_t n = range ? range->n : p->n, m = p->n;
     const int axis = p->dim - 1;
     if (s->prm.skin > 0.0)
         return consph_fail(CONSPH_EINVAL,
@@ -1799,8 +1817,14 @@ int consph_par_solver_decompose(consph_solver *s)
     ps->dim = p->dim;
     ps->nglobal = n;
     ps->pairs_base = s->pairs;
-    /* the whole set's grid, from now on at every build of this rank's part */
+    ps->made = m;
+    /* the whole set's grid, from now on at every build of this rank's part (a range was built
+     * on a grid for its own count) */
     nnps_fix_grid(s->sys.nnps, n);
+    if (range && consph_nnps_build(s->sys.nnps, p) != CONSPH_OK) {
+        free(ps);
+        return CONSPH_ENOMEM;
+    }
     int64_t reach[CONSPH_MAX_DIM];
     double edge[CONSPH_MAX_DIM];
     nnps_grid(s->sys.nnps, ps->nc, reach, edge);
@@ -1842,8 +1866,8 @@ int consph_par_solver_decompose(consph_solver *s)
     ps->seg = consph_calloc((size_t)ps->nrows * (size_t)ps->k[0], sizeof(int64_t));
     ps->ranks = consph_calloc((size_t)size, sizeof(int));
     mem = mem && ps->ranks;
-    ps->g = malloc((n ? n : 1) * sizeof(double));
-    ps->own = malloc((n ? n : 1) * sizeof(size_t));
+    ps->g = malloc((m ? m : 1) * sizeof(double));
+    ps->own = malloc((m ? m : 1) * sizeof(size_t));
     ps->scount = consph_calloc((size_t)size, sizeof(int));
     ps->sdispl = consph_calloc((size_t)size, sizeof(int));
     ps->rcount = consph_calloc((size_t)size, sizeof(int));
@@ -1852,22 +1876,35 @@ int consph_par_solver_decompose(consph_solver *s)
     ps->sddis = consph_calloc((size_t)size, sizeof(int));
     ps->rdbl = consph_calloc((size_t)size, sizeof(int));
     ps->rddis = consph_calloc((size_t)size, sizeof(int));
-    unsigned char *dest = consph_calloc(n ? n : 1, 1);
+    unsigned char *dest = consph_calloc(m ? m : 1, 1);
     if (!mem || !ps->seg || !ps->g || !ps->own || !ps->scount || !ps->sdispl || !ps->rcount ||
         !ps->rdispl || !ps->sdbl || !ps->sddis || !ps->rdbl || !ps->rddis || !dest) {
         free(dest);
         par_solver_free(ps);
         return par_fail_mem();
     }
-    /* Every rank holds the whole set in the serial order: each starts from an equal share of
-     * that order, which the migration hands to the slabs' owners. */
-    const size_t lo = n * (size_t)rank / (size_t)size, hi = n * (size_t)(rank + 1) / (size_t)size;
-    for (size_t i = 0; i < n; ++i) {
-        ps->g[i] = (double)i;
-        dest[i] = i >= lo && i < hi;
+    if (range) {
+        /* This rank made (or read) the particles [lo, hi) of the set's order, which its search
+         * sorted by cell: origin[i] is particle i's place in the range. The migration sorts runs
+         * ascending in the set's index (own in the range's order). */
+        for (size_t i = 0; i < m; ++i) {
+            ps->g[i] = (double)(range->lo + s->sys.origin[i]);
+            dest[i] = 1;
+            ps->own[s->sys.origin[i]] = i;
+        }
+        ps->nown = m;
+    } else {
+        /* Every rank holds the whole set in the serial order: each starts from an equal share
+         * of that order, which the migration hands to the slabs' owners. */
+        const size_t lo = n * (size_t)rank / (size_t)size,
+                     hi = n * (size_t)(rank + 1) / (size_t)size;
+        for (size_t i = 0; i < n; ++i) {
+            ps->g[i] = (double)i;
+            dest[i] = i >= lo && i < hi;
+        }
+        for (size_t i = lo; i < hi; ++i) ps->own[i - lo] = i;
+        ps->nown = hi - lo;
     }
-    for (size_t i = lo; i < hi; ++i) ps->own[i - lo] = i;
-    ps->nown = hi - lo;
     ps->split.refresh = refresh;
     ps->split.refresh_positions = refresh_positions;
     ps->split.max = split_max;
@@ -1883,6 +1920,24 @@ int consph_par_solver_decompose(consph_solver *s)
         par_solver_free(ps);
     }
     return st;
+}
+
+int consph_par_solver_decompose(consph_solver *s)
+{
+    if (!s || !s->part) return decompose(s, NULL);
+    /* a rank's part of a checkpoint (consph_par_run_restart): its neighbour list once cut */
+    int st = decompose(s, s->part);
+    if (st == CONSPH_OK && s->par) st = solver_nlist_start(s, 1);
+    if (st == CONSPH_OK) {
+        free(s->part);
+        s->part = NULL;
+    }
+    return st;
+}
+
+size_t par_setup_made(const consph_solver *s)
+{
+    return s && s->par ? s->par->made : s ? s->sys.p->n : 0;
 }
 
 void consph_par_solver_comm(const consph_solver *s, double *bytes, double *seconds)
@@ -1968,6 +2023,11 @@ int consph_par_solver_decompose(consph_solver *s)
     return CONSPH_OK;
 }
 
+size_t par_setup_made(const consph_solver *s)
+{
+    return s ? s->sys.p->n : 0;
+}
+
 void consph_par_solver_comm(const consph_solver *s, double *bytes, double *seconds)
 {
     (void)s;
@@ -1977,13 +2037,53 @@ void consph_par_solver_comm(const consph_solver *s, double *bytes, double *secon
 
 #endif
 
+/* consph_par_solver_create's cut: whether the ranks joined the agreement, and this rank's
+ * range of the set (NULL: every rank made the whole set). */
+typedef struct create_cut {
+    int *joined;
+    const solver_range *range;
+} create_cut;
+
 /* The ranks agree that every one made its particles, then cut them (consph_par_solver_create). */
 static int agree_and_cut(consph_solver *s, void *arg)
 {
-    int *joined = arg;
+    create_cut *c = arg;
     const int st = consph_par_agree(CONSPH_OK);
-    *joined = 1;
+    *c->joined = 1;
+#ifdef CONSPH_HAVE_MPI
+    return st == CONSPH_OK ? decompose(s, c->range) : st;
+#else
     return st == CONSPH_OK ? consph_par_solver_decompose(s) : st;
+#endif
+}
+
+/* The particles of the set-up and whether each rank can make only its share of them: a layout
+ * made particle by particle from its index (not packed, whose particles move together), or
+ * the given particles; not for a scheme that remeshes onto the lattice (refused decomposed) or
+ * more ranks than particles (refused, the message the whole set's cut gives). */
+static int setup_range(const consph_run_params *prm, const consph_particles *given, int rank,
+                       int size, solver_range *r)
+{
+    const scheme_def *sd = scheme_find(prm->scheme);
+    consph_layout_params lp;
+    if (!sd || sd->needs_lattice) return 0;
+    size_t n = 0;
+    if (given) {
+        /* the run's count (the given set may hold all of them or this rank's range only) */
+        const int dim = consph_problem_dim(prm->problem);
+        n = prm->n > 0 ? (size_t)prm->n : (size_t)lround(pow((double)prm->nx, dim));
+        if (dim < 1) return 0;
+    } else {
+        if (consph_run_layout_params(prm, &lp) != CONSPH_OK || !consph_layout_by_index(lp.kind))
+            return 0;
+        n = 1;
+        for (int a = 0; a < lp.dim; ++a) n *= lp.nx[a];
+    }
+    if (n < (size_t)size) return 0;
+    r->n = n;
+    r->lo = n * (size_t)rank / (size_t)size;
+    r->hi = n * (size_t)(rank + 1) / (size_t)size;
+    return 1;
 }
 
 int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
@@ -1992,6 +2092,42 @@ int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
     int mine = 0;
     if (!joined) joined = &mine;
     *joined = 0;
-    if (consph_par_size() < 2) return consph_solver_create_from(out, prm, given);
-    return solver_create_cut(out, prm, given, agree_and_cut, joined);
+    const int size = consph_par_size();
+    if (size < 2) return consph_solver_create_from(out, prm, given);
+    solver_range range;
+    const int ranged = setup_range(prm, given, consph_par_rank(), size, &range);
+    create_cut c = {joined, ranged ? &range : NULL};
+    return solver_create_cut(out, prm, given, c.range, agree_and_cut, &c);
+}
+
+int consph_par_run_restart(consph_solver **s, const char *checkpoint)
+{
+    const int size = consph_par_size();
+    *s = NULL;
+    if (size < 2) return consph_run_restart(s, checkpoint);
+    char *meta = NULL;
+    double *hist = NULL;
+    size_t nh = 0, first = 0, total = 0;
+    consph_particles p;
+    int st = consph_checkpoint_read_part(checkpoint, consph_par_rank(), size, &meta, &p, &hist, &nh,
+                                         &first, &total);
+    if (st != CONSPH_OK) return st;
+    if (total < (size_t)size) {
+        /* more ranks than particles: the whole set's cut refuses the launch with its message */
+        free(meta);
+        free(hist);
+        consph_particles_free(&p);
+        return consph_run_restart(s, checkpoint);
+    }
+    const solver_range range = {first, first + p.n, total};
+    st = solver_restore_range(s, meta, &p, hist, nh, &range);
+    if (st != CONSPH_OK && st != CONSPH_ENOMEM) {
+        char msg[512];
+        snprintf(msg, sizeof msg, "%s", consph_last_error());
+        consph_fail(st, "checkpoint '%s': %s", checkpoint, msg);
+    }
+    free(meta);
+    free(hist);
+    consph_particles_free(&p);
+    return st;
 }

@@ -31,6 +31,9 @@ int par_owned_sum(consph_solver *s, const double *w, double *out);
 /* Rank 0's history of the diagnostics to every rank: after a sample made decomposed at the
  * set-up (the checks read its first row, the initial state, on every rank). */
 int par_share_history(consph_solver *s);
+/* The particles this rank held when it was cut (its share of the set-up; a serial solver's
+ * count): for the tests of the set-up's memory. */
+size_t par_setup_made(const consph_solver *s);
 /* This rank (0 for a serial solver). */
 int par_rank(const consph_solver *s);
 void par_solver_free(par_solver *ps);

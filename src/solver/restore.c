@@ -332,6 +332,12 @@ static int history_check(const consph_solver *s, const double *h, size_t nh)
 int consph_solver_restore(consph_solver **out, const char *meta, const consph_particles *particles,
                           const double *history, size_t nhistory)
 {
+    return solver_restore_range(out, meta, particles, history, nhistory, NULL);
+}
+
+int solver_restore_range(consph_solver **out, const char *meta, const consph_particles *particles,
+                         const double *history, size_t nhistory, const solver_range *range)
+{
     *out = NULL;
     consph_solver *s = consph_calloc(1, sizeof *s);
     if (!s) return CONSPH_ENOMEM;
@@ -346,11 +352,12 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
     if (st == CONSPH_OK) st = derive_solver(s);
     if (st == CONSPH_OK) st = state_check(s);
     if (st == CONSPH_OK) st = history_check(s, history, nhistory);
+    const size_t whole = range ? range->n : particles->n;
     if (st == CONSPH_OK &&
         (particles->dim != s->dim ||
-         (double)particles->n != (p->n > 0 ? (double)p->n : pow((double)p->nx, s->dim))))
+         (double)whole != (p->n > 0 ? (double)p->n : pow((double)p->nx, s->dim))))
         st = consph_fail(CONSPH_EFORMAT, "%zu particles in %dD do not match nx = %d, n = %ld",
-                         particles->n, particles->dim, p->nx, p->n);
+                         whole, particles->dim, p->nx, p->n);
     consph_kernel k;
     if (st == CONSPH_OK) st = consph_kernel_init(&k, p->kernel, s->dim, s->h);
     if (st == CONSPH_OK) st = consph_sys_init(&s->sys, particles, &k, 0.0);
@@ -364,7 +371,14 @@ int consph_solver_restore(consph_solver **out, const char *meta, const consph_pa
      * zero, as that run would have) or carry one no longer declared (dropped) */
     if (st == CONSPH_OK) st = state_create(s);
     if (st == CONSPH_OK) st = state_undeclared(s, 1);
-    if (st == CONSPH_OK) st = solver_nlist_start(s, 1);
+    if (st == CONSPH_OK && !range) st = solver_nlist_start(s, 1);
+    if (st == CONSPH_OK && range) {
+        s->part = malloc(sizeof *s->part);
+        if (!s->part)
+            st = consph_fail(CONSPH_ENOMEM, "out of memory");
+        else
+            *s->part = *range;
+    }
     if (st == CONSPH_OK) {
         s->hist = malloc(nhistory * sizeof(double));
         if (!s->hist) st = consph_fail(CONSPH_ENOMEM, "out of memory");

@@ -229,12 +229,17 @@ const char *consph_solver_run_id(const consph_solver *s)
 }
 
 /* The given particles as consph_layout_generate makes a layout: positions in the problem's box,
- * the run's spacing and the field "volume" = box volume / N; "u" and "p" are the caller's. */
-static int given_particles(const consph_solver *s, const consph_particles *in, consph_particles *p)
+ * the run's spacing and the field "volume" = box volume / N; "u" and "p" are the caller's. With
+ * a range, its particles only, `in` holding the n or the range's (*off: the first one's place
+ * in `in`). */
+static int given_particles(const consph_solver *s, const consph_particles *in,
+                           const solver_range *range, consph_particles *p, size_t *off)
 {
     const size_t n = s->prm.n > 0 ? (size_t)s->prm.n : (size_t)lround(pow(s->prm.nx, s->dim));
     const consph_box box = problem_box(s->prob);
-    if (in->dim != s->dim || in->n != n)
+    const size_t lo = range ? range->lo : 0, m = range ? range->hi - range->lo : n;
+    *off = range && in->n == n ? lo : 0;
+    if (in->dim != s->dim || (in->n != n && !(range && range->n == n && in->n == m)))
         return consph_fail(CONSPH_EINVAL,
                            "the given particles (%zu in %dD) are not the %zu in %dD of nx = %d, "
                            "n = %ld (consph_run_params_particles sets them)",
@@ -247,12 +252,13 @@ static int given_particles(const consph_solver *s, const consph_particles *in, c
                                "problem '%s'",
                                a, s->prob->name);
     for (int a = 0; a < s->dim; ++a)
-        for (size_t i = 0; i < n; ++i)
+        for (size_t i = *off; i < *off + m; ++i)
             if (!(in->x[a][i] >= box.lo[a] && in->x[a][i] < box.hi[a]))
                 return consph_fail(CONSPH_EINVAL,
                                    "given particle %zu: coordinate %d = %.17g is not in [%.17g, "
                                    "%.17g) (the box of problem '%s')",
-                                   i, a, in->x[a][i], box.lo[a], box.hi[a], s->prob->name);
+                                   i - *off + lo, a, in->x[a][i], box.lo[a], box.hi[a],
+                                   s->prob->name);
     static const char *const named[2] = {"u", "p"};
     for (int k = 0; k < 2; ++k) {
         const consph_field *f = consph_particles_find(in, named[k]);
@@ -260,14 +266,14 @@ static int given_particles(const consph_solver *s, const consph_particles *in, c
             return consph_fail(CONSPH_EINVAL, "the given field '%s' has %d components, not %d",
                                named[k], f->ncomp, k ? 1 : s->dim);
     }
-    int st = consph_particles_init(p, s->dim, n, &box);
+    int st = consph_particles_init(p, s->dim, m, &box);
     if (st != CONSPH_OK) return st;
     p->spacing = s->ds;
-    for (int a = 0; a < s->dim; ++a) memcpy(p->x[a], in->x[a], n * sizeof(double));
+    for (int a = 0; a < s->dim; ++a) memcpy(p->x[a], in->x[a] + *off, m * sizeof(double));
     double *vol = consph_particles_field(p, "volume", 1);
     if (!vol) return CONSPH_ENOMEM;
     const double v = consph_box_volume(&box) / (double)n;
-    for (size_t i = 0; i < n; ++i) vol[i] = v;
+    for (size_t i = 0; i < m; ++i) vol[i] = v;
     return CONSPH_OK;
 }
 
@@ -296,12 +302,12 @@ int consph_solver_create(consph_solver **out, const consph_run_params *prm)
 int consph_solver_create_from(consph_solver **out, const consph_run_params *prm,
                               const consph_particles *given)
 {
-    return solver_create_cut(out, prm, given, NULL, NULL);
+    return solver_create_cut(out, prm, given, NULL, NULL, NULL);
 }
 
 int solver_create_cut(consph_solver **out, const consph_run_params *prm,
-                      const consph_particles *given, int (*cut)(consph_solver *s, void *arg),
-                      void *arg)
+                      const consph_particles *given, const solver_range *range,
+                      int (*cut)(consph_solver *s, void *arg), void *arg)
 {
     *out = NULL;
     int st = consph_run_params_check(prm);
@@ -325,8 +331,12 @@ int solver_create_cut(consph_solver **out, const consph_run_params *prm,
     memset(&lp, 0, sizeof lp);
     if (st == CONSPH_OK) st = consph_run_layout_params(prm, &lp);
     consph_particles src = {0}, lat = {0};
-    if (st == CONSPH_OK)
-        st = given ? given_particles(s, given, &src) : consph_layout_generate(&lp, &src, NULL);
+    size_t goff = 0; /* the place of src's first particle in `given` */
+    if (st == CONSPH_OK && given)
+        st = given_particles(s, given, range, &src, &goff);
+    else if (st == CONSPH_OK)
+        st = range ? consph_layout_generate_range(&lp, range->lo, range->hi - range->lo, &src)
+                   : consph_layout_generate(&lp, &src, NULL);
     consph_kernel k;
     if (st == CONSPH_OK) st = consph_kernel_init(&k, prm->kernel, s->dim, s->h);
     if (st == CONSPH_OK) st = consph_sys_init(&s->sys, &src, &k, 0.0);
@@ -352,13 +362,13 @@ int solver_create_cut(consph_solver **out, const consph_run_params *prm,
             solver_position_of(p, i, x);
             s->prob->exact(prm, 0.0, x, ue, &pe);
             const size_t o = s->sys.origin[i];
-            id[i] = (double)o;
-            for (int a = 0; a < s->dim; ++a) u[a * cap + i] = gu ? gu[a * gcap + o] : ue[a];
-            if (gp) pe = gp[o];
+            id[i] = (double)(o + (range ? range->lo : 0));
+            for (int a = 0; a < s->dim; ++a) u[a * cap + i] = gu ? gu[a * gcap + goff + o] : ue[a];
+            if (gp) pe = gp[goff + o];
             pr[i] = pe;
             rhof[i] = prm->rho_init == CONSPH_RHO_INIT_RHO0 ? prm->rho0 : exact_rho(s, pe);
             if (xl)
-                for (int a = 0; a < s->dim; ++a) xl[a * cap + i] = lat.x[a][s->sys.origin[i]];
+                for (int a = 0; a < s->dim; ++a) xl[a * cap + i] = lat.x[a][(size_t)id[i]];
         }
     }
     consph_particles_free(&src);
@@ -391,6 +401,7 @@ void consph_solver_free(consph_solver *s)
     wcref_free(s->wc);
     free(s->wc_buf);
     par_solver_free(s->par);
+    free(s->part);
     free(s);
 }
 

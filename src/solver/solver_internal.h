@@ -256,18 +256,31 @@ struct consph_solver {
     size_t wc_cap;
     struct gpu_run *gpu;    /* --device gpu: the steps run there (src/gpu/); NULL: on the CPU */
     struct par_solver *par; /* decomposed over MPI ranks (src/par/par_solver.h); NULL: serial */
+    /* a rank's part of a checkpoint, restored to be cut (range.n > 0: consph_par_run_restart) */
+    struct solver_range *part;
 };
 
 /* fn(s, arg) over the whole state: at once in a serial run; decomposed, on rank 0 over the
  * particles gathered in the serial order (the other ranks take its status and message). For
  * what reads every particle: diagnostics, checks, files. */
 int solver_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg);
+/* A rank's share of a decomposed set-up: the particles [lo, hi) of the n in the layout's (or
+ * the given particles') order. */
+typedef struct solver_range {
+    size_t lo, hi, n;
+} solver_range;
 /* consph_solver_create_from with cut(s, arg) (NULL: none) run on the particles and their
  * initial fields, before the neighbour list and the initial rates: the MPI decomposition's
- * set-up (src/par/par_solver.c), so that only the rank's part gets them. */
+ * set-up (src/par/par_solver.c), so that only the rank's part gets them. With a range (NULL:
+ * the whole set), only those particles are made (a layout made by index, or given: all n or
+ * only the range's), each with "id" its index among the n. */
 int solver_create_cut(consph_solver **out, const consph_run_params *prm,
-                      const consph_particles *given, int (*cut)(consph_solver *s, void *arg),
-                      void *arg);
+                      const consph_particles *given, const solver_range *range,
+                      int (*cut)(consph_solver *s, void *arg), void *arg);
+/* consph_solver_restore of the particles [range->lo, range->hi) of a checkpoint's range->n
+ * (NULL: all of them), before its cut: no neighbour list yet (the cut starts it). */
+int solver_restore_range(consph_solver **out, const char *meta, const consph_particles *particles,
+                         const double *history, size_t nhistory, const solver_range *range);
 
 /* consph_run_nx_check against `memory` bytes (0: unknown) instead of this machine's. */
 int run_nx_fits(int nx, int dim, double memory);
