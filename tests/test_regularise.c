@@ -16,25 +16,45 @@ static const double hdx = 1.2;
 
 /* A 2D periodic unit-box layout of nx² particles in a system with the quintic at h = 1.2Δs and
  * the field "volume" = 1/Σ_j W_ij. */
-static int make_sys(consph_sys *s, consph_layout_kind kind, size_t nx, double eps, uint64_t seed)
+/* A system with the quintic at h = 1.2Δs over a copy of p and the field "volume" = 1/Σ_j W_ij. */
+static int sys_of(consph_sys *s, const consph_particles *p)
 {
-    consph_layout_params lp = consph_layout_defaults(kind, 2, nx);
-    lp.eps = eps;
-    lp.seed = seed;
-    consph_particles p;
-    if (consph_layout_generate(&lp, &p, NULL)) return 0;
     consph_kernel k;
-    int ok = consph_kernel_init(&k, CONSPH_KERNEL_QUINTIC, 2, hdx * p.spacing) == CONSPH_OK &&
-             consph_sys_init(s, &p, &k, 0.0) == CONSPH_OK;
-    consph_particles_free(&p);
-    if (!ok) return 0;
+    if (consph_kernel_init(&k, CONSPH_KERNEL_QUINTIC, p->dim, hdx * p->spacing) != CONSPH_OK ||
+        consph_sys_init(s, p, &k, 0.0) != CONSPH_OK)
+        return 0;
     s->parallel_min = 0; /* small sets still take the parallel path in the thread tests */
     double *vol = consph_particles_field(s->p, "volume", 1);
     double *sumw = calloc(s->p->n, sizeof(double));
-    ok = vol && sumw && consph_layout_density(s, 1.0, sumw, NULL) == CONSPH_OK;
+    int ok = vol && sumw && consph_layout_density(s, 1.0, sumw, NULL) == CONSPH_OK;
     for (size_t i = 0; ok && i < s->p->n; ++i) vol[i] = 1.0 / sumw[i];
     free(sumw);
     return ok;
+}
+
+/* A periodic unit-box layout of nx^dim particles (random: perturbed by eps Δs). */
+static int make_layout(consph_particles *p, int dim, consph_layout_kind kind, size_t nx, double eps,
+                       uint64_t seed)
+{
+    consph_layout_params lp = consph_layout_defaults(kind, dim, nx);
+    lp.eps = eps;
+    lp.seed = seed;
+    return consph_layout_generate(&lp, p, NULL) == CONSPH_OK;
+}
+
+static int make_sys_dim(consph_sys *s, int dim, consph_layout_kind kind, size_t nx, double eps,
+                        uint64_t seed)
+{
+    consph_particles p;
+    if (!make_layout(&p, dim, kind, nx, eps, seed)) return 0;
+    const int ok = sys_of(s, &p);
+    consph_particles_free(&p);
+    return ok;
+}
+
+static int make_sys(consph_sys *s, consph_layout_kind kind, size_t nx, double eps, uint64_t seed)
+{
+    return make_sys_dim(s, 2, kind, nx, eps, seed);
 }
 
 static size_t index_of(const consph_sys *s, size_t origin)
@@ -535,59 +555,76 @@ static void test_threads(void)
     }
 }
 
-/* IPST on a system with a neighbour list (its volumes and shift chained on the pair cache) moves
- * the particles, and leaves the volumes and the report, exactly as on a system without one, on
- * 1 and 2 threads; on the lattice (converged before any shift) it moves nothing either. */
+/* IPST on a system with a neighbour list (its volumes and shift chained on the pair cache, summed
+ * four particles at a time by the group visits, or one at a time) moves the particles, and
+ * leaves the volumes and the report, exactly as on a system without one, on 1 and 2 threads, in
+ * 2D (random and packed layouts, neighbour counts differing from particle to particle, so the
+ * lanes of a group run out at different pairs) and 3D; on the lattice (converged before any
+ * shift) it moves nothing either. */
 static void test_ipst_chained(void)
 {
     const struct {
+        int dim;
         consph_layout_kind kind;
         size_t nx;
         double eps;
-    } cases[2] = {{CONSPH_LAYOUT_RANDOM, 40, 0.4}, {CONSPH_LAYOUT_LATTICE, 20, 0.0}};
-    for (int c = 0; c < 2; ++c) {
-        double *out[3] = {NULL, NULL, NULL};
-        reg_ipst_report rep[3];
+    } cases[4] = {{2, CONSPH_LAYOUT_RANDOM, 40, 0.4},
+                  {2, CONSPH_LAYOUT_LATTICE, 20, 0.0},
+                  {2, CONSPH_LAYOUT_PACKED, 12, 0.0},
+                  {3, CONSPH_LAYOUT_RANDOM, 9, 0.4}};
+    enum { VARIANTS = 5 };
+    for (int c = 0; c < 4; ++c) {
+        const int d = cases[c].dim;
+        double *out[VARIANTS] = {NULL};
+        reg_ipst_report rep[VARIANTS];
         size_t n = 0;
-        for (int v = 0; v < 3; ++v) {
+        consph_particles layout;
+        CHECK(make_layout(&layout, d, cases[c].kind, cases[c].nx, cases[c].eps, 3), "layout: %s",
+              consph_last_error());
+        /* 0: no list; 1, 2: the list, groups, 1 and 2 threads; 3, 4: one particle at a time */
+        for (int v = 0; v < VARIANTS; ++v) {
 #ifdef _OPENMP
-            omp_set_num_threads(v == 2 ? 2 : 1);
+            omp_set_num_threads(v == 2 || v == 4 ? 2 : 1);
 #endif
+            reg_ipst_groups = v < 3;
             consph_sys s;
-            CHECK(make_sys(&s, cases[c].kind, cases[c].nx, cases[c].eps, 3), "system");
+            CHECK(sys_of(&s, &layout), "system: %s", consph_last_error());
             if (v > 0)
                 CHECK(consph_sys_nlist(&s, 0.0, NULL, 0) == CONSPH_OK, "list: %s",
                       consph_last_error());
             n = s.p->n;
             const size_t cap = s.p->cap;
-            double *dr = calloc(2 * cap, sizeof(double));
+            double *dr = calloc((size_t)d * cap, sizeof(double));
             reg_ipst_params prm = ipst_params(&s);
             const unsigned long chains = reg_ipst_chains;
             CHECK(reg_ipst(&s, &prm, dr, &rep[v]) == CONSPH_OK, "IPST: %s", consph_last_error());
             if (v > 0) CHECK(reg_ipst_chains > chains, "case %d: no iteration ran chained", c);
-            out[v] = malloc(5 * n * sizeof(double));
+            out[v] = malloc((size_t)(2 * d + 1) * n * sizeof(double));
             for (size_t i = 0; i < n; ++i) {
                 /* in the order of the input particles: the systems sort alike, but say so */
                 const size_t k = s.origin[i];
-                out[v][k] = s.p->x[0][i];
-                out[v][n + k] = s.p->x[1][i];
-                out[v][2 * n + k] = dr[i];
-                out[v][3 * n + k] = dr[cap + i];
-                out[v][4 * n + k] = consph_particles_find(s.p, "volume")->data[i];
+                for (int a = 0; a < d; ++a) {
+                    out[v][(size_t)a * n + k] = s.p->x[a][i];
+                    out[v][(size_t)(d + a) * n + k] = dr[(size_t)a * cap + i];
+                }
+                out[v][(size_t)(2 * d) * n + k] = consph_particles_find(s.p, "volume")->data[i];
             }
             free(dr);
             consph_sys_free(&s);
         }
-        CHECK(c == 1 || rep[0].iterations > 1, "case %d: %d iterations", c, rep[0].iterations);
-        for (int v = 1; v < 3; ++v) {
-            CHECK(!memcmp(out[0], out[v], 5 * n * sizeof(double)),
-                  "case %d: positions, shifts or volumes differ with the list (%d threads)", c, v);
+        reg_ipst_groups = 1;
+        consph_particles_free(&layout);
+        CHECK(cases[c].kind == CONSPH_LAYOUT_LATTICE || rep[0].iterations > 1,
+              "case %d: %d iterations", c, rep[0].iterations);
+        for (int v = 1; v < VARIANTS; ++v) {
+            CHECK(!memcmp(out[0], out[v], (size_t)(2 * d + 1) * n * sizeof(double)),
+                  "case %d: positions, shifts or volumes differ with the list (variant %d)", c, v);
             CHECK(rep[v].iterations == rep[0].iterations &&
                       !memcmp(&rep[v].chi_max, &rep[0].chi_max, sizeof(double)) &&
                       !memcmp(&rep[v].max_shift, &rep[0].max_shift, sizeof(double)),
-                  "case %d: report differs with the list (%d threads)", c, v);
+                  "case %d: report differs with the list (variant %d)", c, v);
         }
-        for (int v = 0; v < 3; ++v) free(out[v]);
+        for (int v = 0; v < VARIANTS; ++v) free(out[v]);
     }
 #ifdef _OPENMP
     omp_set_num_threads(1);

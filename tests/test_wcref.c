@@ -317,8 +317,56 @@ static void test_mirror(void)
     CHECK(bad == 0, "cos(-x) = cos(x) and sin(-x) = -sin(x) bit for bit: %ld failures", bad);
 }
 
+/* wcref_eval_many gives wcref_eval's values bit for bit, at points sharing coordinates (a
+ * lattice, as the Eulerian schemes' particles, where each coordinate's factors are taken once)
+ * and at scattered ones, with +0 and -0 kept apart (their sines differ in sign), serially and
+ * split among threads. */
+static void test_eval_many(void)
+{
+    wcref *w = make(32, 0.0, 20, 0, 0.01, 1, 0.0);
+    if (!w) return;
+    CHECK(wcref_advance(w, 0.02) == CONSPH_OK, "advance");
+    enum { NL = 12, N = NL * NL + 200 };
+    double *x = malloc(7 * N * sizeof(double)), *y = x + N, *u = x + 2 * N, *v = x + 3 * N;
+    double *rho = x + 4 * N, *u1 = x + 5 * N, *v1 = x + 6 * N;
+    double rho1[N];
+    for (int i = 0; i < NL * NL; ++i) {
+        x[i] = (i % NL + 0.5) / NL;
+        y[i] = (i / NL + 0.5) / NL;
+    }
+    unsigned long r = 12345;
+    for (int i = NL * NL; i < N; ++i) {
+        r = r * 6364136223846793005ul + 1442695040888963407ul;
+        x[i] = (double)(r >> 11) / 9007199254740992.0;
+        r = r * 6364136223846793005ul + 1442695040888963407ul;
+        y[i] = (double)(r >> 11) / 9007199254740992.0 - 0.5;
+    }
+    x[N - 1] = -0.0;
+    x[N - 2] = 0.0;
+    y[N - 3] = -0.0;
+    y[N - 4] = 0.0;
+    for (int par = 0; par < 2; ++par) {
+        CHECK(wcref_eval_many(w, N, x, y, u, v, rho, par) == CONSPH_OK, "eval_many: %s",
+              consph_last_error());
+        int same = 1;
+        for (int i = 0; i < N; ++i) {
+            const double pt[2] = {x[i], y[i]};
+            double ue[2];
+            wcref_eval(w, pt, ue, &rho1[i]);
+            u1[i] = ue[0];
+            v1[i] = ue[1];
+        }
+        same = !memcmp(u, u1, N * sizeof(double)) && !memcmp(v, v1, N * sizeof(double)) &&
+               !memcmp(rho, rho1, N * sizeof(double));
+        CHECK(same, "wcref_eval_many differs from wcref_eval (parallel %d)", par);
+    }
+    free(x);
+    wcref_free(w);
+}
+
 int main(void)
 {
+    test_eval_many();
     test_mirror();
     test_acoustic(0);
     test_acoustic(1);

@@ -17,10 +17,15 @@
 
 #include <complex.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
 #include "consph/core.h"
+
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 enum { NF = 3, NMAX = 256, KMAX = NMAX / 3 };
 
@@ -682,17 +687,14 @@ double wcref_step(const wcref *w)
     return w->dt;
 }
 
-WCREF_CLONES
-void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho)
+/* e^{i a θ_x} for a = -K..K at x (cx, sx: 2K + 1 each), by cos/sin of each multiple (no
+ * recurrence to accumulate). The negative multiples mirror the positive ones: tx·(-a) = -(tx·a)
+ * exactly, and the C library's cos is even and sin odd bit for bit (test_wcref checks the whole
+ * evaluation against the direct sum). */
+static inline void axis_x(const wcref *w, double x, double *cx, double *sx)
 {
-    const int K = w->K, m = 2 * K + 1;
-    /* e^{i a θ} for a = -K..K, by cos/sin of each multiple (no recurrence to accumulate). The
-     * negative multiples mirror the positive ones: tx·(-a) = -(tx·a) exactly, and the C
-     * library's cos is even and sin odd bit for bit (test_wcref checks the whole evaluation
-     * against the direct sum). */
-    double cx[2 * KMAX + 1], sx[2 * KMAX + 1], cy[KMAX + 1], sy[KMAX + 1];
-    const double tx = 2.0 * M_PI * (x[0] - w->p.lo[0]) / w->p.len[0];
-    const double ty = 2.0 * M_PI * (x[1] - w->p.lo[1]) / w->p.len[1];
+    const int K = w->K;
+    const double tx = 2.0 * M_PI * (x - w->p.lo[0]) / w->p.len[0];
     cx[K] = cos(tx * 0);
     sx[K] = sin(tx * 0);
     for (int a = 1; a <= K; ++a) {
@@ -702,10 +704,27 @@ void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho)
         cx[K - a] = c;
         sx[K - a] = -s;
     }
-    for (int b = 0; b <= K; ++b) {
+}
+
+/* e^{i b θ_y} for b = 0..K at y (cy, sy: K + 1 each). */
+static inline void axis_y(const wcref *w, double y, double *cy, double *sy)
+{
+    const double ty = 2.0 * M_PI * (y - w->p.lo[1]) / w->p.len[1];
+    for (int b = 0; b <= w->K; ++b) {
         cy[b] = cos(ty * b);
         sy[b] = sin(ty * b);
     }
+}
+
+/* The fields from the point's axis factors (axis_x, axis_y). */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline void
+eval_sums(const wcref *w, const double *cx, const double *sx, const double *cy, const double *sy,
+          double u[2], double *rho)
+{
+    const int K = w->K, m = 2 * K + 1;
     /* The coefficients of a real field are Hermitian, c(-a, -b) = conj c(a, b): the rows b < 0
      * are the conjugates of the rows b > 0, so f = Re S_0 + 2 Σ_{b>0} Re S_b with
      * S_b = e^{i b θ_y} Σ_a c(a, b) e^{i a θ_x}. The three fields' sums side by side, each in
@@ -764,6 +783,106 @@ void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho)
     *rho = w->p.rho0 + out[0];
     u[0] = out[1];
     u[1] = out[2];
+}
+
+WCREF_CLONES
+void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho)
+{
+    double cx[2 * KMAX + 1], sx[2 * KMAX + 1], cy[KMAX + 1], sy[KMAX + 1];
+    axis_x(w, x[0], cx, sx);
+    axis_y(w, x[1], cy, sy);
+    eval_sums(w, cx, sx, cy, sy, u, rho);
+}
+
+/* ---- many points: each distinct coordinate's factors once ---- */
+
+/* The distinct values of x[0..n) by bit pattern (so +0 and -0 stay apart: their sines differ
+ * in sign): which[i] = the index of x[i]'s value in first-seen order; returns their count.
+ * slot: a table of `size` (a power of 2, >= 2n) entries. */
+static size_t distinct_values(const double *x, size_t n, size_t *which, size_t *first, size_t *slot,
+                              size_t size)
+{
+    const size_t empty = (size_t)-1;
+    for (size_t k = 0; k < size; ++k) slot[k] = empty;
+    size_t count = 0;
+    for (size_t i = 0; i < n; ++i) {
+        uint64_t bits;
+        memcpy(&bits, &x[i], sizeof bits);
+        size_t h = (size_t)((bits * 0x9E3779B97F4A7C15ull) >> 20) & (size_t)(size - 1);
+        for (;;) {
+            const size_t e = slot[h];
+            if (e == empty) {
+                slot[h] = count;
+                first[count] = i;
+                which[i] = count++;
+                break;
+            }
+            if (!memcmp(&x[first[e]], &x[i], sizeof(double))) {
+                which[i] = e;
+                break;
+            }
+            h = (h + 1) & (size - 1);
+        }
+    }
+    return count;
+}
+
+/* Points [i0, i1) of wcref_eval_many from the distinct coordinates' factors: each point's
+ * operations are wcref_eval's. */
+WCREF_CLONES static void eval_points(const wcref *w, size_t i0, size_t i1, const double *tx,
+                                     const size_t *wx, const double *ty, const size_t *wy,
+                                     double *u, double *v, double *rho)
+{
+    const size_t mx = (size_t)(2 * w->K + 1), my = (size_t)(w->K + 1);
+    for (size_t i = i0; i < i1; ++i) {
+        const double *ex = tx + 2 * mx * wx[i], *ey = ty + 2 * my * wy[i];
+        double ui[2];
+        eval_sums(w, ex, ex + mx, ey, ey + my, ui, &rho[i]);
+        u[i] = ui[0];
+        v[i] = ui[1];
+    }
+}
+
+int wcref_eval_many(const wcref *w, size_t n, const double *x, const double *y, double *u,
+                    double *v, double *rho, int parallel)
+{
+    if (n == 0) return CONSPH_OK;
+    const size_t mx = (size_t)(2 * w->K + 1), my = (size_t)(w->K + 1);
+    size_t size = 16;
+    while (size < 2 * n) size *= 2;
+    size_t *wx = malloc((3 * n + size) * sizeof(size_t));
+    size_t *wy = wx ? wx + n : NULL, *first = wx ? wx + 2 * n : NULL;
+    size_t *slot = wx ? wx + 3 * n : NULL;
+    double *tx = NULL, *ty = NULL;
+    if (wx) {
+        const size_t ux = distinct_values(x, n, wx, first, slot, size);
+        tx = malloc(2 * mx * ux * sizeof(double));
+        for (size_t k = 0; tx && k < ux; ++k)
+            axis_x(w, x[first[k]], tx + 2 * mx * k, tx + 2 * mx * k + mx);
+        const size_t uy = distinct_values(y, n, wy, first, slot, size);
+        ty = malloc(2 * my * uy * sizeof(double));
+        for (size_t k = 0; ty && k < uy; ++k)
+            axis_y(w, y[first[k]], ty + 2 * my * k, ty + 2 * my * k + my);
+    }
+    if (!wx || !tx || !ty) {
+        free(wx);
+        free(tx);
+        free(ty);
+        return consph_fail(CONSPH_ENOMEM, "out of memory for the wc reference at %zu points", n);
+    }
+#pragma omp parallel if (parallel)
+    {
+#ifdef _OPENMP
+        const size_t nt = (size_t)omp_get_num_threads(), t = (size_t)omp_get_thread_num();
+#else
+        const size_t nt = 1, t = 0;
+#endif
+        eval_points(w, n * t / nt, n * (t + 1) / nt, tx, wx, ty, wy, u, v, rho);
+    }
+    free(wx);
+    free(tx);
+    free(ty);
+    return CONSPH_OK;
 }
 
 double wcref_pressure(const wcref *w, double rho)

@@ -11,6 +11,8 @@
 #ifndef CONSPH_PROBLEMS_WCREF_H
 #define CONSPH_PROBLEMS_WCREF_H
 
+#include <stddef.h>
+
 typedef struct wcref wcref;
 
 typedef struct wcref_params {
@@ -34,6 +36,11 @@ double wcref_time(const wcref *w);
 double wcref_step(const wcref *w);
 /* The state at x by its Fourier series (spectral interpolation): velocity u[0..1], density. */
 void wcref_eval(const wcref *w, const double x[2], double u[2], double *rho);
+/* wcref_eval at the n points (x[i], y[i]) into u[i], v[i] and rho[i], bit for bit, the factors
+ * of each distinct coordinate taken once (the particles of a lattice share their rows and
+ * columns); parallel: split the points among threads. CONSPH_ENOMEM on failure. */
+int wcref_eval_many(const wcref *w, size_t n, const double *x, const double *y, double *u,
+                    double *v, double *rho, int parallel);
 /* p(ρ) of the reference's equation of state. */
 double wcref_pressure(const wcref *w, double rho);
 

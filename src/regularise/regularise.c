@@ -202,6 +202,171 @@ static void ipst_volume_visit(void *job, const consph_nbhd *nb)
     v->vol[nb->i] = 1.0 / sum;
 }
 
+#ifdef CONSPH_LANES4
+/* ---- the volumes and the shift over groups of four particles ----
+ *
+ * Each visit above sums one particle's neighbours in a chain of dependent additions (one per
+ * axis for the shift), so the additions' latency, not the arithmetic, bounds it. The chained
+ * iterations hand groups of four consecutive particles of a block of the pair cache
+ * (src/pass/group.h) to the visits below instead: lane l of every vector is particle l's sum,
+ * taken over its own neighbours in their order with the same operations as the per-particle
+ * visit, so each result is that visit's bit for bit (tests/test_regularise.c). The cache's
+ * arrays are not padded past a lane's n (PASS_GROUP_UNPADDED): the lanes that have run out are
+ * masked, never read past their end. */
+
+/* GCC builds a vector from scalars by inserting them into the destination's old value, and then
+ * warns that the old value may be uninitialised (it is never read) */
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+
+/* Entries o..o+3 of the four rows q[l] as four vectors, f[c] = {q[0][o + c], ..., q[3][o + c]}. */
+#if defined(__clang__)
+#define IPST_SHUF(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)
+#else
+#define IPST_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (lane4i){i0, i1, i2, i3})
+#endif
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline void
+ipst_transpose(const double *const q[PASS_GROUP], size_t o, lane4 f[4])
+{
+    const lane4 a0 = *(const lane4u *)(q[0] + o), a1 = *(const lane4u *)(q[1] + o);
+    const lane4 a2 = *(const lane4u *)(q[2] + o), a3 = *(const lane4u *)(q[3] + o);
+    const lane4 t0 = IPST_SHUF(a0, a1, 0, 4, 2, 6), t1 = IPST_SHUF(a0, a1, 1, 5, 3, 7);
+    const lane4 t2 = IPST_SHUF(a2, a3, 0, 4, 2, 6), t3 = IPST_SHUF(a2, a3, 1, 5, 3, 7);
+    f[0] = IPST_SHUF(t0, t2, 0, 1, 4, 5);
+    f[1] = IPST_SHUF(t1, t3, 0, 1, 4, 5);
+    f[2] = IPST_SHUF(t0, t2, 2, 3, 6, 7);
+    f[3] = IPST_SHUF(t1, t3, 2, 3, 6, 7);
+}
+
+/* The lanes' neighbour counts, the smallest and the largest. */
+static inline void ipst_lane_counts(const consph_nbhd *nb, size_t n[PASS_GROUP], size_t *kmin,
+                                    size_t *kmax)
+{
+    *kmin = *kmax = nb[0].n;
+    for (int l = 0; l < PASS_GROUP; ++l) {
+        n[l] = nb[l].n;
+        if (n[l] < *kmin) *kmin = n[l];
+        if (n[l] > *kmax) *kmax = n[l];
+    }
+}
+
+/* ipst_volume_visit over a group */
+IPST_CLONES static void ipst_volume_group(void *job, const consph_nbhd *nb, int count)
+{
+    const ipst_volume_job *v = job;
+    size_t n[PASS_GROUP], kmin, kmax;
+    ipst_lane_counts(nb, n, &kmin, &kmax);
+    lane4 w = {0.0, 0.0, 0.0, 0.0};
+    size_t k = 0;
+    for (; k + 4 <= kmin; k += 4) {
+        lane4 f[4];
+        const double *q[PASS_GROUP] = {nb[0].w, nb[1].w, nb[2].w, nb[3].w};
+        ipst_transpose(q, k, f);
+        w += f[0];
+        w += f[1];
+        w += f[2];
+        w += f[3];
+    }
+    const lane4i nv = {(long long)n[0], (long long)n[1], (long long)n[2], (long long)n[3]};
+    for (; k < kmax; ++k) {
+        size_t e[PASS_GROUP];
+        for (int l = 0; l < PASS_GROUP; ++l) e[l] = k < n[l] ? k : 0;
+        const lane4 wk = {nb[0].w[e[0]], nb[1].w[e[1]], nb[2].w[e[2]], nb[3].w[e[3]]};
+        const lane4i kv = {(long long)k, (long long)k, (long long)k, (long long)k};
+        w = LANE4_SEL((lane4i)(kv < nv), w + wk, w);
+    }
+    for (int l = 0; l < count; ++l) {
+        const double sum = 1.0 * w[l];
+        v->sumw[nb[l].i] = sum;
+        v->vol[nb[l].i] = 1.0 / sum;
+    }
+}
+
+/* ipst_body over a group: each lane's factors and separations for a chunk of its pairs as
+ * ipst_body computes them (four pairs at a time), then the lanes' sums side by side, each lane
+ * adding its own pairs in their order, so that the four chains of additions overlap. */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline void
+ipst_group_body(const ipst_job *a, const consph_nbhd *nb, int count, const int D)
+{
+    const double *vol = a->vol;
+    const int L = count < PASS_GROUP ? count : PASS_GROUP;
+    size_t n[PASS_GROUP], kmin, kmax;
+    ipst_lane_counts(nb, n, &kmin, &kmax);
+    double acc[PASS_GROUP][3] = {
+        {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}, {0.0, 0.0, 0.0}};
+    double f[PASS_GROUP][IPST_CHUNK], x[PASS_GROUP][3][IPST_CHUNK];
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0}, one = {1.0, 1.0, 1.0, 1.0};
+    for (size_t q0 = 0; q0 < kmax; q0 += IPST_CHUNK) {
+        size_t m[PASS_GROUP], mmin = IPST_CHUNK;
+        for (int l = 0; l < L; ++l) {
+            m[l] = n[l] <= q0 ? 0 : n[l] - q0 < IPST_CHUNK ? n[l] - q0 : IPST_CHUNK;
+            if (m[l] < mmin) mmin = m[l];
+            const double *rq = nb[l].r + q0, *wq = nb[l].w + q0;
+            const size_t *jq = nb[l].j + q0;
+            size_t k = 0;
+            for (; k + 4 <= m[l]; k += 4) {
+                const lane4 rk = *(const lane4u *)(rq + k), wk = *(const lane4u *)(wq + k);
+                const lane4 vk = {vol[jq[k]], vol[jq[k + 1]], vol[jq[k + 2]], vol[jq[k + 3]]};
+                const lane4i has = rk > zero;
+                const lane4 ratio = wk * vk / LANE4_SEL(has, rk, one);
+                *(lane4u *)(f[l] + k) = LANE4_SEL(has, ratio, zero);
+                for (int c = 0; c < D; ++c)
+                    *(lane4u *)(x[l][c] + k) =
+                        LANE4_SEL(has, *(const lane4u *)(nb[l].dx[c] + q0 + k), zero);
+            }
+            for (; k < m[l]; ++k) {
+                const int has = rq[k] > 0.0;
+                f[l][k] = has ? wq[k] * vol[jq[k]] / rq[k] : 0.0;
+                for (int c = 0; c < D; ++c) x[l][c][k] = has ? nb[l].dx[c][q0 + k] : 0.0;
+            }
+        }
+        size_t k = 0;
+        if (L == PASS_GROUP)
+            for (; k < mmin; ++k)
+                for (int l = 0; l < PASS_GROUP; ++l)
+                    for (int c = 0; c < D; ++c) acc[l][c] += f[l][k] * x[l][c][k];
+        for (int l = 0; l < L; ++l)
+            for (size_t kl = k; kl < m[l]; ++kl)
+                for (int c = 0; c < D; ++c) acc[l][c] += f[l][kl] * x[l][c][kl];
+    }
+    for (int l = 0; l < L; ++l)
+        for (int c = 0; c < D; ++c) a->step[(size_t)c * a->cap + nb[l].i] = a->h * acc[l][c];
+}
+
+IPST_CLONES static void ipst_group_1(void *job, const consph_nbhd *nb, int count)
+{
+    ipst_group_body(job, nb, count, 1);
+}
+IPST_CLONES static void ipst_group_2(void *job, const consph_nbhd *nb, int count)
+{
+    ipst_group_body(job, nb, count, 2);
+}
+IPST_CLONES static void ipst_group_3(void *job, const consph_nbhd *nb, int count)
+{
+    ipst_group_body(job, nb, count, 3);
+}
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+static const pass_group_fn ipst_groups[3] = {ipst_group_1, ipst_group_2, ipst_group_3};
+#define IPST_VOLUME_GROUP ipst_volume_group
+#else
+static const pass_group_fn ipst_groups[3] = {NULL, NULL, NULL};
+#define IPST_VOLUME_GROUP NULL
+#endif
+
+/* Whether the chained iterations run the group visits (1, the default) or the per-particle
+ * ones: the same values; a switch for the tests that say so. */
+int reg_ipst_groups = 1;
+
 /* The volumes and the shift of one position state chained over the neighbour list's pair cache
  * (src/pass/nlist.h, nlist_chain_run): the shift of a block runs as soon as the volumes of its
  * neighbours are known, while the block's pairs are still in the processor's caches, instead of
@@ -215,7 +380,9 @@ static int ipst_chained(consph_sys *s, const consph_pass *shift, ipst_job *job, 
     ipst_volume_job vj = {sumw, vol};
     const consph_pass volumes = {"IPST volumes 1/sum W", CONSPH_PASS_W | CONSPH_PASS_NO_DX,
                                  ipst_volume_visit};
-    const block_visitor_in chain[2] = {{&volumes, NULL, &vj}, {shift, NULL, job}};
+    const int g = reg_ipst_groups;
+    const block_visitor_in chain[2] = {{&volumes, g ? IPST_VOLUME_GROUP : NULL, &vj},
+                                       {shift, g ? ipst_groups[job->dim - 1] : NULL, job}};
     size_t pairs = 0;
     const int rc = nlist_chain_run(s, chain, 2, &pairs, ran);
     if (rc == CONSPH_OK && *ran) ++reg_ipst_chains;

@@ -62,6 +62,10 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
 /* Iterations whose volumes and shift ran chained on the system's pair cache (a system with a
  * neighbour list, consph_sys_nlist: the same values as one pass after the other); for tests. */
 extern unsigned long reg_ipst_chains;
+/* 1 (the default): the chained iterations sum four particles' volumes and shifts at once, lane
+ * by lane (the per-particle visits' values bit for bit); 0: the per-particle visits. For
+ * tests. */
+extern int reg_ipst_groups;
 
 /* ---- non-iterative shifting of Sun et al. (δ+-SPH) ---- */
 typedef struct reg_pst_params {

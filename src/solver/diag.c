@@ -124,14 +124,19 @@ int solver_wc_side(consph_solver *s, double *eu, double *ep, double *nu, double 
     if (!u || !pr) return consph_fail(CONSPH_EINVAL, "solver state missing");
     int st = solver_exact_prepare(s);
     if (st != CONSPH_OK) return st;
-    double *a = columns_buffer(&s->wc_buf, &s->wc_cap, n, 4);
+    double *a = columns_buffer(&s->wc_buf, &s->wc_cap, n, 7);
     if (!a) return CONSPH_ENOMEM;
     double *mu = a + n, *b = a + 2 * n, *pe = a + 3 * n;
+    /* wc_exact at every particle, each distinct coordinate's Fourier factors once */
+    double *wu = a + 4 * n, *wv = a + 5 * n, *wrho = a + 6 * n;
+    st = wcref_eval_many(s->wc, n, p->x[0], p->x[1], wu, wv, wrho, n >= SOLVER_PARALLEL_MIN);
+    if (st != CONSPH_OK) return st;
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
-        double x[3], ue[3];
+        double x[3];
         solver_position_of(p, i, x);
-        wc_exact(s, x, ue, &pe[i]);
+        const double ue[3] = {wu[i], wv[i], 0.0};
+        pe[i] = wcref_pressure(s->wc, wrho[i]);
         const double ui[3] = {u[i], u[cap + i], 0.0};
         a[i] = fabs(speed(ui, s->dim) - speed(ue, s->dim));
         b[i] = fabs(pr[i] - pe[i]);
