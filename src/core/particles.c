@@ -3,6 +3,9 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 consph_box consph_box_unit(int dim, int periodic)
 {
@@ -107,50 +110,36 @@ double *consph_particles_field(consph_particles *p, const char *name, int ncomp)
     return data;
 }
 
-/* The arrays are independent copies, shared out among the threads from this many particles on
- * (a solver re-sorts its whole state, tens of arrays, every step). */
+/* The permutation runs on the threads from this many particles on (a solver re-sorts its whole
+ * state, tens of arrays, every step). */
 #define PERMUTE_PARALLEL_MIN 4096
-
-/* a[s] = a[perm[s]] over the runs of slots that move, run[2k] <= s < run[2k + 1] (moved slots
- * in all): every value is read into tmp before any is written. */
-static void permute_runs(double *a, const size_t *perm, const size_t *run, size_t nruns,
-                         double *tmp)
-{
-    size_t k = 0;
-    for (size_t r = 0; r < nruns; ++r)
-        for (size_t s = run[2 * r]; s < run[2 * r + 1]; ++s) tmp[k++] = a[perm[s]];
-    k = 0;
-    for (size_t r = 0; r < nruns; ++r) {
-        const size_t len = run[2 * r + 1] - run[2 * r];
-        memcpy(a + run[2 * r], tmp + k, len * sizeof(double));
-        k += len;
-    }
-}
+/* The moved values of at most this many arrays' worth of particles are held at once: the arrays
+ * go through in groups of about PERMUTE_HELD n / moved. */
+#define PERMUTE_HELD 4
 
 /* Only the slots with perm[s] != s move: a re-sort after a small step leaves most particles in
  * place (a third of them move in a Taylor-Green step), and the fixed ones are neither read nor
- * written. */
+ * written. Every thread takes a slice of the slots and lists its moved slots (mv, in slot order);
+ * then, a group of arrays at a time, it reads the values its slots receive into tmp and, once
+ * every thread has read (every value is read before any is written), writes them. Each thread
+ * reads and writes only its own part of tmp, so a group's reads need not wait for the previous
+ * group's writes: one barrier per group. The moves, not their order, make the result: the same
+ * for any thread count. */
 int consph_particles_permute(consph_particles *p, const size_t *perm)
 {
     const size_t n = p->n;
-    size_t nruns = 0, moved = 0;
-    for (size_t s = 0; s < n; ++s)
-        if (perm[s] != s && (s == 0 || perm[s - 1] == s - 1)) ++nruns;
-    if (nruns == 0) return CONSPH_OK;
-    size_t *run = malloc(2 * nruns * sizeof(size_t));
-    if (!run) return consph_fail(CONSPH_ENOMEM, "out of memory for %zu runs of moved slots", nruns);
-    size_t r = 0;
-    for (size_t s = 0; s < n; ++s) {
-        if (perm[s] == s) continue;
-        if (s == 0 || perm[s - 1] == s - 1) run[2 * r] = s;
-        if (s + 1 == n || perm[s + 1] == s + 1) run[2 * r++ + 1] = s + 1;
-        ++moved;
-    }
     int narr = p->dim;
     for (int f = 0; f < p->nfields; ++f) narr += p->fields[f].ncomp;
+#ifdef _OPENMP
+    const int tmax = omp_get_max_threads();
+#else
+    const int tmax = 1;
+#endif
     double **arr = consph_calloc((size_t)narr, sizeof(double *));
-    if (!arr) {
-        free(run);
+    size_t *count = consph_calloc((size_t)tmax + 1, sizeof(size_t));
+    if (!arr || !count) {
+        free(arr);
+        free(count);
         return CONSPH_ENOMEM;
     }
     int k = 0;
@@ -158,23 +147,60 @@ int consph_particles_permute(consph_particles *p, const size_t *perm)
     for (int f = 0; f < p->nfields; ++f)
         for (int c = 0; c < p->fields[f].ncomp; ++c)
             arr[k++] = p->fields[f].data + (size_t)c * p->cap;
-    int st = CONSPH_OK;
-#pragma omp parallel if (moved >= PERMUTE_PARALLEL_MIN)
+    size_t moved = 0, *mv = NULL;
+    double *tmp = NULL;
+    int group = narr, st = CONSPH_OK;
+#pragma omp parallel if (n >= PERMUTE_PARALLEL_MIN)
     {
-        double *tmp = malloc(moved * sizeof(double));
-        if (!tmp) {
-#pragma omp atomic write
-            st = CONSPH_ENOMEM;
+#ifdef _OPENMP
+        const int nt = omp_get_num_threads(), t = omp_get_thread_num();
+#else
+        const int nt = 1, t = 0;
+#endif
+        const size_t s0 = n * (size_t)t / (size_t)nt, s1 = n * (size_t)(t + 1) / (size_t)nt;
+        size_t mine = 0;
+        for (size_t s = s0; s < s1; ++s) mine += perm[s] != s;
+        count[t + 1] = mine;
+#pragma omp barrier
+#pragma omp single
+        {
+            for (int u = 0; u < nt; ++u) count[u + 1] += count[u];
+            moved = count[nt];
+            if (moved) {
+                const size_t held = PERMUTE_HELD * n / moved;
+                if (held < (size_t)group) group = held > 0 ? (int)held : 1;
+                mv = malloc(moved * sizeof *mv);
+                tmp = malloc((size_t)group * moved * sizeof *tmp);
+                if (!mv || !tmp) st = CONSPH_ENOMEM;
+            }
         }
-#pragma omp for schedule(dynamic, 1)
-        for (int a = 0; a < narr; ++a)
-            if (tmp) permute_runs(arr[a], perm, run, nruns, tmp);
-        free(tmp);
+        if (moved && st == CONSPH_OK) {
+            const size_t k0 = count[t], k1 = count[t + 1];
+            size_t j = k0;
+            for (size_t s = s0; s < s1; ++s)
+                if (perm[s] != s) mv[j++] = s;
+            for (int g0 = 0; g0 < narr; g0 += group) {
+                const int gn = narr - g0 < group ? narr - g0 : group;
+                for (int g = 0; g < gn; ++g) {
+                    const double *a = arr[g0 + g];
+                    double *held = tmp + (size_t)g * moved;
+                    for (size_t m = k0; m < k1; ++m) held[m] = a[perm[mv[m]]];
+                }
+#pragma omp barrier
+                for (int g = 0; g < gn; ++g) {
+                    double *a = arr[g0 + g];
+                    const double *held = tmp + (size_t)g * moved;
+                    for (size_t m = k0; m < k1; ++m) a[mv[m]] = held[m];
+                }
+            }
+        }
     }
     free(arr);
-    free(run);
+    free(count);
+    free(mv);
+    free(tmp);
     if (st != CONSPH_OK)
-        return consph_fail(st, "out of memory for the %zu moved values of an array", moved);
+        return consph_fail(st, "out of memory for the %zu moved values of a permutation", moved);
     return CONSPH_OK;
 }
 

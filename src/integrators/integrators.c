@@ -70,21 +70,21 @@ static void set_fields(const integ_state *st, double c, const double *ku, const 
 }
 
 /* x = x0 + c kx (with save: x0 = x first, in the same sweep), then wrapped and the search
- * rebuilt by the solver. */
+ * rebuilt by the solver. In blocks on the threads, as set_fields_from. */
 static int drift(const integ_state *st, double c, const double *kx, int save)
 {
-    const size_t n = st->n, cap = st->cap;
-    for (int a = 0; a < st->dim; ++a) {
-        double *x = st->x[a], *x0 = st->x0 + a * cap;
-        const double *k = kx + a * cap;
-        if (save) {
-            for (size_t i = 0; i < n; ++i) {
-                const double xi = x[i];
-                x0[i] = xi;
-                x[i] = xi + c * k[i];
-            }
-        } else {
-            for (size_t i = 0; i < n; ++i) x[i] = x0[i] + c * k[i];
+    const int d = st->dim;
+    const size_t n = st->n, cap = st->cap, nblocks = (n + INTEG_BLOCK - 1) / INTEG_BLOCK;
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+    for (size_t b = 0; b < nblocks; ++b) {
+        const size_t i0 = b * INTEG_BLOCK, m = n - i0 < INTEG_BLOCK ? n - i0 : INTEG_BLOCK;
+        for (int a = 0; a < d; ++a) {
+            double *x = st->x[a] + i0, *x0 = st->x0 + a * cap + i0;
+            const double *k = kx + a * cap + i0;
+            if (save)
+                save_update_block(x, x0, k, c, m);
+            else
+                update_block(x, x0, k, c, m);
         }
     }
     return st->moved(st->ctx);
@@ -133,22 +133,24 @@ static int step_kdk(const integ_state *st, double dt)
     if (st->unsaved) {
         /* the start read from u, q and kicked into u0, q0 (the same values: u0 would be u) */
         const double h = 0.5 * dt;
-        for (size_t i = 0; i < n; ++i) q0[i] = q[i] + h * aq[i];
-        for (int a = 0; a < d; ++a) {
-            double *ua = u + a * cap, *u0a = u0 + a * cap;
-            const double *aua = au + a * cap;
-            for (size_t i = 0; i < n; ++i) {
-                const double v = ua[i] + h * aua[i];
-                u0a[i] = v;
-                ua[i] = v;
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+        for (size_t i = 0; i < n; ++i) {
+            q0[i] = q[i] + h * aq[i];
+            for (int a = 0; a < d; ++a) {
+                const double v = u[a * cap + i] + h * au[a * cap + i];
+                u0[a * cap + i] = v;
+                u[a * cap + i] = v;
             }
         }
     } else {
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
         for (size_t i = 0; i < n; ++i) {
             q0[i] += 0.5 * dt * aq[i];
-            for (int a = 0; a < d; ++a) u0[a * cap + i] += 0.5 * dt * au[a * cap + i];
+            for (int a = 0; a < d; ++a) {
+                u0[a * cap + i] += 0.5 * dt * au[a * cap + i];
+                u[a * cap + i] = u0[a * cap + i];
+            }
         }
-        for (int a = 0; a < d; ++a) memcpy(u + a * cap, u0 + a * cap, n * sizeof(double));
     }
     int rc = CONSPH_OK;
     if (st->x0) {
@@ -156,12 +158,15 @@ static int step_kdk(const integ_state *st, double dt)
             st->transport(st->ctx, 0.5 * dt);
         } else {
             /* rates evaluated at this step's start: dx/dt there plus the half kick */
-            for (int a = 0; a < d; ++a)
-                for (size_t i = 0; i < n; ++i) ax[a * cap + i] += 0.5 * dt * au[a * cap + i];
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+            for (size_t i = 0; i < n; ++i)
+                for (int a = 0; a < d; ++a) ax[a * cap + i] += 0.5 * dt * au[a * cap + i];
         }
         rc = drift(st, dt, ax, st->unsaved);
     }
-    memcpy(st->q, q0, n * sizeof(double));
+    double *qd = st->q;
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i) qd[i] = q0[i];
     if (rc == CONSPH_OK) st->close(st->ctx);
     if (rc == CONSPH_OK) rc = st->rates(st->ctx);
     if (rc != CONSPH_OK) return rc;
@@ -206,10 +211,13 @@ static int ssprk3_stage(const integ_state *st, double c, double tc, double w, in
     if (st->x0) {
         if (st->transport) st->transport(st->ctx, tc);
         const size_t n = st->n, cap = st->cap;
-        for (int a = 0; a < st->dim; ++a)
-            for (size_t i = 0; i < n; ++i) {
+        const int d = st->dim;
+        const double *ax = st->ax;
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+        for (size_t i = 0; i < n; ++i)
+            for (int a = 0; a < d; ++a) {
                 const size_t j = a * cap + i;
-                kx[j] = first ? st->ax[j] : kx[j] + w * st->ax[j];
+                kx[j] = first ? ax[j] : kx[j] + w * ax[j];
             }
         int rc = drift(st, c, kx, 0);
         if (rc != CONSPH_OK) return rc;

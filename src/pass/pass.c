@@ -212,7 +212,7 @@ int consph_sys_update(consph_sys *s, int resort)
     if (s->nlist) return nlist_update(s, resort);
     if (!resort) return consph_nnps_build(s->nnps, s->p);
     const size_t n = s->p->n;
-    size_t *perm = consph_calloc(n ? n : 1, sizeof(size_t));
+    size_t *perm = malloc((n ? n : 1) * sizeof(size_t)); /* every entry written by the sort */
     if (!perm) return CONSPH_ENOMEM;
     int rc = consph_nnps_sort(s->nnps, s->p, perm);
     if (rc == CONSPH_OK) rc = sys_carry_permutation(s, perm);
@@ -231,13 +231,22 @@ int sys_carry_permutation(consph_sys *s, const size_t *perm)
     if ((s->origin && !o2) || (s->dest && !d2)) {
         rc = consph_fail(CONSPH_ENOMEM, "out of memory carrying %zu particles", n);
     } else {
-        if (o2) {
-            for (size_t i = 0; i < n; ++i) o2[i] = s->origin[perm[i]];
-            memcpy(s->origin, o2, n * sizeof(size_t));
-        }
-        if (d2) {
-            for (size_t i = 0; i < n; ++i) d2[i] = s->dest[perm[i]];
-            memcpy(s->dest, d2, n);
+        /* on the threads from parallel_min on: a serial sweep here, every re-sort, is a part of
+         * the step that no thread count shortens */
+        size_t *origin = s->origin;
+        unsigned char *dest = s->dest;
+#pragma omp parallel if (n >= s->parallel_min)
+        {
+#pragma omp for schedule(static)
+            for (size_t i = 0; i < n; ++i) {
+                if (o2) o2[i] = origin[perm[i]];
+                if (d2) d2[i] = dest[perm[i]];
+            }
+#pragma omp for schedule(static)
+            for (size_t i = 0; i < n; ++i) {
+                if (o2) origin[i] = o2[i];
+                if (d2) dest[i] = d2[i];
+            }
         }
     }
     free(o2);
