@@ -40,10 +40,12 @@ static void save_update_block(double *restrict y, double *restrict y0, const dou
     }
 }
 
-/* u = u0 + c ku and q = q0 + c kq; save: from the unsaved start, u0, q0 = u, q in the same sweep
- * (the same values: u0 is u). */
-static void set_fields_from(const integ_state *st, double c, const double *ku, const double *kq,
-                            int save)
+/* In blocks shared out among the threads: u = u0 + c ku and q = q0 + c kq where ku is given,
+ * then x = x0 + c kx where kx is; save: from the unsaved start, u0, q0 (and x0) = u, q (and x)
+ * in the same sweep (the same values: u0 is u). Each value depends on its own particle's alone,
+ * so one sweep of a block doing both is the two sweeps (one parallel region, not two). */
+static void update_blocks(const integ_state *st, double c, const double *ku, const double *kq,
+                          const double *kx, int save)
 {
     const int d = st->dim;
     const size_t n = st->n, cap = st->cap, nblocks = (n + INTEG_BLOCK - 1) / INTEG_BLOCK;
@@ -51,7 +53,7 @@ static void set_fields_from(const integ_state *st, double c, const double *ku, c
 #pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
     for (size_t b = 0; b < nblocks; ++b) {
         const size_t i0 = b * INTEG_BLOCK, m = n - i0 < INTEG_BLOCK ? n - i0 : INTEG_BLOCK;
-        for (int a = -1; a < d; ++a) {
+        for (int a = ku ? -1 : d; a < d; ++a) {
             /* a = -1: q; then the components of u */
             const size_t o = a < 0 ? i0 : (size_t)a * cap + i0;
             double *y = a < 0 ? q : u, *y0 = a < 0 ? q0 : u0;
@@ -61,24 +63,7 @@ static void set_fields_from(const integ_state *st, double c, const double *ku, c
             else
                 update_block(y + o, y0 + o, k + o, c, m);
         }
-    }
-}
-
-static void set_fields(const integ_state *st, double c, const double *ku, const double *kq)
-{
-    set_fields_from(st, c, ku, kq, 0);
-}
-
-/* x = x0 + c kx (with save: x0 = x first, in the same sweep), then wrapped and the search
- * rebuilt by the solver. In blocks on the threads, as set_fields_from. */
-static int drift(const integ_state *st, double c, const double *kx, int save)
-{
-    const int d = st->dim;
-    const size_t n = st->n, cap = st->cap, nblocks = (n + INTEG_BLOCK - 1) / INTEG_BLOCK;
-#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
-    for (size_t b = 0; b < nblocks; ++b) {
-        const size_t i0 = b * INTEG_BLOCK, m = n - i0 < INTEG_BLOCK ? n - i0 : INTEG_BLOCK;
-        for (int a = 0; a < d; ++a) {
+        for (int a = 0; kx && a < d; ++a) {
             double *x = st->x[a] + i0, *x0 = st->x0 + a * cap + i0;
             const double *k = kx + a * cap + i0;
             if (save)
@@ -87,21 +72,37 @@ static int drift(const integ_state *st, double c, const double *kx, int save)
                 update_block(x, x0, k, c, m);
         }
     }
+}
+
+static void set_fields(const integ_state *st, double c, const double *ku, const double *kq)
+{
+    update_blocks(st, c, ku, kq, NULL, 0);
+}
+
+/* x = x0 + c kx (with save: x0 = x first, in the same sweep), then wrapped and the search
+ * rebuilt by the solver. */
+static int drift(const integ_state *st, double c, const double *kx, int save)
+{
+    update_blocks(st, c, NULL, NULL, kx, save);
     return st->moved(st->ctx);
 }
 
 /* y = y0 + c k for the evolved fields with the last rates, then the closure; save: the step's
- * first update of an unsaved start, which saves it on the way. */
+ * first update of an unsaved start, which saves it on the way. Without a transport hook between
+ * the update and the drift, both in one sweep. */
 static int advance(const integ_state *st, double c, int save)
 {
-    if (save)
-        set_fields_from(st, c, st->au, st->aq, 1);
-    else
-        set_fields(st, c, st->au, st->aq);
-    if (st->x0) {
-        if (st->transport) st->transport(st->ctx, c);
-        int rc = drift(st, c, st->ax, save);
+    if (st->x0 && !st->transport) {
+        update_blocks(st, c, st->au, st->aq, st->ax, save);
+        int rc = st->moved(st->ctx);
         if (rc != CONSPH_OK) return rc;
+    } else {
+        update_blocks(st, c, st->au, st->aq, NULL, save);
+        if (st->x0) {
+            if (st->transport) st->transport(st->ctx, c);
+            int rc = drift(st, c, st->ax, save);
+            if (rc != CONSPH_OK) return rc;
+        }
     }
     st->close(st->ctx);
     return CONSPH_OK;

@@ -13,14 +13,29 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "consph/pass.h"
+#include "pass/group.h"
 #include "pass/nbhd.h"
 #include "pass/nlist.h"
 
-/* Cells per dynamic chunk: at the default cells per radius a 2D cell holds ~13 particles at
- * h = 1.2Δs with the quintic kernel, a 3D one ~6. */
 #define PASS_CELLS_PER_CHUNK 16
+/* at least this many chunks per thread */
+#define PASS_CHUNKS_PER_THREAD 64
+
+size_t pass_cells_per_chunk(size_t ncells)
+{
+#ifdef _OPENMP
+    const size_t threads = (size_t)omp_get_max_threads();
+#else
+    const size_t threads = 1;
+#endif
+    const size_t c = ncells / (threads * PASS_CHUNKS_PER_THREAD);
+    return c < 1 ? 1 : c > PASS_CELLS_PER_CHUNK ? PASS_CELLS_PER_CHUNK : c;
+}
 
 static int pass_fail(const consph_pass *pass, int status, const char *why)
 {
@@ -68,6 +83,7 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
     size_t total = 0;
     /* consph_fail records per thread: a worker's message is copied out here. */
     why[0] = '\0';
+    const size_t chunk = pass_cells_per_chunk(v.ncells);
 #pragma omp parallel if (n >= s->parallel_min)
     {
         consph_nnps_runs runs;
@@ -77,7 +93,7 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
         int my_status = CONSPH_OK;
         char my_why[256] = "";
         size_t my_pairs = 0;
-#pragma omp for schedule(dynamic, PASS_CELLS_PER_CHUNK)
+#pragma omp for schedule(dynamic, chunk)
         for (size_t c = 0; c < v.ncells; ++c) {
             const size_t first = v.cell_start[c], last = v.cell_start[c + 1];
             if (first == last || my_status != CONSPH_OK) continue;
