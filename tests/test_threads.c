@@ -108,8 +108,8 @@ static void test_build(void)
                           consph_last_error());
                 }
                 check_set_threads(1);
-                CHECK(stable_by_cell(g[0], &p), "%dD pattern %d spill %d: not a stable sort by cell",
-                      dim, pat, spill);
+                CHECK(stable_by_cell(g[0], &p),
+                      "%dD pattern %d spill %d: not a stable sort by cell", dim, pat, spill);
                 for (int t = 1; t < NCOUNTS; ++t)
                     CHECK(same_slots(g[0], g[t]) && stable_by_cell(g[t], &p),
                           "%dD pattern %d spill %d: %d threads build other slots than 1", dim, pat,
@@ -258,8 +258,7 @@ static void test_steps(const char *problem, const char *scheme, const char *inte
     for (int t = 1; t < NCOUNTS; ++t)
         CHECK(s[0] && s[t] &&
                   same_bits(consph_solver_particles(s[0]), consph_solver_particles(s[t])),
-              "%s %s %s: %d threads differ from 1", problem, scheme, integrator,
-              thread_counts[t]);
+              "%s %s %s: %d threads differ from 1", problem, scheme, integrator, thread_counts[t]);
     for (int t = 0; t < NCOUNTS; ++t) consph_solver_free(s[t]);
 }
 
