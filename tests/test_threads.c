@@ -180,7 +180,7 @@ static void test_sort(void)
  * multiples of a block: the same bits, and within round-off of a compensated sum. */
 static void test_sum(void)
 {
-    static const size_t sizes[] = {1000, 16383, 16384, 70001, 250000};
+    static const size_t sizes[] = {1000, 8191, 8192, 16384, 70001, 250000};
     consph_rng rng;
     consph_rng_seed(&rng, 5);
     for (size_t k = 0; k < sizeof sizes / sizeof sizes[0]; ++k) {

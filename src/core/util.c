@@ -27,7 +27,7 @@ static double sum_tree(const double *a, size_t n, size_t stride)
  * threads and then added up as sum_tree adds them: the same tree, the same bits, for any thread
  * count. (A block's sum is a chain of dependent additions, ~4 cycles each: 60 000 values take
  * ~80 µs on one core, a part of every step that no thread count would shorten.) */
-#define SUM_PARALLEL_MIN 16384
+#define SUM_PARALLEL_MIN 8192
 #define SUM_SPLIT 4
 
 /* The subtrees of sum_tree `depth` levels down (fewer where a subtree is one block), left to
