@@ -1,5 +1,8 @@
 /* The integrators' table and their steps (the state and the callbacks: integrators.h). */
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "consph/solver.h"
 #include "integrators/integrators.h"
@@ -48,11 +51,21 @@ static void update_blocks(const integ_state *st, double c, const double *ku, con
                           const double *kx, int save)
 {
     const int d = st->dim;
-    const size_t n = st->n, cap = st->cap, nblocks = (n + INTEG_BLOCK - 1) / INTEG_BLOCK;
+    const size_t n = st->n, cap = st->cap;
+    /* blocks of at most INTEG_BLOCK particles (a multiple of 8), as many as a multiple of the
+     * threads: 5 blocks of 2048 shared by 2 threads would give one of them 3 */
+    size_t nblocks = (n + INTEG_BLOCK - 1) / INTEG_BLOCK;
+#ifdef _OPENMP
+    const size_t threads = n >= INTEG_PARALLEL_MIN ? (size_t)omp_get_max_threads() : 1;
+    nblocks = (nblocks + threads - 1) / threads * threads;
+#endif
+    size_t bs = nblocks ? (n + nblocks - 1) / nblocks : 1;
+    bs = (bs + 7) / 8 * 8;
+    nblocks = (n + bs - 1) / bs;
     double *u = st->u, *q = st->q, *u0 = st->u0, *q0 = st->q0;
 #pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
     for (size_t b = 0; b < nblocks; ++b) {
-        const size_t i0 = b * INTEG_BLOCK, m = n - i0 < INTEG_BLOCK ? n - i0 : INTEG_BLOCK;
+        const size_t i0 = b * bs, m = n - i0 < bs ? n - i0 : bs;
         for (int a = ku ? -1 : d; a < d; ++a) {
             /* a = -1: q; then the components of u */
             const size_t o = a < 0 ? i0 : (size_t)a * cap + i0;
