@@ -119,12 +119,12 @@ double *consph_particles_field(consph_particles *p, const char *name, int ncomp)
 
 /* Only the slots with perm[s] != s move: a re-sort after a small step leaves most particles in
  * place (a third of them move in a Taylor-Green step), and the fixed ones are neither read nor
- * written. Every thread takes a slice of the slots and lists its moved slots (mv, in slot order);
- * then, a group of arrays at a time, it reads the values its slots receive into tmp and, once
- * every thread has read (every value is read before any is written), writes them. Each thread
- * reads and writes only its own part of tmp, so a group's reads need not wait for the previous
- * group's writes: one barrier per group. The moves, not their order, make the result: the same
- * for any thread count. */
+ * written. Every thread takes a slice of the slots and lists the runs of moved slots in it
+ * (run[2k] <= s < run[2k + 1], runs cut at the slice's ends); then, a group of arrays at a time,
+ * it reads the values its slots receive into tmp and, once every thread has read (every value is
+ * read before any is written), writes them back run by run. Each thread reads and writes only its
+ * own part of tmp, so a group's reads need not wait for the previous group's writes: one barrier
+ * per group. The moves, not their order, make the result: the same for any thread count. */
 int consph_particles_permute(consph_particles *p, const size_t *perm)
 {
     const size_t n = p->n;
@@ -136,18 +136,20 @@ int consph_particles_permute(consph_particles *p, const size_t *perm)
     const int tmax = 1;
 #endif
     double **arr = consph_calloc((size_t)narr, sizeof(double *));
-    size_t *count = consph_calloc((size_t)tmax + 1, sizeof(size_t));
+    /* per thread: moved slots, then runs, each as offsets from thread 0's (tmax + 1 each) */
+    size_t *count = consph_calloc(2 * ((size_t)tmax + 1), sizeof(size_t));
     if (!arr || !count) {
         free(arr);
         free(count);
         return CONSPH_ENOMEM;
     }
+    size_t *moved_at = count, *runs_at = count + tmax + 1;
     int k = 0;
     for (int a = 0; a < p->dim; ++a) arr[k++] = p->x[a];
     for (int f = 0; f < p->nfields; ++f)
         for (int c = 0; c < p->fields[f].ncomp; ++c)
             arr[k++] = p->fields[f].data + (size_t)c * p->cap;
-    size_t moved = 0, *mv = NULL;
+    size_t moved = 0, *run = NULL;
     double *tmp = NULL;
     int group = narr, st = CONSPH_OK;
 #pragma omp parallel if (n >= PERMUTE_PARALLEL_MIN)
@@ -158,46 +160,63 @@ int consph_particles_permute(consph_particles *p, const size_t *perm)
         const int nt = 1, t = 0;
 #endif
         const size_t s0 = n * (size_t)t / (size_t)nt, s1 = n * (size_t)(t + 1) / (size_t)nt;
-        size_t mine = 0;
-        for (size_t s = s0; s < s1; ++s) mine += perm[s] != s;
-        count[t + 1] = mine;
+        size_t mine = 0, myruns = 0;
+        for (size_t s = s0; s < s1; ++s)
+            if (perm[s] != s) {
+                ++mine;
+                myruns += s == s0 || perm[s - 1] == s - 1;
+            }
+        moved_at[t + 1] = mine;
+        runs_at[t + 1] = myruns;
 #pragma omp barrier
 #pragma omp single
         {
-            for (int u = 0; u < nt; ++u) count[u + 1] += count[u];
-            moved = count[nt];
+            for (int u = 0; u < nt; ++u) {
+                moved_at[u + 1] += moved_at[u];
+                runs_at[u + 1] += runs_at[u];
+            }
+            moved = moved_at[nt];
             if (moved) {
                 const size_t held = PERMUTE_HELD * n / moved;
                 if (held < (size_t)group) group = held > 0 ? (int)held : 1;
-                mv = malloc(moved * sizeof *mv);
+                run = malloc(2 * runs_at[nt] * sizeof *run);
                 tmp = malloc((size_t)group * moved * sizeof *tmp);
-                if (!mv || !tmp) st = CONSPH_ENOMEM;
+                if (!run || !tmp) st = CONSPH_ENOMEM;
             }
         }
         if (moved && st == CONSPH_OK) {
-            const size_t k0 = count[t], k1 = count[t + 1];
-            size_t j = k0;
-            for (size_t s = s0; s < s1; ++s)
-                if (perm[s] != s) mv[j++] = s;
+            const size_t k0 = moved_at[t], r0 = runs_at[t], r1 = runs_at[t + 1];
+            size_t r = r0;
+            for (size_t s = s0; s < s1; ++s) {
+                if (perm[s] == s) continue;
+                if (s == s0 || perm[s - 1] == s - 1) run[2 * r] = s;
+                if (s + 1 == s1 || perm[s + 1] == s + 1) run[2 * r++ + 1] = s + 1;
+            }
             for (int g0 = 0; g0 < narr; g0 += group) {
                 const int gn = narr - g0 < group ? narr - g0 : group;
                 for (int g = 0; g < gn; ++g) {
                     const double *a = arr[g0 + g];
-                    double *held = tmp + (size_t)g * moved;
-                    for (size_t m = k0; m < k1; ++m) held[m] = a[perm[mv[m]]];
+                    double *held = tmp + (size_t)g * moved + k0;
+                    size_t m = 0;
+                    for (size_t q = r0; q < r1; ++q)
+                        for (size_t s = run[2 * q]; s < run[2 * q + 1]; ++s) held[m++] = a[perm[s]];
                 }
 #pragma omp barrier
                 for (int g = 0; g < gn; ++g) {
                     double *a = arr[g0 + g];
-                    const double *held = tmp + (size_t)g * moved;
-                    for (size_t m = k0; m < k1; ++m) a[mv[m]] = held[m];
+                    const double *held = tmp + (size_t)g * moved + k0;
+                    for (size_t q = r0; q < r1; ++q) {
+                        const size_t len = run[2 * q + 1] - run[2 * q];
+                        memcpy(a + run[2 * q], held, len * sizeof *held);
+                        held += len;
+                    }
                 }
             }
         }
     }
     free(arr);
     free(count);
-    free(mv);
+    free(run);
     free(tmp);
     if (st != CONSPH_OK)
         return consph_fail(st, "out of memory for the %zu moved values of a permutation", moved);
