@@ -66,6 +66,13 @@ def main():
         print('functions only the master ran (per particle-step):')
         for f, v in sorted(only, key=lambda x: -x[1])[:15]:
             print('  %8.1f  %s' % (v, f))
+        # the parallel regions' bodies (their own instructions): a static schedule's shares are
+        # the real run's; a dynamic one's are valgrind's scheduling, not the real run's
+        regions = [(f, [t.get(f, 0) / per for t in threads]) for f in threads[0]
+                   if '_omp_fn' in f and sum(t.get(f, 0) for t in threads[1:]) > 0]
+        print('parallel regions, each thread (per particle-step), the largest differences:')
+        for f, v in sorted(regions, key=lambda x: -(max(x[1]) - min(x[1])))[:8]:
+            print('  %s  %s' % (' '.join('%8.1f' % x for x in v), f))
 
 
 if __name__ == '__main__':
