@@ -66,22 +66,27 @@ static void usage(FILE *out)
             "130/143 stopped by SIGINT/SIGTERM\n");
 }
 
-/* libgomp spins for a while at every barrier before sleeping. On a machine whose cores are busy
- * with other work the spinning threads take the time the working ones need: with 2 threads on a
- * loaded 2-core machine a quick study took 4-5x as long as with 1. consph's parallel regions
- * are coarse, so sleeping at once costs little even on an idle machine. libgomp reads
- * OMP_WAIT_POLICY when it is loaded, before main, so unless the user chose a policy (or a spin
- * count) the CLI runs itself again with OMP_WAIT_POLICY=passive. */
-static void prefer_passive_wait(char **argv)
+/* libgomp's default spins 300 000 times (~7 ms here) at every barrier before sleeping: on a
+ * machine whose cores are busy with other work the spinning threads take the time the working
+ * ones need (2 threads on a loaded 2-core machine ran a quick study 4-5x as long as 1). Sleeping
+ * at once (passive) costs a futex wake-up, tens of µs, at every fork and join instead: a step
+ * of wcsph at nx 100 holds ~14 parallel regions in ~2 ms, and 2 threads were then only 1.23x one
+ * thread. A short spin, CONSPH_SPINCOUNT (~50 µs at ~25 ns a pause), covers the gaps inside a
+ * step and still yields soon on a loaded machine: 2 threads 1.91x (nx 100) and 1.93x (nx 250)
+ * one on the idle 2-core machine, and faster than passive with two busy processes beside it
+ * (bench/results/threads-s31.md). libgomp reads GOMP_SPINCOUNT when it is loaded, before main,
+ * so unless the user chose a policy or a spin count the CLI runs itself again with it. */
+#define CONSPH_SPINCOUNT "2000"
+static void prefer_short_spin(char **argv)
 {
     if (getenv("OMP_WAIT_POLICY") || getenv("GOMP_SPINCOUNT")) return;
     /* Under valgrind the new image would run outside it (or not at all). */
     const char *preload = getenv("LD_PRELOAD");
     if (preload && strstr(preload, "vgpreload")) return;
-    if (setenv("OMP_WAIT_POLICY", "passive", 1) != 0) return;
+    if (setenv("GOMP_SPINCOUNT", CONSPH_SPINCOUNT, 1) != 0) return;
     execv("/proc/self/exe", argv);
     /* No /proc: run on with libgomp's default, and say so truthfully in --version. */
-    unsetenv("OMP_WAIT_POLICY");
+    unsetenv("GOMP_SPINCOUNT");
 }
 
 /* Under K > 1 MPI ranks, `study` spreads its rows over the ranks and `run` is the solver's
@@ -107,10 +112,12 @@ static int dispatch(int argc, char **argv)
         return cli_finish_stdout(NULL, 0);
     }
     if (strcmp(argv[1], "--version") == 0) {
-        const char *policy = getenv("OMP_WAIT_POLICY");
+        const char *policy = getenv("OMP_WAIT_POLICY"), *spin = getenv("GOMP_SPINCOUNT");
         printf("consph %s\n", CONSPH_VERSION);
-        printf("threads %d, OMP_WAIT_POLICY %s\n", consph_num_threads(),
+        printf("threads %d, OMP_WAIT_POLICY %s", consph_num_threads(),
                policy ? policy : "unset (libgomp default)");
+        if (spin) printf(", GOMP_SPINCOUNT %s", spin);
+        printf("\n");
         if (consph_par_available())
             printf("MPI ranks %d\n", consph_par_size());
         else
@@ -130,7 +137,7 @@ static int dispatch(int argc, char **argv)
 
 int main(int argc, char **argv)
 {
-    prefer_passive_wait(argv);
+    prefer_short_spin(argv);
     /* MPI only under a launcher (include/consph/par.h): a serial run never initialises it. */
     const int par = consph_par_init(&argc, &argv);
     if (par != CONSPH_OK) {

@@ -95,12 +95,15 @@ double consph_sum_strided(const double *a, size_t n, size_t stride);
 double consph_wtime(void);
 /* Threads an OpenMP parallel region would use (1 without OpenMP).
  *
- * Thread count and a loaded machine: by default libgomp spins at every barrier before sleeping,
- * and when other processes keep the cores busy, the spinning threads take the time the working
- * ones need (2 threads on a loaded 2-core machine ran a study 4-5x slower than 1 thread).
- * libgomp reads OMP_WAIT_POLICY and GOMP_SPINCOUNT only when it is loaded, so a program cannot
- * change this once running: set OMP_WAIT_POLICY=passive in the environment that starts it (the
- * consph CLI re-executes itself with it when neither variable is set), or use fewer threads. */
+ * Thread count and a loaded machine: by default libgomp spins ~7 ms at every barrier before
+ * sleeping, and when other processes keep the cores busy, the spinning threads take the time the
+ * working ones need (2 threads on a loaded 2-core machine ran a study 4-5x slower than 1 thread);
+ * sleeping at once (OMP_WAIT_POLICY=passive) makes every fork and join a futex wake-up, tens of
+ * µs, which a solver step's many short regions feel (2 threads 1.23x one at nx 100). libgomp
+ * reads OMP_WAIT_POLICY and GOMP_SPINCOUNT only when it is loaded, so a program cannot change
+ * this once running: set GOMP_SPINCOUNT=2000 (~50 µs of spinning) in the environment that starts
+ * it (the consph CLI and `import consph` do when neither variable is set), or use fewer
+ * threads. */
 int consph_num_threads(void);
 /* Threads of the parallel regions that follow (n > 0; no effect without OpenMP). */
 void consph_set_num_threads(int n);

@@ -25,12 +25,13 @@ import tempfile as _tempfile
 
 import numpy as _np
 
-# libgomp reads its wait policy once, when it is loaded (with _core, below): left to spin at
-# every barrier, its threads take the time the working ones need on a loaded machine
-# (include/consph/core.h). The consph CLI sets passive for itself the same way, only when
-# neither variable is set; a later `import` of another OpenMP library sees it too.
+# libgomp reads its wait policy once, when it is loaded (with _core, below): left to spin ~7 ms
+# at every barrier, its threads take the time the working ones need on a loaded machine; told to
+# sleep at once, every fork and join is a wake-up (include/consph/core.h). A short spin serves
+# both. The consph CLI sets it for itself the same way, only when neither variable is set; a
+# later `import` of another OpenMP library sees it too.
 if "OMP_WAIT_POLICY" not in _os.environ and "GOMP_SPINCOUNT" not in _os.environ:
-    _os.environ["OMP_WAIT_POLICY"] = "passive"
+    _os.environ["GOMP_SPINCOUNT"] = "2000"
 
 from . import _core  # noqa: E402
 from ._core import (  # noqa: F401,E402  (the public API)

@@ -483,13 +483,14 @@ static PyObject *py_read_checkpoint(PyObject *self, PyObject *args, PyObject *kw
     return d;
 }
 
-PyDoc_STRVAR(set_num_threads_doc,
-             "set_num_threads(n, /)\n"
-             "--\n"
-             "\n"
-             "Threads of the library's parallel regions from now on (n > 0;\n"
-             "results do not depend on it). import consph sets OMP_WAIT_POLICY=passive when unset\n"
-             "(include/consph/core.h says why).");
+PyDoc_STRVAR(
+    set_num_threads_doc,
+    "set_num_threads(n, /)\n"
+    "--\n"
+    "\n"
+    "Threads of the library's parallel regions from now on (n > 0;\n"
+    "results do not depend on it). import consph sets GOMP_SPINCOUNT=2000 when neither it\n"
+    "nor OMP_WAIT_POLICY is set (include/consph/core.h says why).");
 
 static PyObject *py_set_num_threads(PyObject *self, PyObject *args)
 {

@@ -3,6 +3,9 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 consph_box consph_box_unit(int dim, int periodic)
 {
@@ -107,74 +110,116 @@ double *consph_particles_field(consph_particles *p, const char *name, int ncomp)
     return data;
 }
 
-/* The arrays are independent copies, shared out among the threads from this many particles on
- * (a solver re-sorts its whole state, tens of arrays, every step). */
+/* The permutation runs on the threads from this many particles on (a solver re-sorts its whole
+ * state, tens of arrays, every step). */
 #define PERMUTE_PARALLEL_MIN 4096
-
-/* a[s] = a[perm[s]] over the runs of slots that move, run[2k] <= s < run[2k + 1] (moved slots
- * in all): every value is read into tmp before any is written. */
-static void permute_runs(double *a, const size_t *perm, const size_t *run, size_t nruns,
-                         double *tmp)
-{
-    size_t k = 0;
-    for (size_t r = 0; r < nruns; ++r)
-        for (size_t s = run[2 * r]; s < run[2 * r + 1]; ++s) tmp[k++] = a[perm[s]];
-    k = 0;
-    for (size_t r = 0; r < nruns; ++r) {
-        const size_t len = run[2 * r + 1] - run[2 * r];
-        memcpy(a + run[2 * r], tmp + k, len * sizeof(double));
-        k += len;
-    }
-}
+/* The moved values of at most this many arrays' worth of particles are held at once: the arrays
+ * go through in groups of about PERMUTE_HELD n / moved. */
+#define PERMUTE_HELD 4
 
 /* Only the slots with perm[s] != s move: a re-sort after a small step leaves most particles in
  * place (a third of them move in a Taylor-Green step), and the fixed ones are neither read nor
- * written. */
+ * written. Every thread takes a slice of the slots and lists the runs of moved slots in it
+ * (run[2k] <= s < run[2k + 1], runs cut at the slice's ends); then, a group of arrays at a time,
+ * it reads the values its slots receive into tmp and, once every thread has read (every value is
+ * read before any is written), writes them back run by run. Each thread reads and writes only its
+ * own part of tmp, so a group's reads need not wait for the previous group's writes: one barrier
+ * per group. The moves, not their order, make the result: the same for any thread count. */
 int consph_particles_permute(consph_particles *p, const size_t *perm)
 {
     const size_t n = p->n;
-    size_t nruns = 0, moved = 0;
-    for (size_t s = 0; s < n; ++s)
-        if (perm[s] != s && (s == 0 || perm[s - 1] == s - 1)) ++nruns;
-    if (nruns == 0) return CONSPH_OK;
-    size_t *run = malloc(2 * nruns * sizeof(size_t));
-    if (!run) return consph_fail(CONSPH_ENOMEM, "out of memory for %zu runs of moved slots", nruns);
-    size_t r = 0;
-    for (size_t s = 0; s < n; ++s) {
-        if (perm[s] == s) continue;
-        if (s == 0 || perm[s - 1] == s - 1) run[2 * r] = s;
-        if (s + 1 == n || perm[s + 1] == s + 1) run[2 * r++ + 1] = s + 1;
-        ++moved;
-    }
     int narr = p->dim;
     for (int f = 0; f < p->nfields; ++f) narr += p->fields[f].ncomp;
+#ifdef _OPENMP
+    const int tmax = omp_get_max_threads();
+#else
+    const int tmax = 1;
+#endif
     double **arr = consph_calloc((size_t)narr, sizeof(double *));
-    if (!arr) {
-        free(run);
+    /* per thread: moved slots, then runs, each as offsets from thread 0's (tmax + 1 each) */
+    size_t *count = consph_calloc(2 * ((size_t)tmax + 1), sizeof(size_t));
+    if (!arr || !count) {
+        free(arr);
+        free(count);
         return CONSPH_ENOMEM;
     }
+    size_t *moved_at = count, *runs_at = count + tmax + 1;
     int k = 0;
     for (int a = 0; a < p->dim; ++a) arr[k++] = p->x[a];
     for (int f = 0; f < p->nfields; ++f)
         for (int c = 0; c < p->fields[f].ncomp; ++c)
             arr[k++] = p->fields[f].data + (size_t)c * p->cap;
-    int st = CONSPH_OK;
-#pragma omp parallel if (moved >= PERMUTE_PARALLEL_MIN)
+    size_t moved = 0, *run = NULL;
+    double *tmp = NULL;
+    int group = narr, st = CONSPH_OK;
+#pragma omp parallel if (n >= PERMUTE_PARALLEL_MIN)
     {
-        double *tmp = malloc(moved * sizeof(double));
-        if (!tmp) {
-#pragma omp atomic write
-            st = CONSPH_ENOMEM;
+#ifdef _OPENMP
+        const int nt = omp_get_num_threads(), t = omp_get_thread_num();
+#else
+        const int nt = 1, t = 0;
+#endif
+        const size_t s0 = n * (size_t)t / (size_t)nt, s1 = n * (size_t)(t + 1) / (size_t)nt;
+        size_t mine = 0, myruns = 0;
+        for (size_t s = s0; s < s1; ++s)
+            if (perm[s] != s) {
+                ++mine;
+                myruns += s == s0 || perm[s - 1] == s - 1;
+            }
+        moved_at[t + 1] = mine;
+        runs_at[t + 1] = myruns;
+#pragma omp barrier
+#pragma omp single
+        {
+            for (int u = 0; u < nt; ++u) {
+                moved_at[u + 1] += moved_at[u];
+                runs_at[u + 1] += runs_at[u];
+            }
+            moved = moved_at[nt];
+            if (moved) {
+                const size_t held = PERMUTE_HELD * n / moved;
+                if (held < (size_t)group) group = held > 0 ? (int)held : 1;
+                run = malloc(2 * runs_at[nt] * sizeof *run);
+                tmp = malloc((size_t)group * moved * sizeof *tmp);
+                if (!run || !tmp) st = CONSPH_ENOMEM;
+            }
         }
-#pragma omp for schedule(dynamic, 1)
-        for (int a = 0; a < narr; ++a)
-            if (tmp) permute_runs(arr[a], perm, run, nruns, tmp);
-        free(tmp);
+        if (moved && st == CONSPH_OK) {
+            const size_t k0 = moved_at[t], r0 = runs_at[t], r1 = runs_at[t + 1];
+            size_t r = r0;
+            for (size_t s = s0; s < s1; ++s) {
+                if (perm[s] == s) continue;
+                if (s == s0 || perm[s - 1] == s - 1) run[2 * r] = s;
+                if (s + 1 == s1 || perm[s + 1] == s + 1) run[2 * r++ + 1] = s + 1;
+            }
+            for (int g0 = 0; g0 < narr; g0 += group) {
+                const int gn = narr - g0 < group ? narr - g0 : group;
+                for (int g = 0; g < gn; ++g) {
+                    const double *a = arr[g0 + g];
+                    double *held = tmp + (size_t)g * moved + k0;
+                    size_t m = 0;
+                    for (size_t q = r0; q < r1; ++q)
+                        for (size_t s = run[2 * q]; s < run[2 * q + 1]; ++s) held[m++] = a[perm[s]];
+                }
+#pragma omp barrier
+                for (int g = 0; g < gn; ++g) {
+                    double *a = arr[g0 + g];
+                    const double *held = tmp + (size_t)g * moved + k0;
+                    for (size_t q = r0; q < r1; ++q) {
+                        const size_t len = run[2 * q + 1] - run[2 * q];
+                        memcpy(a + run[2 * q], held, len * sizeof *held);
+                        held += len;
+                    }
+                }
+            }
+        }
     }
     free(arr);
+    free(count);
     free(run);
+    free(tmp);
     if (st != CONSPH_OK)
-        return consph_fail(st, "out of memory for the %zu moved values of an array", moved);
+        return consph_fail(st, "out of memory for the %zu moved values of a permutation", moved);
     return CONSPH_OK;
 }
 

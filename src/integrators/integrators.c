@@ -1,5 +1,8 @@
 /* The integrators' table and their steps (the state and the callbacks: integrators.h). */
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "consph/solver.h"
 #include "integrators/integrators.h"
@@ -40,18 +43,30 @@ static void save_update_block(double *restrict y, double *restrict y0, const dou
     }
 }
 
-/* u = u0 + c ku and q = q0 + c kq; save: from the unsaved start, u0, q0 = u, q in the same sweep
- * (the same values: u0 is u). */
-static void set_fields_from(const integ_state *st, double c, const double *ku, const double *kq,
-                            int save)
+/* In blocks shared out among the threads: u = u0 + c ku and q = q0 + c kq where ku is given,
+ * then x = x0 + c kx where kx is; save: from the unsaved start, u0, q0 (and x0) = u, q (and x)
+ * in the same sweep (the same values: u0 is u). Each value depends on its own particle's alone,
+ * so one sweep of a block doing both is the two sweeps (one parallel region, not two). */
+static void update_blocks(const integ_state *st, double c, const double *ku, const double *kq,
+                          const double *kx, int save)
 {
     const int d = st->dim;
-    const size_t n = st->n, cap = st->cap, nblocks = (n + INTEG_BLOCK - 1) / INTEG_BLOCK;
+    const size_t n = st->n, cap = st->cap;
+    /* blocks of at most INTEG_BLOCK particles (a multiple of 8), as many as a multiple of the
+     * threads: 5 blocks of 2048 shared by 2 threads would give one of them 3 */
+    size_t nblocks = (n + INTEG_BLOCK - 1) / INTEG_BLOCK;
+#ifdef _OPENMP
+    const size_t threads = n >= INTEG_PARALLEL_MIN ? (size_t)omp_get_max_threads() : 1;
+    nblocks = (nblocks + threads - 1) / threads * threads;
+#endif
+    size_t bs = nblocks ? (n + nblocks - 1) / nblocks : 1;
+    bs = (bs + 7) / 8 * 8;
+    nblocks = (n + bs - 1) / bs;
     double *u = st->u, *q = st->q, *u0 = st->u0, *q0 = st->q0;
 #pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
     for (size_t b = 0; b < nblocks; ++b) {
-        const size_t i0 = b * INTEG_BLOCK, m = n - i0 < INTEG_BLOCK ? n - i0 : INTEG_BLOCK;
-        for (int a = -1; a < d; ++a) {
+        const size_t i0 = b * bs, m = n - i0 < bs ? n - i0 : bs;
+        for (int a = ku ? -1 : d; a < d; ++a) {
             /* a = -1: q; then the components of u */
             const size_t o = a < 0 ? i0 : (size_t)a * cap + i0;
             double *y = a < 0 ? q : u, *y0 = a < 0 ? q0 : u0;
@@ -61,47 +76,46 @@ static void set_fields_from(const integ_state *st, double c, const double *ku, c
             else
                 update_block(y + o, y0 + o, k + o, c, m);
         }
+        for (int a = 0; kx && a < d; ++a) {
+            double *x = st->x[a] + i0, *x0 = st->x0 + a * cap + i0;
+            const double *k = kx + a * cap + i0;
+            if (save)
+                save_update_block(x, x0, k, c, m);
+            else
+                update_block(x, x0, k, c, m);
+        }
     }
 }
 
 static void set_fields(const integ_state *st, double c, const double *ku, const double *kq)
 {
-    set_fields_from(st, c, ku, kq, 0);
+    update_blocks(st, c, ku, kq, NULL, 0);
 }
 
 /* x = x0 + c kx (with save: x0 = x first, in the same sweep), then wrapped and the search
  * rebuilt by the solver. */
 static int drift(const integ_state *st, double c, const double *kx, int save)
 {
-    const size_t n = st->n, cap = st->cap;
-    for (int a = 0; a < st->dim; ++a) {
-        double *x = st->x[a], *x0 = st->x0 + a * cap;
-        const double *k = kx + a * cap;
-        if (save) {
-            for (size_t i = 0; i < n; ++i) {
-                const double xi = x[i];
-                x0[i] = xi;
-                x[i] = xi + c * k[i];
-            }
-        } else {
-            for (size_t i = 0; i < n; ++i) x[i] = x0[i] + c * k[i];
-        }
-    }
+    update_blocks(st, c, NULL, NULL, kx, save);
     return st->moved(st->ctx);
 }
 
 /* y = y0 + c k for the evolved fields with the last rates, then the closure; save: the step's
- * first update of an unsaved start, which saves it on the way. */
+ * first update of an unsaved start, which saves it on the way. Without a transport hook between
+ * the update and the drift, both in one sweep. */
 static int advance(const integ_state *st, double c, int save)
 {
-    if (save)
-        set_fields_from(st, c, st->au, st->aq, 1);
-    else
-        set_fields(st, c, st->au, st->aq);
-    if (st->x0) {
-        if (st->transport) st->transport(st->ctx, c);
-        int rc = drift(st, c, st->ax, save);
+    if (st->x0 && !st->transport) {
+        update_blocks(st, c, st->au, st->aq, st->ax, save);
+        int rc = st->moved(st->ctx);
         if (rc != CONSPH_OK) return rc;
+    } else {
+        update_blocks(st, c, st->au, st->aq, NULL, save);
+        if (st->x0) {
+            if (st->transport) st->transport(st->ctx, c);
+            int rc = drift(st, c, st->ax, save);
+            if (rc != CONSPH_OK) return rc;
+        }
     }
     st->close(st->ctx);
     return CONSPH_OK;
@@ -133,22 +147,24 @@ static int step_kdk(const integ_state *st, double dt)
     if (st->unsaved) {
         /* the start read from u, q and kicked into u0, q0 (the same values: u0 would be u) */
         const double h = 0.5 * dt;
-        for (size_t i = 0; i < n; ++i) q0[i] = q[i] + h * aq[i];
-        for (int a = 0; a < d; ++a) {
-            double *ua = u + a * cap, *u0a = u0 + a * cap;
-            const double *aua = au + a * cap;
-            for (size_t i = 0; i < n; ++i) {
-                const double v = ua[i] + h * aua[i];
-                u0a[i] = v;
-                ua[i] = v;
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+        for (size_t i = 0; i < n; ++i) {
+            q0[i] = q[i] + h * aq[i];
+            for (int a = 0; a < d; ++a) {
+                const double v = u[a * cap + i] + h * au[a * cap + i];
+                u0[a * cap + i] = v;
+                u[a * cap + i] = v;
             }
         }
     } else {
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
         for (size_t i = 0; i < n; ++i) {
             q0[i] += 0.5 * dt * aq[i];
-            for (int a = 0; a < d; ++a) u0[a * cap + i] += 0.5 * dt * au[a * cap + i];
+            for (int a = 0; a < d; ++a) {
+                u0[a * cap + i] += 0.5 * dt * au[a * cap + i];
+                u[a * cap + i] = u0[a * cap + i];
+            }
         }
-        for (int a = 0; a < d; ++a) memcpy(u + a * cap, u0 + a * cap, n * sizeof(double));
     }
     int rc = CONSPH_OK;
     if (st->x0) {
@@ -156,12 +172,15 @@ static int step_kdk(const integ_state *st, double dt)
             st->transport(st->ctx, 0.5 * dt);
         } else {
             /* rates evaluated at this step's start: dx/dt there plus the half kick */
-            for (int a = 0; a < d; ++a)
-                for (size_t i = 0; i < n; ++i) ax[a * cap + i] += 0.5 * dt * au[a * cap + i];
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+            for (size_t i = 0; i < n; ++i)
+                for (int a = 0; a < d; ++a) ax[a * cap + i] += 0.5 * dt * au[a * cap + i];
         }
         rc = drift(st, dt, ax, st->unsaved);
     }
-    memcpy(st->q, q0, n * sizeof(double));
+    double *qd = st->q;
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+    for (size_t i = 0; i < n; ++i) qd[i] = q0[i];
     if (rc == CONSPH_OK) st->close(st->ctx);
     if (rc == CONSPH_OK) rc = st->rates(st->ctx);
     if (rc != CONSPH_OK) return rc;
@@ -206,10 +225,13 @@ static int ssprk3_stage(const integ_state *st, double c, double tc, double w, in
     if (st->x0) {
         if (st->transport) st->transport(st->ctx, tc);
         const size_t n = st->n, cap = st->cap;
-        for (int a = 0; a < st->dim; ++a)
-            for (size_t i = 0; i < n; ++i) {
+        const int d = st->dim;
+        const double *ax = st->ax;
+#pragma omp parallel for schedule(static) if (n >= INTEG_PARALLEL_MIN)
+        for (size_t i = 0; i < n; ++i)
+            for (int a = 0; a < d; ++a) {
                 const size_t j = a * cap + i;
-                kx[j] = first ? st->ax[j] : kx[j] + w * st->ax[j];
+                kx[j] = first ? ax[j] : kx[j] + w * ax[j];
             }
         int rc = drift(st, c, kx, 0);
         if (rc != CONSPH_OK) return rc;

@@ -20,6 +20,9 @@
 
 #include <float.h>
 #include <stdint.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 #include <stdlib.h>
 #include <string.h>
 
@@ -47,6 +50,9 @@ static int default_cells_per_radius(int dim, double mean_neighbours)
 #define NNPS_CELL_WIDEN 1.0e-9
 /* Builds parallelise the per-particle loops above this size. */
 #define NNPS_PARALLEL_MIN 20000
+/* A build on the threads (build_threads) from this size on: one parallel region, its fork and
+ * three barriers, costs less than a thread's share of the sweeps from a few thousand particles. */
+#define NNPS_BUILD_THREADS_MIN 4096
 
 struct consph_nnps {
     consph_box box;
@@ -76,6 +82,10 @@ struct consph_nnps {
     const consph_particles *p;
     size_t grid_n; /* nnps_fix_grid: the grid is chosen for this many particles, not n */
     int current;   /* nnps_build_is_current: the next sort may use this build as it is */
+    /* build_threads' scratch: each thread's count, then slot, per cell (threads x ncells), and
+     * two words per thread */
+    size_t *tcount;
+    size_t tcount_cap;
 };
 
 consph_nnps *consph_nnps_create(const consph_box *box, double radius, int cells_per_radius)
@@ -134,6 +144,7 @@ void consph_nnps_free(consph_nnps *g)
     free(g->cell_start);
     free(g->order);
     free(g->cell_of);
+    free(g->tcount);
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(g->xs[a]);
     free(g);
 }
@@ -158,8 +169,8 @@ size_t consph_nnps_bytes(const consph_nnps *g)
     size_t per_particle = 2 * sizeof(size_t) + (size_t)g->dim * sizeof(double);
     size_t padding =
         g->particle_cap ? (size_t)g->dim * CONSPH_NNPS_GATHER_SLACK * sizeof(double) : 0;
-    return sizeof *g + g->cell_start_cap * sizeof(size_t) + g->particle_cap * per_particle +
-           padding;
+    return sizeof *g + (g->cell_start_cap + g->tcount_cap) * sizeof(size_t) +
+           g->particle_cap * per_particle + padding;
 }
 
 /* Picks the cell counts for n particles: edge >= radius / cells_per_radius, total capped. */
@@ -273,7 +284,7 @@ static void bin_cells(const consph_nnps *g, const consph_particles *p, size_t *c
  * the grid's int64_t members, which the general loop would otherwise read again per particle.
  * The same operations as cell_index and stored_coord, hence the same cells. */
 static int bin_cells_2d(const consph_nnps *g, const double *x0, const double *x1,
-                        size_t *restrict cell_of, size_t n)
+                        size_t *restrict cell_of, size_t n, int par)
 {
     const double lo0 = g->lo[0], hi0 = g->hi[0], len0 = g->len[0], ih0 = g->inv_h[0];
     const double lo1 = g->lo[1], hi1 = g->hi[1], len1 = g->len[1], ih1 = g->inv_h[1];
@@ -291,7 +302,7 @@ static int bin_cells_2d(const consph_nnps *g, const double *x0, const double *x1
                        (per1 & ((int)!(x1[i] >= lo1) | (int)!(x1[i] < hi1)));
     }
     if (!outside) {
-#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
+#pragma omp parallel for schedule(static) if (par && n > NNPS_PARALLEL_MIN)
         for (size_t i = 0; i < n; ++i) {
             const double v0 = (x0[i] - lo0) * ih0, v1 = (x1[i] - lo1) * ih1;
             const int64_t c0 = !(v0 >= 0.0) ? 0 : v0 >= top0 ? nc0 - 1 : (int64_t)v0;
@@ -300,7 +311,7 @@ static int bin_cells_2d(const consph_nnps *g, const double *x0, const double *x1
         }
         return 1;
     }
-#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
+#pragma omp parallel for schedule(static) if (par && n > NNPS_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
         const double y0 = per0 ? nnps_wrap(x0[i], lo0, hi0, len0) : x0[i];
         const double y1 = per1 ? nnps_wrap(x1[i], lo1, hi1, len1) : x1[i];
@@ -327,6 +338,106 @@ static void gather_coords(const consph_nnps *g, int a, const double *x, const si
     }
 }
 
+/* The cells of particles [i0, i1), as bin_cells and bin_cells_2d give them; 1 when every
+ * coordinate on a periodic axis was inside the box (nnps_wrap would keep each as it is). */
+static int bin_range(const consph_nnps *g, const consph_particles *p, size_t *restrict cell_of,
+                     size_t i0, size_t i1)
+{
+    const int dim = g->dim;
+    int outside = 0;
+    for (size_t i = i0; i < i1; ++i) {
+        size_t c = 0;
+        for (int a = dim - 1; a >= 0; --a) {
+            const double x = p->x[a][i];
+            outside |= g->periodic[a] & ((int)!(x >= g->lo[a]) | (int)!(x < g->hi[a]));
+            c = c * (size_t)g->nc[a] + (size_t)cell_index(g, a, stored_coord(g, a, x));
+        }
+        cell_of[i] = c;
+    }
+    return !outside;
+}
+
+/* The build on the threads, in one parallel region: the same cells, slot order, cell starts and
+ * coordinates as the serial build, for any thread count. The stable counting sort is split as
+ * particles [i0, i1) per thread: each thread counts its particles per cell; cell c's slots go to
+ * the threads' particles in thread order (so in particle order, as the serial sort), from
+ * start[c], each thread's first slot in c being start[c] plus the counts of the threads before
+ * it; then each thread scatters its own particles. Returns 0 when the per-thread counts would
+ * not fit (the caller builds serially). */
+static int build_threads(consph_nnps *g, const consph_particles *p, size_t n)
+{
+#ifdef _OPENMP
+    const int want = omp_get_max_threads();
+    const size_t ncells = g->ncells;
+    /* the counts stay smaller than the particles' own arrays, else the serial sort */
+    if (want < 2 || n < NNPS_BUILD_THREADS_MIN || (size_t)want * ncells > n) return 0;
+    const size_t need = (size_t)want * (ncells + 2);
+    if (need > g->tcount_cap) {
+        if (grow((void **)&g->tcount, need, sizeof(size_t))) return 0;
+        g->tcount_cap = need;
+    }
+    size_t *tcount = g->tcount, *total = tcount + (size_t)want * ncells, *inside = total + want;
+    size_t *start = g->cell_start, *cell_of = g->cell_of, *order = g->order;
+    const int dim = g->dim;
+    int identity = 1;
+#pragma omp parallel num_threads(want) reduction(&& : identity)
+    {
+        const int nt = omp_get_num_threads(), t = omp_get_thread_num();
+        const size_t i0 = n * (size_t)t / (size_t)nt, i1 = n * (size_t)(t + 1) / (size_t)nt;
+        const size_t c0 = ncells * (size_t)t / (size_t)nt;
+        const size_t c1 = ncells * (size_t)(t + 1) / (size_t)nt;
+        inside[t] = (size_t)(dim == 2 ? bin_cells_2d(g, p->x[0] + i0, p->x[1] + i0, cell_of + i0,
+                                                     i1 - i0, 0)
+                                      : bin_range(g, p, cell_of, i0, i1));
+        size_t *mine = tcount + (size_t)t * ncells;
+        memset(mine, 0, ncells * sizeof *mine);
+        for (size_t i = i0; i < i1; ++i) ++mine[cell_of[i]];
+#pragma omp barrier
+        size_t sum = 0;
+        for (size_t c = c0; c < c1; ++c)
+            for (int u = 0; u < nt; ++u) sum += tcount[(size_t)u * ncells + c];
+        total[t] = sum;
+#pragma omp barrier
+        size_t next = 0;
+        for (int u = 0; u < t; ++u) next += total[u];
+        for (size_t c = c0; c < c1; ++c) {
+            start[c] = next;
+            for (int u = 0; u < nt; ++u) {
+                const size_t k = tcount[(size_t)u * ncells + c];
+                tcount[(size_t)u * ncells + c] = next;
+                next += k;
+            }
+        }
+        if (t == nt - 1) start[ncells] = next;
+#pragma omp barrier
+        for (size_t i = i0; i < i1; ++i) {
+            const size_t sl = mine[cell_of[i]]++;
+            order[sl] = i;
+            identity = identity && sl == i;
+        }
+        int in = 1;
+        for (int u = 0; u < nt; ++u) in = in && inside[u];
+#pragma omp barrier
+        /* slots [i0, i1): the coordinates in cell order */
+        for (int a = 0; a < dim; ++a) {
+            const double lo = g->lo[a], hi = g->hi[a], len = g->len[a], *x = p->x[a];
+            double *xs = g->xs[a];
+            if (g->periodic[a] && !in)
+                for (size_t sl = i0; sl < i1; ++sl) xs[sl] = nnps_wrap(x[order[sl]], lo, hi, len);
+            else
+                for (size_t sl = i0; sl < i1; ++sl) xs[sl] = x[order[sl]];
+        }
+    }
+    g->identity = identity;
+    return 1;
+#else
+    (void)g;
+    (void)p;
+    (void)n;
+    return 0;
+#endif
+}
+
 int consph_nnps_build(consph_nnps *g, const consph_particles *p)
 {
     g->current = 0;
@@ -343,33 +454,32 @@ int consph_nnps_build(consph_nnps *g, const consph_particles *p)
         return CONSPH_ENOMEM;
     }
     const int dim = g->dim;
-    size_t *cell_of = g->cell_of;
+    if (!build_threads(g, p, n)) {
+        size_t *cell_of = g->cell_of;
+        const int inside = dim == 2 ? bin_cells_2d(g, p->x[0], p->x[1], cell_of, n, 1) : 0;
+        if (dim != 2) bin_cells(g, p, cell_of, n);
 
-    const int inside = dim == 2 ? bin_cells_2d(g, p->x[0], p->x[1], cell_of, n) : 0;
-    if (dim != 2) bin_cells(g, p, cell_of, n);
+        /* Stable counting sort, serial: few particles, or more cells than the per-thread
+         * counts of build_threads may take. */
+        size_t *start = g->cell_start;
+        const size_t ncells = g->ncells;
+        memset(start, 0, (ncells + 1) * sizeof *start);
+        for (size_t i = 0; i < n; ++i) ++start[cell_of[i] + 1];
+        for (size_t c = 0; c < ncells; ++c) start[c + 1] += start[c];
+        for (size_t i = 0; i < n; ++i) g->order[start[cell_of[i]]++] = i;
+        /* The scatter advanced each start to the next cell's start; shift back. */
+        for (size_t c = ncells; c > 0; --c) start[c] = start[c - 1];
+        start[0] = 0;
 
-    /* Stable counting sort, serial: it is a small fraction of a query sweep (see bench_nnps),
-     * and a serial pass makes the order trivially independent of the thread count. */
-    size_t *start = g->cell_start;
-    const size_t ncells = g->ncells;
-    memset(start, 0, (ncells + 1) * sizeof *start);
-    for (size_t i = 0; i < n; ++i) ++start[cell_of[i] + 1];
-    for (size_t c = 0; c < ncells; ++c) start[c + 1] += start[c];
-    for (size_t i = 0; i < n; ++i) g->order[start[cell_of[i]]++] = i;
-    /* The scatter advanced each start to the next cell's start; shift back. */
-    for (size_t c = ncells; c > 0; --c) start[c] = start[c - 1];
-    start[0] = 0;
-
-    const size_t *order = g->order;
-    g->identity = 1;
-    for (size_t s = 0; s < n && g->identity; ++s) g->identity = order[s] == s;
-    for (int a = 0; a < dim; ++a) {
-        double *xs = g->xs[a];
-        gather_coords(g, a, p->x[a], order, xs, n, inside);
-        /* The gather's vector paths read whole blocks past a run's end; NaN is never a hit. */
-        if (n)
-            for (size_t s = n; s < n + CONSPH_NNPS_GATHER_SLACK; ++s) xs[s] = NAN;
+        const size_t *order = g->order;
+        g->identity = 1;
+        for (size_t s = 0; s < n && g->identity; ++s) g->identity = order[s] == s;
+        for (int a = 0; a < dim; ++a) gather_coords(g, a, p->x[a], order, g->xs[a], n, inside);
     }
+    /* The gather's vector paths read whole blocks past a run's end; NaN is never a hit. */
+    if (n)
+        for (int a = 0; a < dim; ++a)
+            for (size_t s = n; s < n + CONSPH_NNPS_GATHER_SLACK; ++s) g->xs[a][s] = NAN;
     g->p = p;
     g->n = n;
     return CONSPH_OK;
@@ -387,11 +497,16 @@ int consph_nnps_sort(consph_nnps *g, consph_particles *p, size_t *perm_out)
     /* already in cell order: the permutation is the identity and moves nothing */
     status = g->identity ? CONSPH_OK : consph_particles_permute(p, g->order);
     if (status) return status;
-    if (perm_out) memcpy(perm_out, g->order, p->n * sizeof *perm_out);
     /* A rebuild of the permuted set would bin particle s into the cell of old particle
      * order[s]: cells ascend with s, the stable sort keeps them in place, and the sorted
      * coordinates and cell starts are unchanged. So the rebuild reduces to this. */
-    for (size_t s = 0; s < p->n; ++s) g->order[s] = s;
+    const size_t n = p->n;
+    size_t *order = g->order;
+#pragma omp parallel for schedule(static) if (n >= NNPS_BUILD_THREADS_MIN)
+    for (size_t s = 0; s < n; ++s) {
+        if (perm_out) perm_out[s] = order[s];
+        order[s] = s;
+    }
     g->identity = 1;
     return CONSPH_OK;
 }

@@ -20,9 +20,6 @@
 #include "pass/nbhd.h"
 #include "pass/nlist.h"
 
-/* as pass.c's PASS_CELLS_PER_CHUNK */
-#define GROUP_CELLS_PER_CHUNK 16
-
 /* Entries n..kmax of a lane: the particle itself with zero separation and kernel values. */
 static void lane_pad(nbhd_scratch *sc, const consph_nbhd *nb, size_t kmax)
 {
@@ -68,6 +65,7 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
     int status = CONSPH_OK;
     char why[256] = "";
     size_t total = 0;
+    const size_t chunk = pass_cells_per_chunk(v.ncells);
 #pragma omp parallel if (n >= s->parallel_min)
     {
         consph_nnps_runs runs;
@@ -77,7 +75,7 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
         int my_status = CONSPH_OK;
         char my_why[256] = "";
         size_t my_pairs = 0;
-#pragma omp for schedule(dynamic, GROUP_CELLS_PER_CHUNK)
+#pragma omp for schedule(dynamic, chunk)
         for (size_t c = 0; c < v.ncells; ++c) {
             const size_t first = v.cell_start[c], last = v.cell_start[c + 1];
             if (first == last || my_status != CONSPH_OK) continue;

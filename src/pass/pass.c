@@ -13,14 +13,29 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "consph/pass.h"
+#include "pass/group.h"
 #include "pass/nbhd.h"
 #include "pass/nlist.h"
 
-/* Cells per dynamic chunk: at the default cells per radius a 2D cell holds ~13 particles at
- * h = 1.2Δs with the quintic kernel, a 3D one ~6. */
 #define PASS_CELLS_PER_CHUNK 16
+/* at least this many chunks per thread */
+#define PASS_CHUNKS_PER_THREAD 64
+
+size_t pass_cells_per_chunk(size_t ncells)
+{
+#ifdef _OPENMP
+    const size_t threads = (size_t)omp_get_max_threads();
+#else
+    const size_t threads = 1;
+#endif
+    const size_t c = ncells / (threads * PASS_CHUNKS_PER_THREAD);
+    return c < 1 ? 1 : c > PASS_CELLS_PER_CHUNK ? PASS_CELLS_PER_CHUNK : c;
+}
 
 static int pass_fail(const consph_pass *pass, int status, const char *why)
 {
@@ -68,6 +83,7 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
     size_t total = 0;
     /* consph_fail records per thread: a worker's message is copied out here. */
     why[0] = '\0';
+    const size_t chunk = pass_cells_per_chunk(v.ncells);
 #pragma omp parallel if (n >= s->parallel_min)
     {
         consph_nnps_runs runs;
@@ -77,7 +93,7 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
         int my_status = CONSPH_OK;
         char my_why[256] = "";
         size_t my_pairs = 0;
-#pragma omp for schedule(dynamic, PASS_CELLS_PER_CHUNK)
+#pragma omp for schedule(dynamic, chunk)
         for (size_t c = 0; c < v.ncells; ++c) {
             const size_t first = v.cell_start[c], last = v.cell_start[c + 1];
             if (first == last || my_status != CONSPH_OK) continue;
@@ -212,7 +228,7 @@ int consph_sys_update(consph_sys *s, int resort)
     if (s->nlist) return nlist_update(s, resort);
     if (!resort) return consph_nnps_build(s->nnps, s->p);
     const size_t n = s->p->n;
-    size_t *perm = consph_calloc(n ? n : 1, sizeof(size_t));
+    size_t *perm = malloc((n ? n : 1) * sizeof(size_t)); /* every entry written by the sort */
     if (!perm) return CONSPH_ENOMEM;
     int rc = consph_nnps_sort(s->nnps, s->p, perm);
     if (rc == CONSPH_OK) rc = sys_carry_permutation(s, perm);
@@ -231,13 +247,22 @@ int sys_carry_permutation(consph_sys *s, const size_t *perm)
     if ((s->origin && !o2) || (s->dest && !d2)) {
         rc = consph_fail(CONSPH_ENOMEM, "out of memory carrying %zu particles", n);
     } else {
-        if (o2) {
-            for (size_t i = 0; i < n; ++i) o2[i] = s->origin[perm[i]];
-            memcpy(s->origin, o2, n * sizeof(size_t));
-        }
-        if (d2) {
-            for (size_t i = 0; i < n; ++i) d2[i] = s->dest[perm[i]];
-            memcpy(s->dest, d2, n);
+        /* on the threads from parallel_min on: a serial sweep here, every re-sort, is a part of
+         * the step that no thread count shortens */
+        size_t *origin = s->origin;
+        unsigned char *dest = s->dest;
+#pragma omp parallel if (n >= s->parallel_min)
+        {
+#pragma omp for schedule(static)
+            for (size_t i = 0; i < n; ++i) {
+                if (o2) o2[i] = origin[perm[i]];
+                if (d2) d2[i] = dest[perm[i]];
+            }
+#pragma omp for schedule(static)
+            for (size_t i = 0; i < n; ++i) {
+                if (o2) origin[i] = o2[i];
+                if (d2) dest[i] = d2[i];
+            }
         }
     }
     free(o2);

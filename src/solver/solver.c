@@ -104,6 +104,7 @@ void solver_taylor_update(consph_solver *s, const double *dr)
     const size_t n = p->n, cap = p->cap;
     double *u = sv_field(s, SF_U, d), *q = sv_field(s, s->scheme->evolve_p ? SF_P : SF_RHOF, 1);
     const double *G = sv_field(s, SF_GRADU, d * d), *gq = sv_field(s, SF_GRADQ, d);
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
         double dq = 0.0;
         for (int b = 0; b < d; ++b) dq += dr[b * cap + i] * gq[b * cap + i];
@@ -410,11 +411,15 @@ void consph_solver_free(consph_solver *s)
 static void wrap_positions(consph_solver *s)
 {
     consph_particles *p = s->sys.p;
+    const size_t n = p->n;
+    /* one parallel region for every axis */
+#pragma omp parallel if (n >= SOLVER_PARALLEL_MIN)
     for (int a = 0; a < s->dim; ++a) {
         if (!p->box.periodic[a]) continue;
         const double lo = p->box.lo[a], L = p->box.hi[a] - lo;
         double *x = p->x[a];
-        for (size_t i = 0; i < p->n; ++i) {
+#pragma omp for schedule(static) nowait
+        for (size_t i = 0; i < n; ++i) {
             if (x[i] < lo || x[i] >= lo + L) {
                 x[i] -= L * floor((x[i] - lo) / L);
                 if (x[i] >= lo + L) x[i] = lo; /* rounding of a tiny negative offset */

@@ -107,12 +107,14 @@ int solver_check_valid(consph_solver *s)
      * its sums, and a uniform drift of p moves nothing (its force takes p - p̄) */
     const int compressible = !(s->scheme->evolve_p && s->scheme->closure);
     /* a - a is 0 for a finite a and NaN otherwise, so the sum is 0 exactly when every value is
-     * finite, in any order (as all_finite) */
+     * finite, in any order (as all_finite); a maximum is the same in any order: on the threads,
+     * the verdict does not depend on their count */
     double u2max = 0.0, cmax = 0.0, nonfinite = 0.0;
     if (d == 2) {
         /* (0 + u²) + v² of the loop below is u² + v²: the same value */
         const double *x0 = p->x[0], *x1 = p->x[1];
-#pragma omp simd reduction(max : u2max, cmax) reduction(+ : nonfinite)
+#pragma omp parallel for simd schedule(static) reduction(max : u2max, cmax)                       \
+    reduction(+ : nonfinite) if (n >= SOLVER_PARALLEL_MIN)
         for (size_t i = 0; i < n; ++i) {
             const double ux = u[i], uy = u[cap + i];
             nonfinite += (x0[i] - x0[i]) + (x1[i] - x1[i]) + (ux - ux) + (uy - uy) +
@@ -123,6 +125,8 @@ int solver_check_valid(consph_solver *s)
             cmax = c > cmax ? c : cmax;
         }
     } else {
+#pragma omp parallel for schedule(static) reduction(max : u2max, cmax) reduction(+ : nonfinite) \
+    if (n >= SOLVER_PARALLEL_MIN)
         for (size_t i = 0; i < n; ++i) {
             double u2 = 0.0;
             nonfinite += (rf[i] - rf[i]) + (pr[i] - pr[i]);

@@ -796,6 +796,14 @@ static int rhs_wcsph(consph_solver *s)
     return run_pass(s, &pass, job.pack ? group_visit_wcsph : NULL, &job);
 }
 
+/* dst = src over n values, on the threads from the system's parallel_min on */
+static void copy_values(const consph_solver *s, double *restrict dst, const double *restrict src)
+{
+    const size_t n = s->sys.p->n;
+#pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
+    for (size_t i = 0; i < n; ++i) dst[i] = src[i];
+}
+
 /* Density pass, then the rates; the transport velocity follows from them in tv_transport. */
 static int rhs_tv(consph_solver *s, int kind)
 {
@@ -822,7 +830,7 @@ static int rhs_tv(consph_solver *s, int kind)
     s->passes = 2;
     double *rhof = sv_field(s, SF_RHOF, 1);
     if (!rhof) return CONSPH_ENOMEM;
-    memcpy(rhof, job.rhos, s->sys.p->n * sizeof(double));
+    copy_values(s, rhof, job.rhos);
     return CONSPH_OK;
 }
 
@@ -837,12 +845,14 @@ static void tv_transport(consph_solver *s, double c)
     const double *u = sv_field(s, SF_U, d), *ab = sv_field(s, SF_UHAT, d);
     double *du = sv_field(s, SF_TVDU, d), *ax = sv_field(s, SF_AX, d);
     if (!u || !ab || !du || !ax) return; /* created by the first right-hand side */
-    /* on the threads: a serial loop here is a part of the step that no thread count shortens */
+        /* on the threads: a serial loop here is a part of the step that no thread count shortens;
+         * one parallel region for every component */
+#pragma omp parallel if (n >= s->sys.parallel_min)
     for (int a = 0; a < d; ++a) {
         /* one component at a time: loops the compiler vectorises */
         const double *ua = u + a * cap, *aba = ab + a * cap;
         double *dua = du + a * cap, *axa = ax + a * cap;
-#pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
+#pragma omp for schedule(static) nowait
         for (size_t i = 0; i < n; ++i) {
             const double v = c * aba[i];
             dua[i] = v;
@@ -867,7 +877,7 @@ static void closure_summation(consph_solver *s)
 {
     const double *rs = sv_field(s, SF_RHOS, 1);
     double *rhof = sv_field(s, SF_RHOF, 1);
-    if (rs && rhof) memcpy(rhof, rs, s->sys.p->n * sizeof(double));
+    if (rs && rhof) copy_values(s, rhof, rs);
 }
 
 const scheme_def scheme_wcsph = {
