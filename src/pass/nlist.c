@@ -317,36 +317,48 @@ static int pairs_estimate(const consph_sys *s, const consph_nnps_slots *v)
         return CONSPH_OK;
     }
     if (l->builds && l->passes_state < 2) return CONSPH_OK;
-    consph_nnps_runs runs;
-    memset(&runs, 0, sizeof runs);
-    size_t *slot = NULL, cap = 0, est = 0;
+    size_t est = 0;
     int st = CONSPH_OK;
-    for (size_t k = 0; k < l->nblocks && st == CONSPH_OK; ++k) {
-        const nlist_block *b = &l->blocks[k];
-        size_t dests = 0, first = b->s1;
-        for (size_t sl = b->s0; sl < b->s1; ++sl)
-            if (!s->dest || s->dest[particle_of(l, sl)]) {
-                if (!dests++) first = sl;
+    /* on the threads: an integer sum, the same in any order */
+#pragma omp parallel reduction(+ : est) if (v->n >= s->parallel_min)
+    {
+        consph_nnps_runs runs;
+        memset(&runs, 0, sizeof runs);
+        size_t *slot = NULL, cap = 0;
+        int my_st = CONSPH_OK;
+#pragma omp for schedule(static)
+        for (size_t k = 0; k < l->nblocks; ++k) {
+            if (my_st != CONSPH_OK) continue;
+            const nlist_block *b = &l->blocks[k];
+            size_t dests = 0, first = b->s1;
+            for (size_t sl = b->s0; sl < b->s1; ++sl)
+                if (!s->dest || s->dest[particle_of(l, sl)]) {
+                    if (!dests++) first = sl;
+                }
+            if (!dests) continue;
+            double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+            for (int a = 0; a < l->dim; ++a) xi[a] = v->x[a][first];
+            if (consph_nnps_point_runs(s->nnps, xi, &runs) == (size_t)-1) {
+                my_st = CONSPH_ENOMEM;
+                continue;
             }
-        if (!dests) continue;
-        double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
-        for (int a = 0; a < l->dim; ++a) xi[a] = v->x[a][first];
-        if (consph_nnps_point_runs(s->nnps, xi, &runs) == (size_t)-1) {
-            st = CONSPH_ENOMEM;
-            break;
-        }
-        const size_t need = runs.candidates + CONSPH_NNPS_GATHER_SLACK;
-        if (need > cap) {
-            if (grow((void **)&slot, need, sizeof(size_t))) {
-                st = CONSPH_ENOMEM;
-                break;
+            const size_t need = runs.candidates + CONSPH_NNPS_GATHER_SLACK;
+            if (need > cap) {
+                if (grow((void **)&slot, need, sizeof(size_t))) {
+                    my_st = CONSPH_ENOMEM;
+                    continue;
+                }
+                cap = need;
             }
-            cap = need;
+            est += dests * consph_nnps_gather(v, &runs, xi, slot, NULL, NULL);
         }
-        est += dests * consph_nnps_gather(v, &runs, xi, slot, NULL, NULL);
+        consph_nnps_runs_free(&runs);
+        free(slot);
+        if (my_st != CONSPH_OK) {
+#pragma omp atomic write
+            st = my_st;
+        }
     }
-    consph_nnps_runs_free(&runs);
-    free(slot);
     l->est_pairs = est;
     return st;
 }
@@ -527,8 +539,8 @@ static int rebuild_search(consph_sys *s, int resort)
 {
     if (!resort) return consph_nnps_build(s->nnps, s->p);
     const size_t n = s->p->n;
-    size_t *perm = consph_calloc(n ? n : 1, sizeof(size_t));
-    if (!perm) return CONSPH_ENOMEM;
+    size_t *perm = malloc((n ? n : 1) * sizeof(size_t)); /* every entry written by the sort */
+    if (!perm) return consph_fail(CONSPH_ENOMEM, "out of memory");
     int rc = consph_nnps_sort(s->nnps, s->p, perm);
     if (rc == CONSPH_OK) rc = sys_carry_permutation(s, perm);
     free(perm);
