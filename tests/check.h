@@ -6,6 +6,10 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
+
+#include "consph/core.h"
+
 #ifdef _OPENMP
 #include <omp.h>
 #endif
@@ -92,6 +96,23 @@ static inline int check_same_file(const char *a, const char *b)
     if (fa) fclose(fa);
     if (fb) fclose(fb);
     return same;
+}
+
+/* 1 when both particle sets hold the same positions and fields bit for bit. */
+static inline int check_particles_equal(const consph_particles *a, const consph_particles *b)
+{
+    if (a->n != b->n || a->dim != b->dim || a->nfields != b->nfields) return 0;
+    for (int d = 0; d < a->dim; ++d)
+        if (memcmp(a->x[d], b->x[d], a->n * sizeof(double))) return 0;
+    for (int f = 0; f < a->nfields; ++f) {
+        const consph_field *fb = consph_particles_find(b, a->fields[f].name);
+        if (!fb || fb->ncomp != a->fields[f].ncomp) return 0;
+        for (int c = 0; c < fb->ncomp; ++c)
+            if (memcmp(a->fields[f].data + (size_t)c * a->cap, fb->data + (size_t)c * b->cap,
+                       a->n * sizeof(double)))
+                return 0;
+    }
+    return 1;
 }
 
 #endif

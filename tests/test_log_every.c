@@ -34,22 +34,6 @@ static int run_steps(consph_solver *s)
     return CONSPH_OK;
 }
 
-static int same_bits(const consph_particles *a, const consph_particles *b)
-{
-    if (a->n != b->n || a->dim != b->dim || a->nfields != b->nfields) return 0;
-    for (int d = 0; d < a->dim; ++d)
-        if (memcmp(a->x[d], b->x[d], a->n * sizeof(double))) return 0;
-    for (int f = 0; f < a->nfields; ++f) {
-        const consph_field *fb = consph_particles_find(b, a->fields[f].name);
-        if (!fb || fb->ncomp != a->fields[f].ncomp) return 0;
-        for (int c = 0; c < fb->ncomp; ++c)
-            if (memcmp(a->fields[f].data + (size_t)c * a->cap, fb->data + (size_t)c * b->cap,
-                       a->n * sizeof(double)))
-                return 0;
-    }
-    return 1;
-}
-
 static int same_double(double a, double b)
 {
     return memcmp(&a, &b, sizeof a) == 0;
@@ -71,7 +55,7 @@ static void test_cadence(const char *scheme)
         CHECK(st == CONSPH_OK, "%s, K = %d: %s", scheme, ks[k], consph_last_error());
         if (st != CONSPH_OK) goto done;
     }
-    CHECK(same_bits(consph_solver_particles(s[0]), consph_solver_particles(s[1])),
+    CHECK(check_particles_equal(consph_solver_particles(s[0]), consph_solver_particles(s[1])),
           "%s: the final particles of K = 1 and K = 7 differ", scheme);
     static const long want[] = {0, 7, 14, 21, 23};
     const size_t nw = sizeof want / sizeof want[0];

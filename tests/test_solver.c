@@ -36,23 +36,6 @@ static int run_steps(consph_solver *s, long k)
     return CONSPH_OK;
 }
 
-/* 1 when both particle sets hold the same positions and fields bit for bit. */
-static int same_bits(const consph_particles *a, const consph_particles *b)
-{
-    if (a->n != b->n || a->dim != b->dim || a->nfields != b->nfields) return 0;
-    for (int d = 0; d < a->dim; ++d)
-        if (memcmp(a->x[d], b->x[d], a->n * sizeof(double))) return 0;
-    for (int f = 0; f < a->nfields; ++f) {
-        const consph_field *fb = consph_particles_find(b, a->fields[f].name);
-        if (!fb || fb->ncomp != a->fields[f].ncomp) return 0;
-        for (int c = 0; c < fb->ncomp; ++c)
-            if (memcmp(a->fields[f].data + (size_t)c * a->cap, fb->data + (size_t)c * b->cap,
-                       a->n * sizeof(double)))
-                return 0;
-    }
-    return 1;
-}
-
 static void test_names(void)
 {
     char names[256];
@@ -127,7 +110,7 @@ static void test_restart(const char *scheme, int layout)
         CHECK(run_steps(a, 8) == CONSPH_OK && run_steps(b, 8) == CONSPH_OK, "%s: steps: %s", scheme,
               consph_last_error());
         CHECK(consph_solver_done(a) && consph_solver_done(b), "%s: not done", scheme);
-        CHECK(same_bits(consph_solver_particles(a), consph_solver_particles(b)),
+        CHECK(check_particles_equal(consph_solver_particles(a), consph_solver_particles(b)),
               "%s: restored run differs", scheme);
         consph_run_summary sa, sb;
         consph_solver_summary(a, &sa);
@@ -298,7 +281,7 @@ static void test_threads(const char *scheme, int layout)
         CHECK(run_steps(s[t], 12) == CONSPH_OK, "%s: %s", scheme, consph_last_error());
     }
     check_set_threads(1);
-    CHECK(same_bits(consph_solver_particles(s[0]), consph_solver_particles(s[1])),
+    CHECK(check_particles_equal(consph_solver_particles(s[0]), consph_solver_particles(s[1])),
           "%s: 1 and 2 threads differ", scheme);
     consph_solver_free(s[0]);
     consph_solver_free(s[1]);

@@ -214,23 +214,6 @@ static void test_sum(void)
     }
 }
 
-/* 1 when both particle sets hold the same positions and fields bit for bit. */
-static int same_bits(const consph_particles *a, const consph_particles *b)
-{
-    if (a->n != b->n || a->dim != b->dim || a->nfields != b->nfields) return 0;
-    for (int d = 0; d < a->dim; ++d)
-        if (memcmp(a->x[d], b->x[d], a->n * sizeof(double))) return 0;
-    for (int f = 0; f < a->nfields; ++f) {
-        const consph_field *fb = consph_particles_find(b, a->fields[f].name);
-        if (!fb || fb->ncomp != a->fields[f].ncomp) return 0;
-        for (int c = 0; c < fb->ncomp; ++c)
-            if (memcmp(a->fields[f].data + (size_t)c * a->cap, fb->data + (size_t)c * b->cap,
-                       a->n * sizeof(double)))
-                return 0;
-    }
-    return 1;
-}
-
 /* Solver steps above every threshold of the step's parallel sweeps (nx 72: 5184 particles; 3D
  * nx 18: 5832): the integrators' updates and drift, the wrap, the build, the re-sort, the
  * closure and transport hooks, the checks. */
@@ -256,9 +239,10 @@ static void test_steps(const char *problem, const char *scheme, const char *inte
     }
     check_set_threads(1);
     for (int t = 1; t < NCOUNTS; ++t)
-        CHECK(s[0] && s[t] &&
-                  same_bits(consph_solver_particles(s[0]), consph_solver_particles(s[t])),
-              "%s %s %s: %d threads differ from 1", problem, scheme, integrator, thread_counts[t]);
+        CHECK(
+            s[0] && s[t] &&
+                check_particles_equal(consph_solver_particles(s[0]), consph_solver_particles(s[t])),
+            "%s %s %s: %d threads differ from 1", problem, scheme, integrator, thread_counts[t]);
     for (int t = 0; t < NCOUNTS; ++t) consph_solver_free(s[t]);
 }
 

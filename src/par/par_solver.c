@@ -2120,14 +2120,5 @@ int consph_par_run_restart(consph_solver **s, const char *checkpoint)
         return consph_run_restart(s, checkpoint);
     }
     const solver_range range = {first, first + p.n, total};
-    st = solver_restore_range(s, meta, &p, hist, nh, &range);
-    if (st != CONSPH_OK && st != CONSPH_ENOMEM) {
-        char msg[512];
-        snprintf(msg, sizeof msg, "%s", consph_last_error());
-        consph_fail(st, "checkpoint '%s': %s", checkpoint, msg);
-    }
-    free(meta);
-    free(hist);
-    consph_particles_free(&p);
-    return st;
+    return solver_restore_read(s, checkpoint, meta, &p, hist, nh, &range);
 }

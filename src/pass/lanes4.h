@@ -4,6 +4,8 @@
 #ifndef CONSPH_PASS_LANES4_H
 #define CONSPH_PASS_LANES4_H
 
+#include <stddef.h>
+
 #if defined(__GNUC__)
 #define CONSPH_LANES4 1
 typedef double lane4 __attribute__((vector_size(4 * sizeof(double))));
@@ -13,6 +15,25 @@ typedef double lane4u __attribute__((vector_size(4 * sizeof(double)), aligned(si
 /* m ? a : b per lane (m: all bits set or none); a macro, since a function returning a vector
  * would have a different ABI in a clone without AVX */
 #define LANE4_SEL(m, a, b) ((lane4)(((m) & (lane4i)(a)) | (~(m) & (lane4i)(b))))
+/* a lane shuffle of two lane4 by constant indices (0-3 from a, 4-7 from b) */
+#if defined(__clang__)
+#define LANE4_SHUF(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)
+#else
+#define LANE4_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (lane4i){i0, i1, i2, i3})
+#endif
+/* Entries o..o+3 of the four rows q[l] as four vectors, f[c] = {q[0][o + c], ..., q[3][o + c]}. */
+static inline __attribute__((always_inline)) void lane4_transpose(const double *const q[4],
+                                                                  size_t o, lane4 f[4])
+{
+    const lane4 a0 = *(const lane4u *)(q[0] + o), a1 = *(const lane4u *)(q[1] + o);
+    const lane4 a2 = *(const lane4u *)(q[2] + o), a3 = *(const lane4u *)(q[3] + o);
+    const lane4 t0 = LANE4_SHUF(a0, a1, 0, 4, 2, 6), t1 = LANE4_SHUF(a0, a1, 1, 5, 3, 7);
+    const lane4 t2 = LANE4_SHUF(a2, a3, 0, 4, 2, 6), t3 = LANE4_SHUF(a2, a3, 1, 5, 3, 7);
+    f[0] = LANE4_SHUF(t0, t2, 0, 1, 4, 5);
+    f[1] = LANE4_SHUF(t1, t3, 0, 1, 4, 5);
+    f[2] = LANE4_SHUF(t0, t2, 2, 3, 6, 7);
+    f[3] = LANE4_SHUF(t1, t3, 2, 3, 6, 7);
+}
 #endif
 
 #endif

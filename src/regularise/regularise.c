@@ -221,28 +221,6 @@ static void ipst_volume_visit(void *job, const consph_nbhd *nb)
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
 
-/* Entries o..o+3 of the four rows q[l] as four vectors, f[c] = {q[0][o + c], ..., q[3][o + c]}. */
-#if defined(__clang__)
-#define IPST_SHUF(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)
-#else
-#define IPST_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (lane4i){i0, i1, i2, i3})
-#endif
-#if defined(__GNUC__)
-__attribute__((always_inline))
-#endif
-static inline void
-ipst_transpose(const double *const q[PASS_GROUP], size_t o, lane4 f[4])
-{
-    const lane4 a0 = *(const lane4u *)(q[0] + o), a1 = *(const lane4u *)(q[1] + o);
-    const lane4 a2 = *(const lane4u *)(q[2] + o), a3 = *(const lane4u *)(q[3] + o);
-    const lane4 t0 = IPST_SHUF(a0, a1, 0, 4, 2, 6), t1 = IPST_SHUF(a0, a1, 1, 5, 3, 7);
-    const lane4 t2 = IPST_SHUF(a2, a3, 0, 4, 2, 6), t3 = IPST_SHUF(a2, a3, 1, 5, 3, 7);
-    f[0] = IPST_SHUF(t0, t2, 0, 1, 4, 5);
-    f[1] = IPST_SHUF(t1, t3, 0, 1, 4, 5);
-    f[2] = IPST_SHUF(t0, t2, 2, 3, 6, 7);
-    f[3] = IPST_SHUF(t1, t3, 2, 3, 6, 7);
-}
-
 /* The lanes' neighbour counts, the smallest and the largest. */
 static inline void ipst_lane_counts(const consph_nbhd *nb, size_t n[PASS_GROUP], size_t *kmin,
                                     size_t *kmax)
@@ -266,7 +244,7 @@ IPST_CLONES static void ipst_volume_group(void *job, const consph_nbhd *nb, int 
     for (; k + 4 <= kmin; k += 4) {
         lane4 f[4];
         const double *q[PASS_GROUP] = {nb[0].w, nb[1].w, nb[2].w, nb[3].w};
-        ipst_transpose(q, k, f);
+        lane4_transpose(q, k, f);
         w += f[0];
         w += f[1];
         w += f[2];

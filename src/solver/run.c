@@ -365,7 +365,13 @@ int consph_run_restart(consph_solver **s, const char *checkpoint)
     *s = NULL;
     int st = consph_checkpoint_read(checkpoint, &meta, &p, &hist, &nh);
     if (st != CONSPH_OK) return st;
-    st = consph_solver_restore(s, meta, &p, hist, nh);
+    return solver_restore_read(s, checkpoint, meta, &p, hist, nh, NULL);
+}
+
+int solver_restore_read(consph_solver **s, const char *checkpoint, char *meta, consph_particles *p,
+                        double *hist, size_t nh, const solver_range *range)
+{
+    int st = solver_restore_range(s, meta, p, hist, nh, range);
     if (st != CONSPH_OK && st != CONSPH_ENOMEM) {
         char msg[512];
         snprintf(msg, sizeof msg, "%s", consph_last_error());
@@ -373,6 +379,6 @@ int consph_run_restart(consph_solver **s, const char *checkpoint)
     }
     free(meta);
     free(hist);
-    consph_particles_free(&p);
+    consph_particles_free(p);
     return st;
 }

@@ -281,6 +281,10 @@ int solver_create_cut(consph_solver **out, const consph_run_params *prm,
  * (NULL: all of them), before its cut: no neighbour list yet (the cut starts it). */
 int solver_restore_range(consph_solver **out, const char *meta, const consph_particles *particles,
                          const double *history, size_t nhistory, const solver_range *range);
+/* solver_restore_range of what a checkpoint read gave (meta, particles, history: freed here),
+ * its error prefixed with the checkpoint's name. */
+int solver_restore_read(consph_solver **s, const char *checkpoint, char *meta, consph_particles *p,
+                        double *hist, size_t nh, const solver_range *range);
 
 /* consph_run_nx_check against `memory` bytes (0: unknown) instead of this machine's. */
 int run_nx_fits(int nx, int dim, double memory);

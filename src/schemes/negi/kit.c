@@ -404,11 +404,6 @@ static int coupled_lanes_pay(const consph_sys *s)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
-#if defined(__clang__)
-#define KV_SHUF(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)
-#else
-#define KV_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (lane4i){i0, i1, i2, i3})
-#endif
 /* An AVX2 copy in a generic x86-64 build, chosen at load time (the same operations in the same
  * order), as the PySPH family's group visits (src/schemes/pysph/scheme.c). */
 #if defined(__x86_64__) && !defined(__clang__) && defined(__GLIBC__) && !defined(__AVX2__)
@@ -417,25 +412,12 @@ static int coupled_lanes_pay(const consph_sys *s)
 #define KIT_CLONES
 #endif
 
-/* Entries o..o+3 of the four rows q[l], as four vectors f[c] = {q[0][o+c], ..., q[3][o+c]}. */
-TERM_INLINE void kv_transpose(const double *const q[PASS_GROUP], size_t o, lane4 f[4])
-{
-    const lane4 a0 = *(const lane4u *)(q[0] + o), a1 = *(const lane4u *)(q[1] + o);
-    const lane4 a2 = *(const lane4u *)(q[2] + o), a3 = *(const lane4u *)(q[3] + o);
-    const lane4 t0 = KV_SHUF(a0, a1, 0, 4, 2, 6), t1 = KV_SHUF(a0, a1, 1, 5, 3, 7);
-    const lane4 t2 = KV_SHUF(a2, a3, 0, 4, 2, 6), t3 = KV_SHUF(a2, a3, 1, 5, 3, 7);
-    f[0] = KV_SHUF(t0, t2, 0, 1, 4, 5);
-    f[1] = KV_SHUF(t1, t3, 0, 1, 4, 5);
-    f[2] = KV_SHUF(t0, t2, 2, 3, 6, 7);
-    f[3] = KV_SHUF(t1, t3, 2, 3, 6, 7);
-}
-
 /* The packed values (stride S) of the lanes' neighbours j: c[o] = {pk[j[0] S + o], ...} */
 TERM_INLINE void kv_unpack(const double *pk, const int S, const size_t j[PASS_GROUP], lane4 c[12])
 {
     const double *q[PASS_GROUP] = {pk + j[0] * (size_t)S, pk + j[1] * (size_t)S,
                                    pk + j[2] * (size_t)S, pk + j[3] * (size_t)S};
-    for (int o = 0; o < S; o += 4) kv_transpose(q, (size_t)o, c + o);
+    for (int o = 0; o < S; o += 4) lane4_transpose(q, (size_t)o, c + o);
 }
 
 /* visit_volume over a group */
@@ -454,7 +436,7 @@ KIT_CLONES static void group_volume(void *vjob, const consph_nbhd *nb, int count
     for (; k + 4 <= kmin; k += 4) {
         lane4 f[4];
         const double *q[PASS_GROUP] = {nb[0].w + k, nb[1].w + k, nb[2].w + k, nb[3].w + k};
-        kv_transpose(q, 0, f);
+        lane4_transpose(q, 0, f);
         s += f[0];
         s += f[1];
         s += f[2];
@@ -546,11 +528,11 @@ TERM_INLINE void kv_entries4(const consph_nbhd *nb, size_t k, const int D, size_
     for (int a = 0; a < D; ++a) {
         const double *q[PASS_GROUP] = {nb[0].dx[a] + k, nb[1].dx[a] + k, nb[2].dx[a] + k,
                                        nb[3].dx[a] + k};
-        kv_transpose(q, 0, f);
+        lane4_transpose(q, 0, f);
         for (int c = 0; c < 4; ++c) x[c][a] = f[c];
     }
     const double *q[PASS_GROUP] = {nb[0].dwr + k, nb[1].dwr + k, nb[2].dwr + k, nb[3].dwr + k};
-    kv_transpose(q, 0, w1);
+    lane4_transpose(q, 0, w1);
     for (int l = 0; l < PASS_GROUP; ++l)
         for (int c = 0; c < 4; ++c) j[c][l] = nb[l].j[k + (size_t)c];
 }
