@@ -56,6 +56,7 @@ static inline int lanes_before(size_t s, size_t s1)
 #define NNPS_INLINE static inline
 #endif
 
+#ifdef NNPS_SSE2
 /* x_ij and r² of the hits slot[n0..n) of one run (the SSE2 path stores only slots). */
 NNPS_INLINE void fill_hits(const int dim, const double *const *x, const double *q,
                            const size_t *slot, size_t n0, size_t n, double *const *dx, double *r2)
@@ -77,6 +78,7 @@ NNPS_INLINE void fill_hits(const int dim, const double *const *x, const double *
         if (r2) r2[k] = rr;
     }
 }
+#endif
 
 NNPS_INLINE size_t scan_c(const int dim, const double *const *x, const double *q, double r2max,
                           size_t s0, size_t s1, size_t *slot, double *const *dx, double *r2,
