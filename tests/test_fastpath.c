@@ -3,10 +3,12 @@
  *  - traversal: for every particle, the runs of its cell (and, for points, consph_nnps_point_runs)
  *    tested with the header's consph_nnps_scan_run give exactly the neighbours of
  *    consph_nnps_query_particle (same j, order, x_ij and r); every implementation of
- *    consph_nnps_gather this machine runs (portable C, SSE2, AVX2) gives that again, with and
- *    without the optional outputs. Sets: 1D-3D, periodic, mixed and open boxes with particles
- *    outside, radii beyond half the box (several images of one j), an unsorted set, a NaN
- *    particle, several cells per radius.
+ *    consph_nnps_gather this machine runs (portable C, SSE2, AVX2, AVX-512) gives that again,
+ *    with and without the optional outputs, and on hand-made runs of every length 0..19 at
+ *    every alignment (blocks of 4 and 8 ending anywhere, empty runs, shifted images) the
+ *    header's consph_nnps_scan_run's hits, writing nothing past the promised slack. Sets: 1D-3D,
+ * periodic, mixed and open boxes with particles outside, radii beyond half the box (several images
+ * of one j), an unsorted set, a NaN particle, several cells per radius.
  *  - kernels: consph_kernel_eval_batch equals consph_kernel_w/dw/d2w for every kernel and
  *    dimension, at r = 0 (the W'' limit), on and around every piece boundary and beyond the
  *    support; a kernel with a replaced shape function uses it.
@@ -106,10 +108,12 @@ static int check_gathers(const consph_nnps_slots *v, const consph_nnps_runs *run
 {
     int bad = 0;
     bufs_reserve(b, runs->candidates + CONSPH_NNPS_GATHER_SLACK);
-    const int best = nnps_best_isa();
+    const int best = nnps_machine_isa();
     for (int isa = NNPS_ISA_C; isa <= best; ++isa) {
         size_t m = nnps_gather_runs(isa, v, runs->run, runs->n, xi, b->slot, b->dx, b->r, 0);
         bad += !same_as_query(v, q, m, b->slot, b->dx, b->r);
+        m = nnps_gather_runs(isa, v, runs->run, runs->n, xi, b->slot, b->dx, NULL, 0);
+        bad += !same_as_query(v, q, m, b->slot, b->dx, NULL);
         m = nnps_gather_runs(isa, v, runs->run, runs->n, xi, b->slot, NULL, b->r, 0);
         bad += !same_as_query(v, q, m, b->slot, NULL, b->r);
         m = nnps_gather_runs(isa, v, runs->run, runs->n, xi, b->slot, NULL, NULL, 0);
@@ -199,6 +203,132 @@ static void test_traversal(const set_spec *sp)
     bufs_free(&b);
     consph_nbrs_free(&q);
     consph_nnps_runs_free(&runs);
+    consph_nnps_free(g);
+    consph_particles_free(&p);
+}
+
+/* Hand-made runs over the slots of one set, against the header's consph_nnps_scan_run followed
+ * by sqrt: single runs of every length 0..19 (ending at every offset of an 8-wide and of a
+ * 4-wide block, empty ones included) from starts that put them at every alignment, the last
+ * ones ending at the last slot (the vector paths must not take the padding for candidates),
+ * lists of three runs of lengths 0..9 with different image shifts (a block's hits appended
+ * behind another run's), appended from entry 0 and 5; every implementation this machine runs,
+ * every combination of the optional outputs. Entries before the start and past count +
+ * CONSPH_NNPS_GATHER_SLACK must be left alone. Returns the number of mismatching gathers. */
+enum { EDGE_MAX = 32, EDGE_GUARD = 8 };
+
+typedef struct edge_case {
+    const consph_nnps_slots *v;
+    const double *xi;
+    const consph_nnps_run *run;
+    size_t nruns;
+} edge_case;
+
+static long check_edge_case(const edge_case *e, long *hits, long *candidates)
+{
+    const consph_nnps_slots *v = e->v;
+    const size_t cap = 5 + EDGE_MAX + CONSPH_NNPS_GATHER_SLACK + EDGE_GUARD;
+    size_t ref_slot[EDGE_MAX], slot[5 + EDGE_MAX + CONSPH_NNPS_GATHER_SLACK + EDGE_GUARD];
+    double ref_dx[CONSPH_MAX_DIM][EDGE_MAX], ref_r[EDGE_MAX];
+    double dxs[CONSPH_MAX_DIM][5 + EDGE_MAX + CONSPH_NNPS_GATHER_SLACK + EDGE_GUARD];
+    double rs[5 + EDGE_MAX + CONSPH_NNPS_GATHER_SLACK + EDGE_GUARD];
+    double *ref_dxp[CONSPH_MAX_DIM] = {ref_dx[0], ref_dx[1], ref_dx[2]};
+    size_t cand = 0, ref = 0;
+    for (size_t k = 0; k < e->nruns; ++k) {
+        cand += e->run[k].s1 - e->run[k].s0;
+        ref = consph_nnps_scan_run(v, &e->run[k], e->xi, ref_slot, ref_dxp, ref_r, ref);
+    }
+    for (size_t k = 0; k < ref; ++k) ref_r[k] = sqrt(ref_r[k]);
+    *hits += (long)ref;
+    *candidates += (long)cand;
+    long bad = 0;
+    for (int isa = NNPS_ISA_C; isa <= nnps_machine_isa(); ++isa)
+        for (int want = 0; want < 4; ++want)
+            for (size_t n0 = 0; n0 <= 5; n0 += 5) {
+                const int with_dx = want & 1, with_r = want & 2;
+                for (size_t k = 0; k < cap; ++k) {
+                    slot[k] = (size_t)0x5eed + k;
+                    rs[k] = -1.0 - (double)k;
+                    for (int a = 0; a < CONSPH_MAX_DIM; ++a) dxs[a][k] = -2.0 - (double)k;
+                }
+                double *dx[CONSPH_MAX_DIM] = {dxs[0], dxs[1], dxs[2]};
+                const size_t m = nnps_gather_runs(isa, v, e->run, e->nruns, e->xi, slot,
+                                                  with_dx ? dx : NULL, with_r ? rs : NULL, n0);
+                int ok = m == n0 + ref;
+                for (size_t k = 0; ok && k < ref; ++k) {
+                    ok = slot[n0 + k] == ref_slot[k];
+                    if (with_r) ok = ok && same_bits(rs[n0 + k], ref_r[k]);
+                    for (int a = 0; with_dx && a < v->dim; ++a)
+                        ok = ok && same_bits(dxs[a][n0 + k], ref_dx[a][k]);
+                }
+                /* untouched: before the start, past the room the header promises */
+                for (size_t k = 0; k < cap; ++k) {
+                    if (k >= n0 && k < n0 + cand + CONSPH_NNPS_GATHER_SLACK) continue;
+                    ok = ok && slot[k] == (size_t)0x5eed + k && rs[k] == -1.0 - (double)k;
+                    for (int a = 0; a < CONSPH_MAX_DIM; ++a)
+                        ok = ok && dxs[a][k] == -2.0 - (double)k;
+                }
+                if (!ok && bad < 3)
+                    printf("  run edges: dim %d, isa %d, outputs %d, from %zu: %zu hits, expected "
+                           "%zu\n",
+                           v->dim, isa, want, n0, m - n0, ref);
+                bad += !ok;
+            }
+    return bad;
+}
+
+static void test_run_edges(int dim)
+{
+    const set_spec sp = {"run edges", dim, 120, {1, 1, 1}, 0.0, 0, 1, 0, 0};
+    consph_particles p;
+    make_set(&sp, &p, 31 + (uint64_t)dim);
+    /* hits and misses mixed in most blocks */
+    const double radius = 0.3 + 0.3 * (dim - 1);
+    consph_nnps *g = consph_nnps_create(&p.box, radius, 0);
+    CHECK(g && consph_nnps_sort(g, &p, NULL) == CONSPH_OK, "run edges %dD: build: %s", dim,
+          consph_last_error());
+    consph_nnps_slots v;
+    CHECK(consph_nnps_slots_get(g, &v) == CONSPH_OK, "run edges %dD: slots", dim);
+    const double shifts[3][CONSPH_MAX_DIM] = {{0.0, 0.0, 0.0}, {0.25, -0.5, 0.0}, {-0.3, 0.2, 0.4}};
+    long bad = 0, cases = 0, hits = 0, candidates = 0;
+    for (size_t q = 0; q < v.n; q += 37) {
+        double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+        for (int a = 0; a < dim; ++a) xi[a] = v.x[a][q];
+        consph_nnps_run run[3];
+        for (int t = 0; t < 3; ++t)
+            for (int a = 0; a < CONSPH_MAX_DIM; ++a) run[t].shift[a] = a < dim ? shifts[t][a] : 0.0;
+        edge_case e = {&v, xi, run, 1};
+        const size_t starts[] = {0, 1, 2, 3, 4, 5, 6, 7, 13};
+        for (size_t len = 0; len < 20; ++len) {
+            for (size_t t = 0; t <= sizeof starts / sizeof starts[0]; ++t) {
+                /* the last start: the run ends at the last slot */
+                run[0].s0 = t < sizeof starts / sizeof starts[0] ? starts[t] : v.n - len;
+                run[0].s1 = run[0].s0 + len;
+                bad += check_edge_case(&e, &hits, &candidates);
+                ++cases;
+            }
+        }
+        e.nruns = 3;
+        for (size_t a = 0; a < 10; ++a)
+            for (size_t b = 0; b < 10; ++b)
+                for (size_t c = 0; c < 10; c += 3) {
+                    run[0].s0 = 3 * q % 50;
+                    run[0].s1 = run[0].s0 + a;
+                    run[1].s0 = 60 + b;
+                    run[1].s1 = run[1].s0 + b;
+                    run[2].s0 = v.n - c;
+                    run[2].s1 = v.n;
+                    bad += check_edge_case(&e, &hits, &candidates);
+                    ++cases;
+                }
+    }
+    CHECK(bad == 0, "run edges %dD: %ld of %ld gathers differ from consph_nnps_scan_run", dim, bad,
+          cases);
+    CHECK(hits > candidates / 5 && hits < candidates - candidates / 5,
+          "run edges %dD: %ld hits of %ld candidates, too few hits or too few misses", dim, hits,
+          candidates);
+    printf("run edges %dD: %ld gathers, %ld hits of %ld candidates\n", dim, cases, hits,
+           candidates);
     consph_nnps_free(g);
     consph_particles_free(&p);
 }
@@ -380,6 +510,7 @@ int main(void)
     };
     const size_t nsets = sizeof sets / sizeof sets[0];
     for (size_t k = 0; k < nsets; ++k) test_traversal(&sets[k]);
+    for (int dim = 1; dim <= 3; ++dim) test_run_edges(dim);
     test_traversal_errors();
     test_kernel_batch();
     const set_spec op_sets[] = {
@@ -389,9 +520,8 @@ int main(void)
         {"ops 1D open", 1, 400, {0, 0, 0}, 0.03, 0, 0, 0, 0},
     };
     for (size_t k = 0; k < sizeof op_sets / sizeof op_sets[0]; ++k) test_operators(&op_sets[k]);
-    printf("gather implementations checked: up to %s\n", nnps_best_isa() == NNPS_ISA_AVX2 ? "AVX2"
-                                                         : nnps_best_isa() == NNPS_ISA_SSE2
-                                                             ? "SSE2"
-                                                             : "portable C");
+    static const char *const isa_names[] = {"portable C", "SSE2", "AVX2", "AVX-512"};
+    printf("gather implementations checked: up to %s (consph_nnps_gather uses %s)\n",
+           isa_names[nnps_machine_isa()], isa_names[nnps_best_isa()]);
     return check_summary("test_fastpath");
 }

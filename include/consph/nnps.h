@@ -118,8 +118,8 @@ size_t consph_nnps_point_runs(const consph_nnps *g, const double *x, consph_nnps
  * candidates of `runs`: writes their slots to slot[], and, where the arrays are non-NULL, their
  * x_ij to dx[a][] (a < dim) and their distance to r[]. Returns the count. The hits, their order
  * and their values are those of consph_nnps_scan_run over the runs followed by r = sqrt(r²), bit
- * for bit; the test runs on vectors (SSE2, or AVX2 where the processor has it) and only hits are
- * kept, which makes it several times faster. Each array needs room for
+ * for bit; the test runs on vectors (SSE2, or AVX2 or AVX-512 where the processor has it) and
+ * only hits are kept, which makes it several times faster. Each array needs room for
  * runs->candidates + CONSPH_NNPS_GATHER_SLACK entries. */
 size_t consph_nnps_gather(const consph_nnps_slots *v, const consph_nnps_runs *runs,
                           const double *xi, size_t *slot, double *const *dx, double *r);

@@ -644,11 +644,18 @@ eval_batch(const consph_kernel *k, size_t m, const double *restrict r, double *r
 }
 
 /* The batch loops are straight vector code, so wider vectors pay in proportion; a generic
- * x86-64 build also carries an AVX2 copy chosen at load time (the same operations in the same
- * order, hence the same values; no FMA is enabled, so nothing is contracted). */
+ * x86-64 build also carries AVX2 and AVX-512F copies chosen at load time (the same operations in
+ * the same order, hence the same values). AVX2 enables no FMA, so nothing can be contracted;
+ * AVX-512F does, so its copy is made only in ISO C mode (__STRICT_ANSI__: the build's -std=c11),
+ * where GCC contracts nothing (-ffp-contract=off; in GNU mode it fuses hundreds of products).
+ * tests/test_fastpath.c compares the batch with the scalar functions bit for bit. */
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
     !defined(__AVX2__)
+#if defined(__STRICT_ANSI__)
+#define KERNEL_CLONES __attribute__((target_clones("avx512f", "avx2", "default")))
+#else
 #define KERNEL_CLONES __attribute__((target_clones("avx2", "default")))
+#endif
 #else
 #define KERNEL_CLONES
 #endif

@@ -1,19 +1,25 @@
 /* The hit test of the inline traversal over whole runs: consph_nnps_gather and the query's scan.
  *
- * Three implementations give the same hits, order and values bit for bit (the same separations
+ * Four implementations give the same hits, order and values bit for bit (the same separations
  * q - x, squared distance summed from axis 0 up without fused multiply-adds, ordered compare,
  * correctly rounded square root):
  *  - portable C: a branchless loop that writes every candidate and advances only on a hit;
  *  - SSE2 (baseline x86-64): four candidates per step; the hits' slots are stored through a
  *    table of positions by hit mask, their x_ij and r² recomputed per hit;
  *  - AVX2, chosen at run time: four candidates per vector, and slots, x_ij and r² compressed
- *    with one permutation per vector, so nothing is recomputed.
- * The vector paths read whole blocks of four slots; the coordinate arrays carry
+ *    with one permutation per vector, so nothing is recomputed;
+ *  - AVX-512 (F), chosen at run time before AVX2: eight candidates per vector, compressed by
+ *    the compare's mask register (no table); a run's last block is a masked load and store.
+ * The SSE2 and AVX2 paths read whole blocks of four slots; the coordinate arrays carry
  * CONSPH_NNPS_GATHER_SLACK padding entries, blocks past a run's end are masked, and the output
- * arrays take up to that many entries past the count. */
+ * arrays take up to that many entries past the count (AVX-512 needs neither).
+ * No fused multiply-add: the SSE2 and AVX2 targets have none, and the AVX-512 one, which has,
+ * passes its products through square_unfused. */
 #include "nnps_internal.h"
 
 #include <stdint.h>
+#include <stdio.h>
+#include <stdlib.h>
 #include <string.h>
 
 #if defined(__x86_64__) && defined(__SSE2__)
@@ -22,6 +28,11 @@
 #if defined(__GNUC__)
 #include <immintrin.h>
 #define NNPS_AVX2 1
+/* AVX-512 intrinsics under a target attribute: GCC 7 and clang 8 have every one used here; the
+ * slots are stored as 64-bit lanes. */
+#if (defined(__clang__) ? __clang_major__ >= 8 : __GNUC__ >= 7) && __SIZEOF_SIZE_T__ == 8
+#define NNPS_AVX512 1
+#endif
 #endif
 #endif
 
@@ -46,6 +57,7 @@ static inline int lanes_before(size_t s, size_t s1)
 #define NNPS_INLINE static inline
 #endif
 
+#ifdef NNPS_SSE2
 /* x_ij and r² of the hits slot[n0..n) of one run (the SSE2 path stores only slots). */
 NNPS_INLINE void fill_hits(const int dim, const double *const *x, const double *q,
                            const size_t *slot, size_t n0, size_t n, double *const *dx, double *r2)
@@ -67,6 +79,7 @@ NNPS_INLINE void fill_hits(const int dim, const double *const *x, const double *
         if (r2) r2[k] = rr;
     }
 }
+#endif
 
 NNPS_INLINE size_t scan_c(const int dim, const double *const *x, const double *q, double r2max,
                           size_t s0, size_t s1, size_t *slot, double *const *dx, double *r2,
@@ -261,8 +274,151 @@ GATHER_AVX2(3, 0)
 GATHER_AVX2(3, 1)
 #endif
 
-int nnps_best_isa(void)
+#ifdef NNPS_AVX512
+/* Every AVX-512 processor has POPCNT; the mask's hit count is one instruction. */
+#define NNPS_AVX512_TARGET target("avx512f,popcnt")
+
+/* d * d, kept apart from the sum it joins: the AVX-512 target makes FMA available, and a fused
+ * multiply-add rounds once where the other paths round twice. The ISO C build (-std=c11)
+ * already keeps GCC from contracting; the empty asm keeps the bits under any -ffp-contract. */
+__attribute__((NNPS_AVX512_TARGET, always_inline)) static inline __m512d square_unfused(__m512d d)
 {
+    __m512d p = _mm512_mul_pd(d, d);
+    __asm__("" : "+v"(p));
+    return p;
+}
+
+/* Lane mask of the lanes of an 8-wide block that lie before the run's end. */
+static inline __mmask8 lanes_before8(size_t s, size_t s1)
+{
+    const size_t left = s1 - s;
+    return left >= 8 ? (__mmask8)0xff : (__mmask8)((1u << left) - 1);
+}
+
+/* One block of eight slots from s: avx2_block's operations in eight lanes, the hits compressed
+ * by the compare's own mask (vcompresspd/vpcompressq into a register, then a store; the
+ * memory form made the gather 7 times slower on AMD Zen 4). A full block reads slots s..s+7 of
+ * its run and stores eight entries from n; as n has advanced by at most the candidates before
+ * the block, those stores end within the candidates' room. The run's last, partial block (tail)
+ * loads only its `valid` lanes and stores only its hits, so it needs no padding and no slack at
+ * all. */
+__attribute__((NNPS_AVX512_TARGET, always_inline)) static inline size_t
+avx512_block(const int dim, const int with_dx, const int with_r, const int tail, const double *x0,
+             const double *x1, const double *x2, __m512d q0, __m512d q1, __m512d q2, __m512d lim,
+             size_t s, __m512i sl, __mmask8 valid, avx2_out o, size_t n)
+{
+#define AVX512_LOAD(p) (tail ? _mm512_maskz_loadu_pd(valid, (p)) : _mm512_loadu_pd(p))
+    __m512d d0 = _mm512_sub_pd(q0, AVX512_LOAD(x0 + s)), d1 = d0, d2 = d0;
+    __m512d rr = square_unfused(d0);
+    if (dim > 1) {
+        d1 = _mm512_sub_pd(q1, AVX512_LOAD(x1 + s));
+        rr = _mm512_add_pd(rr, square_unfused(d1));
+    }
+    if (dim > 2) {
+        d2 = _mm512_sub_pd(q2, AVX512_LOAD(x2 + s));
+        rr = _mm512_add_pd(rr, square_unfused(d2));
+    }
+#undef AVX512_LOAD
+    const __mmask8 m = tail ? _mm512_mask_cmp_pd_mask(valid, rr, lim, _CMP_LT_OQ)
+                            : _mm512_cmp_pd_mask(rr, lim, _CMP_LT_OQ);
+    const unsigned hits = (unsigned)__builtin_popcount(m);
+    const __mmask8 keep = (__mmask8)((1u << hits) - 1);
+#define AVX512_STORE(dst, v)                                                                       \
+    do {                                                                                           \
+        if (tail)                                                                                  \
+            _mm512_mask_storeu_pd((dst), keep, _mm512_maskz_compress_pd(m, (v)));                  \
+        else                                                                                       \
+            _mm512_storeu_pd((dst), _mm512_maskz_compress_pd(m, (v)));                             \
+    } while (0)
+    if (tail)
+        _mm512_mask_storeu_epi64(o.slot + n, keep, _mm512_maskz_compress_epi64(m, sl));
+    else
+        _mm512_storeu_si512(o.slot + n, _mm512_maskz_compress_epi64(m, sl));
+    if (with_r) AVX512_STORE(o.r + n, rr);
+    if (with_dx) {
+        AVX512_STORE(o.d0 + n, d0);
+        if (dim > 1) AVX512_STORE(o.d1 + n, d1);
+        if (dim > 2) AVX512_STORE(o.d2 + n, d2);
+    }
+#undef AVX512_STORE
+    return n + hits;
+}
+
+/* gather_avx2 in blocks of eight; r is optional here (the slots alone count neighbours). */
+__attribute__((NNPS_AVX512_TARGET, always_inline)) static inline size_t
+gather_avx512(const int dim, const int with_dx, const int with_r, const consph_nnps_slots *v,
+              const consph_nnps_run *run, size_t nruns, const double *xi, size_t *slot,
+              double *const *dx, double *r, size_t n)
+{
+    const __m512d lim = _mm512_set1_pd(v->radius2);
+    const __m512i lanes = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0), eight = _mm512_set1_epi64(8);
+    const double *x0 = v->x[0], *x1 = v->x[1], *x2 = v->x[2];
+    avx2_out o = {slot, r, NULL, NULL, NULL};
+    if (with_dx) {
+        o.d0 = dx[0];
+        o.d1 = dim > 1 ? dx[1] : NULL;
+        o.d2 = dim > 2 ? dx[2] : NULL;
+    }
+    const size_t n_first = n;
+    for (size_t k = 0; k < nruns; ++k) {
+        const size_t s0 = run[k].s0, s1 = run[k].s1, full = s0 + ((s1 - s0) & ~(size_t)7);
+        const __m512d q0 = _mm512_set1_pd(xi[0] - run[k].shift[0]);
+        const __m512d q1 = _mm512_set1_pd(dim > 1 ? xi[1] - run[k].shift[1] : 0.0);
+        const __m512d q2 = _mm512_set1_pd(dim > 2 ? xi[2] - run[k].shift[2] : 0.0);
+        __m512i sl = _mm512_add_epi64(_mm512_set1_epi64((long long)s0), lanes);
+        size_t s = s0;
+        for (; s < full; s += 8) {
+            n = avx512_block(dim, with_dx, with_r, 0, x0, x1, x2, q0, q1, q2, lim, s, sl, 0xff, o,
+                             n);
+            sl = _mm512_add_epi64(sl, eight);
+        }
+        if (s < s1)
+            n = avx512_block(dim, with_dx, with_r, 1, x0, x1, x2, q0, q1, q2, lim, s, sl,
+                             lanes_before8(s, s1), o, n);
+    }
+    if (with_r) {
+        size_t k = n_first;
+        for (; k + 8 <= n; k += 8) _mm512_storeu_pd(r + k, _mm512_sqrt_pd(_mm512_loadu_pd(r + k)));
+        if (k < n) {
+            const __mmask8 left = lanes_before8(k, n);
+            _mm512_mask_storeu_pd(r + k, left, _mm512_sqrt_pd(_mm512_maskz_loadu_pd(left, r + k)));
+        }
+    }
+    return n;
+}
+
+/* One function per dimension and per wanted output (x_ij, r), as for AVX2. */
+#define GATHER_AVX512(D, DX, R)                                                                    \
+    __attribute__((NNPS_AVX512_TARGET)) static size_t gather_avx512_##D##_##DX##R(                 \
+        const consph_nnps_slots *v, const consph_nnps_run *run, size_t nruns, const double *xi,    \
+        size_t *slot, double *const *dx, double *r, size_t n)                                      \
+    {                                                                                              \
+        return gather_avx512(D, DX, R, v, run, nruns, xi, slot, dx, r, n);                         \
+    }
+#define GATHER_AVX512_DIM(D)                                                                       \
+    GATHER_AVX512(D, 0, 0)                                                                         \
+    GATHER_AVX512(D, 0, 1)                                                                         \
+    GATHER_AVX512(D, 1, 0)                                                                         \
+    GATHER_AVX512(D, 1, 1)
+GATHER_AVX512_DIM(1)
+GATHER_AVX512_DIM(2)
+GATHER_AVX512_DIM(3)
+
+typedef size_t (*gather_fn)(const consph_nnps_slots *, const consph_nnps_run *, size_t,
+                            const double *, size_t *, double *const *, double *, size_t);
+/* [dim - 1][x_ij wanted][r wanted] */
+static const gather_fn gather_avx512_table[3][2][2] = {
+    {{gather_avx512_1_00, gather_avx512_1_01}, {gather_avx512_1_10, gather_avx512_1_11}},
+    {{gather_avx512_2_00, gather_avx512_2_01}, {gather_avx512_2_10, gather_avx512_2_11}},
+    {{gather_avx512_3_00, gather_avx512_3_01}, {gather_avx512_3_10, gather_avx512_3_11}}};
+#endif
+
+int nnps_machine_isa(void)
+{
+#ifdef NNPS_AVX512
+    if (__builtin_cpu_supports("avx512f") && __builtin_cpu_supports("popcnt"))
+        return NNPS_ISA_AVX512;
+#endif
 #ifdef NNPS_AVX2
     if (__builtin_cpu_supports("avx2")) return NNPS_ISA_AVX2;
 #endif
@@ -272,6 +428,45 @@ int nnps_best_isa(void)
     return NNPS_ISA_C;
 #endif
 }
+
+#if defined(__GNUC__)
+/* nnps_best_isa's answer, fixed before main (a library's constructor runs at load) so that the
+ * per-gather call is a load. CONSPH_GATHER_ISA=c|sse2|avx2|avx512 caps it, to time one
+ * implementation against another with one binary; every one gives the same bits. */
+static int chosen_isa = NNPS_ISA_C;
+
+__attribute__((constructor)) static void choose_isa(void)
+{
+#ifdef NNPS_SSE2
+    __builtin_cpu_init();
+#endif
+    int isa = nnps_machine_isa();
+    const char *cap = getenv("CONSPH_GATHER_ISA");
+    if (cap && *cap) {
+        static const char *const names[] = {"c", "sse2", "avx2", "avx512"};
+        int k = 0;
+        while (k < 4 && strcmp(cap, names[k]) != 0) ++k;
+        if (k == 4)
+            fprintf(stderr,
+                    "consph: CONSPH_GATHER_ISA='%s' ignored: allowed values are c, sse2, avx2 "
+                    "and avx512\n",
+                    cap);
+        else if (k < isa)
+            isa = k;
+    }
+    chosen_isa = isa;
+}
+
+int nnps_best_isa(void)
+{
+    return chosen_isa;
+}
+#else
+int nnps_best_isa(void)
+{
+    return nnps_machine_isa();
+}
+#endif
 
 /* r = sqrt(r²) in place; packed square roots are correctly rounded like sqrt(). */
 static void square_roots(double *r, size_t n0, size_t n)
@@ -288,8 +483,13 @@ size_t nnps_gather_runs(int isa, const consph_nnps_slots *v, const consph_nnps_r
                         size_t n)
 {
     const size_t n0 = n;
+#ifdef NNPS_AVX512
+    if (isa == NNPS_ISA_AVX512)
+        return gather_avx512_table[v->dim - 1][dx != NULL][r != NULL](v, run, nruns, xi, slot, dx,
+                                                                      r, n);
+#endif
 #ifdef NNPS_AVX2
-    if (isa == NNPS_ISA_AVX2 && r) {
+    if (isa >= NNPS_ISA_AVX2 && r) {
         if (v->dim == 1)
             return dx ? gather_avx2_1_1(v, run, nruns, xi, slot, dx, r, n)
                       : gather_avx2_1_0(v, run, nruns, xi, slot, dx, r, n);

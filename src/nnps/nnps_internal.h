@@ -26,8 +26,11 @@ static inline double nnps_wrap(double x, double lo, double hi, double len)
 extern const int32_t nnps_hit_permute[16][8];
 
 /* Implementations of the hit test (gather.c); each gives the same result bit for bit. */
-enum { NNPS_ISA_C, NNPS_ISA_SSE2, NNPS_ISA_AVX2 };
-/* The fastest implementation this machine runs. */
+enum { NNPS_ISA_C, NNPS_ISA_SSE2, NNPS_ISA_AVX2, NNPS_ISA_AVX512 };
+/* The fastest implementation this machine runs (each runs those below it too). */
+int nnps_machine_isa(void);
+/* The implementation consph_nnps_gather uses: nnps_machine_isa(), or the lower one that the
+ * environment's CONSPH_GATHER_ISA (c, sse2, avx2, avx512) names. */
 int nnps_best_isa(void);
 /* consph_nnps_gather with a given implementation (one this machine runs; NNPS_ISA_C always
  * is) over nruns runs, appending from entry n; returns the new count. Exposed for tests. */
