@@ -240,10 +240,9 @@ int consph_checkpoint_write(const char *path, const char *meta, const consph_par
 
 /* ---- reading ---- */
 
+/* the file whose errors are named */
 typedef struct ck_reader {
     const char *path;
-    const unsigned char *b;
-    size_t len, pos;
 } ck_reader;
 
 static int bad(const ck_reader *r, const char *what)
@@ -251,256 +250,8 @@ static int bad(const ck_reader *r, const char *what)
     return consph_fail(CONSPH_EFORMAT, "checkpoint '%s': %s", r->path, what);
 }
 
-static size_t left(const ck_reader *r)
-{
-    return r->len - r->pos;
-}
-
-static int take_u64(ck_reader *r, uint64_t *v, const char *what)
-{
-    *v = 0;
-    if (left(r) < 8) {
-        char msg[128];
-        snprintf(msg, sizeof msg, "payload ends before the %s", what);
-        return bad(r, msg);
-    }
-    *v = get_u64(r->b + r->pos);
-    r->pos += 8;
-    return CONSPH_OK;
-}
-
-static int take_f64(ck_reader *r, double *v, const char *what)
-{
-    uint64_t bits;
-    int rc = take_u64(r, &bits, what);
-    if (!rc) memcpy(v, &bits, 8);
-    return rc;
-}
-
-/* `count` doubles into v, after checking they are there. */
-static int take_doubles(ck_reader *r, double *v, size_t count, const char *what)
-{
-    if (left(r) / 8 < count) {
-        char msg[128];
-        snprintf(msg, sizeof msg, "payload ends inside the %s", what);
-        return bad(r, msg);
-    }
-    for (size_t i = 0; i < count; ++i) {
-        uint64_t bits = get_u64(r->b + r->pos + 8 * i);
-        memcpy(&v[i], &bits, 8);
-    }
-    r->pos += 8 * count;
-    return CONSPH_OK;
-}
-
-/* A length-prefixed byte string of at most `max` bytes without NUL, copied into a new buffer. */
-static int take_str(ck_reader *r, uint64_t max, char **out, const char *what)
-{
-    uint64_t len;
-    int rc = take_u64(r, &len, what);
-    if (rc) return rc;
-    char msg[160];
-    if (len > max || len > left(r)) {
-        snprintf(msg, sizeof msg, "%s length %llu exceeds %s", what, (unsigned long long)len,
-                 len > left(r) ? "the payload" : "its limit");
-        return bad(r, msg);
-    }
-    if (memchr(r->b + r->pos, '\0', (size_t)len)) {
-        snprintf(msg, sizeof msg, "%s holds a NUL byte", what);
-        return bad(r, msg);
-    }
-    *out = malloc((size_t)len + 1);
-    if (!*out) return consph_fail(CONSPH_ENOMEM, "out of memory");
-    memcpy(*out, r->b + r->pos, (size_t)len);
-    (*out)[len] = '\0';
-    r->pos += (size_t)len;
-    return CONSPH_OK;
-}
-
-/* The particle header and data. Sizes are checked against what remains before p exists. */
-static int take_particles(ck_reader *r, consph_particles *p)
-{
-    uint64_t dim, n, nfields, periodic[CONSPH_MAX_DIM];
-    consph_box box;
-    memset(&box, 0, sizeof box);
-    double spacing;
-    int rc = take_u64(r, &dim, "dimension");
-    if (rc) return rc;
-    if (dim < 1 || dim > CONSPH_MAX_DIM) return bad(r, "dimension is not 1, 2 or 3");
-    box.dim = (int)dim;
-    if ((rc = take_u64(r, &n, "particle count"))) return rc;
-    for (int a = 0; a < box.dim; ++a) {
-        if ((rc = take_f64(r, &box.lo[a], "box")) || (rc = take_f64(r, &box.hi[a], "box")) ||
-            (rc = take_u64(r, &periodic[a], "box")))
-            return rc;
-        if (periodic[a] > 1) return bad(r, "periodicity flag is not 0 or 1");
-        box.periodic[a] = (int)periodic[a];
-    }
-    if (consph_box_check(&box)) return bad(r, "invalid box");
-    if ((rc = take_f64(r, &spacing, "spacing"))) return rc;
-    if ((rc = take_u64(r, &nfields, "field count"))) return rc;
-    if (nfields > CONSPH_MAX_FIELDS) return bad(r, "more fields than consph allows");
-    char names[CONSPH_MAX_FIELDS][CONSPH_FIELD_NAME_MAX];
-    int ncomp[CONSPH_MAX_FIELDS];
-    /* Columns of n doubles each: positions, then every field component. */
-    uint64_t columns = dim;
-    for (uint64_t f = 0; f < nfields; ++f) {
-        char *name = NULL;
-        if ((rc = take_str(r, CONSPH_FIELD_NAME_MAX - 1, &name, "field name"))) return rc;
-        int empty = !name[0];
-        strcpy(names[f], name);
-        free(name);
-        if (empty) return bad(r, "empty field name");
-        for (uint64_t g = 0; g < f; ++g)
-            if (strcmp(names[g], names[f]) == 0) return bad(r, "two fields of the same name");
-        uint64_t nc;
-        if ((rc = take_u64(r, &nc, "field components"))) return rc;
-        if (nc < 1 || nc > INT_MAX || nc > left(r))
-            return bad(r, "impossible field component count");
-        ncomp[f] = (int)nc;
-        columns += nc;
-    }
-    /* The data and the history count must fit in what remains: this bounds n by the payload,
-     * so a hostile n never reaches an allocation. */
-    if (left(r) < 8 || n > (left(r) - 8) / 8 / columns)
-        return bad(r, "particle count larger than the payload holds");
-    rc = consph_particles_init(p, box.dim, (size_t)n, &box);
-    if (rc) return rc;
-    p->spacing = spacing;
-    for (int a = 0; a < p->dim && !rc; ++a) rc = take_doubles(r, p->x[a], p->n, "positions");
-    for (uint64_t f = 0; f < nfields && !rc; ++f) {
-        double *d = consph_particles_field(p, names[f], ncomp[f]);
-        rc = d ? take_doubles(r, d, p->n * (size_t)ncomp[f], "field data") : CONSPH_ENOMEM;
-    }
-    if (rc) consph_particles_free(p);
-    return rc;
-}
-
-static int parse_payload(ck_reader *r, char **meta, consph_particles *p, double **history,
-                         size_t *nhistory)
-{
-    /* Metadata is text the size of a few lines; the payload bounds it. */
-    int rc = take_str(r, UINT64_MAX, meta, "metadata");
-    if (rc) return rc;
-    if ((rc = take_particles(r, p))) goto fail_meta;
-    uint64_t nh;
-    if ((rc = take_u64(r, &nh, "history count"))) goto fail_p;
-    if (nh > left(r) / 8) {
-        rc = bad(r, "history count larger than the payload holds");
-        goto fail_p;
-    }
-    if (nh) {
-        *history = malloc((size_t)nh * sizeof(double));
-        if (!*history) {
-            rc = consph_fail(CONSPH_ENOMEM, "out of memory");
-            goto fail_p;
-        }
-        take_doubles(r, *history, (size_t)nh, "history");
-    }
-    if (left(r) != 0) {
-        rc = bad(r, "bytes after the history");
-        free(*history);
-        *history = NULL;
-        goto fail_p;
-    }
-    *nhistory = (size_t)nh;
-    return CONSPH_OK;
-fail_p:
-    consph_particles_free(p);
-fail_meta:
-    free(*meta);
-    *meta = NULL;
-    return rc;
-}
-
-int consph_checkpoint_read(const char *path, char **meta, consph_particles *p, double **history,
-                           size_t *nhistory)
-{
-    *meta = NULL;
-    *history = NULL;
-    *nhistory = 0;
-    memset(p, 0, sizeof *p);
-    ck_reader r = {path, NULL, 0, 0};
-    FILE *fp = fopen(path, "rb");
-    if (!fp) return consph_fail(CONSPH_EIO, "cannot open checkpoint '%s'", path);
-    unsigned char head[CK_HEADER];
-    size_t got = fread(head, 1, sizeof head, fp);
-    int rc = CONSPH_OK;
-    unsigned char *comp = NULL, *payload = NULL;
-    char msg[160];
-    if (got < 8 || memcmp(head, CK_MAGIC, 8) != 0) {
-        rc = bad(&r, "not a consph checkpoint (bad magic)");
-        goto done;
-    }
-    if (got < sizeof head) {
-        rc = bad(&r, "truncated header");
-        goto done;
-    }
-    uint32_t version = get_u32(head + 8), crc = get_u32(head + 12);
-    uint64_t usize = get_u64(head + 16), csize = get_u64(head + 24);
-    if (version != CK_VERSION) {
-        snprintf(msg, sizeof msg, "format version %lu, this build reads version %u",
-                 (unsigned long)version, CK_VERSION);
-        rc = bad(&r, msg);
-        goto done;
-    }
-    if (fseek(fp, 0, SEEK_END) != 0) {
-        rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
-        goto done;
-    }
-    long fsize = ftell(fp);
-    if (fsize < 0) {
-        rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
-        goto done;
-    }
-    if ((uint64_t)fsize - CK_HEADER != csize) {
-        snprintf(msg, sizeof msg, "%s: %llu bytes of compressed payload, the header says %llu",
-                 (uint64_t)fsize - CK_HEADER < csize ? "truncated" : "trailing bytes",
-                 (unsigned long long)((uint64_t)fsize - CK_HEADER), (unsigned long long)csize);
-        rc = bad(&r, msg);
-        goto done;
-    }
-    if (csize == 0 || csize > UINT_MAX || usize / CK_MAX_RATIO > csize) {
-        rc = bad(&r, "impossible payload sizes in the header");
-        goto done;
-    }
-    comp = malloc((size_t)csize);
-    if (!comp) {
-        rc = consph_fail(CONSPH_ENOMEM, "out of memory");
-        goto done;
-    }
-    if (fseek(fp, CK_HEADER, SEEK_SET) != 0 || fread(comp, 1, (size_t)csize, fp) != csize) {
-        rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
-        goto done;
-    }
-    size_t plen = 0, pcap = 0;
-    const char *why;
-    if (consph_rd_inflate(comp, (size_t)csize, &payload, &plen, &pcap, (size_t)usize, &why)) {
-        rc = bad(&r, why);
-        goto done;
-    }
-    if (plen != usize) {
-        rc = bad(&r, "payload shorter than the header says");
-        goto done;
-    }
-    uLong c = crc32(0L, Z_NULL, 0);
-    for (size_t off = 0; off < plen; off += UINT_MAX)
-        c = crc32(c, payload + off, (uInt)(plen - off < UINT_MAX ? plen - off : UINT_MAX));
-    if ((uint32_t)c != crc) {
-        rc = bad(&r, "CRC-32 mismatch (corrupt payload)");
-        goto done;
-    }
-    r.b = payload;
-    r.len = plen;
-    rc = parse_payload(&r, meta, p, history, nhistory);
-done:
-    fclose(fp);
-    free(comp);
-    free(payload);
-    return rc;
-}
-
-/* ---- reading a part: the payload inflated as a stream, only a range of each column kept ---- */
+/* The payload's parse, over the whole payload in memory or inflated as a stream from the file;
+ * a part keeps only a range of each column. */
 
 typedef struct ck_stream {
     const char *path;
@@ -512,6 +263,9 @@ typedef struct ck_stream {
     uint64_t usize, consumed; /* the payload's size, the bytes handed out so far */
     uLong crc;
     int err; /* the first error of the parse (its status; the message recorded) */
+    /* the whole payload already inflated and checked (consph_checkpoint_read), or NULL: the
+     * stream is inflated from fp as it is taken */
+    const unsigned char *mem;
 } ck_stream;
 
 static int cs_bad(ck_stream *s, const char *what)
@@ -535,6 +289,11 @@ static int cs_take(ck_stream *s, void *dst, size_t len, const char *where, const
         return cs_bad(s, msg);
     }
     unsigned char *out = dst;
+    if (s->mem) {
+        if (out) memcpy(out, s->mem + s->consumed, len);
+        s->consumed += len;
+        return CONSPH_OK;
+    }
     while (len > 0) {
         const size_t want = len < CK_CHUNK ? len : CK_CHUNK;
         unsigned char *to = out ? out : s->skip;
@@ -716,6 +475,109 @@ static int cs_payload(ck_stream *s, int part, int parts, char **meta, consph_par
     return CONSPH_OK;
 }
 
+int consph_checkpoint_read(const char *path, char **meta, consph_particles *p, double **history,
+                           size_t *nhistory)
+{
+    *meta = NULL;
+    *history = NULL;
+    *nhistory = 0;
+    memset(p, 0, sizeof *p);
+    ck_reader r = {path};
+    FILE *fp = fopen(path, "rb");
+    if (!fp) return consph_fail(CONSPH_EIO, "cannot open checkpoint '%s'", path);
+    unsigned char head[CK_HEADER];
+    size_t got = fread(head, 1, sizeof head, fp);
+    int rc = CONSPH_OK;
+    unsigned char *comp = NULL, *payload = NULL;
+    char msg[160];
+    if (got < 8 || memcmp(head, CK_MAGIC, 8) != 0) {
+        rc = bad(&r, "not a consph checkpoint (bad magic)");
+        goto done;
+    }
+    if (got < sizeof head) {
+        rc = bad(&r, "truncated header");
+        goto done;
+    }
+    uint32_t version = get_u32(head + 8), crc = get_u32(head + 12);
+    uint64_t usize = get_u64(head + 16), csize = get_u64(head + 24);
+    if (version != CK_VERSION) {
+        snprintf(msg, sizeof msg, "format version %lu, this build reads version %u",
+                 (unsigned long)version, CK_VERSION);
+        rc = bad(&r, msg);
+        goto done;
+    }
+    if (fseek(fp, 0, SEEK_END) != 0) {
+        rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
+        goto done;
+    }
+    long fsize = ftell(fp);
+    if (fsize < 0) {
+        rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
+        goto done;
+    }
+    if ((uint64_t)fsize - CK_HEADER != csize) {
+        snprintf(msg, sizeof msg, "%s: %llu bytes of compressed payload, the header says %llu",
+                 (uint64_t)fsize - CK_HEADER < csize ? "truncated" : "trailing bytes",
+                 (unsigned long long)((uint64_t)fsize - CK_HEADER), (unsigned long long)csize);
+        rc = bad(&r, msg);
+        goto done;
+    }
+    if (csize == 0 || csize > UINT_MAX || usize / CK_MAX_RATIO > csize) {
+        rc = bad(&r, "impossible payload sizes in the header");
+        goto done;
+    }
+    comp = malloc((size_t)csize);
+    if (!comp) {
+        rc = consph_fail(CONSPH_ENOMEM, "out of memory");
+        goto done;
+    }
+    if (fseek(fp, CK_HEADER, SEEK_SET) != 0 || fread(comp, 1, (size_t)csize, fp) != csize) {
+        rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
+        goto done;
+    }
+    size_t plen = 0, pcap = 0;
+    const char *why;
+    if (consph_rd_inflate(comp, (size_t)csize, &payload, &plen, &pcap, (size_t)usize, &why)) {
+        rc = bad(&r, why);
+        goto done;
+    }
+    if (plen != usize) {
+        rc = bad(&r, "payload shorter than the header says");
+        goto done;
+    }
+    uLong c = crc32(0L, Z_NULL, 0);
+    for (size_t off = 0; off < plen; off += UINT_MAX)
+        c = crc32(c, payload + off, (uInt)(plen - off < UINT_MAX ? plen - off : UINT_MAX));
+    if ((uint32_t)c != crc) {
+        rc = bad(&r, "CRC-32 mismatch (corrupt payload)");
+        goto done;
+    }
+    ck_stream *s = consph_calloc(1, sizeof *s);
+    if (!s) {
+        rc = consph_fail(CONSPH_ENOMEM, "out of memory");
+        goto done;
+    }
+    s->path = path;
+    s->mem = payload;
+    s->usize = plen;
+    size_t first = 0, total = 0;
+    rc = cs_payload(s, 0, 1, meta, p, history, nhistory, &first, &total);
+    free(s);
+    if (rc != CONSPH_OK) {
+        free(*meta);
+        *meta = NULL;
+        free(*history);
+        *history = NULL;
+        *nhistory = 0;
+        consph_particles_free(p);
+    }
+done:
+    fclose(fp);
+    free(comp);
+    free(payload);
+    return rc;
+}
+
 /* The first pass of a part's read: the whole compressed payload inflated as a stream into
  * scratch, with consph_checkpoint_read's checks and words (consph_rd_inflate's for the stream,
  * then its size and CRC), so that a bad file is refused as the whole read refuses it. */
@@ -790,7 +652,7 @@ int consph_checkpoint_read_part(const char *path, int part, int parts, char **me
     ck_stream *s = consph_calloc(1, sizeof *s);
     if (!s) return consph_fail(CONSPH_ENOMEM, "out of memory");
     s->path = path;
-    ck_reader r = {path, NULL, 0, 0};
+    ck_reader r = {path};
     int rc = CONSPH_OK;
     char msg[160];
     s->fp = fopen(path, "rb");
