@@ -189,6 +189,19 @@ typedef struct avx2_out {
     double *r, *d0, *d1, *d2;
 } avx2_out;
 
+/* The outputs of a gather: slots and r always, x_ij per axis with with_dx. */
+static inline avx2_out gather_out(const int dim, const int with_dx, size_t *slot, double *const *dx,
+                                  double *r)
+{
+    avx2_out o = {slot, r, NULL, NULL, NULL};
+    if (with_dx) {
+        o.d0 = dx[0];
+        o.d1 = dim > 1 ? dx[1] : NULL;
+        o.d2 = dim > 2 ? dx[2] : NULL;
+    }
+    return o;
+}
+
 /* One block of four slots from s (their slot numbers in sl): tests them, keeps the lanes in
  * `valid` and appends the hits' slots, r² and, with_dx, x_ij compressed to the front. */
 __attribute__((target("avx2"), always_inline)) static inline size_t
@@ -229,12 +242,7 @@ gather_avx2(const int dim, const int with_dx, const consph_nnps_slots *v,
     const __m256d lim = _mm256_set1_pd(v->radius2);
     const __m256i lanes = _mm256_set_epi64x(3, 2, 1, 0), four = _mm256_set1_epi64x(4);
     const double *x0 = v->x[0], *x1 = v->x[1], *x2 = v->x[2];
-    avx2_out o = {slot, r, NULL, NULL, NULL};
-    if (with_dx) {
-        o.d0 = dx[0];
-        o.d1 = dim > 1 ? dx[1] : NULL;
-        o.d2 = dim > 2 ? dx[2] : NULL;
-    }
+    const avx2_out o = gather_out(dim, with_dx, slot, dx, r);
     const size_t n_first = n;
     for (size_t k = 0; k < nruns; ++k) {
         const size_t s0 = run[k].s0, s1 = run[k].s1, full = s0 + ((s1 - s0) & ~(size_t)3);
@@ -353,12 +361,7 @@ gather_avx512(const int dim, const int with_dx, const int with_r, const consph_n
     const __m512d lim = _mm512_set1_pd(v->radius2);
     const __m512i lanes = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0), eight = _mm512_set1_epi64(8);
     const double *x0 = v->x[0], *x1 = v->x[1], *x2 = v->x[2];
-    avx2_out o = {slot, r, NULL, NULL, NULL};
-    if (with_dx) {
-        o.d0 = dx[0];
-        o.d1 = dim > 1 ? dx[1] : NULL;
-        o.d2 = dim > 2 ? dx[2] : NULL;
-    }
+    const avx2_out o = gather_out(dim, with_dx, slot, dx, r);
     const size_t n_first = n;
     for (size_t k = 0; k < nruns; ++k) {
         const size_t s0 = run[k].s0, s1 = run[k].s1, full = s0 + ((s1 - s0) & ~(size_t)7);
