@@ -475,6 +475,41 @@ static int cs_payload(ck_stream *s, int part, int parts, char **meta, consph_par
     return CONSPH_OK;
 }
 
+/* The header of a checkpoint open in fp: magic, version, the compressed size against the file's
+ * and the sizes' plausibility; fp is left at the compressed payload. */
+static int ck_header(const ck_reader *r, FILE *fp, uint32_t *crc, uint64_t *usize, uint64_t *csize)
+{
+    unsigned char head[CK_HEADER];
+    const size_t got = fread(head, 1, sizeof head, fp);
+    char msg[160];
+    if (got < 8 || memcmp(head, CK_MAGIC, 8) != 0)
+        return bad(r, "not a consph checkpoint (bad magic)");
+    if (got < sizeof head) return bad(r, "truncated header");
+    const uint32_t version = get_u32(head + 8);
+    *crc = get_u32(head + 12);
+    *usize = get_u64(head + 16);
+    *csize = get_u64(head + 24);
+    if (version != CK_VERSION) {
+        snprintf(msg, sizeof msg, "format version %lu, this build reads version %u",
+                 (unsigned long)version, CK_VERSION);
+        return bad(r, msg);
+    }
+    long fsize = -1;
+    if (fseek(fp, 0, SEEK_END) != 0 || (fsize = ftell(fp)) < 0)
+        return consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", r->path);
+    if ((uint64_t)fsize - CK_HEADER != *csize) {
+        snprintf(msg, sizeof msg, "%s: %llu bytes of compressed payload, the header says %llu",
+                 (uint64_t)fsize - CK_HEADER < *csize ? "truncated" : "trailing bytes",
+                 (unsigned long long)((uint64_t)fsize - CK_HEADER), (unsigned long long)*csize);
+        return bad(r, msg);
+    }
+    if (*csize == 0 || *csize > UINT_MAX || *usize / CK_MAX_RATIO > *csize)
+        return bad(r, "impossible payload sizes in the header");
+    if (fseek(fp, CK_HEADER, SEEK_SET) != 0)
+        return consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", r->path);
+    return CONSPH_OK;
+}
+
 int consph_checkpoint_read(const char *path, char **meta, consph_particles *p, double **history,
                            size_t *nhistory)
 {
@@ -485,53 +520,17 @@ int consph_checkpoint_read(const char *path, char **meta, consph_particles *p, d
     ck_reader r = {path};
     FILE *fp = fopen(path, "rb");
     if (!fp) return consph_fail(CONSPH_EIO, "cannot open checkpoint '%s'", path);
-    unsigned char head[CK_HEADER];
-    size_t got = fread(head, 1, sizeof head, fp);
-    int rc = CONSPH_OK;
     unsigned char *comp = NULL, *payload = NULL;
-    char msg[160];
-    if (got < 8 || memcmp(head, CK_MAGIC, 8) != 0) {
-        rc = bad(&r, "not a consph checkpoint (bad magic)");
-        goto done;
-    }
-    if (got < sizeof head) {
-        rc = bad(&r, "truncated header");
-        goto done;
-    }
-    uint32_t version = get_u32(head + 8), crc = get_u32(head + 12);
-    uint64_t usize = get_u64(head + 16), csize = get_u64(head + 24);
-    if (version != CK_VERSION) {
-        snprintf(msg, sizeof msg, "format version %lu, this build reads version %u",
-                 (unsigned long)version, CK_VERSION);
-        rc = bad(&r, msg);
-        goto done;
-    }
-    if (fseek(fp, 0, SEEK_END) != 0) {
-        rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
-        goto done;
-    }
-    long fsize = ftell(fp);
-    if (fsize < 0) {
-        rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
-        goto done;
-    }
-    if ((uint64_t)fsize - CK_HEADER != csize) {
-        snprintf(msg, sizeof msg, "%s: %llu bytes of compressed payload, the header says %llu",
-                 (uint64_t)fsize - CK_HEADER < csize ? "truncated" : "trailing bytes",
-                 (unsigned long long)((uint64_t)fsize - CK_HEADER), (unsigned long long)csize);
-        rc = bad(&r, msg);
-        goto done;
-    }
-    if (csize == 0 || csize > UINT_MAX || usize / CK_MAX_RATIO > csize) {
-        rc = bad(&r, "impossible payload sizes in the header");
-        goto done;
-    }
+    uint32_t crc = 0;
+    uint64_t usize = 0, csize = 0;
+    int rc = ck_header(&r, fp, &crc, &usize, &csize);
+    if (rc) goto done;
     comp = malloc((size_t)csize);
     if (!comp) {
         rc = consph_fail(CONSPH_ENOMEM, "out of memory");
         goto done;
     }
-    if (fseek(fp, CK_HEADER, SEEK_SET) != 0 || fread(comp, 1, (size_t)csize, fp) != csize) {
+    if (fread(comp, 1, (size_t)csize, fp) != csize) {
         rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
         goto done;
     }
@@ -653,47 +652,18 @@ int consph_checkpoint_read_part(const char *path, int part, int parts, char **me
     if (!s) return consph_fail(CONSPH_ENOMEM, "out of memory");
     s->path = path;
     ck_reader r = {path};
-    int rc = CONSPH_OK;
-    char msg[160];
     s->fp = fopen(path, "rb");
     if (!s->fp) {
         free(s);
         return consph_fail(CONSPH_EIO, "cannot open checkpoint '%s'", path);
     }
-    /* the header's checks are consph_checkpoint_read's, in its order and words */
-    unsigned char head[CK_HEADER];
-    size_t got = fread(head, 1, sizeof head, s->fp);
+    /* the header's checks are consph_checkpoint_read's, then the whole stream's */
     uint32_t crc = 0;
-    if (got < 8 || memcmp(head, CK_MAGIC, 8) != 0) {
-        rc = bad(&r, "not a consph checkpoint (bad magic)");
-    } else if (got < sizeof head) {
-        rc = bad(&r, "truncated header");
-    } else {
-        const uint32_t version = get_u32(head + 8);
-        crc = get_u32(head + 12);
-        s->usize = get_u64(head + 16);
-        const uint64_t csize = get_u64(head + 24);
-        long fsize = -1;
-        if (version != CK_VERSION) {
-            snprintf(msg, sizeof msg, "format version %lu, this build reads version %u",
-                     (unsigned long)version, CK_VERSION);
-            rc = bad(&r, msg);
-        } else if (fseek(s->fp, 0, SEEK_END) != 0 || (fsize = ftell(s->fp)) < 0) {
-            rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
-        } else if ((uint64_t)fsize - CK_HEADER != csize) {
-            snprintf(msg, sizeof msg, "%s: %llu bytes of compressed payload, the header says %llu",
-                     (uint64_t)fsize - CK_HEADER < csize ? "truncated" : "trailing bytes",
-                     (unsigned long long)((uint64_t)fsize - CK_HEADER), (unsigned long long)csize);
-            rc = bad(&r, msg);
-        } else if (csize == 0 || csize > UINT_MAX || s->usize / CK_MAX_RATIO > csize) {
-            rc = bad(&r, "impossible payload sizes in the header");
-        } else if (fseek(s->fp, CK_HEADER, SEEK_SET) != 0) {
-            rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
-        } else if ((rc = ck_verify(s, &r, csize, crc)) == CONSPH_OK &&
-                   fseek(s->fp, CK_HEADER, SEEK_SET) != 0) {
-            rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
-        }
-    }
+    uint64_t csize = 0;
+    int rc = ck_header(&r, s->fp, &crc, &s->usize, &csize);
+    if (rc == CONSPH_OK && (rc = ck_verify(s, &r, csize, crc)) == CONSPH_OK &&
+        fseek(s->fp, CK_HEADER, SEEK_SET) != 0)
+        rc = consph_fail(CONSPH_EIO, "cannot read checkpoint '%s'", path);
     if (rc == CONSPH_OK) {
         if (inflateInit(&s->z) != Z_OK) {
             rc = consph_fail(CONSPH_ENOMEM, "out of memory");
