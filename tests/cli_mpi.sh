@@ -4,7 +4,8 @@
 # study with fewer rows than ranks leaves ranks idle; a study stopped on 2 ranks resumes on 3 to
 # the serial report; a row that fails on rank 1 ends every rank with the serial exit status and
 # message, printed once, and so does a rank that stops before the study starts; `consph run` on
-# 2 and 3 ranks writes the serial run's files (l-rr-c and heat refused, exit 2, once); the other commands run on rank 0 alone (layout: the serial
+# 2 and 3 ranks writes the serial run's files, also sampling every step (l-rr-c and heat
+# refused, exit 2, once); the other commands run on rank 0 alone (layout: the serial
 # file and output, once). A serial run never initialises MPI.
 # In a build without MPI: a launch on 2 ranks is refused (exit 2). Skips (77) without mpirun or
 # where mpirun cannot start 2 ranks.
@@ -124,6 +125,14 @@ for np in 2 3; do
         cmp -s <(grep -v ' s, ' "$work/ro1") <(grep -v ' s, ' "$work/ro$np") && pass=$((pass + 1)) ||
         bad "run on $np ranks: stdout $(diff <(grep -v ' s, ' "$work/ro1") <(grep -v ' s, ' "$work/ro$np") | head -4)"
 done
+# Sampled at every step, snapshots at the first and last only (a sample gathers only what the
+# diagnostics read): the serial log, summary and snapshots; a scheme with a per-particle mass.
+runargs=(run taylor-green --scheme delta-plus-sph --layout random --nx 24 --steps 5 --log-every 1
+    --snapshot-every 0)
+"$bin" "${runargs[@]}" --out "$work/l1" >/dev/null 2>"$work/err" || bad "serial run: $(cat "$work/err")"
+mpi 2 "$bin" "${runargs[@]}" --out "$work/l2" >/dev/null 2>"$work/err" &&
+    same_run "$work/l1" "$work/l2" "sampled every step on 2 ranks" && pass=$((pass + 1)) ||
+    bad "sampled every step on 2 ranks: $(ours "$work/err")"
 cp -r "$work/r3" "$work/rr"
 mpi 2 "$bin" run --restart "$work/rr/checkpoint.ckpt" --out "$work/rr" >/dev/null 2>"$work/err" &&
     same_run "$work/r1" "$work/rr" "restart of 3 ranks' checkpoint on 2" && pass=$((pass + 1)) ||

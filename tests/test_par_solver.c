@@ -7,7 +7,8 @@
  * the cases are cut at the set-up (consph_par_solver_create), the files' runs after it; on 4
  * ranks, some cases and the restart with the boxes forced to 2 x 2 pieces across two axes;
  * the halo refresh sends only changed columns and leaves the halo equal to its owners (the
- * positions alone for refresh_positions).
+ * positions alone for refresh_positions); runs that sample every step (the samples gather only
+ * the fields they read) keep the serial history.
  *
  * Run without mpirun, the test computes the serial references and launches itself under
  * `mpirun -np 2` and `-np 3` (--oversubscribe: this machine may have fewer cores); skips (77)
@@ -51,6 +52,12 @@ static const par_case cases[] = {
     {"wcsph-3d", "beltrami", "wcsph", 20, CONSPH_LAYOUT_LATTICE, 3, "kernel=cubic"},
     /* the authors' error measure samples after every step: every step gathers the whole set */
     {"authors", "taylor-green", "edac", 40, CONSPH_LAYOUT_RANDOM, 6, "error=authors"},
+    /* a sample at every step gathers only what the diagnostics read (solver_sample_fields):
+     * a scheme with a per-particle mass, and the wc reference's errors besides */
+    {"sampled", "taylor-green", "delta-plus-sph", 40, CONSPH_LAYOUT_RANDOM, 5,
+     "log_every=1 exact=both"},
+    {"sampled-3d", "beltrami", "l-ipst-c", 20, CONSPH_LAYOUT_LATTICE, 2,
+     "ipst_every=2 kernel=cubic log_every=1"},
     /* leaves the model's validity at step 12 (kinetic energy growth): the checks' verdict
      * over the ranks, then the serial message */
     {"diverges", "taylor-green", "wcsph", 40, CONSPH_LAYOUT_RANDOM, 30, "cfl=1.5"},

@@ -211,22 +211,6 @@ static void pack_selected(const consph_particles *p, const unsigned char *sel, s
                 out[k++] = p->fields[f].data[(size_t)c * p->cap + i];
 }
 
-static int counts_to_doubles(par_solver *ps, const int *cnt, int *dbl, int *dis, size_t per)
-{
-    size_t off = 0;
-    for (int q = 0; q < ps->size; ++q) {
-        const size_t v = (size_t)cnt[q] * per;
-        if (v > INT32_MAX || off > INT32_MAX)
-            return consph_fail(CONSPH_EINVAL,
-                               "MPI decomposition: more than 2^31 values to one rank; use more "
-                               "ranks");
-        dbl[q] = (int)v;
-        dis[q] = (int)off;
-        off += v;
-    }
-    return CONSPH_OK;
-}
-
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
     !defined(__AVX2__)
 #define PAR_CLONES __attribute__((target_clones("avx2", "default")))
@@ -1584,12 +1568,36 @@ int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *a
     return par_global_some(s, fn, arg, NULL);
 }
 
+/* The gathers to rank 0 travel in messages of at most GATHER_MSG_BYTES (a rank's part in
+ * several), received one at a time while the previous one is unpacked: rank 0 holds the
+ * assembled set and two messages, not every rank's packed values besides it, and no count or
+ * displacement is bounded by an int's range. */
+enum { GATHER_MSG_BYTES = 4 << 20, TAG_GATHER = 1 };
+
+/* The messages of a gather to rank 0, in the order they are received: rank 1's part in pieces
+ * of at most `chunk` particles, then rank 2's, ... */
+typedef struct gather_msgs {
+    const int *cnt; /* per rank: its owned particles */
+    int size, q;
+    size_t left, chunk;
+} gather_msgs;
+
+/* The next message's particle count (0: none left) and its sender. */
+static size_t gather_next(gather_msgs *g, int *from)
+{
+    while (g->left == 0 && g->q + 1 < g->size) g->left = (size_t)g->cnt[++g->q];
+    const size_t k = g->left < g->chunk ? g->left : g->chunk;
+    g->left -= k;
+    *from = g->q;
+    return k;
+}
+
 int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg,
                     const char *const *only)
 {
     par_solver *ps = s->par;
     consph_particles *p = s->sys.p;
-    const double t0 = MPI_Wtime();
+    double t0 = MPI_Wtime();
     unsigned char sel[CONSPH_MAX_FIELDS];
     for (int f = 0; f < p->nfields; ++f) {
         sel[f] = !only;
@@ -1597,46 +1605,73 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
             if (!strcmp(p->fields[f].name, only[k])) sel[f] = 1;
     }
     const size_t per = values_selected(p, sel) + 1; /* + the serial index */
+    size_t chunk = GATHER_MSG_BYTES / (per * sizeof(double));
+    chunk = chunk ? chunk : 1;
     int st = CONSPH_OK;
-    double *sbuf = malloc((ps->nown ? ps->nown : 1) * per * sizeof(double));
-    int *cnt = NULL, *dis = NULL, *pcnt = NULL;
-    if (ps->rank == 0) {
-        cnt = consph_calloc((size_t)ps->size, sizeof(int));
-        dis = consph_calloc((size_t)ps->size, sizeof(int));
-        pcnt = consph_calloc((size_t)ps->size, sizeof(int));
-    }
-    if (!sbuf || (ps->rank == 0 && (!cnt || !dis || !pcnt))) MPI_Abort(ps->comm, 1);
-    for (size_t o = 0; o < ps->nown; ++o) {
-        pack_selected(p, sel, ps->own[o], sbuf + o * per);
-        sbuf[o * per + per - 1] = ps->g[ps->own[o]];
-    }
+    int *pcnt = ps->rank == 0 ? consph_calloc((size_t)ps->size, sizeof(int)) : NULL;
+    if (ps->rank == 0 && !pcnt) MPI_Abort(ps->comm, 1);
+    if (ps->nown > INT32_MAX) MPI_Abort(ps->comm, 1);
     const int mine = (int)ps->nown;
     MPI_Gather(&mine, 1, MPI_INT, pcnt, 1, MPI_INT, 0, ps->comm);
-    if (ps->rank == 0) st = counts_to_doubles(ps, pcnt, cnt, dis, per);
+    /* a message's room: rank 0 receives the next while it unpacks the last */
+    size_t most = ps->nown;
+    for (int q = 0; ps->rank == 0 && q < ps->size; ++q)
+        most = (size_t)pcnt[q] > most ? (size_t)pcnt[q] : most;
+    const size_t room = (most < chunk ? most : chunk) + 1;
+    const int nbuf = ps->rank == 0 ? 2 : 1;
+    double *buf = malloc((size_t)nbuf * room * per * sizeof(double));
+    if (!buf) MPI_Abort(ps->comm, 1);
+    ps->seconds += MPI_Wtime() - t0;
     consph_particles full;
     memset(&full, 0, sizeof full);
-    double *rbuf = NULL;
-    if (ps->rank == 0) {
-        if (st == CONSPH_OK) st = particles_like_some(&full, p, ps->nglobal, sel);
-        rbuf = malloc((ps->nglobal ? ps->nglobal : 1) * per * sizeof(double));
-        if (!rbuf) MPI_Abort(ps->comm, 1);
+    if (ps->rank != 0) {
+        for (size_t o = 0; o < ps->nown; o += chunk) {
+            const size_t k = ps->nown - o < chunk ? ps->nown - o : chunk;
+            for (size_t j = 0; j < k; ++j) {
+                const size_t i = ps->own[o + j];
+                pack_selected(p, sel, i, buf + j * per);
+                buf[j * per + per - 1] = ps->g[i];
+            }
+            t0 = MPI_Wtime();
+            MPI_Send(buf, (int)(k * per), MPI_DOUBLE, 0, TAG_GATHER, ps->comm);
+            ps->seconds += MPI_Wtime() - t0;
+        }
+        ps->bytes += (double)(ps->nown * per * sizeof(double));
+    } else {
+        /* into the serial order: each particle at its serial index */
+        st = particles_like_some(&full, p, ps->nglobal, sel);
         if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
+        for (size_t o = 0; o < ps->nown; ++o) {
+            pack_selected(p, sel, ps->own[o], buf);
+            unpack(&full, (size_t)ps->g[ps->own[o]], buf);
+        }
+        gather_msgs it = {pcnt, ps->size, 0, 0, chunk};
+        MPI_Request req = MPI_REQUEST_NULL;
+        int from = 0, cur = 0;
+        size_t k = gather_next(&it, &from);
+        if (k) MPI_Irecv(buf, (int)(k * per), MPI_DOUBLE, from, TAG_GATHER, ps->comm, &req);
+        while (k) {
+            t0 = MPI_Wtime();
+            MPI_Wait(&req, MPI_STATUS_IGNORE);
+            const size_t next = gather_next(&it, &from);
+            if (next)
+                MPI_Irecv(buf + (size_t)(1 - cur) * room * per, (int)(next * per), MPI_DOUBLE, from,
+                          TAG_GATHER, ps->comm, &req);
+            ps->seconds += MPI_Wtime() - t0;
+            const double *v = buf + (size_t)cur * room * per;
+            for (size_t j = 0; j < k; ++j) unpack(&full, (size_t)v[j * per + per - 1], v + j * per);
+            cur = 1 - cur;
+            k = next;
+        }
     }
-    if (mine * per > INT32_MAX) MPI_Abort(ps->comm, 1);
-    MPI_Gatherv(sbuf, (int)(ps->nown * per), MPI_DOUBLE, rbuf, cnt, dis, MPI_DOUBLE, 0, ps->comm);
+    free(buf);
+    free(pcnt);
+    t0 = MPI_Wtime();
     unsigned long long pairs = s->pairs - ps->pairs_base, total = 0;
     MPI_Reduce(&pairs, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, ps->comm);
-    if (ps->rank != 0) ps->bytes += (double)(ps->nown * per * sizeof(double));
     ps->seconds += MPI_Wtime() - t0;
-    free(sbuf);
     char msg[1024] = "";
     if (ps->rank == 0) {
-        /* into the serial order: each rank's particles are runs of it */
-        for (size_t i = 0; i < ps->nglobal; ++i) {
-            const double *v = rbuf + i * per;
-            unpack(&full, (size_t)v[per - 1], v);
-        }
-        free(rbuf);
         /* the serial view: the whole set, no mask, nothing decomposed (a nested
          * solver_global runs at once) */
         consph_particles local = *p;
@@ -1657,9 +1692,12 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
         full = *p;
         *p = local;
         consph_particles_free(&full);
-        free(cnt);
-        free(dis);
-        free(pcnt);
+        /* the diagnostics' per-particle buffers, sized for the whole set: kept, they would
+         * stay on rank 0 between samples and add to the next gather's peak */
+        free(s->diag_buf);
+        free(s->wc_buf);
+        s->diag_buf = s->wc_buf = NULL;
+        s->diag_cap = s->wc_cap = 0;
     }
     const double t1 = MPI_Wtime();
     MPI_Bcast(&st, 1, MPI_INT, 0, ps->comm);

@@ -168,6 +168,12 @@ int solver_hist_push(consph_solver *s, const consph_step_diag *g)
     return CONSPH_OK;
 }
 
+/* What solver_sample, the authors' measure (solver_auth_sample, solver_wc_side) and the checks
+ * after a step (solver_check_valid) read of the particles besides their positions: decomposed
+ * over MPI ranks, a sample that writes no file gathers only these to rank 0. */
+const char *const solver_sample_fields[] = {SF_U,    SF_RHOF, SF_P,    SF_ID,
+                                            SF_MASS, SF_AU,   SF_DIVU, NULL};
+
 int solver_sample(consph_solver *s)
 {
     if (s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step) return CONSPH_OK;

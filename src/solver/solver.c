@@ -380,7 +380,9 @@ int solver_create_cut(consph_solver **out, const consph_run_params *prm,
     s->step_dt = s->dt;
     if (st == CONSPH_OK) st = initial_rates(s);
     if (st == CONSPH_OK) st = state_undeclared(s, 0);
-    if (st == CONSPH_OK) st = solver_global(s, first_sample, NULL);
+    if (st == CONSPH_OK)
+        st = s->par ? par_global_some(s, first_sample, NULL, solver_sample_fields)
+                    : first_sample(s, NULL);
     if (st == CONSPH_OK && s->par) st = par_share_history(s);
     if (prm->error == CONSPH_ERROR_AUTHORS) s->auth_next = 1;
     if (st != CONSPH_OK) {
@@ -627,8 +629,10 @@ int consph_solver_step(consph_solver *s)
             s->log_since += dt;
             s->step_dt = dt;
         } else if (st == CONSPH_OK) {
-            st = s->par && !samples ? par_global_some(s, step_close, &a, checked)
-                                    : solver_global(s, step_close, &a);
+            /* a sample gathers what it reads; the files that follow gather everything */
+            st = s->par
+                     ? par_global_some(s, step_close, &a, samples ? solver_sample_fields : checked)
+                     : solver_global(s, step_close, &a);
         }
     }
     s->dt = full;

@@ -304,6 +304,7 @@ int solver_hist_push(consph_solver *s, const consph_step_diag *g);
  * step's already. Called at t = 0, every log_every steps, at the last step and before each
  * snapshot. */
 int solver_sample(consph_solver *s);
+extern const char *const solver_sample_fields[]; /* what it reads (diag.c) */
 /* Kinetic energy Σ m |u|²/2, as consph_solver_diag computes it (bit for bit). */
 int solver_kinetic_energy(consph_solver *s, double *ke);
 void solver_position_of(const consph_particles *p, size_t i, double x[3]);
