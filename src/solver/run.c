@@ -349,9 +349,12 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
     s->grads_lazy = 0;
     if (signals) consph_stop_uninstall();
     run_close_arg ca = {out, sum, &f, files, *stopped_by, st};
-    /* decomposed: every rank's summary of its own part, then rank 0's of the whole run */
+    /* decomposed: every rank's summary of its own part, then rank 0's of the whole run (without
+     * files, from the history and the positions: no field is gathered) */
+    static const char *const no_field[] = {NULL};
     if (s->par) consph_solver_summary(s, sum);
-    st = solver_global(s, run_close, &ca);
+    st = s->par && !files ? par_global_some(s, run_close, &ca, no_field)
+                          : solver_global(s, run_close, &ca);
     runfiles_free(&f);
     return st;
 }
