@@ -7,7 +7,9 @@
  * the cases are cut at the set-up (consph_par_solver_create), the files' runs after it; on 4
  * ranks, some cases and the restart with the boxes forced to 2 x 2 pieces across two axes;
  * the halo refresh sends only changed columns and leaves the halo equal to its owners (the
- * positions alone for refresh_positions); runs that sample every step (the samples gather only
+ * positions alone for refresh_positions); a packed layout read from the layout cache by each
+ * rank's share (the whole set packed on every rank when the file is corrupt); runs that sample
+ * every step (the samples gather only
  * the fields they read) keep the serial history.
  *
  * Run without mpirun, the test computes the serial references and launches itself under
@@ -258,6 +260,56 @@ static int run_given_range(const char *path)
     return st;
 }
 
+/* A packed layout with the layout cache in `cache`: from a valid file every rank reads only its
+ * share (want_share), from a corrupt one every rank makes the whole set (packed again); the
+ * run is the serial one either way. */
+static int run_packed(const char *path, const char *cache, int want_share)
+{
+    par_case c = {"packed", "taylor-green", "wcsph", 24, CONSPH_LAYOUT_PACKED, 3, NULL};
+    consph_run_params prm = case_params(&c);
+    consph_solver *s = NULL;
+    int st = consph_layout_cache_set(cache);
+    if (st == CONSPH_OK) st = consph_par_solver_create(&s, &prm, NULL, NULL);
+    int size = 1;
+    MPI_Initialized(&size);
+    if (size) MPI_Comm_size(MPI_COMM_WORLD, &size);
+    const size_t whole = 24 * 24, share = (whole + (size_t)size - 1) / (size_t)size;
+    if (st == CONSPH_OK && size > 1 &&
+        (want_share ? par_setup_made(s) > share : par_setup_made(s) != whole)) {
+        fprintf(stderr, "packed from %s: the set-up made %zu of %zu particles on this rank\n",
+                cache, par_setup_made(s), whole);
+        st = CONSPH_EINVAL;
+    }
+    while (st == CONSPH_OK && !consph_solver_done(s)) st = consph_solver_step(s);
+    if (st == CONSPH_OK) st = solver_global(s, dump, (void *)path);
+    if (st != CONSPH_OK) fprintf(stderr, "packed from %s: %s\n", cache, consph_last_error());
+    consph_solver_free(s);
+    consph_layout_cache_set(NULL);
+    return st;
+}
+
+/* Flips a byte in the middle of the packed case's file in the cache `dir`. */
+static int corrupt_cache(const char *dir)
+{
+    par_case c = {"packed", "taylor-green", "wcsph", 24, CONSPH_LAYOUT_PACKED, 3, NULL};
+    consph_run_params prm = case_params(&c);
+    consph_layout_params lp;
+    char path[4608];
+    int st = consph_run_layout_params(&prm, &lp);
+    if (st == CONSPH_OK) st = consph_layout_cache_set(dir);
+    if (st == CONSPH_OK) st = consph_layout_cache_path(&lp, path, sizeof path);
+    consph_layout_cache_set(NULL);
+    FILE *fp = st == CONSPH_OK ? fopen(path, "r+b") : NULL;
+    if (!fp) return CONSPH_EIO;
+    fseek(fp, 0, SEEK_END);
+    const long mid = ftell(fp) / 2;
+    fseek(fp, mid, SEEK_SET);
+    const int b = fgetc(fp);
+    fseek(fp, mid, SEEK_SET);
+    fputc(b ^ 0x10, fp);
+    return fclose(fp) == 0 ? CONSPH_OK : CONSPH_EIO;
+}
+
 /* A run with files: 10 steps, a snapshot every 5, a checkpoint at step 5; the run id fixed so
  * that the files can be compared. With `restart`, from dir/checkpoint.ckpt instead: read whole
  * on every rank (1), or each rank its part (2: consph_par_run_restart, which never holds more
@@ -449,6 +501,13 @@ static int child(const char *base)
     snprintf(dir, sizeof dir, "%s.restart.np%d", base, size);
     bad |= run_files(dir, 2) != CONSPH_OK;
     bad |= check_refresh() != CONSPH_OK;
+    char cache[512];
+    snprintf(dir, sizeof dir, "%s.packed.np%d", base, size);
+    snprintf(cache, sizeof cache, "%s.cache", base);
+    bad |= run_packed(dir, cache, 1) != CONSPH_OK;
+    snprintf(dir, sizeof dir, "%s.packedbad.np%d", base, size);
+    snprintf(cache, sizeof cache, "%s.badcache.np%d", base, size);
+    bad |= run_packed(dir, cache, 0) != CONSPH_OK;
     snprintf(dir, sizeof dir, "%s.given.np%d", base, size);
     bad |= run_given_range(dir) != CONSPH_OK;
     /* more ranks than slabs: 4² particles in 2D have one or two cells per axis */
@@ -574,6 +633,18 @@ int main(int argc, char **argv)
     char ref[512], cmd[2048];
     snprintf(ref, sizeof ref, "%s.files.serial", base);
     CHECK(run_files(ref, 0) == CONSPH_OK, "serial run with files");
+    /* the packed case packs and fills the cache; a copy of it with a corrupt file per launch */
+    char packed[512], cache[512];
+    snprintf(packed, sizeof packed, "%s.packed.serial", base);
+    snprintf(cache, sizeof cache, "%s.cache", base);
+    CHECK(run_packed(packed, cache, 1) == CONSPH_OK, "serial packed run");
+    for (int np = 2; np <= 3; ++np) {
+        snprintf(cmd, sizeof cmd, "rm -rf %s.badcache.np%d && cp -r %s %s.badcache.np%d", base, np,
+                 cache, base, np);
+        CHECK(system(cmd) == 0, "%s", cmd);
+        snprintf(cmd, sizeof cmd, "%s.badcache.np%d", base, np);
+        CHECK(corrupt_cache(cmd) == CONSPH_OK, "corrupting the cache file in %s", cmd);
+    }
     /* the restart directories start as the serial run's at its checkpoint (step 5): its files
      * up to there and the checkpoint */
     for (int np = 2; np <= 4; ++np) {
@@ -605,6 +676,12 @@ int main(int argc, char **argv)
             }
         }
         char dir[512], a[512];
+        snprintf(dir, sizeof dir, "%s.packed.np%d", base, np);
+        CHECK(check_same_file(packed, dir), "packed from the cache on %d ranks: the state differs",
+              np);
+        snprintf(dir, sizeof dir, "%s.packedbad.np%d", base, np);
+        CHECK(check_same_file(packed, dir),
+              "packed from a corrupt cache on %d ranks: the state differs", np);
         snprintf(a, sizeof a, "%s.%s.serial", base, cases[0].name);
         snprintf(dir, sizeof dir, "%s.given.np%d", base, np);
         CHECK(check_same_file(a, dir), "%s from given ranges on %d ranks: the state differs",

@@ -100,7 +100,9 @@ int consph_layout_by_index(consph_layout_kind kind);
 /* The particles first, ..., first + count - 1 of the layout consph_layout_generate makes (the
  * same bits, "volume" that of the whole set), into `p` (initialised here): an MPI rank's share
  * of the set-up (src/par/par_solver.c). The random kind draws and drops the random numbers of
- * the particles before `first`. CONSPH_EINVAL for the packed kinds and a range beyond the set. */
+ * the particles before `first`. The packed kinds are read from a valid file of the layout cache
+ * (consph_layout_cache_set; the whole file checked, the range kept), never packed: CONSPH_EINVAL
+ * without one, and for a range beyond the set. */
 int consph_layout_generate_range(const consph_layout_params *lp, size_t first, size_t count,
                                  consph_particles *p);
 

@@ -359,6 +359,83 @@ int layout_cache_load(const consph_layout_params *lp, consph_particles *p,
     return 1;
 }
 
+/* Bytes of the positions read at a time by layout_cache_load_range (a multiple of 8). */
+enum { RANGE_BLOCK = 1 << 20 };
+
+/* Reads n bytes into `to` and adds them to the checksum; 0 on a short read. */
+static int range_read(FILE *f, void *to, size_t n, uLong *crc)
+{
+    if (fread(to, 1, n, f) != n) return 0;
+    *crc = crc32(*crc, to, (uInt)n);
+    return 1;
+}
+
+int layout_cache_load_range(const consph_layout_params *lp, size_t n, size_t first,
+                            consph_particles *p)
+{
+    char key[2048], path[CACHE_PATH_MAX + 64];
+    if (consph_layout_cache_key(lp, key, sizeof key) ||
+        cache_file_name(cache_dir, key, path, sizeof path))
+        return 0;
+    const size_t keylen = strlen(key), count = p->n;
+    const int dim = p->dim;
+    FILE *f = fopen(path, "rb");
+    struct stat sb;
+    if (!f) return 0;
+    if (fstat(fileno(f), &sb) != 0) {
+        fclose(f);
+        return 0;
+    }
+    /* the file's parts as layout_cache_store writes them: the header with the key, the
+     * positions, the report (52 bytes and 12 per history entry, at most max_iter + 2 of them),
+     * the checksum */
+    const uint64_t size = (uint64_t)sb.st_size, head = 8 + 4 + 4 + (uint64_t)keylen + 12,
+                   body = (uint64_t)dim * n * sizeof(double),
+                   tail_max = 52 + ((uint64_t)lp->packing.max_iter + 2) * 12;
+    const uint64_t tail = size >= head + body + 52 + 4 ? size - head - body - 4 : 0;
+    unsigned char hb[8 + 4 + 4 + 2048 + 12];
+    unsigned char *tb = tail >= 52 && tail <= tail_max ? malloc(tail) : NULL;
+    double *blk = tb ? malloc(RANGE_BLOCK) : NULL;
+    uLong crc = crc32(0L, Z_NULL, 0);
+    int ok = blk && fread(hb, 1, 8, f) == 8 && !memcmp(hb, CACHE_MAGIC, 8) &&
+             range_read(f, hb + 8, head - 8, &crc);
+    if (ok) {
+        uint32_t format, klen, n_lo, n_hi;
+        int32_t fdim;
+        memcpy(&format, hb + 8, 4);
+        memcpy(&klen, hb + 12, 4);
+        memcpy(&n_lo, hb + 16 + keylen, 4);
+        memcpy(&n_hi, hb + 20 + keylen, 4);
+        memcpy(&fdim, hb + 24 + keylen, 4);
+        ok = format == CACHE_FORMAT && klen == keylen && !memcmp(hb + 16, key, keylen) &&
+             (((uint64_t)n_hi << 32) | n_lo) == (uint64_t)n && fdim == dim;
+    }
+    /* every position checked as layout_cache_load checks them; this range's kept */
+    const size_t per = RANGE_BLOCK / sizeof(double);
+    for (int a = 0; ok && a < dim; ++a)
+        for (size_t i = 0; ok && i < n; i += per) {
+            const size_t k = n - i < per ? n - i : per;
+            ok = range_read(f, blk, k * sizeof(double), &crc);
+            for (size_t j = 0; ok && j < k; ++j)
+                ok = isfinite(blk[j]) && blk[j] >= lp->box.lo[a] && blk[j] < lp->box.hi[a];
+            const size_t lo = first > i ? first : i,
+                         hi = first + count < i + k ? first + count : i + k;
+            if (ok && lo < hi) memcpy(p->x[a] + (lo - first), blk + (lo - i), (hi - lo) * 8);
+        }
+    uint32_t stored = 0;
+    ok = ok && range_read(f, tb, tail, &crc) && fread(&stored, 1, 4, f) == 4 &&
+         (uint32_t)crc == stored;
+    if (ok) {
+        int32_t nh;
+        memcpy(&nh, tb + 16, 4);
+        ok = nh >= 0 && (uint64_t)nh * 12 == tail - 52;
+    }
+    free(tb);
+    free(blk);
+    fclose(f);
+    return ok;
+}
+
 /* mkdir -p */
 static int make_dirs(const char *dir)
 {

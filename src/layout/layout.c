@@ -273,10 +273,11 @@ static int generate(const consph_layout_params *lp, consph_particles *p,
     if (whole) {
         first = 0;
         count = n;
-    } else if (!consph_layout_by_index(lp->kind)) {
+    } else if (!consph_layout_by_index(lp->kind) && !layout_cache_enabled(lp)) {
         return consph_fail(CONSPH_EINVAL,
                            "layout %s: its particles are packed together, not made one by one "
-                           "from their index; generate the whole layout",
+                           "from their index; generate the whole layout (or read a part from "
+                           "the layout cache: consph_layout_cache_set)",
                            consph_layout_name(lp->kind));
     } else if (first > n || count > n - first) {
         return consph_fail(CONSPH_EINVAL,
@@ -299,7 +300,15 @@ static int generate(const consph_layout_params *lp, consph_particles *p,
         break;
     case CONSPH_LAYOUT_PACKED:
     case CONSPH_LAYOUT_PACKED_POLISHED:
-        rc = generate_packed(lp, p, report);
+        if (whole)
+            rc = generate_packed(lp, p, report);
+        else if ((rc = layout_check_packing(lp)) == CONSPH_OK &&
+                 !layout_cache_load_range(lp, n, first, p))
+            rc = consph_fail(CONSPH_EINVAL,
+                             "layout %s: particles [%zu, %zu) are read from the layout cache "
+                             "only, which holds no valid file of this layout; generate the "
+                             "whole layout",
+                             consph_layout_name(lp->kind), first, first + count);
         break;
     default:
         rc = consph_fail(CONSPH_EINVAL, "layout kind %d is unknown", (int)lp->kind);

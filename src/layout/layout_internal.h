@@ -70,6 +70,12 @@ int layout_cache_load(const consph_layout_params *lp, consph_particles *p,
                       consph_packing_report *report);
 void layout_cache_store(const consph_layout_params *lp, const consph_particles *p,
                         const consph_packing_report *report);
+/* The particles [first, first + p->n) of a layout of n particles from its cache file (p
+ * initialised with their count and dim), after the checks layout_cache_load makes of the whole
+ * file (read in blocks: the range and 1 MiB are held); 1 when read, 0 (nothing printed) when
+ * the file is missing or not a valid one. */
+int layout_cache_load_range(const consph_layout_params *lp, size_t n, size_t first,
+                            consph_particles *p);
 /* An exclusive lock (flock) on the layout's key while it is packed, so that a process asking for
  * a layout another one is packing waits and reads its file rather than packing it again (a
  * study's worker processes, concurrent runs); the kernel releases it if its holder dies. The

@@ -2096,9 +2096,10 @@ static int agree_and_cut(consph_solver *s, void *arg)
 }
 
 /* The particles of the set-up and whether each rank can make only its share of them: a layout
- * made particle by particle from its index (not packed, whose particles move together), or
- * the given particles; not for a scheme that remeshes onto the lattice (refused decomposed) or
- * more ranks than particles (refused, the message the whole set's cut gives). */
+ * made particle by particle from its index, a packed one (whose particles move together) that
+ * every rank can read from the layout cache, or the given particles; not for a scheme that
+ * remeshes onto the lattice (refused decomposed) or more ranks than particles (refused, the
+ * message the whole set's cut gives). Collective: every rank calls it with the same run. */
 static int setup_range(const consph_run_params *prm, const consph_particles *given, int rank,
                        int size, solver_range *r)
 {
@@ -2112,8 +2113,7 @@ static int setup_range(const consph_run_params *prm, const consph_particles *giv
         n = prm->n > 0 ? (size_t)prm->n : (size_t)lround(pow((double)prm->nx, dim));
         if (dim < 1) return 0;
     } else {
-        if (consph_run_layout_params(prm, &lp) != CONSPH_OK || !consph_layout_by_index(lp.kind))
-            return 0;
+        if (consph_run_layout_params(prm, &lp) != CONSPH_OK) return 0;
         n = 1;
         for (int a = 0; a < lp.dim; ++a) n *= lp.nx[a];
     }
@@ -2121,7 +2121,15 @@ static int setup_range(const consph_run_params *prm, const consph_particles *giv
     r->n = n;
     r->lo = n * (size_t)rank / (size_t)size;
     r->hi = n * (size_t)(rank + 1) / (size_t)size;
-    return 1;
+    if (given || consph_layout_by_index(lp.kind)) return 1;
+    /* a packed layout: its parts from the layout cache when every rank reads a valid file
+     * there (each reads its range, then the set-up reads it again), else the whole set packed
+     * (or read) on every rank */
+    consph_particles part;
+    const int mine = consph_layout_cache_get() &&
+                     consph_layout_generate_range(&lp, r->lo, r->hi - r->lo, &part) == CONSPH_OK;
+    if (mine) consph_particles_free(&part);
+    return !consph_par_max_int(!mine);
 }
 
 int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
