@@ -22,8 +22,10 @@
  * re-sort.
  *
  * What reads every particle (checks, diagnostics, files) runs on rank 0 over the owned
- * particles gathered into the serial order (par_global), so sums over particles are the serial
- * consph_sum whatever the rank count. */
+ * particles gathered into the serial order (par_global; par_global_some: only the fields it
+ * reads), so sums over particles are the serial consph_sum whatever the rank count; rank 0
+ * receives the parts rank by rank in bounded messages, holding the assembled set and two of
+ * them. */
 #include "par/par_solver.h"
 
 #include "consph/par.h"
