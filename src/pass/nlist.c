@@ -1125,9 +1125,9 @@ int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_g
  * Pass k + 1 of a chain reads, at the neighbours, what pass k wrote. Run one after the other,
  * each pass streams the whole cache from memory once it no longer fits the processor's caches
  * (about 50 bytes per pair written and 30 to 40 read per pass). Here one sweep fills block f
- * and runs pass 0 on it, and runs pass k on block b as soon as pass k - 1 is done on every
- * block that holds a neighbour of b: the passes trail the fill by the blocks a neighbourhood
- * spans, so a block's pairs are read again while they are still cached. A block whose
+ * (or finds it filled) and runs pass 0 on it, and runs pass k on block b as soon as pass k - 1 is
+ * done on every block that holds a neighbour of b: the passes trail the fill by the blocks a
+ * neighbourhood spans, so a block's pairs are read again while they are still cached. A block whose
  * neighbours lie outside its thread's share of blocks or span more than NLIST_CHAIN_SPAN of
  * them (the periodic images across the box) waits until the sweep is over. Every visit reads
  * the same values as in the passes run one after the other, so the results are those, for any
@@ -1136,7 +1136,7 @@ int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_g
 
 enum { CHAIN_PENDING = 0, CHAIN_DONE = 1, CHAIN_LATE = 2 };
 
-unsigned long nlist_chain_trailing = 0;
+unsigned long nlist_chain_trailing = 0, nlist_chain_filled = 0;
 
 typedef struct chain_state {
     const consph_sys *s;
@@ -1182,7 +1182,7 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
     *ran = 0;
     const int fresh = l->cache_epoch != l->epoch || !l->caches;
     /* a decomposed system refreshes its halo before every pass (consph_pass_run_counted) */
-    if (count < 2 || count > NLIST_CHAIN_MAX || s->dest || s->split || !fresh || !cache_serves(l) ||
+    if (count < 2 || count > NLIST_CHAIN_MAX || s->dest || s->split || !cache_serves(l) ||
         l->nblocks == 0)
         return CONSPH_OK;
     block_visitor bv[NLIST_CHAIN_MAX];
@@ -1224,7 +1224,12 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
         l->passes_state = 0;
     }
     l->passes_state += count;
-    l->have = 0;
+    /* a cache already filled on this state (the gradients before an IPST shift leave one for
+     * its first volumes and shift) is swept the same way, evaluating only the kernel values it
+     * lacks: the passes then read each block while it is cached, instead of streaming the whole
+     * cache from memory once per pass */
+    const unsigned missing = fresh ? want : want & ~l->have;
+    if (fresh) l->have = 0;
     *ran = 1;
     const int par = l->n >= s->parallel_min;
     int status = CONSPH_OK;
@@ -1244,9 +1249,10 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
         for (int k = 1; k < count; ++k) next[k] = c0;
         for (size_t f = c0; f < c1 && my_status == CONSPH_OK; ++f) {
             nlist_block *b = &l->blocks[f];
-            int st =
-                l->skin == 0.0 ? cache_block_gather(s, b, &runs, &slot, &cap) : cache_block(s, b);
-            if (!st) st = values_block(s, b, want);
+            int st = !fresh           ? CONSPH_OK
+                     : l->skin == 0.0 ? cache_block_gather(s, b, &runs, &slot, &cap)
+                                      : cache_block(s, b);
+            if (!st && missing) st = values_block(s, b, missing);
             if (st) {
                 my_status = st;
                 break;
@@ -1301,8 +1307,11 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
     }
     l->npairs = total;
     l->cache_epoch = l->epoch;
-    ++l->caches;
-    l->have = want;
+    if (fresh)
+        ++l->caches;
+    else
+        ++nlist_chain_filled;
+    l->have |= want;
     if (pairs) *pairs += visited;
     return CONSPH_OK;
 }

@@ -28,14 +28,15 @@ typedef struct block_visitor_in {
     void *job;
 } block_visitor_in;
 /* Passes in[0..count) on the current position state, each reading at the neighbours what the
- * one before wrote, in one wavefront over a fresh pair cache (nlist.c): the values of running
- * them one after the other. *ran 0 (nothing done) where the cache would not serve them so
- * (already filled, a destination mask, a decomposed system, a chain of one or more than four):
- * the caller runs them one by one. */
+ * one before wrote, in one wavefront over the pair cache (nlist.c), which it fills where this
+ * state has none yet: the values of running them one after the other. *ran 0 (nothing done)
+ * where the cache would not serve them so (a destination mask, a decomposed system, a chain of
+ * one or more than four): the caller runs them one by one. */
 int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, size_t *pairs,
                     int *ran);
-/* Blocks that a chain's later passes visited during its sweep, not after it (for tests). */
-extern unsigned long nlist_chain_trailing;
+/* Blocks that a chain's later passes visited during its sweep, not after it, and chains that
+ * ran over a cache already filled on their state (for tests). */
+extern unsigned long nlist_chain_trailing, nlist_chain_filled;
 /* Whether nlist_pass_run would leave the next pass to the search's gather; if so, counts it as
  * run (a caller that runs the pass itself asks this instead of calling nlist_pass_run). */
 int nlist_gathers(consph_nlist *l);
