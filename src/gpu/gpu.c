@@ -398,12 +398,6 @@ static int copy_arrays(consph_solver *s, int to_device, const unsigned char *wan
     return CONSPH_OK;
 }
 
-/* The arrays the host reads at a log sample or an output time of the authors' measure: the
- * positions (the host search, solver_position_of), and the fields of solver_check_finite,
- * solver_check_valid (validity.c), consph_solver_diag, solver_wc_side and solver_auth_sample
- * (diag.c), and the ids copy_back turns into the origins. */
-static const char *const sample_fields[] = {SF_U, SF_P, SF_RHOF, SF_ID, SF_MASS, SF_AU, SF_DIVU};
-
 /* The solver's pairs: those of the set-up and of the CPU before the attach, and the device's
  * count since (dev_pair_sum's chunk sums, added here: integers, exact in any order). */
 static int pairs_back(consph_solver *s)
@@ -432,8 +426,10 @@ static int copy_back(consph_solver *s, int all)
         for (int a = 0; a < p->dim; ++a) want[k++] = 1;
         for (int f = 0; f < p->nfields; ++f) {
             int read = 0;
-            for (size_t j = 0; j < sizeof sample_fields / sizeof sample_fields[0]; ++j)
-                read |= strcmp(p->fields[f].name, sample_fields[j]) == 0;
+            /* what the host reads at a log sample or an output time of the authors' measure
+             * (besides the positions, which the host search reads) */
+            for (size_t j = 0; solver_sample_fields[j]; ++j)
+                read |= strcmp(p->fields[f].name, solver_sample_fields[j]) == 0;
             for (int c = 0; c < p->fields[f].ncomp; ++c)
                 if (k < (int)sizeof want) want[k++] = (unsigned char)read;
         }

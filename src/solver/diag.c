@@ -168,9 +168,11 @@ int solver_hist_push(consph_solver *s, const consph_step_diag *g)
     return CONSPH_OK;
 }
 
-/* What solver_sample, the authors' measure (solver_auth_sample, solver_wc_side) and the checks
- * after a step (solver_check_valid) read of the particles besides their positions: decomposed
- * over MPI ranks, a sample that writes no file gathers only these to rank 0. */
+/* What solver_sample (consph_solver_diag), the authors' measure (solver_auth_sample,
+ * solver_wc_side) and the checks after a step (solver_check_finite, solver_check_valid) read of
+ * the particles besides their positions: decomposed over MPI ranks, a sample that writes no file
+ * gathers only these to rank 0; on the GPU, a sample copies back only these (gpu.c, copy_back,
+ * whose ids also give the origins). */
 const char *const solver_sample_fields[] = {SF_U,    SF_RHOF, SF_P,    SF_ID,
                                             SF_MASS, SF_AU,   SF_DIVU, NULL};
 
