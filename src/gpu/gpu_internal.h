@@ -86,7 +86,8 @@ int gpu_regularise(struct consph_solver *s, int *synced);
 /* Copies the device's state into the solver's particles and rebuilds the host search. */
 int gpu_download(struct consph_solver *s);
 /* The same for the arrays a log sample or the authors' measure reads only (diag.c's
- * solver_sample_fields and the positions); the others stay stale on the host until a gpu_download. */
+ * solver_sample_fields and the positions); the others stay stale on the host until a
+ * gpu_download. */
 int gpu_download_sample(struct consph_solver *s);
 /* How many times the state was copied back since the attach (either call; 0 on the CPU), and
  * the bytes those copies moved. */
