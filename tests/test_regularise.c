@@ -499,6 +499,194 @@ static void test_remesh_orphans(void)
     remesh_free(&rc);
 }
 
+/* ---- remeshing against the joint search ----
+ *
+ * The sums of eq. 33 as reg_remesh_m4 took them before it searched the particles alone: one
+ * system of the lattice points and the particles (2n points, the lattice points first), a pass
+ * over the lattice points that skips the other lattice points among their neighbours and
+ * evaluates M4 through the kernel's profile pointer. reg_remesh_m4 must give these values bit
+ * for bit. */
+typedef struct joint_job {
+    const consph_kernel *m4;
+    const size_t *origin;
+    size_t n, rows;
+    const double *const *src;
+    double *out;
+    unsigned char *orphan;
+} joint_job;
+
+static void joint_visit(void *job, const consph_nbhd *nb)
+{
+    const joint_job *a = job;
+    const size_t k = a->origin[nb->i];
+    double acc[64] = {0.0}, wsum = 0.0;
+    for (size_t q = 0; q < nb->n; ++q) {
+        const size_t o = a->origin[nb->j[q]];
+        if (o < a->n) continue;
+        double w = a->m4->norm;
+        for (int c = 0; c < a->m4->dim && w != 0.0; ++c) {
+            const double qa = fabs(nb->dx[c][q]) * a->m4->inv_h;
+            w = qa < a->m4->support ? w * a->m4->f(qa) : 0.0;
+        }
+        if (w == 0.0) continue;
+        wsum += w;
+        for (size_t r = 0; r < a->rows; ++r) acc[r] += w * a->src[r][o - a->n];
+    }
+    a->orphan[k] = wsum == 0.0;
+    for (size_t r = 0; r < a->rows; ++r) a->out[r * a->n + k] = wsum == 0.0 ? 0.0 : acc[r] / wsum;
+}
+
+/* The joint search's remeshed values of the fields (rows of n, component by component, field
+ * by field) and orphans; 0 on failure. */
+static int joint_remesh(const consph_particles *p, const double *lattice, double ds,
+                        const char *const *fields, int nf, double *out, unsigned char *orphan)
+{
+    const size_t n = p->n, cap = p->cap;
+    const int d = p->dim;
+    const double *src[64];
+    size_t rows = 0;
+    for (int f = 0; f < nf; ++f) {
+        const consph_field *fd = consph_particles_find(p, fields[f]);
+        if (!fd) return 0;
+        for (int c = 0; c < fd->ncomp && rows < 64; ++c) src[rows++] = fd->data + (size_t)c * cap;
+    }
+    consph_particles joint;
+    if (consph_particles_init(&joint, d, 2 * n, &p->box)) return 0;
+    for (int a = 0; a < d; ++a) {
+        memcpy(joint.x[a], lattice + (size_t)a * cap, n * sizeof(double));
+        memcpy(joint.x[a] + n, p->x[a], n * sizeof(double));
+    }
+    consph_kernel k;
+    consph_sys sys;
+    unsigned char *mask = calloc(2 * n, 1);
+    int ok = mask && consph_kernel_init(&k, CONSPH_KERNEL_M4, d, ds) == CONSPH_OK &&
+             consph_sys_init(&sys, &joint, &k, 0.0) == CONSPH_OK;
+    if (ok) {
+        for (size_t i = 0; i < 2 * n; ++i) mask[i] = sys.origin[i] < n;
+        joint_job job = {&k, sys.origin, n, rows, src, out, orphan};
+        const consph_pass pass = {"remesh, joint search", 0u, joint_visit};
+        ok = consph_sys_set_dest(&sys, mask) == CONSPH_OK &&
+             consph_pass_run(&sys, &pass, &job) == CONSPH_OK;
+        consph_sys_free(&sys);
+    }
+    free(mask);
+    consph_particles_free(&joint);
+    return ok;
+}
+
+/* Remeshes a system of `kind` particles (dim, nx per axis, periodic or not) carrying random
+ * fields "u" (dim components), "q" and, with wide, "wide" (20 components: the sums past the
+ * local rows), to a lattice of their slots, and compares every value with the joint search's
+ * bit for bit. The lattice point of slot i is the lattice site of the particle's input index,
+ * shifted by (0.3, -0.2, 0.1)Δs: no lattice point coincides with a particle of the lattice
+ * layouts. M4 has h = dscale Δs. Non-periodic, the particles right of the middle move a third of
+ * the box left, so that some lattice points have no particle. */
+static void remesh_vs_joint(int dim, consph_layout_kind kind, size_t nx, int periodic, int wide,
+                            double dscale, const char *what)
+{
+    consph_layout_params lp = consph_layout_defaults(CONSPH_LAYOUT_LATTICE, dim, nx);
+    lp.box = consph_box_unit(dim, periodic);
+    consph_particles lat, p;
+    CHECK(consph_layout_generate(&lp, &lat, NULL) == CONSPH_OK, "%s: lattice", what);
+    lp.kind = kind;
+    lp.eps = 0.4;
+    lp.seed = 5;
+    CHECK(consph_layout_generate(&lp, &p, NULL) == CONSPH_OK, "%s: layout: %s", what,
+          consph_last_error());
+    const size_t n = p.n;
+    const double spacing = p.spacing, ds = dscale * spacing;
+    if (!periodic)
+        for (size_t i = 0; i < n; ++i)
+            if (p.x[0][i] > 0.5) p.x[0][i] -= 1.0 / 3.0;
+    uint64_t state = 77;
+    const char *names[3] = {"u", "q", "wide"};
+    const int ncomp[3] = {dim, 1, 20};
+    const int nf = wide ? 3 : 2;
+    for (int f = 0; f < nf; ++f) {
+        double *v = consph_particles_field(&p, names[f], ncomp[f]);
+        for (size_t e = 0; e < (size_t)ncomp[f] * p.cap; ++e) {
+            state = state * 6364136223846793005ULL + 1442695040888963407ULL;
+            v[e] = (double)(state >> 11) * 0x1.0p-53 - 0.5;
+        }
+    }
+    consph_kernel k;
+    consph_sys s;
+    CHECK(consph_kernel_init(&k, CONSPH_KERNEL_QUINTIC, dim, hdx * spacing) == CONSPH_OK &&
+              consph_sys_init(&s, &p, &k, 0.0) == CONSPH_OK,
+          "%s: system", what);
+    consph_particles_free(&p);
+    s.parallel_min = 0;
+    const size_t cap = s.p->cap;
+    double *lattice = calloc((size_t)dim * cap, sizeof(double));
+    const double off[3] = {0.3, -0.2, 0.1};
+    for (int a = 0; a < dim; ++a)
+        for (size_t i = 0; i < n; ++i) {
+            const double x = lat.x[a][s.origin[i]] + off[a] * spacing;
+            lattice[(size_t)a * cap + i] = periodic ? layout_wrap(x, 0.0, 1.0) : x;
+        }
+    consph_particles_free(&lat);
+    const size_t rows = (size_t)dim + 1 + (wide ? 20 : 0);
+    double *ref = calloc(rows * n, sizeof(double));
+    unsigned char *orphan = calloc(n, 1);
+    CHECK(joint_remesh(s.p, lattice, ds, names, nf, ref, orphan), "%s: joint search: %s", what,
+          consph_last_error());
+    /* an orphan keeps its own values */
+    size_t r = 0, expect = 0;
+    for (int f = 0; f < nf; ++f) {
+        const double *v = consph_particles_find(s.p, names[f])->data;
+        for (int c = 0; c < ncomp[f]; ++c, ++r)
+            for (size_t i = 0; i < n; ++i)
+                if (orphan[i]) ref[r * n + i] = v[(size_t)c * cap + i];
+    }
+    for (size_t i = 0; i < n; ++i) expect += orphan[i];
+    size_t orphans = 0;
+    CHECK(reg_remesh_m4(&s, lattice, ds, names, nf, &orphans) == CONSPH_OK, "%s: remesh: %s", what,
+          consph_last_error());
+    size_t differ = 0;
+    r = 0;
+    for (int f = 0; f < nf; ++f) {
+        const double *v = consph_particles_find(s.p, names[f])->data;
+        for (int c = 0; c < ncomp[f]; ++c, ++r)
+            differ += memcmp(v + (size_t)c * cap, ref + r * n, n * sizeof(double)) != 0;
+    }
+    printf("remesh vs the joint search, %s: %zu particles, %zu orphans, %zu of %zu rows differ\n",
+           what, n, orphans, differ, rows);
+    CHECK(differ == 0, "%s: %zu rows differ from the joint search", what, differ);
+    CHECK(orphans == expect && (periodic || expect > 0), "%s: orphans %zu, expected %zu", what,
+          orphans, expect);
+    free(ref);
+    free(orphan);
+    free(lattice);
+    consph_sys_free(&s);
+}
+
+static void test_remesh_vs_joint(void)
+{
+#ifdef _OPENMP
+    const int saved = omp_get_max_threads();
+#endif
+    for (int t = 1; t <= 2; ++t) {
+#ifdef _OPENMP
+        omp_set_num_threads(t);
+#endif
+        remesh_vs_joint(2, CONSPH_LAYOUT_RANDOM, 24, 1, t == 1, 1.0, "2D random");
+        remesh_vs_joint(2, CONSPH_LAYOUT_RANDOM, 16, 0, 0, 1.0, "2D random, not periodic");
+        remesh_vs_joint(3, CONSPH_LAYOUT_RANDOM, 9, 1, 0, 1.0, "3D random");
+        remesh_vs_joint(3, CONSPH_LAYOUT_RANDOM, 7, 0, 0, 1.0, "3D random, not periodic");
+    }
+#ifdef _OPENMP
+    omp_set_num_threads(1);
+#endif
+    remesh_vs_joint(2, CONSPH_LAYOUT_PACKED, 12, 1, 0, 1.0, "2D packed");
+    remesh_vs_joint(3, CONSPH_LAYOUT_PACKED, 6, 1, 0, 1.0, "3D packed");
+    /* M4 narrower than the spacing: the search of n particles would have had half the cells per
+     * radius of the joint search of 2n points (another walk, another order) */
+    remesh_vs_joint(3, CONSPH_LAYOUT_RANDOM, 9, 1, 0, 0.8, "3D random, ds 0.8 of the spacing");
+#ifdef _OPENMP
+    omp_set_num_threads(saved);
+#endif
+}
+
 /* ---- 1 and 2 threads ---- */
 
 static void test_threads(void)
@@ -641,6 +829,7 @@ int main(void)
     test_remesh_lattice_source();
     test_remesh_scattered();
     test_remesh_orphans();
+    test_remesh_vs_joint();
     test_threads();
     test_ipst_chained();
     return check_summary("test_regularise");

@@ -8,7 +8,10 @@
 #include <string.h>
 
 #include "layout/layout_internal.h"
+#include "nnps/nnps_internal.h"
+#include "pass/group.h"
 #include "pass/lanes4.h"
+#include "pass/nbhd.h"
 #include "pass/nlist.h"
 
 /* ---- moving particles ---- */
@@ -535,9 +538,21 @@ int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr)
 
 /* ---- remeshing ---- */
 
+/* src/kernels/kernels.c's m4_f (001 eq. 32's profile), the same operations, inlined: called
+ * through the kernel's pointer it was a call per axis and pair. */
+static inline double remesh_m4_f(double q)
+{
+    double inner = 1.0 - q * q * (2.5 - 1.5 * q);
+    double t = 2.0 - q, outer = 0.5 * (1.0 - q) * t * t;
+    return q < 1.0 ? inner : q < 2.0 ? outer : 0.0;
+}
+
+/* Components summed in registers or on the stack (the solver remeshes d + 1); more go through
+ * out, with the same operations. */
+#define REMESH_LOCAL_ROWS 16
+
 typedef struct remesh_job {
     const consph_kernel *m4;
-    const size_t *origin; /* of the joint system: < n lattice point, else n + particle */
     size_t n;
     size_t rows;              /* components of all the fields */
     const double *const *src; /* row r: the particles' values of component r */
@@ -545,18 +560,18 @@ typedef struct remesh_job {
     unsigned char *orphan;
 } remesh_job;
 
-/* Components summed in registers or on the stack (the solver remeshes d + 1); more go through
- * out, with the same operations. */
-#define REMESH_LOCAL_ROWS 16
-
-/* Eq. 33 at lattice point k: Σ_j φ_j M4_kj / Σ_j M4_kj over the particles (the other lattice
- * points of the joint system are skipped). The sums run in a local array, written once: into
- * out, which may alias the sources as far as the compiler knows, every pair was a load and a
- * store per component. */
-static void remesh_visit(void *job, const consph_nbhd *nb)
+/* Eq. 33 at lattice point k: Σ_j φ_j M4_kj / Σ_j M4_kj over its m neighbouring particles j[]
+ * at separations dx (lattice point minus particle), in their order. The sums run in a local
+ * array, written once: into out, which may alias the sources as far as the compiler knows,
+ * every pair was a load and a store per component. */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline void
+remesh_point(const remesh_job *a, size_t k, size_t m, const size_t *j, double *const *dx,
+             const int D)
 {
-    const remesh_job *a = job;
-    const size_t k = a->origin[nb->i], rows = a->rows;
+    const size_t rows = a->rows;
     const double *const *src = a->src;
     double local[REMESH_LOCAL_ROWS];
     const int in_out = rows > REMESH_LOCAL_ROWS;
@@ -564,21 +579,18 @@ static void remesh_visit(void *job, const consph_nbhd *nb)
     const size_t stride = in_out ? a->n : 1;
     double wsum = 0.0;
     for (size_t r = 0; r < rows; ++r) acc[r * stride] = 0.0;
-    const consph_kernel *m4 = a->m4;
-    for (size_t q = 0; q < nb->n; ++q) {
-        const size_t o = a->origin[nb->j[q]];
-        if (o < a->n) continue;
-        /* M4 of the separation (consph_kernel_w_vec's product), for the particles only: the
-         * pass evaluates no kernel, half the neighbours being other lattice points */
-        double w = m4->norm;
-        for (int c = 0; c < m4->dim && w != 0.0; ++c) {
-            const double qa = fabs(nb->dx[c][q]) * m4->inv_h;
-            w = qa < m4->support ? w * m4->f(qa) : 0.0;
+    const double norm = a->m4->norm, inv_h = a->m4->inv_h, support = a->m4->support;
+    for (size_t q = 0; q < m; ++q) {
+        /* M4 of the separation (consph_kernel_w_vec's product) */
+        double w = norm;
+        for (int c = 0; c < D && w != 0.0; ++c) {
+            const double qa = fabs(dx[c][q]) * inv_h;
+            w = qa < support ? w * remesh_m4_f(qa) : 0.0;
         }
         if (w == 0.0) continue;
-        const size_t j = o - a->n;
+        const size_t jq = j[q];
         wsum += w;
-        for (size_t r = 0; r < rows; ++r) acc[r * stride] += w * src[r][j];
+        for (size_t r = 0; r < rows; ++r) acc[r * stride] += w * src[r][jq];
     }
     a->orphan[k] = wsum == 0.0;
     if (wsum == 0.0) {
@@ -588,6 +600,120 @@ static void remesh_visit(void *job, const consph_nbhd *nb)
         return;
     }
     for (size_t r = 0; r < rows; ++r) a->out[r * a->n + k] = acc[r * stride] / wsum;
+}
+
+static void remesh_point_1(const remesh_job *a, size_t k, size_t m, const size_t *j,
+                           double *const *dx)
+{
+    remesh_point(a, k, m, j, dx, 1);
+}
+static void remesh_point_2(const remesh_job *a, size_t k, size_t m, const size_t *j,
+                           double *const *dx)
+{
+    remesh_point(a, k, m, j, dx, 2);
+}
+static void remesh_point_3(const remesh_job *a, size_t k, size_t m, const size_t *j,
+                           double *const *dx)
+{
+    remesh_point(a, k, m, j, dx, 3);
+}
+
+typedef void (*remesh_point_fn)(const remesh_job *a, size_t k, size_t m, const size_t *j,
+                                double *const *dx);
+
+/* Eq. 33 at every lattice point, over a search of the particles alone. The sums at a lattice
+ * point were taken over a joint search of the lattice points and the particles (2n points), the
+ * lattice points skipped: the neighbours of a lattice point were then the particles of the cells
+ * its cell's walk visits, cell after cell in the walk's order and by particle index within a
+ * cell (the sort is stable, and every lattice point came before every particle), those within
+ * the search radius. A search of the particles alone on the grid that 2n points get
+ * (nnps_fix_grid) has the same cells, the same walk and the same order within a cell, and the
+ * same hit test from the same lattice coordinates: the same neighbours in the same order with
+ * the same separations, hence the same sums bit for bit, without sorting 2n points and
+ * gathering the lattice points only to skip them (tests/test_regularise.c compares it with the
+ * joint search). The lattice points are binned into the same grid so that each cell's runs of
+ * candidates are walked once for all of its lattice points. */
+static int remesh_sums(const consph_sys *s, const double *lattice, const remesh_job *job)
+{
+    const consph_particles *p = s->p;
+    const size_t n = p->n, cap = p->cap;
+    const int d = p->dim;
+    consph_nnps *g = consph_nnps_create(&p->box, consph_sys_reach(job->m4), 0);
+    if (!g) return CONSPH_ENOMEM;
+    nnps_fix_grid(g, 2 * n);
+    int rc = consph_nnps_build(g, p);
+    size_t *start = NULL, *order = NULL, *cell = NULL;
+    size_t ncells = 0;
+    if (rc == CONSPH_OK) {
+        ncells = consph_nnps_cells(g);
+        start = consph_calloc(ncells + 1, sizeof(size_t));
+        order = consph_calloc(n ? n : 1, sizeof(size_t));
+        cell = consph_calloc(n ? n : 1, sizeof(size_t));
+        if (!start || !order || !cell) rc = CONSPH_ENOMEM;
+    }
+    consph_nnps_slots v;
+    if (rc == CONSPH_OK) rc = consph_nnps_slots_get(g, &v);
+    if (rc == CONSPH_OK) {
+        /* the lattice points by cell (a stable counting sort, as a build's) */
+        int64_t nc[CONSPH_MAX_DIM], reach[CONSPH_MAX_DIM];
+        double edge[CONSPH_MAX_DIM];
+        nnps_grid(g, nc, reach, edge);
+        for (size_t k = 0; k < n; ++k) {
+            size_t c = 0;
+            for (int a = d - 1; a >= 0; --a)
+                c = c * (size_t)nc[a] + (size_t)nnps_axis_cell(g, a, lattice[(size_t)a * cap + k]);
+            cell[k] = c;
+            ++start[c + 1];
+        }
+        for (size_t c = 0; c < ncells; ++c) start[c + 1] += start[c];
+        for (size_t k = 0; k < n; ++k) order[start[cell[k]]++] = k;
+        for (size_t c = ncells; c > 0; --c) start[c] = start[c - 1];
+        start[0] = 0;
+    }
+    static const remesh_point_fn points[3] = {remesh_point_1, remesh_point_2, remesh_point_3};
+    const remesh_point_fn point = points[d - 1];
+    int status = rc;
+    const size_t chunk = pass_cells_per_chunk(ncells);
+#pragma omp parallel if (rc == CONSPH_OK && n >= s->parallel_min)
+    {
+        consph_nnps_runs runs;
+        memset(&runs, 0, sizeof runs);
+        nbhd_scratch sc;
+        memset(&sc, 0, sizeof sc);
+        int my_status = CONSPH_OK;
+#pragma omp for schedule(dynamic, chunk)
+        for (size_t c = 0; c < ncells; ++c) {
+            if (my_status != CONSPH_OK || start[c] == start[c + 1]) continue;
+            if (consph_nnps_cell_runs(g, c, &runs) == (size_t)-1 ||
+                nbhd_scratch_reserve(&sc, runs.candidates + CONSPH_NNPS_GATHER_SLACK)) {
+                my_status = CONSPH_ENOMEM;
+                continue;
+            }
+            for (size_t e = start[c]; e < start[c + 1]; ++e) {
+                const size_t k = order[e];
+                double xi[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+                for (int a = 0; a < d; ++a) xi[a] = lattice[(size_t)a * cap + k];
+                const size_t m = consph_nnps_gather(&v, &runs, xi, sc.slot, sc.dx, sc.r);
+                const size_t *j = sc.slot;
+                if (v.particle) {
+                    for (size_t q = 0; q < m; ++q) sc.j[q] = v.particle[sc.slot[q]];
+                    j = sc.j;
+                }
+                point(job, k, m, j, sc.dx);
+            }
+        }
+#pragma omp critical(regularise_remesh)
+        if (my_status != CONSPH_OK) status = my_status;
+        consph_nnps_runs_free(&runs);
+        nbhd_scratch_free(&sc);
+    }
+    free(start);
+    free(order);
+    free(cell);
+    consph_nnps_free(g);
+    if (status == CONSPH_ENOMEM && rc == CONSPH_OK)
+        return consph_fail(CONSPH_ENOMEM, "remesh: out of memory for the neighbours");
+    return status;
 }
 
 static int remesh_check(const consph_sys *s, const double *lattice, double ds,
@@ -636,42 +762,19 @@ int reg_remesh_m4(consph_sys *s, const double *lattice, double ds, const char *c
     consph_particles *p = s->p;
     const size_t n = p->n, cap = p->cap;
     const int d = p->dim;
-    /* The lattice points and the particles in one system: the lattice points receive the sums,
-     * the particles are their sources. */
-    consph_particles joint;
-    if ((rc = consph_particles_init(&joint, d, 2 * n, &p->box))) return rc;
-    for (int a = 0; a < d; ++a) {
-        memcpy(joint.x[a], lattice + (size_t)a * cap, n * sizeof(double));
-        memcpy(joint.x[a] + n, p->x[a], n * sizeof(double));
-    }
     consph_kernel k;
-    consph_sys sys;
-    memset(&sys, 0, sizeof sys);
     double *out = consph_calloc(rows * n + 1, sizeof(double));
-    unsigned char *mask = consph_calloc(2 * n + 1, 1);
     unsigned char *orphan = consph_calloc(n + 1, 1);
-    if (!out || !mask || !orphan) rc = CONSPH_ENOMEM;
+    /* the rows of out in field order, component by component */
+    const double **src = malloc((rows ? rows : 1) * sizeof *src);
+    if (!out || !orphan || !src) rc = CONSPH_ENOMEM;
     if (!rc) rc = consph_kernel_init(&k, CONSPH_KERNEL_M4, d, ds);
-    if (!rc) rc = consph_sys_init(&sys, &joint, &k, 0.0);
-    if (!rc) {
-        sys.parallel_min = s->parallel_min;
-        for (size_t i = 0; i < 2 * n; ++i) mask[i] = sys.origin[i] < n;
-        rc = consph_sys_set_dest(&sys, mask);
-    }
-    if (!rc) {
-        /* the rows of out in field order, component by component */
-        const double **src = malloc((rows ? rows : 1) * sizeof *src);
-        if (!src)
-            rc = CONSPH_ENOMEM;
-        else {
-            for (int q = 0; q < nf; ++q)
-                for (int c = 0; c < f[q]->ncomp; ++c)
-                    src[off[q] + (size_t)c] = f[q]->data + (size_t)c * cap;
-            remesh_job job = {&k, sys.origin, n, rows, src, out, orphan};
-            const consph_pass pass = {"remesh M4 (001 eq. 33)", 0u, remesh_visit};
-            rc = consph_pass_run(&sys, &pass, &job);
-        }
-        free(src);
+    if (!rc && n) {
+        for (int q = 0; q < nf; ++q)
+            for (int c = 0; c < f[q]->ncomp; ++c)
+                src[off[q] + (size_t)c] = f[q]->data + (size_t)c * cap;
+        const remesh_job job = {&k, n, rows, src, out, orphan};
+        rc = remesh_sums(s, lattice, &job);
     }
     if (!rc) {
         size_t count = 0;
@@ -679,18 +782,16 @@ int reg_remesh_m4(consph_sys *s, const double *lattice, double ds, const char *c
         for (int q = 0; q < nf; ++q)
             for (int c = 0; c < f[q]->ncomp; ++c) {
                 double *dst = f[q]->data + (size_t)c * cap;
-                const double *src = out + (off[q] + (size_t)c) * n;
+                const double *from = out + (off[q] + (size_t)c) * n;
                 for (size_t i = 0; i < n; ++i)
-                    if (!orphan[i]) dst[i] = src[i];
+                    if (!orphan[i]) dst[i] = from[i];
             }
         for (int a = 0; a < d; ++a) memcpy(p->x[a], lattice + (size_t)a * cap, n * sizeof(double));
         if (orphans) *orphans = count;
         rc = consph_sys_update(s, 0);
     }
-    consph_sys_free(&sys);
-    consph_particles_free(&joint);
+    free(src);
     free(out);
-    free(mask);
     free(orphan);
     return rc;
 }

@@ -449,13 +449,13 @@ static void integ_transport(void *ctx, double c)
     s->scheme->transport(s, c);
 }
 
-/* Whether the search is made afresh from the positions at every move and nothing moves the
- * particles after the integrator's last drift (no regularisation, no neighbour list with a skin,
- * not cut over ranks, not on a GPU): then the build after a step's last drift is the build its
- * next step's re-sort would make. */
+/* Whether the search is made afresh from the positions at every move (no neighbour list with a
+ * skin, not cut over ranks, not on a GPU): then the build after a step's last drift, or after
+ * the regularisation's last move (it moves only through a rebuild, which takes back the word of
+ * an earlier build), is the build its next step's re-sort would make. */
 static int search_follows_drift(const consph_solver *s)
 {
-    return !s->scheme->regularise && !s->par && !s->gpu && !(s->prm.skin > 0.0);
+    return !s->par && !s->gpu && !(s->prm.skin > 0.0);
 }
 
 static int integ_moved(void *ctx)
@@ -615,6 +615,8 @@ int consph_solver_step(consph_solver *s)
     }
     if (st == CONSPH_OK && s->scheme->regularise)
         st = s->gpu ? gpu_regularise(s, &on_host) : s->scheme->regularise(s);
+    if (st == CONSPH_OK && s->scheme->regularise && s->scheme->moves && search_follows_drift(s))
+        nnps_build_is_current(s->sys.nnps);
     if (s->par) st = par_step_end(s, st);
     if (st == CONSPH_OK) {
         step_close_arg a = {landed, on_host, dt};

@@ -157,7 +157,9 @@ typedef struct scheme_def {
     /* What a family's shared rhs reads to tell its schemes apart (001's family: the scheme's
      * negi_terms); NULL where each scheme has an rhs of its own. */
     const void *terms;
-    /* After a full step (NULL: none). */
+    /* After a full step (NULL: none). Moves particles only through consph_sys_update(s, 0)
+     * (reg_move, reg_remesh_m4), so that the search it leaves is built from the positions it
+     * leaves (the next step's re-sort reuses it: search_follows_drift). */
     int (*regularise)(consph_solver *s);
     /* After every stage, in place of 001's closure (p from ϱ by the EOS, or ϱ from p by
      * eq. 31 for evolve_p): a scheme whose density is a summation, or whose pressure is
