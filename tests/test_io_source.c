@@ -139,8 +139,8 @@ static void test_vtu(int dim, size_t n)
         const io_array_source src = {load, &l};
         const int st = io_write_vtu_source(b, &view, &chosen, CONSPH_VTU_ZLIB, &src);
         free(l.buf);
-        CHECK(st == CONSPH_EIO && strstr(consph_last_error(), "refused"),
-              "a failing load: %d %s", st, consph_last_error());
+        CHECK(st == CONSPH_EIO && strstr(consph_last_error(), "refused"), "a failing load: %d %s",
+              st, consph_last_error());
         CHECK(access(b, F_OK) != 0, "a failing load left %s", b);
     }
     consph_particles_free(&p);
@@ -171,8 +171,8 @@ static void test_checkpoint(int dim, size_t n)
     loader_init(&l, &p, &view, 3);
     const int st = io_checkpoint_write_source(b, "", &view, &src, hist, 4);
     free(l.buf);
-    CHECK(st == CONSPH_EIO && strstr(consph_last_error(), "refused"),
-          "a failing load: %d %s", st, consph_last_error());
+    CHECK(st == CONSPH_EIO && strstr(consph_last_error(), "refused"), "a failing load: %d %s", st,
+          consph_last_error());
     CHECK(access(b, F_OK) != 0, "a failing load left %s", b);
     consph_particles_free(&p);
 }

@@ -23,7 +23,6 @@ int io_write_vtu_source(const char *path, const consph_particles *p, const consp
 
 /* consph_checkpoint_write with the arrays from src (NULL: p holds them all). */
 int io_checkpoint_write_source(const char *path, const char *meta, const consph_particles *p,
-                               const io_array_source *src, const double *history,
-                               size_t nhistory);
+                               const io_array_source *src, const double *history, size_t nhistory);
 
 #endif

@@ -21,11 +21,12 @@
  * the step's start holds every particle within the radius of an owned one until the next
  * re-sort.
  *
- * What reads every particle (checks, diagnostics, files) runs on rank 0 over the owned
- * particles gathered into the serial order (par_global; par_global_some: only the fields it
- * reads), so sums over particles are the serial consph_sum whatever the rank count; rank 0
- * receives the parts rank by rank in bounded messages, holding the assembled set and two of
- * them. */
+ * What reads every particle (checks, diagnostics) runs on rank 0 over the owned particles
+ * gathered into the serial order (par_global; par_global_some: only the fields it reads), so
+ * sums over particles are the serial consph_sum whatever the rank count; rank 0 receives the
+ * parts rank by rank in bounded messages, holding the assembled set and two of them. Files
+ * (snapshots, checkpoints) are written on rank 0 from one array of the whole set at a time,
+ * gathered in the serial order as the writer reads it (par_stream). */
 #include "par/par_solver.h"
 
 #include "consph/par.h"
@@ -2486,6 +2487,99 @@ int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
     const int ranged = setup_range(prm, given, consph_par_rank(), size, &range);
     create_cut c = {joined, ranged ? &range : NULL};
     return solver_create_cut(out, prm, given, c.range, agree_and_cut, &c);
+}
+
+#ifdef CONSPH_HAVE_MPI
+/* One column of the given particles from rank 0: every rank's range [lo_q, hi_q) of it (rank 0
+ * keeps its own), or with `whole` the whole column to every rank; in messages of at most
+ * GATHER_MSG_BYTES. src: rank 0's whole column; dst: this rank's part (rank 0's may be src). */
+static void share_column(MPI_Comm comm, int rank, int size, int whole, size_t n, const double *src,
+                         double *dst)
+{
+    const size_t most = GATHER_MSG_BYTES / sizeof(double);
+    if (whole) {
+        double *buf = rank == 0 ? (double *)src : dst;
+        for (size_t o = 0; o < n; o += most)
+            MPI_Bcast(buf + o, (int)(n - o < most ? n - o : most), MPI_DOUBLE, 0, comm);
+        if (rank == 0 && dst != src) memcpy(dst, src, n * sizeof(double));
+        return;
+    }
+    for (int q = rank == 0 ? 0 : rank; q < (rank == 0 ? size : rank + 1); ++q) {
+        const size_t lo = n * (size_t)q / (size_t)size, hi = n * (size_t)(q + 1) / (size_t)size;
+        if (q == 0) {
+            memcpy(dst, src, (hi - lo) * sizeof(double));
+            continue;
+        }
+        for (size_t o = lo; o < hi; o += most) {
+            const int k = (int)(hi - o < most ? hi - o : most);
+            if (rank == 0)
+                MPI_Send(src + o, k, MPI_DOUBLE, q, TAG_GATHER, comm);
+            else
+                MPI_Recv(dst + (o - lo), k, MPI_DOUBLE, 0, TAG_GATHER, comm, MPI_STATUS_IGNORE);
+        }
+    }
+}
+#endif
+
+int consph_par_given_share(consph_run_params *prm, consph_particles *given)
+{
+    const int size = consph_par_size();
+    if (size < 2) return CONSPH_OK;
+#ifdef CONSPH_HAVE_MPI
+    const int rank = consph_par_rank();
+    MPI_Comm comm;
+    MPI_Comm_dup(MPI_COMM_WORLD, &comm);
+    /* rank 0's count, dimension, box and given fields */
+    const consph_field *fu = rank == 0 ? consph_particles_find(given, "u") : NULL,
+                       *fp = rank == 0 ? consph_particles_find(given, "p") : NULL;
+    unsigned long long head[4] = {rank == 0 ? given->n : 0, rank == 0 ? (unsigned)given->dim : 0,
+                                  fu != NULL, fp != NULL};
+    MPI_Bcast(head, 4, MPI_UNSIGNED_LONG_LONG, 0, comm);
+    consph_box box;
+    if (rank == 0) box = given->box;
+    MPI_Bcast(&box, (int)sizeof box, MPI_BYTE, 0, comm);
+    const size_t n = (size_t)head[0];
+    const int dim = (int)head[1];
+    int st = rank == 0 ? CONSPH_OK : consph_run_params_particles(prm, n);
+    /* ranged as consph_par_solver_create will be (every rank the same answer); else every
+     * rank takes the whole set, as when each read the file */
+    solver_range r;
+    const int ranged = st == CONSPH_OK && setup_range(prm, given, rank, size, &r);
+    const size_t m = ranged ? r.hi - r.lo : n;
+    consph_particles mine;
+    memset(&mine, 0, sizeof mine);
+    if (st == CONSPH_OK && !(rank == 0 && !ranged)) {
+        st = consph_particles_init(&mine, dim, m, &box);
+        if (st == CONSPH_OK && ((head[2] && !consph_particles_field(&mine, "u", dim)) ||
+                                (head[3] && !consph_particles_field(&mine, "p", 1))))
+            st = CONSPH_ENOMEM;
+    }
+    if (consph_par_max_int(st != CONSPH_OK)) {
+        consph_particles_free(&mine);
+        MPI_Comm_free(&comm);
+        return st != CONSPH_OK ? st : consph_fail(CONSPH_ENOMEM, "out of memory on another rank");
+    }
+    /* rank 0 keeps the whole set when every rank takes it */
+    consph_particles *dst = rank == 0 && !ranged ? given : &mine;
+    const consph_field *du = consph_particles_find(dst, "u"), *dp = consph_particles_find(dst, "p");
+    for (int a = 0; a < dim; ++a)
+        share_column(comm, rank, size, !ranged, n, rank == 0 ? given->x[a] : NULL, dst->x[a]);
+    for (int a = 0; head[2] && a < dim; ++a)
+        share_column(comm, rank, size, !ranged, n,
+                     rank == 0 ? fu->data + (size_t)a * given->cap : NULL,
+                     du->data + (size_t)a * dst->cap);
+    if (head[3]) share_column(comm, rank, size, !ranged, n, rank == 0 ? fp->data : NULL, dp->data);
+    MPI_Comm_free(&comm);
+    if (dst == &mine) {
+        if (rank == 0) consph_particles_free(given);
+        *given = mine;
+    }
+    return CONSPH_OK;
+#else
+    (void)prm;
+    (void)given;
+    return CONSPH_OK;
+#endif
 }
 
 int consph_par_run_restart(consph_solver **s, const char *checkpoint)
