@@ -660,7 +660,15 @@ int cmd_run(int argc, char **argv)
         if (consph_run_params_check(&prm) != CONSPH_OK) return params_refused(&cmd);
         if ((rc = unread_options(&cmd, cf, &prm)) != 0) return rc;
         if (particles) {
-            rc = read_given(&cmd, particles, &prm, &given);
+            /* under K ranks rank 0 alone reads and checks the file (its messages once) and
+             * hands each rank its share */
+            const int ranks = consph_par_size() > 1;
+            rc = !ranks || consph_par_rank() == 0 ? read_given(&cmd, particles, &prm, &given) : 0;
+            if (ranks) rc = consph_par_bcast_int(rc);
+            if (ranks && !rc && consph_par_given_share(&prm, &given) != CONSPH_OK) {
+                fprintf(stderr, "consph run: option --particles: %s\n", consph_last_error());
+                rc = 1;
+            }
             if (!rc && consph_run_params_check(&prm) != CONSPH_OK)
                 rc = cli_error(&cmd, "option --particles: %s: %s", particles, consph_last_error());
         }

@@ -3,19 +3,21 @@
 # resident MB of every rank (/usr/bin/time -f %M per rank) and the bytes the run's MPI line
 # reports, for each consph binary given, on the 3D Beltrami flow with L-IPST-C (lattice, one
 # thread per rank, no pair cache: CONSPH_PAIR_CACHE_MB=0, so that the gathers weigh), sampling
-# every step (--log-every 1). Two runs per rank count: without files, and with a directory
-# whose snapshots are rare (the first and the last). Oversubscribed on a small machine the
-# times mean nothing; the memory and the bytes do.
+# every step (--log-every 1). Runs per rank count (FILES): without files (no), with a directory
+# whose snapshots are rare (yes: the first and the last), and with a checkpoint at every step
+# but the last besides (ckpt). Oversubscribed on a small machine the times mean nothing; the
+# memory and the bytes do.
 #
 # Usage: bench/mpi_rss.sh CONSPH... (each a binary built with MPI; a label "name=path" names
-# one). Environment: NX (40), STEPS (4), RANKS ("2 4"), MPIRUN (default "mpirun
-# --oversubscribe"), WORK.
+# one). Environment: NX (40), STEPS (4), RANKS ("2 4"), FILES ("no yes"; "no yes ckpt"),
+# MPIRUN (default "mpirun --oversubscribe"), WORK.
 # Prints one markdown row per binary, rank count and kind of run: binary, K, files, rank 0 MB,
 # largest other rank MB, bytes sent in all, bytes per particle-step.
 set -u
 NX=${NX:-40}
 STEPS=${STEPS:-4}
 RANKS=${RANKS:-"2 4"}
+FILES=${FILES:-"no yes"}
 MPIRUN=${MPIRUN:-mpirun --oversubscribe}
 WORK=${WORK:-${TMPDIR:-/tmp}/consph_mpi_rss}
 export OMP_NUM_THREADS=1 CONSPH_PAIR_CACHE_MB=0
@@ -28,10 +30,11 @@ for arg in "$@"; do
     label=${arg%%=*} bin=${arg#*=}
     [ "$label" = "$arg" ] && label=$(basename "$bin")
     for k in $RANKS; do
-        for files in no yes; do
+        for files in $FILES; do
             rm -rf "$WORK"/rss.* "$WORK/out"
             extra=()
             [ $files = yes ] && extra=(--out "$WORK/out" --snapshot-every 0)
+            [ $files = ckpt ] && extra=(--out "$WORK/out" --snapshot-every 0 --checkpoint-every 1)
             # shellcheck disable=SC2016
             if ! $MPIRUN -np "$k" sh -c '/usr/bin/time -f %M -o "$0.${OMPI_COMM_WORLD_RANK:-0}" "$@"' \
                 "$WORK/rss" "$bin" run beltrami --scheme l-ipst-c --layout lattice --threads 1 \

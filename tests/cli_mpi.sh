@@ -151,6 +151,19 @@ mpi 3 "$bin" run taylor-green --scheme edac --particles "$work/given.csv" --step
     --out "$work/g3" >/dev/null 2>"$work/err" && same_run "$work/g1" "$work/g3" \
     "given particles on 3 ranks" && pass=$((pass + 1)) ||
     bad "given particles on 3 ranks: $(ours "$work/err")"
+# Rank 0 alone reads the file and hands each rank its share: ranks 1 and 2 given a file that
+# does not exist still run the serial run.
+timeout 120 mpirun --oversubscribe -np 1 "$bin" run taylor-green --scheme edac --particles \
+    "$work/given.csv" --steps 3 --out "$work/g0" : -np 2 "$bin" run taylor-green --scheme edac \
+    --particles "$work/nowhere.csv" --steps 3 --out "$work/g0" >/dev/null 2>"$work/err" &&
+    same_run "$work/g1" "$work/g0" "given particles read by rank 0 only" && pass=$((pass + 1)) ||
+    bad "given particles read by rank 0 only: $(ours "$work/err")"
+# A bad file: the reader's message once, exit 2, nothing written.
+head -c 300 "$work/given.csv" >"$work/short.csv"
+failing 2 "short.csv:11: short row" /dev/null -- \
+    mpi 3 "$bin" run taylor-green --scheme edac --particles "$work/short.csv" --steps 3 \
+    --out "$work/gbad" && [ "$(ours "$work/err" | grep -c 'short row')" = 1 ] &&
+    [ ! -e "$work/gbad" ] && pass=$((pass + 1)) || bad "bad particle file on 3 ranks: $(ours "$work/err")"
 # What the decomposition cannot serve: exit 2, once, nothing written.
 failing 2 "l-rr-c" /dev/null -- \
     mpi 2 "$bin" run taylor-green --scheme l-rr-c --layout lattice --nx 8 --steps 2 --out "$work/rrc" &&

@@ -6,11 +6,12 @@
  * to the serial run's final files; a launch on more ranks than slabs is refused on every rank;
  * the cases are cut at the set-up (consph_par_solver_create), the files' runs after it; on 4
  * ranks, some cases and the restart with the boxes forced to 2 x 2 pieces across two axes;
- * the halo refresh sends only changed columns and leaves the halo equal to its owners (the
- * positions alone for refresh_positions); a packed layout read from the layout cache by each
- * rank's share (the whole set packed on every rank when the file is corrupt); runs that sample
- * every step (the samples gather only
- * the fields they read) keep the serial history.
+ * the files are written on rank 0 from one array at a time, never the whole set (also in
+ * messages of a few hundred bytes); the halo refresh sends only changed columns and leaves the halo
+ * equal to its owners (the positions alone for refresh_positions); a packed layout read from the
+ * layout cache by each rank's share (the whole set packed on every rank when the file is corrupt);
+ * runs that sample every step (the samples gather only the fields they read) keep the serial
+ * history.
  *
  * Run without mpirun, the test computes the serial references and launches itself under
  * `mpirun -np 2` and `-np 3` (--oversubscribe: this machine may have fewer cores); skips (77)
@@ -341,8 +342,16 @@ static int run_files(const char *dir, int restart)
     consph_run_output out = {dir, 5, 5, 0, 0};
     consph_run_summary sum;
     int sig = 0;
+    const long whole = par_whole_gathers();
     if (st == CONSPH_OK) st = consph_run(s, &out, &sum, &sig);
     if (st != CONSPH_OK) fprintf(stderr, "files run in %s: %s\n", dir, consph_last_error());
+    /* the snapshots and the checkpoint go one array at a time (par_stream), and the run's end
+     * gathers no field: rank 0 never assembles the whole set */
+    if (st == CONSPH_OK && par_whole_gathers() != whole) {
+        fprintf(stderr, "files run in %s: %ld gathers of every field\n", dir,
+                par_whole_gathers() - whole);
+        st = CONSPH_EINVAL;
+    }
     consph_solver_free(s);
     return st;
 }
@@ -474,7 +483,11 @@ static int child_boxes(const char *base)
     char dir[512];
     force_boxes("taylor-green");
     snprintf(dir, sizeof dir, "%s.restart.np4", base);
+    /* the files' arrays in messages of a few hundred bytes: a rank's boxes are many runs of
+     * the serial order, each array many messages */
+    par_force_gather_bytes(456);
     bad |= run_files(dir, 1) != CONSPH_OK;
+    par_force_gather_bytes(0);
     par_force_boxes(NULL);
     int any = 0;
     MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
@@ -497,7 +510,9 @@ static int child(const char *base)
     }
     char dir[512];
     snprintf(dir, sizeof dir, "%s.files.np%d", base, size);
+    par_force_gather_bytes(size == 3 ? 1000 : 0);
     bad |= run_files(dir, 0) != CONSPH_OK;
+    par_force_gather_bytes(0);
     snprintf(dir, sizeof dir, "%s.restart.np%d", base, size);
     bad |= run_files(dir, 2) != CONSPH_OK;
     bad |= check_refresh() != CONSPH_OK;

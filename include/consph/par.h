@@ -75,6 +75,14 @@ int consph_par_solver_decompose(consph_solver *s);
  * consph_solver_create_from. */
 int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
                              const consph_particles *given, int *joined);
+/* Given particles read (and checked) on rank 0 only, shared for consph_par_solver_create:
+ * collective; rank 0 passes the whole set in *given (positions and the optional fields "u",
+ * "p"; prm already set by consph_run_params_particles), the others a zeroed set and the same
+ * prm otherwise. Every rank ends with its range [N k/K, N (k+1)/K) of the particles in *given
+ * (rank 0's whole set freed) and prm's particle count set as rank 0's; where the set-up makes
+ * the whole set on every rank (more ranks than particles, l-rr-c) every rank gets the whole
+ * set. On one rank, or built without MPI: nothing. */
+int consph_par_given_share(consph_run_params *prm, consph_particles *given);
 
 /* consph_run_restart for a decomposed run: each of K ranks reads only its part of the
  * checkpoint's particles (consph_checkpoint_read_part: 1/K of them in the stored order, every

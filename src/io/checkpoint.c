@@ -33,6 +33,7 @@
 
 #include "consph/io.h"
 #include "io/read_internal.h"
+#include "io/source_internal.h"
 
 #define CK_MAGIC "CONSPHCK"
 #define CK_VERSION 1u
@@ -79,6 +80,7 @@ typedef struct ck_writer {
     uint64_t usize, csize;
     uint32_t crc;
     int failed;
+    int load_st; /* the status of a source's load that failed (its message recorded) */
 } ck_writer;
 
 static void ck_deflate(ck_writer *w, int flush)
@@ -157,6 +159,24 @@ static int check_particles(const char *path, const consph_particles *p)
 int consph_checkpoint_write(const char *path, const char *meta, const consph_particles *p,
                             const double *history, size_t nhistory)
 {
+    return io_checkpoint_write_source(path, meta, p, NULL, history, nhistory);
+}
+
+/* An array's values from the source, when the caller hands them one array at a time: the
+ * payload is one deflate stream fed in order, so a column never needs the ones after it. */
+static void ck_load(ck_writer *w, const io_array_source *src, int field)
+{
+    if (!src || w->failed) return;
+    const int rc = src->load(src->arg, field);
+    if (rc) {
+        w->failed = 1;
+        w->load_st = rc;
+    }
+}
+
+int io_checkpoint_write_source(const char *path, const char *meta, const consph_particles *p,
+                               const io_array_source *src, const double *history, size_t nhistory)
+{
     if (!meta) meta = "";
     if (nhistory && !history)
         return consph_fail(CONSPH_EINVAL, "checkpoint '%s': %zu history values but no array", path,
@@ -199,10 +219,13 @@ int consph_checkpoint_write(const char *path, const char *meta, const consph_par
         ck_put(w, p->fields[f].name, nlen);
         ck_put_u64(w, (uint64_t)p->fields[f].ncomp);
     }
+    ck_load(w, src, -1);
     for (int a = 0; a < p->dim; ++a) ck_put_doubles(w, p->x[a], p->n);
-    for (int f = 0; f < p->nfields; ++f)
+    for (int f = 0; f < p->nfields; ++f) {
+        ck_load(w, src, f);
         for (int c = 0; c < p->fields[f].ncomp; ++c)
             ck_put_doubles(w, p->fields[f].data + (size_t)c * p->cap, p->n);
+    }
     ck_put_u64(w, nhistory);
     ck_put_doubles(w, history, nhistory);
     if (!w->failed) ck_deflate(w, Z_FINISH);
@@ -225,11 +248,12 @@ int consph_checkpoint_write(const char *path, const char *meta, const consph_par
     if (!w->failed &&
         (fseek(w->fp, 0, SEEK_SET) != 0 || fwrite(head, 1, sizeof head, w->fp) != sizeof head))
         w->failed = 1;
-    int failed = w->failed;
+    int failed = w->failed, load_st = w->load_st;
     free(w);
     if (failed) {
         /* Without a failed write, deflate or the rewind to the header failed. */
-        rc = ferror(of.fp)
+        rc = load_st ? load_st
+             : ferror(of.fp)
                  ? consph_outfile_fail(&of, 0)
                  : consph_fail(CONSPH_EIO, "checkpoint '%s': compression or seek failed", path);
         consph_outfile_abort(&of);

@@ -6,6 +6,7 @@
 #include <zlib.h>
 
 #include "consph/io.h"
+#include "io/source_internal.h"
 
 static const char *axis_name[CONSPH_MAX_DIM] = {"x", "y", "z"};
 
@@ -96,6 +97,13 @@ typedef struct vtu_array {
     uint64_t start; /* offset of the array's data in the appended block */
 } vtu_array;
 
+/* The array's values from the source, when the caller hands them one array at a time. */
+static int load_array(const consph_particles *p, const vtu_array *a, const io_array_source *src)
+{
+    if (!src || !(a->kind == VTU_POINTS || a->kind == VTU_FIELD)) return CONSPH_OK;
+    return src->load(src->arg, a->kind == VTU_POINTS ? -1 : (int)(a->field - p->fields));
+}
+
 static double float_value(const consph_particles *p, const vtu_array *a, size_t i, int c)
 {
     if (a->kind == VTU_POINTS) return c < p->dim ? p->x[c][i] : 0.0;
@@ -140,7 +148,7 @@ static void write_ascii_values(FILE *fp, const consph_particles *p, const vtu_ar
 
 /* A DataArray element: ASCII values inline, or an empty element pointing into AppendedData. */
 static int write_array_tag(FILE *fp, const consph_particles *p, vtu_array *a, const char *name,
-                           consph_vtu_encoding enc)
+                           consph_vtu_encoding enc, const io_array_source *src)
 {
     static const char *const type[] = {"Float64", "Float64", "Int64", "Int64", "UInt8"};
     fprintf(fp, "<DataArray type=\"%s\"", type[a->kind]);
@@ -149,6 +157,8 @@ static int write_array_tag(FILE *fp, const consph_particles *p, vtu_array *a, co
         fprintf(fp, " NumberOfComponents=\"%d\"", a->ncomp);
     if (enc == CONSPH_VTU_ASCII) {
         fprintf(fp, " format=\"ascii\">\n");
+        const int rc = load_array(p, a, src);
+        if (rc) return rc;
         write_ascii_values(fp, p, a);
         fprintf(fp, "</DataArray>\n");
         return CONSPH_OK;
@@ -229,7 +239,7 @@ static int write_zlib(FILE *fp, const consph_particles *p, const vtu_array *a, u
 
 /* The AppendedData element with every array's data, then each array's offset patched in. */
 static int write_appended(FILE *fp, const consph_particles *p, vtu_array *arr, int narr,
-                          consph_vtu_encoding enc)
+                          consph_vtu_encoding enc, const io_array_source *src)
 {
     size_t bound = compressBound(VTU_BLOCK);
     size_t nbuf = enc == CONSPH_VTU_ZLIB ? VTU_BATCH : 1;
@@ -251,6 +261,8 @@ static int write_appended(FILE *fp, const consph_particles *p, vtu_array *arr, i
             break;
         }
         arr[k].start = (uint64_t)(at - base);
+        rc = load_array(p, &arr[k], src);
+        if (rc) break;
         rc = enc == CONSPH_VTU_ZLIB ? write_zlib(fp, p, &arr[k], raw, comp, bound)
                                     : write_raw(fp, p, &arr[k], raw);
     }
@@ -339,7 +351,7 @@ static int content_check(const consph_particles *p, const consph_vtu_content *c)
 }
 
 static int write_vtu(FILE *fp, const consph_particles *p, const consph_vtu_content *c,
-                     consph_vtu_encoding enc)
+                     consph_vtu_encoding enc, const io_array_source *src)
 {
     const consph_box *b = &p->box;
     const uint16_t one = 1;
@@ -379,25 +391,25 @@ static int write_vtu(FILE *fp, const consph_particles *p, const consph_vtu_conte
         for (int k = 0; k < c->narrays && !rc; ++k) {
             const consph_vtu_array *a = &c->arrays[k];
             arr[narr] = field_array(p, consph_particles_find(p, a->field), 1, a->kind);
-            rc = write_array_tag(fp, p, &arr[narr++], a->name, enc);
+            rc = write_array_tag(fp, p, &arr[narr++], a->name, enc, src);
         }
     } else {
         for (int f = 0; f < p->nfields && !rc; ++f) {
             const consph_field *fl = &p->fields[f];
             arr[narr] = field_array(p, fl, 0, CONSPH_ARRAY_SCALAR);
-            rc = write_array_tag(fp, p, &arr[narr++], fl->name, enc);
+            rc = write_array_tag(fp, p, &arr[narr++], fl->name, enc, src);
         }
     }
     fprintf(fp, "</PointData>\n<Points>\n");
     arr[narr] = (vtu_array){.kind = VTU_POINTS, .ncomp = 3, .esize = 8};
-    if (!rc) rc = write_array_tag(fp, p, &arr[narr++], NULL, enc);
+    if (!rc) rc = write_array_tag(fp, p, &arr[narr++], NULL, enc, src);
     fprintf(fp, "</Points>\n<Cells>\n");
     /* One VTK_VERTEX cell per particle, so readers show points without a glyph filter. */
     static const char *const cell_name[] = {"connectivity", "offsets", "types"};
     for (int k = 0; k < 3 && !rc; ++k) {
         arr[narr] = (vtu_array){
             .kind = (vtu_kind)(VTU_CONNECTIVITY + k), .ncomp = 1, .esize = k == 2 ? 1 : 8};
-        rc = write_array_tag(fp, p, &arr[narr++], cell_name[k], enc);
+        rc = write_array_tag(fp, p, &arr[narr++], cell_name[k], enc, src);
     }
     fprintf(fp, "</Cells>\n</Piece>\n</UnstructuredGrid>\n");
     if (rc) return rc;
@@ -405,11 +417,11 @@ static int write_vtu(FILE *fp, const consph_particles *p, const consph_vtu_conte
         fprintf(fp, "</VTKFile>\n");
         return CONSPH_OK;
     }
-    return write_appended(fp, p, arr, narr, enc);
+    return write_appended(fp, p, arr, narr, enc, src);
 }
 
 static int write_particles(const char *path, const consph_particles *p, const consph_vtu_content *c,
-                           consph_vtu_encoding enc);
+                           consph_vtu_encoding enc, const io_array_source *src);
 
 int consph_write_particles(const char *path, const consph_particles *p)
 {
@@ -418,11 +430,17 @@ int consph_write_particles(const char *path, const consph_particles *p)
 
 int consph_write_particles_enc(const char *path, const consph_particles *p, consph_vtu_encoding enc)
 {
-    return write_particles(path, p, NULL, enc);
+    return write_particles(path, p, NULL, enc, NULL);
 }
 
 int consph_write_vtu(const char *path, const consph_particles *p, const consph_vtu_content *c,
                      consph_vtu_encoding enc)
+{
+    return io_write_vtu_source(path, p, c, enc, NULL);
+}
+
+int io_write_vtu_source(const char *path, const consph_particles *p, const consph_vtu_content *c,
+                        consph_vtu_encoding enc, const io_array_source *src)
 {
     consph_particle_format fmt;
     int rc = consph_particle_format_from_path(path, &fmt);
@@ -431,11 +449,11 @@ int consph_write_vtu(const char *path, const consph_particles *p, const consph_v
         return consph_fail(CONSPH_EINVAL, "'%s': a snapshot with chosen arrays is a .vtu file",
                            path);
     rc = content_check(p, c);
-    return rc ? rc : write_particles(path, p, c, enc);
+    return rc ? rc : write_particles(path, p, c, enc, src);
 }
 
 static int write_particles(const char *path, const consph_particles *p, const consph_vtu_content *c,
-                           consph_vtu_encoding enc)
+                           consph_vtu_encoding enc, const io_array_source *src)
 {
     if ((unsigned)enc > CONSPH_VTU_ZLIB)
         return consph_fail(CONSPH_EINVAL, "unknown VTU encoding %d; allowed: %s", (int)enc,
@@ -449,7 +467,7 @@ static int write_particles(const char *path, const consph_particles *p, const co
     if (fmt == CONSPH_FORMAT_CSV)
         write_csv(of.fp, p);
     else
-        rc = write_vtu(of.fp, p, c, enc);
+        rc = write_vtu(of.fp, p, c, enc, src);
     if (rc) {
         /* The writers' own "write error" lacks the file and the reason. */
         if (ferror(of.fp)) rc = consph_outfile_fail(&of, 0);

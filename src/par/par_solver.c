@@ -21,11 +21,12 @@
  * the step's start holds every particle within the radius of an owned one until the next
  * re-sort.
  *
- * What reads every particle (checks, diagnostics, files) runs on rank 0 over the owned
- * particles gathered into the serial order (par_global; par_global_some: only the fields it
- * reads), so sums over particles are the serial consph_sum whatever the rank count; rank 0
- * receives the parts rank by rank in bounded messages, holding the assembled set and two of
- * them. */
+ * What reads every particle (checks, diagnostics) runs on rank 0 over the owned particles
+ * gathered into the serial order (par_global; par_global_some: only the fields it reads), so
+ * sums over particles are the serial consph_sum whatever the rank count; rank 0 receives the
+ * parts rank by rank in bounded messages, holding the assembled set and two of them. Files
+ * (snapshots, checkpoints) are written on rank 0 from one array of the whole set at a time,
+ * gathered in the serial order as the writer reads it (par_stream). */
 #include "par/par_solver.h"
 
 #include "consph/par.h"
@@ -42,6 +43,7 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <time.h>
 
 #include "nnps/nnps_internal.h"
 #include "pass/nlist.h"
@@ -108,6 +110,7 @@ struct par_solver {
     int stepping; /* a step's re-sort: this rank's search holds its particles */
     int weighed;  /* the kind of weights of the last cut (WEIGH_*) */
     double bytes, seconds;
+    struct stream_ctx *stream; /* inside par_stream: what rank 0's writer loads from */
 };
 
 enum { COL_CHANGED = 1, COL_WANTED = 2 }; /* changed on the owner; not held by the receiver */
@@ -1575,6 +1578,18 @@ int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *a
  * assembled set and two messages, not every rank's packed values besides it, and no count or
  * displacement is bounded by an int's range. */
 enum { GATHER_MSG_BYTES = 4 << 20, TAG_GATHER = 1 };
+static size_t gather_msg_bytes = GATHER_MSG_BYTES; /* par_force_gather_bytes */
+static long whole_gathers;                         /* par_whole_gathers */
+
+void par_force_gather_bytes(size_t bytes)
+{
+    gather_msg_bytes = bytes ? bytes : GATHER_MSG_BYTES;
+}
+
+long par_whole_gathers(void)
+{
+    return whole_gathers;
+}
 
 /* The messages of a gather to rank 0, in the order they are received: rank 1's part in pieces
  * of at most `chunk` particles, then rank 2's, ... */
@@ -1607,7 +1622,8 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
             if (!strcmp(p->fields[f].name, only[k])) sel[f] = 1;
     }
     const size_t per = values_selected(p, sel) + 1; /* + the serial index */
-    size_t chunk = GATHER_MSG_BYTES / (per * sizeof(double));
+    if (!only) ++whole_gathers;
+    size_t chunk = gather_msg_bytes / (per * sizeof(double));
     chunk = chunk ? chunk : 1;
     int st = CONSPH_OK;
     int *pcnt = ps->rank == 0 ? consph_calloc((size_t)ps->size, sizeof(int)) : NULL;
@@ -1709,6 +1725,303 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
     }
     ps->seconds += MPI_Wtime() - t1;
     return st;
+}
+
+/* ---- files from one array at a time (par_stream) ----
+ *
+ * Rank 0 runs the writer with its own part in place; each time the writer needs an array (the
+ * positions or one field), rank 0 broadcasts which, and every rank sends its owned values of
+ * that array, which rank 0 puts at their serial indices in one buffer of the whole set's
+ * length: rank 0 holds one array of the whole set and two messages, never the whole set. A
+ * rank's owned particles, ascending in the serial index, are runs of it (a row of cells within
+ * its piece along axis 0): the runs travel once, at the first array, and the arrays travel as
+ * values only. */
+enum { STREAM_END = -2, TAG_STREAM = 2 };
+
+typedef struct stream_ctx {
+    consph_particles view; /* rank 0: the whole set's shape, the loaded array's values */
+    int have_runs;
+    int *cnt;          /* rank 0, per rank: its owned particles */
+    size_t *run_off;   /* rank 0, per rank: its first run (size + 1) */
+    uint64_t *runs;    /* rank 0: (first serial index, length) per run, rank by rank */
+    double *buf, *msg; /* rank 0: the array's values; the messages (two) or a rank's one */
+    size_t buf_cap, msg_cap;
+} stream_ctx;
+
+/* Rank 0's broadcast, waited for asleep by the others (rank 0 may be compressing a file while
+ * they wait, on cores they share): polls from 50 µs up to every millisecond. */
+static int stream_bcast(par_solver *ps, int v)
+{
+    MPI_Request req;
+    MPI_Ibcast(&v, 1, MPI_INT, 0, ps->comm, &req);
+    if (ps->rank == 0) {
+        MPI_Wait(&req, MPI_STATUS_IGNORE);
+        return v;
+    }
+    long ns = 50000;
+    for (;;) {
+        int done = 0;
+        MPI_Test(&req, &done, MPI_STATUS_IGNORE);
+        if (done) return v;
+        const struct timespec ts = {0, ns};
+        nanosleep(&ts, NULL);
+        if (ns < 1000000) ns *= 2;
+    }
+}
+
+/* Every rank's owned particles as runs of consecutive serial indices, to rank 0. */
+static void stream_runs(par_solver *ps, stream_ctx *x)
+{
+    size_t n = 0;
+    for (size_t o = 0; o < ps->nown; ++o)
+        if (o == 0 || ps->g[ps->own[o]] != ps->g[ps->own[o - 1]] + 1.0) ++n;
+    uint64_t *mine = malloc((n ? 2 * n : 1) * sizeof *mine);
+    if (!mine || 2 * n > INT32_MAX) MPI_Abort(ps->comm, 1);
+    size_t r = 0;
+    for (size_t o = 0; o < ps->nown; ++o) {
+        const uint64_t g = (uint64_t)ps->g[ps->own[o]];
+        if (o == 0 || (double)g != ps->g[ps->own[o - 1]] + 1.0) {
+            mine[2 * r] = g;
+            mine[2 * r + 1] = 0;
+            ++r;
+        }
+        ++mine[2 * r - 1];
+    }
+    const int two[2] = {(int)ps->nown, (int)(2 * n)};
+    int *both = NULL, *displ = NULL;
+    if (ps->rank == 0) {
+        both = malloc((size_t)ps->size * 2 * sizeof(int));
+        displ = malloc((size_t)ps->size * sizeof(int));
+        x->cnt = malloc((size_t)ps->size * sizeof(int));
+        x->run_off = malloc(((size_t)ps->size + 1) * sizeof(size_t));
+        if (!both || !displ || !x->cnt || !x->run_off) MPI_Abort(ps->comm, 1);
+    }
+    MPI_Gather(two, 2, MPI_INT, both, 2, MPI_INT, 0, ps->comm);
+    int *vals = NULL;
+    if (ps->rank == 0) {
+        size_t total = 0;
+        vals = malloc((size_t)ps->size * sizeof(int));
+        if (!vals) MPI_Abort(ps->comm, 1);
+        for (int q = 0; q < ps->size; ++q) {
+            x->cnt[q] = both[2 * q];
+            vals[q] = both[2 * q + 1];
+            x->run_off[q] = total / 2;
+            if (total > INT32_MAX) MPI_Abort(ps->comm, 1);
+            displ[q] = (int)total;
+            total += (size_t)vals[q];
+        }
+        x->run_off[ps->size] = total / 2;
+        x->runs = malloc((total ? total : 1) * sizeof(uint64_t));
+        if (!x->runs || total > INT32_MAX) MPI_Abort(ps->comm, 1);
+    }
+    MPI_Gatherv(mine, (int)(2 * n), MPI_UINT64_T, x->runs, vals, displ, MPI_UINT64_T, 0, ps->comm);
+    ps->bytes += (double)(2 * n * sizeof(uint64_t));
+    free(mine);
+    free(both);
+    free(displ);
+    free(vals);
+    x->have_runs = 1;
+}
+
+/* A message of k particles of rank q's owned ones (component-major: component c of particle j
+ * at msg[c k + j]) into the array out at their serial indices; *r, *off: where in q's runs the
+ * message starts, moved past it. */
+static void stream_place(const stream_ctx *x, double *out, size_t nglobal, int nc,
+                         const double *msg, size_t k, size_t *r, uint64_t *off)
+{
+    for (size_t j = 0; j < k;) {
+        const uint64_t first = x->runs[2 * *r], len = x->runs[2 * *r + 1];
+        const size_t take = (size_t)(len - *off) < k - j ? (size_t)(len - *off) : k - j;
+        for (int c = 0; c < nc; ++c)
+            memcpy(out + (size_t)c * nglobal + first + *off, msg + (size_t)c * k + j,
+                   take * sizeof(double));
+        j += take;
+        *off += take;
+        if (*off == len) {
+            ++*r;
+            *off = 0;
+        }
+    }
+}
+
+/* The values of the positions (field -1) or of field `field` of the owned particles: rank 0
+ * puts every rank's at their serial indices in x->buf (component c from c·nglobal), the
+ * others send theirs in messages of at most GATHER_MSG_BYTES. */
+static void stream_gather(consph_solver *s, stream_ctx *x, int field)
+{
+    par_solver *ps = s->par;
+    const consph_particles *p = s->sys.p;
+    const int nc = field < 0 ? p->dim : p->fields[field].ncomp;
+#define COL(c) (field < 0 ? p->x[c] : p->fields[field].data + (size_t)(c)*p->cap)
+    size_t chunk = gather_msg_bytes / ((size_t)nc * sizeof(double));
+    chunk = chunk ? chunk : 1;
+    double t0 = MPI_Wtime();
+    if (!x->have_runs) stream_runs(ps, x);
+    ps->seconds += MPI_Wtime() - t0;
+    if (ps->rank != 0) {
+        for (size_t o = 0; o < ps->nown; o += chunk) {
+            const size_t k = ps->nown - o < chunk ? ps->nown - o : chunk;
+            for (int c = 0; c < nc; ++c) {
+                const double *v = COL(c);
+                for (size_t j = 0; j < k; ++j) x->msg[(size_t)c * k + j] = v[ps->own[o + j]];
+            }
+            t0 = MPI_Wtime();
+            MPI_Send(x->msg, (int)(k * (size_t)nc), MPI_DOUBLE, 0, TAG_STREAM, ps->comm);
+            ps->seconds += MPI_Wtime() - t0;
+        }
+        ps->bytes += (double)(ps->nown * (size_t)nc * sizeof(double));
+        return;
+    }
+    const size_t ng = ps->nglobal;
+    double *out = x->buf;
+    for (int c = 0; c < nc; ++c) {
+        const double *v = COL(c);
+        for (size_t o = 0; o < ps->nown; ++o)
+            out[(size_t)c * ng + (size_t)ps->g[ps->own[o]]] = v[ps->own[o]];
+    }
+#undef COL
+    const size_t room = x->msg_cap / 2;
+    gather_msgs it = {x->cnt, ps->size, 0, 0, chunk};
+    MPI_Request req = MPI_REQUEST_NULL;
+    int from = 0, cur = 0, at = -1;
+    size_t r = 0;
+    uint64_t off = 0;
+    size_t k = gather_next(&it, &from);
+    if (k) MPI_Irecv(x->msg, (int)(k * (size_t)nc), MPI_DOUBLE, from, TAG_STREAM, ps->comm, &req);
+    while (k) {
+        t0 = MPI_Wtime();
+        MPI_Wait(&req, MPI_STATUS_IGNORE);
+        const int sender = from;
+        const size_t next = gather_next(&it, &from);
+        if (next)
+            MPI_Irecv(x->msg + (size_t)(1 - cur) * room, (int)(next * (size_t)nc), MPI_DOUBLE, from,
+                      TAG_STREAM, ps->comm, &req);
+        ps->seconds += MPI_Wtime() - t0;
+        if (sender != at) { /* the sender's first message: its first run */
+            at = sender;
+            r = x->run_off[sender];
+            off = 0;
+        }
+        stream_place(x, out, ng, nc, x->msg + (size_t)cur * room, k, &r, &off);
+        cur = 1 - cur;
+        k = next;
+    }
+}
+
+/* Room for field's array (-1: the positions) and its messages on this rank; 0 when out of
+ * memory. */
+static int stream_room(consph_solver *s, stream_ctx *x, int field)
+{
+    const par_solver *ps = s->par;
+    const consph_particles *p = s->sys.p;
+    const size_t nc = (size_t)(field < 0 ? p->dim : p->fields[field].ncomp);
+    size_t chunk = gather_msg_bytes / (nc * sizeof(double));
+    chunk = chunk ? chunk : 1;
+    size_t most = ps->nown;
+    for (int q = 0; ps->rank == 0 && x->cnt && q < ps->size; ++q)
+        most = (size_t)x->cnt[q] > most ? (size_t)x->cnt[q] : most;
+    /* before the runs are known, rank 0 makes room for a whole message */
+    if (ps->rank == 0 && !x->cnt) most = chunk;
+    const size_t msg = (ps->rank == 0 ? 2 : 1) * ((most < chunk ? most : chunk) + 1) * nc;
+    if (msg > x->msg_cap) {
+        double *m = realloc(x->msg, msg * sizeof(double));
+        if (!m) return 0;
+        x->msg = m;
+        x->msg_cap = msg;
+    }
+    const size_t need = ps->rank == 0 ? nc * (ps->nglobal ? ps->nglobal : 1) : 0;
+    if (need > x->buf_cap) {
+        free(x->buf); /* its values are the last array's: none to keep */
+        x->buf = malloc(need * sizeof(double));
+        x->buf_cap = x->buf ? need : 0;
+        if (!x->buf) return 0;
+    }
+    return 1;
+}
+
+/* The writer's load on rank 0 (io_array_source): the array gathered into x->buf, the view's
+ * pointers at it. */
+static int stream_load(void *arg, int field)
+{
+    consph_solver *s = arg;
+    par_solver *ps = s->par;
+    stream_ctx *x = ps->stream;
+    /* the room first: the others wait for the command, and serve only a gather announced */
+    if (!stream_room(s, x, field))
+        return consph_fail(CONSPH_ENOMEM, "out of memory gathering a file's array to rank 0");
+    stream_bcast(ps, field);
+    stream_gather(s, x, field);
+    consph_particles *v = &x->view;
+    if (field < 0)
+        for (int a = 0; a < v->dim; ++a) v->x[a] = x->buf + (size_t)a * ps->nglobal;
+    else
+        v->fields[field].data = x->buf;
+    return CONSPH_OK;
+}
+
+int par_stream_source(consph_solver *s, const consph_particles **view, io_array_source *src)
+{
+    par_solver *ps = s->par;
+    stream_ctx *x = ps ? ps->stream : NULL;
+    if (!x || ps->rank != 0)
+        return consph_fail(CONSPH_EINVAL, "par_stream_source outside par_stream on rank 0");
+    x->view = *s->sys.p;
+    x->view.n = x->view.cap = ps->nglobal;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) x->view.x[a] = NULL;
+    for (int f = 0; f < x->view.nfields; ++f) x->view.fields[f].data = NULL;
+    *view = &x->view;
+    src->load = stream_load;
+    src->arg = s;
+    return CONSPH_OK;
+}
+
+int par_stream(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg)
+{
+    par_solver *ps = s->par;
+    stream_ctx x;
+    memset(&x, 0, sizeof x);
+    double t0 = MPI_Wtime();
+    unsigned long long pairs = s->pairs - ps->pairs_base, total = 0;
+    MPI_Reduce(&pairs, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, ps->comm);
+    ps->seconds += MPI_Wtime() - t0;
+    ps->stream = &x;
+    int st = CONSPH_OK;
+    char msg[1024] = "";
+    if (ps->rank == 0) {
+        const size_t pairs_local = s->pairs;
+        s->pairs = ps->pairs_base + (size_t)total;
+        st = fn(s, arg);
+        if (st != CONSPH_OK) snprintf(msg, sizeof msg, "%s", consph_last_error());
+        s->pairs = pairs_local;
+        stream_bcast(ps, STREAM_END);
+    } else {
+        for (int field; (field = stream_bcast(ps, STREAM_END)) != STREAM_END;) {
+            if (!stream_room(s, &x, field)) MPI_Abort(ps->comm, 1);
+            stream_gather(s, &x, field);
+        }
+    }
+    ps->stream = NULL;
+    free(x.cnt);
+    free(x.run_off);
+    free(x.runs);
+    free(x.buf);
+    free(x.msg);
+    const double t1 = MPI_Wtime();
+    MPI_Bcast(&st, 1, MPI_INT, 0, ps->comm);
+    if (st != CONSPH_OK) {
+        MPI_Bcast(msg, (int)sizeof msg, MPI_CHAR, 0, ps->comm);
+        consph_fail(st, "%s", msg);
+    }
+    ps->seconds += MPI_Wtime() - t1;
+    return st;
+}
+
+int par_sample_due(consph_solver *s)
+{
+    par_solver *ps = s->par;
+    const int due = !(s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step);
+    if (!ps) return due;
+    return stream_bcast(ps, due);
 }
 
 int par_rank(const consph_solver *s)
@@ -2011,6 +2324,24 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
     return fn(s, arg);
 }
 
+int par_stream(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg)
+{
+    return fn(s, arg);
+}
+
+int par_stream_source(consph_solver *s, const consph_particles **view, io_array_source *src)
+{
+    (void)s;
+    (void)view;
+    (void)src;
+    return consph_fail(CONSPH_EINVAL, "par_stream_source: built without MPI");
+}
+
+int par_sample_due(consph_solver *s)
+{
+    return !(s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step);
+}
+
 int par_rank(const consph_solver *s)
 {
     (void)s;
@@ -2055,6 +2386,16 @@ void par_force_boxes(const int *k)
 void par_force_count_cut(int on)
 {
     (void)on;
+}
+
+void par_force_gather_bytes(size_t bytes)
+{
+    (void)bytes;
+}
+
+long par_whole_gathers(void)
+{
+    return 0;
 }
 
 int consph_par_solver_decompose(consph_solver *s)
@@ -2146,6 +2487,99 @@ int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
     const int ranged = setup_range(prm, given, consph_par_rank(), size, &range);
     create_cut c = {joined, ranged ? &range : NULL};
     return solver_create_cut(out, prm, given, c.range, agree_and_cut, &c);
+}
+
+#ifdef CONSPH_HAVE_MPI
+/* One column of the given particles from rank 0: every rank's range [lo_q, hi_q) of it (rank 0
+ * keeps its own), or with `whole` the whole column to every rank; in messages of at most
+ * GATHER_MSG_BYTES. src: rank 0's whole column; dst: this rank's part (rank 0's may be src). */
+static void share_column(MPI_Comm comm, int rank, int size, int whole, size_t n, const double *src,
+                         double *dst)
+{
+    const size_t most = GATHER_MSG_BYTES / sizeof(double);
+    if (whole) {
+        double *buf = rank == 0 ? (double *)src : dst;
+        for (size_t o = 0; o < n; o += most)
+            MPI_Bcast(buf + o, (int)(n - o < most ? n - o : most), MPI_DOUBLE, 0, comm);
+        if (rank == 0 && dst != src) memcpy(dst, src, n * sizeof(double));
+        return;
+    }
+    for (int q = rank == 0 ? 0 : rank; q < (rank == 0 ? size : rank + 1); ++q) {
+        const size_t lo = n * (size_t)q / (size_t)size, hi = n * (size_t)(q + 1) / (size_t)size;
+        if (q == 0) {
+            memcpy(dst, src, (hi - lo) * sizeof(double));
+            continue;
+        }
+        for (size_t o = lo; o < hi; o += most) {
+            const int k = (int)(hi - o < most ? hi - o : most);
+            if (rank == 0)
+                MPI_Send(src + o, k, MPI_DOUBLE, q, TAG_GATHER, comm);
+            else
+                MPI_Recv(dst + (o - lo), k, MPI_DOUBLE, 0, TAG_GATHER, comm, MPI_STATUS_IGNORE);
+        }
+    }
+}
+#endif
+
+int consph_par_given_share(consph_run_params *prm, consph_particles *given)
+{
+    const int size = consph_par_size();
+    if (size < 2) return CONSPH_OK;
+#ifdef CONSPH_HAVE_MPI
+    const int rank = consph_par_rank();
+    MPI_Comm comm;
+    MPI_Comm_dup(MPI_COMM_WORLD, &comm);
+    /* rank 0's count, dimension, box and given fields */
+    const consph_field *fu = rank == 0 ? consph_particles_find(given, "u") : NULL,
+                       *fp = rank == 0 ? consph_particles_find(given, "p") : NULL;
+    unsigned long long head[4] = {rank == 0 ? given->n : 0, rank == 0 ? (unsigned)given->dim : 0,
+                                  fu != NULL, fp != NULL};
+    MPI_Bcast(head, 4, MPI_UNSIGNED_LONG_LONG, 0, comm);
+    consph_box box;
+    if (rank == 0) box = given->box;
+    MPI_Bcast(&box, (int)sizeof box, MPI_BYTE, 0, comm);
+    const size_t n = (size_t)head[0];
+    const int dim = (int)head[1];
+    int st = rank == 0 ? CONSPH_OK : consph_run_params_particles(prm, n);
+    /* ranged as consph_par_solver_create will be (every rank the same answer); else every
+     * rank takes the whole set, as when each read the file */
+    solver_range r;
+    const int ranged = st == CONSPH_OK && setup_range(prm, given, rank, size, &r);
+    const size_t m = ranged ? r.hi - r.lo : n;
+    consph_particles mine;
+    memset(&mine, 0, sizeof mine);
+    if (st == CONSPH_OK && !(rank == 0 && !ranged)) {
+        st = consph_particles_init(&mine, dim, m, &box);
+        if (st == CONSPH_OK && ((head[2] && !consph_particles_field(&mine, "u", dim)) ||
+                                (head[3] && !consph_particles_field(&mine, "p", 1))))
+            st = CONSPH_ENOMEM;
+    }
+    if (consph_par_max_int(st != CONSPH_OK)) {
+        consph_particles_free(&mine);
+        MPI_Comm_free(&comm);
+        return st != CONSPH_OK ? st : consph_fail(CONSPH_ENOMEM, "out of memory on another rank");
+    }
+    /* rank 0 keeps the whole set when every rank takes it */
+    consph_particles *dst = rank == 0 && !ranged ? given : &mine;
+    const consph_field *du = consph_particles_find(dst, "u"), *dp = consph_particles_find(dst, "p");
+    for (int a = 0; a < dim; ++a)
+        share_column(comm, rank, size, !ranged, n, rank == 0 ? given->x[a] : NULL, dst->x[a]);
+    for (int a = 0; head[2] && a < dim; ++a)
+        share_column(comm, rank, size, !ranged, n,
+                     rank == 0 ? fu->data + (size_t)a * given->cap : NULL,
+                     du->data + (size_t)a * dst->cap);
+    if (head[3]) share_column(comm, rank, size, !ranged, n, rank == 0 ? fp->data : NULL, dp->data);
+    MPI_Comm_free(&comm);
+    if (dst == &mine) {
+        if (rank == 0) consph_particles_free(given);
+        *given = mine;
+    }
+    return CONSPH_OK;
+#else
+    (void)prm;
+    (void)given;
+    return CONSPH_OK;
+#endif
 }
 
 int consph_par_run_restart(consph_solver **s, const char *checkpoint)

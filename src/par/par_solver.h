@@ -3,6 +3,7 @@
 #ifndef CONSPH_PAR_PAR_SOLVER_H
 #define CONSPH_PAR_PAR_SOLVER_H
 
+#include "io/source_internal.h"
 #include "solver/solver_internal.h"
 
 typedef struct par_solver par_solver;
@@ -20,6 +21,18 @@ int par_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *a
  * `only` (NULL-terminated; NULL: every field): what fn reads, for what runs at every step. */
 int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg,
                     const char *const *only);
+/* Rank 0 runs fn (a file's writer) with its own part in place and s->pairs the run's count,
+ * while the other ranks serve the arrays it loads through par_stream_source, one at a time;
+ * fn's status and message to every rank. Without par_stream_source nothing is gathered. */
+int par_stream(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg);
+/* In par_stream's fn on rank 0: *view gets the whole set's shape (its dimension, box, spacing,
+ * fields, the particle count; no values) and src the loader that gathers one of its arrays in
+ * the serial order into one buffer and points the view at it (io/source_internal.h), for
+ * io_write_vtu_source and io_checkpoint_write_source. */
+int par_stream_source(consph_solver *s, const consph_particles **view, io_array_source *src);
+/* Whether the history lacks this step's row (rank 0's answer on every rank): a file written
+ * now samples the diagnostics first. */
+int par_sample_due(consph_solver *s);
 /* The verdict of the checks after a step (solver_check_finite, solver_check_valid) without
  * gathering the particles: *clean when every owned value is finite and the state within the
  * CONSPH_VALID_* bounds, the kinetic energy summed as consph_sum over the serial order; the
@@ -45,5 +58,10 @@ void par_force_boxes(const int *k);
 int par_cut_weights(const consph_solver *s);
 /* For the tests: nonzero cuts the boxes by particle counts, as before the pairs weighed them. */
 void par_force_count_cut(int on);
+/* For the tests: the gathers to rank 0 in messages of at most `bytes` (0: 4 MiB), so that
+ * small runs send a rank's part in several. */
+void par_force_gather_bytes(size_t bytes);
+/* For the tests: how many gathers of every field to rank 0 this process took part in. */
+long par_whole_gathers(void);
 
 #endif

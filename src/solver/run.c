@@ -70,26 +70,59 @@ static int write_log(const consph_solver *s, runfiles *f)
                         s->hist, s->nhist, HIST_COLS);
 }
 
-/* The declared output arrays (the same at every step) and the time; the log gets this instant's
- * diagnostics first, if its cadence had not sampled it. */
-static int snapshot_whole(consph_solver *s, void *f)
+/* The particles a file is written from: the solver's own, or decomposed over MPI ranks (in
+ * par_stream, on rank 0) the whole set's shape with its arrays gathered one at a time in the
+ * serial order as the writer reads them (*from), so that rank 0 never holds the whole set. */
+static int file_particles(consph_solver *s, const consph_particles **p, io_array_source *src,
+                          const io_array_source **from)
+{
+    *p = s->sys.p;
+    *from = NULL;
+    if (!s->par) return CONSPH_OK;
+    *from = src;
+    return par_stream_source(s, p, src);
+}
+
+/* The declared output arrays (the same at every step) and the time, then the log. */
+static int snapshot_arrays(consph_solver *s, void *f)
 {
     consph_vtu_array arr[CONSPH_MAX_FIELDS];
     consph_vtu_content c = {arr, 0, 1, s->t};
-    int st = solver_sample(s);
-    if (st == CONSPH_OK) st = consph_solver_output_fields(s);
-    if (st == CONSPH_OK) st = state_undeclared(s, 0);
+    const consph_particles *p;
+    io_array_source src;
+    const io_array_source *from;
+    int st = state_undeclared(s, 0);
     if (st == CONSPH_OK) st = state_snapshot_arrays(s, arr, &c.narrays);
-    if (st == CONSPH_OK) st = runfiles_snapshot_content(f, s->sys.p, &c, s->step);
+    if (st == CONSPH_OK) st = file_particles(s, &p, &src, &from);
+    if (st == CONSPH_OK) st = runfiles_snapshot_content(f, p, &c, s->step, from);
     return st == CONSPH_OK ? write_log(s, f) : st;
 }
 
-/* Decomposed over MPI ranks, every rank computes its particles' output fields first: the
- * checkpoints carry them as the serial run's do. */
+static int sample_now(consph_solver *s, void *arg)
+{
+    (void)arg;
+    return solver_sample(s);
+}
+
+/* solver_sample (which samples only when the history lacks this step); decomposed over MPI
+ * ranks, rank 0 tells whether, and the sample gathers only what it reads. */
+static int solver_sample_if(consph_solver *s)
+{
+    if (!s->par) return solver_sample(s);
+    return par_sample_due(s) ? par_global_some(s, sample_now, NULL, solver_sample_fields)
+                             : CONSPH_OK;
+}
+
+/* A snapshot; the log gets this instant's diagnostics first, if its cadence had not sampled
+ * it. Decomposed over MPI ranks, every rank computes its particles' output fields (each a
+ * function of the particle's own state and the time: consph_solver_output_fields), which the
+ * checkpoints carry as the serial run's do, and the sample gathers only what it reads. */
 static int write_snapshot(consph_solver *s, runfiles *f)
 {
-    int st = s->par ? consph_solver_output_fields(s) : CONSPH_OK;
-    return st == CONSPH_OK ? solver_global(s, snapshot_whole, f) : st;
+    int st = solver_sample_if(s);
+    if (st == CONSPH_OK) st = consph_solver_output_fields(s);
+    return st == CONSPH_OK ? (s->par ? par_stream(s, snapshot_arrays, f) : snapshot_arrays(s, f))
+                           : st;
 }
 
 static int checkpoint_whole(consph_solver *s, void *vf)
@@ -98,10 +131,14 @@ static int checkpoint_whole(consph_solver *s, void *vf)
     char *meta = NULL;
     double *hist = NULL;
     size_t nh = 0;
+    const consph_particles *p;
+    io_array_source src;
+    const io_array_source *from;
     int st = consph_solver_checkpoint_meta(s, &meta, &hist, &nh);
     const char *path = st == CONSPH_OK ? runfiles_join(f, "checkpoint.ckpt") : NULL;
     if (st == CONSPH_OK && !path) st = consph_fail(CONSPH_ENOMEM, "out of memory");
-    if (st == CONSPH_OK) st = consph_checkpoint_write(path, meta, s->sys.p, hist, nh);
+    if (st == CONSPH_OK) st = file_particles(s, &p, &src, &from);
+    if (st == CONSPH_OK) st = io_checkpoint_write_source(path, meta, p, from, hist, nh);
     free(meta);
     free(hist);
     return st == CONSPH_OK ? write_log(s, f) : st;
@@ -109,7 +146,7 @@ static int checkpoint_whole(consph_solver *s, void *vf)
 
 static int write_checkpoint(consph_solver *s, runfiles *f)
 {
-    return solver_global(s, checkpoint_whole, f);
+    return s->par ? par_stream(s, checkpoint_whole, f) : checkpoint_whole(s, f);
 }
 
 static void summary_json(FILE *fp, const void *sum)
@@ -290,9 +327,9 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
     int st = CONSPH_OK;
     *stopped_by = 0;
     if (files && s->par) {
-        /* rank 0 writes the files; the others follow its status */
+        /* rank 0 writes the files (reading no particle); the others follow its status */
         const int fresh = !(s->step > 0);
-        st = solver_global(s, run_open, &f);
+        st = par_stream(s, run_open, &f);
         if (st == CONSPH_OK && fresh) st = write_snapshot(s, &f);
     } else if (files) {
         st = consph_run_dir_check(out->dir, s->step > 0 ? s->run_id : NULL, 0);
@@ -349,12 +386,15 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
     s->grads_lazy = 0;
     if (signals) consph_stop_uninstall();
     run_close_arg ca = {out, sum, &f, files, *stopped_by, st};
-    /* decomposed: every rank's summary of its own part, then rank 0's of the whole run (without
-     * files, from the history and the positions: no field is gathered) */
+    /* decomposed: every rank's summary of its own part, then rank 0's of the whole run, from the
+     * history and the positions: no field is gathered but for a problem's own outputs at the
+     * end (problem_outputs: 2D profiles and maps, which read the velocity and the output
+     * fields) */
     static const char *const no_field[] = {NULL};
     if (s->par) consph_solver_summary(s, sum);
-    st = s->par && !files ? par_global_some(s, run_close, &ca, no_field)
-                          : solver_global(s, run_close, &ca);
+    const int outputs = files && (s->prob->radial || (s->prob->vorticity_image && s->dim == 2));
+    st = s->par && !outputs ? par_global_some(s, run_close, &ca, no_field)
+                            : solver_global(s, run_close, &ca);
     runfiles_free(&f);
     return st;
 }

@@ -64,17 +64,17 @@ int runfiles_pvd_init(runfiles *f)
 int runfiles_snapshot(runfiles *f, const consph_particles *p, long step, double t)
 {
     const consph_vtu_content c = {NULL, 0, 1, t};
-    return runfiles_snapshot_content(f, p, &c, step);
+    return runfiles_snapshot_content(f, p, &c, step, NULL);
 }
 
 int runfiles_snapshot_content(runfiles *f, const consph_particles *p, const consph_vtu_content *c,
-                              long step)
+                              long step, const io_array_source *src)
 {
     char name[64];
     snprintf(name, sizeof name, "snap_%06ld.vtu", step);
     const char *path = runfiles_join(f, name);
     if (!path) return consph_fail(CONSPH_ENOMEM, "out of memory");
-    int st = consph_write_vtu(path, p, c, CONSPH_VTU_DEFAULT);
+    int st = io_write_vtu_source(path, p, c, CONSPH_VTU_DEFAULT, src);
     if (st == CONSPH_OK) st = consph_pvd_add(&f->pvd, c->time, name);
     return st;
 }

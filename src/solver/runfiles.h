@@ -7,6 +7,7 @@
 #include <stdio.h>
 
 #include "consph/io.h"
+#include "io/source_internal.h"
 
 typedef struct runfiles {
     const char *dir;
@@ -22,9 +23,10 @@ const char *runfiles_join(runfiles *f, const char *name);
 int runfiles_pvd_init(runfiles *f);
 /* DIR/snap_NNNNNN.vtu with every field of p and the TimeValue t, added to the index at t. */
 int runfiles_snapshot(runfiles *f, const consph_particles *p, long step, double t);
-/* The same with the arrays of c (which must have a time). */
+/* The same with the arrays of c (which must have a time), taken from src when not NULL
+ * (io/source_internal.h). */
 int runfiles_snapshot_content(runfiles *f, const consph_particles *p, const consph_vtu_content *c,
-                              long step);
+                              long step, const io_array_source *src);
 /* DIR/name as a CSV: the header line, then nrows rows of ncols doubles, the first printed as
  * an integer (the step). */
 int runfiles_csv(runfiles *f, const char *name, const char *header, const double *rows,
