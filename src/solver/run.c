@@ -144,8 +144,14 @@ static int checkpoint_whole(consph_solver *s, void *vf)
     return st == CONSPH_OK ? write_log(s, f) : st;
 }
 
+/* The output fields are made this step's first, as for a snapshot: a checkpoint between
+ * snapshots would otherwise carry the last snapshot's, in the slots of that step's particle order
+ * (the re-sorts carry no output field), and a decomposed run's migration would have moved them
+ * elsewhere than the serial run's. */
 static int write_checkpoint(consph_solver *s, runfiles *f)
 {
+    int st = consph_solver_output_fields(s);
+    if (st != CONSPH_OK) return st;
     return s->par ? par_stream(s, checkpoint_whole, f) : checkpoint_whole(s, f);
 }
 
