@@ -151,7 +151,6 @@ typedef struct pack_work {
     size_t *origin_tmp;
     size_t *perm;
     double *scratch;
-    double *xv; /* positions interleaved per particle (stride 2 in 2D, 4 in 3D), per step */
 } pack_work;
 
 static void work_free(pack_work *w)
@@ -166,7 +165,6 @@ static void work_free(pack_work *w)
     free(w->origin_tmp);
     free(w->perm);
     free(w->scratch);
-    free(w->xv);
     memset(w, 0, sizeof *w);
 }
 
@@ -187,7 +185,6 @@ static int work_alloc(pack_work *w, size_t n, int dim, int need_glass_rho)
     ok &= (w->origin_tmp = consph_calloc(n, sizeof(size_t))) != NULL;
     ok &= (w->perm = consph_calloc(n, sizeof(size_t))) != NULL;
     ok &= (w->scratch = consph_calloc(n, sizeof(double))) != NULL;
-    ok &= (w->xv = consph_calloc(4 * n + 4, sizeof(double))) != NULL;
     if (!ok) {
         work_free(w);
         return CONSPH_ENOMEM;
@@ -330,49 +327,75 @@ void layout_pack_set_portable(int on)
 typedef struct pack_sweep {
     const force_params *fp;
     const pack_list *L;
-    const double *x[CONSPH_MAX_DIM];
+    const double *xv; /* the list's rows: coordinates, and the force's weights (PACK_XV_WEIGHT) */
     pack_work *w;
     int glass;                 /* density: also rho_glass */
     const consph_kernel *kern; /* the force's kernel */
     const double *rho;         /* force: the density it acts on */
-    const double *weight;      /* force: per particle, V_j = m/rho_j (stage 1) or e_j (stage 2) */
-    int avx2;                  /* the processor has AVX2: list_geometry's vector path */
+    int avx2;                  /* the processor has AVX2: the vector loops */
     int fused_quintic;         /* density: W and the force's W'/r are one quintic (AVX2) */
-    const double *xv; /* the positions interleaved, stride 2 in 2D, 4 in 3D (pack_work's) */
 } pack_sweep;
+
+#define XV(sw, row, slot) ((sw)->xv[PACK_XV_STRIDE * (size_t)(row) + (slot)])
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 #include <immintrin.h>
 #define PACK_AVX2 1
-/* x_j of four list entries J[0..3], one axis per vector: from the interleaved copy (whole
- * particles per load) in 2D and 3D, gathered in 1D. */
+/* The coordinates of the rows J[0..3] of xv, one axis per vector, and with wj their weights:
+ * whole rows loaded and transposed (2D without weights: the (x, y) halves only). */
 __attribute__((target("avx2"), always_inline)) static inline void
-load_xj_avx2(int dim, const pack_sweep *sw, const uint32_t *J, __m256d xj[CONSPH_MAX_DIM])
+load_rows_avx2(int dim, const double *xv, const uint32_t *J, __m256d xj[CONSPH_MAX_DIM],
+               __m256d *wj)
 {
-    const double *xv = sw->xv;
-    if (dim == 2) {
-        const double *p0 = xv + 2 * (size_t)J[0], *p1 = xv + 2 * (size_t)J[1];
-        const double *p2 = xv + 2 * (size_t)J[2], *p3 = xv + 2 * (size_t)J[3];
+    const double *p0 = xv + PACK_XV_STRIDE * (size_t)J[0];
+    const double *p1 = xv + PACK_XV_STRIDE * (size_t)J[1];
+    const double *p2 = xv + PACK_XV_STRIDE * (size_t)J[2];
+    const double *p3 = xv + PACK_XV_STRIDE * (size_t)J[3];
+    if (dim == 1) {
+        xj[0] = _mm256_set_pd(p3[0], p2[0], p1[0], p0[0]);
+        if (wj)
+            *wj = _mm256_set_pd(p3[PACK_XV_WEIGHT], p2[PACK_XV_WEIGHT], p1[PACK_XV_WEIGHT],
+                                p0[PACK_XV_WEIGHT]);
+    } else if (dim == 2 && !wj) {
         /* lo = [x0 y0 x2 y2], hi = [x1 y1 x3 y3]: the unpacks give [x0 x1 x2 x3] */
         const __m256d lo =
-            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p0)), _mm_loadu_pd(p2), 1);
+            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p0)), _mm_load_pd(p2), 1);
         const __m256d hi =
-            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p1)), _mm_loadu_pd(p3), 1);
+            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p1)), _mm_load_pd(p3), 1);
         xj[0] = _mm256_unpacklo_pd(lo, hi);
         xj[1] = _mm256_unpackhi_pd(lo, hi);
-    } else if (dim == 3) {
-        const __m256d r0 = _mm256_loadu_pd(xv + 4 * (size_t)J[0]);
-        const __m256d r1 = _mm256_loadu_pd(xv + 4 * (size_t)J[1]);
-        const __m256d r2 = _mm256_loadu_pd(xv + 4 * (size_t)J[2]);
-        const __m256d r3 = _mm256_loadu_pd(xv + 4 * (size_t)J[3]);
+    } else {
+        /* rows [x y z w]: t0 = [x0 x1 z0 z1], t1 = [y0 y1 w0 w1], t2, t3 the same of rows 2, 3 */
+        const __m256d r0 = _mm256_load_pd(p0), r1 = _mm256_load_pd(p1);
+        const __m256d r2 = _mm256_load_pd(p2), r3 = _mm256_load_pd(p3);
         const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
         const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
         xj[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
         xj[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
-        xj[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
-    } else {
-        xj[0] = _mm256_i32gather_pd(sw->x[0], _mm_loadu_si128((const __m128i *)J), 8);
+        if (dim == 3) xj[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
+        if (wj) *wj = _mm256_permute2f128_pd(t1, t3, 0x31);
     }
+}
+
+/* x_ij of four entries per axis into d, and |x_ij|^2 (returned): the portable loops' operations
+ * in their order. */
+__attribute__((target("avx2"), always_inline)) static inline __m256d
+separations_avx2(int dim, const __m256d xi[CONSPH_MAX_DIM], const __m256d xj[CONSPH_MAX_DIM],
+                 __m256d d[CONSPH_MAX_DIM])
+{
+    __m256d rr = _mm256_setzero_pd();
+    for (int a = 0; a < dim; ++a) {
+        d[a] = _mm256_sub_pd(xi[a], xj[a]);
+        rr = a == 0 ? _mm256_mul_pd(d[a], d[a]) : _mm256_add_pd(rr, _mm256_mul_pd(d[a], d[a]));
+    }
+    return rr;
+}
+
+/* Lanes l with q + l < m. */
+__attribute__((target("avx2"), always_inline)) static inline __m256d lanes_below(size_t m, size_t q)
+{
+    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
+    return _mm256_castsi256_pd(_mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane));
 }
 
 /* list_geometry four entries at a time: the same operations in the same order (no fused
@@ -385,24 +408,14 @@ __attribute__((target("avx2"))) static size_t geometry_avx2(int dim, const pack_
     const pack_list *L = sw->L;
     const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
     const uint32_t *J = L->j + e0;
-    __m256d xi[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM];
-    for (int a = 0; a < dim; ++a) {
-        xi[a] = _mm256_set1_pd(sw->x[a][i]);
-        len[a] = _mm256_set1_pd(L->len[a]);
-    }
+    __m256d xi[CONSPH_MAX_DIM];
+    for (int a = 0; a < dim; ++a) xi[a] = _mm256_set1_pd(XV(sw, i, a));
     for (size_t q = 0; q < m; q += 4) {
-        __m256d xj[CONSPH_MAX_DIM];
-        load_xj_avx2(dim, sw, J + q, xj);
-        __m256d rr = _mm256_setzero_pd();
-        for (int a = 0; a < dim; ++a) {
-            int32_t img4;
-            memcpy(&img4, L->image[a] + e0 + q, sizeof img4);
-            const __m256d img = _mm256_cvtepi32_pd(_mm_cvtepi8_epi32(_mm_cvtsi32_si128(img4)));
-            const __m256d d =
-                _mm256_sub_pd(xi[a], _mm256_add_pd(xj[a], _mm256_mul_pd(img, len[a])));
-            if (with_dx) _mm256_storeu_pd(b->dx[a] + q, d);
-            rr = a == 0 ? _mm256_mul_pd(d, d) : _mm256_add_pd(rr, _mm256_mul_pd(d, d));
-        }
+        __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
+        load_rows_avx2(dim, sw->xv, J + q, xj, NULL);
+        const __m256d rr = separations_avx2(dim, xi, xj, d);
+        if (with_dx)
+            for (int a = 0; a < dim; ++a) _mm256_storeu_pd(b->dx[a] + q, d[a]);
         _mm256_storeu_pd(b->r + q, with_dx ? rr : _mm256_sqrt_pd(rr));
     }
     return m;
@@ -425,27 +438,24 @@ list_geometry(const int dim, const pack_sweep *sw, size_t i, pair_buf *b, const 
     const pack_list *L = sw->L;
     const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
     const uint32_t *restrict J = L->j + e0;
-    const int8_t *restrict img0 = L->image[0] + e0;
-    const int8_t *restrict img1 = dim > 1 ? L->image[1] + e0 : NULL;
-    const int8_t *restrict img2 = dim > 2 ? L->image[2] + e0 : NULL;
-    const double *restrict x0 = sw->x[0], *restrict x1 = sw->x[1], *restrict x2 = sw->x[2];
-    const double len0 = L->len[0], len1 = L->len[1], len2 = L->len[2];
-    const double xi0 = x0[i], xi1 = dim > 1 ? x1[i] : 0.0, xi2 = dim > 2 ? x2[i] : 0.0;
+    const double *restrict xv = sw->xv;
+    const double xi0 = XV(sw, i, 0), xi1 = dim > 1 ? XV(sw, i, 1) : 0.0,
+                 xi2 = dim > 2 ? XV(sw, i, 2) : 0.0;
     double *restrict r = b->r, *restrict d0p = b->dx[0], *restrict d1p = b->dx[1],
                      *restrict d2p = b->dx[2];
     const size_t m4 = (m + 3) & ~(size_t)3;
     for (size_t q = 0; q < m4; ++q) {
-        const size_t j = J[q];
-        const double d0 = xi0 - (x0[j] + (double)img0[q] * len0);
+        const double *row = xv + PACK_XV_STRIDE * (size_t)J[q];
+        const double d0 = xi0 - row[0];
         double rr = d0 * d0;
         if (with_dx) d0p[q] = d0;
         if (dim > 1) {
-            const double d1 = xi1 - (x1[j] + (double)img1[q] * len1);
+            const double d1 = xi1 - row[1];
             rr += d1 * d1;
             if (with_dx) d1p[q] = d1;
         }
         if (dim > 2) {
-            const double d2 = xi2 - (x2[j] + (double)img2[q] * len2);
+            const double d2 = xi2 - row[2];
             rr += d2 * d2;
             if (with_dx) d2p[q] = d2;
         }
@@ -465,58 +475,83 @@ static inline double sum4(const double *v, size_t m)
 }
 
 #ifdef PACK_AVX2
-/* The quintic's W (summed as sum4) and W'/r (into dwr[0..m)) of the distances r in one loop:
- * the operations of consph_kernel_eval_batch's quintic (src/kernels/kernels.c), so the same
- * values, with the powers shared. */
-__attribute__((target("avx2"))) static double quintic_avx2(const consph_kernel *k, size_t m,
-                                                           const double *r, double *dwr)
+/* The quintic's constants for quintic_block_avx2. */
+typedef struct quintic_avx2_consts {
+    __m256d inv_h, norm, norm1, at_zero;
+} quintic_avx2_consts;
+
+/* The quintic's W (masked by `valid`, into *w) and W'/r (returned) of four distances r: the
+ * operations of consph_kernel_eval_batch's quintic (src/kernels/kernels.c), so the same values,
+ * with the powers shared. */
+__attribute__((target("avx2"), always_inline)) static inline __m256d
+quintic_block_avx2(const quintic_avx2_consts *c, __m256d rp, __m256d valid, int masked, __m256d *w)
 {
-    const __m256d inv_h = _mm256_set1_pd(k->inv_h), norm = _mm256_set1_pd(k->norm);
-    const __m256d norm1 = _mm256_set1_pd(k->norm * k->inv_h);
-    /* W''(0) = norm h^-2 f''(0), f''(0) = 20·27 - 120·8 + 300 */
-    const __m256d at_zero = _mm256_set1_pd(
-        k->norm * k->inv_h * k->inv_h * (20.0 * 3.0 * 3.0 * 3.0 - 120.0 * 2.0 * 2.0 * 2.0 + 300.0));
     const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
     const __m256d c1 = _mm256_set1_pd(1.0), c2 = _mm256_set1_pd(2.0), c3 = _mm256_set1_pd(3.0);
     const __m256d c6 = _mm256_set1_pd(6.0), c15 = _mm256_set1_pd(15.0);
     const __m256d cm5 = _mm256_set1_pd(-5.0), c30 = _mm256_set1_pd(30.0),
                   c75 = _mm256_set1_pd(75.0);
-    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
-    __m256d acc = zero;
-    for (size_t q = 0; q < m; q += 4) {
-        const __m256d rp = _mm256_loadu_pd(r + q), x = _mm256_mul_pd(rp, inv_h);
-        const __m256d t3 = _mm256_sub_pd(c3, x);
-        __m256d t2 = _mm256_sub_pd(c2, x), t1 = _mm256_sub_pd(c1, x);
-        t2 = _mm256_and_pd(t2, _mm256_cmp_pd(t2, zero, _CMP_GT_OQ));
-        t1 = _mm256_and_pd(t1, _mm256_cmp_pd(t1, zero, _CMP_GT_OQ));
-        const __m256d s3 = _mm256_mul_pd(t3, t3), s2 = _mm256_mul_pd(t2, t2),
-                      s1 = _mm256_mul_pd(t1, t1);
-        const __m256d p3 = _mm256_mul_pd(s3, s3), p2 = _mm256_mul_pd(s2, s2),
-                      p1 = _mm256_mul_pd(s1, s1);
-        /* pow5(t) - 6 pow5(t2) + 15 pow5(t1), pow5 = (t²)² t */
-        __m256d f = _mm256_add_pd(
-            _mm256_sub_pd(_mm256_mul_pd(p3, t3), _mm256_mul_pd(c6, _mm256_mul_pd(p2, t2))),
-            _mm256_mul_pd(c15, _mm256_mul_pd(p1, t1)));
-        /* -5 pow4(t) + 30 pow4(t2) - 75 pow4(t1) */
-        __m256d df = _mm256_sub_pd(_mm256_add_pd(_mm256_mul_pd(cm5, p3), _mm256_mul_pd(c30, p2)),
-                                   _mm256_mul_pd(c75, p1));
-        const __m256d inside = _mm256_cmp_pd(x, c3, _CMP_LT_OQ); /* q < support (and q >= 3: 0) */
-        const __m256d valid =
-            _mm256_castsi256_pd(_mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane));
-        const __m256d w = _mm256_and_pd(inside, _mm256_mul_pd(norm, f));
-        acc = _mm256_add_pd(acc, _mm256_and_pd(valid, w));
-        const __m256d pos = _mm256_cmp_pd(rp, zero, _CMP_GT_OQ);
-        const __m256d v = _mm256_div_pd(_mm256_mul_pd(norm1, df), _mm256_blendv_pd(one, rp, pos));
-        const __m256d d = _mm256_and_pd(inside, _mm256_blendv_pd(at_zero, v, pos));
-        /* Whole blocks stored whole; the last one entry by entry, since the entries past m are
-         * another particle's (a masked store is slow on some processors). */
-        if (q + 4 <= m) {
-            _mm256_storeu_pd(dwr + q, d);
-        } else {
-            double tail[4];
-            _mm256_storeu_pd(tail, d);
-            for (size_t e = q; e < m; ++e) dwr[e] = tail[e - q];
-        }
+    const __m256d x = _mm256_mul_pd(rp, c->inv_h);
+    const __m256d t3 = _mm256_sub_pd(c3, x);
+    __m256d t2 = _mm256_sub_pd(c2, x), t1 = _mm256_sub_pd(c1, x);
+    t2 = _mm256_and_pd(t2, _mm256_cmp_pd(t2, zero, _CMP_GT_OQ));
+    t1 = _mm256_and_pd(t1, _mm256_cmp_pd(t1, zero, _CMP_GT_OQ));
+    const __m256d s3 = _mm256_mul_pd(t3, t3), s2 = _mm256_mul_pd(t2, t2),
+                  s1 = _mm256_mul_pd(t1, t1);
+    const __m256d p3 = _mm256_mul_pd(s3, s3), p2 = _mm256_mul_pd(s2, s2),
+                  p1 = _mm256_mul_pd(s1, s1);
+    /* pow5(t) - 6 pow5(t2) + 15 pow5(t1), pow5 = (t²)² t */
+    const __m256d f = _mm256_add_pd(
+        _mm256_sub_pd(_mm256_mul_pd(p3, t3), _mm256_mul_pd(c6, _mm256_mul_pd(p2, t2))),
+        _mm256_mul_pd(c15, _mm256_mul_pd(p1, t1)));
+    /* -5 pow4(t) + 30 pow4(t2) - 75 pow4(t1) */
+    const __m256d df = _mm256_sub_pd(_mm256_add_pd(_mm256_mul_pd(cm5, p3), _mm256_mul_pd(c30, p2)),
+                                     _mm256_mul_pd(c75, p1));
+    const __m256d inside = _mm256_cmp_pd(x, c3, _CMP_LT_OQ); /* q < support (and q >= 3: 0) */
+    const __m256d wv = _mm256_and_pd(inside, _mm256_mul_pd(c->norm, f));
+    *w = masked ? _mm256_and_pd(valid, wv) : wv;
+    const __m256d pos = _mm256_cmp_pd(rp, zero, _CMP_GT_OQ);
+    const __m256d v = _mm256_div_pd(_mm256_mul_pd(c->norm1, df), _mm256_blendv_pd(one, rp, pos));
+    return _mm256_and_pd(inside, _mm256_blendv_pd(c->at_zero, v, pos));
+}
+
+/* Particle i's density sum of the quintic (sum4) and W'/r into its list entries, with the
+ * distances computed in the same loop (geometry_avx2's operations): one walk of the list. */
+__attribute__((target("avx2"))) static double density_quintic_avx2(int dim, const pack_sweep *sw,
+                                                                   size_t i)
+{
+    const pack_list *L = sw->L;
+    const consph_kernel *k = sw->fp->target;
+    const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
+    const uint32_t *J = L->j + e0;
+    double *dwr = L->dwr + e0;
+    quintic_avx2_consts c;
+    c.inv_h = _mm256_set1_pd(k->inv_h);
+    c.norm = _mm256_set1_pd(k->norm);
+    c.norm1 = _mm256_set1_pd(k->norm * k->inv_h);
+    /* W''(0) = norm h^-2 f''(0), f''(0) = 20·27 - 120·8 + 300 */
+    c.at_zero = _mm256_set1_pd(k->norm * k->inv_h * k->inv_h *
+                               (20.0 * 3.0 * 3.0 * 3.0 - 120.0 * 2.0 * 2.0 * 2.0 + 300.0));
+    __m256d xi[CONSPH_MAX_DIM];
+    for (int a = 0; a < dim; ++a) xi[a] = _mm256_set1_pd(XV(sw, i, a));
+    __m256d acc = _mm256_setzero_pd(), w;
+    size_t q = 0;
+    for (; q + 4 <= m; q += 4) {
+        __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
+        load_rows_avx2(dim, sw->xv, J + q, xj, NULL);
+        const __m256d r = _mm256_sqrt_pd(separations_avx2(dim, xi, xj, d));
+        _mm256_storeu_pd(dwr + q, quintic_block_avx2(&c, r, r, 0, &w));
+        acc = _mm256_add_pd(acc, w);
+    }
+    if (q < m) {
+        /* The last block's entries past m are another particle's: W masked, W'/r not stored. */
+        __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
+        load_rows_avx2(dim, sw->xv, J + q, xj, NULL);
+        const __m256d r = _mm256_sqrt_pd(separations_avx2(dim, xi, xj, d));
+        double tail[4];
+        _mm256_storeu_pd(tail, quintic_block_avx2(&c, r, lanes_below(m, q), 1, &w));
+        acc = _mm256_add_pd(acc, w);
+        for (size_t e = q; e < m; ++e) dwr[e] = tail[e - q];
     }
     double a[4];
     _mm256_storeu_pd(a, acc);
@@ -542,14 +577,13 @@ density_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_bu
 {
     const force_params *fp = sw->fp;
     for (size_t i = i0; i < i1; ++i) {
-        const size_t m = list_geometry(dim, sw, i, b, 0);
 #ifdef PACK_AVX2
         if (sw->fused_quintic) {
-            sw->w->rho[i] =
-                fp->mass * quintic_avx2(fp->target, m, b->r, sw->L->dwr + sw->L->start[i]);
+            sw->w->rho[i] = fp->mass * density_quintic_avx2(dim, sw, i);
             continue;
         }
 #endif
+        const size_t m = list_geometry(dim, sw, i, b, 0);
         sw->w->rho[i] = list_density(fp->target, fp->mass, b, m);
         if (sw->glass) sw->w->rho_glass[i] = list_density(fp->glass, fp->mass, b, m);
         consph_kernel_eval_batch(sw->kern, m, b->r, NULL, sw->L->dwr + sw->L->start[i], NULL);
@@ -567,9 +601,38 @@ static inline void repulsion_add(int dim, const repulsion *rp, double r2, double
 }
 
 #ifdef PACK_AVX2
+/* One block of accel_fused_avx2: the pair forces of four entries into acc and, for the pairs
+ * within the repulsion's range, the repulsion into rep in list order. */
+__attribute__((target("avx2"), always_inline)) static inline void
+accel_block_avx2(int dim, const pack_sweep *sw, const uint32_t *J, const double *dwr,
+                 const __m256d xi[CONSPH_MAX_DIM], __m256d vei, int polish, __m256d vrange2,
+                 __m256d valid, int masked, const repulsion *rp, __m256d acc[CONSPH_MAX_DIM],
+                 double *rep)
+{
+    __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM], wq;
+    load_rows_avx2(dim, sw->xv, J, xj, &wq);
+    const __m256d rr = separations_avx2(dim, xi, xj, d);
+    if (polish) wq = _mm256_add_pd(vei, wq);
+    __m256d pos = _mm256_cmp_pd(rr, _mm256_setzero_pd(), _CMP_GT_OQ);
+    if (masked) pos = _mm256_and_pd(valid, pos);
+    const __m256d f = _mm256_and_pd(pos, _mm256_mul_pd(wq, _mm256_loadu_pd(dwr)));
+    for (int a = 0; a < dim; ++a) acc[a] = _mm256_add_pd(acc[a], _mm256_mul_pd(f, d[a]));
+    int near = _mm256_movemask_pd(_mm256_and_pd(pos, _mm256_cmp_pd(rr, vrange2, _CMP_LT_OQ)));
+    if (near) {
+        double r2[4], dx[CONSPH_MAX_DIM][4] = {{0.0}};
+        _mm256_storeu_pd(r2, rr);
+        for (int a = 0; a < dim; ++a) _mm256_storeu_pd(dx[a], d[a]);
+        while (near) {
+            const int l = __builtin_ctz((unsigned)near);
+            near &= near - 1;
+            repulsion_add(dim, rp, r2[l], dx[0][l], dx[1][l], dx[2][l], rep);
+        }
+    }
+}
+
 /* accel_range's geometry and force sums in one loop, four entries at a time, the separations
- * kept in registers: the operations of geometry_avx2 and accel_sums_avx2 in the same order, so
- * the same values. */
+ * kept in registers and the weights loaded with the positions: the operations of the portable
+ * loop in the same order, so the same values. */
 __attribute__((target("avx2"))) static void
 accel_fused_avx2(int dim, const pack_sweep *sw, size_t i, size_t m, double ei, int polish,
                  double range2, const repulsion *rp, double s[CONSPH_MAX_DIM][4], double *rep)
@@ -577,55 +640,27 @@ accel_fused_avx2(int dim, const pack_sweep *sw, size_t i, size_t m, double ei, i
     const pack_list *L = sw->L;
     const size_t e0 = L->start[i];
     const uint32_t *J = L->j + e0;
-    const double *dwr = L->dwr + e0, *weight = sw->weight;
-    __m256d xi[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM], acc[CONSPH_MAX_DIM];
+    const double *dwr = L->dwr + e0;
+    __m256d xi[CONSPH_MAX_DIM], acc[CONSPH_MAX_DIM];
     for (int a = 0; a < dim; ++a) {
-        xi[a] = _mm256_set1_pd(sw->x[a][i]);
-        len[a] = _mm256_set1_pd(L->len[a]);
+        xi[a] = _mm256_set1_pd(XV(sw, i, a));
         acc[a] = _mm256_setzero_pd();
     }
-    const __m256d zero = _mm256_setzero_pd(), vei = _mm256_set1_pd(ei);
-    const __m256d vrange2 = _mm256_set1_pd(range2);
-    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
-    for (size_t q = 0; q < m; q += 4) {
-        __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
-        load_xj_avx2(dim, sw, J + q, xj);
-        __m256d rr = _mm256_setzero_pd();
-        for (int a = 0; a < dim; ++a) {
-            int32_t img4;
-            memcpy(&img4, L->image[a] + e0 + q, sizeof img4);
-            const __m256d img = _mm256_cvtepi32_pd(_mm_cvtepi8_epi32(_mm_cvtsi32_si128(img4)));
-            d[a] = _mm256_sub_pd(xi[a], _mm256_add_pd(xj[a], _mm256_mul_pd(img, len[a])));
-            rr = a == 0 ? _mm256_mul_pd(d[a], d[a]) : _mm256_add_pd(rr, _mm256_mul_pd(d[a], d[a]));
-        }
-        __m256d wq =
-            _mm256_set_pd(weight[J[q + 3]], weight[J[q + 2]], weight[J[q + 1]], weight[J[q]]);
-        if (polish) wq = _mm256_add_pd(vei, wq);
-        const __m256i valid =
-            _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane); /* q + l < m */
-        const __m256d pos =
-            _mm256_and_pd(_mm256_castsi256_pd(valid), _mm256_cmp_pd(rr, zero, _CMP_GT_OQ));
-        const __m256d f = _mm256_and_pd(pos, _mm256_mul_pd(wq, _mm256_loadu_pd(dwr + q)));
-        for (int a = 0; a < dim; ++a) acc[a] = _mm256_add_pd(acc[a], _mm256_mul_pd(f, d[a]));
-        int near = _mm256_movemask_pd(_mm256_and_pd(pos, _mm256_cmp_pd(rr, vrange2, _CMP_LT_OQ)));
-        if (near) {
-            double r2[4], dx[CONSPH_MAX_DIM][4] = {{0.0}};
-            _mm256_storeu_pd(r2, rr);
-            for (int a = 0; a < dim; ++a) _mm256_storeu_pd(dx[a], d[a]);
-            while (near) {
-                const int l = __builtin_ctz((unsigned)near);
-                near &= near - 1;
-                repulsion_add(dim, rp, r2[l], dx[0][l], dx[1][l], dx[2][l], rep);
-            }
-        }
-    }
+    const __m256d vei = _mm256_set1_pd(ei), vrange2 = _mm256_set1_pd(range2);
+    size_t q = 0;
+    for (; q + 4 <= m; q += 4)
+        accel_block_avx2(dim, sw, J + q, dwr + q, xi, vei, polish, vrange2, vei, 0, rp, acc, rep);
+    if (q < m)
+        accel_block_avx2(dim, sw, J + q, dwr + q, xi, vei, polish, vrange2, lanes_below(m, q), 1,
+                         rp, acc, rep);
     for (int a = 0; a < dim; ++a) _mm256_storeu_pd(s[a], acc[a]);
 }
 #endif
 
 /* Stage 1: a_i = -(p_b/m) V_i sum_j V_j ∇_i W_ij + repulsion, with ∇_i W_ij = (W'/r) x_ij.
  * Stage 2: a_i = -(K/rho0^2) m sum_j (e_i + e_j) ∇_i W_ij + repulsion. The pair at r = 0 (i
- * itself) adds nothing. The sums run in four interleaved partial sums (as sum4). */
+ * itself) adds nothing. The sums run in four interleaved partial sums (as sum4). The weights
+ * V_j = m/rho_j or e_j are in the list's rows (PACK_XV_WEIGHT). */
 #if defined(__GNUC__)
 __attribute__((always_inline))
 #endif
@@ -635,14 +670,13 @@ accel_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf 
     const force_params *fp = sw->fp;
     const double mass = fp->mass, rho0 = packing_rho0, range2 = fp->rep.range * fp->rep.range;
     const int polish = fp->polish;
-    const double *restrict weight = sw->weight;
     const double *restrict r2 = b->r;
     const double *d0 = b->dx[0], *d1 = b->dx[1], *d2 = b->dx[2];
     for (size_t i = i0; i < i1; ++i) {
         const size_t m = sw->L->start[i + 1] - sw->L->start[i];
         const uint32_t *restrict J = sw->L->j + sw->L->start[i];
         const double *restrict dwr = sw->L->dwr + sw->L->start[i];
-        const double ei = polish ? weight[i] : 0.0;
+        const double ei = polish ? XV(sw, i, PACK_XV_WEIGHT) : 0.0;
         double s[CONSPH_MAX_DIM][4] = {{0.0}}, rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
 #ifdef PACK_AVX2
         if (sw->avx2)
@@ -654,7 +688,8 @@ accel_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf 
             for (size_t q = 0; q < m; q += 4) {
                 for (int l = 0; l < 4; ++l) {
                     const size_t e = q + l;
-                    const double wq = polish ? ei + weight[J[e]] : weight[J[e]];
+                    const double wj = XV(sw, J[e], PACK_XV_WEIGHT);
+                    const double wq = polish ? ei + wj : wj;
                     const double f = e < m && r2[e] > 0.0 ? wq * dwr[e] : 0.0;
                     s[0][l] += f * d0[e];
                     if (dim > 1) s[1][l] += f * d1[e];
@@ -745,15 +780,13 @@ static int sweep_run(const pack_sweep *sw, int force)
     return failed ? CONSPH_ENOMEM : CONSPH_OK;
 }
 
-static void sweep_init(pack_sweep *sw, const force_params *fp, const pack_list *L,
-                       const consph_particles *p, pack_work *w)
+static void sweep_init(pack_sweep *sw, const force_params *fp, const pack_list *L, pack_work *w)
 {
     memset(sw, 0, sizeof *sw);
     sw->fp = fp;
     sw->L = L;
     sw->w = w;
-    for (int a = 0; a < p->dim; ++a) sw->x[a] = p->x[a];
-    sw->xv = w->xv;
+    sw->xv = L->xv;
 #ifdef PACK_AVX2
     sw->avx2 = !pack_portable_only && __builtin_cpu_supports("avx2");
 #endif
@@ -761,17 +794,13 @@ static void sweep_init(pack_sweep *sw, const force_params *fp, const pack_list *
 
 /* rho (caller's kernel) and, when it differs, rho_glass (stage-1 kernel); rho_glass is needed only
  * in stage 1. */
-static int compute_density(const force_params *fp, const pack_list *L, const consph_particles *p,
+static int compute_density(const force_params *fp, pack_list *L, const consph_particles *p,
                            pack_work *w)
 {
+    /* The rows of the particles and the ghosts, read by this pass and the force pass. */
+    pack_list_fill_positions(L, p);
     pack_sweep sw;
-    sweep_init(&sw, fp, L, p, w);
-    /* The interleaved copy of the positions that the vector path loads whole particles from;
-     * the force pass of the same step reads it too. */
-    const size_t stride = p->dim == 3 ? 4 : (size_t)p->dim;
-#pragma omp parallel for schedule(static) if (w->n >= 2048)
-    for (size_t i = 0; i < w->n; ++i)
-        for (int a = 0; a < p->dim; ++a) w->xv[stride * i + (size_t)a] = p->x[a][i];
+    sweep_init(&sw, fp, L, w);
     sw.glass = !fp->polish && w->rho_glass;
     sw.kern = fp->polish ? fp->target : fp->glass;
     sw.fused_quintic = sw.avx2 && !sw.glass && fp->target->id == CONSPH_KERNEL_QUINTIC &&
@@ -780,17 +809,19 @@ static int compute_density(const force_params *fp, const pack_list *L, const con
     return sweep_run(&sw, 0);
 }
 
-static int compute_acceleration(const force_params *fp, const pack_list *L,
-                                const consph_particles *p, pack_work *w)
+static int compute_acceleration(const force_params *fp, pack_list *L, pack_work *w)
 {
     pack_sweep sw;
-    sweep_init(&sw, fp, L, p, w);
+    sweep_init(&sw, fp, L, w);
     sw.rho = (fp->polish || !w->rho_glass) ? w->rho : w->rho_glass;
-    /* The per-particle factor of each pair's weight, once per particle instead of per pair. */
+    /* The per-particle factor of each pair's weight, once per particle instead of per pair, in
+     * the rows the force pass loads the positions from. */
+    double *restrict xv = L->xv;
 #pragma omp parallel for schedule(static) if (w->n >= 2048)
     for (size_t i = 0; i < w->n; ++i)
-        w->scratch[i] = fp->polish ? sw.rho[i] / packing_rho0 - 1.0 : fp->mass / sw.rho[i];
-    sw.weight = w->scratch;
+        xv[PACK_XV_STRIDE * i + PACK_XV_WEIGHT] =
+            fp->polish ? sw.rho[i] / packing_rho0 - 1.0 : fp->mass / sw.rho[i];
+    pack_list_fill_ghost_weights(L);
     return sweep_run(&sw, 1);
 }
 
@@ -984,7 +1015,7 @@ static int pack_single(packer *pk, const consph_layout_params *lp, consph_partic
         const int last = converged || steps >= pp->max_iter;
         rc = step_density(pk, lp, p, steps, last, report, &spread);
         if (rc || last) break;
-        rc = compute_acceleration(&pk->fp, &pk->list, p, &pk->w);
+        rc = compute_acceleration(&pk->fp, &pk->list, &pk->w);
         if (rc) break;
         const double vmax = step_advance(pk, p, dt, 1);
         if (steps % packing_check_every == 0) {
@@ -1046,7 +1077,7 @@ static int pack_polished(packer *pk, const consph_layout_params *lp, consph_part
                 if (report) report->polish_start = iter;
             }
         }
-        rc = compute_acceleration(fp, &pk->list, p, &pk->w);
+        rc = compute_acceleration(fp, &pk->list, &pk->w);
         if (rc) break;
         step_advance(pk, p, fp->polish ? dt_polish : dt_glass, 0);
     }

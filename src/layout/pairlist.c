@@ -15,6 +15,11 @@ void pack_list_free(pack_list *L)
     free(L->start);
     free(L->j);
     free(L->dwr);
+    free(L->ghost_src);
+    free(L->ghost_key);
+    free(L->ghost_head);
+    free(L->ghost_next);
+    free(L->xv);
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
         free(L->image[a]);
         free(L->x_ref[a]);
@@ -33,6 +38,7 @@ int pack_list_init(pack_list *L, const consph_particles *p, double radius)
     L->radius = radius;
     for (int a = 0; a < p->dim; ++a) L->len[a] = consph_box_length(&p->box, a);
     int ok = (L->start = consph_calloc(p->n + 1, sizeof(size_t))) != NULL;
+    ok &= (L->ghost_head = consph_calloc(p->n, sizeof(int32_t))) != NULL;
     for (int a = 0; a < p->dim; ++a)
         ok &= (L->x_ref[a] = consph_calloc(p->n, sizeof(double))) != NULL;
     if (!ok) {
@@ -63,6 +69,81 @@ static size_t list_particle(pack_list *L, const consph_nnps *grid, const consph_
             L->image[a][b + q] = image_of(p->x[a][i], p->x[a][j], nb->dx[a][q], L->len[a]);
     }
     return m;
+}
+
+/* The image of a list entry as one key, a byte per axis (0: the box itself). */
+static inline int32_t pack_image_key(int dim, const int8_t *const image[CONSPH_MAX_DIM], size_t e)
+{
+    uint32_t key = 0;
+    for (int a = 0; a < dim; ++a) key |= (uint32_t)(uint8_t)image[a][e] << (8 * a);
+    return (int32_t)key;
+}
+
+static inline int image_of_key(int32_t key, int a)
+{
+    return (int8_t)(uint8_t)((uint32_t)key >> (8 * a));
+}
+
+/* Room for `rows` rows of xv (and the ghosts' arrays for rows - n of them). */
+static int reserve_rows(pack_list *L, size_t ghosts)
+{
+    if (ghosts > L->ghost_cap) {
+        size_t cap = ghosts + ghosts / 4 + 16;
+        uint32_t *src = realloc(L->ghost_src, cap * sizeof *src);
+        if (src) L->ghost_src = src;
+        int32_t *key = realloc(L->ghost_key, cap * sizeof *key);
+        if (key) L->ghost_key = key;
+        int32_t *next = realloc(L->ghost_next, cap * sizeof *next);
+        if (next) L->ghost_next = next;
+        if (!src || !key || !next) return CONSPH_ENOMEM;
+        L->ghost_cap = cap;
+    }
+    const size_t rows = L->n + L->ghost_cap + PACK_SLACK;
+    if (rows > L->xv_rows) {
+        free(L->xv);
+        const size_t bytes = rows * PACK_XV_STRIDE * sizeof(double); /* a multiple of 32 */
+        L->xv = aligned_alloc(32, bytes);
+        if (!L->xv) {
+            L->xv_rows = 0;
+            return CONSPH_ENOMEM;
+        }
+        memset(L->xv, 0, bytes); /* the slack rows hold finite values for vector reads */
+        L->xv_rows = rows;
+    }
+    return CONSPH_OK;
+}
+
+/* Points every entry with a non-zero image at the ghost of its (j, image), creating the ghosts
+ * in the order the entries first name them. */
+static int assign_ghosts(pack_list *L)
+{
+    const size_t n = L->n, entries = L->start[n];
+    const int dim = L->dim;
+    for (size_t i = 0; i < n; ++i) L->ghost_head[i] = -1;
+    L->n_ghost = 0;
+    for (size_t e = 0; e < entries; ++e) {
+        int any = L->image[0][e];
+        if (dim > 1) any |= L->image[1][e];
+        if (dim > 2) any |= L->image[2][e];
+        if (!any) continue;
+        const uint32_t j = L->j[e];
+        const int32_t key = pack_image_key(dim, (const int8_t *const *)L->image, e);
+        int32_t g = L->ghost_head[j];
+        while (g >= 0 && L->ghost_key[g] != key) g = L->ghost_next[g];
+        if (g < 0) {
+            if (n + L->n_ghost >= (size_t)INT32_MAX)
+                return consph_fail(CONSPH_EINVAL, "layout packing: too many periodic images");
+            int rc = reserve_rows(L, L->n_ghost + 1);
+            if (rc) return rc;
+            g = (int32_t)L->n_ghost++;
+            L->ghost_src[g] = j;
+            L->ghost_key[g] = key;
+            L->ghost_next[g] = L->ghost_head[j];
+            L->ghost_head[j] = g;
+        }
+        L->j[e] = (uint32_t)(n + (size_t)g);
+    }
+    return reserve_rows(L, L->n_ghost);
 }
 
 int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particles *p)
@@ -113,7 +194,36 @@ int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particle
             L->cap = cap;
         }
     }
+    int rc = assign_ghosts(L);
+    if (rc) return rc;
     for (int a = 0; a < L->dim; ++a) memcpy(L->x_ref[a], p->x[a], n * sizeof(double));
     L->builds++;
     return CONSPH_OK;
+}
+
+void pack_list_fill_positions(pack_list *L, const consph_particles *p)
+{
+    const size_t n = L->n, rows = n + L->n_ghost;
+    const int dim = L->dim;
+    double *restrict xv = L->xv;
+#pragma omp parallel for schedule(static) if (rows >= 2048)
+    for (size_t r = 0; r < rows; ++r) {
+        if (r < n) {
+            for (int a = 0; a < dim; ++a) xv[PACK_XV_STRIDE * r + (size_t)a] = p->x[a][r];
+        } else {
+            const size_t g = r - n, src = L->ghost_src[g];
+            for (int a = 0; a < dim; ++a)
+                xv[PACK_XV_STRIDE * r + (size_t)a] =
+                    p->x[a][src] + (double)image_of_key(L->ghost_key[g], a) * L->len[a];
+        }
+    }
+}
+
+void pack_list_fill_ghost_weights(pack_list *L)
+{
+    const size_t n = L->n;
+    double *restrict xv = L->xv;
+    for (size_t g = 0; g < L->n_ghost; ++g)
+        xv[PACK_XV_STRIDE * (n + g) + PACK_XV_WEIGHT] =
+            xv[PACK_XV_STRIDE * (size_t)L->ghost_src[g] + PACK_XV_WEIGHT];
 }
