@@ -52,9 +52,10 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
  * the periodic image of the pair, so that x_ij = x_i - (x_j + image·len) per axis, which holds
  * as long as the positions are not wrapped between builds. x_ref holds the positions at the
  * build, to tell when a particle has moved far enough to need a new list. */
-/* Tests: 1 makes the packing use its portable loops even where the processor has AVX2 (both
- * give the same positions bit for bit); 0 restores the choice by processor. */
-void layout_pack_set_portable(int on);
+/* Tests: 1 makes the packing use its portable loops even where the processor has AVX2, 2 its
+ * AVX2 loops even where it has AVX-512 (all give the same positions bit for bit); 0 restores the
+ * choice by processor. */
+void layout_pack_set_portable(int level);
 
 /* The packing's parameter checks (those consph_layout_pack makes first). */
 int layout_check_packing(const consph_layout_params *lp);
@@ -77,8 +78,8 @@ void layout_cache_store(const consph_layout_params *lp, const consph_particles *
 int layout_cache_lock(const consph_layout_params *lp);
 void layout_cache_unlock(int fd);
 
-/* Entries past the end of the list arrays that a vector loop may read (whole blocks of four). */
-#define PACK_SLACK 4
+/* Entries past the end of the list arrays that a vector loop may read (whole blocks of eight). */
+#define PACK_SLACK 8
 /* Doubles per particle in the list's interleaved copy xv: the coordinates from slot 0, the force's
  * per-particle weight in slot 3, so that one particle is one aligned 32-byte row. */
 #define PACK_XV_STRIDE 4
