@@ -290,9 +290,16 @@ typedef struct force_params {
     repulsion rep;
 } force_params;
 
+/* Particles per chunk of the parallel loops. */
+#define PACK_CHUNK 256
+
 /* Per-thread buffers of one particle's list entries: distances, kernel values and separations. */
 typedef struct pair_buf {
     double *r, *k, *dx[CONSPH_MAX_DIM];
+    /* The force walk's blocks with a pair within the repulsion's range, in walk order: the
+     * particle and the block's first list entry (see accel_avx2). */
+    uint32_t *near_i;
+    size_t *near_e;
 } pair_buf;
 
 static void pair_buf_free(pair_buf *b)
@@ -300,14 +307,19 @@ static void pair_buf_free(pair_buf *b)
     free(b->r);
     free(b->k);
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(b->dx[a]);
+    free(b->near_i);
+    free(b->near_e);
     memset(b, 0, sizeof *b);
 }
 
-static int pair_buf_alloc(pair_buf *b, size_t len)
+static int pair_buf_alloc(pair_buf *b, size_t len, size_t chunk)
 {
     memset(b, 0, sizeof *b);
+    const size_t blocks = chunk * (len / 4 + 1);
+    int ok = (b->near_i = malloc(blocks * sizeof *b->near_i)) != NULL;
+    ok &= (b->near_e = malloc(blocks * sizeof *b->near_e)) != NULL;
     len += PACK_SLACK; /* whole blocks of four, and never a zero-size allocation */
-    int ok = (b->r = malloc(len * sizeof(double))) != NULL;
+    ok &= (b->r = malloc(len * sizeof(double))) != NULL;
     ok &= (b->k = malloc(len * sizeof(double))) != NULL;
     for (int a = 0; a < CONSPH_MAX_DIM; ++a)
         ok &= (b->dx[a] = malloc(len * sizeof(double))) != NULL;
@@ -770,15 +782,12 @@ typedef struct accel_avx2_consts {
     __m256d range2, floor, k12, c3cc, c2;
 } accel_avx2_consts;
 
-/* One block of accel_avx2: the pair forces of four entries into acc and, for the pairs within
- * the repulsion's range, the repulsion into rep in list order. The repulsion's coefficients of
- * the four entries are computed together with repulsion_coef's operations (the same values);
- * only their sums run entry by entry. */
-__attribute__((target("avx2"), always_inline)) static inline void
+/* One block of accel_avx2: the pair forces of four entries into acc; returns the mask of the
+ * entries within the repulsion's range. */
+__attribute__((target("avx2"), always_inline)) static inline int
 accel_block_avx2(int dim, const pack_sweep *sw, const uint32_t *J, const double *dwr,
                  const __m256d xi[CONSPH_MAX_DIM], __m256d vei, int polish,
-                 const accel_avx2_consts *c, __m256d valid, int masked, __m256d acc[CONSPH_MAX_DIM],
-                 double *rep)
+                 const accel_avx2_consts *c, __m256d valid, int masked, __m256d acc[CONSPH_MAX_DIM])
 {
     __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM], wq;
     load_rows_avx2(dim, sw->xv, J, xj, &wq);
@@ -788,25 +797,51 @@ accel_block_avx2(int dim, const pack_sweep *sw, const uint32_t *J, const double 
     if (masked) pos = _mm256_and_pd(valid, pos);
     const __m256d f = _mm256_and_pd(pos, _mm256_mul_pd(wq, _mm256_loadu_pd(dwr)));
     for (int a = 0; a < dim; ++a) acc[a] = _mm256_add_pd(acc[a], _mm256_mul_pd(f, d[a]));
-    int near = _mm256_movemask_pd(_mm256_and_pd(pos, _mm256_cmp_pd(rr, c->range2, _CMP_LT_OQ)));
-    if (near) {
-        const __m256d r = _mm256_sqrt_pd(rr);
-        const __m256d rc = _mm256_max_pd(r, c->floor); /* r > floor ? r : floor */
-        const __m256d inv = _mm256_div_pd(_mm256_set1_pd(1.0), rc);
-        const __m256d inv4 = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(inv, inv), inv), inv);
-        const __m256d g =
-            _mm256_mul_pd(c->k12, _mm256_sub_pd(_mm256_mul_pd(_mm256_mul_pd(c->c3cc, inv4), inv),
-                                                _mm256_mul_pd(c->c2, inv4)));
-        const __m256d coef = _mm256_and_pd(_mm256_cmp_pd(g, _mm256_setzero_pd(), _CMP_GT_OQ),
-                                           _mm256_div_pd(_mm256_mul_pd(g, rc), r));
-        double cf[4], dx[CONSPH_MAX_DIM][4];
-        _mm256_storeu_pd(cf, coef);
-        for (int a = 0; a < dim; ++a) _mm256_storeu_pd(dx[a], d[a]);
-        while (near) {
-            const int l = __builtin_ctz((unsigned)near);
-            near &= near - 1;
-            for (int a = 0; a < dim; ++a) rep[a] += cf[l] * dx[a][l];
+    return _mm256_movemask_pd(_mm256_and_pd(pos, _mm256_cmp_pd(rr, c->range2, _CMP_LT_OQ)));
+}
+
+/* The repulsion of the blocks that accel_avx2 recorded, added to the accelerations: per
+ * particle in list order from 0 (repulsion_add's sums); the coefficients of a block's pairs
+ * computed together with repulsion_coef's operations, so the same values. */
+__attribute__((target("avx2"))) static void repulsion_avx2(int dim, const pack_sweep *sw,
+                                                           const accel_avx2_consts *c,
+                                                           const pair_buf *b, size_t nrec)
+{
+    const pack_list *L = sw->L;
+    size_t k = 0;
+    while (k < nrec) {
+        const size_t i = b->near_i[k], end = L->start[i + 1];
+        __m256d xi[CONSPH_MAX_DIM];
+        for (int a = 0; a < dim; ++a) xi[a] = _mm256_set1_pd(XV(sw, i, a));
+        double rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+        for (; k < nrec && b->near_i[k] == i; ++k) {
+            const size_t e = b->near_e[k];
+            __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
+            load_rows_avx2(dim, sw->xv, L->j + e, xj, NULL);
+            const __m256d rr = separations_avx2(dim, xi, xj, d);
+            const __m256d pos = _mm256_and_pd(lanes_below(end, e),
+                                              _mm256_cmp_pd(rr, _mm256_setzero_pd(), _CMP_GT_OQ));
+            int near =
+                _mm256_movemask_pd(_mm256_and_pd(pos, _mm256_cmp_pd(rr, c->range2, _CMP_LT_OQ)));
+            const __m256d r = _mm256_sqrt_pd(rr);
+            const __m256d rc = _mm256_max_pd(r, c->floor); /* r > floor ? r : floor */
+            const __m256d inv = _mm256_div_pd(_mm256_set1_pd(1.0), rc);
+            const __m256d inv4 = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(inv, inv), inv), inv);
+            const __m256d g = _mm256_mul_pd(
+                c->k12, _mm256_sub_pd(_mm256_mul_pd(_mm256_mul_pd(c->c3cc, inv4), inv),
+                                      _mm256_mul_pd(c->c2, inv4)));
+            const __m256d coef = _mm256_and_pd(_mm256_cmp_pd(g, _mm256_setzero_pd(), _CMP_GT_OQ),
+                                               _mm256_div_pd(_mm256_mul_pd(g, rc), r));
+            double cf[4], dx[CONSPH_MAX_DIM][4];
+            _mm256_storeu_pd(cf, coef);
+            for (int a = 0; a < dim; ++a) _mm256_storeu_pd(dx[a], d[a]);
+            while (near) {
+                const int l = __builtin_ctz((unsigned)near);
+                near &= near - 1;
+                for (int a = 0; a < dim; ++a) rep[a] += cf[l] * dx[a][l];
+            }
         }
+        for (int a = 0; a < dim; ++a) sw->w->acc[a][i] += rep[a];
     }
 }
 
@@ -816,7 +851,7 @@ accel_block_avx2(int dim, const pack_sweep *sw, const uint32_t *J, const double 
  * loop measured slower: its transposes of the gathered rows cost more than the arithmetic it
  * saves.) */
 __attribute__((target("avx2"))) static void accel_avx2(int dim, const pack_sweep *sw, size_t i0,
-                                                       size_t i1)
+                                                       size_t i1, pair_buf *b)
 {
     const pack_list *L = sw->L;
     const force_params *fp = sw->fp;
@@ -828,6 +863,8 @@ __attribute__((target("avx2"))) static void accel_avx2(int dim, const pack_sweep
     c.k12 = _mm256_set1_pd(12.0 * rp->k);
     c.c3cc = _mm256_set1_pd(3.0 * rp->c * rp->c);
     c.c2 = _mm256_set1_pd(2.0 * rp->c);
+    const double rep0 = 0.0;
+    size_t nrec = 0;
     for (size_t i = i0; i < i1; ++i) {
         const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
         const uint32_t *J = L->j + e0;
@@ -838,20 +875,33 @@ __attribute__((target("avx2"))) static void accel_avx2(int dim, const pack_sweep
             acc[a] = _mm256_setzero_pd();
         }
         const __m256d vei = _mm256_set1_pd(polish ? XV(sw, i, PACK_XV_WEIGHT) : 0.0);
-        double rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+        /* The blocks with a pair within the repulsion's range are recorded, not branched on (a
+         * mispredicted branch here costs the work of the blocks in flight behind it), and their
+         * repulsion added afterwards by repulsion_avx2. */
         size_t q = 0;
-        for (; q + 4 <= m; q += 4)
-            accel_block_avx2(dim, sw, J + q, dwr + q, xi, vei, polish, &c, vei, 0, acc, rep);
-        if (q < m)
-            accel_block_avx2(dim, sw, J + q, dwr + q, xi, vei, polish, &c, lanes_below(m, q), 1,
-                             acc, rep);
+        for (; q + 4 <= m; q += 4) {
+            const int near =
+                accel_block_avx2(dim, sw, J + q, dwr + q, xi, vei, polish, &c, vei, 0, acc);
+            b->near_i[nrec] = (uint32_t)i;
+            b->near_e[nrec] = e0 + q;
+            nrec += near != 0;
+        }
+        if (q < m) {
+            const int near = accel_block_avx2(dim, sw, J + q, dwr + q, xi, vei, polish, &c,
+                                              lanes_below(m, q), 1, acc);
+            b->near_i[nrec] = (uint32_t)i;
+            b->near_e[nrec] = e0 + q;
+            nrec += near != 0;
+        }
         const double coef = accel_coef(fp, sw->rho[i]);
         for (int a = 0; a < dim; ++a) {
             double s[4];
             _mm256_storeu_pd(s, acc[a]);
-            sw->w->acc[a][i] = coef * ((s[0] + s[1]) + (s[2] + s[3])) + rep[a];
+            /* + 0.0: the repulsion's sum where it has no term (the portable loop's rep[a]) */
+            sw->w->acc[a][i] = coef * ((s[0] + s[1]) + (s[2] + s[3])) + rep0;
         }
     }
+    repulsion_avx2(dim, sw, &c, b, nrec);
 }
 #endif
 
@@ -867,7 +917,7 @@ accel_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf 
 {
 #ifdef PACK_AVX2
     if (sw->avx2) {
-        accel_avx2(dim, sw, i0, i1);
+        accel_avx2(dim, sw, i0, i1, b);
         return;
     }
 #endif
@@ -943,9 +993,6 @@ static void accel_block(const pack_sweep *sw, size_t i0, size_t i1, pair_buf *b)
     }
 }
 
-/* Particles per chunk of the parallel loops. */
-#define PACK_CHUNK 256
-
 /* Runs density_block (force = 0) or accel_block over every particle in chunks, in parallel.
  * Each particle's sums are gathered in its list's order: independent of the number of
  * threads. */
@@ -956,7 +1003,7 @@ static int sweep_run(const pack_sweep *sw, int force)
 #pragma omp parallel if (n >= 2048)
     {
         pair_buf b;
-        if (!pair_buf_alloc(&b, sw->L->max_len)) {
+        if (!pair_buf_alloc(&b, sw->L->max_len, PACK_CHUNK)) {
 #pragma omp atomic write
             failed = 1;
         }
