@@ -49,26 +49,42 @@ int pack_list_init(pack_list *L, const consph_particles *p, double radius)
 }
 
 /* Periodic image of the pair (i, j) that the search returned with separation dx: x_i - x_j - dx
- * is an integer number of box lengths. */
-static int8_t image_of(double xi, double xj, double dx, double len)
+ * is an integer number of box lengths up to round-off, so rounding t to the nearest integer
+ * (half away from zero, by truncation) gives it whatever the rounding rule. */
+static inline int8_t image_of(double xi, double xj, double dx, double inv_len)
 {
-    return (int8_t)lrint((xi - xj - dx) / len);
+    const double t = (xi - xj - dx) * inv_len;
+    return (int8_t)(t < 0.0 ? t - 0.5 : t + 0.5);
 }
 
-/* Fills list entries [L->start[i], L->start[i + 1]) of particle i, or counts them (fill = 0). */
-static size_t list_particle(pack_list *L, const consph_nnps *grid, const consph_particles *p,
-                            size_t i, consph_nbrs *nb, int fill)
+/* A thread's entries of the build, for its contiguous range of particles. */
+typedef struct list_part {
+    uint32_t *j;
+    int8_t *image[CONSPH_MAX_DIM];
+    size_t len, cap;
+} list_part;
+
+static void list_part_free(list_part *t)
 {
-    size_t m = consph_nnps_query_particle(grid, i, nb);
-    if (m == (size_t)-1 || !fill) return m;
-    const size_t b = L->start[i];
-    for (size_t q = 0; q < m; ++q) {
-        const size_t j = nb->j[q];
-        L->j[b + q] = (uint32_t)j;
-        for (int a = 0; a < L->dim; ++a)
-            L->image[a][b + q] = image_of(p->x[a][i], p->x[a][j], nb->dx[a][q], L->len[a]);
+    free(t->j);
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(t->image[a]);
+}
+
+/* Room for `need` entries; 0 when out of memory. */
+static int list_part_reserve(list_part *t, int dim, size_t need)
+{
+    if (need <= t->cap) return 1;
+    size_t cap = need + need / 2 + 256;
+    uint32_t *j = realloc(t->j, cap * sizeof *j);
+    if (!j) return 0;
+    t->j = j;
+    for (int a = 0; a < dim; ++a) {
+        int8_t *img = realloc(t->image[a], cap);
+        if (!img) return 0;
+        t->image[a] = img;
     }
-    return m;
+    t->cap = cap;
+    return 1;
 }
 
 /* The image of a list entry as one key, a byte per axis (0: the box itself). */
@@ -149,51 +165,76 @@ static int assign_ghosts(pack_list *L)
 int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particles *p)
 {
     const size_t n = L->n;
+    const int dim = L->dim;
+    double inv_len[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+    for (int a = 0; a < dim; ++a) inv_len[a] = 1.0 / L->len[a];
     int failed = 0;
-    /* Two walks of the search, counting then filling, so that each thread writes its own rows
-     * of one array. */
-    for (int fill = 0; fill < 2; ++fill) {
+    /* One walk of the search: each thread lists its contiguous range of particles into its own
+     * buffer, then copies it to its place in the list once the counts give the offsets. */
 #pragma omp parallel if (n >= 2048)
-        {
-            consph_nbrs nb;
-            memset(&nb, 0, sizeof nb);
+    {
+        consph_nbrs nb;
+        memset(&nb, 0, sizeof nb);
+        list_part t;
+        memset(&t, 0, sizeof t);
+        size_t first = n;
 #pragma omp for schedule(static)
-            for (size_t i = 0; i < n; ++i) {
-                size_t m = list_particle(L, grid, p, i, &nb, fill);
-                if (m == (size_t)-1) {
-#pragma omp atomic write
-                    failed = 1;
-                    m = 0;
-                }
-                if (!fill) L->start[i + 1] = m;
-            }
-            consph_nbrs_free(&nb);
-        }
-        if (failed) return CONSPH_ENOMEM;
-        if (fill) break;
-        L->start[0] = 0;
-        L->max_len = 0;
         for (size_t i = 0; i < n; ++i) {
-            if (L->start[i + 1] > L->max_len) L->max_len = L->start[i + 1];
-            L->start[i + 1] += L->start[i];
-        }
-        const size_t entries = L->start[n];
-        if (entries > L->cap) {
-            size_t cap = entries + entries / 8;
-            free(L->j);
-            /* calloc: the slack past the entries holds valid indices (0) for vector reads */
-            L->j = consph_calloc(cap + PACK_SLACK, sizeof *L->j);
-            free(L->dwr);
-            L->dwr = consph_calloc(cap + PACK_SLACK, sizeof *L->dwr);
-            int ok = L->j != NULL && L->dwr != NULL;
-            for (int a = 0; a < L->dim; ++a) {
-                free(L->image[a]);
-                ok &= (L->image[a] = consph_calloc(cap + PACK_SLACK, sizeof *L->image[a])) != NULL;
+            if (first == n) first = i;
+            size_t m = consph_nnps_query_particle(grid, i, &nb);
+            if (m == (size_t)-1 || !list_part_reserve(&t, dim, t.len + m)) {
+#pragma omp atomic write
+                failed = 1;
+                m = 0;
             }
-            if (!ok) return CONSPH_ENOMEM;
-            L->cap = cap;
+            for (size_t q = 0; q < m; ++q) {
+                const size_t j = nb.j[q];
+                t.j[t.len + q] = (uint32_t)j;
+                for (int a = 0; a < dim; ++a)
+                    t.image[a][t.len + q] =
+                        image_of(p->x[a][i], p->x[a][j], nb.dx[a][q], inv_len[a]);
+            }
+            t.len += m;
+            L->start[i + 1] = m;
         }
+#pragma omp single
+        {
+            if (!failed) {
+                L->start[0] = 0;
+                L->max_len = 0;
+                for (size_t i = 0; i < n; ++i) {
+                    if (L->start[i + 1] > L->max_len) L->max_len = L->start[i + 1];
+                    L->start[i + 1] += L->start[i];
+                }
+                const size_t entries = L->start[n];
+                if (entries > L->cap) {
+                    size_t cap = entries + entries / 8;
+                    free(L->j);
+                    /* calloc: the slack past the entries holds valid indices (0) for vector
+                     * reads */
+                    L->j = consph_calloc(cap + PACK_SLACK, sizeof *L->j);
+                    free(L->dwr);
+                    L->dwr = consph_calloc(cap + PACK_SLACK, sizeof *L->dwr);
+                    int ok = L->j != NULL && L->dwr != NULL;
+                    for (int a = 0; a < dim; ++a) {
+                        free(L->image[a]);
+                        ok &= (L->image[a] =
+                                   consph_calloc(cap + PACK_SLACK, sizeof *L->image[a])) != NULL;
+                    }
+                    L->cap = ok ? cap : 0;
+                    if (!ok) failed = 1;
+                }
+            }
+        }
+        if (!failed && t.len > 0) {
+            const size_t b = L->start[first];
+            memcpy(L->j + b, t.j, t.len * sizeof *t.j);
+            for (int a = 0; a < dim; ++a) memcpy(L->image[a] + b, t.image[a], t.len);
+        }
+        list_part_free(&t);
+        consph_nbrs_free(&nb);
     }
+    if (failed) return CONSPH_ENOMEM;
     int rc = assign_ghosts(L);
     if (rc) return rc;
     for (int a = 0; a < L->dim; ++a) memcpy(L->x_ref[a], p->x[a], n * sizeof(double));
