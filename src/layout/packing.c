@@ -86,24 +86,40 @@
  * max_i |rho_i/rho0 - 1| < tol, or after max_iter steps.
  *
  * The pair sums walk a private neighbour list (pairlist.c, a Verlet list): each particle's
- * neighbours within the kernel radius plus a skin of 0.05 radius, with the periodic image of each
- * pair, rebuilt (and the particles re-sorted into cell order, for memory locality) only once a
- * particle has moved half the skin since the last build; the positions are wrapped into the box
- * at the builds only, so the images stay valid between them. Per step, one walk computes the
- * densities and W'/r of the force's kernel (kept per list entry), a second the separations
- * again (in registers) and the forces. The separations, square roots and force sums run four
- * list entries at a time (AVX2 where the processor has it; the portable loops give the same
- * values), each particle's sums in four interleaved partial sums in list order. Each pair's
- * kernel values are computed from both sides: a list that computed them once per pair and
- * copied them to the mirror entry (j's entry for i) measured slower here, the copies being
- * scattered writes and the stored W an extra array (2D nx 200, two threads: 168 against 96 s of
- * CPU; nx 50, where the list fits the cache, even). The division in W'/r stays: W'/r has no
- * division-free form with the same values (f'(q)/q is a polynomial on q < 1 only). Reproducibility:
+ * neighbours within the kernel radius plus a skin of 0.05 radius, rebuilt (and the particles
+ * re-sorted into cell order, for memory locality) only once a particle has moved half the skin
+ * since the last build, with one walk of the search per build. The positions are wrapped into
+ * the box at the builds only; a pair that the search found across the box's edge names a ghost,
+ * the periodic image x_j + image·len of its particle, whose row is refreshed every step, so a
+ * list entry is x_i - row with no image arithmetic (the same values as adding the image's
+ * shift per entry). The rows interleave the coordinates and the force's per-particle weight
+ * (32 bytes a particle), so the force walk loads both at once. Per step, one walk computes the
+ * densities and W'/r of the force's kernel (kept per list entry), with the distances in the same
+ * loop; a second the separations again (in registers) and the forces. Four list entries at a
+ * time (AVX2 where the processor has it; the portable loops give the same values), each
+ * particle's sums in four interleaved partial sums in list order; the quintic density walk runs
+ * eight entries at a time where the processor has AVX-512F (two blocks of four added to the
+ * same partial sums: the same values), the force walk stays four-wide (an eight-wide copy
+ * measured 19% slower: the transposes of the gathered rows cost more than the arithmetic it
+ * saves). The force walk records the blocks with a pair within the repulsion's range instead of
+ * branching on them (3.8% of the blocks over a 2D pack; a mispredicted branch there discarded
+ * the work in flight behind it, a third of the walk's time) and adds their repulsion per chunk
+ * afterwards. Measured (2D nx 200, two threads, the same positions bit for bit): see
+ * docs/deviations.md, "Packing's speed". Each pair's kernel values are computed from both
+ * sides: a list that computed them once per pair and copied them to the mirror entry (j's entry
+ * for i) measured slower here, the copies being scattered writes and the stored W an extra array
+ * (2D nx 200, two threads: 168 against 96 s of CPU; nx 50, where the list fits the cache, even).
+ * The quintic density walk's square root and division per entry are a large part of its time
+ * (replacing the division by a multiplication, a timing only, made the walk 11% faster);
+ * folding the quintic's constants (three multiplications fewer per entry, a round-off change)
+ * gained 1.5% and was not taken. The division
+ * in W'/r stays: W'/r has no division-free form with the same values (f'(q)/q is a polynomial on
+ * q < 1 only). Reproducibility:
  * every sum is a gather into particle i in the fixed order of its list and the only reductions are
- * max, which are exact, so the result does not depend on the number of threads. Changing any of
- * this moves the positions at round-off: bump CONSPH_LAYOUT_PACKING_VERSION
- * (include/consph/layout.h), the cache's key. Particles are returned in lattice order: particle i
- * of the result started at lattice node i. */
+ * max, which are exact, so the result does not depend on the number of threads. Changing the
+ * order of a sum or the operations of a term moves the positions at round-off: bump
+ * CONSPH_LAYOUT_PACKING_VERSION (include/consph/layout.h), the cache's key. Particles are returned
+ * in lattice order: particle i of the result started at lattice node i. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
