@@ -104,22 +104,23 @@
  * saves). The force walk records the blocks with a pair within the repulsion's range instead of
  * branching on them (3.8% of the blocks over a 2D pack; a mispredicted branch there discarded
  * the work in flight behind it, a third of the walk's time) and adds their repulsion per chunk
- * afterwards. Measured (2D nx 200, two threads, the same positions bit for bit): see
- * docs/deviations.md, "Packing's speed". Each pair's kernel values are computed from both
- * sides: a list that computed them once per pair and copied them to the mirror entry (j's entry
- * for i) measured slower here, the copies being scattered writes and the stored W an extra array
- * (2D nx 200, two threads: 168 against 96 s of CPU; nx 50, where the list fits the cache, even).
- * The quintic density walk's square root and division per entry are a large part of its time
- * (replacing the division by a multiplication, a timing only, made the walk 11% faster);
- * folding the quintic's constants (three multiplications fewer per entry, a round-off change)
- * gained 1.5% and was not taken. The division
- * in W'/r stays: W'/r has no division-free form with the same values (f'(q)/q is a polynomial on
- * q < 1 only). Reproducibility:
- * every sum is a gather into particle i in the fixed order of its list and the only reductions are
- * max, which are exact, so the result does not depend on the number of threads. Changing the
- * order of a sum or the operations of a term moves the positions at round-off: bump
- * CONSPH_LAYOUT_PACKING_VERSION (include/consph/layout.h), the cache's key. Particles are returned
- * in lattice order: particle i of the result started at lattice node i. */
+ * afterwards. Measured against the loops before these changes (and the list build's single
+ * walk), in one session on the 2 shared cores (the same positions bit for bit; minimum of two
+ * runs): 2D nx 200, 2000 steps, one thread: 18.2 s -> 13.0 s of CPU; whole packs on two threads:
+ * nx 100 15.1 s -> 10.6 s of CPU (7.7 s -> 5.7 s wall), nx 200 94 s -> 70 s of CPU (0.21 -> 0.16
+ * core-µs per particle-step). Each pair's kernel values are computed from both sides: a list that
+ * computed them once per pair and copied them to the mirror entry (j's entry for i) measured slower
+ * here, the copies being scattered writes and the stored W an extra array (2D nx 200, two threads:
+ * 168 against 96 s of CPU; nx 50, where the list fits the cache, even). The quintic density walk's
+ * square root and division per entry are a large part of its time (replacing the division by a
+ * multiplication, a timing only, made the walk 11% faster); folding the quintic's constants (three
+ * multiplications fewer per entry, a round-off change) gained 1.5% and was not taken. The division
+ * in W'/r stays: W'/r has no division-free form with the same values (f'(q)/q is a polynomial on q
+ * < 1 only). Reproducibility: every sum is a gather into particle i in the fixed order of its list
+ * and the only reductions are max, which are exact, so the result does not depend on the number of
+ * threads. Changing the order of a sum or the operations of a term moves the positions at
+ * round-off: bump CONSPH_LAYOUT_PACKING_VERSION (include/consph/layout.h), the cache's key.
+ * Particles are returned in lattice order: particle i of the result started at lattice node i. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
