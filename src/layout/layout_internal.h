@@ -52,9 +52,10 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
  * the periodic image of the pair, so that x_ij = x_i - (x_j + image·len) per axis, which holds
  * as long as the positions are not wrapped between builds. x_ref holds the positions at the
  * build, to tell when a particle has moved far enough to need a new list. */
-/* Tests: 1 makes the packing use its portable loops even where the processor has AVX2 (both
- * give the same positions bit for bit); 0 restores the choice by processor. */
-void layout_pack_set_portable(int on);
+/* Tests: 1 makes the packing use its portable loops even where the processor has AVX2, 2 its
+ * AVX2 loops even where it has AVX-512 (all give the same positions bit for bit); 0 restores the
+ * choice by processor. */
+void layout_pack_set_portable(int level);
 
 /* The packing's parameter checks (those consph_layout_pack makes first). */
 int layout_check_packing(const consph_layout_params *lp);
@@ -83,18 +84,35 @@ int layout_cache_load_range(const consph_layout_params *lp, size_t n, size_t fir
 int layout_cache_lock(const consph_layout_params *lp);
 void layout_cache_unlock(int fd);
 
-/* Entries past the end of the list arrays that a vector loop may read (whole blocks of four). */
-#define PACK_SLACK 4
+/* Entries past the end of the list arrays that a vector loop may read (whole blocks of eight). */
+#define PACK_SLACK 8
+/* Doubles per particle in the list's interleaved copy xv: the coordinates from slot 0, the force's
+ * per-particle weight in slot 3, so that one particle is one aligned 32-byte row. */
+#define PACK_XV_STRIDE 4
+#define PACK_XV_WEIGHT 3
 
 typedef struct pack_list {
     int dim;
     size_t n, cap, max_len;
     size_t *start;
+    /* Per entry: the neighbour's row in xv, i.e. j itself for the image in the box and
+     * n + g for ghost g, a periodic image of a particle (built by pack_list_build). */
     uint32_t *j;
-    int8_t *image[CONSPH_MAX_DIM];
-    double *dwr; /* per entry: W'/r of the force's kernel at the current step */
+    int8_t *image[CONSPH_MAX_DIM]; /* the build's images per entry (scratch of the build) */
+    double *dwr;                   /* per entry: W'/r of the force's kernel at the current step */
     double *x_ref[CONSPH_MAX_DIM];
     double radius, len[CONSPH_MAX_DIM];
+    /* Ghosts: the periodic images x_j + image·len that the list refers to, one per distinct
+     * (j, image); their rows in xv are refreshed from their source particle every step
+     * (pack_list_fill_ghosts), so that a list entry is x_i - xv[row] with no image arithmetic. */
+    size_t n_ghost, ghost_cap;
+    uint32_t *ghost_src;
+    int32_t *ghost_key; /* the image, one byte per axis (pack_image_key) */
+    int32_t *ghost_head, *ghost_next;
+    /* Positions (and the force's weights) of the particles then the ghosts, PACK_XV_STRIDE per
+     * row, plus PACK_SLACK rows; aligned to 32 bytes. */
+    double *xv;
+    size_t xv_rows;
     long builds;
 } pack_list;
 
@@ -103,5 +121,10 @@ int pack_list_init(pack_list *L, const consph_particles *p, double radius);
  * records the positions. */
 int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particles *p);
 void pack_list_free(pack_list *L);
+/* The coordinates of every particle of p and ghost into xv (slots 0..dim-1): x_src + image·len
+ * for a ghost, the same expression as the image arithmetic it replaces, so the same values. */
+void pack_list_fill_positions(pack_list *L, const consph_particles *p);
+/* Copies each ghost's weight (slot PACK_XV_WEIGHT) from its source particle. */
+void pack_list_fill_ghost_weights(pack_list *L);
 
 #endif

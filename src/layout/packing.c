@@ -86,24 +86,41 @@
  * max_i |rho_i/rho0 - 1| < tol, or after max_iter steps.
  *
  * The pair sums walk a private neighbour list (pairlist.c, a Verlet list): each particle's
- * neighbours within the kernel radius plus a skin of 0.05 radius, with the periodic image of each
- * pair, rebuilt (and the particles re-sorted into cell order, for memory locality) only once a
- * particle has moved half the skin since the last build; the positions are wrapped into the box
- * at the builds only, so the images stay valid between them. Per step, one walk computes the
- * densities and W'/r of the force's kernel (kept per list entry), a second the separations
- * again (in registers) and the forces. The separations, square roots and force sums run four
- * list entries at a time (AVX2 where the processor has it; the portable loops give the same
- * values), each particle's sums in four interleaved partial sums in list order. Each pair's
- * kernel values are computed from both sides: a list that computed them once per pair and
- * copied them to the mirror entry (j's entry for i) measured slower here, the copies being
- * scattered writes and the stored W an extra array (2D nx 200, two threads: 168 against 96 s of
- * CPU; nx 50, where the list fits the cache, even). The division in W'/r stays: W'/r has no
- * division-free form with the same values (f'(q)/q is a polynomial on q < 1 only). Reproducibility:
- * every sum is a gather into particle i in the fixed order of its list and the only reductions are
- * max, which are exact, so the result does not depend on the number of threads. Changing any of
- * this moves the positions at round-off: bump CONSPH_LAYOUT_PACKING_VERSION
- * (include/consph/layout.h), the cache's key. Particles are returned in lattice order: particle i
- * of the result started at lattice node i. */
+ * neighbours within the kernel radius plus a skin of 0.05 radius, rebuilt (and the particles
+ * re-sorted into cell order, for memory locality) only once a particle has moved half the skin
+ * since the last build, with one walk of the search per build. The positions are wrapped into
+ * the box at the builds only; a pair that the search found across the box's edge names a ghost,
+ * the periodic image x_j + image·len of its particle, whose row is refreshed every step, so a
+ * list entry is x_i - row with no image arithmetic (the same values as adding the image's
+ * shift per entry). The rows interleave the coordinates and the force's per-particle weight
+ * (32 bytes a particle), so the force walk loads both at once. Per step, one walk computes the
+ * densities and W'/r of the force's kernel (kept per list entry), with the distances in the same
+ * loop; a second the separations again (in registers) and the forces. Four list entries at a
+ * time (AVX2 where the processor has it; the portable loops give the same values), each
+ * particle's sums in four interleaved partial sums in list order; the quintic density walk runs
+ * eight entries at a time where the processor has AVX-512F (two blocks of four added to the
+ * same partial sums: the same values), the force walk stays four-wide (an eight-wide copy
+ * measured 19% slower: the transposes of the gathered rows cost more than the arithmetic it
+ * saves). The force walk records the blocks with a pair within the repulsion's range instead of
+ * branching on them (3.8% of the blocks over a 2D pack; a mispredicted branch there discarded
+ * the work in flight behind it, a third of the walk's time) and adds their repulsion per chunk
+ * afterwards. Measured against the loops before these changes (and the list build's single
+ * walk), in one session on the 2 shared cores (the same positions bit for bit; minimum of two
+ * runs): 2D nx 200, 2000 steps, one thread: 18.2 s -> 13.0 s of CPU; whole packs on two threads:
+ * nx 100 15.1 s -> 10.6 s of CPU (7.7 s -> 5.7 s wall), nx 200 94 s -> 70 s of CPU (0.21 -> 0.16
+ * core-µs per particle-step). Each pair's kernel values are computed from both sides: a list that
+ * computed them once per pair and copied them to the mirror entry (j's entry for i) measured slower
+ * here, the copies being scattered writes and the stored W an extra array (2D nx 200, two threads:
+ * 168 against 96 s of CPU; nx 50, where the list fits the cache, even). The quintic density walk's
+ * square root and division per entry are a large part of its time (replacing the division by a
+ * multiplication, a timing only, made the walk 11% faster); folding the quintic's constants (three
+ * multiplications fewer per entry, a round-off change) gained 1.5% and was not taken. The division
+ * in W'/r stays: W'/r has no division-free form with the same values (f'(q)/q is a polynomial on q
+ * < 1 only). Reproducibility: every sum is a gather into particle i in the fixed order of its list
+ * and the only reductions are max, which are exact, so the result does not depend on the number of
+ * threads. Changing the order of a sum or the operations of a term moves the positions at
+ * round-off: bump CONSPH_LAYOUT_PACKING_VERSION (include/consph/layout.h), the cache's key.
+ * Particles are returned in lattice order: particle i of the result started at lattice node i. */
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
@@ -151,7 +168,6 @@ typedef struct pack_work {
     size_t *origin_tmp;
     size_t *perm;
     double *scratch;
-    double *xv; /* positions interleaved per particle (stride 2 in 2D, 4 in 3D), per step */
 } pack_work;
 
 static void work_free(pack_work *w)
@@ -166,7 +182,6 @@ static void work_free(pack_work *w)
     free(w->origin_tmp);
     free(w->perm);
     free(w->scratch);
-    free(w->xv);
     memset(w, 0, sizeof *w);
 }
 
@@ -187,7 +202,6 @@ static int work_alloc(pack_work *w, size_t n, int dim, int need_glass_rho)
     ok &= (w->origin_tmp = consph_calloc(n, sizeof(size_t))) != NULL;
     ok &= (w->perm = consph_calloc(n, sizeof(size_t))) != NULL;
     ok &= (w->scratch = consph_calloc(n, sizeof(double))) != NULL;
-    ok &= (w->xv = consph_calloc(4 * n + 4, sizeof(double))) != NULL;
     if (!ok) {
         work_free(w);
         return CONSPH_ENOMEM;
@@ -293,9 +307,16 @@ typedef struct force_params {
     repulsion rep;
 } force_params;
 
+/* Particles per chunk of the parallel loops. */
+#define PACK_CHUNK 256
+
 /* Per-thread buffers of one particle's list entries: distances, kernel values and separations. */
 typedef struct pair_buf {
     double *r, *k, *dx[CONSPH_MAX_DIM];
+    /* The force walk's blocks with a pair within the repulsion's range, in walk order: the
+     * particle and the block's first list entry (see accel_avx2). */
+    uint32_t *near_i;
+    size_t *near_e;
 } pair_buf;
 
 static void pair_buf_free(pair_buf *b)
@@ -303,14 +324,19 @@ static void pair_buf_free(pair_buf *b)
     free(b->r);
     free(b->k);
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(b->dx[a]);
+    free(b->near_i);
+    free(b->near_e);
     memset(b, 0, sizeof *b);
 }
 
-static int pair_buf_alloc(pair_buf *b, size_t len)
+static int pair_buf_alloc(pair_buf *b, size_t len, size_t chunk)
 {
     memset(b, 0, sizeof *b);
+    const size_t blocks = chunk * (len / 4 + 1);
+    int ok = (b->near_i = malloc(blocks * sizeof *b->near_i)) != NULL;
+    ok &= (b->near_e = malloc(blocks * sizeof *b->near_e)) != NULL;
     len += PACK_SLACK; /* whole blocks of four, and never a zero-size allocation */
-    int ok = (b->r = malloc(len * sizeof(double))) != NULL;
+    ok &= (b->r = malloc(len * sizeof(double))) != NULL;
     ok &= (b->k = malloc(len * sizeof(double))) != NULL;
     for (int a = 0; a < CONSPH_MAX_DIM; ++a)
         ok &= (b->dx[a] = malloc(len * sizeof(double))) != NULL;
@@ -318,61 +344,88 @@ static int pair_buf_alloc(pair_buf *b, size_t len)
     return ok;
 }
 
-/* Set by tests: the portable loops even where the processor has AVX2. */
-static int pack_portable_only;
+/* Set by tests: 1 the portable loops even where the processor has AVX2, 2 at most AVX2. */
+static int pack_isa_cap;
 
-void layout_pack_set_portable(int on)
+void layout_pack_set_portable(int level)
 {
-    pack_portable_only = on;
+    pack_isa_cap = level;
 }
 
 /* What the pair sums of one step read and write. */
 typedef struct pack_sweep {
     const force_params *fp;
     const pack_list *L;
-    const double *x[CONSPH_MAX_DIM];
+    const double *xv; /* the list's rows: coordinates, and the force's weights (PACK_XV_WEIGHT) */
     pack_work *w;
     int glass;                 /* density: also rho_glass */
     const consph_kernel *kern; /* the force's kernel */
     const double *rho;         /* force: the density it acts on */
-    const double *weight;      /* force: per particle, V_j = m/rho_j (stage 1) or e_j (stage 2) */
-    int avx2;                  /* the processor has AVX2: list_geometry's vector path */
+    int avx2;                  /* the processor has AVX2: the vector loops */
+    int avx512;                /* and AVX-512F: the pair sums eight entries at a time */
     int fused_quintic;         /* density: W and the force's W'/r are one quintic (AVX2) */
-    const double *xv; /* the positions interleaved, stride 2 in 2D, 4 in 3D (pack_work's) */
 } pack_sweep;
+
+#define XV(sw, row, slot) ((sw)->xv[PACK_XV_STRIDE * (size_t)(row) + (slot)])
 
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__)
 #include <immintrin.h>
 #define PACK_AVX2 1
-/* x_j of four list entries J[0..3], one axis per vector: from the interleaved copy (whole
- * particles per load) in 2D and 3D, gathered in 1D. */
+/* The coordinates of the rows J[0..3] of xv, one axis per vector, and with wj their weights:
+ * whole rows loaded and transposed (2D without weights: the (x, y) halves only). */
 __attribute__((target("avx2"), always_inline)) static inline void
-load_xj_avx2(int dim, const pack_sweep *sw, const uint32_t *J, __m256d xj[CONSPH_MAX_DIM])
+load_rows_avx2(int dim, const double *xv, const uint32_t *J, __m256d xj[CONSPH_MAX_DIM],
+               __m256d *wj)
 {
-    const double *xv = sw->xv;
-    if (dim == 2) {
-        const double *p0 = xv + 2 * (size_t)J[0], *p1 = xv + 2 * (size_t)J[1];
-        const double *p2 = xv + 2 * (size_t)J[2], *p3 = xv + 2 * (size_t)J[3];
+    const double *p0 = xv + PACK_XV_STRIDE * (size_t)J[0];
+    const double *p1 = xv + PACK_XV_STRIDE * (size_t)J[1];
+    const double *p2 = xv + PACK_XV_STRIDE * (size_t)J[2];
+    const double *p3 = xv + PACK_XV_STRIDE * (size_t)J[3];
+    if (dim == 1) {
+        xj[0] = _mm256_set_pd(p3[0], p2[0], p1[0], p0[0]);
+        if (wj)
+            *wj = _mm256_set_pd(p3[PACK_XV_WEIGHT], p2[PACK_XV_WEIGHT], p1[PACK_XV_WEIGHT],
+                                p0[PACK_XV_WEIGHT]);
+    } else if (dim == 2 && !wj) {
         /* lo = [x0 y0 x2 y2], hi = [x1 y1 x3 y3]: the unpacks give [x0 x1 x2 x3] */
         const __m256d lo =
-            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p0)), _mm_loadu_pd(p2), 1);
+            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p0)), _mm_load_pd(p2), 1);
         const __m256d hi =
-            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_loadu_pd(p1)), _mm_loadu_pd(p3), 1);
+            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p1)), _mm_load_pd(p3), 1);
         xj[0] = _mm256_unpacklo_pd(lo, hi);
         xj[1] = _mm256_unpackhi_pd(lo, hi);
-    } else if (dim == 3) {
-        const __m256d r0 = _mm256_loadu_pd(xv + 4 * (size_t)J[0]);
-        const __m256d r1 = _mm256_loadu_pd(xv + 4 * (size_t)J[1]);
-        const __m256d r2 = _mm256_loadu_pd(xv + 4 * (size_t)J[2]);
-        const __m256d r3 = _mm256_loadu_pd(xv + 4 * (size_t)J[3]);
+    } else {
+        /* rows [x y z w]: t0 = [x0 x1 z0 z1], t1 = [y0 y1 w0 w1], t2, t3 the same of rows 2, 3 */
+        const __m256d r0 = _mm256_load_pd(p0), r1 = _mm256_load_pd(p1);
+        const __m256d r2 = _mm256_load_pd(p2), r3 = _mm256_load_pd(p3);
         const __m256d t0 = _mm256_unpacklo_pd(r0, r1), t1 = _mm256_unpackhi_pd(r0, r1);
         const __m256d t2 = _mm256_unpacklo_pd(r2, r3), t3 = _mm256_unpackhi_pd(r2, r3);
         xj[0] = _mm256_permute2f128_pd(t0, t2, 0x20);
         xj[1] = _mm256_permute2f128_pd(t1, t3, 0x20);
-        xj[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
-    } else {
-        xj[0] = _mm256_i32gather_pd(sw->x[0], _mm_loadu_si128((const __m128i *)J), 8);
+        if (dim == 3) xj[2] = _mm256_permute2f128_pd(t0, t2, 0x31);
+        if (wj) *wj = _mm256_permute2f128_pd(t1, t3, 0x31);
     }
+}
+
+/* x_ij of four entries per axis into d, and |x_ij|^2 (returned): the portable loops' operations
+ * in their order. */
+__attribute__((target("avx2"), always_inline)) static inline __m256d
+separations_avx2(int dim, const __m256d xi[CONSPH_MAX_DIM], const __m256d xj[CONSPH_MAX_DIM],
+                 __m256d d[CONSPH_MAX_DIM])
+{
+    __m256d rr = _mm256_setzero_pd();
+    for (int a = 0; a < dim; ++a) {
+        d[a] = _mm256_sub_pd(xi[a], xj[a]);
+        rr = a == 0 ? _mm256_mul_pd(d[a], d[a]) : _mm256_add_pd(rr, _mm256_mul_pd(d[a], d[a]));
+    }
+    return rr;
+}
+
+/* Lanes l with q + l < m. */
+__attribute__((target("avx2"), always_inline)) static inline __m256d lanes_below(size_t m, size_t q)
+{
+    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
+    return _mm256_castsi256_pd(_mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane));
 }
 
 /* list_geometry four entries at a time: the same operations in the same order (no fused
@@ -385,24 +438,14 @@ __attribute__((target("avx2"))) static size_t geometry_avx2(int dim, const pack_
     const pack_list *L = sw->L;
     const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
     const uint32_t *J = L->j + e0;
-    __m256d xi[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM];
-    for (int a = 0; a < dim; ++a) {
-        xi[a] = _mm256_set1_pd(sw->x[a][i]);
-        len[a] = _mm256_set1_pd(L->len[a]);
-    }
+    __m256d xi[CONSPH_MAX_DIM];
+    for (int a = 0; a < dim; ++a) xi[a] = _mm256_set1_pd(XV(sw, i, a));
     for (size_t q = 0; q < m; q += 4) {
-        __m256d xj[CONSPH_MAX_DIM];
-        load_xj_avx2(dim, sw, J + q, xj);
-        __m256d rr = _mm256_setzero_pd();
-        for (int a = 0; a < dim; ++a) {
-            int32_t img4;
-            memcpy(&img4, L->image[a] + e0 + q, sizeof img4);
-            const __m256d img = _mm256_cvtepi32_pd(_mm_cvtepi8_epi32(_mm_cvtsi32_si128(img4)));
-            const __m256d d =
-                _mm256_sub_pd(xi[a], _mm256_add_pd(xj[a], _mm256_mul_pd(img, len[a])));
-            if (with_dx) _mm256_storeu_pd(b->dx[a] + q, d);
-            rr = a == 0 ? _mm256_mul_pd(d, d) : _mm256_add_pd(rr, _mm256_mul_pd(d, d));
-        }
+        __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
+        load_rows_avx2(dim, sw->xv, J + q, xj, NULL);
+        const __m256d rr = separations_avx2(dim, xi, xj, d);
+        if (with_dx)
+            for (int a = 0; a < dim; ++a) _mm256_storeu_pd(b->dx[a] + q, d[a]);
         _mm256_storeu_pd(b->r + q, with_dx ? rr : _mm256_sqrt_pd(rr));
     }
     return m;
@@ -425,27 +468,24 @@ list_geometry(const int dim, const pack_sweep *sw, size_t i, pair_buf *b, const 
     const pack_list *L = sw->L;
     const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
     const uint32_t *restrict J = L->j + e0;
-    const int8_t *restrict img0 = L->image[0] + e0;
-    const int8_t *restrict img1 = dim > 1 ? L->image[1] + e0 : NULL;
-    const int8_t *restrict img2 = dim > 2 ? L->image[2] + e0 : NULL;
-    const double *restrict x0 = sw->x[0], *restrict x1 = sw->x[1], *restrict x2 = sw->x[2];
-    const double len0 = L->len[0], len1 = L->len[1], len2 = L->len[2];
-    const double xi0 = x0[i], xi1 = dim > 1 ? x1[i] : 0.0, xi2 = dim > 2 ? x2[i] : 0.0;
+    const double *restrict xv = sw->xv;
+    const double xi0 = XV(sw, i, 0), xi1 = dim > 1 ? XV(sw, i, 1) : 0.0,
+                 xi2 = dim > 2 ? XV(sw, i, 2) : 0.0;
     double *restrict r = b->r, *restrict d0p = b->dx[0], *restrict d1p = b->dx[1],
                      *restrict d2p = b->dx[2];
     const size_t m4 = (m + 3) & ~(size_t)3;
     for (size_t q = 0; q < m4; ++q) {
-        const size_t j = J[q];
-        const double d0 = xi0 - (x0[j] + (double)img0[q] * len0);
+        const double *row = xv + PACK_XV_STRIDE * (size_t)J[q];
+        const double d0 = xi0 - row[0];
         double rr = d0 * d0;
         if (with_dx) d0p[q] = d0;
         if (dim > 1) {
-            const double d1 = xi1 - (x1[j] + (double)img1[q] * len1);
+            const double d1 = xi1 - row[1];
             rr += d1 * d1;
             if (with_dx) d1p[q] = d1;
         }
         if (dim > 2) {
-            const double d2 = xi2 - (x2[j] + (double)img2[q] * len2);
+            const double d2 = xi2 - row[2];
             rr += d2 * d2;
             if (with_dx) d2p[q] = d2;
         }
@@ -465,63 +505,250 @@ static inline double sum4(const double *v, size_t m)
 }
 
 #ifdef PACK_AVX2
-/* The quintic's W (summed as sum4) and W'/r (into dwr[0..m)) of the distances r in one loop:
- * the operations of consph_kernel_eval_batch's quintic (src/kernels/kernels.c), so the same
- * values, with the powers shared. */
-__attribute__((target("avx2"))) static double quintic_avx2(const consph_kernel *k, size_t m,
-                                                           const double *r, double *dwr)
+/* The quintic's constants for quintic_block_avx2. */
+typedef struct quintic_avx2_consts {
+    __m256d inv_h, norm, norm1, at_zero;
+} quintic_avx2_consts;
+
+/* The quintic's W (masked by `valid`, into *w) and W'/r (returned) of four distances r: the
+ * operations of consph_kernel_eval_batch's quintic (src/kernels/kernels.c), so the same values,
+ * with the powers shared. */
+__attribute__((target("avx2"), always_inline)) static inline __m256d
+quintic_block_avx2(const quintic_avx2_consts *c, __m256d rp, __m256d valid, int masked, __m256d *w)
 {
-    const __m256d inv_h = _mm256_set1_pd(k->inv_h), norm = _mm256_set1_pd(k->norm);
-    const __m256d norm1 = _mm256_set1_pd(k->norm * k->inv_h);
-    /* W''(0) = norm h^-2 f''(0), f''(0) = 20·27 - 120·8 + 300 */
-    const __m256d at_zero = _mm256_set1_pd(
-        k->norm * k->inv_h * k->inv_h * (20.0 * 3.0 * 3.0 * 3.0 - 120.0 * 2.0 * 2.0 * 2.0 + 300.0));
     const __m256d zero = _mm256_setzero_pd(), one = _mm256_set1_pd(1.0);
     const __m256d c1 = _mm256_set1_pd(1.0), c2 = _mm256_set1_pd(2.0), c3 = _mm256_set1_pd(3.0);
     const __m256d c6 = _mm256_set1_pd(6.0), c15 = _mm256_set1_pd(15.0);
     const __m256d cm5 = _mm256_set1_pd(-5.0), c30 = _mm256_set1_pd(30.0),
                   c75 = _mm256_set1_pd(75.0);
-    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
-    __m256d acc = zero;
-    for (size_t q = 0; q < m; q += 4) {
-        const __m256d rp = _mm256_loadu_pd(r + q), x = _mm256_mul_pd(rp, inv_h);
-        const __m256d t3 = _mm256_sub_pd(c3, x);
-        __m256d t2 = _mm256_sub_pd(c2, x), t1 = _mm256_sub_pd(c1, x);
-        t2 = _mm256_and_pd(t2, _mm256_cmp_pd(t2, zero, _CMP_GT_OQ));
-        t1 = _mm256_and_pd(t1, _mm256_cmp_pd(t1, zero, _CMP_GT_OQ));
-        const __m256d s3 = _mm256_mul_pd(t3, t3), s2 = _mm256_mul_pd(t2, t2),
-                      s1 = _mm256_mul_pd(t1, t1);
-        const __m256d p3 = _mm256_mul_pd(s3, s3), p2 = _mm256_mul_pd(s2, s2),
-                      p1 = _mm256_mul_pd(s1, s1);
-        /* pow5(t) - 6 pow5(t2) + 15 pow5(t1), pow5 = (t²)² t */
-        __m256d f = _mm256_add_pd(
-            _mm256_sub_pd(_mm256_mul_pd(p3, t3), _mm256_mul_pd(c6, _mm256_mul_pd(p2, t2))),
-            _mm256_mul_pd(c15, _mm256_mul_pd(p1, t1)));
-        /* -5 pow4(t) + 30 pow4(t2) - 75 pow4(t1) */
-        __m256d df = _mm256_sub_pd(_mm256_add_pd(_mm256_mul_pd(cm5, p3), _mm256_mul_pd(c30, p2)),
-                                   _mm256_mul_pd(c75, p1));
-        const __m256d inside = _mm256_cmp_pd(x, c3, _CMP_LT_OQ); /* q < support (and q >= 3: 0) */
-        const __m256d valid =
-            _mm256_castsi256_pd(_mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane));
-        const __m256d w = _mm256_and_pd(inside, _mm256_mul_pd(norm, f));
-        acc = _mm256_add_pd(acc, _mm256_and_pd(valid, w));
-        const __m256d pos = _mm256_cmp_pd(rp, zero, _CMP_GT_OQ);
-        const __m256d v = _mm256_div_pd(_mm256_mul_pd(norm1, df), _mm256_blendv_pd(one, rp, pos));
-        const __m256d d = _mm256_and_pd(inside, _mm256_blendv_pd(at_zero, v, pos));
-        /* Whole blocks stored whole; the last one entry by entry, since the entries past m are
-         * another particle's (a masked store is slow on some processors). */
-        if (q + 4 <= m) {
-            _mm256_storeu_pd(dwr + q, d);
-        } else {
+    const __m256d x = _mm256_mul_pd(rp, c->inv_h);
+    const __m256d t3 = _mm256_sub_pd(c3, x);
+    /* max(t, 0) returns 0 where t is not above 0 (also -0 and NaN): kernels.c's t > 0 ? t : 0 */
+    const __m256d t2 = _mm256_max_pd(_mm256_sub_pd(c2, x), zero);
+    const __m256d t1 = _mm256_max_pd(_mm256_sub_pd(c1, x), zero);
+    const __m256d s3 = _mm256_mul_pd(t3, t3), s2 = _mm256_mul_pd(t2, t2),
+                  s1 = _mm256_mul_pd(t1, t1);
+    const __m256d p3 = _mm256_mul_pd(s3, s3), p2 = _mm256_mul_pd(s2, s2),
+                  p1 = _mm256_mul_pd(s1, s1);
+    /* pow5(t) - 6 pow5(t2) + 15 pow5(t1), pow5 = (t²)² t */
+    const __m256d f = _mm256_add_pd(
+        _mm256_sub_pd(_mm256_mul_pd(p3, t3), _mm256_mul_pd(c6, _mm256_mul_pd(p2, t2))),
+        _mm256_mul_pd(c15, _mm256_mul_pd(p1, t1)));
+    /* -5 pow4(t) + 30 pow4(t2) - 75 pow4(t1) */
+    const __m256d df = _mm256_sub_pd(_mm256_add_pd(_mm256_mul_pd(cm5, p3), _mm256_mul_pd(c30, p2)),
+                                     _mm256_mul_pd(c75, p1));
+    const __m256d inside = _mm256_cmp_pd(x, c3, _CMP_LT_OQ); /* q < support (and q >= 3: 0) */
+    const __m256d wv = _mm256_and_pd(inside, _mm256_mul_pd(c->norm, f));
+    *w = masked ? _mm256_and_pd(valid, wv) : wv;
+    const __m256d pos = _mm256_cmp_pd(rp, zero, _CMP_GT_OQ);
+    const __m256d v = _mm256_div_pd(_mm256_mul_pd(c->norm1, df), _mm256_blendv_pd(one, rp, pos));
+    return _mm256_and_pd(inside, _mm256_blendv_pd(c->at_zero, v, pos));
+}
+
+/* Particle i's density sum of the quintic (sum4) and W'/r into its list entries, with the
+ * distances computed in the same loop (geometry_avx2's operations): one walk of the list. */
+__attribute__((target("avx2"))) static void density_quintic_avx2(int dim, const pack_sweep *sw,
+                                                                 size_t i0, size_t i1)
+{
+    const pack_list *L = sw->L;
+    const consph_kernel *k = sw->fp->target;
+    quintic_avx2_consts c;
+    c.inv_h = _mm256_set1_pd(k->inv_h);
+    c.norm = _mm256_set1_pd(k->norm);
+    c.norm1 = _mm256_set1_pd(k->norm * k->inv_h);
+    /* W''(0) = norm h^-2 f''(0), f''(0) = 20·27 - 120·8 + 300 */
+    c.at_zero = _mm256_set1_pd(k->norm * k->inv_h * k->inv_h *
+                               (20.0 * 3.0 * 3.0 * 3.0 - 120.0 * 2.0 * 2.0 * 2.0 + 300.0));
+    for (size_t i = i0; i < i1; ++i) {
+        const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
+        const uint32_t *J = L->j + e0;
+        double *dwr = L->dwr + e0;
+        __m256d xi[CONSPH_MAX_DIM];
+        for (int a = 0; a < dim; ++a) xi[a] = _mm256_set1_pd(XV(sw, i, a));
+        __m256d acc = _mm256_setzero_pd(), w;
+        size_t q = 0;
+        for (; q + 4 <= m; q += 4) {
+            __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
+            load_rows_avx2(dim, sw->xv, J + q, xj, NULL);
+            const __m256d r = _mm256_sqrt_pd(separations_avx2(dim, xi, xj, d));
+            _mm256_storeu_pd(dwr + q, quintic_block_avx2(&c, r, r, 0, &w));
+            acc = _mm256_add_pd(acc, w);
+        }
+        if (q < m) {
+            /* The last block's entries past m are another particle's: W masked, W'/r not stored. */
+            __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
+            load_rows_avx2(dim, sw->xv, J + q, xj, NULL);
+            const __m256d r = _mm256_sqrt_pd(separations_avx2(dim, xi, xj, d));
             double tail[4];
-            _mm256_storeu_pd(tail, d);
+            _mm256_storeu_pd(tail, quintic_block_avx2(&c, r, lanes_below(m, q), 1, &w));
+            acc = _mm256_add_pd(acc, w);
             for (size_t e = q; e < m; ++e) dwr[e] = tail[e - q];
         }
+        double a[4];
+        _mm256_storeu_pd(a, acc);
+        sw->w->rho[i] = sw->fp->mass * ((a[0] + a[1]) + (a[2] + a[3]));
     }
-    double a[4];
-    _mm256_storeu_pd(a, acc);
-    return (a[0] + a[1]) + (a[2] + a[3]);
 }
+#endif
+
+/* Adds the repulsion of one pair at squared distance r2 < range^2 to rep, in list order. */
+static inline void repulsion_add(int dim, const repulsion *rp, double r2, double d0, double d1,
+                                 double d2, double *rep)
+{
+    const double g = repulsion_coef(rp, sqrt(r2));
+    rep[0] += g * d0;
+    if (dim > 1) rep[1] += g * d1;
+    if (dim > 2) rep[2] += g * d2;
+}
+
+#ifdef PACK_AVX2
+/* The same loops eight entries at a time with AVX-512F: the same operations per entry in the
+ * same order, the eight lanes added to the four partial sums as two blocks of four (entries q..q+3
+ * then q+4..q+7), so the same values as the four-wide loops; fewer instructions per entry. */
+#define PACK_AVX512 1
+
+/* load_rows_avx2 for the rows J[0..7]. */
+__attribute__((target("avx512f"), always_inline)) static inline void
+load_rows_avx512(int dim, const double *xv, const uint32_t *J, __m512d xj[CONSPH_MAX_DIM],
+                 __m512d *wj)
+{
+    const double *p[8];
+    for (int l = 0; l < 8; ++l) p[l] = xv + PACK_XV_STRIDE * (size_t)J[l];
+    if (dim == 1) {
+        xj[0] =
+            _mm512_set_pd(p[7][0], p[6][0], p[5][0], p[4][0], p[3][0], p[2][0], p[1][0], p[0][0]);
+        if (wj)
+            *wj = _mm512_set_pd(p[7][PACK_XV_WEIGHT], p[6][PACK_XV_WEIGHT], p[5][PACK_XV_WEIGHT],
+                                p[4][PACK_XV_WEIGHT], p[3][PACK_XV_WEIGHT], p[2][PACK_XV_WEIGHT],
+                                p[1][PACK_XV_WEIGHT], p[0][PACK_XV_WEIGHT]);
+    } else if (dim == 2 && !wj) {
+        /* A = [x0 y0 x2 y2 x4 y4 x6 y6], B the odd rows: the unpacks give [x0 .. x7] */
+        const __m256d a0 =
+            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p[0])), _mm_load_pd(p[2]), 1);
+        const __m256d a1 =
+            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p[4])), _mm_load_pd(p[6]), 1);
+        const __m256d b0 =
+            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p[1])), _mm_load_pd(p[3]), 1);
+        const __m256d b1 =
+            _mm256_insertf128_pd(_mm256_castpd128_pd256(_mm_load_pd(p[5])), _mm_load_pd(p[7]), 1);
+        const __m512d A = _mm512_insertf64x4(_mm512_castpd256_pd512(a0), a1, 1);
+        const __m512d B = _mm512_insertf64x4(_mm512_castpd256_pd512(b0), b1, 1);
+        xj[0] = _mm512_unpacklo_pd(A, B);
+        xj[1] = _mm512_unpackhi_pd(A, B);
+    } else {
+        /* A = [row0 row4], B = [row1 row5], C = [row2 row6], D = [row3 row7];
+         * t0 = [x0 x1 z0 z1 x4 x5 z4 z5], t1 = [y0 y1 w0 w1 y4 y5 w4 w5], t2, t3 the same of
+         * C, D; the two-source permutes pick [x0 x1 x2 x3 x4 x5 x6 x7] and so on. */
+        __m512d R[4];
+        for (int l = 0; l < 4; ++l)
+            R[l] = _mm512_insertf64x4(_mm512_castpd256_pd512(_mm256_load_pd(p[l])),
+                                      _mm256_load_pd(p[l + 4]), 1);
+        const __m512d t0 = _mm512_unpacklo_pd(R[0], R[1]), t1 = _mm512_unpackhi_pd(R[0], R[1]);
+        const __m512d t2 = _mm512_unpacklo_pd(R[2], R[3]), t3 = _mm512_unpackhi_pd(R[2], R[3]);
+        const __m512i lo = _mm512_set_epi64(13, 12, 5, 4, 9, 8, 1, 0);
+        const __m512i hi = _mm512_set_epi64(15, 14, 7, 6, 11, 10, 3, 2);
+        xj[0] = _mm512_permutex2var_pd(t0, lo, t2);
+        xj[1] = _mm512_permutex2var_pd(t1, lo, t3);
+        if (dim == 3) xj[2] = _mm512_permutex2var_pd(t0, hi, t2);
+        if (wj) *wj = _mm512_permutex2var_pd(t1, hi, t3);
+    }
+}
+
+__attribute__((target("avx512f"), always_inline)) static inline __m512d
+separations_avx512(int dim, const __m512d xi[CONSPH_MAX_DIM], const __m512d xj[CONSPH_MAX_DIM],
+                   __m512d d[CONSPH_MAX_DIM])
+{
+    __m512d rr = _mm512_setzero_pd();
+    for (int a = 0; a < dim; ++a) {
+        d[a] = _mm512_sub_pd(xi[a], xj[a]);
+        rr = a == 0 ? _mm512_mul_pd(d[a], d[a]) : _mm512_add_pd(rr, _mm512_mul_pd(d[a], d[a]));
+    }
+    return rr;
+}
+
+/* acc + lanes 0..3 of v, then + lanes 4..7: the order of two four-wide blocks. */
+__attribute__((target("avx512f"), always_inline)) static inline __m256d add_halves(__m256d acc,
+                                                                                   __m512d v)
+{
+    acc = _mm256_add_pd(acc, _mm512_castpd512_pd256(v));
+    return _mm256_add_pd(acc, _mm512_extractf64x4_pd(v, 1));
+}
+
+typedef struct quintic_avx512_consts {
+    __m512d inv_h, norm, norm1, at_zero;
+} quintic_avx512_consts;
+
+/* quintic_block_avx2 for eight distances; the lanes outside `valid` give W = 0. */
+__attribute__((target("avx512f"), always_inline)) static inline __m512d
+quintic_block_avx512(const quintic_avx512_consts *c, __m512d rp, __mmask8 valid, __m512d *w)
+{
+    const __m512d zero = _mm512_setzero_pd();
+    const __m512d c1 = _mm512_set1_pd(1.0), c2 = _mm512_set1_pd(2.0), c3 = _mm512_set1_pd(3.0);
+    const __m512d c6 = _mm512_set1_pd(6.0), c15 = _mm512_set1_pd(15.0);
+    const __m512d cm5 = _mm512_set1_pd(-5.0), c30 = _mm512_set1_pd(30.0),
+                  c75 = _mm512_set1_pd(75.0);
+    const __m512d x = _mm512_mul_pd(rp, c->inv_h);
+    const __m512d t3 = _mm512_sub_pd(c3, x);
+    const __m512d t2 = _mm512_max_pd(_mm512_sub_pd(c2, x), zero);
+    const __m512d t1 = _mm512_max_pd(_mm512_sub_pd(c1, x), zero);
+    const __m512d s3 = _mm512_mul_pd(t3, t3), s2 = _mm512_mul_pd(t2, t2),
+                  s1 = _mm512_mul_pd(t1, t1);
+    const __m512d p3 = _mm512_mul_pd(s3, s3), p2 = _mm512_mul_pd(s2, s2),
+                  p1 = _mm512_mul_pd(s1, s1);
+    const __m512d f = _mm512_add_pd(
+        _mm512_sub_pd(_mm512_mul_pd(p3, t3), _mm512_mul_pd(c6, _mm512_mul_pd(p2, t2))),
+        _mm512_mul_pd(c15, _mm512_mul_pd(p1, t1)));
+    const __m512d df = _mm512_sub_pd(_mm512_add_pd(_mm512_mul_pd(cm5, p3), _mm512_mul_pd(c30, p2)),
+                                     _mm512_mul_pd(c75, p1));
+    const __mmask8 inside = _mm512_cmp_pd_mask(x, c3, _CMP_LT_OQ);
+    *w = _mm512_maskz_mul_pd(inside & valid, c->norm, f);
+    const __mmask8 pos = _mm512_cmp_pd_mask(rp, zero, _CMP_GT_OQ);
+    const __m512d v = _mm512_mask_div_pd(c->at_zero, pos, _mm512_mul_pd(c->norm1, df), rp);
+    return _mm512_maskz_mov_pd(inside, v);
+}
+
+/* density_quintic_avx2 eight entries at a time. */
+__attribute__((target("avx512f"))) static void density_quintic_avx512(int dim, const pack_sweep *sw,
+                                                                      size_t i0, size_t i1)
+{
+    const pack_list *L = sw->L;
+    const consph_kernel *k = sw->fp->target;
+    quintic_avx512_consts c;
+    c.inv_h = _mm512_set1_pd(k->inv_h);
+    c.norm = _mm512_set1_pd(k->norm);
+    c.norm1 = _mm512_set1_pd(k->norm * k->inv_h);
+    c.at_zero = _mm512_set1_pd(k->norm * k->inv_h * k->inv_h *
+                               (20.0 * 3.0 * 3.0 * 3.0 - 120.0 * 2.0 * 2.0 * 2.0 + 300.0));
+    for (size_t i = i0; i < i1; ++i) {
+        const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
+        const uint32_t *J = L->j + e0;
+        double *dwr = L->dwr + e0;
+        __m512d xi[CONSPH_MAX_DIM];
+        for (int a = 0; a < dim; ++a) xi[a] = _mm512_set1_pd(XV(sw, i, a));
+        __m256d acc = _mm256_setzero_pd();
+        __m512d w;
+        size_t q = 0;
+        for (; q + 8 <= m; q += 8) {
+            __m512d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
+            load_rows_avx512(dim, sw->xv, J + q, xj, NULL);
+            const __m512d r = _mm512_sqrt_pd(separations_avx512(dim, xi, xj, d));
+            _mm512_storeu_pd(dwr + q, quintic_block_avx512(&c, r, 0xff, &w));
+            acc = add_halves(acc, w);
+        }
+        if (q < m) {
+            const __mmask8 valid = (__mmask8)((1u << (m - q)) - 1u);
+            __m512d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
+            load_rows_avx512(dim, sw->xv, J + q, xj, NULL);
+            const __m512d r = _mm512_sqrt_pd(separations_avx512(dim, xi, xj, d));
+            _mm512_mask_storeu_pd(dwr + q, valid, quintic_block_avx512(&c, r, valid, &w));
+            acc = add_halves(acc, w);
+        }
+        double a[4];
+        _mm256_storeu_pd(a, acc);
+        sw->w->rho[i] = sw->fp->mass * ((a[0] + a[1]) + (a[2] + a[3]));
+    }
+}
+
 #endif
 
 /* rho_i = m sum_j W_ij over the list with the kernel k (the entries past its support add exact
@@ -542,131 +769,202 @@ density_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_bu
 {
     const force_params *fp = sw->fp;
     for (size_t i = i0; i < i1; ++i) {
-        const size_t m = list_geometry(dim, sw, i, b, 0);
 #ifdef PACK_AVX2
         if (sw->fused_quintic) {
-            sw->w->rho[i] =
-                fp->mass * quintic_avx2(fp->target, m, b->r, sw->L->dwr + sw->L->start[i]);
-            continue;
+            if (sw->avx512)
+                density_quintic_avx512(dim, sw, i, i1);
+            else
+                density_quintic_avx2(dim, sw, i, i1);
+            return;
         }
 #endif
+        const size_t m = list_geometry(dim, sw, i, b, 0);
         sw->w->rho[i] = list_density(fp->target, fp->mass, b, m);
         if (sw->glass) sw->w->rho_glass[i] = list_density(fp->glass, fp->mass, b, m);
         consph_kernel_eval_batch(sw->kern, m, b->r, NULL, sw->L->dwr + sw->L->start[i], NULL);
     }
 }
 
-/* Adds the repulsion of one pair at squared distance r2 < range^2 to rep, in list order. */
-static inline void repulsion_add(int dim, const repulsion *rp, double r2, double d0, double d1,
-                                 double d2, double *rep)
+/* The factor of the pair sum in a_i: -(p_b/m) V_i (stage 1), -(K/rho0^2) m (stage 2). */
+static inline double accel_coef(const force_params *fp, double rho_i)
 {
-    const double g = repulsion_coef(rp, sqrt(r2));
-    rep[0] += g * d0;
-    if (dim > 1) rep[1] += g * d1;
-    if (dim > 2) rep[2] += g * d2;
+    const double mass = fp->mass, rho0 = packing_rho0;
+    return fp->polish ? -packing_polish_k * packing_pb / (rho0 * rho0) * mass
+                      : -packing_pb * (mass / rho_i) / mass;
 }
 
 #ifdef PACK_AVX2
-/* accel_range's geometry and force sums in one loop, four entries at a time, the separations
- * kept in registers: the operations of geometry_avx2 and accel_sums_avx2 in the same order, so
- * the same values. */
-__attribute__((target("avx2"))) static void
-accel_fused_avx2(int dim, const pack_sweep *sw, size_t i, size_t m, double ei, int polish,
-                 double range2, const repulsion *rp, double s[CONSPH_MAX_DIM][4], double *rep)
+/* The constants of the force pass's vector loop. */
+typedef struct accel_avx2_consts {
+    __m256d range2, floor, k12, c3cc, c2;
+} accel_avx2_consts;
+
+/* One block of accel_avx2: the pair forces of four entries into acc; returns the mask of the
+ * entries within the repulsion's range. */
+__attribute__((target("avx2"), always_inline)) static inline int
+accel_block_avx2(int dim, const pack_sweep *sw, const uint32_t *J, const double *dwr,
+                 const __m256d xi[CONSPH_MAX_DIM], __m256d vei, int polish,
+                 const accel_avx2_consts *c, __m256d valid, int masked, __m256d acc[CONSPH_MAX_DIM])
+{
+    __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM], wq;
+    load_rows_avx2(dim, sw->xv, J, xj, &wq);
+    const __m256d rr = separations_avx2(dim, xi, xj, d);
+    if (polish) wq = _mm256_add_pd(vei, wq);
+    __m256d pos = _mm256_cmp_pd(rr, _mm256_setzero_pd(), _CMP_GT_OQ);
+    if (masked) pos = _mm256_and_pd(valid, pos);
+    const __m256d f = _mm256_and_pd(pos, _mm256_mul_pd(wq, _mm256_loadu_pd(dwr)));
+    for (int a = 0; a < dim; ++a) acc[a] = _mm256_add_pd(acc[a], _mm256_mul_pd(f, d[a]));
+    return _mm256_movemask_pd(_mm256_and_pd(pos, _mm256_cmp_pd(rr, c->range2, _CMP_LT_OQ)));
+}
+
+/* The repulsion of the blocks that accel_avx2 recorded, added to the accelerations: per
+ * particle in list order from 0 (repulsion_add's sums); the coefficients of a block's pairs
+ * computed together with repulsion_coef's operations, so the same values. */
+__attribute__((target("avx2"))) static void repulsion_avx2(int dim, const pack_sweep *sw,
+                                                           const accel_avx2_consts *c,
+                                                           const pair_buf *b, size_t nrec)
 {
     const pack_list *L = sw->L;
-    const size_t e0 = L->start[i];
-    const uint32_t *J = L->j + e0;
-    const double *dwr = L->dwr + e0, *weight = sw->weight;
-    __m256d xi[CONSPH_MAX_DIM], len[CONSPH_MAX_DIM], acc[CONSPH_MAX_DIM];
-    for (int a = 0; a < dim; ++a) {
-        xi[a] = _mm256_set1_pd(sw->x[a][i]);
-        len[a] = _mm256_set1_pd(L->len[a]);
-        acc[a] = _mm256_setzero_pd();
-    }
-    const __m256d zero = _mm256_setzero_pd(), vei = _mm256_set1_pd(ei);
-    const __m256d vrange2 = _mm256_set1_pd(range2);
-    const __m256i lane = _mm256_set_epi64x(3, 2, 1, 0);
-    for (size_t q = 0; q < m; q += 4) {
-        __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
-        load_xj_avx2(dim, sw, J + q, xj);
-        __m256d rr = _mm256_setzero_pd();
-        for (int a = 0; a < dim; ++a) {
-            int32_t img4;
-            memcpy(&img4, L->image[a] + e0 + q, sizeof img4);
-            const __m256d img = _mm256_cvtepi32_pd(_mm_cvtepi8_epi32(_mm_cvtsi32_si128(img4)));
-            d[a] = _mm256_sub_pd(xi[a], _mm256_add_pd(xj[a], _mm256_mul_pd(img, len[a])));
-            rr = a == 0 ? _mm256_mul_pd(d[a], d[a]) : _mm256_add_pd(rr, _mm256_mul_pd(d[a], d[a]));
-        }
-        __m256d wq =
-            _mm256_set_pd(weight[J[q + 3]], weight[J[q + 2]], weight[J[q + 1]], weight[J[q]]);
-        if (polish) wq = _mm256_add_pd(vei, wq);
-        const __m256i valid =
-            _mm256_cmpgt_epi64(_mm256_set1_epi64x((long long)(m - q)), lane); /* q + l < m */
-        const __m256d pos =
-            _mm256_and_pd(_mm256_castsi256_pd(valid), _mm256_cmp_pd(rr, zero, _CMP_GT_OQ));
-        const __m256d f = _mm256_and_pd(pos, _mm256_mul_pd(wq, _mm256_loadu_pd(dwr + q)));
-        for (int a = 0; a < dim; ++a) acc[a] = _mm256_add_pd(acc[a], _mm256_mul_pd(f, d[a]));
-        int near = _mm256_movemask_pd(_mm256_and_pd(pos, _mm256_cmp_pd(rr, vrange2, _CMP_LT_OQ)));
-        if (near) {
-            double r2[4], dx[CONSPH_MAX_DIM][4] = {{0.0}};
-            _mm256_storeu_pd(r2, rr);
+    size_t k = 0;
+    while (k < nrec) {
+        const size_t i = b->near_i[k], end = L->start[i + 1];
+        __m256d xi[CONSPH_MAX_DIM];
+        for (int a = 0; a < dim; ++a) xi[a] = _mm256_set1_pd(XV(sw, i, a));
+        double rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+        for (; k < nrec && b->near_i[k] == i; ++k) {
+            const size_t e = b->near_e[k];
+            __m256d xj[CONSPH_MAX_DIM], d[CONSPH_MAX_DIM];
+            load_rows_avx2(dim, sw->xv, L->j + e, xj, NULL);
+            const __m256d rr = separations_avx2(dim, xi, xj, d);
+            const __m256d pos = _mm256_and_pd(lanes_below(end, e),
+                                              _mm256_cmp_pd(rr, _mm256_setzero_pd(), _CMP_GT_OQ));
+            int near =
+                _mm256_movemask_pd(_mm256_and_pd(pos, _mm256_cmp_pd(rr, c->range2, _CMP_LT_OQ)));
+            const __m256d r = _mm256_sqrt_pd(rr);
+            const __m256d rc = _mm256_max_pd(r, c->floor); /* r > floor ? r : floor */
+            const __m256d inv = _mm256_div_pd(_mm256_set1_pd(1.0), rc);
+            const __m256d inv4 = _mm256_mul_pd(_mm256_mul_pd(_mm256_mul_pd(inv, inv), inv), inv);
+            const __m256d g = _mm256_mul_pd(
+                c->k12, _mm256_sub_pd(_mm256_mul_pd(_mm256_mul_pd(c->c3cc, inv4), inv),
+                                      _mm256_mul_pd(c->c2, inv4)));
+            const __m256d coef = _mm256_and_pd(_mm256_cmp_pd(g, _mm256_setzero_pd(), _CMP_GT_OQ),
+                                               _mm256_div_pd(_mm256_mul_pd(g, rc), r));
+            double cf[4], dx[CONSPH_MAX_DIM][4];
+            _mm256_storeu_pd(cf, coef);
             for (int a = 0; a < dim; ++a) _mm256_storeu_pd(dx[a], d[a]);
             while (near) {
                 const int l = __builtin_ctz((unsigned)near);
                 near &= near - 1;
-                repulsion_add(dim, rp, r2[l], dx[0][l], dx[1][l], dx[2][l], rep);
+                for (int a = 0; a < dim; ++a) rep[a] += cf[l] * dx[a][l];
             }
         }
+        for (int a = 0; a < dim; ++a) sw->w->acc[a][i] += rep[a];
     }
-    for (int a = 0; a < dim; ++a) _mm256_storeu_pd(s[a], acc[a]);
+}
+
+/* accel_range's pair sums and accelerations of particles i0..i1, four entries at a time, the
+ * separations kept in registers and the weights loaded with the positions: the operations of
+ * the portable loop in the same order, so the same values. (An eight-wide AVX-512 copy of this
+ * loop measured slower: its transposes of the gathered rows cost more than the arithmetic it
+ * saves.) */
+__attribute__((target("avx2"))) static void accel_avx2(int dim, const pack_sweep *sw, size_t i0,
+                                                       size_t i1, pair_buf *b)
+{
+    const pack_list *L = sw->L;
+    const force_params *fp = sw->fp;
+    const repulsion *rp = &fp->rep;
+    const int polish = fp->polish;
+    accel_avx2_consts c;
+    c.range2 = _mm256_set1_pd(rp->range * rp->range);
+    c.floor = _mm256_set1_pd(rp->r_floor);
+    c.k12 = _mm256_set1_pd(12.0 * rp->k);
+    c.c3cc = _mm256_set1_pd(3.0 * rp->c * rp->c);
+    c.c2 = _mm256_set1_pd(2.0 * rp->c);
+    const double rep0 = 0.0;
+    size_t nrec = 0;
+    for (size_t i = i0; i < i1; ++i) {
+        const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
+        const uint32_t *J = L->j + e0;
+        const double *dwr = L->dwr + e0;
+        __m256d xi[CONSPH_MAX_DIM], acc[CONSPH_MAX_DIM];
+        for (int a = 0; a < dim; ++a) {
+            xi[a] = _mm256_set1_pd(XV(sw, i, a));
+            acc[a] = _mm256_setzero_pd();
+        }
+        const __m256d vei = _mm256_set1_pd(polish ? XV(sw, i, PACK_XV_WEIGHT) : 0.0);
+        /* The blocks with a pair within the repulsion's range are recorded, not branched on (a
+         * mispredicted branch here costs the work of the blocks in flight behind it), and their
+         * repulsion added afterwards by repulsion_avx2. */
+        size_t q = 0;
+        for (; q + 4 <= m; q += 4) {
+            const int near =
+                accel_block_avx2(dim, sw, J + q, dwr + q, xi, vei, polish, &c, vei, 0, acc);
+            b->near_i[nrec] = (uint32_t)i;
+            b->near_e[nrec] = e0 + q;
+            nrec += near != 0;
+        }
+        if (q < m) {
+            const int near = accel_block_avx2(dim, sw, J + q, dwr + q, xi, vei, polish, &c,
+                                              lanes_below(m, q), 1, acc);
+            b->near_i[nrec] = (uint32_t)i;
+            b->near_e[nrec] = e0 + q;
+            nrec += near != 0;
+        }
+        const double coef = accel_coef(fp, sw->rho[i]);
+        for (int a = 0; a < dim; ++a) {
+            double s[4];
+            _mm256_storeu_pd(s, acc[a]);
+            /* + 0.0: the repulsion's sum where it has no term (the portable loop's rep[a]) */
+            sw->w->acc[a][i] = coef * ((s[0] + s[1]) + (s[2] + s[3])) + rep0;
+        }
+    }
+    repulsion_avx2(dim, sw, &c, b, nrec);
 }
 #endif
 
 /* Stage 1: a_i = -(p_b/m) V_i sum_j V_j ∇_i W_ij + repulsion, with ∇_i W_ij = (W'/r) x_ij.
  * Stage 2: a_i = -(K/rho0^2) m sum_j (e_i + e_j) ∇_i W_ij + repulsion. The pair at r = 0 (i
- * itself) adds nothing. The sums run in four interleaved partial sums (as sum4). */
+ * itself) adds nothing. The sums run in four interleaved partial sums (as sum4). The weights
+ * V_j = m/rho_j or e_j are in the list's rows (PACK_XV_WEIGHT). */
 #if defined(__GNUC__)
 __attribute__((always_inline))
 #endif
 static inline void
 accel_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf *b)
 {
+#ifdef PACK_AVX2
+    if (sw->avx2) {
+        accel_avx2(dim, sw, i0, i1, b);
+        return;
+    }
+#endif
     const force_params *fp = sw->fp;
-    const double mass = fp->mass, rho0 = packing_rho0, range2 = fp->rep.range * fp->rep.range;
+    const double range2 = fp->rep.range * fp->rep.range;
     const int polish = fp->polish;
-    const double *restrict weight = sw->weight;
     const double *restrict r2 = b->r;
     const double *d0 = b->dx[0], *d1 = b->dx[1], *d2 = b->dx[2];
     for (size_t i = i0; i < i1; ++i) {
         const size_t m = sw->L->start[i + 1] - sw->L->start[i];
         const uint32_t *restrict J = sw->L->j + sw->L->start[i];
         const double *restrict dwr = sw->L->dwr + sw->L->start[i];
-        const double ei = polish ? weight[i] : 0.0;
+        const double ei = polish ? XV(sw, i, PACK_XV_WEIGHT) : 0.0;
         double s[CONSPH_MAX_DIM][4] = {{0.0}}, rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
-#ifdef PACK_AVX2
-        if (sw->avx2)
-            accel_fused_avx2(dim, sw, i, m, ei, polish, range2, &fp->rep, s, rep);
-        else
-#endif
-        {
-            list_geometry(dim, sw, i, b, 1);
-            for (size_t q = 0; q < m; q += 4) {
-                for (int l = 0; l < 4; ++l) {
-                    const size_t e = q + l;
-                    const double wq = polish ? ei + weight[J[e]] : weight[J[e]];
-                    const double f = e < m && r2[e] > 0.0 ? wq * dwr[e] : 0.0;
-                    s[0][l] += f * d0[e];
-                    if (dim > 1) s[1][l] += f * d1[e];
-                    if (dim > 2) s[2][l] += f * d2[e];
-                }
-                for (size_t e = q; e < q + 4 && e < m; ++e)
-                    if (r2[e] < range2 && r2[e] > 0.0)
-                        repulsion_add(dim, &fp->rep, r2[e], d0[e], d1[e], d2[e], rep);
+        list_geometry(dim, sw, i, b, 1);
+        for (size_t q = 0; q < m; q += 4) {
+            for (int l = 0; l < 4; ++l) {
+                const size_t e = q + l;
+                const double wj = XV(sw, J[e], PACK_XV_WEIGHT);
+                const double wq = polish ? ei + wj : wj;
+                const double f = e < m && r2[e] > 0.0 ? wq * dwr[e] : 0.0;
+                s[0][l] += f * d0[e];
+                if (dim > 1) s[1][l] += f * d1[e];
+                if (dim > 2) s[2][l] += f * d2[e];
             }
+            for (size_t e = q; e < q + 4 && e < m; ++e)
+                if (r2[e] < range2 && r2[e] > 0.0)
+                    repulsion_add(dim, &fp->rep, r2[e], d0[e], d1[e], d2[e], rep);
         }
-        const double coef = polish ? -packing_polish_k * packing_pb / (rho0 * rho0) * mass
-                                   : -packing_pb * (mass / sw->rho[i]) / mass;
+        const double coef = accel_coef(fp, sw->rho[i]);
         pack_work *w = sw->w;
         for (int a = 0; a < dim; ++a)
             w->acc[a][i] = coef * ((s[a][0] + s[a][1]) + (s[a][2] + s[a][3])) + rep[a];
@@ -712,9 +1010,6 @@ static void accel_block(const pack_sweep *sw, size_t i0, size_t i1, pair_buf *b)
     }
 }
 
-/* Particles per chunk of the parallel loops. */
-#define PACK_CHUNK 256
-
 /* Runs density_block (force = 0) or accel_block over every particle in chunks, in parallel.
  * Each particle's sums are gathered in its list's order: independent of the number of
  * threads. */
@@ -725,7 +1020,7 @@ static int sweep_run(const pack_sweep *sw, int force)
 #pragma omp parallel if (n >= 2048)
     {
         pair_buf b;
-        if (!pair_buf_alloc(&b, sw->L->max_len)) {
+        if (!pair_buf_alloc(&b, sw->L->max_len, PACK_CHUNK)) {
 #pragma omp atomic write
             failed = 1;
         }
@@ -745,33 +1040,28 @@ static int sweep_run(const pack_sweep *sw, int force)
     return failed ? CONSPH_ENOMEM : CONSPH_OK;
 }
 
-static void sweep_init(pack_sweep *sw, const force_params *fp, const pack_list *L,
-                       const consph_particles *p, pack_work *w)
+static void sweep_init(pack_sweep *sw, const force_params *fp, const pack_list *L, pack_work *w)
 {
     memset(sw, 0, sizeof *sw);
     sw->fp = fp;
     sw->L = L;
     sw->w = w;
-    for (int a = 0; a < p->dim; ++a) sw->x[a] = p->x[a];
-    sw->xv = w->xv;
+    sw->xv = L->xv;
 #ifdef PACK_AVX2
-    sw->avx2 = !pack_portable_only && __builtin_cpu_supports("avx2");
+    sw->avx2 = pack_isa_cap != 1 && __builtin_cpu_supports("avx2");
+    sw->avx512 = sw->avx2 && pack_isa_cap == 0 && __builtin_cpu_supports("avx512f");
 #endif
 }
 
 /* rho (caller's kernel) and, when it differs, rho_glass (stage-1 kernel); rho_glass is needed only
  * in stage 1. */
-static int compute_density(const force_params *fp, const pack_list *L, const consph_particles *p,
+static int compute_density(const force_params *fp, pack_list *L, const consph_particles *p,
                            pack_work *w)
 {
+    /* The rows of the particles and the ghosts, read by this pass and the force pass. */
+    pack_list_fill_positions(L, p);
     pack_sweep sw;
-    sweep_init(&sw, fp, L, p, w);
-    /* The interleaved copy of the positions that the vector path loads whole particles from;
-     * the force pass of the same step reads it too. */
-    const size_t stride = p->dim == 3 ? 4 : (size_t)p->dim;
-#pragma omp parallel for schedule(static) if (w->n >= 2048)
-    for (size_t i = 0; i < w->n; ++i)
-        for (int a = 0; a < p->dim; ++a) w->xv[stride * i + (size_t)a] = p->x[a][i];
+    sweep_init(&sw, fp, L, w);
     sw.glass = !fp->polish && w->rho_glass;
     sw.kern = fp->polish ? fp->target : fp->glass;
     sw.fused_quintic = sw.avx2 && !sw.glass && fp->target->id == CONSPH_KERNEL_QUINTIC &&
@@ -780,17 +1070,19 @@ static int compute_density(const force_params *fp, const pack_list *L, const con
     return sweep_run(&sw, 0);
 }
 
-static int compute_acceleration(const force_params *fp, const pack_list *L,
-                                const consph_particles *p, pack_work *w)
+static int compute_acceleration(const force_params *fp, pack_list *L, pack_work *w)
 {
     pack_sweep sw;
-    sweep_init(&sw, fp, L, p, w);
+    sweep_init(&sw, fp, L, w);
     sw.rho = (fp->polish || !w->rho_glass) ? w->rho : w->rho_glass;
-    /* The per-particle factor of each pair's weight, once per particle instead of per pair. */
+    /* The per-particle factor of each pair's weight, once per particle instead of per pair, in
+     * the rows the force pass loads the positions from. */
+    double *restrict xv = L->xv;
 #pragma omp parallel for schedule(static) if (w->n >= 2048)
     for (size_t i = 0; i < w->n; ++i)
-        w->scratch[i] = fp->polish ? sw.rho[i] / packing_rho0 - 1.0 : fp->mass / sw.rho[i];
-    sw.weight = w->scratch;
+        xv[PACK_XV_STRIDE * i + PACK_XV_WEIGHT] =
+            fp->polish ? sw.rho[i] / packing_rho0 - 1.0 : fp->mass / sw.rho[i];
+    pack_list_fill_ghost_weights(L);
     return sweep_run(&sw, 1);
 }
 
@@ -984,7 +1276,7 @@ static int pack_single(packer *pk, const consph_layout_params *lp, consph_partic
         const int last = converged || steps >= pp->max_iter;
         rc = step_density(pk, lp, p, steps, last, report, &spread);
         if (rc || last) break;
-        rc = compute_acceleration(&pk->fp, &pk->list, p, &pk->w);
+        rc = compute_acceleration(&pk->fp, &pk->list, &pk->w);
         if (rc) break;
         const double vmax = step_advance(pk, p, dt, 1);
         if (steps % packing_check_every == 0) {
@@ -1046,7 +1338,7 @@ static int pack_polished(packer *pk, const consph_layout_params *lp, consph_part
                 if (report) report->polish_start = iter;
             }
         }
-        rc = compute_acceleration(fp, &pk->list, p, &pk->w);
+        rc = compute_acceleration(fp, &pk->list, &pk->w);
         if (rc) break;
         step_advance(pk, p, fp->polish ? dt_polish : dt_glass, 0);
     }

@@ -15,6 +15,11 @@ void pack_list_free(pack_list *L)
     free(L->start);
     free(L->j);
     free(L->dwr);
+    free(L->ghost_src);
+    free(L->ghost_key);
+    free(L->ghost_head);
+    free(L->ghost_next);
+    free(L->xv);
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
         free(L->image[a]);
         free(L->x_ref[a]);
@@ -33,6 +38,7 @@ int pack_list_init(pack_list *L, const consph_particles *p, double radius)
     L->radius = radius;
     for (int a = 0; a < p->dim; ++a) L->len[a] = consph_box_length(&p->box, a);
     int ok = (L->start = consph_calloc(p->n + 1, sizeof(size_t))) != NULL;
+    ok &= (L->ghost_head = consph_calloc(p->n, sizeof(int32_t))) != NULL;
     for (int a = 0; a < p->dim; ++a)
         ok &= (L->x_ref[a] = consph_calloc(p->n, sizeof(double))) != NULL;
     if (!ok) {
@@ -43,77 +49,222 @@ int pack_list_init(pack_list *L, const consph_particles *p, double radius)
 }
 
 /* Periodic image of the pair (i, j) that the search returned with separation dx: x_i - x_j - dx
- * is an integer number of box lengths. */
-static int8_t image_of(double xi, double xj, double dx, double len)
+ * is an integer number of box lengths up to round-off, so rounding t to the nearest integer
+ * (half away from zero, by truncation) gives it whatever the rounding rule. */
+static inline int8_t image_of(double xi, double xj, double dx, double inv_len)
 {
-    return (int8_t)lrint((xi - xj - dx) / len);
+    const double t = (xi - xj - dx) * inv_len;
+    return (int8_t)(t < 0.0 ? t - 0.5 : t + 0.5);
 }
 
-/* Fills list entries [L->start[i], L->start[i + 1]) of particle i, or counts them (fill = 0). */
-static size_t list_particle(pack_list *L, const consph_nnps *grid, const consph_particles *p,
-                            size_t i, consph_nbrs *nb, int fill)
+/* A thread's entries of the build, for its contiguous range of particles. */
+typedef struct list_part {
+    uint32_t *j;
+    int8_t *image[CONSPH_MAX_DIM];
+    size_t len, cap;
+} list_part;
+
+static void list_part_free(list_part *t)
 {
-    size_t m = consph_nnps_query_particle(grid, i, nb);
-    if (m == (size_t)-1 || !fill) return m;
-    const size_t b = L->start[i];
-    for (size_t q = 0; q < m; ++q) {
-        const size_t j = nb->j[q];
-        L->j[b + q] = (uint32_t)j;
-        for (int a = 0; a < L->dim; ++a)
-            L->image[a][b + q] = image_of(p->x[a][i], p->x[a][j], nb->dx[a][q], L->len[a]);
+    free(t->j);
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(t->image[a]);
+}
+
+/* Room for `need` entries; 0 when out of memory. */
+static int list_part_reserve(list_part *t, int dim, size_t need)
+{
+    if (need <= t->cap) return 1;
+    size_t cap = need + need / 2 + 256;
+    uint32_t *j = realloc(t->j, cap * sizeof *j);
+    if (!j) return 0;
+    t->j = j;
+    for (int a = 0; a < dim; ++a) {
+        int8_t *img = realloc(t->image[a], cap);
+        if (!img) return 0;
+        t->image[a] = img;
     }
-    return m;
+    t->cap = cap;
+    return 1;
+}
+
+/* The image of a list entry as one key, a byte per axis (0: the box itself). */
+static inline int32_t pack_image_key(int dim, const int8_t *const image[CONSPH_MAX_DIM], size_t e)
+{
+    uint32_t key = 0;
+    for (int a = 0; a < dim; ++a) key |= (uint32_t)(uint8_t)image[a][e] << (8 * a);
+    return (int32_t)key;
+}
+
+static inline int image_of_key(int32_t key, int a)
+{
+    return (int8_t)(uint8_t)((uint32_t)key >> (8 * a));
+}
+
+/* Room for `rows` rows of xv (and the ghosts' arrays for rows - n of them). */
+static int reserve_rows(pack_list *L, size_t ghosts)
+{
+    if (ghosts > L->ghost_cap) {
+        size_t cap = ghosts + ghosts / 4 + 16;
+        uint32_t *src = realloc(L->ghost_src, cap * sizeof *src);
+        if (src) L->ghost_src = src;
+        int32_t *key = realloc(L->ghost_key, cap * sizeof *key);
+        if (key) L->ghost_key = key;
+        int32_t *next = realloc(L->ghost_next, cap * sizeof *next);
+        if (next) L->ghost_next = next;
+        if (!src || !key || !next) return CONSPH_ENOMEM;
+        L->ghost_cap = cap;
+    }
+    const size_t rows = L->n + L->ghost_cap + PACK_SLACK;
+    if (rows > L->xv_rows) {
+        free(L->xv);
+        const size_t bytes = rows * PACK_XV_STRIDE * sizeof(double); /* a multiple of 32 */
+        L->xv = aligned_alloc(32, bytes);
+        if (!L->xv) {
+            L->xv_rows = 0;
+            return CONSPH_ENOMEM;
+        }
+        memset(L->xv, 0, bytes); /* the slack rows hold finite values for vector reads */
+        L->xv_rows = rows;
+    }
+    return CONSPH_OK;
+}
+
+/* Points every entry with a non-zero image at the ghost of its (j, image), creating the ghosts
+ * in the order the entries first name them. */
+static int assign_ghosts(pack_list *L)
+{
+    const size_t n = L->n, entries = L->start[n];
+    const int dim = L->dim;
+    for (size_t i = 0; i < n; ++i) L->ghost_head[i] = -1;
+    L->n_ghost = 0;
+    for (size_t e = 0; e < entries; ++e) {
+        int any = L->image[0][e];
+        if (dim > 1) any |= L->image[1][e];
+        if (dim > 2) any |= L->image[2][e];
+        if (!any) continue;
+        const uint32_t j = L->j[e];
+        const int32_t key = pack_image_key(dim, (const int8_t *const *)L->image, e);
+        int32_t g = L->ghost_head[j];
+        while (g >= 0 && L->ghost_key[g] != key) g = L->ghost_next[g];
+        if (g < 0) {
+            if (n + L->n_ghost >= (size_t)INT32_MAX)
+                return consph_fail(CONSPH_EINVAL, "layout packing: too many periodic images");
+            int rc = reserve_rows(L, L->n_ghost + 1);
+            if (rc) return rc;
+            g = (int32_t)L->n_ghost++;
+            L->ghost_src[g] = j;
+            L->ghost_key[g] = key;
+            L->ghost_next[g] = L->ghost_head[j];
+            L->ghost_head[j] = g;
+        }
+        L->j[e] = (uint32_t)(n + (size_t)g);
+    }
+    return reserve_rows(L, L->n_ghost);
 }
 
 int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particles *p)
 {
     const size_t n = L->n;
+    const int dim = L->dim;
+    double inv_len[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
+    for (int a = 0; a < dim; ++a) inv_len[a] = 1.0 / L->len[a];
     int failed = 0;
-    /* Two walks of the search, counting then filling, so that each thread writes its own rows
-     * of one array. */
-    for (int fill = 0; fill < 2; ++fill) {
+    /* One walk of the search: each thread lists its contiguous range of particles into its own
+     * buffer, then copies it to its place in the list once the counts give the offsets. */
 #pragma omp parallel if (n >= 2048)
-        {
-            consph_nbrs nb;
-            memset(&nb, 0, sizeof nb);
+    {
+        consph_nbrs nb;
+        memset(&nb, 0, sizeof nb);
+        list_part t;
+        memset(&t, 0, sizeof t);
+        size_t first = n;
 #pragma omp for schedule(static)
-            for (size_t i = 0; i < n; ++i) {
-                size_t m = list_particle(L, grid, p, i, &nb, fill);
-                if (m == (size_t)-1) {
-#pragma omp atomic write
-                    failed = 1;
-                    m = 0;
-                }
-                if (!fill) L->start[i + 1] = m;
-            }
-            consph_nbrs_free(&nb);
-        }
-        if (failed) return CONSPH_ENOMEM;
-        if (fill) break;
-        L->start[0] = 0;
-        L->max_len = 0;
         for (size_t i = 0; i < n; ++i) {
-            if (L->start[i + 1] > L->max_len) L->max_len = L->start[i + 1];
-            L->start[i + 1] += L->start[i];
-        }
-        const size_t entries = L->start[n];
-        if (entries > L->cap) {
-            size_t cap = entries + entries / 8;
-            free(L->j);
-            /* calloc: the slack past the entries holds valid indices (0) for vector reads */
-            L->j = consph_calloc(cap + PACK_SLACK, sizeof *L->j);
-            free(L->dwr);
-            L->dwr = consph_calloc(cap + PACK_SLACK, sizeof *L->dwr);
-            int ok = L->j != NULL && L->dwr != NULL;
-            for (int a = 0; a < L->dim; ++a) {
-                free(L->image[a]);
-                ok &= (L->image[a] = consph_calloc(cap + PACK_SLACK, sizeof *L->image[a])) != NULL;
+            if (first == n) first = i;
+            size_t m = consph_nnps_query_particle(grid, i, &nb);
+            if (m == (size_t)-1 || !list_part_reserve(&t, dim, t.len + m)) {
+#pragma omp atomic write
+                failed = 1;
+                m = 0;
             }
-            if (!ok) return CONSPH_ENOMEM;
-            L->cap = cap;
+            for (size_t q = 0; q < m; ++q) {
+                const size_t j = nb.j[q];
+                t.j[t.len + q] = (uint32_t)j;
+                for (int a = 0; a < dim; ++a)
+                    t.image[a][t.len + q] =
+                        image_of(p->x[a][i], p->x[a][j], nb.dx[a][q], inv_len[a]);
+            }
+            t.len += m;
+            L->start[i + 1] = m;
         }
+#pragma omp single
+        {
+            if (!failed) {
+                L->start[0] = 0;
+                L->max_len = 0;
+                for (size_t i = 0; i < n; ++i) {
+                    if (L->start[i + 1] > L->max_len) L->max_len = L->start[i + 1];
+                    L->start[i + 1] += L->start[i];
+                }
+                const size_t entries = L->start[n];
+                if (entries > L->cap) {
+                    size_t cap = entries + entries / 8;
+                    free(L->j);
+                    /* calloc: the slack past the entries holds valid indices (0) for vector
+                     * reads */
+                    L->j = consph_calloc(cap + PACK_SLACK, sizeof *L->j);
+                    free(L->dwr);
+                    L->dwr = consph_calloc(cap + PACK_SLACK, sizeof *L->dwr);
+                    int ok = L->j != NULL && L->dwr != NULL;
+                    for (int a = 0; a < dim; ++a) {
+                        free(L->image[a]);
+                        ok &= (L->image[a] =
+                                   consph_calloc(cap + PACK_SLACK, sizeof *L->image[a])) != NULL;
+                    }
+                    L->cap = ok ? cap : 0;
+                    if (!ok) failed = 1;
+                }
+            }
+        }
+        if (!failed && t.len > 0) {
+            const size_t b = L->start[first];
+            memcpy(L->j + b, t.j, t.len * sizeof *t.j);
+            for (int a = 0; a < dim; ++a) memcpy(L->image[a] + b, t.image[a], t.len);
+        }
+        list_part_free(&t);
+        consph_nbrs_free(&nb);
     }
+    if (failed) return CONSPH_ENOMEM;
+    int rc = assign_ghosts(L);
+    if (rc) return rc;
     for (int a = 0; a < L->dim; ++a) memcpy(L->x_ref[a], p->x[a], n * sizeof(double));
     L->builds++;
     return CONSPH_OK;
+}
+
+void pack_list_fill_positions(pack_list *L, const consph_particles *p)
+{
+    const size_t n = L->n, rows = n + L->n_ghost;
+    const int dim = L->dim;
+    double *restrict xv = L->xv;
+#pragma omp parallel for schedule(static) if (rows >= 2048)
+    for (size_t r = 0; r < rows; ++r) {
+        if (r < n) {
+            for (int a = 0; a < dim; ++a) xv[PACK_XV_STRIDE * r + (size_t)a] = p->x[a][r];
+        } else {
+            const size_t g = r - n, src = L->ghost_src[g];
+            for (int a = 0; a < dim; ++a)
+                xv[PACK_XV_STRIDE * r + (size_t)a] =
+                    p->x[a][src] + (double)image_of_key(L->ghost_key[g], a) * L->len[a];
+        }
+    }
+}
+
+void pack_list_fill_ghost_weights(pack_list *L)
+{
+    const size_t n = L->n;
+    double *restrict xv = L->xv;
+    for (size_t g = 0; g < L->n_ghost; ++g)
+        xv[PACK_XV_STRIDE * (n + g) + PACK_XV_WEIGHT] =
+            xv[PACK_XV_STRIDE * (size_t)L->ghost_src[g] + PACK_XV_WEIGHT];
 }
