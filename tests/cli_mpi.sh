@@ -141,6 +141,16 @@ cp -r "$work/r3" "$work/rr"
 mpi 2 "$bin" run --restart "$work/rr/checkpoint.ckpt" --out "$work/rr" >/dev/null 2>"$work/err" &&
     same_run "$work/r1" "$work/rr" "restart of 3 ranks' checkpoint on 2" && pass=$((pass + 1)) ||
     bad "restart on 2 ranks: $(ours "$work/err")"
+# A restart to another end with other snapshot times (step 3 to 8, every 4): the snapshot of the
+# former end (step 6) is removed, as the serial restart removes it.
+cp -r "$work/r1" "$work/xs" && cp -r "$work/r1" "$work/xm"
+"$bin" run --restart "$work/xs/checkpoint.ckpt" --steps 8 --snapshot-every 4 --out "$work/xs" \
+    >/dev/null 2>"$work/err" || bad "serial restart to step 8: $(cat "$work/err")"
+[ ! -e "$work/xs/snap_000006.vtu" ] || bad "serial restart to step 8 kept the former end's snapshot"
+mpi 2 "$bin" run --restart "$work/xm/checkpoint.ckpt" --steps 8 --snapshot-every 4 --out "$work/xm" \
+    >/dev/null 2>"$work/err" &&
+    same_run "$work/xs" "$work/xm" "restart to step 8 on 2 ranks" && pass=$((pass + 1)) ||
+    bad "restart to step 8 on 2 ranks: $(ours "$work/err")"
 # Given particles (a random layout's file): each rank's set-up takes its share of them, the run
 # is the serial one.
 "$bin" layout --kind random --dim 2 --nx 24 --out "$work/given.csv" >/dev/null 2>"$work/err" ||

@@ -221,9 +221,10 @@ int io_checkpoint_write_source(const char *path, const char *meta, const consph_
     }
     ck_load(w, src, -1);
     for (int a = 0; a < p->dim; ++a) ck_put_doubles(w, p->x[a], p->n);
-    for (int f = 0; f < p->nfields; ++f) {
+    /* after a failed load or write the view's arrays may be NULL: no offset from them */
+    for (int f = 0; f < p->nfields && !w->failed; ++f) {
         ck_load(w, src, f);
-        for (int c = 0; c < p->fields[f].ncomp; ++c)
+        for (int c = 0; c < p->fields[f].ncomp && !w->failed; ++c)
             ck_put_doubles(w, p->fields[f].data + (size_t)c * p->cap, p->n);
     }
     ck_put_u64(w, nhistory);

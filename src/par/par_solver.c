@@ -1787,6 +1787,7 @@ static void stream_runs(par_solver *ps, stream_ctx *x)
         }
         ++mine[2 * r - 1];
     }
+    if (ps->nown > INT32_MAX || 2 * n > INT32_MAX) MPI_Abort(ps->comm, 1);
     const int two[2] = {(int)ps->nown, (int)(2 * n)};
     int *both = NULL, *displ = NULL;
     if (ps->rank == 0) {
@@ -2425,11 +2426,13 @@ typedef struct create_cut {
     const solver_range *range;
 } create_cut;
 
-/* The ranks agree that every one made its particles, then cut them (consph_par_solver_create). */
-static int agree_and_cut(consph_solver *s, void *arg)
+/* The ranks agree that every one made its particles (status: this rank's set-up so far; a
+ * rank that failed alone, e.g. its part of a packed layout no longer read back from the cache,
+ * brings its message to every rank), then cut them (consph_par_solver_create). */
+static int agree_and_cut(consph_solver *s, void *arg, int status)
 {
     create_cut *c = arg;
-    const int st = consph_par_agree(CONSPH_OK);
+    const int st = consph_par_agree(status);
     *c->joined = 1;
 #ifdef CONSPH_HAVE_MPI
     return st == CONSPH_OK ? decompose(s, c->range) : st;
@@ -2554,10 +2557,11 @@ int consph_par_given_share(consph_run_params *prm, consph_particles *given)
                                 (head[3] && !consph_particles_field(&mine, "p", 1))))
             st = CONSPH_ENOMEM;
     }
-    if (consph_par_max_int(st != CONSPH_OK)) {
+    /* the failing rank's message to every rank: rank 0 prints it */
+    if ((st = consph_par_agree(st)) != CONSPH_OK) {
         consph_particles_free(&mine);
         MPI_Comm_free(&comm);
-        return st != CONSPH_OK ? st : consph_fail(CONSPH_ENOMEM, "out of memory on another rank");
+        return st;
     }
     /* rank 0 keeps the whole set when every rank takes it */
     consph_particles *dst = rank == 0 && !ranged ? given : &mine;

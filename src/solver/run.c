@@ -11,6 +11,7 @@
 #include <unistd.h>
 
 #include "consph/io.h"
+#include "consph/par.h"
 #include "gpu/gpu_internal.h"
 #include "solver/runfiles.h"
 #include "solver/solver_internal.h"
@@ -113,6 +114,16 @@ static int solver_sample_if(consph_solver *s)
                              : CONSPH_OK;
 }
 
+/* consph_solver_output_fields; decomposed, every rank computes its own particles' and the
+ * ranks agree on the outcome: a rank that failed alone (the weakly-compressible reference of
+ * --exact wc|both is made on the ranks other than 0 here, at their first file) must not leave
+ * the others waiting in the writer's collectives. */
+static int output_fields(consph_solver *s)
+{
+    const int st = consph_solver_output_fields(s);
+    return s->par ? consph_par_agree(st) : st;
+}
+
 /* A snapshot; the log gets this instant's diagnostics first, if its cadence had not sampled
  * it. Decomposed over MPI ranks, every rank computes its particles' output fields (each a
  * function of the particle's own state and the time: consph_solver_output_fields), which the
@@ -120,7 +131,7 @@ static int solver_sample_if(consph_solver *s)
 static int write_snapshot(consph_solver *s, runfiles *f)
 {
     int st = solver_sample_if(s);
-    if (st == CONSPH_OK) st = consph_solver_output_fields(s);
+    if (st == CONSPH_OK) st = output_fields(s);
     return st == CONSPH_OK ? (s->par ? par_stream(s, snapshot_arrays, f) : snapshot_arrays(s, f))
                            : st;
 }
@@ -150,7 +161,7 @@ static int checkpoint_whole(consph_solver *s, void *vf)
  * elsewhere than the serial run's. */
 static int write_checkpoint(consph_solver *s, runfiles *f)
 {
-    int st = consph_solver_output_fields(s);
+    int st = output_fields(s);
     if (st != CONSPH_OK) return st;
     return s->par ? par_stream(s, checkpoint_whole, f) : checkpoint_whole(s, f);
 }
@@ -289,9 +300,17 @@ static int run_open(consph_solver *s, void *vf)
     if (st == CONSPH_OK) st = runfiles_text(f, "run.id", run_id_text, s->run_id);
     const char *pvd = st == CONSPH_OK ? runfiles_join(f, "run.pvd") : NULL;
     if (st == CONSPH_OK && !pvd) st = consph_fail(CONSPH_ENOMEM, "out of memory");
+    /* a restarted run keeps the index up to its checkpoint and rewrites what follows */
     if (st == CONSPH_OK && s->step > 0 && access(pvd, F_OK) == 0) {
         st = consph_pvd_load(&f->pvd, pvd);
         f->have_pvd = st == CONSPH_OK;
+        /* the snapshots after the checkpoint are rewritten, or stale: those of the run's former
+         * end when it continues to another (consph_solver_extend) */
+        for (size_t k = 0; st == CONSPH_OK && k < f->pvd.n; ++k) {
+            const char *snap = f->pvd.time[k] > s->t ? runfiles_join(f, f->pvd.file[k]) : NULL;
+            if (snap && unlink(snap) != 0 && errno != ENOENT)
+                st = consph_fail(CONSPH_EIO, "cannot remove '%s': %s", snap, strerror(errno));
+        }
         if (st == CONSPH_OK) st = consph_pvd_truncate(&f->pvd, s->t);
     } else if (st == CONSPH_OK) {
         st = runfiles_pvd_init(f);
@@ -332,32 +351,11 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
     const int files = out && out->dir;
     int st = CONSPH_OK;
     *stopped_by = 0;
-    if (files && s->par) {
-        /* rank 0 writes the files (reading no particle); the others follow its status */
-        const int fresh = !(s->step > 0);
-        st = par_stream(s, run_open, &f);
-        if (st == CONSPH_OK && fresh) st = write_snapshot(s, &f);
-    } else if (files) {
-        st = consph_run_dir_check(out->dir, s->step > 0 ? s->run_id : NULL, 0);
-        if (st == CONSPH_OK) st = runfiles_text(&f, "run.id", run_id_text, s->run_id);
-        const char *pvd = st == CONSPH_OK ? runfiles_join(&f, "run.pvd") : NULL;
-        if (st == CONSPH_OK && !pvd) st = consph_fail(CONSPH_ENOMEM, "out of memory");
-        /* a restarted run keeps the index up to its checkpoint and rewrites what follows */
-        if (st == CONSPH_OK && s->step > 0 && access(pvd, F_OK) == 0) {
-            st = consph_pvd_load(&f.pvd, pvd);
-            f.have_pvd = st == CONSPH_OK;
-            /* the snapshots after the checkpoint are rewritten, or stale: those of the run's
-             * former end when it continues to another (consph_solver_extend) */
-            for (size_t k = 0; st == CONSPH_OK && k < f.pvd.n; ++k) {
-                const char *snap = f.pvd.time[k] > s->t ? runfiles_join(&f, f.pvd.file[k]) : NULL;
-                if (snap && unlink(snap) != 0 && errno != ENOENT)
-                    st = consph_fail(CONSPH_EIO, "cannot remove '%s': %s", snap, strerror(errno));
-            }
-            if (st == CONSPH_OK) st = consph_pvd_truncate(&f.pvd, s->t);
-        } else if (st == CONSPH_OK) {
-            st = runfiles_pvd_init(&f);
-            if (st == CONSPH_OK && s->step == 0) st = write_snapshot(s, &f);
-        }
+    if (files) {
+        /* decomposed, rank 0 writes the files (reading no particle); the others follow its
+         * status */
+        st = s->par ? par_stream(s, run_open, &f) : run_open(s, &f);
+        if (st == CONSPH_OK && s->step == 0) st = write_snapshot(s, &f);
     }
     /* decomposed over MPI ranks, mpirun delivers the signals (a stop checkpoint would need
      * every rank to agree on the step) */

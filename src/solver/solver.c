@@ -308,7 +308,7 @@ int consph_solver_create_from(consph_solver **out, const consph_run_params *prm,
 
 int solver_create_cut(consph_solver **out, const consph_run_params *prm,
                       const consph_particles *given, const solver_range *range,
-                      int (*cut)(consph_solver *s, void *arg), void *arg)
+                      int (*cut)(consph_solver *s, void *arg, int status), void *arg)
 {
     *out = NULL;
     int st = consph_run_params_check(prm);
@@ -375,7 +375,7 @@ int solver_create_cut(consph_solver **out, const consph_run_params *prm,
     consph_particles_free(&src);
     consph_particles_free(&lat);
     if (st == CONSPH_OK && prm->rho_init == CONSPH_RHO_INIT_RHO0) solver_eos(s);
-    if (st == CONSPH_OK && cut) st = cut(s, arg);
+    if (cut) st = cut(s, arg, st);
     if (st == CONSPH_OK && cut) st = solver_nlist_start(s, 0);
     s->step_dt = s->dt;
     if (st == CONSPH_OK) st = initial_rates(s);
@@ -621,8 +621,8 @@ int consph_solver_step(consph_solver *s)
     if (st == CONSPH_OK) {
         step_close_arg a = {landed, on_host, dt};
         /* decomposed, a step that samples nothing takes the checks' verdict over the ranks;
-         * a failed check gathers what the checks read, for the serial message */
-        static const char *const checked[] = {SF_U, SF_RHOF, SF_P, SF_ID, SF_MASS, NULL};
+         * a failed check gathers what the checks read (one list with the sample's), for the
+         * serial message */
         const int samples = s->step % s->prm.log_every == 0 || consph_solver_done(s) ||
                             s->prm.error == CONSPH_ERROR_AUTHORS;
         int clean = 0;
@@ -631,10 +631,9 @@ int consph_solver_step(consph_solver *s)
             s->log_since += dt;
             s->step_dt = dt;
         } else if (st == CONSPH_OK) {
-            /* a sample gathers what it reads; the files that follow gather everything */
-            st = s->par
-                     ? par_global_some(s, step_close, &a, samples ? solver_sample_fields : checked)
-                     : solver_global(s, step_close, &a);
+            /* a sample gathers what it reads; the files that follow stream every array */
+            st = s->par ? par_global_some(s, step_close, &a, solver_sample_fields)
+                        : solver_global(s, step_close, &a);
         }
     }
     s->dt = full;

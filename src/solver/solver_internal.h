@@ -271,14 +271,16 @@ int solver_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void
 typedef struct solver_range {
     size_t lo, hi, n;
 } solver_range;
-/* consph_solver_create_from with cut(s, arg) (NULL: none) run on the particles and their
- * initial fields, before the neighbour list and the initial rates: the MPI decomposition's
- * set-up (src/par/par_solver.c), so that only the rank's part gets them. With a range (NULL:
- * the whole set), only those particles are made (a layout made by index, or given: all n or
- * only the range's), each with "id" its index among the n. */
+/* consph_solver_create_from with cut(s, arg, status) (NULL: none) run on the particles and
+ * their initial fields, before the neighbour list and the initial rates: the MPI
+ * decomposition's set-up (src/par/par_solver.c), so that only the rank's part gets them. cut
+ * is called whatever this rank's status so far (a collective: a rank that failed alone takes
+ * the others out of it), and returns the status of the cut. With a range (NULL: the whole
+ * set), only those particles are made (a layout made by index, or given: all n or only the
+ * range's), each with "id" its index among the n. */
 int solver_create_cut(consph_solver **out, const consph_run_params *prm,
                       const consph_particles *given, const solver_range *range,
-                      int (*cut)(consph_solver *s, void *arg), void *arg);
+                      int (*cut)(consph_solver *s, void *arg, int status), void *arg);
 /* consph_solver_restore of the particles [range->lo, range->hi) of a checkpoint's range->n
  * (NULL: all of them), before its cut: no neighbour list yet (the cut starts it). */
 int solver_restore_range(consph_solver **out, const char *meta, const consph_particles *particles,
