@@ -48,6 +48,9 @@
 #include "nnps/nnps_internal.h"
 #include "pass/nlist.h"
 
+/* a message of rank 0 to the others (consph_fail's text) */
+#define PAR_MSG_BYTES 1024
+
 struct par_solver {
     MPI_Comm comm;
     int rank, size;
@@ -1609,6 +1612,20 @@ static size_t gather_next(gather_msgs *g, int *from)
     return k;
 }
 
+/* Rank 0's status of a call that ran there, and its message (msg: PAR_MSG_BYTES), to every
+ * rank: the status every rank returns. */
+static int rank0_status(par_solver *ps, int st, char *msg)
+{
+    const double t1 = MPI_Wtime();
+    MPI_Bcast(&st, 1, MPI_INT, 0, ps->comm);
+    if (st != CONSPH_OK) {
+        MPI_Bcast(msg, PAR_MSG_BYTES, MPI_CHAR, 0, ps->comm);
+        consph_fail(st, "%s", msg);
+    }
+    ps->seconds += MPI_Wtime() - t1;
+    return st;
+}
+
 int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg,
                     const char *const *only)
 {
@@ -1688,7 +1705,7 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
     unsigned long long pairs = s->pairs - ps->pairs_base, total = 0;
     MPI_Reduce(&pairs, &total, 1, MPI_UNSIGNED_LONG_LONG, MPI_SUM, 0, ps->comm);
     ps->seconds += MPI_Wtime() - t0;
-    char msg[1024] = "";
+    char msg[PAR_MSG_BYTES] = "";
     if (ps->rank == 0) {
         /* the serial view: the whole set, no mask, nothing decomposed (a nested
          * solver_global runs at once) */
@@ -1717,14 +1734,7 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
         s->diag_buf = s->wc_buf = NULL;
         s->diag_cap = s->wc_cap = 0;
     }
-    const double t1 = MPI_Wtime();
-    MPI_Bcast(&st, 1, MPI_INT, 0, ps->comm);
-    if (st != CONSPH_OK) {
-        MPI_Bcast(msg, (int)sizeof msg, MPI_CHAR, 0, ps->comm);
-        consph_fail(st, "%s", msg);
-    }
-    ps->seconds += MPI_Wtime() - t1;
-    return st;
+    return rank0_status(ps, st, msg);
 }
 
 /* ---- files from one array at a time (par_stream) ----
@@ -1987,7 +1997,7 @@ int par_stream(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *a
     ps->seconds += MPI_Wtime() - t0;
     ps->stream = &x;
     int st = CONSPH_OK;
-    char msg[1024] = "";
+    char msg[PAR_MSG_BYTES] = "";
     if (ps->rank == 0) {
         const size_t pairs_local = s->pairs;
         s->pairs = ps->pairs_base + (size_t)total;
@@ -2007,14 +2017,7 @@ int par_stream(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *a
     free(x.runs);
     free(x.buf);
     free(x.msg);
-    const double t1 = MPI_Wtime();
-    MPI_Bcast(&st, 1, MPI_INT, 0, ps->comm);
-    if (st != CONSPH_OK) {
-        MPI_Bcast(msg, (int)sizeof msg, MPI_CHAR, 0, ps->comm);
-        consph_fail(st, "%s", msg);
-    }
-    ps->seconds += MPI_Wtime() - t1;
-    return st;
+    return rank0_status(ps, st, msg);
 }
 
 int par_sample_due(consph_solver *s)
