@@ -114,6 +114,51 @@ else
     pass=$((pass + 1))
 fi
 
+# Packed layouts are made before the workers start: once each, largest first, into the cache
+# the rows then read (the operator rows' at the sweep's nx, the solver rows' through their run
+# parameters), the same files as a serial study; none where the cache holds them, none with
+# --no-cache.
+cat >"$work/p.study" <<'STUDY'
+study = p
+[figure grad]
+op = grad
+layout = packed
+nx = 10,12
+series.form = asym,sym1
+[figure tgv]
+kind = run
+problem = taylor-green
+layout = packed
+nx = 8,12
+steps = 2
+[series EWCSPH]
+scheme = ewcsph
+STUDY
+XDG_CACHE_HOME=$work/c1 "$bin" study "$work/p.study" --quick --jobs 1 --out "$work/p1" >/dev/null 2>"$work/e1"
+XDG_CACHE_HOME=$work/c2 timeout 120 "$bin" study "$work/p.study" --quick --jobs 2 --out "$work/p2" \
+    >/dev/null 2>"$work/e2"
+rc=$?
+want="study: packing layout packed dim 2 nx 12 (1 of 3, 1 thread) before the rows start
+study: packing layout packed dim 2 nx 10 (2 of 3, 1 thread) before the rows start
+study: packing layout packed dim 2 nx 8 (3 of 3, 1 thread) before the rows start"
+if [ $rc != 0 ]; then
+    bad "packing ahead: exit $rc: $(cat "$work/e2")"
+elif [ "$(grep '^study: packing' "$work/e2")" != "$want" ] || grep -q '^study: packing' "$work/e1"; then
+    bad "packing ahead: lines $(grep '^study: packing' "$work/e1" "$work/e2")"
+elif [ "$(ls "$work/c2/consph" | grep -c '^layout-.*\.bin$')" != 3 ] ||
+    [ "$(ls "$work/c2/consph" | grep '^layout-.*\.bin$')" != "$(ls "$work/c1/consph" | grep '^layout-.*\.bin$')" ]; then
+    bad "packing ahead: cache $(ls "$work/c2/consph") want $(ls "$work/c1/consph")"
+else
+    same_study "$work/p1/p" "$work/p2/p" "packing ahead" && pass=$((pass + 1))
+fi
+XDG_CACHE_HOME=$work/c2 timeout 120 "$bin" study "$work/p.study" --quick --jobs 2 --out "$work/p3" \
+    >/dev/null 2>"$work/e3" && ! grep -q '^study: packing' "$work/e3" &&
+    XDG_CACHE_HOME=$work/c3 timeout 120 "$bin" study "$work/p.study" --quick --jobs 2 --no-cache \
+        --out "$work/p4" >/dev/null 2>"$work/e4" && ! grep -q '^study: packing' "$work/e4" &&
+    [ ! -e "$work/c3/consph" ] && same_study "$work/p1/p" "$work/p3/p" "packing ahead, cached" &&
+    same_study "$work/p1/p" "$work/p4/p" "packing ahead, --no-cache" && pass=$((pass + 1)) ||
+    bad "packing ahead with the cache full or off: $(cat "$work/e3" "$work/e4")"
+
 # Bad values.
 for j in 0 257 x; do
     failing 2 "option --jobs" /dev/null -- "$bin" study "$study" --quick --jobs $j --out "$work/b" &&
