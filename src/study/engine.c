@@ -989,10 +989,12 @@ static int study_run_with_cache(const consph_study *s, const consph_study_option
     rows_init(&rows, s, opt, files, dir);
     /* no more workers than units (a unit holds at least one row); one runs here */
     const int jobs = opt->jobs < rows.total ? opt->jobs : rows.total;
-    if (jobs > 1) {
-        if (user_cache) pack_ahead(s, opt, files, dir);
+    if (jobs > 1 && user_cache) pack_ahead(s, opt, files, dir);
+    /* Stopped while packing: no workers (they would inherit the stop request and take the one
+     * passed on as a second signal); the serial run below stops before its first row and writes
+     * the partial report. */
+    if (jobs > 1 && !consph_stop_requested())
         return study_run_jobs(s, opt, files, dir, state, &rows, jobs);
-    }
     rc = study_mkdir_p(dir, &created);
     /* A signal removes what was made as a failure does (study_remove_created). */
     if (rc == CONSPH_OK) consph_made_dir_register(dir, created);
