@@ -5,7 +5,8 @@
 # workers exits 130 with the partial report and the resume command once, and resumes on 3 to the
 # serial report; a SIGINT to the study stops every worker; a row that fails in a worker gives
 # the serial exit status and message, once; a worker killed by a signal is reported, not waited
-# on forever; bad values, --estimate: exit 2.
+# on forever; the packed layouts are made ahead of the workers, once, into the cache (not with
+# --no-cache), and a SIGINT then stops before any worker starts; bad values, --estimate: exit 2.
 # Usage: cli_study_jobs.sh <path-to-consph> <source-dir>
 set -u
 bin=$1 src=$2
@@ -158,6 +159,28 @@ XDG_CACHE_HOME=$work/c2 timeout 120 "$bin" study "$work/p.study" --quick --jobs 
     [ ! -e "$work/c3/consph" ] && same_study "$work/p1/p" "$work/p3/p" "packing ahead, cached" &&
     same_study "$work/p1/p" "$work/p4/p" "packing ahead, --no-cache" && pass=$((pass + 1)) ||
     bad "packing ahead with the cache full or off: $(cat "$work/e3" "$work/e4")"
+
+# A SIGINT while a layout is packed ahead: the packing ends, no worker starts, the partial
+# report and resume command follow (exit 130), and the layout stays in the cache.
+cat >"$work/q.study" <<'STUDY'
+study = q
+[figure grad]
+op = grad
+layout = packed
+nx = 64
+series.form = asym,sym1
+STUDY
+XDG_CACHE_HOME=$work/c5 timeout 60 "$bin" study "$work/q.study" --jobs 2 --out "$work/q" \
+    >/dev/null 2>"$work/e5" &
+pid=$!
+for _ in $(seq 200); do grep -q '^study: packing' "$work/e5" && break; sleep 0.05; done
+kill -INT $pid
+wait $pid
+rc=$?
+[ $rc = 130 ] && grep -q 'stopped by SIGINT; partial report' "$work/e5" &&
+    ! grep -q 'ended by signal' "$work/e5" &&
+    [ "$(ls "$work/c5/consph" | grep -c '^layout-.*\.bin$')" = 1 ] && pass=$((pass + 1)) ||
+    bad "SIGINT while packing ahead: exit $rc: $(cat "$work/e5")"
 
 # Bad values.
 for j in 0 257 x; do
