@@ -5,7 +5,8 @@
 # workers exits 130 with the partial report and the resume command once, and resumes on 3 to the
 # serial report; a SIGINT to the study stops every worker; a row that fails in a worker gives
 # the serial exit status and message, once; a worker killed by a signal is reported, not waited
-# on forever; bad values, --estimate: exit 2.
+# on forever; the packed layouts are made ahead of the workers, once, into the cache (not with
+# --no-cache), and a SIGINT then stops before any worker starts; bad values, --estimate: exit 2.
 # Usage: cli_study_jobs.sh <path-to-consph> <source-dir>
 set -u
 bin=$1 src=$2
@@ -113,6 +114,73 @@ elif [ "$(grep -cF "consph study: $msg" "$work/e2")" != 1 ]; then
 else
     pass=$((pass + 1))
 fi
+
+# Packed layouts are made before the workers start: once each, largest first, into the cache
+# the rows then read (the operator rows' at the sweep's nx, the solver rows' through their run
+# parameters), the same files as a serial study; none where the cache holds them, none with
+# --no-cache.
+cat >"$work/p.study" <<'STUDY'
+study = p
+[figure grad]
+op = grad
+layout = packed
+nx = 10,12
+series.form = asym,sym1
+[figure tgv]
+kind = run
+problem = taylor-green
+layout = packed
+nx = 8,12
+steps = 2
+[series EWCSPH]
+scheme = ewcsph
+STUDY
+XDG_CACHE_HOME=$work/c1 "$bin" study "$work/p.study" --quick --jobs 1 --out "$work/p1" >/dev/null 2>"$work/e1"
+XDG_CACHE_HOME=$work/c2 timeout 120 "$bin" study "$work/p.study" --quick --jobs 2 --out "$work/p2" \
+    >/dev/null 2>"$work/e2"
+rc=$?
+want="study: packing layout packed dim 2 nx 12 (1 of 3, 1 thread) before the rows start
+study: packing layout packed dim 2 nx 10 (2 of 3, 1 thread) before the rows start
+study: packing layout packed dim 2 nx 8 (3 of 3, 1 thread) before the rows start"
+if [ $rc != 0 ]; then
+    bad "packing ahead: exit $rc: $(cat "$work/e2")"
+elif [ "$(grep '^study: packing' "$work/e2")" != "$want" ] || grep -q '^study: packing' "$work/e1"; then
+    bad "packing ahead: lines $(grep '^study: packing' "$work/e1" "$work/e2")"
+elif [ "$(ls "$work/c2/consph" | grep -c '^layout-.*\.bin$')" != 3 ] ||
+    [ "$(ls "$work/c2/consph" | grep '^layout-.*\.bin$')" != "$(ls "$work/c1/consph" | grep '^layout-.*\.bin$')" ]; then
+    bad "packing ahead: cache $(ls "$work/c2/consph") want $(ls "$work/c1/consph")"
+else
+    same_study "$work/p1/p" "$work/p2/p" "packing ahead" && pass=$((pass + 1))
+fi
+XDG_CACHE_HOME=$work/c2 timeout 120 "$bin" study "$work/p.study" --quick --jobs 2 --out "$work/p3" \
+    >/dev/null 2>"$work/e3" && ! grep -q '^study: packing' "$work/e3" &&
+    XDG_CACHE_HOME=$work/c3 timeout 120 "$bin" study "$work/p.study" --quick --jobs 2 --no-cache \
+        --out "$work/p4" >/dev/null 2>"$work/e4" && ! grep -q '^study: packing' "$work/e4" &&
+    [ ! -e "$work/c3/consph" ] && same_study "$work/p1/p" "$work/p3/p" "packing ahead, cached" &&
+    same_study "$work/p1/p" "$work/p4/p" "packing ahead, --no-cache" && pass=$((pass + 1)) ||
+    bad "packing ahead with the cache full or off: $(cat "$work/e3" "$work/e4")"
+
+# A SIGINT while a layout is packed ahead: the packing ends, no worker starts, the partial
+# report and resume command follow (exit 130), and the layout stays in the cache.
+cat >"$work/q.study" <<'STUDY'
+study = q
+[figure grad]
+op = grad
+layout = packed
+nx = 64
+series.form = asym,sym1
+STUDY
+XDG_CACHE_HOME=$work/c5 timeout 60 "$bin" study "$work/q.study" --jobs 2 --out "$work/q" \
+    >/dev/null 2>"$work/e5" &
+pid=$!
+for _ in $(seq 200); do grep -q '^study: packing' "$work/e5" && break; sleep 0.05; done
+kill -INT $pid
+wait $pid
+rc=$?
+[ $rc = 130 ] && grep -q 'stopped by SIGINT; partial report' "$work/e5" &&
+    ! grep -q 'ended by signal' "$work/e5" &&
+    [ "$(ls "$work/c5/consph" | grep -c '^layout-.*\.bin$')" = 1 ] && pass=$((pass + 1)) ||
+    bad "SIGINT while packing ahead: exit $rc: $(cat "$work/e5")"
 
 # Bad values.
 for j in 0 257 x; do

@@ -864,8 +864,115 @@ static int device_sharing(const consph_study_options *opt)
     return CONSPH_OK;
 }
 
+/* ---- the packed layouts, made before the workers start ---- */
+
+/* A packed layout that the study's rows read and the cache does not hold yet. */
+typedef struct packing_entry {
+    consph_layout_params lp;
+    char key[512];
+    double n;
+} packing_entry;
+
+typedef struct packing_list {
+    packing_entry *e;
+    int n, cap;
+} packing_list;
+
+static void packing_add(const consph_layout_params *lp, void *ctx)
+{
+    packing_list *l = ctx;
+    if (lp->kind != CONSPH_LAYOUT_PACKED && lp->kind != CONSPH_LAYOUT_PACKED_POLISHED) return;
+    char key[512], path[4352];
+    if (consph_layout_cache_key(lp, key, sizeof key) != CONSPH_OK) return;
+    for (int q = 0; q < l->n; ++q)
+        if (!strcmp(l->e[q].key, key)) return;
+    if (consph_layout_cache_path(lp, path, sizeof path) == CONSPH_OK && access(path, R_OK) == 0)
+        return;
+    if (l->n == l->cap) {
+        const int cap = l->cap ? 2 * l->cap : 16;
+        packing_entry *e = realloc(l->e, (size_t)cap * sizeof *e);
+        /* out of memory: the rows pack what is not listed, as they would anyway */
+        if (!e) return;
+        l->e = e;
+        l->cap = cap;
+    }
+    packing_entry *e = &l->e[l->n++];
+    e->lp = *lp;
+    snprintf(e->key, sizeof e->key, "%s", key);
+    e->n = 1.0;
+    for (int a = 0; a < lp->dim; ++a) e->n *= (double)lp->nx[a];
+}
+
+static int by_particles_descending(const void *a, const void *b)
+{
+    const packing_entry *x = a, *y = b;
+    return x->n < y->n ? 1 : x->n > y->n ? -1 : strcmp(x->key, y->key);
+}
+
+/* The layouts every operator series reads (as study_estimate_plans counts them: at nx_fixed
+ * across an hdx sweep) and every solver row reads (study_run_layouts). Particle files replace
+ * the operator series' layouts. */
+static void packing_figure(const consph_study *s, const study_figure *f, int quick,
+                           const study_files *files, packing_list *l)
+{
+    const study_kind *kind = study_kind_of(s, f);
+    if (kind == &study_kind_run) {
+        study_run_layouts(s, f, quick, packing_add, l);
+        return;
+    }
+    if (files ||
+        (kind != &study_kind_approx && kind != &study_kind_m0 && kind != &study_kind_cauchy))
+        return;
+    for (int r = 0; r < f->nseries; ++r) {
+        series_plan pl;
+        if (study_plan_build(s, f, &f->series[r], quick, &pl) != CONSPH_OK) continue;
+        for (int j = 0; j < pl.nvalues; ++j) {
+            const size_t nx = pl.sweep_hdx ? pl.nx_fixed : (size_t)pl.values[j];
+            consph_layout_params lp = pl.spec.layout;
+            for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
+            packing_add(&lp, l);
+        }
+    }
+}
+
+/* Before the worker processes start, this process packs every packed layout the rows will read
+ * that the cache lacks, largest first, one after the other on all its threads, through the cache
+ * (consph_layout_generate), so that the rows read the files it writes. Without it the first row
+ * that needs a large layout packs it on its worker's one thread while the other workers, whose
+ * rows need the same layout, wait on the cache's lock. The figures that --resume keeps need
+ * none. A layout that fails here is left to its rows, which report the failure as they would
+ * have. A stop request ends the list after the layout being packed (packing is not
+ * interruptible); the workers then stop at once and the partial report is written. */
+static void pack_ahead(const consph_study *s, const consph_study_options *opt,
+                       const study_files *files, const char *dir)
+{
+    packing_list l = {NULL, 0, 0};
+    for (int k = 0; k < s->nfigs; ++k) {
+        char done[STUDY_PATH_MAX];
+        if (opt->resume && figure_done_path(done, dir, &s->figs[k]) == CONSPH_OK &&
+            access(done, F_OK) == 0)
+            continue;
+        packing_figure(s, &s->figs[k], opt->quick, files, &l);
+    }
+    if (l.n > 1) qsort(l.e, (size_t)l.n, sizeof *l.e, by_particles_descending);
+    for (int q = 0; q < l.n && !consph_stop_requested(); ++q) {
+        const consph_layout_params *lp = &l.e[q].lp;
+        if (opt->progress) {
+            fprintf(stderr,
+                    "study: packing layout %s dim %d nx %zu (%d of %d, %d thread%s) before the "
+                    "rows start\n",
+                    consph_layout_name(lp->kind), lp->dim, lp->nx[0], q + 1, l.n,
+                    consph_num_threads(), consph_num_threads() == 1 ? "" : "s");
+            fflush(stderr);
+        }
+        consph_particles p;
+        if (consph_layout_generate(lp, &p, NULL) == CONSPH_OK) consph_particles_free(&p);
+    }
+    free(l.e);
+}
+
 static int study_run_with_cache(const consph_study *s, const consph_study_options *asked,
-                                const study_files *files)
+                                const study_files *files, int user_cache)
 {
     char dir[STUDY_PATH_MAX], state[512];
     consph_study_options resolved = *asked;
@@ -882,7 +989,12 @@ static int study_run_with_cache(const consph_study *s, const consph_study_option
     rows_init(&rows, s, opt, files, dir);
     /* no more workers than units (a unit holds at least one row); one runs here */
     const int jobs = opt->jobs < rows.total ? opt->jobs : rows.total;
-    if (jobs > 1) return study_run_jobs(s, opt, files, dir, state, &rows, jobs);
+    if (jobs > 1 && user_cache) pack_ahead(s, opt, files, dir);
+    /* Stopped while packing: no workers (they would inherit the stop request and take the one
+     * passed on as a second signal); the serial run below stops before its first row and writes
+     * the partial report. */
+    if (jobs > 1 && !consph_stop_requested())
+        return study_run_jobs(s, opt, files, dir, state, &rows, jobs);
     rc = study_mkdir_p(dir, &created);
     /* A signal removes what was made as a failure does (study_remove_created). */
     if (rc == CONSPH_OK) consph_made_dir_register(dir, created);
@@ -921,7 +1033,8 @@ static int study_run(const consph_study *s, const consph_study_options *asked,
                      const study_files *files)
 {
     char priv[STUDY_PATH_MAX] = "";
-    if (!consph_layout_cache_get()) {
+    const int user_cache = consph_layout_cache_get() != NULL;
+    if (!user_cache) {
         const char *tmp = getenv("TMPDIR");
         if (!tmp || tmp[0] != '/') tmp = "/tmp";
         /* where none can be made, the rows pack their own as before */
@@ -933,7 +1046,8 @@ static int study_run(const consph_study *s, const consph_study_options *asked,
             priv[0] = '\0';
         }
     }
-    const int rc = study_run_with_cache(s, asked, files);
+    /* --no-cache: no packing ahead (pack_ahead); the rows share the private cache as ever */
+    const int rc = study_run_with_cache(s, asked, files, user_cache);
     if (priv[0]) {
         consph_layout_cache_set(NULL);
         remove_private_cache(priv);

@@ -170,6 +170,23 @@ static double run_packing_seconds(const consph_run_params *prm, char (*seen)[512
     return study_packing_seconds(&lp);
 }
 
+int study_run_layouts(const consph_study *s, const study_figure *f, int quick,
+                      void (*add)(const consph_layout_params *lp, void *ctx), void *ctx)
+{
+    for (int k = 0; k < f->nseries; ++k) {
+        run_plan pl;
+        int rc = plan_build(s, f, &f->series[k], quick, &pl);
+        if (rc) return rc;
+        for (int j = 0; j < pl.nnx; ++j) {
+            consph_run_params row = pl.prm;
+            row.nx = (int)pl.nx[j];
+            consph_layout_params lp;
+            if (consph_run_layout_params(&row, &lp) == CONSPH_OK) add(&lp, ctx);
+        }
+    }
+    return CONSPH_OK;
+}
+
 static double finest_h(const run_plan *pl);
 
 /* One calibration run of a series at nx per side, on its own layout (a packed one is packed once

@@ -144,6 +144,10 @@ void study_run_gpu_refusals(const consph_study *s, const study_figure *f, int qu
  * run of its first series). */
 double study_run_estimate(const consph_study *s, const study_figure *f, int quick,
                           double *particle_steps);
+/* Calls add(lp, ctx) with the layout of every run of the figure (consph_run_layout_params, as
+ * its rows make them), in row order: what a study packs before its workers start (engine.c). */
+int study_run_layouts(const consph_study *s, const study_figure *f, int quick,
+                      void (*add)(const consph_layout_params *lp, void *ctx), void *ctx);
 #define STUDY_MAX_SWEEP MAX_SWEEP
 
 /* ---- kind = heat (kinds/heat.c): 002's heat-conduction runs, S3 against S4 (docs/heat.md) ---- */
