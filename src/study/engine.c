@@ -972,7 +972,7 @@ static void pack_ahead(const consph_study *s, const consph_study_options *opt,
 }
 
 static int study_run_with_cache(const consph_study *s, const consph_study_options *asked,
-                                const study_files *files, int user_cache)
+                                const study_files *files, int cached)
 {
     char dir[STUDY_PATH_MAX], state[512];
     consph_study_options resolved = *asked;
@@ -989,7 +989,7 @@ static int study_run_with_cache(const consph_study *s, const consph_study_option
     rows_init(&rows, s, opt, files, dir);
     /* no more workers than units (a unit holds at least one row); one runs here */
     const int jobs = opt->jobs < rows.total ? opt->jobs : rows.total;
-    if (jobs > 1 && user_cache) pack_ahead(s, opt, files, dir);
+    if (jobs > 1 && cached) pack_ahead(s, opt, files, dir);
     /* Stopped while packing: no workers (they would inherit the stop request and take the one
      * passed on as a second signal); the serial run below stops before its first row and writes
      * the partial report. */
@@ -1046,8 +1046,9 @@ static int study_run(const consph_study *s, const consph_study_options *asked,
             priv[0] = '\0';
         }
     }
-    /* --no-cache: no packing ahead (pack_ahead); the rows share the private cache as ever */
-    const int rc = study_run_with_cache(s, asked, files, user_cache);
+    /* --no-cache: the rows share the private cache, and the layouts are packed ahead into it as
+     * into the user's (pack_ahead); none where it could not be made */
+    const int rc = study_run_with_cache(s, asked, files, user_cache || priv[0]);
     if (priv[0]) {
         consph_layout_cache_set(NULL);
         remove_private_cache(priv);
