@@ -935,14 +935,16 @@ static void packing_figure(const consph_study *s, const study_figure *f, int qui
     }
 }
 
-/* Before the worker processes start, this process packs every packed layout the rows will read
- * that the cache lacks, largest first, one after the other on all its threads, through the cache
- * (consph_layout_generate), so that the rows read the files it writes. Without it the first row
- * that needs a large layout packs it on its worker's one thread while the other workers, whose
- * rows need the same layout, wait on the cache's lock. The figures that --resume keeps need
- * none. A layout that fails here is left to its rows, which report the failure as they would
- * have. A stop request ends the list after the layout being packed (packing is not
- * interruptible); the workers then stop at once and the partial report is written. */
+/* Before the rows (and the worker processes) start, this process packs every packed layout the
+ * rows will read that the cache lacks, largest first, one after the other on all its threads,
+ * through the cache (consph_layout_generate), so that the rows read the files it writes. Without
+ * it the first row that needs a large layout packs it on its worker's one thread while the other
+ * workers, whose rows need the same layout, wait on the cache's lock; and alone, the progress
+ * line's ETA (remaining pairs at the rows' rate so far) would count a row's packing as the cost
+ * of its pairs. The figures that --resume keeps need none. A layout that fails here is left to its
+ * rows, which report the failure as they would have. A stop request ends the list after the layout
+ * being packed (packing is not interruptible); the workers then stop at once and the partial report
+ * is written. */
 static void pack_ahead(const consph_study *s, const consph_study_options *opt,
                        const study_files *files, const char *dir)
 {
@@ -989,7 +991,7 @@ static int study_run_with_cache(const consph_study *s, const consph_study_option
     rows_init(&rows, s, opt, files, dir);
     /* no more workers than units (a unit holds at least one row); one runs here */
     const int jobs = opt->jobs < rows.total ? opt->jobs : rows.total;
-    if (jobs > 1 && cached) pack_ahead(s, opt, files, dir);
+    if (cached) pack_ahead(s, opt, files, dir);
     /* Stopped while packing: no workers (they would inherit the stop request and take the one
      * passed on as a second signal); the serial run below stops before its first row and writes
      * the partial report. */
