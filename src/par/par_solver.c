@@ -34,6 +34,7 @@
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
+#include <string.h>
 
 #ifdef CONSPH_HAVE_MPI
 
@@ -1786,7 +1787,7 @@ static void stream_runs(par_solver *ps, stream_ctx *x)
     for (size_t o = 0; o < ps->nown; ++o)
         if (o == 0 || ps->g[ps->own[o]] != ps->g[ps->own[o - 1]] + 1.0) ++n;
     uint64_t *mine = malloc((n ? 2 * n : 1) * sizeof *mine);
-    if (!mine || 2 * n > INT32_MAX) MPI_Abort(ps->comm, 1);
+    if (!mine || ps->nown > INT32_MAX || 2 * n > INT32_MAX) MPI_Abort(ps->comm, 1);
     size_t r = 0;
     for (size_t o = 0; o < ps->nown; ++o) {
         const uint64_t g = (uint64_t)ps->g[ps->own[o]];
@@ -1797,7 +1798,6 @@ static void stream_runs(par_solver *ps, stream_ctx *x)
         }
         ++mine[2 * r - 1];
     }
-    if (ps->nown > INT32_MAX || 2 * n > INT32_MAX) MPI_Abort(ps->comm, 1);
     const int two[2] = {(int)ps->nown, (int)(2 * n)};
     int *both = NULL, *displ = NULL;
     if (ps->rank == 0) {
@@ -2450,7 +2450,7 @@ static int agree_and_cut(consph_solver *s, void *arg, int status)
  * remeshes onto the lattice (refused decomposed) or more ranks than particles (refused, the
  * message the whole set's cut gives). Collective: every rank calls it with the same run. */
 static int setup_range(const consph_run_params *prm, const consph_particles *given, int rank,
-                       int size, solver_range *r)
+                       int size, solver_range *r, consph_particles *keep)
 {
     const scheme_def *sd = scheme_find(prm->scheme);
     consph_layout_params lp;
@@ -2470,15 +2470,22 @@ static int setup_range(const consph_run_params *prm, const consph_particles *giv
     r->n = n;
     r->lo = n * (size_t)rank / (size_t)size;
     r->hi = n * (size_t)(rank + 1) / (size_t)size;
+    r->made = NULL;
     if (given || consph_layout_by_index(lp.kind)) return 1;
     /* a packed layout: its parts from the layout cache when every rank reads a valid file
-     * there (each reads its range, then the set-up reads it again), else the whole set packed
-     * (or read) on every rank */
+     * there (each reads its range once, kept in *keep for the set-up: r->made), else the whole
+     * set packed (or read) on every rank */
     consph_particles part;
     const int mine = consph_layout_cache_get() &&
                      consph_layout_generate_range(&lp, r->lo, r->hi - r->lo, &part) == CONSPH_OK;
-    if (mine) consph_particles_free(&part);
-    return !consph_par_max_int(!mine);
+    const int all = !consph_par_max_int(!mine);
+    if (mine && all && keep) {
+        *keep = part;
+        r->made = keep;
+    } else if (mine) {
+        consph_particles_free(&part);
+    }
+    return all;
 }
 
 int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
@@ -2490,9 +2497,13 @@ int consph_par_solver_create(consph_solver **out, const consph_run_params *prm,
     const int size = consph_par_size();
     if (size < 2) return consph_solver_create_from(out, prm, given);
     solver_range range;
-    const int ranged = setup_range(prm, given, consph_par_rank(), size, &range);
+    consph_particles part; /* a packed layout's part read from the cache: the set-up takes it */
+    memset(&part, 0, sizeof part);
+    const int ranged = setup_range(prm, given, consph_par_rank(), size, &range, &part);
     create_cut c = {joined, ranged ? &range : NULL};
-    return solver_create_cut(out, prm, given, c.range, agree_and_cut, &c);
+    const int st = solver_create_cut(out, prm, given, c.range, agree_and_cut, &c);
+    consph_particles_free(&part); /* left there when the set-up failed before taking it */
+    return st;
 }
 
 #ifdef CONSPH_HAVE_MPI
@@ -2550,7 +2561,7 @@ int consph_par_given_share(consph_run_params *prm, consph_particles *given)
     /* ranged as consph_par_solver_create will be (every rank the same answer); else every
      * rank takes the whole set, as when each read the file */
     solver_range r;
-    const int ranged = st == CONSPH_OK && setup_range(prm, given, rank, size, &r);
+    const int ranged = st == CONSPH_OK && setup_range(prm, given, rank, size, &r, NULL);
     const size_t m = ranged ? r.hi - r.lo : n;
     consph_particles mine;
     memset(&mine, 0, sizeof mine);
@@ -2608,6 +2619,6 @@ int consph_par_run_restart(consph_solver **s, const char *checkpoint)
         consph_particles_free(&p);
         return consph_run_restart(s, checkpoint);
     }
-    const solver_range range = {first, first + p.n, total};
+    const solver_range range = {first, first + p.n, total, NULL};
     return solver_restore_read(s, checkpoint, meta, &p, hist, nh, &range);
 }

@@ -333,9 +333,12 @@ int solver_create_cut(consph_solver **out, const consph_run_params *prm,
     if (st == CONSPH_OK) st = consph_run_layout_params(prm, &lp);
     consph_particles src = {0}, lat = {0};
     size_t goff = 0; /* the place of src's first particle in `given` */
-    if (st == CONSPH_OK && given)
+    if (st == CONSPH_OK && given) {
         st = given_particles(s, given, range, &src, &goff);
-    else if (st == CONSPH_OK)
+    } else if (st == CONSPH_OK && range && range->made) {
+        src = *range->made;
+        memset(range->made, 0, sizeof *range->made);
+    } else if (st == CONSPH_OK)
         st = range ? consph_layout_generate_range(&lp, range->lo, range->hi - range->lo, &src)
                    : consph_layout_generate(&lp, &src, NULL);
     consph_kernel k;

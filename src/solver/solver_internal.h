@@ -267,9 +267,12 @@ struct consph_solver {
  * what reads every particle: diagnostics, checks, files. */
 int solver_global(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *arg);
 /* A rank's share of a decomposed set-up: the particles [lo, hi) of the n in the layout's (or
- * the given particles') order. */
+ * the given particles') order. made: those particles already made from the layout (a packed
+ * layout's part read from the cache), which solver_create_cut takes over (leaving it empty)
+ * instead of making them again; NULL: it makes them. */
 typedef struct solver_range {
     size_t lo, hi, n;
+    consph_particles *made;
 } solver_range;
 /* consph_solver_create_from with cut(s, arg, status) (NULL: none) run on the particles and
  * their initial fields, before the neighbour list and the initial rates: the MPI
