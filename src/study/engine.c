@@ -157,8 +157,7 @@ int study_estimate_plans(const consph_study *s, const study_figure *f, int quick
                     dup = !memcmp(e->seen[q], key, sizeof key);
                 if (!dup) {
                     if (e->nseen < 256) memcpy(e->seen[e->nseen++], key, sizeof key);
-                    consph_layout_params lp = pl.spec.layout;
-                    for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? (size_t)nx : 1;
+                    const consph_layout_params lp = study_plan_row_layout(&pl, j);
                     e->seconds += study_packing_seconds(&lp);
                 }
             }
@@ -927,9 +926,7 @@ static void packing_figure(const consph_study *s, const study_figure *f, int qui
         series_plan pl;
         if (study_plan_build(s, f, &f->series[r], quick, &pl) != CONSPH_OK) continue;
         for (int j = 0; j < pl.nvalues; ++j) {
-            const size_t nx = pl.sweep_hdx ? pl.nx_fixed : (size_t)pl.values[j];
-            consph_layout_params lp = pl.spec.layout;
-            for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
+            const consph_layout_params lp = study_plan_row_layout(&pl, j);
             packing_add(&lp, l);
         }
     }

@@ -255,6 +255,14 @@ double study_pairs_estimate(const series_plan *pl, double nx)
     return n * (1.0 + consph_approx_neighbours(&pl->spec, (size_t)n, 1.0, 1.0 / nx));
 }
 
+consph_layout_params study_plan_row_layout(const series_plan *pl, int j)
+{
+    const size_t nx = pl->sweep_hdx ? pl->nx_fixed : (size_t)pl->values[j];
+    consph_layout_params lp = pl->spec.layout;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) lp.nx[a] = a < lp.dim ? nx : 1;
+    return lp;
+}
+
 /* The work of row j (neighbour pairs), the unit of the progress line's ETA. */
 double study_plan_row_work(const series_plan *pl, int j)
 {

@@ -67,6 +67,9 @@ double study_pairs_estimate(const series_plan *pl, double nx);
 /* The work of row j of a plan (neighbour pairs), and the rows of an operator figure with their
  * work: study_kind.rows of the kinds that report rows. */
 double study_plan_row_work(const series_plan *pl, int j);
+/* The layout row j of the plan reads: its kind at nx = values[j], or nx_fixed across an h/dx
+ * sweep. */
+consph_layout_params study_plan_row_layout(const series_plan *pl, int j);
 int study_plan_rows(const consph_study *s, const study_figure *f, int quick,
                     const study_files *files, double *work);
 /* Period-1 fields repeat on a periodic axis only when its length is a whole number. */
