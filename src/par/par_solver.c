@@ -1613,6 +1613,48 @@ static size_t gather_next(gather_msgs *g, int *from)
     return k;
 }
 
+/* Rank 0 receives the messages of a gather (gather_msgs over cnt, `per` doubles per particle)
+ * into two buffers `room` doubles apart, the next one while place(ctx, sender, message, k)
+ * takes the last. */
+static void receive_parts(par_solver *ps, const int *cnt, size_t chunk, size_t per, int tag,
+                          double *bufs, size_t room,
+                          void (*place)(void *ctx, int from, const double *msg, size_t k),
+                          void *ctx)
+{
+    gather_msgs it = {cnt, ps->size, 0, 0, chunk};
+    MPI_Request req = MPI_REQUEST_NULL;
+    int from = 0, cur = 0;
+    size_t k = gather_next(&it, &from);
+    if (k) MPI_Irecv(bufs, (int)(k * per), MPI_DOUBLE, from, tag, ps->comm, &req);
+    while (k) {
+        const double t0 = MPI_Wtime();
+        MPI_Wait(&req, MPI_STATUS_IGNORE);
+        const int sender = from;
+        const size_t next = gather_next(&it, &from);
+        if (next)
+            MPI_Irecv(bufs + (size_t)(1 - cur) * room, (int)(next * per), MPI_DOUBLE, from, tag,
+                      ps->comm, &req);
+        ps->seconds += MPI_Wtime() - t0;
+        place(ctx, sender, bufs + (size_t)cur * room, k);
+        cur = 1 - cur;
+        k = next;
+    }
+}
+
+/* par_global_some's messages: each particle's values, its serial index last. */
+typedef struct unpack_ctx {
+    consph_particles *full;
+    size_t per;
+} unpack_ctx;
+
+static void place_unpacked(void *ctx, int from, const double *v, size_t k)
+{
+    const unpack_ctx *u = ctx;
+    (void)from;
+    for (size_t j = 0; j < k; ++j)
+        unpack(u->full, (size_t)v[j * u->per + u->per - 1], v + j * u->per);
+}
+
 /* Rank 0's status of a call that ran there, and its message (msg: PAR_MSG_BYTES), to every
  * rank: the status every rank returns. */
 static int rank0_status(par_solver *ps, int st, char *msg)
@@ -1681,24 +1723,8 @@ int par_global_some(consph_solver *s, int (*fn)(consph_solver *s, void *arg), vo
             pack_selected(p, sel, ps->own[o], buf);
             unpack(&full, (size_t)ps->g[ps->own[o]], buf);
         }
-        gather_msgs it = {pcnt, ps->size, 0, 0, chunk};
-        MPI_Request req = MPI_REQUEST_NULL;
-        int from = 0, cur = 0;
-        size_t k = gather_next(&it, &from);
-        if (k) MPI_Irecv(buf, (int)(k * per), MPI_DOUBLE, from, TAG_GATHER, ps->comm, &req);
-        while (k) {
-            t0 = MPI_Wtime();
-            MPI_Wait(&req, MPI_STATUS_IGNORE);
-            const size_t next = gather_next(&it, &from);
-            if (next)
-                MPI_Irecv(buf + (size_t)(1 - cur) * room * per, (int)(next * per), MPI_DOUBLE, from,
-                          TAG_GATHER, ps->comm, &req);
-            ps->seconds += MPI_Wtime() - t0;
-            const double *v = buf + (size_t)cur * room * per;
-            for (size_t j = 0; j < k; ++j) unpack(&full, (size_t)v[j * per + per - 1], v + j * per);
-            cur = 1 - cur;
-            k = next;
-        }
+        unpack_ctx u = {&full, per};
+        receive_parts(ps, pcnt, chunk, per, TAG_GATHER, buf, room * per, place_unpacked, &u);
     }
     free(buf);
     free(pcnt);
@@ -1855,6 +1881,28 @@ static void stream_place(const stream_ctx *x, double *out, size_t nglobal, int n
     }
 }
 
+/* stream_gather's messages, placed by the sender's runs (stream_place), from its first run at
+ * its first message. */
+typedef struct place_ctx {
+    const stream_ctx *x;
+    double *out;
+    size_t ng;
+    int nc, at;
+    size_t r;
+    uint64_t off;
+} place_ctx;
+
+static void place_runs(void *ctx, int from, const double *msg, size_t k)
+{
+    place_ctx *c = ctx;
+    if (from != c->at) {
+        c->at = from;
+        c->r = c->x->run_off[from];
+        c->off = 0;
+    }
+    stream_place(c->x, c->out, c->ng, c->nc, msg, k, &c->r, &c->off);
+}
+
 /* The values of the positions (field -1) or of field `field` of the owned particles: rank 0
  * puts every rank's at their serial indices in x->buf (component c from c·nglobal), the
  * others send theirs in messages of at most GATHER_MSG_BYTES. */
@@ -1891,32 +1939,9 @@ static void stream_gather(consph_solver *s, stream_ctx *x, int field)
             out[(size_t)c * ng + (size_t)ps->g[ps->own[o]]] = v[ps->own[o]];
     }
 #undef COL
-    const size_t room = x->msg_cap / 2;
-    gather_msgs it = {x->cnt, ps->size, 0, 0, chunk};
-    MPI_Request req = MPI_REQUEST_NULL;
-    int from = 0, cur = 0, at = -1;
-    size_t r = 0;
-    uint64_t off = 0;
-    size_t k = gather_next(&it, &from);
-    if (k) MPI_Irecv(x->msg, (int)(k * (size_t)nc), MPI_DOUBLE, from, TAG_STREAM, ps->comm, &req);
-    while (k) {
-        t0 = MPI_Wtime();
-        MPI_Wait(&req, MPI_STATUS_IGNORE);
-        const int sender = from;
-        const size_t next = gather_next(&it, &from);
-        if (next)
-            MPI_Irecv(x->msg + (size_t)(1 - cur) * room, (int)(next * (size_t)nc), MPI_DOUBLE, from,
-                      TAG_STREAM, ps->comm, &req);
-        ps->seconds += MPI_Wtime() - t0;
-        if (sender != at) { /* the sender's first message: its first run */
-            at = sender;
-            r = x->run_off[sender];
-            off = 0;
-        }
-        stream_place(x, out, ng, nc, x->msg + (size_t)cur * room, k, &r, &off);
-        cur = 1 - cur;
-        k = next;
-    }
+    place_ctx c = {x, out, ng, nc, -1, 0, 0};
+    receive_parts(ps, x->cnt, chunk, (size_t)nc, TAG_STREAM, x->msg, x->msg_cap / 2, place_runs,
+                  &c);
 }
 
 /* Room for field's array (-1: the positions) and its messages on this rank; 0 when out of
