@@ -6,7 +6,9 @@
 # serial report; a SIGINT to the study stops every worker; a row that fails in a worker gives
 # the serial exit status and message, once; a worker killed by a signal is reported, not waited
 # on forever; the packed layouts are made ahead of the workers, once, into the cache (not with
-# --no-cache), and a SIGINT then stops before any worker starts; bad values, --estimate: exit 2.
+# --no-cache), each packing line with the whole study's ETA, and a SIGINT then stops before any
+# worker starts; rows that pack their own layouts leave them out of the ETA's rate; bad values,
+# --estimate: exit 2.
 # Usage: cli_study_jobs.sh <path-to-consph> <source-dir>
 set -u
 bin=$1 src=$2
@@ -142,11 +144,21 @@ rc=$?
 want="study: packing layout packed dim 2 nx 12 (1 of 3, 1 thread) before the rows start
 study: packing layout packed dim 2 nx 10 (2 of 3, 1 thread) before the rows start
 study: packing layout packed dim 2 nx 8 (3 of 3, 1 thread) before the rows start"
+# The packing lines without their times (elapsed, and the whole study's ETA: a time, never `--`,
+# from the packing and estimate models before any row ran).
+packing_lines() {
+    grep '^study: packing' "$1" | sed 's/ (elapsed [0-9:]*, ETA [0-9:]*)$//'
+}
+# Each packing line has them, and one line says the packing is done, with the rows' ETA.
+packing_times() {
+    [ "$(grep -c '^study: packing layout .* before the rows start (elapsed [0-9][0-9]:[0-9][0-9], ETA [0-9][0-9]:[0-9][0-9])$' "$1")" = 3 ] &&
+        [ "$(grep -c '^study: packed 3 layouts ahead in [0-9][0-9]:[0-9][0-9]; the rows start (elapsed [0-9][0-9]:[0-9][0-9], ETA [0-9][0-9]:[0-9][0-9])$' "$1")" = 1 ]
+}
 if [ $rc != 0 ]; then
     bad "packing ahead: exit $rc: $(cat "$work/e2")"
-elif [ "$(grep '^study: packing' "$work/e2")" != "$want" ] ||
-    [ "$(grep '^study: packing' "$work/e1")" != "$want" ]; then
-    bad "packing ahead: lines $(grep '^study: packing' "$work/e1" "$work/e2")"
+elif [ "$(packing_lines "$work/e2")" != "$want" ] || [ "$(packing_lines "$work/e1")" != "$want" ] ||
+    ! packing_times "$work/e1" || ! packing_times "$work/e2"; then
+    bad "packing ahead: lines $(grep '^study: pack' "$work/e1" "$work/e2")"
 elif [ "$(ls "$work/c2/consph" | grep -c '^layout-.*\.bin$')" != 3 ] ||
     [ "$(ls "$work/c2/consph" | grep '^layout-.*\.bin$')" != "$(ls "$work/c1/consph" | grep '^layout-.*\.bin$')" ]; then
     bad "packing ahead: cache $(ls "$work/c2/consph") want $(ls "$work/c1/consph")"
@@ -156,10 +168,22 @@ fi
 XDG_CACHE_HOME=$work/c2 timeout 120 "$bin" study "$work/p.study" --quick --jobs 2 --out "$work/p3" \
     >/dev/null 2>"$work/e3" && ! grep -q '^study: packing' "$work/e3" &&
     XDG_CACHE_HOME=$work/c3 timeout 120 "$bin" study "$work/p.study" --quick --jobs 2 --no-cache \
-        --out "$work/p4" >/dev/null 2>"$work/e4" && [ "$(grep '^study: packing' "$work/e4")" = "$want" ] &&
+        --out "$work/p4" >/dev/null 2>"$work/e4" && [ "$(packing_lines "$work/e4")" = "$want" ] &&
     [ ! -e "$work/c3/consph" ] && same_study "$work/p1/p" "$work/p3/p" "packing ahead, cached" &&
     same_study "$work/p1/p" "$work/p4/p" "packing ahead, --no-cache" && pass=$((pass + 1)) ||
     bad "packing ahead with the cache full or off: $(cat "$work/e3" "$work/e4")"
+
+# Rows that pack their own layouts (none made ahead, as on MPI ranks; the test hook
+# CONSPH_TEST_NO_PACK_AHEAD=1): the ETA leaves a packing row's time out of the rows' rate, so
+# the two first rows, each packing its layout, have none (`--`) and the third, on a layout made,
+# one; the report is the one made with the packing ahead.
+XDG_CACHE_HOME=$work/c6 CONSPH_TEST_NO_PACK_AHEAD=1 "$bin" study "$work/p.study" --quick --jobs 1 \
+    --out "$work/p6" >/dev/null 2>"$work/e6" && ! grep -q '^study: pack' "$work/e6" &&
+    grep -q '^study: row 1/6 done: grad, form=asym, nx=10 (elapsed [0-9:]*, ETA --)$' "$work/e6" &&
+    grep -q '^study: row 2/6 done: grad, form=asym, nx=12 (elapsed [0-9:]*, ETA --)$' "$work/e6" &&
+    grep -q '^study: row 3/6 done: grad, form=sym1, nx=10 (elapsed [0-9:]*, ETA [0-9][0-9]:[0-9][0-9])$' "$work/e6" &&
+    same_study "$work/p1/p" "$work/p6/p" "rows packing their layouts" && pass=$((pass + 1)) ||
+    bad "rows packing their layouts: $(cat "$work/e6")"
 
 # A SIGINT while a layout is packed ahead: the packing ends, no worker starts, the partial
 # report and resume command follow (exit 130), and the layout stays in the cache.

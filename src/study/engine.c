@@ -3,6 +3,7 @@
  * and the study README into OUT/STUDY/. */
 #include <dirent.h>
 #include <math.h>
+#include <pthread.h>
 #include <signal.h>
 #include <stdint.h>
 #include <stdio.h>
@@ -84,12 +85,16 @@ double study_cpu_seconds(void)
 }
 
 /* Seconds of one packing iteration per particle, timed once per process on 200 iterations at
- * 40² with the layout cache off (a cached calibration would time a file read). */
-static double packing_seconds_per_iteration(void)
+ * 40² with the layout cache off (a cached calibration would time a file read), and the threads
+ * it ran on (*threads): processor seconds per thread are the wall time at that thread count. */
+static double packing_seconds_per_iteration(int *threads)
 {
     static double per = -1.0;
+    static int per_threads = 1;
+    *threads = per_threads;
     if (per >= 0.0) return per;
     per = 0.0;
+    per_threads = *threads = consph_num_threads() > 1 ? consph_num_threads() : 1;
     char dir[4096] = "";
     const char *cache = consph_layout_cache_get();
     if (cache) snprintf(dir, sizeof dir, "%s", cache);
@@ -109,9 +114,14 @@ static double packing_seconds_per_iteration(void)
     return per;
 }
 
+/* Set while a running study prices its rows without their packing (rows_model_seconds): the
+ * packings are priced one by one beside them. */
+static int packing_priced_apart;
+
 double study_packing_seconds(const consph_layout_params *lp)
 {
     if (lp->kind != CONSPH_LAYOUT_PACKED && lp->kind != CONSPH_LAYOUT_PACKED_POLISHED) return 0.0;
+    if (packing_priced_apart) return 0.0;
     char path[4352];
     /* a layout the cache already holds costs a file read */
     if (consph_layout_cache_get() && consph_layout_cache_path(lp, path, sizeof path) == CONSPH_OK &&
@@ -119,7 +129,13 @@ double study_packing_seconds(const consph_layout_params *lp)
         return 0.0;
     double n = 1.0;
     for (int a = 0; a < lp->dim; ++a) n *= (double)lp->nx[a];
-    return n * packing_iterations((double)lp->nx[0], lp) * packing_seconds_per_iteration();
+    int cal_threads;
+    const double per = packing_seconds_per_iteration(&cal_threads);
+    /* timed at one thread count, priced at another (a study's estimate at a worker's threads,
+     * its packing ahead on all of them): the packing's loops share a layout's particles between
+     * the threads */
+    const int threads = consph_num_threads() > 1 ? consph_num_threads() : 1;
+    return n * packing_iterations((double)lp->nx[0], lp) * per * cal_threads / threads;
 }
 
 /* Particle files replace the nx sweeps (one run per file at its N^(1/dim)) and need no
@@ -187,11 +203,15 @@ int consph_study_validate(const consph_study *s, int quick)
     return study_validate(s, quick, NULL);
 }
 
-static double estimate(const consph_study *s, int quick, const study_files *files)
+/* The seconds of the study's figures (those `skip` does not mark: a resumed study's finished
+ * ones), calibrated on this machine. */
+static double estimate_figures(const consph_study *s, int quick, const study_files *files,
+                               const unsigned char *skip)
 {
     study_estimate *e = calloc(1, sizeof *e);
     if (!e) return NAN;
     for (int k = 0; k < s->nfigs; ++k) {
+        if (skip && skip[k]) continue;
         const study_kind *kind = study_kind_of(s, &s->figs[k]);
         if (kind->estimate && kind->estimate(s, &s->figs[k], quick, files, e)) {
             free(e);
@@ -220,6 +240,11 @@ static double estimate(const consph_study *s, int quick, const study_files *file
     total_seconds += e->pairs * per_pair;
     free(e);
     return total_seconds;
+}
+
+static double estimate(const consph_study *s, int quick, const study_files *files)
+{
+    return estimate_figures(s, quick, files, NULL);
 }
 
 double consph_study_estimate(const consph_study *s, int quick)
@@ -406,6 +431,9 @@ static int figure_rows(const consph_study *s, const study_figure *f, int quick,
 
 /* ---- a study spread over MPI ranks ---- */
 
+static void rows_price_due(const consph_study *s, const consph_study_options *opt,
+                           const study_files *files, const char *dir, study_rows *rows);
+
 /* Whether this rank runs the next unit: units are dealt round-robin in the order every rank
  * meets them (the study's figures, series and rows), so no message decides who runs what. A
  * row is a unit, and so is a figure without rows. Worker processes
@@ -586,6 +614,7 @@ static void rows_init(study_rows *rows, const consph_study *s, const consph_stud
     rows->print = opt->progress;
     rows->signals = opt->stopped_by != NULL;
     rows->tty = opt->progress && isatty(STDERR_FILENO) == 1;
+    rows->model_per_work = NAN;
     const char *hook = getenv("CONSPH_TEST_STOP_AFTER_ROWS");
     rows->stop_after = hook ? atoi(hook) : 0;
     for (int k = 0; k < s->nfigs; ++k) {
@@ -635,6 +664,8 @@ static int study_run_shared(const consph_study *s, const consph_study_options *o
     rows_init(&rows, s, opt, files, dir);
     /* rank 0's progress lines count the rows it runs; no live line between ranks' output */
     rows.tty = 0;
+    /* no packing ahead here: the ETA prices the rows' packings apart */
+    if (opt->progress) rows_price_due(s, opt, files, dir, &rows);
     size_t created = 0;
     if (rank == 0) {
         rc = study_mkdir_p(dir, &created);
@@ -665,6 +696,7 @@ static int study_run_shared(const consph_study *s, const consph_study_options *o
     const int stopped_by =
         consph_par_bcast_int(rc == CONSPH_OK ? (stopped ? stopped : rows.stopped) : 0);
     if (opt->stopped_by) *opt->stopped_by = stopped_by;
+    free(rows.due);
     return rc;
 }
 
@@ -865,11 +897,13 @@ static int device_sharing(const consph_study_options *opt)
 
 /* ---- the packed layouts, made before the workers start ---- */
 
-/* A packed layout that the study's rows read and the cache does not hold yet. */
+/* A packed layout that the study's rows read and the cache does not hold yet, and its price by
+ * the packing model (study_packing_seconds). */
 typedef struct packing_entry {
     consph_layout_params lp;
     char key[512];
-    double n;
+    char path[4352]; /* "" where the cache has no file name for it */
+    double n, seconds;
 } packing_entry;
 
 typedef struct packing_list {
@@ -885,7 +919,9 @@ static void packing_add(const consph_layout_params *lp, void *ctx)
     if (consph_layout_cache_key(lp, key, sizeof key) != CONSPH_OK) return;
     for (int q = 0; q < l->n; ++q)
         if (!strcmp(l->e[q].key, key)) return;
-    if (consph_layout_cache_path(lp, path, sizeof path) == CONSPH_OK && access(path, R_OK) == 0)
+    if (consph_layout_cache_path(lp, path, sizeof path) != CONSPH_OK)
+        path[0] = '\0';
+    else if (access(path, R_OK) == 0)
         return;
     if (l->n == l->cap) {
         const int cap = l->cap ? 2 * l->cap : 16;
@@ -898,8 +934,10 @@ static void packing_add(const consph_layout_params *lp, void *ctx)
     packing_entry *e = &l->e[l->n++];
     e->lp = *lp;
     snprintf(e->key, sizeof e->key, "%s", key);
+    snprintf(e->path, sizeof e->path, "%s", path);
     e->n = 1.0;
     for (int a = 0; a < lp->dim; ++a) e->n *= (double)lp->nx[a];
+    e->seconds = 0.0;
 }
 
 static int by_particles_descending(const void *a, const void *b)
@@ -932,6 +970,151 @@ static void packing_figure(const consph_study *s, const study_figure *f, int qui
     }
 }
 
+/* The figures a resumed study keeps (their .done mark): 1 in skip[k]; none without --resume. */
+static unsigned char *figures_kept(const consph_study *s, const consph_study_options *opt,
+                                   const char *dir)
+{
+    unsigned char *skip = calloc((size_t)s->nfigs + 1, 1);
+    for (int k = 0; skip && opt->resume && k < s->nfigs; ++k) {
+        char done[STUDY_PATH_MAX];
+        skip[k] = figure_done_path(done, dir, &s->figs[k]) == CONSPH_OK && access(done, F_OK) == 0;
+    }
+    return skip;
+}
+
+/* The packed layouts the rows will read that the cache lacks, largest first; priced by the
+ * packing model when `priced`. */
+static void packing_list_build(const consph_study *s, const consph_study_options *opt,
+                               const study_files *files, const unsigned char *skip, int priced,
+                               packing_list *l)
+{
+    for (int k = 0; k < s->nfigs; ++k)
+        if (!skip || !skip[k]) packing_figure(s, &s->figs[k], opt->quick, files, l);
+    if (l->n > 1) qsort(l->e, (size_t)l->n, sizeof *l->e, by_particles_descending);
+    for (int q = 0; priced && q < l->n; ++q) l->e[q].seconds = study_packing_seconds(&l->e[q].lp);
+}
+
+/* The rows' seconds per unit of their work by the estimate's model, their packing left out (the
+ * layouts are priced one by one): the ETA's rate before a row has given one. The figures a
+ * resumed study keeps are left out too. NAN when the calibration fails. */
+static double rows_model_rate(const consph_study *s, const consph_study_options *opt,
+                              const study_files *files, const unsigned char *skip)
+{
+    double work = 0.0;
+    for (int k = 0; k < s->nfigs; ++k) {
+        double w;
+        if (!skip || !skip[k]) {
+            figure_rows(s, &s->figs[k], opt->quick, files, &w);
+            work += w;
+        }
+    }
+    /* Its calibration runs make their small layouts without the cache, which then holds the
+     * rows' layouts alone, as it would without the model. */
+    char cache[4096] = "";
+    const char *c = consph_layout_cache_get();
+    if (c) snprintf(cache, sizeof cache, "%s", c);
+    consph_layout_cache_set(NULL);
+    packing_priced_apart = 1;
+    const double seconds = estimate_figures(s, opt->quick, files, skip);
+    packing_priced_apart = 0;
+    if (cache[0]) consph_layout_cache_set(cache);
+    return work > 0.0 && seconds >= 0.0 ? seconds / work : NAN;
+}
+
+/* The layouts of the list whose files the cache still lacks become the rows' due packings: the
+ * rows' ETA adds their price, and a row during which one is made is not a rate of its work. */
+static void rows_take_due(study_rows *rows, const packing_list *l)
+{
+    int n = 0;
+    for (int q = 0; q < l->n; ++q) n += l->e[q].path[0] && access(l->e[q].path, R_OK) != 0;
+    if (n == 0 || !(rows->due = calloc((size_t)n, sizeof *rows->due))) return;
+    for (int q = 0; q < l->n; ++q) {
+        if (!l->e[q].path[0] || access(l->e[q].path, R_OK) == 0) continue;
+        study_packing_due *d = &rows->due[rows->ndue++];
+        snprintf(d->path, sizeof d->path, "%s", l->e[q].path);
+        d->seconds = l->e[q].seconds;
+    }
+}
+
+/* The rows' due packings where none is made ahead (MPI ranks), priced by the packing model. */
+static void rows_price_due(const consph_study *s, const consph_study_options *opt,
+                           const study_files *files, const char *dir, study_rows *rows)
+{
+    packing_list l = {NULL, 0, 0};
+    unsigned char *skip = figures_kept(s, opt, dir);
+    packing_list_build(s, opt, files, skip, 1, &l);
+    rows_take_due(rows, &l);
+    free(skip);
+    free(l.e);
+}
+
+/* The packing ahead's progress: layout q of the list, packing since q_t0. */
+typedef struct packing_clock {
+    pthread_mutex_t lock;
+    pthread_cond_t wake;
+    int stop;
+    const packing_list *l;
+    const study_rows *rows;
+    int q;
+    double q_t0;
+} packing_clock;
+
+/* What is left of a packing whose model price has run out: it is still running. */
+#define PACKING_ETA_FLOOR 1.0
+/* Seconds between redraws of the live line during a packing. */
+#define PACKING_REDRAW 0.5
+
+/* The whole study's seconds to go: the layouts after q at the model's price, layout q at its
+ * price less the time it has run (at least PACKING_ETA_FLOOR), then the rows at the model's
+ * rate (study_rows_eta, which adds a layout whose packing ahead failed). */
+static double packing_eta(const packing_clock *c, double now)
+{
+    double left = study_rows_eta(c->rows);
+    for (int q = c->q + 1; q < c->l->n; ++q) left += c->l->e[q].seconds;
+    return left + fmax(c->l->e[c->q].seconds - (now - c->q_t0), PACKING_ETA_FLOOR);
+}
+
+static void packing_line(const packing_clock *c)
+{
+    const consph_layout_params *lp = &c->l->e[c->q].lp;
+    const double now = consph_wtime();
+    const int threads = consph_num_threads();
+    char el[32], eta[32];
+    consph_study_duration_text(now - c->rows->t0, el, sizeof el);
+    consph_study_duration_text(packing_eta(c, now), eta, sizeof eta);
+    if (c->rows->tty)
+        fprintf(stderr,
+                "\rpacking %d/%d  %s, dim %d, nx=%zu, %d thread%s  elapsed %s  ETA %s\033[K",
+                c->q + 1, c->l->n, consph_layout_name(lp->kind), lp->dim, lp->nx[0], threads,
+                threads == 1 ? "" : "s", el, eta);
+    else
+        fprintf(stderr,
+                "study: packing layout %s dim %d nx %zu (%d of %d, %d thread%s) before the rows "
+                "start (elapsed %s, ETA %s)\n",
+                consph_layout_name(lp->kind), lp->dim, lp->nx[0], c->q + 1, c->l->n, threads,
+                threads == 1 ? "" : "s", el, eta);
+    fflush(stderr);
+}
+
+/* The live line's redraws while a layout packs (consph_layout_generate reports no progress of
+ * its own): a thread that wakes every PACKING_REDRAW seconds until told to stop. */
+static void *packing_redraw(void *arg)
+{
+    packing_clock *c = arg;
+    pthread_mutex_lock(&c->lock);
+    while (!c->stop) {
+        struct timespec until;
+        clock_gettime(CLOCK_REALTIME, &until);
+        until.tv_nsec += (long)(PACKING_REDRAW * 1e9);
+        until.tv_sec += until.tv_nsec / 1000000000L;
+        until.tv_nsec %= 1000000000L;
+        pthread_cond_timedwait(&c->wake, &c->lock, &until);
+        if (!c->stop) packing_line(c);
+    }
+    pthread_mutex_unlock(&c->lock);
+    return NULL;
+}
+
 /* Before the rows (and the worker processes) start, this process packs every packed layout the
  * rows will read that the cache lacks, largest first, one after the other on all its threads,
  * through the cache (consph_layout_generate), so that the rows read the files it writes. Without
@@ -941,31 +1124,70 @@ static void packing_figure(const consph_study *s, const study_figure *f, int qui
  * of its pairs. The figures that --resume keeps need none. A layout that fails here is left to its
  * rows, which report the failure as they would have. A stop request ends the list after the layout
  * being packed (packing is not interruptible); the workers then stop at once and the partial report
- * is written. */
+ * is written. With progress, each layout's line (a live one on a terminal, redrawn by a thread)
+ * has the whole study's ETA: the packings left by the packing model, then the rows by the
+ * estimate's (rows_model_rate, calibrated here first). */
 static void pack_ahead(const consph_study *s, const consph_study_options *opt,
-                       const study_files *files, const char *dir)
+                       const study_files *files, const char *dir, study_rows *rows)
 {
     packing_list l = {NULL, 0, 0};
-    for (int k = 0; k < s->nfigs; ++k) {
-        char done[STUDY_PATH_MAX];
-        if (opt->resume && figure_done_path(done, dir, &s->figs[k]) == CONSPH_OK &&
-            access(done, F_OK) == 0)
-            continue;
-        packing_figure(s, &s->figs[k], opt->quick, files, &l);
+    unsigned char *skip = figures_kept(s, opt, dir);
+    packing_list_build(s, opt, files, skip, 0, &l);
+    if (opt->progress && l.n > 0) {
+        rows->model_per_work = rows_model_rate(s, opt, files, skip);
+        /* the calibration may have packed a small one; priced once it is left out */
+        l.n = 0;
+        packing_list_build(s, opt, files, skip, 1, &l);
     }
-    if (l.n > 1) qsort(l.e, (size_t)l.n, sizeof *l.e, by_particles_descending);
-    for (int q = 0; q < l.n && !consph_stop_requested(); ++q) {
-        const consph_layout_params *lp = &l.e[q].lp;
-        if (opt->progress) {
-            fprintf(stderr,
-                    "study: packing layout %s dim %d nx %zu (%d of %d, %d thread%s) before the "
-                    "rows start\n",
-                    consph_layout_name(lp->kind), lp->dim, lp->nx[0], q + 1, l.n,
-                    consph_num_threads(), consph_num_threads() == 1 ? "" : "s");
-            fflush(stderr);
+    free(skip);
+    packing_clock c = {.l = &l, .rows = rows};
+    pthread_t redraw;
+    int redrawing = 0;
+    if (rows->tty && l.n > 0 && pthread_mutex_init(&c.lock, NULL) == 0) {
+        if (pthread_cond_init(&c.wake, NULL) == 0) {
+            /* the stop requests are this thread's to take */
+            sigset_t all, old;
+            sigfillset(&all);
+            pthread_sigmask(SIG_BLOCK, &all, &old);
+            redrawing = pthread_create(&redraw, NULL, packing_redraw, &c) == 0;
+            pthread_sigmask(SIG_SETMASK, &old, NULL);
+            if (!redrawing) pthread_cond_destroy(&c.wake);
         }
+        if (!redrawing) pthread_mutex_destroy(&c.lock);
+    }
+    const double t0 = consph_wtime();
+    int q = 0;
+    for (; q < l.n && !consph_stop_requested(); ++q) {
+        if (redrawing) pthread_mutex_lock(&c.lock);
+        c.q = q;
+        c.q_t0 = consph_wtime();
+        if (opt->progress) packing_line(&c);
+        if (redrawing) pthread_mutex_unlock(&c.lock);
         consph_particles p;
-        if (consph_layout_generate(lp, &p, NULL) == CONSPH_OK) consph_particles_free(&p);
+        if (consph_layout_generate(&l.e[q].lp, &p, NULL) == CONSPH_OK) consph_particles_free(&p);
+    }
+    if (redrawing) {
+        pthread_mutex_lock(&c.lock);
+        c.stop = 1;
+        pthread_cond_signal(&c.wake);
+        pthread_mutex_unlock(&c.lock);
+        pthread_join(redraw, NULL);
+        pthread_cond_destroy(&c.wake);
+        pthread_mutex_destroy(&c.lock);
+    }
+    if (opt->progress) rows_take_due(rows, &l);
+    if (opt->progress && l.n > 0 && q == l.n && !consph_stop_requested()) {
+        char took[32], el[32], eta[32];
+        consph_study_duration_text(consph_wtime() - t0, took, sizeof took);
+        consph_study_duration_text(consph_wtime() - rows->t0, el, sizeof el);
+        consph_study_duration_text(study_rows_eta(rows), eta, sizeof eta);
+        fprintf(stderr,
+                "%sstudy: packed %d layout%s ahead in %s; the rows start (elapsed %s, ETA %s)\n",
+                rows->tty ? "\r\033[K" : "", l.n, l.n == 1 ? "" : "s", took, el, eta);
+        fflush(stderr);
+    } else if (rows->tty && l.n > 0) {
+        fprintf(stderr, "\r\033[K");
+        fflush(stderr);
     }
     free(l.e);
 }
@@ -988,12 +1210,21 @@ static int study_run_with_cache(const consph_study *s, const consph_study_option
     rows_init(&rows, s, opt, files, dir);
     /* no more workers than units (a unit holds at least one row); one runs here */
     const int jobs = opt->jobs < rows.total ? opt->jobs : rows.total;
-    if (cached) pack_ahead(s, opt, files, dir);
+    /* tests: the rows pack their own layouts, as on MPI ranks (the ETA prices them apart) */
+    const char *no_ahead = getenv("CONSPH_TEST_NO_PACK_AHEAD");
+    if (no_ahead && atoi(no_ahead) == 1) {
+        if (opt->progress) rows_price_due(s, opt, files, dir, &rows);
+    } else if (cached) {
+        pack_ahead(s, opt, files, dir, &rows);
+    }
     /* Stopped while packing: no workers (they would inherit the stop request and take the one
      * passed on as a second signal); the serial run below stops before its first row and writes
      * the partial report. */
-    if (jobs > 1 && !consph_stop_requested())
-        return study_run_jobs(s, opt, files, dir, state, &rows, jobs);
+    if (jobs > 1 && !consph_stop_requested()) {
+        rc = study_run_jobs(s, opt, files, dir, state, &rows, jobs);
+        free(rows.due);
+        return rc;
+    }
     rc = study_mkdir_p(dir, &created);
     /* A signal removes what was made as a failure does (study_remove_created). */
     if (rc == CONSPH_OK) consph_made_dir_register(dir, created);
@@ -1011,6 +1242,7 @@ static int study_run_with_cache(const consph_study *s, const consph_study_option
     else if (rc == CONSPH_OK)
         rc = study_write_readme(s, opt->quick, files != NULL, dir);
     if (rc) study_remove_created(dir, created);
+    free(rows.due);
     consph_made_dir_unregister();
     if (opt->stopped_by) *opt->stopped_by = rc == CONSPH_OK ? rows.stopped : 0;
     return rc;

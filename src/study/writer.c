@@ -533,15 +533,40 @@ const char *consph_study_duration_text(double seconds, char *buf, size_t size)
     return buf;
 }
 
-/* Seconds still to go: the remaining work at the rate of the rows this process ran (their wall
- * time includes the packing of their layouts); unknown before the first. */
-static double rows_eta(const study_rows *r)
+/* The due packings the cache holds now (a row of some process made them), counted. */
+static int due_made(study_rows *r)
 {
-    if (r->work_run <= 0 || r->seconds_run <= 0) return NAN;
-    if (r->shared) /* the workers together, each at this one's rate */
-        return (r->work_total - (double)__atomic_load_n(&r->shared->work_done, __ATOMIC_RELAXED)) *
-               r->seconds_run / r->work_run / r->share_size;
-    return (r->work_total - r->work_done) * r->seconds_run / r->work_run;
+    int n = 0;
+    for (int q = 0; q < r->ndue; ++q) {
+        if (!r->due[q].made && access(r->due[q].path, R_OK) == 0) r->due[q].made = 1;
+        n += r->due[q].made;
+    }
+    return n;
+}
+
+/* Seconds still to go: the remaining work at the rate of the rows this process ran (their wall
+ * time includes reading their layouts, not packing them: a row that packed is left out of the
+ * rate), before the first at the estimate's rate (model_per_work), and the packings still due at
+ * the packing model's price; unknown without a rate. */
+double study_rows_eta(const study_rows *r)
+{
+    const double left = r->work_total - (r->shared ? (double)__atomic_load_n(&r->shared->work_done,
+                                                                             __ATOMIC_RELAXED)
+                                                   : r->work_done);
+    double seconds;
+    if (r->work_run > 0 && r->seconds_run > 0) {
+        seconds = left * r->seconds_run / r->work_run;
+        /* the workers together, each at this one's rate */
+        if (r->shared) seconds /= r->share_size;
+    } else if (isfinite(r->model_per_work)) {
+        /* the model's rate is the whole machine's */
+        seconds = left * r->model_per_work;
+    } else {
+        return NAN;
+    }
+    for (int q = 0; q < r->ndue; ++q)
+        if (!r->due[q].made) seconds += r->due[q].seconds;
+    return fmax(0.0, seconds);
 }
 
 /* The log written since the last call, below the live line (which it clears first). */
@@ -564,7 +589,7 @@ static void rows_line(study_rows *r, int done_line, int stored)
     if (!r->print) return;
     char el[32], eta[32];
     consph_study_duration_text(consph_wtime() - r->t0, el, sizeof el);
-    consph_study_duration_text(rows_eta(r), eta, sizeof eta);
+    consph_study_duration_text(study_rows_eta(r), eta, sizeof eta);
     /* One fprintf per line: stderr is unbuffered, and a line must not be torn by others. */
     /* with --jobs, the rows every worker finished (a finished row: the count it made) */
     const int done = !r->shared  ? r->done
@@ -595,6 +620,7 @@ void study_row_begin(const study_job *job, const study_figure *f, int k, const c
         snprintf(r->current, sizeof r->current, "%s", f->id);
     r->row_t0 = consph_wtime();
     r->row_work = work;
+    r->row_made = due_made(r);
     if (r->tty) rows_line(r, 0, 0);
 }
 
@@ -626,8 +652,11 @@ int study_row_finish(const study_job *job, const study_figure *f, int k, int j, 
     }
     if (!stored) {
         r->run_now++;
-        r->work_run += r->row_work;
-        r->seconds_run += consph_wtime() - r->row_t0;
+        /* a row that packed its layout: its time is the packing's more than its work's */
+        if (due_made(r) == r->row_made) {
+            r->work_run += r->row_work;
+            r->seconds_run += consph_wtime() - r->row_t0;
+        }
         if (r->stop_after > 0 && r->run_now == r->stop_after) raise(SIGINT);
     }
     rows_line(r, 1, stored);

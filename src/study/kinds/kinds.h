@@ -114,6 +114,15 @@ typedef struct study_shared {
     unsigned char claim[];
 } study_shared;
 
+/* A packed layout the rows read that the layout cache lacked when they started (none made
+ * ahead: MPI; or one whose packing ahead failed): its cache file, the packing model's seconds
+ * (study_packing_seconds), and whether the file is there now. */
+typedef struct study_packing_due {
+    char path[4352];
+    double seconds;
+    int made;
+} study_packing_due;
+
 typedef struct study_rows {
     const char *dir;
     int total, done;            /* rows of the study, rows finished (run now or read back) */
@@ -145,11 +154,22 @@ typedef struct study_rows {
     int shared_done;       /* the count of every worker's rows this worker's last row made */
     int fig_rows, fig_met; /* rows of the figure now running; rows of it met so far */
     int shared_report;     /* rank 0's pass over the rows the ranks kept */
+    /* The ETA's models (engine.c): the rows' seconds per unit of work by the estimate, their
+     * packing left out (NAN when not made: nothing to pack), made before the packing ahead; the
+     * layouts still to pack (row_made: those made when the running row began). A row during
+     * which one was made packed it: its time is not a rate of its work. */
+    double model_per_work;
+    study_packing_due *due;
+    int ndue, row_made;
 } study_rows;
 
 /* Writes what the figures logged since the last call (terminal only); the next row redraws the
  * live line. */
 void study_rows_flush(study_rows *r);
+/* The study's seconds to go as the progress lines give them: the rows' work left at the rate of
+ * the rows this process ran (the model's, model_per_work, before the first), plus the due
+ * packings' price; NAN when unknown. */
+double study_rows_eta(const study_rows *r);
 
 /* ---- the kind rows ---- */
 
