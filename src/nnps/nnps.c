@@ -82,6 +82,8 @@ struct consph_nnps {
     const consph_particles *p;
     size_t grid_n; /* nnps_fix_grid: the grid is chosen for this many particles, not n */
     int current;   /* nnps_build_is_current: the next sort may use this build as it is */
+    int inside;    /* nnps_positions_inside: the next build's coordinates on the periodic axes
+                    * are known to lie in [lo, hi) */
     /* build_threads' scratch: each thread's count, then slot, per cell (threads x ncells), and
      * two words per thread */
     size_t *tcount;
@@ -294,7 +296,7 @@ static int bin_cells_2d(const consph_nnps *g, const double *x0, const double *x1
     /* nnps_wrap returns a coordinate inside [lo, hi) as it is: when every one is (the solver
      * wraps its positions), the loop needs neither its test nor its call */
     int outside = 0;
-    if (per0 || per1) {
+    if ((per0 || per1) && !g->inside) {
         /* in bitwise form (a NaN is outside), so that it vectorises */
 #pragma omp simd reduction(| : outside)
         for (size_t i = 0; i < n; ++i)
@@ -438,7 +440,7 @@ static int build_threads(consph_nnps *g, const consph_particles *p, size_t n)
 #endif
 }
 
-int consph_nnps_build(consph_nnps *g, const consph_particles *p)
+static int build(consph_nnps *g, const consph_particles *p)
 {
     g->current = 0;
     g->p = NULL;
@@ -456,7 +458,7 @@ int consph_nnps_build(consph_nnps *g, const consph_particles *p)
     const int dim = g->dim;
     if (!build_threads(g, p, n)) {
         size_t *cell_of = g->cell_of;
-        const int inside = dim == 2 ? bin_cells_2d(g, p->x[0], p->x[1], cell_of, n, 1) : 0;
+        const int inside = dim == 2 ? bin_cells_2d(g, p->x[0], p->x[1], cell_of, n, 1) : g->inside;
         if (dim != 2) bin_cells(g, p, cell_of, n);
 
         /* Stable counting sort, serial: few particles, or more cells than the per-thread
@@ -483,6 +485,21 @@ int consph_nnps_build(consph_nnps *g, const consph_particles *p)
     g->p = p;
     g->n = n;
     return CONSPH_OK;
+}
+
+int consph_nnps_build(consph_nnps *g, const consph_particles *p)
+{
+    const int st = build(g, p);
+    g->inside = 0; /* the word holds for one build */
+    return st;
+}
+
+void nnps_positions_inside(consph_nnps *g, const double *lo, const double *hi)
+{
+    int same = lo && hi;
+    for (int a = 0; same && a < g->dim; ++a)
+        same = same && (!g->periodic[a] || (lo[a] == g->lo[a] && hi[a] == g->hi[a]));
+    g->inside = same;
 }
 
 int consph_nnps_sort(consph_nnps *g, consph_particles *p, size_t *perm_out)
