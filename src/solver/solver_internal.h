@@ -161,7 +161,9 @@ typedef struct scheme_def {
     /* CONSPH_PARAM_ALPHA, CONSPH_PARAM_DELTA and CONSPH_PARAM_IPST when its rates use α or δ
      * or it shifts by IPST (the EOS follows from evolve_p and closure: consph_scheme_reads) */
     unsigned reads;
-    /* Rates into SF_AX (when moves), SF_AU and SF_AQ at the current state. */
+    /* Rates into SF_AX (when moves), SF_AU and SF_AQ at the current state. It writes no
+     * position, no velocity and no evolved scalar (the step's start is saved after it), but for
+     * the summation density of a scheme with a closure (tvf's ϱ). */
     int (*rhs)(consph_solver *s);
     /* What a family's shared rhs reads to tell its schemes apart (001's family: the scheme's
      * negi_terms); NULL where each scheme has an rhs of its own. */
