@@ -268,6 +268,37 @@ static int reserve_arrays(consph_nnps *g, size_t n)
     return CONSPH_OK;
 }
 
+/* The counting sort's two sweeps over particles [i0, i1) with cells cell_of: count[c] += the
+ * particles of cell c; then each takes the next slot of its cell, slot[c]++ (order[slot] = i),
+ * and the return is 1 when every particle kept its own slot. Particles nearly in cell order come
+ * in runs of one cell, each counted and given its slots in a register: the counts, slots and
+ * order of one particle at a time, without each increment waiting on the last one's store. */
+static void count_cells(const size_t *restrict cell_of, size_t i0, size_t i1, size_t *count)
+{
+    for (size_t i = i0; i < i1;) {
+        const size_t c = cell_of[i];
+        size_t j = i + 1;
+        while (j < i1 && cell_of[j] == c) ++j;
+        count[c] += j - i;
+        i = j;
+    }
+}
+
+static int scatter_cells(const size_t *restrict cell_of, size_t i0, size_t i1, size_t *slot,
+                         size_t *restrict order)
+{
+    int identity = 1;
+    for (size_t i = i0; i < i1;) {
+        const size_t c = cell_of[i];
+        size_t sl = slot[c];
+        identity = identity && sl == i;
+        do order[sl++] = i++;
+        while (i < i1 && cell_of[i] == c);
+        slot[c] = sl;
+    }
+    return identity;
+}
+
 /* The cell of every particle, c = (c2 nc1 + c1) nc0 + c0. */
 static void bin_cells(const consph_nnps *g, const consph_particles *p, size_t *cell_of, size_t n)
 {
@@ -393,7 +424,7 @@ static int build_threads(consph_nnps *g, const consph_particles *p, size_t n)
                                       : bin_range(g, p, cell_of, i0, i1));
         size_t *mine = tcount + (size_t)t * ncells;
         memset(mine, 0, ncells * sizeof *mine);
-        for (size_t i = i0; i < i1; ++i) ++mine[cell_of[i]];
+        count_cells(cell_of, i0, i1, mine);
 #pragma omp barrier
         size_t sum = 0;
         for (size_t c = c0; c < c1; ++c)
@@ -412,11 +443,7 @@ static int build_threads(consph_nnps *g, const consph_particles *p, size_t n)
         }
         if (t == nt - 1) start[ncells] = next;
 #pragma omp barrier
-        for (size_t i = i0; i < i1; ++i) {
-            const size_t sl = mine[cell_of[i]]++;
-            order[sl] = i;
-            identity = identity && sl == i;
-        }
+        identity = scatter_cells(cell_of, i0, i1, mine, order);
         int in = 1;
         for (int u = 0; u < nt; ++u) in = in && inside[u];
 #pragma omp barrier
@@ -466,16 +493,14 @@ static int build(consph_nnps *g, const consph_particles *p)
         size_t *start = g->cell_start;
         const size_t ncells = g->ncells;
         memset(start, 0, (ncells + 1) * sizeof *start);
-        for (size_t i = 0; i < n; ++i) ++start[cell_of[i] + 1];
+        count_cells(cell_of, 0, n, start + 1);
         for (size_t c = 0; c < ncells; ++c) start[c + 1] += start[c];
-        for (size_t i = 0; i < n; ++i) g->order[start[cell_of[i]]++] = i;
+        g->identity = scatter_cells(cell_of, 0, n, start, g->order);
         /* The scatter advanced each start to the next cell's start; shift back. */
         for (size_t c = ncells; c > 0; --c) start[c] = start[c - 1];
         start[0] = 0;
 
         const size_t *order = g->order;
-        g->identity = 1;
-        for (size_t s = 0; s < n && g->identity; ++s) g->identity = order[s] == s;
         for (int a = 0; a < dim; ++a) gather_coords(g, a, p->x[a], order, g->xs[a], n, inside);
     }
     /* The gather's vector paths read whole blocks past a run's end; NaN is never a hit. */
