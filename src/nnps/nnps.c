@@ -501,7 +501,19 @@ static int build(consph_nnps *g, const consph_particles *p)
         start[0] = 0;
 
         const size_t *order = g->order;
-        for (int a = 0; a < dim; ++a) gather_coords(g, a, p->x[a], order, g->xs[a], n, inside);
+        if (dim == 2 && (inside || (!g->periodic[0] && !g->periodic[1]))) {
+            /* both axes copied as they are: one sweep reading the order once */
+            const double *x0 = p->x[0], *x1 = p->x[1];
+            double *restrict xs0 = g->xs[0], *restrict xs1 = g->xs[1];
+#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
+            for (size_t s = 0; s < n; ++s) {
+                const size_t i = order[s];
+                xs0[s] = x0[i];
+                xs1[s] = x1[i];
+            }
+        } else {
+            for (int a = 0; a < dim; ++a) gather_coords(g, a, p->x[a], order, g->xs[a], n, inside);
+        }
     }
     /* The gather's vector paths read whole blocks past a run's end; NaN is never a hit. */
     if (n)
