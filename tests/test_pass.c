@@ -527,18 +527,44 @@ static void test_scratch(void)
 
 /* Re-sorting moves every array of the particles through one permutation; above a few thousand
  * particles the arrays are shared out among the threads. Each must come out as a[perm[i]] for
- * 1 and 2 threads alike. */
+ * 1 and 2 threads alike: for a scattering bijection, and for a re-sort's kind of permutation,
+ * blocks of slots shifted by one (copied whole), short and long, one across the threads' halves,
+ * one reversed, between fixed slots. */
+static void test_permute_with(const size_t *perm, size_t n, const consph_box *box, int kind);
+
 static void test_permute_threads(void)
 {
     const size_t n = 6000;
     const consph_box box = consph_box_unit(2, 1);
     size_t *perm = malloc(n * sizeof *perm);
-    for (size_t i = 0; i < n; ++i)
-        perm[i] = (i * 2654435761u + 17) % n; /* a bijection: 2654435761 is prime to n */
+    for (int kind = 0; kind < 2; ++kind) {
+        if (kind == 0)
+            for (size_t i = 0; i < n; ++i)
+                perm[i] = (i * 2654435761u + 17) % n; /* a bijection: 2654435761 is prime to n */
+        else {
+            for (size_t i = 0; i < n; ++i) perm[i] = i;
+            static const size_t blocks[][2] = {{10, 13}, {20, 29}, {40, 140}, {2500, 3500}};
+            for (int b = 0; b < 4; ++b) { /* [lo, hi) rotated: each slot takes its successor's */
+                const size_t lo = blocks[b][0], hi = blocks[b][1];
+                for (size_t i = lo; i + 1 < hi; ++i) perm[i] = i + 1;
+                perm[hi - 1] = lo;
+            }
+            for (size_t i = 0; i < 30; ++i) perm[5000 + i] = 5029 - i;
+            /* blocks moved by 7: slots [4000, 4100) take [4007, 4107), [4100, 4107) the rest */
+            for (size_t i = 4000; i < 4100; ++i) perm[i] = i + 7;
+            for (size_t i = 4100; i < 4107; ++i) perm[i] = i - 100;
+        }
+        test_permute_with(perm, n, &box, kind);
+    }
+    free(perm);
+}
+
+static void test_permute_with(const size_t *perm, size_t n, const consph_box *box, int kind)
+{
     int ok = 1;
     for (int t = 1; t <= 2; ++t) {
         consph_particles p = {0};
-        CHECK(consph_particles_init(&p, 2, n, &box) == CONSPH_OK, "init");
+        CHECK(consph_particles_init(&p, 2, n, box) == CONSPH_OK, "init");
         double *f1 = consph_particles_field(&p, "a", 1), *f3 = consph_particles_field(&p, "b", 3);
         for (size_t i = 0; i < n; ++i) {
             p.x[0][i] = (double)i;
@@ -554,10 +580,9 @@ static void test_permute_threads(void)
             ok &= p.x[0][i] == j && p.x[1][i] == -j && f1[i] == 0.5 * j;
             for (int c = 0; c < 3; ++c) ok &= f3[(size_t)c * p.cap + i] == (double)(c * n) + j;
         }
-        CHECK(ok, "%d thread(s): an array was not permuted as a[perm[i]]", t);
+        CHECK(ok, "permutation %d, %d thread(s): an array was not permuted as a[perm[i]]", kind, t);
         consph_particles_free(&p);
     }
-    free(perm);
 }
 
 int main(void)

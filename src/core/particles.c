@@ -116,15 +116,20 @@ double *consph_particles_field(consph_particles *p, const char *name, int ncomp)
 /* The moved values of at most this many arrays' worth of particles are held at once: the arrays
  * go through in groups of about PERMUTE_HELD n / moved. */
 #define PERMUTE_HELD 4
+/* Runs of at least this many slots are read by memcpy, shorter ones by a loop. */
+#define PERMUTE_COPY_MIN 8
 
 /* Only the slots with perm[s] != s move: a re-sort after a small step leaves most particles in
  * place (a third of them move in a Taylor-Green step), and the fixed ones are neither read nor
  * written. Every thread takes a slice of the slots and lists the runs of moved slots in it
- * (run[2k] <= s < run[2k + 1], runs cut at the slice's ends); then, a group of arrays at a time,
- * it reads the values its slots receive into tmp and, once every thread has read (every value is
- * read before any is written), writes them back run by run. Each thread reads and writes only its
- * own part of tmp, so a group's reads need not wait for the previous group's writes: one barrier
- * per group. The moves, not their order, make the result: the same for any thread count. */
+ * (run[2k] <= s < run[2k + 1], runs cut at the slice's ends and wherever perm[s] is not
+ * perm[s - 1] + 1, so that a run reads consecutive slots: a particle that changes cells shifts
+ * the slots between its old and new place by one, long runs that are copied whole); then, a
+ * group of arrays at a time, it reads the values its slots receive into tmp and, once every
+ * thread has read (every value is read before any is written), writes them back run by run. Each
+ * thread reads and writes only its own part of tmp, so a group's reads need not wait for the
+ * previous group's writes: one barrier per group. The moves, not their order, make the result: the
+ * same for any thread count. */
 int consph_particles_permute(consph_particles *p, const size_t *perm)
 {
     const size_t n = p->n;
@@ -164,7 +169,7 @@ int consph_particles_permute(consph_particles *p, const size_t *perm)
         for (size_t s = s0; s < s1; ++s)
             if (perm[s] != s) {
                 ++mine;
-                myruns += s == s0 || perm[s - 1] == s - 1;
+                myruns += s == s0 || perm[s - 1] == s - 1 || perm[s] != perm[s - 1] + 1;
             }
         moved_at[t + 1] = mine;
         runs_at[t + 1] = myruns;
@@ -189,8 +194,9 @@ int consph_particles_permute(consph_particles *p, const size_t *perm)
             size_t r = r0;
             for (size_t s = s0; s < s1; ++s) {
                 if (perm[s] == s) continue;
-                if (s == s0 || perm[s - 1] == s - 1) run[2 * r] = s;
-                if (s + 1 == s1 || perm[s + 1] == s + 1) run[2 * r++ + 1] = s + 1;
+                if (s == s0 || perm[s - 1] == s - 1 || perm[s] != perm[s - 1] + 1) run[2 * r] = s;
+                if (s + 1 == s1 || perm[s + 1] == s + 1 || perm[s + 1] != perm[s] + 1)
+                    run[2 * r++ + 1] = s + 1;
             }
             for (int g0 = 0; g0 < narr; g0 += group) {
                 const int gn = narr - g0 < group ? narr - g0 : group;
@@ -198,8 +204,15 @@ int consph_particles_permute(consph_particles *p, const size_t *perm)
                     const double *a = arr[g0 + g];
                     double *held = tmp + (size_t)g * moved + k0;
                     size_t m = 0;
-                    for (size_t q = r0; q < r1; ++q)
-                        for (size_t s = run[2 * q]; s < run[2 * q + 1]; ++s) held[m++] = a[perm[s]];
+                    for (size_t q = r0; q < r1; ++q) {
+                        const size_t len = run[2 * q + 1] - run[2 * q];
+                        const double *from = a + perm[run[2 * q]];
+                        if (len >= PERMUTE_COPY_MIN)
+                            memcpy(held + m, from, len * sizeof *held);
+                        else
+                            for (size_t i = 0; i < len; ++i) held[m + i] = from[i];
+                        m += len;
+                    }
                 }
 #pragma omp barrier
                 for (int g = 0; g < gn; ++g) {

@@ -32,9 +32,14 @@ static void update_block(double *restrict y, const double *restrict y0, const do
     for (size_t i = 0; i < n; ++i) y[i] = y0[i] + c * k[i];
 }
 
-/* y0 = y, then y = y0 + c k over n values (one sweep: the value saved is the one updated). */
-static void save_update_block(double *restrict y, double *restrict y0, const double *restrict k,
-                              double c, size_t n)
+/* y0 = y, then y = y0 + c k over n values (one sweep: the value saved is the one updated). GCC
+ * would split the copy out as a memmove, a second sweep reading y again. */
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-tree-loop-distribute-patterns")))
+#endif
+static void
+save_update_block(double *restrict y, double *restrict y0, const double *restrict k, double c,
+                  size_t n)
 {
     for (size_t i = 0; i < n; ++i) {
         const double v = y[i];

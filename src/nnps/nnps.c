@@ -82,6 +82,8 @@ struct consph_nnps {
     const consph_particles *p;
     size_t grid_n; /* nnps_fix_grid: the grid is chosen for this many particles, not n */
     int current;   /* nnps_build_is_current: the next sort may use this build as it is */
+    int inside;    /* nnps_positions_inside: the next build's coordinates on the periodic axes
+                    * are known to lie in [lo, hi) */
     /* build_threads' scratch: each thread's count, then slot, per cell (threads x ncells), and
      * two words per thread */
     size_t *tcount;
@@ -266,6 +268,37 @@ static int reserve_arrays(consph_nnps *g, size_t n)
     return CONSPH_OK;
 }
 
+/* The counting sort's two sweeps over particles [i0, i1) with cells cell_of: count[c] += the
+ * particles of cell c; then each takes the next slot of its cell, slot[c]++ (order[slot] = i),
+ * and the return is 1 when every particle kept its own slot. Particles nearly in cell order come
+ * in runs of one cell, each counted and given its slots in a register: the counts, slots and
+ * order of one particle at a time, without each increment waiting on the last one's store. */
+static void count_cells(const size_t *restrict cell_of, size_t i0, size_t i1, size_t *count)
+{
+    for (size_t i = i0; i < i1;) {
+        const size_t c = cell_of[i];
+        size_t j = i + 1;
+        while (j < i1 && cell_of[j] == c) ++j;
+        count[c] += j - i;
+        i = j;
+    }
+}
+
+static int scatter_cells(const size_t *restrict cell_of, size_t i0, size_t i1, size_t *slot,
+                         size_t *restrict order)
+{
+    int identity = 1;
+    for (size_t i = i0; i < i1;) {
+        const size_t c = cell_of[i];
+        size_t sl = slot[c];
+        identity = identity && sl == i;
+        do order[sl++] = i++;
+        while (i < i1 && cell_of[i] == c);
+        slot[c] = sl;
+    }
+    return identity;
+}
+
 /* The cell of every particle, c = (c2 nc1 + c1) nc0 + c0. */
 static void bin_cells(const consph_nnps *g, const consph_particles *p, size_t *cell_of, size_t n)
 {
@@ -294,7 +327,7 @@ static int bin_cells_2d(const consph_nnps *g, const double *x0, const double *x1
     /* nnps_wrap returns a coordinate inside [lo, hi) as it is: when every one is (the solver
      * wraps its positions), the loop needs neither its test nor its call */
     int outside = 0;
-    if (per0 || per1) {
+    if ((per0 || per1) && !g->inside) {
         /* in bitwise form (a NaN is outside), so that it vectorises */
 #pragma omp simd reduction(| : outside)
         for (size_t i = 0; i < n; ++i)
@@ -391,7 +424,7 @@ static int build_threads(consph_nnps *g, const consph_particles *p, size_t n)
                                       : bin_range(g, p, cell_of, i0, i1));
         size_t *mine = tcount + (size_t)t * ncells;
         memset(mine, 0, ncells * sizeof *mine);
-        for (size_t i = i0; i < i1; ++i) ++mine[cell_of[i]];
+        count_cells(cell_of, i0, i1, mine);
 #pragma omp barrier
         size_t sum = 0;
         for (size_t c = c0; c < c1; ++c)
@@ -410,11 +443,7 @@ static int build_threads(consph_nnps *g, const consph_particles *p, size_t n)
         }
         if (t == nt - 1) start[ncells] = next;
 #pragma omp barrier
-        for (size_t i = i0; i < i1; ++i) {
-            const size_t sl = mine[cell_of[i]]++;
-            order[sl] = i;
-            identity = identity && sl == i;
-        }
+        identity = scatter_cells(cell_of, i0, i1, mine, order);
         int in = 1;
         for (int u = 0; u < nt; ++u) in = in && inside[u];
 #pragma omp barrier
@@ -438,7 +467,7 @@ static int build_threads(consph_nnps *g, const consph_particles *p, size_t n)
 #endif
 }
 
-int consph_nnps_build(consph_nnps *g, const consph_particles *p)
+static int build(consph_nnps *g, const consph_particles *p)
 {
     g->current = 0;
     g->p = NULL;
@@ -456,7 +485,7 @@ int consph_nnps_build(consph_nnps *g, const consph_particles *p)
     const int dim = g->dim;
     if (!build_threads(g, p, n)) {
         size_t *cell_of = g->cell_of;
-        const int inside = dim == 2 ? bin_cells_2d(g, p->x[0], p->x[1], cell_of, n, 1) : 0;
+        const int inside = dim == 2 ? bin_cells_2d(g, p->x[0], p->x[1], cell_of, n, 1) : g->inside;
         if (dim != 2) bin_cells(g, p, cell_of, n);
 
         /* Stable counting sort, serial: few particles, or more cells than the per-thread
@@ -464,17 +493,27 @@ int consph_nnps_build(consph_nnps *g, const consph_particles *p)
         size_t *start = g->cell_start;
         const size_t ncells = g->ncells;
         memset(start, 0, (ncells + 1) * sizeof *start);
-        for (size_t i = 0; i < n; ++i) ++start[cell_of[i] + 1];
+        count_cells(cell_of, 0, n, start + 1);
         for (size_t c = 0; c < ncells; ++c) start[c + 1] += start[c];
-        for (size_t i = 0; i < n; ++i) g->order[start[cell_of[i]]++] = i;
+        g->identity = scatter_cells(cell_of, 0, n, start, g->order);
         /* The scatter advanced each start to the next cell's start; shift back. */
         for (size_t c = ncells; c > 0; --c) start[c] = start[c - 1];
         start[0] = 0;
 
         const size_t *order = g->order;
-        g->identity = 1;
-        for (size_t s = 0; s < n && g->identity; ++s) g->identity = order[s] == s;
-        for (int a = 0; a < dim; ++a) gather_coords(g, a, p->x[a], order, g->xs[a], n, inside);
+        if (dim == 2 && (inside || (!g->periodic[0] && !g->periodic[1]))) {
+            /* both axes copied as they are: one sweep reading the order once */
+            const double *x0 = p->x[0], *x1 = p->x[1];
+            double *restrict xs0 = g->xs[0], *restrict xs1 = g->xs[1];
+#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
+            for (size_t s = 0; s < n; ++s) {
+                const size_t i = order[s];
+                xs0[s] = x0[i];
+                xs1[s] = x1[i];
+            }
+        } else {
+            for (int a = 0; a < dim; ++a) gather_coords(g, a, p->x[a], order, g->xs[a], n, inside);
+        }
     }
     /* The gather's vector paths read whole blocks past a run's end; NaN is never a hit. */
     if (n)
@@ -483,6 +522,21 @@ int consph_nnps_build(consph_nnps *g, const consph_particles *p)
     g->p = p;
     g->n = n;
     return CONSPH_OK;
+}
+
+int consph_nnps_build(consph_nnps *g, const consph_particles *p)
+{
+    const int st = build(g, p);
+    g->inside = 0; /* the word holds for one build */
+    return st;
+}
+
+void nnps_positions_inside(consph_nnps *g, const double *lo, const double *hi)
+{
+    int same = lo && hi;
+    for (int a = 0; same && a < g->dim; ++a)
+        same = same && (!g->periodic[a] || (lo[a] == g->lo[a] && hi[a] == g->hi[a]));
+    g->inside = same;
 }
 
 int consph_nnps_sort(consph_nnps *g, consph_particles *p, size_t *perm_out)

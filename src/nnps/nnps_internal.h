@@ -47,6 +47,12 @@ int nnps_nbrs_reserve(consph_nbrs *nb, size_t need);
  * again. Any build in between takes the word back. */
 void nnps_build_is_current(consph_nnps *g);
 
+/* The caller's word that every coordinate of the particles on a periodic axis lies in
+ * [lo[a], hi[a]) (the solver wraps its positions after each move and checks them on the way):
+ * the next build, and only that one, skips its own sweep looking for one outside, which would
+ * be wrapped there. Taken only where lo and hi are the search box's; NULL takes it back. */
+void nnps_positions_inside(consph_nnps *g, const double *lo, const double *hi);
+
 /* For a search over part of a particle set (an MPI rank's particles and its halo, src/par): the
  * grid (cells per radius and cell counts) is chosen at every build as for n particles, the
  * whole set, so that it is the whole set's grid and cells are walked as in the serial run. */

@@ -413,24 +413,46 @@ void consph_solver_free(consph_solver *s)
 
 /* ---- time stepping ---- */
 
-static void wrap_positions(consph_solver *s)
+/* Positions are wrapped in blocks of this many: a block with none to wrap (nearly all of them) is
+ * one vectorised sweep of minima and maxima. */
+#define WRAP_BLOCK 1024
+
+/* Brings every coordinate on a periodic axis back into the box; 1 when each then lies in
+ * [lo, hi) of the box (what the search's build would otherwise check again). A NaN is neither
+ * wrapped nor counted: the build bins it to the same cell either way. */
+static int wrap_positions(consph_solver *s)
 {
     consph_particles *p = s->sys.p;
-    const size_t n = p->n;
+    const size_t n = p->n, nb = (n + WRAP_BLOCK - 1) / WRAP_BLOCK;
+    int outside = 0;
     /* one parallel region for every axis */
-#pragma omp parallel if (n >= SOLVER_PARALLEL_MIN)
+#pragma omp parallel if (n >= SOLVER_PARALLEL_MIN) reduction(| : outside)
     for (int a = 0; a < s->dim; ++a) {
         if (!p->box.periodic[a]) continue;
-        const double lo = p->box.lo[a], L = p->box.hi[a] - lo;
+        const double lo = p->box.lo[a], hi = p->box.hi[a], L = hi - lo;
+        /* below both lo + L (where the wrap starts) and hi (where the box ends) */
+        const double top = lo + L < hi ? lo + L : hi;
         double *x = p->x[a];
 #pragma omp for schedule(static) nowait
-        for (size_t i = 0; i < n; ++i) {
-            if (x[i] < lo || x[i] >= lo + L) {
-                x[i] -= L * floor((x[i] - lo) / L);
-                if (x[i] >= lo + L) x[i] = lo; /* rounding of a tiny negative offset */
+        for (size_t b = 0; b < nb; ++b) {
+            const size_t i0 = b * WRAP_BLOCK, i1 = i0 + WRAP_BLOCK < n ? i0 + WRAP_BLOCK : n;
+            double mn = lo, mx = lo;
+#pragma omp simd reduction(min : mn) reduction(max : mx)
+            for (size_t i = i0; i < i1; ++i) {
+                mn = x[i] < mn ? x[i] : mn;
+                mx = x[i] > mx ? x[i] : mx;
+            }
+            if (mn >= lo && mx < top) continue;
+            for (size_t i = i0; i < i1; ++i) {
+                if (x[i] < lo || x[i] >= lo + L) {
+                    x[i] -= L * floor((x[i] - lo) / L);
+                    if (x[i] >= lo + L) x[i] = lo; /* rounding of a tiny negative offset */
+                }
+                outside |= x[i] < lo || x[i] >= hi;
             }
         }
     }
+    return !outside;
 }
 
 /* The integrator's callbacks (integrators.h): the scheme's right-hand side, closure and
@@ -464,8 +486,12 @@ static int search_follows_drift(const consph_solver *s)
 static int integ_moved(void *ctx)
 {
     consph_solver *s = ctx;
-    wrap_positions(s);
+    /* the word holds for the update's build, if it makes one (a list with a skin may keep its
+     * last): taken back after it */
+    const int inside = wrap_positions(s) && !s->sys.split;
+    if (inside) nnps_positions_inside(s->sys.nnps, s->sys.p->box.lo, s->sys.p->box.hi);
     const int st = consph_sys_update(&s->sys, 0);
+    if (inside) nnps_positions_inside(s->sys.nnps, NULL, NULL);
     if (st == CONSPH_OK && search_follows_drift(s)) nnps_build_is_current(s->sys.nnps);
     return st;
 }
@@ -606,8 +632,12 @@ int consph_solver_step(consph_solver *s)
         integ_state is;
         if (st == CONSPH_OK) st = integ_state_of(s, &is);
         /* pec and kdk start from the rates the previous step left (the set-up's for the first);
-         * nothing then runs before the step, whose first update saves the start as it reads it */
-        is.unsaved = s->reuse_rates;
+         * nothing then runs before the step, whose first update saves the start as it reads it.
+         * The others evaluate the rates first, which leaves u, q and x as they are
+         * (scheme_def.rhs) unless q is a closure's summation density (tvf): the first update
+         * saves the start then too, instead of a copy before the right-hand side. Decomposed,
+         * the passes' halo refresh writes the halo's u, q and x: saved before. */
+        is.unsaved = s->reuse_rates || (!s->par && !(s->scheme->closure && !s->scheme->evolve_p));
         if (st == CONSPH_OK && !is.unsaved) integ_save_start(&is);
         if (st == CONSPH_OK && !s->reuse_rates) st = s->scheme->rhs(s);
         if (st == CONSPH_OK) st = s->integ->step(&is, dt);

@@ -59,8 +59,15 @@ typedef enum field_role {
     FIELD_SCRATCH, /* written within every step before anything reads it (the integrator's
                     * copies, a right-hand side's own sums): never written to snapshots, and not
                     * carried by the re-sort at a step's start */
-    FIELD_OUTPUT   /* written from the state before each snapshot (consph_solver_output_fields)
+    FIELD_OUTPUT,  /* written from the state before each snapshot (consph_solver_output_fields)
                     * and read only there: not carried by the re-sort either */
+    FIELD_STEP,    /* a scheme's word on a field that another list may declare: every step writes
+                    * it for every particle before anything reads it (a value of the step's own
+                    * right-hand side, read after the step by the diagnostics and the output):
+                    * not carried by the re-sort */
+    FIELD_GRADS    /* as FIELD_STEP in a step whose right-hand sides write it (∇u, ∇p: unless
+                    * grads_skip); carried into the others, whose snapshots and checkpoints keep
+                    * the values of the last step that wrote it (as the GPU's step keeps them) */
 } field_role;
 
 /* One field: its name (an SF_* macro), components, role and, when a snapshot carries it, the
@@ -83,15 +90,17 @@ typedef struct field_decl {
 extern const field_decl solver_fields[], integrator_fields[];
 /* Each family's, at the end of its file. */
 extern const field_decl negi_fields[], negi_remesh_fields[], wcsph_fields[], tv_fields[],
-    delta_fields[];
+    tvf_fields[], delta_fields[];
 
 /* Components of a shape in d dimensions. */
 int field_ncomp(field_shape shape, int d);
 /* Creates every declared field (zero) that the particles lack; CONSPH_EINVAL when two
  * declarations of a name disagree. */
 int state_create(consph_solver *s);
-/* 0 when every declaration of field `name` is FIELD_SCRATCH or FIELD_OUTPUT: its values between
- * two steps are never read, so a step's re-sort need not carry them. */
+/* 0 when every declaration of field `name` is FIELD_SCRATCH or FIELD_OUTPUT, or one is
+ * FIELD_STEP (FIELD_GRADS with grads_skip unset), or it is the pressure that the step's first
+ * closure writes from the density (the EOS, under an integrator starting from the last rates): its
+ * values between two steps are never read, so a step's re-sort need not carry them. */
 int state_carried(const consph_solver *s, const char *name);
 /* Gives the system its neighbour list (skin of a moving scheme; resume: from a checkpoint). */
 int solver_nlist_start(consph_solver *s, int resume);
@@ -152,7 +161,9 @@ typedef struct scheme_def {
     /* CONSPH_PARAM_ALPHA, CONSPH_PARAM_DELTA and CONSPH_PARAM_IPST when its rates use α or δ
      * or it shifts by IPST (the EOS follows from evolve_p and closure: consph_scheme_reads) */
     unsigned reads;
-    /* Rates into SF_AX (when moves), SF_AU and SF_AQ at the current state. */
+    /* Rates into SF_AX (when moves), SF_AU and SF_AQ at the current state. It writes no
+     * position, no velocity and no evolved scalar (the step's start is saved after it), but for
+     * the summation density of a scheme with a closure (tvf's ϱ). */
     int (*rhs)(consph_solver *s);
     /* What a family's shared rhs reads to tell its schemes apart (001's family: the scheme's
      * negi_terms); NULL where each scheme has an rhs of its own. */

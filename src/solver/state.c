@@ -117,16 +117,21 @@ double *sv_field(consph_solver *s, const char *name, int ncomp)
 
 int state_carried(const consph_solver *s, const char *name)
 {
+    /* pec's step starts with the update of ϱ, u and x from the last rates, then the EOS gives p
+     * from ϱ: nothing reads the p of the step before */
+    if (!strcmp(name, SF_P) && s->reuse_rates && !s->scheme->closure && !s->scheme->evolve_p)
+        return 0;
     const field_decl *lists[4];
     const int nl = state_lists(s, lists);
     int found = 0;
     for (int l = 0; l < nl; ++l)
         for (const field_decl *f = lists[l]; f->name; ++f)
             if (!strcmp(f->name, name)) {
-                if (f->role != FIELD_SCRATCH && f->role != FIELD_OUTPUT) return 1;
-                found = 1;
+                if (f->role == FIELD_STEP || (f->role == FIELD_GRADS && !s->grads_skip)) return 0;
+                if (f->role != FIELD_SCRATCH && f->role != FIELD_OUTPUT) found = 2;
+                if (!found) found = 1;
             }
-    return !found; /* an undeclared field is carried: nothing says it is dead */
+    return found != 1; /* an undeclared field is carried: nothing says it is dead */
 }
 
 int state_create(consph_solver *s)

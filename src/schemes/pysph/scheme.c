@@ -908,7 +908,7 @@ const scheme_def scheme_tvf = {
     .regularise = NULL,
     .closure = closure_summation,
     .transport = tv_transport,
-    .fields = tv_fields};
+    .fields = tvf_fields};
 const scheme_def scheme_edac = {
     .name = "edac",
     .summary = "Ramachandran & Puri 2019: EDAC pressure evolution with TVF and p - p_avg",
@@ -926,16 +926,26 @@ const scheme_def scheme_edac = {
 
 /* ---- fields: what these schemes declare beyond the solver's and the integrator's
  * (solver_internal.h, field_decl; the snapshot names are in docs/solver-files.md). wcsph
- * evolves its density; tvf's and edac's is the summation m Σ W of the last right-hand side. ---- */
-const field_decl wcsph_fields[] = {{SF_RHOF, FIELD_SCALAR, FIELD_STATE, "density"},
-                                   {SF_GRADP, FIELD_VECTOR, FIELD_DERIVED, NULL},
-                                   FIELD_END};
-const field_decl tv_fields[] = {{SF_RHOF, FIELD_SCALAR, FIELD_STATE, "summation_density"},
-                                {SF_GRADP, FIELD_VECTOR, FIELD_DERIVED, NULL},
-                                {SF_RHOS, FIELD_SCALAR, FIELD_DERIVED, NULL},
-                                {SF_NUMD, FIELD_SCALAR, FIELD_SCRATCH, NULL},
-                                {SF_PAVG, FIELD_SCALAR, FIELD_SCRATCH, NULL},
-                                {SF_TVDU, FIELD_VECTOR, FIELD_STATE, NULL},
-                                {SF_UHAT, FIELD_VECTOR, FIELD_DERIVED, NULL},
-                                FIELD_END};
+ * evolves its density; tvf's and edac's is the summation m Σ W of the last right-hand side.
+ * Every right-hand side writes ∇·u of every particle, and ∇u, ∇p unless grads_skip (put_diag),
+ * and no step reads them before its right-hand side: FIELD_STEP and FIELD_GRADS, which the
+ * re-sort need not carry. tvf's p is its density pass's (visit_density), written before the
+ * rates read it; edac evolves its p. ---- */
+#define PYSPH_STEP_FIELDS                                                                          \
+    {SF_GRADP, FIELD_VECTOR, FIELD_GRADS, NULL}, {SF_GRADU, FIELD_TENSOR, FIELD_GRADS, NULL},      \
+    {                                                                                              \
+        SF_DIVU, FIELD_SCALAR, FIELD_STEP, NULL                                                    \
+    }
+#define TV_FIELDS                                                                                  \
+    {SF_RHOF, FIELD_SCALAR, FIELD_STATE, "summation_density"}, PYSPH_STEP_FIELDS,                  \
+        {SF_RHOS, FIELD_SCALAR, FIELD_DERIVED, NULL},                                              \
+        {SF_NUMD, FIELD_SCALAR, FIELD_SCRATCH, NULL},                                              \
+        {SF_PAVG, FIELD_SCALAR, FIELD_SCRATCH, NULL}, {SF_TVDU, FIELD_VECTOR, FIELD_STATE, NULL},  \
+    {                                                                                              \
+        SF_UHAT, FIELD_VECTOR, FIELD_DERIVED, NULL                                                 \
+    }
+const field_decl wcsph_fields[] = {
+    {SF_RHOF, FIELD_SCALAR, FIELD_STATE, "density"}, PYSPH_STEP_FIELDS, FIELD_END};
+const field_decl tv_fields[] = {TV_FIELDS, FIELD_END};
+const field_decl tvf_fields[] = {TV_FIELDS, {SF_P, FIELD_SCALAR, FIELD_STEP, NULL}, FIELD_END};
 /* ---- end of fields ---- */
