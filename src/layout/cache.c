@@ -24,6 +24,23 @@
 
 #include "layout/layout_internal.h"
 
+/* A note on stderr, at the start of its own line: a study's live progress line may stand there
+ * (src/study/engine.c redraws one while a layout is packed), and the note must not be glued to
+ * it. */
+#if defined(__GNUC__)
+__attribute__((format(printf, 1, 2)))
+#endif
+static void
+cache_note(const char *fmt, ...)
+{
+    va_list ap;
+    char text[4608];
+    va_start(ap, fmt);
+    vsnprintf(text, sizeof text, fmt, ap);
+    va_end(ap);
+    fprintf(stderr, "%s%s", isatty(STDERR_FILENO) ? "\r\033[K" : "", text);
+}
+
 #define CACHE_MAGIC "CONSPHLC"
 #define CACHE_FORMAT 1u
 #define CACHE_PATH_MAX 4096
@@ -255,8 +272,7 @@ int layout_cache_load(const consph_layout_params *lp, consph_particles *p,
     int absent = 0;
     unsigned char *data = slurp(path, limit, &len, &absent);
     if (!data) {
-        if (!absent)
-            fprintf(stderr, "consph: layout cache %s: cannot read it; recomputing\n", path);
+        if (!absent) cache_note("consph: layout cache %s: cannot read it; recomputing\n", path);
         return 0;
     }
     const char *why = NULL;
@@ -338,16 +354,15 @@ int layout_cache_load(const consph_layout_params *lp, consph_particles *p,
     }
     free(data);
     if (why) {
-        fprintf(stderr, "consph: layout cache %s: %s; recomputing it\n", path, why);
+        cache_note("consph: layout cache %s: %s; recomputing it\n", path, why);
         return 0;
     }
     for (int a = 0; a < dim; ++a)
         for (size_t i = 0; i < n; ++i)
             if (!isfinite(p->x[a][i]) || p->x[a][i] < lp->box.lo[a] ||
                 !(p->x[a][i] < lp->box.hi[a])) {
-                fprintf(stderr,
-                        "consph: layout cache %s: a position outside the box; recomputing it\n",
-                        path);
+                cache_note("consph: layout cache %s: a position outside the box; recomputing it\n",
+                           path);
                 consph_packing_report_free(&rep);
                 return 0;
             }
@@ -457,10 +472,9 @@ static int make_dirs(const char *dir)
 static void warn_unwritable(const char *what)
 {
     if (!cache_write_warned)
-        fprintf(stderr,
-                "consph: warning: cannot write the layout cache in %s (%s: %s); going on "
-                "without it\n",
-                cache_dir, what, strerror(errno));
+        cache_note("consph: warning: cannot write the layout cache in %s (%s: %s); going on "
+                   "without it\n",
+                   cache_dir, what, strerror(errno));
     cache_write_warned = 1;
 }
 

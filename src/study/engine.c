@@ -1028,7 +1028,8 @@ static void rows_take_due(study_rows *rows, const packing_list *l)
     int n = 0;
     for (int q = 0; q < l->n; ++q) n += l->e[q].path[0] && access(l->e[q].path, R_OK) != 0;
     if (n == 0 || !(rows->due = calloc((size_t)n, sizeof *rows->due))) return;
-    for (int q = 0; q < l->n; ++q) {
+    /* a file removed since the count (the user clearing the cache) must not write past it */
+    for (int q = 0; q < l->n && rows->ndue < n; ++q) {
         if (!l->e[q].path[0] || access(l->e[q].path, R_OK) == 0) continue;
         study_packing_due *d = &rows->due[rows->ndue++];
         snprintf(d->path, sizeof d->path, "%s", l->e[q].path);
@@ -1043,6 +1044,9 @@ static void rows_price_due(const consph_study *s, const consph_study_options *op
     packing_list l = {NULL, 0, 0};
     unsigned char *skip = figures_kept(s, opt, dir);
     packing_list_build(s, opt, files, skip, 1, &l);
+    /* rows that pack leave the rate; without the model's, every row of an nx sweep would
+     * show no ETA at all */
+    if (l.n > 0 && rows->print) rows->model_per_work = rows_model_rate(s, opt, files, skip);
     rows_take_due(rows, &l);
     free(skip);
     free(l.e);
