@@ -56,6 +56,9 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
  * AVX2 loops even where it has AVX-512 (all give the same positions bit for bit); 0 restores the
  * choice by processor. */
 void layout_pack_set_portable(int level);
+/* Tests: 0 runs the packing's density and force walks one after the other instead of as a
+ * wavefront (the same positions bit for bit); 1 restores the wavefront. */
+void layout_pack_set_wavefront(int on);
 
 /* The packing's parameter checks (those consph_layout_pack makes first). */
 int layout_check_packing(const consph_layout_params *lp);
@@ -91,6 +94,8 @@ void layout_cache_unlock(int fd);
 #define PACK_XV_STRIDE 4
 #define PACK_XV_WEIGHT 3
 
+typedef struct pack_list_part pack_list_part;
+
 typedef struct pack_list {
     int dim;
     size_t n, cap, max_len;
@@ -98,8 +103,7 @@ typedef struct pack_list {
     /* Per entry: the neighbour's row in xv, i.e. j itself for the image in the box and
      * n + g for ghost g, a periodic image of a particle (built by pack_list_build). */
     uint32_t *j;
-    int8_t *image[CONSPH_MAX_DIM]; /* the build's images per entry (scratch of the build) */
-    double *dwr;                   /* per entry: W'/r of the force's kernel at the current step */
+    double *dwr; /* per entry: W'/r of the force's kernel at the current step */
     double *x_ref[CONSPH_MAX_DIM];
     double radius, len[CONSPH_MAX_DIM];
     /* Ghosts: the periodic images x_j + image·len that the list refers to, one per distinct
@@ -114,6 +118,9 @@ typedef struct pack_list {
     double *xv;
     size_t xv_rows;
     long builds;
+    /* The build's per-thread buffers (pairlist.c), kept from build to build. */
+    struct pack_list_part *parts;
+    int nparts;
 } pack_list;
 
 int pack_list_init(pack_list *L, const consph_particles *p, double radius);
