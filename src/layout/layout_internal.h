@@ -56,9 +56,10 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
  * AVX2 loops even where it has AVX-512 (all give the same positions bit for bit); 0 restores the
  * choice by processor. */
 void layout_pack_set_portable(int level);
-/* Tests: 0 runs the packing's density and force walks one after the other instead of as a
- * wavefront (the same positions bit for bit); 1 restores the wavefront. */
-void layout_pack_set_wavefront(int on);
+/* Tests: on = 0 runs the packing's density and force walks one after the other instead of as a
+ * wavefront (the same positions bit for bit), 1 restores the wavefront; ring_chunks > 0 sizes
+ * its rings of W'/r in chunks (0: the default). */
+void layout_pack_set_wavefront(int on, int ring_chunks);
 
 /* The packing's parameter checks (those consph_layout_pack makes first). */
 int layout_check_packing(const consph_layout_params *lp);

@@ -356,12 +356,15 @@ void layout_pack_set_portable(int level)
 }
 
 /* Set by tests: 1 runs the density and force walks one after the other instead of as a
- * wavefront (the same values). */
+ * wavefront (the same values); the wavefront's rings hold W'/r of this many chunks of the mean
+ * length (more than a neighbourhood spans in 2D, two rows of cells; fewer tests the fallback). */
 static int pack_wavefront_off;
+static int pack_ring_chunks = 40;
 
-void layout_pack_set_wavefront(int on)
+void layout_pack_set_wavefront(int on, int ring_chunks)
 {
     pack_wavefront_off = !on;
+    pack_ring_chunks = ring_chunks > 0 ? ring_chunks : 40;
 }
 
 /* What the pair sums of one step read and write. */
@@ -373,9 +376,13 @@ typedef struct pack_sweep {
     int glass;                 /* density: also rho_glass */
     const consph_kernel *kern; /* the force's kernel */
     const double *rho;         /* force: the density it acts on */
-    int avx2;                  /* the processor has AVX2: the vector loops */
-    int avx512;                /* and AVX-512F: the pair sums eight entries at a time */
-    int fused_quintic;         /* density: W and the force's W'/r are one quintic (AVX2) */
+    /* W'/r of list entry e at dwr[e - dwr_first]: the list's own array (dwr_first 0), or a
+     * buffer holding a chunk's entries (step_wavefront) */
+    double *dwr;
+    size_t dwr_first;
+    int avx2;          /* the processor has AVX2: the vector loops */
+    int avx512;        /* and AVX-512F: the pair sums eight entries at a time */
+    int fused_quintic; /* density: W and the force's W'/r are one quintic (AVX2) */
 } pack_sweep;
 
 #define XV(sw, row, slot) ((sw)->xv[PACK_XV_STRIDE * (size_t)(row) + (slot)])
@@ -574,7 +581,7 @@ __attribute__((target("avx2"))) static void density_quintic_avx2(int dim, const 
     for (size_t i = i0; i < i1; ++i) {
         const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
         const uint32_t *J = L->j + e0;
-        double *dwr = L->dwr + e0;
+        double *dwr = sw->dwr + (e0 - sw->dwr_first);
         __m256d xi[CONSPH_MAX_DIM];
         for (int a = 0; a < dim; ++a) xi[a] = _mm256_set1_pd(XV(sw, i, a));
         __m256d acc = _mm256_setzero_pd(), w;
@@ -734,7 +741,7 @@ __attribute__((target("avx512f"))) static void density_quintic_avx512(int dim, c
     for (size_t i = i0; i < i1; ++i) {
         const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
         const uint32_t *J = L->j + e0;
-        double *dwr = L->dwr + e0;
+        double *dwr = sw->dwr + (e0 - sw->dwr_first);
         __m512d xi[CONSPH_MAX_DIM];
         for (int a = 0; a < dim; ++a) xi[a] = _mm512_set1_pd(XV(sw, i, a));
         __m256d acc = _mm256_setzero_pd();
@@ -793,7 +800,8 @@ density_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_bu
         const size_t m = list_geometry(dim, sw, i, b, 0);
         sw->w->rho[i] = list_density(fp->target, fp->mass, b, m);
         if (sw->glass) sw->w->rho_glass[i] = list_density(fp->glass, fp->mass, b, m);
-        consph_kernel_eval_batch(sw->kern, m, b->r, NULL, sw->L->dwr + sw->L->start[i], NULL);
+        consph_kernel_eval_batch(sw->kern, m, b->r, NULL,
+                                 sw->dwr + (sw->L->start[i] - sw->dwr_first), NULL);
     }
 }
 
@@ -897,7 +905,7 @@ __attribute__((target("avx2"))) static void accel_avx2(int dim, const pack_sweep
     for (size_t i = i0; i < i1; ++i) {
         const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
         const uint32_t *J = L->j + e0;
-        const double *dwr = L->dwr + e0;
+        const double *dwr = sw->dwr + (e0 - sw->dwr_first);
         __m256d xi[CONSPH_MAX_DIM], acc[CONSPH_MAX_DIM];
         for (int a = 0; a < dim; ++a) {
             xi[a] = _mm256_set1_pd(XV(sw, i, a));
@@ -958,7 +966,7 @@ accel_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf 
     for (size_t i = i0; i < i1; ++i) {
         const size_t m = sw->L->start[i + 1] - sw->L->start[i];
         const uint32_t *restrict J = sw->L->j + sw->L->start[i];
-        const double *restrict dwr = sw->L->dwr + sw->L->start[i];
+        const double *restrict dwr = sw->dwr + (sw->L->start[i] - sw->dwr_first);
         const double ei = polish ? XV(sw, i, PACK_XV_WEIGHT) : 0.0;
         double s[CONSPH_MAX_DIM][4] = {{0.0}}, rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
         list_geometry(dim, sw, i, b, 1);
@@ -1059,6 +1067,7 @@ static void sweep_init(pack_sweep *sw, const force_params *fp, const pack_list *
     sw->L = L;
     sw->w = w;
     sw->xv = L->xv;
+    sw->dwr = L->dwr;
 #ifdef PACK_AVX2
     sw->avx2 = pack_isa_cap != 1 && __builtin_cpu_supports("avx2");
     sw->avx512 = sw->avx2 && pack_isa_cap == 0 && __builtin_cpu_supports("avx512f");
@@ -1187,10 +1196,29 @@ typedef struct packer {
     size_t nchunks;
     size_t *chunk_lo, *chunk_hi;
     unsigned char *chunk_late;
+    /* Per chunk, where its W'/r is kept: the offset in its thread's ring, or PACK_NO_RING (the
+     * list's own array); the rings, one a thread, of ring_cap entries plus PACK_SLACK. */
+    size_t *chunk_ring;
+    double **rings;
+    int nrings;
+    size_t ring_cap;
 } packer;
+
+#define PACK_NO_RING SIZE_MAX
+
+static void free_rings(packer *pk)
+{
+    for (int t = 0; t < pk->nrings; ++t) free(pk->rings[t]);
+    free(pk->rings);
+    pk->rings = NULL;
+    pk->nrings = 0;
+    pk->ring_cap = 0;
+}
 
 static void packer_free(packer *pk)
 {
+    free_rings(pk);
+    free(pk->chunk_ring);
     free(pk->chunk_lo);
     free(pk->chunk_hi);
     free(pk->chunk_late);
@@ -1245,7 +1273,8 @@ static int packer_init(packer *pk, const consph_layout_params *lp, consph_partic
     pk->chunk_lo = consph_calloc(pk->nchunks + 1, sizeof(size_t));
     pk->chunk_hi = consph_calloc(pk->nchunks + 1, sizeof(size_t));
     pk->chunk_late = consph_calloc(pk->nchunks + 1, 1);
-    if (!pk->chunk_lo || !pk->chunk_hi || !pk->chunk_late) return CONSPH_ENOMEM;
+    pk->chunk_ring = consph_calloc(pk->nchunks + 1, sizeof(size_t));
+    if (!pk->chunk_lo || !pk->chunk_hi || !pk->chunk_late || !pk->chunk_ring) return CONSPH_ENOMEM;
     pk->w.n_free = n_free;
     /* A pair farther apart than the kernel radius at a build can come within it only after one
      * of the two has moved half the skin. */
@@ -1280,27 +1309,77 @@ static void chunk_bounds(packer *pk)
     }
 }
 
+/* Rings of at least `cap` entries for `threads` threads, kept from step to step (fresh
+ * allocations of this size would fault in their pages at every step). */
+static int reserve_rings(packer *pk, int threads, size_t cap)
+{
+    if (threads <= pk->nrings && cap <= pk->ring_cap) return CONSPH_OK;
+    if (cap < pk->ring_cap) cap = pk->ring_cap;
+    cap += cap / 4;
+    if (threads < pk->nrings) threads = pk->nrings;
+    free_rings(pk);
+    pk->rings = consph_calloc((size_t)threads, sizeof *pk->rings);
+    if (!pk->rings) return CONSPH_ENOMEM;
+    pk->nrings = threads;
+    for (int t = 0; t < threads; ++t)
+        if (!(pk->rings[t] = consph_calloc(cap + PACK_SLACK, sizeof(double)))) {
+            free_rings(pk);
+            return CONSPH_ENOMEM;
+        }
+    pk->ring_cap = cap;
+    return CONSPH_OK;
+}
+
+/* Where chunk f's W'/r goes in a ring of `cap` entries whose next free entry is `head`: at
+ * head, or at 0 where it does not fit before the end, unless that overlaps the entries of a
+ * chunk in [pending, f) whose force has not read them yet; PACK_NO_RING then. */
+static size_t ring_place(const packer *pk, size_t f, size_t pending, size_t head, size_t cap)
+{
+    const size_t *start = pk->list.start, n = pk->list.n;
+    const size_t len = start[f * PACK_CHUNK + PACK_CHUNK < n ? f * PACK_CHUNK + PACK_CHUNK : n] -
+                       start[f * PACK_CHUNK];
+    const size_t off = head + len <= cap ? head : 0;
+    if (off + len > cap) return PACK_NO_RING;
+    for (size_t k = pending; k < f; ++k) {
+        const size_t o = pk->chunk_ring[k];
+        if (o == PACK_NO_RING) continue;
+        const size_t j0 = k * PACK_CHUNK, j1 = j0 + PACK_CHUNK < n ? j0 + PACK_CHUNK : n;
+        if (off < o + (start[j1] - start[j0]) && o < off + len) return PACK_NO_RING;
+    }
+    return off;
+}
+
 /* The density walk and the force walk of one step as a wavefront: each thread takes a contiguous
  * share of the chunks and computes their densities, force weights and W'/r chunk by chunk,
  * running the force on a chunk as soon as its share holds the densities of every chunk with a
- * neighbour of it, a neighbourhood's span of chunks behind; the chunk's list entries (indices
- * and W'/r) are then read again while they are still cached instead of streamed from memory by
- * a second walk (at 2D nx 500 the list is 135 MB). A chunk with a neighbour in another thread's
- * share (the periodic images across the box, the shares' edges) waits until every thread's walk
- * is over. Every sum reads what it reads in compute_density then compute_acceleration, so the
- * same values for any thread count. */
+ * neighbour of it, a neighbourhood's span of chunks behind. The chunk's W'/r goes to a small
+ * ring of the thread's, reused chunk after chunk, and its list indices are read again while
+ * still cached: the list is streamed from memory once per step instead of twice, and W'/r (two
+ * thirds of its bytes) neither written to nor read back from memory (at 2D nx 500 the list is
+ * 135 MB, far beyond the caches). A chunk with a neighbour in another thread's share (the
+ * periodic images across the box, the shares' edges) keeps its W'/r in the list's array and has
+ * its force after every thread's walk is over. Every sum reads what it reads in compute_density
+ * then compute_acceleration, so the same values for any thread count. */
 static int step_wavefront(packer *pk, const consph_particles *p)
 {
     pack_list *L = &pk->list;
     pack_work *w = &pk->w;
     const force_params *fp = &pk->fp;
+    const size_t n = w->n, nc = pk->nchunks;
+#ifdef _OPENMP
+    const int max_threads = n >= 2048 ? omp_get_max_threads() : 1;
+#else
+    const int max_threads = 1;
+#endif
+    int rc = reserve_rings(pk, max_threads, (size_t)pack_ring_chunks * (L->start[n] / nc + 1));
+    if (rc) return rc;
     pack_list_fill_positions(L, p);
     pack_sweep sd, sf;
     density_sweep_init(&sd, fp, L, w);
     force_sweep_init(&sf, fp, L, w);
-    const size_t n = w->n, nc = pk->nchunks;
-    const size_t *lo = pk->chunk_lo, *hi = pk->chunk_hi;
+    const size_t *lo = pk->chunk_lo, *hi = pk->chunk_hi, *start = L->start;
     unsigned char *late = pk->chunk_late;
+    size_t *ring_of = pk->chunk_ring;
     double *xv = L->xv;
     int failed = 0;
 #pragma omp parallel if (n >= 2048)
@@ -1311,6 +1390,8 @@ static int step_wavefront(packer *pk, const consph_particles *p)
         const size_t nt = 1, t = 0;
 #endif
         const size_t c0 = nc * t / nt, c1 = nc * (t + 1) / nt;
+        double *ring = pk->rings[t];
+        pack_sweep sdt = sd, sft = sf;
         pair_buf b;
         if (!pair_buf_alloc(&b, L->max_len, PACK_CHUNK)) {
 #pragma omp atomic write
@@ -1318,10 +1399,17 @@ static int step_wavefront(packer *pk, const consph_particles *p)
         }
 #pragma omp barrier
         if (!failed) {
-            size_t next = c0; /* the first chunk of the share without its force */
+            size_t next = c0, head = 0; /* the first chunk without its force; the ring's next */
             for (size_t f = c0; f < c1; ++f) {
                 const size_t i0 = f * PACK_CHUNK, i1 = i0 + PACK_CHUNK < n ? i0 + PACK_CHUNK : n;
-                density_block(&sd, i0, i1, &b);
+                late[f] = lo[f] < c0 || hi[f] >= c1;
+                const size_t off =
+                    late[f] ? PACK_NO_RING : ring_place(pk, f, next, head, pk->ring_cap);
+                ring_of[f] = off;
+                sdt.dwr = off == PACK_NO_RING ? L->dwr : ring + off;
+                sdt.dwr_first = off == PACK_NO_RING ? 0 : start[i0];
+                if (off != PACK_NO_RING) head = off + (start[i1] - start[i0]);
+                density_block(&sdt, i0, i1, &b);
                 for (size_t i = i0; i < i1; ++i) {
                     const double wt = force_weight(fp, sf.rho, i);
                     xv[PACK_XV_STRIDE * i + PACK_XV_WEIGHT] = wt;
@@ -1329,12 +1417,15 @@ static int step_wavefront(packer *pk, const consph_particles *p)
                         xv[PACK_XV_STRIDE * (n + (size_t)g) + PACK_XV_WEIGHT] = wt;
                 }
                 /* f + 1 == c1: every chunk of the share has its densities */
-                for (; next <= f || (f + 1 == c1 && next < c1); ++next) {
-                    late[next] = lo[next] < c0 || hi[next] >= c1;
+                for (; next <= f; ++next) {
                     if (late[next]) continue;
-                    if (hi[next] > f) break;
-                    const size_t j0 = next * PACK_CHUNK;
-                    accel_block(&sf, j0, j0 + PACK_CHUNK < n ? j0 + PACK_CHUNK : n, &b);
+                    if (hi[next] > f && f + 1 < c1) break;
+                    const size_t j0 = next * PACK_CHUNK,
+                                 j1 = j0 + PACK_CHUNK < n ? j0 + PACK_CHUNK : n;
+                    const size_t o = ring_of[next];
+                    sft.dwr = o == PACK_NO_RING ? L->dwr : ring + o;
+                    sft.dwr_first = o == PACK_NO_RING ? 0 : start[j0];
+                    accel_block(&sft, j0, j1, &b);
                 }
             }
         }
