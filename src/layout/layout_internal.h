@@ -118,6 +118,9 @@ typedef struct pack_list {
      * row, plus PACK_SLACK rows; aligned to 32 bytes. */
     double *xv;
     size_t xv_rows;
+    /* The particles' rows of xv hold their positions (written by the packing's step since the
+     * last build): pack_list_fill_positions refreshes only the ghosts'. */
+    int rows_current;
     long builds;
     /* The build's per-thread buffers (pairlist.c), kept from build to build. */
     struct pack_list_part *parts;
@@ -129,8 +132,9 @@ int pack_list_init(pack_list *L, const consph_particles *p, double radius);
  * records the positions. */
 int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particles *p);
 void pack_list_free(pack_list *L);
-/* The coordinates of every particle of p and ghost into xv (slots 0..dim-1): x_src + image·len
- * for a ghost, the same expression as the image arithmetic it replaces, so the same values. */
+/* The coordinates of every particle of p (unless rows_current) and ghost into xv (slots
+ * 0..dim-1): x_src + image·len for a ghost, the same expression as the image arithmetic it
+ * replaces, so the same values. */
 void pack_list_fill_positions(pack_list *L, const consph_particles *p);
 /* Copies each ghost's weight (slot PACK_XV_WEIGHT) from its source particle. */
 void pack_list_fill_ghost_weights(pack_list *L);

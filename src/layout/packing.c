@@ -1129,11 +1129,12 @@ static int compute_acceleration(const force_params *fp, pack_list *L, pack_work 
  * while they move continuously, and step_density wraps them when it rebuilds the list. Returns
  * max_i |u_i| after the step, and in *moved2 the largest squared distance of a particle from
  * where it was when the list was built. */
-static double advance(consph_particles *p, pack_work *w, const pack_list *L, double dt, double nu,
+static double advance(consph_particles *p, pack_work *w, pack_list *L, double dt, double nu,
                       int explicit_euler, double *moved2)
 {
     const double damp = 1.0 - nu * dt;
     const int dim = w->dim;
+    double *restrict xv = L->xv;
     double vmax2 = 0.0, dmax2 = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : vmax2, dmax2) if (w->n >= 2048)
     for (size_t i = 0; i < w->n; ++i) {
@@ -1144,12 +1145,16 @@ static double advance(consph_particles *p, pack_work *w, const pack_list *L, dou
             w->u[a][i] = u1;
             const double x = p->x[a][i] + dt * (explicit_euler ? u0 : u1);
             p->x[a][i] = x;
+            xv[PACK_XV_STRIDE * i + (size_t)a] = x;
             v2 += u1 * u1;
             d2 += (x - L->x_ref[a][i]) * (x - L->x_ref[a][i]);
         }
         if (v2 > vmax2) vmax2 = v2;
         if (d2 > dmax2) dmax2 = d2;
     }
+    /* The particles' rows of the list hold the new positions (the frozen ones kept theirs):
+     * pack_list_fill_positions need only refresh the ghosts. */
+    L->rows_current = 1;
     *moved2 = dmax2;
     return sqrt(vmax2);
 }

@@ -268,17 +268,18 @@ int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particle
     int rc = assign_ghosts(L, nparts);
     if (rc) return rc;
     for (int a = 0; a < L->dim; ++a) memcpy(L->x_ref[a], p->x[a], n * sizeof(double));
+    L->rows_current = 0;
     L->builds++;
     return CONSPH_OK;
 }
 
 void pack_list_fill_positions(pack_list *L, const consph_particles *p)
 {
-    const size_t n = L->n, rows = n + L->n_ghost;
+    const size_t n = L->n, rows = n + L->n_ghost, first = L->rows_current ? n : 0;
     const int dim = L->dim;
     double *restrict xv = L->xv;
-#pragma omp parallel for schedule(static) if (rows >= 2048)
-    for (size_t r = 0; r < rows; ++r) {
+#pragma omp parallel for schedule(static) if (rows - first >= 2048)
+    for (size_t r = first; r < rows; ++r) {
         if (r < n) {
             for (int a = 0; a < dim; ++a) xv[PACK_XV_STRIDE * r + (size_t)a] = p->x[a][r];
         } else {
