@@ -90,8 +90,9 @@
  * re-sorted into cell order, for memory locality) only once a particle has moved half the skin
  * since the last build, with one walk of the search per build. The positions are wrapped into
  * the box at the builds only; a pair that the search found across the box's edge names a ghost,
- * the periodic image x_j + image·len of its particle, whose row is refreshed every step, so a
- * list entry is x_i - row with no image arithmetic (the same values as adding the image's
+ * the periodic image x_j + image·len of its particle, whose row is refreshed every step (the
+ * particles' rows are written by the step that moves them), so a list entry is x_i - row with
+ * no image arithmetic (the same values as adding the image's
  * shift per entry). The rows interleave the coordinates and the force's per-particle weight
  * (32 bytes a particle), so the force walk loads both at once. Per step, one walk computes the
  * densities and W'/r of the force's kernel (kept per list entry), with the distances in the same
@@ -116,7 +117,28 @@
  * multiplication, a timing only, made the walk 11% faster); folding the quintic's constants (three
  * multiplications fewer per entry, a round-off change) gained 1.5% and was not taken. The division
  * in W'/r stays: W'/r has no division-free form with the same values (f'(q)/q is a polynomial on q
- * < 1 only). Reproducibility: every sum is a gather into particle i in the fixed order of its list
+ * < 1 only).
+ *
+ * The packed kind runs the two walks of a step as a wavefront (step_wavefront; 1D and 2D): each
+ * thread takes a contiguous share of the chunks of 256 particles, computes a chunk's densities,
+ * force weights and W'/r, and runs the force on a chunk as soon as its share holds the densities
+ * of every chunk with a neighbour of it (about two rows of cells behind in 2D). W'/r goes to a
+ * ring of the thread's, reused chunk after chunk, and the list's indices are read again while
+ * cached: the list (12 bytes an entry, 135 MB at 2D nx 500) is streamed from memory once per step
+ * instead of twice, and W'/r is neither written to nor read back from memory. The chunks with a
+ * neighbour in another thread's share (the periodic images across the box, the shares' edges) keep
+ * W'/r in the list's array and have their force after every thread's walk. The same sums in the
+ * same order: the same positions bit for bit (test_packing_paths compares with the walks one after
+ * the other). Measured against main, same session, 2 shared cores under the other engineers' load
+ * (load 4-9: wall times meaningless, user + system CPU compared): 2D nx 500, 300 steps, two threads
+ * 22.2 / 21.9 s -> 18.6 / 19.2 s of CPU (of which system 1.6-1.7 s -> 0.3 s: the list build now
+ * keeps its buffers from build to build instead of faulting in fresh pages at every build), one
+ * thread 23.1 -> 18.6-19.2 s; whole pack 2D nx 200, two threads, 73.4 -> 66.0 s of CPU (main's
+ * 70.5 s on the quiet cores). What this gains in wall time at nx 500 on two threads, where the
+ * second thread was starved of memory bandwidth (1.5 times one thread's speed), needs quiet
+ * cores to measure.
+ *
+ * Reproducibility: every sum is a gather into particle i in the fixed order of its list
  * and the only reductions are max, which are exact, so the result does not depend on the number of
  * threads. Changing the order of a sum or the operations of a term moves the positions at
  * round-off: bump CONSPH_LAYOUT_PACKING_VERSION (include/consph/layout.h), the cache's key.
