@@ -105,6 +105,9 @@ typedef struct pack_list {
      * n + g for ghost g, a periodic image of a particle (built by pack_list_build). */
     uint32_t *j;
     double *dwr; /* per entry: W'/r of the force's kernel at the current step */
+    /* Per particle: the least and greatest particle (a ghost's source) among its neighbours, i
+     * itself included, at the last build. */
+    uint32_t *j_lo, *j_hi;
     double *x_ref[CONSPH_MAX_DIM];
     double radius, len[CONSPH_MAX_DIM];
     /* Ghosts: the periodic images x_j + image·len that the list refers to, one per distinct

@@ -1321,15 +1321,12 @@ static void chunk_bounds(packer *pk)
 {
     const pack_list *L = &pk->list;
     const size_t n = L->n, nc = pk->nchunks;
-#pragma omp parallel for schedule(static) if (n >= 2048)
     for (size_t c = 0; c < nc; ++c) {
         const size_t i0 = c * PACK_CHUNK, i1 = i0 + PACK_CHUNK < n ? i0 + PACK_CHUNK : n;
         size_t lo = i0, hi = i1 - 1;
-        for (size_t e = L->start[i0]; e < L->start[i1]; ++e) {
-            size_t j = L->j[e];
-            if (j >= n) j = L->ghost_src[j - n];
-            lo = j < lo ? j : lo;
-            hi = j > hi ? j : hi;
+        for (size_t i = i0; i < i1; ++i) {
+            lo = L->j_lo[i] < lo ? L->j_lo[i] : lo;
+            hi = L->j_hi[i] > hi ? L->j_hi[i] : hi;
         }
         pk->chunk_lo[c] = lo / PACK_CHUNK;
         pk->chunk_hi[c] = hi / PACK_CHUNK;

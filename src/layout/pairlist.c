@@ -36,6 +36,8 @@ static void list_part_free(pack_list_part *t)
 void pack_list_free(pack_list *L)
 {
     free(L->start);
+    free(L->j_lo);
+    free(L->j_hi);
     free(L->j);
     free(L->dwr);
     free(L->ghost_src);
@@ -61,6 +63,8 @@ int pack_list_init(pack_list *L, const consph_particles *p, double radius)
     for (int a = 0; a < p->dim; ++a) L->len[a] = consph_box_length(&p->box, a);
     int ok = (L->start = consph_calloc(p->n + 1, sizeof(size_t))) != NULL;
     ok &= (L->ghost_head = consph_calloc(p->n, sizeof(int32_t))) != NULL;
+    ok &= (L->j_lo = consph_calloc(p->n, sizeof(uint32_t))) != NULL;
+    ok &= (L->j_hi = consph_calloc(p->n, sizeof(uint32_t))) != NULL;
     for (int a = 0; a < p->dim; ++a)
         ok &= (L->x_ref[a] = consph_calloc(p->n, sizeof(double))) != NULL;
     if (!ok) {
@@ -220,8 +224,11 @@ int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particle
                 failed = 1;
                 m = 0;
             }
+            size_t lo = i, hi = i;
             for (size_t q = 0; q < m; ++q) {
                 const size_t j = nb.j[q];
+                lo = j < lo ? j : lo;
+                hi = j > hi ? j : hi;
                 t->j[t->len + q] = (uint32_t)j;
                 /* the image as one key, a byte per axis (0: the box itself) */
                 uint32_t key = 0;
@@ -236,6 +243,8 @@ int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particle
             }
             t->len += m;
             L->start[i + 1] = m;
+            L->j_lo[i] = (uint32_t)lo;
+            L->j_hi[i] = (uint32_t)hi;
         }
 #pragma omp single
         {
