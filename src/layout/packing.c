@@ -129,14 +129,15 @@
  * neighbour in another thread's share (the periodic images across the box, the shares' edges) keep
  * W'/r in the list's array and have their force after every thread's walk. The same sums in the
  * same order: the same positions bit for bit (test_packing_paths compares with the walks one after
- * the other). Measured against main, same session, 2 shared cores under the other engineers' load
- * (load 4-9: wall times meaningless, user + system CPU compared): 2D nx 500, 300 steps, two threads
- * 22.2 / 21.9 s -> 18.6 / 19.2 s of CPU (of which system 1.6-1.7 s -> 0.3 s: the list build now
- * keeps its buffers from build to build instead of faulting in fresh pages at every build), one
- * thread 23.1 -> 18.6-19.2 s; whole pack 2D nx 200, two threads, 73.4 -> 66.0 s of CPU (main's
- * 70.5 s on the quiet cores). What this gains in wall time at nx 500 on two threads, where the
- * second thread was starved of memory bandwidth (1.5 times one thread's speed), needs quiet
- * cores to measure.
+ * the other). The list build keeps its per-thread buffers from build to build (fresh ones faulted
+ * in their pages at every build: 1.5-3.5 s of system time in the first 300 steps at nx 500).
+ * Measured against main, same session, 2 shared cores, load about 2 (this run included): 2D nx
+ * 500, 300 steps, two threads 12.6 -> 9.8 s wall (22.0 -> 18.6 s of user + system CPU), one
+ * thread 22.7 -> 18.5 s (two threads 1.80 -> 1.88 times one thread's speed); 1500 steps, two
+ * threads 37.7 -> 31.0 s wall (69.1 -> 59.8 s of CPU); whole pack nx 200, two threads 32.5 ->
+ * 30.4 s wall (63.2 -> 59.2 s of CPU); nx 100 5.3 s both (its list fits the caches). Under
+ * heavier load (3-9) nx 200 took 73.4 -> 66.0 and 64.3 -> 64.1 s of CPU; wall times there say
+ * nothing.
  *
  * Reproducibility: every sum is a gather into particle i in the fixed order of its list
  * and the only reductions are max, which are exact, so the result does not depend on the number of
