@@ -186,6 +186,7 @@ int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particle
     const int dim = L->dim;
     double inv_len[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
     for (int a = 0; a < dim; ++a) inv_len[a] = 1.0 / L->len[a];
+    const double margin = 1.01 * L->radius;
 #ifdef _OPENMP
     const int max_threads = omp_get_max_threads();
 #else
@@ -224,12 +225,21 @@ int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particle
                 failed = 1;
                 m = 0;
             }
+            /* A particle farther than the search radius from every face of the box (the
+             * positions are wrapped into it at the builds) has no neighbour across a face: every
+             * image is 0, as image_of would find. */
+            int interior = 1;
+            for (int a = 0; a < dim; ++a) {
+                const double x = p->x[a][i];
+                interior &= x - p->box.lo[a] > margin && p->box.lo[a] + L->len[a] - x > margin;
+            }
             size_t lo = i, hi = i;
             for (size_t q = 0; q < m; ++q) {
                 const size_t j = nb.j[q];
                 lo = j < lo ? j : lo;
                 hi = j > hi ? j : hi;
                 t->j[t->len + q] = (uint32_t)j;
+                if (interior) continue;
                 /* the image as one key, a byte per axis (0: the box itself) */
                 uint32_t key = 0;
                 for (int a = 0; a < dim; ++a)
