@@ -131,13 +131,16 @@
  * same order: the same positions bit for bit (test_packing_paths compares with the walks one after
  * the other). The list build keeps its per-thread buffers from build to build (fresh ones faulted
  * in their pages at every build: 1.5-3.5 s of system time in the first 300 steps at nx 500).
- * Measured against main, same session, 2 shared cores, load about 2 (this run included): 2D nx
- * 500, 300 steps, two threads 12.6 -> 9.8 s wall (22.0 -> 18.6 s of user + system CPU), one
- * thread 22.7 -> 18.5 s (two threads 1.80 -> 1.88 times one thread's speed); 1500 steps, two
- * threads 37.7 -> 31.0 s wall (69.1 -> 59.8 s of CPU); whole pack nx 200, two threads 32.5 ->
- * 30.4 s wall (63.2 -> 59.2 s of CPU); nx 100 5.3 s both (its list fits the caches). Under
- * heavier load (3-9) nx 200 took 73.4 -> 66.0 and 64.3 -> 64.1 s of CPU; wall times there say
- * nothing.
+ * Measured against main, same session, 2 shared cores, load about 2 (these runs included), the
+ * list build's image skip (pairlist.c) included in the later runs: 2D nx 500, 300 steps, two
+ * threads 12.6 -> 9.8 s wall (22.0 -> 18.6 s of user + system CPU), one thread 22.7 -> 18.5 s;
+ * 1500 steps, two threads 34.7-37.7 -> 31.0-34.4 s wall over three runs each (65.1-69.1 ->
+ * 57.8-59.8 s of CPU), one thread 71.7 -> 60.3 s; whole pack nx 200, two threads 32.5 / 35.9 ->
+ * 30.4 / 31.2 s wall (63.2 / 69.5 -> 59.2 / 60.1 s of CPU); nx 100 5.3 s both (its list fits the
+ * caches). Under heavier load (3-9) nx 200 took 73.4 -> 66.0 and 64.3 -> 64.1 s of CPU; wall
+ * times there say nothing. On these cores main's two threads at nx 500 ran 1.8-2.1 times as fast
+ * as its one (not the 1.5 measured before on quiet cores): what the wavefront gains where memory
+ * bandwidth binds remains to be timed on quiet cores.
  *
  * Reproducibility: every sum is a gather into particle i in the fixed order of its list
  * and the only reductions are max, which are exact, so the result does not depend on the number of
