@@ -56,6 +56,10 @@ int consph_layout_pack(const consph_layout_params *lp, consph_particles *p,
  * AVX2 loops even where it has AVX-512 (all give the same positions bit for bit); 0 restores the
  * choice by processor. */
 void layout_pack_set_portable(int level);
+/* Tests: on = 0 runs the packing's density and force walks one after the other instead of as a
+ * wavefront (the same positions bit for bit), 1 restores the wavefront; ring_chunks > 0 sizes
+ * its rings of W'/r in chunks (0: the default). */
+void layout_pack_set_wavefront(int on, int ring_chunks);
 
 /* The packing's parameter checks (those consph_layout_pack makes first). */
 int layout_check_packing(const consph_layout_params *lp);
@@ -91,6 +95,8 @@ void layout_cache_unlock(int fd);
 #define PACK_XV_STRIDE 4
 #define PACK_XV_WEIGHT 3
 
+typedef struct pack_list_part pack_list_part;
+
 typedef struct pack_list {
     int dim;
     size_t n, cap, max_len;
@@ -98,8 +104,10 @@ typedef struct pack_list {
     /* Per entry: the neighbour's row in xv, i.e. j itself for the image in the box and
      * n + g for ghost g, a periodic image of a particle (built by pack_list_build). */
     uint32_t *j;
-    int8_t *image[CONSPH_MAX_DIM]; /* the build's images per entry (scratch of the build) */
-    double *dwr;                   /* per entry: W'/r of the force's kernel at the current step */
+    double *dwr; /* per entry: W'/r of the force's kernel at the current step */
+    /* Per particle: the least and greatest particle (a ghost's source) among its neighbours, i
+     * itself included, at the last build. */
+    uint32_t *j_lo, *j_hi;
     double *x_ref[CONSPH_MAX_DIM];
     double radius, len[CONSPH_MAX_DIM];
     /* Ghosts: the periodic images x_j + image·len that the list refers to, one per distinct
@@ -113,7 +121,13 @@ typedef struct pack_list {
      * row, plus PACK_SLACK rows; aligned to 32 bytes. */
     double *xv;
     size_t xv_rows;
+    /* The particles' rows of xv hold their positions (written by the packing's step since the
+     * last build): pack_list_fill_positions refreshes only the ghosts'. */
+    int rows_current;
     long builds;
+    /* The build's per-thread buffers (pairlist.c), kept from build to build. */
+    struct pack_list_part *parts;
+    int nparts;
 } pack_list;
 
 int pack_list_init(pack_list *L, const consph_particles *p, double radius);
@@ -121,8 +135,9 @@ int pack_list_init(pack_list *L, const consph_particles *p, double radius);
  * records the positions. */
 int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particles *p);
 void pack_list_free(pack_list *L);
-/* The coordinates of every particle of p and ghost into xv (slots 0..dim-1): x_src + image·len
- * for a ghost, the same expression as the image arithmetic it replaces, so the same values. */
+/* The coordinates of every particle of p (unless rows_current) and ghost into xv (slots
+ * 0..dim-1): x_src + image·len for a ghost, the same expression as the image arithmetic it
+ * replaces, so the same values. */
 void pack_list_fill_positions(pack_list *L, const consph_particles *p);
 /* Copies each ghost's weight (slot PACK_XV_WEIGHT) from its source particle. */
 void pack_list_fill_ghost_weights(pack_list *L);

@@ -90,8 +90,9 @@
  * re-sorted into cell order, for memory locality) only once a particle has moved half the skin
  * since the last build, with one walk of the search per build. The positions are wrapped into
  * the box at the builds only; a pair that the search found across the box's edge names a ghost,
- * the periodic image x_j + image·len of its particle, whose row is refreshed every step, so a
- * list entry is x_i - row with no image arithmetic (the same values as adding the image's
+ * the periodic image x_j + image·len of its particle, whose row is refreshed every step (the
+ * particles' rows are written by the step that moves them), so a list entry is x_i - row with
+ * no image arithmetic (the same values as adding the image's
  * shift per entry). The rows interleave the coordinates and the force's per-particle weight
  * (32 bytes a particle), so the force walk loads both at once. Per step, one walk computes the
  * densities and W'/r of the force's kernel (kept per list entry), with the distances in the same
@@ -116,7 +117,32 @@
  * multiplication, a timing only, made the walk 11% faster); folding the quintic's constants (three
  * multiplications fewer per entry, a round-off change) gained 1.5% and was not taken. The division
  * in W'/r stays: W'/r has no division-free form with the same values (f'(q)/q is a polynomial on q
- * < 1 only). Reproducibility: every sum is a gather into particle i in the fixed order of its list
+ * < 1 only).
+ *
+ * The packed kind runs the two walks of a step as a wavefront (step_wavefront; 1D and 2D): each
+ * thread takes a contiguous share of the chunks of 256 particles, computes a chunk's densities,
+ * force weights and W'/r, and runs the force on a chunk as soon as its share holds the densities
+ * of every chunk with a neighbour of it (about two rows of cells behind in 2D). W'/r goes to a
+ * ring of the thread's, reused chunk after chunk, and the list's indices are read again while
+ * cached: the list (12 bytes an entry, 135 MB at 2D nx 500) is streamed from memory once per step
+ * instead of twice, and W'/r is neither written to nor read back from memory. The chunks with a
+ * neighbour in another thread's share (the periodic images across the box, the shares' edges) keep
+ * W'/r in the list's array and have their force after every thread's walk. The same sums in the
+ * same order: the same positions bit for bit (test_packing_paths compares with the walks one after
+ * the other). The list build keeps its per-thread buffers from build to build (fresh ones faulted
+ * in their pages at every build: 1.5-3.5 s of system time in the first 300 steps at nx 500).
+ * Measured against main, same session, 2 shared cores, load about 2 (these runs included), the
+ * list build's image skip (pairlist.c) included in the later runs: 2D nx 500, 300 steps, two
+ * threads 12.6 -> 9.8 s wall (22.0 -> 18.6 s of user + system CPU), one thread 22.7 -> 18.5 s;
+ * 1500 steps, two threads 34.7-37.7 -> 31.0-34.4 s wall over three runs each (65.1-69.1 ->
+ * 57.8-59.8 s of CPU), one thread 71.7 -> 60.3 s; whole pack nx 200, two threads 32.5 / 35.9 ->
+ * 30.4 / 31.2 s wall (63.2 / 69.5 -> 59.2 / 60.1 s of CPU); nx 100 5.3 s both (its list fits the
+ * caches). Under heavier load (3-9) nx 200 took 73.4 -> 66.0 and 64.3 -> 64.1 s of CPU; wall
+ * times there say nothing. On these cores main's two threads at nx 500 ran 1.8-2.1 times as fast
+ * as its one (not the 1.5 measured before on quiet cores): what the wavefront gains where memory
+ * bandwidth binds remains to be timed on quiet cores.
+ *
+ * Reproducibility: every sum is a gather into particle i in the fixed order of its list
  * and the only reductions are max, which are exact, so the result does not depend on the number of
  * threads. Changing the order of a sum or the operations of a term moves the positions at
  * round-off: bump CONSPH_LAYOUT_PACKING_VERSION (include/consph/layout.h), the cache's key.
@@ -124,6 +150,9 @@
 #include <math.h>
 #include <stdlib.h>
 #include <string.h>
+#ifdef _OPENMP
+#include <omp.h>
+#endif
 
 #include "layout/layout_internal.h"
 
@@ -352,6 +381,18 @@ void layout_pack_set_portable(int level)
     pack_isa_cap = level;
 }
 
+/* Set by tests: 1 runs the density and force walks one after the other instead of as a
+ * wavefront (the same values); the wavefront's rings hold W'/r of this many chunks of the mean
+ * length (more than a neighbourhood spans in 2D, two rows of cells; fewer tests the fallback). */
+static int pack_wavefront_off;
+static int pack_ring_chunks = 40;
+
+void layout_pack_set_wavefront(int on, int ring_chunks)
+{
+    pack_wavefront_off = !on;
+    pack_ring_chunks = ring_chunks > 0 ? ring_chunks : 40;
+}
+
 /* What the pair sums of one step read and write. */
 typedef struct pack_sweep {
     const force_params *fp;
@@ -361,9 +402,13 @@ typedef struct pack_sweep {
     int glass;                 /* density: also rho_glass */
     const consph_kernel *kern; /* the force's kernel */
     const double *rho;         /* force: the density it acts on */
-    int avx2;                  /* the processor has AVX2: the vector loops */
-    int avx512;                /* and AVX-512F: the pair sums eight entries at a time */
-    int fused_quintic;         /* density: W and the force's W'/r are one quintic (AVX2) */
+    /* W'/r of list entry e at dwr[e - dwr_first]: the list's own array (dwr_first 0), or a
+     * buffer holding a chunk's entries (step_wavefront) */
+    double *dwr;
+    size_t dwr_first;
+    int avx2;          /* the processor has AVX2: the vector loops */
+    int avx512;        /* and AVX-512F: the pair sums eight entries at a time */
+    int fused_quintic; /* density: W and the force's W'/r are one quintic (AVX2) */
 } pack_sweep;
 
 #define XV(sw, row, slot) ((sw)->xv[PACK_XV_STRIDE * (size_t)(row) + (slot)])
@@ -562,7 +607,7 @@ __attribute__((target("avx2"))) static void density_quintic_avx2(int dim, const 
     for (size_t i = i0; i < i1; ++i) {
         const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
         const uint32_t *J = L->j + e0;
-        double *dwr = L->dwr + e0;
+        double *dwr = sw->dwr + (e0 - sw->dwr_first);
         __m256d xi[CONSPH_MAX_DIM];
         for (int a = 0; a < dim; ++a) xi[a] = _mm256_set1_pd(XV(sw, i, a));
         __m256d acc = _mm256_setzero_pd(), w;
@@ -722,7 +767,7 @@ __attribute__((target("avx512f"))) static void density_quintic_avx512(int dim, c
     for (size_t i = i0; i < i1; ++i) {
         const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
         const uint32_t *J = L->j + e0;
-        double *dwr = L->dwr + e0;
+        double *dwr = sw->dwr + (e0 - sw->dwr_first);
         __m512d xi[CONSPH_MAX_DIM];
         for (int a = 0; a < dim; ++a) xi[a] = _mm512_set1_pd(XV(sw, i, a));
         __m256d acc = _mm256_setzero_pd();
@@ -781,7 +826,8 @@ density_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_bu
         const size_t m = list_geometry(dim, sw, i, b, 0);
         sw->w->rho[i] = list_density(fp->target, fp->mass, b, m);
         if (sw->glass) sw->w->rho_glass[i] = list_density(fp->glass, fp->mass, b, m);
-        consph_kernel_eval_batch(sw->kern, m, b->r, NULL, sw->L->dwr + sw->L->start[i], NULL);
+        consph_kernel_eval_batch(sw->kern, m, b->r, NULL,
+                                 sw->dwr + (sw->L->start[i] - sw->dwr_first), NULL);
     }
 }
 
@@ -885,7 +931,7 @@ __attribute__((target("avx2"))) static void accel_avx2(int dim, const pack_sweep
     for (size_t i = i0; i < i1; ++i) {
         const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
         const uint32_t *J = L->j + e0;
-        const double *dwr = L->dwr + e0;
+        const double *dwr = sw->dwr + (e0 - sw->dwr_first);
         __m256d xi[CONSPH_MAX_DIM], acc[CONSPH_MAX_DIM];
         for (int a = 0; a < dim; ++a) {
             xi[a] = _mm256_set1_pd(XV(sw, i, a));
@@ -946,7 +992,7 @@ accel_range(const int dim, const pack_sweep *sw, size_t i0, size_t i1, pair_buf 
     for (size_t i = i0; i < i1; ++i) {
         const size_t m = sw->L->start[i + 1] - sw->L->start[i];
         const uint32_t *restrict J = sw->L->j + sw->L->start[i];
-        const double *restrict dwr = sw->L->dwr + sw->L->start[i];
+        const double *restrict dwr = sw->dwr + (sw->L->start[i] - sw->dwr_first);
         const double ei = polish ? XV(sw, i, PACK_XV_WEIGHT) : 0.0;
         double s[CONSPH_MAX_DIM][4] = {{0.0}}, rep[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
         list_geometry(dim, sw, i, b, 1);
@@ -1047,41 +1093,58 @@ static void sweep_init(pack_sweep *sw, const force_params *fp, const pack_list *
     sw->L = L;
     sw->w = w;
     sw->xv = L->xv;
+    sw->dwr = L->dwr;
 #ifdef PACK_AVX2
     sw->avx2 = pack_isa_cap != 1 && __builtin_cpu_supports("avx2");
     sw->avx512 = sw->avx2 && pack_isa_cap == 0 && __builtin_cpu_supports("avx512f");
 #endif
 }
 
-/* rho (caller's kernel) and, when it differs, rho_glass (stage-1 kernel); rho_glass is needed only
- * in stage 1. */
+/* What the density walk reads and writes: rho (caller's kernel), rho_glass (stage-1 kernel)
+ * when it differs and in stage 1 only, and W'/r of the force's kernel. */
+static void density_sweep_init(pack_sweep *sw, const force_params *fp, const pack_list *L,
+                               pack_work *w)
+{
+    sweep_init(sw, fp, L, w);
+    sw->glass = !fp->polish && w->rho_glass;
+    sw->kern = fp->polish ? fp->target : fp->glass;
+    sw->fused_quintic = sw->avx2 && !sw->glass && fp->target->id == CONSPH_KERNEL_QUINTIC &&
+                        sw->kern->id == CONSPH_KERNEL_QUINTIC && sw->kern->h == fp->target->h &&
+                        sw->kern->dim == fp->target->dim;
+}
+
+static void force_sweep_init(pack_sweep *sw, const force_params *fp, const pack_list *L,
+                             pack_work *w)
+{
+    sweep_init(sw, fp, L, w);
+    sw->rho = (fp->polish || !w->rho_glass) ? w->rho : w->rho_glass;
+}
+
+/* The per-particle factor of each pair's weight in the force (V_i or e_i), kept once per
+ * particle instead of per pair in the rows the force walk loads the positions from. */
+static inline double force_weight(const force_params *fp, const double *rho, size_t i)
+{
+    return fp->polish ? rho[i] / packing_rho0 - 1.0 : fp->mass / rho[i];
+}
+
 static int compute_density(const force_params *fp, pack_list *L, const consph_particles *p,
                            pack_work *w)
 {
     /* The rows of the particles and the ghosts, read by this pass and the force pass. */
     pack_list_fill_positions(L, p);
     pack_sweep sw;
-    sweep_init(&sw, fp, L, w);
-    sw.glass = !fp->polish && w->rho_glass;
-    sw.kern = fp->polish ? fp->target : fp->glass;
-    sw.fused_quintic = sw.avx2 && !sw.glass && fp->target->id == CONSPH_KERNEL_QUINTIC &&
-                       sw.kern->id == CONSPH_KERNEL_QUINTIC && sw.kern->h == fp->target->h &&
-                       sw.kern->dim == fp->target->dim;
+    density_sweep_init(&sw, fp, L, w);
     return sweep_run(&sw, 0);
 }
 
 static int compute_acceleration(const force_params *fp, pack_list *L, pack_work *w)
 {
     pack_sweep sw;
-    sweep_init(&sw, fp, L, w);
-    sw.rho = (fp->polish || !w->rho_glass) ? w->rho : w->rho_glass;
-    /* The per-particle factor of each pair's weight, once per particle instead of per pair, in
-     * the rows the force pass loads the positions from. */
+    force_sweep_init(&sw, fp, L, w);
     double *restrict xv = L->xv;
 #pragma omp parallel for schedule(static) if (w->n >= 2048)
     for (size_t i = 0; i < w->n; ++i)
-        xv[PACK_XV_STRIDE * i + PACK_XV_WEIGHT] =
-            fp->polish ? sw.rho[i] / packing_rho0 - 1.0 : fp->mass / sw.rho[i];
+        xv[PACK_XV_STRIDE * i + PACK_XV_WEIGHT] = force_weight(fp, sw.rho, i);
     pack_list_fill_ghost_weights(L);
     return sweep_run(&sw, 1);
 }
@@ -1092,11 +1155,12 @@ static int compute_acceleration(const force_params *fp, pack_list *L, pack_work 
  * while they move continuously, and step_density wraps them when it rebuilds the list. Returns
  * max_i |u_i| after the step, and in *moved2 the largest squared distance of a particle from
  * where it was when the list was built. */
-static double advance(consph_particles *p, pack_work *w, const pack_list *L, double dt, double nu,
+static double advance(consph_particles *p, pack_work *w, pack_list *L, double dt, double nu,
                       int explicit_euler, double *moved2)
 {
     const double damp = 1.0 - nu * dt;
     const int dim = w->dim;
+    double *restrict xv = L->xv;
     double vmax2 = 0.0, dmax2 = 0.0;
 #pragma omp parallel for schedule(static) reduction(max : vmax2, dmax2) if (w->n >= 2048)
     for (size_t i = 0; i < w->n; ++i) {
@@ -1107,12 +1171,16 @@ static double advance(consph_particles *p, pack_work *w, const pack_list *L, dou
             w->u[a][i] = u1;
             const double x = p->x[a][i] + dt * (explicit_euler ? u0 : u1);
             p->x[a][i] = x;
+            xv[PACK_XV_STRIDE * i + (size_t)a] = x;
             v2 += u1 * u1;
             d2 += (x - L->x_ref[a][i]) * (x - L->x_ref[a][i]);
         }
         if (v2 > vmax2) vmax2 = v2;
         if (d2 > dmax2) dmax2 = d2;
     }
+    /* The particles' rows of the list hold the new positions (the frozen ones kept theirs):
+     * pack_list_fill_positions need only refresh the ghosts. */
+    L->rows_current = 1;
     *moved2 = dmax2;
     return sqrt(vmax2);
 }
@@ -1153,10 +1221,38 @@ typedef struct packer {
     pack_work w;
     double nu;
     int hist_cap;
+    /* The wavefront (step_wavefront): per chunk of PACK_CHUNK particles, the chunks holding its
+     * neighbours (a ghost's source particle) at the last build, [lo, hi], and whether its force
+     * waits for the end of the walk. */
+    size_t nchunks;
+    size_t *chunk_lo, *chunk_hi;
+    unsigned char *chunk_late;
+    /* Per chunk, where its W'/r is kept: the offset in its thread's ring, or PACK_NO_RING (the
+     * list's own array); the rings, one a thread, of ring_cap entries plus PACK_SLACK. */
+    size_t *chunk_ring;
+    double **rings;
+    int nrings;
+    size_t ring_cap;
 } packer;
+
+#define PACK_NO_RING SIZE_MAX
+
+static void free_rings(packer *pk)
+{
+    for (int t = 0; t < pk->nrings; ++t) free(pk->rings[t]);
+    free(pk->rings);
+    pk->rings = NULL;
+    pk->nrings = 0;
+    pk->ring_cap = 0;
+}
 
 static void packer_free(packer *pk)
 {
+    free_rings(pk);
+    free(pk->chunk_ring);
+    free(pk->chunk_lo);
+    free(pk->chunk_hi);
+    free(pk->chunk_late);
     consph_nnps_free(pk->grid);
     pack_list_free(&pk->list);
     work_free(&pk->w);
@@ -1204,6 +1300,12 @@ static int packer_init(packer *pk, const consph_layout_params *lp, consph_partic
     }
     rc = work_alloc(&pk->w, p->n, dim, !same_kernel);
     if (rc) return rc;
+    pk->nchunks = (p->n + PACK_CHUNK - 1) / PACK_CHUNK;
+    pk->chunk_lo = consph_calloc(pk->nchunks + 1, sizeof(size_t));
+    pk->chunk_hi = consph_calloc(pk->nchunks + 1, sizeof(size_t));
+    pk->chunk_late = consph_calloc(pk->nchunks + 1, 1);
+    pk->chunk_ring = consph_calloc(pk->nchunks + 1, sizeof(size_t));
+    if (!pk->chunk_lo || !pk->chunk_hi || !pk->chunk_late || !pk->chunk_ring) return CONSPH_ENOMEM;
     pk->w.n_free = n_free;
     /* A pair farther apart than the kernel radius at a build can come within it only after one
      * of the two has moved half the skin. */
@@ -1218,10 +1320,161 @@ static int packer_init(packer *pk, const consph_layout_params *lp, consph_partic
     return pack_list_init(&pk->list, p, radius + skin);
 }
 
+/* The chunks holding the neighbours of each chunk's particles in the list just built. */
+static void chunk_bounds(packer *pk)
+{
+    const pack_list *L = &pk->list;
+    const size_t n = L->n, nc = pk->nchunks;
+    for (size_t c = 0; c < nc; ++c) {
+        const size_t i0 = c * PACK_CHUNK, i1 = i0 + PACK_CHUNK < n ? i0 + PACK_CHUNK : n;
+        size_t lo = i0, hi = i1 - 1;
+        for (size_t i = i0; i < i1; ++i) {
+            lo = L->j_lo[i] < lo ? L->j_lo[i] : lo;
+            hi = L->j_hi[i] > hi ? L->j_hi[i] : hi;
+        }
+        pk->chunk_lo[c] = lo / PACK_CHUNK;
+        pk->chunk_hi[c] = hi / PACK_CHUNK;
+    }
+}
+
+/* Rings of at least `cap` entries for `threads` threads, kept from step to step (fresh
+ * allocations of this size would fault in their pages at every step). */
+static int reserve_rings(packer *pk, int threads, size_t cap)
+{
+    if (threads <= pk->nrings && cap <= pk->ring_cap) return CONSPH_OK;
+    if (cap < pk->ring_cap) cap = pk->ring_cap;
+    cap += cap / 4;
+    if (threads < pk->nrings) threads = pk->nrings;
+    free_rings(pk);
+    pk->rings = consph_calloc((size_t)threads, sizeof *pk->rings);
+    if (!pk->rings) return CONSPH_ENOMEM;
+    pk->nrings = threads;
+    for (int t = 0; t < threads; ++t)
+        if (!(pk->rings[t] = consph_calloc(cap + PACK_SLACK, sizeof(double)))) {
+            free_rings(pk);
+            return CONSPH_ENOMEM;
+        }
+    pk->ring_cap = cap;
+    return CONSPH_OK;
+}
+
+/* Where chunk f's W'/r goes in a ring of `cap` entries whose next free entry is `head`: at
+ * head, or at 0 where it does not fit before the end, unless that overlaps the entries of a
+ * chunk in [pending, f) whose force has not read them yet; PACK_NO_RING then. */
+static size_t ring_place(const packer *pk, size_t f, size_t pending, size_t head, size_t cap)
+{
+    const size_t *start = pk->list.start, n = pk->list.n;
+    const size_t len = start[f * PACK_CHUNK + PACK_CHUNK < n ? f * PACK_CHUNK + PACK_CHUNK : n] -
+                       start[f * PACK_CHUNK];
+    const size_t off = head + len <= cap ? head : 0;
+    if (off + len > cap) return PACK_NO_RING;
+    for (size_t k = pending; k < f; ++k) {
+        const size_t o = pk->chunk_ring[k];
+        if (o == PACK_NO_RING) continue;
+        const size_t j0 = k * PACK_CHUNK, j1 = j0 + PACK_CHUNK < n ? j0 + PACK_CHUNK : n;
+        if (off < o + (start[j1] - start[j0]) && o < off + len) return PACK_NO_RING;
+    }
+    return off;
+}
+
+/* The density walk and the force walk of one step as a wavefront: each thread takes a contiguous
+ * share of the chunks and computes their densities, force weights and W'/r chunk by chunk,
+ * running the force on a chunk as soon as its share holds the densities of every chunk with a
+ * neighbour of it, a neighbourhood's span of chunks behind. The chunk's W'/r goes to a small
+ * ring of the thread's, reused chunk after chunk, and its list indices are read again while
+ * still cached: the list is streamed from memory once per step instead of twice, and W'/r (two
+ * thirds of its bytes) neither written to nor read back from memory (at 2D nx 500 the list is
+ * 135 MB, far beyond the caches). A chunk with a neighbour in another thread's share (the
+ * periodic images across the box, the shares' edges) keeps its W'/r in the list's array and has
+ * its force after every thread's walk is over. Every sum reads what it reads in compute_density
+ * then compute_acceleration, so the same values for any thread count. */
+static int step_wavefront(packer *pk, const consph_particles *p)
+{
+    pack_list *L = &pk->list;
+    pack_work *w = &pk->w;
+    const force_params *fp = &pk->fp;
+    const size_t n = w->n, nc = pk->nchunks;
+#ifdef _OPENMP
+    const int max_threads = n >= 2048 ? omp_get_max_threads() : 1;
+#else
+    const int max_threads = 1;
+#endif
+    int rc = reserve_rings(pk, max_threads, (size_t)pack_ring_chunks * (L->start[n] / nc + 1));
+    if (rc) return rc;
+    pack_list_fill_positions(L, p);
+    pack_sweep sd, sf;
+    density_sweep_init(&sd, fp, L, w);
+    force_sweep_init(&sf, fp, L, w);
+    const size_t *lo = pk->chunk_lo, *hi = pk->chunk_hi, *start = L->start;
+    unsigned char *late = pk->chunk_late;
+    size_t *ring_of = pk->chunk_ring;
+    double *xv = L->xv;
+    int failed = 0;
+#pragma omp parallel if (n >= 2048)
+    {
+#ifdef _OPENMP
+        const size_t nt = (size_t)omp_get_num_threads(), t = (size_t)omp_get_thread_num();
+#else
+        const size_t nt = 1, t = 0;
+#endif
+        const size_t c0 = nc * t / nt, c1 = nc * (t + 1) / nt;
+        double *ring = pk->rings[t];
+        pack_sweep sdt = sd, sft = sf;
+        pair_buf b;
+        if (!pair_buf_alloc(&b, L->max_len, PACK_CHUNK)) {
+#pragma omp atomic write
+            failed = 1;
+        }
+#pragma omp barrier
+        if (!failed) {
+            size_t next = c0, head = 0; /* the first chunk without its force; the ring's next */
+            for (size_t f = c0; f < c1; ++f) {
+                const size_t i0 = f * PACK_CHUNK, i1 = i0 + PACK_CHUNK < n ? i0 + PACK_CHUNK : n;
+                late[f] = lo[f] < c0 || hi[f] >= c1;
+                const size_t off =
+                    late[f] ? PACK_NO_RING : ring_place(pk, f, next, head, pk->ring_cap);
+                ring_of[f] = off;
+                sdt.dwr = off == PACK_NO_RING ? L->dwr : ring + off;
+                sdt.dwr_first = off == PACK_NO_RING ? 0 : start[i0];
+                if (off != PACK_NO_RING) head = off + (start[i1] - start[i0]);
+                density_block(&sdt, i0, i1, &b);
+                for (size_t i = i0; i < i1; ++i) {
+                    const double wt = force_weight(fp, sf.rho, i);
+                    xv[PACK_XV_STRIDE * i + PACK_XV_WEIGHT] = wt;
+                    for (int32_t g = L->ghost_head[i]; g >= 0; g = L->ghost_next[g])
+                        xv[PACK_XV_STRIDE * (n + (size_t)g) + PACK_XV_WEIGHT] = wt;
+                }
+                /* f + 1 == c1: every chunk of the share has its densities */
+                for (; next <= f; ++next) {
+                    if (late[next]) continue;
+                    if (hi[next] > f && f + 1 < c1) break;
+                    const size_t j0 = next * PACK_CHUNK,
+                                 j1 = j0 + PACK_CHUNK < n ? j0 + PACK_CHUNK : n;
+                    const size_t o = ring_of[next];
+                    sft.dwr = o == PACK_NO_RING ? L->dwr : ring + o;
+                    sft.dwr_first = o == PACK_NO_RING ? 0 : start[j0];
+                    accel_block(&sft, j0, j1, &b);
+                }
+            }
+        }
+#pragma omp barrier
+        if (!failed)
+            for (size_t c = c0; c < c1; ++c)
+                if (late[c]) {
+                    const size_t j0 = c * PACK_CHUNK;
+                    accel_block(&sf, j0, j0 + PACK_CHUNK < n ? j0 + PACK_CHUNK : n, &b);
+                }
+        pair_buf_free(&b);
+    }
+    return failed ? CONSPH_ENOMEM : CONSPH_OK;
+}
+
 /* Rebuilds the neighbour list when it is stale (wrapping the particles into the box and sorting
- * them into cell order first), computes the density and records the step in the report. */
+ * them into cell order first), computes the density and records the step in the report. With
+ * `forced` non-NULL it also computes the accelerations (step_wavefront) where the wavefront is
+ * on, and sets *forced then. */
 static int step_density(packer *pk, const consph_layout_params *lp, consph_particles *p, int iter,
-                        int last, consph_packing_report *report, double *spread)
+                        int last, consph_packing_report *report, double *spread, int *forced)
 {
     int rc = CONSPH_OK;
     if (pk->rebuild) {
@@ -1231,9 +1484,17 @@ static int step_density(packer *pk, const consph_layout_params *lp, consph_parti
             work_permute(&pk->w);
             rc = pack_list_build(&pk->list, pk->grid, p);
         }
+        if (!rc) chunk_bounds(pk);
         pk->rebuild = 0;
     }
-    if (!rc) rc = compute_density(&pk->fp, &pk->list, p, &pk->w);
+    /* Not in 3D: there the density walk loads whole 32-byte rows, the weight slot that the
+     * wavefront writes at the same time included (unused, but a data race). */
+    if (!rc && forced && !pack_wavefront_off && pk->w.dim < 3) {
+        rc = step_wavefront(pk, p);
+        *forced = 1;
+    } else if (!rc) {
+        rc = compute_density(&pk->fp, &pk->list, p, &pk->w);
+    }
     if (rc) return rc;
     *spread = consph_layout_spread(pk->w.rho, pk->w.n, packing_rho0);
     if (!isfinite(*spread))
@@ -1274,9 +1535,10 @@ static int pack_single(packer *pk, const consph_layout_params *lp, consph_partic
     int steps = 0, checks = 0, converged = 0, rc;
     for (;;) {
         const int last = converged || steps >= pp->max_iter;
-        rc = step_density(pk, lp, p, steps, last, report, &spread);
+        int forced = 0;
+        rc = step_density(pk, lp, p, steps, last, report, &spread, last ? NULL : &forced);
         if (rc || last) break;
-        rc = compute_acceleration(&pk->fp, &pk->list, &pk->w);
+        if (!forced) rc = compute_acceleration(&pk->fp, &pk->list, &pk->w);
         if (rc) break;
         const double vmax = step_advance(pk, p, dt, 1);
         if (steps % packing_check_every == 0) {
@@ -1316,7 +1578,7 @@ static int pack_polished(packer *pk, const consph_layout_params *lp, consph_part
     if (report) report->polish_start = -1;
     for (;; ++iter) {
         /* The density decides whether this step is the last, so it is recorded once known. */
-        rc = step_density(pk, lp, p, iter, 0, NULL, &spread);
+        rc = step_density(pk, lp, p, iter, 0, NULL, &spread, NULL);
         if (rc) break;
         if (iter == 0 && report) report->rho_spread_initial = spread;
         int done = spread < pp->tol || iter >= pp->max_iter;
