@@ -634,10 +634,11 @@ int consph_solver_step(consph_solver *s)
         /* pec and kdk start from the rates the previous step left (the set-up's for the first);
          * nothing then runs before the step, whose first update saves the start as it reads it.
          * The others evaluate the rates first, which leaves u, q and x as they are
-         * (scheme_def.rhs) unless q is a closure's summation density (tvf): the first update
-         * saves the start then too, instead of a copy before the right-hand side. Decomposed,
-         * the passes' halo refresh writes the halo's u, q and x: saved before. */
-        is.unsaved = s->reuse_rates || (!s->par && !(s->scheme->closure && !s->scheme->evolve_p));
+         * (scheme_def.rhs) unless the scheme says its rates write q (rhs_writes_q: tvf's
+         * summation density): the first update saves the start then too, instead of a copy
+         * before the right-hand side. Decomposed, the passes' halo refresh writes the halo's u,
+         * q and x: saved before. */
+        is.unsaved = s->reuse_rates || (!s->par && !s->scheme->rhs_writes_q);
         if (st == CONSPH_OK && !is.unsaved) integ_save_start(&is);
         if (st == CONSPH_OK && !s->reuse_rates) st = s->scheme->rhs(s);
         if (st == CONSPH_OK) st = s->integ->step(&is, dt);

@@ -162,9 +162,12 @@ typedef struct scheme_def {
      * or it shifts by IPST (the EOS follows from evolve_p and closure: consph_scheme_reads) */
     unsigned reads;
     /* Rates into SF_AX (when moves), SF_AU and SF_AQ at the current state. It writes no
-     * position, no velocity and no evolved scalar (the step's start is saved after it), but for
-     * the summation density of a scheme with a closure (tvf's ϱ). */
+     * position, no velocity and no evolved scalar (the step's start is saved after it), unless
+     * rhs_writes_q says it writes the evolved scalar. */
     int (*rhs)(consph_solver *s);
+    /* 1 where rhs writes the evolved scalar (tvf: its summation density is its q): the step's
+     * start is then saved before it (consph_solver_step). */
+    int rhs_writes_q;
     /* What a family's shared rhs reads to tell its schemes apart (001's family: the scheme's
      * negi_terms); NULL where each scheme has an rhs of its own. */
     const void *terms;

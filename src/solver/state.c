@@ -118,7 +118,8 @@ double *sv_field(consph_solver *s, const char *name, int ncomp)
 int state_carried(const consph_solver *s, const char *name)
 {
     /* pec's step starts with the update of ϱ, u and x from the last rates, then the EOS gives p
-     * from ϱ: nothing reads the p of the step before */
+     * from ϱ: nothing reads the p of the step before (every scheme whose p is its EOS of ϱ:
+     * wcsph, the δ-SPH family, tv-c, e-c, ewcsph) */
     if (!strcmp(name, SF_P) && s->reuse_rates && !s->scheme->closure && !s->scheme->evolve_p)
         return 0;
     const field_decl *lists[4];

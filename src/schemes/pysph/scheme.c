@@ -905,6 +905,7 @@ const scheme_def scheme_tvf = {
     .integrator = "kdk",
     .passes_min = 2,
     .rhs = rhs_tvf,
+    .rhs_writes_q = 1,
     .regularise = NULL,
     .closure = closure_summation,
     .transport = tv_transport,
