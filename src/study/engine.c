@@ -1061,6 +1061,7 @@ typedef struct packing_clock {
     const study_rows *rows;
     int q;
     double q_t0;
+    int threads; /* the packing's, read on the calling thread (OpenMP's count is per thread) */
 } packing_clock;
 
 /* What is left of a packing whose model price has run out: it is still running. */
@@ -1082,7 +1083,7 @@ static void packing_line(const packing_clock *c)
 {
     const consph_layout_params *lp = &c->l->e[c->q].lp;
     const double now = consph_wtime();
-    const int threads = consph_num_threads();
+    const int threads = c->threads;
     char el[32], eta[32];
     consph_study_duration_text(now - c->rows->t0, el, sizeof el);
     consph_study_duration_text(packing_eta(c, now), eta, sizeof eta);
@@ -1108,7 +1109,7 @@ static void *packing_redraw(void *arg)
     pthread_mutex_lock(&c->lock);
     while (!c->stop) {
         struct timespec until;
-        clock_gettime(CLOCK_REALTIME, &until);
+        clock_gettime(CLOCK_MONOTONIC, &until); /* a clock set back must not stop the redraws */
         until.tv_nsec += (long)(PACKING_REDRAW * 1e9);
         until.tv_sec += until.tv_nsec / 1000000000L;
         until.tv_nsec %= 1000000000L;
@@ -1144,11 +1145,18 @@ static void pack_ahead(const consph_study *s, const consph_study_options *opt,
         packing_list_build(s, opt, files, skip, 1, &l);
     }
     free(skip);
-    packing_clock c = {.l = &l, .rows = rows};
+    packing_clock c = {.l = &l, .rows = rows, .threads = consph_num_threads()};
     pthread_t redraw;
     int redrawing = 0;
     if (rows->tty && l.n > 0 && pthread_mutex_init(&c.lock, NULL) == 0) {
-        if (pthread_cond_init(&c.wake, NULL) == 0) {
+        pthread_condattr_t ca;
+        int made = 0;
+        if (pthread_condattr_init(&ca) == 0) {
+            made = pthread_condattr_setclock(&ca, CLOCK_MONOTONIC) == 0 &&
+                   pthread_cond_init(&c.wake, &ca) == 0;
+            pthread_condattr_destroy(&ca);
+        }
+        if (made) {
             /* the stop requests are this thread's to take */
             sigset_t all, old;
             sigfillset(&all);
