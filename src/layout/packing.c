@@ -339,6 +339,12 @@ typedef struct force_params {
 /* Particles per chunk of the parallel loops. */
 #define PACK_CHUNK 256
 
+/* One past chunk c's last particle among n. */
+static inline size_t chunk_end(size_t c, size_t n)
+{
+    return c * PACK_CHUNK + PACK_CHUNK < n ? c * PACK_CHUNK + PACK_CHUNK : n;
+}
+
 /* Per-thread buffers of one particle's list entries: distances, kernel values and separations. */
 typedef struct pair_buf {
     double *r, *k, *dx[CONSPH_MAX_DIM];
@@ -550,6 +556,20 @@ static inline double sum4(const double *v, size_t m)
 }
 
 #ifdef PACK_AVX2
+/* The quintic's scalars the vector walks broadcast: 1/h, its norm, norm/h (W'/r's) and W'/r at
+ * r = 0, W''(0) = norm h^-2 f''(0) with f''(0) = 20·27 - 120·8 + 300. */
+typedef struct quintic_scalars {
+    double inv_h, norm, norm1, at_zero;
+} quintic_scalars;
+
+static quintic_scalars quintic_scalars_of(const consph_kernel *k)
+{
+    const quintic_scalars q = {k->inv_h, k->norm, k->norm * k->inv_h,
+                               k->norm * k->inv_h * k->inv_h *
+                                   (20.0 * 3.0 * 3.0 * 3.0 - 120.0 * 2.0 * 2.0 * 2.0 + 300.0)};
+    return q;
+}
+
 /* The quintic's constants for quintic_block_avx2. */
 typedef struct quintic_avx2_consts {
     __m256d inv_h, norm, norm1, at_zero;
@@ -596,14 +616,9 @@ __attribute__((target("avx2"))) static void density_quintic_avx2(int dim, const 
                                                                  size_t i0, size_t i1)
 {
     const pack_list *L = sw->L;
-    const consph_kernel *k = sw->fp->target;
-    quintic_avx2_consts c;
-    c.inv_h = _mm256_set1_pd(k->inv_h);
-    c.norm = _mm256_set1_pd(k->norm);
-    c.norm1 = _mm256_set1_pd(k->norm * k->inv_h);
-    /* W''(0) = norm h^-2 f''(0), f''(0) = 20·27 - 120·8 + 300 */
-    c.at_zero = _mm256_set1_pd(k->norm * k->inv_h * k->inv_h *
-                               (20.0 * 3.0 * 3.0 * 3.0 - 120.0 * 2.0 * 2.0 * 2.0 + 300.0));
+    const quintic_scalars q0 = quintic_scalars_of(sw->fp->target);
+    const quintic_avx2_consts c = {_mm256_set1_pd(q0.inv_h), _mm256_set1_pd(q0.norm),
+                                   _mm256_set1_pd(q0.norm1), _mm256_set1_pd(q0.at_zero)};
     for (size_t i = i0; i < i1; ++i) {
         const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
         const uint32_t *J = L->j + e0;
@@ -757,13 +772,9 @@ __attribute__((target("avx512f"))) static void density_quintic_avx512(int dim, c
                                                                       size_t i0, size_t i1)
 {
     const pack_list *L = sw->L;
-    const consph_kernel *k = sw->fp->target;
-    quintic_avx512_consts c;
-    c.inv_h = _mm512_set1_pd(k->inv_h);
-    c.norm = _mm512_set1_pd(k->norm);
-    c.norm1 = _mm512_set1_pd(k->norm * k->inv_h);
-    c.at_zero = _mm512_set1_pd(k->norm * k->inv_h * k->inv_h *
-                               (20.0 * 3.0 * 3.0 * 3.0 - 120.0 * 2.0 * 2.0 * 2.0 + 300.0));
+    const quintic_scalars q0 = quintic_scalars_of(sw->fp->target);
+    const quintic_avx512_consts c = {_mm512_set1_pd(q0.inv_h), _mm512_set1_pd(q0.norm),
+                                     _mm512_set1_pd(q0.norm1), _mm512_set1_pd(q0.at_zero)};
     for (size_t i = i0; i < i1; ++i) {
         const size_t e0 = L->start[i], m = L->start[i + 1] - e0;
         const uint32_t *J = L->j + e0;
@@ -1074,7 +1085,7 @@ static int sweep_run(const pack_sweep *sw, int force)
         if (!failed) {
 #pragma omp for schedule(dynamic, 4)
             for (size_t c = 0; c < nchunks; ++c) {
-                const size_t i0 = c * PACK_CHUNK, i1 = i0 + PACK_CHUNK < n ? i0 + PACK_CHUNK : n;
+                const size_t i0 = c * PACK_CHUNK, i1 = chunk_end(c, n);
                 if (force)
                     accel_block(sw, i0, i1, &b);
                 else
@@ -1326,7 +1337,7 @@ static void chunk_bounds(packer *pk)
     const pack_list *L = &pk->list;
     const size_t n = L->n, nc = pk->nchunks;
     for (size_t c = 0; c < nc; ++c) {
-        const size_t i0 = c * PACK_CHUNK, i1 = i0 + PACK_CHUNK < n ? i0 + PACK_CHUNK : n;
+        const size_t i0 = c * PACK_CHUNK, i1 = chunk_end(c, n);
         size_t lo = i0, hi = i1 - 1;
         for (size_t i = i0; i < i1; ++i) {
             lo = L->j_lo[i] < lo ? L->j_lo[i] : lo;
@@ -1364,17 +1375,25 @@ static int reserve_rings(packer *pk, int threads, size_t cap)
 static size_t ring_place(const packer *pk, size_t f, size_t pending, size_t head, size_t cap)
 {
     const size_t *start = pk->list.start, n = pk->list.n;
-    const size_t len = start[f * PACK_CHUNK + PACK_CHUNK < n ? f * PACK_CHUNK + PACK_CHUNK : n] -
-                       start[f * PACK_CHUNK];
+    const size_t len = start[chunk_end(f, n)] - start[f * PACK_CHUNK];
     const size_t off = head + len <= cap ? head : 0;
     if (off + len > cap) return PACK_NO_RING;
     for (size_t k = pending; k < f; ++k) {
         const size_t o = pk->chunk_ring[k];
         if (o == PACK_NO_RING) continue;
-        const size_t j0 = k * PACK_CHUNK, j1 = j0 + PACK_CHUNK < n ? j0 + PACK_CHUNK : n;
-        if (off < o + (start[j1] - start[j0]) && o < off + len) return PACK_NO_RING;
+        if (off < o + (start[chunk_end(k, n)] - start[k * PACK_CHUNK]) && o < off + len)
+            return PACK_NO_RING;
     }
     return off;
+}
+
+/* Points the sweep's W'/r at the chunk starting at particle i0: at offset `off` of the ring, or
+ * the list's own array where off is PACK_NO_RING. */
+static inline void sweep_dwr_at(pack_sweep *sw, const pack_list *L, double *ring, size_t off,
+                                size_t i0)
+{
+    sw->dwr = off == PACK_NO_RING ? L->dwr : ring + off;
+    sw->dwr_first = off == PACK_NO_RING ? 0 : L->start[i0];
 }
 
 /* The density walk and the force walk of one step as a wavefront: each thread takes a contiguous
@@ -1429,13 +1448,12 @@ static int step_wavefront(packer *pk, const consph_particles *p)
         if (!failed) {
             size_t next = c0, head = 0; /* the first chunk without its force; the ring's next */
             for (size_t f = c0; f < c1; ++f) {
-                const size_t i0 = f * PACK_CHUNK, i1 = i0 + PACK_CHUNK < n ? i0 + PACK_CHUNK : n;
+                const size_t i0 = f * PACK_CHUNK, i1 = chunk_end(f, n);
                 late[f] = lo[f] < c0 || hi[f] >= c1;
                 const size_t off =
                     late[f] ? PACK_NO_RING : ring_place(pk, f, next, head, pk->ring_cap);
                 ring_of[f] = off;
-                sdt.dwr = off == PACK_NO_RING ? L->dwr : ring + off;
-                sdt.dwr_first = off == PACK_NO_RING ? 0 : start[i0];
+                sweep_dwr_at(&sdt, L, ring, off, i0);
                 if (off != PACK_NO_RING) head = off + (start[i1] - start[i0]);
                 density_block(&sdt, i0, i1, &b);
                 for (size_t i = i0; i < i1; ++i) {
@@ -1448,22 +1466,15 @@ static int step_wavefront(packer *pk, const consph_particles *p)
                 for (; next <= f; ++next) {
                     if (late[next]) continue;
                     if (hi[next] > f && f + 1 < c1) break;
-                    const size_t j0 = next * PACK_CHUNK,
-                                 j1 = j0 + PACK_CHUNK < n ? j0 + PACK_CHUNK : n;
-                    const size_t o = ring_of[next];
-                    sft.dwr = o == PACK_NO_RING ? L->dwr : ring + o;
-                    sft.dwr_first = o == PACK_NO_RING ? 0 : start[j0];
-                    accel_block(&sft, j0, j1, &b);
+                    sweep_dwr_at(&sft, L, ring, ring_of[next], next * PACK_CHUNK);
+                    accel_block(&sft, next * PACK_CHUNK, chunk_end(next, n), &b);
                 }
             }
         }
 #pragma omp barrier
         if (!failed)
             for (size_t c = c0; c < c1; ++c)
-                if (late[c]) {
-                    const size_t j0 = c * PACK_CHUNK;
-                    accel_block(&sf, j0, j0 + PACK_CHUNK < n ? j0 + PACK_CHUNK : n, &b);
-                }
+                if (late[c]) accel_block(&sf, c * PACK_CHUNK, chunk_end(c, n), &b);
         pair_buf_free(&b);
     }
     return failed ? CONSPH_ENOMEM : CONSPH_OK;
