@@ -117,7 +117,19 @@
  * multiplication, a timing only, made the walk 11% faster); folding the quintic's constants (three
  * multiplications fewer per entry, a round-off change) gained 1.5% and was not taken. The division
  * in W'/r stays: W'/r has no division-free form with the same values (f'(q)/q is a polynomial on q
- * < 1 only).
+ * < 1 only). Nor did a reciprocal square root pay, though it would have moved the positions only
+ * at round-off (tried in all three paths, bit for bit alike; AMD EPYC with AVX-512, 2 shared
+ * cores): y = h/r from a correctly rounded float start, 1/sqrtf((float)(r²/h²)), with two Newton
+ * steps in double (or one third-order step), then q = r/h = (r²/h²) y and W'/r = (norm/h²) f'(q)
+ * y, no square root or division in double. Alone it costs half of sqrt and division (0.42-0.47
+ * against 0.88-0.90 ns an entry, eight-wide, in a loop of nothing else), yet the walk (timed
+ * eleven times a step, 2D nx 100, one thread, minimum of five runs) ran 41-45% longer, likely
+ * because its chain of dependent operations before the quintic is about twice sqrt's latency, more
+ * than the processor overlaps; with the reciprocals of a particle's entries first written to a
+ * buffer and the quintic taken from there, still 5% longer, and whole packs (2D nx 200, two
+ * threads, three runs each, the same 11151 steps) took 72.6 -> 78.8 s of CPU. One division shared
+ * by two entries (1/(r_a r_b), times r_b and r_a) ran the walk 6.5% longer, 1/r divided right after
+ * the square root (off the polynomial's chain) times norm f'(q)/h 4% longer.
  *
  * The packed kind runs the two walks of a step as a wavefront (step_wavefront; 1D and 2D): each
  * thread takes a contiguous share of the chunks of 256 particles, computes a chunk's densities,
