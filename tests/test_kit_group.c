@@ -122,7 +122,7 @@ static void compare_kit(const char *problem, int nx, int mode)
     const double bytes = kit_coupled_lanes_bytes;
     kit_coupled_lanes_bytes = 1e300; /* coupled_bc over groups at any size */
     const unsigned long firsts = kit_group_firsts, coupled = kit_group_coupled;
-    const unsigned long filled = nlist_chain_filled;
+    const unsigned long filled = nlist_chain_filled, recycled = nlist_chain_recycled;
     size_t pairs = 0;
     int passes = 0;
     if (mode == 1) {
@@ -141,7 +141,10 @@ static void compare_kit(const char *problem, int nx, int mode)
                 kit_group_visits = kit_chain_passes = !side;
                 /* a fresh pair cache on the same positions, which the passes will be served */
                 st = consph_sys_update(&s->sys, 0);
-                consph_sys_expect_passes(&s->sys, 3, CONSPH_PASS_W | CONSPH_PASS_DW);
+                /* mode 3: the two chains' passes (the first then keeps its pairs for the
+                 * second); else the chain's own, whose pairs it recycles where it has three */
+                consph_sys_expect_passes(&s->sys, mode == 3 && !side ? 6 : 3,
+                                         CONSPH_PASS_W | CONSPH_PASS_DW);
                 if (st == CONSPH_OK && mode == 3 && !side) {
                     scale_up(s, 2.0);
                     st = kit_volumes_derivatives(&s->sys, &rq, &pairs, &passes);
@@ -169,6 +172,10 @@ static void compare_kit(const char *problem, int nx, int mode)
 #endif
     CHECK(nlist_chain_filled - filled == (mode == 3 ? 95u : 0u),
           "%s mode %d: %lu chains over a filled cache", problem, mode, nlist_chain_filled - filled);
+    /* mode 0: the 80 chains with a Laplacian (three passes, as announced) */
+    CHECK(nlist_chain_recycled - recycled == (mode == 0 ? 80u : 0u),
+          "%s mode %d: %lu chains recycled their pairs", problem, mode,
+          nlist_chain_recycled - recycled);
     (void)firsts;
     (void)coupled;
     consph_solver_free(g);

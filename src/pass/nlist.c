@@ -808,6 +808,12 @@ static int cache_block_gather(const consph_sys *s, nlist_block *b, consph_nnps_r
         for (int a = 0; a < l->dim; ++a) xi[a] = v.x[a][sl];
         double *dx[CONSPH_MAX_DIM] = {b->pdx[0] + used, l->dim > 1 ? b->pdx[1] + used : NULL,
                                       l->dim > 2 ? b->pdx[2] + used : NULL};
+        /* slots are particles where the search is in the particles' order (a re-sort each
+         * move): the gather then writes them in place */
+        if (!v.particle) {
+            used += consph_nnps_gather(&v, runs, xi, b->pj + used, dx, b->pr + used);
+            continue;
+        }
         const size_t m = consph_nnps_gather(&v, runs, xi, *slot, dx, b->pr + used);
         for (size_t k = 0; k < m; ++k) b->pj[used + k] = consph_nnps_slot_particle(&v, (*slot)[k]);
         used += m;
@@ -1136,7 +1142,7 @@ int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_g
 
 enum { CHAIN_PENDING = 0, CHAIN_DONE = 1, CHAIN_LATE = 2 };
 
-unsigned long nlist_chain_trailing = 0, nlist_chain_filled = 0;
+unsigned long nlist_chain_trailing = 0, nlist_chain_filled = 0, nlist_chain_recycled = 0;
 
 typedef struct chain_state {
     const consph_sys *s;
@@ -1145,11 +1151,40 @@ typedef struct chain_state {
     unsigned char *st; /* count × nblocks */
     size_t *lo, *hi;   /* the blocks holding a block's neighbours */
     size_t span;
+    /* where the chain is the state's last reader: per thread, from entry c0 of its share, a
+     * stack of its blocks that every pass is done with, whose pair arrays the fill may take
+     * (NULL: the cache is kept) */
+    size_t *spent;
 } chain_state;
+
+/* Gives block b the pair arrays of block g (and g those of b): the fill of b then writes
+ * memory that the passes on g have just read, still in the processor's caches, instead of
+ * b's own, last written a whole sweep ago. */
+static void swap_pairs(nlist_block *b, nlist_block *g)
+{
+    nlist_block t = *b;
+    b->pj = g->pj;
+    b->pr = g->pr;
+    b->pw = g->pw;
+    b->pdwr = g->pdwr;
+    b->pd2w = g->pd2w;
+    b->pcap = g->pcap;
+    g->pj = t.pj;
+    g->pr = t.pr;
+    g->pw = t.pw;
+    g->pdwr = t.pdwr;
+    g->pd2w = t.pd2w;
+    g->pcap = t.pcap;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
+        b->pdx[a] = g->pdx[a];
+        g->pdx[a] = t.pdx[a];
+    }
+}
 
 /* Pass k on block b if it can run now: CHAIN_DONE (run), CHAIN_LATE (left for after the sweep)
  * or CHAIN_PENDING (pass k - 1 has yet to reach some of its neighbours). */
-static int chain_try(chain_state *c, int k, size_t b, size_t c0, size_t c1, size_t *visited)
+static int chain_try(chain_state *c, int k, size_t b, size_t c0, size_t c1, size_t *visited,
+                     size_t *nspent)
 {
     const size_t nb = c->s->nlist->nblocks;
     unsigned char *prev = c->st + (size_t)(k - 1) * nb, *mine = c->st + (size_t)k * nb;
@@ -1170,6 +1205,9 @@ static int chain_try(chain_state *c, int k, size_t b, size_t c0, size_t c1, size
         *visited += visit_block(c->s, &c->s->nlist->blocks[b], &c->bv[k]);
 #pragma omp atomic
         ++nlist_chain_trailing;
+        /* the last pass done on b: every pass before it is done on b's neighbours, b among
+         * them, so nothing reads b's pairs again */
+        if (c->spent && k == c->count - 1) c->spent[c0 + (*nspent)++] = b;
     }
     if (verdict != CHAIN_PENDING) mine[b] = (unsigned char)verdict;
     return verdict;
@@ -1200,17 +1238,28 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
         if (l->hint_need & CONSPH_PASS_D2W) want |= CONSPH_PASS_D2W;
     }
     const size_t nb = l->nblocks;
-    chain_state c = {s, bv, count, NULL, NULL, NULL, 0};
+    chain_state c = {s, bv, count, NULL, NULL, NULL, 0, NULL};
+    /* The chain is the last reader of a fresh state where the caller announced exactly its
+     * passes (consph_sys_expect_passes; L-IPST-C's rates): its blocks' pairs are then needed
+     * only from the fill to the last pass on them, and a block's fill takes the arrays of one
+     * the chain is done with (swap_pairs), so that the sweep writes and reads a few blocks' worth
+     * of memory that stays in the processor's caches instead of streaming the whole cache
+     * through memory. The cache then holds no state (cache_epoch below): a later pass on this
+     * state would fill it again, the same values. */
+    const int recycle = fresh && l->hint_epoch == l->epoch && l->hint_passes == count;
     c.st = consph_calloc((size_t)count * nb, 1);
     c.lo = malloc(nb * sizeof(size_t));
     c.hi = malloc(nb * sizeof(size_t));
+    c.spent = recycle ? malloc(nb * sizeof(size_t)) : NULL;
     /* a search built without a re-sort (inside a step) orders its slots otherwise than the
      * particles: the slot of each particle */
     size_t *slot_of = l->particle && l->skin != 0.0 ? malloc(l->n * sizeof(size_t)) : NULL;
-    if (!c.st || !c.lo || !c.hi || (l->particle && l->skin != 0.0 && !slot_of)) {
+    if (!c.st || !c.lo || !c.hi || (l->particle && l->skin != 0.0 && !slot_of) ||
+        (recycle && !c.spent)) {
         free(c.st);
         free(c.lo);
         free(c.hi);
+        free(c.spent);
         free(slot_of);
         return CONSPH_ENOMEM;
     }
@@ -1244,11 +1293,13 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
         const size_t c0 = nb * t / nt, c1 = nb * (t + 1) / nt;
         consph_nnps_runs runs;
         memset(&runs, 0, sizeof runs);
-        size_t *slot = NULL, cap = 0, next[NLIST_CHAIN_MAX];
+        size_t *slot = NULL, cap = 0, next[NLIST_CHAIN_MAX], nspent = 0;
         int my_status = CONSPH_OK;
         for (int k = 1; k < count; ++k) next[k] = c0;
         for (size_t f = c0; f < c1 && my_status == CONSPH_OK; ++f) {
             nlist_block *b = &l->blocks[f];
+            /* the most recently spent block's arrays: the likeliest still cached */
+            if (nspent) swap_pairs(b, &l->blocks[c.spent[c0 + --nspent]]);
             int st = !fresh           ? CONSPH_OK
                      : l->skin == 0.0 ? cache_block_gather(s, b, &runs, &slot, &cap)
                                       : cache_block(s, b);
@@ -1275,12 +1326,13 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
             visited += visit_block(s, b, &bv[0]);
             c.st[f] = CHAIN_DONE;
             for (int k = 1; k < count; ++k)
-                while (next[k] <= f && chain_try(&c, k, next[k], c0, c1, &visited) != CHAIN_PENDING)
+                while (next[k] <= f &&
+                       chain_try(&c, k, next[k], c0, c1, &visited, &nspent) != CHAIN_PENDING)
                     ++next[k];
         }
         /* what the sweep left: every block of pass k - 1 is done or late by now */
         for (int k = 1; k < count && my_status == CONSPH_OK; ++k)
-            for (; next[k] < c1; ++next[k]) chain_try(&c, k, next[k], c0, c1, &visited);
+            for (; next[k] < c1; ++next[k]) chain_try(&c, k, next[k], c0, c1, &visited, &nspent);
         consph_nnps_runs_free(&runs);
         free(slot);
         if (my_status != CONSPH_OK) {
@@ -1299,6 +1351,7 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
     free(c.st);
     free(c.lo);
     free(c.hi);
+    free(c.spent);
     free(slot_of);
     if (status != CONSPH_OK) {
         l->cache_epoch = l->epoch - 1;
@@ -1306,7 +1359,8 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
                            in[0].pass->name ? in[0].pass->name : "unnamed");
     }
     l->npairs = total;
-    l->cache_epoch = l->epoch;
+    l->cache_epoch = recycle ? l->epoch - 1 : l->epoch;
+    if (recycle) ++nlist_chain_recycled;
     if (fresh)
         ++l->caches;
     else

@@ -37,6 +37,8 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
 /* Blocks that a chain's later passes visited during its sweep, not after it, and chains that
  * ran over a cache already filled on their state (for tests). */
 extern unsigned long nlist_chain_trailing, nlist_chain_filled;
+/* Chains that recycled their blocks' pair arrays (the state's announced last readers). */
+extern unsigned long nlist_chain_recycled;
 /* Whether nlist_pass_run would leave the next pass to the search's gather; if so, counts it as
  * run (a caller that runs the pass itself asks this instead of calling nlist_pass_run). */
 int nlist_gathers(consph_nlist *l);

@@ -19,6 +19,16 @@
 #include "schemes/negi/kit_pair.h"
 #include "solver/solver_internal.h"
 
+/* AVX-512 (x86-64-v4) and AVX2 copies of the hot visits in a generic x86-64 build, chosen at
+ * load time: the same operations in the same order (ISO C contracts no multiply-add), so the same
+ * bits. The lanes' sums and values of pass 1 exceed AVX2's 16 vector registers and were spilled to
+ * the stack at every pair; AVX-512VL's 32 hold them. */
+#if defined(__x86_64__) && !defined(__clang__) && defined(__GLIBC__) && !defined(__AVX2__)
+#define KIT_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
+#else
+#define KIT_CLONES
+#endif
+
 typedef struct kit_job {
     const kit_req *rq;
     int d;
@@ -383,8 +393,10 @@ unsigned long kit_group_firsts = 0, kit_group_coupled = 0;
  * neighbourhoods behind the fill, and once the state's pair cache is larger than about this many
  * bytes those pairs come from the last-level cache, where the per-particle visit's single
  * stream is prefetched better: measured on a 2-core AMD EPYC (1 MiB L2 per core), L-IPST-C's
- * coupled pass ran 13-20 % faster in groups at nx 20-40 and 5-25 % slower at nx 60-250. Pass 1
- * does more arithmetic per pair and runs in groups at every size. The same values either way;
+ * coupled pass ran 13-20 % faster in groups at nx 20-40 and 5-25 % slower at nx 60-250 (again
+ * 4 % slower at nx 250 with the per-particle visit reading G_j packed, coupled_pk_210, and the
+ * chain recycling its pair arrays). Pass 1 does more arithmetic per pair and runs in groups at
+ * every size. The same values either way;
  * tests set it to compare the group visit at any size. */
 double kit_coupled_lanes_bytes = 3.0 * 1024 * 1024;
 unsigned long kit_chains = 0;
@@ -403,13 +415,6 @@ static int coupled_lanes_pay(const consph_sys *s)
 #if !defined(__clang__)
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
-/* An AVX2 copy in a generic x86-64 build, chosen at load time (the same operations in the same
- * order), as the PySPH family's group visits (src/schemes/pysph/scheme.c). */
-#if defined(__x86_64__) && !defined(__clang__) && defined(__GLIBC__) && !defined(__AVX2__)
-#define KIT_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define KIT_CLONES
 #endif
 
 /* The packed values (stride S) of the lanes' neighbours j: c[o] = {pk[j[0] S + o], ...} */
@@ -698,6 +703,39 @@ GROUP_COUPLED_CLONE(3, 1, 0)
 GROUP_COUPLED_CLONE(3, 1, 1)
 GROUP_COUPLED_CLONE(3, 0, 1)
 
+/* coupled_body of ∇²u alone in 2D at one particle (the visit of the state's pairs once they no
+ * longer fit the processor's caches, coupled_lanes_pay), over the four entries of G at once: G_j
+ * one vector load from pass 1's pack (pk2) instead of four loads from four fields. Per pair the
+ * lanes hold (a, b) = (0, 0), (0, 1), (1, 0), (1, 1); adding z = {0, -0, 0, -0} is the scalar sums'
+ * 0.0 + (first term) in lanes b = 0 and leaves lanes b = 1 as they are (x + -0 = x for every x), so
+ * each sum of two lanes is kit_coupled_pair's (0.0 + t_a0) + t_a1, and acc's lanes 0 and 1 (2 and 3
+ * hold the same values again) its sums, bit for bit. */
+KIT_CLONES static void coupled_pk_210(void *vjob, const consph_nbhd *nb)
+{
+    const kit_job *job = vjob;
+    const size_t i = nb->i, cap = job->cap;
+    const double *vol = job->vol, *pk = job->pk2, *dx0 = nb->dx[0], *dx1 = nb->dx[1];
+    const double *dwr = nb->dwr, *bo = job->bonet, *gu = job->gradu;
+    const lane4 B = {bo[i], bo[cap + i], bo[2 * cap + i], bo[3 * cap + i]};
+    const lane4 Gi = {gu[i], gu[cap + i], gu[2 * cap + i], gu[3 * cap + i]};
+    const lane4 z = {0.0, -0.0, 0.0, -0.0};
+    lane4 acc = {0.0, 0.0, 0.0, 0.0};
+    for (size_t k = 0; k < nb->n; ++k) {
+        const size_t j = nb->j[k];
+        const double w1 = dwr[k];
+        const lane4 gr = (lane4){w1, w1, w1, w1} * (lane4){dx0[k], dx1[k], dx0[k], dx1[k]};
+        const lane4 t = B * gr + z;
+        const lane4 g = LANE4_SHUF(t, t, 0, 2, 0, 2) + LANE4_SHUF(t, t, 1, 3, 1, 3);
+        /* stride 4: the pack holds G alone (kit_pack2_stride) */
+        const lane4 d = (*(const lane4u *)(pk + 4 * j) - Gi) * g + z;
+        const double om = vol[j];
+        acc +=
+            (lane4){om, om, om, om} * (LANE4_SHUF(d, d, 0, 2, 0, 2) + LANE4_SHUF(d, d, 1, 3, 1, 3));
+    }
+    job->lapu[i] = acc[0];
+    job->lapu[cap + i] = acc[1];
+}
+
 /* visit_second over groups where it runs coupled_bc only (∇²u coupled, or ∇²q alone); NULL for
  * the other Laplacians and 1D (the per-particle visits) */
 static pass_group_fn group_second_of(const kit_req *rq, int d)
@@ -712,6 +750,12 @@ static pass_group_fn group_first_of(int d, int with_p, int with_u, int with_q)
 {
     return group_firsts[d - 1][with_p][with_u][with_q];
 }
+
+/* coupled_bc's ∇²u alone per particle from the pack (2D only) */
+static consph_visit_fn coupled_pk_of(int d)
+{
+    return d == 2 ? coupled_pk_210 : NULL;
+}
 #if !defined(__clang__)
 #pragma GCC diagnostic pop
 #endif
@@ -720,6 +764,7 @@ static pass_group_fn group_first_of(int d, int with_p, int with_u, int with_q)
 #define group_first_of(d, with_p, with_u, with_q)                                                  \
     ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (pass_group_fn)NULL)
 #define group_second_of(rq, d) ((void)(rq), (void)(d), (pass_group_fn)NULL)
+#define coupled_pk_of(d) ((void)(d), (consph_visit_fn)NULL)
 #endif
 
 /* A pass with its group visit where the system and the compiler allow one, else per particle. */
@@ -816,25 +861,30 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     const pass_group_fn group_first = lanes ? group_first_of(d, gp, gu, gq) : NULL;
     unsigned need2 = CONSPH_PASS_DW;
     if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need2 |= CONSPH_PASS_D2W;
-    const consph_pass second = {"kit: laplacians", need2, visit_second};
     const pass_group_fn group_second =
         lanes && coupled_lanes_pay(s) ? group_second_of(&r, d) : NULL;
+    /* where coupled_bc's ∇²u alone runs per particle in 2D, it reads G_j from pass 1's pack */
+    const consph_visit_fn visit_pk = lanes && !group_second && d == 2 && (want & KIT_LAPU) &&
+                                             rq->lap == KIT_LAP_COUPLED && !(want & KIT_LAPQ)
+                                         ? coupled_pk_of(d)
+                                         : NULL;
+    const consph_pass second = {"kit: laplacians", need2, visit_pk ? visit_pk : visit_second};
     /* the packs the group visits read: pass 1's filled by the volume visits or from the fixed
      * volumes here, coupled_bc's by pass 1 (first_store) */
     if (group_first) job.s1 = kit_pack1_stride(d, gp, gu, gq);
-    if (group_second) {
+    if (group_second || visit_pk) {
         job.pk2_u = (want & KIT_LAPU) != 0;
         job.pk2_q = (want & KIT_LAPQ) != 0;
         job.s2 = kit_pack2_stride(d, job.pk2_u, job.pk2_q, &job.pk2_vol);
     }
-    if (group_first || group_second) {
+    if (group_first || job.s2) {
         double *pk = consph_sys_scratch(s, (p->n ? p->n : 1) * (size_t)(job.s1 + job.s2));
         if (!pk) {
             free(job.bonet_ok);
             return CONSPH_ENOMEM;
         }
         job.pk1 = group_first ? pk : NULL;
-        job.pk2 = group_second ? pk + p->n * (size_t)job.s1 : NULL;
+        job.pk2 = job.s2 ? pk + p->n * (size_t)job.s1 : NULL;
     }
     if (job.pk1 && !with_volumes)
         for (size_t i = 0; i < p->n; ++i) kit_pack1(&job, i, job.vol[i]);
