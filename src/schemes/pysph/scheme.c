@@ -113,6 +113,18 @@ static void visit_density(void *vjob, const consph_nbhd *nb)
 #define RV_CLONES
 #endif
 
+/* The group visits keep more vectors live than AVX2's 16 registers hold (the sums of four
+ * particles, their own values, the constants), and spilled their sums on every entry: with
+ * AVX-512 (x86-64-v4) they have 32 and mask registers for the lanes that sum an entry, on the
+ * same 256-bit vectors. AVX-512 brings FMA, so that copy is made only in ISO C mode, where GCC
+ * contracts nothing (as KERNEL_CLONES in src/kernels/kernels.c). */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
+    !defined(__AVX2__) && defined(__STRICT_ANSI__)
+#define RV_GROUP_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
+#else
+#define RV_GROUP_CLONES RV_CLONES
+#endif
+
 #if defined(__GNUC__)
 #define RV_INLINE static inline __attribute__((always_inline))
 #else
@@ -331,6 +343,9 @@ RV_CLONES static void visit_wcsph(void *vjob, const consph_nbhd *nb)
 /* acc + t in the lanes of m; the others keep acc */
 #define RV_ADD(acc, m, t) ((acc) = LANE4_SEL((m), (acc) + (t), (acc)))
 #define RV_SUB(acc, m, t) ((acc) = LANE4_SEL((m), (acc) - (t), (acc)))
+/* the same with the lanes that keep acc given (one comparison fewer than its complement) */
+#define RV_ADD_UNLESS(acc, k, t) ((acc) = LANE4_SEL((k), (acc), (acc) + (t)))
+#define RV_SUB_UNLESS(acc, k, t) ((acc) = LANE4_SEL((k), (acc), (acc) - (t)))
 
 /* The group's lanes (src/pass/group.h: every lane's arrays reach kmax, and the lanes past
  * count repeat the first, whose sums are never written). */
@@ -422,7 +437,7 @@ RV_INLINE void group_density(const rival_job *job, const consph_nbhd *nb, int co
     }
 }
 
-RV_CLONES static void group_visit_density(void *vjob, const consph_nbhd *nb, int count)
+RV_GROUP_CLONES static void group_visit_density(void *vjob, const consph_nbhd *nb, int count)
 {
     group_density(vjob, nb, count);
 }
@@ -446,7 +461,7 @@ RV_INLINE void tv_pack_one(const rival_job *job, size_t i)
 
 /* The density visit that also packs its particles for the rates visit (pass_run_groups2: the
  * rates of a particle may run before the density pass has reached every particle). */
-RV_CLONES static void group_visit_density_pack(void *vjob, const consph_nbhd *nb, int count)
+RV_GROUP_CLONES static void group_visit_density_pack(void *vjob, const consph_nbhd *nb, int count)
 {
     const rival_job *job = vjob;
     group_density(job, nb, count);
@@ -536,7 +551,7 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
     }
 }
 
-RV_CLONES static void group_visit_tv(void *vjob, const consph_nbhd *nb, int count)
+RV_GROUP_CLONES static void group_visit_tv(void *vjob, const consph_nbhd *nb, int count)
 {
     const rival_job *job = vjob;
     const int edac = job->kind == RV_EDAC, g = job->grads;
@@ -553,67 +568,136 @@ RV_CLONES static void group_visit_tv(void *vjob, const consph_nbhd *nb, int coun
     }
 }
 
-/* visit_wcsph_d over a group: pysph_monaghan_pi's and pysph_wcsph_pair's operations. */
+/* A chunk of a group's entries, interleaved: entry k's four lanes side by side, so that the
+ * entry loops read each value of an entry with one vector load. Gathering an entry's vector from
+ * four lanes' arrays took a scalar load, and with more arrays than registers a reload of the
+ * array's address, per lane and value; staged, four entries of a lane are read at once and
+ * transposed. */
+#define RV_CHUNK 32
+typedef struct rv_stage {
+    lane4 w[RV_CHUNK], dwr[RV_CHUNK], r[RV_CHUNK], dx[3][RV_CHUNK];
+    lane4i j[RV_CHUNK];
+} rv_stage;
+
+/* size_t viewed as a vector of four (the neighbour indices of four entries of a lane) */
+typedef unsigned long rv4j __attribute__((vector_size(4 * sizeof(unsigned long)),
+                                          aligned(sizeof(unsigned long)), may_alias));
+
+/* Entries k0..k0+nk (nk ≤ RV_CHUNK, within every lane's kmax) into st: j << sh always (sh = 6:
+ * the byte offset of j's line in a pack of 64-byte lines, which the entry loop then adds to the
+ * pack's address without a shift of its own), and w, dwr, r and the d separations where
+ * wanted. */
+RV_INLINE void rv_stage_of(const rv_lanes *L, size_t k0, size_t nk, const int d, const int ww,
+                           const int wdwr, const int wr, const int sh, rv_stage *st)
+{
+    size_t k = 0;
+    for (; k + 4 <= nk; k += 4) {
+        const size_t o = k0 + k;
+#define RV_T(field, out)                                                                           \
+    do {                                                                                           \
+        const double *const q_[PASS_GROUP] = {L->nb[0]->field + o, L->nb[1]->field + o,            \
+                                              L->nb[2]->field + o, L->nb[3]->field + o};           \
+        lane4_transpose(q_, 0, out);                                                               \
+    } while (0)
+        if (ww) RV_T(w, &st->w[k]);
+        if (wdwr) RV_T(dwr, &st->dwr[k]);
+        if (wr) RV_T(r, &st->r[k]);
+        for (int a = 0; a < d; ++a) RV_T(dx[a], &st->dx[a][k]);
+#undef RV_T
+        const lane4i a0 = (lane4i) * (const rv4j *)(L->nb[0]->j + o);
+        const lane4i a1 = (lane4i) * (const rv4j *)(L->nb[1]->j + o);
+        const lane4i a2 = (lane4i) * (const rv4j *)(L->nb[2]->j + o);
+        const lane4i a3 = (lane4i) * (const rv4j *)(L->nb[3]->j + o);
+        const lane4i t0 = LANE4_SHUF(a0, a1, 0, 4, 2, 6), t1 = LANE4_SHUF(a0, a1, 1, 5, 3, 7);
+        const lane4i t2 = LANE4_SHUF(a2, a3, 0, 4, 2, 6), t3 = LANE4_SHUF(a2, a3, 1, 5, 3, 7);
+        st->j[k] = LANE4_SHUF(t0, t2, 0, 1, 4, 5) << sh;
+        st->j[k + 1] = LANE4_SHUF(t1, t3, 0, 1, 4, 5) << sh;
+        st->j[k + 2] = LANE4_SHUF(t0, t2, 2, 3, 6, 7) << sh;
+        st->j[k + 3] = LANE4_SHUF(t1, t3, 2, 3, 6, 7) << sh;
+    }
+    for (; k < nk; ++k) {
+        const size_t o = k0 + k;
+        if (ww) st->w[k] = RV_NB(L, w, o);
+        if (wdwr) st->dwr[k] = RV_NB(L, dwr, o);
+        if (wr) st->r[k] = RV_NB(L, r, o);
+        for (int a = 0; a < d; ++a) st->dx[a][k] = RV_NB(L, dx[a], o);
+        st->j[k] = (lane4i){(long long)L->nb[0]->j[o], (long long)L->nb[1]->j[o],
+                            (long long)L->nb[2]->j[o], (long long)L->nb[3]->j[o]}
+                   << sh;
+    }
+}
+
+/* visit_wcsph_d over a group: pysph_monaghan_pi's and pysph_wcsph_pair's operations. The pack
+ * holds ϱ, p/ϱ², u_x, u_y of a particle in its first four doubles (what 2D without the artificial
+ * viscosity and ∇u reads: one transpose), m/ϱ, c, u_z in the next. */
 RV_INLINE void group_wcsph_d(const rival_job *job, const consph_nbhd *nb, int count, const int d,
-                             const int grads)
+                             const int grads, const int av)
 {
     rv_lanes L;
     rv_lanes_of(&L, nb, count);
     const size_t cap = job->cap;
     const pysph_consts *c = &job->c;
-    const int av = c->alpha > 0.0;
     const lane4 zero = {0.0, 0.0, 0.0, 0.0};
     const lane4 rhoi = RV_I(&L, job->rho), ti = RV_I(&L, job->pr2);
     const lane4 ci = av ? RV_I(&L, job->cs) : zero;
+    const lane4i iv =
+        (lane4i){(long long)L.i[0], (long long)L.i[1], (long long)L.i[2], (long long)L.i[3]} << 6;
     lane4 ui[3] = {zero, zero, zero};
     for (int a = 0; a < d; ++a) ui[a] = RV_I(&L, job->u + a * cap);
     lane4 f[3] = {zero, zero, zero}, xs[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
     lane4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, drho = zero;
     const double m = c->m;
-    size_t j[PASS_GROUP] = {0};
-    for (size_t k = 0; k < L.kmax; ++k) {
-        lane4i msk;
-        rv_entry(&L, k, j, 1, &msk);
-        const double *q[PASS_GROUP];
-        for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack + j[l] * 8;
-        lane4 rhoj, tj, vj, cj, uj[3], pad;
-        rv_transpose(q, 0, &rhoj, &tj, &vj, &cj);
-        rv_transpose(q, 4, &uj[0], &uj[1], &uj[2], &pad);
-        (void)pad;
-        const lane4 w = RV_NB(&L, w, k), dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
-        lane4 xij[3];
-        for (int a = 0; a < 3; ++a) xij[a] = a < d ? RV_NB(&L, dx[a], k) : zero;
-        const lane4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r * r + c->h2);
-        lane4 pij = zero;
-        if (av) {
-            lane4 ux = zero;
-            for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
-            /* pysph_monaghan_pi */
-            const lane4 mu = c->h * ux * inv_r;
-            const lane4 v = -c->alpha * (ci + cj) * mu * inv_s;
-            pij = LANE4_SEL((lane4i)(ux < 0.0), v, zero);
+    rv_stage st;
+    for (size_t k0 = 0; k0 < L.kmax; k0 += RV_CHUNK) {
+        const size_t nk = L.kmax - k0 < RV_CHUNK ? L.kmax - k0 : RV_CHUNK;
+        rv_stage_of(&L, k0, nk, d, 1, 1, 1, 6, &st);
+        for (size_t k = 0; k < nk; ++k) {
+            /* the lanes whose entry is the particle itself or the padding keep their sums */
+            const lane4i self = (lane4i)(st.j[k] == iv);
+            const long long *js = (const long long *)&st.j[k];
+            const double *q[PASS_GROUP];
+            for (int l = 0; l < PASS_GROUP; ++l)
+                q[l] = (const double *)((const char *)job->pack + js[l]);
+            lane4 rhoj, tj, vj = zero, cj = zero, uj[3] = {zero, zero, zero}, pad;
+            rv_transpose(q, 0, &rhoj, &tj, &uj[0], &uj[1]);
+            if (av || grads || d == 3) rv_transpose(q, 4, &vj, &cj, &uj[2], &pad);
+            (void)pad;
+            const lane4 w = st.w[k], dwr = st.dwr[k], r = st.r[k];
+            lane4 xij[3] = {zero, zero, zero};
+            for (int a = 0; a < d; ++a) xij[a] = st.dx[a][k];
+            const lane4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r * r + c->h2);
+            lane4 pij = zero;
+            if (av) {
+                lane4 ux = zero;
+                for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
+                /* pysph_monaghan_pi */
+                const lane4 mu = c->h * ux * inv_r;
+                const lane4 v = -c->alpha * (ci + cj) * mu * inv_s;
+                pij = LANE4_SEL((lane4i)(ux < 0.0), v, zero);
+            }
+            /* pysph_wcsph_pair */
+            lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
+            for (int a = 0; a < d; ++a) {
+                uij[a] = ui[a] - uj[a];
+                gw[a] = dwr * xij[a];
+            }
+            lane4 udw = zero, xdw = zero;
+            for (int a = 0; a < d; ++a) {
+                udw += uij[a] * gw[a];
+                xdw += xij[a] * gw[a];
+            }
+            const lane4 visc = m * 4.0 * c->nu * xdw * inv_s * inv_r;
+            for (int a = 0; a < d; ++a) {
+                RV_ADD_UNLESS(f[a], self, -m * (ti + tj + pij) * gw[a] + visc * uij[a]);
+                RV_SUB_UNLESS(xs[a], self, m * w * inv_s * uij[a]);
+                if (grads) RV_ADD_UNLESS(fp[a], self, -m * (ti + tj) * gw[a]);
+            }
+            RV_ADD_UNLESS(drho, self, m * udw);
+            if (grads)
+                for (int a = 0; a < d; ++a)
+                    for (int b = 0; b < d; ++b)
+                        RV_SUB_UNLESS(G[a * d + b], self, vj * uij[a] * gw[b]);
         }
-        /* pysph_wcsph_pair */
-        lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
-        for (int a = 0; a < d; ++a) {
-            uij[a] = ui[a] - uj[a];
-            gw[a] = dwr * xij[a];
-        }
-        lane4 udw = zero, xdw = zero;
-        for (int a = 0; a < d; ++a) {
-            udw += uij[a] * gw[a];
-            xdw += xij[a] * gw[a];
-        }
-        const lane4 visc = m * 4.0 * c->nu * xdw * inv_s * inv_r;
-        for (int a = 0; a < d; ++a) {
-            RV_ADD(f[a], msk, -m * (ti + tj + pij) * gw[a] + visc * uij[a]);
-            RV_SUB(xs[a], msk, m * w * inv_s * uij[a]);
-            if (grads) RV_ADD(fp[a], msk, -m * (ti + tj) * gw[a]);
-        }
-        RV_ADD(drho, msk, m * udw);
-        if (grads)
-            for (int a = 0; a < d; ++a)
-                for (int b = 0; b < d; ++b) RV_SUB(G[a * d + b], msk, vj * uij[a] * gw[b]);
     }
     for (int l = 0; l < count; ++l) {
         const size_t i = L.i[l];
@@ -629,14 +713,21 @@ RV_INLINE void group_wcsph_d(const rival_job *job, const consph_nbhd *nb, int co
     }
 }
 
-RV_CLONES static void group_visit_wcsph(void *vjob, const consph_nbhd *nb, int count)
+RV_GROUP_CLONES static void group_visit_wcsph(void *vjob, const consph_nbhd *nb, int count)
 {
     const rival_job *job = vjob;
     const int g = job->grads;
-    if (job->d == 2)
-        g ? group_wcsph_d(job, nb, count, 2, 1) : group_wcsph_d(job, nb, count, 2, 0);
-    else
-        g ? group_wcsph_d(job, nb, count, 3, 1) : group_wcsph_d(job, nb, count, 3, 0);
+    /* Monaghan's Π_ij a compile-time choice too: the common runs have α = 0 */
+    if (job->c.alpha > 0.0) {
+        if (job->d == 2)
+            g ? group_wcsph_d(job, nb, count, 2, 1, 1) : group_wcsph_d(job, nb, count, 2, 0, 1);
+        else
+            g ? group_wcsph_d(job, nb, count, 3, 1, 1) : group_wcsph_d(job, nb, count, 3, 0, 1);
+    } else if (job->d == 2) {
+        g ? group_wcsph_d(job, nb, count, 2, 1, 0) : group_wcsph_d(job, nb, count, 2, 0, 0);
+    } else {
+        g ? group_wcsph_d(job, nb, count, 3, 1, 0) : group_wcsph_d(job, nb, count, 3, 0, 0);
+    }
 }
 #if !defined(__clang__)
 #pragma GCC diagnostic pop
@@ -686,7 +777,8 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         const size_t n = s->sys.p->n, nn = n ? n : 1;
         size_t want = 3 * nn;
 #ifdef RV_GROUPS
-        /* the pack of the group visit: ϱ, p/ϱ², m/ϱ, c, u per particle on a 64-byte line */
+        /* the pack of the group visit: ϱ, p/ϱ², u_x, u_y, m/ϱ, c, u_z per particle on a 64-byte
+         * line */
         job->pk = 8;
         if (pysph_group_visits && !s->sys.split) want += job->pk * nn + 8;
 #endif
@@ -714,9 +806,11 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
                 double *q = pack + i * 8;
                 q[0] = rho[i];
                 q[1] = pr2[i];
-                q[2] = grads ? mrho[i] : 0.0;
-                q[3] = av ? cs[i] : 0.0;
-                for (int a = 0; a < 3; ++a) q[4 + a] = a < d ? u[a * cap + i] : 0.0;
+                q[2] = u[i];
+                q[3] = d > 1 ? u[cap + i] : 0.0;
+                q[4] = grads ? mrho[i] : 0.0;
+                q[5] = av ? cs[i] : 0.0;
+                q[6] = d > 2 ? u[2 * cap + i] : 0.0;
                 q[7] = 0.0;
             }
         }
