@@ -411,6 +411,65 @@ RV_INLINE void rv_transpose(const double *const q[PASS_GROUP], size_t o, lane4 *
 #define RV_I(L, arr)                                                                               \
     ((lane4){(arr)[(L)->i[0]], (arr)[(L)->i[1]], (arr)[(L)->i[2]], (arr)[(L)->i[3]]})
 
+/* A chunk of a group's entries, interleaved: entry k's four lanes side by side, so that the
+ * entry loops read each value of an entry with one vector load. Gathering an entry's vector from
+ * four lanes' arrays took a scalar load, and with more arrays than registers a reload of the
+ * array's address, per lane and value; staged, four entries of a lane are read at once and
+ * transposed. */
+#define RV_CHUNK 32
+typedef struct rv_stage {
+    lane4 w[RV_CHUNK], dwr[RV_CHUNK], r[RV_CHUNK], dx[3][RV_CHUNK];
+    lane4i j[RV_CHUNK];
+} rv_stage;
+
+/* size_t viewed as a vector of four (the neighbour indices of four entries of a lane) */
+typedef unsigned long rv4j __attribute__((vector_size(4 * sizeof(unsigned long)),
+                                          aligned(sizeof(unsigned long)), may_alias));
+
+/* Entries k0..k0+nk (nk ≤ RV_CHUNK, within every lane's kmax) into st: j << sh always (sh = 6:
+ * the byte offset of j's line in a pack of 64-byte lines, which the entry loop then adds to the
+ * pack's address without a shift of its own), and w, dwr, r and the d separations where
+ * wanted. */
+RV_INLINE void rv_stage_of(const rv_lanes *L, size_t k0, size_t nk, const int d, const int ww,
+                           const int wdwr, const int wr, const int sh, rv_stage *st)
+{
+    size_t k = 0;
+    for (; k + 4 <= nk; k += 4) {
+        const size_t o = k0 + k;
+#define RV_T(field, out)                                                                           \
+    do {                                                                                           \
+        const double *const q_[PASS_GROUP] = {L->nb[0]->field + o, L->nb[1]->field + o,            \
+                                              L->nb[2]->field + o, L->nb[3]->field + o};           \
+        lane4_transpose(q_, 0, out);                                                               \
+    } while (0)
+        if (ww) RV_T(w, &st->w[k]);
+        if (wdwr) RV_T(dwr, &st->dwr[k]);
+        if (wr) RV_T(r, &st->r[k]);
+        for (int a = 0; a < d; ++a) RV_T(dx[a], &st->dx[a][k]);
+#undef RV_T
+        const lane4i a0 = (lane4i) * (const rv4j *)(L->nb[0]->j + o);
+        const lane4i a1 = (lane4i) * (const rv4j *)(L->nb[1]->j + o);
+        const lane4i a2 = (lane4i) * (const rv4j *)(L->nb[2]->j + o);
+        const lane4i a3 = (lane4i) * (const rv4j *)(L->nb[3]->j + o);
+        const lane4i t0 = LANE4_SHUF(a0, a1, 0, 4, 2, 6), t1 = LANE4_SHUF(a0, a1, 1, 5, 3, 7);
+        const lane4i t2 = LANE4_SHUF(a2, a3, 0, 4, 2, 6), t3 = LANE4_SHUF(a2, a3, 1, 5, 3, 7);
+        st->j[k] = LANE4_SHUF(t0, t2, 0, 1, 4, 5) << sh;
+        st->j[k + 1] = LANE4_SHUF(t1, t3, 0, 1, 4, 5) << sh;
+        st->j[k + 2] = LANE4_SHUF(t0, t2, 2, 3, 6, 7) << sh;
+        st->j[k + 3] = LANE4_SHUF(t1, t3, 2, 3, 6, 7) << sh;
+    }
+    for (; k < nk; ++k) {
+        const size_t o = k0 + k;
+        if (ww) st->w[k] = RV_NB(L, w, o);
+        if (wdwr) st->dwr[k] = RV_NB(L, dwr, o);
+        if (wr) st->r[k] = RV_NB(L, r, o);
+        for (int a = 0; a < d; ++a) st->dx[a][k] = RV_NB(L, dx[a], o);
+        st->j[k] = (lane4i){(long long)L->nb[0]->j[o], (long long)L->nb[1]->j[o],
+                            (long long)L->nb[2]->j[o], (long long)L->nb[3]->j[o]}
+                   << sh;
+    }
+}
+
 RV_INLINE void group_density(const rival_job *job, const consph_nbhd *nb, int count)
 {
     rv_lanes L;
@@ -468,7 +527,8 @@ RV_GROUP_CLONES static void group_visit_density_pack(void *vjob, const consph_nb
     for (int l = 0; l < count; ++l) tv_pack_one(job, nb[l].i);
 }
 
-/* visit_tv_d over a group: pysph_tv_pair's operations in its order, per lane. */
+/* visit_tv_d over a group: pysph_tv_pair's operations in its order, per lane, the entries staged
+ * as group_wcsph_d's. */
 RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count, const int d,
                           const int edac, const int grads)
 {
@@ -484,57 +544,70 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
         ui[a] = RV_I(&L, job->u + a * cap);
         dui[a] = RV_I(&L, job->tvdu + a * cap);
     }
+    /* 2D packs a particle on a 64-byte line: j staged as its byte offset */
+    const int sh = d == 2 ? 6 : 0;
+    const lane4i iv =
+        (lane4i){(long long)L.i[0], (long long)L.i[1], (long long)L.i[2], (long long)L.i[3]} << sh;
     lane4 f[3] = {zero, zero, zero}, fb[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
     lane4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, div = zero, ap = zero;
-    size_t j[PASS_GROUP] = {0};
-    for (size_t k = 0; k < L.kmax; ++k) {
-        lane4i m;
-        rv_entry(&L, k, j, 1, &m);
-        const double *q[PASS_GROUP];
-        for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack + j[l] * job->pk;
-        lane4 rhoj, pj, Vj, vj;
-        lane4 xij[3] = {zero, zero, zero}, uj[3] = {zero, zero, zero}, duj[3] = {zero, zero, zero};
-        rv_transpose(q, 0, &rhoj, &pj, &Vj, &vj);
-        if (d == 2) {
-            rv_transpose(q, 4, &uj[0], &uj[1], &duj[0], &duj[1]);
-        } else {
-            for (int a = 0; a < d; ++a) {
-                uj[a] = RV_PK(q, 4 + a);
-                duj[a] = RV_PK(q, 4 + d + a);
+    rv_stage st;
+    for (size_t k0 = 0; k0 < L.kmax; k0 += RV_CHUNK) {
+        const size_t nk = L.kmax - k0 < RV_CHUNK ? L.kmax - k0 : RV_CHUNK;
+        rv_stage_of(&L, k0, nk, d, 0, 1, 1, sh, &st);
+        for (size_t k = 0; k < nk; ++k) {
+            /* the particle itself and the padding: ∇W_ii = 0, not summed */
+            const lane4i self = (lane4i)(st.j[k] == iv);
+            const long long *js = (const long long *)&st.j[k];
+            const double *q[PASS_GROUP];
+            for (int l = 0; l < PASS_GROUP; ++l)
+                q[l] = d == 2 ? (const double *)((const char *)job->pack + js[l])
+                              : job->pack + (size_t)js[l] * job->pk;
+            lane4 rhoj, pj, Vj, vj;
+            lane4 xij[3] = {zero, zero, zero}, uj[3] = {zero, zero, zero},
+                  duj[3] = {zero, zero, zero};
+            rv_transpose(q, 0, &rhoj, &pj, &Vj, &vj);
+            if (d == 2) {
+                rv_transpose(q, 4, &uj[0], &uj[1], &duj[0], &duj[1]);
+            } else {
+                for (int a = 0; a < d; ++a) {
+                    uj[a] = RV_PK(q, 4 + a);
+                    duj[a] = RV_PK(q, 4 + d + a);
+                }
             }
-        }
-        const lane4 dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
-        for (int a = 0; a < d; ++a) xij[a] = RV_NB(&L, dx[a], k);
-        /* pysph_tv_pair */
-        const lane4 w2 = Vi * Vi + Vj * Vj;
-        lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
-        lane4 xdw = zero, udw = zero;
-        for (int a = 0; a < d; ++a) {
-            gw[a] = dwr * xij[a];
-            uij[a] = ui[a] - uj[a];
-            xdw += xij[a] * gw[a];
-            udw += uij[a] * gw[a];
-        }
-        const lane4 r2 = r * r;
-        const lane4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r2 + c->h2);
-        const lane4 pij = (rhoj * (pi - pav) + rhoi * (pj - pav)) * inv_s;
-        const lane4 rr = rhoi * rhoj * inv_s, wx = w2 * xdw * inv_r;
-        const lane4 visc = 2.0 * c->nu * rr * wx;
-        for (int a = 0; a < d; ++a) {
-            lane4 A = zero;
-            for (int b = 0; b < d; ++b)
-                A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj * uj[a] * duj[b]) * gw[b];
-            RV_ADD(f[a], m, -pij * w2 * gw[a] + visc * uij[a] + w2 * A);
-            RV_ADD(fb[a], m, -c->pb * w2 * gw[a]);
-            if (grads) RV_ADD(fp[a], m, -pij * w2 * gw[a] * c->minv);
-        }
-        if (grads)
-            for (int a = 0; a < d; ++a)
-                for (int b = 0; b < d; ++b) RV_SUB(G[a * d + b], m, vj * uij[a] * gw[b]);
-        RV_SUB(div, m, vj * udw);
-        if (edac) {
-            RV_ADD(ap, m, rhoi * vj * c->c0 * c->c0 * udw);
-            RV_ADD(ap, m, 2.0 * c->nu_edac * rr * wx * (pi - pj) * c->minv);
+            const lane4 dwr = st.dwr[k], r = st.r[k];
+            for (int a = 0; a < d; ++a) xij[a] = st.dx[a][k];
+            /* pysph_tv_pair */
+            const lane4 w2 = Vi * Vi + Vj * Vj;
+            lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
+            lane4 xdw = zero, udw = zero;
+            for (int a = 0; a < d; ++a) {
+                gw[a] = dwr * xij[a];
+                uij[a] = ui[a] - uj[a];
+                xdw += xij[a] * gw[a];
+                udw += uij[a] * gw[a];
+            }
+            const lane4 r2 = r * r;
+            const lane4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r2 + c->h2);
+            const lane4 pij = (rhoj * (pi - pav) + rhoi * (pj - pav)) * inv_s;
+            const lane4 rr = rhoi * rhoj * inv_s, wx = w2 * xdw * inv_r;
+            const lane4 visc = 2.0 * c->nu * rr * wx;
+            for (int a = 0; a < d; ++a) {
+                lane4 A = zero;
+                for (int b = 0; b < d; ++b)
+                    A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj * uj[a] * duj[b]) * gw[b];
+                RV_ADD_UNLESS(f[a], self, -pij * w2 * gw[a] + visc * uij[a] + w2 * A);
+                RV_ADD_UNLESS(fb[a], self, -c->pb * w2 * gw[a]);
+                if (grads) RV_ADD_UNLESS(fp[a], self, -pij * w2 * gw[a] * c->minv);
+            }
+            if (grads)
+                for (int a = 0; a < d; ++a)
+                    for (int b = 0; b < d; ++b)
+                        RV_SUB_UNLESS(G[a * d + b], self, vj * uij[a] * gw[b]);
+            RV_SUB_UNLESS(div, self, vj * udw);
+            if (edac) {
+                RV_ADD_UNLESS(ap, self, rhoi * vj * c->c0 * c->c0 * udw);
+                RV_ADD_UNLESS(ap, self, 2.0 * c->nu_edac * rr * wx * (pi - pj) * c->minv);
+            }
         }
     }
     for (int l = 0; l < count; ++l) {
@@ -565,65 +638,6 @@ RV_GROUP_CLONES static void group_visit_tv(void *vjob, const consph_nbhd *nb, in
             g ? group_tv_d(job, nb, count, 3, 1, 1) : group_tv_d(job, nb, count, 3, 1, 0);
         else
             g ? group_tv_d(job, nb, count, 3, 0, 1) : group_tv_d(job, nb, count, 3, 0, 0);
-    }
-}
-
-/* A chunk of a group's entries, interleaved: entry k's four lanes side by side, so that the
- * entry loops read each value of an entry with one vector load. Gathering an entry's vector from
- * four lanes' arrays took a scalar load, and with more arrays than registers a reload of the
- * array's address, per lane and value; staged, four entries of a lane are read at once and
- * transposed. */
-#define RV_CHUNK 32
-typedef struct rv_stage {
-    lane4 w[RV_CHUNK], dwr[RV_CHUNK], r[RV_CHUNK], dx[3][RV_CHUNK];
-    lane4i j[RV_CHUNK];
-} rv_stage;
-
-/* size_t viewed as a vector of four (the neighbour indices of four entries of a lane) */
-typedef unsigned long rv4j __attribute__((vector_size(4 * sizeof(unsigned long)),
-                                          aligned(sizeof(unsigned long)), may_alias));
-
-/* Entries k0..k0+nk (nk ≤ RV_CHUNK, within every lane's kmax) into st: j << sh always (sh = 6:
- * the byte offset of j's line in a pack of 64-byte lines, which the entry loop then adds to the
- * pack's address without a shift of its own), and w, dwr, r and the d separations where
- * wanted. */
-RV_INLINE void rv_stage_of(const rv_lanes *L, size_t k0, size_t nk, const int d, const int ww,
-                           const int wdwr, const int wr, const int sh, rv_stage *st)
-{
-    size_t k = 0;
-    for (; k + 4 <= nk; k += 4) {
-        const size_t o = k0 + k;
-#define RV_T(field, out)                                                                           \
-    do {                                                                                           \
-        const double *const q_[PASS_GROUP] = {L->nb[0]->field + o, L->nb[1]->field + o,            \
-                                              L->nb[2]->field + o, L->nb[3]->field + o};           \
-        lane4_transpose(q_, 0, out);                                                               \
-    } while (0)
-        if (ww) RV_T(w, &st->w[k]);
-        if (wdwr) RV_T(dwr, &st->dwr[k]);
-        if (wr) RV_T(r, &st->r[k]);
-        for (int a = 0; a < d; ++a) RV_T(dx[a], &st->dx[a][k]);
-#undef RV_T
-        const lane4i a0 = (lane4i) * (const rv4j *)(L->nb[0]->j + o);
-        const lane4i a1 = (lane4i) * (const rv4j *)(L->nb[1]->j + o);
-        const lane4i a2 = (lane4i) * (const rv4j *)(L->nb[2]->j + o);
-        const lane4i a3 = (lane4i) * (const rv4j *)(L->nb[3]->j + o);
-        const lane4i t0 = LANE4_SHUF(a0, a1, 0, 4, 2, 6), t1 = LANE4_SHUF(a0, a1, 1, 5, 3, 7);
-        const lane4i t2 = LANE4_SHUF(a2, a3, 0, 4, 2, 6), t3 = LANE4_SHUF(a2, a3, 1, 5, 3, 7);
-        st->j[k] = LANE4_SHUF(t0, t2, 0, 1, 4, 5) << sh;
-        st->j[k + 1] = LANE4_SHUF(t1, t3, 0, 1, 4, 5) << sh;
-        st->j[k + 2] = LANE4_SHUF(t0, t2, 2, 3, 6, 7) << sh;
-        st->j[k + 3] = LANE4_SHUF(t1, t3, 2, 3, 6, 7) << sh;
-    }
-    for (; k < nk; ++k) {
-        const size_t o = k0 + k;
-        if (ww) st->w[k] = RV_NB(L, w, o);
-        if (wdwr) st->dwr[k] = RV_NB(L, dwr, o);
-        if (wr) st->r[k] = RV_NB(L, r, o);
-        for (int a = 0; a < d; ++a) st->dx[a][k] = RV_NB(L, dx[a], o);
-        st->j[k] = (lane4i){(long long)L->nb[0]->j[o], (long long)L->nb[1]->j[o],
-                            (long long)L->nb[2]->j[o], (long long)L->nb[3]->j[o]}
-                   << sh;
     }
 }
 
