@@ -51,6 +51,8 @@ typedef struct rival_job {
      * cache line instead of one per field); NULL: read from the fields */
     double *pack;
     size_t pk; /* doubles per particle in the pack */
+    /* wcsph's group visit: its pack in slot order (PASS_GROUP_SLOTS), and each particle's slot */
+    const size_t *slot_of;
     double *numd, *pavg, *rhos, *pw, *au, *aq, *ax, *auhat;
     double *gradp, *divu, *gradu; /* for the diagnostics and the vorticity output */
     int grads;                    /* ∇u and ∇p wanted (consph_solver.grads_skip unset) */
@@ -343,9 +345,12 @@ RV_CLONES static void visit_wcsph(void *vjob, const consph_nbhd *nb)
 /* acc + t in the lanes of m; the others keep acc */
 #define RV_ADD(acc, m, t) ((acc) = LANE4_SEL((m), (acc) + (t), (acc)))
 #define RV_SUB(acc, m, t) ((acc) = LANE4_SEL((m), (acc) - (t), (acc)))
-/* the same with the lanes that keep acc given (one comparison fewer than its complement) */
-#define RV_ADD_UNLESS(acc, k, t) ((acc) = LANE4_SEL((k), (acc), (acc) + (t)))
-#define RV_SUB_UNLESS(acc, k, t) ((acc) = LANE4_SEL((k), (acc), (acc) - (t)))
+/* The same with the lanes that keep acc given (k), as acc ± t with t made +0 in them, which the
+ * sum's chain then does not wait on (and AVX-512 folds into the term's last operation). It gives
+ * RV_ADD's and RV_SUB's values bit for bit: x - (+0) is x for every x, and x + (+0) for every x
+ * but -0; a sum that starts at +0 and adds never is -0 (a sum is -0 only if both addends are). */
+#define RV_ADD_UNLESS(acc, k, t) ((acc) += (lane4)(~(k) & (lane4i)(t)))
+#define RV_SUB_UNLESS(acc, k, t) ((acc) -= (lane4)(~(k) & (lane4i)(t)))
 
 /* The group's lanes (src/pass/group.h: every lane's arrays reach kmax, and the lanes past
  * count repeat the first, whose sums are never written). */
@@ -654,8 +659,11 @@ RV_INLINE void group_wcsph_d(const rival_job *job, const consph_nbhd *nb, int co
     const lane4 zero = {0.0, 0.0, 0.0, 0.0};
     const lane4 rhoi = RV_I(&L, job->rho), ti = RV_I(&L, job->pr2);
     const lane4 ci = av ? RV_I(&L, job->cs) : zero;
-    const lane4i iv =
-        (lane4i){(long long)L.i[0], (long long)L.i[1], (long long)L.i[2], (long long)L.i[3]} << 6;
+    /* the lanes' own slots (PASS_GROUP_SLOTS: the entries' j are slots, the pack in slot order) */
+    const size_t *so = job->slot_of;
+    const lane4i iv = (lane4i){(long long)so[L.i[0]], (long long)so[L.i[1]], (long long)so[L.i[2]],
+                               (long long)so[L.i[3]]}
+                      << 6;
     lane4 ui[3] = {zero, zero, zero};
     for (int a = 0; a < d; ++a) ui[a] = RV_I(&L, job->u + a * cap);
     lane4 f[3] = {zero, zero, zero}, xs[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
@@ -792,17 +800,24 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         size_t want = 3 * nn;
 #ifdef RV_GROUPS
         /* the pack of the group visit: ϱ, p/ϱ², u_x, u_y, m/ϱ, c, u_z per particle on a 64-byte
-         * line */
+         * line, in the search's slot order (PASS_GROUP_SLOTS), and the slot of each particle */
         job->pk = 8;
-        if (pysph_group_visits && !s->sys.split) want += job->pk * nn + 8;
+        consph_nnps_slots v;
+        const int packed = pysph_group_visits && !s->sys.split &&
+                           consph_nnps_slots_get(s->sys.nnps, &v) == CONSPH_OK && v.n == n;
+        if (packed) want += job->pk * nn + 8 + nn;
 #endif
         double *sc = consph_sys_scratch(&s->sys, want);
         if (!sc) return CONSPH_ENOMEM;
         double *pr2 = sc, *mrho = sc + nn, *cs = sc + 2 * nn, *pack = NULL;
+        size_t *slot_of = NULL;
+        const size_t *particle = NULL;
 #ifdef RV_GROUPS
-        if (pysph_group_visits && !s->sys.split) {
+        if (packed) {
             pack = sc + 3 * nn;
             while ((uintptr_t)pack % 64) ++pack;
+            slot_of = (size_t *)(pack + job->pk * nn);
+            particle = v.particle;
         }
 #endif
         const size_t cap = job->cap;
@@ -812,12 +827,15 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         const int ie = eos_int_exponent(cexp); /* γ = 7: the cube, by multiplication */
         const int av = job->c.alpha > 0.0, grads = job->grads;
 #pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
-        for (size_t i = 0; i < n; ++i) {
+        for (size_t sl = 0; sl < n; ++sl) {
+            /* by slot: the particle in slot sl (each particle once) */
+            const size_t i = particle ? particle[sl] : sl;
             pr2[i] = p[i] / (rho[i] * rho[i]);
             if (grads) mrho[i] = m / rho[i];
             if (av) cs[i] = c0 * (ie >= 0 ? eos_ipow(rho[i] / rho0, ie) : pow(rho[i] / rho0, cexp));
             if (pack) {
-                double *q = pack + i * 8;
+                slot_of[i] = sl;
+                double *q = pack + sl * 8;
                 q[0] = rho[i];
                 q[1] = pr2[i];
                 q[2] = u[i];
@@ -829,6 +847,7 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
             }
         }
         job->pack = pack;
+        job->slot_of = slot_of;
         job->pr2 = pr2;
         job->mrho = mrho;
         if (av) job->cs = cs;
@@ -874,16 +893,20 @@ static void tv_pack(const consph_solver *s, const rival_job *job)
 }
 #endif
 
-/* A pass with its group visit where the system and the compiler allow one, else per particle. */
-static int run_pass(consph_solver *s, const consph_pass *pass, pass_group_fn group, rival_job *job)
+/* A pass with its group visit where the system and the compiler allow one (group_need: what the
+ * group visit needs beyond pass->need, PASS_GROUP_SLOTS), else per particle. */
+static int run_pass(consph_solver *s, const consph_pass *pass, pass_group_fn group,
+                    unsigned group_need, rival_job *job)
 {
 #ifdef RV_GROUPS
     if (pysph_group_visits && group) {
-        const int st = pass_run_groups(&s->sys, pass->name, pass->need, group, job, &s->pairs);
+        const int st =
+            pass_run_groups(&s->sys, pass->name, pass->need | group_need, group, job, &s->pairs);
         if (st != PASS_GROUP_UNSERVED) return st;
     }
 #else
     (void)group;
+    (void)group_need;
 #endif
     return consph_pass_run_counted(&s->sys, pass, job, &s->pairs);
 }
@@ -901,7 +924,7 @@ static int rhs_wcsph(consph_solver *s)
     if (st != CONSPH_OK) return st;
     const consph_pass pass = {"wcsph rates", CONSPH_PASS_W | CONSPH_PASS_DW, visit_wcsph};
     s->passes = 1;
-    return run_pass(s, &pass, job.pack ? group_visit_wcsph : NULL, &job);
+    return run_pass(s, &pass, job.pack ? group_visit_wcsph : NULL, PASS_GROUP_SLOTS, &job);
 }
 
 /* dst = src over n values, on the threads from the system's parallel_min on */
@@ -928,11 +951,11 @@ static int rhs_tv(consph_solver *s, int kind)
                               rates.need, group_visit_tv, &job, &s->pairs);
 #endif
     if (st == PASS_GROUP_UNSERVED) {
-        st = run_pass(s, &dens, group_visit_density, &job);
+        st = run_pass(s, &dens, group_visit_density, 0, &job);
 #ifdef RV_GROUPS
         if (st == CONSPH_OK && job.pack) tv_pack(s, &job);
 #endif
-        if (st == CONSPH_OK) st = run_pass(s, &rates, job.pack ? group_visit_tv : NULL, &job);
+        if (st == CONSPH_OK) st = run_pass(s, &rates, job.pack ? group_visit_tv : NULL, 0, &job);
     }
     if (st != CONSPH_OK) return st;
     s->passes = 2;
