@@ -117,9 +117,9 @@ static void visit_density(void *vjob, const consph_nbhd *nb)
 
 /* The group visits keep more vectors live than AVX2's 16 registers hold (the sums of four
  * particles, their own values, the constants), and spilled their sums on every entry: with
- * AVX-512 (x86-64-v4) they have 32 and mask registers for the lanes that sum an entry, on the
- * same 256-bit vectors. AVX-512 brings FMA, so that copy is made only in ISO C mode, where GCC
- * contracts nothing (as KERNEL_CLONES in src/kernels/kernels.c). */
+ * AVX-512 (x86-64-v4) they have 32, on the same 256-bit vectors. AVX-512 brings FMA, so that copy
+ * is made only in ISO C mode, where GCC contracts nothing (as KERNEL_CLONES in
+ * src/kernels/kernels.c). */
 #if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
     !defined(__AVX2__) && defined(__STRICT_ANSI__)
 #define RV_GROUP_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
@@ -345,8 +345,8 @@ RV_CLONES static void visit_wcsph(void *vjob, const consph_nbhd *nb)
 /* acc + t in the lanes of m; the others keep acc */
 #define RV_ADD(acc, m, t) ((acc) = LANE4_SEL((m), (acc) + (t), (acc)))
 #define RV_SUB(acc, m, t) ((acc) = LANE4_SEL((m), (acc) - (t), (acc)))
-/* The same with the lanes that keep acc given (k), as acc ± t with t made +0 in them, which the
- * sum's chain then does not wait on (and AVX-512 folds into the term's last operation). It gives
+/* The same with the lanes that keep acc given (k), as acc ± t with t made +0 in them: the sum's
+ * chain is the addition alone, not an addition and a select after it. It gives
  * RV_ADD's and RV_SUB's values bit for bit: x - (+0) is x for every x, and x + (+0) for every x
  * but -0; a sum that starts at +0 and adds never is -0 (a sum is -0 only if both addends are). */
 #define RV_ADD_UNLESS(acc, k, t) ((acc) += (lane4)(~(k) & (lane4i)(t)))
@@ -452,10 +452,10 @@ RV_INLINE void rv_stage_of(const rv_lanes *L, size_t k0, size_t nk, const int d,
         if (wr) RV_T(r, &st->r[k]);
         for (int a = 0; a < d; ++a) RV_T(dx[a], &st->dx[a][k]);
 #undef RV_T
-        const lane4i a0 = (lane4i) * (const rv4j *)(L->nb[0]->j + o);
-        const lane4i a1 = (lane4i) * (const rv4j *)(L->nb[1]->j + o);
-        const lane4i a2 = (lane4i) * (const rv4j *)(L->nb[2]->j + o);
-        const lane4i a3 = (lane4i) * (const rv4j *)(L->nb[3]->j + o);
+        const lane4i a0 = (lane4i)(*(const rv4j *)(L->nb[0]->j + o));
+        const lane4i a1 = (lane4i)(*(const rv4j *)(L->nb[1]->j + o));
+        const lane4i a2 = (lane4i)(*(const rv4j *)(L->nb[2]->j + o));
+        const lane4i a3 = (lane4i)(*(const rv4j *)(L->nb[3]->j + o));
         const lane4i t0 = LANE4_SHUF(a0, a1, 0, 4, 2, 6), t1 = LANE4_SHUF(a0, a1, 1, 5, 3, 7);
         const lane4i t2 = LANE4_SHUF(a2, a3, 0, 4, 2, 6), t3 = LANE4_SHUF(a2, a3, 1, 5, 3, 7);
         st->j[k] = LANE4_SHUF(t0, t2, 0, 1, 4, 5) << sh;
