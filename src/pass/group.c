@@ -20,12 +20,13 @@
 #include "pass/nbhd.h"
 #include "pass/nlist.h"
 
-/* Entries n..kmax of a lane: the particle itself with zero separation and kernel values. */
-static void lane_pad(nbhd_scratch *sc, const consph_nbhd *nb, size_t kmax)
+/* Entries n..kmax of a lane: the particle itself (self: its index, or its slot under
+ * PASS_GROUP_SLOTS) with zero separation and kernel values. */
+static void lane_pad(nbhd_scratch *sc, const consph_nbhd *nb, size_t kmax, size_t self)
 {
     size_t *j = (size_t *)nb->j;
     for (size_t p = nb->n; p < kmax; ++p) {
-        j[p] = nb->i;
+        j[p] = self;
         for (int a = 0; a < CONSPH_MAX_DIM; ++a)
             if (nb->dx[a]) sc->dx[a][p] = 0.0;
         sc->r[p] = sc->w[p] = sc->dwr[p] = sc->d2w[p] = 0.0;
@@ -46,6 +47,7 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
     if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK || v.n != n) return PASS_GROUP_UNSERVED;
     if (s->nlist && nlist_serves(s->nlist, n)) {
         if (need & PASS_GROUP_UNPADDED) {
+            if (need & PASS_GROUP_SLOTS) return PASS_GROUP_UNSERVED;
             int ran;
             const int st = nlist_group_run(s, name, need, visit, job, pairs, &ran);
             if (st != CONSPH_OK || ran > 0) {
@@ -60,7 +62,7 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
         }
     }
     need &= ~PASS_GROUP_UNPADDED;
-    const int with_dx = !(need & CONSPH_PASS_NO_DX);
+    const int with_dx = !(need & CONSPH_PASS_NO_DX), slots = (need & PASS_GROUP_SLOTS) != 0;
     ++pass_group_runs;
     int status = CONSPH_OK;
     char why[256] = "";
@@ -101,7 +103,8 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
                     my_pairs += nb[l].n;
                     if (nb[l].n > kmax) kmax = nb[l].n;
                 }
-                for (int l = 0; l < count; ++l) lane_pad(&sc[l], &nb[l], kmax);
+                for (int l = 0; l < count; ++l)
+                    lane_pad(&sc[l], &nb[l], kmax, slots ? g + (size_t)l : nb[l].i);
                 for (int l = count; l < PASS_GROUP; ++l) nb[l] = nb[0];
                 visit(job, nb, count);
             }
@@ -368,7 +371,7 @@ static void run_cell(const sweep *w, sweep_thread *t, size_t c, int mode, slab_s
                 t->pairs += per_pair * nb[l].n;
                 if (nb[l].n > kmax) kmax = nb[l].n;
             }
-            for (int l = 0; l < count; ++l) lane_pad(&t->sc[l], &nb[l], kmax);
+            for (int l = 0; l < count; ++l) lane_pad(&t->sc[l], &nb[l], kmax, nb[l].i);
             for (int l = count; l < PASS_GROUP; ++l) nb[l] = nb[0];
             if (mode == SLAB_SECOND) {
                 w->visit2(w->job, nb, count);
@@ -432,7 +435,8 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
                      const char *name2, unsigned need2, pass_group_fn visit2, void *job,
                      size_t *pairs)
 {
-    if (!s || !s->p || !s->nnps || !visit1 || !visit2 || s->dest || s->kernel.tensor || s->split)
+    if (!s || !s->p || !s->nnps || !visit1 || !visit2 || s->dest || s->kernel.tensor || s->split ||
+        ((need1 | need2) & PASS_GROUP_SLOTS))
         return PASS_GROUP_UNSERVED;
     const size_t n = s->p->n;
     if (n == 0) return CONSPH_OK;

@@ -4,6 +4,7 @@
 #define CONSPH_PASS_GROUP_H
 
 #include "consph/pass.h"
+#include "pass/nbhd.h"
 
 /* Particles per group: the lanes of a vector of doubles on AVX2. */
 #define PASS_GROUP 4
@@ -26,6 +27,12 @@ typedef void (*pass_group_fn)(void *job, const consph_nbhd *nb, int count);
  * run out), so a neighbour list's pair cache (src/pass/nlist.c) can serve the pass as it
  * stands, without the padding, where it serves the state's passes. */
 #define PASS_GROUP_UNPADDED (1u << 16)
+/* In `need`: the visit reads nb->j as slots of the search (consph_nnps_slots: cell order), not
+ * as particles, and the padding repeats the lane's own slot (nb->i stays its particle). The
+ * gather then skips mapping every neighbour's slot to its particle, and a visit that reads
+ * per-neighbour values from an array in slot order reads the neighbours of a cell from nearby
+ * lines. pass_run_groups only (not the neighbour list's unpadded run). */
+#define PASS_GROUP_SLOTS NBHD_SLOTS
 /* Calls of pass_run_groups that ran their pass (for tests: that the group visits did run). */
 /* Cells per dynamic chunk of a pass over ncells cells: up to 16 (at the default cells per radius a
  * 2D cell holds ~13 particles at h = 1.2Δs with the quintic kernel, a 3D one ~6), fewer where the

@@ -9,6 +9,11 @@
 
 #include "consph/pass.h"
 
+/* In a gather's `need`: hand out the neighbours' slots of the search (consph_nnps_slots) in
+ * nb->j instead of their particles (nb->i stays the particle), which spares mapping each
+ * neighbour's slot to its particle; group.h's PASS_GROUP_SLOTS. */
+#define NBHD_SLOTS (1u << 17)
+
 typedef struct nbhd_scratch {
     size_t cap;
     size_t *slot, *j;
@@ -33,7 +38,7 @@ static inline void nbhd_gather(const consph_sys *s, const consph_nnps_slots *v,
     for (int a = 0; a < dim; ++a) xi[a] = v->x[a][sl];
     const size_t m = consph_nnps_gather(v, runs, xi, sc->slot, with_dx ? sc->dx : NULL, sc->r);
     const size_t *j = sc->slot;
-    if (v->particle) {
+    if (v->particle && !(need & NBHD_SLOTS)) {
         for (size_t p = 0; p < m; ++p) sc->j[p] = v->particle[sc->slot[p]];
         j = sc->j;
     }

@@ -51,6 +51,8 @@ typedef struct rival_job {
      * cache line instead of one per field); NULL: read from the fields */
     double *pack;
     size_t pk; /* doubles per particle in the pack */
+    /* wcsph's group visit: its pack in slot order (PASS_GROUP_SLOTS), and each particle's slot */
+    const size_t *slot_of;
     double *numd, *pavg, *rhos, *pw, *au, *aq, *ax, *auhat;
     double *gradp, *divu, *gradu; /* for the diagnostics and the vorticity output */
     int grads;                    /* ∇u and ∇p wanted (consph_solver.grads_skip unset) */
@@ -111,6 +113,18 @@ static void visit_density(void *vjob, const consph_nbhd *nb)
 #define RV_CLONES __attribute__((target_clones("avx2", "default")))
 #else
 #define RV_CLONES
+#endif
+
+/* The group visits keep more vectors live than AVX2's 16 registers hold (the sums of four
+ * particles, their own values, the constants), and spilled their sums on every entry: with
+ * AVX-512 (x86-64-v4) they have 32, on the same 256-bit vectors. AVX-512 brings FMA, so that copy
+ * is made only in ISO C mode, where GCC contracts nothing (as KERNEL_CLONES in
+ * src/kernels/kernels.c). */
+#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
+    !defined(__AVX2__) && defined(__STRICT_ANSI__)
+#define RV_GROUP_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
+#else
+#define RV_GROUP_CLONES RV_CLONES
 #endif
 
 #if defined(__GNUC__)
@@ -331,6 +345,12 @@ RV_CLONES static void visit_wcsph(void *vjob, const consph_nbhd *nb)
 /* acc + t in the lanes of m; the others keep acc */
 #define RV_ADD(acc, m, t) ((acc) = LANE4_SEL((m), (acc) + (t), (acc)))
 #define RV_SUB(acc, m, t) ((acc) = LANE4_SEL((m), (acc) - (t), (acc)))
+/* The same with the lanes that keep acc given (k), as acc ± t with t made +0 in them: the sum's
+ * chain is the addition alone, not an addition and a select after it. It gives
+ * RV_ADD's and RV_SUB's values bit for bit: x - (+0) is x for every x, and x + (+0) for every x
+ * but -0; a sum that starts at +0 and adds never is -0 (a sum is -0 only if both addends are). */
+#define RV_ADD_UNLESS(acc, k, t) ((acc) += (lane4)(~(k) & (lane4i)(t)))
+#define RV_SUB_UNLESS(acc, k, t) ((acc) -= (lane4)(~(k) & (lane4i)(t)))
 
 /* The group's lanes (src/pass/group.h: every lane's arrays reach kmax, and the lanes past
  * count repeat the first, whose sums are never written). */
@@ -396,6 +416,65 @@ RV_INLINE void rv_transpose(const double *const q[PASS_GROUP], size_t o, lane4 *
 #define RV_I(L, arr)                                                                               \
     ((lane4){(arr)[(L)->i[0]], (arr)[(L)->i[1]], (arr)[(L)->i[2]], (arr)[(L)->i[3]]})
 
+/* A chunk of a group's entries, interleaved: entry k's four lanes side by side, so that the
+ * entry loops read each value of an entry with one vector load. Gathering an entry's vector from
+ * four lanes' arrays took a scalar load, and with more arrays than registers a reload of the
+ * array's address, per lane and value; staged, four entries of a lane are read at once and
+ * transposed. */
+#define RV_CHUNK 32
+typedef struct rv_stage {
+    lane4 w[RV_CHUNK], dwr[RV_CHUNK], r[RV_CHUNK], dx[3][RV_CHUNK];
+    lane4i j[RV_CHUNK];
+} rv_stage;
+
+/* size_t viewed as a vector of four (the neighbour indices of four entries of a lane) */
+typedef unsigned long rv4j __attribute__((vector_size(4 * sizeof(unsigned long)),
+                                          aligned(sizeof(unsigned long)), may_alias));
+
+/* Entries k0..k0+nk (nk ≤ RV_CHUNK, within every lane's kmax) into st: j << sh always (sh = 6:
+ * the byte offset of j's line in a pack of 64-byte lines, which the entry loop then adds to the
+ * pack's address without a shift of its own), and w, dwr, r and the d separations where
+ * wanted. */
+RV_INLINE void rv_stage_of(const rv_lanes *L, size_t k0, size_t nk, const int d, const int ww,
+                           const int wdwr, const int wr, const int sh, rv_stage *st)
+{
+    size_t k = 0;
+    for (; k + 4 <= nk; k += 4) {
+        const size_t o = k0 + k;
+#define RV_T(field, out)                                                                           \
+    do {                                                                                           \
+        const double *const q_[PASS_GROUP] = {L->nb[0]->field + o, L->nb[1]->field + o,            \
+                                              L->nb[2]->field + o, L->nb[3]->field + o};           \
+        lane4_transpose(q_, 0, out);                                                               \
+    } while (0)
+        if (ww) RV_T(w, &st->w[k]);
+        if (wdwr) RV_T(dwr, &st->dwr[k]);
+        if (wr) RV_T(r, &st->r[k]);
+        for (int a = 0; a < d; ++a) RV_T(dx[a], &st->dx[a][k]);
+#undef RV_T
+        const lane4i a0 = (lane4i)(*(const rv4j *)(L->nb[0]->j + o));
+        const lane4i a1 = (lane4i)(*(const rv4j *)(L->nb[1]->j + o));
+        const lane4i a2 = (lane4i)(*(const rv4j *)(L->nb[2]->j + o));
+        const lane4i a3 = (lane4i)(*(const rv4j *)(L->nb[3]->j + o));
+        const lane4i t0 = LANE4_SHUF(a0, a1, 0, 4, 2, 6), t1 = LANE4_SHUF(a0, a1, 1, 5, 3, 7);
+        const lane4i t2 = LANE4_SHUF(a2, a3, 0, 4, 2, 6), t3 = LANE4_SHUF(a2, a3, 1, 5, 3, 7);
+        st->j[k] = LANE4_SHUF(t0, t2, 0, 1, 4, 5) << sh;
+        st->j[k + 1] = LANE4_SHUF(t1, t3, 0, 1, 4, 5) << sh;
+        st->j[k + 2] = LANE4_SHUF(t0, t2, 2, 3, 6, 7) << sh;
+        st->j[k + 3] = LANE4_SHUF(t1, t3, 2, 3, 6, 7) << sh;
+    }
+    for (; k < nk; ++k) {
+        const size_t o = k0 + k;
+        if (ww) st->w[k] = RV_NB(L, w, o);
+        if (wdwr) st->dwr[k] = RV_NB(L, dwr, o);
+        if (wr) st->r[k] = RV_NB(L, r, o);
+        for (int a = 0; a < d; ++a) st->dx[a][k] = RV_NB(L, dx[a], o);
+        st->j[k] = (lane4i){(long long)L->nb[0]->j[o], (long long)L->nb[1]->j[o],
+                            (long long)L->nb[2]->j[o], (long long)L->nb[3]->j[o]}
+                   << sh;
+    }
+}
+
 RV_INLINE void group_density(const rival_job *job, const consph_nbhd *nb, int count)
 {
     rv_lanes L;
@@ -422,7 +501,7 @@ RV_INLINE void group_density(const rival_job *job, const consph_nbhd *nb, int co
     }
 }
 
-RV_CLONES static void group_visit_density(void *vjob, const consph_nbhd *nb, int count)
+RV_GROUP_CLONES static void group_visit_density(void *vjob, const consph_nbhd *nb, int count)
 {
     group_density(vjob, nb, count);
 }
@@ -446,14 +525,15 @@ RV_INLINE void tv_pack_one(const rival_job *job, size_t i)
 
 /* The density visit that also packs its particles for the rates visit (pass_run_groups2: the
  * rates of a particle may run before the density pass has reached every particle). */
-RV_CLONES static void group_visit_density_pack(void *vjob, const consph_nbhd *nb, int count)
+RV_GROUP_CLONES static void group_visit_density_pack(void *vjob, const consph_nbhd *nb, int count)
 {
     const rival_job *job = vjob;
     group_density(job, nb, count);
     for (int l = 0; l < count; ++l) tv_pack_one(job, nb[l].i);
 }
 
-/* visit_tv_d over a group: pysph_tv_pair's operations in its order, per lane. */
+/* visit_tv_d over a group: pysph_tv_pair's operations in its order, per lane, the entries staged
+ * as group_wcsph_d's. */
 RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count, const int d,
                           const int edac, const int grads)
 {
@@ -469,57 +549,70 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
         ui[a] = RV_I(&L, job->u + a * cap);
         dui[a] = RV_I(&L, job->tvdu + a * cap);
     }
+    /* 2D packs a particle on a 64-byte line: j staged as its byte offset */
+    const int sh = d == 2 ? 6 : 0;
+    const lane4i iv =
+        (lane4i){(long long)L.i[0], (long long)L.i[1], (long long)L.i[2], (long long)L.i[3]} << sh;
     lane4 f[3] = {zero, zero, zero}, fb[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
     lane4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, div = zero, ap = zero;
-    size_t j[PASS_GROUP] = {0};
-    for (size_t k = 0; k < L.kmax; ++k) {
-        lane4i m;
-        rv_entry(&L, k, j, 1, &m);
-        const double *q[PASS_GROUP];
-        for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack + j[l] * job->pk;
-        lane4 rhoj, pj, Vj, vj;
-        lane4 xij[3] = {zero, zero, zero}, uj[3] = {zero, zero, zero}, duj[3] = {zero, zero, zero};
-        rv_transpose(q, 0, &rhoj, &pj, &Vj, &vj);
-        if (d == 2) {
-            rv_transpose(q, 4, &uj[0], &uj[1], &duj[0], &duj[1]);
-        } else {
-            for (int a = 0; a < d; ++a) {
-                uj[a] = RV_PK(q, 4 + a);
-                duj[a] = RV_PK(q, 4 + d + a);
+    rv_stage st;
+    for (size_t k0 = 0; k0 < L.kmax; k0 += RV_CHUNK) {
+        const size_t nk = L.kmax - k0 < RV_CHUNK ? L.kmax - k0 : RV_CHUNK;
+        rv_stage_of(&L, k0, nk, d, 0, 1, 1, sh, &st);
+        for (size_t k = 0; k < nk; ++k) {
+            /* the particle itself and the padding: ∇W_ii = 0, not summed */
+            const lane4i self = (lane4i)(st.j[k] == iv);
+            const long long *js = (const long long *)&st.j[k];
+            const double *q[PASS_GROUP];
+            for (int l = 0; l < PASS_GROUP; ++l)
+                q[l] = d == 2 ? (const double *)((const char *)job->pack + js[l])
+                              : job->pack + (size_t)js[l] * job->pk;
+            lane4 rhoj, pj, Vj, vj;
+            lane4 xij[3] = {zero, zero, zero}, uj[3] = {zero, zero, zero},
+                  duj[3] = {zero, zero, zero};
+            rv_transpose(q, 0, &rhoj, &pj, &Vj, &vj);
+            if (d == 2) {
+                rv_transpose(q, 4, &uj[0], &uj[1], &duj[0], &duj[1]);
+            } else {
+                for (int a = 0; a < d; ++a) {
+                    uj[a] = RV_PK(q, 4 + a);
+                    duj[a] = RV_PK(q, 4 + d + a);
+                }
             }
-        }
-        const lane4 dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
-        for (int a = 0; a < d; ++a) xij[a] = RV_NB(&L, dx[a], k);
-        /* pysph_tv_pair */
-        const lane4 w2 = Vi * Vi + Vj * Vj;
-        lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
-        lane4 xdw = zero, udw = zero;
-        for (int a = 0; a < d; ++a) {
-            gw[a] = dwr * xij[a];
-            uij[a] = ui[a] - uj[a];
-            xdw += xij[a] * gw[a];
-            udw += uij[a] * gw[a];
-        }
-        const lane4 r2 = r * r;
-        const lane4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r2 + c->h2);
-        const lane4 pij = (rhoj * (pi - pav) + rhoi * (pj - pav)) * inv_s;
-        const lane4 rr = rhoi * rhoj * inv_s, wx = w2 * xdw * inv_r;
-        const lane4 visc = 2.0 * c->nu * rr * wx;
-        for (int a = 0; a < d; ++a) {
-            lane4 A = zero;
-            for (int b = 0; b < d; ++b)
-                A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj * uj[a] * duj[b]) * gw[b];
-            RV_ADD(f[a], m, -pij * w2 * gw[a] + visc * uij[a] + w2 * A);
-            RV_ADD(fb[a], m, -c->pb * w2 * gw[a]);
-            if (grads) RV_ADD(fp[a], m, -pij * w2 * gw[a] * c->minv);
-        }
-        if (grads)
-            for (int a = 0; a < d; ++a)
-                for (int b = 0; b < d; ++b) RV_SUB(G[a * d + b], m, vj * uij[a] * gw[b]);
-        RV_SUB(div, m, vj * udw);
-        if (edac) {
-            RV_ADD(ap, m, rhoi * vj * c->c0 * c->c0 * udw);
-            RV_ADD(ap, m, 2.0 * c->nu_edac * rr * wx * (pi - pj) * c->minv);
+            const lane4 dwr = st.dwr[k], r = st.r[k];
+            for (int a = 0; a < d; ++a) xij[a] = st.dx[a][k];
+            /* pysph_tv_pair */
+            const lane4 w2 = Vi * Vi + Vj * Vj;
+            lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
+            lane4 xdw = zero, udw = zero;
+            for (int a = 0; a < d; ++a) {
+                gw[a] = dwr * xij[a];
+                uij[a] = ui[a] - uj[a];
+                xdw += xij[a] * gw[a];
+                udw += uij[a] * gw[a];
+            }
+            const lane4 r2 = r * r;
+            const lane4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r2 + c->h2);
+            const lane4 pij = (rhoj * (pi - pav) + rhoi * (pj - pav)) * inv_s;
+            const lane4 rr = rhoi * rhoj * inv_s, wx = w2 * xdw * inv_r;
+            const lane4 visc = 2.0 * c->nu * rr * wx;
+            for (int a = 0; a < d; ++a) {
+                lane4 A = zero;
+                for (int b = 0; b < d; ++b)
+                    A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj * uj[a] * duj[b]) * gw[b];
+                RV_ADD_UNLESS(f[a], self, -pij * w2 * gw[a] + visc * uij[a] + w2 * A);
+                RV_ADD_UNLESS(fb[a], self, -c->pb * w2 * gw[a]);
+                if (grads) RV_ADD_UNLESS(fp[a], self, -pij * w2 * gw[a] * c->minv);
+            }
+            if (grads)
+                for (int a = 0; a < d; ++a)
+                    for (int b = 0; b < d; ++b)
+                        RV_SUB_UNLESS(G[a * d + b], self, vj * uij[a] * gw[b]);
+            RV_SUB_UNLESS(div, self, vj * udw);
+            if (edac) {
+                RV_ADD_UNLESS(ap, self, rhoi * vj * c->c0 * c->c0 * udw);
+                RV_ADD_UNLESS(ap, self, 2.0 * c->nu_edac * rr * wx * (pi - pj) * c->minv);
+            }
         }
     }
     for (int l = 0; l < count; ++l) {
@@ -536,7 +629,7 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
     }
 }
 
-RV_CLONES static void group_visit_tv(void *vjob, const consph_nbhd *nb, int count)
+RV_GROUP_CLONES static void group_visit_tv(void *vjob, const consph_nbhd *nb, int count)
 {
     const rival_job *job = vjob;
     const int edac = job->kind == RV_EDAC, g = job->grads;
@@ -553,67 +646,80 @@ RV_CLONES static void group_visit_tv(void *vjob, const consph_nbhd *nb, int coun
     }
 }
 
-/* visit_wcsph_d over a group: pysph_monaghan_pi's and pysph_wcsph_pair's operations. */
+/* visit_wcsph_d over a group: pysph_monaghan_pi's and pysph_wcsph_pair's operations. The pack
+ * holds ϱ, p/ϱ², u_x, u_y of a particle in its first four doubles (what 2D without the artificial
+ * viscosity and ∇u reads: one transpose), m/ϱ, c, u_z in the next. */
 RV_INLINE void group_wcsph_d(const rival_job *job, const consph_nbhd *nb, int count, const int d,
-                             const int grads)
+                             const int grads, const int av)
 {
     rv_lanes L;
     rv_lanes_of(&L, nb, count);
     const size_t cap = job->cap;
     const pysph_consts *c = &job->c;
-    const int av = c->alpha > 0.0;
     const lane4 zero = {0.0, 0.0, 0.0, 0.0};
     const lane4 rhoi = RV_I(&L, job->rho), ti = RV_I(&L, job->pr2);
     const lane4 ci = av ? RV_I(&L, job->cs) : zero;
+    /* the lanes' own slots (PASS_GROUP_SLOTS: the entries' j are slots, the pack in slot order) */
+    const size_t *so = job->slot_of;
+    const lane4i iv = (lane4i){(long long)so[L.i[0]], (long long)so[L.i[1]], (long long)so[L.i[2]],
+                               (long long)so[L.i[3]]}
+                      << 6;
     lane4 ui[3] = {zero, zero, zero};
     for (int a = 0; a < d; ++a) ui[a] = RV_I(&L, job->u + a * cap);
     lane4 f[3] = {zero, zero, zero}, xs[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
     lane4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, drho = zero;
     const double m = c->m;
-    size_t j[PASS_GROUP] = {0};
-    for (size_t k = 0; k < L.kmax; ++k) {
-        lane4i msk;
-        rv_entry(&L, k, j, 1, &msk);
-        const double *q[PASS_GROUP];
-        for (int l = 0; l < PASS_GROUP; ++l) q[l] = job->pack + j[l] * 8;
-        lane4 rhoj, tj, vj, cj, uj[3], pad;
-        rv_transpose(q, 0, &rhoj, &tj, &vj, &cj);
-        rv_transpose(q, 4, &uj[0], &uj[1], &uj[2], &pad);
-        (void)pad;
-        const lane4 w = RV_NB(&L, w, k), dwr = RV_NB(&L, dwr, k), r = RV_NB(&L, r, k);
-        lane4 xij[3];
-        for (int a = 0; a < 3; ++a) xij[a] = a < d ? RV_NB(&L, dx[a], k) : zero;
-        const lane4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r * r + c->h2);
-        lane4 pij = zero;
-        if (av) {
-            lane4 ux = zero;
-            for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
-            /* pysph_monaghan_pi */
-            const lane4 mu = c->h * ux * inv_r;
-            const lane4 v = -c->alpha * (ci + cj) * mu * inv_s;
-            pij = LANE4_SEL((lane4i)(ux < 0.0), v, zero);
+    rv_stage st;
+    for (size_t k0 = 0; k0 < L.kmax; k0 += RV_CHUNK) {
+        const size_t nk = L.kmax - k0 < RV_CHUNK ? L.kmax - k0 : RV_CHUNK;
+        rv_stage_of(&L, k0, nk, d, 1, 1, 1, 6, &st);
+        for (size_t k = 0; k < nk; ++k) {
+            /* the lanes whose entry is the particle itself or the padding keep their sums */
+            const lane4i self = (lane4i)(st.j[k] == iv);
+            const long long *js = (const long long *)&st.j[k];
+            const double *q[PASS_GROUP];
+            for (int l = 0; l < PASS_GROUP; ++l)
+                q[l] = (const double *)((const char *)job->pack + js[l]);
+            lane4 rhoj, tj, vj = zero, cj = zero, uj[3] = {zero, zero, zero}, pad;
+            rv_transpose(q, 0, &rhoj, &tj, &uj[0], &uj[1]);
+            if (av || grads || d == 3) rv_transpose(q, 4, &vj, &cj, &uj[2], &pad);
+            (void)pad;
+            const lane4 w = st.w[k], dwr = st.dwr[k], r = st.r[k];
+            lane4 xij[3] = {zero, zero, zero};
+            for (int a = 0; a < d; ++a) xij[a] = st.dx[a][k];
+            const lane4 inv_s = 1.0 / (rhoi + rhoj), inv_r = 1.0 / (r * r + c->h2);
+            lane4 pij = zero;
+            if (av) {
+                lane4 ux = zero;
+                for (int a = 0; a < d; ++a) ux += (ui[a] - uj[a]) * xij[a];
+                /* pysph_monaghan_pi */
+                const lane4 mu = c->h * ux * inv_r;
+                const lane4 v = -c->alpha * (ci + cj) * mu * inv_s;
+                pij = LANE4_SEL((lane4i)(ux < 0.0), v, zero);
+            }
+            /* pysph_wcsph_pair */
+            lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
+            for (int a = 0; a < d; ++a) {
+                uij[a] = ui[a] - uj[a];
+                gw[a] = dwr * xij[a];
+            }
+            lane4 udw = zero, xdw = zero;
+            for (int a = 0; a < d; ++a) {
+                udw += uij[a] * gw[a];
+                xdw += xij[a] * gw[a];
+            }
+            const lane4 visc = m * 4.0 * c->nu * xdw * inv_s * inv_r;
+            for (int a = 0; a < d; ++a) {
+                RV_ADD_UNLESS(f[a], self, -m * (ti + tj + pij) * gw[a] + visc * uij[a]);
+                RV_SUB_UNLESS(xs[a], self, m * w * inv_s * uij[a]);
+                if (grads) RV_ADD_UNLESS(fp[a], self, -m * (ti + tj) * gw[a]);
+            }
+            RV_ADD_UNLESS(drho, self, m * udw);
+            if (grads)
+                for (int a = 0; a < d; ++a)
+                    for (int b = 0; b < d; ++b)
+                        RV_SUB_UNLESS(G[a * d + b], self, vj * uij[a] * gw[b]);
         }
-        /* pysph_wcsph_pair */
-        lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
-        for (int a = 0; a < d; ++a) {
-            uij[a] = ui[a] - uj[a];
-            gw[a] = dwr * xij[a];
-        }
-        lane4 udw = zero, xdw = zero;
-        for (int a = 0; a < d; ++a) {
-            udw += uij[a] * gw[a];
-            xdw += xij[a] * gw[a];
-        }
-        const lane4 visc = m * 4.0 * c->nu * xdw * inv_s * inv_r;
-        for (int a = 0; a < d; ++a) {
-            RV_ADD(f[a], msk, -m * (ti + tj + pij) * gw[a] + visc * uij[a]);
-            RV_SUB(xs[a], msk, m * w * inv_s * uij[a]);
-            if (grads) RV_ADD(fp[a], msk, -m * (ti + tj) * gw[a]);
-        }
-        RV_ADD(drho, msk, m * udw);
-        if (grads)
-            for (int a = 0; a < d; ++a)
-                for (int b = 0; b < d; ++b) RV_SUB(G[a * d + b], msk, vj * uij[a] * gw[b]);
     }
     for (int l = 0; l < count; ++l) {
         const size_t i = L.i[l];
@@ -629,14 +735,21 @@ RV_INLINE void group_wcsph_d(const rival_job *job, const consph_nbhd *nb, int co
     }
 }
 
-RV_CLONES static void group_visit_wcsph(void *vjob, const consph_nbhd *nb, int count)
+RV_GROUP_CLONES static void group_visit_wcsph(void *vjob, const consph_nbhd *nb, int count)
 {
     const rival_job *job = vjob;
     const int g = job->grads;
-    if (job->d == 2)
-        g ? group_wcsph_d(job, nb, count, 2, 1) : group_wcsph_d(job, nb, count, 2, 0);
-    else
-        g ? group_wcsph_d(job, nb, count, 3, 1) : group_wcsph_d(job, nb, count, 3, 0);
+    /* Monaghan's Π_ij a compile-time choice too: the common runs have α = 0 */
+    if (job->c.alpha > 0.0) {
+        if (job->d == 2)
+            g ? group_wcsph_d(job, nb, count, 2, 1, 1) : group_wcsph_d(job, nb, count, 2, 0, 1);
+        else
+            g ? group_wcsph_d(job, nb, count, 3, 1, 1) : group_wcsph_d(job, nb, count, 3, 0, 1);
+    } else if (job->d == 2) {
+        g ? group_wcsph_d(job, nb, count, 2, 1, 0) : group_wcsph_d(job, nb, count, 2, 0, 0);
+    } else {
+        g ? group_wcsph_d(job, nb, count, 3, 1, 0) : group_wcsph_d(job, nb, count, 3, 0, 0);
+    }
 }
 #if !defined(__clang__)
 #pragma GCC diagnostic pop
@@ -686,17 +799,25 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         const size_t n = s->sys.p->n, nn = n ? n : 1;
         size_t want = 3 * nn;
 #ifdef RV_GROUPS
-        /* the pack of the group visit: ϱ, p/ϱ², m/ϱ, c, u per particle on a 64-byte line */
+        /* the pack of the group visit: ϱ, p/ϱ², u_x, u_y, m/ϱ, c, u_z per particle on a 64-byte
+         * line, in the search's slot order (PASS_GROUP_SLOTS), and the slot of each particle */
         job->pk = 8;
-        if (pysph_group_visits && !s->sys.split) want += job->pk * nn + 8;
+        consph_nnps_slots v;
+        const int packed = pysph_group_visits && !s->sys.split &&
+                           consph_nnps_slots_get(s->sys.nnps, &v) == CONSPH_OK && v.n == n;
+        if (packed) want += job->pk * nn + 8 + nn;
 #endif
         double *sc = consph_sys_scratch(&s->sys, want);
         if (!sc) return CONSPH_ENOMEM;
         double *pr2 = sc, *mrho = sc + nn, *cs = sc + 2 * nn, *pack = NULL;
+        size_t *slot_of = NULL;
+        const size_t *particle = NULL;
 #ifdef RV_GROUPS
-        if (pysph_group_visits && !s->sys.split) {
+        if (packed) {
             pack = sc + 3 * nn;
             while ((uintptr_t)pack % 64) ++pack;
+            slot_of = (size_t *)(pack + job->pk * nn);
+            particle = v.particle;
         }
 #endif
         const size_t cap = job->cap;
@@ -706,21 +827,27 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         const int ie = eos_int_exponent(cexp); /* γ = 7: the cube, by multiplication */
         const int av = job->c.alpha > 0.0, grads = job->grads;
 #pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
-        for (size_t i = 0; i < n; ++i) {
+        for (size_t sl = 0; sl < n; ++sl) {
+            /* by slot: the particle in slot sl (each particle once) */
+            const size_t i = particle ? particle[sl] : sl;
             pr2[i] = p[i] / (rho[i] * rho[i]);
             if (grads) mrho[i] = m / rho[i];
             if (av) cs[i] = c0 * (ie >= 0 ? eos_ipow(rho[i] / rho0, ie) : pow(rho[i] / rho0, cexp));
             if (pack) {
-                double *q = pack + i * 8;
+                slot_of[i] = sl;
+                double *q = pack + sl * 8;
                 q[0] = rho[i];
                 q[1] = pr2[i];
-                q[2] = grads ? mrho[i] : 0.0;
-                q[3] = av ? cs[i] : 0.0;
-                for (int a = 0; a < 3; ++a) q[4 + a] = a < d ? u[a * cap + i] : 0.0;
+                q[2] = u[i];
+                q[3] = d > 1 ? u[cap + i] : 0.0;
+                q[4] = grads ? mrho[i] : 0.0;
+                q[5] = av ? cs[i] : 0.0;
+                q[6] = d > 2 ? u[2 * cap + i] : 0.0;
                 q[7] = 0.0;
             }
         }
         job->pack = pack;
+        job->slot_of = slot_of;
         job->pr2 = pr2;
         job->mrho = mrho;
         if (av) job->cs = cs;
@@ -766,16 +893,20 @@ static void tv_pack(const consph_solver *s, const rival_job *job)
 }
 #endif
 
-/* A pass with its group visit where the system and the compiler allow one, else per particle. */
-static int run_pass(consph_solver *s, const consph_pass *pass, pass_group_fn group, rival_job *job)
+/* A pass with its group visit where the system and the compiler allow one (group_need: what the
+ * group visit needs beyond pass->need, PASS_GROUP_SLOTS), else per particle. */
+static int run_pass(consph_solver *s, const consph_pass *pass, pass_group_fn group,
+                    unsigned group_need, rival_job *job)
 {
 #ifdef RV_GROUPS
     if (pysph_group_visits && group) {
-        const int st = pass_run_groups(&s->sys, pass->name, pass->need, group, job, &s->pairs);
+        const int st =
+            pass_run_groups(&s->sys, pass->name, pass->need | group_need, group, job, &s->pairs);
         if (st != PASS_GROUP_UNSERVED) return st;
     }
 #else
     (void)group;
+    (void)group_need;
 #endif
     return consph_pass_run_counted(&s->sys, pass, job, &s->pairs);
 }
@@ -793,7 +924,7 @@ static int rhs_wcsph(consph_solver *s)
     if (st != CONSPH_OK) return st;
     const consph_pass pass = {"wcsph rates", CONSPH_PASS_W | CONSPH_PASS_DW, visit_wcsph};
     s->passes = 1;
-    return run_pass(s, &pass, job.pack ? group_visit_wcsph : NULL, &job);
+    return run_pass(s, &pass, job.pack ? group_visit_wcsph : NULL, PASS_GROUP_SLOTS, &job);
 }
 
 /* dst = src over n values, on the threads from the system's parallel_min on */
@@ -820,11 +951,11 @@ static int rhs_tv(consph_solver *s, int kind)
                               rates.need, group_visit_tv, &job, &s->pairs);
 #endif
     if (st == PASS_GROUP_UNSERVED) {
-        st = run_pass(s, &dens, group_visit_density, &job);
+        st = run_pass(s, &dens, group_visit_density, 0, &job);
 #ifdef RV_GROUPS
         if (st == CONSPH_OK && job.pack) tv_pack(s, &job);
 #endif
-        if (st == CONSPH_OK) st = run_pass(s, &rates, job.pack ? group_visit_tv : NULL, &job);
+        if (st == CONSPH_OK) st = run_pass(s, &rates, job.pack ? group_visit_tv : NULL, 0, &job);
     }
     if (st != CONSPH_OK) return st;
     s->passes = 2;
