@@ -487,10 +487,14 @@ RV_INLINE void group_density(const rival_job *job, const consph_nbhd *nb, int co
     lane4 s = {0.0, 0.0, 0.0, 0.0}, ps = s;
     size_t j[PASS_GROUP] = {0};
     for (size_t k = 0; k < L.kmax; ++k) {
-        lane4i m;
-        rv_entry(&L, k, j, 0, &m);
-        RV_ADD(s, m, RV_NB(&L, w, k));
-        if (edac) RV_ADD(ps, m, RV_AT(p, j));
+        /* the padding's W is +0, which leaves a sum from +0 as it is: no mask, and the chain is
+         * the addition alone */
+        s += RV_NB(&L, w, k);
+        if (edac) {
+            lane4i m;
+            rv_entry(&L, k, j, 0, &m);
+            RV_ADD_UNLESS(ps, ~m, RV_AT(p, j));
+        }
     }
     for (int l = 0; l < count; ++l) {
         const size_t i = L.i[l];
@@ -591,10 +595,17 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
             /* pysph_tv_pair */
             const lane4 w2 = Vi * Vi + Vj * Vj;
             lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
-            lane4 xdw = zero, udw = zero;
             for (int a = 0; a < d; ++a) {
                 gw[a] = dwr * xij[a];
                 uij[a] = ui[a] - uj[a];
+            }
+            /* The dot products and A below start from their first product, not from 0 + it as
+             * pysph_tv_pair's do: that differs only where the product is -0, and then only in
+             * the sign of a zero (x + y is -0 only if both are), which reaches no sum: a term
+             * is ±0 where it differs, and each sum, starting at +0, is never -0, so s ± 0 = s.
+             * No term divides by these values or tests their sign. */
+            lane4 xdw = xij[0] * gw[0], udw = uij[0] * gw[0];
+            for (int a = 1; a < d; ++a) {
                 xdw += xij[a] * gw[a];
                 udw += uij[a] * gw[a];
             }
@@ -604,8 +615,8 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
             const lane4 rr = rhoi * rhoj * inv_s, wx = w2 * xdw * inv_r;
             const lane4 visc = 2.0 * c->nu * rr * wx;
             for (int a = 0; a < d; ++a) {
-                lane4 A = zero;
-                for (int b = 0; b < d; ++b)
+                lane4 A = 0.5 * (rhoi * ui[a] * dui[0] + rhoj * uj[a] * duj[0]) * gw[0];
+                for (int b = 1; b < d; ++b)
                     A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj * uj[a] * duj[b]) * gw[b];
                 RV_ADD_UNLESS(f[a], self, -pij * w2 * gw[a] + visc * uij[a] + w2 * A);
                 RV_ADD_UNLESS(fb[a], self, -c->pb * w2 * gw[a]);
