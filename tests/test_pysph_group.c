@@ -72,17 +72,19 @@ static void compare(const char *scheme, const char *problem, int nx, double alph
     consph_solver_free(v);
 }
 
-/* wcsph's group pass reads its neighbours by slot of the search (PASS_GROUP_SLOTS): its rates
- * where the slots are not the particles (positions shifted along x by a fraction of the period
- * and the search rebuilt without the re-sort, so that the particles wrapped across the boundary
- * change places in the cell order) equal the per-particle visit's bit for bit. */
-static void compare_unsorted(const char *problem, int nx, double alpha, int threads)
+/* The group passes read their neighbours by slot of the search (PASS_GROUP_SLOTS: wcsph's pass,
+ * tvf's and edac's two in pass_run_groups2): the rates where the slots are not the particles
+ * (positions shifted along x by a fraction of the period and the search rebuilt without the
+ * re-sort, so that the particles wrapped across the boundary change places in the cell order)
+ * equal the per-particle visits' bit for bit. */
+static void compare_unsorted(const char *scheme, const char *problem, int nx, double alpha,
+                             int threads)
 {
     char what[160];
-    snprintf(what, sizeof what, "wcsph unsorted on %s, nx %d, alpha %g, %d thread(s)", problem, nx,
-             alpha, threads);
+    snprintf(what, sizeof what, "%s unsorted on %s, nx %d, alpha %g, %d thread(s)", scheme, problem,
+             nx, alpha, threads);
     check_set_threads(threads);
-    consph_solver *g = make("wcsph", problem, nx, alpha), *v = make("wcsph", problem, nx, alpha);
+    consph_solver *g = make(scheme, problem, nx, alpha), *v = make(scheme, problem, nx, alpha);
     if (!g || !v) {
         consph_solver_free(g);
         consph_solver_free(v);
@@ -122,9 +124,20 @@ static void compare_unsorted(const char *problem, int nx, double alpha, int thre
 
 int main(void)
 {
-    compare_unsorted("taylor-green", 14, 0.0, 1);
-    compare_unsorted("taylor-green", 14, 0.1, 2);
-    compare_unsorted("beltrami", 6, 0.1, 1);
+    compare_unsorted("wcsph", "taylor-green", 14, 0.0, 1);
+    compare_unsorted("wcsph", "taylor-green", 14, 0.1, 2);
+    compare_unsorted("wcsph", "beltrami", 6, 0.1, 1);
+    /* tvf and edac: also grids whose sweep keeps neighbourhoods for the rates */
+    for (int k = 0; k < 2; ++k) {
+        const char *tv = k ? "edac" : "tvf";
+        const unsigned long kept = pass_group_kept_slabs;
+        compare_unsorted(tv, "taylor-green", 14, -1.0, 1);
+        compare_unsorted(tv, "taylor-green", 40, -1.0, 1);
+        compare_unsorted(tv, "taylor-green", 40, -1.0, 2);
+        compare_unsorted(tv, "beltrami", 6, -1.0, 1);
+        compare_unsorted(tv, "beltrami", 16, -1.0, 2);
+        CHECK(pass_group_kept_slabs > kept, "%s unsorted: no slab kept its neighbourhoods", tv);
+    }
     const char *schemes[] = {"wcsph", "tvf", "edac"};
     for (int k = 0; k < 3; ++k) {
         const int wc = k == 0;

@@ -345,6 +345,7 @@ static void run_cell(const sweep *w, sweep_thread *t, size_t c, int mode, slab_s
                                                 : w->need12;
     const int with_dx = mode == SLAB_FIRST ? w->dx1 : mode == SLAB_SECOND ? w->dx2 : w->dx12;
     const size_t per_pair = mode == SLAB_BOTH ? 2 : 1;
+    const int slots = (need & PASS_GROUP_SLOTS) != 0;
     {
         const size_t first = v->cell_start[c], last = v->cell_start[c + 1];
         if (first == last) return;
@@ -371,7 +372,8 @@ static void run_cell(const sweep *w, sweep_thread *t, size_t c, int mode, slab_s
                 t->pairs += per_pair * nb[l].n;
                 if (nb[l].n > kmax) kmax = nb[l].n;
             }
-            for (int l = 0; l < count; ++l) lane_pad(&t->sc[l], &nb[l], kmax, nb[l].i);
+            for (int l = 0; l < count; ++l)
+                lane_pad(&t->sc[l], &nb[l], kmax, slots ? g + (size_t)l : nb[l].i);
             for (int l = count; l < PASS_GROUP; ++l) nb[l] = nb[0];
             if (mode == SLAB_SECOND) {
                 w->visit2(w->job, nb, count);
@@ -436,7 +438,7 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
                      size_t *pairs)
 {
     if (!s || !s->p || !s->nnps || !visit1 || !visit2 || s->dest || s->kernel.tensor || s->split ||
-        ((need1 | need2) & PASS_GROUP_SLOTS))
+        ((need1 ^ need2) & PASS_GROUP_SLOTS))
         return PASS_GROUP_UNSERVED;
     const size_t n = s->p->n;
     if (n == 0) return CONSPH_OK;
@@ -481,6 +483,7 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
     w.dx2 = !(need2 & CONSPH_PASS_NO_DX);
     w.dx12 = w.dx1 || w.dx2;
     w.need12 = (need1 | need2) & (CONSPH_PASS_W | CONSPH_PASS_DW | CONSPH_PASS_D2W);
+    w.need12 |= need1 & PASS_GROUP_SLOTS;
     const size_t lag = tl.lag, nslabs = tl.nslabs;
 
     int status = CONSPH_OK;

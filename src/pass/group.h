@@ -31,7 +31,7 @@ typedef void (*pass_group_fn)(void *job, const consph_nbhd *nb, int count);
  * as particles, and the padding repeats the lane's own slot (nb->i stays its particle). The
  * gather then skips mapping every neighbour's slot to its particle, and a visit that reads
  * per-neighbour values from an array in slot order reads the neighbours of a cell from nearby
- * lines. pass_run_groups only (not the neighbour list's unpadded run). */
+ * lines. pass_run_groups and pass_run_groups2 (not the neighbour list's unpadded run). */
 #define PASS_GROUP_SLOTS NBHD_SLOTS
 /* Calls of pass_run_groups that ran their pass (for tests: that the group visits did run). */
 /* Cells per dynamic chunk of a pass over ncells cells: up to 16 (at the default cells per radius a
@@ -49,8 +49,9 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
  * kernel values evaluated once for both where it can be (group.c: the passes run slab by slab
  * of cells, the second a few slabs behind the first, the neighbourhoods in between kept). The
  * first visit must write results of its own particles only and read nothing that the first
- * visit writes; the second may read any particle's. Returns PASS_GROUP_UNSERVED where
- * pass_run_groups would; pairs counts both passes' pairs. */
+ * visit writes; the second may read any particle's. PASS_GROUP_SLOTS in both needs or in
+ * neither. Returns PASS_GROUP_UNSERVED where pass_run_groups would, or where the needs differ
+ * in PASS_GROUP_SLOTS; pairs counts both passes' pairs. */
 /* Tile-slabs whose second pass read the neighbourhoods the first kept (for tests: that it did),
  * and the strips' width in cells (16; tests narrow it to have edge columns on small grids). */
 extern unsigned long pass_group_kept_slabs;

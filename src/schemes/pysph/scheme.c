@@ -51,8 +51,9 @@ typedef struct rival_job {
      * cache line instead of one per field); NULL: read from the fields */
     double *pack;
     size_t pk; /* doubles per particle in the pack */
-    /* wcsph's group visit: its pack in slot order (PASS_GROUP_SLOTS), and each particle's slot */
+    /* the group visits: the pack in slot order (PASS_GROUP_SLOTS), and each particle's slot */
     const size_t *slot_of;
+    const double *pslot; /* edac's group density visit: p in slot order */
     double *numd, *pavg, *rhos, *pw, *au, *aq, *ax, *auhat;
     double *gradp, *divu, *gradu; /* for the diagnostics and the vorticity output */
     int grads;                    /* ∇u and ∇p wanted (consph_solver.grads_skip unset) */
@@ -475,18 +476,25 @@ RV_INLINE void rv_stage_of(const rv_lanes *L, size_t k0, size_t nk, const int d,
     }
 }
 
-RV_INLINE void group_density(const rival_job *job, const consph_nbhd *nb, int count)
+/* slots: the entries' j are slots (PASS_GROUP_SLOTS), and edac reads p in slot order */
+RV_INLINE void group_density(const rival_job *job, const consph_nbhd *nb, int count,
+                             const int slots)
 {
     rv_lanes L;
     rv_lanes_of(&L, nb, count);
     const int edac = job->kind != RV_TVF;
+    const double *p = slots ? job->pslot : job->p;
     lane4 s = {0.0, 0.0, 0.0, 0.0}, ps = s;
     size_t j[PASS_GROUP] = {0};
     for (size_t k = 0; k < L.kmax; ++k) {
-        lane4i m;
-        rv_entry(&L, k, j, 0, &m);
-        RV_ADD(s, m, RV_NB(&L, w, k));
-        if (edac) RV_ADD(ps, m, RV_AT(job->p, j));
+        /* the padding's W is +0, which leaves a sum from +0 as it is: no mask, and the chain is
+         * the addition alone */
+        s += RV_NB(&L, w, k);
+        if (edac) {
+            lane4i m;
+            rv_entry(&L, k, j, 0, &m);
+            RV_ADD_UNLESS(ps, ~m, RV_AT(p, j));
+        }
     }
     for (int l = 0; l < count; ++l) {
         const size_t i = L.i[l];
@@ -503,16 +511,16 @@ RV_INLINE void group_density(const rival_job *job, const consph_nbhd *nb, int co
 
 RV_GROUP_CLONES static void group_visit_density(void *vjob, const consph_nbhd *nb, int count)
 {
-    group_density(vjob, nb, count);
+    group_density(vjob, nb, count, 0);
 }
 
-/* tvf and edac: ϱ, p, V, m/ϱ, u and ũ - u of particle i into the pack (after its density visit,
- * which sets ϱ, V, m/ϱ and tvf's p). */
+/* tvf and edac: ϱ, p, V, m/ϱ, u and ũ - u of particle i into the pack at its slot (after its
+ * density visit, which sets ϱ, V, m/ϱ and tvf's p). */
 RV_INLINE void tv_pack_one(const rival_job *job, size_t i)
 {
     const size_t cap = job->cap;
     const int d = job->d;
-    double *q = job->pack + i * job->pk;
+    double *q = job->pack + job->slot_of[i] * job->pk;
     q[0] = job->rho[i];
     q[1] = job->p[i];
     q[2] = job->vol[i];
@@ -528,7 +536,7 @@ RV_INLINE void tv_pack_one(const rival_job *job, size_t i)
 RV_GROUP_CLONES static void group_visit_density_pack(void *vjob, const consph_nbhd *nb, int count)
 {
     const rival_job *job = vjob;
-    group_density(job, nb, count);
+    group_density(job, nb, count, 1);
     for (int l = 0; l < count; ++l) tv_pack_one(job, nb[l].i);
 }
 
@@ -549,10 +557,13 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
         ui[a] = RV_I(&L, job->u + a * cap);
         dui[a] = RV_I(&L, job->tvdu + a * cap);
     }
-    /* 2D packs a particle on a 64-byte line: j staged as its byte offset */
+    /* the entries' j are slots (PASS_GROUP_SLOTS), the pack in slot order; 2D packs a particle on
+     * a 64-byte line: j staged as its byte offset */
     const int sh = d == 2 ? 6 : 0;
-    const lane4i iv =
-        (lane4i){(long long)L.i[0], (long long)L.i[1], (long long)L.i[2], (long long)L.i[3]} << sh;
+    const size_t *so = job->slot_of;
+    const lane4i iv = (lane4i){(long long)so[L.i[0]], (long long)so[L.i[1]], (long long)so[L.i[2]],
+                               (long long)so[L.i[3]]}
+                      << sh;
     lane4 f[3] = {zero, zero, zero}, fb[3] = {zero, zero, zero}, fp[3] = {zero, zero, zero};
     lane4 G[9] = {zero, zero, zero, zero, zero, zero, zero, zero, zero}, div = zero, ap = zero;
     rv_stage st;
@@ -584,10 +595,17 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
             /* pysph_tv_pair */
             const lane4 w2 = Vi * Vi + Vj * Vj;
             lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
-            lane4 xdw = zero, udw = zero;
             for (int a = 0; a < d; ++a) {
                 gw[a] = dwr * xij[a];
                 uij[a] = ui[a] - uj[a];
+            }
+            /* The dot products and A below start from their first product, not from 0 + it as
+             * pysph_tv_pair's do: that differs only where the product is -0, and then only in
+             * the sign of a zero (x + y is -0 only if both are), which reaches no sum: a term
+             * is ±0 where it differs, and each sum, starting at +0, is never -0, so s ± 0 = s.
+             * No term divides by these values or tests their sign. */
+            lane4 xdw = xij[0] * gw[0], udw = uij[0] * gw[0];
+            for (int a = 1; a < d; ++a) {
                 xdw += xij[a] * gw[a];
                 udw += uij[a] * gw[a];
             }
@@ -597,8 +615,8 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
             const lane4 rr = rhoi * rhoj * inv_s, wx = w2 * xdw * inv_r;
             const lane4 visc = 2.0 * c->nu * rr * wx;
             for (int a = 0; a < d; ++a) {
-                lane4 A = zero;
-                for (int b = 0; b < d; ++b)
+                lane4 A = 0.5 * (rhoi * ui[a] * dui[0] + rhoj * uj[a] * duj[0]) * gw[0];
+                for (int b = 1; b < d; ++b)
                     A += 0.5 * (rhoi * ui[a] * dui[b] + rhoj * uj[a] * duj[b]) * gw[b];
                 RV_ADD_UNLESS(f[a], self, -pij * w2 * gw[a] + visc * uij[a] + w2 * A);
                 RV_ADD_UNLESS(fb[a], self, -c->pb * w2 * gw[a]);
@@ -862,22 +880,39 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     job->auhat = sv_field(s, SF_UHAT, d);
     if (!job->rhos || !job->numd || !job->pavg || !job->tvdu || !job->auhat) return CONSPH_ENOMEM;
     /* 1/V and m/ϱ of each particle, set by the density pass */
-    const size_t nn = s->sys.p->n ? s->sys.p->n : 1;
+    const size_t n = s->sys.p->n, nn = n ? n : 1;
     size_t want = 2 * nn;
 #ifdef RV_GROUPS
-    /* the pack of the group visits, its particles on 64-byte lines in 2D */
+    /* the pack of the group visits, its particles on 64-byte lines in 2D, in the search's slot
+     * order (PASS_GROUP_SLOTS); the slot of each particle; edac's p in slot order */
     job->pk = d == 2 ? 8 : 10;
-    if (pysph_group_visits && !s->sys.split) want += job->pk * nn + 8;
+    consph_nnps_slots v;
+    const int packed = pysph_group_visits && !s->sys.split &&
+                       consph_nnps_slots_get(s->sys.nnps, &v) == CONSPH_OK && v.n == n;
+    if (packed) want += job->pk * nn + 8 + 2 * nn;
 #endif
     double *sc = consph_sys_scratch(&s->sys, want);
     if (!sc) return CONSPH_ENOMEM;
     job->vol = sc;
     job->mrho = sc + nn;
 #ifdef RV_GROUPS
-    if (pysph_group_visits && !s->sys.split) {
-        double *pk = sc + 2 * nn;
+    if (packed) {
+        double *pk = sc + 2 * nn, *pslot;
         while ((uintptr_t)pk % 64) ++pk;
+        size_t *slot_of = (size_t *)(pk + job->pk * nn);
+        pslot = (double *)(slot_of + nn);
+        const size_t *particle = v.particle;
+        const double *p = job->p;
+        const int edac = kind == RV_EDAC;
+#pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
+        for (size_t sl = 0; sl < n; ++sl) {
+            const size_t i = particle ? particle[sl] : sl;
+            slot_of[i] = sl;
+            if (edac) pslot[sl] = p[i];
+        }
         job->pack = pk;
+        job->slot_of = slot_of;
+        job->pslot = pslot;
     }
 #endif
     return CONSPH_OK;
@@ -947,15 +982,17 @@ static int rhs_tv(consph_solver *s, int kind)
 #ifdef RV_GROUPS
     /* both passes in one sweep, each neighbourhood gathered once where it can be */
     if (pysph_group_visits && job.pack)
-        st = pass_run_groups2(&s->sys, dens.name, dens.need, group_visit_density_pack, rates.name,
-                              rates.need, group_visit_tv, &job, &s->pairs);
+        st = pass_run_groups2(&s->sys, dens.name, dens.need | PASS_GROUP_SLOTS,
+                              group_visit_density_pack, rates.name, rates.need | PASS_GROUP_SLOTS,
+                              group_visit_tv, &job, &s->pairs);
 #endif
     if (st == PASS_GROUP_UNSERVED) {
         st = run_pass(s, &dens, group_visit_density, 0, &job);
 #ifdef RV_GROUPS
         if (st == CONSPH_OK && job.pack) tv_pack(s, &job);
 #endif
-        if (st == CONSPH_OK) st = run_pass(s, &rates, job.pack ? group_visit_tv : NULL, 0, &job);
+        if (st == CONSPH_OK)
+            st = run_pass(s, &rates, job.pack ? group_visit_tv : NULL, PASS_GROUP_SLOTS, &job);
     }
     if (st != CONSPH_OK) return st;
     s->passes = 2;
