@@ -34,6 +34,22 @@ static inline __attribute__((always_inline)) void lane4_transpose(const double *
     f[2] = LANE4_SHUF(t0, t2, 2, 3, 6, 7);
     f[3] = LANE4_SHUF(t1, t3, 2, 3, 6, 7);
 }
+
+/* The group visits' copies in a generic x86-64 build, chosen at load time: AVX-512 (x86-64-v4:
+ * 32 vector registers, where the four lanes' sums and values of a visit no longer spill to the
+ * stack at every entry; the same 256-bit vectors), AVX2 and the default. The same operations in
+ * the same order, hence the same bits: AVX-512 brings FMA, so that copy is made only in ISO C mode
+ * (__STRICT_ANSI__: the build's -std=c11), where GCC contracts nothing, as KERNEL_CLONES in
+ * src/kernels/kernels.c; arch=x86-64-v4 needs GCC 11. */
+#if defined(__x86_64__) && !defined(__clang__) && defined(__GLIBC__) && !defined(__AVX2__)
+#if defined(__STRICT_ANSI__) && __GNUC__ >= 11
+#define LANE4_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
+#else
+#define LANE4_CLONES __attribute__((target_clones("avx2", "default")))
+#endif
+#else
+#define LANE4_CLONES
+#endif
 #endif
 
 #endif

@@ -19,15 +19,9 @@
 #include "schemes/negi/kit_pair.h"
 #include "solver/solver_internal.h"
 
-/* AVX-512 (x86-64-v4) and AVX2 copies of the hot visits in a generic x86-64 build, chosen at
- * load time: the same operations in the same order (ISO C contracts no multiply-add), so the same
- * bits. The lanes' sums and values of pass 1 exceed AVX2's 16 vector registers and were spilled to
- * the stack at every pair; AVX-512VL's 32 hold them. */
-#if defined(__x86_64__) && !defined(__clang__) && defined(__GLIBC__) && !defined(__AVX2__)
-#define KIT_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
-#else
-#define KIT_CLONES
-#endif
+/* The hot visits' AVX-512 and AVX2 copies (LANE4_CLONES, src/pass/lanes4.h): pass 1's lanes'
+ * sums and values exceed AVX2's 16 vector registers. */
+#define KIT_CLONES LANE4_CLONES
 
 typedef struct kit_job {
     const kit_req *rq;

@@ -116,17 +116,9 @@ static void visit_density(void *vjob, const consph_nbhd *nb)
 #define RV_CLONES
 #endif
 
-/* The group visits keep more vectors live than AVX2's 16 registers hold (the sums of four
- * particles, their own values, the constants), and spilled their sums on every entry: with
- * AVX-512 (x86-64-v4) they have 32, on the same 256-bit vectors. AVX-512 brings FMA, so that copy
- * is made only in ISO C mode, where GCC contracts nothing (as KERNEL_CLONES in
- * src/kernels/kernels.c). */
-#if defined(__x86_64__) && defined(__GNUC__) && !defined(__clang__) && defined(__GLIBC__) &&       \
-    !defined(__AVX2__) && defined(__STRICT_ANSI__)
-#define RV_GROUP_CLONES __attribute__((target_clones("arch=x86-64-v4", "avx2", "default")))
-#else
-#define RV_GROUP_CLONES RV_CLONES
-#endif
+/* The group visits' AVX-512 and AVX2 copies (src/pass/lanes4.h): their four lanes' sums, own
+ * values and constants exceed AVX2's 16 vector registers. */
+#define RV_GROUP_CLONES LANE4_CLONES
 
 #if defined(__GNUC__)
 #define RV_INLINE static inline __attribute__((always_inline))
