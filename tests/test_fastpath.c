@@ -124,6 +124,38 @@ static int check_gathers(const consph_nnps_slots *v, const consph_nnps_runs *run
     return bad;
 }
 
+/* nnps_gather4 over each whole group of four slots of a cell (first..last), with and without
+ * x_ij: each lane as the query of its particle. Returns the number of mismatches; counts the
+ * groups it swept in *swept (none where the chosen gather has no such sweep). */
+static int check_gather4(const consph_nnps *g, const consph_nnps_slots *v,
+                         const consph_nnps_runs *runs, size_t first, size_t last, consph_nbrs *q,
+                         bufs *b4, long *swept)
+{
+    int bad = 0;
+    for (int l = 0; l < 4; ++l) bufs_reserve(&b4[l], runs->candidates + CONSPH_NNPS_GATHER_SLACK);
+    for (size_t s = first; s + 4 <= last; s += 4)
+        for (int with_dx = 0; with_dx < 2; ++with_dx) {
+            size_t *slot[4], n[4];
+            double *const *dx[4];
+            double *r[4];
+            for (int l = 0; l < 4; ++l) {
+                slot[l] = b4[l].slot;
+                dx[l] = with_dx ? b4[l].dx : NULL;
+                r[l] = b4[l].r;
+            }
+            if (!nnps_gather4(v, runs->run, runs->n, s, slot, dx, r, n)) {
+                bad += nnps_best_isa() == NNPS_ISA_AVX512;
+                continue;
+            }
+            ++*swept;
+            for (int l = 0; l < 4; ++l) {
+                consph_nnps_query_particle(g, consph_nnps_slot_particle(v, s + (size_t)l), q);
+                bad += !same_as_query(v, q, n[l], b4[l].slot, dx[l], b4[l].r);
+            }
+        }
+    return bad;
+}
+
 static void test_traversal(const set_spec *sp)
 {
     consph_particles p;
@@ -140,9 +172,10 @@ static void test_traversal(const set_spec *sp)
     memset(&runs, 0, sizeof runs);
     consph_nbrs q;
     memset(&q, 0, sizeof q);
-    bufs b;
+    bufs b, b4[4];
     memset(&b, 0, sizeof b);
-    long bad_scan = 0, bad_gather = 0, visited = 0;
+    memset(b4, 0, sizeof b4);
+    long bad_scan = 0, bad_gather = 0, visited = 0, bad_group = 0, swept = 0, groups = 0;
     size_t pairs = 0, candidates = 0;
     for (size_t c = 0; c < v.ncells; ++c) {
         const size_t first = v.cell_start[c], last = v.cell_start[c + 1];
@@ -166,7 +199,15 @@ static void test_traversal(const set_spec *sp)
             candidates += runs.candidates;
             ++visited;
         }
+        bad_group += check_gather4(g, &v, &runs, first, last, &q, b4, &swept);
+        groups += (long)((last - first) / 4);
     }
+    CHECK(bad_group == 0, "%s: %ld lanes of four-point sweeps differ from the query", sp->name,
+          bad_group);
+    /* with and without x_ij, every whole group of every cell */
+    if (nnps_best_isa() == NNPS_ISA_AVX512)
+        CHECK(swept == 2 * groups, "%s: %ld of %ld four-point sweeps ran", sp->name, swept,
+              2 * groups);
     CHECK(visited == (long)p.n, "%s: %ld of %zu particles visited", sp->name, visited, p.n);
     CHECK(bad_scan == 0, "%s: %ld particles whose scanned runs differ from the query", sp->name,
           bad_scan);
@@ -201,6 +242,7 @@ static void test_traversal(const set_spec *sp)
     printf("traversal %-28s %6zu particles, %8zu pairs, %.2f candidates per pair\n", sp->name, p.n,
            pairs, pairs ? (double)candidates / (double)pairs : 0.0);
     bufs_free(&b);
+    for (int l = 0; l < 4; ++l) bufs_free(&b4[l]);
     consph_nbrs_free(&q);
     consph_nnps_runs_free(&runs);
     consph_nnps_free(g);

@@ -8,8 +8,10 @@
  *    table of positions by hit mask, their x_ij and r² recomputed per hit;
  *  - AVX2, chosen at run time: four candidates per vector, and slots, x_ij and r² compressed
  *    with one permutation per vector, so nothing is recomputed;
- *  - AVX-512 (F), chosen at run time before AVX2: eight candidates per vector, compressed by
- *    the compare's mask register (no table); a run's last block is a masked load and store.
+ *  - AVX-512 (F), chosen at run time before AVX2: eight candidates per vector, moved to the
+ *    front by the lane numbers that the compare's mask register compresses (no table); a run's
+ *    last block is a masked load and store. Four particles of a cell can share one sweep
+ *    (nnps_gather4).
  * The SSE2 and AVX2 paths read whole blocks of four slots; the coordinate arrays carry
  * CONSPH_NNPS_GATHER_SLACK padding entries, blocks past a run's end are masked, and the output
  * arrays take up to that many entries past the count (AVX-512 needs neither).
@@ -303,45 +305,49 @@ static inline __mmask8 lanes_before8(size_t s, size_t s1)
     return left >= 8 ? (__mmask8)0xff : (__mmask8)((1u << left) - 1);
 }
 
-/* One block of eight slots from s: avx2_block's operations in eight lanes, the hits compressed
- * by the compare's own mask (vcompresspd/vpcompressq into a register, then a store; the
- * memory form made the gather 7 times slower on AMD Zen 4). A full block reads slots s..s+7 of
+/* One block of eight slots from s (sl: s in every lane; c0..c2: the candidates' coordinates):
+ * avx2_block's operations in eight lanes, the hits moved to the front by the compare's own mask
+ * (the lane numbers compressed into a register, then each output permuted and stored; the
+ * memory form of a compress made the gather 7 times slower on AMD Zen 4). A full block reads
+ * slots s..s+7 of
  * its run and stores eight entries from n; as n has advanced by at most the candidates before
  * the block, those stores end within the candidates' room. The run's last, partial block (tail)
  * loads only its `valid` lanes and stores only its hits, so it needs no padding and no slack at
  * all. */
 __attribute__((NNPS_AVX512_TARGET, always_inline)) static inline size_t
-avx512_block(const int dim, const int with_dx, const int with_r, const int tail, const double *x0,
-             const double *x1, const double *x2, __m512d q0, __m512d q1, __m512d q2, __m512d lim,
-             size_t s, __m512i sl, __mmask8 valid, avx2_out o, size_t n)
+avx512_hits(const int dim, const int with_dx, const int with_r, const int tail, __m512d c0,
+            __m512d c1, __m512d c2, __m512d q0, __m512d q1, __m512d q2, __m512d lim, __m512i sl,
+            __m512i lanes, __mmask8 valid, avx2_out o, size_t n)
 {
-#define AVX512_LOAD(p) (tail ? _mm512_maskz_loadu_pd(valid, (p)) : _mm512_loadu_pd(p))
-    __m512d d0 = _mm512_sub_pd(q0, AVX512_LOAD(x0 + s)), d1 = d0, d2 = d0;
+    __m512d d0 = _mm512_sub_pd(q0, c0), d1 = d0, d2 = d0;
     __m512d rr = square_unfused(d0);
     if (dim > 1) {
-        d1 = _mm512_sub_pd(q1, AVX512_LOAD(x1 + s));
+        d1 = _mm512_sub_pd(q1, c1);
         rr = _mm512_add_pd(rr, square_unfused(d1));
     }
     if (dim > 2) {
-        d2 = _mm512_sub_pd(q2, AVX512_LOAD(x2 + s));
+        d2 = _mm512_sub_pd(q2, c2);
         rr = _mm512_add_pd(rr, square_unfused(d2));
     }
-#undef AVX512_LOAD
     const __mmask8 m = tail ? _mm512_mask_cmp_pd_mask(valid, rr, lim, _CMP_LT_OQ)
                             : _mm512_cmp_pd_mask(rr, lim, _CMP_LT_OQ);
     const unsigned hits = (unsigned)__builtin_popcount(m);
     const __mmask8 keep = (__mmask8)((1u << hits) - 1);
+    /* The hits' lane numbers in order, once; each output is then one permutation (one uop)
+     * instead of a compress (two, and the bottleneck of the loop). Lanes past the hits hold
+     * lane 0's values where the compress held zeros: stored past n, never handed out. */
+    const __m512i idx = _mm512_maskz_compress_epi64(m, lanes);
 #define AVX512_STORE(dst, v)                                                                       \
     do {                                                                                           \
         if (tail)                                                                                  \
-            _mm512_mask_storeu_pd((dst), keep, _mm512_maskz_compress_pd(m, (v)));                  \
+            _mm512_mask_storeu_pd((dst), keep, _mm512_permutexvar_pd(idx, (v)));                   \
         else                                                                                       \
-            _mm512_storeu_pd((dst), _mm512_maskz_compress_pd(m, (v)));                             \
+            _mm512_storeu_pd((dst), _mm512_permutexvar_pd(idx, (v)));                              \
     } while (0)
     if (tail)
-        _mm512_mask_storeu_epi64(o.slot + n, keep, _mm512_maskz_compress_epi64(m, sl));
+        _mm512_mask_storeu_epi64(o.slot + n, keep, _mm512_add_epi64(sl, idx));
     else
-        _mm512_storeu_si512(o.slot + n, _mm512_maskz_compress_epi64(m, sl));
+        _mm512_storeu_si512(o.slot + n, _mm512_add_epi64(sl, idx));
     if (with_r) AVX512_STORE(o.r + n, rr);
     if (with_dx) {
         AVX512_STORE(o.d0 + n, d0);
@@ -350,6 +356,36 @@ avx512_block(const int dim, const int with_dx, const int with_r, const int tail,
     }
 #undef AVX512_STORE
     return n + hits;
+}
+
+/* The candidates' coordinates of the block from s (a tail block: its `valid` lanes, the others
+ * zero), for avx512_hits. */
+#define AVX512_LOAD(p) (tail ? _mm512_maskz_loadu_pd(valid, (p)) : _mm512_loadu_pd(p))
+#define AVX512_COORDS(c0, c1, c2)                                                                  \
+    const __m512d c0 = AVX512_LOAD(x0 + s);                                                        \
+    const __m512d c1 = dim > 1 ? AVX512_LOAD(x1 + s) : c0;                                         \
+    const __m512d c2 = dim > 2 ? AVX512_LOAD(x2 + s) : c0
+
+__attribute__((NNPS_AVX512_TARGET, always_inline)) static inline size_t
+avx512_block(const int dim, const int with_dx, const int with_r, const int tail, const double *x0,
+             const double *x1, const double *x2, __m512d q0, __m512d q1, __m512d q2, __m512d lim,
+             size_t s, __m512i sl, __m512i lanes, __mmask8 valid, avx2_out o, size_t n)
+{
+    AVX512_COORDS(c0, c1, c2);
+    return avx512_hits(dim, with_dx, with_r, tail, c0, c1, c2, q0, q1, q2, lim, sl, lanes, valid, o,
+                       n);
+}
+
+/* r = sqrt(r²) for entries n0..n. */
+__attribute__((NNPS_AVX512_TARGET, always_inline)) static inline void
+avx512_roots(double *r, size_t n0, size_t n)
+{
+    size_t k = n0;
+    for (; k + 8 <= n; k += 8) _mm512_storeu_pd(r + k, _mm512_sqrt_pd(_mm512_loadu_pd(r + k)));
+    if (k < n) {
+        const __mmask8 left = lanes_before8(k, n);
+        _mm512_mask_storeu_pd(r + k, left, _mm512_sqrt_pd(_mm512_maskz_loadu_pd(left, r + k)));
+    }
 }
 
 /* gather_avx2 in blocks of eight; r is optional here (the slots alone count neighbours). */
@@ -368,25 +404,19 @@ gather_avx512(const int dim, const int with_dx, const int with_r, const consph_n
         const __m512d q0 = _mm512_set1_pd(xi[0] - run[k].shift[0]);
         const __m512d q1 = _mm512_set1_pd(dim > 1 ? xi[1] - run[k].shift[1] : 0.0);
         const __m512d q2 = _mm512_set1_pd(dim > 2 ? xi[2] - run[k].shift[2] : 0.0);
-        __m512i sl = _mm512_add_epi64(_mm512_set1_epi64((long long)s0), lanes);
+        /* s in every lane: a hit's slot is s plus its lane */
+        __m512i sl = _mm512_set1_epi64((long long)s0);
         size_t s = s0;
         for (; s < full; s += 8) {
-            n = avx512_block(dim, with_dx, with_r, 0, x0, x1, x2, q0, q1, q2, lim, s, sl, 0xff, o,
-                             n);
+            n = avx512_block(dim, with_dx, with_r, 0, x0, x1, x2, q0, q1, q2, lim, s, sl, lanes,
+                             0xff, o, n);
             sl = _mm512_add_epi64(sl, eight);
         }
         if (s < s1)
-            n = avx512_block(dim, with_dx, with_r, 1, x0, x1, x2, q0, q1, q2, lim, s, sl,
+            n = avx512_block(dim, with_dx, with_r, 1, x0, x1, x2, q0, q1, q2, lim, s, sl, lanes,
                              lanes_before8(s, s1), o, n);
     }
-    if (with_r) {
-        size_t k = n_first;
-        for (; k + 8 <= n; k += 8) _mm512_storeu_pd(r + k, _mm512_sqrt_pd(_mm512_loadu_pd(r + k)));
-        if (k < n) {
-            const __mmask8 left = lanes_before8(k, n);
-            _mm512_mask_storeu_pd(r + k, left, _mm512_sqrt_pd(_mm512_maskz_loadu_pd(left, r + k)));
-        }
-    }
+    if (with_r) avx512_roots(r, n_first, n);
     return n;
 }
 
@@ -414,6 +444,85 @@ static const gather_fn gather_avx512_table[3][2][2] = {
     {{gather_avx512_1_00, gather_avx512_1_01}, {gather_avx512_1_10, gather_avx512_1_11}},
     {{gather_avx512_2_00, gather_avx512_2_01}, {gather_avx512_2_10, gather_avx512_2_11}},
     {{gather_avx512_3_00, gather_avx512_3_01}, {gather_avx512_3_10, gather_avx512_3_11}}};
+
+/* nnps_gather4: gather_avx512's blocks with one load of the candidates for four points. The
+ * lanes' counts and output pointers are kept in locals (see gather_out). */
+__attribute__((NNPS_AVX512_TARGET, always_inline)) static inline void
+gather4_avx512(const int dim, const int with_dx, const consph_nnps_slots *v,
+               const consph_nnps_run *run, size_t nruns, size_t sl, const avx2_out *out,
+               size_t *count)
+{
+    const __m512d lim = _mm512_set1_pd(v->radius2);
+    const __m512i lanes = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0), eight = _mm512_set1_epi64(8);
+    const double *x0 = v->x[0], *x1 = v->x[1], *x2 = v->x[2];
+    const avx2_out o0 = out[0], o1 = out[1], o2 = out[2], o3 = out[3];
+    size_t n0 = 0, n1 = 0, n2 = 0, n3 = 0;
+    for (size_t k = 0; k < nruns; ++k) {
+        const size_t s0 = run[k].s0, s1 = run[k].s1, full = s0 + ((s1 - s0) & ~(size_t)7);
+        /* gather_avx512's q = xi - shift, with xi the slot's coordinates as nbhd_gather takes */
+#define Q(l, a) _mm512_set1_pd(dim > (a) ? v->x[a][sl + (l)] - run[k].shift[a] : 0.0)
+        const __m512d q00 = Q(0, 0), q01 = Q(0, 1), q02 = Q(0, 2);
+        const __m512d q10 = Q(1, 0), q11 = Q(1, 1), q12 = Q(1, 2);
+        const __m512d q20 = Q(2, 0), q21 = Q(2, 1), q22 = Q(2, 2);
+        const __m512d q30 = Q(3, 0), q31 = Q(3, 1), q32 = Q(3, 2);
+#undef Q
+#define HITS4(tail)                                                                                \
+    do {                                                                                           \
+        AVX512_COORDS(c0, c1, c2);                                                                 \
+        n0 = avx512_hits(dim, with_dx, 1, tail, c0, c1, c2, q00, q01, q02, lim, sv, lanes, valid,  \
+                         o0, n0);                                                                  \
+        n1 = avx512_hits(dim, with_dx, 1, tail, c0, c1, c2, q10, q11, q12, lim, sv, lanes, valid,  \
+                         o1, n1);                                                                  \
+        n2 = avx512_hits(dim, with_dx, 1, tail, c0, c1, c2, q20, q21, q22, lim, sv, lanes, valid,  \
+                         o2, n2);                                                                  \
+        n3 = avx512_hits(dim, with_dx, 1, tail, c0, c1, c2, q30, q31, q32, lim, sv, lanes, valid,  \
+                         o3, n3);                                                                  \
+    } while (0)
+        __m512i sv = _mm512_set1_epi64((long long)s0);
+        size_t s = s0;
+        for (; s < full; s += 8) {
+            const int tail = 0;
+            const __mmask8 valid = 0xff;
+            HITS4(tail);
+            sv = _mm512_add_epi64(sv, eight);
+        }
+        if (s < s1) {
+            const int tail = 1;
+            const __mmask8 valid = lanes_before8(s, s1);
+            HITS4(tail);
+        }
+#undef HITS4
+    }
+    avx512_roots(o0.r, 0, n0);
+    avx512_roots(o1.r, 0, n1);
+    avx512_roots(o2.r, 0, n2);
+    avx512_roots(o3.r, 0, n3);
+    count[0] = n0;
+    count[1] = n1;
+    count[2] = n2;
+    count[3] = n3;
+}
+
+#define GATHER4_AVX512(D, DX)                                                                      \
+    __attribute__((NNPS_AVX512_TARGET)) static void gather4_avx512_##D##_##DX(                     \
+        const consph_nnps_slots *v, const consph_nnps_run *run, size_t nruns, size_t sl,           \
+        const avx2_out *out, size_t *count)                                                        \
+    {                                                                                              \
+        gather4_avx512(D, DX, v, run, nruns, sl, out, count);                                      \
+    }
+GATHER4_AVX512(1, 0)
+GATHER4_AVX512(1, 1)
+GATHER4_AVX512(2, 0)
+GATHER4_AVX512(2, 1)
+GATHER4_AVX512(3, 0)
+GATHER4_AVX512(3, 1)
+
+typedef void (*gather4_fn)(const consph_nnps_slots *, const consph_nnps_run *, size_t, size_t,
+                           const avx2_out *, size_t *);
+/* [dim - 1][x_ij wanted] */
+static const gather4_fn gather4_avx512_table[3][2] = {{gather4_avx512_1_0, gather4_avx512_1_1},
+                                                      {gather4_avx512_2_0, gather4_avx512_2_1},
+                                                      {gather4_avx512_3_0, gather4_avx512_3_1}};
 #endif
 
 int nnps_machine_isa(void)
@@ -523,6 +632,23 @@ size_t nnps_gather_runs(int isa, const consph_nnps_slots *v, const consph_nnps_r
     }
     if (r) square_roots(r, n0, n);
     return n;
+}
+
+int nnps_gather4(const consph_nnps_slots *v, const consph_nnps_run *run, size_t nruns, size_t sl,
+                 size_t *const slot[4], double *const *const dx[4], double *const r[4], size_t n[4])
+{
+#ifdef NNPS_AVX512
+    if (nnps_best_isa() == NNPS_ISA_AVX512) {
+        const int with_dx = dx[0] != NULL;
+        avx2_out out[4];
+        for (int l = 0; l < 4; ++l) out[l] = gather_out(v->dim, with_dx, slot[l], dx[l], r[l]);
+        gather4_avx512_table[v->dim - 1][with_dx](v, run, nruns, sl, out, n);
+        return 1;
+    }
+#else
+    (void)v, (void)run, (void)nruns, (void)sl, (void)slot, (void)dx, (void)r, (void)n;
+#endif
+    return 0;
 }
 
 size_t consph_nnps_gather(const consph_nnps_slots *v, const consph_nnps_runs *runs,

@@ -98,8 +98,11 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
                 consph_nbhd nb[PASS_GROUP];
                 const int count = last - g < PASS_GROUP ? (int)(last - g) : PASS_GROUP;
                 size_t kmax = 0;
+                /* a whole group shares one sweep over the cell's candidates */
+                if (count < PASS_GROUP || !nbhd_gather4(s, &v, &runs, g, need, with_dx, sc, nb))
+                    for (int l = 0; l < count; ++l)
+                        nbhd_gather(s, &v, &runs, g + (size_t)l, need, with_dx, &sc[l], &nb[l]);
                 for (int l = 0; l < count; ++l) {
-                    nbhd_gather(s, &v, &runs, g + (size_t)l, need, with_dx, &sc[l], &nb[l]);
                     my_pairs += nb[l].n;
                     if (nb[l].n > kmax) kmax = nb[l].n;
                 }
