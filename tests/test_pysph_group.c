@@ -30,21 +30,32 @@ static consph_solver *make(const char *scheme, const char *problem, int nx, doub
     return s;
 }
 
+/* The solver of the group visits (*g) and the one of the per-particle visits (*v), both of the
+ * same set-up on `threads` threads; 0 (both freed) where one could not be made. */
+static int make_both(const char *scheme, const char *problem, int nx, double alpha, int threads,
+                     consph_solver **g, consph_solver **v)
+{
+    check_set_threads(threads);
+    *g = make(scheme, problem, nx, alpha);
+    *v = make(scheme, problem, nx, alpha);
+    if (*g && *v) {
+        /* small systems run their passes on one thread unless told otherwise */
+        (*g)->sys.parallel_min = (*v)->sys.parallel_min = threads > 1 ? 1 : (*g)->sys.parallel_min;
+        return 1;
+    }
+    consph_solver_free(*g);
+    consph_solver_free(*v);
+    return 0;
+}
+
 static void compare(const char *scheme, const char *problem, int nx, double alpha, int lazy,
                     int threads)
 {
     char what[160];
     snprintf(what, sizeof what, "%s on %s, nx %d, alpha %g, lazy grads %d, %d thread(s)", scheme,
              problem, nx, alpha, lazy, threads);
-    check_set_threads(threads);
-    consph_solver *g = make(scheme, problem, nx, alpha), *v = make(scheme, problem, nx, alpha);
-    if (!g || !v) {
-        consph_solver_free(g);
-        consph_solver_free(v);
-        return;
-    }
-    /* small systems run their passes on one thread unless told otherwise */
-    g->sys.parallel_min = v->sys.parallel_min = threads > 1 ? 1 : g->sys.parallel_min;
+    consph_solver *g, *v;
+    if (!make_both(scheme, problem, nx, alpha, threads, &g, &v)) return;
     /* lazy: ∇u and ∇p every third step only (grads_skip in the others) */
     g->grads_lazy = v->grads_lazy = lazy;
     g->grads_every = v->grads_every = 3;
@@ -83,14 +94,8 @@ static void compare_unsorted(const char *scheme, const char *problem, int nx, do
     char what[160];
     snprintf(what, sizeof what, "%s unsorted on %s, nx %d, alpha %g, %d thread(s)", scheme, problem,
              nx, alpha, threads);
-    check_set_threads(threads);
-    consph_solver *g = make(scheme, problem, nx, alpha), *v = make(scheme, problem, nx, alpha);
-    if (!g || !v) {
-        consph_solver_free(g);
-        consph_solver_free(v);
-        return;
-    }
-    g->sys.parallel_min = v->sys.parallel_min = threads > 1 ? 1 : g->sys.parallel_min;
+    consph_solver *g, *v;
+    if (!make_both(scheme, problem, nx, alpha, threads, &g, &v)) return;
     pysph_group_visits = 0;
     int st = consph_solver_step(g);
     st = st ? st : consph_solver_step(v);
