@@ -20,6 +20,18 @@
 #include "pass/nbhd.h"
 #include "pass/nlist.h"
 
+/* The neighbourhoods of the group's count particles in slots g.. of one cell: a whole group in
+ * one sweep over the cell's candidates where the gather has one (nbhd_gather4), else particle by
+ * particle; the same values in the same order either way. */
+static void gather_group(const consph_sys *s, const consph_nnps_slots *v,
+                         const consph_nnps_runs *runs, size_t g, int count, unsigned need,
+                         int with_dx, nbhd_scratch *sc, consph_nbhd *nb)
+{
+    if (count == PASS_GROUP && nbhd_gather4(s, v, runs, g, need, with_dx, sc, nb)) return;
+    for (int l = 0; l < count; ++l)
+        nbhd_gather(s, v, runs, g + (size_t)l, need, with_dx, &sc[l], &nb[l]);
+}
+
 /* Entries n..kmax of a lane: the particle itself (self: its index, or its slot under
  * PASS_GROUP_SLOTS) with zero separation and kernel values. */
 static void lane_pad(nbhd_scratch *sc, const consph_nbhd *nb, size_t kmax, size_t self)
@@ -98,10 +110,7 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
                 consph_nbhd nb[PASS_GROUP];
                 const int count = last - g < PASS_GROUP ? (int)(last - g) : PASS_GROUP;
                 size_t kmax = 0;
-                /* a whole group shares one sweep over the cell's candidates */
-                if (count < PASS_GROUP || !nbhd_gather4(s, &v, &runs, g, need, with_dx, sc, nb))
-                    for (int l = 0; l < count; ++l)
-                        nbhd_gather(s, &v, &runs, g + (size_t)l, need, with_dx, &sc[l], &nb[l]);
+                gather_group(s, &v, &runs, g, count, need, with_dx, sc, nb);
                 for (int l = 0; l < count; ++l) {
                     my_pairs += nb[l].n;
                     if (nb[l].n > kmax) kmax = nb[l].n;
@@ -370,8 +379,8 @@ static void run_cell(const sweep *w, sweep_thread *t, size_t c, int mode, slab_s
             consph_nbhd nb[PASS_GROUP];
             const int count = last - g < PASS_GROUP ? (int)(last - g) : PASS_GROUP;
             size_t kmax = 0;
+            gather_group(w->s, v, &t->runs, g, count, need, with_dx, t->sc, nb);
             for (int l = 0; l < count; ++l) {
-                nbhd_gather(w->s, v, &t->runs, g + (size_t)l, need, with_dx, &t->sc[l], &nb[l]);
                 t->pairs += per_pair * nb[l].n;
                 if (nb[l].n > kmax) kmax = nb[l].n;
             }
