@@ -770,6 +770,25 @@ RV_GROUP_CLONES static void group_visit_wcsph(void *vjob, const consph_nbhd *nb,
 #pragma GCC pop_options
 #endif
 
+#ifdef RV_GROUPS
+/* Whether the group visits get their pack, in the search's slot order (PASS_GROUP_SLOTS): the
+ * system is not decomposed and the search holds every particle; its slots into *v. */
+static int rv_packed(const consph_solver *s, consph_nnps_slots *v)
+{
+    return pysph_group_visits && !s->sys.split &&
+           consph_nnps_slots_get(s->sys.nnps, v) == CONSPH_OK && v->n == s->sys.p->n;
+}
+
+/* The pack of nn particles at stride pk on the first 64-byte line from `at` (the scratch holds
+ * pk·nn + 8 doubles there), and the slot of each particle (nn) behind it. */
+static double *rv_pack_at(double *at, size_t pk, size_t nn, size_t **slot_of)
+{
+    while ((uintptr_t)at % 64) ++at;
+    *slot_of = (size_t *)(at + pk * nn);
+    return at;
+}
+#endif
+
 static int job_fields(consph_solver *s, rival_job *job, int kind)
 {
     const int d = s->dim;
@@ -813,8 +832,7 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
          * line, in the search's slot order (PASS_GROUP_SLOTS), and the slot of each particle */
         job->pk = 8;
         consph_nnps_slots v;
-        const int packed = pysph_group_visits && !s->sys.split &&
-                           consph_nnps_slots_get(s->sys.nnps, &v) == CONSPH_OK && v.n == n;
+        const int packed = rv_packed(s, &v);
         if (packed) want += job->pk * nn + 8 + nn;
 #endif
         double *sc = consph_sys_scratch(&s->sys, want);
@@ -824,9 +842,7 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         const size_t *particle = NULL;
 #ifdef RV_GROUPS
         if (packed) {
-            pack = sc + 3 * nn;
-            while ((uintptr_t)pack % 64) ++pack;
-            slot_of = (size_t *)(pack + job->pk * nn);
+            pack = rv_pack_at(sc + 3 * nn, job->pk, nn, &slot_of);
             particle = v.particle;
         }
 #endif
@@ -879,8 +895,7 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
      * order (PASS_GROUP_SLOTS); the slot of each particle; edac's p in slot order */
     job->pk = d == 2 ? 8 : 10;
     consph_nnps_slots v;
-    const int packed = pysph_group_visits && !s->sys.split &&
-                       consph_nnps_slots_get(s->sys.nnps, &v) == CONSPH_OK && v.n == n;
+    const int packed = rv_packed(s, &v);
     if (packed) want += job->pk * nn + 8 + 2 * nn;
 #endif
     double *sc = consph_sys_scratch(&s->sys, want);
@@ -889,10 +904,9 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     job->mrho = sc + nn;
 #ifdef RV_GROUPS
     if (packed) {
-        double *pk = sc + 2 * nn, *pslot;
-        while ((uintptr_t)pk % 64) ++pk;
-        size_t *slot_of = (size_t *)(pk + job->pk * nn);
-        pslot = (double *)(slot_of + nn);
+        size_t *slot_of;
+        double *pk = rv_pack_at(sc + 2 * nn, job->pk, nn, &slot_of);
+        double *pslot = (double *)(slot_of + nn);
         const size_t *particle = v.particle;
         const double *p = job->p;
         const int edac = kind == RV_EDAC;
