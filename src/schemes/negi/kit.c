@@ -857,8 +857,9 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need2 |= CONSPH_PASS_D2W;
     const pass_group_fn group_second =
         lanes && coupled_lanes_pay(s) ? group_second_of(&r, d) : NULL;
-    /* where coupled_bc's ∇²u alone runs per particle in 2D, it reads G_j from pass 1's pack */
-    const consph_visit_fn visit_pk = lanes && !group_second && d == 2 && (want & KIT_LAPU) &&
+    /* where coupled_bc's ∇²u alone runs per particle, it reads G_j from pass 1's pack (2D:
+     * coupled_pk_of) */
+    const consph_visit_fn visit_pk = lanes && !group_second && (want & KIT_LAPU) &&
                                              rq->lap == KIT_LAP_COUPLED && !(want & KIT_LAPQ)
                                          ? coupled_pk_of(d)
                                          : NULL;
