@@ -102,6 +102,11 @@ int solver_check_valid(consph_solver *s)
     const double *u = sv_field(s, SF_U, d), *rf = sv_field(s, SF_RHOF, 1);
     const double *pr = sv_field(s, SF_P, 1), *id = sv_field(s, SF_ID, 1);
     if (!u || !rf || !pr || !id) return CONSPH_EINVAL;
+    /* the kinetic energy's terms are written in the same sweep, which reads u already */
+    const consph_field *fm = consph_particles_find(p, SF_MASS);
+    const double *mass = fm ? fm->data : NULL, m0 = s->mass;
+    double *w = solver_ke_column(s);
+    if (!w) return CONSPH_ENOMEM;
     const double r0 = s->prm.rho0;
     /* edac evolves p on its own, with no EOS: its ϱ is a summation density that only weights
      * its sums, and a uniform drift of p moves nothing (its force takes p - p̄) */
@@ -121,6 +126,7 @@ int solver_check_valid(consph_solver *s)
                          (rf[i] - rf[i]) + (pr[i] - pr[i]);
             const double u2 = ux * ux + uy * uy;
             u2max = u2 > u2max ? u2 : u2max;
+            w[i] = kinetic_energy_of(mass ? mass[i] : m0, ux, uy, 0.0, 2);
             const double c = compressible ? fabs(rf[i] / r0 - 1.0) : 0.0;
             cmax = c > cmax ? c : cmax;
         }
@@ -135,6 +141,8 @@ int solver_check_valid(consph_solver *s)
                 u2 += u[a * cap + i] * u[a * cap + i];
             }
             u2max = u2 > u2max ? u2 : u2max;
+            w[i] = kinetic_energy_of(mass ? mass[i] : m0, u[i], d > 1 ? u[cap + i] : 0.0,
+                                     d == 3 ? u[2 * cap + i] : 0.0, d);
             if (compressible) {
                 const double c = fabs(rf[i] / r0 - 1.0);
                 cmax = c > cmax ? c : cmax;
@@ -146,9 +154,7 @@ int solver_check_valid(consph_solver *s)
         if (st != CONSPH_OK) return st;
     }
     const double ke0 = s->hist[6]; /* row 0: the initial state */
-    double ke;
-    int st = solver_kinetic_energy(s, &ke);
-    if (st != CONSPH_OK) return st;
+    const double ke = consph_sum(w, n);
     /* the particle to name is looked for only when a bound is passed, by the same expressions */
     if (sqrt(u2max) / s->c0 <= CONSPH_VALID_MACH && cmax <= CONSPH_VALID_COMPRESSION &&
         !(ke > ke0 * (1.0 + CONSPH_VALID_KE_GROWTH)))
