@@ -100,6 +100,8 @@ typedef struct consph_sys {
     consph_nlist *nlist;           /* consph_sys_nlist's neighbour list; NULL: every pass gathers */
     size_t scratch_asked;          /* the count of the last consph_sys_scratch */
     const consph_sys_split *split; /* NULL: the system is the whole particle set */
+    size_t *resort_buf;            /* a re-sort's permutation and carried copies, kept */
+    size_t resort_cap;
 } consph_sys;
 
 /* The distance within which the kernel can be non-zero: the radius a system's search needs

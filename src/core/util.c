@@ -10,13 +10,55 @@
 /* Block length for consph_sum: large enough to vectorise, small enough that the tree is cheap. */
 #define SUM_BLOCK 256
 
+static double sum_block(const double *a, size_t n, size_t stride)
+{
+    double s = 0.0;
+    for (size_t i = 0; i < n; ++i) s += a[i * stride];
+    return s;
+}
+
+/* sum_tree of at most 4 blocks: four whole blocks' chains of additions run side by side (each
+ * its own values in its own order: the same sums), where one after the other each addition
+ * waited on the last; then the tree's additions over them, (l0 + l1) + (l2 + l3), or l0 + (l1 +
+ * l2) for three blocks. */
+static double sum_leaves(const double *a, size_t n, size_t stride)
+{
+    const size_t nb = (n + SUM_BLOCK - 1) / SUM_BLOCK;
+    double l[4];
+    if (n == 4 * SUM_BLOCK) {
+        const size_t o = SUM_BLOCK * stride;
+        double s0 = 0.0, s1 = 0.0, s2 = 0.0, s3 = 0.0;
+        for (size_t i = 0; i < SUM_BLOCK; ++i) {
+            const double *q = a + i * stride;
+            s0 += q[0];
+            s1 += q[o];
+            s2 += q[2 * o];
+            s3 += q[3 * o];
+        }
+        l[0] = s0, l[1] = s1, l[2] = s2, l[3] = s3;
+    } else {
+        for (size_t k = 0; k < nb; ++k) {
+            const size_t m = n - k * SUM_BLOCK < SUM_BLOCK ? n - k * SUM_BLOCK : SUM_BLOCK;
+            l[k] = sum_block(a + k * SUM_BLOCK * stride, m, stride);
+        }
+    }
+    switch (nb) {
+    case 0:
+        return 0.0;
+    case 1:
+        return l[0];
+    case 2:
+        return l[0] + l[1];
+    case 3:
+        return l[0] + (l[1] + l[2]);
+    default:
+        return (l[0] + l[1]) + (l[2] + l[3]);
+    }
+}
+
 static double sum_tree(const double *a, size_t n, size_t stride)
 {
-    if (n <= SUM_BLOCK) {
-        double s = 0.0;
-        for (size_t i = 0; i < n; ++i) s += a[i * stride];
-        return s;
-    }
+    if (n <= 4 * SUM_BLOCK) return sum_leaves(a, n, stride);
     /* Split on a block boundary so the tree shape depends on n alone. */
     size_t nblocks = (n + SUM_BLOCK - 1) / SUM_BLOCK;
     size_t left = (nblocks / 2) * SUM_BLOCK;

@@ -48,12 +48,52 @@ save_update_block(double *restrict y, double *restrict y0, const double *restric
     }
 }
 
+/* update_block and save_update_block with the rates of particle i at kp[i] of k (the last
+ * rates, not moved by the re-sort: integ_state.kperm), the same values. */
+static void update_block_perm(double *restrict y, const double *restrict y0,
+                              const double *restrict k, const size_t *restrict kp, double c,
+                              size_t n)
+{
+    for (size_t i = 0; i < n; ++i) y[i] = y0[i] + c * k[kp[i]];
+}
+
+#if defined(__GNUC__) && !defined(__clang__)
+__attribute__((optimize("no-tree-loop-distribute-patterns")))
+#endif
+static void
+save_update_block_perm(double *restrict y, double *restrict y0, const double *restrict k,
+                       const size_t *restrict kp, double c, size_t n)
+{
+    for (size_t i = 0; i < n; ++i) {
+        const double v = y[i];
+        y0[i] = v;
+        y[i] = v + c * k[kp[i]];
+    }
+}
+
+/* One block's y = y0 + c k (save: y0 = y first), k read through kp where it is not NULL (kp,
+ * y and y0 at the block's first particle, k at its component's). */
+static void update_one(double *y, double *y0, const double *k, const size_t *kp, double c, size_t n,
+                       int save)
+{
+    if (kp && save)
+        save_update_block_perm(y, y0, k, kp, c, n);
+    else if (kp)
+        update_block_perm(y, y0, k, kp, c, n);
+    else if (save)
+        save_update_block(y, y0, k, c, n);
+    else
+        update_block(y, y0, k, c, n);
+}
+
 /* In blocks shared out among the threads: u = u0 + c ku and q = q0 + c kq where ku is given,
  * then x = x0 + c kx where kx is; save: from the unsaved start, u0, q0 (and x0) = u, q (and x)
- * in the same sweep (the same values: u0 is u). Each value depends on its own particle's alone,
- * so one sweep of a block doing both is the two sweeps (one parallel region, not two). */
+ * in the same sweep (the same values: u0 is u); close: the block's closure (close_range) after
+ * its q; kp: the rates read through it (integ_state.kperm), or NULL. Each value depends on its
+ * own particle's alone, so one sweep of a block doing both is the two sweeps (one parallel
+ * region, not two). */
 static void update_blocks(const integ_state *st, double c, const double *ku, const double *kq,
-                          const double *kx, int save)
+                          const double *kx, int save, int close, const size_t *kp)
 {
     const int d = st->dim;
     const size_t n = st->n, cap = st->cap;
@@ -76,53 +116,62 @@ static void update_blocks(const integ_state *st, double c, const double *ku, con
             const size_t o = a < 0 ? i0 : (size_t)a * cap + i0;
             double *y = a < 0 ? q : u, *y0 = a < 0 ? q0 : u0;
             const double *k = a < 0 ? kq : ku;
-            if (save)
-                save_update_block(y + o, y0 + o, k + o, c, m);
+            if (kp)
+                update_one(y + o, y0 + o, k + (o - i0), kp + i0, c, m, save);
             else
-                update_block(y + o, y0 + o, k + o, c, m);
+                update_one(y + o, y0 + o, k + o, NULL, c, m, save);
+            if (a < 0 && close) st->close_range(st->ctx, i0, i0 + m);
         }
         for (int a = 0; kx && a < d; ++a) {
             double *x = st->x[a] + i0, *x0 = st->x0 + a * cap + i0;
-            const double *k = kx + a * cap + i0;
-            if (save)
-                save_update_block(x, x0, k, c, m);
-            else
-                update_block(x, x0, k, c, m);
+            const double *k = kx + a * cap;
+            update_one(x, x0, kp ? k : k + i0, kp ? kp + i0 : NULL, c, m, save);
         }
     }
 }
 
+/* u, q = u0, q0 + c (ku, kq), with the closure block by block where the state has one */
 static void set_fields(const integ_state *st, double c, const double *ku, const double *kq)
 {
-    update_blocks(st, c, ku, kq, NULL, 0);
+    update_blocks(st, c, ku, kq, NULL, 0, st->close_range != NULL, NULL);
+}
+
+/* The closure after an update of q, unless the update ran it block by block. */
+static void close_updated(const integ_state *st)
+{
+    if (!st->close_range) st->close(st->ctx);
 }
 
 /* x = x0 + c kx (with save: x0 = x first, in the same sweep), then wrapped and the search
  * rebuilt by the solver. */
 static int drift(const integ_state *st, double c, const double *kx, int save)
 {
-    update_blocks(st, c, NULL, NULL, kx, save);
+    update_blocks(st, c, NULL, NULL, kx, save, 0, NULL);
     return st->moved(st->ctx);
 }
 
-/* y = y0 + c k for the evolved fields with the last rates, then the closure; save: the step's
- * first update of an unsaved start, which saves it on the way. Without a transport hook between
- * the update and the drift, both in one sweep. */
+/* y = y0 + c k for the evolved fields with the last rates, then the closure (in the update's
+ * sweep where it has a close_range); save: the step's first update of an unsaved start, which
+ * saves it on the way. Without a transport hook between the update and the drift, both in one
+ * sweep. */
 static int advance(const integ_state *st, double c, int save)
 {
+    const int fused = st->close_range != NULL;
+    /* the first update of a step that starts from the last rates (save) is their reader */
+    const size_t *kp = save ? st->kperm : NULL;
     if (st->x0 && !st->transport) {
-        update_blocks(st, c, st->au, st->aq, st->ax, save);
+        update_blocks(st, c, st->au, st->aq, st->ax, save, fused, kp);
         int rc = st->moved(st->ctx);
         if (rc != CONSPH_OK) return rc;
     } else {
-        update_blocks(st, c, st->au, st->aq, NULL, save);
+        update_blocks(st, c, st->au, st->aq, NULL, save, fused, kp);
         if (st->x0) {
             if (st->transport) st->transport(st->ctx, c);
             int rc = drift(st, c, st->ax, save);
             if (rc != CONSPH_OK) return rc;
         }
     }
-    st->close(st->ctx);
+    close_updated(st);
     return CONSPH_OK;
 }
 
@@ -191,7 +240,7 @@ static int step_kdk(const integ_state *st, double dt)
     if (rc != CONSPH_OK) return rc;
     /* the second kick; the particles stay where the drift put them */
     set_fields(st, 0.5 * dt, au, aq);
-    st->close(st->ctx);
+    close_updated(st);
     return CONSPH_OK;
 }
 
@@ -241,7 +290,7 @@ static int ssprk3_stage(const integ_state *st, double c, double tc, double w, in
         int rc = drift(st, c, kx, 0);
         if (rc != CONSPH_OK) return rc;
     }
-    st->close(st->ctx);
+    close_updated(st);
     return CONSPH_OK;
 }
 

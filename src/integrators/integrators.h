@@ -39,11 +39,21 @@ typedef struct integ_state {
     int unsaved;
     const double *au, *aq; /* rates at the last evaluation, rewritten in place by rates() */
     double *ax;            /* drift velocity (NULL when x0 is); rates() and transport() write it */
+    /* NULL, or (a step that starts from the last rates, without a transport hook) the re-sort's
+     * permutation that au, aq and ax were left out of: particle i's rates are at kperm[i] of
+     * them, until rates() rewrites them; the step's first update reads them so, the only reader
+     * before rates() (the re-sort need not move them, a sweep of five arrays) */
+    const size_t *kperm;
     /* the row's scratch, in its order (integ_def.scratch); never part of the particles' state */
     double *scratch[INTEG_SCRATCH_MAX];
     void *ctx; /* passed to the callbacks */
     int (*rates)(void *ctx);
     void (*close)(void *ctx);
+    /* The closure of particles [i0, i1) alone, where it reads and writes their own values only
+     * and nothing between an update and its closure reads what it writes (NULL: none): an
+     * update runs it on each block of particles just after the block's q, while the block is in
+     * the cache, instead of close() sweeping every particle again. */
+    void (*close_range)(void *ctx, size_t i0, size_t i1);
     /* The drift velocity ax from the velocity just updated, for a drift whose rates are weighted
      * by c; NULL: ax is the position rate the last evaluation left. */
     void (*transport)(void *ctx, double c);
@@ -54,7 +64,7 @@ typedef struct integ_state {
  * (the solver evaluates afresh anyway when a regularisation changed the state after them). */
 typedef enum integ_reuse {
     INTEG_REUSE_NEVER,
-    INTEG_REUSE_ALWAYS,
+    INTEG_REUSE_ALWAYS, /* its step reads the last rates through kperm where the state has one */
     /* only when the drift velocity can be rebuilt from the reused rates by the transport hook */
     INTEG_REUSE_WITH_TRANSPORT
 } integ_reuse;

@@ -17,6 +17,7 @@
  * (the inline traversal of nnps.h); the hit test over runs, shared with the query, is in
  * gather.c. */
 #include "nnps_internal.h"
+#include "core/particles_internal.h"
 
 #include <float.h>
 #include <stdint.h>
@@ -88,6 +89,7 @@ struct consph_nnps {
      * two words per thread */
     size_t *tcount;
     size_t tcount_cap;
+    particles_permute_buf permute; /* consph_nnps_sort's, kept between re-sorts */
 };
 
 consph_nnps *consph_nnps_create(const consph_box *box, double radius, int cells_per_radius)
@@ -148,6 +150,7 @@ void consph_nnps_free(consph_nnps *g)
     free(g->cell_of);
     free(g->tcount);
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(g->xs[a]);
+    particles_permute_buf_free(&g->permute);
     free(g);
 }
 
@@ -299,6 +302,27 @@ static int scatter_cells(const size_t *restrict cell_of, size_t i0, size_t i1, s
     return identity;
 }
 
+/* scatter_cells in 2D with the coordinates as they are (none to wrap): xs[slot] = x[i] as each
+ * particle takes its slot, instead of a sweep of the order after it. */
+static int scatter_cells_xs(const size_t *restrict cell_of, size_t n, size_t *slot,
+                            size_t *restrict order, const double *restrict x0,
+                            const double *restrict x1, double *restrict xs0, double *restrict xs1)
+{
+    int identity = 1;
+    for (size_t i = 0; i < n;) {
+        const size_t c = cell_of[i];
+        size_t sl = slot[c];
+        identity = identity && sl == i;
+        do {
+            xs0[sl] = x0[i];
+            xs1[sl] = x1[i];
+            order[sl++] = i++;
+        } while (i < n && cell_of[i] == c);
+        slot[c] = sl;
+    }
+    return identity;
+}
+
 /* The cell of every particle, c = (c2 nc1 + c1) nc0 + c0. */
 static void bin_cells(const consph_nnps *g, const consph_particles *p, size_t *cell_of, size_t n)
 {
@@ -311,6 +335,38 @@ static void bin_cells(const consph_nnps *g, const consph_particles *p, size_t *c
         cell_of[i] = c;
     }
 }
+
+/* The binning loop's copies chosen at load time in a generic x86-64 build, as LANE4_CLONES
+ * (src/pass/lanes4.h): with AVX-512 the conversion to a 64-bit cell index vectorises, which
+ * SSE2 and AVX2 have no instruction for. A conversion and a product of two values give the same
+ * bits at any width, and there is no sum for FMA to contract. */
+#if defined(__x86_64__) && !defined(__clang__) && defined(__GLIBC__) && !defined(__AVX2__) &&      \
+    defined(__STRICT_ANSI__) && __GNUC__ >= 11
+#define NNPS_BIN_CLONES __attribute__((target_clones("arch=x86-64-v4", "default")))
+#else
+#define NNPS_BIN_CLONES
+#endif
+
+/* The cells of particles [i0, i1) whose coordinates are known to be in the box (bin_cells_2d's
+ * loop without the wrap). */
+NNPS_BIN_CLONES static void bin_inside_2d(const double *restrict x0, const double *restrict x1,
+                                          size_t *restrict cell_of, size_t i0, size_t i1,
+                                          const double lo[2], const double ih[2],
+                                          const int64_t nc[2])
+{
+    const double lo0 = lo[0], lo1 = lo[1], ih0 = ih[0], ih1 = ih[1];
+    const int64_t nc0 = nc[0], nc1 = nc[1];
+    const double top0 = (double)nc0, top1 = (double)nc1;
+    for (size_t i = i0; i < i1; ++i) {
+        const double v0 = (x0[i] - lo0) * ih0, v1 = (x1[i] - lo1) * ih1;
+        const int64_t c0 = !(v0 >= 0.0) ? 0 : v0 >= top0 ? nc0 - 1 : (int64_t)v0;
+        const int64_t c1 = !(v1 >= 0.0) ? 0 : v1 >= top1 ? nc1 - 1 : (int64_t)v1;
+        cell_of[i] = (size_t)c1 * (size_t)nc0 + (size_t)c0;
+    }
+}
+
+/* Particles per call of bin_inside_2d, shared out among the threads. */
+#define NNPS_BIN_BLOCK 4096
 
 /* bin_cells in 2D, the grid's constants held in locals (1: every coordinate was inside the
  * box on its periodic axes): the stores to cell_of (size_t) may alias
@@ -335,13 +391,13 @@ static int bin_cells_2d(const consph_nnps *g, const double *x0, const double *x1
                        (per1 & ((int)!(x1[i] >= lo1) | (int)!(x1[i] < hi1)));
     }
     if (!outside) {
+        const double lo[2] = {lo0, lo1}, ih[2] = {ih0, ih1};
+        const int64_t nc[2] = {nc0, nc1};
+        const size_t nb = (n + NNPS_BIN_BLOCK - 1) / NNPS_BIN_BLOCK;
 #pragma omp parallel for schedule(static) if (par && n > NNPS_PARALLEL_MIN)
-        for (size_t i = 0; i < n; ++i) {
-            const double v0 = (x0[i] - lo0) * ih0, v1 = (x1[i] - lo1) * ih1;
-            const int64_t c0 = !(v0 >= 0.0) ? 0 : v0 >= top0 ? nc0 - 1 : (int64_t)v0;
-            const int64_t c1 = !(v1 >= 0.0) ? 0 : v1 >= top1 ? nc1 - 1 : (int64_t)v1;
-            cell_of[i] = (size_t)c1 * (size_t)nc0 + (size_t)c0;
-        }
+        for (size_t b = 0; b < nb; ++b)
+            bin_inside_2d(x0, x1, cell_of, b * NNPS_BIN_BLOCK,
+                          b + 1 < nb ? (b + 1) * NNPS_BIN_BLOCK : n, lo, ih, nc);
         return 1;
     }
 #pragma omp parallel for schedule(static) if (par && n > NNPS_PARALLEL_MIN)
@@ -495,25 +551,17 @@ static int build(consph_nnps *g, const consph_particles *p)
         memset(start, 0, (ncells + 1) * sizeof *start);
         count_cells(cell_of, 0, n, start + 1);
         for (size_t c = 0; c < ncells; ++c) start[c + 1] += start[c];
-        g->identity = scatter_cells(cell_of, 0, n, start, g->order);
+        /* in 2D with both axes copied as they are, the coordinates go with the scatter */
+        const int as_is = dim == 2 && (inside || (!g->periodic[0] && !g->periodic[1]));
+        g->identity = as_is ? scatter_cells_xs(cell_of, n, start, g->order, p->x[0], p->x[1],
+                                               g->xs[0], g->xs[1])
+                            : scatter_cells(cell_of, 0, n, start, g->order);
         /* The scatter advanced each start to the next cell's start; shift back. */
         for (size_t c = ncells; c > 0; --c) start[c] = start[c - 1];
         start[0] = 0;
-
-        const size_t *order = g->order;
-        if (dim == 2 && (inside || (!g->periodic[0] && !g->periodic[1]))) {
-            /* both axes copied as they are: one sweep reading the order once */
-            const double *x0 = p->x[0], *x1 = p->x[1];
-            double *restrict xs0 = g->xs[0], *restrict xs1 = g->xs[1];
-#pragma omp parallel for schedule(static) if (n > NNPS_PARALLEL_MIN)
-            for (size_t s = 0; s < n; ++s) {
-                const size_t i = order[s];
-                xs0[s] = x0[i];
-                xs1[s] = x1[i];
-            }
-        } else {
-            for (int a = 0; a < dim; ++a) gather_coords(g, a, p->x[a], order, g->xs[a], n, inside);
-        }
+        if (!as_is)
+            for (int a = 0; a < dim; ++a)
+                gather_coords(g, a, p->x[a], g->order, g->xs[a], n, inside);
     }
     /* The gather's vector paths read whole blocks past a run's end; NaN is never a hit. */
     if (n)
@@ -549,7 +597,7 @@ int consph_nnps_sort(consph_nnps *g, consph_particles *p, size_t *perm_out)
     if (status) return status;
     if (p->n == 0) return CONSPH_OK;
     /* already in cell order: the permutation is the identity and moves nothing */
-    status = g->identity ? CONSPH_OK : consph_particles_permute(p, g->order);
+    status = g->identity ? CONSPH_OK : particles_permute_buf_run(p, g->order, &g->permute);
     if (status) return status;
     /* A rebuild of the permuted set would bin particle s into the cell of old particle
      * order[s]: cells ascend with s, the stable sort keeps them in place, and the sorted

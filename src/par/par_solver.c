@@ -1496,8 +1496,8 @@ int par_checks_clean(consph_solver *s, int *clean)
         MPI_Abort(ps->comm, 1);
     }
     const double *u = fu->data, *rf = fr->data, *pr = fp->data, r0 = s->prm.rho0;
-    /* as solver_check_finite and solver_check_valid (src/solver/validity.c) and
-     * solver_kinetic_energy (diag.c) compute them, over the owned particles */
+    /* as solver_check_finite and solver_check_valid (src/solver/validity.c, with the kinetic
+     * energy's terms of kinetic_energy_of) compute them, over the owned particles */
     const int compressible = !(s->scheme->evolve_p && s->scheme->closure);
     double finite = 0.0, u2max = 0.0, cmax = 0.0;
     for (size_t o = 0; o < ps->nown; ++o) {

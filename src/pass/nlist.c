@@ -538,12 +538,10 @@ int nlist_serves(const consph_nlist *l, size_t n)
 static int rebuild_search(consph_sys *s, int resort)
 {
     if (!resort) return consph_nnps_build(s->nnps, s->p);
-    const size_t n = s->p->n;
-    size_t *perm = malloc((n ? n : 1) * sizeof(size_t)); /* every entry written by the sort */
-    if (!perm) return consph_fail(CONSPH_ENOMEM, "out of memory");
+    size_t *perm = sys_resort_buffer(s, s->p->n); /* every entry written by the sort */
+    if (!perm) return CONSPH_ENOMEM;
     int rc = consph_nnps_sort(s->nnps, s->p, perm);
     if (rc == CONSPH_OK) rc = sys_carry_permutation(s, perm);
-    free(perm);
     return rc;
 }
 

@@ -59,5 +59,10 @@ unsigned long nlist_pair_counts(const consph_nlist *l, uint32_t *count);
 /* Carries the origin and the destination mask of a system through new[i] = old[perm[i]]
  * (pass.c). */
 int sys_carry_permutation(consph_sys *s, const size_t *perm);
+/* The system's re-sort buffer (kept between re-sorts: fresh buffers of hundreds of kB every step
+ * came back from the kernel as zeroed pages each time), at least 2n + n/8 + 1 entries: the
+ * permutation in its first n, which sys_carry_permutation leaves alone (it takes the rest, and
+ * does not move the buffer once it holds n particles' room); NULL with CONSPH_ENOMEM recorded. */
+size_t *sys_resort_buffer(consph_sys *s, size_t n);
 
 #endif

@@ -227,25 +227,40 @@ int consph_sys_update(consph_sys *s, int resort)
     }
     if (s->nlist) return nlist_update(s, resort);
     if (!resort) return consph_nnps_build(s->nnps, s->p);
-    const size_t n = s->p->n;
-    size_t *perm = malloc((n ? n : 1) * sizeof(size_t)); /* every entry written by the sort */
+    size_t *perm = sys_resort_buffer(s, s->p->n); /* every entry written by the sort */
     if (!perm) return CONSPH_ENOMEM;
     int rc = consph_nnps_sort(s->nnps, s->p, perm);
     if (rc == CONSPH_OK) rc = sys_carry_permutation(s, perm);
-    free(perm);
     return rc;
+}
+
+size_t *sys_resort_buffer(consph_sys *s, size_t n)
+{
+    const size_t need = 2 * n + n / sizeof(size_t) + 1;
+    if (need > s->resort_cap) {
+        free(s->resort_buf);
+        s->resort_buf = malloc(need * sizeof(size_t));
+        s->resort_cap = s->resort_buf ? need : 0;
+        if (!s->resort_buf) {
+            consph_fail(CONSPH_ENOMEM, "out of memory re-sorting %zu particles", n);
+            return NULL;
+        }
+    }
+    return s->resort_buf;
 }
 
 int sys_carry_permutation(consph_sys *s, const size_t *perm)
 {
     const size_t n = s->p->n;
     if (!s->origin && !s->dest) return CONSPH_OK;
-    /* Carry origin and mask through the same permutation, new[i] = old[perm[i]]. */
-    size_t *o2 = s->origin ? malloc((n ? n : 1) * sizeof(size_t)) : NULL;
-    unsigned char *d2 = s->dest ? malloc(n ? n : 1) : NULL;
+    /* Carry origin and mask through the same permutation, new[i] = old[perm[i]], by way of the
+     * buffer past its first n (perm may be there). */
+    size_t *buf = sys_resort_buffer(s, n);
+    size_t *o2 = buf && s->origin ? buf + n : NULL;
+    unsigned char *d2 = buf && s->dest ? (unsigned char *)(buf + 2 * n) : NULL;
     int rc = CONSPH_OK;
-    if ((s->origin && !o2) || (s->dest && !d2)) {
-        rc = consph_fail(CONSPH_ENOMEM, "out of memory carrying %zu particles", n);
+    if (!buf) {
+        rc = CONSPH_ENOMEM;
     } else {
         /* on the threads from parallel_min on: a serial sweep here, every re-sort, is a part of
          * the step that no thread count shortens */
@@ -265,8 +280,6 @@ int sys_carry_permutation(consph_sys *s, const size_t *perm)
             }
         }
     }
-    free(o2);
-    free(d2);
     return rc;
 }
 
@@ -306,6 +319,7 @@ void consph_sys_free(consph_sys *s)
 {
     if (!s) return;
     free(s->scratch);
+    free(s->resort_buf);
     nlist_free(s->nlist);
     if (s->owned) {
         consph_nnps_free(s->nnps);

@@ -205,28 +205,9 @@ static double *diag_buffer(consph_solver *s, size_t cols)
     return columns_buffer(&s->diag_buf, &s->diag_cap, s->sys.p->n, cols);
 }
 
-static double kinetic_energy_of(double m, double ux, double uy, double uz, int d)
+double *solver_ke_column(consph_solver *s)
 {
-    return 0.5 * m * (d == 3 ? ux * ux + uy * uy + uz * uz : ux * ux + uy * uy);
-}
-
-int solver_kinetic_energy(consph_solver *s, double *ke)
-{
-    const consph_particles *p = s->sys.p;
-    const int d = s->dim;
-    const size_t n = p->n, cap = p->cap;
-    const consph_field *fu = consph_particles_find(p, SF_U),
-                       *fm = consph_particles_find(p, SF_MASS);
-    double *w = diag_buffer(s, 1);
-    if (!fu) return consph_fail(CONSPH_EINVAL, "solver state missing");
-    if (!w) return CONSPH_ENOMEM;
-    const double *u = fu->data;
-#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
-    for (size_t i = 0; i < n; ++i)
-        w[i] = kinetic_energy_of(fm ? fm->data[i] : s->mass, u[i], u[cap + i],
-                                 d == 3 ? u[2 * cap + i] : 0.0, d);
-    *ke = consph_sum(w, n);
-    return CONSPH_OK;
+    return diag_buffer(s, 1);
 }
 
 /* ---- the authors' error measure (consph_error_kind) ---- */

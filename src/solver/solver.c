@@ -61,40 +61,47 @@ int consph_run_params_layout(const consph_run_params *prm)
     return sd ? (int)sd->layout : -1;
 }
 
+/* The solver's EOS of particles [i0, i1): p from ϱ, or ϱ from p where p is evolved (eq. 31). */
+static void eos_range(const consph_solver *s, double *restrict rhof, double *restrict pr, size_t i0,
+                      size_t i1)
+{
+    const double c2 = s->c0 * s->c0, r0 = s->prm.rho0, g = s->prm.gamma;
+    if (s->scheme->evolve_p) {
+        for (size_t i = i0; i < i1; ++i) rhof[i] = pr[i] / c2 + r0; /* eq. 31 */
+    } else if (s->eos == CONSPH_EOS_LINEAR) {
+        for (size_t i = i0; i < i1; ++i) pr[i] = c2 * (rhof[i] - r0);
+    } else {
+        const int ig = eos_int_exponent(g); /* Tait's γ = 7: by multiplication */
+        if (ig == 7) {
+            /* the common case written out, the products in eos_ipow's order (the same bits), so
+             * that the loop vectorises */
+            for (size_t i = i0; i < i1; ++i) {
+                const double x = rhof[i] / r0, x2 = x * x, x4 = x2 * x2;
+                pr[i] = r0 * c2 / g * (x * x2 * x4 - 1.0);
+            }
+        } else {
+            for (size_t i = i0; i < i1; ++i) {
+                const double x = rhof[i] / r0;
+                pr[i] = r0 * c2 / g * ((ig >= 0 ? eos_ipow(x, ig) : pow(x, g)) - 1.0);
+            }
+        }
+    }
+}
+
+/* Every particle's EOS in blocks of this many, shared out among the threads. */
+#define EOS_BLOCK 4096
+
 void solver_eos(consph_solver *s)
 {
     if (s->scheme->closure) {
         s->scheme->closure(s);
         return;
     }
-    consph_particles *p = s->sys.p;
     double *rhof = sv_field(s, SF_RHOF, 1), *pr = sv_field(s, SF_P, 1);
-    const double c2 = s->c0 * s->c0, r0 = s->prm.rho0, g = s->prm.gamma;
-    const size_t n = p->n;
-    if (s->scheme->evolve_p) {
+    const size_t n = s->sys.p->n, nb = (n + EOS_BLOCK - 1) / EOS_BLOCK;
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
-        for (size_t i = 0; i < n; ++i) rhof[i] = pr[i] / c2 + r0; /* eq. 31 */
-    } else if (s->eos == CONSPH_EOS_LINEAR) {
-#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
-        for (size_t i = 0; i < n; ++i) pr[i] = c2 * (rhof[i] - r0);
-    } else {
-        const int ig = eos_int_exponent(g); /* Tait's γ = 7: by multiplication */
-        if (ig == 7) {
-            /* the common case written out, the products in eos_ipow's order (the same bits), so
-             * that the loop vectorises */
-#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
-            for (size_t i = 0; i < n; ++i) {
-                const double x = rhof[i] / r0, x2 = x * x, x4 = x2 * x2;
-                pr[i] = r0 * c2 / g * (x * x2 * x4 - 1.0);
-            }
-        } else {
-#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
-            for (size_t i = 0; i < n; ++i) {
-                const double x = rhof[i] / r0;
-                pr[i] = r0 * c2 / g * ((ig >= 0 ? eos_ipow(x, ig) : pow(x, g)) - 1.0);
-            }
-        }
-    }
+    for (size_t b = 0; b < nb; ++b)
+        eos_range(s, rhof, pr, b * EOS_BLOCK, b + 1 < nb ? (b + 1) * EOS_BLOCK : n);
 }
 
 void solver_taylor_update(consph_solver *s, const double *dr)
@@ -468,6 +475,14 @@ static void integ_close(void *ctx)
     solver_eos(ctx);
 }
 
+/* The solver's EOS of a block of particles, in the update's sweep (a scheme's own closure has no
+ * such form). */
+static void integ_close_range(void *ctx, size_t i0, size_t i1)
+{
+    const consph_solver *s = ctx;
+    eos_range(s, s->eos_rhof, s->eos_p, i0, i1);
+}
+
 static void integ_transport(void *ctx, double c)
 {
     consph_solver *s = ctx;
@@ -496,18 +511,31 @@ static int integ_moved(void *ctx)
     return st;
 }
 
+/* Whether the step's first update reads the last rates through the re-sort's permutation
+ * (integ_state.kperm) instead of the re-sort moving them: a step that starts from them with no
+ * transport hook (whose drift velocity would be rebuilt from other rates), after a re-sort that
+ * always leaves its permutation in the system's buffer (no list with a skin). */
+static int rates_by_perm(const consph_solver *s)
+{
+    return s->reuse_rates && !s->scheme->transport && search_follows_drift(s);
+}
+
 /* The re-sort into cell order at a step's start, carrying only the fields whose values the
- * step or the output can read before writing them (state_carried): the others are hidden from
- * the permutation and put back in their places after it. */
+ * step or the output can read before writing them (state_carried), and not the last rates
+ * where the first update reads them through the permutation (rates_by_perm): the others are
+ * hidden from the permutation and put back in their places after it. */
 static int resort_carried(consph_solver *s)
 {
     consph_particles *p = s->sys.p;
     consph_field all[CONSPH_MAX_FIELDS];
-    const int nf = p->nfields;
+    const int nf = p->nfields, by_perm = rates_by_perm(s);
     memcpy(all, p->fields, (size_t)nf * sizeof all[0]);
     int k = 0;
     for (int f = 0; f < nf; ++f)
-        if (state_carried(s, all[f].name)) p->fields[k++] = all[f];
+        if (state_carried(s, all[f].name) &&
+            !(by_perm && (!strcmp(all[f].name, SF_AU) || !strcmp(all[f].name, SF_AQ) ||
+                          !strcmp(all[f].name, SF_AX))))
+            p->fields[k++] = all[f];
     p->nfields = k;
     const int st = consph_sys_update(&s->sys, 1);
     memcpy(p->fields, all, (size_t)nf * sizeof all[0]);
@@ -559,8 +587,14 @@ static int integ_state_of(consph_solver *s, integ_state *is)
     is->ctx = s;
     is->rates = integ_rates;
     is->close = integ_close;
+    s->eos_rhof = sv_field(s, SF_RHOF, 1);
+    s->eos_p = sv_field(s, SF_P, 1);
+    if (!s->eos_rhof || !s->eos_p) return CONSPH_ENOMEM;
+    is->close_range = s->scheme->closure ? NULL : integ_close_range;
     is->transport = s->scheme->transport ? integ_transport : NULL;
     is->moved = integ_moved;
+    /* the permutation of the re-sort just made (consph_sys_update leaves it there) */
+    is->kperm = moves && !s->par && rates_by_perm(s) ? s->sys.resort_buf : NULL;
     return CONSPH_OK;
 }
 

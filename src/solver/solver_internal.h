@@ -232,6 +232,8 @@ struct consph_solver {
     const problem_def *prob;
     const struct integ_def *integ; /* the integrator's row (src/integrators/integrators.h) */
     double *integ_scratch;         /* the row's scratch arrays, dead between steps */
+    /* ϱ and p of the step in progress, for the EOS of a block of particles (integ_state_of) */
+    double *eos_rhof, *eos_p;
     consph_sys sys;
     int dim;
     double h, ds, nu, c0, mass, D; /* D = δ h c_o */
@@ -326,8 +328,16 @@ int solver_hist_push(consph_solver *s, const consph_step_diag *g);
  * snapshot. */
 int solver_sample(consph_solver *s);
 extern const char *const solver_sample_fields[]; /* what it reads (diag.c) */
-/* Kinetic energy Σ m |u|²/2, as consph_solver_diag computes it (bit for bit). */
-int solver_kinetic_energy(consph_solver *s, double *ke);
+/* m |u|²/2 of one particle, the one expression of the diagnostics and the checks (so that their
+ * kinetic energies are the same bits). */
+static inline double kinetic_energy_of(double m, double ux, double uy, double uz, int d)
+{
+    return 0.5 * m * (d == 3 ? ux * ux + uy * uy + uz * uz : ux * ux + uy * uy);
+}
+/* The column of the kinetic energy's terms, one per particle, for solver_check_valid to write in
+ * its sweep of the state and sum with consph_sum as consph_solver_diag sums its own (diag.c's
+ * buffer, kept between calls); NULL with CONSPH_ENOMEM recorded. */
+double *solver_ke_column(consph_solver *s);
 void solver_position_of(const consph_particles *p, size_t i, double x[3]);
 double solver_auth_time(const consph_solver *s, int k);
 int solver_auth_sample(consph_solver *s);

@@ -102,6 +102,12 @@ int solver_check_valid(consph_solver *s)
     const double *u = sv_field(s, SF_U, d), *rf = sv_field(s, SF_RHOF, 1);
     const double *pr = sv_field(s, SF_P, 1), *id = sv_field(s, SF_ID, 1);
     if (!u || !rf || !pr || !id) return CONSPH_EINVAL;
+    /* the kinetic energy's terms are written in the same sweep, which reads u already (with
+     * the uniform mass; below with each particle's, where the scheme has them) */
+    const consph_field *fm = consph_particles_find(p, SF_MASS);
+    const double *mass = fm ? fm->data : NULL, m0 = s->mass;
+    double *w = solver_ke_column(s);
+    if (!w) return CONSPH_ENOMEM;
     const double r0 = s->prm.rho0;
     /* edac evolves p on its own, with no EOS: its ϱ is a summation density that only weights
      * its sums, and a uniform drift of p moves nothing (its force takes p - p̄) */
@@ -121,9 +127,13 @@ int solver_check_valid(consph_solver *s)
                          (rf[i] - rf[i]) + (pr[i] - pr[i]);
             const double u2 = ux * ux + uy * uy;
             u2max = u2 > u2max ? u2 : u2max;
-            const double c = compressible ? fabs(rf[i] / r0 - 1.0) : 0.0;
+            w[i] = kinetic_energy_of(m0, ux, uy, 0.0, 2);
+            /* for every particle, and dropped after the loop where it does not apply: a branch
+             * here, with the store above, would keep the loop from vectorising */
+            const double c = fabs(rf[i] / r0 - 1.0);
             cmax = c > cmax ? c : cmax;
         }
+        if (!compressible) cmax = 0.0;
     } else {
 #pragma omp parallel for schedule(static) reduction(max : u2max, cmax) reduction(+ : nonfinite) \
     if (n >= SOLVER_PARALLEL_MIN)
@@ -135,20 +145,27 @@ int solver_check_valid(consph_solver *s)
                 u2 += u[a * cap + i] * u[a * cap + i];
             }
             u2max = u2 > u2max ? u2 : u2max;
+            w[i] = kinetic_energy_of(m0, u[i], d > 1 ? u[cap + i] : 0.0,
+                                     d == 3 ? u[2 * cap + i] : 0.0, d);
             if (compressible) {
                 const double c = fabs(rf[i] / r0 - 1.0);
                 cmax = c > cmax ? c : cmax;
             }
         }
     }
+    /* a scheme with masses of its own: their terms in a sweep of their own, so that the loops
+     * above stay branch-free (a load of mass[i] or not in the 2D one kept it from vectorising) */
+    if (mass)
+#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
+        for (size_t i = 0; i < n; ++i)
+            w[i] = kinetic_energy_of(mass[i], u[i], d > 1 ? u[cap + i] : 0.0,
+                                     d == 3 ? u[2 * cap + i] : 0.0, d);
     if (nonfinite != 0.0) {
         const int st = solver_check_finite(s);
         if (st != CONSPH_OK) return st;
     }
     const double ke0 = s->hist[6]; /* row 0: the initial state */
-    double ke;
-    int st = solver_kinetic_energy(s, &ke);
-    if (st != CONSPH_OK) return st;
+    const double ke = consph_sum(w, n);
     /* the particle to name is looked for only when a bound is passed, by the same expressions */
     if (sqrt(u2max) / s->c0 <= CONSPH_VALID_MACH && cmax <= CONSPH_VALID_COMPRESSION &&
         !(ke > ke0 * (1.0 + CONSPH_VALID_KE_GROWTH)))
