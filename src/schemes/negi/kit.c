@@ -381,8 +381,9 @@ unsigned long kit_group_passes = 0;
 /* Whether the volumes and derivatives run chained where the list allows (0: one after the
  * other, the same values; tests/test_kit_group.c compares the two), and how many chains ran. */
 int kit_chain_passes = 1;
-/* Passes 1 and coupled_bc that ran over groups (for tests: that they did). */
-unsigned long kit_group_firsts = 0, kit_group_coupled = 0;
+/* Passes 1 and coupled_bc that ran over groups, and coupled_bc passes that ran per particle
+ * from pass 1's pack (coupled_pk_of) (for tests: that they did). */
+unsigned long kit_group_firsts = 0, kit_group_coupled = 0, kit_coupled_packed = 0;
 /* coupled_bc's group visit reads four lanes' pairs side by side; the chained pass runs a few
  * neighbourhoods behind the fill, and once the state's pair cache is larger than about this many
  * bytes those pairs come from the last-level cache, where the per-particle visit's single
@@ -730,6 +731,40 @@ KIT_CLONES static void coupled_pk_210(void *vjob, const consph_nbhd *nb)
     job->lapu[cap + i] = acc[1];
 }
 
+/* coupled_pk_210 with ∇²q beside ∇²u (2D: TV-C, PE-IPST-C, E-C), from the pack {G, ∇q, ω, -}
+ * (stride 8, kit_pack2_stride): the second vector load brings ∇q_j and ω_j, so no field is read at
+ * j. ∇q's two products take lanes 0 and 1 of e as G's rows take d's, and the lanes' sums are
+ * gathered side by side, S = {Σ_b row 0, Σ_b row 1, Σ_b ∇q, -}, so acc's lane 2 is
+ * kit_coupled_pair's accq bit for bit (lane 3, from the pack's unused slot, is never stored). */
+KIT_CLONES static void coupled_pk_211(void *vjob, const consph_nbhd *nb)
+{
+    const kit_job *job = vjob;
+    const size_t i = nb->i, cap = job->cap;
+    const double *pk = job->pk2, *dx0 = nb->dx[0], *dx1 = nb->dx[1];
+    const double *dwr = nb->dwr, *bo = job->bonet, *gu = job->gradu, *gq = job->gradq;
+    const lane4 B = {bo[i], bo[cap + i], bo[2 * cap + i], bo[3 * cap + i]};
+    const lane4 Gi = {gu[i], gu[cap + i], gu[2 * cap + i], gu[3 * cap + i]};
+    const lane4 qi = {gq[i], gq[cap + i], 0.0, 0.0};
+    const lane4 z = {0.0, -0.0, 0.0, -0.0};
+    lane4 acc = {0.0, 0.0, 0.0, 0.0};
+    for (size_t k = 0; k < nb->n; ++k) {
+        const size_t j = nb->j[k];
+        const double w1 = dwr[k];
+        const lane4 gr = (lane4){w1, w1, w1, w1} * (lane4){dx0[k], dx1[k], dx0[k], dx1[k]};
+        const lane4 t = B * gr + z;
+        const lane4 g = LANE4_SHUF(t, t, 0, 2, 0, 2) + LANE4_SHUF(t, t, 1, 3, 1, 3);
+        const lane4 c = *(const lane4u *)(pk + 8 * j + 4);
+        const lane4 d = (*(const lane4u *)(pk + 8 * j) - Gi) * g + z;
+        const lane4 e = (c - qi) * g + z;
+        const double om = c[2];
+        acc +=
+            (lane4){om, om, om, om} * (LANE4_SHUF(d, e, 0, 2, 4, 4) + LANE4_SHUF(d, e, 1, 3, 5, 5));
+    }
+    job->lapu[i] = acc[0];
+    job->lapu[cap + i] = acc[1];
+    job->lapq[i] = acc[2];
+}
+
 /* visit_second over groups where it runs coupled_bc only (∇²u coupled, or ∇²q alone); NULL for
  * the other Laplacians and 1D (the per-particle visits) */
 static pass_group_fn group_second_of(const kit_req *rq, int d)
@@ -745,10 +780,10 @@ static pass_group_fn group_first_of(int d, int with_p, int with_u, int with_q)
     return group_firsts[d - 1][with_p][with_u][with_q];
 }
 
-/* coupled_bc's ∇²u alone per particle from the pack (2D only) */
-static consph_visit_fn coupled_pk_of(int d)
+/* coupled_bc's ∇²u, alone or with ∇²q, per particle from the pack (2D only) */
+static consph_visit_fn coupled_pk_of(int d, int with_q)
 {
-    return d == 2 ? coupled_pk_210 : NULL;
+    return d == 2 ? (with_q ? coupled_pk_211 : coupled_pk_210) : NULL;
 }
 #if !defined(__clang__)
 #pragma GCC diagnostic pop
@@ -758,7 +793,7 @@ static consph_visit_fn coupled_pk_of(int d)
 #define group_first_of(d, with_p, with_u, with_q)                                                  \
     ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (pass_group_fn)NULL)
 #define group_second_of(rq, d) ((void)(rq), (void)(d), (pass_group_fn)NULL)
-#define coupled_pk_of(d) ((void)(d), (consph_visit_fn)NULL)
+#define coupled_pk_of(d, with_q) ((void)(d), (void)(with_q), (consph_visit_fn)NULL)
 #endif
 
 /* A pass with its group visit where the system and the compiler allow one, else per particle. */
@@ -790,7 +825,7 @@ int kit_volumes(consph_sys *s, size_t *pairs)
  * pair cache where it serves them (src/pass/nlist.c, nlist_chain_run), else one after the
  * other. */
 static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes,
-                      const int with_volumes)
+                      const int with_volumes, const consph_pass *then, void *then_job)
 {
     consph_particles *p = s->p;
     const int d = p->dim;
@@ -857,12 +892,12 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need2 |= CONSPH_PASS_D2W;
     const pass_group_fn group_second =
         lanes && coupled_lanes_pay(s) ? group_second_of(&r, d) : NULL;
-    /* where coupled_bc's ∇²u alone runs per particle, it reads G_j from pass 1's pack (2D:
-     * coupled_pk_of) */
-    const consph_visit_fn visit_pk = lanes && !group_second && (want & KIT_LAPU) &&
-                                             rq->lap == KIT_LAP_COUPLED && !(want & KIT_LAPQ)
-                                         ? coupled_pk_of(d)
-                                         : NULL;
+    /* where coupled_bc's ∇²u (and ∇²q) runs per particle, it reads G_j (and ∇q_j, ω_j) from
+     * pass 1's pack (2D: coupled_pk_of) */
+    const consph_visit_fn visit_pk =
+        lanes && !group_second && (want & KIT_LAPU) && rq->lap == KIT_LAP_COUPLED
+            ? coupled_pk_of(d, (want & KIT_LAPQ) != 0)
+            : NULL;
     const consph_pass second = {"kit: laplacians", need2, visit_pk ? visit_pk : visit_second};
     /* the packs the group visits read: pass 1's filled by the volume visits or from the fixed
      * volumes here, coupled_bc's by pass 1 (first_store) */
@@ -887,17 +922,21 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     const int with_second = (want & (KIT_LAPU | KIT_LAPQ)) != 0;
     int st = CONSPH_OK;
     if (with_volumes && kit_chain_passes && s->nlist && nlist_serves(s->nlist, p->n)) {
-        const block_visitor_in chain[3] = {
-            {&volume_pass, kit_group_visits ? group_volume : NULL, &vj},
-            {&first, group_first, &job},
-            {&second, group_second, &job}};
+        block_visitor_in chain[4] = {{&volume_pass, kit_group_visits ? group_volume : NULL, &vj, 0},
+                                     {&first, group_first, &job, 0},
+                                     {&second, group_second, &job, 0},
+                                     {NULL, NULL, NULL, 0}};
         const int count = 2 + with_second;
+        /* then last: it reads the volumes at the neighbours, which every pass before it waits
+         * for too */
+        if (then) chain[count] = (block_visitor_in){then, NULL, then_job, 1};
         int ran = 0;
-        st = nlist_chain_run(s, chain, count, pairs, &ran);
+        st = nlist_chain_run(s, chain, count + (then != NULL), pairs, &ran);
         if (st == CONSPH_OK && ran) {
             ++kit_chains;
             if (group_first) ++kit_group_firsts;
             if (group_second && with_second) ++kit_group_coupled;
+            if (visit_pk) ++kit_coupled_packed;
             *passes += count;
             free(job.bonet_ok);
             return CONSPH_OK;
@@ -915,18 +954,26 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         ran = kit_group_passes;
         st = kit_run(s, &second, group_second, &job, pairs);
         if (group_second && kit_group_passes != ran) ++kit_group_coupled;
+        if (st == CONSPH_OK && visit_pk) ++kit_coupled_packed;
         if (st == CONSPH_OK) ++*passes;
     }
     free(job.bonet_ok);
+    if (st == CONSPH_OK && then) st = consph_pass_run(s, then, then_job);
     return st;
 }
 
 int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes)
 {
-    return kit_passes(s, rq, pairs, passes, 0);
+    return kit_passes(s, rq, pairs, passes, 0, NULL, NULL);
 }
 
 int kit_volumes_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes)
 {
-    return kit_passes(s, rq, pairs, passes, 1);
+    return kit_passes(s, rq, pairs, passes, 1, NULL, NULL);
+}
+
+int kit_volumes_derivatives_then(consph_sys *s, const kit_req *rq, const consph_pass *then,
+                                 void *then_job, size_t *pairs, int *passes)
+{
+    return kit_passes(s, rq, pairs, passes, 1, then, then_job);
 }
