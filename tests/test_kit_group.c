@@ -4,7 +4,7 @@
  * from the group traversal's own gather (padded lanes, src/pass/group.c, a system without a
  * list): every field after every step equals, bit for bit, the passes run one after the other
  * with per-particle visits (kit_chain_passes = kit_group_visits = 0). 001's schemes that use them
- * (L-IPST-C with IPST, L-PST-C, PE-IPST-C's ∇²p, TV-C's ∇q, E-C's fixed volumes, EWCSPH's
+ * (L-IPST-C with IPST, L-PST-C, PE-IPST-C's ∇²p, TV-C's ∇q and PST, E-C's fixed volumes, EWCSPH's
  * Cleary and L-IPST-F's Fatehi_c Laplacians), 2D and 3D, from a random layout (uneven neighbour
  * counts: lanes of different lengths, groups of fewer than four), skin 0 and 0.2, 1 and 2
  * threads (the wavefront's share of blocks per thread), and nx 100 (more blocks than a
@@ -20,7 +20,7 @@
 /* src/schemes/negi/kit.c */
 extern int kit_group_visits, kit_chain_passes;
 extern unsigned long kit_group_passes, kit_chains, kit_group_firsts, kit_group_coupled,
-    kit_coupled_packed;
+    kit_coupled_packed, kit_first_packed;
 extern double kit_coupled_lanes_bytes;
 
 static consph_solver *make(const char *scheme, const char *problem, int nx, double skin)
@@ -220,7 +220,16 @@ int main(void)
     compare("pe-ipst-c", "taylor-green", 12, 0.0, 0, 2);
     compare("pe-ipst-c", "beltrami", 5, 0.0, 1, 1);
     compare("tv-c", "taylor-green", 12, 0.0, 0, 1);
+    /* the fixed volumes' pass 1 over the filled cache per particle from its pack (first_pk_of),
+     * E-C's with ∇q, EWCSPH's without */
+    const unsigned long first_packed = kit_first_packed;
     compare("e-c", "taylor-green", 12, 0.0, 0, 1);
+    compare("ewcsph", "taylor-green", 12, 0.0, 0, 1);
+#if defined(__GNUC__)
+    CHECK(kit_first_packed - first_packed >= 16, "%lu passes 1 from the pack",
+          kit_first_packed - first_packed);
+#endif
+    (void)first_packed;
     compare("ewcsph", "taylor-green", 12, 0.0, 1, 1);
     compare("l-ipst-f", "taylor-green", 12, 0.0, 0, 1);
     return check_summary("test_kit_group");

@@ -384,6 +384,8 @@ int kit_chain_passes = 1;
 /* Passes 1 and coupled_bc that ran over groups, and coupled_bc passes that ran per particle
  * from pass 1's pack (coupled_pk_of) (for tests: that they did). */
 unsigned long kit_group_firsts = 0, kit_group_coupled = 0, kit_coupled_packed = 0;
+/* Passes 1 that ran per particle from their pack (first_pk_of; for tests) */
+unsigned long kit_first_packed = 0;
 /* coupled_bc's group visit reads four lanes' pairs side by side; the chained pass runs a few
  * neighbourhoods behind the fill, and once the state's pair cache is larger than about this many
  * bytes those pairs come from the last-level cache, where the per-particle visit's single
@@ -780,6 +782,58 @@ static pass_group_fn group_first_of(int d, int with_p, int with_u, int with_q)
     return group_firsts[d - 1][with_p][with_u][with_q];
 }
 
+/* first_body in 2D with ∇p and G (and ∇q: Q) at one particle, for a pass 1 that runs per particle
+ * (E-C's and EWCSPH's, over the pair cache filled once for the run): the values at j from pass
+ * 1's pack, {ω, p, u_0, u_1} (and q next), in one vector load, and each pair's terms four at a
+ * time. Lanes {1, p_j - p_i, u_j - u_i} times ω_j then W'/r give {g, t_p, t_u0, t_u1} of
+ * kit_first_pair (ω_j 1 = ω_j exactly); the moment's terms are (g x_a) x_b, the gradients'
+ * t x_b, each lane's sum runs over the pairs in their order, so the sums, and first_store's
+ * results, are first_body's bit for bit (lanes 0 and 1 of sp sum g x, never read). */
+TERM_INLINE void first_pk_body(const kit_job *job, const consph_nbhd *nb, const int Q)
+{
+    const size_t i = nb->i, cap = job->cap;
+    const int S = job->s1;
+    const double *pk = job->pk1, *dx0 = nb->dx[0], *dx1 = nb->dx[1], *dwr = nb->dwr;
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0}, one = {1.0, 1.0, 1.0, 1.0};
+    const lane4 fi = {0.0, job->p[i], job->u[i], job->u[cap + i]};
+    const double qi = Q ? job->q[i] : 0.0;
+    lane4 SM = zero, SP = zero, SU = zero, SQ = zero;
+    for (size_t k = 0; k < nb->n; ++k) {
+        const double *v = pk + nb->j[k] * (size_t)S;
+        const lane4 f = *(const lane4u *)v;
+        const double om = f[0], w1 = dwr[k];
+        const lane4 x = {dx0[k], dx1[k], dx0[k], dx1[k]};
+        const lane4 d = LANE4_SHUF(one, f - fi, 0, 5, 6, 7);
+        const lane4 t = (lane4){om, om, om, om} * d * (lane4){w1, w1, w1, w1};
+        const lane4 a = LANE4_SHUF(t, t, 0, 0, 1, 1) * x;
+        SM = SM - LANE4_SHUF(a, a, 0, 0, 1, 1) * x;
+        SP = SP + a;
+        SU = SU + LANE4_SHUF(t, t, 2, 2, 3, 3) * x;
+        if (Q) {
+            const double tq = om * (v[4] - qi) * w1;
+            SQ = SQ + (lane4){tq, tq, tq, tq} * x;
+        }
+    }
+    const double sm[9] = {SM[0], SM[1], SM[2], SM[3]}, sp[3] = {SP[2], SP[3], 0.0};
+    const double su[9] = {SU[0], SU[1], SU[2], SU[3]}, sq[3] = {SQ[0], SQ[1], 0.0};
+    first_store(job, i, 2, 1, 1, Q, sm, sp, su, sq);
+}
+
+KIT_CLONES static void first_pk_2110(void *job, const consph_nbhd *nb)
+{
+    first_pk_body(job, nb, 0);
+}
+KIT_CLONES static void first_pk_2111(void *job, const consph_nbhd *nb)
+{
+    first_pk_body(job, nb, 1);
+}
+
+/* pass 1 per particle from its pack: 2D with ∇p and G (or ∇·u), with or without ∇q */
+static consph_visit_fn first_pk_of(int d, int with_p, int with_u, int with_q)
+{
+    return d == 2 && with_p && with_u ? (with_q ? first_pk_2111 : first_pk_2110) : NULL;
+}
+
 /* coupled_bc's ∇²u, alone or with ∇²q, per particle from the pack (2D only) */
 static consph_visit_fn coupled_pk_of(int d, int with_q)
 {
@@ -794,6 +848,8 @@ static consph_visit_fn coupled_pk_of(int d, int with_q)
     ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (pass_group_fn)NULL)
 #define group_second_of(rq, d) ((void)(rq), (void)(d), (pass_group_fn)NULL)
 #define coupled_pk_of(d, with_q) ((void)(d), (void)(with_q), (consph_visit_fn)NULL)
+#define first_pk_of(d, with_p, with_u, with_q)                                                     \
+    ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (consph_visit_fn)NULL)
 #endif
 
 /* A pass with its group visit where the system and the compiler allow one, else per particle. */
@@ -881,13 +937,17 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     const consph_visit_fn visit_first =
         first_visits[d - 1][(want & KIT_GRADP) != 0][(want & (KIT_GRADU | KIT_DIVU)) != 0]
                     [(want & KIT_GRADQ) != 0];
-    const consph_pass first = {"kit: bonet, gradients, divergence", CONSPH_PASS_DW, visit_first};
     const int gp = (want & KIT_GRADP) != 0, gu = (want & (KIT_GRADU | KIT_DIVU)) != 0,
               gq = (want & KIT_GRADQ) != 0;
     /* a decomposed system or a destination mask runs the per-particle visits (pass_run_groups
      * declines them): no packs, which a decomposed system's halo refresh would carry */
     const int lanes = kit_group_visits && !s->split && !s->dest;
     const pass_group_fn group_first = lanes ? group_first_of(d, gp, gu, gq) : NULL;
+    /* where pass 1 runs per particle (over a filled cache), it reads its pack too (2D:
+     * first_pk_of) */
+    const consph_visit_fn visit_first_pk = group_first ? first_pk_of(d, gp, gu, gq) : NULL;
+    const consph_pass first = {"kit: bonet, gradients, divergence", CONSPH_PASS_DW,
+                               visit_first_pk ? visit_first_pk : visit_first};
     unsigned need2 = CONSPH_PASS_DW;
     if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need2 |= CONSPH_PASS_D2W;
     const pass_group_fn group_second =
@@ -954,6 +1014,7 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     unsigned long ran = kit_group_passes;
     if (st == CONSPH_OK) st = kit_run(s, &first, group_first, &job, pairs);
     if (group_first && kit_group_passes != ran) ++kit_group_firsts;
+    if (st == CONSPH_OK && visit_first_pk && kit_group_passes == ran) ++kit_first_packed;
     if (st == CONSPH_OK) ++*passes;
     if (st == CONSPH_OK && with_second) {
         ran = kit_group_passes;
