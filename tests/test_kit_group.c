@@ -4,7 +4,7 @@
  * from the group traversal's own gather (padded lanes, src/pass/group.c, a system without a
  * list): every field after every step equals, bit for bit, the passes run one after the other
  * with per-particle visits (kit_chain_passes = kit_group_visits = 0). 001's schemes that use them
- * (L-IPST-C with IPST, L-PST-C, PE-IPST-C's ∇²p, TV-C's ∇q, E-C's fixed volumes, EWCSPH's
+ * (L-IPST-C with IPST, L-PST-C, PE-IPST-C's ∇²p, TV-C's ∇q and PST, E-C's fixed volumes, EWCSPH's
  * Cleary and L-IPST-F's Fatehi_c Laplacians), 2D and 3D, from a random layout (uneven neighbour
  * counts: lanes of different lengths, groups of fewer than four), skin 0 and 0.2, 1 and 2
  * threads (the wavefront's share of blocks per thread), and nx 100 (more blocks than a
@@ -19,7 +19,8 @@
 
 /* src/schemes/negi/kit.c */
 extern int kit_group_visits, kit_chain_passes;
-extern unsigned long kit_group_passes, kit_chains, kit_group_firsts, kit_group_coupled;
+extern unsigned long kit_group_passes, kit_chains, kit_group_firsts, kit_group_coupled,
+    kit_coupled_packed, kit_first_packed;
 extern double kit_coupled_lanes_bytes;
 
 static consph_solver *make(const char *scheme, const char *problem, int nx, double skin)
@@ -105,11 +106,14 @@ static void scale_up(consph_solver *s, double f)
  * with the volumes fixed, pass 1 over groups while it fills the cache; 2: g without a list, both
  * passes over the group traversal's padded lanes; 3: as 0 after a first run on the same
  * positions with u and p doubled, so that the second chains over the cache the first filled and
- * any value it read before its pass wrote it would be the first run's. Random layouts (uneven
+ * any value it read before its pass wrote it would be the first run's; 4: as 0 with coupled_bc
+ * per particle from pass 1's pack (in 2D, coupled_pk_210 and coupled_pk_211, where the state's
+ * pairs outgrow the caches at run time). Random layouts (uneven
  * neighbour counts: lanes that run out at different entries) with n not a multiple of four (groups
  * of fewer lanes). */
 static void compare_kit(const char *problem, int nx, int mode)
 {
+    const int dim3 = !strcmp(problem, "beltrami");
     char what[200];
     check_set_threads(1);
     consph_solver *g = make("l-ipst-c", problem, nx, 0.0), *v = make("l-ipst-c", problem, nx, 0.0);
@@ -120,8 +124,10 @@ static void compare_kit(const char *problem, int nx, int mode)
     }
     if (mode == 2) CHECK(consph_sys_nlist(&g->sys, -1.0, NULL, 0) == CONSPH_OK, "list off");
     const double bytes = kit_coupled_lanes_bytes;
-    kit_coupled_lanes_bytes = 1e300; /* coupled_bc over groups at any size */
+    /* coupled_bc over groups at any size, or (mode 4) at none */
+    kit_coupled_lanes_bytes = mode == 4 ? 0.0 : 1e300;
     const unsigned long firsts = kit_group_firsts, coupled = kit_group_coupled;
+    const unsigned long packed = kit_coupled_packed;
     const unsigned long filled = nlist_chain_filled, recycled = nlist_chain_recycled;
     size_t pairs = 0;
     int passes = 0;
@@ -164,27 +170,32 @@ static void compare_kit(const char *problem, int nx, int mode)
      * coupled: 32 combinations, ∇²q alone: 16), except after a pass 1 that filled the cache */
     CHECK(kit_group_firsts - firsts == (mode == 3 ? 190u : 95u),
           "%s mode %d: %lu passes 1 over groups", problem, mode, kit_group_firsts - firsts);
-    CHECK(kit_group_coupled - coupled == (mode == 1   ? 0u
-                                          : mode == 3 ? 96u
-                                                      : 48u),
+    CHECK(kit_group_coupled - coupled == (mode == 1 || mode == 4 ? 0u
+                                          : mode == 3            ? 96u
+                                                                 : 48u),
           "%s mode %d: %lu coupled_bc passes over groups", problem, mode,
           kit_group_coupled - coupled);
+    /* mode 4 in 2D: every ∇²u coupled (32 combinations) from the pack */
+    CHECK(kit_coupled_packed - packed == (mode == 4 && !dim3 ? 32u : 0u),
+          "%s mode %d: %lu coupled_bc passes from the pack", problem, mode,
+          kit_coupled_packed - packed);
 #endif
     CHECK(nlist_chain_filled - filled == (mode == 3 ? 95u : 0u),
           "%s mode %d: %lu chains over a filled cache", problem, mode, nlist_chain_filled - filled);
-    /* mode 0: the 80 chains with a Laplacian (three passes, as announced) */
-    CHECK(nlist_chain_recycled - recycled == (mode == 0 ? 80u : 0u),
+    /* modes 0 and 4: the 80 chains with a Laplacian (three passes, as announced) */
+    CHECK(nlist_chain_recycled - recycled == (mode == 0 || mode == 4 ? 80u : 0u),
           "%s mode %d: %lu chains recycled their pairs", problem, mode,
           nlist_chain_recycled - recycled);
     (void)firsts;
     (void)coupled;
+    (void)packed;
     consph_solver_free(g);
     consph_solver_free(v);
 }
 
 int main(void)
 {
-    for (int mode = 0; mode < 4; ++mode) {
+    for (int mode = 0; mode < 5; ++mode) {
         compare_kit("taylor-green", 13, mode);
         compare_kit("beltrami", 5, mode);
     }
@@ -209,7 +220,16 @@ int main(void)
     compare("pe-ipst-c", "taylor-green", 12, 0.0, 0, 2);
     compare("pe-ipst-c", "beltrami", 5, 0.0, 1, 1);
     compare("tv-c", "taylor-green", 12, 0.0, 0, 1);
+    /* the fixed volumes' pass 1 over the filled cache per particle from its pack (first_pk_of),
+     * E-C's with ∇q, EWCSPH's without */
+    const unsigned long first_packed = kit_first_packed;
     compare("e-c", "taylor-green", 12, 0.0, 0, 1);
+    compare("ewcsph", "taylor-green", 12, 0.0, 0, 1);
+#if defined(__GNUC__)
+    CHECK(kit_first_packed - first_packed >= 16, "%lu passes 1 from the pack",
+          kit_first_packed - first_packed);
+#endif
+    (void)first_packed;
     compare("ewcsph", "taylor-green", 12, 0.0, 1, 1);
     compare("l-ipst-f", "taylor-green", 12, 0.0, 0, 1);
     return check_summary("test_kit_group");

@@ -952,6 +952,7 @@ typedef struct block_visitor {
     pass_group_fn group;
     void *job;
     unsigned need;
+    int uncounted; /* its pairs are not added to the chain's count */
 } block_visitor;
 
 /* Slot sl's cached neighbourhood with the values `need` asks for. */
@@ -988,7 +989,7 @@ static size_t visit_block(const consph_sys *s, const nlist_block *b, const block
             }
             bv->group(bv->job, nb, count);
         }
-        return visited;
+        return bv->uncounted ? 0 : visited;
     }
     for (size_t sl = b->s0; sl < b->s1; ++sl) {
         if (dest && !dest[particle_of(l, sl)]) continue;
@@ -997,7 +998,7 @@ static size_t visit_block(const consph_sys *s, const nlist_block *b, const block
         bv->pass->visit(bv->job, &nb);
         visited += nb.n;
     }
-    return visited;
+    return bv->uncounted ? 0 : visited;
 }
 
 /* Counts a pass on the current position state and, where the cache serves it (cache_serves
@@ -1093,7 +1094,7 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
     consph_nlist *l = s->nlist;
     const unsigned need = pass->need;
     int served = 0;
-    const block_visitor bv = {pass, NULL, job, need};
+    const block_visitor bv = {pass, NULL, job, need, 0};
     size_t visited = 0;
     const int st = cache_ready(s, need, pass->name, &served, &bv, &visited);
     if (st != CONSPH_OK) return st;
@@ -1115,7 +1116,7 @@ int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_g
      * filled cache are left to the per-particle pass, which counts the pass. */
     if (s->dest || (cache_serves(l) ? !fresh : l->skin != 0.0)) return CONSPH_OK;
     int served = 0;
-    const block_visitor bv = {NULL, visit, job, need};
+    const block_visitor bv = {NULL, visit, job, need, 0};
     size_t visited = 0;
     const int st = cache_ready(s, need, name, &served, &bv, &visited);
     *ran = served;
@@ -1224,7 +1225,8 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
     block_visitor bv[NLIST_CHAIN_MAX];
     unsigned want = 0;
     for (int k = 0; k < count; ++k) {
-        bv[k] = (block_visitor){in[k].pass, in[k].group, in[k].job, in[k].pass->need};
+        bv[k] =
+            (block_visitor){in[k].pass, in[k].group, in[k].job, in[k].pass->need, in[k].uncounted};
         const unsigned need = in[k].pass->need;
         if (need & CONSPH_PASS_W) want |= CONSPH_PASS_W;
         if (need & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) want |= CONSPH_PASS_DW;

@@ -21,11 +21,13 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
  * nothing counted (the per-particle pass serves it: a destination mask, a stream). */
 int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
                     void *job, size_t *pairs, int *ran);
-/* One pass of a chain (nlist_chain_run): its per-particle visit, and a group visit or NULL. */
+/* One pass of a chain (nlist_chain_run): its per-particle visit, and a group visit or NULL;
+ * uncounted: its pairs are left out of *pairs (a pass whose caller does not count it). */
 typedef struct block_visitor_in {
     const consph_pass *pass;
     pass_group_fn group;
     void *job;
+    int uncounted;
 } block_visitor_in;
 /* Passes in[0..count) on the current position state, each reading at the neighbours what the
  * one before wrote, in one wavefront over the pair cache (nlist.c), which it fills where this

@@ -362,8 +362,8 @@ static int ipst_chained(consph_sys *s, const consph_pass *shift, ipst_job *job, 
     const consph_pass volumes = {"IPST volumes 1/sum W", CONSPH_PASS_W | CONSPH_PASS_NO_DX,
                                  ipst_volume_visit};
     const int g = reg_ipst_groups;
-    const block_visitor_in chain[2] = {{&volumes, g ? IPST_VOLUME_GROUP : NULL, &vj},
-                                       {shift, g ? ipst_groups[job->dim - 1] : NULL, job}};
+    const block_visitor_in chain[2] = {{&volumes, g ? IPST_VOLUME_GROUP : NULL, &vj, 0},
+                                       {shift, g ? ipst_groups[job->dim - 1] : NULL, job, 0}};
     size_t pairs = 0;
     const int rc = nlist_chain_run(s, chain, 2, &pairs, ran);
     if (rc == CONSPH_OK && *ran) ++reg_ipst_chains;
@@ -451,17 +451,6 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
 
 /* ---- shifting of Sun et al. ---- */
 
-typedef struct pst_job {
-    double coef;    /* -CFL·Ma·(2h)² */
-    double inv_wds; /* 1/W(Δs) */
-    double R, n;
-    double cap_len; /* largest |δr|, +inf for none */
-    const double *vol;
-    double *dr;
-    size_t cap;
-    int dim;
-} pst_job;
-
 /* δr_i = -CFL·Ma·(2h)² Σ_j [1 + R (W_ij/W(Δs))^n] ∇W_ij V_j, capped in length. The self term
  * has ∇W = 0. n4: n is 4 (every caller's), the power taken as (t²)², which differs from pow()
  * at round-off and costs a fraction of it. */
@@ -469,35 +458,50 @@ typedef struct pst_job {
 __attribute__((always_inline))
 #endif
 static inline void
-pst_body(const pst_job *a, const consph_nbhd *nb, const int n4)
+pst_body(const reg_pst_job *a, const consph_nbhd *nb, const int n4, const int D)
 {
     double acc[CONSPH_MAX_DIM] = {0.0, 0.0, 0.0};
     for (size_t q = 0; q < nb->n; ++q) {
         const double t = nb->w[q] * a->inv_wds, t2 = t * t;
         const double f =
             (1.0 + a->R * (n4 ? t2 * t2 : pow(t, a->n))) * nb->dwr[q] * a->vol[nb->j[q]];
-        for (int c = 0; c < a->dim; ++c) acc[c] += f * nb->dx[c][q];
+        for (int c = 0; c < D; ++c) acc[c] += f * nb->dx[c][q];
     }
     double len2 = 0.0;
-    for (int c = 0; c < a->dim; ++c) {
+    for (int c = 0; c < D; ++c) {
         acc[c] *= a->coef;
         len2 += acc[c] * acc[c];
     }
     const double len = sqrt(len2);
     const double scale = len > a->cap_len ? a->cap_len / len : 1.0;
-    for (int c = 0; c < a->dim; ++c) a->dr[(size_t)c * a->cap + nb->i] = scale * acc[c];
+    for (int c = 0; c < D; ++c) a->dr[(size_t)c * a->cap + nb->i] = scale * acc[c];
 }
 
+/* The dimension known at compile time: the sums stay in registers (with a run-time count they
+ * went through the stack at every pair) */
 static void pst_visit(void *job, const consph_nbhd *nb)
 {
-    pst_body(job, nb, 0);
+    const int d = ((const reg_pst_job *)job)->dim;
+    if (d == 1)
+        pst_body(job, nb, 0, 1);
+    else if (d == 2)
+        pst_body(job, nb, 0, 2);
+    else
+        pst_body(job, nb, 0, 3);
 }
 static void pst_visit_n4(void *job, const consph_nbhd *nb)
 {
-    pst_body(job, nb, 1);
+    const int d = ((const reg_pst_job *)job)->dim;
+    if (d == 1)
+        pst_body(job, nb, 1, 1);
+    else if (d == 2)
+        pst_body(job, nb, 1, 2);
+    else
+        pst_body(job, nb, 1, 3);
 }
 
-int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr)
+int reg_pst_pass(const consph_sys *s, const reg_pst_params *prm, double *dr, reg_pst_job *job,
+                 consph_pass *pass)
 {
     if (!s || !s->p || !prm || !dr)
         return consph_fail(CONSPH_EINVAL, "PST: needs a system, parameters and dr");
@@ -522,18 +526,26 @@ int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr)
     /* Particles outside a destination mask get no shift. */
     memset(dr, 0, (size_t)s->p->dim * cap * sizeof(double));
     const double twoh = 2.0 * prm->h;
-    pst_job job = {-prm->cfl * prm->mach * twoh * twoh,
-                   1.0 / wds,
-                   prm->R,
-                   prm->n,
-                   prm->max_shift > 0.0 ? prm->max_shift * prm->h : INFINITY,
-                   fv->data,
-                   dr,
-                   cap,
-                   s->p->dim};
-    const consph_pass pass = {"PST of Sun et al.", CONSPH_PASS_W | CONSPH_PASS_DW,
-                              prm->n == 4.0 ? pst_visit_n4 : pst_visit};
-    return consph_pass_run(s, &pass, &job);
+    *job = (reg_pst_job){-prm->cfl * prm->mach * twoh * twoh,
+                         1.0 / wds,
+                         prm->R,
+                         prm->n,
+                         prm->max_shift > 0.0 ? prm->max_shift * prm->h : INFINITY,
+                         fv->data,
+                         dr,
+                         cap,
+                         s->p->dim};
+    *pass = (consph_pass){"PST of Sun et al.", CONSPH_PASS_W | CONSPH_PASS_DW,
+                          prm->n == 4.0 ? pst_visit_n4 : pst_visit};
+    return CONSPH_OK;
+}
+
+int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr)
+{
+    reg_pst_job job;
+    consph_pass pass;
+    const int st = reg_pst_pass(s, prm, dr, &job, &pass);
+    return st != CONSPH_OK ? st : consph_pass_run(s, &pass, &job);
 }
 
 /* ---- remeshing ---- */

@@ -80,6 +80,21 @@ typedef struct reg_pst_params {
 /* δr_i = -cfl·mach·(2h)² Σ_j [1 + R (W_ij/W(ds))^n] ∇W_ij V_j of Sun et al. into dr (d × cap),
  * V_j from the field "volume"; 0 for particles outside a destination mask. Moves nothing. */
 int reg_pst_shift(const consph_sys *s, const reg_pst_params *prm, double *dr);
+/* reg_pst_shift's pass, for a caller that runs it itself (chained after the passes that make
+ * the volumes: kit_volumes_derivatives_then): checks prm, zeroes dr and fills job and pass;
+ * running pass with job then gives reg_pst_shift's dr. */
+typedef struct reg_pst_job {
+    double coef;    /* -CFL·Ma·(2h)² */
+    double inv_wds; /* 1/W(Δs) */
+    double R, n;
+    double cap_len; /* largest |δr|, +inf for none */
+    const double *vol;
+    double *dr;
+    size_t cap;
+    int dim;
+} reg_pst_job;
+int reg_pst_pass(const consph_sys *s, const reg_pst_params *prm, double *dr, reg_pst_job *job,
+                 consph_pass *pass);
 
 /* The shifting velocity δu = δr/Δt of Sun et al. (δr of reg_pst_shift with R = 0.2, n = 4 and
  * CFL·Ma·(2h)² = 4ΔtUh, no cap; docs/schemes.md) into the solver's field SF_SHIFT at the current
@@ -88,6 +103,12 @@ int solver_shift_velocity(consph_solver *s, double **du);
 /* The same for 001's TV-C as its authors compute it, δu = -2hU Σ_j (1 + 0.24 (W_ij/W(Δs))^4)
  * ∇W_ij V_j (no cap; docs/schemes.md, "Shifting constants"). */
 int solver_shift_velocity_tvc(consph_solver *s, double **du);
+/* solver_shift_velocity_tvc in two halves around its pass, for a caller that runs the pass
+ * itself (TV-C's rates, chained after the kit's passes): the field *du and the pass; then, once
+ * the pass has run, δr turned into δu (and the pass counted). */
+int solver_shift_velocity_tvc_pass(consph_solver *s, double **du, reg_pst_job *job,
+                                   consph_pass *pass);
+void solver_shift_velocity_tvc_finish(consph_solver *s, double *du);
 
 /* ---- remeshing (001 eqs. 32-33) ---- */
 

@@ -145,6 +145,13 @@ int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes
 /* kit_volumes then kit_derivatives, chained on the neighbour list's cache where it serves them
  * (the same values); adds pairs to *pairs, passes (the volumes' too) to *passes. */
 int kit_volumes_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes);
+/* kit_volumes_derivatives, then the pass `then` with then_job on the same positions, chained
+ * after them where they chain (its block's pairs read while still cached, and the chain the
+ * state's last reader where the caller announced its passes with it), else after them: a pass
+ * that reads the volumes (SF_VOL) at the neighbours and nothing else the kit writes, and writes
+ * nothing the kit reads. Its pairs are not counted (in *pairs) nor its pass (in *passes). */
+int kit_volumes_derivatives_then(consph_sys *s, const kit_req *rq, const consph_pass *then,
+                                 void *then_job, size_t *pairs, int *passes);
 
 /* ---- schemes ---- */
 typedef struct scheme_def {

@@ -381,8 +381,11 @@ unsigned long kit_group_passes = 0;
 /* Whether the volumes and derivatives run chained where the list allows (0: one after the
  * other, the same values; tests/test_kit_group.c compares the two), and how many chains ran. */
 int kit_chain_passes = 1;
-/* Passes 1 and coupled_bc that ran over groups (for tests: that they did). */
-unsigned long kit_group_firsts = 0, kit_group_coupled = 0;
+/* Passes 1 and coupled_bc that ran over groups, and coupled_bc passes that ran per particle
+ * from pass 1's pack (coupled_pk_of) (for tests: that they did). */
+unsigned long kit_group_firsts = 0, kit_group_coupled = 0, kit_coupled_packed = 0;
+/* Passes 1 that ran per particle from their pack (first_pk_of; for tests) */
+unsigned long kit_first_packed = 0;
 /* coupled_bc's group visit reads four lanes' pairs side by side; the chained pass runs a few
  * neighbourhoods behind the fill, and once the state's pair cache is larger than about this many
  * bytes those pairs come from the last-level cache, where the per-particle visit's single
@@ -730,6 +733,40 @@ KIT_CLONES static void coupled_pk_210(void *vjob, const consph_nbhd *nb)
     job->lapu[cap + i] = acc[1];
 }
 
+/* coupled_pk_210 with ∇²q beside ∇²u (2D: TV-C, PE-IPST-C, E-C), from the pack {G, ∇q, ω, -}
+ * (stride 8, kit_pack2_stride): the second vector load brings ∇q_j and ω_j, so no field is read at
+ * j. ∇q's two products take lanes 0 and 1 of e as G's rows take d's, and the lanes' sums are
+ * gathered side by side, S = {Σ_b row 0, Σ_b row 1, Σ_b ∇q, -}, so acc's lane 2 is
+ * kit_coupled_pair's accq bit for bit (lane 3, from the pack's unused slot, is never stored). */
+KIT_CLONES static void coupled_pk_211(void *vjob, const consph_nbhd *nb)
+{
+    const kit_job *job = vjob;
+    const size_t i = nb->i, cap = job->cap;
+    const double *pk = job->pk2, *dx0 = nb->dx[0], *dx1 = nb->dx[1];
+    const double *dwr = nb->dwr, *bo = job->bonet, *gu = job->gradu, *gq = job->gradq;
+    const lane4 B = {bo[i], bo[cap + i], bo[2 * cap + i], bo[3 * cap + i]};
+    const lane4 Gi = {gu[i], gu[cap + i], gu[2 * cap + i], gu[3 * cap + i]};
+    const lane4 qi = {gq[i], gq[cap + i], 0.0, 0.0};
+    const lane4 z = {0.0, -0.0, 0.0, -0.0};
+    lane4 acc = {0.0, 0.0, 0.0, 0.0};
+    for (size_t k = 0; k < nb->n; ++k) {
+        const size_t j = nb->j[k];
+        const double w1 = dwr[k];
+        const lane4 gr = (lane4){w1, w1, w1, w1} * (lane4){dx0[k], dx1[k], dx0[k], dx1[k]};
+        const lane4 t = B * gr + z;
+        const lane4 g = LANE4_SHUF(t, t, 0, 2, 0, 2) + LANE4_SHUF(t, t, 1, 3, 1, 3);
+        const lane4 c = *(const lane4u *)(pk + 8 * j + 4);
+        const lane4 d = (*(const lane4u *)(pk + 8 * j) - Gi) * g + z;
+        const lane4 e = (c - qi) * g + z;
+        const double om = c[2];
+        acc +=
+            (lane4){om, om, om, om} * (LANE4_SHUF(d, e, 0, 2, 4, 4) + LANE4_SHUF(d, e, 1, 3, 5, 5));
+    }
+    job->lapu[i] = acc[0];
+    job->lapu[cap + i] = acc[1];
+    job->lapq[i] = acc[2];
+}
+
 /* visit_second over groups where it runs coupled_bc only (∇²u coupled, or ∇²q alone); NULL for
  * the other Laplacians and 1D (the per-particle visits) */
 static pass_group_fn group_second_of(const kit_req *rq, int d)
@@ -745,10 +782,62 @@ static pass_group_fn group_first_of(int d, int with_p, int with_u, int with_q)
     return group_firsts[d - 1][with_p][with_u][with_q];
 }
 
-/* coupled_bc's ∇²u alone per particle from the pack (2D only) */
-static consph_visit_fn coupled_pk_of(int d)
+/* first_body in 2D with ∇p and G (and ∇q: Q) at one particle, for a pass 1 that runs per particle
+ * (E-C's and EWCSPH's, over the pair cache filled once for the run): the values at j from pass
+ * 1's pack, {ω, p, u_0, u_1} (and q next), in one vector load, and each pair's terms four at a
+ * time. Lanes {1, p_j - p_i, u_j - u_i} times ω_j then W'/r give {g, t_p, t_u0, t_u1} of
+ * kit_first_pair (ω_j 1 = ω_j exactly); the moment's terms are (g x_a) x_b, the gradients'
+ * t x_b, each lane's sum runs over the pairs in their order, so the sums, and first_store's
+ * results, are first_body's bit for bit (lanes 0 and 1 of sp sum g x, never read). */
+TERM_INLINE void first_pk_body(const kit_job *job, const consph_nbhd *nb, const int Q)
 {
-    return d == 2 ? coupled_pk_210 : NULL;
+    const size_t i = nb->i, cap = job->cap;
+    const int S = job->s1;
+    const double *pk = job->pk1, *dx0 = nb->dx[0], *dx1 = nb->dx[1], *dwr = nb->dwr;
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0}, one = {1.0, 1.0, 1.0, 1.0};
+    const lane4 fi = {0.0, job->p[i], job->u[i], job->u[cap + i]};
+    const double qi = Q ? job->q[i] : 0.0;
+    lane4 SM = zero, SP = zero, SU = zero, SQ = zero;
+    for (size_t k = 0; k < nb->n; ++k) {
+        const double *v = pk + nb->j[k] * (size_t)S;
+        const lane4 f = *(const lane4u *)v;
+        const double om = f[0], w1 = dwr[k];
+        const lane4 x = {dx0[k], dx1[k], dx0[k], dx1[k]};
+        const lane4 d = LANE4_SHUF(one, f - fi, 0, 5, 6, 7);
+        const lane4 t = (lane4){om, om, om, om} * d * (lane4){w1, w1, w1, w1};
+        const lane4 a = LANE4_SHUF(t, t, 0, 0, 1, 1) * x;
+        SM = SM - LANE4_SHUF(a, a, 0, 0, 1, 1) * x;
+        SP = SP + a;
+        SU = SU + LANE4_SHUF(t, t, 2, 2, 3, 3) * x;
+        if (Q) {
+            const double tq = om * (v[4] - qi) * w1;
+            SQ = SQ + (lane4){tq, tq, tq, tq} * x;
+        }
+    }
+    const double sm[9] = {SM[0], SM[1], SM[2], SM[3]}, sp[3] = {SP[2], SP[3], 0.0};
+    const double su[9] = {SU[0], SU[1], SU[2], SU[3]}, sq[3] = {SQ[0], SQ[1], 0.0};
+    first_store(job, i, 2, 1, 1, Q, sm, sp, su, sq);
+}
+
+KIT_CLONES static void first_pk_2110(void *job, const consph_nbhd *nb)
+{
+    first_pk_body(job, nb, 0);
+}
+KIT_CLONES static void first_pk_2111(void *job, const consph_nbhd *nb)
+{
+    first_pk_body(job, nb, 1);
+}
+
+/* pass 1 per particle from its pack: 2D with ∇p and G (or ∇·u), with or without ∇q */
+static consph_visit_fn first_pk_of(int d, int with_p, int with_u, int with_q)
+{
+    return d == 2 && with_p && with_u ? (with_q ? first_pk_2111 : first_pk_2110) : NULL;
+}
+
+/* coupled_bc's ∇²u, alone or with ∇²q, per particle from the pack (2D only) */
+static consph_visit_fn coupled_pk_of(int d, int with_q)
+{
+    return d == 2 ? (with_q ? coupled_pk_211 : coupled_pk_210) : NULL;
 }
 #if !defined(__clang__)
 #pragma GCC diagnostic pop
@@ -758,7 +847,9 @@ static consph_visit_fn coupled_pk_of(int d)
 #define group_first_of(d, with_p, with_u, with_q)                                                  \
     ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (pass_group_fn)NULL)
 #define group_second_of(rq, d) ((void)(rq), (void)(d), (pass_group_fn)NULL)
-#define coupled_pk_of(d) ((void)(d), (consph_visit_fn)NULL)
+#define coupled_pk_of(d, with_q) ((void)(d), (void)(with_q), (consph_visit_fn)NULL)
+#define first_pk_of(d, with_p, with_u, with_q)                                                     \
+    ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (consph_visit_fn)NULL)
 #endif
 
 /* A pass with its group visit where the system and the compiler allow one, else per particle. */
@@ -790,7 +881,7 @@ int kit_volumes(consph_sys *s, size_t *pairs)
  * pair cache where it serves them (src/pass/nlist.c, nlist_chain_run), else one after the
  * other. */
 static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes,
-                      const int with_volumes)
+                      const int with_volumes, const consph_pass *then, void *then_job)
 {
     consph_particles *p = s->p;
     const int d = p->dim;
@@ -846,23 +937,27 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     const consph_visit_fn visit_first =
         first_visits[d - 1][(want & KIT_GRADP) != 0][(want & (KIT_GRADU | KIT_DIVU)) != 0]
                     [(want & KIT_GRADQ) != 0];
-    const consph_pass first = {"kit: bonet, gradients, divergence", CONSPH_PASS_DW, visit_first};
     const int gp = (want & KIT_GRADP) != 0, gu = (want & (KIT_GRADU | KIT_DIVU)) != 0,
               gq = (want & KIT_GRADQ) != 0;
     /* a decomposed system or a destination mask runs the per-particle visits (pass_run_groups
      * declines them): no packs, which a decomposed system's halo refresh would carry */
     const int lanes = kit_group_visits && !s->split && !s->dest;
     const pass_group_fn group_first = lanes ? group_first_of(d, gp, gu, gq) : NULL;
+    /* where pass 1 runs per particle (over a filled cache), it reads its pack too (2D:
+     * first_pk_of) */
+    const consph_visit_fn visit_first_pk = group_first ? first_pk_of(d, gp, gu, gq) : NULL;
+    const consph_pass first = {"kit: bonet, gradients, divergence", CONSPH_PASS_DW,
+                               visit_first_pk ? visit_first_pk : visit_first};
     unsigned need2 = CONSPH_PASS_DW;
     if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need2 |= CONSPH_PASS_D2W;
     const pass_group_fn group_second =
         lanes && coupled_lanes_pay(s) ? group_second_of(&r, d) : NULL;
-    /* where coupled_bc's ∇²u alone runs per particle, it reads G_j from pass 1's pack (2D:
-     * coupled_pk_of) */
-    const consph_visit_fn visit_pk = lanes && !group_second && (want & KIT_LAPU) &&
-                                             rq->lap == KIT_LAP_COUPLED && !(want & KIT_LAPQ)
-                                         ? coupled_pk_of(d)
-                                         : NULL;
+    /* where coupled_bc's ∇²u (and ∇²q) runs per particle, it reads G_j (and ∇q_j, ω_j) from
+     * pass 1's pack (2D: coupled_pk_of) */
+    const consph_visit_fn visit_pk =
+        lanes && !group_second && (want & KIT_LAPU) && rq->lap == KIT_LAP_COUPLED
+            ? coupled_pk_of(d, (want & KIT_LAPQ) != 0)
+            : NULL;
     const consph_pass second = {"kit: laplacians", need2, visit_pk ? visit_pk : visit_second};
     /* the packs the group visits read: pass 1's filled by the volume visits or from the fixed
      * volumes here, coupled_bc's by pass 1 (first_store) */
@@ -886,19 +981,28 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     kit_vol_job vj = {vol, &job};
     const int with_second = (want & (KIT_LAPU | KIT_LAPQ)) != 0;
     int st = CONSPH_OK;
+    /* with the volumes fixed (E-C, EWCSPH: the cache filled once for the run), pass 1 and the
+     * Laplacians one after the other: chained over the filled cache they ran 15-30 % slower at nx
+     * 250 (2 pairs each, 2-core AMD EPYC), with pass 1 over groups or per particle */
     if (with_volumes && kit_chain_passes && s->nlist && nlist_serves(s->nlist, p->n)) {
-        const block_visitor_in chain[3] = {
-            {&volume_pass, kit_group_visits ? group_volume : NULL, &vj},
-            {&first, group_first, &job},
-            {&second, group_second, &job}};
-        const int count = 2 + with_second;
+        block_visitor_in chain[4];
+        int count = 0;
+        chain[count++] =
+            (block_visitor_in){&volume_pass, kit_group_visits ? group_volume : NULL, &vj, 0};
+        chain[count++] = (block_visitor_in){&first, group_first, &job, 0};
+        if (with_second) chain[count++] = (block_visitor_in){&second, group_second, &job, 0};
+        const int kit_count = count;
+        /* then last: it reads the volumes at the neighbours, which every pass before it waits
+         * for too */
+        if (then) chain[count++] = (block_visitor_in){then, NULL, then_job, 1};
         int ran = 0;
         st = nlist_chain_run(s, chain, count, pairs, &ran);
         if (st == CONSPH_OK && ran) {
             ++kit_chains;
             if (group_first) ++kit_group_firsts;
             if (group_second && with_second) ++kit_group_coupled;
-            *passes += count;
+            if (visit_pk) ++kit_coupled_packed;
+            *passes += kit_count;
             free(job.bonet_ok);
             return CONSPH_OK;
         }
@@ -910,23 +1014,32 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     unsigned long ran = kit_group_passes;
     if (st == CONSPH_OK) st = kit_run(s, &first, group_first, &job, pairs);
     if (group_first && kit_group_passes != ran) ++kit_group_firsts;
+    if (st == CONSPH_OK && visit_first_pk && kit_group_passes == ran) ++kit_first_packed;
     if (st == CONSPH_OK) ++*passes;
     if (st == CONSPH_OK && with_second) {
         ran = kit_group_passes;
         st = kit_run(s, &second, group_second, &job, pairs);
         if (group_second && kit_group_passes != ran) ++kit_group_coupled;
+        if (st == CONSPH_OK && visit_pk) ++kit_coupled_packed;
         if (st == CONSPH_OK) ++*passes;
     }
     free(job.bonet_ok);
+    if (st == CONSPH_OK && then) st = consph_pass_run(s, then, then_job);
     return st;
 }
 
 int kit_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes)
 {
-    return kit_passes(s, rq, pairs, passes, 0);
+    return kit_passes(s, rq, pairs, passes, 0, NULL, NULL);
 }
 
 int kit_volumes_derivatives(consph_sys *s, const kit_req *rq, size_t *pairs, int *passes)
 {
-    return kit_passes(s, rq, pairs, passes, 1);
+    return kit_passes(s, rq, pairs, passes, 1, NULL, NULL);
+}
+
+int kit_volumes_derivatives_then(consph_sys *s, const kit_req *rq, const consph_pass *then,
+                                 void *then_job, size_t *pairs, int *passes)
+{
+    return kit_passes(s, rq, pairs, passes, 1, then, then_job);
 }

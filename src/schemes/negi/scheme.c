@@ -82,16 +82,23 @@ static int rates(consph_solver *s, const negi_terms *t)
     kit_req rq = {KIT_GRADP | KIT_LAPU | KIT_DIVU, (kit_lap)t->lap, q, 1e8};
     if (t->diffuse_q) rq.want |= KIT_LAPQ;
     if (t->transport || t->advect_q) rq.want |= KIT_GRADQ;
-    st = s->volumes_fixed ? kit_derivatives(sys, &rq, &s->pairs, &s->passes)
-                          : kit_volumes_derivatives(sys, &rq, &s->pairs, &s->passes);
-    if (st != CONSPH_OK) return st;
     double *du = NULL;
+    reg_pst_job shift_job;
+    consph_pass shift;
     if (t->transport) {
         /* 001 §5.4 item 4: the PST of [33] as a transport velocity, at 001's authors'
-         * constants (tsph_dsph.py, ComputeShiftVelocity; docs/schemes.md) */
-        st = solver_shift_velocity_tvc(s, &du);
+         * constants (tsph_dsph.py, ComputeShiftVelocity; docs/schemes.md); its pass chained
+         * after the kit's, which make the volumes it reads */
+        st = solver_shift_velocity_tvc_pass(s, &du, &shift_job, &shift);
         if (st != CONSPH_OK) return st;
     }
+    const consph_pass *then = t->transport ? &shift : NULL;
+    st = s->volumes_fixed
+             ? kit_derivatives(sys, &rq, &s->pairs, &s->passes)
+             : kit_volumes_derivatives_then(sys, &rq, then, &shift_job, &s->pairs, &s->passes);
+    if (st == CONSPH_OK && then && s->volumes_fixed) st = consph_pass_run(sys, then, &shift_job);
+    if (st != CONSPH_OK) return st;
+    if (t->transport) solver_shift_velocity_tvc_finish(s, du);
     const double *u = sv_field(s, SF_U, d), *rhof = sv_field(s, SF_RHOF, 1);
     double *rhoc = NULL;
     if (t->frozen_rho) {
@@ -148,15 +155,16 @@ static int rates(consph_solver *s, const negi_terms *t)
 }
 
 /* The gradients of u and of the evolved scalar at the positions before a shift (the Taylor
- * update of eq. 22 uses them), with fresh volumes. */
-static int gradients_for_shift(consph_solver *s)
+ * update of eq. 22 uses them), with fresh volumes; then the pass `then` (the PST's, chained
+ * after them; NULL: none). */
+static int gradients_for_shift(consph_solver *s, const consph_pass *then, void *then_job)
 {
     int passes = 0;
     /* These two passes and the shifting's first (IPST's volumes, or the PST) read this state */
     consph_sys_expect_passes(&s->sys, 3, CONSPH_PASS_W | CONSPH_PASS_DW);
     kit_req rq = {KIT_GRADU | KIT_GRADQ, KIT_LAP_COUPLED, s->scheme->evolve_p ? SF_P : SF_RHOF,
                   1e8};
-    return kit_volumes_derivatives(&s->sys, &rq, &s->pairs, &passes);
+    return kit_volumes_derivatives_then(&s->sys, &rq, then, then_job, &s->pairs, &passes);
 }
 
 static int zeroed_shift(consph_solver *s, double **dr)
@@ -178,7 +186,7 @@ static int regularise_ipst(consph_solver *s)
         s->prm.ipst_h_dt > 0.0 ? s->prm.cfl * s->prm.ipst_h_dt / (s->prm.U + s->c0) : 0.0;
     if (!reg_ipst_due(s->step, s->t - s->dt, s->t, s->prm.ipst_every, period_dt)) return CONSPH_OK;
     double *dr;
-    int st = gradients_for_shift(s);
+    int st = gradients_for_shift(s, NULL, NULL);
     if (st == CONSPH_OK) st = zeroed_shift(s, &dr);
     if (st != CONSPH_OK) return st;
     /* χ_o (docs/schemes.md, "IPST"): ipst_chi0 = lattice: 001's text, the unperturbed
@@ -204,12 +212,13 @@ static int regularise_ipst(consph_solver *s)
  * (W_ij/W(Δs))^n) ∇W_ij V_j). 001 does not write the shift out (docs/schemes.md). */
 static int regularise_pst(consph_solver *s)
 {
-    double *dr;
-    int st = gradients_for_shift(s);
-    if (st == CONSPH_OK) st = zeroed_shift(s, &dr);
-    if (st != CONSPH_OK) return st;
+    double *dr = sv_field(s, SF_SHIFT, s->dim);
+    if (!dr) return CONSPH_ENOMEM;
     reg_pst_params pp = {s->h, s->ds, 0.5, s->prm.U / s->c0, 0.24, 4.0, 0.0};
-    st = reg_pst_shift(&s->sys, &pp, dr);
+    reg_pst_job job;
+    consph_pass pass;
+    int st = reg_pst_pass(&s->sys, &pp, dr, &job, &pass);
+    if (st == CONSPH_OK) st = gradients_for_shift(s, &pass, &job);
     if (st == CONSPH_OK) st = reg_move(&s->sys, dr);
     if (st != CONSPH_OK) return st;
     solver_taylor_update(s, dr);
