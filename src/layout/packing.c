@@ -152,7 +152,17 @@
  * caches). Under heavier load (3-9) nx 200 took 73.4 -> 66.0 and 64.3 -> 64.1 s of CPU; wall
  * times there say nothing. On these cores main's two threads at nx 500 ran 1.8-2.1 times as fast
  * as its one (not the 1.5 measured before on quiet cores): what the wavefront gains where memory
- * bandwidth binds remains to be timed on quiet cores.
+ * bandwidth binds remains to be timed on quiet cores. The wavefront's region also refreshes the
+ * rows, takes the spread and makes the step (step_wavefront): one fork per step and no serial
+ * pass over the particles, during which the other thread spun (2D nx 200, two threads, whole
+ * packs, three alternating runs each, load 4-6: 63.2-63.9 -> 61.0-61.3 s of user CPU; libgomp's
+ * share of perf's samples over 1500 steps 6.7% -> about 4%). Tried in the same session and not
+ * taken (the same positions bit for bit, 2D nx 200, two threads, 1500 steps): running a block of
+ * the force walk between the density walk's blocks, so that the processor overlaps the force's
+ * loads with the density's square roots and divisions, made the two walks 14% slower (likely: more
+ * branches per block, each misprediction discarding both walks' work in flight); leaving W'/r's
+ * division to the force walk (the ring holding its numerator and r) moved 8% of the density walk's
+ * time to the force walk, 0.5% in all; a branch-free, vectorised advance gained 0.2%.
  *
  * Reproducibility: every sum is a gather into particle i in the fixed order of its list
  * and the only reductions are max, which are exact, so the result does not depend on the number of
