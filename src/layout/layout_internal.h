@@ -139,6 +139,8 @@ void pack_list_free(pack_list *L);
  * 0..dim-1): x_src + image·len for a ghost, the same expression as the image arithmetic it
  * replaces, so the same values. */
 void pack_list_fill_positions(pack_list *L, const consph_particles *p);
+/* pack_list_fill_positions' work on the rows r0..r1 only. */
+void pack_list_fill_range(pack_list *L, const consph_particles *p, size_t r0, size_t r1);
 /* Copies each ghost's weight (slot PACK_XV_WEIGHT) from its source particle. */
 void pack_list_fill_ghost_weights(pack_list *L);
 

@@ -152,7 +152,17 @@
  * caches). Under heavier load (3-9) nx 200 took 73.4 -> 66.0 and 64.3 -> 64.1 s of CPU; wall
  * times there say nothing. On these cores main's two threads at nx 500 ran 1.8-2.1 times as fast
  * as its one (not the 1.5 measured before on quiet cores): what the wavefront gains where memory
- * bandwidth binds remains to be timed on quiet cores.
+ * bandwidth binds remains to be timed on quiet cores. The wavefront's region also refreshes the
+ * rows, takes the spread and makes the step (step_wavefront): one fork per step and no serial
+ * pass over the particles, during which the other thread spun (2D nx 200, two threads, whole
+ * packs, three alternating runs each, load 4-6: 63.2-63.9 -> 61.0-61.3 s of user CPU; libgomp's
+ * share of perf's samples over 1500 steps 6.7% -> about 4%). Tried in the same session and not
+ * taken (the same positions bit for bit, 2D nx 200, two threads, 1500 steps): running a block of
+ * the force walk between the density walk's blocks, so that the processor overlaps the force's
+ * loads with the density's square roots and divisions, made the two walks 14% slower (likely: more
+ * branches per block, each misprediction discarding both walks' work in flight); leaving W'/r's
+ * division to the force walk (the ring holding its numerator and r) moved 8% of the density walk's
+ * time to the force walk, 0.5% in all; a branch-free, vectorised advance gained 0.2%.
  *
  * Reproducibility: every sum is a gather into particle i in the fixed order of its list
  * and the only reductions are max, which are exact, so the result does not depend on the number of
@@ -1177,16 +1187,15 @@ static int compute_acceleration(const force_params *fp, pack_list *L, pack_work 
  * kind). The positions are not wrapped into the box here: the list's periodic images stay valid
  * while they move continuously, and step_density wraps them when it rebuilds the list. Returns
  * max_i |u_i| after the step, and in *moved2 the largest squared distance of a particle from
- * where it was when the list was built. */
-static double advance(consph_particles *p, pack_work *w, pack_list *L, double dt, double nu,
-                      int explicit_euler, double *moved2)
+ * where it was when the list was built. advance_range makes the step of particles i0..i1,
+ * raising *vmax2 and *dmax2 to their largest |u_i|^2 and squared move. */
+static void advance_range(consph_particles *p, pack_work *w, pack_list *L, double dt, double damp,
+                          int explicit_euler, size_t i0, size_t i1, double *vmax2, double *dmax2)
 {
-    const double damp = 1.0 - nu * dt;
     const int dim = w->dim;
     double *restrict xv = L->xv;
-    double vmax2 = 0.0, dmax2 = 0.0;
-#pragma omp parallel for schedule(static) reduction(max : vmax2, dmax2) if (w->n >= 2048)
-    for (size_t i = 0; i < w->n; ++i) {
+    double vm = *vmax2, dm = *dmax2;
+    for (size_t i = i0; i < i1; ++i) {
         if (w->origin[i] >= w->n_free) continue; /* frozen: no motion, u stays 0 */
         double v2 = 0.0, d2 = 0.0;
         for (int a = 0; a < dim; ++a) {
@@ -1198,9 +1207,23 @@ static double advance(consph_particles *p, pack_work *w, pack_list *L, double dt
             v2 += u1 * u1;
             d2 += (x - L->x_ref[a][i]) * (x - L->x_ref[a][i]);
         }
-        if (v2 > vmax2) vmax2 = v2;
-        if (d2 > dmax2) dmax2 = d2;
+        if (v2 > vm) vm = v2;
+        if (d2 > dm) dm = d2;
     }
+    *vmax2 = vm;
+    *dmax2 = dm;
+}
+
+static double advance(consph_particles *p, pack_work *w, pack_list *L, double dt, double nu,
+                      int explicit_euler, double *moved2)
+{
+    const double damp = 1.0 - nu * dt;
+    double vmax2 = 0.0, dmax2 = 0.0;
+    const size_t blocks = (w->n + PACK_CHUNK - 1) / PACK_CHUNK;
+#pragma omp parallel for schedule(static) reduction(max : vmax2, dmax2) if (w->n >= 2048)
+    for (size_t c = 0; c < blocks; ++c)
+        advance_range(p, w, L, dt, damp, explicit_euler, c * PACK_CHUNK, chunk_end(c, w->n), &vmax2,
+                      &dmax2);
     /* The particles' rows of the list hold the new positions (the frozen ones kept theirs):
      * pack_list_fill_positions need only refresh the ghosts. */
     L->rows_current = 1;
@@ -1408,6 +1431,15 @@ static inline void sweep_dwr_at(pack_sweep *sw, const pack_list *L, double *ring
     sw->dwr_first = off == PACK_NO_RING ? 0 : L->start[i0];
 }
 
+/* What step_wavefront also does after the forces: the damped step of advance (dt, nu,
+ * explicit_euler in; max_i |u_i|^2 and the largest squared move since the build out), and the
+ * density spread of consph_layout_spread (out). */
+typedef struct wave_step {
+    double dt, nu;
+    int explicit_euler;
+    double vmax2, moved2, spread;
+} wave_step;
+
 /* The density walk and the force walk of one step as a wavefront: each thread takes a contiguous
  * share of the chunks and computes their densities, force weights and W'/r chunk by chunk,
  * running the force on a chunk as soon as its share holds the densities of every chunk with a
@@ -1418,8 +1450,11 @@ static inline void sweep_dwr_at(pack_sweep *sw, const pack_list *L, double *ring
  * 135 MB, far beyond the caches). A chunk with a neighbour in another thread's share (the
  * periodic images across the box, the shares' edges) keeps its W'/r in the list's array and has
  * its force after every thread's walk is over. Every sum reads what it reads in compute_density
- * then compute_acceleration, so the same values for any thread count. */
-static int step_wavefront(packer *pk, const consph_particles *p)
+ * then compute_acceleration, so the same values for any thread count. The same parallel region
+ * refreshes the rows first and makes the step of advance last, each thread on its own share, and
+ * takes the density spread chunk by chunk (maxima: exact), so that a step forks the threads once
+ * and leaves no serial pass over the particles (a thread waiting on one spins). */
+static int step_wavefront(packer *pk, consph_particles *p, wave_step *ws)
 {
     pack_list *L = &pk->list;
     pack_work *w = &pk->w;
@@ -1432,7 +1467,6 @@ static int step_wavefront(packer *pk, const consph_particles *p)
 #endif
     int rc = reserve_rings(pk, max_threads, (size_t)pack_ring_chunks * (L->start[n] / nc + 1));
     if (rc) return rc;
-    pack_list_fill_positions(L, p);
     pack_sweep sd, sf;
     density_sweep_init(&sd, fp, L, w);
     force_sweep_init(&sf, fp, L, w);
@@ -1440,8 +1474,14 @@ static int step_wavefront(packer *pk, const consph_particles *p)
     unsigned char *late = pk->chunk_late;
     size_t *ring_of = pk->chunk_ring;
     double *xv = L->xv;
+    const size_t rows = n + L->n_ghost, first_row = L->rows_current ? n : 0;
+    const double damp = 1.0 - ws->nu * ws->dt;
+    /* The spread as consph_layout_spread: the largest |rho/rho0 - 1|, or NaN where one is (the
+     * maxima are exact: the same for any split) */
+    double vmax2 = 0.0, dmax2 = 0.0, spread = 0.0;
+    int nan_rho = 0;
     int failed = 0;
-#pragma omp parallel if (n >= 2048)
+#pragma omp parallel if (n >= 2048) reduction(max : vmax2, dmax2, spread) reduction(| : nan_rho)
     {
 #ifdef _OPENMP
         const size_t nt = (size_t)omp_get_num_threads(), t = (size_t)omp_get_thread_num();
@@ -1456,6 +1496,9 @@ static int step_wavefront(packer *pk, const consph_particles *p)
 #pragma omp atomic write
             failed = 1;
         }
+        /* The rows the walks read (pack_list_fill_positions), each thread its part. */
+        pack_list_fill_range(L, p, first_row + (rows - first_row) * t / nt,
+                             first_row + (rows - first_row) * (t + 1) / nt);
 #pragma omp barrier
         if (!failed) {
             size_t next = c0, head = 0; /* the first chunk without its force; the ring's next */
@@ -1469,6 +1512,9 @@ static int step_wavefront(packer *pk, const consph_particles *p)
                 if (off != PACK_NO_RING) head = off + (start[i1] - start[i0]);
                 density_block(&sdt, i0, i1, &b);
                 for (size_t i = i0; i < i1; ++i) {
+                    const double e = fabs(w->rho[i] / packing_rho0 - 1.0);
+                    nan_rho |= isnan(e);
+                    if (e > spread) spread = e;
                     const double wt = force_weight(fp, sf.rho, i);
                     xv[PACK_XV_STRIDE * i + PACK_XV_WEIGHT] = wt;
                     for (int32_t g = L->ghost_head[i]; g >= 0; g = L->ghost_next[g])
@@ -1488,16 +1534,27 @@ static int step_wavefront(packer *pk, const consph_particles *p)
             for (size_t c = c0; c < c1; ++c)
                 if (late[c]) accel_block(&sf, c * PACK_CHUNK, chunk_end(c, n), &b);
         pair_buf_free(&b);
+        /* advance's step of the share's particles, once no walk reads their rows */
+#pragma omp barrier
+        if (!failed && c0 < c1)
+            advance_range(p, w, L, ws->dt, damp, ws->explicit_euler, c0 * PACK_CHUNK,
+                          chunk_end(c1 - 1, n), &vmax2, &dmax2);
     }
-    return failed ? CONSPH_ENOMEM : CONSPH_OK;
+    if (failed) return CONSPH_ENOMEM;
+    L->rows_current = 1;
+    ws->vmax2 = vmax2;
+    ws->moved2 = dmax2;
+    ws->spread = nan_rho ? NAN : spread;
+    return CONSPH_OK;
 }
 
 /* Rebuilds the neighbour list when it is stale (wrapping the particles into the box and sorting
  * them into cell order first), computes the density and records the step in the report. With
- * `forced` non-NULL it also computes the accelerations (step_wavefront) where the wavefront is
- * on, and sets *forced then. */
+ * `forced` non-NULL it also computes the accelerations and makes the step with ws's dt
+ * (step_wavefront) where the wavefront is on, and sets *forced then. */
 static int step_density(packer *pk, const consph_layout_params *lp, consph_particles *p, int iter,
-                        int last, consph_packing_report *report, double *spread, int *forced)
+                        int last, consph_packing_report *report, double *spread, int *forced,
+                        wave_step *ws)
 {
     int rc = CONSPH_OK;
     if (pk->rebuild) {
@@ -1513,13 +1570,14 @@ static int step_density(packer *pk, const consph_layout_params *lp, consph_parti
     /* Not in 3D: there the density walk loads whole 32-byte rows, the weight slot that the
      * wavefront writes at the same time included (unused, but a data race). */
     if (!rc && forced && !pack_wavefront_off && pk->w.dim < 3) {
-        rc = step_wavefront(pk, p);
+        rc = step_wavefront(pk, p, ws);
         *forced = 1;
+        *spread = ws->spread;
     } else if (!rc) {
         rc = compute_density(&pk->fp, &pk->list, p, &pk->w);
+        if (!rc) *spread = consph_layout_spread(pk->w.rho, pk->w.n, packing_rho0);
     }
     if (rc) return rc;
-    *spread = consph_layout_spread(pk->w.rho, pk->w.n, packing_rho0);
     if (!isfinite(*spread))
         return consph_fail(CONSPH_ENUMERIC, "layout %s: non-finite density at step %d",
                            consph_layout_name(lp->kind), iter);
@@ -1559,11 +1617,19 @@ static int pack_single(packer *pk, const consph_layout_params *lp, consph_partic
     for (;;) {
         const int last = converged || steps >= pp->max_iter;
         int forced = 0;
-        rc = step_density(pk, lp, p, steps, last, report, &spread, last ? NULL : &forced);
+        wave_step ws = {dt, nu, 1, 0.0, 0.0, 0.0};
+        rc = step_density(pk, lp, p, steps, last, report, &spread, last ? NULL : &forced, &ws);
         if (rc || last) break;
-        if (!forced) rc = compute_acceleration(&pk->fp, &pk->list, &pk->w);
-        if (rc) break;
-        const double vmax = step_advance(pk, p, dt, 1);
+        double vmax;
+        if (forced) {
+            /* the wavefront has made advance's step too */
+            vmax = sqrt(ws.vmax2);
+            if (!(ws.moved2 <= pk->rebuild_move2)) pk->rebuild = 1;
+        } else {
+            rc = compute_acceleration(&pk->fp, &pk->list, &pk->w);
+            if (rc) break;
+            vmax = step_advance(pk, p, dt, 1);
+        }
         if (steps % packing_check_every == 0) {
             ++checks;
             move = 100.0 * vmax * dt / h;
@@ -1601,7 +1667,7 @@ static int pack_polished(packer *pk, const consph_layout_params *lp, consph_part
     if (report) report->polish_start = -1;
     for (;; ++iter) {
         /* The density decides whether this step is the last, so it is recorded once known. */
-        rc = step_density(pk, lp, p, iter, 0, NULL, &spread, NULL);
+        rc = step_density(pk, lp, p, iter, 0, NULL, &spread, NULL, NULL);
         if (rc) break;
         if (iter == 0 && report) report->rho_spread_initial = spread;
         int done = spread < pp->tol || iter >= pp->max_iter;

@@ -292,13 +292,12 @@ int pack_list_build(pack_list *L, const consph_nnps *grid, const consph_particle
     return CONSPH_OK;
 }
 
-void pack_list_fill_positions(pack_list *L, const consph_particles *p)
+void pack_list_fill_range(pack_list *L, const consph_particles *p, size_t r0, size_t r1)
 {
-    const size_t n = L->n, rows = n + L->n_ghost, first = L->rows_current ? n : 0;
+    const size_t n = L->n;
     const int dim = L->dim;
     double *restrict xv = L->xv;
-#pragma omp parallel for schedule(static) if (rows - first >= 2048)
-    for (size_t r = first; r < rows; ++r) {
+    for (size_t r = r0; r < r1; ++r) {
         if (r < n) {
             for (int a = 0; a < dim; ++a) xv[PACK_XV_STRIDE * r + (size_t)a] = p->x[a][r];
         } else {
@@ -307,6 +306,17 @@ void pack_list_fill_positions(pack_list *L, const consph_particles *p)
                 xv[PACK_XV_STRIDE * r + (size_t)a] =
                     p->x[a][src] + (double)image_of_key(L->ghost_key[g], a) * L->len[a];
         }
+    }
+}
+
+void pack_list_fill_positions(pack_list *L, const consph_particles *p)
+{
+    const size_t rows = L->n + L->n_ghost, first = L->rows_current ? L->n : 0;
+    const size_t blocks = (rows - first + 1023) / 1024;
+#pragma omp parallel for schedule(static) if (rows - first >= 2048)
+    for (size_t k = 0; k < blocks; ++k) {
+        const size_t r0 = first + 1024 * k;
+        pack_list_fill_range(L, p, r0, r0 + 1024 < rows ? r0 + 1024 : rows);
     }
 }
 
