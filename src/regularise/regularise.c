@@ -142,22 +142,15 @@ ipst_body(const ipst_job *a, const consph_nbhd *nb, const int D)
     for (int c = 0; c < D; ++c) a->step[(size_t)c * a->cap + nb->i] = a->h * acc[c];
 }
 
-/* An AVX2 copy in a generic x86-64 build, chosen at load time (the same operations in the same
- * order), as the kit's visits (src/schemes/negi/kit.c). */
-#if defined(__x86_64__) && !defined(__clang__) && defined(__GLIBC__) && !defined(__AVX2__)
-#define IPST_CLONES __attribute__((target_clones("avx2", "default")))
-#else
-#define IPST_CLONES
-#endif
-IPST_CLONES static void ipst_visit_1(void *job, const consph_nbhd *nb)
+LANE4_CLONES static void ipst_visit_1(void *job, const consph_nbhd *nb)
 {
     ipst_body(job, nb, 1);
 }
-IPST_CLONES static void ipst_visit_2(void *job, const consph_nbhd *nb)
+LANE4_CLONES static void ipst_visit_2(void *job, const consph_nbhd *nb)
 {
     ipst_body(job, nb, 2);
 }
-IPST_CLONES static void ipst_visit_3(void *job, const consph_nbhd *nb)
+LANE4_CLONES static void ipst_visit_3(void *job, const consph_nbhd *nb)
 {
     ipst_body(job, nb, 3);
 }
@@ -237,7 +230,7 @@ static inline void ipst_lane_counts(const consph_nbhd *nb, size_t n[PASS_GROUP],
 }
 
 /* ipst_volume_visit over a group */
-IPST_CLONES static void ipst_volume_group(void *job, const consph_nbhd *nb, int count)
+LANE4_CLONES static void ipst_volume_group(void *job, const consph_nbhd *nb, int count)
 {
     const ipst_volume_job *v = job;
     size_t n[PASS_GROUP], kmin, kmax;
@@ -322,15 +315,15 @@ ipst_group_body(const ipst_job *a, const consph_nbhd *nb, int count, const int D
         for (int c = 0; c < D; ++c) a->step[(size_t)c * a->cap + nb[l].i] = a->h * acc[l][c];
 }
 
-IPST_CLONES static void ipst_group_1(void *job, const consph_nbhd *nb, int count)
+LANE4_CLONES static void ipst_group_1(void *job, const consph_nbhd *nb, int count)
 {
     ipst_group_body(job, nb, count, 1);
 }
-IPST_CLONES static void ipst_group_2(void *job, const consph_nbhd *nb, int count)
+LANE4_CLONES static void ipst_group_2(void *job, const consph_nbhd *nb, int count)
 {
     ipst_group_body(job, nb, count, 2);
 }
-IPST_CLONES static void ipst_group_3(void *job, const consph_nbhd *nb, int count)
+LANE4_CLONES static void ipst_group_3(void *job, const consph_nbhd *nb, int count)
 {
     ipst_group_body(job, nb, count, 3);
 }
