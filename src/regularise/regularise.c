@@ -472,25 +472,26 @@ pst_body(const reg_pst_job *a, const consph_nbhd *nb, const int n4, const int D)
 
 /* The dimension known at compile time: the sums stay in registers (with a run-time count they
  * went through the stack at every pair) */
+#if defined(__GNUC__)
+__attribute__((always_inline))
+#endif
+static inline void
+pst_by_dim(const reg_pst_job *a, const consph_nbhd *nb, const int n4)
+{
+    if (a->dim == 1)
+        pst_body(a, nb, n4, 1);
+    else if (a->dim == 2)
+        pst_body(a, nb, n4, 2);
+    else
+        pst_body(a, nb, n4, 3);
+}
 static void pst_visit(void *job, const consph_nbhd *nb)
 {
-    const int d = ((const reg_pst_job *)job)->dim;
-    if (d == 1)
-        pst_body(job, nb, 0, 1);
-    else if (d == 2)
-        pst_body(job, nb, 0, 2);
-    else
-        pst_body(job, nb, 0, 3);
+    pst_by_dim(job, nb, 0);
 }
 static void pst_visit_n4(void *job, const consph_nbhd *nb)
 {
-    const int d = ((const reg_pst_job *)job)->dim;
-    if (d == 1)
-        pst_body(job, nb, 1, 1);
-    else if (d == 2)
-        pst_body(job, nb, 1, 2);
-    else
-        pst_body(job, nb, 1, 3);
+    pst_by_dim(job, nb, 1);
 }
 
 int reg_pst_pass(const consph_sys *s, const reg_pst_params *prm, double *dr, reg_pst_job *job,
