@@ -17,6 +17,7 @@
 #endif
 
 #include "nnps/nnps_internal.h"
+#include "pass/lanes4.h"
 #include "pass/nbhd.h"
 #include "pass/nlist.h"
 
@@ -248,12 +249,14 @@ typedef struct sweep {
     void *job;
     unsigned need1, need2, need12;
     int dx1, dx2, dx12; /* the passes' separations wanted */
+    int il;             /* PASS_GROUP_INTERLEAVED in need2 */
     pass_group_fn visit1, visit2;
 } sweep;
 
 typedef struct sweep_thread {
     consph_nnps_runs runs;
     nbhd_scratch sc[PASS_GROUP];
+    slab_store one; /* under il: a group gathered for the second pass alone, interleaved */
     size_t pairs, kept;
     int status;
     char why[256];
@@ -320,6 +323,75 @@ static void store_group(const sweep *w, slab_store *st, const consph_nbhd *nb, i
     }
 }
 
+/* n entries of the four lanes' 8-byte words src[l] (doubles or size_t) into dst interleaved:
+ * entry k of lane l at dst[4k + l]. Four entries at a time, a 4×4 transpose: reads up to three
+ * words past n (the lane scratch has the slack) and writes those entries' words (reserved, and
+ * never read). */
+#if defined(CONSPH_LANES4)
+typedef long long lane4w __attribute__((vector_size(4 * sizeof(long long)), aligned(8), may_alias));
+static inline __attribute__((always_inline)) void
+interleave_words(void *dst, const void *const src[PASS_GROUP], size_t n)
+{
+    lane4w *d = dst;
+    const char *s0 = src[0], *s1 = src[1], *s2 = src[2], *s3 = src[3];
+    for (size_t k = 0; k < n; k += 4) {
+        const lane4i a0 = *(const lane4w *)(s0 + 8 * k), a1 = *(const lane4w *)(s1 + 8 * k);
+        const lane4i a2 = *(const lane4w *)(s2 + 8 * k), a3 = *(const lane4w *)(s3 + 8 * k);
+        const lane4i t0 = LANE4_SHUF(a0, a1, 0, 4, 2, 6), t1 = LANE4_SHUF(a0, a1, 1, 5, 3, 7);
+        const lane4i t2 = LANE4_SHUF(a2, a3, 0, 4, 2, 6), t3 = LANE4_SHUF(a2, a3, 1, 5, 3, 7);
+        d[k] = LANE4_SHUF(t0, t2, 0, 1, 4, 5);
+        d[k + 1] = LANE4_SHUF(t1, t3, 0, 1, 4, 5);
+        d[k + 2] = LANE4_SHUF(t0, t2, 2, 3, 6, 7);
+        d[k + 3] = LANE4_SHUF(t1, t3, 2, 3, 6, 7);
+    }
+}
+#define STORE_CLONES LANE4_CLONES
+#else
+static inline void interleave_words(void *dst, const void *const src[PASS_GROUP], size_t n)
+{
+    for (size_t k = 0; k < n; ++k)
+        for (int l = 0; l < PASS_GROUP; ++l)
+            memcpy((char *)dst + 8 * (PASS_GROUP * k + (size_t)l), (const char *)src[l] + 8 * k, 8);
+}
+#define STORE_CLONES
+#endif
+
+/* store_group for a second visit that reads the entries interleaved (PASS_GROUP_INTERLEAVED):
+ * the transposition the visit would do is done here instead, in the one copy. All four lanes
+ * (nb[count..) repeat nb[0]), to kmax rounded up to whole vectors. Copies for AVX2 and AVX-512
+ * as the visits' (a copy: the same bits in any). */
+STORE_CLONES static void store_group_il(const sweep *w, slab_store *st, const consph_nbhd *nb,
+                                        int count, size_t kmax)
+{
+    group_rec *rec = &st->rec[st->nrec++];
+    const size_t off = st->used;
+    rec->count = count;
+    for (int l = 0; l < PASS_GROUP; ++l) {
+        rec->i[l] = nb[l].i;
+        rec->n[l] = nb[l].n;
+        rec->off[l] = off + (size_t)l;
+    }
+#define IL(dst, field)                                                                             \
+    do {                                                                                           \
+        const void *const q_[PASS_GROUP] = {nb[0].field, nb[1].field, nb[2].field, nb[3].field};   \
+        interleave_words((dst) + off, q_, kmax);                                                   \
+    } while (0)
+    IL(st->slot, j);
+    for (int a = 0; a < w->v->dim && w->dx2; ++a) IL(st->dx[a], dx[a]);
+    IL(st->r, r);
+    if (w->need2 & CONSPH_PASS_W) IL(st->w, w);
+    if (w->need2 & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) IL(st->dwr, dwr);
+    if (w->need2 & CONSPH_PASS_D2W) IL(st->d2w, d2w);
+#undef IL
+    st->used += PASS_GROUP * ((kmax + 3) & ~(size_t)3);
+}
+
+/* Room store_group or store_group_il takes for a group of count lanes to kmax. */
+static size_t store_need(const sweep *w, int count, size_t kmax)
+{
+    return w->il ? PASS_GROUP * ((kmax + 3) & ~(size_t)3) + 4 : (size_t)count * kmax + 4;
+}
+
 /* The second pass over the groups kept in st. */
 static void store_replay(const sweep *w, const slab_store *st)
 {
@@ -327,10 +399,13 @@ static void store_replay(const sweep *w, const slab_store *st)
     for (size_t g = 0; g < st->nrec; ++g) {
         const group_rec *rec = &st->rec[g];
         consph_nbhd nb[PASS_GROUP];
-        for (int l = 0; l < rec->count; ++l) {
-            const size_t off = rec->off[l];
-            nb[l].i = rec->i[l];
-            nb[l].n = rec->n[l];
+        /* lanes past count repeat lane 0 (interleaved, the store holds all four) */
+        const int lanes = w->il ? PASS_GROUP : rec->count;
+        for (int l = 0; l < PASS_GROUP; ++l) {
+            const int q = l < lanes ? l : 0;
+            const size_t off = rec->off[q];
+            nb[l].i = rec->i[q];
+            nb[l].n = rec->n[q];
             nb[l].j = j + off;
             for (int a = 0; a < CONSPH_MAX_DIM; ++a)
                 nb[l].dx[a] = w->dx2 && a < w->v->dim ? st->dx[a] + off : NULL;
@@ -339,7 +414,6 @@ static void store_replay(const sweep *w, const slab_store *st)
             nb[l].dwr = w->need2 & (CONSPH_PASS_DW | CONSPH_PASS_D2W) ? st->dwr + off : NULL;
             nb[l].d2w = w->need2 & CONSPH_PASS_D2W ? st->d2w + off : NULL;
         }
-        for (int l = rec->count; l < PASS_GROUP; ++l) nb[l] = nb[0];
         w->visit2(w->job, nb, rec->count);
     }
 }
@@ -387,20 +461,29 @@ static void run_cell(const sweep *w, sweep_thread *t, size_t c, int mode, slab_s
             for (int l = 0; l < count; ++l)
                 lane_pad(&t->sc[l], &nb[l], kmax, slots ? g + (size_t)l : nb[l].i);
             for (int l = count; l < PASS_GROUP; ++l) nb[l] = nb[0];
-            if (mode == SLAB_SECOND) {
+            if (mode == SLAB_SECOND && !w->il) {
                 w->visit2(w->job, nb, count);
                 continue;
             }
-            w->visit1(w->job, nb, count);
-            if (mode == SLAB_BOTH) {
-                if (store_reserve(st, (size_t)count * kmax + 4) != CONSPH_OK) {
+            if (mode == SLAB_SECOND) {
+                st = &t->one;
+                st->nrec = st->used = 0;
+            } else {
+                w->visit1(w->job, nb, count);
+            }
+            if (mode != SLAB_FIRST) {
+                if (store_reserve(st, store_need(w, count, kmax)) != CONSPH_OK) {
                     t->status = CONSPH_ENOMEM;
                     snprintf(t->why, sizeof t->why, "out of memory keeping %zu neighbours",
                              (size_t)count * kmax);
                     return;
                 }
-                store_group(w, st, nb, count, kmax);
+                if (w->il)
+                    store_group_il(w, st, nb, count, kmax);
+                else
+                    store_group(w, st, nb, count, kmax);
             }
+            if (mode == SLAB_SECOND) store_replay(w, st);
         }
     }
 }
@@ -442,8 +525,10 @@ static void run_tile(const sweep *w, const tiling *tl, sweep_thread *t, size_t s
  * that the ring stays in a core's cache; above it the passes run as two plain sweeps. */
 #define GROUP2_RING_ENTRIES (1u << 17)
 /* Strips of about this many cells along axis 0: a ring of lag + 1 tile-slabs of 2D Taylor-Green
- * (13 particles and ~45 neighbours per cell) then takes ~0.7 MB. */
-size_t pass_group2_strip_cells = 16;
+ * (13 particles and ~45 neighbours per cell, kept interleaved: four lanes a group, the last of a
+ * cell's padded) then takes ~0.7 MB. 16 cells (~0.9 MB interleaved) made the gathers beside it
+ * miss the core's 1 MB L2 on the test machine: tvf nx 250 serial, gather4 +25 % of samples. */
+size_t pass_group2_strip_cells = 12;
 
 int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pass_group_fn visit1,
                      const char *name2, unsigned need2, pass_group_fn visit2, void *job,
@@ -490,7 +575,9 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
     if (tl.lag > GROUP2_MAX_LAG || (double)(tl.lag + 1) * entries > GROUP2_RING_ENTRIES)
         tl.lag = tl.nslabs; /* every slab an edge slab: no ring */
 
-    sweep w = {s, &v, job, need1, need2, 0, 0, 0, 0, visit1, visit2};
+    const int il = (need2 & PASS_GROUP_INTERLEAVED) != 0;
+    need2 &= ~PASS_GROUP_INTERLEAVED;
+    sweep w = {s, &v, job, need1, need2, 0, 0, 0, 0, il, visit1, visit2};
     w.dx1 = !(need1 & CONSPH_PASS_NO_DX);
     w.dx2 = !(need2 & CONSPH_PASS_NO_DX);
     w.dx12 = w.dx1 || w.dx2;
@@ -552,6 +639,7 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
         }
         consph_nnps_runs_free(&t.runs);
         for (int l = 0; l < PASS_GROUP; ++l) nbhd_scratch_free(&t.sc[l]);
+        store_free(&t.one);
     }
     if (pairs) *pairs += total;
     if (status != CONSPH_OK)

@@ -33,6 +33,13 @@ typedef void (*pass_group_fn)(void *job, const consph_nbhd *nb, int count);
  * per-neighbour values from an array in slot order reads the neighbours of a cell from nearby
  * lines. pass_run_groups and pass_run_groups2 (not the neighbour list's unpadded run). */
 #define PASS_GROUP_SLOTS NBHD_SLOTS
+/* In pass_run_groups2's need2: the second visit gets each group's entries interleaved, entry k of
+ * lane l at index 4k + l of every array (nb[l].j, .dx[a], .r, .w, .dwr, .d2w point at lane l's
+ * first entry: read with a stride of PASS_GROUP, or as one vector per entry from nb[0]'s), so
+ * that a visit that sums the lanes side by side reads an entry's four values with one load. The
+ * neighbourhoods are kept that way (the copy that keeps them interleaves), and the ones gathered
+ * for the second pass alone are interleaved before its visit. Only pass_run_groups2 honours it. */
+#define PASS_GROUP_INTERLEAVED (1u << 18)
 /* Calls of pass_run_groups that ran their pass (for tests: that the group visits did run). */
 /* Cells per dynamic chunk of a pass over ncells cells: up to 16 (at the default cells per radius a
  * 2D cell holds ~13 particles at h = 1.2Δs with the quintic kernel, a 3D one ~6), fewer where the
@@ -53,7 +60,7 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
  * neither. Returns PASS_GROUP_UNSERVED where pass_run_groups would, or where the needs differ
  * in PASS_GROUP_SLOTS; pairs counts both passes' pairs. */
 /* Tile-slabs whose second pass read the neighbourhoods the first kept (for tests: that it did),
- * and the strips' width in cells (16; tests narrow it to have edge columns on small grids). */
+ * and the strips' width in cells (12; tests narrow it to have edge columns on small grids). */
 extern unsigned long pass_group_kept_slabs;
 extern size_t pass_group2_strip_cells;
 int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pass_group_fn visit1,

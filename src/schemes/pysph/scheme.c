@@ -533,9 +533,11 @@ RV_GROUP_CLONES static void group_visit_density_pack(void *vjob, const consph_nb
 }
 
 /* visit_tv_d over a group: pysph_tv_pair's operations in its order, per lane, the entries staged
- * as group_wcsph_d's. */
+ * as group_wcsph_d's, or read as they come where pass_run_groups2 hands them interleaved (il:
+ * PASS_GROUP_INTERLEAVED, entry k's four lanes at 4k of nb[0]'s arrays; lanes past count repeat
+ * lane 0, as the staging of nb[count..) = nb[0] does). */
 RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count, const int d,
-                          const int edac, const int grads)
+                          const int edac, const int grads, const int il)
 {
     rv_lanes L;
     rv_lanes_of(&L, nb, count);
@@ -561,18 +563,32 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
     rv_stage st;
     for (size_t k0 = 0; k0 < L.kmax; k0 += RV_CHUNK) {
         const size_t nk = L.kmax - k0 < RV_CHUNK ? L.kmax - k0 : RV_CHUNK;
-        rv_stage_of(&L, k0, nk, d, 0, 1, 1, sh, &st);
+        if (!il) rv_stage_of(&L, k0, nk, d, 0, 1, 1, sh, &st);
         for (size_t k = 0; k < nk; ++k) {
+            const size_t e = PASS_GROUP * (k0 + k);
+            lane4i jk;
+            lane4 dwr, r;
+            lane4 xij[3] = {zero, zero, zero}, uj[3] = {zero, zero, zero},
+                  duj[3] = {zero, zero, zero};
+            if (il) {
+                jk = (lane4i)(*(const rv4j *)(nb[0].j + e)) << sh;
+                dwr = *(const rv4u *)(nb[0].dwr + e);
+                r = *(const rv4u *)(nb[0].r + e);
+                for (int a = 0; a < d; ++a) xij[a] = *(const rv4u *)(nb[0].dx[a] + e);
+            } else {
+                jk = st.j[k];
+                dwr = st.dwr[k];
+                r = st.r[k];
+                for (int a = 0; a < d; ++a) xij[a] = st.dx[a][k];
+            }
             /* the particle itself and the padding: ∇W_ii = 0, not summed */
-            const lane4i self = (lane4i)(st.j[k] == iv);
-            const long long *js = (const long long *)&st.j[k];
+            const lane4i self = (lane4i)(jk == iv);
+            const long long *js = (const long long *)&jk;
             const double *q[PASS_GROUP];
             for (int l = 0; l < PASS_GROUP; ++l)
                 q[l] = d == 2 ? (const double *)((const char *)job->pack + js[l])
                               : job->pack + (size_t)js[l] * job->pk;
             lane4 rhoj, pj, Vj, vj;
-            lane4 xij[3] = {zero, zero, zero}, uj[3] = {zero, zero, zero},
-                  duj[3] = {zero, zero, zero};
             rv_transpose(q, 0, &rhoj, &pj, &Vj, &vj);
             if (d == 2) {
                 rv_transpose(q, 4, &uj[0], &uj[1], &duj[0], &duj[1]);
@@ -582,8 +598,6 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
                     duj[a] = RV_PK(q, 4 + d + a);
                 }
             }
-            const lane4 dwr = st.dwr[k], r = st.r[k];
-            for (int a = 0; a < d; ++a) xij[a] = st.dx[a][k];
             /* pysph_tv_pair */
             const lane4 w2 = Vi * Vi + Vj * Vj;
             lane4 uij[3] = {zero, zero, zero}, gw[3] = {zero, zero, zero};
@@ -639,22 +653,31 @@ RV_INLINE void group_tv_d(const rival_job *job, const consph_nbhd *nb, int count
     }
 }
 
-RV_GROUP_CLONES static void group_visit_tv(void *vjob, const consph_nbhd *nb, int count)
-{
-    const rival_job *job = vjob;
-    const int edac = job->kind == RV_EDAC, g = job->grads;
-    if (job->d == 2) {
-        if (edac)
-            g ? group_tv_d(job, nb, count, 2, 1, 1) : group_tv_d(job, nb, count, 2, 1, 0);
-        else
-            g ? group_tv_d(job, nb, count, 2, 0, 1) : group_tv_d(job, nb, count, 2, 0, 0);
-    } else {
-        if (edac)
-            g ? group_tv_d(job, nb, count, 3, 1, 1) : group_tv_d(job, nb, count, 3, 1, 0);
-        else
-            g ? group_tv_d(job, nb, count, 3, 0, 1) : group_tv_d(job, nb, count, 3, 0, 0);
+#define RV_TV_VISIT(name, il)                                                                      \
+    RV_GROUP_CLONES static void name(void *vjob, const consph_nbhd *nb, int count)                 \
+    {                                                                                              \
+        const rival_job *job = vjob;                                                               \
+        const int edac = job->kind == RV_EDAC, g = job->grads;                                     \
+        if (job->d == 2) {                                                                         \
+            if (edac)                                                                              \
+                g ? group_tv_d(job, nb, count, 2, 1, 1, il)                                        \
+                  : group_tv_d(job, nb, count, 2, 1, 0, il);                                       \
+            else                                                                                   \
+                g ? group_tv_d(job, nb, count, 2, 0, 1, il)                                        \
+                  : group_tv_d(job, nb, count, 2, 0, 0, il);                                       \
+        } else {                                                                                   \
+            if (edac)                                                                              \
+                g ? group_tv_d(job, nb, count, 3, 1, 1, il)                                        \
+                  : group_tv_d(job, nb, count, 3, 1, 0, il);                                       \
+            else                                                                                   \
+                g ? group_tv_d(job, nb, count, 3, 0, 1, il)                                        \
+                  : group_tv_d(job, nb, count, 3, 0, 0, il);                                       \
+        }                                                                                          \
     }
-}
+RV_TV_VISIT(group_visit_tv, 0)
+/* the rates visit of pass_run_groups2, which hands the entries interleaved */
+RV_TV_VISIT(group_visit_tv_il, 1)
+#undef RV_TV_VISIT
 
 /* visit_wcsph_d over a group: pysph_monaghan_pi's and pysph_wcsph_pair's operations. The pack
  * holds ϱ, p/ϱ², u_x, u_y of a particle in its first four doubles (what 2D without the artificial
@@ -1010,8 +1033,9 @@ static int rhs_tv(consph_solver *s, int kind)
     /* both passes in one sweep, each neighbourhood gathered once where it can be */
     if (pysph_group_visits && job.pack)
         st = pass_run_groups2(&s->sys, dens.name, dens.need | PASS_GROUP_SLOTS,
-                              group_visit_density_pack, rates.name, rates.need | PASS_GROUP_SLOTS,
-                              group_visit_tv, &job, &s->pairs);
+                              group_visit_density_pack, rates.name,
+                              rates.need | PASS_GROUP_SLOTS | PASS_GROUP_INTERLEAVED,
+                              group_visit_tv_il, &job, &s->pairs);
 #endif
     if (st == PASS_GROUP_UNSERVED) {
         st = run_pass(s, &dens, group_visit_density, 0, &job);
