@@ -228,7 +228,7 @@ static double pair_gap(const consph_sys *s, size_t i, size_t j)
 static void test_direction(void)
 {
     consph_sys s;
-    size_t a, b;
+    size_t a = 0, b = 0; /* CHECK goes on after a failed make_crowded */
     CHECK(make_crowded(&s, &a, &b), "system: %s", consph_last_error());
     const size_t cap = s.p->cap;
     const double gap0 = pair_gap(&s, a, b), ds = s.p->spacing;

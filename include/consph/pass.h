@@ -102,6 +102,8 @@ typedef struct consph_sys {
     const consph_sys_split *split; /* NULL: the system is the whole particle set */
     size_t *resort_buf;            /* a re-sort's permutation and carried copies, kept */
     size_t resort_cap;
+    double *ipst_buf; /* reg_ipst's sums and shifts, kept: fresh pages at each call otherwise */
+    size_t ipst_cap;
 } consph_sys;
 
 /* The distance within which the kernel can be non-zero: the radius a system's search needs

@@ -60,8 +60,12 @@ struct consph_nlist {
     int dim, off;
     size_t n;
     size_t *particle; /* slot -> particle; NULL: the identity */
-    double *xb_own;   /* dim × n */
-    double *u;        /* dim × n */
+    /* particle's storage, kept while the list holds the identity: a step's re-sort leaves the
+     * identity and its later builds do not, and allocating it again at each step gave fresh
+     * pages where n size_t pass glibc's mmap threshold */
+    size_t *particle_buf, particle_cap;
+    double *xb_own; /* dim × n */
+    double *u;      /* dim × n */
     double len[CONSPH_MAX_DIM];
     int periodic[CONSPH_MAX_DIM];
     double shift_of[CONSPH_MAX_DIM][2 * NLIST_IMAGE_MAX + 1];
@@ -104,12 +108,13 @@ static void free_arrays(consph_nlist *l)
 {
     for (size_t k = 0; k < l->nblocks; ++k) block_free(&l->blocks[k]);
     free(l->blocks);
-    free(l->particle);
+    free(l->particle_buf);
     free(l->xb_own);
     free(l->u);
     l->blocks = NULL;
     l->nblocks = 0;
-    l->particle = NULL;
+    l->particle = l->particle_buf = NULL;
+    l->particle_cap = 0;
     l->xb_own = l->u = NULL;
     l->n = 0;
 }
@@ -410,7 +415,6 @@ static int nlist_index(consph_sys *s)
         l->n = 0; /* until every array below has its size */
         if (grow((void **)&l->u, sz, sizeof(double))) return CONSPH_ENOMEM;
         if (!l->field[0] && grow((void **)&l->xb_own, sz, sizeof(double))) return CONSPH_ENOMEM;
-        if (l->particle && grow((void **)&l->particle, n, sizeof(size_t))) return CONSPH_ENOMEM;
         for (size_t k = 0; k < l->nblocks; ++k) {
             nlist_block *b = &l->blocks[k];
             b->s0 = k * NLIST_BLOCK;
@@ -422,11 +426,14 @@ static int nlist_index(consph_sys *s)
         l->n = n;
     }
     if (v.particle) {
-        if (!l->particle && !(l->particle = malloc((n ? n : 1) * sizeof(size_t))))
-            return CONSPH_ENOMEM;
+        if (n > l->particle_cap) {
+            l->particle = NULL;
+            if (grow((void **)&l->particle_buf, n, sizeof(size_t))) return CONSPH_ENOMEM;
+            l->particle_cap = n;
+        }
+        l->particle = l->particle_buf;
         memcpy(l->particle, v.particle, n * sizeof(size_t));
     } else {
-        free(l->particle);
         l->particle = NULL;
     }
     if (l->skin == 0.0) {

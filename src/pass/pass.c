@@ -320,6 +320,7 @@ void consph_sys_free(consph_sys *s)
     if (!s) return;
     free(s->scratch);
     free(s->resort_buf);
+    free(s->ipst_buf);
     nlist_free(s->nlist);
     if (s->owned) {
         consph_nnps_free(s->nnps);

@@ -383,10 +383,20 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
     const int d = p->dim;
     double *vol = consph_particles_field(p, "volume", 1);
     if (!vol) return CONSPH_EINVAL;
-    double *sumw = consph_calloc(n ? n : 1, sizeof(double));
-    double *step = consph_calloc((size_t)d * cap, sizeof(double));
-    double *total = consph_calloc((size_t)d * cap, sizeof(double));
-    int rc = (sumw && step && total) ? CONSPH_OK : CONSPH_ENOMEM;
+    /* The system keeps the three buffers between calls: allocated at each call, they came back
+     * from the kernel as fresh pages where their size passes glibc's mmap threshold. Zeroed
+     * here as the allocation did. */
+    const size_t nsum = ((n ? n : 1) + 7) & ~(size_t)7, nstep = ((size_t)d * cap + 7) & ~(size_t)7,
+                 need = nsum + 2 * nstep;
+    if (need > s->ipst_cap) {
+        free(s->ipst_buf);
+        s->ipst_buf = malloc(need * sizeof(double));
+        s->ipst_cap = s->ipst_buf ? need : 0;
+    }
+    int rc = s->ipst_buf ? CONSPH_OK : CONSPH_ENOMEM;
+    double *sumw = s->ipst_buf, *step = sumw ? sumw + nsum : NULL,
+           *total = step ? step + nstep : NULL;
+    if (sumw) memset(sumw, 0, need * sizeof(double));
     ipst_job job = {prm->h, vol, step, cap, d};
     static const consph_visit_fn visits[3] = {ipst_visit_1, ipst_visit_2, ipst_visit_3};
     const consph_pass pass = {"IPST shift (001 eq. 19)", CONSPH_PASS_W, visits[d - 1]};
@@ -436,9 +446,6 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
             rep->chi_max = chi_max;
         }
     }
-    free(sumw);
-    free(step);
-    free(total);
     return rc;
 }
 
