@@ -337,12 +337,7 @@ interleave_words(void *dst, const void *const src[PASS_GROUP], size_t n)
     for (size_t k = 0; k < n; k += 4) {
         const lane4i a0 = *(const lane4w *)(s0 + 8 * k), a1 = *(const lane4w *)(s1 + 8 * k);
         const lane4i a2 = *(const lane4w *)(s2 + 8 * k), a3 = *(const lane4w *)(s3 + 8 * k);
-        const lane4i t0 = LANE4_SHUF(a0, a1, 0, 4, 2, 6), t1 = LANE4_SHUF(a0, a1, 1, 5, 3, 7);
-        const lane4i t2 = LANE4_SHUF(a2, a3, 0, 4, 2, 6), t3 = LANE4_SHUF(a2, a3, 1, 5, 3, 7);
-        d[k] = LANE4_SHUF(t0, t2, 0, 1, 4, 5);
-        d[k + 1] = LANE4_SHUF(t1, t3, 0, 1, 4, 5);
-        d[k + 2] = LANE4_SHUF(t0, t2, 2, 3, 6, 7);
-        d[k + 3] = LANE4_SHUF(t1, t3, 2, 3, 6, 7);
+        LANE4_TRANSPOSE(lane4i, a0, a1, a2, a3, d + k);
     }
 }
 #define STORE_CLONES LANE4_CLONES

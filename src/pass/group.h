@@ -40,12 +40,12 @@ typedef void (*pass_group_fn)(void *job, const consph_nbhd *nb, int count);
  * neighbourhoods are kept that way (the copy that keeps them interleaves), and the ones gathered
  * for the second pass alone are interleaved before its visit. Only pass_run_groups2 honours it. */
 #define PASS_GROUP_INTERLEAVED (1u << 18)
-/* Calls of pass_run_groups that ran their pass (for tests: that the group visits did run). */
 /* Cells per dynamic chunk of a pass over ncells cells: up to 16 (at the default cells per radius a
  * 2D cell holds ~13 particles at h = 1.2Δs with the quintic kernel, a 3D one ~6), fewer where the
  * cells are few for the threads, so that the last chunks leave no thread waiting long. */
 size_t pass_cells_per_chunk(size_t ncells);
 
+/* Calls of pass_run_groups that ran their pass (for tests: that the group visits did run). */
 extern unsigned long pass_group_runs;
 int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
                     void *job, size_t *pairs);

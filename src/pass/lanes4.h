@@ -21,18 +21,24 @@ typedef double lane4u __attribute__((vector_size(4 * sizeof(double)), aligned(si
 #else
 #define LANE4_SHUF(a, b, i0, i1, i2, i3) __builtin_shuffle(a, b, (lane4i){i0, i1, i2, i3})
 #endif
+/* The 4×4 transpose of the rows a0..a3, vectors of type T (lane4, or lane4i for other 8-byte
+ * words: a shuffle moves bits, whatever they mean), into the columns f[0..3]. */
+#define LANE4_TRANSPOSE(T, a0, a1, a2, a3, f)                                                      \
+    do {                                                                                           \
+        const T t0_ = LANE4_SHUF(a0, a1, 0, 4, 2, 6), t1_ = LANE4_SHUF(a0, a1, 1, 5, 3, 7);        \
+        const T t2_ = LANE4_SHUF(a2, a3, 0, 4, 2, 6), t3_ = LANE4_SHUF(a2, a3, 1, 5, 3, 7);        \
+        (f)[0] = LANE4_SHUF(t0_, t2_, 0, 1, 4, 5);                                                 \
+        (f)[1] = LANE4_SHUF(t1_, t3_, 0, 1, 4, 5);                                                 \
+        (f)[2] = LANE4_SHUF(t0_, t2_, 2, 3, 6, 7);                                                 \
+        (f)[3] = LANE4_SHUF(t1_, t3_, 2, 3, 6, 7);                                                 \
+    } while (0)
 /* Entries o..o+3 of the four rows q[l] as four vectors, f[c] = {q[0][o + c], ..., q[3][o + c]}. */
 static inline __attribute__((always_inline)) void lane4_transpose(const double *const q[4],
                                                                   size_t o, lane4 f[4])
 {
     const lane4 a0 = *(const lane4u *)(q[0] + o), a1 = *(const lane4u *)(q[1] + o);
     const lane4 a2 = *(const lane4u *)(q[2] + o), a3 = *(const lane4u *)(q[3] + o);
-    const lane4 t0 = LANE4_SHUF(a0, a1, 0, 4, 2, 6), t1 = LANE4_SHUF(a0, a1, 1, 5, 3, 7);
-    const lane4 t2 = LANE4_SHUF(a2, a3, 0, 4, 2, 6), t3 = LANE4_SHUF(a2, a3, 1, 5, 3, 7);
-    f[0] = LANE4_SHUF(t0, t2, 0, 1, 4, 5);
-    f[1] = LANE4_SHUF(t1, t3, 0, 1, 4, 5);
-    f[2] = LANE4_SHUF(t0, t2, 2, 3, 6, 7);
-    f[3] = LANE4_SHUF(t1, t3, 2, 3, 6, 7);
+    LANE4_TRANSPOSE(lane4, a0, a1, a2, a3, f);
 }
 
 /* The group visits' copies in a generic x86-64 build, chosen at load time: AVX-512 (x86-64-v4:
