@@ -20,12 +20,14 @@ set -uo pipefail
 ref=${1:?usage: bitcheck.sh REF_CONSPH NEW_CONSPH [WORKDIR]}
 new=${2:?usage: bitcheck.sh REF_CONSPH NEW_CONSPH [WORKDIR]}
 work=${3:-$(mktemp -d)}
-mkdir -p "$work/new" || exit 2
+# fresh output directories: consph run refuses to overwrite an earlier run's files, and a stale
+# one left from an earlier bitcheck in WORKDIR would be compared in place of a run that failed
+rm -rf "$work/new" && mkdir -p "$work/new" || exit 2
 if [ -d "$ref" ]; then
   refdir=$ref
 else
   refdir=$work/ref
-  mkdir -p "$refdir" || exit 2
+  rm -rf "$refdir" && mkdir -p "$refdir" || exit 2
 fi
 # every scheme of the new binary's registry (consph run --help, --scheme's allowed names); a
 # scheme the reference binary lacks fails its reference runs and is not compared
@@ -63,8 +65,11 @@ run_all() { # BIN DIR [FLAGS]
 }
 
 [ -d "$ref" ] || run_all "$ref" "$refdir"
-run_all "$new" "$work/new" "${NEW_FLAGS:-}"
 bad=0 cases=0
+# a run of the new binary that fails is a difference (the reference's may fail where it lacks a
+# scheme: those cases have no reference and are not compared)
+failed=$(run_all "$new" "$work/new" "${NEW_FLAGS:-}")
+[ -n "$failed" ] && { echo "$failed"; bad=1; }
 for d in "$refdir"/*/; do
   n=$(basename "$d")
   cases=$((cases + 1))
