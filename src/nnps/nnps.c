@@ -35,7 +35,9 @@
  * bench_nnps --sweep): in 2D 1 was fastest up to ~50 neighbours (tied with 2 at 50), 2 at
  * ~100, 3 from ~200 on (10% ahead of 2 at 1000); in 3D 1 up to ~100 (30% ahead of 2 at 50),
  * 2 at 200-400, 3 from 1000 on (5-8% ahead of 2). In 1D a query is one run of cells whatever
- * the count; 1, 2, 4 and 8 were within 20%, finer slightly faster. */
+ * the count; 1, 2, 4 and 8 were within 20%, finer slightly faster. The solver's group visits
+ * (four particles of a cell at a time) tip it further towards 1: at 2D Taylor-Green's ~41
+ * neighbours, 2 made wcsph, tvf and E-C 14-46% slower (docs/pass.md, "Finer search cells"). */
 static int default_cells_per_radius(int dim, double mean_neighbours)
 {
     if (dim == 1) return 4;
