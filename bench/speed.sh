@@ -10,7 +10,8 @@
 # - `consph study 001-table9 --quick` <= 20 s, the full 001-table9 estimate <= 12 hours, the full
 #   001-table3 <= 10 minutes with an empty cache (only with FULL=1).
 # Time per particle-step as bench/pysph_compare.sh (bench/timing.sh): K2 steps minus K1 steps,
-# the fastest of REPEAT runs each.
+# the fastest of REPEAT runs each; `study 001-table9 --quick` the fastest of REPEAT runs, each
+# from an empty cache (the full 001-table3 runs once).
 #
 # usage: bench/speed.sh        (from the repository root, after make; `make bench` runs it)
 # environment: CONSPH (default build/consph), OUT (default bench/speed.md), NXS (default
@@ -208,18 +209,32 @@ wall() { # seconds of the command "$@", or - when it fails
     if "$@" > "$WORK/study.log" 2>&1; then echo "$(now) - $t0" | bc -l; else echo -; fi
 }
 secs() { awk -v s="$1" 'BEGIN { if (s == "-") print "-"; else printf "%.1f", s }'; }
+# the smaller of two times, either of which may be - (a failed run)
+least() { awk -v a="$1" -v b="$2" 'BEGIN {
+    if (b == "-") print a; else if (a == "-" || b + 0 < a + 0) print b; else print a }'; }
 if [ "$QUICK" = 1 ]; then
     echo "| \`study 001-table9 --quick\` | ≤ 20 s | not run (QUICK=1) | - |" >> "$studies"
 else
-    rm -rf "$WORK/cache-q" "$WORK/study-q"
-    w=$(wall env XDG_CACHE_HOME="$WORK/cache-q" "$CONSPH" study 001-table9 --quick --out "$WORK/study-q")
-    v=$(verdict "$w" le 20)
-    echo "| \`study 001-table9 --quick\`, empty cache | ≤ 20 s | $(secs "$w") s | $v |" >> "$studies"
-    target "\`study 001-table9 --quick\` ≤ 20 s ($(nproc) cores, empty cache)" "$(secs "$w") s" "$v"
-    if [ "$have_cache" = 1 ]; then
-        rm -rf "$WORK/study-q"
+    # the fastest of REPEAT runs, each from an empty cache (then each again from the warm one),
+    # as every timing here: load from elsewhere only adds time
+    wq=- ww=-
+    r=0
+    while [ "$r" -lt "$REPEAT" ]; do
+        rm -rf "$WORK/cache-q" "$WORK/study-q"
         w=$(wall env XDG_CACHE_HOME="$WORK/cache-q" "$CONSPH" study 001-table9 --quick --out "$WORK/study-q")
-        echo "| \`study 001-table9 --quick\`, the same again (warm cache) | (reported) | $(secs "$w") s | - |" >> "$studies"
+        wq=$(least "$wq" "$w")
+        if [ "$have_cache" = 1 ]; then
+            rm -rf "$WORK/study-q"
+            w=$(wall env XDG_CACHE_HOME="$WORK/cache-q" "$CONSPH" study 001-table9 --quick --out "$WORK/study-q")
+            ww=$(least "$ww" "$w")
+        fi
+        r=$((r + 1))
+    done
+    v=$(verdict "$wq" le 20)
+    echo "| \`study 001-table9 --quick\`, empty cache (fastest of $REPEAT) | ≤ 20 s | $(secs "$wq") s | $v |" >> "$studies"
+    target "\`study 001-table9 --quick\` ≤ 20 s ($(nproc) cores, empty cache)" "$(secs "$wq") s" "$v"
+    if [ "$have_cache" = 1 ]; then
+        echo "| \`study 001-table9 --quick\`, the same again (warm cache, fastest of $REPEAT) | (reported) | $(secs "$ww") s | - |" >> "$studies"
     fi
 fi
 est=$("$CONSPH" study 001-table9 --estimate 2>&1 | sed -n 's/.*estimated run time: \([0-9.e+]*\) s.*/\1/p' | head -n 1)
