@@ -4,7 +4,8 @@
  *    tested with the header's consph_nnps_scan_run give exactly the neighbours of
  *    consph_nnps_query_particle (same j, order, x_ij and r); every implementation of
  *    consph_nnps_gather this machine runs (portable C, SSE2, AVX2, AVX-512) gives that again,
- *    with and without the optional outputs, and on hand-made runs of every length 0..19 at
+ *    with and without the optional outputs, nnps_gather_particles (the neighbours' particles
+ *    written in place of their slots) gives it too, and on hand-made runs of every length 0..19 at
  *    every alignment (blocks of 4 and 8 ending anywhere, empty runs, shifted images) the
  *    header's consph_nnps_scan_run's hits, writing nothing past the promised slack. Sets: 1D-3D,
  * periodic, mixed and open boxes with particles outside, radii beyond half the box (several images
@@ -121,6 +122,12 @@ static int check_gathers(const consph_nnps_slots *v, const consph_nnps_runs *run
     }
     size_t m = consph_nnps_gather(v, runs, xi, b->slot, b->dx, b->r);
     bad += !same_as_query(v, q, m, b->slot, b->dx, b->r);
+    /* the particles written directly (the slots' buffer its scratch), as identity slots */
+    size_t *particle = malloc((runs->candidates + CONSPH_NNPS_GATHER_SLACK) * sizeof *particle);
+    m = nnps_gather_particles(v, runs, xi, b->slot, particle, b->dx, b->r);
+    const consph_nnps_slots ident = {.dim = v->dim, .particle = NULL};
+    bad += !same_as_query(&ident, q, m, particle, b->dx, b->r);
+    free(particle);
     return bad;
 }
 

@@ -317,7 +317,7 @@ static inline __mmask8 lanes_before8(size_t s, size_t s1)
 __attribute__((NNPS_AVX512_TARGET, always_inline)) static inline size_t
 avx512_hits(const int dim, const int with_dx, const int with_r, const int tail, __m512d c0,
             __m512d c1, __m512d c2, __m512d q0, __m512d q1, __m512d q2, __m512d lim, __m512i sl,
-            __m512i lanes, __mmask8 valid, avx2_out o, size_t n)
+            __m512i lanes, __mmask8 valid, const size_t *map, avx2_out o, size_t n)
 {
     __m512d d0 = _mm512_sub_pd(q0, c0), d1 = d0, d2 = d0;
     __m512d rr = square_unfused(d0);
@@ -344,10 +344,15 @@ avx512_hits(const int dim, const int with_dx, const int with_r, const int tail, 
         else                                                                                       \
             _mm512_storeu_pd((dst), _mm512_permutexvar_pd(idx, (v)));                              \
     } while (0)
+    /* map (the block's slots' particles, map[0] the first's): each hit's particle, permuted
+     * as its other outputs */
+    const __m512i id = !map   ? _mm512_add_epi64(sl, idx)
+                       : tail ? _mm512_permutexvar_epi64(idx, _mm512_maskz_loadu_epi64(valid, map))
+                              : _mm512_permutexvar_epi64(idx, _mm512_loadu_si512(map));
     if (tail)
-        _mm512_mask_storeu_epi64(o.slot + n, keep, _mm512_add_epi64(sl, idx));
+        _mm512_mask_storeu_epi64(o.slot + n, keep, id);
     else
-        _mm512_storeu_si512(o.slot + n, _mm512_add_epi64(sl, idx));
+        _mm512_storeu_si512(o.slot + n, id);
     if (with_r) AVX512_STORE(o.r + n, rr);
     if (with_dx) {
         AVX512_STORE(o.d0 + n, d0);
@@ -369,11 +374,12 @@ avx512_hits(const int dim, const int with_dx, const int with_r, const int tail, 
 __attribute__((NNPS_AVX512_TARGET, always_inline)) static inline size_t
 avx512_block(const int dim, const int with_dx, const int with_r, const int tail, const double *x0,
              const double *x1, const double *x2, __m512d q0, __m512d q1, __m512d q2, __m512d lim,
-             size_t s, __m512i sl, __m512i lanes, __mmask8 valid, avx2_out o, size_t n)
+             size_t s, __m512i sl, __m512i lanes, __mmask8 valid, const size_t *map, avx2_out o,
+             size_t n)
 {
     AVX512_COORDS(c0, c1, c2);
-    return avx512_hits(dim, with_dx, with_r, tail, c0, c1, c2, q0, q1, q2, lim, sl, lanes, valid, o,
-                       n);
+    return avx512_hits(dim, with_dx, with_r, tail, c0, c1, c2, q0, q1, q2, lim, sl, lanes, valid,
+                       map ? map + s : NULL, o, n);
 }
 
 /* r = sqrt(r²) for entries n0..n. */
@@ -388,12 +394,15 @@ avx512_roots(double *r, size_t n0, size_t n)
     }
 }
 
-/* gather_avx2 in blocks of eight; r is optional here (the slots alone count neighbours). */
+/* gather_avx2 in blocks of eight; r is optional here (the slots alone count neighbours). With
+ * with_map (a compile-time choice), each hit's particle (the search's slot -> particle map)
+ * instead of its slot. */
 __attribute__((NNPS_AVX512_TARGET, always_inline)) static inline size_t
-gather_avx512(const int dim, const int with_dx, const int with_r, const consph_nnps_slots *v,
-              const consph_nnps_run *run, size_t nruns, const double *xi, size_t *slot,
-              double *const *dx, double *r, size_t n)
+gather_avx512(const int dim, const int with_dx, const int with_r, const int with_map,
+              const consph_nnps_slots *v, const consph_nnps_run *run, size_t nruns,
+              const double *xi, size_t *slot, double *const *dx, double *r, size_t n)
 {
+    const size_t *map = with_map ? v->particle : NULL;
     const __m512d lim = _mm512_set1_pd(v->radius2);
     const __m512i lanes = _mm512_set_epi64(7, 6, 5, 4, 3, 2, 1, 0), eight = _mm512_set1_epi64(8);
     const double *x0 = v->x[0], *x1 = v->x[1], *x2 = v->x[2];
@@ -409,12 +418,12 @@ gather_avx512(const int dim, const int with_dx, const int with_r, const consph_n
         size_t s = s0;
         for (; s < full; s += 8) {
             n = avx512_block(dim, with_dx, with_r, 0, x0, x1, x2, q0, q1, q2, lim, s, sl, lanes,
-                             0xff, o, n);
+                             0xff, map, o, n);
             sl = _mm512_add_epi64(sl, eight);
         }
         if (s < s1)
             n = avx512_block(dim, with_dx, with_r, 1, x0, x1, x2, q0, q1, q2, lim, s, sl, lanes,
-                             lanes_before8(s, s1), o, n);
+                             lanes_before8(s, s1), map, o, n);
     }
     if (with_r) avx512_roots(r, n_first, n);
     return n;
@@ -426,7 +435,7 @@ gather_avx512(const int dim, const int with_dx, const int with_r, const consph_n
         const consph_nnps_slots *v, const consph_nnps_run *run, size_t nruns, const double *xi,    \
         size_t *slot, double *const *dx, double *r, size_t n)                                      \
     {                                                                                              \
-        return gather_avx512(D, DX, R, v, run, nruns, xi, slot, dx, r, n);                         \
+        return gather_avx512(D, DX, R, 0, v, run, nruns, xi, slot, dx, r, n);                      \
     }
 #define GATHER_AVX512_DIM(D)                                                                       \
     GATHER_AVX512(D, 0, 0)                                                                         \
@@ -436,6 +445,18 @@ gather_avx512(const int dim, const int with_dx, const int with_r, const consph_n
 GATHER_AVX512_DIM(1)
 GATHER_AVX512_DIM(2)
 GATHER_AVX512_DIM(3)
+
+/* The same with each hit's particle for its slot, x_ij and r wanted (nnps_gather_particles). */
+#define GATHER_AVX512_MAP(D)                                                                       \
+    __attribute__((NNPS_AVX512_TARGET)) static size_t gather_avx512_map_##D(                       \
+        const consph_nnps_slots *v, const consph_nnps_run *run, size_t nruns, const double *xi,    \
+        size_t *particle, double *const *dx, double *r)                                            \
+    {                                                                                              \
+        return gather_avx512(D, 1, 1, 1, v, run, nruns, xi, particle, dx, r, 0);                   \
+    }
+GATHER_AVX512_MAP(1)
+GATHER_AVX512_MAP(2)
+GATHER_AVX512_MAP(3)
 
 typedef size_t (*gather_fn)(const consph_nnps_slots *, const consph_nnps_run *, size_t,
                             const double *, size_t *, double *const *, double *, size_t);
@@ -470,13 +491,13 @@ gather4_avx512(const int dim, const int with_dx, const consph_nnps_slots *v,
     do {                                                                                           \
         AVX512_COORDS(c0, c1, c2);                                                                 \
         n0 = avx512_hits(dim, with_dx, 1, tail, c0, c1, c2, q00, q01, q02, lim, sv, lanes, valid,  \
-                         o0, n0);                                                                  \
+                         NULL, o0, n0);                                                            \
         n1 = avx512_hits(dim, with_dx, 1, tail, c0, c1, c2, q10, q11, q12, lim, sv, lanes, valid,  \
-                         o1, n1);                                                                  \
+                         NULL, o1, n1);                                                            \
         n2 = avx512_hits(dim, with_dx, 1, tail, c0, c1, c2, q20, q21, q22, lim, sv, lanes, valid,  \
-                         o2, n2);                                                                  \
+                         NULL, o2, n2);                                                            \
         n3 = avx512_hits(dim, with_dx, 1, tail, c0, c1, c2, q30, q31, q32, lim, sv, lanes, valid,  \
-                         o3, n3);                                                                  \
+                         NULL, o3, n3);                                                            \
     } while (0)
         __m512i sv = _mm512_set1_epi64((long long)s0);
         size_t s = s0;
@@ -649,6 +670,23 @@ int nnps_gather4(const consph_nnps_slots *v, const consph_nnps_run *run, size_t 
     (void)v, (void)run, (void)nruns, (void)sl, (void)slot, (void)dx, (void)r, (void)n;
 #endif
     return 0;
+}
+
+size_t nnps_gather_particles(const consph_nnps_slots *v, const consph_nnps_runs *runs,
+                             const double *xi, size_t *slot, size_t *particle, double *const *dx,
+                             double *r)
+{
+#ifdef NNPS_AVX512
+    if (v->particle && nnps_best_isa() == NNPS_ISA_AVX512) {
+        if (v->dim == 1) return gather_avx512_map_1(v, runs->run, runs->n, xi, particle, dx, r);
+        if (v->dim == 2) return gather_avx512_map_2(v, runs->run, runs->n, xi, particle, dx, r);
+        return gather_avx512_map_3(v, runs->run, runs->n, xi, particle, dx, r);
+    }
+#endif
+    if (!v->particle) return consph_nnps_gather(v, runs, xi, particle, dx, r);
+    const size_t m = consph_nnps_gather(v, runs, xi, slot, dx, r);
+    for (size_t k = 0; k < m; ++k) particle[k] = v->particle[slot[k]];
+    return m;
 }
 
 size_t consph_nnps_gather(const consph_nnps_slots *v, const consph_nnps_runs *runs,

@@ -813,15 +813,10 @@ static int cache_block_gather(const consph_sys *s, nlist_block *b, consph_nnps_r
         for (int a = 0; a < l->dim; ++a) xi[a] = v.x[a][sl];
         double *dx[CONSPH_MAX_DIM] = {b->pdx[0] + used, l->dim > 1 ? b->pdx[1] + used : NULL,
                                       l->dim > 2 ? b->pdx[2] + used : NULL};
-        /* slots are particles where the search is in the particles' order (a re-sort each
-         * move): the gather then writes them in place */
-        if (!v.particle) {
-            used += consph_nnps_gather(&v, runs, xi, b->pj + used, dx, b->pr + used);
-            continue;
-        }
-        const size_t m = consph_nnps_gather(&v, runs, xi, *slot, dx, b->pr + used);
-        for (size_t k = 0; k < m; ++k) b->pj[used + k] = consph_nnps_slot_particle(&v, (*slot)[k]);
-        used += m;
+        /* the neighbours' particles in place (slots are particles where the search is in the
+         * particles' order, after a re-sort; else, as between IPST's moves, the gather maps
+         * them) */
+        used += nnps_gather_particles(&v, runs, xi, *slot, b->pj + used, dx, b->pr + used);
     }
     b->poff[b->s1 - b->s0] = used;
     for (size_t k = used; k < ((used + 3) & ~(size_t)3); ++k) b->pr[k] = 0.0;
