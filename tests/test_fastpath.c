@@ -124,6 +124,7 @@ static int check_gathers(const consph_nnps_slots *v, const consph_nnps_runs *run
     bad += !same_as_query(v, q, m, b->slot, b->dx, b->r);
     /* the particles written directly (the slots' buffer its scratch), as identity slots */
     size_t *particle = malloc((runs->candidates + CONSPH_NNPS_GATHER_SLACK) * sizeof *particle);
+    if (!particle) return bad + 1;
     m = nnps_gather_particles(v, runs, xi, b->slot, particle, b->dx, b->r);
     const consph_nnps_slots ident = {.dim = v->dim, .particle = NULL};
     bad += !same_as_query(&ident, q, m, particle, b->dx, b->r);

@@ -38,13 +38,6 @@ size_t nnps_gather_runs(int isa, const consph_nnps_slots *v, const consph_nnps_r
                         size_t nruns, const double *xi, size_t *slot, double *const *dx, double *r,
                         size_t n);
 
-/* The neighbourhoods of the four particles in slots sl..sl+3, which lie in one cell whose
- * candidate runs are run[0..nruns), in one sweep over the candidates: each block of candidates is
- * loaded once and tested against the four points. Lane l's slots, x_ij (where dx[l] is not NULL)
- * and r go to slot[l], dx[l] and r[l] from entry 0 and number n[l]; each lane's outputs are those
- * of consph_nnps_gather for its particle bit for bit, in its order, with the same room. Returns 0
- * (and writes nothing) where the chosen implementation (nnps_best_isa) has no such sweep: the
- * caller then gathers each particle. */
 /* consph_nnps_gather writing each neighbour's particle (consph_nnps_slot_particle of its slot)
  * into particle[] instead of its slot, with the same x_ij, r, order and room; slot[] (room for
  * the candidates and CONSPH_NNPS_GATHER_SLACK) is scratch where the implementation maps the
@@ -53,6 +46,14 @@ size_t nnps_gather_runs(int isa, const consph_nnps_slots *v, const consph_nnps_r
 size_t nnps_gather_particles(const consph_nnps_slots *v, const consph_nnps_runs *runs,
                              const double *xi, size_t *slot, size_t *particle, double *const *dx,
                              double *r);
+
+/* The neighbourhoods of the four particles in slots sl..sl+3, which lie in one cell whose
+ * candidate runs are run[0..nruns), in one sweep over the candidates: each block of candidates is
+ * loaded once and tested against the four points. Lane l's slots, x_ij (where dx[l] is not NULL)
+ * and r go to slot[l], dx[l] and r[l] from entry 0 and number n[l]; each lane's outputs are those
+ * of consph_nnps_gather for its particle bit for bit, in its order, with the same room. Returns 0
+ * (and writes nothing) where the chosen implementation (nnps_best_isa) has no such sweep: the
+ * caller then gathers each particle. */
 int nnps_gather4(const consph_nnps_slots *v, const consph_nnps_run *run, size_t nruns, size_t sl,
                  size_t *const slot[4], double *const *const dx[4], double *const r[4],
                  size_t n[4]);
