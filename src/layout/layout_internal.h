@@ -121,12 +121,8 @@ typedef struct pack_list {
      * row, plus PACK_SLACK rows; aligned to 32 bytes. */
     double *xv;
     size_t xv_rows;
-    /* The rows of the next step, written while the walks still read xv (step_wavefront), then
-     * swapped with it; as xv, with xv_next_rows rows. */
-    double *xv_next;
-    size_t xv_next_rows;
-    /* 1: the particles' rows of xv hold their positions (written by the packing's step since the
-     * last build): pack_list_fill_positions refreshes only the ghosts'. 2: the ghosts' too. */
+    /* The particles' rows of xv hold their positions (written by the packing's step since the
+     * last build): pack_list_fill_positions refreshes only the ghosts'. */
     int rows_current;
     long builds;
     /* The build's per-thread buffers (pairlist.c), kept from build to build. */
@@ -147,18 +143,5 @@ void pack_list_fill_positions(pack_list *L, const consph_particles *p);
 void pack_list_fill_range(pack_list *L, const consph_particles *p, size_t r0, size_t r1);
 /* Copies each ghost's weight (slot PACK_XV_WEIGHT) from its source particle. */
 void pack_list_fill_ghost_weights(pack_list *L);
-/* xv_next with as many rows as xv (the slack rows zero). */
-int pack_list_reserve_next(pack_list *L);
-/* Writes the rows of particle i's ghosts into `xv` from the particle's position x[0..dim-1]
- * (pack_list_fill_range's expression, so the same values). */
-static inline void pack_list_ghost_rows(const pack_list *L, double *xv, size_t i, const double *x)
-{
-    for (int32_t g = L->ghost_head[i]; g >= 0; g = L->ghost_next[g]) {
-        const uint32_t key = (uint32_t)L->ghost_key[g];
-        for (int a = 0; a < L->dim; ++a)
-            xv[PACK_XV_STRIDE * (L->n + (size_t)g) + (size_t)a] =
-                x[a] + (double)(int8_t)(uint8_t)(key >> (8 * a)) * L->len[a];
-    }
-}
 
 #endif

@@ -1214,43 +1214,6 @@ static void advance_range(consph_particles *p, pack_work *w, pack_list *L, doubl
     *dmax2 = dm;
 }
 
-/* advance_range for step_wavefront: the new positions go to the rows of the next step (xv_next,
- * ghosts included, frozen particles copied), not to the rows the walks read. */
-static void advance_next(consph_particles *p, pack_work *w, const pack_list *L, double dt,
-                         double damp, int explicit_euler, size_t i0, size_t i1, double *vmax2,
-                         double *dmax2)
-{
-    const int dim = w->dim;
-    double *restrict xn = L->xv_next;
-    double vm = *vmax2, dm = *dmax2;
-    for (size_t i = i0; i < i1; ++i) {
-        double x[CONSPH_MAX_DIM];
-        if (w->origin[i] >= w->n_free) { /* frozen: no motion, u stays 0 */
-            for (int a = 0; a < dim; ++a) {
-                x[a] = p->x[a][i];
-                xn[PACK_XV_STRIDE * i + (size_t)a] = x[a];
-            }
-        } else {
-            double v2 = 0.0, d2 = 0.0;
-            for (int a = 0; a < dim; ++a) {
-                const double u0 = w->u[a][i], u1 = damp * u0 + dt * w->acc[a][i];
-                w->u[a][i] = u1;
-                x[a] = p->x[a][i] + dt * (explicit_euler ? u0 : u1);
-                p->x[a][i] = x[a];
-                xn[PACK_XV_STRIDE * i + (size_t)a] = x[a];
-                v2 += u1 * u1;
-                d2 += (x[a] - L->x_ref[a][i]) * (x[a] - L->x_ref[a][i]);
-            }
-            if (v2 > vm) vm = v2;
-            if (d2 > dm) dm = d2;
-        }
-        /* (a copy loop of x here would become a call of memcpy per particle) */
-        if (L->ghost_head[i] >= 0) pack_list_ghost_rows(L, xn, i, x);
-    }
-    *vmax2 = vm;
-    *dmax2 = dm;
-}
-
 static double advance(consph_particles *p, pack_work *w, pack_list *L, double dt, double nu,
                       int explicit_euler, double *moved2)
 {
@@ -1316,11 +1279,6 @@ typedef struct packer {
     double **rings;
     int nrings;
     size_t ring_cap;
-    /* The threads' pair buffers of the wavefront, for lists of up to buf_len entries a particle,
-     * kept from step to step (no allocation, and no barrier to agree on its failure, per step). */
-    pair_buf *bufs;
-    int nbufs;
-    size_t buf_len;
 } packer;
 
 #define PACK_NO_RING SIZE_MAX
@@ -1334,37 +1292,8 @@ static void free_rings(packer *pk)
     pk->ring_cap = 0;
 }
 
-static void free_bufs(packer *pk)
-{
-    for (int t = 0; t < pk->nbufs; ++t) pair_buf_free(&pk->bufs[t]);
-    free(pk->bufs);
-    pk->bufs = NULL;
-    pk->nbufs = 0;
-    pk->buf_len = 0;
-}
-
-/* Pair buffers for `threads` threads and lists of `len` entries a particle. */
-static int reserve_bufs(packer *pk, int threads, size_t len)
-{
-    if (threads <= pk->nbufs && len <= pk->buf_len) return CONSPH_OK;
-    if (len < pk->buf_len) len = pk->buf_len;
-    if (threads < pk->nbufs) threads = pk->nbufs;
-    free_bufs(pk);
-    pk->bufs = consph_calloc((size_t)threads, sizeof *pk->bufs);
-    if (!pk->bufs) return CONSPH_ENOMEM;
-    pk->nbufs = threads;
-    for (int t = 0; t < threads; ++t)
-        if (!pair_buf_alloc(&pk->bufs[t], len, PACK_CHUNK)) {
-            free_bufs(pk);
-            return CONSPH_ENOMEM;
-        }
-    pk->buf_len = len;
-    return CONSPH_OK;
-}
-
 static void packer_free(packer *pk)
 {
-    free_bufs(pk);
     free_rings(pk);
     free(pk->chunk_ring);
     free(pk->chunk_lo);
@@ -1537,8 +1466,6 @@ static int step_wavefront(packer *pk, consph_particles *p, wave_step *ws)
     const int max_threads = 1;
 #endif
     int rc = reserve_rings(pk, max_threads, (size_t)pack_ring_chunks * (L->start[n] / nc + 1));
-    if (!rc) rc = pack_list_reserve_next(L);
-    if (!rc) rc = reserve_bufs(pk, max_threads, L->max_len);
     if (rc) return rc;
     pack_sweep sd, sf;
     density_sweep_init(&sd, fp, L, w);
@@ -1547,19 +1474,13 @@ static int step_wavefront(packer *pk, consph_particles *p, wave_step *ws)
     unsigned char *late = pk->chunk_late;
     size_t *ring_of = pk->chunk_ring;
     double *xv = L->xv;
-    /* After a build the rows are refreshed first (a barrier before the walks); else the last
-     * step wrote them all. */
-    const int fill = L->rows_current != 2;
     const size_t rows = n + L->n_ghost, first_row = L->rows_current ? n : 0;
-    /* A chunk with a neighbour this many chunks ahead (at one thread, the periodic images across
-     * the box) is late too: its force would hold back every later chunk's, whose W'/r would
-     * then overflow the ring into the list's array. */
-    const size_t reach = (size_t)pack_ring_chunks / 2;
     const double damp = 1.0 - ws->nu * ws->dt;
     /* The spread as consph_layout_spread: the largest |rho/rho0 - 1|, or NaN where one is (the
      * maxima are exact: the same for any split) */
     double vmax2 = 0.0, dmax2 = 0.0, spread = 0.0;
     int nan_rho = 0;
+    int failed = 0;
 #pragma omp parallel if (n >= 2048) reduction(max : vmax2, dmax2, spread) reduction(| : nan_rho)
     {
 #ifdef _OPENMP
@@ -1570,24 +1491,26 @@ static int step_wavefront(packer *pk, consph_particles *p, wave_step *ws)
         const size_t c0 = nc * t / nt, c1 = nc * (t + 1) / nt;
         double *ring = pk->rings[t];
         pack_sweep sdt = sd, sft = sf;
-        pair_buf *b = &pk->bufs[t];
-        if (fill) {
-            /* The rows the walks read (pack_list_fill_positions), each thread its part. */
-            pack_list_fill_range(L, p, first_row + (rows - first_row) * t / nt,
-                                 first_row + (rows - first_row) * (t + 1) / nt);
-#pragma omp barrier
+        pair_buf b;
+        if (!pair_buf_alloc(&b, L->max_len, PACK_CHUNK)) {
+#pragma omp atomic write
+            failed = 1;
         }
-        {
+        /* The rows the walks read (pack_list_fill_positions), each thread its part. */
+        pack_list_fill_range(L, p, first_row + (rows - first_row) * t / nt,
+                             first_row + (rows - first_row) * (t + 1) / nt);
+#pragma omp barrier
+        if (!failed) {
             size_t next = c0, head = 0; /* the first chunk without its force; the ring's next */
             for (size_t f = c0; f < c1; ++f) {
                 const size_t i0 = f * PACK_CHUNK, i1 = chunk_end(f, n);
-                late[f] = lo[f] < c0 || hi[f] >= c1 || hi[f] > f + reach;
+                late[f] = lo[f] < c0 || hi[f] >= c1;
                 const size_t off =
                     late[f] ? PACK_NO_RING : ring_place(pk, f, next, head, pk->ring_cap);
                 ring_of[f] = off;
                 sweep_dwr_at(&sdt, L, ring, off, i0);
                 if (off != PACK_NO_RING) head = off + (start[i1] - start[i0]);
-                density_block(&sdt, i0, i1, b);
+                density_block(&sdt, i0, i1, &b);
                 for (size_t i = i0; i < i1; ++i) {
                     const double e = fabs(w->rho[i] / packing_rho0 - 1.0);
                     nan_rho |= isnan(e);
@@ -1601,30 +1524,24 @@ static int step_wavefront(packer *pk, consph_particles *p, wave_step *ws)
                 for (; next <= f; ++next) {
                     if (late[next]) continue;
                     if (hi[next] > f && f + 1 < c1) break;
-                    const size_t j0 = next * PACK_CHUNK, j1 = chunk_end(next, n);
-                    sweep_dwr_at(&sft, L, ring, ring_of[next], j0);
-                    accel_block(&sft, j0, j1, b);
-                    /* The step of the chunk's particles while their accelerations are cached:
-                     * the walks read this step's rows, the step writes the next step's. */
-                    advance_next(p, w, L, ws->dt, damp, ws->explicit_euler, j0, j1, &vmax2, &dmax2);
+                    sweep_dwr_at(&sft, L, ring, ring_of[next], next * PACK_CHUNK);
+                    accel_block(&sft, next * PACK_CHUNK, chunk_end(next, n), &b);
                 }
             }
         }
 #pragma omp barrier
-        for (size_t c = c0; c < c1; ++c)
-            if (late[c]) {
-                const size_t j0 = c * PACK_CHUNK, j1 = chunk_end(c, n);
-                accel_block(&sf, j0, j1, b);
-                advance_next(p, w, L, ws->dt, damp, ws->explicit_euler, j0, j1, &vmax2, &dmax2);
-            }
+        if (!failed)
+            for (size_t c = c0; c < c1; ++c)
+                if (late[c]) accel_block(&sf, c * PACK_CHUNK, chunk_end(c, n), &b);
+        pair_buf_free(&b);
+        /* advance's step of the share's particles, once no walk reads their rows */
+#pragma omp barrier
+        if (!failed && c0 < c1)
+            advance_range(p, w, L, ws->dt, damp, ws->explicit_euler, c0 * PACK_CHUNK,
+                          chunk_end(c1 - 1, n), &vmax2, &dmax2);
     }
-    /* The next step reads the rows this one wrote, ghosts included. */
-    L->xv = L->xv_next;
-    L->xv_next = xv;
-    const size_t xv_rows = L->xv_rows;
-    L->xv_rows = L->xv_next_rows;
-    L->xv_next_rows = xv_rows;
-    L->rows_current = 2;
+    if (failed) return CONSPH_ENOMEM;
+    L->rows_current = 1;
     ws->vmax2 = vmax2;
     ws->moved2 = dmax2;
     ws->spread = nan_rho ? NAN : spread;

@@ -45,7 +45,6 @@ void pack_list_free(pack_list *L)
     free(L->ghost_head);
     free(L->ghost_next);
     free(L->xv);
-    free(L->xv_next);
     for (int a = 0; a < CONSPH_MAX_DIM; ++a) free(L->x_ref[a]);
     for (int t = 0; t < L->nparts; ++t) list_part_free(&L->parts[t]);
     free(L->parts);
@@ -308,21 +307,6 @@ void pack_list_fill_range(pack_list *L, const consph_particles *p, size_t r0, si
                     p->x[a][src] + (double)image_of_key(L->ghost_key[g], a) * L->len[a];
         }
     }
-}
-
-int pack_list_reserve_next(pack_list *L)
-{
-    if (L->xv_next_rows >= L->xv_rows) return CONSPH_OK;
-    free(L->xv_next);
-    const size_t bytes = L->xv_rows * PACK_XV_STRIDE * sizeof(double);
-    L->xv_next = aligned_alloc(32, bytes);
-    if (!L->xv_next) {
-        L->xv_next_rows = 0;
-        return CONSPH_ENOMEM;
-    }
-    memset(L->xv_next, 0, bytes);
-    L->xv_next_rows = L->xv_rows;
-    return CONSPH_OK;
 }
 
 void pack_list_fill_positions(pack_list *L, const consph_particles *p)
