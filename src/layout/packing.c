@@ -162,7 +162,20 @@
  * loads with the density's square roots and divisions, made the two walks 14% slower (likely: more
  * branches per block, each misprediction discarding both walks' work in flight); leaving W'/r's
  * division to the force walk (the ring holding its numerator and r) moved 8% of the density walk's
- * time to the force walk, 0.5% in all; a branch-free, vectorised advance gained 0.2%.
+ * time to the force walk, 0.5% in all; a branch-free, vectorised advance gained 0.2%. A chunk
+ * with a neighbour more than half the ring ahead is late too: at one thread, chunk 0 lists the
+ * last chunks (the periodic images across the box), and waiting for them held every later
+ * chunk's force to the end of the walk, most chunks' W'/r overflowing the ring into the list's
+ * array (2D nx 300, one thread, 2000 steps, three alternating runs: 28.4-29.7 -> 26.7-27.7 s;
+ * whole packs nx 150, 18.3-20.3 -> 18.5-19.2 s). Two threads lose little (session s36, each
+ * thread's CPU time per phase over 600 steps, 2D): at nx 300 each takes 4.0-4.3 s for its walks
+ * and steps against 8.4-8.9 s at one thread, spins 1.5% of that at the barriers, and the
+ * threads' per-step differences (the waits on a quiet machine) sum to 0.17 s; whole packs at nx
+ * 150 took 9.7-10.0 s on two threads against 18.3-20.3 s on one, quiet cores. Not taken, the
+ * same positions bit for bit: each chunk's step right after its force, writing a second set of
+ * rows swapped per step (ghosts included: no refresh pass, two barriers fewer per step): nx 150,
+ * two threads, 9.7-10.0 s wall as main; nx 300 whole packs 73.0 against 70.6 s (the quietest of
+ * three alternating pairs, the others under load from other jobs).
  *
  * Reproducibility: every sum is a gather into particle i in the fixed order of its list
  * and the only reductions are max, which are exact, so the result does not depend on the number of
@@ -1475,6 +1488,10 @@ static int step_wavefront(packer *pk, consph_particles *p, wave_step *ws)
     size_t *ring_of = pk->chunk_ring;
     double *xv = L->xv;
     const size_t rows = n + L->n_ghost, first_row = L->rows_current ? n : 0;
+    /* A chunk with a neighbour more than this many chunks ahead (at one thread, the periodic
+     * images across the box) is late too: its force would hold back every later chunk's, whose
+     * W'/r would then overflow the ring into the list's array. */
+    const size_t reach = (size_t)pack_ring_chunks / 2;
     const double damp = 1.0 - ws->nu * ws->dt;
     /* The spread as consph_layout_spread: the largest |rho/rho0 - 1|, or NaN where one is (the
      * maxima are exact: the same for any split) */
@@ -1504,7 +1521,7 @@ static int step_wavefront(packer *pk, consph_particles *p, wave_step *ws)
             size_t next = c0, head = 0; /* the first chunk without its force; the ring's next */
             for (size_t f = c0; f < c1; ++f) {
                 const size_t i0 = f * PACK_CHUNK, i1 = chunk_end(f, n);
-                late[f] = lo[f] < c0 || hi[f] >= c1;
+                late[f] = lo[f] < c0 || hi[f] >= c1 || hi[f] > f + reach;
                 const size_t off =
                     late[f] ? PACK_NO_RING : ring_place(pk, f, next, head, pk->ring_cap);
                 ring_of[f] = off;
