@@ -167,7 +167,7 @@
  * last chunks (the periodic images across the box), and waiting for them held every later
  * chunk's force to the end of the walk, most chunks' W'/r overflowing the ring into the list's
  * array (2D nx 300, one thread, 2000 steps, three alternating runs: 28.4-29.7 -> 26.7-27.7 s;
- * whole packs nx 150, 18.3-20.3 -> 18.5-19.2 s). Two threads lose little (session s36, each
+ * whole packs nx 150, 18.3-20.3 -> 18.5-19.2 s). Two threads lose little (each
  * thread's CPU time per phase over 600 steps, 2D): at nx 300 each takes 4.0-4.3 s for its walks
  * and steps against 8.4-8.9 s at one thread, spins 1.5% of that at the barriers, and the
  * threads' per-step differences (the waits on a quiet machine) sum to 0.17 s; whole packs at nx
