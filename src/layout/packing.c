@@ -163,7 +163,7 @@
  * branches per block, each misprediction discarding both walks' work in flight); leaving W'/r's
  * division to the force walk (the ring holding its numerator and r) moved 8% of the density walk's
  * time to the force walk, 0.5% in all; a branch-free, vectorised advance gained 0.2%. A chunk
- * with a neighbour more than half the ring ahead is late too: at one thread, chunk 0 lists the
+ * with a neighbour a ring's length ahead is late too: at one thread, chunk 0 lists the
  * last chunks (the periodic images across the box), and waiting for them held every later
  * chunk's force to the end of the walk, most chunks' W'/r overflowing the ring into the list's
  * array (2D nx 300, one thread, 2000 steps, three alternating runs: 28.4-29.7 -> 26.7-27.7 s;
@@ -1488,10 +1488,12 @@ static int step_wavefront(packer *pk, consph_particles *p, wave_step *ws)
     size_t *ring_of = pk->chunk_ring;
     double *xv = L->xv;
     const size_t rows = n + L->n_ghost, first_row = L->rows_current ? n : 0;
-    /* A chunk with a neighbour more than this many chunks ahead (at one thread, the periodic
-     * images across the box) is late too: its force would hold back every later chunk's, whose
-     * W'/r would then overflow the ring into the list's array. */
-    const size_t reach = (size_t)pack_ring_chunks / 2;
+    /* A chunk with a neighbour this many chunks ahead or more (at one thread, the periodic
+     * images across the box) is late too: the ring cannot hold what its force would wait for,
+     * and waiting would hold back every later chunk's force, their W'/r overflowing the ring
+     * into the list's array. Half the ring made every chunk late from 2D nx ~680 on, where a
+     * neighbourhood's two rows of cells span ~20 chunks and the ring still holds them. */
+    const size_t reach = (size_t)pack_ring_chunks;
     const double damp = 1.0 - ws->nu * ws->dt;
     /* The spread as consph_layout_spread: the largest |rho/rho0 - 1|, or NaN where one is (the
      * maxima are exact: the same for any split) */
@@ -1521,7 +1523,7 @@ static int step_wavefront(packer *pk, consph_particles *p, wave_step *ws)
             size_t next = c0, head = 0; /* the first chunk without its force; the ring's next */
             for (size_t f = c0; f < c1; ++f) {
                 const size_t i0 = f * PACK_CHUNK, i1 = chunk_end(f, n);
-                late[f] = lo[f] < c0 || hi[f] >= c1 || hi[f] > f + reach;
+                late[f] = lo[f] < c0 || hi[f] >= c1 || hi[f] >= f + reach;
                 const size_t off =
                     late[f] ? PACK_NO_RING : ring_place(pk, f, next, head, pk->ring_cap);
                 ring_of[f] = off;
