@@ -1491,8 +1491,9 @@ static int step_wavefront(packer *pk, consph_particles *p, wave_step *ws)
     /* A chunk with a neighbour this many chunks ahead or more (at one thread, the periodic
      * images across the box) is late too: the ring cannot hold what its force would wait for,
      * and waiting would hold back every later chunk's force, their W'/r overflowing the ring
-     * into the list's array. Half the ring made every chunk late from 2D nx ~680 on, where a
-     * neighbourhood's two rows of cells span ~20 chunks and the ring still holds them. */
+     * into the list's array. Half the ring would make every chunk late from 2D nx ~680 on (by
+     * the geometry: a neighbourhood's two rows of cells span ~0.03 nx chunks), where the ring
+     * still holds them. */
     const size_t reach = (size_t)pack_ring_chunks;
     const double damp = 1.0 - ws->nu * ws->dt;
     /* The spread as consph_layout_spread: the largest |rho/rho0 - 1|, or NaN where one is (the
