@@ -262,12 +262,22 @@ LANE4_CLONES static void ipst_volume_group(void *job, const consph_nbhd *nb, int
     }
 }
 
+/* lane4_transpose of the four rows p + q, p + q + o1, p + q + o2, p + q + o3: rows of one array
+ * at one offset per lane from lane 0's (the pair cache's blocks), formed here rather than held
+ * as pointers per array and lane, which spilled. */
+static inline __attribute__((always_inline)) void ipst_rows(const double *p, size_t q, size_t o1,
+                                                            size_t o2, size_t o3, lane4 f[4])
+{
+    const double *const rows[PASS_GROUP] = {p + q, p + q + o1, p + q + o2, p + q + o3};
+    lane4_transpose(rows, 0, f);
+}
+
 /* ipst_body over a group, the four particles side by side: lane l of every vector is particle
  * l's, its factor W ω / r and separations computed as ipst_body computes them and added in its
  * own neighbours' order, so that each lane's sums are ipst_body's bit for bit. While every lane
  * has four more pairs, their values come as rows of four and are transposed into columns (one
- * vector per pair index); then one pair index at a time, and past the smallest count the lanes
- * that have run out keep their sums. Before, each lane's factors were staged through a chunk
+ * vector per pair index); then one pair index at a time, the lanes that have run out keeping
+ * their sums. Before, each lane's factors were staged through a chunk
  * buffer and summed lane by lane in scalar code. */
 #if defined(__GNUC__)
 __attribute__((always_inline))
@@ -289,8 +299,8 @@ ipst_group_body(const ipst_job *a, const consph_nbhd *nb, int count, const int D
     /* The rows of four are read where the lanes' entries lie at one offset per lane in every
      * array (the blocks of the neighbour list's pair cache, the only caller's: always), by that
      * offset from lane 0's pointers: 5 pointers and 3 offsets instead of 20 pointers, which
-     * spilled (measured ~-1.5 % on L-IPST-C's quick row, within the noise). Elsewhere the loop
-     * below, one pair index at a time, does it all. */
+     * spilled (measured ~-1.5 % on L-IPST-C's quick row, within the noise). The loop after it,
+     * one pair index at a time, does the rest (and all of any other layout). */
     size_t off[PASS_GROUP];
     int shared = 1;
     for (int l = 0; l < PASS_GROUP; ++l) {
@@ -304,18 +314,11 @@ ipst_group_body(const ipst_job *a, const consph_nbhd *nb, int count, const int D
         const double *r0 = nb[0].r, *w0 = nb[0].w, *x0[3] = {nb[0].dx[0], nb[0].dx[1], nb[0].dx[2]};
         const size_t *j0 = nb[0].j;
         const size_t o1 = off[1], o2 = off[2], o3 = off[3];
-#define ROWS(p, q, f)                                                                              \
-    do {                                                                                           \
-        const lane4 a0_ = *(const lane4u *)((p) + (q)), a1_ = *(const lane4u *)((p) + (q) + o1);   \
-        const lane4 a2_ = *(const lane4u *)((p) + (q) + o2),                                       \
-                    a3_ = *(const lane4u *)((p) + (q) + o3);                                       \
-        LANE4_TRANSPOSE(lane4, a0_, a1_, a2_, a3_, f);                                             \
-    } while (0)
         for (; k + 4 <= kmin; k += 4) {
             lane4 r4[4], w4[4], x4[3][4];
-            ROWS(r0, k, r4);
-            ROWS(w0, k, w4);
-            for (int c = 0; c < D; ++c) ROWS(x0[c], k, x4[c]);
+            ipst_rows(r0, k, o1, o2, o3, r4);
+            ipst_rows(w0, k, o1, o2, o3, w4);
+            for (int c = 0; c < D; ++c) ipst_rows(x0[c], k, o1, o2, o3, x4[c]);
             for (int e = 0; e < 4; ++e) {
                 const size_t q = k + (size_t)e;
                 const lane4 vk = {vol[j0[q]], vol[j0[q + o1]], vol[j0[q + o2]], vol[j0[q + o3]]};
@@ -325,24 +328,11 @@ ipst_group_body(const ipst_job *a, const consph_nbhd *nb, int count, const int D
                 for (int c = 0; c < D; ++c) acc[c] += f * LANE4_SEL(has, x4[c][e], zero);
             }
         }
-#undef ROWS
-    }
-    for (; k < kmin; ++k) {
-        const lane4 rk = {rq[0][k], rq[1][k], rq[2][k], rq[3][k]};
-        const lane4 wk = {wq[0][k], wq[1][k], wq[2][k], wq[3][k]};
-        const lane4 vk = {vol[nb[0].j[k]], vol[nb[1].j[k]], vol[nb[2].j[k]], vol[nb[3].j[k]]};
-        const lane4i has = rk > zero;
-        const lane4 ratio = wk * vk / LANE4_SEL(has, rk, one);
-        const lane4 f = LANE4_SEL(has, ratio, zero);
-        for (int c = 0; c < D; ++c) {
-            const lane4 xk = {xq[c][0][k], xq[c][1][k], xq[c][2][k], xq[c][3][k]};
-            acc[c] += f * LANE4_SEL(has, xk, zero);
-        }
     }
     const lane4i nv = {(long long)n[0], (long long)n[1], (long long)n[2], (long long)n[3]};
     for (; k < kmax; ++k) {
-        /* a lane that has run out reads its first pair (no neighbour's volume) and keeps its
-         * sums */
+        /* a lane that has run out (k >= its n, past the smallest count) reads its first pair (no
+         * neighbour's volume) and keeps its sums */
         size_t e[PASS_GROUP];
         double v[PASS_GROUP];
         for (int l = 0; l < PASS_GROUP; ++l) {
