@@ -106,6 +106,18 @@ int main(int argc, char **argv)
         printf("  total: %.4f s/step, %.1f bytes per particle-step, MPI %.1f%% of the step time "
                "(mean over ranks)\n",
                tmax / steps, bytes / ((double)whole * steps), 100.0 * cmean);
+        int k[CONSPH_MAX_DIM];
+        long long nc[CONSPH_MAX_DIM], width[CONSPH_MAX_DIM];
+        const int d = par_geometry(s, k, nc, width);
+        if (d > 0) {
+            printf("  boxes");
+            for (int a = 0; a < d; ++a) printf("%s%d", a ? "x" : " ", k[a]);
+            printf(" of cells");
+            for (int a = 0; a < d; ++a) printf("%s%lld", a ? "x" : " ", nc[a]);
+            printf(", halo width");
+            for (int a = 0; a < d; ++a) printf(" %lld", width[a]);
+            printf(" cells\n");
+        }
     }
     free(all);
     consph_solver_free(s);

@@ -193,18 +193,25 @@ measure() {
         '{ d = s2 - s1; printf "%.4g %.6g %.4g %.4g %d\n", ($6 - $1) / d, ($7 - $2) / d, ($8 - $3) / d, ($9 - $4) / d, $10 }'
 }
 
-# halo K NX PROBLEM SCHEME: halo / owned particles, mean over ranks (bench_par, one step).
+# halo K NX PROBLEM SCHEME: halo / owned particles, mean over ranks (bench_par, one step), then
+# the cut's geometry: the search's cells along each axis and the halo's width in cells, comma
+# separated ("--" where bench_par is missing or did not say).
 halo() {
-    [ -x "$BENCH_PAR" ] || { echo --; return; }
-    timeout "$(limit)" $MPIRUN -np "$1" "$BENCH_PAR" "$3" "$4" "$2" 1 2>/dev/null |
-        sed -n 's/.*(halo \([0-9.]*\) of owned).*/\1/p' | awk '{ s += $1; n++ } END { if (n) printf "%.2f", s / n; else print "--" }'
+    [ -x "$BENCH_PAR" ] || { echo "-- --"; return; }
+    timeout "$(limit)" $MPIRUN -np "$1" "$BENCH_PAR" "$3" "$4" "$2" 1 2>/dev/null | awk '
+        /\(halo [0-9.]* of owned\)/ { sub(/.*\(halo /, ""); sub(/ of owned.*/, ""); s += $1; n++ }
+        /^  boxes / { sub(/.* of cells /, ""); sub(/, halo width /, " "); sub(/ cells$/, "")
+                      m = split($1, c, "x"); g = c[1]; for (a = 2; a <= m; a++) g = g "," c[a]
+                      w = $2; for (a = 3; a <= NF; a++) w = w "," $a; geo = g ";" w }
+        END { printf "%s %s\n", n ? sprintf("%.2f", s / n) : "--", geo != "" ? geo : "--" }'
 }
 
 # solver_case DIM PER_RANK STRONG_NX PROBLEM SCHEME: weak scaling at PER_RANK particles per rank
 # (nx = round((K PER_RANK)^(1/DIM))), and strong scaling at STRONG_NX (empty: the largest K's
 # nx); then the extrapolation of the halo and the communication to 16 ranks from the largest K
-# measured, when that is below 16, as if the cut stayed slabs along one axis: an upper bound,
-# since consph cuts boxes over up to three axes where they hold fewer halo cells.
+# measured, when that is below 16: the cut that consph would choose at 16 ranks (par_solver.c
+# choose_boxes: the fewest halo cells per rank) on the 16-rank size's cells, its halo/owned
+# scaled by what the largest K measured against its own cells' count.
 solver_case() {
     dim=$1 per=$2 snx=$3 prob=$4 scheme=$5
     set -- "$CONSPH" run "$prob" --scheme "$scheme" --layout lattice --threads 1
@@ -260,29 +267,65 @@ solver_case() {
             else
                 eff=$(awk -v t1="$t1" -v t="$step" -v k="$k" 'BEGIN { if (t1 > 0) printf "%.2f", t1 / (k * t); else print "--" }')
             fi
-            h=--
-            [ "$k" -gt 1 ] && h=$(halo "$k" "$nx" "$prob" "$scheme")
+            h=-- geo=--
+            [ "$k" -gt 1 ] && read -r h geo <<EOF
+$(halo "$k" "$nx" "$prob" "$scheme")
+EOF
             echo "$m" | awk -v mode=$mode -v k="$k" -v nx="$nx" -v n="$n" -v eff="$eff" -v h="$h" \
                 '{ printf "| %s | %d | %d | %d | %s | %s | %s | %.0f | %.2f | %s |\n", mode, k, nx, n, $1, eff, $4, $2 / n, $3 / $1, h }'
-            echo "$mode $k $nx $n $m $h" >>"$WORK/rows"
+            echo "$mode $k $nx $n $m $h $geo" >>"$WORK/rows"
         done
     done
     # extrapolation: the weak row of the largest K
     awk -v dim="$dim" -v per="$per" -v bw="$BANDWIDTH" '
+        # halo cells per owned cell of the best cut of K ranks over cells nc[] with halo width
+        # w[]: par_solver.c choose_boxes (a tie goes to the slabs, pieces along the later axes)
+        function best_cut(K, nc, w, d,    k0, k1, k2, a, own, ext, o, e, best, kk, fits) {
+            best = -1
+            for (k2 = (d > 2 ? K : 1); k2 >= 1; k2--) {
+                if (K % k2) continue
+                for (k1 = K / k2; k1 >= 1; k1--) {
+                    if ((K / k2) % k1) continue
+                    kk[0] = K / k2 / k1; kk[1] = k1; kk[2] = k2
+                    own = 1; ext = 1; fits = (d > 1 || k1 == 1)
+                    for (a = 0; a < d; a++) {
+                        if (kk[a] > nc[a]) fits = 0
+                        o = nc[a] / kk[a]
+                        e = kk[a] > 1 ? o + 2 * w[a] : o
+                        if (e > nc[a]) e = nc[a]
+                        own *= o; ext *= e
+                    }
+                    if (fits && (best < 0 || ext - own < best)) {
+                        best = ext - own; ratio = (ext - own) / own
+                        cut = kk[0]; for (a = 1; a < d; a++) cut = cut "x" kk[a]
+                    }
+                }
+                if (d < 2) break
+            }
+            return best < 0 ? -1 : ratio
+        }
         $1 == "weak" && $2 == 1 { t1 = $5 }
-        $1 == "weak" && $2 >= kmax { kmax = $2; nx = $3; n = $4; t = $5; b = $6 / $4; c = $7; h = $10 }
+        $1 == "weak" && $2 >= kmax { kmax = $2; nx = $3; n = $4; t = $5; b = $6 / $4; c = $7; h = $10; geo = $11 }
         END {
-            if (kmax < 2 || kmax >= 16 || h == "--" || h + 0 == 0) exit
+            if (kmax < 2 || kmax >= 16 || h == "--" || h + 0 == 0 || geo == "--" || geo == "") exit
             nx16 = int((16 * per)^(1 / dim) + 0.5)
-            # the halo is a fixed number of cell layers each side; the owned slab thins as the
-            # axis grows by nx16 / nx and is cut in 16 instead of kmax
-            h16 = h * nx / nx16 * 16 / kmax
+            split(geo, gw, ";"); split(gw[1], cs, ","); split(gw[2], ws, ",")
+            for (a = 0; a < dim; a++) { ncm[a] = cs[a + 1] + 0; w[a] = ws[a + 1] + 0 }
+            # the cut at kmax on its own cells, then at 16 on the cells of nx16 (the cells scale
+            # with the resolution: a fixed number of spacings per cell); the measured halo/owned
+            # over the geometric one at kmax carries the particles per halo cell over to 16
+            gm = best_cut(kmax, ncm, w, dim); cutm = cut
+            for (a = 0; a < dim; a++) nc16[a] = int(ncm[a] * nx16 / nx + 0.5)
+            g16 = best_cut(16, nc16, w, dim); cut16 = cut
+            if (gm <= 0 || g16 < 0) exit
+            h16 = h * g16 / gm
             b16 = b * h16 / h
             kappa = c * kmax / (b * n)     # MPI seconds per byte a rank sends, kmax-rank run
             c16 = kappa * b16 * per
             comp = t1                      # the pair work of PER_RANK owned particles
-            printf "\nAt 16 ranks (extrapolated as slabs, not measured; boxes over up to three axes hold fewer): nx %d, halo/owned about %.1f", nx16, h16
-            printf " (%.2f measured at %d ranks), about %.0f bytes per particle-step;", h, kmax, b16
+            printf "\nAt 16 ranks (extrapolated, not measured): nx %d, the cut consph chooses there", nx16
+            printf " (boxes %s of %d cells per axis, halo %d cells wide; %s at %d ranks on %d cells)", cut16, nc16[0], w[0], cutm, kmax, ncm[0]
+            printf " holds halo/owned about %.2f (%.2f measured at %d ranks), about %.0f bytes per particle-step;", h16, h, kmax, b16
             printf " at the %d-rank cost per byte (%.2g s/MB, waiting on this shared machine included)", kmax, kappa * 1e6
             printf " communication would take %.3g s of a step whose pair work takes %.3g s:", c16, comp
             printf " weak-scaling efficiency about %.2f.", comp / (comp + c16)
@@ -317,7 +360,7 @@ solver_scaling() {
     echo "layers (the search's reach plus one) on each side of a rank's box along every cut axis,"
     echo "whatever its thickness. The cut is K = k0 k1 k2 boxes of cells chosen for the fewest halo"
     echo "cells (slabs where they win, at 2-3 ranks), so the halo grows more slowly with K than a"
-    echo "slab's; the extrapolation above keeps slabs and is an upper bound. What a rank adds to the"
+    echo "slab's; the extrapolation above takes the cut consph would choose at 16 ranks. What a rank adds to the"
     echo "serial work, by kind, is measured in instructions by bench/mpi_instr.sh; the refresh still"
     echo "scans every column, since the passes do not declare the fields they read."
     echo "Measured here: ranks 1 $RANKS on $(getconf _NPROCESSORS_ONLN) cores${MACHINE_NOTE:+ ($MACHINE_NOTE)}."

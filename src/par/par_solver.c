@@ -2063,6 +2063,18 @@ int par_cut_weights(const consph_solver *s)
     return s->par ? s->par->weighed : 0;
 }
 
+int par_geometry(const consph_solver *s, int *k, long long *nc, long long *width)
+{
+    const par_solver *ps = s->par;
+    if (!ps) return 0;
+    for (int a = 0; a < CONSPH_MAX_DIM; ++a) {
+        k[a] = a < ps->dim ? ps->k[a] : 1;
+        nc[a] = a < ps->dim ? (long long)ps->nc[a] : 1;
+        width[a] = a < ps->dim ? (long long)ps->width[a] : 0;
+    }
+    return ps->dim;
+}
+
 int par_share_history(consph_solver *s)
 {
     par_solver *ps = s->par;
@@ -2380,6 +2392,15 @@ int par_rank(const consph_solver *s)
 int par_cut_weights(const consph_solver *s)
 {
     (void)s;
+    return 0;
+}
+
+int par_geometry(const consph_solver *s, int *k, long long *nc, long long *width)
+{
+    (void)s;
+    (void)k;
+    (void)nc;
+    (void)width;
     return 0;
 }
 

@@ -56,6 +56,10 @@ void par_force_boxes(const int *k);
 /* What weighed the particles at the last cut: 0 their count, 1 the pairs each visited, 2 the
  * candidates of its cell's walk (0 for a serial solver). */
 int par_cut_weights(const consph_solver *s);
+/* The boxes of the cut (k[a] pieces along axis a), the search's cells along each axis and the
+ * halo's width in cells (bench/bench_par prints them for the extrapolation in bench/mpi.sh);
+ * returns the dimension, 0 for a serial solver (nothing written). */
+int par_geometry(const consph_solver *s, int *k, long long *nc, long long *width);
 /* For the tests: nonzero cuts the boxes by particle counts, as before the pairs weighed them. */
 void par_force_count_cut(int on);
 /* For the tests: the gathers to rank 0 in messages of at most `bytes` (0: 4 MiB), so that
