@@ -21,10 +21,70 @@
 #include <mpi.h>
 #endif
 
+#ifdef CONSPH_HAVE_MPI
+/* bench_par --bandwidth BYTES: every rank exchanges BYTES with a partner (rank r with r ^ 1; an
+ * odd last rank idles) all pairs at once, as the halo refresh's largest messages go, and rank 0
+ * prints the slowest pair's rate per rank (bytes sent / seconds, minimum time of 10 rounds of
+ * 4 exchanges): the per-byte cost the extrapolation in bench/mpi.sh takes from the machine
+ * instead of assuming one. */
+static int bandwidth(size_t bytes)
+{
+    int rank = 0, size = 1;
+    MPI_Comm_rank(MPI_COMM_WORLD, &rank);
+    MPI_Comm_size(MPI_COMM_WORLD, &size);
+    const int partner = (rank ^ 1) < size ? rank ^ 1 : -1;
+    char *out = malloc(bytes ? bytes : 1), *in = malloc(bytes ? bytes : 1);
+    int ok = out && in, all = 0;
+    MPI_Allreduce(&ok, &all, 1, MPI_INT, MPI_LAND, MPI_COMM_WORLD);
+    if (!all) {
+        if (rank == 0) fprintf(stderr, "bench_par: out of memory for %zu bytes\n", bytes);
+        free(out);
+        free(in);
+        return 1;
+    }
+    memset(out, rank & 0xff, bytes);
+    double best = 0.0;
+    for (int round = 0; round < 11; ++round) {
+        MPI_Barrier(MPI_COMM_WORLD);
+        const double t0 = MPI_Wtime();
+        for (int k = 0; partner >= 0 && k < 4; ++k)
+            MPI_Sendrecv(out, (int)bytes, MPI_BYTE, partner, 7, in, (int)bytes, MPI_BYTE, partner,
+                         7, MPI_COMM_WORLD, MPI_STATUS_IGNORE);
+        double t = MPI_Wtime() - t0, slowest = 0.0;
+        MPI_Allreduce(&t, &slowest, 1, MPI_DOUBLE, MPI_MAX, MPI_COMM_WORLD);
+        if (round > 0 && (best == 0.0 || slowest < best)) best = slowest; /* round 0: warm-up */
+    }
+    if (rank == 0)
+        printf("bandwidth: %d ranks in pairs, %zu bytes each way: %.3g bytes/s per rank\n", size,
+               bytes, best > 0.0 ? 4.0 * (double)bytes / best : 0.0);
+    free(out);
+    free(in);
+    return 0;
+}
+#endif
+
 int main(int argc, char **argv)
 {
+#ifdef CONSPH_HAVE_MPI
+    if (argc == 3 && !strcmp(argv[1], "--bandwidth")) {
+        char *end = NULL;
+        const unsigned long long b = strtoull(argv[2], &end, 10);
+        if (!end || *end || b == 0 || b > (1ull << 30)) {
+            fprintf(stderr, "bench_par: --bandwidth BYTES: an integer in [1, 2^30], not '%s'\n",
+                    argv[2]);
+            return 2;
+        }
+        MPI_Init(&argc, &argv);
+        const int rc = bandwidth((size_t)b);
+        MPI_Finalize();
+        return rc;
+    }
+#endif
     if (argc < 5) {
-        fprintf(stderr, "usage: %s PROBLEM SCHEME NX STEPS [key=value ...]\n", argv[0]);
+        fprintf(stderr,
+                "usage: %s PROBLEM SCHEME NX STEPS [key=value ...]\n       %s --bandwidth BYTES "
+                "(with MPI)\n",
+                argv[0], argv[0]);
         return 2;
     }
     int rank = 0, size = 1;

@@ -18,7 +18,8 @@
 #   in all), WORK (scratch directory), REPEAT (tries of each timing, minimum kept; default 1),
 #   for the solver WEAK_PER_RANK (3D particles per rank, default 100000), WEAK_PER_RANK_2D
 #   (default 40000), STEPS1/STEPS2 (default 2/12), BENCH_PAR (default build/bench/bench_par,
-#   for halo/owned), BANDWIDTH (bytes/s per rank assumed in the extrapolation, default 5e9),
+#   for halo/owned), BANDWIDTH (bytes/s per rank in the extrapolation; default measured by
+#   `bench_par --bandwidth` with the largest K of RANKS exchanging 4 MiB in pairs, else 5e9),
 #   BASE (serial binary before the MPI merge; the section is left out without) and NOMPI (this
 #   tree built with -DCONSPH_MPI=OFF, an optional column of that section).
 #   For a machine of its own (bench/mpi_device.sh): MPIRUN (the launcher and its options,
@@ -42,7 +43,8 @@ WEAK_PER_RANK_2D=${WEAK_PER_RANK_2D:-40000}
 SECTIONS=${SECTIONS:-"studies solver serial"}
 REPEAT=${REPEAT:-1}
 BENCH_PAR=${BENCH_PAR:-build/bench/bench_par}
-BANDWIDTH=${BANDWIDTH:-5e9}
+BANDWIDTH=${BANDWIDTH:-}
+BANDWIDTH_HOW="assumed bandwidth,"
 NOMPI=${NOMPI:-}
 BASE=${BASE:-}
 STEPS1=${STEPS1:-2}
@@ -277,7 +279,7 @@ EOF
         done
     done
     # extrapolation: the weak row of the largest K
-    awk -v dim="$dim" -v per="$per" -v bw="$BANDWIDTH" '
+    awk -v dim="$dim" -v per="$per" -v bw="$BANDWIDTH" -v bwhow="$BANDWIDTH_HOW" '
         # halo cells per owned cell of the best cut of K ranks over cells nc[] with halo width
         # w[]: par_solver.c choose_boxes (a tie goes to the slabs, pieces along the later axes)
         function best_cut(K, nc, w, d,    k0, k1, k2, a, own, ext, o, e, best, kk, fits) {
@@ -330,7 +332,7 @@ EOF
             printf " communication would take %.3g s of a step whose pair work takes %.3g s:", c16, comp
             printf " weak-scaling efficiency about %.2f.", comp / (comp + c16)
             cb = b16 * per / bw
-            printf " At an assumed %.0f GB/s per rank (shared memory in one node; latency, packing and", bw / 1e9
+            printf " At the %s %.2g GB/s per rank (shared memory in one node; latency, packing and", bwhow, bw / 1e9
             printf " waiting left out) the %.0f MB a rank sends per step take %.3g s: efficiency", b16 * per / 1e6, cb
             printf " about %.2f, if the halo work (refresh, search over the halo) costs nothing.\n", comp / (comp + cb)
         }' "$WORK/rows"
@@ -338,6 +340,20 @@ EOF
 }
 
 solver_scaling() {
+    if [ -z "$BANDWIDTH" ]; then
+        # the largest K of RANKS in pairs (at least 2), 4 MiB each way: the halo refresh's
+        # messages at 10^5 particles per rank are of that order (some 100 MB a step per rank
+        # over several refreshes and neighbours); shared memory here slows from a few MiB on
+        kb=2
+        for k in $RANKS; do [ "$k" -gt "$kb" ] && kb=$k; done
+        BANDWIDTH=$(timeout 60 $MPIRUN -np "$kb" "$BENCH_PAR" --bandwidth 4194304 2>/dev/null |
+            sed -n 's/.*: \([0-9.e+]*\) bytes\/s per rank$/\1/p')
+        if [ -n "$BANDWIDTH" ]; then
+            BANDWIDTH_HOW="bandwidth measured by bench_par --bandwidth 4194304 ($kb ranks in pairs),"
+        else
+            BANDWIDTH=5e9
+        fi
+    fi
     echo
     echo "## The solver over ranks: weak and strong scaling"
     echo
