@@ -730,23 +730,34 @@ static int cover_collect(par_solver *ps, cover_pairs *cp, const int64_t *ac, siz
                          const unsigned char *want, int skip, size_t *count)
 {
     cp->n = 0;
+    const size_t dim = (size_t)ps->dim;
+    /* the particles come in cell order, about ten to a cell: a particle in the previous one's
+     * cell has its ranks (ps->ranks[0..nq), or none where alone and one == skip) */
+    const int64_t *prev = NULL;
+    int nq = 0, none = 0;
     for (size_t k = 0; k < n; ++k) {
         if (want && !want[k]) continue;
-        /* a cell that one piece along every axis covers (most: away from the halos) has one
-         * rank, found without covering's product */
-        const int64_t *a = ac + k * (size_t)ps->dim;
-        int one = 0, alone = 1;
-        for (int x = ps->dim - 1; alone && x >= 0; --x) {
-            const int o = ps->cover_off[x][a[x]];
-            alone = ps->cover_off[x][a[x] + 1] - o == 1;
-            one = one * ps->k[x] + ps->cover[x][o];
+        const int64_t *a = ac + k * dim;
+        int same = prev != NULL;
+        for (size_t x = 0; same && x < dim; ++x) same = a[x] == prev[x];
+        if (!same) {
+            prev = a;
+            /* a cell that one piece along every axis covers (most: away from the halos) has
+             * one rank, found without covering's product */
+            int one = 0, alone = 1;
+            for (int x = ps->dim - 1; alone && x >= 0; --x) {
+                const int o = ps->cover_off[x][a[x]];
+                alone = ps->cover_off[x][a[x] + 1] - o == 1;
+                one = one * ps->k[x] + ps->cover[x][o];
+            }
+            none = alone && one == skip;
+            nq = 1;
+            if (alone)
+                ps->ranks[0] = one;
+            else
+                nq = covering(ps, a);
         }
-        if (alone && one == skip) continue;
-        int nq = 1;
-        if (alone)
-            ps->ranks[0] = one;
-        else
-            nq = covering(ps, a);
+        if (none) continue;
         if (cp->n + (size_t)nq > cp->cap) {
             const size_t cap = 2 * (cp->n + (size_t)nq) + 64;
             int *q = realloc(cp->q, cap * sizeof *q);
@@ -981,6 +992,8 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, const d
     int nb = 0, sender = 0;
     size_t next = nself;
     bound[nb++] = 0;
+    int64_t last_cell = -1;
+    int last_owner = 0, last_held = 0;
     /* records k < nself: this rank's particle self[k]; then the received ones */
     for (size_t k = 0; k < m; ++k) {
         for (; k == next && sender < ps->size; next += (size_t)rcnt[sender++])
@@ -999,8 +1012,15 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, const d
             for (int a = 0; a < dim; ++a) xk[a] = recv[(size_t)a * nrecv + (k - nself)];
             c = cell_of(ps, s->sys.nnps, xk, ac);
         }
-        rowner[k] = owner_of(ps, ac);
-        if (rowner[k] != ps->rank && !in_halo(ps, ps->rank, ac)) continue;
+        /* records come mostly in cell order: the previous record's cell has its owner, and
+         * whether this rank holds it */
+        if (c != last_cell) {
+            last_cell = c;
+            last_owner = owner_of(ps, ac);
+            last_held = last_owner == ps->rank || in_halo(ps, ps->rank, ac);
+        }
+        rowner[k] = last_owner;
+        if (!last_held) continue;
         h[kept].cell = c;
         h[kept].g = k < nself ? ps->g[self[k]] : rg[k - nself];
         h[kept].at = k;
