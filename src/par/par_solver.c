@@ -1202,12 +1202,7 @@ static int migrate(consph_solver *s, par_solver *ps, int step)
     const size_t dim = (size_t)ps->dim;
     const double t0 = MPI_Wtime();
     int64_t *ac = malloc((ps->nown ? ps->nown : 1) * dim * sizeof(int64_t));
-    int *owner = malloc((ps->nown ? ps->nown : 1) * sizeof(int));
-    if (!ac || !owner) {
-        free(ac);
-        free(owner);
-        return par_fail_mem();
-    }
+    if (!ac) return par_fail_mem();
     for (size_t o = 0; o < ps->nown; ++o)
         for (size_t a = 0; a < dim; ++a)
             ac[o * dim + a] = nnps_axis_cell(s->sys.nnps, (int)a, p->x[a][ps->own[o]]);
@@ -1221,7 +1216,6 @@ static int migrate(consph_solver *s, par_solver *ps, int step)
         for (size_t o = 0; o < ps->nown; ++o) w[o] = ps->pairs[ps->own[o]];
     if (cut_boxes(ps, ac, w, kind, ps->nown) != CONSPH_OK) MPI_Abort(ps->comm, 1);
     free(w);
-    for (size_t o = 0; o < ps->nown; ++o) owner[o] = owner_of(ps, ac + o * dim);
     /* per rank, the owned particles it will hold (owns or has in its halo), ascending */
     size_t *go_off = consph_calloc((size_t)ps->size + 1, sizeof(size_t)), *go = NULL;
     if (!go_off) MPI_Abort(ps->comm, 1);
@@ -1405,7 +1399,6 @@ static int migrate(consph_solver *s, par_solver *ps, int step)
     free(rcol);
     free(rg);
     free(ac);
-    free(owner);
     free(go_off);
     free(go);
     free(cnt);
