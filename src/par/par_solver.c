@@ -1203,9 +1203,8 @@ static int migrate(consph_solver *s, par_solver *ps, int step)
     const double t0 = MPI_Wtime();
     int64_t *ac = malloc((ps->nown ? ps->nown : 1) * dim * sizeof(int64_t));
     if (!ac) return par_fail_mem();
-    for (size_t o = 0; o < ps->nown; ++o)
-        for (size_t a = 0; a < dim; ++a)
-            ac[o * dim + a] = nnps_axis_cell(s->sys.nnps, (int)a, p->x[a][ps->own[o]]);
+    for (size_t a = 0; a < dim; ++a)
+        nnps_axis_cells(s->sys.nnps, (int)a, p->x[a], ps->own, ps->nown, ac + a, dim);
     /* the weights: the pairs of the step's last cached state (none before the first pass) */
     pairs_take(ps, &s->sys);
     int kind = ps->pairs_epoch ? WEIGH_PAIRS : WEIGH_COUNT;
