@@ -640,6 +640,20 @@ int64_t nnps_axis_cell(const consph_nnps *g, int a, double x)
     return cell_index(g, a, stored_coord(g, a, x));
 }
 
+void nnps_axis_cells(const consph_nnps *g, int a, const double *x, const size_t *idx, size_t n,
+                     int64_t *out, size_t stride)
+{
+    /* the grid's constants in locals: the int64_t stores may alias its members */
+    const double lo = g->lo[a], hi = g->hi[a], len = g->len[a], ih = g->inv_h[a];
+    const int64_t nc = g->nc[a];
+    const int per = g->periodic[a];
+    for (size_t k = 0; k < n; ++k) {
+        const double xs = per ? nnps_wrap(x[idx[k]], lo, hi, len) : x[idx[k]];
+        const double v = (xs - lo) * ih;
+        out[k * stride] = !(v >= 0.0) ? 0 : v >= (double)nc ? nc - 1 : (int64_t)v;
+    }
+}
+
 /* Integer floor division for a positive divisor; u is nearly always inside [0, d) or one
  * period off, and a hardware division per row would cost more than the row's distances. */
 static inline int64_t floor_div(int64_t u, int64_t d)

@@ -82,5 +82,8 @@ void nnps_grid(const consph_nnps *g, int64_t nc[CONSPH_MAX_DIM], int64_t reach[C
                double edge[CONSPH_MAX_DIM]);
 /* The cell along axis a of coordinate x, as a build bins it (wrapped on a periodic axis). */
 int64_t nnps_axis_cell(const consph_nnps *g, int a, double x);
+/* out[k·stride] = nnps_axis_cell(g, a, x[idx[k]]) for k < n. */
+void nnps_axis_cells(const consph_nnps *g, int a, const double *x, const size_t *idx, size_t n,
+                     int64_t *out, size_t stride);
 
 #endif

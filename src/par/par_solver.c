@@ -379,8 +379,9 @@ static int halo_state_reserve(par_solver *ps, size_t ncols)
 }
 
 /* After a cut: install made the halo from its owners' packed values, so the kept state is
- * what every rank holds now, positions and fields (the scratch is not carried). */
-static int halo_state_from_cut(par_solver *ps, consph_sys *sys)
+ * what every rank holds now, positions and fields (the scratch is not carried); the columns
+ * without carry[c] are zero on every rank, and so are their kept copies. */
+static int halo_state_from_cut(par_solver *ps, consph_sys *sys, const unsigned char *carry)
 {
     const size_t ncols = halo_columns(ps, sys, 0);
     int st = ncols ? halo_state_reserve(ps, ncols) : par_fail_mem();
@@ -389,6 +390,11 @@ static int halo_state_from_cut(par_solver *ps, consph_sys *sys)
     const size_t nr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
     for (size_t c = 0; c < ncols; ++c) {
         const double *v = ps->col[c];
+        if (!carry[c]) {
+            memset(ps->sent + c * ns, 0, ns * sizeof(double));
+            memset(ps->got + c * nr, 0, nr * sizeof(double));
+            continue;
+        }
         list_gather(ps, 0, ps->sent + c * ns, v, 0, ps->size);
         list_gather(ps, 1, ps->got + c * nr, v, 0, ps->size);
     }
@@ -724,23 +730,34 @@ static int cover_collect(par_solver *ps, cover_pairs *cp, const int64_t *ac, siz
                          const unsigned char *want, int skip, size_t *count)
 {
     cp->n = 0;
+    const size_t dim = (size_t)ps->dim;
+    /* the particles come in cell order, about ten to a cell: a particle in the previous one's
+     * cell has its ranks (ps->ranks[0..nq), or none where alone and one == skip) */
+    const int64_t *prev = NULL;
+    int nq = 0, none = 0;
     for (size_t k = 0; k < n; ++k) {
         if (want && !want[k]) continue;
-        /* a cell that one piece along every axis covers (most: away from the halos) has one
-         * rank, found without covering's product */
-        const int64_t *a = ac + k * (size_t)ps->dim;
-        int one = 0, alone = 1;
-        for (int x = ps->dim - 1; alone && x >= 0; --x) {
-            const int o = ps->cover_off[x][a[x]];
-            alone = ps->cover_off[x][a[x] + 1] - o == 1;
-            one = one * ps->k[x] + ps->cover[x][o];
+        const int64_t *a = ac + k * dim;
+        int same = prev != NULL;
+        for (size_t x = 0; same && x < dim; ++x) same = a[x] == prev[x];
+        if (!same) {
+            prev = a;
+            /* a cell that one piece along every axis covers (most: away from the halos) has
+             * one rank, found without covering's product */
+            int one = 0, alone = 1;
+            for (int x = ps->dim - 1; alone && x >= 0; --x) {
+                const int o = ps->cover_off[x][a[x]];
+                alone = ps->cover_off[x][a[x] + 1] - o == 1;
+                one = one * ps->k[x] + ps->cover[x][o];
+            }
+            none = alone && one == skip;
+            nq = 1;
+            if (alone)
+                ps->ranks[0] = one;
+            else
+                nq = covering(ps, a);
         }
-        if (alone && one == skip) continue;
-        int nq = 1;
-        if (alone)
-            ps->ranks[0] = one;
-        else
-            nq = covering(ps, a);
+        if (none) continue;
         if (cp->n + (size_t)nq > cp->cap) {
             const size_t cap = 2 * (cp->n + (size_t)nq) + 64;
             int *q = realloc(cp->q, cap * sizeof *q);
@@ -828,6 +845,14 @@ static int held_cmp(const void *pa, const void *pb)
     const held *a = pa, *b = pb;
     if (a->cell != b->cell) return a->cell < b->cell ? -1 : 1;
     return a->g < b->g ? -1 : a->g > b->g;
+}
+
+/* The row of the axis cells ac (the cells beyond axis 0: the whole cell index over nc[0]). */
+static int64_t row_of(const par_solver *ps, const int64_t *ac)
+{
+    int64_t r = 0;
+    for (int a = ps->dim - 1; a >= 1; --a) r = r * ps->nc[a] + ac[a];
+    return r;
 }
 
 /* The whole cell index of x, and its cell along every axis in ac. */
@@ -932,11 +957,13 @@ static void copy_runs(double *restrict dst, const double *own, const double *rec
 }
 
 /* The particles this rank now holds become its system: sorted by (cell, g), the owned ones
- * marked, the exchange lists made. They are this rank's particles self[0..nself), then the
- * nrecv received, rcnt[q] from rank q in its order: column c of record r at recv[c·nrecv + r]
- * (positions, fields' components), g at rg[r]. */
+ * marked, the exchange lists made. They are this rank's particles self[0..nself) (their axis
+ * cells at sac, dim each), then the nrecv received, rcnt[q] from rank q in its order: column c
+ * of record r at recv[c·nrecv + r] (positions, fields' components), g at rg[r]. A column
+ * without carry[c] is not read: the new set holds zeros there. */
 static int install(consph_solver *s, par_solver *ps, const double *recv, const double *rg,
-                   size_t nrecv, const size_t *self, size_t nself, const int *rcnt)
+                   size_t nrecv, const size_t *self, const int64_t *sac, size_t nself,
+                   const int *rcnt, const unsigned char *carry)
 {
     const size_t m = nself + nrecv;
     consph_particles *p = s->sys.p;
@@ -965,17 +992,35 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, const d
     int nb = 0, sender = 0;
     size_t next = nself;
     bound[nb++] = 0;
+    int64_t last_cell = -1;
+    int last_owner = 0, last_held = 0;
     /* records k < nself: this rank's particle self[k]; then the received ones */
     for (size_t k = 0; k < m; ++k) {
         for (; k == next && sender < ps->size; next += (size_t)rcnt[sender++])
             if (bound[nb - 1] != kept) bound[nb++] = kept;
-        double xk[CONSPH_MAX_DIM];
-        for (int a = 0; a < dim; ++a)
-            xk[a] = k < nself ? p->x[a][self[k]] : recv[(size_t)a * nrecv + (k - nself)];
         int64_t *ac = rac + k * (size_t)dim;
-        const int64_t c = cell_of(ps, s->sys.nnps, xk, ac);
-        rowner[k] = owner_of(ps, ac);
-        if (rowner[k] != ps->rank && !in_halo(ps, ps->rank, ac)) continue;
+        int64_t c;
+        if (k < nself) {
+            /* the migration found this rank's cells */
+            c = 0;
+            for (int a = dim - 1; a >= 0; --a) {
+                ac[a] = sac[k * (size_t)dim + (size_t)a];
+                c = c * ps->nc[a] + ac[a];
+            }
+        } else {
+            double xk[CONSPH_MAX_DIM];
+            for (int a = 0; a < dim; ++a) xk[a] = recv[(size_t)a * nrecv + (k - nself)];
+            c = cell_of(ps, s->sys.nnps, xk, ac);
+        }
+        /* records come mostly in cell order: the previous record's cell has its owner, and
+         * whether this rank holds it */
+        if (c != last_cell) {
+            last_cell = c;
+            last_owner = owner_of(ps, ac);
+            last_held = last_owner == ps->rank || in_halo(ps, ps->rank, ac);
+        }
+        rowner[k] = last_owner;
+        if (!last_held) continue;
         h[kept].cell = c;
         h[kept].g = k < nself ? ps->g[self[k]] : rg[k - nself];
         h[kept].at = k;
@@ -1011,7 +1056,11 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, const d
         double **ncolp = ocol + ncol;
         columns_of(p, ocol);
         columns_of(&np, ncolp);
-        for (size_t c = 0; c < ncol; ++c) copy_runs(ncolp[c], ocol[c], recv + c * nrecv, run, nrun);
+        for (size_t c = 0; c < ncol; ++c)
+            if (carry[c])
+                copy_runs(ncolp[c], ocol[c], recv + c * nrecv, run, nrun);
+            else
+                memset(ncolp[c], 0, kept * sizeof(double));
     }
     free(run);
     free(ocol);
@@ -1023,7 +1072,7 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, const d
         nown += dest[k];
         origin[k] = k;
         /* the serial order: rows (the cells beyond axis 0), in each the pieces along axis 0 */
-        if (dest[k]) ++segn[(h[k].cell / ps->nc[0]) * ps->k[0] + ps->piece[0][ac[0]]];
+        if (dest[k]) ++segn[row_of(ps, ac) * ps->k[0] + ps->piece[0][ac[0]]];
     }
     /* every segment (a row's cells in one piece along axis 0) is one rank's: the sum over the
      * ranks is its count, and the serial index of its first particle their prefix sum */
@@ -1076,7 +1125,7 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, const d
         for (size_t k = 0; k < kept; ++k) {
             if (dest[k]) {
                 const int64_t *ac = acell + k * (size_t)dim;
-                g[k] = (double)ps->seg[(h[k].cell / ps->nc[0]) * ps->k[0] + ps->piece[0][ac[0]]]++;
+                g[k] = (double)ps->seg[row_of(ps, ac) * ps->k[0] + ps->piece[0][ac[0]]]++;
                 ps->own[o] = k;
                 for (int a = 0; a < dim; ++a) ps->x0[o * (size_t)dim + (size_t)a] = np.x[a][k];
                 ++o;
@@ -1133,7 +1182,7 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, const d
     ps->pairs_epoch = 0; /* the local indices are new */
     /* new halo lists, the halo as the owners packed it: the search is built without a
      * refresh, which would find nothing changed */
-    st = halo_state_from_cut(ps, &s->sys);
+    st = halo_state_from_cut(ps, &s->sys, carry);
     if (st != CONSPH_OK) return st;
     const consph_sys_split *split = s->sys.split;
     s->sys.split = NULL;
@@ -1143,22 +1192,19 @@ static int install(consph_solver *s, par_solver *ps, const double *recv, const d
 }
 
 /* Every owned particle to the rank that owns its cell now and to the ranks whose halo holds
- * that cell; then install. */
-static int migrate(consph_solver *s, par_solver *ps)
+ * that cell; then install. At a step's re-sort (step 1) only the columns that the serial
+ * re-sort carries travel and are copied (state_carried: the step writes the others before it
+ * reads them); the others are zero on every rank after it, kept copies included, so the halo
+ * refresh still finds them changed exactly where an owner wrote them. */
+static int migrate(consph_solver *s, par_solver *ps, int step)
 {
     consph_particles *p = s->sys.p;
     const size_t dim = (size_t)ps->dim;
     const double t0 = MPI_Wtime();
     int64_t *ac = malloc((ps->nown ? ps->nown : 1) * dim * sizeof(int64_t));
-    int *owner = malloc((ps->nown ? ps->nown : 1) * sizeof(int));
-    if (!ac || !owner) {
-        free(ac);
-        free(owner);
-        return par_fail_mem();
-    }
-    for (size_t o = 0; o < ps->nown; ++o)
-        for (size_t a = 0; a < dim; ++a)
-            ac[o * dim + a] = nnps_axis_cell(s->sys.nnps, (int)a, p->x[a][ps->own[o]]);
+    if (!ac) return par_fail_mem();
+    for (size_t a = 0; a < dim; ++a)
+        nnps_axis_cells(s->sys.nnps, (int)a, p->x[a], ps->own, ps->nown, ac + a, dim);
     /* the weights: the pairs of the step's last cached state (none before the first pass) */
     pairs_take(ps, &s->sys);
     int kind = ps->pairs_epoch ? WEIGH_PAIRS : WEIGH_COUNT;
@@ -1169,7 +1215,6 @@ static int migrate(consph_solver *s, par_solver *ps)
         for (size_t o = 0; o < ps->nown; ++o) w[o] = ps->pairs[ps->own[o]];
     if (cut_boxes(ps, ac, w, kind, ps->nown) != CONSPH_OK) MPI_Abort(ps->comm, 1);
     free(w);
-    for (size_t o = 0; o < ps->nown; ++o) owner[o] = owner_of(ps, ac + o * dim);
     /* per rank, the owned particles it will hold (owns or has in its halo), ascending */
     size_t *go_off = consph_calloc((size_t)ps->size + 1, sizeof(size_t)), *go = NULL;
     if (!go_off) MPI_Abort(ps->comm, 1);
@@ -1184,6 +1229,18 @@ static int migrate(consph_solver *s, par_solver *ps)
     for (int q = ps->size; q > 0; --q) go_off[q] = go_off[q - 1];
     go_off[0] = 0;
     const size_t ncol = values_per_particle(p);
+    unsigned char *carry = malloc(ncol);
+    if (!carry) MPI_Abort(ps->comm, 1);
+    size_t ncarry = 0;
+    {
+        size_t c = 0;
+        for (int a = 0; a < p->dim; ++a) carry[c++] = 1;
+        for (int f = 0; f < p->nfields; ++f) {
+            const int keep = !step || state_carried(s, p->fields[f].name);
+            for (int k = 0; k < p->fields[f].ncomp; ++k) carry[c++] = (unsigned char)keep;
+        }
+        for (c = 0; c < ncol; ++c) ncarry += carry[c];
+    }
     int *cnt = consph_calloc((size_t)ps->size, sizeof(int));
     int *rcnt = consph_calloc((size_t)ps->size, sizeof(int));
     int *sd = consph_calloc((size_t)ps->size, sizeof(int));
@@ -1202,8 +1259,10 @@ static int migrate(consph_solver *s, par_solver *ps)
     if (st == CONSPH_OK) st = halo_state_reserve(ps, ncol);
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
     for (size_t c = 0; c < ncol; ++c) {
-        const int changed = c >= valid || list_changed(ps, 0, ps->col[c], ps->sent + c * ons);
-        ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
+        const int changed =
+            carry[c] && (c >= valid || list_changed(ps, 0, ps->col[c], ps->sent + c * ons));
+        ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) |
+                                      (carry[c] && c >= valid ? COL_WANTED : 0));
     }
     MPI_Allgather(ps->mask, (int)ncol, MPI_UNSIGNED_CHAR, ps->masks, (int)ncol, MPI_UNSIGNED_CHAR,
                   ps->comm);
@@ -1219,7 +1278,7 @@ static int migrate(consph_solver *s, par_solver *ps)
         /* what stays on this rank is read by install from the particles themselves */
         for (size_t t = go_off[q]; q != ps->rank && t < go_off[q + 1]; ++t) {
             ++cnt[q];
-            d += 2 + (slot[ps->own[go[t]]] >= 0 ? sel : ncol);
+            d += 2 + (slot[ps->own[go[t]]] >= 0 ? sel : ncarry);
         }
         for (size_t k = s0; k < s1; ++k) slot[ps->sidx[k]] = -1;
         if (d > INT32_MAX || nsd > INT32_MAX)
@@ -1272,6 +1331,7 @@ static int migrate(consph_solver *s, par_solver *ps)
         }
         v += 2 * m;
         for (size_t c = 0; c < ncol; ++c) {
+            if (!carry[c]) continue;
             const int all = col_goes(ps->mask, mq, c);
             gather_column(v, ps->col[c], all ? iall : ifull, all ? m : mf);
             v += all ? m : mf;
@@ -1302,6 +1362,7 @@ static int migrate(consph_solver *s, par_solver *ps)
         size_t mf = 0;
         for (size_t r = 0; r < m; ++r) mf += sl[r] < 0.0;
         for (size_t c = 0; c < ncol; ++c) {
+            if (!carry[c]) continue;
             double *out = rcol + c * nr + r0;
             if (mf == m || col_goes(mq, ps->mask, c)) {
                 copy_doubles(out, in, m);
@@ -1324,12 +1385,19 @@ static int migrate(consph_solver *s, par_solver *ps)
     free(ifull);
     /* the owned particles that stay (owned here or in this rank's halo), as local indices */
     const size_t nself = go_off[ps->rank + 1] - go_off[ps->rank];
-    for (size_t t = 0; t < nself; ++t) go[t] = ps->own[go[go_off[ps->rank] + t]];
-    st = install(s, ps, rcol, rg, nr, go, nself, rcnt);
+    int64_t *sac = malloc((nself ? nself : 1) * dim * sizeof *sac);
+    if (!sac) MPI_Abort(ps->comm, 1);
+    for (size_t t = 0; t < nself; ++t) {
+        const size_t o = go[go_off[ps->rank] + t];
+        go[t] = ps->own[o];
+        for (size_t a = 0; a < dim; ++a) sac[t * dim + a] = ac[o * dim + a];
+    }
+    st = install(s, ps, rcol, rg, nr, go, sac, nself, rcnt, carry);
+    free(sac);
+    free(carry);
     free(rcol);
     free(rg);
     free(ac);
-    free(owner);
     free(go_off);
     free(go);
     free(cnt);
@@ -1534,7 +1602,7 @@ int par_checks_clean(consph_solver *s, int *clean)
 int par_step_begin(consph_solver *s)
 {
     s->par->stepping = 1;
-    return migrate(s, s->par);
+    return migrate(s, s->par, 1);
 }
 
 int par_step_end(consph_solver *s, int status)
@@ -2307,7 +2375,7 @@ static int decompose(consph_solver *s, const solver_range *range)
     s->sys.dest = dest;
     s->sys.split = &ps->split;
     s->par = ps;
-    int st = migrate(s, ps);
+    int st = migrate(s, ps, 0);
     if (st != CONSPH_OK) {
         s->sys.split = NULL;
         s->par = NULL;
