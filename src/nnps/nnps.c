@@ -229,13 +229,18 @@ static void setup_grid(consph_nnps *g, size_t n)
     }
 }
 
+/* The cell of v = (x - lo)/h along an axis of nc cells, clamped into the grid. */
+static inline int64_t cell_clamp(double v, int64_t nc)
+{
+    if (!(v >= 0.0)) return 0;
+    if (v >= (double)nc) return nc - 1;
+    return (int64_t)v;
+}
+
 /* Cell of a (wrapped, on periodic axes) coordinate along axis a, clamped into the grid. */
 static inline int64_t cell_index(const consph_nnps *g, int a, double x)
 {
-    double v = (x - g->lo[a]) * g->inv_h[a];
-    if (!(v >= 0.0)) return 0;
-    if (v >= (double)g->nc[a]) return g->nc[a] - 1;
-    return (int64_t)v;
+    return cell_clamp((x - g->lo[a]) * g->inv_h[a], g->nc[a]);
 }
 
 static inline double stored_coord(const consph_nnps *g, int a, double x)
@@ -649,8 +654,7 @@ void nnps_axis_cells(const consph_nnps *g, int a, const double *x, const size_t 
     const int per = g->periodic[a];
     for (size_t k = 0; k < n; ++k) {
         const double xs = per ? nnps_wrap(x[idx[k]], lo, hi, len) : x[idx[k]];
-        const double v = (xs - lo) * ih;
-        out[k * stride] = !(v >= 0.0) ? 0 : v >= (double)nc ? nc - 1 : (int64_t)v;
+        out[k * stride] = cell_clamp((xs - lo) * ih, nc);
     }
 }
 
