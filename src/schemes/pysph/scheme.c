@@ -795,11 +795,20 @@ RV_GROUP_CLONES static void group_visit_wcsph(void *vjob, const consph_nbhd *nb,
 
 #ifdef RV_GROUPS
 /* Whether the group visits get their pack, in the search's slot order (PASS_GROUP_SLOTS): the
- * system is not decomposed and the search holds every particle; its slots into *v. */
+ * search holds every particle (a decomposed system's halo too); its slots into *v. */
 static int rv_packed(const consph_solver *s, consph_nnps_slots *v)
 {
-    return pysph_group_visits && !s->sys.split &&
-           consph_nnps_slots_get(s->sys.nnps, v) == CONSPH_OK && v->n == s->sys.p->n;
+    return pysph_group_visits && consph_nnps_slots_get(s->sys.nnps, v) == CONSPH_OK &&
+           v->n == s->sys.p->n;
+}
+
+/* Where the pack of nn particles (pk doubles each, and extra values behind it) lives: in the
+ * scratch from `at`, or on a decomposed system in a buffer of its own, since the halo refresh
+ * carries the scratch as columns of nn values (which would write over the pack's rows) and the
+ * pack is filled for the halo from the values the refresh brings instead. */
+static double *rv_pack_room(consph_solver *s, double *at, size_t pk, size_t nn, size_t extra)
+{
+    return s->sys.split ? sys_pack_buffer(&s->sys, pk * nn + 8 + extra) : at;
 }
 
 /* The pack of nn particles at stride pk on the first 64-byte line from `at` (the scratch holds
@@ -871,7 +880,7 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         job->pk = 8;
         consph_nnps_slots v;
         const int packed = rv_packed(s, &v);
-        if (packed) want += job->pk * nn + 8 + nn;
+        if (packed && !s->sys.split) want += job->pk * nn + 8 + nn;
 #endif
         double *sc = consph_sys_scratch(&s->sys, want);
         if (!sc) return CONSPH_ENOMEM;
@@ -880,7 +889,9 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         const size_t *particle = NULL;
 #ifdef RV_GROUPS
         if (packed) {
-            pack = rv_pack_at(sc + 3 * nn, job->pk, nn, &slot_of);
+            double *at = rv_pack_room(s, sc + 3 * nn, job->pk, nn, nn);
+            if (!at) return CONSPH_ENOMEM;
+            pack = rv_pack_at(at, job->pk, nn, &slot_of);
             particle = v.particle;
         }
 #endif
@@ -900,6 +911,11 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
                     cs[i] = c0 * (ie >= 0 ? eos_ipow(rho[i] / rho0, ie) : pow(rho[i] / rho0, cexp));
         }
         if (pack) {
+            /* A decomposed system: its halo (ϱ, p, u and the scratch's p/ϱ², m/ϱ, c from
+             * their owners) refreshed now for the pass, so that the halo's rows are the owners'
+             * values. */
+            const int st = pass_halo_refresh(&s->sys);
+            if (st != CONSPH_OK) return st;
 #pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
             for (size_t sl = 0; sl < n; ++sl) {
                 /* by slot: the particle in slot sl (each particle once) */
@@ -940,7 +956,7 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     job->pk = d == 2 ? 8 : 10;
     consph_nnps_slots v;
     const int packed = rv_packed(s, &v);
-    if (packed) want += job->pk * nn + 8 + 2 * nn;
+    if (packed && !s->sys.split) want += job->pk * nn + 8 + 2 * nn;
 #endif
     double *sc = consph_sys_scratch(&s->sys, want);
     if (!sc) return CONSPH_ENOMEM;
@@ -949,7 +965,9 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
 #ifdef RV_GROUPS
     if (packed) {
         size_t *slot_of;
-        double *pk = rv_pack_at(sc + 2 * nn, job->pk, nn, &slot_of);
+        double *at = rv_pack_room(s, sc + 2 * nn, job->pk, nn, 2 * nn);
+        if (!at) return CONSPH_ENOMEM;
+        double *pk = rv_pack_at(at, job->pk, nn, &slot_of);
         double *pslot = (double *)(slot_of + nn);
         const size_t *particle = v.particle;
         const double *p = job->p;
@@ -1040,6 +1058,9 @@ static int rhs_tv(consph_solver *s, int kind)
     if (st == PASS_GROUP_UNSERVED) {
         st = run_pass(s, &dens, group_visit_density, 0, &job);
 #ifdef RV_GROUPS
+        /* a decomposed system (pass_run_groups2 declines it): the rates pass's refresh first,
+         * which brings the halo's densities, volumes and m/ϱ for its rows of the pack */
+        if (st == CONSPH_OK && job.pack) st = pass_halo_refresh(&s->sys);
         if (st == CONSPH_OK && job.pack) tv_pack(s, &job);
 #endif
         if (st == CONSPH_OK)
