@@ -880,18 +880,28 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         job->pk = 8;
         consph_nnps_slots v;
         const int packed = rv_packed(s, &v);
-        if (packed && !s->sys.split) want += job->pk * nn + 8 + nn;
+        want += packed ? job->pk * nn + 8 + nn : 0;
+        /* A decomposed system: the halo refreshed first, then p/ϱ², m/ϱ and c computed for it
+         * too (the same operations on its owners' ϱ and p: their values bit for bit) and its
+         * rows packed, all in a buffer of the system's own (the refresh carries the scratch as
+         * columns, which would write over the pack's rows): no scratch travels. */
+        const int own = packed && s->sys.split;
+#else
+        const int own = 0;
 #endif
-        double *sc = consph_sys_scratch(&s->sys, want);
+        double *sc = own ? sys_pack_buffer(&s->sys, want) : consph_sys_scratch(&s->sys, want);
         if (!sc) return CONSPH_ENOMEM;
+        if (own) {
+            (void)consph_sys_scratch(&s->sys, 0); /* none asked: the refresh carries none */
+            const int st = pass_halo_refresh(&s->sys);
+            if (st != CONSPH_OK) return st;
+        }
         double *pr2 = sc, *mrho = sc + nn, *cs = sc + 2 * nn, *pack = NULL;
         size_t *slot_of = NULL;
         const size_t *particle = NULL;
 #ifdef RV_GROUPS
         if (packed) {
-            double *at = rv_pack_room(s, sc + 3 * nn, job->pk, nn, nn);
-            if (!at) return CONSPH_ENOMEM;
-            pack = rv_pack_at(at, job->pk, nn, &slot_of);
+            pack = rv_pack_at(sc + 3 * nn, job->pk, nn, &slot_of);
             particle = v.particle;
         }
 #endif
@@ -911,11 +921,6 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
                     cs[i] = c0 * (ie >= 0 ? eos_ipow(rho[i] / rho0, ie) : pow(rho[i] / rho0, cexp));
         }
         if (pack) {
-            /* A decomposed system: its halo (ϱ, p, u and the scratch's p/ϱ², m/ϱ, c from
-             * their owners) refreshed now for the pass, so that the halo's rows are the owners'
-             * values. */
-            const int st = pass_halo_refresh(&s->sys);
-            if (st != CONSPH_OK) return st;
 #pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
             for (size_t sl = 0; sl < n; ++sl) {
                 /* by slot: the particle in slot sl (each particle once) */
