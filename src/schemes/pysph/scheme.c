@@ -802,15 +802,6 @@ static int rv_packed(const consph_solver *s, consph_nnps_slots *v)
            v->n == s->sys.p->n;
 }
 
-/* Where the pack of nn particles (pk doubles each, and extra values behind it) lives: in the
- * scratch from `at`, or on a decomposed system in a buffer of its own, since the halo refresh
- * carries the scratch as columns of nn values (which would write over the pack's rows) and the
- * pack is filled for the halo from the values the refresh brings instead. */
-static double *rv_pack_room(consph_solver *s, double *at, size_t pk, size_t nn, size_t extra)
-{
-    return s->sys.split ? sys_pack_buffer(&s->sys, pk * nn + 8 + extra) : at;
-}
-
 /* The pack of nn particles at stride pk on the first 64-byte line from `at` (the scratch holds
  * pk·nn + 8 doubles there), and the slot of each particle (nn) behind it. */
 static double *rv_pack_at(double *at, size_t pk, size_t nn, size_t **slot_of)
@@ -961,18 +952,24 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     job->pk = d == 2 ? 8 : 10;
     consph_nnps_slots v;
     const int packed = rv_packed(s, &v);
-    if (packed && !s->sys.split) want += job->pk * nn + 8 + 2 * nn;
+    want += packed ? job->pk * nn + 8 + 2 * nn : 0;
+    /* A decomposed system: 1/V and m/ϱ beside the pack in a buffer of the system's own (the
+     * refresh carries the scratch as columns, which would write over the pack's rows), the
+     * halo's computed from its refreshed fields before the rates (tv_pack): no scratch
+     * travels. */
+    const int own = packed && s->sys.split;
+#else
+    const int own = 0;
 #endif
-    double *sc = consph_sys_scratch(&s->sys, want);
+    double *sc = own ? sys_pack_buffer(&s->sys, want) : consph_sys_scratch(&s->sys, want);
     if (!sc) return CONSPH_ENOMEM;
+    if (own) (void)consph_sys_scratch(&s->sys, 0); /* none asked: the refresh carries none */
     job->vol = sc;
     job->mrho = sc + nn;
 #ifdef RV_GROUPS
     if (packed) {
         size_t *slot_of;
-        double *at = rv_pack_room(s, sc + 2 * nn, job->pk, nn, 2 * nn);
-        if (!at) return CONSPH_ENOMEM;
-        double *pk = rv_pack_at(at, job->pk, nn, &slot_of);
+        double *pk = rv_pack_at(sc + 2 * nn, job->pk, nn, &slot_of);
         double *pslot = (double *)(slot_of + nn);
         const size_t *particle = v.particle;
         const double *p = job->p;
@@ -992,12 +989,22 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
 }
 
 #ifdef RV_GROUPS
-/* Every particle into the pack, after a density pass that did not pack. */
+/* Every particle into the pack, after a density pass that did not pack. On a decomposed system,
+ * after the rates pass's refresh, the halo's 1/V and m/ϱ first (which no scratch brings): the
+ * density visits' operations on its owners' Σ W and ϱ, so their values bit for bit. */
 static void tv_pack(const consph_solver *s, const rival_job *job)
 {
     const size_t n = s->sys.p->n;
+    const unsigned char *dest = s->sys.split ? s->sys.dest : NULL;
+    const double m = job->c.m;
 #pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
-    for (size_t i = 0; i < n; ++i) tv_pack_one(job, i);
+    for (size_t i = 0; i < n; ++i) {
+        if (dest && !dest[i]) {
+            job->vol[i] = 1.0 / job->numd[i];
+            job->mrho[i] = m / job->rhos[i];
+        }
+        tv_pack_one(job, i);
+    }
 }
 #endif
 
@@ -1064,7 +1071,7 @@ static int rhs_tv(consph_solver *s, int kind)
         st = run_pass(s, &dens, group_visit_density, 0, &job);
 #ifdef RV_GROUPS
         /* a decomposed system (pass_run_groups2 declines it): the rates pass's refresh first,
-         * which brings the halo's densities, volumes and m/ϱ for its rows of the pack */
+         * which brings the halo's densities (Σ W, ϱ, tvf's p) for its rows of the pack */
         if (st == CONSPH_OK && job.pack) st = pass_halo_refresh(&s->sys);
         if (st == CONSPH_OK && job.pack) tv_pack(s, &job);
 #endif
