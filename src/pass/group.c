@@ -126,15 +126,18 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
                 }
             if (my_status != CONSPH_OK) continue;
             for (size_t g = first; g < last;) {
-                if (dest && !dest[consph_nnps_slot_particle(&v, g)]) {
-                    ++g;
-                    continue;
+                /* the cell in fours; under a mask, up to four consecutive destinations */
+                int count = last - g < PASS_GROUP ? (int)(last - g) : PASS_GROUP;
+                if (dest) {
+                    if (!dest[consph_nnps_slot_particle(&v, g)]) {
+                        ++g;
+                        continue;
+                    }
+                    int run = 1;
+                    while (run < count && dest[consph_nnps_slot_particle(&v, g + (size_t)run)])
+                        ++run;
+                    count = run;
                 }
-                /* up to four consecutive destinations (without a mask: the cell in fours) */
-                int count = 1;
-                while (count < PASS_GROUP && g + (size_t)count < last &&
-                       (!dest || dest[consph_nnps_slot_particle(&v, g + (size_t)count)]))
-                    ++count;
                 consph_nbhd nb[PASS_GROUP];
                 size_t kmax = 0;
                 gather_group(s, &v, &runs, g, count, need, with_dx, sc, nb);
