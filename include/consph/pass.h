@@ -104,6 +104,11 @@ typedef struct consph_sys {
     size_t resort_cap;
     double *ipst_buf; /* reg_ipst's sums and shifts, kept: fresh pages at each call otherwise */
     size_t ipst_cap;
+    /* the group visits' packs on a decomposed system (src/pass/group.h, sys_pack_buffer): not
+     * the scratch, whose blocks the halo refresh carries as columns */
+    double *pack_buf;
+    size_t pack_cap;
+    int halo_fresh; /* split: refreshed for the next pass, which then does not refresh again */
 } consph_sys;
 
 /* The distance within which the kernel can be non-zero: the radius a system's search needs

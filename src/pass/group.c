@@ -51,11 +51,20 @@ unsigned long pass_group_runs = 0;
 int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
                     void *job, size_t *pairs)
 {
-    /* a decomposed system refreshes its halo in consph_pass_run_counted: that path serves it */
-    if (!s || !s->p || !s->nnps || !visit || s->dest || s->kernel.tensor || s->split)
-        return PASS_GROUP_UNSERVED;
+    if (!s || !s->p || !s->nnps || !visit || s->kernel.tensor) return PASS_GROUP_UNSERVED;
+    /* A decomposed system refreshes its halo first, on every rank whatever it decides below
+     * (the refresh is collective); where it declines, the per-particle pass finds the system
+     * refreshed and does not refresh again. */
+    consph_sys *const sw = (consph_sys *)s;
+    if (s->split) {
+        const int rc = pass_halo_refresh(sw);
+        if (rc != CONSPH_OK) return rc;
+    }
     const size_t n = s->p->n;
-    if (n == 0) return CONSPH_OK;
+    if (n == 0) {
+        sw->halo_fresh = 0;
+        return CONSPH_OK;
+    }
     consph_nnps_slots v;
     if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK || v.n != n) return PASS_GROUP_UNSERVED;
     if (s->nlist && nlist_serves(s->nlist, n)) {
@@ -64,6 +73,7 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
             int ran;
             const int st = nlist_group_run(s, name, need, visit, job, pairs, &ran);
             if (st != CONSPH_OK || ran > 0) {
+                sw->halo_fresh = 0;
                 if (st == CONSPH_OK) ++pass_group_runs;
                 return st;
             }
@@ -74,6 +84,8 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
             return PASS_GROUP_UNSERVED;
         }
     }
+    sw->halo_fresh = 0; /* this pass reads the halo as refreshed; its visits write fields */
+    const unsigned char *dest = s->dest;
     need &= ~PASS_GROUP_UNPADDED;
     const int with_dx = !(need & CONSPH_PASS_NO_DX), slots = (need & PASS_GROUP_SLOTS) != 0;
     ++pass_group_runs;
@@ -94,6 +106,12 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
         for (size_t c = 0; c < v.ncells; ++c) {
             const size_t first = v.cell_start[c], last = v.cell_start[c + 1];
             if (first == last || my_status != CONSPH_OK) continue;
+            if (dest) {
+                /* a cell of sources only (the halo's) needs no runs */
+                size_t s_dest = first;
+                while (s_dest < last && !dest[consph_nnps_slot_particle(&v, s_dest)]) ++s_dest;
+                if (s_dest == last) continue;
+            }
             if (consph_nnps_cell_runs(s->nnps, c, &runs) == (size_t)-1) {
                 my_status = CONSPH_ENOMEM;
                 snprintf(my_why, sizeof my_why, "runs of cell %zu: %s", c, consph_last_error());
@@ -107,9 +125,20 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
                              runs.candidates);
                 }
             if (my_status != CONSPH_OK) continue;
-            for (size_t g = first; g < last; g += PASS_GROUP) {
+            for (size_t g = first; g < last;) {
+                /* the cell in fours; under a mask, up to four consecutive destinations */
+                int count = last - g < PASS_GROUP ? (int)(last - g) : PASS_GROUP;
+                if (dest) {
+                    if (!dest[consph_nnps_slot_particle(&v, g)]) {
+                        ++g;
+                        continue;
+                    }
+                    int run = 1;
+                    while (run < count && dest[consph_nnps_slot_particle(&v, g + (size_t)run)])
+                        ++run;
+                    count = run;
+                }
                 consph_nbhd nb[PASS_GROUP];
-                const int count = last - g < PASS_GROUP ? (int)(last - g) : PASS_GROUP;
                 size_t kmax = 0;
                 gather_group(s, &v, &runs, g, count, need, with_dx, sc, nb);
                 for (int l = 0; l < count; ++l) {
@@ -120,6 +149,7 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
                     lane_pad(&sc[l], &nb[l], kmax, slots ? g + (size_t)l : nb[l].i);
                 for (int l = count; l < PASS_GROUP; ++l) nb[l] = nb[0];
                 visit(job, nb, count);
+                g += (size_t)count;
             }
         }
 #pragma omp critical(consph_pass_run_groups)
@@ -529,6 +559,9 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
                      const char *name2, unsigned need2, pass_group_fn visit2, void *job,
                      size_t *pairs)
 {
+    /* Under a mask (a decomposed system's halo: sources only) the second pass would read the
+     * first's values at halo neighbours, which no visit here writes: only the refresh between
+     * two passes brings them. Declined before any refresh, on every rank alike. */
     if (!s || !s->p || !s->nnps || !visit1 || !visit2 || s->dest || s->kernel.tensor || s->split ||
         ((need1 ^ need2) & PASS_GROUP_SLOTS))
         return PASS_GROUP_UNSERVED;

@@ -18,10 +18,13 @@
 typedef void (*pass_group_fn)(void *job, const consph_nbhd *nb, int count);
 
 /* consph_pass_run_counted with a group visit; `need` and `name` as a consph_pass's. The groups
- * are consecutive particles of one cell of the search. Returns PASS_GROUP_UNSERVED (and does
- * nothing) where it does not serve the system: a destination mask, a neighbour list in use, a
- * tensor-product kernel or particles not in cell order; the caller then runs the pass with a
- * per-particle visit, which sums the same values. */
+ * are consecutive destination particles of one cell of the search (a run of destinations cut in
+ * fours: the halo of a decomposed system is sources only, never visited). Returns
+ * PASS_GROUP_UNSERVED (having done nothing but a decomposed system's refresh, which the
+ * per-particle pass then does not repeat) where it does not serve the system: a neighbour list
+ * that serves the pass from its cache or its own filter, a tensor-product kernel or particles
+ * not in cell order; the caller then runs the pass with a per-particle visit, which sums the
+ * same values. */
 #define PASS_GROUP_UNSERVED 1
 /* In `need`: the visit reads no entry of a lane past its own n (it masks the lanes that have
  * run out), so a neighbour list's pair cache (src/pass/nlist.c) can serve the pass as it
@@ -45,6 +48,18 @@ typedef void (*pass_group_fn)(void *job, const consph_nbhd *nb, int count);
  * cells are few for the threads, so that the last chunks leave no thread waiting long. */
 size_t pass_cells_per_chunk(size_t ncells);
 
+/* A decomposed system's halo refresh (consph_sys_split) now, unless the system was refreshed for
+ * the next pass already: a caller that fills per-particle rows of a pack (values a group visit
+ * reads at the neighbours) for the halo calls it before, and the pass that follows (this one,
+ * pass_run_groups or consph_pass_run_counted) reads the halo as refreshed here instead of
+ * refreshing again. Nothing without a split. */
+int pass_halo_refresh(consph_sys *s);
+/* A buffer of at least count doubles that the system owns, for the packs of the group visits
+ * on a decomposed system: the halo refresh carries the system scratch (consph_sys_scratch) as
+ * columns of n values, which would overwrite a pack's rows. Undefined contents, kept until the
+ * next call; NULL (with an error) when out of memory. */
+double *sys_pack_buffer(consph_sys *s, size_t count);
+
 /* Calls of pass_run_groups that ran their pass (for tests: that the group visits did run). */
 extern unsigned long pass_group_runs;
 int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
@@ -57,8 +72,10 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
  * of cells, the second a few slabs behind the first, the neighbourhoods in between kept). The
  * first visit must write results of its own particles only and read nothing that the first
  * visit writes; the second may read any particle's. PASS_GROUP_SLOTS in both needs or in
- * neither. Returns PASS_GROUP_UNSERVED where pass_run_groups would, or where the needs differ
- * in PASS_GROUP_SLOTS; pairs counts both passes' pairs. */
+ * neither. Returns PASS_GROUP_UNSERVED where pass_run_groups would, under a destination mask
+ * (a decomposed system: the second pass reads the first's values at halo neighbours, which only
+ * a refresh between the passes brings), or where the needs differ in PASS_GROUP_SLOTS; pairs
+ * counts both passes' pairs. */
 /* Tile-slabs whose second pass read the neighbourhoods the first kept (for tests: that it did),
  * and the strips' width in cells (12; tests narrow it to have edge columns on small grids). */
 extern unsigned long pass_group_kept_slabs;

@@ -16,10 +16,17 @@ void nbhd_scratch_free(nbhd_scratch *sc)
     memset(sc, 0, sizeof *sc);
 }
 
+/* A new array of count items on a 64-byte boundary; the old contents are not kept (every caller
+ * reserves before it gathers). The gathers' vector stores then never straddle a cache line
+ * wherever the heap happens to place the arrays: measured, serial wcsph nx 283, the AVX-512
+ * gather of four particles (gather4) took 40-50 % more samples with the same arrays 16-byte
+ * aligned after a 24-byte change of the solver's size had shifted the heap. */
 static int grow(void **p, size_t count, size_t size)
 {
-    void *q = realloc(*p, count * size);
+    const size_t bytes = (count * size + 63) & ~(size_t)63;
+    void *q = aligned_alloc(64, bytes);
     if (!q) return CONSPH_ENOMEM;
+    free(*p);
     *p = q;
     return CONSPH_OK;
 }

@@ -18,7 +18,8 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
 /* A pass over groups of particles (src/pass/group.h) from the cache, where the cache serves
  * this pass: the lanes' arrays are the cache's, NOT padded past each lane's n. *ran: 1 ran it;
  * 0 not, the pass counted as one the search's gather serves (skin 0, no cache); -1 not,
- * nothing counted (the per-particle pass serves it: a destination mask, a stream). */
+ * nothing counted (the per-particle pass serves it: a filled cache, a stream). Under a
+ * destination mask the groups are runs of consecutive destinations cut in fours. */
 int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
                     void *job, size_t *pairs, int *ran);
 /* One pass of a chain (nlist_chain_run): its per-particle visit, and a group visit or NULL;

@@ -48,8 +48,9 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
     if (!s || !s->p || !s->nnps || !pass || !pass->visit)
         return consph_fail(CONSPH_EINVAL, "pass: needs a system and a pass with a visit");
     if (s->split) {
-        int rc = s->split->refresh((consph_sys *)s, s->split->ctx);
+        const int rc = pass_halo_refresh((consph_sys *)s);
         if (rc != CONSPH_OK) return rc;
+        ((consph_sys *)s)->halo_fresh = 0; /* this pass reads it; the visits write fields */
     }
     const size_t n = s->p->n;
     const unsigned need = pass->need;
@@ -220,6 +221,7 @@ int consph_sys_update(consph_sys *s, int resort)
 {
     if (!s || !s->p || !s->nnps)
         return consph_fail(CONSPH_EINVAL, "system update: needs an initialised system");
+    s->halo_fresh = 0;
     if (s->split) {
         int rc = s->split->refresh_positions ? s->split->refresh_positions(s, s->split->ctx)
                                              : s->split->refresh(s, s->split->ctx);
@@ -301,6 +303,24 @@ int consph_sys_set_dest(consph_sys *s, const unsigned char *dest)
     return CONSPH_OK;
 }
 
+int pass_halo_refresh(consph_sys *s)
+{
+    if (!s->split || s->halo_fresh) return CONSPH_OK;
+    const int rc = s->split->refresh(s, s->split->ctx);
+    if (rc == CONSPH_OK) s->halo_fresh = 1;
+    return rc;
+}
+
+double *sys_pack_buffer(consph_sys *s, size_t count)
+{
+    if (count <= s->pack_cap) return s->pack_buf;
+    free(s->pack_buf);
+    s->pack_buf = malloc((count ? count : 1) * sizeof(double));
+    s->pack_cap = s->pack_buf ? count : 0;
+    if (!s->pack_buf) consph_fail(CONSPH_ENOMEM, "out of memory for %zu packed values", count);
+    return s->pack_buf;
+}
+
 double *consph_sys_scratch(consph_sys *s, size_t count)
 {
     s->scratch_asked = count;
@@ -321,6 +341,7 @@ void consph_sys_free(consph_sys *s)
     free(s->scratch);
     free(s->resort_buf);
     free(s->ipst_buf);
+    free(s->pack_buf);
     nlist_free(s->nlist);
     if (s->owned) {
         consph_nnps_free(s->nnps);

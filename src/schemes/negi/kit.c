@@ -877,6 +877,36 @@ int kit_volumes(consph_sys *s, size_t *pairs)
     return kit_run(s, &volume_pass, group_volume, &vj, pairs);
 }
 
+/* The rows of pass 1's pack (which 1) or coupled_bc's (2) of the particles outside the destination
+ * mask, which no visit writes (a decomposed system's halo: sources only), from their fields:
+ * after the refresh of the pass that reads them (pass_halo_refresh, which that pass then does not
+ * repeat), so they are the owners' values, those the visits wrote there (kit_pack1, first_store).
+ */
+static int kit_pack_sources(consph_sys *s, const kit_job *job, int which)
+{
+    const unsigned char *dest = s->dest;
+    if (!dest) return CONSPH_OK;
+    const int st = pass_halo_refresh(s);
+    if (st != CONSPH_OK) return st;
+    const size_t n = s->p->n, cap = job->cap;
+    const int D = job->d;
+    for (size_t i = 0; i < n; ++i) {
+        if (dest[i]) continue;
+        if (which == 1) {
+            kit_pack1(job, i, job->vol[i]);
+            continue;
+        }
+        double *pk = job->pk2 + i * (size_t)job->s2;
+        int o = 0;
+        if (job->pk2_u)
+            for (int e = 0; e < D * D; ++e) pk[o++] = job->gradu[(size_t)e * cap + i];
+        if (job->pk2_q)
+            for (int a = 0; a < D; ++a) pk[o++] = job->gradq[a * cap + i];
+        if (job->pk2_vol >= 0) pk[job->pk2_vol] = job->vol[i];
+    }
+    return CONSPH_OK;
+}
+
 /* The volumes (with_volumes), then pass 1 and the Laplacians: chained on the neighbour list's
  * pair cache where it serves them (src/pass/nlist.c, nlist_chain_run), else one after the
  * other. */
@@ -939,9 +969,10 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
                     [(want & KIT_GRADQ) != 0];
     const int gp = (want & KIT_GRADP) != 0, gu = (want & (KIT_GRADU | KIT_DIVU)) != 0,
               gq = (want & KIT_GRADQ) != 0;
-    /* a decomposed system or a destination mask runs the per-particle visits (pass_run_groups
-     * declines them): no packs, which a decomposed system's halo refresh would carry */
-    const int lanes = kit_group_visits && !s->split && !s->dest;
+    /* Under a destination mask (a decomposed system's halo) too: the packs' rows of the
+     * particles no visit writes (sources only) are filled from their fields before the pass
+     * that reads them (kit_pack_sources), after the refresh that brings their owners' values. */
+    const int lanes = kit_group_visits;
     const pass_group_fn group_first = lanes ? group_first_of(d, gp, gu, gq) : NULL;
     /* where pass 1 runs per particle (over a filled cache), it reads its pack too (2D:
      * first_pk_of) */
@@ -950,8 +981,10 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
                                visit_first_pk ? visit_first_pk : visit_first};
     unsigned need2 = CONSPH_PASS_DW;
     if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need2 |= CONSPH_PASS_D2W;
+    /* A decomposed system runs no chain, so coupled_bc never reads the blocks it has just filled:
+     * per particle from the pack (coupled_pk_of), as where the lanes do not pay. */
     const pass_group_fn group_second =
-        lanes && coupled_lanes_pay(s) ? group_second_of(&r, d) : NULL;
+        lanes && !s->split && coupled_lanes_pay(s) ? group_second_of(&r, d) : NULL;
     /* where coupled_bc's ∇²u (and ∇²q) runs per particle, it reads G_j (and ∇q_j, ω_j) from
      * pass 1's pack (2D: coupled_pk_of) */
     const consph_visit_fn visit_pk =
@@ -968,7 +1001,10 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         job.s2 = kit_pack2_stride(d, job.pk2_u, job.pk2_q, &job.pk2_vol);
     }
     if (group_first || job.s2) {
-        double *pk = consph_sys_scratch(s, (p->n ? p->n : 1) * (size_t)(job.s1 + job.s2));
+        /* a decomposed system's refresh carries the scratch as columns of n values, which would
+         * write over the packs' rows: a buffer of their own there */
+        const size_t count = (p->n ? p->n : 1) * (size_t)(job.s1 + job.s2);
+        double *pk = s->split ? sys_pack_buffer(s, count) : consph_sys_scratch(s, count);
         if (!pk) {
             free(job.bonet_ok);
             return CONSPH_ENOMEM;
@@ -976,8 +1012,15 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         job.pk1 = group_first ? pk : NULL;
         job.pk2 = job.s2 ? pk + p->n * (size_t)job.s1 : NULL;
     }
-    if (job.pk1 && !with_volumes)
+    if (job.pk1 && !with_volumes) {
+        /* from the values pass 1's refresh brings, on a decomposed system */
+        const int rc = pass_halo_refresh(s);
+        if (rc != CONSPH_OK) {
+            free(job.bonet_ok);
+            return rc;
+        }
         for (size_t i = 0; i < p->n; ++i) kit_pack1(&job, i, job.vol[i]);
+    }
     kit_vol_job vj = {vol, &job};
     const int with_second = (want & (KIT_LAPU | KIT_LAPQ)) != 0;
     int st = CONSPH_OK;
@@ -1011,11 +1054,14 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         st = kit_run(s, &volume_pass, group_volume, &vj, pairs);
         if (st == CONSPH_OK) ++*passes;
     }
+    /* the sources' rows of pass 1's pack, which the volume visits did not write */
+    if (st == CONSPH_OK && job.pk1 && with_volumes) st = kit_pack_sources(s, &job, 1);
     unsigned long ran = kit_group_passes;
     if (st == CONSPH_OK) st = kit_run(s, &first, group_first, &job, pairs);
     if (group_first && kit_group_passes != ran) ++kit_group_firsts;
     if (st == CONSPH_OK && visit_first_pk && kit_group_passes == ran) ++kit_first_packed;
     if (st == CONSPH_OK) ++*passes;
+    if (st == CONSPH_OK && with_second && job.pk2) st = kit_pack_sources(s, &job, 2);
     if (st == CONSPH_OK && with_second) {
         ran = kit_group_passes;
         st = kit_run(s, &second, group_second, &job, pairs);

@@ -795,11 +795,11 @@ RV_GROUP_CLONES static void group_visit_wcsph(void *vjob, const consph_nbhd *nb,
 
 #ifdef RV_GROUPS
 /* Whether the group visits get their pack, in the search's slot order (PASS_GROUP_SLOTS): the
- * system is not decomposed and the search holds every particle; its slots into *v. */
+ * search holds every particle (a decomposed system's halo too); its slots into *v. */
 static int rv_packed(const consph_solver *s, consph_nnps_slots *v)
 {
-    return pysph_group_visits && !s->sys.split &&
-           consph_nnps_slots_get(s->sys.nnps, v) == CONSPH_OK && v->n == s->sys.p->n;
+    return pysph_group_visits && consph_nnps_slots_get(s->sys.nnps, v) == CONSPH_OK &&
+           v->n == s->sys.p->n;
 }
 
 /* The pack of nn particles at stride pk on the first 64-byte line from `at` (the scratch holds
@@ -871,10 +871,22 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
         job->pk = 8;
         consph_nnps_slots v;
         const int packed = rv_packed(s, &v);
-        if (packed) want += job->pk * nn + 8 + nn;
+        want += packed ? job->pk * nn + 8 + nn : 0;
+        /* A decomposed system: the halo refreshed first, then p/ϱ², m/ϱ and c computed for it
+         * too (the same operations on its owners' ϱ and p: their values bit for bit) and its
+         * rows packed, all in a buffer of the system's own (the refresh carries the scratch as
+         * columns, which would write over the pack's rows): no scratch travels. */
+        const int own = packed && s->sys.split;
+#else
+        const int own = 0;
 #endif
-        double *sc = consph_sys_scratch(&s->sys, want);
+        double *sc = own ? sys_pack_buffer(&s->sys, want) : consph_sys_scratch(&s->sys, want);
         if (!sc) return CONSPH_ENOMEM;
+        if (own) {
+            (void)consph_sys_scratch(&s->sys, 0); /* none asked: the refresh carries none */
+            const int st = pass_halo_refresh(&s->sys);
+            if (st != CONSPH_OK) return st;
+        }
         double *pr2 = sc, *mrho = sc + nn, *cs = sc + 2 * nn, *pack = NULL;
         size_t *slot_of = NULL;
         const size_t *particle = NULL;
@@ -940,10 +952,18 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
     job->pk = d == 2 ? 8 : 10;
     consph_nnps_slots v;
     const int packed = rv_packed(s, &v);
-    if (packed) want += job->pk * nn + 8 + 2 * nn;
+    want += packed ? job->pk * nn + 8 + 2 * nn : 0;
+    /* A decomposed system: 1/V and m/ϱ beside the pack in a buffer of the system's own (the
+     * refresh carries the scratch as columns, which would write over the pack's rows), the
+     * halo's computed from its refreshed fields before the rates (tv_pack): no scratch
+     * travels. */
+    const int own = packed && s->sys.split;
+#else
+    const int own = 0;
 #endif
-    double *sc = consph_sys_scratch(&s->sys, want);
+    double *sc = own ? sys_pack_buffer(&s->sys, want) : consph_sys_scratch(&s->sys, want);
     if (!sc) return CONSPH_ENOMEM;
+    if (own) (void)consph_sys_scratch(&s->sys, 0); /* none asked: the refresh carries none */
     job->vol = sc;
     job->mrho = sc + nn;
 #ifdef RV_GROUPS
@@ -969,12 +989,22 @@ static int job_fields(consph_solver *s, rival_job *job, int kind)
 }
 
 #ifdef RV_GROUPS
-/* Every particle into the pack, after a density pass that did not pack. */
+/* Every particle into the pack, after a density pass that did not pack. On a decomposed system,
+ * after the rates pass's refresh, the halo's 1/V and m/ϱ first (which no scratch brings): the
+ * density visits' operations on its owners' Σ W and ϱ, so their values bit for bit. */
 static void tv_pack(const consph_solver *s, const rival_job *job)
 {
     const size_t n = s->sys.p->n;
+    const unsigned char *dest = s->sys.split ? s->sys.dest : NULL;
+    const double m = job->c.m;
 #pragma omp parallel for schedule(static) if (n >= s->sys.parallel_min)
-    for (size_t i = 0; i < n; ++i) tv_pack_one(job, i);
+    for (size_t i = 0; i < n; ++i) {
+        if (dest && !dest[i]) {
+            job->vol[i] = 1.0 / job->numd[i];
+            job->mrho[i] = m / job->rhos[i];
+        }
+        tv_pack_one(job, i);
+    }
 }
 #endif
 
@@ -1040,6 +1070,9 @@ static int rhs_tv(consph_solver *s, int kind)
     if (st == PASS_GROUP_UNSERVED) {
         st = run_pass(s, &dens, group_visit_density, 0, &job);
 #ifdef RV_GROUPS
+        /* a decomposed system (pass_run_groups2 declines it): the rates pass's refresh first,
+         * which brings the halo's densities (Σ W, ϱ, tvf's p) for its rows of the pack */
+        if (st == CONSPH_OK && job.pack) st = pass_halo_refresh(&s->sys);
         if (st == CONSPH_OK && job.pack) tv_pack(s, &job);
 #endif
         if (st == CONSPH_OK)
