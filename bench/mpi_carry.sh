@@ -22,7 +22,8 @@
 #
 # usage: bench/mpi_carry.sh [DIR] [BUILD]   (from anywhere; DIR default mpi-carry, BUILD default
 #   build, both relative to the repository root unless absolute; BUILD is configured (Release,
-#   MPI, no CUDA) and built if it has no consph or bench_par). consph's RUNPATH names the
+#   MPI, no CUDA) where it has no CMakeCache.txt, and consph and bench_par rebuilt in it, so never
+#   older than the sources). consph's RUNPATH names the
 #   system's OpenMPI folder, which LD_LIBRARY_PATH overrides and the target does not have.
 set -eu
 
@@ -49,10 +50,12 @@ COMPONENTS=${COMPONENTS:-"allocator_basic allocator_bucket bml_r2 btl_self btl_v
 
 cd "$ROOT"
 [ -x /usr/bin/orterun ] || { echo "mpi_carry: no OpenMPI here (/usr/bin/orterun)" >&2; exit 2; }
-if [ ! -x "$BUILD/consph" ] || [ ! -x "$BUILD/bench/bench_par" ]; then
+# configured where it is not yet; built (incrementally) always, so that binaries older than the
+# sources are never carried
+[ -f "$BUILD/CMakeCache.txt" ] ||
     cmake -S . -B "$BUILD" -DCMAKE_BUILD_TYPE=Release -DCONSPH_MPI=ON -DCONSPH_CUDA=OFF >/dev/null
-    cmake --build "$BUILD" -j "$(nproc)" --target consph bench_par >/dev/null
-fi
+cmake --build "$BUILD" -j "$(nproc)" --target consph bench_par >/dev/null ||
+    { echo "mpi_carry: building consph and bench_par in $BUILD failed" >&2; exit 2; }
 "$BUILD/consph" --version | grep -qx 'MPI ranks 1' ||
     { echo "mpi_carry: $BUILD/consph is not an MPI build" >&2; exit 2; }
 
