@@ -573,6 +573,10 @@ static int check_resort_columns(void)
                         p->fields[f].name);
                 bad = 1;
             }
+        /* agreed before the refresh, a collective: one rank's failure must not hang the others */
+        int any = bad;
+        MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_LOR, MPI_COMM_WORLD);
+        bad = any;
         if (!bad) {
             /* every halo column is its owners' after a refresh, with owned values written
              * since the cut and halo values written here */
