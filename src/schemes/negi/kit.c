@@ -68,6 +68,20 @@ static inline int kit_pack2_stride(const int D, const int with_u, const int with
     return (n + 3) & ~3;
 }
 
+/* coupled_bc's pack at particle i: G (D x D, where with_u and the pack holds it), ∇q (D, where
+ * with_q and the pack holds it), ω where the stride leaves room. */
+static inline void kit_pack2(const kit_job *job, const size_t i, const int D, const int with_u,
+                             const int with_q, const double *G, const double *gq)
+{
+    double *pk = job->pk2 + i * (size_t)job->s2;
+    int o = 0;
+    if (with_u && job->pk2_u)
+        for (int e = 0; e < D * D; ++e) pk[o++] = G[e];
+    if (with_q && job->pk2_q)
+        for (int a = 0; a < D; ++a) pk[o++] = gq[a];
+    if (job->pk2_vol >= 0) pk[job->pk2_vol] = job->vol[i];
+}
+
 /* The volume visits' job: the volumes, and the kit's job whose pass-1 pack they fill (NULL: none).
  */
 typedef struct kit_vol_job {
@@ -105,15 +119,7 @@ TERM_INLINE void first_store(const kit_job *job, const size_t i, const int D, co
     }
     if (with_q)
         for (int a = 0; a < D; ++a) job->gradq[a * cap + i] = gq[a];
-    if (job->pk2) {
-        double *pk = job->pk2 + i * (size_t)job->s2;
-        int o = 0;
-        if (with_u && job->pk2_u)
-            for (int e = 0; e < D * D; ++e) pk[o++] = G[e];
-        if (with_q && job->pk2_q)
-            for (int a = 0; a < D; ++a) pk[o++] = gq[a];
-        if (job->pk2_vol >= 0) pk[job->pk2_vol] = job->vol[i];
-    }
+    if (job->pk2) kit_pack2(job, i, D, with_u, with_q, G, gq);
 }
 
 /* Pass 1 at one particle, for a dimension and a set of derivatives known at compile time: one
@@ -880,7 +886,7 @@ int kit_volumes(consph_sys *s, size_t *pairs)
 /* The rows of pass 1's pack (which 1) or coupled_bc's (2) of the particles outside the destination
  * mask, which no visit writes (a decomposed system's halo: sources only), from their fields:
  * after the refresh of the pass that reads them (pass_halo_refresh, which that pass then does not
- * repeat), so they are the owners' values, those the visits wrote there (kit_pack1, first_store).
+ * repeat), so they are the owners' values, those the visits wrote there (kit_pack1, kit_pack2).
  */
 static int kit_pack_sources(consph_sys *s, const kit_job *job, int which)
 {
@@ -896,13 +902,12 @@ static int kit_pack_sources(consph_sys *s, const kit_job *job, int which)
             kit_pack1(job, i, job->vol[i]);
             continue;
         }
-        double *pk = job->pk2 + i * (size_t)job->s2;
-        int o = 0;
+        double G[9] = {0.0}, gq[3] = {0.0};
         if (job->pk2_u)
-            for (int e = 0; e < D * D; ++e) pk[o++] = job->gradu[(size_t)e * cap + i];
+            for (int e = 0; e < D * D; ++e) G[e] = job->gradu[(size_t)e * cap + i];
         if (job->pk2_q)
-            for (int a = 0; a < D; ++a) pk[o++] = job->gradq[a * cap + i];
-        if (job->pk2_vol >= 0) pk[job->pk2_vol] = job->vol[i];
+            for (int a = 0; a < D; ++a) gq[a] = job->gradq[a * cap + i];
+        kit_pack2(job, i, D, 1, 1, G, gq);
     }
     return CONSPH_OK;
 }
