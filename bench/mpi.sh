@@ -197,15 +197,18 @@ measure() {
 
 # halo K NX PROBLEM SCHEME: halo / owned particles, mean over ranks (bench_par, one step), then
 # the cut's geometry: the search's cells along each axis and the halo's width in cells, comma
-# separated ("--" where bench_par is missing or did not say).
+# separated, then the most particles a rank owns over the mean ("--" where bench_par is missing
+# or did not say).
 halo() {
-    [ -x "$BENCH_PAR" ] || { echo "-- --"; return; }
+    [ -x "$BENCH_PAR" ] || { echo "-- -- --"; return; }
     timeout "$(limit)" $MPIRUN -np "$1" "$BENCH_PAR" "$3" "$4" "$2" 1 2>/dev/null | awk '
+        /^  rank [0-9]*: owns / { o = $4 + 0; own += o; if (o > omax) omax = o; no++ }
         /\(halo [0-9.]* of owned\)/ { sub(/.*\(halo /, ""); sub(/ of owned.*/, ""); s += $1; n++ }
         /^  boxes / { sub(/.* of cells /, ""); sub(/, halo width /, " "); sub(/ cells$/, "")
                       m = split($1, c, "x"); g = c[1]; for (a = 2; a <= m; a++) g = g "," c[a]
                       w = $2; for (a = 3; a <= NF; a++) w = w "," $a; geo = g ";" w }
-        END { printf "%s %s\n", n ? sprintf("%.2f", s / n) : "--", geo != "" ? geo : "--" }'
+        END { printf "%s %s %s\n", n ? sprintf("%.2f", s / n) : "--", geo != "" ? geo : "--",
+                     (no && own > 0) ? sprintf("%.3f", omax * no / own) : "--" }'
 }
 
 # solver_case DIM PER_RANK STRONG_NX PROBLEM SCHEME: weak scaling at PER_RANK particles per rank
@@ -220,8 +223,8 @@ solver_case() {
     echo
     echo "### $prob, $scheme, ${dim}D: weak scaling at $per particles per rank"
     echo
-    echo "| scaling | ranks | nx | particles | s/step | efficiency | CPU s/step | bytes/particle-step | comm fraction | halo/owned |"
-    echo "|---|---|---|---|---|---|---|---|---|---|"
+    echo "| scaling | ranks | nx | particles | s/step | efficiency | CPU s/step | bytes/particle-step | comm fraction | halo/owned | most owned / mean |"
+    echo "|---|---|---|---|---|---|---|---|---|---|---|"
     : >"$WORK/cache"
     kmax=1
     for k in 1 $RANKS; do kmax=$k; done
@@ -256,7 +259,7 @@ solver_case() {
             echo "$prob $mode $k ranks nx $nx: $m" >&2
             case $m in
             FAIL | SKIP*)
-                echo "| $mode | $k | $nx | $n | ${m#SKIP } | | | | | |"
+                echo "| $mode | $k | $nx | $n | ${m#SKIP } | | | | | | |"
                 [ -n "$t1" ] || t1=0 n1=$n
                 continue
                 ;;
@@ -269,20 +272,22 @@ solver_case() {
             else
                 eff=$(awk -v t1="$t1" -v t="$step" -v k="$k" 'BEGIN { if (t1 > 0) printf "%.2f", t1 / (k * t); else print "--" }')
             fi
-            h=-- geo=--
-            [ "$k" -gt 1 ] && read -r h geo <<EOF
+            h=-- geo=-- imb=--
+            [ "$k" -gt 1 ] && read -r h geo imb <<EOF
 $(halo "$k" "$nx" "$prob" "$scheme")
 EOF
-            echo "$m" | awk -v mode=$mode -v k="$k" -v nx="$nx" -v n="$n" -v eff="$eff" -v h="$h" \
-                '{ printf "| %s | %d | %d | %d | %s | %s | %s | %.0f | %.2f | %s |\n", mode, k, nx, n, $1, eff, $4, $2 / n, $3 / $1, h }'
-            echo "$mode $k $nx $n $m $h $geo" >>"$WORK/rows"
+            echo "$m" | awk -v mode=$mode -v k="$k" -v nx="$nx" -v n="$n" -v eff="$eff" -v h="$h" -v imb="$imb" \
+                '{ printf "| %s | %d | %d | %d | %s | %s | %s | %.0f | %.2f | %s | %s |\n", mode, k, nx, n, $1, eff, $4, $2 / n, $3 / $1, h, imb }'
+            echo "$mode $k $nx $n $m $h $geo $imb" >>"$WORK/rows"
         done
     done
     # extrapolation: the weak row of the largest K
     awk -v dim="$dim" -v per="$per" -v bw="$BANDWIDTH" -v bwhow="$BANDWIDTH_HOW" '
         # halo cells per owned cell of the best cut of K ranks over cells nc[] with halo width
-        # w[]: par_solver.c choose_boxes (a tie goes to the slabs, pieces along the later axes)
-        function best_cut(K, nc, w, d,    k0, k1, k2, a, own, ext, o, e, best, kk, fits) {
+        # w[]: par_solver.c choose_boxes (a tie goes to the slabs, pieces along the later axes);
+        # heavy: its heaviest box over the mean, where the density is uniform (an axis of nc
+        # cell layers cut into k pieces of whole layers: the heaviest holds ceil(nc / k))
+        function best_cut(K, nc, w, d,    k0, k1, k2, a, own, ext, o, e, best, kk, fits, hv) {
             best = -1
             for (k2 = (d > 2 ? K : 1); k2 >= 1; k2--) {
                 if (K % k2) continue
@@ -297,8 +302,11 @@ EOF
                         if (e > nc[a]) e = nc[a]
                         own *= o; ext *= e
                     }
+                    hv = 1
+                    for (a = 0; a < d; a++)
+                        if (kk[a] > 0) hv *= (int(nc[a] / kk[a]) + (nc[a] % kk[a] > 0)) / (nc[a] / kk[a])
                     if (fits && (best < 0 || ext - own < best)) {
-                        best = ext - own; ratio = (ext - own) / own
+                        best = ext - own; ratio = (ext - own) / own; heavy = hv
                         cut = kk[0]; for (a = 1; a < d; a++) cut = cut "x" kk[a]
                     }
                 }
@@ -318,7 +326,7 @@ EOF
             # over the geometric one at kmax carries the particles per halo cell over to 16
             gm = best_cut(kmax, ncm, w, dim); cutm = cut
             for (a = 0; a < dim; a++) nc16[a] = int(ncm[a] * nx16 / nx + 0.5)
-            g16 = best_cut(16, nc16, w, dim); cut16 = cut
+            g16 = best_cut(16, nc16, w, dim); cut16 = cut; heavy16 = heavy
             if (gm <= 0 || g16 < 0) exit
             h16 = h * g16 / gm
             b16 = b * h16 / h
@@ -331,6 +339,21 @@ EOF
             printf " at the %d-rank cost per byte (%.2g s/MB, waiting on this shared machine included)", kmax, kappa * 1e6
             printf " communication would take %.3g s of a step whose pair work takes %.3g s:", c16, comp
             printf " weak-scaling efficiency about %.2f.", comp / (comp + c16)
+            # the nearest resolution whose cells (scaled as above) every cut axis shares evenly
+            nkq = split(cut16, kq, "x"); nx16e = 0
+            for (dn = 0; dn <= 20 && !nx16e; dn++)
+                for (sg = -1; sg <= 1 && !nx16e; sg += 2) {
+                    even = 1
+                    for (a = 0; a < dim; a++)
+                        if (int(ncm[a] * (nx16 + sg * dn) / nx + 0.5) % kq[a + 1]) even = 0
+                    if (even) nx16e = nx16 + sg * dn
+                }
+            if (heavy16 > 1.0005) {
+                printf " The heaviest box holds %.3f times the mean (whole cell layers:", heavy16
+                printf " %d cells in %s pieces), and every rank waits for it: about %.2f", nc16[dim - 1], cut16, comp / (comp * heavy16 + c16)
+                printf " with both."
+                if (nx16e) printf " At nx %d, whose cells the pieces share evenly, the first figure holds.", nx16e
+            }
             cb = b16 * per / bw
             printf " At the %s %.2g GB/s per rank (shared memory in one node; latency, packing and", bwhow, bw / 1e9
             printf " waiting left out) the %.0f MB a rank sends per step take %.3g s: efficiency", b16 * per / 1e6, cb
@@ -379,6 +402,10 @@ solver_scaling() {
     echo "slab's; the extrapolation above takes the cut consph would choose at 16 ranks. What a rank adds to the"
     echo "serial work, by kind, is measured in instructions by bench/mpi_instr.sh; the refresh still"
     echo "scans every column, since the passes do not declare the fields they read."
+    echo "Boxes are whole cell layers: where an axis' cells do not divide into its pieces, the"
+    echo "heaviest box holds ceil(nc/k) layers against nc/k on average (65 cells in 4 pieces: 17"
+    echo "against 16.25), and every rank waits for it at every pass. The column \"most owned / mean\""
+    echo "measures it; the 16-rank paragraphs take it in from the cut's geometry."
     echo "Measured here: ranks 1 $RANKS on $(getconf _NPROCESSORS_ONLN) cores${MACHINE_NOTE:+ ($MACHINE_NOTE)}."
 }
 
