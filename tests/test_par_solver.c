@@ -63,6 +63,13 @@ static const par_case cases[] = {
     {"wcsph-3d", "beltrami", "wcsph", 20, CONSPH_LAYOUT_LATTICE, 3, "kernel=cubic"},
     /* the authors' error measure samples after every step: every step gathers the whole set */
     {"authors", "taylor-green", "edac", 40, CONSPH_LAYOUT_RANDOM, 6, "error=authors"},
+    /* --tf: the steps land on the authors' output times, which every rank must know (the
+     * samples taken on every rank; with --exact wc gathered to rank 0, the others move on to
+     * the next output time by themselves) */
+    {"authors-tf", "taylor-green", "edac", 40, CONSPH_LAYOUT_RANDOM, 0,
+     "error=authors tf=0.0006 error_times=5"},
+    {"authors-tf-wc", "taylor-green", "edac", 40, CONSPH_LAYOUT_RANDOM, 0,
+     "error=authors tf=0.0006 error_times=5 exact=wc"},
     /* a sample at every step gathers only what the diagnostics read (solver_sample_fields):
      * a scheme with a per-particle mass, and the wc reference's errors besides */
     {"sampled", "taylor-green", "delta-plus-sph", 40, CONSPH_LAYOUT_RANDOM, 5,
@@ -133,45 +140,121 @@ static double sum_value(double id)
     return sin(id) * pow(10.0, fmod(id * 7.0, 13.0) - 6.0);
 }
 
-static double whole_sum;
+/* Three columns for the sums over the ranks (of different values, so that a column taken for
+ * another shows), and the maxima of two. */
+enum { SUM_COLS = 3, MAX_COLS = 2 };
+
+static double col_value(double id, int k)
+{
+    return k == 0 ? sum_value(id) : k == 1 ? -sum_value(id + 0.5) : 1.0 / (1.0 + id);
+}
+
+static double whole_sum[SUM_COLS], whole_max[MAX_COLS];
+static int order_shows; /* the sums of column 0 in order and reversed differ */
 
 static int sum_whole(consph_solver *s, void *unused)
 {
     (void)unused;
     const consph_particles *p = s->sys.p;
     const double *id = consph_particles_find(p, SF_ID)->data;
-    double *w = malloc(p->n * sizeof(double));
-    for (size_t i = 0; i < p->n; ++i) w[i] = sum_value(id[i]);
-    whole_sum = consph_sum(w, p->n);
+    double *w = malloc((p->n ? p->n : 1) * sizeof(double));
+    for (int k = 0; k < SUM_COLS; ++k) {
+        for (size_t i = 0; i < p->n; ++i) w[i] = col_value(id[i], k);
+        whole_sum[k] = consph_sum(w, p->n);
+        if (k == 0) {
+            double fwd = 0.0, back = 0.0;
+            for (size_t i = 0; i < p->n; ++i) fwd += w[i];
+            for (size_t i = p->n; i-- > 0;) back += w[i];
+            order_shows = fwd != back;
+        }
+    }
+    whole_max[0] = whole_max[1] = 0.0;
+    for (size_t i = 0; i < p->n; ++i) {
+        whole_max[0] = fmax(whole_max[0], fabs(sum_value(id[i])));
+        whole_max[1] = fmax(whole_max[1], id[i]);
+    }
     free(w);
     return CONSPH_OK;
 }
 
-/* par_owned_sum (the kinetic energy of the checks after every step) against consph_sum over the
- * gathered serial order, bit for bit; rank 0 holds the serial sum. */
+/* par_owned_sums (the diagnostics' sums and the checks' kinetic energy) against consph_sum over
+ * the gathered serial order, bit for bit on every rank, for values whose sum depends on the
+ * order (checked: in order and reversed differ); par_owned_max against the maxima over the
+ * gathered set. */
 static int check_owned_sum(consph_solver *s, const char *name)
 {
     const consph_particles *p = s->sys.p;
     const double *id = consph_particles_find(p, SF_ID)->data;
-    double *w = malloc((p->n ? p->n : 1) * sizeof(double));
-    size_t m = 0;
-    for (size_t i = 0; i < p->n; ++i)
-        if (!s->sys.dest || s->sys.dest[i]) w[m++] = sum_value(id[i]);
-    double v = 0.0;
-    int st = par_owned_sum(s, w, &v);
+    size_t m = 0, N = 0;
+    const size_t *own = par_owned(s, &m, &N);
+    double *w = malloc((m ? m : 1) * SUM_COLS * sizeof(double));
+    double mx[MAX_COLS] = {0.0, 0.0};
+    for (size_t o = 0; o < m; ++o) {
+        const double q = id[own[o]];
+        for (int k = 0; k < SUM_COLS; ++k) w[(size_t)k * m + o] = col_value(q, k);
+        mx[0] = fmax(mx[0], fabs(sum_value(q)));
+        mx[1] = fmax(mx[1], q);
+    }
+    double v[SUM_COLS];
+    int st = par_owned_sums(s, w, SUM_COLS, v);
     free(w);
+    if (st == CONSPH_OK) st = par_owned_max(s, mx, MAX_COLS);
     if (st == CONSPH_OK) st = solver_global(s, sum_whole, NULL);
+    double ref[SUM_COLS + MAX_COLS + 1];
+    memcpy(ref, whole_sum, sizeof whole_sum);
+    memcpy(ref + SUM_COLS, whole_max, sizeof whole_max);
+    ref[SUM_COLS + MAX_COLS] = order_shows;
+    MPI_Bcast(ref, SUM_COLS + MAX_COLS + 1, MPI_DOUBLE, 0, MPI_COMM_WORLD);
     int rank = 0;
     MPI_Comm_rank(MPI_COMM_WORLD, &rank);
-    if (st == CONSPH_OK && rank == 0 && memcmp(&v, &whole_sum, sizeof v)) {
-        fprintf(stderr, "case %s: the sum over ranks %.17g, over the serial order %.17g\n", name, v,
-                whole_sum);
+    if (st == CONSPH_OK && ref[SUM_COLS + MAX_COLS] == 0.0) {
+        fprintf(stderr, "case %s: the test's sums do not depend on the order\n", name);
         st = CONSPH_EINVAL;
     }
-    /* every rank takes rank 0's verdict: a rank that stopped alone would leave the others
+    for (int k = 0; st == CONSPH_OK && k < SUM_COLS; ++k)
+        if (memcmp(&v[k], &ref[k], sizeof v[k])) {
+            fprintf(stderr,
+                    "case %s, rank %d: column %d's sum over ranks %.17g, over the serial order "
+                    "%.17g\n",
+                    name, rank, k, v[k], ref[k]);
+            st = CONSPH_EINVAL;
+        }
+    for (int k = 0; st == CONSPH_OK && k < MAX_COLS; ++k)
+        if (memcmp(&mx[k], &ref[SUM_COLS + k], sizeof mx[k])) {
+            fprintf(stderr, "case %s, rank %d: maximum %d over ranks %.17g, over the set %.17g\n",
+                    name, rank, k, mx[k], ref[SUM_COLS + k]);
+            st = CONSPH_EINVAL;
+        }
+    /* every rank takes the worst verdict: a rank that stopped alone would leave the others
      * waiting in the next collective */
-    MPI_Bcast(&st, 1, MPI_INT, 0, MPI_COMM_WORLD);
-    return st;
+    int bad = st != CONSPH_OK, any = 0;
+    MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    return any ? CONSPH_EINVAL : CONSPH_OK;
+}
+
+/* Samples taken on every rank (solver_sample_owned) leave every rank rank 0's history and
+ * sums, bit for bit (the steps read them there: the authors' output times, the checks' first
+ * row). */
+static int check_same_history(consph_solver *s, const char *name)
+{
+    if (!solver_sample_owned(s)) return CONSPH_OK;
+    double mine[7] = {(double)s->nhist, s->l1_u_acc,       s->l1_p_acc,         s->auth_u_acc,
+                      s->auth_p_acc,    (double)s->auth_n, (double)s->auth_next};
+    double ref[7];
+    memcpy(ref, mine, sizeof ref);
+    MPI_Bcast(ref, 7, MPI_DOUBLE, 0, MPI_COMM_WORLD);
+    int bad = memcmp(mine, ref, sizeof ref) != 0, any = 0;
+    MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    if (!any) { /* the same count of rows everywhere */
+        double *h = malloc((s->nhist ? s->nhist : 1) * HIST_COLS * sizeof(double));
+        memcpy(h, s->hist, s->nhist * HIST_COLS * sizeof(double));
+        MPI_Bcast(h, (int)(s->nhist * HIST_COLS), MPI_DOUBLE, 0, MPI_COMM_WORLD);
+        bad = memcmp(h, s->hist, s->nhist * HIST_COLS * sizeof(double)) != 0;
+        free(h);
+        MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    }
+    if (bad) fprintf(stderr, "case %s: this rank's history or sums differ from rank 0's\n", name);
+    return any ? CONSPH_EINVAL : CONSPH_OK;
 }
 
 static int rank_zero(void)
@@ -249,6 +332,7 @@ static int run_case(const par_case *c, const char *path)
         st = CONSPH_OK;
     }
     if (st == CONSPH_OK && size > 1) st = check_owned_sum(s, c->name);
+    if (st == CONSPH_OK && size > 1) st = check_same_history(s, c->name);
     if (st == CONSPH_OK) st = solver_global(s, dump, (void *)path);
     if (st != CONSPH_OK) fprintf(stderr, "case %s: %s\n", c->name, consph_last_error());
     consph_solver_free(s);

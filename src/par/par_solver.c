@@ -1413,56 +1413,77 @@ static int migrate(consph_solver *s, par_solver *ps, int step)
 
 /* ---- consph_sum over the ranks ---- */
 
-/* consph_sum's tree (src/core/util.c): leaves of at most SUM_LEAF values summed in order,
- * nodes split on a leaf boundary so that the tree depends on n alone. */
+/* consph_sum's tree (src/core/util.c): leaves of at most SUM_LEAF values summed in order from
+ * 0.0, nodes split on a leaf boundary so that the tree depends on n alone. */
 #define SUM_LEAF 256
 
-typedef struct sum_item {
-    double start, len, value; /* a node's sum; len 0: the single value at start */
-} sum_item;
-
+/* The items of several columns' sums over the same owned runs: per item its start and length
+ * in the serial order (length 0: one value, or the sum in order of a leaf's first values), then
+ * one value per column; the items' places depend on the runs alone, so one list serves every
+ * column and travels in one message. */
 typedef struct sum_items {
-    sum_item *it;
+    double *v;
     size_t n, cap;
+    int per;         /* 2 + the columns */
+    const double *w; /* this run's first value of column 0 */
+    size_t stride;   /* from one column to the next */
 } sum_items;
 
-static int sum_push(sum_items *a, double start, double len, double value)
+static double *sum_next(sum_items *a, double start, double len)
 {
     if (a->n == a->cap) {
         size_t cap = a->cap ? 2 * a->cap : 64;
-        sum_item *q = realloc(a->it, cap * sizeof *q);
-        if (!q) return par_fail_mem();
-        a->it = q;
+        double *q = realloc(a->v, cap * (size_t)a->per * sizeof *q);
+        if (!q) return NULL;
+        a->v = q;
         a->cap = cap;
     }
-    a->it[a->n++] = (sum_item){start, len, value};
-    return CONSPH_OK;
+    double *it = a->v + a->n++ * (size_t)a->per;
+    it[0] = start;
+    it[1] = len;
+    return it;
 }
 
-/* The nodes of the tree over [0, N) that lie within this rank's [lo, hi), as sums, and the
- * values of the leaves it shares with another rank, one by one. */
-static int sum_emit(sum_items *a, const double *w, size_t lo, size_t hi, size_t s, size_t n)
+/* The nodes of the tree over [0, N) that lie within this run [lo, hi), as sums; of a leaf it
+ * shares with another rank, its first values as one partial sum when the leaf starts here (the
+ * leaf's chain of additions from 0.0 passes through it), else its values one by one. */
+static int sum_emit(sum_items *a, size_t lo, size_t hi, size_t s, size_t n)
 {
     if (s + n <= lo || s >= hi || n == 0) return CONSPH_OK;
-    if (lo <= s && s + n <= hi)
-        return sum_push(a, (double)s, (double)n, consph_sum(w + (s - lo), n));
+    const int c = a->per - 2;
+    if (lo <= s && s + n <= hi) {
+        double *it = sum_next(a, (double)s, (double)n);
+        if (!it) return par_fail_mem();
+        for (int k = 0; k < c; ++k) it[2 + k] = consph_sum(a->w + k * a->stride + (s - lo), n);
+        return CONSPH_OK;
+    }
     if (n <= SUM_LEAF) {
-        for (size_t i = s > lo ? s : lo; i < s + n && i < hi; ++i)
-            if (sum_push(a, (double)i, 0.0, w[i - lo])) return CONSPH_ENOMEM;
+        if (s >= lo) { /* the leaf's first hi - s values: consph_sum of < SUM_LEAF is in order */
+            double *it = sum_next(a, (double)s, 0.0);
+            if (!it) return par_fail_mem();
+            for (int k = 0; k < c; ++k)
+                it[2 + k] = consph_sum(a->w + k * a->stride + (s - lo), hi - s);
+            return CONSPH_OK;
+        }
+        for (size_t i = lo; i < s + n && i < hi; ++i) {
+            double *it = sum_next(a, (double)i, 0.0);
+            if (!it) return par_fail_mem();
+            for (int k = 0; k < c; ++k) it[2 + k] = a->w[k * a->stride + (i - lo)];
+        }
         return CONSPH_OK;
     }
     const size_t left = ((n + SUM_LEAF - 1) / SUM_LEAF / 2) * SUM_LEAF;
-    int st = sum_emit(a, w, lo, hi, s, left);
-    return st ? st : sum_emit(a, w, lo, hi, s + left, n - left);
+    int st = sum_emit(a, lo, hi, s, left);
+    return st ? st : sum_emit(a, lo, hi, s + left, n - left);
 }
 
 /* The first item at or after start (items ascend by start). */
-static size_t sum_find(const sum_item *it, size_t n, double start)
+static size_t sum_find(const double *it, int per, size_t n, double start)
 {
     size_t a = 0, b = n;
     while (a < b) {
         const size_t m = (a + b) / 2;
-        if (it[m].start < start)
+        if (it[m * (size_t)per] < start)
             a = m + 1;
         else
             b = m;
@@ -1470,45 +1491,50 @@ static size_t sum_find(const sum_item *it, size_t n, double start)
     return a;
 }
 
-static double sum_eval(const sum_item *it, size_t m, size_t s, size_t n)
+/* Column k's sum of the tree's node [s, s + n) from the m items. */
+static double sum_eval(const double *it, int per, size_t m, int k, size_t s, size_t n)
 {
-    size_t k = sum_find(it, m, (double)s);
+    size_t q = sum_find(it, per, m, (double)s);
     /* a whole node on one rank; several items may start at s (a node and, as single values,
      * a shared leaf's first) only when len differs */
-    for (size_t q = k; q < m && it[q].start == (double)s; ++q)
-        if (it[q].len == (double)n) return it[q].value;
+    for (size_t r = q; r < m && it[r * (size_t)per] == (double)s; ++r)
+        if (it[r * (size_t)per + 1] == (double)n) return it[r * (size_t)per + 2 + k];
     if (n <= SUM_LEAF) {
         double acc = 0.0;
-        for (; k < m && it[k].start < (double)(s + n); ++k) acc += it[k].value;
+        for (; q < m && it[q * (size_t)per] < (double)(s + n); ++q)
+            acc += it[q * (size_t)per + 2 + k];
         return acc;
     }
     const size_t left = ((n + SUM_LEAF - 1) / SUM_LEAF / 2) * SUM_LEAF;
-    return sum_eval(it, m, s, left) + sum_eval(it, m, s + left, n - left);
+    return sum_eval(it, per, m, k, s, left) + sum_eval(it, per, m, k, s + left, n - left);
 }
 
 static int item_cmp(const void *pa, const void *pb)
 {
-    const sum_item *a = pa, *b = pb;
-    if (a->start != b->start) return a->start < b->start ? -1 : 1;
-    return a->len < b->len ? -1 : a->len > b->len;
+    const double *a = pa, *b = pb;
+    if (a[0] != b[0]) return a[0] < b[0] ? -1 : 1;
+    return a[1] < b[1] ? -1 : a[1] > b[1];
 }
 
-/* consph_sum of w over the serial order, each rank holding the values of its owned particles
- * (runs of consecutive serial indices, ascending: the rows of its box), bit for bit on every
- * rank. */
-static int par_sum(par_solver *ps, const double *w, double *out)
+/* consph_sum of each of c columns over the serial order, each rank holding the values of its
+ * owned particles (column k at w + k nown; runs of consecutive serial indices, ascending: the
+ * rows of its box), bit for bit on every rank: one gather of every column's items to rank 0,
+ * which evaluates the tree, and one broadcast of the c sums. */
+static int par_sums(par_solver *ps, const double *w, int c, double *out)
 {
-    sum_items a = {NULL, 0, 0};
+    if (c < 1) return CONSPH_OK;
+    sum_items a = {NULL, 0, 0, 2 + c, NULL, ps->nown};
     int st = CONSPH_OK;
     for (size_t o = 0; st == CONSPH_OK && o < ps->nown;) {
         size_t e = o + 1;
         const size_t lo = (size_t)ps->g[ps->own[o]];
         while (e < ps->nown && (size_t)ps->g[ps->own[e]] == lo + (e - o)) ++e;
-        st = sum_emit(&a, w + o, lo, lo + (e - o), 0, ps->nglobal);
+        a.w = w + o;
+        st = sum_emit(&a, lo, lo + (e - o), 0, ps->nglobal);
         o = e;
     }
-    if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
-    const int mine = (int)(3 * a.n);
+    if (st != CONSPH_OK || a.n * (size_t)a.per > INT32_MAX) MPI_Abort(ps->comm, 1);
+    const int mine = (int)(a.n * (size_t)a.per);
     int *cnt = NULL, *dis = NULL;
     double *all = NULL;
     size_t total = 0;
@@ -1526,25 +1552,43 @@ static int par_sum(par_solver *ps, const double *w, double *out)
         all = malloc((total ? total : 1) * sizeof(double));
         if (!all) MPI_Abort(ps->comm, 1);
     }
-    MPI_Gatherv(a.it, mine, MPI_DOUBLE, all, cnt, dis, MPI_DOUBLE, 0, ps->comm);
-    double v = 0.0;
+    MPI_Gatherv(a.v, mine, MPI_DOUBLE, all, cnt, dis, MPI_DOUBLE, 0, ps->comm);
     if (ps->rank == 0) {
-        qsort(all, total / 3, sizeof(sum_item), item_cmp); /* the ranks' runs interleave */
-        v = sum_eval((const sum_item *)all, total / 3, 0, ps->nglobal);
+        const size_t m = total / (size_t)a.per;
+        qsort(all, m, (size_t)a.per * sizeof(double), item_cmp); /* the ranks' runs interleave */
+        for (int k = 0; k < c; ++k) out[k] = sum_eval(all, a.per, m, k, 0, ps->nglobal);
     }
-    MPI_Bcast(&v, 1, MPI_DOUBLE, 0, ps->comm);
+    MPI_Bcast(out, c, MPI_DOUBLE, 0, ps->comm);
     if (ps->rank != 0) ps->bytes += (double)mine * sizeof(double);
-    free(a.it);
+    free(a.v);
     free(cnt);
     free(dis);
     free(all);
-    *out = v;
     return CONSPH_OK;
 }
 
-int par_owned_sum(consph_solver *s, const double *w, double *out)
+int par_owned_sums(consph_solver *s, const double *w, int c, double *out)
 {
-    return par_sum(s->par, w, out);
+    const double t0 = MPI_Wtime();
+    const int st = par_sums(s->par, w, c, out);
+    s->par->seconds += MPI_Wtime() - t0;
+    return st;
+}
+
+int par_owned_max(consph_solver *s, double *v, int c)
+{
+    par_solver *ps = s->par;
+    const double t0 = MPI_Wtime();
+    MPI_Allreduce(MPI_IN_PLACE, v, c, MPI_DOUBLE, MPI_MAX, ps->comm);
+    ps->seconds += MPI_Wtime() - t0;
+    return CONSPH_OK;
+}
+
+const size_t *par_owned(const consph_solver *s, size_t *nown, size_t *nglobal)
+{
+    *nown = s->par->nown;
+    *nglobal = s->par->nglobal;
+    return s->par->own;
 }
 
 int par_checks_clean(consph_solver *s, int *clean)
@@ -1588,7 +1632,7 @@ int par_checks_clean(consph_solver *s, int *clean)
     double in[3] = {finite == 0.0 ? 0.0 : 1.0, u2max, cmax}, out[3];
     MPI_Allreduce(in, out, 3, MPI_DOUBLE, MPI_MAX, ps->comm);
     double ke = 0.0;
-    par_sum(ps, w, &ke);
+    par_sums(ps, w, 1, &ke);
     free(w);
     ps->seconds += MPI_Wtime() - t0;
     const double ke0 = s->hist[6]; /* row 0: the initial state, on every rank */
@@ -2156,6 +2200,23 @@ int par_share_history(consph_solver *s)
     }
     if (nh) MPI_Bcast(s->hist, (int)(nh * HIST_COLS), MPI_DOUBLE, 0, ps->comm);
     s->nhist = (size_t)nh;
+    /* and the sums of the samples (the authors' first, at t = 0): the later samples, taken on
+     * every rank (solver_sample_owned), add to them there */
+    double acc[9] = {s->l1_u_acc,  s->l1_p_acc,  s->auth_u_acc,     s->auth_p_acc,    s->log_since,
+                     s->wcs_u_acc, s->wcs_p_acc, s->wcs_auth_u_acc, s->wcs_auth_p_acc};
+    int an = s->auth_n;
+    MPI_Bcast(acc, 9, MPI_DOUBLE, 0, ps->comm);
+    MPI_Bcast(&an, 1, MPI_INT, 0, ps->comm);
+    s->l1_u_acc = acc[0];
+    s->l1_p_acc = acc[1];
+    s->auth_u_acc = acc[2];
+    s->auth_p_acc = acc[3];
+    s->log_since = acc[4];
+    s->wcs_u_acc = acc[5];
+    s->wcs_p_acc = acc[6];
+    s->wcs_auth_u_acc = acc[7];
+    s->wcs_auth_p_acc = acc[8];
+    s->auth_n = an;
     return CONSPH_OK;
 }
 
@@ -2485,10 +2546,24 @@ int par_checks_clean(consph_solver *s, int *clean)
     return CONSPH_OK;
 }
 
-int par_owned_sum(consph_solver *s, const double *w, double *out)
+int par_owned_sums(consph_solver *s, const double *w, int c, double *out)
 {
-    *out = consph_sum(w, s->sys.p->n);
+    for (int k = 0; k < c; ++k) out[k] = consph_sum(w + (size_t)k * s->sys.p->n, s->sys.p->n);
     return CONSPH_OK;
+}
+
+int par_owned_max(consph_solver *s, double *v, int c)
+{
+    (void)s;
+    (void)v;
+    (void)c;
+    return CONSPH_OK;
+}
+
+const size_t *par_owned(const consph_solver *s, size_t *nown, size_t *nglobal)
+{
+    *nown = *nglobal = s->sys.p->n;
+    return NULL;
 }
 
 void par_solver_free(par_solver *ps)

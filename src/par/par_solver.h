@@ -38,11 +38,18 @@ int par_sample_due(consph_solver *s);
  * CONSPH_VALID_* bounds, the kinetic energy summed as consph_sum over the serial order; the
  * same on every rank. When not clean, the serial checks on rank 0 name the particle. */
 int par_checks_clean(consph_solver *s, int *clean);
-/* consph_sum over the serial order of w, one value per owned particle in this rank's order
- * (the particles in the destination mask, ascending), the same on every rank. */
-int par_owned_sum(consph_solver *s, const double *w, double *out);
-/* Rank 0's history of the diagnostics to every rank: after a sample made decomposed at the
- * set-up (the checks read its first row, the initial state, on every rank). */
+/* This rank's owned particles (their local indices, ascending in the serial order: NULL for a
+ * serial solver, whose particles are all its own) and how many the ranks own in all. */
+const size_t *par_owned(const consph_solver *s, size_t *nown, size_t *nglobal);
+/* consph_sum over the serial order of each of c columns, column k at w + k nown with one value
+ * per owned particle in par_owned's order, into out[c], the same bits on every rank (one
+ * gather of every column's partial sums, one broadcast). */
+int par_owned_sums(consph_solver *s, const double *w, int c, double *out);
+/* v[c] := the maximum of each over the ranks, on every rank (exact, in any order). */
+int par_owned_max(consph_solver *s, double *v, int c);
+/* Rank 0's history of the diagnostics and the sums of its samples to every rank: after a sample
+ * made decomposed at the set-up (the checks read its first row, the initial state, on every
+ * rank; the later samples are taken on every rank: solver_sample_owned). */
 int par_share_history(consph_solver *s);
 /* The particles this rank held when it was cut (its share of the set-up; a serial solver's
  * count): for the tests of the set-up's memory. */

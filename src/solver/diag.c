@@ -8,6 +8,7 @@
 #include <string.h>
 
 #include "integrators/integrators.h"
+#include "par/par_solver.h"
 #include "problems/wcref.h"
 #include "solver/solver_internal.h"
 
@@ -176,11 +177,13 @@ int solver_hist_push(consph_solver *s, const consph_step_diag *g)
 const char *const solver_sample_fields[] = {SF_U,    SF_RHOF, SF_P,    SF_ID,
                                             SF_MASS, SF_AU,   SF_DIVU, NULL};
 
+static int diag_of(consph_solver *s, consph_step_diag *g, int owned);
+
 int solver_sample(consph_solver *s)
 {
     if (s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step) return CONSPH_OK;
     consph_step_diag g;
-    int st = consph_solver_diag(s, &g);
+    int st = s->par ? diag_of(s, &g, 1) : consph_solver_diag(s, &g);
     if (st != CONSPH_OK) return st;
     if (s->nhist) {
         /* 001 eq. 26: Σ_j mean|f - f_o|(t_j) (t_j - t_{j-1}) over the samples t_j */
@@ -196,6 +199,11 @@ int solver_sample(consph_solver *s)
     }
     s->log_since = 0.0;
     return solver_hist_push(s, &g);
+}
+
+int solver_sample_owned(const consph_solver *s)
+{
+    return s->par && s->prm.exact == CONSPH_EXACT_INCOMPRESSIBLE;
 }
 
 /* The per-particle buffer of the diagnostics, cols values per particle, kept between calls (a
@@ -231,6 +239,51 @@ static double max_abs(const double *a, size_t n)
     return m;
 }
 
+/* max_abs of a[idx[0..m)] (idx NULL: of a[0..m)). */
+static double max_abs_at(const double *a, const size_t *idx, size_t m)
+{
+    if (!idx) return max_abs(a, m);
+    double v = 0.0;
+    for (size_t k = 0; k < m; ++k) v = fmax(v, fabs(a[idx[k]]));
+    return v;
+}
+
+/* The particles a sample's terms are computed for: every one this process holds; `owned` (a
+ * decomposed sample every rank takes: solver_sample_owned), this rank's owned ones (*idx, *m),
+ * N of them over the ranks. */
+static void sample_part(const consph_solver *s, int owned, const size_t **idx, size_t *m, size_t *N)
+{
+    if (owned) {
+        *idx = par_owned(s, m, N);
+    } else {
+        *idx = NULL;
+        *m = *N = s->sys.p->n;
+    }
+}
+
+/* consph_sum of each of c columns of m terms at w into sum[c], and mx[nmx] (at most 4) made
+ * the maxima over the whole set: as they are, unless `owned`: then over the ranks (the maxima
+ * exact in any order, the sums over the serial order: par_owned_sums), with st, this rank's
+ * status of the terms, taken over the ranks in the maxima's reduction, so that a rank that
+ * failed alone does not leave the others waiting in the sums. */
+static int sample_reduce(consph_solver *s, int owned, int st, const double *w, size_t m, int c,
+                         double *sum, double *mx, int nmx)
+{
+    if (!owned) {
+        for (int k = 0; st == CONSPH_OK && k < c; ++k) sum[k] = consph_sum(w + (size_t)k * m, m);
+        return st;
+    }
+    double v[5];
+    for (int k = 0; k < nmx; ++k) v[k] = st == CONSPH_OK ? mx[k] : 0.0;
+    v[nmx] = st == CONSPH_OK ? 0.0 : 1.0;
+    par_owned_max(s, v, nmx + 1);
+    if (v[nmx] != 0.0)
+        return st != CONSPH_OK ? st
+                               : consph_fail(CONSPH_EINVAL, "a sample failed on another MPI rank");
+    for (int k = 0; k < nmx; ++k) mx[k] = v[k];
+    return par_owned_sums(s, w, c, sum);
+}
+
 /* Output time k with --tf; the last is t_f itself, not a rounding of it. */
 double solver_auth_time(const consph_solver *s, int k)
 {
@@ -244,34 +297,47 @@ static long auth_step(const consph_solver *s, int k)
     return lround((double)s->nsteps * (double)k / (double)(s->prm.error_times - 1));
 }
 
-/* Adds this instant's normalised errors of 001's post-processing to the sums. */
+/* Adds this instant's normalised errors of 001's post-processing to the sums. Decomposed (s->par:
+ * every rank, solver_sample_owned), over the owned particles and then the ranks. */
 int solver_auth_sample(consph_solver *s)
 {
     const consph_particles *p = s->sys.p;
-    const size_t n = p->n, cap = p->cap;
+    const size_t cap = p->cap;
     const double *u = sv_field(s, SF_U, s->dim), *pr = sv_field(s, SF_P, 1);
     if (!u || !pr) return consph_fail(CONSPH_EINVAL, "solver state missing");
-    if (!diag_buffer(s, 4)) return CONSPH_ENOMEM;
     double eu_n = NAN, ep_n = NAN;
     if (s->prob->has_exact || s->t == 0.0) {
+        const size_t *idx;
+        size_t m, N;
+        const int owned = s->par != NULL;
+        sample_part(s, owned, &idx, &m, &N);
         int st = solver_exact_prepare(s);
-        if (st != CONSPH_OK) return st;
-        double *eu = s->diag_buf, *mu = eu + n, *ep = eu + 2 * n, *pe = eu + 3 * n;
-#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
-        for (size_t i = 0; i < n; ++i) {
-            double x[3], ue[3];
-            solver_position_of(p, i, x);
-            solver_exact(s, x, ue, &pe[i]);
-            mu[i] = speed(ue, s->dim);
-            const double ui[3] = {u[i], u[cap + i], s->dim == 3 ? u[2 * cap + i] : 0.0};
-            eu[i] = fabs(speed(ui, s->dim) - mu[i]);
-            ep[i] = fabs(pr[i] - pe[i]);
-            if (s->prm.exact == CONSPH_EXACT_WC) /* the scales: solver_wc_side */
-                incompressible_scales(s, x, &mu[i], &pe[i]);
+        double *eu = st == CONSPH_OK ? diag_buffer(s, 4) : NULL;
+        if (st == CONSPH_OK && !eu) st = CONSPH_ENOMEM;
+        double sum[3], pmax = 0.0;
+        if (st == CONSPH_OK) {
+            double *mu = eu + m, *ep = eu + 2 * m, *pe = eu + 3 * m;
+#pragma omp parallel for schedule(static) if (m >= SOLVER_PARALLEL_MIN)
+            for (size_t k = 0; k < m; ++k) {
+                const size_t i = idx ? idx[k] : k;
+                double x[3], ue[3];
+                solver_position_of(p, i, x);
+                solver_exact(s, x, ue, &pe[k]);
+                mu[k] = speed(ue, s->dim);
+                const double ui[3] = {u[i], u[cap + i], s->dim == 3 ? u[2 * cap + i] : 0.0};
+                eu[k] = fabs(speed(ui, s->dim) - mu[k]);
+                ep[k] = fabs(pr[i] - pe[k]);
+                if (s->prm.exact == CONSPH_EXACT_WC) /* the scales: solver_wc_side */
+                    incompressible_scales(s, x, &mu[k], &pe[k]);
+            }
+            pmax = max_abs(pe, m);
         }
+        /* eu, mu, ep: the first three columns */
+        st = sample_reduce(s, owned, st, eu, m, 3, sum, &pmax, 1);
+        if (st != CONSPH_OK) return st;
         /* mean/mean for u, mean/max for p: taylor_green.py, post_process */
-        eu_n = consph_sum(eu, n) / consph_sum(mu, n);
-        ep_n = consph_sum(ep, n) / (double)n / max_abs(pe, n);
+        eu_n = sum[0] / sum[1];
+        ep_n = sum[2] / (double)N / pmax;
     }
     s->auth_u_acc += eu_n;
     s->auth_p_acc += ep_n;
@@ -296,9 +362,7 @@ int solver_auth_due(const consph_solver *s, int landed)
     return 0;
 }
 
-/* After a step: samples when it ended on the next output time. `landed`: a --tf run's step was
- * cut to end on it. */
-int solver_auth_after_step(consph_solver *s, int landed)
+int solver_auth_advance(consph_solver *s, int landed)
 {
     const int hit = solver_auth_due(s, landed);
     if (s->nsteps == 0) {
@@ -308,17 +372,32 @@ int solver_auth_after_step(consph_solver *s, int landed)
         while (s->auth_next < s->prm.error_times && auth_step(s, s->auth_next) <= s->step)
             ++s->auth_next;
     }
-    return hit ? solver_auth_sample(s) : CONSPH_OK;
+    return hit;
+}
+
+/* After a step: samples when it ended on the next output time. `landed`: a --tf run's step was
+ * cut to end on it. */
+int solver_auth_after_step(consph_solver *s, int landed)
+{
+    return solver_auth_advance(s, landed) ? solver_auth_sample(s) : CONSPH_OK;
 }
 
 /* ---- diagnostics ---- */
 
-int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
+/* The columns of the diagnostics' per-particle terms (m u_z in 3D only). */
+enum { DG_EU, DG_EP, DG_KE, DG_MX, DG_MY, DG_AN, DG_FX, DG_MZ };
+/* Their maxima: of the errors, of a_x and of ∇·u. */
+enum { DG_LINF_U, DG_LINF_P, DG_FMAX, DG_DIVU, DG_NMAX };
+
+/* The diagnostics of this instant from the particles sample_part gives (`owned`: the same
+ * values on every rank): each one's terms into
+ * the columns of diag_buffer (m values each), summed and maximised over the whole set by
+ * sample_reduce (decomposed: over the ranks, each rank's owned particles). */
+static int diag_of(consph_solver *s, consph_step_diag *g, int owned)
 {
-    consph_solver *s = (consph_solver *)cs; /* fields are looked up, not created */
     const consph_particles *p = s->sys.p;
     const int d = s->dim;
-    const size_t n = p->n, cap = p->cap;
+    const size_t cap = p->cap;
     memset(g, 0, sizeof *g);
     g->step = s->step;
     g->t = s->t;
@@ -328,61 +407,87 @@ int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
     const consph_field *fd = consph_particles_find(p, SF_DIVU);
     const consph_field *fm = consph_particles_find(p, SF_MASS);
     if (!fu || !fp || !fr || !fa || !fd) return consph_fail(CONSPH_EINVAL, "solver state missing");
+    const size_t *idx;
+    size_t m, N;
+    sample_part(s, owned, &idx, &m, &N);
     /* Without an exact solution after t = 0 the errors are not computed (they are n/a): the
      * exact() of such a problem is its initial state, evaluated for nothing. */
     const int errors = s->prob->has_exact || s->t == 0.0;
-    if (errors) {
-        int st = solver_exact_prepare(s);
-        if (st != CONSPH_OK) return st;
-    }
-    double *w = diag_buffer(s, d == 3 ? 8 : 7); /* 3D: m u_z too */
-    if (!w) return CONSPH_ENOMEM;
-    double *eu = w, *ep = w + n, *ke = w + 2 * n, *mx = w + 3 * n, *my = w + 4 * n, *an = w + 5 * n,
-           *fx = w + 6 * n, *mz = d == 3 ? w + 7 * n : NULL;
-    const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]), yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
-#pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
-    for (size_t i = 0; i < n; ++i) {
-        double x[3];
-        solver_position_of(p, i, x);
-        const double ux = fu->data[i], uy = fu->data[cap + i];
-        const double uz = d == 3 ? fu->data[2 * cap + i] : 0.0, ui[3] = {ux, uy, uz};
-        if (errors) {
-            double ue[3], pe;
-            solver_exact(s, x, ue, &pe);
-            eu[i] = fabs(speed(ui, d) - speed(ue, d));
-            ep[i] = fabs(fp->data[i] - pe);
+    int st = errors ? solver_exact_prepare(s) : CONSPH_OK;
+    const int cols = d == 3 ? 8 : 7; /* 3D: m u_z too */
+    double *w = st == CONSPH_OK ? diag_buffer(s, (size_t)cols) : NULL;
+    if (st == CONSPH_OK && !w) st = CONSPH_ENOMEM;
+    double mx[DG_NMAX] = {0.0, 0.0, 0.0, 0.0};
+    if (st == CONSPH_OK) {
+        double *eu = w + DG_EU * m, *ep = w + DG_EP * m, *ke = w + DG_KE * m, *mxc = w + DG_MX * m,
+               *my = w + DG_MY * m, *an = w + DG_AN * m, *fx = w + DG_FX * m,
+               *mz = d == 3 ? w + DG_MZ * m : NULL;
+        const double xc = 0.5 * (p->box.lo[0] + p->box.hi[0]),
+                     yc = 0.5 * (p->box.lo[1] + p->box.hi[1]);
+#pragma omp parallel for schedule(static) if (m >= SOLVER_PARALLEL_MIN)
+        for (size_t k = 0; k < m; ++k) {
+            const size_t i = idx ? idx[k] : k;
+            double x[3];
+            solver_position_of(p, i, x);
+            const double ux = fu->data[i], uy = fu->data[cap + i];
+            const double uz = d == 3 ? fu->data[2 * cap + i] : 0.0, ui[3] = {ux, uy, uz};
+            if (errors) {
+                double ue[3], pe;
+                solver_exact(s, x, ue, &pe);
+                eu[k] = fabs(speed(ui, d) - speed(ue, d));
+                ep[k] = fabs(fp->data[i] - pe);
+            }
+            const double mi = fm ? fm->data[i] : s->mass;
+            ke[k] = kinetic_energy_of(mi, ux, uy, uz, d);
+            mxc[k] = mi * ux;
+            my[k] = mi * uy;
+            if (mz) mz[k] = mi * uz;
+            /* the z-component about the box centre's axis, in 3D as in 2D (a periodic box
+             * conserves no angular momentum; the column tracks the rotation of the planar
+             * flows) */
+            an[k] = mi * ((x[0] - xc) * uy - (x[1] - yc) * ux);
+            /* 001's authors sum m·a of the whole acceleration (taylor_green.py, post_process:
+             * sum(m*au)); the maximum is of the acceleration itself (docs/schemes.md) */
+            fx[k] = mi * fa->data[i];
         }
-        const double m = fm ? fm->data[i] : s->mass;
-        ke[i] = kinetic_energy_of(m, ux, uy, uz, d);
-        mx[i] = m * ux;
-        my[i] = m * uy;
-        if (mz) mz[i] = m * uz;
-        /* the z-component about the box centre's axis, in 3D as in 2D (a periodic box conserves
-         * no angular momentum; the column tracks the rotation of the planar flows) */
-        an[i] = m * ((x[0] - xc) * uy - (x[1] - yc) * ux);
-        /* 001's authors sum m·a of the whole acceleration (taylor_green.py, post_process:
-         * sum(m*au)); the maximum is of the acceleration itself (docs/schemes.md) */
-        fx[i] = m * fa->data[i];
+        if (errors) {
+            mx[DG_LINF_U] = max_abs(eu, m);
+            mx[DG_LINF_P] = max_abs(ep, m);
+        }
+        mx[DG_FMAX] = max_abs_at(fa->data, idx, m); /* component 0: a_x */
+        mx[DG_DIVU] = max_abs_at(fd->data, idx, m);
     }
-    const double inv_n = n ? 1.0 / (double)n : 0.0;
+    /* without the errors, their columns hold nothing to sum */
+    const int first = errors ? DG_EU : DG_KE;
+    double sum[8] = {0.0};
+    st = sample_reduce(s, owned, st, w ? w + (size_t)first * m : NULL, m, cols - first, sum + first,
+                       mx, DG_NMAX);
+    if (st != CONSPH_OK) return st;
+    const double inv_n = N ? 1.0 / (double)N : 0.0;
     if (errors) {
-        g->l1_u = consph_sum(eu, n) * inv_n;
-        g->l1_p = consph_sum(ep, n) * inv_n;
-        g->linf_u = max_abs(eu, n);
-        g->linf_p = max_abs(ep, n);
+        g->l1_u = sum[DG_EU] * inv_n;
+        g->l1_p = sum[DG_EP] * inv_n;
+        g->linf_u = mx[DG_LINF_U];
+        g->linf_p = mx[DG_LINF_P];
     } else {
         /* no exact solution after t = 0: the errors are n/a, not a failure */
         g->l1_u = g->l1_p = g->linf_u = g->linf_p = NAN;
     }
-    g->ke = consph_sum(ke, n);
-    g->mom[0] = consph_sum(mx, n);
-    g->mom[1] = consph_sum(my, n);
-    if (mz) g->mom[2] = consph_sum(mz, n);
-    g->ang = consph_sum(an, n);
-    double fmax = max_abs(fa->data, n); /* component 0: a_x */
-    g->ft_fmax = fmax > 0.0 ? consph_sum(fx, n) / fmax : 0.0;
-    g->max_divu = max_abs(fd->data, n);
+    g->ke = sum[DG_KE];
+    g->mom[0] = sum[DG_MX];
+    g->mom[1] = sum[DG_MY];
+    if (d == 3) g->mom[2] = sum[DG_MZ];
+    g->ang = sum[DG_AN];
+    g->ft_fmax = mx[DG_FMAX] > 0.0 ? sum[DG_FX] / mx[DG_FMAX] : 0.0;
+    g->max_divu = mx[DG_DIVU];
     return CONSPH_OK;
+}
+
+/* Over the particles this process holds (decomposed: its part and halo; the run's samples take
+ * every rank's owned ones, diag_of's `owned`). */
+int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
+{
+    return diag_of((consph_solver *)cs, g, 0); /* fields are looked up, not created */
 }
 
 int consph_solver_summary(const consph_solver *s, consph_run_summary *sum)

@@ -106,12 +106,14 @@ static int sample_now(consph_solver *s, void *arg)
 }
 
 /* solver_sample (which samples only when the history lacks this step); decomposed over MPI
- * ranks, rank 0 tells whether, and the sample gathers only what it reads. */
+ * ranks, rank 0 tells whether, and the sample is taken on every rank (solver_sample_owned) or
+ * gathers only what it reads. */
 static int solver_sample_if(consph_solver *s)
 {
     if (!s->par) return solver_sample(s);
-    return par_sample_due(s) ? par_global_some(s, sample_now, NULL, solver_sample_fields)
-                             : CONSPH_OK;
+    if (!par_sample_due(s)) return CONSPH_OK;
+    return solver_sample_owned(s) ? solver_sample(s)
+                                  : par_global_some(s, sample_now, NULL, solver_sample_fields);
 }
 
 /* consph_solver_output_fields; decomposed, every rank computes its own particles' and the

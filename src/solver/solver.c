@@ -611,6 +611,19 @@ typedef struct step_close_arg {
     double dt;
 } step_close_arg;
 
+/* step_close's part after the checks: the diagnostics' sample when due and the authors'
+ * measure (decomposed with solver_sample_owned, on every rank). */
+static int step_sample(consph_solver *s, const step_close_arg *a)
+{
+    int st = CONSPH_OK;
+    s->log_since += a->dt;
+    s->step_dt = a->dt;
+    if (s->step % s->prm.log_every == 0 || consph_solver_done(s)) st = solver_sample(s);
+    if (st == CONSPH_OK && s->prm.error == CONSPH_ERROR_AUTHORS)
+        st = solver_auth_after_step(s, a->landed);
+    return st;
+}
+
 static int step_close(consph_solver *s, void *arg)
 {
     const step_close_arg *a = arg;
@@ -622,14 +635,7 @@ static int step_close(consph_solver *s, void *arg)
         on_host = 1;
     }
     if (st == CONSPH_OK && on_host) st = solver_check_valid(s);
-    if (st == CONSPH_OK) {
-        s->log_since += a->dt;
-        s->step_dt = a->dt;
-        if (s->step % s->prm.log_every == 0 || consph_solver_done(s)) st = solver_sample(s);
-    }
-    if (st == CONSPH_OK && s->prm.error == CONSPH_ERROR_AUTHORS)
-        st = solver_auth_after_step(s, a->landed);
-    return st;
+    return st == CONSPH_OK ? step_sample(s, a) : st;
 }
 
 int consph_solver_step(consph_solver *s)
@@ -688,20 +694,25 @@ int consph_solver_step(consph_solver *s)
     if (s->par) st = par_step_end(s, st);
     if (st == CONSPH_OK) {
         step_close_arg a = {landed, on_host, dt};
-        /* decomposed, a step that samples nothing takes the checks' verdict over the ranks;
-         * a failed check gathers what the checks read (one list with the sample's), for the
-         * serial message */
+        /* decomposed, the checks' verdict is taken over the ranks, and then the sample (if
+         * any) on every rank from its owned particles (solver_sample_owned); a failed check,
+         * or a sample against --exact wc's reference, gathers what the checks and the sample
+         * read (one list) to rank 0, for the serial message and the reference there */
         const int samples = s->step % s->prm.log_every == 0 || consph_solver_done(s) ||
                             s->prm.error == CONSPH_ERROR_AUTHORS;
         int clean = 0;
-        if (s->par && !samples) st = par_checks_clean(s, &clean);
+        if (s->par && (!samples || solver_sample_owned(s))) st = par_checks_clean(s, &clean);
         if (st == CONSPH_OK && clean) {
-            s->log_since += dt;
-            s->step_dt = dt;
+            st = step_sample(s, &a);
         } else if (st == CONSPH_OK) {
             /* a sample gathers what it reads; the files that follow stream every array */
             st = s->par ? par_global_some(s, step_close, &a, solver_sample_fields)
                         : solver_global(s, step_close, &a);
+            /* the next output time, which the next step's length reads on every rank (the
+             * gathered step_close moved it on rank 0 only) */
+            if (st == CONSPH_OK && s->par && par_rank(s) != 0 &&
+                s->prm.error == CONSPH_ERROR_AUTHORS)
+                solver_auth_advance(s, landed);
         }
     }
     s->dt = full;

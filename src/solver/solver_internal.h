@@ -334,6 +334,11 @@ int solver_hist_push(consph_solver *s, const consph_step_diag *g);
  * step's already. Called at t = 0, every log_every steps, at the last step and before each
  * snapshot. */
 int solver_sample(consph_solver *s);
+/* Whether a decomposed solver's samples are taken on every rank from its owned particles, the
+ * sums over the serial order and the maxima over the ranks (solver_sample, solver_auth_sample,
+ * called on every rank), rather than on rank 0 over the gathered set: with the problem's exact
+ * solution (--exact wc's reference is kept on rank 0). */
+int solver_sample_owned(const consph_solver *s);
 extern const char *const solver_sample_fields[]; /* what it reads (diag.c) */
 /* m |u|²/2 of one particle, the one expression of the diagnostics and the checks (so that their
  * kinetic energies are the same bits). */
@@ -349,6 +354,9 @@ void solver_position_of(const consph_particles *p, size_t i, double x[3]);
 double solver_auth_time(const consph_solver *s, int k);
 int solver_auth_sample(consph_solver *s);
 int solver_auth_after_step(consph_solver *s, int landed);
+/* solver_auth_after_step's bookkeeping alone (the next output time, which a --tf run's steps
+ * land on): whether this step is one to sample. */
+int solver_auth_advance(consph_solver *s, int landed);
 int solver_auth_due(const consph_solver *s, int landed);
 /* The reference the errors are taken against (diag.c): solver_exact_prepare makes --exact wc's
  * reference on first use and brings it to s->t; solver_exact then gives u and p at x and s->t
