@@ -423,8 +423,10 @@ static int col_goes(const unsigned char *mq, const unsigned char *mr, size_t c)
 }
 
 /* CONSPH_TEST_HALO_POISON set: after a refresh that a pass's declaration narrowed, the halo's
- * columns it left out are NaN (the next refresh that brings one rewrites it from the kept
- * copy), so that a read the declaration misses shows in the results. */
+ * fields and scratch blocks it left out are NaN (the next refresh that brings one rewrites it
+ * from the kept copy), so that a read the declaration misses shows in the results. Not the
+ * positions: particles move only through consph_sys_update, whose refresh brings them, so the
+ * halo's are current whatever a pass declares (a pass that gathers reads them). */
 static int halo_poison = -1;
 
 /* The components of field `name` that r names (a bit each; 0: none). */
@@ -575,6 +577,7 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
                 ++j;
                 continue;
             }
+            if (c < (size_t)p->dim) continue;
             for (size_t k = 0; k < nr; ++k) ps->col[c][ps->ridx[k]] = NAN;
         }
     ps->bytes += (double)(sdbl * sizeof(double) + nsel * (size_t)(ps->size - 1));
@@ -1330,8 +1333,8 @@ static int migrate(consph_solver *s, par_solver *ps, int step)
         const int valid = same_cols && ps->kept[c];
         const int changed =
             carry[c] && (!valid || list_changed(ps, 0, ps->col[c], ps->sent + c * ons));
-        ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) |
-                                      (carry[c] && !valid ? COL_WANTED : 0));
+        ps->mask[c] =
+            (unsigned char)((changed ? COL_CHANGED : 0) | (carry[c] && !valid ? COL_WANTED : 0));
     }
     MPI_Allgather(ps->mask, (int)ncol, MPI_UNSIGNED_CHAR, ps->masks, (int)ncol, MPI_UNSIGNED_CHAR,
                   ps->comm);
