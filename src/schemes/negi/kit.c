@@ -879,6 +879,7 @@ static const consph_pass volume_pass = {"volumes 1/sum W", CONSPH_PASS_W | CONSP
 /* The volumes read W alone at the neighbours: the separations of the current search, whose
  * halo positions the refresh at consph_sys_update brought. */
 static const consph_sys_reads volume_reads = {0, 0, {NULL}, {0}};
+static const consph_sys_reads then_reads = {0, 0, {SF_VOL}, {0}};
 
 int kit_volumes(consph_sys *s, size_t *pairs)
 {
@@ -1102,6 +1103,8 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         if (st == CONSPH_OK) ++*passes;
     }
     free(job.bonet_ok);
+    /* then reads the volumes alone at the neighbours (kit_volumes_derivatives_then) */
+    if (then) consph_sys_next_reads(s, &then_reads);
     if (st == CONSPH_OK && then) st = consph_pass_run(s, then, then_job);
     return st;
 }
