@@ -72,7 +72,8 @@ struct consph_sys;
 /* A system that is one part of a particle set decomposed over processes (src/par: MPI ranks).
  * Its particles outside the destination mask are the halo: copies of other parts' particles.
  * refresh brings the halo's positions, named fields and the system scratch (in blocks of n
- * values) up to date with their owners; it runs at the start of every pass and of every
+ * values) up to date with their owners (only what the next pass declared it reads, where it
+ * did: consph_sys_next_reads); it runs at the start of every pass and of every
  * consph_sys_update (refresh_positions there, where given), so a pass reads the neighbours'
  * current values whatever the caller changed since. max is the maximum of v over every part (NaN
  * when any part's is NaN), for a loop over the particles that must agree on every part. */

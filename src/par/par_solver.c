@@ -496,8 +496,11 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
         const int changed = !valid || list_changed(ps, 0, ps->col[c], ps->sent + c * ns);
         ps->mask[j] = (unsigned char)((changed ? COL_CHANGED : 0) | (valid ? 0 : COL_WANTED));
     }
-    MPI_Allgather(ps->mask, (int)nsel, MPI_UNSIGNED_CHAR, ps->masks, (int)nsel, MPI_UNSIGNED_CHAR,
-                  ps->comm);
+    /* a pass that reads nothing at the neighbours (the volumes) exchanges nothing: every rank
+     * selected none */
+    if (nsel)
+        MPI_Allgather(ps->mask, (int)nsel, MPI_UNSIGNED_CHAR, ps->masks, (int)nsel,
+                      MPI_UNSIGNED_CHAR, ps->comm);
     size_t sdbl = 0, rdbl = 0;
     for (int q = 0; q < ps->size; ++q) {
         const unsigned char *mq = ps->masks + (size_t)q * nsel;
