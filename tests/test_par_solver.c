@@ -8,7 +8,8 @@
  * ranks, some cases and the restart with the boxes forced to 2 x 2 pieces across two axes;
  * the files are written on rank 0 from one array at a time, never the whole set (also in
  * messages of a few hundred bytes); the halo refresh sends only changed columns and leaves the halo
- * equal to its owners (the positions alone for refresh_positions); a packed layout read from the
+ * equal to its owners (the positions alone for refresh_positions; a declared component alone,
+ * the skipped ones at the next full refresh); a packed layout read from the
  * layout cache by each rank's share (the whole set packed on every rank when the file is corrupt);
  * runs that sample every step (the samples gather only the fields they read) keep the serial
  * history.
@@ -561,6 +562,60 @@ static int check_refresh(void)
     sys->split->refresh(sys, sys->split->ctx);
     if (mine && memcmp(&f1[first_halo], &kf, 8)) {
         fprintf(stderr, "rank %d: a halo value of an unchanged column was not put back\n", rank);
+        bad = 1;
+    }
+    /* a pass that declares it reads u's second component (consph_sys_next_reads): an owned
+     * change of both components on rank 0 and halo values written here; the narrowed refresh
+     * brings the second component alone (one column's mask), the halo's first keeps what was
+     * written here; the next full refresh finds the change of the first that the narrowed one
+     * skipped */
+    double *u = consph_particles_find(p, SF_U)->data;
+    const size_t cap = p->cap;
+    double k0 = 0.0;
+    if (rank == 0)
+        for (size_t i = 0; i < p->n; ++i)
+            if (sys->dest[i] && id[i] == target) {
+                u[i] = 111.0;
+                u[cap + i] = 222.0;
+            }
+    if (mine) {
+        k0 = u[first_halo];
+        u[first_halo] = -5.0;
+    }
+    const consph_sys_reads second = {0, 0, {SF_U}, {2u}};
+    consph_sys_next_reads(sys, &second);
+    double b4 = 0, b5 = 0;
+    consph_par_solver_comm(s, &b4, &sec);
+    sys->halo_fresh = 0;
+    pass_halo_refresh(sys);
+    consph_par_solver_comm(s, &b5, &sec);
+    if (sys->reads_set || (rank != 0 && b5 - b4 != (double)(size - 1)) ||
+        (rank == 0 && !(b5 - b4 > (double)(size - 1)))) {
+        fprintf(stderr, "rank %d: the narrowed refresh sent %g bytes (declaration %s)\n", rank,
+                b5 - b4, sys->reads_set ? "kept" : "taken");
+        bad = 1;
+    }
+    for (size_t i = 0; i < p->n; ++i)
+        if (id[i] == target && (u[cap + i] != 222.0 || (!sys->dest[i] && u[i] == 111.0))) {
+            fprintf(stderr, "rank %d: the narrowed refresh left u %g, %g at the changed particle\n",
+                    rank, u[i], u[cap + i]);
+            bad = 1;
+        }
+    if (mine && id[first_halo] != target && u[first_halo] != -5.0) {
+        fprintf(stderr, "rank %d: the narrowed refresh wrote a column it was not asked for\n",
+                rank);
+        bad = 1;
+    }
+    sys->halo_fresh = 0;
+    pass_halo_refresh(sys);
+    for (size_t i = 0; i < p->n; ++i)
+        if (id[i] == target && u[i] != 111.0) {
+            fprintf(stderr, "rank %d: a change the narrowed refresh skipped did not arrive\n",
+                    rank);
+            bad = 1;
+        }
+    if (mine && id[first_halo] != target && memcmp(&u[first_halo], &k0, 8)) {
+        fprintf(stderr, "rank %d: the full refresh did not put back a skipped column\n", rank);
         bad = 1;
     }
     consph_solver_free(s);

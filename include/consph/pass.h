@@ -72,7 +72,8 @@ struct consph_sys;
 /* A system that is one part of a particle set decomposed over processes (src/par: MPI ranks).
  * Its particles outside the destination mask are the halo: copies of other parts' particles.
  * refresh brings the halo's positions, named fields and the system scratch (in blocks of n
- * values) up to date with their owners; it runs at the start of every pass and of every
+ * values) up to date with their owners (only what the next pass declared it reads, where it
+ * did: consph_sys_next_reads); it runs at the start of every pass and of every
  * consph_sys_update (refresh_positions there, where given), so a pass reads the neighbours'
  * current values whatever the caller changed since. max is the maximum of v over every part (NaN
  * when any part's is NaN), for a loop over the particles that must agree on every part. */
@@ -84,6 +85,19 @@ typedef struct consph_sys_split {
      * else; the next pass refreshes the rest); NULL: refresh */
     int (*refresh_positions)(struct consph_sys *s, void *ctx);
 } consph_sys_split;
+
+/* What the next pass reads at its neighbours, for a decomposed system's halo refresh
+ * (consph_sys_next_reads): the positions (the search's and the gathers' separations: the
+ * refresh at consph_sys_update brings them, so a pass over the current search needs them only
+ * where the positions changed since), the named fields (comps[k]: a bit per component, 0: every
+ * one; a name the particles lack is no column) and every block of the system scratch. The halo's
+ * other columns are left as they are, neither compared nor sent. */
+#define CONSPH_SYS_READS_MAX 8
+typedef struct consph_sys_reads {
+    int positions, scratch;
+    const char *fields[CONSPH_SYS_READS_MAX]; /* up to the first NULL */
+    unsigned comps[CONSPH_SYS_READS_MAX];
+} consph_sys_reads;
 
 typedef struct consph_sys {
     consph_particles *p; /* in cell order after consph_sys_init */
@@ -109,6 +123,10 @@ typedef struct consph_sys {
     double *pack_buf;
     size_t pack_cap;
     int halo_fresh; /* split: refreshed for the next pass, which then does not refresh again */
+    /* split: what the next pass reads at its neighbours (reads_set 0: every column), taken by
+     * the refresh before it (pass_halo_refresh) */
+    consph_sys_reads reads;
+    int reads_set;
 } consph_sys;
 
 /* The distance within which the kernel can be non-zero: the radius a system's search needs
@@ -183,6 +201,13 @@ void consph_sys_nlist_info(const consph_sys *s, consph_nlist_info *info);
  * consph_sys_update). With 2 or more the first of them caches the pairs with all those values
  * (one gather and one kernel batch for all), whatever the previous state's passes were. A hint
  * only: it changes no result, and does nothing on a system without a list. */
+/* The next pass (the next consph_pass_run or group run, or the refresh a caller makes before
+ * filling its packs' halo rows: pass_halo_refresh) reads at its neighbours only what r names:
+ * a decomposed system's refresh then compares, sends and rewrites only those columns of its
+ * halo (the others keep what they held, and their kept copies what was last exchanged, so a
+ * later pass that reads one finds every change since). Without a call a pass reads every
+ * column. Nothing without a split. */
+void consph_sys_next_reads(consph_sys *s, const consph_sys_reads *r);
 void consph_sys_expect_passes(consph_sys *s, int passes, unsigned need);
 
 /* Sets the destination mask (n entries in the system's particle order; copied), or clears it

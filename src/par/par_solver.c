@@ -92,9 +92,13 @@ struct par_solver {
      * last exchanged, column-major: sent[c·ns + k] for send slot k, got[c·nr + k] for receive
      * slot k. A refresh sends only the columns whose owned values changed since (bitwise) or
      * that the receiver holds no copy of, and writes every column of the halo from got, so the
-     * halo ends as a full refresh leaves it. The first nvalid columns are kept; base: the
-     * columns of positions and fields they were counted with (the scratch blocks follow). */
-    size_t nvalid, base;
+     * halo ends as a full refresh leaves it. kept[c]: column c is kept; base: the columns of
+     * positions and fields they were counted with (the scratch blocks follow). A pass that
+     * declares what it reads at its neighbours (consph_sys_next_reads) refreshes only those
+     * columns (sel[0..nsel)); the others keep what they held, on both sides. */
+    size_t base;
+    unsigned char *kept;
+    size_t *sel;
     double *sent, *got;
     size_t sent_cap, got_cap;
     double **col;                /* per column: its values, indexed by local particle */
@@ -350,7 +354,14 @@ static size_t halo_columns(par_solver *ps, consph_sys *sys, size_t blocks)
         if (c) ps->col = c;
         unsigned char *m = c ? realloc(ps->mask, ncols) : NULL;
         if (m) ps->mask = m;
-        if (!c || !m) return 0;
+        unsigned char *kp = m ? realloc(ps->kept, ncols) : NULL;
+        if (kp) {
+            ps->kept = kp;
+            memset(kp + ps->col_cap, 0, ncols - ps->col_cap);
+        }
+        size_t *sl = kp ? realloc(ps->sel, ncols * sizeof *sl) : NULL;
+        if (sl) ps->sel = sl;
+        if (!c || !m || !kp || !sl) return 0;
         ps->col_cap = ncols;
     }
     size_t k = 0;
@@ -399,7 +410,8 @@ static int halo_state_from_cut(par_solver *ps, consph_sys *sys, const unsigned c
         list_gather(ps, 1, ps->got + c * nr, v, 0, ps->size);
     }
     ps->base = ncols;
-    ps->nvalid = ncols;
+    memset(ps->kept, 1, ncols);
+    memset(ps->kept + ncols, 0, ps->col_cap - ncols);
     return CONSPH_OK;
 }
 
@@ -410,8 +422,52 @@ static int col_goes(const unsigned char *mq, const unsigned char *mr, size_t c)
     return (mq[c] & COL_CHANGED) || (mr[c] & COL_WANTED);
 }
 
-/* The halo's first ncols columns from their owners (all: refresh; the positions alone:
- * refresh_positions). */
+/* CONSPH_TEST_HALO_POISON set: after a refresh that a pass's declaration narrowed, the halo's
+ * fields and scratch blocks it left out are NaN (the next refresh that brings one rewrites it
+ * from the kept copy), so that a read the declaration misses shows in the results. Not the
+ * positions: particles move only through consph_sys_update, whose refresh brings them, so the
+ * halo's are current whatever a pass declares (a pass that gathers reads them). */
+static int halo_poison = -1;
+
+/* The components of field `name` that r names (a bit each; 0: none). */
+static unsigned reads_comps(const consph_sys_reads *r, const char *name, int ncomp)
+{
+    const unsigned all = ncomp >= 32 ? ~0u : (1u << ncomp) - 1u;
+    for (int k = 0; k < CONSPH_SYS_READS_MAX && r->fields[k]; ++k)
+        if (!strcmp(r->fields[k], name)) return r->comps[k] ? r->comps[k] & all : all;
+    return 0;
+}
+
+/* The columns this refresh brings, ascending, in ps->sel: the positions alone, those the next
+ * pass declared (sys->reads), or all nall. Returns their count. */
+static size_t halo_select(par_solver *ps, const consph_sys *sys, size_t nall, size_t blocks,
+                          int positions_only)
+{
+    const consph_particles *p = sys->p;
+    size_t m = 0;
+    if (!positions_only && !sys->reads_set) {
+        for (size_t c = 0; c < nall; ++c) ps->sel[m++] = c;
+        return m;
+    }
+    const consph_sys_reads *r = &sys->reads;
+    if (positions_only || r->positions)
+        for (int a = 0; a < p->dim; ++a) ps->sel[m++] = (size_t)a;
+    if (positions_only) return m;
+    size_t c = (size_t)p->dim;
+    for (int f = 0; f < p->nfields; ++f) {
+        const int nc = p->fields[f].ncomp;
+        const unsigned comps = reads_comps(r, p->fields[f].name, nc);
+        for (int k = 0; k < nc; ++k)
+            if (comps >> k & 1u) ps->sel[m++] = c + (size_t)k;
+        c += (size_t)nc;
+    }
+    if (r->scratch)
+        for (size_t b = 0; b < blocks; ++b) ps->sel[m++] = c + b;
+    return m;
+}
+
+/* The halo's columns from their owners: every one (refresh), the positions alone
+ * (refresh_positions), or those the next pass declared it reads (consph_sys_next_reads). */
 static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
 {
     consph_particles *p = sys->p;
@@ -421,27 +477,36 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
     size_t blocks = 0;
     if (sys->scratch && n && sys->scratch_asked % n == 0) blocks = sys->scratch_asked / n;
     const size_t nall = halo_columns(ps, sys, blocks);
-    const size_t ncols = positions_only && nall ? (size_t)p->dim : nall;
     const size_t ns = ps->sdispl[ps->size - 1] + (size_t)ps->scount[ps->size - 1];
     const size_t nr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
-    int st = ncols ? halo_state_reserve(ps, nall) : par_fail_mem();
+    int st = nall ? halo_state_reserve(ps, nall) : par_fail_mem();
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
-    /* the kept columns that still mean the same: positions and fields counted alike, and the
-     * scratch blocks both had */
-    size_t valid = nall - blocks == ps->base ? ps->nvalid : 0;
-    if (valid > ncols) valid = ncols;
-    for (size_t c = 0; c < ncols; ++c) {
-        const int changed = c >= valid || list_changed(ps, 0, ps->col[c], ps->sent + c * ns);
-        ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) | (c >= valid ? COL_WANTED : 0));
+    /* the kept columns still mean the same where the positions and fields are counted alike
+     * (the scratch blocks follow them) */
+    if (nall - blocks != ps->base) {
+        memset(ps->kept, 0, ps->col_cap);
+        ps->base = nall - blocks;
     }
-    MPI_Allgather(ps->mask, (int)ncols, MPI_UNSIGNED_CHAR, ps->masks, (int)ncols, MPI_UNSIGNED_CHAR,
-                  ps->comm);
+    /* every rank selects alike: the same pass with the same fields and scratch blocks */
+    const size_t nsel = halo_select(ps, sys, nall, blocks, positions_only);
+    const size_t *sel = ps->sel;
+    for (size_t j = 0; j < nsel; ++j) {
+        const size_t c = sel[j];
+        const int valid = ps->kept[c];
+        const int changed = !valid || list_changed(ps, 0, ps->col[c], ps->sent + c * ns);
+        ps->mask[j] = (unsigned char)((changed ? COL_CHANGED : 0) | (valid ? 0 : COL_WANTED));
+    }
+    /* a pass that reads nothing at the neighbours (the volumes) exchanges nothing: every rank
+     * selected none */
+    if (nsel)
+        MPI_Allgather(ps->mask, (int)nsel, MPI_UNSIGNED_CHAR, ps->masks, (int)nsel,
+                      MPI_UNSIGNED_CHAR, ps->comm);
     size_t sdbl = 0, rdbl = 0;
     for (int q = 0; q < ps->size; ++q) {
-        const unsigned char *mq = ps->masks + (size_t)q * ncols;
-        for (size_t c = 0; c < ncols; ++c) {
-            if (col_goes(ps->mask, mq, c)) sdbl += (size_t)ps->scount[q];
-            if (col_goes(mq, ps->mask, c)) rdbl += (size_t)ps->rcount[q];
+        const unsigned char *mq = ps->masks + (size_t)q * nsel;
+        for (size_t j = 0; j < nsel; ++j) {
+            if (col_goes(ps->mask, mq, j)) sdbl += (size_t)ps->scount[q];
+            if (col_goes(mq, ps->mask, j)) rdbl += (size_t)ps->rcount[q];
         }
     }
     if (sdbl > INT32_MAX || rdbl > INT32_MAX)
@@ -452,21 +517,21 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1);
     /* every rank sees every mask: when none asks for a column, none calls the exchange */
     int any = 0;
-    for (size_t k = 0; k < ncols * (size_t)ps->size; ++k) any |= ps->masks[k] != 0;
+    for (size_t k = 0; k < nsel * (size_t)ps->size; ++k) any |= ps->masks[k] != 0;
     size_t so = 0, ro = 0;
     for (int q = 0; q < ps->size; ++q) {
-        const unsigned char *mq = ps->masks + (size_t)q * ncols;
+        const unsigned char *mq = ps->masks + (size_t)q * nsel;
         const size_t s0 = (size_t)ps->sdispl[q], s1 = s0 + (size_t)ps->scount[q];
         const size_t r0 = (size_t)ps->rdispl[q], r1 = r0 + (size_t)ps->rcount[q];
         ps->sddis[q] = (int)so;
         ps->rddis[q] = (int)ro;
-        for (size_t c = 0; c < ncols; ++c) {
-            if (col_goes(ps->mask, mq, c)) {
-                const double *v = ps->col[c];
+        for (size_t j = 0; j < nsel; ++j) {
+            if (col_goes(ps->mask, mq, j)) {
+                const double *v = ps->col[sel[j]];
                 list_gather(ps, 0, ps->sbuf + so, v, q, q + 1);
                 so += s1 - s0;
             }
-            if (col_goes(mq, ps->mask, c)) ro += r1 - r0;
+            if (col_goes(mq, ps->mask, j)) ro += r1 - r0;
         }
         ps->sdbl[q] = (int)(so - (size_t)ps->sddis[q]);
         ps->rdbl[q] = (int)(ro - (size_t)ps->rddis[q]);
@@ -476,18 +541,19 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
                       MPI_DOUBLE, ps->comm);
     ro = 0;
     for (int q = 0; q < ps->size; ++q) {
-        const unsigned char *mq = ps->masks + (size_t)q * ncols;
+        const unsigned char *mq = ps->masks + (size_t)q * nsel;
         const size_t r0 = (size_t)ps->rdispl[q], r1 = r0 + (size_t)ps->rcount[q];
-        for (size_t c = 0; c < ncols; ++c)
-            if (col_goes(mq, ps->mask, c)) {
-                copy_doubles(ps->got + c * nr + r0, ps->rbuf + ro, r1 - r0);
+        for (size_t j = 0; j < nsel; ++j)
+            if (col_goes(mq, ps->mask, j)) {
+                copy_doubles(ps->got + sel[j] * nr + r0, ps->rbuf + ro, r1 - r0);
                 ro += r1 - r0;
             }
     }
-    /* every column of the halo from what its owners sent last: a scheme may have written halo
-     * values since, and the pass must read the owners'. A column whose halo holds them already
-     * (most: neither its owners nor this rank changed it) is only read. */
-    for (size_t c = 0; c < ncols; ++c) {
+    /* every selected column of the halo from what its owners sent last: a scheme may have
+     * written halo values since, and the pass must read the owners'. A column whose halo holds
+     * them already (most: neither its owners nor this rank changed it) is only read. */
+    for (size_t j = 0; j < nsel; ++j) {
+        const size_t c = sel[j];
         double *v = ps->col[c];
         const double *in = ps->got + c * nr;
         if (ps->rruns) {
@@ -498,18 +564,26 @@ static int refresh_some(consph_sys *sys, par_solver *ps, int positions_only)
         } else if (column_changed(v, ps->ridx, in, nr)) {
             for (size_t k = 0; k < nr; ++k) v[ps->ridx[k]] = in[k];
         }
-        if (ps->mask[c] & COL_CHANGED) {
+        if (ps->mask[j] & COL_CHANGED) {
             double *old = ps->sent + c * ns;
             list_gather(ps, 0, old, v, 0, ps->size);
         }
+        ps->kept[c] = 1;
     }
-    /* the positions alone leave the kept columns' count: a column they did not refresh that
-     * was not kept is still wanted at the next full refresh */
-    if (!positions_only) {
-        ps->base = nall - blocks;
-        ps->nvalid = nall;
-    }
-    ps->bytes += (double)(sdbl * sizeof(double) + ncols * (size_t)(ps->size - 1));
+    /* a full refresh keeps the columns it counted (scratch blocks beyond them are asked for
+     * anew), as a narrowed one does; the positions alone leave the others as they were */
+    if (!positions_only) memset(ps->kept + nall, 0, ps->col_cap - nall);
+    if (halo_poison < 0) halo_poison = getenv("CONSPH_TEST_HALO_POISON") != NULL;
+    if (halo_poison && !positions_only && sys->reads_set)
+        for (size_t c = 0, j = 0; c < nall; ++c) {
+            if (j < nsel && sel[j] == c) {
+                ++j;
+                continue;
+            }
+            if (c < (size_t)p->dim) continue;
+            for (size_t k = 0; k < nr; ++k) ps->col[c][ps->ridx[k]] = NAN;
+        }
+    ps->bytes += (double)(sdbl * sizeof(double) + nsel * (size_t)(ps->size - 1));
     ps->seconds += MPI_Wtime() - t0;
     return CONSPH_OK;
 }
@@ -1254,15 +1328,16 @@ static int migrate(consph_solver *s, par_solver *ps, int step)
      * takes the others from what it kept (got). Records: g, slot (-1: every column), values. */
     const size_t ons = ps->sdispl[ps->size - 1] + (size_t)ps->scount[ps->size - 1];
     const size_t onr = ps->rdispl[ps->size - 1] + (size_t)ps->rcount[ps->size - 1];
-    const size_t valid = ps->base == ncol ? ps->nvalid : 0;
+    const int same_cols = ps->base == ncol;
     if (st == CONSPH_OK && halo_columns(ps, &s->sys, 0) != ncol) st = par_fail_mem();
     if (st == CONSPH_OK) st = halo_state_reserve(ps, ncol);
     if (st != CONSPH_OK) MPI_Abort(ps->comm, 1); /* the other ranks wait in the exchange */
     for (size_t c = 0; c < ncol; ++c) {
+        const int valid = same_cols && ps->kept[c];
         const int changed =
-            carry[c] && (c >= valid || list_changed(ps, 0, ps->col[c], ps->sent + c * ons));
-        ps->mask[c] = (unsigned char)((changed ? COL_CHANGED : 0) |
-                                      (carry[c] && c >= valid ? COL_WANTED : 0));
+            carry[c] && (!valid || list_changed(ps, 0, ps->col[c], ps->sent + c * ons));
+        ps->mask[c] =
+            (unsigned char)((changed ? COL_CHANGED : 0) | (carry[c] && !valid ? COL_WANTED : 0));
     }
     MPI_Allgather(ps->mask, (int)ncol, MPI_UNSIGNED_CHAR, ps->masks, (int)ncol, MPI_UNSIGNED_CHAR,
                   ps->comm);
@@ -2255,6 +2330,8 @@ void par_solver_free(par_solver *ps)
     free(ps->got);
     free(ps->col);
     free(ps->mask);
+    free(ps->kept);
+    free(ps->sel);
     free(ps->masks);
     free(ps->pairs);
     free(ps);

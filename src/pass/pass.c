@@ -305,10 +305,23 @@ int consph_sys_set_dest(consph_sys *s, const unsigned char *dest)
 
 int pass_halo_refresh(consph_sys *s)
 {
-    if (!s->split || s->halo_fresh) return CONSPH_OK;
+    if (!s->split || s->halo_fresh) {
+        s->reads_set = 0;
+        return CONSPH_OK;
+    }
     const int rc = s->split->refresh(s, s->split->ctx);
+    /* a declaration serves the one pass it was made for: the next reads everything unless
+     * declared again */
+    s->reads_set = 0;
     if (rc == CONSPH_OK) s->halo_fresh = 1;
     return rc;
+}
+
+void consph_sys_next_reads(consph_sys *s, const consph_sys_reads *r)
+{
+    if (!s || !s->split) return;
+    s->reads_set = r != NULL;
+    if (r) s->reads = *r;
 }
 
 double *sys_pack_buffer(consph_sys *s, size_t count)

@@ -35,9 +35,14 @@ int reg_move(consph_sys *s, const double *dr)
     consph_particles *p = s->p;
     const size_t n = p->n, cap = p->cap;
     const consph_box *b = &p->box;
+    /* A decomposed system moves its own particles: the update below brings the halo's
+     * positions from their owners, and its dr is not theirs (a shift field that no pass reads
+     * at the neighbours is not refreshed: consph_sys_next_reads). */
+    const unsigned char *skip = s->split ? s->dest : NULL;
     /* Every new position is checked before any is written, so a refusal moves nothing. */
     for (int a = 0; a < p->dim; ++a)
         for (size_t i = 0; i < n; ++i) {
+            if (skip && !skip[i]) continue;
             double x = p->x[a][i] + dr[(size_t)a * cap + i];
             if (!isfinite(x)) return fail_particle(s, i, "is not finite after the shift", a, x);
             if (!b->periodic[a] && (x < b->lo[a] || x > b->hi[a]))
@@ -46,6 +51,7 @@ int reg_move(consph_sys *s, const double *dr)
     for (int a = 0; a < p->dim; ++a) {
         const double len = b->hi[a] - b->lo[a];
         for (size_t i = 0; i < n; ++i) {
+            if (skip && !skip[i]) continue;
             double x = p->x[a][i] + dr[(size_t)a * cap + i];
             p->x[a][i] = b->periodic[a] ? layout_wrap(x, b->lo[a], len) : x;
         }
@@ -405,6 +411,12 @@ static int ipst_chained(consph_sys *s, const consph_pass *shift, ipst_job *job, 
     return rc;
 }
 
+/* What IPST's passes read at the neighbours (consph_sys_next_reads): the volumes' W alone, the
+ * shift's ω_j (written on every particle from Σ W, the halo's from sums no pass made there: the
+ * refresh brings the owners'). */
+static const consph_sys_reads ipst_volume_reads = {0, 0, {NULL}, {0}};
+static const consph_sys_reads ipst_shift_reads = {0, 0, {"volume"}, {0}};
+
 int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ipst_report *rep)
 {
     if (!s || !s->p || !prm || !dr_total)
@@ -458,6 +470,7 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
             break;
         /* The volumes are those of the current positions; the last refresh leaves "volume"
          * matching the positions the call returns. */
+        if (!shifted) consph_sys_next_reads(s, &ipst_volume_reads);
         if (shifted)
             chi_max = ipst_chi_max(s, prm->h, sumw);
         else if ((rc = ipst_volumes(s, prm->h, sumw, vol, &chi_max)))
@@ -465,6 +478,7 @@ int reg_ipst(consph_sys *s, const reg_ipst_params *prm, double *dr_total, reg_ip
         if ((iterations >= prm->min_iter && fabs(chi_max - prm->chi0) < prm->tol) ||
             iterations >= prm->max_iter)
             break;
+        if (!shifted) consph_sys_next_reads(s, &ipst_shift_reads);
         if (!shifted && (rc = consph_pass_run(s, &pass, &job))) break;
         if ((rc = reg_move(s, step))) break;
         for (size_t k = 0; k < (size_t)d * cap; ++k) total[k] += step[k];

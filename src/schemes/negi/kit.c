@@ -876,10 +876,16 @@ static int kit_run(consph_sys *s, const consph_pass *pass, pass_group_fn group, 
 static const consph_pass volume_pass = {"volumes 1/sum W", CONSPH_PASS_W | CONSPH_PASS_NO_DX,
                                         visit_volume};
 
+/* The volumes read W alone at the neighbours: the separations of the current search, whose
+ * halo positions the refresh at consph_sys_update brought. */
+static const consph_sys_reads volume_reads = {0, 0, {NULL}, {0}};
+static const consph_sys_reads then_reads = {0, 0, {SF_VOL}, {0}};
+
 int kit_volumes(consph_sys *s, size_t *pairs)
 {
     kit_vol_job vj = {consph_particles_field(s->p, SF_VOL, 1), NULL};
     if (!vj.vol) return CONSPH_ENOMEM;
+    consph_sys_next_reads(s, &volume_reads);
     return kit_run(s, &volume_pass, group_volume, &vj, pairs);
 }
 
@@ -1017,8 +1023,27 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         job.pk1 = group_first ? pk : NULL;
         job.pk2 = job.s2 ? pk + p->n * (size_t)job.s1 : NULL;
     }
+    /* What pass 1 and the Laplacians read at the neighbours (their visits and the packs' halo
+     * rows): ω_j and the f_j of the gradients; coupled_bc the gradients G_j and ∇q_j, the
+     * other Laplacians u_j (and Cleary's ϱ_j). A decomposed system's refresh before each brings
+     * those columns alone. */
+    consph_sys_reads first_reads = {0, 0, {SF_VOL}, {0}};
+    int nr = 1;
+    if (gp) first_reads.fields[nr++] = SF_P;
+    if (gu) first_reads.fields[nr++] = SF_U;
+    if (gq) first_reads.fields[nr++] = rq->q; /* checked above */
+    consph_sys_reads second_reads = {0, 0, {SF_VOL}, {0}};
+    nr = 1;
+    if ((want & KIT_LAPU) && rq->lap == KIT_LAP_COUPLED) {
+        second_reads.fields[nr++] = SF_GRADU;
+    } else if (want & KIT_LAPU) {
+        second_reads.fields[nr++] = SF_U;
+        if (rq->lap == KIT_LAP_CLEARY) second_reads.fields[nr++] = SF_RHOF;
+    }
+    if (want & KIT_LAPQ) second_reads.fields[nr++] = SF_GRADQ;
     if (job.pk1 && !with_volumes) {
         /* from the values pass 1's refresh brings, on a decomposed system */
+        consph_sys_next_reads(s, &first_reads);
         const int rc = pass_halo_refresh(s);
         if (rc != CONSPH_OK) {
             free(job.bonet_ok);
@@ -1056,16 +1081,19 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         }
     }
     if (st == CONSPH_OK && with_volumes) {
+        consph_sys_next_reads(s, &volume_reads);
         st = kit_run(s, &volume_pass, group_volume, &vj, pairs);
         if (st == CONSPH_OK) ++*passes;
     }
     /* the sources' rows of pass 1's pack, which the volume visits did not write */
+    consph_sys_next_reads(s, &first_reads);
     if (st == CONSPH_OK && job.pk1 && with_volumes) st = kit_pack_sources(s, &job, 1);
     unsigned long ran = kit_group_passes;
     if (st == CONSPH_OK) st = kit_run(s, &first, group_first, &job, pairs);
     if (group_first && kit_group_passes != ran) ++kit_group_firsts;
     if (st == CONSPH_OK && visit_first_pk && kit_group_passes == ran) ++kit_first_packed;
     if (st == CONSPH_OK) ++*passes;
+    if (with_second) consph_sys_next_reads(s, &second_reads);
     if (st == CONSPH_OK && with_second && job.pk2) st = kit_pack_sources(s, &job, 2);
     if (st == CONSPH_OK && with_second) {
         ran = kit_group_passes;
@@ -1075,6 +1103,8 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         if (st == CONSPH_OK) ++*passes;
     }
     free(job.bonet_ok);
+    /* then reads the volumes alone at the neighbours (kit_volumes_derivatives_then) */
+    if (then) consph_sys_next_reads(s, &then_reads);
     if (st == CONSPH_OK && then) st = consph_pass_run(s, then, then_job);
     return st;
 }

@@ -1032,9 +1032,21 @@ static int run_pass(consph_solver *s, const consph_pass *pass, pass_group_fn gro
 #define group_visit_tv NULL
 #endif
 
+/* What the passes read at the neighbours (consph_sys_next_reads), their packs' halo rows
+ * included: wcsph's rates ϱ_j, p_j, u_j and the scratch's p/ϱ², m/ϱ and c (none on a decomposed
+ * system that packs: the halo's computed from its ϱ and p); tvf's density W alone, edac's p_j
+ * too; the tv rates ϱ_j, p_j, u_j, ũ_j - u_j, and 1/V_j and m/ϱ_j from the scratch or, where
+ * they pack, from the halo's Σ W and ϱ. */
+static const consph_sys_reads wcsph_reads = {0, 1, {SF_RHOF, SF_P, SF_U}, {0}};
+static const consph_sys_reads tvf_density_reads = {0, 0, {NULL}, {0}};
+static const consph_sys_reads edac_density_reads = {0, 0, {SF_P}, {0}};
+static const consph_sys_reads tv_rates_reads = {0, 1, {SF_RHOS, SF_P, SF_U, SF_TVDU, SF_NUMD}, {0}};
+
 static int rhs_wcsph(consph_solver *s)
 {
     rival_job job;
+    /* before job_fields, whose refresh serves the pass on a decomposed system that packs */
+    consph_sys_next_reads(&s->sys, &wcsph_reads);
     int st = job_fields(s, &job, RV_WCSPH);
     if (st != CONSPH_OK) return st;
     const consph_pass pass = {"wcsph rates", CONSPH_PASS_W | CONSPH_PASS_DW, visit_wcsph};
@@ -1068,7 +1080,9 @@ static int rhs_tv(consph_solver *s, int kind)
                               group_visit_tv_il, &job, &s->pairs);
 #endif
     if (st == PASS_GROUP_UNSERVED) {
+        consph_sys_next_reads(&s->sys, kind == RV_EDAC ? &edac_density_reads : &tvf_density_reads);
         st = run_pass(s, &dens, group_visit_density, 0, &job);
+        consph_sys_next_reads(&s->sys, &tv_rates_reads);
 #ifdef RV_GROUPS
         /* a decomposed system (pass_run_groups2 declines it): the rates pass's refresh first,
          * which brings the halo's densities (Σ W, ϱ, tvf's p) for its rows of the pack */
