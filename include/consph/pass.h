@@ -201,6 +201,8 @@ void consph_sys_nlist_info(const consph_sys *s, consph_nlist_info *info);
  * consph_sys_update). With 2 or more the first of them caches the pairs with all those values
  * (one gather and one kernel batch for all), whatever the previous state's passes were. A hint
  * only: it changes no result, and does nothing on a system without a list. */
+void consph_sys_expect_passes(consph_sys *s, int passes, unsigned need);
+
 /* The next pass (the next consph_pass_run or group run, or the refresh a caller makes before
  * filling its packs' halo rows: pass_halo_refresh) reads at its neighbours only what r names:
  * a decomposed system's refresh then compares, sends and rewrites only those columns of its
@@ -208,7 +210,6 @@ void consph_sys_nlist_info(const consph_sys *s, consph_nlist_info *info);
  * later pass that reads one finds every change since). Without a call a pass reads every
  * column. Nothing without a split. */
 void consph_sys_next_reads(consph_sys *s, const consph_sys_reads *r);
-void consph_sys_expect_passes(consph_sys *s, int passes, unsigned need);
 
 /* Sets the destination mask (n entries in the system's particle order; copied), or clears it
  * with NULL. */
