@@ -258,6 +258,33 @@ static int check_same_history(consph_solver *s, const char *name)
     return any ? CONSPH_EINVAL : CONSPH_OK;
 }
 
+static consph_step_diag whole_diag;
+
+static int diag_whole(consph_solver *s, void *unused)
+{
+    (void)unused;
+    return consph_solver_diag(s, &whole_diag);
+}
+
+/* consph_solver_diag called on every rank of a decomposed solver (the public function: not the
+ * run's sample) gives the gathered set's diagnostics, bit for bit, on every rank: a sum over a
+ * rank's particles would count its halo. */
+static int check_public_diag(consph_solver *s, const char *name)
+{
+    consph_step_diag g;
+    memset(&g, 0, sizeof g);
+    memset(&whole_diag, 0, sizeof whole_diag);
+    int st = consph_solver_diag(s, &g);
+    if (st == CONSPH_OK) st = solver_global(s, diag_whole, NULL);
+    MPI_Bcast(&whole_diag, (int)sizeof whole_diag, MPI_BYTE, 0, MPI_COMM_WORLD);
+    int bad = st == CONSPH_OK && memcmp(&g, &whole_diag, sizeof g) != 0, any = 0;
+    if (bad)
+        fprintf(stderr, "case %s: consph_solver_diag on the ranks: ke %.17g, over the set %.17g\n",
+                name, g.ke, whole_diag.ke);
+    MPI_Allreduce(&bad, &any, 1, MPI_INT, MPI_MAX, MPI_COMM_WORLD);
+    return st != CONSPH_OK ? st : any ? CONSPH_EINVAL : CONSPH_OK;
+}
+
 static int rank_zero(void)
 {
     int init = 0, rank = 0;
@@ -334,6 +361,7 @@ static int run_case(const par_case *c, const char *path)
     }
     if (st == CONSPH_OK && size > 1) st = check_owned_sum(s, c->name);
     if (st == CONSPH_OK && size > 1) st = check_same_history(s, c->name);
+    if (st == CONSPH_OK && size > 1) st = check_public_diag(s, c->name);
     if (st == CONSPH_OK) st = solver_global(s, dump, (void *)path);
     if (st != CONSPH_OK) fprintf(stderr, "case %s: %s\n", c->name, consph_last_error());
     consph_solver_free(s);

@@ -350,6 +350,8 @@ typedef struct consph_step_diag {
     long step;
     double t, l1_u, linf_u, l1_p, linf_p, ke, mom[3], ang, ft_fmax, max_divu;
 } consph_step_diag;
+/* A solver decomposed over MPI ranks (include/consph/par.h) gives the whole set's diagnostics,
+ * the same bits on every rank and as the serial run's: every rank must call it. */
 int consph_solver_diag(const consph_solver *s, consph_step_diag *d);
 /* The run's history, as log.csv holds it: one row per sample of the diagnostics (t = 0, every
  * log_every steps, the last step, each snapshot of consph_run), the initial state (step 0)

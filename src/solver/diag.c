@@ -183,7 +183,7 @@ int solver_sample(consph_solver *s)
 {
     if (s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step) return CONSPH_OK;
     consph_step_diag g;
-    int st = s->par ? diag_of(s, &g, 1) : consph_solver_diag(s, &g);
+    int st = consph_solver_diag(s, &g);
     if (st != CONSPH_OK) return st;
     if (s->nhist) {
         /* 001 eq. 26: Σ_j mean|f - f_o|(t_j) (t_j - t_{j-1}) over the samples t_j */
@@ -483,11 +483,12 @@ static int diag_of(consph_solver *s, consph_step_diag *g, int owned)
     return CONSPH_OK;
 }
 
-/* Over the particles this process holds (decomposed: its part and halo; the run's samples take
- * every rank's owned ones, diag_of's `owned`). */
+/* Decomposed over MPI ranks, over every rank's owned particles (a collective: each rank holds a
+ * halo too, which a sum over its particles would count twice). */
 int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
 {
-    return diag_of((consph_solver *)cs, g, 0); /* fields are looked up, not created */
+    consph_solver *s = (consph_solver *)cs; /* fields are looked up, not created */
+    return diag_of(s, g, s->par != NULL);
 }
 
 int consph_solver_summary(const consph_solver *s, consph_run_summary *sum)
