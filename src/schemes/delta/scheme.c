@@ -130,6 +130,16 @@ static void visit_rates(void *vjob, const consph_nbhd *nb)
         visit_rates_shift(job, nb, DELTA_SHIFT_NONE);
 }
 
+/* What the passes read at the neighbours (consph_sys_next_reads): Sun's shift V_j
+ * (reg_pst_shift), the renormalisation V_j and ρ_j, the rates V_j, ρ_j, p_j, u_j, ⟨∇ρ⟩^L_j and,
+ * with Sun's shifting terms, δu_j. */
+static const consph_sys_reads shift_reads = {0, 0, {SF_VOL}, {0}};
+static const consph_sys_reads renorm_reads = {0, 0, {SF_VOL, SF_RHOF}, {0}};
+static const consph_sys_reads rates_reads = {
+    0, 0, {SF_VOL, SF_RHOF, SF_P, SF_U, SF_GRADRHO_L}, {0}};
+static const consph_sys_reads rates_sun_reads = {
+    0, 0, {SF_VOL, SF_RHOF, SF_P, SF_U, SF_GRADRHO_L, SF_SHIFT}, {0}};
+
 static int delta_rates(consph_solver *s, int shift)
 {
     consph_sys *sys = &s->sys;
@@ -139,7 +149,12 @@ static int delta_rates(consph_solver *s, int shift)
     double *vol = sv_field(s, SF_VOL, 1), *m = sv_field(s, SF_MASS, 1);
     const double *rho = sv_field(s, SF_RHOF, 1);
     if (!vol || !rho || !m) return CONSPH_ENOMEM;
-    const int first = n && !(m[0] > 0.0); /* set-up created the masses zero */
+    /* set-up created the masses zero; tested at a particle of this system's own (a decomposed
+     * system's halo holds what the migration brought) */
+    size_t i0 = 0;
+    if (sys->dest)
+        while (i0 < n && !sys->dest[i0]) ++i0;
+    const int first = i0 < n && !(m[i0] > 0.0);
     /* m_i = ρ_i(0) Δs^d, so that V_i = m_i/ρ_i starts at the particle's volume Δs^d whatever
      * the initial pressure (Gresho-Chan's ρ is 5 % above ρ_o); a checkpoint carries the field */
     if (first)
@@ -149,6 +164,7 @@ static int delta_rates(consph_solver *s, int shift)
     double *du = NULL;
     int st = CONSPH_OK;
     if (shift != DELTA_SHIFT_NONE) {
+        consph_sys_next_reads(sys, &shift_reads);
         st = solver_shift_velocity(s, &du);
         if (st != CONSPH_OK) return st;
     }
@@ -178,8 +194,10 @@ static int delta_rates(consph_solver *s, int shift)
     const consph_pass renorm = {"delta-SPH: renormalised density gradient", CONSPH_PASS_DW,
                                 visit_renorm};
     const consph_pass rates = {"delta-SPH: rates", CONSPH_PASS_DW, visit_rates};
+    consph_sys_next_reads(sys, &renorm_reads);
     st = consph_pass_run_counted(sys, &renorm, &job, &s->pairs);
     if (st != CONSPH_OK) return st;
+    consph_sys_next_reads(sys, shift == DELTA_SHIFT_SUN ? &rates_sun_reads : &rates_reads);
     st = consph_pass_run_counted(sys, &rates, &job, &s->pairs);
     if (st != CONSPH_OK) return st;
     s->passes += 2;
