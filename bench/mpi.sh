@@ -395,7 +395,7 @@ solver_scaling() {
     echo "### What the halo means for the targets"
     echo
     echo "Before every pass every rank refreshes the columns of its halo that the pass reads at its"
-    echo "neighbours (consph_sys_next_reads: the kit's, IPST's, wcsph's, tvf's and edac's passes"
+    echo "neighbours (consph_sys_next_reads: the kit's, IPST's, wcsph's, tvf's, edac's and the δ-SPH passes"
     echo "declare them; the others read every column) and that changed since the last refresh (only"
     echo "the positions at a search rebuild), and the halo is a fixed number of cell"
     echo "layers (the search's reach plus one) on each side of a rank's box along every cut axis,"
