@@ -17,7 +17,8 @@ import sys
 
 KINDS = [
     ('pair work (pass visits, kernel, gathers)',
-     r'^(first_|coupled_|gather_avx|consph_kernel_eval|ipst_visit|nlist_pass_run|visit_|'
+     r'^(first_|coupled_|gather_avx|gather4|group_|ipst_group|ipst_volume_group|'
+     r'consph_kernel_eval|ipst_visit|nlist_pass_run|nlist_chain|visit_|'
      r'density_visit|nnps_gather|consph_nnps_gather|consph_pass_run|kit_|rhs_|pass_)'),
     ('particle loops (schemes, integrator: halo included)',
      r'^(rates|set_fields|reg_|step_|integ_|sum_|consph_sum|regularise|ipst_)'),
