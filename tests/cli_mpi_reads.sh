@@ -4,7 +4,7 @@
 # NaN until a refresh brings it, so a pass (or a pack fill, check or re-sort) that reads one
 # would move the results. Every scheme but l-rr-c (refused on ranks) on 2 and 3 ranks writes
 # the serial run's files, 2D on a random layout (particles change cells and ranks) with IPST
-# every other step, and the 3D schemes of 001's family on Beltrami.
+# every other step, and two 3D schemes of 001's family and δ+-SPH on Beltrami.
 # Skips (77) without MPI, mpirun or where mpirun cannot start 2 ranks.
 # Usage: cli_mpi_reads.sh <path-to-consph> <source-dir>
 set -u
@@ -43,7 +43,7 @@ for scheme in l-ipst-c l-ipst-f l-ipst-k l-pst-c pe-ipst-c tv-c e-c ewcsph wcsph
     check "$scheme" taylor-green --scheme "$scheme" --layout random --nx 40 --steps 4 \
         --snapshot-every 2 --log-every 1 "${extra[@]}"
 done
-for scheme in l-ipst-c e-c; do
+for scheme in l-ipst-c e-c delta-plus-sph; do
     check "$scheme-3d" beltrami --scheme "$scheme" --layout lattice --nx 12 --steps 3 \
         --snapshot-every 3 --log-every 1
 done
