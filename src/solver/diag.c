@@ -390,9 +390,9 @@ enum { DG_EU, DG_EP, DG_KE, DG_MX, DG_MY, DG_AN, DG_FX, DG_MZ };
 enum { DG_LINF_U, DG_LINF_P, DG_FMAX, DG_DIVU, DG_NMAX };
 
 /* The diagnostics of this instant from the particles sample_part gives (`owned`: the same
- * values on every rank): each one's terms into
- * the columns of diag_buffer (m values each), summed and maximised over the whole set by
- * sample_reduce (decomposed: over the ranks, each rank's owned particles). */
+ * values on every rank): each one's terms into the columns of diag_buffer (m values each),
+ * summed and maximised over the whole set by sample_reduce (decomposed: over the ranks, each
+ * rank's owned particles). */
 static int diag_of(consph_solver *s, consph_step_diag *g, int owned)
 {
     const consph_particles *p = s->sys.p;
