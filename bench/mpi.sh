@@ -196,24 +196,26 @@ measure() {
 }
 
 # halo K NX PROBLEM SCHEME: halo / owned particles, mean over ranks (bench_par, one step), then
-# the cut's geometry: the search's cells along each axis and the halo's width in cells, comma
-# separated, then the most particles a rank owns over the mean ("--" where bench_par is missing
-# or did not say).
+# the cut's geometry: the search's cells along each axis, the halo's width in cells and the
+# pieces along each axis (each comma separated, the three ";" separated), then the most
+# particles a rank owns over the mean ("--" where bench_par is missing or did not say).
 halo() {
     [ -x "$BENCH_PAR" ] || { echo "-- -- --"; return; }
     timeout "$(limit)" $MPIRUN -np "$1" "$BENCH_PAR" "$3" "$4" "$2" 1 2>/dev/null | awk '
         /^  rank [0-9]*: owns / { o = $4 + 0; own += o; if (o > omax) omax = o; no++ }
         /\(halo [0-9.]* of owned\)/ { sub(/.*\(halo /, ""); sub(/ of owned.*/, ""); s += $1; n++ }
-        /^  boxes / { sub(/.* of cells /, ""); sub(/, halo width /, " "); sub(/ cells$/, "")
+        /^  boxes / { kb = $2; gsub(/x/, ",", kb)
+                      sub(/.* of cells /, ""); sub(/, halo width /, " "); sub(/ cells$/, "")
                       m = split($1, c, "x"); g = c[1]; for (a = 2; a <= m; a++) g = g "," c[a]
-                      w = $2; for (a = 3; a <= NF; a++) w = w "," $a; geo = g ";" w }
+                      w = $2; for (a = 3; a <= NF; a++) w = w "," $a; geo = g ";" w ";" kb }
         END { printf "%s %s %s\n", n ? sprintf("%.2f", s / n) : "--", geo != "" ? geo : "--",
                      (no && own > 0) ? sprintf("%.3f", omax * no / own) : "--" }'
 }
 
 # solver_case DIM PER_RANK STRONG_NX PROBLEM SCHEME: weak scaling at PER_RANK particles per rank
 # (nx = round((K PER_RANK)^(1/DIM))), and strong scaling at STRONG_NX (empty: the largest K's
-# nx); then the extrapolation of the halo and the communication to 16 ranks from the largest K
+# nx); where the largest K's boxes are uneven (whole cell layers), that K again at the nearest
+# nx whose cells its cut divides evenly ("weak, cells even"); then the extrapolation of the halo and the communication to 16 ranks from the largest K
 # measured, when that is below 16: the cut that consph would choose at 16 ranks (par_solver.c
 # choose_boxes: the fewest halo cells per rank) on the 16-rank size's cells, its halo/owned
 # scaled by what the largest K measured against its own cells' count.
@@ -281,6 +283,50 @@ EOF
             echo "$mode $k $nx $n $m $h $geo $imb" >>"$WORK/rows"
         done
     done
+    # the largest K's weak row again at the nearest resolution whose cells its cut divides
+    # evenly, where the row's boxes were uneven: what the cut's whole cell layers cost there
+    last=$(awk -v k="$kmax" '$1 == "weak" && $2 == k' "$WORK/rows" | tail -n 1)
+    first=$(awk '$1 == "weak" && $2 == 1' "$WORK/rows" | tail -n 1)
+    if [ "$kmax" -gt 1 ] && [ -n "$last" ] && [ -n "$first" ]; then
+        read -r _ _ nxk _ _ _ _ _ _ _ geok imbk <<EOF
+$last
+EOF
+        # candidates nearest first, each cut by bench_par (its cells, its pieces) until one
+        # divides evenly along every axis
+        nxe=0
+        if awk -v imb="$imbk" -v geo="$geok" 'BEGIN { exit !(imb != "--" && imb + 0 >= 1.01 && split(geo, g, ";") >= 3) }'; then
+            for dn in 1 -1 2 -2 3 -3 4 -4; do
+                cand=$((nxk - dn))
+                read -r _ geoc _ <<EOF
+$(halo "$kmax" "$cand" "$prob" "$scheme")
+EOF
+                if awk -v geo="$geoc" 'BEGIN { if (split(geo, g, ";") < 3) exit 1
+                        d = split(g[1], nc, ","); split(g[3], kq, ",")
+                        for (a = 1; a <= d; a++) if (nc[a] % kq[a]) exit 1
+                        exit 0 }'; then
+                    nxe=$cand
+                    break
+                fi
+            done
+        fi
+        if [ "$nxe" -gt 0 ]; then
+            n=$(awk -v nx="$nxe" -v d="$dim" 'BEGIN { printf "%d", nx^d }')
+            if [ "$DEADLINE" -gt 0 ] && [ "$(date +%s)" -ge "$DEADLINE" ]; then
+                m=FAIL
+            else
+                m=$(measure "$kmax" "$nxe" "$@")
+            fi
+            echo "$prob weak (cells even) $kmax ranks nx $nxe: $m" >&2
+            if [ "$m" != FAIL ]; then
+                read -r h geo imb <<EOF
+$(halo "$kmax" "$nxe" "$prob" "$scheme")
+EOF
+                eff=$(awk -v f="$first" -v t="${m%% *}" -v k="$kmax" -v n="$n" 'BEGIN { split(f, a, " "); printf "%.2f", a[5] / t * n / (k * a[4]) }')
+                echo "$m" | awk -v k="$kmax" -v nx="$nxe" -v n="$n" -v eff="$eff" -v h="$h" -v imb="$imb" \
+                    '{ printf "| weak, cells even | %d | %d | %d | %s | %s | %s | %.0f | %.2f | %s | %s |\n", k, nx, n, $1, eff, $4, $2 / n, $3 / $1, h, imb }'
+            fi
+        fi
+    fi
     # extrapolation: the weak row of the largest K
     awk -v dim="$dim" -v per="$per" -v bw="$BANDWIDTH" -v bwhow="$BANDWIDTH_HOW" '
         # halo cells per owned cell of the best cut of K ranks over cells nc[] with halo width
