@@ -346,6 +346,19 @@ static inline double kinetic_energy_of(double m, double ux, double uy, double uz
 {
     return 0.5 * m * (d == 3 ? ux * ux + uy * uy + uz * uz : ux * ux + uy * uy);
 }
+/* The first particle of the solver's own (local index; n when it owns none): 0 serially, the
+ * first in the destination mask of a decomposed system, whose halo holds other ranks'
+ * particles. A once-only test of a field ("not set yet") reads it there, not at local particle
+ * 0, which may be a halo particle whose column no declared refresh brings. */
+static inline size_t solver_first_own(const consph_solver *s)
+{
+    const size_t n = s->sys.p->n;
+    const unsigned char *dest = s->sys.dest;
+    size_t i = 0;
+    if (dest)
+        while (i < n && !dest[i]) ++i;
+    return i;
+}
 /* The column of the kinetic energy's terms, one per particle, for solver_check_valid to write in
  * its sweep of the state and sum with consph_sum as consph_solver_diag sums its own (diag.c's
  * buffer, kept between calls); NULL with CONSPH_ENOMEM recorded. */

@@ -149,11 +149,9 @@ static int delta_rates(consph_solver *s, int shift)
     double *vol = sv_field(s, SF_VOL, 1), *m = sv_field(s, SF_MASS, 1);
     const double *rho = sv_field(s, SF_RHOF, 1);
     if (!vol || !rho || !m) return CONSPH_ENOMEM;
-    /* set-up created the masses zero; tested at a particle of this system's own (a decomposed
+    /* set-up created the masses zero; tested at a particle of the solver's own (a decomposed
      * system's halo holds what the migration brought) */
-    size_t i0 = 0;
-    if (sys->dest)
-        while (i0 < n && !sys->dest[i0]) ++i0;
+    const size_t i0 = solver_first_own(s);
     const int first = i0 < n && !(m[i0] > 0.0);
     /* m_i = ρ_i(0) Δs^d, so that V_i = m_i/ρ_i starts at the particle's volume Δs^d whatever
      * the initial pressure (Gresho-Chan's ρ is 5 % above ρ_o); a checkpoint carries the field */

@@ -109,12 +109,10 @@ static int rates(consph_solver *s, const negi_terms *t)
         rhoc = sv_field(s, SF_RHOC, 1);
         if (!rhoc || !sv_field(s, SF_P, 1)) return CONSPH_ENOMEM;
         const double *p0 = sv_field(s, SF_P, 1);
-        /* tested at a particle of this system's own: a decomposed system's halo holds what
-         * its last refresh or this loop left there, which a pass that does not read ϱ_c at the
+        /* tested at a particle of the solver's own: a decomposed system's halo holds what its
+         * last refresh or this loop left there, which a pass that does not read ϱ_c at the
          * neighbours does not bring (consph_sys_next_reads) */
-        size_t i0 = 0;
-        if (sys->dest)
-            while (i0 < n && !sys->dest[i0]) ++i0;
+        const size_t i0 = solver_first_own(s);
         if (i0 < n && rhoc[i0] == 0.0)
             for (size_t i = 0; i < n; ++i) rhoc[i] = s->prm.rho0 + p0[i] / (s->c0 * s->c0);
     }
