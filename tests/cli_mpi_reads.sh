@@ -4,7 +4,10 @@
 # NaN until a refresh brings it, so a pass (or a pack fill, check or re-sort) that reads one
 # would move the results. Every scheme but l-rr-c (refused on ranks) on 2 and 3 ranks writes
 # the serial run's files, 2D on a random layout (particles change cells and ranks) with IPST
-# every other step, and two 3D schemes of 001's family and δ+-SPH on Beltrami.
+# every other step, and two 3D schemes of 001's family and δ+-SPH on Beltrami. Then 001's schemes
+# that make their volumes each step again with their passes chained on every rank
+# (CONSPH_TEST_CHAIN_SPLIT: the sweep runs a pass only where the one before is known at every
+# neighbour, the rest after the refresh, so a visit the sweep should have left shows as NaN).
 # Skips (77) without MPI, mpirun or where mpirun cannot start 2 ranks.
 # Usage: cli_mpi_reads.sh <path-to-consph> <source-dir>
 set -u
@@ -16,10 +19,11 @@ trap 'rm -rf "$work"' EXIT
 command -v mpirun >/dev/null || { echo "skipped: no mpirun"; exit 77; }
 export OMPI_ALLOW_RUN_AS_ROOT=1 OMPI_ALLOW_RUN_AS_ROOT_CONFIRM=1 OMPI_MCA_rmaps_base_oversubscribe=1
 export OMP_NUM_THREADS=1 OMPI_MCA_mpi_yield_when_idle=1
+chain=()
 mpi() {
     local np=$1
     shift
-    timeout 120 mpirun --oversubscribe -np "$np" env CONSPH_TEST_HALO_POISON=1 "$@"
+    timeout 120 mpirun --oversubscribe -np "$np" env CONSPH_TEST_HALO_POISON=1 "${chain[@]}" "$@"
 }
 mpi 2 "$bin" --version >"$work/v" 2>&1 && [ "$(grep -c '^MPI ranks 2$' "$work/v")" = 1 ] ||
     { echo "skipped: mpirun cannot start 2 ranks here: $(head -3 "$work/v")"; exit 77; }
@@ -32,7 +36,7 @@ check() { # name, run arguments
     for np in 2 3; do
         mpi $np "$bin" run "$@" --out "$work/$name.$np" >/dev/null 2>"$work/err" ||
             { bad "$name on $np ranks: exit $?: $(head -3 "$work/err")"; continue; }
-        same_run "$work/$name.1" "$work/$name.$np" "$name on $np ranks (poisoned halo)" &&
+        same_run "$work/$name.1" "$work/$name.$np" "$name on $np ranks (poisoned halo${chain[*]:+, chained})" &&
             pass=$((pass + 1))
     done
 }
@@ -47,4 +51,13 @@ for scheme in l-ipst-c e-c delta-plus-sph; do
     check "$scheme-3d" beltrami --scheme "$scheme" --layout lattice --nx 12 --steps 3 \
         --snapshot-every 3 --log-every 1
 done
+chain=(CONSPH_TEST_CHAIN_SPLIT=1)
+for scheme in l-ipst-c l-ipst-f l-ipst-k l-pst-c pe-ipst-c tv-c; do
+    extra=()
+    case $scheme in l-ipst-* | pe-ipst-c) extra=(--ipst-every 2) ;; esac
+    check "$scheme-chained" taylor-green --scheme "$scheme" --layout random --nx 40 --steps 4 \
+        --snapshot-every 2 --log-every 1 "${extra[@]}"
+done
+check l-ipst-c-3d-chained beltrami --scheme l-ipst-c --layout lattice --nx 12 --steps 3 \
+    --snapshot-every 3 --log-every 1
 summary cli_mpi_reads

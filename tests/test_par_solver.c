@@ -30,6 +30,7 @@
 #include "consph/solver.h"
 #include "par/par_solver.h"
 #include "pass/group.h"
+#include "pass/nlist.h"
 #include "solver/solver_internal.h"
 
 /* the group visits that ran (src/pass/group.c, src/schemes/negi/kit.c) */
@@ -77,6 +78,13 @@ static const par_case cases[] = {
      "log_every=1 exact=both"},
     {"sampled-3d", "beltrami", "l-ipst-c", 20, CONSPH_LAYOUT_LATTICE, 2,
      "ipst_every=2 kernel=cubic log_every=1"},
+    /* "chain-": the volumes, pass 1 and the Laplacians chained on every rank whatever its halo
+     * (nlist_chain_split_halo raised): the sweep runs each pass where the one before is known at
+     * every neighbour, the rest after the refresh (the visits it left would show in the bits;
+     * tests/cli_mpi_reads.sh runs the chains with a poisoned halo, TV-C's and L-PST-C's shift
+     * chained after them too) */
+    {"chain-lipstc-2d", "taylor-green", "l-ipst-c", 40, CONSPH_LAYOUT_RANDOM, 6, "ipst_every=2"},
+    {"chain-lipstc-3d", "beltrami", "l-ipst-c", 20, CONSPH_LAYOUT_LATTICE, 2, "kernel=cubic"},
     /* leaves the model's validity at step 12 (kinetic energy growth): the checks' verdict
      * over the ranks, then the serial message */
     {"diverges", "taylor-green", "wcsph", 40, CONSPH_LAYOUT_RANDOM, 30, "cfl=1.5"},
@@ -332,8 +340,21 @@ static int run_case(const par_case *c, const char *path)
         st = CONSPH_EINVAL;
     }
     const unsigned long groups0 = pass_group_runs, kit0 = kit_group_passes,
-                        first0 = kit_first_packed, coupled0 = kit_coupled_packed;
+                        first0 = kit_first_packed, coupled0 = kit_coupled_packed,
+                        chains0 = nlist_chain_split, left0 = nlist_chain_deferred;
+    const int chain = !strncmp(c->name, "chain-", 6);
+    const double halo_limit = nlist_chain_split_halo;
+    if (chain) nlist_chain_split_halo = INFINITY;
     while (st == CONSPH_OK && !consph_solver_done(s)) st = consph_solver_step(s);
+    nlist_chain_split_halo = halo_limit;
+    /* decomposed, the chain ran on every rank and left some visits for after its sweep; at
+     * these sizes the default limit declines it */
+    if (size > 1 && (chain ? nlist_chain_split == chains0 || nlist_chain_deferred == left0
+                           : nlist_chain_split != chains0)) {
+        fprintf(stderr, "case %s: %lu chains on this rank, %lu visits after the sweep\n", c->name,
+                nlist_chain_split - chains0, nlist_chain_deferred - left0);
+        if (st == CONSPH_OK) st = CONSPH_EINVAL;
+    }
     /* decomposed, the group visits run on every rank (the halo's rows of their packs filled
      * after the refresh: stale rows would show in the bits compared with the serial run): the
      * PySPH family's passes over groups; the kit's volumes over groups (the pair cache's fill)
@@ -341,9 +362,10 @@ static int run_case(const par_case *c, const char *path)
      * no chain, and groups read a filled cache only slower) */
     const int pysph =
         !strcmp(c->scheme, "wcsph") || !strcmp(c->scheme, "edac") || !strcmp(c->scheme, "tvf");
-    const int packs = dim == 2 && (!strcmp(c->scheme, "l-ipst-c") || !strcmp(c->scheme, "e-c"));
+    const int packs =
+        dim == 2 && !chain && (!strcmp(c->scheme, "l-ipst-c") || !strcmp(c->scheme, "e-c"));
     if (size > 1 && ((pysph && pass_group_runs == groups0) ||
-                     (!strcmp(c->scheme, "l-ipst-c") && kit_group_passes == kit0) ||
+                     (!strcmp(c->scheme, "l-ipst-c") && !chain && kit_group_passes == kit0) ||
                      (packs && (kit_first_packed == first0 || kit_coupled_packed == coupled0)))) {
         fprintf(stderr, "case %s: the group visits did not run on this rank\n", c->name);
         if (st == CONSPH_OK) st = CONSPH_EINVAL;

@@ -85,6 +85,9 @@ struct consph_nlist {
     /* the pairs a cache of the current state would hold (the last cache's count, else a sample
      * at the build: pairs_estimate) and the bytes the cache may take (pair_cache_budget) */
     size_t est_pairs;
+    /* a decomposed system's chain: which passes its sweep ran at each particle (chain_state) */
+    unsigned char *done;
+    size_t done_cap;
     double budget;
     char note[200];
 };
@@ -111,6 +114,9 @@ static void free_arrays(consph_nlist *l)
     free(l->particle_buf);
     free(l->xb_own);
     free(l->u);
+    free(l->done);
+    l->done = NULL;
+    l->done_cap = 0;
     l->blocks = NULL;
     l->nblocks = 0;
     l->particle = l->particle_buf = NULL;
@@ -955,6 +961,9 @@ typedef struct block_visitor {
     void *job;
     unsigned need;
     int uncounted; /* its pairs are not added to the chain's count */
+    /* the particles visited, one byte each (NULL: the system's destinations, every particle
+     * without a mask) */
+    const unsigned char *mask;
 } block_visitor;
 
 /* Slot sl's cached neighbourhood with the values `need` asks for. */
@@ -978,7 +987,7 @@ static inline void cached_nbhd(const consph_nlist *l, const nlist_block *b, size
 static size_t visit_block(const consph_sys *s, const nlist_block *b, const block_visitor *bv)
 {
     const consph_nlist *l = s->nlist;
-    const unsigned char *dest = s->dest;
+    const unsigned char *dest = bv->mask ? bv->mask : s->dest;
     size_t visited = 0;
     if (bv->group) {
         for (size_t sl = b->s0; sl < b->s1;) {
@@ -1105,7 +1114,7 @@ int nlist_pass_run(const consph_sys *s, const consph_pass *pass, void *job, size
     consph_nlist *l = s->nlist;
     const unsigned need = pass->need;
     int served = 0;
-    const block_visitor bv = {pass, NULL, job, need, 0};
+    const block_visitor bv = {pass, NULL, job, need, 0, NULL};
     size_t visited = 0;
     const int st = cache_ready(s, need, pass->name, &served, &bv, &visited);
     if (st != CONSPH_OK) return st;
@@ -1127,7 +1136,7 @@ int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_g
      * filled cache are left to the per-particle pass, which counts the pass. */
     if (cache_serves(l) ? !fresh : l->skin != 0.0) return CONSPH_OK;
     int served = 0;
-    const block_visitor bv = {NULL, visit, job, need, 0};
+    const block_visitor bv = {NULL, visit, job, need, 0, NULL};
     size_t visited = 0;
     const int st = cache_ready(s, need, name, &served, &bv, &visited);
     *ran = served;
@@ -1153,6 +1162,19 @@ int nlist_group_run(const consph_sys *s, const char *name, unsigned need, pass_g
 enum { CHAIN_PENDING = 0, CHAIN_DONE = 1, CHAIN_LATE = 2 };
 
 unsigned long nlist_chain_trailing = 0, nlist_chain_filled = 0, nlist_chain_recycled = 0;
+unsigned long nlist_chain_split = 0, nlist_chain_deferred = 0;
+
+/* A decomposed system's sweep runs pass k only k neighbourhoods or more inside its halo; the rest
+ * run after it, per particle, from pairs no longer in the processor's caches, and the blocks they
+ * read cannot lend their arrays to the fill. So a rank chains where its halo is small beside
+ * what it owns. Measured with the chain forced on and off (2 ranks on a 2-core AMD EPYC,
+ * Taylor-Green L-IPST-C on a lattice; halo / owned in brackets): nx 283 (0.10) 2-15 % faster
+ * a step, nx 200 (0.14) 0-5 %, nx 141 (0.21) and nx 100 (0.27-0.31) no faster; 3D Beltrami nx
+ * 46 (0.46-0.55) 4-17 % slower. The refreshes are the same either way, so ranks may choose apart.
+ */
+double nlist_chain_split_halo = 0.15;
+/* CONSPH_TEST_CHAIN_SPLIT set: every decomposed chain runs, whatever its halo (tests) */
+static int chain_test_split = -1;
 
 typedef struct chain_state {
     const consph_sys *s;
@@ -1165,6 +1187,14 @@ typedef struct chain_state {
      * stack of its blocks that every pass is done with, whose pair arrays the fill may take
      * (NULL: the cache is kept) */
     size_t *spent;
+    /* a decomposed system: row k (n bytes) the particles whose pass k the sweep ran, row 0 the
+     * destinations (NULL: every destination in the sweep) */
+    unsigned char *done;
+    size_t n;
+    /* with done: row k (nblocks entries) the slots of each block whose pass k the sweep did not
+     * run (row 0: the halo's), so that a block whose neighbours' blocks all ran pass k - 1 is
+     * passed without reading its pairs */
+    size_t *miss;
 } chain_state;
 
 /* Gives block b the pair arrays of block g (and g those of b): the fill of b then writes
@@ -1191,6 +1221,53 @@ static void swap_pairs(nlist_block *b, nlist_block *g)
     }
 }
 
+/* Pass k >= 1 on block b, whose neighbours' blocks pass k - 1 is done with. On a decomposed
+ * system only at the destinations where pass k - 1 ran in the sweep, at the particle and at every
+ * neighbour (a halo particle's values come with the refresh after the sweep): those make row k
+ * of c->done, which the visits take as their mask. */
+static size_t chain_visit(chain_state *c, int k, size_t b)
+{
+    const consph_nlist *l = c->s->nlist;
+    const nlist_block *blk = &l->blocks[b];
+    if (c->done) {
+        const size_t nb = l->nblocks;
+        const unsigned char *prev = c->done + (size_t)(k - 1) * c->n;
+        unsigned char *mine = c->done + (size_t)k * c->n;
+        size_t around = 0, missed = 0;
+        for (size_t x = c->lo[b]; x <= c->hi[b]; ++x) around += c->miss[(size_t)(k - 1) * nb + x];
+        for (size_t sl = blk->s0; sl < blk->s1; ++sl) {
+            const size_t i = particle_of(l, sl);
+            unsigned ok = prev[i];
+            if (around) {
+                /* without an early exit: the loads overlap */
+                const size_t *pj = blk->pj;
+                for (size_t o = blk->poff[sl - blk->s0], o1 = blk->poff[sl - blk->s0 + 1]; o < o1;
+                     ++o)
+                    ok &= prev[pj[o]];
+            }
+            mine[i] = (unsigned char)ok;
+            missed += !ok;
+        }
+        c->miss[(size_t)k * nb + b] = missed;
+    }
+    return visit_block(c->s, blk, &c->bv[k]);
+}
+
+/* Whether every destination of block b ran the chain's last pass in the sweep (nothing is left
+ * to read its pairs after it). */
+static int chain_block_spent(const chain_state *c, size_t b)
+{
+    if (!c->done) return 1;
+    const consph_nlist *l = c->s->nlist;
+    const nlist_block *blk = &l->blocks[b];
+    const unsigned char *dest = c->done, *last = c->done + (size_t)(c->count - 1) * c->n;
+    for (size_t sl = blk->s0; sl < blk->s1; ++sl) {
+        const size_t i = particle_of(l, sl);
+        if (dest[i] && !last[i]) return 0;
+    }
+    return 1;
+}
+
 /* Pass k on block b if it can run now: CHAIN_DONE (run), CHAIN_LATE (left for after the sweep)
  * or CHAIN_PENDING (pass k - 1 has yet to reach some of its neighbours). */
 static int chain_try(chain_state *c, int k, size_t b, size_t c0, size_t c1, size_t *visited,
@@ -1212,12 +1289,14 @@ static int chain_try(chain_state *c, int k, size_t b, size_t c0, size_t c1, size
         }
     }
     if (verdict == CHAIN_DONE) {
-        *visited += visit_block(c->s, &c->s->nlist->blocks[b], &c->bv[k]);
+        *visited += chain_visit(c, k, b);
 #pragma omp atomic
         ++nlist_chain_trailing;
         /* the last pass done on b: every pass before it is done on b's neighbours, b among
-         * them, so nothing reads b's pairs again */
-        if (c->spent && k == c->count - 1) c->spent[c0 + (*nspent)++] = b;
+         * them, so nothing reads b's pairs again (a decomposed system: unless a destination
+         * of b has passes left for after the sweep) */
+        if (c->spent && k == c->count - 1 && chain_block_spent(c, b))
+            c->spent[c0 + (*nspent)++] = b;
     }
     if (verdict != CHAIN_PENDING) mine[b] = (unsigned char)verdict;
     return verdict;
@@ -1229,15 +1308,24 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
     consph_nlist *l = s->nlist;
     *ran = 0;
     const int fresh = l->cache_epoch != l->epoch || !l->caches;
-    /* a decomposed system refreshes its halo before every pass (consph_pass_run_counted) */
-    if (count < 2 || count > NLIST_CHAIN_MAX || s->dest || s->split || !cache_serves(l) ||
+    /* a decomposed system: its halo's values come with a refresh between the passes (the
+     * visits that need them wait for it, after the sweep); a mask without one is declined */
+    const int split = s->split && s->dest;
+    if (count < 2 || count > NLIST_CHAIN_MAX || (s->dest && !split) || !cache_serves(l) ||
         l->nblocks == 0)
         return CONSPH_OK;
+    if (split) {
+        size_t own = 0;
+        for (size_t i = 0; i < l->n; ++i) own += s->dest[i] != 0;
+        if (chain_test_split < 0) chain_test_split = getenv("CONSPH_TEST_CHAIN_SPLIT") != NULL;
+        if (!chain_test_split && (double)(l->n - own) > nlist_chain_split_halo * (double)own)
+            return CONSPH_OK;
+    }
     block_visitor bv[NLIST_CHAIN_MAX];
     unsigned want = 0;
     for (int k = 0; k < count; ++k) {
-        bv[k] =
-            (block_visitor){in[k].pass, in[k].group, in[k].job, in[k].pass->need, in[k].uncounted};
+        bv[k] = (block_visitor){in[k].pass,       in[k].group,     in[k].job,
+                                in[k].pass->need, in[k].uncounted, NULL};
         const unsigned need = in[k].pass->need;
         if (need & CONSPH_PASS_W) want |= CONSPH_PASS_W;
         if (need & (CONSPH_PASS_DW | CONSPH_PASS_D2W)) want |= CONSPH_PASS_DW;
@@ -1249,7 +1337,7 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
         if (l->hint_need & CONSPH_PASS_D2W) want |= CONSPH_PASS_D2W;
     }
     const size_t nb = l->nblocks;
-    chain_state c = {s, bv, count, NULL, NULL, NULL, 0, NULL};
+    chain_state c = {s, bv, count, NULL, NULL, NULL, 0, NULL, NULL, 0, NULL};
     /* The chain is the last reader of a fresh state where the caller announced exactly its
      * passes (consph_sys_expect_passes; L-IPST-C's rates): its blocks' pairs are then needed
      * only from the fill to the last pass on them, and a block's fill takes the arrays of one
@@ -1258,6 +1346,29 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
      * through memory. The cache then holds no state (cache_epoch below): a later pass on this
      * state would fill it again, the same values. */
     const int recycle = fresh && l->hint_epoch == l->epoch && l->hint_passes == count;
+    const size_t n = l->n;
+    if (split) {
+        /* row 0 the destinations; row k is written for every slot by pass k's visit of its
+         * block (chain_visit) */
+        if ((size_t)count * n > l->done_cap) {
+            unsigned char *d = realloc(l->done, (size_t)count * n);
+            if (!d) return CONSPH_OK; /* *ran 0: the passes one by one make the same refreshes */
+            l->done = d;
+            l->done_cap = (size_t)count * n;
+        }
+        memcpy(l->done, s->dest, n);
+        c.done = l->done;
+        c.n = n;
+        c.miss = malloc((size_t)count * nb * sizeof(size_t));
+        if (!c.miss) return CONSPH_OK;
+        for (size_t x = 0; x < nb; ++x) {
+            size_t m = 0;
+            for (size_t sl = l->blocks[x].s0; sl < l->blocks[x].s1; ++sl)
+                m += !s->dest[particle_of(l, sl)];
+            c.miss[x] = m;
+        }
+        for (int k = 1; k < count; ++k) bv[k].mask = l->done + (size_t)k * n;
+    }
     c.st = consph_calloc((size_t)count * nb, 1);
     c.lo = malloc(nb * sizeof(size_t));
     c.hi = malloc(nb * sizeof(size_t));
@@ -1271,12 +1382,18 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
         free(c.lo);
         free(c.hi);
         free(c.spent);
+        free(c.miss);
         free(slot_of);
-        return CONSPH_ENOMEM;
+        /* a decomposed system's passes one by one make the refreshes the other ranks make */
+        return split ? CONSPH_OK : CONSPH_ENOMEM;
     }
     if (slot_of)
         for (size_t sl = 0; sl < l->n; ++sl) slot_of[l->particle[sl]] = sl;
     c.span = nb / 8 > 4 ? nb / 8 : 4;
+    int status = CONSPH_OK;
+    /* what pass 0 reads in the halo (collective: every rank makes it, the chain running or not) */
+    if (split && in[0].prepare) status = in[0].prepare((consph_sys *)s, in[0].prepare_ctx);
+    if (split) ((consph_sys *)s)->halo_fresh = 0; /* the passes write fields */
     /* the count of the passes on this state, as nlist_pass_run keeps it */
     if (l->state_epoch != l->epoch) {
         l->state_epoch = l->epoch;
@@ -1292,8 +1409,9 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
     if (fresh) l->have = 0;
     *ran = 1;
     const int par = l->n >= s->parallel_min;
-    int status = CONSPH_OK;
     size_t total = 0, visited = 0;
+    const int prepared = status;
+    if (status == CONSPH_OK)
 #pragma omp parallel reduction(+ : total, visited) if (par)
     {
 #ifdef _OPENMP
@@ -1355,10 +1473,43 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
 #pragma omp barrier
             if (status == CONSPH_OK)
                 for (size_t x = c0; x < c1; ++x)
-                    if (c.st[(size_t)k * nb + x] == CHAIN_LATE)
-                        visited += visit_block(s, &l->blocks[x], &bv[k]);
+                    if (c.st[(size_t)k * nb + x] == CHAIN_LATE) visited += chain_visit(&c, k, x);
         }
     }
+    /* a failure of the sweep's (the pair cache's memory), not of a refresh */
+    const int swept = prepared == CONSPH_OK ? status : CONSPH_OK;
+    /* A decomposed system: pass k at the destinations the sweep left, after the refresh that
+     * brings pass k - 1's values into the halo, pass by pass. Every rank makes every refresh,
+     * a failure here included, so that none waits in one alone. */
+    for (int k = 1; split && k < count; ++k) {
+        if (in[k].prepare) {
+            const int st = in[k].prepare((consph_sys *)s, in[k].prepare_ctx);
+            if (status == CONSPH_OK) status = st;
+        }
+        ((consph_sys *)s)->halo_fresh = 0;
+        if (status != CONSPH_OK) continue;
+        unsigned char *left = l->done + (size_t)k * n;
+        const unsigned char *dest = s->dest;
+        size_t nleft = 0;
+#pragma omp parallel for schedule(static) reduction(+ : nleft) if (par)
+        for (size_t i = 0; i < n; ++i) {
+            left[i] = dest[i] && !left[i];
+            nleft += left[i];
+        }
+        nlist_chain_deferred += nleft;
+        /* per particle: over a filled cache the lanes' four streams are prefetched worse than
+         * one (nlist_group_run) */
+        block_visitor later = bv[k];
+        later.group = NULL;
+        later.mask = left;
+        size_t more = 0;
+#pragma omp parallel for schedule(dynamic, 1) reduction(+ : more) if (par && nleft)
+        for (size_t x = 0; x < nb; ++x)
+            if (nleft) more += visit_block(s, &l->blocks[x], &later);
+        visited += more;
+    }
+    if (split) ++nlist_chain_split;
+    free(c.miss);
     free(c.st);
     free(c.lo);
     free(c.hi);
@@ -1366,6 +1517,7 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
     free(slot_of);
     if (status != CONSPH_OK) {
         l->cache_epoch = l->epoch - 1;
+        if (swept == CONSPH_OK) return status; /* the refresh said why */
         return consph_fail(status, "pass '%s': out of memory for the pair cache",
                            in[0].pass->name ? in[0].pass->name : "unnamed");
     }

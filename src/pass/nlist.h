@@ -29,12 +29,22 @@ typedef struct block_visitor_in {
     pass_group_fn group;
     void *job;
     int uncounted;
+    /* A decomposed system (s->split) only: brings into the halo what this pass reads there (its
+     * refresh, and any rows of a pack that the halo's sources fill), before the sweep for pass
+     * 0 and before the visits the sweep left for a later pass. Every rank calls the same ones,
+     * in order, whether its chain ran or not: the caller's passes run one by one make the same
+     * refreshes (they are collective). NULL: nothing. */
+    int (*prepare)(consph_sys *s, void *ctx);
+    void *prepare_ctx;
 } block_visitor_in;
 /* Passes in[0..count) on the current position state, each reading at the neighbours what the
  * one before wrote, in one wavefront over the pair cache (nlist.c), which it fills where this
  * state has none yet: the values of running them one after the other. *ran 0 (nothing done)
- * where the cache would not serve them so (a destination mask, a decomposed system, a chain of
- * one or more than four): the caller runs them one by one. */
+ * where the cache would not serve them so (a destination mask without a split, a chain of one
+ * or more than four): the caller runs them one by one. On a decomposed system the sweep runs
+ * pass k at a particle only where pass k - 1 is done at every neighbour, which the halo's are
+ * not (their values come with the refresh); the rest of each pass k >= 1 runs after the sweep,
+ * after in[k].prepare, in order. */
 int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, size_t *pairs,
                     int *ran);
 /* Blocks that a chain's later passes visited during its sweep, not after it, and chains that
@@ -42,6 +52,12 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
 extern unsigned long nlist_chain_trailing, nlist_chain_filled;
 /* Chains that recycled their blocks' pair arrays (the state's announced last readers). */
 extern unsigned long nlist_chain_recycled;
+/* Chains that ran on a decomposed system, and the visits of a particle they left for after the
+ * sweep (for tests). */
+extern unsigned long nlist_chain_split, nlist_chain_deferred;
+/* The largest halo, over the particles a rank owns, at which a decomposed system chains its
+ * passes (nlist.c says why; tests raise it). */
+extern double nlist_chain_split_halo;
 /* Whether nlist_pass_run would leave the next pass to the search's gather; if so, counts it as
  * run (a caller that runs the pass itself asks this instead of calling nlist_pass_run). */
 int nlist_gathers(consph_nlist *l);

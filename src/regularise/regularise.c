@@ -403,8 +403,9 @@ static int ipst_chained(consph_sys *s, const consph_pass *shift, ipst_job *job, 
     const consph_pass volumes = {"IPST volumes 1/sum W", CONSPH_PASS_W | CONSPH_PASS_NO_DX,
                                  ipst_volume_visit};
     const int g = reg_ipst_groups;
-    const block_visitor_in chain[2] = {{&volumes, g ? IPST_VOLUME_GROUP : NULL, &vj, 0},
-                                       {shift, g ? ipst_groups[job->dim - 1] : NULL, job, 0}};
+    const block_visitor_in chain[2] = {
+        {&volumes, g ? IPST_VOLUME_GROUP : NULL, &vj, 0, NULL, NULL},
+        {shift, g ? ipst_groups[job->dim - 1] : NULL, job, 0, NULL, NULL}};
     size_t pairs = 0;
     const int rc = nlist_chain_run(s, chain, 2, &pairs, ran);
     if (rc == CONSPH_OK && *ran) ++reg_ipst_chains;

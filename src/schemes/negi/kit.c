@@ -918,6 +918,22 @@ static int kit_pack_sources(consph_sys *s, const kit_job *job, int which)
     return CONSPH_OK;
 }
 
+/* One pass's refresh on a decomposed system: its reads declared, then the refresh and, where it
+ * reads a pack (which 1: pass 1's, 2: coupled_bc's), the halo's rows of it; which 0: the refresh
+ * alone. The chain calls it (block_visitor_in.prepare) where the passes one by one make it. */
+typedef struct kit_prep {
+    const kit_job *job;
+    const consph_sys_reads *reads;
+    int which;
+} kit_prep;
+
+static int kit_prepare(consph_sys *s, void *ctx)
+{
+    const kit_prep *k = ctx;
+    consph_sys_next_reads(s, k->reads);
+    return k->which ? kit_pack_sources(s, k->job, k->which) : pass_halo_refresh(s);
+}
+
 /* The volumes (with_volumes), then pass 1 and the Laplacians: chained on the neighbour list's
  * pair cache where it serves them (src/pass/nlist.c, nlist_chain_run), else one after the
  * other. */
@@ -992,8 +1008,10 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
                                visit_first_pk ? visit_first_pk : visit_first};
     unsigned need2 = CONSPH_PASS_DW;
     if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need2 |= CONSPH_PASS_D2W;
-    /* A decomposed system runs no chain, so coupled_bc never reads the blocks it has just filled:
-     * per particle from the pack (coupled_pk_of), as where the lanes do not pay. */
+    /* Not on a decomposed system: its chain runs only where the pair cache is large (a small
+     * halo beside the owned particles, nlist_chain_split_halo), where the lanes do not pay, and
+     * its passes one by one never read the blocks they have just filled: per particle from the
+     * pack (coupled_pk_of) there. */
     const pass_group_fn group_second =
         lanes && !s->split && coupled_lanes_pay(s) ? group_second_of(&r, d) : NULL;
     /* where coupled_bc's ∇²u (and ∇²q) runs per particle, it reads G_j (and ∇q_j, ω_j) from
@@ -1041,6 +1059,19 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         if (rq->lap == KIT_LAP_CLEARY) second_reads.fields[nr++] = SF_RHOF;
     }
     if (want & KIT_LAPQ) second_reads.fields[nr++] = SF_GRADQ;
+    /* With the volumes, the refresh before them brings what pass 1 and the Laplacians read in
+     * the halo that none of these passes makes (p, u, q; the other Laplacians' u, ϱ): the chain
+     * on a decomposed system runs pass 1 in its sweep wherever the volumes are known at every
+     * neighbour, so these must be there first. */
+    consph_sys_reads pre_reads = {0, 0, {NULL}, {0}};
+    nr = 0;
+    if (gp) pre_reads.fields[nr++] = SF_P;
+    if (gu) pre_reads.fields[nr++] = SF_U;
+    if (gq) pre_reads.fields[nr++] = rq->q;
+    if ((want & KIT_LAPU) && rq->lap != KIT_LAP_COUPLED) {
+        pre_reads.fields[nr++] = SF_U;
+        if (rq->lap == KIT_LAP_CLEARY) pre_reads.fields[nr++] = SF_RHOF;
+    }
     if (job.pk1 && !with_volumes) {
         /* from the values pass 1's refresh brings, on a decomposed system */
         consph_sys_next_reads(s, &first_reads);
@@ -1058,16 +1089,24 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
      * Laplacians one after the other: chained over the filled cache they ran 15-30 % slower at nx
      * 250 (2 pairs each, 2-core AMD EPYC), with pass 1 over groups or per particle */
     if (with_volumes && kit_chain_passes && s->nlist && nlist_serves(s->nlist, p->n)) {
+        /* the refreshes of the passes below, in their order */
+        kit_prep prep[4] = {{&job, &pre_reads, 0},
+                            {&job, &first_reads, job.pk1 ? 1 : 0},
+                            {&job, &second_reads, job.pk2 ? 2 : 0},
+                            {&job, &then_reads, 0}};
         block_visitor_in chain[4];
         int count = 0;
-        chain[count++] =
-            (block_visitor_in){&volume_pass, kit_group_visits ? group_volume : NULL, &vj, 0};
-        chain[count++] = (block_visitor_in){&first, group_first, &job, 0};
-        if (with_second) chain[count++] = (block_visitor_in){&second, group_second, &job, 0};
+        chain[count++] = (block_visitor_in){
+            &volume_pass, kit_group_visits ? group_volume : NULL, &vj, 0, kit_prepare, &prep[0]};
+        chain[count++] = (block_visitor_in){&first, group_first, &job, 0, kit_prepare, &prep[1]};
+        if (with_second)
+            chain[count++] =
+                (block_visitor_in){&second, group_second, &job, 0, kit_prepare, &prep[2]};
         const int kit_count = count;
         /* then last: it reads the volumes at the neighbours, which every pass before it waits
          * for too */
-        if (then) chain[count++] = (block_visitor_in){then, NULL, then_job, 1};
+        if (then)
+            chain[count++] = (block_visitor_in){then, NULL, then_job, 1, kit_prepare, &prep[3]};
         int ran = 0;
         st = nlist_chain_run(s, chain, count, pairs, &ran);
         if (st == CONSPH_OK && ran) {
@@ -1081,7 +1120,7 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         }
     }
     if (st == CONSPH_OK && with_volumes) {
-        consph_sys_next_reads(s, &volume_reads);
+        consph_sys_next_reads(s, &pre_reads);
         st = kit_run(s, &volume_pass, group_volume, &vj, pairs);
         if (st == CONSPH_OK) ++*passes;
     }
