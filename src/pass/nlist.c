@@ -1170,9 +1170,10 @@ unsigned long nlist_chain_split = 0, nlist_chain_deferred = 0;
  * what it owns. Measured with the chain forced on and off (2 ranks on a 2-core AMD EPYC,
  * Taylor-Green L-IPST-C on a lattice; halo / owned in brackets): nx 283 (0.10) 2-15 % faster
  * a step, nx 200 (0.14) 0-5 %, nx 141 (0.21) and nx 100 (0.27-0.31) no faster; 3D Beltrami nx
- * 46 (0.46-0.55) 4-17 % slower. The refreshes are the same either way, so ranks may choose apart.
+ * 46 (0.46-0.55) 4-17 % slower. The limit lets in 16 ranks' boxes at bench/mpi.sh's 2D size (4x4
+ * of 55 x 55 cells, halo 0.16). The refreshes are the same either way, so ranks may choose apart.
  */
-double nlist_chain_split_halo = 0.15;
+double nlist_chain_split_halo = 0.2;
 /* CONSPH_TEST_CHAIN_SPLIT set: every decomposed chain runs, whatever its halo (tests) */
 static int chain_test_split = -1;
 
