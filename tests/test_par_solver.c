@@ -341,7 +341,8 @@ static int run_case(const par_case *c, const char *path)
     }
     const unsigned long groups0 = pass_group_runs, kit0 = kit_group_passes,
                         first0 = kit_first_packed, coupled0 = kit_coupled_packed,
-                        chains0 = nlist_chain_split, left0 = nlist_chain_deferred;
+                        chains0 = nlist_chain_split, left0 = nlist_chain_deferred,
+                        sweeps0 = pass_group2_split, later0 = pass_group2_deferred;
     const int chain = !strncmp(c->name, "chain-", 6);
     const double halo_limit = nlist_chain_split_halo;
     if (chain) nlist_chain_split_halo = INFINITY;
@@ -362,6 +363,14 @@ static int run_case(const par_case *c, const char *path)
      * no chain, and groups read a filled cache only slower) */
     const int pysph =
         !strcmp(c->scheme, "wcsph") || !strcmp(c->scheme, "edac") || !strcmp(c->scheme, "tvf");
+    /* tvf's and edac's density and rates in one sweep on every rank (pass_run_groups2), the rates
+     * of the cells whose candidates reach the halo after the refresh */
+    const int sweep2 = !strcmp(c->scheme, "edac") || !strcmp(c->scheme, "tvf");
+    if (size > 1 && sweep2 && (pass_group2_split == sweeps0 || pass_group2_deferred == later0)) {
+        fprintf(stderr, "case %s: %lu sweeps of both passes on this rank, %lu rates after them\n",
+                c->name, pass_group2_split - sweeps0, pass_group2_deferred - later0);
+        if (st == CONSPH_OK) st = CONSPH_EINVAL;
+    }
     const int packs =
         dim == 2 && !chain && (!strcmp(c->scheme, "l-ipst-c") || !strcmp(c->scheme, "e-c"));
     if (size > 1 && ((pysph && pass_group_runs == groups0) ||

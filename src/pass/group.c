@@ -48,6 +48,22 @@ static void lane_pad(nbhd_scratch *sc, const consph_nbhd *nb, size_t kmax, size_
 
 unsigned long pass_group_runs = 0;
 
+/* The next group of a cell's slots [*g, last): the cell in fours; under a mask (dest non-NULL)
+ * up to four consecutive destinations, *g moved past the sources before them. 0: none left. */
+static int group_next(const unsigned char *dest, const consph_nnps_slots *v, size_t *g, size_t last)
+{
+    if (dest)
+        while (*g < last && !dest[consph_nnps_slot_particle(v, *g)]) ++*g;
+    if (*g >= last) return 0;
+    int count = last - *g < PASS_GROUP ? (int)(last - *g) : PASS_GROUP;
+    if (dest) {
+        int run = 1;
+        while (run < count && dest[consph_nnps_slot_particle(v, *g + (size_t)run)]) ++run;
+        count = run;
+    }
+    return count;
+}
+
 int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_group_fn visit,
                     void *job, size_t *pairs)
 {
@@ -125,19 +141,8 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
                              runs.candidates);
                 }
             if (my_status != CONSPH_OK) continue;
-            for (size_t g = first; g < last;) {
-                /* the cell in fours; under a mask, up to four consecutive destinations */
-                int count = last - g < PASS_GROUP ? (int)(last - g) : PASS_GROUP;
-                if (dest) {
-                    if (!dest[consph_nnps_slot_particle(&v, g)]) {
-                        ++g;
-                        continue;
-                    }
-                    int run = 1;
-                    while (run < count && dest[consph_nnps_slot_particle(&v, g + (size_t)run)])
-                        ++run;
-                    count = run;
-                }
+            size_t g = first;
+            for (int count; (count = group_next(dest, &v, &g, last)) > 0;) {
                 consph_nbhd nb[PASS_GROUP];
                 size_t kmax = 0;
                 gather_group(s, &v, &runs, g, count, need, with_dx, sc, nb);
@@ -281,7 +286,18 @@ typedef struct sweep {
     int dx1, dx2, dx12; /* the passes' separations wanted */
     int il;             /* PASS_GROUP_INTERLEAVED in need2 */
     pass_group_fn visit1, visit2;
+    /* a decomposed system: each cell's CELL_* (NULL: every cell CELL_DEEP); late: the second
+     * pass on the CELL_NEAR and CELL_MIXED cells, after the sweep */
+    const unsigned char *cls;
+    int late;
 } sweep;
+
+/* A cell of a decomposed system: the halo's (sources only: no pass), one whose candidates are
+ * all the rank's own (both passes in the sweep), one of the rank's whose candidates reach the
+ * halo (the second pass after the refresh that brings the first's values there), or one that
+ * holds both (particles drift across cells between re-sorts, their owners fixed): as a near one,
+ * its own particles alone visited. */
+enum { CELL_DEEP = 0, CELL_HALO = 1, CELL_NEAR = 2, CELL_MIXED = 3 };
 
 typedef struct sweep_thread {
     consph_nnps_runs runs;
@@ -450,6 +466,13 @@ enum { SLAB_FIRST = 1, SLAB_SECOND = 2, SLAB_BOTH = 3 };
 static void run_cell(const sweep *w, sweep_thread *t, size_t c, int mode, slab_store *st)
 {
     if (t->status != CONSPH_OK) return;
+    if (w->cls) {
+        const int cls = w->cls[c];
+        if (cls == CELL_HALO || (cls != CELL_DEEP && mode == SLAB_SECOND && !w->late)) return;
+        /* kept for no second pass in the sweep */
+        if (cls != CELL_DEEP && mode == SLAB_BOTH) mode = SLAB_FIRST;
+    }
+    const unsigned char *dest = w->cls && w->cls[c] == CELL_MIXED ? w->s->dest : NULL;
     const consph_nnps_slots *v = w->v;
     const unsigned need = mode == SLAB_FIRST    ? w->need1
                           : mode == SLAB_SECOND ? w->need2
@@ -474,9 +497,9 @@ static void run_cell(const sweep *w, sweep_thread *t, size_t c, int mode, slab_s
                          t->runs.candidates);
                 return;
             }
-        for (size_t g = first; g < last; g += PASS_GROUP) {
+        size_t g = first;
+        for (int count; (count = group_next(dest, v, &g, last)) > 0; g += (size_t)count) {
             consph_nbhd nb[PASS_GROUP];
-            const int count = last - g < PASS_GROUP ? (int)(last - g) : PASS_GROUP;
             size_t kmax = 0;
             gather_group(w->s, v, &t->runs, g, count, need, with_dx, t->sc, nb);
             for (int l = 0; l < count; ++l) {
@@ -555,22 +578,85 @@ static void run_tile(const sweep *w, const tiling *tl, sweep_thread *t, size_t s
  * miss the core's 1 MB L2 on the test machine: tvf nx 250 serial, gather4 +25 % of samples. */
 size_t pass_group2_strip_cells = 12;
 
+unsigned long pass_group2_split = 0, pass_group2_deferred = 0;
+
+/* Each cell's CELL_* on a decomposed system (*cls, ncells bytes): its particles all sources
+ * (CELL_HALO), both (CELL_MIXED) or all the rank's own, then CELL_DEEP where every candidate of
+ * its walk (consph_nnps_cell_runs) is the rank's own, else CELL_NEAR. */
+static int cell_classes(const consph_sys *s, const consph_nnps_slots *v, unsigned char **cls)
+{
+    const size_t n = v->n;
+    *cls = NULL;
+    /* sources before each slot, so that a run's are a difference */
+    size_t *src = malloc((n + 1) * sizeof *src);
+    unsigned char *c = malloc(v->ncells ? v->ncells : 1);
+    consph_nnps_runs runs;
+    memset(&runs, 0, sizeof runs);
+    int st =
+        src && c ? CONSPH_OK : consph_fail(CONSPH_ENOMEM, "out of memory for the cells' kinds");
+    if (st == CONSPH_OK) {
+        src[0] = 0;
+        for (size_t sl = 0; sl < n; ++sl)
+            src[sl + 1] = src[sl] + !s->dest[consph_nnps_slot_particle(v, sl)];
+    }
+    for (size_t k = 0; st == CONSPH_OK && k < v->ncells; ++k) {
+        const size_t first = v->cell_start[k], last = v->cell_start[k + 1];
+        const size_t sources = src[last] - src[first];
+        if (sources == last - first && first < last) {
+            c[k] = CELL_HALO;
+            continue;
+        }
+        if (sources) {
+            c[k] = CELL_MIXED;
+            continue;
+        }
+        c[k] = CELL_DEEP;
+        if (first == last) continue;
+        if (consph_nnps_cell_runs(s->nnps, k, &runs) == (size_t)-1) {
+            st = consph_fail(CONSPH_ENOMEM, "runs of cell %zu: %s", k, consph_last_error());
+            break;
+        }
+        for (size_t r = 0; r < runs.n; ++r)
+            if (src[runs.run[r].s1] != src[runs.run[r].s0]) {
+                c[k] = CELL_NEAR;
+                break;
+            }
+    }
+    consph_nnps_runs_free(&runs);
+    free(src);
+    if (st != CONSPH_OK) {
+        free(c);
+        return st;
+    }
+    *cls = c;
+    return CONSPH_OK;
+}
+
 int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pass_group_fn visit1,
                      const char *name2, unsigned need2, pass_group_fn visit2, void *job,
-                     size_t *pairs)
+                     size_t *pairs, int (*prepare2)(consph_sys *s, void *ctx), void *ctx)
 {
-    /* Under a mask (a decomposed system's halo: sources only) the second pass would read the
-     * first's values at halo neighbours, which no visit here writes: only the refresh between
-     * two passes brings them. Declined before any refresh, on every rank alike. */
-    if (!s || !s->p || !s->nnps || !visit1 || !visit2 || s->dest || s->kernel.tensor || s->split ||
-        ((need1 ^ need2) & PASS_GROUP_SLOTS))
+    /* A mask without a split is declined; so is a decomposed system without prepare2, which
+     * alone can bring the first pass's values into the halo before the second reads them. */
+    const int split = s && s->split && s->dest;
+    if (!s || !s->p || !s->nnps || !visit1 || !visit2 || (s->dest && !split) ||
+        (split && !prepare2) || s->kernel.tensor || ((need1 ^ need2) & PASS_GROUP_SLOTS))
         return PASS_GROUP_UNSERVED;
+    consph_sys *const sw = (consph_sys *)s;
     const size_t n = s->p->n;
-    if (n == 0) return CONSPH_OK;
+    if (n == 0) return split ? prepare2(sw, ctx) : CONSPH_OK;
     consph_nnps_slots v;
     if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK || v.n != n) return PASS_GROUP_UNSERVED;
+    unsigned char *cls = NULL;
+    if (split) {
+        const int st = cell_classes(s, &v, &cls);
+        if (st != CONSPH_OK) return st;
+    }
     if (s->nlist && nlist_serves(s->nlist, n)) {
-        if (!nlist_gathers(s->nlist)) return PASS_GROUP_UNSERVED;
+        if (!nlist_gathers(s->nlist)) {
+            free(cls);
+            return PASS_GROUP_UNSERVED;
+        }
         (void)nlist_gathers(s->nlist); /* the second pass, counted as run too */
     }
     pass_group_runs += 2;
@@ -605,7 +691,7 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
 
     const int il = (need2 & PASS_GROUP_INTERLEAVED) != 0;
     need2 &= ~PASS_GROUP_INTERLEAVED;
-    sweep w = {s, &v, job, need1, need2, 0, 0, 0, 0, il, visit1, visit2};
+    sweep w = {s, &v, job, need1, need2, 0, 0, 0, 0, il, visit1, visit2, cls, 0};
     w.dx1 = !(need1 & CONSPH_PASS_NO_DX);
     w.dx2 = !(need2 & CONSPH_PASS_NO_DX);
     w.dx12 = w.dx1 || w.dx2;
@@ -668,6 +754,49 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
         consph_nnps_runs_free(&t.runs);
         for (int l = 0; l < PASS_GROUP; ++l) nbhd_scratch_free(&t.sc[l]);
         store_free(&t.one);
+    }
+    if (split) {
+        /* the first pass's values into the halo (a refresh: every rank makes it, as the passes
+         * one by one would, whatever happened here), then the second pass where the sweep left
+         * it */
+        sw->halo_fresh = 0;
+        const int st = prepare2(sw, ctx);
+        sw->halo_fresh = 0;
+        if (status == CONSPH_OK && st != CONSPH_OK) {
+            free(cls);
+            return st;
+        }
+        w.late = 1;
+        const size_t chunk = pass_cells_per_chunk(v.ncells);
+        size_t left = 0;
+        if (status == CONSPH_OK)
+#pragma omp parallel reduction(+ : left) if (n >= s->parallel_min)
+        {
+            sweep_thread t;
+            memset(&t, 0, sizeof t);
+#pragma omp for schedule(dynamic, chunk)
+            for (size_t c = 0; c < v.ncells; ++c)
+                if (cls[c] == CELL_NEAR || cls[c] == CELL_MIXED) {
+                    const size_t before = t.pairs;
+                    run_cell(&w, &t, c, SLAB_SECOND, NULL);
+                    left += t.pairs != before;
+                }
+#pragma omp critical(consph_pass_run_groups)
+            {
+                total += t.pairs;
+                if (t.status != CONSPH_OK && (status == CONSPH_OK || t.status < status)) {
+                    status = t.status;
+                    failed = name2;
+                    memcpy(why, t.why, sizeof why);
+                }
+            }
+            consph_nnps_runs_free(&t.runs);
+            for (int l = 0; l < PASS_GROUP; ++l) nbhd_scratch_free(&t.sc[l]);
+            store_free(&t.one);
+        }
+        pass_group2_deferred += left;
+        ++pass_group2_split;
+        free(cls);
     }
     if (pairs) *pairs += total;
     if (status != CONSPH_OK)

@@ -73,15 +73,23 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
  * first visit must write results of its own particles only and read nothing that the first
  * visit writes; the second may read any particle's. PASS_GROUP_SLOTS in both needs or in
  * neither. Returns PASS_GROUP_UNSERVED where pass_run_groups would, under a destination mask
- * (a decomposed system: the second pass reads the first's values at halo neighbours, which only
- * a refresh between the passes brings), or where the needs differ in PASS_GROUP_SLOTS; pairs
- * counts both passes' pairs. */
+ * without a split, or where the needs differ in PASS_GROUP_SLOTS; pairs counts both passes'
+ * pairs. On a decomposed system (the caller has made the first pass's refresh) the sweep runs
+ * the second pass only on the cells whose candidates are all the rank's own; then
+ * prepare2(s, ctx) makes the second pass's refresh (and fills whatever the halo's rows need)
+ * and the second pass runs on the other cells of the rank (a cell holding halo particles too, as
+ * particles drift between re-sorts, is visited at the rank's own). It declines (before any
+ * refresh) without prepare2 or where the list declines; the caller's passes one by one make the
+ * same refreshes, so ranks may choose apart. */
 /* Tile-slabs whose second pass read the neighbourhoods the first kept (for tests: that it did),
  * and the strips' width in cells (12; tests narrow it to have edge columns on small grids). */
 extern unsigned long pass_group_kept_slabs;
 extern size_t pass_group2_strip_cells;
+/* Calls on a decomposed system, and the cells whose second pass they left for after the sweep
+ * (for tests). */
+extern unsigned long pass_group2_split, pass_group2_deferred;
 int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pass_group_fn visit1,
                      const char *name2, unsigned need2, pass_group_fn visit2, void *job,
-                     size_t *pairs);
+                     size_t *pairs, int (*prepare2)(consph_sys *s, void *ctx), void *ctx);
 
 #endif

@@ -1062,6 +1062,25 @@ static void copy_values(const consph_solver *s, double *restrict dst, const doub
     for (size_t i = 0; i < n; ++i) dst[i] = src[i];
 }
 
+#ifdef RV_GROUPS
+typedef struct tv_prep {
+    const consph_solver *s;
+    const rival_job *job;
+} tv_prep;
+
+/* What the passes one by one do between the density and the rates on a decomposed system: the
+ * rates' refresh, which brings the halo's densities (Σ W, ϱ, tvf's p), then the halo's rows of
+ * the pack (pass_run_groups2's prepare2). */
+static int tv_rates_prepare(consph_sys *sys, void *ctx)
+{
+    const tv_prep *t = ctx;
+    consph_sys_next_reads(sys, &tv_rates_reads);
+    const int st = pass_halo_refresh(sys);
+    if (st == CONSPH_OK) tv_pack(t->s, t->job);
+    return st;
+}
+#endif
+
 /* Density pass, then the rates; the transport velocity follows from them in tv_transport. */
 static int rhs_tv(consph_solver *s, int kind)
 {
@@ -1070,17 +1089,26 @@ static int rhs_tv(consph_solver *s, int kind)
     if (st != CONSPH_OK) return st;
     const consph_pass dens = {"tv density", CONSPH_PASS_W | CONSPH_PASS_NO_DX, visit_density};
     const consph_pass rates = {"tv rates", CONSPH_PASS_DW, visit_tv};
+    const consph_sys_reads *dens_reads = kind == RV_EDAC ? &edac_density_reads : &tvf_density_reads;
     st = PASS_GROUP_UNSERVED;
 #ifdef RV_GROUPS
-    /* both passes in one sweep, each neighbourhood gathered once where it can be */
-    if (pysph_group_visits && job.pack)
-        st = pass_run_groups2(&s->sys, dens.name, dens.need | PASS_GROUP_SLOTS,
-                              group_visit_density_pack, rates.name,
-                              rates.need | PASS_GROUP_SLOTS | PASS_GROUP_INTERLEAVED,
-                              group_visit_tv_il, &job, &s->pairs);
+    /* both passes in one sweep, each neighbourhood gathered once where it can be; on a
+     * decomposed system after the density's refresh, which the passes one by one below then do
+     * not repeat */
+    if (pysph_group_visits && job.pack) {
+        const tv_prep prep = {s, &job};
+        if (s->sys.split) consph_sys_next_reads(&s->sys, dens_reads);
+        const int rc = s->sys.split ? pass_halo_refresh(&s->sys) : CONSPH_OK;
+        st = rc != CONSPH_OK
+                 ? rc
+                 : pass_run_groups2(
+                       &s->sys, dens.name, dens.need | PASS_GROUP_SLOTS, group_visit_density_pack,
+                       rates.name, rates.need | PASS_GROUP_SLOTS | PASS_GROUP_INTERLEAVED,
+                       group_visit_tv_il, &job, &s->pairs, tv_rates_prepare, (void *)&prep);
+    }
 #endif
     if (st == PASS_GROUP_UNSERVED) {
-        consph_sys_next_reads(&s->sys, kind == RV_EDAC ? &edac_density_reads : &tvf_density_reads);
+        consph_sys_next_reads(&s->sys, dens_reads);
         st = run_pass(s, &dens, group_visit_density, 0, &job);
         consph_sys_next_reads(&s->sys, &tv_rates_reads);
 #ifdef RV_GROUPS
