@@ -644,7 +644,13 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
         return PASS_GROUP_UNSERVED;
     consph_sys *const sw = (consph_sys *)s;
     const size_t n = s->p->n;
-    if (n == 0) return split ? prepare2(sw, ctx) : CONSPH_OK;
+    if (n == 0 && split) {
+        sw->halo_fresh = 0;
+        const int st = prepare2(sw, ctx);
+        sw->halo_fresh = 0; /* as after the second pass */
+        return st;
+    }
+    if (n == 0) return CONSPH_OK;
     consph_nnps_slots v;
     if (consph_nnps_slots_get(s->nnps, &v) != CONSPH_OK || v.n != n) return PASS_GROUP_UNSERVED;
 
