@@ -60,4 +60,8 @@ for scheme in l-ipst-c l-ipst-f l-ipst-k l-pst-c pe-ipst-c tv-c; do
 done
 check l-ipst-c-3d-chained beltrami --scheme l-ipst-c --layout lattice --nx 12 --steps 3 \
     --snapshot-every 3 --log-every 1
+# two threads a rank, each rank above the passes' parallel_min (2048): the sweep's blocks shared
+# among the threads, some left for after it; what ran in the sweep does not depend on the share
+check l-ipst-c-chained-threads taylor-green --scheme l-ipst-c --layout random --nx 72 --steps 3 \
+    --snapshot-every 3 --log-every 1 --ipst-every 2 --threads 2
 summary cli_mpi_reads
