@@ -64,4 +64,22 @@ check l-ipst-c-3d-chained beltrami --scheme l-ipst-c --layout lattice --nx 12 --
 # among the threads, some left for after it; what ran in the sweep does not depend on the share
 check l-ipst-c-chained-threads taylor-green --scheme l-ipst-c --layout random --nx 72 --steps 3 \
     --snapshot-every 3 --log-every 1 --ipst-every 2 --threads 2
+# ranks that choose apart (each by its own halo): the chain forced on some ranks only, by an
+# MPMD launch; the passes one by one make the refreshes the chain makes, so none waits alone
+apart=(taylor-green --scheme l-ipst-c --layout random --nx 40 --steps 4 --snapshot-every 2
+    --log-every 1 --ipst-every 2)
+if "$bin" run "${apart[@]}" --out "$work/apart.1" >/dev/null 2>"$work/err"; then
+    for spec in "1 1" "1 2"; do
+        set -- $spec
+        timeout 120 mpirun --oversubscribe -np "$1" env CONSPH_TEST_HALO_POISON=1 \
+            CONSPH_TEST_CHAIN_SPLIT=1 "$bin" run "${apart[@]}" --out "$work/apart.$spec" : \
+            -np "$2" env CONSPH_TEST_HALO_POISON=1 "$bin" run "${apart[@]}" \
+            --out "$work/apart.$spec" >/dev/null 2>"$work/err" ||
+            { bad "chained on $1 rank(s), not on $2: exit $?: $(head -3 "$work/err")"; continue; }
+        same_run "$work/apart.1" "$work/apart.$spec" "chained on $1 rank(s), not on $2" &&
+            pass=$((pass + 1))
+    done
+else
+    bad "apart serial: $(cat "$work/err")"
+fi
 summary cli_mpi_reads
