@@ -12,7 +12,9 @@
  * the skipped ones at the next full refresh); a packed layout read from the
  * layout cache by each rank's share (the whole set packed on every rank when the file is corrupt);
  * runs that sample every step (the samples gather only the fields they read) keep the serial
- * history.
+ * history; the kit's chained passes forced on every rank (their sweep's visits and those it left
+ * for after the refresh) and tvf's and edac's one sweep of density and rates keep the serial
+ * state.
  *
  * Run without mpirun, the test computes the serial references and launches itself under
  * `mpirun -np 2` and `-np 3` (--oversubscribe: this machine may have fewer cores); skips (77)
@@ -359,8 +361,8 @@ static int run_case(const par_case *c, const char *path)
     /* decomposed, the group visits run on every rank (the halo's rows of their packs filled
      * after the refresh: stale rows would show in the bits compared with the serial run): the
      * PySPH family's passes over groups; the kit's volumes over groups (the pair cache's fill)
-     * and, in 2D, pass 1 and coupled_bc per particle from their packs (a decomposed system runs
-     * no chain, and groups read a filled cache only slower) */
+     * and, in 2D, pass 1 and coupled_bc per particle from their packs (at these sizes a rank's
+     * halo is too large for it to chain them, and groups read a filled cache only slower) */
     const int pysph =
         !strcmp(c->scheme, "wcsph") || !strcmp(c->scheme, "edac") || !strcmp(c->scheme, "tvf");
     /* tvf's and edac's density and rates in one sweep on every rank (pass_run_groups2), the rates
