@@ -1255,18 +1255,12 @@ static size_t chain_visit(chain_state *c, int k, size_t b)
 }
 
 /* Whether every destination of block b ran the chain's last pass in the sweep (nothing is left
- * to read its pairs after it). */
+ * to read its pairs after it), once that pass's visit of b counted what it missed: a halo slot is
+ * missed by every pass, so the destinations left are the last row's count over row 0's. */
 static int chain_block_spent(const chain_state *c, size_t b)
 {
-    if (!c->done) return 1;
-    const consph_nlist *l = c->s->nlist;
-    const nlist_block *blk = &l->blocks[b];
-    const unsigned char *dest = c->done, *last = c->done + (size_t)(c->count - 1) * c->n;
-    for (size_t sl = blk->s0; sl < blk->s1; ++sl) {
-        const size_t i = particle_of(l, sl);
-        if (dest[i] && !last[i]) return 0;
-    }
-    return 1;
+    const size_t nb = c->s->nlist->nblocks;
+    return !c->done || c->miss[(size_t)(c->count - 1) * nb + b] == c->miss[b];
 }
 
 /* Pass k on block b if it can run now: CHAIN_DONE (run), CHAIN_LATE (left for after the sweep)
