@@ -318,18 +318,16 @@ static void test_mirror(void)
 }
 
 /* wcref_eval_many gives wcref_eval's values bit for bit, at points sharing coordinates (a
- * lattice, as the Eulerian schemes' particles, where each coordinate's factors are taken once)
- * and at scattered ones, with +0 and -0 kept apart (their sines differ in sign), serially and
- * split among threads. */
-static void test_eval_many(void)
+ * lattice, as the Eulerian schemes' particles, where each coordinate's factors are taken once
+ * from a table) and at scattered ones (each point's own factors), an axis of each kind, with +0
+ * and -0 kept apart (their sines differ in sign), serially and split among threads. NL: the
+ * lattice's points per side, NS: the scattered points after it; yrow: y on the lattice's rows
+ * for the scattered points too (x scattered, y repeating). */
+static void check_eval_many(const wcref *w, int NL, int NS, int yrow)
 {
-    wcref *w = make(32, 0.0, 20, 0, 0.01, 1, 0.0);
-    if (!w) return;
-    CHECK(wcref_advance(w, 0.02) == CONSPH_OK, "advance");
-    enum { NL = 12, N = NL * NL + 200 };
-    double *x = malloc(7 * N * sizeof(double)), *y = x + N, *u = x + 2 * N, *v = x + 3 * N;
-    double *rho = x + 4 * N, *u1 = x + 5 * N, *v1 = x + 6 * N;
-    double rho1[N];
+    const int N = NL * NL + NS;
+    double *x = malloc(9 * (size_t)N * sizeof(double)), *y = x + N, *u = x + 2 * N;
+    double *v = x + 3 * N, *rho = x + 4 * N, *u1 = x + 5 * N, *v1 = x + 6 * N, *rho1 = x + 7 * N;
     for (int i = 0; i < NL * NL; ++i) {
         x[i] = (i % NL + 0.5) / NL;
         y[i] = (i / NL + 0.5) / NL;
@@ -339,28 +337,42 @@ static void test_eval_many(void)
         r = r * 6364136223846793005ul + 1442695040888963407ul;
         x[i] = (double)(r >> 11) / 9007199254740992.0;
         r = r * 6364136223846793005ul + 1442695040888963407ul;
-        y[i] = (double)(r >> 11) / 9007199254740992.0 - 0.5;
+        y[i] = yrow ? y[i % (NL * NL)] : (double)(r >> 11) / 9007199254740992.0 - 0.5;
     }
     x[N - 1] = -0.0;
     x[N - 2] = 0.0;
     y[N - 3] = -0.0;
     y[N - 4] = 0.0;
+    for (int i = 0; i < N; ++i) {
+        const double pt[2] = {x[i], y[i]};
+        double ue[2];
+        wcref_eval(w, pt, ue, &rho1[i]);
+        u1[i] = ue[0];
+        v1[i] = ue[1];
+    }
     for (int par = 0; par < 2; ++par) {
-        CHECK(wcref_eval_many(w, N, x, y, u, v, rho, par) == CONSPH_OK, "eval_many: %s",
+        CHECK(wcref_eval_many(w, (size_t)N, x, y, u, v, rho, par) == CONSPH_OK, "eval_many: %s",
               consph_last_error());
-        int same = 1;
-        for (int i = 0; i < N; ++i) {
-            const double pt[2] = {x[i], y[i]};
-            double ue[2];
-            wcref_eval(w, pt, ue, &rho1[i]);
-            u1[i] = ue[0];
-            v1[i] = ue[1];
-        }
-        same = !memcmp(u, u1, N * sizeof(double)) && !memcmp(v, v1, N * sizeof(double)) &&
-               !memcmp(rho, rho1, N * sizeof(double));
-        CHECK(same, "wcref_eval_many differs from wcref_eval (parallel %d)", par);
+        const int same = !memcmp(u, u1, (size_t)N * sizeof(double)) &&
+                         !memcmp(v, v1, (size_t)N * sizeof(double)) &&
+                         !memcmp(rho, rho1, (size_t)N * sizeof(double));
+        CHECK(same,
+              "wcref_eval_many differs from wcref_eval (%dx%d lattice + %d points, y %s, "
+              "parallel %d)",
+              NL, NL, NS, yrow ? "on rows" : "scattered", par);
     }
     free(x);
+}
+
+static void test_eval_many(void)
+{
+    wcref *w = make(32, 0.0, 20, 0, 0.01, 1, 0.0);
+    if (!w) return;
+    CHECK(wcref_advance(w, 0.02) == CONSPH_OK, "advance");
+    check_eval_many(w, 12, 200, 0);  /* most values distinct: each point its own factors */
+    check_eval_many(w, 40, 200, 0);  /* a lattice's rows and columns: tables */
+    check_eval_many(w, 12, 2000, 1); /* x distinct, y on the rows */
+    check_eval_many(w, 50, 0, 0);    /* the lattice alone, past the probe of 1024 points */
     wcref_free(w);
 }
 

@@ -827,15 +827,33 @@ static size_t distinct_values(const double *x, size_t n, size_t *which, size_t *
     return count;
 }
 
-/* Points [i0, i1) of wcref_eval_many from the distinct coordinates' factors: each point's
- * operations are wcref_eval's. */
-WCREF_CLONES static void eval_points(const wcref *w, size_t i0, size_t i1, const double *tx,
-                                     const size_t *wx, const double *ty, const size_t *wy,
-                                     double *u, double *v, double *rho)
+/* The factors of one axis for wcref_eval_many: a table of each distinct value's (tab, which[i]
+ * its row for point i) where the values repeat, as on a lattice (the Eulerian schemes' particles,
+ * t = 0), else none (tab NULL): each point then takes its own, which is cheaper than hashing
+ * values that are all distinct and keeps no table of 2(2K + 1) doubles a point. */
+typedef struct {
+    double *tab;
+    size_t *which;
+} eval_axis;
+
+/* Points [i0, i1) of wcref_eval_many: each point's operations are wcref_eval's, its axis factors
+ * from the table or taken at the point (the same function of the coordinate either way). */
+WCREF_CLONES static void eval_points(const wcref *w, size_t i0, size_t i1, const double *x,
+                                     const double *y, eval_axis ax, eval_axis ay, double *u,
+                                     double *v, double *rho)
 {
     const size_t mx = (size_t)(2 * w->K + 1), my = (size_t)(w->K + 1);
+    double fx[2 * (2 * KMAX + 1)], fy[2 * (KMAX + 1)];
     for (size_t i = i0; i < i1; ++i) {
-        const double *ex = tx + 2 * mx * wx[i], *ey = ty + 2 * my * wy[i];
+        const double *ex = fx, *ey = fy;
+        if (ax.tab)
+            ex = ax.tab + 2 * mx * ax.which[i];
+        else
+            axis_x(w, x[i], fx, fx + mx);
+        if (ay.tab)
+            ey = ay.tab + 2 * my * ay.which[i];
+        else
+            axis_y(w, y[i], fy, fy + my);
         double ui[2];
         eval_sums(w, ex, ex + mx, ey, ey + my, ui, &rho[i]);
         u[i] = ui[0];
@@ -843,31 +861,64 @@ WCREF_CLONES static void eval_points(const wcref *w, size_t i0, size_t i1, const
     }
 }
 
+/* Whether an axis' values repeat enough for a table: at most half of the first PROBE distinct.
+ * A guess from the first points (the particles are in cell order, so a lattice repeats its
+ * rows or columns within them): either answer gives the same values, only the time differs. */
+enum { PROBE = 1024 };
+
+static int axis_repeats(const double *x, size_t n, size_t *scratch)
+{
+    const size_t m = n < PROBE ? n : PROBE;
+    return 2 * distinct_values(x, m, scratch, scratch + m, scratch + 2 * m, 2 * PROBE) <= m;
+}
+
+/* The table of one axis (see eval_axis), its distinct values' factors split among threads;
+ * tab stays NULL where the values do not repeat. CONSPH_ENOMEM on failure. */
+static int axis_table(const wcref *w, int is_x, const double *x, size_t n, int parallel,
+                      eval_axis *ax)
+{
+    ax->tab = NULL;
+    ax->which = NULL;
+    size_t *probe = malloc((2 * PROBE + 2 * PROBE) * sizeof(size_t));
+    if (!probe) return CONSPH_ENOMEM;
+    const int repeats = axis_repeats(x, n, probe);
+    free(probe);
+    if (!repeats) return CONSPH_OK;
+    size_t size = 16;
+    while (size < 2 * n) size *= 2;
+    size_t *which = malloc((2 * n + size) * sizeof(size_t));
+    if (!which) return CONSPH_ENOMEM;
+    size_t *first = which + n, *slot = which + 2 * n;
+    const size_t count = distinct_values(x, n, which, first, slot, size);
+    const size_t m = is_x ? (size_t)(2 * w->K + 1) : (size_t)(w->K + 1);
+    double *tab = malloc(2 * m * (count ? count : 1) * sizeof(double));
+    if (!tab) {
+        free(which);
+        return CONSPH_ENOMEM;
+    }
+#pragma omp parallel for schedule(static) if (parallel)
+    for (size_t k = 0; k < count; ++k) {
+        double *t = tab + 2 * m * k;
+        if (is_x)
+            axis_x(w, x[first[k]], t, t + m);
+        else
+            axis_y(w, x[first[k]], t, t + m);
+    }
+    ax->tab = tab;
+    ax->which = which;
+    return CONSPH_OK;
+}
+
 int wcref_eval_many(const wcref *w, size_t n, const double *x, const double *y, double *u,
                     double *v, double *rho, int parallel)
 {
     if (n == 0) return CONSPH_OK;
-    const size_t mx = (size_t)(2 * w->K + 1), my = (size_t)(w->K + 1);
-    size_t size = 16;
-    while (size < 2 * n) size *= 2;
-    size_t *wx = malloc((3 * n + size) * sizeof(size_t));
-    size_t *wy = wx ? wx + n : NULL, *first = wx ? wx + 2 * n : NULL;
-    size_t *slot = wx ? wx + 3 * n : NULL;
-    double *tx = NULL, *ty = NULL;
-    if (wx) {
-        const size_t ux = distinct_values(x, n, wx, first, slot, size);
-        tx = malloc(2 * mx * ux * sizeof(double));
-        for (size_t k = 0; tx && k < ux; ++k)
-            axis_x(w, x[first[k]], tx + 2 * mx * k, tx + 2 * mx * k + mx);
-        const size_t uy = distinct_values(y, n, wy, first, slot, size);
-        ty = malloc(2 * my * uy * sizeof(double));
-        for (size_t k = 0; ty && k < uy; ++k)
-            axis_y(w, y[first[k]], ty + 2 * my * k, ty + 2 * my * k + my);
-    }
-    if (!wx || !tx || !ty) {
-        free(wx);
-        free(tx);
-        free(ty);
+    eval_axis ax, ay = {NULL, NULL};
+    int st = axis_table(w, 1, x, n, parallel, &ax);
+    if (st == CONSPH_OK) st = axis_table(w, 0, y, n, parallel, &ay);
+    if (st != CONSPH_OK) {
+        free(ax.tab);
+        free(ax.which);
         return consph_fail(CONSPH_ENOMEM, "out of memory for the wc reference at %zu points", n);
     }
 #pragma omp parallel if (parallel)
@@ -877,11 +928,12 @@ int wcref_eval_many(const wcref *w, size_t n, const double *x, const double *y, 
 #else
         const size_t nt = 1, t = 0;
 #endif
-        eval_points(w, n * t / nt, n * (t + 1) / nt, tx, wx, ty, wy, u, v, rho);
+        eval_points(w, n * t / nt, n * (t + 1) / nt, x, y, ax, ay, u, v, rho);
     }
-    free(wx);
-    free(tx);
-    free(ty);
+    free(ax.tab);
+    free(ax.which);
+    free(ay.tab);
+    free(ay.which);
     return CONSPH_OK;
 }
 
