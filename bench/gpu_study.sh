@@ -11,11 +11,15 @@
 #      (a fraction of t_f = 0.5, which takes about 56 250) on the lattice (layout = lattice: a
 #      packed layout is made on the host, the same for both devices, cached between the
 #      Lagrangian schemes; its cost is estimated apart, below);
-#   3. runs it with --device gpu, then with --device cpu on THREADS threads; then once more on
-#      the GPU with error = eq26 (the authors' measure copies the particles back at its output
-#      times, here t = 0 and the end, besides the log samples: docs/gpu.md), when the budget allows;
+#   3. runs it with --device gpu, once more on the GPU with a third of the steps (a row's time
+#      is then split into a cost per step, log samples included, and a cost per row: set-up,
+#      the first and last samples, the two output times of error = authors), then with --device
+#      cpu on THREADS threads when the budget allows;
 #   4. extrapolates each to the full 001-table9 (six resolutions, seven schemes, t = 0.5):
-#      per scheme and resolution, the measured wall time per step times ceil(0.5/Δt) steps; a
+#      per scheme and resolution, on the GPU the cost per step times ceil(0.5/Δt) steps plus 25
+#      times the cost per row (the full row's 50 output times priced as 25 times the 2 here: an
+#      upper bound, since the set-up is counted 25 times too); on the CPU, whose fixed costs are
+#      a trifle beside its steps, the wall time per step of the long run times the steps; a
 #      table-9 scheme the GPU does not run yet is priced as the reference series (l-ipst-c when
 #      the GPU runs it, else edac standing for EWCSPH) times its T_r relative to it from 001
 #      Table 9 (E-C 1.19, EWCSPH 1.00, L-IPST-C 1.53, L-PST-C 2.02, L-RR-C 1.41, PE-IPST-C 1.65,
@@ -31,7 +35,7 @@
 # Usage: bash bench/gpu_study.sh [--out DIR] [--steps K] [--budget S] [--quick] [--emulate]
 #                                [--no-build] [--build-only]
 #   --out DIR     where gpu_study.md and the studies go (default: build-gpu/gpu-study-out)
-#   --steps K     steps of every row (default 150)
+#   --steps K     steps of every row (default 150; the short GPU run takes K/3, at least 10)
 #   --budget S    no study starts after S seconds; each runs under timeout (default 140)
 #   --quick       nx 20, 30, 40 and 5 steps (a check of the script)
 #   --emulate     the GPU's rows on the host emulation (CONSPH_GPU_BACKEND=emulation; slow: use
@@ -115,21 +119,21 @@ log "the GPU runs:$on_gpu (table 9: $table9); $threads threads for the CPU study
 # ---- 2. the study ----
 sdir=$out/study
 mkdir -p "$sdir"
-write_study() { # write_study FILE ERROR
+write_study() { # write_study FILE ERROR STEPS
     {
         echo "study = gpustudy"
-        echo "title = 001-table9's runs, $steps steps each, on the GPU's schemes (bench/gpu_study.sh)"
+        echo "title = 001-table9's runs, $3 steps each, on the GPU's schemes (bench/gpu_study.sh)"
         echo "paper = none"
-        echo "note = A timing of 001-table9's figure: its keys, $steps steps per row, the lattice."
+        echo "note = A timing of 001-table9's figure: its keys, $3 steps per row, the lattice."
         echo
         echo "[figure table9]"
-        echo "title = Taylor-Green, c_o = 80, $steps steps"
+        echo "title = Taylor-Green, c_o = 80, $3 steps"
         echo "kind = run"
         echo "problem = taylor-green"
         echo "hdx = 1.2"
         echo "c0 = 80"
         echo "nx = $nx"
-        echo "steps = $steps"
+        echo "steps = $3"
         echo "dt_rule = finest"
         echo "ipst_h_dt = 0.0024"
         echo "layout = lattice"
@@ -139,7 +143,10 @@ write_study() { # write_study FILE ERROR
         for s in $on_gpu; do printf '\n[series %s]\nscheme = %s\n' "$s" "$s"; done
     } >"$1"
 }
-write_study "$sdir/gpustudy.study" authors
+short=$((steps / 3))
+[ $short -lt 10 ] && short=10
+[ $quick = 1 ] && short=2
+write_study "$sdir/gpustudy.study" authors "$steps"
 
 # study DEVICE DIR [ENV...]: wall seconds into $DIR.wall, or "" when it failed or ran out of time
 study() {
@@ -164,10 +171,10 @@ study() {
     log "$device: $(cat "$dir.wall") s ($dir/gpustudy/table9.md)"
 }
 study gpu "$out/gpu" ${gpu_env[@]+"${gpu_env[@]}"}
+write_study "$sdir/gpustudy.study" authors "$short"
+study gpu "$out/gpu-short" ${gpu_env[@]+"${gpu_env[@]}"}
+write_study "$sdir/gpustudy.study" authors "$steps"
 study cpu "$out/cpu" OMP_NUM_THREADS="$threads"
-write_study "$sdir/gpustudy.study" eq26
-study gpu "$out/gpu-eq26" ${gpu_env[@]+"${gpu_env[@]}"}
-write_study "$sdir/gpustudy.study" authors
 
 # ---- 3. the packing the table's Lagrangian schemes start from, by consph's model ----
 # `consph study --estimate` adds the packings (its model of their iterations, timed here) to the
@@ -196,25 +203,42 @@ rows() {
         { print $c["scheme"], $c["nx"], $c["n"], $c["steps"], $c["dt"], $c["seconds"] }' \
         "$1/gpustudy/table9.csv"
 }
-# extrapolate DIR: per scheme the full table's step seconds, then the total (see the header)
+# per_row DIR [SHORT]: "scheme nx n per_step_s per_row_s dt" per row: with SHORT (the same
+# study at fewer steps), the slope and intercept of the two runs' seconds against steps; without,
+# the seconds over the steps and no per-row cost
+per_row() {
+    local short=/dev/null
+    [ $# -ge 2 ] && [ -f "$2.wall" ] && short=$2/gpustudy/table9.csv
+    { [ "$short" != /dev/null ] && rows "$2" | sed 's/^/S /'; rows "$1" | sed 's/^/L /'; } |
+        awk '$1 == "S" { k = $2 ":" $3; s1[k] = $5; t1[k] = $7; next }
+             { k = $2 ":" $3
+               if ((k in s1) && $5 > s1[k]) {
+                   per = ($7 - t1[k]) / ($5 - s1[k]); fixed = t1[k] - s1[k] * per
+                   if (fixed < 0) fixed = 0
+               } else { per = $7 / $5; fixed = 0 }
+               printf "%s %s %s %.9g %.9g %s\n", $2, $3, $4, per, fixed, $6 }'
+}
+# extrapolate DIR [SHORT]: per scheme the full table's seconds, then the total (see the header)
 extrapolate() {
     local dir=$1
     [ -f "$dir.wall" ] || { echo "none"; return; }
-    rows "$dir" | awk -v wall="$(cat "$dir.wall")" -v table9="$table9" -v pack="${packing:-0}" '
+    per_row "$@" | awk -v wall="$(cat "$dir.wall")" -v stepsec="$(rows "$dir" | awk '{ s += $6 } END { print s }')" \
+        -v table9="$table9" -v pack="${packing:-0}" '
         BEGIN { split("e-c 1.19 ewcsph 1.00 l-ipst-c 1.53 l-pst-c 2.02 l-rr-c 1.41 pe-ipst-c 1.65 tv-c 1.88 edac 1.00", t, " ")
                 for (i = 1; i < 18; i += 2) tr[t[i]] = t[i + 1] }
-        { full = int(0.5 / $5 + 0.999999); per = $6 / $4
-          f[$1] += per * full; stepsec += $6; nrows++; steps_full = full }
+        { full = int(0.5 / $6 + 0.999999)
+          f[$1] += $4 * full + 25 * $5; fx[$1] += 25 * $5; nrows++; steps_full = full }
         END {
             ref = ("l-ipst-c" in f) ? "l-ipst-c" : "edac"
             n = split(table9, s, " ")
             for (i = 1; i <= n; i++) {
                 v = (s[i] in f) ? f[s[i]] : f[ref] * tr[s[i]] / tr[ref]
-                total += v
+                w = (s[i] in f) ? fx[s[i]] : fx[ref] * tr[s[i]] / tr[ref]
+                total += v; fixed += w
                 how = how sprintf("%s%s %.0f s%s", i > 1 ? ", " : "", s[i], v, (s[i] in f) ? "" : " (T_r)")
             }
             setup = (wall - stepsec) / nrows * 42
-            printf "%.0f|%.0f|%.0f|%d|%s|%s\n", total + setup + pack, setup, total, steps_full, how, ref
+            printf "%.0f|%.0f|%.0f|%.0f|%d|%s|%s\n", total + setup + pack, setup, total - fixed, fixed, steps_full, how, ref
         }'
 }
 md=$out/gpu_study.md
@@ -229,43 +253,56 @@ md=$out/gpu_study.md
     echo "The study: 001-table9's figure (its keys; \`layout = lattice\`), series:$on_gpu, nx $nx,"
     echo "$steps steps per row. Wall time of the whole \`consph study\` (set-up, steps, reports):"
     echo
-    echo "| run | wall s | Σ step s | full 001-table9 extrapolated: total s (h) | of it set-up s | steps s |"
-    echo "|---|---|---|---|---|---|"
-    for d in gpu cpu gpu-eq26; do
-        [ -f "$out/$d.wall" ] || { echo "| $d | not run | | | | |"; continue; }
-        IFS='|' read -r tot setup stp nsteps how ref <<<"$(extrapolate "$out/$d")"
+    echo "| run | wall s | Σ step s | full 001-table9 extrapolated: total s (h) | of it set-up s | steps s | rows' own costs s |"
+    echo "|---|---|---|---|---|---|---|"
+    for d in gpu cpu; do
+        [ -f "$out/$d.wall" ] || { echo "| $d | not run | | | | | |"; continue; }
+        sd=()
+        [ $d = gpu ] && sd=("$out/gpu-short")
+        IFS='|' read -r tot setup stp fixed nsteps how ref <<<"$(extrapolate "$out/$d" "${sd[@]}")"
         sum=$(rows "$out/$d" | awk '{ s += $6 } END { printf "%.2f", s }')
-        echo "| $d | $(cat "$out/$d.wall") | $sum | $tot ($(awk -v t="$tot" 'BEGIN { printf "%.2f", t / 3600 }')) | $setup | $stp |"
+        echo "| $d | $(cat "$out/$d.wall") | $sum | $tot ($(awk -v t="$tot" 'BEGIN { printf "%.2f", t / 3600 }')) | $setup | $stp | $fixed |"
         echo "$d: $how (reference $ref; $nsteps steps per row)" >>"$out/how.txt"
     done
+    [ -f "$out/gpu-short.wall" ] && echo "
+The GPU's short run ($short steps per row): $(cat "$out/gpu-short.wall") s."
     echo
-    echo "Per scheme, the full table's step seconds (\"T_r\": priced from the reference series):"
+    echo "Per scheme, the full table's seconds (\"T_r\": priced from the reference series):"
     echo
     sed 's/^/- /' "$out/how.txt" 2>/dev/null
     echo
-    echo "Per row (wall time per step, ms):"
+    echo "Per row: the GPU's cost per step (ms; log samples included) and per row (ms: set-up, the"
+    echo "first and last samples, two output times), from its $steps- and $short-step runs; the"
+    echo "wall time per step of its $steps-step run; the CPU's wall time per step:"
     echo
-    echo "| scheme | nx | N | GPU ms/step | CPU ms/step | CPU/GPU | GPU eq26 ms/step |"
-    echo "|---|---|---|---|---|---|---|"
-    join_rows() { [ -f "$out/$1.wall" ] && rows "$out/$1" | awk '{ printf "%s:%s %s %.4f\n", $1, $2, $3, 1000 * $6 / $4 }'; }
-    join_rows gpu >"$out/r.gpu"
-    join_rows cpu >"$out/r.cpu"
-    join_rows gpu-eq26 >"$out/r.eq26"
-    awk 'FILENAME ~ /r.cpu$/ { c[$1] = $3; next } FILENAME ~ /r.eq26$/ { e[$1] = $3; next }
-         { k[++n] = $1; N[$1] = $2; g[$1] = $3 }
+    echo "| scheme | nx | N | GPU ms/step | GPU ms/row | GPU ms/step ($steps-step run) | CPU ms/step | CPU/GPU |"
+    echo "|---|---|---|---|---|---|---|---|"
+    : >"$out/r.gpu"
+    : >"$out/r.cpu"
+    [ -f "$out/gpu.wall" ] && per_row "$out/gpu" "$out/gpu-short" |
+        awk '{ printf "%s:%s %s %.4f %.3f\n", $1, $2, $3, 1000 * $4, 1000 * $5 }' >"$out/r.gpu"
+    [ -f "$out/cpu.wall" ] && per_row "$out/cpu" | awk '{ printf "%s:%s %s %.4f\n", $1, $2, $3, 1000 * $4 }' >"$out/r.cpu"
+    [ -f "$out/gpu.wall" ] && per_row "$out/gpu" | awk '{ printf "%s:%s %.4f\n", $1, $2, 1000 * $4 }' >"$out/r.mean"
+    awk 'FILENAME ~ /r.cpu$/ { c[$1] = $3; next } FILENAME ~ /r.mean$/ { m[$1] = $2; next }
+         { k[++n] = $1; N[$1] = $2; g[$1] = $3; r[$1] = $4 }
          END { for (i = 1; i <= n; i++) { split(k[i], a, ":"); x = k[i]
-               printf "| %s | %s | %s | %.3f | %s | %s | %s |\n", a[1], a[2], N[x], g[x],
-                   (x in c) ? sprintf("%.3f", c[x]) : "", (x in c) ? sprintf("%.1f", c[x] / g[x]) : "",
-                   (x in e) ? sprintf("%.3f", e[x]) : "" } }' "$out/r.cpu" "$out/r.eq26" "$out/r.gpu"
+               printf "| %s | %s | %s | %.3f | %.1f | %s | %s | %s |\n", a[1], a[2], N[x], g[x], r[x],
+                   (x in m) ? sprintf("%.3f", m[x]) : "",
+                   (x in c) ? sprintf("%.3f", c[x]) : "", (x in c) ? sprintf("%.1f", c[x] / g[x]) : "" } }' \
+        "$out/r.cpu" "$out/r.mean" "$out/r.gpu"
     echo
-    echo "Method: per scheme and nx, (step seconds / steps) × ceil(0.5/Δt) (Δt from the finest h,"
-    echo "as the table runs); a table-9 scheme the GPU does not run is priced as the reference times"
+    echo "Method: per scheme and nx, on the GPU (seconds per step) × ceil(0.5/Δt) + 25 × (seconds per"
+    echo "row) (Δt from the finest h, as the table runs; the full row's 50 output times priced as 25"
+    echo "times this row's two, set-up included: an upper bound), on the CPU (seconds / steps) ×"
+    echo "ceil(0.5/Δt); a table-9 scheme the GPU does not run is priced as the reference times"
     echo "its 001 Table 9 T_r over the reference's (edac counted as EWCSPH, 1.00); set-up = (wall −"
     echo "Σ step s)/rows × 42 rows; packing: ${packing:-not estimated} s by consph's model on the CPU"
     echo "(\`consph study --estimate\` of the table at one step per row, less the same with every series"
     echo "on the lattice; the packed layouts are made on the host for either device, once per nx, kept"
-    echo "in the layout cache for the other schemes). On the GPU, error = authors copies the particles"
-    echo "back at its output times besides the log samples (docs/gpu.md); gpu-eq26 shows the GPU without those."
+    echo "in the layout cache for the other schemes). A GPU row copies the particles back at every log"
+    echo "sample (every log_every = 10 steps: the host's diagnostics, eq. 26's sum and, with exact ="
+    echo "both, the weakly-compressible reference at every particle) and at the output times of"
+    echo "error = authors (docs/gpu.md)."
 } >"$md"
 cat "$md"
 log "done: $md"
