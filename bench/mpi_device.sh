@@ -200,6 +200,56 @@ if [ -x "$BEFORE" ]; then
     echo "before $(($(date +%s) - t))" >>"$OUTDIR/times.txt"
 fi
 
+# The machine's own ceiling on weak scaling, before the solver's: K independent serial runs of
+# the 1-rank weak case at once, one per CPU (taskset 0..K-1), and two on CPUs 0 and KMAX/2. A
+# rank can at best run as fast as one of these: where the CPUs share cores (hardware threads a
+# VM shows as cores) or memory bandwidth, t(1) / t(K) falls below 1 with no communication at
+# all. CEILING_NX (default 46: 10^5 particles), CEILING_STEPS (default 2); CEILING=0: skip.
+: >"$WORK.ceiling.md"
+if [ "${CEILING:-1}" != 0 ] && command -v taskset >/dev/null; then
+    t=$(date +%s)
+    cnx=${CEILING_NX:-46}
+    csteps=${CEILING_STEPS:-2}
+    # batch CPUS (comma-separated): "K CPUS s n", s the mean of the runs' own steps' seconds
+    batch() {
+        local c pids=() k=0
+        for c in ${1//,/ }; do
+            taskset -c "$c" "$CONSPH" run beltrami --scheme l-ipst-c --layout lattice --threads 1 \
+                --nx "$cnx" --steps "$csteps" >"$WORK.c$k.out" 2>&1 &
+            pids+=($!)
+            k=$((k + 1))
+        done
+        wait "${pids[@]}"
+        for ((j = 0; j < k; j++)); do sed -n 's/^\([0-9.]*\) s, .*/\1/p' "$WORK.c$j.out"; done |
+            awk -v k="$k" -v c="$1" '{ s += $1; n++ } END { if (n) printf "%d %s %.4f %d\n", k, c, s / n, n }'
+        rm -f "$WORK".c*.out
+    }
+    {
+        batch 0
+        for k in $RANKS; do
+            [ $(($(date +%s) - T0)) -lt $((BUDGET / 3)) ] || break
+            batch "$(seq -s, 0 $((k - 1)))"
+        done
+        [ "$KMAX" -ge 4 ] && batch "0,$((KMAX / 2))"
+    } >"$WORK.ceiling.txt"
+    cat "$WORK.ceiling.txt" >>"$OUTDIR/progress.log"
+    {
+        echo
+        echo "### The machine's ceiling: K independent serial runs at once"
+        echo
+        echo "\`taskset -c CPU consph run beltrami --scheme l-ipst-c --layout lattice --threads 1 --nx $cnx"
+        echo "--steps $csteps\` started K times at once, one per CPU (no MPI); s = the mean of the runs' own"
+        echo "steps' seconds (set-up excluded); ceiling = s(1) / s(K): the weak-scaling efficiency no"
+        echo "decomposition can pass on this machine at this size per CPU. runs: how many reported."
+        echo
+        echo "| K | CPUs | s | ceiling | runs |"
+        echo "|---|---|---|---|---|"
+        awk 'NR == 1 { s1 = $3 } { printf "| %d | %s | %.3f | %.2f | %d |\n", $1, $2, $3, s1 / $3, $4 }' \
+            "$WORK.ceiling.txt"
+    } >"$WORK.ceiling.md"
+    echo "ceiling $(($(date +%s) - t))" >>"$OUTDIR/times.txt"
+fi
+
 # The solver: weak scaling, then strong; each run under CASE_TIMEOUT and none past BUDGET - 8 s,
 # no case started after BUDGET - 25 s, cases too big for the memory skipped.
 t=$(date +%s)
@@ -209,7 +259,7 @@ DEADLINE=$((T0 + BUDGET - 25)) HARD_END=$((T0 + BUDGET - 8)) MPIRUN="$MPIRUN" CO
     STEPS2=$STEPS2 CASE_TIMEOUT=${CASE_TIMEOUT:-40} WORK="$WORK" \
     bash "$SCRIPTS/mpi.sh" 2>&1 | tee -a "$OUTDIR/progress.log"
 echo "solver $(($(date +%s) - t))" >>"$OUTDIR/times.txt"
-[ -f "$OUTDIR/mpi.md" ] && cat "$WORK.before.md" >>"$OUTDIR/mpi.md"
+[ -f "$OUTDIR/mpi.md" ] && cat "$WORK.ceiling.md" "$WORK.before.md" >>"$OUTDIR/mpi.md"
 
 # A quick study over ranks, if time is left (its table is appended to mpi.md)
 left=$((T0 + BUDGET - $(date +%s)))
