@@ -9,11 +9,18 @@
 #       14 MB); prints the device command and what it must carry.
 #   bash bench/device_session.sh --run OUTDIR      (there, carrying build-gpu-carry and mpi-carry)
 #       in order, each part with its share of BUDGET seconds (default 540), what is left going on:
-#       1. bench/gpu.sh: the GPU tests and the µs-per-particle-step table (GPU_SHARE, default 45 %);
-#       2. bench/gpu_study.sh: 001-table9's schemes on the GPU, extrapolated (STUDY_SHARE, 25 %);
-#       3. bench/mpi_device.sh: 1-16 ranks, weak scaling at 10^5 per rank (the rest);
-#       and leaves in OUTDIR at most 8 files: gpu.md, gpu_study.md, mpi.md, session.log, and
+#       1. bench/gpu.sh: the GPU tests and the µs-per-particle-step table (GPU_SHARE, default 40 %);
+#       2. bench/gpu_study.sh: 001-table9's schemes on the GPU, extrapolated (STUDY_SHARE, 20 %);
+#       3. bench/gpu_probe.sh: the stages at 001-table9's small resolutions and what a log
+#          sample costs at 250 000 particles (about a minute, PROBE_LIMIT s, default 90);
+#       4. bench/mpi_device.sh: the machine's ceiling, then 1-16 ranks, weak scaling at 10^5 per
+#          rank (the rest; each case up to MPI_CASE_TIMEOUT s, default 120: the 16-rank case's
+#          set-up of 1.6·10^6 particles did not fit 40);
+#       and leaves in OUTDIR 8 files: gpu.md, gpu_study.md, probe.txt, mpi.md, session.log, and
 #       gpu.tar.gz, gpu_study.tar.gz, mpi.tar.gz (every log of each part).
+#       PARTS (default "gpu study probe mpi") runs some of them: a session's 15 device minutes
+#       hold two calls, e.g. PARTS="gpu study probe" BUDGET=400, then PARTS=mpi BUDGET=300 (the
+#       whole weak series to 16 ranks at 10^5 per rank takes about 4 minutes).
 # A part whose carried folder is missing is skipped and said so in session.log.
 set -u
 cd "$(dirname "$0")/.."
@@ -38,8 +45,9 @@ case "$mode" in
     mkdir -p "$out" && out=$(cd "$out" && pwd) || exit 2
     budget=${BUDGET:-540}
     [[ "$budget" =~ ^[0-9]+$ ]] || { echo "bench/device_session.sh: BUDGET must be seconds" >&2; exit 2; }
-    gpu_share=${GPU_SHARE:-45}
-    study_share=${STUDY_SHARE:-25}
+    gpu_share=${GPU_SHARE:-40}
+    study_share=${STUDY_SHARE:-20}
+    parts=" ${PARTS:-gpu study probe mpi} "
     start=$(date +%s)
     work=$(mktemp -d)
     log() { echo "[$(($(date +%s) - start)) s] $*" | tee -a "$out/session.log"; }
@@ -59,28 +67,42 @@ case "$mode" in
         tar -C "$work" -czf "$out/$name.tar.gz" "$name" 2>/dev/null
     }
     if [ -x build-gpu-carry/consph ]; then
-        b=$((budget * gpu_share / 100))
-        log "1. bench/gpu.sh, budget $b s"
-        part gpu $((b + 120)) env BUILD=build-gpu-carry bash bench/gpu.sh --no-build \
-            --budget "$b" --out "$work/gpu"
-        b=$(($(left) * study_share * 100 / (100 - gpu_share) / 100))
-        log "2. bench/gpu_study.sh, budget $b s"
-        part gpu_study $((b + 120)) env BUILD=build-gpu-carry bash bench/gpu_study.sh \
-            --no-build --budget "$b" --out "$work/gpu_study"
-    else
-        log "1-2. skipped: no build-gpu-carry (bash bench/device_session.sh --prep here, then carry it)"
-    fi
-    if [ -x mpi-carry/bin/consph ]; then
-        b=$(($(left) - 20))
-        if [ $b -gt 60 ]; then
-            log "3. bench/mpi_device.sh, budget $b s"
-            part mpi $((b + 60)) env BUDGET="$b" bash mpi-carry/scripts/bench/mpi_device.sh \
-                "$work/mpi"
-        else
-            log "3. skipped: $b s left"
+        # a part left out leaves its share to the others
+        [[ $parts == *" gpu "* ]] || gpu_share=0
+        [[ $parts == *" study "* ]] || study_share=0
+        if [ $gpu_share -gt 0 ]; then
+            b=$((budget * gpu_share / 100))
+            log "1. bench/gpu.sh, budget $b s"
+            part gpu $((b + 120)) env BUILD=build-gpu-carry bash bench/gpu.sh --no-build \
+                --budget "$b" --out "$work/gpu"
+        fi
+        if [ $study_share -gt 0 ]; then
+            b=$(($(left) * study_share * 100 / (100 - gpu_share) / 100))
+            log "2. bench/gpu_study.sh, budget $b s"
+            part gpu_study $((b + 120)) env BUILD=build-gpu-carry bash bench/gpu_study.sh \
+                --no-build --budget "$b" --out "$work/gpu_study"
+        fi
+        if [[ $parts == *" probe "* ]]; then
+            log "3. bench/gpu_probe.sh"
+            timeout "${PROBE_LIMIT:-90}" bash bench/gpu_probe.sh "$out" build-gpu-carry >/dev/null 2>&1
+            log "   exit $?"
         fi
     else
-        log "3. skipped: no mpi-carry (bash bench/device_session.sh --prep here, then carry it)"
+        log "1-3. skipped: no build-gpu-carry (bash bench/device_session.sh --prep here, then carry it)"
+    fi
+    if [[ $parts != *" mpi "* ]]; then
+        :
+    elif [ -x mpi-carry/bin/consph ]; then
+        b=$(($(left) - 20))
+        if [ $b -gt 60 ]; then
+            log "4. bench/mpi_device.sh, budget $b s"
+            part mpi $((b + 60)) env BUDGET="$b" CASE_TIMEOUT="${MPI_CASE_TIMEOUT:-120}" STUDY= \
+                bash mpi-carry/scripts/bench/mpi_device.sh "$work/mpi"
+        else
+            log "4. skipped: $b s left"
+        fi
+    else
+        log "4. skipped: no mpi-carry (bash bench/device_session.sh --prep here, then carry it)"
     fi
     rm -rf "$work"
     log "done"
