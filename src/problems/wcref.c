@@ -788,83 +788,83 @@ eval_sums(const wcref *w, const double *cx, const double *sx, const double *cy, 
 
 /* ---- many points at once ----
  *
- * eval_sums at W points at once, a lane a point: each lane makes its point's operations in
+ * eval_sums at four points at once, a lane a point: each lane makes its point's operations in
  * eval_sums' order (the coefficients broadcast, not the factors), so that every value is that
  * point's eval_sums' bit for bit, in half of the vector operations (eval_sums spends its lanes
  * on the fields, which share the factors). Built for AVX2 only, where the vectors are the
  * machine's own: a compiler splits them into scalars elsewhere, which was 4-6 times slower
  * than eval_sums. The target enables no FMA (and ISO C contracts nothing). Axis factors: from
  * the tables or taken at the point. */
-#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__)
-#define WCREF_BATCH(name, W, target)                                                               \
-    target static void name(const wcref *w, size_t i0, size_t i1, const double *x,                 \
-                            const double *y, const double *tabx, const size_t *whichx,             \
-                            const double *taby, const size_t *whichy, double *u, double *v,        \
-                            double *rho)                                                           \
-    {                                                                                              \
-        typedef double lanes __attribute__((vector_size(8 * W)));                                  \
-        const int K = w->K, m = 2 * K + 1, my = K + 1;                                             \
-        double fx[W][2 * (2 * KMAX + 1)], fy[W][2 * (KMAX + 1)];                                   \
-        lanes C[2 * KMAX + 1], S[2 * KMAX + 1], NS[2 * KMAX + 1];                                  \
-        for (size_t i = i0; i + W <= i1; i += W) {                                                 \
-            const double *ex[W], *ey[W];                                                           \
-            for (int k = 0; k < W; ++k) {                                                          \
-                const size_t j = i + (size_t)k;                                                    \
-                if (tabx) {                                                                        \
-                    ex[k] = tabx + 2 * (size_t)m * whichx[j];                                      \
-                } else {                                                                           \
-                    axis_x(w, x[j], fx[k], fx[k] + m);                                             \
-                    ex[k] = fx[k];                                                                 \
-                }                                                                                  \
-                if (taby) {                                                                        \
-                    ey[k] = taby + 2 * (size_t)my * whichy[j];                                     \
-                } else {                                                                           \
-                    axis_y(w, y[j], fy[k], fy[k] + my);                                            \
-                    ey[k] = fy[k];                                                                 \
-                }                                                                                  \
-            }                                                                                      \
-            for (int a = 0; a < m; ++a)                                                            \
-                for (int k = 0; k < W; ++k) {                                                      \
-                    C[a][k] = ex[k][a];                                                            \
-                    S[a][k] = ex[k][m + a];                                                        \
-                    NS[a][k] = -ex[k][m + a];                                                      \
-                }                                                                                  \
-            lanes o0 = {0.0}, o1 = {0.0}, o2 = {0.0};                                              \
-            for (int b = 0; b <= K; ++b) {                                                         \
-                const double *e = w->ev + (size_t)b * (size_t)m * EV_STRIDE;                       \
-                lanes r0 = {0.0}, q0 = {0.0}, r1 = {0.0}, q1 = {0.0}, r2 = {0.0}, q2 = {0.0};      \
-                for (int a = 0; a < m; ++a, e += EV_STRIDE) {                                      \
-                    /* eval_layout's Re c0, Re c1, Im c0, Im c1, Re c2, Im c2 */                   \
-                    const double cr0 = e[0], cr1 = e[2], ci0 = e[4], ci1 = e[6], cr2 = e[8],       \
-                                 ci2 = e[10];                                                      \
-                    r0 += cr0 * C[a] + ci0 * NS[a];                                                \
-                    q0 += cr0 * S[a] + ci0 * C[a];                                                 \
-                    r1 += cr1 * C[a] + ci1 * NS[a];                                                \
-                    q1 += cr1 * S[a] + ci1 * C[a];                                                 \
-                    r2 += cr2 * C[a] + ci2 * NS[a];                                                \
-                    q2 += cr2 * S[a] + ci2 * C[a];                                                 \
-                }                                                                                  \
-                lanes cy, sy;                                                                      \
-                for (int k = 0; k < W; ++k) {                                                      \
-                    cy[k] = ey[k][b];                                                              \
-                    sy[k] = ey[k][my + b];                                                         \
-                }                                                                                  \
-                const double wb = b ? 2.0 : 1.0;                                                   \
-                o0 += wb * (r0 * cy - q0 * sy);                                                    \
-                o1 += wb * (r1 * cy - q1 * sy);                                                    \
-                o2 += wb * (r2 * cy - q2 * sy);                                                    \
-            }                                                                                      \
-            for (int k = 0; k < W; ++k) {                                                          \
-                rho[i + (size_t)k] = w->p.rho0 + o0[k];                                            \
-                u[i + (size_t)k] = o1[k];                                                          \
-                v[i + (size_t)k] = o2[k];                                                          \
-            }                                                                                      \
-        }                                                                                          \
-    }
-#if defined(WCREF_DISPATCH) || defined(__AVX2__)
-WCREF_BATCH(eval_lanes4, 4, __attribute__((target("avx2"))))
+#if defined(__GNUC__) && !defined(__clang__) && defined(__x86_64__) &&                             \
+    (defined(WCREF_DISPATCH) || defined(__AVX2__))
 #define WCREF_LANES4 1
-#endif
+enum { EVW = 4 }; /* the points of a vector */
+
+__attribute__((target("avx2"))) static void eval_lanes4(const wcref *w, size_t i0, size_t i1,
+                                                        const double *x, const double *y,
+                                                        const double *tabx, const size_t *whichx,
+                                                        const double *taby, const size_t *whichy,
+                                                        double *u, double *v, double *rho)
+{
+    typedef double lanes __attribute__((vector_size(8 * EVW)));
+    const int K = w->K, m = 2 * K + 1, my = K + 1;
+    double fx[EVW][2 * (2 * KMAX + 1)], fy[EVW][2 * (KMAX + 1)];
+    lanes C[2 * KMAX + 1], S[2 * KMAX + 1], NS[2 * KMAX + 1];
+    for (size_t i = i0; i + EVW <= i1; i += EVW) {
+        const double *ex[EVW], *ey[EVW];
+        for (int k = 0; k < EVW; ++k) {
+            const size_t j = i + (size_t)k;
+            if (tabx) {
+                ex[k] = tabx + 2 * (size_t)m * whichx[j];
+            } else {
+                axis_x(w, x[j], fx[k], fx[k] + m);
+                ex[k] = fx[k];
+            }
+            if (taby) {
+                ey[k] = taby + 2 * (size_t)my * whichy[j];
+            } else {
+                axis_y(w, y[j], fy[k], fy[k] + my);
+                ey[k] = fy[k];
+            }
+        }
+        for (int a = 0; a < m; ++a)
+            for (int k = 0; k < EVW; ++k) {
+                C[a][k] = ex[k][a];
+                S[a][k] = ex[k][m + a];
+                NS[a][k] = -ex[k][m + a];
+            }
+        lanes o0 = {0.0}, o1 = {0.0}, o2 = {0.0};
+        for (int b = 0; b <= K; ++b) {
+            const double *e = w->ev + (size_t)b * (size_t)m * EV_STRIDE;
+            lanes r0 = {0.0}, q0 = {0.0}, r1 = {0.0}, q1 = {0.0}, r2 = {0.0}, q2 = {0.0};
+            for (int a = 0; a < m; ++a, e += EV_STRIDE) {
+                /* eval_layout's Re c0, Re c1, Im c0, Im c1, Re c2, Im c2 */
+                const double cr0 = e[0], cr1 = e[2], ci0 = e[4], ci1 = e[6], cr2 = e[8],
+                             ci2 = e[10];
+                r0 += cr0 * C[a] + ci0 * NS[a];
+                q0 += cr0 * S[a] + ci0 * C[a];
+                r1 += cr1 * C[a] + ci1 * NS[a];
+                q1 += cr1 * S[a] + ci1 * C[a];
+                r2 += cr2 * C[a] + ci2 * NS[a];
+                q2 += cr2 * S[a] + ci2 * C[a];
+            }
+            lanes cy, sy;
+            for (int k = 0; k < EVW; ++k) {
+                cy[k] = ey[k][b];
+                sy[k] = ey[k][my + b];
+            }
+            const double wb = b ? 2.0 : 1.0;
+            o0 += wb * (r0 * cy - q0 * sy);
+            o1 += wb * (r1 * cy - q1 * sy);
+            o2 += wb * (r2 * cy - q2 * sy);
+        }
+        for (int k = 0; k < EVW; ++k) {
+            rho[i + (size_t)k] = w->p.rho0 + o0[k];
+            u[i + (size_t)k] = o1[k];
+            v[i + (size_t)k] = o2[k];
+        }
+    }
+}
 #endif
 
 /* The points eval_many takes at once on this machine: 4 (AVX2), or 0 (each alone; also where
