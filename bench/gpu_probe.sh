@@ -7,7 +7,9 @@
 #   2. what a log sample costs at 250 000 particles: `consph run --device gpu` of 100 steps
 #      with and without log samples (--log-every 10 and 100000), with --exact both and
 #      incompressible (the weakly-compressible reference at every particle, or not), and with
-#      --error eq26 (no output times of the authors' measure).
+#      --error eq26 (no output times of the authors' measure), each with the parts of its samples'
+#      time (CONSPH_SAMPLE_SECONDS=1: copy back, search, checks, diagnostics, authors' measure,
+#      the reference's steps, evaluation and rest).
 # Writes OUT/probe.txt: bench_gpu's lines (stage_<name>_ms=, stage_wall_ms=) and the runs' lines.
 # Usage: bash bench/gpu_probe.sh OUT [BUILD]   (BUILD: default build-gpu; carried builds work)
 set -u
@@ -29,8 +31,9 @@ for k in "l-ipst-c both 10 authors" "l-ipst-c both 100000 authors" "l-ipst-c inc
     "l-ipst-c both 10 eq26" "l-ipst-c incompressible 10 eq26" "l-ipst-c incompressible 100000 eq26" \
     "edac both 10 eq26" "edac incompressible 100000 eq26"; do
     set -- $k
-    r=$(timeout 40 "$c" run taylor-green --scheme "$1" --nx 500 --c0 80 --layout lattice --exact "$2" \
-        --error "$4" --steps 100 --log-every "$3" --device gpu 2>&1 | grep 'per particle-step')
+    r=$(CONSPH_SAMPLE_SECONDS=1 timeout 40 "$c" run taylor-green --scheme "$1" --nx 500 --c0 80 \
+        --layout lattice --exact "$2" --error "$4" --steps 100 --log-every "$3" --device gpu 2>&1 |
+        grep -E 'per particle-step|^consph: [0-9]+ log samples' | tr '\n' ' ')
     echo "run $1 --exact $2 --log-every $3 --error $4 (nx 500, 100 steps): ${r:-failed}" >>"$f"
 done
 cat "$f"

@@ -73,6 +73,16 @@ copies=$(CONSPH_GPU_BACKEND=emulation CONSPH_GPU_COUNT_COPIES=1 "$consph" run ta
     --scheme edac --nx 12 --steps 30 --log-every 10 --error authors --error-times 6 --device gpu \
     2>&1 >/dev/null | sed -n 's/^GPU: \([0-9]*\) copies back.*/\1/p')
 [ "$copies" = 7 ] && pass=$((pass + 1)) || bad "error authors: ${copies:-no count of} copies back, not 7"
+# the hook CONSPH_SAMPLE_SECONDS: the log samples counted (t = 0, 10, 20, 30) and each part timed
+line=$(CONSPH_GPU_BACKEND=emulation CONSPH_SAMPLE_SECONDS=1 "$consph" run taylor-green \
+    --scheme edac --nx 12 --steps 30 --log-every 10 --error authors --error-times 6 --exact both \
+    --device gpu 2>&1 >/dev/null | grep '^consph: [0-9]* log samples')
+n='[0-9]+\.[0-9]+ s'
+if [[ "$line" =~ ^consph:\ 4\ log\ samples\;\ all\ samples:\ copy\ back\ $n,\ search\ $n,\ checks\ $n,\ diagnostics\ $n,\ authors\'\ measure\ $n,\ reference\ steps\ $n,\ reference\ evaluation\ $n,\ reference\ rest\ $n$ ]]; then
+    pass=$((pass + 1))
+else
+    bad "CONSPH_SAMPLE_SECONDS: '${line:-no line}'"
+fi
 same_files emulation "taylor-green --scheme l-ipst-c --nx 12 --tf 0.02 --log-every 50 --error authors --error-times 4"
 
 run --scheme edac --device gpu >"$work/o" 2>"$work/err"

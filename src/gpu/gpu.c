@@ -434,8 +434,10 @@ static int copy_back(consph_solver *s, int all)
                 if (k < (int)sizeof want) want[k++] = (unsigned char)read;
         }
     }
+    double t0 = consph_wtime();
     int st = copy_arrays(s, 0, all ? NULL : want);
     if (st == CONSPH_OK) st = pairs_back(s);
+    s->sample_seconds[SAMPLE_COPY] += consph_wtime() - t0;
     if (st != CONSPH_OK) return st;
     ++s->gpu->downloads;
     const double *id = sv_field(s, SF_ID, 1);
@@ -443,7 +445,10 @@ static int copy_back(consph_solver *s, int all)
     if (s->sys.origin)
         for (size_t i = 0; i < p->n; ++i) s->sys.origin[i] = (size_t)id[i];
     /* the host search on the positions the step left, as the CPU's drift leaves it */
-    return consph_sys_update(&s->sys, 0);
+    t0 = consph_wtime();
+    st = consph_sys_update(&s->sys, 0);
+    s->sample_seconds[SAMPLE_SEARCH] += consph_wtime() - t0;
+    return st;
 }
 
 int gpu_download(consph_solver *s)

@@ -61,11 +61,18 @@ static int wcref_make(consph_solver *s)
 int solver_exact_prepare(consph_solver *s)
 {
     if (s->prm.exact == CONSPH_EXACT_INCOMPRESSIBLE) return CONSPH_OK;
-    if (!s->wc) {
-        int st = wcref_make(s);
-        if (st != CONSPH_OK) return st;
-    }
-    return wcref_advance(s->wc, s->t);
+    const double t0 = consph_wtime();
+    int st = s->wc ? CONSPH_OK : wcref_make(s);
+    if (st == CONSPH_OK) st = wcref_advance(s->wc, s->t);
+    s->sample_seconds[SAMPLE_WC_STEPS] += consph_wtime() - t0;
+    return st;
+}
+
+/* The reference's share of sample_seconds so far (to leave it out of its callers' parts). */
+static double wc_seconds(const consph_solver *s)
+{
+    const double *t = s->sample_seconds;
+    return t[SAMPLE_WC_STEPS] + t[SAMPLE_WC_EVAL] + t[SAMPLE_WC_REST];
 }
 
 static void wc_exact(const consph_solver *s, const double x[3], double u[3], double *p)
@@ -125,12 +132,16 @@ int solver_wc_side(consph_solver *s, double *eu, double *ep, double *nu, double 
     if (!u || !pr) return consph_fail(CONSPH_EINVAL, "solver state missing");
     int st = solver_exact_prepare(s);
     if (st != CONSPH_OK) return st;
+    const double t0 = consph_wtime();
     double *a = columns_buffer(&s->wc_buf, &s->wc_cap, n, 7);
     if (!a) return CONSPH_ENOMEM;
     double *mu = a + n, *b = a + 2 * n, *pe = a + 3 * n;
-    /* wc_exact at every particle, each distinct coordinate's Fourier factors once */
+    /* wc_exact at every particle (wcref_eval_many) */
     double *wu = a + 4 * n, *wv = a + 5 * n, *wrho = a + 6 * n;
+    const double t1 = consph_wtime();
     st = wcref_eval_many(s->wc, n, p->x[0], p->x[1], wu, wv, wrho, n >= SOLVER_PARALLEL_MIN);
+    const double t2 = consph_wtime();
+    s->sample_seconds[SAMPLE_WC_EVAL] += t2 - t1;
     if (st != CONSPH_OK) return st;
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
@@ -149,6 +160,7 @@ int solver_wc_side(consph_solver *s, double *eu, double *ep, double *nu, double 
     *ep = sp * inv_n;
     *nu = su / consph_sum(mu, n);
     *np = sp / (double)n / max_abs(pe, n);
+    s->sample_seconds[SAMPLE_WC_REST] += (t1 - t0) + (consph_wtime() - t2);
     return CONSPH_OK;
 }
 
@@ -183,7 +195,10 @@ int solver_sample(consph_solver *s)
 {
     if (s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step) return CONSPH_OK;
     consph_step_diag g;
+    const double t0 = consph_wtime(), w0 = wc_seconds(s);
     int st = consph_solver_diag(s, &g);
+    s->sample_seconds[SAMPLE_DIAG] += consph_wtime() - t0 - (wc_seconds(s) - w0);
+    ++s->sample_count;
     if (st != CONSPH_OK) return st;
     if (s->nhist) {
         /* 001 eq. 26: Σ_j mean|f - f_o|(t_j) (t_j - t_{j-1}) over the samples t_j */
@@ -379,7 +394,11 @@ int solver_auth_advance(consph_solver *s, int landed)
  * cut to end on it. */
 int solver_auth_after_step(consph_solver *s, int landed)
 {
-    return solver_auth_advance(s, landed) ? solver_auth_sample(s) : CONSPH_OK;
+    if (!solver_auth_advance(s, landed)) return CONSPH_OK;
+    const double t0 = consph_wtime(), w0 = wc_seconds(s);
+    const int st = solver_auth_sample(s);
+    s->sample_seconds[SAMPLE_AUTH] += consph_wtime() - t0 - (wc_seconds(s) - w0);
+    return st;
 }
 
 /* ---- diagnostics ---- */

@@ -406,6 +406,15 @@ int solver_create_cut(consph_solver **out, const consph_run_params *prm,
 void consph_solver_free(consph_solver *s)
 {
     if (!s) return;
+    if (getenv("CONSPH_SAMPLE_SECONDS")) {
+        const double *t = s->sample_seconds;
+        fprintf(stderr,
+                "consph: %ld log samples; all samples: copy back %.4f s, search %.4f s, checks "
+                "%.4f s, diagnostics %.4f s, authors' measure %.4f s, reference steps %.4f s, "
+                "reference evaluation %.4f s, reference rest %.4f s\n",
+                s->sample_count, t[SAMPLE_COPY], t[SAMPLE_SEARCH], t[SAMPLE_CHECKS], t[SAMPLE_DIAG],
+                t[SAMPLE_AUTH], t[SAMPLE_WC_STEPS], t[SAMPLE_WC_EVAL], t[SAMPLE_WC_REST]);
+    }
     gpu_free(s->gpu);
     consph_sys_free(&s->sys);
     free(s->hist);
@@ -634,7 +643,11 @@ static int step_close(consph_solver *s, void *arg)
         st = gpu_download_sample(s);
         on_host = 1;
     }
-    if (st == CONSPH_OK && on_host) st = solver_check_valid(s);
+    if (st == CONSPH_OK && on_host) {
+        const double t0 = consph_wtime();
+        st = solver_check_valid(s);
+        s->sample_seconds[SAMPLE_CHECKS] += consph_wtime() - t0;
+    }
     return st == CONSPH_OK ? step_sample(s, a) : st;
 }
 

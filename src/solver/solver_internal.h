@@ -233,6 +233,22 @@ const problem_def *problem_find(const char *name);
 int problem_outputs(consph_solver *s, const char *dir);
 
 /* ---- the solver ---- */
+/* The parts of the samples' time (consph_solver.sample_seconds), disjoint: the GPU's copy back
+ * and the host's search on it, the validity checks, the diagnostics and the authors' measure
+ * (each without the reference), and the weakly-compressible reference's time steps, its
+ * evaluation at the particles and the rest of its side (for every caller). */
+enum {
+    SAMPLE_COPY,
+    SAMPLE_SEARCH,
+    SAMPLE_CHECKS,
+    SAMPLE_DIAG,
+    SAMPLE_AUTH,
+    SAMPLE_WC_STEPS,
+    SAMPLE_WC_EVAL,
+    SAMPLE_WC_REST,
+    SAMPLE_PARTS
+};
+
 struct consph_solver {
     consph_run_params prm;
     const scheme_def *scheme;
@@ -279,6 +295,10 @@ struct consph_solver {
     double wcs_u_acc, wcs_p_acc, wcs_auth_u_acc, wcs_auth_p_acc;
     double *wc_buf; /* solver_wc_side's per-particle terms */
     size_t wc_cap;
+    /* where the samples' time goes (SAMPLE_*), printed at the end with CONSPH_SAMPLE_SECONDS=1:
+     * a diagnostic hook for the GPU's log samples, whose host work bounds a study there */
+    double sample_seconds[SAMPLE_PARTS];
+    long sample_count;
     struct gpu_run *gpu;    /* --device gpu: the steps run there (src/gpu/); NULL: on the CPU */
     struct par_solver *par; /* decomposed over MPI ranks (src/par/par_solver.h); NULL: serial */
     /* a rank's part of a checkpoint, restored to be cut (range.n > 0: consph_par_run_restart) */
