@@ -34,6 +34,7 @@ case "$mode" in
         cp build-gpu/bench/bench_gpu build-gpu-carry/bench/ &&
         cp build-gpu/tests/test_gpu_emul build-gpu/tests/test_gpu_cuda build-gpu-carry/tests/ ||
         exit 1
+    strip build-gpu-carry/consph build-gpu-carry/bench/bench_gpu build-gpu-carry/tests/* 2>/dev/null
     bash bench/mpi_carry.sh mpi-carry || exit 1
     echo "device_session: prepared build-gpu-carry ($(du -sh build-gpu-carry | cut -f1)) and" \
         "mpi-carry ($(du -sh mpi-carry | cut -f1)); on the device run (carry both):"

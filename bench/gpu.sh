@@ -26,7 +26,9 @@
 #   --budget S    no case starts after S seconds (default 330); each case runs under timeout
 #   --no-build    use build-gpu/ as it is
 #   --build-only  build build-gpu/ and stop
-# Environment: NVCC (the compiler; "none": build without CUDA), BUILD (default build-gpu),
+# Environment: NVCC (the compiler; "none": build without CUDA), CUDA_ARCHS (the GPU
+# architectures, CMake's list; default: 90 with --build-only, for the lent H100/H200, else the
+# project's 80;90), BUILD (default build-gpu),
 # CASES (a list of dim:nx, default "2:316 2:1000 3:100 2:3162"), SCHEMES (default "edac l-ipst-c";
 # the GPU runs edac, wcsph, 001-table9's schemes and the δ family; the pair columns count
 # l-ipst-c's and the δ family's passes, not the other 001 schemes'), LIPSTC_LAYOUT (l-ipst-c's and
@@ -60,6 +62,11 @@ if [ $build = 1 ]; then
     else
         log "build: $nvcc"
         cuda=(-DCONSPH_CUDA=ON -DCMAKE_CUDA_COMPILER="$nvcc")
+        # a build carried to the lent machine (an H100 or H200) needs sm_90's code alone: about
+        # a fifth smaller (consph 8.3 -> 6.5 MB), and the carry has a limit of 64 MiB
+        archs=${CUDA_ARCHS:-}
+        [ -z "$archs" ] && [ $build_only = 1 ] && archs=90
+        [ -n "$archs" ] && cuda+=(-DCMAKE_CUDA_ARCHITECTURES="$archs")
     fi
     # no MPI: a build carried to another machine then needs only the C, OpenMP and zlib
     # runtimes and the GPU driver there
