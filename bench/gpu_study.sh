@@ -207,9 +207,7 @@ rows() {
 # study at fewer steps), the slope and intercept of the two runs' seconds against steps; without,
 # the seconds over the steps and no per-row cost
 per_row() {
-    local short=/dev/null
-    [ $# -ge 2 ] && [ -f "$2.wall" ] && short=$2/gpustudy/table9.csv
-    { [ "$short" != /dev/null ] && rows "$2" | sed 's/^/S /'; rows "$1" | sed 's/^/L /'; } |
+    { [ $# -ge 2 ] && [ -f "$2.wall" ] && rows "$2" | sed 's/^/S /'; rows "$1" | sed 's/^/L /'; } |
         awk '$1 == "S" { k = $2 ":" $3; s1[k] = $5; t1[k] = $7; next }
              { k = $2 ":" $3
                if ((k in s1) && $5 > s1[k]) {

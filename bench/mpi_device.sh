@@ -244,7 +244,9 @@ if [ "${CEILING:-1}" != 0 ] && command -v taskset >/dev/null; then
         echo
         echo "| K | CPUs | s | ceiling | runs |"
         echo "|---|---|---|---|---|"
-        awk 'NR == 1 { s1 = $3 } { printf "| %d | %s | %.3f | %.2f | %d |\n", $1, $2, $3, s1 / $3, $4 }' \
+        # the ceiling against the lone run on CPU 0 (none where that run reported nothing)
+        awk 'NR == 1 && $1 == 1 { s1 = $3 }
+             { printf "| %d | %s | %.3f | %s | %d |\n", $1, $2, $3, s1 ? sprintf("%.2f", s1 / $3) : "-", $4 }' \
             "$WORK.ceiling.txt"
     } >"$WORK.ceiling.md"
     echo "ceiling $(($(date +%s) - t))" >>"$OUTDIR/times.txt"

@@ -877,9 +877,9 @@ static int eval_lanes(void)
     if (cap && !strcmp(cap, "0")) return 0;
 #if defined(WCREF_DISPATCH)
     __builtin_cpu_init();
-    return __builtin_cpu_supports("avx2") ? 4 : 0;
+    return __builtin_cpu_supports("avx2") ? EVW : 0;
 #elif defined(WCREF_LANES4)
-    return 4;
+    return EVW;
 #else
     return 0;
 #endif
@@ -961,17 +961,19 @@ WCREF_CLONES static void eval_points(const wcref *w, size_t i0, size_t i1, const
     }
 }
 
-/* Points [i0, i1): whole groups of `lanes` points at once (eval_lanes), the rest one by one. */
+/* Points [i0, i1): whole groups of four at once where eval_lanes said so, the rest one by one. */
 static void eval_range(const wcref *w, size_t i0, size_t i1, const double *x, const double *y,
                        eval_axis ax, eval_axis ay, double *u, double *v, double *rho, int lanes)
 {
     size_t j = i0;
-    if (lanes > 0) {
-        j = i0 + (i1 - i0) / (size_t)lanes * (size_t)lanes;
 #if defined(WCREF_LANES4)
-        if (lanes == 4) eval_lanes4(w, i0, j, x, y, ax.tab, ax.which, ay.tab, ay.which, u, v, rho);
-#endif
+    if (lanes == EVW) {
+        j = i0 + (i1 - i0) / EVW * EVW;
+        eval_lanes4(w, i0, j, x, y, ax.tab, ax.which, ay.tab, ay.which, u, v, rho);
     }
+#else
+    (void)lanes;
+#endif
     eval_points(w, j, i1, x, y, ax, ay, u, v, rho);
 }
 
