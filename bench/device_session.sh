@@ -43,12 +43,20 @@ case "$mode" in
 --run)
     [ $# -ge 2 ] || { echo "bench/device_session.sh: --run needs an output folder" >&2; exit 2; }
     out=$2
-    mkdir -p "$out" && out=$(cd "$out" && pwd) || exit 2
+    parts=" ${PARTS:-gpu study probe mpi} "
+    for p in $parts; do
+        case $p in gpu | study | probe | mpi) ;;
+        *) echo "bench/device_session.sh: PARTS has '$p' (allowed: gpu study probe mpi)" >&2; exit 2 ;;
+        esac
+    done
+    for v in PROBE_LIMIT MPI_CASE_TIMEOUT GPU_SHARE STUDY_SHARE; do
+        [[ "${!v:-1}" =~ ^[0-9]+$ ]] || { echo "bench/device_session.sh: $v must be a whole number" >&2; exit 2; }
+    done
     budget=${BUDGET:-540}
     [[ "$budget" =~ ^[0-9]+$ ]] || { echo "bench/device_session.sh: BUDGET must be seconds" >&2; exit 2; }
+    mkdir -p "$out" && out=$(cd "$out" && pwd) || exit 2
     gpu_share=${GPU_SHARE:-40}
     study_share=${STUDY_SHARE:-20}
-    parts=" ${PARTS:-gpu study probe mpi} "
     start=$(date +%s)
     work=$(mktemp -d)
     log() { echo "[$(($(date +%s) - start)) s] $*" | tee -a "$out/session.log"; }

@@ -37,6 +37,10 @@ SCRIPTS=$CARRY/scripts/bench
 [ -f "$SCRIPTS/mpi.sh" ] || SCRIPTS=$HERE
 RANKS=${RANKS:-"2 4 8 16"}
 BUDGET=${BUDGET:-175}
+cnx=${CEILING_NX:-46}
+csteps=${CEILING_STEPS:-2}
+[[ "$cnx" =~ ^[1-9][0-9]*$ && "$csteps" =~ ^[1-9][0-9]*$ ]] ||
+    { echo "mpi_device: CEILING_NX and CEILING_STEPS must be whole numbers > 0" >&2; exit 2; }
 STUDY=${STUDY-003-kernels}
 KMAX=1
 for k in $RANKS; do KMAX=$k; done
@@ -208,8 +212,6 @@ fi
 : >"$WORK.ceiling.md"
 if [ "${CEILING:-1}" != 0 ] && command -v taskset >/dev/null; then
     t=$(date +%s)
-    cnx=${CEILING_NX:-46}
-    csteps=${CEILING_STEPS:-2}
     # batch CPUS (comma-separated): "K CPUS s n", s the mean of the runs' own steps' seconds
     batch() {
         local c pids=() k=0
