@@ -9,7 +9,9 @@
 #      incompressible (the weakly-compressible reference at every particle, or not), and with
 #      --error eq26 (no output times of the authors' measure), each with the parts of its samples'
 #      time (CONSPH_SAMPLE_SECONDS=1: copy back, search, checks, diagnostics, authors' measure,
-#      the reference's steps, evaluation and rest).
+#      the reference's steps, evaluation and rest), and for three of them again with the samples
+#      in line (CONSPH_SAMPLE_OVERLAP=0) instead of on a host thread beside the steps (the
+#      default on a GPU, src/solver/sampler.c; its line says how long the steps waited for them).
 # Writes OUT/probe.txt: bench_gpu's lines (stage_<name>_ms=, stage_wall_ms=) and the runs' lines.
 # Usage: bash bench/gpu_probe.sh OUT [BUILD]   (BUILD: default build-gpu; carried builds work)
 set -u
@@ -27,13 +29,15 @@ for k in edac:50 edac:100 e-c:50 e-c:250 l-ipst-c:50 l-ipst-c:100 l-ipst-c:250; 
     timeout 30 "$b" --scheme "$s" --problem taylor-green --nx "$nx" --gpu-steps 200 --stages 100 \
         --cpu-steps 0 --serial-steps 0 --layout lattice >>"$f" 2>&1
 done
-for k in "l-ipst-c both 10 authors" "l-ipst-c both 100000 authors" "l-ipst-c incompressible 10 authors" \
-    "l-ipst-c both 10 eq26" "l-ipst-c incompressible 10 eq26" "l-ipst-c incompressible 100000 eq26" \
-    "edac both 10 eq26" "edac incompressible 100000 eq26"; do
+for k in "l-ipst-c both 10 authors" "l-ipst-c both 10 authors 0" "l-ipst-c both 100000 authors" \
+    "l-ipst-c incompressible 10 authors" "l-ipst-c both 10 eq26" "l-ipst-c both 10 eq26 0" \
+    "l-ipst-c incompressible 10 eq26" "l-ipst-c incompressible 100000 eq26" "edac both 10 eq26" \
+    "edac both 10 eq26 0" "edac incompressible 100000 eq26"; do
     set -- $k
-    r=$(CONSPH_SAMPLE_SECONDS=1 timeout 40 "$c" run taylor-green --scheme "$1" --nx 500 --c0 80 \
+    ov=${5:-}
+    r=$(CONSPH_SAMPLE_OVERLAP=$ov CONSPH_SAMPLE_SECONDS=1 timeout 40 "$c" run taylor-green --scheme "$1" --nx 500 --c0 80 \
         --layout lattice --exact "$2" --error "$4" --steps 100 --log-every "$3" --device gpu 2>&1 |
         grep -E 'per particle-step|^consph: [0-9]+ log samples' | tr '\n' ' ')
-    echo "run $1 --exact $2 --log-every $3 --error $4 (nx 500, 100 steps): ${r:-failed}" >>"$f"
+    echo "run $1 --exact $2 --log-every $3 --error $4${ov:+ CONSPH_SAMPLE_OVERLAP=$ov} (nx 500, 100 steps): ${r:-failed}" >>"$f"
 done
 cat "$f"

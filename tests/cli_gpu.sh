@@ -5,7 +5,7 @@
 # (CONSPH_GPU_BACKEND=emulation), and on the GPU where one is found: the run's log, snapshots,
 # final checkpoint and summary equal the CPU run's byte for byte (edac, wcsph and tvf, 2D and 3D;
 # l-ipst-c, l-pst-c, e-c, l-rr-c; delta-plus-sph, delta-plus-sph-d; --error authors, whose run
-# copies back at its output times only).
+# copies back at its output times only; the log samples on a host thread beside the steps).
 # Usage: bash cli_gpu.sh PATH-TO-CONSPH SOURCE-DIR
 set -u
 consph=$1
@@ -84,6 +84,27 @@ else
     bad "CONSPH_SAMPLE_SECONDS: '${line:-no line}'"
 fi
 same_files emulation "taylor-green --scheme l-ipst-c --nx 12 --tf 0.02 --log-every 50 --error authors --error-times 4"
+# the log samples on a host thread beside the device's steps (src/solver/sampler.c: a GPU's
+# default, the emulation's with CONSPH_SAMPLE_OVERLAP=1): the CPU's files still, with samples
+# between snapshots, output times of the authors' measure and the reference's sums
+export CONSPH_SAMPLE_OVERLAP=1
+same_files emulation "taylor-green --scheme l-ipst-c --nx 16 --steps 13 --log-every 2 --snapshot-every 6 --exact both --error authors --error-times 4"
+same_files emulation "taylor-green --scheme edac --nx 24 --tf 0.03 --log-every 3 --snapshot-every 5 --exact both --threads 2"
+same_files emulation "beltrami --scheme tvf --nx 8 --steps 7 --log-every 2 --snapshot-every 4"
+# ... and they ran there: steps 10, 20 and 30 (t = 0 is the set-up's, in line)
+line=$(CONSPH_GPU_BACKEND=emulation CONSPH_SAMPLE_SECONDS=1 "$consph" run taylor-green \
+    --scheme edac --nx 12 --steps 30 --log-every 10 --error authors --error-times 6 --exact both \
+    --device gpu 2>&1 >/dev/null | grep 'beside the steps')
+if [[ "$line" =~ ^consph:\ 3\ log\ samples\ beside\ the\ steps\;\ waited\ for\ them\ $n$ ]]; then
+    pass=$((pass + 1))
+else
+    bad "CONSPH_SAMPLE_OVERLAP=1: '${line:-no line}'"
+fi
+export CONSPH_SAMPLE_OVERLAP=0
+line=$(CONSPH_GPU_BACKEND=emulation CONSPH_SAMPLE_SECONDS=1 "$consph" run taylor-green \
+    --scheme edac --nx 12 --steps 30 --log-every 10 --device gpu 2>&1 >/dev/null | grep -c 'beside')
+[ "$line" = 0 ] && pass=$((pass + 1)) || bad "CONSPH_SAMPLE_OVERLAP=0 still overlapped"
+unset CONSPH_SAMPLE_OVERLAP
 
 run --scheme edac --device gpu >"$work/o" 2>"$work/err"
 rc=$?

@@ -419,6 +419,9 @@ static int pairs_back(consph_solver *s)
 static int copy_back(consph_solver *s, int all)
 {
     if (!s->gpu) return CONSPH_OK;
+    /* a sample on the host thread may still read the arrays this copy writes */
+    const int joined = solver_sample_join(s);
+    if (joined != CONSPH_OK) return joined;
     consph_particles *p = s->sys.p;
     unsigned char want[CONSPH_MAX_DIM + CONSPH_MAX_FIELDS * 9] = {0};
     if (!all) {
@@ -1061,6 +1064,11 @@ int consph_solver_set_device(consph_solver *s, consph_device device)
     const gpu_backend *be = find_backend(why, sizeof why);
     if (!be) return consph_fail(CONSPH_EINVAL, "--device gpu: %s", why);
     return gpu_attach(s, be);
+}
+
+int gpu_emulated(const consph_solver *s)
+{
+    return s->gpu && s->gpu->be == &gpu_emulation;
 }
 
 size_t gpu_device_bytes(const consph_solver *s)

@@ -96,6 +96,8 @@ long long gpu_download_bytes(const struct consph_solver *s);
 void gpu_free(struct gpu_run *g);
 /* The device memory the solver's GPU state holds (what gpu_attach allocated; 0 on the CPU). */
 size_t gpu_device_bytes(const struct consph_solver *s);
+/* Whether the solver's steps run on the host emulation (CONSPH_GPU_BACKEND=emulation). */
+int gpu_emulated(const struct consph_solver *s);
 
 #ifdef __cplusplus
 }

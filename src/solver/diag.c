@@ -193,6 +193,8 @@ static int diag_of(consph_solver *s, consph_step_diag *g, int owned);
 
 int solver_sample(consph_solver *s)
 {
+    const int joined = solver_sample_join(s);
+    if (joined != CONSPH_OK) return joined;
     if (s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step) return CONSPH_OK;
     consph_step_diag g;
     const double t0 = consph_wtime(), w0 = wc_seconds(s);
@@ -395,6 +397,9 @@ int solver_auth_advance(consph_solver *s, int landed)
 int solver_auth_after_step(consph_solver *s, int landed)
 {
     if (!solver_auth_advance(s, landed)) return CONSPH_OK;
+    /* the measure shares the reference and the buffers with a sample on the host thread */
+    const int joined = solver_sample_join(s);
+    if (joined != CONSPH_OK) return joined;
     const double t0 = consph_wtime(), w0 = wc_seconds(s);
     const int st = solver_auth_sample(s);
     s->sample_seconds[SAMPLE_AUTH] += consph_wtime() - t0 - (wc_seconds(s) - w0);
@@ -507,12 +512,16 @@ static int diag_of(consph_solver *s, consph_step_diag *g, int owned)
 int consph_solver_diag(const consph_solver *cs, consph_step_diag *g)
 {
     consph_solver *s = (consph_solver *)cs; /* fields are looked up, not created */
-    return diag_of(s, g, s->par != NULL);
+    const int joined = solver_sample_join(s);
+    return joined != CONSPH_OK ? joined : diag_of(s, g, s->par != NULL);
 }
 
 int consph_solver_summary(const consph_solver *s, consph_run_summary *sum)
 {
     memset(sum, 0, sizeof *sum);
+    /* the sums of a sample on the host thread (the solver is the caller's to change) */
+    const int joined = solver_sample_join((consph_solver *)s);
+    if (joined != CONSPH_OK) return joined;
     snprintf(sum->scheme, sizeof sum->scheme, "%s", s->scheme->name);
     snprintf(sum->problem, sizeof sum->problem, "%s", s->prob->name);
     snprintf(sum->integrator, sizeof sum->integrator, "%s", s->integ->name);
@@ -556,6 +565,8 @@ int consph_solver_summary(const consph_solver *s, consph_run_summary *sum)
 
 int consph_solver_output_fields(consph_solver *s)
 {
+    const int joined = solver_sample_join(s);
+    if (joined != CONSPH_OK) return joined;
     consph_particles *p = s->sys.p;
     const int d = s->dim;
     const size_t n = p->n, cap = p->cap;
@@ -589,11 +600,15 @@ int consph_solver_output_fields(consph_solver *s)
 
 size_t consph_solver_history_size(const consph_solver *s)
 {
+    /* a failed sample's status stays for the next join that returns one */
+    (void)solver_sample_join((consph_solver *)s);
     return s->nhist;
 }
 
 int consph_solver_history_row(const consph_solver *s, size_t k, consph_step_diag *d)
 {
+    const int joined = solver_sample_join((consph_solver *)s);
+    if (joined != CONSPH_OK) return joined;
     if (k >= s->nhist) return consph_fail(CONSPH_EINVAL, "history row %zu of %zu", k, s->nhist);
     const double *h = s->hist + k * HIST_COLS;
     memset(d, 0, sizeof *d);

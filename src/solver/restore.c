@@ -44,6 +44,8 @@ static const struct {
 int consph_solver_checkpoint_meta(const consph_solver *s, char **meta, double **history,
                                   size_t *nhistory)
 {
+    const int joined = solver_sample_join((consph_solver *)s);
+    if (joined != CONSPH_OK) return joined;
     const consph_run_params *p = &s->prm;
     char *m = malloc(META_MAX);
     double *h = malloc((s->nhist ? s->nhist : 1) * HIST_COLS * sizeof(double));
@@ -396,6 +398,8 @@ int solver_restore_range(consph_solver **out, const char *meta, const consph_par
 
 int consph_solver_extend(consph_solver *s, double tf, long steps)
 {
+    const int joined = solver_sample_join(s);
+    if (joined != CONSPH_OK) return joined;
     consph_run_params *p = &s->prm;
     if ((tf > 0.0) == (steps > 0))
         return consph_fail(CONSPH_EINVAL, "a new end of the run is tf > 0 or steps > 0: give one");

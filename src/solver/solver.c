@@ -406,6 +406,8 @@ int solver_create_cut(consph_solver **out, const consph_run_params *prm,
 void consph_solver_free(consph_solver *s)
 {
     if (!s) return;
+    /* first: a sample on the host thread reads the particles and writes the history */
+    solver_sampler_free(s);
     if (getenv("CONSPH_SAMPLE_SECONDS")) {
         const double *t = s->sample_seconds;
         fprintf(stderr,
@@ -627,7 +629,7 @@ static int step_sample(consph_solver *s, const step_close_arg *a)
     int st = CONSPH_OK;
     s->log_since += a->dt;
     s->step_dt = a->dt;
-    if (s->step % s->prm.log_every == 0 || consph_solver_done(s)) st = solver_sample(s);
+    if (s->step % s->prm.log_every == 0 || consph_solver_done(s)) st = solver_sample_overlapped(s);
     if (st == CONSPH_OK && s->prm.error == CONSPH_ERROR_AUTHORS)
         st = solver_auth_after_step(s, a->landed);
     return st;

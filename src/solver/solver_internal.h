@@ -299,7 +299,9 @@ struct consph_solver {
      * a diagnostic hook for the GPU's log samples, whose host work bounds a study there */
     double sample_seconds[SAMPLE_PARTS];
     long sample_count;
-    struct gpu_run *gpu;    /* --device gpu: the steps run there (src/gpu/); NULL: on the CPU */
+    struct gpu_run *gpu; /* --device gpu: the steps run there (src/gpu/); NULL: on the CPU */
+    /* the GPU's log samples beside its steps (sampler.c); NULL until the first one */
+    struct solver_sampler *sampler;
     struct par_solver *par; /* decomposed over MPI ranks (src/par/par_solver.h); NULL: serial */
     /* a rank's part of a checkpoint, restored to be cut (range.n > 0: consph_par_run_restart) */
     struct solver_range *part;
@@ -354,6 +356,17 @@ int solver_hist_push(consph_solver *s, const consph_step_diag *g);
  * step's already. Called at t = 0, every log_every steps, at the last step and before each
  * snapshot. */
 int solver_sample(consph_solver *s);
+/* solver_sample handed to a host thread where a GPU run's samples overlap its steps (sampler.c:
+ * the same history and sums), else solver_sample itself. */
+typedef struct solver_sampler solver_sampler;
+int solver_sample_overlapped(consph_solver *s);
+/* Waits for the sample on that thread, if any, and takes back what it wrote; its status. Called
+ * before anything reads the host's particles again or what a sample writes (the history, the
+ * sums, the buffers, the reference). */
+int solver_sample_join(consph_solver *s);
+/* Ends the thread (at consph_solver_free); and the samples it took (for tests). */
+void solver_sampler_free(consph_solver *s);
+long solver_sampler_jobs(const consph_solver *s);
 /* Whether a decomposed solver's samples are taken on every rank from its owned particles, the
  * sums over the serial order and the maxima over the ranks (solver_sample, solver_auth_sample,
  * called on every rank), rather than on rank 0 over the gathered set: with the problem's exact
