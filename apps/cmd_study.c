@@ -225,8 +225,9 @@ static int run_status(int rc)
                                                        : 1;
 }
 
-/* The estimate in seconds, and in minutes, hours or days as its size asks; `jobs` workers. */
-static void print_estimate(double est, long jobs)
+/* The estimate in seconds, and in minutes, hours or days as its size asks; `jobs` workers
+ * (threads where the rows share a GPU). */
+static void print_estimate(double est, long jobs, int threads)
 {
     if (!isfinite(est)) {
         printf("estimated run time: unknown (the calibration run failed)\n");
@@ -239,7 +240,7 @@ static void print_estimate(double est, long jobs)
         printf(" (%.1f hours)", est / 3600.0);
     else
         printf(" (%.1f min)", est / 60.0);
-    if (jobs > 1) printf(" on %ld worker processes", jobs);
+    if (jobs > 1) printf(" on %ld worker %s", jobs, threads ? "threads" : "processes");
     printf("; from the work (particle-steps, neighbour pairs, packed particles) at the cost "
            "measured here on small runs\n");
 }
@@ -317,7 +318,8 @@ int cmd_study(int argc, char **argv)
          "with --particles: periodic axes (default: each file's own)", NULL, 0, 0, 0},
         {"--jobs", CLI_INT, &jobs, "J",
          "run the rows on J worker processes, each with cores/J threads, and write the report a "
-         "serial run writes (default: the cores, OMP_NUM_THREADS; 1: this process alone)",
+         "serial run writes (default: the cores, OMP_NUM_THREADS; 1: this process alone; with "
+         "--device gpu or auto: J threads of this process, whose rows share the GPU, default 1)",
          NULL, 1, 256, 0},
         {"--device", CLI_CHOICE, &device_index, "D",
          "where the solver rows run: cpu, gpu (every row, else exit 2 naming those that cannot), "
@@ -344,7 +346,8 @@ int cmd_study(int argc, char **argv)
         "writes the partial README.md and prints the command that resumes.\n"
         "Under mpirun -np K the rows are spread over the K ranks and rank 0 writes "
         "the same report (docs/mpi.md); --out must be seen by every rank; --jobs J "
-        "does the same with J forked processes of this machine (docs/studies.md).\n"
+        "does the same with J forked processes of this machine (docs/studies.md), or J threads "
+        "with --device gpu or auto, whose rows share the GPU (docs/gpu.md).\n"
         "Exit status: 0 done, 1 a run failed, 2 bad input, 3 an error is not "
         "finite (stderr names the figure, series and resolution), 128 + signal "
         "stopped.",
@@ -408,11 +411,6 @@ int cmd_study(int argc, char **argv)
                        "option --device %s runs the study on one process with one GPU: launched "
                        "on %d MPI ranks, run it without mpirun (or with -np 1)",
                        consph_study_device_name(device), consph_par_size());
-    else if (on_gpu && jobs > 1)
-        rc = cli_error(&cmd,
-                       "option --jobs: %ld workers with --device %s, which has one GPU; allowed "
-                       "there: 1",
-                       jobs, consph_study_device_name(device));
     else if (consph_study_device_check(s, quick, device) != CONSPH_OK)
         rc = cli_error(&cmd, "%s", consph_last_error());
     if (rc) {
@@ -447,7 +445,7 @@ int cmd_study(int argc, char **argv)
             consph_set_num_threads(cores);
             est /= (double)jobs;
         }
-        print_estimate(est, jobs);
+        print_estimate(est, jobs, on_gpu);
         fflush(stdout);
     }
     char *resume_cmd = resume_command(argc, argv, resume);

@@ -13,8 +13,9 @@
 #      Lagrangian schemes; its cost is estimated apart, below);
 #   3. runs it with --device gpu, once more on the GPU with a third of the steps (a row's time
 #      is then split into a cost per step, log samples included, and a cost per row: set-up,
-#      the first and last samples, the two output times of error = authors), then with --device
-#      cpu on THREADS threads when the budget allows;
+#      the first and last samples, the two output times of error = authors), both again with
+#      --jobs JOBS (the rows on threads sharing the GPU), then with --device cpu on THREADS
+#      threads when the budget allows;
 #   4. extrapolates each to the full 001-table9 (six resolutions, seven schemes, t = 0.5):
 #      per scheme and resolution, on the GPU the cost per step times ceil(0.5/Δt) steps plus 25
 #      times the cost per row (the full row's 50 output times priced as 25 times the 2 here: an
@@ -40,7 +41,9 @@
 #   --quick       nx 20, 30, 40 and 5 steps (a check of the script)
 #   --emulate     the GPU's rows on the host emulation (CONSPH_GPU_BACKEND=emulation; slow: use
 #                 with --quick)
-# Environment: BUILD (default build-gpu), THREADS (the CPU study's threads, default nproc).
+# Environment: BUILD (default build-gpu), THREADS (the CPU study's threads, default nproc), JOBS
+#   (default 4: the GPU's two runs again with --jobs JOBS, the rows on that many threads sharing
+#   the GPU, and the whole study's wall time extrapolated for both; 1: not run).
 set -u
 cd "$(dirname "$0")/.." || exit 1
 out=""
@@ -86,6 +89,8 @@ out=${out:-$bdir/gpu-study-out}
 mkdir -p "$out" || exit 1
 out=$(cd "$out" && pwd)
 threads=${THREADS:-$(nproc)}
+jobs=${JOBS:-4}
+case $jobs in '' | *[!0-9]*) echo "bench/gpu_study.sh: JOBS=$jobs: a whole number" >&2; exit 2 ;; esac
 start=$(date +%s)
 elapsed() { echo $(($(date +%s) - start)); }
 log() { echo "[$(elapsed) s] $*" | tee -a "$out/run.log"; }
@@ -160,7 +165,7 @@ study() {
     local t0 t1
     t0=$(date +%s.%N)
     env "$@" timeout "$left" "$consph" study "$sdir/gpustudy.study" --device "$device" \
-        --out "$dir" >"$dir.log" 2>&1
+        ${sjobs[@]+"${sjobs[@]}"} --out "$dir" >"$dir.log" 2>&1
     local rc=$?
     t1=$(date +%s.%N)
     if [ $rc != 0 ]; then
@@ -168,11 +173,21 @@ study() {
         return 1
     fi
     awk -v a="$t0" -v b="$t1" 'BEGIN { printf "%.2f\n", b - a }' >"$dir.wall"
-    log "$device: $(cat "$dir.wall") s ($dir/gpustudy/table9.md)"
+    log "$device${sjobs[*]+ ${sjobs[*]}}: $(cat "$dir.wall") s ($dir/gpustudy/table9.md)"
 }
+sjobs=()
 study gpu "$out/gpu" ${gpu_env[@]+"${gpu_env[@]}"}
 write_study "$sdir/gpustudy.study" authors "$short"
 study gpu "$out/gpu-short" ${gpu_env[@]+"${gpu_env[@]}"}
+# the same two with the rows on JOBS threads sharing the GPU (--jobs: each row's steps on its
+# thread's own stream)
+if [ "$jobs" -gt 1 ]; then
+    sjobs=(--jobs "$jobs")
+    study gpu "$out/gpuj-short" ${gpu_env[@]+"${gpu_env[@]}"}
+    write_study "$sdir/gpustudy.study" authors "$steps"
+    study gpu "$out/gpuj" ${gpu_env[@]+"${gpu_env[@]}"}
+    sjobs=()
+fi
 write_study "$sdir/gpustudy.study" authors "$steps"
 study cpu "$out/cpu" OMP_NUM_THREADS="$threads"
 
@@ -264,6 +279,22 @@ md=$out/gpu_study.md
     done
     [ -f "$out/gpu-short.wall" ] && echo "
 The GPU's short run ($short steps per row): $(cat "$out/gpu-short.wall") s."
+    if [ -f "$out/gpuj.wall" ] && [ -f "$out/gpuj-short.wall" ] && [ -f "$out/gpu-short.wall" ]; then
+        full=$(rows "$out/gpu" | awk 'NR == 1 { printf "%d", int(0.5 / $5 + 0.999999) }')
+        whole() { awk -v l="$(cat "$1.wall")" -v s="$(cat "$2.wall")" -v L="$steps" -v S="$short" \
+            -v F="$full" 'BEGIN { b = (l - s) / (L - S); printf "%.0f", l + (F - L) * b }'; }
+        w1=$(whole "$out/gpu" "$out/gpu-short")
+        wj=$(whole "$out/gpuj" "$out/gpuj-short")
+        echo
+        echo "Rows on $jobs threads sharing the GPU (\`--jobs $jobs\`, each row's steps on its thread's own"
+        echo "stream): wall time of this study at $steps and $short steps per row, one thread"
+        echo "$(cat "$out/gpu.wall") and $(cat "$out/gpu-short.wall") s, $jobs threads $(cat "$out/gpuj.wall") and"
+        echo "$(cat "$out/gpuj-short.wall") s. The whole study (every row here) extrapolated to the full"
+        echo "$full steps per row as wall(K) + ($full − K) × (wall(K) − wall(K/3)) / (K − K/3): one thread"
+        echo "$w1 s ($(awk -v t="$w1" 'BEGIN { printf "%.2f", t / 3600 }') h), $jobs threads $wj s ($(awk -v t="$wj" 'BEGIN { printf "%.2f", t / 3600 }') h): ×$(awk -v a="$w1" -v b="$wj" 'BEGIN { printf "%.2f", a / b }')."
+        echo "(Its rows include edac's; the 50 output times of the full rows and the packing are not"
+        echo "in it; the per-scheme table above is the one-thread run's.)"
+    fi
     echo
     echo "Per scheme, the full table's seconds (\"T_r\": priced from the reference series):"
     echo

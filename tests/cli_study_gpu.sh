@@ -7,7 +7,7 @@
 # writes nothing; --device auto runs it mixed and writes the CPU's report, its device line
 # naming the rows of each device; without a GPU, gpu exits 2 with the reason and auto runs on the
 # CPU, said once; the study file's key `device` and the option that overrides it; bad values,
-# --jobs > 1 with a GPU: exit 2.
+# --jobs J with a GPU: J threads whose rows share it, the same report.
 # Usage: cli_study_gpu.sh <path-to-consph> <source-dir>
 set -u
 bin=$1 src=$2
@@ -60,8 +60,6 @@ grep -q '^Device' "$work/cpu/gpu/tgv.md" "$work/cpu/gpu/README.md" &&
 
 failing 2 "allowed: cpu,gpu,auto" "$work/o" -- "$bin" study "$study" --quick --device tpu \
     --out "$work/x" && pass=$((pass + 1))
-failing 2 "--jobs" "$work/o" -- "$bin" study "$study" --quick --device auto --jobs 2 \
-    --out "$work/x" && pass=$((pass + 1))
 mkdir "$work/badkey"
 sed 's/^paper = none$/paper = none\ndevice = tpu/' "$study" >"$work/badkey/gpu.study"
 failing 2 "'device': unknown value 'tpu'" "$work/o" -- "$bin" study "$work/badkey/gpu.study" --quick \
@@ -102,6 +100,25 @@ gpu_runs() {
     # the operator figure has no device
     grep -q '^Device' "$w/gpu/gpu/grad.md" && bad "${be:-cuda}: grad names a device" ||
         pass=$((pass + 1))
+    # --jobs 3: the rows on three threads sharing the GPU (study_run_threads), the same report
+    OMP_NUM_THREADS=2 CONSPH_GPU_BACKEND=$be "$bin" study "$study" --quick --device gpu --jobs 3 \
+        --out "$w/gpu3" >"$w.out3" 2>"$work/err" ||
+        { bad "${be:-cuda}: --device gpu --jobs 3: $(cat "$work/err")"; return; }
+    same_report "$work/cpu/gpu" "$w/gpu3/gpu" "${be:-cuda}: --device gpu --jobs 3" &&
+        pass=$((pass + 1))
+    grep -q "row .* done" "$work/err" && pass=$((pass + 1)) ||
+        bad "${be:-cuda}: --jobs 3: no line per row on stderr: $(head -3 "$work/err")"
+    # a stop request on the threads (the test hook raises SIGINT once, after a row): the partial
+    # report and the resume command; the resume finishes the CPU's report
+    CONSPH_TEST_STOP_AFTER_ROWS=1 CONSPH_GPU_BACKEND=$be "$bin" study "$study" --quick --device gpu \
+        --jobs 2 --out "$w/stop" >/dev/null 2>"$work/err"
+    local rc=$?
+    [ $rc = 130 ] && [ -f "$w/stop/gpu/README.md" ] && grep -q -- "--resume" "$work/err" &&
+        pass=$((pass + 1)) || bad "${be:-cuda}: --jobs 2 stopped: exit $rc: $(cat "$work/err")"
+    CONSPH_GPU_BACKEND=$be "$bin" study "$study" --quick --device gpu --jobs 2 --out "$w/stop" \
+        --resume >/dev/null 2>"$work/err" || bad "${be:-cuda}: --jobs 2 --resume: $(cat "$work/err")"
+    same_report "$work/cpu/gpu" "$w/stop/gpu" "${be:-cuda}: --jobs 2 stopped and resumed" &&
+        pass=$((pass + 1))
     failing 2 "series 'OTHER' (nx 16, 20): integrator 'rk2' does not run edac on the GPU" "$w.o" -- \
         env CONSPH_GPU_BACKEND="$be" "$bin" study "$work/mixed.study" --quick --device gpu \
         --out "$w/refused" && pass=$((pass + 1))
@@ -114,6 +131,14 @@ gpu_runs() {
     want="$want seconds compare wall times of both."
     [ "$(device_line "$w/auto/mixed" tgv2)" = "$want" ] && pass=$((pass + 1)) ||
         bad "${be:-cuda}: --device auto: $(device_line "$w/auto/mixed" tgv2)"
+    # ... and on two threads, the CPU's rows and the GPU's side by side
+    CONSPH_GPU_BACKEND=$be "$bin" study "$work/mixed.study" --quick --device auto --jobs 2 \
+        --out "$w/auto2" >/dev/null 2>"$work/err" ||
+        { bad "${be:-cuda}: --device auto --jobs 2: $(cat "$work/err")"; return; }
+    same_report "$work/cpu/mixed" "$w/auto2/mixed" "${be:-cuda}: --device auto --jobs 2" &&
+        pass=$((pass + 1))
+    [ "$(device_line "$w/auto2/mixed" tgv2)" = "$want" ] && pass=$((pass + 1)) ||
+        bad "${be:-cuda}: --device auto --jobs 2: $(device_line "$w/auto2/mixed" tgv2)"
     # the study file's key, and the option that wins over it
     mkdir -p "$w.key"
     sed 's/^paper = none$/paper = none\ndevice = gpu/' "$study" >"$w.key/gpu.study"

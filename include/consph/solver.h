@@ -379,8 +379,13 @@ typedef struct consph_run_output {
     long snapshot_every;   /* a snapshot every this many steps (0: the first and the last) */
     long checkpoint_every; /* a checkpoint every this many steps (0: none) */
     int progress;          /* a progress line on stderr when it is a terminal */
-    int signals;           /* SIGINT/SIGTERM: finish the step, checkpoint, stop */
+    /* SIGINT/SIGTERM: finish the step, checkpoint, stop. 1: the run installs the handlers
+     * (consph_stop_install) and gives back those it found; CONSPH_RUN_SIGNALS_WATCH: the
+     * caller's handlers are in place and the run only watches them (consph_stop_requested), so
+     * runs on several threads at once share one stop request */
+    int signals;
 } consph_run_output;
+#define CONSPH_RUN_SIGNALS_WATCH 2
 
 /* Steps the solver to its end. Returns CONSPH_OK; CONSPH_ENUMERIC when it diverged (the
  * message names step, particle, position and quantity; the snapshots written so far stay);

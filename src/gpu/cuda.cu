@@ -12,7 +12,11 @@
 
 namespace {
 
-char cuda_err[256];
+/* Per host thread, as the rest of this backend's state: the rows of a study on threads
+ * (--jobs with --device gpu) each step their own solver on the GPU at once, on the calling
+ * thread's own default stream (nvcc --default-stream per-thread, CMakeLists.txt), so their kernels
+ * run side by side and one thread's copy back waits for its own work only. */
+thread_local char cuda_err[256];
 
 int fail(cudaError_t e, const char *what)
 {
@@ -254,8 +258,16 @@ int cu_launch(gpu_kernel k, size_t count, const gpu_view *v, double c)
     return fail(cudaGetLastError(), "kernel launch");
 }
 
-void *scan_tmp = NULL;
-size_t scan_tmp_bytes = 0;
+/* CUB's scratch of the scan, kept per thread and given back when the thread ends. */
+struct scan_scratch {
+    void *p = nullptr;
+    size_t bytes = 0;
+    ~scan_scratch()
+    {
+        if (p) cudaFree(p);
+    }
+};
+thread_local scan_scratch scan_tmp;
 
 int cu_scan(const gpu_view *v)
 {
@@ -263,14 +275,15 @@ int cu_scan(const gpu_view *v)
     size_t need = 0;
     if (fail(cub::DeviceScan::ExclusiveSum(NULL, need, v->count, v->start, items), "scan size"))
         return 1;
-    if (need > scan_tmp_bytes) {
-        cudaFree(scan_tmp);
-        scan_tmp = NULL;
-        scan_tmp_bytes = 0;
-        if (fail(cudaMalloc(&scan_tmp, need), "cudaMalloc (scan)")) return 1;
-        scan_tmp_bytes = need;
+    if (need > scan_tmp.bytes) {
+        cudaFree(scan_tmp.p);
+        scan_tmp.p = nullptr;
+        scan_tmp.bytes = 0;
+        if (fail(cudaMalloc(&scan_tmp.p, need), "cudaMalloc (scan)")) return 1;
+        scan_tmp.bytes = need;
     }
-    return fail(cub::DeviceScan::ExclusiveSum(scan_tmp, need, v->count, v->start, items), "scan");
+    return fail(cub::DeviceScan::ExclusiveSum(scan_tmp.p, need, v->count, v->start, items),
+                "scan");
 }
 
 const char *cu_error(void)

@@ -362,7 +362,8 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
     /* decomposed over MPI ranks, mpirun delivers the signals (a stop checkpoint would need
      * every rank to agree on the step) */
     const int signals = out && out->signals && !s->par;
-    if (st == CONSPH_OK && signals) st = consph_stop_install();
+    const int install = signals && out->signals != CONSPH_RUN_SIGNALS_WATCH;
+    if (st == CONSPH_OK && install) st = consph_stop_install();
     /* ∇u (the vorticity, velocity_gradient) is computed only in the steps that end at a
      * snapshot or the end of the run (consph_solver_step) */
     s->grads_lazy = 1;
@@ -390,7 +391,7 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
     }
     consph_progress_end(&pr);
     s->grads_lazy = 0;
-    if (signals) consph_stop_uninstall();
+    if (install) consph_stop_uninstall();
     run_close_arg ca = {out, sum, &f, files, *stopped_by, st};
     /* decomposed: every rank's summary of its own part, then rank 0's of the whole run, from the
      * history and the positions: no field is gathered but for a problem's own outputs at the

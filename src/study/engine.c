@@ -446,6 +446,7 @@ static int unit_mine(study_rows *r)
     study_shared *sh = r->shared;
     if (!sh || r->share_units > sh->nunits)
         return (r->share_units - 1) % r->share_size == r->share_rank;
+    if (__atomic_load_n(&sh->abandon, __ATOMIC_ACQUIRE)) return 0;
     return !__atomic_exchange_n(&sh->claim[r->share_units - 1], 1, __ATOMIC_ACQ_REL);
 }
 
@@ -700,6 +701,35 @@ static int study_run_shared(const consph_study *s, const consph_study_options *o
     return rc;
 }
 
+/* The study's folder and state before its workers (processes or threads) start; `created`
+ * counts the folders made, for study_remove_created. */
+static int workers_begin(const consph_study_options *opt, const char *dir, const char *state,
+                         size_t *created)
+{
+    int rc = study_mkdir_p(dir, created);
+    if (rc == CONSPH_OK) consph_made_dir_register(dir, *created);
+    if (rc == CONSPH_OK && !opt->resume) {
+        forget_kept(dir);
+        rc = write_small(dir, STATE_NAME, state);
+    }
+    return rc;
+}
+
+/* After the workers: the report as a resume of their kept rows (rc the workers' status,
+ * stopped their stop signal, done their rows), or the folders made removed on a failure. */
+static int workers_end(const consph_study *s, const consph_study_options *opt,
+                       const study_files *files, const char *dir, study_rows *rows, int rc,
+                       int stopped, long done, size_t created)
+{
+    if (rc == CONSPH_OK && !stopped) stopped = consph_stop_requested();
+    if (rc == CONSPH_OK) rc = report_kept_rows(s, opt, files, dir, rows, stopped, done);
+    if (rc) study_remove_created(dir, created);
+    consph_made_dir_unregister();
+    if (opt->stopped_by)
+        *opt->stopped_by = rc == CONSPH_OK ? (stopped ? stopped : rows->stopped) : 0;
+    return rc;
+}
+
 /* What a worker of study_run_jobs hands back through its pipe. */
 typedef struct job_result {
     int rc, stopped, done;
@@ -729,12 +759,7 @@ static int study_run_jobs(const consph_study *s, const consph_study_options *opt
                            shared_size);
     memset(sh, 0, shared_size);
     sh->nunits = rows.total + 1;
-    int rc = study_mkdir_p(dir, &created);
-    if (rc == CONSPH_OK) consph_made_dir_register(dir, created);
-    if (rc == CONSPH_OK && !opt->resume) {
-        forget_kept(dir);
-        rc = write_small(dir, STATE_NAME, state);
-    }
+    int rc = workers_begin(opt, dir, state, &created);
     pid_t pid[256];
     int fd[256], started = 0;
     const int threads = consph_num_threads() / jobs > 1 ? consph_num_threads() / jobs : 1;
@@ -829,13 +854,115 @@ static int study_run_jobs(const consph_study *s, const consph_study_options *opt
         done += res.done;
     }
     munmap(sh, shared_size);
-    if (rc == CONSPH_OK && !stopped) stopped = consph_stop_requested();
-    if (rc == CONSPH_OK) rc = report_kept_rows(s, opt, files, dir, &rows, stopped, done);
-    if (rc) study_remove_created(dir, created);
-    consph_made_dir_unregister();
-    if (opt->stopped_by)
-        *opt->stopped_by = rc == CONSPH_OK ? (stopped ? stopped : rows.stopped) : 0;
-    return rc;
+    return workers_end(s, opt, files, dir, &rows, rc, stopped, done, created);
+}
+
+/* A worker of study_run_threads: its rows, and what it hands back. */
+typedef struct row_thread {
+    const consph_study *s;
+    const consph_study_options *opt;
+    const study_files *files;
+    const char *dir;
+    study_rows rows;
+    int threads;
+    job_result res;
+} row_thread;
+
+static void *row_thread_main(void *arg)
+{
+    row_thread *w = arg;
+    consph_set_num_threads(w->threads);
+    consph_study_options share = *w->opt;
+    share.log = NULL;
+    w->res.rc = run_figures(w->s, &share, w->files, w->dir, &w->rows);
+    w->res.stopped = w->rows.stopped;
+    w->res.done = w->rows.done;
+    if (w->res.rc) {
+        snprintf(w->res.msg, sizeof w->res.msg, "%s", consph_last_error());
+        /* as a failed worker process stops the others: no thread starts another unit */
+        __atomic_store_n(&w->rows.shared->abandon, 1, __ATOMIC_RELEASE);
+    }
+    return NULL;
+}
+
+/* study_run_jobs on threads of this process: the rows of a study on the GPU, which worker
+ * processes cannot share at once (a CUDA context is one process's, and kernels of different
+ * processes do not run at the same time without NVIDIA's MPS daemon), while threads put their
+ * rows' steps on streams of their own (src/gpu/cuda.cu) that the device runs side by side: the
+ * small resolutions' rows each fill a fraction of it. Every row's run is its own solver, and
+ * what the rows share of the library is atomic or per thread (its error text, the GPU
+ * backend's, the outputs' temporary files); the statistics counters of the passes
+ * (kit_group_passes, nlist_chain_*) may count less, and only those. The threads claim units as
+ * the processes do and keep their rows; this thread then writes the report as a resume of them.
+ * A stop request reaches every thread's run (CONSPH_RUN_SIGNALS_WATCH: the handlers the caller
+ * installed, watched, never reinstalled by a row); one thread's failure stops the others at
+ * their next unit. Progress comes as a line per finished row, not a live line. */
+static int study_run_threads(const consph_study *s, const consph_study_options *opt,
+                             const study_files *files, const char *dir, const char *state,
+                             study_rows *prepared, int jobs)
+{
+    size_t created = 0;
+    study_rows rows = *prepared;
+    rows.tty = 0;
+    study_shared *sh = calloc(1, sizeof(study_shared) + (size_t)rows.total + 1);
+    row_thread *w = calloc((size_t)jobs, sizeof *w);
+    pthread_t *tid = calloc((size_t)jobs, sizeof *tid);
+    if (!sh || !w || !tid) {
+        free(sh);
+        free(w);
+        free(tid);
+        return consph_fail(CONSPH_ENOMEM, "--jobs: out of memory");
+    }
+    sh->nunits = rows.total + 1;
+    int rc = workers_begin(opt, dir, state, &created);
+    const int threads = consph_num_threads() / jobs > 1 ? consph_num_threads() / jobs : 1;
+    int started = 0;
+    fflush(NULL);
+    for (int k = 0; rc == CONSPH_OK && k < jobs; ++k) {
+        w[k] = (row_thread){s, opt, files, dir, rows, threads, {0}};
+        w[k].rows.share_rank = k;
+        w[k].rows.share_size = jobs;
+        w[k].rows.shared = sh;
+        w[k].rows.print = opt->progress;
+        if (rows.signals) w[k].rows.signals = CONSPH_RUN_SIGNALS_WATCH;
+        /* the test hook's SIGINT once for the process: a second would end it (io/stop.c) */
+        if (k > 0) w[k].rows.stop_after = 0;
+        /* the layouts still to pack, which each thread marks as it finds them made */
+        w[k].rows.due = NULL;
+        if (rows.ndue > 0) {
+            w[k].rows.due = malloc((size_t)rows.ndue * sizeof *rows.due);
+            if (!w[k].rows.due) {
+                rc = consph_fail(CONSPH_ENOMEM, "--jobs: out of memory");
+                __atomic_store_n(&sh->abandon, 1, __ATOMIC_RELEASE);
+                break;
+            }
+            memcpy(w[k].rows.due, rows.due, (size_t)rows.ndue * sizeof *rows.due);
+        }
+        if (pthread_create(&tid[k], NULL, row_thread_main, &w[k]) != 0) {
+            rc = consph_fail(CONSPH_EIO, "--jobs: cannot start thread %d of %d", k, jobs);
+            __atomic_store_n(&sh->abandon, 1, __ATOMIC_RELEASE);
+            free(w[k].rows.due);
+            break;
+        }
+        started++;
+    }
+    int stopped = 0, failed = -1;
+    long done = 0;
+    for (int k = 0; k < started; ++k) {
+        pthread_join(tid[k], NULL);
+        /* the first thread's failure is reported, as a serial study reports its first */
+        if (w[k].res.rc && failed < 0 && rc == CONSPH_OK) {
+            failed = k;
+            rc = consph_fail(w[k].res.rc, "%s", w[k].res.msg);
+        }
+        if (w[k].res.stopped > stopped) stopped = w[k].res.stopped;
+        done += w[k].res.done;
+        free(w[k].rows.due);
+    }
+    free(sh);
+    free(w);
+    free(tid);
+    return workers_end(s, opt, files, dir, &rows, rc, stopped, done, created);
 }
 
 /* ---- the device of the solver rows ---- */
@@ -876,8 +1003,8 @@ int consph_study_device_check(const consph_study *s, int quick, int device)
                        bad, rows);
 }
 
-/* A GPU is one device: the ranks of MPI or the worker processes of --jobs would each put their
- * rows on it at once. */
+/* A GPU is one device: the ranks of MPI would each put their rows on it at once (--jobs runs
+ * threads there, study_run_threads). */
 static int device_sharing(const consph_study_options *opt)
 {
     if (opt->device != CONSPH_STUDY_DEVICE_GPU && opt->device != CONSPH_STUDY_DEVICE_AUTO)
@@ -887,11 +1014,6 @@ static int device_sharing(const consph_study_options *opt)
                            "--device %s runs the study on one process with one GPU: launched on "
                            "%d MPI ranks, run it without mpirun (or with -np 1)",
                            consph_study_device_name(opt->device), consph_par_size());
-    if (opt->jobs > 1)
-        return consph_fail(CONSPH_EINVAL,
-                           "--jobs %d with --device %s: the GPU is one device; allowed there: "
-                           "--jobs 1",
-                           opt->jobs, consph_study_device_name(opt->device));
     return CONSPH_OK;
 }
 
@@ -1233,7 +1355,10 @@ static int study_run_with_cache(const consph_study *s, const consph_study_option
      * passed on as a second signal); the serial run below stops before its first row and writes
      * the partial report. */
     if (jobs > 1 && !consph_stop_requested()) {
-        rc = study_run_jobs(s, opt, files, dir, state, &rows, jobs);
+        const int gpu =
+            opt->device == CONSPH_STUDY_DEVICE_GPU || opt->device == CONSPH_STUDY_DEVICE_AUTO;
+        rc = gpu ? study_run_threads(s, opt, files, dir, state, &rows, jobs)
+                 : study_run_jobs(s, opt, files, dir, state, &rows, jobs);
         free(rows.due);
         return rc;
     }

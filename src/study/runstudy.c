@@ -475,11 +475,14 @@ static int run_one(const run_plan *pl, int j, double h_dt, int curve, run_row *r
         row->dt_warning[0] = '\0';
     int stopped = 0;
     /* On a terminal the run's own step line shows (after the row, consph_progress_prefix). */
-    const consph_run_output watch = {.signals = 1, .progress = rows && rows->tty};
+    const consph_run_output watch = {.signals = rows ? rows->signals : 0,
+                                     .progress = rows && rows->tty};
     rc = consph_run(sv, rows && rows->signals ? &watch : NULL, &row->sum, &stopped);
     if (rows && rows->signals) {
-        /* consph_run gave back the handlers it found; the study keeps watching. */
         if (stopped && !rows->stopped) rows->stopped = stopped;
+    }
+    if (rows && rows->signals == 1) {
+        /* consph_run gave back the handlers it found; the study keeps watching. */
         int irc = consph_stop_install();
         if (rc == CONSPH_OK) rc = irc;
     }

@@ -111,6 +111,7 @@ typedef struct study_shared {
     long nunits;
     int done;
     long long work_done; /* the work model's units, rounded */
+    int abandon;         /* a row thread failed: the others claim no more units */
     unsigned char claim[];
 } study_shared;
 
@@ -133,10 +134,12 @@ typedef struct study_rows {
     int tty;                    /* a live line on stderr, else one plain line per finished row */
     int stop_after;             /* tests: a stop request after this many rows run (0: never) */
     int run_now;                /* rows run by this process */
-    int signals;                /* the caller installed consph_stop_install (opt->stopped_by) */
-    int stopped;                /* the signal that stopped the study, 0 when none */
-    char current[192];          /* the row now running, for the progress line and the partial
-                                   report */
+    /* the caller installed consph_stop_install (opt->stopped_by): 1, each row's run installs
+     * and gives back its own; CONSPH_RUN_SIGNALS_WATCH, the rows on threads only watch them */
+    int signals;
+    int stopped;       /* the signal that stopped the study, 0 when none */
+    char current[192]; /* the row now running, for the progress line and the partial
+                          report */
     double row_t0, row_work;
     /* On a terminal the figures' log goes through `mem` and out to `out` between redraws, so
      * that its lines do not run into the live line. */
