@@ -90,7 +90,7 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
             const int st = nlist_group_run(s, name, need, visit, job, pairs, &ran);
             if (st != CONSPH_OK || ran > 0) {
                 sw->halo_fresh = 0;
-                if (st == CONSPH_OK) ++pass_group_runs;
+                if (st == CONSPH_OK) __atomic_fetch_add(&pass_group_runs, 1, __ATOMIC_RELAXED);
                 return st;
             }
             if (ran < 0) return PASS_GROUP_UNSERVED;
@@ -104,7 +104,7 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
     const unsigned char *dest = s->dest;
     need &= ~PASS_GROUP_UNPADDED;
     const int with_dx = !(need & CONSPH_PASS_NO_DX), slots = (need & PASS_GROUP_SLOTS) != 0;
-    ++pass_group_runs;
+    __atomic_fetch_add(&pass_group_runs, 1, __ATOMIC_RELAXED);
     int status = CONSPH_OK;
     char why[256] = "";
     size_t total = 0;
@@ -697,7 +697,7 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
         }
         (void)nlist_gathers(s->nlist); /* the second pass, counted as run too */
     }
-    pass_group_runs += 2;
+    __atomic_fetch_add(&pass_group_runs, 2, __ATOMIC_RELAXED);
 
     const int il = (need2 & PASS_GROUP_INTERLEAVED) != 0;
     need2 &= ~PASS_GROUP_INTERLEAVED;
@@ -804,8 +804,8 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
             for (int l = 0; l < PASS_GROUP; ++l) nbhd_scratch_free(&t.sc[l]);
             store_free(&t.one);
         }
-        pass_group2_deferred += left;
-        ++pass_group2_split;
+        __atomic_fetch_add(&pass_group2_deferred, left, __ATOMIC_RELAXED);
+        __atomic_fetch_add(&pass_group2_split, 1, __ATOMIC_RELAXED);
         free(cls);
     }
     if (pairs) *pairs += total;

@@ -741,7 +741,8 @@ static inline size_t filter(const consph_nlist *l, const nlist_block *b, size_t 
                             size_t used)
 {
 #ifdef NLIST_AVX2
-    if (use_avx2 > 0) return filter_slot_avx2(l, b, sl, o, used);
+    if (__atomic_load_n(&use_avx2, __ATOMIC_RELAXED) > 0)
+        return filter_slot_avx2(l, b, sl, o, used);
 #endif
     return filter_slot(l, b, sl, o, used);
 }
@@ -1312,8 +1313,11 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
     if (split) {
         size_t own = 0;
         for (size_t i = 0; i < l->n; ++i) own += s->dest[i] != 0;
-        if (chain_test_split < 0) chain_test_split = getenv("CONSPH_TEST_CHAIN_SPLIT") != NULL;
-        if (!chain_test_split && (double)(l->n - own) > nlist_chain_split_halo * (double)own)
+        if (__atomic_load_n(&chain_test_split, __ATOMIC_RELAXED) < 0)
+            __atomic_store_n(&chain_test_split, getenv("CONSPH_TEST_CHAIN_SPLIT") != NULL,
+                             __ATOMIC_RELAXED);
+        if (!__atomic_load_n(&chain_test_split, __ATOMIC_RELAXED) &&
+            (double)(l->n - own) > nlist_chain_split_halo * (double)own)
             return CONSPH_OK;
     }
     block_visitor bv[NLIST_CHAIN_MAX];
@@ -1491,7 +1495,7 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
             left[i] = dest[i] && !left[i];
             nleft += left[i];
         }
-        nlist_chain_deferred += nleft;
+        __atomic_fetch_add(&nlist_chain_deferred, nleft, __ATOMIC_RELAXED);
         /* per particle: over a filled cache the lanes' four streams are prefetched worse than
          * one (nlist_group_run) */
         block_visitor later = bv[k];
@@ -1503,7 +1507,7 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
             if (nleft) more += visit_block(s, &l->blocks[x], &later);
         visited += more;
     }
-    if (split) ++nlist_chain_split;
+    if (split) __atomic_fetch_add(&nlist_chain_split, 1, __ATOMIC_RELAXED);
     free(c.miss);
     free(c.st);
     free(c.lo);
@@ -1518,11 +1522,11 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
     }
     l->npairs = total;
     l->cache_epoch = recycle ? l->epoch - 1 : l->epoch;
-    if (recycle) ++nlist_chain_recycled;
+    if (recycle) __atomic_fetch_add(&nlist_chain_recycled, 1, __ATOMIC_RELAXED);
     if (fresh)
         ++l->caches;
     else
-        ++nlist_chain_filled;
+        __atomic_fetch_add(&nlist_chain_filled, 1, __ATOMIC_RELAXED);
     l->have |= want;
     if (pairs) *pairs += visited;
     return CONSPH_OK;
@@ -1614,7 +1618,8 @@ int consph_sys_nlist(consph_sys *s, double skin, const char *build_field, int re
                            build_field);
     if (s->nlist) consph_sys_nlist(s, -1.0, NULL, 0);
 #ifdef NLIST_AVX2
-    if (use_avx2 < 0) use_avx2 = __builtin_cpu_supports("avx2") ? 1 : 0;
+    if (__atomic_load_n(&use_avx2, __ATOMIC_RELAXED) < 0)
+        __atomic_store_n(&use_avx2, __builtin_cpu_supports("avx2") ? 1 : 0, __ATOMIC_RELAXED);
 #endif
     double budget = 0.0;
     const int bst = pair_cache_budget(&budget);

@@ -408,7 +408,7 @@ static int ipst_chained(consph_sys *s, const consph_pass *shift, ipst_job *job, 
         {shift, g ? ipst_groups[job->dim - 1] : NULL, job, 0, NULL, NULL}};
     size_t pairs = 0;
     const int rc = nlist_chain_run(s, chain, 2, &pairs, ran);
-    if (rc == CONSPH_OK && *ran) ++reg_ipst_chains;
+    if (rc == CONSPH_OK && *ran) __atomic_fetch_add(&reg_ipst_chains, 1, __ATOMIC_RELAXED);
     return rc;
 }
 

@@ -891,11 +891,10 @@ static void *row_thread_main(void *arg)
  * rows' steps on streams of their own (src/gpu/cuda.cu) that the device runs side by side: the
  * small resolutions' rows each fill a fraction of it. Every row's run is its own solver, and
  * what the rows share of the library is atomic or per thread (its error text, the GPU
- * backend's, the outputs' temporary files); the statistics counters of the passes
- * (kit_group_passes, nlist_chain_*) may count less, and only those. The threads claim units as
- * the processes do and keep their rows; this thread then writes the report as a resume of them.
- * A stop request reaches every thread's run (CONSPH_RUN_SIGNALS_WATCH: the handlers the caller
- * installed, watched, never reinstalled by a row); one thread's failure stops the others at
+ * backend's, the outputs' temporary files, the passes' statistics counters). The threads claim
+ * units as the processes do and keep their rows; this thread then writes the report as a resume of
+ * them. A stop request reaches every thread's run (CONSPH_RUN_SIGNALS_WATCH: the handlers the
+ * caller installed, watched, never reinstalled by a row); one thread's failure stops the others at
  * their next unit. Progress comes as a line per finished row, not a live line. */
 static int study_run_threads(const consph_study *s, const consph_study_options *opt,
                              const study_files *files, const char *dir, const char *state,

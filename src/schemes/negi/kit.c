@@ -866,7 +866,7 @@ static int kit_run(consph_sys *s, const consph_pass *pass, pass_group_fn group, 
         const int st =
             pass_run_groups(s, pass->name, pass->need | PASS_GROUP_UNPADDED, group, job, pairs);
         if (st != PASS_GROUP_UNSERVED) {
-            if (st == CONSPH_OK) ++kit_group_passes;
+            if (st == CONSPH_OK) __atomic_fetch_add(&kit_group_passes, 1, __ATOMIC_RELAXED);
             return st;
         }
     }
@@ -1110,10 +1110,11 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         int ran = 0;
         st = nlist_chain_run(s, chain, count, pairs, &ran);
         if (st == CONSPH_OK && ran) {
-            ++kit_chains;
-            if (group_first) ++kit_group_firsts;
-            if (group_second && with_second) ++kit_group_coupled;
-            if (visit_pk) ++kit_coupled_packed;
+            __atomic_fetch_add(&kit_chains, 1, __ATOMIC_RELAXED);
+            if (group_first) __atomic_fetch_add(&kit_group_firsts, 1, __ATOMIC_RELAXED);
+            if (group_second && with_second)
+                __atomic_fetch_add(&kit_group_coupled, 1, __ATOMIC_RELAXED);
+            if (visit_pk) __atomic_fetch_add(&kit_coupled_packed, 1, __ATOMIC_RELAXED);
             *passes += kit_count;
             free(job.bonet_ok);
             return CONSPH_OK;
@@ -1127,18 +1128,23 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     /* the sources' rows of pass 1's pack, which the volume visits did not write */
     consph_sys_next_reads(s, &first_reads);
     if (st == CONSPH_OK && job.pk1 && with_volumes) st = kit_pack_sources(s, &job, 1);
-    unsigned long ran = kit_group_passes;
+    unsigned long ran = __atomic_load_n(&kit_group_passes, __ATOMIC_RELAXED);
     if (st == CONSPH_OK) st = kit_run(s, &first, group_first, &job, pairs);
-    if (group_first && kit_group_passes != ran) ++kit_group_firsts;
-    if (st == CONSPH_OK && visit_first_pk && kit_group_passes == ran) ++kit_first_packed;
+    if (group_first && __atomic_load_n(&kit_group_passes, __ATOMIC_RELAXED) != ran)
+        __atomic_fetch_add(&kit_group_firsts, 1, __ATOMIC_RELAXED);
+    if (st == CONSPH_OK && visit_first_pk &&
+        __atomic_load_n(&kit_group_passes, __ATOMIC_RELAXED) == ran)
+        __atomic_fetch_add(&kit_first_packed, 1, __ATOMIC_RELAXED);
     if (st == CONSPH_OK) ++*passes;
     if (with_second) consph_sys_next_reads(s, &second_reads);
     if (st == CONSPH_OK && with_second && job.pk2) st = kit_pack_sources(s, &job, 2);
     if (st == CONSPH_OK && with_second) {
-        ran = kit_group_passes;
+        ran = __atomic_load_n(&kit_group_passes, __ATOMIC_RELAXED);
         st = kit_run(s, &second, group_second, &job, pairs);
-        if (group_second && kit_group_passes != ran) ++kit_group_coupled;
-        if (st == CONSPH_OK && visit_pk) ++kit_coupled_packed;
+        if (group_second && __atomic_load_n(&kit_group_passes, __ATOMIC_RELAXED) != ran)
+            __atomic_fetch_add(&kit_group_coupled, 1, __ATOMIC_RELAXED);
+        if (st == CONSPH_OK && visit_pk)
+            __atomic_fetch_add(&kit_coupled_packed, 1, __ATOMIC_RELAXED);
         if (st == CONSPH_OK) ++*passes;
     }
     free(job.bonet_ok);
