@@ -182,8 +182,3 @@ void solver_sampler_free(consph_solver *s)
     free(w);
     s->sampler = NULL;
 }
-
-long solver_sampler_jobs(const consph_solver *s)
-{
-    return s->sampler ? s->sampler->jobs : 0;
-}

@@ -364,9 +364,8 @@ int solver_sample_overlapped(consph_solver *s);
  * before anything reads the host's particles again or what a sample writes (the history, the
  * sums, the buffers, the reference). */
 int solver_sample_join(consph_solver *s);
-/* Ends the thread (at consph_solver_free); and the samples it took (for tests). */
+/* Ends the thread (at consph_solver_free). */
 void solver_sampler_free(consph_solver *s);
-long solver_sampler_jobs(const consph_solver *s);
 /* Whether a decomposed solver's samples are taken on every rank from its owned particles, the
  * sums over the serial order and the maxima over the ranks (solver_sample, solver_auth_sample,
  * called on every rank), rather than on rank 0 over the gathered set: with the problem's exact
