@@ -12,7 +12,8 @@
 #       1. bench/gpu.sh: the GPU tests and the µs-per-particle-step table (GPU_SHARE, default 40 %);
 #       2. bench/gpu_study.sh: 001-table9's schemes on the GPU, extrapolated (STUDY_SHARE, 20 %);
 #       3. bench/gpu_probe.sh: the stages at 001-table9's small resolutions and what a log
-#          sample costs at 250 000 particles (about a minute, PROBE_LIMIT s, default 90);
+#          sample costs at 250 000 particles, with and without the samples beside the steps,
+#          and the small rows on 1-8 threads (about two minutes, PROBE_LIMIT s, default 150);
 #       4. bench/mpi_device.sh: the machine's ceiling, then 1-16 ranks, weak scaling at 10^5 per
 #          rank (the rest; each case up to MPI_CASE_TIMEOUT s, default 120: the 16-rank case's
 #          set-up of 1.6·10^6 particles did not fit 40);
@@ -93,7 +94,7 @@ case "$mode" in
         fi
         if [[ $parts == *" probe "* ]]; then
             log "3. bench/gpu_probe.sh"
-            timeout "${PROBE_LIMIT:-90}" bash bench/gpu_probe.sh "$out" build-gpu-carry >/dev/null 2>&1
+            timeout "${PROBE_LIMIT:-150}" bash bench/gpu_probe.sh "$out" build-gpu-carry >/dev/null 2>&1
             log "   exit $?"
         fi
     else

@@ -12,7 +12,11 @@
 #      the reference's steps, evaluation and rest), and for three of them again with the samples
 #      in line (CONSPH_SAMPLE_OVERLAP=0) instead of on a host thread beside the steps (the
 #      default on a GPU, src/solver/sampler.c; its line says how long the steps waited for them).
-# Writes OUT/probe.txt: bench_gpu's lines (stage_<name>_ms=, stage_wall_ms=) and the runs' lines.
+#   3. rows side by side: 001-table9's figure at nx 50-250 (the floor's rows: table 9's seven
+#      schemes, the lattice, 100 steps each) as one study run with --jobs 1, 2, 4 and 8 (the
+#      rows on threads sharing the GPU, docs/studies.md), the wall time of each.
+# Writes OUT/probe.txt: bench_gpu's lines (stage_<name>_ms=, stage_wall_ms=), the runs' lines and
+# the studies' wall times.
 # Usage: bash bench/gpu_probe.sh OUT [BUILD]   (BUILD: default build-gpu; carried builds work)
 set -u
 cd "$(dirname "$0")/.." || exit 1
@@ -40,4 +44,19 @@ for k in "l-ipst-c both 10 authors" "l-ipst-c both 10 authors 0" "l-ipst-c both 
         grep -E 'per particle-step|^consph: [0-9]+ log samples' | tr '\n' ' ')
     echo "run $1 --exact $2 --log-every $3 --error $4${ov:+ CONSPH_SAMPLE_OVERLAP=$ov} (nx 500, 100 steps): ${r:-failed}" >>"$f"
 done
+# 3. the small rows on 1, 2, 4 and 8 threads
+sd=$(mktemp -d)
+sed -e 's/^tf = 0.5$/steps = 100/' -e 's/^nx = .*/nx = 50,100,200,250/' -e '/^quick\./d' \
+    -e 's/^\[figure table9\]$/[figure table9]\nlayout = lattice/' studies/001-table9.study \
+    >"$sd/001-table9.study"
+for j in 1 2 4 8; do
+    t0=$(date +%s.%N)
+    XDG_CACHE_HOME=$sd/cache timeout 60 "$c" study "$sd/001-table9.study" --device gpu --jobs "$j" \
+        --out "$sd/o$j" >/dev/null 2>"$sd/e$j"
+    rc=$?
+    t1=$(date +%s.%N)
+    echo "study nx 50-250, 7 schemes, 100 steps, --jobs $j: exit $rc, $(awk -v a="$t0" -v b="$t1" \
+        'BEGIN { printf "%.2f", b - a }') s wall$([ $rc != 0 ] && echo ": $(tail -1 "$sd/e$j")")" >>"$f"
+done
+rm -rf "$sd"
 cat "$f"
