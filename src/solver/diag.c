@@ -123,7 +123,9 @@ static double *columns_buffer(double **buf, size_t *cap, size_t n, size_t cols)
 
 /* --exact both: this instant's errors against the reference, as consph_solver_diag (mean |f -
  * f_o|, *eu and *ep) and solver_auth_sample (normalised, *nu and *np) take them against the
- * incompressible solution. Its own buffer: the callers' are in use. */
+ * incompressible solution; nu and np NULL: not wanted, and the incompressible solution their
+ * normalisers need is not evaluated (a log sample's eq. 26 sums read eu and ep only). Its own
+ * buffer: the callers' are in use. */
 int solver_wc_side(consph_solver *s, double *eu, double *ep, double *nu, double *np)
 {
     const consph_particles *p = s->sys.p;
@@ -143,23 +145,26 @@ int solver_wc_side(consph_solver *s, double *eu, double *ep, double *nu, double 
     const double t2 = consph_wtime();
     s->sample_seconds[SAMPLE_WC_EVAL] += t2 - t1;
     if (st != CONSPH_OK) return st;
+    const int scales = nu || np;
 #pragma omp parallel for schedule(static) if (n >= SOLVER_PARALLEL_MIN)
     for (size_t i = 0; i < n; ++i) {
-        double x[3];
-        solver_position_of(p, i, x);
         const double ue[3] = {wu[i], wv[i], 0.0};
         pe[i] = wcref_pressure(s->wc, wrho[i]);
         const double ui[3] = {u[i], u[cap + i], 0.0};
         a[i] = fabs(speed(ui, s->dim) - speed(ue, s->dim));
         b[i] = fabs(pr[i] - pe[i]);
-        incompressible_scales(s, x, &mu[i], &pe[i]);
+        if (scales) {
+            double x[3];
+            solver_position_of(p, i, x);
+            incompressible_scales(s, x, &mu[i], &pe[i]);
+        }
     }
     const double su = consph_sum(a, n), sp = consph_sum(b, n);
     const double inv_n = n ? 1.0 / (double)n : 0.0; /* as consph_solver_diag */
     *eu = su * inv_n;
     *ep = sp * inv_n;
-    *nu = su / consph_sum(mu, n);
-    *np = sp / (double)n / max_abs(pe, n);
+    if (nu) *nu = su / consph_sum(mu, n);
+    if (np) *np = sp / (double)n / max_abs(pe, n);
     s->sample_seconds[SAMPLE_WC_REST] += (t1 - t0) + (consph_wtime() - t2);
     return CONSPH_OK;
 }
@@ -207,8 +212,8 @@ int solver_sample(consph_solver *s)
         s->l1_u_acc += s->log_since * g.l1_u;
         s->l1_p_acc += s->log_since * g.l1_p;
         if (s->prm.exact == CONSPH_EXACT_BOTH) {
-            double eu, ep, nu, np;
-            st = solver_wc_side(s, &eu, &ep, &nu, &np);
+            double eu, ep;
+            st = solver_wc_side(s, &eu, &ep, NULL, NULL);
             if (st != CONSPH_OK) return st;
             s->wcs_u_acc += s->log_since * eu;
             s->wcs_p_acc += s->log_since * ep;
