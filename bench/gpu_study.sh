@@ -291,7 +291,7 @@ The GPU's short run ($short steps per row): $(cat "$out/gpu-short.wall") s."
         echo "$(cat "$out/gpu.wall") and $(cat "$out/gpu-short.wall") s, $jobs threads $(cat "$out/gpuj.wall") and"
         echo "$(cat "$out/gpuj-short.wall") s. The whole study (every row here) extrapolated to the full"
         echo "$full steps per row as wall(K) + ($full − K) × (wall(K) − wall(K/3)) / (K − K/3): one thread"
-        echo "$w1 s ($(awk -v t="$w1" 'BEGIN { printf "%.2f", t / 3600 }') h), $jobs threads $wj s ($(awk -v t="$wj" 'BEGIN { printf "%.2f", t / 3600 }') h): ×$(awk -v a="$w1" -v b="$wj" 'BEGIN { printf "%.2f", a / b }')."
+        echo "$w1 s ($(awk -v t="$w1" 'BEGIN { printf "%.2f", t / 3600 }') h), $jobs threads $wj s ($(awk -v t="$wj" 'BEGIN { printf "%.2f", t / 3600 }') h): ×$(awk -v a="$w1" -v b="$wj" 'BEGIN { if (b > 0) printf "%.2f", a / b; else printf "-" }')."
         echo "(Its rows include edac's; the 50 output times of the full rows and the packing are not"
         echo "in it; the per-scheme table above is the one-thread run's.)"
     fi
