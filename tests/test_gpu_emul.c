@@ -8,7 +8,8 @@
  * log samples and the end); 001's schemes (rk2, the kit's passes, IPST over two shifts, the other
  * regularisations) and the δ-SPH family (rk2, δ+-SPH's shifting velocity) the same way. Then the
  * refusals: schemes not ported, and a build without CUDA. Under error = authors, the copies back
- * are counted: only the steps the host reads. */
+ * are counted: only the steps the host reads. The log samples beside the steps give the CPU's
+ * history and sums. */
 #include <dirent.h>
 #include <unistd.h>
 
@@ -140,6 +141,65 @@ done:
     consph_solver_free(s[1]);
 }
 
+/* The log samples on a host thread beside the steps (src/solver/sampler.c, forced on the
+ * emulation): after every step the history read through the API (which waits for a sample still
+ * running) equals the CPU's row for row, and so do the summary's sums at the end (eq. 26, the
+ * authors' measure, both against the weakly-compressible reference too). */
+static void overlapped(const char *scheme)
+{
+    setenv("CONSPH_SAMPLE_OVERLAP", "1", 1);
+    consph_solver *s[2] = {NULL, NULL};
+    for (int k = 0; k < 2; ++k) {
+        consph_run_params p;
+        consph_run_params_default(&p);
+        snprintf(p.scheme, sizeof p.scheme, "%s", scheme);
+        p.nx = 16;
+        p.error = CONSPH_ERROR_AUTHORS;
+        p.error_times = 4;
+        p.exact = CONSPH_EXACT_BOTH;
+        p.log_every = 3;
+        p.steps = 14;
+        p.tf = 0.0;
+        CHECK(consph_solver_create(&s[k], &p) == CONSPH_OK, "create: %s", consph_last_error());
+        if (!s[k]) goto done;
+        s[k]->grads_lazy = 1;
+    }
+    consph_solver *cpu = s[0], *emu = s[1];
+    CHECK(gpu_attach(emu, &gpu_emulation) == CONSPH_OK, "attach: %s", consph_last_error());
+    if (!emu->gpu) goto done;
+    int rows_equal = 1;
+    while (!consph_solver_done(cpu)) {
+        const int a = consph_solver_step(cpu), b = consph_solver_step(emu);
+        CHECK(a == CONSPH_OK && b == CONSPH_OK, "%s overlapped step: %s", scheme,
+              consph_last_error());
+        if (a != CONSPH_OK || b != CONSPH_OK) goto done;
+        const size_t n = consph_solver_history_size(cpu);
+        rows_equal &= consph_solver_history_size(emu) == n;
+        if (n == 0 || !rows_equal) continue;
+        consph_step_diag dc, de;
+        rows_equal &= consph_solver_history_row(cpu, n - 1, &dc) == CONSPH_OK &&
+                      consph_solver_history_row(emu, n - 1, &de) == CONSPH_OK &&
+                      memcmp(&dc, &de, sizeof dc) == 0;
+    }
+    CHECK(rows_equal, "%s overlapped: the history read after each step differs", scheme);
+    CHECK(emu->sampler != NULL, "%s overlapped: no sample ran on the host thread", scheme);
+    consph_run_summary sc, se;
+    CHECK(consph_solver_summary(cpu, &sc) == CONSPH_OK &&
+              consph_solver_summary(emu, &se) == CONSPH_OK,
+          "summary: %s", consph_last_error());
+    const double c[] = {sc.l1_u,    sc.l1_p,    sc.l1n_u,    sc.l1n_p,
+                        sc.wc_l1_u, sc.wc_l1_p, sc.wc_l1n_u, sc.wc_l1n_p};
+    const double e[] = {se.l1_u,    se.l1_p,    se.l1n_u,    se.l1n_p,
+                        se.wc_l1_u, se.wc_l1_p, se.wc_l1n_u, se.wc_l1n_p};
+    CHECK(memcmp(c, e, sizeof c) == 0 && isfinite(c[0]) && isfinite(c[4]) && isfinite(c[6]),
+          "%s overlapped: sums %.17g %.17g %.17g against the CPU's %.17g %.17g %.17g", scheme, e[0],
+          e[4], e[6], c[0], c[4], c[6]);
+done:
+    consph_solver_free(s[0]);
+    consph_solver_free(s[1]);
+    unsetenv("CONSPH_SAMPLE_OVERLAP");
+}
+
 int main(void)
 {
     /* tvf: kick-drift-kick, its transport velocity and summation density */
@@ -200,6 +260,8 @@ int main(void)
     authors_copies("edac", 0);
     authors_copies("l-ipst-c", 0);
     authors_copies("delta-plus-sph", 0); /* steps cut to land: δu = δr/Δt of the cut Δt */
+    overlapped("edac");
+    overlapped("l-ipst-c");
     refusals();
     return check_summary("test_gpu_emul");
 }
