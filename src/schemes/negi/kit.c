@@ -858,19 +858,30 @@ static consph_visit_fn coupled_pk_of(int d, int with_q)
     ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (consph_visit_fn)NULL)
 #endif
 
-/* A pass with its group visit where the system and the compiler allow one, else per particle. */
-static int kit_run(consph_sys *s, const consph_pass *pass, pass_group_fn group, void *job,
-                   size_t *pairs)
+/* A pass with its group visit where the system and the compiler allow one, else per particle;
+ * *grouped (may be NULL): whether the group visit ran it. */
+static int kit_run_grouped(consph_sys *s, const consph_pass *pass, pass_group_fn group, void *job,
+                           size_t *pairs, int *grouped)
 {
+    if (grouped) *grouped = 0;
     if (kit_group_visits && group) {
         const int st =
             pass_run_groups(s, pass->name, pass->need | PASS_GROUP_UNPADDED, group, job, pairs);
         if (st != PASS_GROUP_UNSERVED) {
-            if (st == CONSPH_OK) __atomic_fetch_add(&kit_group_passes, 1, __ATOMIC_RELAXED);
+            if (st == CONSPH_OK) {
+                __atomic_fetch_add(&kit_group_passes, 1, __ATOMIC_RELAXED);
+                if (grouped) *grouped = 1;
+            }
             return st;
         }
     }
     return consph_pass_run_counted(s, pass, job, pairs);
+}
+
+static int kit_run(consph_sys *s, const consph_pass *pass, pass_group_fn group, void *job,
+                   size_t *pairs)
+{
+    return kit_run_grouped(s, pass, group, job, pairs, NULL);
 }
 
 static const consph_pass volume_pass = {"volumes 1/sum W", CONSPH_PASS_W | CONSPH_PASS_NO_DX,
@@ -1128,21 +1139,17 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     /* the sources' rows of pass 1's pack, which the volume visits did not write */
     consph_sys_next_reads(s, &first_reads);
     if (st == CONSPH_OK && job.pk1 && with_volumes) st = kit_pack_sources(s, &job, 1);
-    unsigned long ran = __atomic_load_n(&kit_group_passes, __ATOMIC_RELAXED);
-    if (st == CONSPH_OK) st = kit_run(s, &first, group_first, &job, pairs);
-    if (group_first && __atomic_load_n(&kit_group_passes, __ATOMIC_RELAXED) != ran)
-        __atomic_fetch_add(&kit_group_firsts, 1, __ATOMIC_RELAXED);
-    if (st == CONSPH_OK && visit_first_pk &&
-        __atomic_load_n(&kit_group_passes, __ATOMIC_RELAXED) == ran)
+    int grouped = 0;
+    if (st == CONSPH_OK) st = kit_run_grouped(s, &first, group_first, &job, pairs, &grouped);
+    if (group_first && grouped) __atomic_fetch_add(&kit_group_firsts, 1, __ATOMIC_RELAXED);
+    if (st == CONSPH_OK && visit_first_pk && !grouped)
         __atomic_fetch_add(&kit_first_packed, 1, __ATOMIC_RELAXED);
     if (st == CONSPH_OK) ++*passes;
     if (with_second) consph_sys_next_reads(s, &second_reads);
     if (st == CONSPH_OK && with_second && job.pk2) st = kit_pack_sources(s, &job, 2);
     if (st == CONSPH_OK && with_second) {
-        ran = __atomic_load_n(&kit_group_passes, __ATOMIC_RELAXED);
-        st = kit_run(s, &second, group_second, &job, pairs);
-        if (group_second && __atomic_load_n(&kit_group_passes, __ATOMIC_RELAXED) != ran)
-            __atomic_fetch_add(&kit_group_coupled, 1, __ATOMIC_RELAXED);
+        st = kit_run_grouped(s, &second, group_second, &job, pairs, &grouped);
+        if (group_second && grouped) __atomic_fetch_add(&kit_group_coupled, 1, __ATOMIC_RELAXED);
         if (st == CONSPH_OK && visit_pk)
             __atomic_fetch_add(&kit_coupled_packed, 1, __ATOMIC_RELAXED);
         if (st == CONSPH_OK) ++*passes;
