@@ -14,7 +14,8 @@
  * writes (the history, the eq. 26 sums, the buffers, the reference, the time parts) is lent to
  * the copy until the join takes it back. One sample at a time, in step order, with the same
  * operations on the same values: the history and every sum are those of samples in line, bit for
- * bit, for any thread count (tests/cli_gpu.sh compares CONSPH_SAMPLE_OVERLAP=0 and 1). */
+ * bit, for any thread count (tests/cli_gpu.sh: the overlapped emulation's files against the
+ * CPU's; test_gpu_emul: its history through the API after every step, and its sums). */
 #include <pthread.h>
 #include <stdio.h>
 #include <stdlib.h>
