@@ -77,27 +77,34 @@ static void refusals(void)
  * the steps whose end the host reads (the output times, the log samples, the last step) and no
  * other, and the measure's sums, the log and the state equal the CPU's bit for bit; by --steps
  * (output times rounded to steps) and by --tf (steps cut to land on them). */
+/* Two solvers of p, s[0] on the CPU and s[1] on the emulation, stepping as consph_run without
+ * snapshots does (grads_lazy); 0 (the caller frees what was made) when one could not be made. */
+static int emul_pair(const consph_run_params *p, consph_solver *s[2])
+{
+    for (int k = 0; k < 2; ++k) {
+        CHECK(consph_solver_create(&s[k], p) == CONSPH_OK, "create: %s", consph_last_error());
+        if (!s[k]) return 0;
+        s[k]->grads_lazy = 1;
+    }
+    CHECK(gpu_attach(s[1], &gpu_emulation) == CONSPH_OK, "attach: %s", consph_last_error());
+    return s[1]->gpu != NULL;
+}
+
 static void authors_copies(const char *scheme, int by_steps)
 {
     consph_solver *s[2] = {NULL, NULL};
-    for (int k = 0; k < 2; ++k) {
-        consph_run_params p;
-        consph_run_params_default(&p);
-        snprintf(p.scheme, sizeof p.scheme, "%s", scheme);
-        p.nx = 16;
-        p.error = CONSPH_ERROR_AUTHORS;
-        p.error_times = 5;
-        p.log_every = 7;
-        p.steps = by_steps ? 24 : 0;
-        p.dt = by_steps ? 0.0 : 1.1e-3;
-        p.tf = by_steps ? 0.0 : 0.0255; /* output times k·0.006375: steps 6, 12, 18, 24 cut */
-        CHECK(consph_solver_create(&s[k], &p) == CONSPH_OK, "create: %s", consph_last_error());
-        if (!s[k]) goto done;
-        s[k]->grads_lazy = 1; /* as consph_run without snapshots */
-    }
+    consph_run_params prm;
+    consph_run_params_default(&prm);
+    snprintf(prm.scheme, sizeof prm.scheme, "%s", scheme);
+    prm.nx = 16;
+    prm.error = CONSPH_ERROR_AUTHORS;
+    prm.error_times = 5;
+    prm.log_every = 7;
+    prm.steps = by_steps ? 24 : 0;
+    prm.dt = by_steps ? 0.0 : 1.1e-3;
+    prm.tf = by_steps ? 0.0 : 0.0255; /* output times k·0.006375: steps 6, 12, 18, 24 cut */
+    if (!emul_pair(&prm, s)) goto done;
     consph_solver *cpu = s[0], *emu = s[1];
-    CHECK(gpu_attach(emu, &gpu_emulation) == CONSPH_OK, "attach: %s", consph_last_error());
-    if (!emu->gpu) goto done;
     long steps = 0, reads = 0;
     while (!consph_solver_done(cpu)) {
         const int before = cpu->auth_n;
@@ -149,24 +156,18 @@ static void overlapped(const char *scheme)
 {
     setenv("CONSPH_SAMPLE_OVERLAP", "1", 1);
     consph_solver *s[2] = {NULL, NULL};
-    for (int k = 0; k < 2; ++k) {
-        consph_run_params p;
-        consph_run_params_default(&p);
-        snprintf(p.scheme, sizeof p.scheme, "%s", scheme);
-        p.nx = 16;
-        p.error = CONSPH_ERROR_AUTHORS;
-        p.error_times = 4;
-        p.exact = CONSPH_EXACT_BOTH;
-        p.log_every = 3;
-        p.steps = 14;
-        p.tf = 0.0;
-        CHECK(consph_solver_create(&s[k], &p) == CONSPH_OK, "create: %s", consph_last_error());
-        if (!s[k]) goto done;
-        s[k]->grads_lazy = 1;
-    }
+    consph_run_params p;
+    consph_run_params_default(&p);
+    snprintf(p.scheme, sizeof p.scheme, "%s", scheme);
+    p.nx = 16;
+    p.error = CONSPH_ERROR_AUTHORS;
+    p.error_times = 4;
+    p.exact = CONSPH_EXACT_BOTH;
+    p.log_every = 3;
+    p.steps = 14;
+    p.tf = 0.0;
+    if (!emul_pair(&p, s)) goto done;
     consph_solver *cpu = s[0], *emu = s[1];
-    CHECK(gpu_attach(emu, &gpu_emulation) == CONSPH_OK, "attach: %s", consph_last_error());
-    if (!emu->gpu) goto done;
     int rows_equal = 1;
     while (!consph_solver_done(cpu)) {
         const int a = consph_solver_step(cpu), b = consph_solver_step(emu);
