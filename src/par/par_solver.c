@@ -2235,7 +2235,7 @@ int par_stream(consph_solver *s, int (*fn)(consph_solver *s, void *arg), void *a
 int par_sample_due(consph_solver *s)
 {
     par_solver *ps = s->par;
-    const int due = !(s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step);
+    const int due = !solver_sampled_now(s);
     if (!ps) return due;
     return stream_bcast(ps, due);
 }
@@ -2586,7 +2586,7 @@ int par_stream_source(consph_solver *s, const consph_particles **view, io_array_
 
 int par_sample_due(consph_solver *s)
 {
-    return !(s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step);
+    return !solver_sampled_now(s);
 }
 
 int par_rank(const consph_solver *s)

@@ -200,7 +200,7 @@ int solver_sample(consph_solver *s)
 {
     const int joined = solver_sample_join(s);
     if (joined != CONSPH_OK) return joined;
-    if (s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step) return CONSPH_OK;
+    if (solver_sampled_now(s)) return CONSPH_OK;
     consph_step_diag g;
     const double t0 = consph_wtime(), w0 = wc_seconds(s);
     int st = consph_solver_diag(s, &g);

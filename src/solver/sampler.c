@@ -142,7 +142,7 @@ int solver_sample_overlapped(consph_solver *s)
     int st = solver_sample_join(s);
     if (st != CONSPH_OK) return st;
     /* solver_sample's own test: this step is in the history already */
-    if (s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step) return CONSPH_OK;
+    if (solver_sampled_now(s)) return CONSPH_OK;
     solver_sampler *w = sampler_start(s);
     if (!w) return solver_sample(s); /* no thread: the sample in line, as without overlap */
     w->copy = *s;

@@ -345,6 +345,11 @@ int run_nx_fits(int nx, int dim, double memory);
  * thread count). */
 #define SOLVER_PARALLEL_MIN 4096
 #define HIST_COLS 14 /* step t l1_u linf_u l1_p linf_p ke mx my mz ang ft_fmax max_divu dt */
+/* Whether the history's last row is this step's (a sample of this instant was taken). */
+static inline int solver_sampled_now(const consph_solver *s)
+{
+    return s->nhist && (long)s->hist[(s->nhist - 1) * HIST_COLS] == s->step;
+}
 
 /* Diagnostics (diag.c): a row of the history; x of particle i as the problems take it (every
  * coordinate of the run, 0 beyond); the authors' measure: output time k of a --tf run, the sample
