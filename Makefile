@@ -47,9 +47,10 @@ format-check:
 	clang-format --dry-run --Werror $$(git ls-files '*.c' '*.h')
 
 # libFuzzer targets of the particle readers, the CLI option parsers and the study-file parser
-# (fuzz/fuzz_*.c), built with clang's fuzzer, ASan and UBSan over the sources they reach (the
-# study parser's validation reaches the whole library), then run one after the other for
-# FUZZ_TIME seconds each
+# (fuzz/fuzz_*.c), built with clang's fuzzer, ASan and UBSan over the whole library and the CLI
+# parser (compiled once into $(FUZZ_BUILD)/obj; the CLI's options reach the layout cache, the
+# study parser's validation the whole library), then run one after the other for FUZZ_TIME
+# seconds each
 # from the seed corpus fuzz/corpus/<target>/. New inputs go to $(FUZZ_BUILD)/corpus-<target>/;
 # a crash stops the run and leaves $(FUZZ_BUILD)/crash-<target>-*: copy it into
 # fuzz/regressions/<target>/, where `make check` replays it from then on.
@@ -59,16 +60,17 @@ FUZZ_CC      ?= clang
 FUZZ_TARGETS ?= csv vtu inflate cli study
 FUZZ_FLAGS   ?= -g -O1 -std=c11 -D_DEFAULT_SOURCE -fsanitize=fuzzer,address,undefined \
                 -fno-sanitize-recover=undefined -Iinclude -Isrc -Iapps
-FUZZ_SOURCES  = $(wildcard src/core/*.c src/io/*.c) apps/cli.c
-FUZZ_SOURCES_ALL = $(wildcard src/*/*.c src/*/*/*.c)
+FUZZ_SOURCES  = $(wildcard src/*/*.c src/*/*/*.c) apps/cli.c
 
 fuzz:
 	@command -v $(FUZZ_CC) >/dev/null || { echo "make fuzz needs clang with libFuzzer (Debian: clang, libclang-rt-dev)" >&2; exit 1; }
-	@mkdir -p $(FUZZ_BUILD)
+	@rm -rf $(FUZZ_BUILD)/obj && mkdir -p $(FUZZ_BUILD)/obj
+	@echo "compiling $(words $(FUZZ_SOURCES)) sources into $(FUZZ_BUILD)/obj"
+	@printf '%s\n' $(FUZZ_SOURCES) | xargs -P $(JOBS) -I{} sh -c \
+	  'o=$(FUZZ_BUILD)/obj/$$(printf %s "$$1" | tr / _).o; $(FUZZ_CC) $(FUZZ_FLAGS) -c "$$1" -o "$$o"' sh {}
 	@for t in $(FUZZ_TARGETS); do \
 	  echo "building $(FUZZ_BUILD)/fuzz_$$t"; \
-	  srcs="$(FUZZ_SOURCES)"; [ $$t = study ] && srcs="$(FUZZ_SOURCES_ALL)"; \
-	  $(FUZZ_CC) $(FUZZ_FLAGS) fuzz/fuzz_$$t.c $$srcs -lm -lz -o $(FUZZ_BUILD)/fuzz_$$t || exit 1; \
+	  $(FUZZ_CC) $(FUZZ_FLAGS) fuzz/fuzz_$$t.c $(FUZZ_BUILD)/obj/*.o -lm -lz -o $(FUZZ_BUILD)/fuzz_$$t || exit 1; \
 	done
 	@for t in $(FUZZ_TARGETS); do \
 	  mkdir -p $(FUZZ_BUILD)/corpus-$$t; \

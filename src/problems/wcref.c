@@ -278,6 +278,20 @@ void wcref_share_clear(void)
     share_trim(0);
 }
 
+/* C11's CMPLX, which glibc's <complex.h> defines for GCC only (clang, e.g. `make fuzz`, finds
+ * none): a complex number is an array of its real and imaginary parts (C11 6.2.5p13). */
+#ifndef CMPLX
+static inline double complex wcref_cmplx(double re, double im)
+{
+    double complex z;
+    double *part = (double *)&z;
+    part[0] = re;
+    part[1] = im;
+    return z;
+}
+#define CMPLX(re, im) wcref_cmplx((re), (im))
+#endif
+
 /* Products written out: without -ffast-math (results must not depend on it) a complex `*` calls
  * the library's NaN-checking multiply, several times slower in these loops. */
 static inline double complex cmul(double complex a, double complex b)
