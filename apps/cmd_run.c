@@ -680,10 +680,7 @@ int cmd_run(int argc, char **argv)
     }
     /* the GPU's refusals before the set-up's work (bad input: exit 2) */
     if (device == CONSPH_DEVICE_GPU) {
-        if (ckpt_every > 0)
-            rc = cli_error(&cmd, "option --checkpoint-every does not run with --device gpu yet "
-                                 "(the checkpoint at the end of the run is written)");
-        else if (consph_gpu_check(s ? consph_solver_params(s) : &prm) != CONSPH_OK)
+        if (consph_gpu_check(s ? consph_solver_params(s) : &prm) != CONSPH_OK)
             rc = cli_error(&cmd, "%s", consph_last_error());
         if (rc) {
             consph_solver_free(s);

@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # `consph run ... --device gpu`: the refusals (exit 2) name what is wrong: a scheme not ported
-# (naming those that are), --checkpoint-every, an option of heat, a build without GPU support or
-# a machine without a device. The GPU path of the CLI on the host emulation
+# (naming those that are), an option of heat, a build without GPU support or a machine without a
+# device. A checkpoint between two log samples (--checkpoint-every) equals the CPU's. The GPU path of the CLI on the host emulation
 # (CONSPH_GPU_BACKEND=emulation), and on the GPU where one is found: the run's log, snapshots,
 # final checkpoint and summary equal the CPU run's byte for byte (edac, wcsph and tvf, 2D and 3D;
 # l-ipst-c, l-pst-c, e-c, l-rr-c; delta-plus-sph, delta-plus-sph-d; --error authors, whose run
@@ -18,11 +18,34 @@ failing 2 "kdk, tvf's" "$work/o" -- run --scheme tvf --integrator pec --device g
 failing 2 "rk2, that of 001's schemes and the δ-SPH family" "$work/o" -- run --scheme delta-plus-sph \
     --integrator ssprk3 --device gpu && pass=$((pass + 1))
 failing 2 "allowed: cpu,gpu" "$work/o" -- run --scheme edac --device tpu && pass=$((pass + 1))
-failing 2 "--checkpoint-every" "$work/o" -- run --scheme edac --device gpu --out "$work/ck" \
-    --checkpoint-every 2 && pass=$((pass + 1))
 failing 2 "--skin" "$work/o" -- run --scheme edac --device gpu --skin 0.1 && pass=$((pass + 1))
 failing 2 "--device" "$work/o" -- "$consph" run heat --nx 10 --steps 2 --device gpu &&
     pass=$((pass + 1))
+# --checkpoint-every: a checkpoint between the samples holds every array of its step. The run
+# leaves the weakly-compressible range at step 43 (exit 3, the same step on both: --log-every 1
+# checks every step), so the checkpoint of step 40 is the one left. The two checkpoints differ in
+# their run ids and timing alone: each continued to step 42 on the CPU, and the GPU's on the GPU
+# too, writes the same log and snapshot byte for byte
+for d in cpu gpu; do
+    CONSPH_GPU_BACKEND=emulation "$consph" run taylor-green --scheme wcsph --nx 16 --c0 3 --cfl 1 \
+        --steps 60 --log-every 1 --checkpoint-every 10 --threads 1 --device $d \
+        --out "$work/ck-$d" >/dev/null 2>"$work/ck-$d.err"
+    rc=$?
+    [ $rc -eq 3 ] && grep -q "diverged at step 43" "$work/ck-$d.err" ||
+        bad "checkpoint-every on the $d: exit $rc, $(tail -n 1 "$work/ck-$d.err")"
+done
+for c in cpu:cpu gpu:cpu gpu:gpu; do
+    CONSPH_GPU_BACKEND=emulation "$consph" run --restart "$work/ck-${c%:*}/checkpoint.ckpt" \
+        --steps 42 --device "${c#*:}" --out "$work/re-${c%:*}-${c#*:}" >/dev/null 2>&1 ||
+        bad "the restart of the ${c%:*}'s checkpoint on the ${c#*:}"
+done
+for c in gpu-cpu gpu-gpu; do
+    for f in log.csv snap_000042.vtu; do
+        cmp -s "$work/re-cpu-cpu/$f" "$work/re-$c/$f" ||
+            bad "--checkpoint-every: $f of the restart $c differs from the CPU's"
+    done
+done
+[ -e "$work/re-cpu-cpu/snap_000042.vtu" ] && pass=$((pass + 1))
 # the CPU is the default and --device cpu changes nothing
 run --scheme edac --out "$work/a" >/dev/null && run --scheme edac --device cpu --out "$work/b" >/dev/null ||
     bad "edac on the CPU"

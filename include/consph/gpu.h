@@ -34,6 +34,14 @@ int consph_gpu_check(const consph_run_params *prm);
  * arrays the host reads there (positions, u, p, ϱ, ids, mass, the rates' au and ∇·u;
  * docs/gpu.md): call this with CONSPH_DEVICE_CPU to read any other array mid-run. */
 int consph_solver_set_device(consph_solver *s, consph_device device);
+/* Where the solver's steps run: CONSPH_DEVICE_GPU from a consph_solver_set_device to the GPU
+ * until one back to the CPU. */
+consph_device consph_solver_device(const consph_solver *s);
+/* Makes the host's copy of every array the state the last step left, mid-run: on the device,
+ * every array copied back (and the host's search rebuilt on the positions), the steps staying
+ * on the device; on the CPU, nothing. For reading a field, a checkpoint or the particles of a
+ * run on the GPU between two steps (the Python module's Solver.field does). */
+int consph_solver_sync(consph_solver *s);
 
 #ifdef __cplusplus
 }

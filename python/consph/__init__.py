@@ -230,19 +230,28 @@ def read_table(path):
     return {h: _column([r[k] if k < len(r) else "" for r in body]) for k, h in enumerate(head)}
 
 
-def study(name, out_dir=None, quick=False, log=False):
+def study(name, out_dir=None, quick=False, log=False, jobs=1, device=None, resume=False):
     """Runs one study (a built-in by name, e.g. '003-kernels', or a path to a .study file) as
-    `consph study NAME --out OUT_DIR [--quick]` does and returns its tables: a dict from figure
-    id to a dict of columns (numpy arrays: the figure's CSV, one row per measurement), plus the
-    key '_study' holding name, title and the directory of the files (FIGURE.csv, .md, .gp,
-    README.md). out_dir None: a temporary directory, removed afterwards (the files with it)."""
+    `consph study NAME --out OUT_DIR [--quick] [--jobs J] [--device D] [--resume]` does and
+    returns its tables: a dict from figure id to a dict of columns (numpy arrays: the figure's
+    CSV, one row per measurement), plus the key '_study' holding name, title and the directory
+    of the files (FIGURE.csv, .md, .gp, README.md). out_dir None: a temporary directory, removed
+    afterwards (the files with it). jobs: the rows on that many worker processes, or threads
+    sharing the GPU with device 'gpu' or 'auto' (docs/studies.md); the tables are those of
+    jobs=1. device: where the solver rows run, 'cpu', 'gpu' or 'auto' (None: the study file's
+    key `device`, else the CPU; docs/gpu.md). resume: keep the rows an earlier, stopped or
+    failed, run of the same study left in out_dir (refused when the study file or quick
+    differ)."""
     path = study_path(name)
     tmp = None
     if out_dir is None:
+        if resume:
+            raise InvalidArgument("resume: give the out_dir of the run to go on with")
         tmp = _tempfile.TemporaryDirectory(prefix="consph-study-")
         out_dir = tmp.name
     try:
-        info = _core.run_study(path, out_dir, quick=quick, log=log)
+        info = _core.run_study(path, out_dir, quick=quick, log=log, jobs=jobs, device=device,
+                               resume=resume)
         tables = {}
         for fn in sorted(_os.listdir(info["dir"])):
             if fn.endswith(".csv") and not fn.startswith("."):

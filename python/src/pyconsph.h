@@ -14,6 +14,7 @@
 #include <numpy/arrayobject.h>
 
 #include "consph/consph.h"
+#include "consph/gpu.h"
 #include "consph/solver.h"
 #include "consph/study.h"
 #include "consph/transport.h"

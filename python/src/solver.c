@@ -241,7 +241,8 @@ static int init_params(PyObject *args, PyObject *kw, consph_run_file *rf, consph
     while (kw && PyDict_Next(kw, &pos, &key, &val)) {
         const char *name = PyUnicode_AsUTF8(key);
         if (!name) return -1;
-        if (!strcmp(name, "problem") || !strcmp(name, "particles") || !strcmp(name, "config"))
+        if (!strcmp(name, "problem") || !strcmp(name, "particles") || !strcmp(name, "config") ||
+            !strcmp(name, "device"))
             continue;
         if (!consph_run_param_find(name)) {
             char names[2048] = "";
@@ -299,6 +300,36 @@ static int init_params(PyObject *args, PyObject *kw, consph_run_file *rf, consph
     return unread_params(kw, rf, prm);
 }
 
+/* device='cpu' or 'gpu' (None: the CPU) into *dev, as consph run --device reads it. */
+static int device_of(PyObject *obj, consph_device *dev)
+{
+    *dev = CONSPH_DEVICE_CPU;
+    if (!obj || obj == Py_None) return 0;
+    const char *name = PyUnicode_Check(obj) ? PyUnicode_AsUTF8(obj) : NULL;
+    if (!name && PyErr_Occurred()) return -1;
+    if (name && !strcmp(name, "gpu")) {
+        *dev = CONSPH_DEVICE_GPU;
+        return 0;
+    }
+    if (name && !strcmp(name, "cpu")) return 0;
+    PyObject *r = PyObject_Repr(obj);
+    const char *text = r ? PyUnicode_AsUTF8(r) : NULL;
+    if (text) pyc_raise_msg(CONSPH_EINVAL, "device %.40s is unknown (allowed: cpu, gpu)", text);
+    Py_XDECREF(r);
+    return -1;
+}
+
+/* The solver's steps onto `dev` (docs/gpu.md); its refusal as consph.InvalidArgument. */
+static int move_to(consph_solver *s, consph_device dev)
+{
+    if (dev == consph_solver_device(s)) return 0;
+    int st;
+    if (dev == CONSPH_DEVICE_GPU && consph_gpu_check(consph_solver_params(s)) != CONSPH_OK)
+        return pyc_raise(CONSPH_EINVAL), -1;
+    PYC_UNLOCKED(st = consph_solver_set_device(s, dev));
+    return st == CONSPH_OK ? 0 : (pyc_raise(st), -1);
+}
+
 static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
 {
     solver_object *so = (solver_object *)self;
@@ -320,7 +351,14 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
         }
     }
     consph_run_params prm;
+    consph_device dev;
     int rc = init_params(args, kw, rf, &prm);
+    if (!rc) rc = device_of(kw ? PyDict_GetItemString(kw, "device") : NULL, &dev);
+    /* the GPU's refusals before the set-up's work, as consph run makes them */
+    if (!rc && dev == CONSPH_DEVICE_GPU && consph_gpu_check(&prm) != CONSPH_OK) {
+        pyc_raise(CONSPH_EINVAL);
+        rc = -1;
+    }
     PyObject *gobj = kw ? PyDict_GetItemString(kw, "particles") : NULL;
     if (gobj == Py_None) gobj = NULL;
     consph_particles given;
@@ -352,6 +390,10 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
     consph_particles_free(&given);
     if (rc) return -1;
     if (st != CONSPH_OK) return pyc_raise(st), -1;
+    if (move_to(s, dev) < 0) {
+        consph_solver_free(s);
+        return -1;
+    }
     consph_solver_free(so->s);
     so->s = s;
     return 0;
@@ -368,6 +410,19 @@ static int ready(solver_object *so)
 {
     if (so->s) return 1;
     pyc_raise_msg(CONSPH_EINVAL, "Solver: not set up (its creation failed)");
+    return 0;
+}
+
+/* ready, and the host's copy of every array the current state: a run on the GPU copies back
+ * only what its log samples and snapshots read (consph_solver_sync). */
+static int ready_synced(solver_object *so)
+{
+    if (!ready(so)) return 0;
+    if (consph_solver_device(so->s) == CONSPH_DEVICE_CPU) return 1;
+    int st;
+    PYC_UNLOCKED(st = consph_solver_sync(so->s));
+    if (st == CONSPH_OK) return 1;
+    pyc_raise(st);
     return 0;
 }
 
@@ -514,7 +569,7 @@ static PyObject *solver_field(PyObject *self, PyObject *args, PyObject *kw)
     static char *kwlist[] = {"name", "order", NULL};
     const char *name, *ord = "initial";
     if (!PyArg_ParseTupleAndKeywords(args, kw, "s|s", kwlist, &name, &ord)) return NULL;
-    if (!ready(so)) return NULL;
+    if (!ready_synced(so)) return NULL;
     if (strcmp(ord, "initial") && strcmp(ord, "current"))
         return pyc_raise_msg(CONSPH_EINVAL, "order '%s' is unknown (allowed: initial, current)",
                              ord);
@@ -584,7 +639,7 @@ static PyObject *solver_particles(PyObject *self, PyObject *args, PyObject *kw)
     static char *kwlist[] = {"order", NULL};
     const char *ord = "initial";
     if (!PyArg_ParseTupleAndKeywords(args, kw, "|s", kwlist, &ord)) return NULL;
-    if (!ready(so)) return NULL;
+    if (!ready_synced(so)) return NULL;
     if (strcmp(ord, "initial") && strcmp(ord, "current"))
         return pyc_raise_msg(CONSPH_EINVAL, "order '%s' is unknown (allowed: initial, current)",
                              ord);
@@ -615,7 +670,7 @@ static PyObject *solver_summary(PyObject *self, PyObject *args)
 {
     (void)args;
     solver_object *so = (solver_object *)self;
-    if (!ready(so)) return NULL;
+    if (!ready_synced(so)) return NULL;
     consph_run_summary s;
     int st = consph_solver_summary(so->s, &s);
     if (st != CONSPH_OK) return pyc_raise(st);
@@ -725,7 +780,7 @@ static PyObject *solver_diag(PyObject *self, PyObject *args)
 {
     (void)args;
     solver_object *so = (solver_object *)self;
-    if (!ready(so)) return NULL;
+    if (!ready_synced(so)) return NULL;
     consph_step_diag g;
     int st = consph_solver_diag(so->s, &g);
     if (st != CONSPH_OK) return pyc_raise(st);
@@ -775,7 +830,7 @@ static PyObject *solver_checkpoint(PyObject *self, PyObject *args, PyObject *kw)
     static char *kwlist[] = {"path", NULL};
     const char *path;
     if (!PyArg_ParseTupleAndKeywords(args, kw, "s", kwlist, &path)) return NULL;
-    if (!ready(so)) return NULL;
+    if (!ready_synced(so)) return NULL;
     char *meta = NULL;
     double *hist = NULL;
     size_t nh = 0;
@@ -790,7 +845,7 @@ static PyObject *solver_checkpoint(PyObject *self, PyObject *args, PyObject *kw)
 }
 
 PyDoc_STRVAR(restart_doc,
-             "restart($type, /, path, tf=None, steps=None)\n"
+             "restart($type, /, path, tf=None, steps=None, device=None)\n"
              "--\n"
              "\n"
              "Returns Solver. A solver restored from a checkpoint (consph_run_restart: "
@@ -798,14 +853,18 @@ PyDoc_STRVAR(restart_doc,
              "or a run's checkpoint.ckpt); it continues bit for bit. tf or steps gives it another\n"
              "end after the checkpoint's (consph_solver_extend, as `consph run --restart CKPT\n"
              "--tf T`): it then continues as the uninterrupted run with that end, bit for bit.\n"
-             "An end it cannot take raises consph.InvalidArgument with the library's reason.");
+             "An end it cannot take raises consph.InvalidArgument with the library's reason.\n"
+             "device: 'cpu' (None) or 'gpu', where it continues (as Solver's device).");
 
 static PyObject *solver_restart(PyObject *cls, PyObject *args, PyObject *kw)
 {
-    static char *kwlist[] = {"path", "tf", "steps", NULL};
+    static char *kwlist[] = {"path", "tf", "steps", "device", NULL};
     const char *path;
-    PyObject *tfo = Py_None, *stepso = Py_None;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "s|OO", kwlist, &path, &tfo, &stepso)) return NULL;
+    PyObject *tfo = Py_None, *stepso = Py_None, *devo = Py_None;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "s|OOO", kwlist, &path, &tfo, &stepso, &devo))
+        return NULL;
+    consph_device dev;
+    if (device_of(devo, &dev) < 0) return NULL;
     double tf = 0.0;
     long steps = 0;
     if (tfo != Py_None && ((tf = PyFloat_AsDouble(tfo)) == -1.0 && PyErr_Occurred())) return NULL;
@@ -823,6 +882,10 @@ static PyObject *solver_restart(PyObject *cls, PyObject *args, PyObject *kw)
         (st = consph_solver_extend(s, tf, steps)) != CONSPH_OK) {
         consph_solver_free(s);
         return pyc_raise(st);
+    }
+    if (move_to(s, dev) < 0) {
+        consph_solver_free(s);
+        return NULL;
     }
     solver_object *so = (solver_object *)((PyTypeObject *)cls)->tp_alloc((PyTypeObject *)cls, 0);
     if (!so) {
@@ -849,6 +912,36 @@ static PyObject *solver_dt_warning(PyObject *self, PyObject *args)
     char buf[512];
     if (consph_solver_dt_warning(so->s, buf, sizeof buf)) return PyUnicode_FromString(buf);
     Py_RETURN_NONE;
+}
+
+PyDoc_STRVAR(set_device_doc,
+             "set_device($self, /, device)\n"
+             "--\n"
+             "\n"
+             "Moves the run's steps to 'gpu' or back to 'cpu' (consph_solver_set_device, "
+             "docs/gpu.md)\n"
+             "between two steps; the run goes on bit for bit. A run the GPU cannot take, or no "
+             "GPU,\n"
+             "raises consph.InvalidArgument with the library's reason (consph_gpu_check).");
+
+static PyObject *solver_set_device(PyObject *self, PyObject *args, PyObject *kw)
+{
+    solver_object *so = (solver_object *)self;
+    static char *kwlist[] = {"device", NULL};
+    PyObject *devo;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "O", kwlist, &devo)) return NULL;
+    if (!ready(so)) return NULL;
+    consph_device dev;
+    if (device_of(devo, &dev) < 0 || move_to(so->s, dev) < 0) return NULL;
+    Py_RETURN_NONE;
+}
+
+static PyObject *get_device(PyObject *self, void *c)
+{
+    (void)c;
+    solver_object *so = (solver_object *)self;
+    if (!ready(so)) return NULL;
+    return PyUnicode_FromString(consph_solver_device(so->s) == CONSPH_DEVICE_GPU ? "gpu" : "cpu");
 }
 
 static PyObject *get_t(PyObject *self, void *c)
@@ -902,6 +995,7 @@ static PyGetSetDef solver_getset[] = {
     {"n", get_n, NULL, "the number of particles", NULL},
     {"dim", get_dim, NULL, "the dimension", NULL},
     {"run_id", get_run_id, NULL, "the run's identifier (kept by its checkpoints)", NULL},
+    {"device", get_device, NULL, "where the steps run: 'cpu' or 'gpu' (set_device)", NULL},
     {NULL, NULL, NULL, NULL, NULL}};
 
 #define KW (METH_VARARGS | METH_KEYWORDS)
@@ -918,13 +1012,14 @@ static PyMethodDef solver_methods[] = {
     {"diag", solver_diag, METH_NOARGS, diag_doc},
     {"params", solver_params, METH_NOARGS, params_doc},
     {"checkpoint", FN(solver_checkpoint), KW, checkpoint_doc},
+    {"set_device", FN(solver_set_device), KW, set_device_doc},
     {"dt_warning", solver_dt_warning, METH_NOARGS, dt_warning_doc},
     {"restart", FN(solver_restart), KW | METH_CLASS, restart_doc},
     {NULL, NULL, 0, NULL}};
 
 PyDoc_STRVAR(
     solver_doc,
-    "Solver(problem='taylor-green', particles=None, config=None, **params)\n--\n\n"
+    "Solver(problem='taylor-green', particles=None, config=None, device=None, **params)\n--\n\n"
     "A weakly-compressible SPH run (consph_solver_create), as `consph run PROBLEM` sets it up:\n"
     "the problem's defaults, then every keyword as the run parameter of that name in the\n"
     "parameter table (consph_run_param_set, in the table's order; the names are the study\n"
@@ -941,7 +1036,10 @@ PyDoc_STRVAR(
     "config: a run parameter file read as `consph run --config` reads it (consph_run_file_load;\n"
     "its problem key when no problem is given): the problem's defaults, then the file's keys,\n"
     "then the keywords, each replacing the file's key of its parameter and the one it clashes\n"
-    "with (steps/tf, re/nu, dt/cfl and h_dt); a bad file raises with FILE:LINE.\n\n"
+    "with (steps/tf, re/nu, dt/cfl and h_dt); a bad file raises with FILE:LINE.\n"
+    "device: 'cpu' (None, the default) or 'gpu': the steps on the GPU as `consph run --device\n"
+    "gpu` (docs/gpu.md), bit for bit the CPU's; field, particles and checkpoint copy the\n"
+    "state back first. A run the GPU cannot take, or no GPU, raises consph.InvalidArgument.\n\n"
     "Example: s = consph.Solver('taylor-green', scheme='wcsph', nx=20, steps=20); s.run();\n"
     "u = s.field('u')");
 

@@ -7,35 +7,85 @@
 #include <string.h>
 
 PyDoc_STRVAR(run_study_doc,
-             "run_study(path, out_dir, quick=False, log=False)\n"
+             "run_study(path, out_dir, quick=False, log=False, jobs=1, device=None, "
+             "resume=False)\n"
              "--\n"
              "\n"
              "Returns dict. Loads, validates and runs a study file (consph_study_load, "
              "consph_study_validate,\n"
-             "consph_study_run) as `consph study FILE --out OUT_DIR [--quick]` does, writing\n"
-             "OUT_DIR/NAME/FIGURE.csv, .md, .gp per figure and README.md. log: progress lines on\n"
-             "stderr. Returns {'name', 'title', 'dir'}; consph.study reads the tables back.");
+             "consph_study_run) as `consph study FILE --out OUT_DIR [--quick] [--jobs J] "
+             "[--device D]\n"
+             "[--resume]` does, writing OUT_DIR/NAME/FIGURE.csv, .md, .gp per figure and "
+             "README.md.\n"
+             "log: progress lines on stderr. jobs: the rows on that many forked processes (on "
+             "the CPU)\n"
+             "or threads sharing the GPU (device 'gpu' or 'auto'). device: 'cpu', 'gpu', 'auto' "
+             "or None\n"
+             "(the study file's key `device`, else the CPU); a row the GPU cannot run raises "
+             "before\n"
+             "anything runs. resume: keep the rows an earlier run of the same study and options "
+             "left in\n"
+             "OUT_DIR/NAME. Returns {'name', 'title', 'dir'}; consph.study reads the tables "
+             "back.");
+
+/* device=None, 'cpu', 'gpu' or 'auto' as a consph_study_device (`consph study --device`). */
+static int study_device_of(PyObject *obj, int *device)
+{
+    static const char *const names[] = {"cpu", "gpu", "auto"};
+    *device = CONSPH_STUDY_DEVICE_DEFAULT;
+    if (obj == Py_None) return 0;
+    const char *name = PyUnicode_Check(obj) ? PyUnicode_AsUTF8(obj) : NULL;
+    if (!name && PyErr_Occurred()) return -1;
+    for (int k = 0; name && k < 3; ++k)
+        if (!strcmp(name, names[k])) {
+            *device = CONSPH_STUDY_DEVICE_CPU + k;
+            return 0;
+        }
+    PyObject *r = PyObject_Repr(obj);
+    const char *text = r ? PyUnicode_AsUTF8(r) : NULL;
+    if (text)
+        pyc_raise_msg(CONSPH_EINVAL, "device %.40s is unknown (allowed: cpu, gpu, auto)", text);
+    Py_XDECREF(r);
+    return -1;
+}
 
 static PyObject *py_run_study(PyObject *self, PyObject *args, PyObject *kw)
 {
     (void)self;
-    static char *kwlist[] = {"path", "out_dir", "quick", "log", NULL};
+    static char *kwlist[] = {"path", "out_dir", "quick", "log", "jobs", "device", "resume", NULL};
     const char *path, *out_dir;
-    int quick = 0, log = 0;
-    if (!PyArg_ParseTupleAndKeywords(args, kw, "ss|pp", kwlist, &path, &out_dir, &quick, &log))
+    int quick = 0, log = 0, jobs = 1, resume = 0, device;
+    PyObject *devo = Py_None;
+    if (!PyArg_ParseTupleAndKeywords(args, kw, "ss|ppiOp", kwlist, &path, &out_dir, &quick, &log,
+                                     &jobs, &devo, &resume))
         return NULL;
+    if (jobs < 1 || jobs > 256)
+        return pyc_raise_msg(CONSPH_EINVAL, "jobs = %d is out of range (allowed: 1..256)", jobs);
+    if (study_device_of(devo, &device) < 0) return NULL;
     consph_study *s = NULL;
     int st = consph_study_load(path, &s);
     if (st == CONSPH_OK) st = consph_study_validate(s, quick);
+    /* the device before anything runs, as consph study checks it */
+    if (st == CONSPH_OK) {
+        device = consph_study_device_of(s, device);
+        st = consph_study_device_check(s, quick, device);
+    }
     if (st != CONSPH_OK) {
         consph_study_free(s);
         return pyc_raise(st);
     }
+    char resume_cmd[1024];
+    snprintf(resume_cmd, sizeof resume_cmd, "consph.study('%s', out_dir='%s'%s, resume=True)", path,
+             out_dir, quick ? ", quick=True" : "");
     consph_study_options opt;
     memset(&opt, 0, sizeof opt);
     opt.quick = quick;
     opt.out_dir = out_dir;
     opt.log = log ? stderr : NULL;
+    opt.resume = resume;
+    opt.resume_cmd = resume_cmd;
+    opt.jobs = jobs;
+    opt.device = device;
     PYC_UNLOCKED(st = consph_study_run(s, &opt));
     PyObject *r = NULL;
     if (st != CONSPH_OK) {

@@ -1066,6 +1066,17 @@ int consph_solver_set_device(consph_solver *s, consph_device device)
     return gpu_attach(s, be);
 }
 
+consph_device consph_solver_device(const consph_solver *s)
+{
+    return s && s->gpu ? CONSPH_DEVICE_GPU : CONSPH_DEVICE_CPU;
+}
+
+int consph_solver_sync(consph_solver *s)
+{
+    if (!s) return consph_fail(CONSPH_EINVAL, "consph_solver_sync: no solver");
+    return s->gpu ? gpu_download(s) : CONSPH_OK;
+}
+
 int gpu_emulated(const consph_solver *s)
 {
     return s->gpu && s->gpu->be == &gpu_emulation;

@@ -163,7 +163,10 @@ static int checkpoint_whole(consph_solver *s, void *vf)
  * elsewhere than the serial run's. */
 static int write_checkpoint(consph_solver *s, runfiles *f)
 {
-    int st = output_fields(s);
+    /* a GPU run's every array as of this step: its steps copy back only what the log samples
+     * and the snapshots read (docs/gpu.md) */
+    int st = gpu_download(s);
+    if (st == CONSPH_OK) st = output_fields(s);
     if (st != CONSPH_OK) return st;
     return s->par ? par_stream(s, checkpoint_whole, f) : checkpoint_whole(s, f);
 }
@@ -384,8 +387,8 @@ int consph_run(consph_solver *s, const consph_run_output *out, consph_run_summar
         int sig = signals ? consph_stop_requested() : 0;
         if (st == CONSPH_OK && sig && !last) {
             *stopped_by = sig;
-            st = gpu_download(s); /* a GPU run's state, for the checkpoint and the summary */
-            if (files && st == CONSPH_OK) st = write_checkpoint(s, &f);
+            /* a GPU run's state, for the checkpoint (which copies it back) and the summary */
+            st = files ? write_checkpoint(s, &f) : gpu_download(s);
             break;
         }
     }

@@ -12,7 +12,10 @@ What must hold:
   - a run from the user's particles (a layout's) equals `consph run --layout` and `--particles`
     bit for bit, and a run extended past its end (live, or restarted to a later t_f) equals the
     uninterrupted run bit for bit; a run file read from Python equals `consph run --config`;
-  - a bad argument raises consph.Error carrying the library's message (the CLI's words).
+  - a bad argument raises consph.Error carrying the library's message (the CLI's words);
+  - a run on the GPU (the host emulation) equals the CPU's bit for bit, read mid-run, across a
+    checkpoint and a move back to the CPU; a study on worker processes, on the GPU, or resumed
+    writes the serial study's table.
 """
 
 import glob
@@ -399,6 +402,91 @@ try:
     check(False, "an unknown study was found")
 except consph.InvalidArgument:
     pass
+
+# ---- the GPU (docs/gpu.md) on the host emulation, which runs the device's code on the CPU ------
+# Solver(device='gpu') steps as the CPU's bit for bit; between two log samples its host copy
+# lacks what the samples do not read, so field() and checkpoint() copy the state back first
+# (consph_solver_sync); set_device moves a run back; restart(device=) continues on the GPU.
+os.environ["CONSPH_GPU_BACKEND"] = "emulation"
+for scheme in ("wcsph", "l-ipst-c"):
+    opts = {"scheme": scheme, "nx": 16, "steps": 12, "log_every": 100}
+    c = consph.Solver("taylor-green", **opts)
+    g = consph.Solver("taylor-green", device="gpu", **opts)
+    check(c.device == "cpu" and g.device == "gpu", f"{scheme}: device {c.device}, {g.device}")
+    c.step(5)
+    g.step(5)
+    for name in ("x", "u", "p", "rhof"):
+        check(bits_equal(c.field(name), g.field(name)), f"{scheme} on the GPU, step 5: {name}")
+    sc, sg = c.summary(), g.summary()
+    check(all(sc[k] == sg[k] for k in ("pairs", "steps", "t", "ke")), f"{scheme}: summary at 5")
+    ck = os.path.join(tmp, f"gpu-{scheme}.ckpt")
+    g.checkpoint(ck)
+    g.step(2)
+    g.set_device("cpu")
+    check(g.device == "cpu", f"{scheme}: set_device('cpu')")
+    c.run()
+    g.run()
+    r = consph.Solver.restart(ck, device="gpu")
+    check(r.device == "gpu" and r.step_count == 5, f"{scheme}: restart on the GPU")
+    r.run()
+    for name in ("x", "u", "p", "rhof"):
+        check(bits_equal(c.field(name), g.field(name)), f"{scheme}: back on the CPU: {name}")
+        check(bits_equal(c.field(name), r.field(name)), f"{scheme}: GPU checkpoint, GPU restart: "
+              f"{name}")
+for bad, words in (({"device": "tpu"}, "device 'tpu' is unknown (allowed: cpu, gpu)"),
+                   ({"device": "gpu", "skin": 0.1}, "--device gpu: --skin must be 0"),
+                   ({"device": "gpu", "kernel": "cubic"}, "--device gpu: ")):
+    try:
+        consph.Solver("taylor-green", scheme="wcsph", nx=16, **bad)
+        check(False, f"accepted: {bad}")
+    except consph.InvalidArgument as e:
+        check(str(e).startswith(words), f"refusal {words!r}: {e}")
+del os.environ["CONSPH_GPU_BACKEND"]
+# without the emulation: a CUDA device, or the reason there is none
+try:
+    check(consph.Solver("taylor-green", scheme="wcsph", nx=16, device="gpu").device == "gpu",
+          "a GPU run on the device")
+except consph.InvalidArgument as e:
+    check(str(e).startswith("--device gpu: "), f"no GPU: {e}")
+
+# ---- studies on worker processes, on the GPU, resumed ----------------------------------------
+run_study = os.path.join(tmp, "pyrun.study")
+with open(run_study, "w") as f:
+    f.write("study = pyrun\ntitle = Two schemes from Python\n[figure tg]\ntitle = Taylor-Green\n"
+            "kind = run\nproblem = taylor-green\nc0 = 20\nnx = 8,12\ntf = 0.02\n"
+            "[series wcsph]\nscheme = wcsph\n[series E-C]\nscheme = e-c\n")
+
+
+def same_tables(a, b, what):
+    cols = [k for k in a["tg"] if k != "seconds"]
+    check(sorted(a["tg"]) == sorted(b["tg"]) and all(
+        list(a["tg"][k]) == list(b["tg"][k]) if a["tg"][k].dtype == object
+        else np.array_equal(a["tg"][k], b["tg"][k], equal_nan=True) for k in cols),
+        f"{what}: the table equals the serial study's")
+
+
+serial = consph.study(run_study, out_dir=os.path.join(tmp, "st1"))
+check(list(serial["tg"]["nx"]) == [8.0, 12.0, 8.0, 12.0], f"study rows {serial['tg']['nx']}")
+same_tables(serial, consph.study(run_study, out_dir=os.path.join(tmp, "st2"), jobs=2),
+            "jobs=2")
+os.environ["CONSPH_GPU_BACKEND"] = "emulation"
+on_gpu = consph.study(run_study, out_dir=os.path.join(tmp, "stg"), device="gpu", jobs=2)
+same_tables(serial, on_gpu, "device='gpu', jobs=2 (the emulation)")
+check("Device: the GPU ran every row." in open(os.path.join(tmp, "stg", "pyrun", "tg.md")).read(),
+      "the GPU study's report says where its rows ran")
+del os.environ["CONSPH_GPU_BACKEND"]
+same_tables(serial, consph.study(run_study, out_dir=os.path.join(tmp, "st1"), resume=True),
+            "resume=True on a finished study")
+for bad, words in (({"device": "tpu"}, "device 'tpu' is unknown (allowed: cpu, gpu, auto)"),
+                   ({"jobs": 0}, "jobs = 0 is out of range"),
+                   ({"resume": True}, "resume: give the out_dir"),
+                   ({"resume": True, "quick": True, "out_dir": os.path.join(tmp, "st1")},
+                    "--resume: the rows in")):
+    try:
+        consph.study(run_study, **bad)
+        check(False, f"study accepted: {bad}")
+    except consph.Error as e:
+        check(str(e).startswith(words), f"study refusal {words!r}: {e}")
 
 # ---- make install: the package imports from the prefix -------------------------------------
 prefix = os.path.join(tmp, "prefix")
