@@ -49,6 +49,7 @@ from ._core import (  # noqa: F401,E402  (the public API)
     field_names,
     field_values,
     form_names,
+    gpu,
     gradW,
     kernel_info,
     kernel_names,

@@ -515,7 +515,33 @@ static PyObject *py_num_threads(PyObject *self, PyObject *args)
     return PyLong_FromLong(consph_num_threads());
 }
 
+PyDoc_STRVAR(gpu_doc,
+             "gpu()\n"
+             "--\n"
+             "\n"
+             "Returns dict. Whether Solver(device='gpu') and study(device='gpu') can run here\n"
+             "(consph_gpu_available): 'available' (bool), 'reason' (why not, else ''), 'schemes'\n"
+             "(the schemes the GPU runs, consph_gpu_schemes).");
+
+static PyObject *py_gpu(PyObject *self, PyObject *args)
+{
+    (void)self;
+    (void)args;
+    char why[256] = "";
+    int ok;
+    PYC_UNLOCKED(ok = consph_gpu_available(why, sizeof why));
+    PyObject *schemes = PyUnicode_FromString(consph_gpu_schemes());
+    PyObject *sep = PyUnicode_FromString(",");
+    PyObject *list = schemes && sep ? PyUnicode_Split(schemes, sep, -1) : NULL;
+    Py_XDECREF(schemes);
+    Py_XDECREF(sep);
+    if (!list) return NULL;
+    return Py_BuildValue("{s:O,s:s,s:N}", "available", ok ? Py_True : Py_False, "reason",
+                         ok ? "" : why, "schemes", list);
+}
+
 static PyMethodDef module_methods[] = {
+    {"gpu", py_gpu, METH_NOARGS, gpu_doc},
     {"read_particles", (PyCFunction)(void (*)(void))py_read_particles, METH_VARARGS | METH_KEYWORDS,
      read_particles_doc},
     {"write_particles", (PyCFunction)(void (*)(void))py_write_particles,

@@ -408,6 +408,9 @@ except consph.InvalidArgument:
 # lacks what the samples do not read, so field() and checkpoint() copy the state back first
 # (consph_solver_sync); set_device moves a run back; restart(device=) continues on the GPU.
 os.environ["CONSPH_GPU_BACKEND"] = "emulation"
+info = consph.gpu()
+check(info["available"] and info["reason"] == "" and "l-ipst-c" in info["schemes"]
+      and "wcsph" in info["schemes"], f"consph.gpu() on the emulation: {info}")
 for scheme in ("wcsph", "l-ipst-c"):
     opts = {"scheme": scheme, "nx": 16, "steps": 12, "log_every": 100}
     c = consph.Solver("taylor-green", **opts)
@@ -442,12 +445,14 @@ for bad, words in (({"device": "tpu"}, "device 'tpu' is unknown (allowed: cpu, g
     except consph.InvalidArgument as e:
         check(str(e).startswith(words), f"refusal {words!r}: {e}")
 del os.environ["CONSPH_GPU_BACKEND"]
-# without the emulation: a CUDA device, or the reason there is none
+# without the emulation: a CUDA device, or the reason there is none, as consph.gpu() says
+info = consph.gpu()
 try:
-    check(consph.Solver("taylor-green", scheme="wcsph", nx=16, device="gpu").device == "gpu",
-          "a GPU run on the device")
+    check(consph.Solver("taylor-green", scheme="wcsph", nx=16, device="gpu").device == "gpu"
+          and info["available"], f"a GPU run on the device: {info}")
 except consph.InvalidArgument as e:
-    check(str(e).startswith("--device gpu: "), f"no GPU: {e}")
+    check(not info["available"] and info["reason"] and str(e) == "--device gpu: " + info["reason"],
+          f"no GPU: {e} ({info})")
 
 # ---- studies on worker processes, on the GPU, resumed ----------------------------------------
 run_study = os.path.join(tmp, "pyrun.study")
