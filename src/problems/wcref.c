@@ -279,15 +279,16 @@ void wcref_share_clear(void)
 }
 
 /* C11's CMPLX, which glibc's <complex.h> defines for GCC only (clang, e.g. `make fuzz`, finds
- * none): a complex number is an array of its real and imaginary parts (C11 6.2.5p13). */
+ * none): a complex number is laid out as an array of its real and imaginary parts (C11
+ * 6.2.5p13), written through a union (re + im·I would turn an infinite im into a NaN). */
 #ifndef CMPLX
 static inline double complex wcref_cmplx(double re, double im)
 {
-    double complex z;
-    double *part = (double *)&z;
-    part[0] = re;
-    part[1] = im;
-    return z;
+    union {
+        double part[2];
+        double complex z;
+    } u = {{re, im}};
+    return u.z;
 }
 #define CMPLX(re, im) wcref_cmplx((re), (im))
 #endif
