@@ -15,7 +15,8 @@ What must hold:
   - a bad argument raises consph.Error carrying the library's message (the CLI's words);
   - a run on the GPU (the host emulation) equals the CPU's bit for bit, read mid-run, across a
     checkpoint and a move back to the CPU; a study on worker processes, on the GPU, or resumed
-    writes the serial study's table.
+    writes the serial study's table;
+  - README.md's Python example runs as printed.
 """
 
 import glob
@@ -492,6 +493,16 @@ for bad, words in (({"device": "tpu"}, "device 'tpu' is unknown (allowed: cpu, g
         check(False, f"study accepted: {bad}")
     except consph.Error as e:
         check(str(e).startswith(words), f"study refusal {words!r}: {e}")
+
+# ---- README.md's Python example runs as printed (from the source tree, as its paths are) ------
+source = os.path.dirname(os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+with open(os.path.join(source, "README.md")) as f:
+    readme = f.read()
+block = readme.split("```python\n", 1)[1].split("```", 1)[0] if "```python\n" in readme else ""
+check("consph.Solver" in block, "README.md has its Python example")
+r = subprocess.run([sys.executable, "-c", block], cwd=source, capture_output=True, text=True,
+                   env=dict(os.environ, PYTHONPATH=os.path.dirname(build_python)), timeout=300)
+check(r.returncode == 0, f"README.md's Python example exits 0: {r.stderr[-600:]}")
 
 # ---- make install: the package imports from the prefix -------------------------------------
 prefix = os.path.join(tmp, "prefix")
