@@ -6,7 +6,8 @@
 #   250 serial (2 threads reported), and consph 2 threads >= 1.8x 1 thread at nx 250;
 # - L-IPST-C <= 0.4 µs per particle-step serial at nx 250 (on the lattice; from its default packed
 #   start too when the binary has a layout cache);
-# - pairs per second per core of every scheme the binary has (summary.json's pairs / seconds);
+# - pairs per second per core of every scheme the binary has (summary.json's pairs / seconds,
+#   differenced between PAIR_C1 and PAIR_C2 steps);
 # - `consph study 001-table9 --quick` <= 20 s, the full 001-table9 estimate <= 12 hours, the full
 #   001-table3 <= 10 minutes with an empty cache (only with FULL=1).
 # Time per particle-step as bench/pysph_compare.sh (bench/timing.sh): K2 steps minus K1 steps,
@@ -36,11 +37,11 @@ SCHEMES=${SCHEMES:-"wcsph tvf edac"}
 THREADS=${THREADS:-"1 2"}
 if [ "$QUICK" = 1 ]; then
     NXS=${NXS:-8} REPEAT=${REPEAT:-1} PAIR_NX=${PAIR_NX:-8} IPST_NX=${IPST_NX:-10}
-    PAIR_STEPS=2 IPST_C1=1 IPST_C2=11
+    PAIR_C1=1 PAIR_C2=11 IPST_C1=1 IPST_C2=11
 else
     NXS=${NXS:-"100 250"} REPEAT=${REPEAT:-3} PAIR_NX=${PAIR_NX:-100} IPST_NX=${IPST_NX:-250}
     # IPST every 10 steps (the scheme's default): a difference of 40 steps holds 4 of them
-    PAIR_STEPS=20 IPST_C1=5 IPST_C2=45
+    PAIR_C1=20 PAIR_C2=120 IPST_C1=5 IPST_C2=45
 fi
 WORK=${WORK:-${TMPDIR:-/tmp}/consph_speed}
 # the thread speed-up target applies at the largest resolution measured (nx 250 by default)
@@ -179,20 +180,29 @@ else
 fi
 
 # ---- pairs per second per core, every scheme ----
+# Differenced as the times per particle-step are: (pairs of C2 steps - of C1) / (seconds of C2 -
+# of C1) / threads, so that the first steps' costs (first touches, the threads' start) cancel;
+# over 20 steps alone wcsph's 2 threads came out at half of 1 thread's rate per core.
 pairs=$WORK/pairs.md
 : > "$pairs"
+# pairs_of STEPS THREADS: "pairs seconds" of one run's summary.json, or nothing
+pairs_of() {
+    rm -rf "$WORK/pairs-run"
+    "$CONSPH" run taylor-green --scheme "$s" --nx "$PAIR_NX" --layout lattice --steps "$1" \
+        --threads "$2" --out "$WORK/pairs-run" > /dev/null 2>&1 &&
+        awk -F '[:,]' '/"pairs"/ { p = $2 } /"seconds"/ { t = $2 }
+            END { if (p > 0 && t > 0) print p, t }' "$WORK/pairs-run/summary.json"
+}
 for s in $PAIR_SCHEMES; do
     for th in $THREADS; do
         best=-
         r=0
         while [ "$r" -lt "$REPEAT" ]; do
-            rm -rf "$WORK/pairs-run"
-            if "$CONSPH" run taylor-green --scheme "$s" --nx "$PAIR_NX" --layout lattice \
-                --steps "$PAIR_STEPS" --threads "$th" --out "$WORK/pairs-run" > /dev/null 2>&1; then
-                rate=$(awk -v th="$th" -F '[:,]' '
-                    /"pairs"/ { p = $2 } /"seconds"/ { s = $2 }
-                    END { if (p > 0 && s > 0) printf "%.6e", p / s / th; else print "-" }' \
-                    "$WORK/pairs-run/summary.json")
+            a=$(pairs_of "$PAIR_C1" "$th" || true)
+            b=$(pairs_of "$PAIR_C2" "$th" || true)
+            if [ -n "$a" ] && [ -n "$b" ]; then
+                rate=$(echo "$a $b" | awk -v th="$th" '{
+                    if ($4 > $2 && $3 > $1) printf "%.6e", ($3 - $1) / ($4 - $2) / th; else print "-" }')
                 best=$(awk -v a="$best" -v b="$rate" 'BEGIN {
                     if (b == "-") print a; else if (a == "-" || b + 0 > a + 0) print b; else print a }')
             fi
@@ -314,9 +324,10 @@ load1=$(cut -d' ' -f1-3 /proc/loadavg)
     echo
     echo "## Pairs per second per core"
     echo
-    echo "\`consph run taylor-green --layout lattice --nx $PAIR_NX --steps $PAIR_STEPS\`, its summary.json's"
-    echo "pairs / seconds / threads (seconds: the stepping's wall time, set-up excluded), the best of"
-    echo "$REPEAT runs. Reported, no target."
+    echo "\`consph run taylor-green --layout lattice --nx $PAIR_NX --steps K\` at K = $PAIR_C1 and $PAIR_C2, their"
+    echo "summary.json's pairs and seconds (the stepping's wall time, set-up excluded) differenced:"
+    echo "(pairs(K2) - pairs(K1)) / (seconds(K2) - seconds(K1)) / threads, the best of $REPEAT pairs"
+    echo "of runs. Reported, no target."
     echo
     printf '| scheme |'
     for th in $THREADS; do printf ' %s thread(s), pairs/s/core |' "$th"; done
