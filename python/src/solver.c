@@ -351,7 +351,7 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
         }
     }
     consph_run_params prm;
-    consph_device dev;
+    consph_device dev = CONSPH_DEVICE_CPU;
     int rc = init_params(args, kw, rf, &prm);
     if (!rc) rc = device_of(kw ? PyDict_GetItemString(kw, "device") : NULL, &dev);
     /* the GPU's refusals before the set-up's work, as consph run makes them */
