@@ -11,6 +11,9 @@
 
 typedef struct {
     PyObject_HEAD consph_solver *s;
+    /* 1 + the step count at the last consph_solver_sync (0: none): a GPU run's host copy is
+     * whole until its next step */
+    long synced_at;
 } solver_object;
 
 /* Python's value as the text consph_run_param_set reads; None is "none", the special value of
@@ -396,6 +399,7 @@ static int solver_init(PyObject *self, PyObject *args, PyObject *kw)
     }
     consph_solver_free(so->s);
     so->s = s;
+    so->synced_at = 0;
     return 0;
 }
 
@@ -418,12 +422,13 @@ static int ready(solver_object *so)
 static int ready_synced(solver_object *so)
 {
     if (!ready(so)) return 0;
-    if (consph_solver_device(so->s) == CONSPH_DEVICE_CPU) return 1;
+    const long at = consph_solver_step_count(so->s) + 1;
+    if (consph_solver_device(so->s) == CONSPH_DEVICE_CPU || so->synced_at == at) return 1;
     int st;
     PYC_UNLOCKED(st = consph_solver_sync(so->s));
-    if (st == CONSPH_OK) return 1;
-    pyc_raise(st);
-    return 0;
+    if (st != CONSPH_OK) return pyc_raise(st), 0;
+    so->synced_at = at;
+    return 1;
 }
 
 PyDoc_STRVAR(
@@ -442,6 +447,7 @@ static PyObject *solver_step(PyObject *self, PyObject *args, PyObject *kw)
     long n = 1;
     if (!PyArg_ParseTupleAndKeywords(args, kw, "|l", kwlist, &n)) return NULL;
     if (!ready(so)) return NULL;
+    so->synced_at = 0; /* a step that fails may have moved the device's state */
     int st = CONSPH_OK;
     PYC_UNLOCKED(for (long k = 0; k < n && st == CONSPH_OK; ++k) st = consph_solver_step(so->s));
     if (st != CONSPH_OK) return pyc_raise(st);
@@ -499,6 +505,7 @@ static PyObject *solver_run(PyObject *self, PyObject *args, PyObject *kw)
                                      &ckpt_every))
         return NULL;
     if (!ready(so)) return NULL;
+    so->synced_at = 0;
     if (out) return run_files(so, tfo, stepso, out, snap_every, ckpt_every);
     double tf = INFINITY;
     long steps = -1;
