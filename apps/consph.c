@@ -114,10 +114,15 @@ static int dispatch(int argc, char **argv)
     if (strcmp(argv[1], "--version") == 0) {
         const char *policy = getenv("OMP_WAIT_POLICY"), *spin = getenv("GOMP_SPINCOUNT");
         printf("consph %s\n", CONSPH_VERSION);
+#ifdef _OPENMP
         printf("threads %d, OMP_WAIT_POLICY %s", consph_num_threads(),
                policy ? policy : "unset (libgomp default)");
         if (spin) printf(", GOMP_SPINCOUNT %s", spin);
         printf("\n");
+#else
+        (void)policy, (void)spin;
+        printf("threads 1 (built without OpenMP)\n");
+#endif
         if (consph_par_available())
             printf("MPI ranks %d\n", consph_par_size());
         else

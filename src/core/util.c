@@ -72,6 +72,7 @@ static double sum_tree(const double *a, size_t n, size_t stride)
 #define SUM_PARALLEL_MIN 8192
 #define SUM_SPLIT 4
 
+#ifdef CONSPH_HAVE_OPENMP
 /* The subtrees of sum_tree `depth` levels down (fewer where a subtree is one block), left to
  * right. */
 static void sum_subtrees(const double *a, size_t n, size_t stride, int depth, const double **at,
@@ -97,6 +98,7 @@ static double sum_above(const double *part, size_t n, int depth, int *k)
     const double l = sum_above(part, left, depth - 1, k);
     return l + sum_above(part, n - left, depth - 1, k);
 }
+#endif
 
 static double sum_any(const double *a, size_t n, size_t stride)
 {

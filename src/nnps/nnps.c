@@ -382,6 +382,7 @@ NNPS_BIN_CLONES static void bin_inside_2d(const double *restrict x0, const doubl
 static int bin_cells_2d(const consph_nnps *g, const double *x0, const double *x1,
                         size_t *restrict cell_of, size_t n, int par)
 {
+    (void)par; /* read by the OpenMP if alone */
     const double lo0 = g->lo[0], hi0 = g->hi[0], len0 = g->len[0], ih0 = g->inv_h[0];
     const double lo1 = g->lo[1], hi1 = g->hi[1], len1 = g->len[1], ih1 = g->inv_h[1];
     const int per0 = g->periodic[0], per1 = g->periodic[1];
@@ -434,6 +435,7 @@ static void gather_coords(const consph_nnps *g, int a, const double *x, const si
     }
 }
 
+#ifdef _OPENMP
 /* The cells of particles [i0, i1), as bin_cells and bin_cells_2d give them; 1 when every
  * coordinate on a periodic axis was inside the box (nnps_wrap would keep each as it is). */
 static int bin_range(const consph_nnps *g, const consph_particles *p, size_t *restrict cell_of,
@@ -452,6 +454,7 @@ static int bin_range(const consph_nnps *g, const consph_particles *p, size_t *re
     }
     return !outside;
 }
+#endif
 
 /* The build on the threads, in one parallel region: the same cells, slot order, cell starts and
  * coordinates as the serial build, for any thread count. The stable counting sort is split as

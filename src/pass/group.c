@@ -109,6 +109,7 @@ int pass_run_groups(const consph_sys *s, const char *name, unsigned need, pass_g
     char why[256] = "";
     size_t total = 0;
     const size_t chunk = pass_cells_per_chunk(v.ncells);
+    (void)chunk; /* read by the OpenMP schedule alone */
 #pragma omp parallel if (n >= s->parallel_min)
     {
         consph_nnps_runs runs;
@@ -778,6 +779,7 @@ int pass_run_groups2(const consph_sys *s, const char *name1, unsigned need1, pas
         }
         w.late = 1;
         const size_t chunk = pass_cells_per_chunk(v.ncells);
+        (void)chunk; /* read by the OpenMP schedule alone */
         size_t left = 0;
         if (status == CONSPH_OK)
 #pragma omp parallel reduction(+ : left) if (n >= s->parallel_min)

@@ -1072,6 +1072,7 @@ static int cache_ready(const consph_sys *s, unsigned need, const char *name, int
     if (fresh) l->have = 0;
     const unsigned missing = want & ~l->have;
     const int par = l->n >= s->parallel_min;
+    (void)par; /* read by the OpenMP if alone */
     int status = CONSPH_OK;
     if (fresh || missing) {
         size_t total = 0, visited = 0;
@@ -1428,6 +1429,7 @@ int nlist_chain_run(const consph_sys *s, const block_visitor_in *in, int count, 
     if (fresh) l->have = 0;
     *ran = 1;
     const int par = l->n >= s->parallel_min;
+    (void)par; /* read by the OpenMP if alone */
     size_t total = 0, visited = 0;
     const int prepared = status;
     if (status == CONSPH_OK)

@@ -85,6 +85,7 @@ int consph_pass_run_counted(const consph_sys *s, const consph_pass *pass, void *
     /* consph_fail records per thread: a worker's message is copied out here. */
     why[0] = '\0';
     const size_t chunk = pass_cells_per_chunk(v.ncells);
+    (void)chunk; /* read by the OpenMP schedule alone */
 #pragma omp parallel if (n >= s->parallel_min)
     {
         consph_nnps_runs runs;

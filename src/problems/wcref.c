@@ -1008,6 +1008,7 @@ static int axis_repeats(const double *x, size_t n, size_t *scratch)
 static int axis_table(const wcref *w, int is_x, const double *x, size_t n, int parallel,
                       eval_axis *ax)
 {
+    (void)parallel; /* read by the OpenMP if alone */
     ax->tab = NULL;
     ax->which = NULL;
     size_t *probe = malloc((2 * PROBE + 2 * PROBE) * sizeof(size_t));

@@ -744,6 +744,7 @@ static int remesh_sums(const consph_sys *s, const double *lattice, const remesh_
     const remesh_point_fn point = points[d - 1];
     int status = rc;
     const size_t chunk = pass_cells_per_chunk(ncells);
+    (void)chunk; /* read by the OpenMP schedule alone */
 #pragma omp parallel if (rc == CONSPH_OK && n >= s->parallel_min)
     {
         consph_nnps_runs runs;

@@ -28,6 +28,7 @@ static void rates_2d(const negi_terms *t, size_t n, size_t cap, double nu, doubl
                      const double *restrict gradq, const double *restrict lapq, double *restrict au,
                      double *restrict ax, double *restrict aq, int par)
 {
+    (void)par; /* read by the OpenMP if alone */
     const int adv_u = t->advect_u, tr = t->transport && du, adv_q = t->advect_q && gradq;
     const int dif_q = t->diffuse_q && lapq, trq = t->transport && du && gradq;
     const double *rhom = rhoc ? rhoc : rhof;
