@@ -90,13 +90,20 @@ static int emul_pair(const consph_run_params *p, consph_solver *s[2])
     return s[1]->gpu != NULL;
 }
 
+/* A case's parameters: the defaults with this scheme on 16 particles per side. */
+static consph_run_params emul_params(const char *scheme)
+{
+    consph_run_params p;
+    consph_run_params_default(&p);
+    snprintf(p.scheme, sizeof p.scheme, "%s", scheme);
+    p.nx = 16;
+    return p;
+}
+
 static void authors_copies(const char *scheme, int by_steps)
 {
     consph_solver *s[2] = {NULL, NULL};
-    consph_run_params prm;
-    consph_run_params_default(&prm);
-    snprintf(prm.scheme, sizeof prm.scheme, "%s", scheme);
-    prm.nx = 16;
+    consph_run_params prm = emul_params(scheme);
     prm.error = CONSPH_ERROR_AUTHORS;
     prm.error_times = 5;
     prm.log_every = 7;
@@ -156,10 +163,7 @@ static void overlapped(const char *scheme)
 {
     setenv("CONSPH_SAMPLE_OVERLAP", "1", 1);
     consph_solver *s[2] = {NULL, NULL};
-    consph_run_params p;
-    consph_run_params_default(&p);
-    snprintf(p.scheme, sizeof p.scheme, "%s", scheme);
-    p.nx = 16;
+    consph_run_params p = emul_params(scheme);
     p.error = CONSPH_ERROR_AUTHORS;
     p.error_times = 4;
     p.exact = CONSPH_EXACT_BOTH;
@@ -208,10 +212,7 @@ done:
 static void synced(const char *scheme)
 {
     consph_solver *s[2] = {NULL, NULL};
-    consph_run_params p;
-    consph_run_params_default(&p);
-    snprintf(p.scheme, sizeof p.scheme, "%s", scheme);
-    p.nx = 16;
+    consph_run_params p = emul_params(scheme);
     p.log_every = 100;
     p.steps = 12;
     p.tf = 0.0;
