@@ -8,7 +8,9 @@
  * (Fatehi_c, 001 eq. 13; Korzilius, 001 eqs. 14-15 with the fixes of docs/deviations.md), whose
  * matrices are summed and inverted in the same visit. A matrix that is singular or worse
  * conditioned than cond_max falls back to the identity, as the operators do. */
+#include <float.h>
 #include <math.h>
+#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -21,7 +23,11 @@
 
 /* The hot visits' AVX-512 and AVX2 copies (LANE4_CLONES, src/pass/lanes4.h): pass 1's lanes'
  * sums and values exceed AVX2's 16 vector registers. */
+#ifdef LANE4_CLONES
 #define KIT_CLONES LANE4_CLONES
+#else
+#define KIT_CLONES
+#endif
 
 typedef struct kit_job {
     const kit_req *rq;
@@ -315,6 +321,39 @@ TERM_INLINE void korzilius_body(const kit_job *job, const consph_nbhd *nb, const
  *   ∇²u_i = Σ_j 4 m_j/(ϱ_i + ϱ_j) (x_ij·B_i∇W_ij)/r_ij² (u_i - u_j),
  * ν ρ_o applied by the rates: their m_j = ρ_o Δs² is ρ_o ω_j here (the kit's volumes), and
  * what is summed here is 4 ω_j/(ϱ_i + ϱ_j)...; pairs closer than 1e-14 are skipped, as theirs. */
+#ifdef CONSPH_LANES4
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+/* kit_cleary_pair's coefficient 4 ω_j/(ϱ_i + ϱ_j) W'/r (x·B_i x)/r² of entries k..k+3 of a
+ * neighbourhood at once, each lane its pair's operations in kit_cleary_pair's order (the same
+ * values bit for bit; a lane at r <= 1e-14, which the caller skips, divides by zero unread). Its
+ * two divisions bounded the per-pair loop; a vector of four divides at about the price of one. */
+TERM_INLINE void cleary_coeffs4(const int D, const double B[9], const consph_nbhd *nb,
+                                const size_t k, const double *vol, const double *rho,
+                                const double rhoi, double c[4])
+{
+    lane4 x[3], xBx = {0.0, 0.0, 0.0, 0.0};
+    for (int a = 0; a < D; ++a) x[a] = *(const lane4u *)(nb->dx[a] + k);
+    for (int a = 0; a < D; ++a)
+        for (int b = 0; b < D; ++b) {
+            const double e = B[a * D + b];
+            xBx += x[a] * (lane4){e, e, e, e} * x[b];
+        }
+    const size_t *j = nb->j + k;
+    const lane4 om = {vol[j[0]], vol[j[1]], vol[j[2]], vol[j[3]]};
+    const lane4 rj = {rho[j[0]], rho[j[1]], rho[j[2]], rho[j[3]]};
+    const lane4 r = *(const lane4u *)(nb->r + k), w1 = *(const lane4u *)(nb->dwr + k);
+    const lane4 four = {4.0, 4.0, 4.0, 4.0}, ri = {rhoi, rhoi, rhoi, rhoi};
+    const lane4 cc = four * om / (ri + rj) * w1 * xBx / (r * r);
+    for (int l = 0; l < 4; ++l) c[l] = cc[l];
+}
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#endif
+
 TERM_INLINE void cleary_body(const kit_job *job, const consph_nbhd *nb, const int D,
                              const double B[9])
 {
@@ -322,7 +361,19 @@ TERM_INLINE void cleary_body(const kit_job *job, const consph_nbhd *nb, const in
     const double *vol = job->vol, *u = job->u, *rho = job->rho;
     double ui[3], acc[3] = {0};
     for (int a = 0; a < D; ++a) ui[a] = u[a * cap + i];
-    for (size_t k = 0; k < nb->n; ++k) {
+    size_t k0 = 0;
+#ifdef CONSPH_LANES4
+    for (; k0 + 4 <= nb->n; k0 += 4) {
+        double c[4];
+        cleary_coeffs4(D, B, nb, k0, vol, rho, rho[i], c);
+        for (size_t e = 0; e < 4; ++e) {
+            if (!(nb->r[k0 + e] > 1e-14)) continue;
+            const size_t j = nb->j[k0 + e];
+            for (int a = 0; a < D; ++a) acc[a] += c[e] * (ui[a] - u[a * cap + j]);
+        }
+    }
+#endif
+    for (size_t k = k0; k < nb->n; ++k) {
         const double r = nb->r[k];
         if (!(r > 1e-14)) continue;
         const size_t j = nb->j[k];
@@ -353,7 +404,7 @@ TERM_INLINE void second_body(const kit_job *job, const consph_nbhd *nb, const in
     }
 }
 
-static void visit_second(void *vjob, const consph_nbhd *nb)
+KIT_CLONES static void visit_second(void *vjob, const consph_nbhd *nb)
 {
     const kit_job *job = vjob;
     const unsigned want = job->rq->want;
@@ -559,6 +610,176 @@ TERM_INLINE void kv_entry1(const consph_nbhd *nb, size_t k, const int D, const l
     *m = (lane4i)(kv < *nv);
 }
 
+/* |x| per lane: the sign bit cleared, as fabs clears it */
+#define KV_ABS(x) ((lane4)((lane4i)(x) & (lane4i){INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX}))
+/* the lanes where x is finite (isfinite: false for an infinity and for a NaN) */
+#define KV_FINITE(x) ((lane4i)(KV_ABS(x) <= (lane4){DBL_MAX, DBL_MAX, DBL_MAX, DBL_MAX}))
+
+/* ops_norm1 per lane (into *out: a function returning a vector has another ABI in the clone
+ * without AVX) */
+TERM_INLINE void kv_norm1(const int n, const lane4 *a, lane4 *out)
+{
+    lane4 best = {0.0, 0.0, 0.0, 0.0};
+    for (int c = 0; c < n; ++c) {
+        lane4 s = {0.0, 0.0, 0.0, 0.0};
+        for (int r = 0; r < n; ++r) s += KV_ABS(a[r * n + c]);
+        best = LANE4_SEL((lane4i)(s > best), s, best);
+    }
+    *out = best;
+}
+
+/* ops_invert_n of four lanes' n × n matrices at once (n = 2, 3): each lane runs ops_invert_n's
+ * operations in their order, its branches (a pivot's row swap, a zero factor's skipped row) as
+ * selections and its early returns as a lane marked failed whose arithmetic goes on unread, so
+ * a lane's inverse is ops_invert_n's bit for bit where that succeeds. *okp: the lanes where it
+ * succeeds (all bits set), as ops_invert_n's 1. Pass 1's finish, one inversion per particle,
+ * took about a quarter of its time as four scalar inversions after the group's pair sums. */
+TERM_INLINE void kv_invert(const int n, const lane4 *a, const double cond_max, lane4 *ainv,
+                           lane4i *okp)
+{
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0}, one = {1.0, 1.0, 1.0, 1.0};
+    lane4i ok = {-1, -1, -1, -1};
+    lane4 rs[3], cs[3], m[9], inv[9];
+    for (int r = 0; r < n; ++r) {
+        lane4 mx = zero;
+        for (int c = 0; c < n; ++c) {
+            const lane4 v = a[r * n + c], av = KV_ABS(v);
+            ok &= KV_FINITE(v);
+            mx = LANE4_SEL((lane4i)(av > mx), av, mx);
+        }
+        ok &= (lane4i)(mx != zero);
+        rs[r] = one / mx;
+    }
+    for (int c = 0; c < n; ++c) {
+        lane4 mx = zero;
+        for (int r = 0; r < n; ++r) {
+            const lane4 av = KV_ABS(rs[r] * a[r * n + c]);
+            mx = LANE4_SEL((lane4i)(av > mx), av, mx);
+        }
+        ok &= (lane4i)(mx != zero);
+        cs[c] = one / mx;
+    }
+    for (int r = 0; r < n; ++r)
+        for (int c = 0; c < n; ++c) {
+            m[r * n + c] = rs[r] * a[r * n + c] * cs[c];
+            inv[r * n + c] = r == c ? one : zero;
+        }
+    lane4 anorm, ninv;
+    kv_norm1(n, m, &anorm);
+    for (int k = 0; k < n; ++k) {
+        lane4i piv = {k, k, k, k};
+        lane4 pv = KV_ABS(m[k * n + k]);
+        for (int r = k + 1; r < n; ++r) {
+            const lane4 av = KV_ABS(m[r * n + k]);
+            const lane4i more = (lane4i)(av > pv);
+            piv = (more & (lane4i){r, r, r, r}) | (~more & piv);
+            pv = LANE4_SEL(more, av, pv);
+        }
+        ok &= (lane4i)(pv > zero);
+        for (int r = k + 1; r < n; ++r) {
+            const lane4i sw = piv == (lane4i){r, r, r, r};
+            for (int c = 0; c < n; ++c) {
+                const lane4 mk = m[k * n + c], ik = inv[k * n + c];
+                m[k * n + c] = LANE4_SEL(sw, m[r * n + c], mk);
+                m[r * n + c] = LANE4_SEL(sw, mk, m[r * n + c]);
+                inv[k * n + c] = LANE4_SEL(sw, inv[r * n + c], ik);
+                inv[r * n + c] = LANE4_SEL(sw, ik, inv[r * n + c]);
+            }
+        }
+        const lane4 d = one / m[k * n + k];
+        for (int c = 0; c < n; ++c) {
+            m[k * n + c] *= d;
+            inv[k * n + c] *= d;
+        }
+        for (int r = 0; r < n; ++r) {
+            if (r == k) continue;
+            const lane4 f = m[r * n + k];
+            const lane4i skip = (lane4i)(f == zero);
+            for (int c = 0; c < n; ++c) {
+                m[r * n + c] = LANE4_SEL(skip, m[r * n + c], m[r * n + c] - f * m[k * n + c]);
+                inv[r * n + c] =
+                    LANE4_SEL(skip, inv[r * n + c], inv[r * n + c] - f * inv[k * n + c]);
+            }
+        }
+    }
+    kv_norm1(n, inv, &ninv);
+    const lane4 kappa = anorm * ninv;
+    const lane4 cm = {cond_max, cond_max, cond_max, cond_max};
+    ok &= KV_FINITE(kappa) & ~(lane4i)(kappa > cm);
+    for (int r = 0; r < n; ++r)
+        for (int c = 0; c < n; ++c) ainv[r * n + c] = cs[r] * inv[r * n + c] * rs[c];
+    *okp = ok;
+}
+
+/* For tests (tests/test_kit_invert.c): kv_invert of the four row-major n × n matrices a[l n² ..],
+ * into ainv[l n² ..] and ok[l] (1 where it succeeded); the copy the processor runs (KIT_CLONES). */
+KIT_CLONES int kit_invert_lanes(int n, const double *a, double cond_max, double *ainv, int ok[4])
+{
+    if (n < 2 || n > 3) return 0;
+    lane4 A[9], R[9];
+    lane4i okv;
+    for (int e = 0; e < n * n; ++e)
+        A[e] = (lane4){a[e], a[n * n + e], a[2 * n * n + e], a[3 * n * n + e]};
+    kv_invert(n, A, cond_max, R, &okv);
+    for (int l = 0; l < 4; ++l) {
+        ok[l] = okv[l] != 0;
+        for (int e = 0; e < n * n; ++e) ainv[l * n * n + e] = R[e][l];
+    }
+    return 1;
+}
+
+/* term_apply_rule with c = 0 per lane: out = (0 sw) + M sg, sw = 0 */
+TERM_INLINE void kv_apply(const int D, const lane4 *M, const lane4 *sg, lane4 *out)
+{
+    for (int a = 0; a < D; ++a) {
+        lane4 v = {0.0, 0.0, 0.0, 0.0};
+        for (int b = 0; b < D; ++b) v += M[a * D + b] * sg[b];
+        out[a] = v;
+    }
+}
+
+/* first_store of a group's count lanes from their sums (kit_first_finish's arithmetic per lane,
+ * the inversion kv_invert's), bit for bit the per-lane first_store */
+TERM_INLINE void first_store_lanes(const kit_job *job, const consph_nbhd *nb, const int count,
+                                   const int D, const int with_p, const int with_u,
+                                   const int with_q, const lane4 *sm, const lane4 *sp,
+                                   const lane4 *su, const lane4 *sq)
+{
+    const size_t cap = job->cap;
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0}, one = {1.0, 1.0, 1.0, 1.0};
+    lane4 B[9], gp[3], G[9], div = zero, gq[3];
+    lane4i ok;
+    kv_invert(D, sm, job->rq->cond_max, B, &ok);
+    for (int r = 0; r < D; ++r)
+        for (int c = 0; c < D; ++c) B[r * D + c] = LANE4_SEL(ok, B[r * D + c], r == c ? one : zero);
+    if (with_p) kv_apply(D, B, sp, gp);
+    if (with_u)
+        for (int a = 0; a < D; ++a) {
+            kv_apply(D, B, su + a * D, G + a * D);
+            div += G[a * D + a];
+        }
+    if (with_q) kv_apply(D, B, sq, gq);
+    for (int l = 0; l < count; ++l) {
+        const size_t i = nb[l].i;
+        if (job->bonet_ok) job->bonet_ok[i] = ok[l] != 0;
+        double Gl[9], gql[3];
+        for (int e = 0; e < D * D; ++e) job->bonet[(size_t)e * cap + i] = B[e][l];
+        if (with_p)
+            for (int a = 0; a < D; ++a) job->gradp[a * cap + i] = gp[a][l];
+        if (with_u) {
+            for (int e = 0; e < D * D; ++e) Gl[e] = G[e][l];
+            if (job->gradu)
+                for (int e = 0; e < D * D; ++e) job->gradu[(size_t)e * cap + i] = Gl[e];
+            if (job->divu) job->divu[i] = div[l];
+        }
+        if (with_q) {
+            for (int a = 0; a < D; ++a) gql[a] = gq[a][l];
+            for (int a = 0; a < D; ++a) job->gradq[a * cap + i] = gql[a];
+        }
+        if (job->pk2) kit_pack2(job, i, D, with_u, with_q, Gl, gql);
+    }
+}
+
 /* first_body over a group */
 TERM_INLINE void group_first_body(const kit_job *job, const consph_nbhd *nb, const int count,
                                   const int D, const int with_p, const int with_u, const int with_q)
@@ -593,18 +814,7 @@ TERM_INLINE void group_first_body(const kit_job *job, const consph_nbhd *nb, con
         kv_entry1(nb, k, D, &nv, j, x, &w1, &m);
         first_lanes(job, j, x, &w1, 1, &m, D, with_p, with_u, with_q, &pi, ui, &qi, sm, sp, su, sq);
     }
-    for (int l = 0; l < count; ++l) {
-        double sml[9], spl[3] = {0}, sul[9] = {0}, sql[3] = {0};
-        for (int c = 0; c < D * D; ++c) {
-            sml[c] = sm[c][l];
-            sul[c] = su[c][l];
-        }
-        for (int c = 0; c < D; ++c) {
-            spl[c] = sp[c][l];
-            sql[c] = sq[c][l];
-        }
-        first_store(job, nb[l].i, D, with_p, with_u, with_q, sml, spl, sul, sql);
-    }
+    first_store_lanes(job, nb, count, D, with_p, with_u, with_q, sm, sp, su, sq);
 }
 
 #define GROUP_FIRST_CLONE(D, P, U, Q)                                                              \
@@ -849,6 +1059,11 @@ static consph_visit_fn coupled_pk_of(int d, int with_q)
 #pragma GCC diagnostic pop
 #endif
 #else
+int kit_invert_lanes(int n, const double *a, double cond_max, double *ainv, int ok[4])
+{
+    (void)n, (void)a, (void)cond_max, (void)ainv, (void)ok;
+    return 0;
+}
 #define group_volume NULL
 #define group_first_of(d, with_p, with_u, with_q)                                                  \
     ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (pass_group_fn)NULL)
