@@ -257,6 +257,48 @@ TERM_INLINE void fatehi_c_matrix(const int d, const consph_nbhd *nb, const doubl
 /* Fatehi_c (001 eq. C.10 with B̂ of eq. 13) of every component of u in one run over the
  * neighbours: x_ij^T B̂ x_ij once per pair, each component with term_fatehi_lap's arithmetic
  * (src/ops/terms.h), so bit for bit that term per component. */
+#ifdef CONSPH_LANES4
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+/* kit_fatehi_pair's terms of entries k..k+3 at once, t[a][l] what entry k + l adds to component a,
+ * each lane its pair's operations in kit_fatehi_pair's order (the same values bit for bit; a lane
+ * at r = 0, which the caller skips, divides by zero unread): d divisions per pair bounded the
+ * per-pair loop. */
+TERM_INLINE void fatehi_terms4(const int D, const double Bh[9], const double G[9],
+                               const double ui[3], const consph_nbhd *nb, const size_t k,
+                               const double *vol, const double *u, const size_t cap, double t[3][4])
+{
+    lane4 x[3], xBx = {0.0, 0.0, 0.0, 0.0};
+    for (int a = 0; a < D; ++a) x[a] = *(const lane4u *)(nb->dx[a] + k);
+    for (int a = 0; a < D; ++a)
+        for (int b = 0; b < D; ++b) {
+            const double e = Bh[a * D + b];
+            xBx += x[a] * (lane4){e, e, e, e} * x[b];
+        }
+    const size_t *j = nb->j + k;
+    const lane4 om = {vol[j[0]], vol[j[1]], vol[j[2]], vol[j[3]]};
+    const lane4 r = *(const lane4u *)(nb->r + k), w1 = *(const lane4u *)(nb->dwr + k);
+    const lane4 two = {2.0, 2.0, 2.0, 2.0}, c = two * om * w1, r2 = r * r;
+    for (int a = 0; a < D; ++a) {
+        lane4 xG = {0.0, 0.0, 0.0, 0.0};
+        for (int b = 0; b < D; ++b) {
+            const double g = G[a * D + b];
+            xG += x[b] * (lane4){g, g, g, g};
+        }
+        const double *ua = u + (size_t)a * cap;
+        const lane4 uj = {ua[j[0]], ua[j[1]], ua[j[2]], ua[j[3]]};
+        const lane4 uia = {ui[a], ui[a], ui[a], ui[a]};
+        const lane4 ta = c * ((uia - uj) - xG) * xBx / r2;
+        for (int l = 0; l < 4; ++l) t[a][l] = ta[l];
+    }
+}
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#endif
+
 TERM_INLINE void fatehi_body(const kit_job *job, const consph_nbhd *nb, const int D,
                              const double Bh[9])
 {
@@ -265,7 +307,18 @@ TERM_INLINE void fatehi_body(const kit_job *job, const consph_nbhd *nb, const in
     double G[9], ui[3], acc[3] = {0};
     for (int e = 0; e < D * D; ++e) G[e] = job->gradu[(size_t)e * cap + i];
     for (int a = 0; a < D; ++a) ui[a] = u[a * cap + i];
-    for (size_t k = 0; k < nb->n; ++k) {
+    size_t k0 = 0;
+#ifdef CONSPH_LANES4
+    for (; k0 + 4 <= nb->n; k0 += 4) {
+        double t[3][4];
+        fatehi_terms4(D, Bh, G, ui, nb, k0, vol, u, cap, t);
+        for (size_t e = 0; e < 4; ++e) {
+            if (!(nb->r[k0 + e] > 0.0)) continue;
+            for (int a = 0; a < D; ++a) acc[a] += t[a][e];
+        }
+    }
+#endif
+    for (size_t k = k0; k < nb->n; ++k) {
         const double r = nb->r[k];
         if (!(r > 0.0)) continue;
         const size_t j = nb->j[k];
