@@ -617,6 +617,13 @@ static inline double remesh_m4_f(double q)
     return q < 1.0 ? inner : q < 2.0 ? outer : 0.0;
 }
 
+/* The remeshing's AVX-512 and AVX2 copies (src/pass/lanes4.h) */
+#ifdef LANE4_CLONES
+#define REMESH_CLONES LANE4_CLONES
+#else
+#define REMESH_CLONES
+#endif
+
 /* Components summed in registers or on the stack (the solver remeshes d + 1); more go through
  * out, with the same operations. */
 #define REMESH_LOCAL_ROWS 16
@@ -650,7 +657,49 @@ remesh_point(const remesh_job *a, size_t k, size_t m, const size_t *j, double *c
     double wsum = 0.0;
     for (size_t r = 0; r < rows; ++r) acc[r * stride] = 0.0;
     const double norm = a->m4->norm, inv_h = a->m4->inv_h, support = a->m4->support;
-    for (size_t q = 0; q < m; ++q) {
+    size_t q0 = 0;
+#ifdef CONSPH_LANES4
+    /* The weights of four candidates at once, every lane the loop's operations below, without
+     * its branches: an axis at or past the support gives 0 and the later axes keep a zero a zero
+     * (of either sign; a zero weight is skipped either way), so every weight that is not zero is
+     * the loop's bit for bit. The candidates are then added in their order. The branches on each
+     * candidate's axes were most of a remeshing. */
+    const lane4 vnorm = {norm, norm, norm, norm}, vinv_h = {inv_h, inv_h, inv_h, inv_h};
+    const lane4 vsupp = {support, support, support, support}, zero = {0.0, 0.0, 0.0, 0.0};
+    const lane4 one = {1.0, 1.0, 1.0, 1.0}, two = {2.0, 2.0, 2.0, 2.0};
+    const lane4 c25 = {2.5, 2.5, 2.5, 2.5}, c15 = {1.5, 1.5, 1.5, 1.5}, half = {0.5, 0.5, 0.5, 0.5};
+    const lane4i sign = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
+    while (q0 + 4 <= m) {
+        /* up to 64 candidates' weights, the ones not zero kept in order without a branch, then
+         * added: a branch per candidate on its weight was mispredicted about as often as taken */
+        double bw[64];
+        size_t bj[64], nz = 0;
+        const size_t left = (m - q0) & ~(size_t)3, qend = q0 + (left < 64 ? left : 64);
+        for (; q0 < qend; q0 += 4) {
+            lane4 w = vnorm;
+            for (int c = 0; c < D; ++c) {
+                const lane4 qa = (lane4)((lane4i)(*(const lane4u *)(dx[c] + q0)) & sign) * vinv_h;
+                const lane4 inner = one - qa * qa * (c25 - c15 * qa);
+                const lane4 t = two - qa, outer = half * (one - qa) * t * t;
+                const lane4 f = LANE4_SEL((lane4i)(qa < one), inner,
+                                          LANE4_SEL((lane4i)(qa < two), outer, zero));
+                w = LANE4_SEL((lane4i)(qa < vsupp), w * f, zero);
+            }
+            for (int e = 0; e < 4; ++e) {
+                bw[nz] = w[e];
+                bj[nz] = j[q0 + (size_t)e];
+                nz += w[e] != 0.0;
+            }
+        }
+        for (size_t t = 0; t < nz; ++t) {
+            const double we = bw[t];
+            const size_t jq = bj[t];
+            wsum += we;
+            for (size_t r = 0; r < rows; ++r) acc[r * stride] += we * src[r][jq];
+        }
+    }
+#endif
+    for (size_t q = q0; q < m; ++q) {
         /* M4 of the separation (consph_kernel_w_vec's product) */
         double w = norm;
         for (int c = 0; c < D && w != 0.0; ++c) {
@@ -672,18 +721,18 @@ remesh_point(const remesh_job *a, size_t k, size_t m, const size_t *j, double *c
     for (size_t r = 0; r < rows; ++r) a->out[r * a->n + k] = acc[r * stride] / wsum;
 }
 
-static void remesh_point_1(const remesh_job *a, size_t k, size_t m, const size_t *j,
-                           double *const *dx)
+REMESH_CLONES static void remesh_point_1(const remesh_job *a, size_t k, size_t m, const size_t *j,
+                                         double *const *dx)
 {
     remesh_point(a, k, m, j, dx, 1);
 }
-static void remesh_point_2(const remesh_job *a, size_t k, size_t m, const size_t *j,
-                           double *const *dx)
+REMESH_CLONES static void remesh_point_2(const remesh_job *a, size_t k, size_t m, const size_t *j,
+                                         double *const *dx)
 {
     remesh_point(a, k, m, j, dx, 2);
 }
-static void remesh_point_3(const remesh_job *a, size_t k, size_t m, const size_t *j,
-                           double *const *dx)
+REMESH_CLONES static void remesh_point_3(const remesh_job *a, size_t k, size_t m, const size_t *j,
+                                         double *const *dx)
 {
     remesh_point(a, k, m, j, dx, 3);
 }
