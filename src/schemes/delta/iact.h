@@ -41,45 +41,32 @@ typedef struct delta_sums {
     double G[9];    /* Σ V_j u_ji ⊗ ∇W_ij, row-major d × d */
 } delta_sums;
 
-/* The quotients of delta_pair, whose divisions bound its loop: q[a] = -2 (ρ_j - ρ_i) x_a / r²
- * (ψ_ij's first part, per axis) and *qv = V_j u_ji·x_ij / r² (π_ij's, times V_j), with
- * delta_pair's operations. A caller may compute them for several pairs at once (in the lanes of
- * a vector: scheme.c) and hand them to delta_pair_q, which then sums as delta_pair does. */
-DELTA_IACT void delta_pair_quotients(const int d, const double rhoi, const double ui[3],
-                                     const double rhoj, const double uj[3], const double Vj,
-                                     const double x[3], const double r, double q[3], double *qv)
+/* Adds neighbour j (r > 0) to the sums of i. gri, grj: ⟨∇ρ⟩^L of i and j; dui, duj: the
+ * shifting velocities δu (read only when shift is not DELTA_SHIFT_NONE). */
+DELTA_IACT void delta_pair(const int d, const int shift, const double rhoi, const double pi,
+                           const double ui[3], const double dui[3], const double gri[3],
+                           const double rhoj, const double pj, const double uj[3],
+                           const double duj[3], const double grj[3], const double Vj,
+                           const double dwr, const double x[3], const double r,
+                           delta_sums *DELTA_RESTRICT s)
 {
     const double r2 = r * r;
-    double ux = 0.0;
-    for (int a = 0; a < d; ++a) ux += (uj[a] - ui[a]) * x[a];
-    const double drho = rhoj - rhoi;
-    for (int a = 0; a < d; ++a) q[a] = -2.0 * drho * x[a] / r2;
-    *qv = Vj * ux / r2;
-}
-
-/* delta_pair from its quotients (delta_pair_quotients) */
-DELTA_IACT void delta_pair_q(const int d, const int shift, const double rhoi, const double pi,
-                             const double ui[3], const double dui[3], const double gri[3],
-                             const double rhoj, const double pj, const double uj[3],
-                             const double duj[3], const double grj[3], const double Vj,
-                             const double dwr, const double x[3], const double q[3],
-                             const double qv, delta_sums *DELTA_RESTRICT s)
-{
     double gw[3], uji[3];
-    double psig = 0.0;
+    double ux = 0.0, psig = 0.0;
     for (int a = 0; a < d; ++a) {
         gw[a] = dwr * x[a];
         uji[a] = uj[a] - ui[a];
+        ux += uji[a] * x[a];
     }
     const double drho = rhoj - rhoi;
     for (int a = 0; a < d; ++a) {
         /* ψ_ij with x_ji = -x_ij */
-        const double psi = q[a] - (gri[a] + grj[a]);
+        const double psi = -2.0 * drho * x[a] / r2 - (gri[a] + grj[a]);
         psig += psi * gw[a];
         s->divu += Vj * uji[a] * gw[a];
         s->gp[a] += Vj * (pi + pj) * gw[a];
         /* π_ij = u_ji·x_ji/r² = -u_ji·x_ij/r² */
-        s->visc[a] -= qv * gw[a];
+        s->visc[a] -= Vj * ux / r2 * gw[a];
         for (int b = 0; b < d; ++b) s->G[a * d + b] += Vj * uji[a] * gw[b];
     }
     s->diff += Vj * psig;
@@ -100,20 +87,6 @@ DELTA_IACT void delta_pair_q(const int d, const int shift, const double rhoi, co
         s->shq += Vj * drho * si;
         for (int a = 0; a < d; ++a) s->shu[a] += Vj * uji[a] * si;
     }
-}
-
-/* Adds neighbour j (r > 0) to the sums of i. gri, grj: ⟨∇ρ⟩^L of i and j; dui, duj: the
- * shifting velocities δu (read only when shift is not DELTA_SHIFT_NONE). */
-DELTA_IACT void delta_pair(const int d, const int shift, const double rhoi, const double pi,
-                           const double ui[3], const double dui[3], const double gri[3],
-                           const double rhoj, const double pj, const double uj[3],
-                           const double duj[3], const double grj[3], const double Vj,
-                           const double dwr, const double x[3], const double r,
-                           delta_sums *DELTA_RESTRICT s)
-{
-    double q[3], qv;
-    delta_pair_quotients(d, rhoi, ui, rhoj, uj, Vj, x, r, q, &qv);
-    delta_pair_q(d, shift, rhoi, pi, ui, dui, gri, rhoj, pj, uj, duj, grj, Vj, dwr, x, q, qv, s);
 }
 
 /* Particle i's rates from its sums (scheme.c's rate pass, the GPU's dev_delta.h): du/dt

@@ -20,7 +20,6 @@
 #include <string.h>
 
 #include "ops/terms.h"
-#include "pass/lanes4.h"
 #include "regularise/regularise.h"
 #include "schemes/delta/iact.h"
 #include "solver/solver_internal.h"
@@ -75,49 +74,7 @@ DELTA_INLINE void visit_rates_d(const delta_job *job, const consph_nbhd *nb, con
     if (shift != DELTA_SHIFT_NONE)
         for (int a = 0; a < d; ++a) dui[a] = du[a * cap + i];
     delta_sums s = {0};
-    size_t q0 = 0;
-#ifdef CONSPH_LANES4
-    /* delta_pair's quotients four neighbours at a time (each lane delta_pair_quotients'
-     * operations: the same values; a lane at r = 0, skipped below, divides by zero unread),
-     * then the pairs in their order */
-    for (; q0 + 4 <= nb->n; q0 += 4) {
-        const size_t *jq = nb->j + q0;
-        const lane4 zero = {0.0, 0.0, 0.0, 0.0};
-        lane4 x[3] = {zero, zero, zero}, ux = zero;
-        for (int a = 0; a < d; ++a) x[a] = *(const lane4u *)(nb->dx[a] + q0);
-        for (int a = 0; a < d; ++a) {
-            const double *ua = u + (size_t)a * cap, uia = ui[a];
-            const lane4 uj = {ua[jq[0]], ua[jq[1]], ua[jq[2]], ua[jq[3]]};
-            ux += (uj - (lane4){uia, uia, uia, uia}) * x[a];
-        }
-        const lane4 rv = *(const lane4u *)(nb->r + q0), r2 = rv * rv;
-        const lane4 rhoj = {rho[jq[0]], rho[jq[1]], rho[jq[2]], rho[jq[3]]};
-        const lane4 Vj = {vol[jq[0]], vol[jq[1]], vol[jq[2]], vol[jq[3]]};
-        const lane4 drho = rhoj - (lane4){rhoi, rhoi, rhoi, rhoi};
-        const lane4 m2 = {-2.0, -2.0, -2.0, -2.0};
-        lane4 qa[3] = {zero, zero, zero};
-        for (int a = 0; a < d; ++a) qa[a] = m2 * drho * x[a] / r2;
-        const lane4 qv = Vj * ux / r2;
-        for (int e = 0; e < 4; ++e) {
-            const size_t q = q0 + (size_t)e;
-            if (!(nb->r[q] > 0.0)) continue;
-            const size_t j = nb->j[q];
-            double xe[3] = {0.0, 0.0, 0.0}, uj[3] = {0.0, 0.0, 0.0}, duj[3] = {0.0, 0.0, 0.0};
-            double grj[3] = {0.0, 0.0, 0.0}, qe[3] = {0.0, 0.0, 0.0};
-            for (int a = 0; a < d; ++a) {
-                xe[a] = nb->dx[a][q];
-                uj[a] = u[a * cap + j];
-                grj[a] = gr[a * cap + j];
-                qe[a] = qa[a][e];
-            }
-            if (shift == DELTA_SHIFT_SUN)
-                for (int a = 0; a < d; ++a) duj[a] = du[a * cap + j];
-            delta_pair_q(d, shift, rhoi, pi, ui, dui, gri, rho[j], p[j], uj, duj, grj, vol[j],
-                         nb->dwr[q], xe, qe, qv[e], &s);
-        }
-    }
-#endif
-    for (size_t q = q0; q < nb->n; ++q) {
+    for (size_t q = 0; q < nb->n; ++q) {
         const double r = nb->r[q];
         if (!(r > 0.0)) continue;
         const size_t j = nb->j[q];
@@ -162,9 +119,6 @@ DELTA_INLINE void visit_rates_shift(const delta_job *job, const consph_nbhd *nb,
         visit_rates_d(job, nb, job->d, shift);
 }
 
-#ifdef LANE4_CLONES
-LANE4_CLONES
-#endif
 static void visit_rates(void *vjob, const consph_nbhd *nb)
 {
     const delta_job *job = vjob;
