@@ -662,8 +662,9 @@ remesh_point(const remesh_job *a, size_t k, size_t m, const size_t *j, double *c
     /* The weights of four candidates at once, every lane the loop's operations below, without
      * its branches: an axis at or past the support gives 0 and the later axes keep a zero a zero
      * (of either sign; a zero weight is skipped either way), so every weight that is not zero is
-     * the loop's bit for bit. The candidates are then added in their order. The branches on each
-     * candidate's axes were most of a remeshing. */
+     * the loop's bit for bit. The candidates are then added in their order. Without the branches
+     * on each candidate's axes and weight a remeshing takes about a third less time
+     * (docs/pass.md). */
     const lane4 vnorm = {norm, norm, norm, norm}, vinv_h = {inv_h, inv_h, inv_h, inv_h};
     const lane4 vsupp = {support, support, support, support}, zero = {0.0, 0.0, 0.0, 0.0};
     const lane4 one = {1.0, 1.0, 1.0, 1.0}, two = {2.0, 2.0, 2.0, 2.0};

@@ -254,9 +254,6 @@ TERM_INLINE void fatehi_c_matrix(const int d, const consph_nbhd *nb, const doubl
     if (!ops_invert(d, M, Bh, cond_max, &cond)) set_identity(Bh, d);
 }
 
-/* Fatehi_c (001 eq. C.10 with B̂ of eq. 13) of every component of u in one run over the
- * neighbours: x_ij^T B̂ x_ij once per pair, each component with term_fatehi_lap's arithmetic
- * (src/ops/terms.h), so bit for bit that term per component. */
 #ifdef CONSPH_LANES4
 #if !defined(__clang__)
 #pragma GCC diagnostic push
@@ -299,6 +296,9 @@ TERM_INLINE void fatehi_terms4(const int D, const double Bh[9], const double G[9
 #endif
 #endif
 
+/* Fatehi_c (001 eq. C.10 with B̂ of eq. 13) of every component of u in one run over the
+ * neighbours: x_ij^T B̂ x_ij once per pair, each component with term_fatehi_lap's arithmetic
+ * (src/ops/terms.h), so bit for bit that term per component. */
 TERM_INLINE void fatehi_body(const kit_job *job, const consph_nbhd *nb, const int D,
                              const double Bh[9])
 {
@@ -368,12 +368,6 @@ TERM_INLINE void korzilius_body(const kit_job *job, const consph_nbhd *nb, const
     for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = lap[a];
 }
 
-/* Cleary's Laplacian as 001's authors run EWCSPH (ewcsph.py, get_equations_ewcsph: their
- * ViscosityCleary, scheme_equation.py, after GradientCorrection, so with B_i∇W_ij): with
- * η = νϱ averaged harmonically, 2η_ij m_j/(ϱ_i ϱ_j) = 4ν m_j/(ϱ_i + ϱ_j), so
- *   ∇²u_i = Σ_j 4 m_j/(ϱ_i + ϱ_j) (x_ij·B_i∇W_ij)/r_ij² (u_i - u_j),
- * ν ρ_o applied by the rates: their m_j = ρ_o Δs² is ρ_o ω_j here (the kit's volumes), and
- * what is summed here is 4 ω_j/(ϱ_i + ϱ_j)...; pairs closer than 1e-14 are skipped, as theirs. */
 #ifdef CONSPH_LANES4
 #if !defined(__clang__)
 #pragma GCC diagnostic push
@@ -407,6 +401,12 @@ TERM_INLINE void cleary_coeffs4(const int D, const double B[9], const consph_nbh
 #endif
 #endif
 
+/* Cleary's Laplacian as 001's authors run EWCSPH (ewcsph.py, get_equations_ewcsph: their
+ * ViscosityCleary, scheme_equation.py, after GradientCorrection, so with B_i∇W_ij): with
+ * η = νϱ averaged harmonically, 2η_ij m_j/(ϱ_i ϱ_j) = 4ν m_j/(ϱ_i + ϱ_j), so
+ *   ∇²u_i = Σ_j 4 m_j/(ϱ_i + ϱ_j) (x_ij·B_i∇W_ij)/r_ij² (u_i - u_j),
+ * ν ρ_o applied by the rates: their m_j = ρ_o Δs² is ρ_o ω_j here (the kit's volumes), and
+ * what is summed here is 4 ω_j/(ϱ_i + ϱ_j)...; pairs closer than 1e-14 are skipped, as theirs. */
 TERM_INLINE void cleary_body(const kit_job *job, const consph_nbhd *nb, const int D,
                              const double B[9])
 {
@@ -685,8 +685,9 @@ TERM_INLINE void kv_norm1(const int n, const lane4 *a, lane4 *out)
  * operations in their order, its branches (a pivot's row swap, a zero factor's skipped row) as
  * selections and its early returns as a lane marked failed whose arithmetic goes on unread, so
  * a lane's inverse is ops_invert_n's bit for bit where that succeeds. *okp: the lanes where it
- * succeeds (all bits set), as ops_invert_n's 1. Pass 1's finish, one inversion per particle,
- * took about a quarter of its time as four scalar inversions after the group's pair sums. */
+ * succeeds (all bits set), as ops_invert_n's 1. As four scalar inversions after the group's pair
+ * sums, pass 1's finish took about a quarter of the group visit's samples; side by side the
+ * visit takes 12 % less time (docs/pass.md). */
 TERM_INLINE void kv_invert(const int n, const lane4 *a, const double cond_max, lane4 *ainv,
                            lane4i *okp)
 {
