@@ -15,6 +15,10 @@ typedef double lane4u __attribute__((vector_size(4 * sizeof(double)), aligned(si
 /* m ? a : b per lane (m: all bits set or none); a macro, since a function returning a vector
  * would have a different ABI in a clone without AVX */
 #define LANE4_SEL(m, a, b) ((lane4)(((m) & (lane4i)(a)) | (~(m) & (lane4i)(b))))
+/* |x| per lane: the sign bit cleared, as fabs clears it */
+#define LANE4_ABS(x)                                                                               \
+    ((lane4)((lane4i)(x) & (lane4i){0x7fffffffffffffffLL, 0x7fffffffffffffffLL,                    \
+                                    0x7fffffffffffffffLL, 0x7fffffffffffffffLL}))
 /* a lane shuffle of two lane4 by constant indices (0-3 from a, 4-7 from b) */
 #if defined(__clang__)
 #define LANE4_SHUF(a, b, i0, i1, i2, i3) __builtin_shufflevector(a, b, i0, i1, i2, i3)

@@ -669,7 +669,6 @@ remesh_point(const remesh_job *a, size_t k, size_t m, const size_t *j, double *c
     const lane4 vsupp = {support, support, support, support}, zero = {0.0, 0.0, 0.0, 0.0};
     const lane4 one = {1.0, 1.0, 1.0, 1.0}, two = {2.0, 2.0, 2.0, 2.0};
     const lane4 c25 = {2.5, 2.5, 2.5, 2.5}, c15 = {1.5, 1.5, 1.5, 1.5}, half = {0.5, 0.5, 0.5, 0.5};
-    const lane4i sign = {INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX};
     while (q0 + 4 <= m) {
         /* up to 64 candidates' weights, the ones not zero kept in order without a branch, then
          * added: a branch per candidate on its weight was mispredicted about as often as taken */
@@ -679,7 +678,7 @@ remesh_point(const remesh_job *a, size_t k, size_t m, const size_t *j, double *c
         for (; q0 < qend; q0 += 4) {
             lane4 w = vnorm;
             for (int c = 0; c < D; ++c) {
-                const lane4 qa = (lane4)((lane4i)(*(const lane4u *)(dx[c] + q0)) & sign) * vinv_h;
+                const lane4 qa = LANE4_ABS(*(const lane4u *)(dx[c] + q0)) * vinv_h;
                 const lane4 inner = one - qa * qa * (c25 - c15 * qa);
                 const lane4 t = two - qa, outer = half * (one - qa) * t * t;
                 const lane4 f = LANE4_SEL((lane4i)(qa < one), inner,

@@ -10,7 +10,6 @@
  * conditioned than cond_max falls back to the identity, as the operators do. */
 #include <float.h>
 #include <math.h>
-#include <stdint.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -104,16 +103,13 @@ static void visit_volume(void *vjob, const consph_nbhd *nb)
     if (vj->kit && vj->kit->pk1) kit_pack1(vj->kit, nb->i, vj->vol[nb->i]);
 }
 
-/* Pass 1's finish at particle i from its sums, written into the job's fields. */
-TERM_INLINE void first_store(const kit_job *job, const size_t i, const int D, const int with_p,
-                             const int with_u, const int with_q, const double sm[9],
-                             const double sp[3], const double su[9], const double sq[3])
+/* Pass 1's results at particle i written into the job's fields (and coupled_bc's pack) */
+TERM_INLINE void first_write(const kit_job *job, const size_t i, const int D, const int with_p,
+                             const int with_u, const int with_q, const int ok, const double B[9],
+                             const double gp[3], const double G[9], const double div,
+                             const double gq[3])
 {
     const size_t cap = job->cap;
-    double mom[9], B[9], gp[3], G[9], div = 0.0, gq[3];
-    for (int e = 0; e < D * D; ++e) mom[e] = sm[e];
-    const int ok = kit_first_finish(D, with_p, with_u, with_q, mom, job->rq->cond_max, sp, su, sq,
-                                    B, gp, G, &div, gq);
     if (job->bonet_ok) job->bonet_ok[i] = (unsigned char)ok;
     for (int e = 0; e < D * D; ++e) job->bonet[(size_t)e * cap + i] = B[e];
     if (with_p)
@@ -126,6 +122,18 @@ TERM_INLINE void first_store(const kit_job *job, const size_t i, const int D, co
     if (with_q)
         for (int a = 0; a < D; ++a) job->gradq[a * cap + i] = gq[a];
     if (job->pk2) kit_pack2(job, i, D, with_u, with_q, G, gq);
+}
+
+/* Pass 1's finish at particle i from its sums, written into the job's fields. */
+TERM_INLINE void first_store(const kit_job *job, const size_t i, const int D, const int with_p,
+                             const int with_u, const int with_q, const double sm[9],
+                             const double sp[3], const double su[9], const double sq[3])
+{
+    double mom[9], B[9], gp[3], G[9], div = 0.0, gq[3];
+    for (int e = 0; e < D * D; ++e) mom[e] = sm[e];
+    const int ok = kit_first_finish(D, with_p, with_u, with_q, mom, job->rq->cond_max, sp, su, sq,
+                                    B, gp, G, &div, gq);
+    first_write(job, i, D, with_p, with_u, with_q, ok, B, gp, G, div, gq);
 }
 
 /* Pass 1 at one particle, for a dimension and a set of derivatives known at compile time: one
@@ -259,6 +267,23 @@ TERM_INLINE void fatehi_c_matrix(const int d, const consph_nbhd *nb, const doubl
 #pragma GCC diagnostic push
 #pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
 #endif
+/* What kit_fatehi_pair and kit_cleary_pair compute first, for entries k..k+3 of a neighbourhood
+ * in the lanes: the separations x, x·M x with their operations (M = B̂_i or B_i) and ω_j. */
+TERM_INLINE void kv_pair_head4(const int D, const double M[9], const consph_nbhd *nb,
+                               const size_t k, const double *vol, lane4 x[3], lane4 *xmx, lane4 *om)
+{
+    lane4 s = {0.0, 0.0, 0.0, 0.0};
+    for (int a = 0; a < D; ++a) x[a] = *(const lane4u *)(nb->dx[a] + k);
+    for (int a = 0; a < D; ++a)
+        for (int b = 0; b < D; ++b) {
+            const double e = M[a * D + b];
+            s += x[a] * (lane4){e, e, e, e} * x[b];
+        }
+    *xmx = s;
+    const size_t *j = nb->j + k;
+    *om = (lane4){vol[j[0]], vol[j[1]], vol[j[2]], vol[j[3]]};
+}
+
 /* kit_fatehi_pair's terms of entries k..k+3 at once, t[a][l] what entry k + l adds to component a,
  * each lane its pair's operations in kit_fatehi_pair's order (the same values bit for bit; a lane
  * at r = 0, which the caller skips, divides by zero unread): d divisions per pair bounded the
@@ -267,15 +292,9 @@ TERM_INLINE void fatehi_terms4(const int D, const double Bh[9], const double G[9
                                const double ui[3], const consph_nbhd *nb, const size_t k,
                                const double *vol, const double *u, const size_t cap, double t[3][4])
 {
-    lane4 x[3], xBx = {0.0, 0.0, 0.0, 0.0};
-    for (int a = 0; a < D; ++a) x[a] = *(const lane4u *)(nb->dx[a] + k);
-    for (int a = 0; a < D; ++a)
-        for (int b = 0; b < D; ++b) {
-            const double e = Bh[a * D + b];
-            xBx += x[a] * (lane4){e, e, e, e} * x[b];
-        }
+    lane4 x[3], xBx, om;
+    kv_pair_head4(D, Bh, nb, k, vol, x, &xBx, &om);
     const size_t *j = nb->j + k;
-    const lane4 om = {vol[j[0]], vol[j[1]], vol[j[2]], vol[j[3]]};
     const lane4 r = *(const lane4u *)(nb->r + k), w1 = *(const lane4u *)(nb->dwr + k);
     const lane4 two = {2.0, 2.0, 2.0, 2.0}, c = two * om * w1, r2 = r * r;
     for (int a = 0; a < D; ++a) {
@@ -290,6 +309,24 @@ TERM_INLINE void fatehi_terms4(const int D, const double Bh[9], const double G[9
         const lane4 ta = c * ((uia - uj) - xG) * xBx / r2;
         for (int l = 0; l < 4; ++l) t[a][l] = ta[l];
     }
+}
+
+/* kit_cleary_pair's coefficient 4 ω_j/(ϱ_i + ϱ_j) W'/r (x·B_i x)/r² of entries k..k+3 of a
+ * neighbourhood at once, each lane its pair's operations in kit_cleary_pair's order (the same
+ * values bit for bit; a lane at r <= 1e-14, which the caller skips, divides by zero unread). Its
+ * two divisions bounded the per-pair loop; a vector of four divides at about the price of one. */
+TERM_INLINE void cleary_coeffs4(const int D, const double B[9], const consph_nbhd *nb,
+                                const size_t k, const double *vol, const double *rho,
+                                const double rhoi, double c[4])
+{
+    lane4 x[3], xBx, om;
+    kv_pair_head4(D, B, nb, k, vol, x, &xBx, &om);
+    const size_t *j = nb->j + k;
+    const lane4 rj = {rho[j[0]], rho[j[1]], rho[j[2]], rho[j[3]]};
+    const lane4 r = *(const lane4u *)(nb->r + k), w1 = *(const lane4u *)(nb->dwr + k);
+    const lane4 four = {4.0, 4.0, 4.0, 4.0}, ri = {rhoi, rhoi, rhoi, rhoi};
+    const lane4 cc = four * om / (ri + rj) * w1 * xBx / (r * r);
+    for (int l = 0; l < 4; ++l) c[l] = cc[l];
 }
 #if !defined(__clang__)
 #pragma GCC diagnostic pop
@@ -367,39 +404,6 @@ TERM_INLINE void korzilius_body(const kit_job *job, const consph_nbhd *nb, const
     kit_korzilius_finish(D, P, pl, pk, job->bonet_ok[i], Hx, Gz, B, A, rhs, job->rq->cond_max, lap);
     for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = lap[a];
 }
-
-#ifdef CONSPH_LANES4
-#if !defined(__clang__)
-#pragma GCC diagnostic push
-#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
-#endif
-/* kit_cleary_pair's coefficient 4 ω_j/(ϱ_i + ϱ_j) W'/r (x·B_i x)/r² of entries k..k+3 of a
- * neighbourhood at once, each lane its pair's operations in kit_cleary_pair's order (the same
- * values bit for bit; a lane at r <= 1e-14, which the caller skips, divides by zero unread). Its
- * two divisions bounded the per-pair loop; a vector of four divides at about the price of one. */
-TERM_INLINE void cleary_coeffs4(const int D, const double B[9], const consph_nbhd *nb,
-                                const size_t k, const double *vol, const double *rho,
-                                const double rhoi, double c[4])
-{
-    lane4 x[3], xBx = {0.0, 0.0, 0.0, 0.0};
-    for (int a = 0; a < D; ++a) x[a] = *(const lane4u *)(nb->dx[a] + k);
-    for (int a = 0; a < D; ++a)
-        for (int b = 0; b < D; ++b) {
-            const double e = B[a * D + b];
-            xBx += x[a] * (lane4){e, e, e, e} * x[b];
-        }
-    const size_t *j = nb->j + k;
-    const lane4 om = {vol[j[0]], vol[j[1]], vol[j[2]], vol[j[3]]};
-    const lane4 rj = {rho[j[0]], rho[j[1]], rho[j[2]], rho[j[3]]};
-    const lane4 r = *(const lane4u *)(nb->r + k), w1 = *(const lane4u *)(nb->dwr + k);
-    const lane4 four = {4.0, 4.0, 4.0, 4.0}, ri = {rhoi, rhoi, rhoi, rhoi};
-    const lane4 cc = four * om / (ri + rj) * w1 * xBx / (r * r);
-    for (int l = 0; l < 4; ++l) c[l] = cc[l];
-}
-#if !defined(__clang__)
-#pragma GCC diagnostic pop
-#endif
-#endif
 
 /* Cleary's Laplacian as 001's authors run EWCSPH (ewcsph.py, get_equations_ewcsph: their
  * ViscosityCleary, scheme_equation.py, after GradientCorrection, so with B_i∇W_ij): with
@@ -663,10 +667,8 @@ TERM_INLINE void kv_entry1(const consph_nbhd *nb, size_t k, const int D, const l
     *m = (lane4i)(kv < *nv);
 }
 
-/* |x| per lane: the sign bit cleared, as fabs clears it */
-#define KV_ABS(x) ((lane4)((lane4i)(x) & (lane4i){INT64_MAX, INT64_MAX, INT64_MAX, INT64_MAX}))
 /* the lanes where x is finite (isfinite: false for an infinity and for a NaN) */
-#define KV_FINITE(x) ((lane4i)(KV_ABS(x) <= (lane4){DBL_MAX, DBL_MAX, DBL_MAX, DBL_MAX}))
+#define KV_FINITE(x) ((lane4i)(LANE4_ABS(x) <= (lane4){DBL_MAX, DBL_MAX, DBL_MAX, DBL_MAX}))
 
 /* ops_norm1 per lane (into *out: a function returning a vector has another ABI in the clone
  * without AVX) */
@@ -675,7 +677,7 @@ TERM_INLINE void kv_norm1(const int n, const lane4 *a, lane4 *out)
     lane4 best = {0.0, 0.0, 0.0, 0.0};
     for (int c = 0; c < n; ++c) {
         lane4 s = {0.0, 0.0, 0.0, 0.0};
-        for (int r = 0; r < n; ++r) s += KV_ABS(a[r * n + c]);
+        for (int r = 0; r < n; ++r) s += LANE4_ABS(a[r * n + c]);
         best = LANE4_SEL((lane4i)(s > best), s, best);
     }
     *out = best;
@@ -697,7 +699,7 @@ TERM_INLINE void kv_invert(const int n, const lane4 *a, const double cond_max, l
     for (int r = 0; r < n; ++r) {
         lane4 mx = zero;
         for (int c = 0; c < n; ++c) {
-            const lane4 v = a[r * n + c], av = KV_ABS(v);
+            const lane4 v = a[r * n + c], av = LANE4_ABS(v);
             ok &= KV_FINITE(v);
             mx = LANE4_SEL((lane4i)(av > mx), av, mx);
         }
@@ -707,7 +709,7 @@ TERM_INLINE void kv_invert(const int n, const lane4 *a, const double cond_max, l
     for (int c = 0; c < n; ++c) {
         lane4 mx = zero;
         for (int r = 0; r < n; ++r) {
-            const lane4 av = KV_ABS(rs[r] * a[r * n + c]);
+            const lane4 av = LANE4_ABS(rs[r] * a[r * n + c]);
             mx = LANE4_SEL((lane4i)(av > mx), av, mx);
         }
         ok &= (lane4i)(mx != zero);
@@ -722,9 +724,9 @@ TERM_INLINE void kv_invert(const int n, const lane4 *a, const double cond_max, l
     kv_norm1(n, m, &anorm);
     for (int k = 0; k < n; ++k) {
         lane4i piv = {k, k, k, k};
-        lane4 pv = KV_ABS(m[k * n + k]);
+        lane4 pv = LANE4_ABS(m[k * n + k]);
         for (int r = k + 1; r < n; ++r) {
-            const lane4 av = KV_ABS(m[r * n + k]);
+            const lane4 av = LANE4_ABS(m[r * n + k]);
             const lane4i more = (lane4i)(av > pv);
             piv = (more & (lane4i){r, r, r, r}) | (~more & piv);
             pv = LANE4_SEL(more, av, pv);
@@ -799,7 +801,6 @@ TERM_INLINE void first_store_lanes(const kit_job *job, const consph_nbhd *nb, co
                                    const int with_q, const lane4 *sm, const lane4 *sp,
                                    const lane4 *su, const lane4 *sq)
 {
-    const size_t cap = job->cap;
     const lane4 zero = {0.0, 0.0, 0.0, 0.0}, one = {1.0, 1.0, 1.0, 1.0};
     lane4 B[9], gp[3], G[9], div = zero, gq[3];
     lane4i ok;
@@ -814,23 +815,15 @@ TERM_INLINE void first_store_lanes(const kit_job *job, const consph_nbhd *nb, co
         }
     if (with_q) kv_apply(D, B, sq, gq);
     for (int l = 0; l < count; ++l) {
-        const size_t i = nb[l].i;
-        if (job->bonet_ok) job->bonet_ok[i] = ok[l] != 0;
-        double Gl[9], gql[3];
-        for (int e = 0; e < D * D; ++e) job->bonet[(size_t)e * cap + i] = B[e][l];
+        double Bl[9], gpl[3] = {0.0}, Gl[9] = {0.0}, gql[3] = {0.0};
+        for (int e = 0; e < D * D; ++e) Bl[e] = B[e][l];
         if (with_p)
-            for (int a = 0; a < D; ++a) job->gradp[a * cap + i] = gp[a][l];
-        if (with_u) {
+            for (int a = 0; a < D; ++a) gpl[a] = gp[a][l];
+        if (with_u)
             for (int e = 0; e < D * D; ++e) Gl[e] = G[e][l];
-            if (job->gradu)
-                for (int e = 0; e < D * D; ++e) job->gradu[(size_t)e * cap + i] = Gl[e];
-            if (job->divu) job->divu[i] = div[l];
-        }
-        if (with_q) {
+        if (with_q)
             for (int a = 0; a < D; ++a) gql[a] = gq[a][l];
-            for (int a = 0; a < D; ++a) job->gradq[a * cap + i] = gql[a];
-        }
-        if (job->pk2) kit_pack2(job, i, D, with_u, with_q, Gl, gql);
+        first_write(job, nb[l].i, D, with_p, with_u, with_q, ok[l] != 0, Bl, gpl, Gl, div[l], gql);
     }
 }
 
