@@ -405,6 +405,84 @@ TERM_INLINE void korzilius_body(const kit_job *job, const consph_nbhd *nb, const
     for (int a = 0; a < D; ++a) job->lapu[a * cap + i] = lap[a];
 }
 
+#ifdef CONSPH_LANES4
+#if !defined(__clang__)
+#pragma GCC diagnostic push
+#pragma GCC diagnostic ignored "-Wmaybe-uninitialized"
+#endif
+/* korzilius_body in 2D (P = 3) with its 27 sums in the lanes of nine vectors: A's rows, Hx and Gz
+ * by columns, rhs by component; each lane's term is kit_korzilius_pair's with its operations in
+ * their order ((ω H_a) ζ_b, ((ω W'/r) x_a) ζ_b, (0 + x_0 G_a0) + x_1 G_a1, ...), and each sum adds
+ * its pairs in their order, so the sums, and the finish, are korzilius_body's bit for bit; the
+ * kernel Hessian's radial factor of four entries at once (a division per pair). The scalar loop
+ * ran about 100 flops per pair one at a time. */
+TERM_INLINE void korzilius_body2(const kit_job *job, const consph_nbhd *nb, const double B[9])
+{
+    const size_t i = nb->i, cap = job->cap, n = nb->n;
+    const double *vol = job->vol, *u = job->u, *gu = job->gradu;
+    const double *dx0 = nb->dx[0], *dx1 = nb->dx[1], *dwr = nb->dwr;
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0};
+    /* ops_pair_index's order (0,0), (0,1), (1,1) */
+    const int pl[6] = {0, 0, 1, 0, 0, 0}, pk[6] = {0, 1, 1, 0, 0, 0};
+    const lane4 cq = {term_taylor_c(0, 0), term_taylor_c(0, 1), term_taylor_c(1, 1), 0.0};
+    const lane4 ga = {gu[i], gu[2 * cap + i], 0.0, 0.0},
+                gb = {gu[cap + i], gu[3 * cap + i], 0.0, 0.0};
+    const lane4 ui = {u[i], u[cap + i], 0.0, 0.0};
+    lane4 a0 = zero, a1 = zero, a2 = zero, hx01 = zero, hx2 = zero, gz0 = zero, gz1 = zero;
+    lane4 r0 = zero, r1 = zero;
+    for (size_t k0 = 0; k0 < n; k0 += 4) {
+        double aee[4];
+        const size_t m = n - k0 < 4 ? n - k0 : 4;
+        if (m == 4) {
+            const lane4 r = *(const lane4u *)(nb->r + k0), w1 = *(const lane4u *)(dwr + k0);
+            const lane4 w2 = *(const lane4u *)(nb->d2w + k0);
+            /* term_hess_radial; a lane at r = 0 divides by zero unread */
+            const lane4 h = LANE4_SEL((lane4i)(r > 0.0), (w2 - w1) / (r * r), zero);
+            for (int l = 0; l < 4; ++l) aee[l] = h[l];
+        } else {
+            for (size_t l = 0; l < m; ++l)
+                aee[l] = term_hess_radial(nb->r[k0 + l], dwr[k0 + l], nb->d2w[k0 + l]);
+        }
+        for (size_t l = 0; l < m; ++l) {
+            const size_t k = k0 + l, j = nb->j[k];
+            const double x0 = dx0[k], x1 = dx1[k], w1 = dwr[k], om = vol[j], e = aee[l];
+            const lane4 xl = {x0, x0, x1, 0.0}, xk = {x0, x1, x1, 0.0};
+            const lane4 zeta = cq * xl * xk;
+            const lane4 h = (lane4){e, e, e, e} * xl * xk + (lane4){w1, 0.0, w1, 0.0};
+            const lane4 oh = (lane4){om, om, om, om} * h;
+            a0 += LANE4_SHUF(oh, oh, 0, 0, 0, 0) * zeta;
+            a1 += LANE4_SHUF(oh, oh, 1, 1, 1, 1) * zeta;
+            a2 += LANE4_SHUF(oh, oh, 2, 2, 2, 2) * zeta;
+            const lane4 xx = {x0, x1, x0, x1};
+            hx01 -= LANE4_SHUF(oh, oh, 0, 0, 1, 1) * xx;
+            hx2 -= LANE4_SHUF(oh, oh, 2, 2, 2, 2) * xx;
+            const double od = om * w1, g0 = od * x0, g1 = od * x1;
+            gz0 += (lane4){g0, g0, g0, g0} * zeta;
+            gz1 += (lane4){g1, g1, g1, g1} * zeta;
+            /* x_ji·G = -x_ij·G */
+            const lane4 xg = (zero + (lane4){x0, x0, x0, x0} * ga) + (lane4){x1, x1, x1, x1} * gb;
+            const lane4 uj = {u[j], u[cap + j], 0.0, 0.0};
+            const lane4 sa = (lane4){om, om, om, om} * ((uj - ui) + xg);
+            r0 += LANE4_SHUF(sa, sa, 0, 0, 0, 0) * h;
+            r1 += LANE4_SHUF(sa, sa, 1, 1, 1, 1) * h;
+        }
+    }
+    /* the layouts of korzilius_body's sums (A[a P + b], Hx[a d + b], Gz[a P + b], rhs[a P + q]),
+     * at the sizes kit_korzilius_finish declares */
+    double A[36] = {a0[0], a0[1], a0[2], a1[0], a1[1], a1[2], a2[0], a2[1], a2[2]};
+    const double Hx[18] = {hx01[0], hx01[1], hx01[2], hx01[3], hx2[0], hx2[1]};
+    const double Gz[18] = {gz0[0], gz0[1], gz0[2], gz1[0], gz1[1], gz1[2]};
+    const double rhs[18] = {r0[0], r0[1], r0[2], r1[0], r1[1], r1[2]};
+    double lap[3];
+    kit_korzilius_finish(2, 3, pl, pk, job->bonet_ok[i], Hx, Gz, B, A, rhs, job->rq->cond_max, lap);
+    job->lapu[i] = lap[0];
+    job->lapu[cap + i] = lap[1];
+}
+#if !defined(__clang__)
+#pragma GCC diagnostic pop
+#endif
+#endif
+
 /* Cleary's Laplacian as 001's authors run EWCSPH (ewcsph.py, get_equations_ewcsph: their
  * ViscosityCleary, scheme_equation.py, after GradientCorrection, so with B_i∇W_ij): with
  * η = νϱ averaged harmonically, 2η_ij m_j/(ϱ_i ϱ_j) = 4ν m_j/(ϱ_i + ϱ_j), so
@@ -457,6 +535,12 @@ TERM_INLINE void second_body(const kit_job *job, const consph_nbhd *nb, const in
     } else if (job->rq->lap == KIT_LAP_CLEARY) {
         cleary_body(job, nb, D, B);
     } else {
+#ifdef CONSPH_LANES4
+        if (D == 2) {
+            korzilius_body2(job, nb, B);
+            return;
+        }
+#endif
         korzilius_body(job, nb, D, B);
     }
 }
