@@ -112,7 +112,7 @@ static int run_case(int dim, size_t nx)
             in[(size_t)(1 + a) * n + i] = fu[(size_t)a * cap + i] = x - y * (a + 1) + z * z;
     }
     /* L-IPST-C's request (src/schemes/negi/scheme.c) */
-    const kit_req rq = {KIT_GRADP | KIT_LAPU | KIT_DIVU, KIT_LAP_COUPLED, SF_RHOF, ctx.cond_max};
+    const kit_req rq = {KIT_GRADP | KIT_LAPU | KIT_DIVU, KIT_LAP_COUPLED, SF_RHOF, ctx.cond_max, 0};
     size_t warm = 0;
     int warm_passes = 0;
     st = kit_derivatives(&sys, &rq, &warm, &warm_passes); /* creates the output fields */

@@ -303,7 +303,7 @@ static void check_case(consph_layout_kind kind, int dim, size_t nx, int periodic
     apply(&w, CONSPH_OP_GRAD, CONSPH_FORM_F2, CONSPH_CORR_NONE, w.p, w.a, &one);
     const unsigned all = KIT_GRADP | KIT_GRADU | KIT_DIVU | KIT_GRADQ | KIT_LAPU | KIT_LAPQ;
     for (int lap = KIT_LAP_COUPLED; lap <= KIT_LAP_KORZILIUS; ++lap) {
-        kit_req rq = {all, (kit_lap)lap, SF_RHOF, cond_max};
+        kit_req rq = {all, (kit_lap)lap, SF_RHOF, cond_max, 0};
         int passes = 0;
         pairs = 0;
         check_set_threads(1);
@@ -338,7 +338,7 @@ static void check_case(consph_layout_kind kind, int dim, size_t nx, int periodic
     }
     /* A request for the gradients alone runs one pass and leaves them as the full one does. */
     if (ok) {
-        kit_req rq = {KIT_GRADU | KIT_GRADQ, KIT_LAP_COUPLED, SF_RHOF, cond_max};
+        kit_req rq = {KIT_GRADU | KIT_GRADQ, KIT_LAP_COUPLED, SF_RHOF, cond_max, 0};
         int passes = 0;
         gather(w.sys.p, SF_GRADQ, 0, w.b);
         ok = kit_derivatives(&w.sys, &rq, &pairs, &passes) == CONSPH_OK;

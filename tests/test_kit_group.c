@@ -20,7 +20,7 @@
 /* src/schemes/negi/kit.c */
 extern int kit_group_visits, kit_chain_passes;
 extern unsigned long kit_group_passes, kit_chains, kit_group_firsts, kit_group_coupled,
-    kit_coupled_packed, kit_first_packed;
+    kit_coupled_packed, kit_first_packed, kit_first_kept;
 extern double kit_coupled_lanes_bytes;
 
 static consph_solver *make(const char *scheme, const char *problem, int nx, double skin)
@@ -138,7 +138,7 @@ static void compare_kit(const char *problem, int nx, int mode)
     }
     for (unsigned want = 1; want < 64; ++want)
         for (int lap = 0; lap < ((want & KIT_LAPU) ? 2 : 1); ++lap) {
-            const kit_req rq = {want, lap ? KIT_LAP_FATEHI_C : KIT_LAP_COUPLED, SF_P, 1e12};
+            const kit_req rq = {want, lap ? KIT_LAP_FATEHI_C : KIT_LAP_COUPLED, SF_P, 1e12, 0};
             snprintf(what, sizeof what, "kit on %s, nx %d, mode %d, want %#x, %s", problem, nx,
                      mode, want, lap ? "fatehi_c" : "coupled");
             int st = CONSPH_OK;
@@ -221,15 +221,19 @@ int main(void)
     compare("pe-ipst-c", "beltrami", 5, 0.0, 1, 1);
     compare("tv-c", "taylor-green", 12, 0.0, 0, 1);
     /* the fixed volumes' pass 1 over the filled cache per particle from its pack (first_pk_of),
-     * E-C's with ∇q, EWCSPH's without */
-    const unsigned long first_packed = kit_first_packed;
+     * E-C's with ∇q, EWCSPH's without, after the first with B_i kept (kit_req.bonet_kept):
+     * against the per-particle visits, which compute B_i at every pass */
+    const unsigned long first_packed = kit_first_packed, first_kept = kit_first_kept;
     compare("e-c", "taylor-green", 12, 0.0, 0, 1);
     compare("ewcsph", "taylor-green", 12, 0.0, 0, 1);
 #if defined(__GNUC__)
     CHECK(kit_first_packed - first_packed >= 16, "%lu passes 1 from the pack",
           kit_first_packed - first_packed);
+    CHECK(kit_first_kept - first_kept >= 16, "%lu passes 1 with B_i kept",
+          kit_first_kept - first_kept);
 #endif
     (void)first_packed;
+    (void)first_kept;
     compare("ewcsph", "taylor-green", 12, 0.0, 1, 1);
     compare("l-ipst-f", "taylor-green", 12, 0.0, 0, 1);
     return check_summary("test_kit_group");

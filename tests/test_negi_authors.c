@@ -50,7 +50,7 @@ static void cleary_by_hand(void)
         }
         size_t pairs = 0;
         int passes = 0;
-        kit_req rq = {KIT_LAPU, KIT_LAP_CLEARY, SF_RHOF, 1e8};
+        kit_req rq = {KIT_LAPU, KIT_LAP_CLEARY, SF_RHOF, 1e8, 0};
         CHECK(kit_volumes(&sys, &pairs) == CONSPH_OK, "volumes");
         CHECK(kit_derivatives(&sys, &rq, &pairs, &passes) == CONSPH_OK, "kit");
         const double *lap = consph_particles_find(p, SF_LAPU)->data;

@@ -1053,6 +1053,9 @@ int consph_solver_set_device(consph_solver *s, consph_device device)
 {
     if (device == CONSPH_DEVICE_CPU) {
         if (!s->gpu) return CONSPH_OK;
+        /* the CPU's pass 1 computes B_i again before it keeps it (what the GPU left in the field
+         * is its copy, but the CPU keeps only what it made on this build of the list) */
+        s->bonet_kept = 0;
         const int st = gpu_download(s);
         gpu_free(s->gpu);
         s->gpu = NULL;

@@ -135,6 +135,10 @@ typedef struct kit_req {
     kit_lap lap;   /* the viscous Laplacian */
     const char *q; /* SF_RHOF or SF_P: the scalar of KIT_GRADQ/KIT_LAPQ */
     double cond_max;
+    /* 1: the field SF_BONET holds B_i of these positions, volumes and cond_max (a fixed
+     * geometry's, from an earlier evaluation): pass 1 may apply it instead of summing the moment
+     * and inverting it again, the same values */
+    int bonet_kept;
 } kit_req;
 
 /* ω_i = 1/Σ_j W_ij into SF_VOL (one pass); adds pairs to *pairs. */
@@ -276,7 +280,12 @@ struct consph_solver {
     int passes; /* passes of the last stage */
     long regs;
     int volumes_fixed; /* particles never move: ω computed once */
-    int reuse_rates;   /* pec/kdk: the rates left by the previous step are this step's first */
+    /* volumes_fixed: the field SF_BONET holds B_i of the rates' pass 1 (cond_max 1e8) on the
+     * neighbour list's build bonet_builds (a build is a new geometry: a migration, a re-sort);
+     * 0 until the first such pass on the CPU, and again after the GPU ran the steps */
+    int bonet_kept;
+    size_t bonet_builds;
+    int reuse_rates; /* pec/kdk: the rates left by the previous step are this step's first */
     /* ∇u and ∇p are read by snapshots and the end-of-run outputs only: a right-hand side may
      * skip them while grads_skip is set, which consph_solver_step does for a step that ends
      * neither the run nor at a multiple of grads_every (consph_run sets grads_lazy and the

@@ -582,8 +582,9 @@ int kit_chain_passes = 1;
 /* Passes 1 and coupled_bc that ran over groups, and coupled_bc passes that ran per particle
  * from pass 1's pack (coupled_pk_of) (for tests: that they did). */
 unsigned long kit_group_firsts = 0, kit_group_coupled = 0, kit_coupled_packed = 0;
-/* Passes 1 that ran per particle from their pack (first_pk_of; for tests) */
-unsigned long kit_first_packed = 0;
+/* Passes 1 that ran per particle from their pack (first_pk_of), and those of them with B_i kept
+ * (kit_req.bonet_kept) (for tests) */
+unsigned long kit_first_packed = 0, kit_first_kept = 0;
 /* coupled_bc's group visit reads four lanes' pairs side by side; the chained pass runs a few
  * neighbourhoods behind the fill, and once the state's pair cache is larger than about this many
  * bytes those pairs come from the last-level cache, where the per-particle visit's single
@@ -1136,7 +1137,8 @@ static pass_group_fn group_first_of(int d, int with_p, int with_u, int with_q)
  * kit_first_pair (ω_j 1 = ω_j exactly); the moment's terms are (g x_a) x_b, the gradients'
  * t x_b, each lane's sum runs over the pairs in their order, so the sums, and first_store's
  * results, are first_body's bit for bit (lanes 0 and 1 of sp sum g x, never read). */
-TERM_INLINE void first_pk_body(const kit_job *job, const consph_nbhd *nb, const int Q)
+TERM_INLINE void first_pk_body(const kit_job *job, const consph_nbhd *nb, const int Q,
+                               const int KEPT)
 {
     const size_t i = nb->i, cap = job->cap;
     const int S = job->s1;
@@ -1153,7 +1155,7 @@ TERM_INLINE void first_pk_body(const kit_job *job, const consph_nbhd *nb, const 
         const lane4 d = LANE4_SHUF(one, f - fi, 0, 5, 6, 7);
         const lane4 t = (lane4){om, om, om, om} * d * (lane4){w1, w1, w1, w1};
         const lane4 a = LANE4_SHUF(t, t, 0, 0, 1, 1) * x;
-        SM = SM - LANE4_SHUF(a, a, 0, 0, 1, 1) * x;
+        if (!KEPT) SM = SM - LANE4_SHUF(a, a, 0, 0, 1, 1) * x;
         SP = SP + a;
         SU = SU + LANE4_SHUF(t, t, 2, 2, 3, 3) * x;
         if (Q) {
@@ -1163,22 +1165,41 @@ TERM_INLINE void first_pk_body(const kit_job *job, const consph_nbhd *nb, const 
     }
     const double sm[9] = {SM[0], SM[1], SM[2], SM[3]}, sp[3] = {SP[2], SP[3], 0.0};
     const double su[9] = {SU[0], SU[1], SU[2], SU[3]}, sq[3] = {SQ[0], SQ[1], 0.0};
-    first_store(job, i, 2, 1, 1, Q, sm, sp, su, sq);
+    if (!KEPT) {
+        first_store(job, i, 2, 1, 1, Q, sm, sp, su, sq);
+        return;
+    }
+    /* B_i kept (kit_req.bonet_kept; no bonet_ok to write): the finish without the inversion */
+    double B[9] = {0.0}, gp[3] = {0.0}, G[9] = {0.0}, div = 0.0, gq[3] = {0.0};
+    for (int e = 0; e < 4; ++e) B[e] = job->bonet[(size_t)e * cap + i];
+    kit_first_apply(2, 1, 1, Q, B, sp, su, sq, gp, G, &div, gq);
+    first_write(job, i, 2, 1, 1, Q, 1, B, gp, G, div, gq);
 }
 
 KIT_CLONES static void first_pk_2110(void *job, const consph_nbhd *nb)
 {
-    first_pk_body(job, nb, 0);
+    first_pk_body(job, nb, 0, 0);
 }
 KIT_CLONES static void first_pk_2111(void *job, const consph_nbhd *nb)
 {
-    first_pk_body(job, nb, 1);
+    first_pk_body(job, nb, 1, 0);
+}
+KIT_CLONES static void first_pk_kept_2110(void *job, const consph_nbhd *nb)
+{
+    first_pk_body(job, nb, 0, 1);
+}
+KIT_CLONES static void first_pk_kept_2111(void *job, const consph_nbhd *nb)
+{
+    first_pk_body(job, nb, 1, 1);
 }
 
-/* pass 1 per particle from its pack: 2D with ∇p and G (or ∇·u), with or without ∇q */
-static consph_visit_fn first_pk_of(int d, int with_p, int with_u, int with_q)
+/* pass 1 per particle from its pack: 2D with ∇p and G (or ∇·u), with or without ∇q; kept: with
+ * B_i kept (kit_req.bonet_kept), the moment neither summed nor inverted */
+static consph_visit_fn first_pk_of(int d, int with_p, int with_u, int with_q, int kept)
 {
-    return d == 2 && with_p && with_u ? (with_q ? first_pk_2111 : first_pk_2110) : NULL;
+    if (d != 2 || !with_p || !with_u) return NULL;
+    if (kept) return with_q ? first_pk_kept_2111 : first_pk_kept_2110;
+    return with_q ? first_pk_2111 : first_pk_2110;
 }
 
 /* coupled_bc's ∇²u, alone or with ∇²q, per particle from the pack (2D only) */
@@ -1200,8 +1221,8 @@ int kit_invert_lanes(int n, const double *a, double cond_max, double *ainv, int 
     ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (pass_group_fn)NULL)
 #define group_second_of(rq, d) ((void)(rq), (void)(d), (pass_group_fn)NULL)
 #define coupled_pk_of(d, with_q) ((void)(d), (void)(with_q), (consph_visit_fn)NULL)
-#define first_pk_of(d, with_p, with_u, with_q)                                                     \
-    ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (consph_visit_fn)NULL)
+#define first_pk_of(d, with_p, with_u, with_q, kept)                                               \
+    ((void)(d), (void)(with_p), (void)(with_u), (void)(with_q), (void)(kept), (consph_visit_fn)NULL)
 #endif
 
 /* A pass with its group visit where the system and the compiler allow one, else per particle;
@@ -1344,7 +1365,8 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         return CONSPH_ENOMEM;
     /* Fields may have been created above, which can move no data (fields are separate
      * allocations), so the pointers taken before stay valid. */
-    if ((want & KIT_LAPU) && rq->lap != KIT_LAP_COUPLED) {
+    /* the Laplacians that read whether B_i was accepted */
+    if ((want & KIT_LAPU) && (rq->lap == KIT_LAP_FATEHI_C || rq->lap == KIT_LAP_KORZILIUS)) {
         job.bonet_ok = malloc(p->n ? p->n : 1);
         if (!job.bonet_ok) return CONSPH_ENOMEM;
     }
@@ -1360,7 +1382,8 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     const pass_group_fn group_first = lanes ? group_first_of(d, gp, gu, gq) : NULL;
     /* where pass 1 runs per particle (over a filled cache), it reads its pack too (2D:
      * first_pk_of) */
-    const consph_visit_fn visit_first_pk = group_first ? first_pk_of(d, gp, gu, gq) : NULL;
+    const int kept = r.bonet_kept && !job.bonet_ok;
+    const consph_visit_fn visit_first_pk = group_first ? first_pk_of(d, gp, gu, gq, kept) : NULL;
     const consph_pass first = {"kit: bonet, gradients, divergence", CONSPH_PASS_DW,
                                visit_first_pk ? visit_first_pk : visit_first};
     unsigned need2 = CONSPH_PASS_DW;
@@ -1488,8 +1511,10 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     int grouped = 0;
     if (st == CONSPH_OK) st = kit_run_grouped(s, &first, group_first, &job, pairs, &grouped);
     if (group_first && grouped) __atomic_fetch_add(&kit_group_firsts, 1, __ATOMIC_RELAXED);
-    if (st == CONSPH_OK && visit_first_pk && !grouped)
+    if (st == CONSPH_OK && visit_first_pk && !grouped) {
         __atomic_fetch_add(&kit_first_packed, 1, __ATOMIC_RELAXED);
+        if (kept) __atomic_fetch_add(&kit_first_kept, 1, __ATOMIC_RELAXED);
+    }
     if (st == CONSPH_OK) ++*passes;
     if (with_second) consph_sys_next_reads(s, &second_reads);
     if (st == CONSPH_OK && with_second && job.pk2) st = kit_pack_sources(s, &job, 2);

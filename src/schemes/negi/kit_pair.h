@@ -38,20 +38,14 @@ KIT_PAIR void kit_first_pair(const int D, const int with_p, const int with_u, co
     }
 }
 
-/* Pass 1's finish at a particle: B (the inverted moment, or the identity when singular or worse
- * conditioned than cond_max: the return value 0), then ∇p = B sp, G = B su per row, ∇·u = tr G
- * and ∇q = B sq for the sums asked for. */
-KIT_PAIR int kit_first_finish(const int D, const int with_p, const int with_u, const int with_q,
-                              const double mom[9], double cond_max, const double sp[3],
-                              const double su[9], const double sq[3], double B[9], double gradp[3],
-                              double G[9], double *divu, double gradq[3])
+/* kit_first_finish's derivatives from B_i given: ∇p = B sp, G = B su per row, ∇·u = tr G, ∇q =
+ * B sq (a fixed geometry's pass 1 keeps B_i from its first evaluation: kit_req.bonet_kept). */
+KIT_PAIR void kit_first_apply(const int D, const int with_p, const int with_u, const int with_q,
+                              const double B[9], const double sp[3], const double su[9],
+                              const double sq[3], double gradp[3], double G[9], double *divu,
+                              double gradq[3])
 {
     const double zero[3] = {0.0, 0.0, 0.0};
-    double cond = 0.0;
-    const int ok = ops_invert_n(D, mom, B, cond_max, &cond);
-    if (!ok)
-        for (int r = 0; r < D; ++r)
-            for (int c = 0; c < D; ++c) B[r * D + c] = r == c ? 1.0 : 0.0;
     if (with_p) term_apply_rule(D, zero, B, sp, 0.0, gradp);
     if (with_u) {
         double div = 0.0;
@@ -62,6 +56,22 @@ KIT_PAIR int kit_first_finish(const int D, const int with_p, const int with_u, c
         *divu = div;
     }
     if (with_q) term_apply_rule(D, zero, B, sq, 0.0, gradq);
+}
+
+/* Pass 1's finish at a particle: B (the inverted moment, or the identity when singular or worse
+ * conditioned than cond_max: the return value 0), then the derivatives asked
+ * for (kit_first_apply). */
+KIT_PAIR int kit_first_finish(const int D, const int with_p, const int with_u, const int with_q,
+                              const double mom[9], double cond_max, const double sp[3],
+                              const double su[9], const double sq[3], double B[9], double gradp[3],
+                              double G[9], double *divu, double gradq[3])
+{
+    double cond = 0.0;
+    const int ok = ops_invert_n(D, mom, B, cond_max, &cond);
+    if (!ok)
+        for (int r = 0; r < D; ++r)
+            for (int c = 0; c < D; ++c) B[r * D + c] = r == c ? 1.0 : 0.0;
+    kit_first_apply(D, with_p, with_u, with_q, B, sp, su, sq, gradp, G, divu, gradq);
     return ok;
 }
 

@@ -80,7 +80,7 @@ static int rates(consph_solver *s, const negi_terms *t)
                              CONSPH_PASS_W | CONSPH_PASS_DW |
                                  (t->lap == KIT_LAP_KORZILIUS ? CONSPH_PASS_D2W : 0u));
     const char *q = s->scheme->evolve_p ? SF_P : SF_RHOF;
-    kit_req rq = {KIT_GRADP | KIT_LAPU | KIT_DIVU, (kit_lap)t->lap, q, 1e8};
+    kit_req rq = {KIT_GRADP | KIT_LAPU | KIT_DIVU, (kit_lap)t->lap, q, 1e8, 0};
     if (t->diffuse_q) rq.want |= KIT_LAPQ;
     if (t->transport || t->advect_q) rq.want |= KIT_GRADQ;
     double *du = NULL;
@@ -94,9 +94,20 @@ static int rates(consph_solver *s, const negi_terms *t)
         if (st != CONSPH_OK) return st;
     }
     const consph_pass *then = t->transport ? &shift : NULL;
+    /* a fixed geometry's B_i from the last evaluation on the same build of the list (the kit's
+     * moment and its inversion: about a sixth of E-C's step); only while the list is on, whose
+     * builds count every change of the positions or of the particles' order */
+    consph_nlist_info nl;
+    consph_sys_nlist_info(sys, &nl);
+    rq.bonet_kept = s->volumes_fixed && s->bonet_kept && nl.on && nl.builds == s->bonet_builds;
     st = s->volumes_fixed
              ? kit_derivatives(sys, &rq, &s->pairs, &s->passes)
              : kit_volumes_derivatives_then(sys, &rq, then, &shift_job, &s->pairs, &s->passes);
+    if (s->volumes_fixed) {
+        consph_sys_nlist_info(sys, &nl);
+        s->bonet_kept = st == CONSPH_OK && nl.on;
+        s->bonet_builds = nl.builds;
+    }
     if (st == CONSPH_OK && then && s->volumes_fixed) st = consph_pass_run(sys, then, &shift_job);
     if (st != CONSPH_OK) return st;
     if (t->transport) solver_shift_velocity_tvc_finish(s, du);
@@ -168,7 +179,7 @@ static int gradients_for_shift(consph_solver *s, const consph_pass *then, void *
     /* These two passes and the shifting's first (IPST's volumes, or the PST) read this state */
     consph_sys_expect_passes(&s->sys, 3, CONSPH_PASS_W | CONSPH_PASS_DW);
     kit_req rq = {KIT_GRADU | KIT_GRADQ, KIT_LAP_COUPLED, s->scheme->evolve_p ? SF_P : SF_RHOF,
-                  1e8};
+                  1e8, 0};
     return kit_volumes_derivatives_then(&s->sys, &rq, then, then_job, &s->pairs, &passes);
 }
 
