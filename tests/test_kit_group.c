@@ -18,7 +18,7 @@
 #include "solver/solver_internal.h"
 
 /* src/schemes/negi/kit.c */
-extern int kit_group_visits, kit_chain_passes;
+extern int kit_group_visits, kit_chain_passes, kit_keep_bonet;
 extern unsigned long kit_group_passes, kit_chains, kit_group_firsts, kit_group_coupled,
     kit_coupled_packed, kit_first_packed, kit_first_kept;
 extern double kit_coupled_lanes_bytes;
@@ -63,9 +63,9 @@ static void compare(const char *scheme, const char *problem, int nx, double skin
     const unsigned long runs = kit_group_passes, chains = kit_chains;
     for (int step = 0; step < (nx > 50 ? 2 : 5); ++step) {
         int st = consph_solver_step(g);
-        kit_group_visits = kit_chain_passes = 0;
+        kit_group_visits = kit_chain_passes = kit_keep_bonet = 0;
         st = st ? st : consph_solver_step(v);
-        kit_group_visits = kit_chain_passes = 1;
+        kit_group_visits = kit_chain_passes = kit_keep_bonet = 1;
         CHECK(st == CONSPH_OK, "%s: step %d: %s", what, step, consph_last_error());
         if (st != CONSPH_OK || !same_state(g, v, what)) break;
         pairs_g = g->pairs;
@@ -107,13 +107,11 @@ static void scale_up(consph_solver *s, double f)
  * passes over the group traversal's padded lanes; 3: as 0 after a first run on the same
  * positions with u and p doubled, so that the second chains over the cache the first filled and
  * any value it read before its pass wrote it would be the first run's; 4: as 0 with coupled_bc
- * per particle from pass 1's pack (in 2D, coupled_pk_210 and coupled_pk_211, where the state's
- * pairs outgrow the caches at run time). Random layouts (uneven
- * neighbour counts: lanes that run out at different entries) with n not a multiple of four (groups
- * of fewer lanes). */
+ * per particle from pass 1's pack (coupled_pk_210 and coupled_pk_211, in 3D coupled_pk_31, where
+ * the state's pairs outgrow the caches at run time). Random layouts (uneven neighbour counts: lanes
+ * that run out at different entries) with n not a multiple of four (groups of fewer lanes). */
 static void compare_kit(const char *problem, int nx, int mode)
 {
-    const int dim3 = !strcmp(problem, "beltrami");
     char what[200];
     check_set_threads(1);
     consph_solver *g = make("l-ipst-c", problem, nx, 0.0), *v = make("l-ipst-c", problem, nx, 0.0);
@@ -175,8 +173,8 @@ static void compare_kit(const char *problem, int nx, int mode)
                                                                  : 48u),
           "%s mode %d: %lu coupled_bc passes over groups", problem, mode,
           kit_group_coupled - coupled);
-    /* mode 4 in 2D: every ∇²u coupled (32 combinations) from the pack */
-    CHECK(kit_coupled_packed - packed == (mode == 4 && !dim3 ? 32u : 0u),
+    /* mode 4: every ∇²u coupled (32 combinations) from the pack (3D: by columns, coupled_pk_31) */
+    CHECK(kit_coupled_packed - packed == (mode == 4 ? 32u : 0u),
           "%s mode %d: %lu coupled_bc passes from the pack", problem, mode,
           kit_coupled_packed - packed);
 #endif
@@ -233,6 +231,11 @@ int main(void)
           kit_first_kept - first_kept);
 #endif
     (void)first_packed;
+    /* 3D: per particle (first_kept_3110/3111) */
+    const unsigned long kept2 = kit_first_kept;
+    compare("e-c", "beltrami", 5, 0.0, 0, 1);
+    compare("ewcsph", "beltrami", 5, 0.0, 0, 2);
+    CHECK(kit_first_kept - kept2 >= 16, "3D: %lu passes 1 with B_i kept", kit_first_kept - kept2);
     (void)first_kept;
     compare("ewcsph", "taylor-green", 12, 0.0, 1, 1);
     compare("l-ipst-f", "taylor-green", 12, 0.0, 0, 1);

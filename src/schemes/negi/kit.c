@@ -40,9 +40,10 @@ typedef struct kit_job {
      * are one or two vector loads instead of one load per value (kit_pack1, kit_pack2): pass 1's
      * {ω, p, u, q} (stride s1, written where ω is), coupled_bc's {G, ∇q, ω} (stride s2, written by
      * pass 1; ω at pk2_vol where the stride leaves room, else read from vol; pk2_u and pk2_q the
-     * Laplacians it serves). NULL where no group visit reads them. */
+     * Laplacians it serves; pk2_cols: 3D per particle, G by columns, each with ∇q's entry or 0
+     * as its fourth, stride 12: coupled_pk_31). NULL where no group visit reads them. */
     double *pk1, *pk2;
-    int s1, s2, pk2_vol, pk2_u, pk2_q;
+    int s1, s2, pk2_vol, pk2_u, pk2_q, pk2_cols;
 } kit_job;
 
 /* Pass 1's pack: ω, then p, u and q where pass 1 sums them, to a multiple of four. */
@@ -79,6 +80,13 @@ static inline void kit_pack2(const kit_job *job, const size_t i, const int D, co
                              const int with_q, const double *G, const double *gq)
 {
     double *pk = job->pk2 + i * (size_t)job->s2;
+    if (D == 3 && job->pk2_cols) {
+        for (int b = 0; b < 3; ++b) {
+            for (int a = 0; a < 3; ++a) pk[4 * b + a] = with_u && job->pk2_u ? G[a * 3 + b] : 0.0;
+            pk[4 * b + 3] = with_q && job->pk2_q ? gq[b] : 0.0;
+        }
+        return;
+    }
     int o = 0;
     if (with_u && job->pk2_u)
         for (int e = 0; e < D * D; ++e) pk[o++] = G[e];
@@ -144,7 +152,7 @@ TERM_INLINE void first_store(const kit_job *job, const size_t i, const int D, co
  * same sum as div_bc's Σ ω_j (u_j - u_i)·B_i∇W_ij (001 eq. 11) associated differently: it moves
  * at round-off against the per-pair form, the same for any thread count. */
 TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int D,
-                            const int with_p, const int with_u, const int with_q)
+                            const int with_p, const int with_u, const int with_q, const int KEPT)
 {
     const size_t i = nb->i, cap = job->cap;
     const double *vol = job->vol, *pf = job->p, *uf = job->u, *qf = job->q;
@@ -167,14 +175,22 @@ TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int
         kit_first_pair(D, with_p, with_u, with_q, vol[j], dwr[k], x, with_p ? pf[j] : 0.0, pi, uj,
                        ui, with_q ? qf[j] : 0.0, qi, sm, sp, su, sq);
     }
-    first_store(job, i, D, with_p, with_u, with_q, sm, sp, su, sq);
+    if (!KEPT) {
+        first_store(job, i, D, with_p, with_u, with_q, sm, sp, su, sq);
+        return;
+    }
+    /* B_i kept (kit_req.bonet_kept; no bonet_ok to write): sm, never read, is not summed */
+    double B[9] = {0.0}, gp[3] = {0.0}, G[9] = {0.0}, div = 0.0, gq[3] = {0.0};
+    for (int e = 0; e < D * D; ++e) B[e] = job->bonet[(size_t)e * cap + i];
+    kit_first_apply(D, with_p, with_u, with_q, B, sp, su, sq, gp, G, &div, gq);
+    first_write(job, i, D, with_p, with_u, with_q, 1, B, gp, G, div, gq);
 }
 
 /* One visit function per (d, ∇p, ∇u or ∇·u, ∇q), chosen once per pass by kit_derivatives. */
 #define FIRST_CLONE(D, P, U, Q)                                                                    \
     static void first_##D##P##U##Q(void *job, const consph_nbhd *nb)                               \
     {                                                                                              \
-        first_body(job, nb, D, P, U, Q);                                                           \
+        first_body(job, nb, D, P, U, Q, 0);                                                        \
     }
 /* M(D, P, U, Q) for every (∇p, ∇u or ∇·u, ∇q) of dimension D; the table of the functions
  * PFX##D##P##U##Q that M defines, indexed [P][U][Q] */
@@ -191,6 +207,17 @@ FIRST_EACH(FIRST_CLONE, 2)
 FIRST_EACH(FIRST_CLONE, 3)
 static const consph_visit_fn first_visits[3][2][2][2] = {
     FIRST_TABLE(first_, 1), FIRST_TABLE(first_, 2), FIRST_TABLE(first_, 3)};
+
+/* 3D pass 1 with ∇p and G (or ∇·u), with or without ∇q, B_i kept (kit_req.bonet_kept): E-C's and
+ * EWCSPH's per-particle visit over their cache (2D: first_pk_kept_2110/2111) */
+static void first_kept_3110(void *job, const consph_nbhd *nb)
+{
+    first_body(job, nb, 3, 1, 1, 0, 1);
+}
+static void first_kept_3111(void *job, const consph_nbhd *nb)
+{
+    first_body(job, nb, 3, 1, 1, 1, 1);
+}
 
 /* coupled_bc (Σ ω_j (G_j - G_i)·B_i∇W_ij) of every component of u and of q in one run over the
  * neighbours, for a dimension known at compile time: B_i∇W_ij is formed once per pair and each
@@ -582,9 +609,12 @@ int kit_chain_passes = 1;
 /* Passes 1 and coupled_bc that ran over groups, and coupled_bc passes that ran per particle
  * from pass 1's pack (coupled_pk_of) (for tests: that they did). */
 unsigned long kit_group_firsts = 0, kit_group_coupled = 0, kit_coupled_packed = 0;
-/* Passes 1 that ran per particle from their pack (first_pk_of), and those of them with B_i kept
- * (kit_req.bonet_kept) (for tests) */
+/* Passes 1 that ran per particle from their pack (first_pk_of), and passes 1 per particle with
+ * B_i kept (kit_req.bonet_kept: first_pk_of's in 2D, first_kept_3110/3111) (for tests) */
 unsigned long kit_first_packed = 0, kit_first_kept = 0;
+/* Whether pass 1 applies a kept B_i where kit_req.bonet_kept allows (0: it computes B_i again,
+ * the same values; tests compare the two) */
+int kit_keep_bonet = 1;
 /* coupled_bc's group visit reads four lanes' pairs side by side; the chained pass runs a few
  * neighbourhoods behind the fill, and once the state's pair cache is larger than about this many
  * bytes those pairs come from the last-level cache, where the per-particle visit's single
@@ -919,7 +949,7 @@ TERM_INLINE void group_first_body(const kit_job *job, const consph_nbhd *nb, con
     size_t kmin, kmax;
     lane4i nv = {0, 0, 0, 0}, m = nv;
     if (!kv_extent(nb, &kmin, &kmax, &nv)) {
-        for (int l = 0; l < count; ++l) first_body(job, &nb[l], D, with_p, with_u, with_q);
+        for (int l = 0; l < count; ++l) first_body(job, &nb[l], D, with_p, with_u, with_q, 0);
         return;
     }
     const size_t cap = job->cap;
@@ -1203,8 +1233,60 @@ static consph_visit_fn first_pk_of(int d, int with_p, int with_u, int with_q, in
 }
 
 /* coupled_bc's ∇²u, alone or with ∇²q, per particle from the pack (2D only) */
+/* coupled_body of ∇²u (and ∇²q: Q) in 3D at one particle from the pack by columns (pk2_cols):
+ * lane a of the vectors is row a of kit_coupled_pair's sums and lane 3 the sum of ∇²q, each with
+ * its operations in their order: g = ((0 + B_a0 w x_0) + B_a1 w x_1) + B_a2 w x_2 by B's columns,
+ * then ((0 + d_a0 g_0) + d_a1 g_1) + d_a2 g_2 with d = G_j - G_i by columns (∇q_j - ∇q_i in lane
+ * 3), times ω_j, added to each sum in the pairs' order: bit for bit coupled_body's. G_j and ∇q_j
+ * are three vector loads from one particle's 96 bytes instead of twelve loads from twelve fields
+ * (the per-particle visit where the state's pairs outgrow the caches, coupled_lanes_pay). */
+TERM_INLINE void coupled_pk_3(const kit_job *job, const consph_nbhd *nb, const int Q)
+{
+    const size_t i = nb->i, cap = job->cap;
+    const double *vol = job->vol, *pk = job->pk2, *bo = job->bonet, *gu = job->gradu;
+    const double *dx0 = nb->dx[0], *dx1 = nb->dx[1], *dx2 = nb->dx[2], *dwr = nb->dwr;
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0};
+    lane4 Bc[3], Gc[3];
+    for (int b = 0; b < 3; ++b) {
+        Bc[b] = (lane4){bo[(size_t)b * cap + i], bo[(size_t)(3 + b) * cap + i],
+                        bo[(size_t)(6 + b) * cap + i], 0.0};
+        Gc[b] = (lane4){gu[(size_t)b * cap + i], gu[(size_t)(3 + b) * cap + i],
+                        gu[(size_t)(6 + b) * cap + i], Q ? job->gradq[(size_t)b * cap + i] : 0.0};
+    }
+    lane4 acc = zero;
+    for (size_t k = 0; k < nb->n; ++k) {
+        const size_t j = nb->j[k];
+        const double w1 = dwr[k], r0 = w1 * dx0[k], r1 = w1 * dx1[k], r2 = w1 * dx2[k];
+        const lane4 g =
+            ((zero + Bc[0] * (lane4){r0, r0, r0, r0}) + Bc[1] * (lane4){r1, r1, r1, r1}) +
+            Bc[2] * (lane4){r2, r2, r2, r2};
+        const double *q = pk + 12 * j;
+        const lane4 d0 = *(const lane4u *)q - Gc[0], d1 = *(const lane4u *)(q + 4) - Gc[1];
+        const lane4 d2 = *(const lane4u *)(q + 8) - Gc[2];
+        const lane4 g0 = LANE4_SHUF(g, g, 0, 0, 0, 0), g1 = LANE4_SHUF(g, g, 1, 1, 1, 1);
+        const lane4 g2 = LANE4_SHUF(g, g, 2, 2, 2, 2);
+        const lane4 sa = ((zero + d0 * g0) + d1 * g1) + d2 * g2;
+        const double om = vol[j];
+        acc += (lane4){om, om, om, om} * sa;
+    }
+    job->lapu[i] = acc[0];
+    job->lapu[cap + i] = acc[1];
+    job->lapu[2 * cap + i] = acc[2];
+    if (Q) job->lapq[i] = acc[3];
+}
+
+KIT_CLONES static void coupled_pk_310(void *vjob, const consph_nbhd *nb)
+{
+    coupled_pk_3(vjob, nb, 0);
+}
+KIT_CLONES static void coupled_pk_311(void *vjob, const consph_nbhd *nb)
+{
+    coupled_pk_3(vjob, nb, 1);
+}
+
 static consph_visit_fn coupled_pk_of(int d, int with_q)
 {
+    if (d == 3) return with_q ? coupled_pk_311 : coupled_pk_310;
     return d == 2 ? (with_q ? coupled_pk_211 : coupled_pk_210) : NULL;
 }
 #if !defined(__clang__)
@@ -1382,10 +1464,14 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
     const pass_group_fn group_first = lanes ? group_first_of(d, gp, gu, gq) : NULL;
     /* where pass 1 runs per particle (over a filled cache), it reads its pack too (2D:
      * first_pk_of) */
-    const int kept = r.bonet_kept && !job.bonet_ok;
+    const int kept = kit_keep_bonet && r.bonet_kept && !job.bonet_ok;
     const consph_visit_fn visit_first_pk = group_first ? first_pk_of(d, gp, gu, gq, kept) : NULL;
+    const consph_visit_fn visit_first_kept =
+        kept && d == 3 && gp && gu ? (gq ? first_kept_3111 : first_kept_3110) : NULL;
     const consph_pass first = {"kit: bonet, gradients, divergence", CONSPH_PASS_DW,
-                               visit_first_pk ? visit_first_pk : visit_first};
+                               visit_first_pk     ? visit_first_pk
+                               : visit_first_kept ? visit_first_kept
+                                                  : visit_first};
     unsigned need2 = CONSPH_PASS_DW;
     if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need2 |= CONSPH_PASS_D2W;
     /* Not on a decomposed system: its chain runs only where the pair cache is large (a small
@@ -1408,6 +1494,12 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         job.pk2_u = (want & KIT_LAPU) != 0;
         job.pk2_q = (want & KIT_LAPQ) != 0;
         job.s2 = kit_pack2_stride(d, job.pk2_u, job.pk2_q, &job.pk2_vol);
+        if (d == 3 && visit_pk) {
+            /* coupled_pk_31's columns (ω read from vol) */
+            job.pk2_cols = 1;
+            job.s2 = 12;
+            job.pk2_vol = -1;
+        }
     }
     if (group_first || job.s2) {
         /* a decomposed system's refresh carries the scratch as columns of n values, which would
@@ -1515,6 +1607,8 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         __atomic_fetch_add(&kit_first_packed, 1, __ATOMIC_RELAXED);
         if (kept) __atomic_fetch_add(&kit_first_kept, 1, __ATOMIC_RELAXED);
     }
+    if (st == CONSPH_OK && visit_first_kept && !grouped)
+        __atomic_fetch_add(&kit_first_kept, 1, __ATOMIC_RELAXED);
     if (st == CONSPH_OK) ++*passes;
     if (with_second) consph_sys_next_reads(s, &second_reads);
     if (st == CONSPH_OK && with_second && job.pk2) st = kit_pack_sources(s, &job, 2);

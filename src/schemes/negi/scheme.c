@@ -178,8 +178,8 @@ static int gradients_for_shift(consph_solver *s, const consph_pass *then, void *
     int passes = 0;
     /* These two passes and the shifting's first (IPST's volumes, or the PST) read this state */
     consph_sys_expect_passes(&s->sys, 3, CONSPH_PASS_W | CONSPH_PASS_DW);
-    kit_req rq = {KIT_GRADU | KIT_GRADQ, KIT_LAP_COUPLED, s->scheme->evolve_p ? SF_P : SF_RHOF,
-                  1e8, 0};
+    kit_req rq = {KIT_GRADU | KIT_GRADQ, KIT_LAP_COUPLED, s->scheme->evolve_p ? SF_P : SF_RHOF, 1e8,
+                  0};
     return kit_volumes_derivatives_then(&s->sys, &rq, then, then_job, &s->pairs, &passes);
 }
 
