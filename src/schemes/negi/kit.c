@@ -152,7 +152,7 @@ TERM_INLINE void first_store(const kit_job *job, const size_t i, const int D, co
  * same sum as div_bc's Σ ω_j (u_j - u_i)·B_i∇W_ij (001 eq. 11) associated differently: it moves
  * at round-off against the per-pair form, the same for any thread count. */
 TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int D,
-                            const int with_p, const int with_u, const int with_q, const int KEPT)
+                            const int with_p, const int with_u, const int with_q)
 {
     const size_t i = nb->i, cap = job->cap;
     const double *vol = job->vol, *pf = job->p, *uf = job->u, *qf = job->q;
@@ -175,22 +175,14 @@ TERM_INLINE void first_body(const kit_job *job, const consph_nbhd *nb, const int
         kit_first_pair(D, with_p, with_u, with_q, vol[j], dwr[k], x, with_p ? pf[j] : 0.0, pi, uj,
                        ui, with_q ? qf[j] : 0.0, qi, sm, sp, su, sq);
     }
-    if (!KEPT) {
-        first_store(job, i, D, with_p, with_u, with_q, sm, sp, su, sq);
-        return;
-    }
-    /* B_i kept (kit_req.bonet_kept; no bonet_ok to write): sm, never read, is not summed */
-    double B[9] = {0.0}, gp[3] = {0.0}, G[9] = {0.0}, div = 0.0, gq[3] = {0.0};
-    for (int e = 0; e < D * D; ++e) B[e] = job->bonet[(size_t)e * cap + i];
-    kit_first_apply(D, with_p, with_u, with_q, B, sp, su, sq, gp, G, &div, gq);
-    first_write(job, i, D, with_p, with_u, with_q, 1, B, gp, G, div, gq);
+    first_store(job, i, D, with_p, with_u, with_q, sm, sp, su, sq);
 }
 
 /* One visit function per (d, ∇p, ∇u or ∇·u, ∇q), chosen once per pass by kit_derivatives. */
 #define FIRST_CLONE(D, P, U, Q)                                                                    \
     static void first_##D##P##U##Q(void *job, const consph_nbhd *nb)                               \
     {                                                                                              \
-        first_body(job, nb, D, P, U, Q, 0);                                                        \
+        first_body(job, nb, D, P, U, Q);                                                           \
     }
 /* M(D, P, U, Q) for every (∇p, ∇u or ∇·u, ∇q) of dimension D; the table of the functions
  * PFX##D##P##U##Q that M defines, indexed [P][U][Q] */
@@ -207,17 +199,6 @@ FIRST_EACH(FIRST_CLONE, 2)
 FIRST_EACH(FIRST_CLONE, 3)
 static const consph_visit_fn first_visits[3][2][2][2] = {
     FIRST_TABLE(first_, 1), FIRST_TABLE(first_, 2), FIRST_TABLE(first_, 3)};
-
-/* 3D pass 1 with ∇p and G (or ∇·u), with or without ∇q, B_i kept (kit_req.bonet_kept): E-C's and
- * EWCSPH's per-particle visit over their cache (2D: first_pk_kept_2110/2111) */
-static void first_kept_3110(void *job, const consph_nbhd *nb)
-{
-    first_body(job, nb, 3, 1, 1, 0, 1);
-}
-static void first_kept_3111(void *job, const consph_nbhd *nb)
-{
-    first_body(job, nb, 3, 1, 1, 1, 1);
-}
 
 /* coupled_bc (Σ ω_j (G_j - G_i)·B_i∇W_ij) of every component of u and of q in one run over the
  * neighbours, for a dimension known at compile time: B_i∇W_ij is formed once per pair and each
@@ -609,8 +590,8 @@ int kit_chain_passes = 1;
 /* Passes 1 and coupled_bc that ran over groups, and coupled_bc passes that ran per particle
  * from pass 1's pack (coupled_pk_of) (for tests: that they did). */
 unsigned long kit_group_firsts = 0, kit_group_coupled = 0, kit_coupled_packed = 0;
-/* Passes 1 that ran per particle from their pack (first_pk_of), and passes 1 per particle with
- * B_i kept (kit_req.bonet_kept: first_pk_of's in 2D, first_kept_3110/3111) (for tests) */
+/* Passes 1 that ran per particle from their pack (first_pk_of), and those of them with B_i kept
+ * (kit_req.bonet_kept) (for tests) */
 unsigned long kit_first_packed = 0, kit_first_kept = 0;
 /* Whether pass 1 applies a kept B_i where kit_req.bonet_kept allows (0: it computes B_i again,
  * the same values; tests compare the two) */
@@ -949,7 +930,7 @@ TERM_INLINE void group_first_body(const kit_job *job, const consph_nbhd *nb, con
     size_t kmin, kmax;
     lane4i nv = {0, 0, 0, 0}, m = nv;
     if (!kv_extent(nb, &kmin, &kmax, &nv)) {
-        for (int l = 0; l < count; ++l) first_body(job, &nb[l], D, with_p, with_u, with_q, 0);
+        for (int l = 0; l < count; ++l) first_body(job, &nb[l], D, with_p, with_u, with_q);
         return;
     }
     const size_t cap = job->cap;
@@ -1223,16 +1204,79 @@ KIT_CLONES static void first_pk_kept_2111(void *job, const consph_nbhd *nb)
     first_pk_body(job, nb, 1, 1);
 }
 
-/* pass 1 per particle from its pack: 2D with ∇p and G (or ∇·u), with or without ∇q; kept: with
- * B_i kept (kit_req.bonet_kept), the moment neither summed nor inverted */
+/* first_body in 3D with ∇p and G (and ∇q: Q) at one particle from pass 1's pack {ω, p, u_0, u_1,
+ * u_2, q}: lanes {1, p_j - p_i, u_j - u_i} times ω_j then W'/r are {g, t_p, t_u0, t_u1} of
+ * kit_first_pair (ω_j 1 = ω_j exactly), and t_u2, t_q the same in a second vector; each sum over
+ * b (the moment's rows from g x_a, the gradients' from t) takes lanes b = 0, 1, 2 of one vector,
+ * t x with x = {x_0, x_1, x_2, 0}, so every sum, and the finish, is first_body's bit for bit.
+ * Two vector loads per pair from one particle's row instead of six loads from six fields. KEPT:
+ * B_i kept (kit_req.bonet_kept), the moment not summed. */
+TERM_INLINE void first_pk_3(const kit_job *job, const consph_nbhd *nb, const int Q, const int KEPT)
+{
+    const size_t i = nb->i, cap = job->cap;
+    const int S = job->s1;
+    const double *pk = job->pk1, *dx0 = nb->dx[0], *dx1 = nb->dx[1], *dx2 = nb->dx[2];
+    const double *dwr = nb->dwr;
+    const lane4 zero = {0.0, 0.0, 0.0, 0.0}, one = {1.0, 1.0, 1.0, 1.0};
+    const double *u = job->u;
+    const lane4 fi = {0.0, job->p[i], u[i], u[cap + i]};
+    const double u2i = u[2 * cap + i], qi = Q ? job->q[i] : 0.0;
+    lane4 M0 = zero, M1 = zero, M2 = zero, SP = zero, U0 = zero, U1 = zero, U2 = zero, SQ = zero;
+    for (size_t k = 0; k < nb->n; ++k) {
+        const double *v = pk + nb->j[k] * (size_t)S;
+        const lane4 f = *(const lane4u *)v;
+        const double om = f[0], w1 = dwr[k], x0 = dx0[k], x1 = dx1[k], x2 = dx2[k];
+        const lane4 x = {x0, x1, x2, 0.0};
+        const lane4 oo = {om, om, om, om}, ww = {w1, w1, w1, w1};
+        const lane4 t = oo * LANE4_SHUF(one, f - fi, 0, 5, 6, 7) * ww;
+        const lane4 t2 = oo * (lane4){v[4] - u2i, Q ? v[5] - qi : 0.0, 0.0, 0.0} * ww;
+        if (!KEPT) {
+            const double g = t[0];
+            M0 = M0 - (lane4){g * x0, g * x0, g * x0, g * x0} * x;
+            M1 = M1 - (lane4){g * x1, g * x1, g * x1, g * x1} * x;
+            M2 = M2 - (lane4){g * x2, g * x2, g * x2, g * x2} * x;
+        }
+        SP = SP + LANE4_SHUF(t, t, 1, 1, 1, 1) * x;
+        U0 = U0 + LANE4_SHUF(t, t, 2, 2, 2, 2) * x;
+        U1 = U1 + LANE4_SHUF(t, t, 3, 3, 3, 3) * x;
+        U2 = U2 + LANE4_SHUF(t2, t2, 0, 0, 0, 0) * x;
+        if (Q) SQ = SQ + LANE4_SHUF(t2, t2, 1, 1, 1, 1) * x;
+    }
+    const double sp[3] = {SP[0], SP[1], SP[2]}, sq[3] = {SQ[0], SQ[1], SQ[2]};
+    const double su[9] = {U0[0], U0[1], U0[2], U1[0], U1[1], U1[2], U2[0], U2[1], U2[2]};
+    if (!KEPT) {
+        const double sm[9] = {M0[0], M0[1], M0[2], M1[0], M1[1], M1[2], M2[0], M2[1], M2[2]};
+        first_store(job, i, 3, 1, 1, Q, sm, sp, su, sq);
+        return;
+    }
+    double B[9], gp[3] = {0.0}, G[9] = {0.0}, div = 0.0, gq[3] = {0.0};
+    for (int e = 0; e < 9; ++e) B[e] = job->bonet[(size_t)e * cap + i];
+    kit_first_apply(3, 1, 1, Q, B, sp, su, sq, gp, G, &div, gq);
+    first_write(job, i, 3, 1, 1, Q, 1, B, gp, G, div, gq);
+}
+
+#define FIRST_PK_3(Q, K)                                                                           \
+    KIT_CLONES static void first_pk_3##Q##K(void *job, const consph_nbhd *nb)                      \
+    {                                                                                              \
+        first_pk_3(job, nb, Q, K);                                                                 \
+    }
+FIRST_PK_3(0, 0)
+FIRST_PK_3(1, 0)
+FIRST_PK_3(0, 1)
+FIRST_PK_3(1, 1)
+#undef FIRST_PK_3
+
+/* pass 1 per particle from its pack: 2D and 3D with ∇p and G (or ∇·u), with or without ∇q; kept:
+ * with B_i kept (kit_req.bonet_kept), the moment neither summed nor inverted */
 static consph_visit_fn first_pk_of(int d, int with_p, int with_u, int with_q, int kept)
 {
-    if (d != 2 || !with_p || !with_u) return NULL;
+    if (d < 2 || !with_p || !with_u) return NULL;
+    if (d == 3)
+        return kept ? (with_q ? first_pk_311 : first_pk_301) : with_q ? first_pk_310 : first_pk_300;
     if (kept) return with_q ? first_pk_kept_2111 : first_pk_kept_2110;
     return with_q ? first_pk_2111 : first_pk_2110;
 }
 
-/* coupled_bc's ∇²u, alone or with ∇²q, per particle from the pack (2D only) */
 /* coupled_body of ∇²u (and ∇²q: Q) in 3D at one particle from the pack by columns (pk2_cols):
  * lane a of the vectors is row a of kit_coupled_pair's sums and lane 3 the sum of ∇²q, each with
  * its operations in their order: g = ((0 + B_a0 w x_0) + B_a1 w x_1) + B_a2 w x_2 by B's columns,
@@ -1284,6 +1328,7 @@ KIT_CLONES static void coupled_pk_311(void *vjob, const consph_nbhd *nb)
     coupled_pk_3(vjob, nb, 1);
 }
 
+/* coupled_bc's ∇²u, alone or with ∇²q, per particle from the pack (2D and 3D) */
 static consph_visit_fn coupled_pk_of(int d, int with_q)
 {
     if (d == 3) return with_q ? coupled_pk_311 : coupled_pk_310;
@@ -1466,12 +1511,8 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
      * first_pk_of) */
     const int kept = kit_keep_bonet && r.bonet_kept && !job.bonet_ok;
     const consph_visit_fn visit_first_pk = group_first ? first_pk_of(d, gp, gu, gq, kept) : NULL;
-    const consph_visit_fn visit_first_kept =
-        kept && d == 3 && gp && gu ? (gq ? first_kept_3111 : first_kept_3110) : NULL;
     const consph_pass first = {"kit: bonet, gradients, divergence", CONSPH_PASS_DW,
-                               visit_first_pk     ? visit_first_pk
-                               : visit_first_kept ? visit_first_kept
-                                                  : visit_first};
+                               visit_first_pk ? visit_first_pk : visit_first};
     unsigned need2 = CONSPH_PASS_DW;
     if ((want & KIT_LAPU) && rq->lap == KIT_LAP_KORZILIUS) need2 |= CONSPH_PASS_D2W;
     /* Not on a decomposed system: its chain runs only where the pair cache is large (a small
@@ -1607,8 +1648,6 @@ static int kit_passes(consph_sys *s, const kit_req *rq, size_t *pairs, int *pass
         __atomic_fetch_add(&kit_first_packed, 1, __ATOMIC_RELAXED);
         if (kept) __atomic_fetch_add(&kit_first_kept, 1, __ATOMIC_RELAXED);
     }
-    if (st == CONSPH_OK && visit_first_kept && !grouped)
-        __atomic_fetch_add(&kit_first_kept, 1, __ATOMIC_RELAXED);
     if (st == CONSPH_OK) ++*passes;
     if (with_second) consph_sys_next_reads(s, &second_reads);
     if (st == CONSPH_OK && with_second && job.pk2) st = kit_pack_sources(s, &job, 2);
