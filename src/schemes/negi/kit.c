@@ -444,7 +444,7 @@ TERM_INLINE void korzilius_body2(const kit_job *job, const consph_nbhd *nb, cons
         if (m == 4) {
             const lane4 r = *(const lane4u *)(nb->r + k0), w1 = *(const lane4u *)(dwr + k0);
             const lane4 w2 = *(const lane4u *)(nb->d2w + k0);
-            /* term_hess_radial; a lane at r = 0 divides by zero unread */
+            /* term_hess_radial; a lane at r = 0 divides by zero, and the selection drops it */
             const lane4 h = LANE4_SEL((lane4i)(r > 0.0), (w2 - w1) / (r * r), zero);
             for (int l = 0; l < 4; ++l) aee[l] = h[l];
         } else {
