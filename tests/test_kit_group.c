@@ -231,7 +231,7 @@ int main(void)
           kit_first_kept - first_kept);
 #endif
     (void)first_packed;
-    /* 3D: per particle (first_kept_3110/3111) */
+    /* 3D: per particle from the pack (first_pk_kept_3110/3111) */
     const unsigned long kept2 = kit_first_kept;
     compare("e-c", "beltrami", 5, 0.0, 0, 1);
     compare("ewcsph", "beltrami", 5, 0.0, 0, 2);

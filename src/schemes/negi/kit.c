@@ -1255,16 +1255,22 @@ TERM_INLINE void first_pk_3(const kit_job *job, const consph_nbhd *nb, const int
     first_write(job, i, 3, 1, 1, Q, 1, B, gp, G, div, gq);
 }
 
-#define FIRST_PK_3(Q, K)                                                                           \
-    KIT_CLONES static void first_pk_3##Q##K(void *job, const consph_nbhd *nb)                      \
-    {                                                                                              \
-        first_pk_3(job, nb, Q, K);                                                                 \
-    }
-FIRST_PK_3(0, 0)
-FIRST_PK_3(1, 0)
-FIRST_PK_3(0, 1)
-FIRST_PK_3(1, 1)
-#undef FIRST_PK_3
+KIT_CLONES static void first_pk_3110(void *job, const consph_nbhd *nb)
+{
+    first_pk_3(job, nb, 0, 0);
+}
+KIT_CLONES static void first_pk_3111(void *job, const consph_nbhd *nb)
+{
+    first_pk_3(job, nb, 1, 0);
+}
+KIT_CLONES static void first_pk_kept_3110(void *job, const consph_nbhd *nb)
+{
+    first_pk_3(job, nb, 0, 1);
+}
+KIT_CLONES static void first_pk_kept_3111(void *job, const consph_nbhd *nb)
+{
+    first_pk_3(job, nb, 1, 1);
+}
 
 /* pass 1 per particle from its pack: 2D and 3D with ∇p and G (or ∇·u), with or without ∇q; kept:
  * with B_i kept (kit_req.bonet_kept), the moment neither summed nor inverted */
@@ -1272,7 +1278,8 @@ static consph_visit_fn first_pk_of(int d, int with_p, int with_u, int with_q, in
 {
     if (d < 2 || !with_p || !with_u) return NULL;
     if (d == 3)
-        return kept ? (with_q ? first_pk_311 : first_pk_301) : with_q ? first_pk_310 : first_pk_300;
+        return kept ? (with_q ? first_pk_kept_3111 : first_pk_kept_3110)
+                    : (with_q ? first_pk_3111 : first_pk_3110);
     if (kept) return with_q ? first_pk_kept_2111 : first_pk_kept_2110;
     return with_q ? first_pk_2111 : first_pk_2110;
 }
