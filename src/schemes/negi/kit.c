@@ -144,6 +144,18 @@ TERM_INLINE void first_store(const kit_job *job, const size_t i, const int D, co
     first_write(job, i, D, with_p, with_u, with_q, ok, B, gp, G, div, gq);
 }
 
+/* first_store with B_i kept (kit_req.bonet_kept), ∇p and G asked for: B_i from its field instead
+ * of the moment's inverse, no bonet_ok to write (pass 1 per particle from its pack, 2D and 3D) */
+TERM_INLINE void first_store_kept(const kit_job *job, const size_t i, const int D, const int with_q,
+                                  const double sp[3], const double su[9], const double sq[3])
+{
+    const size_t cap = job->cap;
+    double B[9] = {0.0}, gp[3] = {0.0}, G[9] = {0.0}, div = 0.0, gq[3] = {0.0};
+    for (int e = 0; e < D * D; ++e) B[e] = job->bonet[(size_t)e * cap + i];
+    kit_first_apply(D, 1, 1, with_q, B, sp, su, sq, gp, G, &div, gq);
+    first_write(job, i, D, 1, 1, with_q, 1, B, gp, G, div, gq);
+}
+
 /* Pass 1 at one particle, for a dimension and a set of derivatives known at compile time: one
  * run over the neighbours sums the Bonet moment and the raw gradient sums Σ ω_j (f_j - f_i) ∇W_ij
  * of p, of every component of u and of q, with the arithmetic of term_moments and
@@ -1148,8 +1160,7 @@ static pass_group_fn group_first_of(int d, int with_p, int with_u, int with_q)
  * kit_first_pair (ω_j 1 = ω_j exactly); the moment's terms are (g x_a) x_b, the gradients'
  * t x_b, each lane's sum runs over the pairs in their order, so the sums, and first_store's
  * results, are first_body's bit for bit (lanes 0 and 1 of sp sum g x, never read). */
-TERM_INLINE void first_pk_body(const kit_job *job, const consph_nbhd *nb, const int Q,
-                               const int KEPT)
+TERM_INLINE void first_pk_2(const kit_job *job, const consph_nbhd *nb, const int Q, const int KEPT)
 {
     const size_t i = nb->i, cap = job->cap;
     const int S = job->s1;
@@ -1176,32 +1187,10 @@ TERM_INLINE void first_pk_body(const kit_job *job, const consph_nbhd *nb, const 
     }
     const double sm[9] = {SM[0], SM[1], SM[2], SM[3]}, sp[3] = {SP[2], SP[3], 0.0};
     const double su[9] = {SU[0], SU[1], SU[2], SU[3]}, sq[3] = {SQ[0], SQ[1], 0.0};
-    if (!KEPT) {
+    if (KEPT)
+        first_store_kept(job, i, 2, Q, sp, su, sq);
+    else
         first_store(job, i, 2, 1, 1, Q, sm, sp, su, sq);
-        return;
-    }
-    /* B_i kept (kit_req.bonet_kept; no bonet_ok to write): the finish without the inversion */
-    double B[9] = {0.0}, gp[3] = {0.0}, G[9] = {0.0}, div = 0.0, gq[3] = {0.0};
-    for (int e = 0; e < 4; ++e) B[e] = job->bonet[(size_t)e * cap + i];
-    kit_first_apply(2, 1, 1, Q, B, sp, su, sq, gp, G, &div, gq);
-    first_write(job, i, 2, 1, 1, Q, 1, B, gp, G, div, gq);
-}
-
-KIT_CLONES static void first_pk_2110(void *job, const consph_nbhd *nb)
-{
-    first_pk_body(job, nb, 0, 0);
-}
-KIT_CLONES static void first_pk_2111(void *job, const consph_nbhd *nb)
-{
-    first_pk_body(job, nb, 1, 0);
-}
-KIT_CLONES static void first_pk_kept_2110(void *job, const consph_nbhd *nb)
-{
-    first_pk_body(job, nb, 0, 1);
-}
-KIT_CLONES static void first_pk_kept_2111(void *job, const consph_nbhd *nb)
-{
-    first_pk_body(job, nb, 1, 1);
 }
 
 /* first_body in 3D with ∇p and G (and ∇q: Q) at one particle from pass 1's pack {ω, p, u_0, u_1,
@@ -1244,33 +1233,28 @@ TERM_INLINE void first_pk_3(const kit_job *job, const consph_nbhd *nb, const int
     }
     const double sp[3] = {SP[0], SP[1], SP[2]}, sq[3] = {SQ[0], SQ[1], SQ[2]};
     const double su[9] = {U0[0], U0[1], U0[2], U1[0], U1[1], U1[2], U2[0], U2[1], U2[2]};
-    if (!KEPT) {
-        const double sm[9] = {M0[0], M0[1], M0[2], M1[0], M1[1], M1[2], M2[0], M2[1], M2[2]};
+    const double sm[9] = {M0[0], M0[1], M0[2], M1[0], M1[1], M1[2], M2[0], M2[1], M2[2]};
+    if (KEPT)
+        first_store_kept(job, i, 3, Q, sp, su, sq);
+    else
         first_store(job, i, 3, 1, 1, Q, sm, sp, su, sq);
-        return;
-    }
-    double B[9], gp[3] = {0.0}, G[9] = {0.0}, div = 0.0, gq[3] = {0.0};
-    for (int e = 0; e < 9; ++e) B[e] = job->bonet[(size_t)e * cap + i];
-    kit_first_apply(3, 1, 1, Q, B, sp, su, sq, gp, G, &div, gq);
-    first_write(job, i, 3, 1, 1, Q, 1, B, gp, G, div, gq);
 }
 
-KIT_CLONES static void first_pk_3110(void *job, const consph_nbhd *nb)
-{
-    first_pk_3(job, nb, 0, 0);
-}
-KIT_CLONES static void first_pk_3111(void *job, const consph_nbhd *nb)
-{
-    first_pk_3(job, nb, 1, 0);
-}
-KIT_CLONES static void first_pk_kept_3110(void *job, const consph_nbhd *nb)
-{
-    first_pk_3(job, nb, 0, 1);
-}
-KIT_CLONES static void first_pk_kept_3111(void *job, const consph_nbhd *nb)
-{
-    first_pk_3(job, nb, 1, 1);
-}
+/* The visits first_pk_D11Q (B_i computed) and first_pk_kept_D11Q (B_i kept) of first_pk_D. */
+#define FIRST_PK_VISITS(D, Q)                                                                      \
+    KIT_CLONES static void first_pk_##D##11##Q(void *job, const consph_nbhd *nb)                   \
+    {                                                                                              \
+        first_pk_##D(job, nb, Q, 0);                                                               \
+    }                                                                                              \
+    KIT_CLONES static void first_pk_kept_##D##11##Q(void *job, const consph_nbhd *nb)              \
+    {                                                                                              \
+        first_pk_##D(job, nb, Q, 1);                                                               \
+    }
+FIRST_PK_VISITS(2, 0)
+FIRST_PK_VISITS(2, 1)
+FIRST_PK_VISITS(3, 0)
+FIRST_PK_VISITS(3, 1)
+#undef FIRST_PK_VISITS
 
 /* pass 1 per particle from its pack: 2D and 3D with ∇p and G (or ∇·u), with or without ∇q; kept:
  * with B_i kept (kit_req.bonet_kept), the moment neither summed nor inverted */
